@@ -1,0 +1,45 @@
+"""The ``dpgw`` command line: one entry point, a subcommand per job.
+
+argparse (standard library) is used: it gives ``--help`` on every subcommand and needs no dependency.
+Each subcommand lives in its own module (``gateway/cli_*.py`` or the package that owns the job) and
+registers itself here.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from gateway import cli_tune
+
+SUBCOMMANDS = [cli_tune]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="dpgw",
+        description=(
+            "dpgw: hardware-in-the-loop gateway for dynamic positioning. Reads DGPS/gyro NMEA 0183 and "
+            "MAVLink thruster feedback, runs wave-filtering observers, publishes on Zenoh, logs to MCAP."
+        ),
+        epilog="Run 'dpgw COMMAND --help' for the options of each command.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for module in SUBCOMMANDS:
+        module.register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help()
+        return 2
+    code: int = args.func(args)
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

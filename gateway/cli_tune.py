@@ -1,0 +1,152 @@
+"""``dpgw tune``: observer gains, error-dynamics poles, tuning-rule and SPR checks, notch depth."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from typing import Any
+
+import numpy as np
+
+from observers.passive_tuning import (
+    PassiveTuning,
+    check_gains,
+    error_eigenvalues,
+    notch_depth_db,
+    passive_gains,
+    slowest_error_rate,
+)
+from observers.vessel import VesselError, builtin_vessels, load_vessel
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser(
+        "tune",
+        help="passive-observer gains and checks for a vessel and sea state",
+        description=(
+            "Compute the gains of the Fossen & Strand (1999) passive observer for a vessel and a dominating "
+            "wave period, in physical terms, and check them: the tuning rule (48), the SPR condition of "
+            "Proposition 1, the eigenvalues of the linearised estimation-error dynamics, and the notch "
+            "depth (how much wave-frequency motion at ω0 reaches the low-frequency estimate)."
+        ),
+        epilog=(
+            "examples:\n"
+            "  dpgw tune --vessel mss_supply --wave-period 9\n"
+            "  dpgw tune --vessel my_ship.toml --wave-period 7 --velocity-injection 0.1 --json\n"
+            f"built-in vessels: {', '.join(builtin_vessels())}"
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--vessel", required=True, help="built-in vessel name or a vessel TOML file")
+    p.add_argument(
+        "--wave-period", type=float, required=True, metavar="S", help="dominating wave period Tp (s)"
+    )
+    p.add_argument("--zeta", type=float, default=0.1, help="wave-model damping ζ (default 0.1)")
+    p.add_argument("--zeta-n", type=float, default=1.0, help="notch damping ζn > ζ (default 1.0)")
+    p.add_argument(
+        "--cutoff-ratio", type=float, default=None, help="ωc/ω0 (default the paper's 1.1/0.8976 = 1.2255)"
+    )
+    p.add_argument("--bias-time", type=float, default=1000.0, metavar="S", help="bias time constant T (s)")
+    p.add_argument(
+        "--velocity-injection",
+        type=float,
+        default=0.2,
+        metavar="PER_S",
+        help="extra decay rate of the velocity error from the injection 𝒦 (1/s, default 0.2)",
+    )
+    p.add_argument(
+        "--bias-corner-ratio", type=float, default=0.035, help="bias corner λ/κ as a fraction of ω0 (0.035)"
+    )
+    p.add_argument("--json", action="store_true", help="print one JSON object (for programs)")
+    p.set_defaults(func=run)
+
+
+def _matrix(a: np.ndarray) -> list[list[float]]:
+    return [[float(v) for v in row] for row in np.atleast_2d(a)]
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        vessel = load_vessel(args.vessel)
+    except VesselError as exc:
+        print(f"dpgw tune: {exc}", file=sys.stderr)
+        return 2
+    if not args.wave_period > 0:
+        print("dpgw tune: --wave-period must be a positive number of seconds", file=sys.stderr)
+        return 2
+    kwargs: dict[str, Any] = {
+        "zeta": args.zeta,
+        "zeta_n": args.zeta_n,
+        "bias_time_constant_s": args.bias_time,
+        "velocity_injection": args.velocity_injection,
+        "bias_corner_ratio": args.bias_corner_ratio,
+    }
+    if args.cutoff_ratio is not None:
+        kwargs["cutoff_ratio"] = args.cutoff_ratio
+    try:
+        gains = passive_gains(vessel, PassiveTuning.from_wave_period(args.wave_period, **kwargs))
+    except ValueError as exc:
+        print(f"dpgw tune: {exc}", file=sys.stderr)
+        return 2
+    checks = check_gains(gains)
+    eig = error_eigenvalues(vessel, gains, 0.0)
+    slowest = slowest_error_rate(vessel, gains)
+    notch = notch_depth_db(vessel, gains)
+    result = {
+        "vessel": vessel.name,
+        "wave_period_s": args.wave_period,
+        "omega0": gains.omega0.tolist(),
+        "omega_c": gains.omega_c.tolist(),
+        "K1": _matrix(gains.K1),
+        "K2": _matrix(gains.K2),
+        "K3": _matrix(gains.K3),
+        "K4": _matrix(gains.K4),
+        "T": _matrix(gains.T),
+        "eigenvalues": [[float(e.real), float(e.imag)] for e in eig],
+        "slowest_rate_any_heading": slowest,
+        "checks": [c.as_dict() for c in checks],
+        "notch_db": notch.tolist(),
+    }
+    if args.json:
+        print(json.dumps(result, indent=2))
+    else:
+        print(_text(result, vessel.source))
+    return 0 if all(c.ok for c in checks) else 1
+
+
+def _fmt_matrix(name: str, m: list[list[float]], unit: str) -> str:
+    rows = ["  [" + "  ".join(f"{v:12.5g}" for v in row) + " ]" for row in m]
+    return f"{name} ({unit}):\n" + "\n".join(rows)
+
+
+def _text(r: dict[str, Any], source: str) -> str:
+    w0 = r["omega0"][0]
+    lines = [
+        f"vessel {r['vessel']}  ({source})",
+        f"wave period {r['wave_period_s']:g} s -> ω0 = {w0:.4f} rad/s, ωc = {r['omega_c'][0]:.4f} rad/s",
+        "",
+        _fmt_matrix("K1 = [diag(k1); diag(k2)], eqs (45)-(46)", r["K1"], "-, rad/s"),
+        _fmt_matrix("K2 = diag(k3), eq (47)", r["K2"], "rad/s"),
+        _fmt_matrix("K3 = Λ, bias injection (24)", r["K3"], "N/(m·s), N·m/(rad·s)"),
+        _fmt_matrix("K4 = 𝒦, velocity injection (25)", r["K4"], "N/m, N·m/rad"),
+        _fmt_matrix("T, bias time constants", r["T"], "s"),
+        "",
+        "eigenvalues of the linearised error dynamics (ψ = 0), 1/s:",
+    ]
+    for re, im in r["eigenvalues"]:
+        tc = f"  (time constant {-1 / re:8.1f} s)" if re < 0 else ""
+        lines.append(f"  {re:10.5f} {'+' if im >= 0 else '-'} {abs(im):.5f}j{tc}")
+    slow = r["slowest_rate_any_heading"]
+    lines.append(f"slowest over all headings: {slow:.5f} 1/s (time constant {-1 / slow:.1f} s)")
+    lines.append("")
+    for c in r["checks"]:
+        lines.append(f"{'PASS' if c['ok'] else 'FAIL'}  {c['name']}: {c['inequality']}")
+        lines.append(f"      {c['detail']}")
+    lines.append("")
+    notch = ", ".join(f"{d:.1f}" for d in r["notch_db"])
+    lines.append(f"notch depth at ω0 (LF estimate / WF motion): {notch} dB (surge, sway, yaw)")
+    if math.isfinite(slow) and slow > -0.01:
+        lines.append("note: slowest error mode is slower than 100 s; raise --velocity-injection")
+    return "\n".join(lines)

@@ -1,0 +1,304 @@
+"""Passive nonlinear observer of Fossen & Strand (1999), eqs (22)–(26).
+
+Model (14)–(18), ψ in J taken from the measured heading (assumption A4)::
+
+    ξ' = Ω ξ,   η' = J(y) ν,   b' = -T⁻¹ b,   M ν' = -D ν + Jᵀ(y) b + τ,   y = η + Γ ξ     (14)–(18)
+
+Observer::
+
+    ξ̂' = Ω ξ̂ + K1 ỹ                                                               (22)
+    η̂' = J(y) ν̂ + K2 ỹ                                                             (23)
+    b̂' = -T⁻¹ b̂ + Λ ỹ                         (Λ = K3; γ = 1, see passive_tuning)   (24)
+    M ν̂' = -D ν̂ + Jᵀ(y) b̂ + τ + Jᵀ(y) 𝒦 ỹ      (𝒦 = K4)                             (25)
+    ŷ = η̂ + Γ ξ̂,   ỹ = y − ŷ,  ỹ₃ wrapped to [-π, π) (ERRATA)                        (26)
+
+State x = [ξ1, ξ2 = η̂_w, η̂, b̂, ν̂] (15). Gains: `observers.passive_tuning`.
+
+Discrete time. The paper's observer is continuous; measurements arrive at 1–50 Hz, at variable
+intervals. Each sample's y and τ are held over the interval that ends at its time stamp (so the estimate
+at t_k has already used y_k: no added sample of delay), and the ODE is integrated exactly enough by RK4 in
+sub-steps of at most ``h_max`` (0.1 s by default: error poles reach -1.3 s⁻¹, and forward Euler at 1 Hz
+is not accurate, ERRATA). A DOF whose measurement is missing (NaN) gets no injection: it is dead
+reckoning, and J uses the estimated heading ŷ₃ when the heading itself is missing. A gap longer than
+``max_hold_s`` is dead reckoning except for its last ``max_hold_s``. ``tests/test_passive_observer.py``
+states the agreement reached with a tight-tolerance continuous-time integration.
+
+The observer is not split into a predict and an update: its injection is continuous over each interval
+(there is no discrete correction to separate out). `predict` advances without measurement (pure dead
+reckoning); `step` advances with one.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from observers import _passive_kernel as kernel
+from observers.kinematics import rotation, ssa_scalar
+from observers.passive_tuning import (
+    BIAS,
+    ETA,
+    NU,
+    XI2,
+    PassiveGains,
+    PassiveTuning,
+    passive_gains,
+    validate,
+)
+from observers.vessel import VesselModel
+
+Array = NDArray[np.float64]
+
+STATUS_NAMES = {
+    kernel.STATUS_INITIALIZING: "initializing",
+    kernel.STATUS_OK: "ok",
+    kernel.STATUS_DEAD_RECKONING: "dead_reckoning",
+}
+
+NAN3 = np.full(3, np.nan)
+ZERO3 = np.zeros(3)
+
+
+def pack_gains(gains: PassiveGains) -> Array:
+    """The (8, 3) array the kernel reads (see `observers._passive_kernel`)."""
+    for name in ("K2", "K3", "K4", "T"):
+        M = getattr(gains, name)
+        if np.count_nonzero(M - np.diag(np.diag(M))):
+            raise ValueError(f"gain {name} must be diagonal (structure of Proposition 1, (40)–(41))")
+    return np.ascontiguousarray(
+        np.stack(
+            [
+                gains.omega0,
+                gains.zeta,
+                gains.k1,
+                gains.k2,
+                gains.k3,
+                np.diag(gains.K3),
+                np.diag(gains.K4),
+                gains.t_inv,
+            ]
+        )
+    )
+
+
+@dataclass(frozen=True)
+class PassiveEstimate:
+    """One estimate: LF position/heading η̂, velocity ν̂, bias b̂, WF motion η̂_w, and status."""
+
+    t: float
+    eta: Array
+    nu: Array
+    bias: Array
+    eta_wf: Array
+    status: str
+
+
+@dataclass(frozen=True)
+class PassiveRun:
+    """Batch result: arrays of shape (n, 3) (NaN before initialisation) and a status per sample."""
+
+    t: Array
+    eta: Array
+    nu: Array
+    bias: Array
+    eta_wf: Array
+    status: NDArray[np.int8]
+
+    @property
+    def initialized(self) -> NDArray[np.bool_]:
+        return self.status != kernel.STATUS_INITIALIZING
+
+
+class PassiveObserver:
+    """Fossen & Strand (1999) passive observer for any `VesselModel`.
+
+    ``step(t, y, tau)`` for live use, ``run(t, y, tau)`` over arrays: both use the same kernel and give the
+    same numbers. y = [N, E, ψ] (m, m, rad; NaN = missing), τ = [X, Y, N] (N, N, N·m).
+    """
+
+    def __init__(
+        self,
+        vessel: VesselModel,
+        tuning: PassiveTuning | None = None,
+        *,
+        gains: PassiveGains | None = None,
+        allow_unchecked: bool = False,
+        h_max: float = 0.1,
+        max_hold_s: float = 2.0,
+    ) -> None:
+        self.vessel = vessel
+        self.h_max = float(h_max)
+        self.max_hold_s = float(max_hold_s)
+        if not (self.h_max > 0 and self.max_hold_s > 0):
+            raise ValueError("h_max and max_hold_s must be positive")
+        self._Minv = np.ascontiguousarray(vessel.Minv)
+        self._D = np.ascontiguousarray(vessel.D, dtype=float)
+        self.set_gains(gains if gains is not None else passive_gains(vessel, tuning), allow_unchecked)
+        self.reset()
+
+    def set_gains(self, gains: PassiveGains, allow_unchecked: bool = False) -> None:
+        """Use new gains from now on (the state is kept: no jump in the estimates)."""
+        if not allow_unchecked:
+            validate(gains)
+        self.gains = gains
+        self._G = pack_gains(gains)
+
+    def reset(self) -> None:
+        self.x = np.zeros(15)
+        self._clock = np.zeros(2)  # [t of the last sample, initialised flag]
+
+    @property
+    def initialized(self) -> bool:
+        return bool(self._clock[1])
+
+    @property
+    def t(self) -> float:
+        return float(self._clock[0])
+
+    def _estimate(self, t: float, code: int) -> PassiveEstimate:
+        if code == kernel.STATUS_INITIALIZING:
+            return PassiveEstimate(t, NAN3, NAN3, NAN3, NAN3, "initializing")
+        x = self.x
+        return PassiveEstimate(
+            t, x[ETA].copy(), x[NU].copy(), x[BIAS].copy(), x[XI2].copy(), STATUS_NAMES[code]
+        )
+
+    def step(self, t: float, y: ArrayLike, tau: ArrayLike | None = None) -> PassiveEstimate:
+        """Advance to time t (s) with measurement y and generalised force τ held since the last sample."""
+        y_arr = np.asarray(y, dtype=float)
+        tau_arr = ZERO3 if tau is None else np.asarray(tau, dtype=float)
+        code = kernel.step(
+            self.x,
+            self._clock,
+            float(t),
+            y_arr,
+            tau_arr,
+            self._G,
+            self._Minv,
+            self._D,
+            self.h_max,
+            self.max_hold_s,
+        )
+        return self._estimate(float(t), code)
+
+    def predict(self, t: float, tau: ArrayLike | None = None) -> PassiveEstimate:
+        """Dead reckoning to time t: no measurement at all."""
+        return self.step(t, NAN3, tau)
+
+    def run(self, t: ArrayLike, y: ArrayLike, tau: ArrayLike | None = None) -> PassiveRun:
+        """`step` over every sample: t (n,), y (n, 3) with NaN for missing, τ (n, 3) or None for zero."""
+        t_arr = np.ascontiguousarray(t, dtype=float)
+        n = t_arr.shape[0]
+        Y = np.ascontiguousarray(y, dtype=float).reshape(n, 3)
+        TAU = np.zeros((n, 3)) if tau is None else np.ascontiguousarray(tau, dtype=float).reshape(n, 3)
+        X = np.empty((n, 15))
+        status = np.empty(n, dtype=np.int8)
+        kernel.run(
+            self.x,
+            self._clock,
+            t_arr,
+            Y,
+            TAU,
+            self._G,
+            self._Minv,
+            self._D,
+            self.h_max,
+            self.max_hold_s,
+            X,
+            status,
+        )
+        return PassiveRun(t_arr, X[:, ETA], X[:, NU], X[:, BIAS], X[:, XI2], status)
+
+
+# --- readable reference ----------------------------------------------------------------------------------
+# The same equations written with the paper's matrices, in numpy. Slow; used to check the kernel and as
+# the baseline of bench/bench_passive.py.
+
+
+def reference_derivative(
+    x: Array, y: Array, valid: NDArray[np.bool_], tau: Array, vessel: VesselModel, gains: PassiveGains
+) -> Array:
+    """x' of (22)–(25) with y and τ held; DOFs with valid[i] False get no injection."""
+    xi, eta_w, eta, b, nu = x[0:6], x[XI2], x[ETA], x[BIAS], x[NU]
+    y_hat = eta + eta_w  # (26), Γ = [0 I]
+    y_tilde = np.where(valid, y - y_hat, 0.0)
+    y_tilde[2] = ssa_scalar(y[2] - y_hat[2]) if valid[2] else 0.0
+    J = rotation(y[2] if valid[2] else y_hat[2])  # J(y), assumption A4
+    Omega = np.block(
+        [[np.zeros((3, 3)), np.eye(3)], [-np.diag(gains.omega0**2), -np.diag(2 * gains.zeta * gains.omega0)]]
+    )
+    xi_dot = Omega @ xi + gains.K1 @ y_tilde  # (22)
+    eta_dot = J @ nu + gains.K2 @ y_tilde  # (23)
+    b_dot = -np.linalg.solve(gains.T, b) + gains.K3 @ y_tilde  # (24)
+    nu_dot = np.linalg.solve(vessel.M, -vessel.D @ nu + J.T @ b + tau + J.T @ gains.K4 @ y_tilde)  # (25)
+    return np.concatenate([xi_dot, eta_dot, b_dot, nu_dot])
+
+
+def reference_propagate(
+    x: Array,
+    dt: float,
+    y: Array,
+    tau: Array,
+    vessel: VesselModel,
+    gains: PassiveGains,
+    h_max: float = 0.1,
+    max_hold_s: float = 2.0,
+) -> Array:
+    """Reference twin of `observers._passive_kernel.propagate` (returns the new state)."""
+    valid = ~np.isnan(y)
+    y = np.where(valid, y, 0.0)
+    tau = np.nan_to_num(tau)
+
+    def integrate(x: Array, span: float, valid: NDArray[np.bool_]) -> Array:
+        if span <= 0:
+            return x
+        n = max(1, math.ceil(span / h_max - 1e-9))
+        h = span / n
+        for _ in range(n):
+            k1 = reference_derivative(x, y, valid, tau, vessel, gains)
+            k2 = reference_derivative(x + 0.5 * h * k1, y, valid, tau, vessel, gains)
+            k3 = reference_derivative(x + 0.5 * h * k2, y, valid, tau, vessel, gains)
+            k4 = reference_derivative(x + h * k3, y, valid, tau, vessel, gains)
+            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        return x
+
+    dead = max(dt - max_hold_s, 0.0)
+    x = integrate(x, dead, np.zeros(3, dtype=bool))
+    x = integrate(x, dt - dead, valid)
+    x[8] = ssa_scalar(x[8])
+    return x
+
+
+def reference_run(
+    vessel: VesselModel,
+    gains: PassiveGains,
+    t: Array,
+    y: Array,
+    tau: Array | None = None,
+    h_max: float = 0.1,
+    max_hold_s: float = 2.0,
+) -> Array:
+    """Reference batch run: states (n, 15), NaN before initialisation."""
+    n = len(t)
+    tau = np.zeros((n, 3)) if tau is None else np.asarray(tau, dtype=float)
+    X = np.full((n, 15), np.nan)
+    x: Array | None = None
+    t_prev = 0.0
+    for k in range(n):
+        if x is None:
+            if np.all(np.isfinite(y[k])):
+                x = np.zeros(15)
+                x[ETA] = y[k]
+                x[8] = ssa_scalar(y[k, 2])
+                x[BIAS] = -rotation(y[k, 2]) @ np.nan_to_num(tau[k])
+                t_prev = t[k]
+                X[k] = x
+            continue
+        if t[k] > t_prev:
+            x = reference_propagate(x, t[k] - t_prev, y[k], tau[k], vessel, gains, h_max, max_hold_s)
+            t_prev = t[k]
+        X[k] = x
+    return X

@@ -1,0 +1,365 @@
+"""Gains of the passive observer from physical tuning, and the checks that make them safe.
+
+Fossen & Strand (1999), Sec. 5, with ``../shared/papers/ERRATA.md``:
+
+* Wave-filter gains, eqs (45)–(47) (eq (45) as corrected in ERRATA)::
+
+      k1i = -2 (ζni - ζi) ωci / ω0i,     k2i = 2 ω0i (ζni - ζi),     k3i = ωci
+
+  K1 (6×3) = [diag(k1); diag(k2)], K2 = diag(k3). These shape the position-error transfer function
+  h0ᵢ(s) of eq (42) into the notch filter h0dᵢ(s) of eq (44).
+* Injection gains 𝒦 (K4, velocity, eq (25)) and Λ (K3, bias, eq (24)). The paper's values (60) are not in
+  SI units for the M of (56) (ERRATA): used literally they leave the velocity and bias loops open. dpgw
+  therefore tunes them in physical terms and scales them with the vessel::
+
+      K4ᵢᵢ = Mᵢᵢ · ωcᵢ · aᵢ        (aᵢ: velocity-injection rate, 1/s)
+      K3ᵢᵢ = K4ᵢᵢ · ρᵢ              (ρᵢ = λᵢ/κᵢ: bias corner frequency, rad/s)
+
+  Below ωc the position-error loop is ỹ ≈ J ν̃ / (s + ωc), so the injection adds K4/ωc = M·a of
+  damping to the velocity-error dynamics: a velocity error decays at about Dᵢᵢ/Mᵢᵢ + aᵢ whatever the
+  unit system or the size of the ship. γ of (24)–(25) is redundant with K3, K4 and is fixed at 1.
+* Tuning rule (48) (Torsetnes' (53)): ``1/Tᵢ ≪ λᵢ/κᵢ < ω0ᵢ < ωcᵢ``; "≪" is checked as a factor of 10.
+* Proposition 1 (SPR): hᵢ(s) = h_Bᵢ(s)·h0ᵢ(s), eqs (42)–(43), must have phase above −90° at all
+  frequencies. **The paper says (48) suffices; it does not.** With the paper's own numbers (ζn = 1,
+  ζ = 0.1, ωc = 1.1, ω0 = 0.8976, λ/κ = 0.1, T = 1000) the phase of hᵢ(jω) falls to −94.8° at
+  0.69 rad/s: the lag of h_B (a PI-like corner at λ/κ) adds to the lag of the notch just below ω0. The
+  phase depends only on the ratios to ω0; with the paper's ωc/ω0 it holds for λ/κ ≲ 0.045 ω0, so
+  dpgw's default corner is ρ = 0.035 ω0, and the SPR check is done numerically, not inferred from (48).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from observers.kinematics import rotation
+from observers.vessel import VesselModel
+
+Array = NDArray[np.float64]
+
+PAPER_CUTOFF_RATIO = 1.1 / 0.8976
+"""ωc/ω0 of Fossen & Strand (1999) Sec. 6: ωc = 1.1 rad/s for ω0 = 0.8976 rad/s (a 7.0 s wave period)."""
+
+TUNING_RULE_MARGIN = 10.0
+"""How much larger λ/κ must be than 1/T for "1/T ≪ λ/κ" of rule (48)."""
+
+
+class TuningError(ValueError):
+    """Gains that violate the tuning rule (48) or the SPR condition of Proposition 1."""
+
+
+def _vec3(value: ArrayLike, name: str) -> Array:
+    a = np.broadcast_to(np.asarray(value, dtype=float), (3,)).copy()
+    if not np.all(np.isfinite(a) | (np.isinf(a) & (a > 0))) or np.any(a <= 0):
+        raise TuningError(f"tuning '{name}': must be positive (per DOF or one for all), got {a.tolist()}")
+    return a
+
+
+@dataclass(frozen=True)
+class PassiveTuning:
+    """Observer tuning in physical terms, per DOF (surge/north, sway/east, yaw) or one value for all.
+
+    omega0:               dominating wave frequency ω0 (rad/s); see `from_wave_period`.
+    zeta:                 relative damping ζ of the wave model (10).
+    zeta_n:               notch damping ζn > ζ of the desired filter (44); ζ/ζn sets the notch depth.
+    cutoff_ratio:         ωc/ω0 of the filter cut-off (44); default the paper's 1.1/0.8976.
+    omega_c:              explicit ωc (rad/s), overrides cutoff_ratio.
+    bias_time_constant_s: T of the bias model (7), (24); ``inf`` makes the bias a random walk.
+    velocity_injection:   a (1/s): extra decay rate of the velocity error from 𝒦 (module docstring).
+    bias_corner_ratio:    ρ/ω0, where ρ = λ/κ is the bias corner frequency (48).
+    bias_corner:          explicit ρ = λ/κ (rad/s), overrides bias_corner_ratio.
+    """
+
+    omega0: Any = 2 * math.pi / 7.0
+    zeta: Any = 0.1
+    zeta_n: Any = 1.0
+    cutoff_ratio: Any = PAPER_CUTOFF_RATIO
+    omega_c: Any = None
+    bias_time_constant_s: Any = 1000.0
+    velocity_injection: Any = 0.2
+    bias_corner_ratio: Any = 0.035
+    bias_corner: Any = None
+
+    @classmethod
+    def from_wave_period(cls, period_s: ArrayLike, **kwargs: Any) -> PassiveTuning:
+        """Tuning for a dominating (peak) wave period in seconds: ω0 = 2π/Tp."""
+        return cls(omega0=2 * math.pi / np.asarray(period_s, dtype=float), **kwargs)
+
+    def with_omega0(self, omega0: ArrayLike) -> PassiveTuning:
+        return replace(self, omega0=omega0)
+
+
+@dataclass(frozen=True)
+class PassiveGains:
+    """Numbers the observer (22)–(26) runs with, in SI units for one vessel.
+
+    K1 (6×3): wave-state injection (22); K2 (3×3): position injection (23); K3 = Λ (3×3): bias injection
+    (24); K4 = 𝒦 (3×3): velocity injection (25); T (3×3): bias time constants. omega0, zeta define Ω (11).
+    Also kept: the physical values they came from (omega_c, zeta_n) for the checks.
+    """
+
+    omega0: Array
+    zeta: Array
+    zeta_n: Array
+    omega_c: Array
+    K1: Array
+    K2: Array
+    K3: Array
+    K4: Array
+    T: Array
+    tuning: PassiveTuning = field(default_factory=PassiveTuning)
+
+    @property
+    def k1(self) -> Array:
+        return np.diag(self.K1[:3])
+
+    @property
+    def k2(self) -> Array:
+        return np.diag(self.K1[3:])
+
+    @property
+    def k3(self) -> Array:
+        return np.diag(self.K2)
+
+    @property
+    def t_inv(self) -> Array:
+        return 1.0 / np.diag(self.T)
+
+    @property
+    def bias_corner(self) -> Array:
+        """λᵢ/κᵢ (rad/s)."""
+        return np.diag(self.K3) / np.diag(self.K4)
+
+
+def filter_gains(omega0: ArrayLike, zeta: ArrayLike, zeta_n: ArrayLike, omega_c: ArrayLike) -> Array:
+    """k1, k2, k3 of eqs (45)–(47) (ERRATA-corrected (45)), as a (3, n) array."""
+    w0, z, zn, wc = (np.asarray(v, dtype=float) for v in (omega0, zeta, zeta_n, omega_c))
+    k1 = -2.0 * (zn - z) * wc / w0
+    k2 = 2.0 * w0 * (zn - z)
+    k3 = wc * np.ones_like(k1)
+    return np.stack([k1, k2, k3])
+
+
+def passive_gains(vessel: VesselModel, tuning: PassiveTuning | None = None) -> PassiveGains:
+    """Gains of eqs (45)–(47) and the vessel-scaled injection gains for ``vessel``."""
+    tuning = tuning or PassiveTuning()
+    w0 = _vec3(tuning.omega0, "omega0")
+    zeta = _vec3(tuning.zeta, "zeta")
+    zeta_n = _vec3(tuning.zeta_n, "zeta_n")
+    wc = (
+        _vec3(tuning.omega_c, "omega_c")
+        if tuning.omega_c is not None
+        else w0 * _vec3(tuning.cutoff_ratio, "cutoff_ratio")
+    )
+    T = _vec3(tuning.bias_time_constant_s, "bias_time_constant_s")
+    a = _vec3(tuning.velocity_injection, "velocity_injection")
+    rho = (
+        _vec3(tuning.bias_corner, "bias_corner")
+        if tuning.bias_corner is not None
+        else w0 * _vec3(tuning.bias_corner_ratio, "bias_corner_ratio")
+    )
+    k1, k2, k3 = filter_gains(w0, zeta, zeta_n, wc)
+    K4 = np.diag(np.diag(vessel.M) * wc * a)
+    K3 = K4 * rho
+    return PassiveGains(
+        omega0=w0,
+        zeta=zeta,
+        zeta_n=zeta_n,
+        omega_c=wc,
+        K1=np.vstack([np.diag(k1), np.diag(k2)]),
+        K2=np.diag(k3),
+        K3=K3,
+        K4=K4,
+        T=np.diag(T),
+        tuning=tuning,
+    )
+
+
+# --- checks ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Check:
+    """Result of one check: which inequality, per DOF, whether it holds, and the numbers."""
+
+    name: str
+    inequality: str
+    ok: bool
+    detail: str
+    values: dict[str, list[float]] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "name": self.name,
+            "inequality": self.inequality,
+            "ok": self.ok,
+            "detail": self.detail,
+            "values": self.values,
+        }
+
+
+DOF = ("surge", "sway", "yaw")
+
+
+def h_transfer(gains: PassiveGains, omega: Array) -> Array:
+    """hᵢ(jω) = h_Bᵢ(jω)·h0ᵢ(jω) of Proposition 1, eqs (42)–(43), shape (3, len(omega)).
+
+    Computed from the gains actually in use (eq (42)), not from the design target (44).
+    """
+    s = 1j * np.asarray(omega)[None, :]
+    w0, z = gains.omega0[:, None], gains.zeta[:, None]
+    k1, k2, k3 = gains.k1[:, None], gains.k2[:, None], gains.k3[:, None]
+    num0 = s**2 + 2 * z * w0 * s + w0**2
+    den0 = s**3 + (k2 + k3 + 2 * z * w0) * s**2 + (w0**2 + 2 * z * w0 * k3 - k1 * w0**2) * s + w0**2 * k3
+    kappa = np.diag(gains.K4)[:, None]
+    lam = np.diag(gains.K3)[:, None]
+    tinv = gains.t_inv[:, None]
+    hB = kappa + lam / (s + tinv)
+    return hB * num0 / den0
+
+
+def check_tuning_rule(gains: PassiveGains) -> Check:
+    """Rule (48): 1/Tᵢ ≪ λᵢ/κᵢ < ω0ᵢ < ωcᵢ, with ζnᵢ > ζᵢ > 0 for the notch (44)."""
+    rho, tinv, w0, wc = gains.bias_corner, gains.t_inv, gains.omega0, gains.omega_c
+    failures = []
+    for i, dof in enumerate(DOF):
+        if not TUNING_RULE_MARGIN * tinv[i] <= rho[i]:
+            failures.append(f"{dof}: 1/T = {tinv[i]:.4g} is not ≪ λ/κ = {rho[i]:.4g} (need a factor 10)")
+        if not rho[i] < w0[i]:
+            failures.append(f"{dof}: λ/κ = {rho[i]:.4g} is not < ω0 = {w0[i]:.4g}")
+        if not w0[i] < wc[i]:
+            failures.append(f"{dof}: ω0 = {w0[i]:.4g} is not < ωc = {wc[i]:.4g}")
+        if not gains.zeta_n[i] > gains.zeta[i] > 0:
+            failures.append(f"{dof}: ζn = {gains.zeta_n[i]:.4g} must exceed ζ = {gains.zeta[i]:.4g} > 0")
+    return Check(
+        name="tuning_rule",
+        inequality="(48): 1/T_i << lambda_i/kappa_i < omega0_i < omega_c_i  (and zeta_n_i > zeta_i, (44))",
+        ok=not failures,
+        detail="; ".join(failures) if failures else "holds in every DOF",
+        values={
+            "1/T": tinv.tolist(),
+            "lambda/kappa": rho.tolist(),
+            "omega0": w0.tolist(),
+            "omega_c": wc.tolist(),
+        },
+    )
+
+
+def check_spr(gains: PassiveGains, points_per_decade: int = 400) -> Check:
+    """Proposition 1: arg hᵢ(jω) > −90° for all ω (checked on 1e-6…1e4 rad/s, log-spaced)."""
+    omega = np.logspace(-6, 4, 10 * points_per_decade + 1)
+    phase = np.degrees(np.unwrap(np.angle(h_transfer(gains, omega)), axis=1))
+    i_min = np.argmin(phase, axis=1)
+    min_phase = phase[np.arange(3), i_min]
+    at = omega[i_min]
+    # h is strictly proper (relative degree 1), so its phase tends to -90° as ω → ∞ in any SPR tuning;
+    # the margin worth reporting is the one in the band where the notch and the bias corner act.
+    band = omega <= 10 * gains.omega_c.max()
+    margin = float(phase[:, band].min() + 90.0)
+    bad = [
+        f"{dof}: phase of h(jω) = {min_phase[i]:.2f}° at ω = {at[i]:.4g} rad/s"
+        for i, dof in enumerate(DOF)
+        if not min_phase[i] > -90.0
+    ]
+    return Check(
+        name="spr",
+        inequality="Proposition 1: arg h_i(jw) > -90 deg for all w, h_i = h_B,i * h_0,i (42)-(43)",
+        ok=not bad,
+        detail="; ".join(bad) + " (lower λ/κ or raise ωc/ω0)"
+        if bad
+        else f"phase above -90° everywhere; margin {margin:.2f}° below 10·ωc",
+        values={"min_phase_deg": min_phase.tolist(), "at_rad_s": at.tolist(), "margin_deg": [margin]},
+    )
+
+
+def check_gains(gains: PassiveGains) -> list[Check]:
+    return [check_tuning_rule(gains), check_spr(gains)]
+
+
+def validate(gains: PassiveGains) -> None:
+    """Raise `TuningError` naming the inequality if the tuning rule or the SPR condition fails."""
+    for check in check_gains(gains):
+        if not check.ok:
+            raise TuningError(
+                f"observer tuning violates {check.inequality}: {check.detail}. "
+                "Pass allow_unchecked=True (or --allow-unchecked) to run such gains for experiments."
+            )
+
+
+# --- linear analysis ------------------------------------------------------------------------------------
+
+# State order used throughout dpgw's passive observer: x = [ξ1 (3), ξ2 = η_w (3), η (3), b (3), ν (3)].
+XI1, XI2, ETA, BIAS, NU = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15)
+N_STATES = 15
+
+
+def _output_matrix() -> Array:
+    """C0 of (21) in dpgw's state order: y = η + η_w."""
+    C = np.zeros((3, N_STATES))
+    C[:, XI2] = np.eye(3)
+    C[:, ETA] = np.eye(3)
+    return C
+
+
+def model_matrix(vessel: VesselModel, gains: PassiveGains, psi: float) -> Array:
+    """Matrix of the model (14)–(17) with ψ (J(y)) frozen: x' = A x + B τ, y = C0 x."""
+    A = np.zeros((N_STATES, N_STATES))
+    J = rotation(psi)
+    Minv = vessel.Minv
+    A[XI1, XI2] = np.eye(3)
+    A[XI2, XI1] = -np.diag(gains.omega0**2)
+    A[XI2, XI2] = -np.diag(2 * gains.zeta * gains.omega0)
+    A[ETA, NU] = J
+    A[BIAS, BIAS] = -np.diag(gains.t_inv)
+    A[NU, NU] = -Minv @ vessel.D
+    A[NU, BIAS] = Minv @ J.T
+    return A
+
+
+def injection_matrix(vessel: VesselModel, gains: PassiveGains, psi: float) -> Array:
+    """L (15×3) of the observer x̂' = A x̂ + B τ + L ỹ, eqs (22)–(25) with γ = 1."""
+    L = np.zeros((N_STATES, 3))
+    L[0:6] = gains.K1
+    L[ETA] = gains.K2
+    L[BIAS] = gains.K3
+    L[NU] = vessel.Minv @ rotation(psi).T @ gains.K4
+    return L
+
+
+def error_dynamics_matrix(vessel: VesselModel, gains: PassiveGains, psi: float = 0.0) -> Array:
+    """Linearised estimation-error dynamics (30)–(32): x̃' = (A − L C0) x̃ at heading ψ."""
+    return model_matrix(vessel, gains, psi) - injection_matrix(vessel, gains, psi) @ _output_matrix()
+
+
+def error_eigenvalues(vessel: VesselModel, gains: PassiveGains, psi: float = 0.0) -> NDArray[np.complex128]:
+    ev = np.linalg.eigvals(error_dynamics_matrix(vessel, gains, psi)).astype(np.complex128)
+    return ev[np.argsort(ev.real)[::-1]]
+
+
+def slowest_error_rate(vessel: VesselModel, gains: PassiveGains, headings: int = 36) -> float:
+    """Largest real part of the error eigenvalues over all headings (the slowest convergence)."""
+    return max(
+        float(error_eigenvalues(vessel, gains, psi)[0].real)
+        for psi in np.linspace(-math.pi, math.pi, headings, endpoint=False)
+    )
+
+
+def lf_response(vessel: VesselModel, gains: PassiveGains, omega: ArrayLike, psi: float = 0.0) -> Array:
+    """|η̂ᵢ/yᵢ|(jω): gain from measured motion to the LF estimate, per DOF, shape (3, n)."""
+    A = error_dynamics_matrix(vessel, gains, psi)
+    L = injection_matrix(vessel, gains, psi)
+    out = []
+    for w in np.atleast_1d(np.asarray(omega, dtype=float)):
+        H = np.linalg.solve(1j * w * np.eye(N_STATES) - A, L)[ETA]
+        out.append(np.abs(np.diag(H)))
+    return np.array(out).T
+
+
+def notch_depth_db(vessel: VesselModel, gains: PassiveGains) -> Array:
+    """Response of the LF estimate to wave-frequency motion at ω0, per DOF, in dB (negative = attenuated)."""
+    depth = [20 * math.log10(lf_response(vessel, gains, [gains.omega0[i]])[i, 0]) for i in range(3)]
+    return np.array(depth)

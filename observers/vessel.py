@@ -1,0 +1,244 @@
+"""Vessel models for the 3-DOF low-frequency ship model.
+
+The low-frequency model of Fossen & Strand (1999), eq (3)::
+
+    M ν' + D ν = τ + Jᵀ(ψ) b,        τ = B_u u                       (3), (4)
+
+needs the inertia matrix M (rigid body plus zero-frequency added mass, eq (5)), the linear damping
+matrix D (eq (6)) and, for the actuators, a thruster layout from which the configuration matrix B_u is
+built. A `VesselModel` holds exactly these, in SI units (kg, kg·m, kg·m², N·s/m, N·m·s), for the body
+frame at the vessel's reference point.
+
+Built-in vessels are TOML files in ``observers/vessels/``; each cites its source. A user vessel is a TOML
+file of the same form (see ``docs/vessels.md``). Either M and D are given directly, or, as in MSS
+(``supply.m``), in Fossen's non-dimensional "bis" system::
+
+    M = m · T · Mbis · T,      D = m · √(g/L) · T · Dbis · T,      T = diag(1, 1, L)
+
+A model that cannot work is refused (`VesselError`) with a message naming the field and the reason:
+M must be symmetric positive definite (assumption A1), D + Dᵀ positive definite (the dissipation that
+makes the velocity-error dynamics strictly passive, Proposition 2), shapes 3×3, numbers finite.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+Array = NDArray[np.float64]
+
+THRUSTER_KINDS = ("azimuth", "tunnel", "main")
+"""azimuth: rotatable, thrust in any direction within its sectors; tunnel: fixed athwartships (sway);
+main: fixed fore-aft propeller (surge)."""
+
+
+class VesselError(ValueError):
+    """A vessel description that cannot be used. The message names the field and what is wrong."""
+
+
+@dataclass(frozen=True)
+class Thruster:
+    """One thruster of a vessel's layout, in the body frame of the reference point.
+
+    ``x_m`` forward, ``y_m`` starboard. ``max_thrust_n`` is the largest thrust magnitude (N).
+    ``min_thrust_n`` is the most negative thrust for fixed-direction units that reverse (tunnel, main;
+    0 for azimuths, which turn instead). ``azimuth_rate_rad_s`` is the slew rate of an azimuth.
+    ``thrust_time_constant_s`` is the first-order lag from commanded to delivered thrust.
+    ``angle_rad`` is the fixed direction of a tunnel (π/2) or main propeller (0).
+    """
+
+    id: int
+    kind: str
+    x_m: float
+    y_m: float
+    max_thrust_n: float
+    min_thrust_n: float = 0.0
+    azimuth_rate_rad_s: float = 0.0
+    thrust_time_constant_s: float = 1.0
+    angle_rad: float = 0.0
+
+
+@dataclass(frozen=True)
+class VesselModel:
+    """M, D and thruster layout of a vessel (SI units, body frame at the reference point)."""
+
+    name: str
+    M: Array
+    D: Array
+    length_m: float
+    mass_kg: float
+    source: str = ""
+    description: str = ""
+    thrusters: tuple[Thruster, ...] = field(default_factory=tuple)
+
+    def __post_init__(self) -> None:
+        where = f"vessel '{self.name}'"
+        object.__setattr__(self, "M", _matrix(self.M, "M", where))
+        object.__setattr__(self, "D", _matrix(self.D, "D", where))
+        _check_model(self.M, self.D, where)
+        for key in ("length_m", "mass_kg"):
+            value = getattr(self, key)
+            if not (math.isfinite(value) and value > 0):
+                raise VesselError(f"{where}: field '{key}': must be a positive finite number, got {value!r}")
+        ids = [t.id for t in self.thrusters]
+        if len(set(ids)) != len(ids):
+            raise VesselError(f"{where}: field 'thrusters': thruster ids must be unique, got {ids}")
+
+    @property
+    def Minv(self) -> Array:
+        return np.asarray(np.linalg.inv(self.M), dtype=np.float64)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, VesselModel):
+            return NotImplemented
+        return (
+            self.name == other.name
+            and np.array_equal(self.M, other.M)
+            and np.array_equal(self.D, other.D)
+            and self.thrusters == other.thrusters
+        )
+
+    __hash__ = None  # type: ignore[assignment]
+
+
+def _matrix(value: Any, key: str, where: str) -> Array:
+    try:
+        A = np.array(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise VesselError(f"{where}: field '{key}': must be a 3×3 matrix of numbers ({exc})") from None
+    if A.shape != (3, 3):
+        raise VesselError(f"{where}: field '{key}': must be a 3×3 matrix, got shape {A.shape}")
+    if not np.all(np.isfinite(A)):
+        raise VesselError(f"{where}: field '{key}': contains non-finite numbers")
+    A.setflags(write=False)
+    return A
+
+
+def _check_model(M: Array, D: Array, where: str) -> None:
+    scale = float(np.max(np.abs(M)))
+    if not np.allclose(M, M.T, rtol=1e-9, atol=1e-12 * scale):
+        raise VesselError(
+            f"{where}: field 'M': must be symmetric (assumption A1, M = Mᵀ > 0); "
+            f"M[1,2] = {M[1, 2]:.6g} but M[2,1] = {M[2, 1]:.6g}"
+        )
+    eig_m = np.linalg.eigvalsh(M)
+    if eig_m.min() <= 0:
+        raise VesselError(
+            f"{where}: field 'M': must be positive definite (assumption A1); eigenvalues {eig_m.tolist()}"
+        )
+    eig_d = np.linalg.eigvalsh(D + D.T)
+    if eig_d.min() <= 0:
+        raise VesselError(
+            f"{where}: field 'D': D + Dᵀ must be positive definite (the damping must dissipate energy); "
+            f"eigenvalues of D + Dᵀ {eig_d.tolist()}"
+        )
+
+
+def _thruster(entry: Any, index: int, where: str) -> Thruster:
+    key = f"thrusters[{index}]"
+    if not isinstance(entry, dict):
+        raise VesselError(f"{where}: field '{key}': must be a table")
+    kind = entry.get("kind")
+    if kind not in THRUSTER_KINDS:
+        raise VesselError(f"{where}: field '{key}.kind': must be one of {THRUSTER_KINDS}, got {kind!r}")
+    known = {f for f in Thruster.__dataclass_fields__}
+    unknown = set(entry) - known
+    if unknown:
+        raise VesselError(f"{where}: field '{key}': unknown keys {sorted(unknown)}; known: {sorted(known)}")
+    for required in ("id", "x_m", "y_m", "max_thrust_n"):
+        if required not in entry:
+            raise VesselError(f"{where}: field '{key}.{required}': missing")
+    default_angle = {"tunnel": math.pi / 2, "main": 0.0, "azimuth": 0.0}[kind]
+    values = dict(entry)
+    values.setdefault("angle_rad", default_angle)
+    for name, value in values.items():
+        if name == "kind":
+            continue
+        if not isinstance(value, int | float) or not math.isfinite(value):
+            raise VesselError(f"{where}: field '{key}.{name}': must be a finite number, got {value!r}")
+    if values["max_thrust_n"] <= 0:
+        raise VesselError(f"{where}: field '{key}.max_thrust_n': must be positive")
+    if kind == "azimuth" and values.get("azimuth_rate_rad_s", 0.0) <= 0:
+        raise VesselError(f"{where}: field '{key}.azimuth_rate_rad_s': an azimuth needs a positive slew rate")
+    return Thruster(**values)
+
+
+def vessel_from_dict(data: dict[str, Any], where: str = "vessel") -> VesselModel:
+    """Build a `VesselModel` from the parsed TOML table (see module docstring for the two forms)."""
+    name = data.get("name")
+    if not isinstance(name, str) or not name:
+        raise VesselError(f"{where}: field 'name': missing or not a string")
+    where = f"vessel '{name}' ({where})" if where != "vessel" else f"vessel '{name}'"
+    for key in ("length_m", "mass_kg"):
+        if not isinstance(data.get(key), int | float):
+            raise VesselError(f"{where}: field '{key}': missing or not a number")
+    length = float(data["length_m"])
+    mass = float(data["mass_kg"])
+    if "bis" in data:
+        if "M" in data or "D" in data:
+            raise VesselError(f"{where}: field 'bis': give either M and D or a [bis] table, not both")
+        bis = data["bis"]
+        g = float(bis.get("g", 9.81))
+        Tl = np.diag([1.0, 1.0, length])
+        Mbis = _matrix(bis.get("Mbis"), "bis.Mbis", where)
+        Dbis = _matrix(bis.get("Dbis"), "bis.Dbis", where)
+        M = mass * Tl @ Mbis @ Tl
+        D = mass * math.sqrt(g / length) * Tl @ Dbis @ Tl
+    else:
+        for key in ("M", "D"):
+            if key not in data:
+                raise VesselError(f"{where}: field '{key}': missing (or give a [bis] table)")
+        M, D = data["M"], data["D"]
+    thrusters = tuple(_thruster(e, i, where) for i, e in enumerate(data.get("thrusters", [])))
+    try:
+        return VesselModel(
+            name=name,
+            M=M,
+            D=D,
+            length_m=length,
+            mass_kg=mass,
+            source=str(data.get("source", "")),
+            description=str(data.get("description", "")),
+            thrusters=thrusters,
+        )
+    except VesselError as exc:
+        # re-raise with the file named, keeping the field and reason
+        msg = str(exc).replace(f"vessel '{name}'", where, 1)
+        raise VesselError(msg) from None
+
+
+def builtin_vessels() -> list[str]:
+    """Names of the vessels that ship with dpgw."""
+    folder = resources.files("observers") / "vessels"
+    return sorted(p.name.removesuffix(".toml") for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def load_vessel(name_or_path: str | Path) -> VesselModel:
+    """Load a built-in vessel by name, or a user vessel from a TOML file path."""
+    text: str
+    where: str
+    path = Path(name_or_path)
+    if str(name_or_path) in builtin_vessels():
+        res = resources.files("observers") / "vessels" / f"{name_or_path}.toml"
+        text, where = res.read_text(encoding="utf-8"), f"built-in {name_or_path}.toml"
+    elif path.suffix == ".toml" or path.exists():
+        if not path.is_file():
+            raise VesselError(f"vessel file '{path}': does not exist")
+        text, where = path.read_text(encoding="utf-8"), str(path)
+    else:
+        raise VesselError(
+            f"vessel '{name_or_path}': not a built-in vessel ({', '.join(builtin_vessels())}) "
+            "and not a .toml file"
+        )
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise VesselError(f"{where}: not valid TOML: {exc}") from None
+    return vessel_from_dict(data, where)
