@@ -121,25 +121,45 @@ def propagate(x, dt, y, tau, G, Minv, D, h_max, max_hold):
 
 
 @njit(cache=True)
-def initialize(x, y, tau):
-    """Start at the measurement, at rest, in equilibrium: η̂ = y, ξ̂ = 0, ν̂ = 0, b̂ = -J(ψ) τ.
+def initialize(x, y, tau, G, D):
+    """Start at the observer's equilibrium for the first measurement y and force τ (no transient).
 
-    With ν̂ = 0 and b̂ = -J τ every derivative of (22)–(25) is zero, so the estimate starts without a
-    transient (ỹ = 0, M ν̂' = Jᵀ b̂ + τ = 0).
+    With y and τ constant, every derivative of (22)–(25) is zero when ν̂ = -Jᵀ K2 ỹ (23) and (24)–(25)::
+
+        T⁻¹ b̂ = Λ ỹ,        D Jᵀ K2 ỹ + Jᵀ b̂ + Jᵀ 𝒦 ỹ = -τ
+
+    (a 6×6 linear system in ỹ, b̂; with T = ∞ it gives ỹ = 0, b̂ = -J τ). The leaky bias model leaves a
+    small steady innovation ỹ; ξ̂ follows from (22): ξ̂2 = -k1 ỹ, ξ̂1 = (2ζω0 k1 + k2) ỹ / ω0².
     """
-    for j in range(15):
-        x[j] = 0.0
-    x[6] = y[0]
-    x[7] = y[1]
-    x[8] = _ssa(y[2])
     c = math.cos(y[2])
     s = math.sin(y[2])
-    t0 = 0.0 if math.isnan(tau[0]) else tau[0]
-    t1 = 0.0 if math.isnan(tau[1]) else tau[1]
-    t2 = 0.0 if math.isnan(tau[2]) else tau[2]
-    x[9] = -(c * t0 - s * t1)
-    x[10] = -(s * t0 + c * t1)
-    x[11] = -t2
+    Jt = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    A = np.zeros((6, 6))
+    rhs = np.zeros(6)
+    for i in range(3):
+        A[i, i] = -G[5, i]
+        A[i, 3 + i] = G[7, i]
+        rhs[3 + i] = -(0.0 if math.isnan(tau[i]) else tau[i])
+        for j in range(3):
+            # (D Jᵀ K2 + Jᵀ 𝒦)[i, j] and Jᵀ[i, j]
+            dj = 0.0
+            for m in range(3):
+                dj += D[i, m] * Jt[m, j]
+            A[3 + i, j] = dj * G[4, j] + Jt[i, j] * G[6, j]
+            A[3 + i, 3 + j] = Jt[i, j]
+    sol = np.linalg.solve(A, rhs)
+    for j in range(15):
+        x[j] = 0.0
+    for i in range(3):
+        yt = sol[i]
+        w0 = G[0, i]
+        x[3 + i] = -G[2, i] * yt
+        x[i] = (2.0 * G[1, i] * w0 * G[2, i] + G[3, i]) * yt / (w0 * w0)
+        x[6 + i] = y[i] - yt - x[3 + i]
+        x[9 + i] = sol[3 + i]
+        # ν̂ = -Jᵀ K2 ỹ
+        x[12 + i] = -(Jt[i, 0] * G[4, 0] * sol[0] + Jt[i, 1] * G[4, 1] * sol[1] + Jt[i, 2] * G[4, 2] * sol[2])
+    x[8] = _ssa(x[8])
 
 
 @njit(cache=True)
@@ -148,7 +168,7 @@ def step(x, clock, t, y, tau, G, Minv, D, h_max, max_hold):
     if clock[1] == 0.0:
         if math.isnan(y[0]) or math.isnan(y[1]) or math.isnan(y[2]):
             return STATUS_INITIALIZING
-        initialize(x, y, tau)
+        initialize(x, y, tau, G, D)
         clock[0] = t
         clock[1] = 1.0
         return STATUS_OK

@@ -66,7 +66,7 @@ def pack_gains(gains: PassiveGains) -> Array:
     """The (8, 3) array the kernel reads (see `observers._passive_kernel`)."""
     for name in ("K2", "K3", "K4", "T"):
         M = getattr(gains, name)
-        if np.count_nonzero(M - np.diag(np.diag(M))):
+        if np.count_nonzero(M[~np.eye(3, dtype=bool)]):
             raise ValueError(f"gain {name} must be diagonal (structure of Proposition 1, (40)–(41))")
     return np.ascontiguousarray(
         np.stack(
@@ -158,6 +158,30 @@ class PassiveObserver:
     def t(self) -> float:
         return float(self._clock[0])
 
+    def initialize(
+        self,
+        t: float,
+        eta: ArrayLike,
+        nu: ArrayLike | None = None,
+        bias: ArrayLike | None = None,
+        eta_wf: ArrayLike | None = None,
+    ) -> None:
+        """Start from an explicit state (e.g. restored after a restart, or a test's wrong guess).
+
+        Without this, the first complete measurement initialises the observer in equilibrium.
+        """
+        x = np.zeros(15)
+        x[ETA] = np.asarray(eta, dtype=float)
+        x[8] = ssa_scalar(x[8])
+        if nu is not None:
+            x[NU] = np.asarray(nu, dtype=float)
+        if bias is not None:
+            x[BIAS] = np.asarray(bias, dtype=float)
+        if eta_wf is not None:
+            x[XI2] = np.asarray(eta_wf, dtype=float)
+        self.x[:] = x
+        self._clock[:] = (float(t), 1.0)
+
     def _estimate(self, t: float, code: int) -> PassiveEstimate:
         if code == kernel.STATUS_INITIALIZING:
             return PassiveEstimate(t, NAN3, NAN3, NAN3, NAN3, "initializing")
@@ -232,9 +256,29 @@ def reference_derivative(
     )
     xi_dot = Omega @ xi + gains.K1 @ y_tilde  # (22)
     eta_dot = J @ nu + gains.K2 @ y_tilde  # (23)
-    b_dot = -np.linalg.solve(gains.T, b) + gains.K3 @ y_tilde  # (24)
+    b_dot = -gains.t_inv * b + gains.K3 @ y_tilde  # (24); T⁻¹ written per DOF so T = ∞ works
     nu_dot = np.linalg.solve(vessel.M, -vessel.D @ nu + J.T @ b + tau + J.T @ gains.K4 @ y_tilde)  # (25)
     return np.concatenate([xi_dot, eta_dot, b_dot, nu_dot])
+
+
+def reference_equilibrium(y: Array, tau: Array, vessel: VesselModel, gains: PassiveGains) -> Array:
+    """The state where (22)–(25) are all zero for constant y, τ (twin of the kernel's `initialize`)."""
+    J = rotation(y[2])
+    # unknowns [ỹ, b̂]:  T⁻¹ b̂ - Λ ỹ = 0,   (D Jᵀ K2 + Jᵀ 𝒦) ỹ + Jᵀ b̂ = -τ
+    A = np.block([[-gains.K3, np.diag(gains.t_inv)], [vessel.D @ J.T @ gains.K2 + J.T @ gains.K4, J.T]])
+    sol = np.linalg.solve(A, np.r_[np.zeros(3), -tau])
+    y_tilde, b = sol[:3], sol[3:]
+    Omega = np.block(
+        [[np.zeros((3, 3)), np.eye(3)], [-np.diag(gains.omega0**2), -np.diag(2 * gains.zeta * gains.omega0)]]
+    )
+    xi = -np.linalg.solve(Omega, gains.K1 @ y_tilde)  # (22) at rest
+    x = np.zeros(15)
+    x[0:6] = xi
+    x[ETA] = y - y_tilde - xi[3:6]
+    x[8] = ssa_scalar(x[8])
+    x[BIAS] = b
+    x[NU] = -J.T @ gains.K2 @ y_tilde  # (23) at rest
+    return x
 
 
 def reference_propagate(
@@ -290,10 +334,7 @@ def reference_run(
     for k in range(n):
         if x is None:
             if np.all(np.isfinite(y[k])):
-                x = np.zeros(15)
-                x[ETA] = y[k]
-                x[8] = ssa_scalar(y[k, 2])
-                x[BIAS] = -rotation(y[k, 2]) @ np.nan_to_num(tau[k])
+                x = reference_equilibrium(y[k], np.nan_to_num(tau[k]), vessel, gains)
                 t_prev = t[k]
                 X[k] = x
             continue

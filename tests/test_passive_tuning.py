@@ -1,0 +1,115 @@
+"""Gains (45)–(47), injection scaling, tuning rule (48), SPR (Proposition 1), error dynamics, notch."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from observers.passive import PassiveObserver
+from observers.passive_tuning import (
+    PassiveTuning,
+    TuningError,
+    check_spr,
+    check_tuning_rule,
+    error_eigenvalues,
+    filter_gains,
+    notch_depth_db,
+    passive_gains,
+    slowest_error_rate,
+)
+from observers.vessel import builtin_vessels, load_vessel
+
+
+def test_papers_filter_gains() -> None:
+    """Fossen & Strand (1999) Sec. 6: ζn = 1.0, ζ = 0.1, ωc = 1.1, ω0 = 0.8976 → the gains of (59)."""
+    k1, k2, k3 = filter_gains(0.8976, 0.1, 1.0, 1.1)
+    assert round(float(k1), 4) == -2.2059
+    assert round(float(k2), 4) == 1.6157
+    assert round(float(k3), 4) == 1.1
+    g = passive_gains(load_vessel("northern_clipper"), PassiveTuning(omega0=0.8976, omega_c=1.1))
+    np.testing.assert_allclose(g.K1[:3], np.diag([k1] * 3))
+    np.testing.assert_allclose(g.K1[3:], np.diag([k2] * 3))
+    np.testing.assert_allclose(g.K2, 1.1 * np.eye(3))
+
+
+def test_wave_period_of_the_paper() -> None:
+    """ERRATA: ω0 = 0.8976 rad/s is a 7.0 s wave period."""
+    g = passive_gains(load_vessel("northern_clipper"), PassiveTuning.from_wave_period(7.0))
+    assert g.omega0[0] == pytest.approx(0.8976, abs=1e-4)
+
+
+@pytest.mark.parametrize("name", builtin_vessels())
+def test_default_tuning_converges_faster_than_100_s(name: str) -> None:
+    vessel = load_vessel(name)
+    gains = passive_gains(vessel)
+    assert slowest_error_rate(vessel, gains) < -0.01
+    assert all(c.ok for c in (check_tuning_rule(gains), check_spr(gains)))
+    assert np.all(notch_depth_db(vessel, gains) <= -20.0)
+
+
+def test_convergence_does_not_depend_on_the_unit_system() -> None:
+    """The same ship in tonnes and kN gives the same error eigenvalues (the ERRATA's complaint)."""
+    v = load_vessel("northern_clipper")
+    from observers.vessel import VesselModel
+
+    v_t = VesselModel(name="nc_t", M=v.M / 1000, D=v.D / 1000, length_m=v.length_m, mass_kg=v.mass_kg / 1000)
+    e_si = error_eigenvalues(v, passive_gains(v))
+    e_t = error_eigenvalues(v_t, passive_gains(v_t))
+    np.testing.assert_allclose(np.sort_complex(e_si), np.sort_complex(e_t), rtol=1e-9, atol=1e-12)
+
+
+def test_papers_literal_injection_gains_leave_the_loops_practically_open() -> None:
+    """ERRATA: 𝒦 = diag(0.1, 0.1, 0.01), Λ = 0.1𝒦 with M, D of (56)–(57) in SI: slowest pole ≈ -0.001."""
+    from observers.passive_tuning import PassiveGains
+
+    v = load_vessel("northern_clipper")
+    g = passive_gains(v, PassiveTuning(omega0=0.8976, omega_c=1.1))
+    K4 = np.diag([0.1, 0.1, 0.01])
+    literal = PassiveGains(**{**g.__dict__, "K4": K4, "K3": 0.1 * K4})
+    assert slowest_error_rate(v, literal) == pytest.approx(-0.001, abs=5e-4)
+
+
+def test_papers_bias_corner_violates_spr() -> None:
+    """The paper's λ/κ = 0.1 satisfies rule (48) but not Proposition 1: phase −94.8° at 0.69 rad/s."""
+    v = load_vessel("northern_clipper")
+    g = passive_gains(v, PassiveTuning(omega0=0.8976, omega_c=1.1, bias_corner=0.1))
+    assert check_tuning_rule(g).ok
+    spr = check_spr(g)
+    assert not spr.ok
+    assert spr.values["min_phase_deg"][0] == pytest.approx(-94.8, abs=0.1)
+    assert spr.values["at_rad_s"][0] == pytest.approx(0.69, abs=0.01)
+    with pytest.raises(TuningError, match="Proposition 1"):
+        PassiveObserver(v, PassiveTuning(omega0=0.8976, omega_c=1.1, bias_corner=0.1))
+    PassiveObserver(v, PassiveTuning(omega0=0.8976, omega_c=1.1, bias_corner=0.1), allow_unchecked=True)
+
+
+@pytest.mark.parametrize(
+    ("tuning", "names"),
+    [
+        (PassiveTuning(omega0=0.8, omega_c=0.7), "ω0 = 0.8 is not < ωc = 0.7"),
+        (PassiveTuning(omega0=0.8, bias_corner=0.9), "λ/κ = 0.9 is not < ω0 = 0.8"),
+        (PassiveTuning(bias_time_constant_s=10.0), "1/T = 0.1 is not ≪ λ/κ"),
+        (PassiveTuning(zeta=0.5, zeta_n=0.3), "ζn = 0.3 must exceed ζ = 0.5"),
+    ],
+)
+def test_tuning_rule_violations_name_the_inequality(tuning: PassiveTuning, names: str) -> None:
+    with pytest.raises(TuningError) as err:
+        PassiveObserver(load_vessel("mss_supply"), tuning)
+    assert "(48)" in str(err.value) and names in str(err.value)
+
+
+def test_non_positive_tuning_is_refused() -> None:
+    with pytest.raises(TuningError, match="'omega0'"):
+        passive_gains(load_vessel("mss_supply"), PassiveTuning(omega0=-1.0))
+    with pytest.raises(TuningError, match="'velocity_injection'"):
+        passive_gains(load_vessel("mss_supply"), PassiveTuning(velocity_injection=[0.1, 0.0, 0.1]))
+
+
+def test_notch_deepens_with_zeta_ratio() -> None:
+    v = load_vessel("mss_supply")
+    shallow = notch_depth_db(v, passive_gains(v, PassiveTuning(zeta=0.2)))
+    deep = notch_depth_db(v, passive_gains(v, PassiveTuning(zeta=0.05)))
+    assert np.all(deep < shallow - 5)
+    assert math.isfinite(float(deep[0]))

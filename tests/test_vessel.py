@@ -1,0 +1,115 @@
+"""Vessel models: built-ins load with their sources; impossible models are refused naming the field."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from observers.vessel import VesselError, builtin_vessels, load_vessel, vessel_from_dict
+
+GOOD = {
+    "name": "test_ship",
+    "length_m": 50.0,
+    "mass_kg": 1.0e6,
+    "M": [[1.1e6, 0, 0], [0, 1.5e6, 1e5], [0, 1e5, 3e8]],
+    "D": [[1e4, 0, 0], [0, 5e4, -1e5], [0, -1e5, 4e7]],
+}
+
+
+def test_builtin_vessels_load_and_cite_sources() -> None:
+    names = builtin_vessels()
+    assert set(names) >= {"northern_clipper", "mss_supply", "cybership2", "snijders_ship", "hajivand_vessel"}
+    for name in names:
+        v = load_vessel(name)
+        assert v.name == name and v.source, name
+        assert np.all(np.linalg.eigvalsh(v.M) > 0) and np.all(np.linalg.eigvalsh(v.D + v.D.T) > 0)
+
+
+def test_northern_clipper_is_the_papers_model() -> None:
+    v = load_vessel("northern_clipper")
+    assert v.M[0, 0] == 5.3122e6 and v.M[2, 2] == 3.7454e9
+    assert v.D[1, 2] == -4.3933e6 and v.mass_kg == 4.591e6 and v.length_m == 76.2
+
+
+def test_mss_supply_from_bis_system() -> None:
+    """M = m T Mbis T, D = m √(g/L) T Dbis T, T = diag(1, 1, L), as in MSS supply.m."""
+    v = load_vessel("mss_supply")
+    m, L, g = 6.0e6, 76.2, 9.81
+    assert v.M[0, 0] == pytest.approx(m * 1.1274)
+    assert v.M[1, 2] == pytest.approx(m * -0.0744 * L)
+    assert v.M[2, 2] == pytest.approx(m * 0.1278 * L**2)
+    assert v.D[1, 1] == pytest.approx(m * math.sqrt(g / L) * 0.1183)
+    assert v.D[2, 1] == pytest.approx(m * math.sqrt(g / L) * -0.0041 * L)
+    assert v.D[1, 2] == pytest.approx(m * math.sqrt(g / L) * -0.0124 * L)
+
+
+def test_other_papers_models() -> None:
+    assert load_vessel("cybership2").M[1, 2] == 1.0115
+    assert load_vessel("snijders_ship").M[2, 2] == pytest.approx(3.193e9)
+    haj = load_vessel("hajivand_vessel")
+    assert haj.M[2, 2] == pytest.approx(3.46e11 + 5.46e10)  # M_RB + A
+    assert haj.D[1, 1] == pytest.approx(1.2e7)
+
+
+def test_user_vessel_from_toml(tmp_path: Path) -> None:
+    f = tmp_path / "my_ship.toml"
+    f.write_text(
+        'name = "my_ship"\nlength_m = 50.0\nmass_kg = 1.0e6\nsource = "sea trial 2026"\n'
+        "M = [[1.1e6, 0, 0], [0, 1.5e6, 1e5], [0, 1e5, 3e8]]\n"
+        "D = [[1e4, 0, 0], [0, 5e4, -1e5], [0, -1e5, 4e7]]\n"
+        '[[thrusters]]\nid = 1\nkind = "azimuth"\nx_m = -20.0\ny_m = 3.0\nmax_thrust_n = 2e5\n'
+        "azimuth_rate_rad_s = 0.2\n"
+        '[[thrusters]]\nid = 2\nkind = "tunnel"\nx_m = 20.0\ny_m = 0.0\nmax_thrust_n = 1e5\n'
+        "min_thrust_n = -1e5\n"
+    )
+    v = load_vessel(f)
+    assert v.name == "my_ship" and len(v.thrusters) == 2
+    assert v.thrusters[1].angle_rad == pytest.approx(math.pi / 2)
+
+
+@pytest.mark.parametrize(
+    ("change", "field", "reason"),
+    [
+        ({"M": [[1e6, 0, 0], [0, 1e6, 5e5], [0, 0, 1e8]]}, "'M'", "symmetric"),
+        ({"M": [[1e6, 0, 0], [0, -1e6, 0], [0, 0, 1e8]]}, "'M'", "positive definite"),
+        ({"D": [[1e4, 0, 0], [0, -5e4, 0], [0, 0, 4e7]]}, "'D'", "D + Dᵀ must be positive definite"),
+        ({"D": [[1e4, 0], [0, 5e4]]}, "'D'", "3×3"),
+        ({"M": [[1e6, 0, 0], [0, float("nan"), 0], [0, 0, 1e8]]}, "'M'", "non-finite"),
+        ({"M": "heavy"}, "'M'", "3×3"),
+        ({"length_m": -3.0}, "'length_m'", "positive"),
+        ({"mass_kg": None}, "'mass_kg'", "missing"),
+        ({"name": ""}, "'name'", "missing"),
+        ({"thrusters": [{"id": 1, "kind": "jet", "x_m": 0, "y_m": 0, "max_thrust_n": 1}]}, "kind", "one of"),
+        (
+            {"thrusters": [{"id": 1, "kind": "azimuth", "x_m": 0, "y_m": 0, "max_thrust_n": 1e5}]},
+            "azimuth_rate",
+            "",
+        ),
+        (
+            {"thrusters": [{"id": 1, "kind": "main", "x_m": 0, "y_m": 0, "max_thrust_n": 1, "rpm": 3}]},
+            "unknown",
+            "",
+        ),
+    ],
+)
+def test_bad_models_are_refused_naming_the_field(change: dict, field: str, reason: str) -> None:
+    data = {**GOOD, **change}
+    data = {k: v for k, v in data.items() if v is not None}
+    with pytest.raises(VesselError) as err:
+        vessel_from_dict(data, "ship.toml")
+    msg = str(err.value)
+    assert field in msg and reason in msg, msg
+
+
+def test_bad_files(tmp_path: Path) -> None:
+    with pytest.raises(VesselError, match="not a built-in vessel"):
+        load_vessel("titanic")
+    with pytest.raises(VesselError, match="does not exist"):
+        load_vessel(tmp_path / "nope.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("name = 'x'\nM = [[1,2]\n")
+    with pytest.raises(VesselError, match="not valid TOML"):
+        load_vessel(bad)
