@@ -1,0 +1,466 @@
+"""MAVLink 2 codec over the project's dialect (``dpgw.xml``: ardupilotmega.xml + azimuth thrusters).
+
+A small typed layer over the module mavgen generates (:mod:`gateway.codecs.generated.dpgw`):
+
+* :func:`encoder` makes a ``MAVLink`` object (``file=None``) whose sequence numbers and signing state belong
+  to one outgoing link; the ``*_frame`` helpers take SI values, convert them to the wire units of the
+  message (DESIGN.md rule 3: units change only here), pack one frame and return its bytes.
+* :func:`setup_signing` turns on MAVLink 2 message signing (SHA-256, 48-bit signature, 32-byte key) for
+  the outgoing frames of an encoder and/or the checking of incoming frames by a decoder.
+* :class:`FrameParser` (streaming) and :func:`parse_frames` (one buffer) decode frames robustly: bytes that
+  are not a valid frame are skipped and counted per reason, never raised.
+
+Message layouts: ``docs/mavlink-dialect.md``. MAVLink 2 framing: https://mavlink.io/en/guide/serialization.html;
+signing: https://mavlink.io/en/guide/message_signing.html.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import struct
+import time
+from collections import Counter
+from collections.abc import Callable, Sequence
+from enum import IntFlag
+from types import ModuleType
+from typing import Any
+
+from gateway.codecs.generated import dpgw as _dpgw
+from observers.kinematics import ssa_scalar
+
+MAVLink = _dpgw.MAVLink
+MAVLinkMessage = _dpgw.MAVLink_message
+
+AZIMUTH_THRUSTER_STATUS_ID: int = _dpgw.MAVLINK_MSG_ID_AZIMUTH_THRUSTER_STATUS
+AZIMUTH_THRUSTER_COMMAND_ID: int = _dpgw.MAVLINK_MSG_ID_AZIMUTH_THRUSTER_COMMAND
+
+SIGNING_KEY_LEN = 32
+"""Length of a MAVLink 2 signing secret key (bytes)."""
+
+SIGNING_EPOCH_UNIX_S = 1420070400
+"""Signing timestamps count 10 µs units from 2015-01-01T00:00:00Z (this many seconds after the UNIX epoch)."""
+
+ESC_TELEMETRY_BLOCKS = tuple(range(1, 33, 4))
+"""First ESC numbers of ESC_TELEMETRY_1_TO_4, _5_TO_8, ..., _29_TO_32 (ardupilotmega.xml)."""
+
+_UINT16_MAX = 0xFFFF
+_MAH_PER_COULOMB = 1.0 / 3.6
+
+
+class AzimuthThrusterFlags(IntFlag):
+    """``AZIMUTH_THRUSTER_STATUS.flags`` (enum ``DPGW_AZIMUTH_THRUSTER_FLAGS`` in dpgw.xml)."""
+
+    READY = _dpgw.DPGW_AZIMUTH_THRUSTER_FLAGS_READY
+    RUNNING = _dpgw.DPGW_AZIMUTH_THRUSTER_FLAGS_RUNNING
+    REMOTE_CONTROL = _dpgw.DPGW_AZIMUTH_THRUSTER_FLAGS_REMOTE_CONTROL
+    LOCAL_CONTROL = _dpgw.DPGW_AZIMUTH_THRUSTER_FLAGS_LOCAL_CONTROL
+    FAULT = _dpgw.DPGW_AZIMUTH_THRUSTER_FLAGS_FAULT
+    WARNING = _dpgw.DPGW_AZIMUTH_THRUSTER_FLAGS_WARNING
+    THRUST_LIMITED = _dpgw.DPGW_AZIMUTH_THRUSTER_FLAGS_THRUST_LIMITED
+    AZIMUTH_LIMITED = _dpgw.DPGW_AZIMUTH_THRUSTER_FLAGS_AZIMUTH_LIMITED
+    AZIMUTH_FOLLOW_UP_ERROR = _dpgw.DPGW_AZIMUTH_THRUSTER_FLAGS_AZIMUTH_FOLLOW_UP_ERROR
+    EMERGENCY_STOP = _dpgw.DPGW_AZIMUTH_THRUSTER_FLAGS_EMERGENCY_STOP
+    COMMAND_TIMEOUT = _dpgw.DPGW_AZIMUTH_THRUSTER_FLAGS_COMMAND_TIMEOUT
+
+
+def dialect() -> ModuleType:
+    """The generated dialect module (message classes, enums, ``MAVLink``, ``mavlink_map``)."""
+    return _dpgw
+
+
+def encoder(src_system: int = 1, src_component: int = _dpgw.MAV_COMP_ID_AUTOPILOT1) -> MAVLink:
+    """A MAVLink 2 protocol object for one outgoing link, with ``file=None``: build frames with the
+    ``*_frame`` helpers (or ``msg.pack(mav)``) and write the bytes yourself.
+
+    ``src_system``/``src_component`` go into every frame header (1..255; component 1 is
+    ``MAV_COMP_ID_AUTOPILOT1``, the usual id of a thruster controller running on an autopilot; the gateway
+    itself would use ``MAV_COMP_ID_ONBOARD_COMPUTER`` = 191). The same object can also decode.
+    """
+    _check_uint("src_system", src_system, 8)
+    _check_uint("src_component", src_component, 8)
+    mav = _dpgw.MAVLink(None, srcSystem=src_system, srcComponent=src_component)
+    mav.robust_parsing = True
+    return mav
+
+
+def signing_timestamp(unix_time_s: float) -> int:
+    """MAVLink 2 signing timestamp (10 µs units since 2015-01-01T00:00:00Z) of a UNIX time in seconds."""
+    return max(0, int((unix_time_s - SIGNING_EPOCH_UNIX_S) * 100_000))
+
+
+def setup_signing(
+    mav: MAVLink,
+    secret_key: bytes,
+    link_id: int = 0,
+    *,
+    sign_outgoing: bool = True,
+    allow_unsigned: bool | Callable[[MAVLink, int], bool] = False,
+    initial_timestamp: int | None = None,
+) -> None:
+    """Configure MAVLink 2 message signing on ``mav``.
+
+    With a key set, frames packed with ``mav`` are signed (``sign_outgoing``) with ``link_id`` (0..255), and
+    frames decoded with ``mav`` must carry a valid signature: a frame with a wrong signature, or a replayed
+    / old timestamp, is rejected; an unsigned frame is rejected unless ``allow_unsigned`` is True or a
+    callback ``(mav, msg_id) -> bool`` that accepts it. ``initial_timestamp`` (10 µs units since 2015, see
+    :func:`signing_timestamp`) defaults to the current time; a simulator that must be reproducible passes
+    one. The timestamp then increases by one for every signed frame, as the protocol requires.
+    """
+    if len(secret_key) != SIGNING_KEY_LEN:
+        raise ValueError(f"MAVLink signing key must be {SIGNING_KEY_LEN} bytes, got {len(secret_key)}")
+    _check_uint("link_id", link_id, 8)
+    mav.signing.secret_key = bytes(secret_key)
+    mav.signing.link_id = link_id
+    mav.signing.sign_outgoing = sign_outgoing
+    if initial_timestamp is None:
+        initial_timestamp = signing_timestamp(time.time())
+    _check_uint("initial_timestamp", initial_timestamp, 48)
+    mav.signing.timestamp = initial_timestamp
+    if callable(allow_unsigned):
+        mav.signing.allow_unsigned_callback = allow_unsigned
+    elif allow_unsigned:
+        mav.signing.allow_unsigned_callback = lambda _mav, _msg_id: True
+    else:
+        mav.signing.allow_unsigned_callback = None
+
+
+# ---------------------------------------------------------------------------------------------- encoding
+
+
+def pack(mav: MAVLink, msg: MAVLinkMessage) -> bytes:
+    """Pack one message as a frame with ``mav``'s header ids, sequence number and signing; advance the
+    sequence number (``MAVLink.pack`` alone does not, only ``MAVLink.send`` does)."""
+    buf = msg.pack(mav)
+    mav.seq = (mav.seq + 1) % 256
+    mav.total_packets_sent += 1
+    mav.total_bytes_sent += len(buf)
+    return bytes(buf)
+
+
+def azimuth_status_frame(
+    mav: MAVLink,
+    time_usec: int,
+    id: int,
+    thrust_n: float,
+    rpm: float,
+    azimuth_rad: float,
+    flags: int,
+    *,
+    thrust_setpoint_n: float = math.nan,
+    azimuth_setpoint_rad: float = math.nan,
+    azimuth_rate_rad_s: float = math.nan,
+    power_w: float = math.nan,
+    fault_code: int = 0,
+) -> bytes:
+    """One ``AZIMUTH_THRUSTER_STATUS`` frame. Azimuths are wrapped to [-π, π) (clockwise from the bow, body
+    frame, direction of the thrust force); unknown optional values go as NaN."""
+    _check_uint("time_usec", time_usec, 64)
+    _check_uint("id", id, 8)
+    _check_uint("flags", int(flags), 32)
+    _check_uint("fault_code", fault_code, 16)
+    msg = _dpgw.MAVLink_azimuth_thruster_status_message(
+        time_usec=time_usec,
+        id=id,
+        thrust=float(thrust_n),
+        rpm=float(rpm),
+        azimuth=ssa_scalar(float(azimuth_rad)),
+        flags=int(flags),
+        thrust_setpoint=float(thrust_setpoint_n),
+        azimuth_setpoint=ssa_scalar(float(azimuth_setpoint_rad)),
+        azimuth_rate=float(azimuth_rate_rad_s),
+        power=float(power_w),
+        fault_code=fault_code,
+    )
+    return pack(mav, msg)
+
+
+def azimuth_command_frame(
+    mav: MAVLink,
+    time_usec: int,
+    id: int,
+    thrust_n: float,
+    azimuth_rad: float,
+    *,
+    target_system: int = 0,
+    target_component: int = 0,
+) -> bytes:
+    """One ``AZIMUTH_THRUSTER_COMMAND`` frame (azimuth wrapped to [-π, π)). Target 0 = broadcast."""
+    _check_uint("time_usec", time_usec, 64)
+    _check_uint("id", id, 8)
+    _check_uint("target_system", target_system, 8)
+    _check_uint("target_component", target_component, 8)
+    msg = _dpgw.MAVLink_azimuth_thruster_command_message(
+        time_usec=time_usec,
+        target_system=target_system,
+        target_component=target_component,
+        id=id,
+        thrust=float(thrust_n),
+        azimuth=ssa_scalar(float(azimuth_rad)),
+    )
+    return pack(mav, msg)
+
+
+def esc_telemetry_frame(
+    mav: MAVLink,
+    rpm: Sequence[float],
+    *,
+    temperature_degc: Sequence[float] = (),
+    voltage_v: Sequence[float] = (),
+    current_a: Sequence[float] = (),
+    consumed_c: Sequence[float] = (),
+    count: Sequence[int] = (),
+    first_esc: int = 1,
+) -> bytes:
+    """One ArduPilot ``ESC_TELEMETRY_<first>_TO_<first+3>`` frame (ardupilotmega.xml, BLHeli layout) for up
+    to four ESCs; missing entries are sent as 0.
+
+    Converted to the wire's integer units and saturated to its field ranges: rpm → |rpm| (the field is
+    unsigned, the direction is lost), temperature °C → uint8 °C, voltage V → cV, current A → cA, consumed
+    charge C → mAh (uint16 each), ``count`` (packets received by the ESC) wraps at 65536.
+    """
+    if first_esc not in ESC_TELEMETRY_BLOCKS:
+        raise ValueError(f"first_esc must be one of {ESC_TELEMETRY_BLOCKS}, got {first_esc}")
+    name = f"ESC_TELEMETRY_{first_esc}_TO_{first_esc + 3}"
+    msg_id = getattr(_dpgw, f"MAVLINK_MSG_ID_{name}")
+    msg_cls: Any = _dpgw.mavlink_map[msg_id]  # one of the ESC_TELEMETRY_* classes (same fields)
+    msg = msg_cls(
+        temperature=_quad("temperature_degc", temperature_degc, 1.0, 0xFF),
+        voltage=_quad("voltage_v", voltage_v, 100.0, _UINT16_MAX),
+        current=_quad("current_a", current_a, 100.0, _UINT16_MAX),
+        totalcurrent=_quad("consumed_c", consumed_c, _MAH_PER_COULOMB, _UINT16_MAX),
+        rpm=_quad("rpm", [abs(r) for r in rpm], 1.0, _UINT16_MAX),
+        count=[int(c) % (_UINT16_MAX + 1) for c in _pad4("count", count)],
+    )
+    return pack(mav, msg)
+
+
+def servo_output_raw_frame(mav: MAVLink, time_usec: int, pwm_us: Sequence[int], port: int = 0) -> bytes:
+    """One ``SERVO_OUTPUT_RAW`` frame (common.xml) with up to 16 outputs (µs pulse widths, 1000-2000 for
+    a standard PWM ESC; 0 = output unused). ``time_usec`` is a uint32 on the wire (time since boot): it is
+    sent modulo 2**32."""
+    if len(pwm_us) > 16:
+        raise ValueError(f"SERVO_OUTPUT_RAW carries at most 16 outputs, got {len(pwm_us)}")
+    _check_uint("port", port, 8)
+    values = [min(max(round(v), 0), _UINT16_MAX) for v in pwm_us] + [0] * (16 - len(pwm_us))
+    msg = _dpgw.MAVLink_servo_output_raw_message(int(time_usec) % 2**32, port, *values)
+    return pack(mav, msg)
+
+
+def heartbeat_frame(
+    mav: MAVLink,
+    mav_type: int = _dpgw.MAV_TYPE_SURFACE_BOAT,
+    autopilot: int = _dpgw.MAV_AUTOPILOT_INVALID,
+    base_mode: int = 0,
+    custom_mode: int = 0,
+    system_status: int = _dpgw.MAV_STATE_ACTIVE,
+) -> bytes:
+    """One ``HEARTBEAT`` frame (1 Hz on every MAVLink link). Defaults: a surface vessel's component that is
+    not a flight controller (``MAV_AUTOPILOT_INVALID``), active; an ArduPilot thruster controller sends
+    ``autopilot=MAV_AUTOPILOT_ARDUPILOTMEGA`` and its mode in ``base_mode``/``custom_mode``."""
+    for name, value, bits in (
+        ("mav_type", mav_type, 8),
+        ("autopilot", autopilot, 8),
+        ("base_mode", base_mode, 8),
+        ("custom_mode", custom_mode, 32),
+        ("system_status", system_status, 8),
+    ):
+        _check_uint(name, value, bits)
+    msg = _dpgw.MAVLink_heartbeat_message(
+        type=mav_type,
+        autopilot=autopilot,
+        base_mode=base_mode,
+        custom_mode=custom_mode,
+        system_status=system_status,
+        mavlink_version=3,
+    )
+    return pack(mav, msg)
+
+
+# ---------------------------------------------------------------------------------------------- decoding
+
+_V1, _V2 = _dpgw.PROTOCOL_MARKER_V1, _dpgw.PROTOCOL_MARKER_V2
+_MARKERS = frozenset((_V1, _V2))
+
+
+class FrameParser:
+    """Incremental, robust MAVLink 1/2 frame parser for one incoming byte stream (one source).
+
+    :meth:`feed` takes any chunk of bytes and returns the messages completed by it. Invalid input is never
+    raised: it is skipped and counted in :attr:`rejected` by reason, and the parser resynchronises on the
+    next start-of-frame marker (0xFD MAVLink 2, 0xFE MAVLink 1). Reasons:
+
+    * ``bad_crc`` - a marker whose frame fails its CRC;
+    * ``unknown_message`` - a message id the dialect does not define, so its CRC cannot be checked (no
+      CRC_EXTRA);
+    * ``bad_header`` - a MAVLink 2 header with incompatibility flags this parser does not know;
+    * ``truncated`` - a frame cut off by the end of the data (:meth:`flush` only).
+
+      For these four only the marker byte is dropped and the scan restarts right after it: a stray marker
+      in line noise, whose length byte claims up to 280 bytes, cannot swallow the good frames behind it.
+      A frame of another dialect is not decoded either way.
+    * ``bad_signature`` - a signed frame that fails the signature or timestamp (replay) check (the
+      signature is checked first, so a forged frame cannot advance a stream's timestamp);
+    * ``unsigned`` - an unsigned frame on a link where signing is required;
+    * ``undecodable`` - a frame with a valid CRC whose payload the dialect cannot unpack.
+
+      These frames are genuine (their CRC is right) and are consumed whole.
+
+    :attr:`skipped_bytes` counts bytes dropped outside valid frames. Pass a ``mav`` from :func:`encoder`
+    configured with :func:`setup_signing` to check signatures; without a key, signed frames are accepted
+    unchecked (as pymavlink does). Decoded messages keep their raw frame (``msg.get_msgbuf()``) for logging.
+    """
+
+    def __init__(self, mav: MAVLink | None = None) -> None:
+        self.mav: MAVLink = mav if mav is not None else encoder(0, 0)
+        self.rejected: Counter[str] = Counter()
+        self.skipped_bytes = 0
+        self.received = 0
+        self._buf = bytearray()
+
+    @property
+    def pending(self) -> int:
+        """Bytes held back waiting for the rest of a frame."""
+        return len(self._buf)
+
+    def feed(self, data: bytes | bytearray | memoryview) -> list[MAVLinkMessage]:
+        """Add bytes; return the messages whose frames are now complete and valid, in stream order."""
+        self._buf.extend(data)
+        return self._scan(final=False)
+
+    def flush(self) -> list[MAVLinkMessage]:
+        """No more data is coming (end of file, or a line idle for longer than a frame takes): resolve what
+        is held back, treating an incomplete frame as a false start, and empty the buffer."""
+        return self._scan(final=True)
+
+    def _scan(self, final: bool) -> list[MAVLinkMessage]:
+        buf = self._buf
+        out: list[MAVLinkMessage] = []
+        pos = 0
+        n = len(buf)
+        while True:
+            start = _next_marker(buf, pos)
+            self.skipped_bytes += start - pos
+            pos = start
+            if pos >= n:
+                break
+            size = _frame_size(buf, pos)
+            if size is None or n - pos < size:
+                if not final:
+                    break  # wait for the rest of the header / frame
+                verdict: str | None = "truncated"
+            elif size < 0:
+                verdict = "bad_header"
+            else:
+                verdict = self._check(buf, pos)
+            if verdict is not None:
+                self.rejected[verdict] += 1
+                self.skipped_bytes += 1
+                pos += 1
+                continue
+            assert size is not None
+            frame = bytearray(buf[pos : pos + size])
+            pos += size
+            if not self._signature_matches(frame):
+                self.rejected["bad_signature"] += 1
+                continue
+            try:
+                msg = self.mav.decode(frame)
+            except _dpgw.MAVError:
+                self.rejected[self._signing_reason(frame)] += 1
+                continue
+            except Exception:  # a payload the generated class cannot build: count it, keep going
+                self.rejected["undecodable"] += 1
+                continue
+            self.received += 1
+            out.append(msg)
+        del buf[:pos]
+        return out
+
+    @staticmethod
+    def _check(buf: bytearray, pos: int) -> str | None:
+        """``None`` if the complete frame at ``pos`` is a known message with a good CRC, else why not."""
+        if buf[pos] == _V2:
+            header_len = _dpgw.HEADER_LEN_V2
+            msg_id = buf[pos + 7] | (buf[pos + 8] << 8) | (buf[pos + 9] << 16)
+        else:
+            header_len = _dpgw.HEADER_LEN_V1
+            msg_id = buf[pos + 5]
+        msg_cls = _dpgw.mavlink_map.get(msg_id)
+        if msg_cls is None:
+            return "unknown_message"
+        payload_end = pos + header_len + buf[pos + 1]
+        crc = _dpgw.x25crc(buf[pos + 1 : payload_end])
+        crc.accumulate(bytes((msg_cls.crc_extra,)))
+        (wire_crc,) = struct.unpack_from("<H", buf, payload_end)
+        return None if crc.crc == wire_crc else "bad_crc"
+
+    def _signature_matches(self, frame: bytearray) -> bool:
+        """False for a signed frame whose signature does not match the configured key. Checked before
+        pymavlink's decode, which records a stream's timestamp before comparing signatures: a forged frame
+        with a future timestamp would otherwise make the genuine frames of that stream look replayed."""
+        key = self.mav.signing.secret_key
+        if key is None or frame[0] != _V2 or not frame[2] & _dpgw.MAVLINK_IFLAG_SIGNED:
+            return True
+        return hashlib.sha256(key + bytes(frame[:-6])).digest()[:6] == bytes(frame[-6:])
+
+    def _signing_reason(self, frame: bytearray) -> str:
+        if self.mav.signing.secret_key is None:
+            return "undecodable"
+        signed = frame[0] == _V2 and bool(frame[2] & _dpgw.MAVLINK_IFLAG_SIGNED)
+        return "bad_signature" if signed else "unsigned"
+
+
+def parse_frames(data: bytes | bytearray | memoryview, mav: MAVLink | None = None) -> list[MAVLinkMessage]:
+    """All valid frames in one complete buffer, in order; bad bytes and a trailing incomplete frame are
+    skipped, never raised. For a stream, or to see what was rejected, use :class:`FrameParser`."""
+    parser = FrameParser(mav)
+    return parser.feed(data) + parser.flush()
+
+
+# ---------------------------------------------------------------------------------------------- helpers
+
+
+def _next_marker(buf: bytearray, pos: int) -> int:
+    """Index of the next MAVLink 1 or 2 start marker at or after ``pos`` (``len(buf)`` if none)."""
+    n = len(buf)
+    i2 = buf.find(_V2, pos)
+    i1 = buf.find(_V1, pos)
+    candidates = [i for i in (i1, i2) if i >= 0]
+    return min(candidates) if candidates else n
+
+
+def _frame_size(buf: bytearray, pos: int) -> int | None:
+    """Total frame length starting at ``pos``; None if the header is not complete yet, -1 if invalid."""
+    if buf[pos] == _V2:
+        if len(buf) - pos < 3:
+            return None
+        length, incompat = buf[pos + 1], buf[pos + 2]
+        if incompat & ~_dpgw.MAVLINK_IFLAG_SIGNED:
+            return -1
+        signature = _dpgw.MAVLINK_SIGNATURE_BLOCK_LEN if incompat & _dpgw.MAVLINK_IFLAG_SIGNED else 0
+        return _dpgw.HEADER_LEN_V2 + length + 2 + signature
+    if len(buf) - pos < 2:
+        return None
+    return _dpgw.HEADER_LEN_V1 + buf[pos + 1] + 2
+
+
+def _check_uint(name: str, value: int, bits: int) -> None:
+    if not 0 <= value < 2**bits:
+        raise ValueError(f"{name} must be in 0..{2**bits - 1}, got {value}")
+
+
+def _pad4(name: str, values: Sequence[float]) -> list[float]:
+    if len(values) > 4:
+        raise ValueError(f"{name}: an ESC_TELEMETRY message carries 4 ESCs, got {len(values)} values")
+    return [*values, *([0] * (4 - len(values)))]
+
+
+def _quad(name: str, values: Sequence[float], scale: float, top: int) -> list[int]:
+    """Four values scaled to integer wire units and saturated to 0..top (NaN is an error)."""
+    out = []
+    for v in _pad4(name, values):
+        if math.isnan(v):
+            raise ValueError(f"{name}: NaN cannot be sent in an integer field")
+        out.append(min(max(round(v * scale), 0), top))
+    return out

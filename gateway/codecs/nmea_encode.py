@@ -1,0 +1,535 @@
+"""NMEA 0183 sentence encoders: SI units, radians and UTC in, one complete sentence out.
+
+What the simulator's GNSS receivers and gyro compasses emit, and what fault injection starts from. Every
+function is pure and returns ``$<talker><type>,<fields>*<HH>\\r\\n``; the talker id is a parameter (``GP``,
+``GN`` GNSS, ``HE`` gyro, ``HC`` magnetic compass, ``IN`` integrated navigation, ...). Units change here and
+only here (DESIGN.md rule 3): latitude/longitude in signed decimal degrees become ``ddmm.mmmmmm,N``/
+``dddmm.mmmmmm,E``, speeds in m/s become knots (and km/h), angles in radians become degrees, rates of turn
+in rad/s become degrees per minute.
+
+Layouts follow NMEA 0183 v4.10 (field numbers in the docstrings are 1-based after the address field).
+Formatting decisions:
+
+* Latitude and longitude carry ``decimals`` decimals of minutes, default 6 (1e-6 min ≈ 1.9 mm, enough for
+  RTK). Degrees and minutes are derived from one rounded integer, so rounding carries correctly
+  (59.9999996' prints as the next whole degree, never as ``60.000000``).
+* Times are ``hhmmss.ss`` (``time_decimals``, default 2), rounded to the nearest unit; the date printed by
+  RMC and ZDA comes from the same rounded instant, so 23:59:59.996 becomes 00:00:00.00 of the next day.
+  A naive ``datetime`` is taken as UTC; an aware one is converted to UTC.
+* Headings and courses are in [0, 360) at their resolution: 359.996° prints as ``0.00``, never ``360.00``.
+* A ``None`` value gives a null (empty) field, as receivers send when they have no data.
+* High-precision sentences can exceed the standard's 82-character limit, as RTK receivers' sentences do in
+  practice; no limit is enforced.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Iterable
+from datetime import UTC, datetime, timedelta
+
+KNOTS_PER_MPS = 3600.0 / 1852.0
+"""1 m/s in knots (1 international nautical mile = 1852 m)."""
+KMH_PER_MPS = 3.6
+
+LATLON_DECIMALS = 6
+TIME_DECIMALS = 2
+
+GGA_QUALITY = {
+    0: "fix not available",
+    1: "GPS fix (SPS)",
+    2: "differential GPS fix",
+    3: "PPS fix",
+    4: "RTK fixed",
+    5: "RTK float",
+    6: "estimated (dead reckoning)",
+    7: "manual input",
+    8: "simulation",
+}
+"""GGA field 6, the GPS quality indicator."""
+
+POSITION_MODES = "NADPRFEMS"
+"""Mode indicator characters (RMC, VTG, GNS): N no fix, A autonomous, D differential, P precise, R RTK
+fixed, F RTK float, E estimated (dead reckoning), M manual input, S simulator."""
+
+HEADING_MODES = "AEMSV"
+"""THS mode indicator: A autonomous, E estimated (dead reckoning), M manual input, S simulator,
+V not valid."""
+
+NAV_STATUS = "SCUV"
+"""Navigational status (RMC/GNS, NMEA 4.10): S safe, C caution, U unsafe, V not valid."""
+
+_TALKER_RE = re.compile(r"[A-Z][A-Z0-9]")
+_KIND_RE = re.compile(r"[A-Z]{3}")
+_RESERVED = frozenset("$*,!\\^~\r\n")
+
+Field = str | None
+
+
+# ---------------------------------------------------------------------------------------------- framing
+
+
+def checksum(body: str) -> str:
+    """NMEA checksum of ``body`` (the characters between ``$`` and ``*``): two upper-case hex digits of the
+    XOR of all its bytes."""
+    value = 0
+    for ch in body.encode("ascii"):
+        value ^= ch
+    return f"{value:02X}"
+
+
+def sentence(talker: str, kind: str, fields: Iterable[Field]) -> str:
+    """``$<talker><kind>,<f1>,<f2>,...*HH\\r\\n``. ``talker`` is two characters (``GP``), ``kind`` three
+    (``GGA``); a ``None`` field is null (empty). Fields must be ASCII without NMEA's reserved characters."""
+    if not _TALKER_RE.fullmatch(talker):
+        raise ValueError(f"talker id must be 2 upper-case characters, got {talker!r}")
+    if not _KIND_RE.fullmatch(kind):
+        raise ValueError(f"sentence formatter must be 3 upper-case letters, got {kind!r}")
+    texts = ["" if f is None else f for f in fields]
+    for text in texts:
+        if not text.isascii() or _RESERVED.intersection(text):
+            raise ValueError(f"NMEA field {text!r} contains a reserved or non-ASCII character")
+    body = ",".join([talker + kind, *texts])
+    return f"${body}*{checksum(body)}\r\n"
+
+
+def corrupt_checksum(text: str) -> str:
+    """The same sentence with a wrong checksum (every bit of it inverted), for fault injection."""
+    star = text.rfind("*")
+    if star < 0 or len(text) < star + 3:
+        raise ValueError(f"not an NMEA sentence with a checksum: {text!r}")
+    good = int(text[star + 1 : star + 3], 16)
+    return f"{text[: star + 1]}{good ^ 0xFF:02X}{text[star + 3 :]}"
+
+
+# ---------------------------------------------------------------------------------------------- position
+
+
+def gga(
+    talker: str,
+    t_utc: datetime,
+    lat_deg: float | None,
+    lon_deg: float | None,
+    quality: int,
+    n_sats: int,
+    hdop: float | None,
+    alt_m: float | None,
+    geoid_sep_m: float | None = None,
+    age_s: float | None = None,
+    station_id: int | None = None,
+    *,
+    decimals: int = LATLON_DECIMALS,
+    time_decimals: int = TIME_DECIMALS,
+) -> str:
+    """GGA, Global Positioning System fix data::
+
+        $--GGA,hhmmss.ss,llll.ll,a,yyyyy.yy,a,x,xx,x.x,x.x,M,x.x,M,x.x,xxxx*hh
+               1         2       3 4        5 6 7  8   9   10 11 12 13  14
+
+    1 UTC time of fix, 2-3 latitude N/S, 4-5 longitude E/W, 6 quality (:data:`GGA_QUALITY`), 7 satellites
+    in use (00-99), 8 HDOP, 9-10 antenna altitude above mean sea level (geoid), m, 11-12 geoidal separation
+    (geoid above WGS-84 ellipsoid), m, 13 age of differential corrections, s, 14 differential reference
+    station id (0000-1023). Altitude 3 decimals (mm), HDOP 2, age 1.
+    """
+    if quality not in GGA_QUALITY:
+        raise ValueError(f"GGA quality must be one of {sorted(GGA_QUALITY)}, got {quality}")
+    lat, ns = _lat(lat_deg, decimals)
+    lon, ew = _lon(lon_deg, decimals)
+    fields = [
+        _time(_rounded(t_utc, time_decimals), time_decimals),
+        lat,
+        ns,
+        lon,
+        ew,
+        str(quality),
+        _count(n_sats),
+        _fixed(hdop, 2),
+        _fixed(alt_m, 3),
+        None if alt_m is None else "M",
+        _fixed(geoid_sep_m, 3),
+        None if geoid_sep_m is None else "M",
+        _fixed(age_s, 1),
+        _station(station_id),
+    ]
+    return sentence(talker, "GGA", fields)
+
+
+def gns(
+    talker: str,
+    t_utc: datetime,
+    lat_deg: float | None,
+    lon_deg: float | None,
+    mode: str,
+    n_sats: int,
+    hdop: float | None,
+    alt_m: float | None,
+    geoid_sep_m: float | None = None,
+    age_s: float | None = None,
+    station_id: int | None = None,
+    nav_status: str | None = None,
+    *,
+    decimals: int = LATLON_DECIMALS,
+    time_decimals: int = TIME_DECIMALS,
+) -> str:
+    """GNS, GNSS fix data::
+
+        $--GNS,hhmmss.ss,llll.ll,a,yyyyy.yy,a,c--c,xx,x.x,x.x,x.x,x.x,x.x,a*hh
+               1         2       3 4        5 6    7  8   9   10  11  12  13
+
+    1 UTC time, 2-5 position, 6 mode indicator, one character per constellation in the order GPS, GLONASS,
+    Galileo, BDS, QZSS, NavIC (e.g. ``DD``, ``RR``; :data:`POSITION_MODES`), 7 satellites in use, 8 HDOP,
+    9 orthometric height, m, 10 geoidal separation, m, 11 age of differential data, s, 12 reference station
+    id, 13 navigational status (NMEA 4.10, :data:`NAV_STATUS`; omitted when ``None``).
+    """
+    if not mode or any(c not in POSITION_MODES for c in mode):
+        raise ValueError(f"GNS mode must be characters of {POSITION_MODES!r}, got {mode!r}")
+    lat, ns = _lat(lat_deg, decimals)
+    lon, ew = _lon(lon_deg, decimals)
+    fields = [
+        _time(_rounded(t_utc, time_decimals), time_decimals),
+        lat,
+        ns,
+        lon,
+        ew,
+        mode,
+        _count(n_sats),
+        _fixed(hdop, 2),
+        _fixed(alt_m, 3),
+        _fixed(geoid_sep_m, 3),
+        _fixed(age_s, 1),
+        _station(station_id),
+    ]
+    if nav_status is not None:
+        fields.append(_one_of("GNS navigational status", nav_status, NAV_STATUS))
+    return sentence(talker, "GNS", fields)
+
+
+def rmc(
+    talker: str,
+    t_utc: datetime,
+    lat_deg: float | None,
+    lon_deg: float | None,
+    sog_mps: float | None,
+    cog_rad: float | None,
+    valid: bool,
+    mode: str = "D",
+    *,
+    mag_var_rad: float | None = None,
+    decimals: int = LATLON_DECIMALS,
+    time_decimals: int = TIME_DECIMALS,
+    speed_decimals: int = 3,
+    course_decimals: int = 2,
+) -> str:
+    """RMC, recommended minimum specific GNSS data (NMEA 2.3 layout with mode indicator)::
+
+        $--RMC,hhmmss.ss,A,llll.ll,a,yyyyy.yy,a,x.x,x.x,ddmmyy,x.x,a,a*hh
+               1         2 3       4 5        6 7   8   9      10  11 12
+
+    1 UTC time, 2 status A valid / V warning, 3-6 position, 7 speed over ground, knots, 8 course over
+    ground, degrees true, 9 date, 10-11 magnetic variation, degrees E/W (east positive in
+    ``mag_var_rad``), 12 mode indicator (:data:`POSITION_MODES`).
+    """
+    rounded = _rounded(t_utc, time_decimals)
+    lat, ns = _lat(lat_deg, decimals)
+    lon, ew = _lon(lon_deg, decimals)
+    var, var_dir = _east_west(mag_var_rad, 1)
+    fields = [
+        _time(rounded, time_decimals),
+        "A" if valid else "V",
+        lat,
+        ns,
+        lon,
+        ew,
+        _speed(sog_mps, KNOTS_PER_MPS, speed_decimals),
+        _deg360(cog_rad, course_decimals),
+        f"{rounded:%d%m%y}",
+        var,
+        var_dir,
+        _one_of("RMC mode", mode, POSITION_MODES),
+    ]
+    return sentence(talker, "RMC", fields)
+
+
+def vtg(
+    talker: str,
+    cog_rad: float | None,
+    sog_mps: float | None,
+    mode: str = "D",
+    *,
+    mag_var_rad: float | None = None,
+    speed_decimals: int = 3,
+    course_decimals: int = 2,
+) -> str:
+    """VTG, course over ground and ground speed::
+
+        $--VTG,x.x,T,x.x,M,x.x,N,x.x,K,a*hh
+               1   2 3   4 5   6 7   8 9
+
+    1 course over ground, degrees true, 3 course over ground, degrees magnetic (true minus
+    ``mag_var_rad``, east positive; null if the variation is not given), 5 speed, knots, 7 speed, km/h,
+    9 mode indicator (:data:`POSITION_MODES`).
+    """
+    magnetic = None if cog_rad is None or mag_var_rad is None else cog_rad - mag_var_rad
+    fields = [
+        _deg360(cog_rad, course_decimals),
+        "T",
+        _deg360(magnetic, course_decimals),
+        "M",
+        _speed(sog_mps, KNOTS_PER_MPS, speed_decimals),
+        "N",
+        _speed(sog_mps, KMH_PER_MPS, speed_decimals),
+        "K",
+        _one_of("VTG mode", mode, POSITION_MODES),
+    ]
+    return sentence(talker, "VTG", fields)
+
+
+def gst(
+    talker: str,
+    t_utc: datetime,
+    *,
+    rms_m: float | None,
+    sigma_major_m: float | None,
+    sigma_minor_m: float | None,
+    orient_rad: float | None,
+    sigma_lat_m: float | None,
+    sigma_lon_m: float | None,
+    sigma_alt_m: float | None,
+    time_decimals: int = TIME_DECIMALS,
+) -> str:
+    """GST, GNSS pseudorange error statistics::
+
+        $--GST,hhmmss.ss,x.x,x.x,x.x,x.x,x.x,x.x,x.x*hh
+               1         2   3   4   5   6   7   8
+
+    1 UTC time of the associated GGA/GNS fix, 2 RMS of the pseudorange residuals, m, 3-4 standard deviation
+    of the semi-major / semi-minor axis of the error ellipse, m, 5 orientation of the semi-major axis,
+    degrees from true north, 6-8 standard deviation of latitude, longitude and altitude error, m.
+    The orientation of an axis is defined modulo 180°: it is printed in [0, 180). Metres with 3 decimals.
+    Keyword-only: seven numbers of the same kind are too easy to pass in the wrong order.
+    """
+    orient = None
+    if orient_rad is not None:
+        scaled = round(math.degrees(_finite("orient_rad", orient_rad)) * 10) % 1800
+        orient = f"{scaled // 10}.{scaled % 10}"
+    fields = [
+        _time(_rounded(t_utc, time_decimals), time_decimals),
+        _fixed(rms_m, 3),
+        _fixed(sigma_major_m, 3),
+        _fixed(sigma_minor_m, 3),
+        orient,
+        _fixed(sigma_lat_m, 3),
+        _fixed(sigma_lon_m, 3),
+        _fixed(sigma_alt_m, 3),
+    ]
+    return sentence(talker, "GST", fields)
+
+
+def zda(talker: str, t_utc: datetime, *, time_decimals: int = TIME_DECIMALS) -> str:
+    """ZDA, time and date::
+
+        $--ZDA,hhmmss.ss,xx,xx,xxxx,xx,xx*hh
+               1         2  3  4    5  6
+
+    1 UTC time, 2 day, 3 month, 4 year (four digits), 5-6 local zone hours and minutes (always ``00,00``:
+    dpgw speaks UTC).
+    """
+    rounded = _rounded(t_utc, time_decimals)
+    fields = [
+        _time(rounded, time_decimals),
+        f"{rounded.day:02d}",
+        f"{rounded.month:02d}",
+        f"{rounded.year:04d}",
+        "00",
+        "00",
+    ]
+    return sentence(talker, "ZDA", fields)
+
+
+# ---------------------------------------------------------------------------------------------- heading
+
+
+def hdt(talker: str, heading_rad: float | None, *, decimals: int = 2) -> str:
+    """HDT, heading true::
+
+        $--HDT,x.x,T*hh
+
+    1 heading, degrees true, in [0, 360) with ``decimals`` decimals (default 0.01°).
+    """
+    return sentence(talker, "HDT", [_deg360(heading_rad, decimals), "T"])
+
+
+def ths(talker: str, heading_rad: float | None, mode: str = "A", *, decimals: int = 2) -> str:
+    """THS, true heading and status (replaces HDT in NMEA 3.0+ gyros and INS)::
+
+        $--THS,x.x,a*hh
+
+    1 heading, degrees true, [0, 360), 2 mode indicator (:data:`HEADING_MODES`: A autonomous, E estimated,
+    M manual, S simulator, V data not valid).
+    """
+    return sentence(talker, "THS", [_deg360(heading_rad, decimals), _one_of("THS mode", mode, HEADING_MODES)])
+
+
+def rot(talker: str, rate_rad_s: float | None, valid: bool = True, *, decimals: int = 1) -> str:
+    """ROT, rate of turn::
+
+        $--ROT,x.x,A*hh
+
+    1 rate of turn, degrees per minute, negative when the bow turns to port (``rate_rad_s`` is the yaw
+    rate r, positive clockwise seen from above), 2 status A valid / V invalid.
+    """
+    rate = None if rate_rad_s is None else math.degrees(_finite("rate_rad_s", rate_rad_s)) * 60.0
+    return sentence(talker, "ROT", [_fixed(rate, decimals), "A" if valid else "V"])
+
+
+def hdg(
+    talker: str,
+    heading_mag_rad: float | None,
+    deviation_rad: float | None = None,
+    variation_rad: float | None = None,
+    *,
+    decimals: int = 1,
+) -> str:
+    """HDG, heading, deviation and variation (magnetic compass)::
+
+        $--HDG,x.x,x.x,a,x.x,a*hh
+               1   2   3 4   5
+
+    1 magnetic sensor heading, degrees [0, 360), 2-3 magnetic deviation, degrees E/W, 4-5 magnetic
+    variation, degrees E/W. East is positive in the arguments: magnetic heading = sensor heading +
+    deviation, true heading = magnetic heading + variation. Null fields when not given.
+    """
+    dev, dev_dir = _east_west(deviation_rad, decimals)
+    var, var_dir = _east_west(variation_rad, decimals)
+    return sentence(talker, "HDG", [_deg360(heading_mag_rad, decimals), dev, dev_dir, var, var_dir])
+
+
+# ---------------------------------------------------------------------------------------------- fields
+
+
+def _finite(name: str, value: float) -> float:
+    value = float(value)
+    if not math.isfinite(value):
+        raise ValueError(f"{name} must be finite, got {value}")
+    return value
+
+
+def _check_decimals(decimals: int, low: int, high: int) -> None:
+    if not low <= decimals <= high:
+        raise ValueError(f"decimals must be in {low}..{high}, got {decimals}")
+
+
+def _utc(t: datetime) -> datetime:
+    return t.replace(tzinfo=UTC) if t.tzinfo is None else t.astimezone(UTC)
+
+
+def _rounded(t: datetime, decimals: int) -> datetime:
+    """``t`` in UTC rounded to the nearest 10**-decimals s (half up), carrying into the date."""
+    _check_decimals(decimals, 0, 6)
+    t = _utc(t)
+    quantum = 10 ** (6 - decimals)
+    micro = (t.microsecond + quantum // 2) // quantum * quantum
+    return t.replace(microsecond=0) + timedelta(microseconds=micro)
+
+
+def _time(t: datetime, decimals: int) -> str:
+    """``hhmmss.ss`` of an already rounded UTC time."""
+    text = f"{t:%H%M%S}"
+    if decimals:
+        text += f".{t.microsecond // 10 ** (6 - decimals):0{decimals}d}"
+    return text
+
+
+def _dm(abs_deg: float, deg_digits: int, decimals: int) -> str:
+    """Degrees and decimal minutes from one rounded integer (no 60-minute carry error)."""
+    scale = 10**decimals
+    units = round(abs_deg * 60 * scale)
+    degrees, rest = divmod(units, 60 * scale)
+    minutes, fraction = divmod(rest, scale)
+    return f"{degrees:0{deg_digits}d}{minutes:02d}.{fraction:0{decimals}d}"
+
+
+def _lat(lat_deg: float | None, decimals: int) -> tuple[Field, Field]:
+    _check_decimals(decimals, 1, 9)
+    if lat_deg is None:
+        return None, None
+    lat = _finite("lat_deg", lat_deg)
+    if not -90.0 <= lat <= 90.0:
+        raise ValueError(f"latitude must be in [-90, 90] degrees, got {lat}")
+    text = _dm(abs(lat), 2, decimals)
+    south = lat < 0 and text.strip("0.") != ""
+    return text, "S" if south else "N"
+
+
+def _lon(lon_deg: float | None, decimals: int) -> tuple[Field, Field]:
+    _check_decimals(decimals, 1, 9)
+    if lon_deg is None:
+        return None, None
+    lon = _finite("lon_deg", lon_deg)
+    if not -180.0 <= lon <= 180.0:
+        lon = (lon + 180.0) % 360.0 - 180.0
+    text = _dm(abs(lon), 3, decimals)
+    west = lon < 0 and text.strip("0.") != ""
+    return text, "W" if west else "E"
+
+
+def _fixed(value: float | None, decimals: int) -> Field:
+    """Fixed-point text, never ``-0.00``."""
+    if value is None:
+        return None
+    text = f"{_finite('value', value):.{decimals}f}"
+    if text.startswith("-") and text.strip("-0.") == "":
+        text = text[1:]
+    return text
+
+
+def _deg360(angle_rad: float | None, decimals: int) -> Field:
+    """An angle as degrees in [0, 360) at ``decimals`` resolution (360.00 wraps to 0.00)."""
+    if angle_rad is None:
+        return None
+    _check_decimals(decimals, 0, 9)
+    scale = 10**decimals
+    units = round(math.degrees(_finite("angle", angle_rad)) * scale) % (360 * scale)
+    whole, fraction = divmod(units, scale)
+    return f"{whole}.{fraction:0{decimals}d}" if decimals else str(whole)
+
+
+def _east_west(angle_rad: float | None, decimals: int) -> tuple[Field, Field]:
+    """Magnitude in degrees and E/W (east positive) for deviation and variation."""
+    if angle_rad is None:
+        return None, None
+    degrees = math.degrees(_finite("angle", angle_rad))
+    text = _fixed(abs(degrees), decimals)
+    assert text is not None
+    west = degrees < 0 and text.strip("0.") != ""
+    return text, "W" if west else "E"
+
+
+def _speed(speed_mps: float | None, factor: float, decimals: int) -> Field:
+    if speed_mps is None:
+        return None
+    speed = _finite("speed", speed_mps)
+    if speed < 0:
+        raise ValueError(f"speed over ground cannot be negative, got {speed} m/s")
+    return _fixed(speed * factor, decimals)
+
+
+def _count(n: int) -> str:
+    if not 0 <= n <= 99:
+        raise ValueError(f"number of satellites must be in 0..99, got {n}")
+    return f"{n:02d}"
+
+
+def _station(station_id: int | None) -> Field:
+    if station_id is None:
+        return None
+    if not 0 <= station_id <= 1023:
+        raise ValueError(f"differential reference station id must be in 0..1023, got {station_id}")
+    return f"{station_id:04d}"
+
+
+def _one_of(name: str, value: str, allowed: str) -> str:
+    if len(value) != 1 or value not in allowed:
+        raise ValueError(f"{name} must be one of {list(allowed)}, got {value!r}")
+    return value
