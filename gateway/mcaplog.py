@@ -1,0 +1,735 @@
+"""The MCAP log every dpgw program writes, and the helpers that read it back.
+
+One channel per topic, JSON Schema (`jsonschema`) schemas from `gateway.schemas`, `json` messages.
+`log_time` is the receive time, `publish_time` the event's stamp (DESIGN.md, "Time").
+
+Crash safety: the mcap `Writer` keeps the open chunk in memory, so a killed process would lose the whole
+chunk. `McapLogWriter` closes the chunk and hands it to the OS (write + flush: survives `kill -9`) at least
+every `flush_interval_s` of log time or of wall time. A background thread does the wall-time flush when
+no messages arrive, and the fsync (survives power loss) about once per `flush_interval_s`, outside the
+lock, so a slow disk never blocks the tasks that write.
+Readers stop cleanly at the last complete record of a truncated file.
+
+Rotation: the first file is `path` itself; when a limit is passed the file is finished cleanly (summary,
+footer) and writing continues in `<stem>_0001<suffix>`, `<stem>_0002<suffix>`, ... beside it
+(`trial.mcap`, `trial_0001.mcap`, ...). `log_files(path)` lists a set in order. Each file is
+self-contained: schemas and channels are registered again in every file.
+
+JSON: numpy arrays and scalars become lists and numbers; non-finite floats (NaN, ±inf) become `null`,
+since JSON has no NaN; bytes become base64 strings.
+"""
+
+from __future__ import annotations
+
+import atexit
+import base64
+import dataclasses
+import enum
+import io
+import json
+import logging
+import math
+import os
+import re
+import struct
+import threading
+import time
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+from mcap.exceptions import EndOfFile
+from mcap.reader import make_reader
+from mcap.records import Channel, DataEnd, Message, Schema
+from mcap.stream_reader import StreamReader
+from mcap.well_known import MessageEncoding, SchemaEncoding
+from mcap.writer import CompressionType, Writer
+
+from gateway.schemas import schema_for_topic
+
+__all__ = [
+    "ChannelSummary",
+    "LogSummary",
+    "McapLogWriter",
+    "encode_json",
+    "log_files",
+    "read_messages",
+    "rotated_path",
+    "summary",
+    "to_jsonable",
+]
+
+log = logging.getLogger(__name__)
+
+StrPath = str | os.PathLike[str]
+
+_COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+
+# Record sizes from the MCAP specification (opcode u8 + length u64 + fields), used to keep every chunk's
+# uncompressed content <= chunk_size. The mcap Writer only closes a chunk *after* the message that took it
+# past chunk_size, so on its own a chunk can exceed the limit by one message.
+_RECORD_HEADER = 1 + 8
+_MESSAGE_FIXED = _RECORD_HEADER + 2 + 4 + 8 + 8  # channel_id u16, sequence u32, log_time, publish_time
+# Kept free in each chunk so the Chunk record itself also fits in chunk_size: its header (start/end time,
+# uncompressed size and crc, compression string, records length: 49 bytes) plus the few bytes a zstd/lz4
+# frame adds to data that does not compress.
+_CHUNK_MARGIN = 128
+
+
+def _schema_record_size(name: str, encoding: str, data: bytes) -> int:
+    return _RECORD_HEADER + 2 + (4 + len(name.encode())) + (4 + len(encoding.encode())) + (4 + len(data))
+
+
+def _channel_record_size(topic: str, message_encoding: str) -> int:
+    # id u16, schema_id u16, topic, message_encoding, metadata map (u32 byte length; empty here)
+    return _RECORD_HEADER + 2 + 2 + (4 + len(topic.encode())) + (4 + len(message_encoding.encode())) + 4
+
+
+# --- JSON ---------------------------------------------------------------------------------------------------
+
+
+def to_jsonable(obj: Any) -> Any:
+    """`obj` as plain JSON types: numpy -> lists/numbers, non-finite floats -> None, bytes -> base64 str."""
+    if obj is None or isinstance(obj, bool | int | str):
+        return obj
+    if isinstance(obj, float):  # also np.float64, a float subclass
+        return float(obj) if math.isfinite(obj) else None
+    if isinstance(obj, Mapping):
+        return {str(k): to_jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, np.ndarray):
+        if obj.dtype.kind in "biu" or (obj.dtype.kind == "f" and bool(np.isfinite(obj).all())):
+            return obj.tolist()  # fast path: nothing to replace
+        return to_jsonable(obj.tolist())
+    if isinstance(obj, np.generic):
+        return to_jsonable(obj.item())
+    if isinstance(obj, list | tuple):
+        return [to_jsonable(v) for v in obj]
+    if isinstance(obj, bytes | bytearray | memoryview):
+        return base64.b64encode(bytes(obj)).decode("ascii")
+    if isinstance(obj, enum.Enum):
+        return to_jsonable(obj.value)
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return to_jsonable({f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)})
+    raise TypeError(f"cannot encode {type(obj).__name__} as JSON: {obj!r}")
+
+
+def encode_json(payload: Any) -> bytes:
+    """Compact UTF-8 JSON of `payload` (see `to_jsonable`); never emits NaN/Infinity."""
+    return json.dumps(
+        to_jsonable(payload), separators=(",", ":"), ensure_ascii=False, allow_nan=False
+    ).encode()
+
+
+# --- rotation naming ----------------------------------------------------------------------------------------
+
+
+def rotated_path(path: StrPath, index: int) -> Path:
+    """File `index` of a rotated set: 0 is `path` itself, n >= 1 is `<stem>_{n:04d}<suffix>`."""
+    p = Path(path)
+    return p if index == 0 else p.with_name(f"{p.stem}_{index:04d}{p.suffix}")
+
+
+def log_files(path: StrPath) -> list[Path]:
+    """The existing files of the rotated set that starts at `path`, in writing order."""
+    p = Path(path)
+    pattern = re.compile(re.escape(p.stem) + r"_(\d{4,})" + re.escape(p.suffix) + "$")
+    numbered = []
+    if p.parent.is_dir():
+        for q in p.parent.iterdir():
+            m = pattern.match(q.name)
+            if m:
+                numbered.append((int(m.group(1)), q))
+    return ([p] if p.exists() else []) + [q for _, q in sorted(numbered)]
+
+
+# --- writer -------------------------------------------------------------------------------------------------
+
+
+class McapLogWriter:
+    """Thread-safe MCAP log writer: lazy channels, bounded chunks, time-bounded crash loss, rotation.
+
+    `rotate_bytes`: start a new file once this one has reached this size on disk (checked when a chunk is
+    written, so a file can exceed it by about one chunk plus the summary). `rotate_seconds`: start a new
+    file before a message whose log time is this far past the file's first message (log time, so replay
+    rotates exactly as live did). `fsync=False` keeps crash safety against a killed process (the OS has the
+    data) but not against power loss. `background_flush=False` leaves wall-time flushing to `write` calls.
+
+    Do not call `close()` from a signal handler (a write may be half done in the interrupted frame): set a
+    flag there and close from the main flow, or use `loop.add_signal_handler` in asyncio.
+    """
+
+    def __init__(
+        self,
+        path: StrPath,
+        *,
+        chunk_size: int = 256 * 1024,
+        flush_interval_s: float = 1.0,
+        rotate_bytes: int | None = None,
+        rotate_seconds: float | None = None,
+        profile: str = "",
+        library: str = "dpgw",
+        compression: str = "zstd",
+        fsync: bool = True,
+        background_flush: bool = True,
+    ) -> None:
+        if compression not in _COMPRESSION:
+            raise ValueError(f"compression must be one of {sorted(_COMPRESSION)}, not {compression!r}")
+        if chunk_size <= 2 * _CHUNK_MARGIN or flush_interval_s <= 0:
+            raise ValueError(f"need chunk_size > {2 * _CHUNK_MARGIN} and flush_interval_s > 0")
+        self._base = Path(path)
+        self._chunk_budget = chunk_size - _CHUNK_MARGIN  # uncompressed bytes of records per chunk
+        self._flush_interval_s = flush_interval_s
+        self._flush_interval_ns = int(flush_interval_s * 1e9)
+        self._rotate_bytes = rotate_bytes
+        self._rotate_ns = None if rotate_seconds is None else int(rotate_seconds * 1e9)
+        self._profile = profile
+        self._library = library
+        self._compression = _COMPRESSION[compression]
+        self._fsync = fsync
+        self._lock = threading.Lock()
+        self._closed = False
+        self._warned_closed = False
+        self._metadata: list[tuple[str, dict[str, str]]] = []
+        self.paths: list[Path] = []
+        """Every file opened so far, in order."""
+        self.message_count = 0
+        """Messages written over all files."""
+
+        # State of the current file; None between a rotation and the next write.
+        self._file: IO[bytes] | None = None
+        self._writer: Writer | None = None
+        self._channels: dict[str, int] = {}
+        self._schemas: dict[str, int] = {}
+        self._file_first_log_ns: int | None = None
+        self._pending_bytes = 0  # uncompressed bytes in the open chunk (spec record sizes)
+        self._dirty = False  # messages not yet handed to the OS
+        self._last_flush_wall = time.monotonic()
+        self._last_fsync_wall = self._last_flush_wall
+        self._unsynced = False  # data handed to the OS but not fsynced yet
+        self._last_flush_log_ns: int | None = None
+        self._max_log_ns: int | None = None
+
+        # Open the first file now, so a bad path stops start-up with a clear error, not the first write.
+        self._open(0)
+
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        if background_flush:
+            self._thread = threading.Thread(target=self._flush_loop, name="mcaplog-flush", daemon=True)
+            self._thread.start()
+        # A program that exits without close() (or on an uncaught exception) still gets a complete file.
+        atexit.register(self.close)
+
+    # -- public API
+
+    @property
+    def path(self) -> Path:
+        """The file being written (or last written)."""
+        return self.paths[-1]
+
+    def write(
+        self,
+        topic: str,
+        payload: Mapping[str, Any],
+        log_time_ns: int,
+        publish_time_ns: int | None = None,
+        *,
+        schema: tuple[str, Mapping[str, Any]] | None = None,
+    ) -> None:
+        """Log `payload` (a JSON object; numpy and NaN allowed) on `topic`.
+
+        The channel and its schema are registered on the first write to a topic: `schema` (name, JSON
+        Schema) if given, else the one `gateway.schemas.schema_for_topic` picks. `publish_time_ns` defaults
+        to `log_time_ns`.
+        """
+        if not isinstance(payload, Mapping):
+            raise TypeError(f"payload must be a JSON object (Mapping), not {type(payload).__name__}")
+        data = encode_json(payload)  # outside the lock: the CPU-heavy part
+        log_time_ns = int(log_time_ns)
+        publish_time_ns = log_time_ns if publish_time_ns is None else int(publish_time_ns)
+        with self._lock:
+            if self._closed:
+                if not self._warned_closed:
+                    log.warning("McapLogWriter(%s) is closed; dropping writes (first: %s)", self._base, topic)
+                    self._warned_closed = True
+                return
+            self._write_locked(topic, data, log_time_ns, publish_time_ns, schema)
+
+    def write_raw_nmea(
+        self, source: str, text: str | bytes, log_time_ns: int, publish_time_ns: int | None = None
+    ) -> None:
+        """Log one NMEA sentence as received on `/raw/nmea/<source>`. Bytes that are not ASCII are kept
+        exactly in `data` (base64) and shown escaped in `text`."""
+        payload: dict[str, Any] = {"source": source}
+        if isinstance(text, str):
+            payload["text"] = text.rstrip("\r\n")
+        else:
+            raw = bytes(text).rstrip(b"\r\n")
+            try:
+                payload["text"] = raw.decode("ascii")
+            except UnicodeDecodeError:
+                payload["text"] = raw.decode("ascii", "backslashreplace")
+                payload["data"] = raw
+        self.write(f"/raw/nmea/{source}", payload, log_time_ns, publish_time_ns)
+
+    def write_raw_mavlink(
+        self, source: str, frame: bytes, log_time_ns: int, publish_time_ns: int | None = None
+    ) -> None:
+        """Log one MAVLink frame as received on `/raw/mavlink/<source>` (`data` = base64 of the bytes)."""
+        self.write(
+            f"/raw/mavlink/{source}", {"data": bytes(frame), "source": source}, log_time_ns, publish_time_ns
+        )
+
+    def write_location_fix(
+        self,
+        source: str,
+        lat_deg: float,
+        lon_deg: float,
+        log_time_ns: int,
+        publish_time_ns: int | None = None,
+        *,
+        altitude_m: float = 0.0,
+        position_covariance: Sequence[float] | np.ndarray | None = None,
+        covariance_type: int = 0,
+        heading_rad: float | None = None,
+        topic: str | None = None,
+    ) -> bool:
+        """Log a `foxglove.LocationFix` on `topic` (default `/gnss/<source>/fix`), stamped with
+        `publish_time_ns` (default `log_time_ns`). `position_covariance` is 3x3 row-major ENU (m²), as
+        Foxglove defines it. Returns False, writing nothing, if latitude or longitude is not finite: the
+        Foxglove schema has no null. A non-finite covariance is logged as zeros with type 0 (unknown)."""
+        if not (math.isfinite(lat_deg) and math.isfinite(lon_deg)):
+            return False
+        stamp = int(log_time_ns if publish_time_ns is None else publish_time_ns)
+        cov = [0.0] * 9
+        if position_covariance is not None:
+            c = np.asarray(position_covariance, dtype=float).reshape(9)
+            if np.isfinite(c).all():
+                cov = c.tolist()
+            else:
+                covariance_type = 0
+        payload: dict[str, Any] = {
+            "timestamp": {"sec": max(stamp, 0) // 1_000_000_000, "nsec": max(stamp, 0) % 1_000_000_000},
+            "frame_id": source,
+            "latitude": float(lat_deg),
+            "longitude": float(lon_deg),
+            "altitude": float(altitude_m) if math.isfinite(altitude_m) else 0.0,
+            "position_covariance": cov,
+            "position_covariance_type": int(covariance_type),
+        }
+        if heading_rad is not None and math.isfinite(heading_rad):
+            payload["heading"] = float(heading_rad)
+        self.write(topic or f"/gnss/{source}/fix", payload, log_time_ns, stamp)
+        return True
+
+    def add_metadata(self, name: str, data: Mapping[str, str]) -> None:
+        """Add an MCAP Metadata record (e.g. the configuration); repeated in every rotated file."""
+        entry = (name, {str(k): str(v) for k, v in data.items()})
+        with self._lock:
+            if self._closed:
+                return
+            self._metadata.append(entry)
+            if self._writer is not None:
+                self._writer.add_metadata(*entry)
+
+    def flush(self, fsync: bool | None = None) -> None:
+        """Close the open chunk and hand everything to the OS now; fsync too if `fsync` (default: the
+        writer's setting)."""
+        with self._lock:
+            if not self._closed:
+                self._flush_locked(self._fsync if fsync is None else fsync)
+
+    def close(self) -> None:
+        """Write the summary and footer and close the file. Idempotent."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            self._finish_file()
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join()
+        atexit.unregister(self.close)
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def __enter__(self) -> McapLogWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- internals (all *_locked methods and _open/_finish_file run with self._lock held)
+
+    def _open(self, index: int) -> None:
+        path = rotated_path(self._base, index)
+        self._file = open(path, "wb")  # noqa: SIM115 - lives until _finish_file
+        self._writer = Writer(self._file, chunk_size=self._chunk_budget, compression=self._compression)
+        self._writer.start(profile=self._profile, library=self._library)
+        for name, data in self._metadata:
+            self._writer.add_metadata(name, data)
+        self.paths.append(path)
+        self._channels.clear()
+        self._schemas.clear()
+        self._file_first_log_ns = None
+        self._pending_bytes = 0
+        # A new file's name must survive power loss too: fsync the directory entry once.
+        self._hand_to_os(self._fsync)
+        if self._fsync:
+            _fsync_dir(path.parent)
+
+    def _finish_file(self) -> None:
+        if self._writer is None or self._file is None:
+            return
+        self._writer.finish()  # closes the open chunk, writes summary + footer + magic
+        self._file.flush()
+        if self._fsync:
+            os.fsync(self._file.fileno())
+        self._file.close()
+        self._writer = None
+        self._file = None
+        self._dirty = False
+        self._unsynced = False
+
+    def _write_locked(
+        self,
+        topic: str,
+        data: bytes,
+        log_time_ns: int,
+        publish_time_ns: int,
+        schema: tuple[str, Mapping[str, Any]] | None,
+    ) -> None:
+        if (
+            self._rotate_ns is not None
+            and self._file_first_log_ns is not None
+            and log_time_ns - self._file_first_log_ns >= self._rotate_ns
+        ):
+            self._finish_file()
+        if self._writer is None:
+            self._open(len(self.paths))
+        writer = self._writer
+        assert writer is not None
+
+        size = _MESSAGE_FIXED + len(data)
+        channel_id = self._channels.get(topic)
+        new_schema: tuple[str, bytes] | None = None
+        if channel_id is None:
+            name, schema_dict = schema if schema is not None else schema_for_topic(topic)
+            new_schema = (name, json.dumps(schema_dict, separators=(",", ":"), ensure_ascii=False).encode())
+            if name not in self._schemas:
+                size += _schema_record_size(name, SchemaEncoding.JSONSchema, new_schema[1])
+            size += _channel_record_size(topic, MessageEncoding.JSON)
+        # Close the chunk *before* this message would take it past its budget.
+        if self._pending_bytes and self._pending_bytes + size > self._chunk_budget:
+            self._close_chunk()
+
+        if channel_id is None:
+            assert new_schema is not None
+            name, schema_bytes = new_schema
+            schema_id = self._schemas.get(name)
+            if schema_id is None:
+                schema_id = writer.register_schema(name, SchemaEncoding.JSONSchema, schema_bytes)
+                self._schemas[name] = schema_id
+            channel_id = writer.register_channel(topic, MessageEncoding.JSON, schema_id)
+            self._channels[topic] = channel_id
+        writer.add_message(channel_id, log_time_ns, data, publish_time_ns)
+        self.message_count += 1
+        self._dirty = True
+        self._pending_bytes += size
+        if self._pending_bytes > self._chunk_budget:
+            # A single record larger than chunk_size: the mcap Writer has already closed it as its own chunk.
+            self._pending_bytes = 0
+
+        if self._file_first_log_ns is None:
+            self._file_first_log_ns = log_time_ns
+        if self._max_log_ns is None or log_time_ns > self._max_log_ns:
+            self._max_log_ns = log_time_ns
+        if self._last_flush_log_ns is None:
+            self._last_flush_log_ns = log_time_ns
+
+        now = time.monotonic()
+        if (
+            now - self._last_flush_wall >= self._flush_interval_s
+            or self._max_log_ns - self._last_flush_log_ns >= self._flush_interval_ns
+        ):
+            # fsync here only when there is no background thread to do it off the writers' path.
+            self._flush_locked(
+                self._fsync and self._thread is None and now - self._last_fsync_wall >= self._flush_interval_s
+            )
+
+        if (
+            self._rotate_bytes is not None
+            and self._file is not None
+            and self._file.tell() >= self._rotate_bytes
+        ):
+            self._finish_file()
+
+    def _close_chunk(self) -> None:
+        """Close the open chunk and write it (and its message indexes) to the file object."""
+        writer = self._writer
+        assert writer is not None
+        # mcap >= 1.6 has the public Writer.flush(): "finishes the chunk in progress, if any, writes
+        # everything buffered so far to the output stream, and flushes the stream". Older releases (1.1 ..
+        # 1.5, allowed by pyproject) only have the private, name-mangled Writer.__finalize_chunk, which does
+        # the same minus the stream flush (it ends by writing its record buffer to the stream); both are
+        # no-ops when the open chunk holds no message.
+        if hasattr(writer, "flush"):
+            writer.flush()
+        else:
+            writer._Writer__finalize_chunk()  # type: ignore[attr-defined]
+        self._pending_bytes = 0
+
+    def _hand_to_os(self, fsync: bool) -> None:
+        assert self._file is not None
+        self._file.flush()  # Python's buffer -> OS: now a killed process loses nothing of it
+        self._unsynced = True
+        if fsync:
+            os.fsync(self._file.fileno())  # OS -> disk: survives power loss
+            self._last_fsync_wall = time.monotonic()
+            self._unsynced = False
+
+    def _flush_locked(self, fsync: bool) -> None:
+        self._last_flush_wall = time.monotonic()
+        self._last_flush_log_ns = self._max_log_ns
+        if self._writer is None or not self._dirty:
+            return
+        self._close_chunk()
+        self._hand_to_os(fsync)
+        self._dirty = False
+
+    def _flush_loop(self) -> None:
+        """Wall-time flush while no messages arrive (writes check the clocks themselves), and the fsync."""
+        while True:
+            sync_fd = None
+            with self._lock:
+                if self._closed:
+                    return
+                now = time.monotonic()
+                if now - self._last_flush_wall >= self._flush_interval_s:
+                    self._flush_locked(False)
+                if self._fsync and self._unsynced and self._file is not None:
+                    # fsync a duplicate descriptor after releasing the lock: it stays valid even if the file
+                    # is closed by a rotation meanwhile, and writers are not held up by the disk.
+                    sync_fd = os.dup(self._file.fileno())
+                    self._unsynced = False
+                wait = self._last_flush_wall + self._flush_interval_s - now
+            if sync_fd is not None:
+                try:
+                    os.fsync(sync_fd)
+                finally:
+                    os.close(sync_fd)
+                self._last_fsync_wall = time.monotonic()
+            if self._stop.wait(max(wait, 0.005)):
+                return
+
+
+def _fsync_dir(directory: Path) -> None:
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return  # e.g. Windows: directories cannot be opened; nothing to do
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+# --- reading ------------------------------------------------------------------------------------------------
+
+_MAGIC = b"\x89MCAP0\r\n"
+_OPCODE_FOOTER = 0x02
+
+
+def _whole_records(f: IO[bytes]) -> tuple[int, bool]:
+    """(end offset of the whole records of `f`, whether the file is complete: footer and closing magic).
+
+    Walks record headers (opcode u8, length u64) with seeks, without reading record bodies. A file cut by
+    `kill -9` or power loss ends in a partial record (or none); everything before it is intact. For a
+    complete file the offset includes the closing magic.
+    """
+    f.seek(0, io.SEEK_END)
+    size = f.tell()
+    f.seek(0)
+    magic = f.read(len(_MAGIC))
+    if magic != _MAGIC[: len(magic)] or not magic:
+        if size == 0:
+            return 0, False  # created but nothing saved yet
+        raise ValueError("not an MCAP file (bad magic)")
+    pos = len(magic)
+    while pos + _RECORD_HEADER <= size:
+        opcode, length = struct.unpack("<BQ", f.read(_RECORD_HEADER))
+        end = pos + _RECORD_HEADER + length
+        if end > size:
+            break
+        pos = end
+        f.seek(pos)
+        if opcode == _OPCODE_FOOTER:
+            if f.read(len(_MAGIC)) == _MAGIC:
+                return pos + len(_MAGIC), True
+            break
+    return pos, False
+
+
+class _Slice(io.RawIOBase):
+    """Read-only view of the bytes [start, stop) of a file."""
+
+    def __init__(self, f: IO[bytes], start: int, stop: int) -> None:
+        self._f = f
+        self._left = max(stop - start, 0)
+        f.seek(start)
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer: Any) -> int:
+        view = memoryview(buffer).cast("B")
+        n = min(len(view), self._left)
+        if n <= 0:
+            return 0
+        data = self._f.read(n)
+        view[: len(data)] = data
+        self._left -= len(data)
+        return len(data)
+
+
+def _iter_records(path: StrPath) -> Iterator[Schema | Channel | Message]:
+    """Schema, Channel and Message records of a complete or truncated MCAP file, in file order."""
+    with open(path, "rb") as f:
+        stop, complete = _whole_records(f)
+        if stop <= len(_MAGIC):
+            return
+        # mcap's non-seeking StreamReader over the whole records only (leading magic skipped here). On a
+        # complete file it stops at the footer; on a truncated one its next read hits the end of the slice
+        # exactly at a record boundary and raises EndOfFile, which then means "end of what was saved".
+        reader = StreamReader(io.BufferedReader(_Slice(f, len(_MAGIC), stop)), skip_magic=True)
+        try:
+            for record in reader.records:
+                if isinstance(record, DataEnd):
+                    return  # the summary section after it repeats schemas and channels, never messages
+                if isinstance(record, Schema | Channel | Message):
+                    yield record
+        except EndOfFile:
+            if complete:
+                raise
+
+
+def _topic_set(topics: str | Iterable[str] | None) -> set[str] | None:
+    if topics is None:
+        return None
+    return {topics} if isinstance(topics, str) else set(topics)
+
+
+def _paths(path: StrPath | Iterable[StrPath]) -> list[StrPath]:
+    if isinstance(path, str | os.PathLike):
+        return [path]
+    return list(path)
+
+
+def read_messages(
+    path: StrPath | Iterable[StrPath], topics: str | Iterable[str] | None = None
+) -> Iterator[tuple[str, int, int, dict[str, Any]]]:
+    """Yield (topic, log_time_ns, publish_time_ns, payload) in file order from one file or several (e.g.
+    `log_files(path)`), complete or truncated (everything before the cut). Only `json` channels are read;
+    `null` comes back as None (it was NaN/inf or null when written)."""
+    wanted = _topic_set(topics)
+    for p in _paths(path):
+        channels: dict[int, Channel] = {}
+        for record in _iter_records(p):
+            if isinstance(record, Channel):
+                channels[record.id] = record
+            elif isinstance(record, Message):
+                channel = channels.get(record.channel_id)
+                if channel is None or channel.message_encoding != MessageEncoding.JSON:
+                    continue
+                if wanted is not None and channel.topic not in wanted:
+                    continue
+                yield channel.topic, record.log_time, record.publish_time, json.loads(record.data)
+
+
+@dataclasses.dataclass
+class ChannelSummary:
+    topic: str
+    schema_name: str
+    schema_encoding: str
+    message_encoding: str
+    message_count: int
+
+
+@dataclasses.dataclass
+class LogSummary:
+    """What a log holds. `complete` is False for a file without footer (e.g. killed writer)."""
+
+    complete: bool
+    message_count: int
+    start_ns: int | None
+    end_ns: int | None
+    channels: dict[str, ChannelSummary]
+    schemas: dict[str, dict[str, Any]]  # schema name -> JSON Schema (jsonschema-encoded schemas only)
+    chunk_count: int | None  # None when not known (truncated file)
+
+
+def summary(path: StrPath) -> LogSummary:
+    """Channels, schemas and message counts of one file: from its summary section if it is complete, else by
+    scanning what was saved."""
+    with open(path, "rb") as f:
+        _, complete = _whole_records(f)
+        if complete:
+            f.seek(0)
+            s = make_reader(f).get_summary()
+            if s is not None and s.statistics is not None:
+                stats = s.statistics
+                channels = {}
+                for cid, ch in s.channels.items():
+                    sch = s.schemas.get(ch.schema_id)
+                    channels[ch.topic] = ChannelSummary(
+                        ch.topic,
+                        sch.name if sch else "",
+                        sch.encoding if sch else "",
+                        ch.message_encoding,
+                        stats.channel_message_counts.get(cid, 0),
+                    )
+                has_messages = stats.message_count > 0
+                return LogSummary(
+                    complete=True,
+                    message_count=stats.message_count,
+                    start_ns=stats.message_start_time if has_messages else None,
+                    end_ns=stats.message_end_time if has_messages else None,
+                    channels=channels,
+                    schemas=_decode_schemas(s.schemas.values()),
+                    chunk_count=stats.chunk_count,
+                )
+    # Truncated (or written without statistics): count by scanning.
+    schemas: dict[int, Schema] = {}
+    by_id: dict[int, ChannelSummary] = {}
+    count, start, end = 0, None, None
+    for record in _iter_records(path):
+        if isinstance(record, Schema):
+            schemas[record.id] = record
+        elif isinstance(record, Channel):
+            sch = schemas.get(record.schema_id)
+            by_id[record.id] = ChannelSummary(
+                record.topic, sch.name if sch else "", sch.encoding if sch else "", record.message_encoding, 0
+            )
+        elif record.channel_id in by_id:
+            by_id[record.channel_id].message_count += 1
+            count += 1
+            start = record.log_time if start is None else min(start, record.log_time)
+            end = record.log_time if end is None else max(end, record.log_time)
+    return LogSummary(
+        complete=complete,
+        message_count=count,
+        start_ns=start,
+        end_ns=end,
+        channels={c.topic: c for c in by_id.values()},
+        schemas=_decode_schemas(schemas.values()),
+        chunk_count=None,
+    )
+
+
+def _decode_schemas(schemas: Iterable[Schema]) -> dict[str, dict[str, Any]]:
+    return {s.name: json.loads(s.data) for s in schemas if s.encoding == SchemaEncoding.JSONSchema}

@@ -1,0 +1,567 @@
+"""MCAP log: schema contract, chunk bound, crash safety (kill -9 / SIGTERM), rotation, JSON edge cases."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from mcap.reader import make_reader
+from mcap.records import Chunk
+from mcap.stream_reader import StreamReader
+from mcap.writer import Writer
+
+from gateway import schemas
+from gateway.mcaplog import (
+    McapLogWriter,
+    encode_json,
+    log_files,
+    read_messages,
+    rotated_path,
+    summary,
+    to_jsonable,
+)
+
+REPO = Path(__file__).resolve().parents[1]
+T0 = 1_750_000_000_000_000_000  # a UTC time in ns
+KIB = 1024
+
+
+def sample_payloads(stamp: int) -> dict[str, dict[str, Any]]:
+    """One valid payload per schema'd topic, as the pipeline would hand them over (numpy inside)."""
+    v = np.array([1.5, -2.0, 0.25])
+    return {
+        "/dp/estimate": {
+            "stamp_ns": stamp,
+            "observer": "passive",
+            "status": "ok",
+            "eta": v,
+            "nu": v * 0.1,
+            "bias": np.array([1e3, -2e3, 5e4]),
+            "eta_wf": np.zeros(3),
+            "omega0": np.full(3, 0.8),
+            "lat_deg": 63.43,
+            "lon_deg": 10.39,
+            "heading_deg": np.float64(14.3),
+            "datum": {"lat_deg": 63.43, "lon_deg": 10.39},
+            "weights": [0.2, 0.8],  # an extra field (MMAE) must be accepted
+        },
+        "/dp/measurement": {
+            "stamp_ns": stamp,
+            "eta": [1.0, float("nan"), 0.1],
+            "valid": [True, False, True],
+            "sources": ["dgps1", "gyro1"],
+            "quality": {"dgps1": {"fix_quality": 2, "hdop": 0.9}},
+        },
+        "/dp/thrusters/command": {
+            "stamp_ns": stamp,
+            "mode": "dp",
+            "tau_demand": v,
+            "tau_allocated": v,
+            "thrusters": [{"id": i, "thrust_n": 1e4 * i, "azimuth_rad": 0.1 * i} for i in range(3)],
+        },
+        "/dp/thrusters/feedback": {
+            "stamp_ns": stamp,
+            "thrusters": [{"id": "bow", "thrust_n": np.float32(5e3), "azimuth_rad": 1.57, "rpm": 300}],
+        },
+        "/dp/status": {
+            "stamp_ns": stamp,
+            "mode": "dp",
+            "sources": {
+                "dgps1": {"age_s": 0.1, "received": 100, "rejected": {"checksum": 2}},
+                "gyro1": {"age_s": None, "received": 0, "rejected": {}},
+            },
+            "alarms": ["dgps1 stale", {"code": "E1", "message": "x"}],
+        },
+        "/dp/setpoint": {"north_m": 1.0, "east_m": 2.0, "heading_deg": 90.0},
+        "/dp/mode": {"mode": "manual"},
+        "/dp/tau": {"X": 1.0, "Y": 0.0, "N": -3.0},
+        "/truth/state": {
+            "stamp_ns": stamp,
+            "eta_lf": v,
+            "nu": v,
+            "bias": v,
+            "eta_wf": v,
+            "omega0": v,
+        },
+    }
+
+
+def write_all_topics(path: Path, n: int = 20) -> None:
+    with McapLogWriter(path) as w:
+        for i in range(n):
+            t = T0 + i * 100_000_000
+            for topic, payload in sample_payloads(t).items():
+                w.write(topic, payload, t + 1000, t)
+            w.write_raw_nmea("dgps1", f"$GPGGA,{i}*00\r\n", t)
+            w.write_raw_nmea("dgps1", b"$GPGGA,\xff\x00*00", t)  # garbage is logged too
+            w.write_raw_mavlink("thr", bytes(range(i, i + 20)), t)
+            assert w.write_location_fix("dgps1", 63.43, 10.39, t, heading_rad=0.2)
+            w.write_location_fix("est", 63.43, 10.39, t, position_covariance=np.eye(3), covariance_type=2)
+            w.write("/something/else", {"x": i}, t)
+
+
+# --- the schema contract ------------------------------------------------------------------------------------
+
+
+def test_file_opens_with_mcap_reader_and_messages_validate(tmp_path: Path) -> None:
+    path = tmp_path / "all.mcap"
+    write_all_topics(path)
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        s = reader.get_summary()
+        assert s is not None
+        topics = {ch.topic for ch in s.channels.values()}
+        assert set(sample_payloads(0)) <= topics
+        assert {"/raw/nmea/dgps1", "/raw/mavlink/thr", "/gnss/dgps1/fix", "/gnss/est/fix"} <= topics
+        for ch in s.channels.values():
+            assert ch.message_encoding == "json"
+            assert s.schemas[ch.schema_id].encoding == "jsonschema"
+        count = 0
+        for schema, channel, message in reader.iter_messages():
+            assert schema is not None
+            payload = json.loads(message.data)
+            errors = schemas.validate(payload, json.loads(schema.data))
+            assert not errors, (channel.topic, errors)
+            assert schema.name == schemas.schema_for_topic(channel.topic)[0]
+            count += 1
+        assert count == 20 * 15
+
+
+def test_location_fix_has_foxglove_fields(tmp_path: Path) -> None:
+    path = tmp_path / "fix.mcap"
+    write_all_topics(path, n=2)
+    fixes = list(read_messages(path, topics="/gnss/est/fix"))
+    assert len(fixes) == 2
+    topic, _, publish_time, fix = fixes[0]
+    assert set(fix) == {
+        "timestamp",
+        "frame_id",
+        "latitude",
+        "longitude",
+        "altitude",
+        "position_covariance",
+        "position_covariance_type",
+    }
+    assert fix["timestamp"] == {"sec": publish_time // 10**9, "nsec": publish_time % 10**9}
+    assert fix["position_covariance"] == np.eye(3).ravel().tolist()
+    assert summary(path).channels[topic].schema_name == "foxglove.LocationFix"
+
+
+def test_non_finite_fix_is_not_logged(tmp_path: Path) -> None:
+    with McapLogWriter(tmp_path / "nan_fix.mcap") as w:
+        assert not w.write_location_fix("gps", math.nan, 10.0, T0)
+        assert w.write_location_fix(
+            "gps", 63.0, 10.0, T0, position_covariance=[math.nan] * 9, covariance_type=3
+        )
+    ((_, _, _, fix),) = read_messages(tmp_path / "nan_fix.mcap")
+    assert fix["position_covariance"] == [0.0] * 9 and fix["position_covariance_type"] == 0
+
+
+def _keywords(node: Any, out: set[str]) -> None:
+    """Every JSON Schema keyword used in `node` (property names are not keywords)."""
+    if isinstance(node, dict):
+        for key, value in node.items():
+            out.add(key)
+            if key == "properties":
+                for sub in value.values():
+                    _keywords(sub, out)
+            elif key in ("items", "additionalProperties"):
+                _keywords(value, out)
+            elif key == "oneOf":
+                for sub in value:
+                    _keywords(sub, out)
+
+
+def test_schemas_use_only_keywords_the_validator_checks() -> None:
+    used: set[str] = set()
+    for name, schema in schemas.TOPIC_SCHEMAS.values():
+        assert schema["title"] == name
+        assert schema["type"] == "object"
+        if not name.startswith("foxglove."):
+            assert schema["$schema"] == "https://json-schema.org/draft/2020-12/schema"
+        _keywords(schema, used)
+    assert used <= schemas.VALIDATED_KEYWORDS | schemas.ANNOTATION_KEYWORDS, used
+
+
+def test_validator_rejects_contract_violations() -> None:
+    good = to_jsonable(sample_payloads(T0)["/dp/estimate"])
+    assert schemas.validate(good, schemas.ESTIMATE) == []
+    assert schemas.validate({**good, "status": "fine"}, schemas.ESTIMATE)
+    assert schemas.validate({**good, "eta": [1.0, 2.0]}, schemas.ESTIMATE)
+    assert schemas.validate({k: v for k, v in good.items() if k != "nu"}, schemas.ESTIMATE)
+    assert schemas.validate({**good, "stamp_ns": 1.5}, schemas.ESTIMATE)
+    assert schemas.validate({**good, "datum": None}, schemas.ESTIMATE) == []
+    fix = {"position_covariance_type": 4}
+    assert any("oneOf" in e for e in schemas.validate(fix, schemas.LOCATION_FIX))
+
+
+def test_topic_lookup() -> None:
+    assert schemas.schema_for_topic("/raw/nmea/gyro1")[0] == "dpgw.RawNmea"
+    assert schemas.schema_for_topic("/raw/mavlink/thr")[0] == "dpgw.RawMavlink"
+    assert schemas.schema_for_topic("/dp/estimate/fix")[0] == "foxglove.LocationFix"
+    assert schemas.schema_for_topic("/raw/nmea/")[0] == "dpgw.Any"
+    assert schemas.schema_for_topic("/unknown")[0] == "dpgw.Any"
+
+
+# --- chunks -------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("compression", ["zstd", "none"])
+def test_chunks_stay_within_256_kib(tmp_path: Path, compression: str) -> None:
+    path = tmp_path / "big.mcap"
+    rng = np.random.default_rng(1)
+    with McapLogWriter(
+        path, flush_interval_s=1e6, background_flush=False, compression=compression, fsync=False
+    ) as w:
+        for i in range(3000):  # ~1.5 MB of JSON, messages of very different sizes
+            w.write(f"/t{i % 7}", {"i": i, "blob": "x" * int(rng.integers(0, 1500))}, T0 + i)
+    with open(path, "rb") as f:
+        s = make_reader(f).get_summary()
+        assert s is not None
+        sizes = [c.uncompressed_size for c in s.chunk_indexes]
+        assert len(sizes) >= 6
+        assert max(sizes) <= 256 * KIB
+        assert max(sizes) > 240 * KIB  # the bound, not the flush timer, closed the chunks
+        assert max(c.chunk_length for c in s.chunk_indexes) <= 256 * KIB
+        f.seek(0)
+        chunks = [r for r in StreamReader(f, emit_chunks=True).records if isinstance(r, Chunk)]
+        assert [c.uncompressed_size for c in chunks] == sizes
+    assert [p[3]["i"] for p in read_messages(path)] == list(range(3000))
+
+
+def test_oversize_message_gets_its_own_chunk(tmp_path: Path) -> None:
+    path = tmp_path / "huge.mcap"
+    with McapLogWriter(path, chunk_size=4 * KIB, background_flush=False, fsync=False) as w:
+        for i in range(5):
+            w.write("/t", {"i": i, "blob": "y" * (10 * KIB if i == 2 else 10)}, T0 + i)
+    assert [p[3]["i"] for p in read_messages(path)] == list(range(5))
+    assert summary(path).chunk_count == 3
+
+
+# --- crash safety -------------------------------------------------------------------------------------------
+
+WRITER_SCRIPT = textwrap.dedent(
+    """
+    import signal, sys, time
+    from gateway.mcaplog import McapLogWriter
+
+    stop = False
+
+    def on_term(signum, frame):
+        global stop
+        stop = True  # never close() inside a handler: the interrupted frame may be mid-write
+
+    signal.signal(signal.SIGTERM, on_term)
+    w = McapLogWriter(sys.argv[1])
+    print("ready", flush=True)
+    i, next_t = 0, time.monotonic()
+    while not stop:
+        t = time.time_ns()
+        w.write("/dp/tick", {"i": i, "stamp_ns": t}, t, t)
+        w.write_raw_nmea("gyro", "$HEHDT,123.4,T*2B", t, t)
+        print("wrote", i, t, flush=True)  # what the writer had accepted when it was killed
+        i += 1
+        next_t += 0.02  # 50 Hz
+        time.sleep(max(0.0, next_t - time.monotonic()))
+    w.close()
+    print("closed", i, flush=True)
+    """
+)
+
+
+def _env() -> dict[str, str]:
+    return {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+
+
+def start_writer(path: Path) -> subprocess.Popen[str]:
+    proc = subprocess.Popen(
+        [sys.executable, "-c", WRITER_SCRIPT, str(path)],
+        stdout=subprocess.PIPE,
+        text=True,
+        env=_env(),
+        cwd=REPO,
+    )
+    assert proc.stdout is not None
+    assert proc.stdout.readline().strip() == "ready"
+    return proc
+
+
+def ticks(path: Path) -> list[tuple[int, int]]:
+    return [(payload["i"], log_time) for _, log_time, _, payload in read_messages(path, topics=["/dp/tick"])]
+
+
+def test_kill_9_loses_at_most_about_one_second(tmp_path: Path) -> None:
+    path = tmp_path / "killed.mcap"
+    proc = start_writer(path)
+    try:
+        time.sleep(3.0)
+        kill_ns = time.time_ns()
+        proc.send_signal(signal.SIGKILL)
+        out, _ = proc.communicate(timeout=10)
+    finally:
+        proc.kill()
+    accepted = [line.split() for line in out.splitlines() if line.startswith("wrote")]
+    last_accepted_ns = int(accepted[-1][2])
+    saved = ticks(path)
+    assert [i for i, _ in saved] == list(range(len(saved)))  # a clean prefix: nothing lost before the cut
+    lost_s = (last_accepted_ns - saved[-1][1]) / 1e9
+    assert lost_s <= 1.0 + 0.1, f"lost {lost_s:.2f} s of accepted messages"
+    assert (kill_ns - saved[-1][1]) / 1e9 < 2.0  # the same seen from outside, with room for a slow machine
+    assert len(saved) > 50 * 1.5
+    info = summary(path)
+    assert not info.complete
+    assert info.channels["/dp/tick"].message_count == len(saved)
+    assert info.channels["/raw/nmea/gyro"].schema_name == "dpgw.RawNmea"
+
+
+def test_sigterm_closes_the_file_cleanly(tmp_path: Path) -> None:
+    path = tmp_path / "terminated.mcap"
+    proc = start_writer(path)
+    try:
+        time.sleep(1.5)
+        proc.send_signal(signal.SIGTERM)
+        out, _ = proc.communicate(timeout=10)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0
+    written = int(out.split()[-1])  # "closed <n>"
+    with open(path, "rb") as f:
+        s = make_reader(f).get_summary()
+    assert s is not None and s.statistics is not None
+    assert s.statistics.message_count == 2 * written
+    assert [i for i, _ in ticks(path)] == list(range(written))
+    assert summary(path).complete
+
+
+def test_exit_without_close_still_finishes_the_file(tmp_path: Path) -> None:
+    path = tmp_path / "forgot.mcap"
+    code = "import sys; from gateway.mcaplog import McapLogWriter; w = McapLogWriter(sys.argv[1]); "
+    code += "w.write('/t', {'i': 1}, 1); raise SystemExit(3)"
+    proc = subprocess.run([sys.executable, "-c", code, str(path)], cwd=REPO, env=_env(), timeout=30)
+    assert proc.returncode == 3
+    assert summary(path).complete and summary(path).message_count == 1
+
+
+def test_wall_clock_flush_without_further_writes(tmp_path: Path) -> None:
+    path = tmp_path / "idle.mcap"
+    w = McapLogWriter(path, flush_interval_s=0.5)
+    try:
+        for i in range(3):
+            w.write("/t", {"i": i}, T0)
+        assert list(read_messages(path)) == []  # still in the open chunk
+        time.sleep(1.0)  # no more writes: the background thread must hand the chunk over
+        assert [p[3]["i"] for p in read_messages(path)] == [0, 1, 2]
+    finally:
+        w.close()
+
+
+def test_log_time_flush(tmp_path: Path) -> None:
+    """Replay writes 5 s of log time in far less wall time: still at most ~1 s of log time unsaved."""
+    path = tmp_path / "replay.mcap"
+    w = McapLogWriter(path, background_flush=False, fsync=False)
+    try:
+        for i in range(500):
+            w.write("/t", {"i": i}, T0 + i * 10_000_000)
+        last = list(read_messages(path))[-1]
+        assert (T0 + 499 * 10_000_000 - last[1]) / 1e9 <= 1.0
+    finally:
+        w.close()
+
+
+def test_chunk_closing_works_without_writer_flush(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """mcap < 1.6 has no Writer.flush(); the private fallback must close chunks the same way."""
+    monkeypatch.delattr(Writer, "flush")
+    path = tmp_path / "old_mcap.mcap"
+    w = McapLogWriter(path, background_flush=False, fsync=False)
+    try:
+        for i in range(300):
+            w.write("/t", {"i": i}, T0 + i * 10_000_000)
+        saved = [p[3]["i"] for p in read_messages(path)]
+        assert 200 <= len(saved) < 300 and saved == list(range(len(saved)))
+    finally:
+        w.close()
+    assert [p[3]["i"] for p in read_messages(path)] == list(range(300))
+
+
+def test_truncated_at_any_byte_reads_a_prefix(tmp_path: Path) -> None:
+    path = tmp_path / "full.mcap"
+    with McapLogWriter(path, chunk_size=2 * KIB, background_flush=False, fsync=False) as w:
+        for i in range(300):
+            w.write(f"/t{i % 3}", {"i": i, "v": [i, i * 0.5]}, T0 + i)
+    full = [p[3]["i"] for p in read_messages(path)]
+    assert full == list(range(300))
+    data = path.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    seen = set()
+    for n in range(0, len(data), max(1, len(data) // 300)):
+        cut.write_bytes(data[:n])
+        got = [p[3]["i"] for p in read_messages(cut)]
+        assert got == full[: len(got)]
+        seen.add(len(got))
+        info = summary(cut)
+        assert info.message_count == len(got)
+        assert sum(c.message_count for c in info.channels.values()) == len(got)
+    assert len(seen) >= 8 and max(seen) == 300  # the cuts fell all over the data section and summary
+
+
+# --- rotation -----------------------------------------------------------------------------------------------
+
+
+def test_rotation_by_size(tmp_path: Path) -> None:
+    path = tmp_path / "run.mcap"
+    with McapLogWriter(
+        path,
+        chunk_size=4 * KIB,
+        rotate_bytes=16 * KIB,
+        background_flush=False,
+        compression="none",
+        fsync=False,
+    ) as w:
+        for i in range(2000):
+            w.write("/dp/tick", {"i": i, "pad": "z" * 20}, T0 + i * 1000)
+            w.write_raw_nmea("gps", f"$GPGGA,{i}", T0 + i * 1000)
+    files = log_files(path)
+    assert files == w.paths
+    assert [f.name for f in files[:3]] == ["run.mcap", "run_0001.mcap", "run_0002.mcap"]
+    assert len(files) >= 5
+    for f in files[:-1]:
+        info = summary(f)
+        assert info.complete
+        assert set(info.channels) == {"/dp/tick", "/raw/nmea/gps"}  # every file self-contained
+        assert 16 * KIB <= f.stat().st_size <= 16 * KIB + 4 * KIB + 8 * KIB  # + one chunk + summary
+    got = [p[3]["i"] for p in read_messages(files, topics="/dp/tick")]
+    assert got == list(range(2000))  # nothing lost, nothing duplicated, in order
+    assert sum(1 for _ in read_messages(files, topics="/raw/nmea/gps")) == 2000
+
+
+def test_rotation_by_log_time(tmp_path: Path) -> None:
+    path = tmp_path / "trial.mcap"
+    with McapLogWriter(path, rotate_seconds=1.0, background_flush=False, fsync=False) as w:
+        for i in range(46):  # 10 Hz for 4.5 s
+            w.write("/dp/tick", {"i": i}, T0 + i * 100_000_000)
+    files = log_files(path)
+    assert files == [rotated_path(path, k) for k in range(5)]
+    per_file = [[p[3]["i"] for p in read_messages(f)] for f in files]
+    assert per_file == [list(range(k * 10, min(k * 10 + 10, 46))) for k in range(5)]
+    for f in files:
+        info = summary(f)
+        assert info.complete and info.start_ns is not None and info.end_ns is not None
+        assert info.end_ns - info.start_ns < 1_000_000_000
+
+
+# --- JSON ---------------------------------------------------------------------------------------------------
+
+
+def test_numpy_and_non_finite_values(tmp_path: Path) -> None:
+    path = tmp_path / "nan.mcap"
+    payload = {
+        "a": np.array([1.0, np.nan, np.inf, -np.inf]),
+        "m": np.arange(4.0).reshape(2, 2),
+        "f32": np.float32(0.5),
+        "f64": np.float64("nan"),
+        "i": np.int64(2**40),
+        "b": np.bool_(True),
+        "nested": {"x": [float("nan"), (1, np.int32(2))]},
+        "ints": np.array([1, 2], dtype=np.uint8),
+    }
+    with McapLogWriter(path) as w:
+        w.write("/x", payload, T0)
+    ((_, _, _, got),) = read_messages(path)
+    assert got == {
+        "a": [1.0, None, None, None],
+        "m": [[0.0, 1.0], [2.0, 3.0]],
+        "f32": 0.5,
+        "f64": None,
+        "i": 2**40,
+        "b": True,
+        "nested": {"x": [None, [1, 2]]},
+        "ints": [1, 2],
+    }
+    raw = path.read_bytes()
+    assert b"NaN" not in raw and b"Infinity" not in raw
+    with pytest.raises(TypeError):
+        encode_json({"c": 1j})
+
+
+json_values = st.recursive(
+    st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=5),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=4), inner, max_size=4),
+    max_leaves=20,
+)
+
+
+def _expected(v: Any) -> Any:
+    if isinstance(v, float):
+        return v if math.isfinite(v) else None
+    if isinstance(v, list):
+        return [_expected(x) for x in v]
+    if isinstance(v, dict):
+        return {k: _expected(x) for k, x in v.items()}
+    return v
+
+
+@settings(max_examples=100, deadline=None)
+@given(json_values)
+def test_encode_json_round_trips_with_null_for_non_finite(value: Any) -> None:
+    assert json.loads(encode_json(value)) == _expected(value)
+
+
+# --- threads, lifecycle -------------------------------------------------------------------------------------
+
+
+def test_many_threads_writing(tmp_path: Path) -> None:
+    path = tmp_path / "threads.mcap"
+    n_threads, n_each = 8, 400
+    with McapLogWriter(
+        path, chunk_size=8 * KIB, flush_interval_s=0.01, rotate_bytes=64 * KIB, fsync=False
+    ) as w:
+
+        def work(k: int) -> None:
+            for i in range(n_each):
+                t = time.time_ns()
+                w.write(f"/thread/{k % 3}", {"k": k, "i": i, "v": np.full(3, i * 0.1)}, t)
+
+        threads = [threading.Thread(target=work, args=(k,)) for k in range(n_threads)]
+        for th in threads:
+            th.start()
+        for th in threads:
+            th.join()
+    files = log_files(path)
+    assert len(files) > 1
+    got = sorted((p[3]["k"], p[3]["i"]) for p in read_messages(files))
+    assert got == sorted((k, i) for k in range(n_threads) for i in range(n_each))
+    assert all(summary(f).complete for f in files)
+
+
+def test_close_is_idempotent_and_later_writes_are_dropped(tmp_path: Path) -> None:
+    path = tmp_path / "closed.mcap"
+    w = McapLogWriter(path)
+    w.add_metadata("config", {"vessel": "supply"})
+    w.write("/t", {"i": 0}, T0)
+    w.close()
+    w.close()
+    assert w.closed
+    w.write("/t", {"i": 1}, T0 + 1)
+    assert [p[3] for p in read_messages(path)] == [{"i": 0}]
+    with open(path, "rb") as f:
+        assert [m.metadata for m in make_reader(f).iter_metadata()] == [{"vessel": "supply"}]
+
+
+def test_bad_path_fails_at_start_up(tmp_path: Path) -> None:
+    with pytest.raises(OSError):
+        McapLogWriter(tmp_path / "no" / "such" / "dir" / "x.mcap")
+    with pytest.raises(ValueError):
+        McapLogWriter(tmp_path / "x.mcap", compression="brotli")
