@@ -114,11 +114,29 @@ def to_jsonable(obj: Any) -> Any:
     raise TypeError(f"cannot encode {type(obj).__name__} as JSON: {obj!r}")
 
 
+def _json_default(obj: Any) -> Any:
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    raise TypeError  # anything else: the careful path below
+
+
 def encode_json(payload: Any) -> bytes:
-    """Compact UTF-8 JSON of `payload` (see `to_jsonable`); never emits NaN/Infinity."""
-    return json.dumps(
-        to_jsonable(payload), separators=(",", ":"), ensure_ascii=False, allow_nan=False
-    ).encode()
+    """Compact UTF-8 JSON of `payload` (see `to_jsonable`); never emits NaN/Infinity.
+
+    Fast path first: the json module walks the payload itself (numpy through ``default``) and refuses
+    non-finite numbers; only then is the payload rewritten by `to_jsonable` (NaN -> null, bytes -> base64,
+    dataclasses, enums). The logger writes hundreds of thousands of messages an hour.
+    """
+    try:
+        return json.dumps(
+            payload, separators=(",", ":"), ensure_ascii=False, allow_nan=False, default=_json_default
+        ).encode()
+    except (ValueError, TypeError):
+        return json.dumps(
+            to_jsonable(payload), separators=(",", ":"), ensure_ascii=False, allow_nan=False
+        ).encode()
 
 
 # --- rotation naming ----------------------------------------------------------------------------------------

@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 Array = NDArray[np.float64]
 
@@ -90,6 +90,29 @@ class VesselModel:
         ids = [t.id for t in self.thrusters]
         if len(set(ids)) != len(ids):
             raise VesselError(f"{where}: field 'thrusters': thruster ids must be unique, got {ids}")
+
+    def configuration_matrix(self, angles: ArrayLike | None = None) -> Array:
+        """B_u of eq (4) for the thrusters at the given force directions (rad, clockwise from the bow).
+
+        Thruster i at (xᵢ, yᵢ) pushing with unit force in direction αᵢ contributes the column
+        [cos αᵢ, sin αᵢ, xᵢ sin αᵢ − yᵢ cos αᵢ]ᵀ (yaw moment = l_x F_y − l_y F_x, Hajivand eq (22) with the
+        signs of ERRATA). Tunnels and main propellers use their fixed ``angle_rad``; ``angles`` (one per
+        thruster, in layout order) applies to azimuths and defaults to each thruster's ``angle_rad``.
+        """
+        n = len(self.thrusters)
+        a = np.array([t.angle_rad for t in self.thrusters], dtype=float)
+        if angles is not None:
+            given = np.broadcast_to(np.asarray(angles, dtype=float), (n,))
+            az = np.array([t.kind == "azimuth" for t in self.thrusters], dtype=bool)
+            a = np.where(az, given, a)
+        x = np.array([t.x_m for t in self.thrusters], dtype=float)
+        y = np.array([t.y_m for t in self.thrusters], dtype=float)
+        c, s = np.cos(a), np.sin(a)
+        return np.vstack([c, s, x * s - y * c])
+
+    def generalized_force(self, thrust: ArrayLike, angles: ArrayLike | None = None) -> Array:
+        """τ = B_u(α) u: generalised force [X, Y, N] from thrusts (N, signed for tunnel/main)."""
+        return self.configuration_matrix(angles) @ np.asarray(thrust, dtype=float)
 
     @property
     def Minv(self) -> Array:

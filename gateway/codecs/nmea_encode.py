@@ -94,6 +94,21 @@ def sentence(talker: str, kind: str, fields: Iterable[Field]) -> str:
     return f"${body}*{checksum(body)}\r\n"
 
 
+_CHECKED_HEADS: dict[tuple[str, str], str] = {}
+
+
+def _build(talker: str, kind: str, fields: Iterable[Field]) -> str:
+    """`sentence` for fields this module formatted itself (numbers, validated letters): the talker and
+    formatter are checked once per pair, the fields are not re-scanned. ~2x faster on the simulator's
+    10 Hz bursts (bench/bench_simulator.py)."""
+    head = _CHECKED_HEADS.get((talker, kind))
+    if head is None:
+        sentence(talker, kind, ())  # validates, raises on a bad talker or formatter
+        head = _CHECKED_HEADS[(talker, kind)] = talker + kind
+    body = ",".join([head, *["" if f is None else f for f in fields]])
+    return f"${body}*{checksum(body)}\r\n"
+
+
 def corrupt_checksum(text: str) -> str:
     """The same sentence with a wrong checksum (every bit of it inverted), for fault injection."""
     star = text.rfind("*")
@@ -152,7 +167,7 @@ def gga(
         _fixed(age_s, 1),
         _station(station_id),
     ]
-    return sentence(talker, "GGA", fields)
+    return _build(talker, "GGA", fields)
 
 
 def gns(
@@ -202,7 +217,7 @@ def gns(
     ]
     if nav_status is not None:
         fields.append(_one_of("GNS navigational status", nav_status, NAV_STATUS))
-    return sentence(talker, "GNS", fields)
+    return _build(talker, "GNS", fields)
 
 
 def rmc(
@@ -248,7 +263,7 @@ def rmc(
         var_dir,
         _one_of("RMC mode", mode, POSITION_MODES),
     ]
-    return sentence(talker, "RMC", fields)
+    return _build(talker, "RMC", fields)
 
 
 def vtg(
@@ -282,7 +297,7 @@ def vtg(
         "K",
         _one_of("VTG mode", mode, POSITION_MODES),
     ]
-    return sentence(talker, "VTG", fields)
+    return _build(talker, "VTG", fields)
 
 
 def gst(
@@ -323,7 +338,7 @@ def gst(
         _fixed(sigma_lon_m, 3),
         _fixed(sigma_alt_m, 3),
     ]
-    return sentence(talker, "GST", fields)
+    return _build(talker, "GST", fields)
 
 
 def zda(talker: str, t_utc: datetime, *, time_decimals: int = TIME_DECIMALS) -> str:
@@ -344,7 +359,7 @@ def zda(talker: str, t_utc: datetime, *, time_decimals: int = TIME_DECIMALS) -> 
         "00",
         "00",
     ]
-    return sentence(talker, "ZDA", fields)
+    return _build(talker, "ZDA", fields)
 
 
 # ---------------------------------------------------------------------------------------------- heading
@@ -357,7 +372,7 @@ def hdt(talker: str, heading_rad: float | None, *, decimals: int = 2) -> str:
 
     1 heading, degrees true, in [0, 360) with ``decimals`` decimals (default 0.01°).
     """
-    return sentence(talker, "HDT", [_deg360(heading_rad, decimals), "T"])
+    return _build(talker, "HDT", [_deg360(heading_rad, decimals), "T"])
 
 
 def ths(talker: str, heading_rad: float | None, mode: str = "A", *, decimals: int = 2) -> str:
@@ -368,7 +383,7 @@ def ths(talker: str, heading_rad: float | None, mode: str = "A", *, decimals: in
     1 heading, degrees true, [0, 360), 2 mode indicator (:data:`HEADING_MODES`: A autonomous, E estimated,
     M manual, S simulator, V data not valid).
     """
-    return sentence(talker, "THS", [_deg360(heading_rad, decimals), _one_of("THS mode", mode, HEADING_MODES)])
+    return _build(talker, "THS", [_deg360(heading_rad, decimals), _one_of("THS mode", mode, HEADING_MODES)])
 
 
 def rot(talker: str, rate_rad_s: float | None, valid: bool = True, *, decimals: int = 1) -> str:
@@ -380,7 +395,7 @@ def rot(talker: str, rate_rad_s: float | None, valid: bool = True, *, decimals: 
     rate r, positive clockwise seen from above), 2 status A valid / V invalid.
     """
     rate = None if rate_rad_s is None else math.degrees(_finite("rate_rad_s", rate_rad_s)) * 60.0
-    return sentence(talker, "ROT", [_fixed(rate, decimals), "A" if valid else "V"])
+    return _build(talker, "ROT", [_fixed(rate, decimals), "A" if valid else "V"])
 
 
 def hdg(
@@ -402,7 +417,7 @@ def hdg(
     """
     dev, dev_dir = _east_west(deviation_rad, decimals)
     var, var_dir = _east_west(variation_rad, decimals)
-    return sentence(talker, "HDG", [_deg360(heading_mag_rad, decimals), dev, dev_dir, var, var_dir])
+    return _build(talker, "HDG", [_deg360(heading_mag_rad, decimals), dev, dev_dir, var, var_dir])
 
 
 # ---------------------------------------------------------------------------------------------- fields

@@ -1,0 +1,103 @@
+"""WGS-84 geodetic ↔ local NED (the datum's tangent plane), fast and exact.
+
+pymap3d is the reference (and is what the tests compare against), but one scalar pymap3d call costs
+~165 µs: 6 s for each simulated hour of 10 Hz DGPS, and replay must decode >100,000 sentences/s.
+This module does the same exact conversion (no flat-earth approximation) through ECEF with the datum's
+rotation precomputed once, in plain ``math`` for scalars (a few µs) and numpy for arrays.
+
+ECEF → geodetic iterates latitude with the height (Bowring-style fixed point); near the Earth's surface
+four iterations converge to below 1e-11 rad (sub-millimetre), tested against pymap3d over ±100 km
+offsets and all latitudes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+A = 6378137.0  # WGS-84 semi-major axis (m)
+F = 1.0 / 298.257223563  # flattening
+E2 = F * (2.0 - F)  # first eccentricity squared
+ITERATIONS = 4
+
+
+def geodetic_to_ecef(lat_deg: float, lon_deg: float, h_m: float) -> tuple[float, float, float]:
+    lat, lon = math.radians(lat_deg), math.radians(lon_deg)
+    s = math.sin(lat)
+    n = A / math.sqrt(1.0 - E2 * s * s)
+    c = math.cos(lat)
+    return ((n + h_m) * c * math.cos(lon), (n + h_m) * c * math.sin(lon), (n * (1.0 - E2) + h_m) * s)
+
+
+def ecef_to_geodetic(x: float, y: float, z: float) -> tuple[float, float, float]:
+    p = math.hypot(x, y)
+    lon = math.atan2(y, x)
+    lat = math.atan2(z, p * (1.0 - E2))
+    h = 0.0
+    for _ in range(ITERATIONS):
+        s = math.sin(lat)
+        n = A / math.sqrt(1.0 - E2 * s * s)
+        c = math.cos(lat)
+        h = p / c - n if abs(c) > 0.5 else z / s - n * (1.0 - E2)
+        lat = math.atan2(z, p * (1.0 - E2 * n / (n + h)))
+    return math.degrees(lat), math.degrees(lon), h
+
+
+@dataclass(frozen=True)
+class LocalFrame:
+    """The NED tangent plane at a datum (lat, lon in degrees, height in m above the ellipsoid)."""
+
+    lat_deg: float
+    lon_deg: float
+    alt_m: float = 0.0
+    _origin: tuple[float, float, float] = field(init=False, repr=False, compare=False)
+    _R: NDArray[np.float64] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.lat_deg) and -90.0 <= self.lat_deg <= 90.0):
+            raise ValueError(f"datum latitude {self.lat_deg!r}: must be within [-90, 90] degrees")
+        if not (math.isfinite(self.lon_deg) and -180.0 <= self.lon_deg <= 360.0):
+            raise ValueError(f"datum longitude {self.lon_deg!r}: must be within [-180, 180] degrees")
+        lat, lon = math.radians(self.lat_deg), math.radians(self.lon_deg)
+        sl, cl, so, co = math.sin(lat), math.cos(lat), math.sin(lon), math.cos(lon)
+        # rows: north, east, down in ECEF
+        R = np.array([[-sl * co, -sl * so, cl], [-so, co, 0.0], [-cl * co, -cl * so, -sl]])
+        object.__setattr__(self, "_origin", geodetic_to_ecef(self.lat_deg, self.lon_deg, self.alt_m))
+        object.__setattr__(self, "_R", R)
+
+    def to_ned(self, lat_deg: float, lon_deg: float, alt_m: float = 0.0) -> tuple[float, float, float]:
+        x, y, z = geodetic_to_ecef(lat_deg, lon_deg, alt_m)
+        dx, dy, dz = x - self._origin[0], y - self._origin[1], z - self._origin[2]
+        R = self._R
+        return (
+            float(R[0, 0] * dx + R[0, 1] * dy + R[0, 2] * dz),
+            float(R[1, 0] * dx + R[1, 1] * dy),
+            float(R[2, 0] * dx + R[2, 1] * dy + R[2, 2] * dz),
+        )
+
+    def to_geodetic(self, north: float, east: float, down: float = 0.0) -> tuple[float, float, float]:
+        R = self._R
+        x = self._origin[0] + R[0, 0] * north + R[1, 0] * east + R[2, 0] * down
+        y = self._origin[1] + R[0, 1] * north + R[1, 1] * east + R[2, 1] * down
+        z = self._origin[2] + R[0, 2] * north + R[2, 2] * down
+        return ecef_to_geodetic(float(x), float(y), float(z))
+
+    def to_ned_array(
+        self, lat_deg: ArrayLike, lon_deg: ArrayLike, alt_m: ArrayLike = 0.0
+    ) -> NDArray[np.float64]:
+        """Vectorised `to_ned`: arrays of any (broadcast) shape → shape + (3,)."""
+        lat, lon = np.radians(np.asarray(lat_deg, dtype=float)), np.radians(np.asarray(lon_deg, dtype=float))
+        h = np.asarray(alt_m, dtype=float)
+        s = np.sin(lat)
+        n = A / np.sqrt(1.0 - E2 * s * s)
+        c = np.cos(lat)
+        ecef = np.stack(
+            np.broadcast_arrays(
+                (n + h) * c * np.cos(lon), (n + h) * c * np.sin(lon), (n * (1.0 - E2) + h) * s
+            ),
+            axis=-1,
+        )
+        return np.asarray((ecef - np.asarray(self._origin)) @ self._R.T)
