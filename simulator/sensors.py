@@ -1,0 +1,784 @@
+"""Simulated sensors that look like real hardware on the wire: a DGPS receiver, a gyro compass and a
+thruster controller's MAVLink feedback.
+
+Each sensor samples the simulated vessel (`ShipState`) on its own schedule and returns `Emission` s: the
+exact bytes it sends (a whole NMEA sentence with ``\\r\\n``, or one MAVLink frame), the sim time they leave
+the sensor (measurement time + latency) and the time the value was measured. The simulator runner asks each
+sensor for `Sensor.next_time`, computes the ship state at that time, calls `Sensor.sample` and writes the
+bytes to the sensor's transport at ``t_emit``.
+
+Models (docs/sensors.md has the full description):
+
+* `Dgps` — antenna position = reference point + J(ψ)·lever arm (horizontal), height above the reference
+  point added to the altitude; noise white or first-order Gauss-Markov with standard deviation σ per axis;
+  NED → WGS-84 latitude/longitude at a `Datum` with pymap3d. Speed and course over ground from the antenna's
+  NED velocity J(ψ)(ν + r × lever arm) plus white velocity noise. Fixes on the UTC grid of the output rate
+  (like a receiver locked to GPS time); one burst per fix: GGA or GNS, then RMC, VTG, GST, ZDA as configured.
+* `Gyro` — heading ψ + white noise, wrapped; rate of turn r + white noise: HDT, THS, ROT, HDG.
+* `ThrusterFeedback` — per thruster one ``AZIMUTH_THRUSTER_STATUS``, a ``HEARTBEAT`` (surface boat), and
+  optionally ArduPilot-style ``ESC_TELEMETRY_x_TO_y`` (rpm) and ``SERVO_OUTPUT_RAW`` (azimuth as PWM), all
+  through one MAVLink encoder so sequence numbers run like on a real link.
+
+All randomness comes from the ``rng`` given to a sensor: the same seed gives the same bytes. Faults come from
+a `simulator.faults.FaultSchedule`. A sensor applies the sample-side faults itself (dropout, frozen, jump,
+noise burst, thruster failure); the wire-side faults (bad checksum, garbage) are applied by whoever puts the
+bytes on the wire, with ``FaultSchedule.apply_to_emissions(emissions, rng)`` and a generator of its own, so
+that line noise never changes the sensors' random streams.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+import pymap3d
+from numpy.typing import ArrayLike, NDArray
+
+from gateway.codecs import mavlink as mv
+from gateway.codecs import nmea_encode as nmea
+from gateway.geodesy import LocalFrame
+from observers.kinematics import ssa_scalar
+from observers.vessel import THRUSTER_KINDS
+from simulator.clock import SimEpoch
+from simulator.faults import Fault, FaultSchedule
+
+__all__ = [
+    "DGPS_EXTRA_SENTENCES",
+    "DGPS_POSITION_SENTENCES",
+    "DGPS_QUALITIES",
+    "FAULT_CODE_TRIP",
+    "GYRO_SENTENCES",
+    "SERVO_PWM_CENTER_US",
+    "SERVO_PWM_HALF_RANGE_US",
+    "THRUSTER_KINDS",
+    "VERTICAL_SIGMA_FACTOR",
+    "Datum",
+    "Dgps",
+    "DgpsConfig",
+    "Emission",
+    "Gyro",
+    "GyroConfig",
+    "Sensor",
+    "ShipState",
+    "ThrusterFeedback",
+    "ThrusterFeedbackConfig",
+    "ThrusterReading",
+    "antenna_position",
+    "antenna_velocity",
+    "azimuth_to_pwm",
+    "pwm_to_azimuth",
+]
+
+DGPS_POSITION_SENTENCES = ("GGA", "GNS")
+DGPS_EXTRA_SENTENCES = ("GGA", "GNS", "RMC", "VTG", "GST", "ZDA")
+DGPS_QUALITIES = {1: "A", 2: "D", 4: "R", 5: "F"}
+"""GGA quality → mode indicator of GNS (per constellation), RMC and VTG: 1 autonomous (SPS), 2 differential,
+4 RTK fixed, 5 RTK float."""
+GYRO_SENTENCES = ("HDT", "THS", "ROT", "HDG")
+VERTICAL_SIGMA_FACTOR = 1.5
+"""Vertical GNSS noise = this × the horizontal σ (satellite geometry makes height worse than position)."""
+SERVO_PWM_CENTER_US = 1500
+SERVO_PWM_HALF_RANGE_US = 400
+"""SERVO_OUTPUT_RAW azimuth mapping: pwm = 1500 + 400·azimuth/π µs, azimuth in [-π, π) → [1100, 1900)."""
+FAULT_CODE_TRIP = 1
+"""``AZIMUTH_THRUSTER_STATUS.fault_code`` of a failed thruster (the simulator's one "drive tripped" code)."""
+
+_DUE_TOL_S = 1e-6
+_GNS_CONSTELLATIONS = 2  # GNS mode field: one character for GPS and one for GLONASS
+_FLAGS_OK = (
+    mv.AzimuthThrusterFlags.READY | mv.AzimuthThrusterFlags.RUNNING | mv.AzimuthThrusterFlags.REMOTE_CONTROL
+)
+_FLAGS_FAILED = mv.AzimuthThrusterFlags.REMOTE_CONTROL | mv.AzimuthThrusterFlags.FAULT
+
+
+# ---------------------------------------------------------------------------------------------- data
+
+
+@dataclass(frozen=True)
+class Datum:
+    """The origin of the local NED frame on the WGS-84 ellipsoid (degrees, ellipsoidal height in m)."""
+
+    lat_deg: float
+    lon_deg: float
+    alt_m: float = 0.0
+
+    def __post_init__(self) -> None:
+        _validate(
+            self,
+            lat_deg=(lambda v: -90.0 <= v <= 90.0, "must be in [-90, 90] degrees"),
+            lon_deg=(lambda v: -180.0 <= v <= 180.0, "must be in [-180, 180] degrees"),
+            alt_m=(math.isfinite, "must be finite"),
+        )
+        object.__setattr__(self, "_frame", LocalFrame(self.lat_deg, self.lon_deg, self.alt_m))
+
+    def to_geodetic(self, north: ArrayLike, east: ArrayLike, down: ArrayLike = 0.0) -> tuple[Any, Any, Any]:
+        """Latitude (deg), longitude (deg) and ellipsoidal height (m) of local NED points (m). Scalars give
+        floats, arrays give arrays (broadcast). Scalars go through `gateway.geodesy` (the same exact
+        conversion as pymap3d, ~60x faster: one call per fix at 10 Hz adds up)."""
+        if np.ndim(north) == 0 and np.ndim(east) == 0 and np.ndim(down) == 0:
+            frame: LocalFrame = self._frame  # type: ignore[attr-defined]
+            return frame.to_geodetic(float(north), float(east), float(down))  # type: ignore[arg-type]
+        lat, lon, alt = pymap3d.ned2geodetic(north, east, down, self.lat_deg, self.lon_deg, self.alt_m)
+        return _maybe_float(lat), _maybe_float(lon), _maybe_float(alt)
+
+    def to_ned(
+        self, lat_deg: ArrayLike, lon_deg: ArrayLike, alt_m: ArrayLike | None = None
+    ) -> tuple[Any, Any, Any]:
+        """Local NED (m) of geodetic points; the inverse of `to_geodetic`. ``alt_m`` defaults to the datum's
+        height (points on the tangent plane's level)."""
+        height = self.alt_m if alt_m is None else alt_m
+        n, e, d = pymap3d.geodetic2ned(lat_deg, lon_deg, height, self.lat_deg, self.lon_deg, self.alt_m)
+        return _maybe_float(n), _maybe_float(e), _maybe_float(d)
+
+
+@dataclass(frozen=True)
+class Emission:
+    """One frame on the wire: a whole NMEA sentence (with ``\\r\\n``), one MAVLink frame, or junk bytes."""
+
+    t_emit: float
+    """Sim time the bytes leave the sensor (measurement time + latency)."""
+    source: str
+    """Stream name (``dgps1``, ``gyro1``, ``thrusters``)."""
+    protocol: str
+    """``"nmea"`` or ``"mavlink"``."""
+    data: bytes
+    """The exact bytes."""
+    t_measured: float
+    """Sim time the value was sampled (garbage: ``t_emit``)."""
+
+    @property
+    def text(self) -> str:
+        """The bytes as text (NMEA); undecodable bytes show as U+FFFD."""
+        return self.data.decode("ascii", errors="replace")
+
+
+@dataclass(frozen=True)
+class ThrusterReading:
+    """What one thruster's drive measures (given by the thruster model): SI units, azimuth clockwise from
+    the bow (direction of the thrust force), ``rpm`` negative astern, ``power_w`` NaN if unknown."""
+
+    id: int
+    kind: str
+    thrust_n: float
+    azimuth_rad: float
+    rpm: float
+    thrust_setpoint_n: float
+    azimuth_setpoint_rad: float
+    failed: bool
+    power_w: float = math.nan
+
+    def __post_init__(self) -> None:
+        _validate(
+            self,
+            id=(lambda v: 0 <= v <= 255, "must be in 0..255"),
+            kind=(lambda v: v in THRUSTER_KINDS, f"must be one of {THRUSTER_KINDS}"),
+        )
+
+
+@dataclass(frozen=True)
+class ShipState:
+    """What the sensors sample at time ``t``: ``eta`` = [N, E, ψ] of the reference point (total motion, LF +
+    WF), ``nu`` = [u, v, r] in the body frame, and the thrusters' readings."""
+
+    t: float
+    eta: NDArray[np.float64]
+    nu: NDArray[np.float64]
+    thrusters: tuple[ThrusterReading, ...] = ()
+
+    def __post_init__(self) -> None:
+        for name in ("eta", "nu"):
+            value = np.asarray(getattr(self, name), dtype=float)
+            if value.shape != (3,):
+                raise ValueError(f"ShipState.{name}: must have 3 elements, got {getattr(self, name)!r}")
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "thrusters", tuple(self.thrusters))
+
+
+# ---------------------------------------------------------------------------------------------- configs
+
+
+@dataclass(frozen=True)
+class DgpsConfig:
+    """A DGPS / RTK receiver. σ in m per horizontal axis (1σ); lever arm (x fwd, y stbd, z down) in m from
+    the reference point to the antenna; latency and correlation time in s.
+
+    ``alt_m`` is the altitude above mean sea level of the *reference point*: GGA/GNS report
+    ``alt_m - lever_arm_m[2]`` (the antenna is higher when z is negative). ``sigma_velocity_mps`` is the white
+    noise per NED axis of the Doppler velocity behind RMC/VTG. With ``noise_correlation_s`` > 0 the position
+    noise is a first-order Gauss-Markov process with that time constant (same σ).
+    """
+
+    source: str = "dgps1"
+    talker: str = "GP"
+    rate_hz: float = 1.0
+    position_sentence: str = "GGA"
+    extra: tuple[str, ...] = ("RMC", "VTG", "GST", "ZDA")
+    slow_sentences: tuple[str, ...] = ("GST", "ZDA")
+    """Sentences sent at ``slow_rate_hz`` only (on the fixes that fall on that grid), as real receivers are
+    configured: statistics and date once a second, position and velocity at the fix rate."""
+    slow_rate_hz: float = 1.0
+    quality: int = 2
+    sigma_m: float = 0.5
+    lever_arm_m: tuple[float, float, float] = (0.0, 0.0, -20.0)
+    latency_s: float = 0.1
+    n_sats: int = 12
+    hdop: float = 0.8
+    alt_m: float = 20.0
+    age_s: float | None = 2.0
+    station_id: int | None = 1
+    noise_correlation_s: float = 0.0
+    sigma_velocity_mps: float = 0.02
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "extra", tuple(self.extra))
+        object.__setattr__(self, "slow_sentences", tuple(self.slow_sentences))
+        object.__setattr__(self, "lever_arm_m", tuple(float(x) for x in self.lever_arm_m))
+        burst = (self.position_sentence, *self.extra)
+        _validate(
+            self,
+            source=_SOURCE_RULE,
+            talker=_TALKER_RULE,
+            rate_hz=(lambda v: 1.0 <= v <= 10.0, "must be in 1..10 Hz"),
+            position_sentence=(
+                lambda v: v in DGPS_POSITION_SENTENCES,
+                f"must be one of {DGPS_POSITION_SENTENCES}",
+            ),
+            extra=(lambda v: set(v) <= set(DGPS_EXTRA_SENTENCES), f"must be some of {DGPS_EXTRA_SENTENCES}"),
+            slow_sentences=(
+                lambda v: set(v) <= set(DGPS_EXTRA_SENTENCES),
+                f"must be some of {DGPS_EXTRA_SENTENCES} (the position sentence always runs at rate_hz)",
+            ),
+            slow_rate_hz=(lambda v: 0.0 < v <= 10.0, "must be in (0, 10] Hz"),
+            quality=(lambda v: v in DGPS_QUALITIES, f"must be one of {sorted(DGPS_QUALITIES)}"),
+            sigma_m=(lambda v: v >= 0.0, "must be >= 0 m"),
+            lever_arm_m=(
+                lambda v: len(v) == 3 and all(map(math.isfinite, v)),
+                "must be 3 finite numbers (x fwd, y stbd, z down) in m",
+            ),
+            latency_s=(lambda v: 0.0 <= v <= 10.0, "must be in 0..10 s"),
+            n_sats=(lambda v: 4 <= v <= 99, "must be in 4..99 (a fix needs four satellites)"),
+            hdop=(lambda v: 0.0 < v <= 99.0, "must be in (0, 99]"),
+            alt_m=(math.isfinite, "must be finite"),
+            age_s=(lambda v: v is None or 0.0 <= v <= 999.0, "must be None or in 0..999 s"),
+            station_id=(lambda v: v is None or 0 <= v <= 1023, "must be None or in 0..1023"),
+            noise_correlation_s=(lambda v: v >= 0.0, "must be >= 0 s (0 = white noise)"),
+            sigma_velocity_mps=(lambda v: v >= 0.0, "must be >= 0 m/s"),
+        )
+        if len(set(burst)) != len(burst):
+            raise ValueError(
+                f"DgpsConfig.extra: repeats a sentence or the position sentence, got {self.extra!r}"
+            )
+
+    @property
+    def sentences(self) -> tuple[str, ...]:
+        """The sentences of one burst, in the order they are sent."""
+        return (self.position_sentence, *self.extra)
+
+
+@dataclass(frozen=True)
+class GyroConfig:
+    """A gyro compass. ``sigma_rad`` is the white heading noise (1σ), ``sigma_rot_rad_s`` the white noise on
+    the rate of turn. ``variation_rad`` (east positive) is only used by HDG, which reports a magnetic sensor
+    heading = true heading − variation with deviation 0 and that variation."""
+
+    source: str = "gyro1"
+    talker: str = "HE"
+    rate_hz: float = 10.0
+    sentences: tuple[str, ...] = ("HDT", "ROT")
+    sigma_rad: float = math.radians(0.05)
+    latency_s: float = 0.02
+    sigma_rot_rad_s: float = math.radians(0.5) / 60.0
+    variation_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "sentences", tuple(self.sentences))
+        _validate(
+            self,
+            source=_SOURCE_RULE,
+            talker=_TALKER_RULE,
+            rate_hz=(lambda v: 0.0 < v <= 20.0, "must be in (0, 20] Hz"),
+            sentences=(
+                lambda v: 0 < len(v) == len(set(v)) and set(v) <= set(GYRO_SENTENCES),
+                f"must be distinct names out of {GYRO_SENTENCES}",
+            ),
+            sigma_rad=(lambda v: v >= 0.0, "must be >= 0 rad"),
+            latency_s=(lambda v: 0.0 <= v <= 10.0, "must be in 0..10 s"),
+            sigma_rot_rad_s=(lambda v: v >= 0.0, "must be >= 0 rad/s"),
+            variation_rad=(lambda v: abs(v) <= math.pi, "must be in [-π, π] rad"),
+        )
+
+
+@dataclass(frozen=True)
+class ThrusterFeedbackConfig:
+    """A thruster controller reporting over MAVLink as system ``system_id``, component ``component_id``.
+    ``heartbeat_hz`` 0 turns the heartbeat off (to test a gateway's link-loss alarm)."""
+
+    source: str = "thrusters"
+    rate_hz: float = 5.0
+    system_id: int = 1
+    component_id: int = 1
+    heartbeat_hz: float = 1.0
+    ardupilot_esc: bool = False
+    ardupilot_servo: bool = False
+    latency_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        _validate(
+            self,
+            source=_SOURCE_RULE,
+            rate_hz=(lambda v: 0.0 < v <= 50.0, "must be in (0, 50] Hz"),
+            system_id=(lambda v: 1 <= v <= 255, "must be in 1..255"),
+            component_id=(lambda v: 1 <= v <= 255, "must be in 1..255"),
+            heartbeat_hz=(lambda v: 0.0 <= v <= 10.0, "must be in 0..10 Hz (0 = no heartbeat)"),
+            ardupilot_esc=(lambda v: isinstance(v, bool), "must be true or false"),
+            ardupilot_servo=(lambda v: isinstance(v, bool), "must be true or false"),
+            latency_s=(lambda v: 0.0 <= v <= 10.0, "must be in 0..10 s"),
+        )
+
+
+# ---------------------------------------------------------------------------------------------- sensors
+
+
+@runtime_checkable
+class Sensor(Protocol):
+    """What the simulator runner drives: ask `next_time`, build the ship state at that time, call `sample`."""
+
+    source: str
+
+    def next_time(self) -> float:
+        """Sim time of the next sample."""
+        ...
+
+    def sample(self, state: ShipState) -> list[Emission]:
+        """Sample ``state`` (taken at `next_time`), advance `next_time` past ``state.t`` and return the
+        emissions in wire order (sort stably by ``t_emit`` to merge streams), with the sample-side faults
+        applied; the wire-side ones are `FaultSchedule.apply_to_emissions`'s. A state more than 1 µs before
+        `next_time` is not a sample time: nothing is returned and nothing advances."""
+        ...
+
+
+def antenna_position(eta: ArrayLike, lever_arm_m: Sequence[float]) -> NDArray[np.float64]:
+    """NED [N, E] of an antenna at body-frame ``lever_arm_m`` (x, y[, z]) from the reference point at η."""
+    north, east, psi = np.asarray(eta, dtype=float)
+    x, y = float(lever_arm_m[0]), float(lever_arm_m[1])
+    c, s = math.cos(psi), math.sin(psi)
+    return np.array([north + c * x - s * y, east + s * x + c * y])
+
+
+def antenna_velocity(eta: ArrayLike, nu: ArrayLike, lever_arm_m: Sequence[float]) -> NDArray[np.float64]:
+    """NED velocity [v_N, v_E] of the antenna: J(ψ)·(ν + r × lever arm) = J(ψ)·[u − r·y, v + r·x]."""
+    psi = float(np.asarray(eta, dtype=float)[2])
+    u, v, r = np.asarray(nu, dtype=float)
+    x, y = float(lever_arm_m[0]), float(lever_arm_m[1])
+    bu, bv = u - r * y, v + r * x
+    c, s = math.cos(psi), math.sin(psi)
+    return np.array([c * bu - s * bv, s * bu + c * bv])
+
+
+def azimuth_to_pwm(azimuth_rad: float) -> int:
+    """SERVO_OUTPUT_RAW pulse width (µs) of an azimuth: 1500 + 400·ssa(azimuth)/π; ahead (0) is 1500 µs,
+    starboard (π/2) 1700 µs, port (−π/2) 1300 µs, astern 1100 µs (−π; +π wraps to −π)."""
+    return round(SERVO_PWM_CENTER_US + SERVO_PWM_HALF_RANGE_US * ssa_scalar(azimuth_rad) / math.pi)
+
+
+def pwm_to_azimuth(pwm_us: float) -> float:
+    """Inverse of `azimuth_to_pwm` (rad; 1 µs ≈ 0.45°)."""
+    return (pwm_us - SERVO_PWM_CENTER_US) / SERVO_PWM_HALF_RANGE_US * math.pi
+
+
+class _Schedule:
+    """Sample instants ``t0 + k / rate``, computed from k (never summed up, so they do not drift)."""
+
+    def __init__(self, rate_hz: float, t0: float) -> None:
+        self.period = 1.0 / rate_hz if rate_hz > 0 else math.inf
+        self.t0 = t0
+        self.k = 0
+
+    def next(self) -> float:
+        return self.t0 + self.k * self.period if math.isfinite(self.period) else math.inf
+
+    def due(self, t: float) -> bool:
+        return t >= self.next() - _DUE_TOL_S
+
+    def advance_past(self, t: float) -> None:
+        if math.isfinite(self.period):
+            self.k = max(self.k + 1, math.floor((t + _DUE_TOL_S - self.t0) / self.period) + 1)
+
+
+class _Freezer:
+    """Holds the value measured at the first sample of a ``frozen`` fault and repeats it in its window."""
+
+    def __init__(self) -> None:
+        self._fault: Fault | None = None
+        self._value: Any = None
+
+    def __call__(self, fault: Fault | None, value: Any) -> Any:
+        if fault is None:
+            self._fault = None
+            return value
+        if fault is not self._fault:
+            self._fault, self._value = fault, value
+        return self._value
+
+
+@dataclass(frozen=True)
+class _Fix:
+    lat_deg: float
+    lon_deg: float
+    alt_m: float
+    sog_mps: float
+    cog_rad: float
+
+
+class Dgps(Sensor):
+    """A DGPS/RTK receiver (see `DgpsConfig`). Fixes fall on the UTC grid of the output rate (whole seconds
+    at 1 Hz, .0/.2/.4… at 5 Hz), the first at or after ``start``; every sentence of a burst carries the fix
+    time and leaves at fix time + latency."""
+
+    def __init__(
+        self,
+        config: DgpsConfig,
+        datum: Datum,
+        epoch: SimEpoch,
+        rng: np.random.Generator,
+        faults: FaultSchedule | None = None,
+        *,
+        start: float = 0.0,
+    ) -> None:
+        self.config = config
+        self.source = config.source
+        self.datum = datum
+        self.epoch = epoch
+        self.rng = rng
+        self.faults = faults if faults is not None else FaultSchedule()
+        period = 1.0 / config.rate_hz
+        past_second = (epoch.stamp_ns(start) % 1_000_000_000) / 1e9
+        self._schedule = _Schedule(config.rate_hz, start + (-past_second) % period)
+        self._sigma = np.array([1.0, 1.0, VERTICAL_SIGMA_FACTOR]) * config.sigma_m
+        self._noise: NDArray[np.float64] | None = None
+        self._t_noise = 0.0
+        self._freeze = _Freezer()
+        self._mode = DGPS_QUALITIES[config.quality]
+
+    def next_time(self) -> float:
+        return self._schedule.next()
+
+    def sample(self, state: ShipState) -> list[Emission]:
+        t = float(state.t)
+        if not self._schedule.due(t):
+            return []
+        self._schedule.advance_past(t)
+        if self.faults.active("dropout", self.source, t):
+            return []
+        fix = self._freeze(self.faults.active("frozen", self.source, t), self._measure(state, t))
+        t_emit = t + self.config.latency_s
+        return [
+            Emission(t_emit, self.source, "nmea", text.encode("ascii"), t) for text in self._sentences(fix, t)
+        ]
+
+    def _position_noise(self, t: float) -> NDArray[np.float64]:
+        """[N, E, Down-up] noise (m): white, or Gauss-Markov x⁺ = φx + √(1−φ²)σw with φ = exp(−Δt/T)."""
+        w = self.rng.standard_normal(3)
+        tau = self.config.noise_correlation_s
+        if tau <= 0.0 or self._noise is None:
+            self._noise = self._sigma * w
+        else:
+            phi = math.exp(-max(t - self._t_noise, 0.0) / tau)
+            self._noise = phi * self._noise + math.sqrt(1.0 - phi * phi) * self._sigma * w
+        self._t_noise = t
+        return self._noise
+
+    def _measure(self, state: ShipState, t: float) -> _Fix:
+        cfg = self.config
+        noise = self._position_noise(t).copy()
+        velocity = antenna_velocity(state.eta, state.nu, cfg.lever_arm_m)
+        velocity += cfg.sigma_velocity_mps * self.rng.standard_normal(2)
+        burst = self.faults.active("noise_burst", self.source, t)
+        if burst is not None:
+            sigma = burst.param("sigma_m")
+            noise += np.array([sigma, sigma, VERTICAL_SIGMA_FACTOR * sigma]) * self.rng.standard_normal(3)
+        north, east = antenna_position(state.eta, cfg.lever_arm_m) + noise[:2]
+        jump = self.faults.active("jump", self.source, t)
+        if jump is not None:
+            north += jump.param("north_m")
+            east += jump.param("east_m")
+        lat, lon, _ = self.datum.to_geodetic(north, east, 0.0)
+        return _Fix(
+            lat_deg=float(lat),
+            lon_deg=float(lon),
+            alt_m=cfg.alt_m - cfg.lever_arm_m[2] + float(noise[2]),
+            sog_mps=math.hypot(velocity[0], velocity[1]),
+            cog_rad=math.atan2(velocity[1], velocity[0]),
+        )
+
+    def _sentences(self, fix: _Fix, t: float) -> list[str]:
+        cfg = self.config
+        utc = self.epoch.utc(t)
+        differential = cfg.quality != 1
+        age = cfg.age_s if differential else None
+        station = cfg.station_id if differential else None
+        sigma = cfg.sigma_m
+        out = []
+        seconds = utc.hour * 3600 + utc.minute * 60 + utc.second + utc.microsecond * 1e-6
+        slow_due = (seconds % (1.0 / min(cfg.slow_rate_hz, cfg.rate_hz))) < 0.5 / cfg.rate_hz
+        for kind in cfg.sentences:
+            if kind in cfg.slow_sentences and not slow_due:
+                continue
+            if kind == "GGA":
+                text = nmea.gga(
+                    cfg.talker,
+                    utc,
+                    fix.lat_deg,
+                    fix.lon_deg,
+                    cfg.quality,
+                    cfg.n_sats,
+                    cfg.hdop,
+                    fix.alt_m,
+                    None,
+                    age,
+                    station,
+                )
+            elif kind == "GNS":
+                text = nmea.gns(
+                    cfg.talker,
+                    utc,
+                    fix.lat_deg,
+                    fix.lon_deg,
+                    self._mode * _GNS_CONSTELLATIONS,
+                    cfg.n_sats,
+                    cfg.hdop,
+                    fix.alt_m,
+                    None,
+                    age,
+                    station,
+                )
+            elif kind == "RMC":
+                text = nmea.rmc(
+                    cfg.talker, utc, fix.lat_deg, fix.lon_deg, fix.sog_mps, fix.cog_rad, True, self._mode
+                )
+            elif kind == "VTG":
+                text = nmea.vtg(cfg.talker, fix.cog_rad, fix.sog_mps, self._mode)
+            elif kind == "GST":
+                text = nmea.gst(
+                    cfg.talker,
+                    utc,
+                    rms_m=sigma,
+                    sigma_major_m=sigma,
+                    sigma_minor_m=sigma,
+                    orient_rad=0.0,
+                    sigma_lat_m=sigma,
+                    sigma_lon_m=sigma,
+                    sigma_alt_m=VERTICAL_SIGMA_FACTOR * sigma,
+                )
+            else:
+                text = nmea.zda(cfg.talker, utc)
+            out.append(text)
+        return out
+
+
+class Gyro(Sensor):
+    """A gyro compass (see `GyroConfig`), free-running at ``start + k / rate_hz``."""
+
+    def __init__(
+        self,
+        config: GyroConfig,
+        epoch: SimEpoch,
+        rng: np.random.Generator,
+        faults: FaultSchedule | None = None,
+        *,
+        start: float = 0.0,
+    ) -> None:
+        self.config = config
+        self.source = config.source
+        self.epoch = epoch
+        self.rng = rng
+        self.faults = faults if faults is not None else FaultSchedule()
+        self._schedule = _Schedule(config.rate_hz, start)
+        self._freeze = _Freezer()
+
+    def next_time(self) -> float:
+        return self._schedule.next()
+
+    def sample(self, state: ShipState) -> list[Emission]:
+        t = float(state.t)
+        if not self._schedule.due(t):
+            return []
+        self._schedule.advance_past(t)
+        if self.faults.active("dropout", self.source, t):
+            return []
+        heading, rate = self._freeze(self.faults.active("frozen", self.source, t), self._measure(state, t))
+        cfg = self.config
+        t_emit = t + cfg.latency_s
+        out = []
+        for kind in cfg.sentences:
+            if kind == "HDT":
+                text = nmea.hdt(cfg.talker, heading)
+            elif kind == "THS":
+                text = nmea.ths(cfg.talker, heading, "A")
+            elif kind == "ROT":
+                text = nmea.rot(cfg.talker, rate, True)
+            else:
+                text = nmea.hdg(cfg.talker, heading - cfg.variation_rad, 0.0, cfg.variation_rad)
+            out.append(Emission(t_emit, self.source, "nmea", text.encode("ascii"), t))
+        return out
+
+    def _measure(self, state: ShipState, t: float) -> tuple[float, float]:
+        w = self.rng.standard_normal(2)
+        heading = float(state.eta[2]) + self.config.sigma_rad * w[0]
+        rate = float(state.nu[2]) + self.config.sigma_rot_rad_s * w[1]
+        burst = self.faults.active("noise_burst", self.source, t)
+        if burst is not None:
+            heading += burst.param("sigma_rad") * float(self.rng.standard_normal())
+        jump = self.faults.active("jump", self.source, t)
+        if jump is not None:
+            heading += jump.param("heading_rad")
+        return ssa_scalar(heading), rate
+
+
+class ThrusterFeedback(Sensor):
+    """A thruster controller's MAVLink link (see `ThrusterFeedbackConfig`): per thruster an
+    ``AZIMUTH_THRUSTER_STATUS`` at ``rate_hz``, a ``HEARTBEAT`` at ``heartbeat_hz`` (both from ``start``), and
+    with ``ardupilot_esc`` / ``ardupilot_servo`` an ``ESC_TELEMETRY_1_TO_4`` per four thrusters (ESC n is the
+    n-th thruster of ``ShipState.thrusters``; up to 32) / a ``SERVO_OUTPUT_RAW`` per 16 thrusters (port 0, 1;
+    output n = n-th thruster's azimuth, `azimuth_to_pwm`). All frames of one instant: heartbeat first, then
+    the status frames in thruster order, ESC telemetry, servo outputs."""
+
+    def __init__(
+        self,
+        config: ThrusterFeedbackConfig,
+        epoch: SimEpoch,
+        rng: np.random.Generator,
+        faults: FaultSchedule | None = None,
+        *,
+        start: float = 0.0,
+    ) -> None:
+        self.config = config
+        self.source = config.source
+        self.epoch = epoch
+        self.rng = rng  # unused today: the drives' feedback is exact (kept for the common signature)
+        self.faults = faults if faults is not None else FaultSchedule()
+        self.start = start
+        self.mav = mv.encoder(config.system_id, config.component_id)
+        self._status = _Schedule(config.rate_hz, start)
+        self._heartbeat = _Schedule(config.heartbeat_hz, start)
+        self._freeze = _Freezer()
+        self._esc_count = [0] * 32
+        ardupilot = config.ardupilot_esc or config.ardupilot_servo
+        d = mv.dialect()
+        self._autopilot = d.MAV_AUTOPILOT_ARDUPILOTMEGA if ardupilot else d.MAV_AUTOPILOT_INVALID
+        # an ArduPilot Rover/boat in GUIDED (custom mode 15), armed, takes commands from a companion computer
+        armed = d.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | d.MAV_MODE_FLAG_SAFETY_ARMED
+        self._base_mode = armed if ardupilot else 0
+        self._custom_mode = 15 if ardupilot else 0
+
+    def next_time(self) -> float:
+        return min(self._status.next(), self._heartbeat.next())
+
+    def sample(self, state: ShipState) -> list[Emission]:
+        t = float(state.t)
+        heartbeat, status = self._heartbeat.due(t), self._status.due(t)
+        if not (heartbeat or status):
+            return []
+        if heartbeat:
+            self._heartbeat.advance_past(t)
+        if status:
+            self._status.advance_past(t)
+        if self.faults.active("dropout", self.source, t):
+            return []
+        frames: list[bytes] = []
+        if heartbeat:
+            frames.append(
+                mv.heartbeat_frame(
+                    self.mav,
+                    autopilot=self._autopilot,
+                    base_mode=self._base_mode,
+                    custom_mode=self._custom_mode,
+                )
+            )
+        if status:
+            readings = self._freeze(self.faults.active("frozen", self.source, t), state.thrusters)
+            frames += self._status_frames(readings, t)
+        t_emit = t + self.config.latency_s
+        return [Emission(t_emit, self.source, "mavlink", frame, t) for frame in frames]
+
+    def _status_frames(self, readings: tuple[ThrusterReading, ...], t: float) -> list[bytes]:
+        time_usec = self.epoch.stamp_ns(t) // 1000
+        frames = []
+        for reading in readings:
+            failed = reading.failed or self.faults.active("thruster_failure", str(reading.id), t) is not None
+            frames.append(
+                mv.azimuth_status_frame(
+                    self.mav,
+                    time_usec,
+                    reading.id,
+                    reading.thrust_n,
+                    reading.rpm,
+                    reading.azimuth_rad,
+                    _FLAGS_FAILED if failed else _FLAGS_OK,
+                    thrust_setpoint_n=reading.thrust_setpoint_n,
+                    azimuth_setpoint_rad=reading.azimuth_setpoint_rad,
+                    power_w=reading.power_w,
+                    fault_code=FAULT_CODE_TRIP if failed else 0,
+                )
+            )
+        if self.config.ardupilot_esc:
+            for block, first in enumerate(mv.ESC_TELEMETRY_BLOCKS):
+                group = readings[4 * block : 4 * block + 4]
+                if not group:
+                    break
+                for i in range(4 * block, 4 * block + len(group)):
+                    self._esc_count[i] += 1
+                frames.append(
+                    mv.esc_telemetry_frame(
+                        self.mav,
+                        [r.rpm for r in group],
+                        count=self._esc_count[4 * block : 4 * block + len(group)],
+                        first_esc=first,
+                    )
+                )
+        if self.config.ardupilot_servo and readings:
+            since_boot_us = round((t - self.start) * 1e6)
+            for port in range(math.ceil(len(readings) / 16)):
+                pwm = [azimuth_to_pwm(r.azimuth_rad) for r in readings[16 * port : 16 * port + 16]]
+                frames.append(mv.servo_output_raw_frame(self.mav, since_boot_us, pwm, port))
+        return frames
+
+
+# ---------------------------------------------------------------------------------------------- helpers
+
+
+Rule = tuple[Callable[[Any], bool], str]
+
+
+def _validate(obj: object, **rules: Rule) -> None:
+    """Check fields of a config dataclass: ``ValueError("<Class>.<field>: <what>, got <value>")`` for the
+    first field whose rule is false or fails (a value of the wrong type); a float must also be finite."""
+    for name, (ok, what) in rules.items():
+        value = getattr(obj, name)
+        try:
+            good = bool(ok(value)) and not (isinstance(value, float) and not math.isfinite(value))
+        except (TypeError, ValueError):
+            good = False
+        if not good:
+            raise ValueError(f"{type(obj).__name__}.{name}: {what}, got {value!r}")
+
+
+def _is_stream_name(v: Any) -> bool:
+    return isinstance(v, str) and v != "" and v.strip() == v and v != "*"
+
+
+def _is_talker(v: Any) -> bool:
+    return bool(re.fullmatch(r"[A-Z][A-Z0-9]", v))
+
+
+_SOURCE_RULE: Rule = (_is_stream_name, "must be a non-empty stream name without surrounding spaces (not '*')")
+_TALKER_RULE: Rule = (_is_talker, "must be a 2-character NMEA talker id such as 'GP', 'GN' or 'HE'")
+
+
+def _maybe_float(x: Any) -> Any:
+    arr = np.asarray(x)
+    return float(arr) if arr.ndim == 0 else arr
