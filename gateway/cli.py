@@ -11,9 +11,9 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from gateway import cli_tune
+from gateway import cli_sim, cli_tune
 
-SUBCOMMANDS = [cli_tune]
+SUBCOMMANDS = [cli_tune, cli_sim]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,185 @@
+"""``dpgw sim``: the simulator as a sensor source on pty/UDP/TCP/serial, or to an MCAP file."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+from typing import Any
+
+from gateway.bus import BusError, make_config, open_session
+from gateway.mcaplog import McapLogWriter
+from simulator.clock import Clock, RealtimeClock, VirtualClock
+from simulator.commands import MavlinkCommandInput, ZenohCommandInput
+from simulator.runner import CommandInput, Route, Simulation
+from simulator.scenarios import SCENARIOS, get_scenario
+from simulator.transports import Sink, TransportError, open_sink
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser(
+        "sim",
+        help="simulate a vessel at sea that speaks NMEA and MAVLink on real transports",
+        description=(
+            "Run a named scenario: a vessel at sea (LF dynamics, JONSWAP/PM waves through RAOs, slowly "
+            "varying environment, thrusters) whose DGPS and gyro speak NMEA 0183 and whose thrusters report "
+            "over MAVLink, on a pty (a virtual serial port), UDP, a TCP server, a serial port or a file. "
+            "Ground truth and every byte sent go to MCAP. Thruster commands may come back (dpgw dialect "
+            "AZIMUTH_THRUSTER_COMMAND on the MAVLink link, or Zenoh <prefix>/thrusters/command) and close "
+            "the loop."
+        ),
+        epilog=(
+            "examples:\n"
+            "  dpgw sim --scenario torsetnes_2004 --duration 600 --out trial.mcap\n"
+            "  dpgw sim --scenario torsetnes_2004 --nmea pty --realtime          # prints the device path\n"
+            "  dpgw sim --scenario hassani --nmea dgps1=udp://127.0.0.1:10110 --nmea gyro1=pty --realtime\n"
+            "  dpgw sim --scenario hajivand_2010 --mavlink tcp://127.0.0.1:5760 --zenoh --realtime\n"
+            f"scenarios: {', '.join(SCENARIOS)}"
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument(
+        "--scenario", choices=sorted(SCENARIOS), required=True, metavar="NAME", help="scenario name"
+    )
+    p.add_argument("--duration", type=float, metavar="S", help="sim seconds (default: the scenario's)")
+    p.add_argument("--seed", type=int, default=0, help="random seed: same seed, same bytes (default 0)")
+    p.add_argument("--out", metavar="LOG.mcap", help="write ground truth and every frame sent to this MCAP")
+    p.add_argument(
+        "--nmea",
+        action="append",
+        default=[],
+        metavar="[SOURCE=]URL|pty",
+        help="where NMEA goes (repeatable): pty, pty:///path/link, udp://H:P, tcp://H:P (server), "
+        "serial:///dev/ttyX?baud=N, file:///path; SOURCE= sends one sensor only (dgps1, gyro1)",
+    )
+    p.add_argument(
+        "--mavlink", metavar="URL", help="where thruster MAVLink goes (and commands come back from)"
+    )
+    p.add_argument("--realtime", action="store_true", help="pace in real time (default: as fast as possible)")
+    p.add_argument("--speed", type=float, default=1.0, help="with --realtime: sim seconds per wall second")
+    p.add_argument(
+        "--gnss-rate", type=float, metavar="HZ", help="DGPS rate 1-10 Hz (default: the scenario's)"
+    )
+    p.add_argument(
+        "--gyro-rate", type=float, metavar="HZ", help="gyro rate up to 20 Hz (default: the scenario's)"
+    )
+    p.add_argument(
+        "--zenoh", action="store_true", help="take thruster commands from Zenoh <prefix>/thrusters/command"
+    )
+    p.add_argument("--prefix", help="Zenoh key prefix (default dp/<vessel>)")
+    p.add_argument(
+        "--zenoh-connect", action="append", default=[], metavar="ENDPOINT", help="e.g. tcp/10.0.0.5:7447"
+    )
+    p.add_argument("--zenoh-listen", action="append", default=[], metavar="ENDPOINT")
+    p.add_argument("--zenoh-config", metavar="FILE", help="a Zenoh JSON5 config file (overrides the above)")
+    p.add_argument("--json", action="store_true", help="print the run summary as JSON")
+    p.set_defaults(func=run)
+
+
+def _parse_route(spec: str, protocol: str) -> tuple[str, frozenset[str] | None]:
+    if "=" in spec.split("://", 1)[0]:
+        source, url = spec.split("=", 1)
+        return url, frozenset({source})
+    return spec, None
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        scenario = get_scenario(args.scenario).with_sensor_rates(args.gnss_rate, args.gyro_rate)
+    except ValueError as exc:
+        print(f"dpgw sim: {exc}", file=sys.stderr)
+        return 2
+    sinks: list[Sink] = []
+    routes: list[Route] = []
+    commands: list[CommandInput] = []
+    session = None
+    log = None
+    try:
+        for spec in args.nmea:
+            url, sources = _parse_route(spec, "nmea")
+            sink = open_sink(url)
+            sinks.append(sink)
+            routes.append(Route(sink, "nmea", sources))
+            print(
+                f"NMEA {'(' + ', '.join(sorted(sources)) + ') ' if sources else ''}-> {sink.describe()}",
+                file=sys.stderr,
+            )
+        if args.mavlink:
+            sink = open_sink(args.mavlink)
+            sinks.append(sink)
+            routes.append(Route(sink, "mavlink"))
+            commands.append(MavlinkCommandInput(sink))
+            print(f"MAVLink -> {sink.describe()}", file=sys.stderr)
+        if args.zenoh:
+            prefix = args.prefix or f"dp/{scenario.vessel.name}"
+            session = open_session(
+                make_config(
+                    connect=args.zenoh_connect, listen=args.zenoh_listen, config_file=args.zenoh_config
+                )
+            )
+            commands.append(ZenohCommandInput(session, prefix))
+            print(f"Zenoh: commands from {prefix}/thrusters/command", file=sys.stderr)
+        if args.out:
+            log = McapLogWriter(args.out, profile="dpgw-sim")
+            log.add_metadata(
+                "dpgw.sim",
+                {"scenario": scenario.name, "seed": str(args.seed), "vessel": scenario.vessel.name},
+            )
+    except (TransportError, BusError, OSError) as exc:
+        print(f"dpgw sim: {exc}", file=sys.stderr)
+        for s in sinks:
+            s.close()
+        return 2
+    clock: Clock = RealtimeClock(speed=args.speed) if args.realtime else VirtualClock()
+    sim = Simulation(scenario, args.seed, routes=routes, log=log, clock=clock, commands=commands)
+
+    stop = {"now": False}
+
+    def on_signal(signum: int, _frame: object) -> None:
+        stop["now"] = True
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    duration = args.duration if args.duration is not None else scenario.duration_s
+    bar = _progress_bar(duration) if sys.stderr.isatty() and not args.json else None
+    try:
+        step = 1.0 if args.realtime else 60.0
+        while sim.t < duration - 1e-9 and not stop["now"]:
+            sim.run(min(step, duration - sim.t))
+            if bar is not None:
+                bar.n = round(sim.t)
+                bar.refresh()
+    finally:
+        if bar is not None:
+            bar.close()
+        for s in sinks:
+            s.close()
+        if log is not None:
+            log.close()
+        if session is not None:
+            session.close()
+    summary = sim.summary.as_dict()
+    summary["interrupted"] = stop["now"]
+    if args.out:
+        summary["log"] = args.out
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print(
+            f"{scenario.name}: {sim.t:.0f} s simulated in {sim.summary.wall_seconds:.1f} s "
+            f"({sim.summary.speedup:.0f}x real time), seed {args.seed}"
+        )
+        for source, n in sorted(sim.summary.emissions.items()):
+            print(f"  {source:12s} {n:8d} frames  {sim.summary.bytes_sent[source]:10d} bytes")
+        if sim.summary.commands_applied:
+            print(f"  thruster commands applied: {sim.summary.commands_applied}")
+        if args.out:
+            print(f"  log: {args.out} ({sim.summary.truth_records} truth records)")
+    return 0
+
+
+def _progress_bar(total: float) -> Any:
+    from tqdm import tqdm
+
+    return tqdm(total=round(total), unit="sim s", file=sys.stderr, dynamic_ncols=True)

@@ -1,0 +1,93 @@
+"""Thruster commands coming back into the simulator: the HIL loop closed from outside.
+
+Two ways in (issue 3): the dpgw dialect's AZIMUTH_THRUSTER_COMMAND over the MAVLink link (bytes that
+peers send back on the simulator's UDP/TCP/pty MAVLink sink), and JSON on Zenoh
+``<prefix>/thrusters/command`` (DESIGN.md: ``thrusters: [{id, thrust_n, azimuth_rad}]``). Both yield
+`ThrusterCommand`s; the runner applies them. Bad input is counted, never raised.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import threading
+from collections import Counter
+from dataclasses import dataclass
+from typing import Any
+
+from gateway.codecs.mavlink import AZIMUTH_THRUSTER_COMMAND_ID, FrameParser, dialect
+from simulator.transports import Sink
+
+
+@dataclass(frozen=True)
+class ThrusterCommand:
+    id: int
+    thrust_n: float
+    azimuth_rad: float | None  # None: keep the angle (fixed thrusters, or not given)
+
+
+class MavlinkCommandInput:
+    """Reads AZIMUTH_THRUSTER_COMMAND frames that peers send on a sink (one parser per peer)."""
+
+    def __init__(self, sink: Sink) -> None:
+        self.sink = sink
+        self.parsers: dict[str, FrameParser] = {}
+        self.rejected: Counter[str] = Counter()
+        self.received = 0
+
+    def poll(self) -> list[ThrusterCommand]:
+        out: list[ThrusterCommand] = []
+        for peer, data in self.sink.read_from_peers():
+            parser = self.parsers.setdefault(peer, FrameParser())
+            for msg in parser.feed(data):
+                if msg.get_msgId() != AZIMUTH_THRUSTER_COMMAND_ID:
+                    continue
+                assert isinstance(msg, dialect().MAVLink_azimuth_thruster_command_message)
+                self.received += 1
+                if not (math.isfinite(msg.thrust) and math.isfinite(msg.azimuth)):
+                    self.rejected["non_finite"] += 1
+                    continue
+                out.append(ThrusterCommand(int(msg.id), float(msg.thrust), float(msg.azimuth)))
+        return out
+
+
+class ZenohCommandInput:
+    """Subscribes ``<prefix>/thrusters/command`` on a Zenoh session; keeps what arrived since the last
+    poll."""
+
+    def __init__(self, session: Any, prefix: str) -> None:
+        self.key = f"{prefix}/thrusters/command"
+        self._lock = threading.Lock()
+        self._pending: list[ThrusterCommand] = []
+        self.rejected: Counter[str] = Counter()
+        self.received = 0
+        self._sub = session.declare_subscriber(self.key, self._on_sample)
+
+    def _on_sample(self, sample: Any) -> None:
+        try:
+            payload = json.loads(sample.payload.to_bytes())
+            cmds = [
+                ThrusterCommand(
+                    int(th["id"]),
+                    float(th["thrust_n"]),
+                    None if th.get("azimuth_rad") is None else float(th["azimuth_rad"]),
+                )
+                for th in payload["thrusters"]
+            ]
+            if not all(math.isfinite(c.thrust_n) for c in cmds):
+                raise ValueError("non-finite thrust")
+        except (ValueError, KeyError, TypeError) as exc:
+            with self._lock:
+                self.rejected[type(exc).__name__] += 1
+            return
+        with self._lock:
+            self.received += 1
+            self._pending.extend(cmds)
+
+    def poll(self) -> list[ThrusterCommand]:
+        with self._lock:
+            out, self._pending = self._pending, []
+        return out
+
+    def close(self) -> None:
+        self._sub.undeclare()

@@ -1,0 +1,60 @@
+"""Slowly varying environmental force: the bias of Fossen & Strand (1999) eq (7), plus steady forces.
+
+    b' = -T⁻¹ b + Ψ n                                              (7), earth-fixed, n white, unit intensity
+
+simulated exactly in discrete time (an Ornstein–Uhlenbeck process): over a step h,
+b ← e^{-h/T} b + σ √(1 − e^{-2h/T}) ν,  ν ~ N(0, I), where σ = Ψ √(T/2) is the stationary standard
+deviation. A constant earth-fixed current/wind force is added on top; wave drift comes from
+`simulator.waves` (body frame).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class BiasModel:
+    """Markov bias: stationary std σ per DOF (N, N, N·m), time constants T (s), a constant force (NED)."""
+
+    sigma: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    time_constant_s: tuple[float, float, float] = (1000.0, 1000.0, 1000.0)
+    constant: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+class MarkovBias:
+    def __init__(self, model: BiasModel, rng: np.random.Generator, start_stationary: bool = True) -> None:
+        self.model = model
+        self.rng = rng
+        self.sigma = np.asarray(model.sigma, dtype=float)
+        self.T = np.asarray(model.time_constant_s, dtype=float)
+        if np.any(self.sigma < 0) or np.any(self.T <= 0):
+            raise ValueError("bias: sigma must be >= 0 and time constants > 0")
+        self.b = self.sigma * rng.standard_normal(3) if start_stationary else np.zeros(3)
+        self._h = math.nan
+        self._decay = np.ones(3)
+        self._kick = np.zeros(3)
+        self._normals = np.empty((0, 3))  # drawn in blocks: one generator call per 1024 steps, not per step
+        self._k = 0
+
+    def step(self, h: float) -> None:
+        if h != self._h:  # constant step: the factors are computed once
+            self._h = h
+            self._decay = np.exp(-h / self.T)
+            self._kick = self.sigma * np.sqrt(1.0 - self._decay**2)
+        if self._k == len(self._normals):
+            self._normals = self.rng.standard_normal((1024, 3))
+            self._k = 0
+        self.b = self._decay * self.b + self._kick * self._normals[self._k]
+        self._k += 1
+
+    @property
+    def force(self) -> Array:
+        """Total slowly varying earth-fixed force: Markov part plus the constant current/wind force."""
+        return self.b + np.asarray(self.model.constant, dtype=float)

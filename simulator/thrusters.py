@@ -1,0 +1,157 @@
+"""Thruster dynamics: what the thrusters actually deliver, and the generalised force it makes.
+
+Per thruster: thrust follows its setpoint with a first-order lag (time constant), clipped to
+[min_thrust_n, max_thrust_n]; an azimuth turns towards its setpoint at most at its slew rate, by the
+shorter way round. The generalised force is τ = B_u(α) u through the configuration matrix
+(`VesselModel.configuration_matrix`). A failed thruster delivers no thrust and holds its angle.
+RPM is reported from the propeller law T = K n|n| with K set so max thrust is reached at ``max_rpm``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import ArrayLike, NDArray
+
+from observers.kinematics import ssa
+from observers.vessel import VesselModel
+
+Array = NDArray[np.float64]
+DEFAULT_MAX_RPM = 200.0
+
+
+class ThrusterBank:
+    def __init__(self, vessel: VesselModel, max_rpm: float = DEFAULT_MAX_RPM) -> None:
+        self.vessel = vessel
+        th = vessel.thrusters
+        self.ids = [t.id for t in th]
+        self.n = len(th)
+        self.is_azimuth = np.array([t.kind == "azimuth" for t in th], dtype=bool)
+        self.max_thrust = np.array([t.max_thrust_n for t in th], dtype=float)
+        self.min_thrust = np.array([t.min_thrust_n for t in th], dtype=float)
+        self.rate = np.array([t.azimuth_rate_rad_s for t in th], dtype=float)
+        self.time_constant = np.array([max(t.thrust_time_constant_s, 1e-6) for t in th], dtype=float)
+        self.fixed_angle = np.array([t.angle_rad for t in th], dtype=float)
+        self.k_prop = self.max_thrust / max_rpm**2
+        self.x = np.array([t.x_m for t in th], dtype=float)
+        self.y = np.array([t.y_m for t in th], dtype=float)
+        self.thrust = np.zeros(self.n)
+        self.angle = self.fixed_angle.copy()
+        self.thrust_setpoint = np.zeros(self.n)
+        self.angle_setpoint = self.fixed_angle.copy()
+        self.failed = np.zeros(self.n, dtype=bool)
+
+    def index(self, thruster_id: int) -> int:
+        return self.ids.index(thruster_id)
+
+    def command(self, thrust_n: ArrayLike, angle_rad: ArrayLike | None = None) -> None:
+        """Set every thruster's setpoint (layout order). Angles of fixed thrusters are ignored."""
+        self.thrust_setpoint = np.clip(np.asarray(thrust_n, dtype=float), self.min_thrust, self.max_thrust)
+        if angle_rad is not None:
+            a = np.asarray(angle_rad, dtype=float)
+            self.angle_setpoint = np.where(self.is_azimuth, ssa(a), self.fixed_angle)
+
+    def command_one(self, thruster_id: int, thrust_n: float, angle_rad: float | None = None) -> None:
+        i = self.index(thruster_id)
+        self.thrust_setpoint[i] = min(max(thrust_n, self.min_thrust[i]), self.max_thrust[i])
+        if angle_rad is not None and self.is_azimuth[i]:
+            self.angle_setpoint[i] = float(ssa(angle_rad))
+
+    def step(self, h: float) -> None:
+        _step(h, self.thrust, self.angle, self.thrust_setpoint, self.angle_setpoint, self.failed,
+              self.is_azimuth, self.time_constant, self.rate)  # fmt: skip
+
+    @property
+    def tau(self) -> Array:
+        """Generalised force [X, Y, N] in the body frame from the actual thrusts and angles.
+
+        Same as ``vessel.generalized_force(thrust, angle)`` (the configuration matrix, tested equal),
+        written out because it runs at every plant step.
+        """
+        return _tau(self.thrust, self.angle, self.x, self.y)
+
+    @property
+    def rpm(self) -> Array:
+        return np.sign(self.thrust) * np.sqrt(np.abs(self.thrust) / self.k_prop)
+
+    @property
+    def power_w(self) -> Array:
+        """Rough shaft power, P ∝ |T|^1.5 (momentum theory), scaled to 1 kW per 10 kN^1.5 at max."""
+        return 1e3 * (np.abs(self.thrust) / 1e4) ** 1.5
+
+
+@njit(cache=True)
+def _step(h, thrust, angle, thrust_sp, angle_sp, failed, is_azimuth, time_constant, rate):
+    """First-order thrust lag towards the setpoint (zero when failed); azimuth slew at most rate·h."""
+    for i in range(thrust.shape[0]):
+        target = 0.0 if failed[i] else thrust_sp[i]
+        thrust[i] = target + (thrust[i] - target) * math.exp(-h / time_constant[i])
+        if is_azimuth[i] and not failed[i]:
+            err = (angle_sp[i] - angle[i] + math.pi) % (2 * math.pi) - math.pi
+            lim = rate[i] * h
+            move = min(max(err, -lim), lim)
+            angle[i] = (angle[i] + move + math.pi) % (2 * math.pi) - math.pi
+
+
+@njit(cache=True)
+def _tau(thrust, angle, x, y):
+    out = np.zeros(3)
+    for i in range(thrust.shape[0]):
+        fx = thrust[i] * math.cos(angle[i])
+        fy = thrust[i] * math.sin(angle[i])
+        out[0] += fx
+        out[1] += fy
+        out[2] += x[i] * fy - y[i] * fx
+    return out
+
+
+class PrescribedAllocation:
+    """Thrust and angle per thruster that produce τ, for scenarios with a prescribed τ.
+
+    The minimum-norm solution of the extended configuration (an azimuth contributes free F_x and F_y,
+    a tunnel F_y, a main propeller F_x); azimuth angle = atan2(F_y, F_x), thrust = norm. This is the
+    scenario's stand-in for a DP system's allocation until the gateway commands the thrusters; it
+    ignores limits on purpose (the thruster model enforces them). The extended matrix does not depend on
+    the angles, so its pseudo-inverse is computed once.
+    """
+
+    def __init__(self, vessel: VesselModel) -> None:
+        self.vessel = vessel
+        cols: list[Array] = []
+        self.owner: list[tuple[int, int]] = []
+        for i, t in enumerate(vessel.thrusters):
+            if t.kind == "azimuth":
+                cols += [np.array([1.0, 0.0, -t.y_m]), np.array([0.0, 1.0, t.x_m])]
+                self.owner += [(i, 0), (i, 1)]
+            else:
+                c, s = math.cos(t.angle_rad), math.sin(t.angle_rad)
+                cols.append(np.array([c, s, t.x_m * s - t.y_m * c]))
+                self.owner.append((i, 2))
+        self.pinv = np.linalg.pinv(np.array(cols).T)
+        self.is_azimuth = [t.kind == "azimuth" for t in vessel.thrusters]
+        self.fixed_angle = np.array([t.angle_rad for t in vessel.thrusters], dtype=float)
+
+    def __call__(self, tau: ArrayLike) -> tuple[Array, Array]:
+        f = self.pinv @ np.asarray(tau, dtype=float)
+        n = len(self.is_azimuth)
+        fx, fy, thrust = np.zeros(n), np.zeros(n), np.zeros(n)
+        for value, (i, kind) in zip(f, self.owner, strict=True):
+            if kind == 0:
+                fx[i] = value
+            elif kind == 1:
+                fy[i] = value
+            else:
+                thrust[i] = value
+        angle = self.fixed_angle.copy()
+        for i, az in enumerate(self.is_azimuth):
+            if az:
+                thrust[i] = math.hypot(fx[i], fy[i])
+                angle[i] = math.atan2(fy[i], fx[i])
+        return thrust, angle
+
+
+def least_squares_commands(vessel: VesselModel, tau: ArrayLike) -> tuple[Array, Array]:
+    """One-off `PrescribedAllocation` (tests, scripts)."""
+    return PrescribedAllocation(vessel)(tau)

@@ -1,0 +1,271 @@
+"""The simulator end to end (issue 3): real transports, independent parsers, seeds, truth, closed loop."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import select
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pymap3d
+import pynmea2
+import pytest
+import serial
+
+from gateway.codecs.mavlink import AZIMUTH_THRUSTER_STATUS_ID, azimuth_command_frame, dialect, encoder
+from gateway.mcaplog import McapLogWriter, read_messages, summary
+from simulator.faults import Fault
+from simulator.runner import Route, Simulation
+from simulator.scenarios import SCENARIOS, get_scenario
+from simulator.sensors import DgpsConfig, ThrusterFeedbackConfig
+from simulator.transports import MemorySink
+
+
+def run_to_memory(name: str, seed: int, duration: float, **changes):  # type: ignore[no-untyped-def]
+    scenario = replace(get_scenario(name), **changes) if changes else get_scenario(name)
+    nmea, mav = MemorySink(), MemorySink()
+    sim = Simulation(scenario, seed, routes=[Route(nmea, "nmea"), Route(mav, "mavlink")])
+    sim.run(duration)
+    return sim, bytes(nmea.data), bytes(mav.data)
+
+
+def nmea_lines(data: bytes) -> list[str]:
+    return [line for line in data.decode("ascii").split("\r\n") if line]
+
+
+@pytest.mark.parametrize("name", list(SCENARIOS))
+def test_everything_emitted_parses_with_independent_parsers(name: str) -> None:
+    sim, nmea, mav = run_to_memory(name, seed=3, duration=30.0)
+    lines = nmea_lines(nmea)
+    assert len(lines) > 30
+    kinds = set()
+    for line in lines:
+        msg = pynmea2.parse(line, check=True)  # raises on a bad checksum
+        kinds.add(msg.sentence_type)
+    assert {"GGA", "HDT"} <= kinds or {"GNS", "HDT"} <= kinds
+    if sim.thrusters.n:
+        mavlink = dialect().MAVLink(None)
+        msgs = mavlink.parse_buffer(mav) or []
+        assert not [m for m in msgs if m.get_type() == "BAD_DATA"]
+        status = [m for m in msgs if m.get_msgId() == AZIMUTH_THRUSTER_STATUS_ID]
+        assert {m.id for m in status} == set(sim.thrusters.ids)
+        assert any(m.get_type() == "HEARTBEAT" for m in msgs)
+
+
+def test_same_seed_same_bytes_different_seed_different_sea() -> None:
+    _, a_nmea, a_mav = run_to_memory("torsetnes_2004", seed=11, duration=40.0)
+    _, b_nmea, b_mav = run_to_memory("torsetnes_2004", seed=11, duration=40.0)
+    _, c_nmea, _ = run_to_memory("torsetnes_2004", seed=12, duration=40.0)
+    assert a_nmea == b_nmea and a_mav == b_mav
+    assert a_nmea != c_nmea
+    wa = get_wf("torsetnes_2004", 11)
+    wc = get_wf("torsetnes_2004", 12)
+    assert np.corrcoef(wa[:, 0], wc[:, 0])[0, 1] < 0.5  # a different sea, not just different noise
+
+
+def get_wf(name: str, seed: int) -> np.ndarray:
+    sim = Simulation(get_scenario(name), seed)
+    t = np.arange(0.0, 300.0, 0.5)
+    return sim.waves.motion(t, sim.dynamics.x[2], 0.0, 0.0)
+
+
+def test_truth_and_measurements_agree(tmp_path: Path) -> None:
+    """Decoded GGA (pynmea2 + pymap3d) = truth LF + WF + lever arm, within the configured noise."""
+    lever = (10.0, -2.0, -20.0)
+    scenario = replace(
+        get_scenario("torsetnes_2004"),
+        dgps=(DgpsConfig(rate_hz=1.0, sigma_m=0.05, lever_arm_m=lever, latency_s=0.2),),
+    )
+    path = tmp_path / "sim.mcap"
+    with McapLogWriter(path) as log:
+        Simulation(scenario, seed=5, log=log).run(120.0)
+    truth = {m[3]["stamp_ns"]: m[3] for m in read_messages(path, "/truth/state")}
+    datum = scenario.datum
+    checked = 0
+    for _topic, log_ns, pub_ns, payload in read_messages(path, "/raw/nmea/dgps1"):
+        # one log message per burst: the sentences a sensor sent at one instant
+        burst = [pynmea2.parse(line, check=True) for line in payload["text"].split("\r\n") if line]
+        gga = [m for m in burst if m.sentence_type == "GGA"]
+        if not gga:
+            continue
+        msg = gga[0]
+        assert log_ns - pub_ns == pytest.approx(0.2e9, abs=1e6)  # latency: log time is when it was sent
+        tr = truth.get(pub_ns)
+        if tr is None:
+            continue
+        n, e, _ = pymap3d.geodetic2ned(msg.latitude, msg.longitude, 0.0, datum.lat_deg, datum.lon_deg, 0.0)
+        psi = tr["eta_lf"][2] + tr["eta_wf"][2]
+        ant_n = tr["eta_lf"][0] + tr["eta_wf"][0] + math.cos(psi) * lever[0] - math.sin(psi) * lever[1]
+        ant_e = tr["eta_lf"][1] + tr["eta_wf"][1] + math.sin(psi) * lever[0] + math.cos(psi) * lever[1]
+        assert abs(n - ant_n) < 0.3 and abs(e - ant_e) < 0.3
+        checked += 1
+    assert checked > 100
+    s = summary(path)
+    assert {"/truth/state", "/raw/nmea/dgps1", "/raw/nmea/gyro1", "/raw/mavlink/thrusters"} <= set(s.channels)
+    wf = np.array([tr["eta_wf"] for tr in truth.values()])
+    assert np.std(wf[:, 0]) > 0.1  # Hs 6 m moves the ship
+
+
+def test_wave_motion_limits_of_fossen_strand() -> None:
+    sim = Simulation(get_scenario("fossen_strand_1999"), seed=1)
+    t = np.arange(0.0, 1200.0, 0.25)
+    wf = sim.waves.motion(t, sim.dynamics.x[2], 0.0, 0.0)
+    peaks = np.max(np.abs(wf), axis=0)
+    np.testing.assert_allclose(peaks, [10.0, 10.0, math.radians(1.0)], rtol=0.05)
+
+
+def test_thruster_failure_fault_is_reported() -> None:
+    """A scheduled thruster failure: the unit's thrust decays to zero and its status carries FAULT."""
+    from gateway.codecs.mavlink import AzimuthThrusterFlags
+
+    faults = (Fault(kind="thruster_failure", source="2", t_start=10.0),)
+    sim, _, mav = run_to_memory("hajivand_2010", seed=1, duration=40.0, faults=faults)
+    msgs = dialect().MAVLink(None).parse_buffer(mav) or []
+    start_us = sim.epoch.stamp_ns(0.0) // 1000
+    status = [m for m in msgs if m.get_msgId() == AZIMUTH_THRUSTER_STATUS_ID and m.id == 2]
+    before = [m for m in status if m.time_usec - start_us < 9e6]
+    after = [m for m in status if m.time_usec - start_us > 11e6]
+    assert before and after
+    assert not any(m.flags & AzimuthThrusterFlags.FAULT for m in before)
+    assert all(m.flags & AzimuthThrusterFlags.FAULT for m in after)
+    tc = sim.scenario.vessel.thrusters[1].thrust_time_constant_s
+    assert abs(after[-1].thrust) <= 1e6 * math.exp(-(30.0 - 1.0) / tc) + 1.0
+    assert sim.thrusters.failed[1]
+
+
+def test_mavlink_commands_close_the_loop() -> None:
+    """AZIMUTH_THRUSTER_COMMAND frames sent back on the link drive the thrusters (and the status shows it)."""
+    from simulator.commands import MavlinkCommandInput
+
+    scenario = replace(get_scenario("hajivand_2010"), feedback=ThrusterFeedbackConfig(rate_hz=2.0))
+    mav = MemorySink()
+    sim = Simulation(scenario, 0, routes=[Route(mav, "mavlink")], commands=[MavlinkCommandInput(mav)])
+    sim.run(5.0)
+    gcs = encoder(src_system=255, src_component=190)
+    for tid, angle in ((1, 0.5), (2, -0.5), (3, 1.5)):
+        mav.feed(azimuth_command_frame(gcs, 0, tid, 4e5, angle))
+    sim.run(30.0)
+    assert sim.external_control and sim.summary.commands_applied == 3
+    np.testing.assert_allclose(sim.thrusters.thrust_setpoint, 4e5)
+    np.testing.assert_allclose(sim.thrusters.angle, [0.5, -0.5, 1.5], atol=1e-9)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def test_zenoh_commands_close_the_loop() -> None:
+    import zenoh
+
+    from gateway.bus import isolated_config, open_session
+    from simulator.commands import ZenohCommandInput
+
+    port = _free_port()
+    sim_session = open_session(isolated_config(listen=[f"tcp/127.0.0.1:{port}"]))
+    ctl_session = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{port}"]))
+    try:
+        scenario = get_scenario("hajivand_2010")
+        inp = ZenohCommandInput(sim_session, "dp/test")
+        sim = Simulation(scenario, 0, commands=[inp])
+        sim.run(2.0)
+        cmd = {"stamp_ns": 0, "mode": "dp", "thrusters": [{"id": 1, "thrust_n": 3e5, "azimuth_rad": 1.0}]}
+        deadline = time.monotonic() + 5.0
+        while not sim.external_control and time.monotonic() < deadline:
+            ctl_session.put("dp/test/thrusters/command", json.dumps(cmd))
+            time.sleep(0.05)
+            sim.run(0.2)
+        ctl_session.put("dp/test/thrusters/command", b"not json")
+        time.sleep(0.1)
+        sim.run(20.0)
+        assert sim.thrusters.thrust_setpoint[0] == pytest.approx(3e5)
+        assert sim.thrusters.angle[0] == pytest.approx(1.0)
+        assert inp.rejected  # the garbage was counted, not raised
+        assert isinstance(zenoh.__name__, str)
+    finally:
+        sim_session.close()
+        ctl_session.close()
+
+
+def _dpgw(*args: str) -> subprocess.Popen[str]:
+    return subprocess.Popen(
+        [sys.executable, "-m", "gateway", "sim", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def test_pyserial_reads_the_pty_of_dpgw_sim() -> None:
+    proc = _dpgw("--scenario", "hassani", "--nmea", "pty", "--realtime", "--speed", "4", "--duration", "20")
+    try:
+        assert proc.stderr is not None
+        device = None
+        deadline = time.monotonic() + 20
+        while device is None and time.monotonic() < deadline:
+            ready, _, _ = select.select([proc.stderr], [], [], 1.0)
+            if ready:
+                line = proc.stderr.readline()
+                if "/dev/pts/" in line:
+                    device = line.split("->", 1)[1].split()[0]
+        assert device and os.path.exists(device)
+        with serial.Serial(device, baudrate=115200, timeout=2.0) as port:
+            lines = []
+            while len(lines) < 20:
+                raw = port.readline()
+                assert raw, "no data on the pty"
+                if raw.startswith(b"$"):
+                    lines.append(raw.decode("ascii"))
+        parsed = [pynmea2.parse(s.strip(), check=True) for s in lines[1:]]
+        assert {p.sentence_type for p in parsed} & {"GGA", "HDT", "ROT"}
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)
+    assert proc.returncode == 0  # SIGTERM: a clean stop
+
+
+def test_udp_listener_receives_dpgw_sim(tmp_path: Path) -> None:
+    rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    rx.bind(("127.0.0.1", 0))
+    rx.settimeout(10.0)
+    port = rx.getsockname()[1]
+    out = tmp_path / "run.mcap"
+    proc = _dpgw(
+        "--scenario", "torsetnes_2004", "--nmea", f"udp://127.0.0.1:{port}",
+        "--duration", "30", "--out", str(out), "--json",
+    )  # fmt: skip
+    datagrams = []
+    try:
+        while len(datagrams) < 50:
+            datagrams.append(rx.recv(65536))
+    finally:
+        stdout, _ = proc.communicate(timeout=60)
+        rx.close()
+    sentences = [pynmea2.parse(d.decode().strip(), check=True) for d in datagrams if d.startswith(b"$")]
+    assert len(sentences) >= 40
+    result = json.loads(stdout)
+    assert result["sim_seconds"] == pytest.approx(30.0) and result["emissions"]["dgps1"] > 0
+    assert summary(out).complete
+
+
+def test_bad_arguments_give_one_clear_message() -> None:
+    p = subprocess.run(
+        [sys.executable, "-m", "gateway", "sim", "--scenario", "hassani", "--nmea", "udp://nowhere"],
+        capture_output=True,
+        text=True,
+    )
+    assert p.returncode == 2 and "udp://nowhere" in p.stderr and "Traceback" not in p.stderr
+
+
+def test_heading_of_turning_scenario_wraps_in_sentences() -> None:
+    _, nmea, _ = run_to_memory("snijders_2005", seed=2, duration=20.0)
+    hdt = [pynmea2.parse(s, check=True) for s in nmea_lines(nmea) if s[3:6] == "HDT"]
+    assert all(0.0 <= float(m.heading) < 360.0 for m in hdt)
