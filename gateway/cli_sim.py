@@ -6,12 +6,15 @@ import argparse
 import json
 import signal
 import sys
+import tomllib
+from dataclasses import replace
 from typing import Any
 
 from gateway.bus import BusError, make_config, open_session
 from gateway.mcaplog import McapLogWriter
 from simulator.clock import Clock, RealtimeClock, VirtualClock
 from simulator.commands import MavlinkCommandInput, ZenohCommandInput
+from simulator.faults import Fault, FaultSchedule
 from simulator.runner import CommandInput, Route, Simulation
 from simulator.scenarios import SCENARIOS, get_scenario
 from simulator.transports import Sink, TransportError, open_sink
@@ -65,6 +68,17 @@ def register(sub: Any) -> None:
         "--gyro-rate", type=float, metavar="HZ", help="gyro rate up to 20 Hz (default: the scenario's)"
     )
     p.add_argument(
+        "--faults",
+        metavar="FILE.toml",
+        help="schedule faults from a TOML file of [[faults]] tables (dropout, frozen, jump, noise_burst, "
+        "bad_checksum, garbage, thruster_failure; see docs/sensors.md)",
+    )
+    p.add_argument(
+        "--ardupilot",
+        action="store_true",
+        help="thrusters also report ArduPilot-style ESC_TELEMETRY and SERVO_OUTPUT_RAW",
+    )
+    p.add_argument(
         "--zenoh", action="store_true", help="take thruster commands from Zenoh <prefix>/thrusters/command"
     )
     p.add_argument("--prefix", help="Zenoh key prefix (default dp/<vessel>)")
@@ -77,6 +91,21 @@ def register(sub: Any) -> None:
     p.set_defaults(func=run)
 
 
+def load_faults(path: str) -> tuple[Fault, ...]:
+    """The [[faults]] tables of a TOML file; errors name the file, the table and the field."""
+    try:
+        with open(path, "rb") as f:
+            data = tomllib.load(f)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{path}: not valid TOML: {exc}") from None
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read the fault table ({exc.strerror})") from None
+    try:
+        return FaultSchedule.from_dicts(data.get("faults", [])).faults
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
+
+
 def _parse_route(spec: str, protocol: str) -> tuple[str, frozenset[str] | None]:
     if "=" in spec.split("://", 1)[0]:
         source, url = spec.split("=", 1)
@@ -87,7 +116,13 @@ def _parse_route(spec: str, protocol: str) -> tuple[str, frozenset[str] | None]:
 def run(args: argparse.Namespace) -> int:
     try:
         scenario = get_scenario(args.scenario).with_sensor_rates(args.gnss_rate, args.gyro_rate)
-    except ValueError as exc:
+        if args.faults:
+            scenario = replace(scenario, faults=scenario.faults + load_faults(args.faults))
+        if args.ardupilot and scenario.feedback is not None:
+            scenario = replace(
+                scenario, feedback=replace(scenario.feedback, ardupilot_esc=True, ardupilot_servo=True)
+            )
+    except (ValueError, OSError) as exc:
         print(f"dpgw sim: {exc}", file=sys.stderr)
         return 2
     sinks: list[Sink] = []

@@ -98,8 +98,12 @@ class _WaveCache:
         self.field = field
         self.t0 = math.inf
         self.values = np.zeros((1, 3))
+        self._last: tuple[float, Array] = (math.nan, np.zeros(3))
 
     def motion(self, t: float, eta_lf: Array) -> Array:
+        """η_WF at t (sensors and truth ask for the same instant: the last answer is kept)."""
+        if t == self._last[0]:
+            return self._last[1]
         if not (self.t0 <= t <= self.t0 + WF_BLOCK_S):
             self.t0 = t
             grid = t + np.arange(0.0, WF_BLOCK_S + MAX_STEP_S / 2, MAX_STEP_S)
@@ -107,7 +111,9 @@ class _WaveCache:
         x = (t - self.t0) / MAX_STEP_S
         i = min(int(x), len(self.values) - 2)
         w = x - i
-        return (1 - w) * self.values[i] + w * self.values[i + 1]
+        value = (1 - w) * self.values[i] + w * self.values[i + 1]
+        self._last = (t, value)
+        return value
 
 
 class Simulation:
@@ -153,6 +159,7 @@ class Simulation:
         self.tau_direct = np.zeros(3)
 
         self.faults = FaultSchedule(scenario.faults)
+        self._failure_faults = any(f.kind == "thruster_failure" for f in scenario.faults)
         self.fault_rng = np.random.default_rng(fault_seq)
         sensor_rngs = [np.random.default_rng(s) for s in sensor_seq.spawn(8)]
         self.sensors: list[Dgps | Gyro | ThrusterFeedback] = []
@@ -193,8 +200,11 @@ class Simulation:
         return rotation(psi).T @ np.asarray(self.scenario.bias.constant, dtype=float) + self._drift_body
 
     def _control_tick(self) -> None:
-        for i, tid in enumerate(self.thrusters.ids):
-            self.thrusters.failed[i] = self.faults.active("thruster_failure", str(tid), self.t) is not None
+        if self._failure_faults:
+            for i, tid in enumerate(self.thrusters.ids):
+                self.thrusters.failed[i] = (
+                    self.faults.active("thruster_failure", str(tid), self.t) is not None
+                )
         for source in self.commands:
             for cmd in source.poll():
                 if cmd.id in self.thrusters.ids:
@@ -254,10 +264,12 @@ class Simulation:
     def _truth(self) -> None:
         if self.log is None:
             return
-        eta_lf = self.dynamics.x[0:3]
-        wf = self._wf.motion(self.t, eta_lf)
-        psi = eta_lf[2]
-        bias_total = self.bias.force + rotation(psi) @ self._drift_body
+        x = self.dynamics.x
+        wf = self._wf.motion(self.t, x[0:3])
+        c, s = math.cos(x[2]), math.sin(x[2])
+        d = self._drift_body
+        b = self.bias.force
+        bias_total = [b[0] + c * d[0] - s * d[1], b[1] + s * d[0] + c * d[1], b[2] + d[2]]
         sea = self._sea_state()
         w0 = sea.peak_frequency
         tau = self.tau_direct if self.direct_tau else self.thrusters.tau
@@ -266,9 +278,9 @@ class Simulation:
             "/truth/state",
             {
                 "stamp_ns": stamp,
-                "eta_lf": [float(eta_lf[0]), float(eta_lf[1]), ssa_scalar(float(eta_lf[2]))],
-                "nu": self.dynamics.x[3:6].tolist(),
-                "bias": bias_total.tolist(),
+                "eta_lf": [float(x[0]), float(x[1]), ssa_scalar(float(x[2]))],
+                "nu": x[3:6].tolist(),
+                "bias": bias_total,
                 "eta_wf": wf.tolist(),
                 "omega0": [w0, w0, w0],
                 "tau": tau.tolist(),
@@ -283,28 +295,30 @@ class Simulation:
         """Send every emission that is due. The log gets one message per burst (a sensor's frames of one
         instant, like a multiplexer's datagram); the transports get each sentence or frame on its own."""
         burst: list[Emission] = []
+        paced = not isinstance(self.clock, VirtualClock)  # a virtual clock never waits
         while self._pending and self._pending[0][0] <= self.t + 1e-9:
             e = heapq.heappop(self._pending)[2]
             if burst and (
                 e.source != burst[0].source or e.t_emit != burst[0].t_emit or e.protocol != burst[0].protocol
             ):
-                self._log_burst(burst)
+                self._end_burst(burst)
                 burst = []
-            self.clock.sleep_until(e.t_emit)
+            if paced:
+                self.clock.sleep_until(e.t_emit)
             for route in self.routes:
                 if route.wants(e):
                     route.sink.write(e.data)
-            self.summary.emissions[e.source] += 1
-            self.summary.bytes_sent[e.source] += len(e.data)
             burst.append(e)
         if burst:
-            self._log_burst(burst)
+            self._end_burst(burst)
 
-    def _log_burst(self, burst: list[Emission]) -> None:
+    def _end_burst(self, burst: list[Emission]) -> None:
+        first = burst[0]
+        data = b"".join([e.data for e in burst])
+        self.summary.emissions[first.source] += len(burst)
+        self.summary.bytes_sent[first.source] += len(data)
         if self.log is None:
             return
-        first = burst[0]
-        data = b"".join(e.data for e in burst)
         log_ns = self.epoch.stamp_ns(first.t_emit)
         pub_ns = self.epoch.stamp_ns(first.t_measured)
         if first.protocol == "nmea":

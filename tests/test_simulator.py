@@ -269,3 +269,53 @@ def test_heading_of_turning_scenario_wraps_in_sentences() -> None:
     _, nmea, _ = run_to_memory("snijders_2005", seed=2, duration=20.0)
     hdt = [pynmea2.parse(s, check=True) for s in nmea_lines(nmea) if s[3:6] == "HDT"]
     assert all(0.0 <= float(m.heading) < 360.0 for m in hdt)
+
+
+def test_faults_file_and_ardupilot_feedback_from_the_cli(tmp_path: Path) -> None:
+    faults = tmp_path / "faults.toml"
+    faults.write_text(
+        '[[faults]]\nkind = "dropout"\nsource = "dgps1"\nt_start = 5.0\nt_end = 15.0\n'
+        '[[faults]]\nkind = "bad_checksum"\nsource = "gyro1"\nt_start = 0.0\n'
+    )
+    out = tmp_path / "f.mcap"
+    p = subprocess.run(
+        [sys.executable, "-m", "gateway", "sim", "--scenario", "hajivand_2010", "--duration", "20",
+         "--faults", str(faults), "--ardupilot", "--out", str(out), "--json"],
+        capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    assert json.loads(p.stdout)["emissions"]["dgps1"] == 10 * 5  # 20 fixes at 1 Hz, 10 s of it silent
+    gyro = [m[3]["text"] for m in read_messages(out, "/raw/nmea/gyro1")]
+    for text in gyro:
+        for line in text.split("\r\n"):
+            with pytest.raises(pynmea2.ChecksumError):
+                pynmea2.parse(line, check=True)
+    frames = b"".join(
+        __import__("base64").b64decode(m[3]["data"]) for m in read_messages(out, "/raw/mavlink/thrusters")
+    )
+    kinds = {m.get_type() for m in dialect().MAVLink(None).parse_buffer(frames) or []}
+    assert {"ESC_TELEMETRY_1_TO_4", "SERVO_OUTPUT_RAW", "AZIMUTH_THRUSTER_STATUS"} <= kinds
+
+
+def test_bad_fault_file_names_the_field(tmp_path: Path) -> None:
+    faults = tmp_path / "faults.toml"
+    faults.write_text('[[faults]]\nkind = "dropout"\nsource = "dgps1"\nt_start = 5.0\nt_end = 1.0\n')
+    p = subprocess.run(
+        [sys.executable, "-m", "gateway", "sim", "--scenario", "hassani", "--faults", str(faults)],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert p.returncode == 2 and "faults[0].t_end" in p.stderr and str(faults) in p.stderr
+
+
+def test_sea_state_change_mid_run_shows_in_the_truth(tmp_path: Path) -> None:
+    from simulator.spectra import SeaState
+
+    sea = ((0.0, SeaState(3.0, 6.0)), (60.0, SeaState(3.0, 12.0)))
+    scenario = replace(get_scenario("torsetnes_2004"), sea=sea)
+    path = tmp_path / "sea.mcap"
+    with McapLogWriter(path) as log:
+        Simulation(scenario, 1, log=log).run(150.0)
+    w0 = np.array([[m[2], m[3]["omega0"][0]] for m in read_messages(path, "/truth/state")])
+    start = w0[0, 0]
+    before = w0[(w0[:, 0] - start) < 80e9, 1]
+    after = w0[(w0[:, 0] - start) > 100e9, 1]
+    assert np.allclose(before, 2 * math.pi / 6.0) and np.allclose(after, 2 * math.pi / 12.0)
