@@ -1,0 +1,904 @@
+"""NMEA 0183 sentence decoding: one sentence's text in, a typed sentence in SI units (or a reject) out.
+
+The decoding half of the NMEA codec; :mod:`gateway.codecs.nmea_framing` finds the sentences in the byte
+stream, :func:`decode` reads one. Units change here and only here (DESIGN.md rule 3): ``ddmm.mmmm``
+latitude/longitude become signed decimal degrees, knots become m/s, degrees of heading and course become
+radians in [-π, π), degrees per minute become rad/s, ``hhmmss.ss`` becomes seconds of the UTC day. Bad input
+is never raised (rule 4): :func:`decode` returns a :class:`Reject` with a stable ``reason`` that the caller
+counts per source, and a ``detail`` for the log.
+
+Reject reasons (:data:`REJECT_REASONS`):
+
+=============== ================================================================================
+``no_checksum``  no ``*HH`` (only with ``require_checksum=True``, the default)
+``bad_checksum`` the checksum does not match, or ``*`` is not followed by exactly two hex digits
+``bad_format``   not a sentence: no ``$``/``!``, non-ASCII text, a malformed address field, or fewer
+                 fields than the sentence type needs
+``unsupported``  a well-formed sentence of a type dpgw does not use (GSA, GSV, GLL, proprietary
+                 ``$P...``, AIS ``!AIVDM``, ...): counted, not an error
+``bad_field``    a field of a supported sentence does not parse or is out of range; ``detail`` names it
+=============== ================================================================================
+
+A field a receiver leaves empty is not an error: it decodes as ``None``, and a sentence without a usable
+measurement comes back with ``valid=False`` (GGA quality 0, RMC status V, THS mode V, an empty HDT).
+
+Supported sentence types, any talker (``GP``, ``GN``, ``GL``, ``GA``, ``GB``, ``BD``, ``HE``, ``HC``, ``IN``,
+``II``, ...): GGA, GNS, RMC, VTG, GST, ZDA (:class:`Gga`, :class:`Gns`, :class:`Rmc`, :class:`Vtg`,
+:class:`Gst`, :class:`Zda`), HDT, THS, HDG (:class:`Heading`) and ROT (:class:`Rot`). The layouts are the
+ones :mod:`gateway.codecs.nmea_encode` writes (NMEA 0183 v4.10), read leniently: missing trailing fields
+are empty, extra trailing fields (newer NMEA versions) are ignored. ``docs/nmea.md`` has the details.
+
+Speed matters (replay runs at 100,000 sentences/s): one ``split(',')`` per sentence, no regular
+expressions, a checksum folded on a big integer instead of a byte loop, and the fast constructors below.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field, fields
+from datetime import UTC, date, datetime, timedelta
+from typing import Any, Final, Literal, TypeAlias, TypeVar
+
+from gateway.codecs.nmea_encode import checksum
+
+NO_CHECKSUM: Final = "no_checksum"
+BAD_CHECKSUM: Final = "bad_checksum"
+BAD_FORMAT: Final = "bad_format"
+UNSUPPORTED: Final = "unsupported"
+BAD_FIELD: Final = "bad_field"
+REJECT_REASONS: Final = (NO_CHECKSUM, BAD_CHECKSUM, BAD_FORMAT, UNSUPPORTED, BAD_FIELD)
+"""Every :attr:`Reject.reason`: stable strings, counted per source in ``<prefix>/status``."""
+
+MPS_PER_KNOT: Final = 1852.0 / 3600.0
+"""1 knot in m/s (1 international nautical mile = 1852 m)."""
+
+_RAD: Final = math.pi / 180.0
+_PI: Final = math.pi
+_TWO_PI: Final = 2.0 * math.pi
+_INF: Final = math.inf
+_RAD_S_PER_DEG_MIN: Final = math.pi / 180.0 / 60.0
+
+
+# ---------------------------------------------------------------------------------------------- results
+
+
+@dataclass(frozen=True, slots=True)
+class Reject:
+    """A sentence :func:`decode` could not use: ``reason`` is one of :data:`REJECT_REASONS`, ``detail`` a
+    short human-readable explanation for the log (not stable: do not parse it)."""
+
+    reason: str
+    detail: str
+
+
+@dataclass(frozen=True)
+class Gga:
+    """GGA, GNSS fix data. ``valid``: quality ≥ 1 and a position; quality 0 or an empty position is a
+    sentence without a measurement (``valid=False``), not a reject."""
+
+    kind: Literal["GGA"] = field(default="GGA", init=False)
+    talker: str
+    time_s: float | None
+    """UTC time of the fix, seconds of the UTC day."""
+    lat_deg: float | None
+    """Latitude, degrees, north positive (WGS-84)."""
+    lon_deg: float | None
+    """Longitude, degrees, east positive."""
+    quality: int
+    """GPS quality indicator (``nmea_encode.GGA_QUALITY``): 0 no fix, 1 GPS, 2 DGPS, 4 RTK fixed, 5 RTK
+    float, 6 dead reckoning, ... An empty field reads as 0."""
+    n_sats: int | None
+    hdop: float | None
+    alt_m: float | None
+    """Antenna altitude above mean sea level (the geoid), m."""
+    geoid_sep_m: float | None
+    """Geoid above the WGS-84 ellipsoid, m."""
+    age_s: float | None
+    """Age of the differential corrections, s."""
+    station_id: int | None
+    valid: bool
+
+
+@dataclass(frozen=True)
+class Gns:
+    """GNS, GNSS fix data with one mode character per constellation. ``valid``: a position and at least
+    one mode character other than ``N``."""
+
+    kind: Literal["GNS"] = field(default="GNS", init=False)
+    talker: str
+    time_s: float | None
+    lat_deg: float | None
+    lon_deg: float | None
+    mode: str
+    """Mode indicators, GPS, GLONASS, Galileo, BDS, QZSS, NavIC order (``N`` no fix, ``A``, ``D``, ``R`` RTK
+    fixed, ``F`` RTK float, ``E``, ...); may be empty."""
+    n_sats: int | None
+    hdop: float | None
+    alt_m: float | None
+    geoid_sep_m: float | None
+    age_s: float | None
+    station_id: int | None
+    nav_status: str | None
+    """NMEA 4.10 navigational status (``S``, ``C``, ``U``, ``V``) or ``None``."""
+    valid: bool
+
+
+@dataclass(frozen=True)
+class Rmc:
+    """RMC, recommended minimum GNSS data. ``valid``: status ``A``, a position, and a mode (if sent) other
+    than ``N``; status ``V`` gives ``valid=False``. ``nav_status`` is reported, not used for ``valid``."""
+
+    kind: Literal["RMC"] = field(default="RMC", init=False)
+    talker: str
+    time_s: float | None
+    date: date | None
+    """UTC date; two-digit years are 1980-2079."""
+    valid: bool
+    lat_deg: float | None
+    lon_deg: float | None
+    sog_mps: float | None
+    """Speed over ground, m/s."""
+    cog_rad: float | None
+    """Course over ground, true, rad in [-π, π) (clockwise from true north)."""
+    mode: str | None
+    """Mode indicator (NMEA 2.3+), ``None`` when the receiver sends none."""
+    mag_var_rad: float | None
+    """Magnetic variation, rad, east positive."""
+    nav_status: str | None
+
+
+@dataclass(frozen=True)
+class Vtg:
+    """VTG, course and speed over ground. ``valid``: a speed and a mode (if sent) other than ``N``; the
+    course may be ``None`` while valid (receivers leave it empty at rest)."""
+
+    kind: Literal["VTG"] = field(default="VTG", init=False)
+    talker: str
+    cog_rad: float | None
+    """Course over ground, true, rad in [-π, π)."""
+    sog_mps: float | None
+    """Speed over ground, m/s (from the knots field, or km/h when knots are empty)."""
+    mode: str | None
+    valid: bool
+
+
+@dataclass(frozen=True)
+class Gst:
+    """GST, GNSS pseudorange error statistics (1σ, metres). Empty fields are ``None``."""
+
+    kind: Literal["GST"] = field(default="GST", init=False)
+    talker: str
+    time_s: float | None
+    rms_m: float | None
+    sigma_major_m: float | None
+    sigma_minor_m: float | None
+    orient_rad: float | None
+    """Orientation of the semi-major axis, clockwise from true north, rad in [0, π)."""
+    sigma_lat_m: float | None
+    sigma_lon_m: float | None
+    sigma_alt_m: float | None
+
+
+@dataclass(frozen=True)
+class Zda:
+    """ZDA, UTC time and date. The local zone fields are ignored (dpgw runs on UTC)."""
+
+    kind: Literal["ZDA"] = field(default="ZDA", init=False)
+    talker: str
+    time_s: float | None
+    date: date | None
+    utc: datetime | None
+    """Time and date as an aware UTC datetime (``None`` if either is empty)."""
+
+
+@dataclass(frozen=True)
+class Heading:
+    """HDT, THS (true heading) or HDG (magnetic compass).
+
+    ``heading_rad`` is clockwise from north in [-π, π). For HDT and THS it is true heading. For HDG it is
+    sensor heading + deviation (the magnetic heading, ``magnetic=True``), plus the variation when the
+    sentence gives it (then true heading, ``magnetic=False``). ``valid`` is False for an empty heading and
+    for THS mode ``V``; ``mode`` is THS's mode indicator (``A``, ``E``, ``M``, ``S``, ``V``), ``None`` for
+    HDT and HDG."""
+
+    kind: Literal["HDT", "THS", "HDG"]
+    talker: str
+    heading_rad: float | None
+    valid: bool
+    mode: str | None
+    magnetic: bool = False
+
+
+@dataclass(frozen=True)
+class Rot:
+    """ROT, rate of turn in rad/s (positive: bow to starboard). ``valid``: a rate and status ``A``."""
+
+    kind: Literal["ROT"] = field(default="ROT", init=False)
+    talker: str
+    rate_rad_s: float | None
+    valid: bool
+
+
+Sentence: TypeAlias = Gga | Gns | Rmc | Vtg | Gst | Zda | Heading | Rot
+"""What :func:`decode` returns for a sentence it uses; ``kind`` tells them apart."""
+
+SENTENCE_TYPES: Final = ("GGA", "GNS", "RMC", "VTG", "GST", "ZDA", "HDT", "THS", "HDG", "ROT")
+"""The sentence formatters :func:`decode` decodes; every other well-formed sentence is ``unsupported``."""
+
+
+# ---------------------------------------------------------------------------------------------- construction
+
+_T = TypeVar("_T")
+
+
+def _fast_new(cls: type[_T]) -> Callable[..., _T]:
+    """A constructor for the frozen dataclass ``cls`` taking all its fields positionally, in declaration
+    order (``kind`` included), that sets the instance dict in one step instead of one
+    ``object.__setattr__`` per field as a frozen dataclass's ``__init__`` does: ~2x faster for GGA. The
+    result is an ordinary instance, equal to and hashing as one made with ``cls(...)`` (tested). Generated
+    source, as ``dataclasses`` itself generates ``__init__``."""
+    names = [f.name for f in fields(cls)]  # type: ignore[arg-type]
+    items = ", ".join(f"{name!r}: {name}" for name in names)
+    source = (
+        f"def make({', '.join(names)}):\n"
+        f"    obj = new(cls)\n"
+        f"    set_dict(obj, '__dict__', {{{items}}})\n"
+        f"    return obj\n"
+    )
+    namespace: dict[str, Any] = {"new": object.__new__, "set_dict": object.__setattr__, "cls": cls}
+    exec(source, namespace)
+    make: Callable[..., _T] = namespace["make"]
+    return make
+
+
+# ---------------------------------------------------------------------------------------------- decode
+
+
+def decode(text: str, *, require_checksum: bool = True) -> Sentence | Reject:
+    """Decode one sentence, ``$`` to checksum (a :class:`Frame`'s ``text``; a trailing CR/LF is ignored).
+
+    Returns a typed sentence (:data:`Sentence`) or a :class:`Reject`; never raises. With
+    ``require_checksum=False`` a sentence without ``*HH`` is accepted (some gyros send none); a checksum
+    that is present is always checked.
+    """
+    try:
+        if len(text) < 2 or text[0] not in "$!" or not text.isascii():
+            return Reject(BAD_FORMAT, f"not an NMEA sentence: {text[:40]!r}")
+        star = text.find("*")
+        if star < 0:
+            if text.endswith(_EOL):  # (off the hot path)
+                return decode(text.rstrip("\r\n"), require_checksum=require_checksum)
+            if require_checksum:
+                return Reject(NO_CHECKSUM, f"no checksum: {text[:40]!r}")
+            body = text[1:]
+        else:
+            body = text[1:star]
+            given = _HEX.get(text[star + 1 :])
+            if given is None:
+                if text.endswith(_EOL):
+                    return decode(text.rstrip("\r\n"), require_checksum=require_checksum)
+                return Reject(BAD_CHECKSUM, f"checksum field {text[star + 1 :][:8]!r} is not two hex digits")
+            if _xor(body) != given:
+                return Reject(BAD_CHECKSUM, f"checksum {text[star + 1 :]}, computed {checksum(body)}")
+        parts = body.split(",")
+        entry = _ADDRESSES.get(parts[0])
+        if entry is None:
+            entry = _address(parts[0])
+        if isinstance(entry, Reject):
+            return entry
+        talker, decoder = entry
+        return decoder(talker, parts)
+    except Exception as exc:  # pragma: no cover - a bug must not stop the gateway (DESIGN.md rule 4)
+        return Reject(BAD_FORMAT, f"decoder error {exc!r} on {text[:40]!r}")
+
+
+def _hex_table() -> dict[str, int]:
+    digits = "0123456789abcdefABCDEF"
+    return {a + b: int(a + b, 16) for a in digits for b in digits}
+
+
+_HEX: Final = _hex_table()
+_EOL: Final = ("\r", "\n")
+
+
+def _xor(body: str) -> int:
+    """XOR of the bytes of ``body`` (ASCII): the NMEA checksum as an int, = ``int(checksum(body), 16)``.
+
+    Folds the bytes as one big integer (a handful of C-level shifts) instead of a Python loop per byte."""
+    x = int.from_bytes(body.encode("ascii"), "little")
+    n = len(body)
+    if n <= 128:
+        if n > 64:
+            x ^= x >> 512
+        if n > 32:
+            x ^= x >> 256
+        if n > 16:
+            x ^= x >> 128
+        x ^= x >> 64
+        x ^= x >> 32
+        x ^= x >> 16
+        x ^= x >> 8
+        return x & 0xFF
+    value = 0
+    for byte in body.encode("ascii"):
+        value ^= byte
+    return value
+
+
+_Decoder: TypeAlias = Callable[[str, list[str]], Sentence | Reject]
+_ADDRESSES: dict[str, tuple[str, _Decoder] | Reject] = {}
+_ADDRESS_CACHE_MAX = 4096
+
+
+def _address(address: str) -> tuple[str, _Decoder] | Reject:
+    """Classify an address field: ``(talker, decoder)`` or a :class:`Reject` (cached)."""
+    entry: tuple[str, _Decoder] | Reject
+    if len(address) == 5 and address.isalnum() and address.isupper() and address[0] != "P":
+        talker, kind = address[:2], address[2:]
+        decoder = _DECODERS.get(kind)
+        if not talker[0].isalpha() or not kind.isalpha():
+            entry = Reject(BAD_FORMAT, f"bad address field {address!r}")
+        elif decoder is None:
+            entry = Reject(UNSUPPORTED, kind)
+        else:
+            entry = (talker, decoder)
+    elif address[:1] == "P" and address.isalnum() and address.isupper() and len(address) >= 2:
+        entry = Reject(UNSUPPORTED, f"proprietary {address}")
+    else:
+        entry = Reject(BAD_FORMAT, f"bad address field {address[:12]!r}")
+    if len(_ADDRESSES) < _ADDRESS_CACHE_MAX:
+        _ADDRESSES[address] = entry
+    return entry
+
+
+def _too_few(kind: str, parts: list[str], needed: int) -> Reject:
+    return Reject(BAD_FORMAT, f"{kind} has {len(parts) - 1} fields, needs at least {needed}")
+
+
+def _bad_field(kind: str, names: dict[int, str], i: int, parts: list[str]) -> Reject:
+    """``bad_field``, naming field ``i`` (and the fields that go with it: a hemisphere, a date)."""
+    name = names.get(i, "field")
+    value = ",".join(parts[i : i + _WIDTH.get(name, 1)])
+    return Reject(BAD_FIELD, f"{kind} {name} (field {i}): {value[:40]!r}")
+
+
+_WIDTH: Final = {
+    "latitude": 2,
+    "longitude": 2,
+    "magnetic variation": 2,
+    "deviation": 2,
+    "variation": 2,
+    "day,month,year": 3,
+}
+_PAD: Final = [""] * 16
+
+
+# ---------------------------------------------------------------------------------------------- fields
+# Each parser takes the field text and returns the value or None (empty field); anything else raises
+# ValueError, which the sentence decoders turn into a bad_field reject naming the field.
+
+
+def _float(s: str) -> float | None:
+    """Optional finite float."""
+    if not s:
+        return None
+    x = float(s)
+    if x - x:  # NaN or infinity
+        raise ValueError(s)
+    return x
+
+
+def _nonneg(s: str) -> float | None:
+    """Optional finite float ≥ 0."""
+    if not s:
+        return None
+    x = float(s)
+    if not 0.0 <= x < _INF:
+        raise ValueError(s)
+    return x
+
+
+def _count(s: str) -> int | None:
+    """Optional non-negative integer (digits only)."""
+    if not s:
+        return None
+    if not s.isdigit():
+        raise ValueError(s)
+    return int(s)
+
+
+def _tod(s: str) -> float | None:
+    """``hhmmss`` or ``hhmmss.sss`` → seconds of the UTC day (a leap second 60 is accepted)."""
+    if not s:
+        return None
+    if len(s) < 6 or (len(s) > 6 and s[6] != "."):
+        raise ValueError(s)
+    v = float(s)
+    hours, rest = divmod(v, 10000.0)
+    minutes, seconds = divmod(rest, 100.0)
+    if not (v >= 0.0 and hours < 24.0 and minutes < 60.0 and seconds < 61.0):
+        raise ValueError(s)
+    return hours * 3600.0 + minutes * 60.0 + seconds
+
+
+def _lat(s: str, hemisphere: str) -> float | None:
+    """``ddmm.mmmm`` + ``N``/``S`` → degrees (full precision: the whole field is one float)."""
+    if not s:
+        return None
+    v = float(s)
+    degrees = v // 100.0
+    minutes = v - 100.0 * degrees
+    if not (v >= 0.0 and minutes < 60.0):
+        raise ValueError(s)
+    lat = degrees + minutes / 60.0
+    if lat > 90.0:
+        raise ValueError(s)
+    if hemisphere == "N":
+        return lat
+    if hemisphere == "S":
+        return -lat
+    raise ValueError(hemisphere)
+
+
+def _lon(s: str, hemisphere: str) -> float | None:
+    """``dddmm.mmmm`` + ``E``/``W`` → degrees."""
+    if not s:
+        return None
+    v = float(s)
+    degrees = v // 100.0
+    minutes = v - 100.0 * degrees
+    if not (v >= 0.0 and minutes < 60.0):
+        raise ValueError(s)
+    lon = degrees + minutes / 60.0
+    if lon > 180.0:
+        raise ValueError(s)
+    if hemisphere == "E":
+        return lon
+    if hemisphere == "W":
+        return -lon
+    raise ValueError(hemisphere)
+
+
+def _bearing(s: str) -> float | None:
+    """Degrees in [0, 360] → rad in [-π, π)."""
+    if not s:
+        return None
+    v = float(s)
+    if not 0.0 <= v <= 360.0:
+        raise ValueError(s)
+    angle = v * _RAD
+    if angle >= _PI:
+        angle -= _TWO_PI
+    return angle
+
+
+def _wrap(angle: float) -> float:
+    """Any finite angle → [-π, π)."""
+    angle = (angle + _PI) % _TWO_PI - _PI
+    return angle - _TWO_PI if angle >= _PI else angle
+
+
+def _east_west(s: str, direction: str) -> float | None:
+    """Magnitude in degrees (≤ 180) + ``E``/``W`` → degrees, east positive."""
+    if not s:
+        return None
+    v = float(s)
+    if not 0.0 <= v <= 180.0:
+        raise ValueError(s)
+    if direction == "E":
+        return v
+    if direction == "W":
+        return -v
+    raise ValueError(direction)
+
+
+def _letter(s: str) -> str | None:
+    """Optional single upper-case letter (mode indicators, status)."""
+    if not s:
+        return None
+    if s not in _LETTERS:
+        raise ValueError(s)
+    return s
+
+
+_LETTERS: Final = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZ")
+
+
+_DATES: dict[str, date] = {}
+
+
+def _ddmmyy(s: str) -> date | None:
+    """``ddmmyy`` → date; two-digit years are 1980-2079."""
+    if not s:
+        return None
+    d = _DATES.get(s)
+    if d is None:
+        if len(s) != 6 or not s.isdigit():
+            raise ValueError(s)
+        yy = int(s[4:])
+        d = date(2000 + yy if yy < 80 else 1900 + yy, int(s[2:4]), int(s[:2]))
+        if len(_DATES) < 4096:
+            _DATES[s] = d
+    return d
+
+
+# ---------------------------------------------------------------------------------------------- sentences
+
+_new_gga = _fast_new(Gga)
+_new_gns = _fast_new(Gns)
+_new_rmc = _fast_new(Rmc)
+_new_vtg = _fast_new(Vtg)
+_new_heading = _fast_new(Heading)
+
+_QUALITY: Final = {str(q): q for q in range(10)} | {"": 0}
+
+_GGA_NAMES = {
+    1: "time",
+    2: "latitude",
+    4: "longitude",
+    6: "quality",
+    7: "satellites",
+    8: "hdop",
+    9: "altitude",
+    11: "geoid separation",
+    13: "age",
+    14: "station id",
+}
+
+
+def _gga(talker: str, p: list[str]) -> Gga | Reject:
+    """``$--GGA,hhmmss.ss,llll.ll,a,yyyyy.yy,a,x,xx,x.x,x.x,M,x.x,M,x.x,xxxx``"""
+    n = len(p)
+    if n < 7:
+        return _too_few("GGA", p, 6)
+    if n < 15:
+        p += _PAD[: 15 - n]
+    i = 1
+    try:
+        time_s = _tod(p[1])
+        i = 2
+        lat = _lat(p[2], p[3])
+        i = 4
+        lon = _lon(p[4], p[5])
+        i = 6
+        quality = _QUALITY[p[6]]  # KeyError for anything but one digit or empty
+        i = 7
+        n_sats = _count(p[7])
+        i = 8
+        hdop = _nonneg(p[8])
+        i = 9
+        alt = _float(p[9])
+        i = 11
+        sep = _float(p[11])
+        i = 13
+        age = _nonneg(p[13])
+        i = 14
+        station = _count(p[14])
+    except (ValueError, KeyError):
+        return _bad_field("GGA", _GGA_NAMES, i, p)
+    valid = quality >= 1 and lat is not None and lon is not None
+    return _new_gga("GGA", talker, time_s, lat, lon, quality, n_sats, hdop, alt, sep, age, station, valid)
+
+
+_GNS_NAMES = {
+    1: "time",
+    2: "latitude",
+    4: "longitude",
+    6: "mode",
+    7: "satellites",
+    8: "hdop",
+    9: "altitude",
+    10: "geoid separation",
+    11: "age",
+    12: "station id",
+    13: "navigational status",
+}
+
+
+def _gns(talker: str, p: list[str]) -> Gns | Reject:
+    """``$--GNS,hhmmss.ss,llll.ll,a,yyyyy.yy,a,c--c,xx,x.x,x.x,x.x,x.x,x.x,a``"""
+    n = len(p)
+    if n < 7:
+        return _too_few("GNS", p, 6)
+    if n < 14:
+        p += _PAD[: 14 - n]
+    i = 1
+    try:
+        time_s = _tod(p[1])
+        i = 2
+        lat = _lat(p[2], p[3])
+        i = 4
+        lon = _lon(p[4], p[5])
+        i = 6
+        mode = p[6]
+        if mode and not (mode.isalpha() and mode.isupper()):
+            raise ValueError(mode)
+        i = 7
+        n_sats = _count(p[7])
+        i = 8
+        hdop = _nonneg(p[8])
+        i = 9
+        alt = _float(p[9])
+        i = 10
+        sep = _float(p[10])
+        i = 11
+        age = _nonneg(p[11])
+        i = 12
+        station = _count(p[12])
+        i = 13
+        nav_status = _letter(p[13])
+    except ValueError:
+        return _bad_field("GNS", _GNS_NAMES, i, p)
+    valid = lat is not None and lon is not None and mode.strip("N") != ""
+    return _new_gns(
+        "GNS", talker, time_s, lat, lon, mode, n_sats, hdop, alt, sep, age, station, nav_status, valid
+    )
+
+
+_RMC_NAMES = {
+    1: "time",
+    2: "status",
+    3: "latitude",
+    5: "longitude",
+    7: "speed",
+    8: "course",
+    9: "date",
+    10: "magnetic variation",
+    12: "mode",
+    13: "navigational status",
+}
+
+
+def _rmc(talker: str, p: list[str]) -> Rmc | Reject:
+    """``$--RMC,hhmmss.ss,A,llll.ll,a,yyyyy.yy,a,x.x,x.x,ddmmyy,x.x,a,a,a``"""
+    n = len(p)
+    if n < 3:
+        return _too_few("RMC", p, 2)
+    if n < 14:
+        p += _PAD[: 14 - n]
+    i = 1
+    try:
+        time_s = _tod(p[1])
+        i = 2
+        status = p[2]
+        if status != "A" and status != "V" and status:
+            raise ValueError(status)
+        i = 3
+        lat = _lat(p[3], p[4])
+        i = 5
+        lon = _lon(p[5], p[6])
+        i = 7
+        sog = _nonneg(p[7])
+        i = 8
+        cog = _bearing(p[8])
+        i = 9
+        day = _ddmmyy(p[9])
+        i = 10
+        var = _east_west(p[10], p[11])
+        i = 12
+        mode = _letter(p[12])
+        i = 13
+        nav_status = _letter(p[13])
+    except ValueError:
+        return _bad_field("RMC", _RMC_NAMES, i, p)
+    valid = status == "A" and lat is not None and lon is not None and mode != "N"
+    return _new_rmc(
+        "RMC",
+        talker,
+        time_s,
+        day,
+        valid,
+        lat,
+        lon,
+        None if sog is None else sog * MPS_PER_KNOT,
+        cog,
+        mode,
+        None if var is None else var * _RAD,
+        nav_status,
+    )
+
+
+_VTG_NAMES = {1: "course true", 3: "course magnetic", 5: "speed knots", 7: "speed km/h", 9: "mode"}
+_VTG_OLD_NAMES = {1: "course true", 2: "course magnetic", 3: "speed knots", 4: "speed km/h"}
+
+
+def _vtg(talker: str, p: list[str]) -> Vtg | Reject:
+    """``$--VTG,x.x,T,x.x,M,x.x,N,x.x,K,a`` (also the NMEA 1.5 layout ``$--VTG,x.x,x.x,x.x,x.x``)."""
+    n = len(p)
+    if n >= 9 or (n > 2 and p[2] == "T"):
+        if n < 10:
+            p += _PAD[: 10 - n]
+        names = _VTG_NAMES
+        knots, kmh, mode_field = 5, 7, 9
+    elif n == 5:
+        names = _VTG_OLD_NAMES
+        knots, kmh, mode_field = 3, 4, 0
+    else:
+        return _too_few("VTG", p, 8)
+    i = 1
+    try:
+        cog = _bearing(p[1])
+        i = knots
+        sog = _nonneg(p[knots])
+        if sog is not None:
+            sog *= MPS_PER_KNOT
+        else:
+            i = kmh
+            sog = _nonneg(p[kmh])
+            if sog is not None:
+                sog /= 3.6
+        i = mode_field
+        mode = _letter(p[9]) if mode_field else None
+    except ValueError:
+        return _bad_field("VTG", names, i, p)
+    valid = sog is not None and mode != "N"
+    return _new_vtg("VTG", talker, cog, sog, mode, valid)
+
+
+_GST_NAMES = {
+    1: "time",
+    2: "rms",
+    3: "sigma major",
+    4: "sigma minor",
+    5: "orientation",
+    6: "sigma latitude",
+    7: "sigma longitude",
+    8: "sigma altitude",
+}
+
+
+def _gst(talker: str, p: list[str]) -> Gst | Reject:
+    """``$--GST,hhmmss.ss,x.x,x.x,x.x,x.x,x.x,x.x,x.x``"""
+    n = len(p)
+    if n < 9:
+        return _too_few("GST", p, 8)
+    i = 1
+    try:
+        time_s = _tod(p[1])
+        i = 2
+        rms = _nonneg(p[2])
+        i = 3
+        major = _nonneg(p[3])
+        i = 4
+        minor = _nonneg(p[4])
+        i = 5
+        orient = _float(p[5])
+        i = 6
+        sigma_lat = _nonneg(p[6])
+        i = 7
+        sigma_lon = _nonneg(p[7])
+        i = 8
+        sigma_alt = _nonneg(p[8])
+    except ValueError:
+        return _bad_field("GST", _GST_NAMES, i, p)
+    if orient is not None:
+        orient = (orient * _RAD) % _PI
+        if orient >= _PI:  # rounding of a tiny negative angle
+            orient = 0.0
+    return Gst(talker, time_s, rms, major, minor, orient, sigma_lat, sigma_lon, sigma_alt)
+
+
+_ZDA_NAMES = {1: "time", 2: "day,month,year"}
+
+
+def _zda(talker: str, p: list[str]) -> Zda | Reject:
+    """``$--ZDA,hhmmss.ss,xx,xx,xxxx,xx,xx``"""
+    if len(p) < 5:
+        return _too_few("ZDA", p, 4)
+    i = 1
+    try:
+        time_s = _tod(p[1])
+        i = 2
+        day = _count(p[2])
+        month = _count(p[3])
+        year = _count(p[4])
+        when = None
+        if day is not None and month is not None and year is not None:
+            when = date(year, month, day)
+    except ValueError:
+        return _bad_field("ZDA", _ZDA_NAMES, i, p)
+    utc = None
+    if when is not None and time_s is not None:
+        try:
+            utc = datetime(when.year, when.month, when.day, tzinfo=UTC) + timedelta(seconds=time_s)
+        except OverflowError:  # 9999-12-31 plus a day's seconds
+            return _bad_field("ZDA", _ZDA_NAMES, 2, p)
+    return Zda(talker, time_s, when, utc)
+
+
+def _hdt(talker: str, p: list[str]) -> Heading | Reject:
+    """``$--HDT,x.x,T``"""
+    if len(p) < 2:
+        return _too_few("HDT", p, 1)
+    try:
+        heading = _bearing(p[1])
+    except ValueError:
+        return _bad_field("HDT", _HEADING_NAMES, 1, p)
+    return _new_heading("HDT", talker, heading, heading is not None, None, False)
+
+
+_HEADING_NAMES = {1: "heading", 2: "mode"}
+_THS_MODES: Final = frozenset("AEMSV")
+
+
+def _ths(talker: str, p: list[str]) -> Heading | Reject:
+    """``$--THS,x.x,a``"""
+    if len(p) < 3:
+        return _too_few("THS", p, 2)
+    i = 1
+    try:
+        heading = _bearing(p[1])
+        i = 2
+        mode = p[2]
+        if mode not in _THS_MODES:
+            raise ValueError(mode)
+    except ValueError:
+        return _bad_field("THS", _HEADING_NAMES, i, p)
+    valid = heading is not None and mode != "V"
+    return _new_heading("THS", talker, heading, valid, mode, False)
+
+
+_HDG_NAMES = {1: "heading", 2: "deviation", 4: "variation"}
+
+
+def _hdg(talker: str, p: list[str]) -> Heading | Reject:
+    """``$--HDG,x.x,x.x,a,x.x,a``"""
+    n = len(p)
+    if n < 2:
+        return _too_few("HDG", p, 1)
+    if n < 6:
+        p += _PAD[: 6 - n]
+    i = 1
+    try:
+        sensor = _float(p[1])
+        if sensor is not None and not 0.0 <= sensor <= 360.0:
+            raise ValueError(p[1])
+        i = 2
+        deviation = _east_west(p[2], p[3])
+        i = 4
+        variation = _east_west(p[4], p[5])
+    except ValueError:
+        return _bad_field("HDG", _HDG_NAMES, i, p)
+    heading = None
+    if sensor is not None:
+        heading = _wrap((sensor + (deviation or 0.0) + (variation or 0.0)) * _RAD)
+    return Heading("HDG", talker, heading, heading is not None, None, variation is None)
+
+
+_ROT_NAMES = {1: "rate of turn", 2: "status"}
+
+
+def _rot(talker: str, p: list[str]) -> Rot | Reject:
+    """``$--ROT,x.x,A``"""
+    n = len(p)
+    if n < 2:
+        return _too_few("ROT", p, 1)
+    if n < 3:
+        p += _PAD[: 3 - n]
+    i = 1
+    try:
+        rate = _float(p[1])
+        i = 2
+        status = p[2]
+        if status != "A" and status != "V" and status:
+            raise ValueError(status)
+    except ValueError:
+        return _bad_field("ROT", _ROT_NAMES, i, p)
+    if rate is not None:
+        rate *= _RAD_S_PER_DEG_MIN
+    return Rot(talker, rate, rate is not None and status == "A")
+
+
+_DECODERS: Final[dict[str, _Decoder]] = {
+    "GGA": _gga,
+    "GNS": _gns,
+    "RMC": _rmc,
+    "VTG": _vtg,
+    "GST": _gst,
+    "ZDA": _zda,
+    "HDT": _hdt,
+    "THS": _ths,
+    "HDG": _hdg,
+    "ROT": _rot,
+}
