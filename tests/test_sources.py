@@ -1,0 +1,641 @@
+"""The gateway's sources (serial/pty, UDP, TCP client and server, file) against the simulator's sinks.
+
+Everything runs on this machine: ptys, and sockets on 127.0.0.1 with ephemeral ports. Every wait has a
+deadline, so a broken source fails a test instead of hanging it; no test leaves a reader thread behind.
+"""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import TypeVar
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from gateway.sources import (
+    BACKOFF_FIRST_S,
+    Chunk,
+    FileSource,
+    SerialSource,
+    Source,
+    SourceError,
+    TcpClientSource,
+    TcpListenSource,
+    UdpSource,
+    open_source,
+)
+from gateway.sources import nmea_time_of_day as tod
+from simulator.transports import PtySink, TcpServerSink, UdpSink
+
+GGA = b"$GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*47\r\n"
+S = TypeVar("S", bound=Source)
+
+HDT = b"$HEHDT,274.07,T*03\r\n"
+# bytes a careless tty would translate or swallow: bare CR, LF-CR, NUL, XON/XOFF, ^C, 0xFF, a MAVLink marker
+AWKWARD = b"$GPZDA,201530.00,04,07,2002,00,00*60\r\n\r\n\n\r\x00\x11\x13\x03\xff\xfe MAVLink\xfd\x09\r\n"
+
+
+class Collector:
+    """A ``deliver`` callback that keeps chunks; `wait` polls a condition with a deadline."""
+
+    def __init__(self) -> None:
+        self.chunks: list[Chunk] = []
+        self._lock = threading.Lock()
+
+    def __call__(self, chunk: Chunk) -> None:
+        with self._lock:
+            self.chunks.append(chunk)
+
+    @property
+    def data(self) -> bytes:
+        with self._lock:
+            return b"".join(c.data for c in self.chunks)
+
+    def wait(
+        self, condition: Callable[[], bool], timeout: float = 5.0, poll: Callable[[], object] | None = None
+    ) -> bool:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if poll is not None:
+                poll()
+            if condition():
+                return True
+            time.sleep(0.01)
+        return condition()
+
+    def wait_bytes(self, n: int, timeout: float = 5.0, poll: Callable[[], object] | None = None) -> bytes:
+        self.wait(lambda: len(self.data) >= n, timeout, poll)
+        return self.data
+
+
+def wait_until(condition: Callable[[], bool], timeout: float = 5.0) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.01)
+    return condition()
+
+
+def read_until(sink: UdpSink | TcpServerSink | PtySink, wanted: bytes, timeout: float = 3.0) -> bytes:
+    received = b""
+    deadline = time.monotonic() + timeout
+    while wanted not in received and time.monotonic() < deadline:
+        received += sink.read_available()
+        time.sleep(0.01)
+    return received
+
+
+def source_threads() -> list[threading.Thread]:
+    return [t for t in threading.enumerate() if t.name.startswith("dpgw-source-") and t.is_alive()]
+
+
+@pytest.fixture
+def opened() -> Iterator[list[Source]]:
+    """Sources to stop at the end of the test; then no reader thread may be left."""
+    before = set(source_threads())  # threads of other tests' sources are not ours to judge
+    sources: list[Source] = []
+    yield sources
+    for src in sources:
+        src.stop()
+    assert wait_until(lambda: not set(source_threads()) - before, 2.0), source_threads()
+
+
+def start(
+    opened: list[Source], name: str, url: str, cls: type[S], *, timeout_s: float = 2.0
+) -> tuple[S, Collector]:
+    """Open ``url`` (it must give a ``cls``), start it with a `Collector`; stopped at the end of the test."""
+    src = open_source(name, url, timeout_s=timeout_s)
+    assert isinstance(src, cls), src
+    got = Collector()
+    opened.append(src)
+    src.start(got)
+    return src, got
+
+
+def free_tcp_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+# -------------------------------------------------------------------------------------------- serial
+
+
+def test_serial_pty_bytes_arrive_in_order_unchanged(opened: list[Source]) -> None:
+    with PtySink() as sink:
+        before_ns = time.time_ns()
+        src, got = start(opened, "gps", f"serial://{sink.device}?baud=115200", SerialSource)
+        assert isinstance(src, SerialSource) and src.baud == 115200
+        assert src.stats.connected
+        sent = b""
+        for i in range(50):
+            piece = (GGA, HDT, AWKWARD)[i % 3]
+            sink.write(piece)
+            sent += piece
+            if i % 10 == 0:
+                time.sleep(0.01)
+        assert got.wait_bytes(len(sent)) == sent
+        chunks = list(got.chunks)
+        assert all(c.source == "gps" and c.peer == "" for c in chunks)
+        assert all(before_ns <= c.rx_ns <= time.time_ns() for c in chunks)
+        monos = [c.rx_mono_ns for c in chunks]
+        assert monos == sorted(monos)
+        assert src.stats.bytes_received == len(sent) and src.stats.chunks == len(chunks)
+
+
+def test_serial_pty_link_and_write_back(opened: list[Source], tmp_path: Path) -> None:
+    link = tmp_path / "dpgw-gps"
+    with PtySink(str(link)) as sink:
+        src, got = start(
+            opened, "gps", f"pty://{link}?baud=4800&bytesize=8&parity=N&stopbits=1", SerialSource
+        )
+        sink.write(GGA)
+        assert got.wait_bytes(len(GGA)) == GGA
+        assert src.write(b"\xfd\x09command\r\n")
+        assert read_until(sink, b"command\r\n") == b"\xfd\x09command\r\n"
+        assert src.stats.bytes_sent == 11
+
+
+def test_serial_missing_device_names_source_url_and_device(opened: list[Source]) -> None:
+    src = open_source("gyro_nope", "serial:///dev/ttyUSB_nope?baud=4800")  # parsing does not open
+    with pytest.raises(SourceError) as info:
+        src.start(Collector())
+    text = str(info.value)
+    assert "'gyro_nope'" in text and "serial:///dev/ttyUSB_nope?baud=4800" in text
+    assert "/dev/ttyUSB_nope does not exist" in text and "check the cable/udev name" in text
+    assert not src.running and "dpgw-source-gyro_nope" not in {t.name for t in source_threads()}
+    src.stop()  # harmless after a failed start
+
+
+def test_a_file_named_as_a_serial_port_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "log.nmea"
+    path.write_bytes(GGA)
+    with pytest.raises(SourceError, match=r"log.nmea is not a serial device .* — for a file write file://"):
+        open_source("gps", str(path)).start(Collector())  # a bare path is pymavlink's serial device
+
+
+def test_serial_port_in_use_is_refused(opened: list[Source]) -> None:
+    with PtySink() as sink:
+        start(opened, "gps", f"serial://{sink.device}", SerialSource)
+        second = open_source("gps2", f"serial://{sink.device}")
+        with pytest.raises(SourceError, match=r"source 'gps2': serial port .* is in use"):
+            second.start(Collector())
+
+
+def test_serial_unplugged_while_running_reopens(opened: list[Source], tmp_path: Path) -> None:
+    """The pty vanishing is a USB adapter unplugged: counted, marked, reopened with back-off, never raised."""
+    link = tmp_path / "usb"
+    sink = PtySink(str(link))
+    try:
+        src, got = start(opened, "gps", f"pty://{link}", SerialSource)
+        sink.write(GGA)
+        assert got.wait_bytes(len(GGA)) == GGA
+    finally:
+        sink.close()  # unplugged
+    assert wait_until(lambda: not src.stats.connected, 3.0)
+    assert src.stats.errors["disconnected"] == 1 and src.running
+    with PtySink(str(link)) as sink2:  # plugged in again (a new pty behind the same name)
+        assert wait_until(lambda: src.stats.connected, 5.0)
+        assert src.stats.reconnects == 1
+        sink2.write(HDT)
+        assert got.wait_bytes(len(GGA + HDT)) == GGA + HDT
+
+
+# ----------------------------------------------------------------------------------------------- UDP
+
+
+def test_udp_listen_receives_datagrams_and_replies_to_last_peer(opened: list[Source]) -> None:
+    src, got = start(opened, "dgps", "udp://127.0.0.1:0", UdpSource)
+    assert isinstance(src, UdpSource) and src.port > 0 and src.stats.connected
+    assert not src.write(b"nobody yet")  # no peer and no target: cannot answer
+    with UdpSink("127.0.0.1", src.port) as sink:
+        for sentence in (GGA, HDT, GGA):
+            sink.write(sentence)
+        got.wait(lambda: len(got.chunks) >= 3)
+        assert [c.data for c in got.chunks] == [GGA, HDT, GGA]  # one chunk per datagram
+        assert got.chunks[0].peer == f"127.0.0.1:{sink.port}"
+        assert src.write(b"reply")
+        assert read_until(sink, b"reply") == b"reply"
+
+
+def test_udp_write_to_a_target_and_to_a_named_peer(opened: list[Source]) -> None:
+    with UdpSink("127.0.0.1", 9, bind=("127.0.0.1", 0)) as target:
+        src, got = start(opened, "mav", f"udp://127.0.0.1:0?target=127.0.0.1:{target.port}", UdpSource)
+        assert src.write(b"to target")  # a configured target: writable before anyone spoke
+        assert read_until(target, b"to target") == b"to target"
+        with UdpSink("127.0.0.1", src.port) as other:  # a second talker on the same port
+            other.write(b"x")
+            assert got.wait(lambda: bool(got.chunks))
+            assert src.write(b"to peer", peer=got.chunks[0].peer)
+            assert not src.write(b"?", peer="127.0.0.1:1")  # a peer never heard of
+            assert read_until(other, b"to peer") == b"to peer"
+            assert src.write(b"again")  # without peer=: the target, not the last peer
+            assert read_until(target, b"again") == b"again"
+
+
+def test_udp_port_in_use_is_refused(opened: list[Source]) -> None:
+    first, _ = start(opened, "a", "udp://127.0.0.1:0", UdpSource)
+    second = open_source("b", f"udp://127.0.0.1:{first.port}")
+    with pytest.raises(
+        SourceError, match=r"source 'b': cannot listen on 127.0.0.1:\d+: Address already in use"
+    ):
+        second.start(Collector())
+
+
+def test_udpout_announces_itself_with_a_heartbeat_and_reads_replies(opened: list[Source]) -> None:
+    from gateway.codecs.mavlink import parse_frames
+
+    far = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    far.bind(("127.0.0.1", 0))
+    far.settimeout(3.0)
+    try:
+        src, got = start(opened, "thrusters", f"udpout:127.0.0.1:{far.getsockname()[1]}", UdpSource)
+        assert isinstance(src, UdpSource) and src.target == ("127.0.0.1", far.getsockname()[1])
+        hello, addr = far.recvfrom(1024)
+        (msg,) = parse_frames(hello)
+        assert msg.get_type() == "HEARTBEAT" and msg.get_srcComponent() == 191
+        far.sendto(b"\xfdfeedback", addr)
+        assert got.wait_bytes(9) == b"\xfdfeedback"
+        assert src.write(b"command")
+        assert far.recvfrom(1024)[0] == b"command"
+    finally:
+        far.close()
+
+
+def test_udp_multicast_group(opened: list[Source]) -> None:
+    group = "239.255.77.13"
+    try:
+        src, got = start(opened, "mc", f"udp://{group}:0?iface=127.0.0.1", UdpSource)
+    except SourceError as exc:  # pragma: no cover — a machine without multicast on loopback
+        pytest.skip(str(exc))
+    sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        sender.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_IF, socket.inet_aton("127.0.0.1"))
+        sender.sendto(GGA, (group, src.port))
+        if not got.wait(lambda: bool(got.chunks), 2.0):  # pragma: no cover
+            pytest.skip("multicast is not routed on loopback here")
+        assert got.chunks[0].data == GGA
+    finally:
+        sender.close()
+
+
+# ----------------------------------------------------------------------------------------------- TCP
+
+
+def test_tcp_client_receives_and_reconnects_after_the_server_restarts(opened: list[Source]) -> None:
+    server = TcpServerSink("127.0.0.1", 0)
+    port = server.port
+    try:
+        src, got = start(opened, "dgps", f"tcp://127.0.0.1:{port}", TcpClientSource)
+        assert isinstance(src, TcpClientSource)
+        assert got.wait(lambda: b"$GPGGA" in got.data, 5.0, poll=lambda: server.write(GGA))
+        assert src.stats.connected and src.stats.reconnects == 0
+        assert got.chunks[0].peer == f"127.0.0.1:{port}"
+        assert src.write(b"cmd")
+        assert wait_until(lambda: b"cmd" in server.read_available(), 3.0)
+    finally:
+        server.close()
+    assert wait_until(lambda: not src.stats.connected, 3.0)
+    assert src.stats.errors["disconnected"] == 1
+    assert not src.write(b"lost")  # not connected: cannot write now
+    with TcpServerSink("127.0.0.1", port) as server2:  # the same port, a new server
+        assert got.wait(lambda: HDT in got.data, 8.0, poll=lambda: server2.write(HDT))
+        assert src.stats.reconnects >= 1 and src.stats.connected
+
+
+def test_tcp_client_without_a_server_keeps_retrying_with_back_off(opened: list[Source]) -> None:
+    port = free_tcp_port()
+    t0 = time.monotonic()
+    src, got = start(
+        opened, "dgps", f"tcp://127.0.0.1:{port}", TcpClientSource
+    )  # does not raise: the server may come later
+    time.sleep(4 * BACKOFF_FIRST_S - 0.3)  # attempts at 0, 0.5, 1.5 s (waits 0.5, 1, 2 ...)
+    attempts = src.stats.errors["connect failed"]
+    assert 2 <= attempts <= 4, attempts
+    assert not src.stats.connected and src.running and not got.chunks
+    assert "Connection refused" in (src.stats.last_error or "")
+    with TcpServerSink("127.0.0.1", port) as server:  # the link comes up later
+        assert got.wait(lambda: GGA in got.data, 8.0, poll=lambda: server.write(GGA))
+    assert time.monotonic() - t0 < 12
+
+
+def test_tcp_listen_takes_several_clients(opened: list[Source]) -> None:
+    src, got = start(opened, "mav", "tcp-listen://127.0.0.1:0", TcpListenSource)
+    assert isinstance(src, TcpListenSource) and src.port > 0 and not src.stats.connected
+    a = socket.create_connection(("127.0.0.1", src.port), timeout=3)
+    b = socket.create_connection(("127.0.0.1", src.port), timeout=3)
+    try:
+        assert wait_until(lambda: len(src.clients) == 2, 3.0) and src.stats.connected
+        a.sendall(b"from a")
+        b.sendall(b"from b")
+        got.wait(lambda: len(got.data) >= 12)
+        peers = {c.data: c.peer for c in got.chunks}
+        assert peers[b"from a"] == f"127.0.0.1:{a.getsockname()[1]}"
+        assert peers[b"from b"] == f"127.0.0.1:{b.getsockname()[1]}"
+        assert src.write(b"all")
+        assert a.recv(16) == b"all" and b.recv(16) == b"all"
+        assert src.write(b"only b", peer=peers[b"from b"])
+        assert b.recv(16) == b"only b"
+        a.close()
+        assert wait_until(lambda: len(src.clients) == 1, 3.0)
+    finally:
+        a.close()
+        b.close()
+
+
+def test_tcp_listen_port_in_use_is_refused(opened: list[Source]) -> None:
+    first, _ = start(opened, "a", "tcpin:127.0.0.1:0", TcpListenSource)
+    second = open_source("b", f"tcp-listen://127.0.0.1:{first.port}")
+    with pytest.raises(SourceError, match=r"source 'b': cannot listen on .*Address already in use"):
+        second.start(Collector())
+
+
+# ---------------------------------------------------------------------------------------------- file
+
+
+def test_file_fast_delivers_the_whole_file_in_whole_lines(opened: list[Source], tmp_path: Path) -> None:
+    path = tmp_path / "log.nmea"
+    content = b"".join((GGA, HDT)[i % 2] for i in range(5000)) + b"$GPHDT,1.0,T"  # last line unterminated
+    path.write_bytes(content)
+    src, got = start(opened, "log", f"file://{path}?rate=fast", FileSource)
+    assert isinstance(src, FileSource)
+    assert wait_until(lambda: src.finished, 5.0)
+    assert got.data == content
+    assert all(c.data.endswith(b"\n") for c in got.chunks[:-1])
+    assert not src.stats.connected and not src.write(b"x")
+    assert wait_until(lambda: not src.running, 2.0)
+
+
+def _gga(hhmmss: str) -> bytes:
+    return f"$GPGGA,{hhmmss},4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*00\r\n".encode()
+
+
+def test_file_realtime_is_paced_by_the_sentence_times(opened: list[Source], tmp_path: Path) -> None:
+    path = tmp_path / "log.nmea"
+    # 1.5 s of sentences across midnight; HDT has no time and follows the GGA before it at once
+    lines = [_gga("235959.00"), HDT, _gga("235959.50"), HDT, _gga("000000.00"), _gga("000000.50")]
+    path.write_bytes(b"".join(lines))
+    src, got = start(opened, "log", f"file://{path}", FileSource)  # realtime is the default
+    assert wait_until(lambda: src.finished, 6.0)
+    chunks = got.chunks
+    assert [c.data for c in chunks] == lines
+    t = [(c.rx_mono_ns - chunks[0].rx_mono_ns) / 1e9 for c in chunks]
+    assert 1.35 <= t[-1] <= 3.0, t
+    assert 0.35 <= t[2] <= 1.5 and t[1] < 0.3, t
+
+
+def test_file_rate_in_lines_per_second(opened: list[Source], tmp_path: Path) -> None:
+    path = tmp_path / "log.nmea"
+    path.write_bytes(HDT * 10)
+    src, got = start(opened, "log", f"file://{path}?rate=20", FileSource)
+    assert wait_until(lambda: src.finished, 5.0)
+    span = (got.chunks[-1].rx_mono_ns - got.chunks[0].rx_mono_ns) / 1e9
+    assert len(got.chunks) == 10 and 0.4 <= span <= 1.5, span
+
+
+def test_file_missing_is_refused(tmp_path: Path) -> None:
+    src = open_source("log", f"file://{tmp_path}/nope.nmea")
+    with pytest.raises(SourceError, match=r"source 'log': file .*nope.nmea does not exist"):
+        src.start(Collector())
+
+
+def test_nmea_time_of_day() -> None:
+    assert tod(_gga("123519.25")) == pytest.approx(12 * 3600 + 35 * 60 + 19.25)
+    assert tod(b"$GPGLL,4916.45,N,12311.12,W,225444,A*1D\r\n") == 22 * 3600 + 54 * 60 + 44
+    assert tod(b"$GPZDA,201530.00,04,07,2002,00,00*60\r\n") == 20 * 3600 + 15 * 60 + 30
+    assert tod(HDT) is None and tod(b"$GPGGA,,,,*00") is None and tod(b"garbage") is None
+
+
+# ----------------------------------------------------------------------------------------- staleness
+
+
+def test_stale_after_the_sender_goes_quiet(opened: list[Source]) -> None:
+    src, got = start(opened, "gyro", "udp://127.0.0.1:0", UdpSource)
+    assert src.is_stale(0.3) and src.age_s() == float("inf")  # nothing yet: stale
+    with UdpSink("127.0.0.1", src.port) as sink:
+        sink.write(HDT)
+        assert got.wait(lambda: bool(got.chunks))
+        assert not src.is_stale(0.3) and src.age_s() < 0.3
+        assert wait_until(lambda: src.is_stale(0.3), 2.0)
+        assert src.age_s() > 0.3
+        last = src.stats.last_rx_mono_ns
+        assert last is not None and src.age_s(last + 250_000_000) == pytest.approx(0.25)
+        sink.write(HDT)
+        assert got.wait(lambda: len(got.chunks) >= 2)
+        assert not src.is_stale(0.3)
+
+
+def test_an_exception_in_deliver_is_counted_and_reading_goes_on(opened: list[Source]) -> None:
+    seen: list[bytes] = []
+
+    def deliver(chunk: Chunk) -> None:
+        seen.append(chunk.data)
+        if chunk.data == b"bad":
+            raise ValueError("consumer bug")
+
+    src = open_source("u", "udp://127.0.0.1:0")
+    assert isinstance(src, UdpSource)
+    opened.append(src)
+    src.start(deliver)
+    with UdpSink("127.0.0.1", src.port) as sink:
+        for d in (b"bad", b"good", b"bad", b"good"):
+            sink.write(d)
+        assert wait_until(lambda: len(seen) == 4)
+    assert src.stats.errors["deliver raised"] == 2 and src.running
+
+
+# ------------------------------------------------------------------------------------------ the URLs
+
+
+@pytest.mark.parametrize(
+    ("url", "cls", "attrs"),
+    [
+        ("udpin:0.0.0.0:14550", UdpSource, {"host": "0.0.0.0", "port": 14550, "target": None}),
+        ("udp:127.0.0.1:14550", UdpSource, {"host": "127.0.0.1", "port": 14550, "target": None}),
+        ("udpout:10.0.0.2:14550", UdpSource, {"host": "", "port": 0, "target": ("10.0.0.2", 14550)}),
+        ("tcp:127.0.0.1:5760", TcpClientSource, {"host": "127.0.0.1", "port": 5760}),
+        ("tcpin:0.0.0.0:5760", TcpListenSource, {"host": "0.0.0.0", "port": 5760}),
+        ("/dev/ttyUSB0,57600", SerialSource, {"device": "/dev/ttyUSB0", "baud": 57600}),
+        ("/dev/ttyACM0", SerialSource, {"device": "/dev/ttyACM0", "baud": 115200}),
+        ("serial:/dev/ttyUSB0:57600", SerialSource, {"device": "/dev/ttyUSB0", "baud": 57600}),
+        ("serial:///dev/ttyUSB0", SerialSource, {"device": "/dev/ttyUSB0", "baud": 4800}),
+        (
+            "serial:///dev/ttyS1?baud=38400&bytesize=7&parity=E&stopbits=2",
+            SerialSource,
+            {"baud": 38400, "bytesize": 7, "parity": "E", "stopbits": 2},
+        ),
+        ("pty:///tmp/dpgw-gps", SerialSource, {"device": "/tmp/dpgw-gps"}),
+        ("udp://0.0.0.0:10110", UdpSource, {"host": "0.0.0.0", "port": 10110, "target": None}),
+        ("udp://[::1]:10110", UdpSource, {"host": "::1", "port": 10110}),
+        ("udp://:0?target=127.0.0.1:9", UdpSource, {"port": 0, "target": ("127.0.0.1", 9)}),
+        ("udp://239.1.2.3:10110?iface=eth0", UdpSource, {"multicast": True, "iface": "eth0"}),
+        ("tcp://gps.local:10110", TcpClientSource, {"host": "gps.local", "port": 10110}),
+        ("tcp-listen://0.0.0.0:0", TcpListenSource, {"port": 0}),
+        ("file:///data/run1.nmea?rate=fast", FileSource, {"path": "/data/run1.nmea", "rate": "fast"}),
+        ("file:///data/run1.nmea", FileSource, {"rate": "realtime"}),
+        ("file:///data/run1.nmea?rate=12.5", FileSource, {"rate": 12.5}),
+    ],
+)
+def test_urls_parse_to_the_right_kind(url: str, cls: type[Source], attrs: dict[str, object]) -> None:
+    src = open_source("s", url, hello=b"hi")  # parse only: nothing is opened
+    assert type(src) is cls and src.url == url and src.name == "s"
+    assert (
+        src.kind
+        == {
+            UdpSource: "udp",
+            TcpClientSource: "tcp",
+            TcpListenSource: "tcp-listen",
+            SerialSource: "serial",
+            FileSource: "file",
+        }[cls]
+    )
+    for key, value in attrs.items():
+        assert getattr(src, key) == value, key
+    assert not src.running and not src.stats.connected
+
+
+@pytest.mark.parametrize(
+    "url",
+    [
+        "",
+        "bogus://x",
+        "udp://127.0.0.1",
+        "udp://127.0.0.1:70000",
+        "udp://127.0.0.1:10110?bogus=1",
+        "udp://127.0.0.1:10110?iface=eth0",
+        "udp://127.0.0.1:10110?target=nowhere",
+        "tcp://:10110",
+        "tcp://127.0.0.1:0",
+        "tcp://127.0.0.1:10110/path",
+        "tcp:127.0.0.1",
+        "udpout:0.0.0.0",
+        "serial://dev/ttyUSB0",
+        "serial:///dev/ttyUSB0?baud=fast",
+        "serial:///dev/ttyUSB0?parity=X",
+        "serial:///dev/ttyUSB0?bytesize=9",
+        "serial:///dev/ttyUSB0?stopbits=3",
+        "serial:///dev/ttyUSB0?baud=4800&baud=9600",
+        "pty",
+        "file://log.nmea",
+        "file:///x?rate=slow",
+        "file:///x?rate=0",
+        "127.0.0.1:10110",
+        "udp:/",
+        "tcp-listen://host",
+        "udp://1.2.3.4:5 6",
+        "udp://1.2.3.4:5#frag",
+    ],
+)
+def test_bad_urls_are_refused_naming_the_url(url: str) -> None:
+    with pytest.raises(SourceError) as info:
+        open_source("dgps1", url)
+    assert str(info.value).startswith("source 'dgps1': ")
+    assert f"({url})" in str(info.value)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.text(max_size=60)
+    | st.from_regex(r"(udp|tcp|serial|file|pty|udpin|tcpin|udpout):/{0,3}[\w.:?=&/\[\]-]{0,30}")
+)
+def test_any_text_gives_a_source_or_a_source_error(url: str) -> None:
+    try:
+        src = open_source("x", url, hello=b"")
+    except SourceError as exc:
+        assert "source 'x'" in str(exc)
+    else:
+        assert isinstance(src, Source) and not src.running
+
+
+def test_timeout_must_be_positive() -> None:
+    with pytest.raises(SourceError, match="timeout_s"):
+        open_source("x", "udp://0.0.0.0:0", timeout_s=0)
+
+
+def test_start_twice_is_a_programming_error(opened: list[Source]) -> None:
+    src, _ = start(opened, "u", "udp://127.0.0.1:0", UdpSource)
+    with pytest.raises(RuntimeError):
+        src.start(Collector())
+    src.stop()
+    src.stop()  # idempotent
+    with pytest.raises(RuntimeError):
+        src.start(Collector())  # a stopped source is not restarted: open a new one
+    open_source("never", "udp://127.0.0.1:0").stop()  # stop before start is harmless
+
+
+# ----------------------------------------------------------------------------------- stop is prompt
+
+
+def _serial(tmp: Path, keep: list[object]) -> str:
+    sink = PtySink()
+    keep.append(sink)
+    return f"serial://{sink.device}"
+
+
+def _tcp_connected(tmp: Path, keep: list[object]) -> str:
+    server = TcpServerSink("127.0.0.1", 0)
+    keep.append(server)
+    return f"tcp://127.0.0.1:{server.port}"
+
+
+def _tcp_no_server(tmp: Path, keep: list[object]) -> str:
+    return f"tcp://127.0.0.1:{free_tcp_port()}"
+
+
+def _tcp_listen(tmp: Path, keep: list[object]) -> str:
+    return "tcp-listen://127.0.0.1:0"
+
+
+def _file_waiting(tmp: Path, keep: list[object]) -> str:
+    (tmp / "slow.nmea").write_bytes(HDT * 5)
+    return f"file://{tmp}/slow.nmea?rate=0.2"
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        _serial,
+        lambda tmp, keep: "udp://127.0.0.1:0",
+        lambda tmp, keep: "udpout:127.0.0.1:9",
+        _tcp_connected,
+        _tcp_no_server,
+        _tcp_listen,
+        _file_waiting,
+    ],
+    ids=["serial", "udp", "udpout", "tcp-connected", "tcp-retrying", "tcp-listen", "file-paced"],
+)
+def test_stop_is_prompt_and_leaves_no_thread(
+    make: Callable[[Path, list[object]], str], tmp_path: Path, opened: list[Source]
+) -> None:
+    keep: list[object] = []
+    try:
+        src = open_source("s", make(tmp_path, keep))
+        opened.append(src)
+        src.start(Collector())
+        if isinstance(src, TcpListenSource):
+            keep.append(socket.create_connection(("127.0.0.1", src.port), timeout=3))
+        if isinstance(src, TcpClientSource) and keep:
+            server = keep[0]
+            assert isinstance(server, TcpServerSink)
+
+            def accepted() -> bool:
+                server.poll()  # the sink accepts clients when polled
+                return src.stats.connected
+
+            assert wait_until(accepted, 3.0)
+        time.sleep(0.3)  # let the reader settle into its blocking read / back-off wait
+        assert src.running
+        t0 = time.monotonic()
+        src.stop()
+        assert time.monotonic() - t0 < 1.5
+        assert not src.running and "dpgw-source-s" not in {t.name for t in threading.enumerate()}
+        assert not src.stats.connected
+    finally:
+        for thing in keep:
+            thing.close()  # type: ignore[attr-defined]
