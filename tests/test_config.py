@@ -1,0 +1,904 @@
+"""`gateway.config`: the examples load, defaults fill in, paths resolve, and every mistake is reported.
+
+A bad config raises one `ConfigError` that lists every problem as ``FILE: key.path: what (expected, got)``.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import socket
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from gateway.config import (
+    ConfigError,
+    GatewayConfig,
+    default_config,
+    format_problems,
+    load_config,
+    main,
+    parse_config,
+)
+from observers.passive_tuning import PassiveTuning
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = ROOT / "examples"
+
+BASE_TOML = """
+[vessel]
+name = "mss_supply"
+
+[[sources]]
+name = "dgps1"
+url = "serial:///dev/ttyUSB0?baud=4800"
+protocol = "nmea"
+roles = ["position"]
+lever_arm_m = [10.0, -2.0, -20.0]
+
+[[sources]]
+name = "gyro1"
+url = "serial:///dev/ttyUSB1?baud=4800"
+protocol = "nmea"
+roles = ["heading"]
+
+[[sources]]
+name = "thr"
+url = "udpin:0.0.0.0:14550"
+protocol = "mavlink"
+roles = ["thrusters"]
+"""
+
+KEY = "ab" * 32  # a valid 64-hex-character signing key
+
+
+def base() -> dict[str, Any]:
+    return tomllib.loads(BASE_TOML)
+
+
+def put(data: dict[str, Any], path: str, value: Any) -> None:
+    """Set (or with value DELETE remove) a dotted path; integers index arrays: ``sources.0.url``."""
+    *parents, last = path.split(".")
+    node: Any = data
+    for part in parents:
+        node = node[int(part)] if isinstance(node, list) else node.setdefault(part, {})
+    if isinstance(node, list):
+        node[int(last)] = value
+    elif value is DELETE:
+        del node[last]
+    else:
+        node[last] = value
+
+
+DELETE = object()
+
+
+def parse(data: dict[str, Any], tmp_path: Path) -> GatewayConfig:
+    return parse_config(data, base_dir=tmp_path, where="bad.toml")
+
+
+def problems_of(data: dict[str, Any], tmp_path: Path) -> list[str]:
+    with pytest.raises(ConfigError) as info:
+        parse(data, tmp_path)
+    return info.value.problems
+
+
+# --- the examples -----------------------------------------------------------------------------------------
+
+
+def example_files() -> list[Path]:
+    return sorted(EXAMPLES.glob("*.toml"))
+
+
+def test_there_are_examples() -> None:
+    names = {p.name for p in example_files()}
+    assert {"two_serial_nmea_mavlink.toml", "nmea_udp_multiplexer.toml", "ardupilot_boat.toml"} <= names
+
+
+@pytest.mark.parametrize("path", example_files(), ids=lambda p: p.name)
+def test_example_loads_without_opening_anything(path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Loading checks URLs for syntax only: no socket is made, no device opened (they need not exist)."""
+
+    def no_socket(*args: object, **kwargs: object) -> None:
+        raise AssertionError("loading a config must not open a socket")
+
+    monkeypatch.setattr(socket, "socket", no_socket)
+    config = load_config(path)
+    assert config.path == path.resolve()
+    assert config.sources_for("position") and config.sources_for("heading")
+    assert config.observer.tuning is not None and not config.observer.failed_checks
+    assert config.zenoh.prefix == f"dp/{config.vessel.name}"
+
+
+def test_two_serial_example() -> None:
+    c = load_config(EXAMPLES / "two_serial_nmea_mavlink.toml")
+    assert c.vessel.name == "mss_supply" and c.vessel_source == "mss_supply"
+    dgps, gyro, thr = c.sources
+    assert (dgps.transport, dgps.url, dgps.roles) == (
+        "serial",
+        "serial:///dev/ttyUSB0?baud=4800",
+        ("position",),
+    )
+    assert dgps.lever_arm_m == (10.0, -2.0, -20.0)
+    assert (gyro.transport, gyro.roles, gyro.timeout_s) == ("serial", ("heading",), 1.0)
+    assert (thr.protocol, thr.transport, thr.roles, thr.system_id) == (
+        "mavlink",
+        "pymavlink",
+        ("thrusters",),
+        1,
+    )
+    assert c.observer.tuning.omega0 == pytest.approx(2 * math.pi / 8.0)
+    assert c.log.path == EXAMPLES / "logs" / "supply.mcap"
+    assert c.datum.first_fix
+
+
+def test_multiplexer_example() -> None:
+    c = load_config(EXAMPLES / "nmea_udp_multiplexer.toml")
+    (mux,) = c.sources
+    assert mux.url == "udp://0.0.0.0:10110" and mux.transport == "udp"
+    assert set(mux.roles) == {"position", "heading"}
+    assert (c.datum.lat_deg, c.datum.lon_deg, c.datum.first_fix) == (59.4, 10.5, False)
+    assert c.zenoh.mode == "client" and c.zenoh.connect == ("tcp/192.168.1.10:7447",)
+
+
+def test_ardupilot_example() -> None:
+    c = load_config(EXAMPLES / "ardupilot_boat.toml")
+    (ap,) = c.sources
+    assert set(ap.roles) == {"position", "heading", "thrusters"}
+    assert ap.ardupilot is not None
+    assert dict(ap.ardupilot.esc) == {1: 1, 2: 2, 3: 3}
+    assert dict(ap.ardupilot.servo) == {1: 1, 3: 2}
+    ids = {t.id for t in c.vessel.thrusters}
+    assert set(ap.ardupilot.esc.values()) <= ids
+
+
+def test_systemd_unit() -> None:
+    unit = (EXAMPLES / "dpgw.service").read_text()
+    for line in (
+        "ExecStart=",
+        "dpgw run --config /etc/dpgw/vessel.toml",
+        "Restart=on-failure",
+        "RestartSec=",
+        "User=dpgw",
+        "SupplementaryGroups=dialout",
+        "KillSignal=SIGTERM",
+        "TimeoutStopSec=",
+        "After=network-online.target",
+        "Wants=network-online.target",
+    ):
+        assert line in unit, line
+    assert (EXAMPLES / "README.md").is_file()
+
+
+# --- defaults and paths -----------------------------------------------------------------------------------
+
+
+def test_defaults_fill_in(tmp_path: Path) -> None:
+    c = parse_config(base(), base_dir=tmp_path)
+    d = default_config()
+    assert c.reference_point_m == (0.0, 0.0)
+    assert c.datum.first_fix and c.datum.lat_deg is None
+    _, gyro, thr = c.sources
+    assert gyro.lever_arm_m == (0.0, 0.0, 0.0)
+    assert (gyro.timeout_s, gyro.priority, gyro.allow_missing_checksum) == (2.0, 1, False)
+    assert (thr.system_id, thr.signing_key, thr.allow_unsigned, thr.ardupilot) == (None, None, False, None)
+    o = c.observer
+    assert (o.type, o.rate_hz, o.allow_unchecked) == ("passive", d["observer"]["rate_hz"], False)
+    assert o.tuning.omega0 == pytest.approx(2 * math.pi / d["observer"]["wave_period_s"])
+    assert o.tuning.omega0 == pytest.approx(PassiveTuning().omega0)
+    for key in ("zeta", "zeta_n", "cutoff_ratio", "bias_time_constant_s", "velocity_injection"):
+        assert getattr(o.tuning, key) == getattr(PassiveTuning(), key) == d["observer"][key]
+    assert o.tuning.omega_c is None and o.tuning.bias_corner is None
+    assert [ch.ok for ch in o.checks] == [True, True]
+    z = c.zenoh
+    assert (z.mode, z.connect, z.listen, z.config_file, z.multicast_scouting) == ("peer", (), (), None, True)
+    assert z.prefix == "dp/mss_supply"
+    assert c.log.path == tmp_path.resolve() / "logs" / "dpgw.mcap"
+    assert (c.log.rotate_mb, c.log.rotate_minutes, c.log.flush_interval_s, c.log.compression) == (
+        1024,
+        60,
+        1.0,
+        "zstd",
+    )
+    assert c.status.rate_hz == 1.0
+
+
+def test_default_config_is_the_parser_defaults(tmp_path: Path) -> None:
+    """default_config() (what `dpgw demo` fills in) gives the same config as leaving every key out."""
+    d = default_config()
+    assert d["sources"] == [] and d["vessel"]["name"] == "mss_supply"
+    d["sources"] = base()["sources"]
+    from_defaults = parse_config(d, base_dir=tmp_path)
+    implicit = parse_config(base(), base_dir=tmp_path)
+    for name in ("reference_point_m", "datum", "sources", "observer", "zenoh", "log", "status"):
+        assert getattr(from_defaults, name) == getattr(implicit, name), name
+    assert default_config("cybership2")["vessel"]["name"] == "cybership2"
+    assert default_config("my_ship.toml")["vessel"] == {
+        "file": "my_ship.toml",
+        "reference_point_m": [0.0, 0.0],
+    }
+    with pytest.raises(ConfigError, match="sources: empty"):
+        parse_config(default_config(), base_dir=tmp_path)
+
+
+VESSEL_FILE = """
+name = "test_boat"
+length_m = 2.0
+mass_kg = 30.0
+M = [[30.0, 0.0, 0.0], [0.0, 40.0, 1.0], [0.0, 1.0, 3.0]]
+D = [[2.0, 0.0, 0.0], [0.0, 7.0, 0.1], [0.0, 0.1, 0.5]]
+
+[[thrusters]]
+id = 7
+kind = "azimuth"
+x_m = -0.8
+y_m = 0.0
+max_thrust_n = 5.0
+azimuth_rate_rad_s = 1.0
+"""
+
+
+def test_relative_paths_resolve_against_the_config_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    folder = tmp_path / "bench"
+    (folder / "vessels").mkdir(parents=True)
+    (folder / "vessels" / "boat.toml").write_text(VESSEL_FILE)
+    (folder / "zenoh.json5").write_text('{ mode: "peer" }')
+    config = folder / "dpgw.toml"
+    config.write_text(
+        """
+[vessel]
+file = "vessels/boat.toml"
+reference_point_m = [0.1, 0.0]
+
+[[sources]]
+name = "replay"
+url = "file:data/trial.nmea"
+protocol = "nmea"
+roles = ["position", "heading"]
+lever_arm_m = [0.5, 0.0, -0.5]
+
+[observer]
+wave_period_s = 1.0
+
+[zenoh]
+config_file = "zenoh.json5"
+
+[log]
+path = "out/run.mcap"
+"""
+    )
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    c = load_config(Path("..") / "bench" / "dpgw.toml")
+    assert c.vessel.name == "test_boat" and [t.id for t in c.vessel.thrusters] == [7]
+    assert c.vessel_source == str((folder / "vessels" / "boat.toml").resolve())
+    assert c.reference_point_m == (0.1, 0.0)
+    assert c.sources[0].url == "file://" + (folder / "data" / "trial.nmea").resolve().as_posix()
+    assert c.sources[0].transport == "file"
+    assert c.zenoh.config_file == (folder / "zenoh.json5").resolve()
+    assert c.zenoh.prefix == "dp/test_boat"
+    assert c.log.path == (folder / "out" / "run.mcap").resolve()
+    assert c.path == config.resolve()
+
+
+def test_logging_disabled_and_writer_options(tmp_path: Path) -> None:
+    d = base()
+    d["log"] = {"path": "", "rotate_mb": 0, "rotate_minutes": 0, "compression": "lz4"}
+    c = parse(d, tmp_path)
+    assert not c.log.enabled and c.log.path is None
+    assert c.log.writer_options() == {
+        "rotate_bytes": None,
+        "rotate_seconds": None,
+        "flush_interval_s": 1.0,
+        "compression": "lz4",
+    }
+    d["log"] = {"rotate_mb": 2, "rotate_minutes": 1.5}
+    opts = parse(d, tmp_path).log.writer_options()
+    assert opts["rotate_bytes"] == 2 * 1024 * 1024 and opts["rotate_seconds"] == 90.0
+
+
+def test_zenoh_make_builds_a_config_without_opening(tmp_path: Path) -> None:
+    import zenoh
+
+    d = base()
+    d["zenoh"] = {"listen": ["tcp/127.0.0.1:0"], "multicast_scouting": False, "prefix": "bench/dp"}
+    c = parse(d, tmp_path)
+    assert c.zenoh.prefix == "bench/dp"
+    assert isinstance(c.zenoh.make(), zenoh.Config)
+
+
+def test_values_that_are_fine(tmp_path: Path) -> None:
+    d = base()
+    put(d, "datum", {"lat_deg": -33.9, "lon_deg": 151.2, "alt_m": 2.0})
+    put(d, "sources.2.signing_key", KEY)
+    put(d, "sources.2.allow_unsigned", True)
+    put(d, "sources.2.url", "/dev/ttyACM0,57600")
+    put(d, "sources.0.url", "tcp://192.168.1.20:2000")
+    put(d, "sources.1.url", "tcp-listen://:10111")
+    d["sources"] += [
+        {
+            "name": "sim",
+            "url": "pty:///tmp/dpgw-gps",
+            "protocol": "nmea",
+            "roles": ["position"],
+            "priority": 2,
+        },
+        {
+            "name": "mux",
+            "url": "udpin:0.0.0.0:10110",
+            "protocol": "nmea",
+            "roles": ["heading"],
+            "priority": 3,
+        },
+        {"name": "usb", "url": "/dev/ttyUSB3,4800", "protocol": "nmea", "roles": ["heading"], "priority": 4},
+        {
+            "name": "mc",
+            "url": "udp://239.1.2.3:10110?iface=eth0",
+            "protocol": "nmea",
+            "roles": ["heading"],
+            "priority": 5,
+        },
+        {
+            "name": "mc2",
+            "url": "udp://239.1.2.4:10110",
+            "protocol": "nmea",
+            "roles": ["heading"],
+            "priority": 6,
+        },
+        {
+            "name": "replay",
+            "url": "file:logs/trial.nmea?rate=fast",
+            "protocol": "nmea",
+            "roles": ["heading"],
+            "priority": 7,
+        },
+    ]
+    put(d, "sources.1.allow_missing_checksum", True)
+    put(d, "sources.2.roles", ["thrusters", "heading"])
+    put(d, "sources.2.priority", 2)
+    put(d, "sources.2.ardupilot", {"esc": {"1": 1, "2": 2, "4": 4}, "servo": {"1": 1}})
+    put(d, "observer", {"omega0": [0.8, 0.8, 0.7], "omega_c": 1.2, "bias_time_constant_s": math.inf})
+    put(d, "vessel.reference_point_m", [-5, 0])
+    c = parse(d, tmp_path)
+    thr = c.source("thr")
+    assert thr.signing_key == bytes.fromhex(KEY) and KEY not in repr(thr)
+    assert thr.transport == "pymavlink" and thr.ardupilot is not None and thr.ardupilot.esc[4] == 4
+    assert [s.name for s in c.sources_for("heading")][:3] == ["gyro1", "thr", "mux"]
+    assert c.observer.tuning.omega0 == (0.8, 0.8, 0.7) and c.observer.tuning.omega_c == 1.2
+    assert c.datum.fixed and c.datum.alt_m == 2.0
+    assert c.sources[1].transport == "tcp-listen"
+    assert [c.source(n).transport for n in ("sim", "mux", "usb", "mc", "replay")] == [
+        "pty",
+        "pymavlink",
+        "pymavlink",
+        "udp",
+        "file",
+    ]
+    assert (
+        c.source("replay").url
+        == "file://" + (tmp_path / "logs" / "trial.nmea").resolve().as_posix() + "?rate=fast"
+    )
+
+
+def test_allow_unchecked_loads_a_failing_tuning(tmp_path: Path) -> None:
+    d = base()
+    d["observer"] = {"wave_period_s": 7, "bias_corner": 0.1, "allow_unchecked": True}
+    c = parse(d, tmp_path)
+    assert [ch.name for ch in c.observer.failed_checks] == ["spr"]
+
+
+# --- bad configs ------------------------------------------------------------------------------------------
+
+# (id, {dotted path: value}, key path reported, a fragment of the message)
+BAD: list[tuple[str, dict[str, Any], str, str]] = [
+    (
+        "wrong type",
+        {"observer.rate_hz": "fast"},
+        "observer.rate_hz",
+        'wrong type (expected a number from 1 to 50 Hz, got a string "fast")',
+    ),
+    ("bool is not a number", {"sources.0.timeout_s": True}, "sources[0].timeout_s", "got a boolean true"),
+    (
+        "int expected",
+        {"sources.0.priority": 1.5},
+        "sources[0].priority",
+        "expected an integer >= 0, got a number 1.5",
+    ),
+    (
+        "out of range",
+        {"observer.rate_hz": 100},
+        "observer.rate_hz",
+        "out of range (expected a number from 1 to 50 Hz, got 100)",
+    ),
+    ("nan", {"sources.0.timeout_s": math.nan}, "sources[0].timeout_s", "not a finite number"),
+    (
+        "timeout zero",
+        {"sources.1.timeout_s": 0},
+        "sources[1].timeout_s",
+        "expected a number > 0 and <= 600 s",
+    ),
+    (
+        "latitude",
+        {"datum": {"lat_deg": 95.0, "lon_deg": 10.0}},
+        "datum.lat_deg",
+        "from -90 to 90 degrees, got 95.0",
+    ),
+    ("lon missing", {"datum": {"lat_deg": 59.0}}, "datum.lon_deg", "missing (expected lat_deg and lon_deg"),
+    ("empty datum", {"datum": {}}, "datum", "missing lat_deg and lon_deg"),
+    (
+        "datum both",
+        {"datum": {"lat_deg": 59.0, "lon_deg": 10.0, "first_fix": True}},
+        "datum",
+        "first_fix = true and a fixed point",
+    ),
+    ("unknown section", {"sourcess": []}, "sourcess", "unknown key, did you mean 'sources'?"),
+    ("unknown source key", {"sources.0.timout_s": 2.0}, "sources[0].timout_s", "did you mean 'timeout_s'?"),
+    (
+        "unknown observer key",
+        {"observer.wave_perod_s": 8.0},
+        "observer.wave_perod_s",
+        "did you mean 'wave_period_s'?",
+    ),
+    ("unknown log key", {"log.rotate_mib": 8}, "log.rotate_mib", "did you mean 'rotate_mb'?"),
+    (
+        "unknown key, no suggestion",
+        {"zenoh.banana": 1},
+        "zenoh.banana",
+        "unknown key (expected one of: mode, connect",
+    ),
+    (
+        "duplicate name",
+        {"sources.1.name": "dgps1"},
+        "sources[1].name",
+        'duplicate source name (expected unique names; sources[0] is also "dgps1")',
+    ),
+    ("bad name", {"sources.0.name": "DGPS-1"}, "sources[0].name", "expected lowercase letters, digits and _"),
+    (
+        "no heading",
+        {"sources.1.roles": ["position"], "sources.1.priority": 2},
+        "sources",
+        "no source has role 'heading' — add roles = [\"heading\"] to the gyro compass's [[sources]] entry",
+    ),
+    (
+        "no position",
+        {"sources.0.roles": ["heading"], "sources.0.priority": 2, "sources.0.lever_arm_m": DELETE},
+        "sources",
+        "no source has role 'position'",
+    ),
+    (
+        "role typo",
+        {"sources.1.roles": ["heding"]},
+        "sources[1].roles",
+        'role "heding" is not available for protocol "nmea", did you mean "heading"?',
+    ),
+    (
+        "thrusters over nmea",
+        {"sources.1.roles": ["heading", "thrusters"]},
+        "sources[1].roles",
+        'role "thrusters" is not available for protocol "nmea"',
+    ),
+    ("empty roles", {"sources.2.roles": []}, "sources[2].roles", "empty (expected an array of roles"),
+    ("repeated role", {"sources.1.roles": ["heading", "heading"]}, "sources[1].roles", "a role is repeated"),
+    (
+        "protocol",
+        {"sources.0.protocol": "nmea0183"},
+        "sources[0].protocol",
+        'expected "nmea" or "mavlink", got "nmea0183"',
+    ),
+    ("missing url", {"sources.0.url": DELETE}, "sources[0].url", "missing (expected a URL"),
+    (
+        "url scheme",
+        {"sources.0.url": "serail:///dev/ttyUSB0"},
+        "sources[0].url",
+        "unknown transport 'serail', did you mean serial://?",
+    ),
+    (
+        "url two slashes",
+        {"sources.0.url": "serial://dev/ttyUSB0"},
+        "sources[0].url",
+        "three slashes: serial:///dev/ttyUSB0",
+    ),
+    (
+        "url no slashes",
+        {"sources.0.url": "tcp-listen:0.0.0.0:10110"},
+        "sources[0].url",
+        "did you mean tcp-listen://0.0.0.0:10110?",
+    ),
+    ("no transport", {"sources.0.url": "192.168.1.5:10110"}, "sources[0].url", "expected udp://192.168.1.5"),
+    (
+        "url option (gateway.sources)",
+        {"sources.0.url": "serial:///dev/ttyUSB0?buad=4800"},
+        "sources[0].url",
+        "buad",
+    ),
+    (
+        "parity (gateway.sources)",
+        {"sources.0.url": "serial:///dev/ttyUSB0?parity=X"},
+        "sources[0].url",
+        "parity",
+    ),
+    (
+        "pymavlink serial for nmea",
+        {"sources.0.url": "serial:/dev/ttyUSB0"},
+        "sources[0].url",
+        "opens at 115200 baud (expected serial:///dev/ttyUSB0?baud=4800 for NMEA 0183",
+    ),
+    (
+        "bare device for nmea",
+        {"sources.0.url": "/dev/ttyUSB0"},
+        "sources[0].url",
+        "expected serial:///dev/ttyUSB0?baud=4800",
+    ),
+    (
+        "baud",
+        {"sources.0.url": "serial:///dev/ttyUSB0?baud=48000"},
+        "sources[0].url",
+        "unsupported baud rate '48000'",
+    ),
+    ("port", {"sources.0.url": "udp://0.0.0.0:70000"}, "sources[0].url", "port 70000 is out of range"),
+    ("no port", {"sources.0.url": "udp://0.0.0.0"}, "sources[0].url", "is not HOST:PORT"),
+    ("tcp no host", {"sources.0.url": "tcp://:2000"}, "sources[0].url", "no host to connect to"),
+    ("pymavlink no host", {"sources.2.url": "udpout::14550"}, "sources[2].url", "no host"),
+    ("unknown pymavlink", {"sources.2.url": "udpbcast:1.2.3.4:14550"}, "sources[2].url", "unknown transport"),
+    ("not a url", {"sources.0.url": "gps.nmea"}, "sources[0].url", "not a URL"),
+    (
+        "same device twice",
+        {"sources.1.url": "serial:///dev/ttyUSB0?baud=4800"},
+        "sources[1].url",
+        "same serial /dev/ttyUSB0 as sources[0]",
+    ),
+    (
+        "same udp port twice",
+        {"sources.0.url": "udp://0.0.0.0:14550"},
+        "sources[2].url",
+        "same udp 14550 as sources[0]",
+    ),
+    (
+        "lever arm short",
+        {"sources.0.lever_arm_m": [10.0, -2.0]},
+        "sources[0].lever_arm_m",
+        "expected an array of 3 numbers [x fwd, y stbd, z down]",
+    ),
+    (
+        "lever arm string",
+        {"sources.0.lever_arm_m": "10, -2, -20"},
+        "sources[0].lever_arm_m",
+        'got a string "10, -2, -20"',
+    ),
+    (
+        "lever arm in mm",
+        {"sources.0.lever_arm_m": [10000.0, -2000.0, -20000.0]},
+        "sources[0].lever_arm_m",
+        "farther from the reference point",
+    ),
+    (
+        "lever arm on gyro",
+        {"sources.1.lever_arm_m": [1.0, 0.0, 0.0]},
+        "sources[1].lever_arm_m",
+        'only for sources with role "position"',
+    ),
+    (
+        "signing key short",
+        {"sources.2.signing_key": "abc123"},
+        "sources[2].signing_key",
+        "expected 64 hexadecimal characters, got 6 characters",
+    ),
+    (
+        "signing key not hex",
+        {"sources.2.signing_key": "zz" * 32},
+        "sources[2].signing_key",
+        "not all hexadecimal",
+    ),
+    (
+        "signing key on nmea",
+        {"sources.0.signing_key": KEY},
+        "sources[0].signing_key",
+        'only for protocol "mavlink"',
+    ),
+    (
+        "unsigned without key",
+        {"sources.2.allow_unsigned": True},
+        "sources[2].allow_unsigned",
+        "has no effect without a signing_key",
+    ),
+    (
+        "system id",
+        {"sources.2.system_id": 300},
+        "sources[2].system_id",
+        "expected an integer from 1 to 255, got 300",
+    ),
+    (
+        "checksum on mavlink",
+        {"sources.2.allow_missing_checksum": True},
+        "sources[2].allow_missing_checksum",
+        'only for protocol "nmea"',
+    ),
+    (
+        "priority tie",
+        {"sources.2.roles": ["thrusters", "heading"]},
+        "sources[2].priority",
+        "sources 'gyro1' and 'thr' both have role 'heading' with priority 1",
+    ),
+    (
+        "ardupilot thruster id",
+        {"sources.2.ardupilot": {"esc": {"1": 9}}},
+        "sources[2].ardupilot.esc.1",
+        "vessel 'mss_supply' has no thruster 9 (expected one of its thruster ids: 1, 2, 3, 4, 5, 6)",
+    ),
+    (
+        "ardupilot servo to tunnel",
+        {"sources.2.ardupilot": {"servo": {"1": 4}}},
+        "sources[2].ardupilot.servo.1",
+        "thruster 4 is a tunnel thruster",
+    ),
+    (
+        "ardupilot index",
+        {"sources.2.ardupilot": {"esc": {"0": 1}}},
+        "sources[2].ardupilot.esc.0",
+        "not a ESC index (expected 1 to 32",
+    ),
+    (
+        "ardupilot twice",
+        {"sources.2.ardupilot": {"esc": {"1": 1, "2": 1}}},
+        "sources[2].ardupilot.esc.2",
+        "thruster 1 is also mapped from esc 1",
+    ),
+    ("ardupilot empty", {"sources.2.ardupilot": {}}, "sources[2].ardupilot", "maps nothing"),
+    (
+        "ardupilot key",
+        {"sources.2.ardupilot": {"escs": {"1": 1}}},
+        "sources[2].ardupilot.escs",
+        "did you mean 'esc'?",
+    ),
+    (
+        "ardupilot without thrusters role",
+        {"sources.2.roles": ["heading"], "sources.2.priority": 2, "sources.2.ardupilot": {"esc": {"1": 1}}},
+        "sources[2].ardupilot",
+        'expected "thrusters" in roles',
+    ),
+    (
+        "spr",
+        {"observer.wave_period_s": 7, "observer.bias_corner": 0.1},
+        "observer",
+        "tuning fails Proposition 1",
+    ),
+    (
+        "tuning rule",
+        {"observer.wave_period_s": 7, "observer.bias_corner": 2.0},
+        "observer",
+        "tuning fails (48)",
+    ),
+    (
+        "tuning per dof",
+        {"observer.wave_period_s": [7.0, 8.0]},
+        "observer.wave_period_s",
+        "or an array of 3 [surge, sway, yaw]",
+    ),
+    ("tuning negative", {"observer.zeta": -0.1}, "observer.zeta", "out of range (expected a positive number"),
+    (
+        "wave period and omega0",
+        {"observer.wave_period_s": 7, "observer.omega0": 0.9},
+        "observer",
+        "both wave_period_s and omega0",
+    ),
+    (
+        "omega_c and ratio",
+        {"observer.omega_c": 1.1, "observer.cutoff_ratio": 1.2},
+        "observer",
+        "both omega_c and cutoff_ratio",
+    ),
+    ("observer type", {"observer.type": "mmae"}, "observer.type", 'expected "passive", got "mmae"'),
+    (
+        "allow_unchecked type",
+        {"observer.allow_unchecked": "yes"},
+        "observer.allow_unchecked",
+        "expected true or false",
+    ),
+    (
+        "unknown vessel",
+        {"vessel.name": "mss_suply"},
+        "vessel.name",
+        'not a built-in vessel, did you mean "mss_supply"?',
+    ),
+    ("vessel missing", {"vessel": DELETE}, "vessel", "missing (expected a [vessel] table)"),
+    ("vessel name and file", {"vessel.file": "x.toml"}, "vessel", "both name and file given"),
+    ("vessel file missing", {"vessel": {"file": "nope.toml"}}, "vessel.file", "no such file"),
+    (
+        "vessel as string",
+        {"vessel": "mss_supply"},
+        "vessel",
+        'expected a [vessel] table, got a string "mss_supply"',
+    ),
+    (
+        "reference point",
+        {"vessel.reference_point_m": [0.0, 0.0, 0.0]},
+        "vessel.reference_point_m",
+        "expected an array of 2 numbers",
+    ),
+    (
+        "reference point far",
+        {"vessel.reference_point_m": [500.0, 0.0]},
+        "vessel.reference_point_m",
+        "outside the vessel",
+    ),
+    ("sources table", {"sources": {"name": "x"}}, "sources", "written [[sources]], got a table [sources]"),
+    ("no sources", {"sources": []}, "sources", "empty (expected at least one [[sources]]"),
+    ("zenoh mode", {"zenoh.mode": "router"}, "zenoh.mode", 'expected "peer" or "client", got "router"'),
+    ("zenoh endpoint", {"zenoh.connect": ["192.168.1.10:7447"]}, "zenoh.connect[0]", "not a Zenoh endpoint"),
+    (
+        "zenoh protocol",
+        {"zenoh.connect": ["tpc/192.168.1.10:7447"]},
+        "zenoh.connect[0]",
+        "unknown Zenoh protocol 'tpc'",
+    ),
+    (
+        "zenoh listen type",
+        {"zenoh.listen": "tcp/0.0.0.0:7447"},
+        "zenoh.listen",
+        "expected an array of endpoints",
+    ),
+    ("zenoh config missing", {"zenoh.config_file": "nope.json5"}, "zenoh.config_file", "no such file"),
+    ("zenoh prefix", {"zenoh.prefix": "dp/*"}, "zenoh.prefix", "'*' not allowed"),
+    ("zenoh prefix slash", {"zenoh.prefix": "/dp/ship"}, "zenoh.prefix", "no leading or trailing '/'"),
+    (
+        "log compression",
+        {"log.compression": "gzip"},
+        "log.compression",
+        'expected one of "zstd", "lz4", "none", got "gzip"',
+    ),
+    ("log suffix", {"log.path": "logs/run.log"}, "log.path", "expected a path ending in .mcap"),
+    ("rotate negative", {"log.rotate_mb": -1}, "log.rotate_mb", "out of range"),
+    ("rotate tiny", {"log.rotate_mb": 0.5}, "log.rotate_mb", "too small"),
+    ("flush", {"log.flush_interval_s": 0}, "log.flush_interval_s", "expected a number > 0 and <= 60 s"),
+    ("status rate", {"status.rate_hz": 0}, "status.rate_hz", "from 0.1 to 10 Hz, got 0"),
+    ("section type", {"log": "logs/x.mcap"}, "log", "expected a [log] table"),
+]
+
+
+@pytest.mark.parametrize(("changes", "key", "fragment"), [c[1:] for c in BAD], ids=[c[0] for c in BAD])
+def test_bad_config(changes: dict[str, Any], key: str, fragment: str, tmp_path: Path) -> None:
+    d = base()
+    for path, value in changes.items():
+        put(d, path, value)
+    problems = problems_of(d, tmp_path)
+    matching = [p for p in problems if p.startswith(f"bad.toml: {key}: ")]
+    assert matching, problems
+    assert any(fragment in p for p in matching), matching
+
+
+def test_every_problem_is_listed_with_file_and_key(tmp_path: Path) -> None:
+    path = tmp_path / "ship.toml"
+    path.write_text(
+        """
+[vessel]
+name = "mss_suply"
+
+[[sources]]
+name = "dgps1"
+url = "serail:///dev/ttyUSB0"
+protocol = "nmea"
+roles = ["position"]
+lever_arm_m = [1.0, 2.0]
+timout_s = 2
+
+[[sources]]
+name = "dgps1"
+url = "udpin:0.0.0.0:14550"
+protocol = "mavlink"
+roles = ["thrusters"]
+signing_key = "not-a-key"
+
+[observer]
+wave_period_s = 7
+bias_corner = 0.1
+rate_hz = "fast"
+
+[log]
+compression = "gzip"
+"""
+    )
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    problems = info.value.problems
+    expected_keys = [
+        "vessel.name",
+        "sources[0].timout_s",
+        "sources[0].url",
+        "sources[0].lever_arm_m",
+        "sources[1].signing_key",
+        "sources[1].name",
+        "sources",  # no heading
+        "observer.rate_hz",
+        "observer",  # SPR: checked with a stand-in vessel although vessel.name is wrong
+        "log.compression",
+    ]
+    assert [p.split(": ")[1] for p in problems] == expected_keys, problems
+    assert all(p.startswith(f"{path}: ") for p in problems)
+    message = str(info.value)
+    assert message.startswith(f"invalid configuration ({len(problems)} problems):")
+    assert all(p in message for p in problems)
+    assert "not-a-key" not in message  # a secret is never echoed
+
+
+def test_invalid_toml_names_line_and_column(tmp_path: Path) -> None:
+    path = tmp_path / "broken.toml"
+    path.write_text('[vessel]\nname = "mss_supply"\nreference_point_m = [0.0, 0.0\n\n[datum]\n')
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    (problem,) = info.value.problems
+    assert problem.startswith(f"{path}: not valid TOML: ")
+    assert "(at line 5, column 1)" in problem
+
+
+def test_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="no such file"):
+        load_config(tmp_path / "absent.toml")
+
+
+def test_vessel_error_is_wrapped(tmp_path: Path) -> None:
+    (tmp_path / "bad_vessel.toml").write_text(VESSEL_FILE.replace("[0.0, 1.0, 3.0]", "[0.0, 1.0, -3.0]"))
+    d = base()
+    d["vessel"] = {"file": "bad_vessel.toml"}
+    problems = problems_of(d, tmp_path)
+    assert any(p.startswith("bad.toml: vessel.file: ") and "field 'M'" in p for p in problems), problems
+
+
+def test_zenoh_keys_that_a_config_file_would_override(tmp_path: Path) -> None:
+    (tmp_path / "z.json5").write_text("{}")
+    d = base()
+    d["zenoh"] = {"config_file": "z.json5", "connect": ["tcp/10.0.0.1:7447"], "mode": "peer"}
+    problems = problems_of(d, tmp_path)
+    assert problems == [
+        "bad.toml: zenoh.connect: has no effect when zenoh.config_file is set (expected it in z.json5, or no "
+        "config_file)"
+    ]
+
+
+def test_format_problems_for_the_cli(tmp_path: Path) -> None:
+    d = base()
+    d["observer"] = {"rate_hz": 0}
+    with pytest.raises(ConfigError) as info:
+        parse(d, tmp_path)
+    text = format_problems(info.value)
+    lines = text.splitlines()
+    assert lines[0] == "dpgw: the configuration has 1 problem; nothing was started:"
+    assert lines[1].startswith("  bad.toml: observer.rate_hz: out of range")
+    assert format_problems(["a", "b"]).splitlines()[0].endswith("2 problems; nothing was started:")
+
+
+def test_check_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main([str(EXAMPLES / "nmea_udp_multiplexer.toml")]) == 0
+    assert "nmea_udp_multiplexer.toml: ok" in capsys.readouterr().out
+    bad = tmp_path / "bad.toml"
+    bad.write_text(BASE_TOML.replace('roles = ["heading"]', 'roles = ["heading"]\nbaud = 4800'))
+    assert main([str(bad)]) == 1
+    err = capsys.readouterr().err
+    assert f"{bad}: sources[1].baud: unknown key" in err
+
+
+def test_check_command_in_a_subprocess(tmp_path: Path) -> None:
+    """`python -m gateway.config FILE` as `dpgw run` reports it: one message on stderr, exit status 1."""
+    bad = tmp_path / "bad.toml"
+    bad.write_text(BASE_TOML.replace('"mss_supply"', '"titanic"'))
+    p = subprocess.run(
+        [sys.executable, "-m", "gateway.config", str(bad)], capture_output=True, text=True, cwd=ROOT
+    )
+    assert p.returncode == 1
+    assert p.stdout == ""
+    assert f"{bad}: vessel.name: not a built-in vessel" in p.stderr
+    assert "nothing was started" in p.stderr
+
+
+def test_parse_config_does_not_modify_its_input(tmp_path: Path) -> None:
+    d = base()
+    before = copy.deepcopy(d)
+    parse(d, tmp_path)
+    assert d == before
