@@ -53,9 +53,7 @@ def main() -> None:
     if args.json:
         print(json.dumps(results, indent=2))
         return
-    print(
-        f"simulator, {args.hours:g} h of sim time, 10 Hz DGPS + gyro, everything to MCAP (target >= 360x)"
-    )
+    print(f"simulator, {args.hours:g} h of sim time, 10 Hz DGPS + gyro, everything to MCAP (target >= 360x)")
     for r in results:
         print(
             f"  {r['scenario']:20s} {r['thrusters']} thrusters  {r['wall_seconds']:6.1f} s  "

@@ -128,8 +128,10 @@ class Simulation:
         log: McapLogWriter | None = None,
         clock: Clock | None = None,
         commands: Sequence[CommandInput] = (),
+        log_raw: bool = True,
     ) -> None:
         self.scenario = scenario
+        self.log_raw = log_raw
         self.seed = seed
         self.routes = list(routes)
         self.log = log
@@ -317,7 +319,7 @@ class Simulation:
         data = b"".join([e.data for e in burst])
         self.summary.emissions[first.source] += len(burst)
         self.summary.bytes_sent[first.source] += len(data)
-        if self.log is None:
+        if self.log is None or not self.log_raw:
             return
         log_ns = self.epoch.stamp_ns(first.t_emit)
         pub_ns = self.epoch.stamp_ns(first.t_measured)

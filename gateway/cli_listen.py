@@ -1,0 +1,82 @@
+"""``dpgw listen``: print what arrives on Zenoh (estimates, status, commands ...)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import queue
+import signal
+import sys
+import time
+from typing import Any
+
+from gateway.bus import BusError, make_config, open_session
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser(
+        "listen",
+        help="print what arrives on Zenoh",
+        description="Subscribe to a Zenoh key expression (default dp/**) and print every sample.",
+        epilog=(
+            "examples:\n"
+            "  dpgw listen                              # everything under dp/\n"
+            "  dpgw listen 'dp/mss_supply/estimate' --json | jq .eta\n"
+            "  dpgw listen --connect tcp/192.168.1.10:7447 'dp/*/status'"
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("key", nargs="?", default="dp/**", help="Zenoh key expression (default dp/**)")
+    p.add_argument("--json", action="store_true", help="one JSON object per line: {key, payload}")
+    p.add_argument("--count", type=int, metavar="N", help="exit after N samples")
+    p.add_argument("--duration", type=float, metavar="S", help="exit after S seconds")
+    p.add_argument("--connect", action="append", default=[], metavar="ENDPOINT")
+    p.add_argument("--listen", action="append", default=[], metavar="ENDPOINT")
+    p.add_argument("--no-scouting", action="store_true", help="multicast scouting off (use --connect)")
+    p.add_argument("--zenoh-config", metavar="FILE")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        session = open_session(
+            make_config(
+                connect=args.connect,
+                listen=args.listen,
+                multicast_scouting=not args.no_scouting,
+                config_file=args.zenoh_config,
+            )
+        )
+    except BusError as exc:
+        print(f"dpgw listen: {exc}", file=sys.stderr)
+        return 2
+    samples: queue.Queue[tuple[str, bytes]] = queue.Queue()
+    sub = session.declare_subscriber(args.key, lambda s: samples.put((str(s.key_expr), s.payload.to_bytes())))
+    stop = {"now": False}
+    signal.signal(signal.SIGINT, lambda *_: stop.update(now=True))
+    signal.signal(signal.SIGTERM, lambda *_: stop.update(now=True))
+    deadline = None if args.duration is None else time.monotonic() + args.duration
+    n = 0
+    try:
+        while not stop["now"] and (args.count is None or n < args.count):
+            if deadline is not None and time.monotonic() > deadline:
+                break
+            try:
+                key, body = samples.get(timeout=0.1)
+            except queue.Empty:
+                continue
+            n += 1
+            try:
+                payload: Any = json.loads(body)
+            except ValueError:
+                payload = body.decode("utf-8", "replace")
+            if args.json:
+                print(json.dumps({"key": key, "payload": payload}), flush=True)
+            else:
+                print(
+                    f"{key}: {json.dumps(payload) if not isinstance(payload, str) else payload}", flush=True
+                )
+    finally:
+        sub.undeclare()
+        session.close()
+    return 0

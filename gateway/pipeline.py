@@ -1,0 +1,421 @@
+"""The pipeline: a deterministic function from time-ordered input events to outputs (DESIGN.md rule 1).
+
+    raw chunk (source, rx time, bytes) → framing → decoding → fusion → observer → outputs
+
+Live, events come from the sources stamped by the clock (`gateway.service`); in replay they come from a
+log as fast as the CPU allows (`gateway.replay`). Same code, same events, same numbers. Nothing here reads
+a clock, opens a socket or writes a file: outputs are returned to the caller, who publishes and logs them.
+
+Bad input never stops it (rule 4): a sentence or frame that cannot be used is counted per source and
+reason, and the caller has already logged the raw bytes.
+
+**When the observer steps.** Once per input chunk that brought a new measurement, at that chunk's receive
+time, with every DOF's latest measurement held (`gateway.fusion`). A chunk usually carries one sentence,
+a datagram may carry a burst; one step per chunk avoids zero-length steps. The estimate is published at
+once (latency), and stepping is driven only by the events (determinism).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from gateway.codecs import nmea as nmea_codec
+from gateway.codecs.mavlink import AZIMUTH_THRUSTER_STATUS_ID, FrameParser, encoder, setup_signing
+from gateway.codecs.nmea_framing import NmeaFramer
+from gateway.config import GatewayConfig
+from gateway.fusion import NS, Fusion
+from gateway.geodesy import LocalFrame
+from observers.passive import STATUS_NAMES, PassiveObserver
+from observers.vessel import VesselModel
+
+ESC_RPM_MAX = 200.0  # the propeller law's reference (simulator.thrusters.DEFAULT_MAX_RPM)
+
+
+@dataclass(frozen=True)
+class RawEvent:
+    """A chunk of bytes as received: UTC receive time (ns), source name, bytes."""
+
+    rx_ns: int
+    source: str
+    data: bytes
+
+
+@dataclass(frozen=True)
+class ControlEvent:
+    """An input from Zenoh (setpoint, mode, manual τ), logged so replay sees it too."""
+
+    rx_ns: int
+    key: str  # "setpoint" | "mode" | "tau"
+    payload: Any
+
+
+@dataclass(frozen=True)
+class Output:
+    """Something to publish and/or log: MCAP topic (the Zenoh key is the prefix + the part after /dp)."""
+
+    topic: str
+    payload: dict[str, Any]
+    stamp_ns: int
+    zenoh: bool = True
+
+
+@dataclass(frozen=True)
+class SourceSpec:
+    """What the pipeline needs to know of a source (built from the config)."""
+
+    name: str
+    protocol: str  # "nmea" | "mavlink"
+    roles: frozenset[str]
+    lever_arm_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    timeout_s: float = 2.0
+    allow_missing_checksum: bool = False
+    priority: int = 1
+    signing_key: bytes | None = None
+    allow_unsigned: bool = True
+    esc_map: dict[int, int] = field(default_factory=dict)  # ESC index (1-based) -> thruster id
+    servo_map: dict[int, int] = field(default_factory=dict)  # servo channel (1-based) -> thruster id
+
+
+@dataclass(frozen=True)
+class PipelineSpec:
+    vessel: VesselModel
+    sources: tuple[SourceSpec, ...]
+    observer: PassiveObserver
+    observer_name: str = "passive"
+    datum: tuple[float, float, float] | None = None  # (lat, lon, alt); None = first fix
+    reference_point_m: tuple[float, float] = (0.0, 0.0)
+
+    @classmethod
+    def from_config(cls, config: GatewayConfig) -> PipelineSpec:
+        sources = tuple(
+            SourceSpec(
+                name=sc.name,
+                protocol=sc.protocol,
+                roles=frozenset(sc.roles),
+                lever_arm_m=sc.lever_arm_m,
+                timeout_s=sc.timeout_s,
+                allow_missing_checksum=sc.allow_missing_checksum,
+                priority=sc.priority,
+                signing_key=sc.signing_key,
+                allow_unsigned=sc.allow_unsigned,
+                esc_map=dict(sc.ardupilot.esc) if sc.ardupilot else {},
+                servo_map=dict(sc.ardupilot.servo) if sc.ardupilot else {},
+            )
+            for sc in config.sources
+        )
+        observer = PassiveObserver(
+            config.vessel, config.observer.tuning, allow_unchecked=config.observer.allow_unchecked
+        )
+        d = config.datum
+        datum = (
+            None if d.first_fix or d.lat_deg is None or d.lon_deg is None else (d.lat_deg, d.lon_deg, d.alt_m)
+        )
+        return cls(
+            vessel=config.vessel,
+            sources=sources,
+            observer=observer,
+            observer_name=config.observer.type,
+            datum=datum,
+            reference_point_m=config.reference_point_m,
+        )
+
+
+@dataclass
+class SourceCounters:
+    received: int = 0  # sentences/frames decoded and used or understood
+    rejected: Counter[str] = field(default_factory=Counter)
+    bytes: int = 0
+    last_rx_ns: int = 0
+
+    def as_dict(self, now_ns: int) -> dict[str, Any]:
+        age = (now_ns - self.last_rx_ns) / NS if self.last_rx_ns else None
+        return {"age_s": age, "received": self.received, "rejected": dict(self.rejected), "bytes": self.bytes}
+
+
+class Pipeline:
+    def __init__(self, spec: PipelineSpec) -> None:
+        self.spec = spec
+        self.observer = spec.observer
+        datum = LocalFrame(*spec.datum) if spec.datum is not None else None
+        self.fusion = Fusion(spec.vessel, datum=datum, reference_point_m=spec.reference_point_m)
+        self.sources = {s.name: s for s in spec.sources}
+        self.counters = {s.name: SourceCounters() for s in spec.sources}
+        self._framers = {s.name: NmeaFramer() for s in spec.sources if s.protocol == "nmea"}
+        self._parsers = {s.name: self._mavlink_parser(s) for s in spec.sources if s.protocol == "mavlink"}
+        self.t0_ns: int | None = None
+        self.last_ns = 0
+        self.mode = "standby"
+        self.setpoint: dict[str, Any] | None = None
+        self.manual_tau = np.zeros(3)
+        self.estimates = 0
+
+    @staticmethod
+    def _mavlink_parser(s: SourceSpec) -> FrameParser:
+        if s.signing_key is None:
+            return FrameParser()
+        mav = encoder(src_system=255, src_component=190)
+        setup_signing(mav, s.signing_key, sign_outgoing=False, allow_unsigned=s.allow_unsigned)
+        return FrameParser(mav)
+
+    # --- events in ------------------------------------------------------------------------------------------
+
+    def feed(self, event: RawEvent | ControlEvent) -> list[Output]:
+        if isinstance(event, ControlEvent):
+            self._control(event)
+            return []
+        spec = self.sources.get(event.source)
+        if spec is None:
+            return []
+        if self.t0_ns is None:
+            self.t0_ns = event.rx_ns
+        self.last_ns = max(self.last_ns, event.rx_ns)
+        c = self.counters[event.source]
+        c.bytes += len(event.data)
+        c.last_rx_ns = event.rx_ns
+        out: list[Output] = []
+        if spec.protocol == "nmea":
+            updated = self._nmea(spec, c, event, out)
+        else:
+            updated = self._mavlink(spec, c, event, out)
+        if updated:
+            out.extend(self._step(event.rx_ns, event.source))
+        return out
+
+    def _nmea(self, spec: SourceSpec, c: SourceCounters, ev: RawEvent, out: list[Output]) -> bool:
+        updated = False
+        for frame in self._framers[spec.name].feed(ev.data):
+            if frame.text is None:
+                c.rejected[frame.reason or "garbage"] += 1
+                continue
+            s = nmea_codec.decode(frame.text, require_checksum=not spec.allow_missing_checksum)
+            if isinstance(s, nmea_codec.Reject):
+                c.rejected[s.reason] += 1
+                continue
+            c.received += 1
+            updated |= self._use_nmea(spec, ev.rx_ns, s, out)
+        return updated
+
+    def _use_nmea(self, spec: SourceSpec, rx_ns: int, s: Any, out: list[Output]) -> bool:
+        valid_ns = int(spec.timeout_s * NS)
+        if isinstance(s, nmea_codec.Heading):
+            if "heading" in spec.roles and s.valid and s.heading_rad is not None:
+                return self.fusion.add_heading(rx_ns, s.heading_rad, spec.name, spec.priority, valid_ns)
+            return False
+        if isinstance(s, nmea_codec.Gst):
+            if s.sigma_lat_m is not None and s.sigma_lon_m is not None:
+                self.fusion.position_sigma_m = math.hypot(s.sigma_lat_m, s.sigma_lon_m) / math.sqrt(2)
+            return False
+        if isinstance(s, nmea_codec.Gga | nmea_codec.Gns) and "position" in spec.roles:
+            if not s.valid or s.lat_deg is None or s.lon_deg is None:
+                return False
+            quality = s.quality if isinstance(s, nmea_codec.Gga) else 1
+            fix = self.fusion.add_position(
+                rx_ns, s.lat_deg, s.lon_deg, spec.lever_arm_m, spec.name, spec.priority, valid_ns, quality
+            )
+            if fix is not None:
+                out.append(self._location_fix(spec.name, rx_ns, s.lat_deg, s.lon_deg))
+            return fix is not None
+        return False
+
+    def _mavlink(self, spec: SourceSpec, c: SourceCounters, ev: RawEvent, out: list[Output]) -> bool:
+        parser = self._parsers[spec.name]
+        before = sum(parser.rejected.values())
+        msgs = parser.feed(ev.data)
+        if sum(parser.rejected.values()) != before:
+            c.rejected.clear()
+            c.rejected.update(parser.rejected)
+        updated = False
+        feedback = False
+        valid_ns = int(spec.timeout_s * NS)
+        for msg in msgs:
+            m: Any = msg  # pymavlink messages carry their fields as dynamic attributes
+            c.received += 1
+            mid = m.get_msgId()
+            kind = m.get_type()
+            if mid == AZIMUTH_THRUSTER_STATUS_ID and "thrusters" in spec.roles:
+                self.fusion.add_thruster(ev.rx_ns, int(m.id), float(m.thrust), float(m.azimuth))
+                feedback = True
+            elif kind == "ESC_TELEMETRY_1_TO_4" and spec.esc_map and "thrusters" in spec.roles:
+                for k, rpm in enumerate(m.rpm):
+                    tid = spec.esc_map.get(k + 1)
+                    if tid is not None:
+                        self.fusion.add_thruster(ev.rx_ns, tid, self._rpm_to_thrust(tid, rpm), None)
+                        feedback = True
+            elif kind == "SERVO_OUTPUT_RAW" and spec.servo_map and "thrusters" in spec.roles:
+                for ch, tid in spec.servo_map.items():
+                    pwm = getattr(m, f"servo{ch}_raw", 0)
+                    if pwm and tid in self.fusion.thrust:
+                        t = self.fusion.thrust[tid][0]
+                        self.fusion.thrust[tid] = (t, (pwm - 1500.0) / 400.0 * math.pi, ev.rx_ns)
+            elif kind in ("GPS_RAW_INT", "GLOBAL_POSITION_INT") and "position" in spec.roles:
+                if kind == "GPS_RAW_INT" and m.fix_type < 2:
+                    continue
+                lat, lon = m.lat / 1e7, m.lon / 1e7
+                fix = self.fusion.add_position(
+                    ev.rx_ns, lat, lon, spec.lever_arm_m, spec.name, spec.priority, valid_ns, 1
+                )
+                if fix is not None:
+                    out.append(self._location_fix(spec.name, ev.rx_ns, lat, lon))
+                    updated = True
+                if kind == "GLOBAL_POSITION_INT" and "heading" in spec.roles and m.hdg != 65535:
+                    updated |= self.fusion.add_heading(
+                        ev.rx_ns, math.radians(m.hdg / 100.0), spec.name, spec.priority, valid_ns
+                    )
+            elif kind == "ATTITUDE" and "heading" in spec.roles:
+                updated |= self.fusion.add_heading(ev.rx_ns, float(m.yaw), spec.name, spec.priority, valid_ns)
+        if feedback:
+            out.append(self._feedback_output(ev.rx_ns))
+        return updated
+
+    def _rpm_to_thrust(self, thruster_id: int, rpm: float) -> float:
+        """ESC rpm → thrust by the propeller law T = K n|n|, K = max thrust / max rpm² (documented)."""
+        for t in self.spec.vessel.thrusters:
+            if t.id == thruster_id:
+                return float(t.max_thrust_n * (rpm / ESC_RPM_MAX) * abs(rpm / ESC_RPM_MAX))
+        return 0.0
+
+    def _control(self, ev: ControlEvent) -> None:
+        if ev.key == "mode" and ev.payload in ("standby", "dp", "manual"):
+            self.mode = ev.payload
+        elif ev.key == "setpoint" and isinstance(ev.payload, dict):
+            self.setpoint = ev.payload
+        elif ev.key == "tau" and isinstance(ev.payload, dict):
+            try:
+                tau = np.array([float(ev.payload[k]) for k in ("X", "Y", "N")])
+            except (KeyError, TypeError, ValueError):
+                return
+            if np.all(np.isfinite(tau)):
+                self.manual_tau = tau
+                if self.mode == "manual":
+                    self.fusion.tau_demand = tau
+
+    # --- observer and outputs -------------------------------------------------------------------------------
+
+    def _t(self, ns: int) -> float:
+        assert self.t0_ns is not None
+        return (ns - self.t0_ns) / 1e9
+
+    def _step(self, now_ns: int, trigger: str) -> list[Output]:
+        y, valid = self.fusion.measurement(now_ns)
+        tau, tau_source = self.fusion.tau(now_ns)
+        est = self.observer.step(self._t(now_ns), y, tau)
+        out = [
+            Output(
+                "/dp/measurement",
+                {
+                    "stamp_ns": now_ns,
+                    "eta": [None if math.isnan(v) else float(v) for v in y],
+                    "valid": valid,
+                    "sources": sorted(
+                        {h.source for h in (self.fusion.north, self.fusion.heading) if h.source}
+                    ),
+                    "quality": self.fusion.quality,
+                    "sigma_m": self.fusion.position_sigma_m,
+                    "tau": tau.tolist(),
+                    "tau_source": tau_source,
+                },
+                now_ns,
+            )
+        ]
+        if est.status == STATUS_NAMES[0]:
+            return out
+        self.estimates += 1
+        datum = self.fusion.datum
+        lat = lon = None
+        if datum is not None:
+            lat, lon, _ = datum.to_geodetic(float(est.eta[0]), float(est.eta[1]), 0.0)
+        status = est.status
+        if status == "ok" and any(
+            h.source
+            and self.sources[h.source].priority
+            > min(s.priority for s in self.sources.values() if r in s.roles)
+            for h, r in ((self.fusion.north, "position"), (self.fusion.heading, "heading"))
+        ):
+            status = "degraded"  # running on a backup source
+        payload = {
+            "stamp_ns": now_ns,
+            "observer": self.spec.observer_name,
+            "status": status,
+            "eta": est.eta.tolist(),
+            "nu": est.nu.tolist(),
+            "bias": est.bias.tolist(),
+            "eta_wf": est.eta_wf.tolist(),
+            "omega0": self.observer.gains.omega0.tolist(),
+            "lat_deg": lat,
+            "lon_deg": lon,
+            "heading_deg": math.degrees(est.eta[2]) % 360.0,
+            "datum": None if datum is None else {"lat_deg": datum.lat_deg, "lon_deg": datum.lon_deg},
+        }
+        out.append(Output("/dp/estimate", payload, now_ns))
+        if lat is not None and lon is not None:
+            out.append(
+                Output(
+                    "/dp/estimate/fix",
+                    _location_fix_payload(now_ns, "estimate", lat, lon),
+                    now_ns,
+                    zenoh=False,
+                )
+            )
+        return out
+
+    def _location_fix(self, source: str, rx_ns: int, lat: float, lon: float) -> Output:
+        return Output(
+            f"/gnss/{source}/fix", _location_fix_payload(rx_ns, source, lat, lon), rx_ns, zenoh=False
+        )
+
+    def _feedback_output(self, now_ns: int) -> Output:
+        tau, _ = self.fusion.tau(now_ns)
+        return Output(
+            "/dp/thrusters/feedback",
+            {
+                "stamp_ns": now_ns,
+                "mode": self.mode,
+                "tau_demand": self.fusion.tau_demand.tolist(),
+                "tau_allocated": tau.tolist(),
+                "thrusters": [
+                    {"id": tid, "thrust_n": t, "azimuth_rad": a}
+                    for tid, (t, a, _) in sorted(self.fusion.thrust.items())
+                ],
+            },
+            now_ns,
+        )
+
+    def status(self, now_ns: int, alarms: list[str] | None = None) -> Output:
+        """The 1 Hz status (the caller decides when): per-source age, counts, rejects by reason, alarms."""
+        alarms = list(alarms or [])
+        for name, c in self.counters.items():
+            spec = self.sources[name]
+            if c.last_rx_ns == 0:
+                alarms.append(f"source {name}: no data yet")
+            elif (now_ns - c.last_rx_ns) / NS > spec.timeout_s:
+                alarms.append(f"source {name}: stale ({(now_ns - c.last_rx_ns) / NS:.1f} s without data)")
+        return Output(
+            "/dp/status",
+            {
+                "stamp_ns": now_ns,
+                "mode": self.mode,
+                "observer": self.spec.observer_name,
+                "initialized": self.observer.initialized,
+                "estimates": self.estimates,
+                "sources": {name: c.as_dict(now_ns) for name, c in self.counters.items()},
+                "alarms": alarms,
+            },
+            now_ns,
+        )
+
+
+def _location_fix_payload(stamp_ns: int, frame_id: str, lat: float, lon: float) -> dict[str, Any]:
+    return {
+        "timestamp": {"sec": stamp_ns // NS, "nsec": stamp_ns % NS},
+        "frame_id": frame_id,
+        "latitude": lat,
+        "longitude": lon,
+        "altitude": 0.0,
+        "position_covariance": [0.0] * 9,
+        "position_covariance_type": 0,
+    }

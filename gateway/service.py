@@ -1,0 +1,202 @@
+"""The live gateway: sources → one queue → the pipeline → Zenoh and MCAP (`dpgw run`).
+
+Threads: one reader per source (``gateway.sources``) and the Zenoh callbacks put events on a single queue;
+one consumer (the caller of `GatewayService.run`) takes them in arrival order, logs every raw chunk before
+anything else looks at it (rule 4: nothing is lost), feeds the deterministic pipeline and publishes what it
+returns. Inputs from Zenoh (setpoint, mode, manual τ) become events on the same queue and are logged too,
+so a replay sees exactly what the live run saw. Status goes out at ``status.rate_hz`` and answers the
+queryable ``<prefix>/status``. SIGINT/SIGTERM stop the loop; the log is flushed and closed.
+
+``time_scale`` maps receive times onto a faster clock (``dpgw demo`` runs the vessel faster than real time;
+the observer must see sim seconds, not wall seconds). It is 1.0 on a vessel.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import queue
+import threading
+import time
+from typing import Any
+
+import zenoh
+
+from gateway.bus import open_session
+from gateway.config import GatewayConfig
+from gateway.mcaplog import McapLogWriter, encode_json
+from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
+from gateway.sources import Chunk, Source, open_source
+
+log = logging.getLogger("dpgw")
+
+JSON = zenoh.Encoding.APPLICATION_JSON
+INPUT_KEYS = ("setpoint", "mode", "tau")
+
+
+class GatewayService:
+    def __init__(
+        self,
+        config: GatewayConfig,
+        *,
+        session: zenoh.Session | None = None,
+        time_scale: float = 1.0,
+        log_path: str | None = None,
+        config_tables: dict[str, Any] | None = None,
+    ) -> None:
+        self.config = config
+        self.config_tables = config_tables
+        self.prefix = config.zenoh.prefix
+        self.pipeline = Pipeline(PipelineSpec.from_config(config))
+        self._session = session
+        self._own_session = session is None
+        self._queue: queue.Queue[Chunk | ControlEvent] = queue.Queue()
+        self._sources: list[Source] = []
+        self._publishers: dict[str, zenoh.Publisher] = {}
+        self._declared: list[Any] = []
+        self._status_json = b"{}"
+        self._status_lock = threading.Lock()
+        self.time_scale = time_scale
+        self._wall0_ns = 0
+        self.stop_event = threading.Event()
+        path = log_path if log_path is not None else config.log.path
+        self._log_path = str(path) if path else None
+        self.log: McapLogWriter | None = None
+        self.published = 0
+
+    # --- start and stop -------------------------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Open everything; a source that cannot open raises `SourceError` and nothing is left running."""
+        self._wall0_ns = time.time_ns()
+        try:
+            for sc in self.config.sources:
+                src = open_source(sc.name, sc.url, timeout_s=sc.timeout_s)
+                self._sources.append(src)
+                src.start(self._queue.put)
+            if self._session is None:
+                self._session = open_session(self.config.zenoh.make())
+            s = self._session
+            for topic in ("estimate", "measurement", "status", "thrusters/feedback", "thrusters/command"):
+                key = f"{self.prefix}/{topic}"
+                self._publishers[key] = s.declare_publisher(key, encoding=JSON)
+            for key in INPUT_KEYS:
+                self._declared.append(s.declare_subscriber(f"{self.prefix}/{key}", self._on_input(key)))
+            self._declared.append(s.declare_queryable(f"{self.prefix}/status", self._on_query))
+            if self._log_path:
+                self.log = McapLogWriter(self._log_path, profile="dpgw", **self.config.log.writer_options())
+                meta = {"vessel": self.config.vessel.name, "prefix": self.prefix}
+                if self.config_tables is not None:  # lets replay rebuild exactly this pipeline
+                    meta["json"] = json.dumps(self.config_tables)
+                self.log.add_metadata("dpgw.config", meta)
+        except BaseException:
+            self.close()
+            raise
+
+    def close(self) -> None:
+        for src in self._sources:
+            src.stop()
+        self._sources.clear()
+        for d in [*self._declared, *self._publishers.values()]:
+            with contextlib.suppress(Exception):  # already gone with the session
+                d.undeclare()
+        self._declared.clear()
+        self._publishers.clear()
+        if self._own_session and self._session is not None:
+            self._session.close()
+            self._session = None
+        if self.log is not None:
+            self.log.close()
+            self.log = None
+
+    # --- Zenoh callbacks (other threads): only put on the queue ---------------------------------------------
+
+    def _on_input(self, key: str) -> Any:
+        def handler(sample: zenoh.Sample) -> None:
+            try:
+                payload = json.loads(sample.payload.to_bytes())
+            except ValueError:
+                payload = {"invalid": sample.payload.to_bytes().decode("utf-8", "replace")}
+            self._queue.put(ControlEvent(time.time_ns(), key, payload))
+
+        return handler
+
+    def _on_query(self, query: zenoh.Query) -> None:
+        with self._status_lock:
+            body = self._status_json
+        query.reply(f"{self.prefix}/status", body, encoding=JSON)
+
+    # --- the consumer loop ---------------------------------------------------------------------------------
+
+    def _now(self, wall_ns: int) -> int:
+        if self.time_scale == 1.0:
+            return wall_ns
+        return self._wall0_ns + round((wall_ns - self._wall0_ns) * self.time_scale)
+
+    def run(self, duration_s: float | None = None) -> None:
+        """Consume events until `stop_event` is set (or ``duration_s`` of wall time has passed)."""
+        status_period_ns = int(1e9 / self.config.status.rate_hz)
+        next_status = time.time_ns()
+        deadline = None if duration_s is None else time.monotonic() + duration_s
+        while not self.stop_event.is_set():
+            if deadline is not None and time.monotonic() >= deadline:
+                break
+            try:
+                item = self._queue.get(timeout=0.05)
+            except queue.Empty:
+                item = None
+            if item is not None:
+                self._handle(item)
+            wall = time.time_ns()
+            if wall >= next_status:
+                self._emit([self.pipeline.status(self._now(wall), self._alarms())])
+                next_status = wall + status_period_ns
+
+    def drain(self) -> None:
+        """Handle whatever is already queued (used at shutdown so nothing received is dropped)."""
+        while True:
+            try:
+                item = self._queue.get_nowait()
+            except queue.Empty:
+                return
+            self._handle(item)
+
+    def _alarms(self) -> list[str]:
+        return [
+            f"source {s.name}: disconnected"
+            for s in self._sources
+            if not s.stats.connected and not s.finished
+        ]
+
+    def _handle(self, item: Chunk | ControlEvent) -> None:
+        if isinstance(item, ControlEvent):
+            ev = ControlEvent(self._now(item.rx_ns), item.key, item.payload)
+            if self.log is not None:
+                body = ev.payload if isinstance(ev.payload, dict) else {item.key: ev.payload}
+                self.log.write(f"/dp/{item.key}", body, ev.rx_ns, ev.rx_ns)
+            self._emit(self.pipeline.feed(ev))
+            return
+        rx = self._now(item.rx_ns)
+        spec = self.pipeline.sources.get(item.source)
+        if self.log is not None and spec is not None:
+            if spec.protocol == "nmea":
+                self.log.write_raw_nmea(item.source, item.data, rx, rx)
+            else:
+                self.log.write_raw_mavlink(item.source, item.data, rx, rx)
+        self._emit(self.pipeline.feed(RawEvent(rx, item.source, item.data)))
+
+    def _emit(self, outputs: list[Output]) -> None:
+        for o in outputs:
+            body = encode_json(o.payload)
+            if o.zenoh and o.topic.startswith("/dp/"):
+                key = f"{self.prefix}/{o.topic[4:]}"
+                pub = self._publishers.get(key)
+                if pub is not None:
+                    pub.put(body)
+                    self.published += 1
+                if o.topic == "/dp/status":
+                    with self._status_lock:
+                        self._status_json = body
+            if self.log is not None:
+                self.log.write(o.topic, o.payload, o.stamp_ns, o.stamp_ns)
