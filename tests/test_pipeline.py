@@ -1,0 +1,231 @@
+"""The pipeline's fusion rules (issue 4): lever arms, failover, staleness, MAVLink sources and signing."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+import time
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gateway.bus import isolated_config, open_session
+from gateway.codecs import mavlink as mv
+from gateway.codecs import nmea_encode as enc
+from gateway.config import parse_config
+from gateway.geodesy import LocalFrame
+from gateway.pipeline import ControlEvent, Pipeline, PipelineSpec, RawEvent
+
+S = 1_000_000_000
+T0 = 1_780_000_000 * S
+DATUM = (59.4, 10.5)
+KEY = bytes(range(32))
+
+
+def pipeline(sources: list[dict], vessel: str = "mss_supply") -> Pipeline:  # type: ignore[type-arg]
+    tables = {
+        "vessel": {"name": vessel},
+        "datum": {"lat_deg": DATUM[0], "lon_deg": DATUM[1]},
+        "sources": sources,
+        "observer": {"wave_period_s": 8.0},
+        "log": {"path": ""},
+    }
+    return Pipeline(PipelineSpec.from_config(parse_config(tables, base_dir=Path.cwd())))
+
+
+def nmea_src(name: str, roles: list[str], **kw) -> dict:  # type: ignore[no-untyped-def, type-arg]
+    return {"name": name, "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": roles, **kw}
+
+
+def gga_at(north: float, east: float) -> bytes:
+    lat, lon, _ = LocalFrame(*DATUM).to_geodetic(north, east, 0.0)
+    return enc.gga("GP", datetime(2026, 6, 1, tzinfo=UTC), lat, lon, 2, 12, 0.8, 20.0).encode()
+
+
+def test_lever_arm_is_compensated_with_the_heading_of_the_same_cycle() -> None:
+    """Antenna 30 m forward and 5 m to starboard, heading east: the reference point is where the antenna
+    is minus J(ψ)·lever arm."""
+    p = pipeline(
+        [nmea_src("gps", ["position"], lever_arm_m=[30.0, 5.0, -20.0]), nmea_src("gyro", ["heading"])]
+    )
+    psi = math.radians(90.0)
+    antenna = np.array([100.0, 50.0]) + np.array(
+        [math.cos(psi) * 30 - math.sin(psi) * 5, math.sin(psi) * 30 + math.cos(psi) * 5]
+    )
+    out = []
+    for k in range(5):
+        t = T0 + k * S // 10
+        out += p.feed(RawEvent(t, "gyro", enc.hdt("HE", psi).encode()))
+        out += p.feed(RawEvent(t + 1000, "gps", gga_at(*antenna)))
+    meas = [o.payload for o in out if o.topic == "/dp/measurement"][-1]
+    np.testing.assert_allclose(meas["eta"][:2], [100.0, 50.0], atol=0.005)  # GGA prints 1e-6 minute (2 mm)
+    est = [o.payload for o in out if o.topic == "/dp/estimate"][-1]
+    np.testing.assert_allclose(est["eta"][:2], [100.0, 50.0], atol=0.05)
+    assert est["lat_deg"] == pytest.approx(LocalFrame(*DATUM).to_geodetic(100.0, 50.0)[0], abs=1e-6)
+
+
+def test_fix_without_heading_of_its_cycle_is_not_used() -> None:
+    p = pipeline([nmea_src("gps", ["position"], lever_arm_m=[30.0, 0.0, 0.0]), nmea_src("gyro", ["heading"])])
+    out = p.feed(RawEvent(T0, "gps", gga_at(0.0, 0.0)))
+    assert not out  # no heading yet: the lever arm cannot be compensated
+    assert p.counters["gps"].received == 1
+
+
+def test_failover_to_the_backup_and_back() -> None:
+    p = pipeline(
+        [
+            nmea_src("gps1", ["position"], priority=1, timeout_s=1.0),
+            nmea_src("gps2", ["position"], priority=2, timeout_s=1.0),
+            nmea_src("gyro", ["heading"]),
+        ]
+    )
+
+    def cycle(t: int, with1: bool) -> list:  # type: ignore[type-arg]
+        out = p.feed(RawEvent(t, "gyro", enc.hdt("HE", 0.0).encode()))
+        if with1:
+            out += p.feed(RawEvent(t + 1, "gps1", gga_at(10.0, 0.0)))
+        out += p.feed(RawEvent(t + 2, "gps2", gga_at(12.0, 0.0)))
+        return out
+
+    for k in range(10):
+        cycle(T0 + k * S // 2, True)
+    assert p.fusion.north.source == "gps1" and p.fusion.north.value == pytest.approx(10.0, abs=0.01)
+    out = []
+    for k in range(10, 20):  # gps1 silent: after its 1 s timeout gps2 takes over
+        out += cycle(T0 + k * S // 2, False)
+    assert p.fusion.north.source == "gps2"
+    statuses = [o.payload["status"] for o in out if o.topic == "/dp/estimate"]
+    assert statuses[-1] == "degraded"
+    for k in range(20, 24):
+        cycle(T0 + k * S // 2, True)
+    assert p.fusion.north.source == "gps1"
+
+
+def test_silent_source_is_stale_and_estimate_dead_reckons() -> None:
+    p = pipeline([nmea_src("gps", ["position"], timeout_s=1.0), nmea_src("gyro", ["heading"], timeout_s=1.0)])
+    for k in range(20):
+        t = T0 + k * S // 5
+        p.feed(RawEvent(t, "gyro", enc.hdt("HE", 0.2).encode()))
+        p.feed(RawEvent(t + 1, "gps", gga_at(0.0, 0.0)))
+    out = []
+    for k in range(20, 40):  # position lost, heading continues
+        out += p.feed(RawEvent(T0 + k * S // 5, "gyro", enc.hdt("HE", 0.2).encode()))
+    est = [o.payload for o in out if o.topic == "/dp/estimate"]
+    assert est[0]["status"] == "ok" or est[0]["status"] == "dead_reckoning"
+    assert est[-1]["status"] == "dead_reckoning"
+    status = p.status(T0 + 40 * S // 5).payload
+    assert any("gps: stale" in a for a in status["alarms"])
+    assert not any("gyro" in a for a in status["alarms"])
+
+
+def mav_src(name: str, roles: list[str], **kw) -> dict:  # type: ignore[no-untyped-def, type-arg]
+    return {"name": name, "url": "udpin:127.0.0.1:0", "protocol": "mavlink", "roles": roles, **kw}
+
+
+def test_mavlink_position_and_heading_sources() -> None:
+    """GLOBAL_POSITION_INT / GPS_RAW_INT and ATTITUDE as an alternative position/heading source."""
+    p = pipeline([mav_src("ap", ["position", "heading"])], vessel="cybership2")
+    d = mv.dialect()
+    mav = mv.encoder(1, 1)
+    lat, lon, _ = LocalFrame(*DATUM).to_geodetic(3.0, -2.0, 0.0)
+    out = []
+    for k in range(10):
+        t = T0 + k * S // 10
+        frames = mv.pack(mav, d.MAVLink_attitude_message(k * 100, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0))
+        frames += mv.pack(
+            mav,
+            d.MAVLink_gps_raw_int_message(k, 3, round(lat * 1e7), round(lon * 1e7), 0, 100, 100, 0, 0, 12),
+        )
+        out += p.feed(RawEvent(t, "ap", frames))
+    est = [o.payload for o in out if o.topic == "/dp/estimate"][-1]
+    np.testing.assert_allclose(est["eta"], [3.0, -2.0, 0.5], atol=0.05)
+    hdg = mv.pack(
+        mav, d.MAVLink_global_position_int_message(0, round(lat * 1e7), round(lon * 1e7), 0, 0, 0, 0, 0, 9000)
+    )
+    p.feed(RawEvent(T0 + 2 * S, "ap", hdg))
+    assert p.fusion.heading.value == pytest.approx(math.pi / 2)
+
+
+def test_dialect_and_ardupilot_thruster_feedback_give_tau() -> None:
+    p = pipeline(
+        [
+            nmea_src("gps", ["position", "heading"]),
+            mav_src("thr", ["thrusters"], ardupilot={"esc": {"1": 1, "2": 2}, "servo": {"1": 1, "2": 2}}),
+        ],
+        vessel="cybership2",
+    )
+    mav = mv.encoder(1, 1)
+    out = p.feed(RawEvent(T0, "thr", mv.azimuth_status_frame(mav, 0, 3, 0.5, 100.0, math.pi / 2, 0)))
+    fb = [o.payload for o in out if o.topic == "/dp/thrusters/feedback"]
+    assert fb and fb[0]["thrusters"] == [
+        {"id": 3, "thrust_n": 0.5, "azimuth_rad": pytest.approx(math.pi / 2)}
+    ]
+    # ArduPilot: rpm -> thrust by the propeller law, servo PWM -> azimuth
+    p.feed(RawEvent(T0 + 1, "thr", mv.esc_telemetry_frame(mav, [200.0, 100.0])))
+    p.feed(RawEvent(T0 + 2, "thr", mv.servo_output_raw_frame(mav, 0, [1700, 1500])))
+    t1, a1, _ = p.fusion.thrust[1]
+    t2, a2, _ = p.fusion.thrust[2]
+    assert t1 == pytest.approx(2.0) and a1 == pytest.approx(math.pi / 2)  # max thrust at max rpm; 1700 µs
+    assert t2 == pytest.approx(0.5) and a2 == pytest.approx(0.0)
+    tau, source = p.fusion.tau(T0 + 3)
+    assert source == "feedback"
+    v = p.spec.vessel
+    np.testing.assert_allclose(tau, v.generalized_force([2.0, 0.5, 0.5], [math.pi / 2, 0.0, math.pi / 2]))
+
+
+def test_signed_mavlink_link_rejects_unsigned_and_forged_frames() -> None:
+    p = pipeline(
+        [nmea_src("gps", ["position", "heading"]), mav_src("thr", ["thrusters"], signing_key=KEY.hex())],
+        vessel="cybership2",
+    )
+    good = mv.encoder(1, 1)
+    mv.setup_signing(good, KEY, link_id=1)
+    forged = mv.encoder(1, 1)
+    mv.setup_signing(forged, bytes(32), link_id=1)
+    plain = mv.encoder(1, 1)
+    p.feed(RawEvent(T0, "thr", mv.azimuth_status_frame(plain, 0, 1, 1.0, 10.0, 0.0, 0)))
+    p.feed(RawEvent(T0 + 1, "thr", mv.azimuth_status_frame(forged, 0, 1, 1.0, 10.0, 0.0, 0)))
+    assert 1 not in p.fusion.thrust
+    p.feed(RawEvent(T0 + 2, "thr", mv.azimuth_status_frame(good, 0, 1, 1.5, 10.0, 0.0, 0)))
+    assert p.fusion.thrust[1][0] == 1.5
+    rejected = p.counters["thr"].rejected
+    assert sum(rejected.values()) >= 2, rejected
+
+
+def test_manual_tau_in_manual_mode_is_the_observers_input() -> None:
+    p = pipeline([nmea_src("gps", ["position", "heading"])])
+    p.feed(ControlEvent(T0, "mode", "manual"))
+    p.feed(ControlEvent(T0, "tau", {"X": 1e4, "Y": -2e3, "N": 5e4}))
+    tau, source = p.fusion.tau(T0)
+    assert source == "demand" and tau.tolist() == [1e4, -2e3, 5e4]
+    p.feed(ControlEvent(T0, "tau", {"X": "lots"}))  # bad input: ignored, never raised
+    p.feed(ControlEvent(T0, "mode", "warp"))
+    assert p.mode == "manual"
+
+
+def test_dpgw_listen_prints_what_arrives(tmp_path: Path) -> None:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    pub = open_session(isolated_config(listen=[f"tcp/127.0.0.1:{port}"]))
+    try:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "gateway", "listen", "dp/x/**", "--json", "--count", "3", "--no-scouting",
+             "--connect", f"tcp/127.0.0.1:{port}", "--duration", "20"],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        )  # fmt: skip
+        deadline = time.monotonic() + 20
+        while proc.poll() is None and time.monotonic() < deadline:
+            pub.put("dp/x/estimate", json.dumps({"eta": [1, 2, 3]}))
+            time.sleep(0.2)
+        out, err = proc.communicate(timeout=10)
+    finally:
+        pub.close()
+    lines = [json.loads(line) for line in out.splitlines()]
+    assert len(lines) == 3 and lines[0] == {"key": "dp/x/estimate", "payload": {"eta": [1, 2, 3]}}, err
