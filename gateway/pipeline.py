@@ -30,10 +30,14 @@ from gateway.codecs.nmea_framing import NmeaFramer
 from gateway.config import GatewayConfig
 from gateway.fusion import NS, Fusion
 from gateway.geodesy import LocalFrame
-from observers.passive import STATUS_NAMES, PassiveObserver
+from observers.passive import STATUS_NAMES, PassiveEstimate, PassiveObserver
 from observers.vessel import VesselModel
 
 ESC_RPM_MAX = 200.0  # the propeller law's reference (simulator.thrusters.DEFAULT_MAX_RPM)
+USED_NMEA = frozenset({"GGA", "GNS", "HDT", "THS", "HDG", "GST"})
+"""Sentences the fusion uses; others (RMC, VTG, ZDA, ROT ...) are checked and counted, not parsed."""
+FIX_PERIOD_NS = 1_000_000_000
+"""foxglove.LocationFix outputs at most once a second per source: a map track needs no more."""
 
 
 @dataclass(frozen=True)
@@ -89,6 +93,8 @@ class PipelineSpec:
     observer_name: str = "passive"
     datum: tuple[float, float, float] | None = None  # (lat, lon, alt); None = first fix
     reference_point_m: tuple[float, float] = (0.0, 0.0)
+    extra_observers: tuple[tuple[str, PassiveObserver], ...] = ()
+    """More observers fed the same y and τ (replay: side by side), published on /dp/estimates/<label>."""
 
     @classmethod
     def from_config(cls, config: GatewayConfig) -> PipelineSpec:
@@ -153,6 +159,12 @@ class Pipeline:
         self.setpoint: dict[str, Any] | None = None
         self.manual_tau = np.zeros(3)
         self.estimates = 0
+        self._last_fix_ns: dict[str, int] = {}
+        self._best_priority = {
+            role: min(s.priority for s in spec.sources if role in s.roles)
+            for role in ("position", "heading")
+            if any(role in s.roles for s in spec.sources)
+        }
 
     @staticmethod
     def _mavlink_parser(s: SourceSpec) -> FrameParser:
@@ -192,11 +204,15 @@ class Pipeline:
             if frame.text is None:
                 c.rejected[frame.reason or "garbage"] += 1
                 continue
-            s = nmea_codec.decode(frame.text, require_checksum=not spec.allow_missing_checksum)
+            s = nmea_codec.decode(
+                frame.text, require_checksum=not spec.allow_missing_checksum, only=USED_NMEA
+            )
             if isinstance(s, nmea_codec.Reject):
                 c.rejected[s.reason] += 1
                 continue
             c.received += 1
+            if s is nmea_codec.UNUSED:
+                continue
             updated |= self._use_nmea(spec, ev.rx_ns, s, out)
         return updated
 
@@ -218,7 +234,7 @@ class Pipeline:
                 rx_ns, s.lat_deg, s.lon_deg, spec.lever_arm_m, spec.name, spec.priority, valid_ns, quality
             )
             if fix is not None:
-                out.append(self._location_fix(spec.name, rx_ns, s.lat_deg, s.lon_deg))
+                out.extend(self._location_fix(spec.name, rx_ns, s.lat_deg, s.lon_deg))
             return fix is not None
         return False
 
@@ -260,7 +276,7 @@ class Pipeline:
                     ev.rx_ns, lat, lon, spec.lever_arm_m, spec.name, spec.priority, valid_ns, 1
                 )
                 if fix is not None:
-                    out.append(self._location_fix(spec.name, ev.rx_ns, lat, lon))
+                    out.extend(self._location_fix(spec.name, ev.rx_ns, lat, lon))
                     updated = True
                 if kind == "GLOBAL_POSITION_INT" and "heading" in spec.roles and m.hdg != 65535:
                     updated |= self.fusion.add_heading(
@@ -303,7 +319,8 @@ class Pipeline:
     def _step(self, now_ns: int, trigger: str) -> list[Output]:
         y, valid = self.fusion.measurement(now_ns)
         tau, tau_source = self.fusion.tau(now_ns)
-        est = self.observer.step(self._t(now_ns), y, tau)
+        t = self._t(now_ns)
+        est = self.observer.step(t, y, tau)
         out = [
             Output(
                 "/dp/measurement",
@@ -322,51 +339,59 @@ class Pipeline:
                 now_ns,
             )
         ]
-        if est.status == STATUS_NAMES[0]:
-            return out
-        self.estimates += 1
+        if est.status != STATUS_NAMES[0]:
+            self.estimates += 1
+            payload = self._estimate_payload(self.spec.observer_name, self.observer, est, now_ns)
+            out.append(Output("/dp/estimate", payload, now_ns))
+            if (
+                payload["lat_deg"] is not None
+                and now_ns - self._last_fix_ns.get("", -FIX_PERIOD_NS) >= FIX_PERIOD_NS
+            ):
+                self._last_fix_ns[""] = now_ns
+                fix = _location_fix_payload(now_ns, "estimate", payload["lat_deg"], payload["lon_deg"])
+                out.append(Output("/dp/estimate/fix", fix, now_ns, zenoh=False))
+        for label, obs in self.spec.extra_observers:
+            e = obs.step(t, y, tau)
+            if e.status != STATUS_NAMES[0]:
+                out.append(
+                    Output(f"/dp/estimates/{label}", self._estimate_payload(label, obs, e, now_ns), now_ns)
+                )
+        return out
+
+    def _estimate_payload(
+        self, label: str, obs: PassiveObserver, est: PassiveEstimate, now_ns: int
+    ) -> dict[str, Any]:
         datum = self.fusion.datum
         lat = lon = None
         if datum is not None:
             lat, lon, _ = datum.to_geodetic(float(est.eta[0]), float(est.eta[1]), 0.0)
         status = est.status
         if status == "ok" and any(
-            h.source
-            and self.sources[h.source].priority
-            > min(s.priority for s in self.sources.values() if r in s.roles)
-            for h, r in ((self.fusion.north, "position"), (self.fusion.heading, "heading"))
+            h.source and self.sources[h.source].priority > self._best_priority.get(role, 0)
+            for h, role in ((self.fusion.north, "position"), (self.fusion.heading, "heading"))
         ):
             status = "degraded"  # running on a backup source
-        payload = {
+        return {
             "stamp_ns": now_ns,
-            "observer": self.spec.observer_name,
+            "observer": label,
             "status": status,
             "eta": est.eta.tolist(),
             "nu": est.nu.tolist(),
             "bias": est.bias.tolist(),
             "eta_wf": est.eta_wf.tolist(),
-            "omega0": self.observer.gains.omega0.tolist(),
+            "omega0": obs.gains.omega0.tolist(),
             "lat_deg": lat,
             "lon_deg": lon,
             "heading_deg": math.degrees(est.eta[2]) % 360.0,
             "datum": None if datum is None else {"lat_deg": datum.lat_deg, "lon_deg": datum.lon_deg},
         }
-        out.append(Output("/dp/estimate", payload, now_ns))
-        if lat is not None and lon is not None:
-            out.append(
-                Output(
-                    "/dp/estimate/fix",
-                    _location_fix_payload(now_ns, "estimate", lat, lon),
-                    now_ns,
-                    zenoh=False,
-                )
-            )
-        return out
 
-    def _location_fix(self, source: str, rx_ns: int, lat: float, lon: float) -> Output:
-        return Output(
-            f"/gnss/{source}/fix", _location_fix_payload(rx_ns, source, lat, lon), rx_ns, zenoh=False
-        )
+    def _location_fix(self, source: str, rx_ns: int, lat: float, lon: float) -> list[Output]:
+        if rx_ns - self._last_fix_ns.get(source, -FIX_PERIOD_NS) < FIX_PERIOD_NS:
+            return []
+        self._last_fix_ns[source] = rx_ns
+        payload = _location_fix_payload(rx_ns, source, lat, lon)
+        return [Output(f"/gnss/{source}/fix", payload, rx_ns, zenoh=False)]
 
     def _feedback_output(self, now_ns: int) -> Output:
         tau, _ = self.fusion.tau(now_ns)

@@ -1,27 +1,63 @@
-"""Replay: the gateway's own MCAP log back through the same pipeline (DESIGN.md rule 1).
+"""Replay: recorded logs back through the same pipeline as the live gateway (DESIGN.md rule 1), only faster.
 
-The live service logs every raw chunk (`/raw/nmea/<source>`, `/raw/mavlink/<source>`) with its receive time
-as `log_time`, and every Zenoh input (`/dp/setpoint`, `/dp/mode`, `/dp/tau`), and the configuration it ran
-with (metadata `dpgw.config`). Feeding those events, in log-time order, to a `Pipeline` built from that
-configuration reproduces the live estimates bit for bit. (`dpgw replay` with other observers, raw NMEA
-text logs and tlogs, reports and plots is built on this.)
+Inputs (any mix, merged by time):
+- the gateway's own MCAP: every raw chunk (`/raw/nmea/<source>`, `/raw/mavlink/<source>`) with its receive
+  time as `log_time`, every Zenoh input (`/dp/setpoint`, `/dp/mode`, `/dp/tau`), and the configuration it
+  ran with (metadata `dpgw.config`): feeding those events in log-time order to a pipeline built from that
+  configuration reproduces the live estimates bit for bit. Simulator logs (`dpgw sim --out`) have the same
+  raw channels plus `/truth/state`, which replay scores against.
+- raw NMEA text logs and MAVLink tlogs (`gateway.logreaders`).
+
+Several observer specs in one pass: the first is published on `/dp/estimate` (as live), the others on
+`/dp/estimates/<label>`, side by side. Spec syntax: ``NAME[:key=value,...][@label]``, e.g.
+``passive``, ``passive:wave_period_s=9@T9``; keys are `PassiveTuning` fields (or ``wave_period_s``).
 """
 
 from __future__ import annotations
 
 import base64
+import heapq
 import json
-from collections.abc import Iterator
+import math
+import re
+from collections import Counter
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from mcap.reader import make_reader
 
-from gateway.config import GatewayConfig, parse_config
-from gateway.mcaplog import read_messages
+from gateway.config import GatewayConfig, default_config, parse_config
+from gateway.logreaders import LogCounts, nmea_text_events, tlog_events
+from gateway.mcaplog import McapLogWriter, read_messages
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
+from observers.passive import PassiveObserver
+from observers.passive_tuning import PassiveTuning
 
 CONFIG_METADATA = "dpgw.config"
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+Event = RawEvent | ControlEvent
+
+
+class ReplayError(ValueError):
+    """A replay that cannot start (unknown input, no vessel, bad observer spec): the message says why."""
+
+
+# --- inputs ----------------------------------------------------------------------------------------------
+
+
+def input_kind(path: str | Path) -> str:
+    """'mcap', 'tlog' or 'nmea' (a text log), from the file's first bytes and name."""
+    p = Path(path)
+    if not p.is_file():
+        raise ReplayError(f"{p}: no such log file")
+    head = p.open("rb").read(64)
+    if head.startswith(MCAP_MAGIC):
+        return "mcap"
+    if p.suffix.lower() in (".tlog", ".bin") or (len(head) > 8 and head[8] in (0xFE, 0xFD)):
+        return "tlog"
+    return "nmea"
 
 
 def logged_config(path: str | Path) -> dict[str, Any] | None:
@@ -38,8 +74,8 @@ def logged_config(path: str | Path) -> dict[str, Any] | None:
     return None
 
 
-def events(path: str | Path) -> Iterator[RawEvent | ControlEvent]:
-    """Input events of a gateway log in log-time order (the order the live consumer saw them)."""
+def mcap_events(path: str | Path) -> Iterator[Event]:
+    """Input events of a gateway or simulator log in log-time order (the order the live consumer saw)."""
     for topic, log_ns, _pub_ns, payload in read_messages(path):
         if topic.startswith("/raw/nmea/"):
             data = base64.b64decode(payload["data"]) if "data" in payload else payload["text"].encode("ascii")
@@ -49,15 +85,219 @@ def events(path: str | Path) -> Iterator[RawEvent | ControlEvent]:
             yield RawEvent(log_ns, topic[len("/raw/mavlink/") :], base64.b64decode(payload["data"]))
         elif topic in ("/dp/setpoint", "/dp/mode", "/dp/tau"):
             key = topic[len("/dp/") :]
-            value = payload.get(key, payload) if key == "mode" else payload
-            yield ControlEvent(log_ns, key, value)
+            yield ControlEvent(log_ns, key, payload.get(key, payload) if key == "mode" else payload)
+
+
+def mcap_sources(path: str | Path) -> dict[str, str]:
+    """Raw sources in a log: name -> protocol."""
+    out: dict[str, str] = {}
+    with open(path, "rb") as f:
+        try:
+            summary = make_reader(f).get_summary()
+        except Exception:
+            summary = None
+    topics = (
+        [c.topic for c in summary.channels.values()]
+        if summary is not None
+        else sorted({t for t, *_ in read_messages(path)})
+    )
+    for topic in topics:
+        if topic.startswith("/raw/nmea/"):
+            out[topic[len("/raw/nmea/") :]] = "nmea"
+        elif topic.startswith("/raw/mavlink/"):
+            out[topic[len("/raw/mavlink/") :]] = "mavlink"
+    return out
+
+
+def truth_records(path: str | Path) -> list[dict[str, Any]]:
+    return [p for _, _, _, p in read_messages(path, "/truth/state")]
+
+
+@dataclass
+class Input:
+    path: Path
+    kind: str
+    source: str  # source name for text logs and tlogs
+    counts: LogCounts = field(default_factory=LogCounts)
+
+    def events(self) -> Iterator[Event]:
+        if self.kind == "mcap":
+            return mcap_events(self.path)
+        if self.kind == "tlog":
+            return tlog_events(self.path, self.source, self.counts)
+        return nmea_text_events(self.path, self.source, counts=self.counts)
+
+    def sources(self) -> dict[str, str]:
+        if self.kind == "mcap":
+            return mcap_sources(self.path)
+        return {self.source: "mavlink" if self.kind == "tlog" else "nmea"}
+
+
+def open_inputs(paths: Iterable[str | Path]) -> list[Input]:
+    inputs: list[Input] = []
+    names: Counter[str] = Counter()
+    for p in paths:
+        path = Path(p)
+        kind = input_kind(path)
+        name = re.sub(r"[^a-z0-9_]", "_", path.stem.lower()) or "log"
+        if name[0].isdigit():
+            name = f"log_{name}"
+        names[name] += 1
+        if names[name] > 1:
+            name = f"{name}_{names[name]}"
+        inputs.append(Input(path, kind, name))
+    if not inputs:
+        raise ReplayError("no log given")
+    return inputs
+
+
+def merged_events(inputs: list[Input]) -> Iterator[Event]:
+    """All inputs' events merged by time (each input is already in its own time order)."""
+    if len(inputs) == 1:
+        yield from inputs[0].events()
+        return
+    yield from heapq.merge(*(inp.events() for inp in inputs), key=lambda e: e.rx_ns)
+
+
+# --- configuration and observers --------------------------------------------------------------------------
+
+TUNING_KEYS = set(PassiveTuning.__dataclass_fields__) | {"wave_period_s"}
+
+
+@dataclass(frozen=True)
+class ObserverSpec:
+    name: str
+    label: str
+    params: dict[str, float]
+
+    def tuning(self, base: PassiveTuning) -> PassiveTuning:
+        kw: dict[str, Any] = {k: v for k, v in base.__dict__.items()}
+        for key, value in self.params.items():
+            if key == "wave_period_s":
+                kw["omega0"] = 2 * math.pi / value
+            else:
+                kw[key] = value
+        return PassiveTuning(**kw)
+
+
+def parse_observer_spec(text: str) -> ObserverSpec:
+    body, _, label = text.partition("@")
+    name, _, rest = body.partition(":")
+    name = name.strip()
+    if name != "passive":
+        raise ReplayError(f"observer spec '{text}': unknown observer '{name}' (known: passive)")
+    params: dict[str, float] = {}
+    for item in filter(None, (s.strip() for s in rest.split(","))):
+        key, eq, value = item.partition("=")
+        if not eq or key not in TUNING_KEYS:
+            raise ReplayError(
+                f"observer spec '{text}': '{item}' is not key=value with a key of {sorted(TUNING_KEYS)}"
+            )
+        try:
+            params[key] = float(value)
+        except ValueError:
+            raise ReplayError(f"observer spec '{text}': {key}={value!r} is not a number") from None
+    if not label:
+        label = name + "".join(f"_{k}{v:g}" for k, v in params.items())
+    label = re.sub(r"[^A-Za-z0-9_.-]", "_", label)
+    return ObserverSpec(name, label, params)
+
+
+def build_config(
+    inputs: list[Input], *, config_path: str | Path | None = None, vessel: str | None = None
+) -> GatewayConfig:
+    """The configuration to replay with: --config, else the log's own, else one built for --vessel."""
+    from gateway.config import load_config
+
+    if config_path is not None:
+        return load_config(config_path)
+    for inp in inputs:
+        if inp.kind == "mcap" and (tables := logged_config(inp.path)) is not None:
+            if vessel is not None:
+                tables = dict(tables)
+                tables["vessel"] = (
+                    {"name": vessel}
+                    if "/" not in vessel and not vessel.endswith(".toml")
+                    else {"file": vessel}
+                )
+            tables = {**tables, "log": {"path": ""}}
+            return parse_config(tables, base_dir=inp.path.resolve().parent, where=f"{inp.path} (metadata)")
+    if vessel is None:
+        raise ReplayError("no configuration in the log: give --vessel NAME|FILE or --config FILE")
+    tables = default_config(vessel)
+    sources: list[dict[str, Any]] = []
+    for inp in inputs:
+        for name, protocol in inp.sources().items():
+            roles = ["position", "heading"] if protocol == "nmea" else ["position", "heading", "thrusters"]
+            url = "udp://127.0.0.1:0" if protocol == "nmea" else "udpin:127.0.0.1:0"
+            sources.append(
+                {
+                    "name": name,
+                    "url": url,
+                    "protocol": protocol,
+                    "roles": roles,
+                    "timeout_s": 5.0,
+                    "priority": len(sources) + 1,  # sources sharing a role need distinct priorities
+                }
+            )
+    if not sources:
+        raise ReplayError("the logs hold no NMEA or MAVLink input")
+    tables["sources"] = sources
+    tables["log"] = {"path": ""}
+    return parse_config(tables, base_dir=Path.cwd(), where="dpgw replay")
+
+
+def build_pipeline(config: GatewayConfig, specs: list[ObserverSpec]) -> Pipeline:
+    spec = PipelineSpec.from_config(config)
+    if specs:
+        primary = specs[0]
+        obs = PassiveObserver(
+            config.vessel,
+            primary.tuning(config.observer.tuning),
+            allow_unchecked=config.observer.allow_unchecked,
+        )
+        extras = tuple(
+            (
+                s.label,
+                PassiveObserver(
+                    config.vessel,
+                    s.tuning(config.observer.tuning),
+                    allow_unchecked=config.observer.allow_unchecked,
+                ),
+            )
+            for s in specs[1:]
+        )
+        spec = PipelineSpec(
+            vessel=spec.vessel,
+            sources=spec.sources,
+            observer=obs,
+            observer_name=primary.label,
+            datum=spec.datum,
+            reference_point_m=spec.reference_point_m,
+            extra_observers=extras,
+        )
+    return Pipeline(spec)
+
+
+# --- the job ----------------------------------------------------------------------------------------------
+
+
+@dataclass
+class ReplayResult:
+    events: int = 0
+    sentences: int = 0
+    outputs: int = 0
+    estimates: Counter[str] = field(default_factory=Counter)
+    counts: dict[str, dict[str, int]] = field(default_factory=dict)
+    collected: dict[str, list[dict[str, Any]]] = field(default_factory=dict)  # topic -> payloads
+    truth: list[dict[str, Any]] = field(default_factory=list)
 
 
 def replay(config: GatewayConfig, path: str | Path) -> list[Output]:
-    """Every output the pipeline gives for the logged events (status excluded: it is clock driven)."""
+    """Every output the pipeline gives for a gateway log's events (status excluded: it is clock driven)."""
     pipeline = Pipeline(PipelineSpec.from_config(config))
     out: list[Output] = []
-    for ev in events(path):
+    for ev in mcap_events(path):
         out.extend(pipeline.feed(ev))
     return out
 
@@ -66,4 +306,62 @@ def config_from_log(path: str | Path, base_dir: Path | None = None) -> GatewayCo
     data = logged_config(path)
     if data is None:
         raise ValueError(f"{path}: no dpgw configuration in the log's metadata (give --config)")
+    data = {**data, "log": {"path": ""}}
     return parse_config(data, base_dir=base_dir or Path(path).resolve().parent, where=f"{path} metadata")
+
+
+def run_replay(
+    inputs: list[Input],
+    pipeline: Pipeline,
+    *,
+    out: McapLogWriter | None = None,
+    collect: Iterable[str] = (),
+    on_outputs: Callable[[Event, list[Output]], None] | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> ReplayResult:
+    """Feed every event through the pipeline; write outputs to ``out``; keep the ``collect`` topics."""
+    result = ReplayResult()
+    wanted = set(collect)
+    for topic in wanted:
+        result.collected[topic] = []
+    for inp in inputs:
+        if inp.kind == "mcap":
+            result.truth.extend(truth_records(inp.path))
+    if out is not None:
+        for rec in result.truth:
+            out.write("/truth/state", rec, rec["stamp_ns"], rec["stamp_ns"])
+    for ev in merged_events(inputs):
+        result.events += 1
+        if isinstance(ev, RawEvent):
+            result.sentences += ev.data.count(b"\n") if ev.data[:1] in (b"$", b"!") else 1
+            if out is not None:
+                protocol = pipeline.sources[ev.source].protocol if ev.source in pipeline.sources else "nmea"
+                if protocol == "nmea":
+                    out.write_raw_nmea(ev.source, ev.data, ev.rx_ns, ev.rx_ns)
+                else:
+                    out.write_raw_mavlink(ev.source, ev.data, ev.rx_ns, ev.rx_ns)
+        outputs = pipeline.feed(ev)
+        for o in outputs:
+            if out is not None:
+                out.write(o.topic, o.payload, o.stamp_ns, o.stamp_ns)
+            if o.topic in wanted:
+                result.collected[o.topic].append(o.payload)
+            if o.topic == "/dp/estimate" or o.topic.startswith("/dp/estimates/"):
+                result.estimates[o.payload["observer"]] += 1
+        result.outputs += len(outputs)
+        if on_outputs is not None:
+            on_outputs(ev, outputs)
+        if progress is not None and result.events % 2000 == 0:
+            progress(result.events)
+    now = pipeline.last_ns
+    status = pipeline.status(now).payload
+    for name, c in status["sources"].items():
+        result.counts[f"source {name}"] = {"received": c["received"], **c["rejected"]}
+    for inp in inputs:
+        if inp.kind != "mcap":
+            result.counts[f"log {inp.path.name}"] = {
+                "lines": inp.counts.lines,
+                "cycles": inp.counts.cycles,
+                **inp.counts.counts,
+            }
+    return result

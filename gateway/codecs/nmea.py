@@ -255,12 +255,26 @@ def _fast_new(cls: type[_T]) -> Callable[..., _T]:
 # ---------------------------------------------------------------------------------------------- decode
 
 
-def decode(text: str, *, require_checksum: bool = True) -> Sentence | Reject:
+class _Unused:
+    """A good sentence (format and checksum checked) of a type the caller did not ask for."""
+
+    def __repr__(self) -> str:
+        return "UNUSED"
+
+
+UNUSED: Final = _Unused()
+
+
+def decode(
+    text: str, *, require_checksum: bool = True, only: frozenset[str] | None = None
+) -> Sentence | Reject | _Unused:
     """Decode one sentence, ``$`` to checksum (a :class:`Frame`'s ``text``; a trailing CR/LF is ignored).
 
     Returns a typed sentence (:data:`Sentence`) or a :class:`Reject`; never raises. With
     ``require_checksum=False`` a sentence without ``*HH`` is accepted (some gyros send none); a checksum
-    that is present is always checked.
+    that is present is always checked. With ``only`` (sentence formatters such as ``{"GGA", "HDT"}``), a
+    good sentence of another type is not parsed field by field: `UNUSED` is returned (replay skips the
+    work for sentences the pipeline does not use; checksum failures are still rejects).
     """
     try:
         if len(text) < 2 or text[0] not in "$!" or not text.isascii():
@@ -281,6 +295,8 @@ def decode(text: str, *, require_checksum: bool = True) -> Sentence | Reject:
                 return Reject(BAD_CHECKSUM, f"checksum field {text[star + 1 :][:8]!r} is not two hex digits")
             if _xor(body) != given:
                 return Reject(BAD_CHECKSUM, f"checksum {text[star + 1 :]}, computed {checksum(body)}")
+        if only is not None and body[2:5] not in only and body[:1] != "P":
+            return UNUSED
         parts = body.split(",")
         entry = _ADDRESSES.get(parts[0])
         if entry is None:

@@ -1,0 +1,265 @@
+"""``dpgw replay``: logged sea trials back through the pipeline, with other tunings or observers."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gateway.bus import BusError, make_config, open_session
+from gateway.config import ConfigError, format_problems
+from gateway.mcaplog import McapLogWriter, encode_json
+from gateway.pipeline import Output
+from gateway.replay import (
+    Event,
+    ObserverSpec,
+    ReplayError,
+    ReplayResult,
+    build_config,
+    build_pipeline,
+    open_inputs,
+    parse_observer_spec,
+    run_replay,
+)
+from gateway.scoring import score
+from observers.passive_tuning import TuningError
+from observers.vessel import VesselError
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser(
+        "replay",
+        help="re-run observers on recorded logs (MCAP, NMEA text, MAVLink tlog), with a report",
+        description=(
+            "Feed recorded logs through the same pipeline as the live gateway, as fast as the CPU allows: "
+            "the gateway's own MCAP logs (re-decoded from their raw channels: a live log is reproduced bit "
+            "for bit), simulator logs (scored against their ground truth), raw NMEA text logs (time from the "
+            "sentences; HDT/ROT take the time of their cycle) and MAVLink tlogs. Several observer specs run "
+            "side by side in one pass. Bad input (truncated lines, garbage, checksum failures, time gaps, "
+            "backwards or repeated time, duplicates) is counted, never fatal."
+        ),
+        epilog=(
+            "observer specs: NAME[:key=value,...][@label], keys of the passive observer's tuning:\n"
+            "  wave_period_s, omega0, zeta, zeta_n, cutoff_ratio, omega_c, bias_time_constant_s,\n"
+            "  velocity_injection, bias_corner_ratio, bias_corner\n"
+            "examples:\n"
+            "  dpgw replay trial.mcap --out again.mcap                      # a gateway log, its own config\n"
+            "  dpgw replay usv.txt --vessel cybership2 --observer passive:wave_period_s=6 \\\n"
+            "       --observer passive:wave_period_s=10@long --out usv.mcap --report usv_report\n"
+            "  dpgw replay sim.mcap --vessel mss_supply --out est.mcap --json  # RMS errors vs the truth\n"
+            "  dpgw replay trial.mcap --out again.mcap --speed 5              # publish on Zenoh, 5x"
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("logs", nargs="+", metavar="LOG", help="MCAP, NMEA text or tlog files (merged by time)")
+    p.add_argument("--vessel", metavar="NAME|FILE", help="vessel (needed unless the log or --config has one)")
+    p.add_argument("--config", metavar="FILE", help="a gateway config (sources, lever arms, tuning)")
+    p.add_argument(
+        "--observer", action="append", default=[], metavar="SPEC", help="observer spec (repeatable)"
+    )
+    p.add_argument("--out", required=True, metavar="OUT.mcap", help="write inputs and estimates here")
+    p.add_argument("--report", metavar="DIR", help="write plots (PNG), metrics.json and report.md here")
+    pace = p.add_mutually_exclusive_group()
+    pace.add_argument(
+        "--speed", type=float, metavar="X", help="pace at X times real time and publish on Zenoh"
+    )
+    pace.add_argument("--realtime", action="store_true", help="= --speed 1")
+    p.add_argument("--prefix", help="Zenoh prefix when publishing (default the config's)")
+    p.add_argument("--zenoh-connect", action="append", default=[], metavar="ENDPOINT")
+    p.add_argument("--zenoh-listen", action="append", default=[], metavar="ENDPOINT")
+    p.add_argument("--no-scouting", action="store_true")
+    p.add_argument("--settle", type=float, default=60.0, metavar="S", help="skip S s before scoring (60)")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        inputs = open_inputs(args.logs)
+        config = build_config(inputs, config_path=args.config, vessel=args.vessel)
+        specs = [parse_observer_spec(s) for s in args.observer] or [ObserverSpec("passive", "passive", {})]
+        pipeline = build_pipeline(config, specs)
+    except ConfigError as exc:
+        print(format_problems(exc), file=sys.stderr)
+        return 2
+    except (ReplayError, VesselError, TuningError, OSError) as exc:
+        print(f"dpgw replay: {exc}", file=sys.stderr)
+        return 2
+    speed = 1.0 if args.realtime else args.speed
+    publisher = _Publisher(args, config.zenoh.prefix, speed) if speed else None
+    topics = ["/dp/measurement", "/dp/estimate", *(f"/dp/estimates/{s.label}" for s in specs[1:])]
+    bar = _bar() if sys.stderr.isatty() and not args.json else None
+    t0 = time.perf_counter()
+    try:
+        with McapLogWriter(args.out, profile="dpgw-replay", flush_on_log_time=False) as out:
+            out.add_metadata("dpgw.replay", {"logs": json.dumps([str(i.path) for i in inputs])})
+            result = run_replay(
+                inputs,
+                pipeline,
+                out=out,
+                collect=topics,
+                on_outputs=publisher.on_outputs if publisher else None,
+                progress=(lambda n: bar.update(n - bar.n)) if bar is not None else None,
+            )
+    except BusError as exc:
+        print(f"dpgw replay: {exc}", file=sys.stderr)
+        return 2
+    finally:
+        if bar is not None:
+            bar.close()
+        if publisher is not None:
+            publisher.close()
+    wall = time.perf_counter() - t0
+    summary = _summary(args, specs, result, wall)
+    if args.report:
+        summary["report"] = [str(p) for p in _report(args, config.vessel.name, specs, result)]
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        _print(summary)
+    return 0
+
+
+class _Publisher:
+    """--speed / --realtime: pace by event time and publish on Zenoh as if live."""
+
+    def __init__(self, args: argparse.Namespace, prefix: str, speed: float) -> None:
+        self.session = open_session(
+            make_config(
+                connect=args.zenoh_connect, listen=args.zenoh_listen, multicast_scouting=not args.no_scouting
+            )
+        )
+        self.prefix = args.prefix or prefix
+        self.speed = speed
+        self.t0_ns: int | None = None
+        self.wall0 = 0.0
+
+    def on_outputs(self, ev: Event, outputs: list[Output]) -> None:
+        if self.t0_ns is None:
+            self.t0_ns, self.wall0 = ev.rx_ns, time.monotonic()
+        due = self.wall0 + (ev.rx_ns - self.t0_ns) / 1e9 / self.speed
+        delay = due - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+        for o in outputs:
+            if o.zenoh and o.topic.startswith("/dp/"):
+                self.session.put(f"{self.prefix}/{o.topic[4:]}", encode_json(o.payload))
+
+    def close(self) -> None:
+        self.session.close()
+
+
+def _bar() -> Any:
+    from tqdm import tqdm
+
+    return tqdm(unit=" events", file=sys.stderr, dynamic_ncols=True)
+
+
+def _traces(result: ReplayResult, topic: str) -> tuple[np.ndarray, np.ndarray] | None:
+    rows = result.collected.get(topic, [])
+    if not rows:
+        return None
+    return np.array([r["stamp_ns"] for r in rows], dtype=np.int64), np.array(
+        [r["eta"] for r in rows], dtype=float
+    )
+
+
+def _summary(
+    args: argparse.Namespace, specs: list[ObserverSpec], r: ReplayResult, wall: float
+) -> dict[str, Any]:
+    s: dict[str, Any] = {
+        "logs": args.logs,
+        "out": args.out,
+        "events": r.events,
+        "sentences": r.sentences,
+        "wall_seconds": wall,
+        "sentences_per_second": r.sentences / wall if wall > 0 else None,
+        "estimates": dict(r.estimates),
+        "counts": r.counts,
+    }
+    if r.truth:
+        tt_ns = np.array([x["stamp_ns"] for x in r.truth], dtype=np.int64)
+        eta_t = np.array([x["eta_lf"] for x in r.truth], dtype=float)
+        errors = {}
+        for spec, topic in zip(
+            specs, ["/dp/estimate", *(f"/dp/estimates/{x.label}" for x in specs[1:])], strict=True
+        ):
+            tr = _traces(r, topic)
+            if tr is None:
+                continue
+            t_ns, eta = tr
+            sc = score((t_ns - tt_ns[0]) / 1e9, eta, (tt_ns - tt_ns[0]) / 1e9, eta_t, settle_s=args.settle)
+            errors[spec.label] = sc.as_dict()
+        s["error_vs_truth"] = errors
+        s["settle_s"] = args.settle
+    return s
+
+
+def _print(s: dict[str, Any]) -> None:
+    rate = s["sentences_per_second"] or 0.0
+    print(
+        f"dpgw replay: {s['events']} events, {s['sentences']} sentences/frames in {s['wall_seconds']:.1f} s "
+        f"({rate:,.0f}/s) -> {s['out']}"
+    )
+    for label, n in s["estimates"].items():
+        print(f"  observer {label}: {n} estimates")
+    for where, c in s["counts"].items():
+        print(f"  {where}: " + ", ".join(f"{k} {v}" for k, v in c.items()))
+    for label, e in s.get("error_vs_truth", {}).items():
+        print(
+            f"  {label} vs truth (after {s['settle_s']:.0f} s): RMS N {e['rms_north_m']:.3f} m, "
+            f"E {e['rms_east_m']:.3f} m, heading {e['rms_heading_deg']:.3f} deg"
+        )
+    for path in s.get("report", []):
+        print(f"  report: {path}")
+
+
+def _report(args: argparse.Namespace, vessel: str, specs: list[ObserverSpec], r: ReplayResult) -> list[Path]:
+    from gateway.report import ObserverTrace, ReplayData, write_report
+
+    meas = r.collected.get("/dp/measurement", [])
+    if not meas:
+        return []
+    t0 = meas[0]["stamp_ns"]
+    t_meas = (np.array([m["stamp_ns"] for m in meas], dtype=np.int64) - t0) / 1e9
+    y = np.array([[np.nan if v is None else v for v in m["eta"]] for m in meas], dtype=float)
+    traces = []
+    for spec, topic in zip(
+        specs, ["/dp/estimate", *(f"/dp/estimates/{x.label}" for x in specs[1:])], strict=True
+    ):
+        rows = r.collected.get(topic, [])
+        if not rows:
+            continue
+        traces.append(
+            ObserverTrace(
+                label=spec.label,
+                t=(np.array([e["stamp_ns"] for e in rows], dtype=np.int64) - t0) / 1e9,
+                eta=np.array([e["eta"] for e in rows], dtype=float),
+                nu=np.array([e["nu"] for e in rows], dtype=float),
+                bias=np.array([e["bias"] for e in rows], dtype=float),
+                eta_wf=np.array([e["eta_wf"] for e in rows], dtype=float),
+                omega0=np.array([e["omega0"] for e in rows], dtype=float),
+            )
+        )
+    truth_kw: dict[str, Any] = {}
+    if r.truth:
+        truth_kw = {
+            "truth_t": (np.array([x["stamp_ns"] for x in r.truth], dtype=np.int64) - t0) / 1e9,
+            "truth_eta_lf": np.array([x["eta_lf"] for x in r.truth], dtype=float),
+            "truth_eta_wf": np.array([x["eta_wf"] for x in r.truth], dtype=float),
+        }
+    data = ReplayData(
+        title=", ".join(Path(p).name for p in args.logs),
+        vessel=vessel,
+        t_meas=t_meas,
+        y=y,
+        traces=tuple(traces),
+        counts=r.counts,
+        **truth_kw,
+    )
+    return write_report(data, args.report)

@@ -1,0 +1,190 @@
+"""Replay (issue 6): real NMEA logs, simulator and gateway logs, bad time, several observers, tlogs."""
+
+from __future__ import annotations
+
+import json
+import math
+import struct
+import subprocess
+import sys
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gateway.codecs import mavlink as mv
+from gateway.codecs import nmea_encode as enc
+from gateway.logreaders import LogCounts, nmea_text_events, tlog_events
+from gateway.mcaplog import McapLogWriter, read_messages
+from gateway.replay import (
+    ObserverSpec,
+    ReplayError,
+    build_config,
+    build_pipeline,
+    open_inputs,
+    parse_observer_spec,
+)
+from gateway.replay import run_replay as _run
+from observers.kinematics import ssa
+from simulator.runner import Simulation
+from simulator.scenarios import get_scenario
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+USV = DATA / "usv-nmea"
+
+
+def need(path: Path) -> Path:
+    if not path.exists():
+        pytest.skip(f"{path} not present (../shared/data beside the clone)")
+    return path
+
+
+def replay_text(path: Path, vessel: str = "cybership2", specs: list[str] | None = None):  # type: ignore[no-untyped-def]
+    inputs = open_inputs([path])
+    config = build_config(inputs, vessel=vessel)
+    parsed = [parse_observer_spec(s) for s in specs] if specs else [ObserverSpec("passive", "passive", {})]
+    pipeline = build_pipeline(config, parsed)
+    topics = ["/dp/measurement", "/dp/estimate", *(f"/dp/estimates/{s.label}" for s in parsed[1:])]
+    return _run(inputs, pipeline, collect=topics), inputs[0]
+
+
+def test_usv_log_an_estimate_every_cycle_and_the_truncated_first_line_counted() -> None:
+    result, inp = replay_text(need(USV / "202412051037.txt"))
+    cycles = inp.counts.cycles
+    est = result.collected["/dp/estimate"]
+    assert cycles > 3000
+    first = result.collected["/dp/measurement"]
+    before_init = next(k for k, m in enumerate(first) if all(v is not None for v in m["eta"]))
+    assert len(est) == cycles - before_init  # every cycle after initialisation
+    counts = result.counts[f"source {inp.source}"]
+    assert counts["garbage"] == 1  # the truncated first line: counted, not fatal
+
+
+def test_usv_heading_crossing_north_leaves_no_step_and_lf_is_smoother() -> None:
+    result, _ = replay_text(need(USV / "202412061745.txt"))
+    meas = np.array(
+        [[np.nan if v is None else v for v in m["eta"]] for m in result.collected["/dp/measurement"]]
+    )
+    est = np.array([e["eta"] for e in result.collected["/dp/estimate"]])
+    compass = np.mod(meas[:, 2][~np.isnan(meas[:, 2])], 2 * math.pi)  # as the gyro says it: 0..360°
+    crossings = np.sum(np.abs(np.diff(compass)) > math.pi)
+    assert crossings >= 5  # the log does cross 0°/360°
+    dpsi = np.abs(ssa(np.diff(est[:, 2])))
+    assert dpsi.max() < math.radians(5.0)  # no 2π step, ever
+    assert np.all(np.abs(np.diff(est[:, 2])[dpsi < 1.0]) < 1.0)
+    # the LF estimate is smoother than the measurement (first differences)
+    m = meas[-len(est) :]
+    for k in range(2):
+        ok = ~np.isnan(m[:, k])
+        assert np.std(np.diff(est[ok, k])) < np.std(np.diff(m[ok, k]))
+
+
+@pytest.mark.parametrize(
+    "name", ["hemi.log", "nmea-rtk.log", "polarx2.log", "rst39.log", "saab-r4.log", "skytraq-PX1172RH_DS.log"]
+)
+def test_gpsd_logs_replay_without_error(name: str) -> None:
+    result, inp = replay_text(need(DATA / "gpsd-logs" / name), vessel="mss_supply")
+    assert inp.counts.lines > 0 and result.events > 0
+    c = result.counts[f"source {inp.source}"]
+    assert c["received"] > 0
+
+
+def write_text_log(path: Path, times: list[datetime], *, dup: int | None = None) -> None:
+    lines = []
+    for k, t in enumerate(times):
+        lat = 59.4 + 1e-6 * k
+        cycle = [enc.gga("GP", t, lat, 10.5, 2, 12, 0.8, 10.0), enc.rmc("GP", t, lat, 10.5, 0.1, 0.2, True)]
+        cycle.append(enc.hdt("HE", 0.3))
+        lines += cycle
+        if dup == k:
+            lines.append(cycle[-1])
+    path.write_text("".join(lines))
+
+
+def test_midnight_rollover_and_bad_time_are_counted(tmp_path: Path) -> None:
+    t0 = datetime(2026, 3, 1, 23, 59, 50, tzinfo=UTC)
+    times = [t0 + timedelta(seconds=k) for k in range(20)]  # crosses midnight
+    times += [times[-1] + timedelta(seconds=30 + k) for k in range(5)]  # a 30 s gap
+    times.append(times[-1] - timedelta(seconds=2))  # repeated (an earlier finished cycle)
+    times.append(times[-1] - timedelta(seconds=0.5))  # backwards to a time never seen
+    times += [times[-3] + timedelta(seconds=k + 1) for k in range(3)]
+    log = tmp_path / "trial.nmea"
+    write_text_log(log, times, dup=3)
+    counts = LogCounts()
+    events = list(nmea_text_events(log, "gps", counts=counts))
+    stamps = [e.rx_ns for e in events]
+    assert stamps[10] - stamps[9] == 1_000_000_000  # 23:59:59 -> 00:00:00 next day, no jump back
+    assert datetime.fromtimestamp(stamps[10] / 1e9, UTC).date() == datetime(2026, 3, 2).date()
+    assert counts.counts["time_gap"] == 1
+    assert counts.counts["repeated_time"] == 1 and counts.counts["time_backwards"] == 1
+    assert counts.counts["duplicate"] == 1
+    result, _ = replay_text(log)  # and the pipeline takes it all without raising
+    assert len(result.collected["/dp/estimate"]) > 20
+
+
+def test_several_observers_side_by_side(tmp_path: Path) -> None:
+    result, _ = replay_text(
+        need(USV / "202412071127.txt"),
+        specs=["passive:wave_period_s=5", "passive:wave_period_s=10@long", "passive:velocity_injection=0.1"],
+    )
+    a = result.collected["/dp/estimate"]
+    b = result.collected["/dp/estimates/long"]
+    c = result.collected["/dp/estimates/passive_velocity_injection0.1"]
+    assert len(a) == len(b) == len(c) > 100
+    assert a[0]["observer"] == "passive_wave_period_s5" and b[0]["observer"] == "long"
+    assert b[0]["omega0"][0] == pytest.approx(2 * math.pi / 10)
+    assert a[-1]["eta"] != b[-1]["eta"]  # different filters, different estimates
+
+
+def test_bad_observer_spec() -> None:
+    with pytest.raises(ReplayError, match="wave_peroid"):
+        parse_observer_spec("passive:wave_peroid=9")
+    with pytest.raises(ReplayError, match="unknown observer"):
+        parse_observer_spec("kalman")
+
+
+def test_simulator_log_is_scored_against_its_truth(tmp_path: Path) -> None:
+    log = tmp_path / "sim.mcap"
+    with McapLogWriter(log) as w:
+        Simulation(get_scenario("torsetnes_2004"), seed=4, log=w).run(300.0)
+    p = subprocess.run(
+        [sys.executable, "-m", "gateway", "replay", str(log), "--vessel", "mss_supply",
+         "--observer", "passive:wave_period_s=11.5", "--observer", "passive:wave_period_s=5@bad",
+         "--out", str(tmp_path / "est.mcap"), "--json"],
+        capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    s = json.loads(p.stdout)
+    good = s["error_vs_truth"]["passive_wave_period_s11.5"]
+    bad = s["error_vs_truth"]["bad"]
+    assert good["samples"] > 1000 and good["horizontal_rms_m"] < 1.5
+    assert good["horizontal_rms_m"] < bad["horizontal_rms_m"]  # tuned to the sea: closer to the truth
+    topics = {t for t, *_ in read_messages(tmp_path / "est.mcap")}
+    assert {"/dp/estimate", "/dp/estimates/bad", "/truth/state", "/raw/nmea/dgps1"} <= topics
+
+
+def test_tlog_replay(tmp_path: Path) -> None:
+    """A MAVLink tlog (8-byte µs time + frame per record) with GPS_RAW_INT, ATTITUDE and thruster status."""
+    d = mv.dialect()
+    mav = mv.encoder(1, 1)
+    t0_us = 1_780_000_000_000_000
+    records = bytearray()
+    for k in range(100):
+        t_us = t0_us + k * 100_000
+        for frame in (
+            mv.pack(mav, d.MAVLink_attitude_message(k, 0.0, 0.0, 0.7, 0.0, 0.0, 0.0)),
+            mv.pack(
+                mav, d.MAVLink_gps_raw_int_message(k, 3, 594_000_000, 105_000_000, 0, 100, 100, 0, 0, 12)
+            ),
+            mv.azimuth_status_frame(mav, t_us, 1, 0.0, 0.0, 0.2, 0),
+        ):
+            records += struct.pack(">Q", t_us) + frame
+    records += b"\x00\x01garbage!!"  # a damaged tail
+    path = tmp_path / "boat.tlog"
+    path.write_bytes(bytes(records))
+    counts = LogCounts()
+    assert len(list(tlog_events(path, "boat", counts))) == 300
+    result, inp = replay_text(path, vessel="cybership2")
+    assert inp.kind == "tlog"
+    est = result.collected["/dp/estimate"]
+    assert len(est) > 50 and est[-1]["eta"][2] == pytest.approx(0.7, abs=0.01)
