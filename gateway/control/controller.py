@@ -1,0 +1,529 @@
+"""DP controller: the nonlinear PID of Torsetnes, Jouffroy & Fossen (2004), eqs (57)–(59), (67)–(70).
+
+Pure numerics (DESIGN.md rule 2): arrays in, arrays out; time only through the ``t`` passed to `update`.
+
+Plant (Torsetnes (8)–(10), Fossen & Strand (1999) (1), (3))::
+
+    η' = J(ψ) ν,      M ν' + D ν = τ + Jᵀ(ψ) b                                         (8), (10)
+
+Control law implemented, fed by the observer's low-frequency estimates η̂, ν̂, b̂ only (never the raw
+measurement: that is the point of wave filtering; eqs (67)–(70) are (57)–(59) with hats)::
+
+    ξ̂ − ξ_d = z,   z' = η̃ = η̂ − η_d  (ψ component ssa(ψ̂ − ψ_d))                   (57), (58), (67), (68)
+    τ = − Kp Jᵀ(ψ̂) η̃ − Kd ν̃ − Ki Jᵀ(ψ̂) z                                           (59), (69)–(70)
+        + M ν̇_d + D ν_d                       (reference feed-forward, ``feedforward``)
+        − Jᵀ(ψ̂) b̂                             (bias feed-forward, ``bias_feedforward``)
+    ν̃ = ν̂ − Jᵀ(ψ̂) η_d'
+
+Notes on the paper (see also ../shared/papers/ERRATA.md: ξ here is the integral of η, not the wave state):
+
+* (69)–(70) is one equation broken over two lines by the OCR; Theorem 4 cites it as "(70)".
+* (57)/(58) integrate η and η_d separately; only the difference z = ξ − ξ_d enters (59), so dpgw
+  integrates the error, with the heading difference through `ssa` (the paper's ψ − ψ_d is not wrapped;
+  integrating raw headings would wind up 2π on every crossing of ±180°). z is earth-fixed, as in the
+  paper, and rotated into the body frame by Jᵀ(ψ̂): the integrator holds an earth-fixed force, the shape of
+  the bias b it has to cancel.
+* (59) damps ν, not ν − ν_d: it is written for regulation (η_d constant). For tracking the reference
+  dpgw uses ν̃ = ν̂ − Jᵀ(ψ̂) η_d', the body-frame form of d/dt(η̃) (since η̃' = J(ψ)(ν − Jᵀ(ψ)η_d')), so P and D
+  act on one signal. The paper is silent on feed-forward and on the bias estimate; both are dpgw's
+  additions, each switchable. With both, the linearised error dynamics (ψ̂ ≈ ψ_d, observer exact) are
+  M ë + (D + Kd) ė + Kp e + Ki ∫e = 0, e = Jᵀη̃: the matrix A_τ of (66).
+* (62) has lost a factor: its last term is M⁻¹ Jᵀ(Ki ξ_d + Kp η_d), consistent with (59) and (65)–(66).
+* The paper gives no gain formulas, only "critically damped, ωn = 0.8 rad/s" (Sec. V). That ωn lies in
+  the wave band (0.3–1.3 rad/s for a full-scale ship): a loop that fast would try to cancel the
+  first-order wave motion that the observer filters out, and would not be realisable with real thrusters.
+  dpgw's default is 0.07 rad/s (closed-loop period 90 s) for a 76.2 m supply vessel, Froude-scaled with
+  the vessel's length (below), four times below the lowest wave frequency and three times slower than
+  the observer's velocity-error decay (≈ 0.2 s⁻¹, docs/passive-observer.md).
+
+Gains (`controller_gains`), per DOF i with closed-loop natural frequency ωᵢ, damping ζᵢ and integral
+pole aᵢ = ρᵢ ωᵢ (ρ = ``integral_ratio``)::
+
+    Kp = M diag(ωᵢ² + 2ζᵢωᵢaᵢ),   Kd = M diag(2ζᵢωᵢ + aᵢ) − D,   Ki = M diag(ωᵢ² aᵢ)
+
+so that M⁻¹Kp, M⁻¹(D + Kd), M⁻¹Ki are diagonal and each DOF's characteristic polynomial is exactly
+s³ + (2ζω + a)s² + (ω² + 2ζωa)s + ω²a = (s² + 2ζωs + ω²)(s + a): a pair at ωn, ζ and a real integral
+pole at −a. The full M (not its diagonal) is used so that the sway–yaw coupling M₂₃ does not move the
+poles; with one ω and ζ for all DOFs (the default) Kp and Ki are positive multiples of M, hence symmetric
+positive definite. A slow integral pole (ρ = 0.1) removes steady-state error without changing the PD
+response; it is what "Ki = Kp ωn/10" aims at, placed exactly. If the vessel's own damping exceeds the
+desired one (Dᵢᵢ > Mᵢᵢ(2ζᵢωᵢ + aᵢ)), Kd would have to be negative, i.e. feed energy in: the damping
+coefficient is raised to Dᵢᵢ/Mᵢᵢ (Kdᵢᵢ = 0) and `ControllerGains.clipped` says so.
+
+Integral anti-windup (`update(..., saturated, tau_allocated)`; ``saturated`` and ``tau_allocated``
+describe what allocation made of the previous demand):
+
+* ``saturated`` with ``tau_allocated``: back-calculation (Åström & Hägglund). Besides η̃, the integrator
+  moves the integral term towards the achievable force: per DOF the fraction min(dt/Tₜ, 1) of the excess
+  τ_demand − τ_allocated is taken off the integral term each step, Tₜ = 1/ωᵢ (``tracking_time_s``).
+* ``saturated`` without ``tau_allocated``: conditional integration — the integrator is frozen.
+* not saturated: plain integration.
+
+Modes: ``standby`` (τ = 0, integrator reset, reference follows the estimate), ``dp`` (station keeping and
+tracking through the reference model, `gateway.control.reference`), ``manual`` (τ from outside, held
+until the next one; integrator reset; reference follows the estimate). Bumpless transfer into ``dp``:
+the first `update` in dp starts the reference at η̂ moving with J(ψ̂)ν̂ (so η̃ = 0, ν̃ = 0) and sets the
+integrator so that the first τ equals the τ output just before (the manual τ, or 0 from standby), or the
+``tau_now`` given to `set_mode`. The integrator then carries the load the operator was holding; it
+unwinds through the closed loop (time constant ≈ 1/a). A DOF without integral action (ρᵢ = 0) cannot
+be made bumpless this way and may jump. Entering dp with no setpoint given since dp was last left holds
+the present position (DP-console convention); a setpoint given while in standby or manual becomes the
+target on entering dp.
+
+Defaults scale with the vessel (Froude scaling from a 76.2 m supply vessel, the MSS supply model of
+Torsetnes' case study, factor λ = L/76.2): frequencies × λ^(-1/2), speeds × λ^(1/2), accelerations × 1,
+angular accelerations × λ^(-1). For the 1.255 m CyberShip II (1:70 model) ωn = 0.55 rad/s, 0.064 m/s,
+15.6°/s; its wave band is also ≈ 8× higher, so the ratio to the waves is kept.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from gateway.control.reference import ReferenceLimits, ReferenceModel, ReferenceState
+from observers.kinematics import rotation, ssa_scalar
+from observers.vessel import VesselModel
+
+Array = NDArray[np.float64]
+
+MODES = ("standby", "dp", "manual")
+
+REFERENCE_LENGTH_M = 76.2
+"""Length at which the defaults below hold (MSS supply vessel); other vessels are Froude-scaled."""
+DEFAULT_BANDWIDTH_RAD_S = 0.07
+DEFAULT_MAX_SPEED_MPS = 0.5
+DEFAULT_MAX_ACCEL_MPS2 = 0.05
+DEFAULT_MAX_YAW_RATE_RAD_S = math.radians(2.0)
+DEFAULT_MAX_YAW_ACCEL_RAD_S2 = math.radians(0.2)
+
+ZERO3 = np.zeros(3)
+
+
+class ControllerError(ValueError):
+    """A tuning or an input the controller cannot use; the message names the field."""
+
+
+def froude_defaults(vessel: VesselModel) -> dict[str, float]:
+    """Default bandwidth and reference limits for ``vessel``, Froude-scaled from the 76.2 m reference."""
+    lam = vessel.length_m / REFERENCE_LENGTH_M
+    s = math.sqrt(lam)
+    return {
+        "bandwidth_rad_s": DEFAULT_BANDWIDTH_RAD_S / s,
+        "max_speed_mps": DEFAULT_MAX_SPEED_MPS * s,
+        "max_accel_mps2": DEFAULT_MAX_ACCEL_MPS2,
+        "max_yaw_rate_rad_s": DEFAULT_MAX_YAW_RATE_RAD_S / s,
+        "max_yaw_accel_rad_s2": DEFAULT_MAX_YAW_ACCEL_RAD_S2 / lam,
+    }
+
+
+def _per_dof(value: Any, name: str, n: int = 3, allow_zero: bool = False) -> tuple[float, ...]:
+    a = np.asarray(value, dtype=float).reshape(-1)
+    if a.size == 1:
+        a = np.repeat(a, n)
+    ok = a.size == n and np.all(np.isfinite(a)) and np.all(a >= 0 if allow_zero else a > 0)
+    if not ok:
+        need = "non-negative" if allow_zero else "positive"
+        count = "one value" if n == 1 else f"one value or {n} (one per DOF)"
+        raise ControllerError(
+            f"tuning '{name}': must be {need} and finite, {count}, got {np.asarray(value).tolist()}"
+        )
+    return tuple(float(x) for x in a)
+
+
+@dataclass(frozen=True)
+class ControllerTuning:
+    """Controller tuning in physical terms. Per-DOF values are (surge, sway, yaw); one value means all.
+
+    bandwidth_rad_s:           closed-loop natural frequency ωn (rad/s); None: Froude-scaled default
+                               (0.07 rad/s at 76.2 m).
+    damping:                   closed-loop relative damping ζ (1.0: critically damped).
+    integral_ratio:            ρ = a/ωn, integral pole a as a fraction of ωn (0: no integral action).
+    bias_feedforward:          add −Jᵀ(ψ̂) b̂ from the observer's bias estimate.
+    feedforward:               add M ν̇_d + D ν_d from the reference model.
+    max_speed_mps, max_accel_mps2, max_yaw_rate_rad_s, max_yaw_accel_rad_s2:
+                               reference-model limits over ground; None: Froude-scaled 0.5 m/s,
+                               0.05 m/s², 2°/s, 0.2°/s² at 76.2 m.
+    reference_bandwidth_rad_s: ω of the reference model, one value or (translation, yaw); None: the
+                               closed-loop ωn (min of surge and sway for translation).
+    tracking_time_s:           Tₜ of back-calculation anti-windup, per DOF; None: 1/ωn.
+    """
+
+    bandwidth_rad_s: float | tuple[float, ...] | None = None
+    damping: float | tuple[float, ...] = 1.0
+    integral_ratio: float | tuple[float, ...] = 0.1
+    bias_feedforward: bool = True
+    feedforward: bool = True
+    max_speed_mps: float | None = None
+    max_accel_mps2: float | None = None
+    max_yaw_rate_rad_s: float | None = None
+    max_yaw_accel_rad_s2: float | None = None
+    reference_bandwidth_rad_s: float | tuple[float, ...] | None = None
+    tracking_time_s: float | tuple[float, ...] | None = None
+
+    def resolved(self, vessel: VesselModel) -> ControllerTuning:
+        """This tuning with every default filled in for ``vessel`` and per-DOF values as tuples, checked."""
+        d = froude_defaults(vessel)
+        wn = _per_dof(
+            d["bandwidth_rad_s"] if self.bandwidth_rad_s is None else self.bandwidth_rad_s, "bandwidth_rad_s"
+        )
+        limits: dict[str, float] = {}
+        for key in ("max_speed_mps", "max_accel_mps2", "max_yaw_rate_rad_s", "max_yaw_accel_rad_s2"):
+            value = getattr(self, key)
+            limits[key] = _per_dof(d[key] if value is None else value, key, n=1)[0]
+        ref = self.reference_bandwidth_rad_s
+        ref_w = _per_dof((min(wn[0], wn[1]), wn[2]) if ref is None else ref, "reference_bandwidth_rad_s", n=2)
+        tt = self.tracking_time_s
+        return replace(
+            self,
+            bandwidth_rad_s=wn,
+            damping=_per_dof(self.damping, "damping"),
+            integral_ratio=_per_dof(self.integral_ratio, "integral_ratio", allow_zero=True),
+            bias_feedforward=bool(self.bias_feedforward),
+            feedforward=bool(self.feedforward),
+            reference_bandwidth_rad_s=ref_w,
+            tracking_time_s=tuple(1.0 / w for w in wn) if tt is None else _per_dof(tt, "tracking_time_s"),
+            **limits,
+        )
+
+
+@dataclass(frozen=True)
+class ControllerGains:
+    """Kp, Ki, Kd (3×3, SI: N/m and N·m/rad; N/(m·s) and N·m/(rad·s); N·s/m and N·m·s/rad) and their design.
+
+    Per DOF: ``omega_n`` (rad/s), ``zeta`` (as asked), ``integral_pole`` a = ρ·ωn (rad/s), and
+    ``char_poly`` rows [c, p, k] of the closed-loop polynomial s³ + c s² + p s + k (M⁻¹(D + Kd), M⁻¹Kp,
+    M⁻¹Ki are diag(c), diag(p), diag(k)). ``clipped`` marks DOFs whose Kd would have been negative (c raised
+    to Dᵢᵢ/Mᵢᵢ; their poles are then not at ωn, ζ). See the module docstring for the formulas.
+    """
+
+    Kp: Array
+    Ki: Array
+    Kd: Array
+    omega_n: Array
+    zeta: Array
+    integral_pole: Array
+    char_poly: Array
+    clipped: tuple[bool, bool, bool]
+
+    def design_poles(self) -> NDArray[np.complex128]:
+        """The closed-loop poles the gains place (roots of s³ + c s² + p s + k per DOF), sorted.
+
+        Exact (−ζω ± ω√(ζ² − 1), −a) where not clipped, so a critically damped double pole stays double.
+        """
+        out: list[complex] = []
+        for i in range(3):
+            w, z, a = float(self.omega_n[i]), float(self.zeta[i]), float(self.integral_pole[i])
+            if self.clipped[i]:
+                out.extend(complex(x) for x in np.roots(np.r_[1.0, self.char_poly[i]]))
+            else:
+                root = w * complex(z * z - 1.0) ** 0.5
+                out.extend([-z * w + root, -z * w - root, complex(-a)])
+        return np.sort_complex(np.array(out, dtype=np.complex128))
+
+
+def controller_gains(
+    vessel: VesselModel, omega_n: ArrayLike, zeta: ArrayLike = 1.0, integral_ratio: ArrayLike = 0.1
+) -> ControllerGains:
+    """Kp, Kd, Ki from M, D and per-DOF ωn, ζ, ρ (module docstring)."""
+    w = np.array(_per_dof(omega_n, "bandwidth_rad_s"))
+    z = np.array(_per_dof(zeta, "damping"))
+    a = w * np.array(_per_dof(integral_ratio, "integral_ratio", allow_zero=True))
+    M = np.asarray(vessel.M, dtype=float)
+    D = np.asarray(vessel.D, dtype=float)
+    c = 2 * z * w + a
+    floor = np.diag(D) / np.diag(M)
+    clipped = c < floor
+    c = np.maximum(c, floor)
+    p = w * w + 2 * z * w * a
+    k = w * w * a
+    Kp = M @ np.diag(p)
+    Kd = M @ np.diag(c) - D
+    Ki = M @ np.diag(k)
+    cl = (bool(clipped[0]), bool(clipped[1]), bool(clipped[2]))
+    return ControllerGains(Kp, Ki, Kd, w, z, a, np.column_stack([c, p, k]), cl)
+
+
+def closed_loop_matrix(vessel: VesselModel, gains: ControllerGains) -> Array:
+    """A_τ of Torsetnes (66), with the plant's damping: state [∫e, e, ė], e = Jᵀη̃ (heading frozen)."""
+    Minv = vessel.Minv
+    Z, eye = np.zeros((3, 3)), np.eye(3)
+    D = np.asarray(vessel.D, dtype=float)
+    return np.block(
+        [
+            [Z, eye, Z],
+            [Z, Z, eye],
+            [-Minv @ gains.Ki, -Minv @ gains.Kp, -Minv @ (D + gains.Kd)],
+        ]
+    )
+
+
+@dataclass(frozen=True)
+class ControllerOutput:
+    """One controller step.
+
+    tau:        demanded generalised force [X, Y, N] (N, N, N·m, body frame).
+    mode:       "standby", "dp" or "manual".
+    valid:      False when dp had no finite estimate and held the previous τ.
+    reference:  the reference state (in standby/manual it follows the estimate).
+    eta_error:  η̃ = η̂ − η_d, earth frame, heading by ssa (zero outside dp).
+    nu_error:   ν̃ = ν̂ − Jᵀ(ψ̂) η_d', body frame (zero outside dp).
+    integral:   z = ∫η̃ dt, earth frame (m·s, m·s, rad·s).
+    tau_p, tau_i, tau_d, tau_ff: the terms of τ (P, I, D, feed-forward incl. bias); zero outside dp.
+    """
+
+    t: float
+    tau: Array
+    mode: str
+    valid: bool
+    reference: ReferenceState
+    eta_error: Array
+    nu_error: Array
+    integral: Array
+    tau_p: Array
+    tau_i: Array
+    tau_d: Array
+    tau_ff: Array
+
+
+def _num(value: float | tuple[float, ...] | None) -> Array:
+    """A resolved tuning value as an array (resolved tunings have no None)."""
+    if value is None:
+        raise ControllerError("tuning: unresolved value (use ControllerTuning.resolved)")
+    return np.atleast_1d(np.asarray(value, dtype=float))
+
+
+def _finite3(value: ArrayLike | None) -> Array | None:
+    if value is None:
+        return None
+    try:
+        a = np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        return None
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        return None
+    return a
+
+
+class DPController:
+    """Nonlinear PID with reference model, modes and anti-windup (module docstring).
+
+    Starts in ``standby``. Call `update` once per control tick with the observer's estimate.
+    """
+
+    def __init__(self, vessel: VesselModel, tuning: ControllerTuning | None = None):
+        self.vessel = vessel
+        self.tuning = (tuning or ControllerTuning()).resolved(vessel)
+        tu = self.tuning
+        self.gains = controller_gains(
+            vessel, _num(tu.bandwidth_rad_s), _num(tu.damping), _num(tu.integral_ratio)
+        )
+        limits = ReferenceLimits(
+            float(_num(tu.max_speed_mps)[0]),
+            float(_num(tu.max_accel_mps2)[0]),
+            float(_num(tu.max_yaw_rate_rad_s)[0]),
+            float(_num(tu.max_yaw_accel_rad_s2)[0]),
+        )
+        ref_w = _num(tu.reference_bandwidth_rad_s)
+        self.reference = ReferenceModel((float(ref_w[0]), float(ref_w[1])), limits)
+        self._M = np.asarray(vessel.M, dtype=float)
+        self._D = np.asarray(vessel.D, dtype=float)
+        self._Minv = vessel.Minv
+        self._k = self.gains.char_poly[:, 2].copy()  # ω²a per DOF (M⁻¹Ki = diag(k))
+        self._has_i = self._k > 0
+        self._tracking_rate = 1.0 / _num(tu.tracking_time_s)
+        self._mode = "standby"
+        self._entering = False
+        self._tau_now: Array | None = None
+        self._setpoint: Array | None = None
+        self._z = np.zeros(3)
+        self._tau = np.zeros(3)
+        self._tau_manual = np.zeros(3)
+        self._t: float | None = None
+
+    # -- commands ---------------------------------------------------------------------------------------
+    @property
+    def mode(self) -> str:
+        return self._mode
+
+    @property
+    def tau(self) -> Array:
+        """The last τ output."""
+        return self._tau.copy()
+
+    @property
+    def integral(self) -> Array:
+        """z = ∫η̃ dt (earth frame)."""
+        return self._z.copy()
+
+    def set_mode(self, mode: str, *, tau_now: ArrayLike | None = None) -> None:
+        """Switch to ``standby``, ``dp`` or ``manual``; takes effect at the next `update`.
+
+        Entering dp is bumpless: the first τ in dp equals ``tau_now`` if given (e.g. the τ the thrusters
+        actually deliver), else the τ this controller output last (the manual τ, or 0 from standby).
+        """
+        if mode not in MODES:
+            raise ControllerError(f"mode: must be one of {MODES}, got {mode!r}")
+        if mode == self._mode:
+            return
+        if self._mode == "dp":
+            self._setpoint = None  # leaving dp: re-entering holds the present position unless told otherwise
+        if mode == "dp":
+            self._entering = True
+            self._tau_now = _finite3(tau_now)
+        if mode == "manual":
+            self._tau_manual = np.zeros(3)
+        self._mode = mode
+
+    def set_setpoint(self, eta_target: ArrayLike) -> None:
+        """Target [north_m, east_m, heading_rad] in local NED; the reference model moves to it."""
+        r = np.asarray(eta_target, dtype=float).reshape(-1)
+        if r.shape != (3,) or not np.all(np.isfinite(r)):
+            raise ControllerError(
+                "setpoint: must be 3 finite numbers [north_m, east_m, heading_rad], "
+                f"got {np.asarray(eta_target).tolist()}"
+            )
+        r = r.copy()
+        r[2] = ssa_scalar(float(r[2]))
+        self._setpoint = r
+        if self._mode == "dp" and not self._entering:
+            self.reference.set_target(r)
+
+    # -- the control law --------------------------------------------------------------------------------
+    def update(
+        self,
+        t: float,
+        eta_hat: ArrayLike,
+        nu_hat: ArrayLike,
+        bias_hat: ArrayLike | None = None,
+        *,
+        saturated: bool = False,
+        tau_allocated: ArrayLike | None = None,
+        tau_manual: ArrayLike | None = None,
+    ) -> ControllerOutput:
+        """One control step at time t (s; any origin, variable steps; dt = t − previous t).
+
+        eta_hat = [N, E, ψ] (m, m, rad), nu_hat = [u, v, r], bias_hat = earth-fixed b̂ [N, N, N·m] (None or
+        non-finite: no bias feed-forward). ``saturated``/``tau_allocated``: allocation's verdict on the
+        previous τ (anti-windup). ``tau_manual``: the manual τ (manual mode; held until the next one).
+        """
+        t = float(t)
+        dt = 0.0 if self._t is None or not math.isfinite(t) else t - self._t
+        if not (math.isfinite(dt) and dt > 0):
+            dt = 0.0
+        if math.isfinite(t):
+            self._t = t
+        eta = _finite3(eta_hat)
+        nu = _finite3(nu_hat)
+        b = _finite3(bias_hat)
+        if self._mode == "dp":
+            return self._update_dp(t, dt, eta, nu, b, saturated, _finite3(tau_allocated))
+        self._z = np.zeros(3)
+        if self._mode == "manual":
+            tm = _finite3(tau_manual)
+            if tm is not None:
+                self._tau_manual = tm
+            self._tau = self._tau_manual.copy()
+        else:
+            self._tau = np.zeros(3)
+        if eta is not None and nu is not None:
+            self.reference.reset(eta, rotation(float(eta[2])) @ nu)
+        return self._output(t, True, self.reference.state, ZERO3, ZERO3, ZERO3, ZERO3, ZERO3, ZERO3)
+
+    def _update_dp(
+        self,
+        t: float,
+        dt: float,
+        eta: Array | None,
+        nu: Array | None,
+        b: Array | None,
+        saturated: bool,
+        tau_alloc: Array | None,
+    ) -> ControllerOutput:
+        if eta is None or nu is None:
+            # no estimate (observer initialising): hold τ, freeze integrator; the reference waits
+            return self._output(t, False, self.reference.state, ZERO3, ZERO3, ZERO3, ZERO3, ZERO3, ZERO3)
+        R = rotation(float(eta[2]))
+        if self._entering:
+            self.reference.reset(eta, R @ nu, target=self._setpoint)
+            ref = self.reference.state
+        else:
+            ref = self.reference.step(dt)
+        e = eta - ref.eta_d
+        e[2] = ssa_scalar(float(e[2]))
+        nu_err = nu - R.T @ ref.eta_dot_d
+        tau_ff = np.zeros(3)
+        if self.tuning.feedforward:
+            tau_ff = tau_ff + self._M @ ref.nu_dot_d + self._D @ ref.nu_d
+        if self.tuning.bias_feedforward and b is not None:
+            tau_ff = tau_ff - R.T @ b
+        tau_p = -self.gains.Kp @ (R.T @ e)
+        tau_d = -self.gains.Kd @ nu_err
+        if self._entering:
+            # bumpless: choose z so that τ = τ_now, i.e. −M diag(k) Jᵀz = τ_now − (P + D + FF)
+            tau_now = self._tau if self._tau_now is None else self._tau_now
+            w = np.zeros(3)
+            need = -self._Minv @ (tau_now - (tau_p + tau_d + tau_ff))
+            w[self._has_i] = need[self._has_i] / self._k[self._has_i]
+            self._z = R @ w
+            self._entering = False
+            self._tau_now = None
+        elif dt > 0:
+            if saturated and tau_alloc is not None:
+                # back-calculation: take min(dt/Tt, 1) of the excess demand off the integral term
+                frac = np.minimum(dt * self._tracking_rate, 1.0)
+                dw = self._Minv @ (frac * (self._tau - tau_alloc))
+                dw[self._has_i] /= self._k[self._has_i]
+                dw[~self._has_i] = 0.0
+                self._z = self._z + e * dt + R @ dw
+            elif not saturated:
+                self._z = self._z + e * dt
+            # saturated without tau_allocated: conditional integration, z frozen
+        self._z[~self._has_i] = 0.0
+        tau_i = -self.gains.Ki @ (R.T @ self._z)
+        self._tau = tau_p + tau_i + tau_d + tau_ff
+        return self._output(t, True, ref, e, nu_err, tau_p, tau_i, tau_d, tau_ff)
+
+    def _output(
+        self,
+        t: float,
+        valid: bool,
+        ref: ReferenceState,
+        e: Array,
+        nu_err: Array,
+        tau_p: Array,
+        tau_i: Array,
+        tau_d: Array,
+        tau_ff: Array,
+    ) -> ControllerOutput:
+        return ControllerOutput(
+            t=t,
+            tau=self._tau.copy(),
+            mode=self._mode,
+            valid=valid,
+            reference=ref,
+            eta_error=np.array(e, dtype=float),
+            nu_error=np.array(nu_err, dtype=float),
+            integral=self._z.copy(),
+            tau_p=np.array(tau_p, dtype=float),
+            tau_i=np.array(tau_i, dtype=float),
+            tau_d=np.array(tau_d, dtype=float),
+            tau_ff=np.array(tau_ff, dtype=float),
+        )
+
+
+__all__ = [
+    "MODES",
+    "ControllerError",
+    "ControllerGains",
+    "ControllerOutput",
+    "ControllerTuning",
+    "DPController",
+    "closed_loop_matrix",
+    "controller_gains",
+    "froude_defaults",
+]
