@@ -30,6 +30,7 @@ from gateway.scoring import score
 from gateway.service import GatewayService
 from gateway.sources import SourceError
 from simulator.clock import RealtimeClock
+from simulator.commands import MavlinkCommandInput, ZenohCommandInput
 from simulator.runner import Route, Simulation
 from simulator.scenarios import SCENARIOS, get_scenario
 from simulator.transports import PtySink, UdpSink
@@ -54,6 +55,13 @@ def register(sub: Any) -> None:
     p.add_argument("--duration", type=float, default=180.0, metavar="S", help="sim seconds (default 180)")
     p.add_argument("--speed", type=float, default=10.0, help="sim seconds per wall second (default 10)")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--mode",
+        choices=("dp", "standby"),
+        default="dp",
+        help="dp: the gateway keeps the vessel on station (default); standby: estimation only, the "
+        "scenario's own thrust",
+    )
     p.add_argument("--out", default="demo.mcap", metavar="FILE.mcap", help="the log (default demo.mcap)")
     p.add_argument("--zenoh-listen", action="append", default=[], metavar="ENDPOINT")
     p.add_argument("--zenoh-connect", action="append", default=[], metavar="ENDPOINT")
@@ -85,8 +93,15 @@ def demo_config(scenario: Any, pty_device: str, args: argparse.Namespace) -> dic
     ]
     if scenario.feedback is not None and scenario.vessel.thrusters:
         cfg["sources"].append(
-            {"name": "thrusters", "url": "udp://127.0.0.1:0", "protocol": "mavlink", "roles": ["thrusters"]}
+            {
+                "name": "thrusters",
+                "url": "udp://127.0.0.1:0",
+                "protocol": "mavlink",
+                "roles": ["thrusters"],
+                "commands": True,  # the dialect's AZIMUTH_THRUSTER_COMMAND back down the same link
+            }
         )
+    cfg["control"] = {"initial_mode": args.mode}
     tp = scenario.sea[0][1].tp_s
     cfg["observer"] = {"type": "passive", "wave_period_s": tp}
     cfg["zenoh"] = {
@@ -126,10 +141,14 @@ def run(args: argparse.Namespace) -> int:
         Route(dgps_sink, "nmea", frozenset({scenario.dgps[0].source})),
         Route(pty, "nmea", frozenset({scenario.gyro[0].source})),
     ]
+    commands: list[Any] = []
     if "thrusters" in ports:
         mav_sink = UdpSink("127.0.0.1", ports["thrusters"])
         sinks.append(mav_sink)
         routes.append(Route(mav_sink, "mavlink"))
+        commands.append(MavlinkCommandInput(mav_sink))  # the loop closes over the MAVLink link
+    elif args.mode == "dp" and service._session is not None:
+        commands.append(ZenohCommandInput(service._session, config.zenoh.prefix))  # τ for layout-less ships
     start_utc = datetime.fromtimestamp(service._wall0_ns / 1e9, tz=UTC)
     sim = Simulation(
         replace(scenario, start_utc=start_utc),
@@ -138,6 +157,7 @@ def run(args: argparse.Namespace) -> int:
         log=service.log,
         clock=RealtimeClock(speed=args.speed),
         log_raw=False,  # the gateway logs what it received; the simulator adds the truth
+        commands=commands,
     )
     sim_error: list[BaseException] = []
 

@@ -128,9 +128,15 @@ _DEFAULTS: dict[str, dict[str, Any]] = {
         "compression": "zstd",
     },
     "status": {"rate_hz": 1.0},
+    "control": {
+        "rate_hz": 10.0,
+        "initial_mode": "standby",
+        "allocator": "qp",
+        "damping": 1.0,
+    },
 }
 
-_TOP_KEYS = ("vessel", "datum", "sources", "observer", "zenoh", "log", "status")
+_TOP_KEYS = ("vessel", "datum", "sources", "observer", "zenoh", "log", "status", "control")
 _VESSEL_KEYS = ("name", "file", "reference_point_m")
 _DATUM_KEYS = ("lat_deg", "lon_deg", "alt_m", "first_fix")
 _SOURCE_KEYS = (
@@ -146,8 +152,9 @@ _SOURCE_KEYS = (
     "signing_key",
     "allow_unsigned",
     "ardupilot",
+    "commands",
 )
-_MAVLINK_ONLY = ("system_id", "signing_key", "allow_unsigned", "ardupilot")
+_MAVLINK_ONLY = ("system_id", "signing_key", "allow_unsigned", "ardupilot", "commands")
 _TUNING_KEYS = (
     "zeta",
     "zeta_n",
@@ -162,6 +169,9 @@ _OBSERVER_KEYS = ("type", "wave_period_s", "omega0", *_TUNING_KEYS, "allow_unche
 _ZENOH_KEYS = tuple(_DEFAULTS["zenoh"])
 _LOG_KEYS = tuple(_DEFAULTS["log"])
 _STATUS_KEYS = tuple(_DEFAULTS["status"])
+_CONTROL_KEYS = (*_DEFAULTS["control"], "bandwidth_rad_s")
+CONTROL_MODES = ("standby", "dp", "manual")
+ALLOCATORS = ("qp", "pseudo_inverse")
 
 
 def default_config(vessel: str = "mss_supply") -> dict[str, Any]:
@@ -235,6 +245,7 @@ class SourceConfig:
     signing_key: bytes | None = field(default=None, repr=False)
     allow_unsigned: bool = False
     ardupilot: ArdupilotMap | None = None
+    commands: bool = False  # MAVLink thrusters: send the dialect's AZIMUTH_THRUSTER_COMMAND on this link
 
     def has_role(self, role: str) -> bool:
         return role in self.roles
@@ -308,6 +319,19 @@ class LogConfig:
 
 
 @dataclass(frozen=True)
+class ControlConfig:
+    """The DP controller and thrust allocation (issue 5): control rate on the event clock (Hz), the mode at
+    start, the allocator, and the controller's closed-loop bandwidth (rad/s; None = the vessel's
+    Froude-scaled default) and damping."""
+
+    rate_hz: float = 10.0
+    initial_mode: str = "standby"
+    allocator: str = "qp"
+    bandwidth_rad_s: float | None = None
+    damping: float = 1.0
+
+
+@dataclass(frozen=True)
 class StatusConfig:
     """How often ``<prefix>/status`` is published (Hz)."""
 
@@ -333,6 +357,7 @@ class GatewayConfig:
     log: LogConfig
     status: StatusConfig
     path: Path
+    control: ControlConfig = field(default_factory=ControlConfig)
 
     def sources_for(self, role: str) -> tuple[SourceConfig, ...]:
         """The sources with ``role``, in failover order (lowest priority first)."""
@@ -866,12 +891,13 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
     zenoh_config = _parse_zenoh(r, data, base_dir, vessel)
     log = _parse_log(r, data, base_dir)
     status = _parse_status(r, data)
+    control = _parse_control(r, data)
 
     if r.problems:
         raise ConfigError(r.problems)
     assert vessel is not None and vessel_source is not None and reference_point is not None
     assert datum is not None and sources is not None and observer is not None
-    assert zenoh_config is not None and log is not None and status is not None
+    assert zenoh_config is not None and log is not None and status is not None and control is not None
     return GatewayConfig(
         vessel=vessel,
         vessel_source=vessel_source,
@@ -883,6 +909,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
         log=log,
         status=status,
         path=path,
+        control=control,
     )
 
 
@@ -1175,6 +1202,9 @@ def _parse_source(
             f"{path}.allow_unsigned",
             "has no effect without a signing_key (expected a signing_key, or no allow_unsigned)",
         )
+    commands = r.boolean(t, "commands", path, False)
+    if commands and roles is not None and "thrusters" not in roles:
+        r.problem(f"{path}.commands", 'sends thruster commands (expected "thrusters" in roles)')
     ardupilot: ArdupilotMap | None = None
     if "ardupilot" in t and protocol == "mavlink":
         if roles is not None and "thrusters" not in roles:
@@ -1199,6 +1229,7 @@ def _parse_source(
         signing_key=signing_key,
         allow_unsigned=allow_unsigned,
         ardupilot=ardupilot,
+        commands=bool(commands),
     )
     return source, resource
 
@@ -1436,6 +1467,26 @@ def _parse_status(r: _Reader, data: Mapping[str, Any]) -> StatusConfig | None:
     r.known(t, "status", _STATUS_KEYS)
     rate = r.number(t, "rate_hz", "status", _DEFAULTS["status"]["rate_hz"], lo=0.1, hi=10.0, unit="Hz")
     return None if rate is None else StatusConfig(rate_hz=rate)
+
+
+def _parse_control(r: _Reader, data: Mapping[str, Any]) -> ControlConfig | None:
+    t = r.table(data, "control", "control")
+    if t is None:
+        if "control" in data:
+            return None
+        t = {}
+    r.known(t, "control", _CONTROL_KEYS)
+    d = _DEFAULTS["control"]
+    n0 = len(r.problems)
+    rate = r.number(t, "rate_hz", "control", d["rate_hz"], lo=1.0, hi=50.0, unit="Hz")
+    mode = r.choice(t, "initial_mode", "control", CONTROL_MODES, d["initial_mode"])
+    allocator = r.choice(t, "allocator", "control", ALLOCATORS, d["allocator"])
+    bandwidth = r.number(t, "bandwidth_rad_s", "control", None, lo=0.0, lo_open=True, hi=10.0, unit="rad/s")
+    damping = r.number(t, "damping", "control", d["damping"], lo=0.3, hi=3.0)
+    if len(r.problems) != n0:
+        return None
+    assert rate is not None and mode is not None and allocator is not None and damping is not None
+    return ControlConfig(rate, mode, allocator, bandwidth, damping)
 
 
 # --- a command-line check -------------------------------------------------------------------------------

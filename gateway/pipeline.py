@@ -27,7 +27,9 @@ import numpy as np
 from gateway.codecs import nmea as nmea_codec
 from gateway.codecs.mavlink import AZIMUTH_THRUSTER_STATUS_ID, FrameParser, encoder, setup_signing
 from gateway.codecs.nmea_framing import NmeaFramer
-from gateway.config import GatewayConfig
+from gateway.config import ControlConfig, GatewayConfig
+from gateway.control.allocation import AllocationResult, PseudoInverseAllocator, QPAllocator, ThrusterCommand
+from gateway.control.controller import ControllerTuning, DPController
 from gateway.fusion import NS, Fusion
 from gateway.geodesy import LocalFrame
 from observers.passive import STATUS_NAMES, PassiveEstimate, PassiveObserver
@@ -95,6 +97,8 @@ class PipelineSpec:
     reference_point_m: tuple[float, float] = (0.0, 0.0)
     extra_observers: tuple[tuple[str, PassiveObserver], ...] = ()
     """More observers fed the same y and τ (replay: side by side), published on /dp/estimates/<label>."""
+    control: ControlConfig | None = None
+    """DP controller and allocation (issue 5); None: estimation only."""
 
     @classmethod
     def from_config(cls, config: GatewayConfig) -> PipelineSpec:
@@ -128,6 +132,7 @@ class PipelineSpec:
             observer_name=config.observer.type,
             datum=datum,
             reference_point_m=config.reference_point_m,
+            control=config.control,
         )
 
 
@@ -160,6 +165,28 @@ class Pipeline:
         self.manual_tau = np.zeros(3)
         self.estimates = 0
         self._last_fix_ns: dict[str, int] = {}
+        cc = spec.control
+        self.controller: DPController | None = None
+        self.allocator: QPAllocator | PseudoInverseAllocator | None = None
+        self.command: ThrusterCommand | None = None
+        self.allocation: AllocationResult | None = None
+        self.control_alarms: list[str] = []
+        self._pending_setpoint: dict[str, Any] | None = None
+        self._next_control_ns = 0
+        self._control_period_ns = NS // 10
+        if cc is not None:
+            self.mode = cc.initial_mode
+            self._control_period_ns = int(NS / cc.rate_hz)
+            self.controller = DPController(
+                spec.vessel, ControllerTuning(bandwidth_rad_s=cc.bandwidth_rad_s, damping=cc.damping)
+            )
+            if spec.vessel.thrusters:
+                self.allocator = (
+                    QPAllocator(spec.vessel, dt=1.0 / cc.rate_hz)
+                    if cc.allocator == "qp"
+                    else PseudoInverseAllocator(spec.vessel)
+                )
+                self.command = ThrusterCommand.at_rest(spec.vessel)
         self._best_priority = {
             role: min(s.priority for s in spec.sources if role in s.roles)
             for role in ("position", "heading")
@@ -300,6 +327,7 @@ class Pipeline:
             self.mode = ev.payload
         elif ev.key == "setpoint" and isinstance(ev.payload, dict):
             self.setpoint = ev.payload
+            self._pending_setpoint = ev.payload
         elif ev.key == "tau" and isinstance(ev.payload, dict):
             try:
                 tau = np.array([float(ev.payload[k]) for k in ("X", "Y", "N")])
@@ -307,7 +335,7 @@ class Pipeline:
                 return
             if np.all(np.isfinite(tau)):
                 self.manual_tau = tau
-                if self.mode == "manual":
+                if self.mode == "manual" and self.controller is None:
                     self.fusion.tau_demand = tau
 
     # --- observer and outputs -------------------------------------------------------------------------------
@@ -350,6 +378,9 @@ class Pipeline:
                 self._last_fix_ns[""] = now_ns
                 fix = _location_fix_payload(now_ns, "estimate", payload["lat_deg"], payload["lon_deg"])
                 out.append(Output("/dp/estimate/fix", fix, now_ns, zenoh=False))
+            if self.controller is not None and now_ns >= self._next_control_ns:
+                self._next_control_ns = now_ns + self._control_period_ns
+                out.extend(self._control_step(t, est, now_ns))
         for label, obs in self.spec.extra_observers:
             e = obs.step(t, y, tau)
             if e.status != STATUS_NAMES[0]:
@@ -357,6 +388,83 @@ class Pipeline:
                     Output(f"/dp/estimates/{label}", self._estimate_payload(label, obs, e, now_ns), now_ns)
                 )
         return out
+
+    def _setpoint_ned(self, sp: dict[str, Any]) -> np.ndarray | None:
+        """A setpoint {north_m, east_m, heading_deg} or {lat_deg, lon_deg, heading_deg} in local NED."""
+        try:
+            psi = math.radians(float(sp["heading_deg"]))
+            if "north_m" in sp:
+                target = np.array([float(sp["north_m"]), float(sp["east_m"]), psi])
+            elif self.fusion.datum is not None:
+                n, e, _ = self.fusion.datum.to_ned(float(sp["lat_deg"]), float(sp["lon_deg"]), 0.0)
+                target = np.array([n, e, psi])
+            else:
+                return None  # a lat/lon setpoint waits for the datum
+        except (KeyError, TypeError, ValueError):
+            self._pending_setpoint = None
+            self.control_alarms = [
+                "setpoint ignored: expected north_m/east_m or lat_deg/lon_deg, heading_deg"
+            ]
+            return None
+        return target if np.all(np.isfinite(target)) else None
+
+    def _control_step(self, t: float, est: PassiveEstimate, now_ns: int) -> list[Output]:
+        """DP controller on the LF estimate (never the raw measurement), then thrust allocation."""
+        ctl = self.controller
+        assert ctl is not None
+        if ctl.mode != self.mode:
+            ctl.set_mode(self.mode, tau_now=self.fusion.tau_demand)
+        if self._pending_setpoint is not None:
+            target = self._setpoint_ned(self._pending_setpoint)
+            if target is not None:
+                ctl.set_setpoint(target)
+                self._pending_setpoint = None
+        prev = self.allocation
+        o = ctl.update(
+            t,
+            est.eta,
+            est.nu,
+            est.bias,
+            saturated=bool(prev is not None and prev.saturated),
+            tau_allocated=None if prev is None else prev.tau_allocated,
+            tau_manual=self.manual_tau,
+        )
+        if self.mode == "standby":
+            self.fusion.tau_demand = np.zeros(3)
+            self.control_alarms = []
+            return []  # standby commands nothing: the thrusters are someone else's
+        thrusters: list[dict[str, Any]] = []
+        saturated = False
+        if self.allocator is not None:
+            res = self.allocator.allocate(o.tau, self.command)
+            self.allocation, self.command = res, res.command
+            tau_allocated = res.tau_allocated
+            saturated = res.saturated
+            self.control_alarms = list(res.alarms)
+            ids = [th.id for th in self.spec.vessel.thrusters]
+            thrusters = [
+                {"id": tid, "thrust_n": float(f), "azimuth_rad": float(a)}
+                for tid, f, a in zip(ids, res.thrust, res.azimuth, strict=True)
+            ]
+        else:
+            tau_allocated = o.tau  # no thruster layout: τ is the command (simulated vessels of the papers)
+            self.control_alarms = []
+        self.fusion.tau_demand = np.asarray(tau_allocated, dtype=float)
+        return [
+            Output(
+                "/dp/thrusters/command",
+                {
+                    "stamp_ns": now_ns,
+                    "mode": self.mode,
+                    "tau_demand": o.tau.tolist(),
+                    "tau_allocated": np.asarray(tau_allocated, dtype=float).tolist(),
+                    "saturated": saturated,
+                    "thrusters": thrusters,
+                    "reference": o.reference.eta_d.tolist(),
+                },
+                now_ns,
+            )
+        ]
 
     def _estimate_payload(
         self, label: str, obs: PassiveObserver, est: PassiveEstimate, now_ns: int
@@ -412,7 +520,7 @@ class Pipeline:
 
     def status(self, now_ns: int, alarms: list[str] | None = None) -> Output:
         """The 1 Hz status (the caller decides when): per-source age, counts, rejects by reason, alarms."""
-        alarms = list(alarms or [])
+        alarms = list(alarms or []) + self.control_alarms
         for name, c in self.counters.items():
             spec = self.sources[name]
             if c.last_rx_ns == 0:

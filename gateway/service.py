@@ -24,6 +24,7 @@ from typing import Any
 import zenoh
 
 from gateway.bus import open_session
+from gateway.codecs import mavlink as mv
 from gateway.config import GatewayConfig
 from gateway.mcaplog import McapLogWriter, encode_json
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
@@ -62,6 +63,15 @@ class GatewayService:
         self.stop_event = threading.Event()
         path = log_path if log_path is not None else config.log.path
         self._log_path = str(path) if path else None
+        # MAVLink links that take the dialect's thruster commands: one encoder each (own sequence numbers,
+        # signed when the link has a key)
+        self._command_links: dict[str, Any] = {}
+        for sc in config.sources:
+            if sc.protocol == "mavlink" and sc.commands:
+                mav = mv.encoder(src_system=255, src_component=190)
+                if sc.signing_key is not None:
+                    mv.setup_signing(mav, sc.signing_key, link_id=1)
+                self._command_links[sc.name] = mav
         self.log: McapLogWriter | None = None
         self.published = 0
 
@@ -200,3 +210,21 @@ class GatewayService:
                         self._status_json = body
             if self.log is not None:
                 self.log.write(o.topic, o.payload, o.stamp_ns, o.stamp_ns)
+            if o.topic == "/dp/thrusters/command" and self._command_links:
+                self._send_mavlink_commands(o.payload)
+
+    def _send_mavlink_commands(self, cmd: dict[str, Any]) -> None:
+        """AZIMUTH_THRUSTER_COMMAND per thruster down every MAVLink link configured with commands = true."""
+        sources = {s.name: s for s in self._sources}
+        for name, mav in self._command_links.items():
+            src = sources.get(name)
+            if src is None:
+                continue
+            frames = b"".join(
+                mv.azimuth_command_frame(
+                    mav, cmd["stamp_ns"] // 1000, th["id"], th["thrust_n"], th["azimuth_rad"]
+                )
+                for th in cmd["thrusters"]
+            )
+            if frames and not src.write(frames):
+                src.stats.count_error("command not sent")

@@ -26,6 +26,17 @@ class ThrusterCommand:
     azimuth_rad: float | None  # None: keep the angle (fixed thrusters, or not given)
 
 
+@dataclass(frozen=True)
+class TauCommand:
+    """A generalised force for a vessel without a thruster layout (the papers' simulated ships): the
+    command's ``tau_allocated`` when it lists no thrusters."""
+
+    tau: tuple[float, float, float]
+
+
+Command = ThrusterCommand | TauCommand
+
+
 class MavlinkCommandInput:
     """Reads AZIMUTH_THRUSTER_COMMAND frames that peers send on a sink (one parser per peer)."""
 
@@ -35,8 +46,8 @@ class MavlinkCommandInput:
         self.rejected: Counter[str] = Counter()
         self.received = 0
 
-    def poll(self) -> list[ThrusterCommand]:
-        out: list[ThrusterCommand] = []
+    def poll(self) -> list[Command]:
+        out: list[Command] = []
         for peer, data in self.sink.read_from_peers():
             parser = self.parsers.setdefault(peer, FrameParser())
             for msg in parser.feed(data):
@@ -58,7 +69,7 @@ class ZenohCommandInput:
     def __init__(self, session: Any, prefix: str) -> None:
         self.key = f"{prefix}/thrusters/command"
         self._lock = threading.Lock()
-        self._pending: list[ThrusterCommand] = []
+        self._pending: list[Command] = []
         self.rejected: Counter[str] = Counter()
         self.received = 0
         self._sub = session.declare_subscriber(self.key, self._on_sample)
@@ -66,7 +77,7 @@ class ZenohCommandInput:
     def _on_sample(self, sample: Any) -> None:
         try:
             payload = json.loads(sample.payload.to_bytes())
-            cmds = [
+            cmds: list[Command] = [
                 ThrusterCommand(
                     int(th["id"]),
                     float(th["thrust_n"]),
@@ -74,7 +85,12 @@ class ZenohCommandInput:
                 )
                 for th in payload["thrusters"]
             ]
-            if not all(math.isfinite(c.thrust_n) for c in cmds):
+            if not cmds and payload.get("tau_allocated") is not None:
+                tau = tuple(float(v) for v in payload["tau_allocated"])
+                if len(tau) != 3 or not all(math.isfinite(v) for v in tau):
+                    raise ValueError("tau_allocated must be 3 finite numbers")
+                cmds = [TauCommand((tau[0], tau[1], tau[2]))]
+            if not all(math.isfinite(c.thrust_n) for c in cmds if isinstance(c, ThrusterCommand)):
                 raise ValueError("non-finite thrust")
         except (ValueError, KeyError, TypeError) as exc:
             with self._lock:
@@ -84,7 +100,7 @@ class ZenohCommandInput:
             self.received += 1
             self._pending.extend(cmds)
 
-    def poll(self) -> list[ThrusterCommand]:
+    def poll(self) -> list[Command]:
         with self._lock:
             out, self._pending = self._pending, []
         return out

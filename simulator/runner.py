@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 from gateway.mcaplog import McapLogWriter
 from observers.kinematics import rotation, ssa_scalar
 from simulator.clock import Clock, SimEpoch, VirtualClock
-from simulator.commands import ThrusterCommand
+from simulator.commands import Command, TauCommand
 from simulator.environment import MarkovBias
 from simulator.faults import FaultSchedule
 from simulator.scenarios import Scenario, ShipNow
@@ -47,7 +47,7 @@ COMMAND_TIMEOUT_S = 2.0
 
 
 class CommandInput(Protocol):
-    def poll(self) -> list[ThrusterCommand]: ...
+    def poll(self) -> list[Command]: ...
 
 
 @dataclass
@@ -209,6 +209,13 @@ class Simulation:
                 )
         for source in self.commands:
             for cmd in source.poll():
+                if isinstance(cmd, TauCommand):
+                    if self.direct_tau:  # a vessel without thrusters takes τ itself
+                        self.tau_direct = np.asarray(cmd.tau, dtype=float)
+                        self.summary.commands_applied += 1
+                        self._last_command_t = self.t
+                        self.external_control = True
+                    continue
                 if cmd.id in self.thrusters.ids:
                     self.thrusters.command_one(cmd.id, cmd.thrust_n, cmd.azimuth_rad)
                     self.summary.commands_applied += 1

@@ -196,15 +196,49 @@ def test_signed_mavlink_link_rejects_unsigned_and_forged_frames() -> None:
     assert sum(rejected.values()) >= 2, rejected
 
 
-def test_manual_tau_in_manual_mode_is_the_observers_input() -> None:
+def test_manual_tau_is_allocated_and_is_the_observers_input() -> None:
     p = pipeline([nmea_src("gps", ["position", "heading"])])
     p.feed(ControlEvent(T0, "mode", "manual"))
     p.feed(ControlEvent(T0, "tau", {"X": 1e4, "Y": -2e3, "N": 5e4}))
-    tau, source = p.fusion.tau(T0)
-    assert source == "demand" and tau.tolist() == [1e4, -2e3, 5e4]
+    out = []
+    for k in range(5):
+        burst = gga_at(0.0, 0.0) + enc.hdt("HE", 0.3).encode()
+        out += p.feed(RawEvent(T0 + k * S // 5, "gps", burst))
+    cmd = [o.payload for o in out if o.topic == "/dp/thrusters/command"][-1]
+    assert cmd["mode"] == "manual" and not cmd["saturated"]
+    np.testing.assert_allclose(cmd["tau_allocated"], [1e4, -2e3, 5e4], rtol=1e-6, atol=1e-3)
+    tau, source = p.fusion.tau(T0 + S)
+    assert source == "demand"
+    np.testing.assert_allclose(tau, [1e4, -2e3, 5e4], rtol=1e-6, atol=1e-3)
     p.feed(ControlEvent(T0, "tau", {"X": "lots"}))  # bad input: ignored, never raised
     p.feed(ControlEvent(T0, "mode", "warp"))
     assert p.mode == "manual"
+
+
+def test_demand_beyond_capacity_gives_closest_tau_an_alarm_and_no_nan() -> None:
+    p = pipeline([nmea_src("gps", ["position", "heading"])])
+    p.feed(ControlEvent(T0, "mode", "manual"))
+    p.feed(ControlEvent(T0, "tau", {"X": 5e6, "Y": 3e6, "N": 1e9}))  # far beyond six thrusters
+    out = []
+    for k in range(30):
+        out += p.feed(RawEvent(T0 + k * S // 5, "gps", gga_at(0.0, 0.0) + enc.hdt("HE", 0.3).encode()))
+    cmd = [o.payload for o in out if o.topic == "/dp/thrusters/command"][-1]
+    assert cmd["saturated"]
+    assert all(math.isfinite(v) for v in cmd["tau_allocated"])
+    for th, t in zip(cmd["thrusters"], p.spec.vessel.thrusters, strict=True):
+        assert abs(th["thrust_n"]) <= t.max_thrust_n * 1.0001 and math.isfinite(th["azimuth_rad"])
+    status = p.status(T0 + 6 * S).payload
+    assert any("satur" in a for a in status["alarms"]), status["alarms"]
+    est = [o.payload for o in out if o.topic == "/dp/estimate"][-1]
+    assert all(math.isfinite(v) for v in est["eta"])
+
+
+def test_standby_commands_nothing() -> None:
+    p = pipeline([nmea_src("gps", ["position", "heading"])])
+    out = []
+    for k in range(10):
+        out += p.feed(RawEvent(T0 + k * S // 5, "gps", gga_at(0.0, 0.0) + enc.hdt("HE", 0.3).encode()))
+    assert p.mode == "standby" and not [o for o in out if o.topic == "/dp/thrusters/command"]
 
 
 def test_dpgw_listen_prints_what_arrives(tmp_path: Path) -> None:

@@ -1,0 +1,733 @@
+"""Thrust allocation: generalised force demand τ = [X, Y, N] → thrust and azimuth per thruster.
+
+Implements the extended thrust configuration of Hajivand & Mousavizadegan (2010), eq (22), with the signs
+of ``shared/papers/ERRATA.md``: an azimuth i at (xᵢ, yᵢ) contributes a free force (F_x,i, F_y,i) with the
+columns [1, 0, −yᵢ]ᵀ and [0, 1, xᵢ]ᵀ (yaw moment = x·F_y − y·F_x); a tunnel or main propeller contributes
+its signed thrust uᵢ along its fixed direction αᵢ, column [cos αᵢ, sin αᵢ, xᵢ sin αᵢ − yᵢ cos αᵢ]ᵀ.
+Then τ = B f with B constant, and an azimuth's thrust is |Fᵢ|, its angle atan2(F_y,i, F_x,i).
+
+* `PseudoInverseAllocator` — the paper's "T⁻¹(α) τ": the weighted minimum-norm solution
+  f = W⁻¹Bᵀ(BW⁻¹Bᵀ)⁻¹τ, no limits; a demand beyond capacity is scaled down as a whole (reported).
+* `QPAllocator` — the default: a convex QP solved every step (DAQP, dual active set, warm-started)::
+
+      min  ½ Σᵢ wᵢ (p |f̂ᵢ|² + c (f̂ᵢ·nᵢ)²)  +  Σⱼ ρ₁,ⱼ |ŝⱼ| + ½ ρ₂,ⱼ ŝⱼ²
+      s.t. B f + s = τ,  f in the per-thruster convex sets of this step (docs/allocation.md)
+
+  in scaled units f̂ᵢ = fᵢ / T_max,i, ŝⱼ = sⱼ / τ_ref,j: a quadratic power proxy (p = ``power_weight``), a
+  penalty on the force across each azimuth's current direction nᵢ (c = ``turn_weight``: prefer small angle
+  changes), and an exact (ℓ₁) plus heavy quadratic (ℓ₂) penalty on the slack s, so that a feasible τ is
+  met exactly and an infeasible one gives the closest achievable τ with ``saturated=True``.
+
+The convex sets, their approximations (inscribed polygon for |F| ≤ T_max, rate cone around the previous
+azimuth clipped by forbidden sectors, half-plane lower thrust bound) and the scaling are documented in
+``docs/allocation.md``. Angles: radians, direction of the force on the hull, clockwise from the bow,
+[-π, π). Thrusts: N (signed for tunnels and main propellers, ≥ 0 for azimuths).
+
+Pure numerics (DESIGN rule 2). The one exception is ``AllocationResult.solve_time_s``, a diagnostic read
+from ``time.perf_counter``; no output depends on it.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import daqp
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from observers.vessel import VesselModel
+
+Array = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+TWO_PI = 2.0 * math.pi
+_ANGLE_EPS = 1e-9  # rad: an azimuth this close to a forbidden sector's edge is on the edge, not inside
+_SAT_TOL = 1e-6  # scaled slack (fraction of τ_ref) above which the allocation reports saturation
+
+__all__ = [
+    "AllocationResult",
+    "PseudoInverseAllocator",
+    "QPAllocator",
+    "QPData",
+    "QPSolution",
+    "StepLimits",
+    "ThrusterCommand",
+    "extended_configuration_matrix",
+    "reference_solve_cvxpy",
+]
+
+
+# --------------------------------------------------------------------------------------------------------
+# Results
+
+
+@dataclass(frozen=True)
+class ThrusterCommand:
+    """Thrust (N) and azimuth (rad, force direction, clockwise from the bow, [-π, π)) per thruster, in
+    layout order. Tunnels and main propellers: signed thrust, azimuth = their fixed ``angle_rad``.
+    Passed back into the next `QPAllocator.allocate` as the current state (or the thrusters' feedback)."""
+
+    thrust: Array
+    azimuth: Array
+
+    @classmethod
+    def at_rest(cls, vessel: VesselModel) -> ThrusterCommand:
+        """Every thruster at zero thrust, pointing at its configured ``angle_rad``."""
+        n = len(vessel.thrusters)
+        return cls(np.zeros(n), _ssa(np.array([t.angle_rad for t in vessel.thrusters], dtype=float)))
+
+
+@dataclass(frozen=True)
+class AllocationResult:
+    """One allocation. ``tau_allocated`` = B(azimuth)·thrust of the returned command (N, N, N·m);
+    ``slack`` = ``tau_demand − tau_allocated``; ``saturated`` when the demand could not be met;
+    ``alarms`` are messages for a person; ``status`` is ``"optimal"``, ``"scaled"`` (pseudo-inverse
+    saturation), ``"invalid_input"`` or ``"solver_failed: …"`` (then the previous command is held)."""
+
+    thrust: Array
+    azimuth: Array
+    tau_allocated: Array
+    tau_demand: Array
+    slack: Array
+    saturated: bool
+    alarms: tuple[str, ...]
+    solve_time_s: float
+    status: str
+
+    @property
+    def command(self) -> ThrusterCommand:
+        """The result as the state to pass to the next step."""
+        return ThrusterCommand(self.thrust, self.azimuth)
+
+
+# --------------------------------------------------------------------------------------------------------
+# Layout: the extended configuration (Hajivand eq (22), ERRATA signs)
+
+
+def _ssa(a: Any) -> Any:
+    """Smallest signed angle, [-π, π) (same as observers.kinematics.ssa; scalar- and array-safe)."""
+    return np.mod(np.asarray(a, dtype=float) + math.pi, TWO_PI) - math.pi
+
+
+def extended_configuration_matrix(vessel: VesselModel) -> Array:
+    """B (3 × n_ext) of τ = B f: two columns [1, 0, −y]ᵀ, [0, 1, x]ᵀ per azimuth (F_x, F_y), one column
+    [cos α, sin α, x sin α − y cos α]ᵀ per tunnel or main propeller (signed thrust), in layout order."""
+    cols: list[list[float]] = []
+    for t in vessel.thrusters:
+        if t.kind == "azimuth":
+            cols += [[1.0, 0.0, -t.y_m], [0.0, 1.0, t.x_m]]
+        else:
+            c, s = math.cos(t.angle_rad), math.sin(t.angle_rad)
+            cols.append([c, s, t.x_m * s - t.y_m * c])
+    return np.array(cols, dtype=float).reshape(-1, 3).T
+
+
+class _Layout:
+    """Per-thruster numbers of a vessel, as arrays, and the scaling of the allocation problem."""
+
+    def __init__(self, vessel: VesselModel, weights: Mapping[int, float] | Sequence[float] | None) -> None:
+        th = vessel.thrusters
+        if not th:
+            raise ValueError(f"vessel '{vessel.name}': no thrusters to allocate to")
+        self.vessel = vessel
+        self.n = len(th)
+        self.ids = [t.id for t in th]
+        self.is_az = np.array([t.kind == "azimuth" for t in th], dtype=bool)
+        self.x = np.array([t.x_m for t in th], dtype=float)
+        self.y = np.array([t.y_m for t in th], dtype=float)
+        self.tmax = np.array([t.max_thrust_n for t in th], dtype=float)
+        self.tmin = np.where(self.is_az, 0.0, np.array([min(t.min_thrust_n, 0.0) for t in th], dtype=float))
+        # scale of each thruster's force: its largest thrust magnitude
+        self.cap = np.maximum(self.tmax, -self.tmin)
+        self.rate = np.array([t.azimuth_rate_rad_s for t in th], dtype=float)
+        self.time_constant = np.array([t.thrust_time_constant_s for t in th], dtype=float)
+        self.fixed_angle = _ssa(np.array([t.angle_rad for t in th], dtype=float))
+        self.weights = _per_thruster(weights, self.ids, "weights", default=1.0)
+        if np.any(self.weights <= 0) or not np.all(np.isfinite(self.weights)):
+            raise ValueError(f"weights must be positive and finite, got {self.weights.tolist()}")
+        # extended variables: 2 per azimuth, 1 per fixed thruster
+        self.first = np.zeros(self.n, dtype=int)  # index of thruster i's first variable
+        k = 0
+        for i in range(self.n):
+            self.first[i] = k
+            k += 2 if self.is_az[i] else 1
+        self.n_ext = k
+        self.B = extended_configuration_matrix(vessel)
+        self.owner = np.repeat(np.arange(self.n), np.where(self.is_az, 2, 1))  # thruster of each variable
+        # τ scale per DOF: the sum over thrusters of what each can contribute to that DOF at full thrust
+        lever = np.where(self.is_az, np.hypot(self.x, self.y), 0.0)
+        c, s = np.cos(self.fixed_angle), np.sin(self.fixed_angle)
+        contrib = np.vstack(
+            [
+                np.where(self.is_az, 1.0, np.abs(c)),
+                np.where(self.is_az, 1.0, np.abs(s)),
+                np.where(self.is_az, lever, np.abs(self.x * s - self.y * c)),
+            ]
+        )
+        tau_ref = contrib @ self.cap
+        floor = max(float(tau_ref.max()), 1.0) * 1e-3
+        self.tau_ref = np.maximum(tau_ref, floor)
+
+    def tau_of(self, thrust: Array, azimuth: Array) -> Array:
+        """τ = B(α) T (N, N, N·m): same as ``VesselModel.generalized_force``."""
+        fx, fy = thrust * np.cos(azimuth), thrust * np.sin(azimuth)
+        return np.array([fx.sum(), fy.sum(), float(self.x @ fy - self.y @ fx)])
+
+    def state(self, previous: ThrusterCommand | None) -> tuple[Array, Array]:
+        """Previous (thrust, azimuth) made consistent: finite, azimuths ≥ 0 thrust (a negative azimuth
+        thrust is the same force turned by π), everything within [min, max] thrust, fixed angles fixed."""
+        if previous is None:
+            return np.zeros(self.n), self.fixed_angle.copy()
+        thrust = np.array(previous.thrust, dtype=float).reshape(self.n)
+        angle = np.array(previous.azimuth, dtype=float).reshape(self.n)
+        thrust = np.where(np.isfinite(thrust), thrust, 0.0)
+        angle = np.where(np.isfinite(angle), angle, self.fixed_angle)
+        flip = self.is_az & (thrust < 0)
+        angle = np.where(flip, angle + math.pi, angle)
+        thrust = np.where(flip, -thrust, thrust)
+        angle = np.where(self.is_az, _ssa(angle), self.fixed_angle)
+        return np.clip(thrust, self.tmin, self.tmax), angle
+
+
+def _per_thruster(
+    value: Mapping[int, float] | Sequence[float] | float | None, ids: list[int], name: str, default: float
+) -> Array:
+    """A per-thruster number given as {id: value}, a sequence in layout order, one value, or None."""
+    if value is None:
+        return np.full(len(ids), default)
+    if isinstance(value, Mapping):
+        unknown = set(value) - set(ids)
+        if unknown:
+            raise ValueError(f"{name}: unknown thruster ids {sorted(unknown)}; layout has {ids}")
+        return np.array([float(value.get(i, default)) for i in ids], dtype=float)
+    arr = np.broadcast_to(np.asarray(value, dtype=float), (len(ids),)).copy()
+    return arr
+
+
+def _weighted_pinv(B: Array, w_ext: Array) -> Array:
+    """W⁻¹Bᵀ(BW⁻¹Bᵀ)⁻¹ with W = diag(w_ext), via the SVD pseudo-inverse of B W^{-1/2} (rank-safe)."""
+    r = 1.0 / np.sqrt(w_ext)
+    return np.asarray(r[:, None] * np.linalg.pinv(B * r[None, :]), dtype=float)
+
+
+# --------------------------------------------------------------------------------------------------------
+# Baseline: weighted pseudo-inverse
+
+
+class PseudoInverseAllocator:
+    """Weighted minimum-norm allocation, the paper's T⁻¹(α)τ (Hajivand eq (22), ERRATA): unconstrained.
+
+    Minimises Σᵢ wᵢ |fᵢ / T_max,i|² subject to B f = τ (same power proxy and weights as `QPAllocator`).
+    When some thruster would exceed its thrust limits, the whole f is scaled down by the largest factor
+    that fits (τ keeps its direction, is not met: ``saturated=True``, status ``"scaled"``, an alarm). No
+    rate limits and no forbidden sectors. An azimuth with (near) zero thrust keeps its previous angle.
+    """
+
+    def __init__(
+        self,
+        vessel: VesselModel,
+        weights: Mapping[int, float] | Sequence[float] | None = None,
+        *,
+        idle_thrust_fraction: float = 1e-3,
+    ) -> None:
+        self.layout = L = _Layout(vessel, weights)
+        w_ext = (L.weights / L.cap**2)[L.owner]
+        self.pinv = _weighted_pinv(L.B, w_ext)
+        self.idle_thrust = idle_thrust_fraction * L.cap
+
+    def allocate(self, tau_demand: ArrayLike, previous: ThrusterCommand | None = None) -> AllocationResult:
+        t0 = time.perf_counter()
+        L = self.layout
+        tau = np.array(tau_demand, dtype=float).reshape(3)
+        _, prev_angle = L.state(previous)
+        if not np.all(np.isfinite(tau)):
+            return _hold(L, tau, previous, "invalid_input", "thrust allocation: non-finite τ demand", t0)
+        f = self.pinv @ tau
+        thrust, angle = _split(L, f, prev_angle, self.idle_thrust)
+        over = np.where(
+            thrust > 0, thrust / L.tmax, np.where(thrust < 0, thrust / np.minimum(L.tmin, -1e-300), 0)
+        )
+        k = 1.0 / max(1.0, float(over.max()))
+        alarms: tuple[str, ...] = ()
+        status = "optimal"
+        if k < 1.0:
+            thrust = thrust * k
+            status = "scaled"
+        tau_alloc = L.tau_of(thrust, angle)
+        slack = tau - tau_alloc
+        saturated = bool(np.max(np.abs(slack) / L.tau_ref) > _SAT_TOL)
+        if saturated:
+            alarms = (_saturation_alarm(tau, slack),)
+        return AllocationResult(
+            thrust, angle, tau_alloc, tau, slack, saturated, alarms, time.perf_counter() - t0, status
+        )
+
+
+def _split(L: _Layout, f: Array, prev_angle: Array, idle: Array) -> tuple[Array, Array]:
+    """Extended fixed-frame forces → (thrust, azimuth); idle azimuths keep ``prev_angle``."""
+    thrust = np.zeros(L.n)
+    angle = prev_angle.copy()
+    for i in range(L.n):
+        k = L.first[i]
+        if L.is_az[i]:
+            fx, fy = f[k], f[k + 1]
+            thrust[i] = math.hypot(fx, fy)
+            if thrust[i] >= idle[i]:
+                angle[i] = math.atan2(fy, fx)
+            else:  # keep the angle; the thrust is the part of f along it
+                thrust[i] = max(0.0, fx * math.cos(angle[i]) + fy * math.sin(angle[i]))
+        else:
+            thrust[i] = f[k]
+            angle[i] = L.fixed_angle[i]
+    return thrust, _ssa(angle)
+
+
+def _saturation_alarm(tau: Array, slack: Array) -> str:
+    return (
+        "thrust allocation saturated: demand τ = [{:.4g} N, {:.4g} N, {:.4g} N·m] not achievable, "
+        "shortfall [{:.4g} N, {:.4g} N, {:.4g} N·m]".format(*tau, *slack)
+    )
+
+
+def _hold(
+    L: _Layout, tau: Array, previous: ThrusterCommand | None, status: str, alarm: str, t0: float
+) -> AllocationResult:
+    """Keep the previous command (it satisfies every rate limit); used when no new one can be computed."""
+    thrust, angle = L.state(previous)
+    tau_alloc = L.tau_of(thrust, angle)
+    slack = np.where(np.isfinite(tau), tau - tau_alloc, 0.0)
+    return AllocationResult(
+        thrust, angle, tau_alloc, tau, slack, True, (alarm,), time.perf_counter() - t0, status
+    )
+
+
+# --------------------------------------------------------------------------------------------------------
+# Constrained QP
+
+
+@dataclass(frozen=True)
+class StepLimits:
+    """What each thruster can deliver in the coming step, around its previous state (layout order).
+
+    Azimuths: ``angle`` is the previous azimuth; the new force direction must lie in
+    [angle − arc_lo, angle + arc_hi] (``cone`` True; arc_lo + arc_hi ≤ π so the sector is convex) or is
+    free (``cone`` False); |F| ≤ ``radius`` (N) through the inscribed polygon; the component along
+    ``angle`` ≥ ``along_min`` (N, −inf for none); ``blocked`` (previous azimuth inside a forbidden sector):
+    F = 0. Tunnels and main propellers: ``lower`` ≤ u ≤ ``upper`` (N, signed).
+    """
+
+    angle: Array
+    thrust: Array
+    arc_lo: Array
+    arc_hi: Array
+    cone: BoolArray
+    radius: Array
+    along_min: Array
+    blocked: BoolArray
+    lower: Array
+    upper: Array
+
+
+@dataclass(frozen=True)
+class QPData:
+    """The QP of one step in scaled variables x = [f̂ (rotated frame), ŝ⁺ (3), ŝ⁻ (3)]::
+
+        min ½ xᵀPx + qᵀx   s.t.   lb ≤ x ≤ ub,   A[:n_eq] x = b_eq,   A[n_eq:] x ≤ ub_A
+
+    ``A`` rows: the n_eq = 3 equality rows B̂ f̂ + ŝ⁺ − ŝ⁻ = τ̂, then the polygon and cone rows. Infinite
+    bounds are ±inf. Used by the solver here and by the solver comparison in ``bench/``.
+    """
+
+    P: Array
+    q: Array
+    A: Array
+    b_eq: Array
+    ub_A: Array
+    lb: Array
+    ub: Array
+    n_eq: int
+
+
+@dataclass(frozen=True)
+class QPSolution:
+    """Optimum of the QP: ``forces`` in the fixed frame of eq (22) (N; F_x, F_y per azimuth, u per fixed
+    thruster, layout order), ``slack`` = τ − B·forces (N, N, N·m), ``objective`` in scaled units,
+    ``status`` ``"optimal"`` or ``"solver_failed: exitflag n"``."""
+
+    forces: Array
+    slack: Array
+    objective: float
+    status: str
+    iterations: int
+
+
+class QPAllocator:
+    """Constrained thrust allocation, one convex QP per step (module docstring; ``docs/allocation.md``).
+
+    Parameters (physical units; weights are relative, the problem is scaled so units do not matter):
+
+    ``dt`` (s) — the allocation period; the rate limits allow what the thrusters can do in ``dt``.
+    ``weights`` — per thruster ({id: w} or layout order), relative cost of its scaled force |F/T_max|².
+    ``power_weight`` — p, weight of the power proxy Σ wᵢ |F/T_max|².
+    ``turn_weight`` — c, weight of the force across an azimuth's current direction (prefer small turns).
+    ``slack_weight`` — ρ₂ (one value or [X, Y, N]), quadratic weight of the scaled slack s/τ_ref.
+    ``slack_l1_weight`` — ρ₁, the exact (ℓ₁) penalty weight; default √ρ₂.
+    ``forbidden_sectors`` — {azimuth id: [(start_rad, end_rad), …]}: force directions (the same convention
+    as the output azimuth) that must not be used, from start clockwise to end.
+    ``thrust_rate`` — {id: N/s} maximum thrust change rate; default T_max / thrust_time_constant_s.
+    ``polygon_sides`` — sides of the regular polygon inscribed in |F| ≤ T_max.
+    ``idle_thrust_fraction`` — an azimuth below this fraction of its T_max is idle: its angle does not
+    follow the (noisy) direction of its tiny force.
+    ``idle_steering`` — idle azimuths turn (at their rate limit) towards the direction the unconstrained
+    allocation wants them in, so a thruster that points the wrong way is not stuck there.
+    """
+
+    def __init__(
+        self,
+        vessel: VesselModel,
+        *,
+        dt: float = 0.1,
+        weights: Mapping[int, float] | Sequence[float] | None = None,
+        power_weight: float = 1.0,
+        turn_weight: float = 1.0,
+        slack_weight: float | Sequence[float] = 1e6,
+        slack_l1_weight: float | Sequence[float] | None = None,
+        forbidden_sectors: Mapping[int, Sequence[tuple[float, float]]] | None = None,
+        thrust_rate: Mapping[int, float] | None = None,
+        polygon_sides: int = 16,
+        idle_thrust_fraction: float = 1e-3,
+        idle_steering: bool = True,
+    ) -> None:
+        if not (math.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+        if polygon_sides < 6:
+            raise ValueError(f"polygon_sides must be at least 6, got {polygon_sides}")
+        if not (power_weight > 0 and turn_weight >= 0):
+            raise ValueError("power_weight must be positive and turn_weight non-negative")
+        self.layout = L = _Layout(vessel, weights)
+        self.dt = float(dt)
+        self.power_weight = float(power_weight)
+        self.turn_weight = float(turn_weight)
+        self.rho2 = np.broadcast_to(np.asarray(slack_weight, dtype=float), (3,)).copy()
+        rho1 = np.sqrt(self.rho2) if slack_l1_weight is None else slack_l1_weight
+        self.rho1 = np.broadcast_to(np.asarray(rho1, dtype=float), (3,)).copy()
+        if not (np.all(self.rho2 > 0) and np.all(self.rho1 >= 0)):
+            raise ValueError("slack_weight must be positive and slack_l1_weight non-negative")
+        self.polygon_sides = int(polygon_sides)
+        self.idle_thrust = float(idle_thrust_fraction) * L.cap
+        self.idle_steering = bool(idle_steering)
+        self.forbidden = _forbidden(forbidden_sectors, L)
+        default_rate = np.where(L.time_constant > 0, L.cap / np.maximum(L.time_constant, 1e-300), np.inf)
+        rate = _per_thruster(thrust_rate, L.ids, "thrust_rate", default=math.nan)
+        self.thrust_rate = np.where(np.isnan(rate), default_rate, rate)
+        if not np.all(self.thrust_rate > 0):
+            raise ValueError("thrust_rate must be positive")
+        self._dT = self.thrust_rate * self.dt  # N per step
+        self._turn = np.where(L.is_az, L.rate * self.dt, 0.0)  # rad per step
+        # unconstrained direction each azimuth would take (idle steering): same weights, no limits
+        self._pinv = _weighted_pinv(L.B, (L.weights / L.cap**2)[L.owner])
+        self._build_structure()
+        self._model: Any = None  # DAQP workspace, set up on the first solve and updated after
+
+    # ---- problem structure (constant) ------------------------------------------------------------------
+
+    def _build_structure(self) -> None:
+        L = self.layout
+        N = self.polygon_sides
+        self._az = np.flatnonzero(L.is_az)
+        self._fixed = np.flatnonzero(~L.is_az)
+        self._ka = L.first[self._az]  # variable â (along) of each azimuth; b̂ (across) is the next one
+        self._kf = L.first[self._fixed]
+        n_az = len(self._az)
+        self.n_x = L.n_ext + 6
+        self.n_rows = 3 + n_az * (N + 2)
+        self._rows_hi = 3 + np.arange(n_az) * (N + 2) + N
+        self._rows_lo = self._rows_hi + 1
+        P = np.zeros(self.n_x)
+        P[L.first] = self.power_weight * L.weights
+        P[self._ka + 1] = (self.power_weight + self.turn_weight) * L.weights[self._az]
+        P[L.n_ext :] = np.r_[self.rho2, self.rho2]
+        self.P = np.diag(P)
+        self.q = np.r_[np.zeros(L.n_ext), self.rho1, self.rho1]
+        # polygon: vertex k at 2πk/N from the previous azimuth, face normals half-way between vertices
+        theta = TWO_PI * (np.arange(N) + 0.5) / N
+        self._poly_scale = math.cos(math.pi / N)
+        A = np.zeros((self.n_rows, self.n_x))
+        A[0:3, L.n_ext :] = np.c_[np.eye(3), -np.eye(3)]
+        for j, k in enumerate(self._ka):
+            r0 = 3 + j * (N + 2)
+            A[r0 : r0 + N, k] = np.cos(theta)
+            A[r0 : r0 + N, k + 1] = np.sin(theta)
+        A[0:3, self._kf] = L.B[:, self._kf] * L.cap[self._fixed] / L.tau_ref[:, None]
+        self._A = A
+        self._colscale = L.cap[self._az][None, :] / L.tau_ref[:, None]
+        self._lb0 = np.r_[np.full(L.n_ext, -np.inf), np.zeros(6)]
+        self._ub0 = np.full(self.n_x, np.inf)
+        self._blower_rows = np.full(self.n_rows - 3, -np.inf)
+
+    # ---- the step's limits -----------------------------------------------------------------------------
+
+    def limits(self, previous: ThrusterCommand | None) -> StepLimits:
+        """The convex limits of one step around ``previous`` (None: every thruster at rest at its
+        configured ``angle_rad``)."""
+        L = self.layout
+        thrust, angle = L.state(previous)
+        arc_lo, arc_hi = self._turn.copy(), self._turn.copy()
+        blocked = np.zeros(L.n, dtype=bool)
+        for i, sectors in self.forbidden.items():
+            for start, width in sectors:
+                p = (angle[i] - start) % TWO_PI  # how far clockwise of the sector's start
+                if _ANGLE_EPS < p < width - _ANGLE_EPS:
+                    blocked[i] = True
+                    continue
+                ahead = (start - angle[i]) % TWO_PI  # clockwise distance to the sector
+                behind = (angle[i] - start - width) % TWO_PI  # anticlockwise distance to its end
+                arc_hi[i] = min(arc_hi[i], 0.0 if ahead > TWO_PI - _ANGLE_EPS else ahead)
+                arc_lo[i] = min(arc_lo[i], 0.0 if behind > TWO_PI - _ANGLE_EPS else behind)
+        total = arc_lo + arc_hi
+        cone = L.is_az & ~blocked & (total < TWO_PI)
+        wide = total > math.pi
+        if wide.any():  # convex: the widest sector of π within the allowed arc, centred when possible
+            lo = np.minimum(arc_lo, math.pi / 2)
+            hi = np.minimum(arc_hi, math.pi - lo)
+            lo = np.minimum(arc_lo, math.pi - hi)
+            arc_lo, arc_hi = np.where(wide, lo, arc_lo), np.where(wide, hi, arc_hi)
+        dT = self._dT
+        down = thrust - dT
+        return StepLimits(
+            angle=angle,
+            thrust=thrust,
+            arc_lo=arc_lo,
+            arc_hi=arc_hi,
+            cone=cone,
+            radius=np.minimum(L.tmax, thrust + dT),
+            # the forbidden sector wins over the thrust rate
+            along_min=np.where((down > 0) & ~blocked, down, -np.inf),
+            blocked=blocked,
+            lower=np.maximum(L.tmin, down),
+            upper=np.minimum(L.tmax, thrust + dT),
+        )
+
+    def qp_data(self, tau_demand: ArrayLike, previous: ThrusterCommand | None) -> QPData:
+        """The scaled QP of one step (see `QPData`)."""
+        return self._qp(np.array(tau_demand, dtype=float).reshape(3), self.limits(previous))
+
+    def _qp(self, tau: Array, lim: StepLimits) -> QPData:
+        L = self.layout
+        N = self.polygon_sides
+        az, ka, kf = self._az, self._ka, self._kf
+        ang = lim.angle[az]
+        c, s = np.cos(ang), np.sin(ang)
+        x, y = L.x[az], L.y[az]
+        A = self._A.copy()
+        # B̂ in the rotated frame: â along the previous azimuth, b̂ 90° clockwise of it
+        A[0:3, ka] = np.vstack((c, s, x * s - y * c)) * self._colscale
+        A[0:3, ka + 1] = np.vstack((-s, c, x * c + y * s)) * self._colscale
+        rad = lim.radius[az] / L.cap[az]
+        ub_A = np.empty(self.n_rows)
+        ub_A[:3] = np.inf
+        blk = ub_A[3:].reshape(len(az), N + 2)
+        blk[:, :N] = (rad * self._poly_scale)[:, None]
+        # cone: two half-planes through the origin; at exactly π both edges are one line (one row)
+        cone = lim.cone[az]
+        lo, hi = lim.arc_lo[az], lim.arc_hi[az]
+        two = cone & (lo + hi < math.pi - 1e-9)
+        A[self._rows_hi, ka] = np.where(cone, -np.sin(hi), 0.0)
+        A[self._rows_hi, ka + 1] = np.where(cone, np.cos(hi), 0.0)
+        A[self._rows_lo, ka] = np.where(two, -np.sin(lo), 0.0)
+        A[self._rows_lo, ka + 1] = np.where(two, -np.cos(lo), 0.0)
+        blk[:, N] = np.where(cone, 0.0, np.inf)
+        blk[:, N + 1] = np.where(two, 0.0, np.inf)
+        lb, ub = self._lb0.copy(), self._ub0.copy()
+        blocked = lim.blocked[az]
+        lb[ka] = np.where(blocked, 0.0, np.maximum(lim.along_min[az] / L.cap[az], -rad))
+        ub[ka] = np.where(blocked, 0.0, rad)
+        lb[ka + 1] = np.where(blocked, 0.0, -rad)
+        ub[ka + 1] = ub[ka]
+        lb[kf] = lim.lower[self._fixed] / L.cap[self._fixed]
+        ub[kf] = lim.upper[self._fixed] / L.cap[self._fixed]
+        return QPData(self.P, self.q, A, tau / L.tau_ref, ub_A, lb, ub, 3)
+
+    # ---- solve -----------------------------------------------------------------------------------------
+
+    def solve_qp(self, tau_demand: ArrayLike, previous: ThrusterCommand | None) -> QPSolution:
+        """Solve the QP of one step (no post-processing: see `allocate`)."""
+        return self._solve(np.array(tau_demand, dtype=float).reshape(3), self.limits(previous))
+
+    def _solve(self, tau: Array, lim: StepLimits) -> QPSolution:
+        L = self.layout
+        d = self._qp(tau, lim)
+        bupper = np.concatenate((d.ub, d.b_eq, d.ub_A[3:]))
+        blower = np.concatenate((d.lb, d.b_eq, self._blower_rows))
+        if self._model is None:
+            sense = np.zeros(self.n_x + self.n_rows, dtype=np.int32)
+            sense[self.n_x : self.n_x + 3] = 5  # equality rows
+            self._model = daqp.Model()
+            self._model.setup(d.P, d.q, d.A, bupper, blower, sense)
+        else:  # same structure: new values, the previous active set is the warm start
+            self._model.update(A=d.A, bupper=bupper, blower=blower)
+        x, _fval, exitflag, info = self._model.solve()
+        if exitflag < 1 or not np.all(np.isfinite(x)):
+            self._model = None  # start afresh next time
+            return QPSolution(
+                np.zeros(L.n_ext), tau.copy(), math.nan, f"solver_failed: exitflag {exitflag}", 0
+            )
+        x = np.asarray(x, dtype=float)
+        ka, kf = self._ka, self._kf
+        ang = lim.angle[self._az]
+        c, s = np.cos(ang), np.sin(ang)
+        a, b = x[ka] * L.cap[self._az], x[ka + 1] * L.cap[self._az]
+        forces = np.empty(L.n_ext)
+        forces[ka], forces[ka + 1] = a * c - b * s, a * s + b * c
+        forces[kf] = x[kf] * L.cap[self._fixed]
+        slack = (x[L.n_ext : L.n_ext + 3] - x[L.n_ext + 3 :]) * L.tau_ref
+        objective = 0.5 * float(x @ d.P @ x) + float(d.q @ x)
+        return QPSolution(forces, slack, objective, "optimal", int(info["iterations"]))
+
+    def allocate(self, tau_demand: ArrayLike, previous: ThrusterCommand | None = None) -> AllocationResult:
+        """Thrust and azimuth per thruster for the demand ``tau_demand`` = [X, Y, N] (N, N, N·m) given the
+        current state ``previous`` (the last command or the thrusters' feedback; None: at rest)."""
+        t0 = time.perf_counter()
+        L = self.layout
+        tau = np.array(tau_demand, dtype=float).reshape(3)
+        if not np.all(np.isfinite(tau)):
+            return _hold(L, tau, previous, "invalid_input", "thrust allocation: non-finite τ demand", t0)
+        lim = self.limits(previous)
+        sol = self._solve(tau, lim)
+        if sol.status != "optimal":
+            return _hold(L, tau, previous, sol.status, f"thrust allocation: QP {sol.status}", t0)
+        thrust, angle = self._commands(tau, sol.forces, lim)
+        tau_alloc = L.tau_of(thrust, angle)
+        slack = tau - tau_alloc
+        saturated = bool(np.max(np.abs(sol.slack) / L.tau_ref) > _SAT_TOL)
+        alarms = (_saturation_alarm(tau, slack),) if saturated else ()
+        return AllocationResult(
+            thrust, angle, tau_alloc, tau, slack, saturated, alarms, time.perf_counter() - t0, "optimal"
+        )
+
+    def _commands(self, tau: Array, forces: Array, lim: StepLimits) -> tuple[Array, Array]:
+        """QP forces → (thrust, azimuth). The angle is kept inside the step's allowed arc (solver
+        round-off); an idle azimuth (force below the idle threshold) does not follow its force's direction:
+        it holds its angle, or with idle steering turns at its rate limit towards the direction the
+        unconstrained allocation wants; its thrust is the part of the force along the commanded angle."""
+        L = self.layout
+        az, ka = self._az, self._ka
+        thrust = np.clip(forces[L.first], lim.lower, lim.upper)  # right for the fixed thrusters
+        angle = L.fixed_angle.copy()
+        fx, fy = forces[ka], forces[ka + 1]
+        prev = lim.angle[az]
+        c, s = np.cos(prev), np.sin(prev)
+        rel = np.arctan2(fy * c - fx * s, fx * c + fy * s)  # direction relative to the previous azimuth
+        rel = np.where(lim.cone[az], np.clip(rel, -lim.arc_lo[az], lim.arc_hi[az]), rel)
+        mag = np.hypot(fx, fy)
+        idle = (mag < self.idle_thrust[az]) | lim.blocked[az]
+        new = prev + np.where(idle, 0.0, rel)
+        if self.idle_steering and idle.any():
+            pref = self._pinv @ tau
+            px, py = pref[ka], pref[ka + 1]
+            for j in np.flatnonzero(idle & (np.hypot(px, py) >= self.idle_thrust[az])):
+                i = int(az[j])
+                target = self._outside_sectors(i, math.atan2(py[j], px[j]))
+                step = self._turn[i]
+                new[j] = prev[j] + min(max(float(_ssa(target - prev[j])), -step), step)
+        along = np.clip(fx * np.cos(new) + fy * np.sin(new), 0.0, None)
+        thrust[az] = np.where(lim.blocked[az], 0.0, np.minimum(np.where(idle, along, mag), lim.radius[az]))
+        angle[az] = new
+        return thrust, _ssa(angle)
+
+    def _outside_sectors(self, i: int, target: float) -> float:
+        """``target`` moved to the nearer edge of a forbidden sector of thruster i that contains it."""
+        for start, width in self.forbidden.get(i, ()):
+            p = (target - start) % TWO_PI
+            if 0.0 < p < width:
+                return start if p < width / 2 else start + width
+        return target
+
+
+def _forbidden(
+    sectors: Mapping[int, Sequence[tuple[float, float]]] | None, L: _Layout
+) -> dict[int, list[tuple[float, float]]]:
+    """{layout index: [(start, width)]} with start in [-π, π) and width in (0, 2π)."""
+    out: dict[int, list[tuple[float, float]]] = {}
+    for tid, lst in (sectors or {}).items():
+        if tid not in L.ids:
+            raise ValueError(f"forbidden_sectors: unknown thruster id {tid}; layout has {L.ids}")
+        i = L.ids.index(tid)
+        if not L.is_az[i]:
+            raise ValueError(f"forbidden_sectors: thruster {tid} is not an azimuth")
+        for start, end in lst:
+            if not (math.isfinite(start) and math.isfinite(end)):
+                raise ValueError(f"forbidden_sectors: thruster {tid}: non-finite sector ({start}, {end})")
+            width = (end - start) % TWO_PI
+            if width <= 0.0:
+                raise ValueError(f"forbidden_sectors: thruster {tid}: empty or full sector ({start}, {end})")
+            out.setdefault(i, []).append((float(_ssa(start)), width))
+    return out
+
+
+# --------------------------------------------------------------------------------------------------------
+# Independent reference formulation (tests and benchmark only: needs cvxpy)
+
+
+def reference_solve_cvxpy(
+    allocator: QPAllocator, tau_demand: ArrayLike, previous: ThrusterCommand | None, **solver_options: Any
+) -> QPSolution:
+    """The same problem as `QPAllocator`, written independently with cvxpy in the fixed frame of eq (22):
+    variables F_x, F_y per azimuth and u per fixed thruster, slack s = τ − B f, each in the problem's
+    scaled units (force / T_max, slack / τ_ref; cvxpy and its solver need no help with units then).
+    Readable and slow (ms): the reference the QP is tested against. Not used at run time (cvxpy is a
+    test and benchmark dependency)."""
+    import cvxpy as cp
+
+    A = allocator
+    L = A.layout
+    lim = A.limits(previous)
+    tau = np.array(tau_demand, dtype=float).reshape(3)
+    N = A.polygon_sides
+    f = cp.Variable(L.n_ext)  # scaled forces, fixed frame
+    s = cp.Variable(3)  # scaled slack
+    force_scale = L.cap[L.owner]
+    cost: list[Any] = [A.rho1 @ cp.abs(s), 0.5 * cp.sum(cp.multiply(A.rho2, cp.square(s)))]
+    cons: list[Any] = [(L.B * force_scale) @ f / L.tau_ref + s == tau / L.tau_ref]
+    for i in range(L.n):
+        k, w = L.first[i], L.weights[i]
+        if not L.is_az[i]:
+            cost.append(0.5 * A.power_weight * w * cp.square(f[k]))
+            cons += [f[k] * L.cap[i] >= lim.lower[i], f[k] * L.cap[i] <= lim.upper[i]]
+            continue
+        F = f[k : k + 2]
+        a = lim.angle[i]  # previous azimuth
+        along = np.array([math.cos(a), math.sin(a)])
+        across = np.array([-math.sin(a), math.cos(a)])  # 90° clockwise of it
+        cost.append(0.5 * A.power_weight * w * cp.sum_squares(F))
+        cost.append(0.5 * A.turn_weight * w * cp.square(across @ F))
+        if lim.blocked[i]:  # previous azimuth inside a forbidden sector
+            cons.append(F == 0)
+            continue
+        r = lim.radius[i] / L.cap[i]
+        for m in range(N):  # regular polygon inscribed in |F| ≤ r, one vertex on the previous azimuth
+            normal = a + TWO_PI * (m + 0.5) / N
+            cons.append(math.cos(normal) * F[0] + math.sin(normal) * F[1] <= r * math.cos(math.pi / N))
+        if lim.cone[i]:  # direction between a − arc_lo and a + arc_hi: cross product with each edge
+            e_hi, e_lo = a + lim.arc_hi[i], a - lim.arc_lo[i]
+            cons.append(math.cos(e_hi) * F[1] - math.sin(e_hi) * F[0] <= 0)
+            cons.append(math.cos(e_lo) * F[1] - math.sin(e_lo) * F[0] >= 0)
+        if np.isfinite(lim.along_min[i]):  # thrust-rate limit downwards
+            cons.append(along @ F >= lim.along_min[i] / L.cap[i])
+    prob = cp.Problem(cp.Minimize(cp.sum(cp.hstack(cost))), cons)
+    options: dict[str, Any] = {
+        "solver": cp.CLARABEL,
+        "tol_gap_abs": 1e-10,
+        "tol_gap_rel": 1e-10,
+        "tol_feas": 1e-10,
+    }
+    options.update(solver_options)
+    prob.solve(**options)
+    if prob.status != cp.OPTIMAL or f.value is None:
+        return QPSolution(np.zeros(L.n_ext), tau.copy(), math.nan, f"reference: {prob.status}", 0)
+    forces = np.asarray(f.value, dtype=float) * force_scale
+    return QPSolution(forces, tau - L.B @ forces, float(prob.value), "optimal", 0)

@@ -1,0 +1,357 @@
+"""The replay report (gateway/report.py): metrics on synthetic data with known answers, and the files."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from gateway.report import (
+    ObserverTrace,
+    ReplayData,
+    compute_metrics,
+    decimate,
+    wave_band_for_length,
+    write_report,
+)
+
+W_WAVE = 0.6  # rad/s
+DOFS = ("north", "east", "heading")
+PNGS = ("position", "wave", "velocity", "bias", "omega0", "psd")
+
+
+def wrap(a: np.ndarray) -> np.ndarray:
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def lf_motion(t: np.ndarray) -> np.ndarray:
+    """Slow motion: metres in N/E, heading close to 180° so that it wraps."""
+    return np.column_stack(
+        [
+            3.0 * np.sin(0.01 * t) + 0.5 * np.sin(0.031 * t + 1.0),
+            -2.0 * np.cos(0.013 * t),
+            np.radians(179.0) + 0.02 * np.sin(0.02 * t),
+        ]
+    )
+
+
+def wf_motion(t: np.ndarray) -> np.ndarray:
+    return np.column_stack(
+        [1.0 * np.sin(W_WAVE * t), 0.7 * np.sin(W_WAVE * t + 0.5), 0.01 * np.sin(W_WAVE * t + 1.0)]
+    )
+
+
+def trace(label: str, t: np.ndarray, wf_left: float, omega0: float = 0.8976) -> ObserverTrace:
+    """An "observer" whose LF estimate is the LF motion plus `wf_left` of the wave motion."""
+    eta = lf_motion(t) + wf_left * wf_motion(t)
+    eta[:, 2] = wrap(eta[:, 2])
+    n = len(t)
+    return ObserverTrace(
+        label=label,
+        t=t,
+        eta=eta,
+        nu=np.column_stack([0.1 * np.cos(0.01 * t), np.zeros(n), np.zeros(n)]),
+        bias=np.tile([2.0e4, -1.0e4, 3.0e5], (n, 1)),
+        eta_wf=(1.0 - wf_left) * wf_motion(t),
+        omega0=np.full((n, 3), omega0),
+    )
+
+
+def measurement(t: np.ndarray, seed: int = 1) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    y = lf_motion(t) + wf_motion(t) + rng.normal(0.0, [0.02, 0.02, 0.0005], (len(t), 3))
+    y[:, 2] = wrap(y[:, 2])
+    return y
+
+
+@pytest.fixture(scope="module")
+def data() -> ReplayData:
+    t_meas = np.arange(0.0, 1800.0, 1.0)  # 1 Hz fixes, 30 min
+    t_est = np.arange(0.0, 1800.0, 0.2)  # 5 Hz estimates
+    return ReplayData(
+        title="synthetic.mcap",
+        vessel="mss_supply",
+        t_meas=t_meas,
+        y=measurement(t_meas),
+        traces=(trace("passive", t_est, 0.05), trace("passive_T9", t_est, 0.5, omega0=0.7)),
+        truth_t=t_est,
+        truth_eta_lf=lf_motion(t_est),
+        truth_eta_wf=wf_motion(t_est),
+        counts={
+            "dgps": {"received": 1800, "checksum": 3, "garbage": 1},
+            "trial.mcap": {
+                "truncated": 1,
+                "time_gap": 2,
+                "time_backwards": 0,
+                "repeated_time": 4,
+                "duplicate": 5,
+            },
+        },
+    )
+
+
+@pytest.fixture(scope="module")
+def metrics(data: ReplayData) -> dict[str, Any]:
+    return compute_metrics(data)
+
+
+# ---------------------------------------------------------------------------------------- attenuation
+def test_dominant_wave_frequency_is_found(metrics: dict[str, Any]) -> None:
+    for dof in DOFS:
+        w = metrics["measurement"][dof]["dominant_frequency_rad_s"]
+        assert w == pytest.approx(W_WAVE, rel=0.05), dof
+        assert metrics["measurement"][dof]["peak_at_band_edge"] is False
+        assert metrics["measurement"][dof]["dominant_period_s"] == pytest.approx(2 * math.pi / w)
+
+
+def test_attenuation_at_the_wave_peak(metrics: dict[str, Any]) -> None:
+    for dof in DOFS:  # heading included: it wraps at ±180° in both y and the estimate
+        assert metrics["observers"]["passive"][dof]["attenuation_db"] == pytest.approx(
+            20 * math.log10(0.05), abs=1
+        )
+        assert metrics["observers"]["passive_T9"][dof]["attenuation_db"] == pytest.approx(
+            20 * math.log10(0.5), abs=1
+        )
+
+
+def test_nan_gaps_in_the_measurement(data: ReplayData) -> None:
+    y = data.y.copy()
+    y[100:102] = np.nan  # short dropouts: interpolated
+    y[400:403, :2] = np.nan
+    y[700:1000, 0] = np.nan  # a long one in north: the record is split
+    y[1500:, 1] = np.nan
+    y[::37, 2] = np.nan
+    gappy = ReplayData(data.title, data.vessel, data.t_meas, y, data.traces)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        m = compute_metrics(gappy)
+    assert m["measurement"]["north"]["valid"] == len(y) - 2 - 3 - 300
+    for dof in DOFS:
+        assert m["measurement"][dof]["dominant_frequency_rad_s"] == pytest.approx(W_WAVE, rel=0.05)
+        obs = m["observers"]["passive"][dof]
+        assert obs["attenuation_db"] == pytest.approx(-26.0, abs=1.5)
+        assert math.isfinite(obs["innovation"]["std"]) and math.isfinite(obs["smoothness"]["ratio"])
+
+
+def test_a_dof_without_any_measurement_gives_nulls(data: ReplayData) -> None:
+    y = data.y.copy()
+    y[:, 1] = np.nan
+    m = compute_metrics(ReplayData(data.title, data.vessel, data.t_meas, y, data.traces))
+    assert m["measurement"]["east"]["dominant_frequency_rad_s"] is None
+    assert m["observers"]["passive"]["east"]["attenuation_db"] is None
+    assert m["observers"]["passive"]["east"]["innovation"]["samples"] == 0
+    assert m["observers"]["passive"]["north"]["attenuation_db"] == pytest.approx(-26.0, abs=1)
+
+
+def test_wave_band_follows_the_vessel() -> None:
+    assert wave_band_for_length(76.2) == (0.2, 2.0)
+    assert wave_band_for_length(None) == (0.2, 2.0)
+    lo, hi = wave_band_for_length(1.255)  # CyberShip II, Froude-scaled from 80 m
+    assert lo == pytest.approx(0.2 * math.sqrt(80 / 1.255)) and hi == pytest.approx(10 * lo)
+    t = np.arange(0.0, 300.0, 0.05)
+    w = 7.0  # a model-basin wave
+    y = np.column_stack([0.05 * np.sin(w * t), 0.03 * np.sin(w * t), 0.01 * np.sin(w * t)])
+    m = compute_metrics(ReplayData("basin", "cybership2", t, y, ()))
+    assert m["wave_band_rad_s"] == pytest.approx([lo, hi])
+    assert m["measurement"]["north"]["dominant_frequency_rad_s"] == pytest.approx(w, rel=0.05)
+    given = compute_metrics(ReplayData("basin", "cybership2", t, y, ()), wave_band=(0.5, 3.0))
+    assert given["wave_band_rad_s"] == [0.5, 3.0] and given["wave_band_basis"] == "given"
+
+
+# ------------------------------------------------------------------------------------ innovations
+def _known_residual_data() -> tuple[ReplayData, np.ndarray]:
+    t = np.arange(0.0, 200.0, 1.0)
+    n = len(t)
+    eta = np.column_stack([np.full(n, 5.0), np.full(n, -3.0), np.full(n, np.radians(179.95))])
+    eta_wf = np.column_stack([0.2 * np.sin(0.6 * t), np.zeros(n), np.zeros(n)])
+    alt = np.where(np.arange(n) % 2 == 0, 1.0, -1.0)
+    r = np.column_stack([0.3 + 0.1 * alt, 0.2 * alt, np.radians(0.1) * np.ones(n)])
+    y = eta + eta_wf + r
+    y[:, 2] = wrap(y[:, 2])  # 180.05° is stored as -179.95°
+    z = np.zeros((n, 3))
+    tr = ObserverTrace("p", t, eta, z, z, eta_wf, np.full((n, 3), 0.9))
+    return ReplayData("known", "", t, y, (tr,)), r
+
+
+def test_innovation_statistics_of_a_known_residual() -> None:
+    d, _ = _known_residual_data()
+    o = compute_metrics(d, settle_s=0.0)["observers"]["p"]
+    n = o["north"]["innovation"]
+    assert n["samples"] == 200
+    assert n["mean"] == pytest.approx(0.3)
+    assert n["std"] == pytest.approx(0.1)
+    assert n["rms"] == pytest.approx(math.sqrt(0.3**2 + 0.1**2))
+    assert n["lag1_autocorrelation"] == pytest.approx(-1.0)
+    e = o["east"]["innovation"]
+    assert e["mean"] == pytest.approx(0.0, abs=1e-12) and e["rms"] == pytest.approx(0.2)
+    h = o["heading"]["innovation"]  # across ±180°: 0.1°, not 0.1° - 360°
+    assert h["mean"] == pytest.approx(np.radians(0.1)) and h["std"] == pytest.approx(0.0, abs=1e-9)
+    assert h["lag1_autocorrelation"] is None  # a constant residual has no autocorrelation
+
+
+def test_innovation_whiteness_hint_of_white_noise() -> None:
+    d, _ = _known_residual_data()
+    rng = np.random.default_rng(3)
+    y = d.y.copy()
+    y[:, 0] = d.traces[0].eta[:, 0] + d.traces[0].eta_wf[:, 0] + rng.normal(0, 0.1, len(y))
+    o = compute_metrics(ReplayData("w", "", d.t_meas, y, d.traces), settle_s=0.0)["observers"]["p"]
+    assert abs(o["north"]["innovation"]["lag1_autocorrelation"]) < 0.2
+
+
+def test_settle_time_default_and_override() -> None:
+    d, _ = _known_residual_data()  # 199 s: 10 % is 19.9 s
+    m = compute_metrics(d)
+    assert m["settle_s"] == pytest.approx(19.9)
+    assert m["observers"]["p"]["north"]["innovation"]["samples"] == 180  # t = 20 … 199 s
+    assert compute_metrics(d, settle_s=50.0)["observers"]["p"]["north"]["innovation"]["samples"] == 150
+    t = np.arange(0.0, 3600.0, 10.0)
+    long = ReplayData("l", "", t, np.zeros((len(t), 3)), ())
+    assert compute_metrics(long)["settle_s"] == 60.0
+
+
+def test_smoothness_compares_first_differences(metrics: dict[str, Any]) -> None:
+    s = metrics["observers"]["passive"]["north"]["smoothness"]
+    assert s["std_diff_estimate"] < s["std_diff_measurement"]
+    assert s["ratio"] == pytest.approx(s["std_diff_estimate"] / s["std_diff_measurement"])
+    # the LF part barely changes in 1 s; what is left is 5 % of the wave's difference
+    assert s["ratio"] < 0.1
+    assert metrics["observers"]["passive_T9"]["north"]["smoothness"]["ratio"] == pytest.approx(0.5, abs=0.05)
+
+
+# ------------------------------------------------------------------------------------------ truth
+def test_rms_error_against_truth_with_heading_wrap() -> None:
+    t = np.arange(0.0, 100.0, 0.5)
+    n = len(t)
+    truth = np.column_stack([np.sin(0.05 * t), np.cos(0.05 * t), np.full(n, np.radians(-179.9))])
+    eta = truth.copy()
+    eta[:, 0] += 0.5
+    eta[:, 1] += np.where(np.arange(n) % 2 == 0, 0.2, -0.2)
+    eta[:, 2] = np.radians(179.9)  # 0.2° from the truth, across ±180°
+    eta[t < 10.0, 0] += 100.0  # a start-up transient, inside the settle time
+    z = np.zeros((n, 3))
+    tr = ObserverTrace("p", t, eta, z, z, z, np.full((n, 3), 0.9))
+    d = ReplayData("truth", "", t, truth, (tr,), truth_t=t, truth_eta_lf=truth, truth_eta_wf=np.zeros((n, 3)))
+    m = compute_metrics(d, settle_s=10.0)
+    assert m["truth"] is True
+    o = m["observers"]["p"]
+    assert o["north"]["truth_samples"] == n - 20
+    assert o["north"]["rms_error"] == pytest.approx(0.5)
+    assert o["north"]["mean_square_error"] == pytest.approx(0.25)
+    assert o["east"]["rms_error"] == pytest.approx(0.2)
+    assert o["east"]["mean_square_error"] == pytest.approx(0.04)
+    assert o["heading"]["rms_error"] == pytest.approx(np.radians(0.2))
+    assert o["heading"]["rms_error_wf"] == pytest.approx(0.0)
+    assert compute_metrics(d, settle_s=0.0)["observers"]["p"]["north"]["rms_error"] > 10.0
+
+
+def test_no_truth_gives_null_errors(data: ReplayData) -> None:
+    m = compute_metrics(ReplayData(data.title, data.vessel, data.t_meas, data.y, data.traces))
+    assert m["truth"] is False
+    assert m["observers"]["passive"]["north"]["rms_error"] is None
+
+
+def test_counts_are_copied(metrics: dict[str, Any], data: ReplayData) -> None:
+    assert metrics["counts"] == {k: dict(v) for k, v in data.counts.items()}
+
+
+# ------------------------------------------------------------------------------------------ files
+def _strict_json(text: str) -> Any:
+    def no_nan(name: str) -> None:
+        raise ValueError(f"not JSON: {name}")
+
+    return json.loads(text, parse_constant=no_nan)
+
+
+@pytest.fixture(scope="module")
+def report_dir(data: ReplayData, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[Path]]:
+    folder = tmp_path_factory.mktemp("report") / "new" / "folder"
+    return folder, write_report(data, folder)
+
+
+def test_write_report_writes_pngs_metrics_and_table(
+    report_dir: tuple[Path, list[Path]], metrics: dict[str, Any]
+) -> None:
+    pytest.importorskip("matplotlib")
+    import matplotlib.image
+
+    folder, files = report_dir
+    assert [f.name for f in files] == ["metrics.json", "report.md", *(f"{p}.png" for p in PNGS)]
+    for name in PNGS:
+        path = folder / f"{name}.png"
+        raw = path.read_bytes()
+        assert raw[:8] == b"\x89PNG\r\n\x1a\n" and len(raw) > 20_000, name
+        img = matplotlib.image.imread(path)
+        assert img.shape[0] > 300 and img.shape[1] > 1000
+        assert float(np.std(img[..., :3])) > 0.01  # not a blank canvas
+    stored = _strict_json((folder / "metrics.json").read_text())
+    assert stored["observers"]["passive"]["north"]["attenuation_db"] == pytest.approx(
+        metrics["observers"]["passive"]["north"]["attenuation_db"]
+    )
+    assert stored["counts"]["dgps"]["checksum"] == 3
+    md = (folder / "report.md").read_text()
+    assert "## Observer `passive`" in md and "## Observer `passive_T9`" in md
+    assert "| N (m) | 0.898 | -26 |" in md
+    assert "| dgps | checksum | 3 |" in md and "| trial.mcap | repeated_time | 4 |" in md
+    for name in PNGS:
+        assert f"]({name}.png)" in md
+
+
+def test_write_report_without_plots(data: ReplayData, tmp_path: Path) -> None:
+    files = write_report(data, tmp_path, plots=False)
+    assert [f.name for f in files] == ["metrics.json", "report.md"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["metrics.json", "report.md"]
+    assert "not requested" in (tmp_path / "report.md").read_text()
+    _strict_json((tmp_path / "metrics.json").read_text())
+
+
+def test_write_report_without_matplotlib(
+    data: ReplayData, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    for mod in [m for m in sys.modules if m == "matplotlib" or m.startswith("matplotlib.")]:
+        monkeypatch.delitem(sys.modules, mod)
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib -> ImportError
+    files = write_report(data, tmp_path)
+    assert [f.name for f in files] == ["metrics.json", "report.md"]
+    assert "pip install dpgw[plot]" in (tmp_path / "report.md").read_text()
+
+
+def test_metrics_json_has_no_nan(tmp_path: Path) -> None:
+    t = np.arange(0.0, 30.0, 1.0)  # too short for any spectrum
+    y = np.full((len(t), 3), np.nan)
+    d = ReplayData("short", "", t, y, (trace("p", t, 0.05),))
+    write_report(d, tmp_path, plots=False)
+    m = _strict_json((tmp_path / "metrics.json").read_text())
+    assert m["observers"]["p"]["north"]["attenuation_db"] is None
+
+
+# --------------------------------------------------------------------------------------- decimate
+def test_decimate_keeps_the_envelope_and_the_gaps() -> None:
+    t = np.arange(1_000_000) * 0.1
+    x = np.sin(0.6 * t) + 0.001 * t
+    x[300_000:400_000] = np.nan
+    td, xd = decimate(t, x, 20_000)
+    assert len(td) <= 20_000
+    assert np.all(np.diff(td) >= 0)
+    assert np.nanmax(xd) == pytest.approx(np.nanmax(x)) and np.nanmin(xd) == pytest.approx(np.nanmin(x))
+    assert np.isnan(xd[(td > 30_500) & (td < 39_500)]).all()
+    assert np.array_equal(decimate(t[:100], x[:100], 20_000)[0], t[:100])  # short lines untouched
+
+
+def test_vectorised_welch_matches_scipy() -> None:
+    from scipy import signal
+
+    from gateway.report import _periodograms
+
+    rng = np.random.default_rng(0)
+    for n, nper in [(1000, 100), (1001, 101), (5000, 333)]:
+        x = rng.normal(size=n) + np.linspace(0.0, 3.0, n)
+        f, p = signal.welch(x, fs=2.0, window="hann", nperseg=nper, noverlap=nper // 2, detrend="linear")
+        f2, total, k = _periodograms(x, 2.0, nper)
+        np.testing.assert_allclose(f2, f)
+        np.testing.assert_allclose(total / k, p, rtol=1e-10)
