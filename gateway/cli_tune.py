@@ -50,14 +50,15 @@ def register(sub: Any) -> None:
     )
     p.add_argument("--bias-time", type=float, default=1000.0, metavar="S", help="bias time constant T (s)")
     p.add_argument(
-        "--velocity-injection",
+        "--velocity-injection-ratio",
         type=float,
-        default=0.2,
-        metavar="PER_S",
-        help="extra decay rate of the velocity error from the injection 𝒦 (1/s, default 0.2)",
+        default=0.12,
+        metavar="RATIO",
+        help="velocity-error decay rate a from the injection 𝒦, as a fraction of ω0 (default 0.12)",
     )
+    p.add_argument("--velocity-injection", type=float, metavar="PER_S", help="a in 1/s (overrides the ratio)")
     p.add_argument(
-        "--bias-corner-ratio", type=float, default=0.035, help="bias corner λ/κ as a fraction of ω0 (0.035)"
+        "--bias-corner-ratio", type=float, default=0.04, help="bias corner λ/κ as a fraction of ω0 (0.04)"
     )
     p.add_argument("--json", action="store_true", help="print one JSON object (for programs)")
     p.set_defaults(func=run)
@@ -80,6 +81,7 @@ def run(args: argparse.Namespace) -> int:
         "zeta": args.zeta,
         "zeta_n": args.zeta_n,
         "bias_time_constant_s": args.bias_time,
+        "velocity_injection_ratio": args.velocity_injection_ratio,
         "velocity_injection": args.velocity_injection,
         "bias_corner_ratio": args.bias_corner_ratio,
     }

@@ -107,7 +107,7 @@ _DEFAULTS: dict[str, dict[str, Any]] = {
         "zeta_n": _DEFAULT_TUNING.zeta_n,
         "cutoff_ratio": _DEFAULT_TUNING.cutoff_ratio,
         "bias_time_constant_s": _DEFAULT_TUNING.bias_time_constant_s,
-        "velocity_injection": _DEFAULT_TUNING.velocity_injection,
+        "velocity_injection_ratio": _DEFAULT_TUNING.velocity_injection_ratio,
         "bias_corner_ratio": _DEFAULT_TUNING.bias_corner_ratio,
         "allow_unchecked": False,
         "rate_hz": 10.0,
@@ -133,6 +133,7 @@ _DEFAULTS: dict[str, dict[str, Any]] = {
         "initial_mode": "standby",
         "allocator": "qp",
         "damping": 1.0,
+        "feedback": "estimate",
     },
 }
 
@@ -162,6 +163,7 @@ _TUNING_KEYS = (
     "omega_c",
     "bias_time_constant_s",
     "velocity_injection",
+    "velocity_injection_ratio",
     "bias_corner_ratio",
     "bias_corner",
 )
@@ -172,6 +174,7 @@ _STATUS_KEYS = tuple(_DEFAULTS["status"])
 _CONTROL_KEYS = (*_DEFAULTS["control"], "bandwidth_rad_s")
 CONTROL_MODES = ("standby", "dp", "manual")
 ALLOCATORS = ("qp", "pseudo_inverse")
+FEEDBACKS = ("estimate", "measurement")
 
 
 def default_config(vessel: str = "mss_supply") -> dict[str, Any]:
@@ -327,8 +330,11 @@ class ControlConfig:
     rate_hz: float = 10.0
     initial_mode: str = "standby"
     allocator: str = "qp"
-    bandwidth_rad_s: float | None = None
+    bandwidth_rad_s: float | tuple[float, float, float] | None = None
     damping: float = 1.0
+    feedback: str = "estimate"
+    """What the controller's position/heading term sees: the observer's LF estimate (always, at sea), or
+    the raw measurement — only to demonstrate what wave filtering buys (the same controller, same ν̂)."""
 
 
 @dataclass(frozen=True)
@@ -1312,7 +1318,11 @@ def _parse_observer(r: _Reader, data: Mapping[str, Any], vessel: VesselModel | N
             values["omega0"] = (
                 2 * math.pi / period if isinstance(period, float) else tuple(2 * math.pi / p for p in period)
             )
-    for explicit, ratio in (("omega_c", "cutoff_ratio"), ("bias_corner", "bias_corner_ratio")):
+    for explicit, ratio in (
+        ("omega_c", "cutoff_ratio"),
+        ("bias_corner", "bias_corner_ratio"),
+        ("velocity_injection", "velocity_injection_ratio"),
+    ):
         if explicit in t and ratio in t:
             r.problem(
                 "observer", f"both {explicit} and {ratio} given (expected one: {explicit} overrides {ratio})"
@@ -1324,6 +1334,7 @@ def _parse_observer(r: _Reader, data: Mapping[str, Any], vessel: VesselModel | N
             key in d
             and not (key == "cutoff_ratio" and "omega_c" in t)
             and not (key == "bias_corner_ratio" and "bias_corner" in t)
+            and not (key == "velocity_injection_ratio" and "velocity_injection" in t)
         ):
             values[key] = d[key]
     if len(r.problems) != n_tuning or any(v is None for v in values.values()):
@@ -1481,12 +1492,14 @@ def _parse_control(r: _Reader, data: Mapping[str, Any]) -> ControlConfig | None:
     rate = r.number(t, "rate_hz", "control", d["rate_hz"], lo=1.0, hi=50.0, unit="Hz")
     mode = r.choice(t, "initial_mode", "control", CONTROL_MODES, d["initial_mode"])
     allocator = r.choice(t, "allocator", "control", ALLOCATORS, d["allocator"])
-    bandwidth = r.number(t, "bandwidth_rad_s", "control", None, lo=0.0, lo_open=True, hi=10.0, unit="rad/s")
+    bandwidth = r.per_dof(t, "bandwidth_rad_s", "control", unit="rad/s") if "bandwidth_rad_s" in t else None
     damping = r.number(t, "damping", "control", d["damping"], lo=0.3, hi=3.0)
+    feedback = r.choice(t, "feedback", "control", FEEDBACKS, d["feedback"])
     if len(r.problems) != n0:
         return None
     assert rate is not None and mode is not None and allocator is not None and damping is not None
-    return ControlConfig(rate, mode, allocator, bandwidth, damping)
+    assert feedback is not None
+    return ControlConfig(rate, mode, allocator, bandwidth, damping, feedback)
 
 
 # --- a command-line check -------------------------------------------------------------------------------

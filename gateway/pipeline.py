@@ -38,6 +38,8 @@ from observers.vessel import VesselModel
 ESC_RPM_MAX = 200.0  # the propeller law's reference (simulator.thrusters.DEFAULT_MAX_RPM)
 USED_NMEA = frozenset({"GGA", "GNS", "HDT", "THS", "HDG", "GST"})
 """Sentences the fusion uses; others (RMC, VTG, ZDA, ROT ...) are checked and counted, not parsed."""
+RAW_VELOCITY_FILTER_S = 1.0
+"""Dirty-derivative filter of the measurement-fed comparison controller (no wave filter)."""
 FIX_PERIOD_NS = 1_000_000_000
 """foxglove.LocationFix outputs at most once a second per source: a map track needs no more."""
 
@@ -172,6 +174,8 @@ class Pipeline:
         self.allocation: AllocationResult | None = None
         self.control_alarms: list[str] = []
         self._pending_setpoint: dict[str, Any] | None = None
+        self._raw: tuple[float, np.ndarray, np.ndarray] | None = None
+        self._last_control_ns = 0
         self._next_control_ns = 0
         self._control_period_ns = NS // 10
         if cc is not None:
@@ -408,10 +412,30 @@ class Pipeline:
             return None
         return target if np.all(np.isfinite(target)) else None
 
+    def _raw_feedback(self, t: float, est: PassiveEstimate) -> tuple[np.ndarray, np.ndarray]:
+        """η and ν for a DP system without a wave filter (``[control] feedback = "measurement"``, only to
+        show what wave filtering buys): the raw measurement, and a dirty derivative of it (first-order
+        filter, time constant RAW_VELOCITY_FILTER_S) rotated into the body frame."""
+        y, _ = self.fusion.measurement(self._last_control_ns)
+        y = np.where(np.isnan(y), est.eta, y)
+        if self._raw is None:
+            self._raw = (t, y, np.zeros(3))
+        t0, y0, v = self._raw
+        dt = t - t0
+        if dt > 0:
+            dy = y - y0
+            dy[2] = (dy[2] + math.pi) % (2 * math.pi) - math.pi
+            v = v + dt / (RAW_VELOCITY_FILTER_S + dt) * (dy / dt - v)
+            self._raw = (t, y, v)
+        c, s = math.cos(y[2]), math.sin(y[2])
+        nu = np.array([c * v[0] + s * v[1], -s * v[0] + c * v[1], v[2]])
+        return y, nu
+
     def _control_step(self, t: float, est: PassiveEstimate, now_ns: int) -> list[Output]:
         """DP controller on the LF estimate (never the raw measurement), then thrust allocation."""
         ctl = self.controller
         assert ctl is not None
+        self._last_control_ns = now_ns
         if ctl.mode != self.mode:
             ctl.set_mode(self.mode, tau_now=self.fusion.tau_demand)
         if self._pending_setpoint is not None:
@@ -420,11 +444,16 @@ class Pipeline:
                 ctl.set_setpoint(target)
                 self._pending_setpoint = None
         prev = self.allocation
+        eta_in, nu_in = est.eta, est.nu
+        bias_in: np.ndarray | None = est.bias
+        if self.spec.control is not None and self.spec.control.feedback == "measurement":
+            eta_in, nu_in = self._raw_feedback(t, est)
+            bias_in = None  # without an observer there is no bias estimate to feed forward
         o = ctl.update(
             t,
-            est.eta,
-            est.nu,
-            est.bias,
+            eta_in,
+            nu_in,
+            bias_in,
             saturated=bool(prev is not None and prev.saturated),
             tau_allocated=None if prev is None else prev.tau_allocated,
             tau_manual=self.manual_tau,

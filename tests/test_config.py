@@ -191,9 +191,9 @@ def test_defaults_fill_in(tmp_path: Path) -> None:
     assert (o.type, o.rate_hz, o.allow_unchecked) == ("passive", d["observer"]["rate_hz"], False)
     assert o.tuning.omega0 == pytest.approx(2 * math.pi / d["observer"]["wave_period_s"])
     assert o.tuning.omega0 == pytest.approx(PassiveTuning().omega0)
-    for key in ("zeta", "zeta_n", "cutoff_ratio", "bias_time_constant_s", "velocity_injection"):
+    for key in ("zeta", "zeta_n", "cutoff_ratio", "bias_time_constant_s", "velocity_injection_ratio"):
         assert getattr(o.tuning, key) == getattr(PassiveTuning(), key) == d["observer"][key]
-    assert o.tuning.omega_c is None and o.tuning.bias_corner is None
+    assert o.tuning.omega_c is None and o.tuning.bias_corner is None and o.tuning.velocity_injection is None
     assert [ch.ok for ch in o.checks] == [True, True]
     z = c.zenoh
     assert (z.mode, z.connect, z.listen, z.config_file, z.multicast_scouting) == ("peer", (), (), None, True)
