@@ -28,6 +28,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 from urllib.parse import parse_qsl, quote, unquote, urlsplit
 
+from observers.factory import OBSERVER_PARAMS, ObserverSpecError, check_params
+from observers.factory import OBSERVER_TYPES as _OBSERVER_TYPES
 from observers.passive_tuning import (
     Check,
     PassiveTuning,
@@ -69,7 +71,7 @@ ROLES: dict[str, tuple[str, ...]] = {
     "mavlink": ("thrusters", "position", "heading"),
 }
 """The roles a source of each protocol can have."""
-OBSERVER_TYPES = ("passive",)
+OBSERVER_TYPES = _OBSERVER_TYPES  # passive, gain_scheduled, mmae (observers.factory)
 COMPRESSIONS = ("zstd", "lz4", "none")
 ZENOH_MODES = ("peer", "client")
 URL_SCHEMES = ("serial", "pty", "udp", "tcp", "tcp-listen", "file")
@@ -167,7 +169,7 @@ _TUNING_KEYS = (
     "bias_corner_ratio",
     "bias_corner",
 )
-_OBSERVER_KEYS = ("type", "wave_period_s", "omega0", *_TUNING_KEYS, "allow_unchecked", "rate_hz")
+_OBSERVER_KEYS = ("type", "wave_period_s", "omega0", *_TUNING_KEYS, "allow_unchecked", "rate_hz", "params")
 _ZENOH_KEYS = tuple(_DEFAULTS["zenoh"])
 _LOG_KEYS = tuple(_DEFAULTS["log"])
 _STATUS_KEYS = tuple(_DEFAULTS["status"])
@@ -267,6 +269,8 @@ class ObserverConfig:
     allow_unchecked: bool = False
     rate_hz: float = 10.0
     checks: tuple[Check, ...] = ()
+    params: Mapping[str, Any] = field(default_factory=dict)
+    """Settings of the adaptive observers beyond the passive tuning (`observers.factory.OBSERVER_PARAMS`)."""
 
     @property
     def failed_checks(self) -> tuple[Check, ...]:
@@ -1355,11 +1359,31 @@ def _parse_observer(r: _Reader, data: Mapping[str, Any], vessel: VesselModel | N
                 f"tuning fails {check.inequality}: {check.detail} (expected a tuning that passes, or "
                 "observer.allow_unchecked = true to run such gains for experiments)",
             )
+    params: dict[str, Any] = {}
+    if "params" in t:
+        ptab = t["params"]
+        if not isinstance(ptab, dict):
+            r.problem("observer.params", f"wrong type (expected a table, got {_kind(ptab)})")
+        elif kind is not None:
+            try:
+                check_params(kind, ptab)
+            except ObserverSpecError as exc:
+                r.problem("observer.params", str(exc))
+            for key, value in ptab.items():
+                items = value if isinstance(value, list) else [value]
+                if not all(_is_number(v) or isinstance(v, bool) for v in items):
+                    r.problem(f"observer.params.{key}", f"wrong type (expected numbers, got {_show(value)})")
+                else:
+                    params[key] = tuple(value) if isinstance(value, list) else value
+            if kind == "passive" and ptab:
+                r.problem(
+                    "observer.params", 'the passive observer takes no params (expected none for "passive")'
+                )
     if len(r.problems) != n0:
         return None
     assert kind is not None and allow_unchecked is not None and rate is not None
     return ObserverConfig(
-        type=kind, tuning=tuning, allow_unchecked=allow_unchecked, rate_hz=rate, checks=checks
+        type=kind, tuning=tuning, allow_unchecked=allow_unchecked, rate_hz=rate, checks=checks, params=params
     )
 
 

@@ -32,6 +32,7 @@ from gateway.control.allocation import AllocationResult, PseudoInverseAllocator,
 from gateway.control.controller import ControllerTuning, DPController
 from gateway.fusion import NS, Fusion
 from gateway.geodesy import LocalFrame
+from observers.factory import Observer, make_observer
 from observers.passive import STATUS_NAMES, PassiveEstimate, PassiveObserver
 from observers.vessel import VesselModel
 
@@ -93,11 +94,11 @@ class SourceSpec:
 class PipelineSpec:
     vessel: VesselModel
     sources: tuple[SourceSpec, ...]
-    observer: PassiveObserver
+    observer: Observer
     observer_name: str = "passive"
     datum: tuple[float, float, float] | None = None  # (lat, lon, alt); None = first fix
     reference_point_m: tuple[float, float] = (0.0, 0.0)
-    extra_observers: tuple[tuple[str, PassiveObserver], ...] = ()
+    extra_observers: tuple[tuple[str, Observer], ...] = ()
     """More observers fed the same y and τ (replay: side by side), published on /dp/estimates/<label>."""
     control: ControlConfig | None = None
     """DP controller and allocation (issue 5); None: estimation only."""
@@ -120,8 +121,12 @@ class PipelineSpec:
             )
             for sc in config.sources
         )
-        observer = PassiveObserver(
-            config.vessel, config.observer.tuning, allow_unchecked=config.observer.allow_unchecked
+        observer = make_observer(
+            config.observer.type,
+            config.vessel,
+            config.observer.tuning,
+            params=config.observer.params,
+            allow_unchecked=config.observer.allow_unchecked,
         )
         d = config.datum
         datum = (
@@ -496,7 +501,7 @@ class Pipeline:
         ]
 
     def _estimate_payload(
-        self, label: str, obs: PassiveObserver, est: PassiveEstimate, now_ns: int
+        self, label: str, obs: Observer, est: PassiveEstimate, now_ns: int
     ) -> dict[str, Any]:
         datum = self.fusion.datum
         lat = lon = None
@@ -516,11 +521,12 @@ class Pipeline:
             "nu": est.nu.tolist(),
             "bias": est.bias.tolist(),
             "eta_wf": est.eta_wf.tolist(),
-            "omega0": obs.gains.omega0.tolist(),
+            "omega0": np.asarray(obs.omega0, dtype=float).tolist(),
             "lat_deg": lat,
             "lon_deg": lon,
             "heading_deg": math.degrees(est.eta[2]) % 360.0,
             "datum": None if datum is None else {"lat_deg": datum.lat_deg, "lon_deg": datum.lon_deg},
+            **obs.extra(),
         }
 
     def _location_fix(self, source: str, rx_ns: int, lat: float, lon: float) -> list[Output]:

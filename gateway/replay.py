@@ -32,7 +32,7 @@ from gateway.config import GatewayConfig, default_config, parse_config
 from gateway.logreaders import LogCounts, nmea_text_events, tlog_events
 from gateway.mcaplog import McapLogWriter, read_messages
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
-from observers.passive import PassiveObserver
+from observers.factory import OBSERVER_PARAMS, OBSERVER_TYPES, Observer, make_observer
 from observers.passive_tuning import PassiveTuning
 
 CONFIG_METADATA = "dpgw.config"
@@ -175,24 +175,38 @@ class ObserverSpec:
         for key, value in self.params.items():
             if key == "wave_period_s":
                 kw["omega0"] = 2 * math.pi / value
-            else:
+            elif key in TUNING_KEYS:
                 kw[key] = value
         return PassiveTuning(**kw)
+
+    def observer_params(self) -> dict[str, Any]:
+        return {k: v for k, v in self.params.items() if k not in TUNING_KEYS}
+
+    def make(self, config: GatewayConfig) -> Observer:
+        base = config.observer.params if self.name == config.observer.type else {}
+        return make_observer(
+            self.name,
+            config.vessel,
+            self.tuning(config.observer.tuning),
+            params={**base, **self.observer_params()},
+            allow_unchecked=config.observer.allow_unchecked,
+        )
 
 
 def parse_observer_spec(text: str) -> ObserverSpec:
     body, _, label = text.partition("@")
     name, _, rest = body.partition(":")
     name = name.strip()
-    if name != "passive":
-        raise ReplayError(f"observer spec '{text}': unknown observer '{name}' (known: passive)")
+    if name not in OBSERVER_TYPES:
+        raise ReplayError(
+            f"observer spec '{text}': unknown observer '{name}' (known: {', '.join(OBSERVER_TYPES)})"
+        )
+    keys = sorted(TUNING_KEYS | set(OBSERVER_PARAMS[name]))
     params: dict[str, float] = {}
     for item in filter(None, (s.strip() for s in rest.split(","))):
         key, eq, value = item.partition("=")
-        if not eq or key not in TUNING_KEYS:
-            raise ReplayError(
-                f"observer spec '{text}': '{item}' is not key=value with a key of {sorted(TUNING_KEYS)}"
-            )
+        if not eq or key not in keys:
+            raise ReplayError(f"observer spec '{text}': '{item}' is not key=value with a key of {keys}")
         try:
             params[key] = float(value)
         except ValueError:
@@ -248,33 +262,19 @@ def build_config(
 
 
 def build_pipeline(config: GatewayConfig, specs: list[ObserverSpec]) -> Pipeline:
+    """The live pipeline for ``config`` with the observers of ``specs`` (estimation only: replay commands
+    no thrusters)."""
     spec = PipelineSpec.from_config(config)
     if specs:
         primary = specs[0]
-        obs = PassiveObserver(
-            config.vessel,
-            primary.tuning(config.observer.tuning),
-            allow_unchecked=config.observer.allow_unchecked,
-        )
-        extras = tuple(
-            (
-                s.label,
-                PassiveObserver(
-                    config.vessel,
-                    s.tuning(config.observer.tuning),
-                    allow_unchecked=config.observer.allow_unchecked,
-                ),
-            )
-            for s in specs[1:]
-        )
         spec = PipelineSpec(
             vessel=spec.vessel,
             sources=spec.sources,
-            observer=obs,
+            observer=primary.make(config),
             observer_name=primary.label,
             datum=spec.datum,
             reference_point_m=spec.reference_point_m,
-            extra_observers=extras,
+            extra_observers=tuple((s.label, s.make(config)) for s in specs[1:]),
         )
     return Pipeline(spec)
 

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -157,6 +158,15 @@ class PassiveObserver:
     @property
     def t(self) -> float:
         return float(self._clock[0])
+
+    @property
+    def omega0(self) -> Array:
+        """The wave frequency the filter is tuned to, per DOF (rad/s) — fixed for this observer."""
+        return self.gains.omega0
+
+    def extra(self) -> dict[str, Any]:
+        """Observer-specific fields for the estimate message (none for the fixed-gain observer)."""
+        return {}
 
     def initialize(
         self,

@@ -695,7 +695,13 @@ BAD: list[tuple[str, dict[str, Any], str, str]] = [
         "observer",
         "both omega_c and cutoff_ratio",
     ),
-    ("observer type", {"observer.type": "mmae"}, "observer.type", 'expected "passive", got "mmae"'),
+    ("observer type", {"observer.type": "kalman"}, "observer.type", 'got "kalman"'),
+    (
+        "observer params",
+        {"observer.type": "gain_scheduled", "observer.params": {"omega_mni": 0.3}},
+        "observer.params",
+        "unknown parameter(s) ['omega_mni']",
+    ),
     (
         "allow_unchecked type",
         {"observer.allow_unchecked": "yes"},
