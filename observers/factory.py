@@ -1,5 +1,9 @@
 """Observers by name — what the gateway's ``[observer] type`` and replay's ``--observer`` specs choose.
 
+MMAE note (docs/mmae.md): Hassani's (A.2) noise settings do not identify real seas; give
+``measurement_sigma`` (the sensors' σ) and ``wave_std`` (the expected WF motion σ per DOF), and prefer
+``zeta = 0.25`` for JONSWAP seas.
+
 | name | paper | module |
 |---|---|---|
 | ``passive`` | Fossen & Strand (1999) | `observers.passive` |
@@ -27,7 +31,16 @@ OBSERVER_TYPES = ("passive", "gain_scheduled", "mmae")
 OBSERVER_PARAMS: dict[str, tuple[str, ...]] = {
     "passive": (),
     "gain_scheduled": ("omega0_initial", "window_s", "update_period_s", "omega_min", "omega_max", "per_dof"),
-    "mmae": ("candidates", "weight_floor", "dt", "zeta"),
+    "mmae": (
+        "candidates",
+        "weight_floor",
+        "dt",
+        "zeta",
+        "wave_std",
+        "measurement_sigma",
+        "warmup_s",
+        "max_gap_s",
+    ),
 }
 
 
@@ -85,8 +98,14 @@ def make_observer(
             allow_unchecked=allow_unchecked,
             **params,
         )
+    import numpy as np
+
     from observers.mmae import MMAEObserver
 
     if "candidates" in params:
         params["candidates"] = tuple(float(c) for c in params["candidates"])
+    if "measurement_sigma" in params:
+        # R from the sensors' noise (m, m, rad per sample): Hassani's (A.2) R is far from real gyros
+        sigma = np.broadcast_to(np.asarray(params.pop("measurement_sigma"), dtype=float), (3,))
+        params["R"] = np.diag(sigma**2)
     return MMAEObserver(vessel, **params)

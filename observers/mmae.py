@@ -1,0 +1,579 @@
+"""Multiple-model adaptive wave filter (MMAE) of Hassani, Pascoal, Aguiar & Athans, eqs (6)–(18).
+
+Read with ``../shared/papers/ERRATA.md`` (Hassani section). The model, in vessel-parallel coordinates
+η_p = Rᵀ(ψ) η (6), for one candidate peak frequency ω0 (the same ω0 in all three DOFs, as the paper)::
+
+    ξ' = A_w(ω0) ξ + E_w w1,     A_w = [[0, I], [-Ω, -Λ]],  Ω = ω0² I,  Λ = 2ζω0 I,  E_w = [0; I]   (7)
+    η_p' = ν                                                                                        (8)
+    M ν' + D ν = τ + b_p + w2                                       (ERRATA: (9) as corrected)      (9)
+    b_p' = w3                                                                                       (10)
+    η_w = C_w ξ,  C_w = [0, I];      y = η_p + η_w + v                                        (11)–(12)
+
+State x = [ξ1, ξ2 = η_w, η_p, b_p, ν] ∈ R¹⁵ (13), w = [w1; w2; w3] ∈ R⁹ (ERRATA: w2 is printed twice)::
+
+    A(ω0) = [[A_w, 0, 0, 0], [0, 0, 0, I], [0, 0, 0, 0], [0, 0, M⁻¹, -M⁻¹D]]   (ERRATA: minus sign)   (14)
+    B = [0; 0; 0; M⁻¹],   G = [[E_w, 0, 0], [0, 0, 0], [0, 0, I], [0, M⁻¹, 0]],   C = [C_w, I, 0, 0]   (14)
+
+Q = diag(Q1, Q2, Q3) in the order of w (ERRATA); defaults (A.2) for CyberShip II, scaled for other
+vessels by `hassani_noise`. Q is a continuous-time intensity (E{w(t)wᵀ(s)} = Q δ(t − s), Sec. 3);
+R is the covariance of one sample of v (σ² of the sensors: (A.2)'s 1e-4 m² is a 1 cm RTK fix; as a
+continuous intensity that is R·dt).
+
+Bank of steady-state Kalman filters (17), one per candidate ω0ⁱ, in discrete time: zero-order hold of
+A, B at the nominal interval ``dt``, Q_d by Van Loan's method, the discrete algebraic Riccati equation
+solved once per candidate for the prior covariance Pᵢ, gain Kᵢ = Pᵢ Cᵀ Sᵢ⁻¹, innovation covariance
+Sᵢ = C Pᵢ Cᵀ + R (ERRATA: the natural choice for S_i of (18)).
+
+Dynamic weights: the discrete-time equivalent of (18) with m_i = ½ rᵢᵀ Sᵢ⁻¹ rᵢ and β_i = 1/√det Sᵢ,
+i.e. Bayes' rule pᵢ(k) ∝ βᵢ exp(−mᵢ) pᵢ(k−1), computed in the log domain, then projected onto
+{Σ pᵢ = 1, pᵢ ≥ floor} so that a filter that lost can win again when the sea changes. Blended estimate
+(16) x̂ = Σ pᵢ x̂ᵢ and blended ω0 = Σ pᵢ ω0ⁱ. By default every measured DOF votes (the paper); with
+``heading_in_weights=False`` only the position innovations do (their marginal likelihood): first-order
+yaw is a poor witness of the sea's peak (its RAO grows as the wave slope, ∝ ω², in long waves), see
+docs/mmae.md. The heading is filtered by every filter either way.
+
+Vessel-parallel frame. The filters run in a frame whose axes are those of NED rotated by ψ_f, the
+blended heading estimate of the previous sample. At each sample, before the prediction, the frame is
+turned to the newest heading: the N/E parts of η_p and b_p of every filter are re-expressed exactly,
+η_p ← Rᵀ(Δψ) η_p, b_p ← Rᵀ(Δψ) b_p (this is the ψ' S η_p term that (8) neglects); ν, and the wave
+states ξ (first-order wave motion is a body-frame response), are body-frame quantities and are not
+turned. The measurement enters as y_p = Rᵀ(ψ_f) y (N, E; heading as is) and leaves as
+η̂ = R(ψ_f) η̂_p, b̂ = R(ψ_f) b̂_p (earth-fixed, like the passive observer's b), η̂_w = R(ψ_f) ξ̂2 (the
+heading components are not rotated). Heading innovations are wrapped (ssa); the blended heading is
+ψ_f + Σ pᵢ ssa(ψ̂ᵢ − ψ_f), so filters either side of ±π blend correctly.
+
+Missing data and time. A position fix is N and E together (one NaN makes both missing). With a DOF
+missing, the update uses the one-step optimal gain for the DOFs present from the same steady-state
+prior Pᵢ (Kᵢ,v = Pᵢ C_vᵀ S_vv⁻¹, S_vv the sub-block of Sᵢ), and the weights use the marginal likelihood
+of those DOFs; with nothing measured the filters only predict and the weights stay. An interval dt is
+predicted by n = round(dt / dt_nom) exact steps of the nominal transition and the remainder
+δ = dt − n·dt_nom (|δ| ≤ dt_nom/2) by a second-order Taylor step of the continuous model; the gains stay
+those of dt_nom (set dt to the sensors' rate). A gap longer than ``max_gap_s`` restarts the filters
+(weights kept) from the next complete measurement. Repeated or backward time: the sample is not used.
+
+``observers._mmae_kernel`` is the compiled twin of the readable numpy reference at the end of this
+module (`reference_run`); tests/test_mmae.py checks they agree to round-off. Full notes: docs/mmae.md.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.linalg import expm, solve_discrete_are
+
+from observers import _mmae_kernel as kernel
+from observers.kinematics import ssa_scalar
+from observers.passive import PassiveEstimate, PassiveRun
+from observers.vessel import VesselModel
+
+Array = NDArray[np.float64]
+
+XI1, XI2, ETA, BIAS, NU = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15)
+N_STATE = 15
+
+HASSANI_CANDIDATES = (0.3, 0.45, 0.6, 0.75, 0.9, 1.05, 1.2, 1.35)
+"""The paper's eight candidate peak frequencies (rad/s), Sec. 4."""
+
+Q1_CYBERSHIP2 = np.diag([0.09, 0.09, 1e-4])
+"""(A.2) Q1: intensity of w1, the wave-model noise (m²/s, m²/s, rad²/s)."""
+Q2_CYBERSHIP2 = np.diag([1e-3, 1e-3, 1e-4])
+"""(A.2) Q2: intensity of w2, the force noise of (9) (N²·s, N²·s, (N·m)²·s)."""
+Q3_CYBERSHIP2 = np.diag([1e-3, 1e-3, 1e-4])
+"""(A.2) Q3: intensity of w3, the bias random walk of (10) (N²/s, N²/s, (N·m)²/s)."""
+R_CYBERSHIP2 = np.diag([1e-4, 1e-4, 1e-8])
+"""(A.2) R: measurement noise (m², m², rad²), used as the covariance of one sample."""
+CYBERSHIP2_LENGTH_M = 1.255
+CYBERSHIP2_M_DIAG = np.array([25.8, 33.8, 2.76])
+"""diag M of (A.1): the inertia that (A.2)'s force noises Q2, Q3 belong to."""
+
+STATUS_NAMES = {
+    kernel.STATUS_INITIALIZING: "initializing",
+    kernel.STATUS_OK: "ok",
+    kernel.STATUS_DEAD_RECKONING: "dead_reckoning",
+}
+
+MASKS = ((False, False, False), (True, True, False), (False, False, True), (True, True, True))
+"""Measured DOFs [N, E, ψ] for mask index m = (position present) + 2·(heading present)."""
+
+NAN3 = np.full(3, np.nan)
+ZERO3 = np.zeros(3)
+
+
+def hassani_noise(vessel: VesselModel) -> tuple[Array, Array]:
+    """(Q, R) of (A.2) for CyberShip II, scaled to ``vessel`` (9×9 intensity, 3×3 per-sample covariance).
+
+    Froude scaling with the length ratio λ = L / 1.255 m (time ∝ √λ) and, for the force noises, the
+    vessel's own inertia per DOF (rᵢ = Mᵢᵢ / Mᵢᵢ of (A.1)), so that w2/M and w3/M — the accelerations
+    and jerks the noise stands for — scale like Froude accelerations (∝ λ⁰; angular ∝ λ⁻¹) whatever the
+    hull's fullness::
+
+        Q1 (m²/s; rad²/s)              × λ^1.5;            yaw × λ^-0.5
+        Q2 (N²·s; (N·m)²·s)            × r² λ^0.5;         yaw × r² λ^-1.5
+        Q3 (N²/s; (N·m)²/s)            × r² λ^-0.5;        yaw × r² λ^-2.5
+        R  (m²; rad²) per sample       × λ²;               heading × 1
+
+    For a geometrically similar hull (r = λ³ in surge and sway, λ⁵ in yaw) this is plain Froude
+    scaling. CyberShip II itself gets (A.2) exactly. Note that Q1 is a sea state, not a vessel
+    property: (A.2)'s Q1 = 0.09 m²/s is a wave motion of σ = 0.5 m at ω0 = 0.9 rad/s; see `wave_std` of
+    `MMAEObserver` to set it from the expected wave motion instead.
+    """
+    lam = vessel.length_m / CYBERSHIP2_LENGTH_M
+    r2 = (np.diag(vessel.M) / CYBERSHIP2_M_DIAG) ** 2
+    q1 = np.diag(Q1_CYBERSHIP2) * np.array([lam**1.5, lam**1.5, lam**-0.5])
+    q2 = np.diag(Q2_CYBERSHIP2) * r2 * np.array([lam**0.5, lam**0.5, lam**-1.5])
+    q3 = np.diag(Q3_CYBERSHIP2) * r2 * np.array([lam**-0.5, lam**-0.5, lam**-2.5])
+    R = R_CYBERSHIP2 * np.diag([lam**2, lam**2, 1.0])
+    return np.diag(np.concatenate([q1, q2, q3])), np.asarray(R, dtype=float)
+
+
+def continuous_model(vessel: VesselModel, omega0: float, zeta: float) -> tuple[Array, Array, Array, Array]:
+    """A(ω0), B, G, C of (13)–(14) with ERRATA's corrections."""
+    Minv = vessel.Minv
+    A = np.zeros((N_STATE, N_STATE))
+    A[XI1, XI2] = np.eye(3)
+    A[XI2, XI1] = -(omega0**2) * np.eye(3)  # -Ω
+    A[XI2, XI2] = -2.0 * zeta * omega0 * np.eye(3)  # -Λ
+    A[ETA, NU] = np.eye(3)  # (8)
+    A[NU, BIAS] = Minv  # (9): ν' = M⁻¹ b_p − M⁻¹ D ν + M⁻¹ τ + M⁻¹ w2
+    A[NU, NU] = -Minv @ vessel.D
+    B = np.zeros((N_STATE, 3))
+    B[NU] = Minv
+    G = np.zeros((N_STATE, 9))
+    G[XI2, 0:3] = np.eye(3)  # E_w w1
+    G[NU, 3:6] = Minv  # M⁻¹ w2
+    G[BIAS, 6:9] = np.eye(3)  # w3
+    C = np.zeros((3, N_STATE))
+    C[:, XI2] = np.eye(3)  # C_w
+    C[:, ETA] = np.eye(3)
+    return A, B, G, C
+
+
+def discretize(A: Array, B: Array, G: Array, Q: Array, dt: float) -> tuple[Array, Array, Array]:
+    """Zero-order hold (Φ, Γ) and Van Loan's Q_d = ∫₀^dt e^{As} G Q Gᵀ e^{Aᵀs} ds."""
+    n, m = B.shape
+    aug = np.zeros((n + m, n + m))
+    aug[:n, :n] = A
+    aug[:n, n:] = B
+    E = expm(aug * dt)
+    Phi, Gam = E[:n, :n], E[:n, n:]
+    V = np.zeros((2 * n, 2 * n))
+    V[:n, :n] = -A
+    V[:n, n:] = G @ Q @ G.T
+    V[n:, n:] = A.T
+    F = expm(V * dt)
+    Qd = F[n:, n:].T @ F[:n, n:]
+    return Phi, Gam, 0.5 * (Qd + Qd.T)
+
+
+@dataclass(frozen=True, eq=False)
+class MMAEBank:
+    """The designed bank: one steady-state Kalman filter per candidate ω0 (arrays the kernel reads).
+
+    ``A`` (N, 15, 15), ``B`` (15, 3): continuous model; ``Phi`` (N, 15, 15), ``Gam`` (15, 3): ZOH at
+    ``dt``; ``Q`` (9, 9) intensity of w, ``R`` (3, 3) per-sample covariance; ``P`` (N, 15, 15)
+    steady-state prior covariance; ``S`` (N, 3, 3) innovation covariance; per mask m (see `MASKS`):
+    ``K`` (N, 4, 15, 3) gains, ``Sinv`` (N, 4, 3, 3) inverse of the measured sub-block of S (zeros
+    elsewhere) and ``logdet`` (N, 4) its log-determinant.
+    """
+
+    candidates: Array
+    zeta: float
+    dt: float
+    Q: Array
+    R: Array
+    A: Array
+    B: Array
+    C: Array
+    Phi: Array
+    Gam: Array
+    P: Array
+    S: Array
+    K: Array
+    Sinv: Array
+    logdet: Array
+
+    @property
+    def n(self) -> int:
+        return int(self.candidates.size)
+
+
+def reference_frequency(candidates: ArrayLike) -> float:
+    """ω̄, the geometric mean of the candidates (rad/s): where `wave_std` sets the wave-model variance."""
+    return float(np.exp(np.mean(np.log(np.asarray(candidates, dtype=float)))))
+
+
+def _matrix(value: ArrayLike, n: int, name: str) -> Array:
+    a = np.asarray(value, dtype=float)
+    if a.shape == (n,):
+        a = np.diag(a)
+    if a.shape != (n, n) or not np.all(np.isfinite(a)):
+        raise ValueError(
+            f"{name} must be a finite {n}×{n} matrix or {n} diagonal values, got shape {a.shape}"
+        )
+    if not np.allclose(a, a.T, rtol=1e-12, atol=0.0):
+        raise ValueError(f"{name} must be symmetric")
+    return a
+
+
+def design_bank(
+    vessel: VesselModel,
+    candidates: Sequence[float] = HASSANI_CANDIDATES,
+    zeta: float = 0.1,
+    Q: ArrayLike | None = None,
+    R: ArrayLike | None = None,
+    dt: float = 0.1,
+    wave_std: ArrayLike | None = None,
+) -> MMAEBank:
+    """Discretise (14) per candidate, solve the DARE, and tabulate gains and likelihood terms.
+
+    ``Q``: 9×9 (or 9 diagonal values) intensity of w = [w1; w2; w3]; default `hassani_noise`.
+    ``R``: 3×3 (or 3 diagonal values) covariance of one measurement sample; default `hassani_noise`.
+    ``wave_std``: expected standard deviation σ of the wave motion [N m, E m, ψ rad] (e.g. from the
+    forecast sea state through the vessel's RAOs). If given, it replaces Q1 by 4ζω̄ diag(σ²), ω̄ the
+    geometric mean of the candidates: one Q1 for the whole bank, as in the paper, such that the wave
+    model (7) at ω̄ has the stationary variance σ² (Var ξ2 = Q1/(4ζω0)); candidate i expects σ² ω̄/ω0ⁱ.
+    (Giving every candidate the same variance σ² instead makes the identification fragile: with σ 40 %
+    too high the bank settles two candidates low; see docs/mmae.md.)
+    """
+    cand = np.asarray(candidates, dtype=float).ravel()
+    if cand.size < 1 or not np.all(np.isfinite(cand)) or np.any(cand <= 0):
+        raise ValueError(f"candidates must be positive finite frequencies (rad/s), got {candidates!r}")
+    if np.unique(cand).size != cand.size:
+        raise ValueError(f"candidates must be distinct, got {candidates!r}")
+    if not (math.isfinite(zeta) and zeta > 0):
+        raise ValueError(f"zeta must be a positive number, got {zeta!r}")
+    if not (math.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+    Q0, R0 = hassani_noise(vessel)
+    Qm = Q0 if Q is None else _matrix(Q, 9, "Q")
+    Rm = R0 if R is None else _matrix(R, 3, "R")
+    if np.linalg.eigvalsh(Qm).min() < -1e-12 * max(1.0, float(np.abs(Qm).max())):
+        raise ValueError("Q must be positive semi-definite")
+    if np.linalg.eigvalsh(Rm).min() <= 0:
+        raise ValueError("R must be positive definite")
+    if wave_std is not None:
+        sigma = np.broadcast_to(np.asarray(wave_std, dtype=float), (3,))
+        if not np.all(np.isfinite(sigma)) or np.any(sigma <= 0):
+            raise ValueError(f"wave_std must be three positive numbers (m, m, rad), got {wave_std!r}")
+        Qm = Qm.copy()
+        Qm[:3, :3] = np.diag(4.0 * zeta * reference_frequency(cand) * sigma**2)
+    n = cand.size
+    A_all = np.empty((n, N_STATE, N_STATE))
+    Phi_all = np.empty((n, N_STATE, N_STATE))
+    P_all = np.empty((n, N_STATE, N_STATE))
+    S_all = np.empty((n, 3, 3))
+    K_all = np.zeros((n, 4, N_STATE, 3))
+    Sinv_all = np.zeros((n, 4, 3, 3))
+    logdet_all = np.zeros((n, 4))
+    B = Gam = C = np.zeros(0)
+    for i, w0 in enumerate(cand):
+        A, B, G, C = continuous_model(vessel, float(w0), zeta)
+        Phi, Gam_i, Qd = discretize(A, B, G, Qm, dt)
+        # A is block-diagonal in (ξ) and (η_p, b_p, ν); so is Φ (the kernel multiplies the blocks only)
+        assert np.abs(Phi[:6, 6:]).max() <= 1e-12 and np.abs(Phi[6:, :6]).max() <= 1e-12
+        Phi[:6, 6:] = 0.0
+        Phi[6:, :6] = 0.0
+        P = solve_discrete_are(Phi.T, C.T, Qd, Rm)
+        P = 0.5 * (P + P.T)
+        S = C @ P @ C.T + Rm
+        S = 0.5 * (S + S.T)
+        for m, mask in enumerate(MASKS):
+            idx = np.flatnonzero(mask)
+            if idx.size == 0:
+                continue
+            Svv = S[np.ix_(idx, idx)]
+            Svv_inv = np.linalg.inv(Svv)
+            K_all[i, m][:, idx] = P @ C[idx].T @ Svv_inv
+            Sinv_all[i, m][np.ix_(idx, idx)] = Svv_inv
+            logdet_all[i, m] = np.linalg.slogdet(Svv)[1]
+        A_all[i], Phi_all[i], P_all[i], S_all[i] = A, Phi, P, S
+        if i == 0:
+            Gam = Gam_i
+        elif not np.allclose(Gam_i, Gam, rtol=1e-12, atol=0.0):  # B acts on the LF states only
+            raise AssertionError("Γ must not depend on ω0")
+    return MMAEBank(
+        candidates=cand,
+        zeta=float(zeta),
+        dt=float(dt),
+        Q=Qm,
+        R=Rm,
+        A=np.ascontiguousarray(A_all),
+        B=np.ascontiguousarray(B),
+        C=C,
+        Phi=np.ascontiguousarray(Phi_all),
+        Gam=np.ascontiguousarray(Gam),
+        P=P_all,
+        S=S_all,
+        K=np.ascontiguousarray(K_all),
+        Sinv=np.ascontiguousarray(Sinv_all),
+        logdet=np.ascontiguousarray(logdet_all),
+    )
+
+
+@dataclass(frozen=True)
+class MMAERun(PassiveRun):
+    """`PassiveRun` plus the weights (n, N) and the blended ω0 (n, 3) after each sample."""
+
+    weights: Array
+    omega0: Array
+
+
+class MMAEObserver:
+    """Hassani et al.'s MMAE wave filter for any `VesselModel`; the observer interface of `observers`.
+
+    ``step(t, y, tau)`` for live use, ``run(t, y, tau)`` over arrays: the same compiled kernel, the same
+    numbers. y = [N, E, ψ] (m, m, rad; NaN = missing), τ = [X, Y, N] (N, N, N·m, body frame) held since
+    the previous sample. Output η̂, ν̂, b̂ (earth-fixed), η̂_w of the blended estimate (16).
+
+    ``candidates`` ω0ⁱ (rad/s), ``zeta`` of the wave model (7), ``Q``/``R``/``wave_std`` see
+    `design_bank`, ``dt`` the nominal sample interval (s), ``weight_floor`` the least weight of any
+    filter (0 ≤ floor < 1/N), ``warmup_s`` how long after the first measurement the weights stay
+    uniform (default 0: measured to delay identification), ``max_gap_s`` the longest gap bridged by
+    prediction, ``heading_in_weights`` whether the heading innovation votes in the weights.
+    """
+
+    def __init__(
+        self,
+        vessel: VesselModel,
+        *,
+        candidates: Sequence[float] = HASSANI_CANDIDATES,
+        zeta: float = 0.1,
+        Q: ArrayLike | None = None,
+        R: ArrayLike | None = None,
+        dt: float = 0.1,
+        weight_floor: float = 1e-3,
+        wave_std: ArrayLike | None = None,
+        warmup_s: float = 0.0,
+        max_gap_s: float = 60.0,
+        heading_in_weights: bool = True,
+    ) -> None:
+        self.vessel = vessel
+        self.bank = design_bank(vessel, candidates, zeta, Q, R, dt, wave_std)
+        n = self.bank.n
+        self.weight_floor = float(weight_floor)
+        if not (0.0 <= self.weight_floor < 1.0 / n):
+            raise ValueError(f"weight_floor must be within [0, 1/{n}), got {weight_floor!r}")
+        self.warmup_s = float(warmup_s)
+        self.max_gap_s = float(max_gap_s)
+        if not (math.isfinite(self.warmup_s) and self.warmup_s >= 0):
+            raise ValueError(f"warmup_s must be ≥ 0 s, got {warmup_s!r}")
+        if not (self.max_gap_s > 0):
+            raise ValueError(f"max_gap_s must be positive, got {max_gap_s!r}")
+        self.heading_in_weights = bool(heading_in_weights)
+        self._params = np.array(
+            [self.bank.dt, self.weight_floor, self.warmup_s, self.max_gap_s, float(self.heading_in_weights)]
+        )
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to uninitialised, uniform weights."""
+        n = self.bank.n
+        self._X = np.zeros((n, N_STATE))
+        self._p = np.full(n, 1.0 / n)
+        self._xb = np.zeros(N_STATE)
+        # [t of the last sample, initialised flag, frame heading ψ_f, t of initialisation]
+        self._clock = np.zeros(4)
+
+    @property
+    def initialized(self) -> bool:
+        return bool(self._clock[1])
+
+    @property
+    def t(self) -> float:
+        return float(self._clock[0])
+
+    @property
+    def candidates(self) -> Array:
+        return self.bank.candidates.copy()
+
+    @property
+    def weights(self) -> Array:
+        """pᵢ, one per candidate (sum 1, each ≥ weight_floor)."""
+        return self._p.copy()
+
+    @property
+    def omega0(self) -> Array:
+        """Blended ω0 = Σ pᵢ ω0ⁱ (rad/s), the same for N, E and ψ (one ω0 for all DOFs, as the paper)."""
+        return np.full(3, kernel.blended_omega(self._p, self.bank.candidates))
+
+    @property
+    def filter_states(self) -> Array:
+        """States of the filters (N, 15) in the vessel-parallel frame of heading `frame_heading`."""
+        return self._X.copy()
+
+    @property
+    def frame_heading(self) -> float:
+        return float(self._clock[2])
+
+    def extra(self) -> dict[str, list[float]]:
+        """Fields for the estimate message."""
+        return {
+            "weights": self._p.tolist(),
+            "candidates": self.bank.candidates.tolist(),
+            "omega0_blended": self.omega0.tolist(),
+        }
+
+    def _kernel_args(self) -> tuple[Array, Array, Array, Array, Array, Array, Array, Array]:
+        b = self.bank
+        return (b.Phi, b.Gam, b.A, b.B, b.K, b.Sinv, b.logdet, self._params)
+
+    def step(self, t: float, y: ArrayLike, tau: ArrayLike | None = None) -> PassiveEstimate:
+        """Advance to time t (s) with measurement y and generalised force τ held since the last sample."""
+        y_arr = np.asarray(y, dtype=float).reshape(3)
+        tau_arr = ZERO3 if tau is None else np.asarray(tau, dtype=float).reshape(3)
+        out = np.empty((4, 3))
+        code = kernel.step(
+            self._X, self._p, self._xb, self._clock, float(t), y_arr, tau_arr, *self._kernel_args()
+        )
+        if code == kernel.STATUS_INITIALIZING:
+            return PassiveEstimate(float(t), NAN3, NAN3, NAN3, NAN3, "initializing")
+        kernel.outputs(self._xb, self._clock[2], out)
+        return PassiveEstimate(float(t), out[0], out[1], out[2], out[3], STATUS_NAMES[code])
+
+    def predict(self, t: float, tau: ArrayLike | None = None) -> PassiveEstimate:
+        """Prediction to time t without any measurement."""
+        return self.step(t, NAN3, tau)
+
+    def run(self, t: ArrayLike, y: ArrayLike, tau: ArrayLike | None = None) -> MMAERun:
+        """`step` over every sample: t (n,), y (n, 3) with NaN for missing, τ (n, 3) or None for zero."""
+        t_arr = np.ascontiguousarray(t, dtype=float).ravel()
+        n = t_arr.shape[0]
+        Y = np.ascontiguousarray(y, dtype=float).reshape(n, 3)
+        TAU = np.zeros((n, 3)) if tau is None else np.ascontiguousarray(tau, dtype=float).reshape(n, 3)
+        OUT = np.empty((n, 4, 3))
+        W = np.empty((n, self.bank.n))
+        status = np.empty(n, dtype=np.int8)
+        kernel.run(
+            self._X, self._p, self._xb, self._clock, t_arr, Y, TAU, *self._kernel_args(), OUT, W, status
+        )
+        om = np.empty(n)
+        kernel.blended_omegas(W, self.bank.candidates, om)
+        omega = np.repeat(om[:, None], 3, axis=1)
+        return MMAERun(t_arr, OUT[:, 0], OUT[:, 1], OUT[:, 2], OUT[:, 3], status, W, omega)
+
+
+# --- readable reference ----------------------------------------------------------------------------------
+# The same algorithm with the bank's matrices in numpy, one sample at a time. Slow; used to check the
+# kernel (tests/test_mmae.py) and as the baseline of bench/bench_mmae.py.
+
+
+def _turn(v: Array, angle: float) -> Array:
+    """Rᵀ(angle) applied to the horizontal part of a 3-vector (re-expressed in axes turned by angle)."""
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([c * v[0] + s * v[1], -s * v[0] + c * v[1], v[2]])
+
+
+def project_weights(q: Array, floor: float) -> Array:
+    """The floor: weights below it are raised to it and the others scaled down in proportion, repeated
+    until none is below (Σ = 1 is kept, the order of the weights too)."""
+    p = q.copy()
+    low = np.zeros(p.size, dtype=bool)
+    while True:
+        new = (p < floor) & ~low
+        if not new.any():
+            return p
+        low |= new
+        p[low] = floor
+        p[~low] *= (1.0 - floor * np.count_nonzero(low)) / p[~low].sum()
+
+
+def reference_run(
+    bank: MMAEBank,
+    t: Array,
+    y: Array,
+    tau: Array | None = None,
+    weight_floor: float = 1e-3,
+    warmup_s: float = 0.0,
+    max_gap_s: float = 60.0,
+    heading_in_weights: bool = True,
+) -> tuple[Array, Array, NDArray[np.int8]]:
+    """Reference batch run. Returns outputs (n, 4, 3) = [η̂, ν̂, b̂, η̂_w] (NaN while initialising),
+    weights (n, N) and status codes (n,)."""
+    N, n = bank.n, len(t)
+    tau = np.zeros((n, 3)) if tau is None else np.nan_to_num(np.asarray(tau, dtype=float))
+    OUT = np.full((n, 4, 3), np.nan)
+    W = np.empty((n, N))
+    status = np.zeros(n, dtype=np.int8)
+    X = np.zeros((N, N_STATE))
+    p = np.full(N, 1.0 / N)
+    xb = np.zeros(N_STATE)
+    psi_f = t_prev = t_init = 0.0
+    initialized = False
+
+    def start(k: int) -> None:
+        nonlocal psi_f, t_prev, t_init, initialized, xb
+        psi_f = ssa_scalar(float(y[k, 2]))
+        x0 = np.zeros(N_STATE)
+        x0[ETA] = _turn(y[k], psi_f)
+        x0[8] = psi_f
+        x0[BIAS] = -tau[k]  # equilibrium of (9) at rest: b_p = −τ
+        X[:] = x0
+        xb = x0.copy()
+        t_prev = t_init = float(t[k])
+        initialized = True
+
+    for k in range(n):
+        complete = bool(np.all(np.isfinite(y[k])))
+        dt = t[k] - t_prev
+        if initialized and dt > max_gap_s:
+            initialized = False  # restart from this sample if it is complete (weights kept)
+        if not initialized:
+            if complete:
+                start(k)
+                status[k] = kernel.STATUS_OK
+        elif dt <= 0:
+            status[k] = kernel.STATUS_OK if complete else kernel.STATUS_DEAD_RECKONING
+        else:
+            t_prev = float(t[k])
+            # 1. turn the vessel-parallel frame to the latest blended heading
+            d = ssa_scalar(xb[8] - psi_f)
+            for i in range(N):
+                X[i, ETA] = _turn(X[i, ETA], d)
+                X[i, BIAS] = _turn(X[i, BIAS], d)
+            psi_f = float(xb[8])
+            # 2. predict: n nominal ZOH steps, then a 2nd-order Taylor step for the remainder
+            steps = math.floor(dt / bank.dt + 0.5)
+            delta = dt - steps * bank.dt
+            for i in range(N):
+                x = X[i]
+                for _ in range(steps):
+                    x = bank.Phi[i] @ x + bank.Gam @ tau[k]
+                if abs(delta) > 1e-9 * bank.dt:
+                    f = bank.A[i] @ x + bank.B @ tau[k]
+                    x = x + delta * f + 0.5 * delta**2 * (bank.A[i] @ f)
+                X[i] = x
+            # 3. update and weights (18)
+            pos = bool(np.isfinite(y[k, 0]) and np.isfinite(y[k, 1]))
+            head = bool(np.isfinite(y[k, 2]))
+            m = int(pos) + 2 * int(head)
+            if m:
+                yk = np.nan_to_num(y[k])
+                yp = _turn(yk, psi_f)
+                mw = m if heading_in_weights else m & 1  # the DOFs that inform the weights
+                ll = np.empty(N)
+                for i in range(N):
+                    y_hat = bank.C @ X[i]
+                    r = np.where(MASKS[m], yp - y_hat, 0.0)
+                    r[2] = ssa_scalar(yp[2] - y_hat[2]) if head else 0.0
+                    ll[i] = -0.5 * r @ bank.Sinv[i, mw] @ r - 0.5 * bank.logdet[i, mw]
+                    X[i] = X[i] + bank.K[i, m] @ r
+                    X[i, 8] = ssa_scalar(X[i, 8])
+                if mw and t[k] - t_init >= warmup_s:
+                    lp = np.log(p) + ll
+                    q = np.exp(lp - lp.max())
+                    p = project_weights(q / q.sum(), weight_floor)
+            # 4. blend (16)
+            xb = p @ X
+            xb[8] = ssa_scalar(psi_f + sum(p[i] * ssa_scalar(X[i, 8] - psi_f) for i in range(N)))
+            status[k] = kernel.STATUS_OK if m == 3 else kernel.STATUS_DEAD_RECKONING
+        W[k] = p
+        if initialized and status[k] != kernel.STATUS_INITIALIZING:
+            OUT[k, 0] = _turn(xb[ETA], -psi_f)
+            OUT[k, 1] = xb[NU]
+            OUT[k, 2] = _turn(xb[BIAS], -psi_f)
+            OUT[k, 3] = _turn(xb[XI2], -psi_f)
+    return OUT, W, status
