@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -39,6 +40,7 @@ import daqp
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from observers.kinematics import ssa, ssa_scalar
 from observers.vessel import VesselModel
 
 Array = NDArray[np.float64]
@@ -78,7 +80,7 @@ class ThrusterCommand:
     def at_rest(cls, vessel: VesselModel) -> ThrusterCommand:
         """Every thruster at zero thrust, pointing at its configured ``angle_rad``."""
         n = len(vessel.thrusters)
-        return cls(np.zeros(n), _ssa(np.array([t.angle_rad for t in vessel.thrusters], dtype=float)))
+        return cls(np.zeros(n), ssa(np.array([t.angle_rad for t in vessel.thrusters], dtype=float)))
 
 
 @dataclass(frozen=True)
@@ -106,11 +108,6 @@ class AllocationResult:
 
 # --------------------------------------------------------------------------------------------------------
 # Layout: the extended configuration (Hajivand eq (22), ERRATA signs)
-
-
-def _ssa(a: Any) -> Any:
-    """Smallest signed angle, [-π, π) (same as observers.kinematics.ssa; scalar- and array-safe)."""
-    return np.mod(np.asarray(a, dtype=float) + math.pi, TWO_PI) - math.pi
 
 
 def extended_configuration_matrix(vessel: VesselModel) -> Array:
@@ -145,7 +142,7 @@ class _Layout:
         self.cap = np.maximum(self.tmax, -self.tmin)
         self.rate = np.array([t.azimuth_rate_rad_s for t in th], dtype=float)
         self.time_constant = np.array([t.thrust_time_constant_s for t in th], dtype=float)
-        self.fixed_angle = _ssa(np.array([t.angle_rad for t in th], dtype=float))
+        self.fixed_angle = ssa(np.array([t.angle_rad for t in th], dtype=float))
         self.weights = _per_thruster(weights, self.ids, "weights", default=1.0)
         if np.any(self.weights <= 0) or not np.all(np.isfinite(self.weights)):
             raise ValueError(f"weights must be positive and finite, got {self.weights.tolist()}")
@@ -182,15 +179,17 @@ class _Layout:
         thrust is the same force turned by π), everything within [min, max] thrust, fixed angles fixed."""
         if previous is None:
             return np.zeros(self.n), self.fixed_angle.copy()
-        thrust = np.array(previous.thrust, dtype=float).reshape(self.n)
-        angle = np.array(previous.azimuth, dtype=float).reshape(self.n)
-        thrust = np.where(np.isfinite(thrust), thrust, 0.0)
-        angle = np.where(np.isfinite(angle), angle, self.fixed_angle)
+        thrust = np.asarray(previous.thrust, dtype=float).reshape(self.n)
+        angle = np.asarray(previous.azimuth, dtype=float).reshape(self.n)
+        if not (np.isfinite(thrust).all() and np.isfinite(angle).all()):
+            thrust = np.where(np.isfinite(thrust), thrust, 0.0)
+            angle = np.where(np.isfinite(angle), angle, self.fixed_angle)
         flip = self.is_az & (thrust < 0)
-        angle = np.where(flip, angle + math.pi, angle)
-        thrust = np.where(flip, -thrust, thrust)
-        angle = np.where(self.is_az, _ssa(angle), self.fixed_angle)
-        return np.clip(thrust, self.tmin, self.tmax), angle
+        if flip.any():
+            angle = np.where(flip, angle + math.pi, angle)
+            thrust = np.where(flip, -thrust, thrust)
+        angle = np.where(self.is_az, ssa(angle), self.fixed_angle)
+        return np.minimum(np.maximum(thrust, self.tmin), self.tmax), angle
 
 
 def _per_thruster(
@@ -248,15 +247,14 @@ class PseudoInverseAllocator:
             return _hold(L, tau, previous, "invalid_input", "thrust allocation: non-finite τ demand", t0)
         f = self.pinv @ tau
         thrust, angle = _split(L, f, prev_angle, self.idle_thrust)
-        over = np.where(
-            thrust > 0, thrust / L.tmax, np.where(thrust < 0, thrust / np.minimum(L.tmin, -1e-300), 0)
-        )
-        k = 1.0 / max(1.0, float(over.max()))
+        # a fixed thruster that cannot reverse is clipped at zero; then all is scaled down to fit as a whole
+        clip = (thrust < 0) & (L.tmin == 0)
+        thrust = np.where(clip, 0.0, thrust)
+        usage = np.where(thrust >= 0, thrust / L.tmax, thrust / np.minimum(L.tmin, -1e-300))
+        k = 1.0 / max(1.0, float(usage.max()))
         alarms: tuple[str, ...] = ()
-        status = "optimal"
-        if k < 1.0:
-            thrust = thrust * k
-            status = "scaled"
+        status = "scaled" if k < 1.0 or clip.any() else "optimal"
+        thrust = thrust * k
         tau_alloc = L.tau_of(thrust, angle)
         slack = tau - tau_alloc
         saturated = bool(np.max(np.abs(slack) / L.tau_ref) > _SAT_TOL)
@@ -283,7 +281,7 @@ def _split(L: _Layout, f: Array, prev_angle: Array, idle: Array) -> tuple[Array,
         else:
             thrust[i] = f[k]
             angle[i] = L.fixed_angle[i]
-    return thrust, _ssa(angle)
+    return thrust, ssa(angle)
 
 
 def _saturation_alarm(tau: Array, slack: Array) -> str:
@@ -317,7 +315,8 @@ class StepLimits:
     [angle − arc_lo, angle + arc_hi] (``cone`` True; arc_lo + arc_hi ≤ π so the sector is convex) or is
     free (``cone`` False); |F| ≤ ``radius`` (N) through the inscribed polygon; the component along
     ``angle`` ≥ ``along_min`` (N, −inf for none); ``blocked`` (previous azimuth inside a forbidden sector):
-    F = 0. Tunnels and main propellers: ``lower`` ≤ u ≤ ``upper`` (N, signed).
+    F = 0. Tunnels and main propellers: ``lower`` ≤ u ≤ ``upper`` (N, signed). ``thrust`` is the previous
+    thrust. Fields that belong to the other kind of thruster are not used.
     """
 
     angle: Array
@@ -338,8 +337,9 @@ class QPData:
 
         min ½ xᵀPx + qᵀx   s.t.   lb ≤ x ≤ ub,   A[:n_eq] x = b_eq,   A[n_eq:] x ≤ ub_A
 
-    ``A`` rows: the n_eq = 3 equality rows B̂ f̂ + ŝ⁺ − ŝ⁻ = τ̂, then the polygon and cone rows. Infinite
-    bounds are ±inf. Used by the solver here and by the solver comparison in ``bench/``.
+    ``A`` rows: the n_eq = 3 equality rows B̂ f̂ + ŝ⁺ − ŝ⁻ = τ̂, then per azimuth its polygon rows and two
+    cone rows (all zero, with ub_A = inf, where unused; ub_A[:n_eq] is unused). Absent bounds are ±inf.
+    Used by the solver here and by the solver comparison in ``bench/``.
     """
 
     P: Array
@@ -428,6 +428,11 @@ class QPAllocator:
             raise ValueError("thrust_rate must be positive")
         self._dT = self.thrust_rate * self.dt  # N per step
         self._turn = np.where(L.is_az, L.rate * self.dt, 0.0)  # rad per step
+        # the arc of directions reachable in one step when no forbidden sector is near
+        self._blocked0 = np.zeros(L.n, dtype=bool)
+        self._arc_lo0, self._arc_hi0, self._cone0 = _convex_arc(self._turn, self._turn, L.is_az)
+        for arr in (self._blocked0, self._arc_lo0, self._arc_hi0, self._cone0):
+            arr.setflags(write=False)
         # unconstrained direction each azimuth would take (idle steering): same weights, no limits
         self._pinv = _weighted_pinv(L.B, (L.weights / L.cap**2)[L.owner])
         self._build_structure()
@@ -445,12 +450,11 @@ class QPAllocator:
         n_az = len(self._az)
         self.n_x = L.n_ext + 6
         self.n_rows = 3 + n_az * (N + 2)
-        self._rows_hi = 3 + np.arange(n_az) * (N + 2) + N
-        self._rows_lo = self._rows_hi + 1
         P = np.zeros(self.n_x)
         P[L.first] = self.power_weight * L.weights
         P[self._ka + 1] = (self.power_weight + self.turn_weight) * L.weights[self._az]
         P[L.n_ext :] = np.r_[self.rho2, self.rho2]
+        self._P_diag = P
         self.P = np.diag(P)
         self.q = np.r_[np.zeros(L.n_ext), self.rho1, self.rho1]
         # polygon: vertex k at 2πk/N from the previous azimuth, face normals half-way between vertices
@@ -464,7 +468,11 @@ class QPAllocator:
             A[r0 : r0 + N, k + 1] = np.sin(theta)
         A[0:3, self._kf] = L.B[:, self._kf] * L.cap[self._fixed] / L.tau_ref[:, None]
         self._A = A
-        self._colscale = L.cap[self._az][None, :] / L.tau_ref[:, None]
+        self._ubA0 = np.full(self.n_rows, np.inf)
+        self._az_list = self._az.tolist()
+        self._ka_list = self._ka.tolist()
+        self._cap_list, self._x_list, self._y_list = L.cap.tolist(), L.x.tolist(), L.y.tolist()
+        self._idle_list, self._turn_list = self.idle_thrust.tolist(), self._turn.tolist()
         self._lb0 = np.r_[np.full(L.n_ext, -np.inf), np.zeros(6)]
         self._ub0 = np.full(self.n_x, np.inf)
         self._blower_rows = np.full(self.n_rows - 3, -np.inf)
@@ -476,40 +484,38 @@ class QPAllocator:
         configured ``angle_rad``)."""
         L = self.layout
         thrust, angle = L.state(previous)
-        arc_lo, arc_hi = self._turn.copy(), self._turn.copy()
-        blocked = np.zeros(L.n, dtype=bool)
-        for i, sectors in self.forbidden.items():
-            for start, width in sectors:
-                p = (angle[i] - start) % TWO_PI  # how far clockwise of the sector's start
-                if _ANGLE_EPS < p < width - _ANGLE_EPS:
-                    blocked[i] = True
-                    continue
-                ahead = (start - angle[i]) % TWO_PI  # clockwise distance to the sector
-                behind = (angle[i] - start - width) % TWO_PI  # anticlockwise distance to its end
-                arc_hi[i] = min(arc_hi[i], 0.0 if ahead > TWO_PI - _ANGLE_EPS else ahead)
-                arc_lo[i] = min(arc_lo[i], 0.0 if behind > TWO_PI - _ANGLE_EPS else behind)
-        total = arc_lo + arc_hi
-        cone = L.is_az & ~blocked & (total < TWO_PI)
-        wide = total > math.pi
-        if wide.any():  # convex: the widest sector of π within the allowed arc, centred when possible
-            lo = np.minimum(arc_lo, math.pi / 2)
-            hi = np.minimum(arc_hi, math.pi - lo)
-            lo = np.minimum(arc_lo, math.pi - hi)
-            arc_lo, arc_hi = np.where(wide, lo, arc_lo), np.where(wide, hi, arc_hi)
-        dT = self._dT
-        down = thrust - dT
+        if self.forbidden:
+            arc_lo, arc_hi = self._turn.copy(), self._turn.copy()
+            blocked = np.zeros(L.n, dtype=bool)
+            for i, sectors in self.forbidden.items():
+                a = float(angle[i])
+                for start, width in sectors:
+                    p = (a - start) % TWO_PI  # how far clockwise of the sector's start
+                    if _ANGLE_EPS < p < width - _ANGLE_EPS:
+                        blocked[i] = True
+                        continue
+                    ahead = (start - a) % TWO_PI  # clockwise distance to the sector
+                    behind = (a - start - width) % TWO_PI  # anticlockwise distance to its end
+                    arc_hi[i] = min(arc_hi[i], 0.0 if ahead > TWO_PI - _ANGLE_EPS else ahead)
+                    arc_lo[i] = min(arc_lo[i], 0.0 if behind > TWO_PI - _ANGLE_EPS else behind)
+            arc_lo, arc_hi, cone = _convex_arc(arc_lo, arc_hi, L.is_az & ~blocked)
+            along_ok = ~blocked  # in a forbidden sector, the sector wins over the thrust rate
+        else:
+            arc_lo, arc_hi, cone, blocked = self._arc_lo0, self._arc_hi0, self._cone0, self._blocked0
+            along_ok = L.is_az
+        down, up = thrust - self._dT, thrust + self._dT
+        upper = np.minimum(L.tmax, up)
         return StepLimits(
             angle=angle,
             thrust=thrust,
             arc_lo=arc_lo,
             arc_hi=arc_hi,
             cone=cone,
-            radius=np.minimum(L.tmax, thrust + dT),
-            # the forbidden sector wins over the thrust rate
-            along_min=np.where((down > 0) & ~blocked, down, -np.inf),
+            radius=upper,
+            along_min=np.where(along_ok & (down > 0), down, -np.inf),
             blocked=blocked,
             lower=np.maximum(L.tmin, down),
-            upper=np.minimum(L.tmax, thrust + dT),
+            upper=upper,
         )
 
     def qp_data(self, tau_demand: ArrayLike, previous: ThrusterCommand | None) -> QPData:
@@ -517,39 +523,41 @@ class QPAllocator:
         return self._qp(np.array(tau_demand, dtype=float).reshape(3), self.limits(previous))
 
     def _qp(self, tau: Array, lim: StepLimits) -> QPData:
+        # a loop over the azimuths with scalar maths: for a handful of thrusters this is several times
+        # faster than numpy's per-call overhead on arrays of three
         L = self.layout
         N = self.polygon_sides
-        az, ka, kf = self._az, self._ka, self._kf
-        ang = lim.angle[az]
-        c, s = np.cos(ang), np.sin(ang)
-        x, y = L.x[az], L.y[az]
         A = self._A.copy()
-        # B̂ in the rotated frame: â along the previous azimuth, b̂ 90° clockwise of it
-        A[0:3, ka] = np.vstack((c, s, x * s - y * c)) * self._colscale
-        A[0:3, ka + 1] = np.vstack((-s, c, x * c + y * s)) * self._colscale
-        rad = lim.radius[az] / L.cap[az]
-        ub_A = np.empty(self.n_rows)
-        ub_A[:3] = np.inf
-        blk = ub_A[3:].reshape(len(az), N + 2)
-        blk[:, :N] = (rad * self._poly_scale)[:, None]
-        # cone: two half-planes through the origin; at exactly π both edges are one line (one row)
-        cone = lim.cone[az]
-        lo, hi = lim.arc_lo[az], lim.arc_hi[az]
-        two = cone & (lo + hi < math.pi - 1e-9)
-        A[self._rows_hi, ka] = np.where(cone, -np.sin(hi), 0.0)
-        A[self._rows_hi, ka + 1] = np.where(cone, np.cos(hi), 0.0)
-        A[self._rows_lo, ka] = np.where(two, -np.sin(lo), 0.0)
-        A[self._rows_lo, ka + 1] = np.where(two, -np.cos(lo), 0.0)
-        blk[:, N] = np.where(cone, 0.0, np.inf)
-        blk[:, N + 1] = np.where(two, 0.0, np.inf)
+        ub_A = self._ubA0.copy()
         lb, ub = self._lb0.copy(), self._ub0.copy()
-        blocked = lim.blocked[az]
-        lb[ka] = np.where(blocked, 0.0, np.maximum(lim.along_min[az] / L.cap[az], -rad))
-        ub[ka] = np.where(blocked, 0.0, rad)
-        lb[ka + 1] = np.where(blocked, 0.0, -rad)
-        ub[ka + 1] = ub[ka]
-        lb[kf] = lim.lower[self._fixed] / L.cap[self._fixed]
-        ub[kf] = lim.upper[self._fixed] / L.cap[self._fixed]
+        sx, sy, sn = (float(v) for v in 1.0 / L.tau_ref)
+        angle, radius, along_min = lim.angle.tolist(), lim.radius.tolist(), lim.along_min.tolist()
+        arc_lo, arc_hi, cone, blocked = lim.arc_lo.tolist(), lim.arc_hi.tolist(), lim.cone, lim.blocked
+        for j, i in enumerate(self._az_list):
+            k = self._ka_list[j]
+            cap, x, y = self._cap_list[i], self._x_list[i], self._y_list[i]
+            c, s = math.cos(angle[i]), math.sin(angle[i])
+            # B̂ in the rotated frame: â along the previous azimuth, b̂ 90° clockwise of it
+            A[0, k], A[1, k], A[2, k] = c * cap * sx, s * cap * sy, (x * s - y * c) * cap * sn
+            A[0, k + 1], A[1, k + 1], A[2, k + 1] = -s * cap * sx, c * cap * sy, (x * c + y * s) * cap * sn
+            rad = radius[i] / cap
+            r0 = 3 + j * (N + 2)
+            ub_A[r0 : r0 + N] = rad * self._poly_scale
+            if blocked[i]:
+                lb[k] = ub[k] = lb[k + 1] = ub[k + 1] = 0.0
+                continue
+            lb[k], ub[k] = max(along_min[i] / cap, -rad), rad
+            lb[k + 1], ub[k + 1] = -rad, rad
+            if cone[i]:  # two half-planes through the origin; at exactly π both edges are one line
+                lo, hi = arc_lo[i], arc_hi[i]
+                A[r0 + N, k], A[r0 + N, k + 1] = -math.sin(hi), math.cos(hi)
+                ub_A[r0 + N] = 0.0
+                if lo + hi < math.pi - 1e-9:
+                    A[r0 + N + 1, k], A[r0 + N + 1, k + 1] = -math.sin(lo), -math.cos(lo)
+                    ub_A[r0 + N + 1] = 0.0
+        kf, fixed = self._kf, self._fixed
+        lb[kf] = lim.lower[fixed] / L.cap[fixed]
+        ub[kf] = lim.upper[fixed] / L.cap[fixed]
         return QPData(self.P, self.q, A, tau / L.tau_ref, ub_A, lb, ub, 3)
 
     # ---- solve -----------------------------------------------------------------------------------------
@@ -585,7 +593,7 @@ class QPAllocator:
         forces[ka], forces[ka + 1] = a * c - b * s, a * s + b * c
         forces[kf] = x[kf] * L.cap[self._fixed]
         slack = (x[L.n_ext : L.n_ext + 3] - x[L.n_ext + 3 :]) * L.tau_ref
-        objective = 0.5 * float(x @ d.P @ x) + float(d.q @ x)
+        objective = float(0.5 * np.dot(self._P_diag * x, x) + np.dot(d.q, x))
         return QPSolution(forces, slack, objective, "optimal", int(info["iterations"]))
 
     def allocate(self, tau_demand: ArrayLike, previous: ThrusterCommand | None = None) -> AllocationResult:
@@ -615,29 +623,43 @@ class QPAllocator:
         it holds its angle, or with idle steering turns at its rate limit towards the direction the
         unconstrained allocation wants; its thrust is the part of the force along the commanded angle."""
         L = self.layout
-        az, ka = self._az, self._ka
-        thrust = np.clip(forces[L.first], lim.lower, lim.upper)  # right for the fixed thrusters
+        thrust = np.minimum(np.maximum(forces[L.first], lim.lower), lim.upper)  # fixed thrusters
         angle = L.fixed_angle.copy()
-        fx, fy = forces[ka], forces[ka + 1]
-        prev = lim.angle[az]
-        c, s = np.cos(prev), np.sin(prev)
-        rel = np.arctan2(fy * c - fx * s, fx * c + fy * s)  # direction relative to the previous azimuth
-        rel = np.where(lim.cone[az], np.clip(rel, -lim.arc_lo[az], lim.arc_hi[az]), rel)
-        mag = np.hypot(fx, fy)
-        idle = (mag < self.idle_thrust[az]) | lim.blocked[az]
-        new = prev + np.where(idle, 0.0, rel)
-        if self.idle_steering and idle.any():
-            pref = self._pinv @ tau
-            px, py = pref[ka], pref[ka + 1]
-            for j in np.flatnonzero(idle & (np.hypot(px, py) >= self.idle_thrust[az])):
-                i = int(az[j])
-                target = self._outside_sectors(i, math.atan2(py[j], px[j]))
-                step = self._turn[i]
-                new[j] = prev[j] + min(max(float(_ssa(target - prev[j])), -step), step)
-        along = np.clip(fx * np.cos(new) + fy * np.sin(new), 0.0, None)
-        thrust[az] = np.where(lim.blocked[az], 0.0, np.minimum(np.where(idle, along, mag), lim.radius[az]))
-        angle[az] = new
-        return thrust, _ssa(angle)
+        f = forces.tolist()
+        prev_angle, radius = lim.angle.tolist(), lim.radius.tolist()
+        preferred: list[float] | None = None
+        for j, i in enumerate(self._az_list):
+            k = self._ka_list[j]
+            fx, fy, prev = f[k], f[k + 1], prev_angle[i]
+            mag = math.hypot(fx, fy)
+            if mag >= self._idle_list[i] and not lim.blocked[i]:
+                c, s = math.cos(prev), math.sin(prev)
+                rel = math.atan2(fy * c - fx * s, fx * c + fy * s)  # direction relative to prev
+                if lim.cone[i]:
+                    rel = min(max(rel, -float(lim.arc_lo[i])), float(lim.arc_hi[i]))
+                angle[i], thrust[i] = prev + rel, min(mag, radius[i])
+                continue
+            new, off = prev, bool(lim.blocked[i])  # off: no thrust (in a forbidden sector)
+            if self.idle_steering:
+                if preferred is None:
+                    preferred = (self._pinv @ tau).tolist()
+                px, py = preferred[k], preferred[k + 1]
+                if math.hypot(px, py) >= self._idle_list[i]:
+                    target = self._outside_sectors(i, math.atan2(py, px))
+                    step = self._turn_list[i]
+                    new = prev + min(max(ssa_scalar(target - prev), -step), step)
+                    off = off or self._in_sector(i, new)  # turning through a sector at zero thrust
+            # the part of the force along the commanded angle, kept within the thrust-rate limits
+            along = max(fx * math.cos(new) + fy * math.sin(new), float(lim.along_min[i]), 0.0)
+            angle[i], thrust[i] = new, 0.0 if off else min(along, radius[i])
+        return thrust, ssa(angle)
+
+    def _in_sector(self, i: int, angle: float) -> bool:
+        """Whether ``angle`` is strictly inside a forbidden sector of thruster i."""
+        for start, width in self.forbidden.get(i, ()):
+            if _ANGLE_EPS < (angle - start) % TWO_PI < width - _ANGLE_EPS:
+                return True
+        return False
 
     def _outside_sectors(self, i: int, target: float) -> float:
         """``target`` moved to the nearer edge of a forbidden sector of thruster i that contains it."""
@@ -646,6 +668,22 @@ class QPAllocator:
             if 0.0 < p < width:
                 return start if p < width / 2 else start + width
         return target
+
+
+def _convex_arc(arc_lo: Array, arc_hi: Array, movable: BoolArray) -> tuple[Array, Array, BoolArray]:
+    """The allowed directions [−arc_lo, +arc_hi] around the previous azimuth as a convex set: a sector
+    of at most π. Wider than π (not convex) it becomes the widest sector of π inside it, centred on the
+    previous azimuth where the arc allows; a full turn or more (2π) is no direction limit (``cone``
+    False)."""
+    total = arc_lo + arc_hi
+    cone = movable & (total < TWO_PI)
+    wide = total > math.pi
+    if wide.any():
+        lo = np.minimum(arc_lo, math.pi / 2)
+        hi = np.minimum(arc_hi, math.pi - lo)
+        lo = np.minimum(arc_lo, math.pi - hi)
+        arc_lo, arc_hi = np.where(wide, lo, arc_lo), np.where(wide, hi, arc_hi)
+    return np.where(movable, arc_lo, 0.0), np.where(movable, arc_hi, 0.0), cone
 
 
 def _forbidden(
@@ -665,7 +703,7 @@ def _forbidden(
             width = (end - start) % TWO_PI
             if width <= 0.0:
                 raise ValueError(f"forbidden_sectors: thruster {tid}: empty or full sector ({start}, {end})")
-            out.setdefault(i, []).append((float(_ssa(start)), width))
+            out.setdefault(i, []).append((ssa_scalar(start), width))
     return out
 
 
@@ -689,10 +727,11 @@ def reference_solve_cvxpy(
     tau = np.array(tau_demand, dtype=float).reshape(3)
     N = A.polygon_sides
     f = cp.Variable(L.n_ext)  # scaled forces, fixed frame
-    s = cp.Variable(3)  # scaled slack
+    g = np.sqrt(A.rho2)
+    s = cp.Variable(3)  # slack scaled so that its quadratic weight is 1: s = √ρ₂ (τ − B f) / τ_ref
     force_scale = L.cap[L.owner]
-    cost: list[Any] = [A.rho1 @ cp.abs(s), 0.5 * cp.sum(cp.multiply(A.rho2, cp.square(s)))]
-    cons: list[Any] = [(L.B * force_scale) @ f / L.tau_ref + s == tau / L.tau_ref]
+    cost: list[Any] = [(A.rho1 / g) @ cp.abs(s), 0.5 * cp.sum_squares(s)]
+    cons: list[Any] = [cp.multiply(g / L.tau_ref, (L.B * force_scale) @ f) + s == g * tau / L.tau_ref]
     for i in range(L.n):
         k, w = L.first[i], L.weights[i]
         if not L.is_az[i]:
@@ -719,15 +758,21 @@ def reference_solve_cvxpy(
         if np.isfinite(lim.along_min[i]):  # thrust-rate limit downwards
             cons.append(along @ F >= lim.along_min[i] / L.cap[i])
     prob = cp.Problem(cp.Minimize(cp.sum(cp.hstack(cost))), cons)
-    options: dict[str, Any] = {
-        "solver": cp.CLARABEL,
-        "tol_gap_abs": 1e-10,
-        "tol_gap_rel": 1e-10,
-        "tol_feas": 1e-10,
-    }
-    options.update(solver_options)
-    prob.solve(**options)
-    if prob.status != cp.OPTIMAL or f.value is None:
-        return QPSolution(np.zeros(L.n_ext), tau.copy(), math.nan, f"reference: {prob.status}", 0)
-    forces = np.asarray(f.value, dtype=float) * force_scale
-    return QPSolution(forces, tau - L.B @ forces, float(prob.value), "optimal", 0)
+    # Clarabel, tight: when saturated the objective is large, so the relative gap alone would stop early;
+    # if it cannot certify that, once more with a little more room on feasibility
+    attempts: list[dict[str, Any]] = (
+        [dict(solver_options)]
+        if solver_options
+        else [
+            {"solver": cp.CLARABEL, "tol_gap_abs": 1e-10, "tol_gap_rel": 1e-13, "tol_feas": 1e-10},
+            {"solver": cp.CLARABEL, "tol_gap_abs": 1e-10, "tol_gap_rel": 1e-13, "tol_feas": 1e-9},
+        ]
+    )
+    for options in attempts:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # "solution may be inaccurate": see the status
+            prob.solve(**options)
+        if prob.status == cp.OPTIMAL and f.value is not None:
+            forces = np.asarray(f.value, dtype=float) * force_scale
+            return QPSolution(forces, tau - L.B @ forces, float(prob.value), "optimal", 0)
+    return QPSolution(np.zeros(L.n_ext), tau.copy(), math.nan, f"reference: {prob.status}", 0)
