@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gateway.config import parse_config
+from gateway.mcaplog import McapLogWriter
 from gateway.pipeline import ControlEvent, Pipeline, PipelineSpec, RawEvent
 from simulator.commands import Command, TauCommand, ThrusterCommand
 from simulator.runner import Route, Simulation
@@ -89,9 +90,11 @@ def run_closed_loop(
     tables: dict[str, Any] | None = None,
     events: list[tuple[float, str, Any]] = (),  # type: ignore[assignment]
     chunk_s: float = 0.1,
+    log: McapLogWriter | None = None,
 ) -> ClosedLoopRun:
     """Run the scenario with the gateway pipeline commanding the thrusters. ``events``: (sim time, key,
-    payload) Zenoh inputs such as ("setpoint", {...}) or ("mode", "standby")."""
+    payload) Zenoh inputs such as ("setpoint", {...}) or ("mode", "standby"). With ``log``, every burst sent
+    and the ground truth are logged as `dpgw sim --out` does (a log replay can score)."""
     tables = tables or gateway_tables(scenario)
     pipeline = Pipeline(PipelineSpec.from_config(parse_config(tables, base_dir=Path.cwd())))
     commands = _Commands()
@@ -107,7 +110,7 @@ def run_closed_loop(
         routes.append(Route(sinks[name], "nmea", frozenset({name})))
     sinks["thrusters"] = _TimedSink(now)
     routes.append(Route(sinks["thrusters"], "mavlink"))
-    sim = Simulation(scenario, seed, routes=routes, commands=[commands])
+    sim = Simulation(scenario, seed, routes=routes, commands=[commands], log=log)
     pending_events = sorted(events, key=lambda e: e[0])
     t_list, lf, wf = [], [], []
     run = ClosedLoopRun(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)))
