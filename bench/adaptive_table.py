@@ -29,12 +29,16 @@ from simulator.closed_loop import run_closed_loop
 from simulator.scenarios import Scenario, get_scenario
 from simulator.waves import WaveResponse
 
+
+def _setpoint(t: float, north: float, heading_deg: float) -> tuple[float, str, dict[str, float]]:
+    return (t, "setpoint", {"north_m": north, "east_m": 0.0, "heading_deg": heading_deg})
+
+
 CASES = {
     # scenario: (duration s, settle s, badly tuned start ω0 rad/s, setpoint events of the DP loop)
-    "torsetnes_2004": (1800.0, 600.0, 0.83, [(0.0, "setpoint", {"north_m": 0.0, "east_m": 0.0, "heading_deg": 45.0})]),
-    "hassani": (600.0, 200.0, 0.6, [(0.0, "setpoint", {"north_m": 0.0, "east_m": 0.0, "heading_deg": 0.0}),
-                                   (40.0, "setpoint", {"north_m": 10.0, "east_m": 0.0, "heading_deg": 0.0})]),
-}  # fmt: skip
+    "torsetnes_2004": (1800.0, 600.0, 0.83, [_setpoint(0.0, 0.0, 45.0)]),
+    "hassani": (600.0, 200.0, 0.6, [_setpoint(0.0, 0.0, 0.0), _setpoint(40.0, 10.0, 0.0)]),
+}
 
 
 def forecast_wave_std(scenario: Scenario) -> list[float]:
@@ -97,7 +101,7 @@ def run_case(
                 np.array([e["bias"] for e in est]),
                 np.array([e["eta_wf"] for e in est]),
                 np.array([e["omega0"] for e in est]),
-            )  # fmt: skip
+            )
         )
         rows.append(
             {"scenario": name, "observer": spec.label, "rms": s.as_dict(), "omega0_end": est[-1]["omega0"]}
@@ -126,8 +130,9 @@ def main() -> None:
         print(json.dumps(rows, indent=2))
         return
     print(
-        "scenario        observer         RMS N (m)  RMS E (m)  RMS ψ (deg)  attenuation N/E/ψ (dB)   ω0 at end"
+        "scenario        observer         RMS N (m)  RMS E (m)  RMS ψ (deg)  attenuation N/E/ψ (dB)", end=""
     )
+    print("   ω0 at end")
     for r in rows:
         a = r["attenuation_db"]
         att = " / ".join("  n/a" if v is None else f"{v:5.1f}" for v in a)
