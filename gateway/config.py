@@ -28,8 +28,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 from urllib.parse import parse_qsl, quote, unquote, urlsplit
 
-from observers.factory import OBSERVER_PARAMS, ObserverSpecError, check_params
 from observers.factory import OBSERVER_TYPES as _OBSERVER_TYPES
+from observers.factory import ObserverSpecError, check_params
 from observers.passive_tuning import (
     Check,
     PassiveTuning,

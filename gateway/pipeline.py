@@ -33,7 +33,7 @@ from gateway.control.controller import ControllerTuning, DPController
 from gateway.fusion import NS, Fusion
 from gateway.geodesy import LocalFrame
 from observers.factory import Observer, make_observer
-from observers.passive import STATUS_NAMES, PassiveEstimate, PassiveObserver
+from observers.passive import STATUS_NAMES, PassiveEstimate
 from observers.vessel import VesselModel
 
 ESC_RPM_MAX = 200.0  # the propeller law's reference (simulator.thrusters.DEFAULT_MAX_RPM)
