@@ -21,7 +21,6 @@ Pure numerics (no I/O, no clocks: times come with the data), shared by the live 
 from __future__ import annotations
 
 import math
-from bisect import bisect_left
 from collections import deque
 from dataclasses import dataclass, field
 
@@ -35,6 +34,7 @@ from observers.vessel import VesselModel
 Array = NDArray[np.float64]
 NS = 1_000_000_000
 HEADING_HISTORY_NS = 5 * NS
+HEADING_HISTORY_MAX = 512  # and at most this many (a 50 Hz gyro fills 250 in 5 s; replay feeds far faster)
 
 
 @dataclass
@@ -69,7 +69,7 @@ class Fusion:
     heading: Held = field(default_factory=Held)
     quality: int = 0
     position_sigma_m: float | None = None
-    _headings: deque[tuple[int, float]] = field(default_factory=deque)
+    _headings: deque[tuple[int, float]] = field(default_factory=lambda: deque(maxlen=HEADING_HISTORY_MAX))
     thrust: dict[int, tuple[float, float, int]] = field(default_factory=dict)  # id -> (thrust N, azimuth, rx)
     tau_demand: Array = field(default_factory=lambda: np.zeros(3))
     feedback_timeout_ns: int = 2 * NS
@@ -91,13 +91,17 @@ class Fusion:
         """The heading received closest in time to t (the same cycle as a fix); NaN if none is recent."""
         if not self._headings:
             return math.nan
-        times = [t for t, _ in self._headings]
-        i = bisect_left(times, t_ns)
-        candidates = [k for k in (i - 1, i) if 0 <= k < len(times)]
-        k = min(candidates, key=lambda k: abs(times[k] - t_ns))
-        if abs(times[k] - t_ns) > self.heading.valid_ns:
+        # Fixes pair with recent headings: walk back from the newest until the gap starts to grow
+        # (no copy of the history per fix).
+        best_dt, best = None, math.nan
+        for t, psi in reversed(self._headings):
+            dt = abs(t - t_ns)
+            if best_dt is not None and dt > best_dt:
+                break
+            best_dt, best = dt, psi
+        if best_dt is None or best_dt > self.heading.valid_ns:
             return math.nan
-        return self._headings[k][1]
+        return best
 
     # --- position -----------------------------------------------------------------------------------------
 

@@ -275,7 +275,19 @@ class McapLogWriter:
         """
         if not isinstance(payload, Mapping):
             raise TypeError(f"payload must be a JSON object (Mapping), not {type(payload).__name__}")
-        data = encode_json(payload)  # outside the lock: the CPU-heavy part
+        self.write_encoded(topic, encode_json(payload), log_time_ns, publish_time_ns, schema=schema)
+
+    def write_encoded(
+        self,
+        topic: str,
+        data: bytes,
+        log_time_ns: int,
+        publish_time_ns: int | None = None,
+        *,
+        schema: tuple[str, Mapping[str, Any]] | None = None,
+    ) -> None:
+        """`write` for a payload already encoded by `encode_json` (the live service encodes each message
+        once for Zenoh and the log)."""
         log_time_ns = int(log_time_ns)
         publish_time_ns = log_time_ns if publish_time_ns is None else int(publish_time_ns)
         with self._lock:

@@ -188,30 +188,43 @@ class GatewayService:
             self._emit(self.pipeline.feed(ev))
             return
         rx = self._now(item.rx_ns)
+        outputs = self.pipeline.feed(RawEvent(rx, item.source, item.data))
+        # Publish first (latency), then log the raw chunk and the outputs: same thread, nothing is lost.
+        encoded = self._publish(outputs)
         spec = self.pipeline.sources.get(item.source)
         if self.log is not None and spec is not None:
             if spec.protocol == "nmea":
                 self.log.write_raw_nmea(item.source, item.data, rx, rx)
             else:
                 self.log.write_raw_mavlink(item.source, item.data, rx, rx)
-        self._emit(self.pipeline.feed(RawEvent(rx, item.source, item.data)))
+        self._log_outputs(outputs, encoded)
 
     def _emit(self, outputs: list[Output]) -> None:
-        for o in outputs:
-            body = encode_json(o.payload)
+        self._log_outputs(outputs, self._publish(outputs))
+
+    def _publish(self, outputs: list[Output]) -> list[bytes]:
+        """Zenoh puts (estimate before measurement) and MAVLink commands; each payload encoded once."""
+        encoded = [encode_json(o.payload) for o in outputs]
+        order = sorted(range(len(outputs)), key=lambda k: outputs[k].topic != "/dp/estimate")
+        for k in order:
+            o, body = outputs[k], encoded[k]
             if o.zenoh and o.topic.startswith("/dp/"):
-                key = f"{self.prefix}/{o.topic[4:]}"
-                pub = self._publishers.get(key)
+                pub = self._publishers.get(f"{self.prefix}/{o.topic[4:]}")
                 if pub is not None:
                     pub.put(body)
                     self.published += 1
                 if o.topic == "/dp/status":
                     with self._status_lock:
                         self._status_json = body
-            if self.log is not None:
-                self.log.write(o.topic, o.payload, o.stamp_ns, o.stamp_ns)
             if o.topic == "/dp/thrusters/command" and self._command_links:
                 self._send_mavlink_commands(o.payload)
+        return encoded
+
+    def _log_outputs(self, outputs: list[Output], encoded: list[bytes]) -> None:
+        if self.log is None:
+            return
+        for o, body in zip(outputs, encoded, strict=True):
+            self.log.write_encoded(o.topic, body, o.stamp_ns, o.stamp_ns)
 
     def _send_mavlink_commands(self, cmd: dict[str, Any]) -> None:
         """AZIMUTH_THRUSTER_COMMAND per thruster down every MAVLink link configured with commands = true."""
