@@ -93,6 +93,11 @@ class GatewayService:
                 self._publishers[key] = s.declare_publisher(key, encoding=JSON)
             for key in INPUT_KEYS:
                 self._declared.append(s.declare_subscriber(f"{self.prefix}/{key}", self._on_input(key)))
+            # A query that arrives before the loop's first status tick gets a real status, never ``{}``;
+            # the consumer loop is not running yet, so reading the pipeline here is race-free.
+            initial = self.pipeline.status(self._now(time.time_ns()), self._alarms())
+            with self._status_lock:
+                self._status_json = encode_json(initial.payload)
             self._declared.append(s.declare_queryable(f"{self.prefix}/status", self._on_query))
             if self._log_path:
                 self.log = McapLogWriter(self._log_path, profile="dpgw", **self.config.log.writer_options())
