@@ -83,8 +83,15 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from observers import _passive_kernel as kernel
-from observers.kinematics import rotation, ssa_scalar
-from observers.passive import PassiveEstimate, PassiveObserver, PassiveRun
+from observers.kinematics import rotation
+from observers.passive import (
+    ZERO3,
+    PassiveEstimate,
+    PassiveObserver,
+    PassiveRun,
+    estimate_from_state,
+    initial_state,
+)
 from observers.passive_tuning import (
     BIAS,
     ETA,
@@ -103,9 +110,6 @@ from observers.vessel import VesselModel
 from observers.wave_frequency import WaveFrequencyConfig, WaveFrequencyEstimator
 
 Array = NDArray[np.float64]
-
-NAN3 = np.full(3, np.nan)
-ZERO3 = np.zeros(3)
 
 DEFAULT_TUNING = PassiveTuning(bias_time_constant_s=math.inf)
 """Torsetnes (31): random-walk bias; everything else dpgw's passive defaults (relative to ω0)."""
@@ -757,16 +761,7 @@ class GainScheduledObserver:
         eta_wf: ArrayLike | None = None,
     ) -> None:
         """Start from an explicit state (as `PassiveObserver.initialize`); ω0 and the estimator are kept."""
-        x = np.zeros(15)
-        x[ETA] = np.asarray(eta, dtype=float)
-        x[8] = ssa_scalar(x[8])
-        if nu is not None:
-            x[NU] = np.asarray(nu, dtype=float)
-        if bias is not None:
-            x[BIAS] = np.asarray(bias, dtype=float)
-        if eta_wf is not None:
-            x[XI2] = np.asarray(eta_wf, dtype=float)
-        self.x[:] = x
+        self.x[:] = initial_state(eta, nu, bias, eta_wf)
         self._clock[:] = (float(t), 1.0)
 
     def extra(self) -> dict[str, Any]:
@@ -842,13 +837,7 @@ class GainScheduledObserver:
         status = np.empty(1, dtype=np.int8)
         W = np.empty((1, 3))
         self._run_kernel(np.array([tf]), Y, np.ascontiguousarray(TAU), X, status, W, upd_index, upd_target)
-        code = int(status[0])
-        if code == kernel.STATUS_INITIALIZING:
-            return PassiveEstimate(tf, NAN3, NAN3, NAN3, NAN3, "initializing")
-        x = self.x
-        return PassiveEstimate(
-            tf, x[ETA].copy(), x[NU].copy(), x[BIAS].copy(), x[XI2].copy(), _STATUS_NAMES[code]
-        )
+        return estimate_from_state(tf, self.x, int(status[0]))
 
     def run(self, t: ArrayLike, y: ArrayLike, tau: ArrayLike | None = None) -> GainScheduledRun:
         """`step` over every sample, with the same numbers.
@@ -904,11 +893,6 @@ class GainScheduledObserver:
 _NO_INDEX = np.zeros(0, dtype=np.int64)
 _NO_TARGET = np.zeros((0, 3))
 _ZERO_INDEX = np.zeros(1, dtype=np.int64)
-_STATUS_NAMES = {
-    kernel.STATUS_INITIALIZING: "initializing",
-    kernel.STATUS_OK: "ok",
-    kernel.STATUS_DEAD_RECKONING: "dead_reckoning",
-}
 
 
 # --- readable reference -----------------------------------------------------------------------------------

@@ -113,6 +113,32 @@ class PassiveRun:
         return self.status != kernel.STATUS_INITIALIZING
 
 
+def initial_state(
+    eta: ArrayLike,
+    nu: ArrayLike | None = None,
+    bias: ArrayLike | None = None,
+    eta_wf: ArrayLike | None = None,
+) -> Array:
+    """The 15-state vector [ξ(6), η(3), b(3), ν(3)] for an explicit start (ψ wrapped; omitted parts zero)."""
+    x = np.zeros(15)
+    x[ETA] = np.asarray(eta, dtype=float)
+    x[8] = ssa_scalar(x[8])
+    if nu is not None:
+        x[NU] = np.asarray(nu, dtype=float)
+    if bias is not None:
+        x[BIAS] = np.asarray(bias, dtype=float)
+    if eta_wf is not None:
+        x[XI2] = np.asarray(eta_wf, dtype=float)
+    return x
+
+
+def estimate_from_state(t: float, x: Array, code: int) -> PassiveEstimate:
+    """The estimate a kernel status ``code`` and state ``x`` stand for (copies; NaN while initialising)."""
+    if code == kernel.STATUS_INITIALIZING:
+        return PassiveEstimate(t, NAN3, NAN3, NAN3, NAN3, "initializing")
+    return PassiveEstimate(t, x[ETA].copy(), x[NU].copy(), x[BIAS].copy(), x[XI2].copy(), STATUS_NAMES[code])
+
+
 class PassiveObserver:
     """Fossen & Strand (1999) passive observer for any `VesselModel`.
 
@@ -180,25 +206,8 @@ class PassiveObserver:
 
         Without this, the first complete measurement initialises the observer in equilibrium.
         """
-        x = np.zeros(15)
-        x[ETA] = np.asarray(eta, dtype=float)
-        x[8] = ssa_scalar(x[8])
-        if nu is not None:
-            x[NU] = np.asarray(nu, dtype=float)
-        if bias is not None:
-            x[BIAS] = np.asarray(bias, dtype=float)
-        if eta_wf is not None:
-            x[XI2] = np.asarray(eta_wf, dtype=float)
-        self.x[:] = x
+        self.x[:] = initial_state(eta, nu, bias, eta_wf)
         self._clock[:] = (float(t), 1.0)
-
-    def _estimate(self, t: float, code: int) -> PassiveEstimate:
-        if code == kernel.STATUS_INITIALIZING:
-            return PassiveEstimate(t, NAN3, NAN3, NAN3, NAN3, "initializing")
-        x = self.x
-        return PassiveEstimate(
-            t, x[ETA].copy(), x[NU].copy(), x[BIAS].copy(), x[XI2].copy(), STATUS_NAMES[code]
-        )
 
     def step(self, t: float, y: ArrayLike, tau: ArrayLike | None = None) -> PassiveEstimate:
         """Advance to time t (s) with measurement y and generalised force τ held since the last sample."""
@@ -216,7 +225,7 @@ class PassiveObserver:
             self.h_max,
             self.max_hold_s,
         )
-        return self._estimate(float(t), code)
+        return estimate_from_state(float(t), self.x, code)
 
     def predict(self, t: float, tau: ArrayLike | None = None) -> PassiveEstimate:
         """Dead reckoning to time t: no measurement at all."""
