@@ -13,10 +13,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import time
-from collections.abc import Callable
 
 import numpy as np
+from _timing import best_of, step_latency
 
 from observers.kinematics import ssa
 from observers.mmae import MMAEObserver, reference_run
@@ -38,15 +37,6 @@ def make_input(hours: float, rate: float, seed: int = 1) -> tuple[np.ndarray, np
     y[rng.random(n) < 0.001, :2] = np.nan  # occasional lost fixes
     tau = np.tile([0.3, -0.2, 0.02], (n, 1)) + rng.normal(0, 0.05, (n, 3))
     return t, y, tau
-
-
-def best_of(runs: int, fn: Callable[[], object]) -> float:
-    best = math.inf
-    for _ in range(runs):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def main() -> None:
@@ -71,17 +61,7 @@ def main() -> None:
     passive_s = best_of(3, lambda: PassiveObserver(vessel).run(t, y, tau))
     mmae_rate, passive_rate = n / mmae_s, n / passive_s
 
-    obs = MMAEObserver(vessel, **settings)
-    m = min(n, 100_000)
-    rows_y = [y[k] for k in range(m)]
-    rows_tau = [tau[k] for k in range(m)]
-    times = np.empty(m)
-    for k in range(m):
-        t0 = time.perf_counter()
-        obs.step(t[k], rows_y[k], rows_tau[k])
-        times[k] = time.perf_counter() - t0
-    step_median = float(np.median(times[100:]))
-    step_p99 = float(np.percentile(times[100:], 99))
+    step_median, step_p99 = step_latency(MMAEObserver(vessel, **settings), t, y, tau, 100_000)
 
     r = args.reference_samples
     bank = MMAEObserver(vessel, **settings).bank

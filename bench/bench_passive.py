@@ -15,6 +15,7 @@ import math
 import time
 
 import numpy as np
+from _timing import best_of, step_latency
 
 from observers.kinematics import ssa
 from observers.passive import PassiveObserver, reference_run
@@ -52,25 +53,9 @@ def main() -> None:
 
     PassiveObserver(vessel).run(t[:100], y[:100], tau[:100])  # compile (cached on disk after the first run)
 
-    best = math.inf
-    for _ in range(3):
-        obs = PassiveObserver(vessel)
-        t0 = time.perf_counter()
-        obs.run(t, y, tau)
-        best = min(best, time.perf_counter() - t0)
+    best = best_of(3, lambda: PassiveObserver(vessel).run(t, y, tau))
     batch_rate = n / best
-
-    obs = PassiveObserver(vessel)
-    m = min(n, 200_000)
-    rows_y = [y[k] for k in range(m)]
-    rows_tau = [tau[k] for k in range(m)]
-    times = np.empty(m)
-    for k in range(m):
-        t0 = time.perf_counter()
-        obs.step(t[k], rows_y[k], rows_tau[k])
-        times[k] = time.perf_counter() - t0
-    step_median = float(np.median(times[100:]))
-    step_p99 = float(np.percentile(times[100:], 99))
+    step_median, step_p99 = step_latency(PassiveObserver(vessel), t, y, tau, 200_000)
 
     r = args.reference_samples
     t0 = time.perf_counter()
