@@ -55,6 +55,9 @@ class LocalFrame:
     alt_m: float = 0.0
     _origin: tuple[float, float, float] = field(init=False, repr=False, compare=False)
     _R: NDArray[np.float64] = field(init=False, repr=False, compare=False)
+    # The same rotation as nine Python floats: scalar conversions run per fix in replay, and indexing a
+    # numpy array element by element costs more than the arithmetic (bench/bench_replay.py).
+    _r: tuple[float, ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.lat_deg) and -90.0 <= self.lat_deg <= 90.0):
@@ -67,23 +70,22 @@ class LocalFrame:
         R = np.array([[-sl * co, -sl * so, cl], [-so, co, 0.0], [-cl * co, -cl * so, -sl]])
         object.__setattr__(self, "_origin", geodetic_to_ecef(self.lat_deg, self.lon_deg, self.alt_m))
         object.__setattr__(self, "_R", R)
+        object.__setattr__(self, "_r", tuple(float(v) for v in R.ravel()))
 
     def to_ned(self, lat_deg: float, lon_deg: float, alt_m: float = 0.0) -> tuple[float, float, float]:
         x, y, z = geodetic_to_ecef(lat_deg, lon_deg, alt_m)
-        dx, dy, dz = x - self._origin[0], y - self._origin[1], z - self._origin[2]
-        R = self._R
-        return (
-            float(R[0, 0] * dx + R[0, 1] * dy + R[0, 2] * dz),
-            float(R[1, 0] * dx + R[1, 1] * dy),
-            float(R[2, 0] * dx + R[2, 1] * dy + R[2, 2] * dz),
-        )
+        ox, oy, oz = self._origin
+        dx, dy, dz = x - ox, y - oy, z - oz
+        r00, r01, r02, r10, r11, _, r20, r21, r22 = self._r
+        return (r00 * dx + r01 * dy + r02 * dz, r10 * dx + r11 * dy, r20 * dx + r21 * dy + r22 * dz)
 
     def to_geodetic(self, north: float, east: float, down: float = 0.0) -> tuple[float, float, float]:
-        R = self._R
-        x = self._origin[0] + R[0, 0] * north + R[1, 0] * east + R[2, 0] * down
-        y = self._origin[1] + R[0, 1] * north + R[1, 1] * east + R[2, 1] * down
-        z = self._origin[2] + R[0, 2] * north + R[2, 2] * down
-        return ecef_to_geodetic(float(x), float(y), float(z))
+        ox, oy, oz = self._origin
+        r00, r01, r02, r10, r11, _, r20, r21, r22 = self._r
+        x = ox + r00 * north + r10 * east + r20 * down
+        y = oy + r01 * north + r11 * east + r21 * down
+        z = oz + r02 * north + r22 * down
+        return ecef_to_geodetic(x, y, z)
 
     def to_ned_array(
         self, lat_deg: ArrayLike, lon_deg: ArrayLike, alt_m: ArrayLike = 0.0

@@ -47,6 +47,7 @@ from mcap.stream_reader import StreamReader
 from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import CompressionType, Writer
 
+from gateway.mcap_fast import FastWriter
 from gateway.schemas import schema_for_topic
 
 __all__ = [
@@ -409,7 +410,7 @@ class McapLogWriter:
     def _open(self, index: int) -> None:
         path = rotated_path(self._base, index)
         self._file = open(path, "wb")  # noqa: SIM115 - lives until _finish_file
-        self._writer = Writer(self._file, chunk_size=self._chunk_budget, compression=self._compression)
+        self._writer = FastWriter(self._file, chunk_size=self._chunk_budget, compression=self._compression)
         self._writer.start(profile=self._profile, library=self._library)
         for name, data in self._metadata:
             self._writer.add_metadata(name, data)
