@@ -27,6 +27,20 @@ from mcap.writer import Writer
 _MESSAGE_OPCODE = 0x05
 _MESSAGE_HEAD = struct.Struct("<BQHIQQ")  # opcode, length, channel id, sequence, log time, publish time
 _MESSAGE_FIXED = 22  # record length excluding the data: 2 + 4 + 8 + 8
+_MESSAGE_INDEX_OPCODE = 0x07
+_INDEX_HEAD = struct.Struct("<BQHI")  # opcode, length, channel id, byte length of the records
+
+
+class _MessageIndex(MessageIndex):
+    """`MessageIndex` whose `write` packs its (log time, offset) pairs in one call (the library writes
+    each u64 separately: ~two calls per message at every chunk close). Same bytes."""
+
+    def write(self, stream: Any) -> None:
+        records = self.records
+        stream.write(
+            _INDEX_HEAD.pack(_MESSAGE_INDEX_OPCODE, 6 + 16 * len(records), self.channel_id, 16 * len(records))
+        )
+        stream.write(struct.pack(f"<{2 * len(records)}Q", *[v for pair in records for v in pair]))
 
 
 class FastWriter(Writer):
@@ -76,7 +90,7 @@ class FastWriter(Writer):
         offset = buf.tell()
         index = chunk.message_indices.get(channel_id)
         if index is None:
-            index = chunk.message_indices[channel_id] = MessageIndex(channel_id=channel_id, records=[])
+            index = chunk.message_indices[channel_id] = _MessageIndex(channel_id=channel_id, records=[])
         index.records.append((log_time, offset))
         chunk.num_messages += 1
         buf.write(
@@ -85,5 +99,5 @@ class FastWriter(Writer):
             )
         )
         buf.write(data)
-        if offset + 9 + _MESSAGE_FIXED + len(data) > self._fast_chunk_size:  # type: ignore[operator]
+        if offset + 9 + _MESSAGE_FIXED + len(data) > self._fast_chunk_size:
             self._fast_finalize()  # type: ignore[misc]

@@ -274,7 +274,9 @@ class McapLogWriter:
         Schema) if given, else the one `gateway.schemas.schema_for_topic` picks. `publish_time_ns` defaults
         to `log_time_ns`.
         """
-        if not isinstance(payload, Mapping):
+        if type(payload) is not dict and not isinstance(
+            payload, Mapping
+        ):  # (dict first: ABC checks are slow)
             raise TypeError(f"payload must be a JSON object (Mapping), not {type(payload).__name__}")
         self.write_encoded(topic, encode_json(payload), log_time_ns, publish_time_ns, schema=schema)
 

@@ -47,11 +47,19 @@ FIX_PERIOD_NS = 1_000_000_000
 
 @dataclass(frozen=True)
 class RawEvent:
-    """A chunk of bytes as received: UTC receive time (ns), source name, bytes."""
+    """A chunk of bytes as received: UTC receive time (ns), source name, bytes.
+
+    ``checked`` (NMEA only, set by replay's log reader): the chunk is whole lines, each a clean sentence
+    whose framing and checksum the reader has already verified (`gateway.codecs.nmea_scan`); it holds the
+    texts of the sentences the pipeline uses (`USED_NMEA`, proprietary ones too), in order, and the count
+    of the other good sentences. The pipeline then skips the framer and counts the others unparsed — the
+    outputs are the same as from ``data`` (tests/test_replay.py compares both).
+    """
 
     rx_ns: int
     source: str
     data: bytes
+    checked: tuple[tuple[str, ...], int] | None = None
 
 
 @dataclass(frozen=True)
@@ -236,6 +244,18 @@ class Pipeline:
 
     def _nmea(self, spec: SourceSpec, c: SourceCounters, ev: RawEvent, out: list[Output]) -> bool:
         updated = False
+        if ev.checked is not None:
+            texts, others = ev.checked
+            c.received += others
+            for text in texts:
+                s = nmea_codec.decode(text, require_checksum=not spec.allow_missing_checksum, only=USED_NMEA)
+                if isinstance(s, nmea_codec.Reject):
+                    c.rejected[s.reason] += 1
+                    continue
+                c.received += 1
+                if s is not nmea_codec.UNUSED:
+                    updated |= self._use_nmea(spec, ev.rx_ns, s, out)
+            return updated
         for frame in self._framers[spec.name].feed(ev.data):
             if frame.text is None:
                 c.rejected[frame.reason or "garbage"] += 1

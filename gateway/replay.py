@@ -31,7 +31,7 @@ from mcap.reader import make_reader
 from gateway.config import GatewayConfig, default_config, parse_config
 from gateway.logreaders import LogCounts, nmea_text_events, tlog_events
 from gateway.mcaplog import McapLogWriter, read_messages
-from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
+from gateway.pipeline import USED_NMEA, ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from observers.factory import OBSERVER_PARAMS, OBSERVER_TYPES, Observer, make_observer
 from observers.passive_tuning import PassiveTuning
 
@@ -125,7 +125,7 @@ class Input:
             return mcap_events(self.path)
         if self.kind == "tlog":
             return tlog_events(self.path, self.source, self.counts)
-        return nmea_text_events(self.path, self.source, counts=self.counts)
+        return nmea_text_events(self.path, self.source, counts=self.counts, only=USED_NMEA)
 
     def sources(self) -> dict[str, str]:
         if self.kind == "mcap":
