@@ -106,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
                 on_outputs=publisher.on_outputs if publisher else None,
                 progress=(lambda n: bar.update(n - bar.n)) if bar is not None else None,
             )
-    except BusError as exc:
+    except (BusError, OSError) as exc:
         print(f"dpgw replay: {exc}", file=sys.stderr)
         return 2
     finally:

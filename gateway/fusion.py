@@ -167,8 +167,10 @@ class Fusion:
     def tau(self, now_ns: int) -> tuple[Array, str]:
         """τ from fresh thruster feedback through the configuration matrix, else the demand."""
         layout = self.vessel.thrusters
+        if not layout or not self.thrust:
+            return self.tau_demand.copy(), "demand"
         fresh = {tid: v for tid, v in self.thrust.items() if now_ns - v[2] <= self.feedback_timeout_ns}
-        if not layout or not fresh:
+        if not fresh:
             return self.tau_demand.copy(), "demand"
         thrust = np.array([fresh.get(t.id, (0.0, 0.0, 0))[0] for t in layout])
         angle = np.array([fresh.get(t.id, (0.0, t.angle_rad, 0))[1] for t in layout])

@@ -209,6 +209,11 @@ class Pipeline:
             for role in ("position", "heading")
             if any(role in s.roles for s in spec.sources)
         }
+        # sources that are a backup (not the best-ranked) for position / for heading
+        self._backup = {
+            role: {s.name for s in spec.sources if s.priority > best}
+            for role, best in self._best_priority.items()
+        }
 
     @staticmethod
     def _mavlink_parser(s: SourceSpec) -> FrameParser:
@@ -248,7 +253,7 @@ class Pipeline:
             texts, others = ev.checked
             c.received += others
             for text in texts:
-                s = nmea_codec.decode(text, require_checksum=not spec.allow_missing_checksum, only=USED_NMEA)
+                s = nmea_codec.decode(text, only=USED_NMEA, verified=True)
                 if isinstance(s, nmea_codec.Reject):
                     c.rejected[s.reason] += 1
                     continue
@@ -383,7 +388,7 @@ class Pipeline:
                 "/dp/measurement",
                 {
                     "stamp_ns": now_ns,
-                    "eta": [None if math.isnan(v) else float(v) for v in y],
+                    "eta": [None if v != v else v for v in y.tolist()],  # NaN (stale) -> null
                     "valid": valid,
                     "sources": sorted(
                         {h.source for h in (self.fusion.north, self.fusion.heading) if h.source}
@@ -528,9 +533,10 @@ class Pipeline:
         if datum is not None:
             lat, lon, _ = datum.to_geodetic(float(est.eta[0]), float(est.eta[1]), 0.0)
         status = est.status
-        if status == "ok" and any(
-            h.source and self.sources[h.source].priority > self._best_priority.get(role, 0)
-            for h, role in ((self.fusion.north, "position"), (self.fusion.heading, "heading"))
+        backup = self._backup
+        if status == "ok" and (
+            self.fusion.north.source in backup.get("position", ())
+            or self.fusion.heading.source in backup.get("heading", ())
         ):
             status = "degraded"  # running on a backup source
         return {

@@ -266,7 +266,11 @@ UNUSED: Final = _Unused()
 
 
 def decode(
-    text: str, *, require_checksum: bool = True, only: frozenset[str] | None = None
+    text: str,
+    *,
+    require_checksum: bool = True,
+    only: frozenset[str] | None = None,
+    verified: bool = False,
 ) -> Sentence | Reject | _Unused:
     """Decode one sentence, ``$`` to checksum (a :class:`Frame`'s ``text``; a trailing CR/LF is ignored).
 
@@ -274,7 +278,8 @@ def decode(
     ``require_checksum=False`` a sentence without ``*HH`` is accepted (some gyros send none); a checksum
     that is present is always checked. With ``only`` (sentence formatters such as ``{"GGA", "HDT"}``), a
     good sentence of another type is not parsed field by field: `UNUSED` is returned (replay skips the
-    work for sentences the pipeline does not use; checksum failures are still rejects).
+    work for sentences the pipeline does not use; checksum failures are still rejects). ``verified=True``:
+    the caller has already checked the checksum (replay's compiled line scan) and it is not recomputed.
     """
     try:
         if len(text) < 2 or text[0] not in "$!" or not text.isascii():
@@ -293,7 +298,7 @@ def decode(
                 if text.endswith(_EOL):
                     return decode(text.rstrip("\r\n"), require_checksum=require_checksum)
                 return Reject(BAD_CHECKSUM, f"checksum field {text[star + 1 :][:8]!r} is not two hex digits")
-            if _xor(body) != given:
+            if not verified and _xor(body) != given:
                 return Reject(BAD_CHECKSUM, f"checksum {text[star + 1 :]}, computed {checksum(body)}")
         if only is not None and body[2:5] not in only and body[:1] != "P":
             return UNUSED
