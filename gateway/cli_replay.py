@@ -92,7 +92,12 @@ def run(args: argparse.Namespace) -> int:
         return 2
     speed = 1.0 if args.realtime else args.speed
     publisher = _Publisher(args, config.zenoh.prefix, speed) if speed else None
-    topics = ["/dp/measurement", "/dp/estimate", *(f"/dp/estimates/{s.label}" for s in specs[1:])]
+    # Keep in memory only what the summary (errors against a simulator log's truth) and the report need.
+    topics = ["/dp/estimate", *(f"/dp/estimates/{s.label}" for s in specs[1:])]
+    if args.report:
+        topics.append("/dp/measurement")
+    elif not any(inp.kind == "mcap" for inp in inputs):
+        topics = []  # a text log or tlog has no truth: nothing to score
     bar = _bar() if sys.stderr.isatty() and not args.json else None
     t0 = time.perf_counter()
     try:

@@ -16,6 +16,7 @@ Several observer specs in one pass: the first is published on `/dp/estimate` (as
 from __future__ import annotations
 
 import base64
+import gc
 import heapq
 import json
 import math
@@ -281,6 +282,9 @@ def build_pipeline(config: GatewayConfig, specs: list[ObserverSpec]) -> Pipeline
 
 # --- the job ----------------------------------------------------------------------------------------------
 
+GC_FREEZE_EVERY = 5000
+"""Events between `gc.freeze()` calls in `run_replay`."""
+
 
 @dataclass
 class ReplayResult:
@@ -330,8 +334,14 @@ def run_replay(
     if out is not None:
         for rec in result.truth:
             out.write("/truth/state", rec, rec["stamp_ns"], rec["stamp_ns"])
+    frozen = gc.get_freeze_count()
     for ev in merged_events(inputs):
         result.events += 1
+        if frozen == 0 and result.events % GC_FREEZE_EVERY == 0:
+            # Everything alive now (the outputs kept in `collect`, the pipeline) is long-lived: take it out
+            # of the garbage collector's passes, which otherwise re-traverse it and grow with the log
+            # (2.3-3.1 s instead of 1.9 s for an hour of 10 Hz data when estimates are collected).
+            gc.freeze()
         if isinstance(ev, RawEvent):
             result.sentences += ev.data.count(b"\n") if ev.data[:1] in (b"$", b"!") else 1
             if out is not None:
@@ -353,6 +363,8 @@ def run_replay(
             on_outputs(ev, outputs)
         if progress is not None and result.events % 2000 == 0:
             progress(result.events)
+    if frozen == 0 and gc.get_freeze_count():  # (a caller's own frozen objects are left alone)
+        gc.unfreeze()  # (back to normal collection; anything cyclic frozen meanwhile is collected later)
     now = pipeline.last_ns
     status = pipeline.status(now).payload
     for name, c in status["sources"].items():
