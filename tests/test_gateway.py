@@ -103,7 +103,9 @@ def test_estimates_over_zenoh_are_what_the_observer_alone_achieves(demo_run: dic
     assert s.samples > 300
     assert s.horizontal_rms_m < 1.5 and np.degrees(s.rms[2]) < 1.5  # Hs 6 m, DGPS σ 0.3 m
     summ = demo_run["summary"]
-    assert summ["error_vs_truth"]["horizontal_rms_m"] == pytest.approx(s.horizontal_rms_m, rel=0.2)
+    # the demo scores every estimate it made, the subscriber the ones it received (its window differs by a
+    # few seconds at each end): the same figure to within sampling, not to the bit
+    assert summ["error_vs_truth"]["horizontal_rms_m"] == pytest.approx(s.horizontal_rms_m, rel=0.2, abs=0.08)
 
 
 def test_demo_counts_every_frame_sent(demo_run: dict) -> None:  # type: ignore[type-arg]

@@ -65,7 +65,7 @@ def test_papers_literal_injection_gains_leave_the_loops_practically_open() -> No
     from observers.passive_tuning import PassiveGains
 
     v = load_vessel("northern_clipper")
-    g = passive_gains(v, PassiveTuning(omega0=0.8976, omega_c=1.1))
+    g = passive_gains(v, PassiveTuning(omega0=0.8976, omega_c=1.1, bias_time_constant_s=1000.0))  # (58)
     K4 = np.diag([0.1, 0.1, 0.01])
     literal = PassiveGains(**{**g.__dict__, "K4": K4, "K3": 0.1 * K4})
     assert slowest_error_rate(v, literal) == pytest.approx(-0.001, abs=5e-4)
