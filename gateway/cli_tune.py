@@ -48,7 +48,13 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--cutoff-ratio", type=float, default=None, help="ωc/ω0 (default the paper's 1.1/0.8976 = 1.2255)"
     )
-    p.add_argument("--bias-time", type=float, default=1000.0, metavar="S", help="bias time constant T (s)")
+    p.add_argument(
+        "--bias-time",
+        type=float,
+        default=math.inf,
+        metavar="S",
+        help="bias time constant T (s); inf (default): random-walk bias; the paper's (58) is 1000",
+    )
     p.add_argument(
         "--velocity-injection-ratio",
         type=float,
