@@ -58,8 +58,10 @@ module (`reference_run`); tests/test_mmae.py checks they agree to round-off. Ful
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -69,6 +71,7 @@ from observers import _mmae_kernel as kernel
 from observers.kinematics import ssa_scalar
 from observers.passive import PassiveEstimate, PassiveRun
 from observers.vessel import VesselModel
+from observers.wave_frequency import WaveFrequencyConfig, WaveFrequencyEstimator
 
 Array = NDArray[np.float64]
 
@@ -101,6 +104,42 @@ MASKS = ((False, False, False), (True, True, False), (False, False, True), (True
 
 NAN3 = np.full(3, np.nan)
 ZERO3 = np.zeros(3)
+
+WAVE_STD_FACTOR = 0.7
+"""Identified wave-model σ = this × the measured wave-band σ: the variance the likelihood itself prefers for
+a second-order model of a JONSWAP motion spectrum (docs/mmae.md, "Tuning for identification")."""
+IDENTIFICATION_MEDIAN_OF = 5
+"""The σ's the bank is designed with are the median of the last five windows' (each DOF on its own)."""
+REDESIGN_RATIO = 1.3
+"""The bank is designed again when an identified σ moves outside [1/1.3, 1.3] × the one it was made with."""
+
+
+def identification_config(candidates: Sequence[float]) -> WaveFrequencyConfig:
+    """The spectral window for noise identification, in periods of the slowest candidate (T = 2π/ω_min):
+    Welch segments of 2 T over a 6 T window, every T, the first after one T; the band the candidates
+    span, widened by 1.5 either side."""
+    c = np.asarray(candidates, dtype=float)
+    period = 2.0 * math.pi / float(c.min())
+    return WaveFrequencyConfig(
+        window_s=6.0 * period,
+        update_period_s=period,
+        omega_min=float(c.min()) / 1.5,
+        omega_max=float(c.max()) * 1.5,
+        segment_s=2.0 * period,
+        min_span_s=period,
+        min_snr=0.0,
+        median_of=1,
+    )
+
+
+@dataclass(frozen=True)
+class NoiseIdentification:
+    """What the measurements said at time t: sensor noise σ and wave-motion σ per DOF (NaN: not seen)."""
+
+    t: float
+    measurement_sigma: tuple[float, float, float]
+    wave_sigma: tuple[float, float, float]
+    redesigned: bool
 
 
 def hassani_noise(vessel: VesselModel) -> tuple[Array, Array]:
@@ -222,13 +261,16 @@ def _matrix(value: ArrayLike, n: int, name: str) -> Array:
 def design_bank(
     vessel: VesselModel,
     candidates: Sequence[float] = HASSANI_CANDIDATES,
-    zeta: float = 0.1,
+    zeta: float = 0.25,
     Q: ArrayLike | None = None,
     R: ArrayLike | None = None,
     dt: float = 0.1,
     wave_std: ArrayLike | None = None,
 ) -> MMAEBank:
     """Discretise (14) per candidate, solve the DARE, and tabulate gains and likelihood terms.
+
+    ``zeta``: ζ of the wave model (7); 0.25 by default (the paper's 0.1 puts the bank's likelihood peak 5 %
+    above a JONSWAP sea's peak: docs/mmae.md).
 
     ``Q``: 9×9 (or 9 diagonal values) intensity of w = [w1; w2; w3]; default `hassani_noise`.
     ``R``: 3×3 (or 3 diagonal values) covariance of one measurement sample; default `hassani_noise`.
@@ -322,6 +364,14 @@ class MMAERun(PassiveRun):
     omega0: Array
 
 
+def _f3(v: Array) -> tuple[float, float, float]:
+    return float(v[0]), float(v[1]), float(v[2])
+
+
+def _clean3(v: tuple[float, float, float]) -> list[float | None]:
+    return [x if math.isfinite(x) else None for x in v]
+
+
 class MMAEObserver:
     """Hassani et al.'s MMAE wave filter for any `VesselModel`; the observer interface of `observers`.
 
@@ -334,6 +384,14 @@ class MMAEObserver:
     filter (0 ≤ floor < 1/N), ``warmup_s`` how long after the first measurement the weights stay
     uniform (default 0: measured to delay identification), ``max_gap_s`` the longest gap bridged by
     prediction, ``heading_in_weights`` whether the heading innovation votes in the weights.
+
+    ``identify_noise`` (default: whenever R or the wave model is not given): the sensor noise σ (robust
+    spread of sample-to-sample differences) and the wave-motion σ (Welch band power above the noise floor)
+    are measured over a sliding window of three periods of the slowest candidate, every 0.75 period; the
+    bank is designed again with R = σ_n², wave_std = 0.7·σ_wave when either moves by more than 30 %
+    (filter states and weights kept). The weights start moving at the first identification, about one
+    slowest period after the first sample. Hassani's (A.2) Q and R, the fallback before that, do not
+    identify real seas (docs/mmae.md). The default ζ is 0.25, not the paper's 0.1, for the same reason.
     """
 
     def __init__(
@@ -341,7 +399,7 @@ class MMAEObserver:
         vessel: VesselModel,
         *,
         candidates: Sequence[float] = HASSANI_CANDIDATES,
-        zeta: float = 0.1,
+        zeta: float = 0.25,
         Q: ArrayLike | None = None,
         R: ArrayLike | None = None,
         dt: float = 0.1,
@@ -350,9 +408,20 @@ class MMAEObserver:
         warmup_s: float = 0.0,
         max_gap_s: float = 60.0,
         heading_in_weights: bool = True,
+        identify_noise: bool | None = None,
     ) -> None:
         self.vessel = vessel
-        self.bank = design_bank(vessel, candidates, zeta, Q, R, dt, wave_std)
+        self.bank = self._initial_bank = design_bank(vessel, candidates, zeta, Q, R, dt, wave_std)
+        self._design_args = (tuple(float(c) for c in candidates), float(zeta), Q, R, float(dt), wave_std)
+        # Identify what was not given: R unless R is given, the wave model unless Q or wave_std is.
+        self._fixed_R = R is not None
+        self._fixed_Q1 = Q is not None or wave_std is not None
+        self.identify_noise = (
+            not (self._fixed_R and self._fixed_Q1) if identify_noise is None else bool(identify_noise)
+        )
+        self.identified: NoiseIdentification | None = None
+        self._design_sigma: tuple[Array, Array] | None = None  # (measurement σ, wave σ) of the bank in use
+        self.noise_estimator = WaveFrequencyEstimator(identification_config(candidates))
         n = self.bank.n
         self.weight_floor = float(weight_floor)
         if not (0.0 <= self.weight_floor < 1.0 / n):
@@ -367,10 +436,20 @@ class MMAEObserver:
         self._params = np.array(
             [self.bank.dt, self.weight_floor, self.warmup_s, self.max_gap_s, float(self.heading_in_weights)]
         )
-        self.reset()
+        self.reset()  # (when identifying, the weights wait for the first identification: warm-up ∞)
 
     def reset(self) -> None:
-        """Back to uninitialised, uniform weights."""
+        """Back to uninitialised, uniform weights (and, when identifying, the initial bank and no noise
+        estimate)."""
+        if self.identify_noise:
+            self.bank = self._initial_bank
+            self.noise_estimator.reset()
+            self.identified = None
+            self._design_sigma = None
+            self._history: list[tuple[Array, Array]] = []
+            self._params[2] = math.inf
+        # samples (t, y, τ chunks) taken before the first identification, to run again through its bank
+        self._prefix: list[tuple[Array, Array, Array]] = []
         n = self.bank.n
         self._X = np.zeros((n, N_STATE))
         self._p = np.full(n, 1.0 / n)
@@ -409,13 +488,85 @@ class MMAEObserver:
     def frame_heading(self) -> float:
         return float(self._clock[2])
 
-    def extra(self) -> dict[str, list[float]]:
+    def extra(self) -> dict[str, Any]:
         """Fields for the estimate message."""
-        return {
+        out: dict[str, Any] = {
             "weights": self._p.tolist(),
             "candidates": self.bank.candidates.tolist(),
             "omega0_blended": self.omega0.tolist(),
         }
+        if self.identified is not None:
+            out["measurement_sigma"] = _clean3(self.identified.measurement_sigma)
+            out["wave_sigma"] = _clean3(self.identified.wave_sigma)
+        return out
+
+    def _identify(self, t: float) -> None:
+        """An update of the noise estimator is due at t: measure σ's, design the bank again if they moved."""
+        est = self.noise_estimator
+        est.estimate(t)  # the spectrum of the window (its ω0 is not used here: the bank identifies ω0)
+        info = est.last_info
+        if info is None or info.t != t:
+            return
+        cfg = est.config
+        sig_n = est.noise_sigma(t, cfg.window_s)
+        width = cfg.omega_max - cfg.omega_min
+        power = np.array(info.band_power) - np.array(info.noise_psd) * width
+        sig_w = np.sqrt(np.where(power > 0, power, np.nan))
+        # the median of the last few windows: one window of a few wave periods scatters by ±30 % and more,
+        # and every redesign moves the likelihoods the weights are made of
+        self._history.append((np.where(sig_n > 0, sig_n, np.nan), np.where(sig_w > 0, sig_w, np.nan)))
+        del self._history[:-IDENTIFICATION_MEDIAN_OF]
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns: that DOF was not seen
+            med_n = np.nanmedian(np.array([h[0] for h in self._history]), axis=0)
+            med_w = np.nanmedian(np.array([h[1] for h in self._history]), axis=0)
+        prev = self._design_sigma
+        meas = np.where(np.isfinite(med_n), med_n, np.nan if prev is None else prev[0])
+        wave = np.where(np.isfinite(med_w), med_w, np.nan if prev is None else prev[1])
+        redesign = False
+        if np.all(np.isfinite(meas)) and np.all(np.isfinite(wave)):
+            if prev is None:
+                redesign = True
+            else:
+                ratios = np.concatenate([meas / prev[0], wave / prev[1]])
+                redesign = bool(np.any((ratios > REDESIGN_RATIO) | (ratios < 1.0 / REDESIGN_RATIO)))
+        if redesign:
+            cand, zeta, Q, R, dt, wave_std = self._design_args
+            self.bank = design_bank(
+                self.vessel,
+                cand,
+                zeta,
+                Q,
+                R if self._fixed_R else np.diag(meas**2),
+                dt,
+                wave_std if self._fixed_Q1 else WAVE_STD_FACTOR * wave,
+            )
+            first = self._design_sigma is None
+            self._design_sigma = (meas, wave)
+            self._params[2] = self.warmup_s  # the weights may move from now on
+            if first and self._prefix:
+                self._restart_on_prefix()
+        self.identified = NoiseIdentification(t, _f3(meas), _f3(wave), redesign)
+
+    def _restart_on_prefix(self) -> None:
+        """The first identified bank starts where the record started: the filters and weights are set back
+        and run again over the samples taken so far (their outputs were already given, by the fallback
+        bank with the weights held), so that the bank's state is what it would be had it been designed
+        at the first sample. Costs one pass over one slowest period of data, once."""
+        t = np.concatenate([c[0] for c in self._prefix])
+        Y = np.ascontiguousarray(np.concatenate([c[1] for c in self._prefix]))
+        TAU = np.ascontiguousarray(np.concatenate([c[2] for c in self._prefix]))
+        self._prefix = []
+        n = self.bank.n
+        self._X = np.zeros((n, N_STATE))
+        self._p = np.full(n, 1.0 / n)
+        self._xb = np.zeros(N_STATE)
+        self._clock = np.zeros(4)
+        m = t.shape[0]
+        kernel.run(
+            self._X, self._p, self._xb, self._clock, t, Y, TAU, *self._kernel_args(),
+            np.empty((m, 4, 3)), np.empty((m, n)), np.empty(m, dtype=np.int8),
+        )  # fmt: skip
 
     def _kernel_args(self) -> tuple[Array, Array, Array, Array, Array, Array, Array, Array]:
         b = self.bank
@@ -425,10 +576,19 @@ class MMAEObserver:
         """Advance to time t (s) with measurement y and generalised force τ held since the last sample."""
         y_arr = np.asarray(y, dtype=float).reshape(3)
         tau_arr = ZERO3 if tau is None else np.asarray(tau, dtype=float).reshape(3)
+        if self.identify_noise:
+            est = self.noise_estimator
+            est.add(float(t), y_arr)
+            if est.due(float(t)):
+                self._identify(float(t))
         out = np.empty((4, 3))
         code = kernel.step(
             self._X, self._p, self._xb, self._clock, float(t), y_arr, tau_arr, *self._kernel_args()
         )
+        if self.identify_noise and self._design_sigma is None:
+            self._prefix.append(
+                (np.array([float(t)]), y_arr.reshape(1, 3).copy(), tau_arr.reshape(1, 3).copy())
+            )
         if code == kernel.STATUS_INITIALIZING:
             return PassiveEstimate(float(t), NAN3, NAN3, NAN3, NAN3, "initializing")
         kernel.outputs(self._xb, self._clock[2], out)
@@ -447,9 +607,40 @@ class MMAEObserver:
         OUT = np.empty((n, 4, 3))
         W = np.empty((n, self.bank.n))
         status = np.empty(n, dtype=np.int8)
-        kernel.run(
-            self._X, self._p, self._xb, self._clock, t_arr, Y, TAU, *self._kernel_args(), OUT, W, status
-        )
+        a = 0  # the kernel has run samples [0, a)
+        if self.identify_noise and n:
+            # Identifications depend on the measurements only: walk the estimator through the record to
+            # each update, run the kernel up to it, identify (perhaps designing the bank again), go on.
+            # `step` does the same at the same samples, so both give the same numbers.
+            est = self.noise_estimator
+            t_max = np.maximum.accumulate(t_arr)
+            k = 0
+            while k < n:
+                nxt = est.next_update_t
+                j = n if nxt is None else int(np.searchsorted(t_max, nxt, side="left"))
+                if nxt is None:
+                    est.add(t_arr[:1], Y[:1])
+                    k = 1
+                    continue
+                if j >= n:
+                    est.add(t_arr[k:], Y[k:])
+                    break
+                est.add(t_arr[k : j + 1], Y[k : j + 1])
+                k = j + 1
+                if j > a:
+                    kernel.run(
+                        self._X, self._p, self._xb, self._clock, t_arr[a:j], Y[a:j], TAU[a:j],
+                        *self._kernel_args(), OUT[a:j], W[a:j], status[a:j],
+                    )  # fmt: skip
+                    if self._design_sigma is None:
+                        self._prefix.append((t_arr[a:j], Y[a:j], TAU[a:j]))
+                    a = j
+                self._identify(float(t_arr[j]))
+        if a < n:
+            kernel.run(
+                self._X, self._p, self._xb, self._clock, t_arr[a:], Y[a:], TAU[a:],
+                *self._kernel_args(), OUT[a:], W[a:], status[a:],
+            )  # fmt: skip
         om = np.empty(n)
         kernel.blended_omegas(W, self.bank.candidates, om)
         omega = np.repeat(om[:, None], 3, axis=1)

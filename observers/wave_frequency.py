@@ -186,6 +186,10 @@ class SpectrumInfo:
     snr: tuple[float, float, float]
     peak: tuple[float, float, float]
     combined_peak: float
+    band_power: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+    """Mean power of the clean segments in [ω_min, ω_max] per DOF (m², rad²; noise included)."""
+    noise_psd: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+    """Mean noise level per DOF (one-sided PSD per rad/s, from the noise reference band)."""
 
     def as_dict(self) -> dict[str, Any]:
         def clean(values: tuple[float, ...]) -> list[float | None]:
@@ -286,6 +290,30 @@ class WaveFrequencyEstimator:
         t_new[:kept] = self._t[i0 : self._n]
         y_new[:, :kept] = self._y[:, i0 : self._n]
         self._t, self._y, self._n = t_new, y_new, kept
+
+    def noise_sigma(self, t: float, span_s: float) -> Array:
+        """σ of the sensor noise per DOF from the samples in (t − span_s, t]: the robust spread of the
+        second differences y[k+1] − 2y[k] + y[k−1], 1.4826·MAD/√6 (heading differences wrapped). White
+        noise has 6σ² of variance there, while motion smooth on the sampling scale hardly appears: a
+        speed or a ramp not at all, waves at 1 rad/s sampled at 10 Hz with (ω·dt)⁴ ≈ 1e-4 of their
+        variance. NaN for a DOF with fewer than 20 usable differences."""
+        i0 = int(np.searchsorted(self._t[: self._n], t - span_s, side="right"))
+        i1 = int(np.searchsorted(self._t[: self._n], t, side="right"))
+        out = np.full(3, math.nan)
+        if i1 - i0 < 22:
+            return out
+        dt = np.diff(self._t[i0:i1])
+        ok = dt <= 1.5 * float(np.median(dt))  # differences across a dropout are not noise
+        regular = ok[1:] & ok[:-1] & (np.abs(dt[1:] - dt[:-1]) <= 0.25 * dt[:-1])
+        for i in range(3):
+            d = np.diff(self._y[i, i0:i1])
+            if i == 2:
+                d = (d + math.pi) % (2.0 * math.pi) - math.pi
+            d2 = np.diff(d)
+            d2 = d2[regular & np.isfinite(d2)]
+            if d2.size >= 20:
+                out[i] = 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0)
+        return out
 
     # -- estimate --------------------------------------------------------------------------------------------
 
@@ -461,6 +489,8 @@ class WaveFrequencyEstimator:
                 weight[i] = w / (band_power[i] * count[i])
         nan3 = (math.nan, math.nan, math.nan)
         segs = (count[0], count[1], count[2])
+        powers = _f3([band_power[i] if count[i] else math.nan for i in range(3)])
+        noises = _f3([noise_level[i] / count[i] if count[i] else math.nan for i in range(3)])
         if not any(used):
             reason = (
                 "too little clean data: no DOF has a segment without a gap > max_gap_s"
@@ -468,13 +498,17 @@ class WaveFrequencyEstimator:
                 else f"no wave peak above the noise (wave-band snr < min_snr = {c.min_snr:g} in every DOF)"
             )
             self._skip(
-                t, reason, SpectrumInfo(t, (used[0], used[1], used[2]), segs, _f3(snr), nan3, math.nan)
+                t,
+                reason,
+                SpectrumInfo(t, (used[0], used[1], used[2]), segs, _f3(snr), nan3, math.nan, powers, noises),
             )
             return None
         w_band = omega[band]
         shared = _peak(np.dot(weight, psd), w_band)
         peaks = [_peak(psd[i], w_band) if c.per_dof and used[i] else math.nan for i in range(3)]
-        info = SpectrumInfo(t, (used[0], used[1], used[2]), segs, _f3(snr), _f3(peaks), shared)
+        info = SpectrumInfo(
+            t, (used[0], used[1], used[2]), segs, _f3(snr), _f3(peaks), shared, powers, noises
+        )
         if not math.isfinite(shared):
             self._skip(
                 t, "the spectral maximum lies on an edge of [omega_min, omega_max]: no peak inside", info
