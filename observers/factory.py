@@ -1,8 +1,8 @@
 """Observers by name — what the gateway's ``[observer] type`` and replay's ``--observer`` specs choose.
 
-MMAE note (docs/mmae.md): Hassani's (A.2) noise settings do not identify real seas; give
-``measurement_sigma`` (the sensors' σ) and ``wave_std`` (the expected WF motion σ per DOF), and prefer
-``zeta = 0.25`` for JONSWAP seas.
+MMAE note (docs/mmae.md): Hassani's (A.2) noise settings do not identify real seas. By default the MMAE
+measures the sensors' σ and the wave motion's σ from the data and designs its bank from them (ζ 0.25);
+``measurement_sigma`` and ``wave_std`` fix either instead (e.g. from data sheets and a forecast).
 
 | name | paper | module |
 |---|---|---|

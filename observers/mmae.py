@@ -58,7 +58,6 @@ module (`reference_run`); tests/test_mmae.py checks they agree to round-off. Ful
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -364,6 +363,40 @@ class MMAERun(PassiveRun):
     omega0: Array
 
 
+def _new_only(y: Array, last: Array) -> Array:
+    """y with a value repeated exactly from the previous sample set to NaN (the position N, E as a pair,
+    the heading alone), for the noise identification: a gateway holds a 2 Hz fix between the 10 Hz
+    headings, and held values would read as a noise-free sensor. (The filters still get every sample as
+    given: they initialise on the first complete one.)"""
+    out = y.copy()
+    if y[0] == last[0] and y[1] == last[1]:
+        out[0] = out[1] = math.nan
+    if y[2] == last[2]:
+        out[2] = math.nan
+    return out
+
+
+def _new_only_rows(Y: Array, last: Array) -> Array:
+    """`_new_only` over rows: each compared with the row before (the first with ``last``)."""
+    prev = np.vstack([last.reshape(1, 3), Y[:-1]])
+    out = Y.copy()
+    pos = (Y[:, 0] == prev[:, 0]) & (Y[:, 1] == prev[:, 1])
+    out[pos, 0:2] = np.nan
+    out[Y[:, 2] == prev[:, 2], 2] = np.nan
+    return out
+
+
+def _median_finite(rows: list[Array]) -> Array:
+    """Per DOF, the median of the finite values of ``rows`` (NaN where there is none)."""
+    out = np.full(3, math.nan)
+    for i in range(3):
+        v = sorted(float(r[i]) for r in rows if math.isfinite(r[i]))
+        m = len(v)
+        if m:
+            out[i] = v[m // 2] if m % 2 else 0.5 * (v[m // 2 - 1] + v[m // 2])
+    return out
+
+
 def _f3(v: Array) -> tuple[float, float, float]:
     return float(v[0]), float(v[1]), float(v[2])
 
@@ -448,6 +481,7 @@ class MMAEObserver:
             self._design_sigma = None
             self._history: list[tuple[Array, Array]] = []
             self._params[2] = math.inf
+        self._last_y = np.full(3, np.nan)  # the previous sample as given (see `_new_only`)
         # samples (t, y, τ chunks) taken before the first identification, to run again through its bank
         self._prefix: list[tuple[Array, Array, Array]] = []
         n = self.bank.n
@@ -508,7 +542,7 @@ class MMAEObserver:
         if info is None or info.t != t:
             return
         cfg = est.config
-        sig_n = est.noise_sigma(t, cfg.window_s)
+        sig_n = est.noise_sigma(t, cfg.update_period_s)  # since the last update: ~200 differences at 10 Hz
         width = cfg.omega_max - cfg.omega_min
         power = np.array(info.band_power) - np.array(info.noise_psd) * width
         sig_w = np.sqrt(np.where(power > 0, power, np.nan))
@@ -516,10 +550,8 @@ class MMAEObserver:
         # and every redesign moves the likelihoods the weights are made of
         self._history.append((np.where(sig_n > 0, sig_n, np.nan), np.where(sig_w > 0, sig_w, np.nan)))
         del self._history[:-IDENTIFICATION_MEDIAN_OF]
-        with np.errstate(all="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns: that DOF was not seen
-            med_n = np.nanmedian(np.array([h[0] for h in self._history]), axis=0)
-            med_w = np.nanmedian(np.array([h[1] for h in self._history]), axis=0)
+        med_n = _median_finite([h[0] for h in self._history])
+        med_w = _median_finite([h[1] for h in self._history])
         prev = self._design_sigma
         meas = np.where(np.isfinite(med_n), med_n, np.nan if prev is None else prev[0])
         wave = np.where(np.isfinite(med_w), med_w, np.nan if prev is None else prev[1])
@@ -575,10 +607,12 @@ class MMAEObserver:
     def step(self, t: float, y: ArrayLike, tau: ArrayLike | None = None) -> PassiveEstimate:
         """Advance to time t (s) with measurement y and generalised force τ held since the last sample."""
         y_arr = np.asarray(y, dtype=float).reshape(3)
+        fresh = _new_only(y_arr, self._last_y)
+        self._last_y = y_arr.copy()
         tau_arr = ZERO3 if tau is None else np.asarray(tau, dtype=float).reshape(3)
         if self.identify_noise:
             est = self.noise_estimator
-            est.add(float(t), y_arr)
+            est.add(float(t), fresh)
             if est.due(float(t)):
                 self._identify(float(t))
         out = np.empty((4, 3))
@@ -603,6 +637,9 @@ class MMAEObserver:
         t_arr = np.ascontiguousarray(t, dtype=float).ravel()
         n = t_arr.shape[0]
         Y = np.ascontiguousarray(y, dtype=float).reshape(n, 3)
+        fresh = _new_only_rows(Y, self._last_y)
+        if n:
+            self._last_y = Y[-1].copy()
         TAU = np.zeros((n, 3)) if tau is None else np.ascontiguousarray(tau, dtype=float).reshape(n, 3)
         OUT = np.empty((n, 4, 3))
         W = np.empty((n, self.bank.n))
@@ -619,13 +656,13 @@ class MMAEObserver:
                 nxt = est.next_update_t
                 j = n if nxt is None else int(np.searchsorted(t_max, nxt, side="left"))
                 if nxt is None:
-                    est.add(t_arr[:1], Y[:1])
+                    est.add(t_arr[:1], fresh[:1])
                     k = 1
                     continue
                 if j >= n:
-                    est.add(t_arr[k:], Y[k:])
+                    est.add(t_arr[k:], fresh[k:])
                     break
-                est.add(t_arr[k : j + 1], Y[k : j + 1])
+                est.add(t_arr[k : j + 1], fresh[k : j + 1])
                 k = j + 1
                 if j > a:
                     kernel.run(

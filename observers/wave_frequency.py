@@ -296,12 +296,27 @@ class WaveFrequencyEstimator:
         second differences y[k+1] − 2y[k] + y[k−1], 1.4826·MAD/√6 (heading differences wrapped). White
         noise has 6σ² of variance there, while motion smooth on the sampling scale hardly appears: a
         speed or a ramp not at all, waves at 1 rad/s sampled at 10 Hz with (ω·dt)⁴ ≈ 1e-4 of their
-        variance. NaN for a DOF with fewer than 20 usable differences."""
+        variance. Each DOF uses its own samples (NaN = not measured). NaN for a DOF with fewer than 20
+        usable differences."""
         i0 = int(np.searchsorted(self._t[: self._n], t - span_s, side="right"))
         i1 = int(np.searchsorted(self._t[: self._n], t, side="right"))
         out = np.full(3, math.nan)
-        if i1 - i0 < 22:
-            return out
+        for i in range(3):
+            y = self._y[i, i0:i1]
+            have = np.isfinite(y)
+            if int(have.sum()) < 22:
+                continue
+            tt, y = self._t[i0:i1][have], y[have]  # each DOF at its own samples (a fix every 0.5 s …)
+            dt = np.diff(tt)
+            ok = dt <= 1.5 * float(np.median(dt))  # differences across a dropout are not noise
+            regular = ok[1:] & ok[:-1] & (np.abs(dt[1:] - dt[:-1]) <= 0.25 * dt[:-1])
+            d = np.diff(y)
+            if i == 2:
+                d = (d + math.pi) % (2.0 * math.pi) - math.pi
+            d2 = np.diff(d)[regular]
+            if d2.size >= 20:
+                out[i] = 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0)
+        return out
         dt = np.diff(self._t[i0:i1])
         ok = dt <= 1.5 * float(np.median(dt))  # differences across a dropout are not noise
         regular = ok[1:] & ok[:-1] & (np.abs(dt[1:] - dt[:-1]) <= 0.25 * dt[:-1])
