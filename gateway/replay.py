@@ -343,9 +343,11 @@ def run_replay(
             # (2.3-3.1 s instead of 1.9 s for an hour of 10 Hz data when estimates are collected).
             gc.freeze()
         if isinstance(ev, RawEvent):
-            result.sentences += ev.data.count(b"\n") if ev.data[:1] in (b"$", b"!") else 1
+            protocol = pipeline.sources[ev.source].protocol if ev.source in pipeline.sources else "nmea"
+            # NMEA: lines (every event ends with its line end; a first line that is a sentence's tail
+            # counts too); MAVLink: one frame per event
+            result.sentences += ev.data.count(b"\n") if protocol == "nmea" else 1
             if out is not None:
-                protocol = pipeline.sources[ev.source].protocol if ev.source in pipeline.sources else "nmea"
                 if protocol == "nmea":
                     out.write_raw_nmea(ev.source, ev.data, ev.rx_ns, ev.rx_ns)
                 else:
