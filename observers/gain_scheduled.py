@@ -446,7 +446,7 @@ def validate_contraction(check: ContractionCheck) -> None:
 # Schedule state S (4): 0 t of the last sample, 1 started, 2 budget β, 3 enabled.
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def gains_at(omega, P, G):
     """Packed kernel gains G (8×3) at ω0 — the arithmetic of `passive_gains`, operation for operation."""
     for i in range(3):
@@ -467,7 +467,7 @@ def gains_at(omega, P, G):
         G[7, i] = P[9, i]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _interp(x, xp, fp):
     n = xp.shape[0]
     if x <= xp[0]:
@@ -479,7 +479,7 @@ def _interp(x, xp, fp):
     return fp[j] + f * (fp[j + 1] - fp[j])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _cell_min(x, xp, fp):
     """min of fp over the grid cell holding x (a conservative piecewise-constant α)."""
     n = xp.shape[0]
@@ -491,7 +491,7 @@ def _cell_min(x, xp, fp):
     return min(fp[j], fp[j + 1])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _cost(omega, new, s, grid, cost, shared):
     c = 0.0
     if shared:
@@ -505,7 +505,7 @@ def _cost(omega, new, s, grid, cost, shared):
     return c
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def advance_schedule(omega, target, S, dt, tau_r, grid, alpha, cost, budget, shared, new):
     """Move ω0 over dt towards target: first-order lag τ_r, within the contraction budget. True if moved.
 
