@@ -125,6 +125,42 @@ def _first_date(path: Path, limit: int = 2000) -> date | None:
     return None
 
 
+class _TimeKeeper:
+    """Cycle times of a text log: the date and midnight rollover for each time of day, and the bad-time
+    counts when a cycle starts (module docstring). Shared by both readers."""
+
+    def __init__(self, day_ns: int, gap_s: float, counts: LogCounts) -> None:
+        self.day_ns = day_ns
+        self.gap_ns = gap_s * NS
+        self.counts = counts
+        self.last_tod: float | None = None
+        self.latest_ns = -1
+        self.seen: set[int] = set()
+
+    def stamp(self, tod: float) -> int:
+        """UTC ns of a time of day, the day moved on (or back) across midnight."""
+        last = self.last_tod
+        if last is not None and tod < last - 43_200:
+            self.day_ns += DAY_NS  # midnight rollover
+        elif last is not None and tod > last + 43_200:
+            self.day_ns -= DAY_NS  # a late sentence from before midnight
+        self.last_tod = tod
+        return self.day_ns + round(tod * 1e9)
+
+    def start_cycle(self, t_ns: int) -> None:
+        """Count what is wrong with a new cycle's time: a gap, going backwards, a repeat."""
+        c = self.counts.counts
+        if self.latest_ns >= 0:
+            if t_ns < self.latest_ns:
+                c["repeated_time" if t_ns in self.seen else "time_backwards"] += 1
+            elif t_ns - self.latest_ns > self.gap_ns:
+                c["time_gap"] += 1
+        self.latest_ns = max(self.latest_ns, t_ns)
+        if len(self.seen) > 100_000:
+            self.seen.clear()
+        self.seen.add(t_ns)
+
+
 def nmea_text_events_reference(
     path: str | Path,
     source: str = "nmea",
@@ -141,9 +177,7 @@ def nmea_text_events_reference(
     day_ns = int(datetime(day.year, day.month, day.day, tzinfo=UTC).timestamp()) * NS
     lines: list[bytes] = []
     cycle_ns: int | None = None
-    last_tod: float | None = None
-    latest_ns = -1
-    seen: set[int] = set()
+    clock = _TimeKeeper(day_ns, gap_s, c)
     previous = b""
     with open(path, "rb") as f:
         for raw in f:
@@ -160,31 +194,18 @@ def nmea_text_events_reference(
                 # Most timed sentences repeat their cycle's time: only a new time needs the checksum
                 # (a damaged time field must not start a cycle).
                 quick = _unchecked_time(line)
-                if quick is not None and quick == last_tod:
+                if quick is not None and quick == clock.last_tod:
                     tod = quick
                 else:
                     tod, _ = _sentence_time(line.decode("ascii", "replace"))
             if tod is not None:
-                if last_tod is not None and tod < last_tod - 43_200:
-                    day_ns += DAY_NS  # midnight rollover
-                elif last_tod is not None and tod > last_tod + 43_200:
-                    day_ns -= DAY_NS  # a late sentence from before midnight
-                last_tod = tod
-                t_ns = day_ns + round(tod * 1e9)
+                t_ns = clock.stamp(tod)
                 if t_ns != cycle_ns:
                     if lines and cycle_ns is not None:
                         yield RawEvent(cycle_ns, source, b"\r\n".join(lines) + b"\r\n")
                         c.cycles += 1
                         lines = []
-                    if latest_ns >= 0:
-                        if t_ns < latest_ns:
-                            c.counts["repeated_time" if t_ns in seen else "time_backwards"] += 1
-                        elif t_ns - latest_ns > gap_s * NS:
-                            c.counts["time_gap"] += 1
-                    latest_ns = max(latest_ns, t_ns)
-                    if len(seen) > 100_000:
-                        seen.clear()
-                    seen.add(t_ns)
+                    clock.start_cycle(t_ns)
                     cycle_ns = t_ns
             lines.append(line)
     if lines:
@@ -241,9 +262,7 @@ def nmea_text_events(
     used = used_codes(only) if only is not None else None
     cycle = _Cycle()
     cycle_ns: int | None = None
-    last_tod: float | None = None
-    latest_ns = -1
-    seen: set[int] = set()
+    clock = _TimeKeeper(day_ns, gap_s, c)
     prev = b""
     with open(path, "rb") as f:
         tail = b""
@@ -284,18 +303,13 @@ def nmea_text_events(
                 else:
                     line = block.line(li)
                     quick = _unchecked_time(line)
-                    if quick is not None and quick == last_tod:
+                    if quick is not None and quick == clock.last_tod:
                         tod = quick
                     else:
                         tod, _ = _sentence_time(line.decode("ascii", "replace"))
                 if tod is None:
                     continue
-                if last_tod is not None and tod < last_tod - 43_200:
-                    day_ns += DAY_NS  # midnight rollover
-                elif last_tod is not None and tod > last_tod + 43_200:
-                    day_ns -= DAY_NS  # a late sentence from before midnight
-                last_tod = tod
-                t_ns = day_ns + round(tod * 1e9)
+                t_ns = clock.stamp(tod)
                 if t_ns != cycle_ns:
                     if cycle_ns is not None:
                         block.add_to(cycle, first, li)
@@ -304,15 +318,7 @@ def nmea_text_events(
                             yield cycle.event(cycle_ns, source)
                             c.cycles += 1
                             cycle = _Cycle()
-                    if latest_ns >= 0:
-                        if t_ns < latest_ns:
-                            c.counts["repeated_time" if t_ns in seen else "time_backwards"] += 1
-                        elif t_ns - latest_ns > gap_s * NS:
-                            c.counts["time_gap"] += 1
-                    latest_ns = max(latest_ns, t_ns)
-                    if len(seen) > 100_000:
-                        seen.clear()
-                    seen.add(t_ns)
+                    clock.start_cycle(t_ns)
                     cycle_ns = t_ns
             block.add_to(cycle, first, block.n)
             if not chunk:

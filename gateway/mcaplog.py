@@ -447,39 +447,39 @@ class McapLogWriter:
         publish_time_ns: int,
         schema: tuple[str, Mapping[str, Any]] | None,
     ) -> None:
-        # The common case first, kept short (replay writes ~150,000 messages a second): a known channel
-        # (so this file already has a message: its first/max/flush log times are set), no rotation due.
+        # The common case is kept short (replay writes ~150,000 messages a second): a known channel (so
+        # this file already has a message and its log times are set) and no rotation due.
         channel_id = self._channels.get(topic)
-        writer = self._writer
         if (
             channel_id is None
-            or writer is None
+            or self._writer is None
             or (self._rotate_ns is not None and log_time_ns - self._file_first_log_ns >= self._rotate_ns)  # type: ignore[operator]
         ):
-            self._write_first(topic, data, log_time_ns, publish_time_ns, schema)
-            return
-        size = _MESSAGE_FIXED + len(data)
-        if self._pending_bytes and self._pending_bytes + size > self._chunk_budget:
-            self._close_chunk()
+            channel_id, size = self._prepare(topic, len(data), log_time_ns, schema)
+        else:
+            size = _MESSAGE_FIXED + len(data)
+            # Close the chunk *before* this message would take it past its budget.
+            if self._pending_bytes and self._pending_bytes + size > self._chunk_budget:
+                self._close_chunk()
+        writer = self._writer
+        assert writer is not None
         writer.add_message(channel_id, log_time_ns, data, publish_time_ns)
         self.message_count += 1
         self._dirty = True
         self._pending_bytes += size
         if self._pending_bytes > self._chunk_budget:
-            self._pending_bytes = 0  # a record larger than a chunk: the Writer has closed it on its own
-        if log_time_ns > self._max_log_ns:  # type: ignore[operator]
+            # A single record larger than chunk_size: the mcap Writer has already closed it as its own chunk.
+            self._pending_bytes = 0
+        if self._max_log_ns is None or log_time_ns > self._max_log_ns:
             self._max_log_ns = log_time_ns
         self._after_write()
 
-    def _write_first(
-        self,
-        topic: str,
-        data: bytes,
-        log_time_ns: int,
-        publish_time_ns: int,
-        schema: tuple[str, Mapping[str, Any]] | None,
-    ) -> None:
-        """`_write_locked` for a new channel, a new file or a rotation."""
+    def _prepare(
+        self, topic: str, data_len: int, log_time_ns: int, schema: tuple[str, Mapping[str, Any]] | None
+    ) -> tuple[int, int]:
+        """For a new channel, a new file or a rotation: rotate or open as due, close the chunk if the
+        message and the records it brings would overfill it, register schema and channel. Returns the
+        channel id and the bytes the message adds to the chunk."""
         if (
             self._rotate_ns is not None
             and self._file_first_log_ns is not None
@@ -491,7 +491,7 @@ class McapLogWriter:
         writer = self._writer
         assert writer is not None
 
-        size = _MESSAGE_FIXED + len(data)
+        size = _MESSAGE_FIXED + data_len
         channel_id = self._channels.get(topic)
         new_schema: tuple[str, bytes] | None = None
         if channel_id is None:
@@ -500,10 +500,8 @@ class McapLogWriter:
             if name not in self._schemas:
                 size += _schema_record_size(name, SchemaEncoding.JSONSchema, new_schema[1])
             size += _channel_record_size(topic, MessageEncoding.JSON)
-        # Close the chunk *before* this message would take it past its budget.
         if self._pending_bytes and self._pending_bytes + size > self._chunk_budget:
             self._close_chunk()
-
         if channel_id is None:
             assert new_schema is not None
             name, schema_bytes = new_schema
@@ -513,21 +511,11 @@ class McapLogWriter:
                 self._schemas[name] = schema_id
             channel_id = writer.register_channel(topic, MessageEncoding.JSON, schema_id)
             self._channels[topic] = channel_id
-        writer.add_message(channel_id, log_time_ns, data, publish_time_ns)
-        self.message_count += 1
-        self._dirty = True
-        self._pending_bytes += size
-        if self._pending_bytes > self._chunk_budget:
-            # A single record larger than chunk_size: the mcap Writer has already closed it as its own chunk.
-            self._pending_bytes = 0
-
         if self._file_first_log_ns is None:
             self._file_first_log_ns = log_time_ns
-        if self._max_log_ns is None or log_time_ns > self._max_log_ns:
-            self._max_log_ns = log_time_ns
         if self._last_flush_log_ns is None:
             self._last_flush_log_ns = log_time_ns
-        self._after_write()
+        return channel_id, size
 
     def _after_write(self) -> None:
         """Flush on wall or log time, rotate on size: the checks after every message."""
