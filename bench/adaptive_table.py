@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import tempfile
 from dataclasses import replace
@@ -35,7 +34,6 @@ from simulator.closed_loop import run_closed_loop
 from simulator.runner import Route, Simulation
 from simulator.scenarios import Scenario, get_scenario
 from simulator.transports import MemorySink
-from simulator.waves import WaveResponse
 
 
 def _setpoint(t: float, north: float, heading_deg: float) -> tuple[float, str, dict[str, float]]:
@@ -50,20 +48,9 @@ CASES = {
 }
 
 
-def forecast_wave_std(scenario: Scenario) -> list[float]:
-    """Expected WF motion σ per DOF from the sea state through the vessel's RAOs (a forecast, not the
-    simulated truth) — what an operator would give the MMAE bank."""
-    sea = scenario.sea[0][1]
-    resp = WaveResponse.for_vessel(scenario.vessel)
-    w = np.linspace(0.2 * sea.peak_frequency, 5 * sea.peak_frequency, 2000)
-    spectrum = resp.response_spectrum(w, sea, scenario.eta0[2])
-    return [float(math.sqrt(np.trapezoid(spectrum[:, k], w))) for k in range(3)]
-
-
 def observers(scenario: Scenario, start: float) -> list[ObserverSpec]:
     """The fixed and gain-scheduled observers from the badly tuned ω0; the MMAE with no tuning at all (it
-    identifies the sensor noise and the wave motion itself). `forecast_wave_std` is what one would give
-    it instead (docs/mmae.md)."""
+    identifies the sensor noise and the wave motion itself; docs/mmae.md)."""
     return [
         ObserverSpec("passive", "fixed", {"omega0": start}),
         ObserverSpec("gain_scheduled", "gain_scheduled", {"omega0": start, "omega0_initial": start}),

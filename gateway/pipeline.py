@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -248,33 +249,31 @@ class Pipeline:
         return out
 
     def _nmea(self, spec: SourceSpec, c: SourceCounters, ev: RawEvent, out: list[Output]) -> bool:
-        updated = False
-        if ev.checked is not None:
+        texts: Sequence[str]
+        if ev.checked is not None:  # framed and checksummed already (replay's line scan)
             texts, others = ev.checked
             c.received += others
-            for text in texts:
-                s = nmea_codec.decode(text, only=USED_NMEA, verified=True)
-                if isinstance(s, nmea_codec.Reject):
-                    c.rejected[s.reason] += 1
-                    continue
-                c.received += 1
-                if s is not nmea_codec.UNUSED:
-                    updated |= self._use_nmea(spec, ev.rx_ns, s, out)
-            return updated
-        for frame in self._framers[spec.name].feed(ev.data):
-            if frame.text is None:
-                c.rejected[frame.reason or "garbage"] += 1
-                continue
+            verified = True
+        else:
+            framed: list[str] = []
+            texts = framed
+            for frame in self._framers[spec.name].feed(ev.data):
+                if frame.text is None:
+                    c.rejected[frame.reason or "garbage"] += 1
+                else:
+                    framed.append(frame.text)
+            verified = False
+        updated = False
+        for text in texts:
             s = nmea_codec.decode(
-                frame.text, require_checksum=not spec.allow_missing_checksum, only=USED_NMEA
+                text, require_checksum=not spec.allow_missing_checksum, only=USED_NMEA, verified=verified
             )
             if isinstance(s, nmea_codec.Reject):
                 c.rejected[s.reason] += 1
                 continue
             c.received += 1
-            if s is nmea_codec.UNUSED:
-                continue
-            updated |= self._use_nmea(spec, ev.rx_ns, s, out)
+            if s is not nmea_codec.UNUSED:
+                updated |= self._use_nmea(spec, ev.rx_ns, s, out)
         return updated
 
     def _use_nmea(self, spec: SourceSpec, rx_ns: int, s: Any, out: list[Output]) -> bool:

@@ -857,24 +857,11 @@ class GainScheduledObserver:
         first_update = len(self._updates)
         index: list[int] = []
         targets: list[Array] = []
-        if n:
-            t_max = np.maximum.accumulate(t_arr)  # an update happens at the first sample with t ≥ its time
-            k = 0
-            if est.next_update_t is None:
-                est.add(t_arr[:1], Y[:1])
-                k = 1
-            while k < n:
-                assert est.next_update_t is not None
-                j = int(np.searchsorted(t_max, est.next_update_t, side="left"))
-                if j >= n:
-                    est.add(t_arr[k:], Y[k:])
-                    break
-                est.add(t_arr[k : j + 1], Y[k : j + 1])
-                k = j + 1
-                update = est.estimate(float(t_arr[j]))
-                if update is not None:
-                    index.append(j)
-                    targets.append(self._new_target(float(t_arr[j]), update))
+        for j in est.add_until_updates(t_arr, Y):
+            update = est.estimate(float(t_arr[j]))
+            if update is not None:
+                index.append(j)
+                targets.append(self._new_target(float(t_arr[j]), update))
         upd_index = np.array(index, dtype=np.int64)
         upd_target = np.array(targets, dtype=float).reshape(-1, 3)
         self._run_kernel(t_arr, Y, TAU, X, status, W, upd_index, upd_target)

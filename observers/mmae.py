@@ -363,21 +363,11 @@ class MMAERun(PassiveRun):
     omega0: Array
 
 
-def _new_only(y: Array, last: Array) -> Array:
-    """y with a value repeated exactly from the previous sample set to NaN (the position N, E as a pair,
-    the heading alone), for the noise identification: a gateway holds a 2 Hz fix between the 10 Hz
-    headings, and held values would read as a noise-free sensor. (The filters still get every sample as
-    given: they initialise on the first complete one.)"""
-    out = y.copy()
-    if y[0] == last[0] and y[1] == last[1]:
-        out[0] = out[1] = math.nan
-    if y[2] == last[2]:
-        out[2] = math.nan
-    return out
-
-
-def _new_only_rows(Y: Array, last: Array) -> Array:
-    """`_new_only` over rows: each compared with the row before (the first with ``last``)."""
+def _new_only(Y: Array, last: Array) -> Array:
+    """Rows of Y (n, 3) with a value repeated exactly from the row before (the first row: from ``last``)
+    set to NaN — the position N, E as a pair, the heading alone — for the noise identification: a
+    gateway holds a 2 Hz fix between the 10 Hz headings, and held values would read as a noise-free
+    sensor. (The filters still get every sample as given: they initialise on the first complete one.)"""
     prev = np.vstack([last.reshape(1, 3), Y[:-1]])
     out = Y.copy()
     pos = (Y[:, 0] == prev[:, 0]) & (Y[:, 1] == prev[:, 1])
@@ -484,6 +474,10 @@ class MMAEObserver:
         self._last_y = np.full(3, np.nan)  # the previous sample as given (see `_new_only`)
         # samples (t, y, τ chunks) taken before the first identification, to run again through its bank
         self._prefix: list[tuple[Array, Array, Array]] = []
+        self._reset_filters()
+
+    def _reset_filters(self) -> None:
+        """Filters uninitialised, weights uniform."""
         n = self.bank.n
         self._X = np.zeros((n, N_STATE))
         self._p = np.full(n, 1.0 / n)
@@ -589,12 +583,8 @@ class MMAEObserver:
         Y = np.ascontiguousarray(np.concatenate([c[1] for c in self._prefix]))
         TAU = np.ascontiguousarray(np.concatenate([c[2] for c in self._prefix]))
         self._prefix = []
-        n = self.bank.n
-        self._X = np.zeros((n, N_STATE))
-        self._p = np.full(n, 1.0 / n)
-        self._xb = np.zeros(N_STATE)
-        self._clock = np.zeros(4)
-        m = t.shape[0]
+        self._reset_filters()
+        n, m = self.bank.n, t.shape[0]
         kernel.run(
             self._X, self._p, self._xb, self._clock, t, Y, TAU, *self._kernel_args(),
             np.empty((m, 4, 3)), np.empty((m, n)), np.empty(m, dtype=np.int8),
@@ -607,7 +597,7 @@ class MMAEObserver:
     def step(self, t: float, y: ArrayLike, tau: ArrayLike | None = None) -> PassiveEstimate:
         """Advance to time t (s) with measurement y and generalised force τ held since the last sample."""
         y_arr = np.asarray(y, dtype=float).reshape(3)
-        fresh = _new_only(y_arr, self._last_y)
+        fresh = _new_only(y_arr.reshape(1, 3), self._last_y)[0]
         self._last_y = y_arr.copy()
         tau_arr = ZERO3 if tau is None else np.asarray(tau, dtype=float).reshape(3)
         if self.identify_noise:
@@ -637,7 +627,7 @@ class MMAEObserver:
         t_arr = np.ascontiguousarray(t, dtype=float).ravel()
         n = t_arr.shape[0]
         Y = np.ascontiguousarray(y, dtype=float).reshape(n, 3)
-        fresh = _new_only_rows(Y, self._last_y)
+        fresh = _new_only(Y, self._last_y)
         if n:
             self._last_y = Y[-1].copy()
         TAU = np.zeros((n, 3)) if tau is None else np.ascontiguousarray(tau, dtype=float).reshape(n, 3)
@@ -645,39 +635,27 @@ class MMAEObserver:
         W = np.empty((n, self.bank.n))
         status = np.empty(n, dtype=np.int8)
         a = 0  # the kernel has run samples [0, a)
-        if self.identify_noise and n:
+
+        def kernel_to(b: int) -> None:
+            nonlocal a
+            if b <= a:
+                return
+            kernel.run(
+                self._X, self._p, self._xb, self._clock, t_arr[a:b], Y[a:b], TAU[a:b],
+                *self._kernel_args(), OUT[a:b], W[a:b], status[a:b],
+            )  # fmt: skip
+            if self.identify_noise and self._design_sigma is None:
+                self._prefix.append((t_arr[a:b], Y[a:b], TAU[a:b]))  # as `step` keeps them
+            a = b
+
+        if self.identify_noise:
             # Identifications depend on the measurements only: walk the estimator through the record to
             # each update, run the kernel up to it, identify (perhaps designing the bank again), go on.
             # `step` does the same at the same samples, so both give the same numbers.
-            est = self.noise_estimator
-            t_max = np.maximum.accumulate(t_arr)
-            k = 0
-            while k < n:
-                nxt = est.next_update_t
-                j = n if nxt is None else int(np.searchsorted(t_max, nxt, side="left"))
-                if nxt is None:
-                    est.add(t_arr[:1], fresh[:1])
-                    k = 1
-                    continue
-                if j >= n:
-                    est.add(t_arr[k:], fresh[k:])
-                    break
-                est.add(t_arr[k : j + 1], fresh[k : j + 1])
-                k = j + 1
-                if j > a:
-                    kernel.run(
-                        self._X, self._p, self._xb, self._clock, t_arr[a:j], Y[a:j], TAU[a:j],
-                        *self._kernel_args(), OUT[a:j], W[a:j], status[a:j],
-                    )  # fmt: skip
-                    if self._design_sigma is None:
-                        self._prefix.append((t_arr[a:j], Y[a:j], TAU[a:j]))
-                    a = j
+            for j in self.noise_estimator.add_until_updates(t_arr, fresh):
+                kernel_to(j)
                 self._identify(float(t_arr[j]))
-        if a < n:
-            kernel.run(
-                self._X, self._p, self._xb, self._clock, t_arr[a:], Y[a:], TAU[a:],
-                *self._kernel_args(), OUT[a:], W[a:], status[a:],
-            )  # fmt: skip
+        kernel_to(n)
         om = np.empty(n)
         kernel.blended_omegas(W, self.bank.candidates, om)
         omega = np.repeat(om[:, None], 3, axis=1)

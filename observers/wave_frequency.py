@@ -64,6 +64,7 @@ window 36 s, update every 7.2 s).
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from functools import cached_property
 from typing import Any
@@ -272,6 +273,29 @@ class WaveFrequencyEstimator:
         self._t[self._n : self._n + m] = t_arr
         self._y[:, self._n : self._n + m] = y_arr.T
         self._n += m
+
+    def add_until_updates(self, t: Array, y: Array) -> Iterator[int]:
+        """`add` a record (t (n,), y (n, 3)) and stop at each sample where an update falls due: yields
+        its index j, with samples 0 … j added, so that the caller can `estimate(t[j])` (and do its own
+        work up to j) exactly where sample-by-sample use would; the rest is added at the end. What an
+        update sees does not depend on how the samples are handed in, so batch and `step` agree."""
+        n = t.shape[0]
+        if n == 0:
+            return
+        k = 0
+        if self._next is None:
+            self.add(t[:1], y[:1])
+            k = 1
+        t_max = np.maximum.accumulate(t)  # an update happens at the first sample with t ≥ its time
+        while k < n:
+            assert self._next is not None
+            j = int(np.searchsorted(t_max, self._next, side="left"))
+            if j >= n:
+                self.add(t[k:], y[k:])
+                return
+            self.add(t[k : j + 1], y[k : j + 1])
+            k = j + 1
+            yield j
 
     def _compact(self, incoming: int) -> None:
         """Drop samples no estimate can use any more (older than the window, a segment and a period), grow

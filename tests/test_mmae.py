@@ -513,3 +513,10 @@ def test_identification_step_and_run_agree() -> None:
     np.testing.assert_array_equal(b.weights, a.weights)
     assert a.identified == b.identified and a.identified is not None
     assert not a._prefix and not b._prefix  # (the restart consumed the samples kept for it)
+    # in pieces, the first ending before the first identification: its samples are kept for the restart
+    c = MMAEObserver(rec.vessel)
+    first = c.run(rec.t[:100], rec.y[:100], rec.tau[:100])
+    assert c.identified is None
+    rest = c.run(rec.t[100:], rec.y[100:], rec.tau[100:])
+    np.testing.assert_array_equal(np.r_[first.eta, rest.eta], run.eta)
+    np.testing.assert_array_equal(c.weights, a.weights)

@@ -137,6 +137,27 @@ def test_several_observers_side_by_side(tmp_path: Path) -> None:
     assert a[-1]["eta"] != b[-1]["eta"]  # different filters, different estimates
 
 
+def test_adaptive_observers_publish_omega0_and_weights_in_the_log(tmp_path: Path) -> None:
+    """Issue 7, item 4, end to end: the gain-scheduled observer's ω0 (and its estimator's fields) and the
+    MMAE's ω0, weights and identified noise reach the estimate messages of the MCAP replay writes."""
+    inputs = open_inputs([need(USV / "202412051037.txt")])
+    config = build_config(inputs, vessel="cybership2")
+    specs = [parse_observer_spec(s) for s in ("passive", "gain_scheduled", "mmae")]
+    out = tmp_path / "out.mcap"
+    with McapLogWriter(out, flush_on_log_time=False) as w:
+        _run(inputs, build_pipeline(config, specs), out=w)
+    gs = [p for _, _, _, p in read_messages(out, "/dp/estimates/gain_scheduled")]
+    mm = [p for _, _, _, p in read_messages(out, "/dp/estimates/mmae")]
+    assert len(gs) > 3000 and len(mm) > 3000
+    assert all(len(p["omega0"]) == 3 for p in gs) and gs[-1]["omega0_updates"] > 0
+    assert len({tuple(p["omega0"]) for p in gs}) > 1  # scheduled: ω0 moves during the log
+    last = mm[-1]
+    assert len(last["weights"]) == len(last["candidates"]) == 8
+    assert sum(last["weights"]) == pytest.approx(1.0)
+    assert last["omega0"][0] == pytest.approx(last["omega0_blended"][0])
+    assert all(v > 0 for v in last["measurement_sigma"]) and all(v > 0 for v in last["wave_sigma"])
+
+
 def test_bad_observer_spec() -> None:
     with pytest.raises(ReplayError, match="wave_peroid"):
         parse_observer_spec("passive:wave_peroid=9")
