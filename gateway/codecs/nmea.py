@@ -394,6 +394,29 @@ _WIDTH: Final = {
 }
 _PAD: Final = [""] * 16
 
+_Field = tuple[int, str, Callable[..., Any], int | None]
+"""One field of a sentence layout: its index, its name (for rejects), its parser, and the index of the
+field that goes with it (a hemisphere, a direction) or None."""
+
+
+def _fields(kind: str, p: list[str], least: int, full: int, layout: tuple[_Field, ...]) -> list[Any] | Reject:
+    """The values of ``layout``'s fields of sentence ``p`` (address first), or a reject: ``too few`` below
+    ``least`` parts; missing trailing fields up to ``full`` parts are empty; a parser's ValueError (or
+    KeyError, for lookups) is a ``bad_field`` naming the field."""
+    n = len(p)
+    if n < least:
+        return _too_few(kind, p, least - 1)
+    if n < full:
+        p += _PAD[: full - n]
+    values = []
+    i = 0
+    try:
+        for i, _, parse, j in layout:
+            values.append(parse(p[i]) if j is None else parse(p[i], p[j]))
+    except (ValueError, KeyError):
+        return _bad_field(kind, {f[0]: f[1] for f in layout}, i, p)
+    return values
+
 
 # ---------------------------------------------------------------------------------------------- fields
 # Each parser takes the field text and returns the value or None (empty field); anything else raises
@@ -443,8 +466,9 @@ def _tod(s: str) -> float | None:
     return hours * 3600.0 + minutes * 60.0 + seconds
 
 
-def _lat(s: str, hemisphere: str) -> float | None:
-    """``ddmm.mmmm`` + ``N``/``S`` → degrees (full precision: the whole field is one float)."""
+def _degrees_minutes(s: str, hemisphere: str, limit: float, plus: str, minus: str) -> float | None:
+    """``d…dmm.mmmm`` + hemisphere → signed degrees within ±limit (full precision: the whole field is one
+    float)."""
     if not s:
         return None
     v = float(s)
@@ -452,33 +476,24 @@ def _lat(s: str, hemisphere: str) -> float | None:
     minutes = v - 100.0 * degrees
     if not (v >= 0.0 and minutes < 60.0):
         raise ValueError(s)
-    lat = degrees + minutes / 60.0
-    if lat > 90.0:
+    angle = degrees + minutes / 60.0
+    if angle > limit:
         raise ValueError(s)
-    if hemisphere == "N":
-        return lat
-    if hemisphere == "S":
-        return -lat
+    if hemisphere == plus:
+        return angle
+    if hemisphere == minus:
+        return -angle
     raise ValueError(hemisphere)
+
+
+def _lat(s: str, hemisphere: str) -> float | None:
+    """``ddmm.mmmm`` + ``N``/``S`` → degrees."""
+    return _degrees_minutes(s, hemisphere, 90.0, "N", "S")
 
 
 def _lon(s: str, hemisphere: str) -> float | None:
     """``dddmm.mmmm`` + ``E``/``W`` → degrees."""
-    if not s:
-        return None
-    v = float(s)
-    degrees = v // 100.0
-    minutes = v - 100.0 * degrees
-    if not (v >= 0.0 and minutes < 60.0):
-        raise ValueError(s)
-    lon = degrees + minutes / 60.0
-    if lon > 180.0:
-        raise ValueError(s)
-    if hemisphere == "E":
-        return lon
-    if hemisphere == "W":
-        return -lon
-    raise ValueError(hemisphere)
+    return _degrees_minutes(s, hemisphere, 180.0, "E", "W")
 
 
 def _bearing(s: str) -> float | None:
@@ -554,155 +569,88 @@ _new_heading = _fast_new(Heading)
 
 _QUALITY: Final = {str(q): q for q in range(10)} | {"": 0}
 
-_GGA_NAMES = {
-    1: "time",
-    2: "latitude",
-    4: "longitude",
-    6: "quality",
-    7: "satellites",
-    8: "hdop",
-    9: "altitude",
-    11: "geoid separation",
-    13: "age",
-    14: "station id",
-}
+
+_GGA_LAYOUT: Final[tuple[_Field, ...]] = (
+    (1, "time", _tod, None),
+    (2, "latitude", _lat, 3),
+    (4, "longitude", _lon, 5),
+    (6, "quality", _QUALITY.__getitem__, None),  # KeyError for anything but one digit or empty
+    (7, "satellites", _count, None),
+    (8, "hdop", _nonneg, None),
+    (9, "altitude", _float, None),
+    (11, "geoid separation", _float, None),
+    (13, "age", _nonneg, None),
+    (14, "station id", _count, None),
+)
 
 
 def _gga(talker: str, p: list[str]) -> Gga | Reject:
     """``$--GGA,hhmmss.ss,llll.ll,a,yyyyy.yy,a,x,xx,x.x,x.x,M,x.x,M,x.x,xxxx``"""
-    n = len(p)
-    if n < 7:
-        return _too_few("GGA", p, 6)
-    if n < 15:
-        p += _PAD[: 15 - n]
-    i = 1
-    try:
-        time_s = _tod(p[1])
-        i = 2
-        lat = _lat(p[2], p[3])
-        i = 4
-        lon = _lon(p[4], p[5])
-        i = 6
-        quality = _QUALITY[p[6]]  # KeyError for anything but one digit or empty
-        i = 7
-        n_sats = _count(p[7])
-        i = 8
-        hdop = _nonneg(p[8])
-        i = 9
-        alt = _float(p[9])
-        i = 11
-        sep = _float(p[11])
-        i = 13
-        age = _nonneg(p[13])
-        i = 14
-        station = _count(p[14])
-    except (ValueError, KeyError):
-        return _bad_field("GGA", _GGA_NAMES, i, p)
-    valid = quality >= 1 and lat is not None and lon is not None
-    return _new_gga("GGA", talker, time_s, lat, lon, quality, n_sats, hdop, alt, sep, age, station, valid)
+    v = _fields("GGA", p, 7, 15, _GGA_LAYOUT)
+    if isinstance(v, Reject):
+        return v
+    _, lat, lon, quality = v[:4]
+    return _new_gga("GGA", talker, *v, quality >= 1 and lat is not None and lon is not None)
 
 
-_GNS_NAMES = {
-    1: "time",
-    2: "latitude",
-    4: "longitude",
-    6: "mode",
-    7: "satellites",
-    8: "hdop",
-    9: "altitude",
-    10: "geoid separation",
-    11: "age",
-    12: "station id",
-    13: "navigational status",
-}
+def _gns_mode(s: str) -> str:
+    """The GNS mode indicator: upper-case letters, one per constellation (may be empty)."""
+    if s and not (s.isalpha() and s.isupper()):
+        raise ValueError(s)
+    return s
+
+
+_GNS_LAYOUT: Final[tuple[_Field, ...]] = (
+    (1, "time", _tod, None),
+    (2, "latitude", _lat, 3),
+    (4, "longitude", _lon, 5),
+    (6, "mode", _gns_mode, None),
+    (7, "satellites", _count, None),
+    (8, "hdop", _nonneg, None),
+    (9, "altitude", _float, None),
+    (10, "geoid separation", _float, None),
+    (11, "age", _nonneg, None),
+    (12, "station id", _count, None),
+    (13, "navigational status", _letter, None),
+)
 
 
 def _gns(talker: str, p: list[str]) -> Gns | Reject:
     """``$--GNS,hhmmss.ss,llll.ll,a,yyyyy.yy,a,c--c,xx,x.x,x.x,x.x,x.x,x.x,a``"""
-    n = len(p)
-    if n < 7:
-        return _too_few("GNS", p, 6)
-    if n < 14:
-        p += _PAD[: 14 - n]
-    i = 1
-    try:
-        time_s = _tod(p[1])
-        i = 2
-        lat = _lat(p[2], p[3])
-        i = 4
-        lon = _lon(p[4], p[5])
-        i = 6
-        mode = p[6]
-        if mode and not (mode.isalpha() and mode.isupper()):
-            raise ValueError(mode)
-        i = 7
-        n_sats = _count(p[7])
-        i = 8
-        hdop = _nonneg(p[8])
-        i = 9
-        alt = _float(p[9])
-        i = 10
-        sep = _float(p[10])
-        i = 11
-        age = _nonneg(p[11])
-        i = 12
-        station = _count(p[12])
-        i = 13
-        nav_status = _letter(p[13])
-    except ValueError:
-        return _bad_field("GNS", _GNS_NAMES, i, p)
-    valid = lat is not None and lon is not None and mode.strip("N") != ""
-    return _new_gns(
-        "GNS", talker, time_s, lat, lon, mode, n_sats, hdop, alt, sep, age, station, nav_status, valid
-    )
+    v = _fields("GNS", p, 7, 14, _GNS_LAYOUT)
+    if isinstance(v, Reject):
+        return v
+    _, lat, lon, mode = v[:4]
+    return _new_gns("GNS", talker, *v, lat is not None and lon is not None and mode.strip("N") != "")
 
 
-_RMC_NAMES = {
-    1: "time",
-    2: "status",
-    3: "latitude",
-    5: "longitude",
-    7: "speed",
-    8: "course",
-    9: "date",
-    10: "magnetic variation",
-    12: "mode",
-    13: "navigational status",
-}
+def _status(s: str) -> str:
+    """An A (valid) / V (void) status field, or empty."""
+    if s != "A" and s != "V" and s:
+        raise ValueError(s)
+    return s
+
+
+_RMC_LAYOUT: Final[tuple[_Field, ...]] = (
+    (1, "time", _tod, None),
+    (2, "status", _status, None),
+    (3, "latitude", _lat, 4),
+    (5, "longitude", _lon, 6),
+    (7, "speed", _nonneg, None),
+    (8, "course", _bearing, None),
+    (9, "date", _ddmmyy, None),
+    (10, "magnetic variation", _east_west, 11),
+    (12, "mode", _letter, None),
+    (13, "navigational status", _letter, None),
+)
 
 
 def _rmc(talker: str, p: list[str]) -> Rmc | Reject:
     """``$--RMC,hhmmss.ss,A,llll.ll,a,yyyyy.yy,a,x.x,x.x,ddmmyy,x.x,a,a,a``"""
-    n = len(p)
-    if n < 3:
-        return _too_few("RMC", p, 2)
-    if n < 14:
-        p += _PAD[: 14 - n]
-    i = 1
-    try:
-        time_s = _tod(p[1])
-        i = 2
-        status = p[2]
-        if status != "A" and status != "V" and status:
-            raise ValueError(status)
-        i = 3
-        lat = _lat(p[3], p[4])
-        i = 5
-        lon = _lon(p[5], p[6])
-        i = 7
-        sog = _nonneg(p[7])
-        i = 8
-        cog = _bearing(p[8])
-        i = 9
-        day = _ddmmyy(p[9])
-        i = 10
-        var = _east_west(p[10], p[11])
-        i = 12
-        mode = _letter(p[12])
-        i = 13
-        nav_status = _letter(p[13])
-    except ValueError:
-        return _bad_field("RMC", _RMC_NAMES, i, p)
+    v = _fields("RMC", p, 3, 14, _RMC_LAYOUT)
+    if isinstance(v, Reject):
+        return v
+    time_s, status, lat, lon, sog, cog, day, var, mode, nav_status = v
     valid = status == "A" and lat is not None and lon is not None and mode != "N"
     return _new_rmc(
         "RMC",
@@ -757,42 +705,24 @@ def _vtg(talker: str, p: list[str]) -> Vtg | Reject:
     return _new_vtg("VTG", talker, cog, sog, mode, valid)
 
 
-_GST_NAMES = {
-    1: "time",
-    2: "rms",
-    3: "sigma major",
-    4: "sigma minor",
-    5: "orientation",
-    6: "sigma latitude",
-    7: "sigma longitude",
-    8: "sigma altitude",
-}
+_GST_LAYOUT: Final[tuple[_Field, ...]] = (
+    (1, "time", _tod, None),
+    (2, "rms", _nonneg, None),
+    (3, "sigma major", _nonneg, None),
+    (4, "sigma minor", _nonneg, None),
+    (5, "orientation", _float, None),
+    (6, "sigma latitude", _nonneg, None),
+    (7, "sigma longitude", _nonneg, None),
+    (8, "sigma altitude", _nonneg, None),
+)
 
 
 def _gst(talker: str, p: list[str]) -> Gst | Reject:
     """``$--GST,hhmmss.ss,x.x,x.x,x.x,x.x,x.x,x.x,x.x``"""
-    n = len(p)
-    if n < 9:
-        return _too_few("GST", p, 8)
-    i = 1
-    try:
-        time_s = _tod(p[1])
-        i = 2
-        rms = _nonneg(p[2])
-        i = 3
-        major = _nonneg(p[3])
-        i = 4
-        minor = _nonneg(p[4])
-        i = 5
-        orient = _float(p[5])
-        i = 6
-        sigma_lat = _nonneg(p[6])
-        i = 7
-        sigma_lon = _nonneg(p[7])
-        i = 8
-        sigma_alt = _nonneg(p[8])
-    except ValueError:
-        return _bad_field("GST", _GST_NAMES, i, p)
+    v = _fields("GST", p, 9, 9, _GST_LAYOUT)
+    if isinstance(v, Reject):
+        return v
+    time_s, rms, major, minor, orient, sigma_lat, sigma_lon, sigma_alt = v
     if orient is not None:
         orient = (orient * _RAD) % _PI
         if orient >= _PI:  # rounding of a tiny negative angle
@@ -843,69 +773,60 @@ _HEADING_NAMES = {1: "heading", 2: "mode"}
 _THS_MODES: Final = frozenset("AEMSV")
 
 
+def _ths_mode(s: str) -> str:
+    if s not in _THS_MODES:
+        raise ValueError(s)
+    return s
+
+
+_THS_LAYOUT: Final[tuple[_Field, ...]] = ((1, "heading", _bearing, None), (2, "mode", _ths_mode, None))
+
+
 def _ths(talker: str, p: list[str]) -> Heading | Reject:
     """``$--THS,x.x,a``"""
-    if len(p) < 3:
-        return _too_few("THS", p, 2)
-    i = 1
-    try:
-        heading = _bearing(p[1])
-        i = 2
-        mode = p[2]
-        if mode not in _THS_MODES:
-            raise ValueError(mode)
-    except ValueError:
-        return _bad_field("THS", _HEADING_NAMES, i, p)
-    valid = heading is not None and mode != "V"
-    return _new_heading("THS", talker, heading, valid, mode, False)
+    v = _fields("THS", p, 3, 3, _THS_LAYOUT)
+    if isinstance(v, Reject):
+        return v
+    heading, mode = v
+    return _new_heading("THS", talker, heading, heading is not None and mode != "V", mode, False)
 
 
-_HDG_NAMES = {1: "heading", 2: "deviation", 4: "variation"}
+def _sensor_heading(s: str) -> float | None:
+    """The magnetic sensor heading of HDG, degrees within [0, 360]."""
+    value = _float(s)
+    if value is not None and not 0.0 <= value <= 360.0:
+        raise ValueError(s)
+    return value
+
+
+_HDG_LAYOUT: Final[tuple[_Field, ...]] = (
+    (1, "heading", _sensor_heading, None),
+    (2, "deviation", _east_west, 3),
+    (4, "variation", _east_west, 5),
+)
 
 
 def _hdg(talker: str, p: list[str]) -> Heading | Reject:
     """``$--HDG,x.x,x.x,a,x.x,a``"""
-    n = len(p)
-    if n < 2:
-        return _too_few("HDG", p, 1)
-    if n < 6:
-        p += _PAD[: 6 - n]
-    i = 1
-    try:
-        sensor = _float(p[1])
-        if sensor is not None and not 0.0 <= sensor <= 360.0:
-            raise ValueError(p[1])
-        i = 2
-        deviation = _east_west(p[2], p[3])
-        i = 4
-        variation = _east_west(p[4], p[5])
-    except ValueError:
-        return _bad_field("HDG", _HDG_NAMES, i, p)
+    v = _fields("HDG", p, 2, 6, _HDG_LAYOUT)
+    if isinstance(v, Reject):
+        return v
+    sensor, deviation, variation = v
     heading = None
     if sensor is not None:
         heading = _wrap((sensor + (deviation or 0.0) + (variation or 0.0)) * _RAD)
     return Heading("HDG", talker, heading, heading is not None, None, variation is None)
 
 
-_ROT_NAMES = {1: "rate of turn", 2: "status"}
+_ROT_LAYOUT: Final[tuple[_Field, ...]] = ((1, "rate of turn", _float, None), (2, "status", _status, None))
 
 
 def _rot(talker: str, p: list[str]) -> Rot | Reject:
     """``$--ROT,x.x,A``"""
-    n = len(p)
-    if n < 2:
-        return _too_few("ROT", p, 1)
-    if n < 3:
-        p += _PAD[: 3 - n]
-    i = 1
-    try:
-        rate = _float(p[1])
-        i = 2
-        status = p[2]
-        if status != "A" and status != "V" and status:
-            raise ValueError(status)
-    except ValueError:
-        return _bad_field("ROT", _ROT_NAMES, i, p)
+    v = _fields("ROT", p, 2, 3, _ROT_LAYOUT)
+    if isinstance(v, Reject):
+        return v
+    rate, status = v
     if rate is not None:
         rate *= _RAD_S_PER_DEG_MIN
     return Rot(talker, rate, rate is not None and status == "A")
