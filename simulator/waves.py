@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import io
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 from importlib import resources
@@ -442,6 +442,15 @@ class WaveField:
     def _chunks(self, n: int) -> list[slice]:
         return [slice(i, min(i + self.chunk_size, n)) for i in range(0, n, self.chunk_size)]
 
+    def _active(self, ts: Array) -> Iterator[tuple[slice, WaveComponents, Array]]:
+        """(chunk of the samples, sea-state components, their amplitude weights there) for every sea state
+        with some weight in the chunk: the loop every field quantity sums over."""
+        for sl in self._chunks(ts.size):
+            weights = self._weights(ts[sl])
+            for c, w in zip(self.components, weights, strict=True):
+                if np.any(w):
+                    yield sl, c, w
+
     @staticmethod
     def _theta(c: WaveComponents, t: Array, north: Array, east: Array) -> Array:
         """θ_k = ω_k t − k_k (N cos χ + E sin χ) + ε_k, shape (n, K)."""
@@ -482,11 +491,8 @@ class WaveField:
         """Wave elevation ζ(t) (m, positive up) at NED position (north, east) (default the origin)."""
         shape, ts, (north_f, east_f) = self._prepare(t, north, east)
         out = np.zeros(ts.size)
-        for sl in self._chunks(ts.size):
-            weights = self._weights(ts[sl])
-            for c, w in zip(self.components, weights, strict=True):
-                if np.any(w):
-                    out[sl] += w * (np.cos(self._theta(c, ts[sl], north_f[sl], east_f[sl])) @ c.amplitude)
+        for sl, c, w in self._active(ts):
+            out[sl] += w * (np.cos(self._theta(c, ts[sl], north_f[sl], east_f[sl])) @ c.amplitude)
         return out.reshape(shape)
 
     def body_motion(
@@ -495,14 +501,10 @@ class WaveField:
         """WF motion in the body frame [surge m, sway m, yaw rad], shape t + (3,) (no motion gain)."""
         shape, ts, (psi, north_f, east_f) = self._prepare(t, heading, north, east)
         out = np.zeros((ts.size, 3))
-        for sl in self._chunks(ts.size):
-            weights = self._weights(ts[sl])
-            for c, w in zip(self.components, weights, strict=True):
-                if not np.any(w):
-                    continue
-                carrier = self._carrier(c, ts[sl], north_f[sl], east_f[sl])
-                beta = ssa(c.sea_state.direction_rad - psi[sl])
-                out[sl] += w[:, None] * self._at_beta(carrier, c.rao, beta).real
+        for sl, c, w in self._active(ts):
+            carrier = self._carrier(c, ts[sl], north_f[sl], east_f[sl])
+            beta = ssa(c.sea_state.direction_rad - psi[sl])
+            out[sl] += w[:, None] * self._at_beta(carrier, c.rao, beta).real
         return out.reshape((*shape, 3))
 
     def motion(
@@ -540,21 +542,17 @@ class WaveField:
         """
         shape, ts, (psi, north_f, east_f) = self._prepare(t, heading, north, east)
         out = np.zeros((ts.size, 3))
-        for sl in self._chunks(ts.size):
-            weights = self._weights(ts[sl])
-            for c, w in zip(self.components, weights, strict=True):
-                if not np.any(w):
-                    continue
-                beta = ssa(c.sea_state.direction_rad - psi[sl])
-                if slowly_varying:
-                    carrier = self._carrier(c, ts[sl], north_f[sl], east_f[sl])
-                    pos = np.abs(self._at_beta(carrier, c.drift_pos, beta)) ** 2
-                    neg = np.abs(self._at_beta(carrier, c.drift_neg, beta)) ** 2
-                    force = pos - neg
-                else:
-                    j, f = _beta_index(beta, c.drift_mean.shape[0] - 1)
-                    force = (1.0 - f)[:, None] * c.drift_mean[j] + f[:, None] * c.drift_mean[j + 1]
-                out[sl] += (w**2)[:, None] * force
+        for sl, c, w in self._active(ts):
+            beta = ssa(c.sea_state.direction_rad - psi[sl])
+            if slowly_varying:
+                carrier = self._carrier(c, ts[sl], north_f[sl], east_f[sl])
+                pos = np.abs(self._at_beta(carrier, c.drift_pos, beta)) ** 2
+                neg = np.abs(self._at_beta(carrier, c.drift_neg, beta)) ** 2
+                force = pos - neg
+            else:
+                j, f = _beta_index(beta, c.drift_mean.shape[0] - 1)
+                force = (1.0 - f)[:, None] * c.drift_mean[j] + f[:, None] * c.drift_mean[j + 1]
+            out[sl] += (w**2)[:, None] * force
         return out.reshape((*shape, 3))
 
     def gain_for_limits(
