@@ -21,6 +21,7 @@ import math
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -97,6 +98,11 @@ class SourceSpec:
     allow_unsigned: bool = True
     esc_map: dict[int, int] = field(default_factory=dict)  # ESC index (1-based) -> thruster id
     servo_map: dict[int, int] = field(default_factory=dict)  # servo channel (1-based) -> thruster id
+
+    @cached_property
+    def timeout_ns(self) -> int:
+        """How long a measurement from this source stays valid (ns; computed once, used per sentence)."""
+        return int(self.timeout_s * NS)
 
 
 @dataclass(frozen=True)
@@ -277,7 +283,7 @@ class Pipeline:
         return updated
 
     def _use_nmea(self, spec: SourceSpec, rx_ns: int, s: Any, out: list[Output]) -> bool:
-        valid_ns = int(spec.timeout_s * NS)
+        valid_ns = spec.timeout_ns
         if isinstance(s, nmea_codec.Heading):
             if "heading" in spec.roles and s.valid and s.heading_rad is not None:
                 return self.fusion.add_heading(rx_ns, s.heading_rad, spec.name, spec.priority, valid_ns)
@@ -307,7 +313,7 @@ class Pipeline:
             c.rejected.update(parser.rejected)
         updated = False
         feedback = False
-        valid_ns = int(spec.timeout_s * NS)
+        valid_ns = spec.timeout_ns
         for msg in msgs:
             m: Any = msg  # pymavlink messages carry their fields as dynamic attributes
             c.received += 1
