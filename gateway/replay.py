@@ -365,6 +365,8 @@ def run_replay(
             on_outputs(ev, outputs)
         if progress is not None and result.events % 2000 == 0:
             progress(result.events)
+    if progress is not None:
+        progress(result.events)  # the bar ends at the true count
     if frozen == 0 and gc.get_freeze_count():  # (a caller's own frozen objects are left alone)
         gc.unfreeze()  # (back to normal collection; anything cyclic frozen meanwhile is collected later)
     now = pipeline.last_ns

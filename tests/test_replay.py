@@ -2,17 +2,24 @@
 
 from __future__ import annotations
 
+import fcntl
 import json
 import math
+import os
+import pty
+import socket
 import struct
 import subprocess
 import sys
+import termios
+import time
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from gateway.bus import isolated_config, open_session
 from gateway.codecs import mavlink as mv
 from gateway.codecs import nmea_encode as enc
 from gateway.logreaders import LogCounts, nmea_text_events, tlog_events
@@ -209,3 +216,74 @@ def test_tlog_replay(tmp_path: Path) -> None:
     assert inp.kind == "tlog"
     est = result.collected["/dp/estimate"]
     assert len(est) > 50 and est[-1]["eta"][2] == pytest.approx(0.7, abs=0.01)
+
+
+def test_speed_publishes_on_zenoh_as_if_live(tmp_path: Path) -> None:
+    """`--speed 10`: estimates go out on Zenoh (in another process, this test's) paced at 10× the log's
+    time, as a live gateway would publish them."""
+    log = tmp_path / "trial.nmea"
+    t0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
+    write_text_log(log, [t0 + timedelta(seconds=0.2 * k) for k in range(300)])  # 60 s at 5 Hz
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = int(s.getsockname()[1])
+    proc = subprocess.Popen(
+        [
+            sys.executable, "-m", "gateway", "replay", str(log), "--vessel", "cybership2",
+            "--out", str(tmp_path / "out.mcap"), "--speed", "10", "--prefix", "test/replay",
+            "--no-scouting", "--zenoh-listen", f"tcp/127.0.0.1:{port}", "--json",
+        ],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    received: list[tuple[float, dict]] = []  # type: ignore[type-arg]
+    session = None
+    deadline = time.monotonic() + 30
+    while session is None and time.monotonic() < deadline and proc.poll() is None:
+        try:
+            session = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{port}"]))
+        except Exception:
+            time.sleep(0.1)
+    assert session is not None
+    sub = session.declare_subscriber(
+        "test/replay/estimate",
+        lambda s: received.append((time.monotonic(), json.loads(s.payload.to_bytes()))),
+    )
+    stdout, stderr = proc.communicate(timeout=120)
+    sub.undeclare()
+    session.close()
+    assert proc.returncode == 0, stderr
+    assert json.loads(stdout)["estimates"]["passive"] == 300
+    assert len(received) >= 150  # the subscriber joins a second or two into the 6 s run
+    stamps = [p["stamp_ns"] for _, p in received]
+    assert stamps == sorted(stamps)
+    wall = received[-1][0] - received[0][0]
+    log_s = (stamps[-1] - stamps[0]) / 1e9
+    assert wall == pytest.approx(log_s / 10, rel=0.3)  # paced, not as fast as possible
+
+
+def test_progress_bar_on_a_terminal(tmp_path: Path) -> None:
+    """On a terminal (stderr a tty) replay shows a progress bar; piped (as in the other tests) it does not."""
+    log = tmp_path / "trial.nmea"
+    t0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
+    write_text_log(log, [t0 + timedelta(seconds=0.2 * k) for k in range(5000)])
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))  # a terminal has a size
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "gateway", "replay", str(log), "--vessel", "cybership2",
+         "--out", str(tmp_path / "out.mcap")],
+        stdout=subprocess.PIPE, stderr=slave, text=True,
+    )  # fmt: skip
+    os.close(slave)
+    seen = b""
+    while True:
+        try:
+            chunk = os.read(master, 4096)
+        except OSError:  # the child closed the terminal
+            break
+        if not chunk:
+            break
+        seen += chunk
+    proc.wait(timeout=120)
+    os.close(master)
+    assert proc.returncode == 0
+    assert b"events" in seen and b"5000" in seen  # tqdm's line: "... 5000 events ..."
