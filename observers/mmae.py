@@ -376,6 +376,17 @@ def _new_only(Y: Array, last: Array) -> Array:
     return out
 
 
+def _new_only_one(y: Array, last: Array) -> Array:
+    """`_new_only` for one sample (per-sample use in `step`: plain comparisons, no array building; the
+    step-vs-run agreement test checks both give the same)."""
+    out = y.copy()
+    if y[0] == last[0] and y[1] == last[1]:
+        out[0] = out[1] = math.nan
+    if y[2] == last[2]:
+        out[2] = math.nan
+    return out
+
+
 def _median_finite(rows: list[Array]) -> Array:
     """Per DOF, the median of the finite values of ``rows`` (NaN where there is none)."""
     out = np.full(3, math.nan)
@@ -597,7 +608,7 @@ class MMAEObserver:
     def step(self, t: float, y: ArrayLike, tau: ArrayLike | None = None) -> PassiveEstimate:
         """Advance to time t (s) with measurement y and generalised force τ held since the last sample."""
         y_arr = np.asarray(y, dtype=float).reshape(3)
-        fresh = _new_only(y_arr.reshape(1, 3), self._last_y)[0]
+        fresh = _new_only_one(y_arr, self._last_y)
         self._last_y = y_arr.copy()
         tau_arr = ZERO3 if tau is None else np.asarray(tau, dtype=float).reshape(3)
         if self.identify_noise:
