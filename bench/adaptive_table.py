@@ -26,14 +26,14 @@ from typing import Any
 
 import numpy as np
 
-from gateway.mcaplog import McapLogWriter
+from dpgw.closed_loop import run_closed_loop
 from gateway.replay import ObserverSpec, build_config, build_pipeline, open_inputs, run_replay
 from gateway.report import ObserverTrace, ReplayData, compute_metrics
 from gateway.scoring import score
-from simulator.closed_loop import run_closed_loop
 from simulator.runner import Route, Simulation
 from simulator.scenarios import Scenario, get_scenario
 from simulator.transports import MemorySink
+from wire.mcaplog import McapLogWriter
 
 
 def _setpoint(t: float, north: float, heading_deg: float) -> tuple[float, str, dict[str, float]]:

@@ -68,10 +68,10 @@ from typing import IO, Any
 import numpy as np
 
 from gateway.bus import isolated_config, open_session
-from gateway.codecs import nmea_encode as enc
 from gateway.config import load_config
-from gateway.mcaplog import McapLogWriter, encode_json
 from gateway.pipeline import Pipeline, PipelineSpec, RawEvent
+from wire.codecs import nmea_encode as enc
+from wire.mcaplog import McapLogWriter, encode_json
 
 REPO = Path(__file__).resolve().parents[1]
 PREFIX = "dp/bench"

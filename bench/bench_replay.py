@@ -7,7 +7,7 @@ under a minute. The log is made by the simulator (torsetnes_2004, 10 Hz DGPS: GG
 - end to end as `dpgw replay` runs it (MCAP output through `McapLogWriter`);
 - the pipeline without any output (what the MCAP writing costs);
 - framing + decoding alone with the line-by-line framer and decoder (what every sentence cost before the
-  compiled line scan, `gateway.codecs.nmea_scan`).
+  compiled line scan, `wire.codecs.nmea_scan`).
 
     python bench/bench_replay.py [--hours 1] [--repeat 2] [--json]
 """
@@ -21,9 +21,6 @@ import os
 import tempfile
 import time
 
-from gateway.codecs.nmea import decode
-from gateway.codecs.nmea_framing import NmeaFramer
-from gateway.mcaplog import McapLogWriter
 from gateway.replay import (
     ObserverSpec,
     build_config,
@@ -34,6 +31,9 @@ from gateway.replay import (
 from simulator.runner import Route, Simulation
 from simulator.scenarios import get_scenario
 from simulator.transports import FileSink
+from wire.codecs.nmea import decode
+from wire.codecs.nmea_framing import NmeaFramer
+from wire.mcaplog import McapLogWriter
 
 
 def make_log(path: str, hours: float) -> None:

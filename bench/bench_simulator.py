@@ -17,9 +17,9 @@ import os
 import tempfile
 import time
 
-from gateway.mcaplog import McapLogWriter
 from simulator.runner import Simulation
 from simulator.scenarios import get_scenario
+from wire.mcaplog import McapLogWriter
 
 
 def run_case(name: str, hours: float, folder: str) -> dict[str, float | int | str]:

@@ -14,7 +14,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
 from test_station_keeping import format_snijders_table, snijders_table, snijders_track
 
-from simulator.closed_loop import run_closed_loop
+from dpgw.closed_loop import run_closed_loop
 from simulator.scenarios import get_scenario
 
 

@@ -3,7 +3,7 @@
 Pure numerics (no I/O, no clocks: times come with the data), shared by the live service and replay.
 
 - **Datum and NED.** Positions are converted to the local NED plane of a fixed datum, or of the first
-  valid fix (DESIGN.md conventions), with `gateway.geodesy.LocalFrame` (exact WGS-84).
+  valid fix (DESIGN.md conventions), with `wire.geodesy.LocalFrame` (exact WGS-84).
 - **Lever arms.** An antenna at body-frame (x, y) from the reference point measures
   p_ref = p_antenna − J(ψ)[x, y] (DESIGN.md). ψ is the heading of the same cycle: the heading received
   closest in time to the fix (an epoch), from a short history.
@@ -27,9 +27,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from gateway.geodesy import LocalFrame
 from observers.kinematics import ssa_scalar
 from observers.vessel import VesselModel
+from wire.geodesy import LocalFrame
 
 Array = NDArray[np.float64]
 NS = 1_000_000_000

@@ -32,9 +32,10 @@ from pathlib import Path
 
 import numpy as np
 
-from gateway.codecs.nmea_encode import checksum
-from gateway.codecs.nmea_framing import DEFAULT_MAX_LENGTH
-from gateway.codecs.nmea_scan import (
+from gateway.pipeline import RawEvent
+from wire.codecs.nmea_encode import checksum
+from wire.codecs.nmea_framing import DEFAULT_MAX_LENGTH
+from wire.codecs.nmea_scan import (
     CLEAN,
     DIRTY,
     DUPLICATE,
@@ -44,7 +45,6 @@ from gateway.codecs.nmea_scan import (
     scan_lines,
     used_codes,
 )
-from gateway.pipeline import RawEvent
 
 NS = 1_000_000_000
 DAY_NS = 86_400 * NS
@@ -249,7 +249,7 @@ def nmea_text_events(
 ) -> Iterator[RawEvent]:
     """One `RawEvent` per cycle of a raw NMEA text log (see module docstring) — the events and counts of
     `nmea_text_events_reference`, with the per-line work done block by block by the compiled scan
-    (`gateway.codecs.nmea_scan`); only the cycle boundaries are decided in Python.
+    (`wire.codecs.nmea_scan`); only the cycle boundaries are decided in Python.
 
     Events whose lines are all clean sentences carry ``checked`` (see `RawEvent`): the texts of the
     sentences whose formatter is in ``only`` (all, if None) and the count of the rest. Give as ``only``

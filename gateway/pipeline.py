@@ -26,17 +26,17 @@ from typing import Any
 
 import numpy as np
 
-from gateway.codecs import nmea as nmea_codec
-from gateway.codecs.mavlink import AZIMUTH_THRUSTER_STATUS_ID, FrameParser, encoder, setup_signing
-from gateway.codecs.nmea_framing import NmeaFramer
 from gateway.config import ControlConfig, GatewayConfig
 from gateway.control.allocation import AllocationResult, PseudoInverseAllocator, QPAllocator, ThrusterCommand
 from gateway.control.controller import ControllerTuning, DPController
 from gateway.fusion import NS, Fusion
-from gateway.geodesy import LocalFrame
 from observers.factory import Observer, make_observer
 from observers.passive import STATUS_NAMES, PassiveEstimate
 from observers.vessel import VesselModel
+from wire.codecs import nmea as nmea_codec
+from wire.codecs.mavlink import AZIMUTH_THRUSTER_STATUS_ID, FrameParser, encoder, setup_signing
+from wire.codecs.nmea_framing import NmeaFramer
+from wire.geodesy import LocalFrame
 
 ESC_RPM_MAX = 200.0  # the propeller law's reference (simulator.thrusters.DEFAULT_MAX_RPM)
 USED_NMEA = frozenset({"GGA", "GNS", "HDT", "THS", "HDG", "GST"})
@@ -52,7 +52,7 @@ class RawEvent:
     """A chunk of bytes as received: UTC receive time (ns), source name, bytes.
 
     ``checked`` (NMEA only, set by replay's log reader): the chunk is whole lines, each a clean sentence
-    whose framing and checksum the reader has already verified (`gateway.codecs.nmea_scan`); it holds the
+    whose framing and checksum the reader has already verified (`wire.codecs.nmea_scan`); it holds the
     texts of the sentences the pipeline uses (`USED_NMEA`, proprietary ones too), in order, and the count
     of the other good sentences. The pipeline then skips the framer and counts the others unparsed — the
     outputs are the same as from ``data`` (tests/test_replay.py compares both).

@@ -31,10 +31,10 @@ from mcap.reader import make_reader
 
 from gateway.config import GatewayConfig, default_config, parse_config
 from gateway.logreaders import LogCounts, nmea_text_events, tlog_events
-from gateway.mcaplog import McapLogWriter, read_messages
 from gateway.pipeline import USED_NMEA, ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from observers.factory import OBSERVER_PARAMS, OBSERVER_TYPES, Observer, make_observer
 from observers.passive_tuning import PassiveTuning
+from wire.mcaplog import McapLogWriter, read_messages
 
 CONFIG_METADATA = "dpgw.config"
 MCAP_MAGIC = b"\x89MCAP0\r\n"

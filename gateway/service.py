@@ -24,11 +24,11 @@ from typing import Any
 import zenoh
 
 from gateway.bus import open_session
-from gateway.codecs import mavlink as mv
 from gateway.config import GatewayConfig
-from gateway.mcaplog import McapLogWriter, encode_json
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from gateway.sources import Chunk, Source, open_source
+from wire.codecs import mavlink as mv
+from wire.mcaplog import McapLogWriter, encode_json
 
 log = logging.getLogger("dpgw")
 

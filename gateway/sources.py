@@ -1265,7 +1265,7 @@ def _serial_source(
 def _default_hello() -> bytes:
     """A MAVLink 2 HEARTBEAT of an onboard computer (system 1, component 191), not a ground station: a
     GCS heartbeat (system 255) that stops later could trigger an autopilot's GCS failsafe."""
-    from gateway.codecs import mavlink  # only udpout needs the (large) dialect
+    from wire.codecs import mavlink  # only udpout needs the (large) dialect
 
     d = mavlink.dialect()
     mav = mavlink.encoder(1, d.MAV_COMP_ID_ONBOARD_COMPUTER)

@@ -15,8 +15,8 @@ from collections import Counter
 from dataclasses import dataclass
 from typing import Any
 
-from gateway.codecs.mavlink import AZIMUTH_THRUSTER_COMMAND_ID, FrameParser, dialect
 from simulator.transports import Sink
+from wire.codecs.mavlink import AZIMUTH_THRUSTER_COMMAND_ID, FrameParser, dialect
 
 
 @dataclass(frozen=True)

@@ -45,8 +45,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from gateway.codecs.mavlink import parse_frames
-from gateway.codecs.nmea_encode import checksum, corrupt_checksum
+from wire.codecs.mavlink import parse_frames
+from wire.codecs.nmea_encode import checksum, corrupt_checksum
 
 if TYPE_CHECKING:
     from simulator.sensors import Emission

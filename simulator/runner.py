@@ -26,7 +26,6 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from gateway.mcaplog import McapLogWriter
 from observers.kinematics import rotation, ssa_scalar
 from simulator.clock import Clock, SimEpoch, VirtualClock
 from simulator.commands import Command, TauCommand
@@ -39,6 +38,7 @@ from simulator.thrusters import PrescribedAllocation, ThrusterBank
 from simulator.transports import Sink
 from simulator.vessel_dynamics import MAX_STEP_S, VesselDynamics
 from simulator.waves import WaveField, WaveResponse
+from wire.mcaplog import McapLogWriter
 
 Array = NDArray[np.float64]
 

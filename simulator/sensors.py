@@ -38,13 +38,13 @@ import numpy as np
 import pymap3d
 from numpy.typing import ArrayLike, NDArray
 
-from gateway.codecs import mavlink as mv
-from gateway.codecs import nmea_encode as nmea
-from gateway.geodesy import LocalFrame
 from observers.kinematics import ssa_scalar
 from observers.vessel import THRUSTER_KINDS
 from simulator.clock import SimEpoch
 from simulator.faults import Fault, FaultSchedule
+from wire.codecs import mavlink as mv
+from wire.codecs import nmea_encode as nmea
+from wire.geodesy import LocalFrame
 
 __all__ = [
     "DGPS_EXTRA_SENTENCES",
@@ -117,7 +117,7 @@ class Datum:
 
     def to_geodetic(self, north: ArrayLike, east: ArrayLike, down: ArrayLike = 0.0) -> tuple[Any, Any, Any]:
         """Latitude (deg), longitude (deg) and ellipsoidal height (m) of local NED points (m). Scalars give
-        floats, arrays give arrays (broadcast). Scalars go through `gateway.geodesy` (the same exact
+        floats, arrays give arrays (broadcast). Scalars go through `wire.geodesy` (the same exact
         conversion as pymap3d, ~60x faster: one call per fix at 10 Hz adds up)."""
         if np.ndim(north) == 0 and np.ndim(east) == 0 and np.ndim(down) == 0:
             frame: LocalFrame = self._frame  # type: ignore[attr-defined]

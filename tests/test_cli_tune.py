@@ -6,7 +6,7 @@ import json
 import subprocess
 import sys
 
-from gateway.cli import main
+from dpgw.cli import main
 
 
 def test_tune_text(capsys) -> None:  # type: ignore[no-untyped-def]

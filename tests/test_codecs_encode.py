@@ -20,8 +20,8 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from gateway.codecs import mavlink as mv
-from gateway.codecs import nmea_encode as nmea
+from wire.codecs import mavlink as mv
+from wire.codecs import nmea_encode as nmea
 
 REPO = Path(__file__).resolve().parent.parent
 

@@ -20,13 +20,13 @@ from hypothesis import strategies as st
 from mcap.reader import make_reader
 
 from gateway.bus import isolated_config, open_session
-from gateway.codecs import nmea_encode as enc
 from gateway.config import parse_config
-from gateway.mcaplog import read_messages, summary
 from gateway.pipeline import ControlEvent, Pipeline, PipelineSpec, RawEvent
 from gateway.replay import config_from_log, replay
-from gateway.schemas import schema_for_topic, validate
 from gateway.scoring import score
+from wire.codecs import nmea_encode as enc
+from wire.mcaplog import read_messages, summary
+from wire.schemas import schema_for_topic, validate
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 

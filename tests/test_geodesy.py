@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from gateway.geodesy import LocalFrame
+from wire.geodesy import LocalFrame
 
 
 @settings(max_examples=300, deadline=None)

@@ -24,8 +24,8 @@ from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
 from gateway import schemas
-from gateway.mcap_fast import FastWriter
-from gateway.mcaplog import (
+from wire.mcap_fast import FastWriter
+from wire.mcaplog import (
     McapLogWriter,
     encode_json,
     log_files,
@@ -257,7 +257,7 @@ def test_oversize_message_gets_its_own_chunk(tmp_path: Path) -> None:
 WRITER_SCRIPT = textwrap.dedent(
     """
     import signal, sys, time
-    from gateway.mcaplog import McapLogWriter
+    from wire.mcaplog import McapLogWriter
 
     stop = False
 
@@ -349,7 +349,7 @@ def test_sigterm_closes_the_file_cleanly(tmp_path: Path) -> None:
 
 def test_exit_without_close_still_finishes_the_file(tmp_path: Path) -> None:
     path = tmp_path / "forgot.mcap"
-    code = "import sys; from gateway.mcaplog import McapLogWriter; w = McapLogWriter(sys.argv[1]); "
+    code = "import sys; from wire.mcaplog import McapLogWriter; w = McapLogWriter(sys.argv[1]); "
     code += "w.write('/t', {'i': 1}, 1); raise SystemExit(3)"
     proc = subprocess.run([sys.executable, "-c", code, str(path)], cwd=REPO, env=_env(), timeout=30)
     assert proc.returncode == 3

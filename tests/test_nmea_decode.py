@@ -18,8 +18,8 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from gateway.codecs import nmea_encode as enc
-from gateway.codecs.nmea import (
+from wire.codecs import nmea_encode as enc
+from wire.codecs.nmea import (
     BAD_CHECKSUM,
     BAD_FIELD,
     BAD_FORMAT,
@@ -41,7 +41,7 @@ from gateway.codecs.nmea import (
     _xor,
     decode,
 )
-from gateway.codecs.nmea_framing import (
+from wire.codecs.nmea_framing import (
     AIS,
     FRAME_REASONS,
     GARBAGE,

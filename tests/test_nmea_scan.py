@@ -17,8 +17,6 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from gateway.codecs.nmea_encode import checksum
-from gateway.codecs.nmea_scan import CLEAN, DIRTY, TIME_ASK, TIME_OK, scan_lines, used_codes
 from gateway.logreaders import (
     LogCounts,
     _time_of_day,
@@ -27,6 +25,8 @@ from gateway.logreaders import (
 )
 from gateway.pipeline import USED_NMEA, Pipeline, PipelineSpec
 from gateway.replay import build_config, open_inputs
+from wire.codecs.nmea_encode import checksum
+from wire.codecs.nmea_scan import CLEAN, DIRTY, TIME_ASK, TIME_OK, scan_lines, used_codes
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from gateway.bus import isolated_config, open_session
-from gateway.codecs import mavlink as mv
-from gateway.codecs import nmea_encode as enc
 from gateway.config import parse_config
-from gateway.geodesy import LocalFrame
 from gateway.pipeline import ControlEvent, Pipeline, PipelineSpec, RawEvent
+from wire.codecs import mavlink as mv
+from wire.codecs import nmea_encode as enc
+from wire.geodesy import LocalFrame
 
 S = 1_000_000_000
 T0 = 1_780_000_000 * S

@@ -20,10 +20,7 @@ import numpy as np
 import pytest
 
 from gateway.bus import isolated_config, open_session
-from gateway.codecs import mavlink as mv
-from gateway.codecs import nmea_encode as enc
 from gateway.logreaders import LogCounts, nmea_text_events, tlog_events
-from gateway.mcaplog import McapLogWriter, read_messages
 from gateway.replay import (
     ObserverSpec,
     ReplayError,
@@ -36,6 +33,9 @@ from gateway.replay import run_replay as _run
 from observers.kinematics import ssa
 from simulator.runner import Simulation
 from simulator.scenarios import get_scenario
+from wire.codecs import mavlink as mv
+from wire.codecs import nmea_encode as enc
+from wire.mcaplog import McapLogWriter, read_messages
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 USV = DATA / "usv-nmea"

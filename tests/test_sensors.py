@@ -16,7 +16,6 @@ import pymap3d
 import pynmea2
 import pytest
 
-from gateway.codecs import mavlink as mv
 from simulator.clock import SimEpoch
 from simulator.faults import Fault, FaultSchedule
 from simulator.sensors import (
@@ -34,6 +33,7 @@ from simulator.sensors import (
     azimuth_to_pwm,
     pwm_to_azimuth,
 )
+from wire.codecs import mavlink as mv
 
 REPO = Path(__file__).resolve().parent.parent
 EPOCH = SimEpoch(datetime(2024, 6, 1, 12, 0, 0, tzinfo=UTC))
@@ -59,7 +59,7 @@ def parse(em: Emission) -> Any:
 
 
 def mav_decode(data: bytes) -> list[Any]:
-    """pymavlink's own parser (not gateway.codecs.mavlink.FrameParser)."""
+    """pymavlink's own parser (not wire.codecs.mavlink.FrameParser)."""
     msgs = mv.dialect().MAVLink(None).parse_buffer(data)
     return list(msgs or [])
 

@@ -19,13 +19,13 @@ import pynmea2
 import pytest
 import serial
 
-from gateway.codecs.mavlink import AZIMUTH_THRUSTER_STATUS_ID, azimuth_command_frame, dialect, encoder
-from gateway.mcaplog import McapLogWriter, read_messages, summary
 from simulator.faults import Fault
 from simulator.runner import Route, Simulation
 from simulator.scenarios import SCENARIOS, get_scenario
 from simulator.sensors import DgpsConfig, ThrusterFeedbackConfig
 from simulator.transports import MemorySink
+from wire.codecs.mavlink import AZIMUTH_THRUSTER_STATUS_ID, azimuth_command_frame, dialect, encoder
+from wire.mcaplog import McapLogWriter, read_messages, summary
 
 
 def run_to_memory(name: str, seed: int, duration: float, **changes):  # type: ignore[no-untyped-def]
@@ -123,7 +123,7 @@ def test_wave_motion_limits_of_fossen_strand() -> None:
 
 def test_thruster_failure_fault_is_reported() -> None:
     """A scheduled thruster failure: the unit's thrust decays to zero and its status carries FAULT."""
-    from gateway.codecs.mavlink import AzimuthThrusterFlags
+    from wire.codecs.mavlink import AzimuthThrusterFlags
 
     faults = (Fault(kind="thruster_failure", source="2", t_start=10.0),)
     sim, _, mav = run_to_memory("hajivand_2010", seed=1, duration=40.0, faults=faults)

@@ -249,7 +249,7 @@ def test_udp_port_in_use_is_refused(opened: list[Source]) -> None:
 
 
 def test_udpout_announces_itself_with_a_heartbeat_and_reads_replies(opened: list[Source]) -> None:
-    from gateway.codecs.mavlink import parse_frames
+    from wire.codecs.mavlink import parse_frames
 
     far = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     far.bind(("127.0.0.1", 0))

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from scipy.signal import butter, sosfiltfilt
 
+from dpgw.closed_loop import ClosedLoopRun, gateway_tables, run_closed_loop
 from gateway.scoring import score
 from observers.kinematics import ssa
-from simulator.closed_loop import ClosedLoopRun, gateway_tables, run_closed_loop
 from simulator.scenarios import get_scenario
 from simulator.spectra import SeaState
 

@@ -13,7 +13,6 @@ import numpy as np
 
 from gateway.bus import BusError, make_config, open_session
 from gateway.config import ConfigError, format_problems
-from gateway.mcaplog import McapLogWriter, encode_json
 from gateway.pipeline import Output
 from gateway.replay import (
     Event,
@@ -29,6 +28,7 @@ from gateway.replay import (
 from gateway.scoring import score
 from observers.passive_tuning import TuningError
 from observers.vessel import VesselError
+from wire.mcaplog import McapLogWriter, encode_json
 
 
 def register(sub: Any) -> None:

@@ -2,7 +2,7 @@
 
 The packet layer of the NMEA codec, shaped like gpsd's (``gpsd/packet.c``): it only finds where sentences
 begin and end and resynchronises after noise; it never looks inside a sentence. Decoding (checksum, fields,
-units) is :func:`gateway.codecs.nmea.decode`'s job.
+units) is :func:`wire.codecs.nmea.decode`'s job.
 
 Bytes arrive chopped anywhere (serial reads, UDP datagrams with one or several sentences, TCP segments);
 :meth:`NmeaFramer.feed` keeps a partial sentence between calls, and the frames it returns do not depend on
@@ -51,7 +51,7 @@ class Frame(NamedTuple):
 
     * ``reason is None``: a candidate NMEA sentence. ``text`` is the sentence from ``$`` to the checksum
       without the line terminator (``$GPGGA,...*5C``), printable ASCII; decode it with
-      :func:`gateway.codecs.nmea.decode`.
+      :func:`wire.codecs.nmea.decode`.
     * otherwise ``text`` is ``None`` and ``reason`` is one of :data:`FRAME_REASONS`: a chunk the framer
       rejects (``garbage``, ``truncated``, ``overlong``, ``non_ascii``), or a complete printable ``!``
       sentence (AIS ``!AIVDM``/``!AIVDO``, reason ``ais``) that dpgw does not decode.

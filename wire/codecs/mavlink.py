@@ -1,6 +1,6 @@
 """MAVLink 2 codec over the project's dialect (``dpgw.xml``: ardupilotmega.xml + azimuth thrusters).
 
-A small typed layer over the module mavgen generates (:mod:`gateway.codecs.generated.dpgw`):
+A small typed layer over the module mavgen generates (:mod:`wire.codecs.generated.dpgw`):
 
 * :func:`encoder` makes a ``MAVLink`` object (``file=None``) whose sequence numbers and signing state belong
   to one outgoing link; the ``*_frame`` helpers take SI values, convert them to the wire units of the
@@ -26,8 +26,8 @@ from enum import IntFlag
 from types import ModuleType
 from typing import Any
 
-from gateway.codecs.generated import dpgw as _dpgw
 from observers.kinematics import ssa_scalar
+from wire.codecs.generated import dpgw as _dpgw
 
 MAVLink = _dpgw.MAVLink
 MAVLinkMessage = _dpgw.MAVLink_message

@@ -11,13 +11,13 @@ from dataclasses import replace
 from typing import Any
 
 from gateway.bus import BusError, make_config, open_session
-from gateway.mcaplog import McapLogWriter
 from simulator.clock import Clock, RealtimeClock, VirtualClock
 from simulator.commands import MavlinkCommandInput, ZenohCommandInput
 from simulator.faults import Fault, FaultSchedule
 from simulator.runner import CommandInput, Route, Simulation
 from simulator.scenarios import SCENARIOS, get_scenario
 from simulator.transports import Sink, TransportError, open_sink
+from wire.mcaplog import McapLogWriter
 
 
 def register(sub: Any) -> None:

@@ -1,6 +1,6 @@
 """The MCAP log every dpgw program writes, and the helpers that read it back.
 
-One channel per topic, JSON Schema (`jsonschema`) schemas from `gateway.schemas`, `json` messages.
+One channel per topic, JSON Schema (`jsonschema`) schemas from `wire.schemas`, `json` messages.
 `log_time` is the receive time, `publish_time` the event's stamp (DESIGN.md, "Time").
 
 Crash safety: the mcap `Writer` keeps the open chunk in memory, so a killed process would lose the whole
@@ -47,8 +47,8 @@ from mcap.stream_reader import StreamReader
 from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import CompressionType, Writer
 
-from gateway.mcap_fast import FastWriter
-from gateway.schemas import schema_for_topic
+from wire.mcap_fast import FastWriter
+from wire.schemas import schema_for_topic
 
 __all__ = [
     "ChannelSummary",
@@ -271,7 +271,7 @@ class McapLogWriter:
         """Log `payload` (a JSON object; numpy and NaN allowed) on `topic`.
 
         The channel and its schema are registered on the first write to a topic: `schema` (name, JSON
-        Schema) if given, else the one `gateway.schemas.schema_for_topic` picks. `publish_time_ns` defaults
+        Schema) if given, else the one `wire.schemas.schema_for_topic` picks. `publish_time_ns` defaults
         to `log_time_ns`.
         """
         if type(payload) is not dict and not isinstance(

@@ -25,7 +25,6 @@ import numpy as np
 
 from gateway.bus import BusError
 from gateway.config import ConfigError, default_config, format_problems, parse_config
-from gateway.mcaplog import read_messages
 from gateway.scoring import score
 from gateway.service import GatewayService
 from gateway.sources import SourceError
@@ -34,6 +33,7 @@ from simulator.commands import MavlinkCommandInput, ZenohCommandInput
 from simulator.runner import Route, Simulation
 from simulator.scenarios import SCENARIOS, get_scenario
 from simulator.transports import PtySink, UdpSink
+from wire.mcaplog import read_messages
 
 SETTLE_S = 60.0
 

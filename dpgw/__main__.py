@@ -1,6 +1,6 @@
 import sys
 
-from gateway.cli import main
+from dpgw.cli import main
 
 if __name__ == "__main__":  # (not when a spawned child imports it)
     sys.exit(main())

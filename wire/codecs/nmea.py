@@ -1,6 +1,6 @@
 """NMEA 0183 sentence decoding: one sentence's text in, a typed sentence in SI units (or a reject) out.
 
-The decoding half of the NMEA codec; :mod:`gateway.codecs.nmea_framing` finds the sentences in the byte
+The decoding half of the NMEA codec; :mod:`wire.codecs.nmea_framing` finds the sentences in the byte
 stream, :func:`decode` reads one. Units change here and only here (DESIGN.md rule 3): ``ddmm.mmmm``
 latitude/longitude become signed decimal degrees, knots become m/s, degrees of heading and course become
 radians in [-π, π), degrees per minute become rad/s, ``hhmmss.ss`` becomes seconds of the UTC day. Bad input
@@ -25,7 +25,7 @@ measurement comes back with ``valid=False`` (GGA quality 0, RMC status V, THS mo
 Supported sentence types, any talker (``GP``, ``GN``, ``GL``, ``GA``, ``GB``, ``BD``, ``HE``, ``HC``, ``IN``,
 ``II``, ...): GGA, GNS, RMC, VTG, GST, ZDA (:class:`Gga`, :class:`Gns`, :class:`Rmc`, :class:`Vtg`,
 :class:`Gst`, :class:`Zda`), HDT, THS, HDG (:class:`Heading`) and ROT (:class:`Rot`). The layouts are the
-ones :mod:`gateway.codecs.nmea_encode` writes (NMEA 0183 v4.10), read leniently: missing trailing fields
+ones :mod:`wire.codecs.nmea_encode` writes (NMEA 0183 v4.10), read leniently: missing trailing fields
 are empty, extra trailing fields (newer NMEA versions) are ignored. ``docs/nmea.md`` has the details.
 
 Speed matters (replay runs at 100,000 sentences/s): one ``split(',')`` per sentence, no regular
@@ -40,7 +40,7 @@ from dataclasses import dataclass, field, fields
 from datetime import UTC, date, datetime, timedelta
 from typing import Any, Final, Literal, TypeAlias, TypeVar
 
-from gateway.codecs.nmea_encode import checksum
+from wire.codecs.nmea_encode import checksum
 
 NO_CHECKSUM: Final = "no_checksum"
 BAD_CHECKSUM: Final = "bad_checksum"

@@ -15,12 +15,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gateway.config import parse_config
-from gateway.mcaplog import McapLogWriter
 from gateway.pipeline import ControlEvent, Pipeline, PipelineSpec, RawEvent
 from simulator.commands import Command, TauCommand, ThrusterCommand
 from simulator.runner import Route, Simulation
 from simulator.scenarios import Scenario
 from simulator.transports import Sink
+from wire.mcaplog import McapLogWriter
 
 Array = NDArray[np.float64]
 

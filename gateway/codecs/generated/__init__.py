@@ -1,4 +1,0 @@
-"""Code generated from the project's MAVLink dialect (gateway/codecs/dpgw.xml) by tools/generate_dialect.py.
-
-Do not edit: regenerate. Use it through :mod:`gateway.codecs.mavlink`.
-"""
