@@ -1,0 +1,300 @@
+"""What every gateway source shares: the `Source` interface and its reader thread, the `Chunk` it
+delivers, `SourceError` for mistakes a person must fix, the counters (`SourceStats`) and the reconnect
+back-off. The transports live in their own modules (`serial`, `udp`, `tcp`, `file`); `url` turns a URL into
+one of them.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from abc import ABC, abstractmethod
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from types import TracebackType
+from typing import ClassVar, Self
+
+log = logging.getLogger(__name__)
+
+#: Reconnect back-off (TCP client, serial port that went away): first wait, doubling up to the cap.
+BACKOFF_FIRST_S = 0.5
+BACKOFF_MAX_S = 10.0
+#: Longest a reader thread blocks in one read, so `Source.stop` is prompt.
+POLL_S = 0.2
+#: How long `Source.stop` waits for the reader thread.
+STOP_JOIN_S = 1.0
+READ_SIZE = 65536
+
+
+# -------------------------------------------------------------------------------------------- the values
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """Bytes as one read returned them, with the time they were received."""
+
+    source: str
+    """Source name from the config."""
+    data: bytes
+    """Bytes as read: a UDP datagram, a serial read, a TCP segment, whole lines of a file."""
+    rx_ns: int
+    """Receive time, UTC ns since 1970 (``time.time_ns()``), taken right after the read returned."""
+    rx_mono_ns: int
+    """Receive time on the monotonic clock (``time.monotonic_ns()``): for ages and rates."""
+    peer: str = ""
+    """UDP/TCP peer ``host:port`` (``[v6]:port``) that sent it, for `Source.write` ``peer=``; else ``""``."""
+
+
+class SourceError(Exception):
+    """A source that cannot work as configured; a person must fix it.
+
+    The message names the source, the problem, the URL and what to do, e.g. ``source 'gyro1': serial port
+    /dev/ttyUSB9 does not exist (serial:///dev/ttyUSB9?baud=4800) — check the cable/udev name``.
+    """
+
+    def __init__(self, name: str, url: str, problem: str, fix: str = "") -> None:
+        self.name = name
+        self.url = url
+        self.problem = problem
+        self.fix = fix
+        super().__init__(f"source {name!r}: {problem} ({url})" + (f" — {fix}" if fix else ""))
+
+
+@dataclass
+class SourceStats:
+    """Counters of one source. Written by its reader thread (and `Source.write`); read by anyone.
+
+    Plain attributes are safe to read at any time; use `snapshot` for a consistent copy (``errors`` may
+    change while it is iterated).
+    """
+
+    bytes_received: int = 0
+    chunks: int = 0
+    last_rx_mono_ns: int | None = None
+    """Monotonic ns of the last chunk; None before the first."""
+    connected: bool = False
+    """The link is up: serial port open, TCP connected, UDP socket bound, a client connected (tcp-listen),
+    file being read."""
+    reconnects: int = 0
+    """Times the link came back after it was lost (TCP client reconnected, serial port reopened) or, for
+    ``tcp-listen``, clients accepted after the first."""
+    errors: Counter[str] = field(default_factory=Counter)
+    """Problems by short, stable reason: ``"connect failed"``, ``"disconnected"``, ``"deliver raised"`` ..."""
+    bytes_sent: int = 0
+    last_error: str | None = None
+    """The last problem in full (what the OS said), for a person."""
+    _lock: threading.Lock = field(default_factory=threading.Lock, init=False, repr=False, compare=False)
+
+    def count_error(self, reason: str, detail: str | None = None) -> None:
+        with self._lock:
+            self.errors[reason] += 1
+            self.last_error = detail or reason
+
+    def add_sent(self, n: int) -> None:
+        with self._lock:
+            self.bytes_sent += n
+
+    def snapshot(self) -> SourceStats:
+        """A copy that no thread changes."""
+        with self._lock:
+            return SourceStats(
+                bytes_received=self.bytes_received,
+                chunks=self.chunks,
+                last_rx_mono_ns=self.last_rx_mono_ns,
+                connected=self.connected,
+                reconnects=self.reconnects,
+                errors=Counter(self.errors),
+                bytes_sent=self.bytes_sent,
+                last_error=self.last_error,
+            )
+
+
+class Backoff:
+    """Waits of BACKOFF_FIRST_S, doubling to BACKOFF_MAX_S; `reset` after a success."""
+
+    def __init__(self, first: float = BACKOFF_FIRST_S, cap: float = BACKOFF_MAX_S) -> None:
+        self.first = first
+        self.cap = cap
+        self.delay = first
+
+    def next(self) -> float:
+        delay = self.delay
+        self.delay = min(self.delay * 2.0, self.cap)
+        return delay
+
+    def reset(self) -> None:
+        self.delay = self.first
+
+
+# ------------------------------------------------------------------------------------------- the base
+
+
+class Source(ABC):
+    """One input stream of the gateway. Create with `open_source`; `start` once, `stop` when done.
+
+    Threading: `start` opens the transport in the calling thread (so a `SourceError` reaches the caller)
+    and starts one daemon reader thread, which calls ``deliver`` for every chunk. An exception in
+    ``deliver`` is counted (``errors["deliver raised"]``) and logged; reading goes on. `write` may be
+    called from any thread.
+    """
+
+    kind: ClassVar[str] = ""
+
+    def __init__(self, name: str, url: str, *, timeout_s: float = 2.0) -> None:
+        self.name = name
+        self.url = url
+        self.timeout_s = timeout_s
+        """How long a TCP connect attempt or a blocked write may take; the default of `is_stale`."""
+        self.stats = SourceStats()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._deliver: Callable[[Chunk], None] | None = None
+        self._started = False
+        self._io_lock = threading.Lock()  # a write, and closing what a write uses
+        self._logged: set[str] = set()
+
+    # ---------------------------------------------------------------- public
+
+    def start(self, deliver: Callable[[Chunk], None]) -> None:
+        """Open the transport and start the reader thread. Raises `SourceError` if it cannot be opened.
+
+        A source is started once; open a new one with `open_source` to start again.
+        """
+        if self._started or self._stop.is_set():
+            raise RuntimeError(f"source {self.name!r} was already started or stopped: open a new one")
+        self._open()
+        self._deliver = deliver
+        self._started = True
+        thread = threading.Thread(target=self._main, name=f"dpgw-source-{self.name}", daemon=True)
+        self._thread = thread
+        thread.start()
+
+    def stop(self) -> None:
+        """Stop reading and close the transport; waits up to ~1 s for the reader thread. Idempotent."""
+        self._stop.set()
+        self._interrupt()
+        thread = self._thread
+        if thread is None:
+            self._close()  # never started (or start failed): release what _open may have made
+            return
+        if thread is not threading.current_thread():
+            thread.join(STOP_JOIN_S)
+            if thread.is_alive():
+                log.warning(
+                    "source %r: reader thread still busy after %.1f s (is deliver blocked?); it ends on "
+                    "its own when deliver returns",
+                    self.name,
+                    STOP_JOIN_S,
+                )
+
+    @property
+    def finished(self) -> bool:
+        """The stream has ended for good (a file read to its end); never for a live link."""
+        return False
+
+    @property
+    def running(self) -> bool:
+        """The reader thread is alive."""
+        return self._thread is not None and self._thread.is_alive()
+
+    def write(self, data: bytes, peer: str | None = None) -> bool:
+        """Send ``data`` back on the link; False if it cannot right now (not connected, no peer, timeout).
+
+        ``peer`` (a `Chunk.peer`) picks the UDP peer or ``tcp-listen`` client; sources with one peer
+        ignore it. Never raises for I/O problems; they are counted in ``stats.errors``.
+        """
+        return False
+
+    def age_s(self, now_mono_ns: int | None = None) -> float:
+        """Seconds since the last chunk (``inf`` if none yet)."""
+        last = self.stats.last_rx_mono_ns
+        if last is None:
+            return math.inf
+        now = time.monotonic_ns() if now_mono_ns is None else now_mono_ns
+        return max(0.0, (now - last) / 1e9)
+
+    def is_stale(self, timeout_s: float | None = None, now_mono_ns: int | None = None) -> bool:
+        """Nothing received for more than ``timeout_s`` (default: the source's ``timeout_s``), or ever."""
+        limit = self.timeout_s if timeout_s is None else timeout_s
+        return self.age_s(now_mono_ns) > limit
+
+    def describe(self) -> str:
+        return f"{self.name} ({self.url})"
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.stop()
+
+    def __repr__(self) -> str:
+        state = "running" if self.running else "stopped" if self._started else "not started"
+        return f"<{type(self).__name__} {self.name!r} {self.url} {state}>"
+
+    # ---------------------------------------------------------------- for subclasses
+
+    @abstractmethod
+    def _open(self) -> None:
+        """Open the transport in the caller's thread; raise `SourceError` on a problem a person must fix."""
+
+    @abstractmethod
+    def _run(self) -> None:
+        """The reader loop; returns when ``self._stop`` is set (or the stream ended)."""
+
+    def _close(self) -> None:  # noqa: B027 — optional hook
+        """Release the transport (called by the reader thread on its way out). Idempotent."""
+
+    def _interrupt(self) -> None:  # noqa: B027 — optional hook
+        """Wake a blocked read at once (called by `stop` from another thread)."""
+
+    def _main(self) -> None:
+        try:
+            self._run()
+        except Exception as exc:  # a bug: say so, but do not take the process down
+            log.exception("source %r: reader thread failed", self.name)
+            self.stats.count_error("reader failed", f"reader thread failed: {exc!r}")
+        finally:
+            self._close()
+            self.stats.connected = False
+
+    def _error(self, reason: str, detail: str, level: int = logging.WARNING, *, always: bool = False) -> None:
+        """Count a problem; log it at ``level`` the first time a reason occurs (every time with ``always``:
+        state changes such as a lost link), at DEBUG after."""
+        self.stats.count_error(reason, detail)
+        if reason in self._logged and not always:
+            level = logging.DEBUG
+        self._logged.add(reason)
+        log.log(level, "source %r (%s): %s", self.name, self.url, detail)
+
+    def _emit(self, data: bytes, peer: str = "") -> None:
+        """Stamp ``data`` (call right after the read returned) and hand it to ``deliver``."""
+        rx_ns = time.time_ns()
+        rx_mono_ns = time.monotonic_ns()
+        stats = self.stats
+        stats.bytes_received += len(data)
+        stats.chunks += 1
+        stats.last_rx_mono_ns = rx_mono_ns
+        deliver = self._deliver
+        if deliver is None:
+            return
+        try:
+            deliver(Chunk(self.name, bytes(data), rx_ns, rx_mono_ns, peer))
+        except Exception as exc:
+            self.stats.count_error("deliver raised", f"deliver raised {type(exc).__name__}: {exc}")
+            if "deliver raised" not in self._logged:
+                self._logged.add("deliver raised")
+                log.exception("source %r: deliver raised (counted; reading goes on)", self.name)
+
+    def _sleep(self, seconds: float) -> bool:
+        """Wait ``seconds`` unless stopped; True if stopped."""
+        return self._stop.wait(max(0.0, seconds))
+
+
+def strerror(exc: OSError) -> str:
+    """What the OS said, for a message (``exc.strerror`` without the errno, or whatever there is)."""
+    return exc.strerror or str(exc) or type(exc).__name__

@@ -1,0 +1,187 @@
+"""Serial ports and ptys (``serial://``, ``pty://``, pymavlink device strings), read with pyserial.
+
+A pty is opened exactly like a serial port (the simulator's sensors are ptys), so there is one class.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import logging
+import os
+import stat
+from typing import Any
+
+from gateway.sources.base import Backoff, Source, SourceError
+
+log = logging.getLogger(__name__)
+
+#: NMEA 0183 / IEC 61162-1 default, used for ``serial://`` URLs without ``baud``.
+NMEA_DEFAULT_BAUD = 4800
+#: Longest one pyserial read blocks, so `Source.stop` is prompt.
+_SERIAL_POLL_S = 0.1
+
+
+class SerialSource(Source):
+    """A serial port or a pty, via pyserial; raw bytes, no flow control, exclusive (``flock``).
+
+    The device must exist at `start` (else `SourceError`). When it fails while running (a USB adapter
+    unplugged, the simulator's pty closed), the error is counted, ``stats.connected`` goes False and the
+    port is reopened with back-off (0.5 s doubling to 10 s) until it is back; ``stats.reconnects`` counts
+    the reopenings. A pty has no baud rate: the setting is accepted and ignored.
+    """
+
+    kind = "serial"
+
+    def __init__(
+        self,
+        name: str,
+        url: str,
+        device: str,
+        baud: int = NMEA_DEFAULT_BAUD,
+        *,
+        bytesize: int = 8,
+        parity: str = "N",
+        stopbits: float = 1,
+        timeout_s: float = 2.0,
+    ) -> None:
+        super().__init__(name, url, timeout_s=timeout_s)
+        self.device = device
+        self.baud = baud
+        self.bytesize = bytesize
+        self.parity = parity
+        self.stopbits = stopbits
+        self._ser: Any = None  # serial.Serial while open
+
+    def _open_port(self) -> Any:
+        try:
+            import serial  # pyserial is needed only by serial sources
+        except ImportError as exc:
+            raise SourceError(
+                self.name, self.url, "pyserial is not installed", "pip install pyserial"
+            ) from exc
+        if not os.path.exists(self.device):
+            raise SourceError(
+                self.name,
+                self.url,
+                f"serial port {self.device} does not exist",
+                "check the cable/udev name (ls /dev/serial/by-id/; for the simulator: the pty it printed)",
+            )
+        with contextlib.suppress(OSError):
+            if not stat.S_ISCHR(os.stat(self.device).st_mode):
+                raise SourceError(
+                    self.name,
+                    self.url,
+                    f"{self.device} is not a serial device",
+                    f"for a file write file://{os.path.abspath(self.device)}",
+                )
+        ser = serial.Serial()
+        ser.port = self.device
+        ser.baudrate = self.baud
+        ser.bytesize = self.bytesize
+        ser.parity = self.parity
+        ser.stopbits = self.stopbits
+        ser.timeout = _SERIAL_POLL_S
+        ser.write_timeout = self.timeout_s
+        ser.exclusive = True
+        try:
+            ser.open()
+        except (serial.SerialException, OSError, ValueError) as exc:
+            code = getattr(exc, "errno", None)
+            text = str(exc)
+            if code == errno.EAGAIN or "exclusively lock" in text:
+                problem, fix = f"serial port {self.device} is in use", "another program has it open: stop it"
+            elif code == errno.EACCES:
+                problem = f"no permission to open serial port {self.device}"
+                fix = "join the group owning the device (often 'dialout') and log in again"
+            elif code == errno.ENOENT:
+                problem, fix = f"serial port {self.device} does not exist", "check the cable/udev name"
+            elif code == errno.EBUSY:
+                problem, fix = f"serial port {self.device} is busy", "another program has it open: stop it"
+            else:
+                problem, fix = (
+                    f"cannot open serial port {self.device}: {text}",
+                    "check the device and settings",
+                )
+            raise SourceError(self.name, self.url, problem, fix) from exc
+        return ser
+
+    def _open(self) -> None:
+        self._ser = self._open_port()
+        self.stats.connected = True
+
+    def _run(self) -> None:
+        import serial
+
+        backoff = Backoff()
+        while not self._stop.is_set():
+            ser = self._ser
+            if ser is None:
+                if self._sleep(backoff.next()):
+                    return
+                try:
+                    ser = self._open_port()
+                except SourceError as exc:
+                    self._error("reopen failed", str(exc), logging.DEBUG)
+                    continue
+                with self._io_lock:
+                    self._ser = ser
+                self.stats.connected = True
+                self.stats.reconnects += 1
+                backoff.reset()
+                log.info("source %r: serial port %s open again", self.name, self.device)
+            data = b""
+            try:
+                data = ser.read(1)
+                if data:
+                    waiting = ser.in_waiting
+                    if waiting:
+                        data += ser.read(waiting)
+            except (serial.SerialException, OSError, TypeError, ValueError) as exc:
+                if self._stop.is_set():
+                    return
+                if data:
+                    self._emit(data)
+                self._error(
+                    "disconnected", f"serial port {self.device} failed: {exc}; reopening", always=True
+                )
+                self.stats.connected = False
+                with self._io_lock:
+                    self._ser = None
+                    with contextlib.suppress(Exception):
+                        ser.close()
+                continue
+            if data:
+                self._emit(data)
+
+    def write(self, data: bytes, peer: str | None = None) -> bool:
+        import serial
+
+        with self._io_lock:
+            ser = self._ser
+            if ser is None or self._stop.is_set():
+                return False
+            try:
+                n = ser.write(data) or 0
+            except serial.SerialTimeoutException:
+                self._error("write timeout", f"write to {self.device} timed out after {self.timeout_s} s")
+                return False
+            except (serial.SerialException, OSError, TypeError, ValueError) as exc:
+                self._error("write failed", f"write to {self.device} failed: {exc}")
+                return False
+        self.stats.add_sent(n)
+        return n == len(data)
+
+    def _interrupt(self) -> None:
+        ser = self._ser
+        if ser is not None:
+            with contextlib.suppress(Exception):
+                ser.cancel_read()
+
+    def _close(self) -> None:
+        with self._io_lock:
+            ser, self._ser = self._ser, None
+        if ser is not None:
+            with contextlib.suppress(Exception):
+                ser.close()
+        self.stats.connected = False
