@@ -23,7 +23,7 @@ from mcap.records import Chunk
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
-from gateway import schemas
+from wire import schemas
 from wire.mcap_fast import FastWriter
 from wire.mcaplog import (
     McapLogWriter,
