@@ -169,9 +169,8 @@ def split_host_port(text: str, *, need_host: bool, allow_zero: bool, example: st
     port = int(m.group(2) or m.group(4))
     low = 0 if allow_zero else 1
     if not low <= port <= 65535:
-        raise UrlError(
-            f"port {port} is out of range", f"{low}–65535" + (" (0: any free port)" if not low else "")
-        )
+        span = f"{low}–65535" + (", 0: any free port" if not low else "")
+        raise UrlError(f"port {port} is out of range ({span})", example or "a port in that range")
     if need_host and not host:
         raise UrlError("no host given", example or "e.g. 127.0.0.1:5760")
     return host, port
