@@ -11,9 +11,9 @@ import tomllib
 from typing import Any
 
 from gateway.bus import BusError
-from gateway.config import ConfigError, format_problems, load_config
-from gateway.service import GatewayService
-from gateway.sources import SourceError
+from gateway.config import ConfigError, GatewayConfig, describe, format_problems, load_config
+from gateway.service import GatewayService, zenoh_config
+from gateway.sources import SourceError, open_source
 
 
 def register(sub: Any) -> None:
@@ -39,7 +39,11 @@ def register(sub: Any) -> None:
     p.add_argument("--config", required=True, metavar="FILE", help="gateway config (TOML)")
     p.add_argument("--log", metavar="FILE.mcap", help="override [log] path")
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds (tests, trials)")
-    p.add_argument("--check", action="store_true", help="validate the config and exit (0 when it is good)")
+    p.add_argument(
+        "--check",
+        action="store_true",
+        help="check the config and exit: a summary (status 0) or every problem (status 2); opens nothing",
+    )
     p.add_argument("--json", action="store_true", help="print the exit summary as JSON")
     p.add_argument("-v", "--verbose", action="store_true")
     p.set_defaults(func=run)
@@ -53,7 +57,11 @@ def run(args: argparse.Namespace) -> int:
         print(format_problems(exc), file=sys.stderr)
         return 2
     if args.check:
-        print(f"{args.config}: OK ({len(config.sources)} sources, vessel {config.vessel.name})")
+        problems = start_up_problems(config)
+        if problems:
+            print(format_problems(problems), file=sys.stderr)
+            return 2
+        print(describe(config))
         return 0
     with open(args.config, "rb") as f:
         tables = tomllib.load(f)
@@ -84,3 +92,22 @@ def run(args: argparse.Namespace) -> int:
             f"{service.published} messages published"
         )
     return 0
+
+
+def start_up_problems(config: GatewayConfig) -> list[str]:
+    """What start-up would refuse beyond the config's own checks, found without opening anything: each
+    source URL as the gateway's sources read it, and the Zenoh session's config."""
+    where = str(config.path)
+    problems: list[str] = []
+    for sc in config.sources:
+        try:
+            open_source(sc.name, sc.url, timeout_s=sc.timeout_s)  # validates; opens nothing until start()
+        except SourceError as exc:
+            problems.append(
+                f"{where}: sources.{sc.name}.url: {exc.problem}" + (f" ({exc.fix})" if exc.fix else "")
+            )
+    try:
+        zenoh_config(config.zenoh)
+    except BusError as exc:
+        problems.append(f"{where}: zenoh: {exc}")
+    return problems

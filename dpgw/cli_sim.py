@@ -37,7 +37,7 @@ def register(sub: Any) -> None:
             "  dpgw sim --scenario torsetnes_2004 --duration 600 --out trial.mcap\n"
             "  dpgw sim --scenario torsetnes_2004 --nmea pty --realtime          # prints the device path\n"
             "  dpgw sim --scenario hassani --nmea dgps1=udp://127.0.0.1:10110 --nmea gyro1=pty --realtime\n"
-            "  dpgw sim --scenario hajivand_2010 --mavlink tcp://127.0.0.1:5760 --zenoh --realtime\n"
+            "  dpgw sim --scenario hajivand_2010 --mavlink tcp-listen://127.0.0.1:5760 --zenoh --realtime\n"
             f"scenarios: {', '.join(SCENARIOS)}"
         ),
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -53,7 +53,7 @@ def register(sub: Any) -> None:
         action="append",
         default=[],
         metavar="[SOURCE=]URL|pty",
-        help="where NMEA goes (repeatable): pty, pty:///path/link, udp://H:P, tcp://H:P (server), "
+        help="where NMEA goes (repeatable): pty, pty:///path/link, udp://H:P, tcp-listen://H:P (a server), "
         "serial:///dev/ttyX?baud=N, file:///path; SOURCE= sends one sensor only (dgps1, gyro1)",
     )
     p.add_argument(

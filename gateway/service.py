@@ -23,8 +23,8 @@ from typing import Any
 
 import zenoh
 
-from gateway.bus import open_session
-from gateway.config import GatewayConfig
+from gateway.bus import make_config, open_session
+from gateway.config import GatewayConfig, ZenohConfig
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from gateway.sources import Chunk, Source, open_source
 from wire.codecs import mavlink as mv
@@ -34,6 +34,17 @@ log = logging.getLogger("dpgw")
 
 JSON = zenoh.Encoding.APPLICATION_JSON
 INPUT_KEYS = ("setpoint", "mode", "tau")
+
+
+def zenoh_config(z: ZenohConfig) -> zenoh.Config:
+    """The `zenoh.Config` of the configured session (`gateway.bus.make_config`); opens nothing."""
+    return make_config(
+        mode=z.mode,
+        connect=z.connect,
+        listen=z.listen,
+        multicast_scouting=z.multicast_scouting,
+        config_file=z.config_file,
+    )
 
 
 class GatewayService:
@@ -86,7 +97,7 @@ class GatewayService:
                 self._sources.append(src)
                 src.start(self._queue.put)
             if self._session is None:
-                self._session = open_session(self.config.zenoh.make())
+                self._session = open_session(zenoh_config(self.config.zenoh))
             s = self._session
             for topic in ("estimate", "measurement", "status", "thrusters/feedback", "thrusters/command"):
                 key = f"{self.prefix}/{topic}"

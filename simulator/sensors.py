@@ -29,14 +29,14 @@ that line noise never changes the sensors' random streams.
 from __future__ import annotations
 
 import math
-import re
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol, runtime_checkable
+from typing import Annotated, Any, Literal, Protocol, runtime_checkable
 
 import numpy as np
 import pymap3d
 from numpy.typing import ArrayLike, NDArray
+from pydantic import AfterValidator, ConfigDict, Field, TypeAdapter, ValidationError
 
 from observers.kinematics import ssa_scalar
 from observers.vessel import THRUSTER_KINDS
@@ -107,12 +107,7 @@ class Datum:
     alt_m: float = 0.0
 
     def __post_init__(self) -> None:
-        _validate(
-            self,
-            lat_deg=(lambda v: -90.0 <= v <= 90.0, "must be in [-90, 90] degrees"),
-            lon_deg=(lambda v: -180.0 <= v <= 180.0, "must be in [-180, 180] degrees"),
-            alt_m=(math.isfinite, "must be finite"),
-        )
+        _validate(self, _DATUM_RULES)
         object.__setattr__(self, "_frame", LocalFrame(self.lat_deg, self.lon_deg, self.alt_m))
 
     def to_geodetic(self, north: ArrayLike, east: ArrayLike, down: ArrayLike = 0.0) -> tuple[Any, Any, Any]:
@@ -172,11 +167,11 @@ class ThrusterReading:
     power_w: float = math.nan
 
     def __post_init__(self) -> None:
-        _validate(
-            self,
-            id=(lambda v: 0 <= v <= 255, "must be in 0..255"),
-            kind=(lambda v: v in THRUSTER_KINDS, f"must be one of {THRUSTER_KINDS}"),
-        )
+        # a value made every sample (not a config): two plain comparisons, no schema
+        if isinstance(self.id, bool) or not (isinstance(self.id, int | np.integer) and 0 <= self.id <= 255):
+            raise ValueError(f"ThrusterReading.id: must be in 0..255, got {self.id!r}")
+        if self.kind not in THRUSTER_KINDS:
+            raise ValueError(f"ThrusterReading.kind: must be one of {THRUSTER_KINDS}, got {self.kind!r}")
 
 
 @dataclass(frozen=True)
@@ -238,36 +233,7 @@ class DgpsConfig:
         object.__setattr__(self, "slow_sentences", tuple(self.slow_sentences))
         object.__setattr__(self, "lever_arm_m", tuple(float(x) for x in self.lever_arm_m))
         burst = (self.position_sentence, *self.extra)
-        _validate(
-            self,
-            source=_SOURCE_RULE,
-            talker=_TALKER_RULE,
-            rate_hz=(lambda v: 1.0 <= v <= 10.0, "must be in 1..10 Hz"),
-            position_sentence=(
-                lambda v: v in DGPS_POSITION_SENTENCES,
-                f"must be one of {DGPS_POSITION_SENTENCES}",
-            ),
-            extra=(lambda v: set(v) <= set(DGPS_EXTRA_SENTENCES), f"must be some of {DGPS_EXTRA_SENTENCES}"),
-            slow_sentences=(
-                lambda v: set(v) <= set(DGPS_EXTRA_SENTENCES),
-                f"must be some of {DGPS_EXTRA_SENTENCES} (the position sentence always runs at rate_hz)",
-            ),
-            slow_rate_hz=(lambda v: 0.0 < v <= 10.0, "must be in (0, 10] Hz"),
-            quality=(lambda v: v in DGPS_QUALITIES, f"must be one of {sorted(DGPS_QUALITIES)}"),
-            sigma_m=(lambda v: v >= 0.0, "must be >= 0 m"),
-            lever_arm_m=(
-                lambda v: len(v) == 3 and all(map(math.isfinite, v)),
-                "must be 3 finite numbers (x fwd, y stbd, z down) in m",
-            ),
-            latency_s=(lambda v: 0.0 <= v <= 10.0, "must be in 0..10 s"),
-            n_sats=(lambda v: 4 <= v <= 99, "must be in 4..99 (a fix needs four satellites)"),
-            hdop=(lambda v: 0.0 < v <= 99.0, "must be in (0, 99]"),
-            alt_m=(math.isfinite, "must be finite"),
-            age_s=(lambda v: v is None or 0.0 <= v <= 999.0, "must be None or in 0..999 s"),
-            station_id=(lambda v: v is None or 0 <= v <= 1023, "must be None or in 0..1023"),
-            noise_correlation_s=(lambda v: v >= 0.0, "must be >= 0 s (0 = white noise)"),
-            sigma_velocity_mps=(lambda v: v >= 0.0, "must be >= 0 m/s"),
-        )
+        _validate(self, _DGPS_RULES)
         if len(set(burst)) != len(burst):
             raise ValueError(
                 f"DgpsConfig.extra: repeats a sentence or the position sentence, got {self.extra!r}"
@@ -296,20 +262,7 @@ class GyroConfig:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "sentences", tuple(self.sentences))
-        _validate(
-            self,
-            source=_SOURCE_RULE,
-            talker=_TALKER_RULE,
-            rate_hz=(lambda v: 0.0 < v <= 20.0, "must be in (0, 20] Hz"),
-            sentences=(
-                lambda v: 0 < len(v) == len(set(v)) and set(v) <= set(GYRO_SENTENCES),
-                f"must be distinct names out of {GYRO_SENTENCES}",
-            ),
-            sigma_rad=(lambda v: v >= 0.0, "must be >= 0 rad"),
-            latency_s=(lambda v: 0.0 <= v <= 10.0, "must be in 0..10 s"),
-            sigma_rot_rad_s=(lambda v: v >= 0.0, "must be >= 0 rad/s"),
-            variation_rad=(lambda v: abs(v) <= math.pi, "must be in [-π, π] rad"),
-        )
+        _validate(self, _GYRO_RULES)
 
 
 @dataclass(frozen=True)
@@ -327,17 +280,7 @@ class ThrusterFeedbackConfig:
     latency_s: float = 0.0
 
     def __post_init__(self) -> None:
-        _validate(
-            self,
-            source=_SOURCE_RULE,
-            rate_hz=(lambda v: 0.0 < v <= 50.0, "must be in (0, 50] Hz"),
-            system_id=(lambda v: 1 <= v <= 255, "must be in 1..255"),
-            component_id=(lambda v: 1 <= v <= 255, "must be in 1..255"),
-            heartbeat_hz=(lambda v: 0.0 <= v <= 10.0, "must be in 0..10 Hz (0 = no heartbeat)"),
-            ardupilot_esc=(lambda v: isinstance(v, bool), "must be true or false"),
-            ardupilot_servo=(lambda v: isinstance(v, bool), "must be true or false"),
-            latency_s=(lambda v: 0.0 <= v <= 10.0, "must be in 0..10 s"),
-        )
+        _validate(self, _FEEDBACK_RULES)
 
 
 # ---------------------------------------------------------------------------------------------- sensors
@@ -751,32 +694,121 @@ class ThrusterFeedback(Sensor):
 # ---------------------------------------------------------------------------------------------- helpers
 
 
-Rule = tuple[Callable[[Any], bool], str]
+# The configs' rules: each field's type and limits as a pydantic type (strict: no "5" for 5, no True for
+# 1; floats finite), and what the message says when it fails. One library validates the gateway's config
+# file and these; the message names the class and field: ``DgpsConfig.rate_hz: must be in 1..10 Hz, got 20``.
+
+Rule = tuple[TypeAdapter[Any], str]
+_STRICT = ConfigDict(strict=True)
 
 
-def _validate(obj: object, **rules: Rule) -> None:
-    """Check fields of a config dataclass: ``ValueError("<Class>.<field>: <what>, got <value>")`` for the
-    first field whose rule is false or fails (a value of the wrong type); a float must also be finite."""
-    for name, (ok, what) in rules.items():
+def _rule(tp: Any, what: str) -> Rule:
+    return TypeAdapter(tp, config=_STRICT), what
+
+
+def _number(
+    *, ge: float | None = None, le: float | None = None, gt: float | None = None, lt: float | None = None
+) -> Any:
+    return Annotated[float, Field(ge=ge, le=le, gt=gt, lt=lt, allow_inf_nan=False)]
+
+
+def _integer(ge: int, le: int) -> Any:
+    return Annotated[int, Field(ge=ge, le=le)]
+
+
+def _one_of(choices: tuple[Any, ...]) -> Any:
+    """One of ``choices``, compared as written (no conversion: 2.0 is not the quality 2)."""
+    return Literal.__getitem__(choices)
+
+
+def _tuple(*items: Any) -> Any:
+    """``tuple[items]`` built at run time (the items are pydantic types made by the helpers above)."""
+    return tuple.__class_getitem__(items)
+
+
+def _stream_name(v: str) -> str:
+    if v == "" or v.strip() != v or v == "*":
+        raise ValueError("not a stream name")
+    return v
+
+
+def _distinct(v: tuple[str, ...]) -> tuple[str, ...]:
+    if not v or len(set(v)) != len(v):
+        raise ValueError("empty or repeated")
+    return v
+
+
+_StreamName = Annotated[str, AfterValidator(_stream_name)]
+_Talker = Annotated[str, Field(pattern=r"^[A-Z][A-Z0-9]$")]
+_SOURCE_RULE = _rule(_StreamName, "must be a non-empty stream name without surrounding spaces (not '*')")
+_TALKER_RULE = _rule(_Talker, "must be a 2-character NMEA talker id such as 'GP', 'GN' or 'HE'")
+_BOOLEAN_RULE = _rule(bool, "must be true or false")
+_LATENCY_RULE = _rule(_number(ge=0.0, le=10.0), "must be in 0..10 s")
+_DgpsExtra = _tuple(_one_of(DGPS_EXTRA_SENTENCES), ...)
+
+_DATUM_RULES: dict[str, Rule] = {
+    "lat_deg": _rule(_number(ge=-90.0, le=90.0), "must be in [-90, 90] degrees"),
+    "lon_deg": _rule(_number(ge=-180.0, le=180.0), "must be in [-180, 180] degrees"),
+    "alt_m": _rule(_number(), "must be finite"),
+}
+_DGPS_RULES: dict[str, Rule] = {
+    "source": _SOURCE_RULE,
+    "talker": _TALKER_RULE,
+    "rate_hz": _rule(_number(ge=1.0, le=10.0), "must be in 1..10 Hz"),
+    "position_sentence": _rule(_one_of(DGPS_POSITION_SENTENCES), f"must be one of {DGPS_POSITION_SENTENCES}"),
+    "extra": _rule(_DgpsExtra, f"must be some of {DGPS_EXTRA_SENTENCES}"),
+    "slow_sentences": _rule(
+        _DgpsExtra, f"must be some of {DGPS_EXTRA_SENTENCES} (the position sentence always runs at rate_hz)"
+    ),
+    "slow_rate_hz": _rule(_number(gt=0.0, le=10.0), "must be in (0, 10] Hz"),
+    "quality": _rule(_one_of(tuple(DGPS_QUALITIES)), f"must be one of {sorted(DGPS_QUALITIES)}"),
+    "sigma_m": _rule(_number(ge=0.0), "must be >= 0 m"),
+    "lever_arm_m": _rule(
+        _tuple(_number(), _number(), _number()), "must be 3 finite numbers (x fwd, y stbd, z down) in m"
+    ),
+    "latency_s": _LATENCY_RULE,
+    "n_sats": _rule(_integer(4, 99), "must be in 4..99 (a fix needs four satellites)"),
+    "hdop": _rule(_number(gt=0.0, le=99.0), "must be in (0, 99]"),
+    "alt_m": _rule(_number(), "must be finite"),
+    "age_s": _rule(_number(ge=0.0, le=999.0) | None, "must be None or in 0..999 s"),
+    "station_id": _rule(_integer(0, 1023) | None, "must be None or in 0..1023"),
+    "noise_correlation_s": _rule(_number(ge=0.0), "must be >= 0 s (0 = white noise)"),
+    "sigma_velocity_mps": _rule(_number(ge=0.0), "must be >= 0 m/s"),
+}
+_GYRO_RULES: dict[str, Rule] = {
+    "source": _SOURCE_RULE,
+    "talker": _TALKER_RULE,
+    "rate_hz": _rule(_number(gt=0.0, le=20.0), "must be in (0, 20] Hz"),
+    "sentences": _rule(
+        Annotated[_tuple(_one_of(GYRO_SENTENCES), ...), AfterValidator(_distinct)],
+        f"must be distinct names out of {GYRO_SENTENCES}",
+    ),
+    "sigma_rad": _rule(_number(ge=0.0), "must be >= 0 rad"),
+    "latency_s": _LATENCY_RULE,
+    "sigma_rot_rad_s": _rule(_number(ge=0.0), "must be >= 0 rad/s"),
+    "variation_rad": _rule(_number(ge=-math.pi, le=math.pi), "must be in [-π, π] rad"),
+}
+_FEEDBACK_RULES: dict[str, Rule] = {
+    "source": _SOURCE_RULE,
+    "rate_hz": _rule(_number(gt=0.0, le=50.0), "must be in (0, 50] Hz"),
+    "system_id": _rule(_integer(1, 255), "must be in 1..255"),
+    "component_id": _rule(_integer(1, 255), "must be in 1..255"),
+    "heartbeat_hz": _rule(_number(ge=0.0, le=10.0), "must be in 0..10 Hz (0 = no heartbeat)"),
+    "ardupilot_esc": _BOOLEAN_RULE,
+    "ardupilot_servo": _BOOLEAN_RULE,
+    "latency_s": _LATENCY_RULE,
+}
+
+
+def _validate(obj: object, rules: dict[str, Rule]) -> None:
+    """Check the fields of a config dataclass against its rules (pydantic): ``ValueError("<Class>.<field>:
+    <what>, got <value>")`` for the first field that fails."""
+    for name, (adapter, what) in rules.items():
         value = getattr(obj, name)
         try:
-            good = bool(ok(value)) and not (isinstance(value, float) and not math.isfinite(value))
-        except (TypeError, ValueError):
-            good = False
-        if not good:
-            raise ValueError(f"{type(obj).__name__}.{name}: {what}, got {value!r}")
-
-
-def _is_stream_name(v: Any) -> bool:
-    return isinstance(v, str) and v != "" and v.strip() == v and v != "*"
-
-
-def _is_talker(v: Any) -> bool:
-    return bool(re.fullmatch(r"[A-Z][A-Z0-9]", v))
-
-
-_SOURCE_RULE: Rule = (_is_stream_name, "must be a non-empty stream name without surrounding spaces (not '*')")
-_TALKER_RULE: Rule = (_is_talker, "must be a 2-character NMEA talker id such as 'GP', 'GN' or 'HE'")
+            adapter.validate_python(value)
+        except ValidationError:
+            raise ValueError(f"{type(obj).__name__}.{name}: {what}, got {value!r}") from None
 
 
 def _maybe_float(x: Any) -> Any:

@@ -22,7 +22,7 @@ def test_tune_json_in_a_subprocess() -> None:
         [
             sys.executable,
             "-m",
-            "gateway",
+            "dpgw",
             "tune",
             "--vessel",
             "northern_clipper",

@@ -22,7 +22,6 @@ from gateway.config import (
     default_config,
     format_problems,
     load_config,
-    main,
     parse_config,
 )
 from observers.passive_tuning import PassiveTuning
@@ -306,13 +305,16 @@ def test_logging_disabled_and_writer_options(tmp_path: Path) -> None:
 
 
 def test_zenoh_make_builds_a_config_without_opening(tmp_path: Path) -> None:
+    """The gateway builds the session's config from the typed values (the config itself imports no bus)."""
     import zenoh
+
+    from gateway.service import zenoh_config
 
     d = base()
     d["zenoh"] = {"listen": ["tcp/127.0.0.1:0"], "multicast_scouting": False, "prefix": "bench/dp"}
     c = parse(d, tmp_path)
     assert c.zenoh.prefix == "bench/dp"
-    assert isinstance(c.zenoh.make(), zenoh.Config)
+    assert isinstance(zenoh_config(c.zenoh), zenoh.Config)
 
 
 def test_values_that_are_fine(tmp_path: Path) -> None:
@@ -405,11 +407,11 @@ BAD: list[tuple[str, dict[str, Any], str, str]] = [
         "observer.rate_hz",
         'wrong type (expected a number from 1 to 50 Hz, got a string "fast")',
     ),
-    ("bool is not a number", {"sources.0.timeout_s": True}, "sources[0].timeout_s", "got a boolean true"),
+    ("bool is not a number", {"sources.0.timeout_s": True}, "sources.dgps1.timeout_s", "got a boolean true"),
     (
         "int expected",
         {"sources.0.priority": 1.5},
-        "sources[0].priority",
+        "sources.dgps1.priority",
         "expected an integer >= 0, got a number 1.5",
     ),
     (
@@ -418,11 +420,11 @@ BAD: list[tuple[str, dict[str, Any], str, str]] = [
         "observer.rate_hz",
         "out of range (expected a number from 1 to 50 Hz, got 100)",
     ),
-    ("nan", {"sources.0.timeout_s": math.nan}, "sources[0].timeout_s", "not a finite number"),
+    ("nan", {"sources.0.timeout_s": math.nan}, "sources.dgps1.timeout_s", "not a finite number"),
     (
         "timeout zero",
         {"sources.1.timeout_s": 0},
-        "sources[1].timeout_s",
+        "sources.gyro1.timeout_s",
         "expected a number > 0 and <= 600 s",
     ),
     (
@@ -440,7 +442,12 @@ BAD: list[tuple[str, dict[str, Any], str, str]] = [
         "first_fix = true and a fixed point",
     ),
     ("unknown section", {"sourcess": []}, "sourcess", "unknown key, did you mean 'sources'?"),
-    ("unknown source key", {"sources.0.timout_s": 2.0}, "sources[0].timout_s", "did you mean 'timeout_s'?"),
+    (
+        "unknown source key",
+        {"sources.0.timout_s": 2.0},
+        "sources.dgps1.timout_s",
+        "did you mean 'timeout_s'?",
+    ),
     (
         "unknown observer key",
         {"observer.wave_perod_s": 8.0},
@@ -457,8 +464,8 @@ BAD: list[tuple[str, dict[str, Any], str, str]] = [
     (
         "duplicate name",
         {"sources.1.name": "dgps1"},
-        "sources[1].name",
-        'duplicate source name (expected unique names; sources[0] is also "dgps1")',
+        "sources[1].name",  # a duplicate is named by its index; the first keeps the name
+        'duplicate source name (expected unique names; sources.dgps1 is also "dgps1")',
     ),
     ("bad name", {"sources.0.name": "DGPS-1"}, "sources[0].name", "expected lowercase letters, digits and _"),
     (
@@ -476,192 +483,207 @@ BAD: list[tuple[str, dict[str, Any], str, str]] = [
     (
         "role typo",
         {"sources.1.roles": ["heding"]},
-        "sources[1].roles",
+        "sources.gyro1.roles",
         'role "heding" is not available for protocol "nmea", did you mean "heading"?',
     ),
     (
         "thrusters over nmea",
         {"sources.1.roles": ["heading", "thrusters"]},
-        "sources[1].roles",
+        "sources.gyro1.roles",
         'role "thrusters" is not available for protocol "nmea"',
     ),
-    ("empty roles", {"sources.2.roles": []}, "sources[2].roles", "empty (expected an array of roles"),
-    ("repeated role", {"sources.1.roles": ["heading", "heading"]}, "sources[1].roles", "a role is repeated"),
+    ("empty roles", {"sources.2.roles": []}, "sources.thr.roles", "empty (expected an array of roles"),
+    (
+        "repeated role",
+        {"sources.1.roles": ["heading", "heading"]},
+        "sources.gyro1.roles",
+        "a role is repeated",
+    ),
     (
         "protocol",
         {"sources.0.protocol": "nmea0183"},
-        "sources[0].protocol",
+        "sources.dgps1.protocol",
         'expected "nmea" or "mavlink", got "nmea0183"',
     ),
-    ("missing url", {"sources.0.url": DELETE}, "sources[0].url", "missing (expected a URL"),
+    ("missing url", {"sources.0.url": DELETE}, "sources.dgps1.url", "missing (expected a URL"),
     (
         "url scheme",
         {"sources.0.url": "serail:///dev/ttyUSB0"},
-        "sources[0].url",
+        "sources.dgps1.url",
         "unknown transport 'serail', did you mean serial://?",
     ),
     (
         "url two slashes",
         {"sources.0.url": "serial://dev/ttyUSB0"},
-        "sources[0].url",
+        "sources.dgps1.url",
         "three slashes: serial:///dev/ttyUSB0",
     ),
     (
         "url no slashes",
         {"sources.0.url": "tcp-listen:0.0.0.0:10110"},
-        "sources[0].url",
+        "sources.dgps1.url",
         "did you mean tcp-listen://0.0.0.0:10110?",
     ),
-    ("no transport", {"sources.0.url": "192.168.1.5:10110"}, "sources[0].url", "expected udp://192.168.1.5"),
+    (
+        "no transport",
+        {"sources.0.url": "192.168.1.5:10110"},
+        "sources.dgps1.url",
+        "expected udp://192.168.1.5",
+    ),
     (
         "url option (gateway.sources)",
         {"sources.0.url": "serial:///dev/ttyUSB0?buad=4800"},
-        "sources[0].url",
+        "sources.dgps1.url",
         "buad",
     ),
     (
         "parity (gateway.sources)",
         {"sources.0.url": "serial:///dev/ttyUSB0?parity=X"},
-        "sources[0].url",
+        "sources.dgps1.url",
         "parity",
     ),
     (
         "pymavlink serial for nmea",
         {"sources.0.url": "serial:/dev/ttyUSB0"},
-        "sources[0].url",
+        "sources.dgps1.url",
         "opens at 115200 baud (expected serial:///dev/ttyUSB0?baud=4800 for NMEA 0183",
     ),
     (
         "bare device for nmea",
         {"sources.0.url": "/dev/ttyUSB0"},
-        "sources[0].url",
+        "sources.dgps1.url",
         "expected serial:///dev/ttyUSB0?baud=4800",
     ),
     (
         "baud",
         {"sources.0.url": "serial:///dev/ttyUSB0?baud=48000"},
-        "sources[0].url",
+        "sources.dgps1.url",
         "unsupported baud rate '48000'",
     ),
-    ("port", {"sources.0.url": "udp://0.0.0.0:70000"}, "sources[0].url", "port 70000 is out of range"),
-    ("no port", {"sources.0.url": "udp://0.0.0.0"}, "sources[0].url", "is not HOST:PORT"),
-    ("tcp no host", {"sources.0.url": "tcp://:2000"}, "sources[0].url", "no host to connect to"),
-    ("pymavlink no host", {"sources.2.url": "udpout::14550"}, "sources[2].url", "no host"),
-    ("unknown pymavlink", {"sources.2.url": "udpbcast:1.2.3.4:14550"}, "sources[2].url", "unknown transport"),
-    ("not a url", {"sources.0.url": "gps.nmea"}, "sources[0].url", "not a URL"),
+    ("port", {"sources.0.url": "udp://0.0.0.0:70000"}, "sources.dgps1.url", "port 70000 is out of range"),
+    ("no port", {"sources.0.url": "udp://0.0.0.0"}, "sources.dgps1.url", "is not HOST:PORT"),
+    ("tcp no host", {"sources.0.url": "tcp://:2000"}, "sources.dgps1.url", "no host to connect to"),
+    ("pymavlink no host", {"sources.2.url": "udpout::14550"}, "sources.thr.url", "no host"),
+    (
+        "unknown pymavlink",
+        {"sources.2.url": "udpbcast:1.2.3.4:14550"},
+        "sources.thr.url",
+        "unknown transport",
+    ),
+    ("not a url", {"sources.0.url": "gps.nmea"}, "sources.dgps1.url", "not a URL"),
     (
         "same device twice",
         {"sources.1.url": "serial:///dev/ttyUSB0?baud=4800"},
-        "sources[1].url",
-        "same serial /dev/ttyUSB0 as sources[0]",
+        "sources.gyro1.url",
+        "same serial /dev/ttyUSB0 as sources.dgps1",
     ),
     (
         "same udp port twice",
         {"sources.0.url": "udp://0.0.0.0:14550"},
-        "sources[2].url",
-        "same udp 14550 as sources[0]",
+        "sources.thr.url",
+        "same udp 14550 as sources.dgps1",
     ),
     (
         "lever arm short",
         {"sources.0.lever_arm_m": [10.0, -2.0]},
-        "sources[0].lever_arm_m",
+        "sources.dgps1.lever_arm_m",
         "expected an array of 3 numbers [x fwd, y stbd, z down]",
     ),
     (
         "lever arm string",
         {"sources.0.lever_arm_m": "10, -2, -20"},
-        "sources[0].lever_arm_m",
+        "sources.dgps1.lever_arm_m",
         'got a string "10, -2, -20"',
     ),
     (
         "lever arm in mm",
         {"sources.0.lever_arm_m": [10000.0, -2000.0, -20000.0]},
-        "sources[0].lever_arm_m",
+        "sources.dgps1.lever_arm_m",
         "farther from the reference point",
     ),
     (
         "lever arm on gyro",
         {"sources.1.lever_arm_m": [1.0, 0.0, 0.0]},
-        "sources[1].lever_arm_m",
+        "sources.gyro1.lever_arm_m",
         'only for sources with role "position"',
     ),
     (
         "signing key short",
         {"sources.2.signing_key": "abc123"},
-        "sources[2].signing_key",
+        "sources.thr.signing_key",
         "expected 64 hexadecimal characters, got 6 characters",
     ),
     (
         "signing key not hex",
         {"sources.2.signing_key": "zz" * 32},
-        "sources[2].signing_key",
+        "sources.thr.signing_key",
         "not all hexadecimal",
     ),
     (
         "signing key on nmea",
         {"sources.0.signing_key": KEY},
-        "sources[0].signing_key",
+        "sources.dgps1.signing_key",
         'only for protocol "mavlink"',
     ),
     (
         "unsigned without key",
         {"sources.2.allow_unsigned": True},
-        "sources[2].allow_unsigned",
+        "sources.thr.allow_unsigned",
         "has no effect without a signing_key",
     ),
     (
         "system id",
         {"sources.2.system_id": 300},
-        "sources[2].system_id",
+        "sources.thr.system_id",
         "expected an integer from 1 to 255, got 300",
     ),
     (
         "checksum on mavlink",
         {"sources.2.allow_missing_checksum": True},
-        "sources[2].allow_missing_checksum",
+        "sources.thr.allow_missing_checksum",
         'only for protocol "nmea"',
     ),
     (
         "priority tie",
         {"sources.2.roles": ["thrusters", "heading"]},
-        "sources[2].priority",
+        "sources.thr.priority",
         "sources 'gyro1' and 'thr' both have role 'heading' with priority 1",
     ),
     (
         "ardupilot thruster id",
         {"sources.2.ardupilot": {"esc": {"1": 9}}},
-        "sources[2].ardupilot.esc.1",
+        "sources.thr.ardupilot.esc.1",
         "vessel 'mss_supply' has no thruster 9 (expected one of its thruster ids: 1, 2, 3, 4, 5, 6)",
     ),
     (
         "ardupilot servo to tunnel",
         {"sources.2.ardupilot": {"servo": {"1": 4}}},
-        "sources[2].ardupilot.servo.1",
+        "sources.thr.ardupilot.servo.1",
         "thruster 4 is a tunnel thruster",
     ),
     (
         "ardupilot index",
         {"sources.2.ardupilot": {"esc": {"0": 1}}},
-        "sources[2].ardupilot.esc.0",
+        "sources.thr.ardupilot.esc.0",
         "not a ESC index (expected 1 to 32",
     ),
     (
         "ardupilot twice",
         {"sources.2.ardupilot": {"esc": {"1": 1, "2": 1}}},
-        "sources[2].ardupilot.esc.2",
+        "sources.thr.ardupilot.esc.2",
         "thruster 1 is also mapped from esc 1",
     ),
-    ("ardupilot empty", {"sources.2.ardupilot": {}}, "sources[2].ardupilot", "maps nothing"),
+    ("ardupilot empty", {"sources.2.ardupilot": {}}, "sources.thr.ardupilot", "maps nothing"),
     (
         "ardupilot key",
         {"sources.2.ardupilot": {"escs": {"1": 1}}},
-        "sources[2].ardupilot.escs",
+        "sources.thr.ardupilot.escs",
         "did you mean 'esc'?",
     ),
     (
         "ardupilot without thrusters role",
         {"sources.2.roles": ["heading"], "sources.2.priority": 2, "sources.2.ardupilot": {"esc": {"1": 1}}},
-        "sources[2].ardupilot",
+        "sources.thr.ardupilot",
         'expected "thrusters" in roles',
     ),
     (
@@ -816,10 +838,10 @@ compression = "gzip"
     problems = info.value.problems
     expected_keys = [
         "vessel.name",
-        "sources[0].timout_s",
-        "sources[0].url",
-        "sources[0].lever_arm_m",
-        "sources[1].signing_key",
+        "sources.dgps1.timout_s",
+        "sources.dgps1.url",
+        "sources.dgps1.lever_arm_m",
+        "sources[1].signing_key",  # a second "dgps1": named by its index
         "sources[1].name",
         "sources",  # no heading
         "observer.rate_hz",
@@ -881,26 +903,40 @@ def test_format_problems_for_the_cli(tmp_path: Path) -> None:
 
 
 def test_check_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    assert main([str(EXAMPLES / "nmea_udp_multiplexer.toml")]) == 0
+    """`dpgw run --config FILE --check`: the one check command; a summary, or every problem (status 2)."""
+    from dpgw.cli import main
+
+    assert main(["run", "--config", str(EXAMPLES / "nmea_udp_multiplexer.toml"), "--check"]) == 0
     assert "nmea_udp_multiplexer.toml: ok" in capsys.readouterr().out
     bad = tmp_path / "bad.toml"
     bad.write_text(BASE_TOML.replace('roles = ["heading"]', 'roles = ["heading"]\nbaud = 4800'))
-    assert main([str(bad)]) == 1
+    assert main(["run", "--config", str(bad), "--check"]) == 2
     err = capsys.readouterr().err
-    assert f"{bad}: sources[1].baud: unknown key" in err
+    assert f"{bad}: sources.gyro1.baud: unknown key" in err
 
 
 def test_check_command_in_a_subprocess(tmp_path: Path) -> None:
-    """`python -m gateway.config FILE` as `dpgw run` reports it: one message on stderr, exit status 1."""
+    """`dpgw run --config FILE --check` in a process: one message on stderr, nothing on stdout, status 2."""
     bad = tmp_path / "bad.toml"
     bad.write_text(BASE_TOML.replace('"mss_supply"', '"titanic"'))
     p = subprocess.run(
-        [sys.executable, "-m", "gateway.config", str(bad)], capture_output=True, text=True, cwd=ROOT
+        [sys.executable, "-m", "dpgw", "run", "--config", str(bad), "--check"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
     )
-    assert p.returncode == 1
+    assert p.returncode == 2
     assert p.stdout == ""
     assert f"{bad}: vessel.name: not a built-in vessel" in p.stderr
     assert "nothing was started" in p.stderr
+
+
+def test_the_old_check_module_is_gone() -> None:
+    """One check command: `python -m gateway.config` no longer runs (it is a package without __main__)."""
+    p = subprocess.run(
+        [sys.executable, "-m", "gateway.config", "x.toml"], capture_output=True, text=True, cwd=ROOT
+    )
+    assert p.returncode != 0
 
 
 def test_parse_config_does_not_modify_its_input(tmp_path: Path) -> None:

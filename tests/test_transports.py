@@ -305,7 +305,7 @@ def wait_clients(sink: TcpServerSink, n: int, timeout: float = 3.0) -> None:
 
 
 def test_tcp_server_sends_to_every_client_and_reads_them() -> None:
-    with open_sink("tcp://127.0.0.1:0") as sink:
+    with open_sink("tcp-listen://127.0.0.1:0") as sink:
         assert isinstance(sink, TcpServerSink)
         assert sink.port > 0 and sink.host == "127.0.0.1"
         sink.write(GGA)  # no client: goes nowhere, not a drop
@@ -360,7 +360,7 @@ def test_tcp_client_bytes_via_read_available_and_half_close() -> None:
 
 
 def test_tcp_slow_client_is_dropped_not_waited_for() -> None:
-    with open_sink("tcp://127.0.0.1:0?max_backlog=65536") as sink:
+    with open_sink("tcp-listen://127.0.0.1:0?max_backlog=65536") as sink:
         assert isinstance(sink, TcpServerSink)
         slow = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         slow.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
@@ -410,7 +410,7 @@ def test_tcp_slow_client_is_dropped_not_waited_for() -> None:
 
 def test_tcp_port_in_use_is_a_transport_error() -> None:
     with TcpServerSink("127.0.0.1", 0) as first:
-        url = f"tcp://127.0.0.1:{first.port}"
+        url = f"tcp-listen://127.0.0.1:{first.port}"
         with pytest.raises(TransportError, match="in use") as info:
             open_sink(url)
         assert url in str(info.value)
@@ -489,10 +489,11 @@ def test_memory_sink_and_closed_sink() -> None:
         "udp://127.0.0.1:99999",
         "udp://127.0.0.1:10110?bind=nonsense",
         "udp:127.0.0.1:10110",
-        "tcp://127.0.0.1:abc",
-        "tcp://127.0.0.1:0?bogus=1",
-        "tcp://127.0.0.1:0/path",
-        "tcp://192.0.2.1:0",
+        "tcp-listen://127.0.0.1:abc",
+        "tcp-listen://127.0.0.1:0?bogus=1",
+        "tcp-listen://127.0.0.1:0/path",
+        "tcp-listen://192.0.2.1:0",
+        "tcp://127.0.0.1:10110",  # the old server spelling: now a client, which the simulator has not
         "ftp://example.org/file",
         "pty://tmp/dpgw-gps",
         "pty?stale_s=-1",

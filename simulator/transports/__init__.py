@@ -8,7 +8,7 @@ same sink with `Sink.read_available`. `open_sink` turns a URL into a sink::
     pty:///tmp/dpgw-gps          ... with a stable symlink to it (removed on close)
     udp://HOST:PORT              UdpSink: one datagram per write to HOST:PORT; replies are read back
     udp://HOST:PORT?bind=H:P     ... sending from (and listening on) H:P
-    tcp://HOST:PORT              TcpServerSink: a TCP server; every write goes to every client
+    tcp-listen://HOST:PORT       TcpServerSink: a TCP server; every write goes to every client
     serial:///dev/ttyUSB0?baud=4800   SerialSink: a real serial port, raw 8N1, no flow control
     file:///path/to/file, PATH   FileSink: appended, handed to the OS on every write
 

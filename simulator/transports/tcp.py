@@ -1,4 +1,5 @@
-"""A TCP server sink (``tcp://HOST:PORT``): every write to every client, a slow client never stalls it."""
+"""A TCP server sink (``tcp-listen://HOST:PORT``): every write to every client; a slow client never stalls
+it."""
 
 from __future__ import annotations
 
@@ -40,7 +41,7 @@ class TcpServerSink(Sink):
         self, host: str = "127.0.0.1", port: int = 0, *, max_backlog: int = 262_144, url: str | None = None
     ) -> None:
         super().__init__()
-        self.url = url or f"tcp://{host}:{port}"
+        self.url = url or f"tcp-listen://{host}:{port}"
         if not 0 <= port < 65536:
             raise TransportError(
                 self.url, f"port {port} is out of range", "use a port 1–65535, or 0 for any free one"
@@ -104,13 +105,13 @@ class TcpServerSink(Sink):
                 conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             self._clients.append(_Client(conn, fmt_addr(addr)))
             self.clients_accepted += 1
-            log.info("tcp://%s: client %s connected", fmt_addr(self.address), fmt_addr(addr))
+            log.info("tcp-listen://%s: client %s connected", fmt_addr(self.address), fmt_addr(addr))
 
     def _disconnect(self, client: _Client, reason: str) -> None:
         self._clients.remove(client)
         self.clients_dropped += 1
         self.bytes_dropped += len(client.backlog)
-        where = f"tcp://{fmt_addr(self.address)}"
+        where = f"tcp-listen://{fmt_addr(self.address)}"
         self.last_error = f"{where}: client {client.peer}: {reason}"
         log.info("%s: client %s dropped: %s", where, client.peer, reason)
         with contextlib.suppress(OSError):
@@ -196,7 +197,7 @@ class TcpServerSink(Sink):
 
     def describe(self) -> str:
         n = len(self._clients)
-        return f"tcp://{fmt_addr(self.address)} ({n} client{'s' if n != 1 else ''})"
+        return f"tcp-listen://{fmt_addr(self.address)} ({n} client{'s' if n != 1 else ''})"
 
     def close(self) -> None:
         if self._closed:

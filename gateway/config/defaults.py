@@ -1,0 +1,79 @@
+"""The embedded defaults: one place that the config schema and `default_config` (``dpgw demo``) both read."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from observers.passive_tuning import PassiveTuning
+from observers.vessel import builtin_vessels
+
+DEFAULT_TUNING = PassiveTuning()
+DEFAULTS: dict[str, dict[str, Any]] = {
+    "vessel": {"reference_point_m": [0.0, 0.0]},
+    "datum": {"alt_m": 0.0, "first_fix": False},
+    "source": {
+        "lever_arm_m": [0.0, 0.0, 0.0],
+        "timeout_s": 2.0,
+        "allow_missing_checksum": False,
+        "priority": 1,
+        "allow_unsigned": False,
+    },
+    "observer": {
+        "type": "passive",
+        "wave_period_s": 7.0,
+        "zeta": DEFAULT_TUNING.zeta,
+        "zeta_n": DEFAULT_TUNING.zeta_n,
+        "cutoff_ratio": DEFAULT_TUNING.cutoff_ratio,
+        "bias_time_constant_s": DEFAULT_TUNING.bias_time_constant_s,
+        "velocity_injection_ratio": DEFAULT_TUNING.velocity_injection_ratio,
+        "bias_corner_ratio": DEFAULT_TUNING.bias_corner_ratio,
+        "allow_unchecked": False,
+        "rate_hz": 10.0,
+    },
+    "zenoh": {
+        "mode": "peer",
+        "connect": [],
+        "listen": [],
+        "config_file": "",
+        "prefix": "",
+        "multicast_scouting": True,
+    },
+    "log": {
+        "path": "logs/dpgw.mcap",
+        "rotate_mb": 1024,
+        "rotate_minutes": 60,
+        "flush_interval_s": 1.0,
+        "compression": "zstd",
+    },
+    "status": {"rate_hz": 1.0},
+    "control": {
+        "rate_hz": 10.0,
+        "initial_mode": "standby",
+        "allocator": "qp",
+        "damping": 1.0,
+        "feedback": "estimate",
+    },
+}
+
+
+def default_config(vessel: str = "mss_supply") -> dict[str, Any]:
+    """The embedded defaults as a config dict (what `dpgw demo` starts from); ``sources`` is left empty.
+
+    ``vessel`` is a built-in vessel name or a vessel file path. Fill in ``sources`` and pass the dict to
+    `parse_config`.
+    """
+    vessel_table: dict[str, Any] = {"name": vessel} if vessel in builtin_vessels() else {"file": vessel}
+    vessel_table.update(copy_table(DEFAULTS["vessel"]))
+    return {
+        "vessel": vessel_table,
+        "datum": {"first_fix": True},
+        "sources": [],
+        "observer": copy_table(DEFAULTS["observer"]),
+        "zenoh": copy_table(DEFAULTS["zenoh"]),
+        "log": copy_table(DEFAULTS["log"]),
+        "status": copy_table(DEFAULTS["status"]),
+    }
+
+
+def copy_table(table: dict[str, Any]) -> dict[str, Any]:
+    return {k: list(v) if isinstance(v, list) else v for k, v in table.items()}

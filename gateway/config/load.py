@@ -1,0 +1,378 @@
+"""TOML → a checked `GatewayConfig`, or one `ConfigError` listing every problem.
+
+Each table is read with its schema (`gateway.config.schema`: types, ranges, unknown keys), then the
+checks that need several keys or other files run here: the vessel file, the datum, the Zenoh endpoints
+and key prefix, the log's limits; the sources and the observer have their own modules. Loading reads
+the config file, a vessel file and a Zenoh config file if named; it opens no device, port, socket or
+log. Relative paths (``vessel.file``, ``log.path``, ``zenoh.config_file``, ``file:`` source URLs) are
+resolved against the folder of the config file.
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from gateway.config.defaults import DEFAULTS
+from gateway.config.model import (
+    ZENOH_PROTOCOLS,
+    ControlConfig,
+    DatumConfig,
+    GatewayConfig,
+    LogConfig,
+    StatusConfig,
+    ZenohConfig,
+)
+from gateway.config.observer_section import read_observer
+from gateway.config.problems import ConfigError, Problems, did_you_mean, kind, show
+from gateway.config.schema import (
+    ControlTable,
+    DatumTable,
+    LogTable,
+    StatusTable,
+    VesselTable,
+    ZenohTable,
+    read_table,
+)
+from gateway.config.source_entries import read_sources
+from observers.vessel import VesselError, VesselModel, builtin_vessels, load_vessel
+from wire.urls import UrlError, split_host_port
+
+__all__ = ["load_config", "parse_config"]
+
+_TOP_KEYS = ("vessel", "datum", "sources", "observer", "zenoh", "log", "status", "control")
+
+
+def load_config(path: str | Path) -> GatewayConfig:
+    """Read, check and return the configuration in ``path``; raise `ConfigError` listing every problem."""
+    where = str(path)
+    file = Path(path)
+    try:
+        raw = file.read_bytes()
+    except FileNotFoundError:
+        raise ConfigError([f"{where}: cannot read: no such file"]) from None
+    except OSError as exc:
+        raise ConfigError([f"{where}: cannot read: {exc.strerror or exc}"]) from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError([f"{where}: not UTF-8 text (byte {exc.start}): save the file as UTF-8"]) from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError([f"{where}: not valid TOML: {exc}"]) from None
+    resolved = file.resolve()
+    return _parse(data, base_dir=resolved.parent, where=where, path=resolved)
+
+
+def parse_config(data: dict[str, Any], *, base_dir: Path, where: str = "<config>") -> GatewayConfig:
+    """Check a parsed config (a dict as from `tomllib`); relative paths are resolved against ``base_dir``.
+
+    ``where`` names the config in messages. Raises `ConfigError` listing every problem.
+    """
+    base = Path(base_dir).resolve()
+    return _parse(data, base_dir=base, where=where, path=base / where)
+
+
+def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> GatewayConfig:
+    p = Problems(where)
+    if not isinstance(data, dict):
+        raise ConfigError(
+            [f"{where}: (top level): wrong type (expected a table of sections, got {kind(data)})"]
+        )
+    p.unknown_keys(data, "", _TOP_KEYS)
+
+    vessel, vessel_source, reference_point = _read_vessel(p, data, base_dir)
+    datum = _read_datum(p, data)
+    sources = read_sources(p, data, base_dir, vessel)
+    observer_table = _section(p, data, "observer")
+    observer = read_observer(p, observer_table, vessel) if observer_table is not None else None
+    zenoh_config = _read_zenoh(p, data, base_dir, vessel)
+    log = _read_log(p, data, base_dir)
+    status = _read_status(p, data)
+    control = _read_control(p, data)
+
+    if p.lines:
+        raise ConfigError(p.lines)
+    assert vessel is not None and vessel_source is not None and reference_point is not None
+    assert datum is not None and sources is not None and observer is not None
+    assert zenoh_config is not None and log is not None and status is not None and control is not None
+    return GatewayConfig(
+        vessel=vessel,
+        vessel_source=vessel_source,
+        reference_point_m=reference_point,
+        datum=datum,
+        sources=sources,
+        observer=observer,
+        zenoh=zenoh_config,
+        log=log,
+        status=status,
+        path=path,
+        control=control,
+    )
+
+
+def _section(
+    p: Problems, data: Mapping[str, Any], key: str, *, required: bool = False
+) -> dict[str, Any] | None:
+    """The table ``[key]`` ({} when absent and optional), or None after reporting why it is unusable."""
+    value = data.get(key)
+    if value is None:
+        if required:
+            p.add(key, f"missing (expected a [{key}] table)")
+            return None
+        return {}
+    if not isinstance(value, dict):
+        p.add(key, f"wrong type (expected a [{key}] table, got {kind(value)} {show(value)})")
+        return None
+    return value
+
+
+def _read_vessel(
+    p: Problems, data: Mapping[str, Any], base_dir: Path
+) -> tuple[VesselModel | None, str | None, tuple[float, float] | None]:
+    t = _section(p, data, "vessel", required=True)
+    if t is None:
+        return None, None, None
+    v = read_table(VesselTable, t, "vessel", p)
+    builtins = builtin_vessels()
+    vessel: VesselModel | None = None
+    source: str | None = None
+    if "name" in t and "file" in t:
+        p.add("vessel", "both name and file given (expected one: a built-in vessel name or a vessel file)")
+    elif "name" in t:
+        name = v["name"]
+        if name is not None:
+            if name not in builtins:
+                hint = did_you_mean(name, builtins, quote='"')
+                p.add(
+                    "vessel.name",
+                    f"not a built-in vessel{hint} (expected one of "
+                    f'{", ".join(builtins)}, or give file = "my_ship.toml" for a vessel file; '
+                    f"got {show(name)})",
+                )
+            else:
+                try:
+                    vessel, source = load_vessel(name), name
+                except VesselError as exc:
+                    p.add("vessel.name", str(exc))
+    elif "file" in t:
+        file = v["file"]
+        if file is not None:
+            vessel_path = (base_dir / file).resolve()
+            if not file:
+                p.add("vessel.file", "empty (expected a vessel TOML file path)")
+            elif not vessel_path.is_file():
+                p.add(
+                    "vessel.file",
+                    f"no such file {vessel_path} (expected a vessel TOML file; relative paths are relative "
+                    f"to the config file's folder; got {show(file)})",
+                )
+            else:
+                try:
+                    vessel, source = load_vessel(vessel_path), str(vessel_path)
+                except VesselError as exc:
+                    p.add("vessel.file", str(exc))
+    else:
+        p.add(
+            "vessel",
+            f'missing name or file (expected name = one of {", ".join(builtins)}, or file = "my_ship.toml")',
+        )
+    ref = v["reference_point_m"]
+    reference: tuple[float, float] | None = None
+    if ref is not None:
+        reference = (ref[0], ref[1])
+        if vessel is not None and max(abs(ref[0]), abs(ref[1])) > vessel.length_m:
+            p.add(
+                "vessel.reference_point_m",
+                f"outside the vessel (expected |x|, |y| <= the vessel length {vessel.length_m:g} m, got "
+                f"{show(t['reference_point_m'])})",
+            )
+            reference = None
+    return vessel, source, reference
+
+
+def _read_datum(p: Problems, data: Mapping[str, Any]) -> DatumConfig | None:
+    if "datum" not in data:
+        return DatumConfig(first_fix=True)
+    t = _section(p, data, "datum")
+    if t is None:
+        return None
+    v = read_table(DatumTable, t, "datum", p)
+    first_fix, alt, lat, lon = v["first_fix"], v["alt_m"], v["lat_deg"], v["lon_deg"]
+    has_lat, has_lon = "lat_deg" in t, "lon_deg" in t
+    if first_fix is None or alt is None:
+        return None
+    if first_fix:
+        if has_lat or has_lon or "alt_m" in t:
+            p.add(
+                "datum",
+                "first_fix = true and a fixed point given (expected either lat_deg, lon_deg [, alt_m] or "
+                "first_fix = true)",
+            )
+            return None
+        return DatumConfig(first_fix=True)
+    if not has_lat or not has_lon:
+        missing = " and ".join(k for k, has in (("lat_deg", has_lat), ("lon_deg", has_lon)) if not has)
+        both = not has_lat and not has_lon
+        p.add(
+            "datum" if both else f"datum.{missing}",
+            f"missing{' ' + missing if both else ''} (expected lat_deg and lon_deg of the local NED origin, "
+            "or first_fix = true)",
+        )
+        return None
+    if lat is None or lon is None:
+        return None
+    return DatumConfig(lat_deg=lat, lon_deg=lon, alt_m=alt, first_fix=False)
+
+
+def _check_zenoh_endpoint(endpoint: str, *, listen: bool = False) -> str | None:
+    m = re.fullmatch(r"([a-z][a-z0-9-]*)/([^?#]+)([?#].*)?", endpoint)
+    if not m:
+        return (
+            "not a Zenoh endpoint (expected <protocol>/<address>, e.g. tcp/192.168.1.10:7447, "
+            f"got {show(endpoint)})"
+        )
+    proto, address = m.group(1), m.group(2)
+    if proto not in ZENOH_PROTOCOLS:
+        known = ", ".join(ZENOH_PROTOCOLS)
+        return f"unknown Zenoh protocol '{proto}' (expected one of {known}, got {show(endpoint)})"
+    if proto in ("tcp", "udp", "tls", "quic"):
+        try:
+            host, port = split_host_port(address, need_host=False, allow_zero=listen)
+        except UrlError as exc:
+            example = f"{proto}/HOST:PORT, e.g. {proto}/192.168.1.10:7447"
+            return f"{exc.problem} (expected {example}, got {show(endpoint)})"
+        if not host:
+            return f"no host (expected {proto}/HOST:PORT, e.g. {proto}/0.0.0.0:{port}, got {show(endpoint)})"
+    return None
+
+
+def _check_key_expr(prefix: str) -> str | None:
+    if prefix.startswith("/") or prefix.endswith("/") or "//" in prefix:
+        return (
+            "empty chunk in the key expression (expected chunks separated by single '/', no leading or "
+            f"trailing '/', e.g. dp/my_ship, got {show(prefix)})"
+        )
+    bad = "".join(sorted(set(prefix) & set("*$?#")))
+    if not bad and any(c.isspace() for c in prefix):
+        bad = "whitespace"
+    if bad:
+        return (
+            f"'{bad}' not allowed in a key expression prefix (expected plain chunks such as dp/my_ship, "
+            f"got {show(prefix)})"
+        )
+    return None
+
+
+def _read_zenoh(
+    p: Problems, data: Mapping[str, Any], base_dir: Path, vessel: VesselModel | None
+) -> ZenohConfig | None:
+    t = _section(p, data, "zenoh")
+    if t is None:
+        return None
+    n0 = len(p)
+    d = DEFAULTS["zenoh"]
+    v = read_table(ZenohTable, t, "zenoh", p)
+    for key in ("connect", "listen"):
+        for i, endpoint in enumerate(v[key] or []):
+            problem = _check_zenoh_endpoint(endpoint, listen=key == "listen")
+            if problem:
+                p.add(f"zenoh.{key}[{i}]", problem)
+    config_file: Path | None = None
+    if v["config_file"]:
+        config_file = (base_dir / v["config_file"]).resolve()
+        for key in ("mode", "connect", "listen", "multicast_scouting"):
+            if key in t and t[key] != d[key]:
+                p.add(
+                    f"zenoh.{key}",
+                    f"has no effect when zenoh.config_file is set (expected it in {config_file.name}, or no "
+                    "config_file)",
+                )
+        if not config_file.is_file():
+            p.add("zenoh.config_file", f"no such file {config_file} (expected a Zenoh JSON5 config file)")
+        else:
+            import zenoh  # the library reads its own format; nothing is opened
+
+            try:
+                zenoh.Config.from_file(str(config_file))
+            except Exception as exc:  # zenoh raises its own ZError
+                p.add("zenoh.config_file", f"not a valid Zenoh config: {exc}")
+    prefix = v["prefix"]
+    if prefix == "" and vessel is not None:
+        prefix = f"dp/{vessel.name}"
+    if prefix:
+        problem = _check_key_expr(prefix)
+        if problem:
+            p.add("zenoh.prefix", problem)
+    if len(p) != n0 or prefix is None:
+        return None
+    return ZenohConfig(
+        prefix=prefix,
+        mode=v["mode"],
+        connect=tuple(v["connect"]),
+        listen=tuple(v["listen"]),
+        config_file=config_file,
+        multicast_scouting=v["multicast_scouting"],
+    )
+
+
+def _read_log(p: Problems, data: Mapping[str, Any], base_dir: Path) -> LogConfig | None:
+    t = _section(p, data, "log")
+    if t is None:
+        return None
+    n0 = len(p)
+    v = read_table(LogTable, t, "log", p)
+    path: Path | None = None
+    if v["path"]:
+        path = (base_dir / v["path"]).resolve()
+        if path.suffix != ".mcap":
+            p.add(
+                "log.path", f"not an MCAP file name (expected a path ending in .mcap, got {show(v['path'])})"
+            )
+    rotate_mb, rotate_min = v["rotate_mb"], v["rotate_minutes"]
+    if rotate_mb is not None and 0 < rotate_mb < 1:
+        p.add("log.rotate_mb", f"too small (expected 0 (never) or >= 1 MiB, got {show(t['rotate_mb'])})")
+    if rotate_min is not None and 0 < rotate_min < 1:
+        p.add(
+            "log.rotate_minutes",
+            f"too small (expected 0 (never) or >= 1 minute, got {show(t['rotate_minutes'])})",
+        )
+    if len(p) != n0:
+        return None
+    return LogConfig(
+        path=path,
+        rotate_mb=rotate_mb,
+        rotate_minutes=rotate_min,
+        flush_interval_s=v["flush_interval_s"],
+        compression=v["compression"],
+    )
+
+
+def _read_status(p: Problems, data: Mapping[str, Any]) -> StatusConfig | None:
+    t = _section(p, data, "status")
+    if t is None:
+        return None
+    rate = read_table(StatusTable, t, "status", p)["rate_hz"]
+    return None if rate is None else StatusConfig(rate_hz=rate)
+
+
+def _read_control(p: Problems, data: Mapping[str, Any]) -> ControlConfig | None:
+    t = _section(p, data, "control")
+    if t is None:
+        return None
+    n0 = len(p)
+    v = read_table(ControlTable, t, "control", p)
+    if len(p) != n0:
+        return None
+    return ControlConfig(
+        rate_hz=v["rate_hz"],
+        initial_mode=v["initial_mode"],
+        allocator=v["allocator"],
+        bandwidth_rad_s=v["bandwidth_rad_s"],
+        damping=v["damping"],
+        feedback=v["feedback"],
+    )

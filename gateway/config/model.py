@@ -1,0 +1,210 @@
+"""The typed gateway configuration: what `load_config` returns (frozen values, SI units, radians).
+
+These are the values the rest of the gateway uses; the TOML file's shape and its checks live in
+`gateway.config.schema` and `gateway.config.load`.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from observers.factory import OBSERVER_TYPES as _OBSERVER_TYPES
+from observers.passive_tuning import Check, PassiveTuning
+from observers.vessel import VesselModel
+
+PROTOCOLS = ("nmea", "mavlink")
+ROLES: dict[str, tuple[str, ...]] = {
+    "nmea": ("position", "heading"),
+    "mavlink": ("thrusters", "position", "heading"),
+}
+"""The roles a source of each protocol can have."""
+OBSERVER_TYPES = _OBSERVER_TYPES  # passive, gain_scheduled, mmae (observers.factory)
+COMPRESSIONS = ("zstd", "lz4", "none")
+ZENOH_MODES = ("peer", "client")
+CONTROL_MODES = ("standby", "dp", "manual")
+ALLOCATORS = ("qp", "pseudo_inverse")
+FEEDBACKS = ("estimate", "measurement")
+BAUD_RATES = (
+    300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200, 230400, 460800, 500000, 576000,
+    921600, 1000000, 1152000, 1500000, 2000000, 2500000, 3000000, 3500000, 4000000,
+)  # fmt: skip
+"""Baud rates a serial source may use (a typo such as 48000 is caught, not tried on the port)."""
+ZENOH_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws", "unixsock-stream", "unixpipe", "serial", "vsock")
+SOURCE_NAME = re.compile(r"[a-z0-9_]+")
+SIGNING_KEY = re.compile(r"[0-9a-fA-F]{64}")
+MAX_ARDUPILOT_INDEX = 32
+"""ESC indices (ESC_TELEMETRY_1_TO_4 … 29_TO_32) and servo output channels (SERVO_OUTPUT_RAW) are 1–32."""
+MIB = 1024 * 1024
+
+
+# --- the typed result -----------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class DatumConfig:
+    """Origin of the local NED frame: a fixed point (``lat_deg``, ``lon_deg``, ``alt_m``) or the first fix."""
+
+    lat_deg: float | None = None
+    lon_deg: float | None = None
+    alt_m: float = 0.0
+    first_fix: bool = True
+
+    @property
+    def fixed(self) -> bool:
+        return not self.first_fix
+
+
+@dataclass(frozen=True)
+class ArdupilotMap:
+    """ArduPilot feedback → thrusters: ESC index → thruster id (rpm), servo channel → thruster (azimuth)."""
+
+    esc: Mapping[int, int] = field(default_factory=dict)
+    servo: Mapping[int, int] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class SourceConfig:
+    """One ``[[sources]]`` entry.
+
+    ``transport`` is the kind of link the URL names: ``serial``, ``udp``, ``tcp``, ``tcp-listen``, ``file``
+    (the gateway's URLs) or ``pymavlink`` (a pymavlink connection string, MAVLink only). ``url`` is as
+    written, except that a relative ``file:`` path is made absolute (``file:///...``).
+    ``system_id`` None accepts any MAVLink system. ``signing_key`` is the 32-byte MAVLink 2 signing secret.
+    """
+
+    name: str
+    url: str
+    protocol: str
+    roles: tuple[str, ...]
+    transport: str
+    lever_arm_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    timeout_s: float = 2.0
+    allow_missing_checksum: bool = False
+    priority: int = 1
+    system_id: int | None = None
+    signing_key: bytes | None = field(default=None, repr=False)
+    allow_unsigned: bool = False
+    ardupilot: ArdupilotMap | None = None
+    commands: bool = False  # MAVLink thrusters: send the dialect's AZIMUTH_THRUSTER_COMMAND on this link
+
+    def has_role(self, role: str) -> bool:
+        return role in self.roles
+
+
+@dataclass(frozen=True)
+class ObserverConfig:
+    """The observer: its type, tuning, whether failed checks are allowed, and its update rate (epochs/s).
+
+    ``checks`` are the results of the tuning rule (48) and the SPR check of Proposition 1 for the vessel
+    (all ok unless ``allow_unchecked``).
+    """
+
+    type: str
+    tuning: PassiveTuning
+    allow_unchecked: bool = False
+    rate_hz: float = 10.0
+    checks: tuple[Check, ...] = ()
+    params: Mapping[str, Any] = field(default_factory=dict)
+    """Settings of the adaptive observers beyond the passive tuning (`observers.factory.OBSERVER_PARAMS`)."""
+
+    @property
+    def failed_checks(self) -> tuple[Check, ...]:
+        return tuple(c for c in self.checks if not c.ok)
+
+
+@dataclass(frozen=True)
+class ZenohConfig:
+    """The Zenoh session; ``prefix`` is resolved (default ``dp/<vessel name>``).
+
+    Turned into a `zenoh.Config` by the gateway (`gateway.bus.make_config`), not here: the config sits
+    below the bus and opens nothing."""
+
+    prefix: str
+    mode: str = "peer"
+    connect: tuple[str, ...] = ()
+    listen: tuple[str, ...] = ()
+    config_file: Path | None = None
+    multicast_scouting: bool = True
+
+
+@dataclass(frozen=True)
+class LogConfig:
+    """The MCAP log. ``path`` None: logging disabled. Limits of 0 (rotation) mean never."""
+
+    path: Path | None
+    rotate_mb: float = 1024
+    rotate_minutes: float = 60
+    flush_interval_s: float = 1.0
+    compression: str = "zstd"
+
+    @property
+    def enabled(self) -> bool:
+        return self.path is not None
+
+    def writer_options(self) -> dict[str, Any]:
+        """Keyword arguments of `wire.mcaplog.McapLogWriter` (besides the path)."""
+        return {
+            "rotate_bytes": int(self.rotate_mb * MIB) if self.rotate_mb > 0 else None,
+            "rotate_seconds": self.rotate_minutes * 60.0 if self.rotate_minutes > 0 else None,
+            "flush_interval_s": self.flush_interval_s,
+            "compression": self.compression,
+        }
+
+
+@dataclass(frozen=True)
+class ControlConfig:
+    """The DP controller and thrust allocation : control rate on the event clock (Hz), the mode at
+    start, the allocator, and the controller's closed-loop bandwidth (rad/s; None = the vessel's
+    Froude-scaled default) and damping."""
+
+    rate_hz: float = 10.0
+    initial_mode: str = "standby"
+    allocator: str = "qp"
+    bandwidth_rad_s: float | tuple[float, float, float] | None = None
+    damping: float = 1.0
+    feedback: str = "estimate"
+    """What the controller's position/heading term sees: the observer's LF estimate (always, at sea), or
+    the raw measurement — only to demonstrate what wave filtering buys (the same controller, same ν̂)."""
+
+
+@dataclass(frozen=True)
+class StatusConfig:
+    """How often ``<prefix>/status`` is published (Hz)."""
+
+    rate_hz: float = 1.0
+
+
+@dataclass(frozen=True)
+class GatewayConfig:
+    """A complete, validated gateway configuration.
+
+    ``vessel_source`` is the built-in vessel's name or the vessel file's absolute path.
+    ``reference_point_m`` is the body-frame point (x forward, y starboard, m) the estimates refer to.
+    ``path`` is the config file (for a dict given to `parse_config`: ``base_dir / where``).
+    """
+
+    vessel: VesselModel
+    vessel_source: str
+    reference_point_m: tuple[float, float]
+    datum: DatumConfig
+    sources: tuple[SourceConfig, ...]
+    observer: ObserverConfig
+    zenoh: ZenohConfig
+    log: LogConfig
+    status: StatusConfig
+    path: Path
+    control: ControlConfig = field(default_factory=ControlConfig)
+
+    def sources_for(self, role: str) -> tuple[SourceConfig, ...]:
+        """The sources with ``role``, in failover order (lowest priority first)."""
+        return tuple(sorted((s for s in self.sources if role in s.roles), key=lambda s: s.priority))
+
+    def source(self, name: str) -> SourceConfig:
+        for s in self.sources:
+            if s.name == name:
+                return s
+        raise KeyError(name)

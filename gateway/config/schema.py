@@ -1,0 +1,401 @@
+"""The TOML file's shape: one pydantic model per table, each key with its type, range and unit.
+
+pydantic (v2, strict: no "3" for 3, no true for 1) checks types and ranges and says where; this module
+turns its findings into the config's own messages (``key.path: what is wrong (expected …, got …)``), with
+the "expected" text each field declares, the value as the user wrote it, and "did you mean" for unknown
+keys and values. A table is always read whole: a key with a problem becomes None and its problem is
+listed, so the checks across keys (`gateway.config.load`) still run on the rest and every problem is
+reported at once.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Annotated, Any, ClassVar
+
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    PlainValidator,
+    ValidationError,
+    ValidationInfo,
+    ValidatorFunctionWrapHandler,
+    field_validator,
+)
+from pydantic_core import PydanticCustomError
+
+from gateway.config.defaults import DEFAULTS
+from gateway.config.model import (
+    ALLOCATORS,
+    COMPRESSIONS,
+    CONTROL_MODES,
+    FEEDBACKS,
+    OBSERVER_TYPES,
+    PROTOCOLS,
+    ZENOH_MODES,
+)
+from gateway.config.problems import Problems, did_you_mean, kind, show
+from observers.vessel import builtin_vessels
+
+__all__ = [
+    "MISSING",
+    "ControlTable",
+    "DatumTable",
+    "LogTable",
+    "ObserverTable",
+    "SourceTable",
+    "StatusTable",
+    "VesselTable",
+    "ZenohTable",
+    "read_table",
+]
+
+
+class _Missing:
+    def __repr__(self) -> str:
+        return "MISSING"
+
+
+MISSING: Any = _Missing()
+"""The default of a required key: validating it reports "missing (expected …)"."""
+
+
+# --- field declarations: type, range, and the "expected …" text of every message ----------------------
+
+
+def _fmt(x: float) -> str:
+    return f"{x:g}"
+
+
+def _range_text(lo: float | None, hi: float | None, lo_open: bool, hi_open: bool) -> str:
+    if lo is not None and hi is not None and not lo_open and not hi_open:
+        return f"from {_fmt(lo)} to {_fmt(hi)}"
+    parts = []
+    if lo is not None:
+        parts.append(f"{'>' if lo_open else '>='} {_fmt(lo)}")
+    if hi is not None:
+        parts.append(f"{'<' if hi_open else '<='} {_fmt(hi)}")
+    return " and ".join(parts)
+
+
+def number(
+    default: Any = MISSING,
+    *,
+    lo: float | None = None,
+    hi: float | None = None,
+    lo_open: bool = False,
+    hi_open: bool = False,
+    unit: str = "",
+) -> Any:
+    """A finite number (an integer is a number) in a range, with its unit in the message."""
+    span = _range_text(lo, hi, lo_open, hi_open)
+    expected = "a number" + (f" {span}" if span else "") + (f" {unit}" if unit else "")
+    return Field(
+        default,
+        ge=None if lo_open else lo,
+        gt=lo if lo_open else None,
+        le=None if hi_open else hi,
+        lt=hi if hi_open else None,
+        allow_inf_nan=False,
+        json_schema_extra={"expected": expected},
+    )
+
+
+def integer(default: Any = MISSING, *, lo: int | None = None, hi: int | None = None) -> Any:
+    span = _range_text(lo, hi, False, False)
+    return Field(
+        default, ge=lo, le=hi, json_schema_extra={"expected": "an integer" + (f" {span}" if span else "")}
+    )
+
+
+def boolean(default: Any = MISSING) -> Any:
+    return Field(default, json_schema_extra={"expected": "true or false"})
+
+
+def text(default: Any = MISSING, expected: str = "a string") -> Any:
+    return Field(default, json_schema_extra={"expected": expected})
+
+
+def choice(default: Any, choices: Sequence[str]) -> Any:
+    """One of a few strings; a near miss gets "did you mean"."""
+    options = " or ".join(f'"{c}"' for c in choices) if len(choices) <= 2 else None
+    expected = options or "one of " + ", ".join(f'"{c}"' for c in choices)
+    return Field(default, json_schema_extra={"expected": expected, "choices": list(choices)})
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _vector(n: int) -> Callable[[Any], tuple[float, ...]]:
+    def check(value: Any) -> tuple[float, ...]:
+        if not isinstance(value, list | tuple) or len(value) != n or not all(_is_number(v) for v in value):
+            raise PydanticCustomError("wrong_type", "wrong type")
+        if not all(math.isfinite(v) for v in value):
+            raise PydanticCustomError("not_finite", "not finite")
+        return tuple(float(v) for v in value)
+
+    return check
+
+
+def vector(n: int, default: Any = MISSING, *, unit: str = "", names: str = "") -> Any:
+    expected = f"an array of {n} numbers" + (f" {names}" if names else "") + (f" in {unit}" if unit else "")
+    return Field(default, json_schema_extra={"expected": expected})
+
+
+def _per_dof(allow_inf: bool) -> Callable[[Any], float | tuple[float, float, float]]:
+    def check(value: Any) -> float | tuple[float, float, float]:
+        items = value if isinstance(value, list) else [value]
+        if (isinstance(value, list) and len(value) != 3) or not all(_is_number(v) for v in items):
+            raise PydanticCustomError("wrong_type", "wrong type")
+        xs = [float(v) for v in items]
+        if not all((math.isfinite(x) or (allow_inf and x == math.inf)) and x > 0 for x in xs):
+            raise PydanticCustomError("out_of_range", "out of range")
+        return (xs[0], xs[1], xs[2]) if isinstance(value, list) else xs[0]
+
+    return check
+
+
+def per_dof(*, unit: str = "", allow_inf: bool = False) -> Any:
+    """A positive number for all three degrees of freedom, or an array [surge, sway, yaw]."""
+    limit = "positive" + (" (inf allowed)" if allow_inf else "")
+    expected = f"a {limit} number{' ' + unit if unit else ''}, or an array of 3 [surge, sway, yaw]"
+    return Field(None, json_schema_extra={"expected": expected})
+
+
+Vector2 = Annotated[tuple[float, float], PlainValidator(_vector(2))]
+Vector3 = Annotated[tuple[float, float, float], PlainValidator(_vector(3))]
+PerDof = Annotated[float | tuple[float, float, float], PlainValidator(_per_dof(False))]
+PerDofOrInf = Annotated[float | tuple[float, float, float], PlainValidator(_per_dof(True))]
+
+
+def _table(value: Any) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise PydanticCustomError("wrong_type", "wrong type")
+    return value
+
+
+Table = Annotated[dict[str, Any], PlainValidator(_table)]
+
+
+# --- reading a table -----------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Issue:
+    key: str
+    type: str
+    value: Any
+
+
+class _Section(BaseModel):
+    """A config table: every key validated on its own; a key with a problem becomes None (`read_table`)."""
+
+    model_config = ConfigDict(strict=True, extra="ignore", validate_default=True, frozen=True)
+    section: ClassVar[str] = ""
+
+    @field_validator("*", mode="wrap")
+    @classmethod
+    def _collect(cls, value: Any, handler: ValidatorFunctionWrapHandler, info: ValidationInfo) -> Any:
+        issues: list[_Issue] = info.context["issues"] if info.context else []
+        name = info.field_name or ""
+        if value is MISSING:
+            issues.append(_Issue(name, "missing", value))
+            return None
+        if value is None:  # an optional key not given
+            return None
+        try:
+            result = handler(value)
+        except ValidationError as exc:
+            errors = exc.errors()
+            at_key = [e for e in errors if not e["loc"]]
+            first = (at_key or errors)[0]
+            kind_ = first["type"]
+            if kind_ == "finite_number" and first["loc"]:
+                kind_ = "not_finite"  # an element of an array
+            issues.append(_Issue(name, kind_, value))
+            return None
+        extra = cls.model_fields[name].json_schema_extra
+        choices = extra.get("choices") if isinstance(extra, dict) else None
+        if isinstance(choices, list) and result not in choices:
+            issues.append(_Issue(name, "not_known", value))
+            return None
+        return result
+
+
+_WRONG_RANGE = {"greater_than", "greater_than_equal", "less_than", "less_than_equal", "out_of_range"}
+
+
+def _message(issue: _Issue, expected: str, choices: Sequence[str] | None) -> str:
+    v = issue.value
+    if issue.type == "missing":
+        return f"missing (expected {expected})"
+    if issue.type in _WRONG_RANGE:
+        return f"out of range (expected {expected}, got {show(v)})"
+    if issue.type == "finite_number":
+        return f"not a finite number (expected {expected}, got {show(v)})"
+    if issue.type == "not_finite":
+        return f"not finite (expected {expected}, got {show(v)})"
+    if issue.type == "not_known" and isinstance(v, str):
+        hint = did_you_mean(v, choices or (), quote='"')
+        return f"not a known value{hint} (expected {expected}, got {show(v)})"
+    return f"wrong type (expected {expected}, got {kind(v)} {show(v)})"
+
+
+def read_table(
+    model: type[_Section],
+    table: Mapping[str, Any],
+    path: str,
+    problems: Problems,
+    *,
+    expected: Mapping[str, str] | None = None,
+) -> dict[str, Any]:
+    """Every key of ``model`` read from ``table`` (defaults filled in); a key with a problem is None.
+
+    Problems go to ``problems`` as ``path.key: …``: unknown keys first (with "did you mean"), then each
+    key's in the order the model declares them. ``expected`` overrides a key's "expected …" text where
+    it depends on other keys (the roles a protocol allows).
+    """
+    known = list(model.model_fields)
+    problems.unknown_keys(table, path, known)
+    issues: list[_Issue] = []
+    values = {k: table[k] for k in known if k in table}
+    instance = model.model_validate(values, context={"issues": issues})
+    for issue in issues:
+        extra = model.model_fields[issue.key].json_schema_extra
+        info = extra if isinstance(extra, dict) else {}
+        exp = (expected or {}).get(issue.key) or str(info.get("expected", "a value"))
+        written = info.get("choices")
+        choices = [str(c) for c in written] if isinstance(written, list) else None
+        problems.add(f"{path}.{issue.key}", _message(issue, exp, choices))
+    return {k: getattr(instance, k) for k in known}
+
+
+# --- the tables ------------------------------------------------------------------------------------------
+
+_BUILTINS = ", ".join(builtin_vessels())
+
+
+class VesselTable(_Section):
+    """``[vessel]``: a built-in vessel or a vessel file, and the reference point of the estimates."""
+
+    name: str = text(None, f"a built-in vessel name ({_BUILTINS})")
+    file: str = text(None, "a vessel TOML file path (relative to the config file)")
+    reference_point_m: Vector2 = vector(2, DEFAULTS["vessel"]["reference_point_m"], unit="m", names="[x, y]")
+
+
+class DatumTable(_Section):
+    """``[datum]``: the local NED origin, fixed or the first valid fix."""
+
+    lat_deg: float = number(None, lo=-90.0, hi=90.0, unit="degrees")
+    lon_deg: float = number(None, lo=-180.0, hi=180.0, unit="degrees")
+    alt_m: float = number(DEFAULTS["datum"]["alt_m"], lo=-1000.0, hi=10000.0, unit="m")
+    first_fix: bool = boolean(DEFAULTS["datum"]["first_fix"])
+
+
+_SRC = DEFAULTS["source"]
+
+
+class SourceTable(_Section):
+    """One ``[[sources]]`` entry."""
+
+    name: str = text(expected='a name of lowercase letters, digits and _ (e.g. "dgps1")')
+    url: str = text(expected="a URL, e.g. serial:///dev/ttyUSB0?baud=4800")
+    protocol: str = choice(MISSING, PROTOCOLS)
+    roles: list[str] = text(expected="an array of roles")
+    lever_arm_m: Vector3 = vector(
+        3, _SRC["lever_arm_m"], unit="m", names="[x fwd, y stbd, z down] of the antenna"
+    )
+    timeout_s: float = number(_SRC["timeout_s"], lo=0.0, hi=600.0, lo_open=True, unit="s")
+    allow_missing_checksum: bool = boolean(_SRC["allow_missing_checksum"])
+    priority: int = integer(_SRC["priority"], lo=0)
+    system_id: int = integer(None, lo=1, hi=255)
+    signing_key: str = text(None, "64 hexadecimal characters (32 bytes)")
+    allow_unsigned: bool = boolean(_SRC["allow_unsigned"])
+    ardupilot: Table = text(None, "an [ardupilot] table")
+    commands: bool = boolean(False)
+
+
+_OBS = DEFAULTS["observer"]
+TUNING_KEYS = (
+    "zeta",
+    "zeta_n",
+    "cutoff_ratio",
+    "omega_c",
+    "bias_time_constant_s",
+    "velocity_injection",
+    "velocity_injection_ratio",
+    "bias_corner_ratio",
+    "bias_corner",
+)
+
+
+class ObserverTable(_Section):
+    """``[observer]``: type, the passive tuning in physical terms (wave period, ratios), rate, params."""
+
+    type: str = choice(_OBS["type"], OBSERVER_TYPES)
+    wave_period_s: PerDof = per_dof(unit="s")
+    omega0: PerDof = per_dof(unit="rad/s")
+    zeta: PerDof = per_dof()
+    zeta_n: PerDof = per_dof()
+    cutoff_ratio: PerDof = per_dof()
+    omega_c: PerDof = per_dof()
+    bias_time_constant_s: PerDofOrInf = per_dof(allow_inf=True)
+    velocity_injection: PerDof = per_dof()
+    velocity_injection_ratio: PerDof = per_dof()
+    bias_corner_ratio: PerDof = per_dof()
+    bias_corner: PerDof = per_dof()
+    allow_unchecked: bool = boolean(_OBS["allow_unchecked"])
+    rate_hz: float = number(_OBS["rate_hz"], lo=1.0, hi=50.0, unit="Hz")
+    params: Table = text(None, "a table")
+
+
+_Z = DEFAULTS["zenoh"]
+_ENDPOINTS = 'an array of endpoints like "tcp/192.168.1.10:7447"'
+
+
+class ZenohTable(_Section):
+    """``[zenoh]``: the session (peer or client, endpoints or a Zenoh config file) and the key prefix."""
+
+    mode: str = choice(_Z["mode"], ZENOH_MODES)
+    connect: list[str] = text(_Z["connect"], _ENDPOINTS)
+    listen: list[str] = text(_Z["listen"], _ENDPOINTS)
+    config_file: str = text(_Z["config_file"], "a Zenoh JSON5 config file path")
+    prefix: str = text(_Z["prefix"], 'a key expression such as "dp/my_ship"')
+    multicast_scouting: bool = boolean(_Z["multicast_scouting"])
+
+
+_L = DEFAULTS["log"]
+
+
+class LogTable(_Section):
+    """``[log]``: the MCAP file, its rotation, flushing and compression."""
+
+    path: str = text(_L["path"], 'an .mcap file path, or "" to disable logging')
+    rotate_mb: float = number(_L["rotate_mb"], lo=0.0, unit="MiB (0 = never)")
+    rotate_minutes: float = number(_L["rotate_minutes"], lo=0.0, unit="minutes (0 = never)")
+    flush_interval_s: float = number(_L["flush_interval_s"], lo=0.0, hi=60.0, lo_open=True, unit="s")
+    compression: str = choice(_L["compression"], COMPRESSIONS)
+
+
+class StatusTable(_Section):
+    """``[status]``: how often the status is published."""
+
+    rate_hz: float = number(DEFAULTS["status"]["rate_hz"], lo=0.1, hi=10.0, unit="Hz")
+
+
+_C = DEFAULTS["control"]
+
+
+class ControlTable(_Section):
+    """``[control]``: the DP controller and thrust allocation."""
+
+    rate_hz: float = number(_C["rate_hz"], lo=1.0, hi=50.0, unit="Hz")
+    initial_mode: str = choice(_C["initial_mode"], CONTROL_MODES)
+    allocator: str = choice(_C["allocator"], ALLOCATORS)
+    bandwidth_rad_s: PerDof = per_dof(unit="rad/s")
+    damping: float = number(_C["damping"], lo=0.3, hi=3.0)
+    feedback: str = choice(_C["feedback"], FEEDBACKS)

@@ -1,0 +1,43 @@
+"""A short human summary of a loaded configuration (``dpgw run --config FILE --check``)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from gateway.config.model import GatewayConfig
+
+__all__ = ["describe"]
+
+
+def describe(config: GatewayConfig) -> str:
+    """A short human summary of a loaded configuration."""
+    lines = [
+        f"config {config.path}: ok",
+        f"  vessel {config.vessel.name} ({config.vessel_source}), "
+        f"reference point {list(config.reference_point_m)} m",
+        "  datum: first valid fix"
+        if config.datum.first_fix
+        else f"  datum: {config.datum.lat_deg:.6f}°, {config.datum.lon_deg:.6f}°, {config.datum.alt_m:g} m",
+    ]
+    for s in config.sources:
+        lines.append(f"  source {s.name}: {s.protocol} {'/'.join(s.roles)} priority {s.priority} <- {s.url}")
+    obs = config.observer
+    lines.append(
+        f"  observer {obs.type} at {obs.rate_hz:g} Hz, ω0 = {show_dof(obs.tuning.omega0)} rad/s"
+        + ("" if not config.observer.failed_checks else " (UNCHECKED: tuning checks fail)")
+    )
+    z = config.zenoh
+    lines.append(
+        f"  zenoh {z.mode} prefix {z.prefix}"
+        + (f", config file {z.config_file}" if z.config_file else "")
+        + (f", connect {list(z.connect)}" if z.connect else "")
+        + (f", listen {list(z.listen)}" if z.listen else "")
+    )
+    lines.append(f"  log {config.log.path}" if config.log.enabled else "  log disabled")
+    return "\n".join(lines)
+
+
+def show_dof(value: Any) -> str:
+    if isinstance(value, tuple | list):
+        return "[" + ", ".join(f"{v:.4g}" for v in value) + "]"
+    return f"{value:.4g}"
