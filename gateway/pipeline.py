@@ -31,6 +31,7 @@ from gateway.control.allocation import AllocationResult, PseudoInverseAllocator,
 from gateway.control.controller import ControllerTuning, DPController
 from gateway.fusion import NS, Fusion
 from observers.factory import Observer, make_observer
+from observers.kinematics import ssa_scalar
 from observers.passive import STATUS_NAMES, PassiveEstimate
 from observers.vessel import VesselModel
 from wire.codecs import nmea as nmea_codec
@@ -459,7 +460,7 @@ class Pipeline:
         dt = t - t0
         if dt > 0:
             dy = y - y0
-            dy[2] = (dy[2] + math.pi) % (2 * math.pi) - math.pi
+            dy[2] = ssa_scalar(dy[2])
             v = v + dt / (RAW_VELOCITY_FILTER_S + dt) * (dy / dt - v)
             self._raw = (t, y, v)
         c, s = math.cos(y[2]), math.sin(y[2])

@@ -21,16 +21,11 @@ import math
 import numpy as np
 from numba import njit
 
-TWO_PI = 2.0 * math.pi
+from observers.kinematics import ssa_jit
 
 STATUS_INITIALIZING = 0
 STATUS_OK = 1
 STATUS_DEAD_RECKONING = 2
-
-
-@njit(cache=True)
-def _ssa(a: float) -> float:
-    return (a + math.pi) % TWO_PI - math.pi
 
 
 @njit(cache=True)
@@ -45,7 +40,7 @@ def _turn(x, i, c, s):
 @njit(cache=True)
 def start(X, p, xb, clock, t, y, tau):
     """Initialise every filter at y: ξ = 0, η_p = Rᵀ(ψ)y, b_p = −τ (rest of (9)), ν = 0. Weights kept."""
-    psi = _ssa(y[2])
+    psi = ssa_jit(y[2])
     c = math.cos(psi)
     s = math.sin(psi)
     for j in range(15):
@@ -111,7 +106,7 @@ def step(X, p, xb, clock, t, y, tau, Phi, Gam, A, B, K, Sinv, logdet, params):
 
     # 1. turn the vessel-parallel frame to the latest blended heading
     psi_f = clock[2]
-    d = _ssa(xb[8] - psi_f)
+    d = ssa_jit(xb[8] - psi_f)
     if d != 0.0:
         c = math.cos(d)
         s = math.sin(d)
@@ -178,7 +173,7 @@ def step(X, p, xb, clock, t, y, tau, Phi, Gam, A, B, K, Sinv, logdet, params):
             x = X[i]
             res[0] = yp0 - (x[6] + x[3]) if pos else 0.0
             res[1] = yp1 - (x[7] + x[4]) if pos else 0.0
-            res[2] = _ssa(y[2] - (x[8] + x[5])) if head else 0.0
+            res[2] = ssa_jit(y[2] - (x[8] + x[5])) if head else 0.0
             Si = Sinv[i, mw]
             quad = 0.0
             for a in range(3):
@@ -190,7 +185,7 @@ def step(X, p, xb, clock, t, y, tau, Phi, Gam, A, B, K, Sinv, logdet, params):
             Ki = K[i, m]
             for r in range(15):
                 x[r] += Ki[r, 0] * res[0] + Ki[r, 1] * res[1] + Ki[r, 2] * res[2]
-            x[8] = _ssa(x[8])
+            x[8] = ssa_jit(x[8])
         if mw != 0 and t - clock[3] >= params[2]:
             top = -math.inf
             for i in range(N):
@@ -213,8 +208,8 @@ def step(X, p, xb, clock, t, y, tau, Phi, Gam, A, B, K, Sinv, logdet, params):
         xb[j] = acc
     acc = 0.0
     for i in range(N):
-        acc += p[i] * _ssa(X[i, 8] - psi_f)
-    xb[8] = _ssa(psi_f + acc)
+        acc += p[i] * ssa_jit(X[i, 8] - psi_f)
+    xb[8] = ssa_jit(psi_f + acc)
     return STATUS_OK if m == 3 else STATUS_DEAD_RECKONING
 
 

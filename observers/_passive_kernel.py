@@ -19,16 +19,11 @@ import math
 import numpy as np
 from numba import njit
 
-TWO_PI = 2.0 * math.pi
+from observers.kinematics import ssa_jit
 
 STATUS_INITIALIZING = 0
 STATUS_OK = 1
 STATUS_DEAD_RECKONING = 2
-
-
-@njit(cache=True, fastmath=False)
-def _ssa(a: float) -> float:
-    return (a + math.pi) % TWO_PI - math.pi
 
 
 @njit(cache=True)
@@ -36,7 +31,7 @@ def derivative(x, y, mask, tau, psi_meas, use_meas_psi, G, Minv, D, out):
     """x' of (22)–(25) with y, τ held. mask[i] = 0 removes DOF i's injection (no measurement)."""
     yt0 = (y[0] - (x[6] + x[3])) * mask[0]
     yt1 = (y[1] - (x[7] + x[4])) * mask[1]
-    yt2 = _ssa(y[2] - (x[8] + x[5])) * mask[2]
+    yt2 = ssa_jit(y[2] - (x[8] + x[5])) * mask[2]
     psi = psi_meas if use_meas_psi else x[8] + x[5]
     c = math.cos(psi)
     s = math.sin(psi)
@@ -116,7 +111,7 @@ def propagate(x, dt, y, tau, G, Minv, D, h_max, max_hold):
         none = np.zeros(3)
         _integrate(x, dead, ys, none, ts, 0.0, False, G, Minv, D, h_max)
     _integrate(x, dt - dead, ys, mask, ts, psi_meas, use_meas_psi, G, Minv, D, h_max)
-    x[8] = _ssa(x[8])
+    x[8] = ssa_jit(x[8])
     return STATUS_OK if complete else STATUS_DEAD_RECKONING
 
 
@@ -159,7 +154,7 @@ def initialize(x, y, tau, G, D):
         x[9 + i] = sol[3 + i]
         # ν̂ = -Jᵀ K2 ỹ
         x[12 + i] = -(Jt[i, 0] * G[4, 0] * sol[0] + Jt[i, 1] * G[4, 1] * sol[1] + Jt[i, 2] * G[4, 2] * sol[2])
-    x[8] = _ssa(x[8])
+    x[8] = ssa_jit(x[8])
 
 
 @njit(cache=True)
