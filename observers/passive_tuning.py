@@ -41,6 +41,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from observers.kinematics import rotation
+from observers.state import BIAS, ETA, N_STATE, NU, XI, XI1, XI2
 from observers.vessel import VesselModel
 
 Array = NDArray[np.float64]
@@ -310,14 +311,12 @@ def validate(gains: PassiveGains) -> None:
 
 # --- linear analysis ------------------------------------------------------------------------------------
 
-# State order used throughout dpgw's passive observer: x = [ξ1 (3), ξ2 = η_w (3), η (3), b (3), ν (3)].
-XI1, XI2, ETA, BIAS, NU = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15)
-N_STATES = 15
+# State order: `observers.state`, x = [ξ1 (3), ξ2 = η_w (3), η (3), b (3), ν (3)].
 
 
 def _output_matrix() -> Array:
     """C0 of (21) in dpgw's state order: y = η + η_w."""
-    C = np.zeros((3, N_STATES))
+    C = np.zeros((3, N_STATE))
     C[:, XI2] = np.eye(3)
     C[:, ETA] = np.eye(3)
     return C
@@ -325,7 +324,7 @@ def _output_matrix() -> Array:
 
 def model_matrix(vessel: VesselModel, gains: PassiveGains, psi: float) -> Array:
     """Matrix of the model (14)–(17) with ψ (J(y)) frozen: x' = A x + B τ, y = C0 x."""
-    A = np.zeros((N_STATES, N_STATES))
+    A = np.zeros((N_STATE, N_STATE))
     J = rotation(psi)
     Minv = vessel.Minv
     A[XI1, XI2] = np.eye(3)
@@ -340,8 +339,8 @@ def model_matrix(vessel: VesselModel, gains: PassiveGains, psi: float) -> Array:
 
 def injection_matrix(vessel: VesselModel, gains: PassiveGains, psi: float) -> Array:
     """L (15×3) of the observer x̂' = A x̂ + B τ + L ỹ, eqs (22)–(25) with γ = 1."""
-    L = np.zeros((N_STATES, 3))
-    L[0:6] = gains.K1
+    L = np.zeros((N_STATE, 3))
+    L[XI] = gains.K1
     L[ETA] = gains.K2
     L[BIAS] = gains.K3
     L[NU] = vessel.Minv @ rotation(psi).T @ gains.K4
@@ -372,7 +371,7 @@ def lf_response(vessel: VesselModel, gains: PassiveGains, omega: ArrayLike, psi:
     L = injection_matrix(vessel, gains, psi)
     out = []
     for w in np.atleast_1d(np.asarray(omega, dtype=float)):
-        H = np.linalg.solve(1j * w * np.eye(N_STATES) - A, L)[ETA]
+        H = np.linalg.solve(1j * w * np.eye(N_STATE) - A, L)[ETA]
         out.append(np.abs(np.diag(H)))
     return np.array(out).T
 
