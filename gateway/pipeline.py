@@ -30,8 +30,9 @@ from gateway.config import ControlConfig, GatewayConfig
 from gateway.control.allocation import AllocationResult, PseudoInverseAllocator, QPAllocator, ThrusterCommand
 from gateway.control.controller import ControllerTuning, DPController
 from gateway.fusion import NS, Fusion
-from observers.factory import Observer, make_observer
-from observers.passive import STATUS_NAMES, PassiveEstimate
+from observers.base import STATUS_NAMES, Estimate, Observer
+from observers.factory import make_observer
+from observers.kinematics import ssa_scalar
 from observers.vessel import VesselModel
 from wire.codecs import nmea as nmea_codec
 from wire.codecs.mavlink import AZIMUTH_THRUSTER_STATUS_ID, FrameParser, encoder, setup_signing
@@ -447,7 +448,7 @@ class Pipeline:
             return None
         return target if np.all(np.isfinite(target)) else None
 
-    def _raw_feedback(self, t: float, est: PassiveEstimate) -> tuple[np.ndarray, np.ndarray]:
+    def _raw_feedback(self, t: float, est: Estimate) -> tuple[np.ndarray, np.ndarray]:
         """η and ν for a DP system without a wave filter (``[control] feedback = "measurement"``, only to
         show what wave filtering buys): the raw measurement, and a dirty derivative of it (first-order
         filter, time constant RAW_VELOCITY_FILTER_S) rotated into the body frame."""
@@ -459,14 +460,14 @@ class Pipeline:
         dt = t - t0
         if dt > 0:
             dy = y - y0
-            dy[2] = (dy[2] + math.pi) % (2 * math.pi) - math.pi
+            dy[2] = ssa_scalar(dy[2])
             v = v + dt / (RAW_VELOCITY_FILTER_S + dt) * (dy / dt - v)
             self._raw = (t, y, v)
         c, s = math.cos(y[2]), math.sin(y[2])
         nu = np.array([c * v[0] + s * v[1], -s * v[0] + c * v[1], v[2]])
         return y, nu
 
-    def _control_step(self, t: float, est: PassiveEstimate, now_ns: int) -> list[Output]:
+    def _control_step(self, t: float, est: Estimate, now_ns: int) -> list[Output]:
         """DP controller on the LF estimate (never the raw measurement), then thrust allocation."""
         ctl = self.controller
         assert ctl is not None
@@ -530,9 +531,7 @@ class Pipeline:
             )
         ]
 
-    def _estimate_payload(
-        self, label: str, obs: Observer, est: PassiveEstimate, now_ns: int
-    ) -> dict[str, Any]:
+    def _estimate_payload(self, label: str, obs: Observer, est: Estimate, now_ns: int) -> dict[str, Any]:
         datum = self.fusion.datum
         lat = lon = None
         if datum is not None:

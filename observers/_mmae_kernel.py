@@ -5,13 +5,13 @@ round-off. It exists because batch replay must run eight 15-state filters at ≥
 (bench/bench_mmae.py). Keep the steps here line for line with the reference.
 
 Arrays (N filters): ``X`` (N, 15) filter states in the vessel-parallel frame, ``p`` (N,) weights,
-``xb`` (15,) blended state, ``clock`` = [t_prev, initialised, ψ_f (frame heading), t_init];
-bank: ``Phi`` (N, 15, 15), ``Gam`` (15, 3), ``A`` (N, 15, 15), ``B`` (15, 3), ``K`` (N, 4, 15, 3),
-``Sinv`` (N, 4, 3, 3), ``logdet`` (N, 4);
-``params`` = [dt_nom, weight floor, warm-up s, max gap s, heading in weights (1/0)].
+``xb`` (15,) blended state, ``clock`` (``CLOCK_*`` below: last sample's time, initialised flag, frame
+heading ψ_f, time of initialisation); bank: ``Phi`` (N, 15, 15), ``Gam`` (15, 3), ``A`` (N, 15, 15),
+``B`` (15, 3), ``K`` (N, 4, 15, 3), ``Sinv`` (N, 4, 3, 3), ``logdet`` (N, 4); ``params`` (``PARAM_*``:
+nominal interval, weight floor, warm-up, longest gap, whether the heading votes in the weights).
 
-State order: ξ1 (0:3), ξ2 = η_w (3:6), η_p (6:9), b_p (9:12), ν (12:15). A(ω0) is block-diagonal in
-(ξ) and (η_p, b_p, ν), so the prediction multiplies the 6×6 and 9×9 blocks only.
+State order: `observers.state` (ξ1, ξ2 = η_w, η_p, b_p, ν). A(ω0) is block-diagonal in (ξ) and
+(η_p, b_p, ν), so the prediction multiplies the 6×6 and 9×9 blocks only.
 """
 
 from __future__ import annotations
@@ -21,16 +21,31 @@ import math
 import numpy as np
 from numba import njit
 
-TWO_PI = 2.0 * math.pi
+from observers.base import STATUS_DEAD_RECKONING, STATUS_INITIALIZING, STATUS_OK
+from observers.kinematics import ssa_jit
+from observers.state import I_BIAS, I_ETA, I_NU, I_PSI, I_XI2, N_STATE
 
-STATUS_INITIALIZING = 0
-STATUS_OK = 1
-STATUS_DEAD_RECKONING = 2
+# the clock
+CLOCK_T = 0  # time of the last sample used
+CLOCK_STARTED = 1  # 1.0 once initialised
+CLOCK_PSI_F = 2  # ψ_f, heading of the vessel-parallel frame (rad)
+CLOCK_T_INIT = 3  # time of initialisation (the warm-up counts from it)
+N_CLOCK = 4
 
+# the parameters
+PARAM_DT = 0  # nominal sample interval the bank is discretised at (s)
+PARAM_WEIGHT_FLOOR = 1  # least weight of any filter
+PARAM_WARMUP_S = 2  # the weights stay put this long after initialisation (s)
+PARAM_MAX_GAP_S = 3  # a longer gap restarts the filters (s)
+PARAM_HEADING_VOTES = 4  # 1.0: the heading innovation informs the weights; 0.0: position only
+N_PARAMS = 5
 
-@njit(cache=True)
-def _ssa(a: float) -> float:
-    return (a + math.pi) % TWO_PI - math.pi
+# rows of the outputs (4, 3)
+OUT_ETA = 0
+OUT_NU = 1
+OUT_BIAS = 2
+OUT_ETA_WF = 3
+N_OUT = 4
 
 
 @njit(cache=True)
@@ -45,23 +60,29 @@ def _turn(x, i, c, s):
 @njit(cache=True)
 def start(X, p, xb, clock, t, y, tau):
     """Initialise every filter at y: ξ = 0, η_p = Rᵀ(ψ)y, b_p = −τ (rest of (9)), ν = 0. Weights kept."""
-    psi = _ssa(y[2])
+    psi = ssa_jit(y[2])
     c = math.cos(psi)
     s = math.sin(psi)
-    for j in range(15):
+    for j in range(N_STATE):
         xb[j] = 0.0
-    xb[6] = c * y[0] + s * y[1]
-    xb[7] = -s * y[0] + c * y[1]
-    xb[8] = psi
+    xb[I_ETA] = c * y[0] + s * y[1]
+    xb[I_ETA + 1] = -s * y[0] + c * y[1]
+    xb[I_PSI] = psi
     for j in range(3):
-        xb[9 + j] = -(0.0 if math.isnan(tau[j]) else tau[j])
+        xb[I_BIAS + j] = -(0.0 if math.isnan(tau[j]) else tau[j])
+    start_at(X, xb, clock, t, psi)
+
+
+@njit(cache=True)
+def start_at(X, xb, clock, t, psi_f):
+    """Every filter at the blended state xb (in the frame of heading psi_f); the clock started at t."""
     for i in range(X.shape[0]):
-        for j in range(15):
+        for j in range(N_STATE):
             X[i, j] = xb[j]
-    clock[0] = t
-    clock[1] = 1.0
-    clock[2] = psi
-    clock[3] = t
+    clock[CLOCK_T] = t
+    clock[CLOCK_STARTED] = 1.0
+    clock[CLOCK_PSI_F] = psi_f
+    clock[CLOCK_T_INIT] = t
 
 
 @njit(cache=True)
@@ -94,71 +115,71 @@ def step(X, p, xb, clock, t, y, tau, Phi, Gam, A, B, K, Sinv, logdet, params):
     """One sample; returns its status code (see `observers.mmae.reference_run` for the steps)."""
     N = X.shape[0]
     complete = not (math.isnan(y[0]) or math.isnan(y[1]) or math.isnan(y[2]))
-    dt = t - clock[0]
-    if clock[1] != 0.0 and dt > params[3]:
-        clock[1] = 0.0  # gap longer than max_gap_s: restart from this sample if complete
-    if clock[1] == 0.0:
+    dt = t - clock[CLOCK_T]
+    if clock[CLOCK_STARTED] != 0.0 and dt > params[PARAM_MAX_GAP_S]:
+        clock[CLOCK_STARTED] = 0.0  # gap longer than max_gap_s: restart from this sample if complete
+    if clock[CLOCK_STARTED] == 0.0:
         if not complete:
             return STATUS_INITIALIZING
         start(X, p, xb, clock, t, y, tau)
         return STATUS_OK
     if dt <= 0.0:
         return STATUS_OK if complete else STATUS_DEAD_RECKONING
-    clock[0] = t
+    clock[CLOCK_T] = t
     u = np.empty(3)
     for j in range(3):
         u[j] = 0.0 if math.isnan(tau[j]) else tau[j]
 
     # 1. turn the vessel-parallel frame to the latest blended heading
-    psi_f = clock[2]
-    d = _ssa(xb[8] - psi_f)
+    psi_f = clock[CLOCK_PSI_F]
+    d = ssa_jit(xb[I_PSI] - psi_f)
     if d != 0.0:
         c = math.cos(d)
         s = math.sin(d)
         for i in range(N):
-            _turn(X[i], 6, c, s)
-            _turn(X[i], 9, c, s)
-    psi_f = xb[8]
-    clock[2] = psi_f
+            _turn(X[i], I_ETA, c, s)
+            _turn(X[i], I_BIAS, c, s)
+    psi_f = xb[I_PSI]
+    clock[CLOCK_PSI_F] = psi_f
 
     # 2. predict: n nominal ZOH steps, then a 2nd-order Taylor step for the remainder
-    dt_nom = params[0]
+    dt_nom = params[PARAM_DT]
     n_steps = math.floor(dt / dt_nom + 0.5)
     delta = dt - n_steps * dt_nom
-    g = np.empty(15)
-    for r in range(15):
+    g = np.empty(N_STATE)
+    for r in range(N_STATE):
         g[r] = Gam[r, 0] * u[0] + Gam[r, 1] * u[1] + Gam[r, 2] * u[2]
-    xn = np.empty(15)
-    f = np.empty(15)
+    xn = np.empty(N_STATE)
+    f = np.empty(N_STATE)
     for i in range(N):
         x = X[i]
         Ph = Phi[i]
         for _ in range(n_steps):
-            for r in range(6):
+            for r in range(I_ETA):  # the wave block (ξ1, ξ2)
                 acc = g[r]
-                for q in range(6):
+                for q in range(I_ETA):
                     acc += Ph[r, q] * x[q]
                 xn[r] = acc
-            for r in range(6, 15):
+            for r in range(I_ETA, N_STATE):  # the LF block (η_p, b_p, ν)
                 acc = g[r]
-                for q in range(6, 15):
+                for q in range(I_ETA, N_STATE):
                     acc += Ph[r, q] * x[q]
                 xn[r] = acc
-            for r in range(15):
+            for r in range(N_STATE):
                 x[r] = xn[r]
         if abs(delta) > 1e-9 * dt_nom:
             Ai = A[i]
-            for r in range(15):
+            for r in range(N_STATE):
                 acc = B[r, 0] * u[0] + B[r, 1] * u[1] + B[r, 2] * u[2]
-                for q in range(15):
+                for q in range(N_STATE):
                     acc += Ai[r, q] * x[q]
                 f[r] = acc
-            for r in range(15):
+            for r in range(N_STATE):
                 acc = 0.0
-                for q in range(15):
+                for q in range(N_STATE):
                     acc += Ai[r, q] * f[q]
                 xn[r] = x[r] + delta * f[r] + 0.5 * delta * delta * acc
-            for r in range(15):
+            for r in range(N_STATE):
                 x[r] = xn[r]
 
     # 3. update and weights (18)
@@ -170,15 +191,15 @@ def step(X, p, xb, clock, t, y, tau, Phi, Gam, A, B, K, Sinv, logdet, params):
         s = math.sin(psi_f)
         yp0 = c * y[0] + s * y[1] if pos else 0.0
         yp1 = -s * y[0] + c * y[1] if pos else 0.0
-        # the DOFs that inform the weights: all measured, or the position only (params[4] = 0)
-        mw = m if params[4] != 0.0 else (m & 1)
+        # the DOFs that inform the weights: all measured, or the position only (PARAM_HEADING_VOTES 0)
+        mw = m if params[PARAM_HEADING_VOTES] != 0.0 else (m & 1)
         ll = np.empty(N)
         res = np.empty(3)
         for i in range(N):
             x = X[i]
-            res[0] = yp0 - (x[6] + x[3]) if pos else 0.0
-            res[1] = yp1 - (x[7] + x[4]) if pos else 0.0
-            res[2] = _ssa(y[2] - (x[8] + x[5])) if head else 0.0
+            res[0] = yp0 - (x[I_ETA] + x[I_XI2]) if pos else 0.0
+            res[1] = yp1 - (x[I_ETA + 1] + x[I_XI2 + 1]) if pos else 0.0
+            res[2] = ssa_jit(y[2] - (x[I_PSI] + x[I_XI2 + 2])) if head else 0.0
             Si = Sinv[i, mw]
             quad = 0.0
             for a in range(3):
@@ -188,10 +209,10 @@ def step(X, p, xb, clock, t, y, tau, Phi, Gam, A, B, K, Sinv, logdet, params):
                 quad += res[a] * acc
             ll[i] = -0.5 * quad - 0.5 * logdet[i, mw]
             Ki = K[i, m]
-            for r in range(15):
+            for r in range(N_STATE):
                 x[r] += Ki[r, 0] * res[0] + Ki[r, 1] * res[1] + Ki[r, 2] * res[2]
-            x[8] = _ssa(x[8])
-        if mw != 0 and t - clock[3] >= params[2]:
+            x[I_PSI] = ssa_jit(x[I_PSI])
+        if mw != 0 and t - clock[CLOCK_T_INIT] >= params[PARAM_WARMUP_S]:
             top = -math.inf
             for i in range(N):
                 ll[i] += math.log(p[i])
@@ -203,18 +224,18 @@ def step(X, p, xb, clock, t, y, tau, Phi, Gam, A, B, K, Sinv, logdet, params):
                 total += ll[i]
             for i in range(N):
                 p[i] = ll[i] / total
-            _project(p, params[1])
+            _project(p, params[PARAM_WEIGHT_FLOOR])
 
     # 4. blend (16); the heading as ψ_f + Σ pᵢ ssa(ψᵢ − ψ_f)
-    for j in range(15):
+    for j in range(N_STATE):
         acc = 0.0
         for i in range(N):
             acc += p[i] * X[i, j]
         xb[j] = acc
     acc = 0.0
     for i in range(N):
-        acc += p[i] * _ssa(X[i, 8] - psi_f)
-    xb[8] = _ssa(psi_f + acc)
+        acc += p[i] * ssa_jit(X[i, I_PSI] - psi_f)
+    xb[I_PSI] = ssa_jit(psi_f + acc)
     return STATUS_OK if m == 3 else STATUS_DEAD_RECKONING
 
 
@@ -238,12 +259,12 @@ def outputs(xb, psi_f, out):
     """NED outputs of the blended state: out = [η̂, ν̂, b̂ (earth-fixed), η̂_w] (R(ψ_f) on N, E)."""
     c = math.cos(psi_f)
     s = math.sin(psi_f)
-    for row, off in ((0, 6), (2, 9), (3, 3)):
+    for row, off in ((OUT_ETA, I_ETA), (OUT_BIAS, I_BIAS), (OUT_ETA_WF, I_XI2)):
         out[row, 0] = c * xb[off] - s * xb[off + 1]
         out[row, 1] = s * xb[off] + c * xb[off + 1]
         out[row, 2] = xb[off + 2]
     for j in range(3):
-        out[1, j] = xb[12 + j]
+        out[OUT_NU, j] = xb[I_NU + j]
 
 
 @njit(cache=True)
@@ -258,6 +279,6 @@ def run(X, p, xb, clock, t, Y, TAU, Phi, Gam, A, B, K, Sinv, logdet, params, OUT
                 for b in range(3):
                     OUT[k, a, b] = np.nan
         else:
-            outputs(xb, clock[2], OUT[k])
+            outputs(xb, clock[CLOCK_PSI_F], OUT[k])
         for i in range(p.shape[0]):
             W[k, i] = p[i]

@@ -5,11 +5,14 @@ This is the fast twin of the readable reference in `observers.passive` (`referen
 It exists because the batch replay of days of 10 Hz data has to run at millions of samples a second
 (``bench/bench_passive.py``). Keep the equations here line for line with the reference.
 
-Packed gains ``G`` (8×3), one column per DOF, rows::
+State ``x`` (15): the layout of `observers.state` (ξ1, ξ2 = η_w, η, b, ν), indexed by its block starts.
 
-    0 ω0   1 ζ   2 k1   3 k2   4 k3   5 λ (diag K3 = Λ)   6 κ (diag K4 = 𝒦)   7 1/T
+Packed gains ``G`` (8×3), one column per DOF, one row per quantity (the ``G_*`` row names below;
+`observers.passive.pack_gains` fills them)::
 
-State ``x`` (15): ξ1 (0:3), ξ2 = η_w (3:6), η (6:9), b (9:12), ν (12:15).
+    ω0   ζ   k1   k2   k3   λ (diag K3 = Λ)   κ (diag K4 = 𝒦)   1/T
+
+``clock`` (2): [t of the last sample, initialised flag] (``CLOCK_*``).
 """
 
 from __future__ import annotations
@@ -19,49 +22,58 @@ import math
 import numpy as np
 from numba import njit
 
-TWO_PI = 2.0 * math.pi
+from observers.base import STATUS_DEAD_RECKONING, STATUS_INITIALIZING, STATUS_OK
+from observers.kinematics import ssa_jit
+from observers.state import I_BIAS, I_ETA, I_NU, I_PSI, I_XI1, I_XI2, N_STATE
 
-STATUS_INITIALIZING = 0
-STATUS_OK = 1
-STATUS_DEAD_RECKONING = 2
+# rows of the packed gains G
+G_OMEGA0 = 0  # ω0, wave model (11)
+G_ZETA = 1  # ζ, wave model (11)
+G_K1 = 2  # k1 of (45): ξ1 injection (top rows of K1)
+G_K2 = 3  # k2 of (46): ξ2 injection (bottom rows of K1)
+G_K3 = 4  # k3 of (47): η injection (diag K2)
+G_LAMBDA = 5  # λ: bias injection (diag K3 = Λ)
+G_KAPPA = 6  # κ: velocity injection (diag K4 = 𝒦)
+G_T_INV = 7  # 1/T: bias time constant (0 for a random walk)
+N_GAIN_ROWS = 8
 
-
-@njit(cache=True, fastmath=False)
-def _ssa(a: float) -> float:
-    return (a + math.pi) % TWO_PI - math.pi
+# the clock
+CLOCK_T = 0  # time of the last sample used
+CLOCK_STARTED = 1  # 1.0 once initialised
 
 
 @njit(cache=True)
 def derivative(x, y, mask, tau, psi_meas, use_meas_psi, G, Minv, D, out):
     """x' of (22)–(25) with y, τ held. mask[i] = 0 removes DOF i's injection (no measurement)."""
-    yt0 = (y[0] - (x[6] + x[3])) * mask[0]
-    yt1 = (y[1] - (x[7] + x[4])) * mask[1]
-    yt2 = _ssa(y[2] - (x[8] + x[5])) * mask[2]
-    psi = psi_meas if use_meas_psi else x[8] + x[5]
+    # (26): ŷ = η̂ + η̂_w, ỹ = y − ŷ (heading wrapped)
+    yt0 = (y[0] - (x[I_ETA] + x[I_XI2])) * mask[0]
+    yt1 = (y[1] - (x[I_ETA + 1] + x[I_XI2 + 1])) * mask[1]
+    yt2 = ssa_jit(y[2] - (x[I_PSI] + x[I_XI2 + 2])) * mask[2]
+    psi = psi_meas if use_meas_psi else x[I_PSI] + x[I_XI2 + 2]
     c = math.cos(psi)
     s = math.sin(psi)
     yt = (yt0, yt1, yt2)
     for i in range(3):
-        w0 = G[0, i]
+        w0 = G[G_OMEGA0, i]
         # (22): ξ̂' = Ω ξ̂ + K1 ỹ, Ω of (11)
-        out[i] = x[3 + i] + G[2, i] * yt[i]
-        out[3 + i] = -w0 * w0 * x[i] - 2.0 * G[1, i] * w0 * x[3 + i] + G[3, i] * yt[i]
+        out[I_XI1 + i] = x[I_XI2 + i] + G[G_K1, i] * yt[i]
+        out[I_XI2 + i] = -w0 * w0 * x[I_XI1 + i] - 2.0 * G[G_ZETA, i] * w0 * x[I_XI2 + i] + G[G_K2, i] * yt[i]
         # (24): b̂' = -T⁻¹ b̂ + Λ ỹ
-        out[9 + i] = -G[7, i] * x[9 + i] + G[5, i] * yt[i]
+        out[I_BIAS + i] = -G[G_T_INV, i] * x[I_BIAS + i] + G[G_LAMBDA, i] * yt[i]
     # (23): η̂' = J(y) ν̂ + K2 ỹ
-    u, v, r = x[12], x[13], x[14]
-    out[6] = c * u - s * v + G[4, 0] * yt0
-    out[7] = s * u + c * v + G[4, 1] * yt1
-    out[8] = r + G[4, 2] * yt2
+    u, v, r = x[I_NU], x[I_NU + 1], x[I_NU + 2]
+    out[I_ETA] = c * u - s * v + G[G_K3, 0] * yt0
+    out[I_ETA + 1] = s * u + c * v + G[G_K3, 1] * yt1
+    out[I_ETA + 2] = r + G[G_K3, 2] * yt2
     # (25): M ν̂' = -D ν̂ + Jᵀ(y) (b̂ + 𝒦 ỹ) + τ
-    q0 = x[9] + G[6, 0] * yt0
-    q1 = x[10] + G[6, 1] * yt1
-    q2 = x[11] + G[6, 2] * yt2
+    q0 = x[I_BIAS] + G[G_KAPPA, 0] * yt0
+    q1 = x[I_BIAS + 1] + G[G_KAPPA, 1] * yt1
+    q2 = x[I_BIAS + 2] + G[G_KAPPA, 2] * yt2
     f0 = c * q0 + s * q1 + tau[0] - (D[0, 0] * u + D[0, 1] * v + D[0, 2] * r)
     f1 = -s * q0 + c * q1 + tau[1] - (D[1, 0] * u + D[1, 1] * v + D[1, 2] * r)
     f2 = q2 + tau[2] - (D[2, 0] * u + D[2, 1] * v + D[2, 2] * r)
     for i in range(3):
-        out[12 + i] = Minv[i, 0] * f0 + Minv[i, 1] * f1 + Minv[i, 2] * f2
+        out[I_NU + i] = Minv[i, 0] * f0 + Minv[i, 1] * f1 + Minv[i, 2] * f2
 
 
 @njit(cache=True)
@@ -71,23 +83,23 @@ def _integrate(x, span, y, mask, tau, psi_meas, use_meas_psi, G, Minv, D, h_max)
         return
     n = max(1, math.ceil(span / h_max - 1e-9))
     h = span / n
-    k1 = np.empty(15)
-    k2 = np.empty(15)
-    k3 = np.empty(15)
-    k4 = np.empty(15)
-    xt = np.empty(15)
+    k1 = np.empty(N_STATE)
+    k2 = np.empty(N_STATE)
+    k3 = np.empty(N_STATE)
+    k4 = np.empty(N_STATE)
+    xt = np.empty(N_STATE)
     for _ in range(n):
         derivative(x, y, mask, tau, psi_meas, use_meas_psi, G, Minv, D, k1)
-        for j in range(15):
+        for j in range(N_STATE):
             xt[j] = x[j] + 0.5 * h * k1[j]
         derivative(xt, y, mask, tau, psi_meas, use_meas_psi, G, Minv, D, k2)
-        for j in range(15):
+        for j in range(N_STATE):
             xt[j] = x[j] + 0.5 * h * k2[j]
         derivative(xt, y, mask, tau, psi_meas, use_meas_psi, G, Minv, D, k3)
-        for j in range(15):
+        for j in range(N_STATE):
             xt[j] = x[j] + h * k3[j]
         derivative(xt, y, mask, tau, psi_meas, use_meas_psi, G, Minv, D, k4)
-        for j in range(15):
+        for j in range(N_STATE):
             x[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
 
 
@@ -116,7 +128,7 @@ def propagate(x, dt, y, tau, G, Minv, D, h_max, max_hold):
         none = np.zeros(3)
         _integrate(x, dead, ys, none, ts, 0.0, False, G, Minv, D, h_max)
     _integrate(x, dt - dead, ys, mask, ts, psi_meas, use_meas_psi, G, Minv, D, h_max)
-    x[8] = _ssa(x[8])
+    x[I_PSI] = ssa_jit(x[I_PSI])
     return STATUS_OK if complete else STATUS_DEAD_RECKONING
 
 
@@ -137,47 +149,49 @@ def initialize(x, y, tau, G, D):
     A = np.zeros((6, 6))
     rhs = np.zeros(6)
     for i in range(3):
-        A[i, i] = -G[5, i]
-        A[i, 3 + i] = G[7, i]
+        A[i, i] = -G[G_LAMBDA, i]
+        A[i, 3 + i] = G[G_T_INV, i]
         rhs[3 + i] = -(0.0 if math.isnan(tau[i]) else tau[i])
         for j in range(3):
             # (D Jᵀ K2 + Jᵀ 𝒦)[i, j] and Jᵀ[i, j]
             dj = 0.0
             for m in range(3):
                 dj += D[i, m] * Jt[m, j]
-            A[3 + i, j] = dj * G[4, j] + Jt[i, j] * G[6, j]
+            A[3 + i, j] = dj * G[G_K3, j] + Jt[i, j] * G[G_KAPPA, j]
             A[3 + i, 3 + j] = Jt[i, j]
-    sol = np.linalg.solve(A, rhs)
-    for j in range(15):
+    sol = np.linalg.solve(A, rhs)  # [ỹ, b̂]
+    for j in range(N_STATE):
         x[j] = 0.0
     for i in range(3):
         yt = sol[i]
-        w0 = G[0, i]
-        x[3 + i] = -G[2, i] * yt
-        x[i] = (2.0 * G[1, i] * w0 * G[2, i] + G[3, i]) * yt / (w0 * w0)
-        x[6 + i] = y[i] - yt - x[3 + i]
-        x[9 + i] = sol[3 + i]
+        w0 = G[G_OMEGA0, i]
+        x[I_XI2 + i] = -G[G_K1, i] * yt
+        x[I_XI1 + i] = (2.0 * G[G_ZETA, i] * w0 * G[G_K1, i] + G[G_K2, i]) * yt / (w0 * w0)
+        x[I_ETA + i] = y[i] - yt - x[I_XI2 + i]
+        x[I_BIAS + i] = sol[3 + i]
         # ν̂ = -Jᵀ K2 ỹ
-        x[12 + i] = -(Jt[i, 0] * G[4, 0] * sol[0] + Jt[i, 1] * G[4, 1] * sol[1] + Jt[i, 2] * G[4, 2] * sol[2])
-    x[8] = _ssa(x[8])
+        x[I_NU + i] = -(
+            Jt[i, 0] * G[G_K3, 0] * sol[0] + Jt[i, 1] * G[G_K3, 1] * sol[1] + Jt[i, 2] * G[G_K3, 2] * sol[2]
+        )
+    x[I_PSI] = ssa_jit(x[I_PSI])
 
 
 @njit(cache=True)
 def step(x, clock, t, y, tau, G, Minv, D, h_max, max_hold):
-    """One sample. ``clock`` = [t_prev, initialized]. Returns the status code of this sample."""
-    if clock[1] == 0.0:
+    """One sample. ``clock`` = [t of the last sample, initialised]. Returns the status code of this sample."""
+    if clock[CLOCK_STARTED] == 0.0:
         if math.isnan(y[0]) or math.isnan(y[1]) or math.isnan(y[2]):
             return STATUS_INITIALIZING
         initialize(x, y, tau, G, D)
-        clock[0] = t
-        clock[1] = 1.0
+        clock[CLOCK_T] = t
+        clock[CLOCK_STARTED] = 1.0
         return STATUS_OK
-    dt = t - clock[0]
+    dt = t - clock[CLOCK_T]
     if dt <= 0.0:
         # repeated or backward time: nothing to integrate; the sample is not used
         complete = not (math.isnan(y[0]) or math.isnan(y[1]) or math.isnan(y[2]))
         return STATUS_OK if complete else STATUS_DEAD_RECKONING
-    clock[0] = t
+    clock[CLOCK_T] = t
     return propagate(x, dt, y, tau, G, Minv, D, h_max, max_hold)
 
 
@@ -189,8 +203,8 @@ def run(x, clock, t, Y, TAU, G, Minv, D, h_max, max_hold, X_out, status_out):
         code = step(x, clock, t[k], Y[k], TAU[k], G, Minv, D, h_max, max_hold)
         status_out[k] = code
         if code == STATUS_INITIALIZING:
-            for j in range(15):
+            for j in range(N_STATE):
                 X_out[k, j] = np.nan
         else:
-            for j in range(15):
+            for j in range(N_STATE):
                 X_out[k, j] = x[j]

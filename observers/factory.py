@@ -1,61 +1,86 @@
 """Observers by name — what the gateway's ``[observer] type`` and replay's ``--observer`` specs choose.
 
+Every observer implements `observers.base.Observer` (``tests/test_observer_conformance.py`` checks each
+one registered here). To add one, write its class with a ``from_params`` classmethod (see
+`ObserverBuilder`) and add one line to `_REGISTERED` below: its name, the paper, the class as
+``"module:Class"`` (imported only when built, so that reading a config does not load every observer's
+numerics) and the parameter names its ``from_params`` accepts (checked before anything is built, so a
+misspelt key in a config stops start-up with a message naming it).
+
 MMAE note (docs/mmae.md): Hassani's (A.2) noise settings do not identify real seas. By default the MMAE
 measures the sensors' σ and the wave motion's σ from the data and designs its bank from them (ζ 0.25);
 ``measurement_sigma`` and ``wave_std`` fix either instead (e.g. from data sheets and a forecast).
-
-| name | paper | module |
-|---|---|---|
-| ``passive`` | Fossen & Strand (1999) | `observers.passive` |
-| ``gain_scheduled`` | Torsetnes, Jouffroy & Fossen (2004) | `observers.gain_scheduled` |
-| ``mmae`` | Hassani, Pascoal, Aguiar & Athans | `observers.mmae` |
-
-Every observer has the same face: ``step(t, y, tau) -> PassiveEstimate``, ``run(t, y, tau)``,
-``initialized``, ``omega0`` (the wave frequency in use per DOF) and ``extra()`` (fields for the estimate
-message, e.g. the MMAE weights). ``params`` are the observer's own settings beyond the passive tuning.
 """
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any, Protocol
 
-from numpy.typing import ArrayLike, NDArray
-
-from observers.passive import PassiveEstimate, PassiveObserver, PassiveRun
+from observers.base import Observer
 from observers.passive_tuning import PassiveTuning
 from observers.vessel import VesselModel
 
-OBSERVER_TYPES = ("passive", "gain_scheduled", "mmae")
 
-OBSERVER_PARAMS: dict[str, tuple[str, ...]] = {
-    "passive": (),
-    "gain_scheduled": ("omega0_initial", "window_s", "update_period_s", "omega_min", "omega_max", "per_dof"),
-    "mmae": (
-        "candidates",
-        "weight_floor",
-        "dt",
-        "zeta",
-        "wave_std",
-        "measurement_sigma",
-        "warmup_s",
-        "max_gap_s",
+class ObserverBuilder(Protocol):
+    """What the registry calls: an observer class's ``from_params`` classmethod."""
+
+    def __call__(
+        self,
+        vessel: VesselModel,
+        tuning: PassiveTuning | None,
+        params: dict[str, Any],
+        *,
+        allow_unchecked: bool = False,
+    ) -> Observer: ...
+
+
+@dataclass(frozen=True)
+class ObserverEntry:
+    """One registered observer: its name, the paper it implements, where its class lives, its parameters."""
+
+    name: str
+    paper: str
+    target: str  # "module:Class", the class having ``from_params`` (an `ObserverBuilder`)
+    params: tuple[str, ...] = ()
+
+    def builder(self) -> ObserverBuilder:
+        module, _, cls = self.target.partition(":")
+        builder: ObserverBuilder = getattr(importlib.import_module(module), cls).from_params
+        return builder
+
+
+_GS_PARAMS = ("omega0_initial", "window_s", "update_period_s", "omega_min", "omega_max", "per_dof")
+_MMAE_PARAMS = (
+    "candidates",
+    "weight_floor",
+    "dt",
+    "zeta",
+    "wave_std",
+    "measurement_sigma",
+    "warmup_s",
+    "max_gap_s",
+)
+
+# The registry: one entry per observer. New observers (sdre, memory, ekf, …) are added here.
+_REGISTERED = (
+    ObserverEntry("passive", "Fossen & Strand (1999)", "observers.passive:PassiveObserver"),
+    ObserverEntry(
+        "gain_scheduled",
+        "Torsetnes, Jouffroy & Fossen (2004)",
+        "observers.gain_scheduled:GainScheduledObserver",
+        _GS_PARAMS,
     ),
-}
+    ObserverEntry("mmae", "Hassani, Pascoal, Aguiar & Athans", "observers.mmae:MMAEObserver", _MMAE_PARAMS),
+)
 
+OBSERVERS: dict[str, ObserverEntry] = {e.name: e for e in _REGISTERED}
+"""Every registered observer by name, in registration order."""
 
-class Observer(Protocol):
-    @property
-    def initialized(self) -> bool: ...
-
-    @property
-    def omega0(self) -> NDArray[Any]: ...
-
-    def step(self, t: float, y: ArrayLike, tau: ArrayLike | None = None) -> PassiveEstimate: ...
-
-    def run(self, t: ArrayLike, y: ArrayLike, tau: ArrayLike | None = None) -> PassiveRun: ...
-
-    def extra(self) -> dict[str, Any]: ...
+OBSERVER_TYPES = tuple(OBSERVERS)
+OBSERVER_PARAMS: dict[str, tuple[str, ...]] = {name: e.params for name, e in OBSERVERS.items()}
 
 
 class ObserverSpecError(ValueError):
@@ -63,11 +88,11 @@ class ObserverSpecError(ValueError):
 
 
 def check_params(kind: str, params: Mapping[str, Any]) -> None:
-    if kind not in OBSERVER_TYPES:
+    if kind not in OBSERVERS:
         raise ObserverSpecError(f"observer '{kind}': unknown (known: {', '.join(OBSERVER_TYPES)})")
-    unknown = sorted(set(params) - set(OBSERVER_PARAMS[kind]))
+    unknown = sorted(set(params) - set(OBSERVERS[kind].params))
     if unknown:
-        known = ", ".join(OBSERVER_PARAMS[kind]) or "none"
+        known = ", ".join(OBSERVERS[kind].params) or "none"
         raise ObserverSpecError(f"observer '{kind}': unknown parameter(s) {unknown} (known: {known})")
 
 
@@ -79,33 +104,8 @@ def make_observer(
     params: Mapping[str, Any] | None = None,
     allow_unchecked: bool = False,
 ) -> Observer:
+    """The observer called ``kind`` for ``vessel``: the passive ``tuning`` (where it applies) and its own
+    ``params`` (`OBSERVER_PARAMS`)."""
     params = dict(params or {})
     check_params(kind, params)
-    if kind == "passive":
-        return PassiveObserver(vessel, tuning, allow_unchecked=allow_unchecked)
-    if kind == "gain_scheduled":
-        from observers.gain_scheduled import GainScheduledObserver
-        from observers.wave_frequency import WaveFrequencyConfig
-
-        est_keys = ("window_s", "update_period_s", "omega_min", "omega_max", "per_dof")
-        est = {k: params.pop(k) for k in est_keys if k in params}
-        if "per_dof" in est:
-            est["per_dof"] = bool(est["per_dof"])
-        return GainScheduledObserver(
-            vessel,
-            tuning,
-            estimator=WaveFrequencyConfig(**est),
-            allow_unchecked=allow_unchecked,
-            **params,
-        )
-    import numpy as np
-
-    from observers.mmae import MMAEObserver
-
-    if "candidates" in params:
-        params["candidates"] = tuple(float(c) for c in params["candidates"])
-    if "measurement_sigma" in params:
-        # R from the sensors' noise (m, m, rad per sample): Hassani's (A.2) R is far from real gyros
-        sigma = np.broadcast_to(np.asarray(params.pop("measurement_sigma"), dtype=float), (3,))
-        params["R"] = np.diag(sigma**2)
-    return MMAEObserver(vessel, **params)
+    return OBSERVERS[kind].builder()(vessel, tuning, params, allow_unchecked=allow_unchecked)

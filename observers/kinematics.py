@@ -4,8 +4,11 @@ Fossen & Strand (1999), eq (2)::
 
     J(ψ) = [[cos ψ, -sin ψ, 0], [sin ψ, cos ψ, 0], [0, 0, 1]],    η' = J(ψ) ν              (1)
 
-Every angle difference in dpgw goes through `ssa` (DESIGN.md, conventions), so that a heading crossing
-±180° (0°/360° on the compass) never produces a 2π step (ERRATA: the heading innovation of eq (12)/(18)).
+Every angle difference in dpgw goes through the smallest signed angle defined here, so that a heading
+crossing ±180° (0°/360° on the compass) never produces a 2π step (Fossen & Strand's heading innovation of
+eqs (12)/(18) must be wrapped). There is one definition, `ssa_scalar`, in three forms: `ssa_scalar` for
+one float, `ssa` for arrays (the same arithmetic, element-wise) and `ssa_jit`, the same Python function
+compiled by numba for the compiled kernels. All three give the same bits for the same input.
 """
 
 from __future__ import annotations
@@ -13,18 +16,23 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 
+def ssa_scalar(angle: float) -> float:
+    """Smallest signed angle of one float: map any angle (rad) to [-π, π)."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
 def ssa(angle: ArrayLike) -> NDArray[np.float64]:
-    """Smallest signed angle: map any angle (rad) to [-π, π)."""
+    """`ssa_scalar` element-wise for arrays (numpy's ``mod`` is Python's float ``%``, bit for bit)."""
     a = np.asarray(angle, dtype=float)
     return np.mod(a + math.pi, 2.0 * math.pi) - math.pi
 
 
-def ssa_scalar(angle: float) -> float:
-    """`ssa` for one float, without numpy overhead."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+ssa_jit = njit(cache=True)(ssa_scalar)
+"""`ssa_scalar` compiled for numba kernels (call it from ``@njit`` code; numba's float ``%`` is Python's)."""
 
 
 def rotation(psi: float) -> NDArray[np.float64]:

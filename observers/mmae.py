@@ -1,28 +1,29 @@
 """Multiple-model adaptive wave filter (MMAE) of Hassani, Pascoal, Aguiar & Athans, eqs (6)–(18).
 
-Read with ``../shared/papers/ERRATA.md`` (Hassani section). The model, in vessel-parallel coordinates
+The paper's printed (9), (13) and (14) have misprints; the forms below are the corrected ones (each checked
+against (7)–(10)). The model, in vessel-parallel coordinates
 η_p = Rᵀ(ψ) η (6), for one candidate peak frequency ω0 (the same ω0 in all three DOFs, as the paper)::
 
     ξ' = A_w(ω0) ξ + E_w w1,     A_w = [[0, I], [-Ω, -Λ]],  Ω = ω0² I,  Λ = 2ζω0 I,  E_w = [0; I]   (7)
     η_p' = ν                                                                                        (8)
-    M ν' + D ν = τ + b_p + w2                                       (ERRATA: (9) as corrected)      (9)
+    M ν' + D ν = τ + b_p + w2                                       ((9) as corrected)              (9)
     b_p' = w3                                                                                       (10)
     η_w = C_w ξ,  C_w = [0, I];      y = η_p + η_w + v                                        (11)–(12)
 
-State x = [ξ1, ξ2 = η_w, η_p, b_p, ν] ∈ R¹⁵ (13), w = [w1; w2; w3] ∈ R⁹ (ERRATA: w2 is printed twice)::
+State x = [ξ1, ξ2 = η_w, η_p, b_p, ν] ∈ R¹⁵ (13), w = [w1; w2; w3] ∈ R⁹ (the print repeats w2)::
 
-    A(ω0) = [[A_w, 0, 0, 0], [0, 0, 0, I], [0, 0, 0, 0], [0, 0, M⁻¹, -M⁻¹D]]   (ERRATA: minus sign)   (14)
+    A(ω0) = [[A_w, 0, 0, 0], [0, 0, 0, I], [0, 0, 0, 0], [0, 0, M⁻¹, -M⁻¹D]]   (sign lost in print)   (14)
     B = [0; 0; 0; M⁻¹],   G = [[E_w, 0, 0], [0, 0, 0], [0, 0, I], [0, M⁻¹, 0]],   C = [C_w, I, 0, 0]   (14)
 
-Q = diag(Q1, Q2, Q3) in the order of w (ERRATA); defaults (A.2) for CyberShip II, scaled for other
-vessels by `hassani_noise`. Q is a continuous-time intensity (E{w(t)wᵀ(s)} = Q δ(t − s), Sec. 3);
-R is the covariance of one sample of v (σ² of the sensors: (A.2)'s 1e-4 m² is a 1 cm RTK fix; as a
-continuous intensity that is R·dt).
+Q = diag(Q1, Q2, Q3) in the order of w (G is not printed; it follows from (7)–(10)); defaults (A.2)
+for CyberShip II, scaled for other vessels by `hassani_noise`. Q is a continuous-time intensity
+(E{w(t)wᵀ(s)} = Q δ(t − s), Sec. 3); R is the covariance of one sample of v (σ² of the sensors: (A.2)'s
+1e-4 m² is a 1 cm RTK fix; as a continuous intensity that is R·dt).
 
 Bank of steady-state Kalman filters (17), one per candidate ω0ⁱ, in discrete time: zero-order hold of
 A, B at the nominal interval ``dt``, Q_d by Van Loan's method, the discrete algebraic Riccati equation
 solved once per candidate for the prior covariance Pᵢ, gain Kᵢ = Pᵢ Cᵀ Sᵢ⁻¹, innovation covariance
-Sᵢ = C Pᵢ Cᵀ + R (ERRATA: the natural choice for S_i of (18)).
+Sᵢ = C Pᵢ Cᵀ + R (the paper leaves S_i of (18) open; the innovation covariance is the natural choice).
 
 Dynamic weights: the discrete-time equivalent of (18) with m_i = ½ rᵢᵀ Sᵢ⁻¹ rᵢ and β_i = 1/√det Sᵢ,
 i.e. Bayes' rule pᵢ(k) ∝ βᵢ exp(−mᵢ) pᵢ(k−1), computed in the log domain, then projected onto
@@ -67,15 +68,22 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import expm, solve_discrete_are
 
 from observers import _mmae_kernel as kernel
+from observers.base import (
+    NAN3,
+    STATUS_DEAD_RECKONING,
+    STATUS_INITIALIZING,
+    STATUS_NAMES,
+    STATUS_OK,
+    ZERO3,
+    Estimate,
+    Run,
+)
 from observers.kinematics import ssa_scalar
-from observers.passive import PassiveEstimate, PassiveRun
+from observers.state import BIAS, ETA, I_PSI, N_STATE, NU, XI1, XI2, StateView
 from observers.vessel import VesselModel
 from observers.wave_frequency import WaveFrequencyConfig, WaveFrequencyEstimator
 
 Array = NDArray[np.float64]
-
-XI1, XI2, ETA, BIAS, NU = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15)
-N_STATE = 15
 
 HASSANI_CANDIDATES = (0.3, 0.45, 0.6, 0.75, 0.9, 1.05, 1.2, 1.35)
 """The paper's eight candidate peak frequencies (rad/s), Sec. 4."""
@@ -92,17 +100,8 @@ CYBERSHIP2_LENGTH_M = 1.255
 CYBERSHIP2_M_DIAG = np.array([25.8, 33.8, 2.76])
 """diag M of (A.1): the inertia that (A.2)'s force noises Q2, Q3 belong to."""
 
-STATUS_NAMES = {
-    kernel.STATUS_INITIALIZING: "initializing",
-    kernel.STATUS_OK: "ok",
-    kernel.STATUS_DEAD_RECKONING: "dead_reckoning",
-}
-
 MASKS = ((False, False, False), (True, True, False), (False, False, True), (True, True, True))
 """Measured DOFs [N, E, ψ] for mask index m = (position present) + 2·(heading present)."""
-
-NAN3 = np.full(3, np.nan)
-ZERO3 = np.zeros(3)
 
 WAVE_STD_FACTOR = 0.7
 """Identified wave-model σ = this × the measured wave-band σ: the variance the likelihood itself prefers for
@@ -169,7 +168,7 @@ def hassani_noise(vessel: VesselModel) -> tuple[Array, Array]:
 
 
 def continuous_model(vessel: VesselModel, omega0: float, zeta: float) -> tuple[Array, Array, Array, Array]:
-    """A(ω0), B, G, C of (13)–(14) with ERRATA's corrections."""
+    """A(ω0), B, G, C of (13)–(14) with the misprints corrected (module docstring)."""
     Minv = vessel.Minv
     A = np.zeros((N_STATE, N_STATE))
     A[XI1, XI2] = np.eye(3)
@@ -355,14 +354,6 @@ def design_bank(
     )
 
 
-@dataclass(frozen=True)
-class MMAERun(PassiveRun):
-    """`PassiveRun` plus the weights (n, N) and the blended ω0 (n, 3) after each sample."""
-
-    weights: Array
-    omega0: Array
-
-
 def _new_only(Y: Array, last: Array) -> Array:
     """Rows of Y (n, 3) with a value repeated exactly from the row before (the first row: from ``last``)
     set to NaN — the position N, E as a pair, the heading alone — for the noise identification: a
@@ -409,9 +400,16 @@ def _clean3(v: tuple[float, float, float]) -> list[float | None]:
 class MMAEObserver:
     """Hassani et al.'s MMAE wave filter for any `VesselModel`; the observer interface of `observers`.
 
+    Model, per candidate ω0ⁱ (the module docstring has it in full): the wave model (7) driving η_w, and
+    η_p' = ν, M ν' + D ν = τ + b_p + w2, b_p' = w3 in vessel-parallel axes; y = η_p + η_w + v (11)–(12).
+    State per filter x = [ξ1, ξ2 = η_w, η_p, b_p, ν] (`observers.state`), in the frame of heading
+    `frame_heading`; ``state`` is the blended one (16). `predict` runs the filters' prediction alone (the
+    weights stay); `step` predicts, then updates every filter and the weights (17)–(18) with y.
+
     ``step(t, y, tau)`` for live use, ``run(t, y, tau)`` over arrays: the same compiled kernel, the same
     numbers. y = [N, E, ψ] (m, m, rad; NaN = missing), τ = [X, Y, N] (N, N, N·m, body frame) held since
     the previous sample. Output η̂, ν̂, b̂ (earth-fixed), η̂_w of the blended estimate (16).
+    `Run.extras`: ``"weights"`` (n, N), the weights after each sample.
 
     ``candidates`` ω0ⁱ (rad/s), ``zeta`` of the wave model (7), ``Q``/``R``/``wave_std`` see
     `design_bank`, ``dt`` the nominal sample interval (s), ``weight_floor`` the least weight of any
@@ -467,10 +465,33 @@ class MMAEObserver:
         if not (self.max_gap_s > 0):
             raise ValueError(f"max_gap_s must be positive, got {max_gap_s!r}")
         self.heading_in_weights = bool(heading_in_weights)
-        self._params = np.array(
-            [self.bank.dt, self.weight_floor, self.warmup_s, self.max_gap_s, float(self.heading_in_weights)]
-        )
+        self._params = np.zeros(kernel.N_PARAMS)
+        self._params[kernel.PARAM_DT] = self.bank.dt
+        self._params[kernel.PARAM_WEIGHT_FLOOR] = self.weight_floor
+        self._params[kernel.PARAM_WARMUP_S] = self.warmup_s
+        self._params[kernel.PARAM_MAX_GAP_S] = self.max_gap_s
+        self._params[kernel.PARAM_HEADING_VOTES] = float(self.heading_in_weights)
         self.reset()  # (when identifying, the weights wait for the first identification: warm-up ∞)
+
+    @classmethod
+    def from_params(
+        cls,
+        vessel: VesselModel,
+        tuning: Any,
+        params: dict[str, Any],
+        *,
+        allow_unchecked: bool = False,
+    ) -> MMAEObserver:
+        """The observer `observers.factory` builds by name. The passive tuning and ``allow_unchecked`` do not
+        apply: the bank is designed from its own noise settings. ``measurement_sigma`` (m, m, rad per sample;
+        one or per DOF) sets R = diag(σ²): Hassani's (A.2) R is far from real gyros."""
+        params = dict(params)
+        if "candidates" in params:
+            params["candidates"] = tuple(float(c) for c in params["candidates"])
+        if "measurement_sigma" in params:
+            sigma = np.broadcast_to(np.asarray(params.pop("measurement_sigma"), dtype=float), (3,))
+            params["R"] = np.diag(sigma**2)
+        return cls(vessel, **params)
 
     def reset(self) -> None:
         """Back to uninitialised, uniform weights (and, when identifying, the initial bank and no noise
@@ -481,10 +502,12 @@ class MMAEObserver:
             self.identified = None
             self._design_sigma = None
             self._history: list[tuple[Array, Array]] = []
-            self._params[2] = math.inf
+            self._params[kernel.PARAM_WARMUP_S] = math.inf
         self._last_y = np.full(3, np.nan)  # the previous sample as given (see `_new_only`)
         # samples (t, y, τ chunks) taken before the first identification, to run again through its bank
         self._prefix: list[tuple[Array, Array, Array]] = []
+        # an explicit start (`initialize`): blended state, time, frame heading, weights; kept for that rerun
+        self._start: tuple[Array, float, float, Array] | None = None
         self._reset_filters()
 
     def _reset_filters(self) -> None:
@@ -493,16 +516,46 @@ class MMAEObserver:
         self._X = np.zeros((n, N_STATE))
         self._p = np.full(n, 1.0 / n)
         self._xb = np.zeros(N_STATE)
-        # [t of the last sample, initialised flag, frame heading ψ_f, t of initialisation]
-        self._clock = np.zeros(4)
+        self._clock = np.zeros(kernel.N_CLOCK)
+
+    def initialize(
+        self,
+        t: float,
+        eta: ArrayLike,
+        nu: ArrayLike | None = None,
+        bias: ArrayLike | None = None,
+        eta_wf: ArrayLike | None = None,
+    ) -> None:
+        """Start every filter from an explicit state (weights kept, as at a restart after a long gap); η,
+        b and η_w in NED as the estimates give them, omitted parts zero. Without this, the first complete
+        measurement initialises the filters (ξ = 0, ν = 0, b_p = −τ)."""
+        psi_f = ssa_scalar(float(np.asarray(eta, dtype=float)[2]))
+        x = StateView.zeros()
+        x.eta[:] = _turn(np.asarray(eta, dtype=float), psi_f)
+        x.x[I_PSI] = psi_f
+        if nu is not None:
+            x.nu[:] = np.asarray(nu, dtype=float)
+        if bias is not None:
+            x.bias[:] = _turn(np.asarray(bias, dtype=float), psi_f)
+        if eta_wf is not None:
+            x.eta_wf[:] = _turn(np.asarray(eta_wf, dtype=float), psi_f)
+        self._xb[:] = x.x
+        kernel.start_at(self._X, self._xb, self._clock, float(t), psi_f)
+        self._start = (x.x.copy(), float(t), psi_f, self._p.copy())
+        self._prefix = []  # samples before an explicit start are not run again
+
+    @property
+    def state(self) -> StateView:
+        """The blended state (16) by name, in the vessel-parallel frame of `frame_heading` (a view)."""
+        return StateView(self._xb)
 
     @property
     def initialized(self) -> bool:
-        return bool(self._clock[1])
+        return bool(self._clock[kernel.CLOCK_STARTED])
 
     @property
     def t(self) -> float:
-        return float(self._clock[0])
+        return float(self._clock[kernel.CLOCK_T])
 
     @property
     def candidates(self) -> Array:
@@ -525,7 +578,7 @@ class MMAEObserver:
 
     @property
     def frame_heading(self) -> float:
-        return float(self._clock[2])
+        return float(self._clock[kernel.CLOCK_PSI_F])
 
     def extra(self) -> dict[str, Any]:
         """Fields for the estimate message."""
@@ -580,7 +633,7 @@ class MMAEObserver:
             )
             first = self._design_sigma is None
             self._design_sigma = (meas, wave)
-            self._params[2] = self.warmup_s  # the weights may move from now on
+            self._params[kernel.PARAM_WARMUP_S] = self.warmup_s  # the weights may move from now on
             if first and self._prefix:
                 self._restart_on_prefix()
         self.identified = NoiseIdentification(t, _f3(meas), _f3(wave), redesign)
@@ -595,6 +648,11 @@ class MMAEObserver:
         TAU = np.ascontiguousarray(np.concatenate([c[2] for c in self._prefix]))
         self._prefix = []
         self._reset_filters()
+        if self._start is not None:  # the filters started from an explicit state: so they do again
+            x0, t0, psi0, p0 = self._start
+            self._xb[:] = x0
+            self._p[:] = p0
+            kernel.start_at(self._X, self._xb, self._clock, t0, psi0)
         n, m = self.bank.n, t.shape[0]
         kernel.run(
             self._X, self._p, self._xb, self._clock, t, Y, TAU, *self._kernel_args(),
@@ -605,7 +663,7 @@ class MMAEObserver:
         b = self.bank
         return (b.Phi, b.Gam, b.A, b.B, b.K, b.Sinv, b.logdet, self._params)
 
-    def step(self, t: float, y: ArrayLike, tau: ArrayLike | None = None) -> PassiveEstimate:
+    def step(self, t: float, y: ArrayLike, tau: ArrayLike | None = None) -> Estimate:
         """Advance to time t (s) with measurement y and generalised force τ held since the last sample."""
         y_arr = np.asarray(y, dtype=float).reshape(3)
         fresh = _new_only_one(y_arr, self._last_y)
@@ -616,7 +674,7 @@ class MMAEObserver:
             est.add(float(t), fresh)
             if est.due(float(t)):
                 self._identify(float(t))
-        out = np.empty((4, 3))
+        out = np.empty((kernel.N_OUT, 3))
         code = kernel.step(
             self._X, self._p, self._xb, self._clock, float(t), y_arr, tau_arr, *self._kernel_args()
         )
@@ -624,16 +682,23 @@ class MMAEObserver:
             self._prefix.append(
                 (np.array([float(t)]), y_arr.reshape(1, 3).copy(), tau_arr.reshape(1, 3).copy())
             )
-        if code == kernel.STATUS_INITIALIZING:
-            return PassiveEstimate(float(t), NAN3, NAN3, NAN3, NAN3, "initializing")
-        kernel.outputs(self._xb, self._clock[2], out)
-        return PassiveEstimate(float(t), out[0], out[1], out[2], out[3], STATUS_NAMES[code])
+        if code == STATUS_INITIALIZING:
+            return Estimate.initializing(float(t))
+        kernel.outputs(self._xb, self._clock[kernel.CLOCK_PSI_F], out)
+        return Estimate(
+            float(t),
+            out[kernel.OUT_ETA],
+            out[kernel.OUT_NU],
+            out[kernel.OUT_BIAS],
+            out[kernel.OUT_ETA_WF],
+            STATUS_NAMES[code],
+        )
 
-    def predict(self, t: float, tau: ArrayLike | None = None) -> PassiveEstimate:
+    def predict(self, t: float, tau: ArrayLike | None = None) -> Estimate:
         """Prediction to time t without any measurement."""
         return self.step(t, NAN3, tau)
 
-    def run(self, t: ArrayLike, y: ArrayLike, tau: ArrayLike | None = None) -> MMAERun:
+    def run(self, t: ArrayLike, y: ArrayLike, tau: ArrayLike | None = None) -> Run:
         """`step` over every sample: t (n,), y (n, 3) with NaN for missing, τ (n, 3) or None for zero."""
         t_arr = np.ascontiguousarray(t, dtype=float).ravel()
         n = t_arr.shape[0]
@@ -642,7 +707,7 @@ class MMAEObserver:
         if n:
             self._last_y = Y[-1].copy()
         TAU = np.zeros((n, 3)) if tau is None else np.ascontiguousarray(tau, dtype=float).reshape(n, 3)
-        OUT = np.empty((n, 4, 3))
+        OUT = np.empty((n, kernel.N_OUT, 3))
         W = np.empty((n, self.bank.n))
         status = np.empty(n, dtype=np.int8)
         a = 0  # the kernel has run samples [0, a)
@@ -670,7 +735,16 @@ class MMAEObserver:
         om = np.empty(n)
         kernel.blended_omegas(W, self.bank.candidates, om)
         omega = np.repeat(om[:, None], 3, axis=1)
-        return MMAERun(t_arr, OUT[:, 0], OUT[:, 1], OUT[:, 2], OUT[:, 3], status, W, omega)
+        return Run(
+            t_arr,
+            OUT[:, kernel.OUT_ETA],
+            OUT[:, kernel.OUT_NU],
+            OUT[:, kernel.OUT_BIAS],
+            OUT[:, kernel.OUT_ETA_WF],
+            status,
+            omega,
+            {"weights": W},
+        )
 
 
 # --- readable reference ----------------------------------------------------------------------------------
@@ -712,7 +786,7 @@ def reference_run(
     weights (n, N) and status codes (n,)."""
     N, n = bank.n, len(t)
     tau = np.zeros((n, 3)) if tau is None else np.nan_to_num(np.asarray(tau, dtype=float))
-    OUT = np.full((n, 4, 3), np.nan)
+    OUT = np.full((n, kernel.N_OUT, 3), np.nan)
     W = np.empty((n, N))
     status = np.zeros(n, dtype=np.int8)
     X = np.zeros((N, N_STATE))
@@ -726,7 +800,7 @@ def reference_run(
         psi_f = ssa_scalar(float(y[k, 2]))
         x0 = np.zeros(N_STATE)
         x0[ETA] = _turn(y[k], psi_f)
-        x0[8] = psi_f
+        x0[I_PSI] = psi_f
         x0[BIAS] = -tau[k]  # equilibrium of (9) at rest: b_p = −τ
         X[:] = x0
         xb = x0.copy()
@@ -741,17 +815,17 @@ def reference_run(
         if not initialized:
             if complete:
                 start(k)
-                status[k] = kernel.STATUS_OK
+                status[k] = STATUS_OK
         elif dt <= 0:
-            status[k] = kernel.STATUS_OK if complete else kernel.STATUS_DEAD_RECKONING
+            status[k] = STATUS_OK if complete else STATUS_DEAD_RECKONING
         else:
             t_prev = float(t[k])
             # 1. turn the vessel-parallel frame to the latest blended heading
-            d = ssa_scalar(xb[8] - psi_f)
+            d = ssa_scalar(xb[I_PSI] - psi_f)
             for i in range(N):
                 X[i, ETA] = _turn(X[i, ETA], d)
                 X[i, BIAS] = _turn(X[i, BIAS], d)
-            psi_f = float(xb[8])
+            psi_f = float(xb[I_PSI])
             # 2. predict: n nominal ZOH steps, then a 2nd-order Taylor step for the remainder
             steps = math.floor(dt / bank.dt + 0.5)
             delta = dt - steps * bank.dt
@@ -778,19 +852,19 @@ def reference_run(
                     r[2] = ssa_scalar(yp[2] - y_hat[2]) if head else 0.0
                     ll[i] = -0.5 * r @ bank.Sinv[i, mw] @ r - 0.5 * bank.logdet[i, mw]
                     X[i] = X[i] + bank.K[i, m] @ r
-                    X[i, 8] = ssa_scalar(X[i, 8])
+                    X[i, I_PSI] = ssa_scalar(X[i, I_PSI])
                 if mw and t[k] - t_init >= warmup_s:
                     lp = np.log(p) + ll
                     q = np.exp(lp - lp.max())
                     p = project_weights(q / q.sum(), weight_floor)
             # 4. blend (16)
             xb = p @ X
-            xb[8] = ssa_scalar(psi_f + sum(p[i] * ssa_scalar(X[i, 8] - psi_f) for i in range(N)))
-            status[k] = kernel.STATUS_OK if m == 3 else kernel.STATUS_DEAD_RECKONING
+            xb[I_PSI] = ssa_scalar(psi_f + sum(p[i] * ssa_scalar(X[i, I_PSI] - psi_f) for i in range(N)))
+            status[k] = STATUS_OK if m == 3 else STATUS_DEAD_RECKONING
         W[k] = p
-        if initialized and status[k] != kernel.STATUS_INITIALIZING:
-            OUT[k, 0] = _turn(xb[ETA], -psi_f)
-            OUT[k, 1] = xb[NU]
-            OUT[k, 2] = _turn(xb[BIAS], -psi_f)
-            OUT[k, 3] = _turn(xb[XI2], -psi_f)
+        if initialized and status[k] != STATUS_INITIALIZING:
+            OUT[k, kernel.OUT_ETA] = _turn(xb[ETA], -psi_f)
+            OUT[k, kernel.OUT_NU] = xb[NU]
+            OUT[k, kernel.OUT_BIAS] = _turn(xb[BIAS], -psi_f)
+            OUT[k, kernel.OUT_ETA_WF] = _turn(xb[XI2], -psi_f)
     return OUT, W, status

@@ -10,7 +10,7 @@ Observer::
     η̂' = J(y) ν̂ + K2 ỹ                                                             (23)
     b̂' = -T⁻¹ b̂ + Λ ỹ                         (Λ = K3; γ = 1, see passive_tuning)   (24)
     M ν̂' = -D ν̂ + Jᵀ(y) b̂ + τ + Jᵀ(y) 𝒦 ỹ      (𝒦 = K4)                             (25)
-    ŷ = η̂ + Γ ξ̂,   ỹ = y − ŷ,  ỹ₃ wrapped to [-π, π) (ERRATA)                        (26)
+    ŷ = η̂ + Γ ξ̂,   ỹ = y − ŷ,  ỹ₃ wrapped to [-π, π) (else a 0°/360° crossing jumps 2π)  (26)
 
 State x = [ξ1, ξ2 = η̂_w, η̂, b̂, ν̂] (15). Gains: `observers.passive_tuning`.
 
@@ -18,7 +18,7 @@ Discrete time. The paper's observer is continuous; measurements arrive at 1–50
 intervals. Each sample's y and τ are held over the interval that ends at its time stamp (so the estimate
 at t_k has already used y_k: no added sample of delay), and the ODE is integrated exactly enough by RK4 in
 sub-steps of at most ``h_max`` (0.1 s by default: error poles reach -1.3 s⁻¹, and forward Euler at 1 Hz
-is not accurate, ERRATA). A DOF whose measurement is missing (NaN) gets no injection: it is dead
+is not accurate). A DOF whose measurement is missing (NaN) gets no injection: it is dead
 reckoning, and J uses the estimated heading ŷ₃ when the heading itself is missing. A gap longer than
 ``max_hold_s`` is dead reckoning except for its last ``max_hold_s``. ``tests/test_passive_observer.py``
 states the agreement reached with a tight-tolerance continuous-time integration.
@@ -31,86 +31,37 @@ reckoning); `step` advances with one.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from observers import _passive_kernel as kernel
+from observers.base import NAN3, STATUS_INITIALIZING, STATUS_NAMES, ZERO3, Estimate, Run
 from observers.kinematics import rotation, ssa_scalar
-from observers.passive_tuning import (
-    BIAS,
-    ETA,
-    NU,
-    XI2,
-    PassiveGains,
-    PassiveTuning,
-    passive_gains,
-    validate,
-)
+from observers.passive_tuning import PassiveGains, PassiveTuning, passive_gains, validate
+from observers.state import BIAS, ETA, I_PSI, N_STATE, NU, XI, XI2, StateView
 from observers.vessel import VesselModel
 
 Array = NDArray[np.float64]
 
-STATUS_NAMES = {
-    kernel.STATUS_INITIALIZING: "initializing",
-    kernel.STATUS_OK: "ok",
-    kernel.STATUS_DEAD_RECKONING: "dead_reckoning",
-}
-
-NAN3 = np.full(3, np.nan)
-ZERO3 = np.zeros(3)
-
 
 def pack_gains(gains: PassiveGains) -> Array:
-    """The (8, 3) array the kernel reads (see `observers._passive_kernel`)."""
+    """The (8, 3) array the kernel reads, one row per quantity (`observers._passive_kernel`, ``G_*``)."""
     for name in ("K2", "K3", "K4", "T"):
         M = getattr(gains, name)
         if np.count_nonzero(M[~np.eye(3, dtype=bool)]):
             raise ValueError(f"gain {name} must be diagonal (structure of Proposition 1, (40)–(41))")
-    return np.ascontiguousarray(
-        np.stack(
-            [
-                gains.omega0,
-                gains.zeta,
-                gains.k1,
-                gains.k2,
-                gains.k3,
-                np.diag(gains.K3),
-                np.diag(gains.K4),
-                gains.t_inv,
-            ]
-        )
-    )
-
-
-@dataclass(frozen=True)
-class PassiveEstimate:
-    """One estimate: LF position/heading η̂, velocity ν̂, bias b̂, WF motion η̂_w, and status."""
-
-    t: float
-    eta: Array
-    nu: Array
-    bias: Array
-    eta_wf: Array
-    status: str
-
-
-@dataclass(frozen=True)
-class PassiveRun:
-    """Batch result: arrays of shape (n, 3) (NaN before initialisation) and a status per sample."""
-
-    t: Array
-    eta: Array
-    nu: Array
-    bias: Array
-    eta_wf: Array
-    status: NDArray[np.int8]
-
-    @property
-    def initialized(self) -> NDArray[np.bool_]:
-        return self.status != kernel.STATUS_INITIALIZING
+    G = np.empty((kernel.N_GAIN_ROWS, 3))
+    G[kernel.G_OMEGA0] = gains.omega0
+    G[kernel.G_ZETA] = gains.zeta
+    G[kernel.G_K1] = gains.k1
+    G[kernel.G_K2] = gains.k2
+    G[kernel.G_K3] = gains.k3
+    G[kernel.G_LAMBDA] = np.diag(gains.K3)
+    G[kernel.G_KAPPA] = np.diag(gains.K4)
+    G[kernel.G_T_INV] = gains.t_inv
+    return G
 
 
 def initial_state(
@@ -119,31 +70,37 @@ def initial_state(
     bias: ArrayLike | None = None,
     eta_wf: ArrayLike | None = None,
 ) -> Array:
-    """The 15-state vector [ξ(6), η(3), b(3), ν(3)] for an explicit start (ψ wrapped; omitted parts zero)."""
-    x = np.zeros(15)
-    x[ETA] = np.asarray(eta, dtype=float)
-    x[8] = ssa_scalar(x[8])
+    """The 15-state vector (`observers.state`) for an explicit start (ψ wrapped; omitted parts zero)."""
+    state = StateView.zeros()
+    state.eta[:] = np.asarray(eta, dtype=float)
+    state.x[I_PSI] = ssa_scalar(state.x[I_PSI])
     if nu is not None:
-        x[NU] = np.asarray(nu, dtype=float)
+        state.nu[:] = np.asarray(nu, dtype=float)
     if bias is not None:
-        x[BIAS] = np.asarray(bias, dtype=float)
+        state.bias[:] = np.asarray(bias, dtype=float)
     if eta_wf is not None:
-        x[XI2] = np.asarray(eta_wf, dtype=float)
-    return x
+        state.eta_wf[:] = np.asarray(eta_wf, dtype=float)
+    return state.x
 
 
-def estimate_from_state(t: float, x: Array, code: int) -> PassiveEstimate:
+def estimate_from_state(t: float, x: Array, code: int) -> Estimate:
     """The estimate a kernel status ``code`` and state ``x`` stand for (copies; NaN while initialising)."""
-    if code == kernel.STATUS_INITIALIZING:
-        return PassiveEstimate(t, NAN3, NAN3, NAN3, NAN3, "initializing")
-    return PassiveEstimate(t, x[ETA].copy(), x[NU].copy(), x[BIAS].copy(), x[XI2].copy(), STATUS_NAMES[code])
+    if code == STATUS_INITIALIZING:
+        return Estimate.initializing(t)
+    return Estimate(t, x[ETA].copy(), x[NU].copy(), x[BIAS].copy(), x[XI2].copy(), STATUS_NAMES[code])
 
 
 class PassiveObserver:
-    """Fossen & Strand (1999) passive observer for any `VesselModel`.
+    """Fossen & Strand (1999) passive observer for any `VesselModel` (the module docstring has the details).
 
-    ``step(t, y, tau)`` for live use, ``run(t, y, tau)`` over arrays: both use the same kernel and give the
-    same numbers. y = [N, E, ψ] (m, m, rad; NaN = missing), τ = [X, Y, N] (N, N, N·m).
+    Model, (14)–(18), with ψ in J taken from the measured heading (assumption A4)::
+
+        ξ' = Ω ξ,   η' = J(y) ν,   b' = -T⁻¹ b,   M ν' = -D ν + Jᵀ(y) b + τ,   y = η + Γ ξ
+
+    State x = [ξ1, ξ2 = η̂_w, η̂, b̂, ν̂] (`observers.state`; ``state`` names its parts). Gains from a
+    physical `PassiveTuning` (`observers.passive_tuning`). `predict` is dead reckoning (no injection);
+    `step` integrates (22)–(26) over the interval with the sample's y and τ held. ``step`` for live use,
+    ``run`` over arrays: both use the same kernel and give the same numbers. `Run.extras`: none.
     """
 
     def __init__(
@@ -166,6 +123,18 @@ class PassiveObserver:
         self.set_gains(gains if gains is not None else passive_gains(vessel, tuning), allow_unchecked)
         self.reset()
 
+    @classmethod
+    def from_params(
+        cls,
+        vessel: VesselModel,
+        tuning: PassiveTuning | None,
+        params: dict[str, Any],
+        *,
+        allow_unchecked: bool = False,
+    ) -> PassiveObserver:
+        """The observer `observers.factory` builds by name (no parameters beyond the tuning)."""
+        return cls(vessel, tuning, allow_unchecked=allow_unchecked, **params)
+
     def set_gains(self, gains: PassiveGains, allow_unchecked: bool = False) -> None:
         """Use new gains from now on (the state is kept: no jump in the estimates)."""
         if not allow_unchecked:
@@ -174,21 +143,26 @@ class PassiveObserver:
         self._G = pack_gains(gains)
 
     def reset(self) -> None:
-        self.x = np.zeros(15)
-        self._clock = np.zeros(2)  # [t of the last sample, initialised flag]
+        self.x = np.zeros(N_STATE)
+        self._clock = np.zeros(2)  # kernel.CLOCK_T, kernel.CLOCK_STARTED
+
+    @property
+    def state(self) -> StateView:
+        """The state by name (a view: writing to it changes the observer)."""
+        return StateView(self.x)
 
     @property
     def initialized(self) -> bool:
-        return bool(self._clock[1])
+        return bool(self._clock[kernel.CLOCK_STARTED])
 
     @property
     def t(self) -> float:
-        return float(self._clock[0])
+        return float(self._clock[kernel.CLOCK_T])
 
     @property
     def omega0(self) -> Array:
         """The wave frequency the filter is tuned to, per DOF (rad/s) — fixed for this observer."""
-        return self.gains.omega0
+        return self.gains.omega0.copy()
 
     def extra(self) -> dict[str, Any]:
         """Observer-specific fields for the estimate message (none for the fixed-gain observer)."""
@@ -207,9 +181,10 @@ class PassiveObserver:
         Without this, the first complete measurement initialises the observer in equilibrium.
         """
         self.x[:] = initial_state(eta, nu, bias, eta_wf)
-        self._clock[:] = (float(t), 1.0)
+        self._clock[kernel.CLOCK_T] = float(t)
+        self._clock[kernel.CLOCK_STARTED] = 1.0
 
-    def step(self, t: float, y: ArrayLike, tau: ArrayLike | None = None) -> PassiveEstimate:
+    def step(self, t: float, y: ArrayLike, tau: ArrayLike | None = None) -> Estimate:
         """Advance to time t (s) with measurement y and generalised force τ held since the last sample."""
         y_arr = np.asarray(y, dtype=float)
         tau_arr = ZERO3 if tau is None else np.asarray(tau, dtype=float)
@@ -227,17 +202,17 @@ class PassiveObserver:
         )
         return estimate_from_state(float(t), self.x, code)
 
-    def predict(self, t: float, tau: ArrayLike | None = None) -> PassiveEstimate:
+    def predict(self, t: float, tau: ArrayLike | None = None) -> Estimate:
         """Dead reckoning to time t: no measurement at all."""
         return self.step(t, NAN3, tau)
 
-    def run(self, t: ArrayLike, y: ArrayLike, tau: ArrayLike | None = None) -> PassiveRun:
+    def run(self, t: ArrayLike, y: ArrayLike, tau: ArrayLike | None = None) -> Run:
         """`step` over every sample: t (n,), y (n, 3) with NaN for missing, τ (n, 3) or None for zero."""
         t_arr = np.ascontiguousarray(t, dtype=float)
         n = t_arr.shape[0]
         Y = np.ascontiguousarray(y, dtype=float).reshape(n, 3)
         TAU = np.zeros((n, 3)) if tau is None else np.ascontiguousarray(tau, dtype=float).reshape(n, 3)
-        X = np.empty((n, 15))
+        X = np.empty((n, N_STATE))
         status = np.empty(n, dtype=np.int8)
         kernel.run(
             self.x,
@@ -253,7 +228,8 @@ class PassiveObserver:
             X,
             status,
         )
-        return PassiveRun(t_arr, X[:, ETA], X[:, NU], X[:, BIAS], X[:, XI2], status)
+        omega0 = np.broadcast_to(self.gains.omega0, (n, 3))  # fixed gains: one row, repeated (a view)
+        return Run(t_arr, X[:, ETA], X[:, NU], X[:, BIAS], X[:, XI2], status, omega0)
 
 
 # --- readable reference ----------------------------------------------------------------------------------
@@ -265,7 +241,7 @@ def reference_derivative(
     x: Array, y: Array, valid: NDArray[np.bool_], tau: Array, vessel: VesselModel, gains: PassiveGains
 ) -> Array:
     """x' of (22)–(25) with y and τ held; DOFs with valid[i] False get no injection."""
-    xi, eta_w, eta, b, nu = x[0:6], x[XI2], x[ETA], x[BIAS], x[NU]
+    xi, eta_w, eta, b, nu = x[XI], x[XI2], x[ETA], x[BIAS], x[NU]
     y_hat = eta + eta_w  # (26), Γ = [0 I]
     y_tilde = np.where(valid, y - y_hat, 0.0)
     y_tilde[2] = ssa_scalar(y[2] - y_hat[2]) if valid[2] else 0.0
@@ -291,10 +267,10 @@ def reference_equilibrium(y: Array, tau: Array, vessel: VesselModel, gains: Pass
         [[np.zeros((3, 3)), np.eye(3)], [-np.diag(gains.omega0**2), -np.diag(2 * gains.zeta * gains.omega0)]]
     )
     xi = -np.linalg.solve(Omega, gains.K1 @ y_tilde)  # (22) at rest
-    x = np.zeros(15)
-    x[0:6] = xi
+    x = np.zeros(N_STATE)
+    x[XI] = xi
     x[ETA] = y - y_tilde - xi[3:6]
-    x[8] = ssa_scalar(x[8])
+    x[I_PSI] = ssa_scalar(x[I_PSI])
     x[BIAS] = b
     x[NU] = -J.T @ gains.K2 @ y_tilde  # (23) at rest
     return x
@@ -331,7 +307,7 @@ def reference_propagate(
     dead = max(dt - max_hold_s, 0.0)
     x = integrate(x, dead, np.zeros(3, dtype=bool))
     x = integrate(x, dt - dead, valid)
-    x[8] = ssa_scalar(x[8])
+    x[I_PSI] = ssa_scalar(x[I_PSI])
     return x
 
 
@@ -347,7 +323,7 @@ def reference_run(
     """Reference batch run: states (n, 15), NaN before initialisation."""
     n = len(t)
     tau = np.zeros((n, 3)) if tau is None else np.asarray(tau, dtype=float)
-    X = np.full((n, 15), np.nan)
+    X = np.full((n, N_STATE), np.nan)
     x: Array | None = None
     t_prev = 0.0
     for k in range(n):

@@ -1,15 +1,15 @@
 """Gains of the passive observer from physical tuning, and the checks that make them safe.
 
-Fossen & Strand (1999), Sec. 5, with ``../shared/papers/ERRATA.md``:
+Fossen & Strand (1999), Sec. 5, with two of the paper's misprints corrected (said where they apply):
 
-* Wave-filter gains, eqs (45)–(47) (eq (45) as corrected in ERRATA)::
+* Wave-filter gains, eqs (45)–(47) (the printed (45) is garbled; this form gives the paper's own (59))::
 
       k1i = -2 (ζni - ζi) ωci / ω0i,     k2i = 2 ω0i (ζni - ζi),     k3i = ωci
 
   K1 (6×3) = [diag(k1); diag(k2)], K2 = diag(k3). These shape the position-error transfer function
   h0ᵢ(s) of eq (42) into the notch filter h0dᵢ(s) of eq (44).
 * Injection gains 𝒦 (K4, velocity, eq (25)) and Λ (K3, bias, eq (24)). The paper's values (60) are not in
-  SI units for the M of (56) (ERRATA): used literally they leave the velocity and bias loops open. dpgw
+  SI units for the M of (56): used literally they leave the velocity and bias loops open. dpgw
   therefore tunes them in physical terms and scales them with the vessel::
 
       K4ᵢᵢ = Mᵢᵢ · ωcᵢ · aᵢ        (aᵢ: velocity-injection rate, 1/s)
@@ -41,6 +41,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from observers.kinematics import rotation
+from observers.state import BIAS, ETA, N_STATE, NU, XI, XI1, XI2
 from observers.vessel import VesselModel
 
 Array = NDArray[np.float64]
@@ -150,7 +151,7 @@ class PassiveGains:
 
 
 def filter_gains(omega0: ArrayLike, zeta: ArrayLike, zeta_n: ArrayLike, omega_c: ArrayLike) -> Array:
-    """k1, k2, k3 of eqs (45)–(47) (ERRATA-corrected (45)), as a (3, n) array."""
+    """k1, k2, k3 of eqs (45)–(47) ((45) corrected, module docstring), as a (3, n) array."""
     w0, z, zn, wc = (np.asarray(v, dtype=float) for v in (omega0, zeta, zeta_n, omega_c))
     k1 = -2.0 * (zn - z) * wc / w0
     k2 = 2.0 * w0 * (zn - z)
@@ -310,14 +311,12 @@ def validate(gains: PassiveGains) -> None:
 
 # --- linear analysis ------------------------------------------------------------------------------------
 
-# State order used throughout dpgw's passive observer: x = [ξ1 (3), ξ2 = η_w (3), η (3), b (3), ν (3)].
-XI1, XI2, ETA, BIAS, NU = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15)
-N_STATES = 15
+# State order: `observers.state`, x = [ξ1 (3), ξ2 = η_w (3), η (3), b (3), ν (3)].
 
 
 def _output_matrix() -> Array:
     """C0 of (21) in dpgw's state order: y = η + η_w."""
-    C = np.zeros((3, N_STATES))
+    C = np.zeros((3, N_STATE))
     C[:, XI2] = np.eye(3)
     C[:, ETA] = np.eye(3)
     return C
@@ -325,7 +324,7 @@ def _output_matrix() -> Array:
 
 def model_matrix(vessel: VesselModel, gains: PassiveGains, psi: float) -> Array:
     """Matrix of the model (14)–(17) with ψ (J(y)) frozen: x' = A x + B τ, y = C0 x."""
-    A = np.zeros((N_STATES, N_STATES))
+    A = np.zeros((N_STATE, N_STATE))
     J = rotation(psi)
     Minv = vessel.Minv
     A[XI1, XI2] = np.eye(3)
@@ -340,8 +339,8 @@ def model_matrix(vessel: VesselModel, gains: PassiveGains, psi: float) -> Array:
 
 def injection_matrix(vessel: VesselModel, gains: PassiveGains, psi: float) -> Array:
     """L (15×3) of the observer x̂' = A x̂ + B τ + L ỹ, eqs (22)–(25) with γ = 1."""
-    L = np.zeros((N_STATES, 3))
-    L[0:6] = gains.K1
+    L = np.zeros((N_STATE, 3))
+    L[XI] = gains.K1
     L[ETA] = gains.K2
     L[BIAS] = gains.K3
     L[NU] = vessel.Minv @ rotation(psi).T @ gains.K4
@@ -372,7 +371,7 @@ def lf_response(vessel: VesselModel, gains: PassiveGains, omega: ArrayLike, psi:
     L = injection_matrix(vessel, gains, psi)
     out = []
     for w in np.atleast_1d(np.asarray(omega, dtype=float)):
-        H = np.linalg.solve(1j * w * np.eye(N_STATES) - A, L)[ETA]
+        H = np.linalg.solve(1j * w * np.eye(N_STATE) - A, L)[ETA]
         out.append(np.abs(np.diag(H)))
     return np.array(out).T
 

@@ -96,8 +96,9 @@ class VesselModel:
 
         Thruster i at (xᵢ, yᵢ) pushing with unit force in direction αᵢ contributes the column
         [cos αᵢ, sin αᵢ, xᵢ sin αᵢ − yᵢ cos αᵢ]ᵀ (yaw moment = l_x F_y − l_y F_x, Hajivand eq (22) with the
-        signs of ERRATA). Tunnels and main propellers use their fixed ``angle_rad``; ``angles`` (one per
-        thruster, in layout order) applies to azimuths and defaults to each thruster's ``angle_rad``.
+        signs restored: the printed (22) lost them). Tunnels and main propellers use their fixed
+        ``angle_rad``; ``angles`` (one per thruster, in layout order) applies to azimuths and defaults to each
+        thruster's ``angle_rad``.
         """
         n = len(self.thrusters)
         a = np.array([t.angle_rad for t in self.thrusters], dtype=float)

@@ -72,6 +72,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from observers.kinematics import ssa
+
 Array = NDArray[np.float64]
 
 _NOISE_BAND = (1.5, 0.9)  # noise level: median PSD from 1.5·ω_max to 0.9·ω_Nyquist
@@ -336,20 +338,8 @@ class WaveFrequencyEstimator:
             regular = ok[1:] & ok[:-1] & (np.abs(dt[1:] - dt[:-1]) <= 0.25 * dt[:-1])
             d = np.diff(y)
             if i == 2:
-                d = (d + math.pi) % (2.0 * math.pi) - math.pi
+                d = ssa(d)
             d2 = np.diff(d)[regular]
-            if d2.size >= 20:
-                out[i] = 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0)
-        return out
-        dt = np.diff(self._t[i0:i1])
-        ok = dt <= 1.5 * float(np.median(dt))  # differences across a dropout are not noise
-        regular = ok[1:] & ok[:-1] & (np.abs(dt[1:] - dt[:-1]) <= 0.25 * dt[:-1])
-        for i in range(3):
-            d = np.diff(self._y[i, i0:i1])
-            if i == 2:
-                d = (d + math.pi) % (2.0 * math.pi) - math.pi
-            d2 = np.diff(d)
-            d2 = d2[regular & np.isfinite(d2)]
             if d2.size >= 20:
                 out[i] = 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0)
         return out

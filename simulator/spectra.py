@@ -32,6 +32,8 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from observers.kinematics import ssa_scalar
+
 Array = NDArray[np.float64]
 
 SpectrumKind = Literal["jonswap", "pm"]
@@ -109,7 +111,7 @@ class SeaState:
             _check_gamma(self.gamma)
         if not math.isfinite(self.direction_rad):
             raise ValueError(f"wave direction_rad must be finite, got {self.direction_rad!r}")
-        wrapped = (self.direction_rad + math.pi) % (2.0 * math.pi) - math.pi
+        wrapped = ssa_scalar(self.direction_rad)
         object.__setattr__(self, "direction_rad", float(wrapped))
 
     @property

@@ -15,7 +15,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-from observers.kinematics import ssa
+from observers.kinematics import ssa, ssa_jit
 from observers.vessel import VesselModel
 
 Array = NDArray[np.float64]
@@ -89,10 +89,10 @@ def _step(h, thrust, angle, thrust_sp, angle_sp, failed, is_azimuth, time_consta
         target = 0.0 if failed[i] else thrust_sp[i]
         thrust[i] = target + (thrust[i] - target) * math.exp(-h / time_constant[i])
         if is_azimuth[i] and not failed[i]:
-            err = (angle_sp[i] - angle[i] + math.pi) % (2 * math.pi) - math.pi
+            err = ssa_jit(angle_sp[i] - angle[i])
             lim = rate[i] * h
             move = min(max(err, -lim), lim)
-            angle[i] = (angle[i] + move + math.pi) % (2 * math.pi) - math.pi
+            angle[i] = ssa_jit(angle[i] + move)
 
 
 @njit(cache=True)

@@ -16,6 +16,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from observers.kinematics import ssa_jit, ssa_scalar
 from observers.vessel import VesselModel
 
 Array = NDArray[np.float64]
@@ -60,7 +61,7 @@ def _rk4(x, h, tau_body, b_earth, Minv, D):
         _derivative(xt, f, Minv, D, k[stage])
     for j in range(6):
         x[j] += h / 6.0 * (k[0, j] + 2.0 * k[1, j] + 2.0 * k[2, j] + k[3, j])
-    x[2] = (x[2] + math.pi) % (2.0 * math.pi) - math.pi
+    x[2] = ssa_jit(x[2])
 
 
 class VesselDynamics:
@@ -75,7 +76,7 @@ class VesselDynamics:
         self.x = np.zeros(6)
         self.x[0:3] = np.asarray(eta0, dtype=float)
         self.x[3:6] = np.asarray(nu0, dtype=float)
-        self.x[2] = (self.x[2] + math.pi) % (2 * math.pi) - math.pi
+        self.x[2] = ssa_scalar(self.x[2])
 
     @property
     def eta(self) -> Array:

@@ -20,16 +20,12 @@ import pytest
 from scipy import signal
 from scipy.integrate import cumulative_trapezoid
 
-from observers.gain_scheduled import (
-    DEFAULT_TUNING,
-    ContractionError,
-    GainScheduledObserver,
-    contraction_check,
-    reference_run,
-)
+from observers.gain_scheduled import GainScheduledObserver, reference_run
+from observers.gain_scheduled_analysis import DEFAULT_TUNING, ContractionError, contraction_check
 from observers.kinematics import rotation, ssa
 from observers.passive import PassiveObserver, pack_gains
 from observers.passive_tuning import PassiveTuning, passive_gains
+from observers.state import I_ETA, I_PSI, NU
 from observers.vessel import load_vessel
 from observers.wave_frequency import WaveFrequencyConfig, WaveFrequencyEstimator, _peak
 from simulator.scenarios import get_scenario
@@ -362,7 +358,7 @@ def test_no_jump_at_gain_updates() -> None:
     fixed = GainScheduledObserver(VESSEL, omega0_initial=BADLY_TUNED, schedule=False).run(t, y)
     moves = [
         round(tu * RATE)
-        for tu, _ in sched.updates
+        for tu, _ in sched.extras["updates"]
         if np.ptp(sched.omega0[round(tu * RATE) : round((tu + 20) * RATE), 0]) > 0.005
     ]
     assert len(moves) >= 4
@@ -377,7 +373,7 @@ def test_no_jump_at_gain_updates() -> None:
         obs = GainScheduledObserver(VESSEL, omega0_initial=BADLY_TUNED)
         obs.run(t[:k], y[:k])
         frozen = copy.deepcopy(obs)
-        frozen._S[3] = 0.0  # scheduling off for this one sample: old gains
+        frozen.scheduling = False  # for this one sample: old gains
         moved, kept = obs.step(t[k], y[k]), frozen.step(t[k], y[k])
         assert not np.array_equal(obs.omega0, frozen.omega0)
         assert np.linalg.norm(moved.eta[:2] - kept.eta[:2]) < 0.01 * np.median(step)
@@ -405,7 +401,7 @@ def test_run_and_step_give_the_same_numbers() -> None:
             assert np.array_equal(est.eta_wf, run.eta_wf[k], equal_nan=True)
     assert a.extra() == b.extra()
     assert np.array_equal(a.x, b.x)
-    assert len(run.updates) == a.estimator.updates >= 4
+    assert len(run.extras["updates"]) == a.estimator.updates >= 4
     # run in two pieces = run at once
     c = GainScheduledObserver(VESSEL, omega0_initial=BADLY_TUNED)
     half = t.size // 2
@@ -420,8 +416,8 @@ def test_compiled_loop_matches_the_readable_reference() -> None:
     run = obs.run(t[:2500], y[:2500])
     X, W = reference_run(VESSEL, obs.tuning, obs.check, obs.config, [BADLY_TUNED] * 3, t[:2500], y[:2500])
     np.testing.assert_allclose(W, run.omega0, rtol=1e-12)
-    np.testing.assert_allclose(X[:, 6:8], run.eta[:, :2], atol=1e-8)
-    np.testing.assert_allclose(X[:, 12:15], run.nu, atol=1e-9)
+    np.testing.assert_allclose(X[:, I_ETA:I_PSI], run.eta[:, :2], atol=1e-8)
+    np.testing.assert_allclose(X[:, NU], run.nu, atol=1e-9)
 
 
 def test_schedule_stays_within_the_contraction_budget() -> None:

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm, solve_discrete_are
 
+from observers.base import Estimate
 from observers.kinematics import ssa
 from observers.mmae import (
     HASSANI_CANDIDATES,
@@ -33,7 +34,6 @@ from observers.mmae import (
     hassani_noise,
     reference_run,
 )
-from observers.passive import PassiveEstimate
 from observers.vessel import VesselModel, builtin_vessels, load_vessel
 from simulator.scenarios import ShipNow, get_scenario, trajectory_law
 from simulator.spectra import SeaState
@@ -115,9 +115,9 @@ def test_hassani_sea_selects_the_0_9_filter_within_90_s() -> None:
     obs = identifying_observer(rec.vessel, get_scenario("hassani").sea[0][1])
     r = obs.run(rec.t, rec.y, rec.tau)
     i09 = HASSANI_CANDIDATES.index(0.9)
-    t_first = first_time(rec.t, r.weights[:, i09] > 0.9)
+    t_first = first_time(rec.t, r.extras["weights"][:, i09] > 0.9)
     assert t_first <= 90.0, t_first
-    assert r.weights[900, i09] > 0.9
+    assert r.extras["weights"][900, i09] > 0.9
     # the start-up transient: slowest closed-loop mode of each filter of the bank
     b = obs.bank
     tau_slow = [
@@ -140,7 +140,7 @@ def test_hassani_sea_over_seeds() -> None:
     for seed in range(12):
         rec = make_record(150.0, seed=seed)
         r = identifying_observer(rec.vessel, sea).run(rec.t, rec.y, rec.tau)
-        reached += first_time(rec.t, r.weights[:, i09] > 0.9) <= 90.0
+        reached += first_time(rec.t, r.extras["weights"][:, i09] > 0.9) <= 90.0
         blended.append(np.mean(r.omega0[900:, 0]))
     assert reached >= 10
     assert np.all(np.abs(np.array(blended) / 0.93 - 1) < 0.13), blended
@@ -166,15 +166,15 @@ def test_sea_change_readapts_within_5_minutes(seed: int) -> None:
     r = obs.run(rec.t, rec.y, rec.tau)
     i6, i12 = 2, 6
     before, after = rec.t < tc, rec.t >= tc
-    assert first_time(rec.t, before & (r.weights[:, i6] > 0.9)) < 100.0
+    assert first_time(rec.t, before & (r.extras["weights"][:, i6] > 0.9)) < 100.0
     k_change = int(np.searchsorted(rec.t, tc))
     assert abs(r.omega0[k_change, 0] / PERIOD_CANDIDATES[i6] - 1) < 0.1  # adapted to the first sea
-    t12 = first_time(rec.t, after & (r.weights[:, i12] > 0.9)) - tc
+    t12 = first_time(rec.t, after & (r.extras["weights"][:, i12] > 0.9)) - tc
     assert t12 <= 300.0, t12  # the 12 s filter wins within 5 minutes of the change
     w_ok = np.abs(r.omega0[:, 0] / PERIOD_CANDIDATES[i12] - 1) < 0.1
     assert first_time(rec.t, after & w_ok) - tc <= 150.0
     assert w_ok[-1]  # blended ω0 within 10 % at the end
-    W = r.weights
+    W = r.extras["weights"]
     np.testing.assert_allclose(W.sum(axis=1), 1.0, atol=1e-12)
     assert W.min() >= obs.weight_floor * (1 - 1e-12)
 
@@ -199,7 +199,7 @@ def test_blended_lf_estimate_tracks_and_weights_stay_a_distribution() -> None:
     assert np.all(rms[:2] < 0.6 * raw)  # better than the raw measurement as an LF estimate
     wf_err = np.mean((r.eta_wf[k, 0] - rec.wf[k, 0]) ** 2)
     assert wf_err < 0.5 * np.var(rec.wf[k, 0])
-    W = r.weights
+    W = r.extras["weights"]
     np.testing.assert_allclose(W.sum(axis=1), 1.0, atol=1e-12)
     assert W.min() >= obs.weight_floor * (1 - 1e-12)
     assert np.all(r.status == 1)
@@ -322,7 +322,7 @@ def test_observer_interface() -> None:
     est = obs.step(0.0, [np.nan, 0.0, 0.0])
     assert est.status == "initializing" and np.all(np.isnan(est.eta))
     est = obs.step(0.1, [1.0, 2.0, 0.3], [0.1, 0.0, 0.0])
-    assert isinstance(est, PassiveEstimate) and est.status == "ok" and obs.initialized
+    assert isinstance(est, Estimate) and est.status == "ok" and obs.initialized
     np.testing.assert_allclose(est.eta, [1.0, 2.0, 0.3], atol=1e-12)  # starts at the measurement
     np.testing.assert_allclose(est.bias[2], -0.0, atol=1e-15)
     assert obs.weights.shape == (8,) and obs.omega0.shape == (3,)
@@ -344,15 +344,17 @@ def test_missing_dofs_and_gaps() -> None:
     y[800:850] = np.nan  # everything lost for 5 s
     sea = get_scenario("hassani").sea[0][1]
     r = identifying_observer(rec.vessel, sea).run(rec.t, y, rec.tau)
+    W = r.extras["weights"]
     assert np.all(r.status[400:450] == 2) and np.all(r.status[600:620] == 2) and r.status[700] == 1
     # nothing measured: the weights stay
-    assert np.all(r.weights[800:850] == r.weights[799])
+    assert np.all(W[800:850] == W[799])
     # one kind lost: the other still votes
-    assert np.any(r.weights[449] != r.weights[400]) and np.any(r.weights[619] != r.weights[600])
+    assert np.any(W[449] != W[400]) and np.any(W[619] != W[600])
     # only the position votes: the weights stay while the fix is lost
     r_pos = identifying_observer(rec.vessel, sea, heading_in_weights=False).run(rec.t, y, rec.tau)
-    assert np.all(r_pos.weights[400:450] == r_pos.weights[399])
-    assert np.any(r_pos.weights[619] != r_pos.weights[600])
+    W_pos = r_pos.extras["weights"]
+    assert np.all(W_pos[400:450] == W_pos[399])
+    assert np.any(W_pos[619] != W_pos[600])
     # dead reckoning over the 5 s gap (just after the 10 m move): measured 1.8 cm growing to 6.9 cm;
     # the estimate does not jump at recovery
     err = np.linalg.norm(r.eta[800:851, :2] - rec.eta[800:851, :2], axis=1)
@@ -438,7 +440,7 @@ def test_kernel_agrees_with_numpy_reference(heading_in_weights: bool) -> None:
     np.testing.assert_allclose(r.nu[ok], OUT[ok, 1], rtol=0, atol=1e-12)
     np.testing.assert_allclose(r.bias[ok], OUT[ok, 2], rtol=0, atol=1e-10)
     np.testing.assert_allclose(r.eta_wf[ok], OUT[ok, 3], rtol=0, atol=1e-12)
-    np.testing.assert_allclose(r.weights, W, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(r.extras["weights"], W, rtol=0, atol=1e-10)
     assert np.ptp(W[-200:], axis=0).max() > 0  # the weights did move
 
 
@@ -456,7 +458,7 @@ def test_step_and_run_give_the_same_numbers() -> None:
     assert [s.status for s in steps[:4]] == ["initializing"] * 4
     for field in ("eta", "nu", "bias", "eta_wf"):
         np.testing.assert_array_equal(np.array([getattr(s, field) for s in steps]), getattr(run, field))
-    np.testing.assert_array_equal(np.array(weights), run.weights)
+    np.testing.assert_array_equal(np.array(weights), run.extras["weights"])
     np.testing.assert_array_equal(np.array(omega), run.omega0)
 
 
@@ -476,7 +478,7 @@ def test_defaults_identify_the_hassani_sea() -> None:
         obs = MMAEObserver(rec.vessel)
         assert obs.identify_noise
         r = obs.run(rec.t, rec.y, rec.tau)
-        reached += first_time(rec.t, r.weights[:, i09] > 0.9) <= 90.0
+        reached += first_time(rec.t, r.extras["weights"][:, i09] > 0.9) <= 90.0
         blended.append(np.mean(r.omega0[900:, 0]))
         assert obs.identified is not None
         np.testing.assert_allclose(obs.identified.measurement_sigma, np.sqrt(SENSOR_R), rtol=0.15)
@@ -496,7 +498,7 @@ def test_defaults_readapt_when_the_sea_changes(seed: int) -> None:
     rec = make_record(tc + 300.0, schedule=[(0.0, s6), (tc, s12)], seed=seed)
     r = MMAEObserver(rec.vessel, candidates=PERIOD_CANDIDATES).run(rec.t, rec.y, rec.tau)
     after = rec.t >= tc
-    assert first_time(rec.t, after & (r.weights[:, 6] > 0.9)) - tc <= 300.0
+    assert first_time(rec.t, after & (r.extras["weights"][:, 6] > 0.9)) - tc <= 300.0
     w_ok = np.abs(r.omega0[:, 0] / PERIOD_CANDIDATES[6] - 1) < 0.1
     assert np.mean(w_ok[-1000:]) >= 0.9
 

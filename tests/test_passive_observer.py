@@ -12,13 +12,8 @@ from scipy.integrate import solve_ivp
 
 from observers.kinematics import rotation, ssa
 from observers.passive import PassiveObserver, reference_derivative, reference_run
-from observers.passive_tuning import (
-    ETA,
-    PassiveTuning,
-    lf_response,
-    notch_depth_db,
-    passive_gains,
-)
+from observers.passive_tuning import PassiveTuning, lf_response, notch_depth_db, passive_gains
+from observers.state import BIAS, ETA, I_ETA, I_PSI, N_STATE, NU, XI2
 from observers.vessel import builtin_vessels, load_vessel
 
 VESSELS = builtin_vessels()
@@ -44,11 +39,11 @@ def test_global_exponential_convergence_from_far_off(name: str) -> None:
     def tau(t: float) -> np.ndarray:
         return tau_c * (1 + 0.2 * math.sin(0.01 * t))
 
-    x0 = np.zeros(15)
-    x0[3:6] = [1.0, 1.0, math.radians(1.0)]  # WF motion
-    x0[6:9] = [100.0, -20.0, math.radians(175.0)]
-    x0[9:12] = vessel.D @ np.array([0.05, -0.05, 0.001])  # bias
-    x0[12:15] = nu_cruise
+    x0 = np.zeros(N_STATE)
+    x0[XI2] = [1.0, 1.0, math.radians(1.0)]  # WF motion
+    x0[ETA] = [100.0, -20.0, math.radians(175.0)]
+    x0[BIAS] = vessel.D @ np.array([0.05, -0.05, 0.001])  # bias
+    x0[NU] = nu_cruise
     t = np.arange(0.0, 1200.0, 0.1)
     X, y = simulate_model(vessel, gains, t, x0, tau)
     assert np.sum(np.abs(np.diff(y[:, 2])) > math.pi) >= 2, "heading must cross ±180° in this test"
@@ -57,12 +52,12 @@ def test_global_exponential_convergence_from_far_off(name: str) -> None:
     obs.initialize(
         0.0,
         X[0, ETA] + [50.0, 50.0, math.radians(170.0)],
-        nu=X[0, 12:15] + [1.0, -1.0, 0.02],
-        bias=-2.0 * X[0, 9:12],
+        nu=X[0, NU] + [1.0, -1.0, 0.02],
+        bias=-2.0 * X[0, BIAS],
     )
     r = obs.run(t[1:], y[1:], np.array([tau(s) for s in t[1:]]))
-    e_pos = np.linalg.norm(r.eta[:, :2] - X[1:, 6:8], axis=1)
-    e_psi = np.abs(ssa(r.eta[:, 2] - X[1:, 8]))
+    e_pos = np.linalg.norm(r.eta[:, :2] - X[1:, I_ETA:I_PSI], axis=1)
+    e_psi = np.abs(ssa(r.eta[:, 2] - X[1:, I_PSI]))
     speed = np.linalg.norm(nu_cruise[:2]) * 1.2
     floor_pos = 2 * speed * 0.05 + 1e-3
     floor_psi = 2 * nu_cruise[2] * 1.2 * 0.05 + 1e-4
@@ -73,8 +68,8 @@ def test_global_exponential_convergence_from_far_off(name: str) -> None:
         assert e_psi[k] <= math.radians(170) * envelope + floor_psi, (T, e_psi[k])
     # at the end: velocity and bias are estimated, not just position
     scale = np.abs(tau_c)
-    assert np.all(np.abs(r.nu[-1] - X[-1, 12:15]) <= 1e-3 * np.maximum(np.abs(nu_cruise), 1e-2))
-    assert np.all(np.abs(r.bias[-1] - X[-1, 9:12]) <= 1e-2 * scale)
+    assert np.all(np.abs(r.nu[-1] - X[-1, NU]) <= 1e-3 * np.maximum(np.abs(nu_cruise), 1e-2))
+    assert np.all(np.abs(r.bias[-1] - X[-1, BIAS]) <= 1e-2 * scale)
 
 
 def reference_derivative_t(_t, x, y, valid, tau, vessel, gains):  # type: ignore[no-untyped-def]
@@ -133,10 +128,10 @@ def test_discrete_observer_matches_continuous_time(rate_hz: float) -> None:
         run = obs.run(t[1:], y[1:], tau[1:])
         if h_max == 0.1:
             ref = _continuous_reference(vessel, gains, t, y, tau, x0)[1:]
-            assert np.max(np.abs(ssa(run.eta[:, 2] - ref[:, 8]))) < 2e-7
-            assert np.max(np.abs(run.nu - ref[:, 12:15])) < 5e-6
-            assert np.max(np.abs(run.bias - ref[:, 9:12]) / np.abs(tau[0])) < 1e-5
-        errors.append(np.max(np.abs(run.eta[:, :2] - ref[:, 6:8])))
+            assert np.max(np.abs(ssa(run.eta[:, 2] - ref[:, I_PSI]))) < 2e-7
+            assert np.max(np.abs(run.nu - ref[:, NU])) < 5e-6
+            assert np.max(np.abs(run.bias - ref[:, BIAS]) / np.abs(tau[0])) < 1e-5
+        errors.append(np.max(np.abs(run.eta[:, :2] - ref[:, I_ETA:I_PSI])))
     assert errors[0] < 3e-5
     assert errors[1] < errors[0] / 8 or errors[0] < 1e-7  # 4th order (1e-7: round-off floor at 50 Hz)
 
@@ -154,9 +149,9 @@ def test_kernel_agrees_with_numpy_reference() -> None:
     X = reference_run(vessel, gains, t, y, tau)
     r = PassiveObserver(vessel, gains=gains).run(t, y, tau)
     ok = r.initialized
-    np.testing.assert_allclose(r.eta[ok], X[ok, 6:9], rtol=1e-10, atol=1e-9)
-    np.testing.assert_allclose(r.nu[ok], X[ok, 12:15], rtol=1e-10, atol=1e-12)
-    np.testing.assert_allclose(r.bias[ok], X[ok, 9:12], rtol=1e-10, atol=1e-6)
+    np.testing.assert_allclose(r.eta[ok], X[ok, ETA], rtol=1e-10, atol=1e-9)
+    np.testing.assert_allclose(r.nu[ok], X[ok, NU], rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(r.bias[ok], X[ok, BIAS], rtol=1e-10, atol=1e-6)
 
 
 def test_step_and_run_give_the_same_numbers() -> None:
@@ -239,10 +234,10 @@ def test_position_dropout_dead_reckons_and_recovers_without_jump() -> None:
     gains = passive_gains(vessel)
     nu_c = np.array([0.4, 0.1, 0.002])
     tau_c = vessel.D @ nu_c
-    x0 = np.zeros(15)
-    x0[3:6] = [1.5, 1.0, math.radians(1.0)]
+    x0 = np.zeros(N_STATE)
+    x0[XI2] = [1.5, 1.0, math.radians(1.0)]
     x0[8] = 0.3
-    x0[12:15] = nu_c
+    x0[NU] = nu_c
     t = np.arange(0.0, 900.0, 0.1)
     X, y = simulate_model(vessel, gains, t, x0, lambda s: tau_c * (1 + 0.3 * math.sin(0.02 * s)))
     tau = np.array([tau_c * (1 + 0.3 * math.sin(0.02 * s)) for s in t])
@@ -251,10 +246,10 @@ def test_position_dropout_dead_reckons_and_recovers_without_jump() -> None:
     y_meas[lost, :2] = np.nan
     r = PassiveObserver(vessel, gains=gains).run(t, y_meas, tau)
     assert np.all(r.status[lost] == 2)  # dead_reckoning
-    err = np.linalg.norm(r.eta[:, :2] - X[:, 6:8], axis=1)
+    err = np.linalg.norm(r.eta[:, :2] - X[:, I_ETA:I_PSI], axis=1)
     drift = err[np.flatnonzero(lost)[-1]]
     # per-sample change of the estimate, minus the true LF motion over the same sample
-    step_err = np.linalg.norm(np.diff(r.eta[:, :2], axis=0) - np.diff(X[:, 6:8], axis=0), axis=1)
+    step_err = np.linalg.norm(np.diff(r.eta[:, :2], axis=0) - np.diff(X[:, I_ETA:I_PSI], axis=0), axis=1)
     after = (t[1:] >= 630.0) & (t[1:] < 700.0)
     before = (t[1:] >= 500.0) & (t[1:] < 600.0)
     assert step_err[after].max() <= drift + step_err[before].max() + 1e-6

@@ -1,0 +1,156 @@
+"""What every dpgw observer shares: the estimate, the batch run, and the `Observer` protocol.
+
+The gateway, replay and the benchmarks talk to observers only through these, so any observer registered
+in `observers.factory` can stand in for any other. ``tests/test_observer_conformance.py`` checks every
+registered observer against the protocol's promises, written out below.
+
+Units everywhere: y = η = [N, E, ψ] (m, m, rad; local NED, ψ in [-π, π)), ν = [u, v, r] (m/s, m/s, rad/s,
+body frame), τ and b = [X, Y, N] (N, N, N·m), t in seconds on the caller's clock.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+Array = NDArray[np.float64]
+
+# Status of one sample, as kernels return it (small ints: numba code stores them in int8 arrays).
+STATUS_INITIALIZING = 0
+STATUS_OK = 1
+STATUS_DEAD_RECKONING = 2
+STATUS_NAMES = {
+    STATUS_INITIALIZING: "initializing",
+    STATUS_OK: "ok",
+    STATUS_DEAD_RECKONING: "dead_reckoning",
+}
+"""Code → the ``status`` word of the estimate message (docs/interfaces.md)."""
+
+# Shared constants handed to kernels and estimates; never written to (kept writeable: numba compiles a
+# separate, slower-to-load signature for read-only arrays).
+NAN3 = np.full(3, np.nan)
+ZERO3 = np.zeros(3)
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """One estimate at time t: LF position/heading η̂, velocity ν̂, bias b̂ (earth-fixed), wave motion η̂_w,
+    and the status word (`STATUS_NAMES`). All NaN while initialising."""
+
+    t: float
+    eta: Array
+    nu: Array
+    bias: Array
+    eta_wf: Array
+    status: str
+
+    @property
+    def initialized(self) -> bool:
+        return self.status != STATUS_NAMES[STATUS_INITIALIZING]
+
+    @classmethod
+    def initializing(cls, t: float) -> Estimate:
+        """The estimate before the first usable measurement: no numbers yet."""
+        return cls(t, NAN3, NAN3, NAN3, NAN3, STATUS_NAMES[STATUS_INITIALIZING])
+
+
+@dataclass(frozen=True)
+class Run:
+    """Result of `Observer.run` over n samples: what `step` gave after each sample, as arrays.
+
+    t (n,); eta, nu, bias, eta_wf (n, 3), NaN while initialising; status (n,) codes (`STATUS_NAMES`);
+    omega0 (n, 3): the wave frequency in use per DOF after each sample (rad/s). ``extras`` holds what one
+    observer has beyond that, by name (each observer's docstring lists its keys), e.g. the MMAE's weights
+    ``"weights"`` (n, N) or the gain-scheduled observer's ω0 estimates ``"updates"``.
+    """
+
+    t: Array
+    eta: Array
+    nu: Array
+    bias: Array
+    eta_wf: Array
+    status: NDArray[np.int8]
+    omega0: Array
+    extras: Mapping[str, Any] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    @property
+    def initialized(self) -> NDArray[np.bool_]:
+        return np.asarray(self.status != STATUS_INITIALIZING)
+
+    def estimate(self, k: int) -> Estimate:
+        """Sample k as the `Estimate` that `step` returned for it."""
+        return Estimate(
+            float(self.t[k]),
+            self.eta[k],
+            self.nu[k],
+            self.bias[k],
+            self.eta_wf[k],
+            STATUS_NAMES[int(self.status[k])],
+        )
+
+
+@runtime_checkable
+class Observer(Protocol):
+    """The face of every observer (in the manner of filterpy: the model stated up front in the class
+    docstring; prediction and update kept apart as `predict` and `step`).
+
+    Before the first complete measurement (or `initialize`) an observer is uninitialised: `step` returns
+    `Estimate.initializing` and nothing advances. A sample at a time not after `t` (repeated or backward)
+    is not used: the estimate is returned unchanged. `run` over samples gives exactly — bit for bit — what
+    `step` gives sample by sample, and leaves the observer in the same state, so a record may be run in
+    pieces. `omega0` and `extra` describe the observer after the last sample.
+    """
+
+    @property
+    def initialized(self) -> bool:
+        """Whether the observer has a state (from a measurement or `initialize`)."""
+        ...
+
+    @property
+    def t(self) -> float:
+        """Time (s) of the last sample used; 0 before initialisation."""
+        ...
+
+    @property
+    def omega0(self) -> Array:
+        """Wave frequency in use per DOF (3,), rad/s."""
+        ...
+
+    def initialize(
+        self,
+        t: float,
+        eta: ArrayLike,
+        nu: ArrayLike | None = None,
+        bias: ArrayLike | None = None,
+        eta_wf: ArrayLike | None = None,
+    ) -> None:
+        """Start at time t from an explicit state (a restart, or a test's wrong guess); omitted parts zero.
+        Without it, the first complete measurement initialises the observer."""
+        ...
+
+    def predict(self, t: float, tau: ArrayLike | None = None) -> Estimate:
+        """Advance to time t with no measurement (dead reckoning), τ held since the last sample."""
+        ...
+
+    def step(self, t: float, y: ArrayLike, tau: ArrayLike | None = None) -> Estimate:
+        """Advance to time t with measurement y (NaN = missing DOF) and τ held since the last sample."""
+        ...
+
+    def run(self, t: ArrayLike, y: ArrayLike, tau: ArrayLike | None = None) -> Run:
+        """`step` over every sample: t (n,), y (n, 3), τ (n, 3) or None for zero."""
+        ...
+
+    def reset(self) -> None:
+        """Back to uninitialised, as constructed."""
+        ...
+
+    def extra(self) -> dict[str, Any]:
+        """Observer-specific fields for the estimate message (JSON-able: numbers, lists, None)."""
+        ...
