@@ -221,10 +221,13 @@ class DatumConfig:
 
 @dataclass(frozen=True)
 class ArdupilotMap:
-    """ArduPilot feedback → thrusters: ESC index → thruster id (rpm), servo channel → thruster (azimuth)."""
+    """ArduPilot feedback → thrusters: ESC index → thruster id (rpm), servo channel → thruster (azimuth), and
+    the servo calibration: azimuth = π (pwm − servo_neutral_us) / servo_half_turn_us."""
 
     esc: Mapping[int, int] = field(default_factory=dict)
     servo: Mapping[int, int] = field(default_factory=dict)
+    servo_neutral_us: float = 1500.0
+    servo_half_turn_us: float = 400.0
 
 
 @dataclass(frozen=True)
@@ -1250,7 +1253,16 @@ def _parse_ardupilot(
     t = r.table(parent, "ardupilot", path)
     if t is None:
         return None
-    r.known(t, path, ("esc", "servo"))
+    r.known(t, path, ("esc", "servo", "servo_neutral_us", "servo_half_turn_us"))
+    neutral = r.number(t, "servo_neutral_us", path, 1500.0, lo=500.0, hi=2500.0, unit="µs")
+    half_turn = r.number(t, "servo_half_turn_us", path, 400.0, lo=-1000.0, hi=1000.0, unit="µs")
+    if half_turn is not None and abs(half_turn) < 1.0:
+        r.problem(
+            f"{path}.servo_half_turn_us",
+            f"maps every pulse width to one angle (expected the µs change for half a turn, e.g. 400 or -400 "
+            f"for a reversed servo, got {half_turn:g})",
+        )
+        half_turn = None
     if not t.get("esc") and not t.get("servo"):
         r.problem(path, "maps nothing (expected esc = {1 = 1, ...} and/or servo = {1 = 1, ...})")
     thrusters = {th.id: th for th in vessel.thrusters} if vessel is not None else None
@@ -1292,7 +1304,11 @@ def _parse_ardupilot(
                 continue
             used[v] = int(k)
             maps[key][int(k)] = v
-    return ArdupilotMap(esc=maps["esc"], servo=maps["servo"])
+    if neutral is None or half_turn is None:
+        return None
+    return ArdupilotMap(
+        esc=maps["esc"], servo=maps["servo"], servo_neutral_us=neutral, servo_half_turn_us=half_turn
+    )
 
 
 def _parse_observer(r: _Reader, data: Mapping[str, Any], vessel: VesselModel | None) -> ObserverConfig | None:
