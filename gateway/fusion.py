@@ -13,31 +13,44 @@ Pure numerics (no I/O, no clocks: times come with the data), shared by the live 
   position injection in proportion to the step rate.
 - **Source priority.** Of several sources with the same role, the one with the lowest ``priority`` that is
   fresh is used (failover); a fix from a lower-ranked source is ignored while a better one is fresh.
+- **Position sigma.** A GST's 1σ horizontal error belongs to the fixes of its own source and holds, like a
+  measurement, until it is older than that source's timeout: receivers send GST after (not with) each GGA,
+  often at a lower rate, so a fix must not clear it.
 - **τ** for the observer: Σ B(αᵢ) Tᵢ over the thrusters' reported thrust and azimuth (the configuration
   matrix, `VesselModel.configuration_matrix`); without feedback, the demand (set by the controller or a
-  manual τ).
+  manual τ). A thrust is fresh for ``feedback_timeout_ns`` after the report that carried it (thrust or
+  shaft speed); an azimuth-only report (a servo output) moves the angle but does not make an old thrust
+  fresh again. Shaft speed becomes thrust by the thruster's own propeller law (`Thruster.thrust_at_rpm`).
+
+Fusion owns its state: the pipeline reports what arrived through the ``add_*`` / ``set_*`` methods and reads
+through read-only properties and methods; nothing outside writes its fields.
 """
 
 from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import NamedTuple
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from observers.kinematics import ssa_scalar
-from observers.vessel import VesselModel
+from observers.vessel import Thruster, VesselModel
 from wire.geodesy import LocalFrame
 
 Array = NDArray[np.float64]
 NS = 1_000_000_000
 HEADING_HISTORY_NS = 5 * NS
 HEADING_HISTORY_MAX = 512  # and at most this many (a 50 Hz gyro fills 250 in 5 s; replay feeds far faster)
+FEEDBACK_TIMEOUT_NS = 2 * NS
+"""Thruster feedback older than this is not used for τ (the demand is, as without feedback)."""
 
 
-@dataclass
+@dataclass(frozen=True, slots=True)
 class Held:
     """A held measurement: value, when it was received, which source, and how long it stays valid."""
 
@@ -51,38 +64,93 @@ class Held:
         return self.source != "" and now_ns - self.rx_ns <= self.valid_ns
 
 
-@dataclass
+@dataclass(frozen=True, slots=True)
 class PositionFix:
     north: float
     east: float
     quality: int
-    sigma_m: float | None = None
 
 
-@dataclass
+class ThrusterFeedback(NamedTuple):
+    """The latest feedback of one thruster: thrust (N), azimuth (rad), receive time of the thrust (ns)."""
+
+    thrust_n: float
+    azimuth_rad: float
+    rx_ns: int
+
+
+def _read_only(a: ArrayLike) -> Array:
+    out = np.array(a, dtype=float).reshape(3)
+    out.setflags(write=False)
+    return out
+
+
 class Fusion:
-    vessel: VesselModel
-    datum: LocalFrame | None = None
-    reference_point_m: tuple[float, float] = (0.0, 0.0)
-    north: Held = field(default_factory=Held)
-    east: Held = field(default_factory=Held)
-    heading: Held = field(default_factory=Held)
-    quality: int = 0
-    position_sigma_m: float | None = None
-    _headings: deque[tuple[int, float]] = field(default_factory=lambda: deque(maxlen=HEADING_HISTORY_MAX))
-    thrust: dict[int, tuple[float, float, int]] = field(default_factory=dict)  # id -> (thrust N, azimuth, rx)
-    tau_demand: Array = field(default_factory=lambda: np.zeros(3))
-    feedback_timeout_ns: int = 2 * NS
+    def __init__(
+        self,
+        vessel: VesselModel,
+        datum: LocalFrame | None = None,
+        reference_point_m: tuple[float, float] = (0.0, 0.0),
+        feedback_timeout_ns: int = FEEDBACK_TIMEOUT_NS,
+    ) -> None:
+        self.vessel = vessel
+        self.reference_point_m = reference_point_m
+        self.feedback_timeout_ns = feedback_timeout_ns
+        self._datum = datum
+        self._north = Held()
+        self._east = Held()
+        self._heading = Held()
+        self._quality = 0
+        self._headings: deque[tuple[int, float]] = deque(maxlen=HEADING_HISTORY_MAX)
+        self._sigma: dict[str, Held] = {}  # source -> its latest GST sigma (m), valid like a measurement
+        self._thrust: dict[int, ThrusterFeedback] = {}
+        self._azimuth: dict[int, float] = {}  # last reported azimuth, also before any thrust was reported
+        self._thrusters: dict[int, Thruster] = {t.id: t for t in vessel.thrusters}
+        self._tau_demand = _read_only(np.zeros(3))
+
+    # --- read-only views ----------------------------------------------------------------------------------
+
+    @property
+    def datum(self) -> LocalFrame | None:
+        """The local NED frame's origin: configured, or set by the first valid fix."""
+        return self._datum
+
+    @property
+    def north(self) -> Held:
+        return self._north
+
+    @property
+    def east(self) -> Held:
+        return self._east
+
+    @property
+    def heading(self) -> Held:
+        return self._heading
+
+    @property
+    def quality(self) -> int:
+        """Quality indicator of the latest fix used (GGA's; 1 for sentences and frames without one)."""
+        return self._quality
+
+    @property
+    def thrust(self) -> Mapping[int, ThrusterFeedback]:
+        """Thruster id → its latest feedback (thrusters that reported a thrust or shaft speed)."""
+        return MappingProxyType(self._thrust)
+
+    @property
+    def tau_demand(self) -> Array:
+        """The demanded τ [X, Y, N] (read-only array; change it with `set_tau_demand`)."""
+        return self._tau_demand
 
     # --- heading ------------------------------------------------------------------------------------------
 
     def add_heading(self, rx_ns: int, psi: float, source: str, priority: int, valid_ns: int) -> bool:
         """A heading measurement (rad). Returns True if it was used (fresh and best-ranked)."""
-        h = self.heading
+        h = self._heading
         if h.fresh(rx_ns) and priority > h.priority and h.source != source:
             return False
-        self.heading = Held(ssa_scalar(psi), rx_ns, source, priority, valid_ns)
-        self._headings.append((rx_ns, self.heading.value))
+        self._heading = Held(ssa_scalar(psi), rx_ns, source, priority, valid_ns)
+        self._headings.append((rx_ns, self._heading.value))
         while self._headings and rx_ns - self._headings[0][0] > HEADING_HISTORY_NS:
             self._headings.popleft()
         return True
@@ -99,7 +167,7 @@ class Fusion:
             if best_dt is not None and dt > best_dt:
                 break
             best_dt, best = dt, psi
-        if best_dt is None or best_dt > self.heading.valid_ns:
+        if best_dt is None or best_dt > self._heading.valid_ns:
             return math.nan
         return best
 
@@ -115,15 +183,14 @@ class Fusion:
         priority: int,
         valid_ns: int,
         quality: int = 1,
-        sigma_m: float | None = None,
     ) -> PositionFix | None:
         """A GNSS fix of an antenna. Returns the reference point's NED position if it was used."""
-        n = self.north
+        n = self._north
         if n.fresh(rx_ns) and priority > n.priority and n.source != source:
             return None
-        if self.datum is None:
-            self.datum = LocalFrame(lat_deg, lon_deg, 0.0)
-        north, east, _ = self.datum.to_ned(lat_deg, lon_deg, 0.0)
+        if self._datum is None:
+            self._datum = LocalFrame(lat_deg, lon_deg, 0.0)
+        north, east, _ = self._datum.to_ned(lat_deg, lon_deg, 0.0)
         x = lever_arm_m[0] - self.reference_point_m[0]
         y = lever_arm_m[1] - self.reference_point_m[1]
         if x or y:
@@ -133,45 +200,77 @@ class Fusion:
             c, s = math.cos(psi), math.sin(psi)
             north -= c * x - s * y
             east -= s * x + c * y
-        self.north = Held(north, rx_ns, source, priority, valid_ns)
-        self.east = Held(east, rx_ns, source, priority, valid_ns)
-        self.quality = quality
-        self.position_sigma_m = sigma_m
-        return PositionFix(north, east, quality, sigma_m)
+        self._north = Held(north, rx_ns, source, priority, valid_ns)
+        self._east = Held(east, rx_ns, source, priority, valid_ns)
+        self._quality = quality
+        return PositionFix(north, east, quality)
+
+    def add_position_sigma(self, rx_ns: int, sigma_m: float, source: str, valid_ns: int) -> None:
+        """A source's horizontal 1σ position error (m, from GST), valid for ``valid_ns`` after ``rx_ns``."""
+        if math.isfinite(sigma_m) and sigma_m >= 0:
+            self._sigma[source] = Held(sigma_m, rx_ns, source, 0, valid_ns)
+
+    def position_sigma_m(self, now_ns: int) -> float | None:
+        """The 1σ error of the position in use: its source's GST sigma while both are fresh, else None."""
+        pos = self._north
+        sigma = self._sigma.get(pos.source)
+        if sigma is None or not sigma.fresh(now_ns) or not pos.fresh(now_ns):
+            return None
+        return sigma.value
 
     # --- what the observer gets ----------------------------------------------------------------------------
 
     def measurement(self, now_ns: int) -> tuple[Array, list[bool]]:
         """y = [N, E, ψ] with NaN for any DOF whose held value is stale."""
-        valid = [self.north.fresh(now_ns), self.east.fresh(now_ns), self.heading.fresh(now_ns)]
+        valid = [self._north.fresh(now_ns), self._east.fresh(now_ns), self._heading.fresh(now_ns)]
         y = np.array(
             [
-                self.north.value if valid[0] else math.nan,
-                self.east.value if valid[1] else math.nan,
-                self.heading.value if valid[2] else math.nan,
+                self._north.value if valid[0] else math.nan,
+                self._east.value if valid[1] else math.nan,
+                self._heading.value if valid[2] else math.nan,
             ]
         )
         return y, valid
 
+    # --- thrusters and τ ------------------------------------------------------------------------------------
+
     def add_thruster(self, rx_ns: int, thruster_id: int, thrust_n: float, azimuth_rad: float | None) -> None:
+        """Feedback of a thruster's thrust (N) and, if known, its azimuth (rad); a non-finite thrust is
+        ignored, an unknown azimuth keeps the last one reported."""
         if not math.isfinite(thrust_n):
             return
-        old = self.thrust.get(thruster_id)
-        az = (
-            azimuth_rad
-            if azimuth_rad is not None and math.isfinite(azimuth_rad)
-            else (old[1] if old else 0.0)
-        )
-        self.thrust[thruster_id] = (thrust_n, az, rx_ns)
+        if azimuth_rad is not None and math.isfinite(azimuth_rad):
+            self._azimuth[thruster_id] = azimuth_rad
+        self._thrust[thruster_id] = ThrusterFeedback(thrust_n, self._azimuth.get(thruster_id, 0.0), rx_ns)
+
+    def add_thruster_rpm(self, rx_ns: int, thruster_id: int, rpm: float) -> None:
+        """Feedback of a thruster's shaft speed (rpm): thrust by the thruster's propeller law. A thruster the
+        vessel does not have is ignored (the config check refuses such a mapping)."""
+        th = self._thrusters.get(thruster_id)
+        if th is not None:
+            self.add_thruster(rx_ns, thruster_id, th.thrust_at_rpm(rpm), None)
+
+    def add_thruster_azimuth(self, rx_ns: int, thruster_id: int, azimuth_rad: float) -> None:
+        """Feedback of an azimuth alone (a servo output): moves the angle, leaves the thrust's time alone."""
+        if not math.isfinite(azimuth_rad):
+            return
+        self._azimuth[thruster_id] = azimuth_rad
+        old = self._thrust.get(thruster_id)
+        if old is not None:
+            self._thrust[thruster_id] = old._replace(azimuth_rad=azimuth_rad)
+
+    def set_tau_demand(self, tau: ArrayLike) -> None:
+        """The τ [X, Y, N] demanded of the thrusters (controller, manual input, or zero in standby)."""
+        self._tau_demand = _read_only(tau)
 
     def tau(self, now_ns: int) -> tuple[Array, str]:
         """τ from fresh thruster feedback through the configuration matrix, else the demand."""
         layout = self.vessel.thrusters
-        if not layout or not self.thrust:
-            return self.tau_demand.copy(), "demand"
-        fresh = {tid: v for tid, v in self.thrust.items() if now_ns - v[2] <= self.feedback_timeout_ns}
+        if not layout or not self._thrust:
+            return self._tau_demand.copy(), "demand"
+        fresh = {tid: v for tid, v in self._thrust.items() if now_ns - v.rx_ns <= self.feedback_timeout_ns}
         if not fresh:
-            return self.tau_demand.copy(), "demand"
-        thrust = np.array([fresh.get(t.id, (0.0, 0.0, 0))[0] for t in layout])
-        angle = np.array([fresh.get(t.id, (0.0, t.angle_rad, 0))[1] for t in layout])
+            return self._tau_demand.copy(), "demand"
+        thrust = np.array([fresh[t.id].thrust_n if t.id in fresh else 0.0 for t in layout])
+        angle = np.array([fresh[t.id].azimuth_rad if t.id in fresh else t.angle_rad for t in layout])
         return self.vessel.generalized_force(thrust, angle), "feedback"

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from gateway.config import ControlConfig, GatewayConfig
+from gateway.config import ArdupilotMap, ControlConfig, GatewayConfig
 from gateway.control.allocation import AllocationResult, PseudoInverseAllocator, QPAllocator, ThrusterCommand
 from gateway.control.controller import ControllerTuning, DPController
 from gateway.fusion import NS, Fusion
@@ -34,12 +34,11 @@ from observers.base import STATUS_NAMES, Estimate, Observer
 from observers.factory import make_observer
 from observers.kinematics import ssa_scalar
 from observers.vessel import VesselModel
+from wire.codecs import mavlink as mv
 from wire.codecs import nmea as nmea_codec
-from wire.codecs.mavlink import AZIMUTH_THRUSTER_STATUS_ID, FrameParser, encoder, setup_signing
 from wire.codecs.nmea_framing import NmeaFramer
 from wire.geodesy import LocalFrame
 
-ESC_RPM_MAX = 200.0  # the propeller law's reference (simulator.thrusters.DEFAULT_MAX_RPM)
 USED_NMEA = frozenset({"GGA", "GNS", "HDT", "THS", "HDG", "GST"})
 """Sentences the fusion uses; others (RMC, VTG, ZDA, ROT ...) are checked and counted, not parsed."""
 RAW_VELOCITY_FILTER_S = 1.0
@@ -97,8 +96,7 @@ class SourceSpec:
     priority: int = 1
     signing_key: bytes | None = None
     allow_unsigned: bool = True
-    esc_map: dict[int, int] = field(default_factory=dict)  # ESC index (1-based) -> thruster id
-    servo_map: dict[int, int] = field(default_factory=dict)  # servo channel (1-based) -> thruster id
+    ardupilot: mv.ArduPilotWiring | None = None  # ArduPilot ESC / servo outputs -> the vessel's thrusters
 
     @cached_property
     def timeout_ns(self) -> int:
@@ -132,8 +130,7 @@ class PipelineSpec:
                 priority=sc.priority,
                 signing_key=sc.signing_key,
                 allow_unsigned=sc.allow_unsigned,
-                esc_map=dict(sc.ardupilot.esc) if sc.ardupilot else {},
-                servo_map=dict(sc.ardupilot.servo) if sc.ardupilot else {},
+                ardupilot=_wiring(sc.ardupilot),
             )
             for sc in config.sources
         )
@@ -159,6 +156,17 @@ class PipelineSpec:
         )
 
 
+def _wiring(ardupilot: ArdupilotMap | None) -> mv.ArduPilotWiring | None:
+    if ardupilot is None:
+        return None
+    return mv.ArduPilotWiring(
+        esc=dict(ardupilot.esc),
+        servo=dict(ardupilot.servo),
+        servo_neutral_us=ardupilot.servo_neutral_us,
+        servo_half_turn_us=ardupilot.servo_half_turn_us,
+    )
+
+
 @dataclass
 class SourceCounters:
     received: int = 0  # sentences/frames decoded and used or understood
@@ -181,6 +189,8 @@ class Pipeline:
         self.counters = {s.name: SourceCounters() for s in spec.sources}
         self._framers = {s.name: NmeaFramer() for s in spec.sources if s.protocol == "nmea"}
         self._parsers = {s.name: self._mavlink_parser(s) for s in spec.sources if s.protocol == "mavlink"}
+        self._parser_seen: dict[str, Counter[str]] = {name: Counter() for name in self._parsers}
+        self._parser_rejects = dict.fromkeys(self._parsers, 0)  # sum of _parser_seen, the fast check
         self.t0_ns: int | None = None
         self.last_ns = 0
         self.mode = "standby"
@@ -224,12 +234,12 @@ class Pipeline:
         }
 
     @staticmethod
-    def _mavlink_parser(s: SourceSpec) -> FrameParser:
+    def _mavlink_parser(s: SourceSpec) -> mv.FrameParser:
         if s.signing_key is None:
-            return FrameParser()
-        mav = encoder(src_system=255, src_component=190)
-        setup_signing(mav, s.signing_key, sign_outgoing=False, allow_unsigned=s.allow_unsigned)
-        return FrameParser(mav)
+            return mv.FrameParser()
+        mav = mv.encoder(src_system=255, src_component=190)
+        mv.setup_signing(mav, s.signing_key, sign_outgoing=False, allow_unsigned=s.allow_unsigned)
+        return mv.FrameParser(mav)
 
     # --- events in ------------------------------------------------------------------------------------------
 
@@ -254,6 +264,13 @@ class Pipeline:
         if updated:
             out.extend(self._step(event.rx_ns, event.source))
         return out
+
+    def count_internal_error(self, source: str) -> None:
+        """The caller could not finish handling a chunk of ``source`` (an exception inside `feed`): count it
+        with the source's rejects (reason ``internal_error``), so `/status` shows it."""
+        c = self.counters.get(source)
+        if c is not None:
+            c.rejected["internal_error"] += 1
 
     def _nmea(self, spec: SourceSpec, c: SourceCounters, ev: RawEvent, out: list[Output]) -> bool:
         texts: Sequence[str]
@@ -290,8 +307,10 @@ class Pipeline:
                 return self.fusion.add_heading(rx_ns, s.heading_rad, spec.name, spec.priority, valid_ns)
             return False
         if isinstance(s, nmea_codec.Gst):
-            if s.sigma_lat_m is not None and s.sigma_lon_m is not None:
-                self.fusion.position_sigma_m = math.hypot(s.sigma_lat_m, s.sigma_lon_m) / math.sqrt(2)
+            if "position" in spec.roles and s.sigma_lat_m is not None and s.sigma_lon_m is not None:
+                # one horizontal 1σ: the RMS of the latitude and longitude sigmas
+                sigma = math.hypot(s.sigma_lat_m, s.sigma_lon_m) / math.sqrt(2)
+                self.fusion.add_position_sigma(rx_ns, sigma, spec.name, valid_ns)
             return False
         if isinstance(s, nmea_codec.Gga | nmea_codec.Gns) and "position" in spec.roles:
             if not s.valid or s.lat_deg is None or s.lon_deg is None:
@@ -306,61 +325,57 @@ class Pipeline:
         return False
 
     def _mavlink(self, spec: SourceSpec, c: SourceCounters, ev: RawEvent, out: list[Output]) -> bool:
-        parser = self._parsers[spec.name]
-        before = sum(parser.rejected.values())
-        msgs = parser.feed(ev.data)
-        if sum(parser.rejected.values()) != before:
-            c.rejected.clear()
-            c.rejected.update(parser.rejected)
+        msgs = self._parsers[spec.name].feed(ev.data)
+        self._count_parser_rejects(spec.name, c)
+        roles = spec.roles
         updated = False
         feedback = False
         valid_ns = spec.timeout_ns
+        rx_ns = ev.rx_ns
         for msg in msgs:
-            m: Any = msg  # pymavlink messages carry their fields as dynamic attributes
             c.received += 1
-            mid = m.get_msgId()
-            kind = m.get_type()
-            if mid == AZIMUTH_THRUSTER_STATUS_ID and "thrusters" in spec.roles:
-                self.fusion.add_thruster(ev.rx_ns, int(m.id), float(m.thrust), float(m.azimuth))
-                feedback = True
-            elif kind == "ESC_TELEMETRY_1_TO_4" and spec.esc_map and "thrusters" in spec.roles:
-                for k, rpm in enumerate(m.rpm):
-                    tid = spec.esc_map.get(k + 1)
-                    if tid is not None:
-                        self.fusion.add_thruster(ev.rx_ns, tid, self._rpm_to_thrust(tid, rpm), None)
+            for r in mv.reports(msg, spec.ardupilot):
+                if isinstance(r, mv.ThrusterReport):
+                    if "thrusters" not in roles:
+                        continue
+                    if r.thrust_n is not None:
+                        self.fusion.add_thruster(rx_ns, r.thruster_id, r.thrust_n, r.azimuth_rad)
                         feedback = True
-            elif kind == "SERVO_OUTPUT_RAW" and spec.servo_map and "thrusters" in spec.roles:
-                for ch, tid in spec.servo_map.items():
-                    pwm = getattr(m, f"servo{ch}_raw", 0)
-                    if pwm and tid in self.fusion.thrust:
-                        t = self.fusion.thrust[tid][0]
-                        self.fusion.thrust[tid] = (t, (pwm - 1500.0) / 400.0 * math.pi, ev.rx_ns)
-            elif kind in ("GPS_RAW_INT", "GLOBAL_POSITION_INT") and "position" in spec.roles:
-                if kind == "GPS_RAW_INT" and m.fix_type < 2:
-                    continue
-                lat, lon = m.lat / 1e7, m.lon / 1e7
-                fix = self.fusion.add_position(
-                    ev.rx_ns, lat, lon, spec.lever_arm_m, spec.name, spec.priority, valid_ns, 1
-                )
-                if fix is not None:
-                    out.extend(self._location_fix(spec.name, ev.rx_ns, lat, lon))
-                    updated = True
-                if kind == "GLOBAL_POSITION_INT" and "heading" in spec.roles and m.hdg != 65535:
-                    updated |= self.fusion.add_heading(
-                        ev.rx_ns, math.radians(m.hdg / 100.0), spec.name, spec.priority, valid_ns
+                    elif r.rpm is not None:
+                        self.fusion.add_thruster_rpm(rx_ns, r.thruster_id, r.rpm)
+                        feedback = True
+                    elif r.azimuth_rad is not None:  # a servo: the angle goes out with the next thrust
+                        self.fusion.add_thruster_azimuth(rx_ns, r.thruster_id, r.azimuth_rad)
+                elif isinstance(r, mv.PositionReport):
+                    if "position" not in roles or not r.valid:
+                        continue
+                    fix = self.fusion.add_position(
+                        rx_ns, r.lat_deg, r.lon_deg, spec.lever_arm_m, spec.name, spec.priority, valid_ns, 1
                     )
-            elif kind == "ATTITUDE" and "heading" in spec.roles:
-                updated |= self.fusion.add_heading(ev.rx_ns, float(m.yaw), spec.name, spec.priority, valid_ns)
+                    if fix is not None:
+                        out.extend(self._location_fix(spec.name, rx_ns, r.lat_deg, r.lon_deg))
+                        updated = True
+                elif "heading" in roles:
+                    updated |= self.fusion.add_heading(
+                        rx_ns, r.heading_rad, spec.name, spec.priority, valid_ns
+                    )
         if feedback:
-            out.append(self._feedback_output(ev.rx_ns))
+            out.append(self._feedback_output(rx_ns))
         return updated
 
-    def _rpm_to_thrust(self, thruster_id: int, rpm: float) -> float:
-        """ESC rpm → thrust by the propeller law T = K n|n|, K = max thrust / max rpm² (documented)."""
-        for t in self.spec.vessel.thrusters:
-            if t.id == thruster_id:
-                return float(t.max_thrust_n * (rpm / ESC_RPM_MAX) * abs(rpm / ESC_RPM_MAX))
-        return 0.0
+    def _count_parser_rejects(self, name: str, c: SourceCounters) -> None:
+        """Add what the source's frame parser rejected since last time to the source's counters (which
+        also hold the pipeline's own reasons, so they are added to, never overwritten)."""
+        parser = self._parsers[name]
+        total = sum(parser.rejected.values())
+        if total == self._parser_rejects[name]:
+            return
+        seen = self._parser_seen[name]
+        for reason, n in parser.rejected.items():
+            if n != seen[reason]:
+                c.rejected[reason] += n - seen[reason]
+                seen[reason] = n
+        self._parser_rejects[name] = total
 
     def _control(self, ev: ControlEvent) -> None:
         if ev.key == "mode" and ev.payload in ("standby", "dp", "manual"):
@@ -376,7 +391,7 @@ class Pipeline:
             if np.all(np.isfinite(tau)):
                 self.manual_tau = tau
                 if self.mode == "manual" and self.controller is None:
-                    self.fusion.tau_demand = tau
+                    self.fusion.set_tau_demand(tau)
 
     # --- observer and outputs -------------------------------------------------------------------------------
 
@@ -400,7 +415,7 @@ class Pipeline:
                         {h.source for h in (self.fusion.north, self.fusion.heading) if h.source}
                     ),
                     "quality": self.fusion.quality,
-                    "sigma_m": self.fusion.position_sigma_m,
+                    "sigma_m": self.fusion.position_sigma_m(now_ns),
                     "tau": tau.tolist(),
                     "tau_source": tau_source,
                 },
@@ -495,7 +510,7 @@ class Pipeline:
             tau_manual=self.manual_tau,
         )
         if self.mode == "standby":
-            self.fusion.tau_demand = np.zeros(3)
+            self.fusion.set_tau_demand(np.zeros(3))
             self.control_alarms = []
             return []  # standby commands nothing: the thrusters are someone else's
         thrusters: list[dict[str, Any]] = []
@@ -514,7 +529,7 @@ class Pipeline:
         else:
             tau_allocated = o.tau  # no thruster layout: τ is the command (simulated vessels of the papers)
             self.control_alarms = []
-        self.fusion.tau_demand = np.asarray(tau_allocated, dtype=float)
+        self.fusion.set_tau_demand(tau_allocated)
         return [
             Output(
                 "/dp/thrusters/command",

@@ -3,9 +3,14 @@
 Threads: one reader per source (``gateway.sources``) and the Zenoh callbacks put events on a single queue;
 one consumer (the caller of `GatewayService.run`) takes them in arrival order, logs every raw chunk before
 anything else looks at it (rule 4: nothing is lost), feeds the deterministic pipeline and publishes what it
-returns. Inputs from Zenoh (setpoint, mode, manual τ) become events on the same queue and are logged too,
-so a replay sees exactly what the live run saw. Status goes out at ``status.rate_hz`` and answers the
-queryable ``<prefix>/status``. SIGINT/SIGTERM stop the loop; the log is flushed and closed.
+returns. An unexpected exception while handling one item (a bug, not bad input: bad input is counted by
+the pipeline) does not stop the service: it is logged with its traceback, counted per source as
+``rejected["internal_error"]`` in ``/status`` with an alarm, and the loop goes on with the next item; the
+raw chunk is already in the MCAP log, so the failing input can be replayed to find the bug.
+
+Inputs from Zenoh (setpoint, mode, manual τ) become events on the same queue and are logged too, so a
+replay sees exactly what the live run saw. Status goes out at ``status.rate_hz`` and answers the queryable
+``<prefix>/status``. SIGINT/SIGTERM stop the loop; the log is flushed and closed.
 
 ``time_scale`` maps receive times onto a faster clock (``dpgw demo`` runs the vessel faster than real time;
 the observer must see sim seconds, not wall seconds). It is 1.0 on a vessel.
@@ -19,6 +24,7 @@ import logging
 import queue
 import threading
 import time
+from collections import Counter
 from typing import Any
 
 import zenoh
@@ -34,6 +40,9 @@ log = logging.getLogger("dpgw")
 
 JSON = zenoh.Encoding.APPLICATION_JSON
 INPUT_KEYS = ("setpoint", "mode", "tau")
+TRACEBACKS_LOGGED = 10
+"""Internal errors logged with a full traceback per source; after that every 1000th, so that a bug hit by
+every chunk of a 50 Hz source cannot flood the log."""
 
 
 def zenoh_config(z: ZenohConfig) -> zenoh.Config:
@@ -85,6 +94,7 @@ class GatewayService:
                 self._command_links[sc.name] = mav
         self.log: McapLogWriter | None = None
         self.published = 0
+        self.internal_errors: Counter[str] = Counter()  # source name or "input <key>" -> items not handled
 
     # --- start and stop -------------------------------------------------------------------------------------
 
@@ -176,8 +186,11 @@ class GatewayService:
                 self._handle(item)
             wall = time.time_ns()
             if wall >= next_status:
-                self._emit([self.pipeline.status(self._now(wall), self._alarms())])
                 next_status = wall + status_period_ns
+                try:
+                    self._emit([self.pipeline.status(self._now(wall), self._alarms())])
+                except Exception:
+                    self._internal_error("status", "the status")
 
     def drain(self) -> None:
         """Handle whatever is already queued (used at shutdown so nothing received is dropped)."""
@@ -189,11 +202,16 @@ class GatewayService:
             self._handle(item)
 
     def _alarms(self) -> list[str]:
-        return [
+        alarms = [
             f"source {s.name}: disconnected"
             for s in self._sources
             if not s.stats.connected and not s.finished
         ]
+        alarms += [
+            f"{what}: {n} not handled (internal error, traceback in the gateway's log)"
+            for what, n in sorted(self.internal_errors.items())
+        ]
+        return alarms
 
     def _handle(self, item: Chunk | ControlEvent) -> None:
         if isinstance(item, ControlEvent):
@@ -201,19 +219,33 @@ class GatewayService:
             if self.log is not None:
                 body = ev.payload if isinstance(ev.payload, dict) else {item.key: ev.payload}
                 self.log.write(f"/dp/{item.key}", body, ev.rx_ns, ev.rx_ns)
-            self._emit(self.pipeline.feed(ev))
+            try:
+                self._emit(self.pipeline.feed(ev))
+            except Exception:
+                self._internal_error(f"input {item.key}", f"the {item.key} input {item.payload!r:.200}")
             return
         rx = self._now(item.rx_ns)
-        outputs = self.pipeline.feed(RawEvent(rx, item.source, item.data))
-        # Publish first (latency), then log the raw chunk and the outputs: same thread, nothing is lost.
-        encoded = self._publish(outputs)
         spec = self.pipeline.sources.get(item.source)
+        # The raw chunk goes to the log before the pipeline sees it: whatever happens next, it is kept.
         if self.log is not None and spec is not None:
             if spec.protocol == "nmea":
                 self.log.write_raw_nmea(item.source, item.data, rx, rx)
             else:
                 self.log.write_raw_mavlink(item.source, item.data, rx, rx)
-        self._log_outputs(outputs, encoded)
+        try:
+            self._emit(self.pipeline.feed(RawEvent(rx, item.source, item.data)))
+        except Exception:
+            self.pipeline.count_internal_error(item.source)
+            self._internal_error(
+                f"source {item.source}", f"a chunk of {len(item.data)} bytes (raw in the MCAP log)"
+            )
+
+    def _internal_error(self, what: str, item: str) -> None:
+        """Count and log an unexpected exception (call from an ``except`` block); the loop carries on."""
+        self.internal_errors[what] += 1
+        n = self.internal_errors[what]
+        if n <= TRACEBACKS_LOGGED or n % 1000 == 0:
+            log.exception("internal error #%d (%s) while handling %s; carrying on", n, what, item)
 
     def _emit(self, outputs: list[Output]) -> None:
         self._log_outputs(outputs, self._publish(outputs))

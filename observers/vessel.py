@@ -34,6 +34,9 @@ from numpy.typing import ArrayLike, NDArray
 
 Array = NDArray[np.float64]
 
+DEFAULT_MAX_RPM = 200.0
+"""Shaft speed at full thrust of a thruster whose file does not say (`Thruster.max_rpm`)."""
+
 THRUSTER_KINDS = ("azimuth", "tunnel", "main")
 """azimuth: rotatable, thrust in any direction within its sectors; tunnel: fixed athwartships (sway);
 main: fixed fore-aft propeller (surge)."""
@@ -52,6 +55,9 @@ class Thruster:
     0 for azimuths, which turn instead). ``azimuth_rate_rad_s`` is the slew rate of an azimuth.
     ``thrust_time_constant_s`` is the first-order lag from commanded to delivered thrust.
     ``angle_rad`` is the fixed direction of a tunnel (π/2) or main propeller (0).
+    ``max_rpm`` is the shaft speed at which ``max_thrust_n`` is reached: with the propeller law it turns a
+    measured shaft speed into thrust (`thrust_at_rpm`). The default, 200 rpm, is what the simulator's
+    drives report; set the real one for a vessel whose drives report rpm (ArduPilot ESC telemetry).
     """
 
     id: int
@@ -63,6 +69,15 @@ class Thruster:
     azimuth_rate_rad_s: float = 0.0
     thrust_time_constant_s: float = 1.0
     angle_rad: float = 0.0
+    max_rpm: float = DEFAULT_MAX_RPM
+
+    def thrust_at_rpm(self, rpm: float) -> float:
+        """Thrust (N) at a shaft speed (rpm, negative astern) by the quadratic propeller law T = K n|n| of a
+        fixed-pitch propeller near zero advance speed (K = ρ D⁴ K_T; Fossen, *Handbook of Marine Craft
+        Hydrodynamics and Motion Control*, 2011, on propeller thrust). K is not known from a drive's
+        feedback, so it is set so that ``max_rpm`` gives ``max_thrust_n``: T = T_max (n/n_max)|n/n_max|."""
+        n = rpm / self.max_rpm
+        return float(self.max_thrust_n * n * abs(n))
 
 
 @dataclass(frozen=True)
@@ -187,8 +202,9 @@ def _thruster(entry: Any, index: int, where: str) -> Thruster:
             continue
         if not isinstance(value, int | float) or not math.isfinite(value):
             raise VesselError(f"{where}: field '{key}.{name}': must be a finite number, got {value!r}")
-    if values["max_thrust_n"] <= 0:
-        raise VesselError(f"{where}: field '{key}.max_thrust_n': must be positive")
+    for positive in ("max_thrust_n", "max_rpm"):
+        if values.get(positive, 1.0) <= 0:
+            raise VesselError(f"{where}: field '{key}.{positive}': must be positive")
     if kind == "azimuth" and values.get("azimuth_rate_rad_s", 0.0) <= 0:
         raise VesselError(f"{where}: field '{key}.azimuth_rate_rad_s': an azimuth needs a positive slew rate")
     return Thruster(**values)

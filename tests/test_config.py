@@ -944,3 +944,24 @@ def test_parse_config_does_not_modify_its_input(tmp_path: Path) -> None:
     before = copy.deepcopy(d)
     parse(d, tmp_path)
     assert d == before
+
+
+def test_ardupilot_servo_calibration_defaults_and_limits(tmp_path: Path) -> None:
+    """The servo calibration of an ArduPilot source: 1500 µs ahead and 400 µs a half turn unless said; a
+    half turn near 0 µs (every pulse one angle), a pulse width outside 500–2500 µs or a non-number is
+    refused with its key."""
+    d = base()
+    put(d, "sources.2.ardupilot", {"servo": {"1": 1}})
+    ap = parse(d, tmp_path).source("thr").ardupilot
+    assert ap is not None and (ap.servo_neutral_us, ap.servo_half_turn_us) == (1500.0, 400.0)
+    put(d, "sources.2.ardupilot", {"servo": {"1": 1}, "servo_neutral_us": 1520, "servo_half_turn_us": -380.5})
+    ap = parse(d, tmp_path).source("thr").ardupilot
+    assert ap is not None and (ap.servo_neutral_us, ap.servo_half_turn_us) == (1520.0, -380.5)
+    put(d, "sources.2.ardupilot", {"servo": {"1": 1}, "servo_neutral_us": 3000, "servo_half_turn_us": 0.5})
+    got = problems_of(d, tmp_path)
+    assert any("sources.thr.ardupilot.servo_neutral_us: not a pulse width" in p for p in got), got
+    assert any(
+        "sources.thr.ardupilot.servo_half_turn_us: maps every pulse width to one angle" in p for p in got
+    )
+    put(d, "sources.2.ardupilot", {"servo": {"1": 1}, "servo_neutral_us": True})
+    assert any("servo_neutral_us: not a pulse width" in p for p in problems_of(d, tmp_path))

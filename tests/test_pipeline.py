@@ -263,3 +263,37 @@ def test_dpgw_listen_prints_what_arrives(tmp_path: Path) -> None:
         pub.close()
     lines = [json.loads(line) for line in out.splitlines()]
     assert len(lines) == 3 and lines[0] == {"key": "dp/x/estimate", "payload": {"eta": [1, 2, 3]}}, err
+
+
+def gst(sigma_lat: float, sigma_lon: float) -> bytes:
+    return enc.gst(
+        "GP", datetime(2026, 6, 1, tzinfo=UTC), rms_m=0.5, sigma_major_m=None, sigma_minor_m=None,
+        orient_rad=None, sigma_lat_m=sigma_lat, sigma_lon_m=sigma_lon, sigma_alt_m=1.0,
+    ).encode()  # fmt: skip
+
+
+def test_gst_sigma_holds_across_fixes_while_fresh_then_is_null() -> None:
+    """A receiver sends GST after its GGA, often less often: every fix while the GST is fresh carries its
+    sigma in /dp/measurement; once the GST is older than the source's timeout, sigma_m is null."""
+    p = pipeline([nmea_src("gps", ["position", "heading"], timeout_s=1.0)])
+    sigma = math.hypot(0.3, 0.4) / math.sqrt(2)  # one horizontal 1σ: RMS of the two
+
+    def sigmas(t0: int, n: int, gst_every: int) -> list[float | None]:
+        out = []
+        for k in range(n):
+            t = t0 + k * S // 5
+            out += p.feed(RawEvent(t, "gps", gga_at(0.0, 0.0) + enc.hdt("HE", 0.3).encode()))
+            if gst_every and k % gst_every == 0:
+                out += p.feed(RawEvent(t + S // 100, "gps", gst(0.3, 0.4)))  # after the fix, own chunk
+        return [o.payload["sigma_m"] for o in out if o.topic == "/dp/measurement"]
+
+    assert sigmas(T0, 1, 0) == [None]  # no GST yet
+    got = sigmas(T0 + S, 20, 4)  # a GST every 0.8 s, fixes at 5 Hz
+    assert got[0] is None and got[1:] == [pytest.approx(sigma)] * 19
+    got = sigmas(T0 + 5 * S, 10, 0)  # GSTs stop; the last one (at T0 + 4.21 s) is stale after 1 s
+    assert got[:2] == [pytest.approx(sigma)] * 2 and got[2:] == [None] * 8  # fixes at 5.0, 5.2 | 5.4 ...
+    # a GST from another source is not this fix's sigma
+    p2 = pipeline([nmea_src("gps", ["position", "heading"]), nmea_src("gps2", ["position"], priority=2)])
+    p2.feed(RawEvent(T0, "gps2", gst(0.3, 0.4)))
+    out = p2.feed(RawEvent(T0 + 1, "gps", gga_at(0.0, 0.0) + enc.hdt("HE", 0.3).encode()))
+    assert [o.payload["sigma_m"] for o in out if o.topic == "/dp/measurement"] == [None]

@@ -60,10 +60,13 @@ class DatumConfig:
 
 @dataclass(frozen=True)
 class ArdupilotMap:
-    """ArduPilot feedback → thrusters: ESC index → thruster id (rpm), servo channel → thruster (azimuth)."""
+    """ArduPilot feedback → thrusters: ESC index → thruster id (rpm), servo channel → thruster (azimuth), and
+    the servo calibration: azimuth = π (pwm − servo_neutral_us) / servo_half_turn_us."""
 
     esc: Mapping[int, int] = field(default_factory=dict)
     servo: Mapping[int, int] = field(default_factory=dict)
+    servo_neutral_us: float = 1500.0
+    servo_half_turn_us: float = 400.0
 
 
 @dataclass(frozen=True)

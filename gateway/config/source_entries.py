@@ -243,7 +243,15 @@ def _read_source(
 
 
 def _read_ardupilot(p: Problems, t: Mapping[str, Any], path: str, vessel: VesselModel | None) -> ArdupilotMap:
-    p.unknown_keys(t, path, ("esc", "servo"))
+    p.unknown_keys(t, path, ("esc", "servo", "servo_neutral_us", "servo_half_turn_us"))
+    neutral = _servo_us(p, t, "servo_neutral_us", path, 1500.0, 500.0, 2500.0)
+    half_turn = _servo_us(p, t, "servo_half_turn_us", path, 400.0, -1000.0, 1000.0)
+    if abs(half_turn) < 1.0:
+        p.add(
+            f"{path}.servo_half_turn_us",
+            f"maps every pulse width to one angle (expected the µs change for half a turn, e.g. 400 or -400 "
+            f"for a reversed servo, got {half_turn:g})",
+        )
     if not t.get("esc") and not t.get("servo"):
         p.add(path, "maps nothing (expected esc = {1 = 1, ...} and/or servo = {1 = 1, ...})")
     thrusters = {th.id: th for th in vessel.thrusters} if vessel is not None else None
@@ -292,7 +300,20 @@ def _read_ardupilot(p: Problems, t: Mapping[str, Any], path: str, vessel: Vessel
                 continue
             used[thruster] = int(k)
             maps[key][int(k)] = thruster
-    return ArdupilotMap(esc=maps["esc"], servo=maps["servo"])
+    return ArdupilotMap(
+        esc=maps["esc"], servo=maps["servo"], servo_neutral_us=neutral, servo_half_turn_us=half_turn
+    )
+
+
+def _servo_us(
+    p: Problems, t: Mapping[str, Any], key: str, path: str, default: float, lo: float, hi: float
+) -> float:
+    """A servo pulse width in µs within [lo, hi]; a problem (and the default) otherwise."""
+    value = t.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, int | float) or not lo <= value <= hi:
+        p.add(f"{path}.{key}", f"not a pulse width (expected {lo:g} to {hi:g} µs, got {show(value)})")
+        return default
+    return float(value)
 
 
 # --- the URL ---------------------------------------------------------------------------------------------

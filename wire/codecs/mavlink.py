@@ -9,6 +9,11 @@ A small typed layer over the module mavgen generates (:mod:`wire.codecs.generate
   the outgoing frames of an encoder and/or the checking of incoming frames by a decoder.
 * :class:`FrameParser` (streaming) and :func:`parse_frames` (one buffer) decode frames robustly: bytes that
   are not a valid frame are skipped and counted per reason, never raised.
+* :func:`reports` turns a decoded message into typed SI records (:class:`PositionReport`,
+  :class:`HeadingReport`, :class:`ThrusterReport`): the MAVLink integer units (1e-7 degrees, centidegrees,
+  millimetres, PWM microseconds) end here, so the gateway behind the codec sees only degrees of latitude
+  and longitude, metres and radians. ArduPilot motor and servo outputs are mapped onto the vessel's
+  thrusters by the source's wiring (:class:`ArduPilotWiring`).
 
 Message layouts: ``docs/mavlink-dialect.md``. MAVLink 2 framing: https://mavlink.io/en/guide/serialization.html;
 signing: https://mavlink.io/en/guide/message_signing.html.
@@ -21,7 +26,8 @@ import math
 import struct
 import time
 from collections import Counter
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 from enum import IntFlag
 from types import ModuleType
 from typing import Any
@@ -46,6 +52,10 @@ ESC_TELEMETRY_BLOCKS = tuple(range(1, 33, 4))
 
 _UINT16_MAX = 0xFFFF
 _MAH_PER_COULOMB = 1.0 / 3.6
+GPS_FIX_TYPE_2D_FIX: int = _dpgw.GPS_FIX_TYPE_2D_FIX
+"""The first ``GPS_RAW_INT.fix_type`` that is a position (0 no GPS, 1 no fix, 2 2D, 3 3D, 4 DGPS …)."""
+HDG_UNKNOWN = _UINT16_MAX
+"""``GLOBAL_POSITION_INT.hdg`` when the heading is not known."""
 
 
 class AzimuthThrusterFlags(IntFlag):
@@ -409,6 +419,130 @@ class FrameParser:
             return "undecodable"
         signed = frame[0] == _V2 and bool(frame[2] & _dpgw.MAVLINK_IFLAG_SIGNED)
         return "bad_signature" if signed else "unsigned"
+
+
+# ---------------------------------------------------------------------------------------------- SI records
+
+
+@dataclass(frozen=True, slots=True)
+class PositionReport:
+    """A GNSS position: WGS-84 latitude and longitude (degrees), altitude above mean sea level (m).
+
+    ``fix_type`` is ``GPS_RAW_INT``'s ``GPS_FIX_TYPE``; None for ``GLOBAL_POSITION_INT`` (the autopilot's
+    fused position, which it only sends when it has one)."""
+
+    lat_deg: float
+    lon_deg: float
+    alt_m: float
+    fix_type: int | None = None
+
+    @property
+    def valid(self) -> bool:
+        """A position at all: a 2D fix or better (``GPS_RAW_INT`` also reports "no fix", lat = lon = 0)."""
+        return self.fix_type is None or self.fix_type >= GPS_FIX_TYPE_2D_FIX
+
+
+@dataclass(frozen=True, slots=True)
+class HeadingReport:
+    """A heading (rad, clockwise from true north; not wrapped here: the fusion wraps every angle once)."""
+
+    heading_rad: float
+
+
+@dataclass(frozen=True, slots=True)
+class ThrusterReport:
+    """Feedback of one thruster of the vessel's layout, with what the frame carries and nothing else.
+
+    ``thrust_n`` (N, negative astern) and ``azimuth_rad`` (direction of the thrust force, clockwise from
+    the bow) are None when the frame does not carry them (NaN when the sender does not know them);
+    ``rpm`` is the shaft speed as reported (ArduPilot ESC telemetry: unsigned, the direction is lost);
+    ``pwm_us`` the servo pulse width the azimuth was computed from."""
+
+    thruster_id: int
+    thrust_n: float | None = None
+    azimuth_rad: float | None = None
+    rpm: float | None = None
+    pwm_us: int | None = None
+
+
+Report = PositionReport | HeadingReport | ThrusterReport
+
+SERVO_NEUTRAL_US = 1500.0
+"""Default servo pulse width of azimuth 0 (thrust ahead): the middle of a standard 1000-2000 µs servo."""
+SERVO_HALF_TURN_US = 400.0
+"""Default change of pulse width for half a turn (π): −π…π is 1100…1900 µs, inside the standard range."""
+
+
+@dataclass(frozen=True)
+class ArduPilotWiring:
+    """How an ArduPilot's outputs reach the vessel's thrusters (the source's ``[sources.ardupilot]``).
+
+    ``esc``: ESC index (1-32, as in ``ESC_TELEMETRY_1_TO_4`` … ``_29_TO_32``) → thruster id, whose
+    shaft speed the ESC reports. ``servo``: servo output channel (1-32; ``SERVO_OUTPUT_RAW`` port p carries
+    channels 16p+1 … 16p+16) → azimuth thruster id, whose angle the pulse width sets linearly:
+    azimuth = π (pwm − ``servo_neutral_us``) / ``servo_half_turn_us`` (a negative half turn reverses a
+    servo mounted the other way round).
+    """
+
+    esc: Mapping[int, int] = field(default_factory=dict)
+    servo: Mapping[int, int] = field(default_factory=dict)
+    servo_neutral_us: float = SERVO_NEUTRAL_US
+    servo_half_turn_us: float = SERVO_HALF_TURN_US
+
+    def azimuth_rad(self, pwm_us: float) -> float:
+        """The azimuth (rad, not wrapped) a servo pulse width commands."""
+        return (pwm_us - self.servo_neutral_us) / self.servo_half_turn_us * math.pi
+
+
+_NO_WIRING = ArduPilotWiring()
+_ESC_FIRST = {getattr(_dpgw, f"MAVLINK_MSG_ID_ESC_TELEMETRY_{n}_TO_{n + 3}"): n for n in ESC_TELEMETRY_BLOCKS}
+_SERVO_FIELDS = tuple(f"servo{k}_raw" for k in range(1, 17))
+
+
+def reports(msg: MAVLinkMessage, ardupilot: ArduPilotWiring | None = None) -> list[Report]:
+    """The SI records a decoded message carries, in the order the gateway uses them; [] for a message the
+    gateway does not use.
+
+    * ``AZIMUTH_THRUSTER_STATUS`` → a :class:`ThrusterReport` (thrust, azimuth, rpm);
+    * ``ESC_TELEMETRY_*`` → a :class:`ThrusterReport` (rpm) per ESC wired to a thruster;
+    * ``SERVO_OUTPUT_RAW`` → a :class:`ThrusterReport` (azimuth, pwm) per used channel wired to a thruster
+      (0 µs means the output is not in use);
+    * ``GPS_RAW_INT`` → a :class:`PositionReport` with its fix type;
+    * ``GLOBAL_POSITION_INT`` → a :class:`PositionReport`, then a :class:`HeadingReport` if ``hdg`` is known;
+    * ``ATTITUDE`` → a :class:`HeadingReport` (its yaw).
+    """
+    m: Any = msg  # pymavlink messages carry their fields as dynamic attributes
+    mid = m.get_msgId()
+    if mid == AZIMUTH_THRUSTER_STATUS_ID:
+        return [ThrusterReport(int(m.id), float(m.thrust), float(m.azimuth), float(m.rpm))]
+    wiring = ardupilot or _NO_WIRING
+    first = _ESC_FIRST.get(mid)
+    if first is not None:
+        out: list[Report] = []
+        for k, rpm in enumerate(m.rpm):
+            tid = wiring.esc.get(first + k)
+            if tid is not None:
+                out.append(ThrusterReport(tid, rpm=float(rpm)))
+        return out
+    if mid == _dpgw.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW:
+        out = []
+        base = 16 * int(m.port)
+        for k, name in enumerate(_SERVO_FIELDS):
+            tid = wiring.servo.get(base + k + 1)
+            pwm = int(getattr(m, name, 0) or 0)  # servo9..16 are extensions: absent in a short frame
+            if tid is not None and pwm:
+                out.append(ThrusterReport(tid, azimuth_rad=wiring.azimuth_rad(pwm), pwm_us=pwm))
+        return out
+    if mid == _dpgw.MAVLINK_MSG_ID_GPS_RAW_INT:
+        return [PositionReport(m.lat / 1e7, m.lon / 1e7, m.alt / 1e3, int(m.fix_type))]
+    if mid == _dpgw.MAVLINK_MSG_ID_GLOBAL_POSITION_INT:
+        position = PositionReport(m.lat / 1e7, m.lon / 1e7, m.alt / 1e3)
+        if m.hdg == HDG_UNKNOWN:
+            return [position]
+        return [position, HeadingReport(math.radians(m.hdg / 100.0))]
+    if mid == _dpgw.MAVLINK_MSG_ID_ATTITUDE:
+        return [HeadingReport(float(m.yaw))]
+    return []
 
 
 def parse_frames(data: bytes | bytearray | memoryview, mav: MAVLink | None = None) -> list[MAVLinkMessage]:
