@@ -300,7 +300,7 @@ class Gateway(Child):
         udp, zport = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_STREAM)
         config = folder / f"{name}.toml"
         config.write_text(config_text(udp, zport, folder / f"{name}.mcap" if log else None))
-        argv = [*_chrt(fifo), sys.executable, "-m", "gateway", "run", "--config", str(config), "--json"]
+        argv = [*_chrt(fifo), sys.executable, "-m", "dpgw", "run", "--config", str(config), "--json"]
         super().__init__(folder, name, argv, f"{PREFIX}/estimate", udp, zport)
 
     def rejected(self) -> dict[str, int]:

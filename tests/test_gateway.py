@@ -39,7 +39,7 @@ def free_port(kind: int = socket.SOCK_STREAM) -> int:
 
 def dpgw(*args: str, **kw) -> subprocess.Popen[str]:  # type: ignore[no-untyped-def]
     return subprocess.Popen(
-        [sys.executable, "-m", "gateway", *args],
+        [sys.executable, "-m", "dpgw", *args],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -167,7 +167,7 @@ def test_bad_config_gives_one_clear_message(tmp_path: Path) -> None:
     cfg = tmp_path / "bad.toml"
     cfg.write_text('[vessel]\nname = "titanic"\n[observer]\nwave_period_s = -3\n')
     p = subprocess.run(
-        [sys.executable, "-m", "gateway", "run", "--config", str(cfg)], capture_output=True, text=True
+        [sys.executable, "-m", "dpgw", "run", "--config", str(cfg)], capture_output=True, text=True
     )
     assert p.returncode == 2
     assert "Traceback" not in p.stderr and str(cfg) in p.stderr
@@ -181,7 +181,7 @@ def test_missing_serial_port_gives_one_clear_message(tmp_path: Path) -> None:
         'roles = ["position", "heading"]\n',
     )
     p = subprocess.run(
-        [sys.executable, "-m", "gateway", "run", "--config", str(cfg)], capture_output=True, text=True
+        [sys.executable, "-m", "dpgw", "run", "--config", str(cfg)], capture_output=True, text=True
     )
     assert p.returncode == 2
     assert "Traceback" not in p.stderr

@@ -250,7 +250,7 @@ def test_dpgw_listen_prints_what_arrives(tmp_path: Path) -> None:
     pub = open_session(isolated_config(listen=[f"tcp/127.0.0.1:{port}"]))
     try:
         proc = subprocess.Popen(
-            [sys.executable, "-m", "gateway", "listen", "dp/x/**", "--json", "--count", "3", "--no-scouting",
+            [sys.executable, "-m", "dpgw", "listen", "dp/x/**", "--json", "--count", "3", "--no-scouting",
              "--connect", f"tcp/127.0.0.1:{port}", "--duration", "20"],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         )  # fmt: skip

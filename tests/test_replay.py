@@ -177,7 +177,7 @@ def test_simulator_log_is_scored_against_its_truth(tmp_path: Path) -> None:
     with McapLogWriter(log) as w:
         Simulation(get_scenario("torsetnes_2004"), seed=4, log=w).run(300.0)
     p = subprocess.run(
-        [sys.executable, "-m", "gateway", "replay", str(log), "--vessel", "mss_supply",
+        [sys.executable, "-m", "dpgw", "replay", str(log), "--vessel", "mss_supply",
          "--observer", "passive:wave_period_s=11.5", "--observer", "passive:wave_period_s=5@bad",
          "--out", str(tmp_path / "est.mcap"), "--json"],
         capture_output=True, text=True, check=True,
@@ -229,7 +229,7 @@ def test_speed_publishes_on_zenoh_as_if_live(tmp_path: Path) -> None:
         port = int(s.getsockname()[1])
     proc = subprocess.Popen(
         [
-            sys.executable, "-m", "gateway", "replay", str(log), "--vessel", "cybership2",
+            sys.executable, "-m", "dpgw", "replay", str(log), "--vessel", "cybership2",
             "--out", str(tmp_path / "out.mcap"), "--speed", "10", "--prefix", "test/replay",
             "--no-scouting", "--zenoh-listen", f"tcp/127.0.0.1:{port}", "--json",
         ],
@@ -269,7 +269,7 @@ def test_progress_bar_on_a_terminal(tmp_path: Path) -> None:
     master, slave = pty.openpty()
     fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))  # a terminal has a size
     proc = subprocess.Popen(
-        [sys.executable, "-m", "gateway", "replay", str(log), "--vessel", "cybership2",
+        [sys.executable, "-m", "dpgw", "replay", str(log), "--vessel", "cybership2",
          "--out", str(tmp_path / "out.mcap")],
         stdout=subprocess.PIPE, stderr=slave, text=True,
     )  # fmt: skip

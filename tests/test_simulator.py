@@ -197,7 +197,7 @@ def test_zenoh_commands_close_the_loop() -> None:
 
 def _dpgw(*args: str) -> subprocess.Popen[str]:
     return subprocess.Popen(
-        [sys.executable, "-m", "gateway", "sim", *args],
+        [sys.executable, "-m", "dpgw", "sim", *args],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -258,7 +258,7 @@ def test_udp_listener_receives_dpgw_sim(tmp_path: Path) -> None:
 
 def test_bad_arguments_give_one_clear_message() -> None:
     p = subprocess.run(
-        [sys.executable, "-m", "gateway", "sim", "--scenario", "hassani", "--nmea", "udp://nowhere"],
+        [sys.executable, "-m", "dpgw", "sim", "--scenario", "hassani", "--nmea", "udp://nowhere"],
         capture_output=True,
         text=True,
     )
@@ -279,7 +279,7 @@ def test_faults_file_and_ardupilot_feedback_from_the_cli(tmp_path: Path) -> None
     )
     out = tmp_path / "f.mcap"
     p = subprocess.run(
-        [sys.executable, "-m", "gateway", "sim", "--scenario", "hajivand_2010", "--duration", "20",
+        [sys.executable, "-m", "dpgw", "sim", "--scenario", "hajivand_2010", "--duration", "20",
          "--faults", str(faults), "--ardupilot", "--out", str(out), "--json"],
         capture_output=True, text=True, check=True,
     )  # fmt: skip
@@ -300,7 +300,7 @@ def test_bad_fault_file_names_the_field(tmp_path: Path) -> None:
     faults = tmp_path / "faults.toml"
     faults.write_text('[[faults]]\nkind = "dropout"\nsource = "dgps1"\nt_start = 5.0\nt_end = 1.0\n')
     p = subprocess.run(
-        [sys.executable, "-m", "gateway", "sim", "--scenario", "hassani", "--faults", str(faults)],
+        [sys.executable, "-m", "dpgw", "sim", "--scenario", "hassani", "--faults", str(faults)],
         capture_output=True, text=True,
     )  # fmt: skip
     assert p.returncode == 2 and "faults[0].t_end" in p.stderr and str(faults) in p.stderr
