@@ -18,6 +18,7 @@ import zenoh
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from mcap.reader import make_reader
+from wire.schemas import schema_for_topic, validate
 
 from gateway.bus import isolated_config, open_session
 from gateway.config import parse_config
@@ -25,8 +26,7 @@ from gateway.pipeline import ControlEvent, Pipeline, PipelineSpec, RawEvent
 from gateway.replay import config_from_log, replay
 from gateway.scoring import score
 from wire.codecs import nmea_encode as enc
-from wire.mcaplog import read_messages, summary
-from wire.schemas import schema_for_topic, validate
+from wire.mcap.reader import read_messages, summary
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 
