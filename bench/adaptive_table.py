@@ -33,7 +33,7 @@ from gateway.scoring import score
 from simulator.runner import Route, Simulation
 from simulator.scenarios import Scenario, get_scenario
 from simulator.transports import MemorySink
-from wire.mcaplog import McapLogWriter
+from wire.mcap.writer import McapLogWriter
 
 
 def _setpoint(t: float, north: float, heading_deg: float) -> tuple[float, str, dict[str, float]]:

@@ -71,7 +71,8 @@ from gateway.bus import isolated_config, open_session
 from gateway.config import load_config
 from gateway.pipeline import Pipeline, PipelineSpec, RawEvent
 from wire.codecs import nmea_encode as enc
-from wire.mcaplog import McapLogWriter, encode_json
+from wire.json_payload import encode_json
+from wire.mcap.writer import McapLogWriter
 
 REPO = Path(__file__).resolve().parents[1]
 PREFIX = "dp/bench"

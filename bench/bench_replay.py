@@ -33,7 +33,7 @@ from simulator.scenarios import get_scenario
 from simulator.transports import FileSink
 from wire.codecs.nmea import decode
 from wire.codecs.nmea_framing import NmeaFramer
-from wire.mcaplog import McapLogWriter
+from wire.mcap.writer import McapLogWriter
 
 
 def make_log(path: str, hours: float) -> None:

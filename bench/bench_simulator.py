@@ -19,7 +19,7 @@ import time
 
 from simulator.runner import Simulation
 from simulator.scenarios import get_scenario
-from wire.mcaplog import McapLogWriter
+from wire.mcap.writer import McapLogWriter
 
 
 def run_case(name: str, hours: float, folder: str) -> dict[str, float | int | str]:

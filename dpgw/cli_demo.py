@@ -33,7 +33,7 @@ from simulator.commands import MavlinkCommandInput, ZenohCommandInput
 from simulator.runner import Route, Simulation
 from simulator.scenarios import SCENARIOS, get_scenario
 from simulator.transports import PtySink, UdpSink
-from wire.mcaplog import read_messages
+from wire.mcap.reader import read_messages
 
 SETTLE_S = 60.0
 

@@ -28,7 +28,7 @@ from gateway.replay import (
 from gateway.scoring import score
 from observers.passive_tuning import TuningError
 from observers.vessel import VesselError
-from wire.mcaplog import McapLogWriter, encode_json
+from wire.mcap.writer import McapLogWriter
 
 
 def register(sub: Any) -> None:
@@ -153,7 +153,7 @@ class _Publisher:
             time.sleep(delay)
         for o in outputs:
             if o.zenoh and o.topic.startswith("/dp/"):
-                self.session.put(f"{self.prefix}/{o.topic[4:]}", encode_json(o.payload))
+                self.session.put(f"{self.prefix}/{o.topic[4:]}", o.message.encode())
 
     def close(self) -> None:
         self.session.close()

@@ -17,7 +17,7 @@ from simulator.faults import Fault, FaultSchedule
 from simulator.runner import CommandInput, Route, Simulation
 from simulator.scenarios import SCENARIOS, get_scenario
 from simulator.transports import Sink, TransportError, open_sink
-from wire.mcaplog import McapLogWriter
+from wire.mcap.writer import McapLogWriter
 
 
 def register(sub: Any) -> None:

@@ -20,7 +20,7 @@ from simulator.commands import Command, TauCommand, ThrusterCommand
 from simulator.runner import Route, Simulation
 from simulator.scenarios import Scenario
 from simulator.transports import Sink
-from wire.mcaplog import McapLogWriter
+from wire.mcap.writer import McapLogWriter
 
 Array = NDArray[np.float64]
 

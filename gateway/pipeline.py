@@ -38,6 +38,19 @@ from wire.codecs import mavlink as mv
 from wire.codecs import nmea as nmea_codec
 from wire.codecs.nmea_framing import NmeaFramer
 from wire.geodesy import LocalFrame
+from wire.messages import (
+    Datum,
+    LocationFix,
+    Measurement,
+    Message,
+    SourceStatus,
+    Status,
+    Thruster,
+    ThrusterFeedback,
+    Time,
+)
+from wire.messages import Estimate as EstimateMessage
+from wire.messages import ThrusterCommand as CommandMessage
 
 USED_NMEA = frozenset({"GGA", "GNS", "HDT", "THS", "HDG", "GST"})
 """Sentences the fusion uses; others (RMC, VTG, ZDA, ROT ...) are checked and counted, not parsed."""
@@ -75,12 +88,18 @@ class ControlEvent:
 
 @dataclass(frozen=True)
 class Output:
-    """Something to publish and/or log: MCAP topic (the Zenoh key is the prefix + the part after /dp)."""
+    """Something to publish and/or log: MCAP topic (the Zenoh key is the prefix + the part after /dp) and
+    the typed message (`wire.messages`: it encodes itself, once, for Zenoh and the log)."""
 
     topic: str
-    payload: dict[str, Any]
+    message: Message
     stamp_ns: int
     zenoh: bool = True
+
+    @cached_property
+    def payload(self) -> dict[str, Any]:
+        """The message as a plain dict, for consumers that index it by field name (made on first use)."""
+        return self.message.to_dict()
 
 
 @dataclass(frozen=True)
@@ -174,9 +193,9 @@ class SourceCounters:
     bytes: int = 0
     last_rx_ns: int = 0
 
-    def as_dict(self, now_ns: int) -> dict[str, Any]:
+    def as_message(self, now_ns: int) -> SourceStatus:
         age = (now_ns - self.last_rx_ns) / NS if self.last_rx_ns else None
-        return {"age_s": age, "received": self.received, "rejected": dict(self.rejected), "bytes": self.bytes}
+        return SourceStatus(age_s=age, received=self.received, rejected=dict(self.rejected), bytes=self.bytes)
 
 
 class Pipeline:
@@ -407,31 +426,30 @@ class Pipeline:
         out = [
             Output(
                 "/dp/measurement",
-                {
-                    "stamp_ns": now_ns,
-                    "eta": [None if v != v else v for v in y.tolist()],  # NaN (stale) -> null
-                    "valid": valid,
-                    "sources": sorted(
-                        {h.source for h in (self.fusion.north, self.fusion.heading) if h.source}
-                    ),
-                    "quality": self.fusion.quality,
-                    "sigma_m": self.fusion.position_sigma_m(now_ns),
-                    "tau": tau.tolist(),
-                    "tau_source": tau_source,
-                },
+                Measurement(
+                    stamp_ns=now_ns,
+                    eta=[None if v != v else v for v in y.tolist()],  # NaN (stale) -> null
+                    valid=valid,
+                    sources=sorted({h.source for h in (self.fusion.north, self.fusion.heading) if h.source}),
+                    quality=self.fusion.quality,
+                    sigma_m=self.fusion.position_sigma_m(now_ns),
+                    tau=tau.tolist(),
+                    tau_source=tau_source,
+                ),
                 now_ns,
             )
         ]
         if est.status != STATUS_NAMES[0]:
             self.estimates += 1
-            payload = self._estimate_payload(self.spec.observer_name, self.observer, est, now_ns)
-            out.append(Output("/dp/estimate", payload, now_ns))
+            estimate = self._estimate(self.spec.observer_name, self.observer, est, now_ns)
+            out.append(Output("/dp/estimate", estimate, now_ns))
             if (
-                payload["lat_deg"] is not None
+                estimate.lat_deg is not None
+                and estimate.lon_deg is not None
                 and now_ns - self._last_fix_ns.get("", -FIX_PERIOD_NS) >= FIX_PERIOD_NS
             ):
                 self._last_fix_ns[""] = now_ns
-                fix = _location_fix_payload(now_ns, "estimate", payload["lat_deg"], payload["lon_deg"])
+                fix = _location_fix_message(now_ns, "estimate", estimate.lat_deg, estimate.lon_deg)
                 out.append(Output("/dp/estimate/fix", fix, now_ns, zenoh=False))
             if self.controller is not None and now_ns >= self._next_control_ns:
                 self._next_control_ns = now_ns + self._control_period_ns
@@ -439,9 +457,7 @@ class Pipeline:
         for label, obs in self.spec.extra_observers:
             e = obs.step(t, y, tau)
             if e.status != STATUS_NAMES[0]:
-                out.append(
-                    Output(f"/dp/estimates/{label}", self._estimate_payload(label, obs, e, now_ns), now_ns)
-                )
+                out.append(Output(f"/dp/estimates/{label}", self._estimate(label, obs, e, now_ns), now_ns))
         return out
 
     def _setpoint_ned(self, sp: dict[str, Any]) -> np.ndarray | None:
@@ -513,7 +529,7 @@ class Pipeline:
             self.fusion.set_tau_demand(np.zeros(3))
             self.control_alarms = []
             return []  # standby commands nothing: the thrusters are someone else's
-        thrusters: list[dict[str, Any]] = []
+        thrusters: list[Thruster] = []
         saturated = False
         if self.allocator is not None:
             res = self.allocator.allocate(o.tau, self.command)
@@ -523,8 +539,8 @@ class Pipeline:
             self.control_alarms = list(res.alarms)
             ids = [th.id for th in self.spec.vessel.thrusters]
             thrusters = [
-                {"id": tid, "thrust_n": float(f), "azimuth_rad": float(a)}
-                for tid, f, a in zip(ids, res.thrust, res.azimuth, strict=True)
+                Thruster(id=tid, thrust_n=f, azimuth_rad=a)
+                for tid, f, a in zip(ids, res.thrust.tolist(), res.azimuth.tolist(), strict=True)
             ]
         else:
             tau_allocated = o.tau  # no thruster layout: τ is the command (simulated vessels of the papers)
@@ -533,20 +549,20 @@ class Pipeline:
         return [
             Output(
                 "/dp/thrusters/command",
-                {
-                    "stamp_ns": now_ns,
-                    "mode": self.mode,
-                    "tau_demand": o.tau.tolist(),
-                    "tau_allocated": np.asarray(tau_allocated, dtype=float).tolist(),
-                    "saturated": saturated,
-                    "thrusters": thrusters,
-                    "reference": o.reference.eta_d.tolist(),
-                },
+                CommandMessage(
+                    stamp_ns=now_ns,
+                    mode=self.mode,  # type: ignore[arg-type]  # one of MODES: set only from them
+                    tau_demand=o.tau.tolist(),
+                    tau_allocated=np.asarray(tau_allocated, dtype=float).tolist(),
+                    saturated=saturated,
+                    thrusters=thrusters,
+                    reference=o.reference.eta_d.tolist(),
+                ),
                 now_ns,
             )
         ]
 
-    def _estimate_payload(self, label: str, obs: Observer, est: Estimate, now_ns: int) -> dict[str, Any]:
+    def _estimate(self, label: str, obs: Observer, est: Estimate, now_ns: int) -> EstimateMessage:
         datum = self.fusion.datum
         lat = lon = None
         if datum is not None:
@@ -558,48 +574,54 @@ class Pipeline:
             or self.fusion.heading.source in backup.get("heading", ())
         ):
             status = "degraded"  # running on a backup source
-        return {
-            "stamp_ns": now_ns,
-            "observer": label,
-            "status": status,
-            "eta": est.eta.tolist(),
-            "nu": est.nu.tolist(),
-            "bias": est.bias.tolist(),
-            "eta_wf": est.eta_wf.tolist(),
-            "omega0": np.asarray(obs.omega0, dtype=float).tolist(),
-            "lat_deg": lat,
-            "lon_deg": lon,
-            "heading_deg": math.degrees(est.eta[2]) % 360.0,
-            "datum": None if datum is None else {"lat_deg": datum.lat_deg, "lon_deg": datum.lon_deg},
-            **obs.extra(),
-        }
+        return EstimateMessage(
+            stamp_ns=now_ns,
+            observer=label,
+            status=status,  # type: ignore[arg-type]  # the observer's STATUS_NAMES, or "degraded"
+            eta=est.eta.tolist(),
+            nu=est.nu.tolist(),
+            bias=est.bias.tolist(),
+            eta_wf=est.eta_wf.tolist(),
+            omega0=np.asarray(obs.omega0, dtype=float).tolist(),
+            lat_deg=lat,
+            lon_deg=lon,
+            heading_deg=math.degrees(est.eta[2]) % 360.0,
+            datum=None if datum is None else Datum(lat_deg=datum.lat_deg, lon_deg=datum.lon_deg),
+            extra=obs.extra(),
+        )
 
     def _location_fix(self, source: str, rx_ns: int, lat: float, lon: float) -> list[Output]:
         if rx_ns - self._last_fix_ns.get(source, -FIX_PERIOD_NS) < FIX_PERIOD_NS:
             return []
         self._last_fix_ns[source] = rx_ns
-        payload = _location_fix_payload(rx_ns, source, lat, lon)
-        return [Output(f"/gnss/{source}/fix", payload, rx_ns, zenoh=False)]
+        return [
+            Output(f"/gnss/{source}/fix", _location_fix_message(rx_ns, source, lat, lon), rx_ns, zenoh=False)
+        ]
 
     def _feedback_output(self, now_ns: int) -> Output:
         tau, _ = self.fusion.tau(now_ns)
         return Output(
             "/dp/thrusters/feedback",
-            {
-                "stamp_ns": now_ns,
-                "mode": self.mode,
-                "tau_demand": self.fusion.tau_demand.tolist(),
-                "tau_allocated": tau.tolist(),
-                "thrusters": [
-                    {"id": tid, "thrust_n": t, "azimuth_rad": a}
+            ThrusterFeedback(
+                stamp_ns=now_ns,
+                mode=self.mode,  # type: ignore[arg-type]  # one of MODES: set only from them
+                tau_demand=self.fusion.tau_demand.tolist(),
+                tau_allocated=tau.tolist(),
+                thrusters=[
+                    Thruster(id=tid, thrust_n=t, azimuth_rad=a)
                     for tid, (t, a, _) in sorted(self.fusion.thrust.items())
                 ],
-            },
+            ),
             now_ns,
         )
 
     def status(self, now_ns: int, alarms: list[str] | None = None) -> Output:
-        """The 1 Hz status (the caller decides when): per-source age, counts, rejects by reason, alarms."""
+        """The 1 Hz status output (the caller decides when); see `status_message`."""
+        return Output("/dp/status", self.status_message(now_ns, alarms), now_ns)
+
+    def status_message(self, now_ns: int, alarms: list[str] | None = None) -> Status:
+        """Per-source age, counts, rejects by reason, and the alarms: the caller's, the controller's, and
+        one per source that sent nothing yet or went stale."""
         alarms = list(alarms or []) + self.control_alarms
         for name, c in self.counters.items():
             spec = self.sources[name]
@@ -607,28 +629,24 @@ class Pipeline:
                 alarms.append(f"source {name}: no data yet")
             elif (now_ns - c.last_rx_ns) / NS > spec.timeout_s:
                 alarms.append(f"source {name}: stale ({(now_ns - c.last_rx_ns) / NS:.1f} s without data)")
-        return Output(
-            "/dp/status",
-            {
-                "stamp_ns": now_ns,
-                "mode": self.mode,
-                "observer": self.spec.observer_name,
-                "initialized": self.observer.initialized,
-                "estimates": self.estimates,
-                "sources": {name: c.as_dict(now_ns) for name, c in self.counters.items()},
-                "alarms": alarms,
-            },
-            now_ns,
+        return Status(
+            stamp_ns=now_ns,
+            mode=self.mode,  # type: ignore[arg-type]  # one of MODES: set only from them
+            observer=self.spec.observer_name,
+            initialized=self.observer.initialized,
+            estimates=self.estimates,
+            sources={name: c.as_message(now_ns) for name, c in self.counters.items()},
+            alarms=list(alarms),
         )
 
 
-def _location_fix_payload(stamp_ns: int, frame_id: str, lat: float, lon: float) -> dict[str, Any]:
-    return {
-        "timestamp": {"sec": stamp_ns // NS, "nsec": stamp_ns % NS},
-        "frame_id": frame_id,
-        "latitude": lat,
-        "longitude": lon,
-        "altitude": 0.0,
-        "position_covariance": [0.0] * 9,
-        "position_covariance_type": 0,
-    }
+def _location_fix_message(stamp_ns: int, frame_id: str, lat: float, lon: float) -> LocationFix:
+    return LocationFix(
+        timestamp=Time(sec=stamp_ns // NS, nsec=stamp_ns % NS),
+        frame_id=frame_id,
+        latitude=lat,
+        longitude=lon,
+        altitude=0.0,
+        position_covariance=[0.0] * 9,
+        position_covariance_type=0,
+    )

@@ -34,7 +34,9 @@ from gateway.logreaders import LogCounts, nmea_text_events, tlog_events
 from gateway.pipeline import USED_NMEA, ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from observers.factory import OBSERVER_PARAMS, OBSERVER_TYPES, Observer, make_observer
 from observers.passive_tuning import PassiveTuning
-from wire.mcaplog import McapLogWriter, read_messages
+from wire.mcap.reader import read_messages
+from wire.mcap.writer import McapLogWriter
+from wire.messages import Estimate
 
 CONFIG_METADATA = "dpgw.config"
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -354,12 +356,13 @@ def run_replay(
                     out.write_raw_mavlink(ev.source, ev.data, ev.rx_ns, ev.rx_ns)
         outputs = pipeline.feed(ev)
         for o in outputs:
+            msg = o.message
             if out is not None:
-                out.write(o.topic, o.payload, o.stamp_ns, o.stamp_ns)
+                out.write_encoded(o.topic, msg.encode(), o.stamp_ns, o.stamp_ns, schema=type(msg))
             if o.topic in wanted:
                 result.collected[o.topic].append(o.payload)
-            if o.topic == "/dp/estimate" or o.topic.startswith("/dp/estimates/"):
-                result.estimates[o.payload["observer"]] += 1
+            if isinstance(msg, Estimate):
+                result.estimates[msg.observer] += 1
         result.outputs += len(outputs)
         if on_outputs is not None:
             on_outputs(ev, outputs)
@@ -370,9 +373,9 @@ def run_replay(
     if frozen == 0 and gc.get_freeze_count():  # (a caller's own frozen objects are left alone)
         gc.unfreeze()  # (back to normal collection; anything cyclic frozen meanwhile is collected later)
     now = pipeline.last_ns
-    status = pipeline.status(now).payload
-    for name, c in status["sources"].items():
-        result.counts[f"source {name}"] = {"received": c["received"], **c["rejected"]}
+    status = pipeline.status_message(now)
+    for name, c in status.sources.items():
+        result.counts[f"source {name}"] = {"received": c.received, **c.rejected}
     for inp in inputs:
         if inp.kind != "mcap":
             result.counts[f"log {inp.path.name}"] = {

@@ -34,7 +34,8 @@ from gateway.config import GatewayConfig, ZenohConfig
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from gateway.sources import Chunk, Source, open_source
 from wire.codecs import mavlink as mv
-from wire.mcaplog import McapLogWriter, encode_json
+from wire.mcap.writer import McapLogWriter
+from wire.messages import ThrusterCommand
 
 log = logging.getLogger("dpgw")
 
@@ -118,7 +119,7 @@ class GatewayService:
             # the consumer loop is not running yet, so reading the pipeline here is race-free.
             initial = self.pipeline.status(self._now(time.time_ns()), self._alarms())
             with self._status_lock:
-                self._status_json = encode_json(initial.payload)
+                self._status_json = initial.message.encode()
             self._declared.append(s.declare_queryable(f"{self.prefix}/status", self._on_query))
             if self._log_path:
                 self.log = McapLogWriter(self._log_path, profile="dpgw", **self.config.log.writer_options())
@@ -251,8 +252,8 @@ class GatewayService:
         self._log_outputs(outputs, self._publish(outputs))
 
     def _publish(self, outputs: list[Output]) -> list[bytes]:
-        """Zenoh puts (estimate before measurement) and MAVLink commands; each payload encoded once."""
-        encoded = [encode_json(o.payload) for o in outputs]
+        """Zenoh puts (estimate before measurement) and MAVLink commands; each message encoded once."""
+        encoded = [o.message.encode() for o in outputs]
         order = sorted(range(len(outputs)), key=lambda k: outputs[k].topic != "/dp/estimate")
         for k in order:
             o, body = outputs[k], encoded[k]
@@ -264,17 +265,17 @@ class GatewayService:
                 if o.topic == "/dp/status":
                     with self._status_lock:
                         self._status_json = body
-            if o.topic == "/dp/thrusters/command" and self._command_links:
-                self._send_mavlink_commands(o.payload)
+            if isinstance(o.message, ThrusterCommand) and self._command_links:
+                self._send_mavlink_commands(o.message)
         return encoded
 
     def _log_outputs(self, outputs: list[Output], encoded: list[bytes]) -> None:
         if self.log is None:
             return
         for o, body in zip(outputs, encoded, strict=True):
-            self.log.write_encoded(o.topic, body, o.stamp_ns, o.stamp_ns)
+            self.log.write_encoded(o.topic, body, o.stamp_ns, o.stamp_ns, schema=type(o.message))
 
-    def _send_mavlink_commands(self, cmd: dict[str, Any]) -> None:
+    def _send_mavlink_commands(self, cmd: ThrusterCommand) -> None:
         """AZIMUTH_THRUSTER_COMMAND per thruster down every MAVLink link configured with commands = true."""
         sources = {s.name: s for s in self._sources}
         for name, mav in self._command_links.items():
@@ -282,10 +283,8 @@ class GatewayService:
             if src is None:
                 continue
             frames = b"".join(
-                mv.azimuth_command_frame(
-                    mav, cmd["stamp_ns"] // 1000, th["id"], th["thrust_n"], th["azimuth_rad"]
-                )
-                for th in cmd["thrusters"]
+                mv.azimuth_command_frame(mav, cmd.stamp_ns // 1000, int(th.id), th.thrust_n, th.azimuth_rad)
+                for th in cmd.thrusters
             )
             if frames and not src.write(frames):
                 src.stats.count_error("command not sent")

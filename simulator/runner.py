@@ -38,7 +38,8 @@ from simulator.thrusters import PrescribedAllocation, ThrusterBank
 from simulator.transports import Sink
 from simulator.vessel_dynamics import MAX_STEP_S, VesselDynamics
 from simulator.waves import WaveField, WaveResponse
-from wire.mcaplog import McapLogWriter
+from wire.mcap.writer import McapLogWriter
+from wire.messages import TruthState
 
 Array = NDArray[np.float64]
 
@@ -283,21 +284,17 @@ class Simulation:
         w0 = sea.peak_frequency
         tau = self.tau_direct if self.direct_tau else self.thrusters.tau
         stamp = self.epoch.stamp_ns(self.t)
-        self.log.write(
-            "/truth/state",
-            {
-                "stamp_ns": stamp,
-                "eta_lf": [float(x[0]), float(x[1]), ssa_scalar(float(x[2]))],
-                "nu": x[3:6].tolist(),
-                "bias": bias_total,
-                "eta_wf": wf.tolist(),
-                "omega0": [w0, w0, w0],
-                "tau": tau.tolist(),
-                "hs_m": sea.hs_m,
-            },
-            stamp,
-            stamp,
+        truth = TruthState(
+            stamp_ns=stamp,
+            eta_lf=[float(x[0]), float(x[1]), ssa_scalar(float(x[2]))],
+            nu=x[3:6].tolist(),
+            bias=bias_total,
+            eta_wf=wf.tolist(),
+            omega0=[w0, w0, w0],
+            tau=tau.tolist(),
+            hs_m=sea.hs_m,
         )
+        self.log.write("/truth/state", truth, stamp, stamp)
         self.summary.truth_records += 1
 
     def _emit_due(self) -> None:

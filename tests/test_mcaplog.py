@@ -1,4 +1,6 @@
-"""MCAP log: schema contract, chunk bound, crash safety (kill -9 / SIGTERM), rotation, JSON edge cases."""
+"""MCAP log: schema contract, chunk bound, crash safety (kill -9 / SIGTERM), rotation, JSON edge cases.
+
+Payloads are checked with the `jsonschema` package against the schema embedded in each channel."""
 
 from __future__ import annotations
 
@@ -18,22 +20,19 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from jsonschema import Draft202012Validator
 from mcap.reader import make_reader
 from mcap.records import Chunk
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
-from wire import schemas
-from wire.mcap_fast import FastWriter
-from wire.mcaplog import (
-    McapLogWriter,
-    encode_json,
-    log_files,
-    read_messages,
-    rotated_path,
-    summary,
-    to_jsonable,
-)
+from wire.json_payload import encode_json, to_jsonable
+from wire.mcap.fast import FastWriter
+from wire.mcap.reader import log_files, read_messages, summary
+from wire.mcap.rotation import rotated_path
+from wire.mcap.writer import McapLogWriter
+from wire.message_schema import json_schema
+from wire.messages import Estimate, LocationFix, message_for_topic
 
 REPO = Path(__file__).resolve().parents[1]
 T0 = 1_750_000_000_000_000_000  # a UTC time in ns
@@ -65,13 +64,18 @@ def sample_payloads(stamp: int) -> dict[str, dict[str, Any]]:
             "valid": [True, False, True],
             "sources": ["dgps1", "gyro1"],
             "quality": {"dgps1": {"fix_quality": 2, "hdop": 0.9}},
+            "sigma_m": None,
+            "tau": v,
+            "tau_source": "demand",
         },
         "/dp/thrusters/command": {
             "stamp_ns": stamp,
             "mode": "dp",
             "tau_demand": v,
             "tau_allocated": v,
+            "saturated": False,
             "thrusters": [{"id": i, "thrust_n": 1e4 * i, "azimuth_rad": 0.1 * i} for i in range(3)],
+            "reference": v,
         },
         "/dp/thrusters/feedback": {
             "stamp_ns": stamp,
@@ -80,9 +84,12 @@ def sample_payloads(stamp: int) -> dict[str, dict[str, Any]]:
         "/dp/status": {
             "stamp_ns": stamp,
             "mode": "dp",
+            "observer": "passive",
+            "initialized": True,
+            "estimates": 99,
             "sources": {
-                "dgps1": {"age_s": 0.1, "received": 100, "rejected": {"checksum": 2}},
-                "gyro1": {"age_s": None, "received": 0, "rejected": {}},
+                "dgps1": {"age_s": 0.1, "received": 100, "rejected": {"checksum": 2}, "bytes": 7000},
+                "gyro1": {"age_s": None, "received": 0, "rejected": {}, "bytes": 0},
             },
             "alarms": ["dgps1 stale", {"code": "E1", "message": "x"}],
         },
@@ -134,9 +141,9 @@ def test_file_opens_with_mcap_reader_and_messages_validate(tmp_path: Path) -> No
         for schema, channel, message in reader.iter_messages():
             assert schema is not None
             payload = json.loads(message.data)
-            errors = schemas.validate(payload, json.loads(schema.data))
+            errors = [e.message for e in Draft202012Validator(json.loads(schema.data)).iter_errors(payload)]
             assert not errors, (channel.topic, errors)
-            assert schema.name == schemas.schema_for_topic(channel.topic)[0]
+            assert schema.name == message_for_topic(channel.topic).TITLE
             count += 1
         assert count == 20 * 15
 
@@ -171,50 +178,41 @@ def test_non_finite_fix_is_not_logged(tmp_path: Path) -> None:
     assert fix["position_covariance"] == [0.0] * 9 and fix["position_covariance_type"] == 0
 
 
-def _keywords(node: Any, out: set[str]) -> None:
-    """Every JSON Schema keyword used in `node` (property names are not keywords)."""
-    if isinstance(node, dict):
-        for key, value in node.items():
-            out.add(key)
-            if key == "properties":
-                for sub in value.values():
-                    _keywords(sub, out)
-            elif key in ("items", "additionalProperties"):
-                _keywords(value, out)
-            elif key == "oneOf":
-                for sub in value:
-                    _keywords(sub, out)
-
-
-def test_schemas_use_only_keywords_the_validator_checks() -> None:
-    used: set[str] = set()
-    for name, schema in schemas.TOPIC_SCHEMAS.values():
-        assert schema["title"] == name
-        assert schema["type"] == "object"
-        if not name.startswith("foxglove."):
-            assert schema["$schema"] == "https://json-schema.org/draft/2020-12/schema"
-        _keywords(schema, used)
-    assert used <= schemas.VALIDATED_KEYWORDS | schemas.ANNOTATION_KEYWORDS, used
-
-
-def test_validator_rejects_contract_violations() -> None:
+def test_schemas_reject_contract_violations() -> None:
+    estimate = Draft202012Validator(json_schema(Estimate))
     good = to_jsonable(sample_payloads(T0)["/dp/estimate"])
-    assert schemas.validate(good, schemas.ESTIMATE) == []
-    assert schemas.validate({**good, "status": "fine"}, schemas.ESTIMATE)
-    assert schemas.validate({**good, "eta": [1.0, 2.0]}, schemas.ESTIMATE)
-    assert schemas.validate({k: v for k, v in good.items() if k != "nu"}, schemas.ESTIMATE)
-    assert schemas.validate({**good, "stamp_ns": 1.5}, schemas.ESTIMATE)
-    assert schemas.validate({**good, "datum": None}, schemas.ESTIMATE) == []
-    fix = {"position_covariance_type": 4}
-    assert any("oneOf" in e for e in schemas.validate(fix, schemas.LOCATION_FIX))
+    assert estimate.is_valid(good)  # an extra field (MMAE `weights`) included
+    assert not estimate.is_valid({**good, "status": "fine"})
+    assert not estimate.is_valid({**good, "eta": [1.0, 2.0]})
+    assert not estimate.is_valid({k: v for k, v in good.items() if k != "nu"})
+    assert not estimate.is_valid({**good, "stamp_ns": 1.5})
+    assert estimate.is_valid({**good, "datum": None})
+    assert estimate.is_valid({**good, "lat_deg": None, "eta": [None, 1.0, 2.0]})  # NaN is logged as null
+    fix = Draft202012Validator(json_schema(LocationFix))
+    assert any(e.validator == "oneOf" for e in fix.iter_errors({"position_covariance_type": 4}))
+    assert not fix.is_valid({**to_jsonable(_a_fix()), "latitude": None})  # Foxglove's numbers: no null
+
+
+def _a_fix() -> dict[str, Any]:
+    return {
+        "timestamp": {"sec": 1, "nsec": 2},
+        "frame_id": "gps",
+        "latitude": 63.0,
+        "longitude": 10.0,
+        "altitude": 0.0,
+        "position_covariance": [0.0] * 9,
+        "position_covariance_type": 0,
+    }
 
 
 def test_topic_lookup() -> None:
-    assert schemas.schema_for_topic("/raw/nmea/gyro1")[0] == "dpgw.RawNmea"
-    assert schemas.schema_for_topic("/raw/mavlink/thr")[0] == "dpgw.RawMavlink"
-    assert schemas.schema_for_topic("/dp/estimate/fix")[0] == "foxglove.LocationFix"
-    assert schemas.schema_for_topic("/raw/nmea/")[0] == "dpgw.Any"
-    assert schemas.schema_for_topic("/unknown")[0] == "dpgw.Any"
+    assert message_for_topic("/raw/nmea/gyro1").TITLE == "dpgw.RawNmea"
+    assert message_for_topic("/raw/mavlink/thr").TITLE == "dpgw.RawMavlink"
+    assert message_for_topic("/dp/estimate/fix").TITLE == "foxglove.LocationFix"
+    assert message_for_topic("/dp/estimates/T9").TITLE == "dpgw.Estimate"
+    assert message_for_topic("/gnss/dgps1/fix").TITLE == "foxglove.LocationFix"
+    assert message_for_topic("/raw/nmea/").TITLE == "dpgw.Any"
+    assert message_for_topic("/unknown").TITLE == "dpgw.Any"
 
 
 # --- chunks -------------------------------------------------------------------------------------------------
@@ -257,7 +255,7 @@ def test_oversize_message_gets_its_own_chunk(tmp_path: Path) -> None:
 WRITER_SCRIPT = textwrap.dedent(
     """
     import signal, sys, time
-    from wire.mcaplog import McapLogWriter
+    from wire.mcap.writer import McapLogWriter
 
     stop = False
 
@@ -349,7 +347,7 @@ def test_sigterm_closes_the_file_cleanly(tmp_path: Path) -> None:
 
 def test_exit_without_close_still_finishes_the_file(tmp_path: Path) -> None:
     path = tmp_path / "forgot.mcap"
-    code = "import sys; from wire.mcaplog import McapLogWriter; w = McapLogWriter(sys.argv[1]); "
+    code = "import sys; from wire.mcap.writer import McapLogWriter; w = McapLogWriter(sys.argv[1]); "
     code += "w.write('/t', {'i': 1}, 1); raise SystemExit(3)"
     proc = subprocess.run([sys.executable, "-c", code, str(path)], cwd=REPO, env=_env(), timeout=30)
     assert proc.returncode == 3

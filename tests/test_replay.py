@@ -35,7 +35,8 @@ from simulator.runner import Simulation
 from simulator.scenarios import get_scenario
 from wire.codecs import mavlink as mv
 from wire.codecs import nmea_encode as enc
-from wire.mcaplog import McapLogWriter, read_messages
+from wire.mcap.reader import read_messages
+from wire.mcap.writer import McapLogWriter
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 USV = DATA / "usv-nmea"

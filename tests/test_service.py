@@ -20,7 +20,7 @@ from gateway.config import parse_config
 from gateway.pipeline import RawEvent, SourceCounters, SourceSpec
 from gateway.service import GatewayService
 from wire.codecs import nmea_encode as enc
-from wire.mcaplog import read_messages
+from wire.mcap.reader import read_messages
 
 POISON = b"$POISON\r\n"  # the chunk carrying this marker makes the (patched) pipeline raise
 

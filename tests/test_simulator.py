@@ -25,7 +25,8 @@ from simulator.scenarios import SCENARIOS, get_scenario
 from simulator.sensors import DgpsConfig, ThrusterFeedbackConfig
 from simulator.transports import MemorySink
 from wire.codecs.mavlink import AZIMUTH_THRUSTER_STATUS_ID, azimuth_command_frame, dialect, encoder
-from wire.mcaplog import McapLogWriter, read_messages, summary
+from wire.mcap.reader import read_messages, summary
+from wire.mcap.writer import McapLogWriter
 
 
 def run_to_memory(name: str, seed: int, duration: float, **changes):  # type: ignore[no-untyped-def]

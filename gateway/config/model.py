@@ -149,7 +149,7 @@ class LogConfig:
         return self.path is not None
 
     def writer_options(self) -> dict[str, Any]:
-        """Keyword arguments of `wire.mcaplog.McapLogWriter` (besides the path)."""
+        """Keyword arguments of `wire.mcap.writer.McapLogWriter` (besides the path)."""
         return {
             "rotate_bytes": int(self.rotate_mb * MIB) if self.rotate_mb > 0 else None,
             "rotate_seconds": self.rotate_minutes * 60.0 if self.rotate_minutes > 0 else None,

@@ -1,78 +1,74 @@
-"""The MCAP log every dpgw program writes, and the helpers that read it back.
+"""The MCAP log every dpgw program writes: `McapLogWriter`.
 
-One channel per topic, JSON Schema (`jsonschema`) schemas from `wire.schemas`, `json` messages.
-`log_time` is the receive time, `publish_time` the event's stamp (DESIGN.md, "Time").
+One channel per topic, JSON Schema (`jsonschema`) schemas, `json` messages. A typed message
+(`wire.messages`) brings its own schema; a plain mapping gets the schema of its topic
+(`wire.messages.message_for_topic`). `log_time` is the receive time, `publish_time` the event's stamp
+(DESIGN.md, "Time"). Reading a log back: `wire.mcap.reader`.
 
 Crash safety: the mcap `Writer` keeps the open chunk in memory, so a killed process would lose the whole
 chunk. `McapLogWriter` closes the chunk and hands it to the OS (write + flush: survives `kill -9`) at least
 every `flush_interval_s` of log time or of wall time. A background thread does the wall-time flush when
 no messages arrive, and the fsync (survives power loss) about once per `flush_interval_s`, outside the
 lock, so a slow disk never blocks the tasks that write.
-Readers stop cleanly at the last complete record of a truncated file.
 
 Rotation: the first file is `path` itself; when a limit is passed the file is finished cleanly (summary,
 footer) and writing continues in `<stem>_0001<suffix>`, `<stem>_0002<suffix>`, ... beside it
-(`trial.mcap`, `trial_0001.mcap`, ...). `log_files(path)` lists a set in order. Each file is
-self-contained: schemas and channels are registered again in every file.
+(`trial.mcap`, `trial_0001.mcap`, ...; `wire.mcap.rotation`). Each file is self-contained: schemas and
+channels are registered again in every file.
 
 JSON: numpy arrays and scalars become lists and numbers; non-finite floats (NaN, ±inf) become `null`,
-since JSON has no NaN; bytes become base64 strings.
+since JSON has no NaN; bytes become base64 strings (`wire.json_payload`).
 """
 
 from __future__ import annotations
 
 import atexit
-import base64
-import dataclasses
-import enum
-import io
+import functools
 import json
 import logging
 import math
 import os
-import re
-import struct
 import threading
 import time
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
-import orjson
-from mcap.exceptions import EndOfFile
-from mcap.reader import make_reader
-from mcap.records import Channel, DataEnd, Message, Schema
-from mcap.stream_reader import StreamReader
 from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import CompressionType, Writer
 
-from wire.mcap_fast import FastWriter
-from wire.schemas import schema_for_topic
+from wire.json_payload import encode_json
+from wire.mcap.fast import FastWriter
+from wire.mcap.format import RECORD_HEADER
+from wire.mcap.rotation import StrPath, rotated_path
+from wire.message_schema import json_schema
+from wire.messages import LocationFix, Message, RawMavlink, RawNmea, Time, message_for_topic
 
-__all__ = [
-    "ChannelSummary",
-    "LogSummary",
-    "McapLogWriter",
-    "encode_json",
-    "log_files",
-    "read_messages",
-    "rotated_path",
-    "summary",
-    "to_jsonable",
-]
+__all__ = ["McapLogWriter", "SchemaSpec"]
 
 log = logging.getLogger(__name__)
 
-StrPath = str | os.PathLike[str]
+SchemaSpec = tuple[str, Mapping[str, Any]] | type[Message]
+"""A channel's schema: a message class, or (schema name, JSON Schema) for a payload nobody typed."""
+
+
+@functools.cache
+def _schema_bytes(cls: type[Message]) -> tuple[str, bytes]:
+    """(schema name, JSON Schema as compact JSON) of a message class: made once per process."""
+    return _dump_schema(cls.TITLE or "", json_schema(cls))
+
+
+def _dump_schema(name: str, schema: Mapping[str, Any]) -> tuple[str, bytes]:
+    return name, json.dumps(schema, separators=(",", ":"), ensure_ascii=False).encode()
+
 
 _COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
 
 # Record sizes from the MCAP specification (opcode u8 + length u64 + fields), used to keep every chunk's
 # uncompressed content <= chunk_size. The mcap Writer only closes a chunk *after* the message that took it
 # past chunk_size, so on its own a chunk can exceed the limit by one message.
-_RECORD_HEADER = 1 + 8
-_MESSAGE_FIXED = _RECORD_HEADER + 2 + 4 + 8 + 8  # channel_id u16, sequence u32, log_time, publish_time
+_MESSAGE_FIXED = RECORD_HEADER + 2 + 4 + 8 + 8  # channel_id u16, sequence u32, log_time, publish_time
 # Kept free in each chunk so the Chunk record itself also fits in chunk_size: its header (start/end time,
 # uncompressed size and crc, compression string, records length: 49 bytes) plus the few bytes a zstd/lz4
 # frame adds to data that does not compress.
@@ -80,97 +76,12 @@ _CHUNK_MARGIN = 128
 
 
 def _schema_record_size(name: str, encoding: str, data: bytes) -> int:
-    return _RECORD_HEADER + 2 + (4 + len(name.encode())) + (4 + len(encoding.encode())) + (4 + len(data))
+    return RECORD_HEADER + 2 + (4 + len(name.encode())) + (4 + len(encoding.encode())) + (4 + len(data))
 
 
 def _channel_record_size(topic: str, message_encoding: str) -> int:
     # id u16, schema_id u16, topic, message_encoding, metadata map (u32 byte length; empty here)
-    return _RECORD_HEADER + 2 + 2 + (4 + len(topic.encode())) + (4 + len(message_encoding.encode())) + 4
-
-
-# --- JSON ---------------------------------------------------------------------------------------------------
-
-
-def to_jsonable(obj: Any) -> Any:
-    """`obj` as plain JSON types: numpy -> lists/numbers, non-finite floats -> None, bytes -> base64 str."""
-    if obj is None or isinstance(obj, bool | int | str):
-        return obj
-    if isinstance(obj, float):  # also np.float64, a float subclass
-        return float(obj) if math.isfinite(obj) else None
-    if isinstance(obj, Mapping):
-        return {str(k): to_jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, np.ndarray):
-        if obj.dtype.kind in "biu" or (obj.dtype.kind == "f" and bool(np.isfinite(obj).all())):
-            return obj.tolist()  # fast path: nothing to replace
-        return to_jsonable(obj.tolist())
-    if isinstance(obj, np.generic):
-        return to_jsonable(obj.item())
-    if isinstance(obj, list | tuple):
-        return [to_jsonable(v) for v in obj]
-    if isinstance(obj, bytes | bytearray | memoryview):
-        return base64.b64encode(bytes(obj)).decode("ascii")
-    if isinstance(obj, enum.Enum):
-        return to_jsonable(obj.value)
-    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return to_jsonable({f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)})
-    raise TypeError(f"cannot encode {type(obj).__name__} as JSON: {obj!r}")
-
-
-def _json_default(obj: Any) -> Any:
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, np.generic):
-        return obj.item()
-    raise TypeError  # anything else: the careful path below
-
-
-_ORJSON_OPTIONS = orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS
-
-
-def encode_json(payload: Any) -> bytes:
-    """Compact UTF-8 JSON of `payload` (see `to_jsonable`); never emits NaN/Infinity.
-
-    Fast path first: orjson (compact, shortest round-trip floats, NaN/±inf as null — our rule —, numpy
-    arrays and scalars natively). Anything it refuses (bytes, dataclasses, enums, odd numpy dtypes) goes
-    through `to_jsonable`. The logger and the Zenoh publisher write hundreds of thousands of messages.
-    """
-    try:
-        return orjson.dumps(payload, option=_ORJSON_OPTIONS)
-    except TypeError:
-        pass
-    try:
-        return json.dumps(
-            payload, separators=(",", ":"), ensure_ascii=False, allow_nan=False, default=_json_default
-        ).encode()
-    except (ValueError, TypeError):
-        return json.dumps(
-            to_jsonable(payload), separators=(",", ":"), ensure_ascii=False, allow_nan=False
-        ).encode()
-
-
-# --- rotation naming ----------------------------------------------------------------------------------------
-
-
-def rotated_path(path: StrPath, index: int) -> Path:
-    """File `index` of a rotated set: 0 is `path` itself, n >= 1 is `<stem>_{n:04d}<suffix>`."""
-    p = Path(path)
-    return p if index == 0 else p.with_name(f"{p.stem}_{index:04d}{p.suffix}")
-
-
-def log_files(path: StrPath) -> list[Path]:
-    """The existing files of the rotated set that starts at `path`, in writing order."""
-    p = Path(path)
-    pattern = re.compile(re.escape(p.stem) + r"_(\d{4,})" + re.escape(p.suffix) + "$")
-    numbered = []
-    if p.parent.is_dir():
-        for q in p.parent.iterdir():
-            m = pattern.match(q.name)
-            if m:
-                numbered.append((int(m.group(1)), q))
-    return ([p] if p.exists() else []) + [q for _, q in sorted(numbered)]
-
-
-# --- writer -------------------------------------------------------------------------------------------------
+    return RECORD_HEADER + 2 + 2 + (4 + len(topic.encode())) + (4 + len(message_encoding.encode())) + 4
 
 
 class McapLogWriter:
@@ -262,47 +173,54 @@ class McapLogWriter:
     def write(
         self,
         topic: str,
-        payload: Mapping[str, Any],
+        payload: Message | Mapping[str, Any],
         log_time_ns: int,
         publish_time_ns: int | None = None,
         *,
-        schema: tuple[str, Mapping[str, Any]] | None = None,
+        schema: SchemaSpec | None = None,
     ) -> None:
-        """Log `payload` (a JSON object; numpy and NaN allowed) on `topic`.
+        """Log `payload` on `topic`: a typed message (`wire.messages`), or a JSON object (a mapping;
+        numpy and NaN allowed) such as an input as received or a record read back from a log.
 
-        The channel and its schema are registered on the first write to a topic: `schema` (name, JSON
-        Schema) if given, else the one `wire.schemas.schema_for_topic` picks. `publish_time_ns` defaults
-        to `log_time_ns`.
+        The channel and its schema are registered on the first write to a topic: `schema` if given, else
+        the message's own class, else the one `wire.messages.message_for_topic` picks. `publish_time_ns`
+        defaults to `log_time_ns`.
         """
-        if type(payload) is not dict and not isinstance(
-            payload, Mapping
-        ):  # (dict first: ABC checks are slow)
-            raise TypeError(f"payload must be a JSON object (Mapping), not {type(payload).__name__}")
-        self.write_encoded(topic, encode_json(payload), log_time_ns, publish_time_ns, schema=schema)
+        if type(payload) is dict:  # (checked first: ABC checks are slow)
+            data = encode_json(payload)
+        elif isinstance(payload, Message):
+            data = payload.encode()
+            schema = schema or type(payload)
+        elif isinstance(payload, Mapping):
+            data = encode_json(payload)
+        else:
+            raise TypeError(
+                f"payload must be a message or a JSON object (Mapping), not {type(payload).__name__}"
+            )
+        self.write_encoded(topic, data, log_time_ns, publish_time_ns, schema=schema)
 
     def write_raw_nmea(
         self, source: str, text: str | bytes, log_time_ns: int, publish_time_ns: int | None = None
     ) -> None:
         """Log one NMEA sentence as received on `/raw/nmea/<source>`. Bytes that are not ASCII are kept
         exactly in `data` (base64) and shown escaped in `text`."""
-        payload: dict[str, Any] = {"source": source}
         if isinstance(text, str):
-            payload["text"] = text.rstrip("\r\n")
+            msg = RawNmea(source=source, text=text.rstrip("\r\n"))
         else:
             raw = bytes(text).rstrip(b"\r\n")
             try:
-                payload["text"] = raw.decode("ascii")
+                msg = RawNmea(source=source, text=raw.decode("ascii"))
             except UnicodeDecodeError:
-                payload["text"] = raw.decode("ascii", "backslashreplace")
-                payload["data"] = raw
-        self.write(f"/raw/nmea/{source}", payload, log_time_ns, publish_time_ns)
+                msg = RawNmea(source=source, text=raw.decode("ascii", "backslashreplace"), data=raw)
+        self.write_encoded(f"/raw/nmea/{source}", msg.encode(), log_time_ns, publish_time_ns, schema=RawNmea)
 
     def write_raw_mavlink(
         self, source: str, frame: bytes, log_time_ns: int, publish_time_ns: int | None = None
     ) -> None:
         """Log one MAVLink frame as received on `/raw/mavlink/<source>` (`data` = base64 of the bytes)."""
-        self.write(
-            f"/raw/mavlink/{source}", {"data": bytes(frame), "source": source}, log_time_ns, publish_time_ns
+        msg = RawMavlink(data=bytes(frame), source=source)
+        self.write_encoded(
+            f"/raw/mavlink/{source}", msg.encode(), log_time_ns, publish_time_ns, schema=RawMavlink
         )
 
     def write_location_fix(
@@ -333,18 +251,17 @@ class McapLogWriter:
                 cov = c.tolist()
             else:
                 covariance_type = 0
-        payload: dict[str, Any] = {
-            "timestamp": {"sec": max(stamp, 0) // 1_000_000_000, "nsec": max(stamp, 0) % 1_000_000_000},
-            "frame_id": source,
-            "latitude": float(lat_deg),
-            "longitude": float(lon_deg),
-            "altitude": float(altitude_m) if math.isfinite(altitude_m) else 0.0,
-            "position_covariance": cov,
-            "position_covariance_type": int(covariance_type),
-        }
-        if heading_rad is not None and math.isfinite(heading_rad):
-            payload["heading"] = float(heading_rad)
-        self.write(topic or f"/gnss/{source}/fix", payload, log_time_ns, stamp)
+        fix = LocationFix(
+            timestamp=Time(sec=max(stamp, 0) // 1_000_000_000, nsec=max(stamp, 0) % 1_000_000_000),
+            frame_id=source,
+            latitude=float(lat_deg),
+            longitude=float(lon_deg),
+            altitude=float(altitude_m) if math.isfinite(altitude_m) else 0.0,
+            position_covariance=cov,
+            position_covariance_type=int(covariance_type),
+            heading=float(heading_rad) if heading_rad is not None and math.isfinite(heading_rad) else None,
+        )
+        self.write(topic or f"/gnss/{source}/fix", fix, log_time_ns, stamp)
         return True
 
     def write_encoded(
@@ -354,10 +271,10 @@ class McapLogWriter:
         log_time_ns: int,
         publish_time_ns: int | None = None,
         *,
-        schema: tuple[str, Mapping[str, Any]] | None = None,
+        schema: SchemaSpec | None = None,
     ) -> None:
-        """`write` for a payload already encoded by `encode_json` (the live service encodes each message
-        once for Zenoh and the log)."""
+        """`write` for a payload already encoded (`Message.encode()`, `encode_json`): the live service
+        encodes each message once for Zenoh and the log. `schema` as for `write`."""
         log_time_ns = int(log_time_ns)
         publish_time_ns = log_time_ns if publish_time_ns is None else int(publish_time_ns)
         with self._lock:
@@ -445,7 +362,7 @@ class McapLogWriter:
         data: bytes,
         log_time_ns: int,
         publish_time_ns: int,
-        schema: tuple[str, Mapping[str, Any]] | None,
+        schema: SchemaSpec | None,
     ) -> None:
         # The common case is kept short (replay writes ~150,000 messages a second): a known channel (so
         # this file already has a message and its log times are set) and no rotation due.
@@ -475,7 +392,7 @@ class McapLogWriter:
         self._after_write()
 
     def _prepare(
-        self, topic: str, data_len: int, log_time_ns: int, schema: tuple[str, Mapping[str, Any]] | None
+        self, topic: str, data_len: int, log_time_ns: int, schema: SchemaSpec | None
     ) -> tuple[int, int]:
         """For a new channel, a new file or a rotation: rotate or open as due, close the chunk if the
         message and the records it brings would overfill it, register schema and channel. Returns the
@@ -495,8 +412,13 @@ class McapLogWriter:
         channel_id = self._channels.get(topic)
         new_schema: tuple[str, bytes] | None = None
         if channel_id is None:
-            name, schema_dict = schema if schema is not None else schema_for_topic(topic)
-            new_schema = (name, json.dumps(schema_dict, separators=(",", ":"), ensure_ascii=False).encode())
+            if schema is None:
+                new_schema = _schema_bytes(message_for_topic(topic))
+            elif isinstance(schema, tuple):
+                new_schema = _dump_schema(*schema)
+            else:
+                new_schema = _schema_bytes(schema)
+            name = new_schema[0]
             if name not in self._schemas:
                 size += _schema_record_size(name, SchemaEncoding.JSONSchema, new_schema[1])
             size += _channel_record_size(topic, MessageEncoding.JSON)
@@ -605,199 +527,3 @@ def _fsync_dir(directory: Path) -> None:
         pass
     finally:
         os.close(fd)
-
-
-# --- reading ------------------------------------------------------------------------------------------------
-
-_MAGIC = b"\x89MCAP0\r\n"
-_OPCODE_FOOTER = 0x02
-
-
-def _whole_records(f: IO[bytes]) -> tuple[int, bool]:
-    """(end offset of the whole records of `f`, whether the file is complete: footer and closing magic).
-
-    Walks record headers (opcode u8, length u64) with seeks, without reading record bodies. A file cut by
-    `kill -9` or power loss ends in a partial record (or none); everything before it is intact. For a
-    complete file the offset includes the closing magic.
-    """
-    f.seek(0, io.SEEK_END)
-    size = f.tell()
-    f.seek(0)
-    magic = f.read(len(_MAGIC))
-    if magic != _MAGIC[: len(magic)] or not magic:
-        if size == 0:
-            return 0, False  # created but nothing saved yet
-        raise ValueError("not an MCAP file (bad magic)")
-    pos = len(magic)
-    while pos + _RECORD_HEADER <= size:
-        opcode, length = struct.unpack("<BQ", f.read(_RECORD_HEADER))
-        end = pos + _RECORD_HEADER + length
-        if end > size:
-            break
-        pos = end
-        f.seek(pos)
-        if opcode == _OPCODE_FOOTER:
-            if f.read(len(_MAGIC)) == _MAGIC:
-                return pos + len(_MAGIC), True
-            break
-    return pos, False
-
-
-class _Slice(io.RawIOBase):
-    """Read-only view of the bytes [start, stop) of a file."""
-
-    def __init__(self, f: IO[bytes], start: int, stop: int) -> None:
-        self._f = f
-        self._left = max(stop - start, 0)
-        f.seek(start)
-
-    def readable(self) -> bool:
-        return True
-
-    def readinto(self, buffer: Any) -> int:
-        view = memoryview(buffer).cast("B")
-        n = min(len(view), self._left)
-        if n <= 0:
-            return 0
-        data = self._f.read(n)
-        view[: len(data)] = data
-        self._left -= len(data)
-        return len(data)
-
-
-def _iter_records(path: StrPath) -> Iterator[Schema | Channel | Message]:
-    """Schema, Channel and Message records of a complete or truncated MCAP file, in file order."""
-    with open(path, "rb") as f:
-        stop, complete = _whole_records(f)
-        if stop <= len(_MAGIC):
-            return
-        # mcap's non-seeking StreamReader over the whole records only (leading magic skipped here). On a
-        # complete file it stops at the footer; on a truncated one its next read hits the end of the slice
-        # exactly at a record boundary and raises EndOfFile, which then means "end of what was saved".
-        reader = StreamReader(io.BufferedReader(_Slice(f, len(_MAGIC), stop)), skip_magic=True)
-        try:
-            for record in reader.records:
-                if isinstance(record, DataEnd):
-                    return  # the summary section after it repeats schemas and channels, never messages
-                if isinstance(record, Schema | Channel | Message):
-                    yield record
-        except EndOfFile:
-            if complete:
-                raise
-
-
-def _topic_set(topics: str | Iterable[str] | None) -> set[str] | None:
-    if topics is None:
-        return None
-    return {topics} if isinstance(topics, str) else set(topics)
-
-
-def _paths(path: StrPath | Iterable[StrPath]) -> list[StrPath]:
-    if isinstance(path, str | os.PathLike):
-        return [path]
-    return list(path)
-
-
-def read_messages(
-    path: StrPath | Iterable[StrPath], topics: str | Iterable[str] | None = None
-) -> Iterator[tuple[str, int, int, dict[str, Any]]]:
-    """Yield (topic, log_time_ns, publish_time_ns, payload) in file order from one file or several (e.g.
-    `log_files(path)`), complete or truncated (everything before the cut). Only `json` channels are read;
-    `null` comes back as None (it was NaN/inf or null when written)."""
-    wanted = _topic_set(topics)
-    for p in _paths(path):
-        channels: dict[int, Channel] = {}
-        for record in _iter_records(p):
-            if isinstance(record, Channel):
-                channels[record.id] = record
-            elif isinstance(record, Message):
-                channel = channels.get(record.channel_id)
-                if channel is None or channel.message_encoding != MessageEncoding.JSON:
-                    continue
-                if wanted is not None and channel.topic not in wanted:
-                    continue
-                yield channel.topic, record.log_time, record.publish_time, json.loads(record.data)
-
-
-@dataclasses.dataclass
-class ChannelSummary:
-    topic: str
-    schema_name: str
-    schema_encoding: str
-    message_encoding: str
-    message_count: int
-
-
-@dataclasses.dataclass
-class LogSummary:
-    """What a log holds. `complete` is False for a file without footer (e.g. killed writer)."""
-
-    complete: bool
-    message_count: int
-    start_ns: int | None
-    end_ns: int | None
-    channels: dict[str, ChannelSummary]
-    schemas: dict[str, dict[str, Any]]  # schema name -> JSON Schema (jsonschema-encoded schemas only)
-    chunk_count: int | None  # None when not known (truncated file)
-
-
-def summary(path: StrPath) -> LogSummary:
-    """Channels, schemas and message counts of one file: from its summary section if it is complete, else by
-    scanning what was saved."""
-    with open(path, "rb") as f:
-        _, complete = _whole_records(f)
-        if complete:
-            f.seek(0)
-            s = make_reader(f).get_summary()
-            if s is not None and s.statistics is not None:
-                stats = s.statistics
-                channels = {}
-                for cid, ch in s.channels.items():
-                    sch = s.schemas.get(ch.schema_id)
-                    channels[ch.topic] = ChannelSummary(
-                        ch.topic,
-                        sch.name if sch else "",
-                        sch.encoding if sch else "",
-                        ch.message_encoding,
-                        stats.channel_message_counts.get(cid, 0),
-                    )
-                has_messages = stats.message_count > 0
-                return LogSummary(
-                    complete=True,
-                    message_count=stats.message_count,
-                    start_ns=stats.message_start_time if has_messages else None,
-                    end_ns=stats.message_end_time if has_messages else None,
-                    channels=channels,
-                    schemas=_decode_schemas(s.schemas.values()),
-                    chunk_count=stats.chunk_count,
-                )
-    # Truncated (or written without statistics): count by scanning.
-    schemas: dict[int, Schema] = {}
-    by_id: dict[int, ChannelSummary] = {}
-    count, start, end = 0, None, None
-    for record in _iter_records(path):
-        if isinstance(record, Schema):
-            schemas[record.id] = record
-        elif isinstance(record, Channel):
-            sch = schemas.get(record.schema_id)
-            by_id[record.id] = ChannelSummary(
-                record.topic, sch.name if sch else "", sch.encoding if sch else "", record.message_encoding, 0
-            )
-        elif record.channel_id in by_id:
-            by_id[record.channel_id].message_count += 1
-            count += 1
-            start = record.log_time if start is None else min(start, record.log_time)
-            end = record.log_time if end is None else max(end, record.log_time)
-    return LogSummary(
-        complete=complete,
-        message_count=count,
-        start_ns=start,
-        end_ns=end,
-        channels={c.topic: c for c in by_id.values()},
-        schemas=_decode_schemas(schemas.values()),
-        chunk_count=None,
-    )
-
-
-def _decode_schemas(schemas: Iterable[Schema]) -> dict[str, dict[str, Any]]:
-    return {s.name: json.loads(s.data) for s in schemas if s.encoding == SchemaEncoding.JSONSchema}

@@ -12,7 +12,7 @@ u16 channel, u32 sequence, u64 log time, u64 publish time, data), and close the 
 `chunk_size`. It reaches the writer's private state (``_Writer__statistics``, ``_Writer__chunk_builder``,
 ``_Writer__chunk_size``, ``_Writer__finalize_chunk``); when a release of mcap lacks any of them — or the
 writer was made without chunking — it falls back to the library's own method, so an mcap upgrade can cost
-speed but never a file. tests/test_mcaplog.py writes the same messages through both and compares the files
+speed but never a file. The MCAP log tests write the same messages through both and compare the files
 byte for byte.
 """
 

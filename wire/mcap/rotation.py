@@ -1,0 +1,34 @@
+"""Names of a rotated set of MCAP files: `trial.mcap`, `trial_0001.mcap`, `trial_0002.mcap`, ...
+
+The writer starts file n of a set at `rotated_path(path, n)` when a size or time limit is passed; readers
+list the set in writing order with `log_files(path)`.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+
+__all__ = ["StrPath", "log_files", "rotated_path"]
+
+StrPath = str | os.PathLike[str]
+
+
+def rotated_path(path: StrPath, index: int) -> Path:
+    """File `index` of a rotated set: 0 is `path` itself, n >= 1 is `<stem>_{n:04d}<suffix>`."""
+    p = Path(path)
+    return p if index == 0 else p.with_name(f"{p.stem}_{index:04d}{p.suffix}")
+
+
+def log_files(path: StrPath) -> list[Path]:
+    """The existing files of the rotated set that starts at `path`, in writing order."""
+    p = Path(path)
+    pattern = re.compile(re.escape(p.stem) + r"_(\d{4,})" + re.escape(p.suffix) + "$")
+    numbered = []
+    if p.parent.is_dir():
+        for q in p.parent.iterdir():
+            m = pattern.match(q.name)
+            if m:
+                numbered.append((int(m.group(1)), q))
+    return ([p] if p.exists() else []) + [q for _, q in sorted(numbered)]

@@ -1,0 +1,518 @@
+"""Every message dpgw publishes on Zenoh and logs to MCAP, defined once.
+
+Each class below is the contract of one stream (DESIGN.md, "Interfaces other programs rely on"). From it
+come, with nothing written twice:
+- the JSON payload: `Message.encode()` (field names and order as declared; non-finite floats as `null`);
+- the JSON Schema (draft 2020-12) embedded in each MCAP channel: `wire.message_schema.json_schema`;
+- the field tables of `docs/interfaces.md`: `tools/gen_interfaces.py` (a test fails when they drift).
+Extend them (new optional fields, new topics); do not rename or remove a field.
+
+**Why msgspec Structs.** The estimate, measurement and command are built and encoded on the live path at
+every observer step. `bench/bench_messages.py` builds and encodes them with each candidate side by side
+(µs per message, ratio to the dict literal + orjson the pipeline used before; best of 7 interleaved
+rounds, 2-core shared machine): msgspec Struct 1.20 / 0.64 / 1.93 µs (0.90 / 0.63 / 0.70 of before);
+dict + orjson 1.33 / 1.02 / 2.74; dataclass(slots) + orjson 2.17 / 1.26 / 3.85 (1.2-1.6x); pydantic
+4.55 / 2.83 / 6.96 validated (2.5-3.4x), slower still with `model_construct`. The JSON is the same bytes
+as before, except that a float of magnitude >= 1e16 is spelled `1e16` rather than `1e+16` (the same
+number to every JSON reader; no dpgw field comes near it).
+
+Conventions shared by every message:
+- SI units and radians; local NED at the datum (η = [N, E, ψ]), body frame ν = [u, v, r], τ = [X, Y, N].
+- Every float may be `null` in the JSON: JSON has no NaN or ±inf, so a non-finite float is encoded as
+  `null`; hence dpgw's schemas type floats as `["number", "null"]`. `foxglove.LocationFix` is the
+  exception (Foxglove's schema; its writers never put a non-finite number in it).
+- Objects accept extra fields (no `additionalProperties: false`) so payloads can grow. The estimate's
+  observer-specific fields (`Observer.extra()`: MMAE weights, scheduled ω0 ...) travel in `Estimate.extra`
+  and appear at the top level of the JSON, after the declared fields; a declared field always wins over an
+  extra of the same name.
+- A field with a default is optional: it is left out of the JSON while it holds its default (`None`, or
+  an empty `extra`), and the schema does not require it. Every other field is always present.
+- Fields are keyword-only, so a call site names what it fills in.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Annotated, Any, ClassVar, Literal
+
+import msgspec
+import numpy as np
+
+from wire.json_payload import encode_json, to_jsonable
+
+__all__ = [
+    "ANY",
+    "MESSAGES",
+    "TOPICS",
+    "AnyObject",
+    "Datum",
+    "Estimate",
+    "LocationFix",
+    "ManualTau",
+    "Measurement",
+    "Message",
+    "ModeRequest",
+    "RawMavlink",
+    "RawNmea",
+    "Record",
+    "Setpoint",
+    "SourceStatus",
+    "Status",
+    "Thruster",
+    "ThrusterCommand",
+    "ThrusterFeedback",
+    "Time",
+    "Topic",
+    "TruthState",
+    "message_for_topic",
+]
+
+
+def doc(description: str, unit: str = "", schema: dict[str, Any] | None = None) -> msgspec.Meta:
+    """A field's meaning and unit (the schema's `description`; the doc table's `meaning` and `unit`).
+    `schema` replaces the generated JSON Schema of the field (for Foxglove's own definitions)."""
+    extra: dict[str, Any] = {}
+    if unit:
+        extra["unit"] = unit
+    if schema is not None:
+        extra["schema"] = schema
+    return msgspec.Meta(description=description, extra=extra or None)
+
+
+Vec3 = Annotated[list[float], msgspec.Meta(min_length=3, max_length=3)]
+"""Three numbers ([N, E, ψ] or [X, Y, N] as the field says); each may be null (NaN)."""
+
+ETA = "η = [N, E, ψ]: north, east, heading (clockwise from true north, in [-π, π))."
+NU = "ν = [u, v, r]: surge (forward), sway (starboard), yaw rate."
+TAU = "[X, Y, N]: surge force, sway force, yaw moment, in the body frame."
+STAMP = (
+    "Event time, UTC nanoseconds since the Unix epoch (sensor time where the sentence has one, else "
+    "receive time). JavaScript readers parse it as a double (~256 ns resolution)."
+)
+
+EstimateStatus = Literal["initializing", "ok", "dead_reckoning", "degraded"]
+Mode = Literal["standby", "dp", "manual"]
+
+
+# --- encoding -----------------------------------------------------------------------------------------
+
+
+def _enc_hook(obj: Any) -> Any:
+    """What msgspec cannot encode itself: numpy scalars and arrays (an observer's extras, a numpy float
+    handed over unconverted), bytes-likes, dataclasses, enums (through `to_jsonable`)."""
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    return to_jsonable(obj)  # raises TypeError for what JSON cannot hold, as encode_json does
+
+
+_ENCODER = msgspec.json.Encoder(enc_hook=_enc_hook)
+
+
+class Record(msgspec.Struct, kw_only=True, omit_defaults=True, gc=False):
+    """An object inside a message (or a message itself). `gc=False`: records hold only plain values and
+    containers, never a cycle, so the garbage collector need not track the hundreds of thousands a replay
+    makes. `TITLE`: the schema's `title` (None: no title, as for dpgw's nested objects)."""
+
+    TITLE: ClassVar[str | None] = None
+    FLATTEN: ClassVar[tuple[str, ...]] = ()
+    """Mapping fields whose items are written at the top level of the JSON, not as a nested object."""
+
+
+class Message(Record, kw_only=True):
+    """A top-level message: one Zenoh payload / one MCAP message. The class docstring is its schema's
+    description; `TITLE` its schema name (the MCAP schema record's name)."""
+
+    TITLE: ClassVar[str | None] = "dpgw.Message"
+    FOXGLOVE: ClassVar[bool] = False
+    """A schema Foxglove defines: no `$schema` key, and numbers are plain `number` (never null)."""
+
+    def encode(self) -> bytes:
+        """The JSON payload: compact UTF-8, declared fields in order, non-finite floats as null, floats in
+        their shortest round-trip form. The bytes are those the dict payloads (`wire.json_payload`, orjson)
+        gave, except that a magnitude of 1e16 or more is spelled ``1e16`` rather than ``1e+16``: the same
+        number to any JSON reader."""
+        return _ENCODER.encode(self)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The payload as plain Python (what `json.loads(self.encode())` gives, except that a non-finite
+        float stays a float): for consumers that index payloads by field name."""
+        out: dict[str, Any] = msgspec.to_builtins(self, enc_hook=_enc_hook)
+        return out
+
+
+# --- the gateway's outputs ----------------------------------------------------------------------------
+
+
+class Datum(Record, kw_only=True):
+    lat_deg: Annotated[float, doc("Datum latitude (WGS-84).", "deg")]
+    lon_deg: Annotated[float, doc("Datum longitude (WGS-84).", "deg")]
+
+
+class Estimate(Message, kw_only=True):
+    """Observer state estimate of the vessel's reference point (Zenoh `<prefix>/estimate`)."""
+
+    TITLE = "dpgw.Estimate"
+    FLATTEN = ("extra",)
+
+    stamp_ns: Annotated[int, doc(STAMP, "ns (UTC)")]
+    observer: Annotated[str, doc("Observer name (or replay label), e.g. `passive`, `mmae`.")]
+    status: Annotated[
+        EstimateStatus,
+        doc(
+            "initializing: not yet converged or no datum; ok: measurements fresh; dead_reckoning: "
+            "position measurements lost, predicting from the model; degraded: running on a subset of "
+            "the sensors or on a backup source."
+        ),
+    ]
+    eta: Annotated[
+        Vec3, doc("Low-frequency position and heading of the reference point, " + ETA, "m, m, rad")
+    ]
+    nu: Annotated[Vec3, doc("Low-frequency velocity " + NU, "m/s, m/s, rad/s")]
+    bias: Annotated[Vec3, doc("Slowly varying environmental force [X, Y, N], earth-fixed axes.", "N, N, N·m")]
+    eta_wf: Annotated[
+        Vec3, doc("Wave-frequency motion [N, E, ψ]; null for an observer without a wave model.", "m, m, rad")
+    ]
+    omega0: Annotated[
+        Vec3,
+        doc(
+            "Wave peak frequency in use by the wave model per DOF [N, E, ψ] (scheduled by "
+            "`gain_scheduled`, blended by `mmae`).",
+            "rad/s",
+        ),
+    ]
+    lat_deg: Annotated[
+        float | None, doc("Latitude of eta (WGS-84, north positive); null before a datum.", "deg")
+    ]
+    lon_deg: Annotated[
+        float | None, doc("Longitude of eta (WGS-84, east positive); null before a datum.", "deg")
+    ]
+    heading_deg: Annotated[float, doc("Heading ψ in [0, 360), clockwise from true north.", "deg")]
+    datum: Annotated[Datum | None, doc("Origin of the local NED frame; null before the first valid fix.")]
+    extra: Annotated[
+        dict[str, Any],
+        doc(
+            "Observer-specific fields (`Observer.extra()`), written at the top level of the JSON after "
+            "the fields above, e.g. `weights` (MMAE)."
+        ),
+    ] = {}
+
+    def encode(self) -> bytes:
+        if not self.extra:  # the fixed-gain observer: `extra` is left out (omit_defaults)
+            return _ENCODER.encode(self)
+        return encode_json(self.to_dict())
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = msgspec.to_builtins(self, enc_hook=_enc_hook)
+        for key, value in out.pop("extra", {}).items():
+            out.setdefault(key, value)  # a declared field wins over an extra of the same name
+        return out
+
+
+class Measurement(Message, kw_only=True):
+    """Fused position/heading measurement y fed to the observer, and the τ it got (Zenoh
+    `<prefix>/measurement`)."""
+
+    TITLE = "dpgw.Measurement"
+
+    stamp_ns: Annotated[int, doc(STAMP, "ns (UTC)")]
+    eta: Annotated[
+        list[float | None],
+        msgspec.Meta(min_length=3, max_length=3),
+        doc("Measured " + ETA + " Lever arms compensated; null where not measured.", "m, m, rad"),
+    ]
+    valid: Annotated[
+        list[bool],
+        msgspec.Meta(min_length=3, max_length=3),
+        doc("Per component of eta [N, E, ψ]: measured and accepted this step."),
+    ]
+    sources: Annotated[list[str], doc("Names (from the config) of the sources that contributed.")]
+    quality: Annotated[
+        Any,
+        doc(
+            "Source quality indicator, free form; the gateway gives the GGA fix quality of the "
+            "position in use (an integer)."
+        ),
+    ]
+    sigma_m: Annotated[
+        float | None, doc("Position standard deviation from the receiver's GST; null if none.", "m")
+    ]
+    tau: Annotated[Vec3, doc("Generalised force the observer was given " + TAU, "N, N, N·m")]
+    tau_source: Annotated[
+        str,
+        doc(
+            "Where tau came from: `feedback` (the thrusters' reported thrust) or `demand` (the last command)."
+        ),
+    ]
+
+
+class Thruster(Record, kw_only=True):
+    id: Annotated[int | str, doc("Thruster id as in the vessel model.")]
+    thrust_n: Annotated[float, doc("Thrust magnitude; negative for reversed thrust.", "N")]
+    azimuth_rad: Annotated[float, doc("Azimuth of the thrust, body frame, from the bow, clockwise.", "rad")]
+
+
+class ThrusterCommand(Message, kw_only=True):
+    """Thrust allocation output (Zenoh `<prefix>/thrusters/command`). Not published in standby."""
+
+    TITLE = "dpgw.ThrusterCommand"
+
+    stamp_ns: Annotated[int, doc(STAMP, "ns (UTC)")]
+    mode: Annotated[Mode, doc("Gateway mode when the command was made.")]
+    tau_demand: Annotated[
+        Vec3, doc("Generalised force demanded by the DP controller or manual input " + TAU, "N, N, N·m")
+    ]
+    tau_allocated: Annotated[
+        Vec3,
+        doc("Generalised force the allocation achieves (the demand without a thruster layout).", "N, N, N·m"),
+    ]
+    saturated: Annotated[
+        bool, doc("The thrusters cannot deliver tau_demand; tau_allocated is the closest they can.")
+    ]
+    thrusters: Annotated[list[Thruster], doc("One entry per thruster; empty without a thruster layout.")]
+    reference: Annotated[Vec3, doc("The reference model's η_d the controller tracks [N, E, ψ].", "m, m, rad")]
+
+
+class ThrusterFeedback(Message, kw_only=True):
+    """Thruster feedback decoded from MAVLink (Zenoh `<prefix>/thrusters/feedback`): the fields of the
+    command, of which only stamp_ns and thrusters are always present."""
+
+    TITLE = "dpgw.ThrusterFeedback"
+
+    stamp_ns: Annotated[int, doc(STAMP, "ns (UTC)")]
+    mode: Annotated[Mode | None, doc("Gateway mode when the feedback arrived.")] = None
+    tau_demand: Annotated[Vec3 | None, doc("Generalised force last demanded " + TAU, "N, N, N·m")] = None
+    tau_allocated: Annotated[
+        Vec3 | None, doc("Generalised force the thrusters report delivering " + TAU, "N, N, N·m")
+    ] = None
+    thrusters: Annotated[list[Thruster], doc("One entry per thruster that reported.")]
+
+
+class SourceStatus(Record, kw_only=True):
+    age_s: Annotated[float | None, doc("Time since the last message; null if none yet.", "s")]
+    received: Annotated[int, doc("Sentences/frames decoded and used or understood (count).")]
+    rejected: Annotated[dict[str, int], doc('Rejected by reason (count), e.g. {"checksum": 2}.')]
+    bytes: Annotated[int, doc("Bytes received (count).")]
+
+
+class Status(Message, kw_only=True):
+    """Gateway health (Zenoh `<prefix>/status`, also the answer to a query on that key)."""
+
+    TITLE = "dpgw.Status"
+
+    stamp_ns: Annotated[int, doc(STAMP, "ns (UTC)")]
+    mode: Annotated[Mode, doc("Current gateway mode.")]
+    observer: Annotated[str, doc("Name of the observer publishing on `<prefix>/estimate`.")]
+    initialized: Annotated[bool, doc("The observer has been initialised (has a first measurement).")]
+    estimates: Annotated[int, doc("Estimates published so far (count).")]
+    sources: Annotated[dict[str, SourceStatus], doc("Per input source, keyed by source name.")]
+    alarms: Annotated[
+        list[str | dict[str, Any]],
+        doc("Active alarms: short strings, or objects with at least `code` and `message`."),
+    ]
+
+
+class Time(Record, kw_only=True):
+    TITLE = "time"
+
+    sec: Annotated[int, msgspec.Meta(ge=0), doc("Whole seconds since the Unix epoch (UTC).", "s")]
+    nsec: Annotated[int, msgspec.Meta(ge=0, le=999_999_999), doc("Nanoseconds within the second.", "ns")]
+
+
+class LocationFix(Message, kw_only=True):
+    """GNSS position fix (WGS-84), for Foxglove's Map panel."""
+
+    # Field names, types and constraints of Foxglove's published JSON schema (same title, so Foxglove
+    # recognises the channel and shows the log on its map); descriptions are ours.
+    TITLE = "foxglove.LocationFix"
+    FOXGLOVE = True
+
+    timestamp: Annotated[Time, doc("Time of the fix (UTC): seconds and nanoseconds since the Unix epoch.")]
+    frame_id: Annotated[str, doc("Name of the antenna / source that produced the fix (`estimate` for η).")]
+    latitude: Annotated[float, doc("Latitude (WGS-84, north positive).", "deg")]
+    longitude: Annotated[float, doc("Longitude (WGS-84, east positive).", "deg")]
+    altitude: Annotated[float, doc("Altitude; 0 when not known.", "m")]
+    position_covariance: Annotated[
+        list[float],
+        msgspec.Meta(min_length=9, max_length=9),
+        doc(
+            "3x3 position covariance, row-major, axes East, North, Up (ENU, Foxglove's convention; not "
+            "NED) in the tangent plane at the fix.",
+            "m²",
+        ),
+    ]
+    position_covariance_type: Annotated[
+        int,
+        doc(
+            "How position_covariance is known: 0 unknown, 1 approximated, 2 diagonal known, 3 known.",
+            schema={
+                "title": "foxglove.PositionCovarianceType",
+                "oneOf": [
+                    {"title": "UNKNOWN", "const": 0},
+                    {"title": "APPROXIMATED", "const": 1},
+                    {"title": "DIAGONAL_KNOWN", "const": 2},
+                    {"title": "KNOWN", "const": 3},
+                ],
+            },
+        ),
+    ]
+    heading: Annotated[float | None, doc("Heading, clockwise from true north; optional.", "rad")] = None
+
+
+class TruthState(Message, kw_only=True):
+    """Simulator ground truth (MCAP `/truth/state`, simulator logs only)."""
+
+    TITLE = "dpgw.TruthState"
+
+    stamp_ns: Annotated[int, doc(STAMP, "ns (UTC)")]
+    eta_lf: Annotated[Vec3, doc("True low-frequency " + ETA, "m, m, rad")]
+    nu: Annotated[Vec3, doc("True low-frequency velocity " + NU, "m/s, m/s, rad/s")]
+    bias: Annotated[Vec3, doc("True environmental force [X, Y, N], earth-fixed axes.", "N, N, N·m")]
+    eta_wf: Annotated[Vec3, doc("True wave-frequency motion [N, E, ψ].", "m, m, rad")]
+    omega0: Annotated[Vec3, doc("True wave peak frequency per DOF [N, E, ψ].", "rad/s")]
+    tau: Annotated[Vec3 | None, doc("Generalised force acting from the thrusters " + TAU, "N, N, N·m")] = None
+    hs_m: Annotated[float | None, doc("Significant wave height of the sea state.", "m")] = None
+
+
+# --- raw inputs, logged exactly as received ---------------------------------------------------------
+
+
+class RawNmea(Message, kw_only=True):
+    """One NMEA 0183 sentence (or chunk of them) exactly as received, valid or not (MCAP
+    `/raw/nmea/<source>`)."""
+
+    TITLE = "dpgw.RawNmea"
+
+    source: Annotated[str, doc("Source name from the configuration.")]
+    text: Annotated[
+        str,
+        doc(
+            "The sentence without its final CR LF. Non-ASCII bytes are shown as backslash escapes, and "
+            "then `data` holds the exact bytes."
+        ),
+    ]
+    data: Annotated[
+        bytes | None,
+        doc("Exact bytes (base64); only when they are not ASCII."),
+    ] = None
+
+
+class RawMavlink(Message, kw_only=True):
+    """One MAVLink frame exactly as received, valid or not (MCAP `/raw/mavlink/<source>`)."""
+
+    TITLE = "dpgw.RawMavlink"
+
+    data: Annotated[bytes, doc("Frame bytes (base64).")]
+    source: Annotated[str, doc("Source name from the configuration.")]
+
+
+# --- Zenoh inputs, logged so a replay sees them ---------------------------------------------------------
+
+
+class Setpoint(Message, kw_only=True):
+    """Position/heading setpoint as received on Zenoh `<prefix>/setpoint` (logged so replay sees it):
+    either north_m/east_m (local NED) or lat_deg/lon_deg, with heading_deg."""
+
+    TITLE = "dpgw.Setpoint"
+
+    north_m: Annotated[float | None, doc("North in the local NED frame.", "m")] = None
+    east_m: Annotated[float | None, doc("East in the local NED frame.", "m")] = None
+    lat_deg: Annotated[float | None, doc("Latitude (WGS-84).", "deg")] = None
+    lon_deg: Annotated[float | None, doc("Longitude (WGS-84).", "deg")] = None
+    heading_deg: Annotated[float, doc("Heading, clockwise from true north.", "deg")]
+
+
+class ModeRequest(Message, kw_only=True):
+    """Mode request as received on Zenoh `<prefix>/mode` (a bare JSON string there), wrapped as an
+    object when logged."""
+
+    TITLE = "dpgw.ModeRequest"
+
+    mode: Annotated[Mode, doc("Requested mode.")]
+
+
+class ManualTau(Message, kw_only=True):
+    """Manual generalised force as received on Zenoh `<prefix>/tau` (body frame)."""
+
+    TITLE = "dpgw.ManualTau"
+
+    X: Annotated[float, doc("Surge force.", "N")]
+    Y: Annotated[float, doc("Sway force.", "N")]
+    N: Annotated[float, doc("Yaw moment.", "N·m")]
+
+
+class AnyObject(Message, kw_only=True):
+    """Free-form JSON object (no schema registered for this topic)."""
+
+    TITLE = "dpgw.Any"
+
+
+# --- where each message goes ----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Topic:
+    """An MCAP topic (a pattern ending in `/` matches every topic under it) and the message on it.
+    `zenoh`: the key under the prefix and its direction (`out`/`in`), when it is also on Zenoh."""
+
+    pattern: str
+    message: type[Message]
+    content: str
+    zenoh: tuple[str, str] | None = None
+
+
+TOPICS: tuple[Topic, ...] = (
+    Topic("/dp/estimate", Estimate, "the primary observer's estimate", ("estimate", "out")),
+    Topic("/dp/measurement", Measurement, "the measurement the observer was given", ("measurement", "out")),
+    Topic("/dp/thrusters/command", ThrusterCommand, "the allocation's command", ("thrusters/command", "out")),
+    Topic(
+        "/dp/thrusters/feedback",
+        ThrusterFeedback,
+        "thruster feedback (MAVLink)",
+        ("thrusters/feedback", "out"),
+    ),
+    Topic("/dp/status", Status, "gateway health, at `status.rate_hz`", ("status", "out")),
+    Topic("/dp/setpoint", Setpoint, "the input as received", ("setpoint", "in")),
+    Topic(
+        "/dp/mode",
+        ModeRequest,
+        "the input, wrapped as `{mode}` (a bare JSON string on Zenoh)",
+        ("mode", "in"),
+    ),
+    Topic("/dp/tau", ManualTau, "the input as received", ("tau", "in")),
+    Topic(
+        "/dp/estimates/",
+        Estimate,
+        "replay only: `/dp/estimates/<label>`, further observers run side by side (`--observer SPEC@label`)",
+    ),
+    Topic("/dp/estimate/fix", LocationFix, "the estimated position, for the map (at most 1 Hz)"),
+    Topic(
+        "/gnss/", LocationFix, "`/gnss/<source>/fix`: each GNSS fix (at most 1 Hz per source), for the map"
+    ),
+    Topic("/truth/state", TruthState, "simulator logs only: the ground truth"),
+    Topic("/raw/nmea/", RawNmea, "`/raw/nmea/<source>`: every NMEA chunk as received, valid or not"),
+    Topic(
+        "/raw/mavlink/", RawMavlink, "`/raw/mavlink/<source>`: every MAVLink frame as received, valid or not"
+    ),
+)
+
+MESSAGES: tuple[type[Message], ...] = tuple(dict.fromkeys(t.message for t in TOPICS))
+"""Every message class on some topic, in the order of `TOPICS`, each once."""
+
+ANY: type[Message] = AnyObject
+"""The message of a topic nobody registered: any JSON object."""
+
+_EXACT = {t.pattern: t.message for t in TOPICS if not t.pattern.endswith("/")}
+_PREFIXES = sorted((t for t in TOPICS if t.pattern.endswith("/")), key=lambda t: -len(t.pattern))
+
+
+def message_for_topic(topic: str) -> type[Message]:
+    """The message class of `topic`: exact match, else the longest matching prefix, else `ANY`."""
+    exact = _EXACT.get(topic)
+    if exact is not None:
+        return exact
+    for t in _PREFIXES:
+        if topic.startswith(t.pattern) and len(topic) > len(t.pattern):
+            return t.message
+    return ANY
