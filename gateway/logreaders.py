@@ -45,6 +45,7 @@ from wire.codecs.nmea_scan import (
     scan_lines,
     used_codes,
 )
+from wire.codecs.nmea_time import time_of_day_or_none
 
 NS = 1_000_000_000
 DAY_NS = 86_400 * NS
@@ -69,18 +70,6 @@ def _checked_fields(line: str) -> list[str] | None:
     return line[1:star].split(",")
 
 
-def _time_of_day(text: str) -> float | None:
-    if len(text) < 6 or not text[:6].isdigit():
-        return None
-    try:
-        h, m, s = int(text[0:2]), int(text[2:4]), float(text[4:])
-    except ValueError:
-        return None
-    if h > 23 or m > 59 or s >= 61:
-        return None
-    return h * 3600 + m * 60 + s
-
-
 def _date(fields: list[str], kind: str) -> date | None:
     try:
         if kind == "RMC" and len(fields) > 9 and len(fields[9]) == 6:
@@ -98,7 +87,7 @@ def _unchecked_time(line: bytes) -> float | None:
     k = 7 if line[3:6] != b"GLL" else -1
     if k < 0:
         return None
-    return _time_of_day(line[k : line.find(b",", k)].decode("ascii", "replace"))
+    return time_of_day_or_none(line[k : line.find(b",", k)].decode("ascii", "replace"))
 
 
 def _sentence_time(line: str) -> tuple[float | None, date | None]:
@@ -109,7 +98,9 @@ def _sentence_time(line: str) -> tuple[float | None, date | None]:
     if fields is None:
         return None, None
     tod = (
-        _time_of_day(fields[5 if kind == "GLL" else 1]) if len(fields) > (5 if kind == "GLL" else 1) else None
+        time_of_day_or_none(fields[5 if kind == "GLL" else 1])
+        if len(fields) > (5 if kind == "GLL" else 1)
+        else None
     )
     return tod, _date(fields, kind)
 

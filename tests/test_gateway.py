@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 import signal
 import socket
 import subprocess
@@ -15,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import zenoh
+from conftest import wait_for
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from jsonschema import Draft202012Validator
@@ -80,6 +80,7 @@ def demo_run(tmp_path_factory: pytest.TempPathFactory) -> dict:  # type: ignore[
     return {"summary": json.loads(stdout), "received": received, "log": out}
 
 
+@pytest.mark.slow  # the demo fixture: 150 s of sea through Zenoh, ~20 s
 def test_estimates_over_zenoh_are_what_the_observer_alone_achieves(demo_run: dict) -> None:  # type: ignore[type-arg]
     received = demo_run["received"]
     assert len(received) > 500
@@ -110,6 +111,7 @@ def test_estimates_over_zenoh_are_what_the_observer_alone_achieves(demo_run: dic
     assert summ["error_vs_truth"]["horizontal_rms_m"] == pytest.approx(s.horizontal_rms_m, rel=0.2, abs=0.08)
 
 
+@pytest.mark.slow  # the demo fixture: 150 s of sea through Zenoh, ~20 s
 def test_demo_counts_every_frame_sent(demo_run: dict) -> None:  # type: ignore[type-arg]
     summ = demo_run["summary"]
     for name, sent in summ["sent"].items():
@@ -117,6 +119,7 @@ def test_demo_counts_every_frame_sent(demo_run: dict) -> None:  # type: ignore[t
         assert got["received"] + sum(got["rejected"].values()) >= 0.99 * sent, name
 
 
+@pytest.mark.slow  # the demo fixture: 150 s of sea through Zenoh, ~20 s
 def test_demo_log_has_every_channel_with_a_schema(demo_run: dict) -> None:  # type: ignore[type-arg]
     with open(demo_run["log"], "rb") as f:
         reader = make_reader(f)
@@ -208,6 +211,7 @@ def _send_nmea(port: int, stop: threading.Event) -> None:
     tx.close()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("how", ["kill", "term"])
 def test_log_survives_kill_9_and_is_complete_after_sigterm(tmp_path: Path, how: str) -> None:
     udp = free_port(socket.SOCK_DGRAM)
@@ -223,7 +227,14 @@ def test_log_survives_kill_9_and_is_complete_after_sigterm(tmp_path: Path, how: 
     sender = threading.Thread(target=_send_nmea, args=(udp, stop))
     sender.start()
     try:
-        time.sleep(4.0)
+        # the gateway is up and logging once its estimates reach the file (crash-safe chunks, flushed about
+        # every second): then the kill has something to lose
+        def estimates_on_disk() -> int:
+            return sum(1 for _ in read_messages(log, "/dp/estimate")) if log.exists() else 0
+
+        wait_for(lambda: proc.poll() is not None or estimates_on_disk() >= 20, 60.0)
+        assert proc.poll() is None, proc.communicate()[1]
+        assert estimates_on_disk() >= 20, "the gateway logged no estimates within 60 s"
         killed_at = time.time_ns()
         proc.send_signal(signal.SIGKILL if how == "kill" else signal.SIGTERM)
         proc.wait(timeout=15)
@@ -238,6 +249,7 @@ def test_log_survives_kill_9_and_is_complete_after_sigterm(tmp_path: Path, how: 
         assert summary(log).complete  # footer and summary written
 
 
+@pytest.mark.slow
 def test_status_queryable_and_inputs(tmp_path: Path) -> None:
     udp = free_port(socket.SOCK_DGRAM)
     zport = free_port()
@@ -351,6 +363,7 @@ GOOD = (
 ).encode()
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(data=st.data())
 def test_mutated_sentences_never_stop_the_pipeline(data: st.DataObject) -> None:
@@ -373,6 +386,7 @@ def test_mutated_sentences_never_stop_the_pipeline(data: st.DataObject) -> None:
     assert p.counters["gps"].received + sum(p.counters["gps"].rejected.values()) >= 1
 
 
+@pytest.mark.slow  # the demo fixture: 150 s of sea through Zenoh, ~20 s
 def test_replaying_the_demo_log_reproduces_the_estimates(demo_run: dict) -> None:  # type: ignore[type-arg]
     log = demo_run["log"]
     live = [p for _, _, _, p in read_messages(log, "/dp/estimate")]
@@ -384,6 +398,20 @@ def test_replaying_the_demo_log_reproduces_the_estimates(demo_run: dict) -> None
     )
 
 
-def test_process_env_is_clean() -> None:
-    assert os.environ.get("ZENOH_CONFIG") is None or True
-    assert isinstance(zenoh.Config(), zenoh.Config)
+def test_test_sessions_ignore_a_zenoh_config_in_the_environment(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A developer's ZENOH_CONFIG (client mode, a router, scouting on) must not join the tests' sessions to
+    other programs: `isolated_config` stays loopback peer with multicast scouting off whatever it says."""
+    cfg = tmp_path / "zenoh.json5"
+    cfg.write_text(
+        '{mode: "client", connect: {endpoints: ["tcp/192.0.2.1:7447"]},'
+        " scouting: {multicast: {enabled: true}}}"
+    )
+    monkeypatch.setenv(zenoh.Config.DEFAULT_CONFIG_PATH_ENV, str(cfg))
+    assert json.loads(zenoh.Config.from_env().get_json("mode")) == "client"  # zenoh does read the variable
+    c = isolated_config(listen=["tcp/127.0.0.1:0"])
+    assert json.loads(c.get_json("mode")) == "peer"
+    assert json.loads(c.get_json("scouting/multicast/enabled")) is False
+    assert json.loads(c.get_json("connect/endpoints")) == []
+    assert json.loads(c.get_json("listen/endpoints")) == ["tcp/127.0.0.1:0"]

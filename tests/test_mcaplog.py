@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from conftest import wait_for
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from jsonschema import Draft202012Validator
@@ -302,11 +303,13 @@ def ticks(path: Path) -> list[tuple[int, int]]:
     return [(payload["i"], log_time) for _, log_time, _, payload in read_messages(path, topics=["/dp/tick"])]
 
 
+@pytest.mark.slow
 def test_kill_9_loses_at_most_about_one_second(tmp_path: Path) -> None:
     path = tmp_path / "killed.mcap"
     proc = start_writer(path)
     try:
-        time.sleep(3.0)
+        # kill once the file holds more than 1.5 s of ticks (so flushes have happened while writing)
+        assert wait_for(lambda: len(ticks(path)) > 50 * 1.5, 60.0), "the writer saved nothing for 60 s"
         kill_ns = time.time_ns()
         proc.send_signal(signal.SIGKILL)
         out, _ = proc.communicate(timeout=10)
@@ -330,7 +333,8 @@ def test_sigterm_closes_the_file_cleanly(tmp_path: Path) -> None:
     path = tmp_path / "terminated.mcap"
     proc = start_writer(path)
     try:
-        time.sleep(1.5)
+        # terminate a writer that has messages both on disk and in its open chunk
+        assert wait_for(lambda: len(ticks(path)) >= 10, 60.0), "the writer saved nothing for 60 s"
         proc.send_signal(signal.SIGTERM)
         out, _ = proc.communicate(timeout=10)
     finally:
@@ -361,8 +365,8 @@ def test_wall_clock_flush_without_further_writes(tmp_path: Path) -> None:
         for i in range(3):
             w.write("/t", {"i": i}, T0)
         assert list(read_messages(path)) == []  # still in the open chunk
-        time.sleep(1.0)  # no more writes: the background thread must hand the chunk over
-        assert [p[3]["i"] for p in read_messages(path)] == [0, 1, 2]
+        # no more writes: the background thread must hand the chunk over on its own
+        assert wait_for(lambda: [p[3]["i"] for p in read_messages(path)] == [0, 1, 2], 10.0)
     finally:
         w.close()
 

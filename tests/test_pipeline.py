@@ -241,6 +241,7 @@ def test_standby_commands_nothing() -> None:
     assert p.mode == "standby" and not [o for o in out if o.topic == "/dp/thrusters/command"]
 
 
+@pytest.mark.slow
 def test_dpgw_listen_prints_what_arrives(tmp_path: Path) -> None:
     import socket
 

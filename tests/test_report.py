@@ -1,4 +1,4 @@
-"""The replay report (gateway/report.py): metrics on synthetic data with known answers, and the files."""
+"""The replay report (gateway/report/): metrics on synthetic data with known answers, and the files."""
 
 from __future__ import annotations
 
@@ -343,15 +343,21 @@ def test_decimate_keeps_the_envelope_and_the_gaps() -> None:
     assert np.array_equal(decimate(t[:100], x[:100], 20_000)[0], t[:100])  # short lines untouched
 
 
-def test_vectorised_welch_matches_scipy() -> None:
-    from scipy import signal
+def test_welch_psd_holds_the_variance_of_a_sinusoid_and_the_level_of_white_noise() -> None:
+    """Parseval for the one-sided PSD per rad/s: ∫ S(ω) dω = variance; for white noise of variance σ²
+    sampled every Δt the level is flat at σ²·Δt/π. Two stretches average with one weight per segment."""
+    from gateway.report.spectra import welch
 
-    from gateway.report import _periodograms
-
-    rng = np.random.default_rng(0)
-    for n, nper in [(1000, 100), (1001, 101), (5000, 333)]:
-        x = rng.normal(size=n) + np.linspace(0.0, 3.0, n)
-        f, p = signal.welch(x, fs=2.0, window="hann", nperseg=nper, noverlap=nper // 2, detrend="linear")
-        f2, total, k = _periodograms(x, 2.0, nper)
-        np.testing.assert_allclose(f2, f)
-        np.testing.assert_allclose(total / k, p, rtol=1e-10)
+    dt, w = 0.5, 0.6
+    t = np.arange(0.0, 4000.0, dt)
+    x = 2.0 * np.sin(w * t)  # variance 2
+    p = welch([x[:5000], x[5000:]], dt, seg_s=400.0, highpass=None)
+    assert p is not None and p.segments >= 2 * 7
+    dw = p.omega[1] - p.omega[0]
+    assert float(np.sum(p.psd) * dw) == pytest.approx(2.0, rel=0.02)
+    assert p.omega[np.argmax(p.psd)] == pytest.approx(w, abs=dw)
+    noise = np.random.default_rng(0).normal(0.0, 0.3, 40_000)
+    q = welch([noise], dt, seg_s=100.0, highpass=None)
+    assert q is not None
+    inner = q.psd[5:-5]  # away from DC (detrend) and Nyquist
+    assert float(np.mean(inner)) == pytest.approx(0.3**2 * dt / math.pi, rel=0.03)

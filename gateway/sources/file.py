@@ -10,11 +10,11 @@ import time
 from typing import IO
 
 from gateway.sources.base import READ_SIZE, Source, SourceError, strerror
+from wire.codecs.nmea_time import time_of_day_or_none
 
 log = logging.getLogger(__name__)
 
 _NMEA_TIME = re.compile(rb"^[$!][A-Z]{2}(GGA|RMC|ZDA|GNS|GST|GBS|GRS|GLL),")
-_HHMMSS = re.compile(rb"(\d{2})(\d{2})(\d{2}(?:\.\d*)?)")
 
 
 def nmea_time_of_day(line: bytes) -> float | None:
@@ -22,17 +22,11 @@ def nmea_time_of_day(line: bytes) -> float | None:
     m = _NMEA_TIME.match(line)
     if m is None:
         return None
-    fields = line.split(b"*", 1)[0].split(b",")
+    fields = line.rstrip(b"\r\n").split(b"*", 1)[0].split(b",")
     index = 5 if m.group(1) == b"GLL" else 1
     if len(fields) <= index:
         return None
-    t = _HHMMSS.fullmatch(fields[index].strip())
-    if t is None:
-        return None
-    hours, minutes, seconds = int(t.group(1)), int(t.group(2)), float(t.group(3))
-    if hours > 23 or minutes > 59 or seconds >= 61:
-        return None
-    return hours * 3600.0 + minutes * 60.0 + seconds
+    return time_of_day_or_none(fields[index].decode("ascii", "replace"))
 
 
 class FileSource(Source):

@@ -41,6 +41,7 @@ from datetime import UTC, date, datetime, timedelta
 from typing import Any, Final, Literal, TypeAlias, TypeVar
 
 from wire.codecs.nmea_encode import checksum
+from wire.codecs.nmea_time import parse_time_of_day
 
 NO_CHECKSUM: Final = "no_checksum"
 BAD_CHECKSUM: Final = "bad_checksum"
@@ -452,20 +453,6 @@ def _count(s: str) -> int | None:
     return int(s)
 
 
-def _tod(s: str) -> float | None:
-    """``hhmmss`` or ``hhmmss.sss`` → seconds of the UTC day (a leap second 60 is accepted)."""
-    if not s:
-        return None
-    if len(s) < 6 or (len(s) > 6 and s[6] != "."):
-        raise ValueError(s)
-    v = float(s)
-    hours, rest = divmod(v, 10000.0)
-    minutes, seconds = divmod(rest, 100.0)
-    if not (v >= 0.0 and hours < 24.0 and minutes < 60.0 and seconds < 61.0):
-        raise ValueError(s)
-    return hours * 3600.0 + minutes * 60.0 + seconds
-
-
 def _degrees_minutes(s: str, hemisphere: str, limit: float, plus: str, minus: str) -> float | None:
     """``d…dmm.mmmm`` + hemisphere → signed degrees within ±limit (full precision: the whole field is one
     float)."""
@@ -571,7 +558,7 @@ _QUALITY: Final = {str(q): q for q in range(10)} | {"": 0}
 
 
 _GGA_LAYOUT: Final[tuple[_Field, ...]] = (
-    (1, "time", _tod, None),
+    (1, "time", parse_time_of_day, None),
     (2, "latitude", _lat, 3),
     (4, "longitude", _lon, 5),
     (6, "quality", _QUALITY.__getitem__, None),  # KeyError for anything but one digit or empty
@@ -601,7 +588,7 @@ def _gns_mode(s: str) -> str:
 
 
 _GNS_LAYOUT: Final[tuple[_Field, ...]] = (
-    (1, "time", _tod, None),
+    (1, "time", parse_time_of_day, None),
     (2, "latitude", _lat, 3),
     (4, "longitude", _lon, 5),
     (6, "mode", _gns_mode, None),
@@ -632,7 +619,7 @@ def _status(s: str) -> str:
 
 
 _RMC_LAYOUT: Final[tuple[_Field, ...]] = (
-    (1, "time", _tod, None),
+    (1, "time", parse_time_of_day, None),
     (2, "status", _status, None),
     (3, "latitude", _lat, 4),
     (5, "longitude", _lon, 6),
@@ -706,7 +693,7 @@ def _vtg(talker: str, p: list[str]) -> Vtg | Reject:
 
 
 _GST_LAYOUT: Final[tuple[_Field, ...]] = (
-    (1, "time", _tod, None),
+    (1, "time", parse_time_of_day, None),
     (2, "rms", _nonneg, None),
     (3, "sigma major", _nonneg, None),
     (4, "sigma minor", _nonneg, None),
@@ -739,7 +726,7 @@ def _zda(talker: str, p: list[str]) -> Zda | Reject:
         return _too_few("ZDA", p, 4)
     i = 1
     try:
-        time_s = _tod(p[1])
+        time_s = parse_time_of_day(p[1])
         i = 2
         day = _count(p[2])
         month = _count(p[3])

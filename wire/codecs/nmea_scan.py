@@ -14,11 +14,13 @@ clean, checksum-verified sentence:
   lines down the ordinary path, which counts them with their reasons. Nothing is decided here.
 * ``BLANK`` and ``DUPLICATE`` (identical to the previous non-blank line), as `logreaders` counts them.
 
-and, for the timed sentences GGA/GNS/RMC/ZDA (field 1 = hhmmss[.s…]), the time of day in seconds
-computed as `logreaders._time_of_day` does: ``h*3600 + m*60 + s`` with ``s`` parsed exactly (at most 11
-significant digits divided by a power of ten is the correctly rounded float, the value ``float()``
-gives). Lines whose time the kernel does not decide — GLL (time in field 5), a dirty timed line, an
-unusual time format — are marked ``TIME_ASK`` for the reader to evaluate with the reference functions.
+and, for the timed sentences GGA/GNS/RMC/ZDA (field 1 = hhmmss[.s…]), the time of day in seconds: the
+compiled copy of the one readable parser `wire.codecs.nmea_time.parse_time_of_day`, ``h*3600 + m*60 + s``
+with ``s`` parsed exactly (at most 11 significant digits divided by a power of ten is the correctly
+rounded float, the value ``float()`` gives). tests/test_nmea_scan.py holds the two to the same value on
+generated fields (hypothesis). Lines whose time the kernel does not decide — GLL (time in field 5), a
+dirty timed line, an unusual time format — are marked ``TIME_ASK`` for the reader to evaluate with the
+readable parser.
 
 The readable reference is the ordinary path itself: tests/test_replay.py checks that the fast reader
 gives the same events, counts and pipeline outputs as `logreaders.nmea_text_events_reference` on the
@@ -75,7 +77,9 @@ def _same(buf, a0, a1, prev) -> bool:  # type: ignore[no-untyped-def]
 
 @njit(cache=True)
 def _time_field(buf, a, b):
-    """Time of day (s) of buf[a:b] = hhmmss[.f{1,9}]: (status, seconds)."""
+    """Time of day (s) of buf[a:b] = hhmmss[.f{1,9}]: (status, seconds). The fast kernel of
+    `nmea_time.parse_time_of_day`: TIME_OK with its value, TIME_NONE where it gives None or refuses the
+    range, TIME_ASK for any other form (it decides those)."""
     n = b - a
     if n == 0:
         return TIME_NONE, 0.0

@@ -1,0 +1,106 @@
+"""The report's input: one observer's estimates, a replay's measurements and truth; checked and sorted.
+
+`ObserverTrace` and `ReplayData` are what a caller hands to `compute_metrics` / `write_report`; `prepare`
+turns them into float arrays of checked shapes, sorted by time, which every other part of the report reads.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+Array = NDArray[np.float64]
+
+DOF = ("north", "east", "heading")
+DOF_SYMBOL = ("N", "E", "ψ")
+
+
+@dataclass(frozen=True)
+class ObserverTrace:
+    """One observer's estimates; arrays (n,) or (n, 3), SI units and radians."""
+
+    label: str  # e.g. "passive", "passive_T9"
+    t: NDArray[Any]  # seconds since the replay's start
+    eta: NDArray[Any]  # LF estimate [N, E, ψ]
+    nu: NDArray[Any]  # [u, v, r]
+    bias: NDArray[Any]  # earth-fixed bias [X, Y, N] (N, N, N·m)
+    eta_wf: NDArray[Any]  # WF estimate [N, E, ψ]
+    omega0: NDArray[Any]  # wave frequency in use per DOF (rad/s); constant for a fixed-gain observer
+
+
+@dataclass(frozen=True)
+class ReplayData:
+    """Everything a replay report shows."""
+
+    title: str  # e.g. log file name(s)
+    vessel: str
+    t_meas: NDArray[Any]  # (m,) measurement times, s
+    y: NDArray[Any]  # (m, 3) measurements [N, E, ψ], NaN where missing
+    traces: tuple[ObserverTrace, ...]
+    truth_t: NDArray[Any] | None = None  # simulator logs: /truth/state
+    truth_eta_lf: NDArray[Any] | None = None
+    truth_eta_wf: NDArray[Any] | None = None
+    # per source {"received": n, "<reject reason>": n, ...};
+    # per input log {"truncated": n, "time_gap": n, "time_backwards": n, ...}
+    counts: Mapping[str, Mapping[str, int]] = field(default_factory=dict)
+
+
+def _col3(a: NDArray[Any] | None, n: int) -> Array:
+    """An (n, 3) float array from (n, 3) or (n,) (broadcast to the three DOFs); NaN if missing."""
+    if a is None:
+        return np.full((n, 3), np.nan)
+    x = np.asarray(a, dtype=float)
+    if x.ndim == 1:
+        x = np.repeat(x[:, None], 3, axis=1)
+    if x.shape != (n, 3):
+        raise ValueError(f"expected an array of shape ({n}, 3) or ({n},), got {x.shape}")
+    return x
+
+
+@dataclass(frozen=True)
+class PreparedTrace:
+    """One `ObserverTrace` as (n, 3) float arrays (an (n,) input broadcast to the three DOFs), sorted by
+    time."""
+
+    label: str
+    t: Array
+    eta: Array
+    nu: Array
+    bias: Array
+    eta_wf: Array
+    omega0: Array
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """The report's inputs as float arrays of checked shapes, sorted by time."""
+
+    t_meas: Array
+    y: Array
+    traces: list[PreparedTrace]
+    truth: tuple[Array, Array, Array | None] | None  # t, η_LF, η_WF
+
+
+def prepare(data: ReplayData) -> Prepared:
+    """Check the shapes and sort every record by time (stable: equal times keep their order)."""
+    t_meas = np.asarray(data.t_meas, dtype=float).reshape(-1)
+    o = np.argsort(t_meas, kind="stable")
+    y = _col3(data.y, len(t_meas))[o]
+    traces = []
+    for tr in data.traces:
+        t = np.asarray(tr.t, dtype=float).reshape(-1)
+        n = len(t)
+        oo = np.argsort(t, kind="stable")
+        arrays = [_col3(a, n)[oo] for a in (tr.eta, tr.nu, tr.bias, tr.eta_wf, tr.omega0)]
+        traces.append(PreparedTrace(str(tr.label), t[oo], *arrays))
+    truth = None
+    if data.truth_t is not None and data.truth_eta_lf is not None and len(data.truth_t) > 1:
+        tt = np.asarray(data.truth_t, dtype=float).reshape(-1)
+        to = np.argsort(tt, kind="stable")
+        wf = _col3(data.truth_eta_wf, len(tt))[to] if data.truth_eta_wf is not None else None
+        truth = (tt[to], _col3(data.truth_eta_lf, len(tt))[to], wf)
+    return Prepared(t_meas[o], y, traces, truth)

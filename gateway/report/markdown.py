@@ -1,0 +1,96 @@
+"""The report's `report.md`: span, settle time and wave band, the measurement's dominant frequency, one
+table per observer, the bad-input counts and the plots (or why there are none).
+
+Numbers come from `compute_metrics` (SI units, radians); here heading is shown in degrees (deg² for the
+mean square) and a missing value as "–".
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from gateway.report.data import DOF, DOF_SYMBOL, ReplayData
+
+
+def _fmt(x: Any, digits: int = 3, scale: float = 1.0) -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "–"
+    return f"{float(x) * scale:.{digits}g}"
+
+
+def report_markdown(data: ReplayData, m: dict[str, Any], plot_note: str, pngs: Sequence[Path]) -> str:
+    deg = math.degrees(1.0)
+    lines = [f"# Replay report: {data.title}", ""]
+    lines += [
+        f"- vessel: {data.vessel or '–'}",
+        f"- span: {_fmt(m['span_s'][0], 6)} s to {_fmt(m['span_s'][1], 6)} s ({_fmt(m['duration_s'], 4)} s)",
+        f"- measurements: {m['measurement']['samples']} samples; metrics after a settle time of "
+        f"{_fmt(m['settle_s'], 4)} s",
+        f"- wave band searched: {m['wave_band_rad_s'][0]:.3g}–{m['wave_band_rad_s'][1]:.3g} rad/s "
+        f"— {m['wave_band_basis']}",
+        f"- ground truth: {'yes (simulator log)' if m['truth'] else 'no'}",
+        "",
+        "## Measurement: dominant wave frequency",
+        "",
+        "| DOF | valid samples | sample interval (s) | peak ω (rad/s) | peak period (s) | Welch segments |",
+        "|---|---|---|---|---|---|",
+    ]
+    for k, d in enumerate(DOF):
+        md = m["measurement"][d]
+        edge = " (band edge: no clear wave peak)" if md["peak_at_band_edge"] else ""
+        lines.append(
+            f"| {DOF_SYMBOL[k]} | {md['valid']} | {_fmt(md['sample_interval_s'])} | "
+            f"{_fmt(md['dominant_frequency_rad_s'])}{edge} | {_fmt(md['dominant_period_s'])} | "
+            f"{md['psd_segments']} |"
+        )
+    units = ("N (m)", "E (m)", "ψ (deg)")
+    for label, od in m["observers"].items():
+        lines += ["", f"## Observer `{label}`", ""]
+        head = (
+            "| DOF | ω₀ in use (rad/s) | attenuation at peak (dB) | innovation mean | innovation std | "
+            "innovation RMS | lag-1 autocorr. | smoothness ratio |"
+        )
+        sep = "|---|---|---|---|---|---|---|---|"
+        if m["truth"]:
+            head += " RMS error LF | mean square error LF | RMS error WF |"
+            sep += "---|---|---|"
+        lines += [head, sep]
+        for k, d in enumerate(DOF):
+            dd = od[d]
+            s = deg if k == 2 else 1.0
+            inn = dd["innovation"]
+            row = (
+                f"| {units[k]} | {_fmt(dd['omega0_median_rad_s'])} | {_fmt(dd['attenuation_db'])} | "
+                f"{_fmt(inn['mean'], 3, s)} | {_fmt(inn['std'], 3, s)} | {_fmt(inn['rms'], 3, s)} | "
+                f"{_fmt(inn['lag1_autocorrelation'], 2)} | {_fmt(dd['smoothness']['ratio'], 2)} |"
+            )
+            if m["truth"]:
+                row += (
+                    f" {_fmt(dd['rms_error'], 3, s)} | {_fmt(dd['mean_square_error'], 3, s * s)} | "
+                    f"{_fmt(dd['rms_error_wf'], 3, s)} |"
+                )
+            lines.append(row)
+        lines.append("")
+        lines.append(
+            f"{od['samples']} estimates. Heading rows in degrees (mean square in deg²). Smoothness ratio = "
+            "std of the LF estimate's first difference / that of the measurement (< 1: smoother)."
+        )
+    lines += ["", "## Bad input", ""]
+    if m["counts"]:
+        lines += ["| source / log | counter | count |", "|---|---|---|"]
+        for src, c in m["counts"].items():
+            for reason, n in c.items():
+                lines.append(f"| {src} | {reason} | {n} |")
+    else:
+        lines.append("No counts were passed to the report.")
+    lines += ["", "## Plots", ""]
+    if pngs:
+        for p in pngs:
+            lines += [f"![{p.stem}]({p.name})", ""]
+    else:
+        lines.append(plot_note)
+    lines += ["", "Numbers: `metrics.json` (SI units, radians). Definitions: dpgw `docs/report.md`.", ""]
+    return "\n".join(lines)
