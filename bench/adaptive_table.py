@@ -1,4 +1,5 @@
-"""Issue 7's table: fixed-gain passive, gain-scheduled and MMAE observers side by side per scenario.
+"""The adaptive-observer table: fixed-gain passive, gain-scheduled and MMAE observers side by side, per
+scenario.
 
 Each scenario is simulated to a log with ground truth, then replayed through the gateway pipeline with the
 three observers at once on the same measurements (`dpgw replay`'s machinery). `torsetnes_2004`: the gateway

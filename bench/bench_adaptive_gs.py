@@ -1,6 +1,6 @@
 """Benchmark: gain-scheduled observer vs the fixed passive observer, batch `run`, same 10 Hz input.
 
-Target (issue 7): the gain-scheduled observer within 2× the fixed passive observer's time. Both run the same
+Target: the gain-scheduled observer within 2× the fixed passive observer's time. Both run the same
 compiled passive kernel; the gain-scheduled one also feeds the ω0 estimator (vectorised appends between
 updates, one Welch spectrum every update period) and recomputes its gains at every sample while ω0 moves.
 

@@ -1,6 +1,6 @@
 """Benchmark: the thrust-allocation QP on a six-thruster vessel, QP solvers side by side.
 
-Target (issue 5): median ≤ 200 µs and p99 ≤ 1 ms per solve for six thrusters (mss_supply: 3 azimuths and
+Target: median ≤ 200 µs and p99 ≤ 1 ms per solve for six thrusters (mss_supply: 3 azimuths and
 3 tunnels; 15 variables, 57 general rows, 15 bounds). A closed-loop run of `QPAllocator` (DAQP) on a DP-like
 demand (slow swings, noise, a stretch beyond capacity, a forbidden sector on the bow azimuth) records the
 QP of every step; then every solver solves the same sequence of QPs in order, each warm-started and with
@@ -365,7 +365,7 @@ def main() -> None:
             continue
         print(f"{name:48s} {r['median_us']:10.1f} {r['p99_us']:10.1f} {r['dev']:9.1e} {int(r['failed']):7d}")
     print("dev: largest |x - x_daqp| (scaled units; cvxpy: forces / T_max) over the solved steps")
-    print("target (issue 5): median <= 200 µs, p99 <= 1000 µs per solve")
+    print("target: median <= 200 µs, p99 <= 1000 µs per solve")
 
 
 if __name__ == "__main__":

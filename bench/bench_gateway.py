@@ -1,4 +1,4 @@
-"""Benchmark: the live gateway's latency, CPU and memory (issue 4).
+"""Benchmark: the live gateway's latency, CPU and memory.
 
 The gateway is a real ``dpgw run`` subprocess: a UDP NMEA source, Zenoh listening on an isolated loopback
 endpoint, MCAP logging on with the defaults (zstd, 1 s flush, fsync). This process is both the sensor and

@@ -1,7 +1,7 @@
 """Benchmark: the MMAE wave filter (eight 15-state Kalman filters) in batch replay, per-sample `step`, and
 the passive observer's batch rate on the same data as a reference ratio.
 
-Target (issue 7): MMAE batch >= 100,000 samples/s with eight filters. Side by side in the same run:
+Target: MMAE batch >= 100,000 samples/s with eight filters. Side by side in the same run:
 `PassiveObserver(...).run` on the same input (the reference ratio), and the straightforward numpy
 implementation of the same MMAE (`observers.mmae.reference_run`), timed on a slice.
 

@@ -1,6 +1,6 @@
 """Benchmark: passive observer per-sample `step` and batch `run` on 24 h of 10 Hz data.
 
-Targets (issue 2): batch >= 1,000,000 samples/s, step <= 20 µs. Side by side in the same run with the
+Targets: batch >= 1,000,000 samples/s, step <= 20 µs. Side by side in the same run with the
 straightforward numpy implementation of the same equations (`observers.passive.reference_run`), which is
 timed on a slice (a full day would take minutes) and reported as samples/s and as a ratio.
 

@@ -1,4 +1,4 @@
-"""Benchmark: end-to-end replay throughput on an NMEA text log (issue 6).
+"""Benchmark: end-to-end replay throughput on an NMEA text log.
 
 Target: >= 100,000 sentences/s (passive observer, MCAP output), so a day of 10 Hz data replays in well
 under a minute. The log is made by the simulator (torsetnes_2004, 10 Hz DGPS: GGA, RMC, VTG, GST/ZDA at

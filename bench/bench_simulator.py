@@ -1,6 +1,6 @@
 """Benchmark: simulate 1 h of sim time with 10 Hz sensors, writing everything to MCAP.
 
-Target (issue 3): >= 360x real time (<= 10 s for the hour). Two cases, side by side in one run:
+Target: >= 360x real time (<= 10 s for the hour). Two cases, side by side in one run:
 - fossen_strand_1999: DGPS 10 Hz (GGA, RMC, VTG at 10 Hz; GST, ZDA at 1 Hz), gyro 10 Hz (HDT, ROT),
   truth at 10 Hz, every burst and the truth to MCAP (zstd); no thruster layout (τ acts directly).
 - torsetnes_2004: the same sensors plus six thrusters with their dynamics, reporting

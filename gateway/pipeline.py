@@ -134,7 +134,7 @@ class PipelineSpec:
     extra_observers: tuple[tuple[str, Observer], ...] = ()
     """More observers fed the same y and τ (replay: side by side), published on /dp/estimates/<label>."""
     control: ControlConfig | None = None
-    """DP controller and allocation (issue 5); None: estimation only."""
+    """DP controller and allocation; None: estimation only."""
 
     @classmethod
     def from_config(cls, config: GatewayConfig) -> PipelineSpec:

@@ -1,6 +1,6 @@
 """Thruster commands coming back into the simulator: the HIL loop closed from outside.
 
-Two ways in (issue 3): the dpgw dialect's AZIMUTH_THRUSTER_COMMAND over the MAVLink link (bytes that
+Two ways in: the dpgw dialect's AZIMUTH_THRUSTER_COMMAND over the MAVLink link (bytes that
 peers send back on the simulator's UDP/TCP/pty MAVLink sink), and JSON on Zenoh
 ``<prefix>/thrusters/command`` (DESIGN.md: ``thrusters: [{id, thrust_n, azimuth_rad}]``). Both yield
 `ThrusterCommand`s; the runner applies them. Bad input is counted, never raised.

@@ -1,7 +1,7 @@
 """Named, reproducible simulator scenarios from the papers behind dpgw.
 
 Each scenario fixes the vessel, the sea (a schedule of `SeaState`s), the slowly varying environment,
-the sensors and faults, and — until the gateway commands the thrusters (the DP controller, issue 5) —
+the sensors and faults, and — until the gateway commands the thrusters (the DP controller) —
 a prescribed generalised force τ(t, ship) that the thrusters are asked to deliver. Where a paper does
 not give a number, the choice is made here and said in ``notes`` (and in docs/scenarios.md).
 

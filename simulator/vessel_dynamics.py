@@ -3,7 +3,7 @@
     η' = J(ψ) ν                                                   Fossen & Strand (1999) eq (1)
     M ν' + D ν = τ_thrusters + Jᵀ(ψ) b + τ_drift                  eq (3), plus mean wave drift (body frame)
 
-integrated by classical RK4 with a fixed internal step (≤ 0.05 s, issue 3), the forces held over each
+integrated by classical RK4 with a fixed internal step (≤ 0.05 s), the forces held over each
 step. ψ is kept in [-π, π). The wave-frequency motion is added on top by the sensors' caller
 (`simulator.waves`), never fed back: the LF/WF superposition of the paper's Sec. 2.4.
 """

@@ -1,4 +1,4 @@
-"""Thrust allocation (issue 5): gateway/control/allocation.py.
+"""Thrust allocation: gateway/control/allocation.py.
 
 The constrained QP (DAQP) is checked against the thrusters' physical limits directly, against the
 unconstrained weighted pseudo-inverse where no limit is active, and against an independent cvxpy

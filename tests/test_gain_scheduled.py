@@ -1,5 +1,6 @@
 """Gain-scheduled wave filtering, Torsetnes, Jouffroy & Fossen (2004): the ω0 estimator, the scheduled
-observer, the contraction check, and the measurements of issue 7 on simulated supply-vessel data.
+observer, the contraction check, and the measurements behind the adaptive observers on simulated
+supply-vessel data.
 
 Data: the `torsetnes_2004` scenario's MSS supply vessel at (0, 0), heading 45°, in a JONSWAP sea through the
 vessel's RAOs (`simulator.waves.WaveField`), plus a low-frequency motion from the vessel's LF dynamics
@@ -276,7 +277,7 @@ def test_contraction_check_refuses_an_impossible_range() -> None:
         GainScheduledObserver(VESSEL, omega0_initial=2.0)
 
 
-# --- the measurements of issue 7 --------------------------------------------------------------------------
+# --- the measurements behind the adaptive observers -----------------------------------------------------
 
 
 def test_adapts_from_the_badly_tuned_start() -> None:

@@ -1,4 +1,4 @@
-"""The gateway service end to end (issue 4): real transports, Zenoh in another process, MCAP, failures."""
+"""The gateway service end to end: real transports, Zenoh in another process, MCAP, failures."""
 
 from __future__ import annotations
 

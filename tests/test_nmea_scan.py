@@ -145,6 +145,7 @@ def damaged_log(draw: Any) -> bytes:
     return text.encode("utf-8", "surrogateescape")
 
 
+@pytest.mark.slow
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(damaged_log(), st.sampled_from([64, 200, 1 << 20]), st.booleans())
 def test_damaged_logs_same_events_counts_and_outputs(

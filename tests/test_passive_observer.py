@@ -98,6 +98,7 @@ def _continuous_reference(vessel, gains, t, y, tau, x0):  # type: ignore[no-unty
     return np.array(X)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rate_hz", [1.0, 10.0, 50.0])
 def test_discrete_observer_matches_continuous_time(rate_hz: float) -> None:
     """Discrete observer (RK4 sub-steps) against a tight-tolerance integration of (22)–(26).

@@ -1,4 +1,4 @@
-"""The pipeline's fusion rules (issue 4): lever arms, failover, staleness, MAVLink sources and signing."""
+"""The pipeline's fusion rules: lever arms, failover, staleness, MAVLink sources and signing."""
 
 from __future__ import annotations
 

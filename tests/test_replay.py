@@ -1,4 +1,4 @@
-"""Replay (issue 6): real NMEA logs, simulator and gateway logs, bad time, several observers, tlogs."""
+"""Replay: real NMEA logs, simulator and gateway logs, bad time, several observers, tlogs."""
 
 from __future__ import annotations
 
@@ -146,7 +146,7 @@ def test_several_observers_side_by_side(tmp_path: Path) -> None:
 
 
 def test_adaptive_observers_publish_omega0_and_weights_in_the_log(tmp_path: Path) -> None:
-    """Issue 7, item 4, end to end: the gain-scheduled observer's ω0 (and its estimator's fields) and the
+    """End to end: the gain-scheduled observer's ω0 (and its estimator's fields) and the
     MMAE's ω0, weights and identified noise reach the estimate messages of the MCAP replay writes."""
     inputs = open_inputs([need(USV / "202412051037.txt")])
     config = build_config(inputs, vessel="cybership2")
@@ -219,6 +219,7 @@ def test_tlog_replay(tmp_path: Path) -> None:
     assert len(est) > 50 and est[-1]["eta"][2] == pytest.approx(0.7, abs=0.01)
 
 
+@pytest.mark.slow
 def test_speed_publishes_on_zenoh_as_if_live(tmp_path: Path) -> None:
     """`--speed 10`: estimates go out on Zenoh (in another process, this test's) paced at 10× the log's
     time, as a live gateway would publish them."""

@@ -1,4 +1,4 @@
-"""The simulator's plant: LF dynamics, thrusters, environment (issue 3 items 1–3)."""
+"""The simulator's plant: LF dynamics, thrusters, environment."""
 
 from __future__ import annotations
 

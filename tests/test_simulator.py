@@ -1,4 +1,4 @@
-"""The simulator end to end (issue 3): real transports, independent parsers, seeds, truth, closed loop."""
+"""The simulator end to end: real transports, independent parsers, seeds, truth, closed loop."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Station keeping (issue 5): the gateway's observer, controller and allocation close the loop on the
+"""Station keeping: the gateway's observer, controller and allocation close the loop on the
 simulator (in process: the simulator's bytes in, the gateway's thruster commands out)."""
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from simulator.spectra import SeaState
 HOLD = [(0.0, "setpoint", {"north_m": 0.0, "east_m": 0.0, "heading_deg": 45.0})]
 
 
+@pytest.mark.slow
 def test_torsetnes_station_keeping_in_6_m_seas() -> None:
     """MSS supply vessel at (0, 0), heading 45°, JONSWAP Hs 6 m: 30 min after a 5 min settle, horizontal
     position error p95 ≤ 2.0 m and heading error p95 ≤ 2° (measured: 1.18 m, 1.24° for seed 1)."""
@@ -42,6 +43,7 @@ def _wave_band_thrust(r: ClosedLoopRun, omega_p: float) -> np.ndarray:
     return np.asarray(sosfiltfilt(sos, thrust[t > 300.0], axis=0).std(axis=0))
 
 
+@pytest.mark.slow
 def test_wave_filtering_pays_20_db_in_commanded_thrust() -> None:
     """The same controller fed the raw measurements (position, heading and a filtered derivative for the
     velocity; no observer) commands ≥ 10× (20 dB) more wave-band thrust variation (measured: 13×)."""
@@ -53,6 +55,7 @@ def test_wave_filtering_pays_20_db_in_commanded_thrust() -> None:
     assert np.linalg.norm(raw) / np.linalg.norm(filtered) >= 10.0
 
 
+@pytest.mark.slow
 def test_10_m_setpoint_step_overshoot_below_1_m() -> None:
     """A 10 m step north at t = 300 s (moderate sea, Hs 2 m): reached with overshoot ≤ 1 m (measured
     0.39 m on the true LF motion), settling near the target."""

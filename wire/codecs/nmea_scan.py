@@ -1,6 +1,6 @@
 """Batch line scan of NMEA text (replay's fast path): one compiled pass over a buffer of whole lines.
 
-Replay must take a raw NMEA log at >= 100,000 sentences/s (issue 6). Per line, Python pays ~2 µs just to
+Replay must take a raw NMEA log at >= 100,000 sentences/s. Per line, Python pays ~2 µs just to
 iterate, frame and checksum a sentence, before any decoding. This kernel does, for every line of a block
 at once, the checks that decide whether the ordinary path (framer → decoder) would see the line as one
 clean, checksum-verified sentence:
