@@ -9,6 +9,7 @@ measures the sensors' σ and the wave motion's σ from the data and designs its 
 | ``passive`` | Fossen & Strand (1999) | `observers.passive` |
 | ``gain_scheduled`` | Torsetnes, Jouffroy & Fossen (2004) | `observers.gain_scheduled` |
 | ``mmae`` | Hassani, Pascoal, Aguiar & Athans | `observers.mmae` |
+| ``sdre`` | Snijders, van der Woude & Westhuis (2005) | `observers.sdre` |
 
 Every observer has the same face: ``step(t, y, tau) -> PassiveEstimate``, ``run(t, y, tau)``,
 ``initialized``, ``omega0`` (the wave frequency in use per DOF) and ``extra()`` (fields for the estimate
@@ -26,7 +27,20 @@ from observers.passive import PassiveEstimate, PassiveObserver, PassiveRun
 from observers.passive_tuning import PassiveTuning
 from observers.vessel import VesselModel
 
-OBSERVER_TYPES = ("passive", "gain_scheduled", "mmae")
+# SDRE: the observer's own physical tuning (observers.sdre_tuning.SdreTuning); ω0 and ζ come from the
+# common tuning like every observer's.
+SDRE_PARAMS = (
+    "position_sigma_m",
+    "heading_sigma_rad",
+    "sample_period_s",
+    "wave_sigma",
+    "lf_bandwidth_ratio",
+    "lf_bandwidth",
+    "velocity_weight",
+    "position_weight",
+)
+
+OBSERVER_TYPES = ("passive", "gain_scheduled", "mmae", "sdre")
 
 OBSERVER_PARAMS: dict[str, tuple[str, ...]] = {
     "passive": (),
@@ -41,6 +55,7 @@ OBSERVER_PARAMS: dict[str, tuple[str, ...]] = {
         "warmup_s",
         "max_gap_s",
     ),
+    "sdre": SDRE_PARAMS,
 }
 
 
@@ -98,6 +113,12 @@ def make_observer(
             allow_unchecked=allow_unchecked,
             **params,
         )
+    if kind == "sdre":
+        from observers.sdre import SdreObserver
+        from observers.sdre_tuning import SdreTuning
+
+        common = tuning or PassiveTuning()
+        return SdreObserver(vessel, SdreTuning(omega0=common.omega0, zeta=common.zeta, **params))
     import numpy as np
 
     from observers.mmae import MMAEObserver
