@@ -15,7 +15,8 @@ terms instead, so that the same numbers work on a 1:70 model and on a 200 m ship
 * Measurement noise, R: ``position_sigma_m`` (N and E alike) and ``heading_sigma_rad``, the 1σ noise of
   one sample, turned into a continuous-time intensity by the sample period: Rᵢ = σᵢ² · ``sample_period_s``.
 * Wave model, Q for ξ: the paper's model (Sec. 2.3) drives only ξ2 (Σ2 = [0; Σ]); its weight makes the
-  stationary standard deviation of η_w equal ``wave_sigma`` (m, m, rad): Q_ξ2,i = 4 ζᵢ ω0ᵢ σ_w,i², Q_ξ1 = 0.
+  stationary standard deviation of η_w equal ``wave_sigma_m`` (N, E) and ``wave_sigma_rad`` (heading):
+  Q_ξ2,i = 4 ζᵢ ω0ᵢ σ_w,i², Q_ξ1 = 0.
 * Low-frequency model, Q for η, ν, b: neglecting damping, one DOF is the chain b' = w_b, ν' = b/m + w_ν,
   η' = ν + w_η measured as y = η + v. Its steady Kalman error poles are the stable roots of
   (spectral factorisation)::
@@ -26,9 +27,17 @@ terms instead, so that the same numbers work on a 1:70 model and on a 200 m ship
   the pole pattern is set by the dimensionless α, β alone and scaled by the LF bandwidth ω_b (rad/s), for
   any vessel and any unit system (α = β = 0: a third-order Butterworth pattern at ω_b). ω_b is set
   relative to the wave frequency (``lf_bandwidth_ratio`` = ω_b/ω0; a wave filter needs ω_b well below
-  ω0) or explicitly (``lf_bandwidth``). m is M₃₃ for yaw and √(M₁₁M₂₂) for north and east: the bias is
-  earth-fixed (it enters as Jᵀ(ψ)b), so its weight must be the same in N and E for the filter not to
-  prefer a compass direction.
+  ω0, and a DP controller needs it above its own bandwidth) or explicitly (``lf_bandwidth``). m is M₃₃
+  for yaw and √(M₁₁M₂₂) for north and east: the bias is earth-fixed (it enters as Jᵀ(ψ)b), so its
+  weight must be the same in N and E for the filter not to prefer a compass direction.
+
+  The r in these weights is a reference, not the gyro's noise: the position noise for N and E, and for
+  yaw the position noise seen at a lever ℓ (``yaw_lever_m``, default half the vessel's length),
+  r_ψ = r_N/ℓ², so that yaw and sway uncertainty are weighed alike (a heading error δψ moves the bow by
+  ℓ δψ). Taken from a good gyro instead, the yaw model looks nearly perfect, and through the sway–yaw
+  coupling of M and D the filter then reads sway motion out of heading innovations: on the
+  snijders_2005 case (seed 1) a 0.05° gyro raised the sway error from 2.1e-2 to 1.7e-1 m² that way
+  (docs/sdre.md). R itself is the sensors' noise.
 
 **One Riccati solution for every heading.** A depends on x̂ only through ψ̂. With S(ψ) =
 blockdiag(J, I, J, J, J) (η, b, ξ1, ξ2 turn with the heading; ν is body-fixed), A(ψ) = S A(0) Sᵀ and
@@ -84,11 +93,14 @@ class SdreTuning:
     position_sigma_m:    1σ noise of one position sample (N and E).
     heading_sigma_rad:   1σ noise of one heading sample.
     sample_period_s:     the measurement interval that turns σ² into an intensity (R = σ² Δt).
-    wave_sigma:          expected standard deviation of the wave-frequency motion (m, m, rad).
+    wave_sigma_m:        expected standard deviation of the wave-frequency motion in N and E (m).
+    wave_sigma_rad:      expected standard deviation of the wave-frequency heading motion (rad).
     lf_bandwidth_ratio:  ω_b/ω0, the bandwidth of the low-frequency estimate relative to the wave frequency.
     lf_bandwidth:        explicit ω_b (rad/s), overrides lf_bandwidth_ratio.
     velocity_weight:     β of the pole pattern (module docstring): velocity process noise q_ν = β r ω_b⁴.
     position_weight:     α: position process noise q_η = α r ω_b².
+    yaw_lever_m:         ℓ of the yaw LF weights' reference r_ψ = r_position/ℓ² (default half the vessel's
+                         length; module docstring).
     """
 
     omega0: Any = 2 * math.pi / 7.0
@@ -96,11 +108,13 @@ class SdreTuning:
     position_sigma_m: float = 0.5
     heading_sigma_rad: float = math.radians(0.2)
     sample_period_s: float = 1.0
-    wave_sigma: Any = (1.0, 1.0, math.radians(1.0))
-    lf_bandwidth_ratio: Any = 0.1
+    wave_sigma_m: float = 1.0
+    wave_sigma_rad: float = math.radians(1.0)
+    lf_bandwidth_ratio: Any = 0.2
     lf_bandwidth: Any = None
     velocity_weight: Any = 2.0
     position_weight: Any = 0.0
+    yaw_lever_m: float | None = None
 
     def with_omega0(self, omega0: ArrayLike) -> SdreTuning:
         return replace(self, omega0=omega0)
@@ -121,10 +135,15 @@ def sdre_weights(vessel: VesselModel, tuning: SdreTuning | None = None) -> SdreW
     tuning = tuning or SdreTuning()
     w0 = _vec3(tuning.omega0, "omega0")
     zeta = _vec3(tuning.zeta, "zeta")
-    sig = _vec3([tuning.position_sigma_m, tuning.position_sigma_m, tuning.heading_sigma_rad], "sigma")
+    sig = _vec3(
+        [tuning.position_sigma_m, tuning.position_sigma_m, tuning.heading_sigma_rad],
+        "position_sigma_m, heading_sigma_rad",
+    )
     dt = _vec3(tuning.sample_period_s, "sample_period_s")
     r = sig**2 * dt
-    wave = _vec3(tuning.wave_sigma, "wave_sigma")
+    wave = _vec3(
+        [tuning.wave_sigma_m, tuning.wave_sigma_m, tuning.wave_sigma_rad], "wave_sigma_m, wave_sigma_rad"
+    )
     wb = (
         _vec3(tuning.lf_bandwidth, "lf_bandwidth")
         if tuning.lf_bandwidth is not None
@@ -135,14 +154,18 @@ def sdre_weights(vessel: VesselModel, tuning: SdreTuning | None = None) -> SdreW
             f"SDRE tuning 'lf_bandwidth': ω_b = {wb.tolist()} rad/s must stay below ω0 = {w0.tolist()} "
             "rad/s (a wave filter passes the low frequencies only)"
         )
+    lever = vessel.length_m / 2 if tuning.yaw_lever_m is None else float(tuning.yaw_lever_m)
+    if not (math.isfinite(lever) and lever > 0):
+        raise SdreTuningError(f"SDRE tuning 'yaw_lever_m': must be a positive length, got {lever!r}")
+    r_lf = r[0] * np.array([1.0, 1.0, 1.0 / lever**2])  # the LF weights' reference (module docstring)
     beta = _vec3(tuning.velocity_weight, "velocity_weight", allow_zero=True)
     alpha = _vec3(tuning.position_weight, "position_weight", allow_zero=True)
     M = vessel.M
     m = np.array([math.sqrt(M[0, 0] * M[1, 1])] * 2 + [M[2, 2]])
     Q = np.zeros((N_STATES, N_STATES))
-    Q[ETA, ETA] = np.diag(alpha * r * wb**2)
-    Q[NU, NU] = np.diag(beta * r * wb**4)
-    Q[BIAS, BIAS] = np.diag(m**2 * r * wb**6)
+    Q[ETA, ETA] = np.diag(alpha * r_lf * wb**2)
+    Q[NU, NU] = np.diag(beta * r_lf * wb**4)
+    Q[BIAS, BIAS] = np.diag(m**2 * r_lf * wb**6)
     Q[XI2, XI2] = np.diag(4 * zeta * w0 * wave**2)
     return SdreWeights(omega0=w0, zeta=zeta, Q=Q, R=np.diag(r))
 
