@@ -28,16 +28,19 @@ from observers.passive_tuning import PassiveTuning
 from observers.vessel import VesselModel
 
 # SDRE: the observer's own physical tuning (observers.sdre_tuning.SdreTuning); ω0 and ζ come from the
-# common tuning like every observer's.
+# common tuning like every observer's. paper_weights = true runs the paper's Q, R literally (comparison).
 SDRE_PARAMS = (
     "position_sigma_m",
     "heading_sigma_rad",
     "sample_period_s",
-    "wave_sigma",
+    "wave_sigma_m",
+    "wave_sigma_rad",
     "lf_bandwidth_ratio",
     "lf_bandwidth",
     "velocity_weight",
     "position_weight",
+    "yaw_lever_m",
+    "paper_weights",
 )
 
 OBSERVER_TYPES = ("passive", "gain_scheduled", "mmae", "sdre")
@@ -115,10 +118,8 @@ def make_observer(
         )
     if kind == "sdre":
         from observers.sdre import SdreObserver
-        from observers.sdre_tuning import SdreTuning
 
-        common = tuning or PassiveTuning()
-        return SdreObserver(vessel, SdreTuning(omega0=common.omega0, zeta=common.zeta, **params))
+        return SdreObserver.from_params(vessel, tuning, params, allow_unchecked=allow_unchecked)
     import numpy as np
 
     from observers.mmae import MMAEObserver

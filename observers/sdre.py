@@ -39,6 +39,7 @@ from numpy.typing import ArrayLike, NDArray
 from observers import _sdre_kernel as kernel
 from observers.kinematics import rotation, ssa_scalar
 from observers.passive import STATUS_NAMES, PassiveEstimate, PassiveRun
+from observers.passive_tuning import PassiveTuning
 from observers.sdre_tuning import (
     BIAS,
     ETA,
@@ -50,6 +51,7 @@ from observers.sdre_tuning import (
     gain_table,
     input_matrix,
     output_matrix,
+    paper_weights,
     sdre_weights,
     system_matrix,
     table_gain,
@@ -60,6 +62,22 @@ Array = NDArray[np.float64]
 
 NAN3 = np.full(3, np.nan)
 ZERO3 = np.zeros(3)
+
+
+def initial_state(
+    eta: ArrayLike,
+    nu: ArrayLike | None = None,
+    bias: ArrayLike | None = None,
+    eta_wf: ArrayLike | None = None,
+) -> Array:
+    """The 15-state vector [η, ν, b, ξ1, ξ2 = η_w] for an explicit start (ψ wrapped; omitted parts zero)."""
+    x = np.zeros(15)
+    x[ETA] = np.asarray(eta, dtype=float)
+    x[2] = ssa_scalar(x[2])
+    for part, value in ((NU, nu), (BIAS, bias), (XI2, eta_wf)):
+        if value is not None:
+            x[part] = np.asarray(value, dtype=float)
+    return x
 
 
 def estimate_from_state(t: float, x: Array, code: int) -> PassiveEstimate:
@@ -99,6 +117,26 @@ class SdreObserver:
         self.set_weights(weights if weights is not None else sdre_weights(vessel, self.tuning))
         self.reset()
 
+    @classmethod
+    def from_params(
+        cls,
+        vessel: VesselModel,
+        tuning: PassiveTuning | None,
+        params: dict[str, Any],
+        *,
+        allow_unchecked: bool = False,
+    ) -> SdreObserver:
+        """The observer `observers.factory` builds by name: ω0 and ζ from the common ``tuning`` (as every
+        observer's), the rest from ``params`` (the fields of `SdreTuning`, plus ``paper_weights = true``
+        to run the paper's Q, R literally, for comparison). ``allow_unchecked`` has nothing to relax here:
+        a tuning that cannot give a stable filter is refused by `sdre_weights` itself."""
+        params = dict(params)
+        literal = bool(params.pop("paper_weights", False))
+        common = tuning or PassiveTuning()
+        sdre_tuning = SdreTuning(omega0=common.omega0, zeta=common.zeta, **params)
+        weights = paper_weights(sdre_tuning.omega0, sdre_tuning.zeta) if literal else None
+        return cls(vessel, sdre_tuning, weights=weights)
+
     def set_weights(self, weights: SdreWeights) -> None:
         """Solve the Riccati equation for new weights (state kept: no jump in the estimates)."""
         table = gain_table(self.vessel, weights, self.table_size)
@@ -135,27 +173,15 @@ class SdreObserver:
     def initialize(
         self,
         t: float,
-        y: ArrayLike,
-        tau: ArrayLike | None = None,
-        *,
+        eta: ArrayLike,
         nu: ArrayLike | None = None,
         bias: ArrayLike | None = None,
         eta_wf: ArrayLike | None = None,
     ) -> None:
-        """Start at time t from measurement y = η + η_w and force τ, at the observer's equilibrium
-        (η̂ = y − η̂_w, ν̂ = 0, b̂ = −J(ψ)τ); ``nu``, ``bias``, ``eta_wf`` set those parts explicitly (e.g. a
-        state restored after a restart, or a test's wrong guess). Without this, the first complete
-        measurement initialises the observer the same way."""
-        y_arr = np.asarray(y, dtype=float)
-        kernel.initialize(self.x, y_arr, ZERO3 if tau is None else np.asarray(tau, dtype=float))
-        if eta_wf is not None:
-            self.x[XI2] = np.asarray(eta_wf, dtype=float)
-            self.x[ETA] = y_arr - self.x[XI2]
-            self.x[2] = ssa_scalar(self.x[2])
-        if nu is not None:
-            self.x[NU] = np.asarray(nu, dtype=float)
-        if bias is not None:
-            self.x[BIAS] = np.asarray(bias, dtype=float)
+        """Start at time t from an explicit state (e.g. restored after a restart, or a test's wrong guess);
+        omitted parts zero, ψ wrapped. Without this, the first complete measurement initialises the
+        observer at its equilibrium for that sample (η̂ = y, ν̂ = 0, b̂ = −J(ψ)τ, ξ̂ = 0)."""
+        self.x[:] = initial_state(eta, nu, bias, eta_wf)
         self._clock[:] = (float(t), 1.0)
 
     def step(self, t: float, y: ArrayLike, tau: ArrayLike | None = None) -> PassiveEstimate:
