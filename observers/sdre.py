@@ -1,12 +1,13 @@
 """SDRE observer of Snijders, van der Woude & Westhuis (2005), Sec. 2.5 and 3.2.
 
-Read with the paper's ERRATA (state order, C, Ω2, Q, R). Model (1)–(2), T = 0 (random-walk bias)::
+The paper's printed state order, C and Ω2 are garbled; dpgw reads them as below (state order as the
+matrices require, Ω = diag(ω0ᵢ) of frequencies, not their squares). Model (1)–(2), T = 0 (random-walk bias)::
 
     η' = J(ψ) ν,   M ν' = −D ν + Jᵀ(ψ) b + τ,   b' = 0 (+ noise),   ξ' = Ω2 ξ (+ noise),   y = η + Γ2 ξ
     x = [η, ν, b, ξ] (15),  x' = A(x) x + B τ,  y = C x,   C = [I 0 0 Γ2],  Γ2 = [0 I],  B = [0; M⁻¹; 0; 0]
     Ω2 = [[0, I], [−Ω², −2ZΩ]],  Ω = diag(ω0ᵢ),  A12 = J(ψ),  A22 = −M⁻¹D,  A23 = M⁻¹Jᵀ(ψ),  A33 = 0
 
-Observer (Sec. 3.2; with control input the prediction is A(x̂)x̂ + Bτ, ERRATA)::
+Observer (Sec. 3.2, written there for the autonomous system; with thrust the prediction is A(x̂)x̂ + Bτ)::
 
     x̂' = A(x̂) x̂ + B τ + K(x̂) ỹ,   ỹ = y − C x̂ (ỹ₃ wrapped to [−π, π) by ssa),   K = P Cᵀ R⁻¹
     0 = A(x̂) P + P Aᵀ(x̂) − P Cᵀ R⁻¹ C P + Q

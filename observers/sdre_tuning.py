@@ -1,7 +1,8 @@
 """Weights Q, R of the SDRE observer from physical tuning, the Riccati solution, and error-pole analysis.
 
-Snijders, van der Woude & Westhuis (2005), Sec. 2.5 and 3.2, read with the ERRATA of the paper (state
-order x = [η, ν, b, ξ], C = [I 0 0 Γ2], Γ2 = [0 I], Ω2 = [[0, I], [−Ω², −2ZΩ]], Ω = diag(ω0ᵢ), T = 0)::
+Snijders, van der Woude & Westhuis (2005), Sec. 2.5 and 3.2, with the garbled printed matrices read as
+the model requires (state order x = [η, ν, b, ξ], C = [I 0 0 Γ2], Γ2 = [0 I], Ω2 = [[0, I], [−Ω², −2ZΩ]],
+Ω = diag(ω0ᵢ) of frequencies, not their squares, T = 0: random-walk bias)::
 
     A(ψ) = [[0, J(ψ), 0, 0], [0, −M⁻¹D, M⁻¹Jᵀ(ψ), 0], [0, 0, 0, 0], [0, 0, 0, Ω2]],  B = [0; M⁻¹; 0; 0]
     0 = A P + P Aᵀ − P Cᵀ R⁻¹ C P + Q,      K = P Cᵀ R⁻¹                                  (Sec. 3.2)
@@ -64,7 +65,7 @@ from observers.vessel import VesselModel
 
 Array = NDArray[np.float64]
 
-# State order of Snijders et al. (ERRATA): x = [η, ν, b, ξ1, ξ2], ξ2 = η_w.
+# State order of Snijders et al.: x = [η, ν, b, ξ1, ξ2], ξ2 = η_w (the order A, B and C require).
 ETA, NU, BIAS, XI1, XI2 = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15)
 N_STATES = 15
 
@@ -190,7 +191,7 @@ def rotation_blocks(psi: float) -> Array:
 
 
 def wave_matrix(omega0: Array, zeta: Array) -> Array:
-    """Ω2 = [[0, I], [−Ω², −2ZΩ]] with Ω = diag(ω0ᵢ) (ERRATA)."""
+    """Ω2 = [[0, I], [−Ω², −2ZΩ]] with Ω = diag(ω0ᵢ): frequencies, not their squares."""
     return np.block([[np.zeros((3, 3)), np.eye(3)], [-np.diag(omega0**2), -np.diag(2 * zeta * omega0)]])
 
 
@@ -214,7 +215,7 @@ def input_matrix(vessel: VesselModel) -> Array:
 
 
 def output_matrix() -> Array:
-    """C = [I 0 0 Γ2], Γ2 = [0 I]: y = η + η_w (ERRATA)."""
+    """C = [I 0 0 Γ2], Γ2 = [0 I]: y = η + η_w (the measured motion is LF plus wave)."""
     C = np.zeros((3, N_STATES))
     C[:, ETA] = np.eye(3)
     C[:, XI2] = np.eye(3)
