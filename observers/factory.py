@@ -23,6 +23,22 @@ from observers.base import Observer
 from observers.passive_tuning import PassiveTuning
 from observers.vessel import VesselModel
 
+# SDRE: the observer's own physical tuning (observers.sdre_tuning.SdreTuning); ω0 and ζ come from the
+# common tuning like every observer's. paper_weights = true runs the paper's Q, R literally (comparison).
+SDRE_PARAMS = (
+    "position_sigma_m",
+    "heading_sigma_rad",
+    "sample_period_s",
+    "wave_sigma_m",
+    "wave_sigma_rad",
+    "lf_bandwidth_ratio",
+    "lf_bandwidth",
+    "velocity_weight",
+    "position_weight",
+    "yaw_lever_m",
+    "paper_weights",
+)
+
 
 class ObserverBuilder(Protocol):
     """What the registry calls: an observer class's ``from_params`` classmethod."""
@@ -74,6 +90,9 @@ _REGISTERED = (
         _GS_PARAMS,
     ),
     ObserverEntry("mmae", "Hassani, Pascoal, Aguiar & Athans", "observers.mmae:MMAEObserver", _MMAE_PARAMS),
+    ObserverEntry(
+        "sdre", "Snijders, van der Woude & Westhuis (2005)", "observers.sdre:SdreObserver", SDRE_PARAMS
+    ),
 )
 
 OBSERVERS: dict[str, ObserverEntry] = {e.name: e for e in _REGISTERED}

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -90,6 +91,38 @@ def snijders_track() -> list[tuple[float, str, dict[str, float]]]:
     ]
 
 
+PAPER_SDRE = (6.3329e-2, 1.5498e-1, 4.9448e-3)
+PAPER_EXISTING = (3.9768e-2, 6.3857e-2, 1.8719e-2)
+
+
+def snijders_tables(observer: str, seeds: list[int], params: dict[str, Any] | None = None) -> np.ndarray:
+    """The table of ``observer`` (an `observers.factory` name) on the snijders_2005 case, a row per seed."""
+    sc = get_scenario("snijders_2005")
+    rows = []
+    for seed in seeds:
+        tables = gateway_tables(sc)
+        tables["observer"]["type"] = observer
+        if params:
+            tables["observer"]["params"] = params
+        r = run_closed_loop(sc, 1800.0, seed=seed, events=snijders_track(), tables=tables)
+        rows.append(snijders_table(r))
+    return np.array(rows)
+
+
+def format_snijders_comparison(columns: list[tuple[str, np.ndarray]]) -> str:
+    """The paper's two columns beside dpgw's: (label, rows of `snijders_tables`) as mean ± sd over seeds."""
+    head = f"  {'':6s} {'paper SDRE':>11s} {'paper exist.':>12s}" + "".join(f" {c[0]:>22s}" for c in columns)
+    rows = [head + "  unit"]
+    for i, (name, unit) in enumerate(zip(("Surge", "Sway", "Yaw"), ("m²", "m²", "rad²"), strict=True)):
+        cells = "".join(f"  {t[:, i].mean():10.3e} ± {t[:, i].std(ddof=1):7.1e}" for _, t in columns)
+        rows.append(f"  {name:6s} {PAPER_SDRE[i]:11.3e} {PAPER_EXISTING[i]:12.3e}{cells}  {unit}")
+    seeds = len(columns[0][1])
+    rows.append(
+        f"  (dpgw: mean ± standard deviation over {seeds} seeds; the paper does not state its yaw unit)"
+    )
+    return "\n".join(rows)
+
+
 def snijders_table(r: ClosedLoopRun) -> tuple[float, float, float]:
     est = np.array([e["eta"] for e in r.estimates])
     t_est = (np.array([e["stamp_ns"] for e in r.estimates]) - r.estimates[0]["stamp_ns"]) / 1e9
@@ -98,7 +131,7 @@ def snijders_table(r: ClosedLoopRun) -> tuple[float, float, float]:
 
 
 def format_snijders_table(ms: tuple[float, float, float]) -> str:
-    paper = (3.9768e-2, 6.3857e-2, 1.8719e-2)
+    paper = PAPER_EXISTING
     rows = ["            dpgw passive      paper 'Existing'  (paper SDRE: 6.33e-2, 1.55e-1, 4.94e-3)"]
     for name, ours, theirs, unit in zip(
         ("Surge", "Sway", "Yaw"), ms, paper, ("m²", "m²", "rad²"), strict=True

@@ -22,7 +22,7 @@ ROLES: dict[str, tuple[str, ...]] = {
     "mavlink": ("thrusters", "position", "heading"),
 }
 """The roles a source of each protocol can have."""
-OBSERVER_TYPES = _OBSERVER_TYPES  # passive, gain_scheduled, mmae (observers.factory)
+OBSERVER_TYPES = _OBSERVER_TYPES  # every observer registered in observers.factory, by name
 COMPRESSIONS = ("zstd", "lz4", "none")
 ZENOH_MODES = ("peer", "client")
 CONTROL_MODES = ("standby", "dp", "manual")

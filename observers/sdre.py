@@ -1,0 +1,329 @@
+"""SDRE observer of Snijders, van der Woude & Westhuis (2005), Sec. 2.5 and 3.2.
+
+The paper's printed state order, C and Ω2 are garbled; dpgw reads them as below (state order as the
+matrices require, Ω = diag(ω0ᵢ) of frequencies, not their squares). Model (1)–(2), T = 0 (random-walk bias)::
+
+    η' = J(ψ) ν,   M ν' = −D ν + Jᵀ(ψ) b + τ,   b' = 0 (+ noise),   ξ' = Ω2 ξ (+ noise),   y = η + Γ2 ξ
+    x = [η, ν, b, ξ] (15),  x' = A(x) x + B τ,  y = C x,   C = [I 0 0 Γ2],  Γ2 = [0 I],  B = [0; M⁻¹; 0; 0]
+    Ω2 = [[0, I], [−Ω², −2ZΩ]],  Ω = diag(ω0ᵢ),  A12 = J(ψ),  A22 = −M⁻¹D,  A23 = M⁻¹Jᵀ(ψ),  A33 = 0
+
+Observer (Sec. 3.2, written there for the autonomous system; with thrust the prediction is A(x̂)x̂ + Bτ)::
+
+    x̂' = A(x̂) x̂ + B τ + K(x̂) ỹ,   ỹ = y − C x̂ (ỹ₃ wrapped to [−π, π) by ssa),   K = P Cᵀ R⁻¹
+    0 = A(x̂) P + P Aᵀ(x̂) − P Cᵀ R⁻¹ C P + Q
+
+A(x̂) depends on x̂ only through the LF heading estimate ψ̂ = η̂₃, and with N and E tuned alike the
+Riccati solution turns with the heading: P(ψ) = S P(0) Sᵀ, K(ψ) = S K(0) Jᵀ(ψ), S = blockdiag(J, I, J,
+J, J). So one Riccati solution per ω0 is exact for every heading (no linearisation about a set of yaw
+angles, the drawback of the classical Kalman filters the paper names); otherwise the de-rotated gain is
+tabulated over ψ (`observers.sdre_tuning`). Q and R come from physical tuning (`SdreTuning`): the
+paper's Q, R in SI leave the bias practically unestimated (bias error poles near −1e-7 s⁻¹).
+
+Discrete time: the same scheme as the passive observer (`observers._passive_kernel`): each sample's y
+and τ are held over the interval that ends at its stamp, RK4 in sub-steps of at most ``h_max``, a DOF
+whose measurement is missing (NaN) gets no innovation, and a gap longer than ``max_hold_s`` is dead
+reckoning except for its last ``max_hold_s``. The gain is continuous over each interval, so there is
+no separate discrete update: `predict` advances without a measurement (dead reckoning), `step` with one.
+
+``observers._sdre_kernel`` is the compiled twin of the readable numpy reference at the end of this
+module; tests/test_sdre.py checks they agree. Notes and measurements: docs/sdre.md.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from observers import _sdre_kernel as kernel
+from observers.base import NAN3, STATUS_NAMES, ZERO3, Estimate, Run
+from observers.kinematics import rotation, ssa_scalar
+from observers.passive_tuning import PassiveTuning
+from observers.sdre_tuning import (
+    BIAS,
+    ETA,
+    NU,
+    TABLE_SIZE,
+    XI2,
+    SdreTuning,
+    SdreWeights,
+    gain_table,
+    input_matrix,
+    output_matrix,
+    paper_weights,
+    sdre_weights,
+    system_matrix,
+    table_gain,
+)
+from observers.vessel import VesselModel
+
+Array = NDArray[np.float64]
+
+
+def initial_state(
+    eta: ArrayLike,
+    nu: ArrayLike | None = None,
+    bias: ArrayLike | None = None,
+    eta_wf: ArrayLike | None = None,
+) -> Array:
+    """The 15-state vector [η, ν, b, ξ1, ξ2 = η_w] for an explicit start (ψ wrapped; omitted parts zero)."""
+    x = np.zeros(15)
+    x[ETA] = np.asarray(eta, dtype=float)
+    x[2] = ssa_scalar(x[2])
+    for part, value in ((NU, nu), (BIAS, bias), (XI2, eta_wf)):
+        if value is not None:
+            x[part] = np.asarray(value, dtype=float)
+    return x
+
+
+def estimate_from_state(t: float, x: Array, code: int) -> Estimate:
+    """The estimate a kernel status ``code`` and state ``x`` stand for (copies; NaN while initialising)."""
+    if code == kernel.STATUS_INITIALIZING:
+        return Estimate.initializing(t)
+    return Estimate(t, x[ETA].copy(), x[NU].copy(), x[BIAS].copy(), x[XI2].copy(), STATUS_NAMES[code])
+
+
+class SdreObserver:
+    """Snijders et al. (2005) SDRE observer for any `VesselModel`.
+
+    ``step(t, y, tau)`` for live use, ``run(t, y, tau)`` over arrays: the same kernel, the same numbers.
+    y = [N, E, ψ] (m, m, rad; NaN = missing), τ = [X, Y, N] (N, N, N·m). ``weights`` (Q, R) replace the
+    physical tuning, e.g. `observers.sdre_tuning.paper_weights` to reproduce the paper literally.
+    """
+
+    def __init__(
+        self,
+        vessel: VesselModel,
+        tuning: SdreTuning | None = None,
+        *,
+        weights: SdreWeights | None = None,
+        h_max: float = 0.1,
+        max_hold_s: float = 2.0,
+        table_size: int = TABLE_SIZE,
+    ) -> None:
+        self.vessel = vessel
+        self.h_max = float(h_max)
+        self.max_hold_s = float(max_hold_s)
+        if not (self.h_max > 0 and self.max_hold_s > 0):
+            raise ValueError("h_max and max_hold_s must be positive")
+        self.table_size = int(table_size)
+        self.tuning = tuning or SdreTuning()
+        self._Minv = np.ascontiguousarray(vessel.Minv)
+        self._MinvD = np.ascontiguousarray(vessel.Minv @ vessel.D)
+        self.set_weights(weights if weights is not None else sdre_weights(vessel, self.tuning))
+        self.reset()
+
+    @classmethod
+    def from_params(
+        cls,
+        vessel: VesselModel,
+        tuning: PassiveTuning | None,
+        params: dict[str, Any],
+        *,
+        allow_unchecked: bool = False,
+    ) -> SdreObserver:
+        """The observer `observers.factory` builds by name: ω0 and ζ from the common ``tuning`` (as every
+        observer's), the rest from ``params`` (the fields of `SdreTuning`, plus ``paper_weights = true``
+        to run the paper's Q, R literally, for comparison). ``allow_unchecked`` has nothing to relax here:
+        a tuning that cannot give a stable filter is refused by `sdre_weights` itself."""
+        params = dict(params)
+        literal = bool(params.pop("paper_weights", False))
+        common = tuning or PassiveTuning()
+        sdre_tuning = SdreTuning(omega0=common.omega0, zeta=common.zeta, **params)
+        weights = paper_weights(sdre_tuning.omega0, sdre_tuning.zeta) if literal else None
+        return cls(vessel, sdre_tuning, weights=weights)
+
+    def set_weights(self, weights: SdreWeights) -> None:
+        """Solve the Riccati equation for new weights (state kept: no jump in the estimates)."""
+        table = gain_table(self.vessel, weights, self.table_size)
+        self.weights = weights
+        self.table = np.ascontiguousarray(table)
+        self._W = np.ascontiguousarray(np.stack([weights.omega0, weights.zeta]))
+
+    def set_omega0(self, omega0: ArrayLike) -> None:
+        """Re-tune to a new wave frequency (rad/s, per DOF or one for all): one new Riccati solution."""
+        self.tuning = self.tuning.with_omega0(omega0)
+        self.set_weights(sdre_weights(self.vessel, self.tuning))
+
+    def reset(self) -> None:
+        self.x = np.zeros(15)
+        self._clock = np.zeros(2)  # [t of the last sample, initialised flag]
+
+    @property
+    def initialized(self) -> bool:
+        return bool(self._clock[1])
+
+    @property
+    def t(self) -> float:
+        return float(self._clock[0])
+
+    @property
+    def omega0(self) -> Array:
+        """The wave frequency the filter is tuned to, per DOF (rad/s)."""
+        return self.weights.omega0.copy()
+
+    def extra(self) -> dict[str, Any]:
+        """Observer-specific fields for the estimate message (none: the gain follows from ω0 and ψ̂)."""
+        return {}
+
+    def initialize(
+        self,
+        t: float,
+        eta: ArrayLike,
+        nu: ArrayLike | None = None,
+        bias: ArrayLike | None = None,
+        eta_wf: ArrayLike | None = None,
+    ) -> None:
+        """Start at time t from an explicit state (e.g. restored after a restart, or a test's wrong guess);
+        omitted parts zero, ψ wrapped. Without this, the first complete measurement initialises the
+        observer at its equilibrium for that sample (η̂ = y, ν̂ = 0, b̂ = −J(ψ)τ, ξ̂ = 0)."""
+        self.x[:] = initial_state(eta, nu, bias, eta_wf)
+        self._clock[:] = (float(t), 1.0)
+
+    def step(self, t: float, y: ArrayLike, tau: ArrayLike | None = None) -> Estimate:
+        """Advance to time t (s) with measurement y and generalised force τ held since the last sample."""
+        y_arr = np.asarray(y, dtype=float)
+        tau_arr = ZERO3 if tau is None else np.asarray(tau, dtype=float)
+        code = kernel.step(
+            self.x,
+            self._clock,
+            float(t),
+            y_arr,
+            tau_arr,
+            self._W,
+            self.table,
+            self._Minv,
+            self._MinvD,
+            self.h_max,
+            self.max_hold_s,
+        )
+        return estimate_from_state(float(t), self.x, code)
+
+    def predict(self, t: float, tau: ArrayLike | None = None) -> Estimate:
+        """Dead reckoning to time t: no measurement at all."""
+        return self.step(t, NAN3, tau)
+
+    def run(self, t: ArrayLike, y: ArrayLike, tau: ArrayLike | None = None) -> Run:
+        """`step` over every sample: t (n,), y (n, 3) with NaN for missing, τ (n, 3) or None for zero."""
+        t_arr = np.ascontiguousarray(t, dtype=float)
+        n = t_arr.shape[0]
+        Y = np.ascontiguousarray(y, dtype=float).reshape(n, 3)
+        TAU = np.zeros((n, 3)) if tau is None else np.ascontiguousarray(tau, dtype=float).reshape(n, 3)
+        X = np.empty((n, 15))
+        status = np.empty(n, dtype=np.int8)
+        kernel.run(
+            self.x,
+            self._clock,
+            t_arr,
+            Y,
+            TAU,
+            self._W,
+            self.table,
+            self._Minv,
+            self._MinvD,
+            self.h_max,
+            self.max_hold_s,
+            X,
+            status,
+        )
+        # ω0 is fixed over a run (it changes only by `set_omega0` between calls)
+        omega0 = np.broadcast_to(self.weights.omega0, (n, 3)).copy()
+        return Run(t_arr, X[:, ETA], X[:, NU], X[:, BIAS], X[:, XI2], status, omega0)
+
+
+# --- readable reference ----------------------------------------------------------------------------------
+# The same equations written with the paper's matrices, in numpy. Slow; used to check the kernel and as
+# the baseline of bench/bench_sdre.py.
+
+
+def reference_derivative(
+    x: Array, y: Array, valid: NDArray[np.bool_], tau: Array, vessel: VesselModel, weights: SdreWeights,
+    table: Array,
+) -> Array:  # fmt: skip
+    """x̂' = A(ψ̂) x̂ + B τ + K(ψ̂) ỹ with y and τ held; DOFs with valid[i] False get no innovation."""
+    psi = x[2]
+    y_tilde = np.where(valid, y - output_matrix() @ x, 0.0)
+    y_tilde[2] = ssa_scalar(y[2] - (x[2] + x[14])) if valid[2] else 0.0
+    A = system_matrix(vessel, weights.omega0, weights.zeta, psi)
+    K = table_gain(table, psi)  # = P(ψ̂) Cᵀ R⁻¹ (sdre_tuning)
+    return np.asarray(A @ x + input_matrix(vessel) @ tau + K @ y_tilde)
+
+
+def reference_equilibrium(y: Array, tau: Array) -> Array:
+    """The state where x̂' = 0 for constant y, τ (twin of the kernel's `initialize`)."""
+    x = np.zeros(15)
+    x[ETA] = y
+    x[2] = ssa_scalar(y[2])
+    x[BIAS] = -rotation(y[2]) @ tau  # Jᵀ b̂ + τ = 0
+    return x
+
+
+def reference_propagate(
+    x: Array,
+    dt: float,
+    y: Array,
+    tau: Array,
+    vessel: VesselModel,
+    weights: SdreWeights,
+    table: Array,
+    h_max: float = 0.1,
+    max_hold_s: float = 2.0,
+) -> Array:
+    """Reference twin of `observers._sdre_kernel.propagate` (returns the new state)."""
+    valid = ~np.isnan(y)
+    y = np.where(valid, y, 0.0)
+    tau = np.nan_to_num(tau)
+
+    def f(x: Array, valid: NDArray[np.bool_]) -> Array:
+        return reference_derivative(x, y, valid, tau, vessel, weights, table)
+
+    def integrate(x: Array, span: float, valid: NDArray[np.bool_]) -> Array:
+        if span <= 0:
+            return x
+        n = max(1, math.ceil(span / h_max - 1e-9))
+        h = span / n
+        for _ in range(n):
+            k1 = f(x, valid)
+            k2 = f(x + 0.5 * h * k1, valid)
+            k3 = f(x + 0.5 * h * k2, valid)
+            k4 = f(x + h * k3, valid)
+            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        return x
+
+    dead = max(dt - max_hold_s, 0.0)
+    x = integrate(x, dead, np.zeros(3, dtype=bool))
+    x = integrate(x, dt - dead, valid)
+    x[2] = ssa_scalar(x[2])
+    return x
+
+
+def reference_run(
+    vessel: VesselModel,
+    weights: SdreWeights,
+    table: Array,
+    t: Array,
+    y: Array,
+    tau: Array | None = None,
+    h_max: float = 0.1,
+    max_hold_s: float = 2.0,
+) -> Array:
+    """Reference batch run: states (n, 15), NaN before initialisation."""
+    n = len(t)
+    tau = np.zeros((n, 3)) if tau is None else np.asarray(tau, dtype=float)
+    X = np.full((n, 15), np.nan)
+    x: Array | None = None
+    t_prev = 0.0
+    for k in range(n):
+        if x is None:
+            if np.all(np.isfinite(y[k])):
+                x = reference_equilibrium(y[k], np.nan_to_num(tau[k]))
+                t_prev = t[k]
+                X[k] = x
+            continue
+        if t[k] > t_prev:
+            x = reference_propagate(x, t[k] - t_prev, y[k], tau[k], vessel, weights, table, h_max, max_hold_s)
+            t_prev = t[k]
+        X[k] = x
+    return X
