@@ -154,3 +154,86 @@ class Observer(Protocol):
     def extra(self) -> dict[str, Any]:
         """Observer-specific fields for the estimate message (JSON-able: numbers, lists, None)."""
         ...
+
+
+# --- shared plumbing (not part of the protocol) -----------------------------------------------------------
+
+CLOCK_T = 0  # every kernel's clock array starts with: the time of the last sample used ...
+CLOCK_STARTED = 1  # ... and 1.0 once initialised
+
+
+@dataclass(frozen=True)
+class InitialState:
+    """An explicit start (`Observer.initialize`): η (ψ not yet wrapped), and ν, b, η_w or None for zero."""
+
+    eta: Array
+    nu: Array | None = None
+    bias: Array | None = None
+    eta_wf: Array | None = None
+
+
+def batch_inputs(t: ArrayLike, y: ArrayLike, tau: ArrayLike | None) -> tuple[Array, Array, Array]:
+    """`Observer.run`'s arguments as contiguous floats: t (n,), y (n, 3), τ (n, 3) (zeros for None)."""
+    t_arr = np.ascontiguousarray(t, dtype=float).ravel()
+    n = t_arr.shape[0]
+    Y = np.ascontiguousarray(y, dtype=float).reshape(n, 3)
+    TAU = np.zeros((n, 3)) if tau is None else np.ascontiguousarray(tau, dtype=float).reshape(n, 3)
+    return t_arr, Y, TAU
+
+
+def step_inputs(y: ArrayLike, tau: ArrayLike | None) -> tuple[Array, Array]:
+    """`Observer.step`'s y and τ as float arrays (τ zero for None)."""
+    return np.asarray(y, dtype=float), ZERO3 if tau is None else np.asarray(tau, dtype=float)
+
+
+class ObserverBase:
+    """What dpgw's observers share beyond the protocol's promises: the clock their kernels keep (an array
+    starting [t, started], `CLOCK_T`, `CLOCK_STARTED`), `t` and `initialized` read from it, `initialize`
+    handing an `InitialState` to the observer's `_begin`, `predict` as a step without a measurement, no
+    extras, and `from_params` for observers whose parameters are keyword arguments of the constructor.
+
+    Only the plumbing lives here; the model, the kernels and what `_begin` does stay with each observer.
+    """
+
+    _clock: Array
+
+    @classmethod
+    def from_params(
+        cls, vessel: Any, tuning: Any, params: dict[str, Any], *, allow_unchecked: bool = False
+    ) -> Any:
+        """The observer `observers.factory` builds by name (its params: constructor keywords)."""
+        return cls(vessel, tuning, allow_unchecked=allow_unchecked, **params)  # type: ignore[call-arg]
+
+    @property
+    def initialized(self) -> bool:
+        return bool(self._clock[CLOCK_STARTED])
+
+    @property
+    def t(self) -> float:
+        return float(self._clock[CLOCK_T])
+
+    def initialize(
+        self, t: float, eta: ArrayLike, nu: ArrayLike | None = None, bias: ArrayLike | None = None,
+        eta_wf: ArrayLike | None = None,
+    ) -> None:  # fmt: skip
+        """`Observer.initialize`: start at time t from an explicit state; omitted parts zero."""
+        parts = [None if v is None else np.asarray(v, dtype=float) for v in (nu, bias, eta_wf)]
+        self._begin(float(t), InitialState(np.asarray(eta, dtype=float), *parts))
+
+    def _begin(self, t: float, start: InitialState) -> None:
+        raise NotImplementedError
+
+    def step(self, t: float, y: ArrayLike, tau: ArrayLike | None = None) -> Estimate:
+        raise NotImplementedError
+
+    def predict(self, t: float, tau: ArrayLike | None = None) -> Estimate:
+        """Advance to time t with no measurement (dead reckoning), τ held since the last sample."""
+        return self.step(t, NAN3, tau)
+
+    def extra(self) -> dict[str, Any]:
+        """Observer-specific fields for the estimate message (none unless the observer says)."""
+        return {}
+
+    def _set_clock(self, t: float) -> None:
+        self._clock[CLOCK_T] = t
+        self._clock[CLOCK_STARTED] = 1.0

@@ -56,7 +56,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from observers import _gain_scheduled_kernel as sk
 from observers import _passive_kernel as pk
-from observers.base import NAN3, ZERO3, Estimate, Run
+from observers.base import ZERO3, Estimate, InitialState, ObserverBase, Run, batch_inputs
 from observers.gain_scheduled_analysis import (
     DEFAULT_TUNING,
     ContractionCheck,
@@ -107,7 +107,7 @@ def pack_tuning(vessel: VesselModel, tuning: PassiveTuning) -> Array:
     return np.ascontiguousarray(P)
 
 
-class GainScheduledObserver:
+class GainScheduledObserver(ObserverBase):
     """Passive observer whose wave-filter gains follow an on-line estimate of ω0 (Torsetnes et al. 2004).
 
     Model: `PassiveObserver`'s, (29)–(33), with the wave frequency ω̄0 a slowly varying parameter and a
@@ -238,14 +238,6 @@ class GainScheduledObserver:
         self._schedule[sk.S_ENABLED] = 1.0 if on else 0.0
 
     @property
-    def initialized(self) -> bool:
-        return bool(self._clock[pk.CLOCK_STARTED])
-
-    @property
-    def t(self) -> float:
-        return float(self._clock[pk.CLOCK_T])
-
-    @property
     def omega0(self) -> Array:
         """The wave frequency in use per DOF (rad/s)."""
         return self._omega.copy()
@@ -264,18 +256,10 @@ class GainScheduledObserver:
         """Scheduling budget left, β ∈ [0, L0]."""
         return float(self._schedule[sk.S_BUDGET])
 
-    def initialize(
-        self,
-        t: float,
-        eta: ArrayLike,
-        nu: ArrayLike | None = None,
-        bias: ArrayLike | None = None,
-        eta_wf: ArrayLike | None = None,
-    ) -> None:
-        """Start from an explicit state (as `PassiveObserver.initialize`); ω0 and the estimator are kept."""
-        self.x[:] = initial_state(eta, nu, bias, eta_wf)
-        self._clock[pk.CLOCK_T] = float(t)
-        self._clock[pk.CLOCK_STARTED] = 1.0
+    def _begin(self, t: float, start: InitialState) -> None:
+        """`initialize` (as the passive observer's); ω0 and the estimator are kept."""
+        self.x[:] = initial_state(start)
+        self._set_clock(t)
 
     def extra(self) -> dict[str, Any]:
         e = self.estimator
@@ -352,10 +336,6 @@ class GainScheduledObserver:
         self._run_kernel(np.array([tf]), Y, np.ascontiguousarray(TAU), X, status, W, upd_index, upd_target)
         return estimate_from_state(tf, self.x, int(status[0]))
 
-    def predict(self, t: float, tau: ArrayLike | None = None) -> Estimate:
-        """Dead reckoning to time t: no measurement (the estimator gets a missing sample, as in `run`)."""
-        return self.step(t, NAN3, tau)
-
     def run(self, t: ArrayLike, y: ArrayLike, tau: ArrayLike | None = None) -> Run:
         """`step` over every sample, with the same numbers.
 
@@ -363,10 +343,8 @@ class GainScheduledObserver:
         through the record (vectorised appends up to each update time, one spectrum per update), then one
         compiled pass runs the observer, taking each new target at the sample where `step` would have.
         """
-        t_arr = np.ascontiguousarray(t, dtype=float)
+        t_arr, Y, TAU = batch_inputs(t, y, tau)
         n = t_arr.shape[0]
-        Y = np.ascontiguousarray(y, dtype=float).reshape(n, 3)
-        TAU = np.zeros((n, 3)) if tau is None else np.ascontiguousarray(tau, dtype=float).reshape(n, 3)
         X = np.empty((n, N_STATE))
         status = np.empty(n, dtype=np.int8)
         W = np.empty((n, 3))

@@ -69,14 +69,16 @@ from scipy.linalg import expm, solve_discrete_are
 
 from observers import _mmae_kernel as kernel
 from observers.base import (
-    NAN3,
     STATUS_DEAD_RECKONING,
     STATUS_INITIALIZING,
     STATUS_NAMES,
     STATUS_OK,
     ZERO3,
     Estimate,
+    InitialState,
+    ObserverBase,
     Run,
+    batch_inputs,
 )
 from observers.kinematics import ssa_scalar
 from observers.state import BIAS, ETA, I_PSI, N_STATE, NU, XI1, XI2, StateView
@@ -397,7 +399,7 @@ def _clean3(v: tuple[float, float, float]) -> list[float | None]:
     return [x if math.isfinite(x) else None for x in v]
 
 
-class MMAEObserver:
+class MMAEObserver(ObserverBase):
     """Hassani et al.'s MMAE wave filter for any `VesselModel`; the observer interface of `observers`.
 
     Model, per candidate ω0ⁱ (the module docstring has it in full): the wave model (7) driving η_w, and
@@ -518,44 +520,29 @@ class MMAEObserver:
         self._xb = np.zeros(N_STATE)
         self._clock = np.zeros(kernel.N_CLOCK)
 
-    def initialize(
-        self,
-        t: float,
-        eta: ArrayLike,
-        nu: ArrayLike | None = None,
-        bias: ArrayLike | None = None,
-        eta_wf: ArrayLike | None = None,
-    ) -> None:
+    def _begin(self, t: float, start: InitialState) -> None:
         """Start every filter from an explicit state (weights kept, as at a restart after a long gap); η,
         b and η_w in NED as the estimates give them, omitted parts zero. Without this, the first complete
         measurement initialises the filters (ξ = 0, ν = 0, b_p = −τ)."""
-        psi_f = ssa_scalar(float(np.asarray(eta, dtype=float)[2]))
+        psi_f = ssa_scalar(float(start.eta[2]))
         x = StateView.zeros()
-        x.eta[:] = _turn(np.asarray(eta, dtype=float), psi_f)
+        x.eta[:] = _turn(start.eta, psi_f)
         x.x[I_PSI] = psi_f
-        if nu is not None:
-            x.nu[:] = np.asarray(nu, dtype=float)
-        if bias is not None:
-            x.bias[:] = _turn(np.asarray(bias, dtype=float), psi_f)
-        if eta_wf is not None:
-            x.eta_wf[:] = _turn(np.asarray(eta_wf, dtype=float), psi_f)
+        if start.nu is not None:
+            x.nu[:] = start.nu
+        if start.bias is not None:
+            x.bias[:] = _turn(start.bias, psi_f)
+        if start.eta_wf is not None:
+            x.eta_wf[:] = _turn(start.eta_wf, psi_f)
         self._xb[:] = x.x
-        kernel.start_at(self._X, self._xb, self._clock, float(t), psi_f)
-        self._start = (x.x.copy(), float(t), psi_f, self._p.copy())
+        kernel.start_at(self._X, self._xb, self._clock, t, psi_f)
+        self._start = (x.x.copy(), t, psi_f, self._p.copy())
         self._prefix = []  # samples before an explicit start are not run again
 
     @property
     def state(self) -> StateView:
         """The blended state (16) by name, in the vessel-parallel frame of `frame_heading` (a view)."""
         return StateView(self._xb)
-
-    @property
-    def initialized(self) -> bool:
-        return bool(self._clock[kernel.CLOCK_STARTED])
-
-    @property
-    def t(self) -> float:
-        return float(self._clock[kernel.CLOCK_T])
 
     @property
     def candidates(self) -> Array:
@@ -694,19 +681,13 @@ class MMAEObserver:
             STATUS_NAMES[code],
         )
 
-    def predict(self, t: float, tau: ArrayLike | None = None) -> Estimate:
-        """Prediction to time t without any measurement."""
-        return self.step(t, NAN3, tau)
-
     def run(self, t: ArrayLike, y: ArrayLike, tau: ArrayLike | None = None) -> Run:
         """`step` over every sample: t (n,), y (n, 3) with NaN for missing, τ (n, 3) or None for zero."""
-        t_arr = np.ascontiguousarray(t, dtype=float).ravel()
+        t_arr, Y, TAU = batch_inputs(t, y, tau)
         n = t_arr.shape[0]
-        Y = np.ascontiguousarray(y, dtype=float).reshape(n, 3)
         fresh = _new_only(Y, self._last_y)
         if n:
             self._last_y = Y[-1].copy()
-        TAU = np.zeros((n, 3)) if tau is None else np.ascontiguousarray(tau, dtype=float).reshape(n, 3)
         OUT = np.empty((n, kernel.N_OUT, 3))
         W = np.empty((n, self.bank.n))
         status = np.empty(n, dtype=np.int8)

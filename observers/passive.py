@@ -31,13 +31,21 @@ reckoning); `step` advances with one.
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from observers import _passive_kernel as kernel
-from observers.base import NAN3, STATUS_INITIALIZING, STATUS_NAMES, ZERO3, Estimate, Run
+from observers.base import (
+    STATUS_INITIALIZING,
+    STATUS_NAMES,
+    Estimate,
+    InitialState,
+    ObserverBase,
+    Run,
+    batch_inputs,
+    step_inputs,
+)
 from observers.kinematics import rotation, ssa_scalar
 from observers.passive_tuning import PassiveGains, PassiveTuning, passive_gains, validate
 from observers.state import BIAS, ETA, I_PSI, N_STATE, NU, XI, XI2, StateView
@@ -64,22 +72,14 @@ def pack_gains(gains: PassiveGains) -> Array:
     return G
 
 
-def initial_state(
-    eta: ArrayLike,
-    nu: ArrayLike | None = None,
-    bias: ArrayLike | None = None,
-    eta_wf: ArrayLike | None = None,
-) -> Array:
+def initial_state(start: InitialState) -> Array:
     """The 15-state vector (`observers.state`) for an explicit start (ψ wrapped; omitted parts zero)."""
     state = StateView.zeros()
-    state.eta[:] = np.asarray(eta, dtype=float)
+    state.eta[:] = start.eta
     state.x[I_PSI] = ssa_scalar(state.x[I_PSI])
-    if nu is not None:
-        state.nu[:] = np.asarray(nu, dtype=float)
-    if bias is not None:
-        state.bias[:] = np.asarray(bias, dtype=float)
-    if eta_wf is not None:
-        state.eta_wf[:] = np.asarray(eta_wf, dtype=float)
+    for part, value in ((state.nu, start.nu), (state.bias, start.bias), (state.eta_wf, start.eta_wf)):
+        if value is not None:
+            part[:] = value
     return state.x
 
 
@@ -90,7 +90,7 @@ def estimate_from_state(t: float, x: Array, code: int) -> Estimate:
     return Estimate(t, x[ETA].copy(), x[NU].copy(), x[BIAS].copy(), x[XI2].copy(), STATUS_NAMES[code])
 
 
-class PassiveObserver:
+class PassiveObserver(ObserverBase):
     """Fossen & Strand (1999) passive observer for any `VesselModel` (the module docstring has the details).
 
     Model, (14)–(18), with ψ in J taken from the measured heading (assumption A4)::
@@ -123,18 +123,6 @@ class PassiveObserver:
         self.set_gains(gains if gains is not None else passive_gains(vessel, tuning), allow_unchecked)
         self.reset()
 
-    @classmethod
-    def from_params(
-        cls,
-        vessel: VesselModel,
-        tuning: PassiveTuning | None,
-        params: dict[str, Any],
-        *,
-        allow_unchecked: bool = False,
-    ) -> PassiveObserver:
-        """The observer `observers.factory` builds by name (no parameters beyond the tuning)."""
-        return cls(vessel, tuning, allow_unchecked=allow_unchecked, **params)
-
     def set_gains(self, gains: PassiveGains, allow_unchecked: bool = False) -> None:
         """Use new gains from now on (the state is kept: no jump in the estimates)."""
         if not allow_unchecked:
@@ -152,42 +140,18 @@ class PassiveObserver:
         return StateView(self.x)
 
     @property
-    def initialized(self) -> bool:
-        return bool(self._clock[kernel.CLOCK_STARTED])
-
-    @property
-    def t(self) -> float:
-        return float(self._clock[kernel.CLOCK_T])
-
-    @property
     def omega0(self) -> Array:
         """The wave frequency the filter is tuned to, per DOF (rad/s) — fixed for this observer."""
         return self.gains.omega0.copy()
 
-    def extra(self) -> dict[str, Any]:
-        """Observer-specific fields for the estimate message (none for the fixed-gain observer)."""
-        return {}
-
-    def initialize(
-        self,
-        t: float,
-        eta: ArrayLike,
-        nu: ArrayLike | None = None,
-        bias: ArrayLike | None = None,
-        eta_wf: ArrayLike | None = None,
-    ) -> None:
-        """Start from an explicit state (e.g. restored after a restart, or a test's wrong guess).
-
-        Without this, the first complete measurement initialises the observer in equilibrium.
-        """
-        self.x[:] = initial_state(eta, nu, bias, eta_wf)
-        self._clock[kernel.CLOCK_T] = float(t)
-        self._clock[kernel.CLOCK_STARTED] = 1.0
+    def _begin(self, t: float, start: InitialState) -> None:
+        """`initialize`; without it the first complete measurement starts the observer in equilibrium."""
+        self.x[:] = initial_state(start)
+        self._set_clock(t)
 
     def step(self, t: float, y: ArrayLike, tau: ArrayLike | None = None) -> Estimate:
         """Advance to time t (s) with measurement y and generalised force τ held since the last sample."""
-        y_arr = np.asarray(y, dtype=float)
-        tau_arr = ZERO3 if tau is None else np.asarray(tau, dtype=float)
+        y_arr, tau_arr = step_inputs(y, tau)
         code = kernel.step(
             self.x,
             self._clock,
@@ -202,16 +166,10 @@ class PassiveObserver:
         )
         return estimate_from_state(float(t), self.x, code)
 
-    def predict(self, t: float, tau: ArrayLike | None = None) -> Estimate:
-        """Dead reckoning to time t: no measurement at all."""
-        return self.step(t, NAN3, tau)
-
     def run(self, t: ArrayLike, y: ArrayLike, tau: ArrayLike | None = None) -> Run:
         """`step` over every sample: t (n,), y (n, 3) with NaN for missing, τ (n, 3) or None for zero."""
-        t_arr = np.ascontiguousarray(t, dtype=float)
+        t_arr, Y, TAU = batch_inputs(t, y, tau)
         n = t_arr.shape[0]
-        Y = np.ascontiguousarray(y, dtype=float).reshape(n, 3)
-        TAU = np.zeros((n, 3)) if tau is None else np.ascontiguousarray(tau, dtype=float).reshape(n, 3)
         X = np.empty((n, N_STATE))
         status = np.empty(n, dtype=np.int8)
         kernel.run(

@@ -38,7 +38,15 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from observers import _sdre_kernel as kernel
-from observers.base import NAN3, STATUS_NAMES, ZERO3, Estimate, Run
+from observers.base import (
+    STATUS_NAMES,
+    Estimate,
+    InitialState,
+    ObserverBase,
+    Run,
+    batch_inputs,
+    step_inputs,
+)
 from observers.kinematics import rotation, ssa_scalar
 from observers.passive_tuning import PassiveTuning
 from observers.sdre_tuning import (
@@ -62,19 +70,14 @@ from observers.vessel import VesselModel
 Array = NDArray[np.float64]
 
 
-def initial_state(
-    eta: ArrayLike,
-    nu: ArrayLike | None = None,
-    bias: ArrayLike | None = None,
-    eta_wf: ArrayLike | None = None,
-) -> Array:
+def initial_state(start: InitialState) -> Array:
     """The 15-state vector [η, ν, b, ξ1, ξ2 = η_w] for an explicit start (ψ wrapped; omitted parts zero)."""
     x = np.zeros(15)
-    x[ETA] = np.asarray(eta, dtype=float)
+    x[ETA] = start.eta
     x[2] = ssa_scalar(x[2])
-    for part, value in ((NU, nu), (BIAS, bias), (XI2, eta_wf)):
+    for part, value in ((NU, start.nu), (BIAS, start.bias), (XI2, start.eta_wf)):
         if value is not None:
-            x[part] = np.asarray(value, dtype=float)
+            x[part] = value
     return x
 
 
@@ -85,7 +88,7 @@ def estimate_from_state(t: float, x: Array, code: int) -> Estimate:
     return Estimate(t, x[ETA].copy(), x[NU].copy(), x[BIAS].copy(), x[XI2].copy(), STATUS_NAMES[code])
 
 
-class SdreObserver:
+class SdreObserver(ObserverBase):
     """Snijders et al. (2005) SDRE observer for any `VesselModel`.
 
     ``step(t, y, tau)`` for live use, ``run(t, y, tau)`` over arrays: the same kernel, the same numbers.
@@ -152,40 +155,20 @@ class SdreObserver:
         self._clock = np.zeros(2)  # [t of the last sample, initialised flag]
 
     @property
-    def initialized(self) -> bool:
-        return bool(self._clock[1])
-
-    @property
-    def t(self) -> float:
-        return float(self._clock[0])
-
-    @property
     def omega0(self) -> Array:
         """The wave frequency the filter is tuned to, per DOF (rad/s)."""
         return self.weights.omega0.copy()
 
-    def extra(self) -> dict[str, Any]:
-        """Observer-specific fields for the estimate message (none: the gain follows from ω0 and ψ̂)."""
-        return {}
-
-    def initialize(
-        self,
-        t: float,
-        eta: ArrayLike,
-        nu: ArrayLike | None = None,
-        bias: ArrayLike | None = None,
-        eta_wf: ArrayLike | None = None,
-    ) -> None:
-        """Start at time t from an explicit state (e.g. restored after a restart, or a test's wrong guess);
-        omitted parts zero, ψ wrapped. Without this, the first complete measurement initialises the
-        observer at its equilibrium for that sample (η̂ = y, ν̂ = 0, b̂ = −J(ψ)τ, ξ̂ = 0)."""
-        self.x[:] = initial_state(eta, nu, bias, eta_wf)
-        self._clock[:] = (float(t), 1.0)
+    def _begin(self, t: float, start: InitialState) -> None:
+        """`initialize`: ψ wrapped. Without it, the first complete measurement initialises the observer at
+        its equilibrium for that sample (η̂ = y, ν̂ = 0, b̂ = −J(ψ)τ, ξ̂ = 0). No extras: the gain follows
+        from ω0 and ψ̂."""
+        self.x[:] = initial_state(start)
+        self._set_clock(t)
 
     def step(self, t: float, y: ArrayLike, tau: ArrayLike | None = None) -> Estimate:
         """Advance to time t (s) with measurement y and generalised force τ held since the last sample."""
-        y_arr = np.asarray(y, dtype=float)
-        tau_arr = ZERO3 if tau is None else np.asarray(tau, dtype=float)
+        y_arr, tau_arr = step_inputs(y, tau)
         code = kernel.step(
             self.x,
             self._clock,
@@ -201,16 +184,10 @@ class SdreObserver:
         )
         return estimate_from_state(float(t), self.x, code)
 
-    def predict(self, t: float, tau: ArrayLike | None = None) -> Estimate:
-        """Dead reckoning to time t: no measurement at all."""
-        return self.step(t, NAN3, tau)
-
     def run(self, t: ArrayLike, y: ArrayLike, tau: ArrayLike | None = None) -> Run:
         """`step` over every sample: t (n,), y (n, 3) with NaN for missing, τ (n, 3) or None for zero."""
-        t_arr = np.ascontiguousarray(t, dtype=float)
+        t_arr, Y, TAU = batch_inputs(t, y, tau)
         n = t_arr.shape[0]
-        Y = np.ascontiguousarray(y, dtype=float).reshape(n, 3)
-        TAU = np.zeros((n, 3)) if tau is None else np.ascontiguousarray(tau, dtype=float).reshape(n, 3)
         X = np.empty((n, 15))
         status = np.empty(n, dtype=np.int8)
         kernel.run(
