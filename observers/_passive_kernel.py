@@ -104,6 +104,20 @@ def _integrate(x, span, y, mask, tau, psi_meas, use_meas_psi, G, Minv, D, h_max)
 
 
 @njit(cache=True)
+def held_sample(y, tau, mask, ys, ts):
+    """Unpack one sample for the integration (shared with the SDRE kernel): mask[i] 1 where y[i] was
+    measured, ys = y with missing DOFs 0, ts = τ with NaN as 0. Returns whether every DOF was measured."""
+    complete = True
+    for i in range(3):
+        ok = not math.isnan(y[i])
+        mask[i] = 1.0 if ok else 0.0
+        ys[i] = y[i] if ok else 0.0
+        ts[i] = 0.0 if math.isnan(tau[i]) else tau[i]
+        complete = complete and ok
+    return complete
+
+
+@njit(cache=True)
 def propagate(x, dt, y, tau, G, Minv, D, h_max, max_hold):
     """Advance x by dt with measurement y (NaN = missing DOF) and τ held; returns the step's status.
 
@@ -114,13 +128,7 @@ def propagate(x, dt, y, tau, G, Minv, D, h_max, max_hold):
     mask = np.empty(3)
     ys = np.empty(3)
     ts = np.empty(3)
-    complete = True
-    for i in range(3):
-        ok = not math.isnan(y[i])
-        mask[i] = 1.0 if ok else 0.0
-        ys[i] = y[i] if ok else 0.0
-        ts[i] = 0.0 if math.isnan(tau[i]) else tau[i]
-        complete = complete and ok
+    complete = held_sample(y, tau, mask, ys, ts)
     use_meas_psi = mask[2] > 0.0
     psi_meas = ys[2]
     dead = dt - max_hold if dt > max_hold else 0.0

@@ -21,16 +21,11 @@ import math
 import numpy as np
 from numba import njit
 
+from observers._passive_kernel import held_sample
 from observers.base import STATUS_DEAD_RECKONING, STATUS_INITIALIZING, STATUS_OK
-
-TWO_PI = 2.0 * math.pi
+from observers.kinematics import ssa_jit
 
 __all__ = ["STATUS_DEAD_RECKONING", "STATUS_INITIALIZING", "STATUS_OK", "run", "step"]
-
-
-@njit(cache=True, fastmath=False)
-def _ssa(a: float) -> float:
-    return (a + math.pi) % TWO_PI - math.pi
 
 
 @njit(cache=True)
@@ -41,7 +36,7 @@ def derivative(x, y, mask, tau, W, table, Minv, MinvD, out):
     s = math.sin(psi)
     yt0 = (y[0] - (x[0] + x[12])) * mask[0]
     yt1 = (y[1] - (x[1] + x[13])) * mask[1]
-    yt2 = _ssa(y[2] - (x[2] + x[14])) * mask[2]
+    yt2 = ssa_jit(y[2] - (x[2] + x[14])) * mask[2]
     # Jᵀ(ψ) ỹ: the innovation in the frame in which K̄ was solved
     z0 = c * yt0 + s * yt1
     z1 = -s * yt0 + c * yt1
@@ -126,19 +121,13 @@ def propagate(x, dt, y, tau, W, table, Minv, MinvD, h_max, max_hold):
     mask = np.empty(3)
     ys = np.empty(3)
     ts = np.empty(3)
-    complete = True
-    for i in range(3):
-        ok = not math.isnan(y[i])
-        mask[i] = 1.0 if ok else 0.0
-        ys[i] = y[i] if ok else 0.0
-        ts[i] = 0.0 if math.isnan(tau[i]) else tau[i]
-        complete = complete and ok
+    complete = held_sample(y, tau, mask, ys, ts)
     dead = dt - max_hold if dt > max_hold else 0.0
     if dead > 0.0:
         none = np.zeros(3)
         _integrate(x, dead, ys, none, ts, W, table, Minv, MinvD, h_max)
     _integrate(x, dt - dead, ys, mask, ts, W, table, Minv, MinvD, h_max)
-    x[2] = _ssa(x[2])
+    x[2] = ssa_jit(x[2])
     return STATUS_OK if complete else STATUS_DEAD_RECKONING
 
 
@@ -158,7 +147,7 @@ def initialize(x, y, tau):
         x[j] = 0.0
     x[0] = y[0]
     x[1] = y[1]
-    x[2] = _ssa(y[2])
+    x[2] = ssa_jit(y[2])
     x[6] = -(c * t0 - s * t1)
     x[7] = -(s * t0 + c * t1)
     x[8] = -t2

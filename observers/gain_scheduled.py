@@ -188,13 +188,9 @@ class GainScheduledObserver(ObserverBase):
 
     @classmethod
     def from_params(
-        cls,
-        vessel: VesselModel,
-        tuning: PassiveTuning | None,
-        params: dict[str, Any],
-        *,
+        cls, vessel: VesselModel, tuning: PassiveTuning | None, params: dict[str, Any], *,
         allow_unchecked: bool = False,
-    ) -> GainScheduledObserver:
+    ) -> GainScheduledObserver:  # fmt: skip
         """The observer `observers.factory` builds by name: the estimator's settings (window_s,
         update_period_s, omega_min, omega_max, per_dof) and the observer's own (e.g. omega0_initial)."""
         params = dict(params)

@@ -30,8 +30,6 @@ reckoning); `step` advances with one.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -48,6 +46,7 @@ from observers.base import (
 )
 from observers.kinematics import rotation, ssa_scalar
 from observers.passive_tuning import PassiveGains, PassiveTuning, passive_gains, validate
+from observers.reference import reference_loop, rk4_held
 from observers.state import BIAS, ETA, I_PSI, N_STATE, NU, XI, XI2, StateView
 from observers.vessel import VesselModel
 
@@ -246,25 +245,12 @@ def reference_propagate(
 ) -> Array:
     """Reference twin of `observers._passive_kernel.propagate` (returns the new state)."""
     valid = ~np.isnan(y)
-    y = np.where(valid, y, 0.0)
-    tau = np.nan_to_num(tau)
+    y, tau = np.where(valid, y, 0.0), np.nan_to_num(tau)
 
-    def integrate(x: Array, span: float, valid: NDArray[np.bool_]) -> Array:
-        if span <= 0:
-            return x
-        n = max(1, math.ceil(span / h_max - 1e-9))
-        h = span / n
-        for _ in range(n):
-            k1 = reference_derivative(x, y, valid, tau, vessel, gains)
-            k2 = reference_derivative(x + 0.5 * h * k1, y, valid, tau, vessel, gains)
-            k3 = reference_derivative(x + 0.5 * h * k2, y, valid, tau, vessel, gains)
-            k4 = reference_derivative(x + h * k3, y, valid, tau, vessel, gains)
-            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        return x
+    def f(x: Array, valid: NDArray[np.bool_]) -> Array:
+        return reference_derivative(x, y, valid, tau, vessel, gains)
 
-    dead = max(dt - max_hold_s, 0.0)
-    x = integrate(x, dead, np.zeros(3, dtype=bool))
-    x = integrate(x, dt - dead, valid)
+    x = rk4_held(f, x, dt, valid, h_max, max_hold_s)
     x[I_PSI] = ssa_scalar(x[I_PSI])
     return x
 
@@ -278,21 +264,10 @@ def reference_run(
     h_max: float = 0.1,
     max_hold_s: float = 2.0,
 ) -> Array:
-    """Reference batch run: states (n, 15), NaN before initialisation."""
-    n = len(t)
-    tau = np.zeros((n, 3)) if tau is None else np.asarray(tau, dtype=float)
-    X = np.full((n, N_STATE), np.nan)
-    x: Array | None = None
-    t_prev = 0.0
-    for k in range(n):
-        if x is None:
-            if np.all(np.isfinite(y[k])):
-                x = reference_equilibrium(y[k], np.nan_to_num(tau[k]), vessel, gains)
-                t_prev = t[k]
-                X[k] = x
-            continue
-        if t[k] > t_prev:
-            x = reference_propagate(x, t[k] - t_prev, y[k], tau[k], vessel, gains, h_max, max_hold_s)
-            t_prev = t[k]
-        X[k] = x
-    return X
+    """Reference batch run: states (n, 15), NaN before initialisation (`observers.reference`)."""
+    return reference_loop(
+        t, y, tau,
+        lambda y0, tau0: reference_equilibrium(y0, tau0, vessel, gains),
+        lambda x, dt, yk, tauk: reference_propagate(x, dt, yk, tauk, vessel, gains, h_max, max_hold_s),
+        N_STATE,
+    )  # fmt: skip

@@ -31,7 +31,6 @@ module; tests/test_sdre.py checks they agree. Notes and measurements: docs/sdre.
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -49,6 +48,7 @@ from observers.base import (
 )
 from observers.kinematics import rotation, ssa_scalar
 from observers.passive_tuning import PassiveTuning
+from observers.reference import reference_loop, rk4_held
 from observers.sdre_tuning import (
     BIAS,
     ETA,
@@ -120,13 +120,9 @@ class SdreObserver(ObserverBase):
 
     @classmethod
     def from_params(
-        cls,
-        vessel: VesselModel,
-        tuning: PassiveTuning | None,
-        params: dict[str, Any],
-        *,
+        cls, vessel: VesselModel, tuning: PassiveTuning | None, params: dict[str, Any], *,
         allow_unchecked: bool = False,
-    ) -> SdreObserver:
+    ) -> SdreObserver:  # fmt: skip
         """The observer `observers.factory` builds by name: ω0 and ζ from the common ``tuning`` (as every
         observer's), the rest from ``params`` (the fields of `SdreTuning`, plus ``paper_weights = true``
         to run the paper's Q, R literally, for comparison). ``allow_unchecked`` has nothing to relax here:
@@ -256,22 +252,7 @@ def reference_propagate(
     def f(x: Array, valid: NDArray[np.bool_]) -> Array:
         return reference_derivative(x, y, valid, tau, vessel, weights, table)
 
-    def integrate(x: Array, span: float, valid: NDArray[np.bool_]) -> Array:
-        if span <= 0:
-            return x
-        n = max(1, math.ceil(span / h_max - 1e-9))
-        h = span / n
-        for _ in range(n):
-            k1 = f(x, valid)
-            k2 = f(x + 0.5 * h * k1, valid)
-            k3 = f(x + 0.5 * h * k2, valid)
-            k4 = f(x + h * k3, valid)
-            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        return x
-
-    dead = max(dt - max_hold_s, 0.0)
-    x = integrate(x, dead, np.zeros(3, dtype=bool))
-    x = integrate(x, dt - dead, valid)
+    x = rk4_held(f, x, dt, valid, h_max, max_hold_s)
     x[2] = ssa_scalar(x[2])
     return x
 
@@ -286,21 +267,11 @@ def reference_run(
     h_max: float = 0.1,
     max_hold_s: float = 2.0,
 ) -> Array:
-    """Reference batch run: states (n, 15), NaN before initialisation."""
-    n = len(t)
-    tau = np.zeros((n, 3)) if tau is None else np.asarray(tau, dtype=float)
-    X = np.full((n, 15), np.nan)
-    x: Array | None = None
-    t_prev = 0.0
-    for k in range(n):
-        if x is None:
-            if np.all(np.isfinite(y[k])):
-                x = reference_equilibrium(y[k], np.nan_to_num(tau[k]))
-                t_prev = t[k]
-                X[k] = x
-            continue
-        if t[k] > t_prev:
-            x = reference_propagate(x, t[k] - t_prev, y[k], tau[k], vessel, weights, table, h_max, max_hold_s)
-            t_prev = t[k]
-        X[k] = x
-    return X
+    """Reference batch run: states (n, 15), NaN before initialisation (`observers.reference`)."""
+    return reference_loop(
+        t, y, tau,
+        lambda y0, tau0: reference_equilibrium(y0, tau0),
+        lambda x, dt, yk, tauk: reference_propagate(
+            x, dt, yk, tauk, vessel, weights, table, h_max, max_hold_s
+        ),
+    )  # fmt: skip
