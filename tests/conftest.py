@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import pynmea2
 
@@ -29,3 +29,19 @@ def wait_for(predicate: Callable[[], T], timeout: float = 30.0, interval: float 
         if value or time.monotonic() >= deadline:
             return value
         time.sleep(interval)
+
+
+def connect_when_listening(port: int, timeout: float = 30.0, alive: Callable[[], bool] | None = None) -> Any:
+    """A Zenoh client session to a process that listens on 127.0.0.1:``port`` once it has started: retried
+    (the process may still be importing) until it connects, ``timeout`` passes, or ``alive()`` says the
+    process has ended. Fails the test with what did not happen."""
+    from gateway.bus import isolated_config, open_session
+
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            return open_session(isolated_config(connect=[f"tcp/127.0.0.1:{port}"]))
+        except Exception as exc:  # zenoh raises a plain ZError while nobody listens yet
+            if time.monotonic() >= deadline or (alive is not None and not alive()):
+                raise AssertionError(f"no Zenoh peer listening on 127.0.0.1:{port}: {exc}") from exc
+            time.sleep(0.1)

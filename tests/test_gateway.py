@@ -14,13 +14,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 import zenoh
-from conftest import wait_for
+from conftest import connect_when_listening, wait_for
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from jsonschema import Draft202012Validator
 from mcap.reader import make_reader
 
-from gateway.bus import isolated_config, open_session
+from gateway.bus import isolated_config
 from gateway.config import parse_config
 from gateway.pipeline import ControlEvent, Pipeline, PipelineSpec, RawEvent
 from gateway.replay import config_from_log, replay
@@ -62,14 +62,7 @@ def demo_run(tmp_path_factory: pytest.TempPathFactory) -> dict:  # type: ignore[
         "--no-scouting", "--zenoh-listen", f"tcp/127.0.0.1:{port}",
     )  # fmt: skip
     # the test process is the "other process" subscribing over Zenoh
-    session = None
-    deadline = time.monotonic() + 30
-    while session is None and time.monotonic() < deadline:
-        try:
-            session = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{port}"]))
-        except Exception:
-            time.sleep(0.2)
-    assert session is not None
+    session = connect_when_listening(port)
     sub = session.declare_subscriber(
         "dp/mss_supply/estimate", lambda s: received.append(json.loads(s.payload.to_bytes()))
     )
@@ -279,13 +272,7 @@ path = "{tmp_path / "q.mcap"}"
     sender.start()
     session = None
     try:
-        deadline = time.monotonic() + 20
-        while session is None and time.monotonic() < deadline:
-            try:
-                session = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{zport}"]))
-            except Exception:
-                time.sleep(0.2)
-        assert session is not None
+        session = connect_when_listening(zport, 20.0)
 
         def status() -> dict | None:  # type: ignore[type-arg]
             replies = [r for r in session.get("dp/test/status", timeout=2.0) if r.ok is not None]

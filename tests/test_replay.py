@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import connect_when_listening
 
-from gateway.bus import isolated_config, open_session
 from gateway.logreaders import LogCounts, nmea_text_events, tlog_events
 from gateway.replay import (
     ObserverSpec,
@@ -238,14 +238,7 @@ def test_speed_publishes_on_zenoh_as_if_live(tmp_path: Path) -> None:
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
     received: list[tuple[float, dict]] = []  # type: ignore[type-arg]
-    session = None
-    deadline = time.monotonic() + 30
-    while session is None and time.monotonic() < deadline and proc.poll() is None:
-        try:
-            session = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{port}"]))
-        except Exception:
-            time.sleep(0.1)
-    assert session is not None
+    session = connect_when_listening(port, alive=lambda: proc.poll() is None)
     sub = session.declare_subscriber(
         "test/replay/estimate",
         lambda s: received.append((time.monotonic(), json.loads(s.payload.to_bytes()))),

@@ -14,15 +14,8 @@ from gateway.sources.file import FileSource
 from gateway.sources.serial import NMEA_DEFAULT_BAUD, SerialSource
 from gateway.sources.tcp import TcpClientSource, TcpListenSource
 from gateway.sources.udp import UdpSource
-from wire.urls import (
-    SOURCE_OPTIONS,
-    Endpoint,
-    UrlError,
-    file_rate,
-    parse_url,
-    serial_settings,
-    split_host_port,
-)
+from wire import urls
+from wire.urls import Endpoint, UrlError
 
 #: pymavlink's default baud rate, used for MAVLink device strings without one (``/dev/ttyUSB0``).
 MAVLINK_DEFAULT_BAUD = 115200
@@ -61,7 +54,7 @@ def open_source(name: str, url: str, *, timeout_s: float = 2.0, hello: bytes | N
     if not (isinstance(timeout_s, int | float) and math.isfinite(timeout_s) and timeout_s > 0):
         raise SourceError(name, url, f"timeout_s must be a positive number of seconds, got {timeout_s!r}")
     try:
-        endpoint = parse_url(text, options=SOURCE_OPTIONS, pymavlink=True)
+        endpoint = urls.parse_url(text, options=urls.SOURCE_OPTIONS, pymavlink=True)
         return _source_for(name, url, endpoint, timeout_s, hello)
     except UrlError as exc:
         raise SourceError(
@@ -72,11 +65,11 @@ def open_source(name: str, url: str, *, timeout_s: float = 2.0, hello: bytes | N
 def _source_for(name: str, url: str, ep: Endpoint, timeout_s: float, hello: bytes | None) -> Source:
     """The source for a parsed URL (`wire.urls`: the one URL grammar); option values checked here."""
     if ep.scheme == "file":
-        return FileSource(name, url, ep.path, file_rate(ep), timeout_s=timeout_s)
+        return FileSource(name, url, ep.path, urls.file_rate(ep), timeout_s=timeout_s)
     if ep.scheme == "pty" and not ep.path.strip("/"):
         raise UrlError("no pty path given", "the path the simulator printed, e.g. pty:///tmp/dpgw-gps")
     if ep.scheme in ("serial", "pty"):
-        s = serial_settings(ep, MAVLINK_DEFAULT_BAUD if ep.pymavlink else NMEA_DEFAULT_BAUD)
+        s = urls.serial_settings(ep, MAVLINK_DEFAULT_BAUD if ep.pymavlink else NMEA_DEFAULT_BAUD)
         return SerialSource(
             name, url, ep.path, s.baud, bytesize=s.bytesize, parity=s.parity, stopbits=s.stopbits,
             timeout_s=timeout_s,
@@ -87,7 +80,7 @@ def _source_for(name: str, url: str, ep: Endpoint, timeout_s: float, hello: byte
     if ep.scheme == "tcp-listen":
         return TcpListenSource(name, url, ep.host, port, timeout_s=timeout_s)
     target_text = ep.option("target")
-    target = split_host_port(target_text, need_host=True, allow_zero=False) if target_text else None
+    target = urls.split_host_port(target_text, need_host=True, allow_zero=False) if target_text else None
     # udpout sends first: it announces the gateway, so the far end learns where to send
     announce = ep.pymavlink == "udpout"
     hello = (_default_hello() if hello is None else hello) if announce else None
