@@ -1,8 +1,9 @@
 """The ``dpgw`` command line: one entry point, a subcommand per job.
 
 argparse (standard library) is used: it gives ``--help`` on every subcommand and needs no dependency.
-Each subcommand lives in its own module (``gateway/cli_*.py`` or the package that owns the job) and
-registers itself here.
+Each subcommand lives in its own module (``dpgw/cli_*.py``), which declares its ``NAME``, ``HELP``,
+``DESCRIPTION`` and ``EPILOG`` texts and ``add_arguments(parser)``; the parsers are built here, one way
+for all of them (the examples in an epilog keep their line breaks).
 """
 
 from __future__ import annotations
@@ -27,7 +28,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for module in SUBCOMMANDS:
-        module.register(sub)
+        module.add_arguments(
+            sub.add_parser(
+                module.NAME,
+                help=module.HELP,
+                description=module.DESCRIPTION,
+                epilog=module.EPILOG or None,
+                formatter_class=argparse.RawDescriptionHelpFormatter,
+            )
+        )
     return parser
 
 

@@ -38,19 +38,18 @@ from wire.mcap.reader import read_messages
 SETTLE_S = 60.0
 
 
-def register(sub: Any) -> None:
-    p = sub.add_parser(
-        "demo",
-        help="simulator + gateway on this machine: NMEA over UDP and a pty, Zenoh, demo.mcap",
-        description=__doc__,
-        epilog=(
-            "examples:\n"
-            "  dpgw demo                                   # 3 minutes of sea in ~20 s\n"
-            "  dpgw demo --scenario hassani --duration 300 --speed 5 --out hassani.mcap\n"
-            "  dpgw listen 'dp/**'                         # in another terminal, while the demo runs"
-        ),
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+NAME = "demo"
+HELP = "simulator + gateway on this machine: NMEA over UDP and a pty, Zenoh, demo.mcap"
+DESCRIPTION = __doc__
+EPILOG = (
+    "examples:\n"
+    "  dpgw demo                                   # 3 minutes of sea in ~20 s\n"
+    "  dpgw demo --scenario hassani --duration 300 --speed 5 --out hassani.mcap\n"
+    "  dpgw listen 'dp/**'                         # in another terminal, while the demo runs"
+)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario", choices=sorted(SCENARIOS), default="torsetnes_2004", metavar="NAME")
     p.add_argument("--duration", type=float, default=180.0, metavar="S", help="sim seconds (default 180)")
     p.add_argument("--speed", type=float, default=10.0, help="sim seconds per wall second (default 10)")

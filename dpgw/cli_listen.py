@@ -12,20 +12,18 @@ from typing import Any
 
 from gateway.bus import BusError, make_config, open_session
 
+NAME = "listen"
+HELP = "print what arrives on Zenoh"
+DESCRIPTION = "Subscribe to a Zenoh key expression (default dp/**) and print every sample."
+EPILOG = (
+    "examples:\n"
+    "  dpgw listen                              # everything under dp/\n"
+    "  dpgw listen 'dp/mss_supply/estimate' --json | jq .eta\n"
+    "  dpgw listen --connect tcp/192.168.1.10:7447 'dp/*/status'"
+)
 
-def register(sub: Any) -> None:
-    p = sub.add_parser(
-        "listen",
-        help="print what arrives on Zenoh",
-        description="Subscribe to a Zenoh key expression (default dp/**) and print every sample.",
-        epilog=(
-            "examples:\n"
-            "  dpgw listen                              # everything under dp/\n"
-            "  dpgw listen 'dp/mss_supply/estimate' --json | jq .eta\n"
-            "  dpgw listen --connect tcp/192.168.1.10:7447 'dp/*/status'"
-        ),
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("key", nargs="?", default="dp/**", help="Zenoh key expression (default dp/**)")
     p.add_argument("--json", action="store_true", help="one JSON object per line: {key, payload}")
     p.add_argument("--count", type=int, metavar="N", help="exit after N samples")

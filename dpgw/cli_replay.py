@@ -30,32 +30,30 @@ from observers.passive_tuning import TuningError
 from observers.vessel import VesselError
 from wire.mcap.writer import McapLogWriter
 
+NAME = "replay"
+HELP = "re-run observers on recorded logs (MCAP, NMEA text, MAVLink tlog), with a report"
+DESCRIPTION = (
+    "Feed recorded logs through the same pipeline as the live gateway, as fast as the CPU allows: "
+    "the gateway's own MCAP logs (re-decoded from their raw channels: a live log is reproduced bit "
+    "for bit), simulator logs (scored against their ground truth), raw NMEA text logs (time from the "
+    "sentences; HDT/ROT take the time of their cycle) and MAVLink tlogs. Several observer specs run "
+    "side by side in one pass. Bad input (truncated lines, garbage, checksum failures, time gaps, "
+    "backwards or repeated time, duplicates) is counted, never fatal."
+)
+EPILOG = (
+    "observer specs: NAME[:key=value,...][@label], keys of the passive observer's tuning:\n"
+    "  wave_period_s, omega0, zeta, zeta_n, cutoff_ratio, omega_c, bias_time_constant_s,\n"
+    "  velocity_injection, bias_corner_ratio, bias_corner\n"
+    "examples:\n"
+    "  dpgw replay trial.mcap --out again.mcap                      # a gateway log, its own config\n"
+    "  dpgw replay usv.txt --vessel cybership2 --observer passive:wave_period_s=6 \\\n"
+    "       --observer passive:wave_period_s=10@long --out usv.mcap --report usv_report\n"
+    "  dpgw replay sim.mcap --vessel mss_supply --out est.mcap --json  # RMS errors vs the truth\n"
+    "  dpgw replay trial.mcap --out again.mcap --speed 5              # publish on Zenoh, 5x"
+)
 
-def register(sub: Any) -> None:
-    p = sub.add_parser(
-        "replay",
-        help="re-run observers on recorded logs (MCAP, NMEA text, MAVLink tlog), with a report",
-        description=(
-            "Feed recorded logs through the same pipeline as the live gateway, as fast as the CPU allows: "
-            "the gateway's own MCAP logs (re-decoded from their raw channels: a live log is reproduced bit "
-            "for bit), simulator logs (scored against their ground truth), raw NMEA text logs (time from the "
-            "sentences; HDT/ROT take the time of their cycle) and MAVLink tlogs. Several observer specs run "
-            "side by side in one pass. Bad input (truncated lines, garbage, checksum failures, time gaps, "
-            "backwards or repeated time, duplicates) is counted, never fatal."
-        ),
-        epilog=(
-            "observer specs: NAME[:key=value,...][@label], keys of the passive observer's tuning:\n"
-            "  wave_period_s, omega0, zeta, zeta_n, cutoff_ratio, omega_c, bias_time_constant_s,\n"
-            "  velocity_injection, bias_corner_ratio, bias_corner\n"
-            "examples:\n"
-            "  dpgw replay trial.mcap --out again.mcap                      # a gateway log, its own config\n"
-            "  dpgw replay usv.txt --vessel cybership2 --observer passive:wave_period_s=6 \\\n"
-            "       --observer passive:wave_period_s=10@long --out usv.mcap --report usv_report\n"
-            "  dpgw replay sim.mcap --vessel mss_supply --out est.mcap --json  # RMS errors vs the truth\n"
-            "  dpgw replay trial.mcap --out again.mcap --speed 5              # publish on Zenoh, 5x"
-        ),
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("logs", nargs="+", metavar="LOG", help="MCAP, NMEA text or tlog files (merged by time)")
     p.add_argument("--vessel", metavar="NAME|FILE", help="vessel (needed unless the log or --config has one)")
     p.add_argument("--config", metavar="FILE", help="a gateway config (sources, lever arms, tuning)")

@@ -8,34 +8,31 @@ import logging
 import signal
 import sys
 import tomllib
-from typing import Any
 
 from gateway.bus import BusError
 from gateway.config import ConfigError, GatewayConfig, describe, format_problems, load_config
 from gateway.service import GatewayService, zenoh_config
 from gateway.sources import SourceError, open_source
 
+NAME = "run"
+HELP = "run the gateway: sensor streams in, observer, Zenoh and MCAP out"
+DESCRIPTION = (
+    "Run the live gateway described by a TOML config: read the DGPS/gyro NMEA and MAVLink thruster "
+    "links, estimate the low-frequency motion with the wave-filtering observer, publish estimate, "
+    "measurement and status on Zenoh (<prefix>/...) and log everything to MCAP. SIGINT or SIGTERM "
+    "flush and close the log. A config mistake or a missing serial port stops start-up with one "
+    "message naming what and where."
+)
+EPILOG = (
+    "examples:\n"
+    "  dpgw run --config /etc/dpgw/vessel.toml\n"
+    "  dpgw run --config examples/nmea_udp_multiplexer.toml --log /tmp/trial.mcap\n"
+    "  dpgw run --config vessel.toml --check        # validate the config and exit\n"
+    "see examples/ for configs and a systemd unit; docs/config.md for every key"
+)
 
-def register(sub: Any) -> None:
-    p = sub.add_parser(
-        "run",
-        help="run the gateway: sensor streams in, observer, Zenoh and MCAP out",
-        description=(
-            "Run the live gateway described by a TOML config: read the DGPS/gyro NMEA and MAVLink thruster "
-            "links, estimate the low-frequency motion with the wave-filtering observer, publish estimate, "
-            "measurement and status on Zenoh (<prefix>/...) and log everything to MCAP. SIGINT or SIGTERM "
-            "flush and close the log. A config mistake or a missing serial port stops start-up with one "
-            "message naming what and where."
-        ),
-        epilog=(
-            "examples:\n"
-            "  dpgw run --config /etc/dpgw/vessel.toml\n"
-            "  dpgw run --config examples/nmea_udp_multiplexer.toml --log /tmp/trial.mcap\n"
-            "  dpgw run --config vessel.toml --check        # validate the config and exit\n"
-            "see examples/ for configs and a systemd unit; docs/config.md for every key"
-        ),
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", required=True, metavar="FILE", help="gateway config (TOML)")
     p.add_argument("--log", metavar="FILE.mcap", help="override [log] path")
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds (tests, trials)")

@@ -19,29 +19,27 @@ from simulator.scenarios import SCENARIOS, get_scenario
 from simulator.transports import Sink, TransportError, open_sink
 from wire.mcap.writer import McapLogWriter
 
+NAME = "sim"
+HELP = "simulate a vessel at sea that speaks NMEA and MAVLink on real transports"
+DESCRIPTION = (
+    "Run a named scenario: a vessel at sea (LF dynamics, JONSWAP/PM waves through RAOs, slowly "
+    "varying environment, thrusters) whose DGPS and gyro speak NMEA 0183 and whose thrusters report "
+    "over MAVLink, on a pty (a virtual serial port), UDP, a TCP server, a serial port or a file. "
+    "Ground truth and every byte sent go to MCAP. Thruster commands may come back (dpgw dialect "
+    "AZIMUTH_THRUSTER_COMMAND on the MAVLink link, or Zenoh <prefix>/thrusters/command) and close "
+    "the loop."
+)
+EPILOG = (
+    "examples:\n"
+    "  dpgw sim --scenario torsetnes_2004 --duration 600 --out trial.mcap\n"
+    "  dpgw sim --scenario torsetnes_2004 --nmea pty --realtime          # prints the device path\n"
+    "  dpgw sim --scenario hassani --nmea dgps1=udp://127.0.0.1:10110 --nmea gyro1=pty --realtime\n"
+    "  dpgw sim --scenario hajivand_2010 --mavlink tcp-listen://127.0.0.1:5760 --zenoh --realtime\n"
+    f"scenarios: {', '.join(SCENARIOS)}"
+)
 
-def register(sub: Any) -> None:
-    p = sub.add_parser(
-        "sim",
-        help="simulate a vessel at sea that speaks NMEA and MAVLink on real transports",
-        description=(
-            "Run a named scenario: a vessel at sea (LF dynamics, JONSWAP/PM waves through RAOs, slowly "
-            "varying environment, thrusters) whose DGPS and gyro speak NMEA 0183 and whose thrusters report "
-            "over MAVLink, on a pty (a virtual serial port), UDP, a TCP server, a serial port or a file. "
-            "Ground truth and every byte sent go to MCAP. Thruster commands may come back (dpgw dialect "
-            "AZIMUTH_THRUSTER_COMMAND on the MAVLink link, or Zenoh <prefix>/thrusters/command) and close "
-            "the loop."
-        ),
-        epilog=(
-            "examples:\n"
-            "  dpgw sim --scenario torsetnes_2004 --duration 600 --out trial.mcap\n"
-            "  dpgw sim --scenario torsetnes_2004 --nmea pty --realtime          # prints the device path\n"
-            "  dpgw sim --scenario hassani --nmea dgps1=udp://127.0.0.1:10110 --nmea gyro1=pty --realtime\n"
-            "  dpgw sim --scenario hajivand_2010 --mavlink tcp-listen://127.0.0.1:5760 --zenoh --realtime\n"
-            f"scenarios: {', '.join(SCENARIOS)}"
-        ),
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--scenario", choices=sorted(SCENARIOS), required=True, metavar="NAME", help="scenario name"
     )

@@ -20,25 +20,23 @@ from observers.passive_tuning import (
 )
 from observers.vessel import VesselError, builtin_vessels, load_vessel
 
+NAME = "tune"
+HELP = "passive-observer gains and checks for a vessel and sea state"
+DESCRIPTION = (
+    "Compute the gains of the Fossen & Strand (1999) passive observer for a vessel and a dominating "
+    "wave period, in physical terms, and check them: the tuning rule (48), the SPR condition of "
+    "Proposition 1, the eigenvalues of the linearised estimation-error dynamics, and the notch "
+    "depth (how much wave-frequency motion at ω0 reaches the low-frequency estimate)."
+)
+EPILOG = (
+    "examples:\n"
+    "  dpgw tune --vessel mss_supply --wave-period 9\n"
+    "  dpgw tune --vessel my_ship.toml --wave-period 7 --velocity-injection 0.1 --json\n"
+    f"built-in vessels: {', '.join(builtin_vessels())}"
+)
 
-def register(sub: Any) -> None:
-    p = sub.add_parser(
-        "tune",
-        help="passive-observer gains and checks for a vessel and sea state",
-        description=(
-            "Compute the gains of the Fossen & Strand (1999) passive observer for a vessel and a dominating "
-            "wave period, in physical terms, and check them: the tuning rule (48), the SPR condition of "
-            "Proposition 1, the eigenvalues of the linearised estimation-error dynamics, and the notch "
-            "depth (how much wave-frequency motion at ω0 reaches the low-frequency estimate)."
-        ),
-        epilog=(
-            "examples:\n"
-            "  dpgw tune --vessel mss_supply --wave-period 9\n"
-            "  dpgw tune --vessel my_ship.toml --wave-period 7 --velocity-injection 0.1 --json\n"
-            f"built-in vessels: {', '.join(builtin_vessels())}"
-        ),
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--vessel", required=True, help="built-in vessel name or a vessel TOML file")
     p.add_argument(
         "--wave-period", type=float, required=True, metavar="S", help="dominating wave period Tp (s)"

@@ -152,17 +152,9 @@ class PassiveObserver(ObserverBase):
         """Advance to time t (s) with measurement y and generalised force τ held since the last sample."""
         y_arr, tau_arr = step_inputs(y, tau)
         code = kernel.step(
-            self.x,
-            self._clock,
-            float(t),
-            y_arr,
-            tau_arr,
-            self._G,
-            self._Minv,
-            self._D,
-            self.h_max,
-            self.max_hold_s,
-        )
+            self.x, self._clock, float(t), y_arr, tau_arr, self._G, self._Minv, self._D, self.h_max,
+            self.max_hold_s
+        )  # fmt: skip
         return estimate_from_state(float(t), self.x, code)
 
     def run(self, t: ArrayLike, y: ArrayLike, tau: ArrayLike | None = None) -> Run:
@@ -172,19 +164,9 @@ class PassiveObserver(ObserverBase):
         X = np.empty((n, N_STATE))
         status = np.empty(n, dtype=np.int8)
         kernel.run(
-            self.x,
-            self._clock,
-            t_arr,
-            Y,
-            TAU,
-            self._G,
-            self._Minv,
-            self._D,
-            self.h_max,
-            self.max_hold_s,
-            X,
-            status,
-        )
+            self.x, self._clock, t_arr, Y, TAU, self._G, self._Minv, self._D, self.h_max, self.max_hold_s,
+            X, status
+        )  # fmt: skip
         omega0 = np.broadcast_to(self.gains.omega0, (n, 3))  # fixed gains: one row, repeated (a view)
         return Run(t_arr, X[:, ETA], X[:, NU], X[:, BIAS], X[:, XI2], status, omega0)
 

@@ -166,18 +166,9 @@ class SdreObserver(ObserverBase):
         """Advance to time t (s) with measurement y and generalised force τ held since the last sample."""
         y_arr, tau_arr = step_inputs(y, tau)
         code = kernel.step(
-            self.x,
-            self._clock,
-            float(t),
-            y_arr,
-            tau_arr,
-            self._W,
-            self.table,
-            self._Minv,
-            self._MinvD,
-            self.h_max,
-            self.max_hold_s,
-        )
+            self.x, self._clock, float(t), y_arr, tau_arr, self._W, self.table, self._Minv, self._MinvD,
+            self.h_max, self.max_hold_s
+        )  # fmt: skip
         return estimate_from_state(float(t), self.x, code)
 
     def run(self, t: ArrayLike, y: ArrayLike, tau: ArrayLike | None = None) -> Run:
@@ -187,20 +178,9 @@ class SdreObserver(ObserverBase):
         X = np.empty((n, 15))
         status = np.empty(n, dtype=np.int8)
         kernel.run(
-            self.x,
-            self._clock,
-            t_arr,
-            Y,
-            TAU,
-            self._W,
-            self.table,
-            self._Minv,
-            self._MinvD,
-            self.h_max,
-            self.max_hold_s,
-            X,
-            status,
-        )
+            self.x, self._clock, t_arr, Y, TAU, self._W, self.table, self._Minv, self._MinvD, self.h_max,
+            self.max_hold_s, X, status
+        )  # fmt: skip
         # ω0 is fixed over a run (it changes only by `set_omega0` between calls)
         omega0 = np.broadcast_to(self.weights.omega0, (n, 3)).copy()
         return Run(t_arr, X[:, ETA], X[:, NU], X[:, BIAS], X[:, XI2], status, omega0)
