@@ -216,15 +216,9 @@ def reference_equilibrium(y: Array, tau: Array, vessel: VesselModel, gains: Pass
 
 
 def reference_propagate(
-    x: Array,
-    dt: float,
-    y: Array,
-    tau: Array,
-    vessel: VesselModel,
-    gains: PassiveGains,
-    h_max: float = 0.1,
-    max_hold_s: float = 2.0,
-) -> Array:
+    x: Array, dt: float, y: Array, tau: Array, vessel: VesselModel, gains: PassiveGains,
+    h_max: float = 0.1, max_hold_s: float = 2.0,
+) -> Array:  # fmt: skip
     """Reference twin of `observers._passive_kernel.propagate` (returns the new state)."""
     valid = ~np.isnan(y)
     y, tau = np.where(valid, y, 0.0), np.nan_to_num(tau)

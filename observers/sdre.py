@@ -214,16 +214,9 @@ def reference_equilibrium(y: Array, tau: Array) -> Array:
 
 
 def reference_propagate(
-    x: Array,
-    dt: float,
-    y: Array,
-    tau: Array,
-    vessel: VesselModel,
-    weights: SdreWeights,
-    table: Array,
-    h_max: float = 0.1,
-    max_hold_s: float = 2.0,
-) -> Array:
+    x: Array, dt: float, y: Array, tau: Array, vessel: VesselModel, weights: SdreWeights, table: Array,
+    h_max: float = 0.1, max_hold_s: float = 2.0,
+) -> Array:  # fmt: skip
     """Reference twin of `observers._sdre_kernel.propagate` (returns the new state)."""
     valid = ~np.isnan(y)
     y = np.where(valid, y, 0.0)
