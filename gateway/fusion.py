@@ -213,7 +213,7 @@ class Fusion:
     def position_sigma_m(self, now_ns: int) -> float | None:
         """The 1σ error of the position in use: its source's GST sigma while both are fresh, else None."""
         pos = self._north
-        sigma = self._sigma.get(pos.source)
+        sigma = self._sigma.get(pos.source)  # (no GST from this source: the common case, asked every step)
         if sigma is None or not sigma.fresh(now_ns) or not pos.fresh(now_ns):
             return None
         return sigma.value

@@ -204,6 +204,8 @@ class Pipeline:
         self.observer = spec.observer
         datum = LocalFrame(*spec.datum) if spec.datum is not None else None
         self.fusion = Fusion(spec.vessel, datum=datum, reference_point_m=spec.reference_point_m)
+        self._datum_for_message: LocalFrame | None = None
+        self._datum_msg = Datum(lat_deg=0.0, lon_deg=0.0)
         self.sources = {s.name: s for s in spec.sources}
         self.counters = {s.name: SourceCounters() for s in spec.sources}
         self._framers = {s.name: NmeaFramer() for s in spec.sources if s.protocol == "nmea"}
@@ -419,8 +421,9 @@ class Pipeline:
         return (ns - self.t0_ns) / 1e9
 
     def _step(self, now_ns: int, trigger: str) -> list[Output]:
-        y, valid = self.fusion.measurement(now_ns)
-        tau, tau_source = self.fusion.tau(now_ns)
+        fusion = self.fusion
+        y, valid = fusion.measurement(now_ns)
+        tau, tau_source = fusion.tau(now_ns)
         t = self._t(now_ns)
         est = self.observer.step(t, y, tau)
         out = [
@@ -430,9 +433,9 @@ class Pipeline:
                     stamp_ns=now_ns,
                     eta=[None if v != v else v for v in y.tolist()],  # NaN (stale) -> null
                     valid=valid,
-                    sources=sorted({h.source for h in (self.fusion.north, self.fusion.heading) if h.source}),
-                    quality=self.fusion.quality,
-                    sigma_m=self.fusion.position_sigma_m(now_ns),
+                    sources=_contributing(fusion.north.source, fusion.heading.source),
+                    quality=fusion.quality,
+                    sigma_m=fusion.position_sigma_m(now_ns),
                     tau=tau.tolist(),
                     tau_source=tau_source,
                 ),
@@ -564,31 +567,45 @@ class Pipeline:
 
     def _estimate(self, label: str, obs: Observer, est: Estimate, now_ns: int) -> EstimateMessage:
         datum = self.fusion.datum
+        eta = est.eta.tolist()
         lat = lon = None
         if datum is not None:
-            lat, lon, _ = datum.to_geodetic(float(est.eta[0]), float(est.eta[1]), 0.0)
+            lat, lon = datum.to_lat_lon(eta[0], eta[1])
         status = est.status
         backup = self._backup
-        if status == "ok" and (
-            self.fusion.north.source in backup.get("position", ())
-            or self.fusion.heading.source in backup.get("heading", ())
+        if (
+            status == "ok"
+            and backup  # no backup sources configured: nothing to look up (every estimate passes here)
+            and (
+                self.fusion.north.source in backup.get("position", ())
+                or self.fusion.heading.source in backup.get("heading", ())
+            )
         ):
             status = "degraded"  # running on a backup source
         return EstimateMessage(
             stamp_ns=now_ns,
             observer=label,
             status=status,  # type: ignore[arg-type]  # the observer's STATUS_NAMES, or "degraded"
-            eta=est.eta.tolist(),
+            eta=eta,
             nu=est.nu.tolist(),
             bias=est.bias.tolist(),
             eta_wf=est.eta_wf.tolist(),
-            omega0=np.asarray(obs.omega0, dtype=float).tolist(),
+            omega0=obs.omega0.tolist(),  # the protocol's omega0: a float array (3,)
             lat_deg=lat,
             lon_deg=lon,
-            heading_deg=math.degrees(est.eta[2]) % 360.0,
-            datum=None if datum is None else Datum(lat_deg=datum.lat_deg, lon_deg=datum.lon_deg),
+            heading_deg=math.degrees(eta[2]) % 360.0,
+            datum=None
+            if datum is None
+            else (self._datum_msg if datum is self._datum_for_message else self._datum_message(datum)),
             extra=obs.extra(),
         )
+
+    def _datum_message(self, datum: LocalFrame) -> Datum:
+        """The estimate's datum object, made once per datum (it is the same for every estimate)."""
+        if self._datum_for_message is not datum:
+            self._datum_for_message = datum
+            self._datum_msg = Datum(lat_deg=datum.lat_deg, lon_deg=datum.lon_deg)
+        return self._datum_msg
 
     def _location_fix(self, source: str, rx_ns: int, lat: float, lon: float) -> list[Output]:
         if rx_ns - self._last_fix_ns.get(source, -FIX_PERIOD_NS) < FIX_PERIOD_NS:
@@ -638,6 +655,20 @@ class Pipeline:
             sources={name: c.as_message(now_ns) for name, c in self.counters.items()},
             alarms=list(alarms),
         )
+
+
+def _contributing(position_source: str, heading_source: str) -> list[str]:
+    """The measurement's ``sources``: the names of the position and heading sources in use, sorted, each
+    once ("" = none). Written out rather than as a sorted set: it runs for every measurement."""
+    if not position_source or position_source == heading_source:
+        return [heading_source] if heading_source else []
+    if not heading_source:
+        return [position_source]
+    return (
+        [position_source, heading_source]
+        if position_source < heading_source
+        else [heading_source, position_source]
+    )
 
 
 def _location_fix_message(stamp_ns: int, frame_id: str, lat: float, lon: float) -> LocationFix:

@@ -37,12 +37,12 @@ from observers import _passive_kernel as kernel
 from observers.base import (
     STATUS_INITIALIZING,
     STATUS_NAMES,
+    ZERO3,
     Estimate,
     InitialState,
     ObserverBase,
     Run,
     batch_inputs,
-    step_inputs,
 )
 from observers.kinematics import rotation, ssa_scalar
 from observers.passive_tuning import PassiveGains, PassiveTuning, passive_gains, validate
@@ -150,7 +150,9 @@ class PassiveObserver(ObserverBase):
 
     def step(self, t: float, y: ArrayLike, tau: ArrayLike | None = None) -> Estimate:
         """Advance to time t (s) with measurement y and generalised force τ held since the last sample."""
-        y_arr, tau_arr = step_inputs(y, tau)
+        # inline (not `step_inputs`): the live path; a call costs 0.5 µs a sample here
+        y_arr = np.asarray(y, dtype=float)
+        tau_arr = ZERO3 if tau is None else np.asarray(tau, dtype=float)
         code = kernel.step(
             self.x, self._clock, float(t), y_arr, tau_arr, self._G, self._Minv, self._D, self.h_max,
             self.max_hold_s

@@ -43,3 +43,18 @@ def test_vectorised_matches_scalar() -> None:
 def test_bad_datum() -> None:
     with pytest.raises(ValueError, match="latitude"):
         LocalFrame(95.0, 0.0)
+
+
+@settings(max_examples=500, deadline=None)
+@given(
+    lat0=st.floats(-85.0, 85.0),
+    lon0=st.floats(-180.0, 180.0),
+    north=st.floats(-1e5, 1e5),
+    east=st.floats(-1e5, 1e5),
+)
+def test_lat_lon_is_to_geodetic_without_the_height_bit_for_bit(
+    lat0: float, lon0: float, north: float, east: float
+) -> None:
+    """The estimate's shortcut gives the very latitude and longitude `to_geodetic` gives."""
+    frame = LocalFrame(lat0, lon0)
+    assert frame.to_lat_lon(north, east) == frame.to_geodetic(north, east, 0.0)[:2]
