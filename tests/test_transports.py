@@ -104,7 +104,7 @@ def test_pty_bytes_from_the_reader_come_back(pty_sink: PtySink) -> None:
         assert pty_sink.read_available() == b""
     # and the sink's own output is not echoed back to it
     pty_sink.write(GGA)
-    time.sleep(0.05)
+    time.sleep(0.05)  # an absence has no event to poll for: a bounded look (load can only hide an echo)
     assert pty_sink.read_available() == b""
 
 
@@ -201,7 +201,7 @@ def test_pty_discards_input_nobody_reads(tmp_path: Path) -> None:
         with open_sink(url) as sink:
             assert isinstance(sink, PtySink)
             sink.write(b"$OLD*00\r\n")
-            time.sleep(0.4)
+            time.sleep(0.4)  # what is tested: $OLD ages past stale_s (longer on a loaded machine: still past)
             sink.write(b"$NEW*00\r\n")
             # read without pyserial, which would flush the input on open
             fd = os.open(sink.device, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
