@@ -222,6 +222,7 @@ def test_estimator_config_and_model_ship_scaling() -> None:
 # --- gains and checks -------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow  # ~10 s
 def test_scheduled_gains_are_torsetnes_51_52_and_the_passive_rule() -> None:
     """Gains at any ω̄0 are (51)–(52) in ERRATA's form, bit for bit those of `passive_gains`."""
     obs = GainScheduledObserver(VESSEL, omega0_initial=0.7)
@@ -349,6 +350,7 @@ def test_readapts_when_the_sea_changes() -> None:
         assert err[int(first_in * RATE) :].max() <= 0.12, seed
 
 
+@pytest.mark.slow  # ~7 s
 def test_no_jump_at_gain_updates() -> None:
     """Around every update that moves ω0, the LF estimate's largest per-sample change is no larger than
     elsewhere in the surrounding minute — as in the run with scheduling off. And the jump itself: the same

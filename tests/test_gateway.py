@@ -200,7 +200,7 @@ def _send_nmea(port: int, stop: threading.Event) -> None:
         burst = enc.gga("GP", now, lat, 10.5, 2, 12, 0.8, 20.0) + enc.hdt("HE", 0.5 + 0.01 * np.sin(k / 30))
         tx.sendto(burst.encode(), ("127.0.0.1", port))
         k += 1
-        time.sleep(0.02)
+        time.sleep(0.02)  # pacing: a receiver's 50 Hz, not a wait for anything
     tx.close()
 
 

@@ -275,7 +275,7 @@ WRITER_SCRIPT = textwrap.dedent(
         print("wrote", i, t, flush=True)  # what the writer had accepted when it was killed
         i += 1
         next_t += 0.02  # 50 Hz
-        time.sleep(max(0.0, next_t - time.monotonic()))
+        time.sleep(max(0.0, next_t - time.monotonic()))  # pacing, so the file grows at a known rate
     w.close()
     print("closed", i, flush=True)
     """

@@ -102,6 +102,7 @@ def first_time(t: np.ndarray, cond: np.ndarray) -> float:
 # --- identification --------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_hassani_sea_selects_the_0_9_filter_within_90_s() -> None:
     """True peak 0.93 rad/s (JONSWAP γ 3.3, Hs 0.08 m), CyberShip II, 10 Hz, the 10 m step at 40–80 s.
 
@@ -127,6 +128,7 @@ def test_hassani_sea_selects_the_0_9_filter_within_90_s() -> None:
     assert tau_slow[i09] < 6.0 and max(tau_slow) < 15.0, tau_slow
 
 
+@pytest.mark.slow
 def test_hassani_sea_over_seeds() -> None:
     """The same over 12 seas (seeds 0–11). Measured: 10 of 12 reach weight > 0.9 for 0.9 rad/s within 90 s
     (first crossings 14–88 s; the other two at 100 s and 112 s); the blended ω0 averaged over 90–150 s is
@@ -444,6 +446,7 @@ def test_kernel_agrees_with_numpy_reference(heading_in_weights: bool) -> None:
     assert np.ptp(W[-200:], axis=0).max() > 0  # the weights did move
 
 
+@pytest.mark.slow
 def test_step_and_run_give_the_same_numbers() -> None:
     vessel = load_vessel("cybership2")
     t, y, tau = _jittered_inputs(8)
@@ -465,6 +468,7 @@ def test_step_and_run_give_the_same_numbers() -> None:
 # --- defaults: noise and wave motion identified from the measurements -------------------------------------
 
 
+@pytest.mark.slow
 def test_defaults_identify_the_hassani_sea() -> None:
     """No tuning at all (`MMAEObserver(vessel)`): R and the wave model are identified from the data (docs/
     mmae.md, "Noise identification"), the bank restarted on the first identification. Measured, seeds 0–11:

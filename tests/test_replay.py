@@ -173,6 +173,7 @@ def test_bad_observer_spec() -> None:
         parse_observer_spec("kalman")
 
 
+@pytest.mark.slow  # a 300 s simulation, then replay
 def test_simulator_log_is_scored_against_its_truth(tmp_path: Path) -> None:
     log = tmp_path / "sim.mcap"
     with McapLogWriter(log) as w:
@@ -256,6 +257,7 @@ def test_speed_publishes_on_zenoh_as_if_live(tmp_path: Path) -> None:
     assert wall == pytest.approx(log_s / 10, rel=0.3)  # paced, not as fast as possible
 
 
+@pytest.mark.slow
 def test_progress_bar_on_a_terminal(tmp_path: Path) -> None:
     """On a terminal (stderr a tty) replay shows a progress bar; piped (as in the other tests) it does not."""
     log = tmp_path / "trial.nmea"

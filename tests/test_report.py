@@ -274,6 +274,7 @@ def report_dir(data: ReplayData, tmp_path_factory: pytest.TempPathFactory) -> tu
     return folder, write_report(data, folder)
 
 
+@pytest.mark.slow  # matplotlib draws every figure, ~3 s
 def test_write_report_writes_pngs_metrics_and_table(
     report_dir: tuple[Path, list[Path]], metrics: dict[str, Any]
 ) -> None:

@@ -66,6 +66,7 @@ def test_one_riccati_solution_serves_every_heading(name: str) -> None:
         assert _row_relative_error(table_gain(table, psi), direct_gain(vessel, weights, psi)) < 1e-9
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["snijders_ship", "mss_supply"])
 def test_unequal_wave_frequencies_are_tabulated_within_the_stated_bound(name: str) -> None:
     """ω0 = 0.45 / 0.6 / 0.52 rad/s: K̄ tabulated at 1° over [0, π), linear interpolation. The error,
@@ -197,7 +198,13 @@ def _random_data(n: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     return t, y, tau
 
 
-@pytest.mark.parametrize("tuning", [SdreTuning(omega0=W0), UNEQUAL], ids=["one-solution", "tabulated"])
+@pytest.mark.parametrize(
+    "tuning",
+    [
+        pytest.param(SdreTuning(omega0=W0), id="one-solution"),
+        pytest.param(UNEQUAL, id="tabulated", marks=pytest.mark.slow),  # ~3 s
+    ],
+)
 def test_kernel_agrees_with_numpy_reference(tuning: SdreTuning) -> None:
     vessel = load_vessel("snijders_ship")
     t, y, tau = _random_data(1200, 3)

@@ -104,7 +104,7 @@ def test_pty_bytes_from_the_reader_come_back(pty_sink: PtySink) -> None:
         assert pty_sink.read_available() == b""
     # and the sink's own output is not echoed back to it
     pty_sink.write(GGA)
-    time.sleep(0.05)
+    time.sleep(0.05)  # an absence has no event to poll for: a bounded look (load can only hide an echo)
     assert pty_sink.read_available() == b""
 
 
@@ -201,7 +201,7 @@ def test_pty_discards_input_nobody_reads(tmp_path: Path) -> None:
         with open_sink(url) as sink:
             assert isinstance(sink, PtySink)
             sink.write(b"$OLD*00\r\n")
-            time.sleep(0.4)
+            time.sleep(0.4)  # what is tested: $OLD ages past stale_s (longer on a loaded machine: still past)
             sink.write(b"$NEW*00\r\n")
             # read without pyserial, which would flush the input on open
             fd = os.open(sink.device, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
@@ -538,20 +538,27 @@ def test_virtual_clock_does_not_sleep() -> None:
 
 @pytest.mark.parametrize("speed", [1.0, 4.0])
 def test_realtime_clock_paces_against_the_wall(speed: float) -> None:
+    """Against the real clock: never early, on time as a rule, sim time = speed × wall time. A loaded
+    machine may wake any one step late by tens of ms, so single steps are not bounded here; the exact
+    schedule (no drift, lag, resync) is tested on a fake clock below."""
     clock = RealtimeClock(speed=speed)
     dt = 0.05 * speed  # 10 steps, 0.5 s of wall time at any speed
+    before = time.monotonic()
     clock.anchor()
-    start = time.monotonic()
-    worst = 0.0
+    start = time.monotonic()  # the anchor's wall instant is between `before` and `start`
+    late = []
     for k in range(1, 11):
         lag = clock.sleep_until(k * dt)
-        assert lag < 0.05
-        late = time.monotonic() - (start + k * 0.05)
-        assert late > -0.002  # never early (beyond rounding)
-        worst = max(worst, late)
-    assert worst < 0.05  # generous: a loaded CI machine
-    assert clock.now() == pytest.approx(10 * dt, abs=0.05 * speed)
-    assert 0.49 < time.monotonic() - start < 0.6
+        woke = time.monotonic()
+        assert woke - (before + k * 0.05) > -0.002  # never early (beyond rounding)
+        late.append(woke - (start + k * 0.05))
+        assert lag <= late[-1] + (start - before) + 1e-6  # the lag the clock reports is no more than real
+    assert sorted(late)[len(late) // 2] < 0.02, late  # the median step is on time
+    w0 = time.monotonic()
+    now = clock.now()
+    w1 = time.monotonic()
+    assert (w0 - start) * speed - 1e-9 <= now <= (w1 - before) * speed + 1e-9  # speed × wall since the anchor
+    assert now >= 10 * dt
 
 
 class FakeTime:
