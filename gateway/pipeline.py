@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
@@ -64,6 +64,9 @@ FIX_PERIOD_NS = 1_000_000_000
 class RawEvent:
     """A chunk of bytes as received: UTC receive time (ns), source name, bytes.
 
+    ``peer``: the sender, where one source hears several (UDP). Every sender has its own framer, so two
+    senders' partial sentences never splice into one.
+
     ``checked`` (NMEA only, set by replay's log reader): the chunk is whole lines, each a clean sentence
     whose framing and checksum the reader has already verified (`wire.codecs.nmea_scan`); it holds the
     texts of the sentences the pipeline uses (`USED_NMEA`, proprietary ones too), in order, and the count
@@ -75,6 +78,8 @@ class RawEvent:
     source: str
     data: bytes
     checked: tuple[tuple[str, ...], int] | None = None
+    peer: str = ""
+    """Who sent it on a shared link (a UDP sender's ``host:port``); each sender is framed on its own."""
 
 
 @dataclass(frozen=True)
@@ -192,10 +197,17 @@ class SourceCounters:
     rejected: Counter[str] = field(default_factory=Counter)
     bytes: int = 0
     last_rx_ns: int = 0
+    dropped: int = 0  # lost before the gateway read them (the kernel's count; the service sets it)
 
     def as_message(self, now_ns: int) -> SourceStatus:
         age = (now_ns - self.last_rx_ns) / NS if self.last_rx_ns else None
-        return SourceStatus(age_s=age, received=self.received, rejected=dict(self.rejected), bytes=self.bytes)
+        return SourceStatus(
+            age_s=age,
+            received=self.received,
+            rejected=dict(self.rejected),
+            bytes=self.bytes,
+            dropped=self.dropped,
+        )
 
 
 class Pipeline:
@@ -208,10 +220,12 @@ class Pipeline:
         self._datum_msg = Datum(lat_deg=0.0, lon_deg=0.0)
         self.sources = {s.name: s for s in spec.sources}
         self.counters = {s.name: SourceCounters() for s in spec.sources}
-        self._framers = {s.name: NmeaFramer() for s in spec.sources if s.protocol == "nmea"}
-        self._parsers = {s.name: self._mavlink_parser(s) for s in spec.sources if s.protocol == "mavlink"}
-        self._parser_seen: dict[str, Counter[str]] = {name: Counter() for name in self._parsers}
-        self._parser_rejects = dict.fromkeys(self._parsers, 0)  # sum of _parser_seen, the fast check
+        # One framer (NMEA) or frame parser (MAVLink) per source and sender, made on the sender's first
+        # chunk; key (source, peer), peer "" for links with one sender.
+        self._framers: dict[tuple[str, str], NmeaFramer] = {}
+        self._parsers: dict[tuple[str, str], mv.FrameParser] = {}
+        self._parser_seen: dict[tuple[str, str], Counter[str]] = {}
+        self._parser_rejects: dict[tuple[str, str], int] = {}  # sum of _parser_seen, the fast check
         self.t0_ns: int | None = None
         self.last_ns = 0
         self.mode = "standby"
@@ -302,7 +316,7 @@ class Pipeline:
         else:
             framed: list[str] = []
             texts = framed
-            for frame in self._framers[spec.name].feed(ev.data):
+            for frame in self._framer(spec.name, ev.peer).feed(ev.data):
                 if frame.text is None:
                     c.rejected[frame.reason or "garbage"] += 1
                 else:
@@ -345,9 +359,29 @@ class Pipeline:
             return fix is not None
         return False
 
+    def _framer(self, source: str, peer: str) -> NmeaFramer:
+        framer = self._framers.get((source, peer))
+        if framer is None:
+            key = (source, _sender_key(peer, self._framers, source))
+            framer = self._framers.setdefault(key, NmeaFramer())
+        return framer
+
+    def _parser(self, spec: SourceSpec, peer: str) -> tuple[tuple[str, str], mv.FrameParser]:
+        key = (spec.name, peer)
+        parser = self._parsers.get(key)
+        if parser is None:
+            key = (spec.name, _sender_key(peer, self._parsers, spec.name))
+            parser = self._parsers.get(key)
+            if parser is None:
+                parser = self._parsers[key] = self._mavlink_parser(spec)
+                self._parser_seen[key] = Counter()
+                self._parser_rejects[key] = 0
+        return key, parser
+
     def _mavlink(self, spec: SourceSpec, c: SourceCounters, ev: RawEvent, out: list[Output]) -> bool:
-        msgs = self._parsers[spec.name].feed(ev.data)
-        self._count_parser_rejects(spec.name, c)
+        key, parser = self._parser(spec, ev.peer)
+        msgs = parser.feed(ev.data)
+        self._count_parser_rejects(key, c)
         roles = spec.roles
         updated = False
         feedback = False
@@ -384,19 +418,19 @@ class Pipeline:
             out.append(self._feedback_output(rx_ns))
         return updated
 
-    def _count_parser_rejects(self, name: str, c: SourceCounters) -> None:
-        """Add what the source's frame parser rejected since last time to the source's counters (which
-        also hold the pipeline's own reasons, so they are added to, never overwritten)."""
-        parser = self._parsers[name]
+    def _count_parser_rejects(self, key: tuple[str, str], c: SourceCounters) -> None:
+        """Add what a frame parser rejected since last time to its source's counters (which also hold the
+        pipeline's own reasons, so they are added to, never overwritten)."""
+        parser = self._parsers[key]
         total = sum(parser.rejected.values())
-        if total == self._parser_rejects[name]:
+        if total == self._parser_rejects[key]:
             return
-        seen = self._parser_seen[name]
+        seen = self._parser_seen[key]
         for reason, n in parser.rejected.items():
             if n != seen[reason]:
                 c.rejected[reason] += n - seen[reason]
                 seen[reason] = n
-        self._parser_rejects[name] = total
+        self._parser_rejects[key] = total
 
     def _control(self, ev: ControlEvent) -> None:
         if ev.key == "mode" and ev.payload in ("standby", "dp", "manual"):
@@ -655,6 +689,18 @@ class Pipeline:
             sources={name: c.as_message(now_ns) for name, c in self.counters.items()},
             alarms=list(alarms),
         )
+
+
+MAX_SENDERS = 64
+"""Senders per source that get a framer of their own; more (a scan, a flood of spoofed addresses) share
+one, so memory stays bounded whoever sends."""
+
+
+def _sender_key(peer: str, per_sender: Mapping[tuple[str, str], object], source: str) -> str:
+    """``peer`` while the source has fewer than `MAX_SENDERS` senders, else the shared key ``"*"``."""
+    if sum(1 for name, _ in per_sender if name == source) < MAX_SENDERS:
+        return peer
+    return "*"
 
 
 def _contributing(position_source: str, heading_source: str) -> list[str]:

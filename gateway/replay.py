@@ -82,10 +82,17 @@ def mcap_events(path: str | Path) -> Iterator[Event]:
     for topic, log_ns, _pub_ns, payload in read_messages(path):
         if topic.startswith("/raw/nmea/"):
             data = base64.b64decode(payload["data"]) if "data" in payload else payload["text"].encode("ascii")
-            # the writer strips the final line terminator of a chunk; put one back for the framer
-            yield RawEvent(log_ns, topic[len("/raw/nmea/") :], data + b"\r\n")
+            # the writer strips the final line terminator of a chunk; put one back for the framer, unless
+            # the chunk had none (a sentence split across reads: the next chunk completes it, as live)
+            end = b"" if payload.get("unterminated") else b"\r\n"
+            yield RawEvent(log_ns, topic[len("/raw/nmea/") :], data + end, peer=payload.get("peer", ""))
         elif topic.startswith("/raw/mavlink/"):
-            yield RawEvent(log_ns, topic[len("/raw/mavlink/") :], base64.b64decode(payload["data"]))
+            yield RawEvent(
+                log_ns,
+                topic[len("/raw/mavlink/") :],
+                base64.b64decode(payload["data"]),
+                peer=payload.get("peer", ""),
+            )
         elif topic in ("/dp/setpoint", "/dp/mode", "/dp/tau"):
             key = topic[len("/dp/") :]
             yield ControlEvent(log_ns, key, payload.get(key, payload) if key == "mode" else payload)

@@ -208,6 +208,16 @@ class GatewayService:
             for s in self._sources
             if not s.stats.connected and not s.finished
         ]
+        for s in self._sources:
+            dropped = getattr(s, "dropped", 0)  # UDP: the kernel's count of datagrams it could not hold
+            counters = self.pipeline.counters.get(s.name)
+            if counters is not None:
+                counters.dropped = dropped
+            if dropped:
+                alarms.append(
+                    f"source {s.name}: {dropped} datagrams dropped by the kernel (receive buffer full; "
+                    "raise ?rcvbuf= or net.core.rmem_max)"
+                )
         alarms += [
             f"{what}: {n} not handled (internal error, traceback in the gateway's log)"
             for what, n in sorted(self.internal_errors.items())
@@ -230,11 +240,11 @@ class GatewayService:
         # The raw chunk goes to the log before the pipeline sees it: whatever happens next, it is kept.
         if self.log is not None and spec is not None:
             if spec.protocol == "nmea":
-                self.log.write_raw_nmea(item.source, item.data, rx, rx)
+                self.log.write_raw_nmea(item.source, item.data, rx, rx, peer=item.peer)
             else:
-                self.log.write_raw_mavlink(item.source, item.data, rx, rx)
+                self.log.write_raw_mavlink(item.source, item.data, rx, rx, peer=item.peer)
         try:
-            self._emit(self.pipeline.feed(RawEvent(rx, item.source, item.data)))
+            self._emit(self.pipeline.feed(RawEvent(rx, item.source, item.data, peer=item.peer)))
         except Exception:
             self.pipeline.count_internal_error(item.source)
             self._internal_error(

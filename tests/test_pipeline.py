@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import subprocess
@@ -298,3 +299,35 @@ def test_gst_sigma_holds_across_fixes_while_fresh_then_is_null() -> None:
     p2.feed(RawEvent(T0, "gps2", gst(0.3, 0.4)))
     out = p2.feed(RawEvent(T0 + 1, "gps", gga_at(0.0, 0.0) + enc.hdt("HE", 0.3).encode()))
     assert [o.payload["sigma_m"] for o in out if o.topic == "/dp/measurement"] == [None]
+
+
+def test_two_senders_on_one_udp_source_never_splice_their_sentences() -> None:
+    """Each sender has its own framer: two senders' partial sentences, interleaved chunk by chunk on one
+    source, all decode (one framer per socket would splice them into garbage); a sender's stream split
+    anywhere gives the same sentences."""
+    p = pipeline([nmea_src("mux", ["position", "heading"])])
+    a = (enc.hdt("HE", 10.0) + enc.hdt("HE", 11.0)).encode() * 50
+    b = (enc.hdt("HC", 20.0) + enc.hdt("HC", 21.0)).encode() * 50
+    cuts_a = [*list(range(0, len(a), 7)), len(a)]
+    cuts_b = [*list(range(0, len(b), 11)), len(b)]
+    pieces_a = [a[i:j] for i, j in itertools.pairwise(cuts_a)]
+    pieces_b = [b[i:j] for i, j in itertools.pairwise(cuts_b)]
+    t = T0
+    for k in range(max(len(pieces_a), len(pieces_b))):
+        for peer, pieces in (("10.0.0.1:4000", pieces_a), ("10.0.0.2:4000", pieces_b)):
+            if k < len(pieces):
+                t += 1000
+                p.feed(RawEvent(t, "mux", pieces[k], peer=peer))
+    c = p.counters["mux"]
+    assert c.received == 200 and sum(c.rejected.values()) == 0, (c.received, dict(c.rejected))
+
+
+def test_senders_beyond_the_cap_share_one_framer() -> None:
+    """A flood of sender addresses cannot grow memory without bound: past MAX_SENDERS they share a framer."""
+    from gateway.pipeline import MAX_SENDERS
+
+    p = pipeline([nmea_src("mux", ["position", "heading"])])
+    for k in range(MAX_SENDERS + 50):
+        p.feed(RawEvent(T0 + k, "mux", enc.hdt("HE", 1.0).encode(), peer=f"10.0.{k // 250}.{k % 250}:1"))
+    assert len(p._framers) == MAX_SENDERS + 1
+    assert p.counters["mux"].received == MAX_SENDERS + 50

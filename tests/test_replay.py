@@ -284,3 +284,20 @@ def test_progress_bar_on_a_terminal(tmp_path: Path) -> None:
     os.close(master)
     assert proc.returncode == 0
     assert b"events" in seen and b"5000" in seen  # tqdm's line: "... 5000 events ..."
+
+
+def test_a_sentence_split_across_reads_replays_as_it_was_received(tmp_path: Path) -> None:
+    """A chunk without a line terminator (TCP and serial deliver sentences in pieces) is logged as such
+    and replayed without one, so the next chunk completes the sentence as it did live."""
+    from gateway.replay import mcap_events
+    from wire.codecs import nmea_encode as enc
+    from wire.mcap.writer import McapLogWriter
+
+    gga = enc.hdt("HE", 12.5).encode()
+    path = tmp_path / "split.mcap"
+    with McapLogWriter(path) as w:
+        w.write_raw_nmea("gyro", gga[:9], 1_000)
+        w.write_raw_nmea("gyro", gga[9:], 2_000, peer="10.0.0.1:5000")
+    events = list(mcap_events(path))
+    assert b"".join(e.data for e in events) == gga  # no terminator added inside the sentence
+    assert [e.peer for e in events] == ["", "10.0.0.1:5000"]

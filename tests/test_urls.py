@@ -182,3 +182,21 @@ def test_any_text_is_an_endpoint_or_a_url_error(text: str) -> None:
                 endpoint.port,
                 endpoint.path,
             )
+
+
+@pytest.mark.parametrize(
+    ("text", "size"),
+    [("", 4 * 1024 * 1024), ("?rcvbuf=65536", 65536), ("?rcvbuf=8M", 8 * 1024**2), ("?rcvbuf=64k", 65536)],
+)
+def test_udp_receive_buffer_option(text: str, size: int) -> None:
+    from wire.urls import receive_buffer
+
+    assert receive_buffer(parse_url("udp://:10110" + text, options=SOURCE_OPTIONS), 4 * 1024 * 1024) == size
+
+
+@pytest.mark.parametrize("bad", ["12", "2G", "lots", "-5", "4096.5"])
+def test_udp_receive_buffer_refuses_what_is_not_a_size(bad: str) -> None:
+    from wire.urls import receive_buffer
+
+    with pytest.raises(UrlError, match="rcvbuf"):
+        receive_buffer(parse_url(f"udp://:10110?rcvbuf={bad}", options=SOURCE_OPTIONS), 1)

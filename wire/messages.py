@@ -294,6 +294,13 @@ class SourceStatus(Record, kw_only=True):
     received: Annotated[int, doc("Sentences/frames decoded and used or understood (count).")]
     rejected: Annotated[dict[str, int], doc('Rejected by reason (count), e.g. {"checksum": 2}.')]
     bytes: Annotated[int, doc("Bytes received (count).")]
+    dropped: Annotated[
+        int,
+        doc(
+            "Datagrams the kernel dropped before the gateway could read them (UDP receive buffer full; "
+            "count). Left out while 0."
+        ),
+    ] = 0
 
 
 class Status(Message, kw_only=True):
@@ -396,6 +403,21 @@ class RawNmea(Message, kw_only=True):
         bytes | None,
         doc("Exact bytes (base64); only when they are not ASCII."),
     ] = None
+    peer: Annotated[
+        str,
+        doc(
+            "The sender (`host:port`) where one source hears several (UDP); each sender is framed on its "
+            "own. Left out for a link with one sender."
+        ),
+    ] = ""
+    unterminated: Annotated[
+        bool,
+        doc(
+            "The chunk did not end with a line terminator (a sentence split across reads, as TCP and "
+            "serial links deliver them); `text` is then exactly what came, and a replay frames it so. "
+            "Left out (false) for a chunk of whole lines."
+        ),
+    ] = False
 
 
 class RawMavlink(Message, kw_only=True):
@@ -406,8 +428,11 @@ class RawMavlink(Message, kw_only=True):
     data: Annotated[bytes, doc("Frame bytes (base64).")]
     source: Annotated[str, doc("Source name from the configuration.")]
 
-
-# --- Zenoh inputs, logged so a replay sees them ---------------------------------------------------------
+    # --- Zenoh inputs, logged so a replay sees them ---------------------------------------------------------
+    peer: Annotated[
+        str,
+        doc("The sender (`host:port`) where one source hears several (UDP); left out otherwise."),
+    ] = ""
 
 
 class Setpoint(Message, kw_only=True):

@@ -50,6 +50,7 @@ __all__ = [
     "format_host_port",
     "is_multicast",
     "parse_url",
+    "receive_buffer",
     "serial_settings",
     "split_host_port",
 ]
@@ -62,7 +63,7 @@ PYMAVLINK_PREFIXES = ("udpin", "udpout", "udp", "tcp", "tcpin", "serial")
 SOURCE_OPTIONS: Mapping[str, tuple[str, ...]] = {
     "serial": ("baud", "bytesize", "parity", "stopbits"),
     "pty": ("baud", "bytesize", "parity", "stopbits"),
-    "udp": ("target", "iface"),
+    "udp": ("target", "iface", "rcvbuf"),
     "tcp": (),
     "tcp-listen": (),
     "file": ("rate",),
@@ -401,6 +402,21 @@ def serial_settings(endpoint: Endpoint, default_baud: int = 4800) -> SerialSetti
     return SerialSettings(
         int(baud_text), int(bytesize_text), parity, float(stop_text) if stop_text == "1.5" else int(stop_text)
     )
+
+
+def receive_buffer(endpoint: Endpoint, default: int) -> int:
+    """A UDP source's kernel receive buffer in bytes: ``rcvbuf=N``, ``Nk`` or ``NM`` (KiB, MiB), 4 KiB to
+    1 GiB; ``default`` when not given."""
+    raw = endpoint.option("rcvbuf")
+    if raw is None:
+        return default
+    m = re.fullmatch(r"([0-9]{1,10})([kKmM]?)", raw.strip())
+    size = int(m.group(1)) * {"": 1, "k": 1024, "m": 1024**2}[m.group(2).lower()] if m else 0
+    if not 4096 <= size <= 1024**3:
+        raise UrlError(
+            f"rcvbuf {raw!r} is not a buffer size", "bytes, or with k or M, 4k to 1024M, e.g. rcvbuf=8M"
+        )
+    return size
 
 
 def file_rate(endpoint: Endpoint) -> str | float:

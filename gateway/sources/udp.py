@@ -7,11 +7,23 @@ import math
 import re
 import socket
 import struct
+import sys
 import time
 from typing import Any
 
-from gateway.sources.base import POLL_S, READ_SIZE, Source, SourceError, strerror
+from gateway.sources.base import POLL_S, READ_SIZE, Source, SourceError, log, strerror
 from gateway.sources.sockets import bind_problem, fmt_addr
+
+DEFAULT_RECEIVE_BUFFER = 4 * 1024 * 1024
+"""Kernel receive buffer asked for a UDP source (``?rcvbuf=``). Linux's default (208 KiB) holds about
+0.2 s of a busy NMEA multiplexer's datagrams; a burst (a logger replaying, a sensor restarting) then
+overflows it and the kernel drops datagrams silently. 4 MiB holds tens of thousands."""
+
+# Linux: SO_RXQ_OVFL makes every received datagram carry the socket's count of datagrams the kernel
+# dropped (receive buffer full); SO_RCVBUFFORCE may exceed net.core.rmem_max (needs CAP_NET_ADMIN).
+_SO_RXQ_OVFL = getattr(socket, "SO_RXQ_OVFL", 40 if sys.platform.startswith("linux") else None)
+_SO_RCVBUFFORCE = getattr(socket, "SO_RCVBUFFORCE", 33 if sys.platform.startswith("linux") else None)
+_CMSG_SPACE = socket.CMSG_SPACE(4) if hasattr(socket, "CMSG_SPACE") else 0
 
 
 class UdpSource(Source):
@@ -24,6 +36,11 @@ class UdpSource(Source):
     Sending first (``udpout:H:P``): bound to an ephemeral port, ``target`` is H:P; ``hello`` (a MAVLink
     HEARTBEAT by default) is sent at start and again every ``hello_interval_s`` while nothing comes back,
     so the far end learns where to send. `write` goes to the target.
+
+    Nothing is dropped unseen: the socket asks for a ``receive_buffer`` of `DEFAULT_RECEIVE_BUFFER` bytes
+    (``?rcvbuf=``; `granted_buffer` is what the kernel gave, logged when less), and on Linux every
+    datagram carries the kernel's count of datagrams it dropped because the buffer was full
+    (``SO_RXQ_OVFL``), kept in `dropped` (it is brought up to date by the next datagram that arrives).
     """
 
     kind = "udp"
@@ -40,8 +57,16 @@ class UdpSource(Source):
         hello: bytes | None = None,
         hello_interval_s: float = 1.0,
         timeout_s: float = 2.0,
+        receive_buffer: int = DEFAULT_RECEIVE_BUFFER,
     ) -> None:
         super().__init__(name, url, timeout_s=timeout_s)
+        self.receive_buffer = int(receive_buffer)
+        self.granted_buffer = 0
+        """Receive buffer the kernel granted (bytes, as `getsockopt` reports it: Linux counts its own
+        bookkeeping in, so it is twice the size asked for when granted in full)."""
+        self.dropped = 0
+        """Datagrams the kernel dropped on this socket (receive buffer full); 0 where not reported."""
+        self._ovfl = False
         self.host = host
         self._port = port
         self.target = target
@@ -90,6 +115,7 @@ class UdpSource(Source):
         sock = socket.socket(bind_family, socket.SOCK_DGRAM)
         try:
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
+            self._size_buffer(sock)
             if self.multicast:
                 # many programs may listen to one group; a unicast port stays exclusive (in use = error)
                 sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -108,6 +134,31 @@ class UdpSource(Source):
         self._sock = sock
         self._port = int(sock.getsockname()[1])
         self.stats.connected = True
+
+    def _size_buffer(self, sock: socket.socket) -> None:
+        """Ask for `receive_buffer` (forced past net.core.rmem_max where permitted), note what was granted,
+        and turn on the kernel's drop count."""
+        for option in (_SO_RCVBUFFORCE, socket.SO_RCVBUF):
+            if option is None:
+                continue
+            try:
+                sock.setsockopt(socket.SOL_SOCKET, option, self.receive_buffer)
+                break
+            except OSError:
+                continue  # not permitted (no CAP_NET_ADMIN): the capped request below
+        self.granted_buffer = sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+        if self.granted_buffer < self.receive_buffer:
+            log.warning(
+                "source %r: the kernel granted a %d-byte receive buffer of the %d asked for; raise "
+                "net.core.rmem_max (sysctl) or run with CAP_NET_ADMIN so bursts are not dropped",
+                self.name, self.granted_buffer, self.receive_buffer,
+            )  # fmt: skip
+        if _SO_RXQ_OVFL is not None and _CMSG_SPACE:
+            try:
+                sock.setsockopt(socket.SOL_SOCKET, _SO_RXQ_OVFL, 1)
+                self._ovfl = True
+            except OSError:
+                self._ovfl = False
 
     def _join(self, sock: socket.socket) -> None:
         group = socket.inet_aton(self.host)
@@ -150,7 +201,13 @@ class UdpSource(Source):
                     last_hello = now
                     self._send_hello()
             try:
-                data, addr = sock.recvfrom(READ_SIZE)
+                if self._ovfl:
+                    data, ancillary, _, addr = sock.recvmsg(READ_SIZE, _CMSG_SPACE)
+                    for level, kind, value in ancillary:
+                        if level == socket.SOL_SOCKET and kind == _SO_RXQ_OVFL and len(value) >= 4:
+                            self.dropped = struct.unpack("=I", value[:4])[0]
+                else:
+                    data, addr = sock.recvfrom(READ_SIZE)
             except TimeoutError:
                 continue
             except OSError as exc:  # ICMP errors reported on the socket; a closed socket at stop

@@ -13,7 +13,7 @@ from gateway.sources.base import Source, SourceError
 from gateway.sources.file import FileSource
 from gateway.sources.serial import NMEA_DEFAULT_BAUD, SerialSource
 from gateway.sources.tcp import TcpClientSource, TcpListenSource
-from gateway.sources.udp import UdpSource
+from gateway.sources.udp import DEFAULT_RECEIVE_BUFFER, UdpSource
 from wire import urls
 from wire.urls import Endpoint, UrlError
 
@@ -84,7 +84,8 @@ def _source_for(name: str, url: str, ep: Endpoint, timeout_s: float, hello: byte
     # udpout sends first: it announces the gateway, so the far end learns where to send
     announce = ep.pymavlink == "udpout"
     hello = (_default_hello() if hello is None else hello) if announce else None
+    rcvbuf = urls.receive_buffer(ep, DEFAULT_RECEIVE_BUFFER)
     return UdpSource(
         name, url, ep.host, port, target=target, iface=ep.option("iface") or None, hello=hello,
-        timeout_s=timeout_s,
+        timeout_s=timeout_s, receive_buffer=rcvbuf,
     )  # fmt: skip

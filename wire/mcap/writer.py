@@ -200,25 +200,39 @@ class McapLogWriter:
         self.write_encoded(topic, data, log_time_ns, publish_time_ns, schema=schema)
 
     def write_raw_nmea(
-        self, source: str, text: str | bytes, log_time_ns: int, publish_time_ns: int | None = None
+        self,
+        source: str,
+        text: str | bytes,
+        log_time_ns: int,
+        publish_time_ns: int | None = None,
+        peer: str = "",
     ) -> None:
         """Log one NMEA sentence as received on `/raw/nmea/<source>`. Bytes that are not ASCII are kept
-        exactly in `data` (base64) and shown escaped in `text`."""
+        exactly in `data` (base64) and shown escaped in `text`; ``peer``: the sender on a shared link."""
         if isinstance(text, str):
-            msg = RawNmea(source=source, text=text.rstrip("\r\n"))
+            cut = text.rstrip("\r\n")
+            msg = RawNmea(source=source, text=cut, peer=peer, unterminated=bool(text) and cut == text)
         else:
             raw = bytes(text).rstrip(b"\r\n")
+            open_end = bool(text) and len(raw) == len(text)
             try:
-                msg = RawNmea(source=source, text=raw.decode("ascii"))
+                msg = RawNmea(source=source, text=raw.decode("ascii"), peer=peer, unterminated=open_end)
             except UnicodeDecodeError:
-                msg = RawNmea(source=source, text=raw.decode("ascii", "backslashreplace"), data=raw)
+                text_shown = raw.decode("ascii", "backslashreplace")
+                msg = RawNmea(source=source, text=text_shown, data=raw, peer=peer, unterminated=open_end)
         self.write_encoded(f"/raw/nmea/{source}", msg.encode(), log_time_ns, publish_time_ns, schema=RawNmea)
 
     def write_raw_mavlink(
-        self, source: str, frame: bytes, log_time_ns: int, publish_time_ns: int | None = None
+        self,
+        source: str,
+        frame: bytes,
+        log_time_ns: int,
+        publish_time_ns: int | None = None,
+        peer: str = "",
     ) -> None:
-        """Log one MAVLink frame as received on `/raw/mavlink/<source>` (`data` = base64 of the bytes)."""
-        msg = RawMavlink(data=bytes(frame), source=source)
+        """Log one MAVLink frame as received on `/raw/mavlink/<source>` (`data` = base64 of the bytes;
+        ``peer``: the sender on a shared link)."""
+        msg = RawMavlink(data=bytes(frame), source=source, peer=peer)
         self.write_encoded(
             f"/raw/mavlink/{source}", msg.encode(), log_time_ns, publish_time_ns, schema=RawMavlink
         )
