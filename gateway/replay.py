@@ -30,7 +30,7 @@ from typing import Any
 from mcap.reader import make_reader
 
 from gateway.config import GatewayConfig, default_config, parse_config
-from gateway.logreaders import LogCounts, nmea_text_events, tlog_events
+from gateway.logreaders import LogCounts, nmea_text_events, nmea_text_events_reference, tlog_events
 from gateway.pipeline import USED_NMEA, ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from observers.factory import OBSERVER_PARAMS, OBSERVER_TYPES, Observer, make_observer
 from observers.passive_tuning import PassiveTuning
@@ -123,19 +123,32 @@ def truth_records(path: str | Path) -> list[dict[str, Any]]:
     return [p for _, _, _, p in read_messages(path, "/truth/state")]
 
 
+FAST_SCAN_MIN_BYTES = 8 * 1024 * 1024
+"""NMEA text logs from this size on go through the compiled line scan (`wire.codecs.nmea_scan`); smaller
+ones through the line-by-line reader. The two give the same events and counts (tests/test_replay.py);
+they differ in cost. Loading the compiled scan from numba's cache takes about 0.3 s, once per process,
+and then saves about 3 µs a line, so it pays from roughly 100,000 lines (about 4-5 MB of NMEA) on; below
+that the fixed cost dominated: a 13,000-line sea-trial log replayed at a quarter of the rate of a long
+generated one (measured with bench/bench_replay.py, which reports both)."""
+
+
 @dataclass
 class Input:
     path: Path
     kind: str
     source: str  # source name for text logs and tlogs
     counts: LogCounts = field(default_factory=LogCounts)
+    fast_scan: bool | None = None
+    """NMEA text: the compiled line scan (True), the line-by-line reader (False), or by size (None)."""
 
     def events(self) -> Iterator[Event]:
         if self.kind == "mcap":
             return mcap_events(self.path)
         if self.kind == "tlog":
             return tlog_events(self.path, self.source, self.counts)
-        return nmea_text_events(self.path, self.source, counts=self.counts, only=USED_NMEA)
+        if self.fast_scan if self.fast_scan is not None else self.path.stat().st_size >= FAST_SCAN_MIN_BYTES:
+            return nmea_text_events(self.path, self.source, counts=self.counts, only=USED_NMEA)
+        return nmea_text_events_reference(self.path, self.source, counts=self.counts)
 
     def sources(self) -> dict[str, str]:
         if self.kind == "mcap":

@@ -301,3 +301,28 @@ def test_a_sentence_split_across_reads_replays_as_it_was_received(tmp_path: Path
     events = list(mcap_events(path))
     assert b"".join(e.data for e in events) == gga  # no terminator added inside the sentence
     assert [e.peer for e in events] == ["", "10.0.0.1:5000"]
+
+
+def test_small_text_logs_use_the_line_reader_and_large_ones_the_compiled_scan(tmp_path: Path) -> None:
+    """The path depends on the size only (both give the same events and counts, tested above): a log
+    under FAST_SCAN_MIN_BYTES is read line by line (no 0.3 s kernel load), a larger one scanned."""
+    from datetime import UTC, datetime, timedelta
+
+    from gateway.replay import FAST_SCAN_MIN_BYTES, open_inputs
+    from wire.codecs import nmea_encode as enc
+
+    t0 = datetime(2026, 6, 1, tzinfo=UTC)
+    small = tmp_path / "small.nmea"
+    small.write_text(
+        "".join(
+            enc.gga("GP", t0 + timedelta(seconds=k), 59.4, 10.5, 2, 12, 0.8, 20.0) + enc.hdt("HE", 1.0)
+            for k in range(10)
+        )
+    )
+    (inp,) = open_inputs([small])
+    events = list(inp.events())
+    assert len(events) == 10 and all(e.checked is None for e in events)  # the pipeline frames the bytes
+    inp.fast_scan = True
+    events = list(inp.events())
+    assert len(events) == 10 and all(e.checked is not None for e in events)
+    assert small.stat().st_size < FAST_SCAN_MIN_BYTES
