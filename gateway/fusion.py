@@ -48,6 +48,11 @@ HEADING_HISTORY_NS = 5 * NS
 HEADING_HISTORY_MAX = 512  # and at most this many (a 50 Hz gyro fills 250 in 5 s; replay feeds far faster)
 FEEDBACK_TIMEOUT_NS = 2 * NS
 """Thruster feedback older than this is not used for τ (the demand is, as without feedback)."""
+FEEDBACK_MARGIN = 0.25
+"""A reported thrust or shaft speed may exceed the thruster's rating by this fraction (overload,
+calibration) before the report is refused."""
+FEEDBACK_DISTRUST_S = 5.0
+"""After a refused report, τ comes from the demand for this long (and longer while refusals go on)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -105,6 +110,7 @@ class Fusion:
         self._sigma: dict[str, Held] = {}  # source -> its latest GST sigma (m), valid like a measurement
         self._thrust: dict[int, ThrusterFeedback] = {}
         self._azimuth: dict[int, float] = {}  # last reported azimuth, also before any thrust was reported
+        self._distrust_until_ns = 0  # τ from the demand until then: a feedback report was refused
         self._thrusters: dict[int, Thruster] = {t.id: t for t in vessel.thrusters}
         self._tau_demand = _read_only(np.zeros(3))
 
@@ -259,6 +265,38 @@ class Fusion:
         if old is not None:
             self._thrust[thruster_id] = old._replace(azimuth_rad=azimuth_rad)
 
+    def feedback_problem(
+        self, thruster_id: int, thrust_n: float | None, rpm: float | None, azimuth_rad: float | None
+    ) -> str | None:
+        """Why one thruster report is not believable, or None: a thruster the vessel does not have, a
+        value that is not finite, or a thrust or shaft speed beyond the thruster's capacity by more than
+        `FEEDBACK_MARGIN` (a drive reports what it does, never 100 times its rating: such a frame is a
+        fault or an attack, and one of them moved the estimate 32 m before this check)."""
+        th = self._thrusters.get(thruster_id)
+        if th is None:
+            return "thruster_unknown" if self._thrusters else None
+        values = [v for v in (thrust_n, rpm, azimuth_rad) if v is not None]
+        if not all(math.isfinite(v) for v in values):
+            return "thruster_not_finite"
+        reach = 1.0 + FEEDBACK_MARGIN
+        if thrust_n is not None and not (
+            min(th.min_thrust_n, 0.0) * reach - FEEDBACK_MARGIN * th.max_thrust_n
+            <= thrust_n
+            <= th.max_thrust_n * reach
+        ):
+            return "thrust_out_of_range"
+        if rpm is not None and abs(rpm) > th.max_rpm * reach:
+            return "rpm_out_of_range"
+        return None
+
+    def distrust_feedback(self, until_ns: int) -> None:
+        """Use the demand, not thruster feedback, for τ until ``until_ns`` (a feedback source sent a frame
+        that failed `feedback_problem`: what else it says is suspect too)."""
+        self._distrust_until_ns = max(self._distrust_until_ns, until_ns)
+
+    def feedback_distrusted(self, now_ns: int) -> bool:
+        return now_ns < self._distrust_until_ns
+
     def set_tau_demand(self, tau: ArrayLike) -> None:
         """The τ [X, Y, N] demanded of the thrusters (controller, manual input, or zero in standby)."""
         self._tau_demand = _read_only(tau)
@@ -266,7 +304,7 @@ class Fusion:
     def tau(self, now_ns: int) -> tuple[Array, str]:
         """τ from fresh thruster feedback through the configuration matrix, else the demand."""
         layout = self.vessel.thrusters
-        if not layout or not self._thrust:
+        if not layout or not self._thrust or now_ns < self._distrust_until_ns:
             return self._tau_demand.copy(), "demand"
         fresh = {tid: v for tid, v in self._thrust.items() if now_ns - v.rx_ns <= self.feedback_timeout_ns}
         if not fresh:

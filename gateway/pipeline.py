@@ -29,7 +29,7 @@ import numpy as np
 from gateway.config import ArdupilotMap, ControlConfig, GatewayConfig
 from gateway.control.allocation import AllocationResult, PseudoInverseAllocator, QPAllocator, ThrusterCommand
 from gateway.control.controller import ControllerTuning, DPController
-from gateway.fusion import NS, Fusion
+from gateway.fusion import FEEDBACK_DISTRUST_S, NS, Fusion
 from observers.base import STATUS_NAMES, Estimate, Observer
 from observers.factory import make_observer
 from observers.kinematics import ssa_scalar
@@ -226,6 +226,7 @@ class Pipeline:
         self._parsers: dict[tuple[str, str], mv.FrameParser] = {}
         self._parser_seen: dict[tuple[str, str], Counter[str]] = {}
         self._parser_rejects: dict[tuple[str, str], int] = {}  # sum of _parser_seen, the fast check
+        self._feedback_refused: dict[str, int] = {}  # source -> receive time of its last refused report
         self.t0_ns: int | None = None
         self.last_ns = 0
         self.mode = "standby"
@@ -392,6 +393,12 @@ class Pipeline:
             for r in mv.reports(msg, spec.ardupilot):
                 if isinstance(r, mv.ThrusterReport):
                     if "thrusters" not in roles:
+                        continue
+                    problem = self.fusion.feedback_problem(r.thruster_id, r.thrust_n, r.rpm, r.azimuth_rad)
+                    if problem is not None:
+                        c.rejected[problem] += 1
+                        self.fusion.distrust_feedback(rx_ns + FEEDBACK_DISTRUST_NS)
+                        self._feedback_refused[spec.name] = rx_ns
                         continue
                     if r.thrust_n is not None:
                         self.fusion.add_thruster(rx_ns, r.thruster_id, r.thrust_n, r.azimuth_rad)
@@ -674,6 +681,12 @@ class Pipeline:
         """Per-source age, counts, rejects by reason, and the alarms: the caller's, the controller's, and
         one per source that sent nothing yet or went stale."""
         alarms = list(alarms or []) + self.control_alarms
+        for name, at_ns in self._feedback_refused.items():
+            if now_ns - at_ns < FEEDBACK_DISTRUST_NS:
+                alarms.append(
+                    f"source {name}: thruster feedback refused (beyond the thrusters' capacity or not "
+                    "finite); the observer gets the demanded τ until it is believable again"
+                )
         for name, c in self.counters.items():
             spec = self.sources[name]
             if c.last_rx_ns == 0:
@@ -690,6 +703,8 @@ class Pipeline:
             alarms=list(alarms),
         )
 
+
+FEEDBACK_DISTRUST_NS = int(FEEDBACK_DISTRUST_S * NS)
 
 MAX_SENDERS = 64
 """Senders per source that get a framer of their own; more (a scan, a flood of spoofed addresses) share

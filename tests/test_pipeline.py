@@ -331,3 +331,35 @@ def test_senders_beyond_the_cap_share_one_framer() -> None:
         p.feed(RawEvent(T0 + k, "mux", enc.hdt("HE", 1.0).encode(), peer=f"10.0.{k // 250}.{k % 250}:1"))
     assert len(p._framers) == MAX_SENDERS + 1
     assert p.counters["mux"].received == MAX_SENDERS + 50
+
+
+def test_thruster_feedback_beyond_capacity_is_refused_and_tau_falls_back_to_the_demand() -> None:
+    """CRC-valid AZIMUTH_THRUSTER_STATUS frames claiming 4e7 N and 1e30 N (the rating is 4e5 N): refused
+    and counted, an alarm in /status, τ from the demand meanwhile, and the estimate moves less than
+    0.3 m against the same record without them (before this check, one such frame moved it 32 m)."""
+
+    def run(bogus: bool) -> tuple[np.ndarray, Pipeline, list[str]]:
+        p = pipeline([nmea_src("gps", ["position", "heading"]), mav_src("thr", ["thrusters"])])
+        mav = mv.encoder(1, 1)
+        etas: list[list[float]] = []
+        tau_sources: list[str] = []
+        for k in range(600):
+            t = T0 + k * S // 10
+            thrust = 4e7 if bogus and k in (200, 201) else 1e30 if bogus and k == 300 else 2e4
+            p.feed(RawEvent(t, "thr", mv.azimuth_status_frame(mav, k * 100_000, 1, thrust, 50.0, 0.0, 0)))
+            for o in p.feed(RawEvent(t + 1000, "gps", gga_at(0.0, 0.0) + enc.hdt("HE", 0.0).encode())):
+                if o.topic == "/dp/estimate":
+                    etas.append(o.payload["eta"])
+                elif o.topic == "/dp/measurement":
+                    tau_sources.append(o.payload["tau_source"])
+            if bogus and k == 205:
+                alarms = p.status(t).payload["alarms"]
+                assert any("thr: thruster feedback refused" in a for a in alarms), alarms
+        return np.array(etas), p, tau_sources
+
+    clean, _, clean_tau = run(False)
+    dirty, p, dirty_tau = run(True)
+    assert p.counters["thr"].rejected["thrust_out_of_range"] == 3
+    assert clean_tau[250] == "feedback" and dirty_tau[250] == "demand"  # distrusted for 5 s after a refusal
+    assert dirty_tau[-1] == "feedback"  # and believed again once it is plausible for that long
+    assert np.max(np.abs(dirty[:, :2] - clean[:, :2])) < 0.3
