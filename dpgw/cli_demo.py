@@ -98,6 +98,8 @@ def demo_config(scenario: Any, pty_device: str, args: argparse.Namespace) -> dic
                 "protocol": "mavlink",
                 "roles": ["thrusters"],
                 "commands": True,  # the dialect's AZIMUTH_THRUSTER_COMMAND back down the same link
+                # loopback between two processes of this demo: no signing (a vessel's link would be signed)
+                "allow_unsigned": True,
             }
         )
     cfg["control"] = {"initial_mode": args.mode}

@@ -121,6 +121,8 @@ class SourceSpec:
     signing_key: bytes | None = None
     allow_unsigned: bool = True
     ardupilot: mv.ArduPilotWiring | None = None  # ArduPilot ESC / servo outputs -> the vessel's thrusters
+    system_id: int | None = None  # MAVLink: frames from another system are refused (None: any)
+    component_id: int | None = None  # MAVLink: frames from another component are refused (None: any)
 
     @cached_property
     def timeout_ns(self) -> int:
@@ -155,6 +157,8 @@ class PipelineSpec:
                 signing_key=sc.signing_key,
                 allow_unsigned=sc.allow_unsigned,
                 ardupilot=_wiring(sc.ardupilot),
+                system_id=sc.system_id,
+                component_id=sc.component_id,
             )
             for sc in config.sources
         )
@@ -389,6 +393,12 @@ class Pipeline:
         valid_ns = spec.timeout_ns
         rx_ns = ev.rx_ns
         for msg in msgs:
+            if spec.system_id is not None and msg.get_srcSystem() != spec.system_id:
+                c.rejected["wrong_system"] += 1  # a CRC-valid frame from a system this link is not for
+                continue
+            if spec.component_id is not None and msg.get_srcComponent() != spec.component_id:
+                c.rejected["wrong_component"] += 1
+                continue
             c.received += 1
             for r in mv.reports(msg, spec.ardupilot):
                 if isinstance(r, mv.ThrusterReport):

@@ -92,6 +92,12 @@ class GatewayService:
                 mav = mv.encoder(src_system=255, src_component=190)
                 if sc.signing_key is not None:
                     mv.setup_signing(mav, sc.signing_key, link_id=1)
+                else:  # the config refuses this unless allow_unsigned = true says it is meant
+                    log.warning(
+                        "source %r sends thruster commands over an unsigned MAVLink link "
+                        "(allow_unsigned = true): anyone who can reach it can spoof feedback or the commands",
+                        sc.name,
+                    )
                 self._command_links[sc.name] = mav
         self.log: McapLogWriter | None = None
         self.published = 0

@@ -965,3 +965,30 @@ def test_ardupilot_servo_calibration_defaults_and_limits(tmp_path: Path) -> None
     )
     put(d, "sources.2.ardupilot", {"servo": {"1": 1}, "servo_neutral_us": True})
     assert any("servo_neutral_us: not a pulse width" in p for p in problems_of(d, tmp_path))
+
+
+def test_thruster_commands_over_an_unsigned_link_must_be_meant(tmp_path: Path) -> None:
+    """commands = true without a signing key stops start-up with the key and the way out; with
+    allow_unsigned = true it is accepted (and the service warns at start-up)."""
+    d = base()
+    put(d, "sources.2.commands", True)
+    got = problems_of(d, tmp_path)
+    assert any(
+        "sources.thr.commands: sends thruster commands over an unsigned MAVLink link" in p for p in got
+    )
+    assert any("allow_unsigned = true" in p for p in got)
+    put(d, "sources.2.allow_unsigned", True)
+    assert parse(d, tmp_path).source("thr").commands
+    put(d, "sources.2.signing_key", KEY)
+    put(d, "sources.2.allow_unsigned", False)
+    assert parse(d, tmp_path).source("thr").signing_key == bytes.fromhex(KEY)
+
+
+def test_component_id_is_a_mavlink_key(tmp_path: Path) -> None:
+    d = base()
+    put(d, "sources.2.system_id", 7)
+    put(d, "sources.2.component_id", 191)
+    thr = parse(d, tmp_path).source("thr")
+    assert (thr.system_id, thr.component_id) == (7, 191)
+    put(d, "sources.0.component_id", 1)
+    assert any("sources.dgps1.component_id" in p for p in problems_of(d, tmp_path))

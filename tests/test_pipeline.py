@@ -363,3 +363,19 @@ def test_thruster_feedback_beyond_capacity_is_refused_and_tau_falls_back_to_the_
     assert clean_tau[250] == "feedback" and dirty_tau[250] == "demand"  # distrusted for 5 s after a refusal
     assert dirty_tau[-1] == "feedback"  # and believed again once it is plausible for that long
     assert np.max(np.abs(dirty[:, :2] - clean[:, :2])) < 0.3
+
+
+def test_frames_from_another_system_or_component_are_refused() -> None:
+    """system_id / component_id: a CRC-valid frame from another MAVLink system or component is counted as
+    a reject and not used (an attacker on the link, or another vehicle's telemetry)."""
+    p = pipeline(
+        [
+            nmea_src("gps", ["position", "heading"]),
+            mav_src("thr", ["thrusters"], system_id=7, component_id=42),
+        ]
+    )
+    ours, other_sys, other_comp = mv.encoder(7, 42), mv.encoder(8, 42), mv.encoder(7, 1)
+    for k, mav in enumerate((ours, other_sys, other_comp, ours)):
+        p.feed(RawEvent(T0 + k, "thr", mv.azimuth_status_frame(mav, k, 1, 1e4, 50.0, 0.0, 0)))
+    c = p.counters["thr"]
+    assert c.received == 2 and c.rejected["wrong_system"] == 1 and c.rejected["wrong_component"] == 1

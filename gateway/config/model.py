@@ -76,7 +76,9 @@ class SourceConfig:
     ``transport`` is the kind of link the URL names: ``serial``, ``udp``, ``tcp``, ``tcp-listen``, ``file``
     (the gateway's URLs) or ``pymavlink`` (a pymavlink connection string, MAVLink only). ``url`` is as
     written, except that a relative ``file:`` path is made absolute (``file:///...``).
-    ``system_id`` None accepts any MAVLink system. ``signing_key`` is the 32-byte MAVLink 2 signing secret.
+    ``system_id`` / ``component_id`` None accept any MAVLink system / component; set, frames from others
+    are refused (counted ``wrong_system`` / ``wrong_component``). ``signing_key`` is the 32-byte MAVLink 2
+    signing secret.
     """
 
     name: str
@@ -89,6 +91,7 @@ class SourceConfig:
     allow_missing_checksum: bool = False
     priority: int = 1
     system_id: int | None = None
+    component_id: int | None = None
     signing_key: bytes | None = field(default=None, repr=False)
     allow_unsigned: bool = False
     ardupilot: ArdupilotMap | None = None

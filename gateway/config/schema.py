@@ -313,6 +313,7 @@ class SourceTable(_Section):
     allow_missing_checksum: bool = boolean(_SRC["allow_missing_checksum"])
     priority: int = integer(_SRC["priority"], lo=0)
     system_id: int = integer(None, lo=1, hi=255)
+    component_id: int = integer(None, lo=1, hi=255)
     signing_key: str = text(None, "64 hexadecimal characters (32 bytes)")
     allow_unsigned: bool = boolean(_SRC["allow_unsigned"])
     ardupilot: Table = text(None, "an [ardupilot] table")

@@ -31,7 +31,7 @@ from wire.urls import SOURCE_OPTIONS, Endpoint, UrlError, file_rate, parse_url, 
 
 __all__ = ["read_sources"]
 
-_MAVLINK_ONLY = ("system_id", "signing_key", "allow_unsigned", "ardupilot", "commands")
+_MAVLINK_ONLY = ("system_id", "component_id", "signing_key", "allow_unsigned", "ardupilot", "commands")
 _EXAMPLE = '[[sources]] name = "dgps1", url = "serial:///dev/ttyUSB0?baud=4800", protocol = "nmea", ...'
 
 
@@ -206,13 +206,22 @@ def _read_source(
                 + (", not all hexadecimal" if re.search(r"[^0-9a-fA-F]", key_text) else "")
                 + ")",
             )
-    if v["allow_unsigned"] and "signing_key" not in t and protocol == "mavlink":
+    if v["allow_unsigned"] and "signing_key" not in t and protocol == "mavlink" and not v["commands"]:
         p.add(
             f"{path}.allow_unsigned",
-            "has no effect without a signing_key (expected a signing_key, or no allow_unsigned)",
+            "has no effect without a signing_key (expected a signing_key, or no allow_unsigned; with "
+            "commands = true it accepts commanding over an unsigned link)",
         )
     if v["commands"] and roles is not None and "thrusters" not in roles:
         p.add(f"{path}.commands", 'sends thruster commands (expected "thrusters" in roles)')
+    if v["commands"] and protocol == "mavlink" and "signing_key" not in t and not v["allow_unsigned"]:
+        # Thruster commands over an unsigned link: anyone who can reach it can send feedback that
+        # moves the estimate, or read and replay the commands. That must be a decision, written down.
+        p.add(
+            f"{path}.commands",
+            "sends thruster commands over an unsigned MAVLink link (expected a signing_key, or "
+            "allow_unsigned = true to accept that anyone on the link can spoof it)",
+        )
     ardupilot: ArdupilotMap | None = None
     if v["ardupilot"] is not None and protocol == "mavlink":
         if roles is not None and "thrusters" not in roles:
@@ -234,6 +243,7 @@ def _read_source(
         allow_missing_checksum=v["allow_missing_checksum"],
         priority=v["priority"],
         system_id=v["system_id"],
+        component_id=v["component_id"],
         signing_key=signing_key,
         allow_unsigned=v["allow_unsigned"],
         ardupilot=ardupilot,
