@@ -25,9 +25,10 @@ import numpy as np
 
 from gateway.bus import BusError
 from gateway.config import ConfigError, default_config, format_problems, parse_config
-from gateway.scoring import score
+from gateway.scoring import score, truth_at
 from gateway.service import GatewayService
 from gateway.sources import SourceError
+from observers.kinematics import ssa
 from simulator.clock import RealtimeClock
 from simulator.commands import MavlinkCommandInput, ZenohCommandInput
 from simulator.runner import Route, Simulation
@@ -196,6 +197,10 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+WAVE_BAND = (0.3, 2.0)
+"""rad/s: the first-order wave band of a supply vessel's seas (periods 3-21 s), for the force share."""
+
+
 def summarise(
     args: argparse.Namespace, sim: Simulation, status: dict[str, Any], wall_s: float
 ) -> dict[str, Any]:
@@ -218,7 +223,42 @@ def summarise(
         s = score(te, np.array([e[1] for e in est]), tt, np.array([t[1] for t in truth]), settle_s=SETTLE_S)
         result["error_vs_truth"] = s.as_dict()
         result["settle_s"] = SETTLE_S
+        result["station_keeping"] = station_keeping(args.out, tt, np.array([t[1] for t in truth]), t0)
+    result["next"] = [
+        f"look at it: open {args.out} in Foxglove (Map: /gnss/dgps1/fix and /dp/estimate/fix; Plot: "
+        "/dp/estimate.eta[0] against /truth/state.eta_lf[0])",
+        f"replay it: dpgw replay {args.out} --report {Path(args.out).stem}-report",
+    ]
     return result
+
+
+def station_keeping(log: str, t_truth: Any, eta_truth: Any, t0_ns: int) -> dict[str, float] | None:
+    """How well the vessel kept station after the settle time: the true LF position's distance from, and
+    heading's difference to, the controller's reference (the setpoint through the reference model), p95;
+    and the share of the commanded force's variance in the wave band (what wave filtering keeps out)."""
+    cmds = [(p["stamp_ns"], p) for _, _, _, p in read_messages(log, "/dp/thrusters/command")]
+    if not cmds:
+        return None
+    t_cmd = (np.array([c[0] for c in cmds]) - t0_ns) / 1e9
+    ref = np.array([c[1]["reference"] for c in cmds], dtype=float)
+    keep = t_cmd >= t_cmd[0] + SETTLE_S
+    if keep.sum() < 10:
+        return None
+    true_at = truth_at(t_cmd[keep], t_truth, eta_truth)
+    dist = np.hypot(true_at[:, 0] - ref[keep, 0], true_at[:, 1] - ref[keep, 1])
+    dpsi = np.degrees(np.abs(ssa(true_at[:, 2] - ref[keep, 2])))
+    tau = np.array([c[1]["tau_demand"] for c in cmds], dtype=float)[keep]
+    out = {
+        "position_p95_m": float(np.nanpercentile(dist, 95)),
+        "heading_p95_deg": float(np.nanpercentile(dpsi, 95)),
+    }
+    dt = float(np.median(np.diff(t_cmd[keep])))
+    if len(tau) >= 64 and dt > 0:
+        spectrum = np.abs(np.fft.rfft(tau[:, :2] - tau[:, :2].mean(axis=0), axis=0)) ** 2
+        omega = 2.0 * np.pi * np.fft.rfftfreq(len(tau), dt)
+        wave = (omega >= WAVE_BAND[0]) & (omega <= WAVE_BAND[1])
+        out["wave_band_force_share"] = float(spectrum[wave].sum() / max(spectrum[1:].sum(), 1e-30))
+    return out
 
 
 def print_summary(r: dict[str, Any]) -> None:
@@ -238,7 +278,17 @@ def print_summary(r: dict[str, Any]) -> None:
             f"horizontal RMS {e['horizontal_rms_m']:.2f} m, p95 {e['horizontal_p95_m']:.2f} m; "
             f"heading RMS {e['rms_heading_deg']:.2f} deg"
         )
+    k = r.get("station_keeping")
+    if k:
+        share = k.get("wave_band_force_share")
+        print(
+            f"  station keeping (true position vs the reference, after {r['settle_s']:.0f} s): p95 "
+            f"{k['position_p95_m']:.2f} m, heading p95 {k['heading_p95_deg']:.2f} deg"
+            + (f"; {100 * share:.1f} % of the commanded force in the wave band" if share is not None else "")
+        )
     if r["alarms"]:
         print(f"  alarms at the end: {'; '.join(r['alarms'])}")
     if not math.isfinite(r.get("error_vs_truth", {}).get("horizontal_rms_m", 0.0)):
         print("  (no estimate after the settle time: run longer)")
+    for step in r.get("next", []):
+        print(f"  next: {step}")

@@ -60,7 +60,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--observer", action="append", default=[], metavar="SPEC", help="observer spec (repeatable)"
     )
-    p.add_argument("--out", required=True, metavar="OUT.mcap", help="write inputs and estimates here")
+    p.add_argument(
+        "--out",
+        metavar="OUT.mcap",
+        help="write inputs and estimates here (default: beside the first log, LOG-replay.mcap; never the "
+        "log itself)",
+    )
     p.add_argument("--report", metavar="DIR", help="write plots (PNG), metrics.json and report.md here")
     pace = p.add_mutually_exclusive_group()
     pace.add_argument(
@@ -76,7 +81,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.set_defaults(func=run)
 
 
+def default_out(first_log: str) -> str:
+    """``trial.mcap`` -> ``trial-replay.mcap`` beside it (a replay never overwrites what it reads)."""
+    path = Path(first_log)
+    return str(path.with_name(f"{path.stem}-replay.mcap"))
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.out is None:
+        args.out = default_out(args.logs[0])
+    elif any(Path(args.out).resolve() == Path(log).resolve() for log in args.logs):
+        print(
+            f"dpgw replay: --out {args.out} is one of the logs being replayed: give another file",
+            file=sys.stderr,
+        )
+        return 2
     try:
         inputs = open_inputs(args.logs)
         config = build_config(inputs, config_path=args.config, vessel=args.vessel)

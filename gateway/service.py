@@ -22,6 +22,7 @@ import contextlib
 import json
 import logging
 import queue
+import re
 import threading
 import time
 from collections import Counter
@@ -55,6 +56,15 @@ def zenoh_config(z: ZenohConfig) -> zenoh.Config:
         multicast_scouting=z.multicast_scouting,
         config_file=z.config_file,
     )
+
+
+def _loopback(url: str) -> bool:
+    """Whether a source URL stays on this machine (then an unsigned link is no exposure worth a warning)."""
+    m = re.search(r"(?://|:)(\[?[0-9a-fA-F:.]+\]?|localhost)(?::\d+)", url)
+    if m is None:
+        return False
+    host = m.group(1).strip("[]")
+    return host == "localhost" or host.startswith("127.") or host == "::1"
 
 
 class GatewayService:
@@ -93,7 +103,8 @@ class GatewayService:
                 if sc.signing_key is not None:
                     mv.setup_signing(mav, sc.signing_key, link_id=1)
                 else:  # the config refuses this unless allow_unsigned = true says it is meant
-                    log.warning(
+                    log.log(
+                        logging.INFO if _loopback(sc.url) else logging.WARNING,
                         "source %r sends thruster commands over an unsigned MAVLink link "
                         "(allow_unsigned = true): anyone who can reach it can spoof feedback or the commands",
                         sc.name,

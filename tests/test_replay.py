@@ -326,3 +326,26 @@ def test_small_text_logs_use_the_line_reader_and_large_ones_the_compiled_scan(tm
     events = list(inp.events())
     assert len(events) == 10 and all(e.checked is not None for e in events)
     assert small.stat().st_size < FAST_SCAN_MIN_BYTES
+
+
+def test_replay_without_out_writes_beside_the_log_and_never_over_it(tmp_path: Path) -> None:
+    """`dpgw replay LOG` works as the demo prints it: the output goes to LOG-replay.mcap; --out naming the
+    log itself is refused (exit 2) instead of destroying the input."""
+    from datetime import UTC, datetime, timedelta
+
+    from dpgw.cli import main
+    from wire.codecs import nmea_encode as enc
+
+    t0 = datetime(2026, 6, 1, tzinfo=UTC)
+    log = tmp_path / "trial.nmea"
+    log.write_text(
+        "".join(
+            enc.gga("GP", t0 + timedelta(seconds=k), 59.4, 10.5, 2, 12, 0.8, 20.0) + enc.hdt("HE", 1.0)
+            for k in range(20)
+        )
+    )
+    assert main(["replay", str(log), "--vessel", "mss_supply"]) == 0
+    assert (tmp_path / "trial-replay.mcap").stat().st_size > 0
+    before = log.read_bytes()
+    assert main(["replay", str(log), "--vessel", "mss_supply", "--out", str(log)]) == 2
+    assert log.read_bytes() == before
