@@ -230,10 +230,13 @@ def parse_observer_spec(text: str) -> ObserverSpec:
         key, eq, value = item.partition("=")
         if not eq or key not in keys:
             raise ReplayError(f"observer spec '{text}': '{item}' is not key=value with a key of {keys}")
+        switch = {"true": 1.0, "false": 0.0}.get(value.strip().lower())  # adaptive=true, per_dof=false
         try:
-            params[key] = float(value)
+            params[key] = switch if switch is not None else float(value)
         except ValueError:
-            raise ReplayError(f"observer spec '{text}': {key}={value!r} is not a number") from None
+            raise ReplayError(
+                f"observer spec '{text}': {key}={value!r} is not a number (or true/false)"
+            ) from None
     if not label:
         label = name + "".join(f"_{k}{v:g}" for k, v in params.items())
     label = re.sub(r"[^A-Za-z0-9_.-]", "_", label)

@@ -37,6 +37,13 @@ SDRE_PARAMS = (
     "position_weight",
     "yaw_lever_m",
     "paper_weights",
+    # adaptive = true: ω0 from the wave-frequency estimator, re-solved on each estimate (sdre_adaptive)
+    "adaptive",
+    "window_s",
+    "update_period_s",
+    "omega_min",
+    "omega_max",
+    "per_dof",
 )
 
 

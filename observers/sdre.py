@@ -66,6 +66,7 @@ from observers.sdre_tuning import (
     table_gain,
 )
 from observers.vessel import VesselModel
+from observers.wave_frequency import WaveFrequencyConfig
 
 Array = NDArray[np.float64]
 
@@ -124,14 +125,29 @@ class SdreObserver(ObserverBase):
         allow_unchecked: bool = False,
     ) -> SdreObserver:  # fmt: skip
         """The observer `observers.factory` builds by name: ω0 and ζ from the common ``tuning`` (as every
-        observer's), the rest from ``params`` (the fields of `SdreTuning`, plus ``paper_weights = true``
-        to run the paper's Q, R literally, for comparison). ``allow_unchecked`` has nothing to relax here:
-        a tuning that cannot give a stable filter is refused by `sdre_weights` itself."""
+        observer's), the rest from ``params``: the fields of `SdreTuning`; ``paper_weights = true`` to run
+        the paper's Q, R literally, for comparison; ``adaptive = true`` with the wave-frequency estimator's
+        settings for ω0 scheduled from the measurements (`observers.sdre_adaptive`). ``allow_unchecked``
+        has nothing to relax here: a tuning that cannot give a stable filter is refused by
+        `sdre_weights` itself."""
         params = dict(params)
         literal = bool(params.pop("paper_weights", False))
+        adaptive = bool(params.pop("adaptive", False))
+        from observers.sdre_adaptive import ESTIMATOR_PARAMS, AdaptiveSdreObserver  # (it builds on this one)
+
+        est = {k: params.pop(k) for k in ESTIMATOR_PARAMS if k in params}
+        if est and not adaptive:
+            raise ValueError(
+                f"{', '.join(est)}: settings of the wave-frequency estimator (expected adaptive = true)"
+            )
         common = tuning or PassiveTuning()
         sdre_tuning = SdreTuning(omega0=common.omega0, zeta=common.zeta, **params)
         weights = paper_weights(sdre_tuning.omega0, sdre_tuning.zeta) if literal else None
+        if adaptive:
+            if "per_dof" in est:
+                est["per_dof"] = bool(est["per_dof"])
+            config = WaveFrequencyConfig(**est)
+            return AdaptiveSdreObserver(vessel, sdre_tuning, estimator=config, weights=weights)
         return cls(vessel, sdre_tuning, weights=weights)
 
     def set_weights(self, weights: SdreWeights) -> None:

@@ -349,3 +349,12 @@ def test_replay_without_out_writes_beside_the_log_and_never_over_it(tmp_path: Pa
     before = log.read_bytes()
     assert main(["replay", str(log), "--vessel", "mss_supply", "--out", str(log)]) == 2
     assert log.read_bytes() == before
+
+
+def test_observer_spec_switches_are_true_or_false() -> None:
+    from gateway.replay import ReplayError, parse_observer_spec
+
+    spec = parse_observer_spec("sdre:adaptive=true,update_period_s=30@a")
+    assert spec.params == {"adaptive": 1.0, "update_period_s": 30.0} and spec.label == "a"
+    with pytest.raises(ReplayError, match="not a number"):
+        parse_observer_spec("sdre:adaptive=maybe")

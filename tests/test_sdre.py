@@ -5,6 +5,7 @@ agreement between the compiled kernel, the numpy reference, `step` and `run`."""
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -348,3 +349,52 @@ def test_predict_advances_and_a_backward_sample_changes_nothing() -> None:
     x = obs.x.copy()
     assert obs.step(t_next, y[-1], tau[-1]).t == t_next and obs.t == t_next + 1.0  # backward: not used
     np.testing.assert_array_equal(obs.x, x)
+
+
+# --- the adaptive SDRE: ω0 scheduled from the measurements ------------------------------------------------
+
+
+def _adaptive_sea(seed: int, duration_s: float = 900.0) -> tuple[np.ndarray, np.ndarray, float]:
+    """Torsetnes et al.'s case (the gain-scheduling tests' generator): Hs 6 m, Tp 11.5 s, measured at
+    10 Hz; the observer starts at 0.83 rad/s, right for a 1 m sea. Returns (t, y, the true peak)."""
+    import test_gain_scheduled as gs
+
+    t, y, _ = gs.simulate(duration_s, seed)
+    return t, y, gs.true_peak(gs.SEA)
+
+
+def _adaptive() -> Any:
+    from test_gain_scheduled import VESSEL
+
+    return make_observer(
+        "sdre", VESSEL, PassiveTuning(omega0=0.83), params={"adaptive": True, "update_period_s": 60.0}
+    )
+
+
+def test_adaptive_sdre_follows_the_sea_and_run_equals_step() -> None:
+    """ω0 starts 0.83 rad/s in the Hs 6 m, Tp 11.5 s sea and is within 12 % of the true peak from 120 s
+    (two update periods) on, for most sea realisations; `run` gives `step`'s numbers bit for bit,
+    ω0 included, and a run in two pieces the same again."""
+    errors = []
+    for seed in range(4):
+        t, y, peak = _adaptive_sea(seed)
+        run = _adaptive().run(t, y)
+        errors.append(float(np.max(np.abs(run.omega0[1200:, 0] / peak - 1.0))))
+        if seed == 0:
+            stepped = _adaptive()
+            for k in range(t.size):
+                est = stepped.step(t[k], y[k])
+                np.testing.assert_array_equal(est.eta, run.eta[k])
+                np.testing.assert_array_equal(stepped.omega0, run.omega0[k])
+            assert len(run.extras["updates"]) >= 10
+            pieces = _adaptive()
+            half = t.size // 2 + 7
+            r1, r2 = pieces.run(t[:half], y[:half]), pieces.run(t[half:], y[half:])
+            np.testing.assert_array_equal(np.r_[r1.eta, r2.eta], run.eta)
+            np.testing.assert_array_equal(np.r_[r1.omega0, r2.omega0], run.omega0)
+    assert sum(e <= 0.12 for e in errors) >= 3, np.round(errors, 3)
+
+
+def test_estimator_settings_need_adaptive() -> None:
+    with pytest.raises(ValueError, match="expected adaptive = true"):
+        make_observer("sdre", load_vessel("mss_supply"), params={"window_s": 100.0})
