@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from gateway import command_checks
 from gateway.config import ArdupilotMap, ControlConfig, GatewayConfig
 from gateway.control.allocation import AllocationResult, PseudoInverseAllocator, QPAllocator, ThrusterCommand
 from gateway.control.controller import ControllerTuning, DPController
@@ -231,6 +232,18 @@ class Pipeline:
         self._parser_seen: dict[tuple[str, str], Counter[str]] = {}
         self._parser_rejects: dict[tuple[str, str], int] = {}  # sum of _parser_seen, the fast check
         self._feedback_refused: dict[str, int] = {}  # source -> receive time of its last refused report
+        self.commands_refused: Counter[str] = Counter()  # input key -> commands refused
+        self._refusals: list[tuple[int, str]] = []  # (receive time, reason), taken by `take_refusals`
+        self._refusals_shown: list[tuple[int, str]] = []
+        self._estimate_status: str | None = None  # of the last estimate (DP needs a healthy one)
+        self._last_eta: np.ndarray | None = None  # of the last estimate (setpoints are judged by it)
+        self._force_capacity = command_checks.force_capacity(spec.vessel)
+        ctl_cfg = spec.control
+        self._max_setpoint_distance_m = (
+            ctl_cfg.max_setpoint_distance_m
+            if ctl_cfg is not None
+            else command_checks.DEFAULT_MAX_SETPOINT_DISTANCE_M
+        )
         self.t0_ns: int | None = None
         self.last_ns = 0
         self.mode = "standby"
@@ -450,20 +463,36 @@ class Pipeline:
         self._parser_rejects[key] = total
 
     def _control(self, ev: ControlEvent) -> None:
-        if ev.key == "mode" and ev.payload in ("standby", "dp", "manual"):
-            self.mode = ev.payload
-        elif ev.key == "setpoint" and isinstance(ev.payload, dict):
-            self.setpoint = ev.payload
-            self._pending_setpoint = ev.payload
-        elif ev.key == "tau" and isinstance(ev.payload, dict):
-            try:
-                tau = np.array([float(ev.payload[k]) for k in ("X", "Y", "N")])
-            except (KeyError, TypeError, ValueError):
-                return
-            if np.all(np.isfinite(tau)):
+        """A command from Zenoh: carried out, or refused with a reason (`gateway.command_checks`)."""
+        if ev.key == "mode":
+            problem = command_checks.check_mode(ev.payload, self._estimate_status)
+            if problem is None:
+                self.mode = ev.payload
+        elif ev.key == "setpoint":
+            problem = None
+            if not isinstance(ev.payload, dict):
+                problem = "setpoint refused: expected an object"
+            elif self._last_eta is not None and ("north_m" in ev.payload or self.fusion.datum is not None):
+                target = self._setpoint_ned(ev.payload)
+                problem = command_checks.check_setpoint(target, self._last_eta, self._max_setpoint_distance_m)
+                if target is None:
+                    self._pending_setpoint = None
+            # A setpoint before the first estimate (a scripted start) or in lat/lon before the datum
+            # exists waits, and is judged when it is applied.
+            if problem is None:
+                self.setpoint = ev.payload
+                self._pending_setpoint = ev.payload
+        elif ev.key == "tau":
+            tau, problem = command_checks.check_tau(ev.payload, self._force_capacity)
+            if tau is not None:
                 self.manual_tau = tau
                 if self.mode == "manual" and self.controller is None:
                     self.fusion.set_tau_demand(tau)
+        else:
+            problem = f"{ev.key}: not a command dpgw takes"
+        if problem is not None:
+            self.commands_refused[ev.key] += 1
+            self._refusals.append((ev.rx_ns, problem))
 
     # --- observer and outputs -------------------------------------------------------------------------------
 
@@ -496,6 +525,8 @@ class Pipeline:
         if est.status != STATUS_NAMES[0]:
             self.estimates += 1
             estimate = self._estimate(self.spec.observer_name, self.observer, est, now_ns)
+            self._estimate_status = estimate.status
+            self._last_eta = est.eta
             out.append(Output("/dp/estimate", estimate, now_ns))
             if (
                 estimate.lat_deg is not None
@@ -562,7 +593,13 @@ class Pipeline:
         if self._pending_setpoint is not None:
             target = self._setpoint_ned(self._pending_setpoint)
             if target is not None:
-                ctl.set_setpoint(target)
+                problem = command_checks.check_setpoint(target, est.eta, self._max_setpoint_distance_m)
+                if problem is None:
+                    ctl.set_setpoint(target)
+                else:
+                    self.commands_refused["setpoint"] += 1
+                    self._refusals.append((now_ns, problem))
+                    self.setpoint = None
                 self._pending_setpoint = None
         prev = self.allocation
         eta_in, nu_in = est.eta, est.nu
@@ -683,6 +720,16 @@ class Pipeline:
             now_ns,
         )
 
+    def take_refusals(self) -> list[tuple[int, str]]:
+        """Commands refused since the last call, (receive time ns, reason), for the caller to log. They
+        stay in /status as alarms for REFUSAL_ALARM_NS."""
+        if not self._refusals:  # the common case: asked after every chunk
+            return []
+        taken, self._refusals = self._refusals, []
+        self._refusals_shown = [r for r in self._refusals_shown if r[0] >= self.last_ns - REFUSAL_ALARM_NS]
+        self._refusals_shown += taken
+        return taken
+
     def status(self, now_ns: int, alarms: list[str] | None = None) -> Output:
         """The 1 Hz status output (the caller decides when); see `status_message`."""
         return Output("/dp/status", self.status_message(now_ns, alarms), now_ns)
@@ -691,6 +738,7 @@ class Pipeline:
         """Per-source age, counts, rejects by reason, and the alarms: the caller's, the controller's, and
         one per source that sent nothing yet or went stale."""
         alarms = list(alarms or []) + self.control_alarms
+        alarms += [reason for at_ns, reason in self._refusals_shown if now_ns - at_ns < REFUSAL_ALARM_NS]
         for name, at_ns in self._feedback_refused.items():
             if now_ns - at_ns < FEEDBACK_DISTRUST_NS:
                 alarms.append(
@@ -711,9 +759,11 @@ class Pipeline:
             estimates=self.estimates,
             sources={name: c.as_message(now_ns) for name, c in self.counters.items()},
             alarms=list(alarms),
+            commands_refused=dict(self.commands_refused),
         )
 
 
+REFUSAL_ALARM_NS = 10 * NS  # a refused command stays in /status's alarms this long
 FEEDBACK_DISTRUST_NS = int(FEEDBACK_DISTRUST_S * NS)
 
 MAX_SENDERS = 64

@@ -249,6 +249,8 @@ class GatewayService:
                 self.log.write(f"/dp/{item.key}", body, ev.rx_ns, ev.rx_ns)
             try:
                 self._emit(self.pipeline.feed(ev))
+                for _, reason in self.pipeline.take_refusals():
+                    log.warning("command from %s refused: %s", item.key, reason)
             except Exception:
                 self._internal_error(f"input {item.key}", f"the {item.key} input {item.payload!r:.200}")
             return
@@ -262,6 +264,8 @@ class GatewayService:
                 self.log.write_raw_mavlink(item.source, item.data, rx, rx, peer=item.peer)
         try:
             self._emit(self.pipeline.feed(RawEvent(rx, item.source, item.data, peer=item.peer)))
+            for _, reason in self.pipeline.take_refusals():  # a setpoint judged when it was applied
+                log.warning("command refused: %s", reason)
         except Exception:
             self.pipeline.count_internal_error(item.source)
             self._internal_error(

@@ -211,15 +211,17 @@ def test_manual_tau_is_allocated_and_is_the_observers_input() -> None:
     tau, source = p.fusion.tau(T0 + S)
     assert source == "demand"
     np.testing.assert_allclose(tau, [1e4, -2e3, 5e4], rtol=1e-6, atol=1e-3)
-    p.feed(ControlEvent(T0, "tau", {"X": "lots"}))  # bad input: ignored, never raised
+    p.feed(ControlEvent(T0, "tau", {"X": "lots"}))  # bad input: refused, counted, never raised
     p.feed(ControlEvent(T0, "mode", "warp"))
-    assert p.mode == "manual"
+    assert p.mode == "manual" and p.commands_refused == {"tau": 1, "mode": 1}
 
 
 def test_demand_beyond_capacity_gives_closest_tau_an_alarm_and_no_nan() -> None:
     p = pipeline([nmea_src("gps", ["position", "heading"])])
     p.feed(ControlEvent(T0, "mode", "manual"))
-    p.feed(ControlEvent(T0, "tau", {"X": 5e6, "Y": 3e6, "N": 1e9}))  # far beyond six thrusters
+    # each within what the thrusters make alone (a τ beyond that is refused at the input), all three at
+    # once beyond what they make together: the allocator saturates
+    p.feed(ControlEvent(T0, "tau", {"X": 1.0e6, "Y": 1.4e6, "N": 4e7}))
     out = []
     for k in range(30):
         out += p.feed(RawEvent(T0 + k * S // 5, "gps", gga_at(0.0, 0.0) + enc.hdt("HE", 0.3).encode()))
@@ -379,3 +381,30 @@ def test_frames_from_another_system_or_component_are_refused() -> None:
         p.feed(RawEvent(T0 + k, "thr", mv.azimuth_status_frame(mav, k, 1, 1e4, 50.0, 0.0, 0)))
     c = p.counters["thr"]
     assert c.received == 2 and c.rejected["wrong_system"] == 1 and c.rejected["wrong_component"] == 1
+
+
+def test_commands_that_make_no_sense_are_refused_with_a_reason() -> None:
+    """A setpoint 50 km away, τ = 1e12, DP before there is a healthy estimate: refused, counted in
+    /status, each with its reason as an alarm (and in the gateway's log); a sane setpoint is taken."""
+    p = pipeline([nmea_src("gps", ["position", "heading"])])
+    p.feed(ControlEvent(T0, "mode", "dp"))  # no estimate yet
+    for k in range(20):
+        p.feed(RawEvent(T0 + k * S // 5, "gps", gga_at(0.0, 0.0) + enc.hdt("HE", 0.3).encode()))
+    t = T0 + 4 * S
+    p.feed(ControlEvent(t, "setpoint", {"north_m": 50_000.0, "east_m": 0.0, "heading_deg": 10.0}))
+    p.feed(ControlEvent(t, "setpoint", {"north_m": float("nan"), "east_m": 0.0, "heading_deg": 10.0}))
+    lat, lon, _ = LocalFrame(*DATUM).to_geodetic(0.0, 50_000.0)
+    p.feed(ControlEvent(t, "setpoint", {"lat_deg": lat, "lon_deg": lon, "heading_deg": 10.0}))
+    p.feed(ControlEvent(t, "tau", {"X": 1e12, "Y": 0.0, "N": 0.0}))
+    reasons = [r for _, r in p.take_refusals()]
+    assert p.mode == "standby" and p.setpoint is None and not p.manual_tau.any()
+    assert p.commands_refused == {"mode": 1, "setpoint": 3, "tau": 1}
+    assert "mode dp refused: the estimate is not there yet" in reasons[0]
+    assert "setpoint refused: 50,000 m from the vessel's estimated position" in reasons[1]
+    assert "beyond what the thrusters can make" in reasons[-1]
+    status = p.status(t).payload
+    assert status["commands_refused"] == {"mode": 1, "setpoint": 3, "tau": 1}
+    assert any("50,000 m" in a for a in status["alarms"])
+    p.feed(ControlEvent(t, "setpoint", {"north_m": 10.0, "east_m": -5.0, "heading_deg": 10.0}))
+    p.feed(ControlEvent(t, "mode", "dp"))
+    assert p.setpoint is not None and p.mode == "dp" and not p.take_refusals()

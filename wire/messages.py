@@ -318,6 +318,13 @@ class Status(Message, kw_only=True):
         list[str | dict[str, Any]],
         doc("Active alarms: short strings, or objects with at least `code` and `message`."),
     ]
+    commands_refused: Annotated[
+        dict[str, int],
+        doc(
+            "Commands from Zenoh refused so far, by input (`setpoint`, `mode`, `tau`; count); the reasons "
+            "are alarms for 10 s and lines in the gateway's log. Left out while none."
+        ),
+    ] = {}
 
 
 class Time(Record, kw_only=True):

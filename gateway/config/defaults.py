@@ -51,6 +51,7 @@ DEFAULTS: dict[str, dict[str, Any]] = {
         "initial_mode": "standby",
         "allocator": "qp",
         "damping": 1.0,
+        "max_setpoint_distance_m": 50.0,
         "feedback": "estimate",
     },
 }

@@ -374,5 +374,6 @@ def _read_control(p: Problems, data: Mapping[str, Any]) -> ControlConfig | None:
         allocator=v["allocator"],
         bandwidth_rad_s=v["bandwidth_rad_s"],
         damping=v["damping"],
+        max_setpoint_distance_m=v["max_setpoint_distance_m"],
         feedback=v["feedback"],
     )

@@ -172,6 +172,8 @@ class ControlConfig:
     allocator: str = "qp"
     bandwidth_rad_s: float | tuple[float, float, float] | None = None
     damping: float = 1.0
+    max_setpoint_distance_m: float = 50.0
+    """How far from the estimated position a Zenoh setpoint may be (farther: refused, with the reason)."""
     feedback: str = "estimate"
     """What the controller's position/heading term sees: the observer's LF estimate (always, at sea), or
     the raw measurement — only to demonstrate what wave filtering buys (the same controller, same ν̂)."""

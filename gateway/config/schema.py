@@ -399,4 +399,5 @@ class ControlTable(_Section):
     allocator: str = choice(_C["allocator"], ALLOCATORS)
     bandwidth_rad_s: PerDof = per_dof(unit="rad/s")
     damping: float = number(_C["damping"], lo=0.3, hi=3.0)
+    max_setpoint_distance_m: float = number(_C["max_setpoint_distance_m"], lo=1.0, hi=100_000.0, unit="m")
     feedback: str = choice(_C["feedback"], FEEDBACKS)
