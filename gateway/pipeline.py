@@ -17,6 +17,7 @@ once (latency), and stepping is driven only by the events (determinism).
 
 from __future__ import annotations
 
+import copy
 import math
 from collections import Counter
 from collections.abc import Sequence
@@ -26,10 +27,12 @@ from typing import Any
 
 import numpy as np
 
-from gateway.config import ArdupilotMap, ControlConfig, GatewayConfig
+from gateway.config import ArdupilotMap, ControlConfig, GatewayConfig, IntegrityConfig
 from gateway.control.allocation import AllocationResult, PseudoInverseAllocator, QPAllocator, ThrusterCommand
 from gateway.control.controller import ControllerTuning, DPController
 from gateway.fusion import NS, Fusion
+from gateway.references import ReferenceMonitor
+from gateway.references.monitor import Prediction
 from observers.base import STATUS_NAMES, Estimate, Observer
 from observers.factory import make_observer
 from observers.kinematics import ssa_scalar
@@ -43,6 +46,7 @@ from wire.messages import (
     LocationFix,
     Measurement,
     Message,
+    ReferenceStatus,
     SourceStatus,
     Status,
     Thruster,
@@ -135,6 +139,8 @@ class PipelineSpec:
     """More observers fed the same y and τ (replay: side by side), published on /dp/estimates/<label>."""
     control: ControlConfig | None = None
     """DP controller and allocation; None: estimation only."""
+    integrity: IntegrityConfig = field(default_factory=IntegrityConfig)
+    """Reference and feedback tests (`gateway.references`)."""
 
     @classmethod
     def from_config(cls, config: GatewayConfig) -> PipelineSpec:
@@ -172,6 +178,7 @@ class PipelineSpec:
             datum=datum,
             reference_point_m=config.reference_point_m,
             control=config.control,
+            integrity=config.integrity,
         )
 
 
@@ -203,7 +210,25 @@ class Pipeline:
         self.spec = spec
         self.observer = spec.observer
         datum = LocalFrame(*spec.datum) if spec.datum is not None else None
-        self.fusion = Fusion(spec.vessel, datum=datum, reference_point_m=spec.reference_point_m)
+        ip = spec.integrity
+        self.fusion = Fusion(
+            spec.vessel, datum=datum, reference_point_m=spec.reference_point_m, pooling=ip.pooling
+        )
+
+        def by_role(role: str) -> dict[str, int]:
+            return {s.name: s.timeout_ns for s in spec.sources if role in s.roles}
+
+        self.monitor = ReferenceMonitor(
+            ip, by_role("position"), by_role("heading"), by_role("thrusters"), {t.id: t for t in spec.vessel.thrusters}
+        )
+        self._events: list[str] = []  # reference state changes not yet in a status
+        self._last_est: Estimate | None = None
+        self._last_est_ns = 0
+        self._measured_ns = [0, 0, 0]  # when each DOF last went into the observer with a measurement
+        self._last_step_ns = 0
+        self._last_dr_ns = 0
+        self._dr_period_ns = int(NS / ip.dead_reckoning_rate_hz)
+        self._lost_ns = int(ip.lost_after_s * NS)
         self.sources = {s.name: s for s in spec.sources}
         self.counters = {s.name: SourceCounters() for s in spec.sources}
         self._framers = {s.name: NmeaFramer() for s in spec.sources if s.protocol == "nmea"}
@@ -282,7 +307,44 @@ class Pipeline:
             updated = self._mavlink(spec, c, event, out)
         if updated:
             out.extend(self._step(event.rx_ns, event.source))
+        out.extend(self._state_changes(event.rx_ns))
         return out
+
+    def tick(self, now_ns: int) -> list[Output]:
+        """Called by the live service between events (any rate): while nothing steps the observer (every
+        source silent), a dead-reckoned estimate at ``integrity.dead_reckoning_rate_hz``, and the reference
+        state changes (sources going stale). The dead reckoning runs on a copy of the observer, so the
+        observer's own state stays a function of the events alone and replay still reproduces it."""
+        if self.t0_ns is None or now_ns <= self.last_ns:
+            return []
+        out: list[Output] = []
+        if (
+            self.observer.initialized
+            and now_ns - max(self._last_step_ns, self._last_dr_ns) >= self._dr_period_ns
+        ):
+            self._last_dr_ns = now_ns
+            ghost = copy.deepcopy(self.observer)
+            tau, _ = self.fusion.tau(now_ns)
+            est = ghost.predict(self._t(now_ns), tau)
+            if est.status != STATUS_NAMES[0]:
+                out.append(
+                    Output(
+                        "/dp/estimate",
+                        self._estimate(self.spec.observer_name, ghost, est, now_ns, [False] * 3),
+                        now_ns,
+                    )
+                )
+        out.extend(self._state_changes(now_ns))
+        return out
+
+    def _state_changes(self, now_ns: int) -> list[Output]:
+        """Reference state changes since the last call: to the next status, and a status at once."""
+        self.monitor.refresh(now_ns)
+        changes = self.monitor.drain()
+        if not changes:
+            return []
+        self._events.extend(c.text for c in changes)
+        return [self.status(now_ns)]
 
     def count_internal_error(self, source: str) -> None:
         """The caller could not finish handling a chunk of ``source`` (an exception inside `feed`): count it
@@ -323,7 +385,7 @@ class Pipeline:
         valid_ns = spec.timeout_ns
         if isinstance(s, nmea_codec.Heading):
             if "heading" in spec.roles and s.valid and s.heading_rad is not None:
-                return self.fusion.add_heading(rx_ns, s.heading_rad, spec.name, spec.priority, valid_ns)
+                return self._use_heading(spec, rx_ns, s.heading_rad)
             return False
         if isinstance(s, nmea_codec.Gst):
             if "position" in spec.roles and s.sigma_lat_m is not None and s.sigma_lon_m is not None:
@@ -334,14 +396,60 @@ class Pipeline:
         if isinstance(s, nmea_codec.Gga | nmea_codec.Gns) and "position" in spec.roles:
             if not s.valid or s.lat_deg is None or s.lon_deg is None:
                 return False
-            quality = s.quality if isinstance(s, nmea_codec.Gga) else 1
-            fix = self.fusion.add_position(
-                rx_ns, s.lat_deg, s.lon_deg, spec.lever_arm_m, spec.name, spec.priority, valid_ns, quality
-            )
-            if fix is not None:
-                out.extend(self._location_fix(spec.name, rx_ns, s.lat_deg, s.lon_deg))
-            return fix is not None
+            quality = s.quality if isinstance(s, nmea_codec.Gga) else None
+            return self._use_position(spec, rx_ns, s.lat_deg, s.lon_deg, quality, out)
         return False
+
+    def _use_position(
+        self, spec: SourceSpec, rx_ns: int, lat: float, lon: float, quality: int | None, out: list[Output]
+    ) -> bool:
+        """A fix through the source's tests (`gateway.references`), then into the fusion if it passes. True
+        when the observer should step (also for a rejected fix: the estimate goes on at the source's rate)."""
+        ned = self.fusion.reference_position(rx_ns, lat, lon, spec.lever_arm_m)
+        if ned is None:
+            return False  # a lever arm without a heading of the same cycle cannot be compensated
+        out.extend(self._location_fix(spec.name, rx_ns, lat, lon))
+        pred = self._prediction(rx_ns, 0)
+        if self.monitor.position(spec.name, rx_ns, ned[0], ned[1], quality, pred):
+            weight = self.monitor.weight("position", spec.name)
+            q = 1 if quality is None else quality
+            self.fusion.use_position(rx_ns, *ned, spec.name, spec.priority, spec.timeout_ns, q, weight)
+        else:
+            self._count_test_reject(spec.name, "position")
+            self.fusion.drop_position(spec.name)
+        return True
+
+    def _use_heading(self, spec: SourceSpec, rx_ns: int, psi: float) -> bool:
+        if self.monitor.heading(spec.name, rx_ns, psi, self._prediction(rx_ns, 2)):
+            weight = self.monitor.weight("heading", spec.name)
+            self.fusion.add_heading(rx_ns, psi, spec.name, spec.priority, spec.timeout_ns, weight)
+        else:
+            self._count_test_reject(spec.name, "heading")
+            self.fusion.drop_heading(spec.name)
+        return True
+
+    def _count_test_reject(self, source: str, role: str) -> None:
+        """A sentence or frame that failed a reference test, counted by test (``test_jump``, …)."""
+        reason = self.monitor.reason(role, source)
+        word = reason.split(":")[0].split(" ")[0].lower() or "failed"
+        self.counters[source].rejected[f"test_{word}"] += 1
+
+    def _prediction(self, now_ns: int, dof: int) -> Prediction | None:
+        """Where the estimate expects a position (dof 0) or heading (dof 2) now: the last estimate moved on
+        by its velocity (the observer itself is not advanced), plus its wave motion; None before one."""
+        est = self._last_est
+        if est is None or not est.initialized or not self._measured_ns[dof]:
+            return None
+        dt = (now_ns - self._last_est_ns) / NS
+        age = (now_ns - self._measured_ns[dof]) / NS
+        wf = np.nan_to_num(est.eta_wf)
+        if dof == 2:
+            return Prediction((ssa_scalar(float(est.eta[2] + wf[2] + est.nu[2] * dt)),), age)
+        c, s = math.cos(est.eta[2]), math.sin(est.eta[2])
+        u, v = float(est.nu[0]), float(est.nu[1])
+        n = float(est.eta[0] + wf[0] + (c * u - s * v) * dt)
+        e = float(est.eta[1] + wf[1] + (s * u + c * v) * dt)
+        return Prediction((n, e), age)
 
     def _mavlink(self, spec: SourceSpec, c: SourceCounters, ev: RawEvent, out: list[Output]) -> bool:
         msgs = self._parsers[spec.name].feed(ev.data)
@@ -357,6 +465,12 @@ class Pipeline:
                 if isinstance(r, mv.ThrusterReport):
                     if "thrusters" not in roles:
                         continue
+                    problem = self.monitor.feedback(
+                        spec.name, rx_ns, r.thruster_id, r.thrust_n, r.azimuth_rad, r.rpm
+                    )
+                    if problem:
+                        c.rejected["out_of_range"] += 1
+                        continue
                     if r.thrust_n is not None:
                         self.fusion.add_thruster(rx_ns, r.thruster_id, r.thrust_n, r.azimuth_rad)
                         feedback = True
@@ -368,16 +482,11 @@ class Pipeline:
                 elif isinstance(r, mv.PositionReport):
                     if "position" not in roles or not r.valid:
                         continue
-                    fix = self.fusion.add_position(
-                        rx_ns, r.lat_deg, r.lon_deg, spec.lever_arm_m, spec.name, spec.priority, valid_ns, 1
-                    )
-                    if fix is not None:
-                        out.extend(self._location_fix(spec.name, rx_ns, r.lat_deg, r.lon_deg))
-                        updated = True
+                    updated |= self._use_position(spec, rx_ns, r.lat_deg, r.lon_deg, None, out)
                 elif "heading" in roles:
-                    updated |= self.fusion.add_heading(
-                        rx_ns, r.heading_rad, spec.name, spec.priority, valid_ns
-                    )
+                    updated |= self._use_heading(spec, rx_ns, r.heading_rad)
+        if "thrusters" in roles:
+            self.fusion.set_feedback_usable(self.monitor.feedback_usable(spec.name))
         if feedback:
             out.append(self._feedback_output(rx_ns))
         return updated
@@ -423,6 +532,10 @@ class Pipeline:
         tau, tau_source = self.fusion.tau(now_ns)
         t = self._t(now_ns)
         est = self.observer.step(t, y, tau)
+        self._last_est, self._last_est_ns, self._last_step_ns = est, now_ns, now_ns
+        for k in range(3):
+            if valid[k]:
+                self._measured_ns[k] = now_ns
         out = [
             Output(
                 "/dp/measurement",
@@ -430,7 +543,10 @@ class Pipeline:
                     stamp_ns=now_ns,
                     eta=[None if v != v else v for v in y.tolist()],  # NaN (stale) -> null
                     valid=valid,
-                    sources=sorted({h.source for h in (self.fusion.north, self.fusion.heading) if h.source}),
+                    sources=sorted(
+                        set(self.fusion.position_sources if valid[0] else ())
+                        | set(self.fusion.heading_sources if valid[2] else ())
+                    ),
                     quality=self.fusion.quality,
                     sigma_m=self.fusion.position_sigma_m(now_ns),
                     tau=tau.tolist(),
@@ -441,7 +557,7 @@ class Pipeline:
         ]
         if est.status != STATUS_NAMES[0]:
             self.estimates += 1
-            estimate = self._estimate(self.spec.observer_name, self.observer, est, now_ns)
+            estimate = self._estimate(self.spec.observer_name, self.observer, est, now_ns, valid)
             out.append(Output("/dp/estimate", estimate, now_ns))
             if (
                 estimate.lat_deg is not None
@@ -562,18 +678,24 @@ class Pipeline:
             )
         ]
 
-    def _estimate(self, label: str, obs: Observer, est: Estimate, now_ns: int) -> EstimateMessage:
+    def _estimate(
+        self, label: str, obs: Observer, est: Estimate, now_ns: int, valid: list[bool] | None = None
+    ) -> EstimateMessage:
         datum = self.fusion.datum
         lat = lon = None
         if datum is not None:
             lat, lon, _ = datum.to_geodetic(float(est.eta[0]), float(est.eta[1]), 0.0)
+        health: list[str] = [] if valid is None else self._health(now_ns, valid)
         status = est.status
         backup = self._backup
-        if status == "ok" and (
-            self.fusion.north.source in backup.get("position", ())
+        if "lost" in health:
+            status = "lost"
+        elif status == "ok" and (
+            "degraded" in health
+            or self.fusion.north.source in backup.get("position", ())
             or self.fusion.heading.source in backup.get("heading", ())
         ):
-            status = "degraded"  # running on a backup source
+            status = "degraded"  # running on a subset of the references, or on a backup source
         return EstimateMessage(
             stamp_ns=now_ns,
             observer=label,
@@ -588,7 +710,19 @@ class Pipeline:
             heading_deg=math.degrees(est.eta[2]) % 360.0,
             datum=None if datum is None else Datum(lat_deg=datum.lat_deg, lon_deg=datum.lon_deg),
             extra=obs.extra(),
+            health=health,  # type: ignore[arg-type]  # DofHealth words only
         )
+
+    def _health(self, now_ns: int, valid: list[bool]) -> list[str]:
+        """Per DOF: ok / degraded (some references usable, not all ok) / dead_reckoning / lost."""
+        out = []
+        for k, role in ((0, "position"), (1, "position"), (2, "heading")):
+            if not valid[k]:
+                measured = self._measured_ns[k]
+                out.append("lost" if measured and now_ns - measured > self._lost_ns else "dead_reckoning")
+            else:
+                out.append("ok" if self.monitor.health(role) == "ok" else "degraded")
+        return out
 
     def _location_fix(self, source: str, rx_ns: int, lat: float, lon: float) -> list[Output]:
         if rx_ns - self._last_fix_ns.get(source, -FIX_PERIOD_NS) < FIX_PERIOD_NS:
@@ -623,6 +757,23 @@ class Pipeline:
         """Per-source age, counts, rejects by reason, and the alarms: the caller's, the controller's, and
         one per source that sent nothing yet or went stale."""
         alarms = list(alarms or []) + self.control_alarms
+        references: dict[str, list[ReferenceStatus]] = {}
+        for name, states in self.monitor.states().items():
+            references[name] = [
+                ReferenceStatus(
+                    role=st.role,
+                    state=st.state,  # type: ignore[arg-type]  # one of the STATES
+                    reason=st.reason,
+                    sigma_m=self.monitor.sigma_m(name) if st.role == "position" else None,
+                )
+                for st in states
+            ]
+            alarms += [
+                f"{st.role} reference {name}: {st.state} ({st.reason})"
+                for st in states
+                if st.state in ("rejected", "suspect")
+            ]
+        events, self._events = self._events, []
         for name, c in self.counters.items():
             spec = self.sources[name]
             if c.last_rx_ns == 0:
@@ -637,6 +788,8 @@ class Pipeline:
             estimates=self.estimates,
             sources={name: c.as_message(now_ns) for name, c in self.counters.items()},
             alarms=list(alarms),
+            references=references,
+            events=events,
         )
 
 

@@ -26,8 +26,13 @@ DATUM = (59.4, 10.5)
 KEY = bytes(range(32))
 
 
-def pipeline(sources: list[dict], vessel: str = "mss_supply") -> Pipeline:  # type: ignore[type-arg]
+def pipeline(sources: list[dict], vessel: str = "mss_supply", **more: dict) -> Pipeline:  # type: ignore[type-arg]
+    # The fixes here are noiseless and repeat for seconds, which the freeze test would rightly call frozen;
+    # these tests are about the fusion rules, so the freeze test waits longer than any of them runs.
+    more.setdefault("integrity", {})
+    more["integrity"] = {"freeze_s": 600.0, "heading_freeze_s": 600.0, **more["integrity"]}
     tables = {
+        **more,
         "vessel": {"name": vessel},
         "datum": {"lat_deg": DATUM[0], "lon_deg": DATUM[1]},
         "sources": sources,
@@ -76,12 +81,14 @@ def test_fix_without_heading_of_its_cycle_is_not_used() -> None:
 
 
 def test_failover_to_the_backup_and_back() -> None:
+    """With ``pooling = "priority"`` the backup is hot standby (by default references are pooled)."""
     p = pipeline(
         [
             nmea_src("gps1", ["position"], priority=1, timeout_s=1.0),
             nmea_src("gps2", ["position"], priority=2, timeout_s=1.0),
             nmea_src("gyro", ["heading"]),
-        ]
+        ],
+        integrity={"pooling": "priority"},
     )
 
     def cycle(t: int, with1: bool) -> list:  # type: ignore[type-arg]
@@ -146,7 +153,7 @@ def test_mavlink_position_and_heading_sources() -> None:
     hdg = mv.pack(
         mav, d.MAVLink_global_position_int_message(0, round(lat * 1e7), round(lon * 1e7), 0, 0, 0, 0, 0, 9000)
     )
-    p.feed(RawEvent(T0 + 2 * S, "ap", hdg))
+    p.feed(RawEvent(T0 + 20 * S, "ap", hdg))  # after a gap: a 61° turn in 1 s would fail the rate test
     assert p.fusion.heading.value == pytest.approx(math.pi / 2)
 
 
