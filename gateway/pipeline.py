@@ -687,7 +687,8 @@ class Pipeline:
             lat, lon, _ = datum.to_geodetic(float(est.eta[0]), float(est.eta[1]), 0.0)
         health: list[str] = [] if valid is None else self._health(now_ns, valid)
         status = est.status
-        backup = self._backup
+        # a backup source matters only when the best-ranked one is preferred (pooling by weight uses all)
+        backup = self._backup if self.spec.integrity.pooling == "priority" else {}
         if "lost" in health:
             status = "lost"
         elif status == "ok" and (
