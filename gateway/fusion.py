@@ -151,7 +151,9 @@ class Fusion:
 
     # --- heading ------------------------------------------------------------------------------------------
 
-    def add_heading(self, rx_ns: int, psi: float, source: str, priority: int, valid_ns: int, weight: float = 1.0) -> bool:
+    def add_heading(
+        self, rx_ns: int, psi: float, source: str, priority: int, valid_ns: int, weight: float = 1.0
+    ) -> bool:
         """A heading measurement (rad) that passed its source's tests. Returns True if it is in use (always
         when pooling by weight; by priority, when no better-ranked source is fresh)."""
         self._hdg[source] = (Held(ssa_scalar(psi), rx_ns, source, priority, valid_ns), weight)
@@ -242,10 +244,10 @@ class Fusion:
 
     # --- pooling ------------------------------------------------------------------------------------------
 
-    def _fresh(self, held: Mapping[str, tuple[Held, ...]] | dict, now_ns: int) -> list:  # type: ignore[type-arg]
+    def _fresh(self, held: Mapping[str, tuple[Held, ...]] | dict, now_ns: int) -> list:
         return [v for v in held.values() if v[0].fresh(now_ns)]
 
-    def _pick(self, fresh: list) -> list:  # type: ignore[type-arg]
+    def _pick(self, fresh: list) -> list:
         """The entries to pool: all (by weight), or the best-ranked (by priority; the newest on a tie)."""
         if self.pooling == "priority" or len(fresh) < 2:
             best = min(fresh, key=lambda v: (v[0].priority, -v[0].rx_ns))

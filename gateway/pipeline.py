@@ -219,7 +219,11 @@ class Pipeline:
             return {s.name: s.timeout_ns for s in spec.sources if role in s.roles}
 
         self.monitor = ReferenceMonitor(
-            ip, by_role("position"), by_role("heading"), by_role("thrusters"), {t.id: t for t in spec.vessel.thrusters}
+            ip,
+            by_role("position"),
+            by_role("heading"),
+            by_role("thrusters"),
+            {t.id: t for t in spec.vessel.thrusters},
         )
         self._events: list[str] = []  # reference state changes not yet in a status
         self._last_est: Estimate | None = None
@@ -382,7 +386,6 @@ class Pipeline:
         return updated
 
     def _use_nmea(self, spec: SourceSpec, rx_ns: int, s: Any, out: list[Output]) -> bool:
-        valid_ns = spec.timeout_ns
         if isinstance(s, nmea_codec.Heading):
             if "heading" in spec.roles and s.valid and s.heading_rad is not None:
                 return self._use_heading(spec, rx_ns, s.heading_rad)
@@ -391,7 +394,7 @@ class Pipeline:
             if "position" in spec.roles and s.sigma_lat_m is not None and s.sigma_lon_m is not None:
                 # one horizontal 1σ: the RMS of the latitude and longitude sigmas
                 sigma = math.hypot(s.sigma_lat_m, s.sigma_lon_m) / math.sqrt(2)
-                self.fusion.add_position_sigma(rx_ns, sigma, spec.name, valid_ns)
+                self.fusion.add_position_sigma(rx_ns, sigma, spec.name, spec.timeout_ns)
             return False
         if isinstance(s, nmea_codec.Gga | nmea_codec.Gns) and "position" in spec.roles:
             if not s.valid or s.lat_deg is None or s.lon_deg is None:
@@ -457,7 +460,6 @@ class Pipeline:
         roles = spec.roles
         updated = False
         feedback = False
-        valid_ns = spec.timeout_ns
         rx_ns = ev.rx_ns
         for msg in msgs:
             c.received += 1

@@ -36,7 +36,9 @@ SIGMA_PSI = math.radians(0.05)
 
 def gga(north: float, east: float, quality: int = 2, lon: float | None = None) -> bytes:
     lat, lon_, _ = LocalFrame(*DATUM).to_geodetic(north, east, 0.0)
-    return enc.gga("GP", datetime(2026, 6, 1, tzinfo=UTC), lat, lon_ if lon is None else lon, quality, 12, 0.8, 20.0).encode()
+    return enc.gga(
+        "GP", datetime(2026, 6, 1, tzinfo=UTC), lat, lon_ if lon is None else lon, quality, 12, 0.8, 20.0
+    ).encode()
 
 
 @dataclass
@@ -79,7 +81,9 @@ class Bench:
     def now(self) -> int:
         return T0 + self.k * S // 10
 
-    def cycle(self, gps: dict[str, bytes | None] | None = None, gyro: dict[str, float | None] | None = None) -> None:
+    def cycle(
+        self, gps: dict[str, bytes | None] | None = None, gyro: dict[str, float | None] | None = None
+    ) -> None:
         """One 0.1 s cycle: every gyro then every DGPS, true values plus noise unless overridden (None:
         silent)."""
         gps, gyro = gps or {}, gyro or {}
@@ -114,7 +118,12 @@ class Bench:
         return pos, hdg
 
     def events(self, since: int = 0) -> list[tuple[int, str]]:
-        return [(o.stamp_ns, text) for o in self.outputs[since:] if o.topic == "/dp/status" for text in o.payload["events"]]
+        return [
+            (o.stamp_ns, text)
+            for o in self.outputs[since:]
+            if o.topic == "/dp/status"
+            for text in o.payload["events"]
+        ]
 
     def first_event(self, since: int, *words: str) -> int | None:
         for t, text in self.events(since):
@@ -311,11 +320,15 @@ def test_a_rejected_source_is_readmitted_only_after_passing_for_readmit_s() -> N
     st.lists(st.tuples(st.floats(-100, 100), st.floats(-100, 100)), min_size=2, max_size=6),
     st.tuples(st.floats(-1e6, 1e6), st.floats(-1e6, 1e6)),
 )
-def test_the_median_holds_against_any_one_outlier(good: list[tuple[float, float]], bad: tuple[float, float]) -> None:
+def test_the_median_holds_against_any_one_outlier(
+    good: list[tuple[float, float]], bad: tuple[float, float]
+) -> None:
     """With n ≥ 3 references of which one is anywhere at all, every good one is within the spread of the
     good ones of the median: one reference can never move the median out of the good references' box."""
     pts = {f"g{i}": p for i, p in enumerate(good)} | {"bad": bad}
-    span = math.hypot(max(p[0] for p in good) - min(p[0] for p in good), max(p[1] for p in good) - min(p[1] for p in good))
+    span = math.hypot(
+        max(p[0] for p in good) - min(p[0] for p in good), max(p[1] for p in good) - min(p[1] for p in good)
+    )
     for name in pts:
         if name != "bad":
             assert median_distance(pts, name) <= span + 1e-6

@@ -6,7 +6,6 @@ from dataclasses import asdict
 from typing import Any
 
 from gateway.config.model import IntegrityConfig
-
 from observers.passive_tuning import PassiveTuning
 from observers.vessel import builtin_vessels
 

@@ -33,8 +33,8 @@ from gateway.config.model import (
     COMPRESSIONS,
     CONTROL_MODES,
     FEEDBACKS,
-    POOLINGS,
     OBSERVER_TYPES,
+    POOLINGS,
     PROTOCOLS,
     ZENOH_MODES,
 )
@@ -427,7 +427,9 @@ class IntegrityTable(_Section):
     max_sigma_m: float = _positive("max_sigma_m", "m")
     prediction_gate_m: float = _positive("prediction_gate_m", "m")
     prediction_gate_deg: float = _positive("prediction_gate_deg", "deg", 180.0)
-    prediction_max_age_s: float = number(_I["prediction_max_age_s"], lo=0.0, unit="s (0 = no prediction test)")
+    prediction_max_age_s: float = number(
+        _I["prediction_max_age_s"], lo=0.0, unit="s (0 = no prediction test)"
+    )
     median_m: float = _positive("median_m", "m")
     divergence_m: float = _positive("divergence_m", "m")
     heading_median_deg: float = _positive("heading_median_deg", "deg", 180.0)

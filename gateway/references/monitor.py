@@ -80,7 +80,13 @@ class ReferenceMonitor:
     # --- position and heading --------------------------------------------------------------------------
 
     def position(
-        self, source: str, now_ns: int, north: float, east: float, quality: int | None, pred: Prediction | None
+        self,
+        source: str,
+        now_ns: int,
+        north: float,
+        east: float,
+        quality: int | None,
+        pred: Prediction | None,
     ) -> bool:
         """Test one fix (reference point, local NED). Returns whether it may be used."""
         ref = self._refs["position"][source]
@@ -175,7 +181,9 @@ class ReferenceMonitor:
             limit = gate + 3 * (sigma or 0.0) + grow * pred.age_s
             innov = tr.distance(v, pred.value)
             if innov > limit:
-                st.fail(now_ns, f"prediction: {fmt(innov)} from the estimate's prediction (gate {fmt(limit)})")
+                st.fail(
+                    now_ns, f"prediction: {fmt(innov)} from the estimate's prediction (gate {fmt(limit)})"
+                )
                 return False
         if not self._vote(ref, role, now_ns, median, diverge, fmt):
             return False
@@ -229,13 +237,15 @@ class ReferenceMonitor:
         """Range-check one thruster report: "" if it may be used, else why not. Enough rejects within
         ``readmit_s`` make the source suspect (`feedback_usable` False) until it is clean that long."""
         st = self._feedback[source]
-        why = feedback_problem(self._thrusters.get(thruster_id), thrust_n, azimuth_rad, rpm, self.p.thrust_margin)
+        why = feedback_problem(
+            self._thrusters.get(thruster_id), thrust_n, azimuth_rad, rpm, self.p.thrust_margin
+        )
         recent = self._feedback_rejects[source]
         while recent and now_ns - recent[0] > st.readmit_ns:
             recent.popleft()
         if why:
             recent.append(now_ns)
-            if len(recent) >= self.p.feedback_rejects or st.state != OK and st.state != STALE:
+            if len(recent) >= self.p.feedback_rejects or st.state not in (OK, STALE):
                 st.fail(now_ns, f"{len(recent)} out-of-range reports in {self.p.readmit_s:g} s, last: {why}")
             return f"thruster {thruster_id}: {why}"
         st.passed(now_ns)

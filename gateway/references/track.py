@@ -55,7 +55,9 @@ class Track:
             self.smooth = v
         else:
             a = min(1.0, (now_ns - self.smooth_ns) / NS / self.tau_s)
-            self.smooth = tuple(s + a * d for s, d in zip(self.smooth, self.diff(v, self.smooth), strict=True))
+            self.smooth = tuple(
+                s + a * d for s, d in zip(self.smooth, self.diff(v, self.smooth), strict=True)
+            )
             if self.angle:
                 self.smooth = tuple(_ssa(s) for s in self.smooth)
         self.smooth_ns = now_ns
