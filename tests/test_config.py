@@ -965,3 +965,16 @@ def test_ardupilot_servo_calibration_defaults_and_limits(tmp_path: Path) -> None
     )
     put(d, "sources.2.ardupilot", {"servo": {"1": 1}, "servo_neutral_us": True})
     assert any("servo_neutral_us: not a pulse width" in p for p in problems_of(d, tmp_path))
+
+
+def test_integrity_config_mistakes_name_the_key() -> None:
+    tables = {
+        "vessel": {"name": "mss_supply"},
+        "sources": [{"name": "g", "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position"]}],
+        "observer": {},
+        "integrity": {"gga_quality": [1, 8, 12], "median_m": 0},
+    }
+    with pytest.raises(ConfigError) as e:
+        parse_config(tables, base_dir=Path.cwd())
+    assert "integrity.median_m: out of range" in str(e.value)
+    assert "integrity.gga_quality: not GGA quality codes" in str(e.value)
