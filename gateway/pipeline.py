@@ -232,6 +232,11 @@ class Pipeline:
         self._last_step_ns = 0
         self._last_dr_ns = 0
         self._dr_period_ns = int(NS / ip.dead_reckoning_rate_hz)
+        # Every source is silent once nothing has stepped the observer for the longest reference timeout
+        # (any fix or heading steps it, accepted or not); only then do ticks publish.
+        self._silent_ns = max(
+            (s.timeout_ns for s in spec.sources if s.roles & {"position", "heading"}), default=2 * NS
+        )
         self._lost_ns = int(ip.lost_after_s * NS)
         self.sources = {s.name: s for s in spec.sources}
         self.counters = {s.name: SourceCounters() for s in spec.sources}
@@ -315,8 +320,8 @@ class Pipeline:
         return out
 
     def tick(self, now_ns: int) -> list[Output]:
-        """Called by the live service between events (any rate): while nothing steps the observer (every
-        source silent), a dead-reckoned estimate at ``integrity.dead_reckoning_rate_hz``, and the reference
+        """Called by the live service between events (any rate): once nothing has stepped the observer for
+        the longest source timeout (every source silent), a dead-reckoned estimate at ``integrity.dead_reckoning_rate_hz``, and the reference
         state changes (sources going stale). The dead reckoning runs on a copy of the observer, so the
         observer's own state stays a function of the events alone and replay still reproduces it."""
         if self.t0_ns is None or now_ns <= self.last_ns:
@@ -324,6 +329,7 @@ class Pipeline:
         out: list[Output] = []
         if (
             self.observer.initialized
+            and now_ns - self._last_step_ns > self._silent_ns
             and now_ns - max(self._last_step_ns, self._last_dr_ns) >= self._dr_period_ns
         ):
             self._last_dr_ns = now_ns
