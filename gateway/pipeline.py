@@ -320,10 +320,11 @@ class Pipeline:
         return out
 
     def tick(self, now_ns: int) -> list[Output]:
-        """Called by the live service between events (any rate): once nothing has stepped the observer for
-        the longest source timeout (every source silent), a dead-reckoned estimate at ``integrity.dead_reckoning_rate_hz``, and the reference
-        state changes (sources going stale). The dead reckoning runs on a copy of the observer, so the
-        observer's own state stays a function of the events alone and replay still reproduces it."""
+        """Called by the live service between events (any rate). Once nothing has stepped the observer
+        for the longest source timeout (every source silent): a dead-reckoned estimate at
+        ``integrity.dead_reckoning_rate_hz``; and the reference state changes (sources going stale). The
+        dead reckoning runs on a copy of the observer, so the observer's own state stays a function of
+        the events alone and replay still reproduces it."""
         if self.t0_ns is None or now_ns <= self.last_ns:
             return []
         out: list[Output] = []
