@@ -48,11 +48,6 @@ HEADING_HISTORY_NS = 5 * NS
 HEADING_HISTORY_MAX = 512  # and at most this many (a 50 Hz gyro fills 250 in 5 s; replay feeds far faster)
 FEEDBACK_TIMEOUT_NS = 2 * NS
 """Thruster feedback older than this is not used for τ (the demand is, as without feedback)."""
-FEEDBACK_MARGIN = 0.25
-"""A reported thrust or shaft speed may exceed the thruster's rating by this fraction (overload,
-calibration) before the report is refused."""
-FEEDBACK_DISTRUST_S = 5.0
-"""After a refused report, τ comes from the demand for this long (and longer while refusals go on)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -97,6 +92,7 @@ class Fusion:
         datum: LocalFrame | None = None,
         reference_point_m: tuple[float, float] = (0.0, 0.0),
         feedback_timeout_ns: int = FEEDBACK_TIMEOUT_NS,
+        pooling: str = "weighted",
     ) -> None:
         self.vessel = vessel
         self.reference_point_m = reference_point_m
@@ -105,12 +101,17 @@ class Fusion:
         self._north = Held()
         self._east = Held()
         self._heading = Held()
+        self.pooling = pooling  # "weighted" (inverse variance) or "priority" (best-ranked fresh source)
+        self._pos: dict[str, tuple[Held, float, int, float]] = {}  # source -> (north, east, quality, weight)
+        self._hdg: dict[str, tuple[Held, float]] = {}  # source -> (heading, weight)
+        self._position_sources: tuple[str, ...] = ()
+        self._heading_sources: tuple[str, ...] = ()
+        self._feedback_ok = True
         self._quality = 0
         self._headings: deque[tuple[int, float]] = deque(maxlen=HEADING_HISTORY_MAX)
         self._sigma: dict[str, Held] = {}  # source -> its latest GST sigma (m), valid like a measurement
         self._thrust: dict[int, ThrusterFeedback] = {}
         self._azimuth: dict[int, float] = {}  # last reported azimuth, also before any thrust was reported
-        self._distrust_until_ns = 0  # τ from the demand until then: a feedback report was refused
         self._thrusters: dict[int, Thruster] = {t.id: t for t in vessel.thrusters}
         self._tau_demand = _read_only(np.zeros(3))
 
@@ -150,16 +151,21 @@ class Fusion:
 
     # --- heading ------------------------------------------------------------------------------------------
 
-    def add_heading(self, rx_ns: int, psi: float, source: str, priority: int, valid_ns: int) -> bool:
-        """A heading measurement (rad). Returns True if it was used (fresh and best-ranked)."""
-        h = self._heading
-        if h.fresh(rx_ns) and priority > h.priority and h.source != source:
-            return False
-        self._heading = Held(ssa_scalar(psi), rx_ns, source, priority, valid_ns)
+    def add_heading(
+        self, rx_ns: int, psi: float, source: str, priority: int, valid_ns: int, weight: float = 1.0
+    ) -> bool:
+        """A heading measurement (rad) that passed its source's tests. Returns True if it is in use (always
+        when pooling by weight; by priority, when no better-ranked source is fresh)."""
+        self._hdg[source] = (Held(ssa_scalar(psi), rx_ns, source, priority, valid_ns), weight)
+        self._heading = self._pool_heading(rx_ns)
         self._headings.append((rx_ns, self._heading.value))
         while self._headings and rx_ns - self._headings[0][0] > HEADING_HISTORY_NS:
             self._headings.popleft()
-        return True
+        return source in self._heading_sources
+
+    def drop_heading(self, source: str) -> None:
+        """A heading source's data may not be used (it failed a test): forget what it sent."""
+        self._hdg.pop(source, None)
 
     def heading_at(self, t_ns: int) -> float:
         """The heading received closest in time to t (the same cycle as a fix); NaN if none is recent."""
@@ -179,6 +185,46 @@ class Fusion:
 
     # --- position -----------------------------------------------------------------------------------------
 
+    def reference_position(
+        self, rx_ns: int, lat_deg: float, lon_deg: float, lever_arm_m: tuple[float, float, float]
+    ) -> tuple[float, float] | None:
+        """A GNSS fix of an antenna as the reference point's NED position (the datum is set by the first
+        fix if none); None when a lever arm has no heading of the same cycle to be compensated with."""
+        if self._datum is None:
+            self._datum = LocalFrame(lat_deg, lon_deg, 0.0)
+        north, east, _ = self._datum.to_ned(lat_deg, lon_deg, 0.0)
+        x = lever_arm_m[0] - self.reference_point_m[0]
+        y = lever_arm_m[1] - self.reference_point_m[1]
+        if x or y:
+            psi = self.heading_at(rx_ns)
+            if math.isnan(psi):
+                return None
+            c, s = math.cos(psi), math.sin(psi)
+            north -= c * x - s * y
+            east -= s * x + c * y
+        return north, east
+
+    def use_position(
+        self,
+        rx_ns: int,
+        north: float,
+        east: float,
+        source: str,
+        priority: int,
+        valid_ns: int,
+        quality: int = 1,
+        weight: float = 1.0,
+    ) -> bool:
+        """A reference-point fix (local NED) that passed its source's tests; ``weight`` its pooling weight
+        (inverse variance). Returns True if it is in use."""
+        self._pos[source] = (Held(north, rx_ns, source, priority, valid_ns), east, quality, weight)
+        self._pool_position(rx_ns)
+        return source in self._position_sources
+
+    def drop_position(self, source: str) -> None:
+        """A position source's data may not be used (it failed a test): forget what it sent."""
+        self._pos.pop(source, None)
+
     def add_position(
         self,
         rx_ns: int,
@@ -190,26 +236,70 @@ class Fusion:
         valid_ns: int,
         quality: int = 1,
     ) -> PositionFix | None:
-        """A GNSS fix of an antenna. Returns the reference point's NED position if it was used."""
-        n = self._north
-        if n.fresh(rx_ns) and priority > n.priority and n.source != source:
+        """A GNSS fix of an antenna, used untested. Returns the reference point's NED position if used."""
+        ned = self.reference_position(rx_ns, lat_deg, lon_deg, lever_arm_m)
+        if ned is None or not self.use_position(rx_ns, *ned, source, priority, valid_ns, quality):
             return None
-        if self._datum is None:
-            self._datum = LocalFrame(lat_deg, lon_deg, 0.0)
-        north, east, _ = self._datum.to_ned(lat_deg, lon_deg, 0.0)
-        x = lever_arm_m[0] - self.reference_point_m[0]
-        y = lever_arm_m[1] - self.reference_point_m[1]
-        if x or y:
-            psi = self.heading_at(rx_ns)
-            if math.isnan(psi):
-                return None  # a lever arm without a heading of the same cycle cannot be compensated
-            c, s = math.cos(psi), math.sin(psi)
-            north -= c * x - s * y
-            east -= s * x + c * y
-        self._north = Held(north, rx_ns, source, priority, valid_ns)
-        self._east = Held(east, rx_ns, source, priority, valid_ns)
-        self._quality = quality
-        return PositionFix(north, east, quality)
+        return PositionFix(ned[0], ned[1], quality)
+
+    # --- pooling ------------------------------------------------------------------------------------------
+
+    def _fresh(self, held: Mapping[str, tuple[Held, ...]] | dict, now_ns: int) -> list:
+        return [v for v in held.values() if v[0].fresh(now_ns)]
+
+    def _pick(self, fresh: list) -> list:
+        """The entries to pool: all (by weight), or the best-ranked (by priority; the newest on a tie)."""
+        if self.pooling == "priority" or len(fresh) < 2:
+            best = min(fresh, key=lambda v: (v[0].priority, -v[0].rx_ns))
+            return [best]
+        return fresh
+
+    def _pool_position(self, now_ns: int) -> None:
+        fresh = self._fresh(self._pos, now_ns)
+        if not fresh:
+            self._position_sources = ()
+            self._north = self._east = Held()
+            return
+        use = self._pick(fresh)
+        self._position_sources = tuple(sorted(v[0].source for v in use))
+        newest = max(use, key=lambda v: v[0].rx_ns)[0]
+        lead = max(use, key=lambda v: (v[3], -v[0].priority))[0]
+        if len(use) == 1:  # one source: its numbers exactly (a weighted mean of one is not bit-exact)
+            north, east = newest.value, use[0][1]
+        else:
+            w = sum(v[3] for v in use)
+            north = sum(v[3] * v[0].value for v in use) / w
+            east = sum(v[3] * v[1] for v in use) / w
+        self._north = Held(north, newest.rx_ns, lead.source, lead.priority, newest.valid_ns)
+        self._east = Held(east, newest.rx_ns, lead.source, lead.priority, newest.valid_ns)
+        self._quality = min(v[2] for v in use) if len(use) > 1 else use[0][2]
+
+    def _pool_heading(self, now_ns: int) -> Held:
+        fresh = self._fresh(self._hdg, now_ns)
+        if not fresh:
+            self._heading_sources = ()
+            return Held()
+        use = self._pick(fresh)
+        self._heading_sources = tuple(sorted(v[0].source for v in use))
+        newest = max(use, key=lambda v: v[0].rx_ns)[0]
+        lead = max(use, key=lambda v: (v[1], -v[0].priority))[0]
+        if len(use) == 1:
+            psi = newest.value
+        else:
+            psi = math.atan2(
+                sum(v[1] * math.sin(v[0].value) for v in use), sum(v[1] * math.cos(v[0].value) for v in use)
+            )
+        return Held(psi, newest.rx_ns, lead.source, lead.priority, newest.valid_ns)
+
+    @property
+    def position_sources(self) -> tuple[str, ...]:
+        """The sources pooled into the latest position."""
+        return self._position_sources
+
+    @property
+    def heading_sources(self) -> tuple[str, ...]:
+        """The sources pooled into the latest heading."""
+        return self._heading_sources
 
     def add_position_sigma(self, rx_ns: int, sigma_m: float, source: str, valid_ns: int) -> None:
         """A source's horizontal 1σ position error (m, from GST), valid for ``valid_ns`` after ``rx_ns``."""
@@ -228,6 +318,8 @@ class Fusion:
 
     def measurement(self, now_ns: int) -> tuple[Array, list[bool]]:
         """y = [N, E, ψ] with NaN for any DOF whose held value is stale."""
+        self._pool_position(now_ns)
+        self._heading = self._pool_heading(now_ns)
         valid = [self._north.fresh(now_ns), self._east.fresh(now_ns), self._heading.fresh(now_ns)]
         y = np.array(
             [
@@ -265,46 +357,19 @@ class Fusion:
         if old is not None:
             self._thrust[thruster_id] = old._replace(azimuth_rad=azimuth_rad)
 
-    def feedback_problem(
-        self, thruster_id: int, thrust_n: float | None, rpm: float | None, azimuth_rad: float | None
-    ) -> str | None:
-        """Why one thruster report is not believable, or None: a thruster the vessel does not have, a
-        value that is not finite, or a thrust or shaft speed beyond the thruster's capacity by more than
-        `FEEDBACK_MARGIN` (a drive reports what it does, never 100 times its rating: such a frame is a
-        fault or an attack, and one of them moved the estimate 32 m before this check)."""
-        th = self._thrusters.get(thruster_id)
-        if th is None:
-            return "thruster_unknown" if self._thrusters else None
-        values = [v for v in (thrust_n, rpm, azimuth_rad) if v is not None]
-        if not all(math.isfinite(v) for v in values):
-            return "thruster_not_finite"
-        reach = 1.0 + FEEDBACK_MARGIN
-        if thrust_n is not None and not (
-            min(th.min_thrust_n, 0.0) * reach - FEEDBACK_MARGIN * th.max_thrust_n
-            <= thrust_n
-            <= th.max_thrust_n * reach
-        ):
-            return "thrust_out_of_range"
-        if rpm is not None and abs(rpm) > th.max_rpm * reach:
-            return "rpm_out_of_range"
-        return None
-
-    def distrust_feedback(self, until_ns: int) -> None:
-        """Use the demand, not thruster feedback, for τ until ``until_ns`` (a feedback source sent a frame
-        that failed `feedback_problem`: what else it says is suspect too)."""
-        self._distrust_until_ns = max(self._distrust_until_ns, until_ns)
-
-    def feedback_distrusted(self, now_ns: int) -> bool:
-        return now_ns < self._distrust_until_ns
-
     def set_tau_demand(self, tau: ArrayLike) -> None:
         """The τ [X, Y, N] demanded of the thrusters (controller, manual input, or zero in standby)."""
         self._tau_demand = _read_only(tau)
 
+    def set_feedback_usable(self, usable: bool) -> None:
+        """Whether thruster feedback may be used for τ (a source sending out-of-range reports is not
+        trusted: τ comes from the demand until it has been clean for a while)."""
+        self._feedback_ok = usable
+
     def tau(self, now_ns: int) -> tuple[Array, str]:
         """τ from fresh thruster feedback through the configuration matrix, else the demand."""
         layout = self.vessel.thrusters
-        if not layout or not self._thrust or now_ns < self._distrust_until_ns:
+        if not layout or not self._thrust or not self._feedback_ok:
             return self._tau_demand.copy(), "demand"
         fresh = {tid: v for tid, v in self._thrust.items() if now_ns - v.rx_ns <= self.feedback_timeout_ns}
         if not fresh:

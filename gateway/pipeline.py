@@ -17,6 +17,7 @@ once (latency), and stepping is driven only by the events (determinism).
 
 from __future__ import annotations
 
+import copy
 import math
 from collections import Counter
 from collections.abc import Mapping, Sequence
@@ -27,10 +28,12 @@ from typing import Any
 import numpy as np
 
 from gateway import command_checks
-from gateway.config import ArdupilotMap, ControlConfig, GatewayConfig
+from gateway.config import ArdupilotMap, ControlConfig, GatewayConfig, IntegrityConfig
 from gateway.control.allocation import AllocationResult, PseudoInverseAllocator, QPAllocator, ThrusterCommand
 from gateway.control.controller import ControllerTuning, DPController
-from gateway.fusion import FEEDBACK_DISTRUST_S, NS, Fusion
+from gateway.fusion import NS, Fusion
+from gateway.references import ReferenceMonitor
+from gateway.references.monitor import Prediction
 from observers.base import STATUS_NAMES, Estimate, Observer
 from observers.factory import make_observer
 from observers.kinematics import ssa_scalar
@@ -44,6 +47,7 @@ from wire.messages import (
     LocationFix,
     Measurement,
     Message,
+    ReferenceStatus,
     SourceStatus,
     Status,
     Thruster,
@@ -143,6 +147,8 @@ class PipelineSpec:
     """More observers fed the same y and τ (replay: side by side), published on /dp/estimates/<label>."""
     control: ControlConfig | None = None
     """DP controller and allocation; None: estimation only."""
+    integrity: IntegrityConfig = field(default_factory=IntegrityConfig)
+    """Reference and feedback tests (`gateway.references`)."""
 
     @classmethod
     def from_config(cls, config: GatewayConfig) -> PipelineSpec:
@@ -182,6 +188,7 @@ class PipelineSpec:
             datum=datum,
             reference_point_m=config.reference_point_m,
             control=config.control,
+            integrity=config.integrity,
         )
 
 
@@ -220,7 +227,34 @@ class Pipeline:
         self.spec = spec
         self.observer = spec.observer
         datum = LocalFrame(*spec.datum) if spec.datum is not None else None
-        self.fusion = Fusion(spec.vessel, datum=datum, reference_point_m=spec.reference_point_m)
+        ip = spec.integrity
+        self.fusion = Fusion(
+            spec.vessel, datum=datum, reference_point_m=spec.reference_point_m, pooling=ip.pooling
+        )
+
+        def by_role(role: str) -> dict[str, int]:
+            return {s.name: s.timeout_ns for s in spec.sources if role in s.roles}
+
+        self.monitor = ReferenceMonitor(
+            ip,
+            by_role("position"),
+            by_role("heading"),
+            by_role("thrusters"),
+            {t.id: t for t in spec.vessel.thrusters},
+        )
+        self._events: list[str] = []  # reference state changes not yet in a status
+        self._last_est: Estimate | None = None
+        self._last_est_ns = 0
+        self._measured_ns = [0, 0, 0]  # when each DOF last went into the observer with a measurement
+        self._last_step_ns = 0
+        self._last_dr_ns = 0
+        self._dr_period_ns = int(NS / ip.dead_reckoning_rate_hz)
+        # Every source is silent once nothing has stepped the observer for the longest reference timeout
+        # (any fix or heading steps it, accepted or not); only then do ticks publish.
+        self._silent_ns = max(
+            (s.timeout_ns for s in spec.sources if s.roles & {"position", "heading"}), default=2 * NS
+        )
+        self._lost_ns = int(ip.lost_after_s * NS)
         self._datum_for_message: LocalFrame | None = None
         self._datum_msg = Datum(lat_deg=0.0, lon_deg=0.0)
         self.sources = {s.name: s for s in spec.sources}
@@ -231,7 +265,6 @@ class Pipeline:
         self._parsers: dict[tuple[str, str], mv.FrameParser] = {}
         self._parser_seen: dict[tuple[str, str], Counter[str]] = {}
         self._parser_rejects: dict[tuple[str, str], int] = {}  # sum of _parser_seen, the fast check
-        self._feedback_refused: dict[str, int] = {}  # source -> receive time of its last refused report
         self.commands_refused: Counter[str] = Counter()  # input key -> commands refused
         self._refusals: list[tuple[int, str]] = []  # (receive time, reason), taken by `take_refusals`
         self._refusals_shown: list[tuple[int, str]] = []
@@ -316,7 +349,46 @@ class Pipeline:
             updated = self._mavlink(spec, c, event, out)
         if updated:
             out.extend(self._step(event.rx_ns, event.source))
+        out.extend(self._state_changes(event.rx_ns))
         return out
+
+    def tick(self, now_ns: int) -> list[Output]:
+        """Called by the live service between events (any rate). Once nothing has stepped the observer
+        for the longest source timeout (every source silent): a dead-reckoned estimate at
+        ``integrity.dead_reckoning_rate_hz``; and the reference state changes (sources going stale). The
+        dead reckoning runs on a copy of the observer, so the observer's own state stays a function of
+        the events alone and replay still reproduces it."""
+        if self.t0_ns is None or now_ns <= self.last_ns:
+            return []
+        out: list[Output] = []
+        if (
+            self.observer.initialized
+            and now_ns - self._last_step_ns > self._silent_ns
+            and now_ns - max(self._last_step_ns, self._last_dr_ns) >= self._dr_period_ns
+        ):
+            self._last_dr_ns = now_ns
+            ghost = copy.deepcopy(self.observer)
+            tau, _ = self.fusion.tau(now_ns)
+            est = ghost.predict(self._t(now_ns), tau)
+            if est.status != STATUS_NAMES[0]:
+                out.append(
+                    Output(
+                        "/dp/estimate",
+                        self._estimate(self.spec.observer_name, ghost, est, now_ns, [False] * 3),
+                        now_ns,
+                    )
+                )
+        out.extend(self._state_changes(now_ns))
+        return out
+
+    def _state_changes(self, now_ns: int) -> list[Output]:
+        """Reference state changes since the last call: to the next status, and a status at once."""
+        self.monitor.refresh(now_ns)
+        changes = self.monitor.drain()
+        if not changes:
+            return []
+        self._events.extend(c.text for c in changes)
+        return [self.status(now_ns)]
 
     def count_internal_error(self, source: str) -> None:
         """The caller could not finish handling a chunk of ``source`` (an exception inside `feed`): count it
@@ -354,27 +426,21 @@ class Pipeline:
         return updated
 
     def _use_nmea(self, spec: SourceSpec, rx_ns: int, s: Any, out: list[Output]) -> bool:
-        valid_ns = spec.timeout_ns
         if isinstance(s, nmea_codec.Heading):
             if "heading" in spec.roles and s.valid and s.heading_rad is not None:
-                return self.fusion.add_heading(rx_ns, s.heading_rad, spec.name, spec.priority, valid_ns)
+                return self._use_heading(spec, rx_ns, s.heading_rad)
             return False
         if isinstance(s, nmea_codec.Gst):
             if "position" in spec.roles and s.sigma_lat_m is not None and s.sigma_lon_m is not None:
                 # one horizontal 1σ: the RMS of the latitude and longitude sigmas
                 sigma = math.hypot(s.sigma_lat_m, s.sigma_lon_m) / math.sqrt(2)
-                self.fusion.add_position_sigma(rx_ns, sigma, spec.name, valid_ns)
+                self.fusion.add_position_sigma(rx_ns, sigma, spec.name, spec.timeout_ns)
             return False
         if isinstance(s, nmea_codec.Gga | nmea_codec.Gns) and "position" in spec.roles:
             if not s.valid or s.lat_deg is None or s.lon_deg is None:
                 return False
-            quality = s.quality if isinstance(s, nmea_codec.Gga) else 1
-            fix = self.fusion.add_position(
-                rx_ns, s.lat_deg, s.lon_deg, spec.lever_arm_m, spec.name, spec.priority, valid_ns, quality
-            )
-            if fix is not None:
-                out.extend(self._location_fix(spec.name, rx_ns, s.lat_deg, s.lon_deg))
-            return fix is not None
+            quality = s.quality if isinstance(s, nmea_codec.Gga) else None
+            return self._use_position(spec, rx_ns, s.lat_deg, s.lon_deg, quality, out)
         return False
 
     def _framer(self, source: str, peer: str) -> NmeaFramer:
@@ -396,6 +462,57 @@ class Pipeline:
                 self._parser_rejects[key] = 0
         return key, parser
 
+    def _use_position(
+        self, spec: SourceSpec, rx_ns: int, lat: float, lon: float, quality: int | None, out: list[Output]
+    ) -> bool:
+        """A fix through the source's tests (`gateway.references`), then into the fusion if it passes. True
+        when the observer should step (also for a rejected fix: the estimate goes on at the source's rate)."""
+        ned = self.fusion.reference_position(rx_ns, lat, lon, spec.lever_arm_m)
+        if ned is None:
+            return False  # a lever arm without a heading of the same cycle cannot be compensated
+        out.extend(self._location_fix(spec.name, rx_ns, lat, lon))
+        pred = self._prediction(rx_ns, 0)
+        if self.monitor.position(spec.name, rx_ns, ned[0], ned[1], quality, pred):
+            weight = self.monitor.weight("position", spec.name)
+            q = 1 if quality is None else quality
+            self.fusion.use_position(rx_ns, *ned, spec.name, spec.priority, spec.timeout_ns, q, weight)
+        else:
+            self._count_test_reject(spec.name, "position")
+            self.fusion.drop_position(spec.name)
+        return True
+
+    def _use_heading(self, spec: SourceSpec, rx_ns: int, psi: float) -> bool:
+        if self.monitor.heading(spec.name, rx_ns, psi, self._prediction(rx_ns, 2)):
+            weight = self.monitor.weight("heading", spec.name)
+            self.fusion.add_heading(rx_ns, psi, spec.name, spec.priority, spec.timeout_ns, weight)
+        else:
+            self._count_test_reject(spec.name, "heading")
+            self.fusion.drop_heading(spec.name)
+        return True
+
+    def _count_test_reject(self, source: str, role: str) -> None:
+        """A sentence or frame that failed a reference test, counted by test (``test_jump``, …)."""
+        reason = self.monitor.reason(role, source)
+        word = reason.split(":")[0].split(" ")[0].lower() or "failed"
+        self.counters[source].rejected[f"test_{word}"] += 1
+
+    def _prediction(self, now_ns: int, dof: int) -> Prediction | None:
+        """Where the estimate expects a position (dof 0) or heading (dof 2) now: the last estimate moved on
+        by its velocity (the observer itself is not advanced), plus its wave motion; None before one."""
+        est = self._last_est
+        if est is None or not est.initialized or not self._measured_ns[dof]:
+            return None
+        dt = (now_ns - self._last_est_ns) / NS
+        age = (now_ns - self._measured_ns[dof]) / NS
+        wf = np.nan_to_num(est.eta_wf)
+        if dof == 2:
+            return Prediction((ssa_scalar(float(est.eta[2] + wf[2] + est.nu[2] * dt)),), age)
+        c, s = math.cos(est.eta[2]), math.sin(est.eta[2])
+        u, v = float(est.nu[0]), float(est.nu[1])
+        n = float(est.eta[0] + wf[0] + (c * u - s * v) * dt)
+        e = float(est.eta[1] + wf[1] + (s * u + c * v) * dt)
+        return Prediction((n, e), age)
+
     def _mavlink(self, spec: SourceSpec, c: SourceCounters, ev: RawEvent, out: list[Output]) -> bool:
         key, parser = self._parser(spec, ev.peer)
         msgs = parser.feed(ev.data)
@@ -403,7 +520,6 @@ class Pipeline:
         roles = spec.roles
         updated = False
         feedback = False
-        valid_ns = spec.timeout_ns
         rx_ns = ev.rx_ns
         for msg in msgs:
             if spec.system_id is not None and msg.get_srcSystem() != spec.system_id:
@@ -417,11 +533,11 @@ class Pipeline:
                 if isinstance(r, mv.ThrusterReport):
                     if "thrusters" not in roles:
                         continue
-                    problem = self.fusion.feedback_problem(r.thruster_id, r.thrust_n, r.rpm, r.azimuth_rad)
-                    if problem is not None:
-                        c.rejected[problem] += 1
-                        self.fusion.distrust_feedback(rx_ns + FEEDBACK_DISTRUST_NS)
-                        self._feedback_refused[spec.name] = rx_ns
+                    problem = self.monitor.feedback(
+                        spec.name, rx_ns, r.thruster_id, r.thrust_n, r.azimuth_rad, r.rpm
+                    )
+                    if problem:
+                        c.rejected["out_of_range"] += 1
                         continue
                     if r.thrust_n is not None:
                         self.fusion.add_thruster(rx_ns, r.thruster_id, r.thrust_n, r.azimuth_rad)
@@ -434,16 +550,11 @@ class Pipeline:
                 elif isinstance(r, mv.PositionReport):
                     if "position" not in roles or not r.valid:
                         continue
-                    fix = self.fusion.add_position(
-                        rx_ns, r.lat_deg, r.lon_deg, spec.lever_arm_m, spec.name, spec.priority, valid_ns, 1
-                    )
-                    if fix is not None:
-                        out.extend(self._location_fix(spec.name, rx_ns, r.lat_deg, r.lon_deg))
-                        updated = True
+                    updated |= self._use_position(spec, rx_ns, r.lat_deg, r.lon_deg, None, out)
                 elif "heading" in roles:
-                    updated |= self.fusion.add_heading(
-                        rx_ns, r.heading_rad, spec.name, spec.priority, valid_ns
-                    )
+                    updated |= self._use_heading(spec, rx_ns, r.heading_rad)
+        if "thrusters" in roles:
+            self.fusion.set_feedback_usable(self.monitor.feedback_usable(spec.name))
         if feedback:
             out.append(self._feedback_output(rx_ns))
         return updated
@@ -506,6 +617,10 @@ class Pipeline:
         tau, tau_source = fusion.tau(now_ns)
         t = self._t(now_ns)
         est = self.observer.step(t, y, tau)
+        self._last_est, self._last_est_ns, self._last_step_ns = est, now_ns, now_ns
+        for k in range(3):
+            if valid[k]:
+                self._measured_ns[k] = now_ns
         out = [
             Output(
                 "/dp/measurement",
@@ -513,9 +628,12 @@ class Pipeline:
                     stamp_ns=now_ns,
                     eta=[None if v != v else v for v in y.tolist()],  # NaN (stale) -> null
                     valid=valid,
-                    sources=_contributing(fusion.north.source, fusion.heading.source),
-                    quality=fusion.quality,
-                    sigma_m=fusion.position_sigma_m(now_ns),
+                    sources=sorted(
+                        set(self.fusion.position_sources if valid[0] else ())
+                        | set(self.fusion.heading_sources if valid[2] else ())
+                    ),
+                    quality=self.fusion.quality,
+                    sigma_m=self.fusion.position_sigma_m(now_ns),
                     tau=tau.tolist(),
                     tau_source=tau_source,
                 ),
@@ -524,7 +642,7 @@ class Pipeline:
         ]
         if est.status != STATUS_NAMES[0]:
             self.estimates += 1
-            estimate = self._estimate(self.spec.observer_name, self.observer, est, now_ns)
+            estimate = self._estimate(self.spec.observer_name, self.observer, est, now_ns, valid)
             self._estimate_status = estimate.status
             self._last_eta = est.eta
             out.append(Output("/dp/estimate", estimate, now_ns))
@@ -653,23 +771,31 @@ class Pipeline:
             )
         ]
 
-    def _estimate(self, label: str, obs: Observer, est: Estimate, now_ns: int) -> EstimateMessage:
+    def _estimate(
+        self, label: str, obs: Observer, est: Estimate, now_ns: int, valid: list[bool] | None = None
+    ) -> EstimateMessage:
         datum = self.fusion.datum
         eta = est.eta.tolist()
         lat = lon = None
         if datum is not None:
             lat, lon = datum.to_lat_lon(eta[0], eta[1])
+        health: list[str] = [] if valid is None else self._health(now_ns, valid)
         status = est.status
-        backup = self._backup
-        if (
-            status == "ok"
-            and backup  # no backup sources configured: nothing to look up (every estimate passes here)
-            and (
-                self.fusion.north.source in backup.get("position", ())
-                or self.fusion.heading.source in backup.get("heading", ())
+        # a backup source matters only when the best-ranked one is preferred (pooling by weight uses all)
+        backup = self._backup if self.spec.integrity.pooling == "priority" else {}
+        if "lost" in health:
+            status = "lost"
+        elif status == "ok" and (
+            "degraded" in health
+            or (  # (no backup sources: nothing to look up, the common case)
+                bool(backup)
+                and (
+                    self.fusion.north.source in backup.get("position", ())
+                    or self.fusion.heading.source in backup.get("heading", ())
+                )
             )
         ):
-            status = "degraded"  # running on a backup source
+            status = "degraded"  # running on a subset of the references, or on a backup source
         return EstimateMessage(
             stamp_ns=now_ns,
             observer=label,
@@ -686,6 +812,7 @@ class Pipeline:
             if datum is None
             else (self._datum_msg if datum is self._datum_for_message else self._datum_message(datum)),
             extra=obs.extra(),
+            health=health,  # type: ignore[arg-type]  # DofHealth words only
         )
 
     def _datum_message(self, datum: LocalFrame) -> Datum:
@@ -694,6 +821,17 @@ class Pipeline:
             self._datum_for_message = datum
             self._datum_msg = Datum(lat_deg=datum.lat_deg, lon_deg=datum.lon_deg)
         return self._datum_msg
+
+    def _health(self, now_ns: int, valid: list[bool]) -> list[str]:
+        """Per DOF: ok / degraded (some references usable, not all ok) / dead_reckoning / lost."""
+        out = []
+        for k, role in ((0, "position"), (1, "position"), (2, "heading")):
+            if not valid[k]:
+                measured = self._measured_ns[k]
+                out.append("lost" if measured and now_ns - measured > self._lost_ns else "dead_reckoning")
+            else:
+                out.append("ok" if self.monitor.health(role) == "ok" else "degraded")
+        return out
 
     def _location_fix(self, source: str, rx_ns: int, lat: float, lon: float) -> list[Output]:
         if rx_ns - self._last_fix_ns.get(source, -FIX_PERIOD_NS) < FIX_PERIOD_NS:
@@ -739,12 +877,23 @@ class Pipeline:
         one per source that sent nothing yet or went stale."""
         alarms = list(alarms or []) + self.control_alarms
         alarms += [reason for at_ns, reason in self._refusals_shown if now_ns - at_ns < REFUSAL_ALARM_NS]
-        for name, at_ns in self._feedback_refused.items():
-            if now_ns - at_ns < FEEDBACK_DISTRUST_NS:
-                alarms.append(
-                    f"source {name}: thruster feedback refused (beyond the thrusters' capacity or not "
-                    "finite); the observer gets the demanded τ until it is believable again"
+        references: dict[str, list[ReferenceStatus]] = {}
+        for name, states in self.monitor.states().items():
+            references[name] = [
+                ReferenceStatus(
+                    role=st.role,
+                    state=st.state,  # type: ignore[arg-type]  # one of the STATES
+                    reason=st.reason,
+                    sigma_m=self.monitor.sigma_m(name) if st.role == "position" else None,
                 )
+                for st in states
+            ]
+            alarms += [
+                f"{st.role} reference {name}: {st.state} ({st.reason})"
+                for st in states
+                if st.state in ("rejected", "suspect")
+            ]
+        events, self._events = self._events, []
         for name, c in self.counters.items():
             spec = self.sources[name]
             if c.last_rx_ns == 0:
@@ -760,11 +909,12 @@ class Pipeline:
             sources={name: c.as_message(now_ns) for name, c in self.counters.items()},
             alarms=list(alarms),
             commands_refused=dict(self.commands_refused),
+            references=references,
+            events=events,
         )
 
 
 REFUSAL_ALARM_NS = 10 * NS  # a refused command stays in /status's alarms this long
-FEEDBACK_DISTRUST_NS = int(FEEDBACK_DISTRUST_S * NS)
 
 MAX_SENDERS = 64
 """Senders per source that get a framer of their own; more (a scan, a flood of spoofed addresses) share
@@ -776,20 +926,6 @@ def _sender_key(peer: str, per_sender: Mapping[tuple[str, str], object], source:
     if sum(1 for name, _ in per_sender if name == source) < MAX_SENDERS:
         return peer
     return "*"
-
-
-def _contributing(position_source: str, heading_source: str) -> list[str]:
-    """The measurement's ``sources``: the names of the position and heading sources in use, sorted, each
-    once ("" = none). Written out rather than as a sorted set: it runs for every measurement."""
-    if not position_source or position_source == heading_source:
-        return [heading_source] if heading_source else []
-    if not heading_source:
-        return [position_source]
-    return (
-        [position_source, heading_source]
-        if position_source < heading_source
-        else [heading_source, position_source]
-    )
 
 
 def _location_fix_message(stamp_ns: int, frame_id: str, lat: float, lon: float) -> LocationFix:

@@ -36,7 +36,7 @@ from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEv
 from gateway.sources import Chunk, Source, open_source
 from wire.codecs import mavlink as mv
 from wire.mcap.writer import McapLogWriter
-from wire.messages import ThrusterCommand
+from wire.messages import Status, ThrusterCommand
 
 log = logging.getLogger("dpgw")
 
@@ -203,6 +203,10 @@ class GatewayService:
             if item is not None:
                 self._handle(item)
             wall = time.time_ns()
+            try:  # dead reckoning while every source is silent; sources going stale
+                self._emit(self.pipeline.tick(self._now(wall)))
+            except Exception:
+                self._internal_error("tick", "the dead-reckoning tick")
             if wall >= next_status:
                 next_status = wall + status_period_ns
                 try:
@@ -280,6 +284,10 @@ class GatewayService:
             log.exception("internal error #%d (%s) while handling %s; carrying on", n, what, item)
 
     def _emit(self, outputs: list[Output]) -> None:
+        for o in outputs:  # reference state changes go to the gateway's log as well as to /status
+            if isinstance(o.message, Status):
+                for text in o.message.events:
+                    log.warning("%s", text)
         self._log_outputs(outputs, self._publish(outputs))
 
     def _publish(self, outputs: list[Output]) -> list[bytes]:

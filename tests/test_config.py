@@ -992,3 +992,16 @@ def test_component_id_is_a_mavlink_key(tmp_path: Path) -> None:
     assert (thr.system_id, thr.component_id) == (7, 191)
     put(d, "sources.0.component_id", 1)
     assert any("sources.dgps1.component_id" in p for p in problems_of(d, tmp_path))
+
+
+def test_integrity_config_mistakes_name_the_key() -> None:
+    tables = {
+        "vessel": {"name": "mss_supply"},
+        "sources": [{"name": "g", "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position"]}],
+        "observer": {},
+        "integrity": {"gga_quality": [1, 8, 12], "median_m": 0},
+    }
+    with pytest.raises(ConfigError) as e:
+        parse_config(tables, base_dir=Path.cwd())
+    assert "integrity.median_m: out of range" in str(e.value)
+    assert "integrity.gga_quality: not GGA quality codes" in str(e.value)

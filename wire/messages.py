@@ -55,6 +55,7 @@ __all__ = [
     "RawMavlink",
     "RawNmea",
     "Record",
+    "ReferenceStatus",
     "Setpoint",
     "SourceStatus",
     "Status",
@@ -90,7 +91,8 @@ STAMP = (
     "receive time). JavaScript readers parse it as a double (~256 ns resolution)."
 )
 
-EstimateStatus = Literal["initializing", "ok", "dead_reckoning", "degraded"]
+EstimateStatus = Literal["initializing", "ok", "dead_reckoning", "degraded", "lost"]
+DofHealth = Literal["ok", "degraded", "dead_reckoning", "lost"]
 Mode = Literal["standby", "dp", "manual"]
 
 
@@ -161,9 +163,10 @@ class Estimate(Message, kw_only=True):
     status: Annotated[
         EstimateStatus,
         doc(
-            "initializing: not yet converged or no datum; ok: measurements fresh; dead_reckoning: "
-            "position measurements lost, predicting from the model; degraded: running on a subset of "
-            "the sensors or on a backup source."
+            "initializing: not yet converged or no datum; ok: every reference fresh and passing its "
+            "tests; dead_reckoning: a DOF has no usable reference, predicting from the model; degraded: "
+            "running on a subset of the references (one rejected, suspect or stale) or on a backup "
+            "source; lost: no usable position reference for longer than `integrity.lost_after_s`."
         ),
     ]
     eta: Annotated[
@@ -190,6 +193,14 @@ class Estimate(Message, kw_only=True):
     ]
     heading_deg: Annotated[float, doc("Heading ψ in [0, 360), clockwise from true north.", "deg")]
     datum: Annotated[Datum | None, doc("Origin of the local NED frame; null before the first valid fix.")]
+    health: Annotated[
+        list[DofHealth],
+        doc(
+            "Per DOF [N, E, ψ]: ok (every reference passes), degraded (some usable, not all), "
+            "dead_reckoning (none usable), lost (dead reckoning past `integrity.lost_after_s`); "
+            "empty when not known (an extra observer's estimate)."
+        ),
+    ] = []
     extra: Annotated[
         dict[str, Any],
         doc(
@@ -303,6 +314,22 @@ class SourceStatus(Record, kw_only=True):
     ] = 0
 
 
+class ReferenceStatus(Record, kw_only=True):
+    role: Annotated[str, doc("What the source is tested as: `position`, `heading` or `thrusters`.")]
+    state: Annotated[
+        Literal["ok", "suspect", "rejected", "stale"],
+        doc(
+            "ok: passes every test, in use; suspect: in use with a soft alarm (two references diverge) "
+            "or passing again after a rejection and not yet readmitted (not in use); rejected: failed a "
+            "test, not in use; stale: no data within its timeout."
+        ),
+    ]
+    reason: Annotated[str, doc("Why it is not ok, for a person (empty when ok).")]
+    sigma_m: Annotated[
+        float | None, doc("Measured 1σ noise of a position reference; null when not measured yet.", "m")
+    ] = None
+
+
 class Status(Message, kw_only=True):
     """Gateway health (Zenoh `<prefix>/status`, also the answer to a query on that key)."""
 
@@ -325,6 +352,17 @@ class Status(Message, kw_only=True):
             "are alarms for 10 s and lines in the gateway's log. Left out while none."
         ),
     ] = {}
+    references: Annotated[
+        dict[str, list[ReferenceStatus]],
+        doc("Per source, its state in each role it is tested in (reference and feedback integrity)."),
+    ] = {}
+    events: Annotated[
+        list[str],
+        doc(
+            "Reference state changes since the previous status, for a person; a status is published at "
+            "once when one happens."
+        ),
+    ] = []
 
 
 class Time(Record, kw_only=True):

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from dataclasses import asdict
 from typing import Any
 
+from gateway.config.model import IntegrityConfig
 from observers.passive_tuning import PassiveTuning
 from observers.vessel import builtin_vessels
 
@@ -54,6 +56,7 @@ DEFAULTS: dict[str, dict[str, Any]] = {
         "max_setpoint_distance_m": 50.0,
         "feedback": "estimate",
     },
+    "integrity": {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(IntegrityConfig()).items()},
 }
 
 

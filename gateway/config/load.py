@@ -22,6 +22,7 @@ from gateway.config.model import (
     ControlConfig,
     DatumConfig,
     GatewayConfig,
+    IntegrityConfig,
     LogConfig,
     StatusConfig,
     ZenohConfig,
@@ -31,6 +32,7 @@ from gateway.config.problems import ConfigError, Problems, did_you_mean, kind, s
 from gateway.config.schema import (
     ControlTable,
     DatumTable,
+    IntegrityTable,
     LogTable,
     StatusTable,
     VesselTable,
@@ -43,7 +45,7 @@ from wire.urls import UrlError, split_host_port
 
 __all__ = ["load_config", "parse_config"]
 
-_TOP_KEYS = ("vessel", "datum", "sources", "observer", "zenoh", "log", "status", "control")
+_TOP_KEYS = ("vessel", "datum", "sources", "observer", "zenoh", "log", "status", "control", "integrity")
 
 
 def load_config(path: str | Path) -> GatewayConfig:
@@ -94,12 +96,14 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
     log = _read_log(p, data, base_dir)
     status = _read_status(p, data)
     control = _read_control(p, data)
+    integrity = _read_integrity(p, data)
 
     if p.lines:
         raise ConfigError(p.lines)
     assert vessel is not None and vessel_source is not None and reference_point is not None
     assert datum is not None and sources is not None and observer is not None
     assert zenoh_config is not None and log is not None and status is not None and control is not None
+    assert integrity is not None
     return GatewayConfig(
         vessel=vessel,
         vessel_source=vessel_source,
@@ -112,6 +116,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
         status=status,
         path=path,
         control=control,
+        integrity=integrity,
     )
 
 
@@ -377,3 +382,21 @@ def _read_control(p: Problems, data: Mapping[str, Any]) -> ControlConfig | None:
         max_setpoint_distance_m=v["max_setpoint_distance_m"],
         feedback=v["feedback"],
     )
+
+
+def _read_integrity(p: Problems, data: Mapping[str, Any]) -> IntegrityConfig | None:
+    t = _section(p, data, "integrity")
+    if t is None:
+        return None
+    n0 = len(p)
+    v = read_table(IntegrityTable, t, "integrity", p)
+    codes = v["gga_quality"]
+    if codes is not None and (not codes or not all(1 <= c <= 9 for c in codes)):
+        p.add(
+            "integrity.gga_quality",
+            f"not GGA quality codes (expected an array of codes from 1 to 9, got {show(t['gga_quality'])})",
+        )
+    if len(p) != n0:
+        return None
+    v["gga_quality"] = tuple(codes)
+    return IntegrityConfig(**v)

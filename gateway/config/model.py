@@ -27,6 +27,7 @@ COMPRESSIONS = ("zstd", "lz4", "none")
 ZENOH_MODES = ("peer", "client")
 CONTROL_MODES = ("standby", "dp", "manual")
 ALLOCATORS = ("qp", "pseudo_inverse")
+POOLINGS = ("weighted", "priority")
 FEEDBACKS = ("estimate", "measurement")
 BAUD_RATES = (
     300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200, 230400, 460800, 500000, 576000,
@@ -187,6 +188,65 @@ class StatusConfig:
 
 
 @dataclass(frozen=True)
+class IntegrityConfig:
+    """``[integrity]``: thresholds of the reference tests (defaults for DGPS-class references and a gyro;
+    `gateway.references` applies them, docs/integrity.md explains them)."""
+
+    gga_quality: tuple[int, ...] = (1, 2, 4, 5)
+    """GGA fix qualities accepted: GPS, DGPS, RTK fixed, RTK float. 3 (PPS), 6 (dead reckoning), 7 (manual)
+    and 8 (simulator) are not measurements of where the antenna is."""
+    pooling: str = "weighted"
+    """How usable sources of one role combine: ``weighted`` (inverse measured variance) or ``priority``
+    (the lowest ``priority`` that is usable, the others are hot standby)."""
+    readmit_s: float = 5.0
+    """A rejected source is used again only after it has passed every test for this long."""
+    max_speed_m_s: float = 5.0
+    """Fastest plausible speed over ground: bounds how far a fix may move from the source's last good one."""
+    jump_m: float = 5.0
+    """Jump allowance on top of speed × time (noise and multipath of a good fix)."""
+    max_rate_deg_s: float = 10.0
+    """Fastest plausible rate of turn (a DP vessel turns a few °/s)."""
+    heading_jump_deg: float = 5.0
+    """Heading jump allowance on top of rate × time."""
+    freeze_s: float = 5.0
+    """A position repeated bit for bit this long is frozen (a live receiver's last digits always move)."""
+    heading_freeze_s: float = 20.0
+    """The same for a heading (gyros on a steady heading may repeat a value for a few seconds)."""
+    max_sigma_m: float = 3.0
+    """A source whose measured 1σ noise exceeds this is rejected (variance test)."""
+    prediction_gate_m: float = 5.0
+    """Largest innovation (fix − the observer's prediction) accepted, plus 3σ of the source's noise."""
+    prediction_gate_deg: float = 10.0
+    """Largest heading innovation accepted."""
+    prediction_max_age_s: float = 10.0
+    """The prediction test is only applied while the estimate had a measurement this recently (an old
+    prediction must not lock out the only reference); its gate grows with the age at max_speed/10."""
+    median_m: float = 0.75
+    """With three or more position references: a reference whose smoothed position is farther than this
+    from the median of all is rejected (catches slow drift: 1 m/min is out within a minute)."""
+    divergence_m: float = 1.0
+    """With two position references: smoothed positions farther apart than this raise an alarm."""
+    heading_median_deg: float = 1.0
+    """The median test for three or more gyros."""
+    heading_divergence_deg: float = 2.0
+    """The divergence alarm for two gyros."""
+    smoothing_s: float = 5.0
+    """Time constant of the smoothed track the median and divergence tests compare (averages the noise)."""
+    min_sigma_m: float = 0.1
+    """Floor of a source's measured 1σ in the variance weighting (one very quiet source must not take all
+    the weight)."""
+    lost_after_s: float = 30.0
+    """Dead reckoning longer than this (no usable position reference) is reported as ``lost``."""
+    dead_reckoning_rate_hz: float = 10.0
+    """While no measurement steps the observer, a dead-reckoned estimate is published at this rate."""
+    thrust_margin: float = 1.2
+    """Feedback thrust beyond the thruster's capacity × this is out of range (a report, not a thrust)."""
+    feedback_rejects: int = 3
+    """This many out-of-range feedback frames within ``readmit_s`` make the feedback source suspect: τ for
+    the observer comes from the demand until it has been clean for ``readmit_s``."""
+
+
+@dataclass(frozen=True)
 class GatewayConfig:
     """A complete, validated gateway configuration.
 
@@ -206,6 +266,7 @@ class GatewayConfig:
     status: StatusConfig
     path: Path
     control: ControlConfig = field(default_factory=ControlConfig)
+    integrity: IntegrityConfig = field(default_factory=IntegrityConfig)
 
     def sources_for(self, role: str) -> tuple[SourceConfig, ...]:
         """The sources with ``role``, in failover order (lowest priority first)."""

@@ -34,6 +34,7 @@ from gateway.config.model import (
     CONTROL_MODES,
     FEEDBACKS,
     OBSERVER_TYPES,
+    POOLINGS,
     PROTOCOLS,
     ZENOH_MODES,
 )
@@ -44,6 +45,7 @@ __all__ = [
     "MISSING",
     "ControlTable",
     "DatumTable",
+    "IntegrityTable",
     "LogTable",
     "ObserverTable",
     "SourceTable",
@@ -401,3 +403,42 @@ class ControlTable(_Section):
     damping: float = number(_C["damping"], lo=0.3, hi=3.0)
     max_setpoint_distance_m: float = number(_C["max_setpoint_distance_m"], lo=1.0, hi=100_000.0, unit="m")
     feedback: str = choice(_C["feedback"], FEEDBACKS)
+
+
+_I = DEFAULTS["integrity"]
+
+
+def _positive(key: str, unit: str, hi: float | None = None) -> Any:
+    return number(_I[key], lo=0.0, hi=hi, lo_open=True, unit=unit)
+
+
+class IntegrityTable(_Section):
+    """``[integrity]``: the reference and feedback tests (docs/integrity.md)."""
+
+    gga_quality: list[int] = Field(
+        _I["gga_quality"], json_schema_extra={"expected": "an array of GGA quality codes from 1 to 9"}
+    )
+    pooling: str = choice(_I["pooling"], POOLINGS)
+    readmit_s: float = number(_I["readmit_s"], lo=0.0, hi=3600.0, unit="s")
+    max_speed_m_s: float = _positive("max_speed_m_s", "m/s")
+    jump_m: float = _positive("jump_m", "m")
+    max_rate_deg_s: float = _positive("max_rate_deg_s", "deg/s")
+    heading_jump_deg: float = _positive("heading_jump_deg", "deg", 180.0)
+    freeze_s: float = _positive("freeze_s", "s")
+    heading_freeze_s: float = _positive("heading_freeze_s", "s")
+    max_sigma_m: float = _positive("max_sigma_m", "m")
+    prediction_gate_m: float = _positive("prediction_gate_m", "m")
+    prediction_gate_deg: float = _positive("prediction_gate_deg", "deg", 180.0)
+    prediction_max_age_s: float = number(
+        _I["prediction_max_age_s"], lo=0.0, unit="s (0 = no prediction test)"
+    )
+    median_m: float = _positive("median_m", "m")
+    divergence_m: float = _positive("divergence_m", "m")
+    heading_median_deg: float = _positive("heading_median_deg", "deg", 180.0)
+    heading_divergence_deg: float = _positive("heading_divergence_deg", "deg", 180.0)
+    smoothing_s: float = _positive("smoothing_s", "s", 600.0)
+    min_sigma_m: float = _positive("min_sigma_m", "m")
+    lost_after_s: float = _positive("lost_after_s", "s")
+    dead_reckoning_rate_hz: float = number(_I["dead_reckoning_rate_hz"], lo=0.1, hi=100.0, unit="Hz")
+    thrust_margin: float = number(_I["thrust_margin"], lo=1.0, hi=10.0)
+    feedback_rejects: int = integer(_I["feedback_rejects"], lo=1)

@@ -1,0 +1,96 @@
+"""A source's state (ok / suspect / rejected / stale), with the reason, and readmission after a rejection."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+NS = 1_000_000_000
+OK, SUSPECT, REJECTED, STALE = "ok", "suspect", "rejected", "stale"
+STATES = (OK, SUSPECT, REJECTED, STALE)
+
+
+@dataclass(frozen=True)
+class StateChange:
+    """A source changed state: when, which source and role, from what to what, and why (for people)."""
+
+    stamp_ns: int
+    source: str
+    role: str
+    old: str
+    new: str
+    reason: str
+
+    @property
+    def text(self) -> str:
+        why = f": {self.reason}" if self.reason else ""
+        return f"{self.role} reference {self.source}: {self.old} -> {self.new}{why}"
+
+
+class SourceState:
+    """The state machine of one source in one role.
+
+    - a failed test: ``rejected`` with its reason, not used;
+    - passing again: ``suspect`` (readmitting), not used, until it has passed for ``readmit_ns``; then ``ok``;
+    - a soft alarm (two references diverge, nobody can tell which is wrong): ``suspect`` but still used;
+    - no data within the source's timeout: ``stale``; its next passing fix makes it ``ok`` again (silence is
+      not a fault of the data, and the jump test bounds what the first fix after a gap may be).
+    """
+
+    def __init__(self, source: str, role: str, readmit_ns: int) -> None:
+        self.source = source
+        self.role = role
+        self.readmit_ns = readmit_ns
+        self.state = STALE
+        self.reason = "no data yet"
+        self.since_ns = 0
+        self._passing_since: int | None = None
+        self._soft: str = ""
+        self._was_rejected = False  # went stale while rejected or readmitting: readmit when it returns
+        self.changes: list[StateChange] = []
+
+    @property
+    def usable(self) -> bool:
+        """Its data may go into the estimate: ok, or suspect only by a soft alarm (not readmitting)."""
+        return self.state == OK or (self.state == SUSPECT and self._passing_since is None)
+
+    def _set(self, now_ns: int, state: str, reason: str) -> None:
+        if state != self.state or (state != OK and reason.split(":")[0] != self.reason.split(":")[0]):
+            self.changes.append(StateChange(now_ns, self.source, self.role, self.state, state, reason))
+            self.since_ns = now_ns
+        self.state, self.reason = state, reason
+
+    def fail(self, now_ns: int, reason: str) -> None:
+        self._passing_since = None
+        self._set(now_ns, REJECTED, reason)
+
+    def passed(self, now_ns: int) -> None:
+        """The latest data passed every test."""
+        if self.state == REJECTED or (self.state == STALE and self._was_rejected):
+            self._was_rejected = False
+            self._passing_since = now_ns
+            self._set(now_ns, SUSPECT, f"readmitting: passes again, in use after {self.readmit_ns / NS:g} s")
+            return
+        if self._passing_since is not None:
+            if now_ns - self._passing_since < self.readmit_ns:
+                return
+            self._passing_since = None
+        if self._soft:
+            self._set(now_ns, SUSPECT, self._soft)
+        else:
+            self._set(now_ns, OK, "")
+
+    def soft(self, now_ns: int, reason: str) -> None:
+        """Raise (non-empty reason) or clear (empty) a soft alarm; it shows as ``suspect`` while in use."""
+        self._soft = reason
+        if self.state in (OK, SUSPECT) and self._passing_since is None:
+            self._set(now_ns, SUSPECT if reason else OK, reason)
+
+    def stale(self, now_ns: int, age_s: float) -> None:
+        if self.state != STALE:
+            self._was_rejected = self.state == REJECTED or self._passing_since is not None
+            self._passing_since = None
+            self._set(now_ns, STALE, f"no data for {age_s:.1f} s")
+
+    def drain(self) -> list[StateChange]:
+        out, self.changes = self.changes, []
+        return out

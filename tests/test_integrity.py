@@ -1,0 +1,342 @@
+"""Reference integrity through the real pipeline: a vessel on station, noisy DGPS and gyros at 10 Hz, and
+the faults a DP system must not believe (a wild fix, a jump, a heading flip, a bad fix quality, a frozen
+receiver, a drifting reference, absurd thruster feedback, silence). Each test measures the estimate's error
+before and during the fault, and when the alarm came."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from gateway.config import parse_config
+from gateway.pipeline import Output, Pipeline, PipelineSpec, RawEvent
+from gateway.references.feedback import feedback_problem
+from gateway.references.state import SourceState
+from gateway.references.voting import median_distance
+from observers.vessel import Thruster
+from wire.codecs import mavlink as mv
+from wire.codecs import nmea_encode as enc
+from wire.geodesy import LocalFrame
+
+S = 1_000_000_000
+T0 = 1_780_000_000 * S
+DATUM = (59.4, 10.5)
+PSI = 0.3  # heading on station (rad)
+SIGMA_M = 0.3  # DGPS noise, 1σ per axis
+SIGMA_PSI = math.radians(0.05)
+
+
+def gga(north: float, east: float, quality: int = 2, lon: float | None = None) -> bytes:
+    lat, lon_, _ = LocalFrame(*DATUM).to_geodetic(north, east, 0.0)
+    return enc.gga(
+        "GP", datetime(2026, 6, 1, tzinfo=UTC), lat, lon_ if lon is None else lon, quality, 12, 0.8, 20.0
+    ).encode()
+
+
+@dataclass
+class Bench:
+    """A vessel held on station at (0, 0, PSI) by the real pipeline; sources named gps1.., gyro1..."""
+
+    gps: int = 1
+    gyros: int = 1
+    integrity: dict[str, Any] = field(default_factory=dict)
+    control: bool = False
+    thrusters: bool = False
+    seed: int = 1
+
+    def __post_init__(self) -> None:
+        def src(name: str, proto: str, roles: list[str], priority: int = 1) -> dict[str, Any]:
+            url = "udp://127.0.0.1:0" if proto == "nmea" else "udpin:127.0.0.1:0"
+            return {"name": name, "url": url, "protocol": proto, "roles": roles, "priority": priority}
+
+        sources = [src(f"gps{i + 1}", "nmea", ["position"], i + 1) for i in range(self.gps)]
+        sources += [src(f"gyro{i + 1}", "nmea", ["heading"], i + 1) for i in range(self.gyros)]
+        if self.thrusters:
+            sources.append(src("thr", "mavlink", ["thrusters"]))
+        tables: dict[str, Any] = {
+            "vessel": {"name": "mss_supply"},
+            "datum": {"lat_deg": DATUM[0], "lon_deg": DATUM[1]},
+            "sources": sources,
+            "observer": {"wave_period_s": 8.0},
+            "log": {"path": ""},
+            "integrity": self.integrity,
+        }
+        if self.control:
+            tables["control"] = {"initial_mode": "dp"}
+        self.p = Pipeline(PipelineSpec.from_config(parse_config(tables, base_dir=Path.cwd())))
+        self.rng = np.random.default_rng(self.seed)
+        self.k = 0
+        self.outputs: list[Output] = []
+        self.mav = mv.encoder(1, 1)
+
+    @property
+    def now(self) -> int:
+        return T0 + self.k * S // 10
+
+    def cycle(
+        self, gps: dict[str, bytes | None] | None = None, gyro: dict[str, float | None] | None = None
+    ) -> None:
+        """One 0.1 s cycle: every gyro then every DGPS, true values plus noise unless overridden (None:
+        silent)."""
+        gps, gyro = gps or {}, gyro or {}
+        t = self.now
+        for i in range(self.gyros):
+            name = f"gyro{i + 1}"
+            psi = gyro.get(name, PSI + self.rng.normal(0, SIGMA_PSI))
+            if psi is not None:
+                self.outputs += self.p.feed(RawEvent(t + i, name, enc.hdt("HE", psi).encode()))
+        for i in range(self.gps):
+            name = f"gps{i + 1}"
+            data = gps.get(name, gga(*self.rng.normal(0, SIGMA_M, 2)))
+            if data is not None:
+                self.outputs += self.p.feed(RawEvent(t + 100 + i, name, data))
+        self.k += 1
+
+    def run(self, seconds: float, **kw: Any) -> None:
+        for _ in range(round(seconds * 10)):
+            self.cycle(**kw)
+
+    def mark(self) -> int:
+        return len(self.outputs)
+
+    def estimates(self, since: int = 0) -> list[dict[str, Any]]:
+        return [o.payload for o in self.outputs[since:] if o.topic == "/dp/estimate"]
+
+    def errors(self, since: int = 0) -> tuple[float, float]:
+        """Largest position (m) and heading (deg) error of the estimates since a mark."""
+        est = self.estimates(since)
+        pos = max(math.hypot(*e["eta"][:2]) for e in est)
+        hdg = max(abs(math.degrees(math.remainder(e["eta"][2] - PSI, 2 * math.pi))) for e in est)
+        return pos, hdg
+
+    def events(self, since: int = 0) -> list[tuple[int, str]]:
+        return [
+            (o.stamp_ns, text)
+            for o in self.outputs[since:]
+            if o.topic == "/dp/status"
+            for text in o.payload["events"]
+        ]
+
+    def first_event(self, since: int, *words: str) -> int | None:
+        for t, text in self.events(since):
+            if all(w in text for w in words):
+                return t
+        return None
+
+
+def settled(b: Bench, seconds: float = 60.0) -> tuple[float, float, int]:
+    """Run on station until the observer has settled; the error over the last 20 s, and a mark."""
+    b.run(seconds - 20)
+    m = b.mark()
+    b.run(20)
+    pos, hdg = b.errors(m)
+    return pos, hdg, b.mark()
+
+
+def no_saturated_command(b: Bench, since: int) -> bool:
+    return not any(o.payload["saturated"] for o in b.outputs[since:] if o.topic == "/dp/thrusters/command")
+
+
+# --- Must show: single wild inputs --------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("fault", "cycles", "words"),
+    [
+        ("gga_91e", 1, ("gps1", "rejected", "jump")),
+        ("jump_50m", 10, ("gps1", "rejected", "jump")),
+        ("quality_8", 10, ("gps1", "rejected", "quality 8")),
+        ("heading_flip", 10, ("gyro1", "rejected", "jump")),
+    ],
+)
+def test_wild_input_is_rejected_with_an_alarm_and_does_not_move_the_estimate(
+    fault: str, cycles: int, words: tuple[str, ...]
+) -> None:
+    b = Bench(control=True)
+    pos0, hdg0, m = settled(b)
+    t_fault = b.now
+    for _ in range(cycles):
+        n, e = b.rng.normal(0, SIGMA_M, 2)
+        if fault == "gga_91e":
+            b.cycle(gps={"gps1": gga(n, e, lon=91.0)})
+        elif fault == "jump_50m":
+            b.cycle(gps={"gps1": gga(n + 50.0, e)})
+        elif fault == "quality_8":
+            b.cycle(gps={"gps1": gga(n + 20.0, e, quality=8)})
+        else:
+            b.cycle(gyro={"gyro1": PSI + math.pi})
+    b.run(20)
+    alarm = b.first_event(m, *words)
+    assert alarm is not None and alarm - t_fault <= 1 * S, b.events(m)
+    pos1, hdg1 = b.errors(m)
+    assert pos1 - pos0 < 0.5, (pos0, pos1)
+    assert hdg1 - hdg0 < 1.0, (hdg0, hdg1)
+    assert no_saturated_command(b, m)
+    # and the source is back in use once it has passed again for readmit_s
+    assert b.p.monitor.usable("heading" if fault == "heading_flip" else "position", words[0])
+
+
+def test_frozen_position_is_detected_within_10_s() -> None:
+    b = Bench()
+    settled(b, 40)
+    m, t_fault = b.mark(), b.now
+    frozen = gga(*b.rng.normal(0, SIGMA_M, 2))
+    b.run(30, gps={"gps1": frozen})
+    alarm = b.first_event(m, "gps1", "rejected", "frozen")
+    assert alarm is not None and alarm - t_fault <= 10 * S
+    assert b.estimates()[-1]["health"][:2] == ["dead_reckoning"] * 2
+
+
+def drift(b: Bench, name: str, seconds: float, start_ns: int) -> None:
+    """``name`` drifts north at 1 m/min from start_ns, the other DGPS stay true."""
+    for _ in range(round(seconds * 10)):
+        offset = (b.now - start_ns) / S / 60.0
+        n, e = b.rng.normal(0, SIGMA_M, 2)
+        b.cycle(gps={name: gga(n + offset, e)})
+
+
+def test_one_of_three_dgps_drifting_is_excluded_within_60_s_and_the_error_stays_small() -> None:
+    b = Bench(gps=3)
+    settled(b)
+    m, t0 = b.mark(), b.now
+    drift(b, "gps1", 300, t0)
+    alarm = b.first_event(m, "gps1", "rejected", "median")
+    assert alarm is not None and alarm - t0 <= 60 * S, b.events(m)
+    pos, _ = b.errors(m)
+    assert pos < 1.5
+    assert not b.p.monitor.usable("position", "gps1")
+    assert b.estimates()[-1]["status"] == "degraded"  # honest: running on two of three
+
+
+def test_two_dgps_diverging_raise_an_alarm() -> None:
+    b = Bench(gps=2)
+    settled(b)
+    m, t0 = b.mark(), b.now
+    drift(b, "gps1", 120, t0)
+    assert b.first_event(m, "gps1", "suspect", "diverges") is not None
+    assert b.first_event(m, "gps2", "suspect", "diverges") is not None
+    alarms = b.p.status_message(b.now).alarms
+    assert any("diverges" in str(a) for a in alarms)
+
+
+def test_three_gyros_vote_out_a_drifting_one_and_two_raise_a_divergence_alarm() -> None:
+    b = Bench(gyros=3)
+    settled(b)
+    m = b.mark()
+    for k in range(600):  # gyro1 drifts 0.1°/s
+        b.cycle(gyro={"gyro1": PSI + math.radians(0.1 * k / 10) + b.rng.normal(0, SIGMA_PSI)})
+    assert b.first_event(m, "gyro1", "rejected", "median") is not None
+    _, hdg = b.errors(m)
+    assert hdg < 1.0
+    b2 = Bench(gyros=2)
+    settled(b2)
+    m = b2.mark()
+    for k in range(600):
+        b2.cycle(gyro={"gyro1": PSI + math.radians(0.1 * k / 10) + b2.rng.normal(0, SIGMA_PSI)})
+    assert b2.first_event(m, "gyro1", "suspect", "diverges") is not None
+
+
+@pytest.mark.parametrize("thrust", [4e7, 1e30])
+def test_absurd_thruster_feedback_is_rejected_and_does_not_move_the_estimate(thrust: float) -> None:
+    b = Bench(thrusters=True)
+    pos0, _, m = settled(b)
+    thr = b.p.spec.vessel.thrusters[0]
+    frame = mv.azimuth_status_frame(b.mav, 0, thr.id, thrust, 100.0, 0.0, 0)
+    b.outputs += b.p.feed(RawEvent(b.now, "thr", frame))
+    b.run(20)
+    assert b.p.counters["thr"].rejected["out_of_range"] == 1
+    pos1, _ = b.errors(m)
+    assert pos1 - pos0 < 0.3
+    # a stream of them makes the feedback source suspect: τ comes from the demand
+    for _ in range(3):
+        b.outputs += b.p.feed(RawEvent(b.now, "thr", frame))
+        b.cycle()
+    assert not b.p.monitor.feedback_usable("thr")
+    assert b.first_event(m, "thr", "rejected", "out-of-range") is not None
+    assert b.p.fusion.tau(b.now)[1] == "demand"
+
+
+# --- honest status, dead reckoning, lost ------------------------------------------------------------------
+
+
+def test_status_is_ok_only_while_every_reference_passes() -> None:
+    b = Bench(gps=3)
+    settled(b)
+    assert b.estimates()[-1]["status"] == "ok" and b.estimates()[-1]["health"] == ["ok"] * 3
+    b.run(1, gps={"gps2": gga(60.0, 0.0)})
+    assert b.estimates()[-1]["status"] == "degraded"
+    assert b.estimates()[-1]["health"] == ["degraded", "degraded", "ok"]
+    refs = b.p.status_message(b.now).references
+    assert refs["gps2"][0].state == "rejected" and "jump" in refs["gps2"][0].reason
+
+
+def test_dead_reckoning_is_published_at_rate_when_every_source_is_silent_then_lost() -> None:
+    b = Bench(integrity={"lost_after_s": 5.0})
+    settled(b, 40)
+    t_last = b.now
+    est = []
+    for k in range(1, 101):  # 5 s of silence; the service ticks every 50 ms
+        for o in b.p.tick(t_last + k * S // 20):
+            if o.topic == "/dp/estimate":
+                est.append(o.payload)
+    # silent past the sources' 2 s timeout, then 10 Hz: about 30 estimates in the remaining 3 s
+    assert 29 <= len(est) <= 32
+    assert est[0]["status"] == "dead_reckoning"
+    assert est[-1]["status"] == "lost" and est[-1]["health"] == ["lost", "lost", "lost"]
+    assert math.hypot(*est[-1]["eta"][:2]) < 1.0  # on station: dead reckoning stays put
+    # the dead reckoning ran on a copy: the observer itself is where the last measurement left it
+    assert b.p.observer.t == pytest.approx((t_last - 100 + 101 - T0) / S - 0.1, abs=0.2)
+
+
+# --- the checkers on their own -----------------------------------------------------------------------
+
+
+def test_a_rejected_source_is_readmitted_only_after_passing_for_readmit_s() -> None:
+    st_ = SourceState("gps", "position", readmit_ns=5 * S)
+    st_.passed(0)
+    assert st_.state == "ok" and st_.usable
+    st_.fail(S, "jump")
+    assert st_.state == "rejected" and not st_.usable
+    for k in range(2, 7):
+        st_.passed(k * S)
+        assert st_.state == "suspect" and not st_.usable
+    st_.passed(7 * S)
+    assert st_.state == "ok" and st_.usable
+    st_.soft(8 * S, "diverges")
+    assert st_.state == "suspect" and st_.usable
+    texts = [c.text for c in st_.drain()]
+    assert texts[1] == "position reference gps: ok -> rejected: jump"
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(st.tuples(st.floats(-100, 100), st.floats(-100, 100)), min_size=2, max_size=6),
+    st.tuples(st.floats(-1e6, 1e6), st.floats(-1e6, 1e6)),
+)
+def test_the_median_holds_against_any_one_outlier(
+    good: list[tuple[float, float]], bad: tuple[float, float]
+) -> None:
+    """With n ≥ 3 references of which one is anywhere at all, every good one is within the spread of the
+    good ones of the median: one reference can never move the median out of the good references' box."""
+    pts = {f"g{i}": p for i, p in enumerate(good)} | {"bad": bad}
+    span = math.hypot(
+        max(p[0] for p in good) - min(p[0] for p in good), max(p[1] for p in good) - min(p[1] for p in good)
+    )
+    for name in pts:
+        if name != "bad":
+            assert median_distance(pts, name) <= span + 1e-6
+
+
+@given(st.floats(allow_nan=True, allow_infinity=True))
+def test_feedback_out_of_range_is_any_thrust_beyond_capacity_with_margin(thrust: float) -> None:
+    th = Thruster(id=1, kind="azimuth", x_m=0.0, y_m=0.0, max_thrust_n=4e5, min_thrust_n=-2e5)
+    problem = feedback_problem(th, thrust, 0.0, None, 1.2)
+    assert bool(problem) == (abs(thrust) > 4.8e5)
