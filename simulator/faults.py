@@ -92,6 +92,9 @@ FAULT_KINDS = (
 )
 """Every fault kind a `Fault` may have."""
 
+TIME_TOLERANCE_S = 1e-6
+"""Sim times this close count as the same instant (as the sensors' sample schedule does)."""
+
 COMMAND_KINDS = ("command_setpoint", "command_tau", "command_mode")
 """Fault kinds that are commands sent to the gateway, not something a sensor does."""
 
@@ -165,8 +168,9 @@ class Fault:
         object.__setattr__(self, "params", MappingProxyType(_check_params(self.kind, self.params)))
 
     def covers(self, t: float) -> bool:
-        """True when ``t_start <= t < t_end``."""
-        return self.t_start <= t < self.t_end
+        """True when ``t_start <= t < t_end``, both ends taken `TIME_TOLERANCE_S` early: the runner's sim time
+        is a sum of steps (119.99999999999682 for 120 s), and a sample due at a fault's start must see it."""
+        return self.t_start - TIME_TOLERANCE_S <= t < self.t_end - TIME_TOLERANCE_S
 
     def applies_to(self, source: str) -> bool:
         """True for this fault's source, or any source when it is ``"*"``."""

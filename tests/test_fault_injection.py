@@ -153,6 +153,17 @@ def test_bogus_feedback_claims_the_thrust_on_one_thruster(claim: float) -> None:
     assert all(az == pytest.approx(0.1 * i) for _, i, _, az in seen)  # only the thrust was faked
 
 
+def test_a_sample_a_rounding_error_before_the_fault_start_sees_the_fault() -> None:
+    """The runner's sim time is a sum of steps: the fix due at 120 s is sampled at 119.99999999999682 s, and a
+    one-sample fault scheduled at 120 s must still hit it."""
+    fault = Fault("spoof", "dgps1", 120.0, 120.05, {"lon_deg": 91.0})
+    assert fault.covers(119.99999999999682) and not fault.covers(120.05 - 1e-9)
+    sensor = dgps([fault], rate_hz=10.0)
+    sensor._schedule.k = 1200  # the next fix is due at 120 s
+    em = sensor.sample(at(119.99999999999682))[0]
+    assert pynmea2.parse(em.data.decode().strip()).longitude == pytest.approx(91.0)
+
+
 def test_command_faults_become_gateway_inputs() -> None:
     schedule = FaultSchedule.from_dicts(
         [
