@@ -29,7 +29,6 @@ import json
 import math
 import random
 import resource
-import sys
 import time
 from dataclasses import dataclass, field
 from datetime import UTC, datetime, timedelta
@@ -192,8 +191,8 @@ class Fuzzer:
             return source, f"${body},{filler}*{enc.checksum(body + ',' + filler)}\r\n".encode()
         # random bytes (never only line ends: a blank line is not an input)
         n = rng.randint(1, 120)
-        data = bytes(rng.getrandbits(8) for _ in range(n)).rstrip(b"\r\n") or b"\x00"
-        return source, data + b"\r\n"
+        noise = bytes(rng.getrandbits(8) for _ in range(n)).rstrip(b"\r\n") or b"\x00"
+        return source, noise + b"\r\n"
 
     def _token(self) -> str:
         rng = self.rng
@@ -506,4 +505,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()
