@@ -13,7 +13,7 @@ from typing import Any
 from gateway.bus import BusError, make_config, open_session
 from simulator.clock import Clock, RealtimeClock, VirtualClock
 from simulator.commands import MavlinkCommandInput, ZenohCommandInput
-from simulator.faults import Fault, FaultSchedule
+from simulator.faults import COMMAND_KINDS, Fault, FaultSchedule
 from simulator.runner import CommandInput, Route, Simulation
 from simulator.scenarios import SCENARIOS, get_scenario
 from simulator.transports import Sink, TransportError, open_sink
@@ -69,7 +69,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--faults",
         metavar="FILE.toml",
         help="schedule faults from a TOML file of [[faults]] tables (dropout, frozen, jump, noise_burst, "
-        "bad_checksum, garbage, thruster_failure; see docs/sensors.md)",
+        "bad_checksum, garbage, thruster_failure, drift, spoof, quality, bogus_feedback; see "
+        "docs/sensors.md)",
     )
     p.add_argument(
         "--ardupilot",
@@ -116,6 +117,13 @@ def run(args: argparse.Namespace) -> int:
         scenario = get_scenario(args.scenario).with_sensor_rates(args.gnss_rate, args.gyro_rate)
         if args.faults:
             scenario = replace(scenario, faults=scenario.faults + load_faults(args.faults))
+            commands_in_file = sorted({f.kind for f in scenario.faults if f.kind in COMMAND_KINDS})
+            if commands_in_file:
+                print(
+                    f"dpgw sim: {', '.join(commands_in_file)} in {args.faults} not sent: command faults are "
+                    "inputs to the gateway, injected by the in-process closed loop (docs/simulator.md)",
+                    file=sys.stderr,
+                )
         if args.ardupilot and scenario.feedback is not None:
             scenario = replace(
                 scenario, feedback=replace(scenario.feedback, ardupilot_esc=True, ardupilot_servo=True)

@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from gateway.config import parse_config
 from gateway.pipeline import ControlEvent, Pipeline, PipelineSpec, RawEvent
 from simulator.commands import Command, TauCommand, ThrusterCommand
+from simulator.faults import FaultSchedule
 from simulator.runner import Route, Simulation
 from simulator.scenarios import Scenario
 from simulator.transports import Sink
@@ -58,15 +59,20 @@ class ClosedLoopRun:
     estimates: list[dict[str, Any]] = field(default_factory=list)
     commands: list[dict[str, Any]] = field(default_factory=list)
     status: dict[str, Any] = field(default_factory=dict)
+    statuses: list[dict[str, Any]] = field(default_factory=list)  # with status_every_s: /dp/status payloads
 
 
 def gateway_tables(scenario: Scenario, **control: Any) -> dict[str, Any]:
-    """A gateway config for a scenario's sensors (what `dpgw demo` builds, without transports)."""
-    dgps, gyro = scenario.dgps[0], scenario.gyro[0]
-    sources = [
+    """A gateway config for a scenario's sensors (what `dpgw demo` builds, without transports). Several
+    DGPS or gyros become redundant sources, ranked in the scenario's order (priority 1, 2, …)."""
+    sources: list[dict[str, Any]] = [
         {"name": dgps.source, "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position"],
-         "lever_arm_m": list(dgps.lever_arm_m), "timeout_s": max(2.0, 3.0 / dgps.rate_hz)},
-        {"name": gyro.source, "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["heading"]},
+         "lever_arm_m": list(dgps.lever_arm_m), "timeout_s": max(2.0, 3.0 / dgps.rate_hz), "priority": k + 1}
+        for k, dgps in enumerate(scenario.dgps)
+    ] + [
+        {"name": gyro.source, "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["heading"],
+         "priority": k + 1}
+        for k, gyro in enumerate(scenario.gyro)
     ]  # fmt: skip
     if scenario.feedback is not None and scenario.vessel.thrusters:
         sources.append(
@@ -91,10 +97,14 @@ def run_closed_loop(
     events: list[tuple[float, str, Any]] = (),  # type: ignore[assignment]
     chunk_s: float = 0.1,
     log: McapLogWriter | None = None,
+    status_every_s: float | None = None,
 ) -> ClosedLoopRun:
     """Run the scenario with the gateway pipeline commanding the thrusters. ``events``: (sim time, key,
-    payload) Zenoh inputs such as ("setpoint", {...}) or ("mode", "standby"). With ``log``, every burst sent
-    and the ground truth are logged as `dpgw sim --out` does (a log replay can score)."""
+    payload) Zenoh inputs such as ("setpoint", {...}) or ("mode", "standby"); the scenario's command faults
+    (`FaultSchedule.command_events`) are added to them. With ``log``, every burst sent and the ground truth
+    are logged as `dpgw sim --out` does (a log replay can score). With ``status_every_s``, the pipeline's
+    /dp/status is kept that often (at the end of a chunk; at most once a chunk) in ``statuses``: what an
+    operator station would see, to time alarms."""
     tables = tables or gateway_tables(scenario)
     pipeline = Pipeline(PipelineSpec.from_config(parse_config(tables, base_dir=Path.cwd())))
     commands = _Commands()
@@ -111,7 +121,9 @@ def run_closed_loop(
     sinks["thrusters"] = _TimedSink(now)
     routes.append(Route(sinks["thrusters"], "mavlink"))
     sim = Simulation(scenario, seed, routes=routes, commands=[commands], log=log)
-    pending_events = sorted(events, key=lambda e: e[0])
+    injected = FaultSchedule(scenario.faults).command_events(duration_s)
+    pending_events = sorted([*events, *injected], key=lambda e: e[0])
+    next_status = 0.0
     t_list, lf, wf = [], [], []
     run = ClosedLoopRun(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)))
     while sim.t < duration_s - 1e-9:
@@ -140,6 +152,9 @@ def run_closed_loop(
                     else:
                         tau = o.payload["tau_allocated"]
                         commands.pending.append(TauCommand((tau[0], tau[1], tau[2])))
+        if status_every_s is not None and sim.t >= next_status - 1e-9 and pipeline.last_ns:
+            run.statuses.append(pipeline.status(pipeline.last_ns).payload)
+            next_status = sim.t + status_every_s
         x = sim.dynamics.x
         t_list.append(sim.t)
         lf.append(x[0:3].copy())

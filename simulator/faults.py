@@ -24,13 +24,34 @@ kind                 effect                                        params
                      ``$`` and CR/LF, partial sentences or frames  ``max_bytes`` (default 40)
 ``thruster_failure`` the thruster stops (applied by the thruster   –
                      model; the feedback reports FAULT)
+``drift``            an offset growing at a constant rate from     ``north_mps``, ``east_mps`` (GNSS);
+                     ``t_start`` (rate × (t − t_start)): a slowly  ``heading_rad_s`` (gyro); at least one
+                     walking reference; back to normal at t_end
+``spoof``            the receiver reports this latitude and/or     ``lat_deg``, ``lon_deg``; at least one
+                     longitude instead of the measured one (a far
+                     fix, a spoofer's position)
+``quality``          GGA reports this quality indicator (GNS, RMC  ``quality`` (0..8; 6 dead reckoning,
+                     and VTG the matching mode letter)              7 manual input, 8 simulator)
+``bogus_feedback``   the thruster's status frames claim these      ``thrust_n``, ``rpm``, ``azimuth_rad``;
+                     values (source: thruster id or ``"*"``)        at least one
+``command_setpoint`` a setpoint sent to the gateway at t_start     ``north_m``, ``east_m``, ``heading_deg``
+                     (and every 1/rate_hz s in the window when      (default 0), ``rate_hz`` (default 0:
+                     ``rate_hz`` > 0); source: the sender's label   once)
+``command_tau``      a manual τ sent to the gateway, as above      ``surge_n``, ``sway_n``, ``yaw_nm``
+                                                                   (at least one), ``rate_hz``
+``command_mode``     a mode change sent to the gateway, as above   ``mode`` (text, required), ``rate_hz``
 ==================== ============================================ ============================================
 
-Sample-side faults (``dropout``, ``frozen``, ``jump``, ``noise_burst``, ``thruster_failure``) are active
-when the *measurement* time is in the window; the sensors (and the thruster model) apply them. Wire-side
+Sample-side faults (``dropout``, ``frozen``, ``jump``, ``noise_burst``, ``thruster_failure``, ``drift``,
+``spoof``, ``quality``, ``bogus_feedback``) are active when the *measurement* time is in the window; the
+sensors (and the thruster model) apply them. Wire-side
 faults (``bad_checksum``, ``garbage``) are active when the bytes leave the sensor (``Emission.t_emit``); the
 simulator runner applies them to every sensor's emissions with `FaultSchedule.apply_to_emissions` and a
-random generator of its own. See docs/sensors.md.
+random generator of its own. Command faults (``command_*``) are not the sensors' business: they are inputs a
+peer sends to the gateway's command keys (a hostile or mistaken operator station). `FaultSchedule.
+command_events` lists them as ``(sim time, key, payload)`` with the payloads of the gateway's command
+inputs (docs/interfaces.md); the in-process closed loop (`dpgw.closed_loop`) feeds them to the pipeline.
+See docs/sensors.md and docs/simulator.md.
 """
 
 from __future__ import annotations
@@ -51,7 +72,7 @@ from wire.codecs.nmea_encode import checksum, corrupt_checksum
 if TYPE_CHECKING:
     from simulator.sensors import Emission
 
-__all__ = ["FAULT_KINDS", "Fault", "FaultSchedule"]
+__all__ = ["COMMAND_KINDS", "FAULT_KINDS", "QUALITY_MODES", "Fault", "FaultSchedule"]
 
 FAULT_KINDS = (
     "dropout",
@@ -61,8 +82,24 @@ FAULT_KINDS = (
     "bad_checksum",
     "garbage",
     "thruster_failure",
+    "drift",
+    "spoof",
+    "quality",
+    "bogus_feedback",
+    "command_setpoint",
+    "command_tau",
+    "command_mode",
 )
 """Every fault kind a `Fault` may have."""
+
+TIME_TOLERANCE_S = 1e-6
+"""Sim times this close count as the same instant (as the sensors' sample schedule does)."""
+
+COMMAND_KINDS = ("command_setpoint", "command_tau", "command_mode")
+"""Fault kinds that are commands sent to the gateway, not something a sensor does."""
+
+QUALITY_MODES = {0: "N", 1: "A", 2: "D", 3: "P", 4: "R", 5: "F", 6: "E", 7: "M", 8: "S"}
+"""GGA quality indicator → the mode letter GNS, RMC and VTG carry for it (NMEA 0183 4.x)."""
 
 _PARAMS: dict[str, dict[str, float | None]] = {
     # name -> default (None: optional, no default)
@@ -73,9 +110,27 @@ _PARAMS: dict[str, dict[str, float | None]] = {
     "bad_checksum": {"probability": 1.0},
     "garbage": {"probability": 1.0, "max_bytes": 40.0},
     "thruster_failure": {},
+    "drift": {"north_mps": None, "east_mps": None, "heading_rad_s": None},
+    "spoof": {"lat_deg": None, "lon_deg": None},
+    "quality": {"quality": None},
+    "bogus_feedback": {"thrust_n": None, "rpm": None, "azimuth_rad": None},
+    "command_setpoint": {"north_m": 0.0, "east_m": 0.0, "heading_deg": 0.0, "rate_hz": 0.0},
+    "command_tau": {"surge_n": None, "sway_n": None, "yaw_nm": None, "rate_hz": 0.0},
+    "command_mode": {"mode": None, "rate_hz": 0.0},
 }
-_NEEDS_ONE = {"jump", "noise_burst"}  # kinds that need at least one of their parameters
-_NON_NEGATIVE = {"sigma_m", "sigma_rad"}
+# kinds that need at least one of their parameters without a default
+_NEEDS_ONE = {
+    "jump",
+    "noise_burst",
+    "drift",
+    "spoof",
+    "quality",
+    "bogus_feedback",
+    "command_tau",
+    "command_mode",
+}
+_TEXT = {"mode"}  # parameters that are text, not numbers
+_NON_NEGATIVE = {"sigma_m", "sigma_rad", "rate_hz"}
 _PROBABILITY = {"probability"}
 _FIELDS = ("kind", "source", "t_start", "t_end", "params")
 _SENTENCE_RE = re.compile(rb"\$([^$*\r\n]*)\*([0-9A-Fa-f]{2})")
@@ -91,7 +146,7 @@ class Fault:
     source: str
     t_start: float
     t_end: float = math.inf
-    params: Mapping[str, float] = field(default_factory=dict)
+    params: Mapping[str, float | str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.kind not in FAULT_KINDS:
@@ -113,17 +168,22 @@ class Fault:
         object.__setattr__(self, "params", MappingProxyType(_check_params(self.kind, self.params)))
 
     def covers(self, t: float) -> bool:
-        """True when ``t_start <= t < t_end``."""
-        return self.t_start <= t < self.t_end
+        """True when ``t_start <= t < t_end``, both ends taken `TIME_TOLERANCE_S` early: the runner's sim time
+        is a sum of steps (119.99999999999682 for 120 s), and a sample due at a fault's start must see it."""
+        return self.t_start - TIME_TOLERANCE_S <= t < self.t_end - TIME_TOLERANCE_S
 
     def applies_to(self, source: str) -> bool:
         """True for this fault's source, or any source when it is ``"*"``."""
         return self.source == "*" or self.source == source
 
     def param(self, name: str, default: float = 0.0) -> float:
-        """A parameter, or ``default`` when it is not set."""
+        """A numeric parameter, or ``default`` when it is not set."""
         value = self.params.get(name)
         return default if value is None else float(value)
+
+    def has(self, name: str) -> bool:
+        """True when the parameter is set (given, or defaulted by its kind)."""
+        return name in self.params
 
 
 class FaultSchedule:
@@ -200,6 +260,26 @@ class FaultSchedule:
                 return fault
         return None
 
+    def command_events(self, until_s: float) -> list[tuple[float, str, Any]]:
+        """The command faults as gateway inputs before ``until_s``: ``(sim time, key, payload)`` with key
+        ``setpoint`` ({north_m, east_m, heading_deg}), ``tau`` ({X, Y, N}) or ``mode`` (text), sorted by
+        time. Each is sent at ``t_start``, and again every ``1/rate_hz`` s in its window when ``rate_hz`` > 0
+        (a peer that keeps sending)."""
+        out: list[tuple[float, str, Any]] = []
+        for fault in self.faults:
+            if fault.kind not in COMMAND_KINDS:
+                continue
+            key, payload = _command(fault)
+            rate = fault.param("rate_hz")
+            end = min(fault.t_end, until_s)
+            k = 0
+            while (t := fault.t_start + (k / rate if rate > 0 else 0.0)) < end:
+                out.append((t, key, payload))
+                if rate <= 0:
+                    break
+                k += 1
+        return sorted(out, key=lambda e: e[0])
+
     def apply_to_emissions(self, emissions: list[Emission], rng: np.random.Generator) -> list[Emission]:
         """The emissions as they go on the wire, in order, with ``bad_checksum`` and ``garbage`` applied at
         each emission's ``t_emit``: a corrupted emission replaces the good one (NMEA: every bit of the
@@ -236,15 +316,30 @@ def _number(name: str, value: Any) -> float:
     return float(value)
 
 
-def _check_params(kind: str, params: Mapping[str, Any]) -> dict[str, float]:
+def _command(fault: Fault) -> tuple[str, Any]:
+    """A command fault as the gateway's command input: its key and payload."""
+    p = fault.param
+    if fault.kind == "command_setpoint":
+        return "setpoint", {"north_m": p("north_m"), "east_m": p("east_m"), "heading_deg": p("heading_deg")}
+    if fault.kind == "command_tau":
+        return "tau", {"X": p("surge_n"), "Y": p("sway_n"), "N": p("yaw_nm")}
+    return "mode", str(fault.params["mode"])
+
+
+def _check_params(kind: str, params: Mapping[str, Any]) -> dict[str, float | str]:
     if not isinstance(params, Mapping):
         raise ValueError(f"params: expected a mapping of parameter names to numbers, got {params!r}")
     allowed = _PARAMS[kind]
-    out: dict[str, float] = {}
+    out: dict[str, float | str] = {}
     for name, value in params.items():
         if name not in allowed:
             expected = ", ".join(allowed) if allowed else "none"
             raise ValueError(f"{name}: not a parameter of a {kind} fault (expected: {expected})")
+        if name in _TEXT:
+            if not isinstance(value, str) or not value:
+                raise ValueError(f"{name}: must be non-empty text, got {value!r}")
+            out[name] = value
+            continue
         number = _number(name, value)
         if not math.isfinite(number):
             raise ValueError(f"{name}: must be finite, got {value!r}")
@@ -254,9 +349,16 @@ def _check_params(kind: str, params: Mapping[str, Any]) -> dict[str, float]:
             raise ValueError(f"{name}: must be a probability in [0, 1], got {value!r}")
         if name == "max_bytes" and (number != int(number) or not 1 <= number <= 4096):
             raise ValueError(f"max_bytes: must be a whole number of bytes in 1..4096, got {value!r}")
+        if name == "quality" and number not in QUALITY_MODES:
+            raise ValueError(f"quality: must be a GGA quality indicator 0..8, got {value!r}")
+        if name == "lat_deg" and not -90.0 <= number <= 90.0:
+            raise ValueError(f"lat_deg: must be in -90..90, got {value!r}")
+        if name == "lon_deg" and not -180.0 <= number <= 180.0:
+            raise ValueError(f"lon_deg: must be in -180..180, got {value!r}")
         out[name] = number
-    if kind in _NEEDS_ONE and not out:
-        raise ValueError(f"params: a {kind} fault needs at least one of {', '.join(allowed)}")
+    needed = [name for name, default in allowed.items() if default is None]
+    if kind in _NEEDS_ONE and not any(name in out for name in needed):
+        raise ValueError(f"params: a {kind} fault needs at least one of {', '.join(needed)}")
     for name, default in allowed.items():
         if default is not None:
             out.setdefault(name, default)

@@ -21,8 +21,9 @@ Models (docs/sensors.md has the full description):
 
 All randomness comes from the ``rng`` given to a sensor: the same seed gives the same bytes. Faults come from
 a `simulator.faults.FaultSchedule`. A sensor applies the sample-side faults itself (dropout, frozen, jump,
-noise burst, thruster failure); the wire-side faults (bad checksum, garbage) are applied by whoever puts the
-bytes on the wire, with ``FaultSchedule.apply_to_emissions(emissions, rng)`` and a generator of its own, so
+noise burst, drift, spoof, quality, bogus feedback, thruster failure); the wire-side faults (bad checksum,
+garbage) are applied by whoever puts the bytes on the wire, with
+``FaultSchedule.apply_to_emissions(emissions, rng)`` and a generator of its own, so
 that line noise never changes the sensors' random streams.
 """
 
@@ -41,7 +42,7 @@ from pydantic import AfterValidator, ConfigDict, Field, TypeAdapter, ValidationE
 from observers.kinematics import ssa_scalar
 from observers.vessel import THRUSTER_KINDS
 from simulator.clock import SimEpoch
-from simulator.faults import Fault, FaultSchedule
+from simulator.faults import QUALITY_MODES, Fault, FaultSchedule
 from wire.codecs import mavlink as mv
 from wire.codecs import nmea_encode as nmea
 from wire.geodesy import LocalFrame
@@ -449,7 +450,15 @@ class Dgps(Sensor):
         if jump is not None:
             north += jump.param("north_m")
             east += jump.param("east_m")
+        drift = self.faults.active("drift", self.source, t)
+        if drift is not None:
+            north += drift.param("north_mps") * (t - drift.t_start)
+            east += drift.param("east_mps") * (t - drift.t_start)
         lat, lon, _ = self.datum.to_geodetic(north, east, 0.0)
+        spoof = self.faults.active("spoof", self.source, t)
+        if spoof is not None:
+            lat = spoof.param("lat_deg", float(lat))
+            lon = spoof.param("lon_deg", float(lon))
         return _Fix(
             lat_deg=float(lat),
             lon_deg=float(lon),
@@ -461,7 +470,12 @@ class Dgps(Sensor):
     def _sentences(self, fix: _Fix, t: float) -> list[str]:
         cfg = self.config
         utc = self.epoch.utc(t)
-        differential = cfg.quality != 1
+        quality, mode = cfg.quality, self._mode
+        bad = self.faults.active("quality", self.source, t)
+        if bad is not None:
+            quality = int(bad.param("quality"))
+            mode = QUALITY_MODES[quality]
+        differential = quality in (2, 3, 4, 5)  # corrections in use: the age and station fields are filled
         age = cfg.age_s if differential else None
         station = cfg.station_id if differential else None
         sigma = cfg.sigma_m
@@ -477,7 +491,7 @@ class Dgps(Sensor):
                     utc,
                     fix.lat_deg,
                     fix.lon_deg,
-                    cfg.quality,
+                    quality,
                     cfg.n_sats,
                     cfg.hdop,
                     fix.alt_m,
@@ -491,7 +505,7 @@ class Dgps(Sensor):
                     utc,
                     fix.lat_deg,
                     fix.lon_deg,
-                    self._mode * _GNS_CONSTELLATIONS,
+                    mode * _GNS_CONSTELLATIONS,
                     cfg.n_sats,
                     cfg.hdop,
                     fix.alt_m,
@@ -501,10 +515,10 @@ class Dgps(Sensor):
                 )
             elif kind == "RMC":
                 text = nmea.rmc(
-                    cfg.talker, utc, fix.lat_deg, fix.lon_deg, fix.sog_mps, fix.cog_rad, True, self._mode
+                    cfg.talker, utc, fix.lat_deg, fix.lon_deg, fix.sog_mps, fix.cog_rad, True, mode
                 )
             elif kind == "VTG":
-                text = nmea.vtg(cfg.talker, fix.cog_rad, fix.sog_mps, self._mode)
+                text = nmea.vtg(cfg.talker, fix.cog_rad, fix.sog_mps, mode)
             elif kind == "GST":
                 text = nmea.gst(
                     cfg.talker,
@@ -579,6 +593,9 @@ class Gyro(Sensor):
         jump = self.faults.active("jump", self.source, t)
         if jump is not None:
             heading += jump.param("heading_rad")
+        drift = self.faults.active("drift", self.source, t)
+        if drift is not None:
+            heading += drift.param("heading_rad_s") * (t - drift.t_start)
         return ssa_scalar(heading), rate
 
 
@@ -653,14 +670,20 @@ class ThrusterFeedback(Sensor):
         frames = []
         for reading in readings:
             failed = reading.failed or self.faults.active("thruster_failure", str(reading.id), t) is not None
+            thrust, rpm, azimuth = reading.thrust_n, reading.rpm, reading.azimuth_rad
+            bogus = self.faults.active("bogus_feedback", str(reading.id), t)
+            if bogus is not None:  # the drive claims what the fault says (a bad scaling, a broken sensor)
+                thrust = bogus.param("thrust_n", thrust)
+                rpm = bogus.param("rpm", rpm)
+                azimuth = bogus.param("azimuth_rad", azimuth)
             frames.append(
                 mv.azimuth_status_frame(
                     self.mav,
                     time_usec,
                     reading.id,
-                    reading.thrust_n,
-                    reading.rpm,
-                    reading.azimuth_rad,
+                    thrust,
+                    rpm,
+                    azimuth,
                     _FLAGS_FAILED if failed else _FLAGS_OK,
                     thrust_setpoint_n=reading.thrust_setpoint_n,
                     azimuth_setpoint_rad=reading.azimuth_setpoint_rad,
