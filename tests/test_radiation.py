@@ -462,3 +462,21 @@ def test_saved_model_and_report(tmp_path: Path, synthetic: rad.RadiationModel) -
     assert {e["element"] for e in report["element"]} == {"(1,1)", "(2,2)", "(6,6)", "(2,6)"}
     for e in report["element"]:
         assert e["r2_A"] >= rad.R2_TARGET and e["r2_B"] >= rad.R2_TARGET
+
+
+def test_dpgw_radiation_command_writes_the_model_beside_the_data(tmp_path: Path, capsys) -> None:
+    from dpgw.cli import main
+
+    A3, B3 = synthetic_data()
+    six = np.ix_(rad.SIX_DOF_INDEX, rad.SIX_DOF_INDEX)
+    A, B = np.zeros((6, 6, len(W_DATA))), np.zeros((6, 6, len(W_DATA)))
+    A[six], B[six] = A3, B3
+    np.savez(tmp_path / "ship.npz", freqs=W_DATA, A=A, B=B)
+    assert main(["radiation", str(tmp_path / "ship.npz")]) == 0
+    out = capsys.readouterr().out
+    assert "passive: margin" in out and "(2,6)" in out
+    report = tomllib.loads((tmp_path / "ship_radiation.toml").read_text())
+    assert report["passivity"]["passive"] is True
+    assert (tmp_path / "ship_radiation.npz").is_file()
+    assert main(["radiation", str(tmp_path / "missing.npz")]) == 2
+    assert "missing.npz: no such file" in capsys.readouterr().err
