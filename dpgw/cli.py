@@ -12,9 +12,9 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from dpgw import cli_demo, cli_listen, cli_replay, cli_run, cli_sim, cli_tune
+from dpgw import cli_demo, cli_listen, cli_radiation, cli_replay, cli_run, cli_sim, cli_tune
 
-SUBCOMMANDS = [cli_run, cli_demo, cli_sim, cli_replay, cli_tune, cli_listen]
+SUBCOMMANDS = [cli_run, cli_demo, cli_sim, cli_replay, cli_tune, cli_listen, cli_radiation]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -876,7 +876,11 @@ class Pipeline:
         """Per-source age, counts, rejects by reason, and the alarms: the caller's, the controller's, and
         one per source that sent nothing yet or went stale."""
         alarms = list(alarms or []) + self.control_alarms
-        alarms += [reason for at_ns, reason in self._refusals_shown if now_ns - at_ns < REFUSAL_ALARM_NS]
+        alarms += [
+            reason
+            for at_ns, reason in (*self._refusals_shown, *self._refusals)  # (taken for the log, or not yet)
+            if now_ns - at_ns < REFUSAL_ALARM_NS
+        ]
         references: dict[str, list[ReferenceStatus]] = {}
         for name, states in self.monitor.states().items():
             references[name] = [

@@ -1,0 +1,54 @@
+"""``dpgw radiation``: identify a vessel's fluid-memory model from A(ω), B(ω) and write it beside the data."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from observers import radiation
+from wire.hydro import HydroError, load_hydro, save_radiation_model
+
+NAME = "radiation"
+HELP = "identify the fluid-memory (radiation) model from added mass and damping data"
+DESCRIPTION = (
+    "Fit K(jω) = B(ω) + jω(A(ω) − A(∞)) of surge, sway and yaw as a stable, passive state-space "
+    "model (A(∞) estimated, order chosen automatically), print the fit and write the model as "
+    "STEM.npz (matrices) and STEM.toml (report). Plots of the fit: bench/radiation_fit.py."
+)
+EPILOG = "example:\n  dpgw radiation supply_hydro.npz   # writes supply_hydro_radiation.npz and .toml"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("hydro", type=Path, help="A(ω), B(ω): the project's .npz or an MSS vessel .mat")
+    p.add_argument(
+        "--out", type=Path, metavar="STEM", help="output stem (default: HYDRO's stem + _radiation)"
+    )
+    p.add_argument("--max-order", type=int, default=radiation.MAX_ORDER, help="order cap per element")
+    p.add_argument("--r2", type=float, default=radiation.R2_TARGET, help="R² an order must reach on A and B")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        hydro = load_hydro(args.hydro)
+    except HydroError as exc:
+        print(f"dpgw radiation: {exc}", file=sys.stderr)
+        return 2
+    model = radiation.identify(hydro.freqs, hydro.A, hydro.B, max_order=args.max_order, r2_target=args.r2)
+    print(
+        f"{'element':8s} {'DOFs':11s} {'order':>5s} {'R² A':>7s} {'R² B':>7s} {'A(∞)':>11s}  excluded (rad/s)"
+    )
+    for row in model.report():
+        excluded = ", ".join(f"{v:.3f}" for v in row["excluded_w"]) or "none"  # type: ignore[attr-defined]
+        print(
+            f"{row['element']:8s} {row['dofs']:11s} {row['order']:>5d} {row['r2_A']:7.4f} {row['r2_B']:7.4f} "
+            f"{row['A_inf']:11.4g}  {excluded}"
+        )
+    p = model.passivity
+    state = "passive" if p.passive else "NOT passive"
+    print(f"{state}: margin {p.margin:.4f} at {p.margin_w:.3g} rad/s, enforcement: {p.enforced}")
+    stem = args.out or args.hydro.with_name(args.hydro.stem + "_radiation")
+    npz, toml = save_radiation_model(model, stem)
+    print(f"wrote {npz} and {toml}")
+    return 0 if p.passive else 1
