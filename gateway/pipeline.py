@@ -26,7 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from gateway.config import ArdupilotMap, ControlConfig, GatewayConfig
+from gateway.commands import CommandGate
+from gateway.config import ArdupilotMap, CommandsConfig, ControlConfig, GatewayConfig
 from gateway.control.allocation import AllocationResult, PseudoInverseAllocator, QPAllocator, ThrusterCommand
 from gateway.control.controller import ControllerTuning, DPController
 from gateway.fusion import NS, Fusion
@@ -39,6 +40,7 @@ from wire.codecs import nmea as nmea_codec
 from wire.codecs.nmea_framing import NmeaFramer
 from wire.geodesy import LocalFrame
 from wire.messages import (
+    CommandStatus,
     Datum,
     LocationFix,
     Measurement,
@@ -116,6 +118,8 @@ class SourceSpec:
     signing_key: bytes | None = None
     allow_unsigned: bool = True
     ardupilot: mv.ArduPilotWiring | None = None  # ArduPilot ESC / servo outputs -> the vessel's thrusters
+    system_id: int | None = None  # MAVLink: frames from another system are rejected (None: any)
+    component_id: int | None = None  # MAVLink: frames from another component are rejected (None: any)
 
     @cached_property
     def timeout_ns(self) -> int:
@@ -135,6 +139,8 @@ class PipelineSpec:
     """More observers fed the same y and τ (replay: side by side), published on /dp/estimates/<label>."""
     control: ControlConfig | None = None
     """DP controller and allocation; None: estimation only."""
+    commands: CommandsConfig = field(default_factory=CommandsConfig)
+    """Which command inputs are taken (none by default) and their limits (`gateway.commands`)."""
 
     @classmethod
     def from_config(cls, config: GatewayConfig) -> PipelineSpec:
@@ -150,6 +156,8 @@ class PipelineSpec:
                 signing_key=sc.signing_key,
                 allow_unsigned=sc.allow_unsigned,
                 ardupilot=_wiring(sc.ardupilot),
+                system_id=sc.system_id,
+                component_id=sc.component_id,
             )
             for sc in config.sources
         )
@@ -172,6 +180,7 @@ class PipelineSpec:
             datum=datum,
             reference_point_m=config.reference_point_m,
             control=config.control,
+            commands=config.commands,
         )
 
 
@@ -216,6 +225,10 @@ class Pipeline:
         self.setpoint: dict[str, Any] | None = None
         self.manual_tau = np.zeros(3)
         self.estimates = 0
+        self.commands = CommandGate(
+            spec.commands.accept, spec.commands.max_setpoint_distance_m, spec.vessel
+        )
+        self.estimate_status: str | None = None  # of the last published estimate (the DP-mode check)
         self._last_fix_ns: dict[str, int] = {}
         cc = spec.control
         self.controller: DPController | None = None
@@ -352,6 +365,12 @@ class Pipeline:
         valid_ns = spec.timeout_ns
         rx_ns = ev.rx_ns
         for msg in msgs:
+            if spec.system_id is not None and msg.get_srcSystem() != spec.system_id:
+                c.rejected["other system"] += 1  # a second vehicle or a forger on the link
+                continue
+            if spec.component_id is not None and msg.get_srcComponent() != spec.component_id:
+                c.rejected["other component"] += 1
+                continue
             c.received += 1
             for r in mv.reports(msg, spec.ardupilot):
                 if isinstance(r, mv.ThrusterReport):
@@ -397,17 +416,24 @@ class Pipeline:
         self._parser_rejects[name] = total
 
     def _control(self, ev: ControlEvent) -> None:
-        if ev.key == "mode" and ev.payload in ("standby", "dp", "manual"):
-            self.mode = ev.payload
-        elif ev.key == "setpoint" and isinstance(ev.payload, dict):
-            self.setpoint = ev.payload
-            self._pending_setpoint = ev.payload
-        elif ev.key == "tau" and isinstance(ev.payload, dict):
-            try:
-                tau = np.array([float(ev.payload[k]) for k in ("X", "Y", "N")])
-            except (KeyError, TypeError, ValueError):
-                return
-            if np.all(np.isfinite(tau)):
+        """A command input, taken only if `gateway.commands` finds nothing wrong (refusals are counted
+        there, with the reason, for `/status` and the caller's log)."""
+        gate = self.commands
+        if gate.admit(ev.key, ev.payload) is not None:
+            return
+        if ev.key == "mode":
+            if gate.check_mode(ev.payload, self.observer.initialized, self.estimate_status) is None:
+                self.mode = ev.payload
+                gate.accepted("mode")
+        elif ev.key == "setpoint":
+            # the distance from the present position is checked when it is applied (`_control_step`):
+            # a setpoint may arrive before the first estimate
+            if gate.check_setpoint_shape(ev.payload) is None:
+                self._pending_setpoint = ev.payload
+        elif ev.key == "tau":
+            tau = gate.check_tau(ev.payload)
+            if isinstance(tau, np.ndarray):
+                gate.accepted("tau")
                 self.manual_tau = tau
                 if self.mode == "manual" and self.controller is None:
                     self.fusion.set_tau_demand(tau)
@@ -442,6 +468,7 @@ class Pipeline:
         if est.status != STATUS_NAMES[0]:
             self.estimates += 1
             estimate = self._estimate(self.spec.observer_name, self.observer, est, now_ns)
+            self.estimate_status = estimate.status
             out.append(Output("/dp/estimate", estimate, now_ns))
             if (
                 estimate.lat_deg is not None
@@ -505,11 +532,15 @@ class Pipeline:
         self._last_control_ns = now_ns
         if ctl.mode != self.mode:
             ctl.set_mode(self.mode, tau_now=self.fusion.tau_demand)
-        if self._pending_setpoint is not None:
-            target = self._setpoint_ned(self._pending_setpoint)
+        pending = self._pending_setpoint
+        if pending is not None:
+            target = self._setpoint_ned(pending)
             if target is not None:
-                ctl.set_setpoint(target)
                 self._pending_setpoint = None
+                if self.commands.check_setpoint_distance(target, est.eta) is None:
+                    ctl.set_setpoint(target)
+                    self.setpoint = pending
+                    self.commands.accepted("setpoint")
         prev = self.allocation
         eta_in, nu_in = est.eta, est.nu
         bias_in: np.ndarray | None = est.bias
@@ -637,6 +668,11 @@ class Pipeline:
             estimates=self.estimates,
             sources={name: c.as_message(now_ns) for name, c in self.counters.items()},
             alarms=list(alarms),
+            commands=CommandStatus(
+                accepted=dict(self.commands.counters.accepted),
+                refused=dict(self.commands.counters.refused),
+                last_refused=self.commands.counters.last_refused,
+            ),
         )
 
 

@@ -29,7 +29,7 @@ from typing import Any
 
 import zenoh
 
-from gateway.bus import make_config, open_session
+from gateway.bus import command_acl, make_config, open_session
 from gateway.config import GatewayConfig, ZenohConfig
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from gateway.sources import Chunk, Source, open_source
@@ -47,13 +47,25 @@ every chunk of a 50 Hz source cannot flood the log."""
 
 
 def zenoh_config(z: ZenohConfig) -> zenoh.Config:
-    """The `zenoh.Config` of the configured session (`gateway.bus.make_config`); opens nothing."""
+    """The `zenoh.Config` of the configured session (`gateway.bus.make_config`); opens nothing.
+
+    The gateway's session never dials the peers it discovers (consoles and tools come to it, on the
+    listeners the config names: loopback by default); with ``commanders``, only they may put on the
+    command keys."""
+    acl = None
+    if z.commanders:
+        acl = command_acl([f"{z.prefix}/{key}" for key in INPUT_KEYS], z.commanders)
     return make_config(
         mode=z.mode,
         connect=z.connect,
         listen=z.listen,
         multicast_scouting=z.multicast_scouting,
         config_file=z.config_file,
+        dial_scouted=False,
+        users_file=z.users_file,
+        user=z.user,
+        password=z.password,
+        access_control=acl,
     )
 
 
@@ -92,6 +104,12 @@ class GatewayService:
                 mav = mv.encoder(src_system=255, src_component=190)
                 if sc.signing_key is not None:
                     mv.setup_signing(mav, sc.signing_key, link_id=1)
+                else:  # the config refuses this unless allow_unsigned = true was written
+                    log.warning(
+                        "source %s: thruster commands go out UNSIGNED (allow_unsigned = true): anyone who "
+                        "can write to this link can drive the thrusters; set a signing_key",
+                        sc.name,
+                    )
                 self._command_links[sc.name] = mav
         self.log: McapLogWriter | None = None
         self.published = 0
@@ -215,6 +233,12 @@ class GatewayService:
         return alarms
 
     def _handle(self, item: Chunk | ControlEvent) -> None:
+        self._handle_item(item)
+        # a setpoint is refused when it is applied (its distance needs the estimate), so after any item
+        for r in self.pipeline.commands.take_refusals():
+            log.warning("command refused: %s", r.text)
+
+    def _handle_item(self, item: Chunk | ControlEvent) -> None:
         if isinstance(item, ControlEvent):
             ev = ControlEvent(self._now(item.rx_ns), item.key, item.payload)
             if self.log is not None:

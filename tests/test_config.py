@@ -195,7 +195,10 @@ def test_defaults_fill_in(tmp_path: Path) -> None:
     assert o.tuning.omega_c is None and o.tuning.bias_corner is None and o.tuning.velocity_injection is None
     assert [ch.ok for ch in o.checks] == [True, True]
     z = c.zenoh
-    assert (z.mode, z.connect, z.listen, z.config_file, z.multicast_scouting) == ("peer", (), (), None, True)
+    assert (z.mode, z.connect, z.config_file, z.multicast_scouting) == ("peer", (), None, True)
+    assert z.listen == ("tcp/127.0.0.1:0",)  # loopback only unless the config says otherwise
+    assert (z.users_file, z.user, z.password, z.commanders) == (None, "", "", ())
+    assert c.commands.accept == frozenset() and c.commands.max_setpoint_distance_m == 50.0
     assert z.prefix == "dp/mss_supply"
     assert c.log.path == tmp_path.resolve() / "logs" / "dpgw.mcap"
     assert (c.log.rotate_mb, c.log.rotate_minutes, c.log.flush_interval_s, c.log.compression) == (

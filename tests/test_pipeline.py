@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from gateway.bus import isolated_config, open_session
+from gateway.commands import tau_capacity
 from gateway.config import parse_config
 from gateway.pipeline import ControlEvent, Pipeline, PipelineSpec, RawEvent
 from wire.codecs import mavlink as mv
@@ -26,13 +27,17 @@ DATUM = (59.4, 10.5)
 KEY = bytes(range(32))
 
 
-def pipeline(sources: list[dict], vessel: str = "mss_supply") -> Pipeline:  # type: ignore[type-arg]
+ALL_INPUTS = {"accept": ["mode", "setpoint", "tau"]}
+
+
+def pipeline(sources: list[dict], vessel: str = "mss_supply", commands: dict = ALL_INPUTS) -> Pipeline:  # type: ignore[type-arg]
     tables = {
         "vessel": {"name": vessel},
         "datum": {"lat_deg": DATUM[0], "lon_deg": DATUM[1]},
         "sources": sources,
         "observer": {"wave_period_s": 8.0},
         "log": {"path": ""},
+        "commands": commands,
     }
     return Pipeline(PipelineSpec.from_config(parse_config(tables, base_dir=Path.cwd())))
 
@@ -218,7 +223,10 @@ def test_manual_tau_is_allocated_and_is_the_observers_input() -> None:
 def test_demand_beyond_capacity_gives_closest_tau_an_alarm_and_no_nan() -> None:
     p = pipeline([nmea_src("gps", ["position", "heading"])])
     p.feed(ControlEvent(T0, "mode", "manual"))
-    p.feed(ControlEvent(T0, "tau", {"X": 5e6, "Y": 3e6, "N": 1e9}))  # far beyond six thrusters
+    # each DOF within what the thrusters give alone (gateway.commands.tau_capacity), but not all together
+    cap = tau_capacity(p.spec.vessel)
+    assert cap is not None
+    p.feed(ControlEvent(T0, "tau", dict(zip("XYN", (0.9 * cap).tolist(), strict=True))))
     out = []
     for k in range(30):
         out += p.feed(RawEvent(T0 + k * S // 5, "gps", gga_at(0.0, 0.0) + enc.hdt("HE", 0.3).encode()))

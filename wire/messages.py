@@ -57,6 +57,7 @@ __all__ = [
     "Record",
     "Setpoint",
     "SourceStatus",
+    "CommandStatus",
     "Status",
     "Thruster",
     "ThrusterCommand",
@@ -296,6 +297,15 @@ class SourceStatus(Record, kw_only=True):
     bytes: Annotated[int, doc("Bytes received (count).")]
 
 
+class CommandStatus(Record, kw_only=True):
+    accepted: Annotated[dict[str, int], doc('Command inputs taken, by key (count), e.g. {"mode": 2}.')]
+    refused: Annotated[
+        dict[str, int],
+        doc('Command inputs refused, by "key: reason" (count), e.g. {"setpoint: too far": 1}.'),
+    ]
+    last_refused: Annotated[str | None, doc("Why the last refused input was refused; null if none.")] = None
+
+
 class Status(Message, kw_only=True):
     """Gateway health (Zenoh `<prefix>/status`, also the answer to a query on that key)."""
 
@@ -311,6 +321,9 @@ class Status(Message, kw_only=True):
         list[str | dict[str, Any]],
         doc("Active alarms: short strings, or objects with at least `code` and `message`."),
     ]
+    commands: Annotated[
+        CommandStatus | None, doc("The command inputs (mode, setpoint, τ): taken, refused and why.")
+    ] = None
 
 
 class Time(Record, kw_only=True):

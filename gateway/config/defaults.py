@@ -33,11 +33,16 @@ DEFAULTS: dict[str, dict[str, Any]] = {
     "zenoh": {
         "mode": "peer",
         "connect": [],
-        "listen": [],
+        "listen": ["tcp/127.0.0.1:0"],
         "config_file": "",
         "prefix": "",
         "multicast_scouting": True,
+        "users_file": "",
+        "user": "",
+        "password_file": "",
+        "commanders": [],
     },
+    "commands": {"accept": [], "max_setpoint_distance_m": 50.0},
     "log": {
         "path": "logs/dpgw.mcap",
         "rotate_mb": 1024,

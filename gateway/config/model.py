@@ -26,6 +26,7 @@ OBSERVER_TYPES = _OBSERVER_TYPES  # every observer registered in observers.facto
 COMPRESSIONS = ("zstd", "lz4", "none")
 ZENOH_MODES = ("peer", "client")
 CONTROL_MODES = ("standby", "dp", "manual")
+COMMAND_INPUTS = ("mode", "setpoint", "tau")
 ALLOCATORS = ("qp", "pseudo_inverse")
 FEEDBACKS = ("estimate", "measurement")
 BAUD_RATES = (
@@ -76,7 +77,9 @@ class SourceConfig:
     ``transport`` is the kind of link the URL names: ``serial``, ``udp``, ``tcp``, ``tcp-listen``, ``file``
     (the gateway's URLs) or ``pymavlink`` (a pymavlink connection string, MAVLink only). ``url`` is as
     written, except that a relative ``file:`` path is made absolute (``file:///...``).
-    ``system_id`` None accepts any MAVLink system. ``signing_key`` is the 32-byte MAVLink 2 signing secret.
+    ``system_id`` / ``component_id`` None accept any MAVLink system / component. ``signing_key`` is the
+    32-byte MAVLink 2 signing secret. ``allow_unsigned``: with a key, also accept unsigned frames; without
+    one, on a link with ``commands``, send the thruster commands unsigned (the operator's written choice).
     """
 
     name: str
@@ -89,6 +92,7 @@ class SourceConfig:
     allow_missing_checksum: bool = False
     priority: int = 1
     system_id: int | None = None
+    component_id: int | None = None
     signing_key: bytes | None = field(default=None, repr=False)
     allow_unsigned: bool = False
     ardupilot: ArdupilotMap | None = None
@@ -132,6 +136,14 @@ class ZenohConfig:
     listen: tuple[str, ...] = ()
     config_file: Path | None = None
     multicast_scouting: bool = True
+    users_file: Path | None = None
+    """Zenoh user/password dictionary (``user:password`` lines): every peer must authenticate as one."""
+    user: str = ""
+    password: str = field(default="", repr=False)
+    """This session's own credentials, for a router or peer that requires them (read from a file)."""
+    commanders: tuple[str, ...] = ()
+    """Users (of ``users_file``) whose puts on the command keys are let through; empty: no access
+    control (every peer that may connect may command, if ``[commands]`` accepts the input)."""
 
 
 @dataclass(frozen=True)
@@ -175,6 +187,15 @@ class ControlConfig:
 
 
 @dataclass(frozen=True)
+class CommandsConfig:
+    """Which Zenoh command inputs the pipeline takes (none unless listed) and the setpoint's largest
+    distance from the present position (m)."""
+
+    accept: frozenset[str] = frozenset()
+    max_setpoint_distance_m: float = 50.0
+
+
+@dataclass(frozen=True)
 class StatusConfig:
     """How often ``<prefix>/status`` is published (Hz)."""
 
@@ -201,6 +222,7 @@ class GatewayConfig:
     status: StatusConfig
     path: Path
     control: ControlConfig = field(default_factory=ControlConfig)
+    commands: CommandsConfig = field(default_factory=CommandsConfig)
 
     def sources_for(self, role: str) -> tuple[SourceConfig, ...]:
         """The sources with ``role``, in failover order (lowest priority first)."""

@@ -42,6 +42,7 @@ from observers.vessel import builtin_vessels
 
 __all__ = [
     "MISSING",
+    "CommandsTable",
     "ControlTable",
     "DatumTable",
     "LogTable",
@@ -313,6 +314,7 @@ class SourceTable(_Section):
     allow_missing_checksum: bool = boolean(_SRC["allow_missing_checksum"])
     priority: int = integer(_SRC["priority"], lo=0)
     system_id: int = integer(None, lo=1, hi=255)
+    component_id: int = integer(None, lo=1, hi=255)
     signing_key: str = text(None, "64 hexadecimal characters (32 bytes)")
     allow_unsigned: bool = boolean(_SRC["allow_unsigned"])
     ardupilot: Table = text(None, "an [ardupilot] table")
@@ -366,6 +368,10 @@ class ZenohTable(_Section):
     config_file: str = text(_Z["config_file"], "a Zenoh JSON5 config file path")
     prefix: str = text(_Z["prefix"], 'a key expression such as "dp/my_ship"')
     multicast_scouting: bool = boolean(_Z["multicast_scouting"])
+    users_file: str = text(_Z["users_file"], "a Zenoh user:password dictionary file path")
+    user: str = text(_Z["user"], "a Zenoh user name")
+    password_file: str = text(_Z["password_file"], "a file holding this session's Zenoh password")
+    commanders: list[str] = text(_Z["commanders"], 'an array of user names, e.g. ["bridge"]')
 
 
 _L = DEFAULTS["log"]
@@ -399,3 +405,15 @@ class ControlTable(_Section):
     bandwidth_rad_s: PerDof = per_dof(unit="rad/s")
     damping: float = number(_C["damping"], lo=0.3, hi=3.0)
     feedback: str = choice(_C["feedback"], FEEDBACKS)
+
+
+_CMD = DEFAULTS["commands"]
+
+
+class CommandsTable(_Section):
+    """``[commands]``: which Zenoh command inputs are taken, and the setpoint's distance limit."""
+
+    accept: list[str] = text(_CMD["accept"], 'an array of inputs from "mode", "setpoint", "tau"')
+    max_setpoint_distance_m: float = number(
+        _CMD["max_setpoint_distance_m"], lo=0.0, hi=10000.0, lo_open=True, unit="m"
+    )

@@ -31,7 +31,7 @@ from wire.urls import SOURCE_OPTIONS, Endpoint, UrlError, file_rate, parse_url, 
 
 __all__ = ["read_sources"]
 
-_MAVLINK_ONLY = ("system_id", "signing_key", "allow_unsigned", "ardupilot", "commands")
+_MAVLINK_ONLY = ("system_id", "component_id", "signing_key", "allow_unsigned", "ardupilot", "commands")
 _EXAMPLE = '[[sources]] name = "dgps1", url = "serial:///dev/ttyUSB0?baud=4800", protocol = "nmea", ...'
 
 
@@ -206,11 +206,21 @@ def _read_source(
                 + (", not all hexadecimal" if re.search(r"[^0-9a-fA-F]", key_text) else "")
                 + ")",
             )
-    if v["allow_unsigned"] and "signing_key" not in t and protocol == "mavlink":
-        p.add(
-            f"{path}.allow_unsigned",
-            "has no effect without a signing_key (expected a signing_key, or no allow_unsigned)",
-        )
+    if protocol == "mavlink" and "signing_key" not in t:
+        # Without a key, allow_unsigned means only one thing: thruster commands go out unsigned. Anyone who
+        # can write to the link can then drive the thrusters, so that is written down, never a default.
+        if v["commands"] and not v["allow_unsigned"]:
+            p.add(
+                f"{path}.commands",
+                "thruster commands would go out unsigned (expected a signing_key, or allow_unsigned = true "
+                "to send them unsigned on a link nobody else can reach)",
+            )
+        elif v["allow_unsigned"] and not v["commands"]:
+            p.add(
+                f"{path}.allow_unsigned",
+                "has no effect without a signing_key or commands = true (expected a signing_key, or no "
+                "allow_unsigned)",
+            )
     if v["commands"] and roles is not None and "thrusters" not in roles:
         p.add(f"{path}.commands", 'sends thruster commands (expected "thrusters" in roles)')
     ardupilot: ArdupilotMap | None = None
@@ -234,6 +244,7 @@ def _read_source(
         allow_missing_checksum=v["allow_missing_checksum"],
         priority=v["priority"],
         system_id=v["system_id"],
+        component_id=v["component_id"],
         signing_key=signing_key,
         allow_unsigned=v["allow_unsigned"],
         ardupilot=ardupilot,
