@@ -55,7 +55,7 @@ def make_config(
     if listen:
         conf["listen"] = {"endpoints": list(listen)}
     if not dial_scouted:
-        nobody = {"router": [], "peer": []}
+        nobody: dict[str, list[str]] = {"router": [], "peer": []}
         conf["scouting"]["multicast"]["autoconnect"] = nobody
         conf["scouting"]["gossip"] = {"autoconnect": nobody}
     usrpwd: dict[str, str] = {}
@@ -100,13 +100,28 @@ def command_acl(command_keys: Sequence[str], commanders: Sequence[str]) -> dict[
         "enabled": True,
         "default_permission": "deny",
         "rules": [
-            {"id": "out", "permission": "allow", "flows": ["egress"], "messages": list(ALL_MESSAGES),
-             "key_exprs": ["**"]},
-            {"id": "in", "permission": "allow", "flows": ["ingress"], "messages": reading,
-             "key_exprs": ["**"]},
-            {"id": "command", "permission": "allow", "flows": ["ingress"], "messages": ["put"],
-             "key_exprs": list(command_keys)},
-        ],  # fmt: skip
+            {
+                "id": "out",
+                "permission": "allow",
+                "flows": ["egress"],
+                "messages": list(ALL_MESSAGES),
+                "key_exprs": ["**"],
+            },
+            {
+                "id": "in",
+                "permission": "allow",
+                "flows": ["ingress"],
+                "messages": reading,
+                "key_exprs": ["**"],
+            },
+            {
+                "id": "command",
+                "permission": "allow",
+                "flows": ["ingress"],
+                "messages": ["put"],
+                "key_exprs": list(command_keys),
+            },
+        ],
         "subjects": [{"id": "anyone"}, {"id": "commanders", "usernames": list(commanders)}],
         "policies": [
             {"id": "everyone", "rules": ["out", "in"], "subjects": ["anyone"]},

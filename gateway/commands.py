@@ -83,9 +83,7 @@ class Refusal:
 class CommandGate:
     """Checks command inputs against the config and the present estimate; counts what it refuses."""
 
-    def __init__(
-        self, accept: frozenset[str], max_setpoint_distance_m: float, vessel: VesselModel
-    ) -> None:
+    def __init__(self, accept: frozenset[str], max_setpoint_distance_m: float, vessel: VesselModel) -> None:
         self.accept = accept
         self.max_setpoint_distance_m = max_setpoint_distance_m
         self.capacity = tau_capacity(vessel)
@@ -122,7 +120,9 @@ class CommandGate:
         expected = "expected {north_m, east_m, heading_deg} or {lat_deg, lon_deg, heading_deg}"
         if not isinstance(payload, Mapping):
             return self.refuse("setpoint", "invalid", f"setpoint {_show(payload)}: {expected}")
-        keys = ("north_m", "east_m") if "north_m" in payload or "east_m" in payload else ("lat_deg", "lon_deg")
+        keys = (
+            ("north_m", "east_m") if "north_m" in payload or "east_m" in payload else ("lat_deg", "lon_deg")
+        )
         values: dict[str, float] = {}
         for k in (*keys, "heading_deg"):
             v = payload.get(k)
@@ -159,7 +159,9 @@ class CommandGate:
         for k in ("X", "Y", "N"):
             v = payload.get(k)
             if isinstance(v, bool) or not isinstance(v, int | float):
-                return self.refuse("tau", "invalid", f"tau {_show(payload)}: expected {{X, Y, N}} in N, N, Nm")
+                return self.refuse(
+                    "tau", "invalid", f"tau {_show(payload)}: expected {{X, Y, N}} in N, N, Nm"
+                )
             if not math.isfinite(v):
                 return self.refuse("tau", "not finite", f"tau {k} = {v!r} is not finite")
             tau.append(float(v))

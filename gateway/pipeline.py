@@ -225,9 +225,7 @@ class Pipeline:
         self.setpoint: dict[str, Any] | None = None
         self.manual_tau = np.zeros(3)
         self.estimates = 0
-        self.commands = CommandGate(
-            spec.commands.accept, spec.commands.max_setpoint_distance_m, spec.vessel
-        )
+        self.commands = CommandGate(spec.commands.accept, spec.commands.max_setpoint_distance_m, spec.vessel)
         self.estimate_status: str | None = None  # of the last published estimate (the DP-mode check)
         self._last_fix_ns: dict[str, int] = {}
         cc = spec.control

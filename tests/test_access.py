@@ -15,11 +15,11 @@ from typing import Any
 
 import pytest
 import zenoh
+from conftest import wait_for
 
 from gateway.bus import open_session
 from gateway.config import parse_config
 from gateway.service import GatewayService, zenoh_config
-from conftest import wait_for
 
 PREFIX = "dp/acl"
 
@@ -62,9 +62,7 @@ def status(session: zenoh.Session) -> dict[str, Any] | None:
 def gateway(tmp_path: Path) -> Iterator[tuple[GatewayService, int]]:
     (tmp_path / "users.txt").write_text("captain:aye-aye\nwatch:look-only\n")
     port = free_port()
-    t = tables(
-        {"listen": [f"tcp/127.0.0.1:{port}"], "users_file": "users.txt", "commanders": ["captain"]}
-    )
+    t = tables({"listen": [f"tcp/127.0.0.1:{port}"], "users_file": "users.txt", "commanders": ["captain"]})
     service = GatewayService(parse_config(t, base_dir=tmp_path))
     service.start()  # opens its own session from the config: auth and ACL are the gateway's, not the test's
     loop = threading.Thread(target=service.run)
@@ -154,3 +152,14 @@ def test_the_default_session_listens_on_loopback_only(tmp_path: Path) -> None:
         assert opened <= LOOPBACK, f"listening beyond loopback: {opened}"
     finally:
         session.close()
+
+
+def test_unsigned_mavlink_commands_warn_at_start_up(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    t = tables({})
+    t["sources"].append(
+        {"name": "thr", "url": "udpin:127.0.0.1:0", "protocol": "mavlink", "roles": ["thrusters"],
+         "commands": True, "allow_unsigned": True}
+    )  # fmt: skip
+    with caplog.at_level("WARNING", logger="dpgw"):
+        GatewayService(parse_config(t, base_dir=tmp_path))
+    assert any("thr: thruster commands go out UNSIGNED" in r.getMessage() for r in caplog.records)

@@ -182,6 +182,24 @@ def test_dialect_and_ardupilot_thruster_feedback_give_tau() -> None:
     np.testing.assert_allclose(tau, v.generalized_force([2.0, 0.5, 0.5], [math.pi / 2, 0.0, math.pi / 2]))
 
 
+def test_frames_of_another_mavlink_system_or_component_are_rejected_and_counted() -> None:
+    p = pipeline(
+        [
+            nmea_src("gps", ["position", "heading"]),
+            mav_src("thr", ["thrusters"], system_id=1, component_id=7),
+        ],
+        vessel="cybership2",
+    )
+    intruder, other_part, drive = mv.encoder(2, 7), mv.encoder(1, 8), mv.encoder(1, 7)
+    p.feed(RawEvent(T0, "thr", mv.azimuth_status_frame(intruder, 0, 1, 9.0, 10.0, 0.0, 0)))
+    p.feed(RawEvent(T0 + 1, "thr", mv.azimuth_status_frame(other_part, 0, 1, 9.0, 10.0, 0.0, 0)))
+    assert 1 not in p.fusion.thrust
+    p.feed(RawEvent(T0 + 2, "thr", mv.azimuth_status_frame(drive, 0, 1, 1.5, 10.0, 0.0, 0)))
+    assert p.fusion.thrust[1][0] == 1.5
+    c = p.counters["thr"]
+    assert dict(c.rejected) == {"other system": 1, "other component": 1} and c.received == 1
+
+
 def test_signed_mavlink_link_rejects_unsigned_and_forged_frames() -> None:
     p = pipeline(
         [nmea_src("gps", ["position", "heading"]), mav_src("thr", ["thrusters"], signing_key=KEY.hex())],

@@ -381,7 +381,9 @@ def _read_users(p: Problems, path: Path) -> set[str] | None:
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
-        p.add("zenoh.users_file", f"cannot read {path}: {exc.strerror or exc} (expected a user:password file)")
+        p.add(
+            "zenoh.users_file", f"cannot read {path}: {exc.strerror or exc} (expected a user:password file)"
+        )
         return None
     users: set[str] = set()
     bad = 0
@@ -475,6 +477,4 @@ def _read_commands(p: Problems, data: Mapping[str, Any]) -> CommandsConfig | Non
         p.add("commands.accept", f"an input is repeated (expected each once, got {show(accept)})")
     if len(p) != n0:
         return None
-    return CommandsConfig(
-        accept=frozenset(accept), max_setpoint_distance_m=v["max_setpoint_distance_m"]
-    )
+    return CommandsConfig(accept=frozenset(accept), max_setpoint_distance_m=v["max_setpoint_distance_m"])
