@@ -72,6 +72,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def demo_config(scenario: Any, pty_device: str, args: argparse.Namespace) -> dict[str, Any]:
     cfg = default_config(scenario.vessel.name)
+    # the demo is a simulated vessel on this machine: it takes setpoints, modes and τ (still checked)
+    cfg["commands"] = {"accept": ["mode", "setpoint", "tau"]}
     dgps = scenario.dgps[0]
     cfg["datum"] = {"lat_deg": scenario.datum.lat_deg, "lon_deg": scenario.datum.lon_deg}
     cfg["sources"] = [

@@ -84,6 +84,7 @@ def gateway_tables(scenario: Scenario, **control: Any) -> dict[str, Any]:
         "sources": sources,
         "observer": {"wave_period_s": scenario.sea[0][1].tp_s},
         "control": {"initial_mode": "dp", **control},
+        "commands": {"accept": ["mode", "setpoint", "tau"]},
         "log": {"path": ""},
     }
 

@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from gateway import command_checks
-from gateway.config import ArdupilotMap, ControlConfig, GatewayConfig, IntegrityConfig
+from gateway.commands import CommandGate
+from gateway.config import ArdupilotMap, CommandsConfig, ControlConfig, GatewayConfig, IntegrityConfig
 from gateway.control.allocation import AllocationResult, PseudoInverseAllocator, QPAllocator, ThrusterCommand
 from gateway.control.controller import ControllerTuning, DPController
 from gateway.fusion import NS, Fusion
@@ -43,6 +43,7 @@ from wire.codecs import nmea as nmea_codec
 from wire.codecs.nmea_framing import NmeaFramer
 from wire.geodesy import LocalFrame
 from wire.messages import (
+    CommandStatus,
     Datum,
     LocationFix,
     Measurement,
@@ -126,8 +127,8 @@ class SourceSpec:
     signing_key: bytes | None = None
     allow_unsigned: bool = True
     ardupilot: mv.ArduPilotWiring | None = None  # ArduPilot ESC / servo outputs -> the vessel's thrusters
-    system_id: int | None = None  # MAVLink: frames from another system are refused (None: any)
-    component_id: int | None = None  # MAVLink: frames from another component are refused (None: any)
+    system_id: int | None = None  # MAVLink: frames from another system are rejected (None: any)
+    component_id: int | None = None  # MAVLink: frames from another component are rejected (None: any)
 
     @cached_property
     def timeout_ns(self) -> int:
@@ -149,6 +150,8 @@ class PipelineSpec:
     """DP controller and allocation; None: estimation only."""
     integrity: IntegrityConfig = field(default_factory=IntegrityConfig)
     """Reference and feedback tests (`gateway.references`)."""
+    commands: CommandsConfig = field(default_factory=CommandsConfig)
+    """Which command inputs are taken (none by default) and their limits (`gateway.commands`)."""
 
     @classmethod
     def from_config(cls, config: GatewayConfig) -> PipelineSpec:
@@ -189,6 +192,7 @@ class PipelineSpec:
             reference_point_m=config.reference_point_m,
             control=config.control,
             integrity=config.integrity,
+            commands=config.commands,
         )
 
 
@@ -265,24 +269,14 @@ class Pipeline:
         self._parsers: dict[tuple[str, str], mv.FrameParser] = {}
         self._parser_seen: dict[tuple[str, str], Counter[str]] = {}
         self._parser_rejects: dict[tuple[str, str], int] = {}  # sum of _parser_seen, the fast check
-        self.commands_refused: Counter[str] = Counter()  # input key -> commands refused
-        self._refusals: list[tuple[int, str]] = []  # (receive time, reason), taken by `take_refusals`
-        self._refusals_shown: list[tuple[int, str]] = []
-        self._estimate_status: str | None = None  # of the last estimate (DP needs a healthy one)
-        self._last_eta: np.ndarray | None = None  # of the last estimate (setpoints are judged by it)
-        self._force_capacity = command_checks.force_capacity(spec.vessel)
-        ctl_cfg = spec.control
-        self._max_setpoint_distance_m = (
-            ctl_cfg.max_setpoint_distance_m
-            if ctl_cfg is not None
-            else command_checks.DEFAULT_MAX_SETPOINT_DISTANCE_M
-        )
         self.t0_ns: int | None = None
         self.last_ns = 0
         self.mode = "standby"
         self.setpoint: dict[str, Any] | None = None
         self.manual_tau = np.zeros(3)
         self.estimates = 0
+        self.commands = CommandGate(spec.commands.accept, spec.commands.max_setpoint_distance_m, spec.vessel)
+        self.estimate_status: str | None = None  # of the last published estimate (the DP-mode check)
         self._last_fix_ns: dict[str, int] = {}
         cc = spec.control
         self.controller: DPController | None = None
@@ -523,10 +517,10 @@ class Pipeline:
         rx_ns = ev.rx_ns
         for msg in msgs:
             if spec.system_id is not None and msg.get_srcSystem() != spec.system_id:
-                c.rejected["wrong_system"] += 1  # a CRC-valid frame from a system this link is not for
+                c.rejected["other system"] += 1  # a second vehicle or a forger on the link
                 continue
             if spec.component_id is not None and msg.get_srcComponent() != spec.component_id:
-                c.rejected["wrong_component"] += 1
+                c.rejected["other component"] += 1
                 continue
             c.received += 1
             for r in mv.reports(msg, spec.ardupilot):
@@ -574,36 +568,27 @@ class Pipeline:
         self._parser_rejects[key] = total
 
     def _control(self, ev: ControlEvent) -> None:
-        """A command from Zenoh: carried out, or refused with a reason (`gateway.command_checks`)."""
+        """A command input, taken only if `gateway.commands` finds nothing wrong (refusals are counted
+        there, with the reason, for `/status` and the caller's log)."""
+        gate = self.commands
+        if gate.admit(ev.key, ev.payload) is not None:
+            return
         if ev.key == "mode":
-            problem = command_checks.check_mode(ev.payload, self._estimate_status)
-            if problem is None:
+            if gate.check_mode(ev.payload, self.observer.initialized, self.estimate_status) is None:
                 self.mode = ev.payload
+                gate.accepted("mode")
         elif ev.key == "setpoint":
-            problem = None
-            if not isinstance(ev.payload, dict):
-                problem = "setpoint refused: expected an object"
-            elif self._last_eta is not None and ("north_m" in ev.payload or self.fusion.datum is not None):
-                target = self._setpoint_ned(ev.payload)
-                problem = command_checks.check_setpoint(target, self._last_eta, self._max_setpoint_distance_m)
-                if target is None:
-                    self._pending_setpoint = None
-            # A setpoint before the first estimate (a scripted start) or in lat/lon before the datum
-            # exists waits, and is judged when it is applied.
-            if problem is None:
-                self.setpoint = ev.payload
+            # the distance from the present position is checked when it is applied (`_control_step`):
+            # a setpoint may arrive before the first estimate
+            if gate.check_setpoint_shape(ev.payload) is None:
                 self._pending_setpoint = ev.payload
         elif ev.key == "tau":
-            tau, problem = command_checks.check_tau(ev.payload, self._force_capacity)
-            if tau is not None:
+            tau = gate.check_tau(ev.payload)
+            if isinstance(tau, np.ndarray):
+                gate.accepted("tau")
                 self.manual_tau = tau
                 if self.mode == "manual" and self.controller is None:
                     self.fusion.set_tau_demand(tau)
-        else:
-            problem = f"{ev.key}: not a command dpgw takes"
-        if problem is not None:
-            self.commands_refused[ev.key] += 1
-            self._refusals.append((ev.rx_ns, problem))
 
     # --- observer and outputs -------------------------------------------------------------------------------
 
@@ -643,8 +628,7 @@ class Pipeline:
         if est.status != STATUS_NAMES[0]:
             self.estimates += 1
             estimate = self._estimate(self.spec.observer_name, self.observer, est, now_ns, valid)
-            self._estimate_status = estimate.status
-            self._last_eta = est.eta
+            self.estimate_status = estimate.status
             out.append(Output("/dp/estimate", estimate, now_ns))
             if (
                 estimate.lat_deg is not None
@@ -708,17 +692,15 @@ class Pipeline:
         self._last_control_ns = now_ns
         if ctl.mode != self.mode:
             ctl.set_mode(self.mode, tau_now=self.fusion.tau_demand)
-        if self._pending_setpoint is not None:
-            target = self._setpoint_ned(self._pending_setpoint)
+        pending = self._pending_setpoint
+        if pending is not None:
+            target = self._setpoint_ned(pending)
             if target is not None:
-                problem = command_checks.check_setpoint(target, est.eta, self._max_setpoint_distance_m)
-                if problem is None:
-                    ctl.set_setpoint(target)
-                else:
-                    self.commands_refused["setpoint"] += 1
-                    self._refusals.append((now_ns, problem))
-                    self.setpoint = None
                 self._pending_setpoint = None
+                if self.commands.check_setpoint_distance(target, est.eta) is None:
+                    ctl.set_setpoint(target)
+                    self.setpoint = pending
+                    self.commands.accepted("setpoint")
         prev = self.allocation
         eta_in, nu_in = est.eta, est.nu
         bias_in: np.ndarray | None = est.bias
@@ -858,16 +840,6 @@ class Pipeline:
             now_ns,
         )
 
-    def take_refusals(self) -> list[tuple[int, str]]:
-        """Commands refused since the last call, (receive time ns, reason), for the caller to log. They
-        stay in /status as alarms for REFUSAL_ALARM_NS."""
-        if not self._refusals:  # the common case: asked after every chunk
-            return []
-        taken, self._refusals = self._refusals, []
-        self._refusals_shown = [r for r in self._refusals_shown if r[0] >= self.last_ns - REFUSAL_ALARM_NS]
-        self._refusals_shown += taken
-        return taken
-
     def status(self, now_ns: int, alarms: list[str] | None = None) -> Output:
         """The 1 Hz status output (the caller decides when); see `status_message`."""
         return Output("/dp/status", self.status_message(now_ns, alarms), now_ns)
@@ -876,11 +848,6 @@ class Pipeline:
         """Per-source age, counts, rejects by reason, and the alarms: the caller's, the controller's, and
         one per source that sent nothing yet or went stale."""
         alarms = list(alarms or []) + self.control_alarms
-        alarms += [
-            reason
-            for at_ns, reason in (*self._refusals_shown, *self._refusals)  # (taken for the log, or not yet)
-            if now_ns - at_ns < REFUSAL_ALARM_NS
-        ]
         references: dict[str, list[ReferenceStatus]] = {}
         for name, states in self.monitor.states().items():
             references[name] = [
@@ -912,13 +879,15 @@ class Pipeline:
             estimates=self.estimates,
             sources={name: c.as_message(now_ns) for name, c in self.counters.items()},
             alarms=list(alarms),
-            commands_refused=dict(self.commands_refused),
             references=references,
             events=events,
+            commands=CommandStatus(
+                accepted=dict(self.commands.counters.accepted),
+                refused=dict(self.commands.counters.refused),
+                last_refused=self.commands.counters.last_refused,
+            ),
         )
 
-
-REFUSAL_ALARM_NS = 10 * NS  # a refused command stays in /status's alarms this long
 
 MAX_SENDERS = 64
 """Senders per source that get a framer of their own; more (a scan, a flood of spoofed addresses) share

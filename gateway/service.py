@@ -22,7 +22,6 @@ import contextlib
 import json
 import logging
 import queue
-import re
 import threading
 import time
 from collections import Counter
@@ -30,7 +29,7 @@ from typing import Any
 
 import zenoh
 
-from gateway.bus import make_config, open_session
+from gateway.bus import command_acl, make_config, open_session
 from gateway.config import GatewayConfig, ZenohConfig
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from gateway.sources import Chunk, Source, open_source
@@ -48,23 +47,26 @@ every chunk of a 50 Hz source cannot flood the log."""
 
 
 def zenoh_config(z: ZenohConfig) -> zenoh.Config:
-    """The `zenoh.Config` of the configured session (`gateway.bus.make_config`); opens nothing."""
+    """The `zenoh.Config` of the configured session (`gateway.bus.make_config`); opens nothing.
+
+    The gateway's session never dials the peers it discovers (consoles and tools come to it, on the
+    listeners the config names: loopback by default); with ``commanders``, only they may put on the
+    command keys."""
+    acl = None
+    if z.commanders:
+        acl = command_acl([f"{z.prefix}/{key}" for key in INPUT_KEYS], z.commanders)
     return make_config(
         mode=z.mode,
         connect=z.connect,
         listen=z.listen,
         multicast_scouting=z.multicast_scouting,
         config_file=z.config_file,
+        dial_scouted=False,
+        users_file=z.users_file,
+        user=z.user,
+        password=z.password,
+        access_control=acl,
     )
-
-
-def _loopback(url: str) -> bool:
-    """Whether a source URL stays on this machine (then an unsigned link is no exposure worth a warning)."""
-    m = re.search(r"(?://|:)(\[?[0-9a-fA-F:.]+\]?|localhost)(?::\d+)", url)
-    if m is None:
-        return False
-    host = m.group(1).strip("[]")
-    return host == "localhost" or host.startswith("127.") or host == "::1"
 
 
 class GatewayService:
@@ -102,11 +104,10 @@ class GatewayService:
                 mav = mv.encoder(src_system=255, src_component=190)
                 if sc.signing_key is not None:
                     mv.setup_signing(mav, sc.signing_key, link_id=1)
-                else:  # the config refuses this unless allow_unsigned = true says it is meant
-                    log.log(
-                        logging.INFO if _loopback(sc.url) else logging.WARNING,
-                        "source %r sends thruster commands over an unsigned MAVLink link "
-                        "(allow_unsigned = true): anyone who can reach it can spoof feedback or the commands",
+                else:  # the config refuses this unless allow_unsigned = true was written
+                    log.warning(
+                        "source %s: thruster commands go out UNSIGNED (allow_unsigned = true): anyone who "
+                        "can write to this link can drive the thrusters; set a signing_key",
                         sc.name,
                     )
                 self._command_links[sc.name] = mav
@@ -246,6 +247,12 @@ class GatewayService:
         return alarms
 
     def _handle(self, item: Chunk | ControlEvent) -> None:
+        self._handle_item(item)
+        # a setpoint is refused when it is applied (its distance needs the estimate), so after any item
+        for r in self.pipeline.commands.take_refusals():
+            log.warning("command refused: %s", r.text)
+
+    def _handle_item(self, item: Chunk | ControlEvent) -> None:
         if isinstance(item, ControlEvent):
             ev = ControlEvent(self._now(item.rx_ns), item.key, item.payload)
             if self.log is not None:
@@ -253,8 +260,6 @@ class GatewayService:
                 self.log.write(f"/dp/{item.key}", body, ev.rx_ns, ev.rx_ns)
             try:
                 self._emit(self.pipeline.feed(ev))
-                for _, reason in self.pipeline.take_refusals():
-                    log.warning("command from %s refused: %s", item.key, reason)
             except Exception:
                 self._internal_error(f"input {item.key}", f"the {item.key} input {item.payload!r:.200}")
             return
@@ -268,8 +273,6 @@ class GatewayService:
                 self.log.write_raw_mavlink(item.source, item.data, rx, rx, peer=item.peer)
         try:
             self._emit(self.pipeline.feed(RawEvent(rx, item.source, item.data, peer=item.peer)))
-            for _, reason in self.pipeline.take_refusals():  # a setpoint judged when it was applied
-                log.warning("command refused: %s", reason)
         except Exception:
             self.pipeline.count_internal_error(item.source)
             self._internal_error(

@@ -195,7 +195,10 @@ def test_defaults_fill_in(tmp_path: Path) -> None:
     assert o.tuning.omega_c is None and o.tuning.bias_corner is None and o.tuning.velocity_injection is None
     assert [ch.ok for ch in o.checks] == [True, True]
     z = c.zenoh
-    assert (z.mode, z.connect, z.listen, z.config_file, z.multicast_scouting) == ("peer", (), (), None, True)
+    assert (z.mode, z.connect, z.config_file, z.multicast_scouting) == ("peer", (), None, True)
+    assert z.listen == ("tcp/127.0.0.1:0",)  # loopback only unless the config says otherwise
+    assert (z.users_file, z.user, z.password, z.commanders) == (None, "", "", ())
+    assert c.commands.accept == frozenset() and c.commands.max_setpoint_distance_m == 50.0
     assert z.prefix == "dp/mss_supply"
     assert c.log.path == tmp_path.resolve() / "logs" / "dpgw.mcap"
     assert (c.log.rotate_mb, c.log.rotate_minutes, c.log.flush_interval_s, c.log.compression) == (
@@ -967,33 +970,6 @@ def test_ardupilot_servo_calibration_defaults_and_limits(tmp_path: Path) -> None
     assert any("servo_neutral_us: not a pulse width" in p for p in problems_of(d, tmp_path))
 
 
-def test_thruster_commands_over_an_unsigned_link_must_be_meant(tmp_path: Path) -> None:
-    """commands = true without a signing key stops start-up with the key and the way out; with
-    allow_unsigned = true it is accepted (and the service warns at start-up)."""
-    d = base()
-    put(d, "sources.2.commands", True)
-    got = problems_of(d, tmp_path)
-    assert any(
-        "sources.thr.commands: sends thruster commands over an unsigned MAVLink link" in p for p in got
-    )
-    assert any("allow_unsigned = true" in p for p in got)
-    put(d, "sources.2.allow_unsigned", True)
-    assert parse(d, tmp_path).source("thr").commands
-    put(d, "sources.2.signing_key", KEY)
-    put(d, "sources.2.allow_unsigned", False)
-    assert parse(d, tmp_path).source("thr").signing_key == bytes.fromhex(KEY)
-
-
-def test_component_id_is_a_mavlink_key(tmp_path: Path) -> None:
-    d = base()
-    put(d, "sources.2.system_id", 7)
-    put(d, "sources.2.component_id", 191)
-    thr = parse(d, tmp_path).source("thr")
-    assert (thr.system_id, thr.component_id) == (7, 191)
-    put(d, "sources.0.component_id", 1)
-    assert any("sources.dgps1.component_id" in p for p in problems_of(d, tmp_path))
-
-
 def test_integrity_config_mistakes_name_the_key() -> None:
     tables = {
         "vessel": {"name": "mss_supply"},
@@ -1005,3 +981,67 @@ def test_integrity_config_mistakes_name_the_key() -> None:
         parse_config(tables, base_dir=Path.cwd())
     assert "integrity.median_m: out of range" in str(e.value)
     assert "integrity.gga_quality: not GGA quality codes" in str(e.value)
+
+
+# --- who may command: [commands], Zenoh users and commanders, unsigned MAVLink commands ------------------
+
+
+@pytest.mark.parametrize(
+    ("changes", "expected"),
+    [
+        ({"commands.accept": ["mode", "sepoint"]}, 'commands.accept[1]: not a command input, did you mean "setpoint"?'),  # noqa: E501
+        ({"commands.accept": ["tau", "tau"]}, "commands.accept: an input is repeated"),
+        ({"commands.max_setpoint_distance_m": 0}, "commands.max_setpoint_distance_m: out of range"),
+        ({"commands.enabled": True}, "commands.enabled: unknown key"),
+        ({"zenoh.commanders": ["captain"]}, "zenoh.commanders: needs zenoh.users_file"),
+        ({"zenoh.users_file": "users.txt", "zenoh.commanders": ["captian"]}, "zenoh.commanders[0]: not a user of"),  # noqa: E501
+        ({"zenoh.users_file": "nothing.txt"}, "zenoh.users_file: cannot read"),
+        ({"zenoh.users_file": "bad_users.txt"}, "zenoh.users_file: bad_users.txt line 2 is not user:password"),  # noqa: E501
+        ({"zenoh.user": "gw"}, "zenoh.user: given without zenoh.password_file"),
+        ({"zenoh.config_file": "z.json5", "zenoh.users_file": "users.txt"}, "zenoh.users_file: has no effect when zenoh.config_file is set"),  # noqa: E501
+        ({"sources.2.commands": True}, "sources.thr.commands: thruster commands would go out unsigned (expected a signing_key, or allow_unsigned = true"),  # noqa: E501
+        ({"sources.2.allow_unsigned": True}, "sources.thr.allow_unsigned: has no effect without a signing_key or commands = true"),  # noqa: E501
+        ({"sources.2.component_id": 0}, "sources.thr.component_id: out of range (expected an integer from 1 to 255"),  # noqa: E501
+        ({"sources.0.component_id": 1}, 'sources.dgps1.component_id: only for protocol "mavlink"'),
+    ],
+)  # fmt: skip
+def test_command_access_mistakes_stop_start_up(
+    changes: dict[str, Any], expected: str, tmp_path: Path
+) -> None:
+    (tmp_path / "users.txt").write_text("captain:secret\nwatch:other\n")
+    (tmp_path / "bad_users.txt").write_text("captain:secret\nno password here\n")
+    (tmp_path / "z.json5").write_text("{}")
+    data = base()
+    for path, value in changes.items():
+        put(data, path, value)
+    found = problems_of(data, tmp_path)
+    assert any(expected in line for line in found), found
+    assert not any("secret" in line for line in found), found  # a password is never echoed
+
+
+def test_command_access_that_is_fine(tmp_path: Path) -> None:
+    (tmp_path / "users.txt").write_text("captain:secret\nwatch:other\n")
+    (tmp_path / "gw.password").write_text("gateway-secret\n")
+    data = base()
+    put(data, "zenoh.users_file", "users.txt")
+    put(data, "zenoh.commanders", ["captain"])
+    put(data, "zenoh.user", "gw")
+    put(data, "zenoh.password_file", "gw.password")
+    put(data, "commands.accept", ["setpoint", "mode"])
+    put(data, "commands.max_setpoint_distance_m", 25)
+    put(data, "sources.2.commands", True)
+    put(data, "sources.2.allow_unsigned", True)
+    put(data, "sources.2.system_id", 1)
+    put(data, "sources.2.component_id", 7)
+    c = parse(data, tmp_path)
+    assert c.zenoh.users_file == tmp_path / "users.txt" and c.zenoh.commanders == ("captain",)
+    assert (c.zenoh.user, c.zenoh.password) == ("gw", "gateway-secret")
+    assert "gateway-secret" not in repr(c.zenoh)
+    assert c.commands.accept == frozenset({"setpoint", "mode"}) and c.commands.max_setpoint_distance_m == 25
+    thr = c.source("thr")
+    assert (thr.commands, thr.allow_unsigned, thr.signing_key, thr.system_id, thr.component_id) == (
+        True, True, None, 1, 7,
+    )  # fmt: skip
+    put(data, "sources.2.allow_unsigned", DELETE)
+    put(data, "sources.2.signing_key", KEY)
+    assert parse(data, tmp_path).source("thr").signing_key == bytes.fromhex(KEY)

@@ -262,6 +262,8 @@ wave_period_s = 9.0
 listen = ["tcp/127.0.0.1:{zport}"]
 multicast_scouting = false
 prefix = "dp/test"
+[commands]
+accept = ["mode", "setpoint", "tau"]
 [log]
 path = "{tmp_path / "q.mcap"}"
 """

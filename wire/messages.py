@@ -45,6 +45,7 @@ __all__ = [
     "MESSAGES",
     "TOPICS",
     "AnyObject",
+    "CommandStatus",
     "Datum",
     "Estimate",
     "LocationFix",
@@ -330,6 +331,15 @@ class ReferenceStatus(Record, kw_only=True):
     ] = None
 
 
+class CommandStatus(Record, kw_only=True):
+    accepted: Annotated[dict[str, int], doc('Command inputs taken, by key (count), e.g. {"mode": 2}.')]
+    refused: Annotated[
+        dict[str, int],
+        doc('Command inputs refused, by "key: reason" (count), e.g. {"setpoint: too far": 1}.'),
+    ]
+    last_refused: Annotated[str | None, doc("Why the last refused input was refused; null if none.")] = None
+
+
 class Status(Message, kw_only=True):
     """Gateway health (Zenoh `<prefix>/status`, also the answer to a query on that key)."""
 
@@ -345,13 +355,6 @@ class Status(Message, kw_only=True):
         list[str | dict[str, Any]],
         doc("Active alarms: short strings, or objects with at least `code` and `message`."),
     ]
-    commands_refused: Annotated[
-        dict[str, int],
-        doc(
-            "Commands from Zenoh refused so far, by input (`setpoint`, `mode`, `tau`; count); the reasons "
-            "are alarms for 10 s and lines in the gateway's log. Left out while none."
-        ),
-    ] = {}
     references: Annotated[
         dict[str, list[ReferenceStatus]],
         doc("Per source, its state in each role it is tested in (reference and feedback integrity)."),
@@ -363,6 +366,9 @@ class Status(Message, kw_only=True):
             "once when one happens."
         ),
     ] = []
+    commands: Annotated[
+        CommandStatus | None, doc("The command inputs (mode, setpoint, τ): taken, refused and why.")
+    ] = None
 
 
 class Time(Record, kw_only=True):

@@ -18,7 +18,9 @@ from typing import Any
 
 from gateway.config.defaults import DEFAULTS
 from gateway.config.model import (
+    COMMAND_INPUTS,
     ZENOH_PROTOCOLS,
+    CommandsConfig,
     ControlConfig,
     DatumConfig,
     GatewayConfig,
@@ -30,6 +32,7 @@ from gateway.config.model import (
 from gateway.config.observer_section import read_observer
 from gateway.config.problems import ConfigError, Problems, did_you_mean, kind, show
 from gateway.config.schema import (
+    CommandsTable,
     ControlTable,
     DatumTable,
     IntegrityTable,
@@ -45,7 +48,18 @@ from wire.urls import UrlError, split_host_port
 
 __all__ = ["load_config", "parse_config"]
 
-_TOP_KEYS = ("vessel", "datum", "sources", "observer", "zenoh", "log", "status", "control", "integrity")
+_TOP_KEYS = (
+    "vessel",
+    "datum",
+    "sources",
+    "observer",
+    "zenoh",
+    "log",
+    "status",
+    "control",
+    "integrity",
+    "commands",
+)
 
 
 def load_config(path: str | Path) -> GatewayConfig:
@@ -97,6 +111,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
     status = _read_status(p, data)
     control = _read_control(p, data)
     integrity = _read_integrity(p, data)
+    commands = _read_commands(p, data)
 
     if p.lines:
         raise ConfigError(p.lines)
@@ -104,6 +119,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
     assert datum is not None and sources is not None and observer is not None
     assert zenoh_config is not None and log is not None and status is not None and control is not None
     assert integrity is not None
+    assert commands is not None
     return GatewayConfig(
         vessel=vessel,
         vessel_source=vessel_source,
@@ -117,6 +133,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
         path=path,
         control=control,
         integrity=integrity,
+        commands=commands,
     )
 
 
@@ -290,7 +307,7 @@ def _read_zenoh(
     config_file: Path | None = None
     if v["config_file"]:
         config_file = (base_dir / v["config_file"]).resolve()
-        for key in ("mode", "connect", "listen", "multicast_scouting"):
+        for key in ("mode", "connect", "listen", "multicast_scouting", *_AUTH_KEYS):
             if key in t and t[key] != d[key]:
                 p.add(
                     f"zenoh.{key}",
@@ -306,6 +323,7 @@ def _read_zenoh(
                 zenoh.Config.from_file(str(config_file))
             except Exception as exc:  # zenoh raises its own ZError
                 p.add("zenoh.config_file", f"not a valid Zenoh config: {exc}")
+    users, user, password = _read_zenoh_auth(p, t, v, base_dir)
     prefix = v["prefix"]
     if prefix == "" and vessel is not None:
         prefix = f"dp/{vessel.name}"
@@ -322,7 +340,81 @@ def _read_zenoh(
         listen=tuple(v["listen"]),
         config_file=config_file,
         multicast_scouting=v["multicast_scouting"],
+        users_file=users,
+        user=user,
+        password=password,
+        commanders=tuple(v["commanders"]),
     )
+
+
+_AUTH_KEYS = ("users_file", "user", "password_file", "commanders")
+
+
+def _read_zenoh_auth(
+    p: Problems, t: Mapping[str, Any], v: Mapping[str, Any], base_dir: Path
+) -> tuple[Path | None, str, str]:
+    """The user/password dictionary, this session's own credentials, and the commanders (who must be
+    users of the dictionary: a name that cannot authenticate would lock everyone out of commanding)."""
+    users_file: Path | None = None
+    users: set[str] | None = None
+    if v["users_file"]:
+        users_file = (base_dir / v["users_file"]).resolve()
+        users = _read_users(p, users_file)
+    user, password = v["user"] or "", ""
+    if v["password_file"]:
+        path = (base_dir / v["password_file"]).resolve()
+        try:
+            password = path.read_text(encoding="utf-8").strip()
+        except OSError as exc:
+            p.add("zenoh.password_file", f"cannot read {path}: {exc.strerror or exc} (expected a file)")
+        else:
+            if not password:
+                p.add("zenoh.password_file", f"{path} is empty (expected this session's password)")
+    if v["user"] is not None and v["password_file"] is not None and bool(user) != bool(v["password_file"]):
+        given, other = ("user", "password_file") if user else ("password_file", "user")
+        p.add(f"zenoh.{given}", f"given without zenoh.{other} (expected both, or neither)")
+    commanders = v["commanders"] or []
+    if commanders and users_file is None and v["users_file"] is not None:
+        p.add(
+            "zenoh.commanders",
+            "needs zenoh.users_file (expected the users' dictionary: a commander is known by the user name "
+            "it authenticates with)",
+        )
+    elif users is not None:
+        for i, name in enumerate(commanders):
+            if name not in users:
+                hint = did_you_mean(name, sorted(users), quote='"')
+                p.add(
+                    f"zenoh.commanders[{i}]",
+                    f"not a user of {users_file}{hint} (expected one of its user names, got {show(name)})",
+                )
+    return users_file, user, password
+
+
+def _read_users(p: Problems, path: Path) -> set[str] | None:
+    """The user names of a Zenoh ``user:password`` dictionary; a bad line is named by number only (a
+    password is never echoed)."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        p.add(
+            "zenoh.users_file", f"cannot read {path}: {exc.strerror or exc} (expected a user:password file)"
+        )
+        return None
+    users: set[str] = set()
+    bad = 0
+    for n, line in enumerate(text.splitlines(), 1):
+        if not line.strip():
+            continue
+        name, sep, pw = line.partition(":")
+        if not sep or not name or not pw:
+            p.add("zenoh.users_file", f"{path.name} line {n} is not user:password (expected user:password)")
+            bad += 1
+            continue
+        users.add(name)
+    if not users and not bad:
+        p.add("zenoh.users_file", f"{path} has no users (expected user:password lines)")
+    return users
 
 
 def _read_log(p: Problems, data: Mapping[str, Any], base_dir: Path) -> LogConfig | None:
@@ -379,7 +471,6 @@ def _read_control(p: Problems, data: Mapping[str, Any]) -> ControlConfig | None:
         allocator=v["allocator"],
         bandwidth_rad_s=v["bandwidth_rad_s"],
         damping=v["damping"],
-        max_setpoint_distance_m=v["max_setpoint_distance_m"],
         feedback=v["feedback"],
     )
 
@@ -400,3 +491,24 @@ def _read_integrity(p: Problems, data: Mapping[str, Any]) -> IntegrityConfig | N
         return None
     v["gga_quality"] = tuple(codes)
     return IntegrityConfig(**v)
+
+
+def _read_commands(p: Problems, data: Mapping[str, Any]) -> CommandsConfig | None:
+    t = _section(p, data, "commands")
+    if t is None:
+        return None
+    n0 = len(p)
+    v = read_table(CommandsTable, t, "commands", p)
+    accept = v["accept"]
+    for i, key in enumerate(accept or []):
+        if key not in COMMAND_INPUTS:
+            hint = did_you_mean(str(key), COMMAND_INPUTS, quote='"')
+            p.add(
+                f"commands.accept[{i}]",
+                f'not a command input{hint} (expected "mode", "setpoint" or "tau", got {show(key)})',
+            )
+    if accept is not None and len(set(accept)) != len(accept):
+        p.add("commands.accept", f"an input is repeated (expected each once, got {show(accept)})")
+    if len(p) != n0:
+        return None
+    return CommandsConfig(accept=frozenset(accept), max_setpoint_distance_m=v["max_setpoint_distance_m"])

@@ -26,6 +26,7 @@ OBSERVER_TYPES = _OBSERVER_TYPES  # every observer registered in observers.facto
 COMPRESSIONS = ("zstd", "lz4", "none")
 ZENOH_MODES = ("peer", "client")
 CONTROL_MODES = ("standby", "dp", "manual")
+COMMAND_INPUTS = ("mode", "setpoint", "tau")
 ALLOCATORS = ("qp", "pseudo_inverse")
 POOLINGS = ("weighted", "priority")
 FEEDBACKS = ("estimate", "measurement")
@@ -77,9 +78,9 @@ class SourceConfig:
     ``transport`` is the kind of link the URL names: ``serial``, ``udp``, ``tcp``, ``tcp-listen``, ``file``
     (the gateway's URLs) or ``pymavlink`` (a pymavlink connection string, MAVLink only). ``url`` is as
     written, except that a relative ``file:`` path is made absolute (``file:///...``).
-    ``system_id`` / ``component_id`` None accept any MAVLink system / component; set, frames from others
-    are refused (counted ``wrong_system`` / ``wrong_component``). ``signing_key`` is the 32-byte MAVLink 2
-    signing secret.
+    ``system_id`` / ``component_id`` None accept any MAVLink system / component. ``signing_key`` is the
+    32-byte MAVLink 2 signing secret. ``allow_unsigned``: with a key, also accept unsigned frames; without
+    one, on a link with ``commands``, send the thruster commands unsigned (the operator's written choice).
     """
 
     name: str
@@ -136,6 +137,14 @@ class ZenohConfig:
     listen: tuple[str, ...] = ()
     config_file: Path | None = None
     multicast_scouting: bool = True
+    users_file: Path | None = None
+    """Zenoh user/password dictionary (``user:password`` lines): every peer must authenticate as one."""
+    user: str = ""
+    password: str = field(default="", repr=False)
+    """This session's own credentials, for a router or peer that requires them (read from a file)."""
+    commanders: tuple[str, ...] = ()
+    """Users (of ``users_file``) whose puts on the command keys are let through; empty: no access
+    control (every peer that may connect may command, if ``[commands]`` accepts the input)."""
 
 
 @dataclass(frozen=True)
@@ -173,11 +182,18 @@ class ControlConfig:
     allocator: str = "qp"
     bandwidth_rad_s: float | tuple[float, float, float] | None = None
     damping: float = 1.0
-    max_setpoint_distance_m: float = 50.0
-    """How far from the estimated position a Zenoh setpoint may be (farther: refused, with the reason)."""
     feedback: str = "estimate"
     """What the controller's position/heading term sees: the observer's LF estimate (always, at sea), or
     the raw measurement — only to demonstrate what wave filtering buys (the same controller, same ν̂)."""
+
+
+@dataclass(frozen=True)
+class CommandsConfig:
+    """Which Zenoh command inputs the pipeline takes (none unless listed) and the setpoint's largest
+    distance from the present position (m)."""
+
+    accept: frozenset[str] = frozenset()
+    max_setpoint_distance_m: float = 50.0
 
 
 @dataclass(frozen=True)
@@ -267,6 +283,7 @@ class GatewayConfig:
     path: Path
     control: ControlConfig = field(default_factory=ControlConfig)
     integrity: IntegrityConfig = field(default_factory=IntegrityConfig)
+    commands: CommandsConfig = field(default_factory=CommandsConfig)
 
     def sources_for(self, role: str) -> tuple[SourceConfig, ...]:
         """The sources with ``role``, in failover order (lowest priority first)."""

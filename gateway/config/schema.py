@@ -43,6 +43,7 @@ from observers.vessel import builtin_vessels
 
 __all__ = [
     "MISSING",
+    "CommandsTable",
     "ControlTable",
     "DatumTable",
     "IntegrityTable",
@@ -369,6 +370,10 @@ class ZenohTable(_Section):
     config_file: str = text(_Z["config_file"], "a Zenoh JSON5 config file path")
     prefix: str = text(_Z["prefix"], 'a key expression such as "dp/my_ship"')
     multicast_scouting: bool = boolean(_Z["multicast_scouting"])
+    users_file: str = text(_Z["users_file"], "a Zenoh user:password dictionary file path")
+    user: str = text(_Z["user"], "a Zenoh user name")
+    password_file: str = text(_Z["password_file"], "a file holding this session's Zenoh password")
+    commanders: list[str] = text(_Z["commanders"], 'an array of user names, e.g. ["bridge"]')
 
 
 _L = DEFAULTS["log"]
@@ -401,7 +406,6 @@ class ControlTable(_Section):
     allocator: str = choice(_C["allocator"], ALLOCATORS)
     bandwidth_rad_s: PerDof = per_dof(unit="rad/s")
     damping: float = number(_C["damping"], lo=0.3, hi=3.0)
-    max_setpoint_distance_m: float = number(_C["max_setpoint_distance_m"], lo=1.0, hi=100_000.0, unit="m")
     feedback: str = choice(_C["feedback"], FEEDBACKS)
 
 
@@ -442,3 +446,15 @@ class IntegrityTable(_Section):
     dead_reckoning_rate_hz: float = number(_I["dead_reckoning_rate_hz"], lo=0.1, hi=100.0, unit="Hz")
     thrust_margin: float = number(_I["thrust_margin"], lo=1.0, hi=10.0)
     feedback_rejects: int = integer(_I["feedback_rejects"], lo=1)
+
+
+_CMD = DEFAULTS["commands"]
+
+
+class CommandsTable(_Section):
+    """``[commands]``: which Zenoh command inputs are taken, and the setpoint's distance limit."""
+
+    accept: list[str] = text(_CMD["accept"], 'an array of inputs from "mode", "setpoint", "tau"')
+    max_setpoint_distance_m: float = number(
+        _CMD["max_setpoint_distance_m"], lo=0.0, hi=10000.0, lo_open=True, unit="m"
+    )

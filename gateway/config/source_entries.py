@@ -206,22 +206,23 @@ def _read_source(
                 + (", not all hexadecimal" if re.search(r"[^0-9a-fA-F]", key_text) else "")
                 + ")",
             )
-    if v["allow_unsigned"] and "signing_key" not in t and protocol == "mavlink" and not v["commands"]:
-        p.add(
-            f"{path}.allow_unsigned",
-            "has no effect without a signing_key (expected a signing_key, or no allow_unsigned; with "
-            "commands = true it accepts commanding over an unsigned link)",
-        )
+    if protocol == "mavlink" and "signing_key" not in t:
+        # Without a key, allow_unsigned means only one thing: thruster commands go out unsigned. Anyone who
+        # can write to the link can then drive the thrusters, so that is written down, never a default.
+        if v["commands"] and not v["allow_unsigned"]:
+            p.add(
+                f"{path}.commands",
+                "thruster commands would go out unsigned (expected a signing_key, or allow_unsigned = true "
+                "to send them unsigned on a link nobody else can reach)",
+            )
+        elif v["allow_unsigned"] and not v["commands"]:
+            p.add(
+                f"{path}.allow_unsigned",
+                "has no effect without a signing_key or commands = true (expected a signing_key, or no "
+                "allow_unsigned)",
+            )
     if v["commands"] and roles is not None and "thrusters" not in roles:
         p.add(f"{path}.commands", 'sends thruster commands (expected "thrusters" in roles)')
-    if v["commands"] and protocol == "mavlink" and "signing_key" not in t and not v["allow_unsigned"]:
-        # Thruster commands over an unsigned link: anyone who can reach it can send feedback that
-        # moves the estimate, or read and replay the commands. That must be a decision, written down.
-        p.add(
-            f"{path}.commands",
-            "sends thruster commands over an unsigned MAVLink link (expected a signing_key, or "
-            "allow_unsigned = true to accept that anyone on the link can spoof it)",
-        )
     ardupilot: ArdupilotMap | None = None
     if v["ardupilot"] is not None and protocol == "mavlink":
         if roles is not None and "thrusters" not in roles:

@@ -1,0 +1,194 @@
+"""Command inputs: off unless accepted; a setpoint far away, a τ beyond the thrusters, DP without a healthy
+estimate and malformed inputs are refused, counted by reason in the status, and never acted on."""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from gateway.commands import tau_capacity
+from gateway.config import parse_config
+from gateway.pipeline import ControlEvent, Pipeline, PipelineSpec, RawEvent
+from observers.vessel import load_vessel
+from wire.codecs import nmea_encode as enc
+from wire.geodesy import LocalFrame
+
+T0 = 1_767_268_800_000_000_000
+S = 1_000_000_000
+DATUM = (59.4, 10.5)
+ALL = ["mode", "setpoint", "tau"]
+
+
+def pipeline(commands: dict[str, Any] | None = None, initial_mode: str = "standby") -> Pipeline:
+    tables: dict[str, Any] = {
+        "vessel": {"name": "mss_supply"},
+        "datum": {"lat_deg": DATUM[0], "lon_deg": DATUM[1]},
+        "sources": [
+            {"name": "gps", "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position", "heading"]}
+        ],
+        "observer": {"wave_period_s": 8.0},
+        "control": {"initial_mode": initial_mode},
+        "log": {"path": ""},
+    }
+    if commands is not None:
+        tables["commands"] = commands
+    return Pipeline(PipelineSpec.from_config(parse_config(tables, base_dir=Path.cwd())))
+
+
+def fix(north: float = 0.0, east: float = 0.0) -> bytes:
+    from datetime import UTC, datetime
+
+    lat, lon, _ = LocalFrame(*DATUM).to_geodetic(north, east, 0.0)
+    gga = enc.gga("GP", datetime(2026, 1, 1, 12, tzinfo=UTC), lat, lon, 2, 12, 0.8, 20.0)
+    return (gga + enc.hdt("HE", 0.5)).encode()
+
+
+def run(p: Pipeline, seconds: float, start_s: float = 0.0) -> list[Any]:
+    out = []
+    for k in range(int(seconds * 10)):
+        out += p.feed(RawEvent(T0 + int((start_s + k / 10) * S), "gps", fix()))
+    return out
+
+
+def commands_status(p: Pipeline) -> dict[str, Any]:
+    return p.status(p.last_ns).payload["commands"]  # type: ignore[no-any-return]
+
+
+def test_command_inputs_are_off_unless_accepted() -> None:
+    p = pipeline()  # no [commands]: the defaults
+    run(p, 2.0)
+    p.feed(ControlEvent(T0 + 2 * S, "mode", "manual"))
+    p.feed(ControlEvent(T0 + 2 * S, "tau", {"X": 1e4, "Y": 0.0, "N": 0.0}))
+    p.feed(ControlEvent(T0 + 2 * S, "setpoint", {"north_m": 5.0, "east_m": 0.0, "heading_deg": 30.0}))
+    run(p, 1.0, 2.1)
+    assert p.mode == "standby" and p.setpoint is None and not p.manual_tau.any()
+    c = commands_status(p)
+    assert c["accepted"] == {}
+    assert c["refused"] == {"mode: not accepted": 1, "tau: not accepted": 1, "setpoint: not accepted": 1}
+    assert "commands.accept" in c["last_refused"]
+
+
+def test_only_the_listed_inputs_are_taken() -> None:
+    p = pipeline({"accept": ["setpoint"]})
+    run(p, 2.0)
+    p.feed(ControlEvent(T0 + 2 * S, "mode", "dp"))
+    p.feed(ControlEvent(T0 + 2 * S, "setpoint", {"north_m": 5.0, "east_m": 0.0, "heading_deg": 30.0}))
+    run(p, 1.0, 2.1)
+    assert p.mode == "standby" and p.setpoint is not None
+    assert commands_status(p)["refused"] == {"mode: not accepted": 1}
+
+
+def test_a_setpoint_50_km_away_is_refused_with_the_reason_and_never_pursued() -> None:
+    p = pipeline({"accept": ALL}, initial_mode="dp")
+    run(p, 3.0)
+    far = LocalFrame(*DATUM).to_geodetic(50_000.0, 0.0, 0.0)
+    p.feed(ControlEvent(T0 + 3 * S, "setpoint", {"lat_deg": far[0], "lon_deg": far[1], "heading_deg": 30.0}))
+    out = run(p, 5.0, 3.1)
+    c = commands_status(p)
+    assert c["refused"] == {"setpoint: too far": 1}
+    text = c["last_refused"]
+    assert re.search(r"4999\d\.\d m from the present position", text), text
+    assert "max_setpoint_distance_m = 50 m" in text
+    assert [r.reason for r in p.commands.take_refusals()] == ["too far"]  # for the service's log
+    refs = [o.payload["reference"] for o in out if o.topic == "/dp/thrusters/command"]
+    assert refs and max(abs(r[0]) for r in refs) < 1.0, "the far setpoint must never become the reference"
+    # a setpoint within the limit is taken
+    p.feed(ControlEvent(T0 + 9 * S, "setpoint", {"north_m": 20.0, "east_m": 0.0, "heading_deg": 30.0}))
+    run(p, 1.0, 9.1)
+    assert commands_status(p)["accepted"] == {"setpoint": 1}
+    assert p.setpoint == {"north_m": 20.0, "east_m": 0.0, "heading_deg": 30.0}
+
+
+def test_the_setpoint_distance_limit_is_configurable() -> None:
+    p = pipeline({"accept": ALL, "max_setpoint_distance_m": 10.0}, initial_mode="dp")
+    run(p, 3.0)
+    p.feed(ControlEvent(T0 + 3 * S, "setpoint", {"north_m": 20.0, "east_m": 0.0, "heading_deg": 30.0}))
+    run(p, 1.0, 3.1)
+    assert commands_status(p)["refused"] == {"setpoint: too far": 1}
+
+
+@pytest.mark.parametrize(
+    ("payload", "reason"),
+    [
+        ({"north_m": math.nan, "east_m": 0.0, "heading_deg": 0.0}, "not finite"),
+        ({"north_m": 1.0, "east_m": math.inf, "heading_deg": 0.0}, "not finite"),
+        ({"lat_deg": 91.0, "lon_deg": 10.5, "heading_deg": 0.0}, "out of range"),
+        ({"lat_deg": 59.4, "lon_deg": 10.5, "heading_deg": 1e9}, "out of range"),
+        ({"north_m": "5", "east_m": 0.0, "heading_deg": 0.0}, "invalid"),
+        ({"north_m": 5.0, "heading_deg": 0.0}, "invalid"),
+        ("north", "invalid"),
+    ],
+)
+def test_malformed_setpoints_are_refused(payload: Any, reason: str) -> None:
+    p = pipeline({"accept": ALL})
+    p.feed(ControlEvent(T0, "setpoint", payload))
+    assert commands_status_now(p) == {f"setpoint: {reason}": 1}
+    assert p._pending_setpoint is None
+
+
+def commands_status_now(p: Pipeline) -> dict[str, int]:
+    return p.status(T0).payload["commands"]["refused"]  # type: ignore[no-any-return]
+
+
+def test_tau_beyond_the_thrusters_is_refused_and_within_is_taken() -> None:
+    cap = tau_capacity(load_vessel("mss_supply"))
+    assert cap is not None
+    p = pipeline({"accept": ALL})
+    p.feed(ControlEvent(T0, "mode", "manual"))
+    for tau in ({"X": 1e12, "Y": 0.0, "N": 0.0}, {"X": 0.0, "Y": 0.0, "N": float(cap[2]) * 1.01}):
+        p.feed(ControlEvent(T0, "tau", tau))
+    p.feed(ControlEvent(T0, "tau", {"X": "nan", "Y": 0.0, "N": 0.0}))
+    p.feed(ControlEvent(T0, "tau", {"X": math.nan, "Y": 0.0, "N": 0.0}))
+    assert not p.manual_tau.any()
+    assert commands_status_now(p) == {"tau: beyond capacity": 2, "tau: invalid": 1, "tau: not finite": 1}
+    p.feed(ControlEvent(T0, "tau", {"X": float(cap[0]), "Y": -1e4, "N": 0.0}))
+    np.testing.assert_allclose(p.manual_tau, [cap[0], -1e4, 0.0])
+
+
+def test_tau_capacity_of_a_layout() -> None:
+    cap = tau_capacity(load_vessel("mss_supply"))
+    v = load_vessel("mss_supply")
+    assert cap is not None
+    assert cap[0] <= sum(max(t.max_thrust_n, -t.min_thrust_n) for t in v.thrusters)
+    assert all(c > 0 for c in cap)
+
+
+def test_dp_only_with_a_healthy_estimate_standby_and_manual_always() -> None:
+    p = pipeline({"accept": ALL})
+    p.feed(ControlEvent(T0, "mode", "dp"))
+    assert p.mode == "standby"
+    assert commands_status_now(p) == {"mode: estimate not healthy": 1}
+    p.feed(ControlEvent(T0, "mode", "manual"))  # never refused for health
+    assert p.mode == "manual"
+    run(p, 2.0)
+    assert p.estimate_status == "ok"
+    p.feed(ControlEvent(T0 + 2 * S, "mode", "dp"))
+    assert p.mode == "dp"
+    p.feed(ControlEvent(T0 + 2 * S, "mode", "warp"))
+    assert p.mode == "dp"
+    c = commands_status(p)
+    assert c["accepted"] == {"mode": 2} and c["refused"]["mode: invalid"] == 1
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    key=st.sampled_from(["mode", "setpoint", "tau", "other"]),
+    payload=st.recursive(
+        st.none() | st.booleans() | st.floats() | st.integers() | st.text(max_size=8),
+        lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=12), inner, max_size=4),
+        max_leaves=8,
+    ),
+)
+def test_any_input_is_taken_or_counted_never_raised(key: str, payload: Any) -> None:
+    p = pipeline({"accept": ALL})
+    p.feed(ControlEvent(T0, key, payload))
+    c = p.status(T0).payload["commands"]
+    assert sum(c["accepted"].values()) + sum(c["refused"].values()) <= 1
+    assert np.all(np.isfinite(p.manual_tau))
