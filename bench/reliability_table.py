@@ -203,9 +203,15 @@ def detection(
             sum(src.get("rejected", {}).values()) for name, src in status["sources"].items() if named(name)
         )
 
+    def refused(status: dict[str, Any]) -> int:  # commands the gateway refused (Status.commands)
+        return sum((status.get("commands") or {}).get("refused", {}).values())
+
+    old_refused = refused(before[-1])
     found: tuple[float | None, str] = (None, "")
     for s in during:
         new = [a for a in s["alarms"] if a not in old_alarms and named(a)]
+        if watch == COMMAND_WORDS and refused(s) > old_refused:
+            new.append(f"command refused: {(s.get('commands') or {}).get('last_refused', '')}")
         changed = [
             f"{name}: {src.get('state')}" + (f" ({src['reason']})" if src.get("reason") else "")
             for name, src in s["sources"].items()
