@@ -53,7 +53,7 @@ def main() -> int:
     env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH", "")) if p)
     todo = cases()
     times: dict[str, list[float]] = {name: [] for name in todo}
-    for name, argv in todo.items():  # warm the OS file cache (and .pyc files) before measuring
+    for argv in todo.values():  # warm the OS file cache (and .pyc files) before measuring
         wall_time(argv, env)
     for _ in range(args.rounds):
         for name, argv in todo.items():

@@ -6,19 +6,16 @@ import argparse
 import json
 import math
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
+from observers.vessel_files import builtin_vessels
 
-from observers.passive_tuning import (
-    PassiveTuning,
-    check_gains,
-    error_eigenvalues,
-    notch_depth_db,
-    passive_gains,
-    slowest_error_rate,
-)
-from observers.vessel import VesselError, builtin_vessels, load_vessel
+if TYPE_CHECKING:
+    import numpy as np
+
+# Only the parser is built at import; the tuning numerics (numpy, scipy) are imported by `run`, so
+# `dpgw tune --help` answers at once.
+
 
 NAME = "tune"
 HELP = "passive-observer gains and checks for a vessel and sea state"
@@ -73,6 +70,16 @@ def _matrix(a: np.ndarray) -> list[list[float]]:
 
 
 def run(args: argparse.Namespace) -> int:
+    from observers.passive_tuning import (
+        PassiveTuning,
+        check_gains,
+        error_eigenvalues,
+        notch_depth_db,
+        passive_gains,
+        slowest_error_rate,
+    )
+    from observers.vessel import VesselError, load_vessel
+
     try:
         vessel = load_vessel(args.vessel)
     except VesselError as exc:
