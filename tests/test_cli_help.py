@@ -109,7 +109,7 @@ def test_listen_jq_example_works_as_printed() -> None:
     assert json.loads(jq.stdout) == [1.5, -2.0, 0.25]
 
 
-# --- Zenoh errors: the flag or config key, the endpoint, what to do; never Rust internals --------------------
+# --- Zenoh errors: the flag or config key, the endpoint, what to do; never Rust internals ----------------
 
 
 def _assert_one_clear_line(stderr: str) -> None:
@@ -123,7 +123,8 @@ def test_listen_on_a_port_in_use_names_flag_endpoint_and_fix() -> None:
         taken.listen()
         endpoint = f"tcp/127.0.0.1:{taken.getsockname()[1]}"
         p = subprocess.run(
-            [sys.executable, "-m", "dpgw", "listen", "--no-scouting", "--listen", endpoint, "--duration", "5"],
+            [sys.executable, "-m", "dpgw", "listen", "--no-scouting", "--listen", endpoint,
+             "--duration", "5"],
             capture_output=True, text=True, timeout=60,
         )  # fmt: skip
     assert p.returncode == 2
@@ -179,7 +180,7 @@ def test_bus_errors_name_the_setting_and_endpoint(kwargs: dict[str, Any], key: s
     assert ".rs:" not in str(exc) and ".cargo" not in str(exc)
 
 
-# --- dpgw run: the start-up line and the -v status -----------------------------------------------------------
+# --- dpgw run: the start-up line and the -v status -------------------------------------------------------
 
 
 def test_run_prints_a_start_up_line(tmp_path: Path) -> None:
