@@ -119,8 +119,6 @@ def run(args: argparse.Namespace) -> int:
     import signal
     from dataclasses import replace
 
-    from wire.mcaplog import McapLogWriter
-
     from gateway.bus import BusError, make_config, open_session
     from simulator.clock import Clock, RealtimeClock, VirtualClock
     from simulator.commands import MavlinkCommandInput, ZenohCommandInput
@@ -128,6 +126,7 @@ def run(args: argparse.Namespace) -> int:
     from simulator.runner import CommandInput, Route, Simulation
     from simulator.scenarios import get_scenario
     from simulator.transports import Sink, TransportError, open_sink
+    from wire.mcap.writer import McapLogWriter
 
     try:
         scenario = get_scenario(args.scenario).with_sensor_rates(args.gnss_rate, args.gyro_rate)

@@ -66,6 +66,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _matrix(a: np.ndarray) -> list[list[float]]:
+    import numpy as np
+
     return [[float(v) for v in row] for row in np.atleast_2d(a)]
 
 

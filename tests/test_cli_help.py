@@ -70,7 +70,7 @@ def test_demo_help_lists_the_scenarios() -> None:
 def test_replay_settle_default_is_the_one_used() -> None:
     """No settle time on the command line: the summary and the report both use the report's rule."""
     from dpgw.cli_replay import default_settle_s
-    from gateway.report import SETTLE_FRACTION, SETTLE_MAX_S
+    from gateway.report.metrics import SETTLE_FRACTION, SETTLE_MAX_S
 
     args = build_parser().parse_args(["replay", "x.mcap", "--out", "y.mcap"])
     assert args.settle is None
