@@ -22,7 +22,7 @@ import sys
 import time
 from pathlib import Path
 
-COMMANDS = ("run", "demo", "sim", "replay", "tune", "listen")
+COMMANDS = ("run", "demo", "sim", "replay", "tune", "listen", "radiation")
 TARGET_S = 0.5
 
 

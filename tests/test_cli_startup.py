@@ -16,7 +16,13 @@ from dpgw.cli import SUBCOMMANDS
 # Each of these costs from tens of milliseconds to seconds at import (numba and scipy the most), or pulls
 # in packages that do. None is needed to print a help page.
 HEAVY = ("numpy", "numba", "scipy", "zenoh", "pydantic", "mcap", "matplotlib", "tqdm", "gateway", "wire")
-HEAVY_MODULES = ("simulator.scenarios", "simulator.runner", "observers.vessel", "observers.passive_tuning")
+HEAVY_MODULES = (
+    "simulator.scenarios",
+    "simulator.runner",
+    "observers.vessel",
+    "observers.passive_tuning",
+    "observers.radiation",
+)
 
 COMMANDS = [p.__name__.removeprefix("dpgw.cli_") for p in SUBCOMMANDS]
 
@@ -55,7 +61,7 @@ def test_help_pages_import_nothing_heavy() -> None:
 
 
 def test_every_command_is_covered() -> None:
-    assert sorted(COMMANDS) == ["demo", "listen", "replay", "run", "sim", "tune"]
+    assert sorted(COMMANDS) == ["demo", "listen", "radiation", "replay", "run", "sim", "tune"]
 
 
 def test_scenario_names_match_the_scenarios() -> None:
@@ -72,3 +78,10 @@ def test_builtin_vessels_listed_without_numerics() -> None:
     assert "mss_supply" in names and names == vessel.builtin_vessels()
     for name in names:
         assert vessel.load_vessel(name).name  # each listed name loads
+
+
+def test_radiation_defaults_match_the_fit() -> None:
+    from dpgw import cli_radiation
+    from observers import radiation
+
+    assert (cli_radiation.MAX_ORDER, cli_radiation.R2_TARGET) == (radiation.MAX_ORDER, radiation.R2_TARGET)
