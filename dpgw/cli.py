@@ -3,7 +3,13 @@
 argparse (standard library) is used: it gives ``--help`` on every subcommand and needs no dependency.
 Each subcommand lives in its own module (``dpgw/cli_*.py``), which declares its ``NAME``, ``HELP``,
 ``DESCRIPTION`` and ``EPILOG`` texts and ``add_arguments(parser)``; the parsers are built here, one way
-for all of them (the examples in an epilog keep their line breaks).
+for all of them (`dpgw.cli_help.HelpFormatter`: descriptions wrap, the examples in an epilog keep their
+line breaks).
+
+Every parser is built at start-up, also for ``dpgw --help``; so a ``cli_*`` module imports only the
+standard library and light modules of names at its top, and the heavy packages (numpy, numba, scipy,
+Zenoh, pydantic, the simulator and the gateway) inside the functions that run its command. A test
+(tests/test_cli_startup.py) holds this.
 """
 
 from __future__ import annotations
@@ -13,6 +19,7 @@ import sys
 from collections.abc import Sequence
 
 from dpgw import cli_demo, cli_listen, cli_radiation, cli_replay, cli_run, cli_sim, cli_tune
+from dpgw.cli_help import HelpFormatter
 
 SUBCOMMANDS = [cli_run, cli_demo, cli_sim, cli_replay, cli_tune, cli_listen, cli_radiation]
 
@@ -25,6 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
             "MAVLink thruster feedback, runs wave-filtering observers, publishes on Zenoh, logs to MCAP."
         ),
         epilog="Run 'dpgw COMMAND --help' for the options of each command.",
+        formatter_class=HelpFormatter,
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for module in SUBCOMMANDS:
@@ -34,7 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
                 help=module.HELP,
                 description=module.DESCRIPTION,
                 epilog=module.EPILOG or None,
-                formatter_class=argparse.RawDescriptionHelpFormatter,
+                formatter_class=HelpFormatter,
             )
         )
     return parser

@@ -1,10 +1,7 @@
 """``dpgw demo``: the simulator on real loopback transports feeding the gateway, on this machine.
 
-The simulated DGPS speaks NMEA over UDP, the gyro over a pty (a virtual serial port), the thrusters MAVLink
-over UDP; the gateway reads them exactly as it would on a vessel, runs the observer, publishes on Zenoh
-(peer mode: `dpgw listen` in another terminal sees it) and logs to ``demo.mcap`` — raw input, estimates
-and the simulator's ground truth in one file, so `dpgw replay demo.mcap` can re-run and score it. The
-vessel runs ``--speed`` times faster than real time and the gateway's clock with it.
+`DESCRIPTION` below says what it does (``dpgw demo --help`` prints it); `summarise` scores the estimate
+against the simulator's ground truth and the station keeping from the log.
 """
 
 from __future__ import annotations
@@ -12,36 +9,35 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import signal
 import sys
-import threading
 import time
-from dataclasses import replace
-from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
+from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
+from simulator.scenario_names import SCENARIO_NAMES
 
-from gateway.bus import BusError
-from gateway.config import ConfigError, default_config, format_problems, parse_config
-from gateway.scoring import score, truth_at
-from gateway.service import GatewayService
-from gateway.sources import SourceError
-from observers.kinematics import ssa
-from simulator.clock import RealtimeClock
-from simulator.commands import MavlinkCommandInput, ZenohCommandInput
-from simulator.runner import Route, Simulation
-from simulator.scenarios import SCENARIOS, get_scenario
-from simulator.transports import PtySink, UdpSink
-from wire.mcap.reader import read_messages
+if TYPE_CHECKING:
+    from simulator.runner import Simulation
+
+# Only the parser is built at import. The simulator and the gateway (numpy, numba, scipy, Zenoh) are
+# imported by the functions that run the demo, so `dpgw demo --help` answers at once.
 
 SETTLE_S = 60.0
 
 
 NAME = "demo"
 HELP = "simulator + gateway on this machine: NMEA over UDP and a pty, Zenoh, demo.mcap"
-DESCRIPTION = __doc__
+DEFAULT_SCENARIO = "torsetnes_2004"
+# Plain text: argparse prints it as written (the module docstring's markup would show).
+DESCRIPTION = (
+    "The simulator on real loopback transports feeding the gateway, on this machine. The simulated DGPS "
+    "speaks NMEA over UDP, the gyro over a pty (a virtual serial port), the thrusters MAVLink over UDP; the "
+    "gateway reads them exactly as it would on a vessel, runs the observer, publishes on Zenoh (peer mode: "
+    "'dpgw listen' in another terminal sees it) and logs to demo.mcap: raw input, estimates and the "
+    "simulator's ground truth in one file, so 'dpgw replay demo.mcap' can re-run and score it. The vessel "
+    "runs --speed times faster than real time and the gateway's clock with it."
+)
 EPILOG = (
     "examples:\n"
     "  dpgw demo                                   # 3 minutes of sea in ~20 s\n"
@@ -51,10 +47,20 @@ EPILOG = (
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--scenario", choices=sorted(SCENARIOS), default="torsetnes_2004", metavar="NAME")
+    p.add_argument(
+        "--scenario",
+        choices=SCENARIO_NAMES,
+        default=DEFAULT_SCENARIO,
+        metavar="NAME",
+        help=f"scenario: {', '.join(SCENARIO_NAMES)} (default {DEFAULT_SCENARIO}; docs/simulator.md)",
+    )
     p.add_argument("--duration", type=float, default=180.0, metavar="S", help="sim seconds (default 180)")
-    p.add_argument("--speed", type=float, default=10.0, help="sim seconds per wall second (default 10)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--speed", type=float, default=10.0, metavar="X", help="sim seconds per wall second (default 10)"
+    )
+    p.add_argument(
+        "--seed", type=int, default=0, help="random seed of waves, noise and faults: same seed, same sea (0)"
+    )
     p.add_argument(
         "--mode",
         choices=("dp", "standby"),
@@ -63,14 +69,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "scenario's own thrust",
     )
     p.add_argument("--out", default="demo.mcap", metavar="FILE.mcap", help="the log (default demo.mcap)")
-    p.add_argument("--zenoh-listen", action="append", default=[], metavar="ENDPOINT")
-    p.add_argument("--zenoh-connect", action="append", default=[], metavar="ENDPOINT")
+    add_endpoint_args(p)
     p.add_argument("--no-scouting", action="store_true", help="Zenoh multicast scouting off")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=run)
 
 
 def demo_config(scenario: Any, pty_device: str, args: argparse.Namespace) -> dict[str, Any]:
+    from gateway.config import default_config
+
     cfg = default_config(scenario.vessel.name)
     # the demo is a simulated vessel on this machine: it takes setpoints, modes and τ (still checked)
     cfg["commands"] = {"accept": ["mode", "setpoint", "tau"]}
@@ -119,6 +126,21 @@ def demo_config(scenario: Any, pty_device: str, args: argparse.Namespace) -> dic
 
 
 def run(args: argparse.Namespace) -> int:
+    import signal
+    import threading
+    from dataclasses import replace
+    from datetime import UTC, datetime
+
+    from gateway.bus import BusError
+    from gateway.config import ConfigError, format_problems, parse_config
+    from gateway.service import GatewayService
+    from gateway.sources import SourceError
+    from simulator.clock import RealtimeClock
+    from simulator.commands import MavlinkCommandInput, ZenohCommandInput
+    from simulator.runner import Route, Simulation
+    from simulator.scenarios import get_scenario
+    from simulator.transports import PtySink, UdpSink
+
     scenario = get_scenario(args.scenario)
     if not args.speed > 0:
         print("dpgw demo: --speed must be positive", file=sys.stderr)
@@ -134,7 +156,11 @@ def run(args: argparse.Namespace) -> int:
         pty.close()
         print(format_problems(exc), file=sys.stderr)
         return 2
-    except (SourceError, BusError, OSError) as exc:
+    except BusError as exc:
+        pty.close()
+        print(f"dpgw demo: {exc.describe(ZENOH_FLAGS)}", file=sys.stderr)
+        return 2
+    except (SourceError, OSError) as exc:
         pty.close()
         print(f"dpgw demo: {exc}", file=sys.stderr)
         return 2
@@ -206,6 +232,11 @@ WAVE_BAND = (0.3, 2.0)
 def summarise(
     args: argparse.Namespace, sim: Simulation, status: dict[str, Any], wall_s: float
 ) -> dict[str, Any]:
+    import numpy as np
+
+    from gateway.scoring import score
+    from wire.mcap.reader import read_messages
+
     est = [(p["stamp_ns"], p["eta"]) for _, _, _, p in read_messages(args.out, "/dp/estimate")]
     truth = [(p["stamp_ns"], p["eta_lf"]) for _, _, _, p in read_messages(args.out, "/truth/state")]
     result: dict[str, Any] = {
@@ -238,6 +269,12 @@ def station_keeping(log: str, t_truth: Any, eta_truth: Any, t0_ns: int) -> dict[
     """How well the vessel kept station after the settle time: the true LF position's distance from, and
     heading's difference to, the controller's reference (the setpoint through the reference model), p95;
     and the share of the commanded force's variance in the wave band (what wave filtering keeps out)."""
+    import numpy as np
+
+    from gateway.scoring import truth_at
+    from observers.kinematics import ssa
+    from wire.mcap.reader import read_messages
+
     cmds = [(p["stamp_ns"], p) for _, _, _, p in read_messages(log, "/dp/thrusters/command")]
     if not cmds:
         return None

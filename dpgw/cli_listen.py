@@ -1,24 +1,29 @@
-"""``dpgw listen``: print what arrives on Zenoh (estimates, status, commands ...)."""
+"""``dpgw listen``: print what arrives on Zenoh (estimates, status, commands ...).
+
+Zenoh is imported by `run`, not here: building the parser (``--help``) must stay instant.
+"""
 
 from __future__ import annotations
 
 import argparse
 import json
-import queue
-import signal
 import sys
 import time
 from typing import Any
 
-from gateway.bus import BusError, make_config, open_session
+from dpgw.cli_zenoh import LISTEN_FLAGS, add_endpoint_args
 
 NAME = "listen"
 HELP = "print what arrives on Zenoh"
-DESCRIPTION = "Subscribe to a Zenoh key expression (default dp/**) and print every sample."
+DESCRIPTION = (
+    "Subscribe to a Zenoh key expression (default dp/**) and print every sample: one line each, "
+    '\'KEY: PAYLOAD\', or with --json one JSON object {"key": KEY, "payload": PAYLOAD} (the payload '
+    "as published: docs/interfaces.md lists the fields)."
+)
 EPILOG = (
     "examples:\n"
     "  dpgw listen                              # everything under dp/\n"
-    "  dpgw listen 'dp/mss_supply/estimate' --json | jq .eta\n"
+    "  dpgw listen 'dp/mss_supply/estimate' --json | jq -c .payload.eta\n"
     "  dpgw listen --connect tcp/192.168.1.10:7447 'dp/*/status'"
 )
 
@@ -28,14 +33,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="one JSON object per line: {key, payload}")
     p.add_argument("--count", type=int, metavar="N", help="exit after N samples")
     p.add_argument("--duration", type=float, metavar="S", help="exit after S seconds")
-    p.add_argument("--connect", action="append", default=[], metavar="ENDPOINT")
-    p.add_argument("--listen", action="append", default=[], metavar="ENDPOINT")
+    add_endpoint_args(p, listen="--listen", connect="--connect")
     p.add_argument("--no-scouting", action="store_true", help="multicast scouting off (use --connect)")
-    p.add_argument("--zenoh-config", metavar="FILE")
+    p.add_argument(
+        "--zenoh-config", metavar="FILE", help="a Zenoh JSON5 config file (replaces the options above)"
+    )
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    import queue
+    import signal
+
+    from gateway.bus import BusError, make_config, open_session
+
     try:
         session = open_session(
             make_config(
@@ -46,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
             )
         )
     except BusError as exc:
-        print(f"dpgw listen: {exc}", file=sys.stderr)
+        print(f"dpgw listen: {exc.describe(LISTEN_FLAGS)}", file=sys.stderr)
         return 2
     samples: queue.Queue[tuple[str, bytes]] = queue.Queue()
     sub = session.declare_subscriber(args.key, lambda s: samples.put((str(s.key_expr), s.payload.to_bytes())))

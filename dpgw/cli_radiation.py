@@ -6,8 +6,10 @@ import argparse
 import sys
 from pathlib import Path
 
-from observers import radiation
-from wire.hydro import HydroError, load_hydro, save_radiation_model
+# observers.radiation's MAX_ORDER and R2_TARGET, written here so that `dpgw radiation --help` needs no
+# numpy or scipy (the fit is imported by `run`); a test holds them equal.
+MAX_ORDER = 10
+R2_TARGET = 0.99
 
 NAME = "radiation"
 HELP = "identify the fluid-memory (radiation) model from added mass and damping data"
@@ -24,12 +26,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--out", type=Path, metavar="STEM", help="output stem (default: HYDRO's stem + _radiation)"
     )
-    p.add_argument("--max-order", type=int, default=radiation.MAX_ORDER, help="order cap per element")
-    p.add_argument("--r2", type=float, default=radiation.R2_TARGET, help="R² an order must reach on A and B")
+    p.add_argument(
+        "--max-order", type=int, default=MAX_ORDER, help=f"order cap per element (default {MAX_ORDER})"
+    )
+    p.add_argument(
+        "--r2", type=float, default=R2_TARGET, help=f"R² an order must reach on A and B (default {R2_TARGET})"
+    )
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    from observers import radiation
+    from wire.hydro import HydroError, load_hydro, save_radiation_model
+
     try:
         hydro = load_hydro(args.hydro)
     except HydroError as exc:

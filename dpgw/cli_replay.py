@@ -7,28 +7,18 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
+from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 
-from gateway.bus import BusError, make_config, open_session
-from gateway.config import ConfigError, format_problems
-from gateway.pipeline import Output
-from gateway.replay import (
-    Event,
-    ObserverSpec,
-    ReplayError,
-    ReplayResult,
-    build_config,
-    build_pipeline,
-    open_inputs,
-    parse_observer_spec,
-    run_replay,
-)
-from gateway.scoring import score
-from observers.passive_tuning import TuningError
-from observers.vessel import VesselError
-from wire.mcap.writer import McapLogWriter
+if TYPE_CHECKING:
+    import numpy as np
+
+    from gateway.pipeline import Output
+    from gateway.replay import Event, ObserverSpec, ReplayResult
+
+# Only the parser is built at import; the pipeline (numpy, numba, scipy) and Zenoh are imported by the
+# functions that replay, so `dpgw replay --help` answers at once.
 
 NAME = "replay"
 HELP = "re-run observers on recorded logs (MCAP, NMEA text, MAVLink tlog), with a report"
@@ -73,10 +63,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     pace.add_argument("--realtime", action="store_true", help="= --speed 1")
     p.add_argument("--prefix", help="Zenoh prefix when publishing (default the config's)")
-    p.add_argument("--zenoh-connect", action="append", default=[], metavar="ENDPOINT")
-    p.add_argument("--zenoh-listen", action="append", default=[], metavar="ENDPOINT")
-    p.add_argument("--no-scouting", action="store_true")
-    p.add_argument("--settle", type=float, default=60.0, metavar="S", help="skip S s before scoring (60)")
+    add_endpoint_args(p)
+    p.add_argument("--no-scouting", action="store_true", help="Zenoh multicast scouting off")
+    p.add_argument(
+        "--settle",
+        type=float,
+        metavar="S",
+        help="leave out the first S s when scoring against the truth and in the report (default: the "
+        "first 10 %% of the log, at most 60 s)",
+    )
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=run)
 
@@ -88,6 +83,21 @@ def default_out(first_log: str) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    from gateway.bus import BusError
+    from gateway.config import ConfigError, format_problems
+    from gateway.replay import (
+        ObserverSpec,
+        ReplayError,
+        build_config,
+        build_pipeline,
+        open_inputs,
+        parse_observer_spec,
+        run_replay,
+    )
+    from observers.passive_tuning import TuningError
+    from observers.vessel import VesselError
+    from wire.mcap.writer import McapLogWriter
+
     if args.out is None:
         args.out = default_out(args.logs[0])
     elif any(Path(args.out).resolve() == Path(log).resolve() for log in args.logs):
@@ -108,7 +118,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"dpgw replay: {exc}", file=sys.stderr)
         return 2
     speed = 1.0 if args.realtime else args.speed
-    publisher = _Publisher(args, config.zenoh.prefix, speed) if speed else None
+    try:
+        publisher = _Publisher(args, config.zenoh.prefix, speed) if speed else None
+    except BusError as exc:
+        print(f"dpgw replay: {exc.describe(ZENOH_FLAGS)}", file=sys.stderr)
+        return 2
     # Keep in memory only what the summary (errors against a simulator log's truth) and the report need.
     topics = ["/dp/estimate", *(f"/dp/estimates/{s.label}" for s in specs[1:])]
     if args.report:
@@ -151,6 +165,8 @@ class _Publisher:
     """--speed / --realtime: pace by event time and publish on Zenoh as if live."""
 
     def __init__(self, args: argparse.Namespace, prefix: str, speed: float) -> None:
+        from gateway.bus import make_config, open_session
+
         self.session = open_session(
             make_config(
                 connect=args.zenoh_connect, listen=args.zenoh_listen, multicast_scouting=not args.no_scouting
@@ -183,6 +199,8 @@ def _bar() -> Any:
 
 
 def _traces(result: ReplayResult, topic: str) -> tuple[np.ndarray, np.ndarray] | None:
+    import numpy as np
+
     rows = result.collected.get(topic, [])
     if not rows:
         return None
@@ -194,6 +212,10 @@ def _traces(result: ReplayResult, topic: str) -> tuple[np.ndarray, np.ndarray] |
 def _summary(
     args: argparse.Namespace, specs: list[ObserverSpec], r: ReplayResult, wall: float
 ) -> dict[str, Any]:
+    import numpy as np
+
+    from gateway.scoring import score
+
     s: dict[str, Any] = {
         "logs": args.logs,
         "out": args.out,
@@ -207,6 +229,7 @@ def _summary(
     if r.truth:
         tt_ns = np.array([x["stamp_ns"] for x in r.truth], dtype=np.int64)
         eta_t = np.array([x["eta_lf"] for x in r.truth], dtype=float)
+        settle = args.settle if args.settle is not None else default_settle_s((tt_ns[-1] - tt_ns[0]) / 1e9)
         errors = {}
         for spec, topic in zip(
             specs, ["/dp/estimate", *(f"/dp/estimates/{x.label}" for x in specs[1:])], strict=True
@@ -215,11 +238,18 @@ def _summary(
             if tr is None:
                 continue
             t_ns, eta = tr
-            sc = score((t_ns - tt_ns[0]) / 1e9, eta, (tt_ns - tt_ns[0]) / 1e9, eta_t, settle_s=args.settle)
+            sc = score((t_ns - tt_ns[0]) / 1e9, eta, (tt_ns - tt_ns[0]) / 1e9, eta_t, settle_s=settle)
             errors[spec.label] = sc.as_dict()
         s["error_vs_truth"] = errors
-        s["settle_s"] = args.settle
+        s["settle_s"] = settle
     return s
+
+
+def default_settle_s(duration_s: float) -> float:
+    """The report's rule (`gateway.report`), so that the summary and the report leave out the same start."""
+    from gateway.report.metrics import SETTLE_FRACTION, SETTLE_MAX_S
+
+    return min(SETTLE_MAX_S, SETTLE_FRACTION * duration_s)
 
 
 def _print(s: dict[str, Any]) -> None:
@@ -242,6 +272,8 @@ def _print(s: dict[str, Any]) -> None:
 
 
 def _report(args: argparse.Namespace, vessel: str, specs: list[ObserverSpec], r: ReplayResult) -> list[Path]:
+    import numpy as np
+
     from gateway.report import ObserverTrace, ReplayData, write_report
 
     meas = r.collected.get("/dp/measurement", [])
@@ -284,4 +316,4 @@ def _report(args: argparse.Namespace, vessel: str, specs: list[ObserverSpec], r:
         counts=r.counts,
         **truth_kw,
     )
-    return write_report(data, args.report)
+    return write_report(data, args.report, settle_s=args.settle)

@@ -1,18 +1,25 @@
-"""``dpgw run``: the live gateway from a TOML config (the onboard service)."""
+"""``dpgw run``: the live gateway from a TOML config (the onboard service).
+
+Only the parser is built at import: the gateway (numpy, numba, Zenoh, pydantic) is imported by `run`, so
+``dpgw run --help`` answers at once.
+"""
 
 from __future__ import annotations
 
 import argparse
 import json
-import logging
-import signal
 import sys
-import tomllib
+import threading
+import time
+from typing import TYPE_CHECKING, Any
 
-from gateway.bus import BusError
-from gateway.config import ConfigError, GatewayConfig, describe, format_problems, load_config
-from gateway.service import GatewayService, zenoh_config
-from gateway.sources import SourceError, open_source
+if TYPE_CHECKING:
+    from gateway.config import GatewayConfig
+    from gateway.service import GatewayService
+
+# With -v, one status line this often (wall seconds).
+STATUS_EVERY_S = 5.0
+
 
 NAME = "run"
 HELP = "run the gateway: sensor streams in, observer, Zenoh and MCAP out"
@@ -42,11 +49,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="check the config and exit: a summary (status 0) or every problem (status 2); opens nothing",
     )
     p.add_argument("--json", action="store_true", help="print the exit summary as JSON")
-    p.add_argument("-v", "--verbose", action="store_true")
+    p.add_argument(
+        "-v",
+        "--verbose",
+        action="store_true",
+        help=f"log what the gateway does, and print a one-line status every {STATUS_EVERY_S:g} s (stderr)",
+    )
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    import logging
+    import signal
+    import tomllib
+
+    from gateway.bus import BusError
+    from gateway.config import ConfigError, describe, format_problems, load_config
+    from gateway.service import GatewayService
+    from gateway.sources import SourceError
+
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(message)s")
     try:
         config = load_config(args.config)
@@ -65,19 +86,28 @@ def run(args: argparse.Namespace) -> int:
     service = GatewayService(config, log_path=args.log, config_tables=tables)
     try:
         service.start()
-    except (SourceError, BusError, OSError) as exc:
+    except BusError as exc:
+        print(f"dpgw run: {config.path}: {exc}", file=sys.stderr)
+        return 2
+    except (SourceError, OSError) as exc:
         print(f"dpgw run: {exc}", file=sys.stderr)
         return 2
+    print(start_up_line(config, service, args.log), file=sys.stderr, flush=True)
 
     def on_signal(signum: int, _frame: object) -> None:
         service.stop_event.set()
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
+    reporter = None
+    if args.verbose:
+        reporter = threading.Thread(target=report_status, args=(service,), name="dpgw-status", daemon=True)
+        reporter.start()
     try:
         service.run(args.duration)
         service.drain()
     finally:
+        service.stop_event.set()  # also ends the status reporter
         status = service.pipeline.status(service.pipeline.last_ns).payload
         service.close()
     summary = {"estimates": service.pipeline.estimates, "published": service.published, "status": status}
@@ -91,9 +121,62 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def start_up_line(config: GatewayConfig, service: GatewayService, log_override: str | None) -> str:
+    """What the gateway opened: each source (with the port it bound, when it chose one), Zenoh, the log."""
+    sources = []
+    for src in service._sources:
+        port = getattr(src, "port", None)
+        bound = f", port {port}" if isinstance(port, int) and ":0" in src.url else ""
+        sources.append(f"{src.name} {src.url}{bound}")
+    z = config.zenoh
+    zenoh = f"zenoh {z.mode} prefix {z.prefix}"
+    if z.config_file:
+        zenoh += f" config {z.config_file}"
+    zenoh += f", listen {' '.join(z.listen) if z.listen else '(Zenoh default)'}"
+    zenoh += f", connect {' '.join(z.connect)}" if z.connect else ""
+    zenoh += "" if z.multicast_scouting else ", scouting off"
+    log_path = log_override or (str(config.log.path) if config.log.path else None)
+    return (
+        f"dpgw run: vessel {config.vessel.name}; sources {', '.join(sources) or 'none'}; {zenoh}; "
+        f"log {log_path or 'off'}"
+    )
+
+
+def report_status(service: GatewayService, every_s: float = STATUS_EVERY_S) -> None:
+    """Every ``every_s`` until the service stops: one line from the status the gateway last published."""
+    t0 = time.monotonic()
+    while not service.stop_event.wait(every_s):
+        print(status_line(service.last_status(), time.monotonic() - t0), file=sys.stderr, flush=True)
+
+
+def status_line(status: dict[str, Any], elapsed_s: float) -> str:
+    """``dpgw run: 35 s, dp, 340 estimates; dgps1 35 rx 0.1 s ago, gyro1 ...; alarms: ...``"""
+    if not status:
+        return f"dpgw run: {elapsed_s:.0f} s, no status yet"
+    parts = []
+    for name, c in status.get("sources", {}).items():
+        age = c.get("age_s")
+        rejected = sum(c.get("rejected", {}).values())
+        parts.append(
+            f"{name} {c.get('received', 0)} rx"
+            + (f" {age:.1f} s ago" if age is not None else " none yet")
+            + (f" ({rejected} rejected)" if rejected else "")
+        )
+    alarms = status.get("alarms") or []
+    return (
+        f"dpgw run: {elapsed_s:.0f} s, {status.get('mode', '?')}, {status.get('estimates', 0)} estimates; "
+        + ", ".join(parts)
+        + (f"; alarms: {'; '.join(alarms)}" if alarms else "")
+    )
+
+
 def start_up_problems(config: GatewayConfig) -> list[str]:
     """What start-up would refuse beyond the config's own checks, found without opening anything: each
     source URL as the gateway's sources read it, and the Zenoh session's config."""
+    from gateway.bus import BusError
+    from gateway.service import zenoh_config
+    from gateway.sources import SourceError, open_source
+
     where = str(config.path)
     problems: list[str] = []
     for sc in config.sources:
@@ -106,5 +189,5 @@ def start_up_problems(config: GatewayConfig) -> list[str]:
     try:
         zenoh_config(config.zenoh)
     except BusError as exc:
-        problems.append(f"{where}: zenoh: {exc}")
+        problems.append(f"{where}: {exc}")
     return problems

@@ -4,20 +4,18 @@ from __future__ import annotations
 
 import argparse
 import json
-import signal
 import sys
-import tomllib
-from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from gateway.bus import BusError, make_config, open_session
-from simulator.clock import Clock, RealtimeClock, VirtualClock
-from simulator.commands import MavlinkCommandInput, ZenohCommandInput
-from simulator.faults import COMMAND_KINDS, Fault, FaultSchedule
-from simulator.runner import CommandInput, Route, Simulation
-from simulator.scenarios import SCENARIOS, get_scenario
-from simulator.transports import Sink, TransportError, open_sink
-from wire.mcap.writer import McapLogWriter
+from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
+from simulator.scenario_names import SCENARIO_NAMES
+
+if TYPE_CHECKING:
+    from simulator.faults import Fault
+
+# Only the parser is built at import; the simulator (numpy, scipy, the MAVLink dialect) and Zenoh are
+# imported by `run`, so `dpgw sim --help` answers at once.
+
 
 NAME = "sim"
 HELP = "simulate a vessel at sea that speaks NMEA and MAVLink on real transports"
@@ -31,18 +29,16 @@ DESCRIPTION = (
 )
 EPILOG = (
     "examples:\n"
-    "  dpgw sim --scenario torsetnes_2004 --duration 600 --out trial.mcap\n"
+    "  dpgw sim --scenario torsetnes_2004 --duration 600 --out sim.mcap\n"
     "  dpgw sim --scenario torsetnes_2004 --nmea pty --realtime          # prints the device path\n"
     "  dpgw sim --scenario hassani --nmea dgps1=udp://127.0.0.1:10110 --nmea gyro1=pty --realtime\n"
     "  dpgw sim --scenario hajivand_2010 --mavlink tcp-listen://127.0.0.1:5760 --zenoh --realtime\n"
-    f"scenarios: {', '.join(SCENARIOS)}"
+    f"scenarios: {', '.join(SCENARIO_NAMES)} (docs/simulator.md)"
 )
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument(
-        "--scenario", choices=sorted(SCENARIOS), required=True, metavar="NAME", help="scenario name"
-    )
+    p.add_argument("--scenario", choices=SCENARIO_NAMES, required=True, metavar="NAME", help="scenario name")
     p.add_argument("--duration", type=float, metavar="S", help="sim seconds (default: the scenario's)")
     p.add_argument("--seed", type=int, default=0, help="random seed: same seed, same bytes (default 0)")
     p.add_argument("--out", metavar="LOG.mcap", help="write ground truth and every frame sent to this MCAP")
@@ -58,7 +54,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--mavlink", metavar="URL", help="where thruster MAVLink goes (and commands come back from)"
     )
     p.add_argument("--realtime", action="store_true", help="pace in real time (default: as fast as possible)")
-    p.add_argument("--speed", type=float, default=1.0, help="with --realtime: sim seconds per wall second")
+    p.add_argument(
+        "--speed",
+        type=float,
+        default=1.0,
+        metavar="X",
+        help="with --realtime: sim seconds per wall second (default 1)",
+    )
     p.add_argument(
         "--gnss-rate", type=float, metavar="HZ", help="DGPS rate 1-10 Hz (default: the scenario's)"
     )
@@ -81,10 +83,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--zenoh", action="store_true", help="take thruster commands from Zenoh <prefix>/thrusters/command"
     )
     p.add_argument("--prefix", help="Zenoh key prefix (default dp/<vessel>)")
-    p.add_argument(
-        "--zenoh-connect", action="append", default=[], metavar="ENDPOINT", help="e.g. tcp/10.0.0.5:7447"
-    )
-    p.add_argument("--zenoh-listen", action="append", default=[], metavar="ENDPOINT")
+    add_endpoint_args(p)
     p.add_argument("--zenoh-config", metavar="FILE", help="a Zenoh JSON5 config file (overrides the above)")
     p.add_argument("--json", action="store_true", help="print the run summary as JSON")
     p.set_defaults(func=run)
@@ -92,6 +91,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def load_faults(path: str) -> tuple[Fault, ...]:
     """The [[faults]] tables of a TOML file; errors name the file, the table and the field."""
+    import tomllib
+
+    from simulator.faults import FaultSchedule
+
     try:
         with open(path, "rb") as f:
             data = tomllib.load(f)
@@ -113,6 +116,18 @@ def _parse_route(spec: str, protocol: str) -> tuple[str, frozenset[str] | None]:
 
 
 def run(args: argparse.Namespace) -> int:
+    import signal
+    from dataclasses import replace
+
+    from gateway.bus import BusError, make_config, open_session
+    from simulator.clock import Clock, RealtimeClock, VirtualClock
+    from simulator.commands import MavlinkCommandInput, ZenohCommandInput
+    from simulator.faults import COMMAND_KINDS
+    from simulator.runner import CommandInput, Route, Simulation
+    from simulator.scenarios import get_scenario
+    from simulator.transports import Sink, TransportError, open_sink
+    from wire.mcap.writer import McapLogWriter
+
     try:
         scenario = get_scenario(args.scenario).with_sensor_rates(args.gnss_rate, args.gyro_rate)
         if args.faults:
@@ -168,7 +183,8 @@ def run(args: argparse.Namespace) -> int:
                 {"scenario": scenario.name, "seed": str(args.seed), "vessel": scenario.vessel.name},
             )
     except (TransportError, BusError, OSError) as exc:
-        print(f"dpgw sim: {exc}", file=sys.stderr)
+        message = exc.describe(ZENOH_FLAGS) if isinstance(exc, BusError) else str(exc)
+        print(f"dpgw sim: {message}", file=sys.stderr)
         for s in sinks:
             s.close()
         return 2

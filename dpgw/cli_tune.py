@@ -6,19 +6,16 @@ import argparse
 import json
 import math
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
+from observers.vessel_files import builtin_vessels
 
-from observers.passive_tuning import (
-    PassiveTuning,
-    check_gains,
-    error_eigenvalues,
-    notch_depth_db,
-    passive_gains,
-    slowest_error_rate,
-)
-from observers.vessel import VesselError, builtin_vessels, load_vessel
+if TYPE_CHECKING:
+    import numpy as np
+
+# Only the parser is built at import; the tuning numerics (numpy, scipy) are imported by `run`, so
+# `dpgw tune --help` answers at once.
+
 
 NAME = "tune"
 HELP = "passive-observer gains and checks for a vessel and sea state"
@@ -69,10 +66,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _matrix(a: np.ndarray) -> list[list[float]]:
+    import numpy as np
+
     return [[float(v) for v in row] for row in np.atleast_2d(a)]
 
 
 def run(args: argparse.Namespace) -> int:
+    from observers.passive_tuning import (
+        PassiveTuning,
+        check_gains,
+        error_eigenvalues,
+        notch_depth_db,
+        passive_gains,
+        slowest_error_rate,
+    )
+    from observers.vessel import VesselError, load_vessel
+
     try:
         vessel = load_vessel(args.vessel)
     except VesselError as exc:

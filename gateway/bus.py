@@ -15,7 +15,8 @@ reach its listeners (loopback by default) get in, which multicast scouting alone
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+import re
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +24,112 @@ import zenoh
 
 
 class BusError(RuntimeError):
-    """A Zenoh configuration a person must fix (bad endpoint, unreadable config file)."""
+    """A Zenoh configuration a person must fix (bad endpoint, port in use, unreadable config file).
+
+    ``key`` is the session setting at fault (``listen``, ``connect``, ``config_file`` or None), ``problem``
+    says what went wrong naming the endpoint, ``fix`` what to do. `describe` names the setting the way the
+    person wrote it (``zenoh.listen`` in a config file, ``--listen`` on a command line); ``str()`` uses the
+    config keys. Zenoh's own messages end in Rust source locations: those are dropped, they mean nothing
+    to the person who must fix the endpoint.
+    """
+
+    def __init__(self, problem: str, *, key: str | None = None, fix: str = "") -> None:
+        self.problem = problem
+        self.key = key
+        self.fix = fix
+        super().__init__(self.describe())
+
+    def describe(self, names: Mapping[str, str] | None = None) -> str:
+        name = (names or {}).get(self.key or "", f"zenoh.{self.key}" if self.key else "zenoh")
+        return f"{name}: {self.problem}" + (f" — {self.fix}" if self.fix else "")
+
+    def __str__(self) -> str:
+        return self.describe()
+
+
+_RUST_LOCATION = re.compile(r"\s*\bat /\S+\.rs:\d+\.?")
+_ENDPOINT_FORM = "PROTOCOL/HOST:PORT, e.g. tcp/0.0.0.0:7447"
+
+
+def _clean(text: str) -> str:
+    """A Zenoh error without its Rust source locations."""
+    return _RUST_LOCATION.sub("", text).strip()
+
+
+def _explain(exc: Exception, listen: Sequence[str], connect: Sequence[str]) -> BusError:
+    """One `BusError` naming the setting and the endpoint, from Zenoh's message about opening a session."""
+    text = _clean(str(exc))
+    low = text.lower()
+    configured = [("listen", e) for e in listen] + [("connect", e) for e in connect]
+    named = [(k, e) for k, e in configured if e in text]
+
+    def pick(key: str | None, test: Any = None) -> tuple[str | None, str]:
+        hits = named or [
+            (k, e) for k, e in configured if (key is None or k == key) and (test is None or test(e))
+        ]
+        if not hits:
+            hits = [(k, e) for k, e in configured if key is None or k == key]
+        keys = {k for k, _ in hits}
+        return (keys.pop() if len(keys) == 1 else key), ", ".join(e for _, e in hits) or "?"
+
+    if "address already in use" in low or "os error 98" in low:
+        key, ep = pick("listen")
+        return BusError(
+            f"cannot listen on {ep}: address in use",
+            key=key,
+            fix="another zenohd or dpgw is listening there; choose another port",
+        )
+    if "cannot assign requested address" in low or "os error 99" in low:
+        key, ep = pick("listen")
+        return BusError(
+            f"cannot listen on {ep}: not an address of this machine",
+            key=key,
+            fix="use one of this machine's addresses, or 0.0.0.0 for all of them",
+        )
+    if "permission denied" in low or "os error 13" in low:
+        key, ep = pick("listen")
+        return BusError(
+            f"cannot listen on {ep}: permission denied", key=key, fix="ports below 1024 need root; use 7447"
+        )
+    if "endpoints must be of the form" in low:
+        key, ep = pick(None, lambda e: "/" not in e)
+        return BusError(f"'{ep}' is not an endpoint", key=key, fix=f"write {_ENDPOINT_FORM}")
+    if "invalid port" in low:
+        key, ep = pick(None, lambda e: not _valid_port(e))
+        return BusError(
+            f"{ep}: invalid port", key=key, fix=f"a port is a number up to 65535: {_ENDPOINT_FORM}"
+        )
+    m = re.search(r"not supported for (\S+) protocol", text)
+    if m:
+        proto = m.group(1)
+        key, ep = pick(None, lambda e: e.startswith(f"{proto}/"))
+        return BusError(f"{ep}: unknown protocol '{proto}'", key=key, fix=f"write {_ENDPOINT_FORM}")
+    if "failed to lookup address" in low or "name or service not known" in low:
+        key, ep = pick(None)
+        return BusError(f"{ep}: unknown host name", key=key, fix="check the name, or write the IP address")
+    if "unable to connect" in low:
+        key, ep = pick("connect")
+        return BusError(
+            f"cannot connect to {ep}",
+            key=key,
+            fix="is a Zenoh router or peer running there? check the address and the port",
+        )
+    return BusError(f"cannot open a session: {text}", key=None)
+
+
+def _valid_port(endpoint: str) -> bool:
+    port = endpoint.split("?", 1)[0].split("#", 1)[0].rsplit(":", 1)[-1]
+    return port.isdigit() and 0 <= int(port) <= 65535
+
+
+def _endpoints(config: zenoh.Config, key: str) -> list[str]:
+    try:
+        value = json.loads(config.get_json(f"{key}/endpoints"))
+    except Exception:  # a shape this version of Zenoh does not give: name no endpoint
+        return []
+    if isinstance(value, dict):  # per-mode endpoints ({"peer": [...], "router": [...]})
+        return [str(e) for v in value.values() for e in (v if isinstance(v, list) else [v])]
+    return [str(e) for e in value] if isinstance(value, list) else []
 
 
 def make_config(
@@ -42,13 +148,13 @@ def make_config(
     if config_file is not None:
         path = Path(config_file)
         if not path.is_file():
-            raise BusError(f"zenoh config file '{path}' does not exist")
+            raise BusError(f"'{path}' does not exist", key="config_file")
         try:
             return zenoh.Config.from_file(str(path))
         except Exception as exc:  # zenoh raises its own ZError
-            raise BusError(f"zenoh config file '{path}': {exc}") from None
+            raise BusError(f"'{path}': {_clean(str(exc))}", key="config_file") from None
     if mode not in ("peer", "client"):
-        raise BusError(f"zenoh mode '{mode}': expected 'peer' or 'client'")
+        raise BusError(f"'{mode}': expected 'peer' or 'client'", key="mode")
     conf: dict[str, Any] = {"mode": mode, "scouting": {"multicast": {"enabled": multicast_scouting}}}
     if connect:
         conf["connect"] = {"endpoints": list(connect)}
@@ -70,7 +176,7 @@ def make_config(
     try:
         return zenoh.Config.from_json5(json.dumps(conf))
     except Exception as exc:
-        raise BusError(f"zenoh endpoints {list(connect) + list(listen)}: {exc}") from None
+        raise _explain(exc, listen, connect) from None
 
 
 ALL_MESSAGES = (
@@ -139,4 +245,4 @@ def open_session(config: zenoh.Config) -> zenoh.Session:
     try:
         return zenoh.open(config)
     except Exception as exc:
-        raise BusError(f"cannot open a zenoh session: {exc}") from None
+        raise _explain(exc, _endpoints(config, "listen"), _endpoints(config, "connect")) from None

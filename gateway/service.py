@@ -182,6 +182,13 @@ class GatewayService:
             body = self._status_json
         query.reply(f"{self.prefix}/status", body, encoding=JSON)
 
+    def last_status(self) -> dict[str, Any]:
+        """The status last published (what a query on ``<prefix>/status`` gets); safe from any thread."""
+        with self._status_lock:
+            body = self._status_json
+        status: dict[str, Any] = json.loads(body)
+        return status
+
     # --- the consumer loop ---------------------------------------------------------------------------------
 
     def _now(self, wall_ns: int) -> int:

@@ -32,6 +32,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from observers.vessel_files import builtin_vessels as builtin_vessels  # used here; re-exported
+
 Array = NDArray[np.float64]
 
 DEFAULT_MAX_RPM = 200.0
@@ -252,12 +254,6 @@ def vessel_from_dict(data: dict[str, Any], where: str = "vessel") -> VesselModel
         # re-raise with the file named, keeping the field and reason
         msg = str(exc).replace(f"vessel '{name}'", where, 1)
         raise VesselError(msg) from None
-
-
-def builtin_vessels() -> list[str]:
-    """Names of the vessels that ship with dpgw."""
-    folder = resources.files("observers") / "vessels"
-    return sorted(p.name.removesuffix(".toml") for p in folder.iterdir() if p.name.endswith(".toml"))
 
 
 def load_vessel(name_or_path: str | Path) -> VesselModel:

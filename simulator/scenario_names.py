@@ -1,0 +1,14 @@
+"""The names of the built-in scenarios, without building them.
+
+`simulator.scenarios` builds vessels, sea states and sensor models (numpy, the MAVLink dialect): close to a
+second of imports. The command line lists the names in ``--help`` and as argparse choices, and must not pay
+for that; a test holds this tuple equal to the keys of `simulator.scenarios.SCENARIOS`.
+"""
+
+SCENARIO_NAMES: tuple[str, ...] = (
+    "fossen_strand_1999",
+    "torsetnes_2004",
+    "snijders_2005",
+    "hassani",
+    "hajivand_2010",
+)

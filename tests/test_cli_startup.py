@@ -1,0 +1,87 @@
+"""`dpgw --help` must answer at once: building the parsers imports nothing heavy.
+
+The property tested is which modules a help page loads, not how long it takes (a timing test fails on a
+busy machine and passes on a fast one; `bench/bench_cli_startup.py` measures the time).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import textwrap
+
+from dpgw.cli import SUBCOMMANDS
+
+# Each of these costs from tens of milliseconds to seconds at import (numba and scipy the most), or pulls
+# in packages that do. None is needed to print a help page.
+HEAVY = ("numpy", "numba", "scipy", "zenoh", "pydantic", "mcap", "matplotlib", "tqdm", "gateway", "wire")
+HEAVY_MODULES = (
+    "simulator.scenarios",
+    "simulator.runner",
+    "observers.vessel",
+    "observers.passive_tuning",
+    "observers.radiation",
+)
+
+COMMANDS = [p.__name__.removeprefix("dpgw.cli_") for p in SUBCOMMANDS]
+
+
+def _loaded_after_help() -> list[str]:
+    """The modules loaded in a fresh interpreter after printing `dpgw --help` and every `dpgw X --help`."""
+    script = textwrap.dedent(
+        f"""
+        import contextlib, io, json, sys
+        from dpgw.cli import main
+        for argv in ([], *[[c] for c in {COMMANDS!r}]):
+            with contextlib.redirect_stdout(io.StringIO()):
+                try:
+                    main([*argv, "--help"])
+                except SystemExit:
+                    pass
+        print(json.dumps(sorted(sys.modules)))
+        """
+    )
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True)
+    loaded: list[str] = json.loads(out.stdout)
+    return loaded
+
+
+def test_help_pages_import_nothing_heavy() -> None:
+    loaded = _loaded_after_help()
+    heavy = sorted(
+        {
+            m if m in HEAVY_MODULES else m.split(".")[0]
+            for m in loaded
+            if m.split(".")[0] in HEAVY or m in HEAVY_MODULES
+        }
+    )
+    assert not heavy, f"--help imported {heavy}: move these imports into the command's run()"
+    assert "dpgw.cli_demo" in loaded and "dpgw.cli_tune" in loaded  # the parsers were built
+
+
+def test_every_command_is_covered() -> None:
+    assert sorted(COMMANDS) == ["demo", "listen", "radiation", "replay", "run", "sim", "tune"]
+
+
+def test_scenario_names_match_the_scenarios() -> None:
+    from simulator.scenario_names import SCENARIO_NAMES
+    from simulator.scenarios import SCENARIOS
+
+    assert tuple(SCENARIOS) == SCENARIO_NAMES
+
+
+def test_builtin_vessels_listed_without_numerics() -> None:
+    from observers import vessel, vessel_files
+
+    names = vessel_files.builtin_vessels()
+    assert "mss_supply" in names and names == vessel.builtin_vessels()
+    for name in names:
+        assert vessel.load_vessel(name).name  # each listed name loads
+
+
+def test_radiation_defaults_match_the_fit() -> None:
+    from dpgw import cli_radiation
+    from observers import radiation
+
+    assert (cli_radiation.MAX_ORDER, cli_radiation.R2_TARGET) == (radiation.MAX_ORDER, radiation.R2_TARGET)
