@@ -22,13 +22,16 @@ from numpy.typing import ArrayLike, NDArray
 
 def ssa_scalar(angle: float) -> float:
     """Smallest signed angle of one float: map any angle (rad) to [-π, π)."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+    a = (angle + math.pi) % (2.0 * math.pi) - math.pi
+    # For an angle a hair below -π (or below -π - 2kπ), angle + π is a tiny negative number and its
+    # remainder rounds up to 2π itself, which would give +π: fold that one value back to -π.
+    return a - 2.0 * math.pi if a >= math.pi else a
 
 
 def ssa(angle: ArrayLike) -> NDArray[np.float64]:
     """`ssa_scalar` element-wise for arrays (numpy's ``mod`` is Python's float ``%``, bit for bit)."""
-    a = np.asarray(angle, dtype=float)
-    return np.mod(a + math.pi, 2.0 * math.pi) - math.pi
+    a = np.mod(np.asarray(angle, dtype=float) + math.pi, 2.0 * math.pi) - math.pi
+    return a - 2.0 * math.pi * (a >= math.pi)  # subtracting 0.0 leaves every other value's bits alone
 
 
 ssa_jit = njit(cache=True)(ssa_scalar)

@@ -40,6 +40,7 @@ from dataclasses import dataclass, field, fields
 from datetime import UTC, date, datetime, timedelta
 from typing import Any, Final, Literal, TypeAlias, TypeVar
 
+from observers.kinematics import ssa_scalar
 from wire.codecs.nmea_encode import checksum
 from wire.codecs.nmea_time import parse_time_of_day
 
@@ -496,12 +497,6 @@ def _bearing(s: str) -> float | None:
     return angle
 
 
-def _wrap(angle: float) -> float:
-    """Any finite angle → [-π, π)."""
-    angle = (angle + _PI) % _TWO_PI - _PI
-    return angle - _TWO_PI if angle >= _PI else angle
-
-
 def _east_west(s: str, direction: str) -> float | None:
     """Magnitude in degrees (≤ 180) + ``E``/``W`` → degrees, east positive."""
     if not s:
@@ -801,7 +796,7 @@ def _hdg(talker: str, p: list[str]) -> Heading | Reject:
     sensor, deviation, variation = v
     heading = None
     if sensor is not None:
-        heading = _wrap((sensor + (deviation or 0.0) + (variation or 0.0)) * _RAD)
+        heading = ssa_scalar((sensor + (deviation or 0.0) + (variation or 0.0)) * _RAD)
     return Heading("HDG", talker, heading, heading is not None, None, variation is None)
 
 
