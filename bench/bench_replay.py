@@ -11,7 +11,7 @@ under a minute. The log is made by the simulator (torsetnes_2004, 10 Hz DGPS: GG
 
 The generated log always goes through the compiled scan (the path `dpgw replay` takes for logs of 8 MiB
 and more), so figures compare across versions. Then the real sea-trial logs (a USV's GGA/RMC/VTG/HDT at
-5 Hz, ``../shared/data/usv-nmea`` beside the checkout; skipped without them), each end to end with MCAP
+5 Hz, ``shared/data/usv-nmea`` in the folder that holds the checkout; skipped without them), each end to end with MCAP
 output by the path `dpgw replay` picks for its size, beside pynmea2 merely parsing the same lines
 (``pynmea2.parse`` per line: the ratio must be >= 1).
 
@@ -133,7 +133,7 @@ def main() -> None:
         print(f"  {label + ':':42s} {value:10,.0f} sentences/s{note}")
     print(f"  a day of this 10 Hz data would take {r['day_at_10_hz_seconds']:.0f} s")
     if not r["real_logs"]:
-        print("real logs: none found (../shared/data/usv-nmea beside the checkout)")
+        print("real logs: none found (shared/data/usv-nmea beside the checkout's folder)")
     for name, x in r["real_logs"].items():
         print(
             f"real log {name} ({x['sentences']:,} sentences, {x['path_used']}): end to end "

@@ -150,7 +150,7 @@ def check_limits(
             assert a == pytest.approx(ssa(t.angle_rad))
 
 
-# ---- the extended configuration (Hajivand eq (22), ERRATA signs) ---------------------------------------
+# ---- the extended configuration (Hajivand eq (22), signs restored) ---------------------------------------
 
 
 @pytest.mark.parametrize("name", [*VESSELS, "mains"])
@@ -166,7 +166,7 @@ def test_extended_matrix_matches_vessel_configuration(name: str) -> None:
 
 
 def test_extended_matrix_signs_per_errata() -> None:
-    """Azimuth at (x, y): F_x contributes yaw −y·F_x, F_y contributes x·F_y (ERRATA for eq (22))."""
+    """Azimuth at (x, y): F_x contributes yaw −y·F_x, F_y contributes x·F_y (eq (22) with its signs restored)."""
     vessel = load_vessel("hajivand_vessel")
     B = extended_configuration_matrix(vessel)
     for j, t in enumerate(vessel.thrusters):

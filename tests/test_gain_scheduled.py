@@ -224,7 +224,7 @@ def test_estimator_config_and_model_ship_scaling() -> None:
 
 @pytest.mark.slow  # ~10 s
 def test_scheduled_gains_are_torsetnes_51_52_and_the_passive_rule() -> None:
-    """Gains at any ω̄0 are (51)–(52) in ERRATA's form, bit for bit those of `passive_gains`."""
+    """Gains at any ω̄0 are (51)–(52) in the corrected form, bit for bit those of `passive_gains`."""
     obs = GainScheduledObserver(VESSEL, omega0_initial=0.7)
     g = obs.gains
     tun = DEFAULT_TUNING

@@ -265,7 +265,7 @@ def test_default_noise_is_appendix_a_for_cybership2_and_froude_scales() -> None:
 
 
 def test_model_discretisation_and_riccati() -> None:
-    """ERRATA's (14): ν row [0, 0, M⁻¹, −M⁻¹D], C = [C_w, I, 0, 0]; ZOH and Van Loan against a fine
+    """(14) as corrected: ν row [0, 0, M⁻¹, −M⁻¹D], C = [C_w, I, 0, 0]; ZOH and Van Loan against a fine
     quadrature; the stored P solves the DARE; every filter is stable; S = C P Cᵀ + R."""
     vessel = load_vessel("cybership2")
     A, B, G, C = continuous_model(vessel, 0.9, 0.1)

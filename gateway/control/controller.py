@@ -15,7 +15,7 @@ measurement: that is the point of wave filtering; eqs (67)–(70) are (57)–(59
         − Jᵀ(ψ̂) b̂                             (bias feed-forward, ``bias_feedforward``)
     ν̃ = ν̂ − Jᵀ(ψ̂) η_d'
 
-Notes on the paper (see also ../shared/papers/ERRATA.md: ξ here is the integral of η, not the wave state):
+Notes on the paper (its ξ in (57)–(70) is the integral of η, not the wave state, whatever the print suggests):
 
 * (69)–(70) is one equation broken over two lines by the OCR; Theorem 4 cites it as "(70)".
 * (57)/(58) integrate η and η_d separately; only the difference z = ξ − ξ_d enters (59), so dpgw
