@@ -11,9 +11,9 @@ under a minute. The log is made by the simulator (torsetnes_2004, 10 Hz DGPS: GG
 
 The generated log always goes through the compiled scan (the path `dpgw replay` takes for logs of 8 MiB
 and more), so figures compare across versions. Then the real sea-trial logs (a USV's GGA/RMC/VTG/HDT at
-5 Hz, ``shared/data/usv-nmea`` in the folder that holds the checkout; skipped without them), each end to end with MCAP
-output by the path `dpgw replay` picks for its size, beside pynmea2 merely parsing the same lines
-(``pynmea2.parse`` per line: the ratio must be >= 1).
+5 Hz, ``shared/data/usv-nmea`` in the folder that holds the checkout; skipped without them), each end
+to end with MCAP output by the path `dpgw replay` picks for its size, beside pynmea2 merely parsing the
+same lines (``pynmea2.parse`` per line: the target ratio is >= 1).
 
 Why the real logs looked slow from the command line (26,700 against 48,300 sentences/s): not the
 sentences. A process pays a fixed ~0.3 s the first time it calls any numba kernel (target registries,

@@ -163,7 +163,7 @@ def fossen_strand_1999() -> Scenario:
         dgps=(DgpsConfig(rate_hz=1.0, sigma_m=0.5),),
         gyro=(GyroConfig(rate_hz=1.0),),
         feedback=None,
-        notes="ω0 = 0.8976 rad/s is Tp = 7 s (2π/ω0; the paper's text is ambiguous); the sea is rescaled so the WF motion peaks at "
+        notes="ω0 = 0.8976 rad/s is Tp = 7 s (2π/ω0); the sea is rescaled so the WF motion peaks at "
         "10 m, 10 m and 1.0° as in the paper; waves from the starboard bow quarter so all DOFs move. The "
         "vessel has no thruster layout in the paper: τ acts directly.",
     )

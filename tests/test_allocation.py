@@ -166,7 +166,7 @@ def test_extended_matrix_matches_vessel_configuration(name: str) -> None:
 
 
 def test_extended_matrix_signs_per_errata() -> None:
-    """Azimuth at (x, y): F_x contributes yaw −y·F_x, F_y contributes x·F_y (eq (22) with its signs restored)."""
+    """Azimuth at (x, y): F_x contributes yaw −y·F_x, F_y contributes x·F_y (eq (22), signs restored)."""
     vessel = load_vessel("hajivand_vessel")
     B = extended_configuration_matrix(vessel)
     for j, t in enumerate(vessel.thrusters):

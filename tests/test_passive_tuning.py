@@ -50,7 +50,7 @@ def test_default_tuning_converges_faster_than_100_s(name: str) -> None:
 
 
 def test_convergence_does_not_depend_on_the_unit_system() -> None:
-    """The same ship in tonnes and kN gives the same error eigenvalues (the paper's gains are not unit-free)."""
+    """The same ship in tonnes and kN gives the same error eigenvalues (the paper's are not)."""
     v = load_vessel("northern_clipper")
     from observers.vessel import VesselModel
 
@@ -61,7 +61,8 @@ def test_convergence_does_not_depend_on_the_unit_system() -> None:
 
 
 def test_papers_literal_injection_gains_leave_the_loops_practically_open() -> None:
-    """The paper's literal gains: 𝒦 = diag(0.1, 0.1, 0.01), Λ = 0.1𝒦 with M, D of (56)–(57) in SI: slowest pole ≈ -0.001."""
+    """The paper's literal gains 𝒦 = diag(0.1, 0.1, 0.01), Λ = 0.1𝒦 with M, D of (56)–(57) in SI: the
+    slowest pole ≈ -0.001."""
     from observers.passive_tuning import PassiveGains
 
     v = load_vessel("northern_clipper")

@@ -1,9 +1,9 @@
 """Thrust allocation: generalised force demand τ = [X, Y, N] → thrust and azimuth per thruster.
 
-Implements the extended thrust configuration of Hajivand & Mousavizadegan (2010), eq (22), with the signs
-with the signs the printed equation lost restored: an azimuth i at (xᵢ, yᵢ) contributes a free force (F_x,i, F_y,i) with the
-columns [1, 0, −yᵢ]ᵀ and [0, 1, xᵢ]ᵀ (yaw moment = x·F_y − y·F_x); a tunnel or main propeller contributes
-its signed thrust uᵢ along its fixed direction αᵢ, column [cos αᵢ, sin αᵢ, xᵢ sin αᵢ − yᵢ cos αᵢ]ᵀ.
+Implements the extended thrust configuration of Hajivand & Mousavizadegan (2010), eq (22), with the
+signs the printed equation lost restored: an azimuth i at (xᵢ, yᵢ) contributes a free force
+(F_x,i, F_y,i) with the columns [1, 0, −yᵢ]ᵀ and [0, 1, xᵢ]ᵀ (yaw moment = x·F_y − y·F_x); a tunnel or
+main propeller contributes its signed thrust uᵢ along its fixed direction αᵢ, column [cos αᵢ, sin αᵢ, xᵢ sin αᵢ − yᵢ cos αᵢ]ᵀ.
 Then τ = B f with B constant, and an azimuth's thrust is |Fᵢ|, its angle atan2(F_y,i, F_x,i).
 
 * `PseudoInverseAllocator` — the paper's "T⁻¹(α) τ": the weighted minimum-norm solution
@@ -218,7 +218,8 @@ def _weighted_pinv(B: Array, w_ext: Array) -> Array:
 
 
 class PseudoInverseAllocator:
-    """Weighted minimum-norm allocation, the paper's T⁻¹(α)τ (Hajivand eq (22), signs restored): unconstrained.
+    """Weighted minimum-norm allocation, the paper's T⁻¹(α)τ (Hajivand eq (22), signs restored):
+    unconstrained.
 
     Minimises Σᵢ wᵢ |fᵢ / T_max,i|² subject to B f = τ (same power proxy and weights as `QPAllocator`).
     When some thruster would exceed its thrust limits, the whole f is scaled down by the largest factor
