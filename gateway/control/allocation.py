@@ -3,7 +3,8 @@
 Implements the extended thrust configuration of Hajivand & Mousavizadegan (2010), eq (22), with the
 signs the printed equation lost restored: an azimuth i at (xᵢ, yᵢ) contributes a free force
 (F_x,i, F_y,i) with the columns [1, 0, −yᵢ]ᵀ and [0, 1, xᵢ]ᵀ (yaw moment = x·F_y − y·F_x); a tunnel or
-main propeller contributes its signed thrust uᵢ along its fixed direction αᵢ, column [cos αᵢ, sin αᵢ, xᵢ sin αᵢ − yᵢ cos αᵢ]ᵀ.
+main propeller contributes its signed thrust uᵢ along its fixed direction αᵢ, column
+[cos αᵢ, sin αᵢ, xᵢ sin αᵢ − yᵢ cos αᵢ]ᵀ.
 Then τ = B f with B constant, and an azimuth's thrust is |Fᵢ|, its angle atan2(F_y,i, F_x,i).
 
 * `PseudoInverseAllocator` — the paper's "T⁻¹(α) τ": the weighted minimum-norm solution
