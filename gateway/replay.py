@@ -243,6 +243,25 @@ def parse_observer_spec(text: str) -> ObserverSpec:
     return ObserverSpec(name, label, params)
 
 
+def _as_replayed(tables: dict[str, Any]) -> dict[str, Any]:
+    """A logged gateway config as replay runs it. Replay commands no thrusters, so no source sends
+    commands (and an unsigned link's ``allow_unsigned``, which only allowed that, goes too). A log written
+    before ``[commands]`` existed came from a gateway that took every command input: so does its replay,
+    or the replay would refuse the setpoints and modes the live run obeyed."""
+    out = dict(tables)
+    sources = []
+    for src in out.get("sources", []):
+        if isinstance(src, dict) and src.get("commands"):
+            src = {k: v for k, v in src.items() if k != "commands"}
+            if "signing_key" not in src:
+                src.pop("allow_unsigned", None)
+        sources.append(src)
+    if "sources" in out:
+        out["sources"] = sources
+    out.setdefault("commands", {"accept": ["mode", "setpoint", "tau"]})
+    return out
+
+
 def build_config(
     inputs: list[Input], *, config_path: str | Path | None = None, vessel: str | None = None
 ) -> GatewayConfig:
@@ -260,7 +279,7 @@ def build_config(
                     if "/" not in vessel and not vessel.endswith(".toml")
                     else {"file": vessel}
                 )
-            tables = {**tables, "log": {"path": ""}}
+            tables = {**_as_replayed(tables), "log": {"path": ""}}
             return parse_config(tables, base_dir=inp.path.resolve().parent, where=f"{inp.path} (metadata)")
     if vessel is None:
         raise ReplayError("no configuration in the log: give --vessel NAME|FILE or --config FILE")

@@ -358,3 +358,29 @@ def test_observer_spec_switches_are_true_or_false() -> None:
     assert spec.params == {"adaptive": 1.0, "update_period_s": 30.0} and spec.label == "a"
     with pytest.raises(ReplayError, match="not a number"):
         parse_observer_spec("sdre:adaptive=maybe")
+
+
+def test_a_log_from_an_older_gateway_replays() -> None:
+    """A config logged before the command rules (commands = true on an unsigned link, no [commands]
+    table) still parses for replay: replay sends no commands, and takes every command input as that
+    gateway did."""
+    from gateway.config import parse_config
+    from gateway.replay import _as_replayed
+
+    tables = {
+        "vessel": {"name": "mss_supply"},
+        "sources": [
+            {"name": "gps", "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position", "heading"]},
+            {
+                "name": "thr",
+                "url": "udp://127.0.0.1:0",
+                "protocol": "mavlink",
+                "roles": ["thrusters"],
+                "commands": True,
+            },
+        ],
+        "log": {"path": ""},
+    }
+    config = parse_config(_as_replayed(tables), base_dir=Path.cwd())
+    assert not config.source("thr").commands
+    assert config.commands.accept == {"mode", "setpoint", "tau"}
