@@ -248,6 +248,7 @@ class Pipeline:
         )
         self._events: list[str] = []  # reference state changes not yet in a status
         self._last_est: Estimate | None = None
+        self._pred_base: tuple[Estimate, list[float], list[float], list[float]] | None = None
         self._last_est_ns = 0
         self._measured_ns = [0, 0, 0]  # when each DOF last went into the observer with a measurement
         self._last_step_ns = 0
@@ -498,13 +499,18 @@ class Pipeline:
             return None
         dt = (now_ns - self._last_est_ns) / NS
         age = (now_ns - self._measured_ns[dof]) / NS
-        wf = np.nan_to_num(est.eta_wf)
+        if self._pred_base is None or self._pred_base[0] is not est:
+            # the estimate as plain floats, once per estimate (NaN wave motion counts as none): this runs
+            # for every fix and heading, and numpy's per-element arithmetic cost more than the test itself
+            wf = [x if x == x else 0.0 for x in est.eta_wf.tolist()]
+            self._pred_base = (est, est.eta.tolist(), est.nu.tolist(), wf)
+        _, eta, nu, wf = self._pred_base
         if dof == 2:
-            return Prediction((ssa_scalar(float(est.eta[2] + wf[2] + est.nu[2] * dt)),), age)
-        c, s = math.cos(est.eta[2]), math.sin(est.eta[2])
-        u, v = float(est.nu[0]), float(est.nu[1])
-        n = float(est.eta[0] + wf[0] + (c * u - s * v) * dt)
-        e = float(est.eta[1] + wf[1] + (s * u + c * v) * dt)
+            return Prediction((ssa_scalar(eta[2] + wf[2] + nu[2] * dt),), age)
+        c, s = math.cos(eta[2]), math.sin(eta[2])
+        u, v = nu[0], nu[1]
+        n = eta[0] + wf[0] + (c * u - s * v) * dt
+        e = eta[1] + wf[1] + (s * u + c * v) * dt
         return Prediction((n, e), age)
 
     def _mavlink(self, spec: SourceSpec, c: SourceCounters, ev: RawEvent, out: list[Output]) -> bool:
