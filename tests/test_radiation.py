@@ -183,6 +183,7 @@ def test_synthetic_model_is_passive(synthetic: rad.RadiationModel) -> None:
     assert _independent_passivity_check(synthetic, w) >= -1e-9
 
 
+@pytest.mark.slow  # a fit, an enforcement and a dense check: ~9 s
 def test_passivity_is_enforced_when_the_data_are_not() -> None:
     """Sway–yaw coupling inflated by 40 % over a band: data no passive body could produce (the 2×2
     damping matrix indefinite there). The model must come out passive anyway, by residue perturbation."""

@@ -653,6 +653,7 @@ def test_stop_is_prompt_and_leaves_no_thread(
             thing.close()  # type: ignore[attr-defined]
 
 
+@pytest.mark.slow  # 30,000 datagrams twice, and a tiny buffer that drops most of them: ~15 s
 @pytest.mark.parametrize("rcvbuf", ["4k", None])
 def test_udp_burst_nothing_dropped_unseen(opened: list[Source], rcvbuf: str | None) -> None:
     """30,000 datagrams as fast as the sender can: every one is either received or counted as dropped by
