@@ -134,7 +134,7 @@ def plot(directory: Path, rows: list, model: rad.RadiationModel, mss: MssRadiati
     try:
         from matplotlib.figure import Figure
     except ImportError:
-        sys.exit("--plots needs matplotlib (pip install 'dpgw[plot]')")
+        sys.exit("--plots needs matplotlib (pip install matplotlib)")
     directory.mkdir(parents=True, exist_ok=True)
     six = rad.SIX_DOF_INDEX
     for i, j, f, w, a, b, k5, (ex_w, ex_a, ex_b) in rows:

@@ -76,6 +76,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.set_defaults(func=run)
 
 
+# Observers that schedule ω0 from the measured sea themselves (the sdre observer does with adaptive=true).
+SCHEDULES_OMEGA0 = frozenset({"gain_scheduled", "mmae"})
+
+
 def default_out(first_log: str) -> str:
     """``trial.mcap`` -> ``trial-replay.mcap`` beside it (a replay never overwrites what it reads)."""
     path = Path(first_log)
@@ -130,6 +134,10 @@ def run(args: argparse.Namespace) -> int:
     elif not any(inp.kind == "mcap" for inp in inputs):
         topics = []  # a text log or tlog has no truth: nothing to score
     bar = _bar() if sys.stderr.isatty() and not args.json else None
+    evidence = _WaveEvidence()
+    on_outputs = evidence.on_outputs
+    if publisher is not None:
+        on_outputs = evidence.chain(publisher.on_outputs)
     t0 = time.perf_counter()
     try:
         with McapLogWriter(args.out, profile="dpgw-replay", flush_on_log_time=False) as out:
@@ -139,7 +147,7 @@ def run(args: argparse.Namespace) -> int:
                 pipeline,
                 out=out,
                 collect=topics,
-                on_outputs=publisher.on_outputs if publisher else None,
+                on_outputs=on_outputs,
                 progress=(lambda n: bar.update(n - bar.n)) if bar is not None else None,
             )
     except (BusError, OSError) as exc:
@@ -152,13 +160,62 @@ def run(args: argparse.Namespace) -> int:
             publisher.close()
     wall = time.perf_counter() - t0
     summary = _summary(args, specs, result, wall)
+    kinds = {s.label: (s.name, s.name in SCHEDULES_OMEGA0 or bool(s.params.get("adaptive"))) for s in specs}
+    summary["wave_check"] = evidence.check(config.vessel.length_m, kinds).as_dict()
     if args.report:
-        summary["report"] = [str(p) for p in _report(args, config.vessel.name, specs, result)]
+        written = _report(args, config.vessel.name, specs, result)
+        summary["report"] = [str(p) for p in written]
+        if not any(p.suffix == ".png" for p in written):
+            from gateway.report.plots import load_figure
+
+            if load_figure() is None:
+                from gateway.report.writer import NO_MATPLOTLIB
+
+                print(f"dpgw replay: --report: {NO_MATPLOTLIB}", file=sys.stderr)
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
         _print(summary)
+    for warning in summary["wave_check"]["warnings"]:
+        print(f"dpgw replay: warning: {warning}", file=sys.stderr)
     return 0
+
+
+class _WaveEvidence:
+    """What the wave-tuning check needs, kept as the outputs go by: the measured η (stamp, N, E, ψ) and
+    each observer's ω0. Plain tuples, no payload dicts: this runs on every replay."""
+
+    def __init__(self) -> None:
+        self.stamps: list[int] = []
+        self.eta: list[list[float | None]] = []
+        self.omega0: dict[str, list[list[float]]] = {}
+
+    def on_outputs(self, ev: Event, outputs: list[Output]) -> None:
+        for o in outputs:
+            msg = o.message
+            if o.topic == "/dp/measurement":
+                self.stamps.append(msg.stamp_ns)  # type: ignore[attr-defined]
+                self.eta.append(msg.eta)  # type: ignore[attr-defined]
+            elif o.topic == "/dp/estimate" or o.topic.startswith("/dp/estimates/"):
+                self.omega0.setdefault(msg.observer, []).append(msg.omega0)  # type: ignore[attr-defined]
+
+    def chain(self, then: Any) -> Any:
+        def both(ev: Event, outputs: list[Output]) -> None:
+            self.on_outputs(ev, outputs)
+            then(ev, outputs)
+
+        return both
+
+    def check(self, vessel_length_m: float | None, kinds: dict[str, tuple[str, bool]]) -> Any:
+        import numpy as np
+
+        from gateway.report.metrics import wave_band_for_length
+        from gateway.report.wave_check import check_wave_tuning
+
+        t = (np.array(self.stamps, dtype=np.int64) - (self.stamps[0] if self.stamps else 0)) / 1e9
+        y = np.array([[np.nan if v is None else v for v in e] for e in self.eta], dtype=float).reshape(-1, 3)
+        w0 = {label: np.array(w, dtype=float) for label, w in self.omega0.items()}
+        return check_wave_tuning(t, y, wave_band_for_length(vessel_length_m), w0, kinds)
 
 
 class _Publisher:

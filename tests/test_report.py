@@ -319,7 +319,7 @@ def test_write_report_without_matplotlib(
     monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib -> ImportError
     files = write_report(data, tmp_path)
     assert [f.name for f in files] == ["metrics.json", "report.md"]
-    assert "pip install dpgw[plot]" in (tmp_path / "report.md").read_text()
+    assert "pip install matplotlib" in (tmp_path / "report.md").read_text()
 
 
 def test_metrics_json_has_no_nan(tmp_path: Path) -> None:

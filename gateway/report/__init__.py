@@ -8,7 +8,7 @@ power spectra that show the wave filter at work. `docs/report.md` gives every fo
 One job per module: `data` (the inputs, checked and sorted), `spectra` (resampling, Welch PSD, spectral
 peak), `metrics` (`compute_metrics`: pure numerics, arrays in, a JSON-able dict out), `plots` (matplotlib,
 imported only when drawing), `markdown` (report.md) and `writer` (`write_report`, the only one that writes
-files). matplotlib is optional (`pip install dpgw[plot]`): without it the report has the metrics and the
+files). matplotlib is imported only to draw: an install without it still gets the metrics and the
 table.
 """
 

@@ -2,7 +2,7 @@
 al. 2004, Figs. 3-8): measurement against LF and WF estimates per DOF, velocities, bias, the wave frequency in
 use and the power spectra.
 
-matplotlib is optional (`pip install dpgw[plot]`) and imported only when a report draws (`load_figure`), so
+matplotlib (a dependency) is imported only when a report draws (`load_figure`), so
 importing the report, or writing one without plots, never needs it. `decimate` has no matplotlib in it.
 """
 

@@ -27,6 +27,11 @@ def _json_clean(x: Any) -> Any:
     return x
 
 
+# matplotlib is a dependency of dpgw; an install without it (a trimmed environment, a vendored copy) still
+# gets the metrics and the table, and this note (in report.md, and on the console from `dpgw replay`).
+NO_MATPLOTLIB = "Plots were not drawn: matplotlib is not installed. Install it with `pip install matplotlib`."
+
+
 def write_report(
     data: ReplayData,
     folder: str | Path,
@@ -46,9 +51,7 @@ def write_report(
     else:
         Figure = load_figure()
         if Figure is None:
-            note = (
-                "Plots were not drawn: matplotlib is not installed. Install it with `pip install dpgw[plot]`."
-            )
+            note = NO_MATPLOTLIB
         else:
             note = ""
             pngs = draw_plots(data, an, out, Figure)

@@ -1,0 +1,179 @@
+"""The replay's wave-tuning check: a sea far from the observer's ω0 is found and said, with a command
+that works as printed; no sea, no warning."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from dpgw.cli import main
+from gateway.report.wave_check import CLEAR_PEAK_DB, check_wave_tuning
+from simulator.runner import Simulation
+from simulator.scenarios import get_scenario
+from wire.mcap.writer import McapLogWriter
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+BAND = (0.2, 2.0)
+
+
+def vessel_under_way(seed: int, wave_omega: float | None, duration: float = 900.0, dt: float = 0.1):  # type: ignore[no-untyped-def]
+    """Position/heading as a DP log sees them: LF motion of metres over minutes (integrated noise through a
+    slow first-order lag), a narrow-band sea at `wave_omega` (none if None), 0.3 m / 0.2° white noise."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, duration, dt)
+    n = len(t)
+    y = np.empty((n, 3))
+    b, a = signal.butter(1, 0.02 / (math.pi / dt))  # 0.02 rad/s lag: minutes
+    for k, (lf_scale, wf_amp, noise) in enumerate([(3.0, 0.3, 0.3), (3.0, 0.3, 0.3), (0.05, 0.003, 0.0035)]):
+        lf = signal.lfilter(b, a, np.cumsum(rng.standard_normal(n))) * lf_scale * dt
+        wf = np.zeros(n)
+        if wave_omega is not None:
+            # a sea of 20 components over ±10 % of the peak, random phases
+            for w in wave_omega * np.linspace(0.9, 1.1, 20):
+                wf += wf_amp / math.sqrt(20) * math.sqrt(2) * np.sin(w * t + rng.uniform(0, 2 * math.pi))
+        y[:, k] = lf + wf + noise * rng.standard_normal(n)
+    return t, y
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_sea_far_from_omega0_is_found_and_the_advice_gives_its_period(seed: int) -> None:
+    t, y = vessel_under_way(seed, wave_omega=0.55)
+    wc = check_wave_tuning(
+        t, y, BAND, {"passive": np.full((len(t), 3), 0.8976)}, {"passive": ("passive", False)}
+    )
+    assert wc.measured is not None and abs(wc.measured / 0.55 - 1.0) < 0.05
+    assert all(p.clear and p.above_trend_db >= CLEAR_PEAK_DB for p in wc.peaks.values())
+    (warning,) = wc.warnings()
+    m = re.search(r"--observer passive:wave_period_s=([0-9.]+), or", warning)
+    assert m is not None, warning
+    assert abs(float(m.group(1)) / (2 * math.pi / 0.55) - 1.0) < 0.06
+    # tuned to the sea: silent
+    tuned = check_wave_tuning(t, y, BAND, {"passive": np.full(len(t), 0.55)})
+    assert tuned.warnings() == [] and tuned.observers[0].ratio is not None
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_no_sea_no_warning(seed: int) -> None:
+    """LF motion and white noise only: the spectrum falls through the band; its maximum is no wave peak."""
+    t, y = vessel_under_way(seed, wave_omega=None)
+    wc = check_wave_tuning(t, y, BAND, {"passive": np.full(len(t), 0.8976)})
+    assert wc.measured is None
+    assert wc.warnings() == []
+
+
+def test_an_observer_that_schedules_omega0_is_told_to_widen_its_range() -> None:
+    t, y = vessel_under_way(1, wave_omega=0.35)
+    w0 = np.clip(np.linspace(0.9, 0.3, len(t)), 0.6, None)  # moved, but stuck at its bound 0.6
+    wc = check_wave_tuning(t, y, BAND, {"gs": w0}, {"gs": ("gain_scheduled", True)})
+    (warning,) = wc.warnings()
+    assert "range does not reach" in warning
+    m = re.search(
+        r"--observer gain_scheduled:wave_period_s=([0-9.]+),omega_min=([0-9.]+),omega_max=([0-9.]+)$", warning
+    )
+    assert m is not None, warning
+    period, lo, hi = (float(g) for g in m.groups())
+    assert lo < 2 * math.pi / period < hi and abs(2 * math.pi / period / 0.35 - 1) < 0.06
+
+
+def _advised_spec(stderr: str) -> str:
+    m = re.search(r"Re-run with --observer (\S+), or|re-run with --observer (\S+)$", stderr.strip(), re.M)
+    assert m is not None, stderr
+    return m.group(1) or m.group(2)
+
+
+def test_replay_warns_with_a_command_that_works_as_printed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Snijders' sea (JONSWAP Tp 12 s) replayed with the default 7 s tuning: a warning naming the period;
+    the command it prints runs and is silent."""
+    log = tmp_path / "sea.mcap"
+    with McapLogWriter(log) as out:
+        Simulation(get_scenario("snijders_2005"), seed=3, log=out).run(900.0)
+    args = ["replay", str(log), "--vessel", "mss_supply", "--out", str(tmp_path / "a.mcap"), "--json"]
+    assert main(args) == 0
+    cap = capsys.readouterr()
+    summary = json.loads(cap.out)
+    wc = summary["wave_check"]
+    assert 0.45 < wc["measured_peak_rad_s"] < 0.6  # Tp 12 s is 0.52 rad/s
+    assert wc["observers"]["passive"]["mistuned"] is True
+    assert "warning: the measured wave peak" in cap.err
+    spec = _advised_spec(cap.err)
+    assert spec.startswith("passive:wave_period_s=1")
+    args = [
+        "replay",
+        str(log),
+        "--vessel",
+        "mss_supply",
+        "--observer",
+        spec,
+        "--out",
+        str(tmp_path / "b.mcap"),
+    ]
+    assert main([*args, "--json"]) == 0
+    cap = capsys.readouterr()
+    assert "warning" not in cap.err
+    assert not any(o["mistuned"] for o in json.loads(cap.out)["wave_check"]["observers"].values())
+
+
+def test_replay_of_a_sea_the_tuning_fits_is_silent(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    log = tmp_path / "sea.mcap"
+    with McapLogWriter(log) as out:
+        Simulation(get_scenario("fossen_strand_1999"), seed=3, log=out).run(900.0)
+    assert main(["replay", str(log), "--vessel", "mss_supply", "--out", str(tmp_path / "a.mcap")]) == 0
+    assert "warning" not in capsys.readouterr().err
+
+
+def test_real_usv_log_in_a_short_sea_is_called_mistuned(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    log = DATA / "usv-nmea" / "202412061745.txt"
+    if not log.exists():
+        pytest.skip(f"{log} not present (../shared/data beside the clone)")
+    args = ["replay", str(log), "--vessel", "cybership2", "--out", str(tmp_path / "a.mcap"), "--json"]
+    assert main(args) == 0
+    cap = capsys.readouterr()
+    wc = json.loads(cap.out)["wave_check"]
+    assert 3.5 < wc["measured_peak_rad_s"] < 4.5
+    spec = _advised_spec(cap.err)
+    assert (
+        main(
+            [
+                "replay",
+                str(log),
+                "--vessel",
+                "cybership2",
+                "--observer",
+                spec,
+                "--out",
+                str(tmp_path / "b.mcap"),
+            ]
+        )
+        == 0
+    )
+    assert "warning" not in capsys.readouterr().err
+
+
+def test_report_without_matplotlib_says_so_on_the_console(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import gateway.report.plots as plots
+    import gateway.report.writer as writer
+
+    monkeypatch.setattr(plots, "load_figure", lambda: None)
+    monkeypatch.setattr(writer, "load_figure", lambda: None)
+    log = tmp_path / "sea.mcap"
+    with McapLogWriter(log) as out:
+        Simulation(get_scenario("fossen_strand_1999"), seed=1, log=out).run(200.0)
+    args = ["replay", str(log), "--vessel", "mss_supply", "--out", str(tmp_path / "a.mcap")]
+    assert main([*args, "--report", str(tmp_path / "rep")]) == 0
+    err = capsys.readouterr().err
+    assert "matplotlib is not installed" in err and "pip install matplotlib" in err
+    assert not list((tmp_path / "rep").glob("*.png"))
