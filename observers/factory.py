@@ -75,6 +75,20 @@ class ObserverEntry:
         return builder
 
 
+# EKF: the SDRE observer's physical tuning (the same Q; R from the sensors' per-sample noise).
+EKF_PARAMS = (
+    "position_sigma_m",
+    "heading_sigma_rad",
+    "sample_period_s",
+    "wave_sigma_m",
+    "wave_sigma_rad",
+    "lf_bandwidth_ratio",
+    "lf_bandwidth",
+    "velocity_weight",
+    "position_weight",
+    "yaw_lever_m",
+)
+
 _GS_PARAMS = ("omega0_initial", "window_s", "update_period_s", "omega_min", "omega_max", "per_dof")
 _MMAE_PARAMS = (
     "candidates",
@@ -99,6 +113,9 @@ _REGISTERED = (
     ObserverEntry("mmae", "Hassani, Pascoal, Aguiar & Athans", "observers.mmae:MMAEObserver", _MMAE_PARAMS),
     ObserverEntry(
         "sdre", "Snijders, van der Woude & Westhuis (2005)", "observers.sdre:SdreObserver", SDRE_PARAMS
+    ),
+    ObserverEntry(
+        "ekf", "Balchen et al. (1980); Fossen (2021) Sec. 13.4", "observers.ekf:EkfObserver", EKF_PARAMS
     ),
 )
 
