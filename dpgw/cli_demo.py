@@ -283,7 +283,7 @@ def summarise(
     return result
 
 
-def station_keeping(log: str, t_truth: Any, eta_truth: Any, t0_ns: int) -> dict[str, float] | None:
+def station_keeping(log: str, t_truth: Any, eta_truth: Any, t0_ns: int) -> dict[str, Any] | None:
     """How well the vessel kept station after the settle time: the true LF position's distance from, and
     heading's difference to, the controller's reference (the setpoint through the reference model), p95;
     and the share of the commanded force's variance in the wave band (what wave filtering keeps out)."""
