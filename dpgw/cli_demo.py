@@ -133,6 +133,7 @@ def run(args: argparse.Namespace) -> int:
 
     from gateway.bus import BusError
     from gateway.config import ConfigError, format_problems, parse_config
+    from gateway.pipeline import ControlEvent
     from gateway.service import GatewayService
     from gateway.sources import SourceError
     from simulator.clock import RealtimeClock
@@ -179,13 +180,18 @@ def run(args: argparse.Namespace) -> int:
         commands.append(MavlinkCommandInput(mav_sink))  # the loop closes over the MAVLink link
     elif args.mode == "dp" and service._session is not None:
         commands.append(ZenohCommandInput(service._session, config.zenoh.prefix))  # τ for layout-less ships
-    start_utc = datetime.fromtimestamp(service._wall0_ns / 1e9, tz=UTC)
+    wall0_ns = service._wall0_ns
+    start_utc = datetime.fromtimestamp(wall0_ns / 1e9, tz=UTC)
+    clock = RealtimeClock(speed=args.speed)
+    if args.mode == "dp":
+        # Hold the scenario's station, not wherever the first (wave-moved, noisy) fix put the estimate.
+        service._queue.put(ControlEvent(wall0_ns, "setpoint", hold_setpoint(scenario)))
     sim = Simulation(
         replace(scenario, start_utc=start_utc),
         args.seed,
         routes=routes,
         log=service.log,
-        clock=RealtimeClock(speed=args.speed),
+        clock=clock,
         log_raw=False,  # the gateway logs what it received; the simulator adds the truth
         commands=commands,
     )
@@ -193,6 +199,12 @@ def run(args: argparse.Namespace) -> int:
 
     def simulate() -> None:
         try:
+            # One timebase: the gateway stamps a receive instant w as wall0 + (w − wall0)·speed and the
+            # truth is stamped start_utc + t with start_utc = wall0, so sim time t must be due at wall
+            # instant wall0 + t/speed. Anchoring the clock on its first use instead (after building the
+            # simulation) put every gateway stamp late by that set-up time × speed: at speed 10 about 6 s,
+            # half a wave period, and the measurements looked like LF minus the truth's wave motion.
+            clock.anchor((time.time_ns() - wall0_ns) / 1e9 * args.speed)
             sim.run(args.duration)
             time.sleep(0.3)  # let the last bytes arrive
         except BaseException as exc:  # reported below, never a silent hang
@@ -223,6 +235,12 @@ def run(args: argparse.Namespace) -> int:
     else:
         print_summary(summary)
     return 0
+
+
+def hold_setpoint(scenario: Any) -> dict[str, float]:
+    """The station the demo keeps in dp: the scenario's start position and heading (``eta0``)."""
+    north, east, psi = scenario.eta0
+    return {"north_m": float(north), "east_m": float(east), "heading_deg": math.degrees(psi)}
 
 
 WAVE_BAND = (0.3, 2.0)
@@ -265,7 +283,7 @@ def summarise(
     return result
 
 
-def station_keeping(log: str, t_truth: Any, eta_truth: Any, t0_ns: int) -> dict[str, float] | None:
+def station_keeping(log: str, t_truth: Any, eta_truth: Any, t0_ns: int) -> dict[str, Any] | None:
     """How well the vessel kept station after the settle time: the true LF position's distance from, and
     heading's difference to, the controller's reference (the setpoint through the reference model), p95;
     and the share of the commanded force's variance in the wave band (what wave filtering keeps out)."""
@@ -285,11 +303,16 @@ def station_keeping(log: str, t_truth: Any, eta_truth: Any, t0_ns: int) -> dict[
         return None
     true_at = truth_at(t_cmd[keep], t_truth, eta_truth)
     dist = np.hypot(true_at[:, 0] - ref[keep, 0], true_at[:, 1] - ref[keep, 1])
-    dpsi = np.degrees(np.abs(ssa(true_at[:, 2] - ref[keep, 2])))
+    signed = np.degrees(ssa(true_at[:, 2] - ref[keep, 2]))
     tau = np.array([c[1]["tau_demand"] for c in cmds], dtype=float)[keep]
     out = {
         "position_p95_m": float(np.nanpercentile(dist, 95)),
-        "heading_p95_deg": float(np.nanpercentile(dpsi, 95)),
+        "heading_p95_deg": float(np.nanpercentile(np.abs(signed), 95)),
+        # the means say whether the integral action closes (a p95 alone cannot tell an offset from noise)
+        "north_mean_m": float(np.nanmean(true_at[:, 0] - ref[keep, 0])),
+        "east_mean_m": float(np.nanmean(true_at[:, 1] - ref[keep, 1])),
+        "heading_mean_deg": float(np.nanmean(signed)),
+        "reference": [float(ref[-1, 0]), float(ref[-1, 1]), math.degrees(float(ref[-1, 2]))],
     }
     dt = float(np.median(np.diff(t_cmd[keep])))
     if len(tau) >= 64 and dt > 0:
@@ -324,6 +347,11 @@ def print_summary(r: dict[str, Any]) -> None:
             f"  station keeping (true position vs the reference, after {r['settle_s']:.0f} s): p95 "
             f"{k['position_p95_m']:.2f} m, heading p95 {k['heading_p95_deg']:.2f} deg"
             + (f"; {100 * share:.1f} % of the commanded force in the wave band" if share is not None else "")
+        )
+        print(
+            f"  mean offset from the reference ({k['reference'][0]:.1f} m N, {k['reference'][1]:.1f} m E, "
+            f"{k['reference'][2]:.1f} deg): {k['north_mean_m']:+.2f} m N, {k['east_mean_m']:+.2f} m E, "
+            f"heading {k['heading_mean_deg']:+.2f} deg"
         )
     if r["alarms"]:
         print(f"  alarms at the end: {'; '.join(r['alarms'])}")

@@ -10,7 +10,10 @@ The wave-frequency motion (RAO × spectrum, `simulator.waves`) is added to the l
 sensors only — it is never fed back into the plant (the LF/WF superposition of Fossen & Strand Sec. 2.4).
 It is evaluated in 2 s blocks on the 0.05 s grid with the heading and position at the block's start, and
 interpolated linearly to the sample times (error ~0.1 % for wave periods above 3 s): one vectorised call
-per block instead of one per sample.
+per block instead of one per sample. The same call gives the WF heave, roll and pitch: the sensors see the
+vessel's six-degree-of-freedom WF motion (a DGPS antenna on a mast swings with roll and pitch), and the
+truth logs exactly what they see — η_WF and the attitude of the reference point, and each antenna's true
+position — so measurement − truth is the sensor's noise and nothing else.
 """
 
 from __future__ import annotations
@@ -32,7 +35,15 @@ from simulator.commands import Command, TauCommand
 from simulator.environment import MarkovBias
 from simulator.faults import FaultSchedule
 from simulator.scenarios import Scenario, ShipNow
-from simulator.sensors import Dgps, Emission, Gyro, ShipState, ThrusterFeedback, ThrusterReading
+from simulator.sensors import (
+    Dgps,
+    Emission,
+    Gyro,
+    ShipState,
+    ThrusterFeedback,
+    ThrusterReading,
+    antenna_ned,
+)
 from simulator.spectra import SeaState
 from simulator.thrusters import PrescribedAllocation, ThrusterBank
 from simulator.transports import Sink
@@ -98,17 +109,26 @@ class _WaveCache:
     def __init__(self, field: WaveField) -> None:
         self.field = field
         self.t0 = math.inf
-        self.values = np.zeros((1, 3))
-        self._last: tuple[float, Array] = (math.nan, np.zeros(3))
+        self.values = np.zeros((1, 6))
+        self._last: tuple[float, Array] = (math.nan, np.zeros(6))
 
     def motion(self, t: float, eta_lf: Array) -> Array:
-        """η_WF at t (sensors and truth ask for the same instant: the last answer is kept)."""
+        """η_WF = [N, E, ψ] at t."""
+        return self.motion6(t, eta_lf)[:3]
+
+    def attitude(self, t: float, eta_lf: Array) -> Array:
+        """WF [heave (down), roll, pitch] of the reference point at t."""
+        return self.motion6(t, eta_lf)[3:]
+
+    def motion6(self, t: float, eta_lf: Array) -> Array:
+        """[N, E, ψ, z, φ, θ] at t (sensors and truth ask for the same instant: the last answer is kept)."""
         if t == self._last[0]:
             return self._last[1]
         if not (self.t0 <= t <= self.t0 + WF_BLOCK_S):
             self.t0 = t
             grid = t + np.arange(0.0, WF_BLOCK_S + MAX_STEP_S / 2, MAX_STEP_S)
-            self.values = self.field.motion(grid, eta_lf[2], eta_lf[0], eta_lf[1])
+            eta, att = self.field.motion_with_attitude(grid, eta_lf[2], eta_lf[0], eta_lf[1])
+            self.values = np.hstack([eta, att])
         x = (t - self.t0) / MAX_STEP_S
         i = min(int(x), len(self.values) - 2)
         w = x - i
@@ -240,8 +260,8 @@ class Simulation:
 
     def ship_state(self, with_thrusters: bool = True) -> ShipState:
         eta_lf = self.dynamics.x[0:3]
-        wf = self._wf.motion(self.t, eta_lf)
-        eta = eta_lf + wf
+        wf6 = self._wf.motion6(self.t, eta_lf)
+        eta = eta_lf + wf6[:3]
         eta[2] = ssa_scalar(eta[2])
         readings = tuple(
             ThrusterReading(
@@ -258,7 +278,9 @@ class Simulation:
             for i, tid in enumerate(self.thrusters.ids)
             if with_thrusters
         )
-        return ShipState(t=self.t, eta=eta, nu=self.dynamics.x[3:6].copy(), thrusters=readings)
+        return ShipState(
+            t=self.t, eta=eta, nu=self.dynamics.x[3:6].copy(), thrusters=readings, attitude=wf6[3:].copy()
+        )
 
     def _sea_state(self) -> SeaState:
         """The current sea state; it changes only at the schedule's switch times (mid-fade), so cache it."""
@@ -275,7 +297,12 @@ class Simulation:
         if self.log is None:
             return
         x = self.dynamics.x
-        wf = self._wf.motion(self.t, x[0:3])
+        wf6 = self._wf.motion6(self.t, x[0:3])
+        wf, attitude = wf6[:3], wf6[3:]
+        eta_total = x[0:3] + wf
+        antennas = {
+            d.source: antenna_ned(eta_total, d.lever_arm_m, attitude).tolist() for d in self.scenario.dgps
+        }
         c, s = math.cos(x[2]), math.sin(x[2])
         d = self._drift_body
         b = self.bias.force
@@ -290,6 +317,8 @@ class Simulation:
             nu=x[3:6].tolist(),
             bias=bias_total,
             eta_wf=wf.tolist(),
+            wf_attitude=attitude.tolist(),
+            antennas=antennas,
             omega0=[w0, w0, w0],
             tau=tau.tolist(),
             hs_m=sea.hs_m,

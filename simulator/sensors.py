@@ -9,11 +9,13 @@ bytes to the sensor's transport at ``t_emit``.
 
 Models (docs/sensors.md has the full description):
 
-* `Dgps` — antenna position = reference point + J(ψ)·lever arm (horizontal), height above the reference
-  point added to the altitude; noise white or first-order Gauss-Markov with standard deviation σ per axis;
-  NED → WGS-84 latitude/longitude at a `Datum` with pymap3d. Speed and course over ground from the antenna's
-  NED velocity J(ψ)(ν + r × lever arm) plus white velocity noise. Fixes on the UTC grid of the output rate
-  (like a receiver locked to GPS time); one burst per fix: GGA or GNS, then RMC, VTG, GST, ZDA as configured.
+* `Dgps` — antenna position = reference point + R(φ, θ, ψ)·lever arm: the vessel's heading and its
+  wave-frequency roll and pitch turn the lever arm (a mast 20 m high moves 0.35 m per degree of roll),
+  heave and the turned arm's height go into the altitude; noise white or first-order Gauss-Markov with
+  standard deviation σ per axis; NED → WGS-84 latitude/longitude at a `Datum` with pymap3d. Speed and
+  course over ground from the antenna's low-frequency NED velocity J(ψ)(ν + r × lever arm) plus white
+  velocity noise. Fixes on the UTC grid of the output rate (like a receiver locked to GPS time); one burst
+  per fix: GGA or GNS, then RMC, VTG, GST, ZDA as configured.
 * `Gyro` — heading ψ + white noise, wrapped; rate of turn r + white noise: HDT, THS, ROT, HDG.
 * `ThrusterFeedback` — per thruster one ``AZIMUTH_THRUSTER_STATUS``, a ``HEARTBEAT`` (surface boat), and
   optionally ArduPilot-style ``ESC_TELEMETRY_x_TO_y`` (rpm) and ``SERVO_OUTPUT_RAW`` (azimuth as PWM), all
@@ -31,7 +33,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Annotated, Any, Literal, Protocol, runtime_checkable
 
 import numpy as np
@@ -68,6 +70,7 @@ __all__ = [
     "ThrusterFeedback",
     "ThrusterFeedbackConfig",
     "ThrusterReading",
+    "antenna_ned",
     "antenna_position",
     "antenna_velocity",
     "azimuth_to_pwm",
@@ -178,15 +181,17 @@ class ThrusterReading:
 @dataclass(frozen=True)
 class ShipState:
     """What the sensors sample at time ``t``: ``eta`` = [N, E, ψ] of the reference point (total motion, LF +
-    WF), ``nu`` = [u, v, r] in the body frame, and the thrusters' readings."""
+    WF), ``nu`` = [u, v, r] in the body frame, the thrusters' readings, and ``attitude`` = [z (m, down), φ,
+    θ (rad)]: the reference point's wave-frequency heave, roll (starboard down) and pitch (bow up)."""
 
     t: float
     eta: NDArray[np.float64]
     nu: NDArray[np.float64]
     thrusters: tuple[ThrusterReading, ...] = ()
+    attitude: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
 
     def __post_init__(self) -> None:
-        for name in ("eta", "nu"):
+        for name in ("eta", "nu", "attitude"):
             value = np.asarray(getattr(self, name), dtype=float)
             if value.shape != (3,):
                 raise ValueError(f"ShipState.{name}: must have 3 elements, got {getattr(self, name)!r}")
@@ -305,12 +310,30 @@ class Sensor(Protocol):
         ...
 
 
-def antenna_position(eta: ArrayLike, lever_arm_m: Sequence[float]) -> NDArray[np.float64]:
-    """NED [N, E] of an antenna at body-frame ``lever_arm_m`` (x, y[, z]) from the reference point at η."""
+def antenna_position(
+    eta: ArrayLike, lever_arm_m: Sequence[float], attitude: ArrayLike | None = None
+) -> NDArray[np.float64]:
+    """NED [N, E] of an antenna at body-frame ``lever_arm_m`` (x, y[, z]) from the reference point at η.
+
+    With ``attitude`` = [z, φ, θ] (heave, roll, pitch) the lever arm is turned by R_zyx(φ, θ, ψ) (Fossen
+    2021, eq. 2.18), so roll and pitch move a high antenna sideways and fore-aft; without, by ψ alone."""
+    return antenna_ned(eta, lever_arm_m, attitude)[:2]
+
+
+def antenna_ned(
+    eta: ArrayLike, lever_arm_m: Sequence[float], attitude: ArrayLike | None = None
+) -> NDArray[np.float64]:
+    """NED [N, E, D] of an antenna (see `antenna_position`); D includes heave and the turned arm's z."""
     north, east, psi = np.asarray(eta, dtype=float)
     x, y = float(lever_arm_m[0]), float(lever_arm_m[1])
+    z = float(lever_arm_m[2]) if len(lever_arm_m) > 2 else 0.0
+    heave, phi, theta = (0.0, 0.0, 0.0) if attitude is None else np.asarray(attitude, dtype=float)
+    # body → level frame by roll then pitch (R_y(θ) R_x(φ)), then the heading rotation
+    cf, sf, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
+    y1, z1 = cf * y - sf * z, sf * y + cf * z
+    x2, z2 = ct * x + st * z1, -st * x + ct * z1
     c, s = math.cos(psi), math.sin(psi)
-    return np.array([north + c * x - s * y, east + s * x + c * y])
+    return np.array([north + c * x2 - s * y1, east + s * x2 + c * y1, heave + z2])
 
 
 def antenna_velocity(eta: ArrayLike, nu: ArrayLike, lever_arm_m: Sequence[float]) -> NDArray[np.float64]:
@@ -445,7 +468,8 @@ class Dgps(Sensor):
         if burst is not None:
             sigma = burst.param("sigma_m")
             noise += np.array([sigma, sigma, VERTICAL_SIGMA_FACTOR * sigma]) * self.rng.standard_normal(3)
-        north, east = antenna_position(state.eta, cfg.lever_arm_m) + noise[:2]
+        ant = antenna_ned(state.eta, cfg.lever_arm_m, state.attitude)
+        north, east = ant[:2] + noise[:2]
         jump = self.faults.active("jump", self.source, t)
         if jump is not None:
             north += jump.param("north_m")
@@ -462,7 +486,7 @@ class Dgps(Sensor):
         return _Fix(
             lat_deg=float(lat),
             lon_deg=float(lon),
-            alt_m=cfg.alt_m - cfg.lever_arm_m[2] + float(noise[2]),
+            alt_m=cfg.alt_m - float(ant[2]) + float(noise[2]),
             sog_mps=math.hypot(velocity[0], velocity[1]),
             cog_rad=math.atan2(velocity[1], velocity[0]),
         )

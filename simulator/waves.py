@@ -39,6 +39,11 @@ found in the data (see docs/waves.md for the checks):
   reflection; `mss_supply()` restores N(2π − β) = −N(β).
 
 Vessels without RAOs use the supply vessel's, Froude-scaled to their length (`WaveResponse.froude_scaled`).
+
+Attitude (``WaveResponse.attitude``, `WaveField.attitude`): the heave (m/m, down), roll and pitch (rad/m)
+RAOs of the same data, with the same components and phases as surge, sway and yaw. A DP vessel's
+controller never sees them, but a GNSS antenna on a mast does: 20 m above the reference point, 2° of roll
+moves it 0.7 m sideways (the simulator's sensors use it, `simulator.sensors.antenna_position`).
 """
 
 from __future__ import annotations
@@ -73,6 +78,8 @@ MSS_SUPPLY_LPP_M = 82.8
 _DATA_FILE = "supply_hydro.npz"
 _MSS_DOF = (0, 1, 5)  # surge, sway, yaw in MSS's 6-DOF order (surge, sway, heave, roll, pitch, yaw)
 _ROTATION = np.array([False, False, True])  # which of our three DOFs is a rotation (rad/m)
+_MSS_ATTITUDE_DOF = (2, 3, 4)  # heave (z down), roll, pitch in MSS's 6-DOF order
+_ATTITUDE_ROTATION = np.array([False, True, True])
 _HIGH_TAPER = 0.5  # RAOs taper linearly to 0 between ω_max and (1 + _HIGH_TAPER) ω_max
 
 
@@ -106,7 +113,12 @@ class WaveResponse:
     drift_omega: Array
     drift: Array
     source: str = ""
+    attitude: CArray | None = None
+    """(F, B, 3) complex RAOs of heave (m/m, positive down), roll (rad/m, starboard down) and pitch (rad/m,
+    bow up) on the ``omega`` × ``beta`` grid, same phase convention; None: the vessel only moves in the
+    horizontal plane (its sensors see no roll or pitch)."""
     _rao_closed: CArray = field(init=False, repr=False)
+    _attitude_closed: CArray | None = field(init=False, repr=False)
     _drift_closed: Array = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -126,8 +138,12 @@ class WaveResponse:
             raise ValueError("rao and drift must be finite")
         if not (math.isfinite(self.length_m) and self.length_m > 0):
             raise ValueError(f"length_m must be a positive finite number, got {self.length_m!r}")
+        attitude = None if self.attitude is None else np.array(self.attitude, dtype=np.complex128)
+        if attitude is not None and (attitude.shape != rao.shape or not np.all(np.isfinite(attitude))):
+            raise ValueError(f"attitude must be finite with the shape of rao {rao.shape}")
         # Close the direction tables at 2π so that interpolation wraps 350° → 360° = 0°.
         rao_closed = np.concatenate([rao, rao[:, :1]], axis=1)
+        att_closed = None if attitude is None else np.concatenate([attitude, attitude[:, :1]], axis=1)
         drift_closed = np.concatenate([drift, drift[:, :1]], axis=1)
         for name, value in (
             ("omega", omega),
@@ -137,8 +153,11 @@ class WaveResponse:
             ("drift", drift),
             ("_rao_closed", rao_closed),
             ("_drift_closed", drift_closed),
+            ("attitude", attitude),
+            ("_attitude_closed", att_closed),
         ):
-            value.setflags(write=False)
+            if value is not None:
+                value.setflags(write=False)
             object.__setattr__(self, name, value)
 
     # -- construction ---------------------------------------------------------------------------------------
@@ -183,6 +202,7 @@ class WaveResponse:
             drift_omega=self.drift_omega / root,
             drift=self.drift * drift_gain,
             source=f"{self.source}; Froude-scaled by λ = {lam:g}",
+            attitude=None if self.attitude is None else self.attitude * np.array([1.0, 1.0 / lam, 1.0 / lam]),
         )
 
     # -- evaluation -----------------------------------------------------------------------------------------
@@ -192,11 +212,24 @@ class WaveResponse:
 
         ``omega`` and ``beta`` broadcast against each other; the result has their shape + (3,).
         """
+        return self._rao_table_at(self._rao_closed, _ROTATION, omega, beta)
+
+    def attitude_at(self, omega: ArrayLike, beta: ArrayLike) -> CArray:
+        """Complex RAOs [heave m/m (down), roll rad/m, pitch rad/m] at ω and β (zeros without ``attitude``);
+        the same interpolation and extrapolation as `rao_at`."""
+        if self._attitude_closed is None:
+            shape = np.broadcast_shapes(np.shape(omega), np.shape(beta))
+            return np.zeros((*shape, 3), dtype=np.complex128)
+        return self._rao_table_at(self._attitude_closed, _ATTITUDE_ROTATION, omega, beta)
+
+    def _rao_table_at(
+        self, table: CArray, rotation: NDArray[np.bool_], omega: ArrayLike, beta: ArrayLike
+    ) -> CArray:
         w, b = np.broadcast_arrays(np.asarray(omega, dtype=float), np.asarray(beta, dtype=float))
-        H = _bilinear(self._rao_closed, self.omega, w, b)
+        H = _bilinear(table, self.omega, w, b)
         w1 = w[..., None]
         w_min, w_max = self.omega[0], self.omega[-1]
-        low = np.where(_ROTATION, (np.clip(w1, 0.0, w_min) / w_min) ** 2, 1.0)
+        low = np.where(rotation, (np.clip(w1, 0.0, w_min) / w_min) ** 2, 1.0)
         high = np.clip(1.0 - (w1 - w_max) / (_HIGH_TAPER * w_max), 0.0, 1.0)
         return np.asarray(H * low * high, dtype=np.complex128)
 
@@ -258,6 +291,8 @@ def _load_mss_supply() -> WaveResponse:
         dof = list(_MSS_DOF)
         # MSS arrays are (DOF, freq, heading); ours are (freq, heading, DOF).
         rao = np.moveaxis(d["motion_rao_amp"][dof] * np.exp(1j * d["motion_rao_phase"][dof]), 0, -1)
+        att = list(_MSS_ATTITUDE_DOF)
+        attitude = np.moveaxis(d["motion_rao_amp"][att] * np.exp(1j * d["motion_rao_phase"][att]), 0, -1)
         # MSS's drift table holds surge, sway, yaw in its first three DOF slots (read_veres_WD.m).
         drift = np.moveaxis(np.array(d["drift_amp"][:3], dtype=float), 0, -1)
         omega, drift_omega, beta = d["motion_rao_w"], d["drift_w"], d["headings"]
@@ -275,6 +310,7 @@ def _load_mss_supply() -> WaveResponse:
         drift_omega=drift_omega,
         drift=drift,
         source="MSS HYDRO/vessels_shipx/supply/supply.mat (ShipX/VERES, zero speed), MIT, T. I. Fossen",
+        attitude=attitude,
     )
 
 
@@ -299,6 +335,8 @@ class WaveComponents:
     drift_pos: Array
     drift_neg: Array
     drift_mean: Array
+    attitude: CArray | None = None
+    """(K, B+1, 3) a_k × [heave, roll, pitch] RAOs on the closed β grid; None without attitude RAOs."""
 
 
 class WaveField:
@@ -396,6 +434,9 @@ class WaveField:
             drift_pos=a * np.sqrt(np.maximum(C, 0.0)),
             drift_neg=a * np.sqrt(np.maximum(-C, 0.0)),
             drift_mean=np.sum(a**2 * C, axis=0),
+            attitude=None
+            if resp.attitude is None
+            else np.asarray(a * resp.attitude_at(omega[:, None], beta[None, :]), dtype=np.complex128),
         )
 
     def with_motion_gain(self, motion_gain: Sequence[float]) -> WaveField:
@@ -481,7 +522,8 @@ class WaveField:
         j, f = _beta_index(beta, table.shape[1] - 1)
         cells, inverse = np.unique(np.concatenate([j, j + 1]), return_inverse=True)
         K = table.shape[0]
-        P = (carrier @ table[:, cells, :].reshape(K, -1)).reshape(beta.size, cells.size, 3)
+        D = table.shape[2]
+        P = (carrier @ table[:, cells, :].reshape(K, -1)).reshape(beta.size, cells.size, D)
         rows = np.arange(beta.size)
         lo = P[rows, inverse[: beta.size]]
         hi = P[rows, inverse[beta.size :]]
@@ -506,6 +548,43 @@ class WaveField:
             beta = ssa(c.sea_state.direction_rad - psi[sl])
             out[sl] += w[:, None] * self._at_beta(carrier, c.rao, beta).real
         return out.reshape((*shape, 3))
+
+    def attitude(
+        self, t: ArrayLike, heading: ArrayLike, north: ArrayLike = 0.0, east: ArrayLike = 0.0
+    ) -> Array:
+        """WF heave, roll and pitch [z m (down), φ rad, θ rad] of the reference point, shape t + (3,).
+
+        The same components and phases as `motion` (one sea, six degrees of freedom); zeros when the
+        response has no attitude RAOs. ``motion_gain`` does not apply (it scales the horizontal motion to
+        a paper's limits, not the sea).
+        """
+        return self.motion_with_attitude(t, heading, north, east)[1]
+
+    def motion_with_attitude(
+        self, t: ArrayLike, heading: ArrayLike, north: ArrayLike = 0.0, east: ArrayLike = 0.0
+    ) -> tuple[Array, Array]:
+        """(`motion`, `attitude`) from one evaluation of the wave carriers (what the simulator's sensors
+        need at every sample: the cos/sin of the components are most of the cost)."""
+        shape, ts, (psi, north_f, east_f) = self._prepare(t, heading, north, east)
+        body = np.zeros((ts.size, 3))
+        att = np.zeros((ts.size, 3))
+        for sl, c, w in self._active(ts):
+            carrier = self._carrier(c, ts[sl], north_f[sl], east_f[sl])
+            beta = ssa(c.sea_state.direction_rad - psi[sl])
+            table = c.rao if c.attitude is None else np.concatenate([c.rao, c.attitude], axis=2)
+            both = self._at_beta(carrier, table, beta).real
+            body[sl] += w[:, None] * both[:, :3]
+            if c.attitude is not None:
+                att[sl] += w[:, None] * both[:, 3:]
+        return self._to_ned(body, psi).reshape((*shape, 3)), att.reshape((*shape, 3))
+
+    def _to_ned(self, body: Array, psi: Array) -> Array:
+        """Body surge/sway rotated to NED by ψ, yaw as is, times ``motion_gain``."""
+        c, s = np.cos(psi), np.sin(psi)
+        eta = np.stack(
+            [c * body[:, 0] - s * body[:, 1], s * body[:, 0] + c * body[:, 1], body[:, 2]], axis=-1
+        )
+        return np.asarray(eta * self.motion_gain, dtype=float)
 
     def motion(
         self, t: ArrayLike, heading: ArrayLike, north: ArrayLike = 0.0, east: ArrayLike = 0.0

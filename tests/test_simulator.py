@@ -23,7 +23,7 @@ from conftest import wait_for
 from simulator.faults import Fault
 from simulator.runner import Route, Simulation
 from simulator.scenarios import SCENARIOS, get_scenario
-from simulator.sensors import DgpsConfig, ThrusterFeedbackConfig
+from simulator.sensors import DgpsConfig, ThrusterFeedbackConfig, antenna_ned
 from simulator.transports import MemorySink
 from wire.codecs.mavlink import AZIMUTH_THRUSTER_STATUS_ID, azimuth_command_frame, dialect, encoder
 from wire.mcap.reader import read_messages, summary
@@ -79,7 +79,9 @@ def get_wf(name: str, seed: int) -> np.ndarray:
 
 
 def test_truth_and_measurements_agree(tmp_path: Path) -> None:
-    """Decoded GGA (pynmea2 + pymap3d) = truth LF + WF + lever arm, within the configured noise."""
+    """Decoded GGA (pynmea2 + pymap3d) = the truth's antenna position (LF + WF + the lever arm turned by
+    heading, roll and pitch), within the configured noise (tests/test_truth_vs_sensors.py has the
+    statistics)."""
     lever = (10.0, -2.0, -20.0)
     scenario = replace(
         get_scenario("torsetnes_2004"),
@@ -103,10 +105,10 @@ def test_truth_and_measurements_agree(tmp_path: Path) -> None:
         if tr is None:
             continue
         n, e, _ = pymap3d.geodetic2ned(msg.latitude, msg.longitude, 0.0, datum.lat_deg, datum.lon_deg, 0.0)
-        psi = tr["eta_lf"][2] + tr["eta_wf"][2]
-        ant_n = tr["eta_lf"][0] + tr["eta_wf"][0] + math.cos(psi) * lever[0] - math.sin(psi) * lever[1]
-        ant_e = tr["eta_lf"][1] + tr["eta_wf"][1] + math.sin(psi) * lever[0] + math.cos(psi) * lever[1]
+        eta = np.add(tr["eta_lf"], tr["eta_wf"])
+        ant_n, ant_e, _ = antenna_ned(eta, lever, tr["wf_attitude"])
         assert abs(n - ant_n) < 0.3 and abs(e - ant_e) < 0.3
+        assert tr["antennas"]["dgps1"][:2] == pytest.approx([ant_n, ant_e], abs=1e-9)
         checked += 1
     assert checked > 100
     s = summary(path)

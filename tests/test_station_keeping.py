@@ -23,14 +23,30 @@ HOLD = [(0.0, "setpoint", {"north_m": 0.0, "east_m": 0.0, "heading_deg": 45.0})]
 @pytest.mark.slow
 def test_torsetnes_station_keeping_in_6_m_seas() -> None:
     """MSS supply vessel at (0, 0), heading 45°, JONSWAP Hs 6 m: 30 min after a 5 min settle, horizontal
-    position error p95 ≤ 2.0 m and heading error p95 ≤ 2° (measured: 1.18 m, 1.24° for seed 1)."""
+    position error p95 ≤ 2.0 m and heading error p95 ≤ 2° (measured: 1.22 m, 1.33° for seed 1), and the
+    integral action closes: the true LF heading's 30-minute mean within 0.2° of the setpoint and the
+    position's mean within 0.2 m per axis (measured +0.115°, −0.05 m N, +0.03 m E for seed 1; seeds 0 and 2
+    gave +0.15° and +0.02°, and 2 h of seed 0 +0.04°: what is left is the slowly varying load the
+    integrator is still following at the end of the window, not an offset)."""
     r = run_closed_loop(get_scenario("torsetnes_2004"), 2100.0, seed=1, events=HOLD)
     keep = r.t >= 300.0
     pos = np.hypot(r.eta_lf[keep, 0], r.eta_lf[keep, 1])
-    hdg = np.degrees(np.abs(ssa(r.eta_lf[keep, 2] - math.radians(45.0))))
+    signed = np.degrees(ssa(r.eta_lf[keep, 2] - math.radians(45.0)))
     assert np.percentile(pos, 95) <= 2.0
-    assert np.percentile(hdg, 95) <= 2.0
+    assert np.percentile(np.abs(signed), 95) <= 2.0
+    assert abs(signed.mean()) <= 0.2
+    assert np.all(np.abs(r.eta_lf[keep, :2].mean(axis=0)) <= 0.2)
     assert len(r.commands) > 20_000 and not any(math.isnan(v) for c in r.commands for v in c["tau_demand"])
+
+
+def test_demo_holds_the_scenarios_station() -> None:
+    """`dpgw demo` in dp commands the scenario's start position and heading as its setpoint (holding the
+    first estimate instead held a wave-moved, noisy fix: 45.9° for torsetnes_2004's 45° station)."""
+    from dpgw.cli_demo import hold_setpoint
+
+    assert hold_setpoint(get_scenario("torsetnes_2004")) == pytest.approx(
+        {"north_m": 0.0, "east_m": 0.0, "heading_deg": 45.0}
+    )
 
 
 def _wave_band_thrust(r: ClosedLoopRun, omega_p: float) -> np.ndarray:

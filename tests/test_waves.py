@@ -8,6 +8,7 @@ conventions (long-wave particle motion, wave drift direction, full reflection of
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -355,3 +356,36 @@ def test_wave_field_validation() -> None:
     # A calm sea is a valid sea with no motion.
     calm = WaveField(SeaState(0.0, 8.0), SUPPLY, seed=1)
     assert np.all(calm.motion(np.arange(10.0), 0.0) == 0.0)
+
+
+def test_attitude_raos_follow_the_long_wave_surface() -> None:
+    """Heave, roll and pitch of the supply vessel in long waves move with the surface: heave −ζ (z down,
+    phase π), pitch with the slope in a following sea (−π/2, bow up), roll with it in beam waves from port
+    (+π/2, starboard down); Froude scaling divides the rotations by λ."""
+    resp = WaveResponse.mss_supply()
+    w = float(resp.omega[0])
+    heave = resp.attitude_at(w, 0.0)[0]
+    pitch = resp.attitude_at(w, 0.0)[2]
+    roll = resp.attitude_at(w, math.pi / 2)[1]
+    assert abs(heave) == pytest.approx(1.0, abs=0.05)
+    assert abs(np.angle(heave * np.exp(-1j * math.pi))) < math.radians(10)
+    assert abs(np.angle(pitch * np.exp(1j * math.pi / 2))) < math.radians(10)
+    assert abs(np.angle(roll * np.exp(-1j * math.pi / 2))) < math.radians(10)
+    scaled = resp.scaled(0.5)
+    np.testing.assert_allclose(
+        scaled.attitude_at(w / math.sqrt(0.5), 0.3), resp.attitude_at(w, 0.3) * [1, 2, 2]
+    )
+
+
+def test_motion_with_attitude_is_motion_and_attitude() -> None:
+    sea = SeaState(hs_m=4.0, tp_s=10.0, direction_rad=math.radians(200.0))
+    field = WaveField(sea, WaveResponse.mss_supply(), seed=3)
+    t = np.arange(0.0, 120.0, 0.5)
+    eta, att = field.motion_with_attitude(t, 2.0, 1.0, -2.0)
+    np.testing.assert_allclose(eta, field.motion(t, 2.0, 1.0, -2.0), atol=1e-12)
+    np.testing.assert_allclose(att, field.attitude(t, 2.0, 1.0, -2.0), atol=1e-12)
+    assert np.std(att[:, 1]) > math.radians(0.5)  # beam waves: it rolls
+    level = WaveField(sea, WaveResponse.froude_scaled(50.0), seed=3)
+    assert np.std(level.attitude(t, 2.0)[:, 1]) > 0.0
+    flat = replace(WaveResponse.mss_supply(), attitude=None)
+    assert not np.any(WaveField(sea, flat, seed=3).attitude(t, 2.0))

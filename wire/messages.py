@@ -427,10 +427,34 @@ class TruthState(Message, kw_only=True):
     eta_lf: Annotated[Vec3, doc("True low-frequency " + ETA, "m, m, rad")]
     nu: Annotated[Vec3, doc("True low-frequency velocity " + NU, "m/s, m/s, rad/s")]
     bias: Annotated[Vec3, doc("True environmental force [X, Y, N], earth-fixed axes.", "N, N, N·m")]
-    eta_wf: Annotated[Vec3, doc("True wave-frequency motion [N, E, ψ].", "m, m, rad")]
+    eta_wf: Annotated[
+        Vec3,
+        doc(
+            "True wave-frequency motion [N, E, ψ] of the reference point (what the gyro sees; added to "
+            "eta_lf, not subtracted).",
+            "m, m, rad",
+        ),
+    ]
     omega0: Annotated[Vec3, doc("True wave peak frequency per DOF [N, E, ψ].", "rad/s")]
     tau: Annotated[Vec3 | None, doc("Generalised force acting from the thrusters " + TAU, "N, N, N·m")] = None
     hs_m: Annotated[float | None, doc("Significant wave height of the sea state.", "m")] = None
+    wf_attitude: Annotated[
+        Vec3 | None,
+        doc(
+            "True wave-frequency heave (down), roll (starboard down) and pitch (bow up) of the reference "
+            "point: with eta_wf the vessel's six-degree-of-freedom wave motion.",
+            "m, rad, rad",
+        ),
+    ] = None
+    antennas: Annotated[
+        dict[str, Vec3] | None,
+        doc(
+            "True NED position [N, E, D] of each position sensor's antenna, by source name: the reference "
+            "point's LF + WF motion plus the lever arm turned by heading, roll and pitch (what the receiver "
+            "measures, without its noise). D is down from the reference point's still-water height.",
+            "m",
+        ),
+    ] = None
 
 
 # --- raw inputs, logged exactly as received ---------------------------------------------------------
