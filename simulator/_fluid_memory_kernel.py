@@ -21,7 +21,7 @@ Array = NDArray[np.floating[Any]]
 
 
 @njit(cache=True)
-def memory_step(x, nu0, nu1, phi, g0, g1, out):  # type: ignore[no-untyped-def]
+def memory_step(x, nu0, nu1, phi, g0, g1, out):
     """out = Φ x + Γ₀ ν₀ + Γ₁ ν₁: one exact step with ν linear from ν₀ to ν₁ (out may not alias x)."""
     n = x.shape[0]
     for i in range(n):
@@ -34,7 +34,7 @@ def memory_step(x, nu0, nu1, phi, g0, g1, out):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def memory_derivative(x, nu, a, b, out):  # type: ignore[no-untyped-def]
+def memory_derivative(x, nu, a, b, out):
     """out = A x + B ν (an RK4 stage of a plant carrying x_r in its state)."""
     n = x.shape[0]
     for i in range(n):
@@ -45,7 +45,7 @@ def memory_derivative(x, nu, a, b, out):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def memory_force(x, nu, c, d, out):  # type: ignore[no-untyped-def]
+def memory_force(x, nu, c, d, out):
     """out = μ = C x + D ν, the memory part of the radiation force (the plant applies -μ)."""
     n = x.shape[0]
     for i in range(3):

@@ -35,7 +35,8 @@ from simulator._fluid_memory_kernel import memory_step
 if TYPE_CHECKING:
     from observers.radiation import RadiationModel
 
-Array = NDArray[np.float64]
+Array = NDArray[np.floating[Any]]
+
 
 class FluidMemoryError(ValueError):
     """A fluid-memory model that cannot be used; the message names where it came from and why."""

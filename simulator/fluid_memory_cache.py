@@ -85,7 +85,11 @@ def meta_for(
 
 
 def _matches(meta: dict[str, Any], sha: str) -> bool:
-    return meta.get("format") == FORMAT and meta.get("hydro_sha256") == sha and meta.get("settings") == settings()
+    return (
+        meta.get("format") == FORMAT
+        and meta.get("hydro_sha256") == sha
+        and meta.get("settings") == settings()
+    )
 
 
 def _read(path: Path) -> tuple[RadiationStateSpace, dict[str, Any]]:
@@ -93,7 +97,9 @@ def _read(path: Path) -> tuple[RadiationStateSpace, dict[str, Any]]:
         m = load_radiation_model(path)
     except HydroError as exc:
         raise FluidMemoryError(str(exc)) from exc
-    model = RadiationStateSpace(m.Ar, m.Br, m.Cr, m.Dr, m.A_inf, str(path), str(m.meta.get("hydro_sha256", "")))
+    model = RadiationStateSpace(
+        m.Ar, m.Br, m.Cr, m.Dr, m.A_inf, str(path), str(m.meta.get("hydro_sha256", ""))
+    )
     return model, m.meta
 
 

@@ -219,7 +219,9 @@ def load_radiation_model(path: str | Path) -> RadiationMatrices:
         with np.load(path, allow_pickle=False) as data:
             missing = [k for k in RADIATION_FIELDS if k not in data.files]
             if missing:
-                raise HydroError(f"{path}: missing field(s) {', '.join(missing)} (have {', '.join(data.files)})")
+                raise HydroError(
+                    f"{path}: missing field(s) {', '.join(missing)} (have {', '.join(data.files)})"
+                )
             arrays = {k: np.asarray(data[k], dtype=float) for k in RADIATION_FIELDS}
             meta = json.loads(str(data["meta"])) if "meta" in data.files else {}
     except HydroError:
