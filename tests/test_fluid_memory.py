@@ -312,6 +312,24 @@ def test_free_decay_loses_energy(shipped: RadiationStateSpace, nu0: tuple[float,
     assert np.any(np.diff(fd.kinetic) > 0.0)  # the exchange described above is really there
 
 
+def test_memory_holds_the_energy_of_the_fluid_carried_along(
+    shipped: RadiationStateSpace, shipped_storage: energy.StorageFunction
+) -> None:
+    """At a steady velocity the memory's state is x = -A⁻¹Bν (μ = K(0)ν = 0) and what it stores is the
+    kinetic energy of the extra fluid moving with the hull, ½νᵀ(A(0) - A(∞))ν: the storage function
+    is the physical energy, not only a bound (to the regularisation ε, here within 10⁻³)."""
+    rng = np.random.default_rng(5)
+    for nu in (
+        np.array([1.0, 0.0, 0.0]),
+        np.array([0.0, 1.0, 0.0]),
+        *(rng.normal(size=3) * [1, 1, 0.02] for _ in range(5)),
+    ):
+        x = -np.linalg.solve(shipped.A, shipped.B @ nu)
+        fluid = 0.5 * nu @ (shipped.zero_frequency_added_mass() - shipped.A_inf) @ nu
+        assert fluid > 0.0
+        assert shipped_storage(x) == pytest.approx(fluid, rel=1e-3)
+
+
 def test_free_decay_with_the_wrong_sign_gains_energy(shipped: RadiationStateSpace) -> None:
     fd = energy.free_decay(flipped(shipped, 0), _m_rb(), (1.0, 0.0, 0.0), np.arange(0.0, 100.0, 0.1))
     assert fd.kinetic.max() > 1.01 * fd.kinetic[0]
