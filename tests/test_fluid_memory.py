@@ -297,9 +297,9 @@ def test_free_decay_loses_energy(shipped: RadiationStateSpace, nu0: tuple[float,
     never exceeds its start; ν ends at (M_RB + A(0))⁻¹(M_RB + A(∞))ν₀ (K(0) = 0: no damping of a steady
     motion; the fluid carried along adds A(0) instead of A(∞)).
 
-    The kinetic energy alone is *not* monotone, and a test demanding it would fail a correct model: the
-    memory hands back up to about 1 % of the initial energy for a few seconds after each swing (K(t)
-    changes sign). What cannot happen is energy from nowhere: E + V only falls."""
+    The kinetic energy alone is *not* monotone, and a test demanding it would fail a correct model: it
+    falls to 40-70 % of E(0) in about 2.5 s, then the memory hands 9-15 % of E(0) back (K(t) changes
+    sign). What cannot happen is energy from nowhere: E + V only falls."""
     v = energy.storage_function(shipped)
     t = np.arange(0.0, 300.0, 0.1)
     fd = energy.free_decay(shipped, _m_rb(), nu0, t)
@@ -309,7 +309,8 @@ def test_free_decay_loses_energy(shipped: RadiationStateSpace, nu0: tuple[float,
     assert np.all(fd.kinetic <= fd.kinetic[0] * (1 + 1e-12))
     assert fd.kinetic[-1] < 0.9 * fd.kinetic[0]  # a real loss, not only a bound
     np.testing.assert_allclose(fd.nu[-1], fd.final_velocity, atol=1e-4 * np.abs(nu0).max())
-    assert np.any(np.diff(fd.kinetic) > 0.0)  # the exchange described above is really there
+    handed_back = np.max(fd.kinetic - np.minimum.accumulate(fd.kinetic))
+    assert handed_back > 0.05 * fd.kinetic[0]  # the exchange described above is really there
 
 
 def test_memory_holds_the_energy_of_the_fluid_carried_along(
