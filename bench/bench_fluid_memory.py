@@ -167,7 +167,7 @@ def plots(model: RadiationStateSpace, directory: Path) -> None:
         ax.grid(True, alpha=0.3)
     fig.axes[0].legend(fontsize=8)
     fig.savefig(directory / "fluid_memory_kernels.png", dpi=110)
-    m_rb = hydro.MRB[np.ix_(idx, idx)] if hydro.MRB is not None else np.diag([6.36e6, 6.36e6, 2.9e9])
+    m_rb = model.M_RB if model.M_RB is not None else hydro.MRB[np.ix_(idx, idx)]
     v = energy.storage_function(model)
     td = np.arange(0.0, 200.0, 0.1)
     fig = Figure(figsize=(12, 3.4), layout="constrained")

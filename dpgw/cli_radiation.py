@@ -76,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
             print("dpgw radiation: give --out or --vessel, not both", file=sys.stderr)
             return 2
         used = {"max_order": args.max_order, "r2_target": args.r2, "significance": radiation.SIGNIFICANCE}
-        meta = meta_for(file_sha256(args.hydro), str(args.vessel), args.hydro.name, used)
+        meta = meta_for(file_sha256(args.hydro), str(args.vessel), args.hydro.name, used, hydro.MRB)
         stem = beside_vessel(args.vessel).with_suffix("")
         stem.parent.mkdir(parents=True, exist_ok=True)
     else:

@@ -71,6 +71,9 @@ class RadiationStateSpace:
     """Where the model came from (a file, a vessel name, "identified from ...")."""
     hydro_sha256: str = ""
     """SHA-256 of the hydrodynamic data file it was identified from ("" if unknown)."""
+    M_RB: Array | None = None
+    """Rigid-body mass (3×3) of the hull the data belong to, when the data give it: the mass A(∞) belongs
+    with (the plant's mass is M_RB + A(∞))."""
     _discrete: dict[float, tuple[Array, Array, Array]] = field(
         default_factory=dict, init=False, repr=False, compare=False
     )
@@ -85,15 +88,26 @@ class RadiationStateSpace:
             object.__setattr__(self, name, _frozen(getattr(self, name), shape, name, where))
         if not np.allclose(self.A_inf, self.A_inf.T, rtol=1e-9, atol=0.0):
             raise FluidMemoryError(f"{where}: A_inf is not symmetric")
+        if self.M_RB is not None:
+            m_rb = _frozen(self.M_RB, (3, 3), "M_RB", where)
+            if not np.allclose(m_rb, m_rb.T, rtol=1e-9, atol=0.0) or np.linalg.eigvalsh(m_rb)[0] <= 0.0:
+                raise FluidMemoryError(f"{where}: M_RB is not symmetric positive definite")
+            object.__setattr__(self, "M_RB", m_rb)
         if n and np.max(np.linalg.eigvals(self.A).real) >= 0.0:
             raise FluidMemoryError(f"{where}: A has an eigenvalue with Re ≥ 0 (the memory would not fade)")
 
     @classmethod
     def from_model(
-        cls, model: RadiationModel, *, source: str = "", hydro_sha256: str = ""
+        cls,
+        model: RadiationModel,
+        *,
+        source: str = "",
+        hydro_sha256: str = "",
+        M_RB: ArrayLike | None = None,
     ) -> RadiationStateSpace:
         """From an identified `observers.radiation.RadiationModel` (its block-diagonal realisation)."""
-        return cls(model.Ar, model.Br, model.Cr, model.Dr, model.A_inf, source, hydro_sha256)
+        m_rb = None if M_RB is None else np.asarray(M_RB, dtype=float)
+        return cls(model.Ar, model.Br, model.Cr, model.Dr, model.A_inf, source, hydro_sha256, m_rb)
 
     @property
     def n_states(self) -> int:

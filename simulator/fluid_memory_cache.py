@@ -26,11 +26,16 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from simulator.fluid_memory import FluidMemoryError, RadiationStateSpace
 from wire.hydro import HydroError, load_radiation_model
 
 FORMAT = 1
 """Version of what a model file means (bump when the identification or the state's layout changes)."""
+SIX_DOF = (0, 1, 5)
+"""Surge, sway, yaw in 6-DOF data (observers.radiation.SIX_DOF_INDEX, not imported: reading a stored
+model must not load the identification and its scipy.optimize)."""
 
 
 def settings() -> dict[str, Any]:
@@ -72,16 +77,24 @@ def beside_vessel(vessel: str | Path) -> Path:
 
 
 def meta_for(
-    hydro_sha256: str, vessel: str = "", hydro_name: str = "", used: dict[str, Any] | None = None
+    hydro_sha256: str,
+    vessel: str = "",
+    hydro_name: str = "",
+    used: dict[str, Any] | None = None,
+    m_rb: Any = None,
 ) -> dict[str, Any]:
-    """What a model file records about its making (``used``: the settings, default `settings()`)."""
-    return {
+    """What a model file records about its making (``used``: the settings, default `settings()`;
+    ``m_rb``: the data's 6×6 rigid-body mass, of which surge, sway and yaw are kept)."""
+    meta: dict[str, Any] = {
         "format": FORMAT,
         "hydro_sha256": hydro_sha256,
         "hydro_file": hydro_name,
         "settings": settings() if used is None else used,
         "vessel": vessel,
     }
+    if m_rb is not None:
+        meta["M_RB"] = np.asarray(m_rb, dtype=float)[np.ix_(SIX_DOF, SIX_DOF)].tolist()
+    return meta
 
 
 def _matches(meta: dict[str, Any], sha: str) -> bool:
@@ -97,10 +110,9 @@ def _read(path: Path) -> tuple[RadiationStateSpace, dict[str, Any]]:
         m = load_radiation_model(path)
     except HydroError as exc:
         raise FluidMemoryError(str(exc)) from exc
-    model = RadiationStateSpace(
-        m.Ar, m.Br, m.Cr, m.Dr, m.A_inf, str(path), str(m.meta.get("hydro_sha256", ""))
-    )
-    return model, m.meta
+    sha = str(m.meta.get("hydro_sha256", ""))
+    m_rb = np.asarray(m.meta["M_RB"], dtype=float) if "M_RB" in m.meta else None
+    return RadiationStateSpace(m.Ar, m.Br, m.Cr, m.Dr, m.A_inf, str(path), sha, m_rb), m.meta
 
 
 def identify_to(hydro: str | Path, stem: Path, vessel: str = "") -> Path:
@@ -118,7 +130,8 @@ def identify_to(hydro: str | Path, stem: Path, vessel: str = "") -> Path:
     if not model.passivity.passive:
         raise FluidMemoryError(f"{hydro}: the identified fluid-memory model is not passive; not stored")
     stem.parent.mkdir(parents=True, exist_ok=True)
-    npz, _ = save_radiation_model(model, stem, meta_for(file_sha256(hydro), str(vessel), Path(hydro).name))
+    meta = meta_for(file_sha256(hydro), str(vessel), Path(hydro).name, m_rb=data.MRB)
+    npz, _ = save_radiation_model(model, stem, meta)
     return npz
 
 

@@ -280,14 +280,10 @@ def test_dissipation_check_fails_on_the_wrong_sign(
         assert_dissipates(bad, shipped_storage, nu, 0.5)
 
 
-def _m_rb(hydro_data=None) -> np.ndarray:  # type: ignore[no-untyped-def]
-    """M_RB of the ShipX supply vessel the hydrodynamic data belong to (surge, sway, yaw); its value in the
-    data file when present, else the same numbers written out."""
-    if hydro_data is not None and hydro_data.MRB is not None:
-        return np.asarray(hydro_data.MRB)[np.ix_(DOFS, DOFS)]
-    return np.array(
-        [[6.3622085e6, 0.0, 0.0], [0.0, 6.3622085e6, -3.42663435e7], [0.0, -3.42663435e7, 2.91069877e9]]
-    )
+def _m_rb(model: RadiationStateSpace) -> np.ndarray:
+    """M_RB of the hull the data belong to, stored with the model."""
+    assert model.M_RB is not None
+    return model.M_RB
 
 
 @pytest.mark.parametrize("nu0", [(1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 0.02), (0.5, -1.0, 0.02)])
@@ -302,7 +298,7 @@ def test_free_decay_loses_energy(shipped: RadiationStateSpace, nu0: tuple[float,
     sign). What cannot happen is energy from nowhere: E + V only falls."""
     v = energy.storage_function(shipped)
     t = np.arange(0.0, 300.0, 0.1)
-    fd = energy.free_decay(shipped, _m_rb(), nu0, t)
+    fd = energy.free_decay(shipped, _m_rb(shipped), nu0, t)
     total = fd.kinetic + v(fd.x)
     slack = np.concatenate([[0.0], np.cumsum(0.5 * (v.slack(fd.nu[1:]) + v.slack(fd.nu[:-1])) * 0.1)])
     assert np.all(np.diff(total - slack) <= 1e-9 * total[0])
@@ -332,12 +328,13 @@ def test_memory_holds_the_energy_of_the_fluid_carried_along(
 
 
 def test_free_decay_with_the_wrong_sign_gains_energy(shipped: RadiationStateSpace) -> None:
-    fd = energy.free_decay(flipped(shipped, 0), _m_rb(), (1.0, 0.0, 0.0), np.arange(0.0, 100.0, 0.1))
+    fd = energy.free_decay(flipped(shipped, 0), _m_rb(shipped), (1.0, 0.0, 0.0), np.arange(0.0, 100.0, 0.1))
     assert fd.kinetic.max() > 1.01 * fd.kinetic[0]
 
 
-def test_mass_from_the_data_matches_the_fallback(hydro) -> None:  # type: ignore[no-untyped-def]
-    np.testing.assert_allclose(_m_rb(hydro), _m_rb(), rtol=1e-8)
+def test_shipped_model_carries_the_rigid_body_mass_of_its_hull(hydro, shipped) -> None:  # type: ignore[no-untyped-def]
+    """A(∞) belongs with the M_RB of the hull the data describe; the plant needs both."""
+    np.testing.assert_array_equal(shipped.M_RB, hydro.MRB[np.ix_(DOFS, DOFS)])
 
 
 # ------------------------------------------------------------------ integration in a plant
@@ -426,6 +423,8 @@ def test_bad_models_are_refused_with_a_clear_message() -> None:
         RadiationStateSpace(m.A, m.B, m.C, m.D, m.A_inf + np.triu(np.ones((3, 3)), 1), "x.npz")
     with pytest.raises(FluidMemoryError, match="non-finite"):
         RadiationStateSpace(m.A, m.B, m.C * np.nan, m.D, m.A_inf, "x.npz")
+    with pytest.raises(FluidMemoryError, match="M_RB is not symmetric positive definite"):
+        RadiationStateSpace(m.A, m.B, m.C, m.D, m.A_inf, "x.npz", M_RB=-np.eye(3))
     with pytest.raises(ValueError, match="read-only"):
         m.A[0, 0] = 1.0
 
@@ -455,7 +454,7 @@ def test_simulator_start_reads_the_shipped_model_without_identifying(monkeypatch
     monkeypatch.setattr(rad, "identify", refuse)
     model = cache.load_fluid_memory("mss_supply")
     assert model.n_states == 17 and "mss_supply" in model.source
-    assert len(model.hydro_sha256) == 64
+    assert len(model.hydro_sha256) == 64 and model.M_RB is not None
 
 
 def test_no_model_is_a_clear_error(tmp_path: Path) -> None:
