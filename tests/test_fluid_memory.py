@@ -503,6 +503,7 @@ def test_cli_stores_the_model_beside_a_vessel_file(tmp_path: Path, monkeypatch: 
     hydro_file = synthetic_hydro(tmp_path / "ship_hydro.npz")
     vessel = tmp_path / "ship.toml"
     vessel.write_text('name = "ship"\n')
+    assert main(["radiation", str(hydro_file), "--vessel", str(vessel), "--out", str(tmp_path / "x")]) == 2
     assert main(["radiation", str(hydro_file), "--vessel", str(vessel)]) == 0
     assert (tmp_path / "ship_radiation.npz").is_file() and (tmp_path / "ship_radiation.toml").is_file()
     model = cache.load_fluid_memory(vessel)
