@@ -18,13 +18,24 @@ DESCRIPTION = (
     "model (A(∞) estimated, order chosen automatically), print the fit and write the model as "
     "STEM.npz (matrices) and STEM.toml (report). Plots of the fit: bench/radiation_fit.py."
 )
-EPILOG = "example:\n  dpgw radiation supply_hydro.npz   # writes supply_hydro_radiation.npz and .toml"
+EPILOG = (
+    "examples:\n"
+    "  dpgw radiation supply_hydro.npz   # writes supply_hydro_radiation.npz and .toml\n"
+    "  dpgw radiation supply_hydro.npz --vessel mss_supply   # the model the simulator uses for mss_supply"
+)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("hydro", type=Path, help="A(ω), B(ω): the project's .npz or an MSS vessel .mat")
     p.add_argument(
         "--out", type=Path, metavar="STEM", help="output stem (default: HYDRO's stem + _radiation)"
+    )
+    p.add_argument(
+        "--vessel",
+        metavar="NAME|FILE",
+        help="store the model where the simulator looks for this vessel's fluid memory (a built-in vessel: "
+        "observers/vessels/radiation/NAME.npz in this checkout; a vessel file ship.toml: ship_radiation.npz "
+        "beside it), recording the data's SHA-256 and the settings",
     )
     p.add_argument(
         "--max-order", type=int, default=MAX_ORDER, help=f"order cap per element (default {MAX_ORDER})"
@@ -57,7 +68,19 @@ def run(args: argparse.Namespace) -> int:
     p = model.passivity
     state = "passive" if p.passive else "NOT passive"
     print(f"{state}: margin {p.margin:.4f} at {p.margin_w:.3g} rad/s, enforcement: {p.enforced}")
-    stem = args.out or args.hydro.with_name(args.hydro.stem + "_radiation")
-    npz, toml = save_radiation_model(model, stem)
+    meta = None
+    if args.vessel:
+        from simulator.fluid_memory_cache import beside_vessel, file_sha256, meta_for
+
+        if args.out:
+            print("dpgw radiation: give --out or --vessel, not both", file=sys.stderr)
+            return 2
+        used = {"max_order": args.max_order, "r2_target": args.r2, "significance": radiation.SIGNIFICANCE}
+        meta = meta_for(file_sha256(args.hydro), str(args.vessel), args.hydro.name, used, hydro.MRB)
+        stem = beside_vessel(args.vessel).with_suffix("")
+        stem.parent.mkdir(parents=True, exist_ok=True)
+    else:
+        stem = args.out or args.hydro.with_name(args.hydro.stem + "_radiation")
+    npz, toml = save_radiation_model(model, stem, meta)
     print(f"wrote {npz} and {toml}")
     return 0 if p.passive else 1

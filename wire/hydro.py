@@ -17,6 +17,7 @@ the reason.
 from __future__ import annotations
 
 import json
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -148,12 +149,25 @@ def load_mss_abc(path: str | Path) -> MssRadiationModel:
     return MssRadiationModel(elements, np.asarray(abc.MA, dtype=float))
 
 
-def save_radiation_model(model: RadiationModel, stem: str | Path) -> tuple[Path, Path]:
-    """Write ``<stem>.npz`` (Ar, Br, Cr, Dr, A_inf; SI units, ν = [u, v, r] in, μ = [X, Y, N] out) and
-    ``<stem>.toml`` (the fit report). Returns both paths."""
+RADIATION_FIELDS = ("Ar", "Br", "Cr", "Dr", "A_inf")
+
+
+def save_radiation_model(
+    model: RadiationModel, stem: str | Path, meta: dict[str, Any] | None = None
+) -> tuple[Path, Path]:
+    """Write ``<stem>.npz`` (Ar, Br, Cr, Dr, A_inf; SI units, ν = [u, v, r] in, μ = [X, Y, N] out; ``meta``,
+    if given, as a JSON string under the key ``meta``: where the model came from, for a cache to check)
+    and ``<stem>.toml`` (the fit report). Returns both paths. The .npz is written to a temporary name and
+    renamed, so a reader never sees half a file."""
     stem = Path(stem)
     npz, toml = stem.with_suffix(".npz"), stem.with_suffix(".toml")
-    np.savez(npz, Ar=model.Ar, Br=model.Br, Cr=model.Cr, Dr=model.Dr, A_inf=model.A_inf)
+    arrays: dict[str, Any] = {k: getattr(model, k) for k in RADIATION_FIELDS}
+    if meta is not None:
+        arrays["meta"] = np.array(json.dumps(meta, sort_keys=True))
+    tmp = npz.with_name(f".{npz.name}.{os.getpid()}.tmp")
+    with open(tmp, "wb") as f:
+        np.savez(f, **arrays)
+    os.replace(tmp, npz)
     p = model.passivity
     lines = [
         "# Fluid-memory model identified by dpgw (observers.radiation); matrices in the .npz beside.",
@@ -181,3 +195,39 @@ def save_radiation_model(model: RadiationModel, stem: str | Path) -> tuple[Path,
         ]
     toml.write_text("\n".join(lines) + "\n")
     return npz, toml
+
+
+@dataclass(frozen=True)
+class RadiationMatrices:
+    """A model written by `save_radiation_model`: the matrices and its ``meta`` ({} if none)."""
+
+    Ar: Array
+    Br: Array
+    Cr: Array
+    Dr: Array
+    A_inf: Array
+    meta: dict[str, Any]
+    source: str
+
+
+def load_radiation_model(path: str | Path) -> RadiationMatrices:
+    """Read a model written by `save_radiation_model` (HydroError naming the file and field if unusable)."""
+    path = Path(path)
+    if not path.is_file():
+        raise HydroError(f"{path}: no such file")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            missing = [k for k in RADIATION_FIELDS if k not in data.files]
+            if missing:
+                raise HydroError(
+                    f"{path}: missing field(s) {', '.join(missing)} (have {', '.join(data.files)})"
+                )
+            arrays = {k: np.asarray(data[k], dtype=float) for k in RADIATION_FIELDS}
+            meta = json.loads(str(data["meta"])) if "meta" in data.files else {}
+    except HydroError:
+        raise
+    except Exception as exc:  # a truncated or foreign file: zipfile, pickle and JSON errors alike
+        raise HydroError(f"{path}: not a radiation model file ({exc})") from exc
+    if not isinstance(meta, dict):
+        raise HydroError(f"{path}: field meta is not a JSON object")
+    return RadiationMatrices(**arrays, meta=meta, source=str(path))
