@@ -87,7 +87,7 @@ _MMAE_PARAMS = (
     "max_gap_s",
 )
 
-# The registry: one entry per observer. New observers (sdre, memory, ekf, …) are added here.
+# The registry: one entry per observer. New observers (ekf, …) are added here.
 _REGISTERED = (
     ObserverEntry("passive", "Fossen & Strand (1999)", "observers.passive:PassiveObserver"),
     ObserverEntry(
@@ -99,6 +99,11 @@ _REGISTERED = (
     ObserverEntry("mmae", "Hassani, Pascoal, Aguiar & Athans", "observers.mmae:MMAEObserver", _MMAE_PARAMS),
     ObserverEntry(
         "sdre", "Snijders, van der Woude & Westhuis (2005)", "observers.sdre:SdreObserver", SDRE_PARAMS
+    ),
+    # memory: the passive tuning plus a radiation model; froude_scale sets the length scale of the built-in
+    # (supply-vessel) model, which otherwise follows the vessel's mass (docs/memory-observer.md)
+    ObserverEntry(
+        "memory", "Hajivand & Mousavizadegan (2010)", "observers.memory:MemoryObserver", ("froude_scale",)
     ),
 )
 
