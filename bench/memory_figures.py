@@ -31,7 +31,7 @@ from observers.kinematics import rotation, ssa
 from observers.memory import MemoryObserver
 from observers.memory_tuning import MemoryGains, MemoryModel, memory_model
 from observers.passive import PassiveObserver
-from observers.passive_tuning import PassiveGains, PassiveTuning, passive_gains
+from observers.passive_tuning import PassiveGains, PassiveTuning
 from observers.vessel import VesselModel, load_vessel
 
 HYDRO = Path(__file__).resolve().parents[2] / "shared" / "data" / "mss-supply" / "supply_hydro.npz"
