@@ -50,7 +50,7 @@ from observers.passive import reference_equilibrium as passive_equilibrium
 from observers.passive_tuning import PassiveTuning
 from observers.radiation import RadiationStateSpace
 from observers.reference import reference_loop, rk4_held
-from observers.state import BIAS, ETA, I_PSI, N_STATE, NU, XI, XI2
+from observers.state import BIAS, ETA, I_NU, I_PSI, N_STATE, NU, XI, XI2
 from observers.vessel import VesselModel
 
 Array = NDArray[np.float64]
@@ -60,23 +60,28 @@ MU_SIGN = -1.0
 that a test can show the printed +μ failing."""
 
 
-def _sparse(M: Array) -> tuple[NDArray[np.int64], Array]:
-    idx = np.argwhere(M != 0.0).astype(np.int64)
-    return np.ascontiguousarray(idx), np.ascontiguousarray(M[M != 0.0], dtype=float)
-
-
-def pack_radiation(gains: MemoryGains) -> tuple[Any, ...]:
-    """The tuple ``rad`` the kernel reads (`observers._memory_kernel`): A_r, B_r, C_r as non-zero entries,
-    D_r dense, and S = -A_r⁻¹ B_r."""
+def pack_radiation(gains: MemoryGains) -> tuple[NDArray[np.int64], Array, int, int]:
+    """(RI, RV, n_dyn, n_mu), the radiation model as the kernel reads it (`observers._memory_kernel`): the
+    non-zero entries of [A_r B_r] (ξ_r'), then of [C_r D_r] (μ̂), then of S = -A_r⁻¹ B_r (ξ_r at rest), each
+    as (row, x index) and value."""
     r = gains.model.radiation
-    ar_idx, ar_val = _sparse(r.Ar)
-    br_idx, br_val = _sparse(r.Br)
-    cr_idx, cr_val = _sparse(r.Cr)
+    n = r.n_states
     S = -np.linalg.solve(r.Ar, r.Br)
-    return (
-        ar_idx, ar_val, br_idx, br_val, cr_idx, cr_val, np.ascontiguousarray(r.Dr, dtype=float),
-        np.ascontiguousarray(S),
-    )  # fmt: skip
+    parts = []
+    # (matrix, row offset, column offset into x)
+    for M, row0, col0 in (
+        (r.Ar, N_STATE, N_STATE), (r.Br, N_STATE, I_NU),
+        (r.Cr, 0, N_STATE), (r.Dr, 0, I_NU),
+        (S, N_STATE, I_NU),
+    ):  # fmt: skip
+        idx = np.argwhere(M != 0.0)
+        parts.append((idx + np.array([row0, col0]), M[M != 0.0]))
+    RI = np.ascontiguousarray(np.vstack([p[0] for p in parts]), dtype=np.int64)
+    RV = np.ascontiguousarray(np.concatenate([p[1] for p in parts]), dtype=float)
+    n_dyn = len(parts[0][1]) + len(parts[1][1])
+    n_mu = len(parts[2][1]) + len(parts[3][1])
+    assert RI[:, 1].max(initial=0) < N_STATE + n
+    return RI, RV, n_dyn, n_mu
 
 
 class MemoryObserver(ObserverBase):
@@ -119,7 +124,8 @@ class MemoryObserver(ObserverBase):
         self._Minv = np.ascontiguousarray(model.Minv)
         self._D = np.ascontiguousarray(model.D, dtype=float)
         self._D_lf = np.ascontiguousarray(model.D + model.radiation.static_gain(), dtype=float)
-        self._rad = pack_radiation(gains)
+        self._RI, self._RV, self._n_dyn, self._n_mu = pack_radiation(gains)
+        self._S = -np.linalg.solve(model.radiation.Ar, model.radiation.Br)
         self._n = n_state(model)
         self.reset()
 
@@ -154,7 +160,7 @@ class MemoryObserver(ObserverBase):
     def _begin(self, t: float, start: InitialState) -> None:
         """`initialize`: the given state, radiation states at rest for the given ν̂ (μ̂ = K(0) ν̂)."""
         self.x[:N_STATE] = initial_state(start)
-        self.x[N_STATE:] = self._rad[7] @ self.x[NU]
+        self.x[N_STATE:] = self._S @ self.x[NU]
         self._set_clock(t)
 
     def step(self, t: float, y: ArrayLike, tau: ArrayLike | None = None) -> Estimate:
@@ -163,7 +169,7 @@ class MemoryObserver(ObserverBase):
         tau_arr = ZERO3 if tau is None else np.asarray(tau, dtype=float)
         code = kernel.step(
             self.x, self._clock, float(t), y_arr, tau_arr, self._G, self._Minv, self._D, self._D_lf,
-            self._rad, self.h_max, self.max_hold_s
+            self._RI, self._RV, self._n_dyn, self._n_mu, self.h_max, self.max_hold_s
         )  # fmt: skip
         return estimate_from_state(float(t), self.x, code)
 
@@ -174,8 +180,8 @@ class MemoryObserver(ObserverBase):
         X = np.empty((n, self._n))
         status = np.empty(n, dtype=np.int8)
         kernel.run(
-            self.x, self._clock, t_arr, Y, TAU, self._G, self._Minv, self._D, self._D_lf, self._rad,
-            self.h_max, self.max_hold_s, X, status
+            self.x, self._clock, t_arr, Y, TAU, self._G, self._Minv, self._D, self._D_lf, self._RI,
+            self._RV, self._n_dyn, self._n_mu, self.h_max, self.max_hold_s, X, status
         )  # fmt: skip
         r = self.gains.model.radiation
         mu = X[:, N_STATE:] @ r.Cr.T + X[:, NU] @ r.Dr.T
