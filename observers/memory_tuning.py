@@ -52,6 +52,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -219,7 +220,7 @@ def check_model(model: MemoryModel, vessel: VesselModel | None = None) -> Check:
     )
 
 
-def _hermitian_min(K: NDArray[np.complex128], extra: Array) -> tuple[Array, float]:
+def _hermitian_min(K: NDArray[Any], extra: Array) -> tuple[NDArray[Any], float]:
     herm = 0.5 * (K + np.conj(K.transpose(0, 2, 1))) + 0.5 * (extra + extra.T)[None]
     lam = np.linalg.eigvalsh(herm)[:, 0]
     scale = float(np.max(np.real(np.diagonal(herm, axis1=1, axis2=2))))

@@ -228,3 +228,32 @@ def test_hajivand_case_with_the_papers_gains_stays_bounded() -> None:
     assert np.all(np.isfinite(r.eta))
     assert np.max(np.abs(r.nu[:, :2] - nu[1:, :2])) < 0.05
     assert np.max(np.abs(r.eta[:, :2] - eta[1:, :2])) < 2.0
+
+
+# --- the gateway's config and replay reach it by name ----------------------------------------------------
+
+
+def test_config_and_replay_build_the_memory_observer() -> None:
+    from gateway.config.load import parse_config
+    from gateway.replay import parse_observer_spec
+
+    data = {
+        "vessel": {"name": "hajivand_vessel"},
+        "sources": [
+            {
+                "name": "gps",
+                "url": "udp://0.0.0.0:10110",
+                "protocol": "nmea",
+                "roles": ["position", "heading"],
+            }
+        ],
+        "observer": {"type": "memory", "wave_period_s": 8.0, "params": {"froude_scale": 2.5}},
+    }
+    config = parse_config(data, base_dir=Path("."))
+    assert config.observer.type == "memory" and config.observer.params == {"froude_scale": 2.5}
+    obs = parse_observer_spec("memory:froude_scale=2.5").make(config)
+    assert isinstance(obs, MemoryObserver)
+    assert obs.gains.model.radiation.source.endswith("×2.5)")
+    data["observer"]["params"] = {"froude": 2.5}
+    with pytest.raises(Exception, match=r"observer 'memory': unknown parameter.*froude_scale"):
+        parse_config(data, base_dir=Path("."))
