@@ -101,7 +101,7 @@ _MMAE_PARAMS = (
     "max_gap_s",
 )
 
-# The registry: one entry per observer. New observers (sdre, memory, ekf, …) are added here.
+# The registry: one entry per observer. New observers (ekf, …) are added here.
 _REGISTERED = (
     ObserverEntry("passive", "Fossen & Strand (1999)", "observers.passive:PassiveObserver"),
     ObserverEntry(
@@ -116,6 +116,11 @@ _REGISTERED = (
     ),
     ObserverEntry(
         "ekf", "Balchen et al. (1980); Fossen (2021) Sec. 13.4", "observers.ekf:EkfObserver", EKF_PARAMS
+    ),
+    # memory: the passive tuning plus a radiation model; froude_scale sets the length scale of the built-in
+    # (supply-vessel) model, which otherwise follows the vessel's mass (docs/memory-observer.md)
+    ObserverEntry(
+        "memory", "Hajivand & Mousavizadegan (2010)", "observers.memory:MemoryObserver", ("froude_scale",)
     ),
 )
 

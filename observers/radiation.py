@@ -948,3 +948,116 @@ def retardation_from_damping(w: ArrayLike, B: ArrayLike, t: ArrayLike, *, tail: 
             val = val + B[..., -1] * wm**2 * (math.cos(wm * tk) / wm - tk * (0.5 * math.pi - si))
         out[..., k] = val
     return (2.0 / math.pi) * out
+
+
+# --------------------------------------------------------------------------------------------------
+# The 3×3 state space on its own: what the fluid-memory observer and the simulator's plant integrate
+# --------------------------------------------------------------------------------------------------
+
+_YAW_LENGTHS = np.array([0.0, 0.0, 1.0])
+"""Powers of length each DOF adds to a coefficient: surge and sway none, yaw one (a moment, a rad/s)."""
+
+
+@dataclass(frozen=True)
+class RadiationStateSpace:
+    """μ = C_r ξ + D_r ν, ξ' = A_r ξ + B_r ν (ν = [u, v, r] in, μ = [X, Y, N] out, SI) with A(∞).
+
+    The matrices alone, without the fit report: what a time-domain model needs. `RadiationModel` gives
+    one (`model_state_space`), `radiation_state_space` assembles one from per-element fits, and
+    `froude_scaled` carries one to a geometrically similar hull. ``source`` says where it came from."""
+
+    Ar: Array
+    Br: Array
+    Cr: Array
+    Dr: Array
+    A_inf: Array
+    source: str = ""
+
+    @property
+    def n_states(self) -> int:
+        return int(self.Ar.shape[0])
+
+    def frequency_response(self, w: ArrayLike) -> CArray:
+        """K(jω) = C_r (jωI - A_r)⁻¹ B_r + D_r, (N, 3, 3)."""
+        w = np.atleast_1d(np.asarray(w, dtype=float))
+        n = self.n_states
+        out = np.empty((len(w), 3, 3), dtype=complex)
+        for k, wk in enumerate(w):
+            out[k] = self.Cr @ np.linalg.solve(1j * wk * np.eye(n) - self.Ar, self.Br) + self.Dr
+        return out
+
+    def added_mass(self, w: ArrayLike) -> Array:
+        """A(ω) = A(∞) + Im K(jω)/ω, (N, 3, 3)."""
+        w = np.atleast_1d(np.asarray(w, dtype=float))
+        return self.A_inf[None] + self.frequency_response(w).imag / w[:, None, None]
+
+    def damping(self, w: ArrayLike) -> Array:
+        """B(ω) = Re K(jω), (N, 3, 3)."""
+        return self.frequency_response(w).real
+
+    def impulse_response(self, t: ArrayLike) -> Array:
+        """K(t) = C_r e^{A_r t} B_r, (N, 3, 3) (a feedthrough D_r adds D_r δ(t), not sampled here)."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        lam, v = np.linalg.eig(self.Ar)
+        left = self.Cr @ v
+        right = np.linalg.solve(v, self.Br)
+        return np.real(np.einsum("il,tl,lj->tij", left, np.exp(np.outer(t, lam)), right))
+
+    def static_gain(self) -> Array:
+        """K(0) = D_r - C_r A_r⁻¹ B_r: the damping the fluid memory adds at zero frequency (0 without D_r)."""
+        return np.asarray(self.Dr - self.Cr @ np.linalg.solve(self.Ar, self.Br))
+
+    def zero_frequency_added_mass(self) -> Array:
+        """A(0) = A(∞) + dK/ds(0) = A(∞) - C_r A_r⁻² B_r: the added mass of slow motion."""
+        return np.asarray(self.A_inf - self.Cr @ np.linalg.solve(self.Ar, np.linalg.solve(self.Ar, self.Br)))
+
+    def passivity_margin(self, w: ArrayLike) -> tuple[float, float]:
+        """(smallest eigenvalue of the Hermitian part of K(jω) over ``w``, scaled by the largest diagonal
+        damping seen, and the frequency where it occurs). ≥ 0 (to round-off): the model only dissipates."""
+        w = np.asarray(w, dtype=float)
+        K = self.frequency_response(w)
+        herm = 0.5 * (K + np.conj(K.transpose(0, 2, 1)))
+        lam = np.linalg.eigvalsh(herm)[:, 0]
+        scale = max(float(np.max(np.real(np.diagonal(herm, axis1=1, axis2=2)))), 1e-300)
+        k = int(np.argmin(lam))
+        return float(lam[k] / scale), float(w[k])
+
+    def froude_scaled(self, scale: float) -> RadiationStateSpace:
+        """The same hull ``scale`` times larger (lengths × λ), by Froude's law: time × √λ, added mass
+        × λ³ (× λ per yaw index), damping × λ^2.5 (× λ per yaw index). Exact for the state space: with
+        K̃(s) = c_ij K(√λ s), A_r and B_r are divided by √λ and the output/input scaling is congruent, so a
+        passive model stays passive."""
+        lam = float(scale)
+        if not (lam > 0 and math.isfinite(lam)):
+            raise ValueError(f"Froude scale must be a positive number, got {scale}")
+        p = np.diag(lam**_YAW_LENGTHS)
+        root = math.sqrt(lam)
+        return RadiationStateSpace(
+            Ar=self.Ar / root,
+            Br=self.Br @ p / root,
+            Cr=lam**2.5 * p @ self.Cr,
+            Dr=lam**2.5 * p @ self.Dr @ p,
+            A_inf=lam**3 * p @ self.A_inf @ p,
+            source=f"{self.source} (Froude-scaled ×{lam:.4g})"
+            if self.source
+            else f"Froude-scaled ×{lam:.4g}",
+        )
+
+
+def radiation_state_space(
+    elements: dict[tuple[int, int], ElementModel], feedthrough: ArrayLike | None = None, source: str = ""
+) -> RadiationStateSpace:
+    """The 3×3 block state space assembled from per-element fits (element (i, j) maps ν_j to μ_i; an
+    off-diagonal element is realised for (i, j) and (j, i): K is symmetric) with A(∞) from the elements'
+    feedthroughs and an optional constant diagonal damping ``feedthrough`` (3,)."""
+    d = np.zeros(3) if feedthrough is None else np.asarray(feedthrough, dtype=float).reshape(3)
+    Ar, Br, Cr, Dr = _assemble(elements, d)
+    A_inf = np.zeros((3, 3))
+    for (i, j), m in elements.items():
+        A_inf[i, j] = A_inf[j, i] = m.a_inf
+    return RadiationStateSpace(Ar, Br, Cr, Dr, A_inf, source)
+
+
+def model_state_space(model: RadiationModel, source: str = "") -> RadiationStateSpace:
+    """The identified model's matrices as a `RadiationStateSpace` (drops the fit report)."""
+    return RadiationStateSpace(model.Ar, model.Br, model.Cr, model.Dr, model.A_inf, source)
