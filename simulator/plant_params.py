@@ -7,7 +7,6 @@ readable reference both read: plain arrays and floats built once from a `VesselM
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -35,6 +34,10 @@ class RadiationModel(Protocol):
     A_inf: Array  # 3×3
 
 
+class PlantError(ValueError):
+    """A vessel or option the full plant cannot use; the message names the field."""
+
+
 @dataclass(frozen=True)
 class PlantOptions:
     """Which effects the full plant has (all on by default). Current and wind are the scenario's."""
@@ -43,15 +46,20 @@ class PlantOptions:
     surge_resistance: bool = True  # blended linear/quadratic surge resistance instead of D₁₁ u_r
     crossflow: bool = True  # strip-theory cross-flow drag in sway and yaw
     radiation: RadiationModel | None = None  # fluid memory (Cummins); None: constant M_A
+    # C_A at the relative velocity, C_A(ν_r) ν_r (Fossen 2021), or "absolute": C_A(ν) ν_r, as MSS osv.m (2024)
+    # evaluates it — no Munk moment on a hull held still in a current. Only for comparing with osv.m.
+    added_mass_coriolis: str = "relative"
+
+    def __post_init__(self) -> None:
+        if self.added_mass_coriolis not in ("relative", "absolute"):
+            raise PlantError(
+                f"plant option 'added_mass_coriolis': 'relative' or 'absolute', got {self.added_mass_coriolis!r}"
+            )
 
     @classmethod
     def model_only(cls) -> PlantOptions:
         """The observers' own model: nothing nonlinear."""
         return cls(coriolis=False, surge_resistance=False, crossflow=False)
-
-
-class PlantError(ValueError):
-    """A vessel or option the full plant cannot use; the message names the field."""
 
 
 @dataclass(frozen=True)
@@ -63,6 +71,7 @@ class PlantParams:
     x_g: float
     MA: Array  # the added mass in C_A (M_A, or A_inf with fluid memory)
     coriolis: bool
+    ca_absolute: bool
     surge: bool
     Xu: float  # |X_u| (N s/m)
     Xuu: float  # |X_|u|u| (N s²/m²)
@@ -126,6 +135,7 @@ class PlantParams:
             x_g=hull.x_g_m if hull is not None else 0.0,
             MA=MA,
             coriolis=options.coriolis,
+            ca_absolute=options.added_mass_coriolis == "absolute",
             surge=options.surge_resistance,
             Xu=Xu,
             Xuu=hull.surge_quadratic if hull is not None else 0.0,
@@ -140,6 +150,3 @@ class PlantParams:
             rD=rD,
         )
 
-    @property
-    def crossflow_cd(self) -> float:
-        return math.nan if self.cf_k == 0 else self.cf_k

@@ -12,7 +12,7 @@ M_RB ν' + C_RB(ν) ν = M_RB ν_r' + C_RB(ν_r) ν_r holds for an irrotational 
 
     C_RB ν_r = [−m r v_r − m x_g r², m r u_r, m x_g r u_r]
 
-C_A(ν_r) the skew form of eq (6.51) from M_A (a = M_A ν_r):
+C_A(ν_r) the skew form of eq (6.51) from M_A (a = M_A ν_r; a = M_A ν with the option that reproduces osv.m):
 
     C_A ν_r = [−a₂ r, a₁ r, a₂ u_r − a₁ v_r]
 
@@ -48,7 +48,7 @@ def derivative(x: Array, tau_body: Array, bias_earth: Array, current_ned: Array,
     force = tau_body + R.T @ bias_earth - p.D @ nu_r
     if p.coriolis:
         crb = np.array([-p.m * r * v_r - p.m * p.x_g * r * r, p.m * r * u_r, p.m * p.x_g * r * u_r])
-        a = p.MA @ nu_r
+        a = p.MA @ (nu if p.ca_absolute else nu_r)
         ca = np.array([-a[1] * r, a[0] * r, a[1] * u_r - a[0] * v_r])
         force -= crb + ca
     if p.surge:
