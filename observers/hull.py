@@ -51,7 +51,6 @@ class HullParams:
     surge_quadratic: float  # |X_|u|u| (N s²/m²), the quadratic surge resistance at speed
     surge_blend_speed_mps: float = 2.0  # the blending speed of the linear and quadratic surge resistance
     crossflow_cd: float | None = None  # None: Hoerner's 2-D coefficient at B/(2T)
-    crossflow_strips: int = 20
     water_density: float = WATER_DENSITY
     wind: WindArea | None = None
     notes: str = field(default="", compare=False)
@@ -70,7 +69,6 @@ _HULL_KEYS = {
     "surge_quadratic",
     "surge_blend_speed_mps",
     "crossflow_cd",
-    "crossflow_strips",
     "water_density",
     "wind",
     "notes",
@@ -109,9 +107,6 @@ def hull_from_dict(data: Any, where: str, mass_kg: float, M: Array) -> HullParam
     if not np.allclose(MA, MA.T, rtol=1e-9, atol=1e-9 * float(np.max(np.abs(MA)))):
         raise HullError(f"{where}: field 'hull.added_mass': must be symmetric")
     cd = data.get("crossflow_cd")
-    strips = data.get("crossflow_strips", 20)
-    if not isinstance(strips, int) or isinstance(strips, bool) or strips < 2:
-        raise HullError(f"{where}: field 'hull.crossflow_strips': must be an integer ≥ 2, got {strips!r}")
     wind = None
     if "wind" in data:
         w = data["wind"]
@@ -133,7 +128,6 @@ def hull_from_dict(data: Any, where: str, mass_kg: float, M: Array) -> HullParam
         surge_quadratic=_positive(data, "surge_quadratic", f"{where}: hull"),
         surge_blend_speed_mps=_positive(data, "surge_blend_speed_mps", f"{where}: hull", 2.0),
         crossflow_cd=None if cd is None else _positive(data, "crossflow_cd", f"{where}: hull"),
-        crossflow_strips=strips,
         water_density=_positive(data, "water_density", f"{where}: hull", WATER_DENSITY),
         wind=wind,
         notes=str(data.get("notes", "")),

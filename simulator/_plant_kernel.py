@@ -1,7 +1,7 @@
 """Compiled RK4 of the full plant: the same equations as `simulator.plant_reference`, written out in loops.
 
 Tested to agree with the reference to 1e-9 (tests/test_plant.py). Scalars travel in one array ``s``:
-[m, x_g, X_u, X_|u|u, u_cross, cf_k, dx, coriolis, surge, crossflow, C_A at ν instead of ν_r].
+[m, x_g, X_u, X_|u|u, u_cross, cf_k, L, coriolis, surge, crossflow, C_A at ν instead of ν_r].
 """
 
 from __future__ import annotations
@@ -13,11 +13,11 @@ from numba import njit
 
 from observers.kinematics import ssa_jit
 
-S_M, S_XG, S_XU, S_XUU, S_UC, S_CFK, S_DX, S_COR, S_SURGE, S_CF, S_CA_ABS = range(11)
+S_M, S_XG, S_XU, S_XUU, S_UC, S_CFK, S_L, S_COR, S_SURGE, S_CF, S_CA_ABS = range(11)
 
 
 @njit(cache=True)
-def _derivative(x, tau, b_earth, vc_ned, s, Minv, D, MA, xs, rA, rB, rC, rD, out):
+def _derivative(x, tau, b_earth, vc_ned, s, Minv, D, MA, rA, rB, rC, rD, out):
     psi = x[2]
     c = math.cos(psi)
     sn = math.sin(psi)
@@ -45,16 +45,20 @@ def _derivative(x, tau, b_earth, vc_ned, s, Minv, D, MA, xs, rA, rB, rC, rD, out
         sigma = 1.0 - math.tanh(abs(ur) / s[S_UC])
         f0 -= sigma * s[S_XU] * ur + (1.0 - sigma) * s[S_XUU] * abs(ur) * ur
     if s[S_CF] != 0.0:
-        k = s[S_CFK] * s[S_DX]
-        y = 0.0
-        n = 0.0
-        for i in range(xs.shape[0]):
-            w = vr + xs[i] * r
-            q = abs(w) * w
-            y += q
-            n += xs[i] * q
-        f1 -= k * y
-        f2 -= k * n
+        L = s[S_L]
+        if abs(r) * L / 2.0 <= abs(vr):  # |w|w = sgn(v_r) w² along the whole hull
+            sgn = 1.0 if vr >= 0.0 else -1.0
+            i0 = sgn * (vr * vr * L + r * r * L * L * L / 12.0)
+            i1 = sgn * vr * r * L * L * L / 6.0
+        else:
+            wp = vr + r * L / 2.0
+            wm = vr - r * L / 2.0
+            q2 = abs(wp) * wp * wp - abs(wm) * wm * wm
+            q3 = abs(wp) * wp * wp * wp - abs(wm) * wm * wm * wm
+            i0 = q2 / (3.0 * r)
+            i1 = (q3 / 4.0 - vr * q2 / 3.0) / (r * r)
+        f1 -= s[S_CFK] * i0
+        f2 -= s[S_CFK] * i1
     nr = rA.shape[0]
     for i in range(nr):
         f0 -= rC[0, i] * x[6 + i]
@@ -77,7 +81,7 @@ derivative_into = _derivative  # the state derivative alone (the plant's mean cu
 
 
 @njit(cache=True)
-def rk4_steps(x, h, n, tau, b_earth, vc_ned, s, Minv, D, MA, xs, rA, rB, rC, rD):
+def rk4_steps(x, h, n, tau, b_earth, vc_ned, s, Minv, D, MA, rA, rB, rC, rD):
     """n RK4 steps of h seconds with the inputs held; ψ wrapped to [−π, π) after each."""
     dim = x.shape[0]
     k = np.empty((4, dim))
@@ -91,7 +95,7 @@ def rk4_steps(x, h, n, tau, b_earth, vc_ned, s, Minv, D, MA, xs, rA, rB, rC, rD)
                 w = h if stage == 3 else 0.5 * h
                 for j in range(dim):
                     xt[j] = x[j] + w * k[stage - 1, j]
-            _derivative(xt, tau, b_earth, vc_ned, s, Minv, D, MA, xs, rA, rB, rC, rD, k[stage])
+            _derivative(xt, tau, b_earth, vc_ned, s, Minv, D, MA, rA, rB, rC, rD, k[stage])
         for j in range(dim):
             x[j] += h / 6.0 * (k[0, j] + 2.0 * k[1, j] + 2.0 * k[2, j] + k[3, j])
         x[2] = ssa_jit(x[2])

@@ -47,9 +47,9 @@ class FullPlant:
         self.x[3:6] = np.asarray(nu0, dtype=float)
         self.x[2] = ssa_scalar(self.x[2])
         flags = (p.coriolis, p.surge, p.crossflow, p.ca_absolute)
-        self._s = np.array([p.m, p.x_g, p.Xu, p.Xuu, p.u_cross, p.cf_k, p.dx, *(float(f) for f in flags)])
+        self._s = np.array([p.m, p.x_g, p.Xu, p.Xuu, p.u_cross, p.cf_k, p.length, *(float(f) for f in flags)])
         c = np.ascontiguousarray
-        self._arrays = (c(p.Minv), c(p.D), c(p.MA), c(p.xs), c(p.rA), c(p.rB), c(p.rC), c(p.rD))
+        self._arrays = (c(p.Minv), c(p.D), c(p.MA), c(p.rA), c(p.rB), c(p.rC), c(p.rD))
         self._zero_current = np.zeros(2)
 
     @property

@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from observers.vessel import VesselModel
-from simulator.crossflow import hoerner_cd, strips
+from simulator.crossflow import hoerner_cd
 
 Array = NDArray[np.float64]
 
@@ -78,8 +78,7 @@ class PlantParams:
     u_cross: float
     crossflow: bool
     cf_k: float  # ½ ρ T C_d
-    xs: Array
-    dx: float
+    length: float  # the hull length the cross-flow drag is integrated over
     rA: Array
     rB: Array
     rC: Array
@@ -122,10 +121,8 @@ class PlantParams:
         if options.surge_resistance:
             D[0, 0] = 0.0
         cd = 0.0
-        xs, dx = np.zeros(0), 0.0
         if hull is not None:
             cd = hull.crossflow_cd if hull.crossflow_cd is not None else hoerner_cd(hull.beam_m, hull.draft_m)
-            xs, dx = strips(vessel.length_m, hull.crossflow_strips)
         rho = hull.water_density if hull is not None else 1025.0
         return cls(
             M=M,
@@ -142,8 +139,7 @@ class PlantParams:
             u_cross=hull.surge_blend_speed_mps if hull is not None else 1.0,
             crossflow=options.crossflow,
             cf_k=0.5 * rho * (hull.draft_m if hull is not None else 0.0) * cd,
-            xs=np.ascontiguousarray(xs),
-            dx=dx,
+            length=vessel.length_m,
             rA=rA,
             rB=rB,
             rC=rC,

@@ -28,7 +28,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from simulator.crossflow import crossflow_force
+from simulator.crossflow import crossflow
 from simulator.plant_params import PlantParams
 
 Array = NDArray[np.float64]
@@ -55,7 +55,7 @@ def derivative(x: Array, tau_body: Array, bias_earth: Array, current_ned: Array,
         sigma = 1.0 - math.tanh(abs(u_r) / p.u_cross)
         force[0] -= sigma * p.Xu * u_r + (1.0 - sigma) * p.Xuu * abs(u_r) * u_r
     if p.crossflow:
-        Y, N = crossflow_force(v_r, r, p.cf_k, p.xs, p.dx)
+        Y, N = crossflow(v_r, r, p.cf_k, p.length)
         force[1] += Y
         force[2] += N
     xr = x[6:]
