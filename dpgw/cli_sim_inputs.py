@@ -89,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
 
     from observers.vessel import VesselError, load_vessel
     from simulator.open_loop import InputsError, read_inputs, run_open_loop, write_states
-    from simulator.plant_params import PlantError
+    from simulator.plant_params import PlantError, PlantParams
 
     try:
         if not args.vessel:
@@ -98,6 +98,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("--inputs needs --csv STATES.csv and/or --out LOG.mcap (somewhere to write the states)")
         vessel = load_vessel(args.vessel)
         options = plant_options(args.plant_option)
+        PlantParams.build(vessel, options)  # a vessel the plant cannot run is said before the inputs are read
         inputs = read_inputs(args.inputs, vessel)
         forces = []
         if args.wind:
