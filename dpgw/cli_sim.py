@@ -120,7 +120,9 @@ def _parse_route(spec: str, protocol: str) -> tuple[str, frozenset[str] | None]:
 
 def run(args: argparse.Namespace) -> int:
     if (args.scenario is None) == (args.inputs is None):
-        print("dpgw sim: give --scenario NAME, or --vessel NAME --inputs INPUTS.csv (not both)", file=sys.stderr)
+        print(
+            "dpgw sim: give --scenario NAME, or --vessel NAME --inputs INPUTS.csv (not both)", file=sys.stderr
+        )
         return 2
     if args.inputs is not None:
         return cli_sim_inputs.run(args)

@@ -29,7 +29,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="recorded inputs: t, current_speed, current_dir_deg (towards, from north), n_<k> (rpm) per "
         "thruster and alpha_<k> (deg) per azimuth, k in the vessel's thruster order; held between rows",
     )
-    g.add_argument("--csv", metavar="STATES.csv", help="write t, north, east, psi_deg, u, v, r_degps per input row")
+    g.add_argument(
+        "--csv", metavar="STATES.csv", help="write t, north, east, psi_deg, u, v, r_degps per input row"
+    )
     g.add_argument(
         "--plant-option",
         action="append",
@@ -59,7 +61,9 @@ def plant_options(specs: list[str]) -> PlantOptions:
         key, sep, value = spec.partition("=")
         key, value = key.strip(), value.strip().lower()
         if not sep or key not in PLANT_OPTION_KEYS or key not in known:
-            raise ValueError(f"--plant-option {spec!r}: expected KEY=VALUE with KEY one of {', '.join(PLANT_OPTION_KEYS)}")
+            raise ValueError(
+                f"--plant-option {spec!r}: expected KEY=VALUE with KEY one of {', '.join(PLANT_OPTION_KEYS)}"
+            )
         if key == "added_mass_coriolis":
             values[key] = value
         elif value in ("on", "true", "1", "yes"):
@@ -74,7 +78,9 @@ def plant_options(specs: list[str]) -> PlantOptions:
 def _floats(text: str, flag: str, n: int, extra: tuple[str, ...] = ()) -> tuple[list[float], list[str]]:
     parts = [p.strip() for p in text.split(",")]
     if not (n <= len(parts) <= n + len(extra)):
-        raise ValueError(f"{flag} {text!r}: expected {n} numbers" + (f" and optionally {extra[0]}" if extra else ""))
+        raise ValueError(
+            f"{flag} {text!r}: expected {n} numbers" + (f" and optionally {extra[0]}" if extra else "")
+        )
     try:
         nums = [float(p) for p in parts[:n]]
     except ValueError:
@@ -95,7 +101,9 @@ def run(args: argparse.Namespace) -> int:
         if not args.vessel:
             raise ValueError("--inputs needs --vessel NAME|FILE.toml")
         if not (args.csv or args.out):
-            raise ValueError("--inputs needs --csv STATES.csv and/or --out LOG.mcap (somewhere to write the states)")
+            raise ValueError(
+                "--inputs needs --csv STATES.csv and/or --out LOG.mcap (somewhere to write the states)"
+            )
         vessel = load_vessel(args.vessel)
         options = plant_options(args.plant_option)
         PlantParams.build(vessel, options)  # a vessel the plant cannot run is said before the inputs are read
@@ -106,7 +114,9 @@ def run(args: argparse.Namespace) -> int:
 
             (speed, from_deg), rest = _floats(args.wind, "--wind", 2, ("SPECTRUM",))
             if vessel.hull is None or vessel.hull.wind is None:
-                raise ValueError(f"--wind: vessel '{vessel.name}' has no wind areas (field 'hull.wind', docs/vessels.md)")
+                raise ValueError(
+                    f"--wind: vessel '{vessel.name}' has no wind areas (field 'hull.wind', docs/vessels.md)"
+                )
             wind = Wind(
                 WindModel(speed, from_deg, gust=rest[0].lower() if rest else "norsok"),
                 vessel.hull.wind,

@@ -78,7 +78,12 @@ _WIND_KEYS = set(WindArea.__dataclass_fields__)
 
 def _positive(table: dict[str, Any], key: str, where: str, default: float | None = None) -> float:
     value = table.get(key, default)
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value <= 0:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int | float)
+        or not math.isfinite(value)
+        or value <= 0
+    ):
         raise HullError(f"{where}: field '{key}': must be a positive number, got {value!r}")
     return float(value)
 
@@ -103,7 +108,9 @@ def hull_from_dict(data: Any, where: str, mass_kg: float, M: Array) -> HullParam
     except (TypeError, ValueError):
         raise HullError(f"{where}: field 'hull.added_mass': must be a 3×3 matrix of numbers") from None
     if MA.shape != (3, 3) or not np.all(np.isfinite(MA)):
-        raise HullError(f"{where}: field 'hull.added_mass': must be a finite 3×3 matrix, got shape {MA.shape}")
+        raise HullError(
+            f"{where}: field 'hull.added_mass': must be a finite 3×3 matrix, got shape {MA.shape}"
+        )
     if not np.allclose(MA, MA.T, rtol=1e-9, atol=1e-9 * float(np.max(np.abs(MA)))):
         raise HullError(f"{where}: field 'hull.added_mass': must be symmetric")
     cd = data.get("crossflow_cd")
@@ -114,7 +121,9 @@ def hull_from_dict(data: Any, where: str, mass_kg: float, M: Array) -> HullParam
             raise HullError(f"{where}: field 'hull.wind': must be a table")
         unknown = set(w) - _WIND_KEYS
         if unknown:
-            raise HullError(f"{where}: field 'hull.wind': unknown keys {sorted(unknown)}; known: {sorted(_WIND_KEYS)}")
+            raise HullError(
+                f"{where}: field 'hull.wind': unknown keys {sorted(unknown)}; known: {sorted(_WIND_KEYS)}"
+            )
         for key in ("frontal_area_m2", "lateral_area_m2"):
             if key not in w:
                 raise HullError(f"{where}: field 'hull.wind.{key}': missing")
@@ -137,7 +146,8 @@ def hull_from_dict(data: Any, where: str, mass_kg: float, M: Array) -> HullParam
     worst = np.max(np.abs(total - M) / np.sqrt(np.outer(scale, scale)))
     if worst > 5e-3:
         raise HullError(
-            f"{where}: field 'hull': M_RB(mass_kg, x_g_m, yaw_gyration_radius_m) + hull.added_mass must equal M "
+            f"{where}: field 'hull': M_RB(mass_kg, x_g_m, yaw_gyration_radius_m) + hull.added_mass must "
+            "equal M "
             f"(within 0.5 %); they differ by {100 * worst:.2g} % (M_RB + M_A = {total.round(0).tolist()})"
         )
     return hull

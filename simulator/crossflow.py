@@ -28,12 +28,54 @@ Array = NDArray[np.float64]
 
 # Hoerner's 2-D cross-flow drag coefficient of a ship section against B/(2T) (Hoerner 1965, the points MSS
 # digitised): data, the published curve.
-_HOERNER_B_2T = np.array([0.0108623, 0.176606, 0.353025, 0.451863, 0.472838, 0.492877, 0.493252, 0.558473,
-                          0.646401, 0.833589, 0.988002, 1.30807, 1.63918, 1.85998, 2.31288, 2.59998, 3.00877,
-                          3.45075, 3.7379, 4.00309])  # fmt: skip
-_HOERNER_CD = np.array([1.96608, 1.96573, 1.89756, 1.78718, 1.58374, 1.27862, 1.21082, 1.08356, 0.998631,
-                        0.87959, 0.828415, 0.759941, 0.691442, 0.657076, 0.630693, 0.596186, 0.586846,
-                        0.585909, 0.559877, 0.559315])  # fmt: skip
+_HOERNER_B_2T = np.array(
+    [
+        0.0108623,
+        0.176606,
+        0.353025,
+        0.451863,
+        0.472838,
+        0.492877,
+        0.493252,
+        0.558473,
+        0.646401,
+        0.833589,
+        0.988002,
+        1.30807,
+        1.63918,
+        1.85998,
+        2.31288,
+        2.59998,
+        3.00877,
+        3.45075,
+        3.7379,
+        4.00309,
+    ]
+)
+_HOERNER_CD = np.array(
+    [
+        1.96608,
+        1.96573,
+        1.89756,
+        1.78718,
+        1.58374,
+        1.27862,
+        1.21082,
+        1.08356,
+        0.998631,
+        0.87959,
+        0.828415,
+        0.759941,
+        0.691442,
+        0.657076,
+        0.630693,
+        0.596186,
+        0.586846,
+        0.585909,
+        0.559877,
+        0.559315,
+    ]
+)
 
 
 def hoerner_cd(beam_m: float, draft_m: float) -> float:
@@ -63,7 +105,7 @@ def crossflow(v_r: float, r: float, k: float, length_m: float) -> tuple[float, f
 def strips(length_m: float, n: int) -> tuple[Array, float]:
     """Midpoints of n equal strips over [−L/2, L/2] and their width."""
     dx = length_m / n
-    return -0.5 * length_m + dx * (np.arange(n) + 0.5), dx
+    return np.asarray(-0.5 * length_m + dx * (np.arange(n) + 0.5), dtype=np.float64), dx
 
 
 def crossflow_strips(v_r: float, r: float, k: float, xs: Array, dx: float) -> tuple[float, float]:

@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from observers.vessel import VesselModel
 from simulator.plant import MAX_STEP_S, FullPlant
-from simulator.plant_params import PlantOptions
+from simulator.plant_params import DEFAULT_OPTIONS, PlantOptions
 
 Array = NDArray[np.float64]
 
@@ -71,9 +71,13 @@ def read_inputs(path: str | Path, vessel: VesselModel) -> Inputs:
     unknown = [c for c in header if c not in expected]
     layout = f"{vessel.name} has {len(vessel.thrusters)} thrusters: columns {', '.join(expected)}"
     if missing:
-        raise InputsError(f"{where}: missing column{'s' if len(missing) > 1 else ''} {', '.join(missing)} ({layout})")
+        raise InputsError(
+            f"{where}: missing column{'s' if len(missing) > 1 else ''} {', '.join(missing)} ({layout})"
+        )
     if unknown:
-        raise InputsError(f"{where}: unknown column{'s' if len(unknown) > 1 else ''} {', '.join(unknown)} ({layout})")
+        raise InputsError(
+            f"{where}: unknown column{'s' if len(unknown) > 1 else ''} {', '.join(unknown)} ({layout})"
+        )
     if len(set(header)) != len(header):
         raise InputsError(f"{where}: a column appears twice in the header")
     data = np.empty((len(rows) - 1, len(header)))
@@ -85,7 +89,9 @@ def read_inputs(path: str | Path, vessel: VesselModel) -> Inputs:
             try:
                 value = float(text)
             except ValueError:
-                raise InputsError(f"{where}: line {line}, column '{header[j]}': not a number: {text!r}") from None
+                raise InputsError(
+                    f"{where}: line {line}, column '{header[j]}': not a number: {text!r}"
+                ) from None
             if not math.isfinite(value):
                 raise InputsError(f"{where}: line {line}, column '{header[j]}': not finite: {text!r}")
             data[i, j] = value
@@ -96,7 +102,9 @@ def read_inputs(path: str | Path, vessel: VesselModel) -> Inputs:
     bad = np.flatnonzero(np.diff(t) <= 0)
     if bad.size:
         line = int(bad[0]) + 3
-        raise InputsError(f"{where}: line {line}, column 't': times must increase ({t[bad[0] + 1]} after {t[bad[0]]})")
+        raise InputsError(
+            f"{where}: line {line}, column 't': times must increase ({t[bad[0] + 1]} after {t[bad[0]]})"
+        )
     neg = np.flatnonzero(col["current_speed"] < 0)
     if neg.size:
         raise InputsError(f"{where}: line {int(neg[0]) + 2}, column 'current_speed': must be ≥ 0")
@@ -116,7 +124,7 @@ ExtraForce = Callable[[float, Array], Array]
 def run_open_loop(
     vessel: VesselModel,
     inputs: Inputs,
-    options: PlantOptions = PlantOptions(),
+    options: PlantOptions = DEFAULT_OPTIONS,
     extra_force: ExtraForce | None = None,
     extra_step_s: float = 0.25,
 ) -> Array:
@@ -155,4 +163,12 @@ def write_states(path: str | Path, states: Array) -> None:
             f.write(f"{row[0]:.3f}," + ",".join(f"{v:.9g}" for v in row[1:]) + "\n")
 
 
-__all__ = ["MAX_STEP_S", "Inputs", "InputsError", "STATE_COLUMNS", "read_inputs", "run_open_loop", "write_states"]
+__all__ = [
+    "MAX_STEP_S",
+    "STATE_COLUMNS",
+    "Inputs",
+    "InputsError",
+    "read_inputs",
+    "run_open_loop",
+    "write_states",
+]

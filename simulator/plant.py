@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 from observers.kinematics import ssa_scalar
 from observers.vessel import VesselModel
 from simulator._plant_kernel import derivative_into, rk4_steps
-from simulator.plant_params import PlantOptions, PlantParams
+from simulator.plant_params import DEFAULT_OPTIONS, PlantOptions, PlantParams
 
 Array = NDArray[np.float64]
 MAX_STEP_S = 0.05
@@ -37,7 +37,7 @@ class FullPlant:
         vessel: VesselModel,
         eta0: ArrayLike = (0.0, 0.0, 0.0),
         nu0: ArrayLike = (0.0, 0.0, 0.0),
-        options: PlantOptions = PlantOptions(),
+        options: PlantOptions = DEFAULT_OPTIONS,
     ) -> None:
         self.vessel = vessel
         self.options = options

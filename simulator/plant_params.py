@@ -53,13 +53,17 @@ class PlantOptions:
     def __post_init__(self) -> None:
         if self.added_mass_coriolis not in ("relative", "absolute"):
             raise PlantError(
-                f"plant option 'added_mass_coriolis': 'relative' or 'absolute', got {self.added_mass_coriolis!r}"
+                "plant option 'added_mass_coriolis': 'relative' or 'absolute', "
+                f"got {self.added_mass_coriolis!r}"
             )
 
     @classmethod
     def model_only(cls) -> PlantOptions:
         """The observers' own model: nothing nonlinear."""
         return cls(coriolis=False, surge_resistance=False, crossflow=False)
+
+
+DEFAULT_OPTIONS = PlantOptions()
 
 
 @dataclass(frozen=True)
@@ -89,12 +93,13 @@ class PlantParams:
         return int(self.rA.shape[0])
 
     @classmethod
-    def build(cls, vessel: VesselModel, options: PlantOptions = PlantOptions()) -> PlantParams:
+    def build(cls, vessel: VesselModel, options: PlantOptions = DEFAULT_OPTIONS) -> PlantParams:
         hull = vessel.hull
         needs_hull = options.coriolis or options.surge_resistance or options.crossflow or options.radiation
         if hull is None and needs_hull:
             raise PlantError(
-                f"vessel '{vessel.name}': the full plant needs a [hull] table (M_A, x_g, beam, draught, surge "
+                f"vessel '{vessel.name}': the full plant needs a [hull] table (M_A, x_g, beam, draught, "
+                "surge "
                 "resistance; docs/vessels.md), or switch its effects off (plant options)"
             )
         M = np.array(vessel.M, dtype=float)
@@ -105,11 +110,18 @@ class PlantParams:
         if options.radiation is not None:
             assert hull is not None
             rad = options.radiation
-            rA, rB, rC, rD = (np.ascontiguousarray(np.asarray(a, dtype=float)) for a in (rad.A, rad.B, rad.C, rad.D))
+            rA, rB, rC, rD = (
+                np.ascontiguousarray(np.asarray(a, dtype=float)) for a in (rad.A, rad.B, rad.C, rad.D)
+            )
             n = rA.shape[0]
             A_inf = np.asarray(rad.A_inf, dtype=float)
-            shapes = {"A": (rA.shape, (n, n)), "B": (rB.shape, (n, 3)), "C": (rC.shape, (3, n)),
-                      "D": (rD.shape, (3, 3)), "A_inf": (A_inf.shape, (3, 3))}  # fmt: skip
+            shapes = {
+                "A": (rA.shape, (n, n)),
+                "B": (rB.shape, (n, 3)),
+                "C": (rC.shape, (3, n)),
+                "D": (rD.shape, (3, 3)),
+                "A_inf": (A_inf.shape, (3, 3)),
+            }
             for key, (got, want) in shapes.items():
                 if got != want:
                     raise PlantError(f"plant option 'radiation.{key}': shape {got}, expected {want}")
@@ -145,4 +157,3 @@ class PlantParams:
             rC=rC,
             rD=rD,
         )
-

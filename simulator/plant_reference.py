@@ -68,7 +68,9 @@ def derivative(x: Array, tau_body: Array, bias_earth: Array, current_ned: Array,
     return out
 
 
-def rk4_step(x: Array, h: float, tau_body: Array, bias_earth: Array, current_ned: Array, p: PlantParams) -> Array:
+def rk4_step(
+    x: Array, h: float, tau_body: Array, bias_earth: Array, current_ned: Array, p: PlantParams
+) -> Array:
     """One classical RK4 step with the inputs held; ψ wrapped to [−π, π) afterwards."""
     k1 = derivative(x, tau_body, bias_earth, current_ned, p)
     k2 = derivative(x + 0.5 * h * k1, tau_body, bias_earth, current_ned, p)

@@ -219,7 +219,11 @@ class Simulation:
         psi = self.dynamics.x[2]
         load = rotation(psi).T @ np.asarray(self.scenario.bias.constant, dtype=float) + self._drift_body
         if self.plant_env is not None and isinstance(self.dynamics, FullPlant):
-            load = load + self.plant_env.mean_wind_body(psi) + self.dynamics.current_load(self.plant_env.current_ned)
+            load = (
+                load
+                + self.plant_env.mean_wind_body(psi)
+                + self.dynamics.current_load(self.plant_env.current_ned)
+            )
         return load
 
     def _control_tick(self) -> None:

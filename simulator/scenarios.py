@@ -80,7 +80,7 @@ class Scenario:
     # The LF plant: "model" is the observers' own M ν' + D ν = τ + Jᵀ b (the papers' cases, bit-for-bit as
     # before); "full" the nonlinear manoeuvring plant (`simulator.plant`) with its options, current and wind.
     plant: str = "model"
-    plant_options: PlantOptions = PlantOptions()
+    plant_options: PlantOptions = field(default_factory=PlantOptions)
     current: CurrentModel | None = None
     wind: WindModel | None = None
 
@@ -284,7 +284,8 @@ def mss_osv() -> Scenario:
     vessel = load_vessel("mss_osv")
     return Scenario(
         name="mss_osv",
-        description="MSS offshore supply vessel (osv.m) on the full plant: station keeping at (0, 0), heading "
+        description="MSS offshore supply vessel (osv.m) on the full plant: station keeping at (0, 0), "
+        "heading "
         "0°, in a 0.5 m/s current towards −140° (SIMosv.m's), 12 m/s NORSOK wind, JONSWAP Hs 3 m",
         vessel=vessel,
         duration_s=1800.0,

@@ -27,7 +27,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from observers.hull import AIR_DENSITY, WindArea
 
@@ -101,7 +101,7 @@ class Wind:
         self._dir = (math.cos(b), math.sin(b))
         self._q = 0.5 * AIR_DENSITY
 
-    def gust(self, t: Array) -> Array:
+    def gust(self, t: ArrayLike) -> Array:
         """u_g(t) (m/s), the sum of harmonics (the readable form the block cache interpolates)."""
         t = np.asarray(t, dtype=float)
         return np.asarray(np.cos(np.multiply.outer(t, self.omega) + self.phase) @ self.amplitude)

@@ -43,7 +43,18 @@ def disagreement(states: np.ndarray, ref: np.ndarray) -> float:
 
 def run_sim(tmp_path: Path, name: str, *extra: str) -> np.ndarray:
     out = tmp_path / f"{name}.csv"
-    code = main(["sim", "--vessel", "mss_osv", "--inputs", str(DATA / f"{name}_inputs.csv"), "--csv", str(out), *extra])
+    code = main(
+        [
+            "sim",
+            "--vessel",
+            "mss_osv",
+            "--inputs",
+            str(DATA / f"{name}_inputs.csv"),
+            "--csv",
+            str(out),
+            *extra,
+        ]
+    )
     assert code == 0
     return load(out)
 
@@ -74,7 +85,9 @@ def test_the_current_gap_is_the_added_mass_coriolis(tmp_path: Path) -> None:
     default, 0.8 % with osv.m's convention."""
     ref = load(DATA / "current_osv_states.csv")
     default = disagreement(run_sim(tmp_path, "current"), ref)
-    absolute = disagreement(run_sim(tmp_path, "current", "--plant-option", "added_mass_coriolis=absolute"), ref)
+    absolute = disagreement(
+        run_sim(tmp_path, "current", "--plant-option", "added_mass_coriolis=absolute"), ref
+    )
     assert default > 5.0 and absolute < 1.5
 
 
@@ -106,7 +119,10 @@ def test_what_remains_is_osv_m_s_strip_sum(monkeypatch: pytest.MonkeyPatch, name
 def test_states_csv_and_log(tmp_path: Path) -> None:
     out, log = tmp_path / "s.csv", tmp_path / "s.mcap"
     inputs = DATA / "turn_inputs.csv"
-    assert main(["sim", "--vessel", "mss_osv", "--inputs", str(inputs), "--csv", str(out), "--out", str(log)]) == 0
+    assert (
+        main(["sim", "--vessel", "mss_osv", "--inputs", str(inputs), "--csv", str(out), "--out", str(log)])
+        == 0
+    )
     header = out.read_text().splitlines()[0]
     assert header == ",".join(STATE_COLUMNS)
     states = load(out)
@@ -124,16 +140,27 @@ def test_wind_and_sea_flags_add_forces(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("text", "message"),
     [
-        ("t,current_speed,current_dir_deg,n_1,n_2,n_3,n_4,alpha_3\n0,0,0,0,0,0,0,0\n", "missing column alpha_4"),
+        (
+            "t,current_speed,current_dir_deg,n_1,n_2,n_3,n_4,alpha_3\n0,0,0,0,0,0,0,0\n",
+            "missing column alpha_4",
+        ),
         ("t,current_speed,current_dir_deg,n_1,n_2,n_3,n_4,alpha_3,alpha_4,n_5\n", "unknown column n_5"),
-        ("t,current_speed,current_dir_deg,n_1,n_2,n_3,n_4,alpha_3,alpha_4\n0,0,0,0,0,0,0,0,0\n1,0,0,0,x,0,0,0,0\n",
-         "line 3, column 'n_2': not a number"),  # fmt: skip
-        ("t,current_speed,current_dir_deg,n_1,n_2,n_3,n_4,alpha_3,alpha_4\n0,0,0,0,0,0,0,0,0\n0,0,0,0,0,0,0,0,0\n",
-         "line 3, column 't': times must increase"),  # fmt: skip
-        ("t,current_speed,current_dir_deg,n_1,n_2,n_3,n_4,alpha_3,alpha_4\n0,0,0,0,0,0,0,0,0\n1,0,0,0\n",
-         "line 3: 4 fields"),  # fmt: skip
-        ("t,current_speed,current_dir_deg,n_1,n_2,n_3,n_4,alpha_3,alpha_4\n0,-1,0,0,0,0,0,0,0\n1,0,0,0,0,0,0,0,0\n",
-         "line 2, column 'current_speed'"),  # fmt: skip
+        (
+            "t,current_speed,current_dir_deg,n_1,n_2,n_3,n_4,alpha_3,alpha_4\n0,0,0,0,0,0,0,0,0\n1,0,0,0,x,0,0,0,0\n",
+            "line 3, column 'n_2': not a number",
+        ),
+        (
+            "t,current_speed,current_dir_deg,n_1,n_2,n_3,n_4,alpha_3,alpha_4\n0,0,0,0,0,0,0,0,0\n0,0,0,0,0,0,0,0,0\n",
+            "line 3, column 't': times must increase",
+        ),
+        (
+            "t,current_speed,current_dir_deg,n_1,n_2,n_3,n_4,alpha_3,alpha_4\n0,0,0,0,0,0,0,0,0\n1,0,0,0\n",
+            "line 3: 4 fields",
+        ),
+        (
+            "t,current_speed,current_dir_deg,n_1,n_2,n_3,n_4,alpha_3,alpha_4\n0,-1,0,0,0,0,0,0,0\n1,0,0,0,0,0,0,0,0\n",
+            "line 2, column 'current_speed'",
+        ),
     ],
 )
 def test_bad_inputs_name_the_row_and_column(
@@ -151,7 +178,10 @@ def test_flag_mistakes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> No
     out = str(tmp_path / "o.csv")
     assert main(["sim", "--inputs", inputs, "--csv", out]) == 2
     assert "--vessel" in capsys.readouterr().err
-    assert main(["sim", "--vessel", "mss_osv", "--inputs", inputs, "--csv", out, "--plant-option", "wind=on"]) == 2
+    assert (
+        main(["sim", "--vessel", "mss_osv", "--inputs", inputs, "--csv", out, "--plant-option", "wind=on"])
+        == 2
+    )
     assert "--plant-option" in capsys.readouterr().err
     assert main(["sim", "--vessel", "mss_supply", "--inputs", inputs, "--csv", out]) == 2
     assert "[hull]" in capsys.readouterr().err

@@ -32,28 +32,53 @@ def _steps(t: np.ndarray) -> dict[str, np.ndarray]:
     n_az = np.where(t >= 10, 90.0, 0.0) + np.where(t >= 200, 40.0, 0.0) - np.where(t >= 400, 130.0, 0.0)
     tunnel = np.where((t >= 400) & (t < 520), 110.0, 0.0)
     side = np.where((t >= 400) & (t < 520), 90.0, 0.0)
-    return {"n_1": tunnel, "n_2": tunnel, "n_3": n_az + np.where(side > 0, 100.0, 0.0),
-            "n_4": n_az + np.where(side > 0, 130.0, 0.0), "alpha_3": side, "alpha_4": side}  # fmt: skip
+    return {
+        "n_1": tunnel,
+        "n_2": tunnel,
+        "n_3": n_az + np.where(side > 0, 100.0, 0.0),
+        "n_4": n_az + np.where(side > 0, 130.0, 0.0),
+        "alpha_3": side,
+        "alpha_4": side,
+    }
 
 
 def _turn(t: np.ndarray) -> dict[str, np.ndarray]:
     on = (t >= 5).astype(float)
-    return {"n_1": 120.0 * on, "n_2": 120.0 * on, "n_3": 110.0 * on, "n_4": 150.0 * on,
-            "alpha_3": -35.0 * on, "alpha_4": -35.0 * on}  # fmt: skip
+    return {
+        "n_1": 120.0 * on,
+        "n_2": 120.0 * on,
+        "n_3": 110.0 * on,
+        "n_4": 150.0 * on,
+        "alpha_3": -35.0 * on,
+        "alpha_4": -35.0 * on,
+    }
 
 
 def _current(t: np.ndarray) -> dict[str, np.ndarray]:
     late = (t >= 120).astype(float)
-    return {"current_speed": np.full_like(t, 0.6), "current_dir_deg": 30.0 + 90.0 * np.clip(t / 500.0, 0, 1),
-            "n_1": 40.0 * late, "n_2": 40.0 * late, "n_3": 60.0 * late, "n_4": 60.0 * late,
-            "alpha_3": np.zeros_like(t), "alpha_4": np.zeros_like(t)}  # fmt: skip
+    return {
+        "current_speed": np.full_like(t, 0.6),
+        "current_dir_deg": 30.0 + 90.0 * np.clip(t / 500.0, 0, 1),
+        "n_1": 40.0 * late,
+        "n_2": 40.0 * late,
+        "n_3": 60.0 * late,
+        "n_4": 60.0 * late,
+        "alpha_3": np.zeros_like(t),
+        "alpha_4": np.zeros_like(t),
+    }
 
 
 def _azimuth_sweep(t: np.ndarray) -> dict[str, np.ndarray]:
-    return {"current_speed": np.full_like(t, 0.2), "current_dir_deg": np.full_like(t, 200.0),
-            "n_1": np.zeros_like(t), "n_2": np.zeros_like(t), "n_3": np.full_like(t, 100.0),
-            "n_4": 120.0 * np.minimum(t / 60.0, 1.0),
-            "alpha_3": 90.0 * np.sin(2 * math.pi * t / 300.0), "alpha_4": 90.0 * np.sin(2 * math.pi * t / 220.0)}  # fmt: skip
+    return {
+        "current_speed": np.full_like(t, 0.2),
+        "current_dir_deg": np.full_like(t, 200.0),
+        "n_1": np.zeros_like(t),
+        "n_2": np.zeros_like(t),
+        "n_3": np.full_like(t, 100.0),
+        "n_4": 120.0 * np.minimum(t / 60.0, 1.0),
+        "alpha_3": 90.0 * np.sin(2 * math.pi * t / 300.0),
+        "alpha_4": 90.0 * np.sin(2 * math.pi * t / 220.0),
+    }
 
 
 SEQUENCES = {"steps": _steps, "turn": _turn, "current": _current, "azimuth_sweep": _azimuth_sweep}
