@@ -91,7 +91,6 @@ def test_the_current_gap_is_the_added_mass_coriolis(tmp_path: Path) -> None:
     assert default > 5.0 and absolute < 1.5
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("name", ["steps", "turn", "azimuth_sweep"])
 def test_what_remains_is_osv_m_s_strip_sum(monkeypatch: pytest.MonkeyPatch, name: str) -> None:
     """The rest of the difference is osv.m's cross-flow quadrature: 21 strips at L/20 spacing, each L/20 wide
