@@ -257,3 +257,15 @@ def test_current_or_wind_on_the_model_plant_is_refused() -> None:
         replace(get_scenario("torsetnes_2004"), current=CurrentModel(0.5, 0.0))
     with pytest.raises(ValueError, match="'plant'"):
         replace(get_scenario("torsetnes_2004"), plant="fancy")
+
+
+def test_thruster_rpm_follows_each_thrusters_own_law() -> None:
+    """The simulator's drives report rpm by the vessel file's max_rpm per thruster — the law the gateway
+    reads them with (a fixed 200 rpm would put mss_osv's tunnels beyond their 140 rpm and be rejected)."""
+    from simulator.thrusters import ThrusterBank
+
+    bank = ThrusterBank(OSV)
+    bank.thrust[:] = [t.max_thrust_n for t in OSV.thrusters]
+    np.testing.assert_allclose(bank.rpm, [t.max_rpm for t in OSV.thrusters])
+    for t, rpm, thrust in zip(OSV.thrusters, bank.rpm, bank.thrust, strict=True):
+        assert t.thrust_at_rpm(rpm) == pytest.approx(thrust)
