@@ -40,6 +40,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="coriolis|surge_resistance|crossflow=on|off, added_mass_coriolis=relative|absolute (repeatable)",
     )
     g.add_argument(
+        "--initial",
+        metavar="N,E,PSI_DEG[,U,V,R_DEGPS]",
+        help="the state at the first row (default: at rest at the origin, heading 0)",
+    )
+    g.add_argument(
         "--wind",
         metavar="SPEED,FROM_DEG[,SPECTRUM]",
         help="add wind: 1-hour mean at 10 m (m/s), the direction it blows from, gusts norsok|harris|none",
@@ -108,6 +113,19 @@ def run(args: argparse.Namespace) -> int:
         options = plant_options(args.plant_option)
         PlantParams.build(vessel, options)  # a vessel the plant cannot run is said before the inputs are read
         inputs = read_inputs(args.inputs, vessel)
+        eta0, nu0 = (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+        if args.initial:
+            (n0, e0, psi0), more = _floats(args.initial, "--initial", 3, ("U,V,R_DEGPS",) * 3)
+            eta0 = (n0, e0, math.radians(psi0))
+            if more:
+                if len(more) != 3:
+                    raise ValueError(f"--initial {args.initial!r}: give 3 or 6 numbers")
+                (u0, v0, r0), _ = _floats(",".join(more), "--initial", 3)
+                nu0 = (u0, v0, math.radians(r0))
+        if args.wind and inputs.wind_speed is not None:
+            raise ValueError(
+                f"--wind: {args.inputs} has recorded wind columns already; give one or the other"
+            )
         forces = []
         if args.wind:
             from simulator.wind import Wind, WindModel
@@ -142,7 +160,7 @@ def run(args: argparse.Namespace) -> int:
     def extra(t: float, x: Any) -> Any:
         return sum((f(t, x) for f in forces), np.zeros(3))
 
-    states = run_open_loop(vessel, inputs, options, extra if forces else None)
+    states = run_open_loop(vessel, inputs, options, extra if forces else None, eta0=eta0, nu0=nu0)
     if args.csv:
         write_states(args.csv, states)
     if args.out:

@@ -97,9 +97,6 @@ class Wind:
         self.phase = rng.uniform(0.0, 2.0 * math.pi, model.components)
         self._t0 = math.inf
         self._block: list[float] = []
-        b = math.radians(model.from_deg + 180.0)  # blows towards
-        self._dir = (math.cos(b), math.sin(b))
-        self._q = 0.5 * AIR_DENSITY
 
     def gust(self, t: ArrayLike) -> Array:
         """u_g(t) (m/s), the sum of harmonics (the readable form the block cache interpolates)."""
@@ -127,16 +124,24 @@ class Wind:
         return self.force_at(self.mean, psi, 0.0, 0.0)
 
     def force_at(self, speed: float, psi: float, u: float, v: float) -> tuple[float, float, float]:
-        u, v = float(u), float(v)  # numpy scalars would make every operation below ten times slower
-        c, s = math.cos(psi), math.sin(psi)
-        wn, we = speed * self._dir[0], speed * self._dir[1]
-        urw = u - (c * wn + s * we)
-        vrw = v - (-s * wn + c * we)
-        q = self._q * (urw * urw + vrw * vrw)
-        gamma = -math.atan2(vrw, urw)
-        a = self.area
-        return (
-            -q * a.cx * math.cos(gamma) * a.frontal_area_m2,
-            q * a.cy * math.sin(gamma) * a.lateral_area_m2,
-            q * a.cn * math.sin(2.0 * gamma) * a.lateral_area_m2 * self.length_m,
-        )
+        return wind_force(self.area, self.length_m, speed, self.model.from_deg, psi, u, v)
+
+
+def wind_force(
+    area: WindArea, length_m: float, speed: float, from_deg: float, psi: float, u: float, v: float
+) -> tuple[float, float, float]:
+    """[X, Y, N] (body frame) of a wind of this speed from this direction on a vessel at heading ψ moving at
+    (u, v): Fossen (2021) eqs (10.10)–(10.12) on the relative wind."""
+    u, v = float(u), float(v)  # numpy scalars would make every operation below ten times slower
+    towards = math.radians(from_deg + 180.0)
+    wn, we = speed * math.cos(towards), speed * math.sin(towards)
+    c, s = math.cos(psi), math.sin(psi)
+    urw = u - (c * wn + s * we)
+    vrw = v - (-s * wn + c * we)
+    q = 0.5 * AIR_DENSITY * (urw * urw + vrw * vrw)
+    gamma = -math.atan2(vrw, urw)
+    return (
+        -q * area.cx * math.cos(gamma) * area.frontal_area_m2,
+        q * area.cy * math.sin(gamma) * area.lateral_area_m2,
+        q * area.cn * math.sin(2.0 * gamma) * area.lateral_area_m2 * length_m,
+    )

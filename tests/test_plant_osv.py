@@ -136,6 +136,23 @@ def test_wind_and_sea_flags_add_forces(tmp_path: Path) -> None:
     assert windy["east"][-1] < calm["east"][-1] - 10.0  # pushed west by both
 
 
+def test_recorded_wind_and_an_initial_state(tmp_path: Path) -> None:
+    """Recorded wind columns act as the --wind flag's mean wind does; --initial starts the run elsewhere."""
+    text = (DATA / "steps_inputs.csv").read_text().splitlines()
+    windy = tmp_path / "windy.csv"
+    windy.write_text(
+        "\n".join([text[0] + ",wind_speed,wind_from_deg"] + [r + ",20,90" for r in text[1:]]) + "\n"
+    )
+    out = tmp_path / "w.csv"
+    assert main(["sim", "--vessel", "mss_osv", "--inputs", str(windy), "--csv", str(out)]) == 0
+    recorded = load(out)
+    flag = run_sim(tmp_path, "steps", "--wind", "20,90,none")
+    np.testing.assert_allclose(recorded["east"], flag["east"], atol=1e-6)
+    start = run_sim(tmp_path, "steps", "--initial", "100,-50,90,1.0,0,0")
+    assert start["north"][0] == 100.0 and start["east"][0] == -50.0 and start["psi_deg"][0] == 90.0
+    assert start["east"][30] > -50.0 + 20.0  # heading east at 1 m/s and more
+
+
 @pytest.mark.parametrize(
     ("text", "message"),
     [
