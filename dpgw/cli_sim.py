@@ -7,6 +7,7 @@ import json
 import sys
 from typing import TYPE_CHECKING, Any
 
+from dpgw import cli_sim_inputs
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from simulator.scenario_names import SCENARIO_NAMES
 
@@ -33,12 +34,13 @@ EPILOG = (
     "  dpgw sim --scenario torsetnes_2004 --nmea pty --realtime          # prints the device path\n"
     "  dpgw sim --scenario hassani --nmea dgps1=udp://127.0.0.1:10110 --nmea gyro1=pty --realtime\n"
     "  dpgw sim --scenario hajivand_2010 --mavlink tcp-listen://127.0.0.1:5760 --zenoh --realtime\n"
+    "  dpgw sim --vessel mss_osv --inputs trial.csv --csv states.csv --out trial.mcap   # open loop\n"
     f"scenarios: {', '.join(SCENARIO_NAMES)} (docs/simulator.md)"
 )
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--scenario", choices=SCENARIO_NAMES, required=True, metavar="NAME", help="scenario name")
+    p.add_argument("--scenario", choices=SCENARIO_NAMES, metavar="NAME", help="scenario name")
     p.add_argument("--duration", type=float, metavar="S", help="sim seconds (default: the scenario's)")
     p.add_argument("--seed", type=int, default=0, help="random seed: same seed, same bytes (default 0)")
     p.add_argument("--out", metavar="LOG.mcap", help="write ground truth and every frame sent to this MCAP")
@@ -86,6 +88,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_endpoint_args(p)
     p.add_argument("--zenoh-config", metavar="FILE", help="a Zenoh JSON5 config file (overrides the above)")
     p.add_argument("--json", action="store_true", help="print the run summary as JSON")
+    cli_sim_inputs.add_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -116,6 +119,20 @@ def _parse_route(spec: str, protocol: str) -> tuple[str, frozenset[str] | None]:
 
 
 def run(args: argparse.Namespace) -> int:
+    if (args.scenario is None) == (args.inputs is None):
+        print(
+            "dpgw sim: give --scenario NAME, or --vessel NAME --inputs INPUTS.csv (not both)", file=sys.stderr
+        )
+        return 2
+    if args.inputs is not None:
+        return cli_sim_inputs.run(args)
+    if args.vessel or args.csv or args.plant_option or args.wind or args.sea:
+        print("dpgw sim: --vessel, --csv, --plant-option, --wind and --sea go with --inputs", file=sys.stderr)
+        return 2
+    return _run_scenario(args)
+
+
+def _run_scenario(args: argparse.Namespace) -> int:
     import signal
     from dataclasses import replace
 

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from observers.hull import HullError, HullParams, hull_from_dict
 from observers.vessel_files import builtin_vessels as builtin_vessels  # used here; re-exported
 
 Array = NDArray[np.float64]
@@ -94,6 +95,7 @@ class VesselModel:
     source: str = ""
     description: str = ""
     thrusters: tuple[Thruster, ...] = field(default_factory=tuple)
+    hull: HullParams | None = None  # the nonlinear plant's hull data (`observers.hull`); None: M and D only
 
     def __post_init__(self) -> None:
         where = f"vessel '{self.name}'"
@@ -240,7 +242,7 @@ def vessel_from_dict(data: dict[str, Any], where: str = "vessel") -> VesselModel
         M, D = data["M"], data["D"]
     thrusters = tuple(_thruster(e, i, where) for i, e in enumerate(data.get("thrusters", [])))
     try:
-        return VesselModel(
+        vessel = VesselModel(
             name=name,
             M=M,
             D=D,
@@ -254,6 +256,13 @@ def vessel_from_dict(data: dict[str, Any], where: str = "vessel") -> VesselModel
         # re-raise with the file named, keeping the field and reason
         msg = str(exc).replace(f"vessel '{name}'", where, 1)
         raise VesselError(msg) from None
+    if "hull" in data:
+        try:
+            hull = hull_from_dict(data["hull"], where, mass, vessel.M)
+        except HullError as exc:
+            raise VesselError(str(exc)) from None
+        vessel = replace(vessel, hull=hull)
+    return vessel
 
 
 def load_vessel(name_or_path: str | Path) -> VesselModel:

@@ -34,6 +34,8 @@ from simulator.clock import Clock, SimEpoch, VirtualClock
 from simulator.commands import Command, TauCommand
 from simulator.environment import MarkovBias
 from simulator.faults import FaultSchedule
+from simulator.plant import FullPlant
+from simulator.plant_env import PlantEnvironment
 from simulator.scenarios import Scenario, ShipNow
 from simulator.sensors import (
     Dgps,
@@ -174,7 +176,13 @@ class Simulation:
             self.waves = self.waves.with_motion_gain(gain)
         self._wf = _WaveCache(self.waves)
 
-        self.dynamics = VesselDynamics(vessel, scenario.eta0, scenario.nu0)
+        self.dynamics: VesselDynamics | FullPlant
+        self.plant_env: PlantEnvironment | None = None
+        if scenario.plant == "full":  # its own streams, spawned after the others: those stay as they were
+            self.dynamics = FullPlant(vessel, scenario.eta0, scenario.nu0, scenario.plant_options)
+            self.plant_env = PlantEnvironment(vessel, scenario.current, scenario.wind, ss.spawn(1)[0])
+        else:
+            self.dynamics = VesselDynamics(vessel, scenario.eta0, scenario.nu0)
         self.bias = MarkovBias(scenario.bias, np.random.default_rng(bias_seq))
         self.thrusters = ThrusterBank(vessel)
         self.allocate = PrescribedAllocation(vessel) if self.thrusters.n else None
@@ -215,12 +223,28 @@ class Simulation:
                 self.thrusters.step(hs)
                 tau = self.thrusters.tau
             self.bias.step(hs)
-            self.dynamics.step(hs, tau + self._drift_body, self.bias.force)
+            if self.plant_env is None:
+                self.dynamics.step(hs, tau + self._drift_body, self.bias.force)
+            else:
+                self._full_step(hs, tau)
         self.t += h
+
+    def _full_step(self, h: float, tau: Array) -> None:
+        env = self.plant_env
+        assert env is not None and isinstance(self.dynamics, FullPlant)
+        env.step(h, self.t, self.dynamics.x)
+        self.dynamics.step(h, tau + self._drift_body + env.wind_body, self.bias.force, env.current_ned)
 
     def _mean_load_body(self) -> Array:
         psi = self.dynamics.x[2]
-        return rotation(psi).T @ np.asarray(self.scenario.bias.constant, dtype=float) + self._drift_body
+        load = rotation(psi).T @ np.asarray(self.scenario.bias.constant, dtype=float) + self._drift_body
+        if self.plant_env is not None and isinstance(self.dynamics, FullPlant):
+            load = (
+                load
+                + self.plant_env.mean_wind_body(psi)
+                + self.dynamics.current_load(self.plant_env.current_ned)
+            )
+        return load
 
     def _control_tick(self) -> None:
         if self._failure_faults:
@@ -304,7 +328,7 @@ class Simulation:
             d.source: antenna_ned(eta_total, d.lever_arm_m, attitude).tolist() for d in self.scenario.dgps
         }
         c, s = math.cos(x[2]), math.sin(x[2])
-        d = self._drift_body
+        d = self._drift_body if self.plant_env is None else self._drift_body + self.plant_env.wind_body
         b = self.bias.force
         bias_total = [b[0] + c * d[0] - s * d[1], b[1] + s * d[0] + c * d[1], b[2] + d[2]]
         sea = self._sea_state()

@@ -11,4 +11,5 @@ SCENARIO_NAMES: tuple[str, ...] = (
     "snijders_2005",
     "hassani",
     "hajivand_2010",
+    "mss_osv",
 )

@@ -12,6 +12,7 @@ not give a number, the choice is made here and said in ``notes`` (and in docs/sc
   JONSWAP Hs 5 m, Tp 12 s, γ 3.3.
 - hassani — Hassani et al. Sec. 5: CyberShip II, wave peak 0.93 rad/s, a 10 m step forward at t = 40 s.
 - hajivand_2010 — Hajivand & Mousavizadegan (2010): three azimuths, τ of the paper.
+- mss_osv — MSS's offshore supply vessel (osv.m) on the full nonlinear plant in current, wind and waves.
 """
 
 from __future__ import annotations
@@ -27,10 +28,13 @@ from numpy.typing import NDArray
 
 from observers.kinematics import rotation
 from observers.vessel import VesselModel, load_vessel
+from simulator.current import CurrentModel
 from simulator.environment import BiasModel
 from simulator.faults import Fault
+from simulator.plant_params import PlantOptions
 from simulator.sensors import Datum, DgpsConfig, GyroConfig, ThrusterFeedbackConfig
 from simulator.spectra import SeaState
+from simulator.wind import WindModel
 
 Array = NDArray[np.float64]
 
@@ -46,6 +50,9 @@ class ShipNow:
 
 
 TauLaw = Callable[[ShipNow], Array]
+
+
+PLANTS = ("model", "full")
 
 
 @dataclass(frozen=True)
@@ -70,6 +77,21 @@ class Scenario:
     control_rate_hz: float = 10.0
     notes: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
+    # The LF plant: "model" is the observers' own M ν' + D ν = τ + Jᵀ b (the papers' cases, bit-for-bit as
+    # before); "full" the nonlinear manoeuvring plant (`simulator.plant`) with its options, current and wind.
+    plant: str = "model"
+    plant_options: PlantOptions = field(default_factory=PlantOptions)
+    current: CurrentModel | None = None
+    wind: WindModel | None = None
+
+    def __post_init__(self) -> None:
+        if self.plant not in PLANTS:
+            raise ValueError(f"scenario '{self.name}': field 'plant': one of {PLANTS}, got {self.plant!r}")
+        if self.plant == "model" and (self.current is not None or self.wind is not None):
+            raise ValueError(
+                f"scenario '{self.name}': field 'plant': current and wind need plant = \"full\" (the model "
+                "plant has no relative velocity and no wind areas)"
+            )
 
     def with_sensor_rates(self, gnss_hz: float | None = None, gyro_hz: float | None = None) -> Scenario:
         dgps = tuple(replace(d, rate_hz=gnss_hz) for d in self.dgps) if gnss_hz else self.dgps
@@ -258,12 +280,45 @@ def hajivand_2010() -> Scenario:
     )
 
 
+def mss_osv() -> Scenario:
+    vessel = load_vessel("mss_osv")
+    return Scenario(
+        name="mss_osv",
+        description="MSS offshore supply vessel (osv.m) on the full plant: station keeping at (0, 0), "
+        "heading "
+        "0°, in a 0.5 m/s current towards −140° (SIMosv.m's), 12 m/s NORSOK wind, JONSWAP Hs 3 m",
+        vessel=vessel,
+        duration_s=1800.0,
+        sea=((0.0, SeaState(hs_m=3.0, tp_s=9.0, gamma=3.3, direction_rad=math.radians(200.0))),),
+        tau=_hold_against_mean_load,
+        bias=BiasModel(sigma=(1e4, 1e4, 3e5), time_constant_s=(600.0, 600.0, 600.0)),
+        dgps=(DgpsConfig(rate_hz=2.0, sigma_m=0.3),),
+        gyro=(GyroConfig(rate_hz=10.0),),
+        plant="full",
+        current=CurrentModel(
+            speed_mps=0.5,
+            direction_deg=-140.0,
+            speed_sigma_mps=0.05,
+            direction_sigma_deg=5.0,
+            time_constant_s=900.0,
+            speed_limits_mps=(0.3, 0.7),
+            direction_limits_deg=(-155.0, -125.0),
+        ),
+        wind=WindModel(speed_mps=12.0, from_deg=210.0, gust="norsok"),
+        notes="The current of MSS SIMosv.m (0.5 m/s towards −140°), slowly varying (σ 0.05 m/s and 5°, T 900 "
+        "s, held within 0.3–0.7 m/s and ±15°); wind 12 m/s from 210° with NORSOK gusts and waves from 200° "
+        "are dpgw's choice (a moderate North Sea day). Until the DP controller commands the thrusters, τ "
+        "cancels the known mean load: the mean wind and current forces at rest and the mean wave drift.",
+    )
+
+
 SCENARIOS: dict[str, Callable[[], Scenario]] = {
     "fossen_strand_1999": fossen_strand_1999,
     "torsetnes_2004": torsetnes_2004,
     "snijders_2005": snijders_2005,
     "hassani": hassani,
     "hajivand_2010": hajivand_2010,
+    "mss_osv": mss_osv,
 }
 
 

@@ -4,7 +4,8 @@ Per thruster: thrust follows its setpoint with a first-order lag (time constant)
 [min_thrust_n, max_thrust_n]; an azimuth turns towards its setpoint at most at its slew rate, by the
 shorter way round. The generalised force is τ = B_u(α) u through the configuration matrix
 (`VesselModel.configuration_matrix`). A failed thruster delivers no thrust and holds its angle.
-RPM is reported from the propeller law T = K n|n| with K set so max thrust is reached at ``max_rpm``.
+RPM is reported from the propeller law T = K n|n| with K set so max thrust is reached at each thruster's
+``max_rpm`` (the vessel file's, the law the gateway reads the feedback with).
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ DEFAULT_MAX_RPM = 200.0
 
 
 class ThrusterBank:
-    def __init__(self, vessel: VesselModel, max_rpm: float = DEFAULT_MAX_RPM) -> None:
+    def __init__(self, vessel: VesselModel, max_rpm: float | None = None) -> None:
         self.vessel = vessel
         th = vessel.thrusters
         self.ids = [t.id for t in th]
@@ -34,7 +35,10 @@ class ThrusterBank:
         self.rate = np.array([t.azimuth_rate_rad_s for t in th], dtype=float)
         self.time_constant = np.array([max(t.thrust_time_constant_s, 1e-6) for t in th], dtype=float)
         self.fixed_angle = np.array([t.angle_rad for t in th], dtype=float)
-        self.k_prop = self.max_thrust / max_rpm**2
+        # each thruster's own propeller law, as the gateway reads it (a single 200 rpm for all would report
+        # a 140 rpm tunnel at 200 rpm and have its feedback rejected as out of range)
+        rpm_max = np.array([t.max_rpm if max_rpm is None else max_rpm for t in th], dtype=float)
+        self.k_prop = self.max_thrust / rpm_max**2
         self.x = np.array([t.x_m for t in th], dtype=float)
         self.y = np.array([t.y_m for t in th], dtype=float)
         self.thrust = np.zeros(self.n)

@@ -1,0 +1,204 @@
+"""``dpgw sim --vessel NAME --inputs INPUTS.csv``: the full plant open loop from recorded inputs.
+
+What an engineer runs to check a vessel model against a sea trial or another simulator: the recorded
+shaft speeds, azimuth angles and current in, the low-frequency states out (STATES.csv) and the truth to
+MCAP. No waves and no wind unless asked (``--wind``, ``--sea``: their slowly varying forces only; the
+states are low-frequency). ``--plant-option`` switches the plant's effects (docs/simulator.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from dataclasses import fields, replace
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from simulator.plant_params import PlantOptions
+
+PLANT_OPTION_KEYS = ("coriolis", "surge_resistance", "crossflow", "added_mass_coriolis")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("open loop from recorded inputs (instead of --scenario)")
+    g.add_argument("--vessel", metavar="NAME|FILE.toml", help="the vessel (built-in name or a vessel file)")
+    g.add_argument(
+        "--inputs",
+        metavar="INPUTS.csv",
+        help="recorded inputs: t, current_speed, current_dir_deg (towards, from north), n_<k> (rpm) per "
+        "thruster and alpha_<k> (deg) per azimuth, k in the vessel's thruster order; held between rows",
+    )
+    g.add_argument(
+        "--csv", metavar="STATES.csv", help="write t, north, east, psi_deg, u, v, r_degps per input row"
+    )
+    g.add_argument(
+        "--plant-option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="coriolis|surge_resistance|crossflow=on|off, added_mass_coriolis=relative|absolute (repeatable)",
+    )
+    g.add_argument(
+        "--initial",
+        metavar="N,E,PSI_DEG[,U,V,R_DEGPS]",
+        help="the state at the first row (default: at rest at the origin, heading 0)",
+    )
+    g.add_argument(
+        "--wind",
+        metavar="SPEED,FROM_DEG[,SPECTRUM]",
+        help="add wind: 1-hour mean at 10 m (m/s), the direction it blows from, gusts norsok|harris|none",
+    )
+    g.add_argument(
+        "--sea",
+        metavar="HS,TP,TOWARDS_DEG",
+        help="add the mean wave drift of a JONSWAP sea (m, s, the direction the waves travel towards)",
+    )
+
+
+def plant_options(specs: list[str]) -> PlantOptions:
+    """PlantOptions from KEY=VALUE strings; a bad one is a ValueError naming it."""
+    from simulator.plant_params import PlantOptions
+
+    values: dict[str, Any] = {}
+    known = {f.name for f in fields(PlantOptions)}
+    for spec in specs:
+        key, sep, value = spec.partition("=")
+        key, value = key.strip(), value.strip().lower()
+        if not sep or key not in PLANT_OPTION_KEYS or key not in known:
+            raise ValueError(
+                f"--plant-option {spec!r}: expected KEY=VALUE with KEY one of {', '.join(PLANT_OPTION_KEYS)}"
+            )
+        if key == "added_mass_coriolis":
+            values[key] = value
+        elif value in ("on", "true", "1", "yes"):
+            values[key] = True
+        elif value in ("off", "false", "0", "no"):
+            values[key] = False
+        else:
+            raise ValueError(f"--plant-option {spec!r}: {key} takes on or off")
+    return replace(PlantOptions(), **values)
+
+
+def _floats(text: str, flag: str, n: int, extra: tuple[str, ...] = ()) -> tuple[list[float], list[str]]:
+    parts = [p.strip() for p in text.split(",")]
+    if not (n <= len(parts) <= n + len(extra)):
+        raise ValueError(
+            f"{flag} {text!r}: expected {n} numbers" + (f" and optionally {extra[0]}" if extra else "")
+        )
+    try:
+        nums = [float(p) for p in parts[:n]]
+    except ValueError:
+        raise ValueError(f"{flag} {text!r}: not numbers") from None
+    if not all(math.isfinite(x) for x in nums):
+        raise ValueError(f"{flag} {text!r}: not finite")
+    return nums, parts[n:]
+
+
+def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from observers.vessel import VesselError, load_vessel
+    from simulator.open_loop import InputsError, read_inputs, run_open_loop, write_states
+    from simulator.plant_params import PlantError, PlantParams
+
+    try:
+        if not args.vessel:
+            raise ValueError("--inputs needs --vessel NAME|FILE.toml")
+        if not (args.csv or args.out):
+            raise ValueError(
+                "--inputs needs --csv STATES.csv and/or --out LOG.mcap (somewhere to write the states)"
+            )
+        vessel = load_vessel(args.vessel)
+        options = plant_options(args.plant_option)
+        PlantParams.build(vessel, options)  # a vessel the plant cannot run is said before the inputs are read
+        inputs = read_inputs(args.inputs, vessel)
+        eta0, nu0 = (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+        if args.initial:
+            (n0, e0, psi0), more = _floats(args.initial, "--initial", 3, ("U,V,R_DEGPS",) * 3)
+            eta0 = (n0, e0, math.radians(psi0))
+            if more:
+                if len(more) != 3:
+                    raise ValueError(f"--initial {args.initial!r}: give 3 or 6 numbers")
+                (u0, v0, r0), _ = _floats(",".join(more), "--initial", 3)
+                nu0 = (u0, v0, math.radians(r0))
+        if args.wind and inputs.wind_speed is not None:
+            raise ValueError(
+                f"--wind: {args.inputs} has recorded wind columns already; give one or the other"
+            )
+        forces = []
+        if args.wind:
+            from simulator.wind import Wind, WindModel
+
+            (speed, from_deg), rest = _floats(args.wind, "--wind", 2, ("SPECTRUM",))
+            if vessel.hull is None or vessel.hull.wind is None:
+                raise ValueError(
+                    f"--wind: vessel '{vessel.name}' has no wind areas (field 'hull.wind', docs/vessels.md)"
+                )
+            wind = Wind(
+                WindModel(speed, from_deg, gust=rest[0].lower() if rest else "norsok"),
+                vessel.hull.wind,
+                vessel.length_m,
+                np.random.default_rng(args.seed),
+            )
+            forces.append(lambda t, x: np.array(wind.force_body(t, float(x[2]), float(x[3]), float(x[4]))))
+        if args.sea:
+            from simulator.spectra import SeaState
+            from simulator.waves import WaveField, WaveResponse
+
+            (hs, tp, towards), _ = _floats(args.sea, "--sea", 3)
+            waves = WaveField(
+                SeaState(hs_m=hs, tp_s=tp, direction_rad=math.radians(towards)),
+                WaveResponse.for_vessel(vessel),
+                seed=args.seed,
+            )
+            forces.append(lambda t, x: waves.drift_force(np.array([t]), x[2], x[0], x[1])[0])
+    except (ValueError, OSError, VesselError, InputsError, PlantError) as exc:
+        print(f"dpgw sim: {exc}", file=sys.stderr)
+        return 2
+
+    def extra(t: float, x: Any) -> Any:
+        return sum((f(t, x) for f in forces), np.zeros(3))
+
+    states = run_open_loop(vessel, inputs, options, extra if forces else None, eta0=eta0, nu0=nu0)
+    if args.csv:
+        write_states(args.csv, states)
+    if args.out:
+        _write_log(args, vessel.name, inputs, states)
+    end = states[-1]
+    print(
+        f"{vessel.name}: {len(states)} input rows, {end[0] - states[0][0]:.0f} s open loop; end at "
+        f"N {end[1]:.1f} m, E {end[2]:.1f} m, heading {end[3]:.1f}°"
+        + (f"; states: {args.csv}" if args.csv else "")
+        + (f"; log: {args.out}" if args.out else "")
+    )
+    return 0
+
+
+def _write_log(args: argparse.Namespace, vessel: str, inputs: Any, states: Any) -> None:
+    """The states as /truth/state records (as a scenario's truth), stamped from the scenario epoch."""
+    import math as m
+
+    from simulator.clock import SimEpoch
+    from simulator.scenarios import Scenario
+    from wire.mcap.writer import McapLogWriter
+    from wire.messages import TruthState
+
+    epoch = SimEpoch(Scenario.__dataclass_fields__["start_utc"].default)  # type: ignore[arg-type]
+    with McapLogWriter(args.out, profile="dpgw-sim") as log:
+        log.add_metadata("dpgw.sim", {"vessel": vessel, "inputs": str(args.inputs), "mode": "open loop"})
+        for row in states:
+            stamp = epoch.stamp_ns(float(row[0]))
+            log.write(
+                "/truth/state",
+                TruthState(
+                    stamp_ns=stamp,
+                    eta_lf=[float(row[1]), float(row[2]), m.radians(float(row[3]))],
+                    nu=[float(row[4]), float(row[5]), m.radians(float(row[6]))],
+                    bias=[0.0, 0.0, 0.0],
+                    eta_wf=[0.0, 0.0, 0.0],
+                    omega0=[0.0, 0.0, 0.0],
+                ),
+                stamp,
+                stamp,
+            )

@@ -1,0 +1,71 @@
+"""What the full plant adds around the scenario's loads: the current it moves in and the wind force.
+
+One object per run so the time loop (`simulator.runner`) only asks two things each plant step: the
+current's NED velocity and the wind's body-frame force. Each has its own random stream, drawn from the
+run's seed after the existing ones, so adding them changes none of the other streams.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from observers.vessel import VesselModel
+from simulator.current import Current, CurrentModel
+from simulator.wind import Wind, WindModel
+
+Array = NDArray[np.float64]
+CURRENT_STEP_S = 1.0
+WIND_STEP_S = 0.25
+
+
+class PlantEnvironment:
+    def __init__(
+        self,
+        vessel: VesselModel,
+        current: CurrentModel | None,
+        wind: WindModel | None,
+        seed: np.random.SeedSequence,
+    ) -> None:
+        current_seq, wind_seq = seed.spawn(2)
+        self.current = Current(current, np.random.default_rng(current_seq)) if current is not None else None
+        self.wind: Wind | None = None
+        if wind is not None:
+            if vessel.hull is None or vessel.hull.wind is None:
+                raise ValueError(
+                    f"vessel '{vessel.name}': wind needs the vessel's wind areas, field 'hull.wind' "
+                    "(docs/vessels.md)"
+                )
+            self.wind = Wind(wind, vessel.hull.wind, vessel.length_m, np.random.default_rng(wind_seq))
+        self.wind_body = np.zeros(3)
+        self._no_current = np.zeros(2)
+        self._current_due = 0.0  # time since the current was last advanced
+        self._wind_due = math.inf  # time since the wind force was last computed
+
+    def step(self, h: float, t: float, x: Array) -> None:
+        """Advance by h from time t with the vessel in state x.
+
+        The current moves once a second (exactly, over the elapsed time: its time constant is minutes) and the
+        wind force is recomputed every 0.25 s (the gust series' grid; it has nothing above 0.2 Hz), held in
+        between: per plant step both would cost more than the plant itself for no difference in the motion.
+        """
+        if self.current is not None:
+            self._current_due += h
+            if self._current_due >= CURRENT_STEP_S - 1e-9:
+                self.current.step(self._current_due)
+                self._current_due = 0.0
+        if self.wind is not None:
+            self._wind_due += h
+            if self._wind_due >= WIND_STEP_S - 1e-9:
+                self.wind_body[:] = self.wind.force_body(t, float(x[2]), float(x[3]), float(x[4]))
+                self._wind_due = 0.0
+
+    @property
+    def current_ned(self) -> Array:
+        return self.current.velocity_ned if self.current is not None else self._no_current
+
+    def mean_wind_body(self, psi: float) -> Array:
+        """The mean wind's force on the vessel at rest (body frame); zero without wind."""
+        return np.array(self.wind.mean_force_body(psi)) if self.wind is not None else np.zeros(3)
