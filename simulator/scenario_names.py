@@ -12,4 +12,5 @@ SCENARIO_NAMES: tuple[str, ...] = (
     "hassani",
     "hajivand_2010",
     "mss_osv",
+    "mss_supply_storm",
 )

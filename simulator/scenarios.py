@@ -312,6 +312,45 @@ def mss_osv() -> Scenario:
     )
 
 
+def mss_supply_storm() -> Scenario:
+    """The MSS supply vessel on the full plant with fluid memory, in weather: the honest plant of the
+    Torsetnes case (same vessel, heading and sea), with a current and a gusting wind on top."""
+    from simulator.fluid_memory_cache import load_fluid_memory  # (reads the stored model: ~10 ms)
+
+    vessel = load_vessel("mss_supply")
+    return Scenario(
+        name="mss_supply_storm",
+        description="MSS supply vessel on the full plant with fluid memory, keeping (0, 0), heading 45°, "
+        "JONSWAP Hs 6 m, 1 m/s current, 15 m/s NORSOK wind",
+        vessel=vessel,
+        duration_s=2100.0,
+        eta0=(0.0, 0.0, math.radians(45.0)),
+        sea=(
+            (0.0, SeaState(hs_m=6.0, tp_s=11.5, gamma=3.3, direction_rad=math.radians(45.0 + 180.0 + 30.0))),
+        ),
+        tau=_hold_against_mean_load,
+        bias=BiasModel(sigma=(1e4, 1e4, 3e5), time_constant_s=(600.0, 600.0, 600.0)),
+        dgps=(DgpsConfig(rate_hz=2.0, sigma_m=0.3),),
+        gyro=(GyroConfig(rate_hz=10.0),),
+        plant="full",
+        plant_options=PlantOptions(radiation=load_fluid_memory("mss_supply")),
+        current=CurrentModel(
+            speed_mps=1.0,
+            direction_deg=45.0 + 180.0 + 20.0,
+            speed_sigma_mps=0.05,
+            direction_sigma_deg=5.0,
+            time_constant_s=900.0,
+            speed_limits_mps=(0.8, 1.2),
+            direction_limits_deg=(230.0, 260.0),
+        ),
+        wind=WindModel(speed_mps=15.0, from_deg=45.0 + 40.0, gust="norsok"),
+        notes="Torsetnes' sea (Hs 6 m, Tp 11.5 s, 30° off the bow) with a 1 m/s current setting 20° off the "
+        "bow towards the stern and 15 m/s wind 40° off the bow (NORSOK gusts): environment from ahead, as a "
+        "DP operator heads a vessel. Fluid memory from the ShipX supply vessel's A(ω), B(ω) "
+        "(docs/radiation.md).",
+    )
+
+
 SCENARIOS: dict[str, Callable[[], Scenario]] = {
     "fossen_strand_1999": fossen_strand_1999,
     "torsetnes_2004": torsetnes_2004,
@@ -319,6 +358,7 @@ SCENARIOS: dict[str, Callable[[], Scenario]] = {
     "hassani": hassani,
     "hajivand_2010": hajivand_2010,
     "mss_osv": mss_osv,
+    "mss_supply_storm": mss_supply_storm,
 }
 
 
