@@ -24,6 +24,12 @@ if TYPE_CHECKING:
 # imported by the functions that run the demo, so `dpgw demo --help` answers at once.
 
 SETTLE_S = 60.0
+LOWEST_SPEED = 1.0
+"""The demo never slows itself below real time."""
+MAX_LOOP_DELAY_S = 0.3
+"""Sim seconds the loop may run late (the simulation behind its schedule, or data waiting for the gateway)
+before the demo slows down: a few sensor samples, small beside a DP vessel's seconds-long dynamics, and
+still small for the model-scale vessel of the `hassani` scenario."""
 
 
 NAME = "demo"
@@ -36,7 +42,9 @@ DESCRIPTION = (
     "gateway reads them exactly as it would on a vessel, runs the observer, publishes on Zenoh (peer mode: "
     "'dpgw listen' in another terminal sees it) and logs to demo.mcap: raw input, estimates and the "
     "simulator's ground truth in one file, so 'dpgw replay demo.mcap' can re-run and score it. The vessel "
-    "runs --speed times faster than real time and the gateway's clock with it."
+    "runs --speed times faster than real time; the simulator publishes its time on Zenoh "
+    "(<prefix>/sim/clock) and the gateway stamps what it receives with it, so the loop stays right on a "
+    "busy machine. When the machine cannot keep up, the demo halves its speed (down to 1x) and says so."
 )
 EPILOG = (
     "examples:\n"
@@ -56,7 +64,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--duration", type=float, default=180.0, metavar="S", help="sim seconds (default 180)")
     p.add_argument(
-        "--speed", type=float, default=10.0, metavar="X", help="sim seconds per wall second (default 10)"
+        "--speed",
+        type=float,
+        default=10.0,
+        metavar="X",
+        help="sim seconds per wall second (default 10); halved, down to 1, while the machine cannot keep up",
     )
     p.add_argument(
         "--seed", type=int, default=0, help="random seed of waves, noise and faults: same seed, same sea (0)"
@@ -122,6 +134,8 @@ def demo_config(scenario: Any, pty_device: str, args: argparse.Namespace) -> dic
         "multicast_scouting": not args.no_scouting,
     }
     cfg["log"] = {"path": str(Path(args.out).resolve())}
+    # the gateway lives on the simulator's time, whatever the load (docs/gateway.md, "Simulation time")
+    cfg["time"] = {"clock": "sim"}
     return cfg
 
 
@@ -135,10 +149,11 @@ def run(args: argparse.Namespace) -> int:
     from gateway.config import ConfigError, format_problems, parse_config
     from gateway.service import GatewayService
     from gateway.sources import SourceError
-    from simulator.clock import RealtimeClock
+    from simulator.clock import RealtimeClock, SpeedGovernor
     from simulator.commands import MavlinkCommandInput, ZenohCommandInput
     from simulator.runner import Route, Simulation
     from simulator.scenarios import get_scenario
+    from simulator.sim_clock import SimClockPublisher
     from simulator.transports import PtySink, UdpSink
 
     scenario = get_scenario(args.scenario)
@@ -150,7 +165,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         tables = demo_config(scenario, pty.device, args)
         config = parse_config(tables, base_dir=Path.cwd(), where="dpgw demo")
-        service = GatewayService(config, time_scale=args.speed, config_tables=tables)
+        service = GatewayService(config, config_tables=tables)
         service.start()
     except ConfigError as exc:
         pty.close()
@@ -180,14 +195,38 @@ def run(args: argparse.Namespace) -> int:
     elif args.mode == "dp" and service._session is not None:
         commands.append(ZenohCommandInput(service._session, config.zenoh.prefix))  # τ for layout-less ships
     start_utc = datetime.fromtimestamp(service._wall0_ns / 1e9, tz=UTC)
+    clock = RealtimeClock(speed=args.speed)
     sim = Simulation(
         replace(scenario, start_utc=start_utc),
         args.seed,
         routes=routes,
         log=service.log,
-        clock=RealtimeClock(speed=args.speed),
+        clock=clock,
         log_raw=False,  # the gateway logs what it received; the simulator adds the truth
         commands=commands,
+    )
+
+    def lowered(old: float, new: float, delay: float) -> None:
+        if len(governor.changes) == 1:  # say it once; the summary gives the final speed
+            print(
+                f"dpgw demo: this machine cannot keep up with {old:g}x (the loop ran {delay:.1f} s of sea "
+                f"late); running slower, {new:g}x (down to {LOWEST_SPEED:g}x if need be)",
+                file=sys.stderr,
+                flush=True,
+            )
+
+    governor = SpeedGovernor(
+        clock, max_delay_s=MAX_LOOP_DELAY_S, floor=min(LOWEST_SPEED, args.speed), on_lower=lowered
+    )
+    assert service._session is not None
+    sim.on_time = SimClockPublisher(
+        service._session,
+        config.zenoh.prefix,
+        sim.epoch,
+        clock,
+        period_s=sim.time_tick_s,
+        governor=governor,
+        downstream_delay_s=lambda: service.queue_delay_s,
     )
     sim_error: list[BaseException] = []
 
@@ -218,6 +257,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"dpgw demo: the simulator failed: {sim_error[0]!r}", file=sys.stderr)
         return 1
     summary = summarise(args, sim, final_status, time.monotonic() - wall0)
+    summary["speed"] = {
+        "requested": args.speed,
+        "final": clock.speed,
+        "lowered": [{"from": a, "to": b, "lag_s": lag} for a, b, lag in governor.changes],
+    }
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
@@ -238,7 +282,8 @@ def summarise(
     from wire.mcap.reader import read_messages
 
     est = [(p["stamp_ns"], p["eta"]) for _, _, _, p in read_messages(args.out, "/dp/estimate")]
-    truth = [(p["stamp_ns"], p["eta_lf"]) for _, _, _, p in read_messages(args.out, "/truth/state")]
+    truth_rows = [p for _, _, _, p in read_messages(args.out, "/truth/state")]
+    truth = [(p["stamp_ns"], p["eta_lf"]) for p in truth_rows]
     result: dict[str, Any] = {
         "scenario": sim.scenario.name,
         "sim_seconds": sim.t,
@@ -257,6 +302,8 @@ def summarise(
         result["error_vs_truth"] = s.as_dict()
         result["settle_s"] = SETTLE_S
         result["station_keeping"] = station_keeping(args.out, tt, np.array([t[1] for t in truth]), t0)
+        psi_true = np.array([p["eta_lf"][2] + p["eta_wf"][2] for p in truth_rows], dtype=float)
+        result["heading_stamp_lag_s"] = heading_stamp_lag_s(args.out, tt, psi_true, t0)
     result["next"] = [
         f"look at it: open {args.out} in Foxglove (Map: /gnss/dgps1/fix and /dp/estimate/fix; Plot: "
         "/dp/estimate.eta[0] against /truth/state.eta_lf[0])",
@@ -300,6 +347,35 @@ def station_keeping(log: str, t_truth: Any, eta_truth: Any, t0_ns: int) -> dict[
     return out
 
 
+def heading_stamp_lag_s(log: str, t_truth: Any, psi_truth: Any, t0_ns: int) -> float | None:
+    """How much later the gateway stamped each heading than the truth says it was measured (s): the shift
+    of the truth's total heading (LF + wave motion) that best matches the measured heading the observer
+    was given. On one time base it is the gyro's latency (tens of ms); a drifting clock shows as seconds.
+    Searched over ±15 s in 10 ms steps (the wave motion makes the match sharp)."""
+    import numpy as np
+
+    from observers.kinematics import ssa
+    from wire.mcap.reader import read_messages
+
+    rows = [
+        (p["stamp_ns"], p["eta"][2])
+        for _, _, _, p in read_messages(log, "/dp/measurement")
+        if p["valid"][2] and p["eta"][2] is not None
+    ]
+    if len(rows) < 100 or len(t_truth) < 10:
+        return None
+    t_m = (np.array([r[0] for r in rows]) - t0_ns) / 1e9
+    psi_m = np.array([r[1] for r in rows], dtype=float)
+    psi_t = np.unwrap(psi_truth)
+    inside = (t_m > t_truth[0] + 15.0) & (t_m < t_truth[-1] - 15.0)
+    if inside.sum() < 100:
+        return None
+    t_m, psi_m = t_m[inside], psi_m[inside]
+    shifts = np.arange(-15.0, 15.0 + 1e-9, 0.01)
+    cost = np.array([np.mean(ssa(psi_m - np.interp(t_m - d, t_truth, psi_t)) ** 2) for d in shifts])
+    return float(shifts[int(np.argmin(cost))])
+
+
 def print_summary(r: dict[str, Any]) -> None:
     print(
         f"dpgw demo: {r['scenario']}, {r['sim_seconds']:.0f} s of sea in {r['wall_seconds']:.1f} s; "
@@ -325,6 +401,12 @@ def print_summary(r: dict[str, Any]) -> None:
             f"{k['position_p95_m']:.2f} m, heading p95 {k['heading_p95_deg']:.2f} deg"
             + (f"; {100 * share:.1f} % of the commanded force in the wave band" if share is not None else "")
         )
+    lag = r.get("heading_stamp_lag_s")
+    if lag is not None:
+        print(f"  time base: headings stamped {1000 * lag:.0f} ms after the truth's measurement instant")
+    sp = r.get("speed")
+    if sp and sp["final"] != sp["requested"]:
+        print(f"  speed: {sp['requested']:g}x asked, {sp['final']:g}x at the end (this machine was busy)")
     if r["alarms"]:
         print(f"  alarms at the end: {'; '.join(r['alarms'])}")
     if not math.isfinite(r.get("error_vs_truth", {}).get("horizontal_rms_m", 0.0)):
