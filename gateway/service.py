@@ -267,9 +267,10 @@ class GatewayService:
             elif self._held and self.sim_time is not None and self.sim_time.started:
                 self._release_held()
             wall = time.time_ns()
-            # While items wait in the queue, "now" is the newest time handled: a consumer that is behind
-            # (a busy machine) must not see its sources as silent, nor dead-reckon past data it holds.
-            now = self._now() if self._queue.empty() else self.pipeline.last_ns
+            # While items wait in the queue, "now" is the newest time handled (none before the first): a
+            # consumer that is behind (a busy machine) must not see its sources as silent, nor dead-reckon
+            # past data it holds.
+            now = self._now() if self._queue.empty() else (self.pipeline.last_ns or None)
             if now is not None:
                 try:  # dead reckoning while every source is silent; sources going stale
                     self._emit(self.pipeline.tick(now))
@@ -278,7 +279,7 @@ class GatewayService:
             if wall >= next_status:
                 next_status = wall + status_period_ns
                 try:
-                    if now is None:  # no simulation time yet: the status goes out, stamped and not logged
+                    if now is None:  # no time yet: the status goes out (stamped with the wall), not logged
                         self._publish([self.pipeline.status(wall, self._alarms())])
                     else:
                         self._emit([self.pipeline.status(now, self._alarms())])

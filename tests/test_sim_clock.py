@@ -152,7 +152,7 @@ class Sample:
         return self.body
 
 
-def sim_service(tmp_path: Path, clock: str = "sim") -> GatewayService:
+def sim_service(tmp_path: Path, clock: str = "sim", status_hz: float = 1.0) -> GatewayService:
     tables = {
         "vessel": {"name": "mss_supply"},
         "datum": {"lat_deg": 59.4, "lon_deg": 10.5},
@@ -160,6 +160,7 @@ def sim_service(tmp_path: Path, clock: str = "sim") -> GatewayService:
             {"name": "mux", "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position", "heading"]}
         ],
         "log": {"path": ""},
+        "status": {"rate_hz": status_hz},
         "time": {"clock": clock},
     }
     return GatewayService(parse_config(tables, base_dir=tmp_path))
@@ -192,3 +193,18 @@ def test_the_wall_clock_stays_the_default(tmp_path: Path) -> None:
     assert service.sim_time is None
     service._take(chunk(5))
     assert service.pipeline.counters["mux"].last_rx_ns == 1  # the chunk's own receive time
+
+
+def test_nothing_is_stamped_before_there_is_a_time(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """While items wait and none has been handled yet, there is no pipeline time: the status then goes out
+    unlogged rather than stamped 0 (a message at 1970 in the log would make the writer rotate the file)."""
+    from gateway.service import _Input
+
+    service = sim_service(tmp_path, clock="wall", status_hz=10.0)
+    logged: list[int] = []
+    monkeypatch.setattr(service, "_log_outputs", lambda outs, enc: logged.extend(o.stamp_ns for o in outs))
+    service._queue.put(_Input("mode", "dp", 1_000, 1_000))  # an input: sets no pipeline time
+    for k in range(3):
+        service._queue.put(Chunk("mux", b"$HEHDT,45.0,T*1D\r\n", rx_ns=10**18 + k, rx_mono_ns=k))
+    service.run(duration_s=0.5)
+    assert logged and min(logged) > 0  # the statuses once a chunk was handled, none before
