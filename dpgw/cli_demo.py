@@ -27,9 +27,10 @@ SETTLE_S = 60.0
 LOWEST_SPEED = 1.0
 """The demo never slows itself below real time."""
 MAX_LOOP_DELAY_S = 0.3
-"""Sim seconds the loop may run late (the simulation behind its schedule, or data waiting for the gateway)
-before the demo slows down: a few sensor samples, small beside a DP vessel's seconds-long dynamics, and
-still small for the model-scale vessel of the `hassani` scenario."""
+"""Sim seconds the loop may run late (the simulation behind its schedule, or data waiting for the gateway):
+beyond it the simulation pauses until the gateway has caught up, and when it persists the demo slows
+down. A few sensor samples: small beside a DP vessel's seconds-long dynamics, and still small for the
+model-scale vessel of the `hassani` scenario."""
 
 
 NAME = "demo"
@@ -145,11 +146,12 @@ def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
     from datetime import UTC, datetime
 
+    from dpgw.loop_lag import LoopLag, WatchedSink
     from gateway.bus import BusError
     from gateway.config import ConfigError, format_problems, parse_config
     from gateway.service import GatewayService
     from gateway.sources import SourceError
-    from simulator.clock import RealtimeClock, SpeedGovernor
+    from simulator.clock import RealtimeClock, SimEpoch, SpeedGovernor
     from simulator.commands import MavlinkCommandInput, ZenohCommandInput
     from simulator.runner import Route, Simulation
     from simulator.scenarios import get_scenario
@@ -180,21 +182,32 @@ def run(args: argparse.Namespace) -> int:
         print(f"dpgw demo: {exc}", file=sys.stderr)
         return 2
     ports: dict[str, int] = {s.name: int(getattr(s, "port", 0)) for s in service._sources}
+    start_utc = datetime.fromtimestamp(service._wall0_ns / 1e9, tz=UTC)
+    counters = service.pipeline.counters
+    # how far the gateway is behind what the simulator sent, in sim seconds (read in the simulator's thread)
+    loop_lag = LoopLag(
+        SimEpoch(start_utc),
+        lambda name: counters[name].last_rx_ns or None if name in counters else None,
+        tolerance_s=Simulation.TIME_TICK_S,
+    )
+
+    def watched(sink: Any, source: str) -> WatchedSink:
+        return WatchedSink(sink, source, loop_lag, lambda: sim.t)
+
     dgps_sink = UdpSink("127.0.0.1", ports[scenario.dgps[0].source])
     sinks.append(dgps_sink)
     routes = [
-        Route(dgps_sink, "nmea", frozenset({scenario.dgps[0].source})),
-        Route(pty, "nmea", frozenset({scenario.gyro[0].source})),
+        Route(watched(dgps_sink, scenario.dgps[0].source), "nmea", frozenset({scenario.dgps[0].source})),
+        Route(watched(pty, scenario.gyro[0].source), "nmea", frozenset({scenario.gyro[0].source})),
     ]
     commands: list[Any] = []
     if "thrusters" in ports:
         mav_sink = UdpSink("127.0.0.1", ports["thrusters"])
         sinks.append(mav_sink)
-        routes.append(Route(mav_sink, "mavlink"))
+        routes.append(Route(watched(mav_sink, "thrusters"), "mavlink"))
         commands.append(MavlinkCommandInput(mav_sink))  # the loop closes over the MAVLink link
     elif args.mode == "dp" and service._session is not None:
         commands.append(ZenohCommandInput(service._session, config.zenoh.prefix))  # τ for layout-less ships
-    start_utc = datetime.fromtimestamp(service._wall0_ns / 1e9, tz=UTC)
     clock = RealtimeClock(speed=args.speed)
     sim = Simulation(
         replace(scenario, start_utc=start_utc),
@@ -219,14 +232,15 @@ def run(args: argparse.Namespace) -> int:
         clock, max_delay_s=MAX_LOOP_DELAY_S, floor=min(LOWEST_SPEED, args.speed), on_lower=lowered
     )
     assert service._session is not None
-    sim.on_time = SimClockPublisher(
+    sim.on_time = publisher = SimClockPublisher(
         service._session,
         config.zenoh.prefix,
         sim.epoch,
         clock,
         period_s=sim.time_tick_s,
         governor=governor,
-        downstream_delay_s=lambda: service.queue_delay_s,
+        downstream_delay_s=lambda: loop_lag.lag_s(sim.t) / clock.speed,  # as wall time at this speed
+        max_downstream_s=MAX_LOOP_DELAY_S,
     )
     sim_error: list[BaseException] = []
 
@@ -260,7 +274,9 @@ def run(args: argparse.Namespace) -> int:
     summary["speed"] = {
         "requested": args.speed,
         "final": clock.speed,
-        "lowered": [{"from": a, "to": b, "lag_s": lag} for a, b, lag in governor.changes],
+        "lowered": [{"from": a, "to": b, "late_s": late} for a, b, late in governor.changes],
+        "pauses": publisher.pauses,
+        "paused_s": publisher.paused_s,
     }
     if args.json:
         print(json.dumps(summary, indent=2))

@@ -120,9 +120,6 @@ class GatewayService:
         """Items dropped while waiting for the first simulation clock tick (more than `HOLD_MAX`)."""
         self.clock_rejected = 0
         """Simulation clock ticks that were not a valid `SimClock`."""
-        self.queue_delay_s = 0.0
-        """How long the last chunk waited between its receipt and its handling (wall s): how far behind
-        the consumer is (`dpgw demo` slows the simulation down when this persists)."""
         self.stop_event = threading.Event()
         path = log_path if log_path is not None else config.log.path
         self._log_path = str(path) if path else None
@@ -236,6 +233,15 @@ class GatewayService:
         return status
 
     # --- the consumer loop ---------------------------------------------------------------------------------
+
+    def backlog_s(self) -> float:
+        """How long the oldest item waiting in the queue has waited (wall s; 0.0 when none waits): how far
+        behind the consumer is. Safe from any thread (an estimate: the queue may change meanwhile)."""
+        try:
+            oldest = self._queue.queue[0]
+        except IndexError:
+            return 0.0
+        return max(time.monotonic_ns() - oldest.rx_mono_ns, 0) / 1e9
 
     def _now(self) -> int | None:
         """The pipeline's time now: this computer's (UTC ns), or the simulation's (None before its first
@@ -362,7 +368,6 @@ class GatewayService:
             log.warning("command refused: %s", r.text)
 
     def _handle_item(self, item: Chunk | _Input) -> None:
-        self.queue_delay_s = (time.monotonic_ns() - item.rx_mono_ns) / 1e9
         rx = self._stamp(item)
         assert rx is not None  # held until the simulation clock has started
         if isinstance(item, _Input):

@@ -120,6 +120,9 @@ class _WaveCache:
 class Simulation:
     """One run of a scenario. ``routes`` send emissions to transports; ``log`` gets everything."""
 
+    TIME_TICK_S = 0.05
+    """The longest sim time between two `on_time` calls (20 Hz of sim time)."""
+
     def __init__(
         self,
         scenario: Scenario,
@@ -185,7 +188,7 @@ class Simulation:
         self.on_time: Callable[[float], None] | None = None
         """Called with the sim time after every advance, before what is due then is sampled or sent, and
         at least every `time_tick_s` of sim time: a simulation clock on a bus (`simulator.sim_clock`)."""
-        self.time_tick_s = 0.05
+        self.time_tick_s = self.TIME_TICK_S
 
     # --- plant --------------------------------------------------------------------------------------
 
