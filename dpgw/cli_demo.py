@@ -187,7 +187,9 @@ def run(args: argparse.Namespace) -> int:
     # how far the gateway is behind what the simulator sent, in sim seconds (read in the simulator's thread)
     loop_lag = LoopLag(
         SimEpoch(start_utc),
-        lambda name: counters[name].last_rx_ns or None if name in counters else None,
+        lambda name: (
+            (counters[name].last_rx_ns or None, counters[name].bytes) if name in counters else (None, 0)
+        ),
         tolerance_s=Simulation.TIME_TICK_S,
     )
 

@@ -29,7 +29,7 @@ from wire.messages import SIM_CLOCK_KEY, SimClock
 
 __all__ = ["MAX_WAIT_S", "SimClockPublisher"]
 
-MAX_WAIT_S = 30.0
+MAX_WAIT_S = 10.0
 """Longest pause for a receiver that is behind (wall s); then the simulation goes on (a receiver that
 died must not hang the simulator)."""
 
