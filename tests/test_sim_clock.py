@@ -208,3 +208,27 @@ def test_nothing_is_stamped_before_there_is_a_time(tmp_path: Path, monkeypatch: 
         service._queue.put(Chunk("mux", b"$HEHDT,45.0,T*1D\r\n", rx_ns=10**18 + k, rx_mono_ns=k))
     service.run(duration_s=0.5)
     assert logged and min(logged) > 0  # the statuses once a chunk was handled, none before
+
+
+# --- the demo's measure of how far the gateway is behind ----------------------------------------------------
+
+
+def test_loop_lag_is_the_age_of_the_oldest_burst_not_yet_handled() -> None:
+    from dpgw.loop_lag import LoopLag
+
+    epoch = SimEpoch.from_wall_clock()
+    handled: dict[str, tuple[int | None, int]] = {"gyro1": (None, 0), "dgps1": (None, 0)}
+    lag = LoopLag(epoch, lambda s: handled[s], tolerance_s=0.05)
+    assert lag.lag_s(0.0) == 0.0
+    lag.sent("gyro1", 1.0, 20)
+    lag.sent("gyro1", 1.0, 20)  # the same burst, a second sentence
+    lag.sent("gyro1", 1.1, 20)
+    lag.sent("dgps1", 1.05, 70)
+    assert lag.lag_s(1.5) == pytest.approx(0.5)
+    handled["gyro1"] = (None, 40)  # the first burst's bytes are in (stamps aside)
+    assert lag.lag_s(1.5) == pytest.approx(0.45)  # dgps1's burst at 1.05 is the oldest now
+    handled["dgps1"] = (epoch.stamp_ns(1.02), 60)  # stamped a little early, within a tick: handled
+    assert lag.lag_s(1.5) == pytest.approx(0.4)  # gyro1's second burst
+    handled["gyro1"] = (epoch.stamp_ns(1.1), 60)
+    assert lag.lag_s(1.5) == 0.0  # nothing waits; a quiet source adds nothing
+    assert lag.lag_s(100.0) == 0.0
