@@ -234,15 +234,6 @@ class GatewayService:
 
     # --- the consumer loop ---------------------------------------------------------------------------------
 
-    def backlog_s(self) -> float:
-        """How long the oldest item waiting in the queue has waited (wall s; 0.0 when none waits): how far
-        behind the consumer is. Safe from any thread (an estimate: the queue may change meanwhile)."""
-        try:
-            oldest = self._queue.queue[0]
-        except IndexError:
-            return 0.0
-        return max(time.monotonic_ns() - oldest.rx_mono_ns, 0) / 1e9
-
     def _now(self) -> int | None:
         """The pipeline's time now: this computer's (UTC ns), or the simulation's (None before its first
         tick)."""

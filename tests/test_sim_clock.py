@@ -232,3 +232,16 @@ def test_loop_lag_is_the_age_of_the_oldest_burst_not_yet_handled() -> None:
     handled["gyro1"] = (epoch.stamp_ns(1.1), 60)
     assert lag.lag_s(1.5) == 0.0  # nothing waits; a quiet source adds nothing
     assert lag.lag_s(100.0) == 0.0
+
+
+def test_a_missing_or_silent_simulation_clock_is_an_alarm(tmp_path: Path) -> None:
+    import time
+
+    service = sim_service(tmp_path)
+    service._wall0_ns = time.time_ns() - 10**10  # started 10 s ago
+    service._take(chunk(1))
+    assert any("no simulation time on dp/mss_supply/sim/clock yet" in a and "1 inputs held" in a
+               for a in service._alarms())  # fmt: skip
+    assert service.sim_time is not None
+    service.sim_time.on_tick(10**18, 0.05, time.monotonic_ns() - 6 * 10**9)  # one tick, 6 s ago
+    assert any("no simulation clock tick on dp/mss_supply/sim/clock for 6 s" in a for a in service._alarms())
