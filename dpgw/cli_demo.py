@@ -300,8 +300,7 @@ def summarise(
     from wire.mcap.reader import read_messages
 
     est = [(p["stamp_ns"], p["eta"]) for _, _, _, p in read_messages(args.out, "/dp/estimate")]
-    truth_rows = [p for _, _, _, p in read_messages(args.out, "/truth/state")]
-    truth = [(p["stamp_ns"], p["eta_lf"]) for p in truth_rows]
+    truth = [(p["stamp_ns"], p["eta_lf"]) for _, _, _, p in read_messages(args.out, "/truth/state")]
     result: dict[str, Any] = {
         "scenario": sim.scenario.name,
         "sim_seconds": sim.t,
@@ -320,8 +319,7 @@ def summarise(
         result["error_vs_truth"] = s.as_dict()
         result["settle_s"] = SETTLE_S
         result["station_keeping"] = station_keeping(args.out, tt, np.array([t[1] for t in truth]), t0)
-        psi_true = np.array([p["eta_lf"][2] + p["eta_wf"][2] for p in truth_rows], dtype=float)
-        result["heading_stamp_lag_s"] = heading_stamp_lag_s(args.out, tt, psi_true, t0)
+    result["fix_stamp_lag_s"] = fix_stamp_lag_s(args.out, sim.scenario.dgps[0].source)
     result["next"] = [
         f"look at it: open {args.out} in Foxglove (Map: /gnss/dgps1/fix and /dp/estimate/fix; Plot: "
         "/dp/estimate.eta[0] against /truth/state.eta_lf[0])",
@@ -365,33 +363,34 @@ def station_keeping(log: str, t_truth: Any, eta_truth: Any, t0_ns: int) -> dict[
     return out
 
 
-def heading_stamp_lag_s(log: str, t_truth: Any, psi_truth: Any, t0_ns: int) -> float | None:
-    """How much later the gateway stamped each heading than the truth says it was measured (s): the shift
-    of the truth's total heading (LF + wave motion) that best matches the measured heading the observer
-    was given. On one time base it is the gyro's latency (tens of ms); a drifting clock shows as seconds.
-    Searched over ±15 s in 10 ms steps (the wave motion makes the match sharp)."""
+def fix_stamp_lag_s(log: str, source: str) -> dict[str, float] | None:
+    """How much later the gateway stamped each DGPS fix than the fix's own time (the GGA time of day,
+    which the simulator writes from its clock): per fix, received stamp − fix time. On one time base it
+    is the receiver's latency (0.1 s in the scenarios) and nearly constant; a gateway clock drifting from
+    the plant's shows as seconds. Median, 99th percentile and largest, in s."""
     import numpy as np
 
-    from observers.kinematics import ssa
     from wire.mcap.reader import read_messages
 
-    rows = [
-        (p["stamp_ns"], p["eta"][2])
-        for _, _, _, p in read_messages(log, "/dp/measurement")
-        if p["valid"][2] and p["eta"][2] is not None
-    ]
-    if len(rows) < 100 or len(t_truth) < 10:
+    day_ns = 86_400 * 10**9
+    lags = []
+    for _, log_ns, _, p in read_messages(log, f"/raw/nmea/{source}"):
+        for sentence in p["text"].split("\r\n"):
+            fields = sentence.split(",")
+            if len(fields) < 2 or not fields[0].endswith("GGA") or len(fields[1]) < 6:
+                continue
+            try:
+                hh, mm, ss = int(fields[1][0:2]), int(fields[1][2:4]), float(fields[1][4:])
+            except ValueError:
+                continue
+            tod_ns = round((hh * 3600 + mm * 60 + ss) * 1e9)
+            fix_ns = log_ns - log_ns % day_ns + tod_ns
+            fix_ns += day_ns * round((log_ns - fix_ns) / day_ns)  # the day nearest the receipt
+            lags.append((log_ns - fix_ns) / 1e9)
+    if not lags:
         return None
-    t_m = (np.array([r[0] for r in rows]) - t0_ns) / 1e9
-    psi_m = np.array([r[1] for r in rows], dtype=float)
-    psi_t = np.unwrap(psi_truth)
-    inside = (t_m > t_truth[0] + 15.0) & (t_m < t_truth[-1] - 15.0)
-    if inside.sum() < 100:
-        return None
-    t_m, psi_m = t_m[inside], psi_m[inside]
-    shifts = np.arange(-15.0, 15.0 + 1e-9, 0.01)
-    cost = np.array([np.mean(ssa(psi_m - np.interp(t_m - d, t_truth, psi_t)) ** 2) for d in shifts])
-    return float(shifts[int(np.argmin(cost))])
+    a = np.array(lags)
+    return {"median": float(np.median(a)), "p99": float(np.percentile(a, 99)), "max": float(a.max())}
 
 
 def print_summary(r: dict[str, Any]) -> None:
@@ -419,9 +418,12 @@ def print_summary(r: dict[str, Any]) -> None:
             f"{k['position_p95_m']:.2f} m, heading p95 {k['heading_p95_deg']:.2f} deg"
             + (f"; {100 * share:.1f} % of the commanded force in the wave band" if share is not None else "")
         )
-    lag = r.get("heading_stamp_lag_s")
+    lag = r.get("fix_stamp_lag_s")
     if lag is not None:
-        print(f"  time base: headings stamped {1000 * lag:.0f} ms after the truth's measurement instant")
+        print(
+            f"  time base: fixes stamped {1000 * lag['median']:.0f} ms after their own time (p99 "
+            f"{1000 * lag['p99']:.0f} ms, largest {1000 * lag['max']:.0f} ms: the receiver's latency)"
+        )
     sp = r.get("speed")
     if sp and sp["final"] != sp["requested"]:
         print(f"  speed: {sp['requested']:g}x asked, {sp['final']:g}x at the end (this machine was busy)")
