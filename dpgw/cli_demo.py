@@ -24,6 +24,13 @@ if TYPE_CHECKING:
 # imported by the functions that run the demo, so `dpgw demo --help` answers at once.
 
 SETTLE_S = 60.0
+LOWEST_SPEED = 1.0
+"""The demo never slows itself below real time."""
+MAX_LOOP_DELAY_S = 0.3
+"""Sim seconds the loop may run late (the simulation behind its schedule, or data waiting for the gateway):
+beyond it the simulation pauses until the gateway has caught up, and when it persists the demo slows
+down. A few sensor samples: small beside a DP vessel's seconds-long dynamics, and still small for the
+model-scale vessel of the `hassani` scenario."""
 
 
 NAME = "demo"
@@ -36,7 +43,9 @@ DESCRIPTION = (
     "gateway reads them exactly as it would on a vessel, runs the observer, publishes on Zenoh (peer mode: "
     "'dpgw listen' in another terminal sees it) and logs to demo.mcap: raw input, estimates and the "
     "simulator's ground truth in one file, so 'dpgw replay demo.mcap' can re-run and score it. The vessel "
-    "runs --speed times faster than real time and the gateway's clock with it."
+    "runs --speed times faster than real time; the simulator publishes its time on Zenoh "
+    "(<prefix>/sim/clock) and the gateway stamps what it receives with it, so the loop stays right on a "
+    "busy machine. When the machine cannot keep up, the demo halves its speed (down to 1x) and says so."
 )
 EPILOG = (
     "examples:\n"
@@ -56,7 +65,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--duration", type=float, default=180.0, metavar="S", help="sim seconds (default 180)")
     p.add_argument(
-        "--speed", type=float, default=10.0, metavar="X", help="sim seconds per wall second (default 10)"
+        "--speed",
+        type=float,
+        default=10.0,
+        metavar="X",
+        help="sim seconds per wall second (default 10); halved, down to 1, while the machine cannot keep up",
     )
     p.add_argument(
         "--seed", type=int, default=0, help="random seed of waves, noise and faults: same seed, same sea (0)"
@@ -122,6 +135,8 @@ def demo_config(scenario: Any, pty_device: str, args: argparse.Namespace) -> dic
         "multicast_scouting": not args.no_scouting,
     }
     cfg["log"] = {"path": str(Path(args.out).resolve())}
+    # the gateway lives on the simulator's time, whatever the load (docs/gateway.md, "Simulation time")
+    cfg["time"] = {"clock": "sim"}
     return cfg
 
 
@@ -131,15 +146,16 @@ def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
     from datetime import UTC, datetime
 
+    from dpgw.loop_lag import LoopLag, WatchedSink
     from gateway.bus import BusError
     from gateway.config import ConfigError, format_problems, parse_config
-    from gateway.pipeline import ControlEvent
     from gateway.service import GatewayService
     from gateway.sources import SourceError
-    from simulator.clock import RealtimeClock
+    from simulator.clock import RealtimeClock, SimEpoch, SpeedGovernor
     from simulator.commands import MavlinkCommandInput, ZenohCommandInput
     from simulator.runner import Route, Simulation
     from simulator.scenarios import get_scenario
+    from simulator.sim_clock import SimClockPublisher
     from simulator.transports import PtySink, UdpSink
 
     scenario = get_scenario(args.scenario)
@@ -151,7 +167,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         tables = demo_config(scenario, pty.device, args)
         config = parse_config(tables, base_dir=Path.cwd(), where="dpgw demo")
-        service = GatewayService(config, time_scale=args.speed, config_tables=tables)
+        service = GatewayService(config, config_tables=tables)
         service.start()
     except ConfigError as exc:
         pty.close()
@@ -166,26 +182,38 @@ def run(args: argparse.Namespace) -> int:
         print(f"dpgw demo: {exc}", file=sys.stderr)
         return 2
     ports: dict[str, int] = {s.name: int(getattr(s, "port", 0)) for s in service._sources}
+    start_utc = datetime.fromtimestamp(service._wall0_ns / 1e9, tz=UTC)
+    counters = service.pipeline.counters
+    # how far the gateway is behind what the simulator sent, in sim seconds (read in the simulator's thread)
+    loop_lag = LoopLag(
+        SimEpoch(start_utc),
+        lambda name: (
+            (counters[name].last_rx_ns or None, counters[name].bytes) if name in counters else (None, 0)
+        ),
+        tolerance_s=Simulation.TIME_TICK_S,
+    )
+
+    def watched(sink: Any, source: str) -> WatchedSink:
+        return WatchedSink(sink, source, loop_lag, lambda: sim.t)
+
     dgps_sink = UdpSink("127.0.0.1", ports[scenario.dgps[0].source])
     sinks.append(dgps_sink)
     routes = [
-        Route(dgps_sink, "nmea", frozenset({scenario.dgps[0].source})),
-        Route(pty, "nmea", frozenset({scenario.gyro[0].source})),
+        Route(watched(dgps_sink, scenario.dgps[0].source), "nmea", frozenset({scenario.dgps[0].source})),
+        Route(watched(pty, scenario.gyro[0].source), "nmea", frozenset({scenario.gyro[0].source})),
     ]
     commands: list[Any] = []
     if "thrusters" in ports:
         mav_sink = UdpSink("127.0.0.1", ports["thrusters"])
         sinks.append(mav_sink)
-        routes.append(Route(mav_sink, "mavlink"))
+        routes.append(Route(watched(mav_sink, "thrusters"), "mavlink"))
         commands.append(MavlinkCommandInput(mav_sink))  # the loop closes over the MAVLink link
     elif args.mode == "dp" and service._session is not None:
         commands.append(ZenohCommandInput(service._session, config.zenoh.prefix))  # τ for layout-less ships
-    wall0_ns = service._wall0_ns
-    start_utc = datetime.fromtimestamp(wall0_ns / 1e9, tz=UTC)
     clock = RealtimeClock(speed=args.speed)
     if args.mode == "dp":
         # Hold the scenario's station, not wherever the first (wave-moved, noisy) fix put the estimate.
-        service._queue.put(ControlEvent(wall0_ns, "setpoint", hold_setpoint(scenario)))
+        service.submit("setpoint", hold_setpoint(scenario))
     sim = Simulation(
         replace(scenario, start_utc=start_utc),
         args.seed,
@@ -195,16 +223,34 @@ def run(args: argparse.Namespace) -> int:
         log_raw=False,  # the gateway logs what it received; the simulator adds the truth
         commands=commands,
     )
+
+    def lowered(old: float, new: float, delay: float) -> None:
+        if len(governor.changes) == 1:  # say it once; the summary gives the final speed
+            print(
+                f"dpgw demo: this machine cannot keep up with {old:g}x (the loop ran {delay:.1f} s of sea "
+                f"late); running slower, {new:g}x (down to {LOWEST_SPEED:g}x if need be)",
+                file=sys.stderr,
+                flush=True,
+            )
+
+    governor = SpeedGovernor(
+        clock, max_delay_s=MAX_LOOP_DELAY_S, floor=min(LOWEST_SPEED, args.speed), on_lower=lowered
+    )
+    assert service._session is not None
+    sim.on_time = publisher = SimClockPublisher(
+        service._session,
+        config.zenoh.prefix,
+        sim.epoch,
+        clock,
+        period_s=sim.time_tick_s,
+        governor=governor,
+        downstream_delay_s=lambda: loop_lag.lag_s(sim.t) / clock.speed,  # as wall time at this speed
+        max_downstream_s=MAX_LOOP_DELAY_S,
+    )
     sim_error: list[BaseException] = []
 
     def simulate() -> None:
         try:
-            # One timebase: the gateway stamps a receive instant w as wall0 + (w − wall0)·speed and the
-            # truth is stamped start_utc + t with start_utc = wall0, so sim time t must be due at wall
-            # instant wall0 + t/speed. Anchoring the clock on its first use instead (after building the
-            # simulation) put every gateway stamp late by that set-up time × speed: at speed 10 about 6 s,
-            # half a wave period, and the measurements looked like LF minus the truth's wave motion.
-            clock.anchor((time.time_ns() - wall0_ns) / 1e9 * args.speed)
             sim.run(args.duration)
             time.sleep(0.3)  # let the last bytes arrive
         except BaseException as exc:  # reported below, never a silent hang
@@ -230,6 +276,13 @@ def run(args: argparse.Namespace) -> int:
         print(f"dpgw demo: the simulator failed: {sim_error[0]!r}", file=sys.stderr)
         return 1
     summary = summarise(args, sim, final_status, time.monotonic() - wall0)
+    summary["speed"] = {
+        "requested": args.speed,
+        "final": clock.speed,
+        "lowered": [{"from": a, "to": b, "late_s": late} for a, b, late in governor.changes],
+        "pauses": publisher.pauses,
+        "paused_s": publisher.paused_s,
+    }
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
@@ -275,6 +328,7 @@ def summarise(
         result["error_vs_truth"] = s.as_dict()
         result["settle_s"] = SETTLE_S
         result["station_keeping"] = station_keeping(args.out, tt, np.array([t[1] for t in truth]), t0)
+    result["fix_stamp_lag_s"] = fix_stamp_lag_s(args.out, sim.scenario.dgps[0].source)
     result["next"] = [
         f"look at it: open {args.out} in Foxglove (Map: /gnss/dgps1/fix and /dp/estimate/fix; Plot: "
         "/dp/estimate.eta[0] against /truth/state.eta_lf[0])",
@@ -323,6 +377,36 @@ def station_keeping(log: str, t_truth: Any, eta_truth: Any, t0_ns: int) -> dict[
     return out
 
 
+def fix_stamp_lag_s(log: str, source: str) -> dict[str, float] | None:
+    """How much later the gateway stamped each DGPS fix than the fix's own time (the GGA time of day,
+    which the simulator writes from its clock): per fix, received stamp − fix time. On one time base it
+    is the receiver's latency (0.1 s in the scenarios) and nearly constant; a gateway clock drifting from
+    the plant's shows as seconds. Median, 99th percentile and largest, in s."""
+    import numpy as np
+
+    from wire.mcap.reader import read_messages
+
+    day_ns = 86_400 * 10**9
+    lags = []
+    for _, log_ns, _, p in read_messages(log, f"/raw/nmea/{source}"):
+        for sentence in p["text"].split("\r\n"):
+            fields = sentence.split(",")
+            if len(fields) < 2 or not fields[0].endswith("GGA") or len(fields[1]) < 6:
+                continue
+            try:
+                hh, mm, ss = int(fields[1][0:2]), int(fields[1][2:4]), float(fields[1][4:])
+            except ValueError:
+                continue
+            tod_ns = round((hh * 3600 + mm * 60 + ss) * 1e9)
+            fix_ns = log_ns - log_ns % day_ns + tod_ns
+            fix_ns += day_ns * round((log_ns - fix_ns) / day_ns)  # the day nearest the receipt
+            lags.append((log_ns - fix_ns) / 1e9)
+    if not lags:
+        return None
+    a = np.array(lags)
+    return {"median": float(np.median(a)), "p99": float(np.percentile(a, 99)), "max": float(a.max())}
+
+
 def print_summary(r: dict[str, Any]) -> None:
     print(
         f"dpgw demo: {r['scenario']}, {r['sim_seconds']:.0f} s of sea in {r['wall_seconds']:.1f} s; "
@@ -353,6 +437,15 @@ def print_summary(r: dict[str, Any]) -> None:
             f"{k['reference'][2]:.1f} deg): {k['north_mean_m']:+.2f} m N, {k['east_mean_m']:+.2f} m E, "
             f"heading {k['heading_mean_deg']:+.2f} deg"
         )
+    lag = r.get("fix_stamp_lag_s")
+    if lag is not None:
+        print(
+            f"  time base: fixes stamped {1000 * lag['median']:.0f} ms after their own time (p99 "
+            f"{1000 * lag['p99']:.0f} ms, largest {1000 * lag['max']:.0f} ms: the receiver's latency)"
+        )
+    sp = r.get("speed")
+    if sp and sp["final"] != sp["requested"]:
+        print(f"  speed: {sp['requested']:g}x asked, {sp['final']:g}x at the end (this machine was busy)")
     if r["alarms"]:
         print(f"  alarms at the end: {'; '.join(r['alarms'])}")
     if not math.isfinite(r.get("error_vs_truth", {}).get("horizontal_rms_m", 0.0)):

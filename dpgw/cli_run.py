@@ -48,6 +48,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="check the config and exit: a summary (status 0) or every problem (status 2); opens nothing",
     )
+    p.add_argument(
+        "--clock",
+        choices=("wall", "sim"),
+        help="what received data is stamped with: this computer's clock (wall), or the simulation time a "
+        "simulator publishes on <prefix>/sim/clock (sim: a HIL bench, e.g. with 'dpgw sim --zenoh "
+        "--realtime'); overrides [time] clock (default wall)",
+    )
     p.add_argument("--json", action="store_true", help="print the exit summary as JSON")
     p.add_argument(
         "-v",
@@ -62,9 +69,10 @@ def run(args: argparse.Namespace) -> int:
     import logging
     import signal
     import tomllib
+    from dataclasses import replace
 
     from gateway.bus import BusError
-    from gateway.config import ConfigError, describe, format_problems, load_config
+    from gateway.config import ConfigError, TimeConfig, describe, format_problems, load_config
     from gateway.service import GatewayService
     from gateway.sources import SourceError
 
@@ -74,6 +82,8 @@ def run(args: argparse.Namespace) -> int:
     except ConfigError as exc:
         print(format_problems(exc), file=sys.stderr)
         return 2
+    if args.clock is not None:
+        config = replace(config, time=TimeConfig(clock=args.clock))
     if args.check:
         problems = start_up_problems(config)
         if problems:
@@ -83,6 +93,8 @@ def run(args: argparse.Namespace) -> int:
         return 0
     with open(args.config, "rb") as f:
         tables = tomllib.load(f)
+    if args.clock is not None:  # the log's copy of the config says what ran
+        tables["time"] = {**tables.get("time", {}), "clock": args.clock}
     service = GatewayService(config, log_path=args.log, config_tables=tables)
     try:
         service.start()
@@ -136,9 +148,10 @@ def start_up_line(config: GatewayConfig, service: GatewayService, log_override: 
     zenoh += f", connect {' '.join(z.connect)}" if z.connect else ""
     zenoh += "" if z.multicast_scouting else ", scouting off"
     log_path = log_override or (str(config.log.path) if config.log.path else None)
+    clock = f"; clock: simulation time from {z.prefix}/sim/clock" if config.time.sim else ""
     return (
         f"dpgw run: vessel {config.vessel.name}; sources {', '.join(sources) or 'none'}; {zenoh}; "
-        f"log {log_path or 'off'}"
+        f"log {log_path or 'off'}{clock}"
     )
 
 

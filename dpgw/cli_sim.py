@@ -82,7 +82,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="thrusters also report ArduPilot-style ESC_TELEMETRY and SERVO_OUTPUT_RAW",
     )
     p.add_argument(
-        "--zenoh", action="store_true", help="take thruster commands from Zenoh <prefix>/thrusters/command"
+        "--zenoh",
+        action="store_true",
+        help="take thruster commands from Zenoh <prefix>/thrusters/command; with --realtime, also publish "
+        "the simulation time on <prefix>/sim/clock (for 'dpgw run --clock sim')",
     )
     p.add_argument("--prefix", help="Zenoh key prefix (default dp/<vessel>)")
     add_endpoint_args(p)
@@ -207,6 +210,11 @@ def _run_scenario(args: argparse.Namespace) -> int:
         return 2
     clock: Clock = RealtimeClock(speed=args.speed) if args.realtime else VirtualClock()
     sim = Simulation(scenario, args.seed, routes=routes, log=log, clock=clock, commands=commands)
+    if session is not None and args.realtime:  # a gateway on `clock = "sim"` stamps with this
+        from simulator.sim_clock import SimClockPublisher
+
+        sim.on_time = SimClockPublisher(session, prefix, sim.epoch, clock, period_s=sim.time_tick_s)
+        print(f"Zenoh: simulation time on {sim.on_time.key}", file=sys.stderr)
 
     stop = {"now": False}
 

@@ -12,8 +12,13 @@ Inputs from Zenoh (setpoint, mode, manual τ) become events on the same queue an
 replay sees exactly what the live run saw. Status goes out at ``status.rate_hz`` and answers the queryable
 ``<prefix>/status``. SIGINT/SIGTERM stop the loop; the log is flushed and closed.
 
-``time_scale`` maps receive times onto a faster clock (``dpgw demo`` runs the vessel faster than real time;
-the observer must see sim seconds, not wall seconds). It is 1.0 on a vessel.
+Time: with ``[time] clock = "wall"`` (the default; at sea, always) a chunk is stamped with its receive
+time on this computer's clock. With ``clock = "sim"`` it is stamped with the simulation time a simulator
+publishes on ``<prefix>/sim/clock`` (`gateway.sim_time`: interpolated between ticks, never more than one
+tick ahead), so everything downstream (observer, controller, commands, log, reference checks, dead
+reckoning) lives on the plant's time. Until the first tick arrives there is no time to stamp with: what
+is received is held, in order (at most `HOLD_MAX` items, the oldest dropped and counted), and handled,
+stamped with the first tick's time, when it comes.
 """
 
 from __future__ import annotations
@@ -24,18 +29,21 @@ import logging
 import queue
 import threading
 import time
-from collections import Counter
+from collections import Counter, deque
+from dataclasses import dataclass
 from typing import Any
 
+import msgspec
 import zenoh
 
 from gateway.bus import command_acl, make_config, open_session
 from gateway.config import GatewayConfig, ZenohConfig
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
+from gateway.sim_time import SimTime
 from gateway.sources import Chunk, Source, open_source
 from wire.codecs import mavlink as mv
 from wire.mcap.writer import McapLogWriter
-from wire.messages import Status, ThrusterCommand
+from wire.messages import SIM_CLOCK_KEY, SimClock, Status, ThrusterCommand
 
 log = logging.getLogger("dpgw")
 
@@ -44,6 +52,20 @@ INPUT_KEYS = ("setpoint", "mode", "tau")
 TRACEBACKS_LOGGED = 10
 """Internal errors logged with a full traceback per source; after that every 1000th, so that a bug hit by
 every chunk of a 50 Hz source cannot flood the log."""
+HOLD_MAX = 10_000
+"""Items held while waiting for the first simulation clock tick (a minute of a busy bench's input)."""
+CLOCK_SILENT_S = 5.0
+"""With ``clock = "sim"``: no tick for this long (wall s) raises a status alarm."""
+
+
+@dataclass(frozen=True)
+class _Input:
+    """A Zenoh input (setpoint, mode, τ) as received, before it is stamped."""
+
+    key: str
+    payload: Any
+    rx_ns: int
+    rx_mono_ns: int
 
 
 def zenoh_config(z: ZenohConfig) -> zenoh.Config:
@@ -75,7 +97,6 @@ class GatewayService:
         config: GatewayConfig,
         *,
         session: zenoh.Session | None = None,
-        time_scale: float = 1.0,
         log_path: str | None = None,
         config_tables: dict[str, Any] | None = None,
     ) -> None:
@@ -85,14 +106,20 @@ class GatewayService:
         self.pipeline = Pipeline(PipelineSpec.from_config(config))
         self._session = session
         self._own_session = session is None
-        self._queue: queue.Queue[Chunk | ControlEvent] = queue.Queue()
+        self._queue: queue.Queue[Chunk | _Input] = queue.Queue()
         self._sources: list[Source] = []
         self._publishers: dict[str, zenoh.Publisher] = {}
         self._declared: list[Any] = []
         self._status_json = b"{}"
         self._status_lock = threading.Lock()
-        self.time_scale = time_scale
         self._wall0_ns = 0
+        self.sim_time = SimTime() if config.time.sim else None
+        """The simulation clock (``[time] clock = "sim"``), else None: stamps are this computer's time."""
+        self._held: deque[Chunk | _Input] = deque(maxlen=HOLD_MAX)
+        self.held_dropped = 0
+        """Items dropped while waiting for the first simulation clock tick (more than `HOLD_MAX`)."""
+        self.clock_rejected = 0
+        """Simulation clock ticks that were not a valid `SimClock`."""
         self.stop_event = threading.Event()
         path = log_path if log_path is not None else config.log.path
         self._log_path = str(path) if path else None
@@ -133,9 +160,13 @@ class GatewayService:
                 self._publishers[key] = s.declare_publisher(key, encoding=JSON)
             for key in INPUT_KEYS:
                 self._declared.append(s.declare_subscriber(f"{self.prefix}/{key}", self._on_input(key)))
+            if self.sim_time is not None:
+                key = f"{self.prefix}/{SIM_CLOCK_KEY}"
+                self._declared.append(s.declare_subscriber(key, self._on_clock))
             # A query that arrives before the loop's first status tick gets a real status, never ``{}``;
             # the consumer loop is not running yet, so reading the pipeline here is race-free.
-            initial = self.pipeline.status(self._now(time.time_ns()), self._alarms())
+            now = self._now()
+            initial = self.pipeline.status(time.time_ns() if now is None else now, self._alarms())
             with self._status_lock:
                 self._status_json = initial.message.encode()
             self._declared.append(s.declare_queryable(f"{self.prefix}/status", self._on_query))
@@ -167,15 +198,32 @@ class GatewayService:
 
     # --- Zenoh callbacks (other threads): only put on the queue ---------------------------------------------
 
+    def submit(self, key: str, payload: Any) -> None:
+        """An input (``setpoint``, ``mode``, ``tau``) as if it had just arrived on Zenoh: stamped, logged
+        and checked like one (`dpgw demo` holds the scenario's station this way)."""
+        self._queue.put(_Input(key, payload, time.time_ns(), time.monotonic_ns()))
+
     def _on_input(self, key: str) -> Any:
         def handler(sample: zenoh.Sample) -> None:
             try:
                 payload = json.loads(sample.payload.to_bytes())
             except ValueError:
                 payload = {"invalid": sample.payload.to_bytes().decode("utf-8", "replace")}
-            self._queue.put(ControlEvent(time.time_ns(), key, payload))
+            self._queue.put(_Input(key, payload, time.time_ns(), time.monotonic_ns()))
 
         return handler
+
+    def _on_clock(self, sample: zenoh.Sample) -> None:
+        """A simulation clock tick: taken at once (not queued), so a chunk the simulator sends after the
+        tick is stamped from it even while the consumer is behind."""
+        mono = time.monotonic_ns()
+        assert self.sim_time is not None
+        try:
+            tick = msgspec.json.decode(sample.payload.to_bytes(), type=SimClock)
+        except (msgspec.DecodeError, msgspec.ValidationError):
+            self.clock_rejected += 1
+            return
+        self.sim_time.on_tick(tick.stamp_ns, tick.period_s, mono)
 
     def _on_query(self, query: zenoh.Query) -> None:
         with self._status_lock:
@@ -191,10 +239,18 @@ class GatewayService:
 
     # --- the consumer loop ---------------------------------------------------------------------------------
 
-    def _now(self, wall_ns: int) -> int:
-        if self.time_scale == 1.0:
-            return wall_ns
-        return self._wall0_ns + round((wall_ns - self._wall0_ns) * self.time_scale)
+    def _now(self) -> int | None:
+        """The pipeline's time now: this computer's (UTC ns), or the simulation's (None before its first
+        tick)."""
+        if self.sim_time is None:
+            return time.time_ns()
+        return self.sim_time.now(time.monotonic_ns())
+
+    def _stamp(self, item: Chunk | _Input) -> int | None:
+        """The time an item is handled at: its receive time, on the configured clock."""
+        if self.sim_time is None:
+            return item.rx_ns
+        return self.sim_time.stamp(item.rx_mono_ns)
 
     def run(self, duration_s: float | None = None) -> None:
         """Consume events until `stop_event` is set (or ``duration_s`` of wall time has passed)."""
@@ -209,27 +265,54 @@ class GatewayService:
             except queue.Empty:
                 item = None
             if item is not None:
-                self._handle(item)
+                self._take(item)
+            elif self._held and self.sim_time is not None and self.sim_time.started:
+                self._release_held()
             wall = time.time_ns()
-            try:  # dead reckoning while every source is silent; sources going stale
-                self._emit(self.pipeline.tick(self._now(wall)))
-            except Exception:
-                self._internal_error("tick", "the dead-reckoning tick")
+            # While items wait in the queue, "now" is the newest time handled (none before the first): a
+            # consumer that is behind (a busy machine) must not see its sources as silent, nor dead-reckon
+            # past data it holds.
+            now = self._now() if self._queue.empty() else (self.pipeline.last_ns or None)
+            if now is not None:
+                try:  # dead reckoning while every source is silent; sources going stale
+                    self._emit(self.pipeline.tick(now))
+                except Exception:
+                    self._internal_error("tick", "the dead-reckoning tick")
             if wall >= next_status:
                 next_status = wall + status_period_ns
                 try:
-                    self._emit([self.pipeline.status(self._now(wall), self._alarms())])
+                    if now is None:  # no time yet: the status goes out (stamped with the wall), not logged
+                        self._publish([self.pipeline.status(wall, self._alarms())])
+                    else:
+                        self._emit([self.pipeline.status(now, self._alarms())])
                 except Exception:
                     self._internal_error("status", "the status")
 
+    def _take(self, item: Chunk | _Input) -> None:
+        """Handle an item, or hold it while there is no simulation time yet."""
+        if self.sim_time is not None and (self._held or not self.sim_time.started):
+            if not self.sim_time.started:
+                if len(self._held) == HOLD_MAX:
+                    self.held_dropped += 1
+                self._held.append(item)
+                return
+            self._release_held()
+        self._handle(item)
+
+    def _release_held(self) -> None:
+        """What came before the first tick, in order (stamped with the first tick's time)."""
+        while self._held:
+            self._handle(self._held.popleft())
+
     def drain(self) -> None:
-        """Handle whatever is already queued (used at shutdown so nothing received is dropped)."""
+        """Handle whatever is already queued (used at shutdown so nothing received is dropped); what is
+        still held for want of a simulation clock stays unhandled (there is no time to stamp it with)."""
         while True:
             try:
                 item = self._queue.get_nowait()
             except queue.Empty:
                 return
-            self._handle(item)
+            self._take(item)
 
     def _alarms(self) -> list[str]:
         alarms = [
@@ -247,21 +330,44 @@ class GatewayService:
                     f"source {s.name}: {dropped} datagrams dropped by the kernel (receive buffer full; "
                     "raise ?rcvbuf= or net.core.rmem_max)"
                 )
+        alarms += self._clock_alarms()
         alarms += [
             f"{what}: {n} not handled (internal error, traceback in the gateway's log)"
             for what, n in sorted(self.internal_errors.items())
         ]
         return alarms
 
-    def _handle(self, item: Chunk | ControlEvent) -> None:
+    def _clock_alarms(self) -> list[str]:
+        if self.sim_time is None:
+            return []
+        key = f"{self.prefix}/{SIM_CLOCK_KEY}"
+        silent_s = self.sim_time.silent_s(time.monotonic_ns())
+        alarms = []
+        if silent_s is None:
+            if time.time_ns() - self._wall0_ns > CLOCK_SILENT_S * 1e9:
+                alarms.append(
+                    f'clock: no simulation time on {key} yet (clock = "sim"): {len(self._held)} inputs '
+                    "held; is the simulator publishing its clock on this prefix (dpgw sim --zenoh)?"
+                )
+        elif silent_s > CLOCK_SILENT_S:
+            alarms.append(f"clock: no simulation clock tick on {key} for {silent_s:.0f} s")
+        if self.held_dropped:
+            alarms.append(f"clock: {self.held_dropped} inputs dropped while waiting for the first tick")
+        if self.clock_rejected:
+            alarms.append(f"clock: {self.clock_rejected} ticks on {key} were not a dpgw.SimClock")
+        return alarms
+
+    def _handle(self, item: Chunk | _Input) -> None:
         self._handle_item(item)
         # a setpoint is refused when it is applied (its distance needs the estimate), so after any item
         for r in self.pipeline.commands.take_refusals():
             log.warning("command refused: %s", r.text)
 
-    def _handle_item(self, item: Chunk | ControlEvent) -> None:
-        if isinstance(item, ControlEvent):
-            ev = ControlEvent(self._now(item.rx_ns), item.key, item.payload)
+    def _handle_item(self, item: Chunk | _Input) -> None:
+        rx = self._stamp(item)
+        assert rx is not None  # held until the simulation clock has started
+        if isinstance(item, _Input):
+            ev = ControlEvent(rx, item.key, item.payload)
             if self.log is not None:
                 body = ev.payload if isinstance(ev.payload, dict) else {item.key: ev.payload}
                 self.log.write(f"/dp/{item.key}", body, ev.rx_ns, ev.rx_ns)
@@ -270,7 +376,6 @@ class GatewayService:
             except Exception:
                 self._internal_error(f"input {item.key}", f"the {item.key} input {item.payload!r:.200}")
             return
-        rx = self._now(item.rx_ns)
         spec = self.pipeline.sources.get(item.source)
         # The raw chunk goes to the log before the pipeline sees it: whatever happens next, it is kept.
         if self.log is not None and spec is not None:

@@ -12,7 +12,11 @@ sim time relates to the wall:
   and reports how late it was (`RealtimeClock.lag_s`, `max_lag_s`, `late_count`, a log warning when the
   lag crosses ``warn_lag_s``); the following steps run back to back until the schedule is met again.
   With ``resync_lag_s`` set, a lag beyond it (a suspended laptop, a debugger stop) is not caught up:
-  the schedule is re-anchored so sim time simply continues from the late step.
+  the schedule is re-anchored so sim time simply continues from the late step. `set_speed` changes the
+  speed from where the simulation has got to (re-anchored there: no catching up).
+* `SpeedGovernor` — lowers a `RealtimeClock`'s speed (halves it, down to a floor) when the loop has been
+  late by more than ``max_delay_s`` of sim time for ``persist_s`` of wall time: a machine that cannot keep
+  up gets a slower simulation instead of a control loop whose delays grow with the speed.
 
 `SimEpoch` maps sim time to the UTC date and time written in sentences (``$GPGGA`` time of day,
 ``$GPZDA``, MAVLink ``time_unix_usec``) and to ``stamp_ns`` (UTC ns, POSIX: no leap seconds).
@@ -27,7 +31,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable
 from datetime import UTC, datetime, timedelta
 
-__all__ = ["Clock", "RealtimeClock", "SimEpoch", "VirtualClock"]
+__all__ = ["Clock", "RealtimeClock", "SimEpoch", "SpeedGovernor", "VirtualClock"]
 
 log = logging.getLogger(__name__)
 
@@ -122,6 +126,15 @@ class RealtimeClock(Clock):
         self._wall0 = self._monotonic()
         self._last_t = self._t0
 
+    def set_speed(self, speed: float) -> None:
+        """Run at ``speed`` from now on, from where the simulation has got to (the lag so far is dropped,
+        not caught up)."""
+        if not (math.isfinite(speed) and speed > 0.0):
+            raise ValueError(f"speed must be a positive finite factor (1.0 = real time), got {speed!r}")
+        self.speed = float(speed)
+        if self._wall0 is not None:
+            self.anchor(self._last_t)
+
     def _anchor_wall(self) -> float:
         if self._wall0 is None:
             self.anchor()
@@ -174,6 +187,77 @@ class RealtimeClock(Clock):
 
     def __repr__(self) -> str:
         return f"RealtimeClock(speed={self.speed!r}, lag_s={self.lag_s:.4f}, max_lag_s={self.max_lag_s:.4f})"
+
+
+class SpeedGovernor:
+    """Halves a `RealtimeClock`'s speed (not below ``floor``) when the loop has been late by more than
+    ``max_delay_s`` of *sim* time for ``persist_s`` of wall time; then judges afresh.
+
+    `observe` takes how late the loop is, in wall seconds (the simulation's own lag behind its schedule,
+    or how long the data waits before a consumer handles it: the caller gives the larger). At ``speed``
+    times real time a wall delay d is d × speed of sim time between a measurement and the command it
+    causes: that is what breaks a control loop, and what halving the speed halves. The delay is smoothed
+    over about a second of wall time, so a single slow step (a page fault, a garbage collection) is no
+    reason; only a delay that persists is. ``monotonic`` is injectable for tests."""
+
+    def __init__(
+        self,
+        clock: RealtimeClock,
+        *,
+        max_delay_s: float = 0.5,
+        persist_s: float = 2.0,
+        smoothing_s: float = 1.0,
+        floor: float = 1.0,
+        on_lower: Callable[[float, float, float], None] | None = None,
+        monotonic: Callable[[], float] = time.monotonic,
+    ) -> None:
+        if not (max_delay_s > 0.0 and persist_s > 0.0 and smoothing_s > 0.0 and floor > 0.0):
+            raise ValueError("max_delay_s, persist_s, smoothing_s and floor must be positive")
+        self.clock = clock
+        self.max_delay_s = max_delay_s
+        self.persist_s = persist_s
+        self.smoothing_s = smoothing_s
+        self.floor = floor
+        self.on_lower = on_lower
+        """Called with (old speed, new speed, smoothed delay in sim s) when the speed is lowered."""
+        self._monotonic = monotonic
+        self._smoothed = 0.0
+        self._last: float | None = None
+        self._behind_since: float | None = None
+        self.requested_speed = clock.speed
+        #: (old speed, new speed, smoothed delay in sim s) of each change, in order
+        self.changes: list[tuple[float, float, float]] = []
+
+    @property
+    def delay_s(self) -> float:
+        """The smoothed delay, in sim seconds."""
+        return self._smoothed
+
+    def observe(self, late_wall_s: float) -> float | None:
+        """Take how late the loop is now (wall s); return the new speed when it was lowered, else None."""
+        now = self._monotonic()
+        dt = 0.0 if self._last is None else max(now - self._last, 0.0)
+        self._last = now
+        w = 1.0 - math.exp(-dt / self.smoothing_s)
+        self._smoothed += w * (max(late_wall_s, 0.0) * self.clock.speed - self._smoothed)
+        if self._smoothed <= self.max_delay_s:
+            self._behind_since = None
+            return None
+        if self._behind_since is None:
+            self._behind_since = now
+            return None
+        if now - self._behind_since < self.persist_s or self.clock.speed <= self.floor:
+            return None
+        old = self.clock.speed
+        new = max(self.floor, old / 2.0)
+        self.clock.set_speed(new)
+        delay = self._smoothed
+        self._behind_since = None
+        self._smoothed *= new / old  # the same wall delay is half the sim time now
+        self.changes.append((old, new, delay))
+        if self.on_lower is not None:
+            self.on_lower(old, new, delay)
+        return new
 
 
 class SimEpoch:

@@ -142,6 +142,9 @@ class _WaveCache:
 class Simulation:
     """One run of a scenario. ``routes`` send emissions to transports; ``log`` gets everything."""
 
+    TIME_TICK_S = 0.05
+    """The longest sim time between two `on_time` calls (20 Hz of sim time)."""
+
     def __init__(
         self,
         scenario: Scenario,
@@ -210,6 +213,10 @@ class Simulation:
         self._last_command_t = -math.inf
         self.external_control = False
         self.summary = SimSummary(scenario.name, seed, 0.0, 0.0)
+        self.on_time: Callable[[float], None] | None = None
+        """Called with the sim time after every advance, before what is due then is sampled or sent, and
+        at least every `time_tick_s` of sim time: a simulation clock on a bus (`simulator.sim_clock`)."""
+        self.time_tick_s = self.TIME_TICK_S
 
     # --- plant --------------------------------------------------------------------------------------
 
@@ -397,16 +404,23 @@ class Simulation:
         next_ctrl = self.t
         next_drift = self.t
         next_progress = self.t
+        next_time = self.t
         wall0 = time.perf_counter()
         eps = 1e-9
         while True:
             candidates = [next_truth, next_ctrl, next_drift, end]
+            if self.on_time is not None:
+                candidates.append(next_time)
             candidates += [s.next_time() for s in self.sensors]
             if self._pending:
                 candidates.append(self._pending[0][0])
             t_next = min(candidates)
             if t_next > self.t:
                 self._advance(t_next - self.t)
+            if self.on_time is not None:
+                self.on_time(self.t)
+                while next_time <= self.t + eps:
+                    next_time += self.time_tick_s
             if self.t >= next_drift - eps:
                 eta = self.dynamics.x
                 self._drift_body = self.waves.drift_force(np.array([self.t]), eta[2], eta[0], eta[1])[0]

@@ -208,6 +208,13 @@ def test_defaults_fill_in(tmp_path: Path) -> None:
         "zstd",
     )
     assert c.status.rate_hz == 1.0
+    assert c.time.clock == "wall" and not c.time.sim  # at sea the computer's clock, always
+
+
+def test_the_simulation_clock_is_chosen_in_the_time_table(tmp_path: Path) -> None:
+    d = base()
+    put(d, "time.clock", "sim")
+    assert parse_config(d, base_dir=tmp_path).time.sim
 
 
 def test_default_config_is_the_parser_defaults(tmp_path: Path) -> None:
@@ -791,6 +798,8 @@ BAD: list[tuple[str, dict[str, Any], str, str]] = [
     ("flush", {"log.flush_interval_s": 0}, "log.flush_interval_s", "expected a number > 0 and <= 60 s"),
     ("status rate", {"status.rate_hz": 0}, "status.rate_hz", "from 0.1 to 10 Hz, got 0"),
     ("section type", {"log": "logs/x.mcap"}, "log", "expected a [log] table"),
+    ("clock typo", {"time.clock": "simulation"}, "time.clock", 'expected "wall" or "sim", got "simulation"'),
+    ("clock key typo", {"time.clok": "sim"}, "time.clok", "did you mean 'clock'"),
 ]
 
 

@@ -43,6 +43,7 @@ from wire.json_payload import encode_json, to_jsonable
 __all__ = [
     "ANY",
     "MESSAGES",
+    "SIM_CLOCK_KEY",
     "TOPICS",
     "AnyObject",
     "CommandStatus",
@@ -58,6 +59,7 @@ __all__ = [
     "Record",
     "ReferenceStatus",
     "Setpoint",
+    "SimClock",
     "SourceStatus",
     "Status",
     "Thruster",
@@ -457,6 +459,27 @@ class TruthState(Message, kw_only=True):
     ] = None
 
 
+SIM_CLOCK_KEY = "sim/clock"
+"""Under the Zenoh prefix: where a simulator publishes its time (`SimClock`)."""
+
+
+class SimClock(Message, kw_only=True):
+    """The simulator's time (Zenoh `<prefix>/sim/clock`; the ROS `/clock` convention): published before
+    every burst of sensor data and at least every `period_s` of simulation time. A gateway with
+    `[time] clock = "sim"` stamps what it receives with this time instead of its own clock."""
+
+    TITLE = "dpgw.SimClock"
+
+    stamp_ns: Annotated[int, doc("Simulation time now, as UTC nanoseconds since the Unix epoch.", "ns (UTC)")]
+    period_s: Annotated[
+        float, doc("Longest simulation time between two ticks (the next tick comes at most this later).", "s")
+    ]
+    speed: Annotated[
+        float | None,
+        doc("Simulation seconds per wall second the simulator is paced at (null: as fast as possible).", ""),
+    ] = None
+
+
 # --- raw inputs, logged exactly as received ---------------------------------------------------------
 
 
@@ -591,6 +614,12 @@ TOPICS: tuple[Topic, ...] = (
         "/gnss/", LocationFix, "`/gnss/<source>/fix`: each GNSS fix (at most 1 Hz per source), for the map"
     ),
     Topic("/truth/state", TruthState, "simulator logs only: the ground truth"),
+    Topic(
+        "/sim/clock",
+        SimClock,
+        "the simulator's time, for gateways on `clock = \"sim\"` (Zenoh only: the chunks' stamps carry it)",
+        (SIM_CLOCK_KEY, "in"),
+    ),
     Topic("/raw/nmea/", RawNmea, "`/raw/nmea/<source>`: every NMEA chunk as received, valid or not"),
     Topic(
         "/raw/mavlink/", RawMavlink, "`/raw/mavlink/<source>`: every MAVLink frame as received, valid or not"

@@ -31,6 +31,7 @@ from gateway.config.model import (
     ObserverConfig,
     SourceConfig,
     StatusConfig,
+    TimeConfig,
     ZenohConfig,
 )
 from gateway.config.problems import ConfigError, format_problems
@@ -53,6 +54,7 @@ __all__ = [
     "ObserverConfig",
     "SourceConfig",
     "StatusConfig",
+    "TimeConfig",
     "ZenohConfig",
     "default_config",
     "describe",

@@ -53,6 +53,7 @@ DEFAULTS: dict[str, dict[str, Any]] = {
         "compression": "zstd",
     },
     "status": {"rate_hz": 1.0},
+    "time": {"clock": "wall"},
     "control": {
         "rate_hz": 10.0,
         "initial_mode": "standby",

@@ -27,6 +27,7 @@ from gateway.config.model import (
     IntegrityConfig,
     LogConfig,
     StatusConfig,
+    TimeConfig,
     ZenohConfig,
 )
 from gateway.config.observer_section import read_observer
@@ -38,6 +39,7 @@ from gateway.config.schema import (
     IntegrityTable,
     LogTable,
     StatusTable,
+    TimeTable,
     VesselTable,
     ZenohTable,
     read_table,
@@ -59,6 +61,7 @@ _TOP_KEYS = (
     "control",
     "integrity",
     "commands",
+    "time",
 )
 
 
@@ -112,6 +115,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
     control = _read_control(p, data)
     integrity = _read_integrity(p, data)
     commands = _read_commands(p, data)
+    time_config = _read_time(p, data)
 
     if p.lines:
         raise ConfigError(p.lines)
@@ -119,7 +123,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
     assert datum is not None and sources is not None and observer is not None
     assert zenoh_config is not None and log is not None and status is not None and control is not None
     assert integrity is not None
-    assert commands is not None
+    assert commands is not None and time_config is not None
     return GatewayConfig(
         vessel=vessel,
         vessel_source=vessel_source,
@@ -134,6 +138,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
         control=control,
         integrity=integrity,
         commands=commands,
+        time=time_config,
     )
 
 
@@ -455,6 +460,14 @@ def _read_status(p: Problems, data: Mapping[str, Any]) -> StatusConfig | None:
         return None
     rate = read_table(StatusTable, t, "status", p)["rate_hz"]
     return None if rate is None else StatusConfig(rate_hz=rate)
+
+
+def _read_time(p: Problems, data: Mapping[str, Any]) -> TimeConfig | None:
+    t = _section(p, data, "time")
+    if t is None:
+        return None
+    clock = read_table(TimeTable, t, "time", p)["clock"]
+    return None if clock is None else TimeConfig(clock=clock)
 
 
 def _read_control(p: Problems, data: Mapping[str, Any]) -> ControlConfig | None:

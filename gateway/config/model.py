@@ -30,6 +30,7 @@ COMMAND_INPUTS = ("mode", "setpoint", "tau")
 ALLOCATORS = ("qp", "pseudo_inverse")
 POOLINGS = ("weighted", "priority")
 FEEDBACKS = ("estimate", "measurement")
+CLOCKS = ("wall", "sim")
 BAUD_RATES = (
     300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200, 230400, 460800, 500000, 576000,
     921600, 1000000, 1152000, 1500000, 2000000, 2500000, 3000000, 3500000, 4000000,
@@ -204,6 +205,20 @@ class StatusConfig:
 
 
 @dataclass(frozen=True)
+class TimeConfig:
+    """``[time]``: what the gateway stamps received data with. ``wall``: this computer's clock (at sea,
+    always). ``sim``: the simulation time a simulator publishes on ``<prefix>/sim/clock``
+    (`gateway.sim_time`), so the observer, controller and log live on the plant's time however far a busy
+    simulator falls behind the wall."""
+
+    clock: str = "wall"
+
+    @property
+    def sim(self) -> bool:
+        return self.clock == "sim"
+
+
+@dataclass(frozen=True)
 class IntegrityConfig:
     """``[integrity]``: thresholds of the reference tests (defaults for DGPS-class references and a gyro;
     `gateway.references` applies them, docs/integrity.md explains them)."""
@@ -284,6 +299,7 @@ class GatewayConfig:
     control: ControlConfig = field(default_factory=ControlConfig)
     integrity: IntegrityConfig = field(default_factory=IntegrityConfig)
     commands: CommandsConfig = field(default_factory=CommandsConfig)
+    time: TimeConfig = field(default_factory=TimeConfig)
 
     def sources_for(self, role: str) -> tuple[SourceConfig, ...]:
         """The sources with ``role``, in failover order (lowest priority first)."""

@@ -30,6 +30,7 @@ from pydantic_core import PydanticCustomError
 from gateway.config.defaults import DEFAULTS
 from gateway.config.model import (
     ALLOCATORS,
+    CLOCKS,
     COMPRESSIONS,
     CONTROL_MODES,
     FEEDBACKS,
@@ -51,6 +52,7 @@ __all__ = [
     "ObserverTable",
     "SourceTable",
     "StatusTable",
+    "TimeTable",
     "VesselTable",
     "ZenohTable",
     "read_table",
@@ -393,6 +395,12 @@ class StatusTable(_Section):
     """``[status]``: how often the status is published."""
 
     rate_hz: float = number(DEFAULTS["status"]["rate_hz"], lo=0.1, hi=10.0, unit="Hz")
+
+
+class TimeTable(_Section):
+    """``[time]``: the clock received data is stamped with (wall, or a simulator's on Zenoh)."""
+
+    clock: str = choice(DEFAULTS["time"]["clock"], CLOCKS)
 
 
 _C = DEFAULTS["control"]

@@ -34,6 +34,8 @@ def describe(config: GatewayConfig) -> str:
         + (f", listen {list(z.listen)}" if z.listen else "")
     )
     lines.append(f"  log {config.log.path}" if config.log.enabled else "  log disabled")
+    if config.time.sim:
+        lines.append(f"  clock: simulation time from {z.prefix}/sim/clock (not this computer's)")
     return "\n".join(lines)
 
 

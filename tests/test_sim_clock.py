@@ -1,0 +1,247 @@
+"""The simulation clock on the bus: the simulator publishes its time before everything it sends and at least
+every tick; the gateway on ``clock = "sim"`` holds what comes before the first tick and stamps everything
+with the simulation time; the demo's speed governor halves the speed only when the loop stays late."""
+
+from __future__ import annotations
+
+import itertools
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from gateway.config import parse_config
+from gateway.service import GatewayService
+from gateway.sources import Chunk
+from simulator.clock import RealtimeClock, SimEpoch, SpeedGovernor, VirtualClock
+from simulator.runner import Route, Simulation
+from simulator.scenarios import get_scenario
+from simulator.sim_clock import SimClockPublisher
+from simulator.transports import Sink
+from wire.messages import SimClock
+
+# --- the simulator's side ---------------------------------------------------------------------------------
+
+
+class FakeSession:
+    """What `SimClockPublisher` needs of a Zenoh session: publishers whose puts are kept."""
+
+    def __init__(self) -> None:
+        self.puts: list[tuple[str, bytes]] = []
+
+    def declare_publisher(self, key: str) -> Any:
+        session = self
+
+        class Pub:
+            def put(self, body: bytes) -> None:
+                session.puts.append((key, body))
+
+            def undeclare(self) -> None:
+                pass
+
+        return Pub()
+
+
+class TickAwareSink(Sink):
+    """Records, for every write, the newest tick published before it."""
+
+    def __init__(self, session: FakeSession) -> None:
+        super().__init__()
+        self.session = session
+        self.writes: list[int] = []
+
+    def write(self, data: bytes) -> None:
+        self.writes.append(json.loads(self.session.puts[-1][1])["stamp_ns"])
+
+    def describe(self) -> str:
+        return "test"
+
+
+def test_ticks_come_before_every_burst_and_at_least_every_period() -> None:
+    sc = get_scenario("torsetnes_2004")
+    session = FakeSession()
+    sink = TickAwareSink(session)
+    sim = Simulation(sc, 1, routes=[Route(sink, "nmea"), Route(sink, "mavlink")], clock=VirtualClock())
+    pub = SimClockPublisher(session, "dp/t", sim.epoch, sim.clock, period_s=sim.time_tick_s)
+    sim.on_time = pub
+    emitted: list[int] = []
+    real_end_burst = sim._end_burst
+
+    def end_burst(burst: list[Any]) -> None:
+        emitted.extend(sim.epoch.stamp_ns(e.t_emit) for e in burst)
+        real_end_burst(burst)
+
+    sim._end_burst = end_burst  # type: ignore[method-assign]
+    sim.run(20.0)
+    ticks = [SimClock(**json.loads(body)).stamp_ns for _, body in session.puts]
+    assert {key for key, _ in session.puts} == {"dp/t/sim/clock"}
+    assert ticks == sorted(set(ticks))  # strictly increasing
+    gaps = [(b - a) / 1e9 for a, b in itertools.pairwise(ticks)]
+    assert max(gaps) <= sim.time_tick_s + 1e-6  # at least every period (20 Hz of sim time)
+    assert ticks[-1] == sim.epoch.stamp_ns(20.0)
+    # every write left after the tick of its own instant: a gateway can never stamp it ahead of the plant
+    assert len(sink.writes) == len(emitted) > 100
+    assert all(tick == t for tick, t in zip(sink.writes, emitted, strict=True))
+
+
+def test_set_speed_continues_from_where_the_simulation_is() -> None:
+    wall = [100.0]
+    clock = RealtimeClock(10.0, monotonic=lambda: wall[0], sleep=lambda s: wall.__setitem__(0, wall[0] + s))
+    clock.sleep_until(10.0)  # 1 s of wall
+    wall[0] += 3.0  # the machine stalls: 3 s late
+    assert clock.sleep_until(11.0) == pytest.approx(2.9)
+    clock.set_speed(5.0)  # from here at 5x, the lag dropped, not caught up
+    assert clock.deadline(16.0) == pytest.approx(wall[0] + 1.0)
+
+
+def test_the_governor_halves_the_speed_only_when_the_loop_stays_late() -> None:
+    wall = [0.0]
+    clock = RealtimeClock(10.0, monotonic=lambda: wall[0], sleep=lambda s: None)
+    said: list[tuple[float, float, float]] = []
+    gov = SpeedGovernor(
+        clock, max_delay_s=0.3, persist_s=2.0, on_lower=lambda *a: said.append(a), monotonic=lambda: wall[0]
+    )
+
+    def run(seconds: float, late_wall_s: float) -> None:
+        for _ in range(round(seconds / 0.01)):
+            wall[0] += 0.01
+            gov.observe(late_wall_s)
+
+    run(5.0, 0.001)  # 10 ms x 10 = 0.1 s of sim late: fine
+    run(0.3, 0.5)  # one stall: smoothed away
+    run(5.0, 0.001)
+    assert clock.speed == 10.0 and not said
+    run(4.0, 0.1)  # 0.1 s of wall late, 1 s of sim at 10x, for seconds: halve
+    assert clock.speed == 5.0 and len(said) == 1 and said[0][:2] == (10.0, 5.0)
+    run(60.0, 0.5)  # stays late: down to the floor, never below
+    assert clock.speed == 1.0
+    assert [c[1] for c in gov.changes] == [5.0, 2.5, 1.25, 1.0]
+
+
+def test_the_publisher_paces_a_realtime_clock_and_reports_its_speed() -> None:
+    wall = [0.0]
+    slept: list[float] = []
+
+    def sleep(s: float) -> None:
+        slept.append(s)
+        wall[0] += s
+
+    clock = RealtimeClock(4.0, monotonic=lambda: wall[0], sleep=sleep)
+    session = FakeSession()
+    epoch = SimEpoch.from_wall_clock()
+    pub = SimClockPublisher(session, "dp/t", epoch, clock, period_s=0.05)
+    pub(0.0)
+    pub(1.0)
+    pub(1.0)  # the same instant again: nothing new
+    assert wall[0] == pytest.approx(0.25)  # 1 s of sim at 4x
+    ticks = [SimClock(**json.loads(b)) for _, b in session.puts]
+    assert [t.stamp_ns for t in ticks] == [epoch.stamp_ns(0.0), epoch.stamp_ns(1.0)]
+    assert ticks[0].speed == 4.0 and ticks[0].period_s == 0.05
+
+
+# --- the gateway's side -----------------------------------------------------------------------------------
+
+
+class Sample:
+    def __init__(self, body: bytes) -> None:
+        self.payload = self
+        self.body = body
+
+    def to_bytes(self) -> bytes:
+        return self.body
+
+
+def sim_service(tmp_path: Path, clock: str = "sim", status_hz: float = 1.0) -> GatewayService:
+    tables = {
+        "vessel": {"name": "mss_supply"},
+        "datum": {"lat_deg": 59.4, "lon_deg": 10.5},
+        "sources": [
+            {"name": "mux", "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position", "heading"]}
+        ],
+        "log": {"path": ""},
+        "status": {"rate_hz": status_hz},
+        "time": {"clock": clock},
+    }
+    return GatewayService(parse_config(tables, base_dir=tmp_path))
+
+
+def chunk(rx_mono_ns: int) -> Chunk:
+    return Chunk("mux", b"$HEHDT,45.0,T*1D\r\n", rx_ns=1, rx_mono_ns=rx_mono_ns)
+
+
+def test_the_gateway_holds_data_until_the_first_tick_then_stamps_with_simulation_time(tmp_path: Path) -> None:
+    service = sim_service(tmp_path)
+    assert service.sim_time is not None and service._now() is None
+    service._take(chunk(1_000))
+    service._take(chunk(2_000))
+    assert service.pipeline.counters["mux"].bytes == 0 and len(service._held) == 2  # held: no time yet
+    t0 = 1_800_000_000 * 10**9
+    service._on_clock(Sample(SimClock(stamp_ns=t0, period_s=0.05, speed=10.0).encode()))
+    service._on_clock(Sample(b"not a tick"))
+    assert service.clock_rejected == 1
+    service._take(chunk(10**18))  # after the tick (a receive instant later than any tick so far)
+    c = service.pipeline.counters["mux"]
+    assert not service._held and c.bytes == 3 * len(chunk(0).data)
+    # the held chunks at the first tick's time; the later one at most one tick ahead of it
+    assert t0 <= c.last_rx_ns <= t0 + 50_000_000
+    assert service.pipeline.t0_ns == t0
+
+
+def test_the_wall_clock_stays_the_default(tmp_path: Path) -> None:
+    service = sim_service(tmp_path, clock="wall")
+    assert service.sim_time is None
+    service._take(chunk(5))
+    assert service.pipeline.counters["mux"].last_rx_ns == 1  # the chunk's own receive time
+
+
+def test_nothing_is_stamped_before_there_is_a_time(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """While items wait and none has been handled yet, there is no pipeline time: the status then goes out
+    unlogged rather than stamped 0 (a message at 1970 in the log would make the writer rotate the file)."""
+    from gateway.service import _Input
+
+    service = sim_service(tmp_path, clock="wall", status_hz=10.0)
+    logged: list[int] = []
+    monkeypatch.setattr(service, "_log_outputs", lambda outs, enc: logged.extend(o.stamp_ns for o in outs))
+    service._queue.put(_Input("mode", "dp", 1_000, 1_000))  # an input: sets no pipeline time
+    for k in range(3):
+        service._queue.put(Chunk("mux", b"$HEHDT,45.0,T*1D\r\n", rx_ns=10**18 + k, rx_mono_ns=k))
+    service.run(duration_s=0.5)
+    assert logged and min(logged) > 0  # the statuses once a chunk was handled, none before
+
+
+# --- the demo's measure of how far the gateway is behind ----------------------------------------------------
+
+
+def test_loop_lag_is_the_age_of_the_oldest_burst_not_yet_handled() -> None:
+    from dpgw.loop_lag import LoopLag
+
+    epoch = SimEpoch.from_wall_clock()
+    handled: dict[str, tuple[int | None, int]] = {"gyro1": (None, 0), "dgps1": (None, 0)}
+    lag = LoopLag(epoch, lambda s: handled[s], tolerance_s=0.05)
+    assert lag.lag_s(0.0) == 0.0
+    lag.sent("gyro1", 1.0, 20)
+    lag.sent("gyro1", 1.0, 20)  # the same burst, a second sentence
+    lag.sent("gyro1", 1.1, 20)
+    lag.sent("dgps1", 1.05, 70)
+    assert lag.lag_s(1.5) == pytest.approx(0.5)
+    handled["gyro1"] = (None, 40)  # the first burst's bytes are in (stamps aside)
+    assert lag.lag_s(1.5) == pytest.approx(0.45)  # dgps1's burst at 1.05 is the oldest now
+    handled["dgps1"] = (epoch.stamp_ns(1.02), 60)  # stamped a little early, within a tick: handled
+    assert lag.lag_s(1.5) == pytest.approx(0.4)  # gyro1's second burst
+    handled["gyro1"] = (epoch.stamp_ns(1.1), 60)
+    assert lag.lag_s(1.5) == 0.0  # nothing waits; a quiet source adds nothing
+    assert lag.lag_s(100.0) == 0.0
+
+
+def test_a_missing_or_silent_simulation_clock_is_an_alarm(tmp_path: Path) -> None:
+    import time
+
+    service = sim_service(tmp_path)
+    service._wall0_ns = time.time_ns() - 10**10  # started 10 s ago
+    service._take(chunk(1))
+    assert any("no simulation time on dp/mss_supply/sim/clock yet" in a and "1 inputs held" in a
+               for a in service._alarms())  # fmt: skip
+    assert service.sim_time is not None
+    service.sim_time.on_tick(10**18, 0.05, time.monotonic_ns() - 6 * 10**9)  # one tick, 6 s ago
+    assert any("no simulation clock tick on dp/mss_supply/sim/clock for 6 s" in a for a in service._alarms())

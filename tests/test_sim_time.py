@@ -1,0 +1,129 @@
+"""Simulation time from clock ticks (`gateway.sim_time.SimTime`): stamps are exact at the ticks, follow the
+simulation between them, never run more than one tick ahead of the newest tick, and never go back."""
+
+from __future__ import annotations
+
+import itertools
+import threading
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from gateway.sim_time import SimTime
+
+MS = 1_000_000
+EPOCH = 1_700_000_000 * 1_000_000_000  # sim time 0 as UTC ns
+PERIOD_S = 0.05
+
+
+def regular(clock: SimTime, n: int, speed: float, wall_step_ms: float = 5.0) -> list[tuple[int, int]]:
+    """n ticks, a sim period apart, arriving at the rate ``speed`` would give; returns (wall, sim)."""
+    ticks = []
+    for k in range(n):
+        wall = round(k * PERIOD_S / speed * 1e9)
+        sim = EPOCH + round(k * PERIOD_S * 1e9)
+        clock.on_tick(sim, PERIOD_S, wall)
+        ticks.append((wall, sim))
+    return ticks
+
+
+def test_no_time_before_the_first_tick_then_the_first_ticks_time() -> None:
+    clock = SimTime()
+    assert clock.stamp(123) is None and clock.now(123) is None and not clock.started
+    clock.on_tick(EPOCH, PERIOD_S, 1_000 * MS)
+    # data received before the tick (held by the service) is stamped with the first tick's time
+    assert clock.stamp(500 * MS) == EPOCH
+    assert clock.started
+
+
+def test_exact_at_ticks_and_linear_between_them_at_a_steady_rate() -> None:
+    clock = SimTime()
+    ticks = regular(clock, 100, speed=10.0)
+    for wall, sim in ticks[50:]:
+        assert clock.now(wall) == sim
+    # halfway between two ticks: halfway in sim time (the observed rate is exactly 10)
+    w0, s0 = ticks[60]
+    w1, s1 = ticks[61]
+    assert abs(clock.now((w0 + w1) // 2) - (s0 + s1) // 2) <= 1
+
+
+def test_never_more_than_one_tick_ahead_when_the_ticks_stop() -> None:
+    clock = SimTime()
+    ticks = regular(clock, 50, speed=10.0)
+    last_wall, last_sim = ticks[-1]
+    # the simulator stalls (a busy machine): time stops one tick ahead of the last tick, whatever the wait
+    for wait_s in (0.001, 0.005, 0.1, 10.0):
+        assert clock.now(last_wall + round(wait_s * 1e9)) <= last_sim + round(PERIOD_S * 1e9)
+    assert clock.stamp(last_wall + 10**10) == last_sim + round(PERIOD_S * 1e9)
+
+
+def test_follows_a_change_of_speed_within_the_rate_window() -> None:
+    clock = SimTime()
+    ticks = regular(clock, 200, speed=10.0)  # 1 s of wall time at 10x
+    wall0, sim0 = ticks[-1]
+    for k in range(1, 101):  # then 2x for 2.5 s of wall time
+        clock.on_tick(sim0 + round(k * PERIOD_S * 1e9), PERIOD_S, wall0 + round(k * PERIOD_S / 2.0 * 1e9))
+    assert abs(clock.rate() - 2.0) < 1e-9
+
+
+def test_a_tick_going_back_is_ignored_and_stamps_never_go_back() -> None:
+    clock = SimTime()
+    regular(clock, 10, speed=1.0)
+    clock.on_tick(EPOCH, PERIOD_S, 10**12)  # a restarted simulator
+    assert clock.ignored == 1
+    a = clock.stamp(10**12)
+    b = clock.stamp(0)  # handled later, received earlier (another source's chunk)
+    assert a is not None and b is not None and b >= a
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    gaps=st.lists(
+        st.tuples(
+            st.floats(0.0005, 0.05),  # sim time between ticks (s): a period at most
+            st.floats(0.0, 0.2),  # wall time between ticks (s): any load
+        ),
+        min_size=2,
+        max_size=60,
+    ),
+    queries=st.lists(st.floats(0.0, 1.0), min_size=1, max_size=40),
+)
+def test_properties_for_any_tick_sequence(gaps: list[tuple[float, float]], queries: list[float]) -> None:
+    """Whatever the ticks' spacing in sim and wall time: stamps asked in increasing wall order are monotone,
+    never more than one period ahead of the newest tick received, and never behind the tick they follow."""
+    clock = SimTime()
+    wall, sim = 0, EPOCH
+    clock.on_tick(sim, PERIOD_S, wall)
+    walls = [wall]
+    for d_sim, d_wall in gaps:
+        wall += round(d_wall * 1e9)
+        sim += round(d_sim * 1e9)
+        clock.on_tick(sim, PERIOD_S, wall)
+        walls.append(wall)
+    span = walls[-1] + 10**9
+    previous = None
+    for q in sorted(queries):
+        w = round(q * span)
+        s = clock.stamp(w)
+        assert s is not None
+        assert s <= sim + round(PERIOD_S * 1e9)  # never more than one tick ahead of the newest tick
+        if previous is not None:
+            assert s >= previous  # monotone
+        previous = s
+
+
+def test_ticks_from_several_threads_keep_a_consistent_history() -> None:
+    clock = SimTime()
+
+    def feed(offset: int) -> None:
+        for k in range(2000):
+            clock.on_tick(EPOCH + (2 * k + offset) * 50 * MS, PERIOD_S, (2 * k + offset) * 5 * MS)
+
+    threads = [threading.Thread(target=feed, args=(i,)) for i in (0, 1)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert clock.ticks + clock.ignored == 4000
+    stamps = [clock.stamp(k * MS) for k in range(0, 20_000, 7)]
+    assert all(a is not None and b is not None and b >= a for a, b in itertools.pairwise(stamps))
