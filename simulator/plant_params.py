@@ -8,7 +8,7 @@ readable reference both read: plain arrays and floats built once from a `VesselM
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -27,11 +27,16 @@ class RadiationModel(Protocol):
     with the infinite-frequency added mass A_inf taking M_A's place in the mass matrix.
     ``simulator.fluid_memory.RadiationStateSpace`` is one."""
 
-    A: Array  # n×n
-    B: Array  # n×3
-    C: Array  # 3×n
-    D: Array  # 3×3
-    A_inf: Array  # 3×3
+    @property
+    def A(self) -> NDArray[np.floating[Any]]: ...  # n×n
+    @property
+    def B(self) -> NDArray[np.floating[Any]]: ...  # n×3
+    @property
+    def C(self) -> NDArray[np.floating[Any]]: ...  # 3×n
+    @property
+    def D(self) -> NDArray[np.floating[Any]]: ...  # 3×3
+    @property
+    def A_inf(self) -> NDArray[np.floating[Any]]: ...  # 3×3
 
 
 class PlantError(ValueError):
