@@ -130,7 +130,27 @@ class Simulation:
         clock: Clock | None = None,
         commands: Sequence[CommandInput] = (),
         log_raw: bool = True,
+        wire: bool = True,
+        on_emit: Callable[[Emission], None] | None = None,
     ) -> None:
+        """``wire=False``: the sensors send typed records (`Emission.record`) instead of bytes, for an
+        in-process receiver that hands them to ``on_emit`` (called for every emission as it leaves, after
+        the routes); there are then no bytes to route, log or corrupt, so it refuses routes, a raw log,
+        the wire-side faults and ArduPilot feedback (whose meaning depends on the receiver's wiring)."""
+        if not wire:
+            wire_faults = sorted({f.kind for f in scenario.faults if f.kind in ("bad_checksum", "garbage")})
+            feedback = scenario.feedback
+            ardupilot = feedback is not None and (feedback.ardupilot_esc or feedback.ardupilot_servo)
+            problem = (
+                "routes" if routes else
+                "a raw log (log_raw=True)" if log is not None and log_raw else
+                f"{', '.join(wire_faults)} faults" if wire_faults else
+                "ArduPilot feedback frames" if ardupilot else None
+            )  # fmt: skip
+            if problem:
+                raise ValueError(f"Simulation(wire=False): {problem} need the bytes; use wire=True")
+        self.wire = wire
+        self.on_emit = on_emit
         self.scenario = scenario
         self.log_raw = log_raw
         self.seed = seed
@@ -172,6 +192,8 @@ class Simulation:
             self.sensors.append(Gyro(gcfg, self.epoch, sensor_rngs[4 + k], self.faults))
         if scenario.feedback is not None and self.thrusters.n:
             self.sensors.append(ThrusterFeedback(scenario.feedback, self.epoch, sensor_rngs[7], self.faults))
+        for sensor in self.sensors:
+            sensor.encode = wire
 
         self.t = 0.0
         self._sea_valid = (math.inf, -math.inf)
@@ -314,6 +336,8 @@ class Simulation:
             for route in self.routes:
                 if route.wants(e):
                     route.sink.write(e.data)
+            if self.on_emit is not None:
+                self.on_emit(e)
             burst.append(e)
         if burst:
             self._end_burst(burst)
