@@ -265,21 +265,19 @@ class Simulation:
         wf = self._wf.motion(self.t, eta_lf)
         eta = eta_lf + wf
         eta[2] = ssa_scalar(eta[2])
-        readings = tuple(
-            ThrusterReading(
-                id=tid,
-                kind=self.scenario.vessel.thrusters[i].kind,
-                thrust_n=float(self.thrusters.thrust[i]),
-                azimuth_rad=float(self.thrusters.angle[i]),
-                rpm=float(self.thrusters.rpm[i]),
-                thrust_setpoint_n=float(self.thrusters.thrust_setpoint[i]),
-                azimuth_setpoint_rad=float(self.thrusters.angle_setpoint[i]),
-                failed=bool(self.thrusters.failed[i]),
-                power_w=float(self.thrusters.power_w[i]),
-            )
-            for i, tid in enumerate(self.thrusters.ids)
-            if with_thrusters
-        )
+        readings: tuple[ThrusterReading, ...] = ()
+        if with_thrusters and self.thrusters.n:
+            # each array once, as Python floats (rpm and power are computed properties)
+            th = self.thrusters
+            kinds = [t.kind for t in self.scenario.vessel.thrusters]
+            readings = tuple(
+                ThrusterReading(tid, kind, thrust, angle, rpm, thrust_sp, angle_sp, failed, power)
+                for tid, kind, thrust, angle, rpm, thrust_sp, angle_sp, failed, power in zip(
+                    th.ids, kinds, th.thrust.tolist(), th.angle.tolist(), th.rpm.tolist(),
+                    th.thrust_setpoint.tolist(), th.angle_setpoint.tolist(), th.failed.tolist(),
+                    th.power_w.tolist(), strict=True,
+                )
+            )  # fmt: skip
         return ShipState(t=self.t, eta=eta, nu=self.dynamics.x[3:6].copy(), thrusters=readings)
 
     def _sea_state(self) -> SeaState:
