@@ -202,6 +202,8 @@ class Simulation:
         self._pending: list[tuple[float, int, Emission]] = []
         self._seq = 0
         self._last_command_t = -math.inf
+        self._next_truth: float | None = None
+        self._next_drift: float | None = None
         self.external_control = False
         self.summary = SimSummary(scenario.name, seed, 0.0, 0.0)
 
@@ -362,18 +364,21 @@ class Simulation:
         end = self.t + (duration_s if duration_s is not None else self.scenario.duration_s)
         truth_dt = 1.0 / self.scenario.truth_rate_hz
         ctrl_dt = 1.0 / self.scenario.control_rate_hz
-        next_truth = self.t
+        # The truth and the drift force keep their schedules from one run() to the next, so a run in
+        # chunks (the closed loop's 0.1 s) logs each truth record once and updates the drift force at
+        # 1 Hz like one long run. Every run() starts with a control tick: commands that came in between
+        # chunks act at once.
+        next_truth = self.t if self._next_truth is None else self._next_truth
+        next_drift = self.t if self._next_drift is None else self._next_drift
         next_ctrl = self.t
-        next_drift = self.t
         next_progress = self.t
         wall0 = time.perf_counter()
         eps = 1e-9
+        sensors = [(s, isinstance(s, ThrusterFeedback)) for s in self.sensors]
         while True:
-            candidates = [next_truth, next_ctrl, next_drift, end]
-            candidates += [s.next_time() for s in self.sensors]
-            if self._pending:
-                candidates.append(self._pending[0][0])
-            t_next = min(candidates)
+            t_next = min(next_truth, next_ctrl, next_drift, end, *[s.next_time() for s, _ in sensors])
+            if self._pending and self._pending[0][0] < t_next:
+                t_next = self._pending[0][0]
             if t_next > self.t:
                 self._advance(t_next - self.t)
             if self.t >= next_drift - eps:
@@ -384,9 +389,9 @@ class Simulation:
                 self._control_tick()
                 next_ctrl += ctrl_dt
             state: ShipState | None = None  # built once per instant; thruster readings only for feedback
-            for sensor in self.sensors:
+            for sensor, feedback in sensors:
                 while sensor.next_time() <= self.t + eps:
-                    if isinstance(sensor, ThrusterFeedback):
+                    if feedback:
                         emissions = sensor.sample(self.ship_state(with_thrusters=True))
                     else:
                         if state is None:
@@ -405,6 +410,7 @@ class Simulation:
                 next_progress += 10.0
             if self.t >= end - eps:
                 break
+        self._next_truth, self._next_drift = next_truth, next_drift
         self.summary.sim_seconds = self.t
         self.summary.wall_seconds += time.perf_counter() - wall0
         return self.summary
