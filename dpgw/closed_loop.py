@@ -101,6 +101,30 @@ def gateway_tables(scenario: Scenario, **control: Any) -> dict[str, Any]:
     }
 
 
+def _grouped(sim: Simulation, typed: list[tuple[float, int, str, Emission]], sources: Any) -> list[RawEvent]:
+    """The typed emissions as pipeline events: one per sentence or frame as on the wire, except that what
+    cannot step the observer joins the event before it from the same source at the same instant — the
+    unused sentences (RMC, VTG, ZDA, ROT) and a burst's MAVLink frames (heartbeat, the thruster statuses).
+    The observer steps, estimates and commands are the same (the pipeline steps once per event, after its
+    records, and only for a fix or heading); fewer events and one thruster-feedback output per burst
+    instead of one per frame make it cheaper."""
+    out: list[RawEvent] = []
+    records: list[Any] = []
+    key: tuple[float, str] | None = None
+    for t, _, name, e in typed:
+        if name not in sources:
+            continue
+        joins = key == (t, name) and (e.protocol == "mavlink" or e.record is None)
+        if not joins:
+            if key is not None:
+                out.append(RawEvent(sim.epoch.stamp_ns(key[0]), key[1], b"", records=tuple(records)))
+            key, records = (t, name), []
+        records.append(e.record)
+    if key is not None:
+        out.append(RawEvent(sim.epoch.stamp_ns(key[0]), key[1], b"", records=tuple(records)))
+    return out
+
+
 def needs_wire(scenario: Scenario, log: McapLogWriter | None = None) -> bool:
     """Whether the loop must feed the pipeline bytes: a raw log, a wire-side fault (bad checksum, garbage)
     or ArduPilot feedback frames (their meaning depends on the gateway's wiring config)."""
@@ -184,11 +208,7 @@ def run_closed_loop(
             ]
         else:
             typed.sort(key=lambda x: (x[0], x[1]))
-            raw = [
-                RawEvent(sim.epoch.stamp_ns(t), name, b"", records=(e.record,))
-                for t, _, name, e in typed
-                if name in pipeline.sources
-            ]
+            raw = _grouped(sim, typed, pipeline.sources)
             typed.clear()
         for event in raw:
             for o in pipeline.feed(event):
