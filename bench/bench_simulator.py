@@ -1,7 +1,8 @@
 """Benchmark: the simulator's speed, in times real time, beside its targets, side by side in one run.
 
 1. **Wire + MCAP** (target >= 360x): one hour of sim time with 10 Hz sensors, every byte encoded and
-   logged to MCAP (zstd) with the ground truth at 10 Hz, as `dpgw sim --out` does.
+   logged to MCAP (zstd, chunks closed by size and wall time) with the ground truth at 10 Hz, as
+   `dpgw sim --out` does.
    - fossen_strand_1999: DGPS 10 Hz (GGA, RMC, VTG at 10 Hz; GST, ZDA at 1 Hz), gyro 10 Hz (HDT, ROT);
      no thruster layout (τ acts directly).
    - torsetnes_2004: the same sensors plus six thrusters with their dynamics, reporting
@@ -44,7 +45,7 @@ def run_case(name: str, hours: float, folder: str) -> dict[str, Any]:
     scenario = get_scenario(name).with_sensor_rates(10.0, 10.0)
     path = os.path.join(folder, f"{name}.mcap")
     t0, c0 = time.perf_counter(), time.process_time()
-    with McapLogWriter(path) as log:
+    with McapLogWriter(path, flush_on_log_time=False) as log:  # as `dpgw sim --out` (virtual clock)
         sim = Simulation(scenario, seed=1, log=log)
         sim.run(hours * 3600.0)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
