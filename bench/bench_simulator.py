@@ -23,6 +23,7 @@ pipeline's observer step, its control step, the rest of the pipeline) so it is c
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import os
 import tempfile
@@ -108,12 +109,15 @@ def run_loop(hours: float, wire: bool, phases: bool) -> dict[str, Any]:
         if phases
         else {}
     )
+    # An older checkout (bench/ab_compare.py --base) has only the bytes path: its default is then that.
+    typed = "wire" in inspect.signature(run_closed_loop).parameters
+    kwargs = {"wire": wire} if typed else {}
     with timer:
         t0, c0 = time.perf_counter(), time.process_time()
-        r = run_closed_loop(scenario, duration, seed=1, events=HOLD, wire=wire)
+        r = run_closed_loop(scenario, duration, seed=1, events=HOLD, **kwargs)
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     out: dict[str, Any] = {
-        "case": f"closed loop torsetnes_2004, {'bytes' if wire else 'typed records'}",
+        "case": f"closed loop torsetnes_2004, {'bytes' if wire or not typed else 'typed records'}",
         "sim_seconds": duration,
         "wall_seconds": wall,
         "speedup": duration / wall,
@@ -158,12 +162,11 @@ def main() -> None:
         rows.append(run_loop(loop_hours, wire=True, phases=False))
         if k == 0:
             phased = run_loop(loop_hours, wire=False, phases=True)
-        for row in rows:
-            if row["case"] not in best or row["speedup"] > best[row["case"]]["speedup"]:
-                best[row["case"]] = row
+        for i, row in enumerate(rows):
+            if str(i) not in best or row["speedup"] > best[str(i)]["speedup"]:
+                best[str(i)] = row
     results = [*best.values()]
-    typed = best["closed loop torsetnes_2004, typed records"]
-    typed["us_per_sim_second"] = phased["us_per_sim_second"]
+    results[2]["us_per_sim_second"] = phased["us_per_sim_second"]  # the studies' default path
     if args.json:
         print(json.dumps(results, indent=2))
         return
@@ -179,8 +182,8 @@ def main() -> None:
             f"{r['target']:6.0f}x {met}"
         )
     print(f"  wire+mcap: {args.hours:g} h of sim time each; closed loop: {loop_hours:g} h")
-    print("  closed loop (typed records), CPU time per second of sim time:")
-    for k, v in typed["us_per_sim_second"].items():
+    print(f"  {results[2]['case']}, CPU time per second of sim time:")
+    for k, v in results[2]["us_per_sim_second"].items():
         print(f"    {k:26s} {v:8.0f} us")
     print(f"    {'budget at the target':26s} {1e6 / TARGET_LOOP:8.0f} us")
 
