@@ -280,7 +280,7 @@ class Simulation:
                     th.power_w.tolist(), strict=True,
                 )
             )  # fmt: skip
-        return ShipState(t=self.t, eta=eta, nu=self.dynamics.x[3:6].copy(), thrusters=readings)
+        return ShipState.trusted(self.t, eta, self.dynamics.x[3:6].copy(), readings)
 
     def _sea_state(self) -> SeaState:
         """The current sea state; it changes only at the schedule's switch times (mid-fade), so cache it."""

@@ -199,6 +199,23 @@ class ShipState:
             object.__setattr__(self, name, value)
         object.__setattr__(self, "thrusters", tuple(self.thrusters))
 
+    @classmethod
+    def trusted(
+        cls,
+        t: float,
+        eta: NDArray[np.float64],
+        nu: NDArray[np.float64],
+        thrusters: tuple[ThrusterReading, ...],
+    ) -> ShipState:
+        """For the simulator's own loop, whose arrays are float64 of 3 and readings a tuple already: the
+        same object without the checks (it is made at every sample instant)."""
+        state = object.__new__(cls)
+        object.__setattr__(state, "t", t)
+        object.__setattr__(state, "eta", eta)
+        object.__setattr__(state, "nu", nu)
+        object.__setattr__(state, "thrusters", thrusters)
+        return state
+
 
 # ---------------------------------------------------------------------------------------------- configs
 
