@@ -90,7 +90,8 @@ class RawEvent:
     """In place of ``data`` (the in-process closed loop, where nothing crosses a wire): one item per
     sentence or frame, as the codecs decode it — an NMEA sentence (`wire.codecs.nmea`; None for one the
     pipeline does not use) or a MAVLink frame's tuple of `wire.codecs.mavlink` reports. The pipeline skips
-    framing and decoding and does the rest exactly as for bytes."""
+    framing and decoding and does the rest exactly as for bytes; a record carries no MAVLink system or
+    component id, so a source's ``system_id`` / ``component_id`` filter does not apply to it."""
 
 
 @dataclass(frozen=True)
