@@ -116,8 +116,10 @@ class Datum:
         """Latitude (deg), longitude (deg) and ellipsoidal height (m) of local NED points (m). Scalars give
         floats, arrays give arrays (broadcast). Scalars go through `wire.geodesy` (the same exact
         conversion as pymap3d, ~60x faster: one call per fix at 10 Hz adds up)."""
+        frame: LocalFrame = self._frame  # type: ignore[attr-defined]
+        if isinstance(north, float) and isinstance(east, float) and isinstance(down, float | int):
+            return frame.to_geodetic(float(north), float(east), float(down))  # (np.float64 is a float)
         if np.ndim(north) == 0 and np.ndim(east) == 0 and np.ndim(down) == 0:
-            frame: LocalFrame = self._frame  # type: ignore[attr-defined]
             return frame.to_geodetic(float(north), float(east), float(down))  # type: ignore[arg-type]
         lat, lon, alt = pymap3d.ned2geodetic(north, east, down, self.lat_deg, self.lon_deg, self.alt_m)
         return _maybe_float(lat), _maybe_float(lon), _maybe_float(alt)
