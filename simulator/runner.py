@@ -273,7 +273,7 @@ class Simulation:
             th = self.thrusters
             kinds = [t.kind for t in self.scenario.vessel.thrusters]
             readings = tuple(
-                ThrusterReading(tid, kind, thrust, angle, rpm, thrust_sp, angle_sp, failed, power)
+                ThrusterReading.trusted(tid, kind, thrust, angle, rpm, thrust_sp, angle_sp, failed, power)
                 for tid, kind, thrust, angle, rpm, thrust_sp, angle_sp, failed, power in zip(
                     th.ids, kinds, th.thrust.tolist(), th.angle.tolist(), th.rpm.tolist(),
                     th.thrust_setpoint.tolist(), th.angle_setpoint.tolist(), th.failed.tolist(),
