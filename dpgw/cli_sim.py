@@ -197,7 +197,10 @@ def _run_scenario(args: argparse.Namespace) -> int:
             commands.append(ZenohCommandInput(session, prefix))
             print(f"Zenoh: commands from {prefix}/thrusters/command", file=sys.stderr)
         if args.out:
-            log = McapLogWriter(args.out, profile="dpgw-sim")
+            # Faster than real time, a chunk per second of log time is a chunk per few ms of work: tiny
+            # chunks, each with its own compression call and indexes. Chunks then close by size (and
+            # every second of wall time, which bounds the loss if the process dies).
+            log = McapLogWriter(args.out, profile="dpgw-sim", flush_on_log_time=bool(args.realtime))
             log.add_metadata(
                 "dpgw.sim",
                 {"scenario": scenario.name, "seed": str(args.seed), "vessel": scenario.vessel.name},

@@ -1,8 +1,19 @@
-"""The HIL loop in one process: simulator bytes → gateway pipeline → thruster commands → simulator.
+"""The HIL loop in one process: simulator → gateway pipeline → thruster commands → simulator.
 
-The same bytes the simulator would put on the wire are fed to the same pipeline the gateway runs, at the
-simulator's times (no transports, no clocks): closed-loop station keeping for tests and studies, fast
-and reproducible. `dpgw demo` runs the same loop over real UDP, a pty and MAVLink.
+What the simulator's sensors send is fed to the same pipeline the gateway runs, at the simulator's times (no
+transports, no clocks): closed-loop station keeping for tests and studies, fast and reproducible. `dpgw demo`
+runs the same loop over real UDP, a pty and MAVLink.
+
+Two paths from the sensors to the pipeline (``wire``):
+
+* **typed** (the default where it can be used): each sentence or frame reaches the pipeline as the record
+  its decoder would return (`Emission.record` → `RawEvent.records`), unrounded; nothing is encoded, framed,
+  checksummed or parsed. Same events, same order, same times, same random streams as the bytes: the
+  estimates differ from the bytes path only by the wire format's rounding (1e-7 min of latitude, 0.01° of
+  heading, float32 thrust), which tests/test_closed_loop.py bounds.
+* **bytes**: the exact bytes the simulator would put on the wire, through the pipeline's framers and
+  parsers — needed for a raw log, for the wire-side faults (bad checksum, garbage) and for ArduPilot
+  feedback frames, and chosen for those automatically.
 """
 
 from __future__ import annotations
@@ -20,6 +31,7 @@ from simulator.commands import Command, TauCommand, ThrusterCommand
 from simulator.faults import FaultSchedule
 from simulator.runner import Route, Simulation
 from simulator.scenarios import Scenario
+from simulator.sensors import Emission
 from simulator.transports import Sink
 from wire.mcap.writer import McapLogWriter
 
@@ -89,6 +101,41 @@ def gateway_tables(scenario: Scenario, **control: Any) -> dict[str, Any]:
     }
 
 
+def _grouped(sim: Simulation, typed: list[tuple[float, int, str, Emission]], sources: Any) -> list[RawEvent]:
+    """The typed emissions as pipeline events: one per sentence or frame as on the wire, except that what
+    cannot step the observer joins the event before it from the same source at the same instant — the
+    unused sentences (RMC, VTG, ZDA, ROT) and a burst's MAVLink frames (heartbeat, the thruster statuses).
+    The observer steps, estimates and commands are the same (the pipeline steps once per event, after its
+    records, and only for a fix or heading); fewer events and one thruster-feedback output per burst
+    instead of one per frame make it cheaper."""
+    out: list[RawEvent] = []
+    records: list[Any] = []
+    key: tuple[float, str] | None = None
+    for t, _, name, e in typed:
+        if name not in sources:
+            continue
+        joins = key == (t, name) and (e.protocol == "mavlink" or e.record is None)
+        if not joins:
+            if key is not None:
+                out.append(RawEvent(sim.epoch.stamp_ns(key[0]), key[1], b"", records=tuple(records)))
+            key, records = (t, name), []
+        records.append(e.record)
+    if key is not None:
+        out.append(RawEvent(sim.epoch.stamp_ns(key[0]), key[1], b"", records=tuple(records)))
+    return out
+
+
+def needs_wire(scenario: Scenario, log: McapLogWriter | None = None) -> bool:
+    """Whether the loop must feed the pipeline bytes: a raw log, a wire-side fault (bad checksum, garbage)
+    or ArduPilot feedback frames (their meaning depends on the gateway's wiring config)."""
+    feedback = scenario.feedback
+    return (
+        log is not None
+        or any(f.kind in ("bad_checksum", "garbage") for f in scenario.faults)
+        or (feedback is not None and (feedback.ardupilot_esc or feedback.ardupilot_servo))
+    )
+
+
 def run_closed_loop(
     scenario: Scenario,
     duration_s: float,
@@ -99,13 +146,18 @@ def run_closed_loop(
     chunk_s: float = 0.1,
     log: McapLogWriter | None = None,
     status_every_s: float | None = None,
+    wire: bool | None = None,
 ) -> ClosedLoopRun:
     """Run the scenario with the gateway pipeline commanding the thrusters. ``events``: (sim time, key,
     payload) Zenoh inputs such as ("setpoint", {...}) or ("mode", "standby"); the scenario's command faults
     (`FaultSchedule.command_events`) are added to them. With ``log``, every burst sent and the ground truth
     are logged as `dpgw sim --out` does (a log replay can score). With ``status_every_s``, the pipeline's
     /dp/status is kept that often (at the end of a chunk; at most once a chunk) in ``statuses``: what an
-    operator station would see, to time alarms."""
+    operator station would see, to time alarms. ``wire``: True feeds the pipeline the bytes, False the typed
+    records (module docstring); None (default) the records unless a log, a wire-side fault or ArduPilot
+    feedback needs the bytes."""
+    if wire is None:
+        wire = needs_wire(scenario, log)
     tables = tables or gateway_tables(scenario)
     pipeline = Pipeline(PipelineSpec.from_config(parse_config(tables, base_dir=Path.cwd())))
     commands = _Commands()
@@ -115,13 +167,24 @@ def run_closed_loop(
     def now() -> float:
         return sim.t
 
+    names = [d.source for d in scenario.dgps] + [g.source for g in scenario.gyro]
     routes = []
-    for name in [d.source for d in scenario.dgps] + [g.source for g in scenario.gyro]:
-        sinks[name] = _TimedSink(now)
-        routes.append(Route(sinks[name], "nmea", frozenset({name})))
-    sinks["thrusters"] = _TimedSink(now)
-    routes.append(Route(sinks["thrusters"], "mavlink"))
-    sim = Simulation(scenario, seed, routes=routes, commands=[commands], log=log)
+    typed: list[tuple[float, int, str, Emission]] = []
+    if wire:
+        for name in names:
+            sinks[name] = _TimedSink(now)
+            routes.append(Route(sinks[name], "nmea", frozenset({name})))
+        sinks["thrusters"] = _TimedSink(now)
+        routes.append(Route(sinks["thrusters"], "mavlink"))
+        on_emit = None
+    else:
+        # the bytes path's order: by time, then by sink (NMEA sources in the scenario's order, then MAVLink)
+        rank = {name: k for k, name in enumerate(names)}
+
+        def on_emit(e: Emission) -> None:
+            typed.append((sim.t, rank.get(e.source, len(rank)), e.source, e))
+
+    sim = Simulation(scenario, seed, routes=routes, commands=[commands], log=log, wire=wire, on_emit=on_emit)
     injected = FaultSchedule(scenario.faults).command_events(duration_s)
     pending_events = sorted([*events, *injected], key=lambda e: e[0])
     next_status = 0.0
@@ -132,15 +195,23 @@ def run_closed_loop(
         while pending_events and pending_events[0][0] <= sim.t:
             t_ev, key, payload = pending_events.pop(0)
             pipeline.feed(ControlEvent(sim.epoch.stamp_ns(t_ev), key, payload))
-        items = sorted(
-            ((t, name, data) for name, s in sinks.items() for t, data in s.items), key=lambda x: x[0]
-        )
-        for s in sinks.values():
-            s.items.clear()
-        for t, name, data in items:
-            if name not in pipeline.sources:
-                continue
-            for o in pipeline.feed(RawEvent(sim.epoch.stamp_ns(t), name, data)):
+        if wire:
+            items = sorted(
+                ((t, name, data) for name, s in sinks.items() for t, data in s.items), key=lambda x: x[0]
+            )
+            for s in sinks.values():
+                s.items.clear()
+            raw: list[RawEvent] = [
+                RawEvent(sim.epoch.stamp_ns(t), name, data)
+                for t, name, data in items
+                if name in pipeline.sources
+            ]
+        else:
+            typed.sort(key=lambda x: (x[0], x[1]))
+            raw = _grouped(sim, typed, pipeline.sources)
+            typed.clear()
+        for event in raw:
+            for o in pipeline.feed(event):
                 if o.topic == "/dp/estimate":
                     run.estimates.append(o.payload)
                 elif o.topic == "/dp/thrusters/command":

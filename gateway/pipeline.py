@@ -86,6 +86,12 @@ class RawEvent:
     checked: tuple[tuple[str, ...], int] | None = None
     peer: str = ""
     """Who sent it on a shared link (a UDP sender's ``host:port``); each sender is framed on its own."""
+    records: tuple[Any, ...] | None = None
+    """In place of ``data`` (the in-process closed loop, where nothing crosses a wire): one item per
+    sentence or frame, as the codecs decode it — an NMEA sentence (`wire.codecs.nmea`; None for one the
+    pipeline does not use) or a MAVLink frame's tuple of `wire.codecs.mavlink` reports. The pipeline skips
+    framing and decoding and does the rest exactly as for bytes; a record carries no MAVLink system or
+    component id, so a source's ``system_id`` / ``component_id`` filter does not apply to it."""
 
 
 @dataclass(frozen=True)
@@ -338,7 +344,9 @@ class Pipeline:
         c.bytes += len(event.data)
         c.last_rx_ns = event.rx_ns
         out: list[Output] = []
-        if spec.protocol == "nmea":
+        if event.records is not None:
+            updated = self._records(spec, c, event, out)
+        elif spec.protocol == "nmea":
             updated = self._nmea(spec, c, event, out)
         else:
             updated = self._mavlink(spec, c, event, out)
@@ -517,10 +525,7 @@ class Pipeline:
         key, parser = self._parser(spec, ev.peer)
         msgs = parser.feed(ev.data)
         self._count_parser_rejects(key, c)
-        roles = spec.roles
-        updated = False
-        feedback = False
-        rx_ns = ev.rx_ns
+        frames: list[Sequence[mv.Report]] = []
         for msg in msgs:
             if spec.system_id is not None and msg.get_srcSystem() != spec.system_id:
                 c.rejected["other system"] += 1  # a second vehicle or a forger on the link
@@ -528,8 +533,32 @@ class Pipeline:
             if spec.component_id is not None and msg.get_srcComponent() != spec.component_id:
                 c.rejected["other component"] += 1
                 continue
+            frames.append(mv.reports(msg, spec.ardupilot))
+        return self._use_reports(spec, c, ev.rx_ns, frames, out)
+
+    def _records(self, spec: SourceSpec, c: SourceCounters, ev: RawEvent, out: list[Output]) -> bool:
+        """A chunk already decoded (`RawEvent.records`): each item counted as received, then used."""
+        assert ev.records is not None
+        if spec.protocol != "nmea":
+            return self._use_reports(spec, c, ev.rx_ns, ev.records, out)
+        updated = False
+        for s in ev.records:
             c.received += 1
-            for r in mv.reports(msg, spec.ardupilot):
+            if s is not None:
+                updated |= self._use_nmea(spec, ev.rx_ns, s, out)
+        return updated
+
+    def _use_reports(
+        self, spec: SourceSpec, c: SourceCounters, rx_ns: int, frames: Sequence[Sequence[mv.Report]],
+        out: list[Output],
+    ) -> bool:  # fmt: skip
+        """The reports of MAVLink frames from an accepted sender, one sequence per frame."""
+        roles = spec.roles
+        updated = False
+        feedback = False
+        for reports in frames:
+            c.received += 1
+            for r in reports:
                 if isinstance(r, mv.ThrusterReport):
                     if "thrusters" not in roles:
                         continue

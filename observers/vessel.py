@@ -96,6 +96,7 @@ class VesselModel:
     description: str = ""
     thrusters: tuple[Thruster, ...] = field(default_factory=tuple)
     hull: HullParams | None = None  # the nonlinear plant's hull data (`observers.hull`); None: M and D only
+    _layout: tuple[Array, Array, Array, Array] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         where = f"vessel '{self.name}'"
@@ -109,6 +110,16 @@ class VesselModel:
         ids = [t.id for t in self.thrusters]
         if len(set(ids)) != len(ids):
             raise VesselError(f"{where}: field 'thrusters': thruster ids must be unique, got {ids}")
+        # the layout as arrays once: the gateway computes B_u(α) for every thruster feedback and step
+        layout = (
+            np.array([t.angle_rad for t in self.thrusters], dtype=float),
+            np.array([t.kind == "azimuth" for t in self.thrusters], dtype=bool),
+            np.array([t.x_m for t in self.thrusters], dtype=float),
+            np.array([t.y_m for t in self.thrusters], dtype=float),
+        )
+        for array in layout:
+            array.flags.writeable = False
+        object.__setattr__(self, "_layout", layout)
 
     def configuration_matrix(self, angles: ArrayLike | None = None) -> Array:
         """B_u of eq (4) for the thrusters at the given force directions (rad, clockwise from the bow).
@@ -119,16 +130,14 @@ class VesselModel:
         ``angle_rad``; ``angles`` (one per thruster, in layout order) applies to azimuths and defaults to each
         thruster's ``angle_rad``.
         """
-        n = len(self.thrusters)
-        a = np.array([t.angle_rad for t in self.thrusters], dtype=float)
+        a, azimuth, x, y = self._layout
         if angles is not None:
-            given = np.broadcast_to(np.asarray(angles, dtype=float), (n,))
-            az = np.array([t.kind == "azimuth" for t in self.thrusters], dtype=bool)
-            a = np.where(az, given, a)
-        x = np.array([t.x_m for t in self.thrusters], dtype=float)
-        y = np.array([t.y_m for t in self.thrusters], dtype=float)
+            given = np.broadcast_to(np.asarray(angles, dtype=float), a.shape)
+            a = np.where(azimuth, given, a)
         c, s = np.cos(a), np.sin(a)
-        return np.vstack([c, s, x * s - y * c])
+        out = np.empty((3, a.shape[0]))
+        out[0], out[1], out[2] = c, s, x * s - y * c
+        return out
 
     def generalized_force(self, thrust: ArrayLike, angles: ArrayLike | None = None) -> Array:
         """τ = B_u(α) u: generalised force [X, Y, N] from thrusts (N, signed for tunnel/main)."""

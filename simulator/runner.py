@@ -155,7 +155,27 @@ class Simulation:
         clock: Clock | None = None,
         commands: Sequence[CommandInput] = (),
         log_raw: bool = True,
+        wire: bool = True,
+        on_emit: Callable[[Emission], None] | None = None,
     ) -> None:
+        """``wire=False``: the sensors send typed records (`Emission.record`) instead of bytes, for an
+        in-process receiver that hands them to ``on_emit`` (called for every emission as it leaves, after
+        the routes); there are then no bytes to route, log or corrupt, so it refuses routes, a raw log,
+        the wire-side faults and ArduPilot feedback (whose meaning depends on the receiver's wiring)."""
+        if not wire:
+            wire_faults = sorted({f.kind for f in scenario.faults if f.kind in ("bad_checksum", "garbage")})
+            feedback = scenario.feedback
+            ardupilot = feedback is not None and (feedback.ardupilot_esc or feedback.ardupilot_servo)
+            problem = (
+                "routes" if routes else
+                "a raw log (log_raw=True)" if log is not None and log_raw else
+                f"{', '.join(wire_faults)} faults" if wire_faults else
+                "ArduPilot feedback frames" if ardupilot else None
+            )  # fmt: skip
+            if problem:
+                raise ValueError(f"Simulation(wire=False): {problem} need the bytes; use wire=True")
+        self.wire = wire
+        self.on_emit = on_emit
         self.scenario = scenario
         self.log_raw = log_raw
         self.seed = seed
@@ -203,6 +223,8 @@ class Simulation:
             self.sensors.append(Gyro(gcfg, self.epoch, sensor_rngs[4 + k], self.faults))
         if scenario.feedback is not None and self.thrusters.n:
             self.sensors.append(ThrusterFeedback(scenario.feedback, self.epoch, sensor_rngs[7], self.faults))
+        for sensor in self.sensors:
+            sensor.encode = wire
 
         self.t = 0.0
         self._sea_valid = (math.inf, -math.inf)
@@ -211,6 +233,8 @@ class Simulation:
         self._pending: list[tuple[float, int, Emission]] = []
         self._seq = 0
         self._last_command_t = -math.inf
+        self._next_truth: float | None = None
+        self._next_drift: float | None = None
         self.external_control = False
         self.summary = SimSummary(scenario.name, seed, 0.0, 0.0)
         self.on_time: Callable[[float], None] | None = None
@@ -294,24 +318,20 @@ class Simulation:
         wf6 = self._wf.motion6(self.t, eta_lf)
         eta = eta_lf + wf6[:3]
         eta[2] = ssa_scalar(eta[2])
-        readings = tuple(
-            ThrusterReading(
-                id=tid,
-                kind=self.scenario.vessel.thrusters[i].kind,
-                thrust_n=float(self.thrusters.thrust[i]),
-                azimuth_rad=float(self.thrusters.angle[i]),
-                rpm=float(self.thrusters.rpm[i]),
-                thrust_setpoint_n=float(self.thrusters.thrust_setpoint[i]),
-                azimuth_setpoint_rad=float(self.thrusters.angle_setpoint[i]),
-                failed=bool(self.thrusters.failed[i]),
-                power_w=float(self.thrusters.power_w[i]),
-            )
-            for i, tid in enumerate(self.thrusters.ids)
-            if with_thrusters
-        )
-        return ShipState(
-            t=self.t, eta=eta, nu=self.dynamics.x[3:6].copy(), thrusters=readings, attitude=wf6[3:].copy()
-        )
+        readings: tuple[ThrusterReading, ...] = ()
+        if with_thrusters and self.thrusters.n:
+            # each array once, as Python floats (rpm and power are computed properties)
+            th = self.thrusters
+            kinds = [t.kind for t in self.scenario.vessel.thrusters]
+            readings = tuple(
+                ThrusterReading.trusted(tid, kind, thrust, angle, rpm, thrust_sp, angle_sp, failed, power)
+                for tid, kind, thrust, angle, rpm, thrust_sp, angle_sp, failed, power in zip(
+                    th.ids, kinds, th.thrust.tolist(), th.angle.tolist(), th.rpm.tolist(),
+                    th.thrust_setpoint.tolist(), th.angle_setpoint.tolist(), th.failed.tolist(),
+                    th.power_w.tolist(), strict=True,
+                )
+            )  # fmt: skip
+        return ShipState.trusted(self.t, eta, self.dynamics.x[3:6].copy(), readings, wf6[3:].copy())
 
     def _sea_state(self) -> SeaState:
         """The current sea state; it changes only at the schedule's switch times (mid-fade), so cache it."""
@@ -374,6 +394,8 @@ class Simulation:
             for route in self.routes:
                 if route.wants(e):
                     route.sink.write(e.data)
+            if self.on_emit is not None:
+                self.on_emit(e)
             burst.append(e)
         if burst:
             self._end_burst(burst)
@@ -400,21 +422,24 @@ class Simulation:
         end = self.t + (duration_s if duration_s is not None else self.scenario.duration_s)
         truth_dt = 1.0 / self.scenario.truth_rate_hz
         ctrl_dt = 1.0 / self.scenario.control_rate_hz
-        next_truth = self.t
+        # The truth and the drift force keep their schedules from one run() to the next, so a run in
+        # chunks (the closed loop's 0.1 s) logs each truth record once and updates the drift force at
+        # 1 Hz like one long run. Every run() starts with a control tick: commands that came in between
+        # chunks act at once.
+        next_truth = self.t if self._next_truth is None else self._next_truth
+        next_drift = self.t if self._next_drift is None else self._next_drift
         next_ctrl = self.t
-        next_drift = self.t
         next_progress = self.t
         next_time = self.t
         wall0 = time.perf_counter()
         eps = 1e-9
+        sensors = [(s, isinstance(s, ThrusterFeedback)) for s in self.sensors]
         while True:
-            candidates = [next_truth, next_ctrl, next_drift, end]
-            if self.on_time is not None:
-                candidates.append(next_time)
-            candidates += [s.next_time() for s in self.sensors]
-            if self._pending:
-                candidates.append(self._pending[0][0])
-            t_next = min(candidates)
+            t_next = min(next_truth, next_ctrl, next_drift, end, *[s.next_time() for s, _ in sensors])
+            if self.on_time is not None and next_time < t_next:
+                t_next = next_time
+            if self._pending and self._pending[0][0] < t_next:
+                t_next = self._pending[0][0]
             if t_next > self.t:
                 self._advance(t_next - self.t)
             if self.on_time is not None:
@@ -429,9 +454,9 @@ class Simulation:
                 self._control_tick()
                 next_ctrl += ctrl_dt
             state: ShipState | None = None  # built once per instant; thruster readings only for feedback
-            for sensor in self.sensors:
+            for sensor, feedback in sensors:
                 while sensor.next_time() <= self.t + eps:
-                    if isinstance(sensor, ThrusterFeedback):
+                    if feedback:
                         emissions = sensor.sample(self.ship_state(with_thrusters=True))
                     else:
                         if state is None:
@@ -450,6 +475,7 @@ class Simulation:
                 next_progress += 10.0
             if self.t >= end - eps:
                 break
+        self._next_truth, self._next_drift = next_truth, next_drift
         self.summary.sim_seconds = self.t
         self.summary.wall_seconds += time.perf_counter() - wall0
         return self.summary

@@ -46,6 +46,7 @@ from observers.vessel import THRUSTER_KINDS
 from simulator.clock import SimEpoch
 from simulator.faults import QUALITY_MODES, Fault, FaultSchedule
 from wire.codecs import mavlink as mv
+from wire.codecs import nmea as nmea_codec
 from wire.codecs import nmea_encode as nmea
 from wire.geodesy import LocalFrame
 
@@ -118,8 +119,10 @@ class Datum:
         """Latitude (deg), longitude (deg) and ellipsoidal height (m) of local NED points (m). Scalars give
         floats, arrays give arrays (broadcast). Scalars go through `wire.geodesy` (the same exact
         conversion as pymap3d, ~60x faster: one call per fix at 10 Hz adds up)."""
+        frame: LocalFrame = self._frame  # type: ignore[attr-defined]
+        if isinstance(north, float) and isinstance(east, float) and isinstance(down, float | int):
+            return frame.to_geodetic(float(north), float(east), float(down))  # (np.float64 is a float)
         if np.ndim(north) == 0 and np.ndim(east) == 0 and np.ndim(down) == 0:
-            frame: LocalFrame = self._frame  # type: ignore[attr-defined]
             return frame.to_geodetic(float(north), float(east), float(down))  # type: ignore[arg-type]
         lat, lon, alt = pymap3d.ned2geodetic(north, east, down, self.lat_deg, self.lon_deg, self.alt_m)
         return _maybe_float(lat), _maybe_float(lon), _maybe_float(alt)
@@ -148,6 +151,11 @@ class Emission:
     """The exact bytes."""
     t_measured: float
     """Sim time the value was sampled (garbage: ``t_emit``)."""
+    record: Any = None
+    """Only from a sensor with ``encode = False`` (then ``data`` is empty): what a receiver decodes from the
+    frame, as the wire codecs return it, at full precision. NMEA: the `wire.codecs.nmea` sentence (`Gga`,
+    `Gns`, `Gst`, `Heading`) or None for one a DP gateway does not use (RMC, VTG, ZDA, ROT); MAVLink: the
+    tuple of `wire.codecs.mavlink` reports (empty for a heartbeat)."""
 
     @property
     def text(self) -> str:
@@ -177,6 +185,21 @@ class ThrusterReading:
         if self.kind not in THRUSTER_KINDS:
             raise ValueError(f"ThrusterReading.kind: must be one of {THRUSTER_KINDS}, got {self.kind!r}")
 
+    @classmethod
+    def trusted(
+        cls, id: int, kind: str, thrust_n: float, azimuth_rad: float, rpm: float, thrust_setpoint_n: float,
+        azimuth_setpoint_rad: float, failed: bool, power_w: float,
+    ) -> ThrusterReading:  # fmt: skip
+        """For the simulator's own loop, whose ids and kinds come from a checked vessel: the same object
+        without the checks (six of them at every feedback sample)."""
+        reading = object.__new__(cls)
+        vars(reading).update(
+            id=id, kind=kind, thrust_n=thrust_n, azimuth_rad=azimuth_rad, rpm=rpm,
+            thrust_setpoint_n=thrust_setpoint_n, azimuth_setpoint_rad=azimuth_setpoint_rad, failed=failed,
+            power_w=power_w,
+        )  # fmt: skip
+        return reading
+
 
 @dataclass(frozen=True)
 class ShipState:
@@ -197,6 +220,25 @@ class ShipState:
                 raise ValueError(f"ShipState.{name}: must have 3 elements, got {getattr(self, name)!r}")
             object.__setattr__(self, name, value)
         object.__setattr__(self, "thrusters", tuple(self.thrusters))
+
+    @classmethod
+    def trusted(
+        cls,
+        t: float,
+        eta: NDArray[np.float64],
+        nu: NDArray[np.float64],
+        thrusters: tuple[ThrusterReading, ...],
+        attitude: NDArray[np.float64] | None = None,
+    ) -> ShipState:
+        """For the simulator's own loop, whose arrays are float64 of 3 and readings a tuple already: the
+        same object without the checks (it is made at every sample instant)."""
+        state = object.__new__(cls)
+        object.__setattr__(state, "t", t)
+        object.__setattr__(state, "eta", eta)
+        object.__setattr__(state, "nu", nu)
+        object.__setattr__(state, "thrusters", thrusters)
+        object.__setattr__(state, "attitude", np.zeros(3) if attitude is None else attitude)
+        return state
 
 
 # ---------------------------------------------------------------------------------------------- configs
@@ -392,6 +434,17 @@ class _Freezer:
         return self._value
 
 
+@dataclass(frozen=True, slots=True)
+class _Burst:
+    kinds: tuple[str, ...]
+    utc: Any  # datetime
+    seconds: float  # of the UTC day
+    quality: int
+    mode: str
+    age: float | None
+    station: int | None
+
+
 @dataclass(frozen=True)
 class _Fix:
     lat_deg: float
@@ -430,6 +483,8 @@ class Dgps(Sensor):
         self._t_noise = 0.0
         self._freeze = _Freezer()
         self._mode = DGPS_QUALITIES[config.quality]
+        self.encode = True
+        """False: emissions carry typed records instead of bytes (see `Emission.record`)."""
 
     def next_time(self) -> float:
         return self._schedule.next()
@@ -443,6 +498,8 @@ class Dgps(Sensor):
             return []
         fix = self._freeze(self.faults.active("frozen", self.source, t), self._measure(state, t))
         t_emit = t + self.config.latency_s
+        if not self.encode:
+            return [Emission(t_emit, self.source, "nmea", b"", t, r) for r in self._records(fix, t)]
         return [
             Emission(t_emit, self.source, "nmea", text.encode("ascii"), t) for text in self._sentences(fix, t)
         ]
@@ -491,7 +548,8 @@ class Dgps(Sensor):
             cog_rad=math.atan2(velocity[1], velocity[0]),
         )
 
-    def _sentences(self, fix: _Fix, t: float) -> list[str]:
+    def _burst(self, t: float) -> _Burst:
+        """What the sentences of the fix at ``t`` share: which are sent, the UTC time, quality and mode."""
         cfg = self.config
         utc = self.epoch.utc(t)
         quality, mode = cfg.quality, self._mode
@@ -500,15 +558,53 @@ class Dgps(Sensor):
             quality = int(bad.param("quality"))
             mode = QUALITY_MODES[quality]
         differential = quality in (2, 3, 4, 5)  # corrections in use: the age and station fields are filled
-        age = cfg.age_s if differential else None
-        station = cfg.station_id if differential else None
-        sigma = cfg.sigma_m
-        out = []
         seconds = utc.hour * 3600 + utc.minute * 60 + utc.second + utc.microsecond * 1e-6
         slow_due = (seconds % (1.0 / min(cfg.slow_rate_hz, cfg.rate_hz))) < 0.5 / cfg.rate_hz
-        for kind in cfg.sentences:
-            if kind in cfg.slow_sentences and not slow_due:
-                continue
+        kinds = tuple(k for k in cfg.sentences if slow_due or k not in cfg.slow_sentences)
+        age = cfg.age_s if differential else None
+        station = cfg.station_id if differential else None
+        return _Burst(kinds, utc, seconds, quality, mode, age, station)
+
+    def _records(self, fix: _Fix, t: float) -> list[Any]:
+        """The sentences of `_sentences` as a receiver decodes them (`Emission.record`), unrounded."""
+        cfg = self.config
+        b = self._burst(t)
+        sigma = cfg.sigma_m
+        out: list[Any] = []
+        for kind in b.kinds:
+            if kind == "GGA":
+                out.append(
+                    nmea_codec.Gga(
+                        cfg.talker, b.seconds, fix.lat_deg, fix.lon_deg, b.quality, cfg.n_sats, cfg.hdop,
+                        fix.alt_m, None, b.age, b.station, b.quality >= 1,
+                    )
+                )  # fmt: skip
+            elif kind == "GNS":
+                mode = b.mode * _GNS_CONSTELLATIONS
+                out.append(
+                    nmea_codec.Gns(
+                        cfg.talker, b.seconds, fix.lat_deg, fix.lon_deg, mode, cfg.n_sats, cfg.hdop,
+                        fix.alt_m, None, b.age, b.station, None, mode.strip("N") != "",
+                    )
+                )  # fmt: skip
+            elif kind == "GST":
+                out.append(
+                    nmea_codec.Gst(
+                        cfg.talker, b.seconds, sigma, sigma, sigma, 0.0, sigma, sigma,
+                        VERTICAL_SIGMA_FACTOR * sigma,
+                    )
+                )  # fmt: skip
+            else:
+                out.append(None)  # RMC, VTG, ZDA: counted by a gateway, not used
+        return out
+
+    def _sentences(self, fix: _Fix, t: float) -> list[str]:
+        cfg = self.config
+        b = self._burst(t)
+        utc, quality, mode, age, station = b.utc, b.quality, b.mode, b.age, b.station
+        sigma = cfg.sigma_m
+        out = []
+        for kind in b.kinds:
             if kind == "GGA":
                 text = nmea.gga(
                     cfg.talker,
@@ -580,6 +676,8 @@ class Gyro(Sensor):
         self.faults = faults if faults is not None else FaultSchedule()
         self._schedule = _Schedule(config.rate_hz, start)
         self._freeze = _Freezer()
+        self.encode = True
+        """False: emissions carry typed records instead of bytes (see `Emission.record`)."""
 
     def next_time(self) -> float:
         return self._schedule.next()
@@ -594,6 +692,11 @@ class Gyro(Sensor):
         heading, rate = self._freeze(self.faults.active("frozen", self.source, t), self._measure(state, t))
         cfg = self.config
         t_emit = t + cfg.latency_s
+        if not self.encode:
+            return [
+                Emission(t_emit, self.source, "nmea", b"", t, _heading_record(kind, cfg.talker, heading))
+                for kind in cfg.sentences
+            ]
         out = []
         for kind in cfg.sentences:
             if kind == "HDT":
@@ -623,6 +726,14 @@ class Gyro(Sensor):
         return ssa_scalar(heading), rate
 
 
+def _heading_record(kind: str, talker: str, heading: float) -> nmea_codec.Heading | None:
+    """A gyro sentence as a receiver decodes it: HDT, THS (mode A) and HDG (its variation added back:
+    true heading) carry the heading; ROT is not used by a DP gateway."""
+    if kind == "ROT":
+        return None
+    return nmea_codec.Heading(kind, talker, heading, True, "A" if kind == "THS" else None, False)  # type: ignore[arg-type]
+
+
 class ThrusterFeedback(Sensor):
     """A thruster controller's MAVLink link (see `ThrusterFeedbackConfig`): per thruster an
     ``AZIMUTH_THRUSTER_STATUS`` at ``rate_hz``, a ``HEARTBEAT`` at ``heartbeat_hz`` (both from ``start``), and
@@ -650,6 +761,9 @@ class ThrusterFeedback(Sensor):
         self._status = _Schedule(config.rate_hz, start)
         self._heartbeat = _Schedule(config.heartbeat_hz, start)
         self._freeze = _Freezer()
+        self.encode = True
+        """False: emissions carry typed records instead of bytes (see `Emission.record`); not with the
+        ArduPilot frames, whose meaning depends on the receiver's wiring."""
         self._esc_count = [0] * 32
         ardupilot = config.ardupilot_esc or config.ardupilot_servo
         d = mv.dialect()
@@ -673,6 +787,8 @@ class ThrusterFeedback(Sensor):
             self._status.advance_past(t)
         if self.faults.active("dropout", self.source, t):
             return []
+        if not self.encode:
+            return self._records(state, t, heartbeat, status)
         frames: list[bytes] = []
         if heartbeat:
             frames.append(
@@ -688,6 +804,28 @@ class ThrusterFeedback(Sensor):
             frames += self._status_frames(readings, t)
         t_emit = t + self.config.latency_s
         return [Emission(t_emit, self.source, "mavlink", frame, t) for frame in frames]
+
+    def _records(self, state: ShipState, t: float, heartbeat: bool, status: bool) -> list[Emission]:
+        """The frames of `sample` as a receiver decodes them (`Emission.record`): a heartbeat carries no
+        report, a status one `ThrusterReport` with thrust, azimuth and rpm unrounded (float32 on the wire)."""
+        if self.config.ardupilot_esc or self.config.ardupilot_servo:
+            raise ValueError(
+                "ThrusterFeedback: typed records need the dpgw dialect only (no ArduPilot frames)"
+            )
+        t_emit = t + self.config.latency_s
+        out = [Emission(t_emit, self.source, "mavlink", b"", t, ())] if heartbeat else []
+        if status:
+            readings = self._freeze(self.faults.active("frozen", self.source, t), state.thrusters)
+            for reading in readings:
+                thrust, rpm, azimuth = reading.thrust_n, reading.rpm, reading.azimuth_rad
+                bogus = self.faults.active("bogus_feedback", str(reading.id), t)
+                if bogus is not None:
+                    thrust = bogus.param("thrust_n", thrust)
+                    rpm = bogus.param("rpm", rpm)
+                    azimuth = bogus.param("azimuth_rad", azimuth)
+                report = mv.ThrusterReport(reading.id, float(thrust), float(azimuth), float(rpm))
+                out.append(Emission(t_emit, self.source, "mavlink", b"", t, (report,)))
+        return out
 
     def _status_frames(self, readings: tuple[ThrusterReading, ...], t: float) -> list[bytes]:
         time_usec = self.epoch.stamp_ns(t) // 1000

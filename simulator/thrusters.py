@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-from observers.kinematics import ssa, ssa_jit
+from observers.kinematics import ssa, ssa_jit, ssa_scalar
 from observers.vessel import VesselModel
 
 Array = NDArray[np.float64]
@@ -61,7 +61,7 @@ class ThrusterBank:
         i = self.index(thruster_id)
         self.thrust_setpoint[i] = min(max(thrust_n, self.min_thrust[i]), self.max_thrust[i])
         if angle_rad is not None and self.is_azimuth[i]:
-            self.angle_setpoint[i] = float(ssa(angle_rad))
+            self.angle_setpoint[i] = ssa_scalar(float(angle_rad))  # (= ssa, bit for bit; no array)
 
     def step(self, h: float) -> None:
         _step(h, self.thrust, self.angle, self.thrust_setpoint, self.angle_setpoint, self.failed,

@@ -20,6 +20,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
+from observers.kinematics import ssa_scalar as ssa
 from wire.codecs import mavlink as mv
 from wire.codecs import nmea_encode as nmea
 
@@ -377,6 +378,43 @@ def test_azimuth_status_round_trips(
     assert msg.azimuth == f32(wrapped)
     assert abs(math.remainder(msg.azimuth - azimuth, 2 * math.pi)) < 1e-6
     assert abs(math.remainder(msg.azimuth_setpoint - extra[1], 2 * math.pi)) < 1e-5 * max(1.0, abs(extra[1]))
+
+
+@given(
+    time_usec=st.integers(min_value=0, max_value=2**64 - 1),
+    tid=st.integers(min_value=0, max_value=255),
+    values=st.lists(st.one_of(finite32, st.just(0.0), st.just(math.nan)), min_size=6, max_size=6),
+    flags=st.integers(min_value=0, max_value=2**32 - 1) | st.just(0),
+    fault=st.integers(min_value=0, max_value=2**16 - 1) | st.just(0),
+    seq=st.integers(min_value=0, max_value=255),
+)
+def test_azimuth_status_fast_packing_gives_the_librarys_bytes(
+    time_usec: int, tid: int, values: list[float], flags: int, fault: int, seq: int
+) -> None:
+    """The status frame is packed without pymavlink's message object; the bytes, the sequence number and
+    the link counters are what the library's own packing gives (trailing zero bytes dropped, one kept)."""
+    fast, slow = mv.encoder(7, 42), mv.encoder(7, 42)
+    fast.seq = slow.seq = seq
+    thrust, rpm, azimuth, setpoint, az_setpoint, power = values
+    args = (time_usec, tid, thrust, rpm, azimuth, flags)
+    kwargs = {"thrust_setpoint_n": setpoint, "azimuth_setpoint_rad": az_setpoint, "power_w": power}
+    frame = mv.azimuth_status_frame(fast, *args, fault_code=fault, **kwargs)  # type: ignore[arg-type]
+    msg = mv.dialect().MAVLink_azimuth_thruster_status_message(
+        time_usec=time_usec, id=tid, thrust=thrust, rpm=rpm, azimuth=ssa(azimuth), flags=flags,
+        thrust_setpoint=setpoint, azimuth_setpoint=ssa(az_setpoint), azimuth_rate=math.nan, power=power,
+        fault_code=fault,
+    )  # fmt: skip
+    assert frame == mv.pack(slow, msg)
+    assert (fast.seq, fast.total_packets_sent, fast.total_bytes_sent) == (
+        slow.seq,
+        slow.total_packets_sent,
+        slow.total_bytes_sent,
+    )
+    signed = mv.encoder(7, 42)
+    mv.setup_signing(signed, bytes(32), initial_timestamp=1)  # signing: the library packs
+    signed_frame = mv.azimuth_status_frame(signed, *args, fault_code=fault, **kwargs)  # type: ignore[arg-type]
+    assert signed_frame[2] & 1 and len(signed_frame) == len(frame) + 13  # the signed flag and signature
+    assert decode_one(signed_frame).id == tid
 
 
 def test_azimuth_status_defaults_are_nan_and_flags_enum_matches_xml() -> None:

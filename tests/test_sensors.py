@@ -760,3 +760,15 @@ def test_sensors_satisfy_the_runner_protocol() -> None:
     for sensor in (dgps(), gyro(), feedback()):
         assert isinstance(sensor, Sensor) and sensor.next_time() == 0.0
     assert dgps().source == "dgps1" and gyro().source == "gyro1" and feedback().source == "thrusters"
+
+
+def test_the_simulators_unchecked_constructors_make_the_same_objects() -> None:
+    """`ShipState.trusted` and `ThrusterReading.trusted` (the runner's, without the checks) give what the
+    checked constructors give for valid input."""
+    values = (3, "azimuth", 1.5e4, -0.3, 120.0, 2e4, -0.2, False, 5e3)
+    assert ThrusterReading.trusted(*values) == ThrusterReading(*values)
+    eta, nu = np.array([1.0, 2.0, 0.5]), np.array([0.1, 0.0, 0.01])
+    reading = ThrusterReading(*values)
+    made, checked = ShipState.trusted(4.0, eta, nu, (reading,)), ShipState(4.0, eta, nu, (reading,))
+    assert made.t == checked.t and made.thrusters == checked.thrusters
+    assert np.array_equal(made.eta, checked.eta) and np.array_equal(made.nu, checked.nu)

@@ -19,6 +19,7 @@ byte for byte.
 from __future__ import annotations
 
 import struct
+from itertools import chain
 from typing import Any
 
 from mcap.records import MessageIndex
@@ -40,7 +41,7 @@ class _MessageIndex(MessageIndex):
         stream.write(
             _INDEX_HEAD.pack(_MESSAGE_INDEX_OPCODE, 6 + 16 * len(records), self.channel_id, 16 * len(records))
         )
-        stream.write(struct.pack(f"<{2 * len(records)}Q", *[v for pair in records for v in pair]))
+        stream.write(struct.pack(f"<{2 * len(records)}Q", *chain.from_iterable(records)))
 
 
 class FastWriter(Writer):
