@@ -219,7 +219,7 @@ class Fusion:
         """A reference-point fix (local NED) that passed its source's tests; ``weight`` its pooling weight
         (inverse variance). Returns True if it is in use."""
         held = Held(north, rx_ns, source, priority, valid_ns)
-        self._pos[source] = (held, east, quality, weight, held._replace(value=east))
+        self._pos[source] = (held, east, quality, weight, Held(east, rx_ns, source, priority, valid_ns))
         self._pool_position(rx_ns)
         return source in self._position_sources
 

@@ -248,7 +248,8 @@ class Pipeline:
         )
         self._events: list[str] = []  # reference state changes not yet in a status
         self._last_est: Estimate | None = None
-        self._pred_base: tuple[Estimate, list[float], list[float], list[float]] | None = None
+        # the last estimate as floats for `_prediction`: (estimate, eta, nu, eta_wf, cos ψ, sin ψ)
+        self._pred_base: tuple[Estimate, list[float], list[float], list[float], float, float] | None = None
         self._last_est_ns = 0
         self._measured_ns = [0, 0, 0]  # when each DOF last went into the observer with a measurement
         self._last_step_ns = 0
@@ -465,7 +466,8 @@ class Pipeline:
         ned = self.fusion.reference_position(rx_ns, lat, lon, spec.lever_arm_m)
         if ned is None:
             return False  # a lever arm without a heading of the same cycle cannot be compensated
-        out.extend(self._location_fix(spec.name, rx_ns, lat, lon))
+        if rx_ns - self._last_fix_ns.get(spec.name, -FIX_PERIOD_NS) >= FIX_PERIOD_NS:  # (at most 1 Hz)
+            out.extend(self._location_fix(spec.name, rx_ns, lat, lon))
         pred = self._prediction(rx_ns, 0)
         if self.monitor.position(spec.name, rx_ns, ned[0], ned[1], quality, pred):
             weight = self.monitor.weight("position", spec.name)
@@ -499,15 +501,16 @@ class Pipeline:
             return None
         dt = (now_ns - self._last_est_ns) / NS
         age = (now_ns - self._measured_ns[dof]) / NS
-        if self._pred_base is None or self._pred_base[0] is not est:
+        base = self._pred_base
+        if base is None or base[0] is not est:
             # the estimate as plain floats, once per estimate (NaN wave motion counts as none): this runs
             # for every fix and heading, and numpy's per-element arithmetic cost more than the test itself
             wf = [x if x == x else 0.0 for x in est.eta_wf.tolist()]
-            self._pred_base = (est, est.eta.tolist(), est.nu.tolist(), wf)
-        _, eta, nu, wf = self._pred_base
+            eta = est.eta.tolist()
+            base = self._pred_base = (est, eta, est.nu.tolist(), wf, math.cos(eta[2]), math.sin(eta[2]))
+        _, eta, nu, wf, c, s = base
         if dof == 2:
             return Prediction((ssa_scalar(eta[2] + wf[2] + nu[2] * dt),), age)
-        c, s = math.cos(eta[2]), math.sin(eta[2])
         u, v = nu[0], nu[1]
         n = eta[0] + wf[0] + (c * u - s * v) * dt
         e = eta[1] + wf[1] + (s * u + c * v) * dt
@@ -612,6 +615,7 @@ class Pipeline:
         for k in range(3):
             if valid[k]:
                 self._measured_ns[k] = now_ns
+        names = (fusion.position_sources if valid[0] else ()) + (fusion.heading_sources if valid[2] else ())
         out = [
             Output(
                 "/dp/measurement",
@@ -619,12 +623,9 @@ class Pipeline:
                     stamp_ns=now_ns,
                     eta=[None if v != v else v for v in y.tolist()],  # NaN (stale) -> null
                     valid=valid,
-                    sources=sorted(
-                        set(self.fusion.position_sources if valid[0] else ())
-                        | set(self.fusion.heading_sources if valid[2] else ())
-                    ),
-                    quality=self.fusion.quality,
-                    sigma_m=self.fusion.position_sigma_m(now_ns),
+                    sources=_source_names(names),
+                    quality=fusion.quality,
+                    sigma_m=fusion.position_sigma_m(now_ns),
                     tau=tau.tolist(),
                     tau_source=tau_source,
                 ),
@@ -813,12 +814,17 @@ class Pipeline:
     def _health(self, now_ns: int, valid: list[bool]) -> list[str]:
         """Per DOF: ok / degraded (some references usable, not all ok) / dead_reckoning / lost."""
         out = []
-        for k, role in ((0, "position"), (1, "position"), (2, "heading")):
+        position: str | None = None  # (asked once for both position DOFs)
+        for k in range(3):
             if not valid[k]:
                 measured = self._measured_ns[k]
                 out.append("lost" if measured and now_ns - measured > self._lost_ns else "dead_reckoning")
+            elif k < 2:
+                if position is None:
+                    position = "ok" if self.monitor.health("position") == "ok" else "degraded"
+                out.append(position)
             else:
-                out.append("ok" if self.monitor.health(role) == "ok" else "degraded")
+                out.append("ok" if self.monitor.health("heading") == "ok" else "degraded")
         return out
 
     def _location_fix(self, source: str, rx_ns: int, lat: float, lon: float) -> list[Output]:
@@ -905,6 +911,15 @@ def _sender_key(peer: str, per_sender: Mapping[tuple[str, str], object], source:
     if sum(1 for name, _ in per_sender if name == source) < MAX_SENDERS:
         return peer
     return "*"
+
+
+def _source_names(names: tuple[str, ...]) -> list[str]:
+    """The distinct names, sorted (one or two of them, usually the same: the cheap cases first)."""
+    if len(names) < 2:
+        return list(names)
+    if len(names) == 2 and names[0] == names[1]:
+        return [names[0]]
+    return sorted(set(names))
 
 
 def _location_fix_message(stamp_ns: int, frame_id: str, lat: float, lon: float) -> LocationFix:
