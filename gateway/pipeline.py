@@ -427,15 +427,15 @@ class Pipeline:
                     framed.append(frame.text)
             verified = False
         updated = False
+        decode, reject, unused = nmea_codec.decode, nmea_codec.Reject, nmea_codec.UNUSED
+        require = not spec.allow_missing_checksum
         for text in texts:
-            s = nmea_codec.decode(
-                text, require_checksum=not spec.allow_missing_checksum, only=USED_NMEA, verified=verified
-            )
-            if isinstance(s, nmea_codec.Reject):
-                c.rejected[s.reason] += 1
+            s = decode(text, require_checksum=require, only=USED_NMEA, verified=verified)
+            if type(s) is reject:
+                c.rejected[s.reason] += 1  # type: ignore[union-attr]  # (a Reject)
                 continue
             c.received += 1
-            if s is not nmea_codec.UNUSED:
+            if s is not unused:
                 updated |= self._use_nmea(spec, ev.rx_ns, s, out)
         return updated
 

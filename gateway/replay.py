@@ -381,43 +381,46 @@ def run_replay(
     frozen = gc.get_freeze_count()
     protocols = {name: spec.protocol for name, spec in pipeline.sources.items()}
     estimates = result.estimates
+    collected = result.collected
+    feed = pipeline.feed
+    events = sentences = outputs_n = 0  # (locals in the loop, into `result` at the end)
     for ev in merged_events(inputs):
-        result.events += 1
-        if frozen == 0 and result.events % GC_FREEZE_EVERY == 0:
+        events += 1
+        if frozen == 0 and events % GC_FREEZE_EVERY == 0:
             # Everything alive now (the outputs kept in `collect`, the pipeline) is long-lived: take it out
             # of the garbage collector's passes, which otherwise re-traverse it and grow with the log
             # (2.3-3.1 s instead of 1.9 s for an hour of 10 Hz data when estimates are collected).
             gc.freeze()
-        raw: tuple[str, bytes, int, Any] | None = None
+        records: list[tuple[str, bytes, int, Any]] = []
         if isinstance(ev, RawEvent):
             protocol = protocols.get(ev.source, "nmea")
             # NMEA: lines (every event ends with its line end; a first line that is a sentence's tail
             # counts too); MAVLink: one frame per event
-            result.sentences += ev.data.count(b"\n") if protocol == "nmea" else 1
+            sentences += ev.data.count(b"\n") if protocol == "nmea" else 1
             if out is not None:
                 if protocol == "nmea":
-                    raw = (*raw_nmea_record(ev.source, ev.data), ev.rx_ns, RawNmea)
+                    records.append((*raw_nmea_record(ev.source, ev.data), ev.rx_ns, RawNmea))
                 else:
-                    raw = (*raw_mavlink_record(ev.source, ev.data), ev.rx_ns, RawMavlink)
-        outputs = pipeline.feed(ev)
-        if out is not None:
-            # the cycle's raw input, then its outputs, in one call (the order `write` would give)
-            records = [] if raw is None else [raw]
-            records.extend((o.topic, o.message.encode(), o.stamp_ns, type(o.message)) for o in outputs)
-            out.write_many(records)
+                    records.append((*raw_mavlink_record(ev.source, ev.data), ev.rx_ns, RawMavlink))
+        outputs = feed(ev)
         for o in outputs:
-            if o.topic in wanted:
-                result.collected[o.topic].append(o.payload)
             msg = o.message
+            if out is not None:
+                records.append((o.topic, msg.encode(), o.stamp_ns, type(msg)))
+            if wanted and o.topic in wanted:
+                collected[o.topic].append(o.payload)
             if isinstance(msg, Estimate):
                 estimates[msg.observer] += 1
-        result.outputs += len(outputs)
+        if out is not None:
+            out.write_many(records)  # the cycle's raw input, then its outputs: the order `write` would give
+        outputs_n += len(outputs)
         if on_outputs is not None:
             on_outputs(ev, outputs)
-        if progress is not None and result.events % 2000 == 0:
-            progress(result.events)
+        if progress is not None and events % 2000 == 0:
+            progress(events)
+    result.events, result.sentences, result.outputs = events, sentences, outputs_n
     if progress is not None:
-        progress(result.events)  # the bar ends at the true count
+        progress(events)  # the bar ends at the true count
     if frozen == 0 and gc.get_freeze_count():  # (a caller's own frozen objects are left alone)
         gc.unfreeze()  # (back to normal collection; anything cyclic frozen meanwhile is collected later)
     now = pipeline.last_ns
