@@ -332,6 +332,8 @@ class Pipeline:
             role: {s.name for s in spec.sources if s.priority > best}
             for role, best in self._best_priority.items()
         }
+        # a backup source matters only when the best-ranked one is preferred (pooling by weight uses all)
+        self._backup_used = self._backup if spec.integrity.pooling == "priority" else {}
 
     @staticmethod
     def _mavlink_parser(s: SourceSpec) -> mv.FrameParser:
@@ -788,8 +790,7 @@ class Pipeline:
             lat, lon = datum.to_lat_lon(eta[0], eta[1])
         health: list[str] = [] if valid is None else self._health(now_ns, valid)
         status = est.status
-        # a backup source matters only when the best-ranked one is preferred (pooling by weight uses all)
-        backup = self._backup if self.spec.integrity.pooling == "priority" else {}
+        backup = self._backup_used
         if "lost" in health:
             status = "lost"
         elif status == "ok" and (

@@ -67,6 +67,7 @@ class _Ref:
     track: Track
     timeout_ns: int
     limits: _Limits
+    alone: bool = False  # the only source of its role (set once the sources are known)
 
 
 class ReferenceMonitor:
@@ -118,6 +119,9 @@ class ReferenceMonitor:
             },
         }
         self._feedback = {n: SourceState(n, "thrusters", readmit) for n in (feedback or {})}
+        for refs in self._refs.values():
+            for r in refs.values():
+                r.alone = len(refs) == 1
         # flat lists for what runs on every event: staleness, state changes, health
         self._all_refs = [r for refs in self._refs.values() for r in refs.values()]
         self._all_states = [r.state for r in self._all_refs] + list(self._feedback.values())
@@ -173,7 +177,7 @@ class ReferenceMonitor:
                 st.fail(now_ns, f"jump: moved {fmt(moved, lim)} in {dt:.2g} s (limit {fmt(limit, lim)})")
                 return False
         tr.observe(now_ns, v)
-        frozen = tr.frozen_s(now_ns)
+        frozen = (now_ns - tr.same_since) / NS  # (`Track.frozen_s`, inline: the track has a value now)
         if frozen >= lim.freeze_s:
             st.fail(now_ns, f"frozen: the same value for {frozen:.1f} s")
             return False
@@ -191,9 +195,12 @@ class ReferenceMonitor:
                     f"prediction: {fmt(innov, lim)} from the estimate's prediction (gate {fmt(limit, lim)})",
                 )
                 return False
-        if not self._vote(ref, role, now_ns, lim):
+        if ref.alone:  # `_vote` with nothing to vote with (inline: one source per role is the common case)
+            if tr.smooth is not None and now_ns - tr.smooth_ns <= ref.timeout_ns:
+                st.soft(now_ns, "")
+        elif not self._vote(ref, role, now_ns, lim):
             return False
-        tr.accept(now_ns, v)
+        tr.good, tr.good_ns = v, now_ns  # (`Track.accept`)
         st.passed(now_ns)
         return True
 
