@@ -128,7 +128,8 @@ def main() -> None:
         return
     print(
         f"replay of {args.hours:g} h of 10 Hz NMEA ({result.sentences:,} sentences, {result.events:,} "
-        f"cycles, {result.sentences / result.events:.1f} a cycle; {r['us_per_cycle']:.1f} µs a cycle end to end)"
+        f"cycles, {result.sentences / result.events:.1f} a cycle; "
+        f"{r['us_per_cycle']:.1f} µs a cycle end to end)"
     )
     rows = [
         ("end to end as dpgw replay runs it", rate, "  (target >= 100,000)"),
