@@ -9,22 +9,23 @@ under a minute. The log is made by the simulator (torsetnes_2004, 10 Hz DGPS: GG
 - framing + decoding alone with the line-by-line framer and decoder (what every sentence cost before the
   compiled line scan, `wire.codecs.nmea_scan`).
 
-The generated log always goes through the compiled scan (the path `dpgw replay` takes for logs of 8 MiB
-and more), so figures compare across versions. Then the real sea-trial logs (a USV's GGA/RMC/VTG/HDT at
-5 Hz, ``shared/data/usv-nmea`` in the folder that holds the checkout; skipped without them), each end
-to end with MCAP output by the path `dpgw replay` picks for its size, beside pynmea2 merely parsing the
-same lines (``pynmea2.parse`` per line: the target ratio is >= 1).
+The generated log always goes through the compiled scan (the path `dpgw replay` takes for logs from
+`gateway.replay.FAST_SCAN_MIN_BYTES` on), so figures compare across versions. Then the real sea-trial logs
+(a USV's GGA/RMC/VTG/HDT at 5 Hz, ``shared/data/usv-nmea`` in the folder that holds the checkout; skipped
+without them), each end to end with MCAP output by the path `dpgw replay` picks for its size and by the
+line-by-line reader, beside pynmea2 merely parsing the same lines (``pynmea2.parse`` per line: the
+target ratio is >= 1).
 
 Why the real logs run at fewer sentences per second than the generated one: not the sentences but the
 cycles. Replay's cost is per cycle (one event, one observer step, ~3.4 outputs written), and a real
 USV cycle is 4 sentences (GGA, RMC, VTG, HDT: both the fix and the heading used in every cycle) against
 5.2 in the generated log (GGA, RMC, VTG, HDT, ROT, and GST/ZDA once a second), so the same ~60 µs a
-cycle is 67,000 sentences/s there and 87,000 here; each log's µs per cycle is printed beside it. Logs
-under 8 MiB are read by the line-by-line reader (`dpgw replay` picks it: loading the compiled line scan
-costs ~0.3 s once per process), which leaves framing and checksums to the pipeline: ~25 µs more a cycle.
-A process also pays a fixed ~0.3 s the first time it calls any numba kernel (the observer's), which on a
-13,000-line log was most of the run from the command line; the figures here are warm (a first round is
-run and not counted).
+cycle is 67,000 sentences/s there and 87,000 here; each log's µs per cycle is printed beside it. The
+line-by-line reader leaves framing and checksums to the pipeline: ~25 µs more a cycle, which is why logs
+from 64 KiB on now take the compiled scan (its first call costs 6-8 ms beyond numba's start-up; it used
+to cost ~0.3 s, and logs under 8 MiB were read line by line). A process also pays a fixed ~0.25 s the
+first time it calls any numba kernel, which on a 13,000-line log was most of the run from the command
+line; the figures here are warm (a first round is run and not counted).
 
     python bench/bench_replay.py [--hours 1] [--repeat 2] [--json]
 """
@@ -88,7 +89,7 @@ def main() -> None:
         decode_rate = n / (time.perf_counter() - t0)
         # end to end and without output, alternating (best of `repeat`: the machine is shared)
         inputs = open_inputs([log])
-        inputs[0].fast_scan = True  # the compiled scan, as for every log of 8 MiB and more
+        inputs[0].fast_scan = True  # the compiled scan, as for every log from FAST_SCAN_MIN_BYTES on
         config = build_config(inputs, vessel="mss_supply")
         warm = build_pipeline(config, [ObserverSpec("passive", "passive", {})])
         warm.observer.step(0.0, [0.0, 0.0, 0.0])  # compile outside the timed run
@@ -160,7 +161,7 @@ def real_logs(repeat: int) -> dict[str, dict[str, float | int | str]]:
     for path, scan in [
         (p, scan)
         for p in (sorted(REAL_LOGS.glob("*.txt")) if REAL_LOGS.is_dir() else [])
-        for scan in (None, True)
+        for scan in (None, False)  # the path `dpgw replay` picks by size, and the line reader
     ]:
         inputs = open_inputs([path])
         inputs[0].fast_scan = scan
@@ -186,7 +187,7 @@ def real_logs(repeat: int) -> dict[str, dict[str, float | int | str]]:
         assert result is not None
         rate = result.sentences / walls["replay"]
         rate_p = len(lines) / walls["pynmea2"]
-        scan = inputs[0].fast_scan or path.stat().st_size >= FAST_SCAN_MIN_BYTES
+        scan = scan if scan is not None else path.stat().st_size >= FAST_SCAN_MIN_BYTES
         out[path.name + (" (compiled scan)" if scan else "")] = {
             "sentences": result.sentences,
             "cycles": result.events,

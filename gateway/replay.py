@@ -123,13 +123,14 @@ def truth_records(path: str | Path) -> list[dict[str, Any]]:
     return [p for _, _, _, p in read_messages(path, "/truth/state")]
 
 
-FAST_SCAN_MIN_BYTES = 8 * 1024 * 1024
+FAST_SCAN_MIN_BYTES = 64 * 1024
 """NMEA text logs from this size on go through the compiled line scan (`wire.codecs.nmea_scan`); smaller
 ones through the line-by-line reader. The two give the same events and counts (tests/test_replay.py);
-they differ in cost. Loading the compiled scan from numba's cache takes about 0.3 s, once per process,
-and then saves about 3 µs a line, so it pays from roughly 100,000 lines (about 4-5 MB of NMEA) on; below
-that the fixed cost dominated: a 13,000-line sea-trial log replayed at a quarter of the rate of a long
-generated one (measured with bench/bench_replay.py, which reports both)."""
+they differ in cost. The scan saves about 25 µs a cycle (the pipeline then neither frames nor checksums
+the lines), and its own first call costs 6-8 ms once per process beyond numba's start-up (~0.25 s, which
+the observer's kernel pays anyway, whichever runs first); it pays from roughly 300 cycles, about 70 KB of
+NMEA. (It was 8 MiB while loading the scan cost ~0.3 s of its own; measured with bench/bench_replay.py,
+which reports both readers on the real logs.)"""
 
 
 @dataclass
