@@ -434,7 +434,7 @@ class Pipeline:
         for text in texts:
             s = decode(text, require_checksum=require, only=USED_NMEA, verified=verified)
             if type(s) is reject:
-                c.rejected[s.reason] += 1  # type: ignore[union-attr]  # (a Reject)
+                c.rejected[s.reason] += 1  # (a Reject)
                 continue
             c.received += 1
             if s is not unused:
