@@ -71,6 +71,12 @@ def main() -> None:
     ap.add_argument("--hours", type=float, default=1.0)
     ap.add_argument("--repeat", type=int, default=2, help="runs of each variant; the best is reported (2)")
     ap.add_argument("--json", action="store_true")
+    ap.add_argument(
+        "--real-logs",
+        type=Path,
+        default=REAL_LOGS,
+        help="folder of real NMEA text logs (*.txt) (default: shared/data/usv-nmea beside the checkout)",
+    )
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as folder:
         log = os.path.join(folder, "trial.nmea")
@@ -126,7 +132,7 @@ def main() -> None:
         "end_to_end_over_decode": rate / decode_rate,
         "day_at_10_hz_seconds": 24 * result.sentences / args.hours / rate,
     }
-    r["real_logs"] = real_logs(args.repeat)
+    r["real_logs"] = real_logs(args.repeat, args.real_logs)
     if args.json:
         print(json.dumps(r, indent=2))
         return
@@ -159,13 +165,13 @@ def main() -> None:
 REAL_LOGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "usv-nmea"
 
 
-def real_logs(repeat: int) -> dict[str, dict[str, float | int | str]]:
+def real_logs(repeat: int, folder: Path = REAL_LOGS) -> dict[str, dict[str, float | int | str]]:
     """Each real log end to end (MCAP output, the path `dpgw replay` picks) beside pynmea2 parsing the
     same lines; best of ``repeat`` after one warm-up run (the fixed start-up cost is in the docstring)."""
     out: dict[str, dict[str, float | int | str]] = {}
     for path, scan in [
         (p, scan)
-        for p in (sorted(REAL_LOGS.glob("*.txt")) if REAL_LOGS.is_dir() else [])
+        for p in (sorted(folder.glob("*.txt")) if folder.is_dir() else [])
         for scan in (None, False)  # the path `dpgw replay` picks by size, and the line reader
     ]:
         inputs = open_inputs([path])
@@ -174,11 +180,11 @@ def real_logs(repeat: int) -> dict[str, dict[str, float | int | str]]:
         lines = [line for line in path.read_text(encoding="ascii", errors="replace").splitlines() if line]
         walls = {k: math.inf for k in ("replay", "pynmea2", "cpu_replay", "cpu_pynmea2")}
         result = None
-        with tempfile.TemporaryDirectory() as folder:
+        with tempfile.TemporaryDirectory() as tmp:
             for k in range(repeat + 1):  # the first round warms up (numba, caches) and is not counted
                 pipeline = build_pipeline(config, [ObserverSpec("passive", "passive", {})])
                 t0, c0 = time.perf_counter(), time.process_time()
-                with McapLogWriter(os.path.join(folder, "out.mcap"), flush_on_log_time=False) as w:
+                with McapLogWriter(os.path.join(tmp, "out.mcap"), flush_on_log_time=False) as w:
                     result = run_replay(inputs, pipeline, out=w)
                 wall, cpu = time.perf_counter() - t0, time.process_time() - c0
                 t0, c0 = time.perf_counter(), time.process_time()
