@@ -50,9 +50,9 @@ FEEDBACK_TIMEOUT_NS = 2 * NS
 """Thruster feedback older than this is not used for τ (the demand is, as without feedback)."""
 
 
-@dataclass(frozen=True, slots=True)
-class Held:
-    """A held measurement: value, when it was received, which source, and how long it stays valid."""
+class Held(NamedTuple):
+    """A held measurement: value, when it was received, which source, and how long it stays valid.
+    (A NamedTuple: several are made per fix, and a frozen dataclass costs 3-4x as much to build.)"""
 
     value: float = math.nan
     rx_ns: int = 0
@@ -102,7 +102,8 @@ class Fusion:
         self._east = Held()
         self._heading = Held()
         self.pooling = pooling  # "weighted" (inverse variance) or "priority" (best-ranked fresh source)
-        self._pos: dict[str, tuple[Held, float, int, float]] = {}  # source -> (north, east, quality, weight)
+        # source -> (north, east, quality, weight, east as a Held)
+        self._pos: dict[str, tuple[Held, float, int, float, Held]] = {}
         self._hdg: dict[str, tuple[Held, float]] = {}  # source -> (heading, weight)
         self._position_sources: tuple[str, ...] = ()
         self._heading_sources: tuple[str, ...] = ()
@@ -217,7 +218,8 @@ class Fusion:
     ) -> bool:
         """A reference-point fix (local NED) that passed its source's tests; ``weight`` its pooling weight
         (inverse variance). Returns True if it is in use."""
-        self._pos[source] = (Held(north, rx_ns, source, priority, valid_ns), east, quality, weight)
+        held = Held(north, rx_ns, source, priority, valid_ns)
+        self._pos[source] = (held, east, quality, weight, Held(east, rx_ns, source, priority, valid_ns))
         self._pool_position(rx_ns)
         return source in self._position_sources
 
@@ -255,6 +257,13 @@ class Fusion:
         return fresh
 
     def _pool_position(self, now_ns: int) -> None:
+        if len(self._pos) == 1:  # one source (the common case): its numbers, as the general path gives
+            (entry,) = self._pos.values()
+            held = entry[0]
+            if held.fresh(now_ns):
+                self._position_sources = (held.source,)
+                self._north, self._east, self._quality = held, entry[4], entry[2]
+                return
         fresh = self._fresh(self._pos, now_ns)
         if not fresh:
             self._position_sources = ()
@@ -275,6 +284,12 @@ class Fusion:
         self._quality = min(v[2] for v in use) if len(use) > 1 else use[0][2]
 
     def _pool_heading(self, now_ns: int) -> Held:
+        if len(self._hdg) == 1:  # one source (the common case): its heading, as the general path gives
+            (entry,) = self._hdg.values()
+            held = entry[0]
+            if held.fresh(now_ns):
+                self._heading_sources = (held.source,)
+                return held
         fresh = self._fresh(self._hdg, now_ns)
         if not fresh:
             self._heading_sources = ()

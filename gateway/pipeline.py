@@ -66,7 +66,7 @@ FIX_PERIOD_NS = 1_000_000_000
 """foxglove.LocationFix outputs at most once a second per source: a map track needs no more."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class RawEvent:
     """A chunk of bytes as received: UTC receive time (ns), source name, bytes.
 
@@ -93,6 +93,19 @@ class RawEvent:
     framing and decoding and does the rest exactly as for bytes; a record carries no MAVLink system or
     component id, so a source's ``system_id`` / ``component_id`` filter does not apply to it."""
 
+    def __init__(
+        self,
+        rx_ns: int,
+        source: str,
+        data: bytes,
+        checked: tuple[tuple[str, ...], int] | None = None,
+        peer: str = "",
+    ) -> None:
+        # Frozen like the generated __init__ makes it, but filled in directly: that one sets each field
+        # through object.__setattr__, 1.5 µs an event against 0.3 (replay makes one per cycle).
+        d = self.__dict__
+        d["rx_ns"], d["source"], d["data"], d["checked"], d["peer"] = rx_ns, source, data, checked, peer
+
 
 @dataclass(frozen=True)
 class ControlEvent:
@@ -103,7 +116,7 @@ class ControlEvent:
     payload: Any
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class Output:
     """Something to publish and/or log: MCAP topic (the Zenoh key is the prefix + the part after /dp) and
     the typed message (`wire.messages`: it encodes itself, once, for Zenoh and the log)."""
@@ -112,6 +125,11 @@ class Output:
     message: Message
     stamp_ns: int
     zenoh: bool = True
+
+    def __init__(self, topic: str, message: Message, stamp_ns: int, zenoh: bool = True) -> None:
+        # (filled in directly, as `RawEvent` is: three or four outputs per observer step)
+        d = self.__dict__
+        d["topic"], d["message"], d["stamp_ns"], d["zenoh"] = topic, message, stamp_ns, zenoh
 
     @cached_property
     def payload(self) -> dict[str, Any]:
@@ -254,7 +272,8 @@ class Pipeline:
         )
         self._events: list[str] = []  # reference state changes not yet in a status
         self._last_est: Estimate | None = None
-        self._pred_base: tuple[Estimate, list[float], list[float], list[float]] | None = None
+        # the last estimate as floats for `_prediction`: (estimate, eta, nu, eta_wf, cos ψ, sin ψ)
+        self._pred_base: tuple[Estimate, list[float], list[float], list[float], float, float] | None = None
         self._last_est_ns = 0
         self._measured_ns = [0, 0, 0]  # when each DOF last went into the observer with a measurement
         self._last_step_ns = 0
@@ -319,6 +338,8 @@ class Pipeline:
             role: {s.name for s in spec.sources if s.priority > best}
             for role, best in self._best_priority.items()
         }
+        # a backup source matters only when the best-ranked one is preferred (pooling by weight uses all)
+        self._backup_used = self._backup if spec.integrity.pooling == "priority" else {}
 
     @staticmethod
     def _mavlink_parser(s: SourceSpec) -> mv.FrameParser:
@@ -416,15 +437,15 @@ class Pipeline:
                     framed.append(frame.text)
             verified = False
         updated = False
+        decode, reject, unused = nmea_codec.decode, nmea_codec.Reject, nmea_codec.UNUSED
+        require = not spec.allow_missing_checksum
         for text in texts:
-            s = nmea_codec.decode(
-                text, require_checksum=not spec.allow_missing_checksum, only=USED_NMEA, verified=verified
-            )
-            if isinstance(s, nmea_codec.Reject):
-                c.rejected[s.reason] += 1
+            s = decode(text, require_checksum=require, only=USED_NMEA, verified=verified)
+            if type(s) is reject:
+                c.rejected[s.reason] += 1  # (a Reject)
                 continue
             c.received += 1
-            if s is not nmea_codec.UNUSED:
+            if s is not unused:
                 updated |= self._use_nmea(spec, ev.rx_ns, s, out)
         return updated
 
@@ -473,7 +494,8 @@ class Pipeline:
         ned = self.fusion.reference_position(rx_ns, lat, lon, spec.lever_arm_m)
         if ned is None:
             return False  # a lever arm without a heading of the same cycle cannot be compensated
-        out.extend(self._location_fix(spec.name, rx_ns, lat, lon))
+        if rx_ns - self._last_fix_ns.get(spec.name, -FIX_PERIOD_NS) >= FIX_PERIOD_NS:  # (at most 1 Hz)
+            out.extend(self._location_fix(spec.name, rx_ns, lat, lon))
         pred = self._prediction(rx_ns, 0)
         if self.monitor.position(spec.name, rx_ns, ned[0], ned[1], quality, pred):
             weight = self.monitor.weight("position", spec.name)
@@ -507,15 +529,16 @@ class Pipeline:
             return None
         dt = (now_ns - self._last_est_ns) / NS
         age = (now_ns - self._measured_ns[dof]) / NS
-        if self._pred_base is None or self._pred_base[0] is not est:
+        base = self._pred_base
+        if base is None or base[0] is not est:
             # the estimate as plain floats, once per estimate (NaN wave motion counts as none): this runs
             # for every fix and heading, and numpy's per-element arithmetic cost more than the test itself
             wf = [x if x == x else 0.0 for x in est.eta_wf.tolist()]
-            self._pred_base = (est, est.eta.tolist(), est.nu.tolist(), wf)
-        _, eta, nu, wf = self._pred_base
+            eta = est.eta.tolist()
+            base = self._pred_base = (est, eta, est.nu.tolist(), wf, math.cos(eta[2]), math.sin(eta[2]))
+        _, eta, nu, wf, c, s = base
         if dof == 2:
             return Prediction((ssa_scalar(eta[2] + wf[2] + nu[2] * dt),), age)
-        c, s = math.cos(eta[2]), math.sin(eta[2])
         u, v = nu[0], nu[1]
         n = eta[0] + wf[0] + (c * u - s * v) * dt
         e = eta[1] + wf[1] + (s * u + c * v) * dt
@@ -641,6 +664,7 @@ class Pipeline:
         for k in range(3):
             if valid[k]:
                 self._measured_ns[k] = now_ns
+        names = (fusion.position_sources if valid[0] else ()) + (fusion.heading_sources if valid[2] else ())
         out = [
             Output(
                 "/dp/measurement",
@@ -648,12 +672,9 @@ class Pipeline:
                     stamp_ns=now_ns,
                     eta=[None if v != v else v for v in y.tolist()],  # NaN (stale) -> null
                     valid=valid,
-                    sources=sorted(
-                        set(self.fusion.position_sources if valid[0] else ())
-                        | set(self.fusion.heading_sources if valid[2] else ())
-                    ),
-                    quality=self.fusion.quality,
-                    sigma_m=self.fusion.position_sigma_m(now_ns),
+                    sources=_source_names(names),
+                    quality=fusion.quality,
+                    sigma_m=fusion.position_sigma_m(now_ns),
                     tau=tau.tolist(),
                     tau_source=tau_source,
                 ),
@@ -798,8 +819,7 @@ class Pipeline:
             lat, lon = datum.to_lat_lon(eta[0], eta[1])
         health: list[str] = [] if valid is None else self._health(now_ns, valid)
         status = est.status
-        # a backup source matters only when the best-ranked one is preferred (pooling by weight uses all)
-        backup = self._backup if self.spec.integrity.pooling == "priority" else {}
+        backup = self._backup_used
         if "lost" in health:
             status = "lost"
         elif status == "ok" and (
@@ -842,12 +862,17 @@ class Pipeline:
     def _health(self, now_ns: int, valid: list[bool]) -> list[str]:
         """Per DOF: ok / degraded (some references usable, not all ok) / dead_reckoning / lost."""
         out = []
-        for k, role in ((0, "position"), (1, "position"), (2, "heading")):
+        position: str | None = None  # (asked once for both position DOFs)
+        for k in range(3):
             if not valid[k]:
                 measured = self._measured_ns[k]
                 out.append("lost" if measured and now_ns - measured > self._lost_ns else "dead_reckoning")
+            elif k < 2:
+                if position is None:
+                    position = "ok" if self.monitor.health("position") == "ok" else "degraded"
+                out.append(position)
             else:
-                out.append("ok" if self.monitor.health(role) == "ok" else "degraded")
+                out.append("ok" if self.monitor.health("heading") == "ok" else "degraded")
         return out
 
     def _location_fix(self, source: str, rx_ns: int, lat: float, lon: float) -> list[Output]:
@@ -934,6 +959,15 @@ def _sender_key(peer: str, per_sender: Mapping[tuple[str, str], object], source:
     if sum(1 for name, _ in per_sender if name == source) < MAX_SENDERS:
         return peer
     return "*"
+
+
+def _source_names(names: tuple[str, ...]) -> list[str]:
+    """The distinct names, sorted (one or two of them, usually the same: the cheap cases first)."""
+    if len(names) < 2:
+        return list(names)
+    if len(names) == 2 and names[0] == names[1]:
+        return [names[0]]
+    return sorted(set(names))
 
 
 def _location_fix_message(stamp_ns: int, frame_id: str, lat: float, lon: float) -> LocationFix:

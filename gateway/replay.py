@@ -35,8 +35,8 @@ from gateway.pipeline import USED_NMEA, ControlEvent, Output, Pipeline, Pipeline
 from observers.factory import OBSERVER_PARAMS, OBSERVER_TYPES, Observer, make_observer
 from observers.passive_tuning import PassiveTuning
 from wire.mcap.reader import read_messages
-from wire.mcap.writer import McapLogWriter
-from wire.messages import Estimate
+from wire.mcap.writer import McapLogWriter, raw_mavlink_record, raw_nmea_record
+from wire.messages import Estimate, RawMavlink, RawNmea
 
 CONFIG_METADATA = "dpgw.config"
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -123,13 +123,14 @@ def truth_records(path: str | Path) -> list[dict[str, Any]]:
     return [p for _, _, _, p in read_messages(path, "/truth/state")]
 
 
-FAST_SCAN_MIN_BYTES = 8 * 1024 * 1024
+FAST_SCAN_MIN_BYTES = 64 * 1024
 """NMEA text logs from this size on go through the compiled line scan (`wire.codecs.nmea_scan`); smaller
 ones through the line-by-line reader. The two give the same events and counts (tests/test_replay.py);
-they differ in cost. Loading the compiled scan from numba's cache takes about 0.3 s, once per process,
-and then saves about 3 µs a line, so it pays from roughly 100,000 lines (about 4-5 MB of NMEA) on; below
-that the fixed cost dominated: a 13,000-line sea-trial log replayed at a quarter of the rate of a long
-generated one (measured with bench/bench_replay.py, which reports both)."""
+they differ in cost. The scan saves about 25 µs a cycle (the pipeline then neither frames nor checksums
+the lines), and its own first call costs 6-8 ms once per process beyond numba's start-up (~0.25 s, which
+the observer's kernel pays anyway, whichever runs first); it pays from roughly 300 cycles, about 70 KB of
+NMEA. (It was 8 MiB while loading the scan cost ~0.3 s of its own; measured with bench/bench_replay.py,
+which reports both readers on the real logs.)"""
 
 
 @dataclass
@@ -379,39 +380,48 @@ def run_replay(
         for rec in result.truth:
             out.write("/truth/state", rec, rec["stamp_ns"], rec["stamp_ns"])
     frozen = gc.get_freeze_count()
+    protocols = {name: spec.protocol for name, spec in pipeline.sources.items()}
+    estimates = result.estimates
+    collected = result.collected
+    feed = pipeline.feed
+    events = sentences = outputs_n = 0  # (locals in the loop, into `result` at the end)
     for ev in merged_events(inputs):
-        result.events += 1
-        if frozen == 0 and result.events % GC_FREEZE_EVERY == 0:
+        events += 1
+        if frozen == 0 and events % GC_FREEZE_EVERY == 0:
             # Everything alive now (the outputs kept in `collect`, the pipeline) is long-lived: take it out
             # of the garbage collector's passes, which otherwise re-traverse it and grow with the log
             # (2.3-3.1 s instead of 1.9 s for an hour of 10 Hz data when estimates are collected).
             gc.freeze()
+        records: list[tuple[str, bytes, int, Any]] = []
         if isinstance(ev, RawEvent):
-            protocol = pipeline.sources[ev.source].protocol if ev.source in pipeline.sources else "nmea"
+            protocol = protocols.get(ev.source, "nmea")
             # NMEA: lines (every event ends with its line end; a first line that is a sentence's tail
             # counts too); MAVLink: one frame per event
-            result.sentences += ev.data.count(b"\n") if protocol == "nmea" else 1
+            sentences += ev.data.count(b"\n") if protocol == "nmea" else 1
             if out is not None:
                 if protocol == "nmea":
-                    out.write_raw_nmea(ev.source, ev.data, ev.rx_ns, ev.rx_ns)
+                    records.append((*raw_nmea_record(ev.source, ev.data), ev.rx_ns, RawNmea))
                 else:
-                    out.write_raw_mavlink(ev.source, ev.data, ev.rx_ns, ev.rx_ns)
-        outputs = pipeline.feed(ev)
+                    records.append((*raw_mavlink_record(ev.source, ev.data), ev.rx_ns, RawMavlink))
+        outputs = feed(ev)
         for o in outputs:
             msg = o.message
             if out is not None:
-                out.write_encoded(o.topic, msg.encode(), o.stamp_ns, o.stamp_ns, schema=type(msg))
-            if o.topic in wanted:
-                result.collected[o.topic].append(o.payload)
+                records.append((o.topic, msg.encode(), o.stamp_ns, type(msg)))
+            if wanted and o.topic in wanted:
+                collected[o.topic].append(o.payload)
             if isinstance(msg, Estimate):
-                result.estimates[msg.observer] += 1
-        result.outputs += len(outputs)
+                estimates[msg.observer] += 1
+        if out is not None:
+            out.write_many(records)  # the cycle's raw input, then its outputs: the order `write` would give
+        outputs_n += len(outputs)
         if on_outputs is not None:
             on_outputs(ev, outputs)
-        if progress is not None and result.events % 2000 == 0:
-            progress(result.events)
+        if progress is not None and events % 2000 == 0:
+            progress(events)
+    result.events, result.sentences, result.outputs = events, sentences, outputs_n
     if progress is not None:
-        progress(result.events)  # the bar ends at the true count
+        progress(events)  # the bar ends at the true count
     if frozen == 0 and gc.get_freeze_count():  # (a caller's own frozen objects are left alone)
         gc.unfreeze()  # (back to normal collection; anything cyclic frozen meanwhile is collected later)
     now = pipeline.last_ns

@@ -612,3 +612,42 @@ def test_fast_writer_writes_the_same_bytes_as_the_library(messages: list[Any]) -
     assert FastWriter(__import__("io").BytesIO()).fast  # the installed mcap has what the fast path needs
     assert fast == reference
     assert _write_with(FastWriter, messages, fast=False) == reference  # the fallback path too
+
+
+# --- write_many: a cycle's messages in one call ---------------------------------------------------------
+
+
+@pytest.mark.parametrize("rotate_bytes", [None, 6 * KIB])
+def test_write_many_writes_what_write_encoded_writes(tmp_path: Path, rotate_bytes: int | None) -> None:
+    """Replay hands each cycle's raw input and outputs to `write_many`: the files (and where they split on
+    rotation by size) must be those of one `write_encoded` call per message, byte for byte."""
+    from wire.mcap.writer import raw_nmea_record
+    from wire.messages import RawNmea
+
+    rng = np.random.default_rng(3)
+    cycles = []
+    for k in range(400):
+        t = T0 + k * 100_000_000
+        topic, raw = raw_nmea_record("gps", f"$GPHDT,{rng.uniform(0, 360):.3f},T*00\r\n".encode())
+        est = Estimate(
+            stamp_ns=t, observer="passive", status="ok", eta=rng.normal(size=3).tolist(), nu=[0.0] * 3,
+            bias=[0.0] * 3, eta_wf=[0.0] * 3, omega0=[0.8] * 3, lat_deg=None, lon_deg=None,
+            heading_deg=1.0, datum=None,
+        )  # fmt: skip
+        cycles.append([(topic, raw, t, RawNmea), ("/dp/estimate", est.encode(), t, Estimate)])
+    files = {}
+    for mode in ("one_by_one", "many"):
+        path = tmp_path / mode / "log.mcap"
+        path.parent.mkdir()
+        opts = {"flush_on_log_time": False, "background_flush": False, "flush_interval_s": 3600.0}
+        with McapLogWriter(path, chunk_size=4 * KIB, rotate_bytes=rotate_bytes, **opts) as w:
+            for records in cycles:
+                if mode == "many":
+                    w.write_many(records)
+                else:
+                    for topic, data, t, schema in records:
+                        w.write_encoded(topic, data, t, t, schema=schema)
+        files[mode] = [p.read_bytes() for p in w.paths]  # (finished files: after close)
+    assert len(files["many"]) == (1 if rotate_bytes is None else len(files["one_by_one"]))
+    assert rotate_bytes is None or len(files["many"]) > 1  # (the rotation case does rotate)
+    assert files["many"] == files["one_by_one"]

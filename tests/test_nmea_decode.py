@@ -1011,3 +1011,50 @@ def test_a_changed_character_is_a_reject_or_an_equal_reading(sample: str, at: in
         assert isinstance(result, Reject) and result.reason == BAD_CHECKSUM
     else:
         assert isinstance(result, Reject) or result == decode(text)
+
+
+# The GGA decoder is the generic layout walk unrolled (it runs for every DGPS cycle): the same sentence or
+# the same reject, for good fields, bad ones in every position, and too few or too many fields.
+_GGA_SAMPLES = [
+    "",
+    "032551.20",
+    "235960",
+    "2234.53863009",
+    "11431.56",
+    "N",
+    "S",
+    "E",
+    "W",
+    "x",
+    "4",
+    "0",
+    "9",
+    "10",
+    "21",
+    "0.7",
+    "-4.43",
+    "nan",
+    "inf",
+    "1e400",
+    "M",
+    "03",
+    "0000",
+    "-1",
+    "12a",
+    " 5",
+    "6061.0",
+]
+_GGA_FIELD = st.one_of(st.sampled_from(_GGA_SAMPLES), st.text(alphabet="0123456789.-+eENSWM ", max_size=12))
+_GOOD_GGA = "032551.20,2234.53863009,N,11431.56012939,E,4,21,0.7,-4.43,M,-1.37,M,03,0000"
+
+
+@settings(max_examples=400, deadline=None)
+@given(talker=st.sampled_from(["GP", "GN"]), fields=st.lists(_GGA_FIELD, min_size=0, max_size=17))
+@example(talker="GP", fields=_GOOD_GGA.split(","))
+@example(talker="GP", fields=[*_GOOD_GGA.split(",")[:6], "x"])
+def test_unrolled_gga_decoder_is_the_layout_walk(talker: str, fields: list[str]) -> None:
+    from wire.codecs.nmea import _gga, _gga_reference
+
+    fast, ref = _gga(talker, [f"{talker}GGA", *fields]), _gga_reference(talker, [f"{talker}GGA", *fields])
+    assert type(fast) is type(ref)
+    assert repr(fast) == repr(ref)  # every field (and a reject's reason) to the bit

@@ -305,7 +305,8 @@ def test_a_sentence_split_across_reads_replays_as_it_was_received(tmp_path: Path
 
 def test_small_text_logs_use_the_line_reader_and_large_ones_the_compiled_scan(tmp_path: Path) -> None:
     """The path depends on the size only (both give the same events and counts, tested above): a log
-    under FAST_SCAN_MIN_BYTES is read line by line (no 0.3 s kernel load), a larger one scanned."""
+    under FAST_SCAN_MIN_BYTES is read line by line (the scan's first call would cost more than it saves),
+    a larger one scanned."""
     from datetime import UTC, datetime, timedelta
 
     from gateway.replay import FAST_SCAN_MIN_BYTES, open_inputs

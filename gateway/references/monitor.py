@@ -14,12 +14,12 @@ import math
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, NamedTuple
 
 from gateway.references.feedback import feedback_problem
 from gateway.references.params import IntegrityParams
 from gateway.references.state import NS, OK, STALE, SourceState, StateChange
-from gateway.references.track import Track
+from gateway.references.track import AngleTrack, PlaneTrack, Track
 from gateway.references.voting import divergence, median_distance
 from observers.vessel import Thruster
 
@@ -35,13 +35,30 @@ GGA_QUALITY_NAMES = {
 DIVERGENCE_CLEAR = 0.8  # hysteresis: a divergence alarm clears below 80 % of its threshold
 
 
-@dataclass(frozen=True)
-class Prediction:
+class Prediction(NamedTuple):
     """Where the observer expects the next value (N, E) or (ψ,), and how long since the estimate last had
-    a measurement of that DOF (s): an old prediction is trusted less, and not at all past a limit."""
+    a measurement of that DOF (s): an old prediction is trusted less, and not at all past a limit.
+    (A NamedTuple: one is made for every fix and heading, and a frozen dataclass costs 4x as much.)"""
 
     value: tuple[float, ...]
     age_s: float
+
+
+@dataclass(frozen=True)
+class _Limits:
+    """One role's thresholds in the units of its values (m or rad), worked out once from the params
+    rather than on every fix."""
+
+    jump: float
+    rate: float
+    freeze_s: float
+    gate: float
+    median: float
+    diverge: float
+    grow: float  # how fast the prediction gate widens with the prediction's age (per s)
+    max_sigma: float  # the variance test's limit (inf: no such test for the role)
+    unit: str
+    scale: float  # value -> the unit shown in reasons
 
 
 @dataclass
@@ -49,6 +66,8 @@ class _Ref:
     state: SourceState
     track: Track
     timeout_ns: int
+    limits: _Limits
+    alone: bool = False  # the only source of its role (set once the sources are known)
 
 
 class ReferenceMonitor:
@@ -63,17 +82,51 @@ class ReferenceMonitor:
         """``positions``, ``headings``, ``feedback``: source name → its timeout (ns)."""
         self.p = params
         readmit = int(params.readmit_s * NS)
+        p = params
+        deg = math.radians(1.0)
+        position = _Limits(
+            jump=p.jump_m,
+            rate=p.max_speed_m_s,
+            freeze_s=p.freeze_s,
+            gate=p.prediction_gate_m,
+            median=p.median_m,
+            diverge=p.divergence_m,
+            grow=p.max_speed_m_s / 10,
+            max_sigma=p.max_sigma_m,
+            unit="m",
+            scale=1.0,
+        )
+        heading = _Limits(
+            jump=p.heading_jump_deg * deg,
+            rate=p.max_rate_deg_s * deg,
+            freeze_s=p.heading_freeze_s,
+            gate=p.prediction_gate_deg * deg,
+            median=p.heading_median_deg * deg,
+            diverge=p.heading_divergence_deg * deg,
+            grow=p.max_rate_deg_s * math.pi / 180 / 10,
+            max_sigma=math.inf,
+            unit="°",
+            scale=1 / deg,
+        )
         self._refs: dict[str, dict[str, _Ref]] = {
             "position": {
-                n: _Ref(SourceState(n, "position", readmit), Track(params.smoothing_s), t)
+                n: _Ref(SourceState(n, "position", readmit), PlaneTrack(params.smoothing_s), t, position)
                 for n, t in positions.items()
             },
             "heading": {
-                n: _Ref(SourceState(n, "heading", readmit), Track(params.smoothing_s, angle=True), t)
+                n: _Ref(SourceState(n, "heading", readmit), AngleTrack(params.smoothing_s), t, heading)
                 for n, t in headings.items()
             },
         }
         self._feedback = {n: SourceState(n, "thrusters", readmit) for n in (feedback or {})}
+        for refs in self._refs.values():
+            for r in refs.values():
+                r.alone = len(refs) == 1
+        # flat lists for what runs on every event: staleness, state changes, health
+        self._all_refs = [r for refs in self._refs.values() for r in refs.values()]
+        self._all_states = [r.state for r in self._all_refs] + list(self._feedback.values())
+        self._role_states = {role: [r.state for r in refs.values()] for role, refs in self._refs.items()}
+        self._weight_floor = {"position": p.min_sigma_m, "heading": math.radians(0.05)}
         self._feedback_rejects: dict[str, deque[int]] = {n: deque() for n in self._feedback}
         self._thrusters = dict(thrusters or {})
 
@@ -90,109 +143,79 @@ class ReferenceMonitor:
     ) -> bool:
         """Test one fix (reference point, local NED). Returns whether it may be used."""
         ref = self._refs["position"][source]
-        p = self.p
-        if quality is not None and quality not in p.gga_quality:
+        if quality is not None and quality not in self.p.gga_quality:
             name = GGA_QUALITY_NAMES.get(quality, "")
             ref.state.fail(now_ns, f"GGA quality {quality}{f' ({name})' if name else ''} not accepted")
             return False
         if not (math.isfinite(north) and math.isfinite(east)):
             ref.state.fail(now_ns, "position not finite")
             return False
-        return self._check(
-            ref,
-            "position",
-            now_ns,
-            (north, east),
-            pred,
-            jump=p.jump_m,
-            rate=p.max_speed_m_s,
-            freeze_s=p.freeze_s,
-            gate=p.prediction_gate_m,
-            median=p.median_m,
-            diverge=p.divergence_m,
-            unit="m",
-            scale=1.0,
-        )
+        return self._check(ref, "position", now_ns, (north, east), pred)
 
     def heading(self, source: str, now_ns: int, psi: float, pred: Prediction | None) -> bool:
         """Test one heading (rad). Returns whether it may be used."""
         ref = self._refs["heading"][source]
-        p = self.p
         if not math.isfinite(psi):
             ref.state.fail(now_ns, "heading not finite")
             return False
-        deg = math.radians(1.0)
-        return self._check(
-            ref,
-            "heading",
-            now_ns,
-            (psi,),
-            pred,
-            jump=p.heading_jump_deg * deg,
-            rate=p.max_rate_deg_s * deg,
-            freeze_s=p.heading_freeze_s,
-            gate=p.prediction_gate_deg * deg,
-            median=p.heading_median_deg * deg,
-            diverge=p.heading_divergence_deg * deg,
-            unit="°",
-            scale=1 / deg,
-        )
+        return self._check(ref, "heading", now_ns, (psi,), pred)
+
+    @staticmethod
+    def _fmt(x: float, lim: _Limits) -> str:
+        return f"{x * lim.scale:.3g} {lim.unit}"
 
     def _check(
-        self,
-        ref: _Ref,
-        role: str,
-        now_ns: int,
-        v: tuple[float, ...],
-        pred: Prediction | None,
-        *,
-        jump: float,
-        rate: float,
-        freeze_s: float,
-        gate: float,
-        median: float,
-        diverge: float,
-        unit: str,
-        scale: float,
+        self, ref: _Ref, role: str, now_ns: int, v: tuple[float, ...], pred: Prediction | None
     ) -> bool:
-        tr, st, p = ref.track, ref.state, self.p
-
-        def fmt(x: float) -> str:
-            return f"{x * scale:.3g} {unit}"
-
+        tr, st, lim = ref.track, ref.state, ref.limits
         if tr.good is not None:
             dt = (now_ns - tr.good_ns) / NS
             moved = tr.distance(v, tr.good)
-            limit = jump + rate * dt
+            limit = lim.jump + lim.rate * dt
             if moved > limit:
-                st.fail(now_ns, f"jump: moved {fmt(moved)} in {dt:.2g} s (limit {fmt(limit)})")
+                fmt = self._fmt
+                st.fail(now_ns, f"jump: moved {fmt(moved, lim)} in {dt:.2g} s (limit {fmt(limit, lim)})")
                 return False
         tr.observe(now_ns, v)
-        frozen = tr.frozen_s(now_ns)
-        if frozen >= freeze_s:
+        frozen = (now_ns - tr.same_since) / NS  # (`Track.frozen_s`, inline: the track has a value now)
+        if frozen >= lim.freeze_s:
             st.fail(now_ns, f"frozen: the same value for {frozen:.1f} s")
             return False
         sigma = tr.sigma()
-        if role == "position" and sigma is not None and sigma > p.max_sigma_m:
-            st.fail(now_ns, f"variance: measured 1σ {sigma:.2f} m (limit {p.max_sigma_m:g} m)")
+        if sigma is not None and sigma > lim.max_sigma:
+            st.fail(now_ns, f"variance: measured 1σ {sigma:.2f} m (limit {lim.max_sigma:g} m)")
             return False
-        if pred is not None and pred.age_s <= p.prediction_max_age_s:
-            grow = (p.max_speed_m_s if role == "position" else p.max_rate_deg_s * math.pi / 180) / 10
-            limit = gate + 3 * (sigma or 0.0) + grow * pred.age_s
+        if pred is not None and pred.age_s <= self.p.prediction_max_age_s:
+            limit = lim.gate + 3 * (sigma or 0.0) + lim.grow * pred.age_s
             innov = tr.distance(v, pred.value)
             if innov > limit:
+                fmt = self._fmt
                 st.fail(
-                    now_ns, f"prediction: {fmt(innov)} from the estimate's prediction (gate {fmt(limit)})"
+                    now_ns,
+                    f"prediction: {fmt(innov, lim)} from the estimate's prediction (gate {fmt(limit, lim)})",
                 )
                 return False
-        if not self._vote(ref, role, now_ns, median, diverge, fmt):
+        if ref.alone:  # `_vote` with nothing to vote with (inline: one source per role is the common case)
+            if tr.smooth is not None and now_ns - tr.smooth_ns <= ref.timeout_ns:
+                st.soft(now_ns, "")
+        elif not self._vote(ref, role, now_ns, lim):
             return False
-        tr.accept(now_ns, v)
+        tr.good, tr.good_ns = v, now_ns  # (`Track.accept`)
         st.passed(now_ns)
         return True
 
-    def _vote(self, ref: _Ref, role: str, now_ns: int, median: float, diverge: float, fmt: object) -> bool:
+    def _vote(self, ref: _Ref, role: str, now_ns: int, lim: _Limits) -> bool:
         refs = self._refs[role]
+        if len(refs) == 1:  # the common case: nothing to vote with, no alarm to raise or clear
+            tr = ref.track
+            if tr.smooth is not None and now_ns - tr.smooth_ns <= ref.timeout_ns:
+                ref.state.soft(now_ns, "")
+            return True
+        median, diverge = lim.median, lim.diverge
+
+        def fmt(x: float) -> str:
+            return self._fmt(x, lim)
+
         smooth = {
             n: r.track.smooth
             for n, r in refs.items()
@@ -200,7 +223,6 @@ class ReferenceMonitor:
         }
         name = ref.state.source
         angle = role == "heading"
-        assert callable(fmt)
         if name not in smooth:
             return True
         if len(smooth) >= 3:
@@ -259,11 +281,10 @@ class ReferenceMonitor:
 
     def refresh(self, now_ns: int) -> None:
         """Sources silent past their timeout become stale."""
-        for refs in self._refs.values():
-            for r in refs.values():
-                last = r.track.last_ns
-                if last and now_ns - last > r.timeout_ns:
-                    r.state.stale(now_ns, (now_ns - last) / NS)
+        for r in self._all_refs:
+            last = r.track.last_ns
+            if last and now_ns - last > r.timeout_ns:
+                r.state.stale(now_ns, (now_ns - last) / NS)
 
     def usable(self, role: str, source: str) -> bool:
         r = self._refs[role].get(source)
@@ -277,12 +298,15 @@ class ReferenceMonitor:
     def weight(self, role: str, source: str) -> float:
         """Inverse measured variance (floored), the weight of the source when references are pooled."""
         r = self._refs[role][source]
-        floor = self.p.min_sigma_m if role == "position" else math.radians(0.05)
+        floor = self._weight_floor[role]
         s = max(r.track.sigma() or floor, floor)
         return 1.0 / (s * s)
 
     def health(self, role: str) -> RoleHealth:
-        states = [r.state for r in self._refs[role].values()]
+        states = self._role_states[role]
+        if len(states) == 1:  # (one source: the common case, asked for every estimate)
+            st = states[0]
+            return "ok" if st.state == OK else "degraded" if st.usable else "lost"
         if not states or not any(s.usable for s in states):
             return "lost"
         return "ok" if all(s.state == OK for s in states) else "degraded"
@@ -299,6 +323,11 @@ class ReferenceMonitor:
 
     def drain(self) -> list[StateChange]:
         """The state changes since the last call, in order."""
+        for s in self._all_states:
+            if s.changes:
+                break
+        else:
+            return []  # (nothing changed: the common case, asked after every event)
         changes = [c for states in self.states().values() for s in states for c in s.drain()]
         return sorted(changes, key=lambda c: c.stamp_ns)
 

@@ -65,6 +65,8 @@ class SourceState:
 
     def passed(self, now_ns: int) -> None:
         """The latest data passed every test."""
+        if self.state == OK and self._passing_since is None and not self._soft:
+            return  # ok and staying ok (every fix of a healthy source): nothing changes
         if self.state == REJECTED or (self.state == STALE and self._was_rejected):
             self._was_rejected = False
             self._passing_since = now_ns
@@ -82,6 +84,8 @@ class SourceState:
     def soft(self, now_ns: int, reason: str) -> None:
         """Raise (non-empty reason) or clear (empty) a soft alarm; it shows as ``suspect`` while in use."""
         self._soft = reason
+        if not reason and self.state == OK:
+            return  # no alarm, none raised: nothing changes (asked for every fix)
         if self.state in (OK, SUSPECT) and self._passing_since is None:
             self._set(now_ns, SUSPECT if reason else OK, reason)
 
