@@ -105,6 +105,11 @@ class Fusion:
         # source -> (north, east, quality, weight, east as a Held)
         self._pos: dict[str, tuple[Held, float, int, float, Held]] = {}
         self._hdg: dict[str, tuple[Held, float]] = {}  # source -> (heading, weight)
+        # Pooling is a function of what is held, the time and the mode: the last pooling's inputs, so that
+        # the observer step right after a fix or heading (same time, nothing new) does not pool again.
+        self._pos_changes = self._hdg_changes = 0  # counts of changes to _pos / _hdg
+        self._pos_pooled: tuple[int, int, str] | None = None
+        self._hdg_pooled: tuple[int, int, str] | None = None
         self._position_sources: tuple[str, ...] = ()
         self._heading_sources: tuple[str, ...] = ()
         self._feedback_ok = True
@@ -158,6 +163,7 @@ class Fusion:
         """A heading measurement (rad) that passed its source's tests. Returns True if it is in use (always
         when pooling by weight; by priority, when no better-ranked source is fresh)."""
         self._hdg[source] = (Held(ssa_scalar(psi), rx_ns, source, priority, valid_ns), weight)
+        self._hdg_changes += 1
         self._heading = self._pool_heading(rx_ns)
         self._headings.append((rx_ns, self._heading.value))
         while self._headings and rx_ns - self._headings[0][0] > HEADING_HISTORY_NS:
@@ -166,7 +172,8 @@ class Fusion:
 
     def drop_heading(self, source: str) -> None:
         """A heading source's data may not be used (it failed a test): forget what it sent."""
-        self._hdg.pop(source, None)
+        if self._hdg.pop(source, None) is not None:
+            self._hdg_changes += 1
 
     def heading_at(self, t_ns: int) -> float:
         """The heading received closest in time to t (the same cycle as a fix); NaN if none is recent."""
@@ -220,12 +227,14 @@ class Fusion:
         (inverse variance). Returns True if it is in use."""
         held = Held(north, rx_ns, source, priority, valid_ns)
         self._pos[source] = (held, east, quality, weight, Held(east, rx_ns, source, priority, valid_ns))
+        self._pos_changes += 1
         self._pool_position(rx_ns)
         return source in self._position_sources
 
     def drop_position(self, source: str) -> None:
         """A position source's data may not be used (it failed a test): forget what it sent."""
-        self._pos.pop(source, None)
+        if self._pos.pop(source, None) is not None:
+            self._pos_changes += 1
 
     def add_position(
         self,
@@ -257,6 +266,10 @@ class Fusion:
         return fresh
 
     def _pool_position(self, now_ns: int) -> None:
+        key = (now_ns, self._pos_changes, self.pooling)
+        if key == self._pos_pooled:
+            return  # pooled already with these inputs: the same result stands
+        self._pos_pooled = key
         if len(self._pos) == 1:  # one source (the common case): its numbers, as the general path gives
             (entry,) = self._pos.values()
             held = entry[0]
@@ -284,6 +297,10 @@ class Fusion:
         self._quality = min(v[2] for v in use) if len(use) > 1 else use[0][2]
 
     def _pool_heading(self, now_ns: int) -> Held:
+        key = (now_ns, self._hdg_changes, self.pooling)
+        if key == self._hdg_pooled:
+            return self._heading  # pooled already with these inputs (every caller keeps the result there)
+        self._hdg_pooled = key
         if len(self._hdg) == 1:  # one source (the common case): its heading, as the general path gives
             (entry,) = self._hdg.values()
             held = entry[0]
