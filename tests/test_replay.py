@@ -187,7 +187,10 @@ def test_simulator_log_is_scored_against_its_truth(tmp_path: Path) -> None:
     s = json.loads(p.stdout)
     good = s["error_vs_truth"]["passive_wave_period_s11.5"]
     bad = s["error_vs_truth"]["bad"]
-    assert good["samples"] > 1000 and good["horizontal_rms_m"] < 1.5
+    # The DGPS antenna sits on a 20 m mast and the vessel rolls ~3° (1σ) in this sea: ~1 m of wave motion
+    # at the antenna that the gateway, with no roll/pitch input, leaves to the wave filter (docs/sensors.md);
+    # the bound is a sanity check, the property is the ranking below.
+    assert good["samples"] > 1000 and good["horizontal_rms_m"] < 2.0
     assert good["horizontal_rms_m"] < bad["horizontal_rms_m"]  # tuned to the sea: closer to the truth
     topics = {t for t, *_ in read_messages(tmp_path / "est.mcap")}
     assert {"/dp/estimate", "/dp/estimates/bad", "/truth/state", "/raw/nmea/dgps1"} <= topics
