@@ -41,11 +41,11 @@ from observers.vessel import VesselModel
 from wire.codecs import mavlink as mv
 from wire.codecs import nmea as nmea_codec
 from wire.codecs.nmea_framing import NmeaFramer
+from wire.foxglove import ellipsoidal_height_m, location_fix
 from wire.geodesy import LocalFrame
 from wire.messages import (
     CommandStatus,
     Datum,
-    LocationFix,
     Measurement,
     Message,
     ReferenceStatus,
@@ -53,7 +53,6 @@ from wire.messages import (
     Status,
     Thruster,
     ThrusterFeedback,
-    Time,
 )
 from wire.messages import Estimate as EstimateMessage
 from wire.messages import ThrusterCommand as CommandMessage
@@ -306,6 +305,10 @@ class Pipeline:
         self.commands = CommandGate(spec.commands.accept, spec.commands.max_setpoint_distance_m, spec.vessel)
         self.estimate_status: str | None = None  # of the last published estimate (the DP-mode check)
         self._last_fix_ns: dict[str, int] = {}
+        # per source, the last GGA height and GST 1σ (east, north, up), carried on its LocationFix
+        self._fix_alt_m: dict[str, float] = {}
+        # (GST fresh until, σ): a GST older than the source's timeout no longer describes its fixes
+        self._fix_sigma_enu_m: dict[str, tuple[int, tuple[float, float, float]]] = {}
         cc = spec.control
         self.controller: DPController | None = None
         self.allocator: QPAllocator | PseudoInverseAllocator | None = None
@@ -461,11 +464,17 @@ class Pipeline:
                 # one horizontal 1σ: the RMS of the latitude and longitude sigmas
                 sigma = math.hypot(s.sigma_lat_m, s.sigma_lon_m) / math.sqrt(2)
                 self.fusion.add_position_sigma(rx_ns, sigma, spec.name, spec.timeout_ns)
+                self._fix_sigma_enu_m[spec.name] = (
+                    rx_ns + spec.timeout_ns,
+                    (s.sigma_lon_m, s.sigma_lat_m, s.sigma_alt_m or 0.0),
+                )
             return False
         if isinstance(s, nmea_codec.Gga | nmea_codec.Gns) and "position" in spec.roles:
             if not s.valid or s.lat_deg is None or s.lon_deg is None:
                 return False
             quality = s.quality if isinstance(s, nmea_codec.Gga) else None
+            if s.alt_m is not None:
+                self._fix_alt_m[spec.name] = ellipsoidal_height_m(s.alt_m, s.geoid_sep_m)
             return self._use_position(spec, rx_ns, s.lat_deg, s.lon_deg, quality, out)
         return False
 
@@ -694,7 +703,9 @@ class Pipeline:
                 and now_ns - self._last_fix_ns.get("", -FIX_PERIOD_NS) >= FIX_PERIOD_NS
             ):
                 self._last_fix_ns[""] = now_ns
-                fix = _location_fix_message(now_ns, "estimate", estimate.lat_deg, estimate.lon_deg)
+                fix = location_fix(
+                    now_ns, "estimate", estimate.lat_deg, estimate.lon_deg, heading_rad=float(est.eta[2])
+                )
                 out.append(Output("/dp/estimate/fix", fix, now_ns, zenoh=False))
             if self.controller is not None and now_ns >= self._next_control_ns:
                 self._next_control_ns = now_ns + self._control_period_ns
@@ -877,12 +888,28 @@ class Pipeline:
                 out.append("ok" if self.monitor.health("heading") == "ok" else "degraded")
         return out
 
+    def _fresh_sigma(self, source: str, rx_ns: int) -> tuple[float, float, float] | None:
+        until, sigma = self._fix_sigma_enu_m.get(source, (0, None))
+        return sigma if rx_ns <= until else None
+
     def _location_fix(self, source: str, rx_ns: int, lat: float, lon: float) -> list[Output]:
         if rx_ns - self._last_fix_ns.get(source, -FIX_PERIOD_NS) < FIX_PERIOD_NS:
             return []
         self._last_fix_ns[source] = rx_ns
         return [
-            Output(f"/gnss/{source}/fix", _location_fix_message(rx_ns, source, lat, lon), rx_ns, zenoh=False)
+            Output(
+                f"/gnss/{source}/fix",
+                location_fix(
+                    rx_ns,
+                    source,
+                    lat,
+                    lon,
+                    self._fix_alt_m.get(source, 0.0),
+                    self._fresh_sigma(source, rx_ns),
+                ),
+                rx_ns,
+                zenoh=False,
+            )
         ]
 
     def _feedback_output(self, now_ns: int) -> Output:
@@ -971,14 +998,3 @@ def _source_names(names: tuple[str, ...]) -> list[str]:
         return [names[0]]
     return sorted(set(names))
 
-
-def _location_fix_message(stamp_ns: int, frame_id: str, lat: float, lon: float) -> LocationFix:
-    return LocationFix(
-        timestamp=Time(sec=stamp_ns // NS, nsec=stamp_ns % NS),
-        frame_id=frame_id,
-        latitude=lat,
-        longitude=lon,
-        altitude=0.0,
-        position_covariance=[0.0] * 9,
-        position_covariance_type=0,
-    )

@@ -1,0 +1,55 @@
+"""Foxglove-native channels: the GNSS LocationFix carries GGA's height and GST's covariance, and decodes
+with the schema its channel carries."""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime
+
+import pytest
+from jsonschema import Draft202012Validator
+
+from gateway.pipeline import RawEvent
+from tests.test_pipeline import DATUM, T0, S, gga_at, gst, nmea_src, pipeline
+from wire.codecs import nmea_encode as enc
+from wire.foxglove import ellipsoidal_height_m, location_fix
+from wire.geodesy import LocalFrame
+from wire.message_schema import json_schema
+from wire.messages import LocationFix
+
+
+def _gga_high(alt_m: float, geoid_sep_m: float) -> bytes:
+    lat, lon, _ = LocalFrame(*DATUM).to_geodetic(0.0, 0.0, 0.0)
+    t = datetime(2026, 6, 1, tzinfo=UTC)
+    return enc.gga("GP", t, lat, lon, 2, 12, 0.8, alt_m, geoid_sep_m).encode()
+
+
+def _fixes(out: list) -> list[dict]:  # type: ignore[type-arg]
+    return [o.payload for o in out if o.topic == "/gnss/gps/fix"]
+
+
+def test_gnss_fix_carries_gga_height_and_gst_covariance_and_fits_its_schema() -> None:
+    p = pipeline([nmea_src("gps", ["position", "heading"], timeout_s=2.0)])
+    hdt = enc.hdt("HE", 0.3).encode()
+    first = _fixes(p.feed(RawEvent(T0, "gps", _gga_high(20.0, 40.5) + hdt)))
+    p.feed(RawEvent(T0 + S // 10, "gps", gst(0.3, 0.4)))  # σ lat 0.3, lon 0.4, alt 1.0
+    second = _fixes(p.feed(RawEvent(T0 + S, "gps", _gga_high(21.0, 40.5) + hdt)))
+    stale = _fixes(p.feed(RawEvent(T0 + 4 * S, "gps", gga_at(0.0, 0.0) + hdt)))  # GST 3.9 s old > 2 s
+    validator = Draft202012Validator(json_schema(LocationFix))
+    for fix in first + second + stale:
+        assert not list(validator.iter_errors(fix))
+    (f0,), (f1,), (f2,) = first, second, stale
+    assert f0["altitude"] == pytest.approx(60.5)  # above the ellipsoid: MSL height + geoid separation
+    assert f0["position_covariance_type"] == 0 and f0["position_covariance"] == [0.0] * 9  # no GST yet
+    assert f1["altitude"] == pytest.approx(61.5)
+    assert f1["position_covariance_type"] == 2
+    # ENU, row-major: east = σ lon², north = σ lat², up = σ alt²
+    assert f1["position_covariance"] == pytest.approx([0.16, 0, 0, 0, 0.09, 0, 0, 0, 1.0])
+    assert f2["position_covariance_type"] == 0 and f2["altitude"] == pytest.approx(20.0)
+
+
+def test_location_fix_defaults_and_height() -> None:
+    assert ellipsoidal_height_m(None, 40.0) == 0.0
+    assert ellipsoidal_height_m(12.0, None) == 12.0
+    fix = location_fix(T0 + 5, "estimate", 59.4, 10.5)
+    assert fix.timestamp.sec == T0 // S and fix.timestamp.nsec == 5
+    assert fix.position_covariance_type == 0
