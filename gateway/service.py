@@ -30,6 +30,7 @@ import queue
 import threading
 import time
 from collections import Counter, deque
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -38,6 +39,7 @@ import zenoh
 
 from gateway.bus import command_acl, make_config, open_session
 from gateway.config import GatewayConfig, ZenohConfig
+from gateway.outputs import OutputSink
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from gateway.sim_time import SimTime
 from gateway.sources import Chunk, Source, open_source
@@ -99,8 +101,11 @@ class GatewayService:
         session: zenoh.Session | None = None,
         log_path: str | None = None,
         config_tables: dict[str, Any] | None = None,
+        sinks: Sequence[OutputSink] = (),
     ) -> None:
         self.config = config
+        self.sinks: list[OutputSink] = list(sinks)
+        """Extra outputs (`gateway.outputs`): each gets every batch of outputs after the Zenoh puts."""
         self.config_tables = config_tables
         self.prefix = config.zenoh.prefix
         self.pipeline = Pipeline(PipelineSpec.from_config(config))
@@ -176,11 +181,18 @@ class GatewayService:
                 if self.config_tables is not None:  # lets replay rebuild exactly this pipeline
                     meta["json"] = json.dumps(self.config_tables)
                 self.log.add_metadata("dpgw.config", meta)
+            for sink in self.sinks:
+                sink.start(s)
         except BaseException:
             self.close()
             raise
 
     def close(self) -> None:
+        for sink in self.sinks:
+            try:
+                sink.close()
+            except Exception:
+                log.exception("output sink %s did not close cleanly", sink.name)
         for src in self._sources:
             src.stop()
         self._sources.clear()
@@ -403,7 +415,13 @@ class GatewayService:
             if isinstance(o.message, Status):
                 for text in o.message.events:
                     log.warning("%s", text)
-        self._log_outputs(outputs, self._publish(outputs))
+        encoded = self._publish(outputs)
+        for sink in self.sinks:
+            try:
+                sink.emit(outputs, encoded)
+            except Exception:
+                self._internal_error(f"sink {sink.name}", f"{len(outputs)} outputs")
+        self._log_outputs(outputs, encoded)
 
     def _publish(self, outputs: list[Output]) -> list[bytes]:
         """Zenoh puts (estimate before measurement) and MAVLink commands; each message encoded once."""

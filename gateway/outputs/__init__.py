@@ -1,0 +1,11 @@
+"""Extra output sinks beside the gateway's own Zenoh keys and MCAP log.
+
+Each sink (a live Foxglove server, a ROS 2 bridge over rmw_zenoh, Keelson) lives in its own module here
+and receives every batch of pipeline outputs, already encoded once as JSON, after the Zenoh puts and before
+the MCAP write. A sink owns whatever it opens (sockets, Zenoh declarations) and releases it in `close`.
+Sinks are optional: the service runs the same without any.
+"""
+
+from gateway.outputs.base import OutputSink
+
+__all__ = ["OutputSink"]

@@ -1,0 +1,30 @@
+"""The one interface an extra output sink implements (see the package docstring)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Protocol
+
+if TYPE_CHECKING:
+    import zenoh
+
+    from gateway.pipeline import Output
+
+
+class OutputSink(Protocol):
+    """Receives the pipeline's outputs on the gateway's consumer thread.
+
+    ``emit`` must not block for long (it runs between an observer step and the next): a sink that talks
+    to a slow peer queues or drops, and counts what it drops. An exception raised by ``emit`` is counted
+    as an internal error of the sink and the gateway goes on."""
+
+    name: str
+
+    def start(self, session: zenoh.Session) -> None:
+        """Open sockets and declarations (called once, with the gateway's open Zenoh session, which a sink
+        may declare publishers, subscribers and liveliness tokens on but must not close)."""
+
+    def emit(self, outputs: list[Output], encoded: list[bytes]) -> None:
+        """One batch of outputs and their JSON encodings (the same order)."""
+
+    def close(self) -> None:
+        """Release everything `start` opened; safe to call twice."""
