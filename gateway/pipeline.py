@@ -997,4 +997,3 @@ def _source_names(names: tuple[str, ...]) -> list[str]:
     if len(names) == 2 and names[0] == names[1]:
         return [names[0]]
     return sorted(set(names))
-
