@@ -31,11 +31,15 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from dpgw.closed_loop import run_closed_loop
-from gateway.pipeline import Pipeline
-from simulator.runner import Simulation
-from simulator.scenarios import get_scenario
-from wire.mcap.writer import McapLogWriter
+from dpgw.cli import single_threaded_blas
+
+single_threaded_blas()  # as `dpgw sim` runs (before numpy loads): CPU time is the loop's, not BLAS's spinning
+
+from dpgw.closed_loop import run_closed_loop  # noqa: E402
+from gateway.pipeline import Pipeline  # noqa: E402
+from simulator.runner import Simulation  # noqa: E402
+from simulator.scenarios import get_scenario  # noqa: E402
+from wire.mcap.writer import McapLogWriter  # noqa: E402
 
 TARGET_WIRE = 360.0
 TARGET_LOOP = 3000.0

@@ -7,6 +7,7 @@ busy machine and passes on a fast one; `bench/bench_cli_startup.py` measures the
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 import textwrap
@@ -85,3 +86,28 @@ def test_radiation_defaults_match_the_fit() -> None:
     from observers import radiation
 
     assert (cli_radiation.MAX_ORDER, cli_radiation.R2_TARGET) == (radiation.MAX_ORDER, radiation.R2_TARGET)
+
+
+def test_dpgw_runs_blas_single_threaded_unless_told_otherwise() -> None:
+    """OpenBLAS's extra threads spin-wait after every small product (twice the CPU for the same wall time,
+    measured in bench/bench_simulator.py): every dpgw command sets one thread before numpy loads, and a
+    value the user set stays."""
+    code = textwrap.dedent(
+        """
+        import os, sys
+        from dpgw.cli import main
+        try:
+            main(["sim", "--help"])
+        except SystemExit:
+            pass
+        import numpy  # loads OpenBLAS with the variables as they are now
+        for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+            print(os.environ[name])
+        """
+    )
+    clean = {k: v for k, v in os.environ.items() if not k.endswith("_NUM_THREADS")}
+    out = subprocess.run([sys.executable, "-c", code], env=clean, capture_output=True, text=True, check=True)
+    assert out.stdout.split()[-3:] == ["1", "1", "1"]
+    mine = {**clean, "OPENBLAS_NUM_THREADS": "2"}
+    out = subprocess.run([sys.executable, "-c", code], env=mine, capture_output=True, text=True, check=True)
+    assert out.stdout.split()[-3:] == ["2", "1", "1"]
