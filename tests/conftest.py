@@ -2,11 +2,19 @@
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable
-from typing import Any, TypeVar
+import os
 
-import pynmea2
+# Tests run the simulator and the gateway as `dpgw` runs them: one BLAS thread (dpgw.cli.single_threaded_blas:
+# OpenBLAS's extra threads only spin-wait on matrices this small, taking the second core from the test's
+# other process). Set before numpy loads; a value given by whoever runs the tests stays.
+for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_name, "1")
+
+import time  # noqa: E402
+from collections.abc import Callable  # noqa: E402
+from typing import Any, TypeVar  # noqa: E402
+
+import pynmea2  # noqa: E402
 
 T = TypeVar("T")
 
