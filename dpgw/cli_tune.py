@@ -59,6 +59,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--velocity-injection", type=float, metavar="PER_S", help="a in 1/s (overrides the ratio)")
     p.add_argument(
+        "--injection-damping-ratio",
+        type=float,
+        default=0.4,
+        metavar="RATIO",
+        help="least a set by the ratio, as a fraction of the vessel's own damping rate D/M per DOF "
+        "(default 0.4; keeps the bias mode fast on a heavily damped DOF; 0: off)",
+    )
+    p.add_argument(
         "--bias-corner-ratio", type=float, default=0.04, help="bias corner λ/κ as a fraction of ω0 (0.04)"
     )
     p.add_argument("--json", action="store_true", help="print one JSON object (for programs)")
@@ -96,6 +104,7 @@ def run(args: argparse.Namespace) -> int:
         "bias_time_constant_s": args.bias_time,
         "velocity_injection_ratio": args.velocity_injection_ratio,
         "velocity_injection": args.velocity_injection,
+        "injection_damping_ratio": args.injection_damping_ratio,
         "bias_corner_ratio": args.bias_corner_ratio,
     }
     if args.cutoff_ratio is not None:

@@ -50,7 +50,8 @@ P_BIAS_CORNER = 6  # ρ = λ/κ: ratio ρ/ω0, or rad/s
 P_BIAS_CORNER_IS_RATIO = 7
 P_MASS = 8  # M_ii, the vessel-scaled injection's inertia
 P_T_INV = 9  # 1/T of the bias model
-N_TUNING_ROWS = 10
+P_INJECTION_FLOOR = 10  # b·D_ii/M_ii, the least ratio-set a (PassiveTuning.injection_damping_ratio)
+N_TUNING_ROWS = 11
 
 # the schedule state S
 S_T = 0  # time of the last sample
@@ -68,7 +69,11 @@ def gains_at(omega, P, G):
         z = P[P_ZETA, i]
         zn = P[P_ZETA_N, i]
         wc = w0 * P[P_OMEGA_C, i] if P[P_OMEGA_C_IS_RATIO, i] > 0.0 else P[P_OMEGA_C, i]
-        a = w0 * P[P_INJECTION, i] if P[P_INJECTION_IS_RATIO, i] > 0.0 else P[P_INJECTION, i]
+        a = (
+            max(w0 * P[P_INJECTION, i], P[P_INJECTION_FLOOR, i])
+            if P[P_INJECTION_IS_RATIO, i] > 0.0
+            else P[P_INJECTION, i]
+        )
         rho = w0 * P[P_BIAS_CORNER, i] if P[P_BIAS_CORNER_IS_RATIO, i] > 0.0 else P[P_BIAS_CORNER, i]
         K4 = P[P_MASS, i] * wc * a
         G[G_OMEGA0, i] = w0

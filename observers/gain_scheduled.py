@@ -104,6 +104,9 @@ def pack_tuning(vessel: VesselModel, tuning: PassiveTuning) -> Array:
     P[sk.P_BIAS_CORNER], P[sk.P_BIAS_CORNER_IS_RATIO] = value(tuning.bias_corner, tuning.bias_corner_ratio)
     P[sk.P_MASS] = np.diag(vessel.M)
     P[sk.P_T_INV] = g.t_inv
+    P[sk.P_INJECTION_FLOOR] = np.broadcast_to(
+        np.asarray(tuning.injection_damping_ratio, dtype=float) * np.diag(vessel.D) / np.diag(vessel.M), (3,)
+    )
     return np.ascontiguousarray(P)
 
 

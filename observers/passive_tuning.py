@@ -78,7 +78,9 @@ class PassiveTuning:
     velocity_injection_ratio: a/ω0, where a (1/s) is the extra decay rate of the velocity error from 𝒦
                           (module docstring). Relative to ω0 because wave motion leaks into ν̂ — and
                           through a DP controller's damping into the thrust — in proportion to a/ω0.
-    velocity_injection:   explicit a (1/s), overrides velocity_injection_ratio.
+    velocity_injection:   explicit a (1/s), overrides velocity_injection_ratio (and its damping floor).
+    injection_damping_ratio: floor of the ratio-set a as a fraction of the vessel's own damping rate
+                          Dᵢᵢ/Mᵢᵢ (a ≥ this · Dᵢᵢ/Mᵢᵢ); see the field's comment.
     bias_corner_ratio:    ρ/ω0, where ρ = λ/κ is the bias corner frequency (48).
     bias_corner:          explicit ρ = λ/κ (rad/s), overrides bias_corner_ratio.
     """
@@ -96,6 +98,13 @@ class PassiveTuning:
     bias_time_constant_s: Any = math.inf
     velocity_injection_ratio: Any = 0.12
     velocity_injection: Any = None
+    # Below ωc the bias and velocity errors obey s² + (d + a)s + aρ = 0 per DOF (d = Dᵢᵢ/Mᵢᵢ), whose slow
+    # root is ≈ aρ/(d + a): the bias is seen only through the velocity error it causes, b/D. Where the
+    # vessel's own damping dwarfs a — osv.m's yaw, D66 = M66/1 s, against a = 0.11/s — the bias mode
+    # slows to aρ/d (280 s), and ρ cannot rise past the SPR limit. Holding a ≥ 0.4 d keeps that root at
+    # ≥ 0.29ρ (94 s on mss_osv, notch −20.4 dB); for every other built-in vessel at its default ω0 the
+    # floor is below 0.12 ω0 and the gains are unchanged. docs/passive-observer.md.
+    injection_damping_ratio: Any = 0.4
     bias_corner_ratio: Any = 0.04
     bias_corner: Any = None
 
@@ -159,6 +168,17 @@ def filter_gains(omega0: ArrayLike, zeta: ArrayLike, zeta_n: ArrayLike, omega_c:
     return np.stack([k1, k2, k3])
 
 
+def _damping_floor(vessel: VesselModel, tuning: PassiveTuning) -> Array:
+    """b · Dᵢᵢ/Mᵢᵢ: the least ratio-set injection rate a (`PassiveTuning.injection_damping_ratio`)."""
+    b = np.broadcast_to(np.asarray(tuning.injection_damping_ratio, dtype=float), (3,)).copy()
+    if not np.all(np.isfinite(b)) or np.any(b < 0):
+        raise TuningError(
+            "tuning 'injection_damping_ratio': must be zero or positive (per DOF or one for all), "
+            f"got {b.tolist()}"
+        )
+    return b * np.diag(vessel.D) / np.diag(vessel.M)
+
+
 def passive_gains(vessel: VesselModel, tuning: PassiveTuning | None = None) -> PassiveGains:
     """Gains of eqs (45)–(47) and the vessel-scaled injection gains for ``vessel``."""
     tuning = tuning or PassiveTuning()
@@ -174,7 +194,10 @@ def passive_gains(vessel: VesselModel, tuning: PassiveTuning | None = None) -> P
     a = (
         _vec3(tuning.velocity_injection, "velocity_injection")
         if tuning.velocity_injection is not None
-        else w0 * _vec3(tuning.velocity_injection_ratio, "velocity_injection_ratio")
+        else np.maximum(
+            w0 * _vec3(tuning.velocity_injection_ratio, "velocity_injection_ratio"),
+            _damping_floor(vessel, tuning),
+        )
     )
     rho = (
         _vec3(tuning.bias_corner, "bias_corner")

@@ -485,3 +485,27 @@ def test_scheduling_off_is_the_fixed_passive_observer() -> None:
     ref = PassiveObserver(VESSEL, DEFAULT_TUNING.with_omega0(BADLY_TUNED)).run(t, y)
     assert np.array_equal(fixed.eta, ref.eta, equal_nan=True)
     assert np.array_equal(fixed.bias, ref.bias, equal_nan=True)
+
+
+@pytest.mark.parametrize("vessel_name", ["mss_osv", "cybership2", "mss_supply"])
+def test_compiled_gains_equal_passive_gains_with_and_without_the_damping_floor(vessel_name: str) -> None:
+    """The compiled schedule's gains at each ω0 are `passive_gains`' to the bit, also where the velocity
+    injection's damping floor (a ≥ b·D/M) sets a instead of the ratio (mss_osv's yaw; any DOF at low ω0)."""
+    from observers import _gain_scheduled_kernel as sk
+    from observers.gain_scheduled import pack_tuning
+
+    vessel = load_vessel(vessel_name)
+    floored = 0
+    for tuning in (PassiveTuning(), PassiveTuning(injection_damping_ratio=1e-9)):
+        P = pack_tuning(vessel, tuning)
+        for w0 in (0.3, 0.55, 0.8976, 1.5, 4.0):
+            omega = np.array([w0, 0.9 * w0, 1.1 * w0])
+            G = np.zeros((8, 3))
+            sk.gains_at(omega, P, G)
+            ref = passive_gains(vessel, tuning.with_omega0(omega))
+            assert np.array_equal(G[sk.G_KAPPA], np.diag(ref.K4))
+            assert np.array_equal(G[sk.G_LAMBDA], np.diag(ref.K3))
+            ratio_only = np.diag(vessel.M) * ref.omega_c * omega * tuning.velocity_injection_ratio
+            floored += int(np.sum(np.diag(ref.K4) > ratio_only * (1 + 1e-12)))
+    if vessel_name == "mss_osv":
+        assert floored > 0  # the floor is exercised

@@ -17,15 +17,6 @@ from observers.state import BIAS, ETA, I_ETA, I_PSI, N_STATE, NU, XI2
 from observers.vessel import builtin_vessels, load_vessel
 
 VESSELS = builtin_vessels()
-SLOW_YAW_BIAS = pytest.mark.xfail(
-    strict=True,
-    reason="mss_osv has osv.m's yaw time constant T6 = 1 s (D66 = M66/1 s): the default tuning scales the "
-    "bias gain K3 with M, and the yaw bias, seen only through a velocity error b/D66, converges at "
-    "K3/D66 = 0.004/s (a 280 s mode). The tuning rule must scale with D for such a vessel: known.",
-)
-VESSELS_SLOW_YAW_BIAS = [
-    pytest.param(n, marks=SLOW_YAW_BIAS) if n == "mss_osv" else n for n in builtin_vessels()
-]
 
 
 def cruise(vessel_name: str) -> np.ndarray:
@@ -33,7 +24,7 @@ def cruise(vessel_name: str) -> np.ndarray:
     return np.array([0.1, 0.05, 0.02]) if vessel_name == "cybership2" else np.array([0.5, 0.2, 0.01])
 
 
-@pytest.mark.parametrize("name", VESSELS_SLOW_YAW_BIAS)
+@pytest.mark.parametrize("name", builtin_vessels())
 def test_global_exponential_convergence_from_far_off(name: str) -> None:
     """Noise-free data from the model (14)–(18); observer started 50 m, 170°, velocity and bias wrong.
 

@@ -21,16 +21,6 @@ from observers.passive_tuning import (
 )
 from observers.vessel import builtin_vessels, load_vessel
 
-SLOW_YAW_BIAS = pytest.mark.xfail(
-    strict=True,
-    reason="mss_osv has osv.m's yaw time constant T6 = 1 s (D66 = M66/1 s): the default tuning scales the "
-    "bias gain K3 with M, and the yaw bias, seen only through a velocity error b/D66, converges at "
-    "K3/D66 = 0.004/s (a 280 s mode). The tuning rule must scale with D for such a vessel: known.",
-)
-VESSELS_SLOW_YAW_BIAS = [
-    pytest.param(n, marks=SLOW_YAW_BIAS) if n == "mss_osv" else n for n in builtin_vessels()
-]
-
 
 def test_papers_filter_gains() -> None:
     """Fossen & Strand (1999) Sec. 6: ζn = 1.0, ζ = 0.1, ωc = 1.1, ω0 = 0.8976 → the gains of (59)."""
@@ -50,7 +40,7 @@ def test_wave_period_of_the_paper() -> None:
     assert g.omega0[0] == pytest.approx(0.8976, abs=1e-4)
 
 
-@pytest.mark.parametrize("name", VESSELS_SLOW_YAW_BIAS)
+@pytest.mark.parametrize("name", builtin_vessels())
 def test_default_tuning_converges_faster_than_100_s(name: str) -> None:
     vessel = load_vessel(name)
     gains = passive_gains(vessel)

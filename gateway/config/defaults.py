@@ -28,6 +28,7 @@ DEFAULTS: dict[str, dict[str, Any]] = {
         "cutoff_ratio": DEFAULT_TUNING.cutoff_ratio,
         "bias_time_constant_s": DEFAULT_TUNING.bias_time_constant_s,
         "velocity_injection_ratio": DEFAULT_TUNING.velocity_injection_ratio,
+        "injection_damping_ratio": DEFAULT_TUNING.injection_damping_ratio,
         "bias_corner_ratio": DEFAULT_TUNING.bias_corner_ratio,
         "allow_unchecked": False,
         "rate_hz": 10.0,

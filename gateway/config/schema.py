@@ -334,6 +334,7 @@ TUNING_KEYS = (
     "bias_time_constant_s",
     "velocity_injection",
     "velocity_injection_ratio",
+    "injection_damping_ratio",
     "bias_corner_ratio",
     "bias_corner",
 )
@@ -352,6 +353,7 @@ class ObserverTable(_Section):
     bias_time_constant_s: PerDofOrInf = per_dof(allow_inf=True)
     velocity_injection: PerDof = per_dof()
     velocity_injection_ratio: PerDof = per_dof()
+    injection_damping_ratio: PerDof = per_dof()
     bias_corner_ratio: PerDof = per_dof()
     bias_corner: PerDof = per_dof()
     allow_unchecked: bool = boolean(_OBS["allow_unchecked"])
