@@ -8,7 +8,7 @@ Bands, relative to the sea's peak frequency ωp (Tp 12 s: 0.52 rad/s):
   wave  0.6–2 ωp      wave motion leaking into the LF estimate (the wave filter decides it)
   high  > 2 ωp        measurement noise passed through
 
-    python bench/snijders_2005_bands.py [--seed 1] [--observers sdre passive]
+    python bench/snijders_2005_bands.py [--seed 1] [--observers sdre passive] [--plant model|full|...]
 """
 
 from __future__ import annotations
@@ -24,19 +24,20 @@ from scipy.signal import welch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
-from test_station_keeping import snijders_track
+from test_station_keeping import SNIJDERS_PLANTS, snijders_scenario, snijders_track
 
 from dpgw.closed_loop import gateway_tables, run_closed_loop
 from gateway.scoring import truth_at
 from observers.kinematics import ssa
-from simulator.scenarios import get_scenario
 
 BANDS = (("slow", 0.0, 0.2), ("mid", 0.2, 0.6), ("wave", 0.6, 2.0), ("high", 2.0, math.inf))
 
 
-def error_bands(observer: str, seed: int, params: dict[str, Any] | None = None) -> np.ndarray:
+def error_bands(
+    observer: str, seed: int, params: dict[str, Any] | None = None, plant: str = "model"
+) -> np.ndarray:
     """Rows surge, sway, yaw; columns: mean square, then its part in each of `BANDS` (PSD integral)."""
-    sc = get_scenario("snijders_2005")
+    sc = snijders_scenario(plant)
     tables = gateway_tables(sc)
     tables["observer"]["type"] = observer
     if params:
@@ -67,11 +68,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--observers", nargs="+", default=["sdre", "passive"])
+    ap.add_argument("--plant", choices=SNIJDERS_PLANTS, default="model", help="the plant (default model)")
     args = ap.parse_args()
-    print(f"snijders_2005, seed {args.seed}: mean-square error and its parts by band (ωp = 2π/12 s)")
+    print(
+        f"snijders_2005 on the {args.plant} plant, seed {args.seed}: mean-square error and its parts by band "
+        "(ωp = 2π/12 s)"
+    )
     print(f"  {'observer':8s} {'DOF':5s} {'mean sq':>10s}" + "".join(f" {b[0]:>10s}" for b in BANDS))
     for name in args.observers:
-        rows = error_bands(name, args.seed)
+        rows = error_bands(name, args.seed, plant=args.plant)
         for dof, row in zip(("surge", "sway", "yaw"), rows, strict=True):
             print(f"  {name:8s} {dof:5s} " + " ".join(f"{v:10.3e}" for v in row))
     print("  (bands in units of ωp: " + ", ".join(f"{n} {lo:g}–{hi:g}" for n, lo, hi in BANDS) + ")")
