@@ -156,8 +156,8 @@ def test_radiation_hook_refuses_wrong_shapes_and_unstable_models() -> None:
 
 def test_full_plant_needs_a_hull() -> None:
     with pytest.raises(PlantError, match=r"\[hull\]"):
-        FullPlant(load_vessel("snijders_ship"))
-    FullPlant(load_vessel("snijders_ship"), options=PlantOptions.model_only())  # nothing nonlinear: fine
+        FullPlant(load_vessel("northern_clipper"))
+    FullPlant(load_vessel("northern_clipper"), options=PlantOptions.model_only())  # nothing nonlinear: fine
 
 
 def test_hull_table_errors_name_the_field() -> None:

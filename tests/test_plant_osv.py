@@ -199,7 +199,7 @@ def test_flag_mistakes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> No
         == 2
     )
     assert "--plant-option" in capsys.readouterr().err
-    assert main(["sim", "--vessel", "snijders_ship", "--inputs", inputs, "--csv", out]) == 2
+    assert main(["sim", "--vessel", "northern_clipper", "--inputs", inputs, "--csv", out]) == 2
     assert "[hull]" in capsys.readouterr().err
     assert main(["sim", "--scenario", "hassani", "--vessel", "mss_osv"]) == 2
     assert main(["sim"]) == 2
