@@ -88,7 +88,7 @@ def speed(model: RadiationStateSpace, steps: int) -> dict[str, float]:
     vessel = load_vessel("mss_supply")
     minv = np.ascontiguousarray(vessel.Minv)  # the cost is the same with M_RB + A(∞)
     d = np.ascontiguousarray(vessel.D)
-    a, b, c, dm = (np.ascontiguousarray(m) for m in (model.A, model.B, model.C, model.D))
+    a, b, c, dm = (np.ascontiguousarray(m) for m in (model.Ar, model.Br, model.Cr, model.Dr))
     phi, g0, g1 = model.discretise(H)
     tau = np.array([1e4, 2e4, 1e5])
     zero = np.zeros(3)

@@ -1,6 +1,6 @@
 """Hajivand & Mousavizadegan (2010) Figs 3-8 and the fluid-memory comparison table, for the memory observer.
 
-    python bench/memory_figures.py [--out DIR] [--hydro supply_hydro.npz] [--table] [--write-builtin]
+    python bench/memory_figures.py [--out DIR] [--hydro supply_hydro.npz] [--table]
 
 * ``fig3-5_retardation_*.png``: K(t) of eq (4) (from A(ω)) and eq (5) (from B(ω)) against the identified
   model's impulse response, surge-surge, sway-sway, yaw-yaw, for Hajivand's vessel. The paper prints
@@ -10,7 +10,6 @@
   Λ = 0.1 K, T = 1000 I, the sinusoidal τ), the paper's gains used literally.
 * ``--table``: RMS LF position/velocity errors per DOF of the memory and the passive observer against the
   period of a sinusoidal manoeuvre, on a plant with fluid memory and on one without (markdown on stdout).
-* ``--write-builtin``: regenerate ``observers/_mss_supply_radiation.py`` from the hydro file.
 
 The plant with fluid memory (`simulate_plant`) is the Cummins equation integrated with the same
 identified radiation model: [M_RB + A(∞)] ν' = -D_m ν - μ + τ + Jᵀ b, ξ_r' = A_r ξ_r + B_r ν, μ = C_r ξ_r +
@@ -326,33 +325,13 @@ def write_figures(out: Path, hydro_path: Path) -> list[Path]:
     return written
 
 
-def write_builtin(hydro_path: Path, target: Path) -> None:
-    """Identify the supply vessel's radiation model and write it as the built-in module."""
-    from observers import radiation
-    from wire.hydro import load_hydro
-
-    hydro = load_hydro(hydro_path)
-    m = radiation.identify(hydro.freqs, hydro.A, hydro.B)
-
-    def fmt(a: np.ndarray) -> str:
-        return "[\n" + "\n".join("    [" + ", ".join(repr(float(v)) for v in row) + "]," for row in a) + "\n]"
-
-    head = target.read_text().split("\nAR = ")[0]
-    body = [f"{name} = {fmt(np.atleast_2d(getattr(m, attr)))}\n" for name, attr in
-            (("AR", "Ar"), ("BR", "Br"), ("CR", "Cr"), ("DR", "Dr"), ("A_INF", "A_inf"))]  # fmt: skip
-    target.write_text(head + "\n" + "\n".join(body))
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", type=Path, default=Path("memory-figures"))
     ap.add_argument("--hydro", type=Path, default=HYDRO)
     ap.add_argument("--table", action="store_true", help="print the comparison table (about a minute)")
     ap.add_argument("--no-figures", action="store_true")
-    ap.add_argument("--write-builtin", action="store_true")
     args = ap.parse_args()
-    if args.write_builtin:
-        write_builtin(args.hydro, ROOT / "observers" / "_mss_supply_radiation.py")
     if not args.no_figures:
         for p in write_figures(args.out, args.hydro):
             print(p)

@@ -17,8 +17,9 @@ where the fluid memory acts. This also makes M_m = M_RB + A(∞) when the vessel
 data agree, which is what (20) asks for.
 
 **The radiation model** of the vessel's own hull (`observers.radiation.identify` on its A(ω), B(ω)) is
-the right one. Without one, dpgw uses the built-in model of MSS's supply vessel (`observers.
-_mss_supply_radiation`) Froude-scaled to the vessel's displacement (length scale λ = (m/m_supply)^⅓;
+the right one. Without one, dpgw uses the built-in model of MSS's supply vessel (the model stored beside the
+built-in vessel ``mss_supply``, ``observers/vessels/radiation/mss_supply.npz``, which the simulator's plant
+reads too) Froude-scaled to the vessel's displacement (length scale λ = (m/m_supply)^⅓;
 `RadiationStateSpace.froude_scaled`): a hull of a similar form, with its memory time scale and its
 A(0) - A(∞) in proportion. ``froude_scale`` overrides λ.
 
@@ -50,14 +51,16 @@ gives the rate the tuning promises (`slowest_error_rate`).
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass, replace
+from functools import lru_cache
+from importlib import resources
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from observers import _mss_supply_radiation as supply
 from observers.passive_tuning import (
     DOF,
     Check,
@@ -84,21 +87,38 @@ class MemoryModelError(TuningError):
     """A radiation model that cannot be combined with the vessel (the message says which matrix and why)."""
 
 
+BUILTIN_RADIATION = "vessels/radiation/mss_supply.npz"
+"""The built-in model, in the package: the one `dpgw radiation` identified for mss_supply (with its fit
+report beside it, ``mss_supply.toml``), read by the plant and by this observer alike."""
+
+
+@lru_cache(maxsize=1)
 def builtin_radiation() -> RadiationStateSpace:
-    """MSS's supply vessel, identified by dpgw from its ShipX data (17 states, passive)."""
-    return RadiationStateSpace(
-        np.array(supply.AR),
-        np.array(supply.BR),
-        np.array(supply.CR),
-        np.array(supply.DR),
-        np.array(supply.A_INF),
-        source=f"MSS supply vessel ({supply.LENGTH_M} m, {supply.MASS_KG / 1e3:.0f} t), ShipX A(ω), B(ω)",
-    )
+    """MSS's supply vessel, identified by dpgw from its ShipX data (17 states, passive): the 82.8 m,
+    6362 t hull of the ShipX/VERES A(ω), B(ω), whose rigid-body mass the file records (``M_RB``)."""
+    with (
+        resources.as_file(resources.files("observers") / BUILTIN_RADIATION) as path,
+        np.load(path, allow_pickle=False) as data,
+    ):
+        meta = json.loads(str(data["meta"]))
+        m_rb = np.array(meta["M_RB"], dtype=float)
+        return RadiationStateSpace(
+            data["Ar"],
+            data["Br"],
+            data["Cr"],
+            data["Dr"],
+            data["A_inf"],
+            source=f"MSS supply vessel ({m_rb[0, 0] / 1e3:.0f} t), ShipX A(ω), B(ω)",
+            hydro_sha256=str(meta.get("hydro_sha256", "")),
+            M_RB=m_rb,
+        )
 
 
 def froude_scale_for(vessel: VesselModel) -> float:
     """Length scale λ = (m_vessel / m_supply)^⅓ that carries the built-in model to ``vessel``'s mass."""
-    return float((vessel.mass_kg / supply.MASS_KG) ** (1.0 / 3.0))
+    m_rb = builtin_radiation().M_RB
+    assert m_rb is not None  # the built-in file records it
+    return float((vessel.mass_kg / m_rb[0, 0]) ** (1.0 / 3.0))
 
 
 @dataclass(frozen=True)

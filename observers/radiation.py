@@ -958,13 +958,36 @@ _YAW_LENGTHS = np.array([0.0, 0.0, 1.0])
 """Powers of length each DOF adds to a coefficient: surge and sway none, yaw one (a moment, a rad/s)."""
 
 
-@dataclass(frozen=True)
+class RadiationStateSpaceError(ValueError):
+    """A radiation state space that cannot be used; the message names where it came from and why."""
+
+
+def _frozen(value: ArrayLike, shape: tuple[int, ...], name: str, source: str) -> Array:
+    arr = np.array(value, dtype=float)
+    if arr.shape != shape:
+        raise RadiationStateSpaceError(f"{source}: {name} has shape {arr.shape}, expected {shape}")
+    if not np.all(np.isfinite(arr)):
+        raise RadiationStateSpaceError(f"{source}: {name} has non-finite values")
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
 class RadiationStateSpace:
     """μ = C_r ξ + D_r ν, ξ' = A_r ξ + B_r ν (ν = [u, v, r] in, μ = [X, Y, N] out, SI) with A(∞).
 
-    The matrices alone, without the fit report: what a time-domain model needs. `RadiationModel` gives
-    one (`model_state_space`), `radiation_state_space` assembles one from per-element fits, and
-    `froude_scaled` carries one to a geometrically similar hull. ``source`` says where it came from."""
+    The one object for a vessel's fluid memory: the plant integrates it (``simulator.plant``,
+    ``simulator.fluid_memory``), the fluid-memory observer carries it (``observers.memory``). The matrices
+    alone, without the fit report: `RadiationModel` gives one (`model_state_space`, `from_model`),
+    `radiation_state_space` assembles one from per-element fits, and `froude_scaled` carries one to a
+    geometrically similar hull. A_r is block diagonal, one block per identified element K_ij of the
+    symmetric 3×3 K(s) (a coupling element such as sway-yaw is realised twice, once from v to N and once
+    from r to Y); D_r is zero unless passivity had to be enforced by a constant damping. The arrays are
+    read-only copies, checked on construction (shapes, finite, A(∞) symmetric, A_r stable).
+
+    ``source`` says where it came from; ``hydro_sha256`` the SHA-256 of the hydrodynamic data it was
+    identified from ("" if unknown); ``M_RB`` the rigid-body mass of the hull the data belong to, when the
+    data give it (the mass A(∞) belongs with: a plant's mass is M_RB + A(∞))."""
 
     Ar: Array
     Br: Array
@@ -972,6 +995,45 @@ class RadiationStateSpace:
     Dr: Array
     A_inf: Array
     source: str = ""
+    hydro_sha256: str = ""
+    M_RB: Array | None = None
+    _discrete: dict[float, tuple[Array, Array, Array]] = field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )
+
+    def __post_init__(self) -> None:
+        where = self.source or "fluid-memory model"
+        a = np.asarray(self.Ar)
+        if a.ndim != 2 or a.shape[0] != a.shape[1]:
+            raise RadiationStateSpaceError(f"{where}: A has shape {a.shape}, expected square (n, n)")
+        n = a.shape[0]
+        for name, key, shape in (
+            ("A", "Ar", (n, n)),
+            ("B", "Br", (n, 3)),
+            ("C", "Cr", (3, n)),
+            ("D", "Dr", (3, 3)),
+            ("A_inf", "A_inf", (3, 3)),
+        ):
+            object.__setattr__(self, key, _frozen(getattr(self, key), shape, name, where))
+        if not np.allclose(self.A_inf, self.A_inf.T, rtol=1e-9, atol=0.0):
+            raise RadiationStateSpaceError(f"{where}: A_inf is not symmetric")
+        if self.M_RB is not None:
+            m_rb = _frozen(self.M_RB, (3, 3), "M_RB", where)
+            if not np.allclose(m_rb, m_rb.T, rtol=1e-9, atol=0.0) or np.linalg.eigvalsh(m_rb)[0] <= 0.0:
+                raise RadiationStateSpaceError(f"{where}: M_RB is not symmetric positive definite")
+            object.__setattr__(self, "M_RB", m_rb)
+        if n and np.max(np.linalg.eigvals(self.Ar).real) >= 0.0:
+            raise RadiationStateSpaceError(
+                f"{where}: A has an eigenvalue with Re ≥ 0 (the memory would not fade)"
+            )
+
+    @classmethod
+    def from_model(
+        cls, model: RadiationModel, *, source: str = "", hydro_sha256: str = "", M_RB: ArrayLike | None = None
+    ) -> RadiationStateSpace:
+        """From an identified `RadiationModel` (its block-diagonal realisation)."""
+        m_rb = None if M_RB is None else np.asarray(M_RB, dtype=float)
+        return cls(model.Ar, model.Br, model.Cr, model.Dr, model.A_inf, source, hydro_sha256, m_rb)
 
     @property
     def n_states(self) -> int:
@@ -1021,6 +1083,36 @@ class RadiationStateSpace:
         scale = max(float(np.max(np.real(np.diagonal(herm, axis1=1, axis2=2)))), 1e-300)
         k = int(np.argmin(lam))
         return float(lam[k] / scale), float(w[k])
+
+    def max_rk4_step(self) -> float:
+        """The largest step (s) with which classical RK4 integrating ξ' = A_r ξ is stable: for every
+        eigenvalue λ the largest h with |1 + z + z²/2 + z³/6 + z⁴/24| ≤ 1, z = λh (bisection per λ)."""
+        best = np.inf
+        for lam in np.linalg.eigvals(self.Ar):
+            lo, hi = 0.0, 10.0 / abs(lam)
+            for _ in range(60):
+                mid = 0.5 * (lo + hi)
+                z = lam * mid
+                lo, hi = (mid, hi) if abs(1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24) <= 1.0 else (lo, mid)
+            best = min(best, lo)
+        return float(best)
+
+    def discretise(self, h: float) -> tuple[Array, Array, Array]:
+        """(Φ, Γ₀, Γ₁) with ξ(t+h) = Φ ξ(t) + Γ₀ ν(t) + Γ₁ ν(t+h), exact for ν linear over the step
+        (first-order hold, Van Loan's block exponential). Cached per h."""
+        cached = self._discrete.get(h)
+        if cached is not None:
+            return cached
+        n = self.n_states
+        m = np.zeros((n + 6, n + 6))
+        m[:n, :n] = self.Ar * h
+        m[:n, n : n + 3] = self.Br * h
+        m[n : n + 3, n + 3 :] = np.eye(3)
+        e = scipy.linalg.expm(m)
+        phi, g_a, g_b = e[:n, :n], e[:n, n : n + 3], e[:n, n + 3 :]
+        out = (np.ascontiguousarray(phi), np.ascontiguousarray(g_a - g_b), np.ascontiguousarray(g_b))
+        self._discrete[h] = out
+        return out
 
     def froude_scaled(self, scale: float) -> RadiationStateSpace:
         """The same hull ``scale`` times larger (lengths × λ), by Froude's law: time × √λ, added mass

@@ -61,8 +61,8 @@ def damping_scale(model: RadiationStateSpace) -> Array:
 def _scaled(model: RadiationStateSpace, eps: float) -> tuple[Array, Array, Array, Array, Array]:
     """(A, B̃, C̃, R, T) with ν = T ν̃, μ̃ = T μ (so ν̃ᵀμ̃ = νᵀμ), K̃ = T K T, R = D̃ + D̃ᵀ + 2εI."""
     t = np.diag(1.0 / np.sqrt(damping_scale(model)))
-    d = t @ model.D @ t
-    return model.A, model.B @ t, t @ model.C, d + d.T + 2.0 * eps * np.eye(3), t
+    d = t @ model.Dr @ t
+    return model.Ar, model.Br @ t, t @ model.Cr, d + d.T + 2.0 * eps * np.eye(3), t
 
 
 def _balanced(a: Array, b: Array, c: Array) -> tuple[Array, Array, Array]:
@@ -165,10 +165,10 @@ def free_decay(model: RadiationStateSpace, m_rb: ArrayLike, nu0: ArrayLike, t: A
     n = model.n_states
     mi = np.linalg.inv(m)
     sys = np.zeros((3 + n, 3 + n))
-    sys[:3, :3] = -mi @ model.D
-    sys[:3, 3:] = -mi @ model.C
-    sys[3:, :3] = model.B
-    sys[3:, 3:] = model.A
+    sys[:3, :3] = -mi @ model.Dr
+    sys[:3, 3:] = -mi @ model.Cr
+    sys[3:, :3] = model.Br
+    sys[3:, 3:] = model.Ar
     t = np.asarray(t, dtype=float)
     z0 = np.concatenate([np.asarray(nu0, dtype=float), np.zeros(n)])
     dt = np.diff(t)
@@ -181,7 +181,7 @@ def free_decay(model: RadiationStateSpace, m_rb: ArrayLike, nu0: ArrayLike, t: A
             e = step[float(h)] = scipy.linalg.expm(sys * h)
         z[k + 1] = e @ z[k]
     nu, x = z[:, :3], z[:, 3:]
-    mu = x @ model.C.T + nu @ model.D.T
+    mu = x @ model.Cr.T + nu @ model.Dr.T
     kinetic = 0.5 * np.einsum("ti,ij,tj->t", nu, m, nu)
     final = np.linalg.solve(np.asarray(m_rb, dtype=float) + model.zero_frequency_added_mass(), m @ z0[:3])
     return FreeDecay(t, nu, x, mu, kinetic, final)

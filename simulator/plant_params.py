@@ -22,19 +22,19 @@ Array = NDArray[np.float64]
 class RadiationModel(Protocol):
     """A state-space model of the radiation (fluid-memory) force, Cummins' convolution replaced by
 
-        x_r' = A x_r + B ν_r,      μ = C x_r + D ν_r
+        x_r' = A_r x_r + B_r ν_r,      μ = C_r x_r + D_r ν_r
 
     with the infinite-frequency added mass A_inf taking M_A's place in the mass matrix.
-    ``simulator.fluid_memory.RadiationStateSpace`` is one."""
+    ``observers.radiation.RadiationStateSpace`` is one."""
 
     @property
-    def A(self) -> NDArray[np.floating[Any]]: ...  # n×n
+    def Ar(self) -> NDArray[np.floating[Any]]: ...  # n×n
     @property
-    def B(self) -> NDArray[np.floating[Any]]: ...  # n×3
+    def Br(self) -> NDArray[np.floating[Any]]: ...  # n×3
     @property
-    def C(self) -> NDArray[np.floating[Any]]: ...  # 3×n
+    def Cr(self) -> NDArray[np.floating[Any]]: ...  # 3×n
     @property
-    def D(self) -> NDArray[np.floating[Any]]: ...  # 3×3
+    def Dr(self) -> NDArray[np.floating[Any]]: ...  # 3×3
     @property
     def A_inf(self) -> NDArray[np.floating[Any]]: ...  # 3×3
 
@@ -116,22 +116,22 @@ class PlantParams:
             assert hull is not None
             rad = options.radiation
             rA, rB, rC, rD = (
-                np.ascontiguousarray(np.asarray(a, dtype=float)) for a in (rad.A, rad.B, rad.C, rad.D)
+                np.ascontiguousarray(np.asarray(a, dtype=float)) for a in (rad.Ar, rad.Br, rad.Cr, rad.Dr)
             )
             n = rA.shape[0]
             A_inf = np.asarray(rad.A_inf, dtype=float)
             shapes = {
-                "A": (rA.shape, (n, n)),
-                "B": (rB.shape, (n, 3)),
-                "C": (rC.shape, (3, n)),
-                "D": (rD.shape, (3, 3)),
+                "Ar": (rA.shape, (n, n)),
+                "Br": (rB.shape, (n, 3)),
+                "Cr": (rC.shape, (3, n)),
+                "Dr": (rD.shape, (3, 3)),
                 "A_inf": (A_inf.shape, (3, 3)),
             }
             for key, (got, want) in shapes.items():
                 if got != want:
                     raise PlantError(f"plant option 'radiation.{key}': shape {got}, expected {want}")
             if n and np.max(np.linalg.eigvals(rA).real) >= 0:
-                raise PlantError("plant option 'radiation.A': not stable (an eigenvalue with real part ≥ 0)")
+                raise PlantError("plant option 'radiation.Ar': not stable (an eigenvalue with real part ≥ 0)")
             M = hull.rigid_body_mass(vessel.mass_kg) + A_inf
             MA = A_inf.copy()
         Xu = float(D[0, 0])

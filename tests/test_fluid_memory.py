@@ -80,9 +80,11 @@ def known_damping(w: np.ndarray) -> np.ndarray:
 
 def flipped(model: RadiationStateSpace, row: int = 0) -> RadiationStateSpace:
     """The same model with the sign of one component of μ reversed: that DOF's memory generates energy."""
-    c = model.C.copy()
+    c = model.Cr.copy()
     c[row] *= -1.0
-    return RadiationStateSpace(model.A, model.B, c, model.D, model.A_inf, f"{model.source} (μ{row} flipped)")
+    return RadiationStateSpace(
+        model.Ar, model.Br, c, model.Dr, model.A_inf, f"{model.source} (μ{row} flipped)"
+    )
 
 
 @pytest.fixture(scope="module")
@@ -185,10 +187,10 @@ def test_shipped_model_is_what_the_data_give(hydro, shipped) -> None:  # type: i
     assert shipped.hydro_sha256 == cache.file_sha256(DATA)
     fresh = rad.identify(hydro.freqs, hydro.A, hydro.B)
     for name, ours in (
-        ("A", fresh.Ar),
-        ("B", fresh.Br),
-        ("C", fresh.Cr),
-        ("D", fresh.Dr),
+        ("Ar", fresh.Ar),
+        ("Br", fresh.Br),
+        ("Cr", fresh.Cr),
+        ("Dr", fresh.Dr),
         ("A_inf", fresh.A_inf),
     ):
         np.testing.assert_allclose(getattr(shipped, name), ours, rtol=1e-9, atol=1e-12, err_msg=name)
@@ -224,15 +226,17 @@ def supply_and_storage(model: RadiationStateSpace, nu: np.ndarray, h: float) -> 
     step's ∫x from Van Loan's block exponential of [[A, B, 0], [0, 0, 0], [I, 0, 0]])."""
     n = model.n_states
     m = np.zeros((2 * n + 3, 2 * n + 3))
-    m[:n, :n] = model.A
-    m[:n, n : n + 3] = model.B
+    m[:n, :n] = model.Ar
+    m[:n, n : n + 3] = model.Br
     m[n + 3 :, :n] = np.eye(n)
     e = scipy.linalg.expm(m * h)
     phi, gamma, int_phi, int_gamma = e[:n, :n], e[:n, n : n + 3], e[n + 3 :, :n], e[n + 3 :, n : n + 3]
     x = np.zeros(n)
     supplied, states = [0.0], [x]
     for u in nu:
-        supplied.append(supplied[-1] + float(u @ (model.C @ (int_phi @ x + int_gamma @ u) + model.D @ u * h)))
+        supplied.append(
+            supplied[-1] + float(u @ (model.Cr @ (int_phi @ x + int_gamma @ u) + model.Dr @ u * h))
+        )
         x = phi @ x + gamma @ u
         states.append(x)
     return np.array(supplied), np.array(states)
@@ -321,7 +325,7 @@ def test_memory_holds_the_energy_of_the_fluid_carried_along(
         np.array([0.0, 1.0, 0.0]),
         *(rng.normal(size=3) * [1, 1, 0.02] for _ in range(5)),
     ):
-        x = -np.linalg.solve(shipped.A, shipped.B @ nu)
+        x = -np.linalg.solve(shipped.Ar, shipped.Br @ nu)
         fluid = 0.5 * nu @ (shipped.zero_frequency_added_mass() - shipped.A_inf) @ nu
         assert fluid > 0.0
         assert shipped_storage(x) == pytest.approx(fluid, rel=1e-3)
@@ -349,13 +353,13 @@ def test_kernels_equal_their_references(shipped: RadiationStateSpace) -> None:
         out = np.empty(n)
         kern.memory_step(x, nu0, nu1, phi, g0, g1, out)
         np.testing.assert_allclose(out, kern.memory_step_reference(x, nu0, nu1, phi, g0, g1), rtol=1e-12)
-        kern.memory_derivative(x, nu0, model.A, model.B, out)
+        kern.memory_derivative(x, nu0, model.Ar, model.Br, out)
         np.testing.assert_allclose(
-            out, kern.memory_derivative_reference(x, nu0, model.A, model.B), rtol=1e-12
+            out, kern.memory_derivative_reference(x, nu0, model.Ar, model.Br), rtol=1e-12
         )
         mu = np.empty(3)
-        kern.memory_force(x, nu0, model.C, model.D, mu)
-        np.testing.assert_allclose(mu, kern.memory_force_reference(x, nu0, model.C, model.D), rtol=1e-12)
+        kern.memory_force(x, nu0, model.Cr, model.Dr, mu)
+        np.testing.assert_allclose(mu, kern.memory_force_reference(x, nu0, model.Cr, model.Dr), rtol=1e-12)
 
 
 def test_step_is_exact_for_linear_velocity(shipped: RadiationStateSpace) -> None:
@@ -381,16 +385,16 @@ def test_rk4_plant_step_is_stable_and_accurate(shipped: RadiationStateSpace) -> 
     k = np.empty((4, shipped.n_states))
     mu = np.empty(3)
     rk4 = np.empty_like(exact)
-    kern.memory_force(x, nu[0], shipped.C, shipped.D, mu)
+    kern.memory_force(x, nu[0], shipped.Cr, shipped.Dr, mu)
     rk4[0] = mu
     for n in range(1, len(t)):
         mid = 0.5 * (nu[n - 1] + nu[n])
-        kern.memory_derivative(x, nu[n - 1], shipped.A, shipped.B, k[0])
-        kern.memory_derivative(x + 0.5 * DT * k[0], mid, shipped.A, shipped.B, k[1])
-        kern.memory_derivative(x + 0.5 * DT * k[1], mid, shipped.A, shipped.B, k[2])
-        kern.memory_derivative(x + DT * k[2], nu[n], shipped.A, shipped.B, k[3])
+        kern.memory_derivative(x, nu[n - 1], shipped.Ar, shipped.Br, k[0])
+        kern.memory_derivative(x + 0.5 * DT * k[0], mid, shipped.Ar, shipped.Br, k[1])
+        kern.memory_derivative(x + 0.5 * DT * k[1], mid, shipped.Ar, shipped.Br, k[2])
+        kern.memory_derivative(x + DT * k[2], nu[n], shipped.Ar, shipped.Br, k[3])
         x = x + DT / 6.0 * (k[0] + 2 * k[1] + 2 * k[2] + k[3])
-        kern.memory_force(x, nu[n], shipped.C, shipped.D, mu)
+        kern.memory_force(x, nu[n], shipped.Cr, shipped.Dr, mu)
         rk4[n] = mu
     err = np.sqrt(np.mean((rk4 - exact) ** 2, axis=0)) / np.sqrt(np.mean(exact**2, axis=0))
     assert np.all(err < 1e-5), err
@@ -416,17 +420,17 @@ def test_impulse_response_is_the_kernel_of_the_frequency_response() -> None:
 def test_bad_models_are_refused_with_a_clear_message() -> None:
     m = known_model()
     with pytest.raises(FluidMemoryError, match=r"B has shape \(6, 2\)"):
-        RadiationStateSpace(m.A, m.B[:, :2], m.C, m.D, m.A_inf, "x.npz")
+        RadiationStateSpace(m.Ar, m.Br[:, :2], m.Cr, m.Dr, m.A_inf, "x.npz")
     with pytest.raises(FluidMemoryError, match="Re ≥ 0"):
-        RadiationStateSpace(-m.A, m.B, m.C, m.D, m.A_inf, "x.npz")
+        RadiationStateSpace(-m.Ar, m.Br, m.Cr, m.Dr, m.A_inf, "x.npz")
     with pytest.raises(FluidMemoryError, match="A_inf is not symmetric"):
-        RadiationStateSpace(m.A, m.B, m.C, m.D, m.A_inf + np.triu(np.ones((3, 3)), 1), "x.npz")
+        RadiationStateSpace(m.Ar, m.Br, m.Cr, m.Dr, m.A_inf + np.triu(np.ones((3, 3)), 1), "x.npz")
     with pytest.raises(FluidMemoryError, match="non-finite"):
-        RadiationStateSpace(m.A, m.B, m.C * np.nan, m.D, m.A_inf, "x.npz")
+        RadiationStateSpace(m.Ar, m.Br, m.Cr * np.nan, m.Dr, m.A_inf, "x.npz")
     with pytest.raises(FluidMemoryError, match="M_RB is not symmetric positive definite"):
-        RadiationStateSpace(m.A, m.B, m.C, m.D, m.A_inf, "x.npz", M_RB=-np.eye(3))
+        RadiationStateSpace(m.Ar, m.Br, m.Cr, m.Dr, m.A_inf, "x.npz", M_RB=-np.eye(3))
     with pytest.raises(ValueError, match="read-only"):
-        m.A[0, 0] = 1.0
+        m.Ar[0, 0] = 1.0
 
 
 # ------------------------------------------------------------------ loading and caching
@@ -483,13 +487,13 @@ def test_identified_once_then_read_from_the_cache(tmp_path: Path, monkeypatch: p
     first = cache.load_fluid_memory(vessel, hydro=hydro_file, cache=store)
     second = cache.load_fluid_memory(vessel, hydro=hydro_file, cache=store)
     assert len(calls) == 1 and len(list(store.glob("*.npz"))) == 1
-    np.testing.assert_array_equal(first.A, second.A)
+    np.testing.assert_array_equal(first.Ar, second.Ar)
     assert energy.hamiltonian_certificate(first).passive
     # other data (same file name): recognised as stale, identified again under another key
     synthetic_hydro(hydro_file, scale=1.5)
     third = cache.load_fluid_memory(vessel, hydro=hydro_file, cache=store)
     assert len(calls) == 2 and len(list(store.glob("*.npz"))) == 2
-    assert not np.allclose(third.C, first.C)
+    assert not np.allclose(third.Cr, first.Cr)
     # a damaged entry is made again, not trusted
     for p in store.glob("*.npz"):
         p.write_bytes(b"not a zip")
@@ -523,3 +527,18 @@ def test_cache_folder_follows_the_environment(monkeypatch: pytest.MonkeyPatch, t
     monkeypatch.delenv("DPGW_CACHE_DIR")
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "x"))
     assert cache.cache_dir() == tmp_path / "x" / "dpgw" / "radiation"
+
+
+def test_one_radiation_model_for_the_plant_and_the_memory_observer() -> None:
+    """One class and one stored file: the memory observer's built-in model is the state space the plant
+    integrates for mss_supply (same arrays, same data hash), not a second copy that could drift."""
+    from observers import radiation
+    from observers.memory_tuning import builtin_radiation
+    from simulator import fluid_memory
+    from simulator.fluid_memory_cache import load_fluid_memory
+
+    assert fluid_memory.RadiationStateSpace is radiation.RadiationStateSpace
+    plant, observer = load_fluid_memory("mss_supply"), builtin_radiation()
+    for name in ("Ar", "Br", "Cr", "Dr", "A_inf", "M_RB"):
+        assert np.array_equal(getattr(plant, name), getattr(observer, name)), name
+    assert plant.hydro_sha256 == observer.hydro_sha256 != ""

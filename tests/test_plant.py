@@ -28,20 +28,20 @@ OSV = load_vessel("mss_osv")
 class OneState:
     """A hand-made radiation model with one state: sway velocity in, sway and yaw force out."""
 
-    A: np.ndarray
-    B: np.ndarray
-    C: np.ndarray
-    D: np.ndarray
+    Ar: np.ndarray
+    Br: np.ndarray
+    Cr: np.ndarray
+    Dr: np.ndarray
     A_inf: np.ndarray
 
 
 def one_state(a: float = 0.2, b: float = 1.0, c: float = 3e5, d: float = 2e4) -> OneState:
     A_inf = np.array(OSV.hull.added_mass) * 1.1  # type: ignore[union-attr]
     return OneState(
-        A=np.array([[-a]]),
-        B=np.array([[0.0, b, 0.0]]),
-        C=np.array([[0.0], [c], [-4.0 * c]]),
-        D=np.diag([0.0, d, 0.0]),
+        Ar=np.array([[-a]]),
+        Br=np.array([[0.0, b, 0.0]]),
+        Cr=np.array([[0.0], [c], [-4.0 * c]]),
+        Dr=np.diag([0.0, d, 0.0]),
         A_inf=A_inf,
     )
 
@@ -128,10 +128,10 @@ def test_radiation_hook_with_a_one_state_system() -> None:
     Minv = np.linalg.inv(M)
     # linear in z = [u, v, r, x_r] (no Coriolis, no drag, no current, no bias): z' = F z + G τ
     F = np.zeros((4, 4))
-    F[:3, :3] = -Minv @ (OSV.D + rad.D)
-    F[:3, 3:] = -Minv @ rad.C
-    F[3:, :3] = rad.B
-    F[3:, 3:] = rad.A
+    F[:3, :3] = -Minv @ (OSV.D + rad.Dr)
+    F[:3, 3:] = -Minv @ rad.Cr
+    F[3:, :3] = rad.Br
+    F[3:, 3:] = rad.Ar
     G = np.zeros((4, 3))
     G[:3] = Minv
     tau = np.array([1e5, 2e5, -3e6])
@@ -148,10 +148,10 @@ def test_radiation_hook_with_a_one_state_system() -> None:
 
 
 def test_radiation_hook_refuses_wrong_shapes_and_unstable_models() -> None:
-    with pytest.raises(PlantError, match=r"radiation\.C"):
-        FullPlant(OSV, options=PlantOptions(radiation=replace(one_state(), C=np.zeros((2, 1)))))
-    with pytest.raises(PlantError, match=r"radiation\.A"):
-        FullPlant(OSV, options=PlantOptions(radiation=replace(one_state(), A=np.array([[0.1]]))))
+    with pytest.raises(PlantError, match=r"radiation\.Cr"):
+        FullPlant(OSV, options=PlantOptions(radiation=replace(one_state(), Cr=np.zeros((2, 1)))))
+    with pytest.raises(PlantError, match=r"radiation\.Ar"):
+        FullPlant(OSV, options=PlantOptions(radiation=replace(one_state(), Ar=np.array([[0.1]]))))
 
 
 def test_full_plant_needs_a_hull() -> None:
