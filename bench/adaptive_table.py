@@ -13,7 +13,13 @@ observer: LF RMS error against the truth after a settle time, and the wave-band 
 attenuation of the LF estimate at the measured wave peak (dB, `gateway.report`; more negative is better).
 The fixed observer and the gain-scheduled one start from the same badly tuned ω0 (Torsetnes' case).
 
-    python bench/adaptive_table.py [--json] [--quick]
+Plants (``--plant``): ``model`` — each scenario as its paper has it, on the observers' own LF model;
+``full`` — the simulator's full plant: `torsetnes_2004` with Coriolis, surge resistance and cross-flow
+drag, and `mss_supply_storm` (the same vessel, sea and station with fluid memory, a 1 m/s current and a
+15 m/s NORSOK wind). `hassani`'s model ship has no hull data for the full plant (CyberShip II's vessel file
+gives M and D only), so it runs on the model plant alone.
+
+    python bench/adaptive_table.py [--json] [--quick] [--plant model|full|both]
 """
 
 from __future__ import annotations
@@ -47,6 +53,17 @@ CASES = {
     "torsetnes_2004": (1800.0, 600.0, 0.83, [_setpoint(0.0, 0.0, 45.0)]),
     "hassani": (600.0, 200.0, 0.6, None),
 }
+FULL_PLANT_CASES = {
+    "torsetnes_2004 full": ("torsetnes_2004", *CASES["torsetnes_2004"]),
+    "mss_supply_storm": ("mss_supply_storm", 1800.0, 600.0, 0.83, [_setpoint(0.0, 0.0, 45.0)]),
+}
+
+
+def scenario_for(case: str) -> Scenario:
+    """The scenario of a table row: ``NAME`` as registered, ``NAME full`` on the full plant."""
+    name, _, plant = case.partition(" ")
+    scenario = get_scenario(name)
+    return replace(scenario, plant="full") if plant == "full" else scenario
 
 
 def observers(scenario: Scenario, start: float) -> list[ObserverSpec]:
@@ -64,8 +81,8 @@ def run_case(
 ) -> list[dict[str, Any]]:
     """The vessel is kept on station by the gateway (passive observer tuned to the sea) while the log is
     made; the three observers are then replayed on exactly the same measurements."""
-    scenario = get_scenario(name)
-    log = os.path.join(folder, f"{name}.mcap")
+    scenario = scenario_for(name)
+    log = os.path.join(folder, f"{name.replace(' ', '_')}.mcap")
     with McapLogWriter(log) as w:
         if events is None:
             # The force law is open loop: it compensates the mean load but not the random (Markov) part of
@@ -105,7 +122,13 @@ def run_case(
             )
         )
         rows.append(
-            {"scenario": name, "observer": spec.label, "rms": s.as_dict(), "omega0_end": est[-1]["omega0"]}
+            {
+                "scenario": name,
+                "plant": scenario.plant,
+                "observer": spec.label,
+                "rms": s.as_dict(),
+                "omega0_end": est[-1]["omega0"],
+            }
         )
     metrics = compute_metrics(
         ReplayData(name, scenario.vessel.name, t_meas, y, tuple(traces)), settle_s=settle
@@ -120,27 +143,36 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--quick", action="store_true", help="shorter runs (smoke test)")
+    ap.add_argument(
+        "--plant",
+        choices=["model", "full", "both"],
+        default="both",
+        help="the papers' model plants, the simulator's full plant, or both side by side (default)",
+    )
     args = ap.parse_args()
+    cases = {name: (name, *case) for name, case in CASES.items()} if args.plant != "full" else {}
+    if args.plant != "model":
+        cases.update(FULL_PLANT_CASES)
     rows: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as folder:
-        for name, (duration, settle, start, events) in CASES.items():
+        for label, (_, duration, settle, start, events) in cases.items():
             if args.quick:
                 duration, settle = duration / 3, settle / 3
-            rows += run_case(name, duration, settle, start, events, folder)
+            rows += run_case(label, duration, settle, start, events, folder)
     if args.json:
         print(json.dumps(rows, indent=2))
         return
     print(
-        "scenario        observer         RMS N (m)  RMS E (m)  RMS ψ (deg)  attenuation N/E/ψ (dB)", end=""
+        "scenario             plant  observer         RMS N (m)  RMS E (m)  RMS ψ (deg)  "
+        "attenuation N/E/ψ (dB)   ω0 at end"
     )
-    print("   ω0 at end")
     for r in rows:
         a = r["attenuation_db"]
         att = " / ".join("  n/a" if v is None else f"{v:5.1f}" for v in a)
         e = r["rms"]
         print(
-            f"{r['scenario']:15s} {r['observer']:15s} {e['rms_north_m']:9.3f}  {e['rms_east_m']:9.3f}  "
-            f"{e['rms_heading_deg']:10.3f}   {att:24s} {r['omega0_end'][0]:.3f}"
+            f"{r['scenario']:20s} {r['plant']:6s} {r['observer']:15s} {e['rms_north_m']:9.3f}  "
+            f"{e['rms_east_m']:9.3f}  {e['rms_heading_deg']:10.3f}   {att:24s} {r['omega0_end'][0]:.3f}"
         )
 
 

@@ -200,11 +200,8 @@ def _run_scenario(args: argparse.Namespace) -> int:
             # Faster than real time, a chunk per second of log time is a chunk per few ms of work: tiny
             # chunks, each with its own compression call and indexes. Chunks then close by size (and
             # every second of wall time, which bounds the loss if the process dies).
+            # (the simulation writes its own metadata: scenario, seed, vessel and datum)
             log = McapLogWriter(args.out, profile="dpgw-sim", flush_on_log_time=bool(args.realtime))
-            log.add_metadata(
-                "dpgw.sim",
-                {"scenario": scenario.name, "seed": str(args.seed), "vessel": scenario.vessel.name},
-            )
     except (TransportError, BusError, OSError) as exc:
         message = exc.describe(ZENOH_FLAGS) if isinstance(exc, BusError) else str(exc)
         print(f"dpgw sim: {message}", file=sys.stderr)

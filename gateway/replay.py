@@ -36,7 +36,7 @@ from observers.factory import OBSERVER_PARAMS, OBSERVER_TYPES, Observer, make_ob
 from observers.passive_tuning import PassiveTuning
 from wire.mcap.reader import read_messages
 from wire.mcap.writer import McapLogWriter, raw_mavlink_record, raw_nmea_record
-from wire.messages import Estimate, RawMavlink, RawNmea
+from wire.messages import SIM_METADATA, Estimate, RawMavlink, RawNmea
 
 CONFIG_METADATA = "dpgw.config"
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -73,6 +73,20 @@ def logged_config(path: str | Path) -> dict[str, Any] | None:
                     data: dict[str, Any] = json.loads(record.metadata["json"])
                     return data
         except Exception:  # a truncated file has no metadata index: fall through
+            return None
+    return None
+
+
+def logged_datum(path: str | Path) -> dict[str, float] | None:
+    """The NED datum a simulator log's truth is in (metadata `SIM_METADATA`), if the log has one."""
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        try:
+            for record in reader.iter_metadata():
+                if record.name == SIM_METADATA and "datum" in record.metadata:
+                    datum = json.loads(record.metadata["datum"])
+                    return {k: float(datum[k]) for k in ("lat_deg", "lon_deg", "alt_m")}
+        except Exception:  # a truncated file has no metadata index; an older log has no datum
             return None
     return None
 
@@ -285,6 +299,12 @@ def build_config(
     if vessel is None:
         raise ReplayError("no configuration in the log: give --vessel NAME|FILE or --config FILE")
     tables = default_config(vessel)
+    # A simulator's log says which datum its truth is in: replay there, not at the first fix (a wave-moved,
+    # noisy position ~1 m off, which every score against the truth would carry as a constant error).
+    for inp in inputs:
+        if inp.kind == "mcap" and (datum := logged_datum(inp.path)) is not None:
+            tables["datum"] = datum
+            break
     sources: list[dict[str, Any]] = []
     for inp in inputs:
         for name, protocol in inp.sources().items():

@@ -19,6 +19,7 @@ position — so measurement − truth is the sensor's noise and nothing else.
 from __future__ import annotations
 
 import heapq
+import json
 import math
 import time
 from collections import Counter
@@ -52,7 +53,7 @@ from simulator.transports import Sink
 from simulator.vessel_dynamics import MAX_STEP_S, VesselDynamics
 from simulator.waves import WaveField, WaveResponse
 from wire.mcap.writer import McapLogWriter
-from wire.messages import TruthState
+from wire.messages import SIM_METADATA, TruthState
 
 Array = NDArray[np.float64]
 
@@ -181,6 +182,18 @@ class Simulation:
         self.seed = seed
         self.routes = list(routes)
         self.log = log
+        if log is not None:
+            # what a replay needs to score this log: the frame the truth is in, and what made it
+            d = scenario.datum
+            log.add_metadata(
+                SIM_METADATA,
+                {
+                    "scenario": scenario.name,
+                    "seed": str(seed),
+                    "vessel": scenario.vessel.name,
+                    "datum": json.dumps({"lat_deg": d.lat_deg, "lon_deg": d.lon_deg, "alt_m": d.alt_m}),
+                },
+            )
         self.clock = clock or VirtualClock()
         self.commands = list(commands)
         self.epoch = SimEpoch(scenario.start_utc)

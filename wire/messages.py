@@ -459,6 +459,11 @@ class TruthState(Message, kw_only=True):
     ] = None
 
 
+SIM_METADATA = "dpgw.sim"
+"""MCAP metadata record a simulator writes into its log: ``scenario``, ``seed``, ``vessel`` and ``datum``
+(JSON {lat_deg, lon_deg, alt_m}: the origin of the NED frame `/truth/state` is in, so that a replay of the
+log puts its estimates in the same frame as the truth)."""
+
 SIM_CLOCK_KEY = "sim/clock"
 """Under the Zenoh prefix: where a simulator publishes its time (`SimClock`)."""
 
