@@ -6,6 +6,6 @@ the MCAP write. A sink owns whatever it opens (sockets, Zenoh declarations) and 
 Sinks are optional: the service runs the same without any.
 """
 
-from gateway.outputs.base import OutputSink
+from gateway.outputs.base import OutputSink, RawSentenceSink
 
-__all__ = ["OutputSink"]
+__all__ = ["OutputSink", "RawSentenceSink"]
