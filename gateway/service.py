@@ -426,7 +426,7 @@ class GatewayService:
                 self._internal_error(f"sink {sink.name}", f"{len(outputs)} outputs")
         self._log_outputs(outputs, encoded)
 
-    def _sentence_tap(self, taps: list[RawSentenceSink]) -> Any:
+    def _sentence_tap(self, taps: Sequence[RawSentenceSink]) -> Any:
         """Raw sentences to the sinks that take them; a sink's exception is its own internal error, not
         the source's (the chunk goes on through the pipeline)."""
 
