@@ -61,7 +61,13 @@ class KeelsonSink:
 
     name = "keelson"
 
-    def __init__(self, cfg: KeelsonConfig, sources: Sequence[str], datum_alt_m: float = 0.0) -> None:
+    def __init__(
+        self,
+        cfg: KeelsonConfig,
+        sources: Sequence[str],
+        datum_alt_m: float = 0.0,
+        datum: tuple[float, float] | None = None,
+    ) -> None:
         self.cfg = cfg
         self.sources = tuple(sources)
         self.datum_alt_m = datum_alt_m
@@ -70,7 +76,8 @@ class KeelsonSink:
         self._session: zenoh.Session | None = None
         self._publishers: dict[tuple[str, str], Any] = {}
         self._tokens: list[Any] = []
-        self._frame: LocalFrame | None = None  # the estimate's datum, to place the measured position
+        # the datum, to place the measured position: the configured one, else the estimate's (first fix)
+        self._frame = None if datum is None else LocalFrame(datum[0], datum[1], datum_alt_m)
         self._alarms: frozenset[str] = frozenset()
         self._mode: str | None = None
         self._sensor_ids = {s: cfg.sensor(s) for s in self.sources}
@@ -211,8 +218,10 @@ class KeelsonSink:
         if u is not None and v is not None:
             self._float("surge_velocity_mps", sid, t, u, now)
             self._float("sway_velocity_mps", sid, t, v, now)
-            self._float("speed_over_ground_knots", sid, t, math.hypot(u, v) / KNOT_M_S, now)
-            if psi is not None:  # the course is the heading plus the drift angle atan2(v, u)
+            speed = math.hypot(u, v)
+            self._float("speed_over_ground_knots", sid, t, speed / KNOT_M_S, now)
+            # the course is the heading plus the drift angle atan2(v, u); at rest it has no direction
+            if psi is not None and speed > 0.0:
                 self._float(
                     "course_over_ground_deg", sid, t, math.degrees(psi + math.atan2(v, u)) % 360.0, now
                 )
@@ -288,4 +297,6 @@ def _alarm_text(alarm: dict[str, Any]) -> str:
 
 def keelson_sink(config: GatewayConfig) -> KeelsonSink:
     """The sink ``[keelson]`` describes, for the config's input sources (each gets a sensor source id)."""
-    return KeelsonSink(config.keelson, [s.name for s in config.sources], config.datum.alt_m)
+    d = config.datum
+    datum = (d.lat_deg, d.lon_deg) if d.fixed and d.lat_deg is not None and d.lon_deg is not None else None
+    return KeelsonSink(config.keelson, [s.name for s in config.sources], d.alt_m, datum)
