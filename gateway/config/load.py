@@ -558,14 +558,14 @@ def _read_keelson(p: Problems, data: Mapping[str, Any]) -> KeelsonConfig | None:
                 f'has no "{{source}}" (expected {_expected(key)}, got {show(value)})',
             )
     entity = v["entity_id"]
-    if entity is not None and v["enabled"]:
-        if not entity:
+    if entity is not None:
+        if not entity and v["enabled"]:
             p.add(
                 "keelson.entity_id",
                 'missing (expected one key chunk in snake_case naming the vessel, e.g. "my_ship", when '
                 "keelson.enabled = true)",
             )
-        elif not re.fullmatch(r"[a-z0-9_]+", entity):
+        elif entity and not re.fullmatch(r"[a-z0-9_]+", entity):
             p.add(
                 "keelson.entity_id",
                 f"not a Keelson key chunk (expected {_expected('entity_id')}, got {show(entity)})",
