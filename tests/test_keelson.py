@@ -171,13 +171,13 @@ def test_a_keelson_consumer_receives_and_decodes_every_subject_with_the_right_va
 
         wait_for(step, timeout=30.0, interval=0.05)
 
+    def tokens() -> set[str]:
+        replies = client.liveliness().get(f"{BASE}/@v0/{ENTITY}/pubsub/**")
+        return {str(r.ok.key_expr) for r in replies if r.ok is not None}
+
     est, meas, sensor = "dpgw/estimate", "dpgw/measurement", "dpgw/sensor/dgps1"
     try:
         # presence: one token per source id, in keelson's liveliness key format
-        def tokens() -> set[str]:
-            replies = client.liveliness().get(f"{BASE}/@v0/{ENTITY}/pubsub/**")
-            return {str(r.ok.key_expr) for r in replies if r.ok is not None}
-
         expected = {keelson.construct_liveliness_key(BASE, ENTITY, sid) for sid in sink.source_ids()}
         wait_for(lambda: tokens() == expected)
         assert all("/pubsub/*/" in t for t in expected)
@@ -194,12 +194,16 @@ def test_a_keelson_consumer_receives_and_decodes_every_subject_with_the_right_va
         service.stop_event.set()
         loop.join(timeout=30)
         service.drain()
+        sink.close()  # the tokens go with the sink, before the session closes
+        gone = wait_for(lambda: tokens() == set(), timeout=10.0)
         service.close()
     tx.close()
     try:
         check_values(listener, recorder, sent)
     finally:
         client.close()
+    # (the gateway's session is closed: its tokens are gone; checked from the client before it closed)
+    assert gone
     assert not loop.is_alive()
     assert service.internal_errors == {}
 
@@ -381,3 +385,6 @@ def test_a_missing_keelson_package_stops_start_up_with_one_message(
 
     with pytest.raises(OutputError, match="keelson package is not installed"):
         sinks_from_config(config)
+    from dpgw.cli_run import start_up_problems  # `dpgw run --check` says it too
+
+    assert [p for p in start_up_problems(config) if "keelson" in p] == problems
