@@ -73,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
 
     from gateway.bus import BusError
     from gateway.config import ConfigError, TimeConfig, describe, format_problems, load_config
+    from gateway.outputs.build import OutputError, sinks_from_config
     from gateway.service import GatewayService
     from gateway.sources import SourceError
 
@@ -95,7 +96,12 @@ def run(args: argparse.Namespace) -> int:
         tables = tomllib.load(f)
     if args.clock is not None:  # the log's copy of the config says what ran
         tables["time"] = {**tables.get("time", {}), "clock": args.clock}
-    service = GatewayService(config, log_path=args.log, config_tables=tables)
+    try:
+        sinks = sinks_from_config(config)
+    except OutputError as exc:
+        print(exc, file=sys.stderr)
+        return 2
+    service = GatewayService(config, log_path=args.log, config_tables=tables, sinks=sinks)
     try:
         service.start()
     except BusError as exc:
@@ -187,6 +193,7 @@ def start_up_problems(config: GatewayConfig) -> list[str]:
     """What start-up would refuse beyond the config's own checks, found without opening anything: each
     source URL as the gateway's sources read it, and the Zenoh session's config."""
     from gateway.bus import BusError
+    from gateway.outputs.build import output_problems
     from gateway.service import zenoh_config
     from gateway.sources import SourceError, open_source
 
@@ -203,4 +210,4 @@ def start_up_problems(config: GatewayConfig) -> list[str]:
         zenoh_config(config.zenoh)
     except BusError as exc:
         problems.append(f"{where}: {exc}")
-    return problems
+    return problems + output_problems(config)

@@ -20,7 +20,7 @@ from __future__ import annotations
 import copy
 import math
 from collections import Counter
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
@@ -293,6 +293,11 @@ class Pipeline:
         # One framer (NMEA) or frame parser (MAVLink) per source and sender, made on the sender's first
         # chunk; key (source, peer), peer "" for links with one sender.
         self._framers: dict[tuple[str, str], NmeaFramer] = {}
+        self.sentence_tap: Callable[[str, int, str, str], None] | None = None
+        """Called with (source, receive time ns, sentence text, peer) for every NMEA sentence the framer
+        cuts from received bytes, before it is decoded (valid or not): an output that republishes raw
+        sentences (Keelson's ``raw_nmea0183``) gets them without framing the bytes a second time. Not
+        called for chunks that arrive already framed (replay's checked lines) or decoded (records)."""
         self._parsers: dict[tuple[str, str], mv.FrameParser] = {}
         self._parser_seen: dict[tuple[str, str], Counter[str]] = {}
         self._parser_rejects: dict[tuple[str, str], int] = {}  # sum of _parser_seen, the fast check
@@ -441,6 +446,10 @@ class Pipeline:
                 else:
                     framed.append(frame.text)
             verified = False
+            tap = self.sentence_tap
+            if tap is not None:
+                for text in framed:
+                    tap(spec.name, ev.rx_ns, text, ev.peer)
         updated = False
         decode, reject, unused = nmea_codec.decode, nmea_codec.Reject, nmea_codec.UNUSED
         require = not spec.allow_missing_checksum

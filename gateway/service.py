@@ -39,7 +39,7 @@ import zenoh
 
 from gateway.bus import command_acl, make_config, open_session
 from gateway.config import GatewayConfig, ZenohConfig
-from gateway.outputs import OutputSink
+from gateway.outputs import OutputSink, RawSentenceSink
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from gateway.sim_time import SimTime
 from gateway.sources import Chunk, Source, open_source
@@ -183,6 +183,9 @@ class GatewayService:
                 self.log.add_metadata("dpgw.config", meta)
             for sink in self.sinks:
                 sink.start(s)
+            taps = [sink for sink in self.sinks if isinstance(sink, RawSentenceSink)]
+            if taps:
+                self.pipeline.sentence_tap = self._sentence_tap(taps)
         except BaseException:
             self.close()
             raise
@@ -422,6 +425,19 @@ class GatewayService:
             except Exception:
                 self._internal_error(f"sink {sink.name}", f"{len(outputs)} outputs")
         self._log_outputs(outputs, encoded)
+
+    def _sentence_tap(self, taps: Sequence[RawSentenceSink]) -> Any:
+        """Raw sentences to the sinks that take them; a sink's exception is its own internal error, not
+        the source's (the chunk goes on through the pipeline)."""
+
+        def tap(source: str, rx_ns: int, text: str, peer: str) -> None:
+            for sink in taps:
+                try:
+                    sink.raw_nmea(source, rx_ns, text, peer)
+                except Exception:
+                    self._internal_error(f"sink {sink.name}", f"a sentence of {source}")
+
+        return tap
 
     def _publish(self, outputs: list[Output]) -> list[bytes]:
         """Zenoh puts (estimate before measurement) and MAVLink commands; each message encoded once."""

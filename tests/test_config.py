@@ -217,6 +217,15 @@ def test_the_simulation_clock_is_chosen_in_the_time_table(tmp_path: Path) -> Non
     assert parse_config(d, base_dir=tmp_path).time.sim
 
 
+def test_keelson_is_off_unless_enabled_and_takes_its_source_ids(tmp_path: Path) -> None:
+    d = base()
+    k = parse_config(d, base_dir=tmp_path).keelson
+    assert not k.enabled and k.base_path == "keelson" and k.estimate_source_id == "dpgw/estimate"
+    put(d, "keelson", {"enabled": True, "entity_id": "my_ship", "sensor_source_id": "gnss/{source}/0"})
+    k = parse_config(d, base_dir=tmp_path).keelson
+    assert k.enabled and k.entity_id == "my_ship" and k.sensor("dgps1") == "gnss/dgps1/0"
+
+
 def test_default_config_is_the_parser_defaults(tmp_path: Path) -> None:
     """default_config() (what `dpgw demo` fills in) gives the same config as leaving every key out."""
     d = default_config()
@@ -800,6 +809,24 @@ BAD: list[tuple[str, dict[str, Any], str, str]] = [
     ("section type", {"log": "logs/x.mcap"}, "log", "expected a [log] table"),
     ("clock typo", {"time.clock": "simulation"}, "time.clock", 'expected "wall" or "sim", got "simulation"'),
     ("clock key typo", {"time.clok": "sim"}, "time.clok", "did you mean 'clock'"),
+    (
+        "keelson without entity",
+        {"keelson.enabled": True},
+        "keelson.entity_id",
+        "missing (expected one key chunk in snake_case",
+    ),
+    ("keelson entity", {"keelson.entity_id": "My Ship"}, "keelson.entity_id", 'got "My Ship"'),
+    ("keelson enabled type", {"keelson.enabled": "yes"}, "keelson.enabled", "expected true or false"),
+    ("keelson base wildcard", {"keelson.base_path": "keelson/*"}, "keelson.base_path", "not a Keelson key"),
+    ("keelson verbatim", {"keelson.estimate_source_id": "@x"}, "keelson.estimate_source_id", "snake_case"),
+    ("keelson sensor", {"keelson.sensor_source_id": "gnss"}, "keelson.sensor_source_id", 'no "{source}"'),
+    (
+        "keelson same id",
+        {"keelson.log_source_id": "dpgw/estimate"},
+        "keelson.log_source_id",
+        "the same as keelson.estimate_source_id",
+    ),
+    ("keelson key typo", {"keelson.entity": "x"}, "keelson.entity", "did you mean 'entity_id'"),
 ]
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict
 from typing import Any
 
-from gateway.config.model import IntegrityConfig
+from gateway.config.model import IntegrityConfig, KeelsonConfig
 from observers.passive_tuning import PassiveTuning
 from observers.vessel import builtin_vessels
 
@@ -55,6 +55,7 @@ DEFAULTS: dict[str, dict[str, Any]] = {
     },
     "status": {"rate_hz": 1.0},
     "time": {"clock": "wall"},
+    "keelson": asdict(KeelsonConfig()),
     "control": {
         "rate_hz": 10.0,
         "initial_mode": "standby",

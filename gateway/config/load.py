@@ -25,6 +25,7 @@ from gateway.config.model import (
     DatumConfig,
     GatewayConfig,
     IntegrityConfig,
+    KeelsonConfig,
     LogConfig,
     StatusConfig,
     TimeConfig,
@@ -37,6 +38,7 @@ from gateway.config.schema import (
     ControlTable,
     DatumTable,
     IntegrityTable,
+    KeelsonTable,
     LogTable,
     StatusTable,
     TimeTable,
@@ -62,6 +64,7 @@ _TOP_KEYS = (
     "integrity",
     "commands",
     "time",
+    "keelson",
 )
 
 
@@ -116,6 +119,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
     integrity = _read_integrity(p, data)
     commands = _read_commands(p, data)
     time_config = _read_time(p, data)
+    keelson = _read_keelson(p, data)
 
     if p.lines:
         raise ConfigError(p.lines)
@@ -123,7 +127,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
     assert datum is not None and sources is not None and observer is not None
     assert zenoh_config is not None and log is not None and status is not None and control is not None
     assert integrity is not None
-    assert commands is not None and time_config is not None
+    assert commands is not None and time_config is not None and keelson is not None
     return GatewayConfig(
         vessel=vessel,
         vessel_source=vessel_source,
@@ -139,6 +143,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
         integrity=integrity,
         commands=commands,
         time=time_config,
+        keelson=keelson,
     )
 
 
@@ -525,3 +530,62 @@ def _read_commands(p: Problems, data: Mapping[str, Any]) -> CommandsConfig | Non
     if len(p) != n0:
         return None
     return CommandsConfig(accept=frozenset(accept), max_setpoint_distance_m=v["max_setpoint_distance_m"])
+
+
+_KEY_CHUNKS = re.compile(r"[a-z0-9_]+(/[a-z0-9_]+)*")
+"""Keelson's keys are snake_case (its protocol specification); no wildcard, no ``@`` (verbatim) chunk."""
+
+
+def _read_keelson(p: Problems, data: Mapping[str, Any]) -> KeelsonConfig | None:
+    t = _section(p, data, "keelson")
+    if t is None:
+        return None
+    n0 = len(p)
+    v = read_table(KeelsonTable, t, "keelson", p)
+    for key in ("base_path", *(k for k in v if k.endswith("_source_id"))):
+        value = v[key]
+        if value is None:
+            continue
+        probe = value.replace("{source}", "s", 1) if key == "sensor_source_id" else value
+        if not _KEY_CHUNKS.fullmatch(probe):
+            p.add(
+                f"keelson.{key}",
+                f"not a Keelson key part (expected {_expected(key)}, got {show(value)})",
+            )
+        elif key == "sensor_source_id" and "{source}" not in value:
+            p.add(
+                "keelson.sensor_source_id",
+                f'has no "{{source}}" (expected {_expected(key)}, got {show(value)})',
+            )
+    entity = v["entity_id"]
+    if entity is not None:
+        if not entity and v["enabled"]:
+            p.add(
+                "keelson.entity_id",
+                'missing (expected one key chunk in snake_case naming the vessel, e.g. "my_ship", when '
+                "keelson.enabled = true)",
+            )
+        elif entity and not re.fullmatch(r"[a-z0-9_]+", entity):
+            p.add(
+                "keelson.entity_id",
+                f"not a Keelson key chunk (expected {_expected('entity_id')}, got {show(entity)})",
+            )
+    seen: dict[str, str] = {}
+    for key in (k for k in v if k.endswith("_source_id") and k != "sensor_source_id"):
+        value = v[key]
+        if value is None:
+            continue
+        if value in seen:  # one source id would carry two streams' values on the same keys
+            p.add(
+                f"keelson.{key}",
+                f"the same as keelson.{seen[value]} (expected a source id of its own, got {show(value)})",
+            )
+        seen.setdefault(value, key)
+    if len(p) != n0:
+        return None
+    return KeelsonConfig(**v)
+
+
+def _expected(key: str) -> str:
+    extra = KeelsonTable.model_fields[key].json_schema_extra
+    return str(extra.get("expected", "")) if isinstance(extra, dict) else ""

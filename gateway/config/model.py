@@ -219,6 +219,28 @@ class TimeConfig:
 
 
 @dataclass(frozen=True)
+class KeelsonConfig:
+    """``[keelson]``: publish under Keelson's key space on the gateway's Zenoh session
+    (`gateway.outputs.keelson`, docs/keelson.md). Each ``*_source_id`` is the last part of the keys of one
+    stream; ``sensor_source_id`` holds ``{source}``, replaced by each input source's name."""
+
+    enabled: bool = False
+    base_path: str = "keelson"
+    entity_id: str = ""
+    estimate_source_id: str = "dpgw/estimate"
+    measurement_source_id: str = "dpgw/measurement"
+    sensor_source_id: str = "dpgw/sensor/{source}"
+    demand_source_id: str = "dpgw/control/demand"
+    allocated_source_id: str = "dpgw/control/allocated"
+    feedback_source_id: str = "dpgw/thrusters/feedback"
+    log_source_id: str = "dpgw"
+
+    def sensor(self, source: str) -> str:
+        """The source id of one input source (its raw sentences and its fixes)."""
+        return self.sensor_source_id.replace("{source}", source)
+
+
+@dataclass(frozen=True)
 class IntegrityConfig:
     """``[integrity]``: thresholds of the reference tests (defaults for DGPS-class references and a gyro;
     `gateway.references` applies them, docs/integrity.md explains them)."""
@@ -300,6 +322,7 @@ class GatewayConfig:
     integrity: IntegrityConfig = field(default_factory=IntegrityConfig)
     commands: CommandsConfig = field(default_factory=CommandsConfig)
     time: TimeConfig = field(default_factory=TimeConfig)
+    keelson: KeelsonConfig = field(default_factory=KeelsonConfig)
 
     def sources_for(self, role: str) -> tuple[SourceConfig, ...]:
         """The sources with ``role``, in failover order (lowest priority first)."""

@@ -48,6 +48,7 @@ __all__ = [
     "ControlTable",
     "DatumTable",
     "IntegrityTable",
+    "KeelsonTable",
     "LogTable",
     "ObserverTable",
     "SourceTable",
@@ -468,3 +469,25 @@ class CommandsTable(_Section):
     max_setpoint_distance_m: float = number(
         _CMD["max_setpoint_distance_m"], lo=0.0, hi=10000.0, lo_open=True, unit="m"
     )
+
+
+_K = DEFAULTS["keelson"]
+_SOURCE_ID = 'key chunks in snake_case joined by "/", e.g. "dpgw/estimate"'
+
+
+class KeelsonTable(_Section):
+    """``[keelson]``: Keelson's key space on the gateway's Zenoh session (docs/keelson.md)."""
+
+    enabled: bool = boolean(_K["enabled"])
+    base_path: str = text(_K["base_path"], 'key chunks in snake_case joined by "/", e.g. "keelson"')
+    entity_id: str = text(_K["entity_id"], 'one key chunk in snake_case naming the vessel, e.g. "my_ship"')
+    estimate_source_id: str = text(_K["estimate_source_id"], _SOURCE_ID)
+    measurement_source_id: str = text(_K["measurement_source_id"], _SOURCE_ID)
+    sensor_source_id: str = text(
+        _K["sensor_source_id"],
+        'key chunks in snake_case joined by "/" holding "{source}", e.g. "dpgw/sensor/{source}"',
+    )
+    demand_source_id: str = text(_K["demand_source_id"], _SOURCE_ID)
+    allocated_source_id: str = text(_K["allocated_source_id"], _SOURCE_ID)
+    feedback_source_id: str = text(_K["feedback_source_id"], _SOURCE_ID)
+    log_source_id: str = text(_K["log_source_id"], _SOURCE_ID)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 if TYPE_CHECKING:
     import zenoh
@@ -28,3 +28,14 @@ class OutputSink(Protocol):
 
     def close(self) -> None:
         """Release everything `start` opened; safe to call twice."""
+
+
+@runtime_checkable
+class RawSentenceSink(Protocol):
+    """A sink that also wants every raw NMEA sentence as framed (the service hands them over through
+    `Pipeline.sentence_tap`, on the consumer thread, before the outputs of the chunk they came in)."""
+
+    name: str
+
+    def raw_nmea(self, source: str, rx_ns: int, text: str, peer: str) -> None:
+        """One sentence from ``$``/``!`` to its checksum, without the line end, valid or not."""

@@ -1,0 +1,39 @@
+"""The extra output sinks a config asks for (``dpgw run``): one block per sink, each imported only when
+its table enables it, so an optional package that is not installed costs nothing until it is asked for."""
+
+from __future__ import annotations
+
+import importlib.util
+
+from gateway.config import GatewayConfig
+from gateway.outputs.base import OutputSink
+
+__all__ = ["OutputError", "output_problems", "sinks_from_config"]
+
+
+class OutputError(Exception):
+    """An enabled sink cannot be built (its package is missing); the message names the config key."""
+
+
+def output_problems(config: GatewayConfig) -> list[str]:
+    """What would stop `sinks_from_config`, as ``FILE: key: problem`` lines (``dpgw run --check``)."""
+    problems = []
+    if config.keelson.enabled and importlib.util.find_spec("keelson") is None:
+        problems.append(
+            f"{config.path}: keelson.enabled: true, but the keelson package is not installed (install it "
+            "with pip install 'dpgw[keelson]', or set keelson.enabled = false)"
+        )
+    return problems
+
+
+def sinks_from_config(config: GatewayConfig) -> list[OutputSink]:
+    """The sinks the config enables, not yet started (`GatewayService` starts and closes them)."""
+    problems = output_problems(config)
+    if problems:
+        raise OutputError("\n".join(problems))
+    sinks: list[OutputSink] = []
+    if config.keelson.enabled:
+        from gateway.outputs.keelson import keelson_sink
+
+        sinks.append(keelson_sink(config))
+    return sinks
