@@ -1,0 +1,37 @@
+"""The memory observer against the passive one on the simulator's full plant (`bench/memory_figures.py`,
+`compare_on_full_plant`: mss_supply's full plant with or without its stored fluid-memory model, a
+sinusoidal manoeuvre, Hs 2 m). Where the fluid memory acts (a 20 s manoeuvre) the memory observer's LF
+velocity errors are lower on the plant with memory; on the plant without it, the memory observer is no
+worse than the passive one by more than 5 % at DP manoeuvre periods (≥ 45 s; at 20–30 s it is, by
+construction: docs/memory-observer.md, "On the simulator's full plant")."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "bench"))
+
+from memory_figures import compare_on_full_plant
+
+
+def ratios(period_s: float, memory: bool) -> np.ndarray:
+    em, ep = compare_on_full_plant(period_s, memory)
+    return np.concatenate([em.eta / ep.eta, em.nu / ep.nu])  # N, E, ψ, u, v, r
+
+
+@pytest.mark.slow
+def test_memory_observer_is_better_where_memory_acts_on_the_plant_with_memory() -> None:
+    r = ratios(20.0, memory=True)  # measured: 0.79 1.04 0.86 / 0.90 0.63 0.85
+    assert np.all(r[3:] < 0.95), f"velocity error ratios memory/passive {r[3:]}"
+    assert r[0] < 1.0 and r[2] < 1.0 and r[1] <= 1.05, f"position error ratios memory/passive {r[:3]}"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("period_s", [60.0, 120.0])
+def test_memory_observer_no_worse_than_passive_on_the_plant_without_memory(period_s: float) -> None:
+    r = ratios(period_s, memory=False)  # measured: at most 0.988 (60 s), 0.984 (120 s)
+    assert np.all(r <= 1.05), f"error ratios memory/passive (N, E, ψ, u, v, r) {r}"
