@@ -31,6 +31,7 @@ from gateway.commands import CommandGate
 from gateway.config import ArdupilotMap, CommandsConfig, ControlConfig, GatewayConfig, IntegrityConfig
 from gateway.control.allocation import AllocationResult, PseudoInverseAllocator, QPAllocator, ThrusterCommand
 from gateway.control.controller import ControllerTuning, DPController
+from gateway.foxglove_channels import FoxgloveChannels
 from gateway.fusion import NS, Fusion
 from gateway.references import ReferenceMonitor
 from gateway.references.monitor import Prediction
@@ -309,6 +310,7 @@ class Pipeline:
         self._fix_alt_m: dict[str, float] = {}
         # (GST fresh until, σ): a GST older than the source's timeout no longer describes its fixes
         self._fix_sigma_enu_m: dict[str, tuple[int, tuple[float, float, float]]] = {}
+        self.foxglove = FoxgloveChannels(spec.vessel)
         cc = spec.control
         self.controller: DPController | None = None
         self.allocator: QPAllocator | PseudoInverseAllocator | None = None
@@ -379,7 +381,13 @@ class Pipeline:
         if updated:
             out.extend(self._step(event.rx_ns, event.source))
         out.extend(self._state_changes(event.rx_ns))
+        self._with_foxglove(out)
         return out
+
+    def _with_foxglove(self, out: list[Output]) -> None:
+        """Add the Foxglove-native channels that mirror ``out`` (`gateway.foxglove_channels`)."""
+        for topic, message, ns in self.foxglove.derive(out):
+            out.append(Output(topic, message, ns, zenoh=False))
 
     def tick(self, now_ns: int) -> list[Output]:
         """Called by the live service between events (any rate). Once nothing has stepped the observer
@@ -388,7 +396,7 @@ class Pipeline:
         dead reckoning runs on a copy of the observer, so the observer's own state stays a function of
         the events alone and replay still reproduces it."""
         if self.t0_ns is None or now_ns <= self.last_ns:
-            return []
+            return self._held_foxglove()
         out: list[Output] = []
         if (
             self.observer.initialized
@@ -408,6 +416,13 @@ class Pipeline:
                     )
                 )
         out.extend(self._state_changes(now_ns))
+        self._with_foxglove(out)
+        return out
+
+    def _held_foxglove(self) -> list[Output]:
+        """The Foxglove log lines of a status made since the last feed or tick, if any."""
+        out: list[Output] = []
+        self._with_foxglove(out)
         return out
 
     def _state_changes(self, now_ns: int) -> list[Output]:
@@ -785,10 +800,17 @@ class Pipeline:
             tau_allocated=None if prev is None else prev.tau_allocated,
             tau_manual=self.manual_tau,
         )
+        target = o.reference.target if self.mode == "dp" else None
+        scene = [
+            Output(topic, message, ns, zenoh=False)
+            for topic, message, ns in self.foxglove.setpoint(
+                None if target is None else (float(target[0]), float(target[1]), float(target[2])), now_ns
+            )
+        ]
         if self.mode == "standby":
             self.fusion.set_tau_demand(np.zeros(3))
             self.control_alarms = []
-            return []  # standby commands nothing: the thrusters are someone else's
+            return scene  # standby commands nothing: the thrusters are someone else's
         thrusters: list[Thruster] = []
         saturated = False
         if self.allocator is not None:
@@ -819,7 +841,8 @@ class Pipeline:
                     reference=o.reference.eta_d.tolist(),
                 ),
                 now_ns,
-            )
+            ),
+            *scene,
         ]
 
     def _estimate(
@@ -931,7 +954,9 @@ class Pipeline:
 
     def status(self, now_ns: int, alarms: list[str] | None = None) -> Output:
         """The 1 Hz status output (the caller decides when); see `status_message`."""
-        return Output("/dp/status", self.status_message(now_ns, alarms), now_ns)
+        message = self.status_message(now_ns, alarms)
+        self.foxglove.on_status(message)
+        return Output("/dp/status", message, now_ns)
 
     def status_message(self, now_ns: int, alarms: list[str] | None = None) -> Status:
         """Per-source age, counts, rejects by reason, and the alarms: the caller's, the controller's, and
