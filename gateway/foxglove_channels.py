@@ -6,9 +6,12 @@ convention): so live, replay and the live Foxglove server (it mirrors every outp
 from the same numbers, and the JSON channels stay as they are for the programs that read them.
 
 What comes from what, and how often (docs/foxglove.md has the reasons):
-- `/dp/estimate` → `/dp/estimate/pose` and the `ltp` → `vessel` transform on `/dp/tf`; the
-  `/dp/measurement` of the same step → `/dp/measurement/pose` and `ltp` → `vessel_measured` (only when
-  N, E and ψ were all measured). At the estimate's rate: they are what the 3D panel follows.
+- `/dp/estimate` → `/dp/estimate/fix` (LocationFix with the heading, for the map), `/dp/estimate/pose`
+  and the `ltp` → `vessel` transform on `/dp/tf`; the `/dp/measurement` of the same step →
+  `/dp/measurement/pose` and `ltp` → `vessel_measured` (only when N, E and ψ were all measured). At the
+  estimate's rate up to ~10 Hz (`POSE_PERIOD_NS`): a 3D view or a map moves smoothly at that, and a
+  gyro-driven estimate at 20-50 Hz would otherwise multiply the log's size (the JSON channels keep every
+  step for plots).
 - the hull (`/dp/scene/hull`): with the first estimate, then every `STATIC_PERIOD_NS`, so a player that
   seeks into the middle of a log finds it within that time.
 - `/dp/thrusters/command` → commanded arrows; `/dp/thrusters/feedback` → fed-back arrows, at most
@@ -42,6 +45,9 @@ from wire.messages import FrameTransforms as FrameTransformsMessage
 NS = 1_000_000_000
 STATIC_PERIOD_NS = 10 * NS
 """The hull and the setpoint are repeated this often (a player seeking into a log shows them within it)."""
+POSE_PERIOD_NS = 90_000_000
+"""Least time between two poses, frames and estimate fixes: ~10 Hz, a little under 100 ms so that a 10 Hz
+source's steps all pass despite their receive-time jitter."""
 ARROW_PERIOD_NS = NS // 10
 """Fed-back thruster arrows at most 10 Hz: a drive may report at 50 Hz, more than a 3D view can show."""
 WATCH_CIRCLES_M = (5.0, 10.0)
@@ -90,6 +96,7 @@ class FoxgloveChannels:
         self.arrow_scale_m = 0.25 * vessel.length_m  # an arrow at full thrust: a quarter of the hull
         self._thrusters = {t.id: t for t in vessel.thrusters}
         self._next_hull_ns = 0
+        self._next_pose_ns = 0
         self._next_feedback_ns = 0
         self._setpoint: tuple[float, float, float] | None = None
         self._next_setpoint_ns = 0
@@ -145,8 +152,17 @@ class FoxgloveChannels:
         self, est: Estimate, measured: Measurement | None, ns: int, out: list[tuple[str, Message, int]]
     ) -> None:
         n, e, psi = est.eta
-        if not (math.isfinite(n) and math.isfinite(e) and math.isfinite(psi)):
+        if ns < self._next_pose_ns or not (math.isfinite(n) and math.isfinite(e) and math.isfinite(psi)):
             return
+        self._next_pose_ns = ns + POSE_PERIOD_NS
+        if est.lat_deg is not None and est.lon_deg is not None:
+            out.append(
+                (
+                    "/dp/estimate/fix",
+                    fx.location_fix(ns, "estimate", est.lat_deg, est.lon_deg, heading_rad=psi),
+                    ns,
+                )
+            )
         transforms = [fx.frame_transform(ns, fx.VESSEL_FRAME, n, e, psi)]
         out.append(("/dp/estimate/pose", fx.pose_in_frame(ns, n, e, psi), ns))
         if measured is not None and all(measured.valid):

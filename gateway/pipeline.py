@@ -62,8 +62,10 @@ USED_NMEA = frozenset({"GGA", "GNS", "HDT", "THS", "HDG", "GST"})
 """Sentences the fusion uses; others (RMC, VTG, ZDA, ROT ...) are checked and counted, not parsed."""
 RAW_VELOCITY_FILTER_S = 1.0
 """Dirty-derivative filter of the measurement-fed comparison controller (no wave filter)."""
-FIX_PERIOD_NS = 1_000_000_000
-"""foxglove.LocationFix outputs at most once a second per source: a map track needs no more."""
+FIX_PERIOD_NS = 0
+"""Least time between two `foxglove.LocationFix` of one GNSS source: 0, every fix (the map shows each
+receiver's own scatter; what it costs a replay is measured in docs/foxglove.md). `bench/bench_foxglove.py`
+sets it to compare."""
 
 
 @dataclass(frozen=True, init=False)
@@ -520,8 +522,7 @@ class Pipeline:
         ned = self.fusion.reference_position(rx_ns, lat, lon, spec.lever_arm_m)
         if ned is None:
             return False  # a lever arm without a heading of the same cycle cannot be compensated
-        if rx_ns - self._last_fix_ns.get(spec.name, -FIX_PERIOD_NS) >= FIX_PERIOD_NS:  # (at most 1 Hz)
-            out.extend(self._location_fix(spec.name, rx_ns, lat, lon))
+        out.extend(self._location_fix(spec.name, rx_ns, lat, lon))
         pred = self._prediction(rx_ns, 0)
         if self.monitor.position(spec.name, rx_ns, ned[0], ned[1], quality, pred):
             weight = self.monitor.weight("position", spec.name)
@@ -711,17 +712,9 @@ class Pipeline:
             self.estimates += 1
             estimate = self._estimate(self.spec.observer_name, self.observer, est, now_ns, valid)
             self.estimate_status = estimate.status
-            out.append(Output("/dp/estimate", estimate, now_ns))
-            if (
-                estimate.lat_deg is not None
-                and estimate.lon_deg is not None
-                and now_ns - self._last_fix_ns.get("", -FIX_PERIOD_NS) >= FIX_PERIOD_NS
-            ):
-                self._last_fix_ns[""] = now_ns
-                fix = location_fix(
-                    now_ns, "estimate", estimate.lat_deg, estimate.lon_deg, heading_rad=float(est.eta[2])
-                )
-                out.append(Output("/dp/estimate/fix", fix, now_ns, zenoh=False))
+            out.append(
+                Output("/dp/estimate", estimate, now_ns)
+            )  # (its LocationFix: gateway.foxglove_channels)
             if self.controller is not None and now_ns >= self._next_control_ns:
                 self._next_control_ns = now_ns + self._control_period_ns
                 out.extend(self._control_step(t, est, now_ns))
@@ -916,7 +909,8 @@ class Pipeline:
         return sigma if rx_ns <= until else None
 
     def _location_fix(self, source: str, rx_ns: int, lat: float, lon: float) -> list[Output]:
-        if rx_ns - self._last_fix_ns.get(source, -FIX_PERIOD_NS) < FIX_PERIOD_NS:
+        period = FIX_PERIOD_NS  # (a module global: the benchmark sets it)
+        if period and rx_ns - self._last_fix_ns.get(source, -period) < period:
             return []
         self._last_fix_ns[source] = rx_ns
         return [

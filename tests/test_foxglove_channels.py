@@ -6,6 +6,7 @@ schema definitions (from the foxglove-sdk package, when installed)."""
 
 from __future__ import annotations
 
+import itertools
 import math
 import socket
 import subprocess
@@ -16,7 +17,7 @@ from typing import Any
 import pytest
 from jsonschema import Draft202012Validator
 
-from gateway.foxglove_channels import FoxgloveChannels
+from gateway.foxglove_channels import POSE_PERIOD_NS, FoxgloveChannels
 from gateway.pipeline import RawEvent
 from gateway.replay import config_from_log
 from tests.test_pipeline import T0, S, gga_at, nmea_src, pipeline
@@ -110,7 +111,10 @@ def test_gnss_fixes_hold_gga_altitude_and_gst_covariance(demo_log: Path) -> None
                 alt = (s.alt_m or 0.0) + (s.geoid_sep_m or 0.0)
                 expected[log_ns] = (alt, cov)
     fixes = list(read_messages(demo_log, "/gnss/dgps1/fix"))
-    assert len(fixes) >= 30  # a 40 s demo, DGPS at 1 Hz or more
+    gga_stamps = sorted(expected)
+    # every fix: one for each GGA the gateway took (those after the datum was set)
+    assert [_ns(f["timestamp"]) for _, _, _, f in fixes] == gga_stamps[len(gga_stamps) - len(fixes) :]
+    assert len(fixes) >= 60  # a 40 s demo, DGPS at 2 Hz
     with_cov = 0
     for _, log_ns, _, fix in fixes:
         alt, cov = expected[_ns(fix["timestamp"])]
@@ -125,35 +129,51 @@ def test_gnss_fixes_hold_gga_altitude_and_gst_covariance(demo_log: Path) -> None
 
 @pytest.mark.slow
 def test_estimate_fix_pose_and_frame_are_the_estimate(demo_log: Path) -> None:
-    msgs = _by_topic(demo_log)
-    estimates = {p["stamp_ns"]: p for _, p in msgs["/dp/estimate"]}
-    measurements = {p["stamp_ns"]: p for _, p in msgs["/dp/measurement"]}
-    for _, fix in msgs["/dp/estimate/fix"]:
-        est = estimates[_ns(fix["timestamp"])]
-        assert fix["latitude"] == est["lat_deg"] and fix["longitude"] == est["lon_deg"]
-        assert fix["heading"] == pytest.approx(est["eta"][2], abs=1e-12)
-    poses = msgs["/dp/estimate/pose"]
-    assert len(poses) == len(estimates)  # one per estimate
-    for _, pose in poses:
-        n, e, psi = estimates[_ns(pose["timestamp"])]["eta"]
-        p = pose["pose"]
-        assert pose["frame_id"] == "ltp"
-        assert (p["position"]["x"], p["position"]["y"], p["position"]["z"]) == (e, n, 0.0)  # ENU
-        assert _same_angle(_yaw(p["orientation"]), math.pi / 2 - psi)
-    for _, pose in msgs["/dp/measurement/pose"]:
-        n, e, psi = measurements[_ns(pose["timestamp"])]["eta"]
-        p = pose["pose"]
-        assert (p["position"]["x"], p["position"]["y"]) == (e, n)
-        assert _same_angle(_yaw(p["orientation"]), math.pi / 2 - psi)
-    for _, tf in msgs["/dp/tf"]:
-        first = tf["transforms"][0]
-        assert (first["parent_frame_id"], first["child_frame_id"]) == ("ltp", "vessel")
-        n, e, psi = estimates[_ns(first["timestamp"])]["eta"]
-        assert (first["translation"]["x"], first["translation"]["y"]) == (e, n)
-        assert _same_angle(_yaw(first["rotation"]), math.pi / 2 - psi)
-        for t in tf["transforms"][1:]:
-            assert t["child_frame_id"] == "vessel_measured"
-            assert t["translation"]["x"] == measurements[_ns(t["timestamp"])]["eta"][1]
+    # A feed's outputs are logged in order: the measurement, the estimate, then what mirrors them; so each
+    # Foxglove message is checked against the last JSON estimate and measurement logged before it.
+    est: dict[str, Any] = {}
+    meas: dict[str, Any] = {}
+    est_stamps: list[int] = []
+    pose_stamps: list[int] = []
+    fix_stamps: list[int] = []
+    for topic, _, _, p in read_messages(demo_log):
+        if topic == "/dp/estimate":
+            est = p
+            est_stamps.append(p["stamp_ns"])
+        elif topic == "/dp/measurement":
+            meas = p
+        elif topic == "/dp/estimate/fix":
+            assert _ns(p["timestamp"]) == est["stamp_ns"]
+            assert (p["latitude"], p["longitude"]) == (est["lat_deg"], est["lon_deg"])
+            assert p["heading"] == est["eta"][2]
+            fix_stamps.append(est["stamp_ns"])
+        elif topic == "/dp/estimate/pose":
+            n, e, psi = est["eta"]
+            pose = p["pose"]
+            assert _ns(p["timestamp"]) == est["stamp_ns"] and p["frame_id"] == "ltp"
+            assert (pose["position"]["x"], pose["position"]["y"], pose["position"]["z"]) == (e, n, 0.0)  # ENU
+            assert _same_angle(_yaw(pose["orientation"]), math.pi / 2 - psi)
+            pose_stamps.append(est["stamp_ns"])
+        elif topic == "/dp/measurement/pose":
+            n, e, psi = meas["eta"]
+            pose = p["pose"]
+            assert _ns(p["timestamp"]) == meas["stamp_ns"]
+            assert (pose["position"]["x"], pose["position"]["y"]) == (e, n)
+            assert _same_angle(_yaw(pose["orientation"]), math.pi / 2 - psi)
+        elif topic == "/dp/tf":
+            first, *measured = p["transforms"]
+            assert (first["parent_frame_id"], first["child_frame_id"]) == ("ltp", "vessel")
+            n, e, psi = est["eta"]
+            assert (first["translation"]["x"], first["translation"]["y"]) == (e, n)
+            assert _same_angle(_yaw(first["rotation"]), math.pi / 2 - psi)
+            for t in measured:
+                assert t["child_frame_id"] == "vessel_measured"
+                assert (t["translation"]["x"], t["translation"]["y"]) == (meas["eta"][1], meas["eta"][0])
+    assert len(pose_stamps) > 200 and fix_stamps == pose_stamps  # the map and the 3D panel: the same
+    gaps = [b - a for a, b in itertools.pairwise(pose_stamps)]
+    assert min(gaps) >= POSE_PERIOD_NS  # at most ~10 Hz ...
+    # ... and no estimate left out for longer than that, but by the estimate's own gaps
+    assert max(gaps) <= POSE_PERIOD_NS + max(b - a for a, b in itertools.pairwise(est_stamps))
 
 
 @pytest.mark.slow

@@ -862,22 +862,23 @@ TOPICS: tuple[Topic, ...] = (
         Estimate,
         "replay only: `/dp/estimates/<label>`, further observers run side by side (`--observer SPEC@label`)",
     ),
-    Topic("/dp/estimate/fix", LocationFix, "the estimated position, for the map (at most 1 Hz)"),
-    Topic(
-        "/gnss/", LocationFix, "`/gnss/<source>/fix`: each GNSS fix (at most 1 Hz per source), for the map"
-    ),
+    Topic("/dp/estimate/fix", LocationFix, "the estimated position and heading, for the map (≤ ~10 Hz)"),
+    Topic("/gnss/", LocationFix, "`/gnss/<source>/fix`: every GNSS fix, for the map"),
     Topic(
         "/dp/tf",
         FrameTransforms,
         "frames `ltp` (the datum's tangent plane, ENU) → `vessel` (LF estimate) and `vessel_measured`, "
-        "at the "
-        "estimate's rate",
+        "with the estimate's pose",
     ),
-    Topic("/dp/estimate/pose", PoseInFrame, "the LF estimate's pose in `ltp`, at the estimate's rate"),
+    Topic(
+        "/dp/estimate/pose",
+        PoseInFrame,
+        "the LF estimate's pose in `ltp`, at the estimate's rate up to ~10 Hz",
+    ),
     Topic(
         "/dp/measurement/pose",
         PoseInFrame,
-        "the measurement's pose in `ltp`, when all of N, E, ψ are measured",
+        "the measurement's pose in `ltp` with the estimate's, when N, E, ψ are all measured",
     ),
     Topic(
         "/dp/scene/",
