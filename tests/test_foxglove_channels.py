@@ -7,6 +7,7 @@ schema definitions (from the foxglove-sdk package, when installed)."""
 from __future__ import annotations
 
 import itertools
+import json
 import math
 import socket
 import subprocess
@@ -26,7 +27,7 @@ from wire.codecs import nmea
 from wire.codecs import nmea_encode as enc
 from wire.mcap.reader import read_messages, summary
 from wire.message_schema import json_schema
-from wire.messages import MESSAGES
+from wire.messages import ANY, MESSAGES, message_for_topic
 
 HDT = enc.hdt("HE", 0.1).encode()
 
@@ -312,3 +313,26 @@ def test_field_layout_is_foxglove_s(cls: Any) -> None:
     for name in OPTIONAL_LEFT_OUT.get(cls.TITLE, set()):
         theirs.pop(name, None)
     assert ours == theirs
+
+
+# --- the layout file ---------------------------------------------------------------------------------------
+
+LAYOUT = Path(__file__).resolve().parents[1] / "docs" / "foxglove-layout.json"
+
+
+def test_layout_names_only_channels_and_fields_dpgw_writes() -> None:
+    layout = json.loads(LAYOUT.read_text())
+    panels = layout["configById"]
+    assert {k.split("!")[0] for k in panels} == {"3D", "map", "Plot", "RosOut"}
+    topics: set[str] = set(panels["3D!dpgw"]["topics"]) | set(panels["map!dpgw"]["topicColors"])
+    topics.add(panels["RosOut!dpgw"]["topicToRender"])
+    for key, panel in panels.items():
+        if key.startswith("Plot!"):
+            for p in panel["paths"]:
+                topic, _, path = p["value"].partition(".")
+                field = path.split("[")[0].split(".")[0]
+                assert field in json_schema(message_for_topic(topic))["properties"], p["value"]
+                topics.add(topic)
+    for topic in topics:
+        assert message_for_topic(topic) is not ANY, topic
+    assert panels["3D!dpgw"]["followTf"] == fx.VESSEL_FRAME
