@@ -9,9 +9,9 @@ What comes from what, and how often (docs/foxglove.md has the reasons):
 - `/dp/estimate` → `/dp/estimate/fix` (LocationFix with the heading, for the map), `/dp/estimate/pose`
   and the `ltp` → `vessel` transform on `/dp/tf`; the `/dp/measurement` of the same step →
   `/dp/measurement/pose` and `ltp` → `vessel_measured` (only when N, E and ψ were all measured). At the
-  estimate's rate up to ~10 Hz (`POSE_PERIOD_NS`): a 3D view or a map moves smoothly at that, and a
-  gyro-driven estimate at 20-50 Hz would otherwise multiply the log's size (the JSON channels keep every
-  step for plots).
+  estimate's rate up to ~5 Hz (`POSE_PERIOD_NS`): a 3D view or a map of a DP vessel moves smoothly at
+  that, and an estimate stepped at 10-50 Hz would otherwise multiply the log's size and the replay's
+  time (the JSON channels keep every step, for plots).
 - the hull (`/dp/scene/hull`): with the first estimate, then every `STATIC_PERIOD_NS`, so a player that
   seeks into the middle of a log finds it within that time.
 - `/dp/thrusters/command` → commanded arrows; `/dp/thrusters/feedback` → fed-back arrows, at most
@@ -45,9 +45,11 @@ from wire.messages import FrameTransforms as FrameTransformsMessage
 NS = 1_000_000_000
 STATIC_PERIOD_NS = 10 * NS
 """The hull and the setpoint are repeated this often (a player seeking into a log shows them within it)."""
-POSE_PERIOD_NS = 90_000_000
-"""Least time between two poses, frames and estimate fixes: ~10 Hz, a little under 100 ms so that a 10 Hz
-source's steps all pass despite their receive-time jitter."""
+POSE_PERIOD_NS = 190_000_000
+"""Least time between two poses, frames and estimate fixes: ~5 Hz, a little under 200 ms so that a 5 Hz
+source's steps all pass despite their receive-time jitter. A DP vessel's LF motion has periods of tens of
+seconds and its wave motion of 5-15 s, so 5 Hz draws both smoothly; 10 Hz cost a replay twice as much
+(docs/foxglove.md)."""
 ARROW_PERIOD_NS = NS // 10
 """Fed-back thruster arrows at most 10 Hz: a drive may report at 50 Hz, more than a 3D view can show."""
 WATCH_CIRCLES_M = (5.0, 10.0)

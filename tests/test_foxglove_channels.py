@@ -170,9 +170,9 @@ def test_estimate_fix_pose_and_frame_are_the_estimate(demo_log: Path) -> None:
             for t in measured:
                 assert t["child_frame_id"] == "vessel_measured"
                 assert (t["translation"]["x"], t["translation"]["y"]) == (meas["eta"][1], meas["eta"][0])
-    assert len(pose_stamps) > 200 and fix_stamps == pose_stamps  # the map and the 3D panel: the same
+    assert len(pose_stamps) > 150 and fix_stamps == pose_stamps  # the map and the 3D panel: the same
     gaps = [b - a for a, b in itertools.pairwise(pose_stamps)]
-    assert min(gaps) >= POSE_PERIOD_NS  # at most ~10 Hz ...
+    assert min(gaps) >= POSE_PERIOD_NS  # at most ~5 Hz ...
     # ... and no estimate left out for longer than that, but by the estimate's own gaps
     assert max(gaps) <= POSE_PERIOD_NS + max(b - a for a, b in itertools.pairwise(est_stamps))
 

@@ -862,7 +862,7 @@ TOPICS: tuple[Topic, ...] = (
         Estimate,
         "replay only: `/dp/estimates/<label>`, further observers run side by side (`--observer SPEC@label`)",
     ),
-    Topic("/dp/estimate/fix", LocationFix, "the estimated position and heading, for the map (≤ ~10 Hz)"),
+    Topic("/dp/estimate/fix", LocationFix, "the estimated position and heading, for the map (≤ ~5 Hz)"),
     Topic("/gnss/", LocationFix, "`/gnss/<source>/fix`: every GNSS fix, for the map"),
     Topic(
         "/dp/tf",
@@ -873,7 +873,7 @@ TOPICS: tuple[Topic, ...] = (
     Topic(
         "/dp/estimate/pose",
         PoseInFrame,
-        "the LF estimate's pose in `ltp`, at the estimate's rate up to ~10 Hz",
+        "the LF estimate's pose in `ltp`, at the estimate's rate up to ~5 Hz",
     ),
     Topic(
         "/dp/measurement/pose",
