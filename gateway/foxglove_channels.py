@@ -28,10 +28,11 @@ import re
 from collections.abc import Sequence
 from typing import Protocol
 
-from observers.vessel import VesselModel
+from observers.vessel import Thruster, VesselModel
 from wire import foxglove as fx
 from wire.messages import (
     ArrowPrimitive,
+    Color,
     Estimate,
     Measurement,
     Message,
@@ -96,7 +97,7 @@ class FoxgloveChannels:
         self.watch_circles_m = tuple(watch_circles_m)
         self.beam_m = vessel.hull.beam_m if vessel.hull is not None else BEAM_PER_LENGTH * vessel.length_m
         self.arrow_scale_m = 0.25 * vessel.length_m  # an arrow at full thrust: a quarter of the hull
-        self._thrusters = {t.id: t for t in vessel.thrusters}
+        self._thrusters: dict[int | str, Thruster] = {t.id: t for t in vessel.thrusters}
         self._next_hull_ns = 0
         self._next_pose_ns = 0
         self._next_feedback_ns = 0
@@ -121,10 +122,12 @@ class FoxgloveChannels:
                 self._estimate(msg, measured, ns, out)  # type: ignore[arg-type]
                 measured = None
             elif kind is ThrusterCommand:
-                out.append(("/dp/scene/thrusters", self._arrows(msg, "command", COMMANDED, ns), ns))
+                scene = self._arrows(msg, "command", COMMANDED, ns)  # type: ignore[arg-type]
+                out.append(("/dp/scene/thrusters", scene, ns))
             elif kind is ThrusterFeedback and ns >= self._next_feedback_ns:
                 self._next_feedback_ns = ns + ARROW_PERIOD_NS
-                out.append(("/dp/scene/thrusters", self._arrows(msg, "feedback", FED_BACK, ns), ns))
+                scene = self._arrows(msg, "feedback", FED_BACK, ns)  # type: ignore[arg-type]
+                out.append(("/dp/scene/thrusters", scene, ns))
         if self._pending:
             out += self._pending
             self._pending = []
@@ -190,18 +193,18 @@ class FoxgloveChannels:
         )
 
     def _arrows(
-        self, msg: ThrusterCommand | ThrusterFeedback, what: str, rgba: object, ns: int
+        self, msg: ThrusterCommand | ThrusterFeedback, what: str, rgba: Color, ns: int
     ) -> SceneUpdate:
         arrows: list[ArrowPrimitive] = []
         meta: dict[str, str] = {}
         for th in msg.thrusters:
-            spec = self._thrusters.get(th.id)  # type: ignore[call-overload]
+            spec = self._thrusters.get(th.id)
             if spec is None or not (math.isfinite(th.thrust_n) and math.isfinite(th.azimuth_rad)):
                 continue
             arrows.append(
                 fx.thrust_arrow(
                     spec.x_m, spec.y_m, th.thrust_n, th.azimuth_rad, spec.max_thrust_n, self.arrow_scale_m,
-                    rgba,  # type: ignore[arg-type]
+                    rgba,
                 )
             )  # fmt: skip
             meta[f"{th.id}"] = f"{th.thrust_n:.0f} N at {math.degrees(th.azimuth_rad):.1f}°"
