@@ -31,6 +31,7 @@ from gateway.commands import CommandGate
 from gateway.config import ArdupilotMap, CommandsConfig, ControlConfig, GatewayConfig, IntegrityConfig
 from gateway.control.allocation import AllocationResult, PseudoInverseAllocator, QPAllocator, ThrusterCommand
 from gateway.control.controller import ControllerTuning, DPController
+from gateway.foxglove_channels import FoxgloveChannels
 from gateway.fusion import NS, Fusion
 from gateway.references import ReferenceMonitor
 from gateway.references.monitor import Prediction
@@ -61,8 +62,10 @@ USED_NMEA = frozenset({"GGA", "GNS", "HDT", "THS", "HDG", "GST"})
 """Sentences the fusion uses; others (RMC, VTG, ZDA, ROT ...) are checked and counted, not parsed."""
 RAW_VELOCITY_FILTER_S = 1.0
 """Dirty-derivative filter of the measurement-fed comparison controller (no wave filter)."""
-FIX_PERIOD_NS = 1_000_000_000
-"""foxglove.LocationFix outputs at most once a second per source: a map track needs no more."""
+FIX_PERIOD_NS = 0
+"""Least time between two `foxglove.LocationFix` of one GNSS source: 0, every fix (the map shows each
+receiver's own scatter; what it costs a replay is measured in docs/foxglove.md). `bench/bench_foxglove.py`
+sets it to compare."""
 
 
 @dataclass(frozen=True, init=False)
@@ -314,6 +317,7 @@ class Pipeline:
         self._fix_alt_m: dict[str, float] = {}
         # (GST fresh until, σ): a GST older than the source's timeout no longer describes its fixes
         self._fix_sigma_enu_m: dict[str, tuple[int, tuple[float, float, float]]] = {}
+        self.foxglove = FoxgloveChannels(spec.vessel)
         cc = spec.control
         self.controller: DPController | None = None
         self.allocator: QPAllocator | PseudoInverseAllocator | None = None
@@ -384,7 +388,13 @@ class Pipeline:
         if updated:
             out.extend(self._step(event.rx_ns, event.source))
         out.extend(self._state_changes(event.rx_ns))
+        self._with_foxglove(out)
         return out
+
+    def _with_foxglove(self, out: list[Output]) -> None:
+        """Add the Foxglove-native channels that mirror ``out`` (`gateway.foxglove_channels`)."""
+        for topic, message, ns in self.foxglove.derive(out):
+            out.append(Output(topic, message, ns, zenoh=False))
 
     def tick(self, now_ns: int) -> list[Output]:
         """Called by the live service between events (any rate). Once nothing has stepped the observer
@@ -393,7 +403,7 @@ class Pipeline:
         dead reckoning runs on a copy of the observer, so the observer's own state stays a function of
         the events alone and replay still reproduces it."""
         if self.t0_ns is None or now_ns <= self.last_ns:
-            return []
+            return self._held_foxglove()
         out: list[Output] = []
         if (
             self.observer.initialized
@@ -413,6 +423,13 @@ class Pipeline:
                     )
                 )
         out.extend(self._state_changes(now_ns))
+        self._with_foxglove(out)
+        return out
+
+    def _held_foxglove(self) -> list[Output]:
+        """The Foxglove log lines of a status made since the last feed or tick, if any."""
+        out: list[Output] = []
+        self._with_foxglove(out)
         return out
 
     def _state_changes(self, now_ns: int) -> list[Output]:
@@ -514,8 +531,7 @@ class Pipeline:
         ned = self.fusion.reference_position(rx_ns, lat, lon, spec.lever_arm_m)
         if ned is None:
             return False  # a lever arm without a heading of the same cycle cannot be compensated
-        if rx_ns - self._last_fix_ns.get(spec.name, -FIX_PERIOD_NS) >= FIX_PERIOD_NS:  # (at most 1 Hz)
-            out.extend(self._location_fix(spec.name, rx_ns, lat, lon))
+        out.extend(self._location_fix(spec.name, rx_ns, lat, lon))
         pred = self._prediction(rx_ns, 0)
         if self.monitor.position(spec.name, rx_ns, ned[0], ned[1], quality, pred):
             weight = self.monitor.weight("position", spec.name)
@@ -705,17 +721,9 @@ class Pipeline:
             self.estimates += 1
             estimate = self._estimate(self.spec.observer_name, self.observer, est, now_ns, valid)
             self.estimate_status = estimate.status
-            out.append(Output("/dp/estimate", estimate, now_ns))
-            if (
-                estimate.lat_deg is not None
-                and estimate.lon_deg is not None
-                and now_ns - self._last_fix_ns.get("", -FIX_PERIOD_NS) >= FIX_PERIOD_NS
-            ):
-                self._last_fix_ns[""] = now_ns
-                fix = location_fix(
-                    now_ns, "estimate", estimate.lat_deg, estimate.lon_deg, heading_rad=float(est.eta[2])
-                )
-                out.append(Output("/dp/estimate/fix", fix, now_ns, zenoh=False))
+            out.append(
+                Output("/dp/estimate", estimate, now_ns)
+            )  # (its LocationFix: gateway.foxglove_channels)
             if self.controller is not None and now_ns >= self._next_control_ns:
                 self._next_control_ns = now_ns + self._control_period_ns
                 out.extend(self._control_step(t, est, now_ns))
@@ -794,10 +802,17 @@ class Pipeline:
             tau_allocated=None if prev is None else prev.tau_allocated,
             tau_manual=self.manual_tau,
         )
+        target = o.reference.target if self.mode == "dp" else None
+        scene = [
+            Output(topic, message, ns, zenoh=False)
+            for topic, message, ns in self.foxglove.setpoint(
+                None if target is None else (float(target[0]), float(target[1]), float(target[2])), now_ns
+            )
+        ]
         if self.mode == "standby":
             self.fusion.set_tau_demand(np.zeros(3))
             self.control_alarms = []
-            return []  # standby commands nothing: the thrusters are someone else's
+            return scene  # standby commands nothing: the thrusters are someone else's
         thrusters: list[Thruster] = []
         saturated = False
         if self.allocator is not None:
@@ -828,7 +843,8 @@ class Pipeline:
                     reference=o.reference.eta_d.tolist(),
                 ),
                 now_ns,
-            )
+            ),
+            *scene,
         ]
 
     def _estimate(
@@ -902,7 +918,8 @@ class Pipeline:
         return sigma if rx_ns <= until else None
 
     def _location_fix(self, source: str, rx_ns: int, lat: float, lon: float) -> list[Output]:
-        if rx_ns - self._last_fix_ns.get(source, -FIX_PERIOD_NS) < FIX_PERIOD_NS:
+        period = FIX_PERIOD_NS  # (a module global: the benchmark sets it)
+        if period and rx_ns - self._last_fix_ns.get(source, -period) < period:
             return []
         self._last_fix_ns[source] = rx_ns
         return [
@@ -940,7 +957,9 @@ class Pipeline:
 
     def status(self, now_ns: int, alarms: list[str] | None = None) -> Output:
         """The 1 Hz status output (the caller decides when); see `status_message`."""
-        return Output("/dp/status", self.status_message(now_ns, alarms), now_ns)
+        message = self.status_message(now_ns, alarms)
+        self.foxglove.on_status(message)
+        return Output("/dp/status", message, now_ns)
 
     def status_message(self, now_ns: int, alarms: list[str] | None = None) -> Status:
         """Per-source age, counts, rejects by reason, and the alarms: the caller's, the controller's, and

@@ -49,15 +49,21 @@ __all__ = [
     "CommandStatus",
     "Datum",
     "Estimate",
+    "FrameTransform",
+    "FrameTransforms",
     "LocationFix",
+    "Log",
     "ManualTau",
     "Measurement",
     "Message",
     "ModeRequest",
+    "PoseInFrame",
     "RawMavlink",
     "RawNmea",
     "Record",
     "ReferenceStatus",
+    "SceneEntity",
+    "SceneUpdate",
     "Setpoint",
     "SimClock",
     "SourceStatus",
@@ -420,6 +426,253 @@ class LocationFix(Message, kw_only=True):
     heading: Annotated[float | None, doc("Heading, clockwise from true north; optional.", "rad")] = None
 
 
+# --- Foxglove's own schemas -----------------------------------------------------------------------------
+# Field names, types, nesting and constraints are Foxglove's published JSON schemas (foxglove-sdk,
+# `schemas/jsonschema/`), under the same titles, so Foxglove Studio recognises each channel and draws it;
+# the descriptions are ours. Every array field Foxglove requires is required here too (an empty list when
+# unused): Foxglove's JSON decoder does not fill in missing fields.
+
+
+def _enum(title: str, *names: str) -> dict[str, Any]:
+    """A Foxglove enum field's schema: its values as titled constants, as Foxglove writes them."""
+    return {"title": title, "oneOf": [{"title": n, "const": k} for k, n in enumerate(names)]}
+
+
+class Duration(Record, kw_only=True):
+    TITLE = "duration"
+
+    sec: Annotated[int, doc("Whole seconds.", "s")]
+    nsec: Annotated[int, msgspec.Meta(ge=0, le=999_999_999), doc("Nanoseconds within the second.", "ns")]
+
+
+class Vector3(Record, kw_only=True):
+    TITLE = "foxglove.Vector3"
+
+    x: Annotated[float, doc("x component.")]
+    y: Annotated[float, doc("y component.")]
+    z: Annotated[float, doc("z component.")]
+
+
+class Point3(Record, kw_only=True):
+    TITLE = "foxglove.Point3"
+
+    x: Annotated[float, doc("x coordinate position.", "m")]
+    y: Annotated[float, doc("y coordinate position.", "m")]
+    z: Annotated[float, doc("z coordinate position.", "m")]
+
+
+class Quaternion(Record, kw_only=True):
+    TITLE = "foxglove.Quaternion"
+
+    x: Annotated[float, doc("x value.")]
+    y: Annotated[float, doc("y value.")]
+    z: Annotated[float, doc("z value.")]
+    w: Annotated[float, doc("w value.")]
+
+
+class Pose(Record, kw_only=True):
+    TITLE = "foxglove.Pose"
+
+    position: Annotated[Vector3, doc("Position in the frame (ENU or FLU: docs/foxglove.md).", "m")]
+    orientation: Annotated[Quaternion, doc("Orientation in the frame (a yaw about +z for dpgw).")]
+
+
+class Color(Record, kw_only=True):
+    TITLE = "foxglove.Color"
+
+    r: Annotated[float, doc("Red value between 0 and 1.")]
+    g: Annotated[float, doc("Green value between 0 and 1.")]
+    b: Annotated[float, doc("Blue value between 0 and 1.")]
+    a: Annotated[float, doc("Alpha value between 0 and 1.")]
+
+
+class FrameTransform(Record, kw_only=True):
+    TITLE = "foxglove.FrameTransform"
+
+    timestamp: Annotated[Time, doc("Time of the transform (UTC).")]
+    parent_frame_id: Annotated[str, doc("Parent frame: `ltp` (local tangent plane at the datum, ENU).")]
+    child_frame_id: Annotated[str, doc("Child frame: `vessel` (estimate) or `vessel_measured`, FLU.")]
+    translation: Annotated[Vector3, doc("The child's origin in the parent frame: [east, north, 0].", "m")]
+    rotation: Annotated[Quaternion, doc("The child's orientation in the parent frame: yaw π/2 − ψ about up.")]
+
+
+class FrameTransforms(Message, kw_only=True):
+    """Transforms from the datum's local tangent plane to the vessel frames (for Foxglove's 3D panel)."""
+
+    TITLE = "foxglove.FrameTransforms"
+    FOXGLOVE = True
+
+    transforms: Annotated[list[FrameTransform], doc("The estimate's frame, then the measurement's.")]
+
+
+class PoseInFrame(Message, kw_only=True):
+    """A timestamped pose of the vessel's reference point in the datum's local tangent plane."""
+
+    TITLE = "foxglove.PoseInFrame"
+    FOXGLOVE = True
+
+    timestamp: Annotated[Time, doc("Time of the pose (UTC).")]
+    frame_id: Annotated[str, doc("Frame of the pose: `ltp` (local tangent plane at the datum, ENU).")]
+    pose: Annotated[Pose, doc("[east, north, 0] and the yaw π/2 − ψ about up.")]
+
+
+class KeyValuePair(Record, kw_only=True):
+    TITLE = "foxglove.KeyValuePair"
+
+    key: Annotated[str, doc("Key.")]
+    value: Annotated[str, doc("Value.")]
+
+
+class ArrowPrimitive(Record, kw_only=True):
+    TITLE = "foxglove.ArrowPrimitive"
+
+    pose: Annotated[Pose, doc("Position of the arrow's tail and orientation of the arrow (along +x).")]
+    shaft_length: Annotated[float, doc("Length of the arrow shaft.", "m")]
+    shaft_diameter: Annotated[float, doc("Diameter of the arrow shaft.", "m")]
+    head_length: Annotated[float, doc("Length of the arrow head.", "m")]
+    head_diameter: Annotated[float, doc("Diameter of the arrow head.", "m")]
+    color: Annotated[Color, doc("Color of the arrow.")]
+
+
+class CubePrimitive(Record, kw_only=True):
+    TITLE = "foxglove.CubePrimitive"
+
+    pose: Annotated[Pose, doc("Position of the center of the cube and orientation of the cube.")]
+    size: Annotated[Vector3, doc("Size of the cube along each axis.", "m")]
+    color: Annotated[Color, doc("Color of the cube.")]
+
+
+class SpherePrimitive(Record, kw_only=True):
+    TITLE = "foxglove.SpherePrimitive"
+
+    pose: Annotated[Pose, doc("Position of the center of the sphere and orientation of the sphere.")]
+    size: Annotated[Vector3, doc("Size (diameter) of the sphere along each axis.", "m")]
+    color: Annotated[Color, doc("Color of the sphere.")]
+
+
+class CylinderPrimitive(Record, kw_only=True):
+    TITLE = "foxglove.CylinderPrimitive"
+
+    pose: Annotated[Pose, doc("Position of the center of the cylinder and orientation of the cylinder.")]
+    size: Annotated[Vector3, doc("Size of the cylinder's bounding box.", "m")]
+    bottom_scale: Annotated[float, doc("0-1, ratio of the diameter of the bottom face to size.x/size.y.")]
+    top_scale: Annotated[float, doc("0-1, ratio of the diameter of the top face to size.x/size.y.")]
+    color: Annotated[Color, doc("Color of the cylinder.")]
+
+
+class LinePrimitive(Record, kw_only=True):
+    TITLE = "foxglove.LinePrimitive"
+
+    type: Annotated[
+        int, doc("Drawing primitive: 0 line strip, 1 line loop, 2 line list.", schema=_enum(
+            "foxglove.LineType", "LINE_STRIP", "LINE_LOOP", "LINE_LIST"
+        ))
+    ]  # fmt: skip
+    pose: Annotated[Pose, doc("Origin of the lines relative to the reference frame.")]
+    thickness: Annotated[float, doc("Line thickness (m, or pixels when scale_invariant).")]
+    scale_invariant: Annotated[bool, doc("Thickness in pixels (true) or in metres (false).")]
+    points: Annotated[list[Point3], doc("Points along the line.")]
+    color: Annotated[Color, doc("Solid color of the whole line (used when colors is empty).")]
+    colors: Annotated[list[Color], doc("Per-point colors (empty: color for every point).")]
+    indices: Annotated[
+        list[Annotated[int, msgspec.Meta(ge=0)]], doc("Indices into points (empty: in order).")
+    ]
+
+
+class TriangleListPrimitive(Record, kw_only=True):
+    TITLE = "foxglove.TriangleListPrimitive"
+
+    pose: Annotated[Pose, doc("Origin of the triangles relative to the reference frame.")]
+    points: Annotated[list[Point3], doc("Vertices, three per triangle.")]
+    color: Annotated[Color, doc("Solid color of the whole shape.")]
+    colors: Annotated[list[Color], doc("Per-vertex colors.")]
+    indices: Annotated[list[Annotated[int, msgspec.Meta(ge=0)]], doc("Indices into points.")]
+
+
+class TextPrimitive(Record, kw_only=True):
+    TITLE = "foxglove.TextPrimitive"
+
+    pose: Annotated[Pose, doc("Position of the center of the text box and orientation of the text.")]
+    billboard: Annotated[bool, doc("Always face the camera.")]
+    font_size: Annotated[float, doc("Font size (height of one line of text).")]
+    scale_invariant: Annotated[bool, doc("font_size in pixels (true) or in metres (false).")]
+    color: Annotated[Color, doc("Color of the text.")]
+    text: Annotated[str, doc("Text.")]
+
+
+class ModelPrimitive(Record, kw_only=True):
+    TITLE = "foxglove.ModelPrimitive"
+
+    pose: Annotated[Pose, doc("Origin of the model relative to the reference frame.")]
+    scale: Annotated[Vector3, doc("Scale factor to apply to the model along each axis.")]
+    color: Annotated[Color, doc("Solid color of the model, if override_color.")]
+    override_color: Annotated[bool, doc("Draw in color rather than the model's own.")]
+    url: Annotated[str, doc("URL of the model file.")]
+    media_type: Annotated[str, doc("Media type of the embedded model (e.g. model/gltf-binary).")]
+    data: Annotated[bytes, doc("Embedded model (base64); empty when url is given.")]
+
+
+class SceneEntity(Record, kw_only=True):
+    TITLE = "foxglove.SceneEntity"
+
+    timestamp: Annotated[Time, doc("Time of the entity (UTC).")]
+    frame_id: Annotated[str, doc("Frame the entity is drawn in: `vessel` (hull, thrusters) or `ltp`.")]
+    id: Annotated[str, doc("Entity id: a later entity with the same id replaces this one.")]
+    lifetime: Annotated[Duration, doc("How long the entity shows; 0: until replaced or deleted.")]
+    frame_locked: Annotated[bool, doc("Moves with its frame as the frame moves (true for the hull).")]
+    metadata: Annotated[list[KeyValuePair], doc("Key/value pairs shown when the entity is selected.")]
+    arrows: Annotated[list[ArrowPrimitive], doc("Arrows.")]
+    cubes: Annotated[list[CubePrimitive], doc("Cubes.")]
+    spheres: Annotated[list[SpherePrimitive], doc("Spheres.")]
+    cylinders: Annotated[list[CylinderPrimitive], doc("Cylinders.")]
+    lines: Annotated[list[LinePrimitive], doc("Lines.")]
+    triangles: Annotated[list[TriangleListPrimitive], doc("Triangle lists.")]
+    texts: Annotated[list[TextPrimitive], doc("Texts.")]
+    models: Annotated[list[ModelPrimitive], doc("Models.")]
+
+
+class SceneEntityDeletion(Record, kw_only=True):
+    TITLE = "foxglove.SceneEntityDeletion"
+
+    timestamp: Annotated[Time, doc("Entities created before this time are deleted.")]
+    type: Annotated[
+        int,
+        doc("0: the entity with this id; 1: every entity.", schema=_enum(
+            "foxglove.SceneEntityDeletionType", "MATCHING_ID", "ALL"
+        )),
+    ]  # fmt: skip
+    id: Annotated[str, doc("Id of the entity to delete (type 0).")]
+
+
+class SceneUpdate(Message, kw_only=True):
+    """3D scene entities to add, replace or delete (Foxglove's 3D panel): hull, thrusters, setpoint."""
+
+    TITLE = "foxglove.SceneUpdate"
+    FOXGLOVE = True
+
+    deletions: Annotated[list[SceneEntityDeletion], doc("Entities to delete.")]
+    entities: Annotated[list[SceneEntity], doc("Entities to add or replace.")]
+
+
+class Log(Message, kw_only=True):
+    """A log line: an alarm raised or cleared, a reference's state change (Foxglove's Log panel)."""
+
+    TITLE = "foxglove.Log"
+    FOXGLOVE = True
+
+    timestamp: Annotated[Time, doc("Time of the event (UTC).")]
+    level: Annotated[
+        int,
+        doc("Severity: 0 unknown, 1 debug, 2 info, 3 warning, 4 error, 5 fatal.", schema=_enum(
+            "foxglove.LogLevel", "UNKNOWN", "DEBUG", "INFO", "WARNING", "ERROR", "FATAL"
+        )),
+    ]  # fmt: skip
+    message: Annotated[str, doc("The event, for a person.")]
+    name: Annotated[str, doc("What raised it: `dpgw.alarm` or `dpgw.reference`.")]
+    file: Annotated[str, doc("Always empty (a gateway event has no source file).")]
+    line: Annotated[int, msgspec.Meta(ge=0), doc("Always 0.")]
+
+
 class TruthState(Message, kw_only=True):
     """Simulator ground truth (MCAP `/truth/state`, simulator logs only)."""
 
@@ -614,10 +867,31 @@ TOPICS: tuple[Topic, ...] = (
         Estimate,
         "replay only: `/dp/estimates/<label>`, further observers run side by side (`--observer SPEC@label`)",
     ),
-    Topic("/dp/estimate/fix", LocationFix, "the estimated position, for the map (at most 1 Hz)"),
+    Topic("/dp/estimate/fix", LocationFix, "the estimated position and heading, for the map (≤ ~5 Hz)"),
+    Topic("/gnss/", LocationFix, "`/gnss/<source>/fix`: every GNSS fix, for the map"),
     Topic(
-        "/gnss/", LocationFix, "`/gnss/<source>/fix`: each GNSS fix (at most 1 Hz per source), for the map"
+        "/dp/tf",
+        FrameTransforms,
+        "frames `ltp` (the datum's tangent plane, ENU) → `vessel` (LF estimate) and `vessel_measured`, "
+        "with the estimate's pose",
     ),
+    Topic(
+        "/dp/estimate/pose",
+        PoseInFrame,
+        "the LF estimate's pose in `ltp`, at the estimate's rate up to ~5 Hz",
+    ),
+    Topic(
+        "/dp/measurement/pose",
+        PoseInFrame,
+        "the measurement's pose in `ltp` with the estimate's, when N, E, ψ are all measured",
+    ),
+    Topic(
+        "/dp/scene/",
+        SceneUpdate,
+        "`/dp/scene/hull` (every 10 s), `/dp/scene/thrusters` (commanded and fed-back arrows, ≤ 10 Hz), "
+        "`/dp/scene/setpoint` (setpoint and watch circles, on change and every 10 s), for the 3D panel",
+    ),
+    Topic("/dp/log", Log, "alarms raised and cleared, reference state changes, for the Log panel"),
     Topic("/truth/state", TruthState, "simulator logs only: the ground truth"),
     Topic(
         "/sim/clock",
