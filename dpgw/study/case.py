@@ -8,7 +8,10 @@ waves, same sensor noise, same vessel motion.
 
 Deterministic per seed: everything random in a case comes from the scenario's seed (the simulator's
 `SeedSequence`), nothing from the process, the clock or the order cases run in; a row is the same on any
-worker (tests/test_study.py).
+worker (tests/test_study.py). One thing of the process did change the last bits: the number of BLAS
+threads (OpenBLAS splits a product differently across threads, and Dask's worker processes start with one
+thread where a plain process has one per core). A case therefore always runs with one BLAS thread — the
+right number anyway, with one case per core.
 """
 
 from __future__ import annotations
@@ -72,6 +75,29 @@ def loop_tables(case: CaseSpec, scenario: Any, nominal_tp_s: float) -> dict[str,
 
 def run_case(case_dict: dict[str, Any]) -> list[dict[str, Any]]:
     """Rows (one per observer spec) of one case, given as `CaseSpec.as_dict` (what a Dask worker gets)."""
+    from threadpoolctl import threadpool_limits
+
+    _load_numerics()
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _run_case(CaseSpec.from_dict(case_dict))
+
+
+def _load_numerics() -> None:
+    """Import every library a case may call into before the BLAS threads are limited: threadpoolctl limits
+    the BLAS libraries loaded when it is called, and scipy brings its own OpenBLAS (loaded with
+    scipy.linalg, which an observer module may import only when it is built). Without this, the first case
+    in a process ran scipy's products on all threads and differed from the next in the last bits."""
+    import importlib
+
+    import scipy.linalg  # noqa: F401
+
+    from observers.factory import OBSERVERS
+
+    for entry in OBSERVERS.values():
+        importlib.import_module(entry.target.partition(":")[0])
+
+
+def _run_case(case: CaseSpec) -> list[dict[str, Any]]:
     from dpgw.closed_loop import run_closed_loop
     from gateway.config import parse_config
     from gateway.replay import parse_observer_spec
@@ -80,7 +106,6 @@ def run_case(case_dict: dict[str, Any]) -> list[dict[str, Any]]:
     from simulator.clock import SimEpoch
     from simulator.scenarios import get_scenario
 
-    case = CaseSpec.from_dict(case_dict)
     nominal_tp = get_scenario(case.scenario).sea[0][1].tp_s
     scenario = build_scenario(case)
     tables = loop_tables(case, scenario, nominal_tp)

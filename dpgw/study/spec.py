@@ -148,16 +148,19 @@ class StudySpec:
             raise StudySpecError(f"study: 'settle_s' must be in [0, duration_s) ({self.settle_s!r})")
         for k, sea in enumerate(self.seas):
             sea.check(f"study: 'seas'[{k}]")
+        try:
+            parse_observer_spec(self.loop_observer)
+        except ReplayError as exc:
+            raise StudySpecError(f"study: 'loop_observer': {exc}") from None
         labels: set[str] = set()
-        for text in (*self.observer_specs(), self.loop_observer):
+        for text in self.observer_specs():
             try:
                 spec = parse_observer_spec(text)
             except ReplayError as exc:
                 raise StudySpecError(f"study: 'observers': {exc}") from None
-            if text != self.loop_observer:
-                if spec.label in labels:
-                    raise StudySpecError(f"study: 'observers': label '{spec.label}' given twice (name it: spec@label)")
-                labels.add(spec.label)
+            if spec.label in labels:
+                raise StudySpecError(f"study: 'observers': label '{spec.label}' given twice (name it: SPEC@label)")
+            labels.add(spec.label)
 
 
 _SEA_KEYS = {"hs_m", "tp_s", "direction_deg", "current_mps", "current_dir_deg"}
