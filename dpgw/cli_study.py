@@ -52,19 +52,25 @@ def _seeds(text: str) -> list[int]:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--file", type=Path, metavar="STUDY.toml", help="the grid from a study file (docs/study.md)")
+    p.add_argument(
+        "--file", type=Path, metavar="STUDY.toml", help="the grid from a study file (docs/study.md)"
+    )
     p.add_argument(
         "--scenario", action="append", default=[], choices=SCENARIO_NAMES, metavar="NAME",
         help=f"scenario (repeatable): {', '.join(SCENARIO_NAMES)}",
     )  # fmt: skip
     p.add_argument("--hs", type=_numbers, metavar="M[,M...]", help="significant wave heights (m)")
     p.add_argument("--tp", type=_numbers, metavar="S[,S...]", help="peak periods (s)")
-    p.add_argument("--direction", type=_numbers, metavar="DEG[,...]", help="wave directions, going towards (°)")
+    p.add_argument(
+        "--direction", type=_numbers, metavar="DEG[,...]", help="wave directions, going towards (°)"
+    )
     p.add_argument(
         "--current", type=_numbers, metavar="M/S[,...]",
         help="current speeds (m/s; > 0 runs the full plant, which needs the vessel's hull data)",
     )  # fmt: skip
-    p.add_argument("--current-dir", type=_numbers, metavar="DEG[,...]", help="current directions, going towards (°)")
+    p.add_argument(
+        "--current-dir", type=_numbers, metavar="DEG[,...]", help="current directions, going towards (°)"
+    )
     p.add_argument("--seeds", type=_seeds, metavar="0-7,9", help="seeds (default 0-7)")
     p.add_argument(
         "--observer", action="append", default=[], metavar="SPEC",
@@ -75,7 +81,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--loop-observer", metavar="SPEC", help="the observer the DP controller acts on (default passive)"
     )
     p.add_argument("--duration", type=float, metavar="S", help="simulated seconds per case (default 300)")
-    p.add_argument("--settle", type=float, metavar="S", help="scored from S s on (default a third of the case)")
+    p.add_argument(
+        "--settle", type=float, metavar="S", help="scored from S s on (default a third of the case)"
+    )
     p.add_argument("--out", type=Path, default=Path("study_out"), metavar="DIR", help="output folder")
     p.add_argument("--cache", type=Path, metavar="DIR", help="case cache (default OUT/cache)")
     p.add_argument("--no-cache", action="store_true", help="run every case, read and write no cache")
@@ -115,7 +123,7 @@ def build_spec(args: argparse.Namespace) -> Any:
     if args.scenario:
         changes["scenarios"] = tuple(dict.fromkeys(args.scenario))
     if sea_grid:
-        changes["seas"] = seas_product(sea_grid)  # type: ignore[arg-type]
+        changes["seas"] = seas_product(sea_grid)
     if args.seeds is not None:
         changes["seeds"] = tuple(args.seeds)
     if args.observer:

@@ -138,7 +138,9 @@ def true_bias(sim: Simulation) -> Array:
     psi = float(sim.dynamics.x[2])
     c, s = np.cos(psi), np.sin(psi)
     d = sim._drift_body
-    return np.asarray(sim.bias.force, dtype=float) + np.array([c * d[0] - s * d[1], s * d[0] + c * d[1], d[2]])
+    return np.asarray(sim.bias.force, dtype=float) + np.array(
+        [c * d[0] - s * d[1], s * d[0] + c * d[1], d[2]]
+    )
 
 
 def needs_wire(scenario: Scenario, log: McapLogWriter | None = None) -> bool:

@@ -15,7 +15,20 @@ from dpgw.cli import SUBCOMMANDS
 
 # Each of these costs from tens of milliseconds to seconds at import (numba and scipy the most), or pulls
 # in packages that do. None is needed to print a help page.
-HEAVY = ("numpy", "numba", "scipy", "zenoh", "pydantic", "mcap", "matplotlib", "tqdm", "gateway", "wire")
+HEAVY = (
+    "numpy",
+    "numba",
+    "scipy",
+    "zenoh",
+    "pydantic",
+    "mcap",
+    "matplotlib",
+    "tqdm",
+    "gateway",
+    "wire",
+    "dask",
+    "distributed",
+)
 HEAVY_MODULES = (
     "simulator.scenarios",
     "simulator.runner",

@@ -20,7 +20,10 @@ from dpgw.study.spec import SeaSpec, StudySpec, StudySpecError, load_study_file
 
 # Small cases: the snijders ship at 1 Hz is the cheapest scenario; hassani (10 Hz, CyberShip II) the other.
 SMALL = StudySpec(
-    scenarios=("snijders_2005", "hassani"), seeds=(0, 1), observers=("passive", "ekf", "mmae"), duration_s=40.0
+    scenarios=("snijders_2005", "hassani"),
+    seeds=(0, 1),
+    observers=("passive", "ekf", "mmae"),
+    duration_s=40.0,
 )
 
 
@@ -144,21 +147,23 @@ def test_a_case_scores_every_observer_on_the_same_measurements() -> None:
 
 def test_a_resumed_study_reuses_the_cache(tmp_path: Path) -> None:
     """A study stopped after two of four cases reruns only the other two, and its table is a fresh run's."""
-    spec = StudySpec(scenarios=("snijders_2005",), seeds=(0, 1, 2, 3), observers=("passive", "sdre"), duration_s=30.0)
+    spec = StudySpec(
+        scenarios=("snijders_2005",), seeds=(0, 1, 2, 3), observers=("passive", "sdre"), duration_s=30.0
+    )
     cases = spec.cases()
     calls: list[int] = []
 
-    class Stopped(Exception):
+    class StoppedError(Exception):
         pass
 
     def interrupted(case: dict[str, Any]) -> list[dict[str, Any]]:
         if len(calls) == 2:
-            raise Stopped
+            raise StoppedError
         calls.append(case["seed"])
         return run_case(case)
 
     cache = CaseCache(tmp_path / "cache")
-    with pytest.raises(Stopped):
+    with pytest.raises(StoppedError):
         run_study(cases, workers=0, cache=cache, case_fn=interrupted)
     assert len(list((tmp_path / "cache").glob("*.json"))) == 2
 
@@ -192,8 +197,9 @@ def test_cli_writes_table_summary_plots_and_json(tmp_path: Path, capsys: pytest.
     out = tmp_path / "out"
     doc = tmp_path / "doc.md"
     doc.write_text("# t\n<!-- study-table:begin -->\nold\n<!-- study-table:end -->\nafter\n")
-    argv = ["study", "--scenario", "snijders_2005", "--seeds", "0-1", "--duration", "30", "--observer", "passive",
-            "--observer", "ekf", "--serial", "--json", "--no-progress", "--out", str(out), "--update-doc", str(doc)]  # fmt: skip
+    argv = ["study", "--scenario", "snijders_2005", "--seeds", "0-1", "--duration", "30",
+            "--observer", "passive", "--observer", "ekf", "--serial", "--json", "--no-progress",
+            "--out", str(out), "--update-doc", str(doc)]  # fmt: skip
     assert main(argv) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["cases"] == 2 and report["rows"] == 4 and report["computed"] == 2

@@ -69,7 +69,11 @@ class CaseCache:
         return [{k: _restore(v) for k, v in row.items()} for row in doc["rows"]]
 
     def put(self, key: str, case: dict[str, Any], rows: list[dict[str, Any]]) -> None:
-        doc = {"case": case, "code": code_version(), "rows": [{k: _clean(v) for k, v in r.items()} for r in rows]}
+        doc = {
+            "case": case,
+            "code": code_version(),
+            "rows": [{k: _clean(v) for k, v in r.items()} for r in rows],
+        }
         tmp = self.path(key).with_suffix(f".tmp{os.getpid()}")
         tmp.write_text(json.dumps(doc, allow_nan=False))
         os.replace(tmp, self.path(key))

@@ -109,7 +109,9 @@ def _run_case(case: CaseSpec) -> list[dict[str, Any]]:
     nominal_tp = get_scenario(case.scenario).sea[0][1].tp_s
     scenario = build_scenario(case)
     tables = loop_tables(case, scenario, nominal_tp)
-    loop = run_closed_loop(scenario, case.duration_s, seed=case.seed, tables=tables, collect=("/dp/measurement",))
+    loop = run_closed_loop(
+        scenario, case.duration_s, seed=case.seed, tables=tables, collect=("/dp/measurement",)
+    )
 
     # the pipeline's measurements on the simulator's clock (sim time 0 = the epoch)
     start_ns = SimEpoch(scenario.start_utc).stamp_ns(0.0)
@@ -150,7 +152,9 @@ def _run_case(case: CaseSpec) -> list[dict[str, Any]]:
         )  # fmt: skip
         rows.append(row)
         traces.append(
-            ObserverTrace(spec.label, te, run.eta[ok], run.nu[ok], run.bias[ok], run.eta_wf[ok], run.omega0[ok])
+            ObserverTrace(
+                spec.label, te, run.eta[ok], run.nu[ok], run.bias[ok], run.eta_wf[ok], run.omega0[ok]
+            )
         )
     # the wave-band attenuation of every observer from the same measurement spectrum (the replay report's)
     metrics = compute_metrics(

@@ -30,6 +30,13 @@ SUMMARY_COLUMNS: tuple[tuple[str, str, str], ...] = (
 PLOT_COLUMNS = ("rms_horizontal_m", "rms_heading_deg", "rms_surge_mps", "att_heading_db")
 
 
+def _csv_value(v: Any) -> Any:
+    """A float with all its digits (repr reads back exactly); NaN as an empty field."""
+    if isinstance(v, float):
+        return "" if math.isnan(v) else repr(v)
+    return v
+
+
 def write_table(rows: Sequence[dict[str, Any]], folder: Path) -> list[Path]:
     """results.csv (floats written with repr: they read back exactly), and results.parquet if pyarrow is
     importable."""
@@ -40,8 +47,7 @@ def write_table(rows: Sequence[dict[str, Any]], folder: Path) -> list[Path]:
         w = csv.writer(f)
         w.writerow(columns)
         for row in rows:
-            w.writerow(["" if isinstance(v, float) and math.isnan(v) else repr(v) if isinstance(v, float) else v
-                        for v in (row[c] for c in columns)])  # fmt: skip
+            w.writerow([_csv_value(row[c]) for c in columns])
     try:
         import pyarrow as pa
         import pyarrow.parquet as pq

@@ -106,4 +106,3 @@ def score_run(
     ok = np.isfinite(horiz)
     out["convergence_s"] = convergence_time(t[ok], horiz[ok])
     return out
-

@@ -62,7 +62,8 @@ class SeaSpec:
             "hs_m": self.hs_m is None or (math.isfinite(self.hs_m) and self.hs_m >= 0),
             "tp_s": self.tp_s is None or (math.isfinite(self.tp_s) and self.tp_s > 0),
             "direction_deg": self.direction_deg is None or math.isfinite(self.direction_deg),
-            "current_mps": self.current_mps is None or (math.isfinite(self.current_mps) and self.current_mps >= 0),
+            "current_mps": self.current_mps is None
+            or (math.isfinite(self.current_mps) and self.current_mps >= 0),
             "current_dir_deg": self.current_dir_deg is None or math.isfinite(self.current_dir_deg),
         }
         for key, ok in checks.items():
@@ -137,7 +138,9 @@ class StudySpec:
             raise StudySpecError("study: 'scenarios' is empty")
         for name in self.scenarios:
             if name not in SCENARIO_NAMES:
-                raise StudySpecError(f"study: 'scenarios': unknown '{name}' (known: {', '.join(SCENARIO_NAMES)})")
+                raise StudySpecError(
+                    f"study: 'scenarios': unknown '{name}' (known: {', '.join(SCENARIO_NAMES)})"
+                )
         if not self.seeds:
             raise StudySpecError("study: 'seeds' is empty")
         if any(s < 0 for s in self.seeds):
@@ -159,7 +162,9 @@ class StudySpec:
             except ReplayError as exc:
                 raise StudySpecError(f"study: 'observers': {exc}") from None
             if spec.label in labels:
-                raise StudySpecError(f"study: 'observers': label '{spec.label}' given twice (name it: SPEC@label)")
+                raise StudySpecError(
+                    f"study: 'observers': label '{spec.label}' given twice (name it: SPEC@label)"
+                )
             labels.add(spec.label)
 
 
@@ -180,7 +185,10 @@ def _floats(value: Any, key: str) -> list[float | None]:
 def seas_product(grid: dict[str, list[float | None]]) -> tuple[SeaSpec, ...]:
     """Every combination of the listed values (a key not listed keeps the scenario's own value)."""
     keys = sorted(grid)
-    return tuple(SeaSpec(**dict(zip(keys, combo, strict=True))) for combo in itertools.product(*(grid[k] for k in keys)))
+    return tuple(
+        SeaSpec(**dict(zip(keys, combo, strict=True)))
+        for combo in itertools.product(*(grid[k] for k in keys))
+    )
 
 
 def load_study_file(path: str | Path) -> StudySpec:
@@ -204,7 +212,9 @@ def load_study_file(path: str | Path) -> StudySpec:
         seas += seas_product({k: _floats(v, f"grid.{k}") for k, v in grid.items()})
     for i, table in enumerate(doc.get("sea", [])):
         for k in sorted(set(table) - _SEA_KEYS):
-            raise StudySpecError(f"study file {path}: [[sea]] {i}: unknown key '{k}' (known: {sorted(_SEA_KEYS)})")
+            raise StudySpecError(
+                f"study file {path}: [[sea]] {i}: unknown key '{k}' (known: {sorted(_SEA_KEYS)})"
+            )
         seas.append(SeaSpec(**{k: _floats(v, f"sea.{k}")[0] for k, v in table.items()}))
     scenarios = doc.get("scenarios", [])
     seeds = doc.get("seeds", list(DEFAULT_SEEDS))
@@ -216,7 +226,9 @@ def load_study_file(path: str | Path) -> StudySpec:
         raise StudySpecError(f"study file {path}: 'scenarios': a list of names expected ({scenarios!r})")
     observers = doc.get("observers", [])
     if not isinstance(observers, list) or not all(isinstance(s, str) for s in observers):
-        raise StudySpecError(f"study file {path}: 'observers': a list of observer specs expected ({observers!r})")
+        raise StudySpecError(
+            f"study file {path}: 'observers': a list of observer specs expected ({observers!r})"
+        )
     spec = StudySpec(
         scenarios=tuple(scenarios),
         seas=tuple(seas) or (SeaSpec(),),
