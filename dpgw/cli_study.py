@@ -19,7 +19,7 @@ DESCRIPTION = (
     "vessel on station, run every observer on the same measurements and score it against the truth: "
     "LF position and heading RMS, velocity RMS, bias error, wave-band attenuation, ω0 error, "
     "convergence time. Writes OUT/results.csv (and .parquet with pyarrow), OUT/summary.md (median and "
-    "5-95 %% per observer and sea state) and box plots OUT/box_*.png. Cases run on a local Dask cluster "
+    "5-95 % per observer and sea state) and box plots OUT/box_*.png. Cases run on a local Dask cluster "
     "(one process per core) or on an existing one (--scheduler); each case's result is cached under "
     "OUT/cache, so an interrupted study resumes. The sea values given are combined (every Hs with "
     "every Tp, ...); a value not given is the scenario's own. docs/study.md defines every column."

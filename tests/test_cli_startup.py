@@ -74,7 +74,7 @@ def test_help_pages_import_nothing_heavy() -> None:
 
 
 def test_every_command_is_covered() -> None:
-    assert sorted(COMMANDS) == ["demo", "listen", "radiation", "replay", "run", "sim", "tune"]
+    assert sorted(COMMANDS) == ["demo", "listen", "radiation", "replay", "run", "sim", "study", "tune"]
 
 
 def test_scenario_names_match_the_scenarios() -> None:
