@@ -70,6 +70,7 @@ def test_grid_is_the_product_and_every_case_has_every_observer() -> None:
         (StudySpec(scenarios=("hassani",), seas=(SeaSpec(hs_m=-1.0),)), "'hs_m'"),
         (StudySpec(scenarios=("hassani",), duration_s=0.0), "'duration_s'"),
         (StudySpec(scenarios=("hassani",), seeds=()), "'seeds'"),
+        (StudySpec(scenarios=("hassani",), seas=(SeaSpec(current_mps=0.2),)), "'current_mps'.*hull"),
     ],
 )
 def test_a_wrong_grid_stops_with_the_key_named(spec: StudySpec, key: str) -> None:
@@ -192,7 +193,6 @@ def test_two_dask_workers_give_exactly_the_serial_rows() -> None:
     assert _same(dask.rows, serial.rows)
 
 
-@pytest.mark.slow
 def test_cli_writes_table_summary_plots_and_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "out"
     doc = tmp_path / "doc.md"
@@ -212,3 +212,20 @@ def test_cli_writes_table_summary_plots_and_json(tmp_path: Path, capsys: pytest.
     assert json.loads(capsys.readouterr().out)["cached"] == 2
     assert main(["study", "--scenario", "snijders_2005", "--observer", "nope", "--serial"]) == 2
     assert "'observers'" in capsys.readouterr().err
+
+
+def test_a_sea_state_of_the_grid_is_the_one_simulated() -> None:
+    """Hs, Tp and direction replace the scenario's sea; a current runs the full plant (no bias truth)."""
+    sea = SeaSpec(hs_m=2.0, tp_s=8.0, direction_deg=180.0, current_mps=0.3, current_dir_deg=90.0)
+    spec = StudySpec(
+        scenarios=("torsetnes_2004",), seas=(sea,), seeds=(0,), observers=("passive",), duration_s=30.0
+    )
+    spec.check()
+    (row,) = run_case(spec.cases()[0].as_dict())
+    assert (row["hs_m"], row["tp_s"], row["direction_deg"], row["current_mps"]) == (2.0, 8.0, 180.0, 0.3)
+    assert row["sea"] == "Hs2 Tp8 dir180 cur0.3 @90"
+    # tuned to the scenario's own Tp 11.5 s, not the case's 8 s
+    assert row["omega0_error_pct"] == pytest.approx(
+        100 * abs(2 * math.pi / 11.5 - 2 * math.pi / 8) / (2 * math.pi / 8)
+    )
+    assert math.isfinite(row["rms_horizontal_m"]) and math.isnan(row["bias_rms_x_n"])

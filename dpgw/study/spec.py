@@ -151,6 +151,8 @@ class StudySpec:
             raise StudySpecError(f"study: 'settle_s' must be in [0, duration_s) ({self.settle_s!r})")
         for k, sea in enumerate(self.seas):
             sea.check(f"study: 'seas'[{k}]")
+        if any(sea.current_mps for sea in self.seas):
+            self._check_current()
         try:
             parse_observer_spec(self.loop_observer)
         except ReplayError as exc:
@@ -166,6 +168,21 @@ class StudySpec:
                     f"study: 'observers': label '{spec.label}' given twice (name it: SPEC@label)"
                 )
             labels.add(spec.label)
+
+    def _check_current(self) -> None:
+        """A current runs the full plant (`dpgw.study.case.build_scenario`): every scenario's vessel must
+        have what it needs, or the study would stop at its first case instead of now."""
+        from simulator.plant_params import PlantError, PlantParams
+        from simulator.scenarios import get_scenario
+
+        for name in self.scenarios:
+            scenario = get_scenario(name)
+            try:
+                PlantParams.build(scenario.vessel, scenario.plant_options)
+            except PlantError as exc:
+                raise StudySpecError(
+                    f"study: 'current_mps' > 0 runs scenario '{name}' on the full plant: {exc}"
+                ) from None
 
 
 _SEA_KEYS = {"hs_m", "tp_s", "direction_deg", "current_mps", "current_dir_deg"}
