@@ -229,3 +229,20 @@ def test_a_sea_state_of_the_grid_is_the_one_simulated() -> None:
         100 * abs(2 * math.pi / 11.5 - 2 * math.pi / 8) / (2 * math.pi / 8)
     )
     assert math.isfinite(row["rms_horizontal_m"]) and math.isnan(row["bias_rms_x_n"])
+
+
+@pytest.mark.slow
+def test_an_existing_cluster_by_its_address_gives_the_same_rows() -> None:
+    """--scheduler tcp://…: the client of a running cluster (here a LocalCluster started by the test)."""
+    import logging
+
+    from distributed import LocalCluster
+
+    cases = SMALL.cases()[:2]
+    serial = run_study(cases, workers=0)
+    with LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=logging.ERROR
+    ) as cluster:
+        remote = run_study(cases, scheduler=cluster.scheduler_address)
+    assert remote.scheduler == cluster.scheduler_address and remote.workers == 2
+    assert _same(remote.rows, serial.rows)
