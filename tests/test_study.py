@@ -246,3 +246,31 @@ def test_an_existing_cluster_by_its_address_gives_the_same_rows() -> None:
         remote = run_study(cases, scheduler=cluster.scheduler_address)
     assert remote.scheduler == cluster.scheduler_address and remote.workers == 2
     assert _same(remote.rows, serial.rows)
+
+
+def test_the_measurements_are_the_ones_the_loop_observer_got() -> None:
+    """The stream a case keeps is what the gateway's own observer was fed: the passive observer run over
+    it offline gives the loop's live estimates (to rounding: the two clocks count from different origins)."""
+    from dpgw.closed_loop import run_closed_loop
+    from dpgw.study.case import build_scenario, loop_tables
+    from gateway.config import parse_config
+    from gateway.replay import parse_observer_spec
+    from simulator.clock import SimEpoch
+
+    case = StudySpec(scenarios=("hassani",), seeds=(3,), duration_s=20.0).cases()[0]
+    scenario = build_scenario(case)
+    tables = loop_tables(case, scenario, scenario.sea[0][1].tp_s)
+    loop = run_closed_loop(
+        scenario, case.duration_s, seed=case.seed, tables=tables, collect=("/dp/measurement",)
+    )
+    meas = loop.collected["/dp/measurement"]
+    start = SimEpoch(scenario.start_utc).stamp_ns(0.0)
+    t = np.array([(m["stamp_ns"] - start) / 1e9 for m in meas])
+    y = np.array([[math.nan if v is None else v for v in m["eta"]] for m in meas], dtype=float)
+    tau = np.array([m["tau"] for m in meas], dtype=float)
+    run = parse_observer_spec("passive").make(parse_config(tables, base_dir=Path.cwd())).run(t, y, tau)
+    offline = {m["stamp_ns"]: run.eta[k] for k, m in enumerate(meas)}
+    live = [(e["stamp_ns"], np.array(e["eta"])) for e in loop.estimates]
+    assert len(live) > 150
+    worst = max(float(np.max(np.abs(offline[ns] - eta))) for ns, eta in live)
+    assert worst < 1e-9
