@@ -38,6 +38,14 @@ DOC_BEGIN = "<!-- study-table:begin -->"
 DOC_END = "<!-- study-table:end -->"
 
 
+def doc_markers(section: str) -> tuple[str, str]:
+    """The markers of a table in a markdown file: FILE.md → DOC_BEGIN/DOC_END; FILE.md#NAME → the same
+    with ``:NAME`` (several tables in one document)."""
+    if not section:
+        return DOC_BEGIN, DOC_END
+    return f"<!-- study-table:{section}:begin -->", f"<!-- study-table:{section}:end -->"
+
+
 def _numbers(text: str) -> list[float]:
     return [float(v) for v in text.split(",") if v.strip()]
 
@@ -96,8 +104,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     run_on.add_argument("--scheduler", metavar="tcp://HOST:8786", help="run on this existing Dask cluster")
     p.add_argument("--no-plots", action="store_true", help="write no box plots")
     p.add_argument(
-        "--update-doc", type=Path, metavar="FILE.md",
-        help=f"also put the summary between {DOC_BEGIN} and {DOC_END} in FILE.md",
+        "--update-doc", metavar="FILE.md[#NAME]",
+        help=f"also put the summary between {DOC_BEGIN} and {DOC_END} in FILE.md (with #NAME: between "
+        "<!-- study-table:NAME:begin --> and <!-- study-table:NAME:end -->)",
     )  # fmt: skip
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
@@ -141,14 +150,25 @@ def build_spec(args: argparse.Namespace) -> Any:
     return spec
 
 
-def update_doc(path: Path, text: str, command: str) -> None:
-    doc = path.read_text()
-    if DOC_BEGIN not in doc or DOC_END not in doc:
-        raise ValueError(f"{path}: no {DOC_BEGIN} … {DOC_END} markers to put the table between")
-    head, _, rest = doc.partition(DOC_BEGIN)
-    _, _, tail = rest.partition(DOC_END)
-    body = f"{DOC_BEGIN}\n<!-- made by: {command} -->\n\n{text}\n{DOC_END}"
-    path.write_text(head + body + tail)
+def doc_target(spec: str) -> tuple[Path, str, str]:
+    """FILE.md[#NAME] → the file and its markers; raises ValueError naming what is missing."""
+    name, _, section = spec.partition("#")
+    path = Path(name)
+    begin, end = doc_markers(section)
+    try:
+        doc = path.read_text()
+    except OSError as exc:
+        raise ValueError(f"--update-doc {spec}: {exc.strerror}") from None
+    if begin not in doc or end not in doc:
+        raise ValueError(f"--update-doc {spec}: no {begin} … {end} markers to put the table between")
+    return path, begin, end
+
+
+def update_doc(spec: str, text: str, command: str) -> None:
+    path, begin, end = doc_target(spec)
+    head, _, rest = path.read_text().partition(begin)
+    _, _, tail = rest.partition(end)
+    path.write_text(f"{head}{begin}\n<!-- made by: {command} -->\n\n{text}\n{end}{tail}")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -159,7 +179,9 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         spec = build_spec(args)
-    except StudySpecError as exc:
+        if args.update_doc:
+            doc_target(args.update_doc)  # before the study: a wrong file stops it now, not after an hour
+    except (StudySpecError, ValueError) as exc:
         print(f"dpgw study: {exc}", file=sys.stderr)
         return 2
     cache = None if args.no_cache else CaseCache(args.cache or args.out / "cache")

@@ -212,6 +212,12 @@ def test_cli_writes_table_summary_plots_and_json(tmp_path: Path, capsys: pytest.
     assert json.loads(capsys.readouterr().out)["cached"] == 2
     assert main(["study", "--scenario", "snijders_2005", "--observer", "nope", "--serial"]) == 2
     assert "'observers'" in capsys.readouterr().err
+    # a named table; a file without its markers stops the study before any case
+    doc.write_text("<!-- study-table:x:begin -->\n<!-- study-table:x:end -->\n")
+    assert main([*argv[:-1], f"{doc}#x"]) == 0
+    assert "| ekf |" in doc.read_text()
+    assert main([*argv[:-1], f"{doc}#y"]) == 2
+    assert "study-table:y:begin" in capsys.readouterr().err
 
 
 def test_a_sea_state_of_the_grid_is_the_one_simulated() -> None:
