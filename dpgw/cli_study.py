@@ -150,8 +150,19 @@ def build_spec(args: argparse.Namespace) -> Any:
     return spec
 
 
+def _marker_lines(doc: str, begin: str, end: str) -> tuple[int, int] | None:
+    """Indexes of the lines that are exactly the two markers (a marker quoted in the text does not count)."""
+    lines = doc.split("\n")
+    starts = [k for k, line in enumerate(lines) if line.strip() == begin]
+    ends = [k for k, line in enumerate(lines) if line.strip() == end]
+    if len(starts) != 1 or len(ends) != 1 or ends[0] < starts[0]:
+        return None
+    return starts[0], ends[0]
+
+
 def doc_target(spec: str) -> tuple[Path, str, str]:
-    """FILE.md[#NAME] → the file and its markers; raises ValueError naming what is missing."""
+    """FILE.md[#NAME] → the file and its markers, each alone on a line, once; raises ValueError naming what
+    is missing."""
     name, _, section = spec.partition("#")
     path = Path(name)
     begin, end = doc_markers(section)
@@ -159,16 +170,22 @@ def doc_target(spec: str) -> tuple[Path, str, str]:
         doc = path.read_text()
     except OSError as exc:
         raise ValueError(f"--update-doc {spec}: {exc.strerror}") from None
-    if begin not in doc or end not in doc:
-        raise ValueError(f"--update-doc {spec}: no {begin} … {end} markers to put the table between")
+    if _marker_lines(doc, begin, end) is None:
+        raise ValueError(
+            f"--update-doc {spec}: no {begin} … {end} markers (each once, alone on a line) to put the "
+            "table between"
+        )
     return path, begin, end
 
 
 def update_doc(spec: str, text: str, command: str) -> None:
     path, begin, end = doc_target(spec)
-    head, _, rest = path.read_text().partition(begin)
-    _, _, tail = rest.partition(end)
-    path.write_text(f"{head}{begin}\n<!-- made by: {command} -->\n\n{text}\n{end}{tail}")
+    lines = path.read_text().split("\n")
+    found = _marker_lines("\n".join(lines), begin, end)
+    assert found is not None
+    first, last = found
+    body = [begin, f"<!-- made by: {command} -->", "", *text.split("\n"), end]
+    path.write_text("\n".join([*lines[:first], *body, *lines[last + 1 :]]))
 
 
 def run(args: argparse.Namespace) -> int:

@@ -196,7 +196,8 @@ def test_two_dask_workers_give_exactly_the_serial_rows() -> None:
 def test_cli_writes_table_summary_plots_and_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "out"
     doc = tmp_path / "doc.md"
-    doc.write_text("# t\n<!-- study-table:begin -->\nold\n<!-- study-table:end -->\nafter\n")
+    head = "# t\nquoted: `<!-- study-table:begin -->`\n<!-- study-table:begin -->\n"
+    doc.write_text(head + "old\n<!-- study-table:end -->\nafter\n")
     argv = ["study", "--scenario", "snijders_2005", "--seeds", "0-1", "--duration", "30",
             "--observer", "passive", "--observer", "ekf", "--serial", "--json", "--no-progress",
             "--out", str(out), "--update-doc", str(doc)]  # fmt: skip
@@ -208,6 +209,7 @@ def test_cli_writes_table_summary_plots_and_json(tmp_path: Path, capsys: pytest.
     assert (out / "summary.md").exists() and list(out.glob("box_*.png"))
     text = doc.read_text()
     assert "old" not in text and "| passive |" in text and text.endswith("after\n")
+    assert text.startswith(head)
     assert main(argv) == 0  # again: everything from the cache
     assert json.loads(capsys.readouterr().out)["cached"] == 2
     assert main(["study", "--scenario", "snijders_2005", "--observer", "nope", "--serial"]) == 2
