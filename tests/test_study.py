@@ -282,3 +282,25 @@ def test_the_measurements_are_the_ones_the_loop_observer_got() -> None:
     assert len(live) > 150
     worst = max(float(np.max(np.abs(offline[ns] - eta))) for ns, eta in live)
     assert worst < 1e-9
+
+
+def test_table_reads_back_exactly(tmp_path: Path) -> None:
+    """results.csv holds every digit (and NaN as an empty field)."""
+    import csv
+
+    from dpgw.study.outputs import write_table
+
+    rows = [{"observer": "a", "seed": 1, "x": 0.1 + 0.2, "y": math.nan}]
+    files = write_table(rows, tmp_path)
+    with open(files[0]) as f:
+        (back,) = list(csv.DictReader(f))
+    assert float(back["x"]) == 0.1 + 0.2 and back["y"] == "" and back["seed"] == "1"
+
+
+def test_parquet_table_where_pyarrow_is_installed(tmp_path: Path) -> None:
+    pq = pytest.importorskip("pyarrow.parquet")
+    from dpgw.study.outputs import write_table
+
+    write_table([{"observer": "a", "seed": 1, "x": 0.1 + 0.2, "y": math.nan}], tmp_path)
+    table = pq.read_table(tmp_path / "results.parquet").to_pylist()
+    assert table[0]["x"] == 0.1 + 0.2 and math.isnan(table[0]["y"])
