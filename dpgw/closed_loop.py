@@ -69,6 +69,9 @@ class ClosedLoopRun:
     eta_lf: Array  # true LF motion [N, E, ψ]
     eta_wf: Array
     estimates: list[dict[str, Any]] = field(default_factory=list)
+    nu: Array = field(default_factory=lambda: np.zeros((0, 3)))  # true LF velocity [u, v, r], body
+    bias: Array = field(default_factory=lambda: np.zeros((0, 3)))  # true bias b (earth-fixed, `true_bias`)
+    collected: dict[str, list[Any]] = field(default_factory=dict)  # with collect: topic -> payloads
     commands: list[dict[str, Any]] = field(default_factory=list)
     status: dict[str, Any] = field(default_factory=dict)
     statuses: list[dict[str, Any]] = field(default_factory=list)  # with status_every_s: /dp/status payloads
@@ -125,6 +128,21 @@ def _grouped(sim: Simulation, typed: list[tuple[float, int, str, Emission]], sou
     return out
 
 
+def true_bias(sim: Simulation) -> Array:
+    """The bias an observer should find (earth-fixed [X, Y, N]): the slowly varying Markov force and the
+    constant load, plus the mean wave drift (the plant takes it in the body frame) rotated to earth. Exact
+    for the model plant; on the full plant current, wind and the nonlinear damping add loads no observer
+    model separates, so the figure is NaN there."""
+    if sim.scenario.plant != "model":
+        return np.full(3, np.nan)
+    psi = float(sim.dynamics.x[2])
+    c, s = np.cos(psi), np.sin(psi)
+    d = sim._drift_body
+    return np.asarray(sim.bias.force, dtype=float) + np.array(
+        [c * d[0] - s * d[1], s * d[0] + c * d[1], d[2]]
+    )
+
+
 def needs_wire(scenario: Scenario, log: McapLogWriter | None = None) -> bool:
     """Whether the loop must feed the pipeline bytes: a raw log, a wire-side fault (bad checksum, garbage)
     or ArduPilot feedback frames (their meaning depends on the gateway's wiring config)."""
@@ -147,6 +165,7 @@ def run_closed_loop(
     log: McapLogWriter | None = None,
     status_every_s: float | None = None,
     wire: bool | None = None,
+    collect: tuple[str, ...] = (),
 ) -> ClosedLoopRun:
     """Run the scenario with the gateway pipeline commanding the thrusters. ``events``: (sim time, key,
     payload) Zenoh inputs such as ("setpoint", {...}) or ("mode", "standby"); the scenario's command faults
@@ -155,7 +174,8 @@ def run_closed_loop(
     /dp/status is kept that often (at the end of a chunk; at most once a chunk) in ``statuses``: what an
     operator station would see, to time alarms. ``wire``: True feeds the pipeline the bytes, False the typed
     records (module docstring); None (default) the records unless a log, a wire-side fault or ArduPilot
-    feedback needs the bytes."""
+    feedback needs the bytes. ``collect``: pipeline topics (e.g. "/dp/measurement") whose payloads are
+    kept in ``collected``, in order."""
     if wire is None:
         wire = needs_wire(scenario, log)
     tables = tables or gateway_tables(scenario)
@@ -190,6 +210,8 @@ def run_closed_loop(
     next_status = 0.0
     t_list, lf, wf = [], [], []
     run = ClosedLoopRun(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)))
+    run.collected = {topic: [] for topic in collect}
+    nu_list, bias_list = [], []
     while sim.t < duration_s - 1e-9:
         sim.run(chunk_s)
         while pending_events and pending_events[0][0] <= sim.t:
@@ -212,6 +234,8 @@ def run_closed_loop(
             typed.clear()
         for event in raw:
             for o in pipeline.feed(event):
+                if o.topic in run.collected:
+                    run.collected[o.topic].append(o.payload)
                 if o.topic == "/dp/estimate":
                     run.estimates.append(o.payload)
                 elif o.topic == "/dp/thrusters/command":
@@ -231,8 +255,12 @@ def run_closed_loop(
         t_list.append(sim.t)
         lf.append(x[0:3].copy())
         wf.append(sim._wf.motion(sim.t, x[0:3]).copy())
+        nu_list.append(x[3:6].copy())
+        bias_list.append(true_bias(sim))
     run.t = np.array(t_list)
     run.eta_lf = np.array(lf)
     run.eta_wf = np.array(wf)
+    run.nu = np.array(nu_list)
+    run.bias = np.array(bias_list)
     run.status = pipeline.status(pipeline.last_ns).payload
     return run

@@ -16,7 +16,20 @@ from dpgw.cli import SUBCOMMANDS
 
 # Each of these costs from tens of milliseconds to seconds at import (numba and scipy the most), or pulls
 # in packages that do. None is needed to print a help page.
-HEAVY = ("numpy", "numba", "scipy", "zenoh", "pydantic", "mcap", "matplotlib", "tqdm", "gateway", "wire")
+HEAVY = (
+    "numpy",
+    "numba",
+    "scipy",
+    "zenoh",
+    "pydantic",
+    "mcap",
+    "matplotlib",
+    "tqdm",
+    "gateway",
+    "wire",
+    "dask",
+    "distributed",
+)
 HEAVY_MODULES = (
     "simulator.scenarios",
     "simulator.runner",
@@ -62,7 +75,7 @@ def test_help_pages_import_nothing_heavy() -> None:
 
 
 def test_every_command_is_covered() -> None:
-    assert sorted(COMMANDS) == ["demo", "listen", "radiation", "replay", "run", "sim", "tune"]
+    assert sorted(COMMANDS) == ["demo", "listen", "radiation", "replay", "run", "sim", "study", "tune"]
 
 
 def test_scenario_names_match_the_scenarios() -> None:

@@ -1,0 +1,245 @@
+"""``dpgw study``: a Monte Carlo study of the observers, scenarios × sea states × seeds, on Dask."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from simulator.scenario_names import SCENARIO_NAMES
+
+# Only the parser is built at import; the simulator, the observers and Dask are imported by `run`.
+
+NAME = "study"
+HELP = "Monte Carlo study: every observer over scenarios, sea states and seeds (Dask), with a table"
+DESCRIPTION = (
+    "Simulate each case (scenario, sea state, seed) once in process, with the gateway keeping the "
+    "vessel on station, run every observer on the same measurements and score it against the truth: "
+    "LF position and heading RMS, velocity RMS, bias error, wave-band attenuation, ω0 error, "
+    "convergence time. Writes OUT/results.csv (and .parquet with pyarrow), OUT/summary.md (median and "
+    "5-95 % per observer and sea state) and box plots OUT/box_*.png. Cases run on a local Dask cluster "
+    "(one process per core) or on an existing one (--scheduler); each case's result is cached under "
+    "OUT/cache, so an interrupted study resumes. The sea values given are combined (every Hs with "
+    "every Tp, ...); a value not given is the scenario's own. docs/study.md defines every column."
+)
+EPILOG = (
+    "examples:\n"
+    "  dpgw study --scenario hassani --seeds 0-7 --duration 300 --out study_hassani\n"
+    "  dpgw study --scenario torsetnes_2004 --hs 2,4,6 --tp 8,11.5 --observer passive \\\n"
+    "       --observer ekf --observer gain_scheduled:omega0=0.83@gs --workers 2\n"
+    "  dpgw study --file studies/doc_table.toml --out study_doc --update-doc docs/study.md\n"
+    "  dpgw study --scenario hassani --scheduler tcp://10.0.0.5:8786   # an existing Dask cluster\n"
+    "  dpgw study --scenario hassani --serial --json                   # no Dask, summary as JSON"
+)
+
+DOC_BEGIN = "<!-- study-table:begin -->"
+DOC_END = "<!-- study-table:end -->"
+
+
+def doc_markers(section: str) -> tuple[str, str]:
+    """The markers of a table in a markdown file: FILE.md → DOC_BEGIN/DOC_END; FILE.md#NAME → the same
+    with ``:NAME`` (several tables in one document)."""
+    if not section:
+        return DOC_BEGIN, DOC_END
+    return f"<!-- study-table:{section}:begin -->", f"<!-- study-table:{section}:end -->"
+
+
+def _numbers(text: str) -> list[float]:
+    return [float(v) for v in text.split(",") if v.strip()]
+
+
+def _seeds(text: str) -> list[int]:
+    """0-7,10,12 → [0..7, 10, 12]."""
+    out: list[int] = []
+    for part in filter(None, (p.strip() for p in text.split(","))):
+        lo, dash, hi = part.partition("-")
+        out += list(range(int(lo), int(hi) + 1)) if dash else [int(part)]
+    return out
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--file", type=Path, metavar="STUDY.toml", help="the grid from a study file (docs/study.md)"
+    )
+    p.add_argument(
+        "--scenario", action="append", default=[], choices=SCENARIO_NAMES, metavar="NAME",
+        help=f"scenario (repeatable): {', '.join(SCENARIO_NAMES)}",
+    )  # fmt: skip
+    p.add_argument("--hs", type=_numbers, metavar="M[,M...]", help="significant wave heights (m)")
+    p.add_argument("--tp", type=_numbers, metavar="S[,S...]", help="peak periods (s)")
+    p.add_argument(
+        "--direction", type=_numbers, metavar="DEG[,...]", help="wave directions, going towards (°)"
+    )
+    p.add_argument(
+        "--current", type=_numbers, metavar="M/S[,...]",
+        help="current speeds (m/s; > 0 runs the full plant, which needs the vessel's hull data)",
+    )  # fmt: skip
+    p.add_argument(
+        "--current-dir", type=_numbers, metavar="DEG[,...]", help="current directions, going towards (°)"
+    )
+    p.add_argument("--seeds", type=_seeds, metavar="0-7,9", help="seeds (default 0-7)")
+    p.add_argument(
+        "--observer", action="append", default=[], metavar="SPEC",
+        help="observer spec as dpgw replay takes it, NAME[:key=value,...][@label] (repeatable; default: "
+        "every registered observer)",
+    )  # fmt: skip
+    p.add_argument(
+        "--loop-observer", metavar="SPEC", help="the observer the DP controller acts on (default passive)"
+    )
+    p.add_argument("--duration", type=float, metavar="S", help="simulated seconds per case (default 300)")
+    p.add_argument(
+        "--settle", type=float, metavar="S", help="scored from S s on (default a third of the case)"
+    )
+    p.add_argument("--out", type=Path, default=Path("study_out"), metavar="DIR", help="output folder")
+    p.add_argument("--cache", type=Path, metavar="DIR", help="case cache (default OUT/cache)")
+    p.add_argument("--no-cache", action="store_true", help="run every case, read and write no cache")
+    run_on = p.add_mutually_exclusive_group()
+    run_on.add_argument(
+        "--workers", type=int, metavar="N",
+        help="local Dask worker processes (default: one per core); 0 = serial, in this process",
+    )  # fmt: skip
+    run_on.add_argument("--serial", action="store_true", help="= --workers 0 (no Dask)")
+    run_on.add_argument("--scheduler", metavar="tcp://HOST:8786", help="run on this existing Dask cluster")
+    p.add_argument("--no-plots", action="store_true", help="write no box plots")
+    p.add_argument(
+        "--update-doc", metavar="FILE.md[#NAME]",
+        help=f"also put the summary between {DOC_BEGIN} and {DOC_END} in FILE.md (with #NAME: between "
+        "<!-- study-table:NAME:begin --> and <!-- study-table:NAME:end -->)",
+    )  # fmt: skip
+    p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    p.set_defaults(func=run)
+
+
+def build_spec(args: argparse.Namespace) -> Any:
+    """The grid: the study file's, with any flag given on the command line in place of its value."""
+    from dataclasses import replace
+
+    from dpgw.study.spec import StudySpec, StudySpecError, load_study_file, seas_product
+
+    spec = load_study_file(args.file) if args.file else StudySpec(scenarios=())
+    sea_grid = {
+        key: values
+        for key, values in (
+            ("hs_m", args.hs), ("tp_s", args.tp), ("direction_deg", args.direction),
+            ("current_mps", args.current), ("current_dir_deg", args.current_dir),
+        )
+        if values
+    }  # fmt: skip
+    changes: dict[str, Any] = {}
+    if args.scenario:
+        changes["scenarios"] = tuple(dict.fromkeys(args.scenario))
+    if sea_grid:
+        changes["seas"] = seas_product(sea_grid)
+    if args.seeds is not None:
+        changes["seeds"] = tuple(args.seeds)
+    if args.observer:
+        changes["observers"] = tuple(args.observer)
+    if args.loop_observer:
+        changes["loop_observer"] = args.loop_observer
+    if args.duration is not None:
+        changes["duration_s"] = args.duration
+    if args.settle is not None:
+        changes["settle_s"] = args.settle
+    spec = replace(spec, **changes)
+    if not spec.scenarios:
+        raise StudySpecError("study: no scenario: give --scenario NAME or --file STUDY.toml")
+    spec.check()
+    return spec
+
+
+def _marker_lines(doc: str, begin: str, end: str) -> tuple[int, int] | None:
+    """Indexes of the lines that are exactly the two markers (a marker quoted in the text does not count)."""
+    lines = doc.split("\n")
+    starts = [k for k, line in enumerate(lines) if line.strip() == begin]
+    ends = [k for k, line in enumerate(lines) if line.strip() == end]
+    if len(starts) != 1 or len(ends) != 1 or ends[0] < starts[0]:
+        return None
+    return starts[0], ends[0]
+
+
+def doc_target(spec: str) -> tuple[Path, str, str]:
+    """FILE.md[#NAME] → the file and its markers, each alone on a line, once; raises ValueError naming what
+    is missing."""
+    name, _, section = spec.partition("#")
+    path = Path(name)
+    begin, end = doc_markers(section)
+    try:
+        doc = path.read_text()
+    except OSError as exc:
+        raise ValueError(f"--update-doc {spec}: {exc.strerror}") from None
+    if _marker_lines(doc, begin, end) is None:
+        raise ValueError(
+            f"--update-doc {spec}: no {begin} … {end} markers (each once, alone on a line) to put the "
+            "table between"
+        )
+    return path, begin, end
+
+
+def update_doc(spec: str, text: str, command: str) -> None:
+    path, begin, end = doc_target(spec)
+    lines = path.read_text().split("\n")
+    found = _marker_lines("\n".join(lines), begin, end)
+    assert found is not None
+    first, last = found
+    body = [begin, f"<!-- made by: {command} -->", "", *text.split("\n"), end]
+    path.write_text("\n".join([*lines[:first], *body, *lines[last + 1 :]]))
+
+
+def run(args: argparse.Namespace) -> int:
+    from dpgw.study import outputs
+    from dpgw.study.cache import CaseCache
+    from dpgw.study.runner import StudyRunError, run_study
+    from dpgw.study.spec import StudySpecError
+
+    try:
+        spec = build_spec(args)
+        if args.update_doc:
+            doc_target(args.update_doc)  # before the study: a wrong file stops it now, not after an hour
+    except (StudySpecError, ValueError) as exc:
+        print(f"dpgw study: {exc}", file=sys.stderr)
+        return 2
+    cache = None if args.no_cache else CaseCache(args.cache or args.out / "cache")
+    workers = 0 if args.serial else args.workers
+    cases = spec.cases()
+    try:
+        result = run_study(
+            cases, workers=workers, scheduler=args.scheduler, cache=cache, progress=not args.no_progress
+        )
+    except StudyRunError as exc:
+        print(f"dpgw study: {exc}", file=sys.stderr)
+        return 2
+    files = outputs.write_table(result.rows, args.out)
+    text = outputs.summary_markdown(result.rows)
+    (args.out / "summary.md").write_text(text + "\n")
+    files.append(args.out / "summary.md")
+    if not args.no_plots:
+        files += outputs.box_plots(result.rows, args.out)
+    if args.update_doc:
+        command = "dpgw study " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["study"] else "dpgw study"
+        update_doc(args.update_doc, text, command)
+    where = "serial" if result.workers == 0 else f"{result.workers} Dask workers"
+    report = {
+        "cases": result.cases,
+        "computed": result.computed,
+        "cached": result.cached,
+        "rows": len(result.rows),
+        "seconds": round(result.seconds, 2),
+        "cases_per_minute": round(60.0 * result.computed / result.seconds, 2) if result.computed else None,
+        "run_on": where,
+        "scheduler": result.scheduler or None,
+        "files": [str(f) for f in files],
+        "summary": outputs.json_summary(result.rows),
+    }
+    if args.json:
+        print(json.dumps(report, indent=2, allow_nan=False, default=str))
+        return 0
+    print(text)
+    print(
+        f"{result.cases} cases ({result.computed} run, {result.cached} from the cache) on {where} in "
+        f"{result.seconds:.1f} s; files in {args.out}/",
+        file=sys.stderr,
+    )
+    return 0

@@ -1,0 +1,153 @@
+"""What a study writes: the results table (CSV; Parquet too when pyarrow is installed), the markdown
+summary (median and 5–95 % per observer per sea state) and box plots (per sea state, a box per observer).
+
+The table is the record (one row per case × observer, every column of docs/study.md); the summary and the
+plots are made from it alone, so either can be made again from a table without running a case.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import re
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+# (column, header, format) of the summary and the plots, in order
+SUMMARY_COLUMNS: tuple[tuple[str, str, str], ...] = (
+    ("rms_horizontal_m", "pos RMS (m)", ".3f"),
+    ("rms_heading_deg", "ψ RMS (°)", ".3f"),
+    ("rms_surge_mps", "u RMS (m/s)", ".4f"),
+    ("rms_yaw_rate_degps", "r RMS (°/s)", ".4f"),
+    ("att_north_db", "att N (dB)", ".1f"),
+    ("att_heading_db", "att ψ (dB)", ".1f"),
+    ("omega0_error_pct", "ω0 err (%)", ".1f"),
+    ("convergence_s", "conv. (s)", ".0f"),
+)
+PLOT_COLUMNS = ("rms_horizontal_m", "rms_heading_deg", "rms_surge_mps", "att_heading_db")
+
+
+def _csv_value(v: Any) -> Any:
+    """A float with all its digits (repr reads back exactly); NaN as an empty field."""
+    if isinstance(v, float):
+        return "" if math.isnan(v) else repr(v)
+    return v
+
+
+def write_table(rows: Sequence[dict[str, Any]], folder: Path) -> list[Path]:
+    """results.csv (floats written with repr: they read back exactly), and results.parquet if pyarrow is
+    importable."""
+    folder.mkdir(parents=True, exist_ok=True)
+    columns = list(rows[0]) if rows else []
+    out = [folder / "results.csv"]
+    with open(out[0], "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(columns)
+        for row in rows:
+            w.writerow([_csv_value(row[c]) for c in columns])
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError:
+        return out
+    table = pa.table({c: [row[c] for row in rows] for c in columns})
+    pq.write_table(table, folder / "results.parquet")
+    out.append(folder / "results.parquet")
+    return out
+
+
+def groups(rows: Sequence[dict[str, Any]]) -> dict[tuple[str, str], dict[str, list[dict[str, Any]]]]:
+    """(scenario, sea) → observer → rows, in the table's order."""
+    out: dict[tuple[str, str], dict[str, list[dict[str, Any]]]] = {}
+    for row in rows:
+        out.setdefault((row["scenario"], row["sea"]), {}).setdefault(row["observer"], []).append(row)
+    return out
+
+
+def spread(values: Sequence[float]) -> tuple[float, float, float, int]:
+    """Median, 5th and 95th percentile (linear) of the finite values, and how many there are."""
+    v = np.array([x for x in values if isinstance(x, int | float) and math.isfinite(x)], dtype=float)
+    if len(v) == 0:
+        return math.nan, math.nan, math.nan, 0
+    p5, med, p95 = np.percentile(v, [5.0, 50.0, 95.0])
+    return float(med), float(p5), float(p95), len(v)
+
+
+def _cell(values: Sequence[float], fmt: str) -> str:
+    med, lo, hi, n = spread(values)
+    if n == 0:
+        return "–"
+    text = f"{med:{fmt}} [{lo:{fmt}}, {hi:{fmt}}]"
+    return text if n == len(values) else f"{text} (n={n})"
+
+
+def summary_markdown(rows: Sequence[dict[str, Any]]) -> str:
+    """Per sea state a table: per observer the median [5 %, 95 %] of each column over the seeds."""
+    lines: list[str] = []
+    for (scenario, sea), by_obs in groups(rows).items():
+        seeds = sorted({r["seed"] for rs in by_obs.values() for r in rs})
+        first = next(iter(by_obs.values()))[0]
+        lines.append(
+            f"### {scenario}, {sea} (Hs {first['hs_m']:g} m, Tp {first['tp_s']:g} s, "
+            f"{len(seeds)} seeds, {first['duration_s']:g} s scored from {first['settle_s']:g} s)"
+        )
+        lines.append("")
+        lines.append("| observer | " + " | ".join(h for _, h, _ in SUMMARY_COLUMNS) + " |")
+        lines.append("|---|" + "---|" * len(SUMMARY_COLUMNS))
+        for obs, rs in by_obs.items():
+            cells = [_cell([r[c] for r in rs], fmt) for c, _, fmt in SUMMARY_COLUMNS]
+            lines.append(f"| {obs} | " + " | ".join(cells) + " |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_")
+
+
+def box_plots(rows: Sequence[dict[str, Any]], folder: Path) -> list[Path]:
+    """One PNG per sea state: a panel per column of PLOT_COLUMNS, a box per observer (whiskers 5–95 %)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    folder.mkdir(parents=True, exist_ok=True)
+    headers = {c: h for c, h, _ in SUMMARY_COLUMNS}
+    out = []
+    for (scenario, sea), by_obs in groups(rows).items():
+        fig, axes = plt.subplots(1, len(PLOT_COLUMNS), figsize=(4.0 * len(PLOT_COLUMNS), 4.0))
+        for ax, col in zip(axes, PLOT_COLUMNS, strict=True):
+            data = [[r[col] for r in rs if math.isfinite(r[col])] for rs in by_obs.values()]
+            ax.boxplot(data, whis=(5, 95), showfliers=True)
+            ax.set_xticks(range(1, len(by_obs) + 1), list(by_obs), rotation=45, ha="right", fontsize=8)
+            ax.set_title(headers[col], fontsize=9)
+            ax.grid(True, axis="y", alpha=0.3)
+        fig.suptitle(f"{scenario}, {sea}", fontsize=10)
+        fig.tight_layout()
+        path = folder / f"box_{_slug(scenario)}_{_slug(sea)}.png"
+        fig.savefig(path, dpi=90)
+        plt.close(fig)
+        out.append(path)
+    return out
+
+
+def json_summary(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The summary as data: per sea state and observer, each column's median, p5, p95 and n (NaN → None)."""
+    out = []
+    for (scenario, sea), by_obs in groups(rows).items():
+        for obs, rs in by_obs.items():
+            entry: dict[str, Any] = {"scenario": scenario, "sea": sea, "observer": obs, "cases": len(rs)}
+            for col, _, _ in SUMMARY_COLUMNS:
+                med, lo, hi, n = spread([r[col] for r in rs])
+                entry[col] = {
+                    "median": med if n else None,
+                    "p5": lo if n else None,
+                    "p95": hi if n else None,
+                    "n": n,
+                }
+            out.append(entry)
+    return out

@@ -1,0 +1,306 @@
+"""`dpgw study`: the grid, the scores, the cache (a resumed study reruns nothing it has), and the Dask run
+giving exactly the serial run's rows."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from dpgw.cli import main
+from dpgw.study.cache import CaseCache, code_version
+from dpgw.study.case import run_case
+from dpgw.study.runner import run_study
+from dpgw.study.scores import CONVERGENCE_WINDOW_S, convergence_time, score_run
+from dpgw.study.spec import SeaSpec, StudySpec, StudySpecError, load_study_file
+
+# Small cases: the snijders ship at 1 Hz is the cheapest scenario; hassani (10 Hz, CyberShip II) the other.
+SMALL = StudySpec(
+    scenarios=("snijders_2005", "hassani"),
+    seeds=(0, 1),
+    observers=("passive", "ekf", "mmae"),
+    duration_s=40.0,
+)
+
+
+def _same(a: list[dict[str, Any]], b: list[dict[str, Any]]) -> bool:
+    """Rows equal bit for bit (NaN equal to NaN)."""
+    if len(a) != len(b):
+        return False
+    for ra, rb in zip(a, b, strict=True):
+        if ra.keys() != rb.keys():
+            return False
+        for k in ra:
+            x, y = ra[k], rb[k]
+            if isinstance(x, float) and isinstance(y, float) and math.isnan(x) and math.isnan(y):
+                continue
+            if x != y or type(x) is not type(y):
+                return False
+    return True
+
+
+# --- the grid -------------------------------------------------------------------------------------------
+
+
+def test_grid_is_the_product_and_every_case_has_every_observer() -> None:
+    spec = StudySpec(
+        scenarios=("hassani", "snijders_2005"),
+        seas=(SeaSpec(hs_m=1.0), SeaSpec(hs_m=2.0), SeaSpec(hs_m=3.0)),
+        seeds=(0, 1, 2, 3),
+    )
+    spec.check()
+    cases = spec.cases()
+    assert len(cases) == 2 * 3 * 4
+    from observers.factory import OBSERVER_TYPES
+
+    assert all(c.observers == OBSERVER_TYPES for c in cases)
+    assert cases[0].settle_s == pytest.approx(spec.duration_s / 3)
+
+
+@pytest.mark.parametrize(
+    ("spec", "key"),
+    [
+        (StudySpec(scenarios=("atlantis",)), "'scenarios'"),
+        (StudySpec(scenarios=("hassani",), observers=("passive:omega9=1",)), "'observers'"),
+        (StudySpec(scenarios=("hassani",), observers=("passive", "passive")), "'observers'"),
+        (StudySpec(scenarios=("hassani",), seas=(SeaSpec(hs_m=-1.0),)), "'hs_m'"),
+        (StudySpec(scenarios=("hassani",), duration_s=0.0), "'duration_s'"),
+        (StudySpec(scenarios=("hassani",), seeds=()), "'seeds'"),
+        (StudySpec(scenarios=("hassani",), seas=(SeaSpec(current_mps=0.2),)), "'current_mps'.*hull"),
+    ],
+)
+def test_a_wrong_grid_stops_with_the_key_named(spec: StudySpec, key: str) -> None:
+    with pytest.raises(StudySpecError, match=key):
+        spec.check()
+
+
+def test_study_file(tmp_path: Path) -> None:
+    path = tmp_path / "s.toml"
+    path.write_text(
+        'scenarios = ["hassani"]\nseeds = {count = 3, start = 5}\nobservers = ["passive", "ekf"]\n'
+        "duration_s = 120\n[grid]\nhs_m = [0.05, 0.1]\ntp_s = [5.0, 7.0]\n[[sea]]\nhs_m = 0.2\n"
+    )
+    spec = load_study_file(path)
+    assert spec.seeds == (5, 6, 7)
+    assert len(spec.seas) == 2 * 2 + 1
+    assert SeaSpec(hs_m=0.1, tp_s=7.0) in spec.seas and SeaSpec(hs_m=0.2) in spec.seas
+    assert len(spec.cases()) == 5 * 3
+    path.write_text('scenarios = ["hassani"]\n[grid]\nheight = [1.0]\n')
+    with pytest.raises(StudySpecError, match="'height'"):
+        load_study_file(path)
+
+
+def test_cache_key_names_the_case_and_the_code() -> None:
+    a, b = SMALL.cases()[:2]
+    v = code_version()
+    assert a.key(v) == SMALL.cases()[0].key(v)  # same case, same key
+    assert a.key(v) != b.key(v)  # another seed
+    assert a.key(v) != a.key(v + "changed")  # other code
+
+
+# --- the scores -----------------------------------------------------------------------------------------
+
+
+def test_convergence_time_is_when_the_start_transient_ends() -> None:
+    t = np.arange(0.0, 300.0, 0.5)
+    rng = np.random.default_rng(0)
+    err = np.abs(0.1 * rng.standard_normal(len(t)))
+    err[t < 40.0] += 5.0  # a 40 s transient
+    conv = convergence_time(t, err)
+    assert 40.0 <= conv <= 40.0 + CONVERGENCE_WINDOW_S
+    assert convergence_time(t, np.abs(0.1 * rng.standard_normal(len(t)))) == 0.0
+    late = np.abs(0.1 * rng.standard_normal(len(t)))
+    late[(t > 100.0) & (t < 105.0)] += 5.0  # thrown off after converging: counts until the episode ends
+    assert 105.0 <= convergence_time(t, late) <= 105.0 + CONVERGENCE_WINDOW_S
+
+
+def test_a_perfect_estimate_scores_zero() -> None:
+    t = np.arange(0.0, 100.0, 0.1)
+    eta = np.column_stack([np.sin(0.01 * t), np.cos(0.01 * t), 0.1 * np.sin(0.02 * t)])
+    nu = np.column_stack([0.01 * np.cos(0.01 * t), np.zeros_like(t), np.zeros_like(t)])
+    bias = np.ones((len(t), 3))
+    omega0 = np.full((len(t), 3), 0.8)
+    s = score_run(t, eta, nu, bias, omega0, t, eta, nu, bias, 30.0, 0.8)
+    for key in ("rms_horizontal_m", "rms_heading_deg", "rms_surge_mps", "bias_rms_x_n", "omega0_error_pct"):
+        assert s[key] == pytest.approx(0.0, abs=1e-12), key
+    assert s["convergence_s"] == 0.0
+
+
+def test_a_case_scores_every_observer_on_the_same_measurements() -> None:
+    case = SMALL.cases()[0]
+    rows = run_case(case.as_dict())
+    assert [r["observer"] for r in rows] == ["passive", "ekf", "mmae"]
+    for r in rows:
+        assert r["samples"] > 20  # 1 Hz, scored over the last 2/3 of 40 s
+        assert 0 < r["rms_horizontal_m"] < 2.0 and 0 < r["rms_heading_deg"] < 3.0
+        assert math.isfinite(r["bias_rms_x_n"]) and math.isfinite(r["rms_surge_mps"])
+    # the fixed-gain observers are tuned to the scenario's own sea: no ω0 error
+    assert rows[0]["omega0_error_pct"] == pytest.approx(0.0, abs=1e-9)
+    assert _same(rows, run_case(case.as_dict()))  # deterministic
+
+
+# --- cache and Dask -------------------------------------------------------------------------------------
+
+
+def test_a_resumed_study_reuses_the_cache(tmp_path: Path) -> None:
+    """A study stopped after two of four cases reruns only the other two, and its table is a fresh run's."""
+    spec = StudySpec(
+        scenarios=("snijders_2005",), seeds=(0, 1, 2, 3), observers=("passive", "sdre"), duration_s=30.0
+    )
+    cases = spec.cases()
+    calls: list[int] = []
+
+    class StoppedError(Exception):
+        pass
+
+    def interrupted(case: dict[str, Any]) -> list[dict[str, Any]]:
+        if len(calls) == 2:
+            raise StoppedError
+        calls.append(case["seed"])
+        return run_case(case)
+
+    cache = CaseCache(tmp_path / "cache")
+    with pytest.raises(StoppedError):
+        run_study(cases, workers=0, cache=cache, case_fn=interrupted)
+    assert len(list((tmp_path / "cache").glob("*.json"))) == 2
+
+    resumed: list[int] = []
+
+    def counting(case: dict[str, Any]) -> list[dict[str, Any]]:
+        resumed.append(case["seed"])
+        return run_case(case)
+
+    r = run_study(cases, workers=0, cache=cache, case_fn=counting)
+    assert (r.computed, r.cached) == (2, 2)
+    assert sorted(resumed) == [2, 3]  # no case recomputed
+    fresh = run_study(cases, workers=0)
+    assert _same(r.rows, fresh.rows)
+    again = run_study(cases, workers=0, cache=cache, case_fn=counting)
+    assert (again.computed, again.cached) == (0, 4) and _same(again.rows, fresh.rows)
+
+
+@pytest.mark.slow
+def test_two_dask_workers_give_exactly_the_serial_rows() -> None:
+    cases = SMALL.cases()
+    serial = run_study(cases, workers=0)
+    dask = run_study(cases, workers=2)
+    assert dask.workers == 2 and dask.computed == len(cases)
+    assert len(serial.rows) == len(cases) * 3
+    assert _same(dask.rows, serial.rows)
+
+
+def test_cli_writes_table_summary_plots_and_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "out"
+    doc = tmp_path / "doc.md"
+    head = "# t\nquoted: `<!-- study-table:begin -->`\n<!-- study-table:begin -->\n"
+    doc.write_text(head + "old\n<!-- study-table:end -->\nafter\n")
+    argv = ["study", "--scenario", "snijders_2005", "--seeds", "0-1", "--duration", "30",
+            "--observer", "passive", "--observer", "ekf", "--serial", "--json", "--no-progress",
+            "--out", str(out), "--update-doc", str(doc)]  # fmt: skip
+    assert main(argv) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["cases"] == 2 and report["rows"] == 4 and report["computed"] == 2
+    assert {e["observer"] for e in report["summary"]} == {"passive", "ekf"}
+    assert (out / "results.csv").read_text().count("\n") == 1 + 4
+    assert (out / "summary.md").exists() and list(out.glob("box_*.png"))
+    text = doc.read_text()
+    assert "old" not in text and "| passive |" in text and text.endswith("after\n")
+    assert text.startswith(head)
+    assert main(argv) == 0  # again: everything from the cache
+    assert json.loads(capsys.readouterr().out)["cached"] == 2
+    assert main(["study", "--scenario", "snijders_2005", "--observer", "nope", "--serial"]) == 2
+    assert "'observers'" in capsys.readouterr().err
+    # a named table; a file without its markers stops the study before any case
+    doc.write_text("<!-- study-table:x:begin -->\n<!-- study-table:x:end -->\n")
+    assert main([*argv[:-1], f"{doc}#x"]) == 0
+    assert "| ekf |" in doc.read_text()
+    assert main([*argv[:-1], f"{doc}#y"]) == 2
+    assert "study-table:y:begin" in capsys.readouterr().err
+
+
+def test_a_sea_state_of_the_grid_is_the_one_simulated() -> None:
+    """Hs, Tp and direction replace the scenario's sea; a current runs the full plant (no bias truth)."""
+    sea = SeaSpec(hs_m=2.0, tp_s=8.0, direction_deg=180.0, current_mps=0.3, current_dir_deg=90.0)
+    spec = StudySpec(
+        scenarios=("torsetnes_2004",), seas=(sea,), seeds=(0,), observers=("passive",), duration_s=30.0
+    )
+    spec.check()
+    (row,) = run_case(spec.cases()[0].as_dict())
+    assert (row["hs_m"], row["tp_s"], row["direction_deg"], row["current_mps"]) == (2.0, 8.0, 180.0, 0.3)
+    assert row["sea"] == "Hs2 Tp8 dir180 cur0.3 @90"
+    # tuned to the scenario's own Tp 11.5 s, not the case's 8 s
+    assert row["omega0_error_pct"] == pytest.approx(
+        100 * abs(2 * math.pi / 11.5 - 2 * math.pi / 8) / (2 * math.pi / 8)
+    )
+    assert math.isfinite(row["rms_horizontal_m"]) and math.isnan(row["bias_rms_x_n"])
+
+
+@pytest.mark.slow
+def test_an_existing_cluster_by_its_address_gives_the_same_rows() -> None:
+    """--scheduler tcp://…: the client of a running cluster (here a LocalCluster started by the test)."""
+    import logging
+
+    from distributed import LocalCluster
+
+    cases = SMALL.cases()[:2]
+    serial = run_study(cases, workers=0)
+    with LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=logging.ERROR
+    ) as cluster:
+        remote = run_study(cases, scheduler=cluster.scheduler_address)
+    assert remote.scheduler == cluster.scheduler_address and remote.workers == 2
+    assert _same(remote.rows, serial.rows)
+
+
+def test_the_measurements_are_the_ones_the_loop_observer_got() -> None:
+    """The stream a case keeps is what the gateway's own observer was fed: the passive observer run over
+    it offline gives the loop's live estimates (to rounding: the two clocks count from different origins)."""
+    from dpgw.closed_loop import run_closed_loop
+    from dpgw.study.case import build_scenario, loop_tables
+    from gateway.config import parse_config
+    from gateway.replay import parse_observer_spec
+    from simulator.clock import SimEpoch
+
+    case = StudySpec(scenarios=("hassani",), seeds=(3,), duration_s=20.0).cases()[0]
+    scenario = build_scenario(case)
+    tables = loop_tables(case, scenario, scenario.sea[0][1].tp_s)
+    loop = run_closed_loop(
+        scenario, case.duration_s, seed=case.seed, tables=tables, collect=("/dp/measurement",)
+    )
+    meas = loop.collected["/dp/measurement"]
+    start = SimEpoch(scenario.start_utc).stamp_ns(0.0)
+    t = np.array([(m["stamp_ns"] - start) / 1e9 for m in meas])
+    y = np.array([[math.nan if v is None else v for v in m["eta"]] for m in meas], dtype=float)
+    tau = np.array([m["tau"] for m in meas], dtype=float)
+    run = parse_observer_spec("passive").make(parse_config(tables, base_dir=Path.cwd())).run(t, y, tau)
+    offline = {m["stamp_ns"]: run.eta[k] for k, m in enumerate(meas)}
+    live = [(e["stamp_ns"], np.array(e["eta"])) for e in loop.estimates]
+    assert len(live) > 150
+    worst = max(float(np.max(np.abs(offline[ns] - eta))) for ns, eta in live)
+    assert worst < 1e-9
+
+
+def test_table_reads_back_exactly(tmp_path: Path) -> None:
+    """results.csv holds every digit (and NaN as an empty field)."""
+    import csv
+
+    from dpgw.study.outputs import write_table
+
+    rows = [{"observer": "a", "seed": 1, "x": 0.1 + 0.2, "y": math.nan}]
+    files = write_table(rows, tmp_path)
+    with open(files[0]) as f:
+        (back,) = list(csv.DictReader(f))
+    assert float(back["x"]) == 0.1 + 0.2 and back["y"] == "" and back["seed"] == "1"
+
+
+def test_parquet_table_where_pyarrow_is_installed(tmp_path: Path) -> None:
+    pq = pytest.importorskip("pyarrow.parquet")
+    from dpgw.study.outputs import write_table
+
+    write_table([{"observer": "a", "seed": 1, "x": 0.1 + 0.2, "y": math.nan}], tmp_path)
+    table = pq.read_table(tmp_path / "results.parquet").to_pylist()
+    assert table[0]["x"] == 0.1 + 0.2 and math.isnan(table[0]["y"])
