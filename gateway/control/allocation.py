@@ -41,6 +41,7 @@ import daqp
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from gateway.control import _allocation_kernel as _kernel
 from observers.kinematics import ssa, ssa_scalar
 from observers.vessel import VesselModel
 
@@ -386,6 +387,10 @@ class QPAllocator:
     follow the (noisy) direction of its tiny force.
     ``idle_steering`` — idle azimuths turn (at their rate limit) towards the direction the unconstrained
     allocation wants them in, so a thruster that points the wrong way is not stuck there.
+    ``solver`` — ``"compiled"`` (default): the whole step in one compiled call
+    (`gateway.control._allocation_kernel`: the same limits, QP and commands, solved by a Goldfarb–Idnani
+    dual active-set method), falling back to DAQP for a step it cannot solve; ``"daqp"``: the readable
+    Python path around DAQP, the reference the compiled step is tested against.
     """
 
     def __init__(
@@ -403,7 +408,10 @@ class QPAllocator:
         polygon_sides: int = 16,
         idle_thrust_fraction: float = 1e-3,
         idle_steering: bool = True,
+        solver: str = "compiled",
     ) -> None:
+        if solver not in ("compiled", "daqp"):
+            raise ValueError(f"solver must be 'compiled' or 'daqp', got {solver!r}")
         if not (math.isfinite(dt) and dt > 0):
             raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
         if polygon_sides < 6:
@@ -439,6 +447,9 @@ class QPAllocator:
         self._pinv = _weighted_pinv(L.B, (L.weights / L.cap**2)[L.owner])
         self._build_structure()
         self._model: Any = None  # DAQP workspace, set up on the first solve and updated after
+        self.solver = solver
+        self.fallbacks = 0  # steps where the compiled solver gave up and DAQP solved (diagnostic)
+        self._kernel_args = self._build_kernel_args() if solver == "compiled" else ()
 
     # ---- problem structure (constant) ------------------------------------------------------------------
 
@@ -478,6 +489,67 @@ class QPAllocator:
         self._lb0 = np.r_[np.full(L.n_ext, -np.inf), np.zeros(6)]
         self._ub0 = np.full(self.n_x, np.inf)
         self._blower_rows = np.full(self.n_rows - 3, -np.inf)
+        self._rest_thrust = np.zeros(L.n)
+
+    def _build_kernel_args(self) -> tuple[Any, ...]:
+        """Constant arrays and work arrays of the compiled step (`_allocation_kernel.allocate_step`)."""
+        L = self.layout
+        k_max = max((len(v) for v in self.forbidden.values()), default=0)
+        sec_start = np.zeros((L.n, max(k_max, 1)))
+        sec_width = np.zeros((L.n, max(k_max, 1)))
+        sec_count = np.zeros(L.n, dtype=np.int64)
+        for i, sectors in self.forbidden.items():
+            for k, (start, width) in enumerate(sectors):
+                sec_start[i, k], sec_width[i, k] = start, width
+            sec_count[i] = len(sectors)
+        n_x, n_rows = self.n_x, self.n_rows
+        m_max = n_rows + 2 * n_x
+        self._k_out = (np.empty(L.n), np.empty(L.n), np.empty(3), np.zeros(4))
+        self._k_x = np.empty(n_x)
+        f = np.ascontiguousarray
+        return (
+            L.is_az,
+            L.first.astype(np.int64),
+            L.x,
+            L.y,
+            L.cap,
+            L.tmin,
+            L.tmax,
+            L.fixed_angle,
+            L.tau_ref,
+            f(self._dT, dtype=float),
+            f(self._turn, dtype=float),
+            f(self.idle_thrust, dtype=float),
+            f(self._arc_lo0, dtype=float),
+            f(self._arc_hi0, dtype=float),
+            sec_start,
+            sec_width,
+            sec_count,
+            bool(self.forbidden),
+            f(self._pinv),
+            self.idle_steering,
+            self._P_diag,
+            self.q,
+            self._A,
+            self._poly_scale,
+            self.polygon_sides,
+            np.empty((n_rows, n_x)),  # work: A, ub_A, lb, ub
+            np.empty(n_rows),
+            np.empty(n_x),
+            np.empty(n_x),
+            np.empty((m_max, 2), dtype=np.int64),  # work: inequality rows (two nonzeros each)
+            np.empty((m_max, 2)),
+            np.empty(m_max),
+            self._k_x,  # work: solution, active set, multipliers, J, R, d, z, r
+            np.empty(n_x, dtype=np.int64),
+            np.empty(n_x),
+            np.empty((n_x, n_x)),
+            np.empty((n_x, n_x)),
+            np.empty(n_x),
+            np.empty(n_x),
+            np.empty(n_x),
+            *self._k_out,
+        )
 
     # ---- the step's limits -----------------------------------------------------------------------------
 
@@ -565,8 +637,18 @@ class QPAllocator:
     # ---- solve -----------------------------------------------------------------------------------------
 
     def solve_qp(self, tau_demand: ArrayLike, previous: ThrusterCommand | None) -> QPSolution:
-        """Solve the QP of one step (no post-processing: see `allocate`)."""
-        return self._solve(np.array(tau_demand, dtype=float).reshape(3), self.limits(previous))
+        """Solve the QP of one step (no post-processing: see `allocate`) with this allocator's solver
+        (the compiled one falls back to DAQP where it gives up, as `allocate` does)."""
+        tau, lim = np.array(tau_demand, dtype=float).reshape(3), self.limits(previous)
+        if self.solver == "compiled":
+            d = self._qp(tau, lim)
+            x, status, iterations = _kernel.solve_qp_data(
+                self._P_diag, d.q, d.A, d.b_eq, d.ub_A, d.lb, d.ub, 3
+            )
+            if status == _kernel.OK:
+                return self._solution(x, lim, d, iterations)
+            self.fallbacks += 1
+        return self._solve(tau, lim)
 
     def _solve(self, tau: Array, lim: StepLimits) -> QPSolution:
         L = self.layout
@@ -586,7 +668,11 @@ class QPAllocator:
             return QPSolution(
                 np.zeros(L.n_ext), tau.copy(), math.nan, f"solver_failed: exitflag {exitflag}", 0
             )
-        x = np.asarray(x, dtype=float)
+        return self._solution(np.asarray(x, dtype=float), lim, d, int(info["iterations"]))
+
+    def _solution(self, x: Array, lim: StepLimits, d: QPData, iterations: int) -> QPSolution:
+        """The QP's scaled solution x as forces in the fixed frame of eq (22), slack (N) and objective."""
+        L = self.layout
         ka, kf = self._ka, self._kf
         ang = lim.angle[self._az]
         c, s = np.cos(ang), np.sin(ang)
@@ -596,7 +682,7 @@ class QPAllocator:
         forces[kf] = x[kf] * L.cap[self._fixed]
         slack = (x[L.n_ext : L.n_ext + 3] - x[L.n_ext + 3 :]) * L.tau_ref
         objective = float(0.5 * np.dot(self._P_diag * x, x) + np.dot(d.q, x))
-        return QPSolution(forces, slack, objective, "optimal", int(info["iterations"]))
+        return QPSolution(forces, slack, objective, "optimal", iterations)
 
     def allocate(self, tau_demand: ArrayLike, previous: ThrusterCommand | None = None) -> AllocationResult:
         """Thrust and azimuth per thruster for the demand ``tau_demand`` = [X, Y, N] (N, N, N·m) given the
@@ -606,6 +692,11 @@ class QPAllocator:
         tau = np.array(tau_demand, dtype=float).reshape(3)
         if not np.all(np.isfinite(tau)):
             return _hold(L, tau, previous, "invalid_input", "thrust allocation: non-finite τ demand", t0)
+        if self._kernel_args:
+            res = self._allocate_compiled(tau, previous, t0)
+            if res is not None:
+                return res
+            self.fallbacks += 1  # the compiled solver gave up on this QP: DAQP solves it
         lim = self.limits(previous)
         sol = self._solve(tau, lim)
         if sol.status != "optimal":
@@ -614,6 +705,27 @@ class QPAllocator:
         tau_alloc = L.tau_of(thrust, angle)
         slack = tau - tau_alloc
         saturated = bool(np.max(np.abs(sol.slack) / L.tau_ref) > _SAT_TOL)
+        alarms = (_saturation_alarm(tau, slack),) if saturated else ()
+        return AllocationResult(
+            thrust, angle, tau_alloc, tau, slack, saturated, alarms, time.perf_counter() - t0, "optimal"
+        )
+
+    def _allocate_compiled(
+        self, tau: Array, previous: ThrusterCommand | None, t0: float
+    ) -> AllocationResult | None:
+        """`allocate` in one compiled call; None if its solver gave up (the caller then uses DAQP)."""
+        L = self.layout
+        if previous is None:
+            prev_thrust, prev_angle = self._rest_thrust, L.fixed_angle
+        else:
+            prev_thrust = np.asarray(previous.thrust, dtype=float).reshape(L.n)
+            prev_angle = np.asarray(previous.azimuth, dtype=float).reshape(L.n)
+        if _kernel.allocate_step(tau, prev_thrust, prev_angle, *self._kernel_args) != _kernel.OK:
+            return None
+        thrust_o, angle_o, tau_o, info = self._k_out
+        thrust, angle, tau_alloc = thrust_o.copy(), angle_o.copy(), tau_o.copy()
+        slack = tau - tau_alloc
+        saturated = bool(info[3] > _SAT_TOL)
         alarms = (_saturation_alarm(tau, slack),) if saturated else ()
         return AllocationResult(
             thrust, angle, tau_alloc, tau, slack, saturated, alarms, time.perf_counter() - t0, "optimal"
