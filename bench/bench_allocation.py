@@ -8,7 +8,8 @@ its problem set up once and updated in place where its Python interface allows (
 reused; only values change). Times are per solve including the update of the solver's data; "dev" is
 the largest difference from DAQP's solution in scaled units (fraction of T_max, τ_ref). In the same run:
 the independent cvxpy formulation (`reference_solve_cvxpy`, rebuilt every call as a reference is), and
-`QPAllocator.allocate` / `PseudoInverseAllocator.allocate` end to end.
+`QPAllocator.allocate` (the compiled step, and the Python path around DAQP) and
+`PseudoInverseAllocator.allocate` end to end, interleaved step by step.
 
     python bench/bench_allocation.py [--vessel mss_supply] [--steps 3000] [--cvxpy-steps 200] [--json]
 """
@@ -109,6 +110,18 @@ def daqp_cold() -> Solve:
         bu, bl = _bounds(d)
         x, _, flag, _ = daqp.solve(d.P, d.q, d.A, bu, bl, _sense(d))
         return np.asarray(x) if flag >= 1 else None
+
+    return solve
+
+
+def compiled_cold() -> Solve:
+    """The allocator's own compiled solver (`gateway.control._allocation_kernel.gi_solve`) on the QP data:
+    includes converting QPData to its sparse rows and allocating its work arrays each call."""
+    from gateway.control import _allocation_kernel as kernel
+
+    def solve(d: QPData) -> np.ndarray | None:
+        x, status, _ = kernel.solve_qp_data(np.diag(d.P), d.q, d.A, d.b_eq, d.ub_A, d.lb, d.ub, d.n_eq)
+        return x if status == kernel.OK else None
 
     return solve
 
@@ -291,21 +304,31 @@ def main() -> None:
 
     # end to end, in the same closed loop (first: before the other solvers and cvxpy fill the heap)
     results: dict[str, dict[str, float]] = {}
-    for name, alloc in (
-        ("QPAllocator.allocate (limits, QP, commands)", QPAllocator(vessel, forbidden_sectors=sectors)),
-        ("PseudoInverseAllocator.allocate", PseudoInverseAllocator(vessel)),
-    ):
-        gc.collect()
-        times = []
-        prev: ThrusterCommand | None = None
-        saturated = 0
-        for tau in taus:
+    allocators: dict[str, QPAllocator | PseudoInverseAllocator] = {
+        "QPAllocator.allocate, compiled (default)": QPAllocator(vessel, forbidden_sectors=sectors),
+        "QPAllocator.allocate, daqp (Python path)": QPAllocator(
+            vessel, forbidden_sectors=sectors, solver="daqp"
+        ),
+        "PseudoInverseAllocator.allocate": PseudoInverseAllocator(vessel),
+    }
+    # interleaved step by step (each fed its own previous command), so that the machine's load falls on all
+    gc.collect()
+    times: dict[str, list[float]] = {name: [] for name in allocators}
+    prevs_e2e: dict[str, ThrusterCommand | None] = dict.fromkeys(allocators)
+    saturated = dict.fromkeys(allocators, 0)
+    for tau in taus:
+        for name, alloc in allocators.items():
             t0 = time.perf_counter()
-            res = alloc.allocate(tau, prev)
-            times.append(time.perf_counter() - t0)
-            prev = res.command
-            saturated += res.saturated
-        results[name] = stats(times[1:]) | {"dev": math.nan, "failed": 0, "saturated_steps": saturated}
+            res = alloc.allocate(tau, prevs_e2e[name])
+            times[name].append(time.perf_counter() - t0)
+            prevs_e2e[name] = res.command
+            saturated[name] += res.saturated
+    for name in allocators:
+        results[name] = stats(times[name][1:]) | {
+            "dev": math.nan,
+            "failed": 0,
+            "saturated_steps": saturated[name],
+        }
 
     # DAQP's own solutions are the yardstick for the others' deviation (DAQP against cvxpy: below)
     ref_solve = daqp_cold()
@@ -315,6 +338,7 @@ def main() -> None:
     solvers: dict[str, Callable[[], Solve]] = {
         "daqp (Model: set up once, update, warm)": daqp_warm,
         "daqp (solve: cold)": daqp_cold,
+        "compiled Goldfarb-Idnani (numba, cold, on QPData)": compiled_cold,
         "quadprog (cold)": quadprog_cold,
         "piqp dense (update)": piqp_update,
         "osqp (update, warm, eps 1e-6, polish)": lambda: osqp_warm(datas, 1e-6),
