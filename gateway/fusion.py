@@ -117,6 +117,10 @@ class Fusion:
         self._headings: deque[tuple[int, float]] = deque(maxlen=HEADING_HISTORY_MAX)
         self._sigma: dict[str, Held] = {}  # source -> its latest GST sigma (m), valid like a measurement
         self._thrust: dict[int, ThrusterFeedback] = {}
+        # τ from feedback is a function of what is held and which of it is fresh: the last one, keyed by
+        # (changes to _thrust, the fresh ids), so that the steps between feedback bursts do not recompute it
+        self._thrust_changes = 0
+        self._tau_cached: tuple[tuple[int, tuple[int, ...]], Array] | None = None
         self._azimuth: dict[int, float] = {}  # last reported azimuth, also before any thrust was reported
         self._thrusters: dict[int, Thruster] = {t.id: t for t in vessel.thrusters}
         self._tau_demand = _read_only(np.zeros(3))
@@ -372,6 +376,7 @@ class Fusion:
         if azimuth_rad is not None and math.isfinite(azimuth_rad):
             self._azimuth[thruster_id] = azimuth_rad
         self._thrust[thruster_id] = ThrusterFeedback(thrust_n, self._azimuth.get(thruster_id, 0.0), rx_ns)
+        self._thrust_changes += 1
 
     def add_thruster_rpm(self, rx_ns: int, thruster_id: int, rpm: float) -> None:
         """Feedback of a thruster's shaft speed (rpm): thrust by the thruster's propeller law. A thruster the
@@ -388,6 +393,7 @@ class Fusion:
         old = self._thrust.get(thruster_id)
         if old is not None:
             self._thrust[thruster_id] = old._replace(azimuth_rad=azimuth_rad)
+            self._thrust_changes += 1
 
     def set_tau_demand(self, tau: ArrayLike) -> None:
         """The τ [X, Y, N] demanded of the thrusters (controller, manual input, or zero in standby)."""
@@ -406,6 +412,11 @@ class Fusion:
         fresh = {tid: v for tid, v in self._thrust.items() if now_ns - v.rx_ns <= self.feedback_timeout_ns}
         if not fresh:
             return self._tau_demand.copy(), "demand"
+        key = (self._thrust_changes, tuple(fresh))
+        if self._tau_cached is not None and self._tau_cached[0] == key:
+            return self._tau_cached[1].copy(), "feedback"
         thrust = np.array([fresh[t.id].thrust_n if t.id in fresh else 0.0 for t in layout])
         angle = np.array([fresh[t.id].azimuth_rad if t.id in fresh else t.angle_rad for t in layout])
-        return self.vessel.generalized_force(thrust, angle), "feedback"
+        tau = self.vessel.generalized_force(thrust, angle)
+        self._tau_cached = (key, tau)
+        return tau.copy(), "feedback"

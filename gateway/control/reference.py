@@ -188,15 +188,42 @@ class ReferenceModel:
             h = dt / n
             gf_t = 1.0 - math.exp(-self._w_t * h)
             gf_y = 1.0 - math.exp(-self._w_y * h)
-            r = self._target
+            # the loop of `_accel` and the updates below on Python floats: the same operations in the same
+            # order as on the 2-vectors (numpy's element-wise +, − and × are the same IEEE operations), so
+            # the same numbers, without numpy's per-call overhead on arrays of two
+            r0, r1, r2 = self._target.tolist()
+            f0, f1 = self._f.tolist()
+            p0, p1 = self._p.tolist()
+            v0, v1 = self._v.tolist()
+            lim = self.limits
+            w, wy = self._w_t, self._w_y
+            vmax, amax = lim.max_speed_mps, lim.max_accel_mps2
+            hw, tw = 0.5 * w, 2.0 * w
+            hh = 0.5 * h * h
             for _ in range(n):
-                a, ar = self._accel()
-                self._f = self._f + gf_t * (r[:2] - self._f)
-                self._f_psi = ssa_scalar(self._f_psi + gf_y * ssa_scalar(float(r[2]) - self._f_psi))
-                self._p = self._p + h * self._v + 0.5 * h * h * a
-                self._v = self._v + h * a
+                # _accel
+                c0, c1 = hw * (f0 - p0), hw * (f1 - p1)
+                nc = float(np.hypot(c0, c1))
+                if nc > vmax:
+                    k = vmax / nc
+                    c0, c1 = c0 * k, c1 * k
+                a0, a1 = tw * (c0 - v0), tw * (c1 - v1)
+                na = float(np.hypot(a0, a1))
+                if na > amax:
+                    k = amax / na
+                    a0, a1 = a0 * k, a1 * k
+                r_c = _sat_scalar(0.5 * wy * ssa_scalar(self._f_psi - self._psi), lim.max_yaw_rate_rad_s)
+                ar = _sat_scalar(2.0 * wy * (r_c - self._r), lim.max_yaw_accel_rad_s2)
+                # the updates
+                f0, f1 = f0 + gf_t * (r0 - f0), f1 + gf_t * (r1 - f1)
+                self._f_psi = ssa_scalar(self._f_psi + gf_y * ssa_scalar(r2 - self._f_psi))
+                p0, p1 = p0 + h * v0 + hh * a0, p1 + h * v1 + hh * a1
+                v0, v1 = v0 + h * a0, v1 + h * a1
                 self._psi = ssa_scalar(self._psi + h * self._r + 0.5 * h * h * ar)
                 self._r = self._r + h * ar
+            self._f = np.array([f0, f1])
+            self._p = np.array([p0, p1])
+            self._v = np.array([v0, v1])
         return self.state
 
     @property
