@@ -179,7 +179,11 @@ def run_closed_loop(
     if wire is None:
         wire = needs_wire(scenario, log)
     tables = tables or gateway_tables(scenario)
-    pipeline = Pipeline(PipelineSpec.from_config(parse_config(tables, base_dir=Path.cwd())))
+    # the Foxglove channels mirror the outputs for a log or a viewer: derived only if a caller collects
+    # outputs (it may want them); the estimates and commands are the same either way
+    pipeline = Pipeline(
+        PipelineSpec.from_config(parse_config(tables, base_dir=Path.cwd())), foxglove=bool(collect)
+    )
     commands = _Commands()
     sim: Simulation
     sinks: dict[str, _TimedSink] = {}

@@ -255,8 +255,13 @@ class SourceCounters:
 
 
 class Pipeline:
-    def __init__(self, spec: PipelineSpec) -> None:
+    def __init__(self, spec: PipelineSpec, *, foxglove: bool = True) -> None:
+        """``foxglove``: derive the Foxglove-native channels (`gateway.foxglove_channels`: location fixes,
+        thruster arrows, the scene, log lines) that mirror the outputs for a log or a live viewer. False
+        for a consumer that has neither (the in-process closed loop of a study without a log): the
+        Zenoh outputs — estimates, commands, statuses — are the same either way."""
         self.spec = spec
+        self.foxglove_channels = foxglove
         self.observer = spec.observer
         datum = LocalFrame(*spec.datum) if spec.datum is not None else None
         ip = spec.integrity
@@ -393,6 +398,8 @@ class Pipeline:
 
     def _with_foxglove(self, out: list[Output]) -> None:
         """Add the Foxglove-native channels that mirror ``out`` (`gateway.foxglove_channels`)."""
+        if not self.foxglove_channels:
+            return
         for topic, message, ns in self.foxglove.derive(out):
             out.append(Output(topic, message, ns, zenoh=False))
 
@@ -803,12 +810,17 @@ class Pipeline:
             tau_manual=self.manual_tau,
         )
         target = o.reference.target if self.mode == "dp" else None
-        scene = [
-            Output(topic, message, ns, zenoh=False)
-            for topic, message, ns in self.foxglove.setpoint(
-                None if target is None else (float(target[0]), float(target[1]), float(target[2])), now_ns
-            )
-        ]
+        scene = (
+            [
+                Output(topic, message, ns, zenoh=False)
+                for topic, message, ns in self.foxglove.setpoint(
+                    None if target is None else (float(target[0]), float(target[1]), float(target[2])),
+                    now_ns,
+                )
+            ]
+            if self.foxglove_channels
+            else []
+        )
         if self.mode == "standby":
             self.fusion.set_tau_demand(np.zeros(3))
             self.control_alarms = []
@@ -958,7 +970,8 @@ class Pipeline:
     def status(self, now_ns: int, alarms: list[str] | None = None) -> Output:
         """The 1 Hz status output (the caller decides when); see `status_message`."""
         message = self.status_message(now_ns, alarms)
-        self.foxglove.on_status(message)
+        if self.foxglove_channels:
+            self.foxglove.on_status(message)
         return Output("/dp/status", message, now_ns)
 
     def status_message(self, now_ns: int, alarms: list[str] | None = None) -> Status:

@@ -155,3 +155,16 @@ def test_typed_path_is_faster_than_the_bytes() -> None:
             run_closed_loop(sc, 60.0, seed=1, events=HOLD, wire=wire)
             cpu[wire] = min(cpu[wire], time.process_time() - t0)
     assert cpu[True] / cpu[False] >= 1.33
+
+
+def test_foxglove_channels_off_leave_estimates_and_commands_unchanged() -> None:
+    """Without ``collect`` the loop's pipeline derives no Foxglove channels (nothing would read them); the
+    estimates and commands are bit for bit those of a pipeline that derives them (``collect`` turns them
+    on, and the collected scene shows that they were derived)."""
+    sc = get_scenario("torsetnes_2004")
+    plain = run_closed_loop(sc, 20.0, seed=2, events=HOLD)
+    full = run_closed_loop(sc, 20.0, seed=2, events=HOLD, collect=("/dp/scene/thrusters",))
+    assert full.collected["/dp/scene/thrusters"], "the Foxglove channels were derived with collect"
+    assert plain.estimates == full.estimates and plain.commands == full.commands
+    assert len(plain.commands) > 100
+    np.testing.assert_array_equal(plain.eta_lf, full.eta_lf)
