@@ -690,7 +690,8 @@ class QPAllocator:
         t0 = time.perf_counter()
         L = self.layout
         tau = np.array(tau_demand, dtype=float).reshape(3)
-        if not np.all(np.isfinite(tau)):
+        x, y, n = tau.tolist()  # three floats: cheaper than numpy's isfinite and all on an array of three
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(n)):
             return _hold(L, tau, previous, "invalid_input", "thrust allocation: non-finite τ demand", t0)
         if self._kernel_args:
             res = self._allocate_compiled(tau, previous, t0)
