@@ -36,6 +36,8 @@ from dpgw.cli import single_threaded_blas
 single_threaded_blas()  # as `dpgw sim` runs (before numpy loads): CPU time is the loop's, not BLAS's spinning
 
 from dpgw.closed_loop import run_closed_loop  # noqa: E402
+from gateway.control.allocation import QPAllocator  # noqa: E402
+from gateway.control.controller import DPController  # noqa: E402
 from gateway.pipeline import Pipeline  # noqa: E402
 from simulator.runner import Simulation  # noqa: E402
 from simulator.scenarios import get_scenario  # noqa: E402
@@ -109,6 +111,8 @@ def run_loop(hours: float, wire: bool, phases: bool) -> dict[str, Any]:
             "pipeline": (Pipeline, "feed"),
             "observer_step": (Pipeline, "_step"),
             "control_step": (Pipeline, "_control_step"),
+            "allocation": (QPAllocator, "allocate"),
+            "controller": (DPController, "update"),
         }
         if phases
         else {}
@@ -137,9 +141,12 @@ def run_loop(hours: float, wire: bool, phases: bool) -> dict[str, Any]:
             "simulator": s["simulator"],
             "pipeline_observer_step": s["observer_step"] - s["control_step"],
             "pipeline_control_step": s["control_step"],
+            # of which (inside the control step): the allocation and the DP controller
+            "control_allocation": s["allocation"],
+            "control_controller": s["controller"],
             "pipeline_other": s["pipeline"] - s["observer_step"],
         }
-        split["loop_other"] = cpu - sum(split.values())
+        split["loop_other"] = cpu - sum(v for k, v in split.items() if not k.startswith("control_"))
         out["us_per_sim_second"] = {k: 1e6 * v / duration for k, v in split.items()}
     return out
 

@@ -9,7 +9,10 @@ Then τ = B f with B constant, and an azimuth's thrust is |Fᵢ|, its angle atan
 
 * `PseudoInverseAllocator` — the paper's "T⁻¹(α) τ": the weighted minimum-norm solution
   f = W⁻¹Bᵀ(BW⁻¹Bᵀ)⁻¹τ, no limits; a demand beyond capacity is scaled down as a whole (reported).
-* `QPAllocator` — the default: a convex QP solved every step (DAQP, dual active set, warm-started)::
+* `QPAllocator` — the default: a convex QP solved every step — by default in one compiled call
+  (`gateway.control._allocation_kernel`: the same limits, QP and commands, a Goldfarb–Idnani dual
+  active-set solver), with this module's Python path around DAQP (dual active set, warm-started) as its
+  tested reference and fallback (``solver="daqp"``)::
 
       min  ½ Σᵢ wᵢ (p |f̂ᵢ|² + c (f̂ᵢ·nᵢ)²)  +  Σⱼ ρ₁,ⱼ |ŝⱼ| + ½ ρ₂,ⱼ ŝⱼ²
       s.t. B f + s = τ,  f in the per-thruster convex sets of this step (docs/allocation.md)
