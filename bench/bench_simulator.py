@@ -15,7 +15,8 @@
 Each figure is sim time / wall time. The machine is shared: beside it, sim time / CPU time of this process
 (`time.process_time`), which moves much less when other work competes for the cores; `--rounds N` takes
 the best of N interleaved rounds. The closed loop's CPU time is split by phase (the simulator, the
-pipeline's observer step, its control step, the rest of the pipeline) so it is clear where the time goes.
+pipeline's observer step, its control step — and inside it the allocation and the DP controller — the rest
+of the pipeline) so it is clear where the time goes.
 
     python bench/bench_simulator.py [--hours 1] [--loop-hours H] [--rounds 1] [--json]
 """
