@@ -85,6 +85,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from gateway.control import _controller_kernel as _ck
 from gateway.control.reference import ReferenceLimits, ReferenceModel, ReferenceState
 from observers.kinematics import rotation, ssa_scalar
 from observers.vessel import VesselModel
@@ -322,8 +323,12 @@ class DPController:
     Starts in ``standby``. Call `update` once per control tick with the observer's estimate.
     """
 
-    def __init__(self, vessel: VesselModel, tuning: ControllerTuning | None = None):
+    def __init__(self, vessel: VesselModel, tuning: ControllerTuning | None = None, *, compiled: bool = True):
+        """``compiled``: run the steps of dp mode after the first in one compiled call
+        (`gateway.control._controller_kernel`, the same equations on scalars; round-off apart the same
+        numbers); False: this module's numpy code throughout, the reference the kernel is tested against."""
         self.vessel = vessel
+        self.compiled = compiled
         self.tuning = (tuning or ControllerTuning()).resolved(vessel)
         tu = self.tuning
         self.gains = controller_gains(
@@ -351,6 +356,14 @@ class DPController:
         self._tau = np.zeros(3)
         self._tau_manual = np.zeros(3)
         self._t: float | None = None
+        # the compiled step's constants: [M, D, M⁻¹, Kp, Ki, Kd] and per DOF [k, has integral, 1/Tt]
+        self._mats = np.ascontiguousarray(
+            np.stack([self._M, self._D, self._Minv, self.gains.Kp, self.gains.Ki, self.gains.Kd]), dtype=float
+        )
+        self._dof = np.vstack(
+            [self._k, self._has_i.astype(float), np.broadcast_to(self._tracking_rate, (3,))]
+        ).astype(float)
+        self._rp: Array | None = None  # the reference model's constants, packed on first use
 
     # -- commands ---------------------------------------------------------------------------------------
     @property
@@ -454,6 +467,8 @@ class DPController:
         if eta is None or nu is None:
             # no estimate (observer initialising): hold τ, freeze integrator; the reference waits
             return self._output(t, False, self.reference.state, ZERO3, ZERO3, ZERO3, ZERO3, ZERO3, ZERO3)
+        if self.compiled and not self._entering:
+            return self._update_dp_compiled(t, dt, eta, nu, b, saturated, tau_alloc)
         R = rotation(float(eta[2]))
         if self._entering:
             self.reference.reset(eta, R @ nu, target=self._setpoint)
@@ -494,6 +509,60 @@ class DPController:
         tau_i = -self.gains.Ki @ (R.T @ self._z)
         self._tau = tau_p + tau_i + tau_d + tau_ff
         return self._output(t, True, ref, e, nu_err, tau_p, tau_i, tau_d, tau_ff)
+
+    def _update_dp_compiled(
+        self,
+        t: float,
+        dt: float,
+        eta: Array,
+        nu: Array,
+        b: Array | None,
+        saturated: bool,
+        tau_alloc: Array | None,
+    ) -> ControllerOutput:
+        """`_update_dp` after the first dp step, in one compiled call (`_controller_kernel.dp_step`)."""
+        rs, rp = self.reference.packed()
+        use_b = self.tuning.bias_feedforward and b is not None
+        inp = np.concatenate(
+            (
+                eta,
+                nu,
+                b if b is not None else ZERO3,
+                tau_alloc if tau_alloc is not None else ZERO3,
+                self._tau,
+                self._z,
+                self.reference.target,
+            )
+        )
+        o = _ck.dp_step(
+            rs,
+            rp,
+            inp,
+            dt,
+            use_b,
+            tau_alloc is not None,
+            saturated,
+            self.tuning.feedforward,
+            self._mats,
+            self._dof,
+        )
+        self.reference.set_packed(rs)
+        self._tau, self._z = o[0:3].copy(), o[3:6].copy()
+        ref = ReferenceState(o[24:27], o[27:30], o[30:33], o[33:36], o[36:39], self.reference.target)
+        return ControllerOutput(
+            t=t,
+            tau=o[0:3].copy(),
+            mode=self._mode,
+            valid=True,
+            reference=ref,
+            eta_error=o[6:9],
+            nu_error=o[9:12],
+            integral=o[3:6].copy(),
+            tau_p=o[12:15],
+            tau_i=o[15:18],
+            tau_d=o[18:21],
+            tau_ff=o[21:24],
+        )
 
     def _output(
         self,

@@ -226,6 +226,35 @@ class ReferenceModel:
             self._v = np.array([v0, v1])
         return self.state
 
+    def packed(self) -> tuple[Array, Array]:
+        """(state, constants) as the compiled control step takes them (`_controller_kernel`: RS_*, RP_*)."""
+        p, v, f = self._p.tolist(), self._v.tolist(), self._f.tolist()
+        lim = self.limits
+        rs = np.array([p[0], p[1], v[0], v[1], f[0], f[1], self._psi, self._r, self._f_psi])
+        rp = np.array(
+            [
+                self._w_t,
+                self._w_y,
+                self._h_max,
+                lim.max_speed_mps,
+                lim.max_accel_mps2,
+                lim.max_yaw_rate_rad_s,
+                lim.max_yaw_accel_rad_s2,
+                float(MAX_SUBSTEPS),
+            ]
+        )
+        return rs, rp
+
+    def set_packed(self, rs: Array) -> None:
+        """Take the state back from the compiled control step (the inverse of `packed`)."""
+        self._p, self._v, self._f = rs[0:2].copy(), rs[2:4].copy(), rs[4:6].copy()
+        self._psi, self._r, self._f_psi = float(rs[6]), float(rs[7]), float(rs[8])
+
+    @property
+    def target(self) -> Array:
+        """The present target r = [N, E, ψ] (a copy)."""
+        return self._target.copy()
+
     @property
     def state(self) -> ReferenceState:
         a, ar = self._accel()
