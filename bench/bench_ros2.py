@@ -60,7 +60,12 @@ def tables(port: int, which: str) -> dict[str, Any]:
         "vessel": {"name": "mss_supply"},
         "datum": {"lat_deg": 59.4, "lon_deg": 10.5},
         "sources": [
-            {"name": "dgps1", "url": "udp://127.0.0.1:1", "protocol": "nmea", "roles": ["position", "heading"]}
+            {
+                "name": "dgps1",
+                "url": "udp://127.0.0.1:1",
+                "protocol": "nmea",
+                "roles": ["position", "heading"],
+            }
         ],
         "zenoh": {"listen": [f"tcp/127.0.0.1:{port}"], "multicast_scouting": False},
         "log": {"path": ""},
@@ -119,9 +124,8 @@ def per_message(n: int, repeat: int) -> dict[str, Any]:
     client.close()
     server.close()
     return {
-        which: {
-            f"{kind}_us_per_emit": best[which][kind] for kind in ("estimate", "fix")
-        } | {f"{kind}_samples_per_emit": samples[which][kind] for kind in ("estimate", "fix")}
+        which: {f"{kind}_us_per_emit": best[which][kind] for kind in ("estimate", "fix")}
+        | {f"{kind}_samples_per_emit": samples[which][kind] for kind in ("estimate", "fix")}
         for which in best
     }
 
@@ -213,7 +217,7 @@ def main() -> None:
         return
     pm = res["per_message"]
     print("per emit, median µs (best of rounds)      ros2     keelson   ros2/keelson")
-    for kind, what in (("estimate", "estimate (Odometry + PoseStamped | ~10 subjects)"), ("fix", "GNSS fix")):
+    for kind, what in (("estimate", "estimate (Odometry + PoseStamped | 9 subjects)"), ("fix", "GNSS fix")):
         r, k = pm["ros2"][f"{kind}_us_per_emit"], pm["keelson"][f"{kind}_us_per_emit"]
         print(f"  {what:38s} {r:8.1f} {k:11.1f} {r / k:12.2f}")
     for kind in ("estimate", "fix"):

@@ -345,7 +345,8 @@ def test_a_ros2_peer_sees_rmw_zenoh_keys_attachments_tokens_and_the_pipelines_va
     def tokens() -> set[str]:
         return {str(r.ok.key_expr) for r in client.liveliness().get("@ros2_lv/**") if r.ok is not None}
 
-    zid = str(service._session.info.zid())  # type: ignore[union-attr]
+    zid = sink.zid
+    assert zid == str(client.info.peers_zid()[0])  # the gateway's session, as Zenoh names it
     try:
         # the ROS graph: a node, three publishers, one subscription, in rmw_zenoh's token format
         assert wait_for(lambda: len(tokens()) == 5), tokens()

@@ -116,6 +116,8 @@ class Ros2Sink:
         """Setpoints handed to the gateway's input path."""
         self.tokens: list[str] = []
         """Every liveliness token declared (node first), as key text."""
+        self.zid = ""
+        """The Zenoh session id in the tokens (set by `start`)."""
         self._submit: Submit | None = None
         self._session: zenoh.Session | None = None
         self._pubs: dict[str, _Publisher] = {}
@@ -132,7 +134,7 @@ class Ros2Sink:
 
         self._session = session
         c = self.cfg
-        zid = str(session.info.zid())
+        zid = self.zid = str(session.info.zid())
         node_id = 0
         entity_ids = iter(range(1, 1 << 31))  # unique within this session, as rmw_zenoh's counter
 
