@@ -377,6 +377,12 @@ def test_a_ros2_peer_sees_rmw_zenoh_keys_attachments_tokens_and_the_pipelines_va
         # a setpoint from ROS: one in the wrong frame is refused here, counted; the right one is taken
         service.submit("mode", "dp")
         gid = rz.entity_gid("@ros2_lv/test/setpoint/publisher")
+        # a put sent before this session knows of the gateway's subscription goes to nobody: wait for it
+        probe = client.declare_publisher(SETPOINT_KEY)
+        try:
+            assert wait_for(lambda: probe.matching_status.matching)
+        finally:
+            probe.undeclare()
         wrong = store.serialize_cdr(pose_stamped(store, "map", 3.0, 4.0, 45.0), rz_pose())
         client.put(SETPOINT_KEY, bytes(wrong), attachment=rz.attachment(1, time.time_ns(), gid))
         assert wait_for(lambda: sink.refused["wrong frame"] == 1)
