@@ -588,9 +588,7 @@ class MMAEObserver(ObserverBase):
             return
         cfg = est.config
         sig_n = est.noise_sigma(t, cfg.update_period_s)  # since the last update: ~200 differences at 10 Hz
-        width = cfg.omega_max - cfg.omega_min
-        power = np.array(info.band_power) - np.array(info.noise_psd) * width
-        sig_w = np.sqrt(np.where(power > 0, power, np.nan))
+        sig_w = np.sqrt(np.array(info.wave_power))  # the wave motion alone: above the LF tail and the noise
         # the median of the last few windows: one window of a few wave periods scatters by ±30 % and more,
         # and every redesign moves the likelihoods the weights are made of
         self._history.append((np.where(sig_n > 0, sig_n, np.nan), np.where(sig_w > 0, sig_w, np.nan)))
