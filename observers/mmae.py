@@ -102,6 +102,12 @@ CYBERSHIP2_LENGTH_M = 1.255
 CYBERSHIP2_M_DIAG = np.array([25.8, 33.8, 2.76])
 """diag M of (A.1): the inertia that (A.2)'s force noises Q2, Q3 belong to."""
 
+WEIGHT_FLOOR = 1e-8
+"""Least weight of any filter (dpgw's; the paper's weights (18) have none). A filter that lost needs
+ln(0.9/floor) ≈ 18 nats of evidence to win again: enough that a few wave periods of chance do not move the
+bank off the right filter (1e-3, 7 nats, let the weights leave it every minute or two), few enough that a
+changed sea wins within minutes (docs/mmae.md)."""
+
 MASKS = ((False, False, False), (True, True, False), (False, False, True), (True, True, True))
 """Measured DOFs [N, E, ψ] for mask index m = (position present) + 2·(heading present)."""
 
@@ -116,8 +122,11 @@ REDESIGN_RATIO = 1.3
 
 def identification_config(candidates: Sequence[float]) -> WaveFrequencyConfig:
     """The spectral window for noise identification, in periods of the slowest candidate (T = 2π/ω_min):
-    Welch segments of 2 T over a 6 T window, every T, the first after one T; the band the candidates
-    span, widened by 1.5 either side."""
+    Welch segments of 3 T over a 6 T window, every T, the first after one T; the band the candidates
+    span, widened by 1.5 either side. Segments of 3 T put bins every ω_min/3, so the band's lower edge
+    (ω_min/1.5) lies two bins up, past the Hann main lobe of what the quadratic detrend leaves of the LF
+    motion; with 2 T it lay 1.3 bins up, inside it, and a sea at the slowest candidates could not be told
+    from the LF motion (`observers.wave_frequency.wave_band_power`)."""
     c = np.asarray(candidates, dtype=float)
     period = 2.0 * math.pi / float(c.min())
     return WaveFrequencyConfig(
@@ -125,7 +134,7 @@ def identification_config(candidates: Sequence[float]) -> WaveFrequencyConfig:
         update_period_s=period,
         omega_min=float(c.min()) / 1.5,
         omega_max=float(c.max()) * 1.5,
-        segment_s=2.0 * period,
+        segment_s=3.0 * period,
         min_span_s=period,
         min_snr=0.0,
         median_of=1,
@@ -428,6 +437,10 @@ class MMAEObserver(ObserverBase):
     identify real seas (docs/mmae.md). The default ζ is 0.25, not the paper's 0.1, for the same reason.
     """
 
+    new_samples_only = True
+    """Each measurement once: every sample updates the filters and the weights as new information (a held
+    fix given again at the step rate would count one measurement several times; `ObserverBase`)."""
+
     def __init__(
         self,
         vessel: VesselModel,
@@ -437,7 +450,7 @@ class MMAEObserver(ObserverBase):
         Q: ArrayLike | None = None,
         R: ArrayLike | None = None,
         dt: float = 0.1,
-        weight_floor: float = 1e-3,
+        weight_floor: float = WEIGHT_FLOOR,
         wave_std: ArrayLike | None = None,
         warmup_s: float = 0.0,
         max_gap_s: float = 60.0,
@@ -756,7 +769,7 @@ def reference_run(
     t: Array,
     y: Array,
     tau: Array | None = None,
-    weight_floor: float = 1e-3,
+    weight_floor: float = WEIGHT_FLOOR,
     warmup_s: float = 0.0,
     max_gap_s: float = 60.0,
     heading_in_weights: bool = True,

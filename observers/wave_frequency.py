@@ -79,6 +79,8 @@ Array = NDArray[np.float64]
 _NOISE_BAND = (1.5, 0.9)  # noise level: median PSD from 1.5·ω_max to 0.9·ω_Nyquist
 _FFT_OVERSAMPLE = 1  # FFT length: the next power of two ≥ the segment length
 _FIT_LEVEL = 0.1  # the peak fit uses the bins around the maximum above 10 % of it
+TROUGH_RISE = 2.0
+"""`wave_band_power`: the spectrum must rise this much above the trough after the LF tail for a sea."""
 
 
 @dataclass(frozen=True)
@@ -583,13 +585,17 @@ def wave_band_power(psd: Array, d_omega: float, noise_psd: float) -> float:
     two short periods cannot separate from ω_min (the Hann main lobe is four bins wide). That tail falls
     from the lower edge; a sea has almost no energy below ~0.7 of its peak (PM: e^{−1.25(ωp/ω)⁴}). So when
     the spectrum falls from the lower edge, the sum starts at its first minimum (the trough between the
-    LF tail and the wave peak); when it rises, at ω_min. NaN if what is left is not positive."""
+    LF tail and the wave peak), provided the spectrum rises again after it by `TROUGH_RISE` (a wave peak);
+    when it rises from the edge, at ω_min. NaN (not measured) if it falls without a peak after, or if what
+    is left is not positive."""
     p = np.asarray(psd, dtype=float)
     n = p.size
     start = 0
     while start + 1 < n and p[start + 1] < p[start]:
         start += 1
-    if start == n - 1:  # falling all the way: no wave peak in the band, the LF tail and noise only
+    if start and not p[start:].max() >= TROUGH_RISE * p[start]:
+        # no hump after the first minimum (a chance dip of the noise): the LF tail runs into the sea, or a
+        # sea peaks in the band's lowest bins, which this window cannot tell apart — not measured
         return math.nan
     power = float(p[start:].sum() - noise_psd * (n - start)) * d_omega
     return power if power > 0 else math.nan
