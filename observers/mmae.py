@@ -27,7 +27,9 @@ Sᵢ = C Pᵢ Cᵀ + R (the paper leaves S_i of (18) open; the innovation covari
 
 Dynamic weights: the discrete-time equivalent of (18) with m_i = ½ rᵢᵀ Sᵢ⁻¹ rᵢ and β_i = 1/√det Sᵢ,
 i.e. Bayes' rule pᵢ(k) ∝ βᵢ exp(−mᵢ) pᵢ(k−1), computed in the log domain, then projected onto
-{Σ pᵢ = 1, pᵢ ≥ floor} so that a filter that lost can win again when the sea changes. Blended estimate
+{Σ pᵢ = 1, pᵢ ≥ floor} so that a filter that lost can win again when the sea changes (the floor is dpgw's:
+the paper's (18) has none; `WEIGHT_FLOOR`). Each sample is new information: the gateway gives this
+observer each measurement once (`new_samples_only`), not a held fix again at every step. Blended estimate
 (16) x̂ = Σ pᵢ x̂ᵢ and blended ω0 = Σ pᵢ ω0ⁱ. By default every measured DOF votes (the paper); with
 ``heading_in_weights=False`` only the position innovations do (their marginal likelihood): first-order
 yaw is a poor witness of the sea's peak (its RAO grows as the wave slope, ∝ ω², in long waves), see
@@ -429,10 +431,11 @@ class MMAEObserver(ObserverBase):
     prediction, ``heading_in_weights`` whether the heading innovation votes in the weights.
 
     ``identify_noise`` (default: whenever R or the wave model is not given): the sensor noise σ (robust
-    spread of sample-to-sample differences) and the wave-motion σ (Welch band power above the noise floor)
-    are measured over a sliding window of three periods of the slowest candidate, every 0.75 period; the
-    bank is designed again with R = σ_n², wave_std = 0.7·σ_wave when either moves by more than 30 %
-    (filter states and weights kept). The weights start moving at the first identification, about one
+    spread of second differences) and the wave-motion σ (Welch power above the noise floor, from the end of
+    the LF motion's tail: `observers.wave_frequency.wave_band_power`) are measured over a sliding window of
+    six periods of the slowest candidate (segments of three), every period; the bank is designed again
+    with the median of the last five windows, R = σ_n², wave_std = 0.7·σ_wave, when either moves by more
+    than 30 % (filter states and weights kept). The weights start moving at the first identification, about one
     slowest period after the first sample. Hassani's (A.2) Q and R, the fallback before that, do not
     identify real seas (docs/mmae.md). The default ζ is 0.25, not the paper's 0.1, for the same reason.
     """
