@@ -435,8 +435,8 @@ class MMAEObserver(ObserverBase):
     the LF motion's tail: `observers.wave_frequency.wave_band_power`) are measured over a sliding window of
     six periods of the slowest candidate (segments of three), every period; the bank is designed again
     with the median of the last five windows, R = σ_n², wave_std = 0.7·σ_wave, when either moves by more
-    than 30 % (filter states and weights kept). The weights start moving at the first identification, about one
-    slowest period after the first sample. Hassani's (A.2) Q and R, the fallback before that, do not
+    than 30 % (filter states and weights kept). The weights start moving at the first identification,
+    about one slowest period after the first sample. Hassani's (A.2) Q and R, the fallback before that, do not
     identify real seas (docs/mmae.md). The default ζ is 0.25, not the paper's 0.1, for the same reason.
     """
 
