@@ -21,7 +21,7 @@ import copy
 import math
 from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Any
 
@@ -35,7 +35,7 @@ from gateway.foxglove_channels import FoxgloveChannels
 from gateway.fusion import NS, Fusion
 from gateway.references import ReferenceMonitor
 from gateway.references.monitor import Prediction
-from observers.base import STATUS_NAMES, Estimate, Observer
+from observers.base import STATUS_DEAD_RECKONING, STATUS_NAMES, STATUS_OK, Estimate, Observer
 from observers.factory import make_observer
 from observers.kinematics import ssa_scalar
 from observers.vessel import VesselModel
@@ -280,6 +280,8 @@ class Pipeline:
         self._pred_base: tuple[Estimate, list[float], list[float], list[float], float, float] | None = None
         self._last_est_ns = 0
         self._measured_ns = [0, 0, 0]  # when each DOF last went into the observer with a measurement
+        # observers that want each measurement once (id → receive time of the one each DOF last gave it)
+        self._given_ns: dict[int, list[int]] = {}
         self._last_step_ns = 0
         self._last_dr_ns = 0
         self._dr_period_ns = int(NS / ip.dead_reckoning_rate_hz)
@@ -695,7 +697,7 @@ class Pipeline:
         y, valid = fusion.measurement(now_ns)
         tau, tau_source = fusion.tau(now_ns)
         t = self._t(now_ns)
-        est = self.observer.step(t, y, tau)
+        est = self._observe(self.observer, t, y, tau, valid)
         self._last_est, self._last_est_ns, self._last_step_ns = est, now_ns, now_ns
         for k in range(3):
             if valid[k]:
@@ -728,10 +730,32 @@ class Pipeline:
                 self._next_control_ns = now_ns + self._control_period_ns
                 out.extend(self._control_step(t, est, now_ns))
         for label, obs in self.spec.extra_observers:
-            e = obs.step(t, y, tau)
+            e = self._observe(obs, t, y, tau, valid)
             if e.status != STATUS_NAMES[0]:
                 out.append(Output(f"/dp/estimates/{label}", self._estimate(label, obs, e, now_ns), now_ns))
         return out
+
+    def _observe(
+        self, obs: Observer, t: float, y: np.ndarray, tau: np.ndarray, valid: list[bool]
+    ) -> Estimate:
+        """Step one observer with the held measurement y, or — for an observer that wants each measurement
+        once (``new_samples_only``, `observers.base.ObserverBase`) — with the DOFs whose measurement it has
+        not been given yet (the others NaN; all of them until it is initialised). Such an observer reports
+        a step that brought only some DOFs as dead reckoning; while every DOF's measurement is valid (held
+        within its source's timeout) the estimate is reported "ok", as for the others."""
+        if not getattr(obs, "new_samples_only", False):
+            return obs.step(t, y, tau)
+        received = self.fusion.measurement_received_ns()
+        given = self._given_ns.setdefault(id(obs), [-1, -1, -1])
+        if obs.initialized:
+            y = np.array([v if given[k] < received[k] else math.nan for k, v in enumerate(y.tolist())])
+        for k in range(3):
+            if y[k] == y[k]:
+                given[k] = received[k]
+        est = obs.step(t, y, tau)
+        if est.status == STATUS_NAMES[STATUS_DEAD_RECKONING] and all(valid):
+            est = replace(est, status=STATUS_NAMES[STATUS_OK])
+        return est
 
     def _setpoint_ned(self, sp: dict[str, Any]) -> np.ndarray | None:
         """A setpoint {north_m, east_m, heading_deg} or {lat_deg, lon_deg, heading_deg} in local NED."""
