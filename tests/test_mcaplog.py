@@ -651,3 +651,43 @@ def test_write_many_writes_what_write_encoded_writes(tmp_path: Path, rotate_byte
     assert len(files["many"]) == (1 if rotate_bytes is None else len(files["one_by_one"]))
     assert rotate_bytes is None or len(files["many"]) > 1  # (the rotation case does rotate)
     assert files["many"] == files["one_by_one"]
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(
+        st.lists(
+            st.tuples(st.integers(0, 4), st.integers(0, 3 * KIB), st.integers(-2, 50)),  # topic, size, Δt
+            min_size=1,
+            max_size=8,
+        ),
+        max_size=40,
+    )
+)
+def test_write_many_fast_path_matches_write_encoded(cycles: list[list[tuple[int, int, int]]]) -> None:
+    """`write_many` without rotation takes an inlined loop (`_write_many_fast`): channels appearing
+    mid-cycle, chunks closing mid-cycle, records larger than a chunk, times going backwards — the file
+    must be that of one `write_encoded` call per message, byte for byte."""
+    import tempfile
+
+    from wire.messages import RawNmea
+
+    files = {}
+    with tempfile.TemporaryDirectory() as folder:
+        for mode in ("one_by_one", "many"):
+            path = Path(folder) / f"{mode}.mcap"
+            opts = {"flush_on_log_time": False, "background_flush": False, "flush_interval_s": 3600.0}
+            with McapLogWriter(path, chunk_size=2 * KIB, fsync=False, **opts) as w:
+                t = T0
+                for cycle in cycles:
+                    records = []
+                    for topic, size, dt in cycle:
+                        t += dt * 1_000_000
+                        records.append((f"/raw/nmea/s{topic}", b"x" * size, t, RawNmea))
+                    if mode == "many":
+                        w.write_many(records)
+                    else:
+                        for topic_name, data, ns, schema in records:
+                            w.write_encoded(topic_name, data, ns, ns, schema=schema)
+            files[mode] = path.read_bytes()
+    assert files["many"] == files["one_by_one"]
