@@ -584,13 +584,19 @@ _messages = st.lists(
 )
 
 
-def _write_with(cls: type[Writer], messages: list[tuple[int, int, bytes, int, bool]], fast: bool) -> bytes:
+def _write_with(
+    cls: type[Writer],
+    messages: list[tuple[int, int, bytes, int, bool]],
+    fast: bool,
+    compression: CompressionType = CompressionType.NONE,
+) -> bytes:
     import io
 
     buf = io.BytesIO()
-    w = cls(buf, chunk_size=700, compression=CompressionType.NONE)
+    w = cls(buf, chunk_size=700, compression=compression)
     if not fast:
         w.fast = False  # type: ignore[attr-defined]
+        w._zstd = None  # type: ignore[attr-defined]
     w.start(profile="", library="dpgw")
     sid = w.register_schema("s", "jsonschema", b"{}")
     ids = [w.register_channel(f"/c{k}", "json", sid) for k in range(3)]
@@ -612,6 +618,17 @@ def test_fast_writer_writes_the_same_bytes_as_the_library(messages: list[Any]) -
     assert FastWriter(__import__("io").BytesIO()).fast  # the installed mcap has what the fast path needs
     assert fast == reference
     assert _write_with(FastWriter, messages, fast=False) == reference  # the fallback path too
+
+
+@settings(max_examples=80, deadline=None)
+@given(_messages)
+def test_fast_writer_compresses_zstd_chunks_as_the_library_does(messages: list[Any]) -> None:
+    """FastWriter closes zstd chunks with one compressor for its life (the library makes one per chunk):
+    same file, byte for byte, and the fallback (the library's own chunk closing) too."""
+    reference = _write_with(Writer, messages, fast=True, compression=CompressionType.ZSTD)
+    assert FastWriter(__import__("io").BytesIO())._zstd is not None  # the installed mcap has what it needs
+    assert _write_with(FastWriter, messages, fast=True, compression=CompressionType.ZSTD) == reference
+    assert _write_with(FastWriter, messages, fast=False, compression=CompressionType.ZSTD) == reference
 
 
 # --- write_many: a cycle's messages in one call ---------------------------------------------------------
