@@ -53,7 +53,7 @@ class _MessageIndex(MessageIndex):
 class FastWriter(Writer):
     """`mcap.writer.Writer` with `add_message` in one pack (see module docstring)."""
 
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
+    def __init__(self, *args: Any, zstd_level: int = 3, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self._fast_stats = getattr(self, "_Writer__statistics", None)
         self._fast_chunk = getattr(self, "_Writer__chunk_builder", None)
@@ -62,9 +62,10 @@ class FastWriter(Writer):
         builder = self._fast_chunk
         # One zstd compressor for the writer's life: `zstandard.compress`, which the library calls for
         # every chunk, makes a new one each time (0.70 against 0.51 ms a 256 KiB chunk of replay JSON,
-        # ~2 µs a replay cycle). Same level (3), same bytes (tests/test_mcaplog.py).
+        # ~2 µs a replay cycle). At the library's level (3, the default) the same bytes as the library
+        # (tests/test_mcaplog.py); ``zstd_level`` sets another.
         self._zstd = (
-            zstandard.ZstdCompressor(level=3)
+            zstandard.ZstdCompressor(level=zstd_level)
             if zstandard is not None
             and getattr(self, "_Writer__compression", None) == CompressionType.ZSTD
             and all(

@@ -65,6 +65,10 @@ def _dump_schema(name: str, schema: Mapping[str, Any]) -> tuple[str, bytes]:
 
 _COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
 
+ZSTD_LEVEL = 1
+"""zstd level of the chunks. 1, not the mcap library's 3: on dpgw's JSON it is both faster (0.35 against
+0.51 ms a 256 KiB chunk of replay output, ~1.6 µs a replay cycle) and smaller (6.3 against 5.9 times)."""
+
 # Record sizes from the MCAP specification (opcode u8 + length u64 + fields), used to keep every chunk's
 # uncompressed content <= chunk_size. The mcap Writer only closes a chunk *after* the message that took it
 # past chunk_size, so on its own a chunk can exceed the limit by one message.
@@ -447,7 +451,9 @@ class McapLogWriter:
     def _open(self, index: int) -> None:
         path = rotated_path(self._base, index)
         self._file = open(path, "wb")  # noqa: SIM115 - lives until _finish_file
-        self._writer = FastWriter(self._file, chunk_size=self._chunk_budget, compression=self._compression)
+        self._writer = FastWriter(
+            self._file, chunk_size=self._chunk_budget, compression=self._compression, zstd_level=ZSTD_LEVEL
+        )
         self._writer.start(profile=self._profile, library=self._library)
         for name, data in self._metadata:
             self._writer.add_metadata(name, data)
