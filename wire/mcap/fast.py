@@ -14,6 +14,10 @@ u16 channel, u32 sequence, u64 log time, u64 publish time, data), and close the 
 writer was made without chunking — it falls back to the library's own method, so an mcap upgrade can cost
 speed but never a file. The MCAP log tests write the same messages through both and compare the files
 byte for byte.
+
+It also closes zstd chunks itself (`_Writer__finalize_chunk`: the library's method line for line) with one
+compressor for its life, at ``zstd_level`` (the library's 3 by default, and then the library's bytes; the
+gateway's `McapLogWriter` asks for 1). The library makes a new compressor for every chunk.
 """
 
 from __future__ import annotations
