@@ -180,6 +180,11 @@ class PipelineSpec:
     """Reference and feedback tests (`gateway.references`)."""
     commands: CommandsConfig = field(default_factory=CommandsConfig)
     """Which command inputs are taken (none by default) and their limits (`gateway.commands`)."""
+    foxglove_channels: bool = True
+    """Make the Foxglove-native channels (`gateway.foxglove_channels`, and each GNSS fix's
+    `foxglove.LocationFix`). On by default, so every log opens in Foxglove as it is; `dpgw replay
+    --no-foxglove-channels` turns them off where only the JSON channels are wanted (a faster replay:
+    on a 5 Hz log they are half of the messages written)."""
 
     @classmethod
     def from_config(cls, config: GatewayConfig) -> PipelineSpec:
@@ -320,6 +325,7 @@ class Pipeline:
         # (GST fresh until, σ): a GST older than the source's timeout no longer describes its fixes
         self._fix_sigma_enu_m: dict[str, tuple[int, tuple[float, float, float]]] = {}
         self.foxglove = FoxgloveChannels(spec.vessel)
+        self._foxglove_on = spec.foxglove_channels
         cc = spec.control
         self.controller: DPController | None = None
         self.allocator: QPAllocator | PseudoInverseAllocator | None = None
@@ -395,6 +401,8 @@ class Pipeline:
 
     def _with_foxglove(self, out: list[Output]) -> None:
         """Add the Foxglove-native channels that mirror ``out`` (`gateway.foxglove_channels`)."""
+        if not self._foxglove_on:
+            return
         for topic, message, ns in self.foxglove.derive(out):
             out.append(Output(topic, message, ns, zenoh=False))
 
@@ -832,6 +840,7 @@ class Pipeline:
             for topic, message, ns in self.foxglove.setpoint(
                 None if target is None else (float(target[0]), float(target[1]), float(target[2])), now_ns
             )
+            if self._foxglove_on
         ]
         if self.mode == "standby":
             self.fusion.set_tau_demand(np.zeros(3))
@@ -942,6 +951,8 @@ class Pipeline:
         return sigma if rx_ns <= until else None
 
     def _location_fix(self, source: str, rx_ns: int, lat: float, lon: float) -> list[Output]:
+        if not self._foxglove_on:
+            return []
         period = FIX_PERIOD_NS  # (a module global: the benchmark sets it)
         if period and rx_ns - self._last_fix_ns.get(source, -period) < period:
             return []
@@ -982,7 +993,8 @@ class Pipeline:
     def status(self, now_ns: int, alarms: list[str] | None = None) -> Output:
         """The 1 Hz status output (the caller decides when); see `status_message`."""
         message = self.status_message(now_ns, alarms)
-        self.foxglove.on_status(message)
+        if self._foxglove_on:
+            self.foxglove.on_status(message)
         return Output("/dp/status", message, now_ns)
 
     def status_message(self, now_ns: int, alarms: list[str] | None = None) -> Status:
