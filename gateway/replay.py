@@ -335,16 +335,16 @@ def build_pipeline(
     no thrusters); ``foxglove_channels=False`` leaves out the Foxglove-native channels."""
     spec = dataclasses.replace(PipelineSpec.from_config(config), foxglove_channels=foxglove_channels)
     if specs:
+        # Only the observers change: every other part of the config's pipeline (reference checks,
+        # command policy, sources, datum) is the one the config describes. Rebuilding the spec field by
+        # field once dropped the integrity and command sections of a logged or given config.
         primary = specs[0]
-        spec = PipelineSpec(
-            vessel=spec.vessel,
-            sources=spec.sources,
+        spec = dataclasses.replace(
+            spec,
             observer=primary.make(config),
             observer_name=primary.label,
-            datum=spec.datum,
-            reference_point_m=spec.reference_point_m,
             extra_observers=tuple((s.label, s.make(config)) for s in specs[1:]),
-            foxglove_channels=foxglove_channels,
+            control=None,  # estimation only, as the docstring says: replay commands no thrusters
         )
     return Pipeline(spec)
 

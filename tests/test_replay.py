@@ -445,3 +445,32 @@ def test_no_foxglove_channels_leaves_them_out_and_every_other_message_unchanged(
     assert {"/raw/nmea/trial", "/dp/measurement", "/dp/estimate", "/dp/status"} <= set(without)
     for topic, msgs in without.items():
         assert msgs == with_fx[topic], topic
+
+
+def test_observer_specs_keep_the_configs_integrity_and_command_sections() -> None:
+    """`--observer` changes the observers and nothing else: a logged or given config's reference-test
+    thresholds and command policy stay in force (they were once dropped when specs were given), and the
+    replay still commands no thrusters."""
+    from gateway.config import parse_config
+
+    tables = {
+        "vessel": {"name": "mss_supply"},
+        "sources": [
+            {
+                "name": "dgps1",
+                "url": "udp://127.0.0.1:10110",
+                "protocol": "nmea",
+                "roles": ["position", "heading"],
+            }
+        ],
+        "integrity": {"jump_m": 12.5, "readmit_s": 9.0, "pooling": "priority"},
+        "commands": {"accept": ["mode", "setpoint"], "max_setpoint_distance_m": 80.0},
+        "log": {"path": ""},
+    }
+    config = parse_config(tables, base_dir=Path.cwd())
+    pipeline = build_pipeline(config, [parse_observer_spec("passive@p"), parse_observer_spec("sdre")])
+    spec = pipeline.spec
+    assert spec.integrity == config.integrity and spec.integrity.jump_m == 12.5
+    assert spec.commands == config.commands and spec.commands.max_setpoint_distance_m == 80.0
+    assert spec.observer_name == "p" and [label for label, _ in spec.extra_observers] == ["sdre"]
+    assert spec.control is None
