@@ -7,6 +7,9 @@ the outputs field by field: floats must be equal to the bit (``repr``), not mere
     git worktree add /tmp/old <commit>
     python bench/ab_replay_identity.py --base /tmp/old demo.mcap [--vessel mss_supply]
 
+``--every-topic`` also compares every message of every topic as bytes (topic, log time, publish time,
+payload), in file order per topic: what a change to the writing or the Foxglove channels must keep.
+
 Exit status 0 when identical; 1 with the first differences listed otherwise.
 """
 
@@ -45,6 +48,31 @@ def messages(path: Path) -> dict[str, list[dict[str, Any]]]:
     return out
 
 
+def raw_messages(path: Path) -> dict[str, list[tuple[int, int, bytes]]]:
+    """Every message of every topic as (log time, publish time, payload bytes), in file order per topic."""
+    out: dict[str, list[tuple[int, int, bytes]]] = {}
+    with path.open("rb") as f:
+        for _schema, channel, message in make_reader(f).iter_messages(log_time_order=False):
+            out.setdefault(channel.topic, []).append((message.log_time, message.publish_time, message.data))
+    return out
+
+
+def every_topic(old: Path, new: Path) -> int:
+    """Compare two logs message by message, byte for byte; print a line per topic; 1 if any differs."""
+    a, b = raw_messages(old), raw_messages(new)
+    bad = 0
+    for topic in sorted(set(a) | set(b)):
+        x, y = a.get(topic, []), b.get(topic, [])
+        first = next((k for k, (m, n) in enumerate(zip(x, y, strict=False)) if m != n), None)
+        if len(x) != len(y) or first is not None:
+            bad = 1
+            where = f"first at message {first}" if first is not None else "counts differ"
+            print(f"{topic}: {len(x)} / {len(y)} messages, DIFFERENT ({where})")
+        else:
+            print(f"{topic}: {len(y)} messages, byte-identical")
+    return bad
+
+
 def differences(a: Any, b: Any, path: str = "") -> list[str]:
     """Where two decoded JSON values differ; floats by their exact repr."""
     if isinstance(a, dict) and isinstance(b, dict):
@@ -75,6 +103,11 @@ def main(argv: list[str] | None = None) -> int:
         help="a field a deliberate fix changes (e.g. /dp/measurement.sigma_m); its differences are counted "
         "and shown but do not fail the comparison; every other field must still be bit-identical",
     )
+    ap.add_argument(
+        "--every-topic",
+        action="store_true",
+        help="also compare every message of every topic byte for byte (times and payload)",
+    )
     ap.add_argument("log", type=Path, help="the log to replay")
     ap.add_argument("replay_args", nargs=argparse.REMAINDER, help="more `dpgw replay` arguments")
     a = ap.parse_args(argv)
@@ -84,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
             outs[label] = Path(tmp) / f"{label}.mcap"
             replay(tree.resolve(), a.log.resolve(), outs[label], a.replay_args)
         old, new = messages(outs["base"]), messages(outs["new"])
-    bad = 0
+        bad = every_topic(outs["base"], outs["new"]) if a.every_topic else 0
     for topic in COMPARED:
         n_old, n_new = len(old[topic]), len(new[topic])
         diffs = [] if n_old == n_new else [f"{n_old} messages != {n_new}"]

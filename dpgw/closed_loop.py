@@ -18,7 +18,7 @@ Two paths from the sensors to the pipeline (``wire``):
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -179,11 +179,10 @@ def run_closed_loop(
     if wire is None:
         wire = needs_wire(scenario, log)
     tables = tables or gateway_tables(scenario)
-    # the Foxglove channels mirror the outputs for a log or a viewer: derived only if a caller collects
+    # the Foxglove-native channels mirror the outputs for a log or a viewer: made only if a caller collects
     # outputs (it may want them); the estimates and commands are the same either way
-    pipeline = Pipeline(
-        PipelineSpec.from_config(parse_config(tables, base_dir=Path.cwd())), foxglove=bool(collect)
-    )
+    spec = PipelineSpec.from_config(parse_config(tables, base_dir=Path.cwd()))
+    pipeline = Pipeline(replace(spec, foxglove_channels=bool(collect)))
     commands = _Commands()
     sim: Simulation
     sinks: dict[str, _TimedSink] = {}

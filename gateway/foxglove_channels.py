@@ -168,13 +168,18 @@ class FoxgloveChannels:
                     ns,
                 )
             )
-        transforms = [fx.frame_transform(ns, fx.VESSEL_FRAME, n, e, psi)]
-        out.append(("/dp/estimate/pose", fx.pose_in_frame(ns, n, e, psi), ns))
+        # The pose and the frame of one point share their stamp and pose objects (values, never changed):
+        # the same messages as `fx.frame_transform` and `fx.pose_in_frame` give, built once.
+        stamp = fx.stamp(ns)
+        pose = fx.ned_pose(n, e, psi)
+        transforms = [fx.frame_transform_of(stamp, fx.VESSEL_FRAME, pose)]
+        out.append(("/dp/estimate/pose", fx.pose_in_frame_of(stamp, pose), ns))
         if measured is not None and all(measured.valid):
             mn, me, mpsi = measured.eta
             assert mn is not None and me is not None and mpsi is not None  # valid: measured, not null
-            transforms.append(fx.frame_transform(ns, fx.MEASURED_FRAME, mn, me, mpsi))
-            out.append(("/dp/measurement/pose", fx.pose_in_frame(ns, mn, me, mpsi), ns))
+            pose = fx.ned_pose(mn, me, mpsi)
+            transforms.append(fx.frame_transform_of(stamp, fx.MEASURED_FRAME, pose))
+            out.append(("/dp/measurement/pose", fx.pose_in_frame_of(stamp, pose), ns))
         out.append(("/dp/tf", FrameTransformsMessage(transforms=transforms), ns))
         if ns >= self._next_hull_ns:
             self._next_hull_ns = ns + STATIC_PERIOD_NS

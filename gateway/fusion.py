@@ -366,6 +366,11 @@ class Fusion:
         )
         return y, valid
 
+    def measurement_received_ns(self) -> tuple[int, int, int]:
+        """When the measurement of each DOF [N, E, ψ] now held was received (ns; 0 before any): a DOF's
+        measurement is new to an observer when this is later than the one it was last given."""
+        return self._north.rx_ns, self._east.rx_ns, self._heading.rx_ns
+
     # --- thrusters and τ ------------------------------------------------------------------------------------
 
     def add_thruster(self, rx_ns: int, thruster_id: int, thrust_n: float, azimuth_rad: float | None) -> None:

@@ -21,7 +21,7 @@ import copy
 import math
 from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Any
 
@@ -35,7 +35,7 @@ from gateway.foxglove_channels import FoxgloveChannels
 from gateway.fusion import NS, Fusion
 from gateway.references import ReferenceMonitor
 from gateway.references.monitor import Prediction
-from observers.base import STATUS_NAMES, Estimate, Observer
+from observers.base import STATUS_DEAD_RECKONING, STATUS_NAMES, STATUS_OK, Estimate, Observer
 from observers.factory import make_observer
 from observers.kinematics import ssa_scalar
 from observers.vessel import VesselModel
@@ -180,6 +180,11 @@ class PipelineSpec:
     """Reference and feedback tests (`gateway.references`)."""
     commands: CommandsConfig = field(default_factory=CommandsConfig)
     """Which command inputs are taken (none by default) and their limits (`gateway.commands`)."""
+    foxglove_channels: bool = True
+    """Make the Foxglove-native channels (`gateway.foxglove_channels`, and each GNSS fix's
+    `foxglove.LocationFix`). On by default, so every log opens in Foxglove as it is; `dpgw replay
+    --no-foxglove-channels` turns them off where only the JSON channels are wanted (a faster replay:
+    on a 5 Hz log they are half of the messages written)."""
 
     @classmethod
     def from_config(cls, config: GatewayConfig) -> PipelineSpec:
@@ -255,13 +260,8 @@ class SourceCounters:
 
 
 class Pipeline:
-    def __init__(self, spec: PipelineSpec, *, foxglove: bool = True) -> None:
-        """``foxglove``: derive the Foxglove-native channels (`gateway.foxglove_channels`: location fixes,
-        thruster arrows, the scene, log lines) that mirror the outputs for a log or a live viewer. False
-        for a consumer that has neither (the in-process closed loop of a study without a log): the
-        Zenoh outputs — estimates, commands, statuses — are the same either way."""
+    def __init__(self, spec: PipelineSpec) -> None:
         self.spec = spec
-        self.foxglove_channels = foxglove
         self.observer = spec.observer
         datum = LocalFrame(*spec.datum) if spec.datum is not None else None
         ip = spec.integrity
@@ -285,6 +285,8 @@ class Pipeline:
         self._pred_base: tuple[Estimate, list[float], list[float], list[float], float, float] | None = None
         self._last_est_ns = 0
         self._measured_ns = [0, 0, 0]  # when each DOF last went into the observer with a measurement
+        # observers that want each measurement once (id → receive time of the one each DOF last gave it)
+        self._given_ns: dict[int, list[int]] = {}
         self._last_step_ns = 0
         self._last_dr_ns = 0
         self._dr_period_ns = int(NS / ip.dead_reckoning_rate_hz)
@@ -323,6 +325,7 @@ class Pipeline:
         # (GST fresh until, σ): a GST older than the source's timeout no longer describes its fixes
         self._fix_sigma_enu_m: dict[str, tuple[int, tuple[float, float, float]]] = {}
         self.foxglove = FoxgloveChannels(spec.vessel)
+        self._foxglove_on = spec.foxglove_channels
         cc = spec.control
         self.controller: DPController | None = None
         self.allocator: QPAllocator | PseudoInverseAllocator | None = None
@@ -398,7 +401,7 @@ class Pipeline:
 
     def _with_foxglove(self, out: list[Output]) -> None:
         """Add the Foxglove-native channels that mirror ``out`` (`gateway.foxglove_channels`)."""
-        if not self.foxglove_channels:
+        if not self._foxglove_on:
             return
         for topic, message, ns in self.foxglove.derive(out):
             out.append(Output(topic, message, ns, zenoh=False))
@@ -702,7 +705,7 @@ class Pipeline:
         y, valid = fusion.measurement(now_ns)
         tau, tau_source = fusion.tau(now_ns)
         t = self._t(now_ns)
-        est = self.observer.step(t, y, tau)
+        est = self._observe(self.observer, t, y, tau, valid)
         self._last_est, self._last_est_ns, self._last_step_ns = est, now_ns, now_ns
         for k in range(3):
             if valid[k]:
@@ -735,10 +738,32 @@ class Pipeline:
                 self._next_control_ns = now_ns + self._control_period_ns
                 out.extend(self._control_step(t, est, now_ns))
         for label, obs in self.spec.extra_observers:
-            e = obs.step(t, y, tau)
+            e = self._observe(obs, t, y, tau, valid)
             if e.status != STATUS_NAMES[0]:
                 out.append(Output(f"/dp/estimates/{label}", self._estimate(label, obs, e, now_ns), now_ns))
         return out
+
+    def _observe(
+        self, obs: Observer, t: float, y: np.ndarray, tau: np.ndarray, valid: list[bool]
+    ) -> Estimate:
+        """Step one observer with the held measurement y, or — for an observer that wants each measurement
+        once (``new_samples_only``, `observers.base.ObserverBase`) — with the DOFs whose measurement it has
+        not been given yet (the others NaN; all of them until it is initialised). Such an observer reports
+        a step that brought only some DOFs as dead reckoning; while every DOF's measurement is valid (held
+        within its source's timeout) the estimate is reported "ok", as for the others."""
+        if not getattr(obs, "new_samples_only", False):
+            return obs.step(t, y, tau)
+        received = self.fusion.measurement_received_ns()
+        given = self._given_ns.setdefault(id(obs), [-1, -1, -1])
+        if obs.initialized:
+            y = np.array([v if given[k] < received[k] else math.nan for k, v in enumerate(y.tolist())])
+        for k in range(3):
+            if y[k] == y[k]:
+                given[k] = received[k]
+        est = obs.step(t, y, tau)
+        if est.status == STATUS_NAMES[STATUS_DEAD_RECKONING] and all(valid):
+            est = replace(est, status=STATUS_NAMES[STATUS_OK])
+        return est
 
     def _setpoint_ned(self, sp: dict[str, Any]) -> np.ndarray | None:
         """A setpoint {north_m, east_m, heading_deg} or {lat_deg, lon_deg, heading_deg} in local NED."""
@@ -810,17 +835,13 @@ class Pipeline:
             tau_manual=self.manual_tau,
         )
         target = o.reference.target if self.mode == "dp" else None
-        scene = (
-            [
-                Output(topic, message, ns, zenoh=False)
-                for topic, message, ns in self.foxglove.setpoint(
-                    None if target is None else (float(target[0]), float(target[1]), float(target[2])),
-                    now_ns,
-                )
-            ]
-            if self.foxglove_channels
-            else []
-        )
+        scene = [
+            Output(topic, message, ns, zenoh=False)
+            for topic, message, ns in self.foxglove.setpoint(
+                None if target is None else (float(target[0]), float(target[1]), float(target[2])), now_ns
+            )
+            if self._foxglove_on
+        ]
         if self.mode == "standby":
             self.fusion.set_tau_demand(np.zeros(3))
             self.control_alarms = []
@@ -930,6 +951,8 @@ class Pipeline:
         return sigma if rx_ns <= until else None
 
     def _location_fix(self, source: str, rx_ns: int, lat: float, lon: float) -> list[Output]:
+        if not self._foxglove_on:
+            return []
         period = FIX_PERIOD_NS  # (a module global: the benchmark sets it)
         if period and rx_ns - self._last_fix_ns.get(source, -period) < period:
             return []
@@ -970,7 +993,7 @@ class Pipeline:
     def status(self, now_ns: int, alarms: list[str] | None = None) -> Output:
         """The 1 Hz status output (the caller decides when); see `status_message`."""
         message = self.status_message(now_ns, alarms)
-        if self.foxglove_channels:
+        if self._foxglove_on:
             self.foxglove.on_status(message)
         return Output("/dp/status", message, now_ns)
 

@@ -16,6 +16,7 @@ Several observer specs in one pass: the first is published on `/dp/estimate` (as
 from __future__ import annotations
 
 import base64
+import dataclasses
 import gc
 import heapq
 import json
@@ -327,20 +328,23 @@ def build_config(
     return parse_config(tables, base_dir=Path.cwd(), where="dpgw replay")
 
 
-def build_pipeline(config: GatewayConfig, specs: list[ObserverSpec]) -> Pipeline:
+def build_pipeline(
+    config: GatewayConfig, specs: list[ObserverSpec], *, foxglove_channels: bool = True
+) -> Pipeline:
     """The live pipeline for ``config`` with the observers of ``specs`` (estimation only: replay commands
-    no thrusters)."""
-    spec = PipelineSpec.from_config(config)
+    no thrusters); ``foxglove_channels=False`` leaves out the Foxglove-native channels."""
+    spec = dataclasses.replace(PipelineSpec.from_config(config), foxglove_channels=foxglove_channels)
     if specs:
+        # Only the observers change: every other part of the config's pipeline (reference checks,
+        # command policy, sources, datum) is the one the config describes. Rebuilding the spec field by
+        # field once dropped the integrity and command sections of a logged or given config.
         primary = specs[0]
-        spec = PipelineSpec(
-            vessel=spec.vessel,
-            sources=spec.sources,
+        spec = dataclasses.replace(
+            spec,
             observer=primary.make(config),
             observer_name=primary.label,
-            datum=spec.datum,
-            reference_point_m=spec.reference_point_m,
             extra_observers=tuple((s.label, s.make(config)) for s in specs[1:]),
+            control=None,  # estimation only, as the docstring says: replay commands no thrusters
         )
     return Pipeline(spec)
 

@@ -39,7 +39,7 @@ import zenoh
 
 from gateway.bus import command_acl, make_config, open_session
 from gateway.config import GatewayConfig, ZenohConfig
-from gateway.outputs import OutputSink, RawSentenceSink
+from gateway.outputs import InputSink, OutputSink, RawSentenceSink
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from gateway.sim_time import SimTime
 from gateway.sources import Chunk, Source, open_source
@@ -182,6 +182,8 @@ class GatewayService:
                     meta["json"] = json.dumps(self.config_tables)
                 self.log.add_metadata("dpgw.config", meta)
             for sink in self.sinks:
+                if isinstance(sink, InputSink):  # its commands take the path of <prefix>/<key>
+                    sink.bind_inputs(self.submit)
                 sink.start(s)
             taps = [sink for sink in self.sinks if isinstance(sink, RawSentenceSink)]
             if taps:

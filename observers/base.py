@@ -197,6 +197,15 @@ class ObserverBase:
 
     _clock: Array
 
+    new_samples_only: bool = False
+    """Whether the observer wants each measurement once, when it is new (``True``), rather than the latest
+    measurement of every DOF held and given again at every step (``False``, the default: continuous-time
+    observers, whose injection would otherwise shrink with the step rate). A discrete-time Kalman-type
+    observer counts every sample it is given as new information: a held fix given again at the step rate
+    is the same measurement counted several times. For an observer that says ``True`` the gateway gives a
+    DOF as NaN while its measurement is one already given (until the observer is initialised: then the
+    held values, so that it can start from a complete sample)."""
+
     @classmethod
     def from_params(
         cls, vessel: Any, tuning: Any, params: dict[str, Any], *, allow_unchecked: bool = False

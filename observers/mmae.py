@@ -27,7 +27,9 @@ Sᵢ = C Pᵢ Cᵀ + R (the paper leaves S_i of (18) open; the innovation covari
 
 Dynamic weights: the discrete-time equivalent of (18) with m_i = ½ rᵢᵀ Sᵢ⁻¹ rᵢ and β_i = 1/√det Sᵢ,
 i.e. Bayes' rule pᵢ(k) ∝ βᵢ exp(−mᵢ) pᵢ(k−1), computed in the log domain, then projected onto
-{Σ pᵢ = 1, pᵢ ≥ floor} so that a filter that lost can win again when the sea changes. Blended estimate
+{Σ pᵢ = 1, pᵢ ≥ floor} so that a filter that lost can win again when the sea changes (the floor is dpgw's:
+the paper's (18) has none; `WEIGHT_FLOOR`). Each sample is new information: the gateway gives this
+observer each measurement once (`new_samples_only`), not a held fix again at every step. Blended estimate
 (16) x̂ = Σ pᵢ x̂ᵢ and blended ω0 = Σ pᵢ ω0ⁱ. By default every measured DOF votes (the paper); with
 ``heading_in_weights=False`` only the position innovations do (their marginal likelihood): first-order
 yaw is a poor witness of the sea's peak (its RAO grows as the wave slope, ∝ ω², in long waves), see
@@ -102,6 +104,12 @@ CYBERSHIP2_LENGTH_M = 1.255
 CYBERSHIP2_M_DIAG = np.array([25.8, 33.8, 2.76])
 """diag M of (A.1): the inertia that (A.2)'s force noises Q2, Q3 belong to."""
 
+WEIGHT_FLOOR = 1e-8
+"""Least weight of any filter (dpgw's; the paper's weights (18) have none). A filter that lost needs
+ln(0.9/floor) ≈ 18 nats of evidence to win again: enough that a few wave periods of chance do not move the
+bank off the right filter (1e-3, 7 nats, let the weights leave it every minute or two), few enough that a
+changed sea wins within minutes (docs/mmae.md)."""
+
 MASKS = ((False, False, False), (True, True, False), (False, False, True), (True, True, True))
 """Measured DOFs [N, E, ψ] for mask index m = (position present) + 2·(heading present)."""
 
@@ -116,8 +124,11 @@ REDESIGN_RATIO = 1.3
 
 def identification_config(candidates: Sequence[float]) -> WaveFrequencyConfig:
     """The spectral window for noise identification, in periods of the slowest candidate (T = 2π/ω_min):
-    Welch segments of 2 T over a 6 T window, every T, the first after one T; the band the candidates
-    span, widened by 1.5 either side."""
+    Welch segments of 3 T over a 6 T window, every T, the first after one T; the band the candidates
+    span, widened by 1.5 either side. Segments of 3 T put bins every ω_min/3, so the band's lower edge
+    (ω_min/1.5) lies two bins up, past the Hann main lobe of what the quadratic detrend leaves of the LF
+    motion; with 2 T it lay 1.3 bins up, inside it, and a sea at the slowest candidates could not be told
+    from the LF motion (`observers.wave_frequency.wave_band_power`)."""
     c = np.asarray(candidates, dtype=float)
     period = 2.0 * math.pi / float(c.min())
     return WaveFrequencyConfig(
@@ -125,7 +136,7 @@ def identification_config(candidates: Sequence[float]) -> WaveFrequencyConfig:
         update_period_s=period,
         omega_min=float(c.min()) / 1.5,
         omega_max=float(c.max()) * 1.5,
-        segment_s=2.0 * period,
+        segment_s=3.0 * period,
         min_span_s=period,
         min_snr=0.0,
         median_of=1,
@@ -420,13 +431,18 @@ class MMAEObserver(ObserverBase):
     prediction, ``heading_in_weights`` whether the heading innovation votes in the weights.
 
     ``identify_noise`` (default: whenever R or the wave model is not given): the sensor noise σ (robust
-    spread of sample-to-sample differences) and the wave-motion σ (Welch band power above the noise floor)
-    are measured over a sliding window of three periods of the slowest candidate, every 0.75 period; the
-    bank is designed again with R = σ_n², wave_std = 0.7·σ_wave when either moves by more than 30 %
-    (filter states and weights kept). The weights start moving at the first identification, about one
-    slowest period after the first sample. Hassani's (A.2) Q and R, the fallback before that, do not
+    spread of second differences) and the wave-motion σ (Welch power above the noise floor, from the end of
+    the LF motion's tail: `observers.wave_frequency.wave_band_power`) are measured over a sliding window of
+    six periods of the slowest candidate (segments of three), every period; the bank is designed again
+    with the median of the last five windows, R = σ_n², wave_std = 0.7·σ_wave, when either moves by more
+    than 30 % (filter states and weights kept). The weights start moving at the first identification,
+    about one slowest period after the first sample. Hassani's (A.2) Q and R, the fallback before that, do not
     identify real seas (docs/mmae.md). The default ζ is 0.25, not the paper's 0.1, for the same reason.
     """
+
+    new_samples_only = True
+    """Each measurement once: every sample updates the filters and the weights as new information (a held
+    fix given again at the step rate would count one measurement several times; `ObserverBase`)."""
 
     def __init__(
         self,
@@ -437,7 +453,7 @@ class MMAEObserver(ObserverBase):
         Q: ArrayLike | None = None,
         R: ArrayLike | None = None,
         dt: float = 0.1,
-        weight_floor: float = 1e-3,
+        weight_floor: float = WEIGHT_FLOOR,
         wave_std: ArrayLike | None = None,
         warmup_s: float = 0.0,
         max_gap_s: float = 60.0,
@@ -588,9 +604,7 @@ class MMAEObserver(ObserverBase):
             return
         cfg = est.config
         sig_n = est.noise_sigma(t, cfg.update_period_s)  # since the last update: ~200 differences at 10 Hz
-        width = cfg.omega_max - cfg.omega_min
-        power = np.array(info.band_power) - np.array(info.noise_psd) * width
-        sig_w = np.sqrt(np.where(power > 0, power, np.nan))
+        sig_w = np.sqrt(np.array(info.wave_power))  # the wave motion alone: above the LF tail and the noise
         # the median of the last few windows: one window of a few wave periods scatters by ±30 % and more,
         # and every redesign moves the likelihoods the weights are made of
         self._history.append((np.where(sig_n > 0, sig_n, np.nan), np.where(sig_w > 0, sig_w, np.nan)))
@@ -758,7 +772,7 @@ def reference_run(
     t: Array,
     y: Array,
     tau: Array | None = None,
-    weight_floor: float = 1e-3,
+    weight_floor: float = WEIGHT_FLOOR,
     warmup_s: float = 0.0,
     max_gap_s: float = 60.0,
     heading_in_weights: bool = True,

@@ -79,6 +79,8 @@ Array = NDArray[np.float64]
 _NOISE_BAND = (1.5, 0.9)  # noise level: median PSD from 1.5·ω_max to 0.9·ω_Nyquist
 _FFT_OVERSAMPLE = 1  # FFT length: the next power of two ≥ the segment length
 _FIT_LEVEL = 0.1  # the peak fit uses the bins around the maximum above 10 % of it
+TROUGH_RISE = 2.0
+"""`wave_band_power`: the spectrum must rise this much above the trough after the LF tail for a sea."""
 
 
 @dataclass(frozen=True)
@@ -193,6 +195,9 @@ class SpectrumInfo:
     """Mean power of the clean segments in [ω_min, ω_max] per DOF (m², rad²; noise included)."""
     noise_psd: tuple[float, float, float] = (math.nan, math.nan, math.nan)
     """Mean noise level per DOF (one-sided PSD per rad/s, from the noise reference band)."""
+    wave_power: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+    """Power of the wave motion per DOF (m², rad²): the window's mean spectrum from the end of the LF
+    motion's tail to ω_max, less the noise there (`wave_band_power`; NaN where not positive)."""
 
     def as_dict(self) -> dict[str, Any]:
         def clean(values: tuple[float, ...]) -> list[float | None]:
@@ -520,6 +525,13 @@ class WaveFrequencyEstimator:
         segs = (count[0], count[1], count[2])
         powers = _f3([band_power[i] if count[i] else math.nan for i in range(3)])
         noises = _f3([noise_level[i] / count[i] if count[i] else math.nan for i in range(3)])
+        d_omega = float(omega[1] - omega[0])
+        waves = _f3(
+            [
+                wave_band_power(psd[i] / count[i], d_omega, noises[i]) if count[i] else math.nan
+                for i in range(3)
+            ]
+        )
         if not any(used):
             reason = (
                 "too little clean data: no DOF has a segment without a gap > max_gap_s"
@@ -529,14 +541,16 @@ class WaveFrequencyEstimator:
             self._skip(
                 t,
                 reason,
-                SpectrumInfo(t, (used[0], used[1], used[2]), segs, _f3(snr), nan3, math.nan, powers, noises),
+                SpectrumInfo(
+                    t, (used[0], used[1], used[2]), segs, _f3(snr), nan3, math.nan, powers, noises, waves
+                ),
             )
             return None
         w_band = omega[band]
         shared = _peak(np.dot(weight, psd), w_band)
         peaks = [_peak(psd[i], w_band) if c.per_dof and used[i] else math.nan for i in range(3)]
         info = SpectrumInfo(
-            t, (used[0], used[1], used[2]), segs, _f3(snr), _f3(peaks), shared, powers, noises
+            t, (used[0], used[1], used[2]), segs, _f3(snr), _f3(peaks), shared, powers, noises, waves
         )
         if not math.isfinite(shared):
             self._skip(
@@ -559,6 +573,32 @@ class _Segment:
 
 def _f3(v: list[float]) -> tuple[float, float, float]:
     return float(v[0]), float(v[1]), float(v[2])
+
+
+def wave_band_power(psd: Array, d_omega: float, noise_psd: float) -> float:
+    """Power of the wave motion in one DOF's spectrum over the wave band (``psd``: one-sided PSD per rad/s
+    on the band's bins, ω_min … ω_max, spacing ``d_omega``), less the white noise at ``noise_psd``.
+
+    The sum runs from the end of the LF motion's tail, not from ω_min: a band reaching down to a few
+    bins above zero frequency (a bank's slowest candidate in a short segment) holds the LF motion that
+    the quadratic and the window leave — a drifting, turning or manoeuvring vessel's, which a window of
+    two short periods cannot separate from ω_min (the Hann main lobe is four bins wide). That tail falls
+    from the lower edge; a sea has almost no energy below ~0.7 of its peak (PM: e^{−1.25(ωp/ω)⁴}). So when
+    the spectrum falls from the lower edge, the sum starts at its first minimum (the trough between the
+    LF tail and the wave peak), provided the spectrum rises again after it by `TROUGH_RISE` (a wave peak);
+    when it rises from the edge, at ω_min. NaN (not measured) if it falls without a peak after, or if what
+    is left is not positive."""
+    p = np.asarray(psd, dtype=float)
+    n = p.size
+    start = 0
+    while start + 1 < n and p[start + 1] < p[start]:
+        start += 1
+    if start and not p[start:].max() >= TROUGH_RISE * p[start]:
+        # no hump after the first minimum (a chance dip of the noise): the LF tail runs into the sea, or a
+        # sea peaks in the band's lowest bins, which this window cannot tell apart — not measured
+        return math.nan
+    power = float(p[start:].sum() - noise_psd * (n - start)) * d_omega
+    return power if power > 0 else math.nan
 
 
 def _resample(edges: Array, centers: Array, tv: Array, yv: Array, max_gap: float) -> tuple[list[int], Array]:

@@ -10,6 +10,7 @@ SCENARIO_NAMES: tuple[str, ...] = (
     "torsetnes_2004",
     "snijders_2005",
     "hassani",
+    "hassani_sea_change",
     "hajivand_2010",
     "mss_osv",
     "mss_supply_storm",

@@ -11,6 +11,7 @@ not give a number, the choice is made here and said in ``notes`` (and in docs/sc
 - snijders_2005 — Snijders et al. (2005) Sec. 4: the track (0,0) → (10,10) → (−10,−10) with a turn to 45°,
   JONSWAP Hs 5 m, Tp 12 s, γ 3.3.
 - hassani — Hassani et al. Sec. 5: CyberShip II, wave peak 0.93 rad/s, a 10 m step forward at t = 40 s.
+- hassani_sea_change — the same, the sea changing from Tp 6 s to Tp 12 s at t = 300 s (MMAE re-adaptation).
 - hajivand_2010 — Hajivand & Mousavizadegan (2010): three azimuths, τ of the paper.
 - mss_osv — MSS's offshore supply vessel (osv.m) on the full nonlinear plant in current, wind and waves.
 """
@@ -262,6 +263,26 @@ def hassani() -> Scenario:
     )
 
 
+def hassani_sea_change() -> Scenario:
+    """`hassani` in a sea that changes from Tp 6 s to Tp 12 s at t = 300 s: the MMAE's re-adaptation."""
+    base = hassani()
+    direction = math.radians(150.0)
+    return replace(
+        base,
+        name="hassani_sea_change",
+        description="Hassani et al.'s CyberShip II in a sea that changes from Tp 6 s to Tp 12 s at t = 300 s",
+        duration_s=600.0,
+        sea=(
+            (0.0, SeaState(hs_m=0.08, tp_s=6.0, gamma=3.3, direction_rad=direction)),
+            (300.0, SeaState(hs_m=0.08, tp_s=12.0, gamma=3.3, direction_rad=direction)),
+        ),
+        notes="The hassani model and sensors; the sea (Hs 0.08 m, JONSWAP γ 3.3, towards 150°) changes from "
+        "Tp 6 s (1.05 rad/s) to Tp 12 s (0.52 rad/s) at t = 300 s — literal periods: at the 1:70 model's "
+        "scale both are long waves inside Hassani's candidate range — for the MMAE's re-adaptation "
+        "(docs/mmae.md).",
+    )
+
+
 def hajivand_2010() -> Scenario:
     vessel = load_vessel("hajivand_vessel")
     return Scenario(
@@ -356,6 +377,7 @@ SCENARIOS: dict[str, Callable[[], Scenario]] = {
     "torsetnes_2004": torsetnes_2004,
     "snijders_2005": snijders_2005,
     "hassani": hassani,
+    "hassani_sea_change": hassani_sea_change,
     "hajivand_2010": hajivand_2010,
     "mss_osv": mss_osv,
     "mss_supply_storm": mss_supply_storm,

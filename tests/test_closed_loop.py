@@ -158,7 +158,7 @@ def test_typed_path_is_faster_than_the_bytes() -> None:
 
 
 def test_foxglove_channels_off_leave_estimates_and_commands_unchanged() -> None:
-    """Without ``collect`` the loop's pipeline derives no Foxglove channels (nothing would read them); the
+    """Without ``collect`` the loop's pipeline makes no Foxglove channels (nothing would read them); the
     estimates and commands are bit for bit those of a pipeline that derives them (``collect`` turns them
     on, and the collected scene shows that they were derived)."""
     sc = get_scenario("torsetnes_2004")

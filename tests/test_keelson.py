@@ -185,11 +185,23 @@ def test_a_keelson_consumer_receives_and_decodes_every_subject_with_the_right_va
             est, meas, sensor, "dpgw/control/demand", "dpgw/control/allocated",
             "dpgw/thrusters/feedback", "dpgw",
         }  # fmt: skip
+        # The consumer's subscription must have reached the gateway's session before the first sentence is
+        # sent: the tokens above travel the other way, and a put made before the gateway knows of the
+        # subscriber is (rightly) sent to nobody. A probe publisher on the gateway's session says when.
+        raw_key = keelson.construct_pubsub_key(BASE, ENTITY, "raw_nmea0183", sensor)
+        probe = service._session.declare_publisher(raw_key)  # type: ignore[union-attr]
+        try:
+            wait_for(lambda: probe.matching_status.matching)
+        finally:
+            probe.undeclare()
         until("estimates", lambda: service.pipeline.estimates >= 5)
         service.submit("mode", "dp")  # a mode change (a log_message) and thruster commands (τ)
         until("τ demanded", lambda: listener.of("force_newton", "dpgw/control/demand"))
         until("a second fix of the receiver", lambda: len(listener.of("location_fix", sensor)) >= 2)
-        until("the mode change", lambda: listener.of("log_message", "dpgw"))
+        until(
+            "the mode change",
+            lambda: any(m.message == "mode: standby -> dp" for m in listener.of("log_message", "dpgw")),
+        )
     finally:
         service.stop_event.set()
         loop.join(timeout=30)

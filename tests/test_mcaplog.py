@@ -584,13 +584,19 @@ _messages = st.lists(
 )
 
 
-def _write_with(cls: type[Writer], messages: list[tuple[int, int, bytes, int, bool]], fast: bool) -> bytes:
+def _write_with(
+    cls: type[Writer],
+    messages: list[tuple[int, int, bytes, int, bool]],
+    fast: bool,
+    compression: CompressionType = CompressionType.NONE,
+) -> bytes:
     import io
 
     buf = io.BytesIO()
-    w = cls(buf, chunk_size=700, compression=CompressionType.NONE)
+    w = cls(buf, chunk_size=700, compression=compression)
     if not fast:
         w.fast = False  # type: ignore[attr-defined]
+        w._zstd = None  # type: ignore[attr-defined]
     w.start(profile="", library="dpgw")
     sid = w.register_schema("s", "jsonschema", b"{}")
     ids = [w.register_channel(f"/c{k}", "json", sid) for k in range(3)]
@@ -612,6 +618,17 @@ def test_fast_writer_writes_the_same_bytes_as_the_library(messages: list[Any]) -
     assert FastWriter(__import__("io").BytesIO()).fast  # the installed mcap has what the fast path needs
     assert fast == reference
     assert _write_with(FastWriter, messages, fast=False) == reference  # the fallback path too
+
+
+@settings(max_examples=80, deadline=None)
+@given(_messages)
+def test_fast_writer_compresses_zstd_chunks_as_the_library_does(messages: list[Any]) -> None:
+    """FastWriter closes zstd chunks with one compressor for its life (the library makes one per chunk):
+    same file, byte for byte, and the fallback (the library's own chunk closing) too."""
+    reference = _write_with(Writer, messages, fast=True, compression=CompressionType.ZSTD)
+    assert FastWriter(__import__("io").BytesIO())._zstd is not None  # the installed mcap has what it needs
+    assert _write_with(FastWriter, messages, fast=True, compression=CompressionType.ZSTD) == reference
+    assert _write_with(FastWriter, messages, fast=False, compression=CompressionType.ZSTD) == reference
 
 
 # --- write_many: a cycle's messages in one call ---------------------------------------------------------
@@ -650,4 +667,44 @@ def test_write_many_writes_what_write_encoded_writes(tmp_path: Path, rotate_byte
         files[mode] = [p.read_bytes() for p in w.paths]  # (finished files: after close)
     assert len(files["many"]) == (1 if rotate_bytes is None else len(files["one_by_one"]))
     assert rotate_bytes is None or len(files["many"]) > 1  # (the rotation case does rotate)
+    assert files["many"] == files["one_by_one"]
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(
+        st.lists(
+            st.tuples(st.integers(0, 4), st.integers(0, 3 * KIB), st.integers(-2, 2)),  # topic, size, Δt
+            min_size=1,
+            max_size=8,
+        ),
+        max_size=40,
+    )
+)
+def test_write_many_fast_path_matches_write_encoded(cycles: list[list[tuple[int, int, int]]]) -> None:
+    """`write_many` without rotation takes an inlined loop (`_write_many_fast`): channels appearing
+    mid-cycle, chunks closing mid-cycle, records larger than a chunk, times going backwards — the file
+    must be that of one `write_encoded` call per message, byte for byte."""
+    import tempfile
+
+    from wire.messages import RawNmea
+
+    files = {}
+    with tempfile.TemporaryDirectory() as folder:
+        for mode in ("one_by_one", "many"):
+            path = Path(folder) / f"{mode}.mcap"
+            opts = {"flush_on_log_time": False, "background_flush": False, "flush_interval_s": 3600.0}
+            with McapLogWriter(path, chunk_size=2 * KIB, fsync=False, **opts) as w:
+                t = T0
+                for cycle in cycles:
+                    records = []
+                    for topic, size, dt in cycle:
+                        t += dt * 1_000_000
+                        records.append((f"/raw/nmea/s{topic}", b"x" * size, t, RawNmea))
+                    if mode == "many":
+                        w.write_many(records)
+                    else:
+                        for topic_name, data, ns, schema in records:
+                            w.write_encoded(topic_name, data, ns, ns, schema=schema)
+            files[mode] = path.read_bytes()
     assert files["many"] == files["one_by_one"]

@@ -32,9 +32,11 @@ from observers.mmae import (
     design_bank,
     discretize,
     hassani_noise,
+    identification_config,
     reference_run,
 )
 from observers.vessel import VesselModel, builtin_vessels, load_vessel
+from observers.wave_frequency import WaveFrequencyEstimator, wave_band_power
 from simulator.scenarios import ShipNow, get_scenario, trajectory_law
 from simulator.spectra import SeaState
 from simulator.vessel_dynamics import VesselDynamics
@@ -130,11 +132,11 @@ def test_hassani_sea_selects_the_0_9_filter_within_90_s() -> None:
 
 @pytest.mark.slow
 def test_hassani_sea_over_seeds() -> None:
-    """The same over 12 seas (seeds 0–11). Measured: 10 of 12 reach weight > 0.9 for 0.9 rad/s within 90 s
-    (first crossings 14–88 s; the other two at 100 s and 112 s); the blended ω0 averaged over 90–150 s is
-    0.890–1.045 rad/s (within 12.4 % of 0.93 in every seed; mean over the seeds 0.933). Between the
-    crossings 0.9 and 1.05 share the weight: the likelihood-best second-order model of a JONSWAP motion
-    spectrum lies within about ±5 % of its peak, and 0.93 is 3 % from 0.9 and 13 % from 1.05."""
+    """The same over 12 seas (seeds 0–11). Measured: 11 of 12 reach weight > 0.9 for 0.9 rad/s within 90 s
+    (first crossings 14–73 s; seed 5 at 93 s); the blended ω0 averaged over 90–150 s is 0.900–0.921 rad/s
+    (mean over the seeds 0.903): the bank settles on the candidate nearest the peak (0.9, 3 % below 0.93)
+    and stays there (the weight floor of 1e-8; with 1e-3 the weight moved between 0.9 and 1.05 and the
+    blended ω0 averaged 0.890–1.045)."""
     i09 = HASSANI_CANDIDATES.index(0.9)
     sea = get_scenario("hassani").sea[0][1]
     reached = 0
@@ -144,9 +146,73 @@ def test_hassani_sea_over_seeds() -> None:
         r = identifying_observer(rec.vessel, sea).run(rec.t, rec.y, rec.tau)
         reached += first_time(rec.t, r.extras["weights"][:, i09] > 0.9) <= 90.0
         blended.append(np.mean(r.omega0[900:, 0]))
-    assert reached >= 10
-    assert np.all(np.abs(np.array(blended) / 0.93 - 1) < 0.13), blended
-    assert abs(np.mean(blended) / 0.93 - 1) < 0.02
+    assert reached >= 11
+    assert np.all(np.abs(np.array(blended) / 0.93 - 1) < 0.04), blended
+
+
+def test_the_weight_floor_holds_the_winner() -> None:
+    """Seed 4 of the `hassani` sea, forecast tuning, 200 s. With the default floor (1e-8) the 0.9 rad/s filter
+    keeps its weight from 90 s on (least 0.989 measured) and the blended ω0 stays within 10 % of 0.93; with
+    the old floor of 1e-3 a filter that lost needed only ln(0.9/1e-3) ≈ 7 nats to win again and a few wave
+    periods of chance gave them: the weight of 0.9 fell to the floor and the blended ω0 was within 10 % for
+    52 % of the time."""
+    rec = make_record(200.0, seed=4)
+    sea = get_scenario("hassani").sea[0][1]
+    obs = identifying_observer(rec.vessel, sea)
+    assert obs.weight_floor == 1e-8
+    r = obs.run(rec.t, rec.y, rec.tau)
+    late = rec.t >= 90.0
+    assert r.extras["weights"][late, HASSANI_CANDIDATES.index(0.9)].min() > 0.9
+    assert np.all(np.abs(r.omega0[late, 0] / 0.93 - 1) <= 0.1)
+    old = identifying_observer(rec.vessel, sea, weight_floor=1e-3).run(rec.t, rec.y, rec.tau)
+    assert np.mean(np.abs(old.omega0[late, 0] / 0.93 - 1) <= 0.1) < 0.8  # what the floor fixed
+
+
+def test_wave_band_power_starts_after_the_lf_tail() -> None:
+    """`wave_band_power`: a spectrum falling from the band's lower edge is the LF motion's tail; the wave
+    power is summed from the trough after it. Rising from the edge: the whole band. Falling with no peak
+    after the first minimum: not measured (NaN)."""
+    d = 0.1
+    tail_and_sea = np.array([179.0, 10.0, 0.01, 0.4, 0.8, 1.2, 0.9, 0.3, 0.1, 0.1])
+    assert wave_band_power(tail_and_sea, d, 0.1) == pytest.approx((tail_and_sea[2:].sum() - 8 * 0.1) * d)
+    sea = np.array([0.05, 0.3, 0.9, 1.2, 0.6, 0.2, 0.1])
+    assert wave_band_power(sea, d, 0.05) == pytest.approx((sea.sum() - 7 * 0.05) * d)
+    assert math.isnan(wave_band_power(np.array([8.0, 7.0, 2.3, 0.8, 0.34, 0.19, 0.12, 0.13]), d, 0.1))
+    assert math.isnan(wave_band_power(np.array([0.1, 0.1, 0.1]), d, 0.2))  # nothing above the noise
+
+
+def test_identified_wave_sigma_ignores_lf_motion() -> None:
+    """The noise identification's window on a vessel that drifts and turns (LF motion of 2 m at 0.12 rad/s and
+    0.3 m at 0.2 rad/s, a 10 m minimum-jerk step in 40 s) with waves of σ 1.7 cm around 0.93 rad/s and 1 cm
+    noise: the wave σ it measures (`SpectrumInfo.wave_power`) is within 30 % of the waves' (measured
+    0.74–1.09 ×). The band power above the noise from ω_min — what the bank was designed with before — was
+    6.5–10.5 ×: the 0.3 rad/s filter, which expects the most motion, then won in the `hassani` scenario
+    through the CLI."""
+    rng = np.random.default_rng(7)
+    t = np.arange(0.0, 300.0, 0.1)
+    w = rng.uniform(0.75, 1.15, 40)
+    a = np.full(40, 0.017 * math.sqrt(2.0 / 40))
+    waves = (a[:, None] * np.sin(w[:, None] * t + rng.uniform(0, 2 * math.pi, 40)[:, None])).sum(axis=0)
+    s = np.clip((t - 120.0) / 40.0, 0.0, 1.0)
+    lf = 2.0 * np.sin(0.12 * t) + 0.3 * np.sin(0.2 * t + 1.0) + 10.0 * (10 * s**3 - 15 * s**4 + 6 * s**5)
+    y = np.zeros((t.size, 3))
+    y[:, 0] = lf + waves + 0.01 * rng.standard_normal(t.size)
+    y[:, 1] = 0.5 * lf + 0.01 * rng.standard_normal(t.size)
+    y[:, 2] = 0.001 * rng.standard_normal(t.size)
+    est = WaveFrequencyEstimator(identification_config(HASSANI_CANDIDATES))
+    cfg = est.config
+    checked = 0
+    for j in est.add_until_updates(t, y):
+        est.estimate(float(t[j]))
+        info = est.last_info
+        if info is None or info.t != t[j] or t[j] < cfg.window_s:
+            continue
+        sigma = math.sqrt(info.wave_power[0])
+        assert abs(sigma / np.std(waves) - 1) < 0.3, (t[j], sigma)
+        old = info.band_power[0] - info.noise_psd[0] * (cfg.omega_max - cfg.omega_min)
+        assert math.sqrt(old) > 5 * np.std(waves)  # the old measure: the LF motion counted as waves
+        checked += 1
+    assert checked >= 4
 
 
 @pytest.mark.parametrize("seed", [0, 3])
@@ -156,10 +222,9 @@ def test_sea_change_readapts_within_5_minutes(seed: int) -> None:
     12, 14 s, so that 6 s and 12 s are candidates (with the paper's set 2π/12 = 0.524 rad/s sits midway
     between 0.45 and 0.6). The bank keeps the Tp 6 s tuning (wave_std from the first sea's forecast).
 
-    Measured over seeds 0–7, times after the change: the 12 s filter passes 0.9 at +71 … +258 s, the
-    blended ω0 is within 10 % of 2π/12 from +30 … +131 s, and at the end within −1.8 % … +1.2 % (seed 2:
-    +12 %, a moment when 10 s held weight; within 10 % for 96 % of its last 100 s). Seed 0: +71 s and
-    +59 s; seed 3: +186 s and +130 s."""
+    Measured over seeds 0–7, times after the change: the 12 s filter passes 0.9 at +71 … +212 s, the
+    blended ω0 stays within 10 % of 2π/12 from +38 … +196 s on, and at the end within −0.4 … 0 %. Seed 0:
+    +71 s and +66 s; seed 3: +166 s and +132 s."""
     s6 = SeaState(0.08, 6.0, 3.3, direction_rad=math.radians(150.0))
     s12 = SeaState(0.08, 12.0, 3.3, direction_rad=math.radians(150.0))
     tc = 300.0
@@ -472,9 +537,9 @@ def test_step_and_run_give_the_same_numbers() -> None:
 def test_defaults_identify_the_hassani_sea() -> None:
     """No tuning at all (`MMAEObserver(vessel)`): R and the wave model are identified from the data (docs/
     mmae.md, "Noise identification"), the bank restarted on the first identification. Measured, seeds 0–11:
-    the 0.9 rad/s filter passes 0.9 within 90 s in 10 of 12 (22–74 s; seed 11 at 100 s, seed 5 never: its
-    blended ω0 sits at 1.03), as with the forecast tuning above; blended ω0 over 90–150 s 0.928 on average;
-    sensor σ identified within 10 % (1 cm, 1 cm, 0.1°)."""
+    the 0.9 rad/s filter passes 0.9 within 90 s in 11 of 12 (22–73 s; seed 5 at 99 s), as with the forecast
+    tuning above; blended ω0 over 90–150 s 0.900–0.922, 0.903 on average; sensor σ identified within 15 %
+    (1 cm, 1 cm, 0.1°)."""
     i09 = HASSANI_CANDIDATES.index(0.9)
     reached, blended = 0, []
     for seed in range(12):
@@ -486,16 +551,17 @@ def test_defaults_identify_the_hassani_sea() -> None:
         blended.append(np.mean(r.omega0[900:, 0]))
         assert obs.identified is not None
         np.testing.assert_allclose(obs.identified.measurement_sigma, np.sqrt(SENSOR_R), rtol=0.15)
-    assert reached >= 10
-    assert abs(np.mean(blended) / 0.93 - 1) < 0.03, blended
+    assert reached >= 11
+    assert np.all(np.abs(np.array(blended) / 0.93 - 1) < 0.04), blended
 
 
 @pytest.mark.parametrize("seed", [2, 5])
 def test_defaults_readapt_when_the_sea_changes(seed: int) -> None:
     """The Tp 6 s → 12 s change with no tuning (bank redesigned as the identified wave motion moves).
-    Measured over seeds 0–7: the 12 s filter passes 0.9 at +71 … +265 s after the change, the blended ω0
-    is within 10 % from +31 … +131 s and for 93–100 % of the last 100 s (seeds 2 and 5 were the hardest
-    before the identification took the median of five windows)."""
+    Measured over seeds 0–7: the 12 s filter passes 0.9 at +71 … +208 s after the change, the blended ω0
+    stays within 10 % from +38 … +202 s on and for 98–100 % of the last 100 s. Seeds 2 and 5 failed with
+    identification segments of two slowest periods (the 12 s sea merged with the LF tail in the band's
+    lowest bins and the identified wave σ collapsed: docs/mmae.md)."""
     s6 = SeaState(0.08, 6.0, 3.3, direction_rad=math.radians(150.0))
     s12 = SeaState(0.08, 12.0, 3.3, direction_rad=math.radians(150.0))
     tc = 300.0

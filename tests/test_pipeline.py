@@ -369,3 +369,67 @@ def test_senders_beyond_the_cap_share_one_framer() -> None:
         p.feed(RawEvent(T0 + k, "mux", enc.hdt("HE", 1.0).encode(), peer=f"10.0.{k // 250}.{k % 250}:1"))
     assert len(p._framers) == MAX_SENDERS + 1
     assert p.counters["mux"].received == MAX_SENDERS + 50
+
+
+def test_an_observer_that_wants_new_samples_gets_each_measurement_once() -> None:
+    """GGA and HDT at 10 Hz, 20 ms apart: the observer steps 20 times a second, each time with one new
+    measurement and the other held. The MMAE (``new_samples_only``) is given each fix and each heading once
+    (held DOFs as NaN), except the held values that complete its first sample; its estimates say "ok" while
+    both sources are alive. An observer that wants held values (the passive one, side by side) gets every
+    DOF at every step, as before."""
+    tables = {
+        "vessel": {"name": "cybership2"},
+        "datum": {"lat_deg": DATUM[0], "lon_deg": DATUM[1]},
+        "sources": [
+            nmea_src("gps", ["position"], timeout_s=1.0),
+            nmea_src("gyro", ["heading"], timeout_s=1.0),
+        ],
+        "observer": {"type": "mmae"},
+        "integrity": {"freeze_s": 600.0, "heading_freeze_s": 600.0},
+        "log": {"path": ""},
+    }
+    config = parse_config(tables, base_dir=Path.cwd())
+    from observers.factory import make_observer
+
+    passive = make_observer("passive", config.vessel, config.observer.tuning)
+    spec = PipelineSpec.from_config(config)
+    p = Pipeline(
+        PipelineSpec(
+            vessel=spec.vessel,
+            sources=spec.sources,
+            observer=spec.observer,
+            observer_name="mmae",
+            datum=spec.datum,
+            extra_observers=(("passive", passive),),
+        )
+    )
+    given: dict[str, list[np.ndarray]] = {"mmae": [], "passive": []}
+    for label, obs in (("mmae", p.observer), ("passive", passive)):
+        step = obs.step
+
+        def recording(t, y, tau=None, _step=step, _label=label):  # type: ignore[no-untyped-def]
+            given[_label].append(np.array(y, dtype=float))
+            return _step(t, y, tau)
+
+        obs.step = recording  # type: ignore[method-assign]
+    rng = np.random.default_rng(3)
+    out = []
+    n = 100
+    for k in range(n):
+        t = T0 + k * S // 10
+        out += p.feed(RawEvent(t, "gps", gga_at(0.01 * rng.standard_normal(), 0.01 * rng.standard_normal())))
+        out += p.feed(
+            RawEvent(t + S // 50, "gyro", enc.hdt("HE", 0.2 + 0.002 * rng.standard_normal()).encode())
+        )
+    mmae = np.array(given["mmae"])
+    first = int(np.flatnonzero(np.isfinite(mmae).all(axis=1))[0])
+    assert first == 1  # the first heading, with the held first fix: the MMAE starts there
+    after = mmae[first + 1 :]
+    # one fix per step at the fix times, one heading per step at the heading times: each given once
+    assert int(np.isfinite(after[:, 0]).sum()) == n - 1
+    assert int(np.isfinite(after[:, 2]).sum()) == n - 1
+    assert not (np.isfinite(after[:, 0]) & np.isfinite(after[:, 2])).any()
+    np.testing.assert_array_equal(np.isfinite(after[:, 0]), np.isfinite(after[:, 1]))  # N and E together
+    assert np.isfinite(np.array(given["passive"])[1:]).all()  # held values for the passive observer
+    est = [o.payload for o in out if o.topic == "/dp/estimate"]
+    assert len(est) == 2 * n - 1 and {e["status"] for e in est[1:]} == {"ok"}

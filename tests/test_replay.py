@@ -404,3 +404,73 @@ def test_a_log_from_an_older_gateway_replays() -> None:
     config = parse_config(_as_replayed(tables), base_dir=Path.cwd())
     assert not config.source("thr").commands
     assert config.commands.accept == {"mode", "setpoint", "tau"}
+
+
+def test_no_foxglove_channels_leaves_them_out_and_every_other_message_unchanged(tmp_path: Path) -> None:
+    """`--no-foxglove-channels`: no Foxglove-native topic in the log; the raw input and the JSON channels
+    message for message (bytes, times) as in a default replay, which has the Foxglove channels."""
+    from mcap.reader import make_reader
+
+    from dpgw.cli import main
+
+    t0 = datetime(2026, 6, 1, tzinfo=UTC)
+    log = tmp_path / "trial.nmea"
+    lines = []
+    for k in range(300):  # 5 Hz, 60 s, a 3 s gap (sources go stale: statuses and /dp/log lines)
+        if 100 <= k < 115:
+            continue
+        t = t0 + timedelta(seconds=0.2 * k)
+        lines.append(
+            enc.gga("GP", t, 59.4 + 1e-6 * k, 10.5, 2, 12, 0.8, 20.0) + enc.hdt("HE", 1.0 + 0.01 * k)
+        )
+    log.write_text("".join(lines))
+
+    def messages(out: Path) -> dict[str, list[tuple[int, int, bytes]]]:
+        got: dict[str, list[tuple[int, int, bytes]]] = {}
+        with out.open("rb") as f:
+            for _, channel, m in make_reader(f).iter_messages(log_time_order=False):
+                got.setdefault(channel.topic, []).append((m.log_time, m.publish_time, m.data))
+        return got
+
+    on, off = tmp_path / "on.mcap", tmp_path / "off.mcap"
+    assert main(["replay", str(log), "--vessel", "mss_supply", "--out", str(on), "--json"]) == 0
+    assert (
+        main(["replay", str(log), "--vessel", "mss_supply", "--out", str(off), "--no-foxglove-channels"]) == 0
+    )
+    with_fx, without = messages(on), messages(off)
+    foxglove = {t for t in with_fx if t.startswith(("/gnss/", "/dp/scene/", "/dp/tf", "/dp/log")) or
+                t in ("/dp/estimate/fix", "/dp/estimate/pose", "/dp/measurement/pose")}  # fmt: skip
+    assert {"/gnss/trial/fix", "/dp/estimate/pose", "/dp/tf", "/dp/scene/hull", "/dp/log"} <= foxglove
+    assert set(without) == set(with_fx) - foxglove
+    assert {"/raw/nmea/trial", "/dp/measurement", "/dp/estimate", "/dp/status"} <= set(without)
+    for topic, msgs in without.items():
+        assert msgs == with_fx[topic], topic
+
+
+def test_observer_specs_keep_the_configs_integrity_and_command_sections() -> None:
+    """`--observer` changes the observers and nothing else: a logged or given config's reference-test
+    thresholds and command policy stay in force (they were once dropped when specs were given), and the
+    replay still commands no thrusters."""
+    from gateway.config import parse_config
+
+    tables = {
+        "vessel": {"name": "mss_supply"},
+        "sources": [
+            {
+                "name": "dgps1",
+                "url": "udp://127.0.0.1:10110",
+                "protocol": "nmea",
+                "roles": ["position", "heading"],
+            }
+        ],
+        "integrity": {"jump_m": 12.5, "readmit_s": 9.0, "pooling": "priority"},
+        "commands": {"accept": ["mode", "setpoint"], "max_setpoint_distance_m": 80.0},
+        "log": {"path": ""},
+    }
+    config = parse_config(tables, base_dir=Path.cwd())
+    pipeline = build_pipeline(config, [parse_observer_spec("passive@p"), parse_observer_spec("sdre")])
+    spec = pipeline.spec
+    assert spec.integrity == config.integrity and spec.integrity.jump_m == 12.5
+    assert spec.commands == config.commands and spec.commands.max_setpoint_distance_m == 80.0
+    assert spec.observer_name == "p" and [label for label, _ in spec.extra_observers] == ["sdre"]
+    assert spec.control is None

@@ -124,20 +124,27 @@ def frame_transform(
     stamp_ns: int, child: str, north_m: float, east_m: float, psi_rad: float
 ) -> FrameTransform:
     """`ltp` → ``child``: the vessel frame at (N, E) heading ψ."""
-    p = ned_pose(north_m, east_m, psi_rad)
+    return frame_transform_of(stamp(stamp_ns), child, ned_pose(north_m, east_m, psi_rad))
+
+
+def frame_transform_of(time: Time, child: str, pose: Pose) -> FrameTransform:
+    """`frame_transform` from a stamp and an `ned_pose` already made (shared with `pose_in_frame_of`)."""
     return FrameTransform(
-        timestamp=stamp(stamp_ns),
+        timestamp=time,
         parent_frame_id=WORLD_FRAME,
         child_frame_id=child,
-        translation=p.position,
-        rotation=p.orientation,
+        translation=pose.position,
+        rotation=pose.orientation,
     )
 
 
 def pose_in_frame(stamp_ns: int, north_m: float, east_m: float, psi_rad: float) -> PoseInFrame:
-    return PoseInFrame(
-        timestamp=stamp(stamp_ns), frame_id=WORLD_FRAME, pose=ned_pose(north_m, east_m, psi_rad)
-    )
+    return pose_in_frame_of(stamp(stamp_ns), ned_pose(north_m, east_m, psi_rad))
+
+
+def pose_in_frame_of(time: Time, pose: Pose) -> PoseInFrame:
+    """`pose_in_frame` from a stamp and an `ned_pose` already made."""
+    return PoseInFrame(timestamp=time, frame_id=WORLD_FRAME, pose=pose)
 
 
 def color(r: float, g: float, b: float, a: float = 1.0) -> Color:

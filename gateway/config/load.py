@@ -27,6 +27,7 @@ from gateway.config.model import (
     IntegrityConfig,
     KeelsonConfig,
     LogConfig,
+    Ros2Config,
     StatusConfig,
     TimeConfig,
     ZenohConfig,
@@ -40,6 +41,7 @@ from gateway.config.schema import (
     IntegrityTable,
     KeelsonTable,
     LogTable,
+    Ros2Table,
     StatusTable,
     TimeTable,
     VesselTable,
@@ -48,6 +50,7 @@ from gateway.config.schema import (
 )
 from gateway.config.source_entries import read_sources
 from observers.vessel import VesselError, VesselModel, builtin_vessels, load_vessel
+from wire.rmw_zenoh import fully_qualified, is_ros_name
 from wire.urls import UrlError, split_host_port
 
 __all__ = ["load_config", "parse_config"]
@@ -65,6 +68,7 @@ _TOP_KEYS = (
     "commands",
     "time",
     "keelson",
+    "ros2",
 )
 
 
@@ -120,6 +124,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
     commands = _read_commands(p, data)
     time_config = _read_time(p, data)
     keelson = _read_keelson(p, data)
+    ros2 = _read_ros2(p, data)
 
     if p.lines:
         raise ConfigError(p.lines)
@@ -127,7 +132,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
     assert datum is not None and sources is not None and observer is not None
     assert zenoh_config is not None and log is not None and status is not None and control is not None
     assert integrity is not None
-    assert commands is not None and time_config is not None and keelson is not None
+    assert commands is not None and time_config is not None and keelson is not None and ros2 is not None
     return GatewayConfig(
         vessel=vessel,
         vessel_source=vessel_source,
@@ -144,6 +149,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
         commands=commands,
         time=time_config,
         keelson=keelson,
+        ros2=ros2,
     )
 
 
@@ -588,4 +594,63 @@ def _read_keelson(p: Problems, data: Mapping[str, Any]) -> KeelsonConfig | None:
 
 def _expected(key: str) -> str:
     extra = KeelsonTable.model_fields[key].json_schema_extra
+    return str(extra.get("expected", "")) if isinstance(extra, dict) else ""
+
+
+_FRAME_ID = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*")
+"""A tf2 frame id as REP 105 writes them (``map``, ``base_link``): no leading "/" (tf2 refuses one)."""
+
+
+def _read_ros2(p: Problems, data: Mapping[str, Any]) -> Ros2Config | None:
+    t = _section(p, data, "ros2")
+    if t is None:
+        return None
+    n0 = len(p)
+    v = read_table(Ros2Table, t, "ros2", p)
+    ns = v["namespace"]
+    if ns is not None and not is_ros_name(ns, absolute=True):
+        p.add(
+            "ros2.namespace",
+            f"not a ROS 2 namespace (expected {_expected_ros2('namespace')}, got {show(ns)})",
+        )
+    node = v["node_name"]
+    if node is not None and ("/" in node or not is_ros_name(node, absolute=False)):
+        p.add(
+            "ros2.node_name",
+            f"not a ROS 2 node name (expected {_expected_ros2('node_name')}, got {show(node)})",
+        )
+    for key in ("frame_id", "child_frame_id"):
+        value = v[key]
+        if value is not None and not _FRAME_ID.fullmatch(value):
+            p.add(f"ros2.{key}", f"not a frame id (expected {_expected_ros2(key)}, got {show(value)})")
+    if v["frame_id"] is not None and v["frame_id"] == v["child_frame_id"]:
+        p.add(
+            "ros2.child_frame_id",
+            f"the same as ros2.frame_id (expected the vessel's own frame, got {show(v['frame_id'])})",
+        )
+    seen: dict[str, str] = {}
+    for key in ("odom_topic", "pose_topic", "fix_topic", "setpoint_topic"):
+        value = v[key]
+        if value is None:
+            continue
+        name = value[1:] if value.startswith("/") else value
+        if not name or not is_ros_name(name, absolute=False):
+            p.add(
+                f"ros2.{key}", f"not a ROS 2 topic name (expected {_expected_ros2(key)}, got {show(value)})"
+            )
+            continue
+        full = fully_qualified(ns or "/", value)
+        if full in seen:
+            p.add(
+                f"ros2.{key}",
+                f"the same topic as ros2.{seen[full]} (expected a topic of its own, got {show(value)})",
+            )
+        seen.setdefault(full, key)
+    if len(p) != n0:
+        return None
+    return Ros2Config(**v)
+
+
+def _expected_ros2(key: str) -> str:
+    extra = Ros2Table.model_fields[key].json_schema_extra
     return str(extra.get("expected", "")) if isinstance(extra, dict) else ""

@@ -241,6 +241,36 @@ class KeelsonConfig:
 
 
 @dataclass(frozen=True)
+class Ros2Config:
+    """``[ros2]``: ROS 2 topics in rmw_zenoh's format on the gateway's Zenoh session
+    (`gateway.outputs.ros2`, docs/ros2.md). Topic names are relative to ``namespace`` unless they start
+    with ``/``; each GNSS receiver's fixes go out on ``<fix_topic>/<source name>``."""
+
+    enabled: bool = False
+    domain_id: int = 0
+    namespace: str = "/dpgw"
+    node_name: str = "dpgw"
+    frame_id: str = "ltp"
+    """The world frame (ENU at the datum) of the odometry and poses, and the only frame a setpoint may
+    be given in."""
+    child_frame_id: str = "vessel"
+    """The vessel frame (FLU at the reference point) the odometry's twist is in."""
+    odom_topic: str = "odom"
+    pose_topic: str = "pose"
+    fix_topic: str = "fix"
+    setpoint_topic: str = "setpoint"
+
+    def topics(self) -> dict[str, str]:
+        """The topic names by config key."""
+        return {
+            "odom_topic": self.odom_topic,
+            "pose_topic": self.pose_topic,
+            "fix_topic": self.fix_topic,
+            "setpoint_topic": self.setpoint_topic,
+        }
+
+
+@dataclass(frozen=True)
 class IntegrityConfig:
     """``[integrity]``: thresholds of the reference tests (defaults for DGPS-class references and a gyro;
     `gateway.references` applies them, docs/integrity.md explains them)."""
@@ -323,6 +353,7 @@ class GatewayConfig:
     commands: CommandsConfig = field(default_factory=CommandsConfig)
     time: TimeConfig = field(default_factory=TimeConfig)
     keelson: KeelsonConfig = field(default_factory=KeelsonConfig)
+    ros2: Ros2Config = field(default_factory=Ros2Config)
 
     def sources_for(self, role: str) -> tuple[SourceConfig, ...]:
         """The sources with ``role``, in failover order (lowest priority first)."""

@@ -51,6 +51,7 @@ __all__ = [
     "KeelsonTable",
     "LogTable",
     "ObserverTable",
+    "Ros2Table",
     "SourceTable",
     "StatusTable",
     "TimeTable",
@@ -491,3 +492,23 @@ class KeelsonTable(_Section):
     allocated_source_id: str = text(_K["allocated_source_id"], _SOURCE_ID)
     feedback_source_id: str = text(_K["feedback_source_id"], _SOURCE_ID)
     log_source_id: str = text(_K["log_source_id"], _SOURCE_ID)
+
+
+_R = DEFAULTS["ros2"]
+_TOPIC = 'a ROS 2 topic name, relative to the namespace (e.g. "odom") or absolute (e.g. "/odom")'
+_FRAME = 'a frame id: letters, digits, "_", "/" (e.g. "map")'
+
+
+class Ros2Table(_Section):
+    """``[ros2]``: ROS 2 topics in rmw_zenoh's format on the gateway's Zenoh session (docs/ros2.md)."""
+
+    enabled: bool = boolean(_R["enabled"])
+    domain_id: int = integer(_R["domain_id"], lo=0, hi=232)
+    namespace: str = text(_R["namespace"], 'an absolute ROS 2 namespace, e.g. "/dpgw" (or "/")')
+    node_name: str = text(_R["node_name"], 'a ROS 2 node name: letters, digits, "_", e.g. "dpgw"')
+    frame_id: str = text(_R["frame_id"], _FRAME)
+    child_frame_id: str = text(_R["child_frame_id"], _FRAME)
+    odom_topic: str = text(_R["odom_topic"], _TOPIC)
+    pose_topic: str = text(_R["pose_topic"], _TOPIC)
+    fix_topic: str = text(_R["fix_topic"], _TOPIC)
+    setpoint_topic: str = text(_R["setpoint_topic"], _TOPIC)

@@ -5,9 +5,10 @@ and receives every batch of pipeline outputs, already encoded once as JSON, afte
 the MCAP write. A sink owns whatever it opens (sockets, Zenoh declarations) and releases it in `close`.
 Sinks are optional: the service runs the same without any. `build.sinks_from_config` makes the ones a
 config enables (``dpgw run``). A sink that also implements `RawSentenceSink` gets every raw NMEA sentence as
-the pipeline frames it (`Pipeline.sentence_tap`), so it never frames the bytes a second time.
+the pipeline frames it (`Pipeline.sentence_tap`), so it never frames the bytes a second time. A sink that
+implements `InputSink` may hand commands (a setpoint from ROS 2) into the gateway's own input path.
 """
 
-from gateway.outputs.base import OutputSink, RawSentenceSink
+from gateway.outputs.base import InputSink, OutputSink, RawSentenceSink, Submit
 
-__all__ = ["OutputSink", "RawSentenceSink"]
+__all__ = ["InputSink", "OutputSink", "RawSentenceSink", "Submit"]

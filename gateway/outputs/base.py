@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 if TYPE_CHECKING:
     import zenoh
@@ -39,3 +40,20 @@ class RawSentenceSink(Protocol):
 
     def raw_nmea(self, source: str, rx_ns: int, text: str, peer: str) -> None:
         """One sentence from ``$``/``!`` to its checksum, without the line end, valid or not."""
+
+
+Submit = Callable[[str, Any], None]
+"""``submit(key, payload)``: an input (``setpoint``, ``mode``, ``tau``) into the gateway's queue, stamped,
+logged and checked by `gateway.commands` exactly like one from ``<prefix>/<key>``
+(`GatewayService.submit`)."""
+
+
+@runtime_checkable
+class InputSink(Protocol):
+    """A sink that also takes commands from its peers (a ROS 2 setpoint): the service hands it `Submit`
+    before `OutputSink.start`, and the sink calls it from any thread."""
+
+    name: str
+
+    def bind_inputs(self, submit: Submit) -> None:
+        """Keep ``submit`` for the commands this sink receives."""

@@ -7,6 +7,7 @@ import importlib.util
 
 from gateway.config import GatewayConfig
 from gateway.outputs.base import OutputSink
+from wire.rmw_zenoh import is_ros_name
 
 __all__ = ["OutputError", "output_problems", "sinks_from_config"]
 
@@ -23,6 +24,20 @@ def output_problems(config: GatewayConfig) -> list[str]:
             f"{config.path}: keelson.enabled: true, but the keelson package is not installed (install it "
             "with pip install 'dpgw[keelson]', or set keelson.enabled = false)"
         )
+    if config.ros2.enabled:
+        missing = [m for m in ("rosbags", "xxhash") if importlib.util.find_spec(m) is None]
+        if missing:
+            problems.append(
+                f"{config.path}: ros2.enabled: true, but {' and '.join(missing)} "
+                f"{'is' if len(missing) == 1 else 'are'} not installed (install with pip install "
+                "'dpgw[ros2]', or set ros2.enabled = false)"
+            )
+        for s in config.sources_for("position"):
+            if not is_ros_name(s.name, absolute=False):
+                problems.append(
+                    f"{config.path}: sources: {s.name}: not a ROS 2 name token, so ros2.fix_topic/{s.name} "
+                    "is no topic (expected a source name not starting with a digit, or ros2.enabled = false)"
+                )
     return problems
 
 
@@ -36,4 +51,8 @@ def sinks_from_config(config: GatewayConfig) -> list[OutputSink]:
         from gateway.outputs.keelson import keelson_sink
 
         sinks.append(keelson_sink(config))
+    if config.ros2.enabled:
+        from gateway.outputs.ros2 import ros2_sink
+
+        sinks.append(ros2_sink(config))
     return sinks

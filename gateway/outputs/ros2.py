@@ -1,0 +1,331 @@
+"""ROS 2 output (and setpoint input) through rmw_zenoh: dpgw as a ROS 2 node, with no ROS install.
+
+rmw_zenoh (ROS 2's Zenoh middleware, ``RMW_IMPLEMENTATION=rmw_zenoh_cpp``) maps a topic to one Zenoh key
+and a ROS message to its CDR bytes; a node, publisher or subscription exists for ``ros2 node list`` /
+``ros2 topic list`` through a liveliness token. So dpgw's own Zenoh session can be a ROS 2 node: this
+sink declares the tokens, publishes CDR samples with rmw_zenoh's attachment on rmw_zenoh's keys, and
+takes a setpoint from a ROS 2 publisher. The formats are `wire.rmw_zenoh`'s (its docstring names the
+rmw_zenoh sources they follow); the CDR serialisation and the RIHS01 type hashes are the `rosbags`
+package's (ROS 2 Jazzy message definitions).
+
+Topics (``[ros2]``; names relative to ``namespace``, ``/dpgw`` by default):
+
+- ``odom`` — ``nav_msgs/msg/Odometry`` of the main observer's LF estimate (``/dp/estimate``): pose in
+  ``frame_id`` (``ltp``: ENU at the datum, x east, y north, z up), twist in ``child_frame_id``
+  (``vessel``: FLU, x forward, y port, z up). The estimate carries no covariance: both covariances are
+  all zeros, which ROS messages read as "unknown" (sensor_msgs/Imu's stated convention).
+- ``pose`` — ``geometry_msgs/msg/PoseStamped``: the same pose.
+- ``fix/<source>`` — ``sensor_msgs/msg/NavSatFix`` of each GNSS fix a receiver gives (``/gnss/<source>/
+  fix``): ellipsoidal height, GST's 1σ as a diagonal ENU covariance (else unknown), the status from
+  GGA's quality as nmea_navsat_driver maps it (1 fix, 2 SBAS, 4/5/9 GBAS), the service from the talker.
+- ``setpoint`` (subscribed) — ``geometry_msgs/msg/PoseStamped`` in ``frame_id`` only: (x, y) = (E, N) at
+  the datum and the yaw about +z = π/2 − ψ become dpgw's ``{north_m, east_m, heading_deg}``, handed to the
+  gateway's input path (`InputSink`): logged, checked and counted by `gateway.commands` exactly like a
+  setpoint on ``<prefix>/setpoint``, and taken only when ``[commands] accept`` lists ``setpoint``. A pose
+  in another frame, an undecodable sample or an orientation that is no rotation is refused here,
+  counted by reason (`Ros2Sink.refused`) and logged with its bytes.
+
+The frames are those of dpgw's Foxglove channels (`wire.foxglove`: the ENU/FLU turn at the edge).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import time
+from collections import Counter
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from rosbags.typesys import Stores, get_typestore
+
+from gateway.config import GatewayConfig, Ros2Config
+from gateway.outputs.base import Submit
+from wire import rmw_zenoh as rz
+from wire.foxglove import heading_yaw
+from wire.messages import Estimate, LocationFix
+
+if TYPE_CHECKING:
+    import zenoh
+
+    from gateway.pipeline import Output
+
+log = logging.getLogger(__name__)
+
+ODOMETRY = "nav_msgs/msg/Odometry"
+NAV_SAT_FIX = "sensor_msgs/msg/NavSatFix"
+POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+ESTIMATE_TOPIC = "/dp/estimate"
+"""Only the main observer's estimate: the comparison observers are for the log and for tuning."""
+FIX_TOPIC_PREFIX = "/gnss/"
+QOS = rz.Qos()
+"""Reliable, volatile, keep-last 10: ROS 2's default profile (rclcpp's and ``ros2 topic pub``'s)."""
+NS = 1_000_000_000
+REFUSALS_LOGGED = 20
+"""Refused setpoints logged one by one; after that every 1000th (all are counted)."""
+
+# GGA fix quality → sensor_msgs/NavSatStatus.status, as nmea_navsat_driver maps it (the ROS driver whose
+# output most ROS nodes expect): autonomous → FIX, DGPS → SBAS, RTK fixed/float and WAAS → GBAS.
+STATUS_FIX, STATUS_SBAS_FIX, STATUS_GBAS_FIX = 0, 1, 2
+GGA_STATUS = {1: STATUS_FIX, 2: STATUS_SBAS_FIX, 4: STATUS_GBAS_FIX, 5: STATUS_GBAS_FIX, 9: STATUS_GBAS_FIX}
+# NMEA talker → NavSatStatus.service (a bitmask; GN, "several constellations", does not say which)
+TALKER_SERVICE = {"GP": 1, "GL": 2, "GB": 4, "BD": 4, "GA": 8}
+
+
+def ros_typestore() -> Any:
+    """rosbags' ROS 2 Jazzy message definitions (the types and RIHS01 hashes rmw_zenoh keys on)."""
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+class Ros2Sink:
+    """An `OutputSink`, `RawSentenceSink` and `InputSink` speaking rmw_zenoh; built by `ros2_sink`."""
+
+    name = "ros2"
+
+    def __init__(self, cfg: Ros2Config, fix_sources: Sequence[str]) -> None:
+        self.cfg = cfg
+        self.fix_sources = tuple(fix_sources)
+        self.store = ros_typestore()
+        t = self.store.types
+        self._Time, self._Header = t["builtin_interfaces/msg/Time"], t["std_msgs/msg/Header"]
+        self._Point, self._Quaternion = t["geometry_msgs/msg/Point"], t["geometry_msgs/msg/Quaternion"]
+        self._Vector3, self._Pose = t["geometry_msgs/msg/Vector3"], t["geometry_msgs/msg/Pose"]
+        self._Twist = t["geometry_msgs/msg/Twist"]
+        self._PoseCov = t["geometry_msgs/msg/PoseWithCovariance"]
+        self._TwistCov = t["geometry_msgs/msg/TwistWithCovariance"]
+        self._Odometry, self._PoseStamped = t[ODOMETRY], t[POSE_STAMPED]
+        self._NavSatFix, self._NavSatStatus = t[NAV_SAT_FIX], t["sensor_msgs/msg/NavSatStatus"]
+        self._unknown36 = np.zeros(36)  # shared: never written
+        self.hashes = {ty: self.store.hash_rihs01(ty) for ty in (ODOMETRY, NAV_SAT_FIX, POSE_STAMPED)}
+        ns = cfg.namespace
+        self.topics = {
+            "odom": rz.fully_qualified(ns, cfg.odom_topic),
+            "pose": rz.fully_qualified(ns, cfg.pose_topic),
+            "setpoint": rz.fully_qualified(ns, cfg.setpoint_topic),
+        }
+        self.topics.update(
+            {f"fix/{s}": rz.fully_qualified(ns, f"{cfg.fix_topic}/{s}") for s in self.fix_sources}
+        )
+        self.published: Counter[str] = Counter()
+        """Samples put, by topic."""
+        self.refused: Counter[str] = Counter()
+        """Setpoints refused here, by reason (what passes goes on to `gateway.commands`)."""
+        self.setpoints = 0
+        """Setpoints handed to the gateway's input path."""
+        self.tokens: list[str] = []
+        """Every liveliness token declared (node first), as key text."""
+        self.zid = ""
+        """The Zenoh session id in the tokens (set by `start`)."""
+        self._submit: Submit | None = None
+        self._session: zenoh.Session | None = None
+        self._pubs: dict[str, _Publisher] = {}
+        self._declared: list[Any] = []
+        self._quality: dict[str, tuple[int, int]] = {}  # source → (status, service) of its last GGA
+
+    # --- OutputSink / InputSink -------------------------------------------------------------------------
+
+    def bind_inputs(self, submit: Submit) -> None:
+        self._submit = submit
+
+    def start(self, session: zenoh.Session) -> None:
+        import zenoh
+
+        self._session = session
+        c = self.cfg
+        zid = self.zid = str(session.info.zid())
+        node_id = 0
+        entity_ids = iter(range(1, 1 << 31))  # unique within this session, as rmw_zenoh's counter
+
+        def token(key: str) -> None:
+            self._declared.append(session.liveliness().declare_token(key))
+            self.tokens.append(key)
+
+        token(rz.node_token(c.domain_id, zid, node_id, c.namespace, c.node_name))
+        outputs = [("odom", ODOMETRY), ("pose", POSE_STAMPED)]
+        outputs += [(f"fix/{s}", NAV_SAT_FIX) for s in self.fix_sources]
+        for name, ros_type in outputs:
+            topic, type_hash = self.topics[name], self.hashes[ros_type]
+            key = rz.entity_token(
+                c.domain_id, zid, node_id, next(entity_ids), rz.PUBLISHER, c.namespace, c.node_name,
+                topic, ros_type, type_hash, QOS,
+            )  # fmt: skip
+            pub = session.declare_publisher(
+                rz.topic_key(c.domain_id, topic, ros_type, type_hash),
+                reliability=zenoh.Reliability.RELIABLE,
+                congestion_control=zenoh.CongestionControl.DROP,  # keep-last: a slow reader loses samples
+            )
+            self._pubs[name] = _Publisher(pub, rz.entity_gid(key))
+            token(key)
+        topic, type_hash = self.topics["setpoint"], self.hashes[POSE_STAMPED]
+        self._declared.append(
+            session.declare_subscriber(
+                rz.topic_key(c.domain_id, topic, POSE_STAMPED, type_hash), self._on_setpoint
+            )
+        )
+        token(
+            rz.entity_token(
+                c.domain_id, zid, node_id, next(entity_ids), rz.SUBSCRIPTION, c.namespace, c.node_name,
+                topic, POSE_STAMPED, type_hash, QOS,
+            )
+        )  # fmt: skip
+
+    def emit(self, outputs: list[Output], encoded: list[bytes]) -> None:
+        for o in outputs:
+            m = o.message
+            if type(m) is Estimate:
+                if o.topic == ESTIMATE_TOPIC:
+                    self._estimate(m)
+            elif type(m) is LocationFix and o.topic.startswith(FIX_TOPIC_PREFIX):
+                self._fix(m)
+
+    def raw_nmea(self, source: str, rx_ns: int, text: str, peer: str) -> None:
+        """Keeps each receiver's GGA quality and talker for its NavSatFix status (the fix that follows in
+        the same chunk's outputs comes from this sentence); a sentence failing its checksum is skipped, as
+        the pipeline skips it."""
+        if text[3:7] != "GGA," or source not in self.fix_sources:
+            return
+        star = text.rfind("*")
+        if star > 0:
+            x = 0
+            for ch in text[1:star].encode("ascii", "replace"):
+                x ^= ch
+            if text[star + 1 : star + 3].upper() != f"{x:02X}":
+                return
+        fields = text[: star if star > 0 else None].split(",")
+        if len(fields) > 6 and fields[6].isdigit():
+            self._quality[source] = (
+                GGA_STATUS.get(int(fields[6]), STATUS_FIX),
+                TALKER_SERVICE.get(text[1:3], 0),
+            )
+
+    def close(self) -> None:
+        for d in [*self._declared, *(p.pub for p in self._pubs.values())]:
+            with contextlib.suppress(Exception):  # already gone with the session
+                d.undeclare()
+        self._declared.clear()
+        self._pubs.clear()
+        self._session = None
+
+    # --- publishing ------------------------------------------------------------------------------------
+
+    def _put(self, name: str, msg: Any, ros_type: str) -> None:
+        p = self._pubs.get(name)
+        if p is None:
+            return  # not started, or closed
+        p.seq += 1  # a publisher's first sample is number 1 (rmw_zenoh)
+        p.pub.put(
+            bytes(self.store.serialize_cdr(msg, ros_type)),
+            attachment=rz.attachment(p.seq, time.time_ns(), p.gid),
+        )
+        self.published[name] += 1
+
+    def _header(self, stamp_ns: int, frame_id: str) -> Any:
+        return self._Header(stamp=self._Time(sec=stamp_ns // NS, nanosec=stamp_ns % NS), frame_id=frame_id)
+
+    def _pose(self, north: float, east: float, psi: float) -> Any:
+        """The pose in the ENU world frame of the reference point at (N, E) heading ψ."""
+        h = 0.5 * heading_yaw(psi)
+        return self._Pose(
+            position=self._Point(x=east, y=north, z=0.0),
+            orientation=self._Quaternion(x=0.0, y=0.0, z=math.sin(h), w=math.cos(h)),
+        )
+
+    def _estimate(self, e: Estimate) -> None:
+        north, east, psi = e.eta
+        if not all(v is not None and math.isfinite(v) for v in (north, east, psi)):
+            return
+        header = self._header(e.stamp_ns, self.cfg.frame_id)
+        pose = self._pose(north, east, psi)
+        self._put("pose", self._PoseStamped(header=header, pose=pose), POSE_STAMPED)
+        u, v, r = e.nu
+        if not all(x is not None and math.isfinite(x) for x in (u, v, r)):
+            return
+        # body (x forward, y starboard, z down) → FLU: (u, −v), yaw rate −r
+        twist = self._Twist(linear=self._Vector3(x=u, y=-v, z=0.0), angular=self._Vector3(x=0.0, y=0.0, z=-r))
+        odom = self._Odometry(
+            header=header,
+            child_frame_id=self.cfg.child_frame_id,
+            pose=self._PoseCov(pose=pose, covariance=self._unknown36),
+            twist=self._TwistCov(twist=twist, covariance=self._unknown36),
+        )
+        self._put("odom", odom, ODOMETRY)
+
+    def _fix(self, f: LocationFix) -> None:
+        name = f"fix/{f.frame_id}"
+        if name not in self._pubs:
+            return
+        status, service = self._quality.get(f.frame_id, (STATUS_FIX, 0))
+        msg = self._NavSatFix(
+            header=self._header(f.timestamp.sec * NS + f.timestamp.nsec, f.frame_id),
+            status=self._NavSatStatus(status=status, service=service),
+            latitude=f.latitude,
+            longitude=f.longitude,
+            altitude=f.altitude,
+            position_covariance=np.asarray(f.position_covariance, dtype=np.float64),
+            position_covariance_type=f.position_covariance_type,
+        )
+        self._put(name, msg, NAV_SAT_FIX)
+
+    # --- the setpoint (a Zenoh thread) --------------------------------------------------------------------
+
+    def _on_setpoint(self, sample: zenoh.Sample) -> None:
+        raw = sample.payload.to_bytes()
+        try:
+            msg = self.store.deserialize_cdr(raw, POSE_STAMPED)
+        except Exception:
+            self._refuse("undecodable", f"not a CDR geometry_msgs/msg/PoseStamped: {raw[:96].hex()}")
+            return
+        payload = setpoint_payload(msg, self.cfg.frame_id)
+        if isinstance(payload, str):
+            reason, _, text = payload.partition(": ")
+            self._refuse(reason, f"{text} (bytes {raw[:96].hex()})")
+            return
+        if self._submit is None:
+            self._refuse("no input path", "the sink is not bound to a gateway")
+            return
+        self.setpoints += 1
+        self._submit("setpoint", payload)
+
+    def _refuse(self, reason: str, text: str) -> None:
+        self.refused[reason] += 1
+        n = sum(self.refused.values())
+        if n <= REFUSALS_LOGGED or n % 1000 == 0:
+            log.warning("ROS 2 setpoint refused (#%d, %s): %s", n, reason, text)
+
+
+class _Publisher:
+    """A Zenoh publisher with its rmw_zenoh identity: the GID and the sequence number of its last sample."""
+
+    __slots__ = ("gid", "pub", "seq")
+
+    def __init__(self, pub: Any, gid: bytes) -> None:
+        self.pub, self.gid, self.seq = pub, gid, 0
+
+
+def setpoint_payload(msg: Any, frame_id: str) -> dict[str, float] | str:
+    """dpgw's setpoint ``{north_m, east_m, heading_deg}`` of a ``geometry_msgs/PoseStamped`` in the ENU
+    world frame ``frame_id``, or ``"<reason>: <text>"`` when it is none.
+
+    The heading is the yaw ϕ of the orientation quaternion q = (x, y, z, w) about +z,
+    ϕ = atan2(2(wz + xy), 1 − 2(y² + z²)) (the z-y-x Euler yaw; roll and pitch are ignored), turned to a
+    heading clockwise from north, ψ = π/2 − ϕ, in [0, 360) degrees. Position (x, y) = (E, N); z is ignored
+    (a vessel holds no depth). Finiteness and range are `gateway.commands`'s to check; a quaternion of
+    norm 0 (no rotation at all: an unset orientation) is refused here."""
+    got = msg.header.frame_id
+    if got != frame_id:
+        return f"wrong frame: frame_id {got!r}, expected {frame_id!r} (ENU at the datum)"
+    q = msg.pose.orientation
+    norm2 = q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w
+    if not norm2 > 1e-12:  # (also NaN)
+        return f"invalid orientation: quaternion ({q.x}, {q.y}, {q.z}, {q.w}) is not a rotation"
+    yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), norm2 - 2.0 * (q.y * q.y + q.z * q.z))
+    heading = math.degrees(0.5 * math.pi - yaw) % 360.0
+    p = msg.pose.position
+    return {"north_m": float(p.y), "east_m": float(p.x), "heading_deg": heading}
+
+
+def ros2_sink(config: GatewayConfig) -> Ros2Sink:
+    """The sink ``[ros2]`` describes: a NavSatFix topic for every source with the ``position`` role."""
+    return Ros2Sink(config.ros2, [s.name for s in config.sources_for("position")])

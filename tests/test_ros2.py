@@ -1,0 +1,525 @@
+"""ROS 2 through rmw_zenoh: what dpgw puts on Zenoh is what an rmw_zenoh node would, checked without ROS.
+
+- The formats against rmw_zenoh's own examples (its docs/design.md gives keys and liveliness tokens of
+  the demo nodes verbatim) and against the published RIHS01 hashes of the ROS 2 Jazzy types.
+- The attachment against Zenoh's own deserializer (`zenoh.ext.z_deserialize`), not our parser.
+- A live gateway on loopback: a Zenoh subscriber on ``<domain>/**`` and a liveliness query on
+  ``@ros2_lv/**`` see every key, attachment and token in that format, rosbags decodes every payload to the
+  pipeline's values, and a PoseStamped published from here arrives as the same dpgw setpoint (one in a
+  wrong frame is refused and counted).
+"""
+
+from __future__ import annotations
+
+import math
+import socket
+import threading
+import time
+from collections import defaultdict
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+pytest.importorskip("rosbags")
+pytest.importorskip("xxhash")
+
+import xxhash
+import zenoh
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from zenoh.ext import Int64, z_deserialize, z_serialize
+
+from gateway.bus import isolated_config, open_session
+from gateway.config import ConfigError, parse_config
+from gateway.outputs import InputSink, RawSentenceSink
+from gateway.outputs.build import output_problems, sinks_from_config
+from gateway.outputs.ros2 import Ros2Sink, ros_typestore, setpoint_payload
+from gateway.pipeline import Output
+from gateway.service import GatewayService
+from tests.conftest import wait_for
+from wire import rmw_zenoh as rz
+from wire.codecs import nmea_encode as enc
+from wire.messages import Estimate, LocationFix
+
+# RIHS01 hashes as ROS 2 Jazzy publishes them (rosidl's generated type descriptions; std_msgs/String is
+# also the one rmw_zenoh's design document shows in its keys)
+PUBLISHED_HASHES = {
+    "std_msgs/msg/String": "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18",
+    "nav_msgs/msg/Odometry": "RIHS01_3cc97dc7fb7502f8714462c526d369e35b603cfc34d946e3f2eda2766dfec6e0",
+    "sensor_msgs/msg/NavSatFix": "RIHS01_62223ab3fe210a15976021da7afddc9e200dc9ec75231c1b6a557fc598a65404",
+    "geometry_msgs/msg/PoseStamped": (
+        "RIHS01_10f3786d7d40fd2b54367835614bff85d4ad3b5dab62bf8bca0cc232d73b4cd8"
+    ),
+}
+STRING_HASH = PUBLISHED_HASHES["std_msgs/msg/String"]
+ADD_TWO_INTS_HASH = "RIHS01_e118de6bf5eeb66a2491b5bda11202e7b68f198d6f67922cf30364858239c81a"
+
+LAT, LON, ALT, SEP = 59.4, 10.5, 20.0, 35.5
+SIGMA_LAT, SIGMA_LON, SIGMA_ALT = 0.4, 0.3, 0.9
+DOMAIN = 7
+ODOM_KEY = f"{DOMAIN}/dpgw/odom/nav_msgs::msg::dds_::Odometry_/{PUBLISHED_HASHES['nav_msgs/msg/Odometry']}"
+POSE_KEY = (
+    f"{DOMAIN}/dpgw/pose/geometry_msgs::msg::dds_::PoseStamped_/"
+    + PUBLISHED_HASHES["geometry_msgs/msg/PoseStamped"]
+)
+FIX_KEY = (
+    f"{DOMAIN}/dpgw/fix/dgps1/sensor_msgs::msg::dds_::NavSatFix_/"
+    + PUBLISHED_HASHES["sensor_msgs/msg/NavSatFix"]
+)
+SETPOINT_KEY = (
+    f"{DOMAIN}/dpgw/setpoint/geometry_msgs::msg::dds_::PoseStamped_/"
+    + PUBLISHED_HASHES["geometry_msgs/msg/PoseStamped"]
+)
+
+
+# --- the formats, against rmw_zenoh's documented examples ------------------------------------------------
+
+
+def test_rosbags_gives_the_published_rihs01_hashes() -> None:
+    store = ros_typestore()
+    for ros_type, published in PUBLISHED_HASHES.items():
+        assert store.hash_rihs01(ros_type) == published, ros_type
+
+
+def test_topic_keys_are_rmw_zenohs() -> None:
+    # docs/design.md, "Topic and Service name mapping to Zenoh key expressions"
+    assert (
+        rz.topic_key(0, "/chatter", "std_msgs/msg/String", STRING_HASH)
+        == "0/chatter/std_msgs::msg::dds_::String_/" + STRING_HASH
+    )
+    assert (
+        rz.topic_key(0, rz.fully_qualified("/robot1", "chatter"), "std_msgs/msg/String", STRING_HASH)
+        == "0/robot1/chatter/std_msgs::msg::dds_::String_/" + STRING_HASH
+    )
+    assert (
+        rz.topic_key(2, "/add_two_ints", "example_interfaces/srv/AddTwoInts", ADD_TWO_INTS_HASH)
+        == "2/add_two_ints/example_interfaces::srv::dds_::AddTwoInts_/" + ADD_TWO_INTS_HASH
+    )
+    assert rz.ros_type_name("nav_msgs::msg::dds_::Odometry_") == "nav_msgs/msg/Odometry"
+    assert rz.fully_qualified("/dpgw", "/abs") == "/abs" and rz.fully_qualified("/", "odom") == "/odom"
+
+
+def test_liveliness_tokens_are_rmw_zenohs() -> None:
+    # docs/design.md, "Graph Cache": the demo nodes' tokens, verbatim
+    assert (
+        rz.node_token(2, "aac3178e146ba6f1fc6e6a4085e77f21", 0, "/", "listener")
+        == "@ros2_lv/2/aac3178e146ba6f1fc6e6a4085e77f21/0/0/NN/%/%/listener"
+    )
+    listener = rz.entity_token(
+        2, "aac3178e146ba6f1fc6e6a4085e77f21", 0, 10, rz.SUBSCRIPTION, "/", "listener", "/chatter",
+        "std_msgs/msg/String", STRING_HASH, rz.Qos(depth=10),
+    )  # fmt: skip
+    assert listener == (
+        "@ros2_lv/2/aac3178e146ba6f1fc6e6a4085e77f21/0/10/MS/%/%/listener/%chatter/std_msgs::msg::dds_::"
+        f"String_/{STRING_HASH}/::,10:,:,:,,"
+    )
+    talker = rz.entity_token(
+        2, "8b20917502ee955ac4476e0266340d5c", 0, 10, rz.PUBLISHER, "/", "talker", "/chatter",
+        "std_msgs/msg/String", STRING_HASH, rz.Qos(depth=7),
+    )  # fmt: skip
+    assert talker == (
+        "@ros2_lv/2/8b20917502ee955ac4476e0266340d5c/0/10/MP/%/%/talker/%chatter/std_msgs::msg::dds_::"
+        f"String_/{STRING_HASH}/::,7:,:,:,,"
+    )
+    t = rz.parse_token(talker)
+    assert (t.domain_id, t.kind, t.namespace, t.node, t.topic, t.qos) == (
+        2, "MP", "/", "talker", "/chatter", "::,7:,:,:,,",
+    )  # fmt: skip
+    # non-default QoS fields are the rmw enum numbers: best effort 2, transient local 1, keep all 2
+    assert rz.Qos(rz.BEST_EFFORT, rz.TRANSIENT_LOCAL, rz.KEEP_ALL, 42).keyexpr() == "2:1:2,:,:,:,,"
+    for bad in ("@ros2_lv/0/z/0/0/XX/%/%/n", "@other/0/z/0/0/NN/%/%/n", "@ros2_lv/0/z/0/0/MP/%/%/n"):
+        with pytest.raises(ValueError):
+            rz.parse_token(bad)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    seq=st.integers(-(2**63), 2**63 - 1),
+    stamp=st.integers(-(2**63), 2**63 - 1),
+    gid=st.binary(min_size=16, max_size=16),
+)
+def test_the_attachment_is_zenohs_serialization(seq: int, stamp: int, gid: bytes) -> None:
+    data = rz.attachment(seq, stamp, gid)
+    assert len(data) == 33  # docs/design.md: 8 + 8 + 1 (the GID's length) + 16
+    assert data == z_serialize((Int64(seq), Int64(stamp), gid)).to_bytes()
+    assert z_deserialize(tuple[Int64, Int64, bytes], zenoh.ZBytes(data)) == (seq, stamp, gid)
+    assert rz.parse_attachment(data) == (seq, stamp, gid)
+    with pytest.raises(ValueError):
+        rz.parse_attachment(data[:-1])
+
+
+def test_the_gid_is_xxh3_128_of_the_token_low_half_first() -> None:
+    token = "@ros2_lv/0/aac3178e146ba6f1fc6e6a4085e77f21/0/10/MP/%/%/talker/%chatter/x/y/::,7:,:,:,,"
+    h = xxhash.xxh3_128(token.encode())
+    low, high = h.intdigest() & (2**64 - 1), h.intdigest() >> 64
+    assert rz.entity_gid(token) == low.to_bytes(8, "little") + high.to_bytes(8, "little")
+    assert rz.entity_gid(token) == h.digest()[::-1]  # (the canonical digest is big-endian)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    north=st.floats(-1e4, 1e4),
+    east=st.floats(-1e4, 1e4),
+    heading=st.floats(0.0, 359.999),
+    scale=st.floats(0.1, 10.0),
+)
+def test_a_pose_stamped_in_enu_is_the_same_ned_setpoint(
+    north: float, east: float, heading: float, scale: float
+) -> None:
+    """(x, y) = (E, N) and yaw = π/2 − ψ, for any quaternion scale (an unnormalised one is a rotation)."""
+    store = ros_typestore()
+    msg = pose_stamped(store, "ltp", east, north, heading, scale)
+    sp = setpoint_payload(store.deserialize_cdr(store.serialize_cdr(msg, rz_pose()), rz_pose()), "ltp")
+    assert isinstance(sp, dict)
+    assert sp["north_m"] == north and sp["east_m"] == east
+    assert math.cos(math.radians(sp["heading_deg"] - heading)) == pytest.approx(1.0, abs=1e-12)
+    assert 0.0 <= sp["heading_deg"] < 360.0
+    assert isinstance(setpoint_payload(msg, "map"), str)
+
+
+def test_setpoints_that_are_none_are_refused_with_their_reason() -> None:
+    store = ros_typestore()
+    assert str(setpoint_payload(pose_stamped(store, "map", 1, 2, 3), "ltp")).startswith("wrong frame: ")
+    zero = pose_stamped(store, "ltp", 1, 2, 3, scale=0.0)
+    assert str(setpoint_payload(zero, "ltp")).startswith("invalid orientation: ")
+
+
+# --- a live gateway ------------------------------------------------------------------------------------
+
+
+def rz_pose() -> str:
+    return "geometry_msgs/msg/PoseStamped"
+
+
+def pose_stamped(
+    store: Any, frame: str, east: float, north: float, heading_deg: float, scale: float = 1.0
+) -> Any:
+    t = store.types
+    yaw = math.pi / 2 - math.radians(heading_deg)
+    return t[rz_pose()](
+        header=t["std_msgs/msg/Header"](
+            stamp=t["builtin_interfaces/msg/Time"](sec=1, nanosec=2), frame_id=frame
+        ),
+        pose=t["geometry_msgs/msg/Pose"](
+            position=t["geometry_msgs/msg/Point"](x=east, y=north, z=0.0),
+            orientation=t["geometry_msgs/msg/Quaternion"](
+                x=0.0, y=0.0, z=scale * math.sin(yaw / 2), w=scale * math.cos(yaw / 2)
+            ),
+        ),
+    )
+
+
+def free_port(kind: int = socket.SOCK_STREAM) -> int:
+    with socket.socket(socket.AF_INET, kind) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+class Recorder:
+    """A second sink: what the pipeline handed the sinks, to compare the ROS messages with."""
+
+    name = "recorder"
+
+    def __init__(self) -> None:
+        self.outputs: list[Output] = []
+        self.lock = threading.Lock()
+
+    def start(self, session: Any) -> None:
+        pass
+
+    def emit(self, outputs: list[Output], encoded: list[bytes]) -> None:
+        with self.lock:
+            self.outputs.extend(outputs)
+
+    def close(self) -> None:
+        pass
+
+    def of(self, kind: type, topic: str) -> list[Any]:
+        with self.lock:
+            return [o.message for o in self.outputs if type(o.message) is kind and o.topic == topic]
+
+
+class RosListener:
+    """An rmw_zenoh peer without ROS: every sample on the domain, its attachment decoded by Zenoh's own
+    deserializer, its payload by rosbags."""
+
+    def __init__(self, session: Any, store: Any) -> None:
+        self.store = store
+        self.lock = threading.Lock()
+        self.got: dict[str, list[tuple[int, int, bytes, Any]]] = defaultdict(list)
+        self.bad: list[str] = []
+        self.sub = session.declare_subscriber(f"{DOMAIN}/**", self._on)
+
+    def _on(self, sample: Any) -> None:
+        key = str(sample.key_expr)
+        try:
+            ros_type = rz.ros_type_name(key.split("/")[-2])
+            assert sample.attachment is not None, "no attachment"
+            seq, stamp, gid = z_deserialize(tuple[Int64, Int64, bytes], sample.attachment)
+            msg = self.store.deserialize_cdr(sample.payload.to_bytes(), ros_type)
+        except Exception as exc:  # (a callback's exception would be lost: keep it for the test)
+            with self.lock:
+                self.bad.append(f"{key}: {exc!r}")
+            return
+        with self.lock:
+            self.got[key].append((seq, stamp, gid, msg))
+
+    def of(self, key: str) -> list[tuple[int, int, bytes, Any]]:
+        with self.lock:
+            return list(self.got[key])
+
+
+def tables(udp: int, zport: int, **ros2: Any) -> dict[str, Any]:
+    return {
+        "vessel": {"name": "mss_supply"},
+        "datum": {"lat_deg": LAT, "lon_deg": LON},
+        "sources": [
+            {
+                "name": "dgps1",
+                "url": f"udp://127.0.0.1:{udp}",
+                "protocol": "nmea",
+                "roles": ["position", "heading"],
+            }
+        ],
+        "observer": {"wave_period_s": 9.0},
+        "zenoh": {"listen": [f"tcp/127.0.0.1:{zport}"], "multicast_scouting": False, "prefix": "dp/r"},
+        "status": {"rate_hz": 10.0},
+        "log": {"path": ""},
+        "commands": {"accept": ["mode", "setpoint"]},
+        "ros2": {"enabled": True, "domain_id": DOMAIN, **ros2},
+    }
+
+
+def sentences(k: int) -> list[str]:
+    """One second of a DGPS (quality 2) with a gyro: GGA, GST, HDT; the heading swings so ν lives."""
+    t = datetime.now(UTC)
+    return [
+        enc.gga("GP", t, LAT + 2e-6 * math.sin(k / 5), LON, 2, 12, 0.8, ALT, SEP).rstrip("\r\n"),
+        enc.gst(
+            "GP", t, rms_m=0.5, sigma_major_m=0.4, sigma_minor_m=0.3, orient_rad=0.0,
+            sigma_lat_m=SIGMA_LAT, sigma_lon_m=SIGMA_LON, sigma_alt_m=SIGMA_ALT,
+        ).rstrip("\r\n"),
+        enc.hdt("HE", 30.0 + 0.02 * math.sin(k / 3)).rstrip("\r\n"),
+    ]  # fmt: skip
+
+
+def test_a_ros2_peer_sees_rmw_zenoh_keys_attachments_tokens_and_the_pipelines_values(
+    tmp_path: Path,
+) -> None:
+    udp, zport = free_port(socket.SOCK_DGRAM), free_port()
+    config = parse_config(tables(udp, zport), base_dir=tmp_path)
+    sinks = sinks_from_config(config)
+    assert len(sinks) == 1 and isinstance(sinks[0], Ros2Sink)
+    sink = sinks[0]
+    assert isinstance(sink, RawSentenceSink) and isinstance(sink, InputSink)
+    recorder = Recorder()
+    service = GatewayService(config, sinks=[sink, recorder])
+    t_start = time.time_ns()
+    service.start()
+    loop = threading.Thread(target=service.run, name="consumer")
+    loop.start()
+    client = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{zport}"]))
+    store = ros_typestore()
+    listener = RosListener(client, store)
+    live: list[str] = []
+    lv_sub = client.liveliness().declare_subscriber(
+        "@ros2_lv/**", lambda s: live.append(str(s.key_expr)), history=True
+    )
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sent = [0]
+
+    def send() -> None:
+        lines = sentences(sent[0])
+        sent[0] += 1
+        tx.sendto("".join(line + "\r\n" for line in lines).encode(), ("127.0.0.1", udp))
+
+    def until(ok: Any, timeout: float = 30.0) -> Any:
+        def step() -> Any:
+            send()
+            return ok()
+
+        return wait_for(step, timeout=timeout, interval=0.05)
+
+    def tokens() -> set[str]:
+        return {str(r.ok.key_expr) for r in client.liveliness().get("@ros2_lv/**") if r.ok is not None}
+
+    zid = sink.zid
+    assert zid == str(client.info.peers_zid()[0])  # the gateway's session, as Zenoh names it
+    try:
+        # the ROS graph: a node, three publishers, one subscription, in rmw_zenoh's token format
+        assert wait_for(lambda: len(tokens()) == 5), tokens()
+        found = tokens()
+        assert found == set(sink.tokens)
+        parsed = {rz.parse_token(k).kind + rz.parse_token(k).topic: rz.parse_token(k) for k in found}
+        assert set(parsed) == {"NN", "MP/dpgw/odom", "MP/dpgw/pose", "MP/dpgw/fix/dgps1", "MS/dpgw/setpoint"}
+        node = parsed["NN"]
+        assert f"@ros2_lv/{DOMAIN}/{zid}/0/0/NN/%/%dpgw/dpgw" in found
+        assert (node.domain_id, node.zid, node.namespace, node.node, node.enclave) == (
+            DOMAIN, zid, "/dpgw", "dpgw", "/",
+        )  # fmt: skip
+        for name, ros_type in (
+            ("MP/dpgw/odom", "nav_msgs/msg/Odometry"),
+            ("MP/dpgw/pose", "geometry_msgs/msg/PoseStamped"),
+            ("MP/dpgw/fix/dgps1", "sensor_msgs/msg/NavSatFix"),
+            ("MS/dpgw/setpoint", "geometry_msgs/msg/PoseStamped"),
+        ):
+            t = parsed[name]
+            assert (t.domain_id, t.zid, t.node_id, t.namespace, t.node) == (DOMAIN, zid, "0", "/dpgw", "dpgw")
+            assert t.dds_type == rz.dds_type_name(ros_type) and t.type_hash == PUBLISHED_HASHES[ros_type]
+            assert t.qos == "::,10:,:,:,,"  # reliable, volatile, keep last 10
+        assert len({t.entity_id for t in parsed.values() if t.kind != "NN"}) == 4
+        assert wait_for(lambda: set(live) >= found)  # a liveliness subscriber sees them too
+
+        until(lambda: len(listener.of(ODOM_KEY)) >= 5 and len(listener.of(FIX_KEY)) >= 3)
+
+        # a setpoint from ROS: one in the wrong frame is refused here, counted; the right one is taken
+        service.submit("mode", "dp")
+        gid = rz.entity_gid("@ros2_lv/test/setpoint/publisher")
+        # a put sent before this session knows of the gateway's subscription goes to nobody: wait for it
+        probe = client.declare_publisher(SETPOINT_KEY)
+        try:
+            assert wait_for(lambda: probe.matching_status.matching)
+        finally:
+            probe.undeclare()
+        wrong = store.serialize_cdr(pose_stamped(store, "map", 3.0, 4.0, 45.0), rz_pose())
+        client.put(SETPOINT_KEY, bytes(wrong), attachment=rz.attachment(1, time.time_ns(), gid))
+        assert wait_for(lambda: sink.refused["wrong frame"] == 1)
+        client.put(
+            SETPOINT_KEY, b"\x00\x01\x00\x00not a pose", attachment=rz.attachment(2, time.time_ns(), gid)
+        )
+        assert wait_for(lambda: sink.refused["undecodable"] == 1)
+        good = store.serialize_cdr(pose_stamped(store, "ltp", 3.0, 4.0, 45.0), rz_pose())
+        client.put(SETPOINT_KEY, bytes(good), attachment=rz.attachment(3, time.time_ns(), gid))
+        assert until(lambda: service.pipeline.setpoint is not None)
+        sp = service.pipeline.setpoint
+        assert sp is not None and sp["north_m"] == 4.0 and sp["east_m"] == 3.0
+        assert sp["heading_deg"] == pytest.approx(45.0, abs=1e-9)
+        assert service.pipeline.commands.counters.accepted["setpoint"] == 1
+        assert sink.setpoints == 1 and sum(sink.refused.values()) == 2
+        assert service.pipeline.controller is not None
+        assert list(service.pipeline.controller._setpoint) == pytest.approx([4.0, 3.0, math.radians(45)])
+    finally:
+        service.stop_event.set()
+        loop.join(timeout=30)
+        service.drain()
+        sink.close()  # the tokens go with the sink, before the session closes
+        gone = wait_for(lambda: tokens() == set(), timeout=10.0)
+        service.close()
+        tx.close()
+        lv_sub.undeclare()
+    try:
+        check_samples(listener, recorder, sink, found, t_start, time.time_ns())
+    finally:
+        client.close()
+    assert gone
+    assert not loop.is_alive()
+    assert service.internal_errors == {}
+
+
+def check_samples(
+    listener: RosListener, recorder: Recorder, sink: Ros2Sink, tokens: set[str], t0: int, t1: int
+) -> None:
+    # (this session's own setpoints, delivered locally; the undecodable one is in `bad`)
+    assert len(listener.got.pop(SETPOINT_KEY)) == 2
+    assert len(listener.bad) == 1 and listener.bad[0].startswith(SETPOINT_KEY)
+    listener.bad.clear()
+    assert listener.bad == []
+    assert set(listener.got) == {ODOM_KEY, POSE_KEY, FIX_KEY}
+    gid_of = {
+        ODOM_KEY: rz.entity_gid(next(k for k in tokens if "/MP/" in k and "%odom/" in k)),
+        POSE_KEY: rz.entity_gid(next(k for k in tokens if "/MP/" in k and "%pose/" in k)),
+        FIX_KEY: rz.entity_gid(next(k for k in tokens if "/MP/" in k and "%fix%dgps1/" in k)),
+    }
+    assert len(set(gid_of.values())) == 3
+    for key, samples in listener.got.items():
+        # the attachment: sequence numbers 1, 2, 3, ... per publisher, this computer's time at publishing,
+        # the publisher's GID (the one rmw_zenoh derives from its token)
+        assert [s[0] for s in samples] == list(range(1, len(samples) + 1)), key
+        stamps = [s[1] for s in samples]
+        assert all(t0 <= t <= t1 for t in stamps) and stamps == sorted(stamps)
+        assert {s[2] for s in samples} == {gid_of[key]}
+
+    # Odometry and PoseStamped: the main observer's every estimate, ENU/FLU
+    estimates = {e.stamp_ns: e for e in recorder.of(Estimate, "/dp/estimate")}
+    odoms = [s[3] for s in listener.of(ODOM_KEY)]
+    poses = {stamp_ns(s[3].header): s[3] for s in listener.of(POSE_KEY)}
+    assert len(odoms) == len(estimates) == len(poses) >= 5
+    for o in odoms:
+        e = estimates[stamp_ns(o.header)]
+        north, east, _ = e.eta
+        u, v, r = e.nu
+        assert o.header.frame_id == "ltp" and o.child_frame_id == "vessel"
+        p = o.pose.pose
+        assert (p.position.x, p.position.y, p.position.z) == (east, north, 0.0)
+        q = p.orientation
+        assert (q.x, q.y) == (0.0, 0.0) and q.z**2 + q.w**2 == pytest.approx(1.0, abs=1e-12)
+        heading = math.degrees(math.pi / 2 - 2 * math.atan2(q.z, q.w)) % 360
+        assert math.cos(math.radians(heading - e.heading_deg)) == pytest.approx(1.0, abs=1e-12)
+        tw = o.twist.twist
+        assert (tw.linear.x, tw.linear.y, tw.linear.z) == (u, -v, 0.0)
+        assert (tw.angular.x, tw.angular.y, tw.angular.z) == (0.0, 0.0, -r)
+        assert not o.pose.covariance.any() and not o.twist.covariance.any()  # unknown
+        assert o.pose.covariance.shape == (36,)
+        ps = poses[stamp_ns(o.header)]
+        assert ps.header.frame_id == "ltp" and ps.pose == p
+    assert any(o.twist.twist.angular.z != 0.0 for o in odoms)
+
+    # NavSatFix: every receiver fix, GGA's ellipsoidal height, GST's σ in ENU, DGPS status, GPS service
+    fixes = {
+        f.timestamp.sec * 1_000_000_000 + f.timestamp.nsec: f
+        for f in recorder.of(LocationFix, "/gnss/dgps1/fix")
+    }
+    navsat = [s[3] for s in listener.of(FIX_KEY)]
+    assert len(navsat) == len(fixes) >= 3
+    for n in navsat:
+        f = fixes[stamp_ns(n.header)]
+        assert n.header.frame_id == "dgps1"
+        assert (n.latitude, n.longitude, n.altitude) == (f.latitude, f.longitude, f.altitude)
+        assert n.altitude == pytest.approx(ALT + SEP, abs=1e-9)
+        assert n.status.status == n.status.STATUS_SBAS_FIX and n.status.service == n.status.SERVICE_GPS
+        assert list(n.position_covariance) == list(f.position_covariance)
+        assert n.position_covariance_type == f.position_covariance_type
+    assert any(
+        n.position_covariance_type == n.COVARIANCE_TYPE_DIAGONAL_KNOWN
+        and list(n.position_covariance)
+        == pytest.approx([SIGMA_LON**2, 0, 0, 0, SIGMA_LAT**2, 0, 0, 0, SIGMA_ALT**2])
+        for n in navsat
+    )
+    assert sink.published["odom"] == len(odoms) and sink.published["fix/dgps1"] == len(navsat)
+
+
+def stamp_ns(header: Any) -> int:
+    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+
+
+def test_ros2_config_errors_name_the_key(tmp_path: Path) -> None:
+    t = tables(1, 2, namespace="dpgw", frame_id="/map", pose_topic="odom", domain_id=233)
+    with pytest.raises(ConfigError) as err:
+        parse_config(t, base_dir=tmp_path)
+    text = str(err.value)
+    for key in ("ros2.namespace", "ros2.frame_id", "ros2.pose_topic", "ros2.domain_id"):
+        assert key in text
+    assert "the same topic as ros2.odom_topic" in text
+
+
+def test_missing_packages_and_bad_topic_names_stop_start_up(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import importlib.util
+
+    t = tables(1, 2)
+    t["sources"][0]["name"] = "1gps"
+    config = parse_config(t, base_dir=tmp_path)
+    real = importlib.util.find_spec
+    monkeypatch.setattr(
+        importlib.util, "find_spec", lambda name, *a: None if name == "rosbags" else real(name, *a)
+    )
+    problems = output_problems(config)
+    assert len(problems) == 2
+    assert "ros2.enabled" in problems[0] and "dpgw[ros2]" in problems[0] and "rosbags is" in problems[0]
+    assert "1gps: not a ROS 2 name token" in problems[1]
+    from dpgw.cli_run import start_up_problems  # `dpgw run --check` says them too
+
+    assert [p for p in start_up_problems(config) if "ros2" in p or "1gps" in p] == problems
