@@ -433,3 +433,25 @@ def test_an_observer_that_wants_new_samples_gets_each_measurement_once() -> None
     assert np.isfinite(np.array(given["passive"])[1:]).all()  # held values for the passive observer
     est = [o.payload for o in out if o.topic == "/dp/estimate"]
     assert len(est) == 2 * n - 1 and {e["status"] for e in est[1:]} == {"ok"}
+
+
+def test_compile_kernels_leaves_the_pipelines_state_alone() -> None:
+    """The live service calls `compile_kernels` before its sources open (so numba's compile or cache
+    load does not stall the loop at the first sample or DP step): afterwards the pipeline gives exactly
+    what a pipeline that never called it gives, in dp mode with a setpoint move."""
+    src = [nmea_src("gps", ["position", "heading"])]
+    warmed, plain = pipeline(src), pipeline(src)
+    warmed.compile_kernels()
+    outs = []
+    for p in (warmed, plain):
+        out = []
+        for k in range(60):
+            if k == 5:  # dp once there is an estimate
+                out += p.feed(ControlEvent(T0 + k * S // 5, "mode", "dp"))
+            if k == 20:
+                out += p.feed(ControlEvent(T0 + k * S // 5, "setpoint", {"north_m": 3.0, "east_m": 1.0}))
+            burst = gga_at(0.01 * k, 0.0) + enc.hdt("HE", 0.3 + 0.001 * k).encode()
+            out += p.feed(RawEvent(T0 + k * S // 5, "gps", burst))
+        outs.append([o.message.encode() for o in out])
+    assert outs[0] == outs[1]
+    assert sum(o.topic == "/dp/thrusters/command" for o in out) > 20
