@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict
 from typing import Any
 
-from gateway.config.model import IntegrityConfig, KeelsonConfig
+from gateway.config.model import FoxgloveConfig, IntegrityConfig, KeelsonConfig
 from observers.passive_tuning import PassiveTuning
 from observers.vessel import builtin_vessels
 
@@ -56,6 +56,7 @@ DEFAULTS: dict[str, dict[str, Any]] = {
     "status": {"rate_hz": 1.0},
     "time": {"clock": "wall"},
     "keelson": asdict(KeelsonConfig()),
+    "foxglove": asdict(FoxgloveConfig()),
     "control": {
         "rate_hz": 10.0,
         "initial_mode": "standby",

@@ -23,6 +23,7 @@ from gateway.config.model import (
     CommandsConfig,
     ControlConfig,
     DatumConfig,
+    FoxgloveConfig,
     GatewayConfig,
     IntegrityConfig,
     KeelsonConfig,
@@ -37,6 +38,7 @@ from gateway.config.schema import (
     CommandsTable,
     ControlTable,
     DatumTable,
+    FoxgloveTable,
     IntegrityTable,
     KeelsonTable,
     LogTable,
@@ -48,7 +50,7 @@ from gateway.config.schema import (
 )
 from gateway.config.source_entries import read_sources
 from observers.vessel import VesselError, VesselModel, builtin_vessels, load_vessel
-from wire.urls import UrlError, split_host_port
+from wire.urls import UrlError, split_host_port, valid_host
 
 __all__ = ["load_config", "parse_config"]
 
@@ -65,6 +67,7 @@ _TOP_KEYS = (
     "commands",
     "time",
     "keelson",
+    "foxglove",
 )
 
 
@@ -120,6 +123,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
     commands = _read_commands(p, data)
     time_config = _read_time(p, data)
     keelson = _read_keelson(p, data)
+    foxglove = _read_foxglove(p, data)
 
     if p.lines:
         raise ConfigError(p.lines)
@@ -128,6 +132,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
     assert zenoh_config is not None and log is not None and status is not None and control is not None
     assert integrity is not None
     assert commands is not None and time_config is not None and keelson is not None
+    assert foxglove is not None
     return GatewayConfig(
         vessel=vessel,
         vessel_source=vessel_source,
@@ -144,6 +149,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
         commands=commands,
         time=time_config,
         keelson=keelson,
+        foxglove=foxglove,
     )
 
 
@@ -584,6 +590,22 @@ def _read_keelson(p: Problems, data: Mapping[str, Any]) -> KeelsonConfig | None:
     if len(p) != n0:
         return None
     return KeelsonConfig(**v)
+
+
+def _read_foxglove(p: Problems, data: Mapping[str, Any]) -> FoxgloveConfig | None:
+    t = _section(p, data, "foxglove")
+    if t is None:
+        return None
+    n0 = len(p)
+    v = read_table(FoxgloveTable, t, "foxglove", p)
+    host = v["host"]
+    if host is not None and not valid_host(host):
+        extra = FoxgloveTable.model_fields["host"].json_schema_extra
+        expected = extra.get("expected", "") if isinstance(extra, dict) else ""
+        p.add("foxglove.host", f"not an address or host name (expected {expected}, got {show(host)})")
+    if len(p) != n0:
+        return None
+    return FoxgloveConfig(**v)
 
 
 def _expected(key: str) -> str:

@@ -47,6 +47,7 @@ __all__ = [
     "CommandsTable",
     "ControlTable",
     "DatumTable",
+    "FoxgloveTable",
     "IntegrityTable",
     "KeelsonTable",
     "LogTable",
@@ -491,3 +492,18 @@ class KeelsonTable(_Section):
     allocated_source_id: str = text(_K["allocated_source_id"], _SOURCE_ID)
     feedback_source_id: str = text(_K["feedback_source_id"], _SOURCE_ID)
     log_source_id: str = text(_K["log_source_id"], _SOURCE_ID)
+
+
+_F = DEFAULTS["foxglove"]
+
+
+class FoxgloveTable(_Section):
+    """``[foxglove]``: the live Foxglove WebSocket server (docs/foxglove.md)."""
+
+    enabled: bool = boolean(_F["enabled"])
+    host: str = text(
+        _F["host"],
+        'an IP address or host name to listen on, e.g. "127.0.0.1" (this computer only) or "0.0.0.0" '
+        "(every interface)",
+    )
+    port: int = integer(_F["port"], lo=0, hi=65535)

@@ -23,6 +23,11 @@ def output_problems(config: GatewayConfig) -> list[str]:
             f"{config.path}: keelson.enabled: true, but the keelson package is not installed (install it "
             "with pip install 'dpgw[keelson]', or set keelson.enabled = false)"
         )
+    if config.foxglove.enabled and importlib.util.find_spec("foxglove") is None:  # a core dependency
+        problems.append(
+            f"{config.path}: foxglove.enabled: true, but the foxglove-sdk package is not installed (install "
+            "it with pip install foxglove-sdk, or set foxglove.enabled = false)"
+        )
     return problems
 
 
@@ -36,4 +41,8 @@ def sinks_from_config(config: GatewayConfig) -> list[OutputSink]:
         from gateway.outputs.keelson import keelson_sink
 
         sinks.append(keelson_sink(config))
+    if config.foxglove.enabled:
+        from gateway.outputs.foxglove_server import foxglove_sink
+
+        sinks.append(foxglove_sink(config))
     return sinks

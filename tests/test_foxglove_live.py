@@ -1,0 +1,197 @@
+"""The live Foxglove server (`gateway.outputs.foxglove_server`), seen from a WebSocket client.
+
+The client is written here from Foxglove's WebSocket protocol (the ``websockets`` package, not the SDK
+that serves): JSON text frames for ``serverInfo`` / ``advertise`` / ``subscribe``, binary frames for
+data (opcode 1: subscription id u32, log time u64, payload), the server's time (2) and playback state
+(5), and the client's playback-control request (3). A wrong frame layout here fails the test, not
+silently passes it.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import math
+import os
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+websockets = pytest.importorskip("websockets")
+
+SUBPROTOCOL = "foxglove.sdk.v1"
+OP_MESSAGE_DATA, OP_TIME, OP_PLAYBACK_STATE = 1, 2, 5
+OP_PLAYBACK_CONTROL = 3
+PLAY, PAUSE = 0, 1
+PLAYING, PAUSED, BUFFERING, ENDED = 0, 1, 2, 3
+
+CORE_JSON = {"/dp/estimate", "/dp/measurement", "/dp/status", "/dp/thrusters/command"}
+CORE_NATIVE = {"/dp/estimate/fix", "/dp/estimate/pose", "/dp/tf", "/dp/scene/hull", "/dp/scene/thrusters"}
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@dataclass
+class Client:
+    """A Foxglove WebSocket client that subscribes to every channel advertised and keeps what arrives."""
+
+    ws: Any
+    server_info: dict[str, Any] = field(default_factory=dict)
+    channels: dict[int, dict[str, Any]] = field(default_factory=dict)  # channel id -> advertised channel
+    messages: dict[str, list[tuple[int, bytes]]] = field(default_factory=dict)  # topic -> (log time, data)
+    times: list[int] = field(default_factory=list)
+    states: list[dict[str, Any]] = field(default_factory=list)
+    _sub_topic: dict[int, str] = field(default_factory=dict)
+    _next_sub: int = 1
+
+    async def handle(self, frame: str | bytes) -> None:
+        if isinstance(frame, str):
+            msg = json.loads(frame)
+            if msg["op"] == "serverInfo":
+                self.server_info = msg
+            elif msg["op"] == "advertise":
+                subs = []
+                for ch in msg["channels"]:
+                    self.channels[ch["id"]] = ch
+                    sid, self._next_sub = self._next_sub, self._next_sub + 1
+                    self._sub_topic[sid] = ch["topic"]
+                    subs.append({"id": sid, "channelId": ch["id"]})
+                await self.ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
+            return
+        op = frame[0]
+        if op == OP_MESSAGE_DATA:
+            sid, log_time = struct.unpack_from("<IQ", frame, 1)
+            self.messages.setdefault(self._sub_topic[sid], []).append((log_time, bytes(frame[13:])))
+        elif op == OP_TIME:
+            self.times.append(struct.unpack_from("<Q", frame, 1)[0])
+        elif op == OP_PLAYBACK_STATE:
+            status, now, speed, did_seek, n = struct.unpack_from("<BQfBI", frame, 1)
+            rid = bytes(frame[19 : 19 + n]).decode()
+            self.states.append(
+                {"status": status, "time": now, "speed": speed, "did_seek": bool(did_seek), "id": rid}
+            )
+
+    async def until(self, done: Callable[[], bool], timeout: float, what: str) -> None:
+        """Handle frames until ``done()`` or the timeout (then fail, saying what did not happen)."""
+        deadline = time.monotonic() + timeout
+        while not done():
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise AssertionError(f"within {timeout:g} s: {what}; advertised {self.advertised()}")
+            try:
+                frame = await asyncio.wait_for(self.ws.recv(), left)
+            except TimeoutError:
+                continue
+            await self.handle(frame)
+
+    def advertised(self) -> set[str]:
+        return {ch["topic"] for ch in self.channels.values()}
+
+    def silent(self) -> set[str]:
+        return {t for t in self.advertised() if not self.messages.get(t)}
+
+    async def playback(
+        self, command: int, speed: float = 1.0, seek_ns: int | None = None, rid: str = ""
+    ) -> None:
+        body = (
+            struct.pack("<BfBQI", command, speed, seek_ns is not None, seek_ns or 0, len(rid)) + rid.encode()
+        )
+        await self.ws.send(bytes([OP_PLAYBACK_CONTROL]) + body)
+
+
+async def connect(port: int, alive: Callable[[], bool], timeout: float = 60.0) -> Any:
+    """Connect once the server listens (the process may still be importing), or fail."""
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            return await websockets.connect(
+                f"ws://127.0.0.1:{port}", subprotocols=[SUBPROTOCOL], max_size=None, open_timeout=10
+            )
+        except OSError as exc:
+            if time.monotonic() >= deadline or not alive():
+                raise AssertionError(f"no Foxglove server on 127.0.0.1:{port}: {exc}") from exc
+            await asyncio.sleep(0.1)
+
+
+def dpgw(*args: str) -> subprocess.Popen[str]:
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    return subprocess.Popen(
+        [sys.executable, "-m", "dpgw", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+
+
+def stop(proc: subprocess.Popen[str]) -> str:
+    """SIGINT (a clean stop), then the process's stderr."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+    try:
+        _, err = proc.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        _, err = proc.communicate()
+    return err
+
+
+def estimate_is_finite(payload: bytes) -> bool:
+    e = json.loads(payload)
+    return len(e["eta"]) == 3 and all(v is not None and math.isfinite(v) for v in e["eta"])
+
+
+def test_demo_serves_every_advertised_channel_with_data(tmp_path: Path) -> None:
+    port = free_port()
+    proc = dpgw(
+        "demo", "--duration", "600", "--speed", "10", "--foxglove", f"127.0.0.1:{port}",
+        "--out", str(tmp_path / "demo.mcap"), "--no-scouting",
+    )  # fmt: skip
+
+    async def session() -> Client:
+        ws = await connect(port, lambda: proc.poll() is None)
+        async with ws:
+            c = Client(ws)
+            await c.until(
+                lambda: c.advertised() >= (CORE_JSON | CORE_NATIVE) and not c.silent(),
+                120.0,
+                "every core channel advertised and a message on every advertised channel",
+            )
+            return c
+
+    try:
+        c = asyncio.run(session())
+    finally:
+        err = stop(proc)
+    assert "Foxglove live: ws://127.0.0.1:" in err, err
+    assert c.server_info["name"] == "dpgw"
+    print({t: len(m) for t, m in sorted(c.messages.items())})
+    assert c.silent() == set()
+    for ch in c.channels.values():
+        assert ch["encoding"] == "json"
+        assert ch["schemaEncoding"] == "jsonschema"
+        schema = json.loads(ch["schema"])
+        assert schema.get("type") == "object", ch["topic"]
+    schemas = {ch["topic"]: ch["schemaName"] for ch in c.channels.values()}
+    assert schemas["/dp/estimate"] == "dpgw.Estimate"
+    assert schemas["/dp/estimate/fix"] == "foxglove.LocationFix"
+    assert schemas["/dp/tf"] == "foxglove.FrameTransforms"
+    # the payloads are the messages, decoded: the estimate's N, E, ψ finite, its log time its stamp
+    log_time, payload = c.messages["/dp/estimate"][-1]
+    assert estimate_is_finite(payload)
+    assert json.loads(payload)["stamp_ns"] == log_time
+    fix = json.loads(c.messages["/dp/estimate/fix"][-1][1])
+    assert -90 <= fix["latitude"] <= 90 and -180 <= fix["longitude"] <= 180
