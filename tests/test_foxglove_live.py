@@ -195,3 +195,98 @@ def test_demo_serves_every_advertised_channel_with_data(tmp_path: Path) -> None:
     assert json.loads(payload)["stamp_ns"] == log_time
     fix = json.loads(c.messages["/dp/estimate/fix"][-1][1])
     assert -90 <= fix["latitude"] <= 90 and -180 <= fix["longitude"] <= 180
+
+
+def sim_log(path: Path, seconds: float) -> Path:
+    from simulator.runner import Simulation
+    from simulator.scenarios import get_scenario
+    from wire.mcap.writer import McapLogWriter
+
+    with McapLogWriter(path) as w:
+        Simulation(get_scenario("torsetnes_2004"), seed=3, log=w).run(seconds)
+    return path
+
+
+def ns(t: dict[str, int]) -> int:
+    return int(t["sec"]) * 1_000_000_000 + int(t["nsec"])
+
+
+def test_replay_obeys_play_pause_seek_and_speed(tmp_path: Path) -> None:
+    log = sim_log(tmp_path / "sim.mcap", 90.0)
+    port = free_port()
+    proc = dpgw("replay", str(log), "--vessel", "mss_supply", "--foxglove", f"127.0.0.1:{port}", "--json")
+    S = 1_000_000_000
+
+    async def session() -> None:
+        ws = await connect(port, lambda: proc.poll() is None)
+        async with ws:
+            c = Client(ws)
+            await c.until(lambda: bool(c.server_info), 30.0, "serverInfo")
+            assert "playbackControl" in c.server_info["capabilities"]
+            begin, end = ns(c.server_info["dataStartTime"]), ns(c.server_info["dataEndTime"])
+            assert 85 * S <= end - begin <= 91 * S
+
+            def estimates() -> list[tuple[int, bytes]]:
+                return c.messages.get("/dp/estimate", [])
+
+            async def ask(command: int, speed: float, seek: int | None, rid: str) -> dict[str, Any]:
+                await c.playback(command, speed, seek, rid)
+                await c.until(lambda: any(s["id"] == rid for s in c.states), 30.0, f"the reply to {rid}")
+                return next(s for s in c.states if s["id"] == rid)
+
+            # starts paused: play at 5x and the estimates come, in log time from the start
+            state = await ask(PLAY, 5.0, None, "play")
+            assert state["status"] == PLAYING and state["speed"] == 5.0
+            await c.until(lambda: any(t >= begin + 15 * S for t, _ in estimates()), 60.0, "15 s of log")
+            first_pass = dict(estimates())
+
+            # pause: no estimate beyond the paused time while paused (at 5x, 1 s of wall is ~50)
+            state = await ask(PAUSE, 5.0, None, "pause")
+            assert state["status"] == PAUSED
+            paused_at, seen = state["time"], len(estimates())
+            window = time.monotonic() + 1.0
+            while (left := window - time.monotonic()) > 0:
+                try:
+                    await c.handle(await asyncio.wait_for(ws.recv(), left))
+                except TimeoutError:
+                    break
+            assert all(t <= paused_at for t, _ in estimates()[seen:])
+
+            # play again: log time goes on from where it stopped (the wall second paused is not skipped)
+            seen = len(estimates())
+            state = await ask(PLAY, 5.0, None, "resume")
+            assert state["status"] == PLAYING
+            await c.until(lambda: len(estimates()) > seen + 2, 30.0, "estimates after resuming")
+            resumed = [t for t, _ in estimates()[seen:] if t > paused_at]
+            assert resumed and resumed[0] - paused_at < 2 * S
+
+            # seek back to 5 s: replayed from the start, the same estimates at the same log times
+            target = begin + 5 * S
+            state = await ask(PLAY, 5.0, target, "back")
+            assert state["did_seek"] and state["time"] == target
+            seen = len(estimates())
+            await c.until(
+                lambda: sum(1 for t, _ in estimates()[seen:] if target <= t <= target + 8 * S) >= 20,
+                60.0,
+                "20 estimates after seeking back",
+            )
+            again = [(t, p) for t, p in estimates()[seen:] if target <= t <= target + 8 * S]
+            assert all(first_pass[t] == p for t, p in again if t in first_pass)
+            assert sum(1 for t, _ in again if t in first_pass) >= 20
+
+            # seek forwards to 60 s: the next estimates are from there on
+            target = begin + 60 * S
+            state = await ask(PLAY, 5.0, target, "forward")
+            assert state["did_seek"] and state["time"] == target
+            seen = len(estimates())
+            await c.until(lambda: any(t >= target for t, _ in estimates()[seen:]), 60.0, "estimates at 60 s")
+            later = [t for t, _ in estimates()[seen:]]
+            first_after = next(k for k, t in enumerate(later) if t >= target)
+            assert all(t >= target for t in later[first_after:])
+            assert later[first_after] - target < 2 * S
+
+    try:
+        asyncio.run(session())
+    finally:
+        err = stop(proc)
+    assert "Foxglove live: ws://127.0.0.1:" in err, err
