@@ -193,6 +193,9 @@ def test_demo_serves_every_advertised_channel_with_data(tmp_path: Path) -> None:
     log_time, payload = c.messages["/dp/estimate"][-1]
     assert estimate_is_finite(payload)
     assert json.loads(payload)["stamp_ns"] == log_time
+    # the server's time is the gateway's (the simulation's): within the span of the messages' log times
+    stamps = [t for m in c.messages.values() for t, _ in m]
+    assert min(stamps) <= max(c.times) <= max(stamps)
     fix = json.loads(c.messages["/dp/estimate/fix"][-1][1])
     assert -90 <= fix["latitude"] <= 90 and -180 <= fix["longitude"] <= 180
 
@@ -290,3 +293,90 @@ def test_replay_obeys_play_pause_seek_and_speed(tmp_path: Path) -> None:
     finally:
         err = stop(proc)
     assert "Foxglove live: ws://127.0.0.1:" in err, err
+
+
+# --- the sink in this process: holding, the port in use, the config ---------------------------------------
+
+
+def test_messages_made_before_anyone_subscribed_are_held_and_sent_to_the_first_subscriber() -> None:
+    from gateway.outputs.foxglove_server import LOG_HELD, FoxgloveServerSink
+    from wire.messages import Log, Status
+
+    sink = FoxgloveServerSink("127.0.0.1", 0)
+    sink.start()
+    try:
+        for k in range(3):  # a state channel: only the last is kept
+            sink.send("/dp/status", Status, json.dumps({"k": k}).encode(), 1_000 + k)
+        for k in range(LOG_HELD + 5):  # the log: the last LOG_HELD lines
+            sink.send("/dp/log", Log, json.dumps({"line": k}).encode(), 2_000 + k)
+        assert sink.stats.sent == 0 and sink.stats.superseded == 2 + 5
+
+        async def session() -> Client:
+            ws = await connect(sink.port, lambda: True)
+            async with ws:
+                c = Client(ws)
+                await c.until(lambda: {"/dp/status", "/dp/log"} <= c.advertised(), 30.0, "both advertised")
+                # the subscription reaches the server's thread after our send returns: flush until it has
+                deadline = time.monotonic() + 30.0
+                while sink._waiting and time.monotonic() < deadline:
+                    sink.emit([], [])
+                    await asyncio.sleep(0.02)
+                await c.until(lambda: len(c.messages.get("/dp/log", [])) == LOG_HELD, 30.0, "the held lines")
+                await c.until(lambda: bool(c.messages.get("/dp/status")), 30.0, "the held status")
+                # and from now on straight through
+                sink.send("/dp/status", Status, b'{"k": 9}', 5_000)
+                await c.until(lambda: len(c.messages["/dp/status"]) == 2, 30.0, "the next status")
+                return c
+
+        c = asyncio.run(session())
+    finally:
+        sink.close()
+    assert c.messages["/dp/status"] == [(1_002, b'{"k": 2}'), (5_000, b'{"k": 9}')]
+    lines = c.messages["/dp/log"]
+    assert [json.loads(p)["line"] for _, p in lines] == list(range(5, LOG_HELD + 5))
+    assert [t for t, _ in lines] == [2_000 + k for k in range(5, LOG_HELD + 5)]  # their own log times
+    schemas = {ch["topic"]: ch["schemaName"] for ch in c.channels.values()}
+    assert schemas == {"/dp/status": "dpgw.Status", "/dp/log": "foxglove.Log"}
+
+
+def test_a_port_in_use_is_one_clear_message() -> None:
+    from gateway.outputs.foxglove_server import FoxgloveServerError, FoxgloveServerSink
+
+    first = FoxgloveServerSink("127.0.0.1", 0)
+    first.start()
+    try:
+        second = FoxgloveServerSink("127.0.0.1", first.port)
+        with pytest.raises(FoxgloveServerError) as err:
+            second.start()
+        text = str(err.value)
+        assert f"127.0.0.1:{first.port}" in text and "in use" in text and "--foxglove" in text
+        assert "\n" not in text
+    finally:
+        first.close()
+
+
+def test_foxglove_config_section_and_the_command_line_address() -> None:
+    from gateway.config import ConfigError, FoxgloveConfig, default_config, parse_config
+    from wire.urls import UrlError, listen_address
+
+    cfg = default_config()
+    cfg["sources"] = [
+        {"name": "g", "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position", "heading"]}
+    ]
+    assert parse_config(cfg, base_dir=Path.cwd()).foxglove == FoxgloveConfig(False, "127.0.0.1", 8765)
+    cfg["foxglove"] = {"enabled": True, "host": "0.0.0.0", "port": 9000}
+    assert parse_config(cfg, base_dir=Path.cwd()).foxglove == FoxgloveConfig(True, "0.0.0.0", 9000)
+    cfg["foxglove"] = {"enabled": "yes", "host": "not a host!", "port": 70000}
+    with pytest.raises(ConfigError) as err:
+        parse_config(cfg, base_dir=Path.cwd(), where="v.toml")
+    text = str(err.value)
+    assert "foxglove.enabled" in text and "foxglove.port" in text and "65535" in text
+    assert "foxglove.host: not an address or host name" in text and '"not a host!"' in text
+
+    assert listen_address("8765") == ("127.0.0.1", 8765)
+    assert listen_address("0.0.0.0:9000") == ("0.0.0.0", 9000)
+    assert listen_address("[::1]:0") == ("::1", 0)
+    assert listen_address("gw.local:8765") == ("gw.local", 8765)
+    for bad in ("70000", "host", "a b:80", "127.0.0.1:99999"):
+        with pytest.raises(UrlError):
+            listen_address(bad)

@@ -30,6 +30,7 @@ from __future__ import annotations
 import functools
 import json
 import logging
+import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -63,6 +64,9 @@ LOG_TOPIC = "/dp/log"
 LOG_HELD = 100
 """Log lines held for the first subscriber of ``/dp/log`` (the other channels hold their last message:
 each is a state that the next one replaces)."""
+TIME_EVERY_NS = 50_000_000
+"""Live, the server's time (the latest output's stamp) is sent at most this often (wall): the app's clock
+follows the gateway's (the simulation's, in the demo) without a time message per output."""
 SUBPROTOCOL = "foxglove.sdk.v1"
 """What the SDK's server speaks (its handshake refuses a client that does not offer it)."""
 
@@ -189,6 +193,8 @@ class FoxgloveServerSink:
         self._context: foxglove.Context | None = None
         self._channels: dict[str, _Channel] = {}
         self._waiting: set[str] = set()  # topics with held messages
+        self._live_time = playback is None  # (a replay sends its own time: the player's log time)
+        self._next_time_ns = 0
 
     # --- OutputSink ------------------------------------------------------------------------------------
 
@@ -212,7 +218,7 @@ class FoxgloveServerSink:
             return
         self._context = foxglove.Context()  # this sink's own channels, never the SDK's global ones
         capabilities = [Capability.Time]
-        if self._playback is not None:
+        if self._playback is not None:  # (live, the server offers only its time: nothing comes in)
             capabilities.append(Capability.PlaybackControl)
         try:
             self.server = foxglove.start_server(
@@ -232,8 +238,15 @@ class FoxgloveServerSink:
         if self._waiting:
             self._flush_waiting()
         send = self.send
+        latest = 0
         for o, body in zip(outputs, encoded, strict=True):
             send(o.topic, type(o.message), body, o.stamp_ns)
+            latest = max(latest, o.stamp_ns)
+        if self._live_time and latest and self.server is not None:
+            now = time.monotonic_ns()
+            if now >= self._next_time_ns:
+                self._next_time_ns = now + TIME_EVERY_NS
+                self.server.broadcast_time(latest)
 
     def close(self) -> None:
         server, self.server = self.server, None
