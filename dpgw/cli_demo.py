@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from dpgw.cli_foxglove import DEFAULT_HOST, DEFAULT_PORT, add_foxglove_arg, connect_lines
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from simulator.scenario_names import SCENARIO_NAMES
 
@@ -45,12 +46,16 @@ DESCRIPTION = (
     "simulator's ground truth in one file, so 'dpgw replay demo.mcap' can re-run and score it. The vessel "
     "runs --speed times faster than real time; the simulator publishes its time on Zenoh "
     "(<prefix>/sim/clock) and the gateway stamps what it receives with it, so the loop stays right on a "
-    "busy machine. When the machine cannot keep up, the demo halves its speed (down to 1x) and says so."
+    "busy machine. When the machine cannot keep up, the demo halves its speed (down to 1x) and says so. "
+    "It serves everything live to the Foxglove app at ws://127.0.0.1:8765 (printed at start; another free "
+    "port when 8765 is taken and no --foxglove was given)."
 )
 EPILOG = (
     "examples:\n"
     "  dpgw demo                                   # 3 minutes of sea in ~20 s\n"
     "  dpgw demo --scenario hassani --duration 300 --speed 5 --out hassani.mcap\n"
+    "  dpgw demo --speed 1 --duration 600           # watch it in Foxglove in real time\n"
+    "  dpgw demo --foxglove 0.0.0.0:8765            # Foxglove from another computer (no auth!)\n"
     "  dpgw listen 'dp/**'                         # in another terminal, while the demo runs"
 )
 
@@ -84,8 +89,29 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="demo.mcap", metavar="FILE.mcap", help="the log (default demo.mcap)")
     add_endpoint_args(p)
     p.add_argument("--no-scouting", action="store_true", help="Zenoh multicast scouting off")
+    add_foxglove_arg(p, what="the gateway's outputs", on_by_default=True)
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=run)
+
+
+def foxglove_server(args: argparse.Namespace) -> tuple[Any, str] | None:
+    """The demo's Foxglove server sink (not started), and a note for the URL line; None with
+    ``--no-foxglove``. Without ``--foxglove`` the demo asks for 127.0.0.1:8765 and, when that port is
+    taken (another demo, a Foxglove bridge), for any free port: the default must not stop a demo.
+    A port given with ``--foxglove`` is used or the demo stops with one message."""
+    if args.no_foxglove:
+        return None
+    from gateway.outputs.foxglove_server import FoxgloveServerError, FoxgloveServerSink
+
+    if args.foxglove is not None:
+        return FoxgloveServerSink(*args.foxglove), ""
+    sink = FoxgloveServerSink(DEFAULT_HOST, DEFAULT_PORT)
+    try:
+        sink.start()
+        return sink, ""
+    except FoxgloveServerError:
+        sink = FoxgloveServerSink(DEFAULT_HOST, 0)
+        return sink, f" ({DEFAULT_PORT} is in use)"
 
 
 def demo_config(scenario: Any, pty_device: str, args: argparse.Namespace) -> dict[str, Any]:
@@ -164,10 +190,13 @@ def run(args: argparse.Namespace) -> int:
         return 2
     pty = PtySink()
     sinks: list[Any] = [pty]
+    foxglove = None
     try:
         tables = demo_config(scenario, pty.device, args)
         config = parse_config(tables, base_dir=Path.cwd(), where="dpgw demo")
-        service = GatewayService(config, config_tables=tables)
+        foxglove = foxglove_server(args)
+        outputs = [foxglove[0]] if foxglove is not None else []
+        service = GatewayService(config, config_tables=tables, sinks=outputs)
         service.start()
     except ConfigError as exc:
         pty.close()
@@ -179,8 +208,15 @@ def run(args: argparse.Namespace) -> int:
         return 2
     except (SourceError, OSError) as exc:
         pty.close()
-        print(f"dpgw demo: {exc}", file=sys.stderr)
+        if foxglove is not None:
+            foxglove[0].close()
+        hint = " (or --no-foxglove)" if "foxglove" in str(exc) else ""
+        print(f"dpgw demo: {exc}{hint}", file=sys.stderr)
         return 2
+    if foxglove is not None:
+        sink, note = foxglove
+        for line in connect_lines(sink.url, sink.app_url(), note=note):
+            print(f"dpgw demo: {line}", file=sys.stderr, flush=True)
     ports: dict[str, int] = {s.name: int(getattr(s, "port", 0)) for s in service._sources}
     start_utc = datetime.fromtimestamp(service._wall0_ns / 1e9, tz=UTC)
     counters = service.pipeline.counters

@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from dpgw.cli_foxglove import add_foxglove_arg, connect_lines
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 
 if TYPE_CHECKING:
@@ -39,7 +40,8 @@ EPILOG = (
     "  dpgw replay usv.txt --vessel cybership2 --observer passive:wave_period_s=6 \\\n"
     "       --observer passive:wave_period_s=10@long --out usv.mcap --report usv_report\n"
     "  dpgw replay sim.mcap --vessel mss_supply --out est.mcap --json  # RMS errors vs the truth\n"
-    "  dpgw replay trial.mcap --out again.mcap --speed 5              # publish on Zenoh, 5x"
+    "  dpgw replay trial.mcap --out again.mcap --speed 5              # publish on Zenoh, 5x\n"
+    "  dpgw replay trial.mcap --foxglove          # watch it in Foxglove: play, pause, seek, speed"
 )
 
 
@@ -81,6 +83,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "first 10 %% of the log, at most 60 s)",
     )
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    add_foxglove_arg(
+        p,
+        what="the replay, paced in log time and driven from the app (play, pause, seek, speed; starts "
+        "paused unless --speed/--realtime is given; runs until Ctrl-C, writes no --out or --report)",
+    )
     p.set_defaults(func=run)
 
 
@@ -110,9 +117,16 @@ def run(args: argparse.Namespace) -> int:
     from observers.vessel import VesselError
     from wire.mcap.writer import McapLogWriter
 
-    if args.out is None:
+    if args.foxglove is not None and (args.out or args.report):
+        print(
+            "dpgw replay: --foxglove plays the logs interactively (seeking runs parts again) and writes no "
+            "--out or --report: run once without --foxglove for those",
+            file=sys.stderr,
+        )
+        return 2
+    if args.out is None and args.foxglove is None:
         args.out = default_out(args.logs[0])
-    elif any(Path(args.out).resolve() == Path(log).resolve() for log in args.logs):
+    elif args.out is not None and any(Path(args.out).resolve() == Path(log).resolve() for log in args.logs):
         print(
             f"dpgw replay: --out {args.out} is one of the logs being replayed: give another file",
             file=sys.stderr,
@@ -130,6 +144,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"dpgw replay: {exc}", file=sys.stderr)
         return 2
     speed = 1.0 if args.realtime else args.speed
+    if args.foxglove is not None:
+        return serve(args, inputs, config, specs, speed)
     try:
         publisher = _Publisher(args, config.zenoh.prefix, speed) if speed else None
     except BusError as exc:
@@ -186,6 +202,85 @@ def run(args: argparse.Namespace) -> int:
         _print(summary)
     for warning in summary["wave_check"]["warnings"]:
         print(f"dpgw replay: warning: {warning}", file=sys.stderr)
+    return 0
+
+
+def serve(
+    args: argparse.Namespace, inputs: list[Any], config: Any, specs: list[Any], speed: float | None
+) -> int:
+    """``--foxglove``: the replay paced in log time on a Foxglove server with playback control
+    (`gateway.replay_player`), until SIGINT/SIGTERM."""
+    import signal
+    import threading
+
+    from foxglove.websocket import PlaybackCommand, PlaybackControlRequest, PlaybackState, PlaybackStatus
+
+    from gateway.outputs.foxglove_server import FoxgloveServerError, FoxgloveServerSink
+    from gateway.replay import build_pipeline, merged_events
+    from gateway.replay_player import ENDED, PLAYING, PlayerState, ReplayPlayer
+
+    first = last = None
+    for ev in merged_events(inputs):  # the span the app's time line shows (one pass, reading only)
+        first = ev.rx_ns if first is None else first
+        last = ev.rx_ns
+    if first is None or last is None:
+        print(f"dpgw replay: {', '.join(args.logs)}: no events to play", file=sys.stderr)
+        return 2
+    status = {PLAYING: PlaybackStatus.Playing, ENDED: PlaybackStatus.Ended}
+
+    def playback_state(s: PlayerState, request_id: str | None = None) -> PlaybackState:
+        return PlaybackState(
+            status=status.get(s.status, PlaybackStatus.Paused),
+            current_time=s.time_ns,
+            playback_speed=s.speed,
+            did_seek=s.did_seek,
+            request_id=request_id,
+        )
+
+    def on_request(req: PlaybackControlRequest) -> PlaybackState:
+        play = req.playback_command == PlaybackCommand.Play
+        return playback_state(player.request(play, req.playback_speed, req.seek_time), req.request_id)
+
+    host, port = args.foxglove
+    name = ", ".join(Path(p).name for p in args.logs)
+    sink = FoxgloveServerSink(
+        host, port, server_name=f"dpgw replay {name}", playback=on_request, time_range_ns=(first, last)
+    )
+    player = ReplayPlayer(
+        lambda: (build_pipeline(config, specs), merged_events(inputs)),
+        (first, last),
+        lambda outputs: sink.emit(outputs, [o.message.encode() for o in outputs]),
+        on_time=sink.broadcast_time,
+        on_state=lambda s: sink.broadcast_playback_state(playback_state(s)),
+        on_seek=sink.forget_held,
+        speed=speed or 1.0,
+        playing=speed is not None,
+    )
+    try:
+        sink.start()
+    except FoxgloveServerError as exc:
+        print(f"dpgw replay: {exc}", file=sys.stderr)
+        return 2
+    stop = threading.Event()
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    for line in connect_lines(sink.url, sink.app_url()):
+        print(f"dpgw replay: {line}", file=sys.stderr)
+    span = (last - first) / 1e9
+    how = f"playing at {player.speed:g}x" if speed else "paused at the start: press play in Foxglove"
+    print(f"dpgw replay: {span:.0f} s of log, {how}; Ctrl-C to stop", file=sys.stderr, flush=True)
+    try:
+        player.run(stop)
+    finally:
+        sink.close()
+    summary = {"sent": player.sent, "restarts": player.restarts, "foxglove": sink.stats.as_dict()}
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print(
+            f"dpgw replay: stopped; {player.sent} outputs sent, {player.restarts} seeks back (each replayed "
+            "from the start)"
+        )
     return 0
 
 

@@ -13,6 +13,8 @@ import threading
 import time
 from typing import TYPE_CHECKING, Any
 
+from dpgw.cli_foxglove import FROM_CONFIG, add_foxglove_arg, connect_lines
+
 if TYPE_CHECKING:
     from gateway.config import GatewayConfig
     from gateway.service import GatewayService
@@ -35,6 +37,7 @@ EPILOG = (
     "  dpgw run --config /etc/dpgw/vessel.toml\n"
     "  dpgw run --config examples/nmea_udp_multiplexer.toml --log /tmp/trial.mcap\n"
     "  dpgw run --config vessel.toml --check        # validate the config and exit\n"
+    "  dpgw run --config vessel.toml --foxglove     # and serve it to Foxglove at ws://127.0.0.1:8765\n"
     "see examples/ for configs and a systemd unit; docs/config.md for every key"
 )
 
@@ -55,6 +58,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "simulator publishes on <prefix>/sim/clock (sim: a HIL bench, e.g. with 'dpgw sim --zenoh "
         "--realtime'); overrides [time] clock (default wall)",
     )
+    add_foxglove_arg(
+        p,
+        what="every output (overrides [foxglove]; without a value: the config's host and port, or "
+        "127.0.0.1:8765)",
+        bare=FROM_CONFIG,
+    )
     p.add_argument("--json", action="store_true", help="print the exit summary as JSON")
     p.add_argument(
         "-v",
@@ -72,7 +81,14 @@ def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from gateway.bus import BusError
-    from gateway.config import ConfigError, TimeConfig, describe, format_problems, load_config
+    from gateway.config import (
+        ConfigError,
+        FoxgloveConfig,
+        TimeConfig,
+        describe,
+        format_problems,
+        load_config,
+    )
     from gateway.outputs.build import OutputError, sinks_from_config
     from gateway.service import GatewayService
     from gateway.sources import SourceError
@@ -85,6 +101,10 @@ def run(args: argparse.Namespace) -> int:
         return 2
     if args.clock is not None:
         config = replace(config, time=TimeConfig(clock=args.clock))
+    if args.foxglove is not None:
+        fc = config.foxglove
+        host, port = (fc.host, fc.port) if args.foxglove == FROM_CONFIG else args.foxglove
+        config = replace(config, foxglove=FoxgloveConfig(enabled=True, host=host, port=port))
     if args.check:
         problems = start_up_problems(config)
         if problems:
@@ -111,6 +131,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"dpgw run: {exc}", file=sys.stderr)
         return 2
     print(start_up_line(config, service, args.log), file=sys.stderr, flush=True)
+    for sink in sinks:
+        if sink.name == "foxglove":
+            for line in connect_lines(sink.url, sink.app_url()):  # type: ignore[attr-defined]
+                print(f"dpgw run: {line}", file=sys.stderr, flush=True)
 
     def on_signal(signum: int, _frame: object) -> None:
         service.stop_event.set()

@@ -49,10 +49,12 @@ __all__ = [
     "file_rate",
     "format_host_port",
     "is_multicast",
+    "listen_address",
     "parse_url",
     "receive_buffer",
     "serial_settings",
     "split_host_port",
+    "valid_host",
 ]
 
 SCHEMES = ("serial", "pty", "udp", "tcp", "tcp-listen", "file")
@@ -433,3 +435,33 @@ def file_rate(endpoint: Endpoint) -> str | float:
             f"rate {endpoint.option('rate')!r} is not fast, realtime or lines per second", "e.g. rate=10"
         )
     return rate
+
+
+_HOST_NAME = re.compile(
+    r"(?=.{1,253}$)[A-Za-z0-9]([A-Za-z0-9-]{0,61}[A-Za-z0-9])?(\.[A-Za-z0-9]([A-Za-z0-9-]{0,61}[A-Za-z0-9])?)*"
+)
+"""A host name: RFC 1123 labels joined by dots."""
+
+
+def valid_host(host: str) -> bool:
+    """An IPv4 or IPv6 address, or a host name: what a server can be told to listen on."""
+    try:
+        ipaddress.ip_address(host)
+        return True
+    except ValueError:
+        return bool(_HOST_NAME.fullmatch(host))
+
+
+def listen_address(text: str, default_host: str = "127.0.0.1", example: str = "") -> tuple[str, int]:
+    """``[HOST:]PORT`` (a server's address on a command line: ``8765``, ``0.0.0.0:8765``, ``[::1]:8765``)
+    → (host, port); a bare port listens on ``default_host``. Port 0: any free port."""
+    value = text.strip()
+    if value.isdigit():
+        value = f":{value}"
+    elif not _HOST_PORT.fullmatch(value):
+        raise UrlError(f"{text!r} is not [HOST:]PORT", example or "e.g. 8765 or 127.0.0.1:8765")
+    host, port = split_host_port(value, need_host=False, allow_zero=True, example=example)
+    host = host or default_host
+    if not valid_host(host):
+        raise UrlError(f"{host!r} is not an address or host name", example or "e.g. 127.0.0.1:8765")
+    return host, port

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict
 from typing import Any
 
-from gateway.config.model import IntegrityConfig, KeelsonConfig, Ros2Config
+from gateway.config.model import FoxgloveConfig, IntegrityConfig, KeelsonConfig, Ros2Config
 from observers.passive_tuning import PassiveTuning
 from observers.vessel import builtin_vessels
 
@@ -57,6 +57,7 @@ DEFAULTS: dict[str, dict[str, Any]] = {
     "time": {"clock": "wall"},
     "keelson": asdict(KeelsonConfig()),
     "ros2": asdict(Ros2Config()),
+    "foxglove": asdict(FoxgloveConfig()),
     "control": {
         "rate_hz": 10.0,
         "initial_mode": "standby",

@@ -23,6 +23,7 @@ from gateway.config.model import (
     CommandsConfig,
     ControlConfig,
     DatumConfig,
+    FoxgloveConfig,
     GatewayConfig,
     IntegrityConfig,
     KeelsonConfig,
@@ -38,6 +39,7 @@ from gateway.config.schema import (
     CommandsTable,
     ControlTable,
     DatumTable,
+    FoxgloveTable,
     IntegrityTable,
     KeelsonTable,
     LogTable,
@@ -51,7 +53,7 @@ from gateway.config.schema import (
 from gateway.config.source_entries import read_sources
 from observers.vessel import VesselError, VesselModel, builtin_vessels, load_vessel
 from wire.rmw_zenoh import fully_qualified, is_ros_name
-from wire.urls import UrlError, split_host_port
+from wire.urls import UrlError, split_host_port, valid_host
 
 __all__ = ["load_config", "parse_config"]
 
@@ -69,6 +71,7 @@ _TOP_KEYS = (
     "time",
     "keelson",
     "ros2",
+    "foxglove",
 )
 
 
@@ -125,6 +128,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
     time_config = _read_time(p, data)
     keelson = _read_keelson(p, data)
     ros2 = _read_ros2(p, data)
+    foxglove = _read_foxglove(p, data)
 
     if p.lines:
         raise ConfigError(p.lines)
@@ -133,6 +137,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
     assert zenoh_config is not None and log is not None and status is not None and control is not None
     assert integrity is not None
     assert commands is not None and time_config is not None and keelson is not None and ros2 is not None
+    assert foxglove is not None
     return GatewayConfig(
         vessel=vessel,
         vessel_source=vessel_source,
@@ -150,6 +155,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
         time=time_config,
         keelson=keelson,
         ros2=ros2,
+        foxglove=foxglove,
     )
 
 
@@ -590,6 +596,22 @@ def _read_keelson(p: Problems, data: Mapping[str, Any]) -> KeelsonConfig | None:
     if len(p) != n0:
         return None
     return KeelsonConfig(**v)
+
+
+def _read_foxglove(p: Problems, data: Mapping[str, Any]) -> FoxgloveConfig | None:
+    t = _section(p, data, "foxglove")
+    if t is None:
+        return None
+    n0 = len(p)
+    v = read_table(FoxgloveTable, t, "foxglove", p)
+    host = v["host"]
+    if host is not None and not valid_host(host):
+        extra = FoxgloveTable.model_fields["host"].json_schema_extra
+        expected = extra.get("expected", "") if isinstance(extra, dict) else ""
+        p.add("foxglove.host", f"not an address or host name (expected {expected}, got {show(host)})")
+    if len(p) != n0:
+        return None
+    return FoxgloveConfig(**v)
 
 
 def _expected(key: str) -> str:

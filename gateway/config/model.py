@@ -271,6 +271,18 @@ class Ros2Config:
 
 
 @dataclass(frozen=True)
+class FoxgloveConfig:
+    """``[foxglove]``: the live Foxglove WebSocket server (`gateway.outputs.foxglove_server`,
+    docs/foxglove.md "Live"). Off by default: a vessel's gateway serves no one it was not told to. The
+    server has no authentication, so it binds to this computer only (127.0.0.1) unless ``host`` says
+    otherwise. ``port`` 0: any free port (the one bound is printed at start)."""
+
+    enabled: bool = False
+    host: str = "127.0.0.1"
+    port: int = 8765
+
+
+@dataclass(frozen=True)
 class IntegrityConfig:
     """``[integrity]``: thresholds of the reference tests (defaults for DGPS-class references and a gyro;
     `gateway.references` applies them, docs/integrity.md explains them)."""
@@ -354,6 +366,7 @@ class GatewayConfig:
     time: TimeConfig = field(default_factory=TimeConfig)
     keelson: KeelsonConfig = field(default_factory=KeelsonConfig)
     ros2: Ros2Config = field(default_factory=Ros2Config)
+    foxglove: FoxgloveConfig = field(default_factory=FoxgloveConfig)
 
     def sources_for(self, role: str) -> tuple[SourceConfig, ...]:
         """The sources with ``role``, in failover order (lowest priority first)."""

@@ -47,6 +47,7 @@ __all__ = [
     "CommandsTable",
     "ControlTable",
     "DatumTable",
+    "FoxgloveTable",
     "IntegrityTable",
     "KeelsonTable",
     "LogTable",
@@ -512,3 +513,18 @@ class Ros2Table(_Section):
     pose_topic: str = text(_R["pose_topic"], _TOPIC)
     fix_topic: str = text(_R["fix_topic"], _TOPIC)
     setpoint_topic: str = text(_R["setpoint_topic"], _TOPIC)
+
+
+_F = DEFAULTS["foxglove"]
+
+
+class FoxgloveTable(_Section):
+    """``[foxglove]``: the live Foxglove WebSocket server (docs/foxglove.md)."""
+
+    enabled: bool = boolean(_F["enabled"])
+    host: str = text(
+        _F["host"],
+        'an IP address or host name to listen on, e.g. "127.0.0.1" (this computer only) or "0.0.0.0" '
+        "(every interface)",
+    )
+    port: int = integer(_F["port"], lo=0, hi=65535)

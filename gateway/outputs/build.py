@@ -38,6 +38,11 @@ def output_problems(config: GatewayConfig) -> list[str]:
                     f"{config.path}: sources: {s.name}: not a ROS 2 name token, so ros2.fix_topic/{s.name} "
                     "is no topic (expected a source name not starting with a digit, or ros2.enabled = false)"
                 )
+    if config.foxglove.enabled and importlib.util.find_spec("foxglove") is None:  # a core dependency
+        problems.append(
+            f"{config.path}: foxglove.enabled: true, but the foxglove-sdk package is not installed (install "
+            "it with pip install foxglove-sdk, or set foxglove.enabled = false)"
+        )
     return problems
 
 
@@ -55,4 +60,8 @@ def sinks_from_config(config: GatewayConfig) -> list[OutputSink]:
         from gateway.outputs.ros2 import ros2_sink
 
         sinks.append(ros2_sink(config))
+    if config.foxglove.enabled:
+        from gateway.outputs.foxglove_server import foxglove_sink
+
+        sinks.append(foxglove_sink(config))
     return sinks

@@ -1,0 +1,382 @@
+"""The live Foxglove server (`gateway.outputs.foxglove_server`), seen from a WebSocket client.
+
+The client is written here from Foxglove's WebSocket protocol (the ``websockets`` package, not the SDK
+that serves): JSON text frames for ``serverInfo`` / ``advertise`` / ``subscribe``, binary frames for
+data (opcode 1: subscription id u32, log time u64, payload), the server's time (2) and playback state
+(5), and the client's playback-control request (3). A wrong frame layout here fails the test, not
+silently passes it.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import math
+import os
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+websockets = pytest.importorskip("websockets")
+
+SUBPROTOCOL = "foxglove.sdk.v1"
+OP_MESSAGE_DATA, OP_TIME, OP_PLAYBACK_STATE = 1, 2, 5
+OP_PLAYBACK_CONTROL = 3
+PLAY, PAUSE = 0, 1
+PLAYING, PAUSED, BUFFERING, ENDED = 0, 1, 2, 3
+
+CORE_JSON = {"/dp/estimate", "/dp/measurement", "/dp/status", "/dp/thrusters/command"}
+CORE_NATIVE = {"/dp/estimate/fix", "/dp/estimate/pose", "/dp/tf", "/dp/scene/hull", "/dp/scene/thrusters"}
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@dataclass
+class Client:
+    """A Foxglove WebSocket client that subscribes to every channel advertised and keeps what arrives."""
+
+    ws: Any
+    server_info: dict[str, Any] = field(default_factory=dict)
+    channels: dict[int, dict[str, Any]] = field(default_factory=dict)  # channel id -> advertised channel
+    messages: dict[str, list[tuple[int, bytes]]] = field(default_factory=dict)  # topic -> (log time, data)
+    times: list[int] = field(default_factory=list)
+    states: list[dict[str, Any]] = field(default_factory=list)
+    _sub_topic: dict[int, str] = field(default_factory=dict)
+    _next_sub: int = 1
+
+    async def handle(self, frame: str | bytes) -> None:
+        if isinstance(frame, str):
+            msg = json.loads(frame)
+            if msg["op"] == "serverInfo":
+                self.server_info = msg
+            elif msg["op"] == "advertise":
+                subs = []
+                for ch in msg["channels"]:
+                    self.channels[ch["id"]] = ch
+                    sid, self._next_sub = self._next_sub, self._next_sub + 1
+                    self._sub_topic[sid] = ch["topic"]
+                    subs.append({"id": sid, "channelId": ch["id"]})
+                await self.ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
+            return
+        op = frame[0]
+        if op == OP_MESSAGE_DATA:
+            sid, log_time = struct.unpack_from("<IQ", frame, 1)
+            self.messages.setdefault(self._sub_topic[sid], []).append((log_time, bytes(frame[13:])))
+        elif op == OP_TIME:
+            self.times.append(struct.unpack_from("<Q", frame, 1)[0])
+        elif op == OP_PLAYBACK_STATE:
+            status, now, speed, did_seek, n = struct.unpack_from("<BQfBI", frame, 1)
+            rid = bytes(frame[19 : 19 + n]).decode()
+            self.states.append(
+                {"status": status, "time": now, "speed": speed, "did_seek": bool(did_seek), "id": rid}
+            )
+
+    async def until(self, done: Callable[[], bool], timeout: float, what: str) -> None:
+        """Handle frames until ``done()`` or the timeout (then fail, saying what did not happen)."""
+        deadline = time.monotonic() + timeout
+        while not done():
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise AssertionError(f"within {timeout:g} s: {what}; advertised {self.advertised()}")
+            try:
+                frame = await asyncio.wait_for(self.ws.recv(), left)
+            except TimeoutError:
+                continue
+            await self.handle(frame)
+
+    def advertised(self) -> set[str]:
+        return {ch["topic"] for ch in self.channels.values()}
+
+    def silent(self) -> set[str]:
+        return {t for t in self.advertised() if not self.messages.get(t)}
+
+    async def playback(
+        self, command: int, speed: float = 1.0, seek_ns: int | None = None, rid: str = ""
+    ) -> None:
+        body = (
+            struct.pack("<BfBQI", command, speed, seek_ns is not None, seek_ns or 0, len(rid)) + rid.encode()
+        )
+        await self.ws.send(bytes([OP_PLAYBACK_CONTROL]) + body)
+
+
+async def connect(port: int, alive: Callable[[], bool], timeout: float = 60.0) -> Any:
+    """Connect once the server listens (the process may still be importing), or fail."""
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            return await websockets.connect(
+                f"ws://127.0.0.1:{port}", subprotocols=[SUBPROTOCOL], max_size=None, open_timeout=10
+            )
+        except OSError as exc:
+            if time.monotonic() >= deadline or not alive():
+                raise AssertionError(f"no Foxglove server on 127.0.0.1:{port}: {exc}") from exc
+            await asyncio.sleep(0.1)
+
+
+def dpgw(*args: str) -> subprocess.Popen[str]:
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    return subprocess.Popen(
+        [sys.executable, "-m", "dpgw", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+
+
+def stop(proc: subprocess.Popen[str]) -> str:
+    """SIGINT (a clean stop), then the process's stderr."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+    try:
+        _, err = proc.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        _, err = proc.communicate()
+    return err
+
+
+def estimate_is_finite(payload: bytes) -> bool:
+    e = json.loads(payload)
+    return len(e["eta"]) == 3 and all(v is not None and math.isfinite(v) for v in e["eta"])
+
+
+def test_demo_serves_every_advertised_channel_with_data(tmp_path: Path) -> None:
+    port = free_port()
+    proc = dpgw(
+        "demo", "--duration", "600", "--speed", "10", "--foxglove", f"127.0.0.1:{port}",
+        "--out", str(tmp_path / "demo.mcap"), "--no-scouting",
+    )  # fmt: skip
+
+    async def session() -> Client:
+        ws = await connect(port, lambda: proc.poll() is None)
+        async with ws:
+            c = Client(ws)
+            await c.until(
+                lambda: c.advertised() >= (CORE_JSON | CORE_NATIVE) and not c.silent(),
+                120.0,
+                "every core channel advertised and a message on every advertised channel",
+            )
+            return c
+
+    try:
+        c = asyncio.run(session())
+    finally:
+        err = stop(proc)
+    assert "Foxglove live: ws://127.0.0.1:" in err, err
+    assert c.server_info["name"] == "dpgw"
+    print({t: len(m) for t, m in sorted(c.messages.items())})
+    assert c.silent() == set()
+    for ch in c.channels.values():
+        assert ch["encoding"] == "json"
+        assert ch["schemaEncoding"] == "jsonschema"
+        schema = json.loads(ch["schema"])
+        assert schema.get("type") == "object", ch["topic"]
+    schemas = {ch["topic"]: ch["schemaName"] for ch in c.channels.values()}
+    assert schemas["/dp/estimate"] == "dpgw.Estimate"
+    assert schemas["/dp/estimate/fix"] == "foxglove.LocationFix"
+    assert schemas["/dp/tf"] == "foxglove.FrameTransforms"
+    # the payloads are the messages, decoded: the estimate's N, E, ψ finite, its log time its stamp
+    log_time, payload = c.messages["/dp/estimate"][-1]
+    assert estimate_is_finite(payload)
+    assert json.loads(payload)["stamp_ns"] == log_time
+    # the server's time is the gateway's (the simulation's): within the span of the messages' log times
+    stamps = [t for m in c.messages.values() for t, _ in m]
+    assert min(stamps) <= max(c.times) <= max(stamps)
+    fix = json.loads(c.messages["/dp/estimate/fix"][-1][1])
+    assert -90 <= fix["latitude"] <= 90 and -180 <= fix["longitude"] <= 180
+
+
+def sim_log(path: Path, seconds: float) -> Path:
+    from simulator.runner import Simulation
+    from simulator.scenarios import get_scenario
+    from wire.mcap.writer import McapLogWriter
+
+    with McapLogWriter(path) as w:
+        Simulation(get_scenario("torsetnes_2004"), seed=3, log=w).run(seconds)
+    return path
+
+
+def ns(t: dict[str, int]) -> int:
+    return int(t["sec"]) * 1_000_000_000 + int(t["nsec"])
+
+
+def test_replay_obeys_play_pause_seek_and_speed(tmp_path: Path) -> None:
+    log = sim_log(tmp_path / "sim.mcap", 90.0)
+    port = free_port()
+    proc = dpgw("replay", str(log), "--vessel", "mss_supply", "--foxglove", f"127.0.0.1:{port}", "--json")
+    S = 1_000_000_000
+
+    async def session() -> None:
+        ws = await connect(port, lambda: proc.poll() is None)
+        async with ws:
+            c = Client(ws)
+            await c.until(lambda: bool(c.server_info), 30.0, "serverInfo")
+            assert "playbackControl" in c.server_info["capabilities"]
+            begin, end = ns(c.server_info["dataStartTime"]), ns(c.server_info["dataEndTime"])
+            assert 85 * S <= end - begin <= 91 * S
+
+            def estimates() -> list[tuple[int, bytes]]:
+                return c.messages.get("/dp/estimate", [])
+
+            async def ask(command: int, speed: float, seek: int | None, rid: str) -> dict[str, Any]:
+                await c.playback(command, speed, seek, rid)
+                await c.until(lambda: any(s["id"] == rid for s in c.states), 30.0, f"the reply to {rid}")
+                return next(s for s in c.states if s["id"] == rid)
+
+            # starts paused: play at 5x and the estimates come, in log time from the start
+            state = await ask(PLAY, 5.0, None, "play")
+            assert state["status"] == PLAYING and state["speed"] == 5.0
+            await c.until(lambda: any(t >= begin + 15 * S for t, _ in estimates()), 60.0, "15 s of log")
+            first_pass = dict(estimates())
+
+            # pause: no estimate beyond the paused time while paused (at 5x, 1 s of wall is ~50)
+            state = await ask(PAUSE, 5.0, None, "pause")
+            assert state["status"] == PAUSED
+            paused_at, seen = state["time"], len(estimates())
+            window = time.monotonic() + 1.0
+            while (left := window - time.monotonic()) > 0:
+                try:
+                    await c.handle(await asyncio.wait_for(ws.recv(), left))
+                except TimeoutError:
+                    break
+            assert all(t <= paused_at for t, _ in estimates()[seen:])
+
+            # play again: log time goes on from where it stopped (the wall second paused is not skipped)
+            seen = len(estimates())
+            state = await ask(PLAY, 5.0, None, "resume")
+            assert state["status"] == PLAYING
+            await c.until(lambda: len(estimates()) > seen + 2, 30.0, "estimates after resuming")
+            resumed = [t for t, _ in estimates()[seen:] if t > paused_at]
+            assert resumed and resumed[0] - paused_at < 2 * S
+
+            # seek back to 5 s: replayed from the start, the same estimates at the same log times
+            target = begin + 5 * S
+            state = await ask(PLAY, 5.0, target, "back")
+            assert state["did_seek"] and state["time"] == target
+            seen = len(estimates())
+            await c.until(
+                lambda: sum(1 for t, _ in estimates()[seen:] if target <= t <= target + 8 * S) >= 20,
+                60.0,
+                "20 estimates after seeking back",
+            )
+            again = [(t, p) for t, p in estimates()[seen:] if target <= t <= target + 8 * S]
+            assert all(first_pass[t] == p for t, p in again if t in first_pass)
+            assert sum(1 for t, _ in again if t in first_pass) >= 20
+
+            # seek forwards to 60 s: the next estimates are from there on
+            target = begin + 60 * S
+            state = await ask(PLAY, 5.0, target, "forward")
+            assert state["did_seek"] and state["time"] == target
+            seen = len(estimates())
+            await c.until(lambda: any(t >= target for t, _ in estimates()[seen:]), 60.0, "estimates at 60 s")
+            later = [t for t, _ in estimates()[seen:]]
+            first_after = next(k for k, t in enumerate(later) if t >= target)
+            assert all(t >= target for t in later[first_after:])
+            assert later[first_after] - target < 2 * S
+
+    try:
+        asyncio.run(session())
+    finally:
+        err = stop(proc)
+    assert "Foxglove live: ws://127.0.0.1:" in err, err
+
+
+# --- the sink in this process: holding, the port in use, the config ---------------------------------------
+
+
+def test_messages_made_before_anyone_subscribed_are_held_and_sent_to_the_first_subscriber() -> None:
+    from gateway.outputs.foxglove_server import LOG_HELD, FoxgloveServerSink
+    from wire.messages import Log, Status
+
+    sink = FoxgloveServerSink("127.0.0.1", 0)
+    sink.start()
+    try:
+        for k in range(3):  # a state channel: only the last is kept
+            sink.send("/dp/status", Status, json.dumps({"k": k}).encode(), 1_000 + k)
+        for k in range(LOG_HELD + 5):  # the log: the last LOG_HELD lines
+            sink.send("/dp/log", Log, json.dumps({"line": k}).encode(), 2_000 + k)
+        assert sink.stats.sent == 0 and sink.stats.superseded == 2 + 5
+
+        async def session() -> Client:
+            ws = await connect(sink.port, lambda: True)
+            async with ws:
+                c = Client(ws)
+                await c.until(lambda: {"/dp/status", "/dp/log"} <= c.advertised(), 30.0, "both advertised")
+                # the subscription reaches the server's thread after our send returns: flush until it has
+                deadline = time.monotonic() + 30.0
+                while sink._waiting and time.monotonic() < deadline:
+                    sink.emit([], [])
+                    await asyncio.sleep(0.02)
+                await c.until(lambda: len(c.messages.get("/dp/log", [])) == LOG_HELD, 30.0, "the held lines")
+                await c.until(lambda: bool(c.messages.get("/dp/status")), 30.0, "the held status")
+                # and from now on straight through
+                sink.send("/dp/status", Status, b'{"k": 9}', 5_000)
+                await c.until(lambda: len(c.messages["/dp/status"]) == 2, 30.0, "the next status")
+                return c
+
+        c = asyncio.run(session())
+    finally:
+        sink.close()
+    assert c.messages["/dp/status"] == [(1_002, b'{"k": 2}'), (5_000, b'{"k": 9}')]
+    lines = c.messages["/dp/log"]
+    assert [json.loads(p)["line"] for _, p in lines] == list(range(5, LOG_HELD + 5))
+    assert [t for t, _ in lines] == [2_000 + k for k in range(5, LOG_HELD + 5)]  # their own log times
+    schemas = {ch["topic"]: ch["schemaName"] for ch in c.channels.values()}
+    assert schemas == {"/dp/status": "dpgw.Status", "/dp/log": "foxglove.Log"}
+
+
+def test_a_port_in_use_is_one_clear_message() -> None:
+    from gateway.outputs.foxglove_server import FoxgloveServerError, FoxgloveServerSink
+
+    first = FoxgloveServerSink("127.0.0.1", 0)
+    first.start()
+    try:
+        second = FoxgloveServerSink("127.0.0.1", first.port)
+        with pytest.raises(FoxgloveServerError) as err:
+            second.start()
+        text = str(err.value)
+        assert f"127.0.0.1:{first.port}" in text and "in use" in text and "--foxglove" in text
+        assert "\n" not in text
+    finally:
+        first.close()
+
+
+def test_foxglove_config_section_and_the_command_line_address() -> None:
+    from gateway.config import ConfigError, FoxgloveConfig, default_config, parse_config
+    from wire.urls import UrlError, listen_address
+
+    cfg = default_config()
+    cfg["sources"] = [
+        {"name": "g", "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position", "heading"]}
+    ]
+    assert parse_config(cfg, base_dir=Path.cwd()).foxglove == FoxgloveConfig(False, "127.0.0.1", 8765)
+    cfg["foxglove"] = {"enabled": True, "host": "0.0.0.0", "port": 9000}
+    assert parse_config(cfg, base_dir=Path.cwd()).foxglove == FoxgloveConfig(True, "0.0.0.0", 9000)
+    cfg["foxglove"] = {"enabled": "yes", "host": "not a host!", "port": 70000}
+    with pytest.raises(ConfigError) as err:
+        parse_config(cfg, base_dir=Path.cwd(), where="v.toml")
+    text = str(err.value)
+    assert "foxglove.enabled" in text and "foxglove.port" in text and "65535" in text
+    assert "foxglove.host: not an address or host name" in text and '"not a host!"' in text
+
+    assert listen_address("8765") == ("127.0.0.1", 8765)
+    assert listen_address("0.0.0.0:9000") == ("0.0.0.0", 9000)
+    assert listen_address("[::1]:0") == ("::1", 0)
+    assert listen_address("gw.local:8765") == ("gw.local", 8765)
+    for bad in ("70000", "host", "a b:80", "127.0.0.1:99999"):
+        with pytest.raises(UrlError):
+            listen_address(bad)
