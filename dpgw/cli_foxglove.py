@@ -11,8 +11,16 @@ from typing import Any
 
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8765
-LAYOUT = "docs/foxglove-layout.json"
-"""The layout to import in the app (its panels name the channels the gateway publishes)."""
+LAYOUT = "foxglove-layout.json"
+"""The layout to import in the app (its panels name the channels the gateway publishes), shipped in this
+package so that an installed dpgw can point at it; `layout_path` gives its full path."""
+
+
+def layout_path() -> str:
+    """The full path of the shipped Foxglove layout (what the demo tells the user to import)."""
+    from pathlib import Path
+
+    return str(Path(__file__).resolve().parent / LAYOUT)
 FROM_CONFIG = "config"
 """``--foxglove`` without a value on ``dpgw run``: the config's ``[foxglove]`` host and port."""
 
@@ -52,5 +60,5 @@ def connect_lines(url: str, app_url: str | None, *, note: str = "") -> list[str]
     lines = [f"Foxglove live: {url}{note} (in the app: Open connection → Foxglove WebSocket)"]
     if app_url:
         lines.append(f"  in the browser: {app_url}")
-    lines.append(f"  panels: import the layout {LAYOUT}")
+    lines.append(f"  panels: import the layout {layout_path()}")
     return lines

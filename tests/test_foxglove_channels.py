@@ -317,7 +317,13 @@ def test_field_layout_is_foxglove_s(cls: Any) -> None:
 
 # --- the layout file ---------------------------------------------------------------------------------------
 
-LAYOUT = Path(__file__).resolve().parents[1] / "docs" / "foxglove-layout.json"
+LAYOUT = Path(__file__).resolve().parents[1] / "dpgw" / "foxglove-layout.json"
+
+
+def test_the_demo_points_at_the_layout_the_package_ships() -> None:
+    from dpgw.cli_foxglove import layout_path
+
+    assert Path(layout_path()) == LAYOUT and LAYOUT.is_file()
 
 
 def test_layout_names_only_channels_and_fields_dpgw_writes() -> None:
