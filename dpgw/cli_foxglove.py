@@ -21,6 +21,8 @@ def layout_path() -> str:
     from pathlib import Path
 
     return str(Path(__file__).resolve().parent / LAYOUT)
+
+
 FROM_CONFIG = "config"
 """``--foxglove`` without a value on ``dpgw run``: the config's ``[foxglove]`` host and port."""
 
