@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from dpgw.cli_foxglove import DEFAULT_HOST, DEFAULT_PORT, add_foxglove_arg, connect_lines
+from dpgw.cli_foxglove import DEFAULT_HOST, DEFAULT_PORT, add_foxglove_arg, connect_lines, layout_path
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from simulator.scenario_names import SCENARIO_NAMES
 
@@ -366,8 +366,10 @@ def summarise(
         result["station_keeping"] = station_keeping(args.out, tt, np.array([t[1] for t in truth]), t0)
     result["fix_stamp_lag_s"] = fix_stamp_lag_s(args.out, sim.scenario.dgps[0].source)
     result["next"] = [
-        f"look at it: open {args.out} in Foxglove (Map: /gnss/dgps1/fix and /dp/estimate/fix; Plot: "
-        "/dp/estimate.eta[0] against /truth/state.eta_lf[0])",
+        f"look at it: open {args.out} in Foxglove and import the layout {layout_path()} (map, 3D view "
+        "with hull, thrusters and setpoint, measurement against estimate per DOF, alarm log); "
+        "/dp/estimate.eta[0] against /truth/state.eta_lf[0] in a Plot panel shows the error",
+        f"replay it in Foxglove, with play, pause and seek: dpgw replay {args.out} --foxglove",
         f"replay it: dpgw replay {args.out} --report {Path(args.out).stem}-report",
     ]
     return result
