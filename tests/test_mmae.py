@@ -592,3 +592,43 @@ def test_identification_step_and_run_agree() -> None:
     rest = c.run(rec.t[100:], rec.y[100:], rec.tau[100:])
     np.testing.assert_array_equal(np.r_[first.eta, rest.eta], run.eta)
     np.testing.assert_array_equal(c.weights, a.weights)
+
+
+def _lf_record(lf_amplitude_m: float, heading_rate: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """10 Hz for 300 s: waves of σ 1.7 cm / 1 cm / 0.05° around 0.93 rad/s, the `hassani` sensors' noise, on
+    LF motion of ``lf_amplitude_m`` at 0.12 and 0.2 rad/s in N and E and a heading turning at
+    ``heading_rate`` rad/s with 0.1 rad of 0.08 rad/s; none of it explained by τ (= 0)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, 300.0, 0.1)
+    y = np.empty((t.size, 3))
+    for d, (wave_sigma, lf) in enumerate(((0.017, 1.0), (0.010, 0.6), (math.radians(0.05), 0.0))):
+        w = rng.uniform(0.75, 1.15, 40)
+        a = np.full(40, wave_sigma * math.sqrt(2.0 / 40))
+        waves = (a[:, None] * np.sin(w[:, None] * t + rng.uniform(0, 2 * math.pi, 40)[:, None])).sum(axis=0)
+        y[:, d] = waves + rng.standard_normal(t.size) * math.sqrt(SENSOR_R[d])
+        y[:, d] += lf * lf_amplitude_m * (np.sin(0.12 * t) + 0.3 * np.sin(0.2 * t + 1.0))
+    if heading_rate:
+        y[:, 2] += heading_rate * t + 0.1 * np.sin(0.08 * t)
+    return t, y
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_lf_noise_is_stiff_at_a_constant_load_and_loose_when_the_vessel_moves(seed: int) -> None:
+    """The LF process noise scale (dpgw's, docs/mmae.md "The LF process noise from the LF residual"): on a
+    vessel at rest under a constant load (the motion: waves and noise only) the bank's LF model becomes
+    stiff (s ≤ 1e-3 of (A.2) in every DOF: a wave filter that notches; the paper's fixed Q keeps s = 1);
+    on one that drifts 2 m and turns, a stiff model would lag, and s stays ≥ 0.1."""
+    vessel = get_scenario("hassani").vessel
+    tau = np.zeros((3000, 3))
+    t, y = _lf_record(0.0, 0.0, seed)
+    still = MMAEObserver(vessel)
+    still.run(t, y, tau)
+    assert max(still.lf_scale) <= 1e-3, still.lf_scale
+    t, y = _lf_record(2.0, 0.05, seed)
+    moving = MMAEObserver(vessel)
+    moving.run(t, y, tau)
+    assert min(moving.lf_scale) >= 0.1, moving.lf_scale
+    # given Q, nothing of it is identified
+    fixed = MMAEObserver(vessel, Q=hassani_noise(vessel)[0])
+    fixed.run(t, y, tau)
+    assert fixed.lf_scale == (1.0, 1.0, 1.0)
