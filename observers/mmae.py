@@ -54,14 +54,6 @@ predicted by n = round(dt / dt_nom) exact steps of the nominal transition and th
 those of dt_nom (set dt to the sensors' rate). A gap longer than ``max_gap_s`` restarts the filters
 (weights kept) from the next complete measurement. Repeated or backward time: the sample is not used.
 
-LF process noise (dpgw's addition: the paper fixes Q, appendix A.2). With nothing given, the bank
-identifies R and the wave model Q1 from the data, and also the scale s of (A.2)'s LF noise Q2, Q3 per DOF
-(`LF_NOISE_SCALES`, 1 … 1e-6): the stiffest LF model whose posterior residual y − (η̂ + η̂_w) has no more
-power below the wave band than the loosest's, in units of the white measurement noise (`LF_KAPPA`;
-`_identify_lf_scale`). A vessel at a constant load gets a stiff LF model (a wave filter that notches);
-a turning or manoeuvring one keeps (A.2) (a stiff model would lag the LF motion and hand it to the wave
-filters). See docs/mmae.md.
-
 ``observers._mmae_kernel`` is the compiled twin of the readable numpy reference at the end of this
 module (`reference_run`); tests/test_mmae.py checks they agree to round-off. Full notes: docs/mmae.md.
 """
@@ -129,14 +121,12 @@ IDENTIFICATION_MEDIAN_OF = 5
 REDESIGN_RATIO = 1.3
 """The bank is designed again when an identified σ moves outside [1/1.3, 1.3] × the one it was made with."""
 LF_NOISE_SCALES = (1.0, 1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6)
-"""Candidate scales of (A.2)'s LF process noise Q2, Q3 (dpgw's identification; the paper fixes Q), loosest
-first: each DOF of the bank uses the stiffest that still follows the LF motion (`_identify_lf_scale`)."""
+"""Candidate scales of (A.2)'s LF process noise Q2, Q3 (dpgw's identification; the paper fixes Q): the one
+whose winning filter explains the last `LF_TRIAL_PERIODS` slowest periods best is used by the whole bank."""
 LF_BLOCKS = 3
 """Blocks of 2π/ω_c (ω_c: the identification band's lower edge) the LF residual statistic averages."""
 LF_KAPPA = 0.5
-"""A scale follows the LF motion while its LF residual power exceeds the loosest scale's by at most this
-many × the white measurement noise's (measured: 0.1 of (A.2) in surge, Δ 0.9–1.3, loses the turning
-`hassani` vessel's bank; 1e-5 on a constant load, Δ 0.1–0.2, keeps it)."""
+"""A scale follows the LF motion while its LF residual power is at most this many × the white noise's."""
 
 
 def identification_config(candidates: Sequence[float]) -> WaveFrequencyConfig:
@@ -486,7 +476,7 @@ class MMAEObserver(ObserverBase):
         self.identify_noise = (
             not (self._fixed_R and self._fixed_Q1) if identify_noise is None else bool(identify_noise)
         )
-        # LF process noise (Q2, Q3): identified from the LF residual unless Q is given (`_identify_lf_scale`)
+        # LF process noise (Q2, Q3): identified by likelihood unless Q is given (`_identify_lf_scale`)
         self.identify_lf_noise = self.identify_noise and Q is None
         self.lf_scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
         self.identified: NoiseIdentification | None = None
@@ -714,19 +704,15 @@ class MMAEObserver(ObserverBase):
     def _identify_lf_scale(self, t: float) -> tuple[float, float, float]:
         """The LF process noise from the LF residual (dpgw's addition: the paper fixes Q2, Q3 at (A.2)).
 
-        Beside the bank run `LF_NOISE_SCALES` single filters: the winning filter's wave model (ω0 of the
-        largest weight, the bank's identified R and Q1) with Q2, Q3 = s × (A.2), started from the state of
-        the first winner and run on every sample since (a later winner changes their wave model, not their
-        states: a stiff model restarted looks right until it lags again). For each, the posterior residual
-        rₖ = yₖ − (η̂ₖ + η̂_w,ₖ) of each DOF is averaged over blocks of T_b = 2π/ω_c (ω_c = ω_min/1.5, the
-        identification band's lower edge: a box filter passing the LF band below the trough that
-        `wave_band_power` looks for); white measurement noise of the identified variance R gives
-        E[r̄²] = R/n for a block of n samples, so the LF statistic is
-        ρ(s) = mean over the last `LF_BLOCKS` whole blocks of r̄² n / R
-        (≤ 1 for a model that follows, ≫ 1 for one that lags the LF motion). Per DOF the stiffest s with
-        ρ(s) − ρ(1) ≤ `LF_KAPPA` is chosen. A looser choice is taken at once; a stiffer one when two
-        identifications in a row chose it, and the bank's LF states of that DOF are then those of the
-        trial filter that ran with it (`_lf_handover`)."""
+        Beside the bank run `LF_NOISE_SCALES` single filters: the filter that wins now (ω0 of the largest
+        weight, the bank's identified R and Q1) with Q2, Q3 = s × (A.2), started from the winner's state
+        when it first wins and run on every sample since. For each, the posterior residual
+        rₖ = yₖ − (η̂ₖ + η̂_w,ₖ) of each DOF is averaged over blocks of T_b = 2π/ω_c (ω_c the identification
+        band's lower edge: a box filter that passes the LF band only); white measurement noise of the
+        identified variance R gives E[r̄²] = R/n for a block of n samples, so the LF statistic is
+        ρ = mean over the last `LF_BLOCKS` blocks of r̄² n / R (1 for a residual that is white noise, ≫ 1
+        for a model that lags the LF motion). Per DOF the stiffest s with ρ ≤ `LF_KAPPA` is chosen (s = 1
+        if none); it becomes the bank's when two identifications in a row chose it."""
         chunks, self._recent = [c for c in self._recent if c[0].shape[0]], []
         win = int(np.argmax(self._p))
         if float(self._p.max()) < 0.5 or self._clock[kernel.CLOCK_STARTED] == 0.0:
