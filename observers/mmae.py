@@ -120,13 +120,6 @@ IDENTIFICATION_MEDIAN_OF = 5
 """The σ's the bank is designed with are the median of the last five windows' (each DOF on its own)."""
 REDESIGN_RATIO = 1.3
 """The bank is designed again when an identified σ moves outside [1/1.3, 1.3] × the one it was made with."""
-LF_NOISE_SCALES = (1.0, 1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6)
-"""Candidate scales of (A.2)'s LF process noise Q2, Q3 (dpgw's identification; the paper fixes Q): the one
-whose winning filter explains the last `LF_TRIAL_PERIODS` slowest periods best is used by the whole bank."""
-LF_BLOCKS = 3
-"""Blocks of 2π/ω_c (ω_c: the identification band's lower edge) the LF residual statistic averages."""
-LF_KAPPA = 0.5
-"""A scale follows the LF motion while its LF residual power is at most this many × the white noise's."""
 
 
 def identification_config(candidates: Sequence[float]) -> WaveFrequencyConfig:
@@ -476,9 +469,6 @@ class MMAEObserver(ObserverBase):
         self.identify_noise = (
             not (self._fixed_R and self._fixed_Q1) if identify_noise is None else bool(identify_noise)
         )
-        # LF process noise (Q2, Q3): identified by likelihood unless Q is given (`_identify_lf_scale`)
-        self.identify_lf_noise = self.identify_noise and Q is None
-        self.lf_scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
         self.identified: NoiseIdentification | None = None
         self._design_sigma: tuple[Array, Array] | None = None  # (measurement σ, wave σ) of the bank in use
         self.noise_estimator = WaveFrequencyEstimator(identification_config(candidates))
@@ -531,14 +521,6 @@ class MMAEObserver(ObserverBase):
             self._design_sigma = None
             self._history: list[tuple[Array, Array]] = []
             self._params[kernel.PARAM_WARMUP_S] = math.inf
-            self.lf_scale = (1.0, 1.0, 1.0)
-            self._lf_res: list[tuple[Array, Array]] = []
-            self._lf_choice: tuple[float, ...] | None = None
-            # the samples the kernel took in the last few slowest periods, and the bank's state at each
-            # identification: what the LF noise trial replays (`_identify_lf_scale`)
-            self._recent: list[tuple[Array, Array, Array]] = []
-            self._lf_win = -1  # the filter the LF models are run for (-1: none yet)
-            self._trial_cache: dict[int, list[tuple[Array, ...]]] = {}
         self._last_y = np.full(3, np.nan)  # the previous sample as given (see `_new_only`)
         # samples (t, y, τ chunks) taken before the first identification, to run again through its bank
         self._prefix: list[tuple[Array, Array, Array]] = []
@@ -639,157 +621,23 @@ class MMAEObserver(ObserverBase):
             else:
                 ratios = np.concatenate([meas / prev[0], wave / prev[1]])
                 redesign = bool(np.any((ratios > REDESIGN_RATIO) | (ratios < 1.0 / REDESIGN_RATIO)))
-        scale = self.lf_scale
-        if self.identify_lf_noise and prev is not None:
-            scale = self._identify_lf_scale(t)
-            if scale != self.lf_scale:
-                redesign = True
-                self._lf_handover(scale)
-                if not (np.all(np.isfinite(meas)) and np.all(np.isfinite(wave))):
-                    meas, wave = prev
         if redesign:
             cand, zeta, Q, R, dt, wave_std = self._design_args
             self.bank = design_bank(
                 self.vessel,
                 cand,
                 zeta,
-                self._lf_Q(scale) if self.identify_lf_noise else Q,
+                Q,
                 R if self._fixed_R else np.diag(meas**2),
                 dt,
                 wave_std if self._fixed_Q1 else WAVE_STD_FACTOR * wave,
             )
-            self.lf_scale = scale
-            self._trial_cache = {}
             first = self._design_sigma is None
             self._design_sigma = (meas, wave)
             self._params[kernel.PARAM_WARMUP_S] = self.warmup_s  # the weights may move from now on
             if first and self._prefix:
                 self._restart_on_prefix()
-        if self.identify_lf_noise:
-            self._recent = []  # (the LF models run on the samples since the last identification)
         self.identified = NoiseIdentification(t, _f3(meas), _f3(wave), redesign)
-
-    def _lf_Q(self, scale: Sequence[float]) -> Array:
-        """(A.2)'s Q (`hassani_noise`) with the LF process noise Q2, Q3 of DOF d times ``scale[d]`` (Q1 is
-        replaced by the identified wave model in `design_bank`)."""
-        Q = hassani_noise(self.vessel)[0].copy()
-        f = np.tile(np.asarray(scale, dtype=float), 2)
-        Q[3:, 3:] *= np.sqrt(np.outer(f, f))
-        return Q
-
-    def _lf_handover(self, scale: Sequence[float]) -> None:
-        """The bank's LF states (η, ν, b) of each DOF whose LF noise changes are set to those of the trial
-        filter that ran with the new scale: a filter made stiffer keeps what it has for a long time, so
-        it should start from an estimate made with its own model, not from the looser model's."""
-        if self._lf_win < 0 or not getattr(self, "_lf_X", None):
-            return
-        from observers.state import I_BIAS, I_ETA, I_NU
-
-        psi_b = float(self._clock[kernel.CLOCK_PSI_F])
-        for d in range(3):
-            if scale[d] == self.lf_scale[d]:
-                continue
-            i = LF_NOISE_SCALES.index(scale[d])
-            x = self._lf_X[i][0]
-            a = float(self._lf_clock[i][kernel.CLOCK_PSI_F]) - psi_b  # trial frame → bank frame
-            c, s_ = math.cos(a), math.sin(a)
-            for off in (I_ETA, I_BIAS):
-                if d == 2:
-                    self._X[:, off + 2] = x[off + 2]
-                else:
-                    v = (c * x[off] - s_ * x[off + 1], s_ * x[off] + c * x[off + 1])
-                    self._X[:, off + d] = v[d]
-            self._X[:, I_NU + d] = x[I_NU + d]
-
-    def _identify_lf_scale(self, t: float) -> tuple[float, float, float]:
-        """The LF process noise from the LF residual (dpgw's addition: the paper fixes Q2, Q3 at (A.2)).
-
-        Beside the bank run `LF_NOISE_SCALES` single filters: the filter that wins now (ω0 of the largest
-        weight, the bank's identified R and Q1) with Q2, Q3 = s × (A.2), started from the winner's state
-        when it first wins and run on every sample since. For each, the posterior residual
-        rₖ = yₖ − (η̂ₖ + η̂_w,ₖ) of each DOF is averaged over blocks of T_b = 2π/ω_c (ω_c the identification
-        band's lower edge: a box filter that passes the LF band only); white measurement noise of the
-        identified variance R gives E[r̄²] = R/n for a block of n samples, so the LF statistic is
-        ρ = mean over the last `LF_BLOCKS` blocks of r̄² n / R (1 for a residual that is white noise, ≫ 1
-        for a model that lags the LF motion). Per DOF the stiffest s with ρ ≤ `LF_KAPPA` is chosen (s = 1
-        if none); it becomes the bank's when two identifications in a row chose it."""
-        chunks, self._recent = [c for c in self._recent if c[0].shape[0]], []
-        win = int(np.argmax(self._p))
-        if float(self._p.max()) < 0.5 or self._clock[kernel.CLOCK_STARTED] == 0.0:
-            return self.lf_scale
-        k = len(LF_NOISE_SCALES)
-        if self._lf_win < 0:  # the first winner: the LF models start from its state, with no blocks yet
-            self._lf_win = win
-            self._lf_X = [self._X[win][None, :].copy() for _ in range(k)]
-            self._lf_xb = [self._X[win].copy() for _ in range(k)]
-            self._lf_clock = [self._clock.copy() for _ in range(k)]
-            self._lf_res = []
-            return self.lf_scale
-        self._lf_win = win  # a later winner: the LF models take its wave model and keep their states
-        trial = self._trial_cache.get(win)
-        if trial is None:
-            b = self.bank
-            trial = []
-            for s in LF_NOISE_SCALES:
-                Q = b.Q.copy()
-                Q[3:, 3:] = self._lf_Q((s, s, s))[3:, 3:]
-                kb = design_bank(self.vessel, (float(b.candidates[win]),), b.zeta, Q, b.R, b.dt)
-                trial.append((kb.Phi, kb.Gam, kb.A, kb.B, kb.K, kb.Sinv, kb.logdet))
-            self._trial_cache[win] = trial
-        if not chunks:
-            return self.lf_scale
-        T = np.ascontiguousarray(np.concatenate([c[0] for c in chunks]))
-        Y = np.ascontiguousarray(np.concatenate([c[1] for c in chunks]))
-        TAU = np.ascontiguousarray(np.concatenate([c[2] for c in chunks]))
-        m = T.shape[0]
-        params = self._params.copy()
-        params[kernel.PARAM_WARMUP_S] = 0.0
-        res = np.empty((k, m, 3))
-        for i in range(k):
-            OUT = np.empty((m, kernel.N_OUT, 3))
-            Phi, Gam, A, B, K, Sinv, logdet = trial[i]
-            kernel.run(
-                self._lf_X[i], np.ones(1), self._lf_xb[i], self._lf_clock[i], T, Y, TAU,
-                Phi, Gam, A, B, K, Sinv, logdet, params, OUT, np.empty((m, 1)), np.empty(m, dtype=np.int8),
-            )  # fmt: skip
-            r = Y - OUT[:, kernel.OUT_ETA, :] - OUT[:, kernel.OUT_ETA_WF, :]
-            r[:, 2] = (r[:, 2] + math.pi) % (2.0 * math.pi) - math.pi
-            res[i] = r
-        self._lf_res.append((T, res))
-        tb = 2.0 * math.pi / (min(self.bank.candidates) / 1.5)
-        t_keep = t - LF_BLOCKS * tb - tb
-        self._lf_res = [c for c in self._lf_res if c[0][-1] >= t_keep]
-        TT = np.concatenate([c[0] for c in self._lf_res])
-        RR = np.concatenate([c[1] for c in self._lf_res], axis=1)  # (k, m, 3)
-        blk = np.floor(TT / tb).astype(np.int64)
-        last_full = int(np.floor(t / tb)) - 1
-        use = (blk <= last_full) & (blk > last_full - LF_BLOCKS)
-        R = np.asarray(self._design_sigma[0], dtype=float) ** 2 if self._design_sigma else None
-        if R is None or not np.any(use):
-            return self.lf_scale
-        choice = [1.0, 1.0, 1.0]
-        rho = np.full((3, k), np.nan)
-        for d in range(3):
-            for i in range(k):
-                z = []
-                for bi in np.unique(blk[use]):
-                    v = RR[i, use & (blk == bi), d]
-                    v = v[np.isfinite(v)]
-                    if v.size >= 10:
-                        z.append(v.mean() ** 2 * v.size / R[d])
-                if len(z) == LF_BLOCKS:
-                    rho[d, i] = float(np.mean(z))
-            ok = [i for i in range(k) if rho[d, i] - rho[d, 0] <= LF_KAPPA]
-            choice[d] = float(LF_NOISE_SCALES[max(ok)]) if ok else 1.0
-        self.lf_rho = rho
-        out = list(self.lf_scale)
-        prev = self._lf_choice
-        self._lf_choice = tuple(choice)
-        for d in range(3):
-            # looser at once (a lagging model loses the LF motion now); stiffer when chosen twice in a row
-            if choice[d] > out[d] or (prev is not None and prev[d] == choice[d]):
-                out[d] = choice[d]
-        return (out[0], out[1], out[2])
 
     def _restart_on_prefix(self) -> None:
         """The first identified bank starts where the record started: the filters and weights are set back
@@ -831,12 +679,10 @@ class MMAEObserver(ObserverBase):
         code = kernel.step(
             self._X, self._p, self._xb, self._clock, float(t), y_arr, tau_arr, *self._kernel_args()
         )
-        if self.identify_noise and (self._design_sigma is None or self.identify_lf_noise):
-            chunk = (np.array([float(t)]), y_arr.reshape(1, 3).copy(), tau_arr.reshape(1, 3).copy())
-            if self._design_sigma is None:
-                self._prefix.append(chunk)
-            if self.identify_lf_noise:
-                self._recent.append(chunk)
+        if self.identify_noise and self._design_sigma is None:
+            self._prefix.append(
+                (np.array([float(t)]), y_arr.reshape(1, 3).copy(), tau_arr.reshape(1, 3).copy())
+            )
         if code == STATUS_INITIALIZING:
             return Estimate.initializing(float(t))
         kernel.outputs(self._xb, self._clock[kernel.CLOCK_PSI_F], out)
@@ -871,8 +717,6 @@ class MMAEObserver(ObserverBase):
             )  # fmt: skip
             if self.identify_noise and self._design_sigma is None:
                 self._prefix.append((t_arr[a:b], Y[a:b], TAU[a:b]))  # as `step` keeps them
-            if self.identify_noise and self.identify_lf_noise:
-                self._recent.append((t_arr[a:b].copy(), Y[a:b].copy(), TAU[a:b].copy()))
             a = b
 
         if self.identify_noise:
