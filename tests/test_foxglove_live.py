@@ -193,9 +193,11 @@ def test_demo_serves_every_advertised_channel_with_data(tmp_path: Path) -> None:
     log_time, payload = c.messages["/dp/estimate"][-1]
     assert estimate_is_finite(payload)
     assert json.loads(payload)["stamp_ns"] == log_time
-    # the server's time is the gateway's (the simulation's): within the span of the messages' log times
+    # the server's time is the gateway's (the simulation's, which runs 10x ahead of the wall clock here):
+    # within the span of the messages' log times, give or take the last outputs still in flight when the
+    # client stopped reading (a time message may overtake them; measured 0.1 s of sim time)
     stamps = [t for m in c.messages.values() for t, _ in m]
-    assert min(stamps) <= max(c.times) <= max(stamps)
+    assert min(stamps) <= max(c.times) <= max(stamps) + 500_000_000
     fix = json.loads(c.messages["/dp/estimate/fix"][-1][1])
     assert -90 <= fix["latitude"] <= 90 and -180 <= fix["longitude"] <= 180
 
