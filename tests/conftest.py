@@ -10,6 +10,8 @@ import os
 for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_name, "1")
 
+import socket  # noqa: E402
+import threading  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Callable  # noqa: E402
 from typing import Any, TypeVar  # noqa: E402
@@ -53,3 +55,36 @@ def connect_when_listening(port: int, timeout: float = 30.0, alive: Callable[[],
             if time.monotonic() >= deadline or (alive is not None and not alive()):
                 raise AssertionError(f"no Zenoh peer listening on 127.0.0.1:{port}: {exc}") from exc
             time.sleep(0.1)
+
+
+def free_port(kind: int = socket.SOCK_STREAM) -> int:
+    """A port on 127.0.0.1 that was free a moment ago (TCP by default; ``socket.SOCK_DGRAM`` for UDP)."""
+    with socket.socket(socket.AF_INET, kind) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+class Recorder:
+    """An output sink that keeps what the pipeline handed the sinks, to compare an output's messages with
+    (a second sink beside the one under test)."""
+
+    name = "recorder"
+
+    def __init__(self) -> None:
+        self.outputs: list[Any] = []
+        self.lock = threading.Lock()
+
+    def start(self, session: Any) -> None:
+        pass
+
+    def emit(self, outputs: list[Any], encoded: list[bytes]) -> None:
+        with self.lock:
+            self.outputs.extend(outputs)
+
+    def close(self) -> None:
+        pass
+
+    def of(self, kind: type, topic: str | None = None) -> list[Any]:
+        """The messages of type ``kind`` (on ``topic``, or on any)."""
+        with self.lock:
+            return [o.message for o in self.outputs if type(o.message) is kind and topic in (None, o.topic)]

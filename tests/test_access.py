@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import os
-import socket
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -15,19 +14,13 @@ from typing import Any
 
 import pytest
 import zenoh
-from conftest import wait_for
+from conftest import free_port, wait_for
 
 from gateway.bus import open_session
 from gateway.config import parse_config
 from gateway.service import GatewayService, zenoh_config
 
 PREFIX = "dp/acl"
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def tables(zenoh_table: dict[str, Any]) -> dict[str, Any]:

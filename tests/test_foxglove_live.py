@@ -14,7 +14,6 @@ import json
 import math
 import os
 import signal
-import socket
 import struct
 import subprocess
 import sys
@@ -25,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from conftest import free_port
 
 websockets = pytest.importorskip("websockets")
 
@@ -36,12 +36,6 @@ PLAYING, PAUSED, BUFFERING, ENDED = 0, 1, 2, 3
 
 CORE_JSON = {"/dp/estimate", "/dp/measurement", "/dp/status", "/dp/thrusters/command"}
 CORE_NATIVE = {"/dp/estimate/fix", "/dp/estimate/pose", "/dp/tf", "/dp/scene/hull", "/dp/scene/thrusters"}
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 @dataclass

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import zenoh
-from conftest import connect_when_listening, wait_for
+from conftest import connect_when_listening, free_port, wait_for
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from jsonschema import Draft202012Validator
@@ -31,12 +31,6 @@ from wire.message_schema import json_schema
 from wire.messages import message_for_topic
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
-
-
-def free_port(kind: int = socket.SOCK_STREAM) -> int:
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def dpgw(*args: str, **kw) -> subprocess.Popen[str]:  # type: ignore[no-untyped-def]

@@ -24,7 +24,7 @@ from gateway.outputs.build import output_problems, sinks_from_config  # noqa: E4
 from gateway.outputs.keelson import KeelsonSink  # noqa: E402
 from gateway.pipeline import Output  # noqa: E402
 from gateway.service import GatewayService  # noqa: E402
-from tests.conftest import wait_for  # noqa: E402
+from tests.conftest import Recorder, free_port, wait_for  # noqa: E402
 from wire.codecs import nmea_encode as enc  # noqa: E402
 from wire.messages import Estimate, Measurement, Status, ThrusterCommand, ThrusterFeedback  # noqa: E402
 
@@ -46,36 +46,6 @@ SUBJECTS = {
     "log_message",
 }
 F32 = 1e-6  # keelson.TimestampedFloat is a 32-bit float: 24-bit mantissa, relative error < 6e-8
-
-
-def free_port(kind: int = socket.SOCK_STREAM) -> int:
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-class Recorder:
-    """A second sink: what the pipeline handed the sinks, to compare the Keelson messages with."""
-
-    name = "recorder"
-
-    def __init__(self) -> None:
-        self.outputs: list[Output] = []
-        self.lock = threading.Lock()
-
-    def start(self, session: Any) -> None:
-        pass
-
-    def emit(self, outputs: list[Output], encoded: list[bytes]) -> None:
-        with self.lock:
-            self.outputs.extend(outputs)
-
-    def close(self) -> None:
-        pass
-
-    def of(self, kind: type, topic: str | None = None) -> list[Any]:
-        with self.lock:
-            return [o.message for o in self.outputs if type(o.message) is kind and topic in (None, o.topic)]
 
 
 class Listener:

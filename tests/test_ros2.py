@@ -36,9 +36,8 @@ from gateway.config import ConfigError, parse_config
 from gateway.outputs import InputSink, RawSentenceSink
 from gateway.outputs.build import output_problems, sinks_from_config
 from gateway.outputs.ros2 import Ros2Sink, ros_typestore, setpoint_payload
-from gateway.pipeline import Output
 from gateway.service import GatewayService
-from tests.conftest import wait_for
+from tests.conftest import Recorder, free_port, wait_for
 from wire import rmw_zenoh as rz
 from wire.codecs import nmea_encode as enc
 from wire.messages import Estimate, LocationFix
@@ -209,36 +208,6 @@ def pose_stamped(
             ),
         ),
     )
-
-
-def free_port(kind: int = socket.SOCK_STREAM) -> int:
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-class Recorder:
-    """A second sink: what the pipeline handed the sinks, to compare the ROS messages with."""
-
-    name = "recorder"
-
-    def __init__(self) -> None:
-        self.outputs: list[Output] = []
-        self.lock = threading.Lock()
-
-    def start(self, session: Any) -> None:
-        pass
-
-    def emit(self, outputs: list[Output], encoded: list[bytes]) -> None:
-        with self.lock:
-            self.outputs.extend(outputs)
-
-    def close(self) -> None:
-        pass
-
-    def of(self, kind: type, topic: str) -> list[Any]:
-        with self.lock:
-            return [o.message for o in self.outputs if type(o.message) is kind and o.topic == topic]
 
 
 class RosListener:

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from conftest import free_port
 
 from gateway.bus import isolated_config, open_session
 from gateway.config import parse_config
@@ -23,12 +24,6 @@ from wire.codecs import nmea_encode as enc
 from wire.mcap.reader import read_messages
 
 POISON = b"$POISON\r\n"  # the chunk carrying this marker makes the (patched) pipeline raise
-
-
-def free_port(kind: int = socket.SOCK_STREAM) -> int:
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def burst(k: int) -> bytes:
