@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import scipy.linalg
+import scipy.optimize
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -182,18 +183,45 @@ def test_supply_state_space_equals_the_convolution_with_k_from_the_data(hydro, s
 
 
 def test_shipped_model_is_what_the_data_give(hydro, shipped) -> None:  # type: ignore[no-untyped-def]
-    """The model stored for mss_supply was made from exactly these data with the current settings, and
-    identifying again gives the same matrices (the identification is deterministic)."""
+    """The model stored for mss_supply was made from exactly these data with the current settings:
+    identifying again gives the same system, i.e. the same order, poles, A(∞) and frequency response K̃(jω).
+
+    Not the same matrices: the fit has near-repeated poles (two at -1.6177 rad/s), and the basis a
+    realization picks for them depends on the BLAS kernels the CPU selects. Between OpenBLAS's Haswell and
+    SkylakeX kernels Ar differs by up to 1.4 in single elements and the poles by 5e-5, while every element
+    of K̃ agrees within 3.4e-5 of its peak (the weakly identified sway-yaw coupling; 1e-8 for the rest), so
+    the matrices are the wrong thing to compare across machines. The tolerances are 20-30x that."""
     assert shipped.hydro_sha256 == cache.file_sha256(DATA)
     fresh = rad.identify(hydro.freqs, hydro.A, hydro.B)
-    for name, ours in (
-        ("Ar", fresh.Ar),
-        ("Br", fresh.Br),
-        ("Cr", fresh.Cr),
-        ("Dr", fresh.Dr),
-        ("A_inf", fresh.A_inf),
-    ):
-        np.testing.assert_allclose(getattr(shipped, name), ours, rtol=1e-9, atol=1e-12, err_msg=name)
+    assert fresh.Ar.shape == shipped.Ar.shape
+    poles, poles_fresh = np.linalg.eigvals(shipped.Ar), np.linalg.eigvals(fresh.Ar)
+    # paired nearest to nearest (sorting would pair near-repeated poles crosswise)
+    rows, cols = scipy.optimize.linear_sum_assignment(abs(poles[:, None] - poles_fresh[None, :]))
+    np.testing.assert_allclose(poles[rows], poles_fresh[cols], rtol=1e-3, err_msg="poles")
+    np.testing.assert_allclose(shipped.A_inf, fresh.A_inf, rtol=0, atol=1e-5 * abs(shipped.A_inf).max())
+    np.testing.assert_array_equal(shipped.Dr, fresh.Dr)
+    w = np.linspace(0.02, 4.0, 400)
+    n = shipped.Ar.shape[0]
+
+    def response(m) -> np.ndarray:  # type: ignore[no-untyped-def]
+        return np.array([m.Cr @ np.linalg.solve(1j * x * np.eye(n) - m.Ar, m.Br) + m.Dr for x in w])
+
+    def worst_relative(k: np.ndarray) -> float:
+        """Largest |K̃ᵢⱼ - K̃ᵢⱼ(fresh)| over ω, relative to the peak |K̃ᵢⱼ| of that element."""
+        k_fresh = response(fresh)
+        peak = abs(k_fresh).max(axis=0)
+        used = peak > 0.0
+        return float((abs(k - k_fresh).max(axis=0)[used] / peak[used]).max())
+
+    assert worst_relative(response(shipped)) < 1e-3
+    # the check can fail: the surge kernel with one pole 5 % faster is far outside it
+    moved = shipped.Ar.copy()
+    moved[0, 0] *= 1.05
+
+    class _Moved:
+        Ar, Br, Cr, Dr = moved, shipped.Br, shipped.Cr, shipped.Dr
+
+    assert worst_relative(response(_Moved)) > 1e-2
 
 
 # ------------------------------------------------------------------ energy
