@@ -55,7 +55,9 @@ those of dt_nom (set dt to the sensors' rate). A gap longer than ``max_gap_s`` r
 (weights kept) from the next complete measurement. Repeated or backward time: the sample is not used.
 
 ``observers._mmae_kernel`` is the compiled twin of the readable numpy reference at the end of this
-module (`reference_run`); tests/test_mmae.py checks they agree to round-off. Full notes: docs/mmae.md.
+module (`reference_run`); tests/test_mmae.py checks they agree to round-off. The LF output stage that dpgw
+adds (the estimate given out with an identified LF process noise) is `observers.mmae_lf`. Full notes:
+docs/mmae.md.
 """
 
 from __future__ import annotations
@@ -70,6 +72,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import expm, solve_discrete_are
 
 from observers import _mmae_kernel as kernel
+from observers import mmae_lf
 from observers.base import (
     STATUS_DEAD_RECKONING,
     STATUS_INITIALIZING,
@@ -438,6 +441,13 @@ class MMAEObserver(ObserverBase):
     than 30 % (filter states and weights kept). The weights start moving at the first identification,
     about one slowest period after the first sample. Hassani's (A.2) Q and R, the fallback before that, do not
     identify real seas (docs/mmae.md). The default ζ is 0.25, not the paper's 0.1, for the same reason.
+
+    ``lf_output`` (default: when identifying the noise and Q is not given): the LF output stage,
+    `observers.mmae_lf` — the bank keeps (A.2)'s LF noise Q2, Q3 and identifies ω0 as above; the estimate
+    given out comes, per DOF where the data show slow LF motion, from one filter of the winning wave model
+    with Q2, Q3 scaled down (chosen from the LF residual), while the winner holds ≥ 0.9 of the weight. With
+    (A.2)'s LF noise beside a calm identified sea the blend does not notch (its yaw estimate is the gyro's
+    signal); the paper's blend is ``lf_output=False``. `state` and `filter_states` stay the bank's.
     """
 
     new_samples_only = True
@@ -459,6 +469,7 @@ class MMAEObserver(ObserverBase):
         max_gap_s: float = 60.0,
         heading_in_weights: bool = True,
         identify_noise: bool | None = None,
+        lf_output: bool | None = None,
     ) -> None:
         self.vessel = vessel
         self.bank = self._initial_bank = design_bank(vessel, candidates, zeta, Q, R, dt, wave_std)
@@ -471,6 +482,10 @@ class MMAEObserver(ObserverBase):
         )
         self.identified: NoiseIdentification | None = None
         self._design_sigma: tuple[Array, Array] | None = None  # (measurement σ, wave σ) of the bank in use
+        # the LF output stage: Q2, Q3 identified for the estimate given out (`observers.mmae_lf`); by
+        # default whenever the noise is identified and Q is not given
+        self.lf_output = (self.identify_noise and Q is None) if lf_output is None else bool(lf_output)
+        self.lf = mmae_lf.LFOutputStage(vessel, hassani_noise(vessel)[0], design_bank)
         self.noise_estimator = WaveFrequencyEstimator(identification_config(candidates))
         n = self.bank.n
         self.weight_floor = float(weight_floor)
@@ -526,6 +541,7 @@ class MMAEObserver(ObserverBase):
         self._prefix: list[tuple[Array, Array, Array]] = []
         # an explicit start (`initialize`): blended state, time, frame heading, weights; kept for that rerun
         self._start: tuple[Array, float, float, Array] | None = None
+        self.lf.reset()
         self._reset_filters()
 
     def _reset_filters(self) -> None:
@@ -554,6 +570,7 @@ class MMAEObserver(ObserverBase):
         kernel.start_at(self._X, self._xb, self._clock, t, psi_f)
         self._start = (x.x.copy(), t, psi_f, self._p.copy())
         self._prefix = []  # samples before an explicit start are not run again
+        self.lf.reset()
 
     @property
     def state(self) -> StateView:
@@ -593,6 +610,9 @@ class MMAEObserver(ObserverBase):
         if self.identified is not None:
             out["measurement_sigma"] = _clean3(self.identified.measurement_sigma)
             out["wave_sigma"] = _clean3(self.identified.wave_sigma)
+        if self.lf_output:
+            out["lf_noise_scale"] = list(self.lf.scale)
+            out["lf_output"] = self.lf.active
         return out
 
     def _identify(self, t: float) -> None:
@@ -637,6 +657,8 @@ class MMAEObserver(ObserverBase):
             self._params[kernel.PARAM_WARMUP_S] = self.warmup_s  # the weights may move from now on
             if first and self._prefix:
                 self._restart_on_prefix()
+        if self.lf_output and self._design_sigma is not None:
+            self.lf.identify(t, self.bank, self._X, self._p, self._clock, np.diag(self.bank.R), self._params)
         self.identified = NoiseIdentification(t, _f3(meas), _f3(wave), redesign)
 
     def _restart_on_prefix(self) -> None:
@@ -683,9 +705,16 @@ class MMAEObserver(ObserverBase):
             self._prefix.append(
                 (np.array([float(t)]), y_arr.reshape(1, 3).copy(), tau_arr.reshape(1, 3).copy())
             )
+        if self.lf_output and self.lf.running:
+            self.lf.record(np.array([float(t)]), y_arr.reshape(1, 3).copy(), tau_arr.reshape(1, 3).copy())
+            self.lf.step(float(t), y_arr, tau_arr, self._params)
         if code == STATUS_INITIALIZING:
             return Estimate.initializing(float(t))
         kernel.outputs(self._xb, self._clock[kernel.CLOCK_PSI_F], out)
+        if self.lf.active:
+            lf = np.empty((1, kernel.N_OUT, 3))
+            self.lf.outputs(lf[0])
+            mmae_lf.mix_outputs(out[None], lf, self.lf.scale)
         return Estimate(
             float(t),
             out[kernel.OUT_ETA],
@@ -705,6 +734,9 @@ class MMAEObserver(ObserverBase):
         OUT = np.empty((n, kernel.N_OUT, 3))
         W = np.empty((n, self.bank.n))
         status = np.empty(n, dtype=np.int8)
+        OUT_LF = np.empty((n, kernel.N_OUT, 3)) if self.lf_output else OUT
+        use_lf = np.zeros(n, dtype=bool)
+        scales = np.ones((n, 3))  # the LF scales in use where use_lf
         a = 0  # the kernel has run samples [0, a)
 
         def kernel_to(b: int) -> None:
@@ -717,6 +749,12 @@ class MMAEObserver(ObserverBase):
             )  # fmt: skip
             if self.identify_noise and self._design_sigma is None:
                 self._prefix.append((t_arr[a:b], Y[a:b], TAU[a:b]))  # as `step` keeps them
+            if self.lf_output and self.lf.running:
+                self.lf.record(t_arr[a:b], Y[a:b], TAU[a:b])
+                self.lf.run(t_arr[a:b], Y[a:b], TAU[a:b], self._params, OUT_LF[a:b])
+                if self.lf.active:
+                    use_lf[a:b] = True
+                    scales[a:b] = self.lf.scale
             a = b
 
         if self.identify_noise:
@@ -727,6 +765,12 @@ class MMAEObserver(ObserverBase):
                 kernel_to(j)
                 self._identify(float(t_arr[j]))
         kernel_to(n)
+        use_lf &= status != STATUS_INITIALIZING
+        for scale in {tuple(row) for row in scales[use_lf]}:
+            k = use_lf & np.all(scales == scale, axis=1)
+            part = OUT[k]
+            mmae_lf.mix_outputs(part, OUT_LF[k], scale)
+            OUT[k] = part
         om = np.empty(n)
         kernel.blended_omegas(W, self.bank.candidates, om)
         omega = np.repeat(om[:, None], 3, axis=1)
