@@ -442,12 +442,13 @@ class MMAEObserver(ObserverBase):
     about one slowest period after the first sample. Hassani's (A.2) Q and R, the fallback before that, do not
     identify real seas (docs/mmae.md). The default ζ is 0.25, not the paper's 0.1, for the same reason.
 
-    ``lf_output`` (default: when identifying the noise and Q is not given): the LF output stage,
-    `observers.mmae_lf` — the bank keeps (A.2)'s LF noise Q2, Q3 and identifies ω0 as above; the estimate
-    given out comes, per DOF where the data show slow LF motion, from one filter of the winning wave model
-    with Q2, Q3 scaled down (chosen from the LF residual), while the winner holds ≥ 0.9 of the weight. With
-    (A.2)'s LF noise beside a calm identified sea the blend does not notch (its yaw estimate is the gyro's
-    signal); the paper's blend is ``lf_output=False``. `state` and `filter_states` stay the bank's.
+    ``lf_output`` (default False; it applies when the noise is identified and Q is not given): the LF
+    output stage, `observers.mmae_lf` — the bank keeps (A.2)'s LF noise Q2, Q3 and identifies ω0 as above;
+    the estimate given out comes, per DOF where the data show slow LF motion, from one filter of the
+    winning wave model with Q2, Q3 scaled down (chosen from the LF residual), while the winner holds ≥ 0.9
+    of the weight. With (A.2)'s LF noise beside a calm identified sea the blend does not notch (its yaw
+    estimate is the gyro's signal). Off by default: it costs about 5× the batch throughput
+    (docs/mmae.md). `state` and `filter_states` stay the bank's.
     """
 
     new_samples_only = True
@@ -469,7 +470,7 @@ class MMAEObserver(ObserverBase):
         max_gap_s: float = 60.0,
         heading_in_weights: bool = True,
         identify_noise: bool | None = None,
-        lf_output: bool | None = None,
+        lf_output: bool = False,
     ) -> None:
         self.vessel = vessel
         self.bank = self._initial_bank = design_bank(vessel, candidates, zeta, Q, R, dt, wave_std)
@@ -482,9 +483,9 @@ class MMAEObserver(ObserverBase):
         )
         self.identified: NoiseIdentification | None = None
         self._design_sigma: tuple[Array, Array] | None = None  # (measurement σ, wave σ) of the bank in use
-        # the LF output stage: Q2, Q3 identified for the estimate given out (`observers.mmae_lf`); by
-        # default whenever the noise is identified and Q is not given
-        self.lf_output = (self.identify_noise and Q is None) if lf_output is None else bool(lf_output)
+        # the LF output stage: Q2, Q3 identified for the estimate given out (`observers.mmae_lf`), when asked
+        # for and the noise is identified with Q not given
+        self.lf_output = bool(lf_output) and self.identify_noise and Q is None
         self.lf = mmae_lf.LFOutputStage(vessel, hassani_noise(vessel)[0], design_bank)
         self.noise_estimator = WaveFrequencyEstimator(identification_config(candidates))
         n = self.bank.n
@@ -766,7 +767,7 @@ class MMAEObserver(ObserverBase):
                 self._identify(float(t_arr[j]))
         kernel_to(n)
         use_lf &= status != STATUS_INITIALIZING
-        for scale in {tuple(row) for row in scales[use_lf]}:
+        for scale in np.unique(scales[use_lf], axis=0):
             k = use_lf & np.all(scales == scale, axis=1)
             part = OUT[k]
             mmae_lf.mix_outputs(part, OUT_LF[k], scale)

@@ -1,5 +1,9 @@
 """The MMAE's low-frequency output stage: the LF process noise identified from the data (dpgw's addition).
 
+Opt-in: ``MMAEObserver(vessel, lf_output=True)`` (``mmae:lf_output=true`` on the command line). It is off by
+default because it costs about 5× the MMAE's batch throughput (seven trial filters and their designs beside
+the bank of eight); the bank and its weights are the same either way.
+
 Hassani et al. fix the whole Q at (A.2). dpgw identifies R and the wave part Q1 from the measured sea
 (`observers.mmae`), and this module does the same for the LF part, Q2 (force noise of (9)) and Q3 (bias
 random walk of (10)), but only for the estimate that is given out, never for the bank that identifies ω0.
@@ -202,17 +206,20 @@ class LFOutputStage:
         blk = np.floor(TT / tb).astype(np.int64)
         last_full = math.floor(t / tb) - 1
         use = (blk <= last_full) & (blk > last_full - LF_BLOCKS)
-        self.rho = np.full((3, len(LF_NOISE_SCALES)), np.nan)
-        for d in range(3):
-            for i in range(len(LF_NOISE_SCALES)):
-                z = []
-                for b in np.unique(blk[use]):
-                    v = RR[i, use & (blk == b), d]
-                    v = v[np.isfinite(v)]
-                    if v.size >= 10:
-                        z.append(v.mean() ** 2 * v.size / R[d])
-                if len(z) == LF_BLOCKS:
-                    self.rho[d, i] = float(np.mean(z))
+        # per scale, DOF and block: Σ r and the count of finite r; r̄² n / R = (Σ r)² / (n R)
+        k = len(LF_NOISE_SCALES)
+        sums = np.zeros((k, 3, LF_BLOCKS))
+        counts = np.zeros((k, 3, LF_BLOCKS))
+        first = last_full - LF_BLOCKS + 1
+        for j in range(LF_BLOCKS):
+            part = RR[:, use & (blk == first + j), :]
+            finite = np.isfinite(part)
+            sums[:, :, j] = np.where(finite, part, 0.0).sum(axis=1)
+            counts[:, :, j] = finite.sum(axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z = sums**2 / (counts * np.asarray(R, dtype=float)[None, :, None])
+        z[counts < 10] = np.nan  # a block with fewer than 10 samples does not count; the DOF waits
+        self.rho = z.mean(axis=2).T  # (3, scales): NaN unless every block counts
 
     def _choose(self) -> tuple[float, float, float]:
         choice = [1.0, 1.0, 1.0]

@@ -395,7 +395,8 @@ def test_observer_interface() -> None:
     assert obs.weights.shape == (8,) and obs.omega0.shape == (3,)
     assert obs.omega0[0] == pytest.approx(np.mean(HASSANI_CANDIDATES))
     extra = json.loads(json.dumps(obs.extra()))
-    assert set(extra) == {"weights", "candidates", "omega0_blended", "lf_noise_scale", "lf_output"}
+    assert set(extra) == {"weights", "candidates", "omega0_blended"}
+    extra = MMAEObserver(vessel, lf_output=True).extra()
     assert extra["lf_noise_scale"] == [1.0, 1.0, 1.0] and extra["lf_output"] is False
     assert extra["candidates"] == list(HASSANI_CANDIDATES) and len(extra["omega0_blended"]) == 3
     from observers.factory import make_observer
@@ -636,19 +637,19 @@ def test_lf_output_is_stiff_at_a_constant_load_and_loose_when_the_vessel_moves(s
     vessel = get_scenario("hassani").vessel
     tau = np.zeros((3000, 3))
     t, y, lf_true = _lf_record(0.0, 0.0, seed)
-    still = MMAEObserver(vessel)
+    still = MMAEObserver(vessel, lf_output=True)
     run = still.run(t, y, tau)
     blend = MMAEObserver(vessel, lf_output=False).run(t, y, tau)
     assert max(still.lf.scale) <= 1e-3 and still.lf.active, still.lf.scale
     assert np.all(_lf_rms(run.eta, lf_true, t) <= _lf_rms(blend.eta, lf_true, t) / 3.0)
     np.testing.assert_array_equal(run.extras["weights"], blend.extras["weights"])  # the bank is the same
     t, y, lf_true = _lf_record(2.0, 0.05, seed)
-    moving = MMAEObserver(vessel)
+    moving = MMAEObserver(vessel, lf_output=True)
     run = moving.run(t, y, tau)
     blend = MMAEObserver(vessel, lf_output=False).run(t, y, tau)
     assert min(moving.lf.scale) >= 0.1, moving.lf.scale
     assert np.all(_lf_rms(run.eta, lf_true, t) <= 1.05 * _lf_rms(blend.eta, lf_true, t))
-    fixed = MMAEObserver(vessel, Q=hassani_noise(vessel)[0])
+    fixed = MMAEObserver(vessel, Q=hassani_noise(vessel)[0], lf_output=True)
     fixed.run(t, y, tau)
     assert fixed.lf.scale == (1.0, 1.0, 1.0) and not fixed.lf.running
 
@@ -658,7 +659,7 @@ def test_lf_output_step_and_run_agree() -> None:
     vessel = get_scenario("hassani").vessel
     t, y, _ = _lf_record(0.0, 0.0, 0)
     tau = np.zeros((t.size, 3))
-    a, b = MMAEObserver(vessel), MMAEObserver(vessel)
+    a, b = MMAEObserver(vessel, lf_output=True), MMAEObserver(vessel, lf_output=True)
     run = a.run(t, y, tau)
     steps = [b.step(tk, yk, uk) for tk, yk, uk in zip(t, y, tau, strict=True)]
     assert a.lf.active and b.lf.active and a.lf.scale == b.lf.scale
