@@ -99,6 +99,7 @@ _MMAE_PARAMS = (
     "measurement_sigma",
     "warmup_s",
     "max_gap_s",
+    "lf_output",
 )
 
 # The registry: one entry per observer. New observers (ekf, …) are added here.
