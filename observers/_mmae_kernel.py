@@ -113,6 +113,20 @@ def _project(p, floor):
 @njit(cache=True)
 def step(X, p, xb, clock, t, y, tau, Phi, Gam, A, B, K, Sinv, logdet, params):
     """One sample; returns its status code (see `observers.mmae.reference_run` for the steps)."""
+    return _step(X, p, xb, clock, t, y, tau, Phi, Gam, A, B, K, Sinv, logdet, params, _scratch(X.shape[0]))
+
+
+@njit(cache=True)
+def _scratch(n):
+    """Work arrays of one step (allocated once per `run`, not per sample: at one filter the allocations
+    cost as much as the filter)."""
+    return (np.empty(3), np.empty(N_STATE), np.empty(N_STATE), np.empty(N_STATE), np.empty(n), np.empty(3))
+
+
+@njit(cache=True)
+def _step(X, p, xb, clock, t, y, tau, Phi, Gam, A, B, K, Sinv, logdet, params, scratch):
+    """`step` with its work arrays given."""
+    u, g, xn, f, ll, res = scratch
     N = X.shape[0]
     complete = not (math.isnan(y[0]) or math.isnan(y[1]) or math.isnan(y[2]))
     dt = t - clock[CLOCK_T]
@@ -126,7 +140,6 @@ def step(X, p, xb, clock, t, y, tau, Phi, Gam, A, B, K, Sinv, logdet, params):
     if dt <= 0.0:
         return STATUS_OK if complete else STATUS_DEAD_RECKONING
     clock[CLOCK_T] = t
-    u = np.empty(3)
     for j in range(3):
         u[j] = 0.0 if math.isnan(tau[j]) else tau[j]
 
@@ -146,11 +159,8 @@ def step(X, p, xb, clock, t, y, tau, Phi, Gam, A, B, K, Sinv, logdet, params):
     dt_nom = params[PARAM_DT]
     n_steps = math.floor(dt / dt_nom + 0.5)
     delta = dt - n_steps * dt_nom
-    g = np.empty(N_STATE)
     for r in range(N_STATE):
         g[r] = Gam[r, 0] * u[0] + Gam[r, 1] * u[1] + Gam[r, 2] * u[2]
-    xn = np.empty(N_STATE)
-    f = np.empty(N_STATE)
     for i in range(N):
         x = X[i]
         Ph = Phi[i]
@@ -193,8 +203,6 @@ def step(X, p, xb, clock, t, y, tau, Phi, Gam, A, B, K, Sinv, logdet, params):
         yp1 = -s * y[0] + c * y[1] if pos else 0.0
         # the DOFs that inform the weights: all measured, or the position only (PARAM_HEADING_VOTES 0)
         mw = m if params[PARAM_HEADING_VOTES] != 0.0 else (m & 1)
-        ll = np.empty(N)
-        res = np.empty(3)
         for i in range(N):
             x = X[i]
             res[0] = yp0 - (x[I_ETA] + x[I_XI2]) if pos else 0.0
@@ -271,8 +279,9 @@ def outputs(xb, psi_f, out):
 def run(X, p, xb, clock, t, Y, TAU, Phi, Gam, A, B, K, Sinv, logdet, params, OUT, W, status):
     """`step` over arrays; OUT[k] = outputs after sample k (NaN while initialising), W[k] the weights."""
     n = t.shape[0]
+    scratch = _scratch(X.shape[0])
     for k in range(n):
-        code = step(X, p, xb, clock, t[k], Y[k], TAU[k], Phi, Gam, A, B, K, Sinv, logdet, params)
+        code = _step(X, p, xb, clock, t[k], Y[k], TAU[k], Phi, Gam, A, B, K, Sinv, logdet, params, scratch)
         status[k] = code
         if code == STATUS_INITIALIZING:
             for a in range(4):
@@ -282,3 +291,61 @@ def run(X, p, xb, clock, t, Y, TAU, Phi, Gam, A, B, K, Sinv, logdet, params, OUT
             outputs(xb, clock[CLOCK_PSI_F], OUT[k])
         for i in range(p.shape[0]):
             W[k, i] = p[i]
+
+
+@njit(cache=True)
+def run_single(X, xb, clock, t, Y, TAU, Phi, Gam, A, B, K, Sinv, logdet, params, RES):
+    """k independent single filters (each a bank of one, with its own state, frame and clock: X, xb (k, 15),
+    clock (k, N_CLOCK); its own matrices Phi[i], A[i], K[i], Sinv[i], logdet[i]) over the same samples;
+    RES[i, j] = y_j − (η̂ + η̂_w) of filter i after sample j (NED, heading wrapped; NaN where y is or while
+    initialising). The LF output stage's trial filters (`observers.mmae_lf`)."""
+    k = X.shape[0]
+    n = t.shape[0]
+    scratch = _scratch(1)
+    one = np.ones(1)
+    out = np.empty((N_OUT, 3))
+    for j in range(n):
+        for i in range(k):
+            one[0] = 1.0
+            code = _step(
+                X[i : i + 1], one, xb[i], clock[i], t[j], Y[j], TAU[j], Phi[i : i + 1], Gam, A[i : i + 1], B,
+                K[i : i + 1], Sinv[i : i + 1], logdet[i : i + 1], params, scratch,
+            )  # fmt: skip
+            if code == STATUS_INITIALIZING:
+                for d in range(3):
+                    RES[i, j, d] = np.nan
+                continue
+            outputs(xb[i], clock[i, CLOCK_PSI_F], out)
+            for d in range(2):
+                RES[i, j, d] = Y[j, d] - out[OUT_ETA, d] - out[OUT_ETA_WF, d]
+            RES[i, j, 2] = ssa_jit(Y[j, 2] - out[OUT_ETA, 2] - out[OUT_ETA_WF, 2])
+
+
+@njit(cache=True)
+def mix_outputs(blend, lf, stiff):
+    """In place into ``blend`` (m, 4, 3): per DOF d with stiff[d] the LF output filter's estimate ``lf``,
+    the blend's elsewhere, in the vessel-parallel axes of the blend's heading estimate (η̂, b̂, η̂_w turned
+    there, chosen, turned back; ν̂ is body-frame already). See `observers.mmae_lf.mix_outputs`."""
+    for k in range(blend.shape[0]):
+        if stiff[0] and stiff[1] and stiff[2]:
+            for a in range(N_OUT):
+                for d in range(3):
+                    blend[k, a, d] = lf[k, a, d]
+            continue
+        psi = blend[k, OUT_ETA, 2]
+        c = math.cos(psi)
+        s = math.sin(psi)
+        for row in (OUT_ETA, OUT_BIAS, OUT_ETA_WF):
+            bx = c * blend[k, row, 0] + s * blend[k, row, 1]
+            by = -s * blend[k, row, 0] + c * blend[k, row, 1]
+            lx = c * lf[k, row, 0] + s * lf[k, row, 1]
+            ly = -s * lf[k, row, 0] + c * lf[k, row, 1]
+            x = lx if stiff[0] else bx
+            y = ly if stiff[1] else by
+            blend[k, row, 0] = c * x - s * y
+            blend[k, row, 1] = s * x + c * y
+            if stiff[2]:
+                blend[k, row, 2] = lf[k, row, 2]
+        for d in range(3):
+            if stiff[d]:
+                blend[k, OUT_NU, d] = lf[k, OUT_NU, d]

@@ -222,6 +222,26 @@ def discretize(A: Array, B: Array, G: Array, Q: Array, dt: float) -> tuple[Array
     return Phi, Gam, 0.5 * (Qd + Qd.T)
 
 
+def filter_tables(P: Array, C: Array, R: Array, K: Array, Sinv: Array, logdet: Array) -> tuple[Array, Array]:
+    """From the steady-state prior P: the innovation covariance S = C P Cᵀ + R and, per mask m (`MASKS`),
+    the one-step gain K[m] = P C_vᵀ S_vv⁻¹, S_vv⁻¹ (Sinv[m]) and log det S_vv (logdet[m]) of the DOFs
+    measured (K (4, 15, 3), Sinv (4, 3, 3), logdet (4,) filled in place, zero for DOFs not measured).
+    Returns P and S, symmetrised."""
+    P = 0.5 * (P + P.T)
+    S = C @ P @ C.T + R
+    S = 0.5 * (S + S.T)
+    for m, mask in enumerate(MASKS):
+        idx = np.flatnonzero(mask)
+        if idx.size == 0:
+            continue
+        Svv = S[np.ix_(idx, idx)]
+        Svv_inv = np.linalg.inv(Svv)
+        K[m][:, idx] = P @ C[idx].T @ Svv_inv
+        Sinv[m][np.ix_(idx, idx)] = Svv_inv
+        logdet[m] = np.linalg.slogdet(Svv)[1]
+    return P, S
+
+
 @dataclass(frozen=True, eq=False)
 class MMAEBank:
     """The designed bank: one steady-state Kalman filter per candidate ω0 (arrays the kernel reads).
@@ -334,18 +354,7 @@ def design_bank(
         Phi[:6, 6:] = 0.0
         Phi[6:, :6] = 0.0
         P = solve_discrete_are(Phi.T, C.T, Qd, Rm)
-        P = 0.5 * (P + P.T)
-        S = C @ P @ C.T + Rm
-        S = 0.5 * (S + S.T)
-        for m, mask in enumerate(MASKS):
-            idx = np.flatnonzero(mask)
-            if idx.size == 0:
-                continue
-            Svv = S[np.ix_(idx, idx)]
-            Svv_inv = np.linalg.inv(Svv)
-            K_all[i, m][:, idx] = P @ C[idx].T @ Svv_inv
-            Sinv_all[i, m][np.ix_(idx, idx)] = Svv_inv
-            logdet_all[i, m] = np.linalg.slogdet(Svv)[1]
+        P, S = filter_tables(P, C, Rm, K_all[i], Sinv_all[i], logdet_all[i])
         A_all[i], Phi_all[i], P_all[i], S_all[i] = A, Phi, P, S
         if i == 0:
             Gam = Gam_i
@@ -442,13 +451,13 @@ class MMAEObserver(ObserverBase):
     about one slowest period after the first sample. Hassani's (A.2) Q and R, the fallback before that, do not
     identify real seas (docs/mmae.md). The default ζ is 0.25, not the paper's 0.1, for the same reason.
 
-    ``lf_output`` (default False; it applies when the noise is identified and Q is not given): the LF
+    ``lf_output`` (default True; it applies when the noise is identified and Q is not given): the LF
     output stage, `observers.mmae_lf` — the bank keeps (A.2)'s LF noise Q2, Q3 and identifies ω0 as above;
     the estimate given out comes, per DOF where the data show slow LF motion, from one filter of the
     winning wave model with Q2, Q3 scaled down (chosen from the LF residual), while the winner holds ≥ 0.9
     of the weight. With (A.2)'s LF noise beside a calm identified sea the blend does not notch (its yaw
-    estimate is the gyro's signal). Off by default: it costs about 5× the batch throughput
-    (docs/mmae.md). `state` and `filter_states` stay the bank's.
+    estimate is the gyro's signal). ``lf_output=False`` gives the paper's blend (16). `state` and
+    `filter_states` stay the bank's.
     """
 
     new_samples_only = True
@@ -470,7 +479,7 @@ class MMAEObserver(ObserverBase):
         max_gap_s: float = 60.0,
         heading_in_weights: bool = True,
         identify_noise: bool | None = None,
-        lf_output: bool = False,
+        lf_output: bool = True,
     ) -> None:
         self.vessel = vessel
         self.bank = self._initial_bank = design_bank(vessel, candidates, zeta, Q, R, dt, wave_std)
@@ -483,8 +492,8 @@ class MMAEObserver(ObserverBase):
         )
         self.identified: NoiseIdentification | None = None
         self._design_sigma: tuple[Array, Array] | None = None  # (measurement σ, wave σ) of the bank in use
-        # the LF output stage: Q2, Q3 identified for the estimate given out (`observers.mmae_lf`), when asked
-        # for and the noise is identified with Q not given
+        # the LF output stage: Q2, Q3 identified for the estimate given out (`observers.mmae_lf`), unless
+        # switched off, whenever the noise is identified and Q is not given
         self.lf_output = bool(lf_output) and self.identify_noise and Q is None
         self.lf = mmae_lf.LFOutputStage(vessel, hassani_noise(vessel)[0], design_bank)
         self.noise_estimator = WaveFrequencyEstimator(identification_config(candidates))
@@ -707,15 +716,15 @@ class MMAEObserver(ObserverBase):
                 (np.array([float(t)]), y_arr.reshape(1, 3).copy(), tau_arr.reshape(1, 3).copy())
             )
         if self.lf_output and self.lf.running:
-            self.lf.record(np.array([float(t)]), y_arr.reshape(1, 3).copy(), tau_arr.reshape(1, 3).copy())
-            self.lf.step(float(t), y_arr, tau_arr, self._params)
+            self.lf.record_one(float(t), y_arr, tau_arr)
+            self.lf.step(float(t), y_arr, tau_arr)
         if code == STATUS_INITIALIZING:
             return Estimate.initializing(float(t))
         kernel.outputs(self._xb, self._clock[kernel.CLOCK_PSI_F], out)
         if self.lf.active:
             lf = np.empty((1, kernel.N_OUT, 3))
             self.lf.outputs(lf[0])
-            mmae_lf.mix_outputs(out[None], lf, self.lf.scale)
+            mmae_lf.mix_outputs(out.reshape(1, kernel.N_OUT, 3), lf, self.lf.scale)
         return Estimate(
             float(t),
             out[kernel.OUT_ETA],
@@ -736,8 +745,6 @@ class MMAEObserver(ObserverBase):
         W = np.empty((n, self.bank.n))
         status = np.empty(n, dtype=np.int8)
         OUT_LF = np.empty((n, kernel.N_OUT, 3)) if self.lf_output else OUT
-        use_lf = np.zeros(n, dtype=bool)
-        scales = np.ones((n, 3))  # the LF scales in use where use_lf
         a = 0  # the kernel has run samples [0, a)
 
         def kernel_to(b: int) -> None:
@@ -752,10 +759,9 @@ class MMAEObserver(ObserverBase):
                 self._prefix.append((t_arr[a:b], Y[a:b], TAU[a:b]))  # as `step` keeps them
             if self.lf_output and self.lf.running:
                 self.lf.record(t_arr[a:b], Y[a:b], TAU[a:b])
-                self.lf.run(t_arr[a:b], Y[a:b], TAU[a:b], self._params, OUT_LF[a:b])
-                if self.lf.active:
-                    use_lf[a:b] = True
-                    scales[a:b] = self.lf.scale
+                self.lf.run(t_arr[a:b], Y[a:b], TAU[a:b], OUT_LF[a:b])
+                if self.lf.active:  # (in place: OUT[a:b] is a view)
+                    mmae_lf.mix_outputs(OUT[a:b], OUT_LF[a:b], self.lf.scale)
             a = b
 
         if self.identify_noise:
@@ -766,12 +772,6 @@ class MMAEObserver(ObserverBase):
                 kernel_to(j)
                 self._identify(float(t_arr[j]))
         kernel_to(n)
-        use_lf &= status != STATUS_INITIALIZING
-        for scale in np.unique(scales[use_lf], axis=0):
-            k = use_lf & np.all(scales == scale, axis=1)
-            part = OUT[k]
-            mmae_lf.mix_outputs(part, OUT_LF[k], scale)
-            OUT[k] = part
         om = np.empty(n)
         kernel.blended_omegas(W, self.bank.candidates, om)
         omega = np.repeat(om[:, None], 3, axis=1)

@@ -1,8 +1,9 @@
 """The MMAE's low-frequency output stage: the LF process noise identified from the data (dpgw's addition).
 
-Opt-in: ``MMAEObserver(vessel, lf_output=True)`` (``mmae:lf_output=true`` on the command line). It is off by
-default because it costs about 5× the MMAE's batch throughput (seven trial filters and their designs beside
-the bank of eight); the bank and its weights are the same either way.
+On by default whenever the MMAE identifies the noise and Q is not given; ``MMAEObserver(vessel,
+lf_output=False)`` (``mmae:lf_output=false`` on the command line) gives the paper's blend (16). The bank and
+its weights are the same either way. It costs about half the MMAE's batch throughput (seven trial filters
+and one output filter beside the bank of eight, and their designs: `_Designer`).
 
 Hassani et al. fix the whole Q at (A.2). dpgw identifies R and the wave part Q1 from the measured sea
 (`observers.mmae`), and this module does the same for the LF part, Q2 (force noise of (9)) and Q3 (bias
@@ -50,6 +51,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from observers import _mmae_kernel as kernel
+from observers.doubling_dare import solve_dare_doubling
 from observers.state import I_BIAS, I_ETA, I_NU, N_STATE
 from observers.vessel import VesselModel
 
@@ -68,6 +70,11 @@ LF_KAPPA = 0.5
 """A scale is stiff enough to use while its ρ exceeds the loosest model's by at most this."""
 LF_OUTPUT_WEIGHT = 0.9
 """The output filter gives the estimate only while the winning filter holds at least this weight."""
+LF_REDESIGN_RATIO = 2.0
+"""The trial and output filters are designed again when the bank's R or Q1 (identified) has moved outside
+[1/2, 2] × what they were designed with, not at every redesign of the bank (30 %): they measure the LF
+residual and smooth the LF estimate, which a factor of two in the wave model barely moves, and each design
+is a Riccati equation."""
 
 
 def scaled_lf_noise(Q: Array, base: Array, scale: Sequence[float]) -> Array:
@@ -77,6 +84,49 @@ def scaled_lf_noise(Q: Array, base: Array, scale: Sequence[float]) -> Array:
     f = np.tile(np.asarray(scale, dtype=float), 2)
     out[3:, 3:] = base[3:, 3:] * np.sqrt(np.outer(f, f))
     return out
+
+
+class _Designer:
+    """Steady-state filters of one candidate for the stage, made fast: Φ, Γ and the Q_d of each unit
+    intensity are computed once per candidate (Q_d is linear in Q and the stage's Q is diagonal: Q_d =
+    Σⱼ Qⱼⱼ Q_d(eⱼeⱼᵀ)), and the DARE is solved by doubling (`observers.doubling_dare`). The same tables as
+    `observers.mmae.design_bank` for one candidate (tests/test_mmae.py compares them)."""
+
+    def __init__(self, vessel: VesselModel) -> None:
+        self.vessel = vessel
+        self._per_candidate: dict[tuple[float, float, float], tuple[Array, ...]] = {}
+
+    def _candidate(self, w0: float, zeta: float, dt: float) -> tuple[Array, ...]:
+        key = (w0, zeta, dt)
+        got = self._per_candidate.get(key)
+        if got is None:
+            from observers.mmae import continuous_model, discretize  # (mmae imports this module)
+
+            A, B, G, C = continuous_model(self.vessel, w0, zeta)
+            units = []
+            for j in range(9):
+                unit = np.zeros((9, 9))
+                unit[j, j] = 1.0
+                Phi, Gam, Qd = discretize(A, B, G, unit, dt)
+                units.append(Qd)
+            Phi[:6, 6:] = 0.0  # block-diagonal, as design_bank makes it
+            Phi[6:, :6] = 0.0
+            got = (A, B, C, Phi, Gam, np.array(units))
+            self._per_candidate[key] = got
+        return got
+
+    def design(self, w0: float, zeta: float, dt: float, Q: Array, R: Array) -> Matrices:
+        from observers.mmae import filter_tables
+
+        A, B, C, Phi, Gam, units = self._candidate(w0, zeta, dt)
+        Qd = np.tensordot(np.diag(Q), units, axes=1)
+        Qd = 0.5 * (Qd + Qd.T)
+        P = solve_dare_doubling(Phi.T, C.T, Qd, R)
+        K = np.zeros((1, 4, N_STATE, 3))
+        Sinv = np.zeros((1, 4, 3, 3))
+        logdet = np.zeros((1, 4))
+        filter_tables(P, C, R, K[0], Sinv[0], logdet[0])
+        return (Phi[None].copy(), Gam, A[None].copy(), B, K, Sinv, logdet)
 
 
 class _Filter:
@@ -102,6 +152,36 @@ class _Filter:
         kernel.step(self.X, self.p, self.xb, self.clock, t, y, tau, *self.matrices, params)
 
 
+class _Trials:
+    """The trial filters: one per scale, each a bank of one with its own state, frame and clock, run
+    together by one compiled call (`_mmae_kernel.run_single`)."""
+
+    def __init__(self, x: Array, clock: Array, k: int) -> None:
+        self.X = np.tile(x, (k, 1))
+        self.xb = self.X.copy()
+        self.clock = np.tile(clock, (k, 1))
+        self.matrices: Matrices | None = None
+
+    def set(self, each: list[Matrices]) -> None:
+        """The trials' matrices, one design per trial (Gam and B are the same for all: the model is)."""
+        self.matrices = (
+            np.concatenate([m[0] for m in each]),
+            each[0][1],
+            np.concatenate([m[2] for m in each]),
+            each[0][3],
+            np.concatenate([m[4] for m in each]),
+            np.concatenate([m[5] for m in each]),
+            np.concatenate([m[6] for m in each]),
+        )
+
+    def residuals(self, T: Array, Y: Array, TAU: Array, params: Array) -> Array:
+        """(k, m, 3) posterior residuals y − (η̂ + η̂_w) of every trial over the samples."""
+        assert self.matrices is not None
+        res = np.empty((self.X.shape[0], T.shape[0], 3))
+        kernel.run_single(self.X, self.xb, self.clock, T, Y, TAU, *self.matrices, params, res)
+        return res
+
+
 class LFOutputStage:
     """The LF process-noise choice and the output filter (module docstring). ``design`` makes a bank
     (`observers.mmae.design_bank` with its arguments (vessel, candidates, zeta, Q, R, dt)); ``base_Q`` is
@@ -111,20 +191,23 @@ class LFOutputStage:
         self.vessel = vessel
         self.base_Q = np.asarray(base_Q, dtype=float)
         self._design = design
+        self._designer = _Designer(vessel)
         self.reset()
 
     def reset(self) -> None:
         self.scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
+        self._rows: list[tuple[float, ...]] = []
+        self._params = np.zeros(kernel.N_PARAMS)  # the bank's, weights never updated (set at identify)
         self.active = False
         self.rho: Array = np.full((3, len(LF_NOISE_SCALES)), np.nan)
         self._choice: tuple[float, ...] | None = None
         self._win = -1
-        self._trials: list[_Filter] = []
+        self._trials: _Trials | None = None
         self._output: _Filter | None = None
         self._recent: list[tuple[Array, Array, Array]] = []
-        self._residuals: list[tuple[Array, Array]] = []
-        self._cache: dict[tuple[int, tuple[float, ...]], Matrices] = {}
-        self._cache_bank: MMAEBank | None = None
+        self._blocks: dict[int, tuple[Array, Array]] = {}  # LF residual block → (Σ r, count) (scales, 3)
+        self._cache: dict[tuple[float, tuple[float, ...]], Matrices] = {}
+        self._cache_sig: Array | None = None  # the bank's diag R, diag Q1 the cached designs were made with
 
     @property
     def running(self) -> bool:
@@ -132,15 +215,21 @@ class LFOutputStage:
         return self._output is not None
 
     def _matrices(self, bank: MMAEBank, win: int, scale: Sequence[float]) -> Matrices:
-        if bank is not self._cache_bank:  # a redesigned bank: the trial filters are designed anew
-            self._cache, self._cache_bank = {}, bank
-        key = (win, tuple(float(s) for s in scale))
+        sig = np.r_[np.diag(bank.R), np.diag(bank.Q)[:3]]
+        if self._cache_sig is None or np.any(
+            (sig > LF_REDESIGN_RATIO * self._cache_sig) | (sig < self._cache_sig / LF_REDESIGN_RATIO)
+        ):  # the bank's noise has moved far: the trial and output filters are designed anew
+            self._cache, self._cache_sig = {}, sig
+        key = (float(bank.candidates[win]), tuple(float(s) for s in scale))
         got = self._cache.get(key)
         if got is None:
             b = bank
             Q = scaled_lf_noise(b.Q, self.base_Q, scale)
-            kb = self._design(self.vessel, (float(b.candidates[win]),), b.zeta, Q, b.R, b.dt)
-            got = (kb.Phi, kb.Gam, kb.A, kb.B, kb.K, kb.Sinv, kb.logdet)
+            if np.count_nonzero(Q - np.diag(np.diag(Q))) == 0:
+                got = self._designer.design(float(b.candidates[win]), b.zeta, b.dt, Q, b.R)
+            else:  # (not from the bank's own identification, whose Q is diagonal)
+                kb = self._design(self.vessel, (float(b.candidates[win]),), b.zeta, Q, b.R, b.dt)
+                got = (kb.Phi, kb.Gam, kb.A, kb.B, kb.K, kb.Sinv, kb.logdet)
             if len(self._cache) > 64:
                 self._cache.clear()
             self._cache[key] = got
@@ -149,14 +238,28 @@ class LFOutputStage:
     def record(self, T: Array, Y: Array, TAU: Array) -> None:
         """Samples the bank took since the last identification (the trial filters run on them next)."""
         if self._output is not None and T.shape[0]:
+            self._flush_rows()
             self._recent.append((T, Y, TAU))
+
+    def record_one(self, t: float, y: Array, tau: Array) -> None:
+        """One sample (live `step`), kept as a row until the next chunk or identification."""
+        if self._output is not None:
+            self._rows.append((t, y[0], y[1], y[2], tau[0], tau[1], tau[2]))
+
+    def _flush_rows(self) -> None:
+        if self._rows:
+            rows = np.array(self._rows)
+            self._rows = []
+            self._recent.append((rows[:, 0].copy(), rows[:, 1:4].copy(), rows[:, 4:7].copy()))
 
     def identify(
         self, t: float, bank: MMAEBank, X: Array, p: Array, clock: Array, R: Array, params: Array
     ) -> None:
         """At an identification of the bank at time t (the samples before t recorded): choose the scales,
         design the output filter for the winner, decide whether it gives the estimate."""
+        self._flush_rows()
         chunks, self._recent = self._recent, []
+        self._params = _no_weights(params)
         top = float(p.max())
         win = int(np.argmax(p))
         if top < 0.5 or clock[kernel.CLOCK_STARTED] == 0.0:
@@ -166,15 +269,15 @@ class LFOutputStage:
             return
         if self._output is None:  # the first winner: every filter starts from its state, no blocks yet
             self._win = win
-            self._trials = [_Filter(X[win], clock) for _ in LF_NOISE_SCALES]
+            self._trials = _Trials(X[win], clock, len(LF_NOISE_SCALES))
             self._output = _Filter(X[win], clock)
             self._output.matrices = self._matrices(bank, win, self.scale)
             return
         self._win = win
-        for s, f in zip(LF_NOISE_SCALES, self._trials, strict=True):
-            f.matrices = self._matrices(bank, win, (s, s, s))
+        assert self._trials is not None
+        self._trials.set([self._matrices(bank, win, (s, s, s)) for s in LF_NOISE_SCALES])
         if chunks:
-            self._update_residuals(t, chunks, bank, R, params)
+            self._update_residuals(t, chunks, bank, R)
         scale = self._choose()
         if scale != self.scale:
             self._hand_over(scale)
@@ -183,42 +286,37 @@ class LFOutputStage:
         self.active = min(self.scale) < 1.0 and top >= LF_OUTPUT_WEIGHT
 
     def _update_residuals(
-        self, t: float, chunks: list[tuple[Array, Array, Array]], bank: MMAEBank, R: Array, params: Array
+        self, t: float, chunks: list[tuple[Array, Array, Array]], bank: MMAEBank, R: Array
     ) -> None:
         T = np.ascontiguousarray(np.concatenate([c[0] for c in chunks]))
         Y = np.ascontiguousarray(np.concatenate([c[1] for c in chunks]))
         TAU = np.ascontiguousarray(np.concatenate([c[2] for c in chunks]))
-        m = T.shape[0]
-        trial_params = params.copy()
-        trial_params[kernel.PARAM_WARMUP_S] = 0.0
-        res = np.empty((len(LF_NOISE_SCALES), m, 3))
-        OUT = np.empty((m, kernel.N_OUT, 3))
-        for i, f in enumerate(self._trials):
-            f.run(T, Y, TAU, trial_params, OUT)
-            r = Y - OUT[:, kernel.OUT_ETA, :] - OUT[:, kernel.OUT_ETA_WF, :]
-            r[:, 2] = (r[:, 2] + math.pi) % (2.0 * math.pi) - math.pi
-            res[i] = r
-        self._residuals.append((T, res))
+        assert self._trials is not None
+        res = self._trials.residuals(T, Y, TAU, self._params)  # (scales, samples, 3)
+        # per block of T_b: Σ r and the count of finite r, per scale and DOF, added up as samples come
         tb = 2.0 * math.pi / (float(min(bank.candidates)) / 1.5)
-        self._residuals = [c for c in self._residuals if c[0][-1] >= t - (LF_BLOCKS + 1) * tb]
-        TT = np.concatenate([c[0] for c in self._residuals])
-        RR = np.concatenate([c[1] for c in self._residuals], axis=1)  # (scales, samples, 3)
-        blk = np.floor(TT / tb).astype(np.int64)
+        blk = np.floor(T / tb).astype(np.int64)
+        finite = np.isfinite(res)
+        values = np.where(finite, res, 0.0)
+        for b in range(int(blk[0]), int(blk[-1]) + 1):
+            sel = blk == b
+            if not sel.any():
+                continue
+            add = (values[:, sel, :].sum(axis=1), finite[:, sel, :].sum(axis=1).astype(float))
+            old = self._blocks.get(b)
+            self._blocks[b] = add if old is None else (old[0] + add[0], old[1] + add[1])
         last_full = math.floor(t / tb) - 1
-        use = (blk <= last_full) & (blk > last_full - LF_BLOCKS)
-        # per scale, DOF and block: Σ r and the count of finite r; r̄² n / R = (Σ r)² / (n R)
-        k = len(LF_NOISE_SCALES)
-        sums = np.zeros((k, 3, LF_BLOCKS))
-        counts = np.zeros((k, 3, LF_BLOCKS))
         first = last_full - LF_BLOCKS + 1
-        for j in range(LF_BLOCKS):
-            part = RR[:, use & (blk == first + j), :]
-            finite = np.isfinite(part)
-            sums[:, :, j] = np.where(finite, part, 0.0).sum(axis=1)
-            counts[:, :, j] = finite.sum(axis=1)
+        self._blocks = {b: v for b, v in self._blocks.items() if b >= first}
+        self.rho = np.full((3, len(LF_NOISE_SCALES)), np.nan)
+        if not all(b in self._blocks for b in range(first, last_full + 1)):
+            return
+        sums = np.stack([self._blocks[b][0] for b in range(first, last_full + 1)], axis=2)  # (k, 3, blocks)
+        counts = np.stack([self._blocks[b][1] for b in range(first, last_full + 1)], axis=2)
+        # r̄² n / R = (Σ r)² / (n R); a block with fewer than 10 samples does not count and the DOF waits
         with np.errstate(divide="ignore", invalid="ignore"):
             z = sums**2 / (counts * np.asarray(R, dtype=float)[None, :, None])
-        z[counts < 10] = np.nan  # a block with fewer than 10 samples does not count; the DOF waits
+        z[counts < 10] = np.nan
         self.rho = z.mean(axis=2).T  # (3, scales): NaN unless every block counts
 
     def _choose(self) -> tuple[float, float, float]:
@@ -245,9 +343,10 @@ class LFOutputStage:
         for d in range(3):
             if scale[d] == self.scale[d]:
                 continue
-            trial = self._trials[LF_NOISE_SCALES.index(scale[d])]
-            x = trial.X[0]
-            a = float(trial.clock[kernel.CLOCK_PSI_F]) - psi_o  # the trial's frame → the output's frame
+            assert self._trials is not None
+            i = LF_NOISE_SCALES.index(scale[d])
+            x = self._trials.X[i]
+            a = float(self._trials.clock[i, kernel.CLOCK_PSI_F]) - psi_o  # the trial's frame → the output's
             c, s = math.cos(a), math.sin(a)
             for off in (I_ETA, I_BIAS):
                 if d == 2:
@@ -258,20 +357,29 @@ class LFOutputStage:
             out.X[0, I_NU + d] = x[I_NU + d]
         out.xb[:] = out.X[0]
 
-    def step(self, t: float, y: Array, tau: Array, params: Array) -> None:
+    def step(self, t: float, y: Array, tau: Array) -> None:
+        """The output filter over one sample (live)."""
         if self._output is not None:
-            self._output.step(t, y, tau, params)
+            self._output.step(t, y, tau, self._params)
 
-    def run(self, T: Array, Y: Array, TAU: Array, params: Array, OUT: Array) -> None:
+    def run(self, T: Array, Y: Array, TAU: Array, OUT: Array) -> None:
         """The output filter over samples; OUT (m, 4, 3) its outputs (unchanged if it is not running)."""
         if self._output is not None and T.shape[0]:
-            self._output.run(T, Y, TAU, params, OUT)
+            self._output.run(T, Y, TAU, self._params, OUT)
 
     def outputs(self, out: Array) -> None:
         """The output filter's NED outputs [η̂, ν̂, b̂, η̂_w] into out (4, 3)."""
         f = self._output
         assert f is not None
         kernel.outputs(f.xb, f.clock[kernel.CLOCK_PSI_F], out)
+
+
+def _no_weights(params: Array) -> Array:
+    """The bank's parameters with the weights never updated: a bank of one keeps its weight 1 either way,
+    and the update (a likelihood, an exponential, a projection) would cost as much as the filter."""
+    out = params.copy()
+    out[kernel.PARAM_WARMUP_S] = math.inf
+    return out
 
 
 def mix_outputs(blend: Array, lf: Array, scale: Sequence[float]) -> None:
@@ -281,25 +389,5 @@ def mix_outputs(blend: Array, lf: Array, scale: Sequence[float]) -> None:
     body frame already. Only the DOFs whose scale is below 1 take the stiff model: a DOF the choice kept
     loose (the vessel moves in it) keeps the paper's blend."""
     stiff = np.asarray(scale, dtype=float) < 1.0
-    if not stiff.any():
-        return
-    if stiff.all():
-        blend[...] = lf
-        return
-    psi = blend[:, kernel.OUT_ETA, 2]
-    c, s = np.cos(psi)[:, None], np.sin(psi)[:, None]
-    for row in (kernel.OUT_ETA, kernel.OUT_BIAS, kernel.OUT_ETA_WF):
-        # to the vessel-parallel axes (x along the heading, y across)
-        bx = c[:, 0] * blend[:, row, 0] + s[:, 0] * blend[:, row, 1]
-        by = -s[:, 0] * blend[:, row, 0] + c[:, 0] * blend[:, row, 1]
-        lx = c[:, 0] * lf[:, row, 0] + s[:, 0] * lf[:, row, 1]
-        ly = -s[:, 0] * lf[:, row, 0] + c[:, 0] * lf[:, row, 1]
-        x = lx if stiff[0] else bx
-        y = ly if stiff[1] else by
-        blend[:, row, 0] = c[:, 0] * x - s[:, 0] * y
-        blend[:, row, 1] = s[:, 0] * x + c[:, 0] * y
-        if stiff[2]:
-            blend[:, row, 2] = lf[:, row, 2]
-    for d in range(3):
-        if stiff[d]:
-            blend[:, kernel.OUT_NU, d] = lf[:, kernel.OUT_NU, d]
+    if stiff.any():
+        kernel.mix_outputs(blend, lf, stiff)

@@ -395,9 +395,9 @@ def test_observer_interface() -> None:
     assert obs.weights.shape == (8,) and obs.omega0.shape == (3,)
     assert obs.omega0[0] == pytest.approx(np.mean(HASSANI_CANDIDATES))
     extra = json.loads(json.dumps(obs.extra()))
-    assert set(extra) == {"weights", "candidates", "omega0_blended"}
-    extra = MMAEObserver(vessel, lf_output=True).extra()
+    assert set(extra) == {"weights", "candidates", "omega0_blended", "lf_noise_scale", "lf_output"}
     assert extra["lf_noise_scale"] == [1.0, 1.0, 1.0] and extra["lf_output"] is False
+    assert set(MMAEObserver(vessel, lf_output=False).extra()) == {"weights", "candidates", "omega0_blended"}
     assert extra["candidates"] == list(HASSANI_CANDIDATES) and len(extra["omega0_blended"]) == 3
     from observers.factory import make_observer
 
@@ -666,3 +666,54 @@ def test_lf_output_step_and_run_agree() -> None:
     for name in ("eta", "nu", "bias", "eta_wf"):
         stepped = np.array([getattr(s, name) for s in steps])
         np.testing.assert_array_equal(stepped, getattr(run, name), err_msg=name)
+
+
+@pytest.mark.parametrize("omega0", [0.3, 0.9, 1.35])
+def test_lf_stage_designs_are_the_banks(omega0: float) -> None:
+    """The LF output stage's fast designs (Q_d from unit intensities, the DARE by doubling) against
+    `design_bank` for the same candidate, Q and R (scipy's DARE): gains and log det agree to 1e-8 of
+    their size, S⁻¹ to 1e-7 (measured 3e-8), for the paper's LF noise and for LF noise 1e-2 … 1e-6 of it."""
+    from observers.mmae_lf import _Designer, scaled_lf_noise
+
+    vessel = get_scenario("hassani").vessel
+    designer = _Designer(vessel)
+    Q = hassani_noise(vessel)[0].copy()
+    Q[:3, :3] = np.diag([3e-6, 1e-6, 2e-10])  # an identified calm sea's Q1
+    R = np.diag(SENSOR_R)
+    for s in (1.0, 1e-2, 1e-4, 1e-6):
+        Qs = scaled_lf_noise(Q, hassani_noise(vessel)[0], (s, s, s))
+        bank = design_bank(vessel, (omega0,), 0.25, Qs, R, 0.1)
+        Phi, Gam, A, B, K, Sinv, logdet = designer.design(omega0, 0.25, 0.1, Qs, R)
+        np.testing.assert_allclose(Phi, bank.Phi, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(A, bank.A, rtol=0, atol=0)
+        np.testing.assert_allclose(B, bank.B, rtol=0, atol=0)
+        np.testing.assert_allclose(Gam, bank.Gam, rtol=0, atol=1e-12 * abs(bank.Gam).max())
+        np.testing.assert_allclose(K, bank.K, rtol=0, atol=1e-8 * abs(bank.K).max())
+        np.testing.assert_allclose(Sinv, bank.Sinv, rtol=0, atol=1e-7 * abs(bank.Sinv).max())
+        np.testing.assert_allclose(logdet, bank.logdet, rtol=0, atol=1e-8)
+
+
+def test_doubling_dare_solves_the_riccati_equation() -> None:
+    """`solve_dare_doubling` against scipy on random stabilisable systems (including a random walk with
+    little noise, the slow case): the residual of the equation is at round-off and X is scipy's."""
+    from scipy.linalg import solve_discrete_are
+
+    from observers.doubling_dare import solve_dare_doubling
+
+    rng = np.random.default_rng(3)
+    for n, m in ((2, 1), (6, 3), (15, 3)):
+        for _ in range(5):
+            a = rng.standard_normal((n, n))
+            a *= rng.uniform(0.5, 1.02) / max(abs(np.linalg.eigvals(a)))
+            a[0, :] = 0.0
+            a[0, 0] = 1.0  # a random walk
+            b = rng.standard_normal((n, m))
+            g = rng.standard_normal((n, n))
+            q = g @ g.T * 1e-3
+            q[0, 0] += 1e-9
+            r = np.eye(m) * rng.uniform(0.1, 2.0)
+            x = solve_dare_doubling(a, b, q, r)
+            ref = solve_discrete_are(a, b, q, r)
+            resid = a.T @ x @ a - a.T @ x @ b @ np.linalg.solve(r + b.T @ x @ b, b.T @ x @ a) + q - x
+            assert abs(resid).max() <= 1e-9 * abs(x).max()
+            np.testing.assert_allclose(x, ref, rtol=0, atol=1e-7 * abs(ref).max())
