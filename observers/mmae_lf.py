@@ -2,8 +2,8 @@
 
 On by default whenever the MMAE identifies the noise and Q is not given; ``MMAEObserver(vessel,
 lf_output=False)`` (``mmae:lf_output=false`` on the command line) gives the paper's blend (16). The bank and
-its weights are the same either way. It costs about half the MMAE's batch throughput (seven trial filters
-and one output filter beside the bank of eight, and their designs: `_Designer`).
+its weights are the same either way. With it the MMAE's batch throughput is about 40 % of the blend's
+alone (seven trial filters and one output filter beside the bank of eight, and their designs: `_Designer`).
 
 Hassani et al. fix the whole Q at (A.2). dpgw identifies R and the wave part Q1 from the measured sea
 (`observers.mmae`), and this module does the same for the LF part, Q2 (force noise of (9)) and Q3 (bias
@@ -37,8 +37,8 @@ long time, so it starts from an estimate made with its own model.
 When it is used. The output filter runs on every sample from the first win on; its estimate replaces the
 blended one (16) in each DOF whose scale is below 1 (`mix_outputs`; a DOF kept loose, where the vessel
 moves, keeps the blend), while the winner holds at least `LF_OUTPUT_WEIGHT` of the weight (both judged at
-each identification). While the bank re-adapts the weights spread, and the blended
-estimate of the paper is given as before.
+each identification). While the bank re-adapts the weights spread, and the blended estimate of the paper
+is given as before.
 """
 
 from __future__ import annotations
