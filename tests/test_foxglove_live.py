@@ -160,9 +160,9 @@ def test_demo_serves_every_advertised_channel_with_data(tmp_path: Path) -> None:
         async with ws:
             c = Client(ws)
             await c.until(
-                lambda: c.advertised() >= (CORE_JSON | CORE_NATIVE) and not c.silent(),
+                lambda: c.advertised() >= (CORE_JSON | CORE_NATIVE) and not c.silent() and bool(c.times),
                 120.0,
-                "every core channel advertised and a message on every advertised channel",
+                "every core channel advertised, a message on every advertised channel and the server's time",
             )
             return c
 
