@@ -717,3 +717,70 @@ def test_doubling_dare_solves_the_riccati_equation() -> None:
             resid = a.T @ x @ a - a.T @ x @ b @ np.linalg.solve(r + b.T @ x @ b, b.T @ x @ a) + q - x
             assert abs(resid).max() <= 1e-9 * abs(x).max()
             np.testing.assert_allclose(x, ref, rtol=0, atol=1e-7 * abs(ref).max())
+
+
+def test_lf_stage_trials_in_one_call_equal_each_filter_run_alone() -> None:
+    """`_mmae_kernel.run_single` (the trial filters in one compiled call, no weight updates) against each
+    filter run alone through the bank kernel (`run`, a bank of one): the same residuals to the bit."""
+    from observers import _mmae_kernel as kernel
+    from observers.mmae_lf import LF_NOISE_SCALES, _Designer, _no_weights, scaled_lf_noise
+
+    vessel = get_scenario("hassani").vessel
+    t, y, _ = _lf_record(0.5, 0.01, 2)
+    t, y = t[:1200], np.ascontiguousarray(y[:1200])
+    y[300:320, 2] = np.nan  # heading lost for 2 s
+    tau = np.zeros((t.size, 3))
+    designer = _Designer(vessel)
+    Q = hassani_noise(vessel)[0].copy()
+    Q[:3, :3] = np.diag([3e-6, 1e-6, 2e-10])
+    R = np.diag(SENSOR_R)
+    each = [designer.design(0.9, 0.25, 0.1, scaled_lf_noise(Q, hassani_noise(vessel)[0], (s,) * 3), R)
+            for s in LF_NOISE_SCALES]  # fmt: skip
+    params = np.zeros(kernel.N_PARAMS)
+    params[kernel.PARAM_DT] = 0.1
+    params[kernel.PARAM_MAX_GAP_S] = 60.0
+    params[kernel.PARAM_WEIGHT_FLOOR] = 1e-8
+    params = _no_weights(params)
+    k = len(LF_NOISE_SCALES)
+    X, xb, clock = np.zeros((k, 15)), np.zeros((k, 15)), np.zeros((k, kernel.N_CLOCK))
+    stacked = tuple(np.concatenate([m[j] for m in each]) if j not in (1, 3) else each[0][j] for j in range(7))
+    res = np.empty((k, t.size, 3))
+    kernel.run_single(X, xb, clock, t, y, tau, *stacked, params, res)
+    for i, m in enumerate(each):
+        Xi, pi, xbi, ci = np.zeros((1, 15)), np.ones(1), np.zeros(15), np.zeros(kernel.N_CLOCK)
+        out = np.empty((t.size, kernel.N_OUT, 3))
+        kernel.run(
+            Xi, pi, xbi, ci, t, y, tau, *m, params, out, np.empty((t.size, 1)), np.empty(t.size, np.int8)
+        )
+        r = y - out[:, kernel.OUT_ETA] - out[:, kernel.OUT_ETA_WF]
+        r[:, 2] = ssa(r[:, 2])
+        np.testing.assert_array_equal(res[i], r)
+        np.testing.assert_array_equal(X[i], Xi[0])
+
+
+def test_lf_stage_mix_takes_the_stiff_dofs_in_vessel_axes() -> None:
+    """`mix_outputs`: with the heading at 90° the vessel's x axis is east: a stiff surge takes E (and ν_u)
+    from the output filter and keeps N (sway, loose) from the blend; all stiff copies everything; none
+    stiff changes nothing; the heading's DOF is taken as is."""
+    from observers.mmae_lf import mix_outputs
+
+    blend = np.zeros((1, 4, 3))
+    blend[0, 0] = [10.0, 20.0, math.pi / 2]
+    blend[0, 1] = [1.0, 2.0, 3.0]
+    lf = np.zeros((1, 4, 3))
+    lf[0, 0] = [11.0, 21.0, math.pi / 2 + 0.1]
+    lf[0, 1] = [4.0, 5.0, 6.0]
+    m = blend.copy()
+    mix_outputs(m, lf, (0.01, 1.0, 1.0))
+    np.testing.assert_allclose(m[0, 0], [10.0, 21.0, math.pi / 2], atol=1e-12)
+    np.testing.assert_array_equal(m[0, 1], [4.0, 2.0, 3.0])
+    m = blend.copy()
+    mix_outputs(m, lf, (1.0, 1.0, 1e-3))
+    np.testing.assert_allclose(m[0, 0], [10.0, 20.0, math.pi / 2 + 0.1], atol=1e-12)
+    np.testing.assert_array_equal(m[0, 1], [1.0, 2.0, 6.0])
+    m = blend.copy()
+    mix_outputs(m, lf, (1e-6, 1e-6, 1e-6))
+    np.testing.assert_array_equal(m, lf)
+    m = blend.copy()
+    mix_outputs(m, lf, (1.0, 1.0, 1.0))
+    np.testing.assert_array_equal(m, blend)
