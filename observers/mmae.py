@@ -69,7 +69,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.linalg import expm, solve_discrete_are
+from scipy.linalg import solve_discrete_are
 
 from observers import _mmae_kernel as kernel
 from observers import mmae_lf
@@ -86,7 +86,8 @@ from observers.base import (
     batch_inputs,
 )
 from observers.kinematics import ssa_scalar
-from observers.state import BIAS, ETA, I_PSI, N_STATE, NU, XI1, XI2, StateView
+from observers.mmae_model import MASKS, continuous_model, discretize, filter_tables
+from observers.state import BIAS, ETA, I_PSI, N_STATE, NU, XI2, StateView
 from observers.vessel import VesselModel
 from observers.wave_frequency import WaveFrequencyConfig, WaveFrequencyEstimator
 
@@ -112,9 +113,6 @@ WEIGHT_FLOOR = 1e-8
 ln(0.9/floor) ≈ 18 nats of evidence to win again: enough that a few wave periods of chance do not move the
 bank off the right filter (1e-3, 7 nats, let the weights leave it every minute or two), few enough that a
 changed sea wins within minutes (docs/mmae.md)."""
-
-MASKS = ((False, False, False), (True, True, False), (False, False, True), (True, True, True))
-"""Measured DOFs [N, E, ψ] for mask index m = (position present) + 2·(heading present)."""
 
 WAVE_STD_FACTOR = 0.7
 """Identified wave-model σ = this × the measured wave-band σ: the variance the likelihood itself prefers for
@@ -181,65 +179,6 @@ def hassani_noise(vessel: VesselModel) -> tuple[Array, Array]:
     q3 = np.diag(Q3_CYBERSHIP2) * r2 * np.array([lam**-0.5, lam**-0.5, lam**-2.5])
     R = R_CYBERSHIP2 * np.diag([lam**2, lam**2, 1.0])
     return np.diag(np.concatenate([q1, q2, q3])), np.asarray(R, dtype=float)
-
-
-def continuous_model(vessel: VesselModel, omega0: float, zeta: float) -> tuple[Array, Array, Array, Array]:
-    """A(ω0), B, G, C of (13)–(14) with the misprints corrected (module docstring)."""
-    Minv = vessel.Minv
-    A = np.zeros((N_STATE, N_STATE))
-    A[XI1, XI2] = np.eye(3)
-    A[XI2, XI1] = -(omega0**2) * np.eye(3)  # -Ω
-    A[XI2, XI2] = -2.0 * zeta * omega0 * np.eye(3)  # -Λ
-    A[ETA, NU] = np.eye(3)  # (8)
-    A[NU, BIAS] = Minv  # (9): ν' = M⁻¹ b_p − M⁻¹ D ν + M⁻¹ τ + M⁻¹ w2
-    A[NU, NU] = -Minv @ vessel.D
-    B = np.zeros((N_STATE, 3))
-    B[NU] = Minv
-    G = np.zeros((N_STATE, 9))
-    G[XI2, 0:3] = np.eye(3)  # E_w w1
-    G[NU, 3:6] = Minv  # M⁻¹ w2
-    G[BIAS, 6:9] = np.eye(3)  # w3
-    C = np.zeros((3, N_STATE))
-    C[:, XI2] = np.eye(3)  # C_w
-    C[:, ETA] = np.eye(3)
-    return A, B, G, C
-
-
-def discretize(A: Array, B: Array, G: Array, Q: Array, dt: float) -> tuple[Array, Array, Array]:
-    """Zero-order hold (Φ, Γ) and Van Loan's Q_d = ∫₀^dt e^{As} G Q Gᵀ e^{Aᵀs} ds."""
-    n, m = B.shape
-    aug = np.zeros((n + m, n + m))
-    aug[:n, :n] = A
-    aug[:n, n:] = B
-    E = expm(aug * dt)
-    Phi, Gam = E[:n, :n], E[:n, n:]
-    V = np.zeros((2 * n, 2 * n))
-    V[:n, :n] = -A
-    V[:n, n:] = G @ Q @ G.T
-    V[n:, n:] = A.T
-    F = expm(V * dt)
-    Qd = F[n:, n:].T @ F[:n, n:]
-    return Phi, Gam, 0.5 * (Qd + Qd.T)
-
-
-def filter_tables(P: Array, C: Array, R: Array, K: Array, Sinv: Array, logdet: Array) -> tuple[Array, Array]:
-    """From the steady-state prior P: the innovation covariance S = C P Cᵀ + R and, per mask m (`MASKS`),
-    the one-step gain K[m] = P C_vᵀ S_vv⁻¹, S_vv⁻¹ (Sinv[m]) and log det S_vv (logdet[m]) of the DOFs
-    measured (K (4, 15, 3), Sinv (4, 3, 3), logdet (4,) filled in place, zero for DOFs not measured).
-    Returns P and S, symmetrised."""
-    P = 0.5 * (P + P.T)
-    S = C @ P @ C.T + R
-    S = 0.5 * (S + S.T)
-    for m, mask in enumerate(MASKS):
-        idx = np.flatnonzero(mask)
-        if idx.size == 0:
-            continue
-        Svv = S[np.ix_(idx, idx)]
-        Svv_inv = np.linalg.inv(Svv)
-        K[m][:, idx] = P @ C[idx].T @ Svv_inv
-        Sinv[m][np.ix_(idx, idx)] = Svv_inv
-        logdet[m] = np.linalg.slogdet(Svv)[1]
-    return P, S
 
 
 @dataclass(frozen=True, eq=False)
@@ -495,7 +434,7 @@ class MMAEObserver(ObserverBase):
         # the LF output stage: Q2, Q3 identified for the estimate given out (`observers.mmae_lf`), unless
         # switched off, whenever the noise is identified and Q is not given
         self.lf_output = bool(lf_output) and self.identify_noise and Q is None
-        self.lf = mmae_lf.LFOutputStage(vessel, hassani_noise(vessel)[0], design_bank)
+        self.lf = mmae_lf.LFOutputStage(vessel, hassani_noise(vessel)[0])
         self.noise_estimator = WaveFrequencyEstimator(identification_config(candidates))
         n = self.bank.n
         self.weight_floor = float(weight_floor)
@@ -668,7 +607,7 @@ class MMAEObserver(ObserverBase):
             if first and self._prefix:
                 self._restart_on_prefix()
         if self.lf_output and self._design_sigma is not None:
-            self.lf.identify(t, self.bank, self._X, self._p, self._clock, np.diag(self.bank.R), self._params)
+            self.lf.identify(t, self.bank, self._X, self._p, self._clock, self._params)
         self.identified = NoiseIdentification(t, _f3(meas), _f3(wave), redesign)
 
     def _restart_on_prefix(self) -> None:
@@ -756,7 +695,8 @@ class MMAEObserver(ObserverBase):
                 *self._kernel_args(), OUT[a:b], W[a:b], status[a:b],
             )  # fmt: skip
             if self.identify_noise and self._design_sigma is None:
-                self._prefix.append((t_arr[a:b], Y[a:b], TAU[a:b]))  # as `step` keeps them
+                # copies (as `step` keeps them): the caller may reuse its arrays before the restart reads them
+                self._prefix.append((t_arr[a:b].copy(), Y[a:b].copy(), TAU[a:b].copy()))
             if self.lf_output and self.lf.running:
                 self.lf.record(t_arr[a:b], Y[a:b], TAU[a:b])
                 self.lf.run(t_arr[a:b], Y[a:b], TAU[a:b], OUT_LF[a:b])

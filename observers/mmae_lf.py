@@ -44,7 +44,7 @@ is given as before.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -52,6 +52,7 @@ from numpy.typing import NDArray
 
 from observers import _mmae_kernel as kernel
 from observers.doubling_dare import solve_dare_doubling
+from observers.mmae_model import continuous_model, discretize, filter_tables
 from observers.state import I_BIAS, I_ETA, I_NU, N_STATE
 from observers.vessel import VesselModel
 
@@ -100,8 +101,6 @@ class _Designer:
         key = (w0, zeta, dt)
         got = self._per_candidate.get(key)
         if got is None:
-            from observers.mmae import continuous_model, discretize  # (mmae imports this module)
-
             A, B, G, C = continuous_model(self.vessel, w0, zeta)
             units = []
             for j in range(9):
@@ -116,8 +115,9 @@ class _Designer:
         return got
 
     def design(self, w0: float, zeta: float, dt: float, Q: Array, R: Array) -> Matrices:
-        from observers.mmae import filter_tables
-
+        """The filter for candidate w0 with Q (9×9, diagonal) and R."""
+        if np.count_nonzero(Q - np.diag(np.diag(Q))):
+            raise ValueError("the LF stage's Q must be diagonal (the bank's own, Q not given)")
         A, B, C, Phi, Gam, units = self._candidate(w0, zeta, dt)
         Qd = np.tensordot(np.diag(Q), units, axes=1)
         Qd = 0.5 * (Qd + Qd.T)
@@ -183,14 +183,13 @@ class _Trials:
 
 
 class LFOutputStage:
-    """The LF process-noise choice and the output filter (module docstring). ``design`` makes a bank
-    (`observers.mmae.design_bank` with its arguments (vessel, candidates, zeta, Q, R, dt)); ``base_Q`` is
-    the (A.2) Q whose Q2, Q3 the scales multiply."""
+    """The LF process-noise choice and the output filter (module docstring). ``base_Q`` is the (A.2) Q
+    whose Q2, Q3 the scales multiply. It runs only where the bank's Q is diagonal (identified, Q not
+    given), which its designs rely on."""
 
-    def __init__(self, vessel: VesselModel, base_Q: Array, design: Callable[..., MMAEBank]) -> None:
+    def __init__(self, vessel: VesselModel, base_Q: Array) -> None:
         self.vessel = vessel
         self.base_Q = np.asarray(base_Q, dtype=float)
-        self._design = design
         self._designer = _Designer(vessel)
         self.reset()
 
@@ -223,13 +222,8 @@ class LFOutputStage:
         key = (float(bank.candidates[win]), tuple(float(s) for s in scale))
         got = self._cache.get(key)
         if got is None:
-            b = bank
-            Q = scaled_lf_noise(b.Q, self.base_Q, scale)
-            if np.count_nonzero(Q - np.diag(np.diag(Q))) == 0:
-                got = self._designer.design(float(b.candidates[win]), b.zeta, b.dt, Q, b.R)
-            else:  # (not from the bank's own identification, whose Q is diagonal)
-                kb = self._design(self.vessel, (float(b.candidates[win]),), b.zeta, Q, b.R, b.dt)
-                got = (kb.Phi, kb.Gam, kb.A, kb.B, kb.K, kb.Sinv, kb.logdet)
+            Q = scaled_lf_noise(bank.Q, self.base_Q, scale)
+            got = self._designer.design(key[0], bank.zeta, bank.dt, Q, bank.R)
             if len(self._cache) > 64:
                 self._cache.clear()
             self._cache[key] = got
@@ -239,7 +233,8 @@ class LFOutputStage:
         """Samples the bank took since the last identification (the trial filters run on them next)."""
         if self._output is not None and T.shape[0]:
             self._flush_rows()
-            self._recent.append((T, Y, TAU))
+            # copies: the caller's arrays may be reused before the next identification reads them
+            self._recent.append((T.copy(), Y.copy(), TAU.copy()))
 
     def record_one(self, t: float, y: Array, tau: Array) -> None:
         """One sample (live `step`), kept as a row until the next chunk or identification."""
@@ -252,11 +247,10 @@ class LFOutputStage:
             self._rows = []
             self._recent.append((rows[:, 0].copy(), rows[:, 1:4].copy(), rows[:, 4:7].copy()))
 
-    def identify(
-        self, t: float, bank: MMAEBank, X: Array, p: Array, clock: Array, R: Array, params: Array
-    ) -> None:
+    def identify(self, t: float, bank: MMAEBank, X: Array, p: Array, clock: Array, params: Array) -> None:
         """At an identification of the bank at time t (the samples before t recorded): choose the scales,
-        design the output filter for the winner, decide whether it gives the estimate."""
+        design the output filter for the winner, decide whether it gives the estimate. ``X``, ``p``,
+        ``clock``, ``params``: the bank's filter states, weights, clock and kernel parameters."""
         self._flush_rows()
         chunks, self._recent = self._recent, []
         self._params = _no_weights(params)
@@ -277,7 +271,7 @@ class LFOutputStage:
         assert self._trials is not None
         self._trials.set([self._matrices(bank, win, (s, s, s)) for s in LF_NOISE_SCALES])
         if chunks:
-            self._update_residuals(t, chunks, bank, R)
+            self._update_residuals(t, chunks, bank)
         scale = self._choose()
         if scale != self.scale:
             self._hand_over(scale)
@@ -285,9 +279,7 @@ class LFOutputStage:
         self._output.matrices = self._matrices(bank, win, self.scale)
         self.active = min(self.scale) < 1.0 and top >= LF_OUTPUT_WEIGHT
 
-    def _update_residuals(
-        self, t: float, chunks: list[tuple[Array, Array, Array]], bank: MMAEBank, R: Array
-    ) -> None:
+    def _update_residuals(self, t: float, chunks: list[tuple[Array, Array, Array]], bank: MMAEBank) -> None:
         T = np.ascontiguousarray(np.concatenate([c[0] for c in chunks]))
         Y = np.ascontiguousarray(np.concatenate([c[1] for c in chunks]))
         TAU = np.ascontiguousarray(np.concatenate([c[2] for c in chunks]))
@@ -315,7 +307,7 @@ class LFOutputStage:
         counts = np.stack([self._blocks[b][1] for b in range(first, last_full + 1)], axis=2)
         # r̄² n / R = (Σ r)² / (n R); a block with fewer than 10 samples does not count and the DOF waits
         with np.errstate(divide="ignore", invalid="ignore"):
-            z = sums**2 / (counts * np.asarray(R, dtype=float)[None, :, None])
+            z = sums**2 / (counts * np.diag(bank.R)[None, :, None])
         z[counts < 10] = np.nan
         self.rho = z.mean(axis=2).T  # (3, scales): NaN unless every block counts
 

@@ -403,6 +403,12 @@ def test_observer_interface() -> None:
 
     made = make_observer("mmae", vessel, params={"candidates": [0.5, 1.0], "weight_floor": 0.01, "zeta": 0.2})
     assert made.step(0.0, [0.0, 0.0, 0.0]).status == "ok" and made.extra()["candidates"] == [0.5, 1.0]
+    # the LF output stage is on by default and switched off by name, as `--observer mmae:lf_output=false`
+    from gateway.replay import parse_observer_spec
+
+    assert made.lf_output
+    spec = parse_observer_spec("mmae:lf_output=false")
+    assert not make_observer("mmae", vessel, params=spec.params).lf_output
 
 
 def test_missing_dofs_and_gaps() -> None:
@@ -723,7 +729,7 @@ def test_lf_stage_trials_in_one_call_equal_each_filter_run_alone() -> None:
     """`_mmae_kernel.run_single` (the trial filters in one compiled call, no weight updates) against each
     filter run alone through the bank kernel (`run`, a bank of one): the same residuals to the bit."""
     from observers import _mmae_kernel as kernel
-    from observers.mmae_lf import LF_NOISE_SCALES, _Designer, _no_weights, scaled_lf_noise
+    from observers.mmae_lf import LF_NOISE_SCALES, _Designer, _no_weights, _Trials, scaled_lf_noise
 
     vessel = get_scenario("hassani").vessel
     t, y, _ = _lf_record(0.5, 0.01, 2)
@@ -741,11 +747,9 @@ def test_lf_stage_trials_in_one_call_equal_each_filter_run_alone() -> None:
     params[kernel.PARAM_MAX_GAP_S] = 60.0
     params[kernel.PARAM_WEIGHT_FLOOR] = 1e-8
     params = _no_weights(params)
-    k = len(LF_NOISE_SCALES)
-    X, xb, clock = np.zeros((k, 15)), np.zeros((k, 15)), np.zeros((k, kernel.N_CLOCK))
-    stacked = tuple(np.concatenate([m[j] for m in each]) if j not in (1, 3) else each[0][j] for j in range(7))
-    res = np.empty((k, t.size, 3))
-    kernel.run_single(X, xb, clock, t, y, tau, *stacked, params, res)
+    trials = _Trials(np.zeros(15), np.zeros(kernel.N_CLOCK), len(LF_NOISE_SCALES))  # (not started)
+    trials.set(each)
+    res = trials.residuals(t, y, tau, params)
     for i, m in enumerate(each):
         Xi, pi, xbi, ci = np.zeros((1, 15)), np.ones(1), np.zeros(15), np.zeros(kernel.N_CLOCK)
         out = np.empty((t.size, kernel.N_OUT, 3))
@@ -755,7 +759,7 @@ def test_lf_stage_trials_in_one_call_equal_each_filter_run_alone() -> None:
         r = y - out[:, kernel.OUT_ETA] - out[:, kernel.OUT_ETA_WF]
         r[:, 2] = ssa(r[:, 2])
         np.testing.assert_array_equal(res[i], r)
-        np.testing.assert_array_equal(X[i], Xi[0])
+        np.testing.assert_array_equal(trials.X[i], Xi[0])
 
 
 def test_lf_stage_mix_takes_the_stiff_dofs_in_vessel_axes() -> None:
@@ -784,3 +788,25 @@ def test_lf_stage_mix_takes_the_stiff_dofs_in_vessel_axes() -> None:
     m = blend.copy()
     mix_outputs(m, lf, (1.0, 1.0, 1.0))
     np.testing.assert_array_equal(m, blend)
+
+
+def test_run_in_pieces_from_a_reused_buffer_equals_one_run() -> None:
+    """`run` keeps copies of the samples it defers (the samples before the first identification, the LF
+    stage's samples until its next identification): a caller that feeds pieces from one buffer it refills
+    gets exactly the numbers of one run over the whole record."""
+    vessel = get_scenario("hassani").vessel
+    t, y, _ = _lf_record(0.0, 0.0, 1)
+    tau = np.zeros((t.size, 3))
+    whole = MMAEObserver(vessel).run(t, y, tau)
+    assert whole is not None
+    obs = MMAEObserver(vessel)
+    piece = 250  # not a multiple of the identification period: every piece leaves samples deferred
+    bt, by, btau = np.empty(piece), np.empty((piece, 3)), np.zeros((piece, 3))
+    eta = []
+    for a in range(0, t.size, piece):
+        m = min(piece, t.size - a)
+        bt[:m], by[:m] = t[a : a + m], y[a : a + m]
+        eta.append(obs.run(bt[:m], by[:m], btau[:m]).eta)
+        bt[:], by[:] = np.nan, np.nan  # the caller reuses its buffer
+    assert obs.lf.active
+    np.testing.assert_array_equal(np.concatenate(eta), whole.eta)
