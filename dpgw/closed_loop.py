@@ -33,7 +33,9 @@ from simulator.runner import Route, Simulation
 from simulator.scenarios import Scenario
 from simulator.sensors import Emission
 from simulator.transports import Sink
+from wire import messages
 from wire.mcap.writer import McapLogWriter
+from wire.messages import TOPICS
 
 Array = NDArray[np.float64]
 
@@ -143,6 +145,15 @@ def true_bias(sim: Simulation) -> Array:
     )
 
 
+def is_foxglove_topic(topic: str) -> bool:
+    """Whether ``topic`` is one of the Foxglove-native channels (`gateway.foxglove_channels`), which the
+    pipeline makes only when asked to."""
+    for t in TOPICS:
+        if topic == t.pattern or (t.pattern.endswith("/") and topic.startswith(t.pattern)):
+            return (t.message.TITLE or "").startswith("foxglove.")
+    return False
+
+
 def needs_wire(scenario: Scenario, log: McapLogWriter | None = None) -> bool:
     """Whether the loop must feed the pipeline bytes: a raw log, a wire-side fault (bad checksum, garbage)
     or ArduPilot feedback frames (their meaning depends on the gateway's wiring config)."""
@@ -180,9 +191,10 @@ def run_closed_loop(
         wire = needs_wire(scenario, log)
     tables = tables or gateway_tables(scenario)
     # the Foxglove-native channels mirror the outputs for a log or a viewer: made only if a caller collects
-    # outputs (it may want them); the estimates and commands are the same either way
+    # one of them (a study collects /dp/measurement, a JSON channel); the estimates and commands are the same
+    # either way
     spec = PipelineSpec.from_config(parse_config(tables, base_dir=Path.cwd()))
-    pipeline = Pipeline(replace(spec, foxglove_channels=bool(collect)))
+    pipeline = Pipeline(replace(spec, foxglove_channels=any(map(is_foxglove_topic, collect))))
     commands = _Commands()
     sim: Simulation
     sinks: dict[str, _TimedSink] = {}
@@ -243,13 +255,17 @@ def run_closed_loop(
                     run.estimates.append(o.payload)
                 elif o.topic == "/dp/thrusters/command":
                     run.commands.append(o.payload)
-                    if o.payload["thrusters"]:
+                    # the typed message: the payload's values without indexing a dict (a vessel's thruster
+                    # ids are integers; the message also allows the names other systems use)
+                    command = o.message
+                    assert isinstance(command, messages.ThrusterCommand)
+                    if command.thrusters:
                         commands.pending += [
-                            ThrusterCommand(th["id"], th["thrust_n"], th["azimuth_rad"])
-                            for th in o.payload["thrusters"]
+                            ThrusterCommand(int(th.id), th.thrust_n, th.azimuth_rad)
+                            for th in command.thrusters
                         ]
                     else:
-                        tau = o.payload["tau_allocated"]
+                        tau = command.tau_allocated
                         commands.pending.append(TauCommand((tau[0], tau[1], tau[2])))
         if status_every_s is not None and sim.t >= next_status - 1e-9 and pipeline.last_ns:
             run.statuses.append(pipeline.status(pipeline.last_ns).payload)

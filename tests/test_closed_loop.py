@@ -11,7 +11,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from dpgw.closed_loop import needs_wire, run_closed_loop
+from dpgw.closed_loop import is_foxglove_topic, needs_wire, run_closed_loop
 from simulator.faults import Fault
 from simulator.runner import Simulation
 from simulator.scenarios import get_scenario
@@ -158,13 +158,28 @@ def test_typed_path_is_faster_than_the_bytes() -> None:
 
 
 def test_foxglove_channels_off_leave_estimates_and_commands_unchanged() -> None:
-    """Without ``collect`` the loop's pipeline makes no Foxglove channels (nothing would read them); the
-    estimates and commands are bit for bit those of a pipeline that derives them (``collect`` turns them
-    on, and the collected scene shows that they were derived)."""
+    """Unless a Foxglove channel is collected the loop's pipeline makes none (nothing would read them; a
+    study collects /dp/measurement only); the estimates and commands are bit for bit those of a pipeline
+    that derives them (collecting one turns them on, and the collected scene shows that they were)."""
     sc = get_scenario("torsetnes_2004")
-    plain = run_closed_loop(sc, 20.0, seed=2, events=HOLD)
-    full = run_closed_loop(sc, 20.0, seed=2, events=HOLD, collect=("/dp/scene/thrusters",))
+    plain = run_closed_loop(sc, 20.0, seed=2, events=HOLD, collect=("/dp/measurement",))
+    full = run_closed_loop(sc, 20.0, seed=2, events=HOLD, collect=("/dp/scene/thrusters", "/dp/measurement"))
     assert full.collected["/dp/scene/thrusters"], "the Foxglove channels were derived with collect"
     assert plain.estimates == full.estimates and plain.commands == full.commands
+    assert plain.collected["/dp/measurement"] == full.collected["/dp/measurement"]
     assert len(plain.commands) > 100
     np.testing.assert_array_equal(plain.eta_lf, full.eta_lf)
+
+
+def test_only_foxglove_topics_turn_the_foxglove_channels_on() -> None:
+    json_topics = ["/dp/measurement", "/dp/estimate", "/dp/estimates/ekf", "/dp/status", "/raw/nmea/dgps1"]
+    foxglove = [
+        "/dp/estimate/fix",
+        "/gnss/dgps1/fix",
+        "/dp/scene/hull",
+        "/dp/tf",
+        "/dp/log",
+        "/dp/estimate/pose",
+    ]
+    assert not any(map(is_foxglove_topic, json_topics))
+    assert all(map(is_foxglove_topic, foxglove))
