@@ -19,6 +19,7 @@ Two paths from the sensors to the pipeline (``wire``):
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -70,13 +71,25 @@ class ClosedLoopRun:
     t: Array  # s, every chunk
     eta_lf: Array  # true LF motion [N, E, ψ]
     eta_wf: Array
-    estimates: list[dict[str, Any]] = field(default_factory=list)
+    estimate_messages: list[messages.Estimate] = field(default_factory=list)  # typed; `estimates`: dicts
     nu: Array = field(default_factory=lambda: np.zeros((0, 3)))  # true LF velocity [u, v, r], body
     bias: Array = field(default_factory=lambda: np.zeros((0, 3)))  # true bias b (earth-fixed, `true_bias`)
     collected: dict[str, list[Any]] = field(default_factory=dict)  # with collect: topic -> payloads
-    commands: list[dict[str, Any]] = field(default_factory=list)
+    command_messages: list[messages.ThrusterCommand] = field(default_factory=list)  # `commands`: dicts
     status: dict[str, Any] = field(default_factory=dict)
     statuses: list[dict[str, Any]] = field(default_factory=list)  # with status_every_s: /dp/status payloads
+
+    # The payloads as dicts are made when first asked for: a study reads neither, and making them for
+    # every estimate and command cost the loop about as much as its own bookkeeping.
+    @cached_property
+    def estimates(self) -> list[dict[str, Any]]:
+        """/dp/estimate payloads, in order."""
+        return [m.to_dict() for m in self.estimate_messages]
+
+    @cached_property
+    def commands(self) -> list[dict[str, Any]]:
+        """/dp/thrusters/command payloads, in order."""
+        return [m.to_dict() for m in self.command_messages]
 
 
 def gateway_tables(scenario: Scenario, **control: Any) -> dict[str, Any]:
@@ -252,13 +265,13 @@ def run_closed_loop(
                 if o.topic in run.collected:
                     run.collected[o.topic].append(o.payload)
                 if o.topic == "/dp/estimate":
-                    run.estimates.append(o.payload)
+                    assert isinstance(o.message, messages.Estimate)
+                    run.estimate_messages.append(o.message)
                 elif o.topic == "/dp/thrusters/command":
-                    run.commands.append(o.payload)
-                    # the typed message: the payload's values without indexing a dict (a vessel's thruster
-                    # ids are integers; the message also allows the names other systems use)
+                    # (a vessel's thruster ids are integers; the message also allows other systems' names)
                     command = o.message
                     assert isinstance(command, messages.ThrusterCommand)
+                    run.command_messages.append(command)
                     if command.thrusters:
                         commands.pending += [
                             ThrusterCommand(int(th.id), th.thrust_n, th.azimuth_rad)
