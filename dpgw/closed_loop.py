@@ -36,7 +36,7 @@ from simulator.sensors import Emission
 from simulator.transports import Sink
 from wire import messages
 from wire.mcap.writer import McapLogWriter
-from wire.messages import TOPICS
+from wire.messages import TOPICS, Message
 
 Array = NDArray[np.float64]
 
@@ -74,13 +74,18 @@ class ClosedLoopRun:
     estimate_messages: list[messages.Estimate] = field(default_factory=list)  # typed; `estimates`: dicts
     nu: Array = field(default_factory=lambda: np.zeros((0, 3)))  # true LF velocity [u, v, r], body
     bias: Array = field(default_factory=lambda: np.zeros((0, 3)))  # true bias b (earth-fixed, `true_bias`)
-    collected: dict[str, list[Any]] = field(default_factory=dict)  # with collect: topic -> payloads
+    collected_messages: dict[str, list[Message]] = field(default_factory=dict)  # collect: topic -> messages
     command_messages: list[messages.ThrusterCommand] = field(default_factory=list)  # `commands`: dicts
     status: dict[str, Any] = field(default_factory=dict)
     statuses: list[dict[str, Any]] = field(default_factory=list)  # with status_every_s: /dp/status payloads
 
-    # The payloads as dicts are made when first asked for: a study reads neither, and making them for
-    # every estimate and command cost the loop about as much as its own bookkeeping.
+    # The payloads as dicts are made when first asked for: a study reads the typed measurements and no
+    # estimate or command, and making dicts of them all cost the loop about as much as its bookkeeping.
+    @cached_property
+    def collected(self) -> dict[str, list[dict[str, Any]]]:
+        """With ``collect``: topic -> payloads, in order."""
+        return {topic: [m.to_dict() for m in ms] for topic, ms in self.collected_messages.items()}
+
     @cached_property
     def estimates(self) -> list[dict[str, Any]]:
         """/dp/estimate payloads, in order."""
@@ -199,7 +204,7 @@ def run_closed_loop(
     operator station would see, to time alarms. ``wire``: True feeds the pipeline the bytes, False the typed
     records (module docstring); None (default) the records unless a log, a wire-side fault or ArduPilot
     feedback needs the bytes. ``collect``: pipeline topics (e.g. "/dp/measurement") whose payloads are
-    kept in ``collected``, in order."""
+    kept in ``collected`` (the typed messages in ``collected_messages``), in order."""
     if wire is None:
         wire = needs_wire(scenario, log)
     tables = tables or gateway_tables(scenario)
@@ -238,7 +243,7 @@ def run_closed_loop(
     next_status = 0.0
     t_list, lf, wf = [], [], []
     run = ClosedLoopRun(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)))
-    run.collected = {topic: [] for topic in collect}
+    run.collected_messages = {topic: [] for topic in collect}
     nu_list, bias_list = [], []
     while sim.t < duration_s - 1e-9:
         sim.run(chunk_s)
@@ -262,8 +267,8 @@ def run_closed_loop(
             typed.clear()
         for event in raw:
             for o in pipeline.feed(event):
-                if o.topic in run.collected:
-                    run.collected[o.topic].append(o.payload)
+                if o.topic in run.collected_messages:
+                    run.collected_messages[o.topic].append(o.message)
                 if o.topic == "/dp/estimate":
                     assert isinstance(o.message, messages.Estimate)
                     run.estimate_messages.append(o.message)

@@ -105,6 +105,7 @@ def _run_case(case: CaseSpec) -> list[dict[str, Any]]:
     from observers.base import STATUS_INITIALIZING
     from simulator.clock import SimEpoch
     from simulator.scenarios import get_scenario
+    from wire.messages import Measurement
 
     nominal_tp = get_scenario(case.scenario).sea[0][1].tp_s
     scenario = build_scenario(case)
@@ -115,10 +116,10 @@ def _run_case(case: CaseSpec) -> list[dict[str, Any]]:
 
     # the pipeline's measurements on the simulator's clock (sim time 0 = the epoch)
     start_ns = SimEpoch(scenario.start_utc).stamp_ns(0.0)
-    meas = loop.collected["/dp/measurement"]
-    t = np.array([(m["stamp_ns"] - start_ns) / 1e9 for m in meas])
-    y = np.array([[math.nan if v is None else v for v in m["eta"]] for m in meas], dtype=float)
-    tau = np.array([m["tau"] for m in meas], dtype=float)
+    meas = [m for m in loop.collected_messages["/dp/measurement"] if isinstance(m, Measurement)]
+    t = np.array([(m.stamp_ns - start_ns) / 1e9 for m in meas])
+    y = np.array([[math.nan if v is None else v for v in m.eta] for m in meas], dtype=float)
+    tau = np.array([m.tau for m in meas], dtype=float)
 
     config = parse_config(tables, base_dir=Path.cwd())
     sea = scenario.sea[0][1]
