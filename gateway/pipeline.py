@@ -362,6 +362,12 @@ class Pipeline:
         }
         # a backup source matters only when the best-ranked one is preferred (pooling by weight uses all)
         self._backup_used = self._backup if spec.integrity.pooling == "priority" else {}
+        # roles with more than one source: only there does a source's pooling weight (`monitor.weight`)
+        # matter; the fusion uses one source's numbers as they are (the common case: not asked per fix)
+        self._pooled = {
+            role for role in ("position", "heading") if sum(role in s.roles for s in spec.sources) > 1
+        }
+        self._thruster_ids = [th.id for th in spec.vessel.thrusters]
 
     @staticmethod
     def _mavlink_parser(s: SourceSpec) -> mv.FrameParser:
@@ -423,10 +429,8 @@ class Pipeline:
 
     def _with_foxglove(self, out: list[Output]) -> None:
         """Add the Foxglove-native channels that mirror ``out`` (`gateway.foxglove_channels`)."""
-        if not self._foxglove_on:
-            return
-        for topic, message, ns in self.foxglove.derive(out):
-            out.append(Output(topic, message, ns, zenoh=False))
+        if self._foxglove_on:
+            out += [Output(topic, message, ns, False) for topic, message, ns in self.foxglove.derive(out)]
 
     def tick(self, now_ns: int) -> list[Output]:
         """Called by the live service between events (any rate). Once nothing has stepped the observer
@@ -566,7 +570,7 @@ class Pipeline:
         out.extend(self._location_fix(spec.name, rx_ns, lat, lon))
         pred = self._prediction(rx_ns, 0)
         if self.monitor.position(spec.name, rx_ns, ned[0], ned[1], quality, pred):
-            weight = self.monitor.weight("position", spec.name)
+            weight = self.monitor.weight("position", spec.name) if "position" in self._pooled else 1.0
             q = 1 if quality is None else quality
             self.fusion.use_position(rx_ns, *ned, spec.name, spec.priority, spec.timeout_ns, q, weight)
         else:
@@ -576,7 +580,7 @@ class Pipeline:
 
     def _use_heading(self, spec: SourceSpec, rx_ns: int, psi: float) -> bool:
         if self.monitor.heading(spec.name, rx_ns, psi, self._prediction(rx_ns, 2)):
-            weight = self.monitor.weight("heading", spec.name)
+            weight = self.monitor.weight("heading", spec.name) if "heading" in self._pooled else 1.0
             self.fusion.add_heading(rx_ns, psi, spec.name, spec.priority, spec.timeout_ns, weight)
         else:
             self._count_test_reject(spec.name, "heading")
@@ -729,9 +733,13 @@ class Pipeline:
         t = self._t(now_ns)
         est = self._observe(self.observer, t, y, tau, valid)
         self._last_est, self._last_est_ns, self._last_step_ns = est, now_ns, now_ns
-        for k in range(3):
-            if valid[k]:
-                self._measured_ns[k] = now_ns
+        measured = self._measured_ns
+        if valid[0]:
+            measured[0] = now_ns
+        if valid[1]:
+            measured[1] = now_ns
+        if valid[2]:
+            measured[2] = now_ns
         names = (fusion.position_sources if valid[0] else ()) + (fusion.heading_sources if valid[2] else ())
         out = [
             Output(
@@ -856,14 +864,16 @@ class Pipeline:
             tau_allocated=None if prev is None else prev.tau_allocated,
             tau_manual=self.manual_tau,
         )
-        target = o.reference.target if self.mode == "dp" else None
-        scene = [
-            Output(topic, message, ns, zenoh=False)
-            for topic, message, ns in self.foxglove.setpoint(
-                None if target is None else (float(target[0]), float(target[1]), float(target[2])), now_ns
-            )
-            if self._foxglove_on
-        ]
+        scene: list[Output] = []
+        if self._foxglove_on:  # (the setpoint scene is made only for the Foxglove channels)
+            target = o.reference.target if self.mode == "dp" else None
+            scene = [
+                Output(topic, message, ns, zenoh=False)
+                for topic, message, ns in self.foxglove.setpoint(
+                    None if target is None else (float(target[0]), float(target[1]), float(target[2])),
+                    now_ns,
+                )
+            ]
         if self.mode == "standby":
             self.fusion.set_tau_demand(np.zeros(3))
             self.control_alarms = []
@@ -876,10 +886,11 @@ class Pipeline:
             tau_allocated = res.tau_allocated
             saturated = res.saturated
             self.control_alarms = list(res.alarms)
-            ids = [th.id for th in self.spec.vessel.thrusters]
             thrusters = [
                 Thruster(id=tid, thrust_n=f, azimuth_rad=a)
-                for tid, f, a in zip(ids, res.thrust.tolist(), res.azimuth.tolist(), strict=True)
+                for tid, f, a in zip(
+                    self._thruster_ids, res.thrust.tolist(), res.azimuth.tolist(), strict=True
+                )
             ]
         else:
             tau_allocated = o.tau  # no thruster layout: τ is the command (simulated vessels of the papers)
@@ -954,6 +965,10 @@ class Pipeline:
 
     def _health(self, now_ns: int, valid: list[bool]) -> list[str]:
         """Per DOF: ok / degraded (some references usable, not all ok) / dead_reckoning / lost."""
+        if valid[0] and valid[1] and valid[2]:  # (every DOF measured: the common case, every estimate)
+            health = self.monitor.health
+            word = "ok" if health("position") == "ok" else "degraded"
+            return [word, word, "ok" if health("heading") == "ok" else "degraded"]
         out = []
         position: str | None = None  # (asked once for both position DOFs)
         for k in range(3):
