@@ -355,13 +355,19 @@ class Fusion:
     def measurement(self, now_ns: int) -> tuple[Array, list[bool]]:
         """y = [N, E, ψ] with NaN for any DOF whose held value is stale."""
         self._pool_position(now_ns)
-        self._heading = self._pool_heading(now_ns)
-        valid = [self._north.fresh(now_ns), self._east.fresh(now_ns), self._heading.fresh(now_ns)]
+        n, e = self._north, self._east
+        h = self._heading = self._pool_heading(now_ns)
+        # (`Held.fresh` of each, inline: this runs for every observer step)
+        valid = [
+            n.source != "" and now_ns - n.rx_ns <= n.valid_ns,
+            e.source != "" and now_ns - e.rx_ns <= e.valid_ns,
+            h.source != "" and now_ns - h.rx_ns <= h.valid_ns,
+        ]
         y = np.array(
             [
-                self._north.value if valid[0] else math.nan,
-                self._east.value if valid[1] else math.nan,
-                self._heading.value if valid[2] else math.nan,
+                n.value if valid[0] else math.nan,
+                e.value if valid[1] else math.nan,
+                h.value if valid[2] else math.nan,
             ]
         )
         return y, valid

@@ -422,9 +422,12 @@ class Pipeline:
         else:
             updated = self._mavlink(spec, c, event, out)
         if updated:
-            out.extend(self._step(event.rx_ns, event.source))
-        out.extend(self._state_changes(event.rx_ns))
-        self._with_foxglove(out)
+            out += self._step(event.rx_ns, event.source)
+        changes = self._state_changes(event.rx_ns)
+        if changes:
+            out += changes
+        if self._foxglove_on:
+            out += [Output(topic, message, ns, False) for topic, message, ns in self.foxglove.derive(out)]
         return out
 
     def _with_foxglove(self, out: list[Output]) -> None:
@@ -517,27 +520,31 @@ class Pipeline:
         return updated
 
     def _use_nmea(self, spec: SourceSpec, rx_ns: int, s: Any, out: list[Output]) -> bool:
-        if isinstance(s, nmea_codec.Heading):
+        kind = type(s)  # (the codec's sentence classes have no subclasses: `is`, not isinstance chains)
+        if kind is nmea_codec.Gga or kind is nmea_codec.Gns:
+            if "position" not in spec.roles or not s.valid or s.lat_deg is None or s.lon_deg is None:
+                return False
+            if s.alt_m is not None:
+                self._fix_alt_m[spec.name] = ellipsoidal_height_m(s.alt_m, s.geoid_sep_m)
+            quality = s.quality if kind is nmea_codec.Gga else None
+            return self._use_position(spec, rx_ns, s.lat_deg, s.lon_deg, quality, out)
+        if kind is nmea_codec.Heading:
             if "heading" in spec.roles and s.valid and s.heading_rad is not None:
                 return self._use_heading(spec, rx_ns, s.heading_rad)
             return False
-        if isinstance(s, nmea_codec.Gst):
-            if "position" in spec.roles and s.sigma_lat_m is not None and s.sigma_lon_m is not None:
-                # one horizontal 1σ: the RMS of the latitude and longitude sigmas
-                sigma = math.hypot(s.sigma_lat_m, s.sigma_lon_m) / math.sqrt(2)
-                self.fusion.add_position_sigma(rx_ns, sigma, spec.name, spec.timeout_ns)
-                self._fix_sigma_enu_m[spec.name] = (
-                    rx_ns + spec.timeout_ns,
-                    (s.sigma_lon_m, s.sigma_lat_m, s.sigma_alt_m or 0.0),
-                )
-            return False
-        if isinstance(s, nmea_codec.Gga | nmea_codec.Gns) and "position" in spec.roles:
-            if not s.valid or s.lat_deg is None or s.lon_deg is None:
-                return False
-            quality = s.quality if isinstance(s, nmea_codec.Gga) else None
-            if s.alt_m is not None:
-                self._fix_alt_m[spec.name] = ellipsoidal_height_m(s.alt_m, s.geoid_sep_m)
-            return self._use_position(spec, rx_ns, s.lat_deg, s.lon_deg, quality, out)
+        if (
+            kind is nmea_codec.Gst
+            and "position" in spec.roles
+            and s.sigma_lat_m is not None
+            and s.sigma_lon_m is not None
+        ):
+            # one horizontal 1σ: the RMS of the latitude and longitude sigmas
+            sigma = math.hypot(s.sigma_lat_m, s.sigma_lon_m) / math.sqrt(2)
+            self.fusion.add_position_sigma(rx_ns, sigma, spec.name, spec.timeout_ns)
+            self._fix_sigma_enu_m[spec.name] = (
+                rx_ns + spec.timeout_ns,
+                (s.sigma_lon_m, s.sigma_lat_m, s.sigma_alt_m or 0.0),
+            )
         return False
 
     def _framer(self, source: str, peer: str) -> NmeaFramer:
@@ -567,7 +574,8 @@ class Pipeline:
         ned = self.fusion.reference_position(rx_ns, lat, lon, spec.lever_arm_m)
         if ned is None:
             return False  # a lever arm without a heading of the same cycle cannot be compensated
-        out.extend(self._location_fix(spec.name, rx_ns, lat, lon))
+        if self._foxglove_on:
+            self._location_fix(spec.name, rx_ns, lat, lon, out)
         pred = self._prediction(rx_ns, 0)
         if self.monitor.position(spec.name, rx_ns, ned[0], ned[1], quality, pred):
             weight = self.monitor.weight("position", spec.name) if "position" in self._pooled else 1.0
@@ -761,6 +769,16 @@ class Pipeline:
             self.estimates += 1
             estimate = self._estimate(self.spec.observer_name, self.observer, est, now_ns, valid)
             self.estimate_status = estimate.status
+            # `_prediction`'s floats from the message's lists (the same numbers: ``est`` as lists)
+            eta, wf = estimate.eta, estimate.eta_wf
+            self._pred_base = (
+                est,
+                eta,
+                estimate.nu,
+                [x if x == x else 0.0 for x in wf],
+                math.cos(eta[2]),
+                math.sin(eta[2]),
+            )
             out.append(
                 Output("/dp/estimate", estimate, now_ns)
             )  # (its LocationFix: gateway.foxglove_channels)
@@ -987,14 +1005,13 @@ class Pipeline:
         until, sigma = self._fix_sigma_enu_m.get(source, (0, None))
         return sigma if rx_ns <= until else None
 
-    def _location_fix(self, source: str, rx_ns: int, lat: float, lon: float) -> list[Output]:
-        if not self._foxglove_on:
-            return []
+    def _location_fix(self, source: str, rx_ns: int, lat: float, lon: float, out: list[Output]) -> None:
+        """The fix's `foxglove.LocationFix`, onto ``out`` (called with the Foxglove channels on)."""
         period = FIX_PERIOD_NS  # (a module global: the benchmark sets it)
         if period and rx_ns - self._last_fix_ns.get(source, -period) < period:
-            return []
+            return
         self._last_fix_ns[source] = rx_ns
-        return [
+        out.append(
             Output(
                 f"/gnss/{source}/fix",
                 location_fix(
@@ -1008,7 +1025,7 @@ class Pipeline:
                 rx_ns,
                 zenoh=False,
             )
-        ]
+        )
 
     def _feedback_output(self, now_ns: int) -> Output:
         tau, _ = self.fusion.tau(now_ns)
