@@ -35,7 +35,14 @@ from gateway.foxglove_channels import FoxgloveChannels
 from gateway.fusion import NS, Fusion
 from gateway.references import ReferenceMonitor
 from gateway.references.monitor import Prediction
-from observers.base import STATUS_DEAD_RECKONING, STATUS_NAMES, STATUS_OK, Estimate, Observer
+from observers.base import (
+    STATUS_DEAD_RECKONING,
+    STATUS_INITIALIZING,
+    STATUS_NAMES,
+    STATUS_OK,
+    Estimate,
+    Observer,
+)
 from observers.factory import make_observer
 from observers.kinematics import ssa_scalar
 from observers.vessel import VesselModel
@@ -62,6 +69,7 @@ USED_NMEA = frozenset({"GGA", "GNS", "HDT", "THS", "HDG", "GST"})
 """Sentences the fusion uses; others (RMC, VTG, ZDA, ROT ...) are checked and counted, not parsed."""
 RAW_VELOCITY_FILTER_S = 1.0
 """Dirty-derivative filter of the measurement-fed comparison controller (no wave filter)."""
+_INITIALIZING = STATUS_NAMES[STATUS_INITIALIZING]
 FIX_PERIOD_NS = 0
 """Least time between two `foxglove.LocationFix` of one GNSS source: 0, every fix (the map shows each
 receiver's own scatter; what it costs a replay is measured in docs/foxglove.md). `bench/bench_foxglove.py`
@@ -408,12 +416,14 @@ class Pipeline:
         spec = self.sources.get(event.source)
         if spec is None:
             return []
+        rx_ns = event.rx_ns
         if self.t0_ns is None:
-            self.t0_ns = event.rx_ns
-        self.last_ns = max(self.last_ns, event.rx_ns)
+            self.t0_ns = rx_ns
+        if rx_ns > self.last_ns:
+            self.last_ns = rx_ns
         c = self.counters[event.source]
         c.bytes += len(event.data)
-        c.last_rx_ns = event.rx_ns
+        c.last_rx_ns = rx_ns
         out: list[Output] = []
         if event.records is not None:
             updated = self._records(spec, c, event, out)
@@ -422,8 +432,8 @@ class Pipeline:
         else:
             updated = self._mavlink(spec, c, event, out)
         if updated:
-            out += self._step(event.rx_ns, event.source)
-        changes = self._state_changes(event.rx_ns)
+            out += self._step(rx_ns, event.source)
+        changes = self._state_changes(rx_ns)
         if changes:
             out += changes
         if self._foxglove_on:
@@ -524,7 +534,7 @@ class Pipeline:
         if kind is nmea_codec.Gga or kind is nmea_codec.Gns:
             if "position" not in spec.roles or not s.valid or s.lat_deg is None or s.lon_deg is None:
                 return False
-            if s.alt_m is not None:
+            if s.alt_m is not None and self._foxglove_on:  # (the height goes only on the LocationFix)
                 self._fix_alt_m[spec.name] = ellipsoidal_height_m(s.alt_m, s.geoid_sep_m)
             quality = s.quality if kind is nmea_codec.Gga else None
             return self._use_position(spec, rx_ns, s.lat_deg, s.lon_deg, quality, out)
@@ -738,7 +748,7 @@ class Pipeline:
         fusion = self.fusion
         y, valid = fusion.measurement(now_ns)
         tau, tau_source = fusion.tau(now_ns)
-        t = self._t(now_ns)
+        t = (now_ns - self.t0_ns) / 1e9 if self.t0_ns is not None else 0.0  # (`_t`; feed set t0_ns)
         est = self._observe(self.observer, t, y, tau, valid)
         self._last_est, self._last_est_ns, self._last_step_ns = est, now_ns, now_ns
         measured = self._measured_ns
@@ -765,7 +775,7 @@ class Pipeline:
                 now_ns,
             )
         ]
-        if est.status != STATUS_NAMES[0]:
+        if est.status != _INITIALIZING:
             self.estimates += 1
             estimate = self._estimate(self.spec.observer_name, self.observer, est, now_ns, valid)
             self.estimate_status = estimate.status
