@@ -615,18 +615,21 @@ class Pipeline:
         """Where the estimate expects a position (dof 0) or heading (dof 2) now: the last estimate moved on
         by its velocity (the observer itself is not advanced), plus its wave motion; None before one."""
         est = self._last_est
-        if est is None or not est.initialized or not self._measured_ns[dof]:
+        measured = self._measured_ns[dof]
+        if est is None or not measured:
             return None
-        dt = (now_ns - self._last_est_ns) / NS
-        age = (now_ns - self._measured_ns[dof]) / NS
         base = self._pred_base
-        if base is None or base[0] is not est:
+        if base is None or base[0] is not est:  # (made by `_step` for every published estimate)
+            if not est.initialized:
+                return None
             # the estimate as plain floats, once per estimate (NaN wave motion counts as none): this runs
             # for every fix and heading, and numpy's per-element arithmetic cost more than the test itself
             wf = [x if x == x else 0.0 for x in est.eta_wf.tolist()]
             eta = est.eta.tolist()
             base = self._pred_base = (est, eta, est.nu.tolist(), wf, math.cos(eta[2]), math.sin(eta[2]))
         _, eta, nu, wf, c, s = base
+        dt = (now_ns - self._last_est_ns) / NS
+        age = (now_ns - measured) / NS
         if dof == 2:
             return Prediction((ssa_scalar(eta[2] + wf[2] + nu[2] * dt),), age)
         u, v = nu[0], nu[1]
