@@ -121,6 +121,9 @@ class Fusion:
         # (changes to _thrust, the fresh ids), so that the steps between feedback bursts do not recompute it
         self._thrust_changes = 0
         self._tau_cached: tuple[tuple[int, tuple[int, ...]], Array] | None = None
+        # the last τ made while every held thrust was fresh: (changes to _thrust, the time until which all
+        # of them stay fresh, τ); until then and with no new feedback it stands without the freshness pass
+        self._tau_all_fresh: tuple[int, int, Array] | None = None
         self._azimuth: dict[int, float] = {}  # last reported azimuth, also before any thrust was reported
         self._thrusters: dict[int, Thruster] = {t.id: t for t in vessel.thrusters}
         self._tau_demand = _read_only(np.zeros(3))
@@ -355,13 +358,19 @@ class Fusion:
     def measurement(self, now_ns: int) -> tuple[Array, list[bool]]:
         """y = [N, E, ψ] with NaN for any DOF whose held value is stale."""
         self._pool_position(now_ns)
-        self._heading = self._pool_heading(now_ns)
-        valid = [self._north.fresh(now_ns), self._east.fresh(now_ns), self._heading.fresh(now_ns)]
+        n, e = self._north, self._east
+        h = self._heading = self._pool_heading(now_ns)
+        # (`Held.fresh` of each, inline: this runs for every observer step)
+        valid = [
+            n.source != "" and now_ns - n.rx_ns <= n.valid_ns,
+            e.source != "" and now_ns - e.rx_ns <= e.valid_ns,
+            h.source != "" and now_ns - h.rx_ns <= h.valid_ns,
+        ]
         y = np.array(
             [
-                self._north.value if valid[0] else math.nan,
-                self._east.value if valid[1] else math.nan,
-                self._heading.value if valid[2] else math.nan,
+                n.value if valid[0] else math.nan,
+                e.value if valid[1] else math.nan,
+                h.value if valid[2] else math.nan,
             ]
         )
         return y, valid
@@ -414,14 +423,21 @@ class Fusion:
         layout = self.vessel.thrusters
         if not layout or not self._thrust or not self._feedback_ok:
             return self._tau_demand.copy(), "demand"
+        held = self._tau_all_fresh  # (a thrust fresh at a time is fresh at every earlier one too)
+        if held is not None and held[0] == self._thrust_changes and now_ns <= held[1]:
+            return held[2].copy(), "feedback"
         fresh = {tid: v for tid, v in self._thrust.items() if now_ns - v.rx_ns <= self.feedback_timeout_ns}
         if not fresh:
             return self._tau_demand.copy(), "demand"
         key = (self._thrust_changes, tuple(fresh))
         if self._tau_cached is not None and self._tau_cached[0] == key:
-            return self._tau_cached[1].copy(), "feedback"
-        thrust = np.array([fresh[t.id].thrust_n if t.id in fresh else 0.0 for t in layout])
-        angle = np.array([fresh[t.id].azimuth_rad if t.id in fresh else t.angle_rad for t in layout])
-        tau = self.vessel.generalized_force(thrust, angle)
-        self._tau_cached = (key, tau)
+            tau = self._tau_cached[1]
+        else:
+            thrust = np.array([fresh[t.id].thrust_n if t.id in fresh else 0.0 for t in layout])
+            angle = np.array([fresh[t.id].azimuth_rad if t.id in fresh else t.angle_rad for t in layout])
+            tau = self.vessel.generalized_force(thrust, angle)
+            self._tau_cached = (key, tau)
+        if len(fresh) == len(self._thrust):
+            until = min(v.rx_ns for v in fresh.values()) + self.feedback_timeout_ns
+            self._tau_all_fresh = (self._thrust_changes, until, tau)
         return tau.copy(), "feedback"

@@ -35,7 +35,14 @@ from gateway.foxglove_channels import FoxgloveChannels
 from gateway.fusion import NS, Fusion
 from gateway.references import ReferenceMonitor
 from gateway.references.monitor import Prediction
-from observers.base import STATUS_DEAD_RECKONING, STATUS_NAMES, STATUS_OK, Estimate, Observer
+from observers.base import (
+    STATUS_DEAD_RECKONING,
+    STATUS_INITIALIZING,
+    STATUS_NAMES,
+    STATUS_OK,
+    Estimate,
+    Observer,
+)
 from observers.factory import make_observer
 from observers.kinematics import ssa_scalar
 from observers.vessel import VesselModel
@@ -62,6 +69,7 @@ USED_NMEA = frozenset({"GGA", "GNS", "HDT", "THS", "HDG", "GST"})
 """Sentences the fusion uses; others (RMC, VTG, ZDA, ROT ...) are checked and counted, not parsed."""
 RAW_VELOCITY_FILTER_S = 1.0
 """Dirty-derivative filter of the measurement-fed comparison controller (no wave filter)."""
+_INITIALIZING = STATUS_NAMES[STATUS_INITIALIZING]
 FIX_PERIOD_NS = 0
 """Least time between two `foxglove.LocationFix` of one GNSS source: 0, every fix (the map shows each
 receiver's own scatter; what it costs a replay is measured in docs/foxglove.md). `bench/bench_foxglove.py`
@@ -362,6 +370,12 @@ class Pipeline:
         }
         # a backup source matters only when the best-ranked one is preferred (pooling by weight uses all)
         self._backup_used = self._backup if spec.integrity.pooling == "priority" else {}
+        # roles with more than one source: only there does a source's pooling weight (`monitor.weight`)
+        # matter; the fusion uses one source's numbers as they are (the common case: not asked per fix)
+        self._pooled = {
+            role for role in ("position", "heading") if sum(role in s.roles for s in spec.sources) > 1
+        }
+        self._thruster_ids = [th.id for th in spec.vessel.thrusters]
 
     @staticmethod
     def _mavlink_parser(s: SourceSpec) -> mv.FrameParser:
@@ -402,12 +416,14 @@ class Pipeline:
         spec = self.sources.get(event.source)
         if spec is None:
             return []
+        rx_ns = event.rx_ns
         if self.t0_ns is None:
-            self.t0_ns = event.rx_ns
-        self.last_ns = max(self.last_ns, event.rx_ns)
+            self.t0_ns = rx_ns
+        if rx_ns > self.last_ns:
+            self.last_ns = rx_ns
         c = self.counters[event.source]
         c.bytes += len(event.data)
-        c.last_rx_ns = event.rx_ns
+        c.last_rx_ns = rx_ns
         out: list[Output] = []
         if event.records is not None:
             updated = self._records(spec, c, event, out)
@@ -416,17 +432,18 @@ class Pipeline:
         else:
             updated = self._mavlink(spec, c, event, out)
         if updated:
-            out.extend(self._step(event.rx_ns, event.source))
-        out.extend(self._state_changes(event.rx_ns))
-        self._with_foxglove(out)
+            out += self._step(rx_ns, event.source)
+        changes = self._state_changes(rx_ns)
+        if changes:
+            out += changes
+        if self._foxglove_on:
+            out += [Output(topic, message, ns, False) for topic, message, ns in self.foxglove.derive(out)]
         return out
 
     def _with_foxglove(self, out: list[Output]) -> None:
         """Add the Foxglove-native channels that mirror ``out`` (`gateway.foxglove_channels`)."""
-        if not self._foxglove_on:
-            return
-        for topic, message, ns in self.foxglove.derive(out):
-            out.append(Output(topic, message, ns, zenoh=False))
+        if self._foxglove_on:
+            out += [Output(topic, message, ns, False) for topic, message, ns in self.foxglove.derive(out)]
 
     def tick(self, now_ns: int) -> list[Output]:
         """Called by the live service between events (any rate). Once nothing has stepped the observer
@@ -513,27 +530,31 @@ class Pipeline:
         return updated
 
     def _use_nmea(self, spec: SourceSpec, rx_ns: int, s: Any, out: list[Output]) -> bool:
-        if isinstance(s, nmea_codec.Heading):
+        kind = type(s)  # (the codec's sentence classes have no subclasses: `is`, not isinstance chains)
+        if kind is nmea_codec.Gga or kind is nmea_codec.Gns:
+            if "position" not in spec.roles or not s.valid or s.lat_deg is None or s.lon_deg is None:
+                return False
+            if s.alt_m is not None and self._foxglove_on:  # (the height goes only on the LocationFix)
+                self._fix_alt_m[spec.name] = ellipsoidal_height_m(s.alt_m, s.geoid_sep_m)
+            quality = s.quality if kind is nmea_codec.Gga else None
+            return self._use_position(spec, rx_ns, s.lat_deg, s.lon_deg, quality, out)
+        if kind is nmea_codec.Heading:
             if "heading" in spec.roles and s.valid and s.heading_rad is not None:
                 return self._use_heading(spec, rx_ns, s.heading_rad)
             return False
-        if isinstance(s, nmea_codec.Gst):
-            if "position" in spec.roles and s.sigma_lat_m is not None and s.sigma_lon_m is not None:
-                # one horizontal 1σ: the RMS of the latitude and longitude sigmas
-                sigma = math.hypot(s.sigma_lat_m, s.sigma_lon_m) / math.sqrt(2)
-                self.fusion.add_position_sigma(rx_ns, sigma, spec.name, spec.timeout_ns)
-                self._fix_sigma_enu_m[spec.name] = (
-                    rx_ns + spec.timeout_ns,
-                    (s.sigma_lon_m, s.sigma_lat_m, s.sigma_alt_m or 0.0),
-                )
-            return False
-        if isinstance(s, nmea_codec.Gga | nmea_codec.Gns) and "position" in spec.roles:
-            if not s.valid or s.lat_deg is None or s.lon_deg is None:
-                return False
-            quality = s.quality if isinstance(s, nmea_codec.Gga) else None
-            if s.alt_m is not None:
-                self._fix_alt_m[spec.name] = ellipsoidal_height_m(s.alt_m, s.geoid_sep_m)
-            return self._use_position(spec, rx_ns, s.lat_deg, s.lon_deg, quality, out)
+        if (
+            kind is nmea_codec.Gst
+            and "position" in spec.roles
+            and s.sigma_lat_m is not None
+            and s.sigma_lon_m is not None
+        ):
+            # one horizontal 1σ: the RMS of the latitude and longitude sigmas
+            sigma = math.hypot(s.sigma_lat_m, s.sigma_lon_m) / math.sqrt(2)
+            self.fusion.add_position_sigma(rx_ns, sigma, spec.name, spec.timeout_ns)
+            self._fix_sigma_enu_m[spec.name] = (
+                rx_ns + spec.timeout_ns,
+                (s.sigma_lon_m, s.sigma_lat_m, s.sigma_alt_m or 0.0),
+            )
         return False
 
     def _framer(self, source: str, peer: str) -> NmeaFramer:
@@ -563,10 +584,11 @@ class Pipeline:
         ned = self.fusion.reference_position(rx_ns, lat, lon, spec.lever_arm_m)
         if ned is None:
             return False  # a lever arm without a heading of the same cycle cannot be compensated
-        out.extend(self._location_fix(spec.name, rx_ns, lat, lon))
+        if self._foxglove_on:
+            self._location_fix(spec.name, rx_ns, lat, lon, out)
         pred = self._prediction(rx_ns, 0)
         if self.monitor.position(spec.name, rx_ns, ned[0], ned[1], quality, pred):
-            weight = self.monitor.weight("position", spec.name)
+            weight = self.monitor.weight("position", spec.name) if "position" in self._pooled else 1.0
             q = 1 if quality is None else quality
             self.fusion.use_position(rx_ns, *ned, spec.name, spec.priority, spec.timeout_ns, q, weight)
         else:
@@ -576,7 +598,7 @@ class Pipeline:
 
     def _use_heading(self, spec: SourceSpec, rx_ns: int, psi: float) -> bool:
         if self.monitor.heading(spec.name, rx_ns, psi, self._prediction(rx_ns, 2)):
-            weight = self.monitor.weight("heading", spec.name)
+            weight = self.monitor.weight("heading", spec.name) if "heading" in self._pooled else 1.0
             self.fusion.add_heading(rx_ns, psi, spec.name, spec.priority, spec.timeout_ns, weight)
         else:
             self._count_test_reject(spec.name, "heading")
@@ -593,18 +615,21 @@ class Pipeline:
         """Where the estimate expects a position (dof 0) or heading (dof 2) now: the last estimate moved on
         by its velocity (the observer itself is not advanced), plus its wave motion; None before one."""
         est = self._last_est
-        if est is None or not est.initialized or not self._measured_ns[dof]:
+        measured = self._measured_ns[dof]
+        if est is None or not measured:
             return None
-        dt = (now_ns - self._last_est_ns) / NS
-        age = (now_ns - self._measured_ns[dof]) / NS
         base = self._pred_base
-        if base is None or base[0] is not est:
+        if base is None or base[0] is not est:  # (made by `_step` for every published estimate)
+            if not est.initialized:
+                return None
             # the estimate as plain floats, once per estimate (NaN wave motion counts as none): this runs
             # for every fix and heading, and numpy's per-element arithmetic cost more than the test itself
             wf = [x if x == x else 0.0 for x in est.eta_wf.tolist()]
             eta = est.eta.tolist()
             base = self._pred_base = (est, eta, est.nu.tolist(), wf, math.cos(eta[2]), math.sin(eta[2]))
         _, eta, nu, wf, c, s = base
+        dt = (now_ns - self._last_est_ns) / NS
+        age = (now_ns - measured) / NS
         if dof == 2:
             return Prediction((ssa_scalar(eta[2] + wf[2] + nu[2] * dt),), age)
         u, v = nu[0], nu[1]
@@ -726,12 +751,16 @@ class Pipeline:
         fusion = self.fusion
         y, valid = fusion.measurement(now_ns)
         tau, tau_source = fusion.tau(now_ns)
-        t = self._t(now_ns)
+        t = (now_ns - self.t0_ns) / 1e9 if self.t0_ns is not None else 0.0  # (`_t`; feed set t0_ns)
         est = self._observe(self.observer, t, y, tau, valid)
         self._last_est, self._last_est_ns, self._last_step_ns = est, now_ns, now_ns
-        for k in range(3):
-            if valid[k]:
-                self._measured_ns[k] = now_ns
+        measured = self._measured_ns
+        if valid[0]:
+            measured[0] = now_ns
+        if valid[1]:
+            measured[1] = now_ns
+        if valid[2]:
+            measured[2] = now_ns
         names = (fusion.position_sources if valid[0] else ()) + (fusion.heading_sources if valid[2] else ())
         out = [
             Output(
@@ -749,10 +778,20 @@ class Pipeline:
                 now_ns,
             )
         ]
-        if est.status != STATUS_NAMES[0]:
+        if est.status != _INITIALIZING:
             self.estimates += 1
             estimate = self._estimate(self.spec.observer_name, self.observer, est, now_ns, valid)
             self.estimate_status = estimate.status
+            # `_prediction`'s floats from the message's lists (the same numbers: ``est`` as lists)
+            eta, wf = estimate.eta, estimate.eta_wf
+            self._pred_base = (
+                est,
+                eta,
+                estimate.nu,
+                [x if x == x else 0.0 for x in wf],
+                math.cos(eta[2]),
+                math.sin(eta[2]),
+            )
             out.append(
                 Output("/dp/estimate", estimate, now_ns)
             )  # (its LocationFix: gateway.foxglove_channels)
@@ -856,14 +895,16 @@ class Pipeline:
             tau_allocated=None if prev is None else prev.tau_allocated,
             tau_manual=self.manual_tau,
         )
-        target = o.reference.target if self.mode == "dp" else None
-        scene = [
-            Output(topic, message, ns, zenoh=False)
-            for topic, message, ns in self.foxglove.setpoint(
-                None if target is None else (float(target[0]), float(target[1]), float(target[2])), now_ns
-            )
-            if self._foxglove_on
-        ]
+        scene: list[Output] = []
+        if self._foxglove_on:  # (the setpoint scene is made only for the Foxglove channels)
+            target = o.reference.target if self.mode == "dp" else None
+            scene = [
+                Output(topic, message, ns, zenoh=False)
+                for topic, message, ns in self.foxglove.setpoint(
+                    None if target is None else (float(target[0]), float(target[1]), float(target[2])),
+                    now_ns,
+                )
+            ]
         if self.mode == "standby":
             self.fusion.set_tau_demand(np.zeros(3))
             self.control_alarms = []
@@ -876,10 +917,11 @@ class Pipeline:
             tau_allocated = res.tau_allocated
             saturated = res.saturated
             self.control_alarms = list(res.alarms)
-            ids = [th.id for th in self.spec.vessel.thrusters]
             thrusters = [
                 Thruster(id=tid, thrust_n=f, azimuth_rad=a)
-                for tid, f, a in zip(ids, res.thrust.tolist(), res.azimuth.tolist(), strict=True)
+                for tid, f, a in zip(
+                    self._thruster_ids, res.thrust.tolist(), res.azimuth.tolist(), strict=True
+                )
             ]
         else:
             tau_allocated = o.tau  # no thruster layout: τ is the command (simulated vessels of the papers)
@@ -954,6 +996,10 @@ class Pipeline:
 
     def _health(self, now_ns: int, valid: list[bool]) -> list[str]:
         """Per DOF: ok / degraded (some references usable, not all ok) / dead_reckoning / lost."""
+        if valid[0] and valid[1] and valid[2]:  # (every DOF measured: the common case, every estimate)
+            health = self.monitor.health
+            word = "ok" if health("position") == "ok" else "degraded"
+            return [word, word, "ok" if health("heading") == "ok" else "degraded"]
         out = []
         position: str | None = None  # (asked once for both position DOFs)
         for k in range(3):
@@ -972,14 +1018,13 @@ class Pipeline:
         until, sigma = self._fix_sigma_enu_m.get(source, (0, None))
         return sigma if rx_ns <= until else None
 
-    def _location_fix(self, source: str, rx_ns: int, lat: float, lon: float) -> list[Output]:
-        if not self._foxglove_on:
-            return []
+    def _location_fix(self, source: str, rx_ns: int, lat: float, lon: float, out: list[Output]) -> None:
+        """The fix's `foxglove.LocationFix`, onto ``out`` (called with the Foxglove channels on)."""
         period = FIX_PERIOD_NS  # (a module global: the benchmark sets it)
         if period and rx_ns - self._last_fix_ns.get(source, -period) < period:
-            return []
+            return
         self._last_fix_ns[source] = rx_ns
-        return [
+        out.append(
             Output(
                 f"/gnss/{source}/fix",
                 location_fix(
@@ -993,7 +1038,7 @@ class Pipeline:
                 rx_ns,
                 zenoh=False,
             )
-        ]
+        )
 
     def _feedback_output(self, now_ns: int) -> Output:
         tau, _ = self.fusion.tau(now_ns)

@@ -6,12 +6,14 @@ from __future__ import annotations
 from datetime import UTC, datetime
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 from jsonschema import Draft202012Validator
 
 from gateway.pipeline import RawEvent
 from tests.test_pipeline import DATUM, T0, S, gga_at, gst, nmea_src, pipeline
 from wire.codecs import nmea_encode as enc
-from wire.foxglove import ellipsoidal_height_m, location_fix
+from wire.foxglove import ellipsoidal_height_m, heading_yaw, location_fix, ned_pose, yaw_quaternion
 from wire.geodesy import LocalFrame
 from wire.message_schema import json_schema
 from wire.messages import LocationFix
@@ -53,3 +55,11 @@ def test_location_fix_defaults_and_height() -> None:
     fix = location_fix(T0 + 5, "estimate", 59.4, 10.5)
     assert fix.timestamp.sec == T0 // S and fix.timestamp.nsec == 5
     assert fix.position_covariance_type == 0
+
+
+@given(st.floats(-50.0, 50.0), st.floats(-1e4, 1e4), st.floats(-1e4, 1e4))
+def test_ned_pose_is_the_yaw_quaternion_of_the_heading_to_the_bit(psi: float, n: float, e: float) -> None:
+    """`ned_pose` computes its orientation inline: the same numbers as `yaw_quaternion(heading_yaw(ψ))`."""
+    pose = ned_pose(n, e, psi)
+    assert pose.orientation == yaw_quaternion(heading_yaw(psi))
+    assert (pose.position.x, pose.position.y, pose.position.z) == (e, n, 0.0)

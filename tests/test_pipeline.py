@@ -455,3 +455,37 @@ def test_compile_kernels_leaves_the_pipelines_state_alone() -> None:
         outs.append([o.message.encode() for o in out])
     assert outs[0] == outs[1]
     assert sum(o.topic == "/dp/thrusters/command" for o in out) > 20
+
+
+def test_fusion_tau_held_while_all_fresh_equals_a_fresh_pass() -> None:
+    """`Fusion.tau` keeps the τ made while every thrust was fresh until the first one goes stale; at every
+    time (before, at and after each thrust's timeout, and back in time) it equals what a fusion fed the
+    same reports and asked only then gives, to the bit."""
+    from gateway.fusion import NS, Fusion
+    from observers.vessel import load_vessel
+
+    vessel = load_vessel("mss_supply")
+    ids = [t.id for t in vessel.thrusters]
+    # (receive time, thruster, thrust, azimuth): one report per thruster, 0.1 s apart
+    reports = [(k * NS // 10, tid, 1000.0 * (k + 1), 0.1 * k) for k, tid in enumerate(ids)]
+    held = Fusion(vessel)
+    for rx, tid, f, a in reports:
+        held.add_thruster(rx, tid, f, a)
+    first, last = reports[0][0], reports[-1][0]
+    timeout = held.feedback_timeout_ns
+    times = [last, last + 1, first + timeout - 1, first + timeout, first + timeout + 1, last + timeout,
+             last + timeout + 1, last + 2, first + timeout]  # fmt: skip
+    for t in times:
+        once = Fusion(vessel)
+        for rx, tid, f, a in reports:
+            once.add_thruster(rx, tid, f, a)
+        tau, how = held.tau(t)
+        tau_once, how_once = once.tau(t)
+        assert how == how_once
+        assert tau.tolist() == tau_once.tolist(), t
+    # a new report after the held τ was made is used at once
+    held.add_thruster(last + 5, ids[0], -5000.0, 0.3)
+    once = Fusion(vessel)
+    for rx, tid, f, a in [*reports, (last + 5, ids[0], -5000.0, 0.3)]:
+        once.add_thruster(rx, tid, f, a)
+    assert held.tau(last + 6)[0].tolist() == once.tau(last + 6)[0].tolist()

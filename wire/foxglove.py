@@ -115,8 +115,11 @@ def heading_yaw(psi_rad: float) -> float:
 
 def ned_pose(north_m: float, east_m: float, psi_rad: float) -> Pose:
     """The pose in `ltp` (ENU) of a point at (N, E) heading ψ."""
+    # (`yaw_quaternion(heading_yaw(ψ))` inline, the same operations: two poses for most estimates)
+    h = 0.5 * (0.5 * math.pi - psi_rad)
     return Pose(
-        position=Vector3(x=east_m, y=north_m, z=0.0), orientation=yaw_quaternion(heading_yaw(psi_rad))
+        position=Vector3(x=east_m, y=north_m, z=0.0),
+        orientation=Quaternion(x=0.0, y=0.0, z=math.sin(h), w=math.cos(h)),
     )
 
 

@@ -19,7 +19,7 @@ from typing import Literal, NamedTuple
 from gateway.references.feedback import feedback_problem
 from gateway.references.params import IntegrityParams
 from gateway.references.state import NS, OK, STALE, SourceState, StateChange
-from gateway.references.track import AngleTrack, PlaneTrack, Track
+from gateway.references.track import MIN_SAMPLES_FOR_VARIANCE, AngleTrack, PlaneTrack, Track
 from gateway.references.voting import divergence, median_distance
 from observers.vessel import Thruster
 
@@ -181,7 +181,8 @@ class ReferenceMonitor:
         if frozen >= lim.freeze_s:
             st.fail(now_ns, f"frozen: the same value for {frozen:.1f} s")
             return False
-        sigma = tr.sigma()
+        # (`Track.sigma`, inline)
+        sigma = math.sqrt(tr.var) if tr.samples >= MIN_SAMPLES_FOR_VARIANCE else None
         if sigma is not None and sigma > lim.max_sigma:
             st.fail(now_ns, f"variance: measured 1σ {sigma:.2f} m (limit {lim.max_sigma:g} m)")
             return False

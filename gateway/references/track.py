@@ -73,8 +73,12 @@ class Track:
         return (now_ns - self.same_since) / NS if self.last is not None else 0.0
 
 
+_PI = math.pi
+_TWO_PI = 2 * math.pi
+
+
 def _ssa(a: float) -> float:
-    return (a + math.pi) % (2 * math.pi) - math.pi
+    return (a + _PI) % _TWO_PI - _PI
 
 
 class PlaneTrack(Track):
@@ -127,7 +131,7 @@ class AngleTrack(Track):
         return (_ssa(a[0] - b[0]),)
 
     def distance(self, a: tuple[float, ...], b: tuple[float, ...]) -> float:
-        return abs(_ssa(a[0] - b[0]))
+        return abs((a[0] - b[0] + _PI) % _TWO_PI - _PI)  # (`_ssa`, inline: twice per heading)
 
     def observe(self, now_ns: int, v: tuple[float, ...]) -> None:
         last = self.last

@@ -594,9 +594,9 @@ def _gga(talker: str, p: list[str]) -> Gga | Reject:
     try:
         time_s = parse_time_of_day(p[1])
         i = 2
-        lat = _lat(p[2], p[3])
+        lat = _degrees_minutes(p[2], p[3], 90.0, "N", "S")  # (`_lat`)
         i = 4
-        lon = _lon(p[4], p[5])
+        lon = _degrees_minutes(p[4], p[5], 180.0, "E", "W")  # (`_lon`)
         i = 6
         quality = _QUALITY[p[6]]  # KeyError for anything but one digit or empty
         i = 7
