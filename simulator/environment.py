@@ -42,19 +42,30 @@ class MarkovBias:
         self._kick = np.zeros(3)
         self._normals = np.empty((0, 3))  # drawn in blocks: one generator call per 1024 steps, not per step
         self._k = 0
+        self.constant = np.asarray(model.constant, dtype=float)
 
     def step(self, h: float) -> None:
+        decay, kick = self.factors(h)
+        if self._k == len(self._normals):
+            self.refill()
+        self.b = decay * self.b + kick * self._normals[self._k]
+        self._k += 1
+
+    def factors(self, h: float) -> tuple[Array, Array]:
+        """e^{-h/T} and σ√(1 − e^{-2h/T}) for a step h (computed again only when h changes)."""
         if h != self._h:  # constant step: the factors are computed once
             self._h = h
             self._decay = np.exp(-h / self.T)
             self._kick = self.sigma * np.sqrt(1.0 - self._decay**2)
-        if self._k == len(self._normals):
-            self._normals = self.rng.standard_normal((1024, 3))
-            self._k = 0
-        self.b = self._decay * self.b + self._kick * self._normals[self._k]
-        self._k += 1
+        return self._decay, self._kick
+
+    def refill(self) -> None:
+        """The next block of normal draws (one generator call per 1024 steps); `step` reads row k of it.
+        A compiled caller (`simulator._advance_kernel`) reads the rows itself and moves k on."""
+        self._normals = self.rng.standard_normal((1024, 3))
+        self._k = 0
 
     @property
     def force(self) -> Array:
         """Total slowly varying earth-fixed force: Markov part plus the constant current/wind force."""
-        return self.b + np.asarray(self.model.constant, dtype=float)
+        return self.b + self.constant

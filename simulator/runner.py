@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from observers.kinematics import rotation, ssa_scalar
+from simulator._advance_kernel import advance as advance_kernel
 from simulator.clock import Clock, SimEpoch, VirtualClock
 from simulator.commands import Command, TauCommand
 from simulator.environment import MarkovBias
@@ -224,6 +225,8 @@ class Simulation:
         self.allocate = PrescribedAllocation(vessel) if self.thrusters.n else None
         self.direct_tau = self.thrusters.n == 0  # a vessel without a layout: τ acts directly (papers' sims)
         self.tau_direct = np.zeros(3)
+        self.fused_plant = True
+        """False: the plant steps in Python (`_advance_reference`), for tests that compare the two."""
 
         self.faults = FaultSchedule(scenario.faults)
         self._failure_faults = any(f.kind == "thruster_failure" for f in scenario.faults)
@@ -260,6 +263,33 @@ class Simulation:
     def _advance(self, h: float) -> None:
         n = max(1, math.ceil(h / MAX_STEP_S - 1e-9))
         hs = h / n
+        if self.plant_env is not None or not self.fused_plant:
+            self._advance_reference(n, hs)
+        else:
+            self._advance_fused(n, hs)
+        self.t += h
+
+    def _advance_fused(self, n: int, hs: float) -> None:
+        """`_advance_reference` for the low-frequency plant, in one compiled call per block of bias draws
+        (`simulator._advance_kernel`; the same bits)."""
+        bias, th, dyn = self.bias, self.thrusters, self.dynamics
+        assert isinstance(dyn, VesselDynamics)
+        decay, kick = bias.factors(hs)
+        m = max(1, math.ceil(hs / MAX_STEP_S - 1e-9))  # VesselDynamics.step's own split (always 1 here)
+        while n > 0:
+            if bias._k == len(bias._normals):
+                bias.refill()
+            chunk = min(n, len(bias._normals) - bias._k)
+            bias._k = advance_kernel(
+                chunk, hs, m, dyn.x, dyn._Minv, dyn._D,
+                not self.direct_tau, th.thrust, th.angle, th.thrust_setpoint, th.angle_setpoint, th.failed,
+                th.is_azimuth, th.time_constant, th.rate, th.x, th.y,
+                self.tau_direct, self._drift_body, bias.b, bias.constant, decay, kick, bias._normals, bias._k,
+            )  # fmt: skip
+            n -= chunk
+
+    def _advance_reference(self, n: int, hs: float) -> None:
+        """n plant substeps of hs: thrusters, bias, dynamics, one Python call each (the readable form)."""
         for _ in range(n):
             if self.direct_tau:
                 tau = self.tau_direct
@@ -271,7 +301,6 @@ class Simulation:
                 self.dynamics.step(hs, tau + self._drift_body, self.bias.force)
             else:
                 self._full_step(hs, tau)
-        self.t += h
 
     def _full_step(self, h: float, tau: Array) -> None:
         env = self.plant_env

@@ -407,15 +407,26 @@ class _Schedule:
         self.t0 = t0
         self.k = 0
 
+    @property
+    def k(self) -> int:
+        """The index of the next sample."""
+        return self._k
+
+    @k.setter
+    def k(self, k: int) -> None:
+        self._k = k
+        # the runner asks for the next instant several times per step: kept, not recomputed
+        self._next = self.t0 + k * self.period if math.isfinite(self.period) else math.inf
+
     def next(self) -> float:
-        return self.t0 + self.k * self.period if math.isfinite(self.period) else math.inf
+        return self._next
 
     def due(self, t: float) -> bool:
-        return t >= self.next() - _DUE_TOL_S
+        return t >= self._next - _DUE_TOL_S
 
     def advance_past(self, t: float) -> None:
         if math.isfinite(self.period):
-            self.k = max(self.k + 1, math.floor((t + _DUE_TOL_S - self.t0) / self.period) + 1)
+            self.k = max(self._k + 1, math.floor((t + _DUE_TOL_S - self.t0) / self.period) + 1)
 
 
 class _Freezer:
