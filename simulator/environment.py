@@ -40,6 +40,7 @@ class MarkovBias:
         self._h = math.nan
         self._decay = np.ones(3)
         self._kick = np.zeros(3)
+        self._factors: dict[float, tuple[Array, Array]] = {}
         self._normals = np.empty((0, 3))  # drawn in blocks: one generator call per 1024 steps, not per step
         self._k = 0
         self.constant = np.asarray(model.constant, dtype=float)
@@ -53,10 +54,17 @@ class MarkovBias:
 
     def factors(self, h: float) -> tuple[Array, Array]:
         """e^{-h/T} and σ√(1 − e^{-2h/T}) for a step h (computed again only when h changes)."""
-        if h != self._h:  # constant step: the factors are computed once
+        if h != self._h:  # the same step: the same factors
             self._h = h
-            self._decay = np.exp(-h / self.T)
-            self._kick = self.sigma * np.sqrt(1.0 - self._decay**2)
+            # The runner's substeps take a few dozen distinct values (event times minus sums of steps):
+            # each one's factors are computed once.
+            known = self._factors.get(h)
+            if known is None:
+                if len(self._factors) > 256:
+                    self._factors.clear()
+                decay = np.exp(-h / self.T)
+                known = self._factors[h] = (decay, self.sigma * np.sqrt(1.0 - decay**2))
+            self._decay, self._kick = known
         return self._decay, self._kick
 
     def refill(self) -> None:

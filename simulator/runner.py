@@ -46,7 +46,7 @@ from simulator.sensors import (
     ShipState,
     ThrusterFeedback,
     ThrusterReading,
-    antenna_ned,
+    antenna_ned_floats,
 )
 from simulator.spectra import SeaState
 from simulator.thrusters import PrescribedAllocation, ThrusterBank
@@ -226,6 +226,12 @@ class Simulation:
         self.direct_tau = self.thrusters.n == 0  # a vessel without a layout: τ acts directly (papers' sims)
         self.tau_direct = np.zeros(3)
         self.fused_plant = True
+        self._thruster_kinds = [t.kind for t in vessel.thrusters]
+        self._lever_arms: list[tuple[str, float, float, float]] = []
+        """(source, x, y, z) of each DGPS antenna, for the truth."""
+        for dcfg in scenario.dgps:
+            ax, ay, az = (*(float(v) for v in dcfg.lever_arm_m), 0.0)[:3]
+            self._lever_arms.append((dcfg.source, ax, ay, az))
         """False: the plant steps in Python (`_advance_reference`), for tests that compare the two."""
 
         self.faults = FaultSchedule(scenario.faults)
@@ -310,7 +316,7 @@ class Simulation:
 
     def _mean_load_body(self) -> Array:
         psi = self.dynamics.x[2]
-        load = rotation(psi).T @ np.asarray(self.scenario.bias.constant, dtype=float) + self._drift_body
+        load = rotation(psi).T @ self.bias.constant + self._drift_body
         if self.plant_env is not None and isinstance(self.dynamics, FullPlant):
             load = (
                 load
@@ -364,7 +370,7 @@ class Simulation:
         if with_thrusters and self.thrusters.n:
             # each array once, as Python floats (rpm and power are computed properties)
             th = self.thrusters
-            kinds = [t.kind for t in self.scenario.vessel.thrusters]
+            kinds = self._thruster_kinds
             readings = tuple(
                 ThrusterReading.trusted(tid, kind, thrust, angle, rpm, thrust_sp, angle_sp, failed, power)
                 for tid, kind, thrust, angle, rpm, thrust_sp, angle_sp, failed, power in zip(
@@ -391,26 +397,29 @@ class Simulation:
             return
         x = self.dynamics.x
         wf6 = self._wf.motion6(self.t, x[0:3])
-        wf, attitude = wf6[:3], wf6[3:]
-        eta_total = x[0:3] + wf
+        xs = x.tolist()  # plain floats (the same doubles as the arrays' elements, cheaper arithmetic)
+        wf, attitude = wf6[:3].tolist(), wf6[3:].tolist()
+        north, east, psi = xs[0] + wf[0], xs[1] + wf[1], xs[2] + wf[2]
         antennas = {
-            d.source: antenna_ned(eta_total, d.lever_arm_m, attitude).tolist() for d in self.scenario.dgps
+            source: list(antenna_ned_floats(north, east, psi, ax, ay, az, *attitude))
+            for source, ax, ay, az in self._lever_arms
         }
-        c, s = math.cos(x[2]), math.sin(x[2])
+        c, s = math.cos(xs[2]), math.sin(xs[2])
         d = self._drift_body if self.plant_env is None else self._drift_body + self.plant_env.wind_body
-        b = self.bias.force
-        bias_total = [b[0] + c * d[0] - s * d[1], b[1] + s * d[0] + c * d[1], b[2] + d[2]]
+        d0, d1, d2 = d.tolist()
+        b0, b1, b2 = self.bias.force.tolist()
+        bias_total = [b0 + c * d0 - s * d1, b1 + s * d0 + c * d1, b2 + d2]
         sea = self._sea_state()
         w0 = sea.peak_frequency
         tau = self.tau_direct if self.direct_tau else self.thrusters.tau
         stamp = self.epoch.stamp_ns(self.t)
         truth = TruthState(
             stamp_ns=stamp,
-            eta_lf=[float(x[0]), float(x[1]), ssa_scalar(float(x[2]))],
-            nu=x[3:6].tolist(),
+            eta_lf=[xs[0], xs[1], ssa_scalar(xs[2])],
+            nu=xs[3:6],
             bias=bias_total,
-            eta_wf=wf.tolist(),
-            wf_attitude=attitude.tolist(),
+            eta_wf=wf,
+            wf_attitude=attitude,
             antennas=antennas,
             omega0=[w0, w0, w0],
             tau=tau.tolist(),

@@ -34,7 +34,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Annotated, Any, Literal, Protocol, runtime_checkable
+from typing import Annotated, Any, Literal, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 import pymap3d
@@ -72,6 +72,7 @@ __all__ = [
     "ThrusterFeedbackConfig",
     "ThrusterReading",
     "antenna_ned",
+    "antenna_ned_floats",
     "antenna_position",
     "antenna_velocity",
     "azimuth_to_pwm",
@@ -366,16 +367,24 @@ def antenna_ned(
     eta: ArrayLike, lever_arm_m: Sequence[float], attitude: ArrayLike | None = None
 ) -> NDArray[np.float64]:
     """NED [N, E, D] of an antenna (see `antenna_position`); D includes heave and the turned arm's z."""
-    north, east, psi = np.asarray(eta, dtype=float)
+    north, east, psi = np.asarray(eta, dtype=float).tolist()
     x, y = float(lever_arm_m[0]), float(lever_arm_m[1])
     z = float(lever_arm_m[2]) if len(lever_arm_m) > 2 else 0.0
-    heave, phi, theta = (0.0, 0.0, 0.0) if attitude is None else np.asarray(attitude, dtype=float)
+    heave, phi, theta = (0.0, 0.0, 0.0) if attitude is None else np.asarray(attitude, dtype=float).tolist()
+    return np.array(antenna_ned_floats(north, east, psi, x, y, z, heave, phi, theta))
+
+
+def antenna_ned_floats(
+    north: float, east: float, psi: float, x: float, y: float, z: float,
+    heave: float, phi: float, theta: float,
+) -> tuple[float, float, float]:  # fmt: skip
+    """`antenna_ned` on plain floats (the simulator's loop: no arrays in or out)."""
     # body → level frame by roll then pitch (R_y(θ) R_x(φ)), then the heading rotation
     cf, sf, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
     y1, z1 = cf * y - sf * z, sf * y + cf * z
     x2, z2 = ct * x + st * z1, -st * x + ct * z1
     c, s = math.cos(psi), math.sin(psi)
-    return np.array([north + c * x2 - s * y1, east + s * x2 + c * y1, heave + z2])
+    return north + c * x2 - s * y1, east + s * x2 + c * y1, heave + z2
 
 
 def antenna_velocity(eta: ArrayLike, nu: ArrayLike, lever_arm_m: Sequence[float]) -> NDArray[np.float64]:
@@ -445,8 +454,7 @@ class _Freezer:
         return self._value
 
 
-@dataclass(frozen=True, slots=True)
-class _Burst:
+class _Burst(NamedTuple):
     kinds: tuple[str, ...]
     utc: Any  # datetime
     seconds: float  # of the UTC day
@@ -456,8 +464,7 @@ class _Burst:
     station: int | None
 
 
-@dataclass(frozen=True)
-class _Fix:
+class _Fix(NamedTuple):
     lat_deg: float
     lon_deg: float
     alt_m: float
@@ -494,6 +501,8 @@ class Dgps(Sensor):
         self._t_noise = 0.0
         self._freeze = _Freezer()
         self._mode = DGPS_QUALITIES[config.quality]
+        arm = config.lever_arm_m
+        self._lever_arm = (float(arm[0]), float(arm[1]), float(arm[2]) if len(arm) > 2 else 0.0)
         self.encode = True
         """False: emissions carry typed records instead of bytes (see `Emission.record`)."""
 
@@ -528,16 +537,26 @@ class Dgps(Sensor):
         return self._noise
 
     def _measure(self, state: ShipState, t: float) -> _Fix:
+        """The fix at t. Plain floats throughout (the same IEEE arithmetic as the arrays of
+        `antenna_velocity` and `antenna_ned`, element by element, without making them)."""
         cfg = self.config
         noise = self._position_noise(t).copy()
-        velocity = antenna_velocity(state.eta, state.nu, cfg.lever_arm_m)
-        velocity += cfg.sigma_velocity_mps * self.rng.standard_normal(2)
+        north, east, psi = state.eta.tolist()
+        u, v, r = state.nu.tolist()
+        x, y, z = self._lever_arm
+        bu, bv = u - r * y, v + r * x  # antenna_velocity
+        c, s = math.cos(psi), math.sin(psi)
+        w = self.rng.standard_normal(2).tolist()
+        vn = c * bu - s * bv + cfg.sigma_velocity_mps * w[0]
+        ve = s * bu + c * bv + cfg.sigma_velocity_mps * w[1]
         burst = self.faults.active("noise_burst", self.source, t)
         if burst is not None:
             sigma = burst.param("sigma_m")
             noise += np.array([sigma, sigma, VERTICAL_SIGMA_FACTOR * sigma]) * self.rng.standard_normal(3)
-        ant = antenna_ned(state.eta, cfg.lever_arm_m, state.attitude)
-        north, east = ant[:2] + noise[:2]
+        heave, phi, theta = state.attitude.tolist()
+        ant_n, ant_e, ant_d = antenna_ned_floats(north, east, psi, x, y, z, heave, phi, theta)
+        n0, n1, n2 = noise.tolist()
+        north, east = ant_n + n0, ant_e + n1
         jump = self.faults.active("jump", self.source, t)
         if jump is not None:
             north += jump.param("north_m")
@@ -551,13 +570,7 @@ class Dgps(Sensor):
         if spoof is not None:
             lat = spoof.param("lat_deg", float(lat))
             lon = spoof.param("lon_deg", float(lon))
-        return _Fix(
-            lat_deg=float(lat),
-            lon_deg=float(lon),
-            alt_m=cfg.alt_m - float(ant[2]) + float(noise[2]),
-            sog_mps=math.hypot(velocity[0], velocity[1]),
-            cog_rad=math.atan2(velocity[1], velocity[0]),
-        )
+        return _Fix(float(lat), float(lon), cfg.alt_m - ant_d + n2, math.hypot(vn, ve), math.atan2(ve, vn))
 
     def _burst(self, t: float) -> _Burst:
         """What the sentences of the fix at ``t`` share: which are sent, the UTC time, quality and mode."""

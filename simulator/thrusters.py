@@ -138,9 +138,9 @@ class PrescribedAllocation:
         self.fixed_angle = np.array([t.angle_rad for t in vessel.thrusters], dtype=float)
 
     def __call__(self, tau: ArrayLike) -> tuple[Array, Array]:
-        f = self.pinv @ np.asarray(tau, dtype=float)
+        f = (self.pinv @ np.asarray(tau, dtype=float)).tolist()  # (Python floats: the same doubles)
         n = len(self.is_azimuth)
-        fx, fy, thrust = np.zeros(n), np.zeros(n), np.zeros(n)
+        fx, fy, thrust = [0.0] * n, [0.0] * n, [0.0] * n
         for value, (i, kind) in zip(f, self.owner, strict=True):
             if kind == 0:
                 fx[i] = value
@@ -148,12 +148,12 @@ class PrescribedAllocation:
                 fy[i] = value
             else:
                 thrust[i] = value
-        angle = self.fixed_angle.copy()
+        angle = self.fixed_angle.tolist()
         for i, az in enumerate(self.is_azimuth):
             if az:
                 thrust[i] = math.hypot(fx[i], fy[i])
                 angle[i] = math.atan2(fy[i], fx[i])
-        return thrust, angle
+        return np.array(thrust), np.array(angle)
 
 
 def least_squares_commands(vessel: VesselModel, tau: ArrayLike) -> tuple[Array, Array]:
