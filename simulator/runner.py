@@ -248,6 +248,8 @@ class Simulation:
         for sensor in self.sensors:
             sensor.encode = wire
 
+        self._sensors_seen: list[Dgps | Gyro | ThrusterFeedback] = []
+        self._sensor_kinds: list[tuple[Dgps | Gyro | ThrusterFeedback, bool]] = []
         self.t = 0.0
         self._sea_valid = (math.inf, -math.inf)
         self._sea_cached = scenario.sea[0][1]
@@ -484,9 +486,13 @@ class Simulation:
         next_time = self.t
         wall0 = time.perf_counter()
         eps = 1e-9
-        sensors = [(s, isinstance(s, ThrusterFeedback)) for s in self.sensors]
+        if self._sensors_seen != self.sensors:  # (an isinstance on a Protocol's subclass is slow: once)
+            self._sensors_seen = list(self.sensors)
+            self._sensor_kinds = [(s, isinstance(s, ThrusterFeedback)) for s in self.sensors]
+        sensors = self._sensor_kinds
+        next_times = [s.next_time for s in self.sensors]
         while True:
-            t_next = min(next_truth, next_ctrl, next_drift, end, *[s.next_time() for s, _ in sensors])
+            t_next = min(next_truth, next_ctrl, next_drift, end, *[f() for f in next_times])
             if self.on_time is not None and next_time < t_next:
                 t_next = next_time
             if self._pending and self._pending[0][0] < t_next:

@@ -30,6 +30,7 @@ class ThrusterBank:
         self.ids = [t.id for t in th]
         self.n = len(th)
         self.is_azimuth = np.array([t.kind == "azimuth" for t in th], dtype=bool)
+        self._azimuth = self.is_azimuth.tolist()
         self.max_thrust = np.array([t.max_thrust_n for t in th], dtype=float)
         self.min_thrust = np.array([t.min_thrust_n for t in th], dtype=float)
         self.rate = np.array([t.azimuth_rate_rad_s for t in th], dtype=float)
@@ -55,7 +56,16 @@ class ThrusterBank:
         self.thrust_setpoint = np.clip(np.asarray(thrust_n, dtype=float), self.min_thrust, self.max_thrust)
         if angle_rad is not None:
             a = np.asarray(angle_rad, dtype=float)
-            self.angle_setpoint = np.where(self.is_azimuth, ssa(a), self.fixed_angle)
+            if a.shape == self.fixed_angle.shape:  # (ssa_scalar is ssa bit for bit, cheaper for a few)
+                fixed = self.fixed_angle.tolist()
+                self.angle_setpoint = np.array(
+                    [
+                        ssa_scalar(v) if az else f
+                        for v, az, f in zip(a.tolist(), self._azimuth, fixed, strict=True)
+                    ]
+                )
+            else:
+                self.angle_setpoint = np.where(self.is_azimuth, ssa(a), self.fixed_angle)
 
     def command_one(self, thruster_id: int, thrust_n: float, angle_rad: float | None = None) -> None:
         i = self.index(thruster_id)
