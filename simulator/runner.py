@@ -491,12 +491,17 @@ class Simulation:
             self._sensor_kinds = [(s, isinstance(s, ThrusterFeedback)) for s in self.sensors]
         sensors = self._sensor_kinds
         next_times = [s.next_time for s in self.sensors]
+        pending = self._pending
+        apply_faults, fault_rng = self.faults.apply_to_emissions, self.fault_rng
         while True:
-            t_next = min(next_truth, next_ctrl, next_drift, end, *[f() for f in next_times])
+            # the sensors' next instants: nothing but their own samples moves them, so the values found
+            # here also say which are due after the advance
+            times = [f() for f in next_times]
+            t_next = min(next_truth, next_ctrl, next_drift, end, *times)
             if self.on_time is not None and next_time < t_next:
                 t_next = next_time
-            if self._pending and self._pending[0][0] < t_next:
-                t_next = self._pending[0][0]
+            if pending and pending[0][0] < t_next:
+                t_next = pending[0][0]
             if t_next > self.t:
                 self._advance(t_next - self.t)
             if self.on_time is not None:
@@ -511,18 +516,23 @@ class Simulation:
                 self._control_tick()
                 next_ctrl += ctrl_dt
             state: ShipState | None = None  # built once per instant; thruster readings only for feedback
-            for sensor, feedback in sensors:
-                while sensor.next_time() <= self.t + eps:
+            due = self.t + eps
+            for (sensor, feedback), t_sensor in zip(sensors, times, strict=True):
+                if t_sensor > due:
+                    continue
+                while True:
                     if feedback:
                         emissions = sensor.sample(self.ship_state(with_thrusters=True))
                     else:
                         if state is None:
                             state = self.ship_state(with_thrusters=False)
                         emissions = sensor.sample(state)
-                    for e in self.faults.apply_to_emissions(emissions, self.fault_rng):
-                        heapq.heappush(self._pending, (e.t_emit, self._seq, e))
+                    for e in apply_faults(emissions, fault_rng):
+                        heapq.heappush(pending, (e.t_emit, self._seq, e))
                         self._seq += 1
-            if self._pending and self._pending[0][0] <= self.t + eps:
+                    if sensor.next_time() > due:
+                        break
+            if pending and pending[0][0] <= due:
                 self._emit_due()
             if self.t >= next_truth - eps:
                 self._truth()
