@@ -95,6 +95,7 @@ FAULT_CODE_TRIP = 1
 
 _DUE_TOL_S = 1e-6
 _new = object.__new__
+_ID_TEXT = [str(i) for i in range(256)]  # a thruster id (0..255) as a fault's source names it
 _GNS_CONSTELLATIONS = 2  # GNS mode field: one character for GPS and one for GLONASS
 _FLAGS_OK = (
     mv.AzimuthThrusterFlags.READY | mv.AzimuthThrusterFlags.RUNNING | mv.AzimuthThrusterFlags.REMOTE_CONTROL
@@ -519,6 +520,8 @@ class Dgps(Sensor):
         self._t_noise = 0.0
         self._freeze = _Freezer()
         self._mode = DGPS_QUALITIES[config.quality]
+        self._kinds_all = config.sentences
+        self._kinds_fast = tuple(k for k in config.sentences if k not in config.slow_sentences)
         arm = config.lever_arm_m
         self._lever_arm = (float(arm[0]), float(arm[1]), float(arm[2]) if len(arm) > 2 else 0.0)
         self.encode = True
@@ -603,7 +606,7 @@ class Dgps(Sensor):
         differential = quality in (2, 3, 4, 5)  # corrections in use: the age and station fields are filled
         seconds = utc.hour * 3600 + utc.minute * 60 + utc.second + utc.microsecond * 1e-6
         slow_due = (seconds % (1.0 / min(cfg.slow_rate_hz, cfg.rate_hz))) < 0.5 / cfg.rate_hz
-        kinds = tuple(k for k in cfg.sentences if slow_due or k not in cfg.slow_sentences)
+        kinds = self._kinds_all if slow_due else self._kinds_fast
         age = cfg.age_s if differential else None
         station = cfg.station_id if differential else None
         return _Burst(kinds, utc, seconds, quality, mode, age, station)
@@ -876,9 +879,10 @@ class ThrusterFeedback(Sensor):
         time_usec = self.epoch.stamp_ns(t) // 1000
         frames = []
         for reading in readings:
-            failed = reading.failed or self.faults.active("thruster_failure", str(reading.id), t) is not None
+            key = _ID_TEXT[reading.id]
+            failed = reading.failed or self.faults.active("thruster_failure", key, t) is not None
             thrust, rpm, azimuth = reading.thrust_n, reading.rpm, reading.azimuth_rad
-            bogus = self.faults.active("bogus_feedback", str(reading.id), t)
+            bogus = self.faults.active("bogus_feedback", key, t)
             if bogus is not None:  # the drive claims what the fault says (a bad scaling, a broken sensor)
                 thrust = bogus.param("thrust_n", thrust)
                 rpm = bogus.param("rpm", rpm)

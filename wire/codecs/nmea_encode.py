@@ -517,13 +517,18 @@ def _lat(lat_deg: float | None, decimals: int) -> tuple[Field, Field]:
     if lat_deg is None:
         return None, None
     lat = float(lat_deg)
+    last = _LAST_LAT  # GGA/GNS and RMC of one fix print the same latitude: the last answer is kept
+    if lat == last[0] and decimals == last[1]:  # (±0 print alike; NaN never matches and is refused below)
+        return last[2]
     if not math.isfinite(lat):
         _finite("lat_deg", lat)
     if not -90.0 <= lat <= 90.0:
         raise ValueError(f"latitude must be in [-90, 90] degrees, got {lat}")
     text = _dm(abs(lat), 2, decimals)
     south = lat < 0 and text.strip("0.") != ""
-    return text, "S" if south else "N"
+    out: tuple[Field, Field] = (text, "S" if south else "N")
+    globals()["_LAST_LAT"] = (lat, decimals, out)
+    return out
 
 
 def _lon(lon_deg: float | None, decimals: int) -> tuple[Field, Field]:
@@ -532,13 +537,23 @@ def _lon(lon_deg: float | None, decimals: int) -> tuple[Field, Field]:
     if lon_deg is None:
         return None, None
     lon = float(lon_deg)
+    last = _LAST_LON  # (as in `_lat`)
+    if lon == last[0] and decimals == last[1]:
+        return last[2]
+    key = lon
     if not math.isfinite(lon):
         _finite("lon_deg", lon)
     if not -180.0 <= lon <= 180.0:
         lon = (lon + 180.0) % 360.0 - 180.0
     text = _dm(abs(lon), 3, decimals)
     west = lon < 0 and text.strip("0.") != ""
-    return text, "W" if west else "E"
+    out: tuple[Field, Field] = (text, "W" if west else "E")
+    globals()["_LAST_LON"] = (key, decimals, out)
+    return out
+
+
+_LAST_LAT: tuple[float, int, tuple[Field, Field]] = (math.nan, -1, (None, None))
+_LAST_LON: tuple[float, int, tuple[Field, Field]] = (math.nan, -1, (None, None))
 
 
 def _fixed(value: float | None, decimals: int) -> Field:
