@@ -374,13 +374,19 @@ class Simulation:
             th = self.thrusters
             kinds = self._thruster_kinds
             readings = tuple(
-                ThrusterReading.trusted(tid, kind, thrust, angle, rpm, thrust_sp, angle_sp, failed, power)
-                for tid, kind, thrust, angle, rpm, thrust_sp, angle_sp, failed, power in zip(
-                    th.ids, kinds, th.thrust.tolist(), th.angle.tolist(), th.rpm.tolist(),
-                    th.thrust_setpoint.tolist(), th.angle_setpoint.tolist(), th.failed.tolist(),
-                    th.power_w.tolist(), strict=True,
+                map(
+                    ThrusterReading.trusted,
+                    th.ids,
+                    kinds,
+                    th.thrust.tolist(),
+                    th.angle.tolist(),
+                    th.rpm.tolist(),
+                    th.thrust_setpoint.tolist(),
+                    th.angle_setpoint.tolist(),
+                    th.failed.tolist(),
+                    th.power_w.tolist(),
                 )
-            )  # fmt: skip
+            )  # fmt: skip  (every list has one element per thruster)
         return ShipState.trusted(self.t, eta, self.dynamics.x[3:6].copy(), readings, wf6[3:].copy())
 
     def _sea_state(self) -> SeaState:
@@ -434,22 +440,27 @@ class Simulation:
         """Send every emission that is due. The log gets one message per burst (a sensor's frames of one
         instant, like a multiplexer's datagram); the transports get each sentence or frame on its own."""
         burst: list[Emission] = []
+        first: Emission | None = None
         paced = not isinstance(self.clock, VirtualClock)  # a virtual clock never waits
-        while self._pending and self._pending[0][0] <= self.t + 1e-9:
-            e = heapq.heappop(self._pending)[2]
-            if burst and (
-                e.source != burst[0].source or e.t_emit != burst[0].t_emit or e.protocol != burst[0].protocol
+        pending, routes, on_emit, limit = self._pending, self.routes, self.on_emit, self.t + 1e-9
+        while pending and pending[0][0] <= limit:
+            e = heapq.heappop(pending)[2]
+            if first is not None and (
+                e.source != first.source or e.t_emit != first.t_emit or e.protocol != first.protocol
             ):
                 self._end_burst(burst)
                 burst = []
+                first = None
             if paced:
                 self.clock.sleep_until(e.t_emit)
-            for route in self.routes:
+            for route in routes:
                 if route.wants(e):
                     route.sink.write(e.data)
-            if self.on_emit is not None:
-                self.on_emit(e)
+            if on_emit is not None:
+                on_emit(e)
             burst.append(e)
+            if first is None:
+                first = e
         if burst:
             self._end_burst(burst)
 

@@ -211,12 +211,17 @@ class ThrusterReading:
     ) -> ThrusterReading:  # fmt: skip
         """For the simulator's own loop, whose ids and kinds come from a checked vessel: the same object
         without the checks (six of them at every feedback sample)."""
-        reading = object.__new__(cls)
-        vars(reading).update(
-            id=id, kind=kind, thrust_n=thrust_n, azimuth_rad=azimuth_rad, rpm=rpm,
-            thrust_setpoint_n=thrust_setpoint_n, azimuth_setpoint_rad=azimuth_setpoint_rad, failed=failed,
-            power_w=power_w,
-        )  # fmt: skip
+        reading = _new(cls)
+        d = reading.__dict__
+        d["id"] = id
+        d["kind"] = kind
+        d["thrust_n"] = thrust_n
+        d["azimuth_rad"] = azimuth_rad
+        d["rpm"] = rpm
+        d["thrust_setpoint_n"] = thrust_setpoint_n
+        d["azimuth_setpoint_rad"] = azimuth_setpoint_rad
+        d["failed"] = failed
+        d["power_w"] = power_w
         return reading
 
 

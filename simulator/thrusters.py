@@ -30,9 +30,10 @@ class ThrusterBank:
         self.ids = [t.id for t in th]
         self.n = len(th)
         self.is_azimuth = np.array([t.kind == "azimuth" for t in th], dtype=bool)
-        self._azimuth = self.is_azimuth.tolist()
+        self._azimuth = self.is_azimuth.tolist()  # (lists: one element of an array costs more to read)
         self.max_thrust = np.array([t.max_thrust_n for t in th], dtype=float)
         self.min_thrust = np.array([t.min_thrust_n for t in th], dtype=float)
+        self._min_thrust, self._max_thrust = self.min_thrust.tolist(), self.max_thrust.tolist()
         self.rate = np.array([t.azimuth_rate_rad_s for t in th], dtype=float)
         self.time_constant = np.array([max(t.thrust_time_constant_s, 1e-6) for t in th], dtype=float)
         self.fixed_angle = np.array([t.angle_rad for t in th], dtype=float)
@@ -69,8 +70,8 @@ class ThrusterBank:
 
     def command_one(self, thruster_id: int, thrust_n: float, angle_rad: float | None = None) -> None:
         i = self.index(thruster_id)
-        self.thrust_setpoint[i] = min(max(thrust_n, self.min_thrust[i]), self.max_thrust[i])
-        if angle_rad is not None and self.is_azimuth[i]:
+        self.thrust_setpoint[i] = min(max(thrust_n, self._min_thrust[i]), self._max_thrust[i])
+        if angle_rad is not None and self._azimuth[i]:
             self.angle_setpoint[i] = ssa_scalar(float(angle_rad))  # (= ssa, bit for bit; no array)
 
     def step(self, h: float) -> None:
