@@ -47,10 +47,9 @@ class MarkovBias:
 
     def step(self, h: float) -> None:
         decay, kick = self.factors(h)
-        if self._k == len(self._normals):
-            self.refill()
-        self.b = decay * self.b + kick * self._normals[self._k]
-        self._k += 1
+        normals, k = self.draws()
+        self.b = decay * self.b + kick * normals[k]
+        self._k = k + 1
 
     def factors(self, h: float) -> tuple[Array, Array]:
         """e^{-h/T} and σ√(1 − e^{-2h/T}) for a step h (computed again only when h changes)."""
@@ -68,10 +67,21 @@ class MarkovBias:
         return self._decay, self._kick
 
     def refill(self) -> None:
-        """The next block of normal draws (one generator call per 1024 steps); `step` reads row k of it.
-        A compiled caller (`simulator._advance_kernel`) reads the rows itself and moves k on."""
+        """The next block of normal draws (one generator call per 1024 steps); `step` reads row k of it."""
         self._normals = self.rng.standard_normal((1024, 3))
         self._k = 0
+
+    def draws(self) -> tuple[Array, int]:
+        """(the block of normal draws, the next row to use), refilled first when used up: for a compiled
+        caller (`simulator._advance_kernel`) that steps b itself; it reports the rows it took with
+        `took`. The draws are the ones `step` would have used, in the same order."""
+        if self._k == len(self._normals):
+            self.refill()
+        return self._normals, self._k
+
+    def took(self, k: int) -> None:
+        """The caller of `draws` has used the rows up to (not including) k."""
+        self._k = k
 
     @property
     def force(self) -> Array:

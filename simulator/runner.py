@@ -285,15 +285,15 @@ class Simulation:
         decay, kick = bias.factors(hs)
         m = max(1, math.ceil(hs / MAX_STEP_S - 1e-9))  # VesselDynamics.step's own split (always 1 here)
         while n > 0:
-            if bias._k == len(bias._normals):
-                bias.refill()
-            chunk = min(n, len(bias._normals) - bias._k)
-            bias._k = advance_kernel(
+            normals, k = bias.draws()
+            chunk = min(n, len(normals) - k)
+            k = advance_kernel(
                 chunk, hs, m, dyn.x, dyn._Minv, dyn._D,
                 not self.direct_tau, th.thrust, th.angle, th.thrust_setpoint, th.angle_setpoint, th.failed,
                 th.is_azimuth, th.time_constant, th.rate, th.x, th.y,
-                self.tau_direct, self._drift_body, bias.b, bias.constant, decay, kick, bias._normals, bias._k,
+                self.tau_direct, self._drift_body, bias.b, bias.constant, decay, kick, normals, k,
             )  # fmt: skip
+            bias.took(k)
             n -= chunk
 
     def _advance_reference(self, n: int, hs: float) -> None:
