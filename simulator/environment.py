@@ -40,21 +40,50 @@ class MarkovBias:
         self._h = math.nan
         self._decay = np.ones(3)
         self._kick = np.zeros(3)
+        self._factors: dict[float, tuple[Array, Array]] = {}
         self._normals = np.empty((0, 3))  # drawn in blocks: one generator call per 1024 steps, not per step
         self._k = 0
+        self.constant = np.asarray(model.constant, dtype=float)
 
     def step(self, h: float) -> None:
-        if h != self._h:  # constant step: the factors are computed once
+        decay, kick = self.factors(h)
+        normals, k = self.draws()
+        self.b = decay * self.b + kick * normals[k]
+        self._k = k + 1
+
+    def factors(self, h: float) -> tuple[Array, Array]:
+        """e^{-h/T} and σ√(1 − e^{-2h/T}) for a step h (computed again only when h changes)."""
+        if h != self._h:  # the same step: the same factors
             self._h = h
-            self._decay = np.exp(-h / self.T)
-            self._kick = self.sigma * np.sqrt(1.0 - self._decay**2)
+            # The runner's substeps take a few dozen distinct values (event times minus sums of steps):
+            # each one's factors are computed once.
+            known = self._factors.get(h)
+            if known is None:
+                if len(self._factors) > 256:
+                    self._factors.clear()
+                decay = np.exp(-h / self.T)
+                known = self._factors[h] = (decay, self.sigma * np.sqrt(1.0 - decay**2))
+            self._decay, self._kick = known
+        return self._decay, self._kick
+
+    def refill(self) -> None:
+        """The next block of normal draws (one generator call per 1024 steps); `step` reads row k of it."""
+        self._normals = self.rng.standard_normal((1024, 3))
+        self._k = 0
+
+    def draws(self) -> tuple[Array, int]:
+        """(the block of normal draws, the next row to use), refilled first when used up: for a compiled
+        caller (`simulator._advance_kernel`) that steps b itself; it reports the rows it took with
+        `took`. The draws are the ones `step` would have used, in the same order."""
         if self._k == len(self._normals):
-            self._normals = self.rng.standard_normal((1024, 3))
-            self._k = 0
-        self.b = self._decay * self.b + self._kick * self._normals[self._k]
-        self._k += 1
+            self.refill()
+        return self._normals, self._k
+
+    def took(self, k: int) -> None:
+        """The caller of `draws` has used the rows up to (not including) k."""
+        self._k = k
 
     @property
     def force(self) -> Array:
         """Total slowly varying earth-fixed force: Markov part plus the constant current/wind force."""
-        return self.b + np.asarray(self.model.constant, dtype=float)
+        return self.b + self.constant

@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from observers.kinematics import rotation, ssa_scalar
+from simulator._advance_kernel import advance as advance_kernel
 from simulator.clock import Clock, SimEpoch, VirtualClock
 from simulator.commands import Command, TauCommand
 from simulator.environment import MarkovBias
@@ -45,7 +46,7 @@ from simulator.sensors import (
     ShipState,
     ThrusterFeedback,
     ThrusterReading,
-    antenna_ned,
+    antenna_ned_floats,
 )
 from simulator.spectra import SeaState
 from simulator.thrusters import PrescribedAllocation, ThrusterBank
@@ -224,6 +225,14 @@ class Simulation:
         self.allocate = PrescribedAllocation(vessel) if self.thrusters.n else None
         self.direct_tau = self.thrusters.n == 0  # a vessel without a layout: τ acts directly (papers' sims)
         self.tau_direct = np.zeros(3)
+        self.fused_plant = True
+        self._thruster_kinds = [t.kind for t in vessel.thrusters]
+        self._lever_arms: list[tuple[str, float, float, float]] = []
+        """(source, x, y, z) of each DGPS antenna, for the truth."""
+        for dcfg in scenario.dgps:
+            ax, ay, az = (*(float(v) for v in dcfg.lever_arm_m), 0.0)[:3]
+            self._lever_arms.append((dcfg.source, ax, ay, az))
+        """False: the plant steps in Python (`_advance_reference`), for tests that compare the two."""
 
         self.faults = FaultSchedule(scenario.faults)
         self._failure_faults = any(f.kind == "thruster_failure" for f in scenario.faults)
@@ -239,6 +248,8 @@ class Simulation:
         for sensor in self.sensors:
             sensor.encode = wire
 
+        self._sensors_seen: list[Dgps | Gyro | ThrusterFeedback] = []
+        self._sensor_kinds: list[tuple[Dgps | Gyro | ThrusterFeedback, bool]] = []
         self.t = 0.0
         self._sea_valid = (math.inf, -math.inf)
         self._sea_cached = scenario.sea[0][1]
@@ -260,6 +271,33 @@ class Simulation:
     def _advance(self, h: float) -> None:
         n = max(1, math.ceil(h / MAX_STEP_S - 1e-9))
         hs = h / n
+        if self.plant_env is not None or not self.fused_plant:
+            self._advance_reference(n, hs)
+        else:
+            self._advance_fused(n, hs)
+        self.t += h
+
+    def _advance_fused(self, n: int, hs: float) -> None:
+        """`_advance_reference` for the low-frequency plant, in one compiled call per block of bias draws
+        (`simulator._advance_kernel`; the same bits)."""
+        bias, th, dyn = self.bias, self.thrusters, self.dynamics
+        assert isinstance(dyn, VesselDynamics)
+        decay, kick = bias.factors(hs)
+        m = max(1, math.ceil(hs / MAX_STEP_S - 1e-9))  # VesselDynamics.step's own split (always 1 here)
+        while n > 0:
+            normals, k = bias.draws()
+            chunk = min(n, len(normals) - k)
+            k = advance_kernel(
+                chunk, hs, m, dyn.x, dyn._Minv, dyn._D,
+                not self.direct_tau, th.thrust, th.angle, th.thrust_setpoint, th.angle_setpoint, th.failed,
+                th.is_azimuth, th.time_constant, th.rate, th.x, th.y,
+                self.tau_direct, self._drift_body, bias.b, bias.constant, decay, kick, normals, k,
+            )  # fmt: skip
+            bias.took(k)
+            n -= chunk
+
+    def _advance_reference(self, n: int, hs: float) -> None:
+        """n plant substeps of hs: thrusters, bias, dynamics, one Python call each (the readable form)."""
         for _ in range(n):
             if self.direct_tau:
                 tau = self.tau_direct
@@ -271,7 +309,6 @@ class Simulation:
                 self.dynamics.step(hs, tau + self._drift_body, self.bias.force)
             else:
                 self._full_step(hs, tau)
-        self.t += h
 
     def _full_step(self, h: float, tau: Array) -> None:
         env = self.plant_env
@@ -281,7 +318,7 @@ class Simulation:
 
     def _mean_load_body(self) -> Array:
         psi = self.dynamics.x[2]
-        load = rotation(psi).T @ np.asarray(self.scenario.bias.constant, dtype=float) + self._drift_body
+        load = rotation(psi).T @ self.bias.constant + self._drift_body
         if self.plant_env is not None and isinstance(self.dynamics, FullPlant):
             load = (
                 load
@@ -335,15 +372,21 @@ class Simulation:
         if with_thrusters and self.thrusters.n:
             # each array once, as Python floats (rpm and power are computed properties)
             th = self.thrusters
-            kinds = [t.kind for t in self.scenario.vessel.thrusters]
+            kinds = self._thruster_kinds
             readings = tuple(
-                ThrusterReading.trusted(tid, kind, thrust, angle, rpm, thrust_sp, angle_sp, failed, power)
-                for tid, kind, thrust, angle, rpm, thrust_sp, angle_sp, failed, power in zip(
-                    th.ids, kinds, th.thrust.tolist(), th.angle.tolist(), th.rpm.tolist(),
-                    th.thrust_setpoint.tolist(), th.angle_setpoint.tolist(), th.failed.tolist(),
-                    th.power_w.tolist(), strict=True,
+                map(
+                    ThrusterReading.trusted,
+                    th.ids,
+                    kinds,
+                    th.thrust.tolist(),
+                    th.angle.tolist(),
+                    th.rpm.tolist(),
+                    th.thrust_setpoint.tolist(),
+                    th.angle_setpoint.tolist(),
+                    th.failed.tolist(),
+                    th.power_w.tolist(),
                 )
-            )  # fmt: skip
+            )  # fmt: skip  (every list has one element per thruster)
         return ShipState.trusted(self.t, eta, self.dynamics.x[3:6].copy(), readings, wf6[3:].copy())
 
     def _sea_state(self) -> SeaState:
@@ -362,26 +405,29 @@ class Simulation:
             return
         x = self.dynamics.x
         wf6 = self._wf.motion6(self.t, x[0:3])
-        wf, attitude = wf6[:3], wf6[3:]
-        eta_total = x[0:3] + wf
+        xs = x.tolist()  # plain floats (the same doubles as the arrays' elements, cheaper arithmetic)
+        wf, attitude = wf6[:3].tolist(), wf6[3:].tolist()
+        north, east, psi = xs[0] + wf[0], xs[1] + wf[1], xs[2] + wf[2]
         antennas = {
-            d.source: antenna_ned(eta_total, d.lever_arm_m, attitude).tolist() for d in self.scenario.dgps
+            source: list(antenna_ned_floats(north, east, psi, ax, ay, az, *attitude))
+            for source, ax, ay, az in self._lever_arms
         }
-        c, s = math.cos(x[2]), math.sin(x[2])
+        c, s = math.cos(xs[2]), math.sin(xs[2])
         d = self._drift_body if self.plant_env is None else self._drift_body + self.plant_env.wind_body
-        b = self.bias.force
-        bias_total = [b[0] + c * d[0] - s * d[1], b[1] + s * d[0] + c * d[1], b[2] + d[2]]
+        d0, d1, d2 = d.tolist()
+        b0, b1, b2 = self.bias.force.tolist()
+        bias_total = [b0 + c * d0 - s * d1, b1 + s * d0 + c * d1, b2 + d2]
         sea = self._sea_state()
         w0 = sea.peak_frequency
         tau = self.tau_direct if self.direct_tau else self.thrusters.tau
         stamp = self.epoch.stamp_ns(self.t)
         truth = TruthState(
             stamp_ns=stamp,
-            eta_lf=[float(x[0]), float(x[1]), ssa_scalar(float(x[2]))],
-            nu=x[3:6].tolist(),
+            eta_lf=[xs[0], xs[1], ssa_scalar(xs[2])],
+            nu=xs[3:6],
             bias=bias_total,
-            eta_wf=wf.tolist(),
-            wf_attitude=attitude.tolist(),
+            eta_wf=wf,
+            wf_attitude=attitude,
             antennas=antennas,
             omega0=[w0, w0, w0],
             tau=tau.tolist(),
@@ -394,22 +440,27 @@ class Simulation:
         """Send every emission that is due. The log gets one message per burst (a sensor's frames of one
         instant, like a multiplexer's datagram); the transports get each sentence or frame on its own."""
         burst: list[Emission] = []
+        first: Emission | None = None
         paced = not isinstance(self.clock, VirtualClock)  # a virtual clock never waits
-        while self._pending and self._pending[0][0] <= self.t + 1e-9:
-            e = heapq.heappop(self._pending)[2]
-            if burst and (
-                e.source != burst[0].source or e.t_emit != burst[0].t_emit or e.protocol != burst[0].protocol
+        pending, routes, on_emit, limit = self._pending, self.routes, self.on_emit, self.t + 1e-9
+        while pending and pending[0][0] <= limit:
+            e = heapq.heappop(pending)[2]
+            if first is not None and (
+                e.source != first.source or e.t_emit != first.t_emit or e.protocol != first.protocol
             ):
                 self._end_burst(burst)
                 burst = []
+                first = None
             if paced:
                 self.clock.sleep_until(e.t_emit)
-            for route in self.routes:
+            for route in routes:
                 if route.wants(e):
                     route.sink.write(e.data)
-            if self.on_emit is not None:
-                self.on_emit(e)
+            if on_emit is not None:
+                on_emit(e)
             burst.append(e)
+            if first is None:
+                first = e
         if burst:
             self._end_burst(burst)
 
@@ -446,13 +497,22 @@ class Simulation:
         next_time = self.t
         wall0 = time.perf_counter()
         eps = 1e-9
-        sensors = [(s, isinstance(s, ThrusterFeedback)) for s in self.sensors]
+        if self._sensors_seen != self.sensors:  # (an isinstance on a Protocol's subclass is slow: once)
+            self._sensors_seen = list(self.sensors)
+            self._sensor_kinds = [(s, isinstance(s, ThrusterFeedback)) for s in self.sensors]
+        sensors = self._sensor_kinds
+        next_times = [s.next_time for s in self.sensors]
+        pending = self._pending
+        apply_faults, fault_rng = self.faults.apply_to_emissions, self.fault_rng
         while True:
-            t_next = min(next_truth, next_ctrl, next_drift, end, *[s.next_time() for s, _ in sensors])
+            # the sensors' next instants: nothing but their own samples moves them, so the values found
+            # here also say which are due after the advance
+            times = [f() for f in next_times]
+            t_next = min(next_truth, next_ctrl, next_drift, end, *times)
             if self.on_time is not None and next_time < t_next:
                 t_next = next_time
-            if self._pending and self._pending[0][0] < t_next:
-                t_next = self._pending[0][0]
+            if pending and pending[0][0] < t_next:
+                t_next = pending[0][0]
             if t_next > self.t:
                 self._advance(t_next - self.t)
             if self.on_time is not None:
@@ -467,18 +527,23 @@ class Simulation:
                 self._control_tick()
                 next_ctrl += ctrl_dt
             state: ShipState | None = None  # built once per instant; thruster readings only for feedback
-            for sensor, feedback in sensors:
-                while sensor.next_time() <= self.t + eps:
+            due = self.t + eps
+            for (sensor, feedback), t_sensor in zip(sensors, times, strict=True):
+                if t_sensor > due:
+                    continue
+                while True:
                     if feedback:
                         emissions = sensor.sample(self.ship_state(with_thrusters=True))
                     else:
                         if state is None:
                             state = self.ship_state(with_thrusters=False)
                         emissions = sensor.sample(state)
-                    for e in self.faults.apply_to_emissions(emissions, self.fault_rng):
-                        heapq.heappush(self._pending, (e.t_emit, self._seq, e))
+                    for e in apply_faults(emissions, fault_rng):
+                        heapq.heappush(pending, (e.t_emit, self._seq, e))
                         self._seq += 1
-            if self._pending and self._pending[0][0] <= self.t + eps:
+                    if sensor.next_time() > due:
+                        break
+            if pending and pending[0][0] <= due:
                 self._emit_due()
             if self.t >= next_truth - eps:
                 self._truth()

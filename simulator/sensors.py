@@ -34,7 +34,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Annotated, Any, Literal, Protocol, runtime_checkable
+from typing import Annotated, Any, Literal, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 import pymap3d
@@ -72,6 +72,7 @@ __all__ = [
     "ThrusterFeedbackConfig",
     "ThrusterReading",
     "antenna_ned",
+    "antenna_ned_floats",
     "antenna_position",
     "antenna_velocity",
     "azimuth_to_pwm",
@@ -93,6 +94,8 @@ FAULT_CODE_TRIP = 1
 """``AZIMUTH_THRUSTER_STATUS.fault_code`` of a failed thruster (the simulator's one "drive tripped" code)."""
 
 _DUE_TOL_S = 1e-6
+_new = object.__new__
+_ID_TEXT = [str(i) for i in range(256)]  # a thruster id (0..255) as a fault's source names it
 _GNS_CONSTELLATIONS = 2  # GNS mode field: one character for GPS and one for GLONASS
 _FLAGS_OK = (
     mv.AzimuthThrusterFlags.READY | mv.AzimuthThrusterFlags.RUNNING | mv.AzimuthThrusterFlags.REMOTE_CONTROL
@@ -157,6 +160,22 @@ class Emission:
     `Gns`, `Gst`, `Heading`) or None for one a DP gateway does not use (RMC, VTG, ZDA, ROT); MAVLink: the
     tuple of `wire.codecs.mavlink` reports (empty for a heartbeat)."""
 
+    @classmethod
+    def trusted(
+        cls, t_emit: float, source: str, protocol: str, data: bytes, t_measured: float, record: Any = None
+    ) -> Emission:
+        """For the sensors' own samples: the same object without the frozen dataclass' per-field
+        ``object.__setattr__`` (a sensor makes ~80 a second)."""
+        e = _new(cls)
+        d = e.__dict__
+        d["t_emit"] = t_emit
+        d["source"] = source
+        d["protocol"] = protocol
+        d["data"] = data
+        d["t_measured"] = t_measured
+        d["record"] = record
+        return e
+
     @property
     def text(self) -> str:
         """The bytes as text (NMEA); undecodable bytes show as U+FFFD."""
@@ -192,12 +211,17 @@ class ThrusterReading:
     ) -> ThrusterReading:  # fmt: skip
         """For the simulator's own loop, whose ids and kinds come from a checked vessel: the same object
         without the checks (six of them at every feedback sample)."""
-        reading = object.__new__(cls)
-        vars(reading).update(
-            id=id, kind=kind, thrust_n=thrust_n, azimuth_rad=azimuth_rad, rpm=rpm,
-            thrust_setpoint_n=thrust_setpoint_n, azimuth_setpoint_rad=azimuth_setpoint_rad, failed=failed,
-            power_w=power_w,
-        )  # fmt: skip
+        reading = _new(cls)
+        d = reading.__dict__
+        d["id"] = id
+        d["kind"] = kind
+        d["thrust_n"] = thrust_n
+        d["azimuth_rad"] = azimuth_rad
+        d["rpm"] = rpm
+        d["thrust_setpoint_n"] = thrust_setpoint_n
+        d["azimuth_setpoint_rad"] = azimuth_setpoint_rad
+        d["failed"] = failed
+        d["power_w"] = power_w
         return reading
 
 
@@ -232,12 +256,13 @@ class ShipState:
     ) -> ShipState:
         """For the simulator's own loop, whose arrays are float64 of 3 and readings a tuple already: the
         same object without the checks (it is made at every sample instant)."""
-        state = object.__new__(cls)
-        object.__setattr__(state, "t", t)
-        object.__setattr__(state, "eta", eta)
-        object.__setattr__(state, "nu", nu)
-        object.__setattr__(state, "thrusters", thrusters)
-        object.__setattr__(state, "attitude", np.zeros(3) if attitude is None else attitude)
+        state = _new(cls)
+        d = state.__dict__
+        d["t"] = t
+        d["eta"] = eta
+        d["nu"] = nu
+        d["thrusters"] = thrusters
+        d["attitude"] = np.zeros(3) if attitude is None else attitude
         return state
 
 
@@ -366,16 +391,24 @@ def antenna_ned(
     eta: ArrayLike, lever_arm_m: Sequence[float], attitude: ArrayLike | None = None
 ) -> NDArray[np.float64]:
     """NED [N, E, D] of an antenna (see `antenna_position`); D includes heave and the turned arm's z."""
-    north, east, psi = np.asarray(eta, dtype=float)
+    north, east, psi = np.asarray(eta, dtype=float).tolist()
     x, y = float(lever_arm_m[0]), float(lever_arm_m[1])
     z = float(lever_arm_m[2]) if len(lever_arm_m) > 2 else 0.0
-    heave, phi, theta = (0.0, 0.0, 0.0) if attitude is None else np.asarray(attitude, dtype=float)
+    heave, phi, theta = (0.0, 0.0, 0.0) if attitude is None else np.asarray(attitude, dtype=float).tolist()
+    return np.array(antenna_ned_floats(north, east, psi, x, y, z, heave, phi, theta))
+
+
+def antenna_ned_floats(
+    north: float, east: float, psi: float, x: float, y: float, z: float,
+    heave: float, phi: float, theta: float,
+) -> tuple[float, float, float]:  # fmt: skip
+    """`antenna_ned` on plain floats (the simulator's loop: no arrays in or out)."""
     # body → level frame by roll then pitch (R_y(θ) R_x(φ)), then the heading rotation
     cf, sf, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
     y1, z1 = cf * y - sf * z, sf * y + cf * z
     x2, z2 = ct * x + st * z1, -st * x + ct * z1
     c, s = math.cos(psi), math.sin(psi)
-    return np.array([north + c * x2 - s * y1, east + s * x2 + c * y1, heave + z2])
+    return north + c * x2 - s * y1, east + s * x2 + c * y1, heave + z2
 
 
 def antenna_velocity(eta: ArrayLike, nu: ArrayLike, lever_arm_m: Sequence[float]) -> NDArray[np.float64]:
@@ -407,15 +440,26 @@ class _Schedule:
         self.t0 = t0
         self.k = 0
 
+    @property
+    def k(self) -> int:
+        """The index of the next sample."""
+        return self._k
+
+    @k.setter
+    def k(self, k: int) -> None:
+        self._k = k
+        # the runner asks for the next instant several times per step: kept, not recomputed
+        self._next = self.t0 + k * self.period if math.isfinite(self.period) else math.inf
+
     def next(self) -> float:
-        return self.t0 + self.k * self.period if math.isfinite(self.period) else math.inf
+        return self._next
 
     def due(self, t: float) -> bool:
-        return t >= self.next() - _DUE_TOL_S
+        return t >= self._next - _DUE_TOL_S
 
     def advance_past(self, t: float) -> None:
         if math.isfinite(self.period):
-            self.k = max(self.k + 1, math.floor((t + _DUE_TOL_S - self.t0) / self.period) + 1)
+            self.k = max(self._k + 1, math.floor((t + _DUE_TOL_S - self.t0) / self.period) + 1)
 
 
 class _Freezer:
@@ -434,8 +478,7 @@ class _Freezer:
         return self._value
 
 
-@dataclass(frozen=True, slots=True)
-class _Burst:
+class _Burst(NamedTuple):
     kinds: tuple[str, ...]
     utc: Any  # datetime
     seconds: float  # of the UTC day
@@ -445,8 +488,7 @@ class _Burst:
     station: int | None
 
 
-@dataclass(frozen=True)
-class _Fix:
+class _Fix(NamedTuple):
     lat_deg: float
     lon_deg: float
     alt_m: float
@@ -483,6 +525,10 @@ class Dgps(Sensor):
         self._t_noise = 0.0
         self._freeze = _Freezer()
         self._mode = DGPS_QUALITIES[config.quality]
+        self._kinds_all = config.sentences
+        self._kinds_fast = tuple(k for k in config.sentences if k not in config.slow_sentences)
+        arm = config.lever_arm_m
+        self._lever_arm = (float(arm[0]), float(arm[1]), float(arm[2]) if len(arm) > 2 else 0.0)
         self.encode = True
         """False: emissions carry typed records instead of bytes (see `Emission.record`)."""
 
@@ -499,9 +545,10 @@ class Dgps(Sensor):
         fix = self._freeze(self.faults.active("frozen", self.source, t), self._measure(state, t))
         t_emit = t + self.config.latency_s
         if not self.encode:
-            return [Emission(t_emit, self.source, "nmea", b"", t, r) for r in self._records(fix, t)]
+            return [Emission.trusted(t_emit, self.source, "nmea", b"", t, r) for r in self._records(fix, t)]
         return [
-            Emission(t_emit, self.source, "nmea", text.encode("ascii"), t) for text in self._sentences(fix, t)
+            Emission.trusted(t_emit, self.source, "nmea", text.encode("ascii"), t)
+            for text in self._sentences(fix, t)
         ]
 
     def _position_noise(self, t: float) -> NDArray[np.float64]:
@@ -517,16 +564,26 @@ class Dgps(Sensor):
         return self._noise
 
     def _measure(self, state: ShipState, t: float) -> _Fix:
+        """The fix at t. Plain floats throughout (the same IEEE arithmetic as the arrays of
+        `antenna_velocity` and `antenna_ned`, element by element, without making them)."""
         cfg = self.config
         noise = self._position_noise(t).copy()
-        velocity = antenna_velocity(state.eta, state.nu, cfg.lever_arm_m)
-        velocity += cfg.sigma_velocity_mps * self.rng.standard_normal(2)
+        north, east, psi = state.eta.tolist()
+        u, v, r = state.nu.tolist()
+        x, y, z = self._lever_arm
+        bu, bv = u - r * y, v + r * x  # antenna_velocity
+        c, s = math.cos(psi), math.sin(psi)
+        w = self.rng.standard_normal(2).tolist()
+        vn = c * bu - s * bv + cfg.sigma_velocity_mps * w[0]
+        ve = s * bu + c * bv + cfg.sigma_velocity_mps * w[1]
         burst = self.faults.active("noise_burst", self.source, t)
         if burst is not None:
             sigma = burst.param("sigma_m")
             noise += np.array([sigma, sigma, VERTICAL_SIGMA_FACTOR * sigma]) * self.rng.standard_normal(3)
-        ant = antenna_ned(state.eta, cfg.lever_arm_m, state.attitude)
-        north, east = ant[:2] + noise[:2]
+        heave, phi, theta = state.attitude.tolist()
+        ant_n, ant_e, ant_d = antenna_ned_floats(north, east, psi, x, y, z, heave, phi, theta)
+        n0, n1, n2 = noise.tolist()
+        north, east = ant_n + n0, ant_e + n1
         jump = self.faults.active("jump", self.source, t)
         if jump is not None:
             north += jump.param("north_m")
@@ -540,13 +597,7 @@ class Dgps(Sensor):
         if spoof is not None:
             lat = spoof.param("lat_deg", float(lat))
             lon = spoof.param("lon_deg", float(lon))
-        return _Fix(
-            lat_deg=float(lat),
-            lon_deg=float(lon),
-            alt_m=cfg.alt_m - float(ant[2]) + float(noise[2]),
-            sog_mps=math.hypot(velocity[0], velocity[1]),
-            cog_rad=math.atan2(velocity[1], velocity[0]),
-        )
+        return _Fix(float(lat), float(lon), cfg.alt_m - ant_d + n2, math.hypot(vn, ve), math.atan2(ve, vn))
 
     def _burst(self, t: float) -> _Burst:
         """What the sentences of the fix at ``t`` share: which are sent, the UTC time, quality and mode."""
@@ -560,7 +611,7 @@ class Dgps(Sensor):
         differential = quality in (2, 3, 4, 5)  # corrections in use: the age and station fields are filled
         seconds = utc.hour * 3600 + utc.minute * 60 + utc.second + utc.microsecond * 1e-6
         slow_due = (seconds % (1.0 / min(cfg.slow_rate_hz, cfg.rate_hz))) < 0.5 / cfg.rate_hz
-        kinds = tuple(k for k in cfg.sentences if slow_due or k not in cfg.slow_sentences)
+        kinds = self._kinds_all if slow_due else self._kinds_fast
         age = cfg.age_s if differential else None
         station = cfg.station_id if differential else None
         return _Burst(kinds, utc, seconds, quality, mode, age, station)
@@ -694,7 +745,9 @@ class Gyro(Sensor):
         t_emit = t + cfg.latency_s
         if not self.encode:
             return [
-                Emission(t_emit, self.source, "nmea", b"", t, _heading_record(kind, cfg.talker, heading))
+                Emission.trusted(
+                    t_emit, self.source, "nmea", b"", t, _heading_record(kind, cfg.talker, heading)
+                )
                 for kind in cfg.sentences
             ]
         out = []
@@ -707,7 +760,7 @@ class Gyro(Sensor):
                 text = nmea.rot(cfg.talker, rate, True)
             else:
                 text = nmea.hdg(cfg.talker, heading - cfg.variation_rad, 0.0, cfg.variation_rad)
-            out.append(Emission(t_emit, self.source, "nmea", text.encode("ascii"), t))
+            out.append(Emission.trusted(t_emit, self.source, "nmea", text.encode("ascii"), t))
         return out
 
     def _measure(self, state: ShipState, t: float) -> tuple[float, float]:
@@ -803,7 +856,7 @@ class ThrusterFeedback(Sensor):
             readings = self._freeze(self.faults.active("frozen", self.source, t), state.thrusters)
             frames += self._status_frames(readings, t)
         t_emit = t + self.config.latency_s
-        return [Emission(t_emit, self.source, "mavlink", frame, t) for frame in frames]
+        return [Emission.trusted(t_emit, self.source, "mavlink", frame, t) for frame in frames]
 
     def _records(self, state: ShipState, t: float, heartbeat: bool, status: bool) -> list[Emission]:
         """The frames of `sample` as a receiver decodes them (`Emission.record`): a heartbeat carries no
@@ -813,7 +866,7 @@ class ThrusterFeedback(Sensor):
                 "ThrusterFeedback: typed records need the dpgw dialect only (no ArduPilot frames)"
             )
         t_emit = t + self.config.latency_s
-        out = [Emission(t_emit, self.source, "mavlink", b"", t, ())] if heartbeat else []
+        out = [Emission.trusted(t_emit, self.source, "mavlink", b"", t, ())] if heartbeat else []
         if status:
             readings = self._freeze(self.faults.active("frozen", self.source, t), state.thrusters)
             for reading in readings:
@@ -824,16 +877,17 @@ class ThrusterFeedback(Sensor):
                     rpm = bogus.param("rpm", rpm)
                     azimuth = bogus.param("azimuth_rad", azimuth)
                 report = mv.ThrusterReport(reading.id, float(thrust), float(azimuth), float(rpm))
-                out.append(Emission(t_emit, self.source, "mavlink", b"", t, (report,)))
+                out.append(Emission.trusted(t_emit, self.source, "mavlink", b"", t, (report,)))
         return out
 
     def _status_frames(self, readings: tuple[ThrusterReading, ...], t: float) -> list[bytes]:
         time_usec = self.epoch.stamp_ns(t) // 1000
         frames = []
         for reading in readings:
-            failed = reading.failed or self.faults.active("thruster_failure", str(reading.id), t) is not None
+            key = _ID_TEXT[reading.id]
+            failed = reading.failed or self.faults.active("thruster_failure", key, t) is not None
             thrust, rpm, azimuth = reading.thrust_n, reading.rpm, reading.azimuth_rad
-            bogus = self.faults.active("bogus_feedback", str(reading.id), t)
+            bogus = self.faults.active("bogus_feedback", key, t)
             if bogus is not None:  # the drive claims what the fault says (a bad scaling, a broken sensor)
                 thrust = bogus.param("thrust_n", thrust)
                 rpm = bogus.param("rpm", rpm)

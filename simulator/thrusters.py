@@ -30,8 +30,10 @@ class ThrusterBank:
         self.ids = [t.id for t in th]
         self.n = len(th)
         self.is_azimuth = np.array([t.kind == "azimuth" for t in th], dtype=bool)
+        self._azimuth = self.is_azimuth.tolist()  # (lists: one element of an array costs more to read)
         self.max_thrust = np.array([t.max_thrust_n for t in th], dtype=float)
         self.min_thrust = np.array([t.min_thrust_n for t in th], dtype=float)
+        self._min_thrust, self._max_thrust = self.min_thrust.tolist(), self.max_thrust.tolist()
         self.rate = np.array([t.azimuth_rate_rad_s for t in th], dtype=float)
         self.time_constant = np.array([max(t.thrust_time_constant_s, 1e-6) for t in th], dtype=float)
         self.fixed_angle = np.array([t.angle_rad for t in th], dtype=float)
@@ -55,12 +57,21 @@ class ThrusterBank:
         self.thrust_setpoint = np.clip(np.asarray(thrust_n, dtype=float), self.min_thrust, self.max_thrust)
         if angle_rad is not None:
             a = np.asarray(angle_rad, dtype=float)
-            self.angle_setpoint = np.where(self.is_azimuth, ssa(a), self.fixed_angle)
+            if a.shape == self.fixed_angle.shape:  # (ssa_scalar is ssa bit for bit, cheaper for a few)
+                fixed = self.fixed_angle.tolist()
+                self.angle_setpoint = np.array(
+                    [
+                        ssa_scalar(v) if az else f
+                        for v, az, f in zip(a.tolist(), self._azimuth, fixed, strict=True)
+                    ]
+                )
+            else:
+                self.angle_setpoint = np.where(self.is_azimuth, ssa(a), self.fixed_angle)
 
     def command_one(self, thruster_id: int, thrust_n: float, angle_rad: float | None = None) -> None:
         i = self.index(thruster_id)
-        self.thrust_setpoint[i] = min(max(thrust_n, self.min_thrust[i]), self.max_thrust[i])
-        if angle_rad is not None and self.is_azimuth[i]:
+        self.thrust_setpoint[i] = min(max(thrust_n, self._min_thrust[i]), self._max_thrust[i])
+        if angle_rad is not None and self._azimuth[i]:
             self.angle_setpoint[i] = ssa_scalar(float(angle_rad))  # (= ssa, bit for bit; no array)
 
     def step(self, h: float) -> None:
@@ -138,9 +149,9 @@ class PrescribedAllocation:
         self.fixed_angle = np.array([t.angle_rad for t in vessel.thrusters], dtype=float)
 
     def __call__(self, tau: ArrayLike) -> tuple[Array, Array]:
-        f = self.pinv @ np.asarray(tau, dtype=float)
+        f = (self.pinv @ np.asarray(tau, dtype=float)).tolist()  # (Python floats: the same doubles)
         n = len(self.is_azimuth)
-        fx, fy, thrust = np.zeros(n), np.zeros(n), np.zeros(n)
+        fx, fy, thrust = [0.0] * n, [0.0] * n, [0.0] * n
         for value, (i, kind) in zip(f, self.owner, strict=True):
             if kind == 0:
                 fx[i] = value
@@ -148,12 +159,12 @@ class PrescribedAllocation:
                 fy[i] = value
             else:
                 thrust[i] = value
-        angle = self.fixed_angle.copy()
+        angle = self.fixed_angle.tolist()
         for i, az in enumerate(self.is_azimuth):
             if az:
                 thrust[i] = math.hypot(fx[i], fy[i])
                 angle[i] = math.atan2(fy[i], fx[i])
-        return thrust, angle
+        return np.array(thrust), np.array(angle)
 
 
 def least_squares_commands(vessel: VesselModel, tau: ArrayLike) -> tuple[Array, Array]:

@@ -69,6 +69,27 @@ def test_checksum_of_the_classic_gga_example() -> None:
     assert float(parse(nmea.sentence("GP", "HDT", ["274.07", "T"])).heading) == 274.07
 
 
+@given(body=st.text(alphabet=st.characters(min_codepoint=0, max_codepoint=127), max_size=400))
+@example(body="")
+@example(body="GPGGA," + "9" * 122)  # 128 bytes: the last length of the unrolled folds
+@example(body="GPGGA," + "9" * 123)
+def test_checksum_folds_equal_the_byte_loop(body: str) -> None:
+    assert nmea.checksum(body) == nmea.checksum_reference(body)
+
+
+@given(
+    value=st.floats(allow_nan=False, allow_infinity=False) | st.floats(min_value=-1e3, max_value=1e3),
+    decimals=st.integers(min_value=0, max_value=12),
+)
+@example(value=-0.0004, decimals=3)
+@example(value=2.0005, decimals=3)
+def test_fixed_point_fields_equal_format_specs(value: float, decimals: int) -> None:
+    """The encoders' printf-style formats give the digits of Python's format spec ``.nf`` (never -0)."""
+    text = f"{value:.{decimals}f}"
+    expected = text[1:] if text.startswith("-") and text.strip("-0.") == "" else text
+    assert nmea._fixed(value, decimals) == expected
+
+
 @pytest.mark.parametrize(
     ("talker", "kind", "fields"),
     [("gp", "HDT", []), ("GPS", "HDT", []), ("GP", "HD", []), ("GP", "HDT", ["1*2"]), ("GP", "HDT", ["a,b"])],

@@ -772,3 +772,6 @@ def test_the_simulators_unchecked_constructors_make_the_same_objects() -> None:
     made, checked = ShipState.trusted(4.0, eta, nu, (reading,)), ShipState(4.0, eta, nu, (reading,))
     assert made.t == checked.t and made.thrusters == checked.thrusters
     assert np.array_equal(made.eta, checked.eta) and np.array_equal(made.nu, checked.nu)
+    for args in ((1.5, "dgps1", "nmea", b"$GPZDA*00\r\n", 1.4), (2.0, "thrusters", "mavlink", b"", 2.0, ())):
+        fast, slow = Emission.trusted(*args), Emission(*args)
+        assert fast == slow and vars(fast) == vars(slow) and hash(fast) == hash(slow)

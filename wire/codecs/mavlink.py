@@ -150,6 +150,11 @@ def pack(mav: MAVLink, msg: MAVLinkMessage) -> bytes:
 
 _V2_HEADER = struct.Struct("<BBBBBBBHB")  # magic, len, incompat, compat, seq, system, component, msgid 24 bit
 _STATUS = _dpgw.MAVLink_azimuth_thruster_status_message
+_STATUS_ID, _STATUS_CRC_EXTRA, _STATUS_PACK = _STATUS.id, _STATUS.crc_extra, _STATUS.unpacker.pack
+_U64, _U32 = 2**64, 2**32
+
+
+_BYTE = [bytes((v,)) for v in range(256)]
 
 
 def _pack_fast(mav: MAVLink, msg_id: int, crc_extra: int, payload: bytes) -> bytes | None:
@@ -165,7 +170,7 @@ def _pack_fast(mav: MAVLink, msg_id: int, crc_extra: int, payload: bytes) -> byt
         msg_id & 0xFFFF, msg_id >> 16,
     )  # fmt: skip
     frame = head + body
-    crc = _dpgw.mcrf4xx(frame[1:] + bytes((crc_extra,)), 0xFFFF)
+    crc = _dpgw.mcrf4xx(frame[1:] + _BYTE[crc_extra], 0xFFFF)
     frame += crc.to_bytes(2, "little")
     mav.seq = (mav.seq + 1) % 256
     mav.total_packets_sent += 1
@@ -190,15 +195,17 @@ def azimuth_status_frame(
 ) -> bytes:
     """One ``AZIMUTH_THRUSTER_STATUS`` frame. Azimuths are wrapped to [-π, π) (clockwise from the bow, body
     frame, direction of the thrust force); unknown optional values go as NaN."""
-    _check_uint("time_usec", time_usec, 64)
-    _check_uint("id", id, 8)
-    _check_uint("flags", int(flags), 32)
-    _check_uint("fault_code", fault_code, 16)
+    flags = int(flags)
+    if not (0 <= time_usec < _U64 and 0 <= id < 256 and 0 <= flags < _U32 and 0 <= fault_code < 65536):
+        _check_uint("time_usec", time_usec, 64)  # (one comparison chain; these name the bad one)
+        _check_uint("id", id, 8)
+        _check_uint("flags", flags, 32)
+        _check_uint("fault_code", fault_code, 16)
     frame = _pack_fast(
         mav,
-        _STATUS.id,
-        _STATUS.crc_extra,
-        _STATUS.unpacker.pack(
+        _STATUS_ID,
+        _STATUS_CRC_EXTRA,
+        _STATUS_PACK(
             time_usec, float(thrust_n), float(rpm), ssa_scalar(float(azimuth_rad)), int(flags),
             float(thrust_setpoint_n), ssa_scalar(float(azimuth_setpoint_rad)), float(azimuth_rate_rad_s),
             float(power_w), fault_code, id,

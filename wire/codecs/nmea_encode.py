@@ -72,11 +72,39 @@ Field = str | None
 
 def checksum(body: str) -> str:
     """NMEA checksum of ``body`` (the characters between ``$`` and ``*``): two upper-case hex digits of the
-    XOR of all its bytes."""
+    XOR of all its bytes.
+
+    The bytes are read as one integer and folded in halves (x ^= x >> 8w for w = 2^k bytes, largest first):
+    after the fold by w, byte i < w holds the XOR of bytes i, i + w, i + 2w, ... of the region below 2w, so
+    the last fold leaves the XOR of all in byte 0. ~log2(n) big-integer operations in C instead of n Python
+    ones (a sentence is ~70 bytes); `checksum_reference` is the byte loop, tested equal."""
+    data = body.encode("ascii")
+    x = int.from_bytes(data, "little")
+    if len(data) <= 128:  # every sentence in practice: the seven folds written out
+        x ^= x >> 512
+        x ^= x >> 256
+        x ^= x >> 128
+        x ^= x >> 64
+        x ^= x >> 32
+        x ^= x >> 16
+        x ^= x >> 8
+        return _HEX2[x & 0xFF]
+    width = 1 << (len(data) - 1).bit_length()
+    while width > 1:
+        width >>= 1
+        x ^= x >> (width << 3)
+    return _HEX2[x & 0xFF]
+
+
+def checksum_reference(body: str) -> str:
+    """`checksum` as the standard states it: the XOR of every byte, one at a time."""
     value = 0
     for ch in body.encode("ascii"):
         value ^= ch
     return f"{value:02X}"
+
+
+_HEX2 = tuple(f"{v:02X}" for v in range(256))
 
 
 def sentence(talker: str, kind: str, fields: Iterable[Field]) -> str:
@@ -105,7 +133,7 @@ def _build(talker: str, kind: str, fields: Iterable[Field]) -> str:
     if head is None:
         sentence(talker, kind, ())  # validates, raises on a bad talker or formatter
         head = _CHECKED_HEADS[(talker, kind)] = talker + kind
-    body = ",".join([head, *["" if f is None else f for f in fields]])
+    body = ",".join([head, *[f or "" for f in fields]])  # (a field is text or None; "" stays "")
     return f"${body}*{checksum(body)}\r\n"
 
 
@@ -440,19 +468,33 @@ def _utc(t: datetime) -> datetime:
 
 
 def _rounded(t: datetime, decimals: int) -> datetime:
-    """``t`` in UTC rounded to the nearest 10**-decimals s (half up), carrying into the date."""
+    """``t`` in UTC rounded to the nearest 10**-decimals s (half up), carrying into the date. The last
+    answer is kept: a receiver's burst (GGA, RMC, GST, ZDA) asks for the same instant several times."""
+    last = _LAST_ROUNDED
+    if t is last[0] and decimals == last[1]:
+        return last[2]
     _check_decimals(decimals, 0, 6)
-    t = _utc(t)
+    u = _utc(t)
     quantum = 10 ** (6 - decimals)
-    micro = (t.microsecond + quantum // 2) // quantum * quantum
-    return t.replace(microsecond=0) + timedelta(microseconds=micro)
+    micro = (u.microsecond + quantum // 2) // quantum * quantum
+    rounded = u.replace(microsecond=0) + timedelta(microseconds=micro)
+    globals()["_LAST_ROUNDED"] = (t, decimals, rounded)  # (one tuple: a reader in another thread sees all)
+    return rounded
+
+
+_LAST_ROUNDED: tuple[object, int, datetime] = (None, -1, datetime.min)
+_LAST_TIME: tuple[object, int, str] = (None, -1, "")
 
 
 def _time(t: datetime, decimals: int) -> str:
-    """``hhmmss.ss`` of an already rounded UTC time."""
+    """``hhmmss.ss`` of an already rounded UTC time (the last answer is kept, as in `_rounded`)."""
+    last = _LAST_TIME
+    if t is last[0] and decimals == last[1]:
+        return last[2]
     text = f"{t.hour:02d}{t.minute:02d}{t.second:02d}"  # (strftime costs ~5x more, at every sentence)
     if decimals:
         text += f".{t.microsecond // 10 ** (6 - decimals):0{decimals}d}"
+    globals()["_LAST_TIME"] = (t, decimals, text)
     return text
 
 
@@ -462,52 +504,90 @@ def _dm(abs_deg: float, deg_digits: int, decimals: int) -> str:
     units = round(abs_deg * 60 * scale)
     degrees, rest = divmod(units, 60 * scale)
     minutes, fraction = divmod(rest, scale)
-    return f"{degrees:0{deg_digits}d}{minutes:02d}.{fraction:0{decimals}d}"
+    return _DM_FORMAT[deg_digits][decimals] % (degrees, minutes, fraction)
+
+
+# "%0<d>d%02d.%0<n>d" per degree digits (2 latitude, 3 longitude) and decimals: built once, not per call
+_DM_FORMAT = {d: [f"%0{d}d%02d.%0{n}d" for n in range(10)] for d in (2, 3)}
 
 
 def _lat(lat_deg: float | None, decimals: int) -> tuple[Field, Field]:
-    _check_decimals(decimals, 1, 9)
+    if not 1 <= decimals <= 9:
+        _check_decimals(decimals, 1, 9)
     if lat_deg is None:
         return None, None
-    lat = _finite("lat_deg", lat_deg)
+    lat = float(lat_deg)
+    last = _LAST_LAT  # GGA/GNS and RMC of one fix print the same latitude: the last answer is kept
+    if lat == last[0] and decimals == last[1]:  # (±0 print alike; NaN never matches and is refused below)
+        return last[2]
+    if not math.isfinite(lat):
+        _finite("lat_deg", lat)
     if not -90.0 <= lat <= 90.0:
         raise ValueError(f"latitude must be in [-90, 90] degrees, got {lat}")
     text = _dm(abs(lat), 2, decimals)
     south = lat < 0 and text.strip("0.") != ""
-    return text, "S" if south else "N"
+    out: tuple[Field, Field] = (text, "S" if south else "N")
+    globals()["_LAST_LAT"] = (lat, decimals, out)
+    return out
 
 
 def _lon(lon_deg: float | None, decimals: int) -> tuple[Field, Field]:
-    _check_decimals(decimals, 1, 9)
+    if not 1 <= decimals <= 9:
+        _check_decimals(decimals, 1, 9)
     if lon_deg is None:
         return None, None
-    lon = _finite("lon_deg", lon_deg)
+    lon = float(lon_deg)
+    last = _LAST_LON  # (as in `_lat`)
+    if lon == last[0] and decimals == last[1]:
+        return last[2]
+    key = lon
+    if not math.isfinite(lon):
+        _finite("lon_deg", lon)
     if not -180.0 <= lon <= 180.0:
         lon = (lon + 180.0) % 360.0 - 180.0
     text = _dm(abs(lon), 3, decimals)
     west = lon < 0 and text.strip("0.") != ""
-    return text, "W" if west else "E"
+    out: tuple[Field, Field] = (text, "W" if west else "E")
+    globals()["_LAST_LON"] = (key, decimals, out)
+    return out
+
+
+_LAST_LAT: tuple[float, int, tuple[Field, Field]] = (math.nan, -1, (None, None))
+_LAST_LON: tuple[float, int, tuple[Field, Field]] = (math.nan, -1, (None, None))
 
 
 def _fixed(value: float | None, decimals: int) -> Field:
     """Fixed-point text, never ``-0.00``."""
     if value is None:
         return None
-    text = f"{_finite('value', value):.{decimals}f}"
-    if text.startswith("-") and text.strip("-0.") == "":
+    v = float(value)
+    if not math.isfinite(v):
+        _finite("value", v)
+    text = _FIXED_FORMAT[decimals] % v if 0 <= decimals < 10 else f"{v:.{decimals}f}"
+    if text[0] == "-" and text.strip("-0.") == "":
         text = text[1:]
     return text
+
+
+_FIXED_FORMAT = [f"%.{n}f" for n in range(10)]  # (printf-style %.nf is Python's f"{v:.nf}", digit for digit)
 
 
 def _deg360(angle_rad: float | None, decimals: int) -> Field:
     """An angle as degrees in [0, 360) at ``decimals`` resolution (360.00 wraps to 0.00)."""
     if angle_rad is None:
         return None
-    _check_decimals(decimals, 0, 9)
+    if not 0 <= decimals <= 9:
+        _check_decimals(decimals, 0, 9)
+    a = float(angle_rad)
+    if not math.isfinite(a):
+        _finite("angle", a)
     scale = 10**decimals
-    units = round(math.degrees(_finite("angle", angle_rad)) * scale) % (360 * scale)
+    units = round(math.degrees(a) * scale) % (360 * scale)
     whole, fraction = divmod(units, scale)
-    return f"{whole}.{fraction:0{decimals}d}" if decimals else str(whole)
+    return _DEG_FORMAT[decimals] % (whole, fraction) if decimals else str(whole)
+
+
+_DEG_FORMAT = [f"%d.%0{n}d" for n in range(10)]
 
 
 def _east_west(angle_rad: float | None, decimals: int) -> tuple[Field, Field]:
