@@ -8,7 +8,10 @@ in-process closed loop (bytes path) is compared too, as a fingerprint of its est
 true track; it is expected to differ when the plant or the loop's schedule changed on purpose.
 
     git worktree add /tmp/old <commit>        (or: git archive <commit> | tar -x -C /tmp/old)
-    python bench/ab_sim_identity.py --base /tmp/old [--seconds 120]
+    python bench/ab_sim_identity.py --base /tmp/old [--seconds 120] [--scenarios NAME ...]
+
+By default the model-plant scenarios; name others (the full plant's: mss_supply_storm mss_osv) with
+--scenarios.
 
 Exit status 0 when the simulator's messages are identical; 1 with the scenarios that differ otherwise.
 """
@@ -50,9 +53,9 @@ print(json.dumps(out))
 """
 
 
-def probe(tree: Path, seconds: float) -> dict[str, str]:
+def probe(tree: Path, seconds: float, scenarios: list[str]) -> dict[str, str]:
     env = {**os.environ, "PYTHONPATH": str(tree)}
-    cmd = [sys.executable, "-c", _PROBE, str(seconds), *SCENARIOS]
+    cmd = [sys.executable, "-c", _PROBE, str(seconds), *scenarios]
     proc = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True, check=False)
     if proc.returncode != 0:
         raise SystemExit(
@@ -67,10 +70,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--base", required=True, type=Path, help="the other checkout (the old code)")
     ap.add_argument("--new", type=Path, default=HERE, help="the checkout under test (default: this one)")
     ap.add_argument("--seconds", type=float, default=120.0, help="sim time per scenario (120)")
+    ap.add_argument(
+        "--scenarios",
+        nargs="+",
+        default=list(SCENARIOS),
+        metavar="NAME",
+        help=f"the scenarios to compare (default: {' '.join(SCENARIOS)}; the full plant's: "
+        "mss_supply_storm mss_osv)",
+    )
     a = ap.parse_args(argv)
-    base, new = probe(a.base, a.seconds), probe(a.new, a.seconds)
-    differ = [name for name in SCENARIOS if base[name] != new[name]]
-    for name in SCENARIOS:
+    base, new = probe(a.base, a.seconds, a.scenarios), probe(a.new, a.seconds, a.scenarios)
+    differ = [name for name in a.scenarios if base[name] != new[name]]
+    for name in a.scenarios:
         print(f"  {name:20s} {'identical' if name not in differ else 'DIFFERENT'}")
     loop = "identical" if base["closed_loop"] == new["closed_loop"] else "different"
     print(f"  {'closed loop (bytes)':20s} {loop} (estimates, commands, true track)")

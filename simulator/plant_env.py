@@ -12,6 +12,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from observers.hull import AIR_DENSITY
 from observers.vessel import VesselModel
 from simulator.current import Current, CurrentModel
 from simulator.wind import Wind, WindModel
@@ -43,6 +44,14 @@ class PlantEnvironment:
         self._no_current = np.zeros(2)
         self._current_due = 0.0  # time since the current was last advanced
         self._wind_due = math.inf  # time since the wind force was last computed
+        # for the compiled advance (`simulator._full_advance_kernel`): the thresholds `step` compares with
+        self.due_thresholds = np.array([CURRENT_STEP_S - 1e-9, WIND_STEP_S - 1e-9])
+        self._no_wind_p = np.zeros(9)
+        self._wind_p = np.zeros(9)
+        if self.wind is not None:
+            a = self.wind.area
+            self._wind_p[:7] = (0.5 * AIR_DENSITY, a.cx, a.cy, a.cn, a.frontal_area_m2, a.lateral_area_m2,
+                                self.wind.length_m)  # fmt: skip
 
     def step(self, h: float, t: float, x: Array) -> None:
         """Advance by h from time t with the vessel in state x.
@@ -61,6 +70,19 @@ class PlantEnvironment:
             if self._wind_due >= WIND_STEP_S - 1e-9:
                 self.wind_body[:] = self.wind.force_body(t, float(x[2]), float(x[3]), float(x[4]))
                 self._wind_due = 0.0
+
+    def wind_parameters(self, t: float) -> Array | None:
+        """[½ρ_a, c_x, c_y, c_n, A_F, A_L, L, wn, we] of the wind at time t for the compiled advance (None
+        without wind): the constants of `simulator.wind.wind_force` and the wind's NED velocity (wn, we),
+        computed as it computes them."""
+        wind = self.wind
+        if wind is None:
+            return None
+        speed = wind.speed(t)
+        towards = math.radians(wind.model.from_deg + 180.0)
+        self._wind_p[7] = speed * math.cos(towards)
+        self._wind_p[8] = speed * math.sin(towards)
+        return self._wind_p
 
     @property
     def current_ned(self) -> Array:

@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from observers.kinematics import rotation, ssa_scalar
 from simulator._advance_kernel import advance as advance_kernel
+from simulator._full_advance_kernel import advance_full as advance_full_kernel
 from simulator.clock import Clock, SimEpoch, VirtualClock
 from simulator.commands import Command, TauCommand
 from simulator.environment import MarkovBias
@@ -271,8 +272,10 @@ class Simulation:
     def _advance(self, h: float) -> None:
         n = max(1, math.ceil(h / MAX_STEP_S - 1e-9))
         hs = h / n
-        if self.plant_env is not None or not self.fused_plant:
+        if not self.fused_plant:
             self._advance_reference(n, hs)
+        elif self.plant_env is not None:
+            self._advance_full(n, hs)
         else:
             self._advance_fused(n, hs)
         self.t += h
@@ -295,6 +298,40 @@ class Simulation:
             )  # fmt: skip
             bias.took(k)
             n -= chunk
+
+    def _advance_full(self, n: int, hs: float) -> None:
+        """`_advance_reference` for the full plant, in one compiled call per block of bias draws and per
+        step of the current (`simulator._full_advance_kernel`; the same bits). The current steps in Python
+        (`Current.step`, once a second): the kernel stops before the substep at which it falls due."""
+        env, bias, th, dyn = self.plant_env, self.bias, self.thrusters, self.dynamics
+        assert env is not None and isinstance(dyn, FullPlant)
+        decay, kick = bias.factors(hs)
+        m = max(1, math.ceil(hs / MAX_STEP_S - 1e-9))  # FullPlant.step's own split (always 1 here)
+        current = env.current
+        wind_p = env.wind_parameters(self.t)  # the reference asks the wind at self.t for every substep
+        due = np.array([env._current_due, env._wind_due])
+        minv, d, ma, ra, rb, rc, rd = dyn._arrays
+        stepped = False
+        while n > 0:
+            normals, k = bias.draws()
+            chunk = min(n, len(normals) - k)
+            k, done = advance_full_kernel(
+                chunk, hs, m, dyn.x, dyn._s, minv, d, ma, ra, rb, rc, rd,
+                not self.direct_tau, th.thrust, th.angle, th.thrust_setpoint, th.angle_setpoint, th.failed,
+                th.is_azimuth, th.time_constant, th.rate, th.x, th.y,
+                self.tau_direct, self._drift_body, bias.b, bias.constant, decay, kick, normals, k,
+                current is not None, stepped, env.current_ned, wind_p is not None, env._no_wind_p
+                if wind_p is None else wind_p, env.wind_body, due, env.due_thresholds,
+            )  # fmt: skip
+            bias.took(k)
+            n -= done
+            stepped = False
+            if done < chunk:  # the current fell due before substep `done`: step it, then go on from there
+                assert current is not None
+                current.step(float(due[0]))
+                due[0] = 0.0
+                stepped = True
+        env._current_due, env._wind_due = float(due[0]), float(due[1])
 
     def _advance_reference(self, n: int, hs: float) -> None:
         """n plant substeps of hs: thrusters, bias, dynamics, one Python call each (the readable form)."""

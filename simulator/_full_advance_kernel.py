@@ -1,0 +1,103 @@
+"""The full plant's steps in one compiled call: thrusters, Markov bias, wind force and RK4 for n substeps.
+
+The runner advances the full plant (`simulator.plant.FullPlant`) between two events in substeps of at
+most 0.05 s; per substep the readable reference (`Simulation._advance_reference` → `_full_step`, in
+simulator/runner.py) steps the thrusters (`simulator.thrusters`), takes their force τ = B(α) u, steps the
+bias (`simulator.environment.MarkovBias`, Fossen & Strand 1999 eq (7)), lets the environment
+(`simulator.plant_env.PlantEnvironment`) move the current once a second and recompute the wind force every
+0.25 s, and integrates the plant by RK4 (`simulator._plant_kernel.rk4_steps`) with
+
+    τ_body = (τ + τ_drift) + τ_wind,    b_earth = b + b_constant,    ν_c the current's NED velocity.
+
+This kernel does the same arithmetic in the same order, so both give the same bits (tests/test_simulator.py
+runs both full-plant scenarios each way and compares state and bytes):
+
+- thrusters and RK4: the same compiled functions (`_step`, `_tau`, `rk4_steps`);
+- bias: b ← e^{-h/T} b + σ√(1 − e^{-2h/T}) ν element by element with `MarkovBias`' own factors and its
+  block of normal draws (read, never drawn here: the random stream is the same);
+- wind: Fossen (2021) eqs (10.10)–(10.12) on the relative wind, `simulator.wind.wind_force` written out
+  with the same operations in the same order. The wind's speed and its NED velocity (wn, we) are computed
+  by the caller: the reference asks the gust series at the event's start time for every substep of it, so
+  they are constant over one call;
+- current: not stepped here. Its Gauss–Markov step draws from its own generator once a second, so the
+  kernel stops *before* the substep at which it falls due (returning how many substeps it did), the
+  caller steps `Current` in Python with the accumulated time, and calls again with ``current_stepped``
+  True for that substep (its time is already counted).
+
+``due`` = [time since the current moved, time since the wind force was computed], carried between calls.
+``wind_p`` = [½ρ_a, c_x, c_y, c_n, A_F, A_L, L, wn, we]; ``steps`` = [current step − 1e-9, wind step −
+1e-9] (the thresholds `PlantEnvironment.step` compares with).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from simulator._plant_kernel import rk4_steps
+from simulator.thrusters import _step, _tau
+
+
+@njit(cache=True)
+def _wind_force(x, p, out):
+    """`simulator.wind.wind_force` on the state x = [N, E, ψ, u, v, r, …]: the same operations, in order."""
+    u = x[3]
+    v = x[4]
+    wn = p[7]
+    we = p[8]
+    c = math.cos(x[2])
+    s = math.sin(x[2])
+    urw = u - (c * wn + s * we)
+    vrw = v - (-s * wn + c * we)
+    q = p[0] * (urw * urw + vrw * vrw)
+    gamma = -math.atan2(vrw, urw)
+    out[0] = -q * p[1] * math.cos(gamma) * p[4]
+    out[1] = q * p[2] * math.sin(gamma) * p[5]
+    out[2] = q * p[3] * math.sin(2.0 * gamma) * p[5] * p[6]
+
+
+@njit(cache=True)
+def advance_full(
+    n, h, m, x, s, Minv, D, MA, rA, rB, rC, rD,
+    thrusters, thrust, angle, thrust_sp, angle_sp, failed, is_azimuth, time_constant, rate, tx, ty,
+    tau_direct, drift, b, b_constant, decay, kick, normals, k,
+    has_current, current_stepped, vc, has_wind, wind_p, wind_body, due, steps,
+):  # fmt: skip
+    """Up to ``n`` substeps of ``h`` s, each integrated as ``m`` RK4 steps of h/m (as `FullPlant.step`
+    splits it). Reads the bias normals from row ``k`` on (the caller makes sure n rows are left). Updates
+    x, thrust, angle, b, wind_body and due in place. Returns (the next normals row, the substeps done):
+    fewer than n when the current fell due before the next one (its accumulated time is in due[0])."""
+    tau_body = np.empty(3)
+    b_earth = np.empty(3)
+    hm = h / m
+    for i in range(n):
+        if has_current:
+            if current_stepped and i == 0:
+                pass  # the caller has just stepped the current for this substep
+            else:
+                cd = due[0] + h
+                due[0] = cd
+                if cd >= steps[0]:
+                    return k, i
+        if thrusters:
+            _step(h, thrust, angle, thrust_sp, angle_sp, failed, is_azimuth, time_constant, rate)
+            tau = _tau(thrust, angle, tx, ty)
+        else:
+            tau = tau_direct
+        for j in range(3):
+            b[j] = decay[j] * b[j] + kick[j] * normals[k, j]
+        k += 1
+        if has_wind:
+            wd = due[1] + h
+            if wd >= steps[1]:
+                _wind_force(x, wind_p, wind_body)
+                due[1] = 0.0
+            else:
+                due[1] = wd
+        for j in range(3):
+            tau_body[j] = tau[j] + drift[j] + wind_body[j]
+            b_earth[j] = b[j] + b_constant[j]
+        rk4_steps(x, hm, m, tau_body, b_earth, vc, s, Minv, D, MA, rA, rB, rC, rD)
+    return k, n
