@@ -60,10 +60,11 @@ def _wind_force(x, p, out):
 
 @njit(cache=True)
 def advance_full(
-    n, h, m, x, s, Minv, D, MA, rA, rB, rC, rD,
-    thrusters, thrust, angle, thrust_sp, angle_sp, failed, is_azimuth, time_constant, rate, tx, ty,
-    tau_direct, drift, b, b_constant, decay, kick, normals, k,
-    has_current, current_stepped, vc, has_wind, wind_p, wind_body, due, steps,
+    n, h, m,
+    x, s, Minv, D, MA, rA, rB, rC, rD,
+    thrusters, thrust, angle, failed, is_azimuth, time_constant, rate, tx, ty,
+    b_constant, has_current, has_wind, wind_p, wind_body, due, steps,
+    thrust_sp, angle_sp, tau_direct, drift, b, decay, kick, normals, k, current_stepped, vc,
 ):  # fmt: skip
     """Up to ``n`` substeps of ``h`` s, each integrated as ``m`` RK4 steps of h/m (as `FullPlant.step`
     splits it). Reads the bias normals from row ``k`` on (the caller makes sure n rows are left). Updates

@@ -42,16 +42,16 @@ class PlantEnvironment:
             self.wind = Wind(wind, vessel.hull.wind, vessel.length_m, np.random.default_rng(wind_seq))
         self.wind_body = np.zeros(3)
         self._no_current = np.zeros(2)
-        self._current_due = 0.0  # time since the current was last advanced
-        self._wind_due = math.inf  # time since the wind force was last computed
-        # for the compiled advance (`simulator._full_advance_kernel`): the thresholds `step` compares with
+        # [time since the current was last advanced, time since the wind force was last computed]
+        self.due = np.array([0.0, math.inf])
+        # for the compiled advance (`simulator._full_advance_kernel`): the thresholds `step` compares with,
+        # and the wind's constants and NED velocity (`wind_parameters`)
         self.due_thresholds = np.array([CURRENT_STEP_S - 1e-9, WIND_STEP_S - 1e-9])
-        self._no_wind_p = np.zeros(9)
-        self._wind_p = np.zeros(9)
+        self.wind_p = np.zeros(9)
         if self.wind is not None:
             a = self.wind.area
-            self._wind_p[:7] = (0.5 * AIR_DENSITY, a.cx, a.cy, a.cn, a.frontal_area_m2, a.lateral_area_m2,
-                                self.wind.length_m)  # fmt: skip
+            self.wind_p[:7] = (0.5 * AIR_DENSITY, a.cx, a.cy, a.cn, a.frontal_area_m2, a.lateral_area_m2,
+                               self.wind.length_m)  # fmt: skip
 
     def step(self, h: float, t: float, x: Array) -> None:
         """Advance by h from time t with the vessel in state x.
@@ -60,29 +60,34 @@ class PlantEnvironment:
         wind force is recomputed every 0.25 s (the gust series' grid; it has nothing above 0.2 Hz), held in
         between: per plant step both would cost more than the plant itself for no difference in the motion.
         """
+        due = self.due
         if self.current is not None:
-            self._current_due += h
-            if self._current_due >= CURRENT_STEP_S - 1e-9:
-                self.current.step(self._current_due)
-                self._current_due = 0.0
+            due[0] += h
+            if due[0] >= CURRENT_STEP_S - 1e-9:
+                self.step_current()
         if self.wind is not None:
-            self._wind_due += h
-            if self._wind_due >= WIND_STEP_S - 1e-9:
+            due[1] += h
+            if due[1] >= WIND_STEP_S - 1e-9:
                 self.wind_body[:] = self.wind.force_body(t, float(x[2]), float(x[3]), float(x[4]))
-                self._wind_due = 0.0
+                due[1] = 0.0
 
-    def wind_parameters(self, t: float) -> Array | None:
-        """[½ρ_a, c_x, c_y, c_n, A_F, A_L, L, wn, we] of the wind at time t for the compiled advance (None
-        without wind): the constants of `simulator.wind.wind_force` and the wind's NED velocity (wn, we),
-        computed as it computes them."""
+    def step_current(self) -> None:
+        """Move the current over the time accumulated since it last moved."""
+        assert self.current is not None
+        self.current.step(float(self.due[0]))
+        self.due[0] = 0.0
+
+    def wind_parameters(self, t: float) -> None:
+        """Fill ``wind_p`` = [½ρ_a, c_x, c_y, c_n, A_F, A_L, L, wn, we] for the wind at time t (nothing
+        without wind), for the compiled advance: the constants of `simulator.wind.wind_force` and the wind's
+        NED velocity (wn, we), computed as it computes them."""
         wind = self.wind
         if wind is None:
-            return None
+            return
         speed = wind.speed(t)
         towards = math.radians(wind.model.from_deg + 180.0)
-        self._wind_p[7] = speed * math.cos(towards)
-        self._wind_p[8] = speed * math.sin(towards)
-        return self._wind_p
+        self.wind_p[7] = speed * math.cos(towards)
+        self.wind_p[8] = speed * math.sin(towards)
 
     @property
     def current_ned(self) -> Array:

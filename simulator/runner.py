@@ -227,6 +227,7 @@ class Simulation:
         self.direct_tau = self.thrusters.n == 0  # a vessel without a layout: τ acts directly (papers' sims)
         self.tau_direct = np.zeros(3)
         self.fused_plant = True
+        self._full_args: tuple[object, ...] = ()
         self._thruster_kinds = [t.kind for t in vessel.thrusters]
         self._lever_arms: list[tuple[str, float, float, float]] = []
         """(source, x, y, z) of each DGPS antenna, for the truth."""
@@ -303,35 +304,43 @@ class Simulation:
         """`_advance_reference` for the full plant, in one compiled call per block of bias draws and per
         step of the current (`simulator._full_advance_kernel`; the same bits). The current steps in Python
         (`Current.step`, once a second): the kernel stops before the substep at which it falls due."""
-        env, bias, th, dyn = self.plant_env, self.bias, self.thrusters, self.dynamics
-        assert env is not None and isinstance(dyn, FullPlant)
+        env, bias, th = self.plant_env, self.bias, self.thrusters
+        assert env is not None
         decay, kick = bias.factors(hs)
         m = max(1, math.ceil(hs / MAX_STEP_S - 1e-9))  # FullPlant.step's own split (always 1 here)
         current = env.current
-        wind_p = env.wind_parameters(self.t)  # the reference asks the wind at self.t for every substep
-        due = np.array([env._current_due, env._wind_due])
-        minv, d, ma, ra, rb, rc, rd = dyn._arrays
+        env.wind_parameters(self.t)  # the reference asks the wind at self.t for every substep
+        fixed = self._full_args or self._full_fixed_args()
+        kernel: Callable[..., tuple[int, int]] = advance_full_kernel  # (a numba dispatcher: untyped)
         stepped = False
         while n > 0:
             normals, k = bias.draws()
             chunk = min(n, len(normals) - k)
-            k, done = advance_full_kernel(
-                chunk, hs, m, dyn.x, dyn._s, minv, d, ma, ra, rb, rc, rd,
-                not self.direct_tau, th.thrust, th.angle, th.thrust_setpoint, th.angle_setpoint, th.failed,
-                th.is_azimuth, th.time_constant, th.rate, th.x, th.y,
-                self.tau_direct, self._drift_body, bias.b, bias.constant, decay, kick, normals, k,
-                current is not None, stepped, env.current_ned, wind_p is not None, env._no_wind_p
-                if wind_p is None else wind_p, env.wind_body, due, env.due_thresholds,
+            k, done = kernel(
+                chunk, hs, m, *fixed, th.thrust_setpoint, th.angle_setpoint, self.tau_direct,
+                self._drift_body, bias.b, decay, kick, normals, k, stepped, env.current_ned,
             )  # fmt: skip
             bias.took(k)
             n -= done
             stepped = False
             if done < chunk:  # the current fell due before substep `done`: step it, then go on from there
                 assert current is not None
-                current.step(float(due[0]))
-                due[0] = 0.0
+                env.step_current()
                 stepped = True
-        env._current_due, env._wind_due = float(due[0]), float(due[1])
+
+    def _full_fixed_args(self) -> tuple[object, ...]:
+        """The compiled full-plant advance's arguments that stay the same objects for the whole run (the
+        arrays it updates in place and the constants), gathered once."""
+        env, th, dyn = self.plant_env, self.thrusters, self.dynamics
+        assert env is not None and isinstance(dyn, FullPlant)
+        self._full_args = (
+            dyn.x, dyn._s, *dyn._arrays,
+            not self.direct_tau, th.thrust, th.angle, th.failed, th.is_azimuth, th.time_constant, th.rate,
+            th.x, th.y,
+            self.bias.constant, env.current is not None, env.wind is not None, env.wind_p, env.wind_body,
+            env.due, env.due_thresholds,
+        )  # fmt: skip
+        return self._full_args
 
     def _advance_reference(self, n: int, hs: float) -> None:
         """n plant substeps of hs: thrusters, bias, dynamics, one Python call each (the readable form)."""
