@@ -58,6 +58,11 @@ def _wind_force(x, p, out):
     out[2] = q * p[3] * math.sin(2.0 * gamma) * p[5] * p[6]
 
 
+wind_force_into = (
+    _wind_force  # (the mean wind's force for the feed-forward, `PlantEnvironment.mean_wind_body`)
+)
+
+
 @njit(cache=True)
 def advance_full(
     n, h, m,

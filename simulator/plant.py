@@ -51,6 +51,7 @@ class FullPlant:
         c = np.ascontiguousarray
         self._arrays = (c(p.Minv), c(p.D), c(p.MA), c(p.rA), c(p.rB), c(p.rC), c(p.rD))
         self._zero_current = np.zeros(2)
+        self._load_buffers = (np.empty_like(self.x), np.empty_like(self.x), np.zeros(3))
 
     @property
     def eta(self) -> Array:
@@ -77,10 +78,9 @@ class FullPlant:
     def current_load(self, current_ned: ArrayLike) -> Array:
         """The hydrodynamic force [X, Y, N] (body frame) on the vessel held still at its heading in the
         current: what a feed-forward of the mean current load must cancel."""
-        xt = self.x.copy()
+        xt, out, zero = self._load_buffers  # (no allocation per control tick: it runs at 10 Hz)
+        xt[:] = self.x
         xt[3:] = 0.0
-        out = np.empty_like(xt)
-        zero = np.zeros(3)
-        vc = np.asarray(current_ned, dtype=float)
+        vc = current_ned if isinstance(current_ned, np.ndarray) else np.asarray(current_ned, dtype=float)
         derivative_into(xt, zero, zero, vc, self._s, *self._arrays, out)
         return np.asarray(self.params.M @ out[3:6])

@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 
 from observers.hull import AIR_DENSITY
 from observers.vessel import VesselModel
+from simulator._full_advance_kernel import wind_force_into
 from simulator.current import Current, CurrentModel
 from simulator.wind import Wind, WindModel
 
@@ -48,10 +49,17 @@ class PlantEnvironment:
         # and the wind's constants and NED velocity (`wind_parameters`)
         self.due_thresholds = np.array([CURRENT_STEP_S - 1e-9, WIND_STEP_S - 1e-9])
         self.wind_p = np.zeros(9)
+        self._mean_wind_p = self.wind_p.copy()
+        self._mean_wind_x = np.zeros(5)
         if self.wind is not None:
+            towards = math.radians(self.wind.model.from_deg + 180.0)  # as `simulator.wind.wind_force`
+            self._towards_cos, self._towards_sin = math.cos(towards), math.sin(towards)
             a = self.wind.area
             self.wind_p[:7] = (0.5 * AIR_DENSITY, a.cx, a.cy, a.cn, a.frontal_area_m2, a.lateral_area_m2,
                                self.wind.length_m)  # fmt: skip
+            mean = self.wind.mean
+            self._mean_wind_p[:] = self.wind_p
+            self._mean_wind_p[7:] = (mean * self._towards_cos, mean * self._towards_sin)
 
     def step(self, h: float, t: float, x: Array) -> None:
         """Advance by h from time t with the vessel in state x.
@@ -77,22 +85,31 @@ class PlantEnvironment:
         self.current.step(float(self.due[0]))
         self.due[0] = 0.0
 
-    def wind_parameters(self, t: float) -> None:
-        """Fill ``wind_p`` = [½ρ_a, c_x, c_y, c_n, A_F, A_L, L, wn, we] for the wind at time t (nothing
-        without wind), for the compiled advance: the constants of `simulator.wind.wind_force` and the wind's
-        NED velocity (wn, we), computed as it computes them."""
+    def wind_parameters(self, t: float, until_due: float) -> None:
+        """Fill ``wind_p`` = [½ρ_a, c_x, c_y, c_n, A_F, A_L, L, wn, we] for the wind at time t, for the
+        compiled advance: the constants of `simulator.wind.wind_force` and the wind's NED velocity (wn, we),
+        computed as it computes them. Nothing without wind, nor when the force cannot fall due within
+        ``until_due`` s (a margin of 1e-7 s over the rounding of the substeps' sum: wn, we go unread)."""
         wind = self.wind
-        if wind is None:
+        if wind is None or self.due[1] + until_due < WIND_STEP_S - 1e-7:
             return
         speed = wind.speed(t)
-        towards = math.radians(wind.model.from_deg + 180.0)
-        self.wind_p[7] = speed * math.cos(towards)
-        self.wind_p[8] = speed * math.sin(towards)
+        self.wind_p[7] = speed * self._towards_cos
+        self.wind_p[8] = speed * self._towards_sin
 
     @property
     def current_ned(self) -> Array:
         return self.current.velocity_ned if self.current is not None else self._no_current
 
     def mean_wind_body(self, psi: float) -> Array:
-        """The mean wind's force on the vessel at rest (body frame); zero without wind."""
-        return np.array(self.wind.mean_force_body(psi)) if self.wind is not None else np.zeros(3)
+        """The mean wind's force on the vessel at rest (body frame); zero without wind.
+
+        `Wind.mean_force_body` through the compiled wind force of the plant's advance: the same bits
+        (tests/test_simulator.py), half the time, at every control tick."""
+        if self.wind is None:
+            return np.zeros(3)
+        x = self._mean_wind_x
+        x[2] = psi
+        out = np.empty(3)
+        wind_force_into(x, self._mean_wind_p, out)
+        return out

@@ -309,7 +309,7 @@ class Simulation:
         decay, kick = bias.factors(hs)
         m = max(1, math.ceil(hs / MAX_STEP_S - 1e-9))  # FullPlant.step's own split (always 1 here)
         current = env.current
-        env.wind_parameters(self.t)  # the reference asks the wind at self.t for every substep
+        env.wind_parameters(self.t, n * hs)  # the reference asks the wind at self.t for every substep
         fixed = self._full_args or self._full_fixed_args()
         kernel: Callable[..., tuple[int, int]] = advance_full_kernel  # (a numba dispatcher: untyped)
         stepped = False

@@ -132,6 +132,38 @@ def test_compiled_full_plant_steps_equal_the_reference_bit_for_bit(name: str) ->
     assert np.abs(a.dynamics.x[:2]).max() > 0.1  # the vessel moved
 
 
+@pytest.mark.parametrize("name", ["mss_supply_storm", "mss_osv"])
+def test_compiled_wind_force_equals_the_python_one_bit_for_bit(name: str) -> None:
+    """The compiled wind force (the plant's advance, the feed-forward's mean wind) against
+    `simulator.wind.wind_force`, the readable form: the same bits at any heading and velocity."""
+    from simulator._full_advance_kernel import wind_force_into
+    from simulator.wind import wind_force
+
+    sim = Simulation(get_scenario(name), 1)
+    env = sim.plant_env
+    assert env is not None and env.wind is not None
+    rng = np.random.default_rng(7)
+    out = np.empty(3)
+    x = np.zeros(6)
+    for psi, u, v, t in zip(
+        rng.uniform(-np.pi, np.pi, 3000),
+        rng.normal(0, 2, 3000),
+        rng.normal(0, 2, 3000),
+        rng.uniform(0, 900, 3000),
+        strict=True,
+    ):
+        mean = env.mean_wind_body(psi)
+        assert mean.tobytes() == np.array(env.wind.mean_force_body(psi)).tobytes()
+        env.due[1] = np.inf  # (the wind is due: its NED velocity is filled in)
+        env.wind_parameters(t, 0.05)
+        x[2:5] = psi, u, v
+        wind_force_into(x, env.wind_p, out)
+        speed = env.wind.speed(t)
+        expected = wind_force(env.wind.area, env.wind.length_m, speed, env.wind.model.from_deg, psi, u, v)
+        assert out.tobytes() == np.array(expected).tobytes()
+    assert np.abs(out).max() > 0.0
+
+
 def get_wf(name: str, seed: int) -> np.ndarray:
     sim = Simulation(get_scenario(name), seed)
     t = np.arange(0.0, 300.0, 0.5)
