@@ -18,7 +18,8 @@ runs both full-plant scenarios each way and compares state and bytes):
 - wind: Fossen (2021) eqs (10.10)–(10.12) on the relative wind, `simulator.wind.wind_force` written out
   with the same operations in the same order. The wind's speed and its NED velocity (wn, we) are computed
   by the caller: the reference asks the gust series at the event's start time for every substep of it, so
-  they are constant over one call;
+  they are constant over one call. numba's cos, sin and atan2 are the C library's, as CPython's math
+  module's are (tests/test_simulator.py checks the force against `wind_force` bit for bit);
 - current: not stepped here. Its Gauss–Markov step draws from its own generator once a second, so the
   kernel stops *before* the substep at which it falls due (returning how many substeps it did), the
   caller steps `Current` in Python with the accumulated time, and calls again with ``current_stepped``
@@ -26,7 +27,8 @@ runs both full-plant scenarios each way and compares state and bytes):
 
 ``due`` = [time since the current moved, time since the wind force was computed], carried between calls.
 ``wind_p`` = [½ρ_a, c_x, c_y, c_n, A_F, A_L, L, wn, we]; ``steps`` = [current step − 1e-9, wind step −
-1e-9] (the thresholds `PlantEnvironment.step` compares with).
+1e-9] (the thresholds `PlantEnvironment.step` compares with). The arguments from ``x`` to ``steps`` are
+the same objects for a whole run (arrays updated in place, or constants): the runner gathers them once.
 """
 
 from __future__ import annotations
@@ -58,9 +60,8 @@ def _wind_force(x, p, out):
     out[2] = q * p[3] * math.sin(2.0 * gamma) * p[5] * p[6]
 
 
-wind_force_into = (
-    _wind_force  # (the mean wind's force for the feed-forward, `PlantEnvironment.mean_wind_body`)
-)
+wind_force_into = _wind_force
+"""The wind force alone: the feed-forward's mean wind (`PlantEnvironment.mean_wind_body`)."""
 
 
 @njit(cache=True)
