@@ -25,6 +25,23 @@ from simulator.vessel_dynamics import _rk4
 
 
 @njit(cache=True)
+def thrust_and_bias(
+    h, thrusters, thrust, angle, thrust_sp, angle_sp, failed, is_azimuth, time_constant, rate, tx, ty,
+    tau_direct, b, decay, kick, normals, k,
+):  # fmt: skip
+    """One substep's thrusters (their force τ, or ``tau_direct`` without them) and Markov bias, shared by
+    both plants' advances: returns τ; updates thrust, angle and b in place and reads normals row ``k``."""
+    if thrusters:
+        _step(h, thrust, angle, thrust_sp, angle_sp, failed, is_azimuth, time_constant, rate)
+        tau = _tau(thrust, angle, tx, ty)
+    else:
+        tau = tau_direct
+    for j in range(3):
+        b[j] = decay[j] * b[j] + kick[j] * normals[k, j]
+    return tau
+
+
+@njit(cache=True)
 def advance(
     n, h, m, x, Minv, D,
     thrusters, thrust, angle, thrust_sp, angle_sp, failed, is_azimuth, time_constant, rate, tx, ty,
@@ -37,13 +54,10 @@ def advance(
     b_earth = np.empty(3)
     hm = h / m
     for _ in range(n):
-        if thrusters:
-            _step(h, thrust, angle, thrust_sp, angle_sp, failed, is_azimuth, time_constant, rate)
-            tau = _tau(thrust, angle, tx, ty)
-        else:
-            tau = tau_direct
-        for j in range(3):
-            b[j] = decay[j] * b[j] + kick[j] * normals[k, j]
+        tau = thrust_and_bias(
+            h, thrusters, thrust, angle, thrust_sp, angle_sp, failed, is_azimuth, time_constant, rate,
+            tx, ty, tau_direct, b, decay, kick, normals, k,
+        )  # fmt: skip
         k += 1
         for j in range(3):
             tau_body[j] = tau[j] + drift[j]

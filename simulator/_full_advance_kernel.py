@@ -12,7 +12,8 @@ bias (`simulator.environment.MarkovBias`, Fossen & Strand 1999 eq (7)), lets the
 This kernel does the same arithmetic in the same order, so both give the same bits (tests/test_simulator.py
 runs both full-plant scenarios each way and compares state and bytes):
 
-- thrusters and RK4: the same compiled functions (`_step`, `_tau`, `rk4_steps`);
+- thrusters and RK4: the same compiled functions (`_step`, `_tau` through
+  `_advance_kernel.thrust_and_bias`, which the model plant's advance uses too, and `rk4_steps`);
 - bias: b ← e^{-h/T} b + σ√(1 − e^{-2h/T}) ν element by element with `MarkovBias`' own factors and its
   block of normal draws (read, never drawn here: the random stream is the same);
 - wind: Fossen (2021) eqs (10.10)–(10.12) on the relative wind, `simulator.wind.wind_force` written out
@@ -38,8 +39,8 @@ import math
 import numpy as np
 from numba import njit
 
+from simulator._advance_kernel import thrust_and_bias
 from simulator._plant_kernel import rk4_steps
-from simulator.thrusters import _step, _tau
 
 
 @njit(cache=True)
@@ -88,13 +89,10 @@ def advance_full(
                 due[0] = cd
                 if cd >= steps[0]:
                     return k, i
-        if thrusters:
-            _step(h, thrust, angle, thrust_sp, angle_sp, failed, is_azimuth, time_constant, rate)
-            tau = _tau(thrust, angle, tx, ty)
-        else:
-            tau = tau_direct
-        for j in range(3):
-            b[j] = decay[j] * b[j] + kick[j] * normals[k, j]
+        tau = thrust_and_bias(
+            h, thrusters, thrust, angle, thrust_sp, angle_sp, failed, is_azimuth, time_constant, rate,
+            tx, ty, tau_direct, b, decay, kick, normals, k,
+        )  # fmt: skip
         k += 1
         if has_wind:
             wd = due[1] + h
