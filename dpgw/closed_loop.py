@@ -36,7 +36,7 @@ from simulator.sensors import Emission
 from simulator.transports import Sink
 from wire import messages
 from wire.mcap.writer import McapLogWriter
-from wire.messages import TOPICS, Message
+from wire.messages import Message, message_for_topic
 
 Array = NDArray[np.float64]
 
@@ -166,10 +166,7 @@ def true_bias(sim: Simulation) -> Array:
 def is_foxglove_topic(topic: str) -> bool:
     """Whether ``topic`` is one of the Foxglove-native channels (`gateway.foxglove_channels`), which the
     pipeline makes only when asked to."""
-    for t in TOPICS:
-        if topic == t.pattern or (t.pattern.endswith("/") and topic.startswith(t.pattern)):
-            return (t.message.TITLE or "").startswith("foxglove.")
-    return False
+    return (message_for_topic(topic).TITLE or "").startswith("foxglove.")
 
 
 def needs_wire(scenario: Scenario, log: McapLogWriter | None = None) -> bool:

@@ -436,8 +436,7 @@ class Pipeline:
         changes = self._state_changes(rx_ns)
         if changes:
             out += changes
-        if self._foxglove_on:
-            out += [Output(topic, message, ns, False) for topic, message, ns in self.foxglove.derive(out)]
+        self._with_foxglove(out)
         return out
 
     def _with_foxglove(self, out: list[Output]) -> None:

@@ -10,7 +10,6 @@ deviation. A constant earth-fixed current/wind force is added on top; wave drift
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,9 +36,6 @@ class MarkovBias:
         if np.any(self.sigma < 0) or np.any(self.T <= 0):
             raise ValueError("bias: sigma must be >= 0 and time constants > 0")
         self.b = self.sigma * rng.standard_normal(3) if start_stationary else np.zeros(3)
-        self._h = math.nan
-        self._decay = np.ones(3)
-        self._kick = np.zeros(3)
         self._factors: dict[float, tuple[Array, Array]] = {}
         self._normals = np.empty((0, 3))  # drawn in blocks: one generator call per 1024 steps, not per step
         self._k = 0
@@ -52,19 +48,15 @@ class MarkovBias:
         self._k = k + 1
 
     def factors(self, h: float) -> tuple[Array, Array]:
-        """e^{-h/T} and σ√(1 − e^{-2h/T}) for a step h (computed again only when h changes)."""
-        if h != self._h:  # the same step: the same factors
-            self._h = h
-            # The runner's substeps take a few dozen distinct values (event times minus sums of steps):
-            # each one's factors are computed once.
-            known = self._factors.get(h)
-            if known is None:
-                if len(self._factors) > 256:
-                    self._factors.clear()
-                decay = np.exp(-h / self.T)
-                known = self._factors[h] = (decay, self.sigma * np.sqrt(1.0 - decay**2))
-            self._decay, self._kick = known
-        return self._decay, self._kick
+        """e^{-h/T} and σ√(1 − e^{-2h/T}) for a step h. The runner's substeps take a few dozen distinct
+        values (event times minus sums of steps): each one's factors are computed once."""
+        known = self._factors.get(h)
+        if known is None:
+            if len(self._factors) > 256:
+                self._factors.clear()
+            decay = np.exp(-h / self.T)
+            known = self._factors[h] = (decay, self.sigma * np.sqrt(1.0 - decay**2))
+        return known
 
     def refill(self) -> None:
         """The next block of normal draws (one generator call per 1024 steps); `step` reads row k of it."""

@@ -227,14 +227,11 @@ class Simulation:
         self.direct_tau = self.thrusters.n == 0  # a vessel without a layout: τ acts directly (papers' sims)
         self.tau_direct = np.zeros(3)
         self.fused_plant = True
+        """False: the plant steps in Python (`_advance_reference`), for tests that compare the two."""
         self._full_args: tuple[object, ...] = ()
         self._thruster_kinds = [t.kind for t in vessel.thrusters]
-        self._lever_arms: list[tuple[str, float, float, float]] = []
+        self._lever_arms = [(d.source, *d.lever_arm_xyz) for d in scenario.dgps]
         """(source, x, y, z) of each DGPS antenna, for the truth."""
-        for dcfg in scenario.dgps:
-            ax, ay, az = (*(float(v) for v in dcfg.lever_arm_m), 0.0)[:3]
-            self._lever_arms.append((dcfg.source, ax, ay, az))
-        """False: the plant steps in Python (`_advance_reference`), for tests that compare the two."""
 
         self.faults = FaultSchedule(scenario.faults)
         self._failure_faults = any(f.kind == "thruster_failure" for f in scenario.faults)
@@ -308,7 +305,6 @@ class Simulation:
         assert env is not None
         decay, kick = bias.factors(hs)
         m = max(1, math.ceil(hs / MAX_STEP_S - 1e-9))  # FullPlant.step's own split (always 1 here)
-        current = env.current
         env.wind_parameters(self.t, n * hs)  # the reference asks the wind at self.t for every substep
         fixed = self._full_args or self._full_fixed_args()
         kernel: Callable[..., tuple[int, int]] = advance_full_kernel  # (a numba dispatcher: untyped)
@@ -324,7 +320,6 @@ class Simulation:
             n -= done
             stepped = False
             if done < chunk:  # the current fell due before substep `done`: step it, then go on from there
-                assert current is not None
                 env.step_current()
                 stepped = True
 

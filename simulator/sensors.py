@@ -313,6 +313,12 @@ class DgpsConfig:
             )
 
     @property
+    def lever_arm_xyz(self) -> tuple[float, float, float]:
+        """The lever arm as (x, y, z), z = 0 when only (x, y) is given."""
+        arm = self.lever_arm_m
+        return arm[0], arm[1], arm[2] if len(arm) > 2 else 0.0
+
+    @property
     def sentences(self) -> tuple[str, ...]:
         """The sentences of one burst, in the order they are sent."""
         return (self.position_sentence, *self.extra)
@@ -527,8 +533,7 @@ class Dgps(Sensor):
         self._mode = DGPS_QUALITIES[config.quality]
         self._kinds_all = config.sentences
         self._kinds_fast = tuple(k for k in config.sentences if k not in config.slow_sentences)
-        arm = config.lever_arm_m
-        self._lever_arm = (float(arm[0]), float(arm[1]), float(arm[2]) if len(arm) > 2 else 0.0)
+        self._lever_arm = config.lever_arm_xyz
         self.encode = True
         """False: emissions carry typed records instead of bytes (see `Emission.record`)."""
 

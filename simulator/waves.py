@@ -52,7 +52,7 @@ import io
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from importlib import resources
 from typing import TYPE_CHECKING, Any
 
@@ -338,6 +338,12 @@ class WaveComponents:
     attitude: CArray | None = None
     """(K, B+1, 3) a_k × [heave, roll, pitch] RAOs on the closed β grid; None without attitude RAOs."""
 
+    @cached_property
+    def motion_table(self) -> CArray:
+        """[rao | attitude] (K, B+1, 6), or ``rao`` alone without attitude RAOs: what the WF motion
+        interpolates, joined once per sea state (~0.5 MB; it was copied at every 2 s block)."""
+        return self.rao if self.attitude is None else np.concatenate([self.rao, self.attitude], axis=2)
+
 
 class WaveField:
     """A (possibly changing) irregular long-crested sea and the WF motion and drift it gives one vessel.
@@ -571,22 +577,12 @@ class WaveField:
         for sl, c, w in self._active(ts):
             carrier = self._carrier(c, ts[sl], north_f[sl], east_f[sl])
             beta = ssa(c.sea_state.direction_rad - psi[sl])
-            table = self._motion_table(c)
+            table = c.motion_table
             both = self._at_beta(carrier, table, beta).real
             body[sl] += w[:, None] * both[:, :3]
             if c.attitude is not None:
                 att[sl] += w[:, None] * both[:, 3:]
         return self._to_ned(body, psi).reshape((*shape, 3)), att.reshape((*shape, 3))
-
-    def _motion_table(self, c: WaveComponents) -> CArray:
-        """[RAO | attitude RAO] (K, B+1, 6) of a sea state's components, joined once (not at every call:
-        ~0.5 MB a sea state, copied every 2 s of sim time before)."""
-        tables = self.__dict__.setdefault("_tables", {})
-        table = tables.get(id(c))
-        if table is None or table[0] is not c:
-            joined = c.rao if c.attitude is None else np.concatenate([c.rao, c.attitude], axis=2)
-            table = tables[id(c)] = (c, joined)
-        return table[1]
 
     def _to_ned(self, body: Array, psi: Array) -> Array:
         """Body surge/sway rotated to NED by ψ, yaw as is, times ``motion_gain``."""
