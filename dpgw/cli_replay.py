@@ -384,6 +384,7 @@ def _summary(
         "wall_seconds": wall,
         "sentences_per_second": r.sentences / wall if wall > 0 else None,
         "estimates": dict(r.estimates),
+        "observer_restarts": r.restarts,
         "counts": r.counts,
     }
     if r.truth:
@@ -420,6 +421,11 @@ def _print(s: dict[str, Any]) -> None:
     )
     for label, n in s["estimates"].items():
         print(f"  observer {label}: {n} estimates")
+    if s["observer_restarts"]:
+        print(
+            f"  observers restarted {s['observer_restarts']}x: a reference came back far from the "
+            "dead-reckoned estimate, or after it was lost (when and why: the events in /dp/status)"
+        )
     for where, c in s["counts"].items():
         print(f"  {where}: " + ", ".join(f"{k} {v}" for k, v in c.items()))
     for label, e in s.get("error_vs_truth", {}).items():

@@ -304,6 +304,17 @@ class Pipeline:
             (s.timeout_ns for s in spec.sources if s.roles & {"position", "heading"}), default=2 * NS
         )
         self._lost_ns = int(ip.lost_after_s * NS)
+        # Re-acquisition of a DOF whose references return after the prediction test stopped applying
+        # (`_reacquire`): per DOF [N, E, ψ], when its present unbroken run of measurements began, 0 while
+        # not re-acquiring, -1 while re-acquiring but broken off.
+        self._reacq_ns = [0, 0, 0]
+        self._pred_age_ns = int(ip.prediction_max_age_s * NS)
+        self._confirm_ns = int(ip.restart_confirm_s * NS)
+        # a DOF measured again after this long is "back" (`_reacquire`)
+        self._back_ns = min(self._pred_age_ns, self._lost_ns) if self._pred_age_ns else self._lost_ns
+        self._gate_m = ip.prediction_gate_m
+        self._gate_rad = math.radians(ip.prediction_gate_deg)
+        self.restarts = 0  # observer restarts from a returning reference (`_reacquire`)
         self._datum_for_message: LocalFrame | None = None
         self._datum_msg = Datum(lat_deg=0.0, lon_deg=0.0)
         self.sources = {s.name: s for s in spec.sources}
@@ -481,12 +492,14 @@ class Pipeline:
         return out
 
     def _state_changes(self, now_ns: int) -> list[Output]:
-        """Reference state changes since the last call: to the next status, and a status at once."""
+        """Reference state changes since the last call, and observer restarts (`_reacquire`): to the next
+        status, and a status at once."""
         self.monitor.refresh(now_ns)
         changes = self.monitor.drain()
-        if not changes:
+        if changes:
+            self._events.extend(c.text for c in changes)
+        elif not self._events:
             return []
-        self._events.extend(c.text for c in changes)
         return [self.status(now_ns)]
 
     def count_internal_error(self, source: str) -> None:
@@ -612,7 +625,14 @@ class Pipeline:
 
     def _prediction(self, now_ns: int, dof: int) -> Prediction | None:
         """Where the estimate expects a position (dof 0) or heading (dof 2) now: the last estimate moved on
-        by its velocity (the observer itself is not advanced), plus its wave motion; None before one."""
+        by its velocity (the observer itself is not advanced), plus its wave motion; None before one, and
+        while the DOF is being re-acquired (`_reacquire`: the estimate is then what is in question)."""
+        if self._reacq_ns[dof]:
+            return None
+        return self._predicted(now_ns, dof)
+
+    def _predicted(self, now_ns: int, dof: int) -> Prediction | None:
+        """`_prediction` whether or not the DOF is being re-acquired."""
         est = self._last_est
         measured = self._measured_ns[dof]
         if est is None or not measured:
@@ -751,9 +771,18 @@ class Pipeline:
         y, valid = fusion.measurement(now_ns)
         tau, tau_source = fusion.tau(now_ns)
         t = (now_ns - self.t0_ns) / 1e9 if self.t0_ns is not None else 0.0  # (`_t`; feed set t0_ns)
-        est = self._observe(self.observer, t, y, tau, valid)
-        self._last_est, self._last_est_ns, self._last_step_ns = est, now_ns, now_ns
         measured = self._measured_ns
+        y_obs = y
+        reacq, back_ns = self._reacq_ns, self._back_ns
+        if (
+            reacq[0]
+            or reacq[2]
+            or (valid[0] and measured[0] and now_ns - measured[0] > back_ns)
+            or (valid[2] and measured[2] and now_ns - measured[2] > back_ns)
+        ) and self._last_est is not None:
+            y_obs = self._reacquire(now_ns, y, valid)
+        est = self._observe(self.observer, t, y_obs, tau, valid)
+        self._last_est, self._last_est_ns, self._last_step_ns = est, now_ns, now_ns
         if valid[0]:
             measured[0] = now_ns
         if valid[1]:
@@ -798,10 +827,97 @@ class Pipeline:
                 self._next_control_ns = now_ns + self._control_period_ns
                 out.extend(self._control_step(t, est, now_ns))
         for label, obs in self.spec.extra_observers:
-            e = self._observe(obs, t, y, tau, valid)
+            e = self._observe(obs, t, y_obs, tau, valid)
             if e.status != STATUS_NAMES[0]:
                 out.append(Output(f"/dp/estimates/{label}", self._estimate(label, obs, e, now_ns), now_ns))
         return out
+
+    def _reacquire(self, now_ns: int, y: np.ndarray, valid: list[bool]) -> np.ndarray:
+        """Restart the observers when a DOF's references return and the estimate cannot be right; returns
+        the y to step them with (``y`` itself unless they restart).
+
+        While a DOF has no usable reference the observer dead-reckons on its model, and the estimate
+        drifts (a current or wind it has not learnt, a tow, hours between two logs). When the references
+        return, stepping the observer with them would pull the estimate over slowly (its injection gains
+        act over tens of seconds), and meanwhile the prediction test would reject every fix that lands
+        outside its gate: measured, a 20 m drift over a 60 s outage gave 17 m of error 10 s after the
+        return and 40 % of the returning fixes rejected for a minute. So, per DOF (position, heading):
+
+        - back after ``lost_after_s`` (the estimate was reported lost): the observers restart from the
+          measurement at once, as at start-up;
+        - back after ``prediction_max_age_s`` (the prediction test stopped applying): the DOF is
+          re-acquired. Until it has been measured for ``restart_confirm_s`` without a break its
+          references are not tested against the prediction (the other tests still apply) and do not
+          reach the observers, which keep dead-reckoning that DOF — so the prediction stays the
+          dead-reckoned one (fed to the observer, the returning fixes would be taken up by the wave
+          estimate within a second or two and hide the drift from the comparison). Then, if the
+          prediction lies outside the prediction gate (``prediction_gate_m`` plus 3σ of the position's
+          GST sigma when known; ``prediction_gate_deg``), the observers restart from the measurement,
+          else they carry on with it. One wild fix on return does not restart anything: it must hold up
+          for the confirmation time, and it still meets the source's own jump test.
+
+        A restart is `Observer.reset` and the step with y, which initialises the observer as its first
+        measurement does (a DOF with no fresh value then takes the prediction's). Announced as a status
+        event and counted (`restarts`).
+        """
+        measured, reacq, lost_ns = self._measured_ns, self._reacq_ns, self._lost_ns
+        why = ""
+        for dof in (0, 2):
+            if not valid[dof]:
+                if reacq[dof]:
+                    reacq[dof] = -1
+                continue
+            last = measured[dof]
+            gap_ns = now_ns - last
+            what = "position" if dof == 0 else "heading"
+            if last and gap_ns > lost_ns:
+                why = why or f"{what} back after {gap_ns / NS:.0f} s (lost after {lost_ns / NS:g} s)"
+                continue
+            if reacq[dof] == -1 or (last and self._pred_age_ns and gap_ns > self._pred_age_ns):
+                reacq[dof] = now_ns  # back, or back again after a break: the confirmation starts
+            if reacq[dof] and now_ns - reacq[dof] >= self._confirm_ns:
+                reacq[dof] = 0
+                pred = self._predicted(now_ns, dof)
+                if pred is None:
+                    continue
+                if dof == 0:
+                    sigma = self.fusion.position_sigma_m(now_ns)
+                    gate = self._gate_m + 3 * (sigma or 0.0)
+                    off = math.hypot(float(y[0]) - pred.value[0], float(y[1]) - pred.value[1])
+                    if off > gate:
+                        why = why or (
+                            f"position {off:.1f} m from the dead-reckoned estimate (gate {gate:.1f} m)"
+                        )
+                else:
+                    off = abs(ssa_scalar(float(y[2]) - pred.value[0]))
+                    if off > self._gate_rad:
+                        why = why or (
+                            f"heading {math.degrees(off):.1f}° from the dead-reckoned estimate "
+                            f"(gate {math.degrees(self._gate_rad):g}°)"
+                        )
+        if not why:
+            if not (reacq[0] or reacq[2]):
+                return y
+            y_obs = y.copy()  # a DOF being re-acquired does not reach the observers yet
+            if reacq[0]:
+                y_obs[0] = y_obs[1] = math.nan
+            if reacq[2]:
+                y_obs[2] = math.nan
+            return y_obs
+        y_obs = y.copy()
+        for dof in (0, 2):
+            if not valid[dof]:
+                pred = self._predicted(now_ns, dof)
+                if pred is not None:
+                    y_obs[dof : dof + len(pred.value)] = pred.value
+        self.observer.reset()
+        for _, obs in self.spec.extra_observers:
+            obs.reset()
+        self._given_ns.clear()
+        self._reacq_ns = [0, 0, 0]
+        self.restarts += 1
+        self._events.append(f"observer restarted from the measurement: {why}")
+        return y_obs
 
     def _observe(
         self, obs: Observer, t: float, y: np.ndarray, tau: np.ndarray, valid: list[bool]

@@ -361,6 +361,7 @@ class ReplayResult:
     sentences: int = 0
     outputs: int = 0
     estimates: Counter[str] = field(default_factory=Counter)
+    restarts: int = 0  # observer restarts from a returning reference (`Pipeline.restarts`)
     counts: dict[str, dict[str, int]] = field(default_factory=dict)
     collected: dict[str, list[dict[str, Any]]] = field(default_factory=dict)  # topic -> payloads
     truth: list[dict[str, Any]] = field(default_factory=list)
@@ -448,6 +449,7 @@ def run_replay(
         progress(events)  # the bar ends at the true count
     if frozen == 0 and gc.get_freeze_count():  # (a caller's own frozen objects are left alone)
         gc.unfreeze()  # (back to normal collection; anything cyclic frozen meanwhile is collected later)
+    result.restarts = pipeline.restarts
     now = pipeline.last_ns
     status = pipeline.status_message(now)
     for name, c in status.sources.items():

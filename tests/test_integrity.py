@@ -296,6 +296,82 @@ def test_dead_reckoning_is_published_at_rate_when_every_source_is_silent_then_lo
     assert b.p.observer.t == pytest.approx((t_last - 100 + 101 - T0) / S - 0.1, abs=0.2)
 
 
+# --- a reference that comes back after an outage -------------------------------------------------------
+
+
+def back_after_outage(b: Bench, outage_s: float, north: float, seconds: float = 20.0) -> int:
+    """Settle on station, silence the DGPS for ``outage_s`` (the gyro goes on), then fixes around
+    (north, 0): where the vessel was found when the DGPS came back. Returns the mark at the return."""
+    settled(b, 60)
+    b.run(outage_s, gps={"gps1": None})
+    m = b.mark()
+    for _ in range(round(seconds * 10)):
+        b.cycle(gps={"gps1": gga(north + b.rng.normal(0, SIGMA_M), b.rng.normal(0, SIGMA_M))})
+    return m
+
+
+def error_after(b: Bench, since: int, seconds: float, north: float) -> float:
+    """The largest position error of the estimates from ``seconds`` after the mark on."""
+    t0 = b.outputs[since].stamp_ns
+    late = t0 + seconds * S
+    est = [o.payload for o in b.outputs[since:] if o.topic == "/dp/estimate" and o.stamp_ns >= late]
+    return max(math.hypot(e["eta"][0] - north, e["eta"][1]) for e in est)
+
+
+@pytest.mark.parametrize("outage_s", [15.0, 60.0])
+def test_a_reference_back_far_from_the_dead_reckoned_estimate_restarts_the_observer(outage_s: float) -> None:
+    """Measured before the restart: 15-60 s outages, 20 m from the dead-reckoned estimate on return, gave
+    17 m of error 5 s after the return, 13 m after 15 s, and the prediction test rejected 40 % of the
+    returning fixes for a minute. Now: back after 15 s (past ``prediction_max_age_s``) the DGPS confirms
+    itself for ``restart_confirm_s`` (2 s) and the observer restarts from it; back after 60 s (past
+    ``lost_after_s``) it restarts at once."""
+    b = Bench()
+    m = back_after_outage(b, outage_s, north=20.0)
+    assert sum(b.p.counters["gps1"].rejected.values()) == 0  # not one returning fix locked out
+    assert b.p.restarts == 1
+    t = b.first_event(m, "observer restarted", "position")
+    assert t is not None
+    assert (t - b.outputs[m].stamp_ns) / S <= (2.1 if outage_s < 30 else 0.1)
+    assert error_after(b, m, 3.0, 20.0) < 1.0
+
+
+def test_a_reference_back_inside_the_gate_does_not_restart_the_observer() -> None:
+    b = Bench()
+    m = back_after_outage(b, 15.0, north=2.0)
+    assert b.p.restarts == 0 and b.first_event(m, "observer restarted") is None
+    assert sum(b.p.counters["gps1"].rejected.values()) == 0
+    assert error_after(b, m, 15.0, 2.0) < 1.0
+
+
+def test_one_wild_fix_on_return_does_not_restart_the_observer() -> None:
+    """The first fix after a 15 s outage is 50 m off (within the jump test's allowance after 15 s), the
+    rest are where the vessel is: the wild one never reaches the observer (re-acquisition holds the DOF
+    back while it confirms itself), the good ones fail its jump until they pass again, and nothing
+    restarts: the estimate stays on station."""
+    b = Bench()
+    settled(b, 60)
+    b.run(15.0, gps={"gps1": None})
+    m = b.mark()
+    b.cycle(gps={"gps1": gga(50.0, 0.0)})
+    b.run(40)
+    assert b.p.restarts == 0
+    assert b.errors(m)[0] < 1.0
+
+
+def test_a_heading_back_far_from_the_dead_reckoned_estimate_restarts_the_observer() -> None:
+    b = Bench()
+    settled(b, 60)
+    b.run(15.0, gyro={"gyro1": None})
+    m = b.mark()
+    turned = PSI + math.radians(25.0)
+    for _ in range(100):
+        b.cycle(gyro={"gyro1": turned + b.rng.normal(0, SIGMA_PSI)})
+    assert b.p.restarts == 1 and b.first_event(m, "observer restarted", "heading") is not None
+    t0 = b.outputs[m].stamp_ns
+    late = [o.payload for o in b.outputs[m:] if o.topic == "/dp/estimate" and o.stamp_ns >= t0 + 3 * S]
+    assert max(abs(math.degrees(math.remainder(e["eta"][2] - turned, 2 * math.pi))) for e in late) < 1.0
+
+
 # --- the checkers on their own -----------------------------------------------------------------------
 
 

@@ -88,6 +88,26 @@ def test_usv_heading_crossing_north_leaves_no_step_and_lf_is_smoother() -> None:
         assert np.std(np.diff(est[ok, k])) < np.std(np.diff(m[ok, k]))
 
 
+def test_two_usv_logs_a_day_apart_replay_without_locking_out_the_second() -> None:
+    """Two sea-trial logs of the same USV replayed as one, 18 h apart: the second log's references come
+    back after the estimate was lost, and the observer restarts from them. Before the restart rule the
+    dead-reckoned estimate stayed where the first log ended, the prediction test rejected 754 of the
+    second log's 1,701 sentences, and the observer integrated 18 h of dead reckoning in 0.1 s steps."""
+    first, second = need(USV / "202412061745.txt"), need(USV / "202412071127.txt")
+    inputs = open_inputs([first, second])
+    config = build_config(inputs, vessel="mss_supply")
+    pipeline = build_pipeline(config, [ObserverSpec("passive", "passive", {})])
+    result = _run(inputs, pipeline, collect=["/dp/measurement", "/dp/estimate"])
+    assert 1 <= result.restarts <= 2  # the heading, then the position (their cycles come 0.2 s apart)
+    for where, counts in result.counts.items():
+        if where.startswith("source"):
+            assert not any(k.startswith("test_") for k in counts), (where, counts)
+    # the last estimate sits on the second log's track
+    last_meas = [m["eta"] for m in result.collected["/dp/measurement"] if None not in m["eta"]][-1]
+    last_est = result.collected["/dp/estimate"][-1]["eta"]
+    assert math.hypot(last_est[0] - last_meas[0], last_est[1] - last_meas[1]) < 5.0
+
+
 @pytest.mark.parametrize(
     "name", ["hemi.log", "nmea-rtk.log", "polarx2.log", "rst39.log", "saab-r4.log", "skytraq-PX1172RH_DS.log"]
 )

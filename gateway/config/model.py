@@ -331,7 +331,14 @@ class IntegrityConfig:
     """Floor of a source's measured 1σ in the variance weighting (one very quiet source must not take all
     the weight)."""
     lost_after_s: float = 30.0
-    """Dead reckoning longer than this (no usable position reference) is reported as ``lost``."""
+    """Dead reckoning longer than this (no usable position reference) is reported as ``lost``; a reference
+    that returns after that restarts the observer from its measurement, as at start-up."""
+    restart_confirm_s: float = 2.0
+    """A reference that returns after ``prediction_max_age_s`` without a measurement of its DOF (not yet
+    ``lost``) is not tested against the prediction while it confirms itself: once its DOF has been measured
+    this long without a break, the observer restarts from the measurement if the prediction lies outside
+    the prediction gate (the dead-reckoned estimate drifted; feeding it the returning reference slowly would
+    let the prediction test reject every other fix for a minute), and carries on unchanged if not."""
     dead_reckoning_rate_hz: float = 10.0
     """While no measurement steps the observer, a dead-reckoned estimate is published at this rate."""
     thrust_margin: float = 1.2

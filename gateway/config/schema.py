@@ -456,6 +456,7 @@ class IntegrityTable(_Section):
     smoothing_s: float = _positive("smoothing_s", "s", 600.0)
     min_sigma_m: float = _positive("min_sigma_m", "m")
     lost_after_s: float = _positive("lost_after_s", "s")
+    restart_confirm_s: float = number(_I["restart_confirm_s"], lo=0.0, hi=600.0, unit="s")
     dead_reckoning_rate_hz: float = number(_I["dead_reckoning_rate_hz"], lo=0.1, hi=100.0, unit="Hz")
     thrust_margin: float = number(_I["thrust_margin"], lo=1.0, hi=10.0)
     feedback_rejects: int = integer(_I["feedback_rejects"], lo=1)
