@@ -15,6 +15,11 @@ writer was made without chunking — it falls back to the library's own method, 
 speed but never a file. The MCAP log tests write the same messages through both and compare the files
 byte for byte.
 
+Batches: `McapLogWriter`'s replay path writes a call's records into the open chunk itself and notes each
+message's time and offset in `pending`; `settle` does their bookkeeping a channel at a time when the chunk
+closes (or before any other message), with the result `add_message` gives one by one. Message indexes
+keep their pairs flat and are written in one piece.
+
 It also closes zstd chunks itself (`_Writer__finalize_chunk`: the library's method line for line) with one
 compressor for its life, at ``zstd_level`` (the library's 3 by default, and then the library's bytes; the
 gateway's `McapLogWriter` asks for 1). The library makes a new compressor for every chunk.
@@ -23,8 +28,9 @@ gateway's `McapLogWriter` asks for 1). The library makes a new compressor for ev
 from __future__ import annotations
 
 import struct
+import sys
 import zlib
-from itertools import chain
+from array import array
 from typing import Any
 
 from mcap.records import Chunk, ChunkIndex, MessageIndex
@@ -43,15 +49,33 @@ _INDEX_HEAD = struct.Struct("<BQHI")  # opcode, length, channel id, byte length 
 
 
 class _MessageIndex(MessageIndex):
-    """`MessageIndex` whose `write` packs its (log time, offset) pairs in one call (the library writes
-    each u64 separately: ~two calls per message at every chunk close). Same bytes."""
+    """`MessageIndex` that keeps its (log time, offset) pairs flat, ``[t0, o0, t1, o1, ...]`` in `flat`
+    (`records` stays empty), and writes them in one piece (the library packs each u64 separately:
+    ~two calls per message at every chunk close). Same bytes."""
+
+    def __init__(self, channel_id: int) -> None:
+        super().__init__(channel_id=channel_id, records=[])
+        self.flat: list[int] = []
 
     def write(self, stream: Any) -> None:
-        records = self.records
+        flat = self.flat
         stream.write(
-            _INDEX_HEAD.pack(_MESSAGE_INDEX_OPCODE, 6 + 16 * len(records), self.channel_id, 16 * len(records))
+            _INDEX_HEAD.pack(_MESSAGE_INDEX_OPCODE, 6 + 8 * len(flat), self.channel_id, 8 * len(flat))
         )
-        stream.write(struct.pack(f"<{2 * len(records)}Q", *chain.from_iterable(records)))
+        stream.write(_pack_u64(flat))
+
+
+_ARRAY_U64 = array("Q").itemsize == 8
+
+
+def _pack_u64(values: list[int]) -> bytes:
+    """``struct.pack(f"<{len(values)}Q", *values)``, without building the argument tuple."""
+    if not _ARRAY_U64:
+        return struct.pack(f"<{len(values)}Q", *values)
+    packed = array("Q", values)
+    if sys.byteorder != "little":
+        packed.byteswap()
+    return packed.tobytes()
 
 
 class FastWriter(Writer):
@@ -87,6 +111,50 @@ class FastWriter(Writer):
             and hasattr(getattr(builder, "record_writer", None), "_buffer")
             and all(hasattr(builder, a) for a in ("message_indices", "num_messages", "message_start_time"))
         )
+        self.pending: dict[int, list[int]] = {}
+        """Messages already in the open chunk's buffer whose bookkeeping is not done yet: per channel (in
+        order of first appearance) their flat (log time, offset in the chunk) pairs. `McapLogWriter`'s
+        batch path adds to it; `settle` does the bookkeeping before anything reads or adds to it."""
+
+    def settle(self) -> None:
+        """The bookkeeping of the `pending` messages, a channel at a time: what `add_message` does message
+        by message (statistics, the chunk's start/end time and message count, its message indexes), with
+        the same result — channels counted and indexed in order of first appearance, as one by one."""
+        pending = self.pending
+        if not pending:
+            return
+        self.pending = {}
+        stats: Any = self._fast_stats
+        counts = stats.channel_message_counts
+        chunk: Any = self._fast_chunk
+        indices = chunk.message_indices
+        total = 0
+        lo = hi = None
+        for channel_id, flat in pending.items():
+            k = len(flat) // 2
+            counts[channel_id] += k
+            total += k
+            times = flat[0::2]
+            t_lo, t_hi = min(times), max(times)
+            if lo is None or t_lo < lo:
+                lo = t_lo
+            if hi is None or t_hi > hi:
+                hi = t_hi
+            index = indices.get(channel_id)
+            if index is None:
+                index = indices[channel_id] = _MessageIndex(channel_id)
+            index.flat += flat
+        assert lo is not None and hi is not None
+        if stats.message_count == 0 or lo < stats.message_start_time:
+            stats.message_start_time = lo
+        if hi > stats.message_end_time:
+            stats.message_end_time = hi
+        stats.message_count += total
+        if chunk.num_messages == 0 or lo < chunk.message_start_time:
+            chunk.message_start_time = lo
+        if hi > chunk.message_end_time:
+            chunk.message_end_time = hi
+        chunk.num_messages += total
 
     def add_message(
         self,
@@ -99,6 +167,8 @@ class FastWriter(Writer):
         if not self.fast:
             super().add_message(channel_id, log_time, data, publish_time, sequence)
             return
+        if self.pending:
+            self.settle()
         stats: Any = self._fast_stats
         if stats.message_count == 0 or log_time < stats.message_start_time:
             stats.message_start_time = log_time
@@ -116,8 +186,8 @@ class FastWriter(Writer):
         offset = buf.tell()
         index = chunk.message_indices.get(channel_id)
         if index is None:
-            index = chunk.message_indices[channel_id] = _MessageIndex(channel_id=channel_id, records=[])
-        index.records.append((log_time, offset))
+            index = chunk.message_indices[channel_id] = _MessageIndex(channel_id)
+        index.flat += (log_time, offset)
         chunk.num_messages += 1
         buf.write(
             _MESSAGE_HEAD.pack(
@@ -131,7 +201,9 @@ class FastWriter(Writer):
     def _Writer__finalize_chunk(self) -> None:  # (overrides the library's private method)
         """The library's `Writer.__finalize_chunk` (mcap 1.6), line for line, with the writer's own zstd
         compressor (see `__init__`); any other compression, or a release without the state this reads,
-        goes to the library's own method."""
+        goes to the library's own method. The `pending` messages are settled first."""
+        if self.pending:
+            self.settle()
         if self._zstd is None:
             Writer._Writer__finalize_chunk(self)  # type: ignore[attr-defined]
             return
