@@ -37,7 +37,7 @@ from observers.factory import OBSERVER_PARAMS, OBSERVER_TYPES, Observer, make_ob
 from observers.passive_tuning import PassiveTuning
 from wire.mcap.reader import read_messages
 from wire.mcap.writer import McapLogWriter, raw_mavlink_record, raw_nmea_record
-from wire.messages import SIM_METADATA, Estimate, RawMavlink, RawNmea
+from wire.messages import SIM_METADATA, Estimate, Message, RawMavlink, RawNmea, encoder_of
 
 CONFIG_METADATA = "dpgw.config"
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -409,6 +409,7 @@ def run_replay(
     estimates = result.estimates
     collected = result.collected
     feed = pipeline.feed
+    encoders: dict[type[Message], Callable[[Message], bytes]] = {}  # message class -> `encoder_of` it
     events = sentences = outputs_n = 0  # (locals in the loop, into `result` at the end)
     for ev in merged_events(inputs):
         events += 1
@@ -432,7 +433,11 @@ def run_replay(
         for o in outputs:
             msg = o.message
             if out is not None:
-                records.append((o.topic, msg.encode(), o.stamp_ns, type(msg)))
+                kind = type(msg)
+                encode = encoders.get(kind)
+                if encode is None:
+                    encode = encoders[kind] = encoder_of(kind)
+                records.append((o.topic, encode(msg), o.stamp_ns, kind))  # (encode(msg): msg.encode())
             if wanted and o.topic in wanted:
                 collected[o.topic].append(o.payload)
             if isinstance(msg, Estimate):

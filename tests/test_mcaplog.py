@@ -708,3 +708,41 @@ def test_write_many_fast_path_matches_write_encoded(cycles: list[list[tuple[int,
                             w.write_encoded(topic_name, data, ns, ns, schema=schema)
             files[mode] = path.read_bytes()
     assert files["many"] == files["one_by_one"]
+
+
+# --- raw_nmea_record: the common chunk from a cached head -------------------------------------------------
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.text(st.characters(codec="utf-8"), max_size=12),  # source
+    st.one_of(
+        st.binary(max_size=120),
+        st.binary(max_size=80).map(lambda b: b + b"\r\n"),
+        st.text(st.characters(codec="ascii"), max_size=80).map(lambda s: (s + "\r\n").encode()),
+        st.text(max_size=40),
+        st.text(max_size=40).map(lambda s: s + "\n"),
+    ),
+    st.sampled_from(["", "10.0.0.2:4001"]),
+)
+def test_raw_nmea_record_matches_the_message(source: str, text: str | bytes, peer: str) -> None:
+    """`raw_nmea_record` writes the common chunk (ASCII bytes, terminated, one sender) from a cached head:
+    the same topic and payload bytes as the `RawNmea` message gives, for every chunk."""
+    from wire.mcap.writer import raw_nmea_record, raw_nmea_record_reference
+
+    assert raw_nmea_record(source, text, peer) == raw_nmea_record_reference(source, text, peer)
+    assert raw_nmea_record(source, text, peer) == raw_nmea_record_reference(source, text, peer)  # (cached)
+
+
+def test_raw_nmea_record_of_a_replay_chunk_is_the_message() -> None:
+    """A USV cycle as replay hands it over: the fast form, and it reads back as the message."""
+    from wire.mcap import writer
+    from wire.mcap.writer import raw_nmea_record
+    from wire.messages import RawNmea
+
+    chunk = b"$GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*47\r\n$GPHDT,274.07,T*03\r\n"
+    topic, data = raw_nmea_record("log_2024", chunk)
+    assert topic == "/raw/nmea/log_2024"
+    assert data == RawNmea(source="log_2024", text=chunk.decode().rstrip("\r\n")).encode()
+    assert json.loads(data) == {"source": "log_2024", "text": chunk.decode().rstrip("\r\n")}
+    assert "log_2024" in writer._RAW_NMEA_HEADS  # (it took the cached head)

@@ -32,6 +32,7 @@ Conventions shared by every message:
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Annotated, Any, ClassVar, Literal
 
@@ -74,6 +75,7 @@ __all__ = [
     "Time",
     "Topic",
     "TruthState",
+    "encoder_of",
     "message_for_topic",
 ]
 
@@ -151,6 +153,13 @@ class Message(Record, kw_only=True):
         float stays a float): for consumers that index payloads by field name."""
         out: dict[str, Any] = msgspec.to_builtins(self, enc_hook=_enc_hook)
         return out
+
+
+def encoder_of(cls: type[Message]) -> Callable[[Any], bytes]:
+    """A function giving ``msg.encode()`` for a message of class `cls`: the msgspec encoder's own
+    `encode` (called from C, no Python frame: ~0.1 µs a message less) where the class encodes as `Message`
+    does, else the class's `encode`. For loops that encode hundreds of thousands of messages (replay)."""
+    return _ENCODER.encode if cls.encode is Message.encode else cls.encode
 
 
 # --- the gateway's outputs ----------------------------------------------------------------------------
