@@ -90,6 +90,8 @@ def cases() -> list[Case]:
         gps("GGA quality 8 (simulator) 10 s", on("dgps1", "quality", 10.0, quality=8)),
         gps("one GGA at 91° E", on("dgps1", "spoof", 0.05, lon_deg=91.0)),  # one fix at 10 Hz
         gps("DGPS dropout 10 s (the only DGPS)", on("dgps1", "dropout", 10.0)),
+        gps("DGPS dropout 20 s (the only DGPS)", on("dgps1", "dropout", 20.0)),
+        gps("DGPS dropout 60 s (the only DGPS)", on("dgps1", "dropout", 60.0)),
         gps("primary of 3 DGPS silent 10 s", on("dgps1", "dropout", 10.0), dgps=3),
         feedback("one status frame: 4e7 N", 4e7),
         feedback("one status frame: 1e30 N", 1e30),

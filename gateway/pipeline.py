@@ -845,16 +845,19 @@ class Pipeline:
 
         - back after ``lost_after_s`` (the estimate was reported lost): the observers restart from the
           measurement at once, as at start-up;
-        - back after ``prediction_max_age_s`` (the prediction test stopped applying): the DOF is
-          re-acquired. Until it has been measured for ``restart_confirm_s`` without a break its
-          references are not tested against the prediction (the other tests still apply) and do not
-          reach the observers, which keep dead-reckoning that DOF — so the prediction stays the
-          dead-reckoned one (fed to the observer, the returning fixes would be taken up by the wave
-          estimate within a second or two and hide the drift from the comparison). Then, if the
-          prediction lies outside the prediction gate (``prediction_gate_m`` plus 3σ of the position's
-          GST sigma when known; ``prediction_gate_deg``), the observers restart from the measurement,
-          else they carry on with it. One wild fix on return does not restart anything: it must hold up
-          for the confirmation time, and it still meets the source's own jump test.
+        - back after ``prediction_max_age_s`` (the prediction test stopped applying) and inside the
+          prediction gate of the dead-reckoned prediction (``prediction_gate_m`` plus 3σ of the
+          position's GST sigma when known; ``prediction_gate_deg``): the dead reckoning held, and the
+          observers carry on with the measurement as before the outage;
+        - back after ``prediction_max_age_s`` and outside that gate: the DOF is re-acquired. Until it
+          has been measured for ``restart_confirm_s`` without a break its references are not tested
+          against the prediction (the other tests still apply) and do not reach the observers, which
+          keep dead-reckoning that DOF (a fed observer would take the step into its wave estimate within
+          a second or two, and a wild fix would reach it). Then, if the measurement is still outside the
+          gate, the observers restart from it; if not (the first fix back was the wild one), they carry
+          on with it. A break in the measurement starts the re-acquisition again. One wild fix on return
+          therefore restarts nothing: it would have to hold up for the confirmation time, and the good
+          fixes after it meet the source's own jump test against it.
 
         A restart is `Observer.reset` and the step with y, which initialises the observer as its first
         measurement does (a DOF with no fresh value then takes the prediction's). Announced as a status
@@ -873,28 +876,18 @@ class Pipeline:
             if last and gap_ns > lost_ns:
                 why = why or f"{what} back after {gap_ns / NS:.0f} s (lost after {lost_ns / NS:g} s)"
                 continue
-            if reacq[dof] == -1 or (last and self._pred_age_ns and gap_ns > self._pred_age_ns):
-                reacq[dof] = now_ns  # back, or back again after a break: the confirmation starts
-            if reacq[dof] and now_ns - reacq[dof] >= self._confirm_ns:
+            back = reacq[dof] == -1 or (last and self._pred_age_ns and gap_ns > self._pred_age_ns)
+            if not (back or reacq[dof]):
+                continue
+            off = self._off_gate(now_ns, dof, y)
+            if back:
+                # back (or back again after a break): inside the gate it simply carries on, outside it is
+                # held back while it confirms itself
+                reacq[dof] = now_ns if off else 0
+            elif now_ns - reacq[dof] >= self._confirm_ns:
                 reacq[dof] = 0
-                pred = self._predicted(now_ns, dof)
-                if pred is None:
-                    continue
-                if dof == 0:
-                    sigma = self.fusion.position_sigma_m(now_ns)
-                    gate = self._gate_m + 3 * (sigma or 0.0)
-                    off = math.hypot(float(y[0]) - pred.value[0], float(y[1]) - pred.value[1])
-                    if off > gate:
-                        why = why or (
-                            f"position {off:.1f} m from the dead-reckoned estimate (gate {gate:.1f} m)"
-                        )
-                else:
-                    off = abs(ssa_scalar(float(y[2]) - pred.value[0]))
-                    if off > self._gate_rad:
-                        why = why or (
-                            f"heading {math.degrees(off):.1f}° from the dead-reckoned estimate "
-                            f"(gate {math.degrees(self._gate_rad):g}°)"
-                        )
+                if off:
+                    why = why or f"{what} {off}"
         if not why:
             if not (reacq[0] or reacq[2]):
                 return y
@@ -918,6 +911,24 @@ class Pipeline:
         self.restarts += 1
         self._events.append(f"observer restarted from the measurement: {why}")
         return y_obs
+
+    def _off_gate(self, now_ns: int, dof: int, y: np.ndarray) -> str:
+        """How far y lies from the dead-reckoned prediction of DOF ``dof`` (0 position, 2 heading) when
+        that is outside the prediction gate, as words for the restart event; "" when inside (or no
+        prediction yet). The gate is the prediction test's without its growth with age."""
+        pred = self._predicted(now_ns, dof)
+        if pred is None:
+            return ""
+        if dof == 0:
+            sigma = self.fusion.position_sigma_m(now_ns)
+            gate = self._gate_m + 3 * (sigma or 0.0)
+            off = math.hypot(float(y[0]) - pred.value[0], float(y[1]) - pred.value[1])
+            return f"{off:.1f} m from the dead-reckoned estimate (gate {gate:.1f} m)" if off > gate else ""
+        off = abs(ssa_scalar(float(y[2]) - pred.value[0]))
+        if off <= self._gate_rad:
+            return ""
+        gate_deg = math.degrees(self._gate_rad)
+        return f"{math.degrees(off):.1f}° from the dead-reckoned estimate (gate {gate_deg:g}°)"
 
     def _observe(
         self, obs: Observer, t: float, y: np.ndarray, tau: np.ndarray, valid: list[bool]
