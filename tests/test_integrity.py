@@ -335,6 +335,30 @@ def test_a_reference_back_far_from_the_dead_reckoned_estimate_restarts_the_obser
     assert error_after(b, m, 3.0, 20.0) < 1.0
 
 
+@settings(max_examples=12, deadline=None)
+@given(
+    st.floats(10.5, 90.0),
+    st.floats(-60.0, 60.0),
+    st.floats(-60.0, 60.0),
+)
+def test_no_outage_longer_than_the_prediction_age_locks_out_the_only_reference(
+    outage_s: float, north: float, east: float
+) -> None:
+    """Whatever the outage past ``prediction_max_age_s`` and wherever the vessel is found on return: not
+    one returning fix rejected, and the estimate on the fixes (< 1 m) from 5 s after the return (2 s of
+    confirmation, then a restart when the dead reckoning was off by more than the gate)."""
+    b = Bench(seed=3)
+    settled(b, 40)
+    b.run(outage_s, gps={"gps1": None})
+    m = b.mark()
+    for _ in range(100):
+        b.cycle(gps={"gps1": gga(north + b.rng.normal(0, SIGMA_M), east + b.rng.normal(0, SIGMA_M))})
+    assert sum(b.p.counters["gps1"].rejected.values()) == 0
+    t0 = b.outputs[m].stamp_ns
+    late = [o.payload for o in b.outputs[m:] if o.topic == "/dp/estimate" and o.stamp_ns >= t0 + 5 * S]
+    assert max(math.hypot(e["eta"][0] - north, e["eta"][1] - east) for e in late) < 1.0
+
+
 def test_a_reference_back_inside_the_gate_does_not_restart_the_observer() -> None:
     b = Bench()
     m = back_after_outage(b, 15.0, north=2.0)
