@@ -301,8 +301,10 @@ class IntegrityConfig:
     """Jump allowance on top of speed × time (noise and multipath of a good fix)."""
     max_rate_deg_s: float = 10.0
     """Fastest plausible rate of turn (a DP vessel turns a few °/s)."""
-    heading_jump_deg: float = 5.0
-    """Heading jump allowance on top of rate × time."""
+    heading_jump_deg: float = 2.0
+    """Heading jump allowance on top of rate × time. A gyro or GNSS compass is good to 0.1-0.3°, so 2° is
+    over six times the worst; a USV's GNSS compass at sea gave one-sample spikes of 6-7° that the former
+    5° let through at 5 Hz (a 7° limit), each moving the LF heading estimate up to 1.7°."""
     freeze_s: float = 5.0
     """A position repeated bit for bit this long is frozen (a live receiver's last digits always move)."""
     heading_freeze_s: float = 20.0
