@@ -310,8 +310,6 @@ class Pipeline:
         self._reacq_ns = [0, 0, 0]
         self._pred_age_ns = int(ip.prediction_max_age_s * NS)
         self._confirm_ns = int(ip.restart_confirm_s * NS)
-        # a DOF measured again after this long is "back" (`_reacquire`)
-        self._back_ns = min(self._pred_age_ns, self._lost_ns) if self._pred_age_ns else self._lost_ns
         self._gate_m = ip.prediction_gate_m
         self._gate_rad = math.radians(ip.prediction_gate_deg)
         self.restarts = 0  # observer restarts from a returning reference (`_reacquire`)
@@ -773,12 +771,12 @@ class Pipeline:
         t = (now_ns - self.t0_ns) / 1e9 if self.t0_ns is not None else 0.0  # (`_t`; feed set t0_ns)
         measured = self._measured_ns
         y_obs = y
-        reacq, back_ns = self._reacq_ns, self._back_ns
+        reacq, before = self._reacq_ns, self._last_step_ns
         if (
             reacq[0]
             or reacq[2]
-            or (valid[0] and measured[0] and now_ns - measured[0] > back_ns)
-            or (valid[2] and measured[2] and now_ns - measured[2] > back_ns)
+            or (valid[0] and measured[0] and measured[0] != before)  # back: not measured at the last step
+            or (valid[2] and measured[2] and measured[2] != before)
         ) and self._last_est is not None:
             y_obs = self._reacquire(now_ns, y, valid)
         est = self._observe(self.observer, t, y_obs, tau, valid)
@@ -845,11 +843,13 @@ class Pipeline:
 
         - back after ``lost_after_s`` (the estimate was reported lost): the observers restart from the
           measurement at once, as at start-up;
-        - back after ``prediction_max_age_s`` (the prediction test stopped applying) and inside the
-          prediction gate of the dead-reckoned prediction (``prediction_gate_m`` plus 3σ of the
-          position's GST sigma when known; ``prediction_gate_deg``): the dead reckoning held, and the
+        - back after any break (measured now, not at the last step) and inside the prediction gate of
+          the dead-reckoned prediction (``prediction_gate_m`` plus 3σ of the position's GST sigma when
+          known; ``prediction_gate_deg``; without its growth with age): the dead reckoning held, and the
           observers carry on with the measurement as before the outage;
-        - back after ``prediction_max_age_s`` and outside that gate: the DOF is re-acquired. Until it
+        - back outside that gate (after a short break, a fix the prediction test let through only
+          because its gate grows with the age; after ``prediction_max_age_s``, any): the DOF is
+          re-acquired. Until it
           has been measured for ``restart_confirm_s`` without a break its references are not tested
           against the prediction (the other tests still apply) and do not reach the observers, which
           keep dead-reckoning that DOF (a fed observer would take the step into its wave estimate within
@@ -876,7 +876,9 @@ class Pipeline:
             if last and gap_ns > lost_ns:
                 why = why or f"{what} back after {gap_ns / NS:.0f} s (lost after {lost_ns / NS:g} s)"
                 continue
-            back = reacq[dof] == -1 or (last and self._pred_age_ns and gap_ns > self._pred_age_ns)
+            # back: measured now, not at the last step (or again after a break in a re-acquisition);
+            # without the prediction test (prediction_max_age_s = 0) only the lost rule above applies
+            back = reacq[dof] == -1 or (last and last != self._last_step_ns and self._pred_age_ns)
             if not (back or reacq[dof]):
                 continue
             off = self._off_gate(now_ns, dof, y)

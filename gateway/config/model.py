@@ -336,11 +336,12 @@ class IntegrityConfig:
     """Dead reckoning longer than this (no usable position reference) is reported as ``lost``; a reference
     that returns after that restarts the observer from its measurement, as at start-up."""
     restart_confirm_s: float = 2.0
-    """A reference that returns after ``prediction_max_age_s`` without a measurement of its DOF (not yet
-    ``lost``) is not tested against the prediction while it confirms itself: once its DOF has been measured
-    this long without a break, the observer restarts from the measurement if the prediction lies outside
-    the prediction gate (the dead-reckoned estimate drifted; feeding it the returning reference slowly would
-    let the prediction test reject every other fix for a minute), and carries on unchanged if not."""
+    """A DOF whose references return after a break (not yet ``lost``) outside the prediction gate of the
+    dead-reckoned estimate is held back from the observer and not tested against the prediction while it
+    confirms itself: once it has been measured this long without a break, the observer restarts from the
+    measurement if it still lies outside the gate (the dead-reckoned estimate drifted; feeding the
+    returning reference slowly would let the prediction test reject every other fix for a minute), and
+    carries on with it if not. A return inside the gate carries on at once."""
     dead_reckoning_rate_hz: float = 10.0
     """While no measurement steps the observer, a dead-reckoned estimate is published at this rate."""
     thrust_margin: float = 1.2
