@@ -5,6 +5,7 @@ before and during the fault, and when the alarm came."""
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
@@ -404,6 +405,39 @@ def test_a_heading_back_far_from_the_dead_reckoned_estimate_restarts_the_observe
     t0 = b.outputs[m].stamp_ns
     late = [o.payload for o in b.outputs[m:] if o.topic == "/dp/estimate" and o.stamp_ns >= t0 + 3 * S]
     assert max(abs(math.degrees(math.remainder(e["eta"][2] - turned, 2 * math.pi))) for e in late) < 1.0
+
+
+def test_dead_reckoning_through_a_long_silence_costs_the_same_at_every_tick(monkeypatch: Any) -> None:
+    """Each dead-reckoning tick moves one copy of the observer on from the tick before (before, every
+    tick predicted a fresh copy over the whole silence: 9 ms a tick after an hour for the passive
+    observer, growing without bound); the copy's estimate is the one-shot prediction's, and the
+    observer itself stays where the last measurement left it."""
+    b = Bench()
+    settled(b, 40)
+    observer = b.p.observer
+    t_obs = observer.t
+    spans: list[float] = []
+    predict = type(observer).predict
+
+    def recording(self: Any, t: float, tau: Any = None) -> Any:
+        spans.append(t - self.t)
+        return predict(self, t, tau)
+
+    monkeypatch.setattr(type(observer), "predict", recording)
+    t_last = b.now
+    last = None
+    for k in range(1, 1201):  # two minutes of silence, ticked every 0.1 s
+        for o in b.p.tick(t_last + k * S // 10):
+            if o.topic == "/dp/estimate":
+                last = o.payload
+    assert last is not None and last["status"] == "lost"
+    # the first from the last measurement (the 2 s until every source is silent), then each tick only
+    # since the one before
+    assert len(spans) > 1000 and spans[0] < 2.2 and max(spans[1:]) < 0.1 + 1e-6
+    assert observer.t == t_obs
+    monkeypatch.undo()
+    one_shot = copy.deepcopy(observer).predict(b.p._t(t_last + 1200 * S // 10), b.p.fusion.tau(t_last)[0])
+    assert np.allclose(last["eta"], one_shot.eta, atol=1e-6)
 
 
 # --- the checkers on their own -----------------------------------------------------------------------
