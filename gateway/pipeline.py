@@ -305,14 +305,12 @@ class Pipeline:
             (s.timeout_ns for s in spec.sources if s.roles & {"position", "heading"}), default=2 * NS
         )
         self._lost_ns = int(ip.lost_after_s * NS)
-        # Re-acquisition of a DOF whose references return after the prediction test stopped applying
-        # (`_reacquire`): per DOF [N, E, ψ], when its present unbroken run of measurements began, 0 while
-        # not re-acquiring, -1 while re-acquiring but broken off.
+        # Re-acquisition of a DOF whose references return outside the prediction gate (`_reacquire`): per
+        # DOF [N, E, ψ], when its present unbroken run of measurements began, 0 while not re-acquiring, -1
+        # while re-acquiring but broken off.
         self._reacq_ns = [0, 0, 0]
-        self._pred_age_ns = int(ip.prediction_max_age_s * NS)
+        self._prediction_test = ip.prediction_max_age_s > 0
         self._confirm_ns = int(ip.restart_confirm_s * NS)
-        self._gate_m = ip.prediction_gate_m
-        self._gate_rad = math.radians(ip.prediction_gate_deg)
         self.restarts = 0  # observer restarts from a returning reference (`_reacquire`)
         self._datum_for_message: LocalFrame | None = None
         self._datum_msg = Datum(lat_deg=0.0, lon_deg=0.0)
@@ -845,7 +843,7 @@ class Pipeline:
         drifts (a current or wind it has not learnt, a tow, hours between two logs). When the references
         return, stepping the observer with them would pull the estimate over slowly (its injection gains
         act over tens of seconds), and meanwhile the prediction test would reject every fix that lands
-        outside its gate: measured, a 20 m drift over a 60 s outage gave 17 m of error 10 s after the
+        outside its gate: measured, a 20 m drift over a 60 s outage gave 17 m of error 5 s after the
         return and 40 % of the returning fixes rejected for a minute. So, per DOF (position, heading):
 
         - back after ``lost_after_s`` (the estimate was reported lost): the observers restart from the
@@ -856,15 +854,18 @@ class Pipeline:
           observers carry on with the measurement as before the outage;
         - back outside that gate (after a short break, a fix the prediction test let through only
           because its gate grows with the age; after ``prediction_max_age_s``, any): the DOF is
-          re-acquired. Until it
-          has been measured for ``restart_confirm_s`` without a break its references are not tested
-          against the prediction (the other tests still apply) and do not reach the observers, which
-          keep dead-reckoning that DOF (a fed observer would take the step into its wave estimate within
-          a second or two, and a wild fix would reach it). Then, if the measurement is still outside the
-          gate, the observers restart from it; if not (the first fix back was the wild one), they carry
-          on with it. A break in the measurement starts the re-acquisition again. One wild fix on return
-          therefore restarts nothing: it would have to hold up for the confirmation time, and the good
-          fixes after it meet the source's own jump test against it.
+          re-acquired. Until it has been measured for ``restart_confirm_s`` without a break its
+          references are not tested against the prediction (the other tests still apply) and do not
+          reach the observers, which keep dead-reckoning that DOF (a fed observer would take the step
+          into its wave estimate within a second or two, and a wild fix would reach it). Then, if the
+          measurement is still outside the gate, the observers restart from it; if not (the first fix
+          back was the wild one), they carry on with it. A break in the measurement starts the
+          re-acquisition again. One wild fix on return therefore restarts nothing: it would have to hold
+          up for the confirmation time, and the good fixes after it meet the source's own jump test
+          against it.
+
+        The gate and its words are the reference monitor's (`ReferenceMonitor.beyond_prediction_gate`),
+        with the pooled position's GST sigma when known.
 
         A restart is `Observer.reset` and the step with y, which initialises the observer as its first
         measurement does (a DOF with no fresh value then takes the prediction's). Announced as a status
@@ -885,7 +886,7 @@ class Pipeline:
                 continue
             # back: measured now, not at the last step (or again after a break in a re-acquisition);
             # without the prediction test (prediction_max_age_s = 0) only the lost rule above applies
-            back = reacq[dof] == -1 or (last and last != self._last_step_ns and self._pred_age_ns)
+            back = reacq[dof] == -1 or (last and last != self._last_step_ns and self._prediction_test)
             if not (back or reacq[dof]):
                 continue
             off = self._off_gate(now_ns, dof, y)
@@ -916,28 +917,23 @@ class Pipeline:
         for _, obs in self.spec.extra_observers:
             obs.reset()
         self._given_ns.clear()
-        self._reacq_ns = [0, 0, 0]
+        reacq[:] = (0, 0, 0)
         self.restarts += 1
         self._events.append(f"observer restarted from the measurement: {why}")
         return y_obs
 
     def _off_gate(self, now_ns: int, dof: int, y: np.ndarray) -> str:
         """How far y lies from the dead-reckoned prediction of DOF ``dof`` (0 position, 2 heading) when
-        that is outside the prediction gate, as words for the restart event; "" when inside (or no
-        prediction yet). The gate is the prediction test's without its growth with age."""
+        that is outside the prediction gate, in words for the restart event; "" when inside (or no
+        prediction yet)."""
         pred = self._predicted(now_ns, dof)
         if pred is None:
             return ""
         if dof == 0:
+            value = (float(y[0]), float(y[1]))
             sigma = self.fusion.position_sigma_m(now_ns)
-            gate = self._gate_m + 3 * (sigma or 0.0)
-            off = math.hypot(float(y[0]) - pred.value[0], float(y[1]) - pred.value[1])
-            return f"{off:.1f} m from the dead-reckoned estimate (gate {gate:.1f} m)" if off > gate else ""
-        off = abs(ssa_scalar(float(y[2]) - pred.value[0]))
-        if off <= self._gate_rad:
-            return ""
-        gate_deg = math.degrees(self._gate_rad)
-        return f"{math.degrees(off):.1f}° from the dead-reckoned estimate (gate {gate_deg:g}°)"
+            return self.monitor.beyond_prediction_gate("position", value, pred.value, sigma)
+        return self.monitor.beyond_prediction_gate("heading", (float(y[2]),), pred.value)
 
     def _observe(
         self, obs: Observer, t: float, y: np.ndarray, tau: np.ndarray, valid: list[bool]

@@ -311,12 +311,17 @@ def back_after_outage(b: Bench, outage_s: float, north: float, seconds: float = 
     return m
 
 
-def error_after(b: Bench, since: int, seconds: float, north: float) -> float:
-    """The largest position error of the estimates from ``seconds`` after the mark on."""
-    t0 = b.outputs[since].stamp_ns
-    late = t0 + seconds * S
-    est = [o.payload for o in b.outputs[since:] if o.topic == "/dp/estimate" and o.stamp_ns >= late]
-    return max(math.hypot(e["eta"][0] - north, e["eta"][1]) for e in est)
+def estimates_after(b: Bench, since: int, seconds: float) -> list[dict[str, Any]]:
+    """The estimates from ``seconds`` after the mark on."""
+    late = b.outputs[since].stamp_ns + seconds * S
+    return [o.payload for o in b.outputs[since:] if o.topic == "/dp/estimate" and o.stamp_ns >= late]
+
+
+def error_after(b: Bench, since: int, seconds: float, north: float, east: float = 0.0) -> float:
+    """The largest position error, from (north, east), of the estimates from ``seconds`` after the mark."""
+    return max(
+        math.hypot(e["eta"][0] - north, e["eta"][1] - east) for e in estimates_after(b, since, seconds)
+    )
 
 
 @pytest.mark.parametrize("outage_s", [15.0, 60.0])
@@ -341,13 +346,13 @@ def test_a_reference_back_far_from_the_dead_reckoned_estimate_restarts_the_obser
 def test_no_outage_locks_out_the_only_reference(outage_s: float, share: float, bearing: float) -> None:
     """Whatever the outage of the only DGPS (long enough for its last fix to go stale: over its 2 s
     timeout) and wherever the vessel is found on return (up to 80 % of what the jump test allows after
-    the outage, at most 40 m), the estimate is on the fixes (< 1 m) from 20 s after the return: inside
-    the 5 m gate of the dead-reckoned estimate the observer carries on and
-    converges at its own rate; outside it, it restarts, after the confirmation time, or — after a
-    short outage, while the returning fixes lie outside the prediction test's grown gate — once that
-    test stops applying (``prediction_max_age_s``, 10 s after the last held fix). Past that age (the
-    source's 2 s timeout + 10 s) not one returning fix is rejected, and one found well outside the gate
-    (> 7 m) restarts the observer and is followed from 5 s on."""
+    the outage, at most 40 m), the estimate is on the fixes (< 1 m) from 20 s after the return. Inside
+    the 5 m gate of the dead-reckoned estimate the observer carries on and converges at its own rate;
+    outside it, it restarts, after the confirmation time, or (after a short outage, while the returning
+    fixes lie outside the prediction test's grown gate) once that test stops applying
+    (``prediction_max_age_s``, 10 s after the last held fix). Past that age (the source's 2 s timeout +
+    10 s) not one returning fix is rejected, and one found well outside the gate (> 7 m) restarts the
+    observer and is followed from 5 s on."""
     b = Bench(seed=3)
     settled(b, 40)
     b.run(outage_s, gps={"gps1": None})
@@ -356,18 +361,11 @@ def test_no_outage_locks_out_the_only_reference(outage_s: float, share: float, b
     north, east = found * math.cos(bearing), found * math.sin(bearing)
     for _ in range(300):
         b.cycle(gps={"gps1": gga(north + b.rng.normal(0, SIGMA_M), east + b.rng.normal(0, SIGMA_M))})
-    t0 = b.outputs[m].stamp_ns
-
-    def error_from(seconds: float) -> float:
-        late = t0 + seconds * S
-        est = [o.payload for o in b.outputs[m:] if o.topic == "/dp/estimate" and o.stamp_ns >= late]
-        return max(math.hypot(e["eta"][0] - north, e["eta"][1] - east) for e in est)
-
-    assert error_from(20.0) < 1.0
+    assert error_after(b, m, 20.0, north, east) < 1.0
     if outage_s > 12.5:
         assert sum(b.p.counters["gps1"].rejected.values()) == 0
         if found > 7.0:
-            assert b.p.restarts >= 1 and error_from(5.0) < 1.0
+            assert b.p.restarts >= 1 and error_after(b, m, 5.0, north, east) < 1.0
 
 
 def test_a_reference_back_inside_the_gate_does_not_restart_the_observer() -> None:
@@ -402,8 +400,7 @@ def test_a_heading_back_far_from_the_dead_reckoned_estimate_restarts_the_observe
     for _ in range(100):
         b.cycle(gyro={"gyro1": turned + b.rng.normal(0, SIGMA_PSI)})
     assert b.p.restarts == 1 and b.first_event(m, "observer restarted", "heading") is not None
-    t0 = b.outputs[m].stamp_ns
-    late = [o.payload for o in b.outputs[m:] if o.topic == "/dp/estimate" and o.stamp_ns >= t0 + 3 * S]
+    late = estimates_after(b, m, 3.0)
     assert max(abs(math.degrees(math.remainder(e["eta"][2] - turned, 2 * math.pi))) for e in late) < 1.0
 
 

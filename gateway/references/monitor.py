@@ -108,6 +108,7 @@ class ReferenceMonitor:
             unit="°",
             scale=1 / deg,
         )
+        self._limits = {"position": position, "heading": heading}
         self._refs: dict[str, dict[str, _Ref]] = {
             "position": {
                 n: _Ref(SourceState(n, "position", readmit), PlaneTrack(params.smoothing_s), t, position)
@@ -290,6 +291,20 @@ class ReferenceMonitor:
     def usable(self, role: str, source: str) -> bool:
         r = self._refs[role].get(source)
         return r is not None and r.state.usable
+
+    def beyond_prediction_gate(
+        self, role: str, value: tuple[float, ...], predicted: tuple[float, ...], sigma: float | None = None
+    ) -> str:
+        """Whether ``value`` lies outside the prediction test's gate around ``predicted`` (the gate
+        without its growth with age, plus 3σ when given), in words for an event ("6.2 m from the
+        dead-reckoned estimate (gate 5 m)"); "" inside. What the pipeline asks of a reference that comes
+        back after an outage (`Pipeline._reacquire`)."""
+        lim = self._limits[role]
+        gate = lim.gate + 3 * (sigma or 0.0)
+        off = divergence(value, predicted, angle=role == "heading")
+        if off <= gate:
+            return ""
+        return f"{self._fmt(off, lim)} from the dead-reckoned estimate (gate {self._fmt(gate, lim)})"
 
     def sigma_m(self, source: str) -> float | None:
         """A position source's measured 1σ noise (m), once measured."""
