@@ -10,6 +10,8 @@
   Λ = 0.1 K, T = 1000 I, the sinusoidal τ), the paper's gains used literally.
 * ``--table``: RMS LF position/velocity errors per DOF of the memory and the passive observer against the
   period of a sinusoidal manoeuvre, on a plant with fluid memory and on one without (markdown on stdout).
+* ``--station-keeping SEEDS``: the two observers' RMS error ratios in station keeping (the study's case of
+  `mss_supply_storm`, full plant with and without fluid memory).
 
 The plant with fluid memory (`simulate_plant`) is the Cummins equation integrated with the same
 identified radiation model: [M_RB + A(∞)] ν' = -D_m ν - μ + τ + Jᵀ b, ξ_r' = A_r ξ_r + B_r ν, μ = C_r ξ_r +
@@ -270,6 +272,51 @@ def table(
     return "\n".join(lines)
 
 
+# --- station keeping ------------------------------------------------------------------------------------
+
+STATION_DOFS = ("north_m", "east_m", "heading_deg", "surge_mps", "sway_mps", "yaw_rate_degps")
+
+
+def station_keeping(seed: int, memory: bool, duration_s: float = 1200.0) -> dict[str, np.ndarray]:
+    """RMS errors (N, E, ψ, u, v, r, in `STATION_DOFS` units) of the memory and the passive observer in
+    station keeping: the study's case of `mss_supply_storm` (the DP controller on the passive observer,
+    Hs 6 m, Tp 11.5 s, 1 m/s current, 15 m/s gusting wind, both observers tuned to 11.5 s, scored from
+    a third of the run on), on its full plant with the stored fluid-memory model or, ``memory`` False,
+    the same plant with constant added mass."""
+    from dataclasses import replace
+
+    from dpgw.study.case import build_scenario, score_case
+    from dpgw.study.spec import CaseSpec, SeaSpec
+
+    case = CaseSpec("mss_supply_storm", SeaSpec(), seed, duration_s, duration_s / 3.0, ("memory", "passive"))
+    scenario = build_scenario(case)
+    if not memory:
+        scenario = replace(scenario, plant_options=replace(scenario.plant_options, radiation=None))
+    rows = {row["observer"]: row for row in score_case(case, scenario)}
+    return {name: np.array([rows[name][f"rms_{d}"] for d in STATION_DOFS]) for name in rows}
+
+
+def station_keeping_table(seeds: int = 4) -> str:
+    """Markdown: the memory observer's RMS errors over the passive observer's in station keeping
+    (`station_keeping`), per seed and plant."""
+    lines = [
+        "`mss_supply_storm` station keeping, 1200 s, scored from 400 s; memory / passive RMS error ratio.",
+        "",
+        "| plant | seed | N | E | ψ | u | v | r |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for memory in (True, False):
+        for seed in range(seeds):
+            r = station_keeping(seed, memory)
+            ratio = r["memory"] / r["passive"]
+            lines.append(
+                f"| {'memory' if memory else 'no memory'} | {seed} | "
+                + " | ".join(f"{x:.3f}" for x in ratio)
+                + " |"
+            )
+    return "\n".join(lines)
+
+
 # --- Hajivand's case --------------------------------------------------------------------------------------
 
 
@@ -416,6 +463,14 @@ def main() -> None:
         help="the table's plant: this script's Cummins plant (own) or the simulator's full plant of "
         "mss_supply with its stored fluid-memory model (simulator)",
     )
+    ap.add_argument(
+        "--station-keeping",
+        type=int,
+        metavar="SEEDS",
+        default=0,
+        help="print the station-keeping comparison over SEEDS seeds of mss_supply_storm, with and without "
+        "fluid memory in the plant (about 10 s a seed)",
+    )
     ap.add_argument("--no-figures", action="store_true")
     args = ap.parse_args()
     if not args.no_figures:
@@ -425,6 +480,8 @@ def main() -> None:
             print(f"(no {args.hydro}: Figs 3-5 skipped)", file=sys.stderr)
     if args.table:
         print(table(plant=args.table_plant))
+    if args.station_keeping:
+        print(station_keeping_table(args.station_keeping))
 
 
 if __name__ == "__main__":

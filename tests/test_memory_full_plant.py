@@ -3,7 +3,9 @@
 sinusoidal manoeuvre, Hs 2 m). Where the fluid memory acts (a 20 s manoeuvre) the memory observer's LF
 velocity errors are lower on the plant with memory; on the plant without it, the memory observer is no
 worse than the passive one by more than 5 % at DP manoeuvre periods (≥ 45 s; at 20–30 s it is, by
-construction: docs/memory-observer.md, "On the simulator's full plant")."""
+construction: docs/memory-observer.md, "On the simulator's full plant"), and in station keeping in a storm
+(the study's case of `mss_supply_storm`) it is within 5 % of the passive observer in every DOF on the
+plant with and without fluid memory."""
 
 from __future__ import annotations
 
@@ -15,7 +17,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "bench"))
 
-from memory_figures import compare_on_full_plant
+from memory_figures import STATION_DOFS, compare_on_full_plant, station_keeping
 
 
 def ratios(period_s: float, memory: bool) -> np.ndarray:
@@ -25,7 +27,7 @@ def ratios(period_s: float, memory: bool) -> np.ndarray:
 
 @pytest.mark.slow
 def test_memory_observer_is_better_where_memory_acts_on_the_plant_with_memory() -> None:
-    r = ratios(20.0, memory=True)  # measured: 0.79 1.04 0.86 / 0.90 0.63 0.85
+    r = ratios(20.0, memory=True)  # measured: 0.78 1.02 0.86 / 0.88 0.62 0.84
     assert np.all(r[3:] < 0.95), f"velocity error ratios memory/passive {r[3:]}"
     assert r[0] < 1.0 and r[2] < 1.0 and r[1] <= 1.05, f"position error ratios memory/passive {r[:3]}"
 
@@ -33,5 +35,16 @@ def test_memory_observer_is_better_where_memory_acts_on_the_plant_with_memory() 
 @pytest.mark.slow
 @pytest.mark.parametrize("period_s", [60.0, 120.0])
 def test_memory_observer_no_worse_than_passive_on_the_plant_without_memory(period_s: float) -> None:
-    r = ratios(period_s, memory=False)  # measured: at most 0.988 (60 s), 0.984 (120 s)
+    r = ratios(period_s, memory=False)  # measured: at most 1.021 (60 s), 1.006 (120 s)
     assert np.all(r <= 1.05), f"error ratios memory/passive (N, E, ψ, u, v, r) {r}"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("memory", [True, False], ids=["memory plant", "no memory plant"])
+def test_memory_observer_within_5_percent_of_passive_in_station_keeping(memory: bool) -> None:
+    """The gateway's everyday case. With the injections raised where the impedance ratio is above one
+    (uncapped `injection_scale`), seed 1's surge-velocity error was 7.3 % (memory plant) and 6.8 % (no
+    memory) above the passive observer's; capped, every ratio is within 1 %."""
+    r = station_keeping(seed=1, memory=memory)
+    ratio = r["memory"] / r["passive"]
+    assert np.all(ratio <= 1.05), dict(zip(STATION_DOFS, np.round(ratio, 3), strict=True))

@@ -98,6 +98,12 @@ def _load_numerics() -> None:
 
 
 def _run_case(case: CaseSpec) -> list[dict[str, Any]]:
+    return score_case(case, build_scenario(case))
+
+
+def score_case(case: CaseSpec, scenario: Any) -> list[dict[str, Any]]:
+    """Rows of ``case`` run on ``scenario`` (`build_scenario`'s, or a variant of it: a plant option
+    switched off to see what it changes); the observers tuned to the named scenario's own wave period."""
     from dpgw.closed_loop import run_closed_loop
     from gateway.config import parse_config
     from gateway.replay import parse_observer_spec
@@ -108,7 +114,6 @@ def _run_case(case: CaseSpec) -> list[dict[str, Any]]:
     from wire.messages import Measurement
 
     nominal_tp = get_scenario(case.scenario).sea[0][1].tp_s
-    scenario = build_scenario(case)
     tables = loop_tables(case, scenario, nominal_tp)
     loop = run_closed_loop(
         scenario, case.duration_s, seed=case.seed, tables=tables, collect=("/dp/measurement",)
