@@ -38,7 +38,7 @@ less (velocity errors 9-22 % below). The price is a velocity-injection rate sᵢ
 frequency (the slowest error pole of Hajivand's vessel -0.0206 s⁻¹ against -0.0226 s⁻¹), which
 `slowest_error_rate` reports.
 
-Where the ratio is above one (the supply vessel at periods from 8 s: 1.03-1.12) the memory observer
+Where the ratio is above one (the supply vessel from 7-8 s periods on: 1.02-1.12) the memory observer
 already takes less wave motion than the passive one, and raising its injections to "match" was measured
 to cost: station keeping on the full plant (supply vessel, Hs 6 m, Tp 11.5 s, current and wind, four
 seeds), surge-velocity errors 4.9-7.3 % above the passive observer's, with or without fluid memory in the
