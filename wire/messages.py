@@ -783,6 +783,15 @@ class RawNmea(Message, kw_only=True):
             "Left out (false) for a chunk of whole lines."
         ),
     ] = False
+    eol: Annotated[
+        str,
+        doc(
+            "The line terminator bytes that ended the chunk (stripped from `text` and `data`) when they were "
+            "not exactly CR LF: a bare LF or CR, LF CR, several blank lines, a CR LF split across reads. "
+            "Left out for CR LF and for an unterminated chunk, so `text` (or `data`) + `eol` (CR LF when "
+            "left out, nothing when `unterminated`) is exactly the bytes received."
+        ),
+    ] = ""
 
 
 class RawMavlink(Message, kw_only=True):
