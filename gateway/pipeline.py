@@ -327,6 +327,7 @@ class Pipeline:
         self._parsers: dict[tuple[str, str], mv.FrameParser] = {}
         self._parser_seen: dict[tuple[str, str], Counter[str]] = {}
         self._parser_rejects: dict[tuple[str, str], int] = {}  # sum of _parser_seen, the fast check
+        self._sender_rx: dict[tuple[str, str], int] = {}  # (source, peer) -> its last chunk's time
         self.t0_ns: int | None = None
         self.last_ns = 0
         self.mode = "standby"
@@ -520,7 +521,7 @@ class Pipeline:
         else:
             framed: list[str] = []
             texts = framed
-            for frame in self._framer(spec.name, ev.peer).feed(ev.data):
+            for frame in self._framer(spec, c, ev.peer, ev.rx_ns).feed(ev.data):
                 if frame.text is None:
                     c.rejected[frame.reason or "garbage"] += 1
                 else:
@@ -571,24 +572,64 @@ class Pipeline:
             )
         return False
 
-    def _framer(self, source: str, peer: str) -> NmeaFramer:
-        framer = self._framers.get((source, peer))
+    def _framer(self, spec: SourceSpec, c: SourceCounters, peer: str, rx_ns: int) -> NmeaFramer:
+        key = (spec.name, peer)
+        framer = self._framers.get(key)
         if framer is None:
-            key = (source, _sender_key(peer, self._framers, source))
+            self._forget_idle_senders(spec, c, rx_ns)
+            key = (spec.name, _sender_key(peer, self._framers, spec.name))
             framer = self._framers.setdefault(key, NmeaFramer())
+        self._sender_rx[key] = rx_ns
         return framer
 
-    def _parser(self, spec: SourceSpec, peer: str) -> tuple[tuple[str, str], mv.FrameParser]:
+    def _parser(
+        self, spec: SourceSpec, c: SourceCounters, peer: str, rx_ns: int
+    ) -> tuple[tuple[str, str], mv.FrameParser]:
         key = (spec.name, peer)
         parser = self._parsers.get(key)
         if parser is None:
+            self._forget_idle_senders(spec, c, rx_ns)
             key = (spec.name, _sender_key(peer, self._parsers, spec.name))
             parser = self._parsers.get(key)
             if parser is None:
                 parser = self._parsers[key] = self._mavlink_parser(spec)
                 self._parser_seen[key] = Counter()
                 self._parser_rejects[key] = 0
+        self._sender_rx[key] = rx_ns
         return key, parser
+
+    def _forget_idle_senders(self, spec: SourceSpec, c: SourceCounters, rx_ns: int) -> None:
+        """A new sender on a source that already frames `MAX_SENDERS` senders: first forget the senders
+        silent for longer than the source's timeout (a TCP client that disconnected and came back from
+        another port, a receiver that moved address). What each held back of an unfinished sentence or
+        frame is counted now (`NmeaFramer.flush`, `FrameParser.flush`: ``truncated``, ``garbage``, …)
+        and its state freed, so a link whose clients reconnect all day keeps one framer per live sender
+        instead of putting every newcomer on the shared one, where two clients' sentences would splice.
+        Senders still talking are kept: a flood of new addresses shares one framer and cannot push out
+        the receiver that was there first. Only event times are used, so a replay forgets the same."""
+        name = spec.name
+        table: Mapping[tuple[str, str], object] = self._framers if spec.protocol == "nmea" else self._parsers
+        if sum(1 for source, _ in table if source == name) < MAX_SENDERS:
+            return
+        idle = [
+            key
+            for key in table
+            if key[0] == name and rx_ns - self._sender_rx.get(key, rx_ns) > spec.timeout_ns
+        ]
+        for key in idle:
+            self._sender_rx.pop(key, None)
+            framer = self._framers.pop(key, None)
+            if framer is not None:
+                for frame in framer.flush():
+                    c.rejected[frame.reason or "garbage"] += 1
+            parser = self._parsers.get(key)
+            if parser is not None:
+                # a valid frame held behind a false start completes only now, older than the timeout
+                stale = len(parser.flush())
+                if stale:
+                    c.rejected["sender idle"] += stale
+                self._count_parser_rejects(key, c)
+                del self._parsers[key], self._parser_seen[key], self._parser_rejects[key]
 
     def _use_position(
         self, spec: SourceSpec, rx_ns: int, lat: float, lon: float, quality: int | None, out: list[Output]
@@ -659,7 +700,7 @@ class Pipeline:
         return Prediction((n, e), age)
 
     def _mavlink(self, spec: SourceSpec, c: SourceCounters, ev: RawEvent, out: list[Output]) -> bool:
-        key, parser = self._parser(spec, ev.peer)
+        key, parser = self._parser(spec, c, ev.peer, ev.rx_ns)
         msgs = parser.feed(ev.data)
         self._count_parser_rejects(key, c)
         frames: list[Sequence[mv.Report]] = []
@@ -1242,7 +1283,8 @@ class Pipeline:
 
 MAX_SENDERS = 64
 """Senders per source that get a framer of their own; more (a scan, a flood of spoofed addresses) share
-one, so memory stays bounded whoever sends."""
+one, so memory stays bounded whoever sends. A newcomer past the cap first makes room by forgetting the
+senders silent for longer than the source's timeout (`Pipeline._forget_idle_senders`)."""
 
 
 def _sender_key(peer: str, per_sender: Mapping[tuple[str, str], object], source: str) -> str:
