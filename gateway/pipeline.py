@@ -339,6 +339,7 @@ class Pipeline:
         self._last_fix_ns: dict[str, int] = {}
         # per source, the last GGA height and GST 1σ (east, north, up), carried on its LocationFix
         self._fix_alt_m: dict[str, float] = {}
+        self._fix_time: dict[str, tuple[float, int]] = {}  # source -> (UTC s of day, rx ns) of its last fix
         # (GST fresh until, σ): a GST older than the source's timeout no longer describes its fixes
         self._fix_sigma_enu_m: dict[str, tuple[int, tuple[float, float, float]]] = {}
         self.foxglove = FoxgloveChannels(spec.vessel)
@@ -549,6 +550,9 @@ class Pipeline:
         if kind is nmea_codec.Gga or kind is nmea_codec.Gns:
             if "position" not in spec.roles or not s.valid or s.lat_deg is None or s.lon_deg is None:
                 return False
+            if s.time_s is not None and self._fix_time_backwards(spec, rx_ns, s.time_s):
+                self.counters[spec.name].rejected["test_time"] += 1
+                return False
             if s.alt_m is not None and self._foxglove_on:  # (the height goes only on the LocationFix)
                 self._fix_alt_m[spec.name] = ellipsoidal_height_m(s.alt_m, s.geoid_sep_m)
             quality = s.quality if kind is nmea_codec.Gga else None
@@ -570,6 +574,23 @@ class Pipeline:
                 rx_ns + spec.timeout_ns,
                 (s.sigma_lon_m, s.sigma_lat_m, s.sigma_alt_m or 0.0),
             )
+        return False
+
+    def _fix_time_backwards(self, spec: SourceSpec, rx_ns: int, time_s: float) -> bool:
+        """True for a fix whose UTC time is earlier than the last fix of its source, while that one is
+        fresh (received within the source's timeout): an old fix delivered late (a datagram overtaken
+        on the network, a receiver's buffer replayed, a spoofer repeating recorded sentences) must not
+        reach the observer as a measurement of now. The step is taken modulo a day, so midnight
+        (86399.9 s -> 0.1 s) is a step forward; a fix at the same time (GGA and GNS of one epoch) is not
+        older. A receiver whose clock really stepped back is locked out for at most its timeout: once the
+        last fix is older than that, the next one starts the time afresh (and the jump test judges its
+        position)."""
+        last = self._fix_time.get(spec.name)
+        if last is not None and rx_ns - last[1] <= spec.timeout_ns:
+            step = (time_s - last[0] + 43_200.0) % 86_400.0 - 43_200.0
+            if step < 0.0:
+                return True
+        self._fix_time[spec.name] = (time_s, rx_ns)
         return False
 
     def _framer(self, spec: SourceSpec, c: SourceCounters, peer: str, rx_ns: int) -> NmeaFramer:
