@@ -255,6 +255,7 @@ class SourceCounters:
     bytes: int = 0
     last_rx_ns: int = 0
     dropped: int = 0  # lost before the gateway read them (the kernel's count; the service sets it)
+    skipped_bytes: int = 0  # MAVLink: bytes outside any valid frame (the frame parsers' count)
 
     def as_message(self, now_ns: int) -> SourceStatus:
         age = (now_ns - self.last_rx_ns) / NS if self.last_rx_ns else None
@@ -264,6 +265,7 @@ class SourceCounters:
             rejected=dict(self.rejected),
             bytes=self.bytes,
             dropped=self.dropped,
+            skipped_bytes=self.skipped_bytes,
         )
 
 
@@ -327,6 +329,7 @@ class Pipeline:
         self._parsers: dict[tuple[str, str], mv.FrameParser] = {}
         self._parser_seen: dict[tuple[str, str], Counter[str]] = {}
         self._parser_rejects: dict[tuple[str, str], int] = {}  # sum of _parser_seen, the fast check
+        self._parser_skipped: dict[tuple[str, str], int] = {}  # its skipped_bytes already counted
         self._sender_rx: dict[tuple[str, str], int] = {}  # (source, peer) -> its last chunk's time
         self.t0_ns: int | None = None
         self.last_ns = 0
@@ -616,6 +619,7 @@ class Pipeline:
                 parser = self._parsers[key] = self._mavlink_parser(spec)
                 self._parser_seen[key] = Counter()
                 self._parser_rejects[key] = 0
+                self._parser_skipped[key] = 0
         self._sender_rx[key] = rx_ns
         return key, parser
 
@@ -651,6 +655,7 @@ class Pipeline:
                     c.rejected["sender idle"] += stale
                 self._count_parser_rejects(key, c)
                 del self._parsers[key], self._parser_seen[key], self._parser_rejects[key]
+                del self._parser_skipped[key]
 
     def _use_position(
         self, spec: SourceSpec, rx_ns: int, lat: float, lon: float, quality: int | None, out: list[Output]
@@ -788,9 +793,13 @@ class Pipeline:
         return updated
 
     def _count_parser_rejects(self, key: tuple[str, str], c: SourceCounters) -> None:
-        """Add what a frame parser rejected since last time to its source's counters (which also hold the
-        pipeline's own reasons, so they are added to, never overwritten)."""
+        """Add what a frame parser rejected and skipped since last time to its source's counters (which
+        also hold the pipeline's own reasons, so they are added to, never overwritten)."""
         parser = self._parsers[key]
+        skipped = parser.skipped_bytes
+        if skipped != self._parser_skipped[key]:
+            c.skipped_bytes += skipped - self._parser_skipped[key]
+            self._parser_skipped[key] = skipped
         total = sum(parser.rejected.values())
         if total == self._parser_rejects[key]:
             return

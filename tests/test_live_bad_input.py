@@ -262,3 +262,4 @@ def test_hostile_streams_never_stop_the_gateway_and_every_byte_is_logged(live: t
     # the MAVLink link: each bad frame counted, each good one used, the NMEA between them skipped
     mav_c = g.counters["mav"]
     assert mav_c.rejected["bad_crc"] == 100 and mav_c.received == 100
+    assert mav_c.skipped_bytes == sum(len(d) for d in datagrams["mav"]) - 100 * len(good_frame)

@@ -210,6 +210,27 @@ def test_frames_of_another_mavlink_system_or_component_are_rejected_and_counted(
     assert dict(c.rejected) == {"other system": 1, "other component": 1} and c.received == 1
 
 
+def test_bytes_outside_mavlink_frames_are_counted_and_shown() -> None:
+    """An NMEA talker wired to a MAVLink port (or any noise on it): no frame, so nothing received or
+    rejected, but every byte outside a valid frame is counted in the status (`skipped_bytes`), beside the
+    frames that are valid."""
+    p = pipeline([
+        nmea_src("gps", ["position", "heading"]),
+        {"name": "thr", "url": "udpin:127.0.0.1:0", "protocol": "mavlink", "roles": ["thrusters"]},
+    ])  # fmt: skip
+    mav = mv.encoder(1, 1)
+    frame = bytes(mav.heartbeat_encode(0, 0, 0, 0, 0).pack(mav))
+    noise = (enc.hdt("HE", 1.0) + enc.rot("HE", 0.1)).encode()
+    for k in range(10):
+        p.feed(RawEvent(T0 + k, "thr", noise + frame if k % 2 else noise))
+    c = p.counters["thr"]
+    assert c.received == 5 and not c.rejected
+    assert c.skipped_bytes == 10 * len(noise)
+    status = json.loads(p.status(T0 + 10).message.encode())
+    assert status["sources"]["thr"]["skipped_bytes"] == 10 * len(noise)
+    assert "skipped_bytes" not in status["sources"]["gps"]  # (left out while 0)
+
+
 def test_signed_mavlink_link_rejects_unsigned_and_forged_frames() -> None:
     p = pipeline(
         [nmea_src("gps", ["position", "heading"]), mav_src("thr", ["thrusters"], signing_key=KEY.hex())],

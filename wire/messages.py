@@ -330,6 +330,14 @@ class SourceStatus(Record, kw_only=True):
             "count). Left out while 0."
         ),
     ] = 0
+    skipped_bytes: Annotated[
+        int,
+        doc(
+            "MAVLink links: bytes outside any valid frame (noise, another protocol on the link, the bytes of "
+            "rejected frames; count), so a link that carries something else shows it. NMEA links count "
+            "their noise as `garbage` lines in `rejected` instead. Left out while 0."
+        ),
+    ] = 0
 
 
 class ReferenceStatus(Record, kw_only=True):
