@@ -624,18 +624,18 @@ class Pipeline:
         return key, parser
 
     def _forget_idle_senders(self, spec: SourceSpec, c: SourceCounters, rx_ns: int) -> None:
-        """A new sender on a source that already frames `MAX_SENDERS` senders: first forget the senders
-        silent for longer than the source's timeout (a TCP client that disconnected and came back from
-        another port, a receiver that moved address). What each held back of an unfinished sentence or
-        frame is counted now (`NmeaFramer.flush`, `FrameParser.flush`: ``truncated``, ``garbage``, …)
-        and its state freed, so a link whose clients reconnect all day keeps one framer per live sender
-        instead of putting every newcomer on the shared one, where two clients' sentences would splice.
-        Senders still talking are kept: a flood of new addresses shares one framer and cannot push out
-        the receiver that was there first. Only event times are used, so a replay forgets the same."""
+        """A new sender on a source: first forget the source's senders silent for longer than its
+        timeout (a TCP client that disconnected and came back from another port, a receiver that moved
+        address). What each held back of an unfinished sentence or frame is counted now
+        (`NmeaFramer.flush`, `FrameParser.flush`: ``truncated``, ``garbage``, …) and its state freed: the
+        half sentence a dropped client left is counted by the time the next client after its timeout
+        connects, and a link whose clients reconnect all day keeps one framer per live sender instead of
+        filling `MAX_SENDERS` with dead ones and putting every newcomer on the shared framer, where two
+        clients' sentences would splice. Senders still talking are kept: a flood of new addresses shares
+        one framer and cannot push out the receiver that was there first. Only event times are used, so
+        a replay forgets the same senders."""
         name = spec.name
         table: Mapping[tuple[str, str], object] = self._framers if spec.protocol == "nmea" else self._parsers
-        if sum(1 for source, _ in table if source == name) < MAX_SENDERS:
-            return
         idle = [
             key
             for key in table
@@ -1313,8 +1313,8 @@ class Pipeline:
 
 MAX_SENDERS = 64
 """Senders per source that get a framer of their own; more (a scan, a flood of spoofed addresses) share
-one, so memory stays bounded whoever sends. A newcomer past the cap first makes room by forgetting the
-senders silent for longer than the source's timeout (`Pipeline._forget_idle_senders`)."""
+one, so memory stays bounded whoever sends. A newcomer first makes room by forgetting the senders silent
+for longer than the source's timeout (`Pipeline._forget_idle_senders`)."""
 
 
 def _sender_key(peer: str, per_sender: Mapping[tuple[str, str], object], source: str) -> str:

@@ -394,10 +394,11 @@ def test_senders_beyond_the_cap_share_one_framer() -> None:
 
 def test_clients_that_reconnect_all_day_keep_a_framer_each_and_their_leftovers_are_counted() -> None:
     """A TCP client that drops and reconnects comes back from a new port each time, leaving a half sentence
-    in the framer of the old one. Past MAX_SENDERS of them, the senders silent for longer than the source's
+    in the framer of the old one. When a new sender comes, the senders silent for longer than the source's
     timeout are forgotten, their leftovers counted: the framers stay bounded, every leftover is counted
     (nothing received goes uncounted), and two clients talking at once after hundreds of reconnects still
-    get a framer each (before, every newcomer past the cap shared one, and their sentences spliced)."""
+    get a framer each (before, every newcomer past MAX_SENDERS shared one, and their sentences spliced,
+    while the leftovers of the first MAX_SENDERS were never counted)."""
     from gateway.pipeline import MAX_SENDERS
 
     p = pipeline([nmea_src("mux", ["position", "heading"], url="tcp-listen://127.0.0.1:0", timeout_s=2.0)])
@@ -420,7 +421,7 @@ def test_clients_that_reconnect_all_day_keep_a_framer_each_and_their_leftovers_a
     # the framers of the connections not yet forgotten (at most MAX_SENDERS), never lost from the count
     held = sum(f.pending for (source, _), f in p._framers.items() if source == "mux")
     forgotten = c.rejected["truncated"]
-    assert forgotten >= reconnects - MAX_SENDERS
+    assert forgotten >= reconnects - 5  # all but those of the last timeout (2 s: 4 connections, and one)
     assert forgotten * len(b"$HEHDT,1.0") + held == reconnects * len(b"$HEHDT,1.0")
     assert {k for k in c.rejected if not k.startswith("test_")} == {"truncated"}
 
