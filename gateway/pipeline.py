@@ -429,6 +429,12 @@ class Pipeline:
         spec = self.sources.get(event.source)
         if spec is None:
             return []
+        if not event.data and event.records is None and event.checked is None:
+            # the end of a sender's stream (`gateway.sources.Chunk`: a TCP connection closed): what its
+            # framer holds of an unfinished sentence is counted now (a shared framer is left alone)
+            if event.peer:
+                self._forget_sender((spec.name, event.peer), self.counters[event.source])
+            return []
         rx_ns = event.rx_ns
         if self.t0_ns is None:
             self.t0_ns = rx_ns
@@ -642,20 +648,25 @@ class Pipeline:
             if key[0] == name and rx_ns - self._sender_rx.get(key, rx_ns) > spec.timeout_ns
         ]
         for key in idle:
-            self._sender_rx.pop(key, None)
-            framer = self._framers.pop(key, None)
-            if framer is not None:
-                for frame in framer.flush():
-                    c.rejected[frame.reason or "garbage"] += 1
-            parser = self._parsers.get(key)
-            if parser is not None:
-                # a valid frame held behind a false start completes only now, older than the timeout
-                stale = len(parser.flush())
-                if stale:
-                    c.rejected["sender idle"] += stale
-                self._count_parser_rejects(key, c)
-                del self._parsers[key], self._parser_seen[key], self._parser_rejects[key]
-                del self._parser_skipped[key]
+            self._forget_sender(key, c)
+
+    def _forget_sender(self, key: tuple[str, str], c: SourceCounters) -> None:
+        """Count what the framer or frame parser of ``key`` (source, peer) holds back, and free it."""
+        self._sender_rx.pop(key, None)
+        framer = self._framers.pop(key, None)
+        if framer is not None:
+            for frame in framer.flush():
+                c.rejected[frame.reason or "garbage"] += 1
+        parser = self._parsers.get(key)
+        if parser is not None:
+            # a valid frame held behind a false start completes only now: counted, not used (the sender
+            # is gone or silent beyond its timeout)
+            late = len(parser.flush())
+            if late:
+                c.rejected["sender gone"] += late
+            self._count_parser_rejects(key, c)
+            del self._parsers[key], self._parser_seen[key], self._parser_rejects[key]
+            del self._parser_skipped[key]
 
     def _use_position(
         self, spec: SourceSpec, rx_ns: int, lat: float, lon: float, quality: int | None, out: list[Output]

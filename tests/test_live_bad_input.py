@@ -234,18 +234,22 @@ def test_hostile_streams_never_stop_the_gateway_and_every_byte_is_logged(live: t
     g.caught_up("tcp")
     assert g.counters["tcp"].received == received + 10  # the sentences after it are used
     client.close()
-    # a peer that connects, sends half a sentence and goes, 200 times
+    # a peer that connects, sends half a sentence and goes, 200 times: each half sentence is counted when
+    # its connection ends
     for _ in range(200):
         client, peer = tcp_client()
         tcp(good_burst() + b"$GPGGA,12")
         client.close()
     g.caught_up("tcp")
+    assert wait_for(lambda: g.counters["tcp"].rejected["truncated"] >= 200, 30.0)
     client, peer = tcp_client()
     received = g.counters["tcp"].received
     tcp(good_burst() * 3)
     g.caught_up("tcp")
     assert g.counters["tcp"].received == received + 6
     client.close()
+    assert g.counters["tcp"].rejected["truncated"] == 200
+    assert len(g.service.pipeline._framers) <= 3  # (udp's sender, tcp's last client, pty)
 
     estimates = g.service.pipeline.estimates
     for _ in range(5):

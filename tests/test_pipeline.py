@@ -426,6 +426,21 @@ def test_clients_that_reconnect_all_day_keep_a_framer_each_and_their_leftovers_a
     assert {k for k in c.rejected if not k.startswith("test_")} == {"truncated"}
 
 
+def test_the_end_of_a_senders_stream_counts_what_it_left_unfinished() -> None:
+    """An empty chunk from a peer is the end of its stream (a TCP connection closed): the half sentence it
+    left is counted at once, its framer freed; another sender's framer is untouched."""
+    p = pipeline([nmea_src("mux", ["position", "heading"], url="tcp-listen://127.0.0.1:0")])
+    c = p.counters["mux"]
+    p.feed(RawEvent(T0, "mux", enc.hdt("HE", 1.0).encode() + b"$HEHDT,1.0", peer="10.0.0.9:40000"))
+    other = enc.hdt("HE", 2.0).encode()
+    p.feed(RawEvent(T0 + 1, "mux", other[:9], peer="10.0.0.8:40000"))
+    assert c.received == 1 and not c.rejected  # (the half sentences are held, waiting for their ends)
+    p.feed(RawEvent(T0 + 2, "mux", b"", peer="10.0.0.9:40000"))
+    assert dict(c.rejected) == {"truncated": 1} and ("mux", "10.0.0.9:40000") not in p._framers
+    p.feed(RawEvent(T0 + 3, "mux", other[9:], peer="10.0.0.8:40000"))
+    assert c.received == 2  # the other client's sentence, completed in its own framer
+
+
 def test_a_flood_of_new_senders_never_pushes_out_the_one_talking() -> None:
     """Senders still talking are kept: a flood of new addresses, all within the timeout, shares the one
     spare framer, and the receiver's sentences split across its datagrams still decode whole."""
