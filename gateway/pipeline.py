@@ -255,6 +255,7 @@ class SourceCounters:
     bytes: int = 0
     last_rx_ns: int = 0
     dropped: int = 0  # lost before the gateway read them (the kernel's count; the service sets it)
+    skipped_bytes: int = 0  # MAVLink: bytes outside any valid frame (the frame parsers' count)
 
     def as_message(self, now_ns: int) -> SourceStatus:
         age = (now_ns - self.last_rx_ns) / NS if self.last_rx_ns else None
@@ -264,6 +265,7 @@ class SourceCounters:
             rejected=dict(self.rejected),
             bytes=self.bytes,
             dropped=self.dropped,
+            skipped_bytes=self.skipped_bytes,
         )
 
 
@@ -327,6 +329,8 @@ class Pipeline:
         self._parsers: dict[tuple[str, str], mv.FrameParser] = {}
         self._parser_seen: dict[tuple[str, str], Counter[str]] = {}
         self._parser_rejects: dict[tuple[str, str], int] = {}  # sum of _parser_seen, the fast check
+        self._parser_skipped: dict[tuple[str, str], int] = {}  # its skipped_bytes already counted
+        self._sender_rx: dict[tuple[str, str], int] = {}  # (source, peer) -> its last chunk's time
         self.t0_ns: int | None = None
         self.last_ns = 0
         self.mode = "standby"
@@ -338,6 +342,7 @@ class Pipeline:
         self._last_fix_ns: dict[str, int] = {}
         # per source, the last GGA height and GST 1σ (east, north, up), carried on its LocationFix
         self._fix_alt_m: dict[str, float] = {}
+        self._fix_time: dict[str, tuple[float, int]] = {}  # source -> (UTC s of day, rx ns) of its last fix
         # (GST fresh until, σ): a GST older than the source's timeout no longer describes its fixes
         self._fix_sigma_enu_m: dict[str, tuple[int, tuple[float, float, float]]] = {}
         self.foxglove = FoxgloveChannels(spec.vessel)
@@ -423,6 +428,12 @@ class Pipeline:
             return []
         spec = self.sources.get(event.source)
         if spec is None:
+            return []
+        if not event.data and event.records is None and event.checked is None:
+            # the end of a sender's stream (`gateway.sources.Chunk`: a TCP connection closed): what its
+            # framer holds of an unfinished sentence is counted now (a shared framer is left alone)
+            if event.peer:
+                self._forget_sender((spec.name, event.peer), self.counters[event.source])
             return []
         rx_ns = event.rx_ns
         if self.t0_ns is None:
@@ -520,7 +531,7 @@ class Pipeline:
         else:
             framed: list[str] = []
             texts = framed
-            for frame in self._framer(spec.name, ev.peer).feed(ev.data):
+            for frame in self._framer(spec, c, ev.peer, ev.rx_ns).feed(ev.data):
                 if frame.text is None:
                     c.rejected[frame.reason or "garbage"] += 1
                 else:
@@ -548,6 +559,9 @@ class Pipeline:
         if kind is nmea_codec.Gga or kind is nmea_codec.Gns:
             if "position" not in spec.roles or not s.valid or s.lat_deg is None or s.lon_deg is None:
                 return False
+            if s.time_s is not None and self._fix_time_backwards(spec, rx_ns, s.time_s):
+                self.counters[spec.name].rejected["test_time"] += 1
+                return False
             if s.alt_m is not None and self._foxglove_on:  # (the height goes only on the LocationFix)
                 self._fix_alt_m[spec.name] = ellipsoidal_height_m(s.alt_m, s.geoid_sep_m)
             quality = s.quality if kind is nmea_codec.Gga else None
@@ -571,24 +585,88 @@ class Pipeline:
             )
         return False
 
-    def _framer(self, source: str, peer: str) -> NmeaFramer:
-        framer = self._framers.get((source, peer))
+    def _fix_time_backwards(self, spec: SourceSpec, rx_ns: int, time_s: float) -> bool:
+        """True for a fix whose UTC time is earlier than the last fix of its source, while that one is
+        fresh (received within the source's timeout): an old fix delivered late (a datagram overtaken
+        on the network, a receiver's buffer replayed, a spoofer repeating recorded sentences) must not
+        reach the observer as a measurement of now. The step is taken modulo a day, so midnight
+        (86399.9 s -> 0.1 s) is a step forward; a fix at the same time (GGA and GNS of one epoch) is not
+        older. A receiver whose clock really stepped back is locked out for at most its timeout: once the
+        last fix is older than that, the next one starts the time afresh (and the jump test judges its
+        position)."""
+        last = self._fix_time.get(spec.name)
+        if last is not None and rx_ns - last[1] <= spec.timeout_ns:
+            step = (time_s - last[0] + 43_200.0) % 86_400.0 - 43_200.0
+            if step < 0.0:
+                return True
+        self._fix_time[spec.name] = (time_s, rx_ns)
+        return False
+
+    def _framer(self, spec: SourceSpec, c: SourceCounters, peer: str, rx_ns: int) -> NmeaFramer:
+        key = (spec.name, peer)
+        framer = self._framers.get(key)
         if framer is None:
-            key = (source, _sender_key(peer, self._framers, source))
+            self._forget_idle_senders(spec, c, rx_ns)
+            key = (spec.name, _sender_key(peer, self._framers, spec.name))
             framer = self._framers.setdefault(key, NmeaFramer())
+        self._sender_rx[key] = rx_ns
         return framer
 
-    def _parser(self, spec: SourceSpec, peer: str) -> tuple[tuple[str, str], mv.FrameParser]:
+    def _parser(
+        self, spec: SourceSpec, c: SourceCounters, peer: str, rx_ns: int
+    ) -> tuple[tuple[str, str], mv.FrameParser]:
         key = (spec.name, peer)
         parser = self._parsers.get(key)
         if parser is None:
+            self._forget_idle_senders(spec, c, rx_ns)
             key = (spec.name, _sender_key(peer, self._parsers, spec.name))
             parser = self._parsers.get(key)
             if parser is None:
                 parser = self._parsers[key] = self._mavlink_parser(spec)
                 self._parser_seen[key] = Counter()
                 self._parser_rejects[key] = 0
+                self._parser_skipped[key] = 0
+        self._sender_rx[key] = rx_ns
         return key, parser
+
+    def _forget_idle_senders(self, spec: SourceSpec, c: SourceCounters, rx_ns: int) -> None:
+        """A new sender on a source: first forget the source's senders silent for longer than its
+        timeout (a TCP client that disconnected and came back from another port, a receiver that moved
+        address). What each held back of an unfinished sentence or frame is counted now
+        (`NmeaFramer.flush`, `FrameParser.flush`: ``truncated``, ``garbage``, …) and its state freed: the
+        half sentence a dropped client left is counted by the time the next client after its timeout
+        connects, and a link whose clients reconnect all day keeps one framer per live sender instead of
+        filling `MAX_SENDERS` with dead ones and putting every newcomer on the shared framer, where two
+        clients' sentences would splice. Senders still talking are kept: a flood of new addresses shares
+        one framer and cannot push out the receiver that was there first. Only event times are used, so
+        a replay forgets the same senders."""
+        name = spec.name
+        table: Mapping[tuple[str, str], object] = self._framers if spec.protocol == "nmea" else self._parsers
+        idle = [
+            key
+            for key in table
+            if key[0] == name and rx_ns - self._sender_rx.get(key, rx_ns) > spec.timeout_ns
+        ]
+        for key in idle:
+            self._forget_sender(key, c)
+
+    def _forget_sender(self, key: tuple[str, str], c: SourceCounters) -> None:
+        """Count what the framer or frame parser of ``key`` (source, peer) holds back, and free it."""
+        self._sender_rx.pop(key, None)
+        framer = self._framers.pop(key, None)
+        if framer is not None:
+            for frame in framer.flush():
+                c.rejected[frame.reason or "garbage"] += 1
+        parser = self._parsers.get(key)
+        if parser is not None:
+            # a valid frame held behind a false start completes only now: counted, not used (the sender
+            # is gone or silent beyond its timeout)
+            late = len(parser.flush())
+            if late:
+                c.rejected["sender gone"] += late
+            self._count_parser_rejects(key, c)
+            del self._parsers[key], self._parser_seen[key], self._parser_rejects[key]
+            del self._parser_skipped[key]
 
     def _use_position(
         self, spec: SourceSpec, rx_ns: int, lat: float, lon: float, quality: int | None, out: list[Output]
@@ -659,7 +737,7 @@ class Pipeline:
         return Prediction((n, e), age)
 
     def _mavlink(self, spec: SourceSpec, c: SourceCounters, ev: RawEvent, out: list[Output]) -> bool:
-        key, parser = self._parser(spec, ev.peer)
+        key, parser = self._parser(spec, c, ev.peer, ev.rx_ns)
         msgs = parser.feed(ev.data)
         self._count_parser_rejects(key, c)
         frames: list[Sequence[mv.Report]] = []
@@ -726,9 +804,13 @@ class Pipeline:
         return updated
 
     def _count_parser_rejects(self, key: tuple[str, str], c: SourceCounters) -> None:
-        """Add what a frame parser rejected since last time to its source's counters (which also hold the
-        pipeline's own reasons, so they are added to, never overwritten)."""
+        """Add what a frame parser rejected and skipped since last time to its source's counters (which
+        also hold the pipeline's own reasons, so they are added to, never overwritten)."""
         parser = self._parsers[key]
+        skipped = parser.skipped_bytes
+        if skipped != self._parser_skipped[key]:
+            c.skipped_bytes += skipped - self._parser_skipped[key]
+            self._parser_skipped[key] = skipped
         total = sum(parser.rejected.values())
         if total == self._parser_rejects[key]:
             return
@@ -1242,7 +1324,8 @@ class Pipeline:
 
 MAX_SENDERS = 64
 """Senders per source that get a framer of their own; more (a scan, a flood of spoofed addresses) share
-one, so memory stays bounded whoever sends."""
+one, so memory stays bounded whoever sends. A newcomer first makes room by forgetting the senders silent
+for longer than the source's timeout (`Pipeline._forget_idle_senders`)."""
 
 
 def _sender_key(peer: str, per_sender: Mapping[tuple[str, str], object], source: str) -> str:

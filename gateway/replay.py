@@ -97,9 +97,10 @@ def mcap_events(path: str | Path) -> Iterator[Event]:
     for topic, log_ns, _pub_ns, payload in read_messages(path):
         if topic.startswith("/raw/nmea/"):
             data = base64.b64decode(payload["data"]) if "data" in payload else payload["text"].encode("ascii")
-            # the writer strips the final line terminator of a chunk; put one back for the framer, unless
-            # the chunk had none (a sentence split across reads: the next chunk completes it, as live)
-            end = b"" if payload.get("unterminated") else b"\r\n"
+            # the writer strips the final line terminator of a chunk into `eol` (left out for CR LF): put
+            # back exactly what came, nothing if the chunk had none (a sentence split across reads: the
+            # next chunk completes it, as live)
+            end = b"" if payload.get("unterminated") else payload.get("eol", "\r\n").encode("ascii")
             yield RawEvent(log_ns, topic[len("/raw/nmea/") :], data + end, peer=payload.get("peer", ""))
         elif topic.startswith("/raw/mavlink/"):
             yield RawEvent(

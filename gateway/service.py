@@ -12,13 +12,14 @@ Inputs from Zenoh (setpoint, mode, manual τ) become events on the same queue an
 replay sees exactly what the live run saw. Status goes out at ``status.rate_hz`` and answers the queryable
 ``<prefix>/status``. SIGINT/SIGTERM stop the loop; the log is flushed and closed.
 
-Time: with ``[time] clock = "wall"`` (the default; at sea, always) a chunk is stamped with its receive
-time on this computer's clock. With ``clock = "sim"`` it is stamped with the simulation time a simulator
-publishes on ``<prefix>/sim/clock`` (`gateway.sim_time`: interpolated between ticks, never more than one
-tick ahead), so everything downstream (observer, controller, commands, log, reference checks, dead
-reckoning) lives on the plant's time. Until the first tick arrives there is no time to stamp with: what
-is received is held, in order (at most `HOLD_MAX` items, the oldest dropped and counted), and handled,
-stamped with the first tick's time, when it comes.
+Time: with ``[time] clock = "wall"`` (the default; at sea, always) a chunk is stamped with its receive time on
+this computer's clock, kept free of its backward steps (`gateway.wall_time`: a clock stepped back would make
+every reference fail its jump test at once). With ``clock = "sim"`` it is stamped with the simulation time a
+simulator publishes on ``<prefix>/sim/clock`` (`gateway.sim_time`: interpolated between ticks, never more than
+one tick ahead), so everything downstream (observer, controller, commands, log, reference checks, dead
+reckoning) lives on the plant's time. Until the first tick arrives there is no time to stamp with: what is
+received is held, in order (at most `HOLD_MAX` items, the oldest dropped and counted), and handled, stamped
+with the first tick's time, when it comes.
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ from gateway.outputs import InputSink, OutputSink, RawSentenceSink
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from gateway.sim_time import SimTime
 from gateway.sources import Chunk, Source, open_source
+from gateway.wall_time import WallTime
 from wire.codecs import mavlink as mv
 from wire.mcap.writer import McapLogWriter
 from wire.messages import SIM_CLOCK_KEY, SimClock, Status, ThrusterCommand
@@ -119,6 +121,8 @@ class GatewayService:
         self._status_lock = threading.Lock()
         self._wall0_ns = 0
         self.sim_time = SimTime() if config.time.sim else None
+        self.wall_time = WallTime()
+        """Receive stamps with ``clock = "wall"``: this computer's UTC clock without its backward steps."""
         """The simulation clock (``[time] clock = "sim"``), else None: stamps are this computer's time."""
         self._held: deque[Chunk | _Input] = deque(maxlen=HOLD_MAX)
         self.held_dropped = 0
@@ -264,19 +268,19 @@ class GatewayService:
         """The pipeline's time now: this computer's (UTC ns), or the simulation's (None before its first
         tick)."""
         if self.sim_time is None:
-            return time.time_ns()
+            return self.wall_time.now()
         return self.sim_time.now(time.monotonic_ns())
 
     def _stamp(self, item: Chunk | _Input) -> int | None:
         """The time an item is handled at: its receive time, on the configured clock."""
         if self.sim_time is None:
-            return item.rx_ns
+            return self.wall_time.stamp(item.rx_ns, item.rx_mono_ns)
         return self.sim_time.stamp(item.rx_mono_ns)
 
     def run(self, duration_s: float | None = None) -> None:
         """Consume events until `stop_event` is set (or ``duration_s`` of wall time has passed)."""
         status_period_ns = int(1e9 / self.config.status.rate_hz)
-        next_status = time.time_ns()
+        next_status = time.monotonic_ns()  # (a step of the UTC clock must not stop the status)
         deadline = None if duration_s is None else time.monotonic() + duration_s
         while not self.stop_event.is_set():
             if deadline is not None and time.monotonic() >= deadline:
@@ -289,7 +293,7 @@ class GatewayService:
                 self._take(item)
             elif self._held and self.sim_time is not None and self.sim_time.started:
                 self._release_held()
-            wall = time.time_ns()
+            mono = time.monotonic_ns()
             # While items wait in the queue, "now" is the newest time handled (none before the first): a
             # consumer that is behind (a busy machine) must not see its sources as silent, nor dead-reckon
             # past data it holds.
@@ -299,11 +303,11 @@ class GatewayService:
                     self._emit(self.pipeline.tick(now))
                 except Exception:
                     self._internal_error("tick", "the dead-reckoning tick")
-            if wall >= next_status:
-                next_status = wall + status_period_ns
+            if mono >= next_status:
+                next_status = mono + status_period_ns
                 try:
                     if now is None:  # no time yet: the status goes out (stamped with the wall), not logged
-                        self._publish([self.pipeline.status(wall, self._alarms())])
+                        self._publish([self.pipeline.status(time.time_ns(), self._alarms())])
                     else:
                         self._emit([self.pipeline.status(now, self._alarms())])
                 except Exception:
@@ -351,7 +355,7 @@ class GatewayService:
                     f"source {s.name}: {dropped} datagrams dropped by the kernel (receive buffer full; "
                     "raise ?rcvbuf= or net.core.rmem_max)"
                 )
-        alarms += self._clock_alarms()
+        alarms += self._clock_alarms() if self.sim_time is not None else self.wall_time.alarms()
         alarms += [
             f"{what}: {n} not handled (internal error, traceback in the gateway's log)"
             for what, n in sorted(self.internal_errors.items())

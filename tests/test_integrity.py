@@ -481,3 +481,76 @@ def test_feedback_out_of_range_is_any_thrust_beyond_capacity_with_margin(thrust:
     th = Thruster(id=1, kind="azimuth", x_m=0.0, y_m=0.0, max_thrust_n=4e5, min_thrust_n=-2e5)
     problem = feedback_problem(th, thrust, 0.0, None, 1.2)
     assert bool(problem) == (abs(thrust) > 4.8e5)
+
+
+def gga_timed(north: float, east: float, t_ns: int) -> bytes:
+    """A DGPS fix whose UTC time is ``t_ns`` (the clean stream's time advances with the receive time)."""
+    lat, lon, _ = LocalFrame(*DATUM).to_geodetic(north, east, 0.0)
+    return enc.gga("GP", datetime.fromtimestamp(t_ns / S, UTC), lat, lon, 2, 12, 0.8, 20.0).encode()
+
+
+def run_timed(b: Bench, seconds: float, clock_offset_ns: int = 0) -> None:
+    """`Bench.run` with fixes whose UTC time is the receive time (plus ``clock_offset_ns``)."""
+    for _ in range(round(seconds * 10)):
+        n, e = b.rng.normal(0, SIGMA_M, 2)
+        b.cycle(gps={"gps1": gga_timed(n, e, b.now + clock_offset_ns)})
+
+
+def _checksummed(body: str) -> bytes:
+    cs = 0
+    for ch in body.encode("ascii"):
+        cs ^= ch
+    return f"${body}*{cs:02X}\r\n".encode("ascii")
+
+
+@pytest.mark.parametrize("absurd", ["lat_91", "time_backwards", "time_backwards_far"])
+def test_an_absurd_fix_under_a_valid_checksum_is_counted_and_never_reaches_the_observer(absurd: str) -> None:
+    """A DGPS whose sentences pass their checksum but say what cannot be: latitude 91°, or a fix older than
+    the one before it (5 s older at the vessel's position, or 5 s older and 1000 km away: a datagram
+    overtaken on the network, a replayed receiver buffer). Each is counted with its reason, and the
+    estimates are bit for bit those of the same run without them: nothing of them reached the observer."""
+    clean, faulty = Bench(seed=5), Bench(seed=5)
+    for b in (clean, faulty):
+        run_timed(b, 30)
+    m_clean, m_faulty = clean.mark(), faulty.mark()
+    injected = 0
+    for _ in range(100):
+        n, e = clean.rng.normal(0, SIGMA_M, 2)
+        faulty.rng.normal(0, SIGMA_M, 2)  # (the same draws in both)
+        t = clean.now
+        clean.cycle(gps={"gps1": gga_timed(n, e, t)})
+        faulty.cycle(gps={"gps1": gga_timed(n, e, t)})
+        if absurd == "lat_91":
+            good = gga_timed(n, e, t).decode()
+            fields = good[1 : good.index("*")].split(",")
+            fields[2] = "9100.000000"  # ddmm.mmmm: 91° N
+            bad = _checksummed(",".join(fields))
+        else:
+            far = 1e6 if absurd == "time_backwards_far" else 0.0
+            bad = gga_timed(n + far, e, t - 5 * S)
+        faulty.outputs += faulty.p.feed(RawEvent(t + 50_000_000, "gps1", bad))
+        injected += 1
+    reason = "bad_field" if absurd == "lat_91" else "test_time"
+    # counted once each, under that reason alone: no reference test even saw one
+    assert dict(faulty.p.counters["gps1"].rejected) == {reason: injected}
+    got = [(x["stamp_ns"], x["eta"], x["nu"]) for x in faulty.estimates(m_faulty)]
+    want = [(x["stamp_ns"], x["eta"], x["nu"]) for x in clean.estimates(m_clean)]
+    assert got == want and len(got) >= 100
+
+
+def test_a_receiver_whose_clock_stepped_back_is_used_again_after_its_timeout() -> None:
+    """A receiver whose time really stepped back (an hour: a wrong leap-second table, a reset) is not
+    locked out for good: its fixes are refused as older than the last only while that last one is fresh,
+    for the source's timeout (2 s), then its new time is taken and the fixes are used again."""
+    b = Bench()
+    run_timed(b, 60)
+    m = b.mark()
+    run_timed(b, 30, clock_offset_ns=-3600 * S)
+    c = b.p.counters["gps1"]
+    timeout_fixes = 2.0 * 10  # timeout_s at 10 Hz
+    assert timeout_fixes <= c.rejected["test_time"] <= timeout_fixes + 1
+    used = [o for o in b.outputs[m:] if o.topic == "/dp/measurement" and "gps1" in o.payload["sources"]]
+    assert len(used) >= 300 - timeout_fixes - 1 - 10 * 5, len(used)  # (and readmission after the gap, 5 s)
+    assert b.p.monitor.usable("position", "gps1")
+    pos, _ = b.errors(m)
+    assert pos < 1.0

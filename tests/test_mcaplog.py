@@ -746,3 +746,27 @@ def test_raw_nmea_record_of_a_replay_chunk_is_the_message() -> None:
     assert data == RawNmea(source="log_2024", text=chunk.decode().rstrip("\r\n")).encode()
     assert json.loads(data) == {"source": "log_2024", "text": chunk.decode().rstrip("\r\n")}
     assert "log_2024" in writer._RAW_NMEA_HEADS  # (it took the cached head)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.one_of(
+        st.binary(max_size=120),
+        st.lists(st.sampled_from([b"$GPHDT,1.0,T*00", b"\r", b"\n", b"\r\n", b"\n\r", b"\x00", b"\xff"])).map(
+            b"".join
+        ),
+    ),
+    st.sampled_from(["", "10.0.0.2:4001"]),
+)
+def test_a_raw_nmea_chunk_reads_back_byte_for_byte(chunk: bytes, peer: str) -> None:
+    """Whatever line terminator a chunk ends with (a bare LF, a CR, LF CR, blank lines, a CR LF split across
+    two reads, none), the chunk replay rebuilds from the logged record is exactly the bytes received."""
+    import base64
+
+    from wire.mcap.writer import raw_nmea_record
+
+    _, data = raw_nmea_record("gps", chunk, peer)
+    p = json.loads(data)
+    body = base64.b64decode(p["data"]) if "data" in p else p["text"].encode("ascii")
+    end = b"" if p.get("unterminated") else p.get("eol", "\r\n").encode("ascii")
+    assert body + end == chunk

@@ -210,6 +210,27 @@ def test_frames_of_another_mavlink_system_or_component_are_rejected_and_counted(
     assert dict(c.rejected) == {"other system": 1, "other component": 1} and c.received == 1
 
 
+def test_bytes_outside_mavlink_frames_are_counted_and_shown() -> None:
+    """An NMEA talker wired to a MAVLink port (or any noise on it): no frame, so nothing received or
+    rejected, but every byte outside a valid frame is counted in the status (`skipped_bytes`), beside the
+    frames that are valid."""
+    p = pipeline([
+        nmea_src("gps", ["position", "heading"]),
+        {"name": "thr", "url": "udpin:127.0.0.1:0", "protocol": "mavlink", "roles": ["thrusters"]},
+    ])  # fmt: skip
+    mav = mv.encoder(1, 1)
+    frame = bytes(mav.heartbeat_encode(0, 0, 0, 0, 0).pack(mav))
+    noise = (enc.hdt("HE", 1.0) + enc.rot("HE", 0.1)).encode()
+    for k in range(10):
+        p.feed(RawEvent(T0 + k, "thr", noise + frame if k % 2 else noise))
+    c = p.counters["thr"]
+    assert c.received == 5 and not c.rejected
+    assert c.skipped_bytes == 10 * len(noise)
+    status = json.loads(p.status(T0 + 10).message.encode())
+    assert status["sources"]["thr"]["skipped_bytes"] == 10 * len(noise)
+    assert "skipped_bytes" not in status["sources"]["gps"]  # (left out while 0)
+
+
 def test_signed_mavlink_link_rejects_unsigned_and_forged_frames() -> None:
     p = pipeline(
         [nmea_src("gps", ["position", "heading"]), mav_src("thr", ["thrusters"], signing_key=KEY.hex())],
@@ -369,6 +390,96 @@ def test_senders_beyond_the_cap_share_one_framer() -> None:
         p.feed(RawEvent(T0 + k, "mux", enc.hdt("HE", 1.0).encode(), peer=f"10.0.{k // 250}.{k % 250}:1"))
     assert len(p._framers) == MAX_SENDERS + 1
     assert p.counters["mux"].received == MAX_SENDERS + 50
+
+
+def test_clients_that_reconnect_all_day_keep_a_framer_each_and_their_leftovers_are_counted() -> None:
+    """A TCP client that drops and reconnects comes back from a new port each time, leaving a half sentence
+    in the framer of the old one. When a new sender comes, the senders silent for longer than the source's
+    timeout are forgotten, their leftovers counted: the framers stay bounded, every leftover is counted
+    (nothing received goes uncounted), and two clients talking at once after hundreds of reconnects still
+    get a framer each (before, every newcomer past MAX_SENDERS shared one, and their sentences spliced,
+    while the leftovers of the first MAX_SENDERS were never counted)."""
+    from gateway.pipeline import MAX_SENDERS
+
+    p = pipeline([nmea_src("mux", ["position", "heading"], url="tcp-listen://127.0.0.1:0", timeout_s=2.0)])
+    c = p.counters["mux"]
+    t = T0
+    reconnects = 3 * MAX_SENDERS
+    for k in range(reconnects):  # one connection every 0.5 s, each ending half-way through a sentence
+        t += S // 2
+        p.feed(RawEvent(t, "mux", enc.hdt("HE", 1.0).encode() + b"$HEHDT,1.0", peer=f"10.0.0.9:{40000 + k}"))
+        assert len(p._framers) <= MAX_SENDERS + 1
+    a = enc.hdt("HE", 10.0).encode() * 20
+    b = enc.hdt("HE", 10.0).encode() * 20
+    for i in range(0, len(a), 7):  # two clients at once, their bytes interleaved in 7-byte reads
+        t += 1000
+        p.feed(RawEvent(t, "mux", a[i : i + 7], peer="10.0.0.1:50001"))
+        p.feed(RawEvent(t + 1, "mux", b[i : i + 7], peer="10.0.0.2:50002"))
+    assert ("mux", "*") not in p._framers  # nobody was put on the shared framer
+    assert c.received == reconnects + 40
+    # the leftovers of the forgotten connections, counted when they were forgotten; the rest are held by
+    # the framers of the connections not yet forgotten (at most MAX_SENDERS), never lost from the count
+    held = sum(f.pending for (source, _), f in p._framers.items() if source == "mux")
+    forgotten = c.rejected["truncated"]
+    assert forgotten >= reconnects - 5  # all but those of the last timeout (2 s: 4 connections, and one)
+    assert forgotten * len(b"$HEHDT,1.0") + held == reconnects * len(b"$HEHDT,1.0")
+    assert {k for k in c.rejected if not k.startswith("test_")} == {"truncated"}
+
+
+def test_the_end_of_a_senders_stream_counts_what_it_left_unfinished() -> None:
+    """An empty chunk from a peer is the end of its stream (a TCP connection closed): the half sentence it
+    left is counted at once, its framer freed; another sender's framer is untouched."""
+    p = pipeline([nmea_src("mux", ["position", "heading"], url="tcp-listen://127.0.0.1:0")])
+    c = p.counters["mux"]
+    p.feed(RawEvent(T0, "mux", enc.hdt("HE", 1.0).encode() + b"$HEHDT,1.0", peer="10.0.0.9:40000"))
+    other = enc.hdt("HE", 2.0).encode()
+    p.feed(RawEvent(T0 + 1, "mux", other[:9], peer="10.0.0.8:40000"))
+    assert c.received == 1 and not c.rejected  # (the half sentences are held, waiting for their ends)
+    p.feed(RawEvent(T0 + 2, "mux", b"", peer="10.0.0.9:40000"))
+    assert dict(c.rejected) == {"truncated": 1} and ("mux", "10.0.0.9:40000") not in p._framers
+    p.feed(RawEvent(T0 + 3, "mux", other[9:], peer="10.0.0.8:40000"))
+    assert c.received == 2  # the other client's sentence, completed in its own framer
+
+
+def test_a_flood_of_new_senders_never_pushes_out_the_one_talking() -> None:
+    """Senders still talking are kept: a flood of new addresses, all within the timeout, shares the one
+    spare framer, and the receiver's sentences split across its datagrams still decode whole."""
+    from gateway.pipeline import MAX_SENDERS
+
+    p = pipeline([nmea_src("mux", ["position", "heading"])])
+    c = p.counters["mux"]
+    good = enc.hdt("HE", 1.0).encode()
+    t = T0
+    for k in range(4 * MAX_SENDERS):
+        t += S // 100
+        p.feed(RawEvent(t, "mux", good[: k % len(good)], peer="10.0.0.1:4001"))  # the receiver, split
+        p.feed(RawEvent(t + 1, "mux", good[k % len(good) :], peer="10.0.0.1:4001"))
+        p.feed(RawEvent(t + 2, "mux", b"$XX", peer=f"10.9.{k // 250}.{k % 250}:1"))  # the flood
+    assert c.received == 4 * MAX_SENDERS
+    assert len(p._framers) <= MAX_SENDERS + 1 and ("mux", "10.0.0.1:4001") in p._framers
+
+
+def test_mavlink_clients_that_reconnect_keep_a_parser_each_and_their_leftovers_are_counted() -> None:
+    from gateway.pipeline import MAX_SENDERS
+
+    p = pipeline([
+        nmea_src("gps", ["position", "heading"]),
+        {"name": "thr", "url": "tcp-listen://127.0.0.1:0", "protocol": "mavlink", "roles": ["thrusters"]},
+    ])  # fmt: skip
+    c = p.counters["thr"]
+    mav = mv.encoder(1, 1)
+    frame = bytes(mav.heartbeat_encode(0, 0, 0, 0, 0).pack(mav))
+    t = T0
+    reconnects = 3 * MAX_SENDERS
+    for k in range(reconnects):
+        t += S // 2
+        p.feed(RawEvent(t, "thr", frame + frame[:5], peer=f"10.0.0.9:{40000 + k}"))
+        assert len(p._parsers) <= MAX_SENDERS + 1
+    assert ("thr", "*") not in p._parsers
+    assert c.received == reconnects
+    held = sum(parser.pending for (source, _), parser in p._parsers.items() if source == "thr")
+    assert c.rejected["truncated"] >= reconnects - MAX_SENDERS
+    assert held + 5 * c.rejected["truncated"] == 5 * reconnects
 
 
 def test_an_observer_that_wants_new_samples_gets_each_measurement_once() -> None:

@@ -130,3 +130,56 @@ def test_a_bug_on_one_chunk_is_counted_logged_and_the_service_goes_on(
     assert len(poisoned) == n_errors
     estimates = [t for _, t, _, _ in read_messages(log_path, "/dp/estimate")]
     assert sum(t > max(poisoned) for t in estimates) >= 5
+
+
+# --- the computer's clock stepped back ----------------------------------------------------------------
+
+
+def test_receive_stamps_never_step_back_with_the_computers_clock() -> None:
+    """WallTime: stamps follow the monotonic clock from an offset taken from the UTC clock; a step back of
+    the UTC clock leaves them in order (and says by how much, until the clock is stepped forward again), a
+    step forward is taken."""
+    from gateway.wall_time import WallTime
+
+    w = WallTime()
+    wall, mono = 1_780_000_000 * 10**9, 5 * 10**9
+    stamps = []
+    for k in range(100):  # 10 Hz; the UTC clock steps back 30 s at k = 50
+        stamps.append(w.stamp(wall + k * 10**8 - (30 * 10**9 if k >= 50 else 0), mono + k * 10**8))
+    assert stamps == [wall + k * 10**8 for k in range(100)]
+    assert w.behind_ns == 30 * 10**9 and "30.0 s ahead" in w.alarms()[0]
+    # the clock is put right again (stepped forward 30 s): the alarm clears, the stamps go on
+    assert w.stamp(wall + 100 * 10**8, mono + 100 * 10**8) == wall + 100 * 10**8
+    assert w.behind_ns == 0 and w.alarms() == []
+    # a step forward is taken (to the pipeline a gap, like a silence of the sources)
+    assert w.stamp(wall + 3600 * 10**9, mono + 101 * 10**8) == wall + 3600 * 10**9
+    assert w.stamp(wall + 3600 * 10**9 + 10**8, mono + 102 * 10**8) == wall + 3600 * 10**9 + 10**8
+
+
+def test_a_clock_stepped_back_rejects_no_reference(tmp_path: Path) -> None:
+    """The service stamps chunks received across a 30 s step back of the computer's clock in order: no
+    reference fails its jump test (before, with the UTC clock's stamps, both were rejected for 36 s:
+    `moved 0.567 m in -30 s (limit -144 m)`), and the estimates go on, their times increasing."""
+    from gateway.sources import Chunk
+
+    tables = {
+        "vessel": {"name": "mss_supply"},
+        "datum": {"lat_deg": 59.4, "lon_deg": 10.5},
+        "sources": [
+            {"name": "mux", "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position", "heading"]}
+        ],
+        "observer": {"wave_period_s": 9.0},
+        "log": {"path": ""},
+    }
+    service = GatewayService(parse_config(tables, base_dir=tmp_path), config_tables=tables)
+    wall, mono = time.time_ns(), time.monotonic_ns()
+    for k in range(600):  # a minute at 10 Hz; the clock steps back 30 s after 40 s
+        step = 30 * 10**9 if k >= 400 else 0
+        gga = enc.gga("GP", datetime.now(UTC), 59.4 + 1e-6 * (k % 7), 10.5, 2, 12, 0.8, 20.0)
+        data = (gga + enc.hdt("HE", 0.5 + 1e-4 * (k % 5))).encode()
+        service._handle(Chunk("mux", data, wall + k * 10**8 - step, mono + k * 10**8))
+    c = service.pipeline.counters["mux"]
+    assert c.received == 1200 and not c.rejected, dict(c.rejected)
+    assert service.pipeline.estimates >= 590
+    assert service.wall_time.behind_ns == 30 * 10**9
+    assert any("stepped back" in a for a in service._alarms())

@@ -303,6 +303,8 @@ def test_tcp_client_receives_and_reconnects_after_the_server_restarts(opened: li
         server.close()
     assert wait_until(lambda: not src.stats.connected, 3.0)
     assert src.stats.errors["disconnected"] == 1
+    # the end of the stream from the server is handed over: an empty chunk with its peer
+    assert got.wait(lambda: got.chunks[-1].data == b"" and got.chunks[-1].peer == f"127.0.0.1:{port}", 3.0)
     assert not src.write(b"lost")  # not connected: cannot write now
     with TcpServerSink("127.0.0.1", port) as server2:  # the same port, a new server
         assert got.wait(lambda: HDT in got.data, 8.0, poll=lambda: server2.write(HDT))
@@ -354,6 +356,13 @@ def test_tcp_listen_takes_several_clients(opened: list[Source]) -> None:
         assert b.recv(16) == b"only b"
         a.close()
         assert wait_until(lambda: len(src.clients) == 1, 3.0)
+        # a's end of stream: an empty chunk with its peer, after its bytes, not counted as data
+        a_peer = peers[b"from a"]
+        assert got.wait(lambda: any(c.data == b"" for c in got.chunks), 3.0)
+        ends = [k for k, c in enumerate(got.chunks) if c.data == b""]
+        assert [got.chunks[k].peer for k in ends] == [a_peer]
+        assert ends[0] > next(k for k, c in enumerate(got.chunks) if c.peer == a_peer and c.data)
+        assert src.stats.chunks == len(got.chunks) - 1
     finally:
         a.close()
         b.close()

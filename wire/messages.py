@@ -330,6 +330,14 @@ class SourceStatus(Record, kw_only=True):
             "count). Left out while 0."
         ),
     ] = 0
+    skipped_bytes: Annotated[
+        int,
+        doc(
+            "MAVLink links: bytes outside any valid frame (noise, another protocol on the link, the bytes of "
+            "rejected frames; count), so a link that carries something else shows it. NMEA links count "
+            "their noise as `garbage` lines in `rejected` instead. Left out while 0."
+        ),
+    ] = 0
 
 
 class ReferenceStatus(Record, kw_only=True):
@@ -783,6 +791,15 @@ class RawNmea(Message, kw_only=True):
             "Left out (false) for a chunk of whole lines."
         ),
     ] = False
+    eol: Annotated[
+        str,
+        doc(
+            "The line terminator bytes that ended the chunk (stripped from `text` and `data`) when they were "
+            "not exactly CR LF: a bare LF or CR, LF CR, several blank lines, a CR LF split across reads. "
+            "Left out for CR LF and for an unterminated chunk, so `text` (or `data`) + `eol` (CR LF when "
+            "left out, nothing when `unterminated`) is exactly the bytes received."
+        ),
+    ] = ""
 
 
 class RawMavlink(Message, kw_only=True):

@@ -45,7 +45,11 @@ class Chunk:
     rx_mono_ns: int
     """Receive time on the monotonic clock (``time.monotonic_ns()``): for ages and rates."""
     peer: str = ""
-    """UDP/TCP peer ``host:port`` (``[v6]:port``) that sent it, for `Source.write` ``peer=``; else ``""``."""
+    """UDP/TCP peer ``host:port`` (``[v6]:port``) that sent it, for `Source.write` ``peer=``; else ``""``.
+
+    Empty ``data`` from a TCP source marks the end of that peer's stream (its connection closed), so what
+    the gateway holds of an unfinished sentence from it is counted then (`Source._end_of_stream`); a
+    UDP datagram of no bytes reads the same way."""
 
 
 class SourceError(Exception):
@@ -289,6 +293,16 @@ class Source(ABC):
             if "deliver raised" not in self._logged:
                 self._logged.add("deliver raised")
                 log.exception("source %r: deliver raised (counted; reading goes on)", self.name)
+
+    def _end_of_stream(self, peer: str) -> None:
+        """Hand over the end of ``peer``'s stream (an empty `Chunk`); not counted as data received."""
+        deliver = self._deliver
+        if deliver is None or not peer:
+            return
+        try:
+            deliver(Chunk(self.name, b"", time.time_ns(), time.monotonic_ns(), peer))
+        except Exception as exc:
+            self.stats.count_error("deliver raised", f"deliver raised {type(exc).__name__}: {exc}")
 
     def _sleep(self, seconds: float) -> bool:
         """Wait ``seconds`` unless stopped; True if stopped."""

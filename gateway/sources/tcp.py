@@ -93,6 +93,7 @@ class TcpClientSource(Source):
                 self._sock = None
                 sock.close()
             self.stats.connected = False
+            self._end_of_stream(peer)
             if reason is None:  # stopped
                 return
             self._error("disconnected", f"connection to {peer} lost: {reason}; reconnecting", always=True)
@@ -201,6 +202,7 @@ class TcpListenSource(Source):
             sock.close()
             self.stats.connected = bool(self._clients)
         log.info("source %r: client %s gone: %s", self.name, peer, reason)
+        self._end_of_stream(peer)
 
     def _accept(self, listener: socket.socket) -> None:
         try:

@@ -99,7 +99,7 @@ def raw_nmea_record(source: str, text: str | bytes, peer: str = "") -> tuple[str
     fields hold their defaults then, and are left out."""
     if not peer and type(text) is bytes:
         raw = text.rstrip(b"\r\n")
-        if len(raw) != len(text) and raw.isascii():
+        if len(raw) == len(text) - 2 and text[-2:] == b"\r\n" and raw.isascii():
             known = _RAW_NMEA_HEADS.get(source)
             if known is None:
                 known = _RAW_NMEA_HEADS[source] = (
@@ -119,16 +119,26 @@ def raw_nmea_record_reference(source: str, text: str | bytes, peer: str = "") ->
     """`raw_nmea_record` by way of the `RawNmea` message: the readable form, for every chunk."""
     if isinstance(text, str):
         cut = text.rstrip("\r\n")
-        msg = RawNmea(source=source, text=cut, peer=peer, unterminated=bool(text) and cut == text)
+        eol = _eol(text[len(cut) :])
+        msg = RawNmea(source=source, text=cut, peer=peer, unterminated=cut == text, eol=eol)
     else:
-        raw = bytes(text).rstrip(b"\r\n")
-        open_end = bool(text) and len(raw) == len(text)
+        data = bytes(text)
+        raw = data.rstrip(b"\r\n")
+        open_end = len(raw) == len(data)  # (an empty chunk too: an empty datagram ended no line)
+        eol = _eol(data[len(raw) :].decode("ascii"))
         try:
-            msg = RawNmea(source=source, text=raw.decode("ascii"), peer=peer, unterminated=open_end)
+            msg = RawNmea(source=source, text=raw.decode("ascii"), peer=peer, unterminated=open_end, eol=eol)
         except UnicodeDecodeError:
             text_shown = raw.decode("ascii", "backslashreplace")
-            msg = RawNmea(source=source, text=text_shown, data=raw, peer=peer, unterminated=open_end)
+            msg = RawNmea(source=source, text=text_shown, data=raw, peer=peer, unterminated=open_end, eol=eol)
     return f"/raw/nmea/{source}", msg.encode()
+
+
+def _eol(end: str) -> str:
+    """`RawNmea.eol` of a chunk whose stripped line terminator was ``end``: left out ("") for CR LF (the
+    common case) and for none (the chunk is then `unterminated`); otherwise the exact CR/LF characters, so
+    the log keeps every byte (a bare LF, a CR LF split across two reads, blank lines)."""
+    return "" if end in ("", "\r\n") else end
 
 
 def raw_mavlink_record(source: str, frame: bytes, peer: str = "") -> tuple[str, bytes]:
