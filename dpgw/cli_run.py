@@ -7,12 +7,12 @@ Only the parser is built at import: the gateway (numpy, numba, Zenoh, pydantic) 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import threading
 import time
 from typing import TYPE_CHECKING, Any
 
+from dpgw import cli_json
 from dpgw.cli_foxglove import FROM_CONFIG, add_foxglove_arg, connect_lines
 
 if TYPE_CHECKING:
@@ -154,7 +154,7 @@ def run(args: argparse.Namespace) -> int:
         service.close()
     summary = {"estimates": service.pipeline.estimates, "published": service.published, "status": status}
     if args.json:
-        print(json.dumps(summary, indent=2, default=str))
+        print(cli_json.dumps(summary, indent=2, default=str))
     else:
         print(
             f"dpgw run: stopped; {service.pipeline.estimates} estimates, "

@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from typing import TYPE_CHECKING, Any
 
-from dpgw import cli_sim_inputs
+from dpgw import cli_json, cli_sim_inputs
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from simulator.scenario_names import SCENARIO_NAMES
 
@@ -40,7 +39,9 @@ EPILOG = (
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--scenario", choices=SCENARIO_NAMES, metavar="NAME", help="scenario name")
+    p.add_argument(
+        "--scenario", choices=SCENARIO_NAMES, metavar="NAME", help="scenario (the names are listed below)"
+    )
     p.add_argument("--duration", type=float, metavar="S", help="sim seconds (default: the scenario's)")
     p.add_argument("--seed", type=int, default=0, help="random seed: same seed, same bytes (default 0)")
     p.add_argument("--out", metavar="LOG.mcap", help="write ground truth and every frame sent to this MCAP")
@@ -246,7 +247,7 @@ def _run_scenario(args: argparse.Namespace) -> int:
     if args.out:
         summary["log"] = args.out
     if args.json:
-        print(json.dumps(summary, indent=2))
+        print(cli_json.dumps(summary, indent=2))
     else:
         print(
             f"{scenario.name}: {sim.t:.0f} s simulated in {sim.summary.wall_seconds:.1f} s "
