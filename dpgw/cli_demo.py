@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 from dpgw import cli_json
 from dpgw.cli_foxglove import DEFAULT_HOST, DEFAULT_PORT, add_foxglove_arg, connect_lines, layout_path
+from dpgw.cli_types import positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from simulator.scenario_names import SCENARIO_NAMES
 
@@ -70,7 +71,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--duration",
-        type=float,
+        type=positive_float,
         default=180.0,
         metavar="S",
         help=f"sim seconds (default 180; the first {SETTLE_S:.0f} s, while the observer settles, are not "
@@ -78,7 +79,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--speed",
-        type=float,
+        type=positive_float,
         default=10.0,
         metavar="X",
         help="sim seconds per wall second (default 10); halved, down to 1, while the machine cannot keep up",
@@ -192,9 +193,6 @@ def run(args: argparse.Namespace) -> int:
     from simulator.transports import PtySink, UdpSink
 
     scenario = get_scenario(args.scenario)
-    if not args.speed > 0:
-        print("dpgw demo: --speed must be positive", file=sys.stderr)
-        return 2
     pty = PtySink()
     sinks: list[Any] = [pty]
     foxglove = None

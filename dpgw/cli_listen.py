@@ -12,6 +12,7 @@ import time
 from typing import Any
 
 from dpgw import cli_json
+from dpgw.cli_types import positive_float, positive_int
 from dpgw.cli_zenoh import LISTEN_FLAGS, add_endpoint_args
 
 NAME = "listen"
@@ -32,10 +33,10 @@ EPILOG = (
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("key", nargs="?", default="dp/**", help="Zenoh key expression (default dp/**)")
     p.add_argument("--json", action="store_true", help="one JSON object per line: {key, payload}")
-    p.add_argument("--count", type=int, metavar="N", help="exit after N samples")
+    p.add_argument("--count", type=positive_int, metavar="N", help="exit after N samples")
     p.add_argument(
         "--duration",
-        type=float,
+        type=positive_float,
         metavar="S",
         help="exit after S seconds (status 1, saying so, if nothing arrived)",
     )

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 from dpgw import cli_json
 from dpgw.cli_foxglove import add_foxglove_arg, connect_lines
+from dpgw.cli_types import non_negative_float, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from observers.observer_names import OBSERVER_NAMES
 
@@ -76,7 +77,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--report", metavar="DIR", help="write plots (PNG), metrics.json and report.md here")
     pace = p.add_mutually_exclusive_group()
     pace.add_argument(
-        "--speed", type=float, metavar="X", help="pace at X times real time and publish on Zenoh"
+        "--speed", type=positive_float, metavar="X", help="pace at X times real time and publish on Zenoh"
     )
     pace.add_argument("--realtime", action="store_true", help="= --speed 1")
     p.add_argument("--prefix", help="Zenoh prefix when publishing (default the config's)")
@@ -84,7 +85,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-scouting", action="store_true", help="Zenoh multicast scouting off")
     p.add_argument(
         "--settle",
-        type=float,
+        type=non_negative_float,
         metavar="S",
         help="leave out the first S s when scoring against the truth and in the report (default: the "
         "first 10 %% of the log, at most 60 s)",

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 from dpgw import cli_json
 from dpgw.cli_foxglove import FROM_CONFIG, add_foxglove_arg, connect_lines
+from dpgw.cli_types import positive_float
 
 if TYPE_CHECKING:
     from gateway.config import GatewayConfig
@@ -45,7 +46,9 @@ EPILOG = (
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", required=True, metavar="FILE", help="gateway config (TOML)")
     p.add_argument("--log", metavar="FILE.mcap", help="override [log] path")
-    p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds (tests, trials)")
+    p.add_argument(
+        "--duration", type=positive_float, metavar="S", help="stop after S seconds (tests, trials)"
+    )
     p.add_argument(
         "--check",
         action="store_true",

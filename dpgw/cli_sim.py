@@ -7,6 +7,7 @@ import sys
 from typing import TYPE_CHECKING, Any
 
 from dpgw import cli_json, cli_sim_inputs
+from dpgw.cli_types import positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from simulator.scenario_names import SCENARIO_NAMES
 
@@ -42,7 +43,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--scenario", choices=SCENARIO_NAMES, metavar="NAME", help="scenario (the names are listed below)"
     )
-    p.add_argument("--duration", type=float, metavar="S", help="sim seconds (default: the scenario's)")
+    p.add_argument(
+        "--duration", type=positive_float, metavar="S", help="sim seconds (default: the scenario's)"
+    )
     p.add_argument("--seed", type=int, default=0, help="random seed: same seed, same bytes (default 0)")
     p.add_argument("--out", metavar="LOG.mcap", help="write ground truth and every frame sent to this MCAP")
     p.add_argument(
@@ -59,7 +62,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--realtime", action="store_true", help="pace in real time (default: as fast as possible)")
     p.add_argument(
         "--speed",
-        type=float,
+        type=positive_float,
         default=1.0,
         metavar="X",
         help="with --realtime: sim seconds per wall second (default 1)",

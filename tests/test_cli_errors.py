@@ -205,3 +205,32 @@ def test_demo_too_short_to_score_says_how_long_to_run(capsys: pytest.CaptureFixt
     out = capsys.readouterr().out
     assert f"give a --duration longer than {SETTLE_S:.0f}" in out
     assert "-0.0" not in out and "(0.0 m N, 0.0 m E, 45.0 deg)" in out
+
+
+@pytest.mark.parametrize(
+    ("argv", "words"),
+    [
+        (["demo", "--duration", "-5"], "argument --duration: must be a positive number (got -5)"),
+        (["demo", "--speed", "0"], "argument --speed: must be a positive number (got 0)"),
+        (
+            ["sim", "--scenario", "hassani", "--duration", "nan"],
+            "argument --duration: must be a finite number",
+        ),
+        (["replay", "x.mcap", "--settle", "-1"], "argument --settle: must be a number >= 0 (got -1)"),
+        (["replay", "x.mcap", "--speed", "-1"], "argument --speed: must be a positive number (got -1)"),
+        (["listen", "--count", "0"], "argument --count: must be 1 or more (got 0)"),
+        (
+            ["run", "--config", "x.toml", "--duration", "abc"],
+            "argument --duration: must be a number (got abc)",
+        ),
+    ],
+)
+def test_a_duration_speed_or_count_that_cannot_be_is_refused(
+    argv: list[str], words: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, `dpgw demo --duration -5` ran, wrote an empty demo.mcap and exited 0."""
+    with pytest.raises(SystemExit) as exit_:
+        main(argv)
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"usage: dpgw {argv[0]} ") and f"dpgw {argv[0]}: error: {words}" in err
