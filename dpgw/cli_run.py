@@ -106,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
         config = replace(config, time=TimeConfig(clock=args.clock))
     if args.foxglove is not None:
         fc = config.foxglove
-        host, port = (fc.host, fc.port) if args.foxglove == FROM_CONFIG else args.foxglove
+        host, port = (fc.host, fc.port) if args.foxglove is FROM_CONFIG else args.foxglove
         config = replace(config, foxglove=FoxgloveConfig(enabled=True, host=host, port=port))
     if args.check:
         problems = start_up_problems(config)

@@ -234,3 +234,29 @@ def test_a_duration_speed_or_count_that_cannot_be_is_refused(
     assert exit_.value.code == 2
     err = capsys.readouterr().err
     assert err.startswith(f"usage: dpgw {argv[0]} ") and f"dpgw {argv[0]}: error: {words}" in err
+
+
+# --- commands as the README prints them ------------------------------------------------------------------
+
+
+def test_run_foxglove_without_a_value_serves_on_the_configs_port(tmp_path: Path) -> None:
+    """`dpgw run --config FILE --foxglove` (README, dpgw run --help) stopped with "'config' is not
+    [HOST:]PORT": argparse passed the bare option's string marker through the address check."""
+    from dpgw.cli_foxglove import FROM_CONFIG
+
+    args = build_parser().parse_args(["run", "--config", "vessel.toml", "--foxglove"])
+    assert args.foxglove is FROM_CONFIG
+    port = free_port()
+    cfg = tmp_path / "vessel.toml"
+    cfg.write_text(
+        '[vessel]\nname = "mss_supply"\n[[sources]]\nname = "gps"\nurl = "udp://127.0.0.1:0"\n'
+        'protocol = "nmea"\nroles = ["position", "heading"]\n[observer]\nwave_period_s = 9.0\n'
+        f'[zenoh]\nlisten = ["tcp/127.0.0.1:{free_port()}"]\nmulticast_scouting = false\n[log]\npath = ""\n'
+        f"[foxglove]\nport = {port}\n"
+    )
+    p = subprocess.run(
+        [sys.executable, "-m", "dpgw", "run", "--config", str(cfg), "--foxglove", "--duration", "0.5"],
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    assert f"ws://127.0.0.1:{port}" in p.stderr
