@@ -260,3 +260,27 @@ def test_run_foxglove_without_a_value_serves_on_the_configs_port(tmp_path: Path)
     )  # fmt: skip
     assert p.returncode == 0, p.stderr
     assert f"ws://127.0.0.1:{port}" in p.stderr
+
+
+def _example_commands() -> list[str]:
+    """Every example command of every help page, continuation lines joined, comments and pipes cut."""
+    commands = []
+    for parser in _subparsers().values():
+        pending = ""
+        for line in (parser.epilog or "").splitlines():
+            text = pending + " " + line.strip() if pending else line.strip()
+            if text.endswith("\\"):
+                pending = text[:-1].strip()
+                continue
+            pending = ""
+            if text.startswith("dpgw "):
+                commands.append(text.split("  #")[0].split(" | ")[0].strip())
+    return commands
+
+
+@pytest.mark.parametrize("command", _example_commands())
+def test_every_help_example_parses(command: str) -> None:
+    """What an example asks for, the parser takes (the files it names are placeholders)."""
+    import shlex
+
+    build_parser().parse_args(shlex.split(command)[1:])  # SystemExit on an option the command refuses
