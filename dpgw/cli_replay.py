@@ -58,7 +58,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=[],
         metavar="SPEC",
         help=f"observer spec NAME[:key=value,...][@label], NAME one of {', '.join(OBSERVER_NAMES)} "
-        "(repeatable: side by side; default passive)",
+        "(repeatable: side by side; default: the observer of the log's or --config's [observer] type, "
+        "else passive)",
     )
     p.add_argument(
         "--out",
@@ -155,7 +156,9 @@ def run(args: argparse.Namespace) -> int:
     try:
         inputs = open_inputs(args.logs)
         config = build_config(inputs, config_path=args.config, vessel=args.vessel)
-        specs = [parse_observer_spec(s) for s in args.observer] or [ObserverSpec("passive", "passive", {})]
+        # Without --observer, the observer the config names (the log's own for a gateway log: what ran live).
+        own = config.observer.type
+        specs = [parse_observer_spec(s) for s in args.observer] or [ObserverSpec(own, own, {})]
         pipeline = build_pipeline(config, specs, foxglove_channels=args.foxglove_channels)
     except ConfigError as exc:
         print(format_problems(exc), file=sys.stderr)

@@ -284,3 +284,27 @@ def test_every_help_example_parses(command: str) -> None:
     import shlex
 
     build_parser().parse_args(shlex.split(command)[1:])  # SystemExit on an option the command refuses
+
+
+def test_replay_runs_the_configs_observer_by_default(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Without --observer a replay runs the observer its config names (a gateway log: what ran live), not
+    always the passive one."""
+    log = tmp_path / "gps.txt"
+    p = subprocess.run(
+        [sys.executable, "-m", "dpgw", "sim", "--scenario", "hassani", "--duration", "20",
+         "--nmea", f"file://{log}"],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    cfg = tmp_path / "ekf.toml"
+    cfg.write_text(
+        '[vessel]\nname = "cybership2"\n[[sources]]\nname = "gps"\nurl = "udp://127.0.0.1:0"\n'
+        'protocol = "nmea"\nroles = ["position", "heading"]\n[observer]\ntype = "ekf"\nwave_period_s = 6.0\n'
+        '[log]\npath = ""\n'
+    )
+    out = tmp_path / "again.mcap"
+    assert main(["replay", str(log), "--config", str(cfg), "--out", str(out), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert list(summary["estimates"]) == ["ekf"] and summary["estimates"]["ekf"] > 0
