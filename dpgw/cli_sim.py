@@ -112,8 +112,16 @@ def load_faults(path: str) -> tuple[Fault, ...]:
         raise ValueError(f"{path}: not valid TOML: {exc}") from None
     except OSError as exc:
         raise ValueError(f"{path}: cannot read the fault table ({exc.strerror})") from None
+    # A misspelt table ([[fault]]) or a file of something else must not run a clean sea in its place.
+    unknown = sorted(set(data) - {"faults"})
+    if unknown:
+        raise ValueError(
+            f"{path}: unknown key '{unknown[0]}' (a fault file holds [[faults]] tables only; docs/sensors.md)"
+        )
+    if not data.get("faults"):
+        raise ValueError(f"{path}: no [[faults]] table (docs/sensors.md)")
     try:
-        return FaultSchedule.from_dicts(data.get("faults", [])).faults
+        return FaultSchedule.from_dicts(data["faults"]).faults
     except ValueError as exc:
         raise ValueError(f"{path}: {exc}") from None
 

@@ -308,3 +308,21 @@ def test_replay_runs_the_configs_observer_by_default(
     assert main(["replay", str(log), "--config", str(cfg), "--out", str(out), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert list(summary["estimates"]) == ["ekf"] and summary["estimates"]["ekf"] > 0
+
+
+@pytest.mark.parametrize(
+    ("text", "words"),
+    [
+        ('[[fault]]\nkind = "dropout"\nsource = "dgps1"\nt_start = 1.0\n', "unknown key 'fault'"),
+        ("# nothing yet\n", "no [[faults]] table"),
+    ],
+)
+def test_a_fault_file_without_faults_is_refused(
+    text: str, words: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, a misspelt [[fault]] table ran the scenario without its faults and exited 0."""
+    faults = tmp_path / "faults.toml"
+    faults.write_text(text)
+    assert main(["sim", "--scenario", "hassani", "--faults", str(faults), "--duration", "1"]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert line.startswith(f"dpgw sim: {faults}: {words}"), line
