@@ -326,3 +326,15 @@ def test_a_fault_file_without_faults_is_refused(
     assert main(["sim", "--scenario", "hassani", "--faults", str(faults), "--duration", "1"]) == 2
     line = _one_line(capsys.readouterr().err)
     assert line.startswith(f"dpgw sim: {faults}: {words}"), line
+
+
+def test_replay_with_an_unknown_vessel_name_lists_the_built_in_ones(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: "vessel.file: no such file .../nope": a misspelt name was taken for a file."""
+    log = tmp_path / "gps.txt"
+    log.write_text("$GPGGA,100000.00,5924.000000,N,01029.999988,E,4,12,0.80,20.259,M,,,2.0,0001*11\r\n")
+    assert main(["replay", str(log), "--vessel", "mss_suply"]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert "vessel.name: not a built-in vessel" in err and "mss_supply" in err and 'got "mss_suply"' in err
