@@ -7,14 +7,15 @@ against the simulator's ground truth and the station keeping from the log.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from dpgw import cli_json
 from dpgw.cli_foxglove import DEFAULT_HOST, DEFAULT_PORT, add_foxglove_arg, connect_lines, layout_path
+from dpgw.cli_types import positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from simulator.scenario_names import SCENARIO_NAMES
 
@@ -54,8 +55,8 @@ EPILOG = (
     "examples:\n"
     "  dpgw demo                                   # 3 minutes of sea in ~20 s\n"
     "  dpgw demo --scenario hassani --duration 300 --speed 5 --out hassani.mcap\n"
-    "  dpgw demo --speed 1 --duration 600           # watch it in Foxglove in real time\n"
-    "  dpgw demo --foxglove 0.0.0.0:8765            # Foxglove from another computer (no auth!)\n"
+    "  dpgw demo --speed 1 --duration 600          # watch it in Foxglove in real time\n"
+    "  dpgw demo --foxglove 0.0.0.0:8765           # Foxglove from another computer (no auth!)\n"
     "  dpgw listen 'dp/**'                         # in another terminal, while the demo runs"
 )
 
@@ -68,10 +69,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="NAME",
         help=f"scenario: {', '.join(SCENARIO_NAMES)} (default {DEFAULT_SCENARIO}; docs/simulator.md)",
     )
-    p.add_argument("--duration", type=float, default=180.0, metavar="S", help="sim seconds (default 180)")
+    p.add_argument(
+        "--duration",
+        type=positive_float,
+        default=180.0,
+        metavar="S",
+        help=f"sim seconds (default 180; the first {SETTLE_S:.0f} s, while the observer settles, are not "
+        "scored)",
+    )
     p.add_argument(
         "--speed",
-        type=float,
+        type=positive_float,
         default=10.0,
         metavar="X",
         help="sim seconds per wall second (default 10); halved, down to 1, while the machine cannot keep up",
@@ -185,9 +193,6 @@ def run(args: argparse.Namespace) -> int:
     from simulator.transports import PtySink, UdpSink
 
     scenario = get_scenario(args.scenario)
-    if not args.speed > 0:
-        print("dpgw demo: --speed must be positive", file=sys.stderr)
-        return 2
     pty = PtySink()
     sinks: list[Any] = [pty]
     foxglove = None
@@ -320,7 +325,7 @@ def run(args: argparse.Namespace) -> int:
         "paused_s": publisher.paused_s,
     }
     if args.json:
-        print(json.dumps(summary, indent=2))
+        print(cli_json.dumps(summary, indent=2))
     else:
         print_summary(summary)
     return 0
@@ -445,6 +450,11 @@ def fix_stamp_lag_s(log: str, source: str) -> dict[str, float] | None:
     return {"median": float(np.median(a)), "p99": float(np.percentile(a, 99)), "max": float(a.max())}
 
 
+def _one_decimal(x: float) -> str:
+    """``x`` to one decimal, never "-0.0" (a reference a hair west of the origin is at 0.0 m E)."""
+    return f"{round(x, 1) + 0.0:.1f}"
+
+
 def print_summary(r: dict[str, Any]) -> None:
     print(
         f"dpgw demo: {r['scenario']}, {r['sim_seconds']:.0f} s of sea in {r['wall_seconds']:.1f} s; "
@@ -471,8 +481,9 @@ def print_summary(r: dict[str, Any]) -> None:
             + (f"; {100 * share:.1f} % of the commanded force in the wave band" if share is not None else "")
         )
         print(
-            f"  mean offset from the reference ({k['reference'][0]:.1f} m N, {k['reference'][1]:.1f} m E, "
-            f"{k['reference'][2]:.1f} deg): {k['north_mean_m']:+.2f} m N, {k['east_mean_m']:+.2f} m E, "
+            f"  mean offset from the reference ({_one_decimal(k['reference'][0])} m N, "
+            f"{_one_decimal(k['reference'][1])} m E, {_one_decimal(k['reference'][2])} deg): "
+            f"{k['north_mean_m']:+.2f} m N, {k['east_mean_m']:+.2f} m E, "
             f"heading {k['heading_mean_deg']:+.2f} deg"
         )
     lag = r.get("fix_stamp_lag_s")
@@ -487,6 +498,9 @@ def print_summary(r: dict[str, Any]) -> None:
     if r["alarms"]:
         print(f"  alarms at the end: {'; '.join(r['alarms'])}")
     if not math.isfinite(r.get("error_vs_truth", {}).get("horizontal_rms_m", 0.0)):
-        print("  (no estimate after the settle time: run longer)")
+        print(
+            f"  (no score: the first {SETTLE_S:.0f} s are left out while the observer settles; give a "
+            f"--duration longer than {SETTLE_S:.0f}, e.g. the default 180)"
+        )
     for step in r.get("next", []):
         print(f"  next: {step}")

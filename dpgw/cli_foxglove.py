@@ -23,8 +23,15 @@ def layout_path() -> str:
     return str(Path(__file__).resolve().parent / LAYOUT)
 
 
-FROM_CONFIG = "config"
-"""``--foxglove`` without a value on ``dpgw run``: the config's ``[foxglove]`` host and port."""
+class _FromConfig:
+    def __repr__(self) -> str:
+        return "FROM_CONFIG"
+
+
+FROM_CONFIG = _FromConfig()
+"""``--foxglove`` without a value on ``dpgw run``: the config's ``[foxglove]`` host and port. Not a string:
+argparse passes a string ``const`` through the option's ``type`` (`address`), which refused it, so that
+``dpgw run --config FILE --foxglove`` stopped with "'config' is not [HOST:]PORT"."""
 
 
 def address(text: str) -> tuple[str, int]:

@@ -11,6 +11,8 @@ import sys
 import time
 from typing import Any
 
+from dpgw import cli_json
+from dpgw.cli_types import positive_float, positive_int
 from dpgw.cli_zenoh import LISTEN_FLAGS, add_endpoint_args
 
 NAME = "listen"
@@ -31,8 +33,13 @@ EPILOG = (
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("key", nargs="?", default="dp/**", help="Zenoh key expression (default dp/**)")
     p.add_argument("--json", action="store_true", help="one JSON object per line: {key, payload}")
-    p.add_argument("--count", type=int, metavar="N", help="exit after N samples")
-    p.add_argument("--duration", type=float, metavar="S", help="exit after S seconds")
+    p.add_argument("--count", type=positive_int, metavar="N", help="exit after N samples")
+    p.add_argument(
+        "--duration",
+        type=positive_float,
+        metavar="S",
+        help="exit after S seconds (status 1, saying so, if nothing arrived)",
+    )
     add_endpoint_args(p, listen="--listen", connect="--connect")
     p.add_argument("--no-scouting", action="store_true", help="multicast scouting off (use --connect)")
     p.add_argument(
@@ -66,6 +73,8 @@ def run(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGTERM, lambda *_: stop.update(now=True))
     deadline = None if args.duration is None else time.monotonic() + args.duration
     n = 0
+    interrupted = False
+    reached = 0
     try:
         while not stop["now"] and (args.count is None or n < args.count):
             if deadline is not None and time.monotonic() > deadline:
@@ -80,12 +89,40 @@ def run(args: argparse.Namespace) -> int:
             except ValueError:
                 payload = body.decode("utf-8", "replace")
             if args.json:
-                print(json.dumps({"key": key, "payload": payload}), flush=True)
+                print(cli_json.dumps({"key": key, "payload": payload}), flush=True)
             else:
                 print(
                     f"{key}: {json.dumps(payload) if not isinstance(payload, str) else payload}", flush=True
                 )
+        interrupted = stop["now"]
+        if n == 0:
+            reached = len(list(session.info.peers_zid())) + len(list(session.info.routers_zid()))
     finally:
         sub.undeclare()
         session.close()
+    if n == 0 and not interrupted:
+        print(f"dpgw listen: {nothing_heard(args, reached)}", file=sys.stderr)
+        return 1
     return 0
+
+
+def nothing_heard(args: argparse.Namespace, reached: int) -> str:
+    """What to check when --duration passed without a sample: a silent exit would look like an empty bus.
+
+    ``reached``: the Zenoh peers and routers this session was connected to at the end.
+    """
+    said = f"nothing on {args.key} in {args.duration:g} s"
+    if reached == 0 and args.connect:
+        return (
+            f"{said}: nothing answered at {', '.join(args.connect)} (--connect): is a Zenoh router or a "
+            "gateway listening there? ('dpgw run' listens where [zenoh] listen says)"
+        )
+    if reached == 0:
+        return (
+            f"{said}: no Zenoh peer found{' (scouting is off: give --connect)' if args.no_scouting else ''}: "
+            "is a gateway running (dpgw run, dpgw demo)? On another computer: --connect tcp/HOST:7447"
+        )
+    return (
+        f"{said}, though {reached} Zenoh peer{'s' if reached > 1 else ''} answered: is the key right? "
+        "'dp/**' shows everything a gateway publishes"
+    )

@@ -9,8 +9,11 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from dpgw import cli_json
 from dpgw.cli_foxglove import add_foxglove_arg, connect_lines
+from dpgw.cli_types import non_negative_float, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
+from observers.observer_names import OBSERVER_NAMES
 
 if TYPE_CHECKING:
     import numpy as np
@@ -50,7 +53,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--vessel", metavar="NAME|FILE", help="vessel (needed unless the log or --config has one)")
     p.add_argument("--config", metavar="FILE", help="a gateway config (sources, lever arms, tuning)")
     p.add_argument(
-        "--observer", action="append", default=[], metavar="SPEC", help="observer spec (repeatable)"
+        "--observer",
+        action="append",
+        default=[],
+        metavar="SPEC",
+        help=f"observer spec NAME[:key=value,...][@label], NAME one of {', '.join(OBSERVER_NAMES)} "
+        "(repeatable: side by side; default: the observer of the log's or --config's [observer] type, "
+        "else passive)",
     )
     p.add_argument(
         "--out",
@@ -69,7 +78,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--report", metavar="DIR", help="write plots (PNG), metrics.json and report.md here")
     pace = p.add_mutually_exclusive_group()
     pace.add_argument(
-        "--speed", type=float, metavar="X", help="pace at X times real time and publish on Zenoh"
+        "--speed", type=positive_float, metavar="X", help="pace at X times real time and publish on Zenoh"
     )
     pace.add_argument("--realtime", action="store_true", help="= --speed 1")
     p.add_argument("--prefix", help="Zenoh prefix when publishing (default the config's)")
@@ -77,7 +86,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-scouting", action="store_true", help="Zenoh multicast scouting off")
     p.add_argument(
         "--settle",
-        type=float,
+        type=non_negative_float,
         metavar="S",
         help="leave out the first S s when scoring against the truth and in the report (default: the "
         "first 10 %% of the log, at most 60 s)",
@@ -93,6 +102,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 # Observers that schedule ω0 from the measured sea themselves (the sdre observer does with adaptive=true).
 SCHEDULES_OMEGA0 = frozenset({"gain_scheduled", "mmae"})
+
+
+def nothing_to_replay(inputs: list[Any], result: ReplayResult) -> str:
+    """Why a replay found no event: each log and what its reader counted in it (lines without a time ...)."""
+    found = "; ".join(
+        f"{where}: " + ", ".join(f"{k} {v}" for k, v in c.items()) for where, c in result.counts.items() if c
+    )
+    return (
+        f"nothing to replay in {', '.join(str(i.path) for i in inputs)}: no NMEA sentence with a time, no "
+        f"MAVLink frame, no dpgw channel{f' ({found})' if found else ''}; give a gateway or simulator MCAP "
+        "log, an NMEA 0183 text log or a MAVLink tlog"
+    )
 
 
 def default_out(first_log: str) -> str:
@@ -135,7 +156,9 @@ def run(args: argparse.Namespace) -> int:
     try:
         inputs = open_inputs(args.logs)
         config = build_config(inputs, config_path=args.config, vessel=args.vessel)
-        specs = [parse_observer_spec(s) for s in args.observer] or [ObserverSpec("passive", "passive", {})]
+        # Without --observer, the observer the config names (the log's own for a gateway log: what ran live).
+        own = config.observer.type
+        specs = [parse_observer_spec(s) for s in args.observer] or [ObserverSpec(own, own, {})]
         pipeline = build_pipeline(config, specs, foxglove_channels=args.foxglove_channels)
     except ConfigError as exc:
         print(format_problems(exc), file=sys.stderr)
@@ -182,6 +205,10 @@ def run(args: argparse.Namespace) -> int:
             bar.close()
         if publisher is not None:
             publisher.close()
+    if result.events == 0:
+        Path(args.out).unlink(missing_ok=True)
+        print(f"dpgw replay: {nothing_to_replay(inputs, result)}", file=sys.stderr)
+        return 2
     wall = time.perf_counter() - t0
     summary = _summary(args, specs, result, wall)
     kinds = {s.label: (s.name, s.name in SCHEDULES_OMEGA0 or bool(s.params.get("adaptive"))) for s in specs}
@@ -197,7 +224,7 @@ def run(args: argparse.Namespace) -> int:
 
                 print(f"dpgw replay: --report: {NO_MATPLOTLIB}", file=sys.stderr)
     if args.json:
-        print(json.dumps(summary, indent=2))
+        print(cli_json.dumps(summary, indent=2))
     else:
         _print(summary)
     for warning in summary["wave_check"]["warnings"]:
@@ -275,7 +302,7 @@ def serve(
         sink.close()
     summary = {"sent": player.sent, "restarts": player.restarts, "foxglove": sink.stats.as_dict()}
     if args.json:
-        print(json.dumps(summary, indent=2))
+        print(cli_json.dumps(summary, indent=2))
     else:
         print(
             f"dpgw replay: stopped; {player.sent} outputs sent, {player.restarts} seeks back (each replayed "

@@ -7,13 +7,14 @@ Only the parser is built at import: the gateway (numpy, numba, Zenoh, pydantic) 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import threading
 import time
 from typing import TYPE_CHECKING, Any
 
+from dpgw import cli_json
 from dpgw.cli_foxglove import FROM_CONFIG, add_foxglove_arg, connect_lines
+from dpgw.cli_types import positive_float
 
 if TYPE_CHECKING:
     from gateway.config import GatewayConfig
@@ -45,7 +46,9 @@ EPILOG = (
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", required=True, metavar="FILE", help="gateway config (TOML)")
     p.add_argument("--log", metavar="FILE.mcap", help="override [log] path")
-    p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds (tests, trials)")
+    p.add_argument(
+        "--duration", type=positive_float, metavar="S", help="stop after S seconds (tests, trials)"
+    )
     p.add_argument(
         "--check",
         action="store_true",
@@ -103,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
         config = replace(config, time=TimeConfig(clock=args.clock))
     if args.foxglove is not None:
         fc = config.foxglove
-        host, port = (fc.host, fc.port) if args.foxglove == FROM_CONFIG else args.foxglove
+        host, port = (fc.host, fc.port) if args.foxglove is FROM_CONFIG else args.foxglove
         config = replace(config, foxglove=FoxgloveConfig(enabled=True, host=host, port=port))
     if args.check:
         problems = start_up_problems(config)
@@ -154,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
         service.close()
     summary = {"estimates": service.pipeline.estimates, "published": service.published, "status": status}
     if args.json:
-        print(json.dumps(summary, indent=2, default=str))
+        print(cli_json.dumps(summary, indent=2, default=str))
     else:
         print(
             f"dpgw run: stopped; {service.pipeline.estimates} estimates, "

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from typing import TYPE_CHECKING, Any
 
-from dpgw import cli_sim_inputs
+from dpgw import cli_json, cli_sim_inputs
+from dpgw.cli_types import positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from simulator.scenario_names import SCENARIO_NAMES
 
@@ -40,8 +40,12 @@ EPILOG = (
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--scenario", choices=SCENARIO_NAMES, metavar="NAME", help="scenario name")
-    p.add_argument("--duration", type=float, metavar="S", help="sim seconds (default: the scenario's)")
+    p.add_argument(
+        "--scenario", choices=SCENARIO_NAMES, metavar="NAME", help="scenario (the names are listed below)"
+    )
+    p.add_argument(
+        "--duration", type=positive_float, metavar="S", help="sim seconds (default: the scenario's)"
+    )
     p.add_argument("--seed", type=int, default=0, help="random seed: same seed, same bytes (default 0)")
     p.add_argument("--out", metavar="LOG.mcap", help="write ground truth and every frame sent to this MCAP")
     p.add_argument(
@@ -58,7 +62,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--realtime", action="store_true", help="pace in real time (default: as fast as possible)")
     p.add_argument(
         "--speed",
-        type=float,
+        type=positive_float,
         default=1.0,
         metavar="X",
         help="with --realtime: sim seconds per wall second (default 1)",
@@ -108,8 +112,16 @@ def load_faults(path: str) -> tuple[Fault, ...]:
         raise ValueError(f"{path}: not valid TOML: {exc}") from None
     except OSError as exc:
         raise ValueError(f"{path}: cannot read the fault table ({exc.strerror})") from None
+    # A misspelt table ([[fault]]) or a file of something else must not run a clean sea in its place.
+    unknown = sorted(set(data) - {"faults"})
+    if unknown:
+        raise ValueError(
+            f"{path}: unknown key '{unknown[0]}' (a fault file holds [[faults]] tables only; docs/sensors.md)"
+        )
+    if not data.get("faults"):
+        raise ValueError(f"{path}: no [[faults]] table (docs/sensors.md)")
     try:
-        return FaultSchedule.from_dicts(data.get("faults", [])).faults
+        return FaultSchedule.from_dicts(data["faults"]).faults
     except ValueError as exc:
         raise ValueError(f"{path}: {exc}") from None
 
@@ -246,7 +258,7 @@ def _run_scenario(args: argparse.Namespace) -> int:
     if args.out:
         summary["log"] = args.out
     if args.json:
-        print(json.dumps(summary, indent=2))
+        print(cli_json.dumps(summary, indent=2))
     else:
         print(
             f"{scenario.name}: {sim.t:.0f} s simulated in {sim.summary.wall_seconds:.1f} s "

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from observers.observer_names import OBSERVER_NAMES
 from simulator.scenario_names import SCENARIO_NAMES
 
 # Only the parser is built at import; the simulator, the observers and Dask are imported by `run`.
@@ -29,7 +30,7 @@ EPILOG = (
     "  dpgw study --scenario hassani --seeds 0-7 --duration 300 --out study_hassani\n"
     "  dpgw study --scenario torsetnes_2004 --hs 2,4,6 --tp 8,11.5 --observer passive \\\n"
     "       --observer ekf --observer gain_scheduled:omega0=0.83@gs --workers 2\n"
-    "  dpgw study --file studies/doc_table.toml --out study_doc --update-doc docs/study.md\n"
+    "  dpgw study --file examples/studies/observers.toml --out study_observers --update-doc docs/study.md\n"
     "  dpgw study --scenario hassani --scheduler tcp://10.0.0.5:8786   # an existing Dask cluster\n"
     "  dpgw study --scenario hassani --serial --json                   # no Dask, summary as JSON"
 )
@@ -82,8 +83,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seeds", type=_seeds, metavar="0-7,9", help="seeds (default 0-7)")
     p.add_argument(
         "--observer", action="append", default=[], metavar="SPEC",
-        help="observer spec as dpgw replay takes it, NAME[:key=value,...][@label] (repeatable; default: "
-        "every registered observer)",
+        help="observer spec as dpgw replay takes it, NAME[:key=value,...][@label], NAME one of "
+        f"{', '.join(OBSERVER_NAMES)} (repeatable; default: every one of them)",
     )  # fmt: skip
     p.add_argument(
         "--loop-observer", metavar="SPEC", help="the observer the DP controller acts on (default passive)"
@@ -92,7 +93,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--settle", type=float, metavar="S", help="scored from S s on (default a third of the case)"
     )
-    p.add_argument("--out", type=Path, default=Path("study_out"), metavar="DIR", help="output folder")
+    p.add_argument(
+        "--out", type=Path, default=Path("study_out"), metavar="DIR", help="output folder (default study_out)"
+    )
     p.add_argument("--cache", type=Path, metavar="DIR", help="case cache (default OUT/cache)")
     p.add_argument("--no-cache", action="store_true", help="run every case, read and write no cache")
     run_on = p.add_mutually_exclusive_group()

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from typing import TYPE_CHECKING, Any
 
+from dpgw import cli_json
 from observers.vessel_files import builtin_vessels
 
 if TYPE_CHECKING:
@@ -41,7 +41,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--zeta", type=float, default=0.1, help="wave-model damping ζ (default 0.1)")
     p.add_argument("--zeta-n", type=float, default=1.0, help="notch damping ζn > ζ (default 1.0)")
     p.add_argument(
-        "--cutoff-ratio", type=float, default=None, help="ωc/ω0 (default the paper's 1.1/0.8976 = 1.2255)"
+        "--cutoff-ratio",
+        type=float,
+        default=None,
+        metavar="RATIO",
+        help="ωc/ω0 (default the paper's 1.1/0.8976 = 1.2255)",
     )
     p.add_argument(
         "--bias-time",
@@ -67,9 +71,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "(default 0.4; keeps the bias mode fast on a heavily damped DOF; 0: off)",
     )
     p.add_argument(
-        "--bias-corner-ratio", type=float, default=0.04, help="bias corner λ/κ as a fraction of ω0 (0.04)"
+        "--bias-corner-ratio",
+        type=float,
+        default=0.04,
+        metavar="RATIO",
+        help="bias corner λ/κ as a fraction of ω0 (default 0.04)",
     )
-    p.add_argument("--json", action="store_true", help="print one JSON object (for programs)")
+    p.add_argument(
+        "--json",
+        action="store_true",
+        help="print one JSON object (for programs; null where a value is infinite: T of a random-walk bias)",
+    )
     p.set_defaults(func=run)
 
 
@@ -134,7 +146,7 @@ def run(args: argparse.Namespace) -> int:
         "notch_db": notch.tolist(),
     }
     if args.json:
-        print(json.dumps(result, indent=2))
+        print(cli_json.dumps(result, indent=2))
     else:
         print(_text(result, vessel.source))
     return 0 if all(c.ok for c in checks) else 1

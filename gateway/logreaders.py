@@ -49,6 +49,7 @@ from wire.codecs.nmea_time import time_of_day_or_none
 
 NS = 1_000_000_000
 DAY_NS = 86_400 * NS
+MAX_TIME_NS = 2**63 - 1  # a signed 64-bit nanosecond count (until 2262): what every stamp must fit in
 TIMED = ("GGA", "GNS", "RMC", "ZDA", "GLL")
 DEFAULT_BASE_DATE = date(2000, 1, 1)
 
@@ -402,5 +403,8 @@ def tlog_events(
             c.counts["truncated"] += 1
             break
         c.lines += 1
-        yield RawEvent(t_us * 1000, source, data[j : j + size])
+        if t_us * 1000 > MAX_TIME_NS:  # not a time (garbage, or not a tlog): no log could stamp it
+            c.counts["bad_time"] += 1
+        else:
+            yield RawEvent(t_us * 1000, source, data[j : j + size])
         i = j + size

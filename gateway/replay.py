@@ -56,9 +56,16 @@ def input_kind(path: str | Path) -> str:
     p = Path(path)
     if not p.is_file():
         raise ReplayError(f"{p}: no such log file")
-    head = p.open("rb").read(64)
+    with p.open("rb") as f:
+        head = f.read(64)
+    if not head:
+        raise ReplayError(f"{p}: empty file: nothing to replay")
     if head.startswith(MCAP_MAGIC):
         return "mcap"
+    if p.suffix.lower() == ".mcap":
+        raise ReplayError(
+            f"{p}: not an MCAP file (it does not start with MCAP's magic bytes): another format named .mcap"
+        )
     if p.suffix.lower() in (".tlog", ".bin") or (len(head) > 8 and head[8] in (0xFE, 0xFD)):
         return "tlog"
     return "nmea"

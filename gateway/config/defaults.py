@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import asdict
+from pathlib import Path
 from typing import Any
 
 from gateway.config.model import FoxgloveConfig, IntegrityConfig, KeelsonConfig, Ros2Config
@@ -75,7 +76,11 @@ def default_config(vessel: str = "mss_supply") -> dict[str, Any]:
     ``vessel`` is a built-in vessel name or a vessel file path. Fill in ``sources`` and pass the dict to
     `parse_config`.
     """
-    vessel_table: dict[str, Any] = {"name": vessel} if vessel in builtin_vessels() else {"file": vessel}
+    # A word that is no built-in is a misspelt name, not a file: the check then lists the built-in names.
+    is_file = vessel not in builtin_vessels() and (
+        "/" in vessel or vessel.endswith(".toml") or Path(vessel).is_file()
+    )
+    vessel_table: dict[str, Any] = {"file": vessel} if is_file else {"name": vessel}
     vessel_table.update(copy_table(DEFAULTS["vessel"]))
     return {
         "vessel": vessel_table,
