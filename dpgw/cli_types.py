@@ -1,4 +1,4 @@
-"""Argument types for numbers that must be positive: a durations, a speed, a count.
+"""Argument types for numbers that must be positive: a duration, a speed, a count.
 
 argparse's ``type=float`` takes ``--duration -5``; the command then ran for nothing and reported success
 (``dpgw demo --duration -5`` wrote an empty demo.mcap, status 0). With these types argparse stops at once
