@@ -10,21 +10,12 @@ both print as ``null``, which every parser reads.
 from __future__ import annotations
 
 import json
-import math
 from typing import Any
 
 
-def finite(value: Any) -> Any:
-    """``value`` with every NaN or infinite float (at any depth of dicts, lists and tuples) as None."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: finite(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [finite(v) for v in value]
-    return value
-
-
 def dumps(value: Any, **kwargs: Any) -> str:
-    """`json.dumps` of ``value`` with NaN and infinities as null (`finite`): a document any parser reads."""
-    return json.dumps(finite(value), allow_nan=False, **kwargs)
+    """`json.dumps` of ``value`` made plain by `wire.json_payload.to_jsonable` (the rule of every payload
+    dpgw publishes: NaN and infinities as null, numpy as lists and numbers): a document any parser reads."""
+    from wire.json_payload import to_jsonable  # (numpy: imported when a command prints, not for --help)
+
+    return json.dumps(to_jsonable(value), allow_nan=False, **kwargs)

@@ -157,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
         service.close()
     summary = {"estimates": service.pipeline.estimates, "published": service.published, "status": status}
     if args.json:
-        print(cli_json.dumps(summary, indent=2, default=str))
+        print(cli_json.dumps(summary, indent=2))
     else:
         print(
             f"dpgw run: stopped; {service.pipeline.estimates} estimates, "

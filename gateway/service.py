@@ -121,9 +121,9 @@ class GatewayService:
         self._status_lock = threading.Lock()
         self._wall0_ns = 0
         self.sim_time = SimTime() if config.time.sim else None
+        """The simulation clock (``[time] clock = "sim"``), else None: stamps are this computer's time."""
         self.wall_time = WallTime()
         """Receive stamps with ``clock = "wall"``: this computer's UTC clock without its backward steps."""
-        """The simulation clock (``[time] clock = "sim"``), else None: stamps are this computer's time."""
         self._held: deque[Chunk | _Input] = deque(maxlen=HOLD_MAX)
         self.held_dropped = 0
         """Items dropped while waiting for the first simulation clock tick (more than `HOLD_MAX`)."""
@@ -355,7 +355,7 @@ class GatewayService:
                     f"source {s.name}: {dropped} datagrams dropped by the kernel (receive buffer full; "
                     "raise ?rcvbuf= or net.core.rmem_max)"
                 )
-        alarms += self._clock_alarms() if self.sim_time is not None else self.wall_time.alarms()
+        alarms += self._clock_alarms()
         alarms += [
             f"{what}: {n} not handled (internal error, traceback in the gateway's log)"
             for what, n in sorted(self.internal_errors.items())
@@ -364,7 +364,7 @@ class GatewayService:
 
     def _clock_alarms(self) -> list[str]:
         if self.sim_time is None:
-            return []
+            return self.wall_time.alarms()
         key = f"{self.prefix}/{SIM_CLOCK_KEY}"
         silent_s = self.sim_time.silent_s(time.monotonic_ns())
         alarms = []

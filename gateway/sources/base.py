@@ -283,26 +283,26 @@ class Source(ABC):
         stats.bytes_received += len(data)
         stats.chunks += 1
         stats.last_rx_mono_ns = rx_mono_ns
+        self._hand_over(Chunk(self.name, bytes(data), rx_ns, rx_mono_ns, peer))
+
+    def _end_of_stream(self, peer: str) -> None:
+        """Hand over the end of ``peer``'s stream (an empty `Chunk`); not counted as data received."""
+        if peer:
+            self._hand_over(Chunk(self.name, b"", time.time_ns(), time.monotonic_ns(), peer))
+
+    def _hand_over(self, chunk: Chunk) -> None:
+        """Give ``chunk`` to ``deliver``; what it raises is counted (logged the first time), never raised
+        into the reading thread."""
         deliver = self._deliver
         if deliver is None:
             return
         try:
-            deliver(Chunk(self.name, bytes(data), rx_ns, rx_mono_ns, peer))
+            deliver(chunk)
         except Exception as exc:
             self.stats.count_error("deliver raised", f"deliver raised {type(exc).__name__}: {exc}")
             if "deliver raised" not in self._logged:
                 self._logged.add("deliver raised")
                 log.exception("source %r: deliver raised (counted; reading goes on)", self.name)
-
-    def _end_of_stream(self, peer: str) -> None:
-        """Hand over the end of ``peer``'s stream (an empty `Chunk`); not counted as data received."""
-        deliver = self._deliver
-        if deliver is None or not peer:
-            return
-        try:
-            deliver(Chunk(self.name, b"", time.time_ns(), time.monotonic_ns(), peer))
-        except Exception as exc:
-            self.stats.count_error("deliver raised", f"deliver raised {type(exc).__name__}: {exc}")
 
     def _sleep(self, seconds: float) -> bool:
         """Wait ``seconds`` unless stopped; True if stopped."""
