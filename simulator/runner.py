@@ -9,8 +9,9 @@ ground truth (`/truth/state`, DESIGN.md) so a run can be replayed and scored.
 The wave-frequency motion (RAO × spectrum, `simulator.waves`) is added to the low-frequency motion for the
 sensors only — it is never fed back into the plant (the LF/WF superposition of Fossen & Strand Sec. 2.4).
 It is evaluated in 2 s blocks on the 0.05 s grid with the heading and position at the block's start, and
-interpolated linearly to the sample times (error ~0.1 % for wave periods above 3 s): one vectorised call
-per block instead of one per sample. The same call gives the WF heave, roll and pitch: the sensors see the
+interpolated linearly to the sample times (error ~0.1 % for wave periods above 3 s): one compiled call
+per block (`WaveField.motion_block`, a carrier recurrence; numpy's `motion_with_attitude` is its readable
+reference) instead of one per sample. The same call gives the WF heave, roll and pitch: the sensors see the
 vessel's six-degree-of-freedom WF motion (a DGPS antenna on a mast swings with roll and pitch), and the
 truth logs exactly what they see — η_WF and the attitude of the reference point, and each antenna's true
 position — so measurement − truth is the sensor's noise and nothing else.
@@ -131,9 +132,9 @@ class _WaveCache:
             return self._last[1]
         if not (self.t0 <= t <= self.t0 + WF_BLOCK_S):
             self.t0 = t
-            grid = t + np.arange(0.0, WF_BLOCK_S + MAX_STEP_S / 2, MAX_STEP_S)
-            eta, att = self.field.motion_with_attitude(grid, eta_lf[2], eta_lf[0], eta_lf[1])
-            self.values = np.hstack([eta, att])
+            n = round(WF_BLOCK_S / MAX_STEP_S) + 1  # the block's grid t, t + 0.05, …, t + 2 s
+            x0, x1, x2 = eta_lf.tolist()
+            self.values = self.field.motion_block(t, MAX_STEP_S, n, x2, x0, x1)
         x = (t - self.t0) / MAX_STEP_S
         i = min(int(x), len(self.values) - 2)
         w = x - i

@@ -61,6 +61,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.integrate import trapezoid
 
 from observers.kinematics import ssa
+from simulator import _wave_kernel
 from simulator.spectra import SeaState
 
 if TYPE_CHECKING:
@@ -344,6 +345,12 @@ class WaveComponents:
         interpolates, joined once per sea state (~0.5 MB; it was copied at every 2 s block)."""
         return self.rao if self.attitude is None else np.concatenate([self.rao, self.attitude], axis=2)
 
+    @cached_property
+    def motion_table_parts(self) -> tuple[Array, Array]:
+        """`motion_table`'s real and imaginary parts, contiguous: what the compiled synthesis reads."""
+        table = self.motion_table
+        return np.ascontiguousarray(table.real), np.ascontiguousarray(table.imag)
+
 
 class WaveField:
     """A (possibly changing) irregular long-crested sea and the WF motion and drift it gives one vessel.
@@ -583,6 +590,47 @@ class WaveField:
             if c.attitude is not None:
                 att[sl] += w[:, None] * both[:, 3:]
         return self._to_ned(body, psi).reshape((*shape, 3)), att.reshape((*shape, 3))
+
+    def motion_block(
+        self, t0: float, dt: float, n: int, heading: float, north: float = 0.0, east: float = 0.0
+    ) -> Array:
+        """[N, E, ψ, z, φ, θ] at t₀ + s·dt, s = 0 … n−1, for a held heading and position, shape (n, 6):
+        `motion_with_attitude` on that grid, joined, computed by the compiled carrier recurrence of
+        `simulator._wave_kernel` (the simulator's 2 s blocks; equal to the numpy path to round-off)."""
+        out = np.zeros((n, 6))
+        weights = (
+            self._ones(n)
+            if len(self.components) == 1
+            else self._weights(t0 + dt * np.arange(n, dtype=np.float64))
+        )
+        for c, w in zip(self.components, weights, strict=True):
+            if not np.any(w):
+                continue
+            chi = c.sea_state.direction_rad
+            along = north * math.cos(chi) + east * math.sin(chi)
+            tab_re, tab_im = c.motion_table_parts
+            x = (chi - heading) % (2.0 * math.pi) * ((tab_re.shape[1] - 1) / (2.0 * math.pi))  # _beta_index
+            j = min(int(x), tab_re.shape[1] - 2)
+            # 6 columns with attitude RAOs, 3 without (the attitude then stays zero)
+            _wave_kernel.synthesize(
+                c.omega, c.phase, c.wavenumber, float(along), float(t0), float(dt), tab_re, tab_im, j,
+                x - j, w, out[:, : tab_re.shape[2]],
+            )  # fmt: skip
+        cos, sin = math.cos(heading), math.sin(heading)
+        surge, sway = out[:, 0].copy(), out[:, 1]
+        gain = self.motion_gain
+        out[:, 0] = (cos * surge - sin * sway) * gain[0]
+        out[:, 1] = (sin * surge + cos * sway) * gain[1]
+        out[:, 2] *= gain[2]
+        return out
+
+    @staticmethod
+    @lru_cache(maxsize=8)
+    def _ones(n: int) -> NDArray[np.float64]:
+        """Unit weights (1, n) of a field with one sea state (read only; shared)."""
+        ones = np.ones((1, n))
+        ones.flags.writeable = False
+        return ones
 
     def _to_ned(self, body: Array, psi: Array) -> Array:
         """Body surge/sway rotated to NED by ψ, yaw as is, times ``motion_gain``."""

@@ -12,6 +12,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.integrate import quad, trapezoid
 from scipy.ndimage import uniform_filter1d
 from scipy.signal import welch
@@ -389,3 +391,50 @@ def test_motion_with_attitude_is_motion_and_attitude() -> None:
     assert np.std(level.attitude(t, 2.0)[:, 1]) > 0.0
     flat = replace(WaveResponse.mss_supply(), attitude=None)
     assert not np.any(WaveField(sea, flat, seed=3).attitude(t, 2.0))
+
+
+# the compiled block synthesis against the numpy path it stands in for (the simulator's 2 s blocks)
+_BLOCK_FIELDS = {
+    "one sea, attitude, motion gain": WaveField(
+        SeaState(hs_m=4.0, tp_s=10.0, direction_rad=math.radians(200.0)), SUPPLY, seed=3
+    ).with_motion_gain((0.5, 2.0, 1.5)),
+    "no attitude RAOs": WaveField(
+        SeaState(hs_m=6.0, tp_s=11.5, direction_rad=math.radians(255.0)),
+        replace(WaveResponse.mss_supply(), attitude=None),
+        seed=5,
+    ),
+    "a sea change (cross-fade 100-140 s)": WaveField(
+        [
+            (0.0, SeaState(hs_m=2.0, tp_s=6.0, direction_rad=1.0)),
+            (100.0, SeaState(hs_m=5.0, tp_s=12.0, direction_rad=-2.0)),
+        ],
+        WaveResponse.froude_scaled(70.0),
+        seed=7,
+        fade_s=40.0,
+    ),
+}
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    name=st.sampled_from(sorted(_BLOCK_FIELDS)),
+    t0=st.one_of(st.floats(0.0, 3600.0), st.floats(90.0, 150.0)),  # (the fade, often)
+    heading=st.floats(-4.0, 4.0),
+    north=st.floats(-500.0, 500.0),
+    east=st.floats(-500.0, 500.0),
+)
+def test_motion_block_is_motion_with_attitude_on_its_grid(
+    name: str, t0: float, heading: float, north: float, east: float
+) -> None:
+    """`motion_block` (compiled carrier recurrence, β interpolated once) gives the numpy path's motion and
+    attitude on the grid t0 + 0.05 s·k to round-off: 1e-9 of each quantity's amplitude in the block."""
+    field = _BLOCK_FIELDS[name]
+    n = 41
+    grid = t0 + 0.05 * np.arange(n)
+    eta, att = field.motion_with_attitude(grid, heading, north, east)
+    expected = np.hstack([eta, att])
+    got = field.motion_block(t0, 0.05, n, heading, north, east)
+    scale = np.maximum(np.max(np.abs(expected), axis=0), 1e-12)
+    assert np.all(np.abs(got - expected) <= 1e-9 * scale + 1e-15)
+    if name == "no attitude RAOs":
+        assert not np.any(got[:, 3:])
