@@ -84,11 +84,19 @@ class Client:
         while not done():
             left = deadline - time.monotonic()
             if left <= 0:
-                raise AssertionError(f"within {timeout:g} s: {what}; advertised {self.advertised()}")
+                raise AssertionError(
+                    f"within {timeout:g} s: {what}; advertised {self.advertised()}, silent {self.silent()}, "
+                    f"{len(self.times)} time messages"
+                )
             try:
                 frame = await asyncio.wait_for(self.ws.recv(), left)
             except TimeoutError:
                 continue
+            except websockets.ConnectionClosed as exc:
+                raise AssertionError(
+                    f"the server closed the connection ({exc}) before: {what}; advertised "
+                    f"{self.advertised()}, silent {self.silent()}"
+                ) from exc
             await self.handle(frame)
 
     def advertised(self) -> set[str]:
@@ -151,9 +159,17 @@ def estimate_is_finite(payload: bytes) -> bool:
 def test_demo_serves_every_advertised_channel_with_data(tmp_path: Path) -> None:
     port = free_port()
     proc = dpgw(
-        "demo", "--duration", "600", "--speed", "10", "--foxglove", f"127.0.0.1:{port}",
-        "--out", str(tmp_path / "demo.mcap"), "--no-scouting",
-    )  # fmt: skip
+        "demo",
+        "--duration",
+        "6000",
+        "--speed",
+        "10",
+        "--foxglove",
+        f"127.0.0.1:{port}",
+        "--out",
+        str(tmp_path / "demo.mcap"),
+        "--no-scouting",
+    )  # fmt: skip  (stopped once the check is done: the demo must outlast the wait below on a busy machine)
 
     async def session() -> Client:
         ws = await connect(port, lambda: proc.poll() is None)
@@ -333,6 +349,71 @@ def test_messages_made_before_anyone_subscribed_are_held_and_sent_to_the_first_s
     assert [t for t, _ in lines] == [2_000 + k for k in range(5, LOG_HELD + 5)]  # their own log times
     schemas = {ch["topic"]: ch["schemaName"] for ch in c.channels.values()}
     assert schemas == {"/dp/status": "dpgw.Status", "/dp/log": "foxglove.Log"}
+
+
+@dataclass
+class _RefusedOnce(Client):
+    """A client whose first subscription to ``topic`` was lost, as the SDK loses it when the client answers
+    an advertisement before the server registered the channel ("Unknown channel ID")."""
+
+    topic: str = ""
+    skipped: int = 0
+
+    async def handle(self, frame: str | bytes) -> None:
+        if isinstance(frame, str) and self.skipped == 0:
+            msg = json.loads(frame)
+            lost = [ch for ch in msg.get("channels", ()) if ch["topic"] == self.topic]
+            if msg["op"] == "advertise" and lost:
+                self.skipped += 1
+                self.channels[lost[0]["id"]] = lost[0]  # known, never subscribed
+                msg["channels"] = [ch for ch in msg["channels"] if ch["topic"] != self.topic]
+                frame = json.dumps(msg)
+        await super().handle(frame)
+
+
+def test_a_channel_a_client_did_not_get_is_advertised_again() -> None:
+    from gateway.outputs.foxglove_server import FoxgloveServerSink
+    from wire.messages import Estimate, Status
+
+    sink = FoxgloveServerSink("127.0.0.1", 0)
+    sink.start()
+    try:
+        sink.send("/dp/status", Status, b'{"k": 0}', 1_000)
+
+        async def session() -> _RefusedOnce:
+            ws = await connect(sink.port, lambda: True)
+            async with ws:
+                c = _RefusedOnce(ws, topic="/dp/estimate")
+
+                estimating = asyncio.Event()
+
+                async def pump() -> None:  # the gateway's cycle: (estimates made and) the sink's emit
+                    for k in range(10_000):
+                        if estimating.is_set():
+                            sink.send("/dp/estimate", Estimate, json.dumps({"k": k}).encode(), 2_000 + k)
+                        sink.emit([], [])
+                        await asyncio.sleep(0.01)
+
+                task = asyncio.create_task(pump())
+                try:
+                    await c.until(lambda: bool(c.messages.get("/dp/status")), 30.0, "the status")
+                    # the estimate channel is made now, with the client connected: its subscription is lost
+                    estimating.set()
+                    await c.until(lambda: bool(c.messages.get("/dp/estimate")), 30.0, "estimates after all")
+                finally:
+                    task.cancel()
+                return c
+
+        c = asyncio.run(session())
+    finally:
+        sink.close()
+    assert c.skipped == 1
+    assert sink.stats.readvertised >= 1
+    estimates = [t for t, ch in c.channels.items() if ch["topic"] == "/dp/estimate"]
+    assert len(estimates) == 1 + sink.stats.readvertised  # the same topic, a new channel each time
+    # the first message on the new channel is the last one made before it (held for the subscriber)
+    first = json.loads(c.messages["/dp/estimate"][0][1])["k"]
+    assert all(json.loads(p)["k"] >= first for _, p in c.messages["/dp/estimate"])
 
 
 def test_a_port_in_use_is_one_clear_message() -> None:

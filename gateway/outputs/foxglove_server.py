@@ -19,7 +19,8 @@ queue and returns (the SDK's server runs on its own threads); a client too slow 
 oldest queued messages (``message_backlog_size``, the SDK's own policy, per client) or, when even its
 control queue fills, is disconnected. Those drops happen inside the SDK and are not visible from Python;
 what this sink counts is what it sees: messages sent, held, superseded while held (never sent because a
-newer one replaced it before anyone subscribed) and log calls that raised.
+newer one replaced it before anyone subscribed), channels advertised again (`RESUBSCRIBE_AFTER_NS`) and log
+calls that raised.
 
 The server has no authentication and no encryption: it binds to 127.0.0.1 unless told otherwise
 (``[foxglove] host``), docs/foxglove.md "Live" says what binding to another interface exposes.
@@ -30,6 +31,7 @@ from __future__ import annotations
 import functools
 import json
 import logging
+import threading
 import time
 from collections import deque
 from collections.abc import Callable
@@ -67,6 +69,14 @@ each is a state that the next one replaces)."""
 TIME_EVERY_NS = 50_000_000
 """Live, the server's time (the latest output's stamp) is sent at most this often (wall): the app's clock
 follows the gateway's (the simulation's, in the demo) without a time message per output."""
+RESUBSCRIBE_AFTER_NS = 1_000_000_000
+"""A channel made while a client is connected is advertised again (closed and made anew) if a connected
+client has not subscribed to it within this long (wall), at most `READVERTISE_MAX` times: the SDK sends
+the advertisement before it registers the channel for that client, so a client that answers at once
+(on a busy machine, where the sending thread can be preempted between the two) has its subscription
+refused ("Unknown channel ID") and would never get the channel's data. A client that does not want the
+channel (the app subscribes to what its panels show) costs two extra advertisements."""
+READVERTISE_MAX = 2
 SUBPROTOCOL = "foxglove.sdk.v1"
 """What the SDK's server speaks (its handshake refuses a client that does not offer it)."""
 
@@ -92,6 +102,7 @@ class ServerStats:
     superseded: int = 0
     errors: int = 0
     channels: int = 0
+    readvertised: int = 0
 
     def as_dict(self) -> dict[str, int]:
         return {
@@ -100,6 +111,7 @@ class ServerStats:
             "superseded": self.superseded,
             "errors": self.errors,
             "channels": self.channels,
+            "readvertised": self.readvertised,
         }
 
 
@@ -107,14 +119,21 @@ class _Listener(ServerListener):
     """The SDK's callbacks (on its own threads): subscriptions are logged, playback requests go to the
     replay's handler. Every method of the protocol is defined: the SDK calls each one."""
 
-    def __init__(self, playback: Callable[[PlaybackControlRequest], PlaybackState | None] | None) -> None:
+    def __init__(
+        self,
+        playback: Callable[[PlaybackControlRequest], PlaybackState | None] | None,
+        subscriptions: _Subscriptions | None = None,
+    ) -> None:
         self._playback = playback
+        self._subscriptions = subscriptions if subscriptions is not None else _Subscriptions()
 
     def on_subscribe(self, client: Client, channel: ChannelView) -> None:
         log.info("foxglove: client %d subscribed to %s", client.id, channel.topic)
+        self._subscriptions.change(client.id, channel.topic, 1)
 
     def on_unsubscribe(self, client: Client, channel: ChannelView) -> None:
         log.info("foxglove: client %d unsubscribed from %s", client.id, channel.topic)
+        self._subscriptions.change(client.id, channel.topic, -1)
 
     def on_client_advertise(self, client: Client, channel: ClientChannel) -> None:
         return None
@@ -157,10 +176,42 @@ class _Listener(ServerListener):
             return None
 
 
+class _Subscriptions:
+    """Which topics each client is subscribed to, from the SDK's callbacks (its threads, hence the lock).
+    Counted, not a set: when a channel is made anew, the old channel's unsubscription may come after the
+    new one's subscription."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._count: dict[int, dict[str, int]] = {}
+
+    def change(self, client_id: int, topic: str, delta: int) -> None:
+        with self._lock:
+            topics = self._count.setdefault(client_id, {})
+            topics[topic] = topics.get(topic, 0) + delta
+            if topics[topic] <= 0:
+                del topics[topic]
+            if not topics:
+                del self._count[client_id]
+
+    def missing(self, topic: str) -> list[int]:
+        """The clients subscribed to something but not to ``topic``."""
+        with self._lock:
+            return [c for c, topics in self._count.items() if topic not in topics]
+
+    def any_client(self) -> bool:
+        with self._lock:
+            return bool(self._count)
+
+
 @dataclass
 class _Channel:
     channel: foxglove.Channel
     held: deque[tuple[bytes, int]] = field(default_factory=lambda: deque(maxlen=1))
+    cls: type[Message] | None = None
+    last: tuple[bytes, int] | None = None  # the last message made (what a re-advertisement holds)
+    made_ns: int = 0  # when the channel was made (monotonic), while a client was connected
+    readvertised: int = 0
 
 
 class FoxgloveServerSink:
@@ -195,6 +246,9 @@ class FoxgloveServerSink:
         self._waiting: set[str] = set()  # topics with held messages
         self._live_time = playback is None  # (a replay sends its own time: the player's log time)
         self._next_time_ns = 0
+        self._subscriptions = _Subscriptions()
+        self._watched: set[str] = set()  # channels made while a client was connected (RESUBSCRIBE_AFTER_NS)
+        self._next_watch_ns = 0
 
     # --- OutputSink ------------------------------------------------------------------------------------
 
@@ -226,7 +280,7 @@ class FoxgloveServerSink:
                 host=self.host,
                 port=self.requested_port,
                 capabilities=capabilities,
-                server_listener=_Listener(self._playback),
+                server_listener=_Listener(self._playback, self._subscriptions),
                 context=self._context,
                 playback_time_range=self._time_range_ns if self._playback is not None else None,
                 message_backlog_size=self._backlog,
@@ -247,6 +301,8 @@ class FoxgloveServerSink:
             if now >= self._next_time_ns:
                 self._next_time_ns = now + TIME_EVERY_NS
                 self.server.broadcast_time(latest)
+        if self._watched:
+            self._check_watched()
 
     def close(self) -> None:
         server, self.server = self.server, None
@@ -256,6 +312,7 @@ class FoxgloveServerSink:
             ch.channel.close()
         self._channels.clear()
         self._waiting.clear()
+        self._watched.clear()
         self._context = None
 
     # --- sending ---------------------------------------------------------------------------------------
@@ -267,12 +324,13 @@ class FoxgloveServerSink:
             if self._context is None:
                 return  # not started, or closed
             ch = self._channels[topic] = _Channel(
-                foxglove.Channel(
-                    topic, schema=channel_schema(cls), message_encoding="json", context=self._context
-                ),
-                deque(maxlen=LOG_HELD if topic == LOG_TOPIC else 1),
+                self._new_channel(topic, cls), deque(maxlen=LOG_HELD if topic == LOG_TOPIC else 1), cls
             )
             self.stats.channels += 1
+            if self._subscriptions.any_client():
+                ch.made_ns = time.monotonic_ns()
+                self._watched.add(topic)
+        ch.last = (body, log_time_ns)
         if ch.channel.has_sinks():
             try:
                 ch.channel.log(body, log_time=log_time_ns)
@@ -300,6 +358,41 @@ class FoxgloveServerSink:
         for topic in self._waiting:
             self._channels[topic].held.clear()
         self._waiting.clear()
+
+    def _new_channel(self, topic: str, cls: type[Message]) -> foxglove.Channel:
+        return foxglove.Channel(
+            topic, schema=channel_schema(cls), message_encoding="json", context=self._context
+        )
+
+    def _check_watched(self) -> None:
+        """Advertise again a channel that a connected client has not subscribed to (RESUBSCRIBE_AFTER_NS)."""
+        now = time.monotonic_ns()
+        if now < self._next_watch_ns:
+            return
+        self._next_watch_ns = now + RESUBSCRIBE_AFTER_NS // 4
+        for topic in list(self._watched):
+            ch = self._channels.get(topic)
+            if ch is None or now - ch.made_ns < RESUBSCRIBE_AFTER_NS:
+                continue
+            if not self._subscriptions.missing(topic) or ch.readvertised >= READVERTISE_MAX:
+                self._watched.discard(topic)
+                continue
+            self._readvertise(topic, ch, now)
+
+    def _readvertise(self, topic: str, ch: _Channel, now: int) -> None:
+        """Close the channel and make it anew (a new id, advertised to every client), the last message held
+        for the next subscriber."""
+        assert ch.cls is not None
+        ch.channel.close()
+        ch.channel = self._new_channel(topic, ch.cls)
+        ch.readvertised += 1
+        ch.made_ns = now
+        if ch.last is not None and topic != LOG_TOPIC:
+            ch.held.clear()
+            ch.held.append(ch.last)
+            self._waiting.add(topic)
+        self.stats.readvertised += 1
+        log.info("foxglove: %s advertised again (a client had not subscribed to it)", topic)
 
     def _flush_waiting(self) -> None:
         for topic in list(self._waiting):
