@@ -184,7 +184,10 @@ class GatewayService:
                 self._status_json = initial.message.encode()
             self._declared.append(s.declare_queryable(f"{self.prefix}/status", self._on_query))
             if self._log_path:
-                self.log = McapLogWriter(self._log_path, profile="dpgw", **self.config.log.writer_options())
+                # continue_set: a restarted service (systemd, a reboot) adds to the set, never overwrites it
+                self.log = McapLogWriter(
+                    self._log_path, profile="dpgw", continue_set=True, **self.config.log.writer_options()
+                )
                 meta = {"vessel": self.config.vessel.name, "prefix": self.prefix}
                 if self.config_tables is not None:  # lets replay rebuild exactly this pipeline
                     meta["json"] = json.dumps(self.config_tables)
@@ -356,6 +359,11 @@ class GatewayService:
                     "raise ?rcvbuf= or net.core.rmem_max)"
                 )
         alarms += self._clock_alarms()
+        if self.log is not None and self.log.error is not None:
+            alarms.append(
+                f"log: {self.log.error}; {self.log.lost} messages not logged; retrying every "
+                f"{self.log.retry_s:g} s (outputs go on)"
+            )
         alarms += [
             f"{what}: {n} not handled (internal error, traceback in the gateway's log)"
             for what, n in sorted(self.internal_errors.items())
