@@ -1,0 +1,180 @@
+"""The live service through the faults of weeks at sea: the log's disk fails, a USB serial adapter is
+unplugged and plugged in again. Real sockets, a real pty, a real Zenoh session and real MCAP files; every
+wait is for an event, with a deadline.
+
+What must hold each time: the DP outputs (estimates on Zenoh) go on, the fault is a `/status` alarm while it
+lasts, and the gateway takes up what came back without a restart."""
+
+from __future__ import annotations
+
+import json
+import logging
+import socket
+import threading
+import time
+from collections.abc import Callable, Iterator
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import pytest
+import zenoh
+from conftest import free_port, wait_for
+
+import wire.mcap.writer as mcap_writer
+from gateway.bus import isolated_config, open_session
+from gateway.config import parse_config
+from gateway.service import GatewayService
+from simulator.transports import PtySink
+from wire.codecs import nmea_encode as enc
+from wire.mcap.reader import log_files, read_messages
+from wire.mcap.rotation import rotated_path
+
+
+def burst(k: int) -> bytes:
+    gga = enc.gga("GP", datetime.now(UTC), 59.4 + 1e-6 * (k % 7), 10.5, 2, 12, 0.8, 20.0)
+    return (gga + enc.hdt("HE", 0.5)).encode()
+
+
+class Live:
+    """A running `GatewayService` (consumer loop in a thread) and a Zenoh client counting its estimates."""
+
+    def __init__(self, tmp_path: Path, url: str, **tables: Any) -> None:
+        self.zport = free_port()
+        self.log_path = tmp_path / "dpgw.mcap"
+        self.tables = {
+            "vessel": {"name": "mss_supply"},
+            "datum": {"lat_deg": 59.4, "lon_deg": 10.5},
+            "sources": [{"name": "gps", "url": url, "protocol": "nmea", "roles": ["position", "heading"]}],
+            "observer": {"wave_period_s": 9.0},
+            "zenoh": {
+                "listen": [f"tcp/127.0.0.1:{self.zport}"],
+                "multicast_scouting": False,
+                "prefix": "dp/f",
+            },
+            "status": {"rate_hz": 10.0},
+            "log": {"path": str(self.log_path), "flush_interval_s": 0.1},
+            **tables,
+        }
+        self.service = GatewayService(parse_config(self.tables, base_dir=tmp_path), config_tables=self.tables)
+        self.estimates = 0
+        self._lock = threading.Lock()
+
+    def __enter__(self) -> Live:
+        self.service.start()
+        self.loop = threading.Thread(target=self.service.run, name="consumer")
+        self.loop.start()
+        self.client = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{self.zport}"]))
+        self._sub = self.client.declare_subscriber("dp/f/estimate", self._on_estimate)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.service.stop_event.set()
+        self.loop.join(timeout=30)
+        self.service.drain()
+        self.client.close()
+        self.service.close()
+        assert not self.loop.is_alive()
+
+    def _on_estimate(self, _sample: zenoh.Sample) -> None:
+        with self._lock:
+            self.estimates += 1
+
+    def status(self) -> dict[str, Any]:
+        replies = [r for r in self.client.get("dp/f/status", timeout=2.0) if r.ok is not None]
+        return json.loads(replies[0].ok.payload.to_bytes()) if replies else {}
+
+    def alarms(self, word: str) -> list[str]:
+        return [a for a in self.status().get("alarms", []) if word in a]
+
+    def estimates_go_on(self, send: Callable[[], None], n: int = 5) -> None:
+        """At least ``n`` more estimates arrive on Zenoh (sending while waiting)."""
+        start = self.estimates
+        assert wait_for(lambda: send() or self.estimates >= start + n, 30.0), "no estimates on Zenoh"
+
+
+@pytest.fixture
+def quick_retry(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
+    monkeypatch.setattr(mcap_writer, "RETRY_S", 0.2, raising=False)  # the log's retry, not 10 s
+    yield
+
+
+def test_the_log_disk_failing_is_an_alarm_and_outputs_go_on(
+    tmp_path: Path, quick_retry: None, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The log file removed under the gateway (a disk unmounted) and the next file on a full disk
+    (/dev/full: the kernel's ENOSPC): estimates keep coming on Zenoh, /status says what is wrong, the
+    gateway's log says it once; when there is room again, logging resumes in the next file of the set."""
+    udp = free_port(socket.SOCK_DGRAM)
+    caplog.set_level(logging.WARNING, logger="wire.mcap.writer")
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sent = [0]
+
+    def send() -> None:
+        tx.sendto(burst(sent[0]), ("127.0.0.1", udp))
+        sent[0] += 1
+        time.sleep(0.02)  # (pacing the sender: 50 bursts a second, a busy multiplexer)
+
+    full = rotated_path(tmp_path / "dpgw.mcap", 1)
+    try:
+        with Live(tmp_path, f"udp://127.0.0.1:{udp}") as live:
+            live.estimates_go_on(send)
+            full.symlink_to("/dev/full")  # where the next file of the set will go
+            live.log_path.unlink()  # the disk is gone from under the open file
+            assert wait_for(lambda: send() or live.alarms("log:"), 30.0), "no /status alarm for the log"
+            alarm = live.alarms("log:")[0]
+            assert "not logged" in alarm and ("removed" in alarm or "No space left" in alarm), alarm
+            live.estimates_go_on(send, 20)  # ~2 s of DP outputs while the log fails
+            assert wait_for(lambda: send() or "No space left" in " ".join(live.alarms("log:")), 30.0)
+            full.unlink()  # room again
+            assert wait_for(lambda: send() or not live.alarms("log:"), 30.0), live.alarms("log:")
+            resumed_at = sent[0]
+            live.estimates_go_on(send, 20)
+            lost = live.service.log.lost if live.service.log else 0
+    finally:
+        tx.close()
+    assert lost > 0
+    errors = [
+        r.getMessage()
+        for r in caplog.records
+        if r.levelno >= logging.ERROR and r.name == mcap_writer.__name__
+    ]
+    assert len(errors) == 1, errors  # one line for the failure, not one per message or retry
+    assert any("writing again, to " + str(full) in r.getMessage() for r in caplog.records)
+    # logging resumed: the file that replaced /dev/full holds raw input and estimates after the return
+    assert log_files(live.log_path) == [full]
+    raw = list(read_messages(full, "/raw/nmea/gps"))
+    assert len(raw) >= 2 * 10 and len(list(read_messages(full, "/dp/estimate"))) >= 10
+    assert resumed_at > 0
+
+
+def test_a_usb_serial_adapter_unplugged_and_back(tmp_path: Path) -> None:
+    """The pty behind the configured name closes (the adapter unplugged): /status says the source is
+    disconnected and then stale; a new pty behind the same name (plugged in again) is read again, estimates
+    resume and the alarm clears, without restarting the gateway."""
+    link = tmp_path / "ttyUSB0"
+    sink = PtySink(str(link))
+    k = [0]
+
+    def send_on(s: PtySink) -> Callable[[], None]:
+        def send() -> None:
+            s.write(burst(k[0]))
+            k[0] += 1
+            time.sleep(0.02)
+
+        return send
+
+    with Live(tmp_path, f"serial://{link}?baud=115200") as live:
+        try:
+            live.estimates_go_on(send_on(sink))
+        finally:
+            sink.close()  # unplugged
+        assert wait_for(lambda: live.alarms("source gps: disconnected"), 30.0), live.status().get("alarms")
+        src = live.service._sources[0]
+        assert src.stats.errors["disconnected"] == 1 and src.running
+        with PtySink(str(link)) as sink2:  # plugged in again, as a new device behind the same name
+            send2 = send_on(sink2)
+            assert wait_for(lambda: src.stats.connected, 30.0), "the port was not reopened"
+            live.estimates_go_on(send2, 10)
+            assert wait_for(lambda: send2() or not live.alarms("source gps"), 30.0), live.alarms("source gps")
+        assert src.stats.reconnects == 1
