@@ -343,8 +343,8 @@ class GatewayService:
             self._take(item)
 
     def _alarms(self) -> list[str]:
-        alarms = [
-            f"source {s.name}: disconnected"
+        alarms = [  # with what the OS last said: "port ... failed", "... not an address of this computer"
+            f"source {s.name}: disconnected" + (f" ({s.stats.last_error})" if s.stats.last_error else "")
             for s in self._sources
             if not s.stats.connected and not s.finished
         ]
