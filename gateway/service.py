@@ -149,6 +149,7 @@ class GatewayService:
                 self._command_links[sc.name] = mav
         self.log: McapLogWriter | None = None
         self.published = 0
+        self._zenoh_reached = True  # (a lost connection is logged when it is found lost, once)
         self.internal_errors: Counter[str] = Counter()  # source name or "input <key>" -> items not handled
 
     # --- start and stop -------------------------------------------------------------------------------------
@@ -359,6 +360,7 @@ class GatewayService:
                     "raise ?rcvbuf= or net.core.rmem_max)"
                 )
         alarms += self._clock_alarms()
+        alarms += self._zenoh_alarms()
         if self.log is not None and self.log.error is not None:
             alarms.append(
                 f"log: {self.log.error}; {self.log.lost} messages not logged; retrying every "
@@ -369,6 +371,28 @@ class GatewayService:
             for what, n in sorted(self.internal_errors.items())
         ]
         return alarms
+
+    def _zenoh_alarms(self) -> list[str]:
+        """With ``connect`` endpoints (a router, a console): an alarm while the session reaches none of
+        them nor any other peer. Zenoh redials them by itself (a restarted router is back within a second);
+        meanwhile the status cannot reach Zenoh, but it goes to the log, Foxglove and ``dpgw run -v``."""
+        connect = self.config.zenoh.connect
+        if not connect or self._session is None:
+            return []
+        info = self._session.info
+        reached = any(True for _ in info.routers_zid()) or any(True for _ in info.peers_zid())
+        if reached == self._zenoh_reached:
+            pass
+        elif reached:
+            log.warning("zenoh: connected again (%s); outputs go out", ", ".join(connect))
+        else:
+            log.error("zenoh: lost %s; outputs are not reaching Zenoh until it is back", ", ".join(connect))
+        self._zenoh_reached = reached
+        if reached:
+            return []
+        return [
+            f"zenoh: not connected to {', '.join(connect)} (Zenoh redials it); outputs go nowhere meanwhile"
+        ]
 
     def _clock_alarms(self) -> list[str]:
         if self.sim_time is None:

@@ -10,6 +10,8 @@ from __future__ import annotations
 import json
 import logging
 import socket
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -22,7 +24,7 @@ import zenoh
 from conftest import free_port, wait_for
 
 import wire.mcap.writer as mcap_writer
-from gateway.bus import isolated_config, open_session
+from gateway.bus import isolated_config, make_config, open_session
 from gateway.config import parse_config
 from gateway.service import GatewayService
 from simulator.transports import PtySink
@@ -39,7 +41,7 @@ def burst(k: int) -> bytes:
 class Live:
     """A running `GatewayService` (consumer loop in a thread) and a Zenoh client counting its estimates."""
 
-    def __init__(self, tmp_path: Path, url: str, **tables: Any) -> None:
+    def __init__(self, tmp_path: Path, url: str, connect: list[str] | None = None) -> None:
         self.zport = free_port()
         self.log_path = tmp_path / "dpgw.mcap"
         self.tables = {
@@ -49,12 +51,12 @@ class Live:
             "observer": {"wave_period_s": 9.0},
             "zenoh": {
                 "listen": [f"tcp/127.0.0.1:{self.zport}"],
+                "connect": connect or [],
                 "multicast_scouting": False,
                 "prefix": "dp/f",
             },
             "status": {"rate_hz": 10.0},
             "log": {"path": str(self.log_path), "flush_interval_s": 0.1},
-            **tables,
         }
         self.service = GatewayService(parse_config(self.tables, base_dir=tmp_path), config_tables=self.tables)
         self.estimates = 0
@@ -178,3 +180,72 @@ def test_a_usb_serial_adapter_unplugged_and_back(tmp_path: Path) -> None:
             live.estimates_go_on(send2, 10)
             assert wait_for(lambda: send2() or not live.alarms("source gps"), 30.0), live.alarms("source gps")
         assert src.stats.reconnects == 1
+
+
+_ROUTER = """
+import json, sys, zenoh
+listen = {"endpoints": [sys.argv[1]]}
+conf = {"mode": "router", "listen": listen, "scouting": {"multicast": {"enabled": False}}}
+session = zenoh.open(zenoh.Config.from_json5(json.dumps(conf)))
+print("up", flush=True)
+sys.stdin.read()  # until the test closes stdin or kills it
+"""
+
+
+def start_router(endpoint: str) -> subprocess.Popen[str]:
+    """A Zenoh router (what zenohd is) in a process of its own; returns once it listens."""
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _ROUTER, endpoint], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
+    )
+    assert proc.stdout is not None and proc.stdout.readline().strip() == "up"
+    return proc
+
+
+def test_the_zenoh_router_restarting(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """The gateway connects to a router (zenoh.connect); a console reaches it through the router. The router
+    is killed: /status (in the log, on Foxglove, on -v) says Zenoh is not connected; the router is started
+    again: estimates reach the console again, the alarm clears, without restarting the gateway."""
+    router = f"tcp/127.0.0.1:{free_port()}"
+    udp = free_port(socket.SOCK_DGRAM)
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    k = [0]
+
+    def send() -> None:
+        tx.sendto(burst(k[0]), ("127.0.0.1", udp))
+        k[0] += 1
+        time.sleep(0.02)
+
+    def zenoh_alarms(live: Live) -> list[str]:
+        return [a for a in live.service.last_status().get("alarms", []) if a.startswith("zenoh:")]
+
+    proc = start_router(router)
+    caplog.set_level(logging.WARNING, logger="dpgw")
+    try:
+        live = Live(tmp_path, f"udp://127.0.0.1:{udp}", connect=[router])
+        live.service.start()
+        live.loop = threading.Thread(target=live.service.run, name="consumer")
+        live.loop.start()
+        live.client = open_session(make_config(mode="client", connect=[router], multicast_scouting=False))
+        live._sub = live.client.declare_subscriber("dp/f/estimate", live._on_estimate)
+        try:
+            live.estimates_go_on(send)
+            assert not zenoh_alarms(live)
+            proc.kill()
+            proc.wait()
+            assert wait_for(lambda: send() or zenoh_alarms(live), 30.0), "no alarm with the router gone"
+            assert router in zenoh_alarms(live)[0]
+            before = live.service.pipeline.estimates
+            assert wait_for(lambda: send() or live.service.pipeline.estimates >= before + 10, 30.0)
+            proc = start_router(router)  # the router is back
+            live.estimates_go_on(send, 10)  # ... and so are the estimates at the console
+            assert wait_for(lambda: send() or not zenoh_alarms(live), 30.0), zenoh_alarms(live)
+        finally:
+            live.__exit__()
+    finally:
+        tx.close()
+        proc.kill()
+        proc.wait()
+    said = [r.getMessage() for r in caplog.records if r.getMessage().startswith("zenoh:")]
+    assert len(said) == 2 and "lost" in said[0] and "connected again" in said[1], said
+    statuses = [m for _, _, _, m in read_messages(log_files(live.log_path), "/dp/status")]
+    assert any(any(a.startswith("zenoh: not connected") for a in s.get("alarms", [])) for s in statuses)
