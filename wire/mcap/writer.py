@@ -278,8 +278,8 @@ class McapLogWriter:
 
     @property
     def path(self) -> Path:
-        """The file being written (or last written)."""
-        return self.paths[-1]
+        """The file being written (or last written; the first to be, if none could be opened yet)."""
+        return self.paths[-1] if self.paths else rotated_path(self._base, self._next_index)
 
     def write(
         self,
