@@ -262,12 +262,14 @@ def _open_fds() -> int:
 
 @pytest.mark.slow
 @pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="counts descriptors in /proc")
-def test_nothing_grows_with_time(tmp_path: Path) -> None:
+def test_nothing_grows_with_time(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
     """~25 s of a busy gateway: NMEA at ~200 bursts a second on UDP, a TCP source whose server drops the
     link every 0.5 s (a reconnect each time), the log rotating every ~50 kB, status at 10 Hz. Between the
     end of a warm-up and the end, the open descriptors, the threads and the memory Python holds
     (tracemalloc) must not grow with the time run: rotation closes its files, reconnects close their
     sockets, histories are bounded."""
+    # pytest keeps every log record of a test (a reconnect is one, by design): not the gateway's memory
+    caplog.set_level(logging.ERROR)
     udp = free_port(socket.SOCK_DGRAM)
     server = socket.socket()
     server.bind(("127.0.0.1", 0))
@@ -308,6 +310,8 @@ def test_nothing_grows_with_time(tmp_path: Path) -> None:
         time.sleep(0.005)
 
     def measure() -> tuple[int, int, int]:
+        # what the consumer has not taken yet is a busy machine's backlog, not growth: wait until it is in
+        assert wait_for(lambda: live.service._queue.empty(), 30.0), "the consumer never caught up"
         gc.collect()  # (a finished file's writer is a reference cycle: what the collector will free)
         return _open_fds(), threading.active_count(), tracemalloc.get_traced_memory()[0]
 
@@ -340,8 +344,10 @@ def test_nothing_grows_with_time(tmp_path: Path) -> None:
         f"{files} files, {reconnects} reconnects, {estimates} estimates"
     )
     assert files >= 10 and reconnects >= 10  # the test did rotate and reconnect, many times
-    assert last[0] - first[0] <= 2, (first, last)  # descriptors: no file or socket left open
-    assert last[1] == first[1], (first, last)  # threads: none left behind
+    # descriptors: no file or socket left open (~20 of each made); a reconnect in progress, the fsync's
+    # duplicate, a file being opened come and go
+    assert last[0] - first[0] <= 4, (first, mid, last)
+    assert last[1] <= first[1], (first, mid, last)  # threads: none left behind (another test's may end)
     # memory held: bounded (what the first 10 s took: the log's open chunk, up to 256 KiB, ...), not
-    # growing with time (the second 10 s add nearly nothing)
-    assert last[2] - first[2] < 2 * 2**20 and last[2] - mid[2] < 256 * 2**10, (first, mid, last)
+    # growing with time (the second 10 s add a few kB: the writer's list of the files it wrote)
+    assert last[2] - first[2] < 2 * 2**20 and last[2] - mid[2] < 64 * 2**10, (first, mid, last)
