@@ -147,6 +147,7 @@ def test_the_log_disk_failing_is_an_alarm_and_outputs_go_on(
         if r.levelno >= logging.ERROR and r.name == mcap_writer.__name__
     ]
     assert len(errors) == 1, errors  # one line for the failure, not one per message or retry
+    assert "the file was removed while being written" in errors[0], errors
     assert any("writing again, to " + str(full) in r.getMessage() for r in caplog.records)
     # logging resumed: the file that replaced /dev/full holds raw input and estimates after the return
     assert log_files(live.log_path) == [full]

@@ -805,6 +805,7 @@ class McapLogWriter:
         self._close_chunk()
         self._hand_to_os(fsync)
         self._dirty = False
+        self._check_file_locked()  # (once a flush interval: one fstat)
 
     def _check_file_locked(self) -> None:
         """Raise if the file being written has been removed (its directory deleted, a disk unmounted
@@ -823,7 +824,6 @@ class McapLogWriter:
                 if now - self._last_flush_wall >= self._flush_interval_s:
                     try:
                         self._flush_locked(False)
-                        self._check_file_locked()
                     except OSError as exc:
                         self._fail_locked(exc)
                 if self._fsync and self._unsynced and self._file is not None:
