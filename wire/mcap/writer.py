@@ -423,26 +423,23 @@ class McapLogWriter:
                 self._lost_since_fail += n
                 return
             try:
-                self._write_many_locked(items)
+                writer = self._writer
+                if (
+                    self._rotate_bytes is None
+                    and self._rotate_ns is None
+                    and isinstance(writer, FastWriter)
+                    and writer.fast
+                ):
+                    wrote = self._write_many_fast(writer, items)
+                else:
+                    wrote = False
+                    for topic, data, time_ns, schema in items:
+                        self._write_locked(topic, data, int(time_ns), int(time_ns), schema, check_flush=False)
+                        wrote = True
+                if wrote:
+                    self._after_write()
             except OSError as exc:
                 self._fail_locked(exc, lost=len(items) if isinstance(items, Sized) else 1)
-
-    def _write_many_locked(self, items: Iterable[tuple[str, bytes, int, SchemaSpec | None]]) -> None:
-        writer = self._writer
-        if (
-            self._rotate_bytes is None
-            and self._rotate_ns is None
-            and isinstance(writer, FastWriter)
-            and writer.fast
-        ):
-            wrote = self._write_many_fast(writer, items)
-        else:
-            wrote = False
-            for topic, data, time_ns, schema in items:
-                self._write_locked(topic, data, int(time_ns), int(time_ns), schema, check_flush=False)
-                wrote = True
-        if wrote:
-            self._after_write()
 
     def _write_many_fast(self, writer: FastWriter, items: Iterable[tuple[str, bytes, int, Any]]) -> bool:
         """`write_many`'s loop without rotation: `_write_locked` (known channel) and `FastWriter.add_message`
