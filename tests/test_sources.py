@@ -727,9 +727,12 @@ def test_udp_reads_once_its_address_comes_up(tmp_path: Path) -> None:
     source is started on an address no interface has, then the address is added; datagrams arrive."""
     import json
     import os
+    import shutil
     import subprocess
     import sys
 
+    if shutil.which("unshare") is None or shutil.which("ip") is None:  # pragma: no cover
+        pytest.skip("needs unshare and ip (util-linux, iproute2)")
     probe = subprocess.run(["unshare", "-rn", "true"], capture_output=True)
     if probe.returncode != 0:  # pragma: no cover — no user namespaces here
         pytest.skip(f"unshare -rn not permitted: {probe.stderr.decode().strip()}")
