@@ -181,6 +181,10 @@ def start_up_line(config: GatewayConfig, service: GatewayService, log_override: 
     zenoh += f", connect {' '.join(z.connect)}" if z.connect else ""
     zenoh += "" if z.multicast_scouting else ", scouting off"
     log_path = log_override or (str(config.log.path) if config.log.path else None)
+    if service.log is not None:  # the file it writes: a restarted gateway continues the set
+        log_path = str(service.log.path)
+        if service.log.error is not None:
+            log_path += f" (NOT WRITTEN: {service.log.error}; retrying every {service.log.retry_s:g} s)"
     clock = f"; clock: simulation time from {z.prefix}/sim/clock" if config.time.sim else ""
     return (
         f"dpgw run: vessel {config.vessel.name}; sources {', '.join(sources) or 'none'}; {zenoh}; "

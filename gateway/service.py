@@ -149,6 +149,7 @@ class GatewayService:
                 self._command_links[sc.name] = mav
         self.log: McapLogWriter | None = None
         self.published = 0
+        self._zenoh_reached = True  # (a lost connection is logged when it is found lost, once)
         self.internal_errors: Counter[str] = Counter()  # source name or "input <key>" -> items not handled
 
     # --- start and stop -------------------------------------------------------------------------------------
@@ -184,7 +185,10 @@ class GatewayService:
                 self._status_json = initial.message.encode()
             self._declared.append(s.declare_queryable(f"{self.prefix}/status", self._on_query))
             if self._log_path:
-                self.log = McapLogWriter(self._log_path, profile="dpgw", **self.config.log.writer_options())
+                # continue_set: a restarted service (systemd, a reboot) adds to the set, never overwrites it
+                self.log = McapLogWriter(
+                    self._log_path, profile="dpgw", continue_set=True, **self.config.log.writer_options()
+                )
                 meta = {"vessel": self.config.vessel.name, "prefix": self.prefix}
                 if self.config_tables is not None:  # lets replay rebuild exactly this pipeline
                     meta["json"] = json.dumps(self.config_tables)
@@ -340,8 +344,8 @@ class GatewayService:
             self._take(item)
 
     def _alarms(self) -> list[str]:
-        alarms = [
-            f"source {s.name}: disconnected"
+        alarms = [  # with what the OS last said: "port ... failed", "... not an address of this computer"
+            f"source {s.name}: disconnected" + (f" ({s.stats.last_error})" if s.stats.last_error else "")
             for s in self._sources
             if not s.stats.connected and not s.finished
         ]
@@ -356,11 +360,39 @@ class GatewayService:
                     "raise ?rcvbuf= or net.core.rmem_max)"
                 )
         alarms += self._clock_alarms()
+        alarms += self._zenoh_alarms()
+        if self.log is not None and self.log.error is not None:
+            alarms.append(
+                f"log: {self.log.error}; {self.log.lost} messages not logged; retrying every "
+                f"{self.log.retry_s:g} s (outputs go on)"
+            )
         alarms += [
             f"{what}: {n} not handled (internal error, traceback in the gateway's log)"
             for what, n in sorted(self.internal_errors.items())
         ]
         return alarms
+
+    def _zenoh_alarms(self) -> list[str]:
+        """With ``connect`` endpoints (a router, a console): an alarm while the session reaches none of
+        them nor any other peer. Zenoh redials them by itself (a restarted router is back within a second);
+        meanwhile the status cannot reach Zenoh, but it goes to the log, Foxglove and ``dpgw run -v``."""
+        connect = self.config.zenoh.connect
+        if not connect or self._session is None:
+            return []
+        info = self._session.info
+        reached = any(True for _ in info.routers_zid()) or any(True for _ in info.peers_zid())
+        if reached == self._zenoh_reached:
+            pass
+        elif reached:
+            log.warning("zenoh: connected again (%s); outputs go out", ", ".join(connect))
+        else:
+            log.error("zenoh: lost %s; outputs are not reaching Zenoh until it is back", ", ".join(connect))
+        self._zenoh_reached = reached
+        if reached:
+            return []
+        return [
+            f"zenoh: not connected to {', '.join(connect)} (Zenoh redials it); outputs go nowhere meanwhile"
+        ]
 
     def _clock_alarms(self) -> list[str]:
         if self.sim_time is None:

@@ -5,6 +5,7 @@ Payloads are checked with the `jsonschema` package against the schema embedded i
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 import signal
@@ -770,3 +771,107 @@ def test_a_raw_nmea_chunk_reads_back_byte_for_byte(chunk: bytes, peer: str) -> N
     body = base64.b64decode(p["data"]) if "data" in p else p["text"].encode("ascii")
     end = b"" if p.get("unterminated") else p.get("eol", "\r\n").encode("ascii")
     assert body + end == chunk
+
+
+# --- the disk fails while logging ---------------------------------------------------------------------------
+
+
+def _ticks(path: Path) -> list[int]:
+    return [p[3]["i"] for p in read_messages(log_files(path), topics="/dp/tick")]
+
+
+def test_a_full_disk_never_raises_is_reported_once_and_writing_resumes(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The second file of the set is /dev/full (the kernel's own ENOSPC): writes never raise, the failure is
+    one ERROR line, messages are dropped and counted, and writing resumes once the disk has room (here: the
+    link removed)."""
+    path = tmp_path / "run.mcap"
+    full = rotated_path(path, 1)
+    full.symlink_to("/dev/full")
+    caplog.set_level(logging.DEBUG, logger="wire.mcap.writer")
+    w = McapLogWriter(
+        path, chunk_size=4 * KIB, rotate_bytes=16 * KIB, compression="none", fsync=False,
+        background_flush=False, retry_s=0.0,
+    )  # fmt: skip
+    failed_at = None
+    for i in range(3000):
+        w.write("/dp/tick", {"i": i, "pad": "z" * 20}, T0 + i * 1000)
+        if w.error is not None and failed_at is None:
+            failed_at = i
+            assert "No space left on device" in w.error and str(full) in w.error
+        if failed_at is not None and i == failed_at + 100:
+            full.unlink()  # room again
+    w.close()
+    assert failed_at is not None and w.error is None and w.failures == 1
+    errors = [r for r in caplog.records if r.levelno >= logging.ERROR]
+    assert len(errors) == 1, [r.getMessage() for r in errors]  # once, not once per message
+    resumed = [r.getMessage() for r in caplog.records if "writing again" in r.getMessage()]
+    assert len(resumed) == 1 and "101 messages were not logged" in resumed[0]
+    got = _ticks(path)
+    assert got == sorted(got) and set(range(3000)) - set(got) == set(range(failed_at, failed_at + 101))
+    assert w.lost == 101
+    assert all(summary(f).complete for f in log_files(path))
+
+
+def test_a_full_disk_at_start_up_starts_failed_and_a_bad_path_still_stops(tmp_path: Path) -> None:
+    path = tmp_path / "run.mcap"
+    path.symlink_to("/dev/full")
+    w = McapLogWriter(path, background_flush=False, fsync=False, retry_s=3600.0)
+    w.write("/dp/tick", {"i": 0}, T0)  # dropped, counted, no exception
+    assert w.error is not None and "No space left on device" in w.error and w.lost == 1
+    w.close()
+    with pytest.raises(FileNotFoundError):
+        McapLogWriter(tmp_path / "no" / "such" / "dir.mcap", background_flush=False)
+
+
+def test_the_log_directory_gone_at_a_rotation_then_back(tmp_path: Path) -> None:
+    """The directory moved away (a disk unmounted, a careless rm) before a rotation: the new file cannot be
+    opened; when it is back, writing goes on in the next file of the set."""
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    path = logs / "trial.mcap"
+    w = McapLogWriter(path, rotate_seconds=1.0, background_flush=False, fsync=False, retry_s=0.0)
+    for i in range(9):
+        w.write("/dp/tick", {"i": i}, T0 + i * 100_000_000)
+    logs.rename(tmp_path / "away")  # the open file goes with it (same inode): written on
+    for i in range(9, 15):
+        w.write("/dp/tick", {"i": i}, T0 + i * 100_000_000)  # 10: the rotation, and the failure
+    assert w.error is not None and "No such file or directory" in w.error and str(path.parent) in w.error
+    (tmp_path / "away").rename(logs)
+    for i in range(15, 20):
+        w.write("/dp/tick", {"i": i}, T0 + i * 100_000_000)
+    w.close()
+    assert w.error is None and w.lost == 5  # 10 .. 14
+    assert _ticks(path) == [*range(10), *range(15, 20)]
+
+
+def test_a_log_file_removed_while_written_is_noticed(tmp_path: Path) -> None:
+    """Deleted under the writer, a file takes writes that nobody can ever read: the flush thread notices
+    (within the flush interval) and writing goes on in the next file of the set."""
+    path = tmp_path / "run.mcap"
+    w = McapLogWriter(path, flush_interval_s=0.05, fsync=False, retry_s=0.0)
+    try:
+        w.write("/dp/tick", {"i": 0}, T0)
+        path.unlink()
+        assert wait_for(lambda: w.error is not None, 10.0), "the removal was not noticed"
+        assert "removed" in (w.error or "")
+        w.write("/dp/tick", {"i": 1}, T0 + 1000)
+    finally:
+        w.close()
+    assert w.error is None and w.paths[-1] == rotated_path(path, 1)
+    assert _ticks(path) == [1]
+
+
+def test_a_restarted_writer_continues_the_set_and_overwrites_nothing(tmp_path: Path) -> None:
+    path = tmp_path / "dpgw.mcap"
+    with McapLogWriter(path, rotate_seconds=1.0, background_flush=False, fsync=False) as w:
+        for i in range(25):
+            w.write("/dp/tick", {"i": i}, T0 + i * 100_000_000)
+    before = {f: f.read_bytes() for f in log_files(path)}
+    assert len(before) == 3
+    with McapLogWriter(path, continue_set=True, background_flush=False, fsync=False) as w2:
+        w2.write("/dp/tick", {"i": 25}, T0 + 10**10)
+    assert w2.paths == [rotated_path(path, 3)]
+    assert {f: f.read_bytes() for f in before} == before
+    assert _ticks(path) == list(range(26))

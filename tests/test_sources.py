@@ -691,3 +691,60 @@ def test_udp_burst_nothing_dropped_unseen(opened: list[Source], rcvbuf: str | No
         assert wait_until(settled, 20.0), (len(got), src.dropped, sent)
     if rcvbuf == "4k":
         assert src.dropped > 0  # the small buffer did overflow, and it was seen
+
+
+def test_udp_on_an_address_not_up_yet_waits_for_it_instead_of_refusing(opened: list[Source]) -> None:
+    """An interface slow to come up at boot: the source starts (not connected, saying why) instead of
+    stopping the gateway, which systemd would restart until it gives up (StartLimitBurst)."""
+    src, _ = start(opened, "dgps", "udp://192.0.2.10:0", UdpSource)  # TEST-NET-1: on no interface here
+    assert src.running and not src.stats.connected and not src.address_up
+    assert "192.0.2.10" in (src.stats.last_error or "") and "not an address of this computer yet" in (
+        src.stats.last_error or ""
+    )
+
+
+_COMES_UP = """
+import json, socket, subprocess, sys, time
+from gateway.sources import open_source
+subprocess.run(["ip", "link", "set", "lo", "up"], check=True)
+got = []
+src = open_source("dgps", "udp://10.9.8.7:10110")
+src.start(got.append)
+before = (src.stats.connected, src.address_up)
+subprocess.run(["ip", "addr", "add", "10.9.8.7/32", "dev", "lo"], check=True)  # the interface comes up
+deadline = time.monotonic() + 20
+tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+while not got and time.monotonic() < deadline:
+    tx.sendto(b"$GPHDT,1.0,T*00\\r\\n", ("10.9.8.7", 10110))
+    time.sleep(0.05)
+print(json.dumps({"before": before, "after": [src.stats.connected, src.address_up], "got": len(got)}))
+src.stop()
+"""
+
+
+def test_udp_reads_once_its_address_comes_up(tmp_path: Path) -> None:
+    """In a network namespace of its own (no root needed, nothing on this machine's network changed): the
+    source is started on an address no interface has, then the address is added; datagrams arrive."""
+    import json
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    if shutil.which("unshare") is None or shutil.which("ip") is None:  # pragma: no cover
+        pytest.skip("needs unshare and ip (util-linux, iproute2)")
+    probe = subprocess.run(["unshare", "-rn", "true"], capture_output=True)
+    if probe.returncode != 0:  # pragma: no cover — no user namespaces here
+        pytest.skip(f"unshare -rn not permitted: {probe.stderr.decode().strip()}")
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    run = subprocess.run(
+        ["unshare", "-rn", sys.executable, "-c", _COMES_UP],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=60,
+    )
+    assert run.returncode == 0, run.stderr
+    result = json.loads(run.stdout.strip().splitlines()[-1])
+    assert result["before"] == [False, False]
+    assert result["after"] == [True, True] and result["got"] >= 1

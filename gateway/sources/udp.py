@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import logging
 import math
 import re
@@ -24,6 +26,13 @@ overflows it and the kernel drops datagrams silently. 4 MiB holds tens of thousa
 _SO_RXQ_OVFL = getattr(socket, "SO_RXQ_OVFL", 40 if sys.platform.startswith("linux") else None)
 _SO_RCVBUFFORCE = getattr(socket, "SO_RCVBUFFORCE", 33 if sys.platform.startswith("linux") else None)
 _CMSG_SPACE = socket.CMSG_SPACE(4) if hasattr(socket, "CMSG_SPACE") else 0
+# Linux: IP_FREEBIND / IPV6_FREEBIND let a socket bind an address no interface has yet (systemd's FreeBind=).
+_FREEBIND: dict[int, tuple[int, int]] = {
+    socket.AF_INET: (socket.IPPROTO_IP, getattr(socket, "IP_FREEBIND", 15)),
+    socket.AF_INET6: (socket.IPPROTO_IPV6, getattr(socket, "IPV6_FREEBIND", 78)),
+}
+ADDRESS_CHECK_S = 1.0
+"""While the address listened on is not yet this computer's, how often it is looked for (s)."""
 
 
 class UdpSource(Source):
@@ -41,6 +50,12 @@ class UdpSource(Source):
     (``?rcvbuf=``; `granted_buffer` is what the kernel gave, logged when less), and on Linux every
     datagram carries the kernel's count of datagrams it dropped because the buffer was full
     (``SO_RXQ_OVFL``), kept in `dropped` (it is brought up to date by the next datagram that arrives).
+
+    An interface slow to come up (DHCP, a link still negotiating) does not stop the gateway: a unicast
+    address that is not yet this computer's is bound all the same (Linux ``IP_FREEBIND``), the source is
+    not ``connected`` meanwhile (a ``/status`` alarm saying why), and datagrams are read as soon as the
+    address appears (looked for every `ADDRESS_CHECK_S`). An address that never appears (a typing
+    mistake) keeps the alarm up; ``dpgw run --check`` cannot know, as the address may come later.
     """
 
     kind = "udp"
@@ -77,6 +92,9 @@ class UdpSource(Source):
         self._target_addr: tuple[Any, ...] | None = None
         self._last_peer: tuple[Any, ...] | None = None
         self._peers: dict[str, tuple[Any, ...]] = {}
+        self.address_up = True
+        """The address listened on is this computer's (False while waiting for an interface)."""
+        self._local: tuple[int, tuple[Any, ...]] | None = None  # (family, address) of a specific unicast bind
 
     @property
     def multicast(self) -> bool:
@@ -119,6 +137,10 @@ class UdpSource(Source):
             if self.multicast:
                 # many programs may listen to one group; a unicast port stays exclusive (in use = error)
                 sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            elif host not in ("0.0.0.0", "::") and bind_family in _FREEBIND:
+                self._local = (bind_family, local)
+                with contextlib.suppress(OSError):  # (elsewhere: an address not up is refused as before)
+                    sock.setsockopt(*_FREEBIND[bind_family], 1)
             try:
                 sock.bind(local)
             except OSError as exc:
@@ -133,7 +155,32 @@ class UdpSource(Source):
             raise
         self._sock = sock
         self._port = int(sock.getsockname()[1])
-        self.stats.connected = True
+        self.address_up = self._is_local()
+        self.stats.connected = self.address_up
+        if not self.address_up:
+            self._error(
+                "address not up",
+                f"{fmt_addr(local)} is not an address of this computer yet: listening for when its "
+                "interface comes up (if it never does, the address is wrong: ip -br addr)",
+                always=True,
+            )
+
+    def _check_address(self) -> None:
+        if self._local is not None and self._is_local():
+            self.address_up = self.stats.connected = True
+            log.warning("source %r: %s is up now; receiving", self.name, fmt_addr(self._local[1]))
+
+    def _is_local(self) -> bool:
+        """The specific unicast address bound (if any) belongs to an interface of this computer now."""
+        if self._local is None:
+            return True
+        family, local = self._local
+        with socket.socket(family, socket.SOCK_DGRAM) as probe:
+            try:
+                probe.bind((local[0], 0, *local[2:]))
+            except OSError as exc:
+                return exc.errno != errno.EADDRNOTAVAIL
+        return True
 
     def _size_buffer(self, sock: socket.socket) -> None:
         """Ask for `receive_buffer` (forced past net.core.rmem_max where permitted), note what was granted,
@@ -192,7 +239,11 @@ class UdpSource(Source):
         sock = self._sock
         assert sock is not None
         last_hello = -math.inf
+        next_check = time.monotonic() + ADDRESS_CHECK_S
         while not self._stop.is_set():
+            if not self.address_up and time.monotonic() >= next_check:
+                next_check = time.monotonic() + ADDRESS_CHECK_S
+                self._check_address()
             if self.hello and self._target_addr is not None:
                 now = time.monotonic()
                 last_rx = self.stats.last_rx_mono_ns
@@ -216,6 +267,8 @@ class UdpSource(Source):
                 self._error("read error", f"receive failed: {strerror(exc)}", logging.DEBUG)
                 self._sleep(0.05)
                 continue
+            if not self.address_up:  # (a datagram may come before the next look)
+                self._check_address()
             self._last_peer = addr
             peer = fmt_addr(addr)
             if peer not in self._peers and len(self._peers) < 256:

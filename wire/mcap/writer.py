@@ -16,6 +16,16 @@ footer) and writing continues in `<stem>_0001<suffix>`, `<stem>_0002<suffix>`, .
 (`trial.mcap`, `trial_0001.mcap`, ...; `wire.mcap.rotation`). Each file is self-contained: schemas and
 channels are registered again in every file.
 
+Failures: a write the disk refuses (full, gone, read-only, an I/O error) never raises into the caller:
+the program writing the log is a DP gateway, and its outputs must go on. The file being written is left
+as it is (readable up to its last whole record), `error` says what failed (logged once), messages are
+dropped and counted in `lost` until a new file of the set can be opened, tried every `retry_s` of wall
+time; then logging resumes (logged too) in the next file of the set.
+
+Restarts: with ``continue_set=True`` (the gateway's log) the first file is the next free one of the set
+(`trial_0003.mcap` when `trial.mcap` .. `trial_0002.mcap` are there), so a restarted service never
+overwrites what the run before it logged.
+
 JSON: numpy arrays and scalars become lists and numbers; non-finite floats (NaN, ±inf) become `null`,
 since JSON has no NaN; bytes become base64 strings (`wire.json_payload`).
 """
@@ -23,6 +33,8 @@ since JSON has no NaN; bytes become base64 strings (`wire.json_payload`).
 from __future__ import annotations
 
 import atexit
+import contextlib
+import errno
 import functools
 import json
 import logging
@@ -30,7 +42,7 @@ import math
 import os
 import threading
 import time
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence, Sized
 from pathlib import Path
 from typing import IO, Any
 
@@ -42,13 +54,20 @@ from mcap.writer import CompressionType, Writer
 from wire.json_payload import encode_json
 from wire.mcap.fast import _MESSAGE_HEAD, FastWriter
 from wire.mcap.format import RECORD_HEADER
-from wire.mcap.rotation import StrPath, rotated_path
+from wire.mcap.rotation import StrPath, log_files, rotated_path
 from wire.message_schema import json_schema
 from wire.messages import LocationFix, Message, RawMavlink, RawNmea, Time, message_for_topic
 
-__all__ = ["McapLogWriter", "SchemaSpec"]
+__all__ = ["RETRY_S", "McapLogWriter", "SchemaSpec"]
 
 log = logging.getLogger(__name__)
+
+_DISK_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EIO})
+"""Errors of the disk, not of the path: at start-up they do not stop the program (writing retries)."""
+
+RETRY_S = 10.0
+"""After a failed write, a new file is tried this often (wall s): a disk that has room again, a directory
+that is back, is written to within this time, and a disk still full costs one attempt per period."""
 
 SchemaSpec = tuple[str, Mapping[str, Any]] | type[Message]
 """A channel's schema: a message class, or (schema name, JSON Schema) for a payload nobody typed."""
@@ -154,6 +173,9 @@ class McapLogWriter:
     file before a message whose log time is this far past the file's first message (log time, so replay
     rotates exactly as live did). `fsync=False` keeps crash safety against a killed process (the OS has the
     data) but not against power loss. `background_flush=False` leaves wall-time flushing to `write` calls.
+    `continue_set`: start after the last existing file of the set instead of overwriting `path`.
+    `retry_s`: after a failure, how often a new file is tried (default `RETRY_S`); `error`, `lost` and
+    `failures` say what happened.
 
     Do not call `close()` from a signal handler (a write may be half done in the interrupted frame): set a
     flag there and close from the main flow, or use `loop.add_signal_handler` in asyncio.
@@ -173,6 +195,8 @@ class McapLogWriter:
         compression: str = "zstd",
         fsync: bool = True,
         background_flush: bool = True,
+        continue_set: bool = False,
+        retry_s: float | None = None,
     ) -> None:
         if compression not in _COMPRESSION:
             raise ValueError(f"compression must be one of {sorted(_COMPRESSION)}, not {compression!r}")
@@ -199,6 +223,18 @@ class McapLogWriter:
         """Every file opened so far, in order."""
         self.message_count = 0
         """Messages written over all files."""
+        self.error: str | None = None
+        """What failed, while writing is failed (None when the log is being written)."""
+        self.lost = 0
+        """Messages dropped because writing had failed (over the writer's life; besides them, what the
+        failed file had not yet handed to the OS: at most `flush_interval_s` of messages)."""
+        self.failures = 0
+        """Times writing failed (each followed by retries until a new file could be opened)."""
+        self.retry_s = RETRY_S if retry_s is None else retry_s
+        """After a failure, how often a new file is tried (wall s)."""
+        self._retry_at = 0.0
+        self._lost_since_fail = 0
+        self._next_index = 0
 
         # State of the current file; None between a rotation and the next write.
         self._file: IO[bytes] | None = None
@@ -214,8 +250,21 @@ class McapLogWriter:
         self._last_flush_log_ns: int | None = None
         self._max_log_ns: int | None = None
 
-        # Open the first file now, so a bad path stops start-up with a clear error, not the first write.
-        self._open(0)
+        if continue_set:
+            existing = log_files(self._base)
+            if existing:
+                last = existing[-1]
+                self._next_index = 1 + (
+                    0 if last == self._base else int(last.stem[len(self._base.stem) + 1 :])
+                )
+        # Open the first file now, so a bad path stops start-up with a clear error, not the first write. A
+        # disk that is full (or failing) is not a mistake in the path: writing starts failed and retries.
+        try:
+            self._open(self._next_index)
+        except OSError as exc:
+            if exc.errno not in _DISK_ERRNOS:
+                raise
+            self._fail_locked(exc)
 
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -229,8 +278,8 @@ class McapLogWriter:
 
     @property
     def path(self) -> Path:
-        """The file being written (or last written)."""
-        return self.paths[-1]
+        """The file being written (or last written; the first to be, if none could be opened yet)."""
+        return self.paths[-1] if self.paths else rotated_path(self._base, self._next_index)
 
     def write(
         self,
@@ -347,7 +396,14 @@ class McapLogWriter:
                     log.warning("McapLogWriter(%s) is closed; dropping writes (first: %s)", self._base, topic)
                     self._warned_closed = True
                 return
-            self._write_locked(topic, data, log_time_ns, publish_time_ns, schema)
+            if self.error is not None and not self._recover_locked():
+                self.lost += 1
+                self._lost_since_fail += 1
+                return
+            try:
+                self._write_locked(topic, data, log_time_ns, publish_time_ns, schema)
+            except OSError as exc:
+                self._fail_locked(exc, lost=1)
 
     def write_many(self, items: Iterable[tuple[str, bytes, int, SchemaSpec | None]]) -> None:
         """`write_encoded` for several payloads in order, each ``(topic, data, time_ns, schema)`` with the
@@ -361,21 +417,29 @@ class McapLogWriter:
                     log.warning("McapLogWriter(%s) is closed; dropping writes", self._base)
                     self._warned_closed = True
                 return
-            writer = self._writer
-            if (
-                self._rotate_bytes is None
-                and self._rotate_ns is None
-                and isinstance(writer, FastWriter)
-                and writer.fast
-            ):
-                wrote = self._write_many_fast(writer, items)
-            else:
-                wrote = False
-                for topic, data, time_ns, schema in items:
-                    self._write_locked(topic, data, int(time_ns), int(time_ns), schema, check_flush=False)
-                    wrote = True
-            if wrote:
-                self._after_write()
+            if self.error is not None and not self._recover_locked():
+                n = sum(1 for _ in items)
+                self.lost += n
+                self._lost_since_fail += n
+                return
+            try:
+                writer = self._writer
+                if (
+                    self._rotate_bytes is None
+                    and self._rotate_ns is None
+                    and isinstance(writer, FastWriter)
+                    and writer.fast
+                ):
+                    wrote = self._write_many_fast(writer, items)
+                else:
+                    wrote = False
+                    for topic, data, time_ns, schema in items:
+                        self._write_locked(topic, data, int(time_ns), int(time_ns), schema, check_flush=False)
+                        wrote = True
+                if wrote:
+                    self._after_write()
+            except OSError as exc:
+                self._fail_locked(exc, lost=len(items) if isinstance(items, Sized) else 1)
 
     def _write_many_fast(self, writer: FastWriter, items: Iterable[tuple[str, bytes, int, Any]]) -> bool:
         """`write_many`'s loop without rotation: `_write_locked` (known channel) and `FastWriter.add_message`
@@ -457,14 +521,20 @@ class McapLogWriter:
                 return
             self._metadata.append(entry)
             if self._writer is not None:
-                self._writer.add_metadata(*entry)
+                try:
+                    self._writer.add_metadata(*entry)
+                except OSError as exc:
+                    self._fail_locked(exc)
 
     def flush(self, fsync: bool | None = None) -> None:
         """Close the open chunk and hand everything to the OS now; fsync too if `fsync` (default: the
         writer's setting)."""
         with self._lock:
-            if not self._closed:
-                self._flush_locked(self._fsync if fsync is None else fsync)
+            if not self._closed and self.error is None:
+                try:
+                    self._flush_locked(self._fsync if fsync is None else fsync)
+                except OSError as exc:
+                    self._fail_locked(exc)
 
     def close(self) -> None:
         """Write the summary and footer and close the file. Idempotent."""
@@ -472,7 +542,10 @@ class McapLogWriter:
             if self._closed:
                 return
             self._closed = True
-            self._finish_file()
+            try:
+                self._finish_file()
+            except OSError as exc:
+                self._fail_locked(exc)
         self._stop.set()
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join()
@@ -492,22 +565,88 @@ class McapLogWriter:
 
     def _open(self, index: int) -> None:
         path = rotated_path(self._base, index)
+        existed = os.path.lexists(path)
         self._file = open(path, "wb")  # noqa: SIM115 - lives until _finish_file
-        self._writer = FastWriter(
-            self._file, chunk_size=self._chunk_budget, compression=self._compression, zstd_level=ZSTD_LEVEL
-        )
-        self._writer.start(profile=self._profile, library=self._library)
-        for name, data in self._metadata:
-            self._writer.add_metadata(name, data)
+        try:
+            self._writer = FastWriter(
+                self._file,
+                chunk_size=self._chunk_budget,
+                compression=self._compression,
+                zstd_level=ZSTD_LEVEL,
+            )
+            self._writer.start(profile=self._profile, library=self._library)
+            for name, data in self._metadata:
+                self._writer.add_metadata(name, data)
+            self._channels.clear()
+            self._schemas.clear()
+            self._file_first_log_ns = None
+            self._pending_bytes = 0
+            # A new file's name must survive power loss too: fsync the directory entry once.
+            self._hand_to_os(self._fsync)
+            if self._fsync:
+                _fsync_dir(path.parent)
+        except OSError as exc:
+            if exc.filename is None:  # (a write, not the open: name the file all the same)
+                exc.filename = str(path)
+            self._abandon_file()
+            if not existed:  # (a header that did not fit: the retry starts this file again)
+                with contextlib.suppress(OSError):
+                    path.unlink()
+            raise
         self.paths.append(path)
-        self._channels.clear()
-        self._schemas.clear()
-        self._file_first_log_ns = None
+        self._next_index = index + 1
+
+    def _abandon_file(self) -> None:
+        """Let go of the file being written after a failure: left as it is (readable up to its last whole
+        record), its descriptor closed even if the close cannot write what Python still buffered."""
+        f = self._file
+        self._file = None
+        self._writer = None
+        self._dirty = False
+        self._unsynced = False
         self._pending_bytes = 0
-        # A new file's name must survive power loss too: fsync the directory entry once.
-        self._hand_to_os(self._fsync)
-        if self._fsync:
-            _fsync_dir(path.parent)
+        if f is not None:
+            with contextlib.suppress(OSError):
+                f.close()  # (closes the descriptor even when its flush fails)
+
+    def _fail_locked(self, exc: OSError, what: str = "", lost: int = 0) -> None:
+        """Writing failed: say so (once), drop the file, retry a new one in `retry_s`."""
+        path = exc.filename or (self.paths[-1] if self.paths else self._base)
+        error = what or f"cannot write {path}: {exc.strerror or exc}"
+        if self.error is None:
+            self.failures += 1
+            self._lost_since_fail = 0
+            log.error(
+                "log: %s; messages are dropped (counted) and a new file is tried every %g s",
+                error,
+                self.retry_s,
+            )
+        self.error = error
+        self.lost += lost
+        self._lost_since_fail += lost
+        self._abandon_file()
+        self._retry_at = time.monotonic() + self.retry_s
+
+    def _recover_locked(self) -> bool:
+        """After a failure, when `retry_s` has passed: open the next file of the set. True if writing."""
+        now = time.monotonic()
+        if now < self._retry_at:
+            return False
+        self._retry_at = now + self.retry_s
+        try:
+            self._open(self._next_index)
+        except OSError as exc:
+            self.error = f"cannot write {exc.filename or self._base}: {exc.strerror or exc}"
+            log.debug("log: still failing: %s", self.error)
+            return False
+        log.warning(
+            "log: writing again, to %s (%d messages were not logged after: %s)",
+            self.paths[-1],
+            self._lost_since_fail,
+            self.error,
+        )
+        self.error = None
+        return True
 
     def _finish_file(self) -> None:
         if self._writer is None or self._file is None:
@@ -578,7 +717,7 @@ class McapLogWriter:
         ):
             self._finish_file()
         if self._writer is None:
-            self._open(len(self.paths))
+            self._open(self._next_index)
         writer = self._writer
         assert writer is not None
 
@@ -663,6 +802,13 @@ class McapLogWriter:
         self._close_chunk()
         self._hand_to_os(fsync)
         self._dirty = False
+        self._check_file_locked()  # (once a flush interval: one fstat)
+
+    def _check_file_locked(self) -> None:
+        """Raise if the file being written has been removed (its directory deleted, a disk unmounted
+        lazily): writes to it would succeed and land nowhere anyone can read."""
+        if self._file is not None and os.fstat(self._file.fileno()).st_nlink == 0:
+            raise FileNotFoundError(errno.ENOENT, "the file was removed while being written", str(self.path))
 
     def _flush_loop(self) -> None:
         """Wall-time flush while no messages arrive (writes check the clocks themselves), and the fsync."""
@@ -673,7 +819,10 @@ class McapLogWriter:
                     return
                 now = time.monotonic()
                 if now - self._last_flush_wall >= self._flush_interval_s:
-                    self._flush_locked(False)
+                    try:
+                        self._flush_locked(False)
+                    except OSError as exc:
+                        self._fail_locked(exc)
                 if self._fsync and self._unsynced and self._file is not None:
                     # fsync a duplicate descriptor after releasing the lock: it stays valid even if the file
                     # is closed by a rotation meanwhile, and writers are not held up by the disk.
@@ -683,6 +832,10 @@ class McapLogWriter:
             if sync_fd is not None:
                 try:
                     os.fsync(sync_fd)
+                except OSError as exc:
+                    with self._lock:
+                        if not self._closed:
+                            self._fail_locked(exc)
                 finally:
                     os.close(sync_fd)
                 self._last_fsync_wall = time.monotonic()
