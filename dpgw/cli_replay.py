@@ -42,7 +42,7 @@ EPILOG = (
     "  dpgw replay trial.mcap --out again.mcap                      # a gateway log, its own config\n"
     "  dpgw replay usv.txt --vessel cybership2 --observer passive:wave_period_s=6 \\\n"
     "       --observer passive:wave_period_s=10@long --out usv.mcap --report usv_report\n"
-    "  dpgw replay sim.mcap --vessel mss_supply --out est.mcap --json  # RMS errors vs the truth\n"
+    "  dpgw replay sim.mcap --out est.mcap --json   # RMS errors vs the truth (the log names its vessel)\n"
     "  dpgw replay trial.mcap --out again.mcap --speed 5              # publish on Zenoh, 5x\n"
     "  dpgw replay trial.mcap --foxglove          # watch it in Foxglove: play, pause, seek, speed"
 )
@@ -50,7 +50,11 @@ EPILOG = (
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("logs", nargs="+", metavar="LOG", help="MCAP, NMEA text or tlog files (merged by time)")
-    p.add_argument("--vessel", metavar="NAME|FILE", help="vessel (needed unless the log or --config has one)")
+    p.add_argument(
+        "--vessel",
+        metavar="NAME|FILE",
+        help="vessel (needed unless the log or --config has one; a simulator log names its own)",
+    )
     p.add_argument("--config", metavar="FILE", help="a gateway config (sources, lever arms, tuning)")
     p.add_argument(
         "--observer",
@@ -150,6 +154,20 @@ def run(args: argparse.Namespace) -> int:
     elif args.out is not None and any(Path(args.out).resolve() == Path(log).resolve() for log in args.logs):
         print(
             f"dpgw replay: --out {args.out} is one of the logs being replayed: give another file",
+            file=sys.stderr,
+        )
+        return 2
+    # Where the results go is checked before the replay, not found out after it.
+    if args.report is not None and Path(args.report).exists() and not Path(args.report).is_dir():
+        print(
+            f"dpgw replay: --report {args.report}: a file, not a folder: give a folder (it is created)",
+            file=sys.stderr,
+        )
+        return 2
+    if args.out is not None and not Path(args.out).resolve().parent.is_dir():
+        print(
+            f"dpgw replay: --out {args.out}: no folder {Path(args.out).parent}: "
+            "create it or give another path",
             file=sys.stderr,
         )
         return 2

@@ -140,6 +140,34 @@ def run(args: argparse.Namespace) -> int:
         )
         return 2
     if args.inputs is not None:
+        # A scenario's options do nothing open loop: refused rather than silently ignored.
+        given = [
+            flag
+            for flag, value in (
+                ("--duration", args.duration),  # the inputs' times set the length
+                ("--nmea", args.nmea),
+                ("--mavlink", args.mavlink),
+                ("--realtime", args.realtime),
+                ("--speed", args.speed != 1.0),
+                ("--gnss-rate", args.gnss_rate),
+                ("--gyro-rate", args.gyro_rate),
+                ("--faults", args.faults),
+                ("--ardupilot", args.ardupilot),
+                ("--zenoh", args.zenoh),
+                ("--prefix", args.prefix),
+                ("--zenoh-listen", args.zenoh_listen),
+                ("--zenoh-connect", args.zenoh_connect),
+                ("--zenoh-config", args.zenoh_config),
+            )
+            if value
+        ]
+        if given:
+            print(
+                f"dpgw sim: {', '.join(given)}: only with --scenario; open loop from --inputs takes "
+                "--vessel, --csv, --out, --initial, --plant-option, --wind, --sea, --seed and --json",
+                file=sys.stderr,
+            )
+            return 2
         return cli_sim_inputs.run(args)
     if args.vessel or args.csv or args.plant_option or args.wind or args.sea:
         print("dpgw sim: --vessel, --csv, --plant-option, --wind and --sea go with --inputs", file=sys.stderr)

@@ -85,17 +85,43 @@ def logged_config(path: str | Path) -> dict[str, Any] | None:
     return None
 
 
-def logged_datum(path: str | Path) -> dict[str, float] | None:
-    """The NED datum a simulator log's truth is in (metadata `SIM_METADATA`), if the log has one."""
+def logged_sim(path: str | Path) -> dict[str, str] | None:
+    """A simulator log's own description (metadata `SIM_METADATA`: scenario, seed, vessel, datum), if any."""
     with open(path, "rb") as f:
         reader = make_reader(f)
         try:
             for record in reader.iter_metadata():
-                if record.name == SIM_METADATA and "datum" in record.metadata:
-                    datum = json.loads(record.metadata["datum"])
-                    return {k: float(datum[k]) for k in ("lat_deg", "lon_deg", "alt_m")}
-        except Exception:  # a truncated file has no metadata index; an older log has no datum
+                if record.name == SIM_METADATA:
+                    return dict(record.metadata)
+        except Exception:  # a truncated file has no metadata index
             return None
+    return None
+
+
+def logged_datum(path: str | Path) -> dict[str, float] | None:
+    """The NED datum a simulator log's truth is in (metadata `SIM_METADATA`), if the log has one."""
+    meta = logged_sim(path)
+    if meta is None or "datum" not in meta:  # an older log has no datum
+        return None
+    datum = json.loads(meta["datum"])
+    return {k: float(datum[k]) for k in ("lat_deg", "lon_deg", "alt_m")}
+
+
+def logged_vessel(inputs: list[Input]) -> str | None:
+    """The built-in vessel a simulator log names (metadata `SIM_METADATA`), so that a log of `dpgw sim`
+    replays without --vessel. A vessel that is not built in (a vessel file) is an error naming it: the
+    log holds only its name, not the file."""
+    from observers.vessel_files import builtin_vessels
+
+    for inp in inputs:
+        if inp.kind == "mcap" and (meta := logged_sim(inp.path)) is not None and meta.get("vessel"):
+            name = meta["vessel"]
+            if name not in builtin_vessels():
+                raise ReplayError(
+                    f"{inp.path}: the simulator ran vessel '{name}', which is not a built-in vessel: give "
+                    "its file with --vessel FILE"
+                )
+            return name
     return None
 
 
@@ -305,6 +331,8 @@ def build_config(
                 )
             tables = {**_as_replayed(tables), "log": {"path": ""}}
             return parse_config(tables, base_dir=inp.path.resolve().parent, where=f"{inp.path} (metadata)")
+    if vessel is None:
+        vessel = logged_vessel(inputs)
     if vessel is None:
         raise ReplayError("no configuration in the log: give --vessel NAME|FILE or --config FILE")
     tables = default_config(vessel)

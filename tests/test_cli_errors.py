@@ -338,3 +338,70 @@ def test_replay_with_an_unknown_vessel_name_lists_the_built_in_ones(
     err = capsys.readouterr().err
     assert "Traceback" not in err
     assert "vessel.name: not a built-in vessel" in err and "mss_supply" in err and 'got "mss_suply"' in err
+
+
+# --- the analyst's commands: what they cannot do is said before the work, and --json is JSON ------------
+
+OSV_INPUTS = REPO / "tests" / "data" / "mss-osv" / "steps_inputs.csv"
+
+
+def test_sim_open_loop_refuses_scenario_options_and_prints_json(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, --duration, --realtime, --nmea ... were accepted with --inputs and ignored, and --json
+    printed the plain-text line."""
+    argv = ["sim", "--vessel", "mss_osv", "--inputs", str(OSV_INPUTS), "--csv", str(tmp_path / "s.csv")]
+    assert main([*argv, "--duration", "100", "--realtime"]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert line.startswith("dpgw sim: --duration, --realtime: only with --scenario;"), line
+    assert not (tmp_path / "s.csv").exists()
+    assert main([*argv, "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    last = (tmp_path / "s.csv").read_text().strip().splitlines()[-1].split(",")
+    assert summary["vessel"] == "mss_osv" and summary["rows"] == len(OSV_INPUTS.read_text().splitlines()) - 1
+    assert [summary["end"][k] for k in ("t", "north", "east", "psi_deg")] == pytest.approx(
+        [float(x) for x in last[:4]], rel=1e-8
+    )
+
+
+@pytest.mark.parametrize(
+    ("extra", "words"),
+    [
+        (["--max-order", "1"], "argument --max-order: must be 2 or more"),
+        (["--r2", "1.5"], "argument --r2: must be above 0 and at most 1 (got 1.5)"),
+    ],
+)
+def test_radiation_refuses_a_fit_setting_it_cannot_use(
+    extra: list[str], words: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, --max-order 1 ended in a ValueError traceback and --r2 1.5 fitted every element to the cap."""
+    with pytest.raises(SystemExit) as exit_:
+        main(["radiation", str(tmp_path / "hydro.npz"), *extra])
+    assert exit_.value.code == 2
+    assert f"dpgw radiation: error: {words}" in capsys.readouterr().err
+
+
+def test_radiation_and_replay_check_where_they_write_before_working(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, a stem in a missing folder was a FileNotFoundError traceback after the whole fit, and a
+    --report that is a file a FileExistsError traceback after the whole replay."""
+    hydro = tmp_path / "hydro.npz"
+    hydro.write_bytes(b"not read: the check comes first")
+    assert main(["radiation", str(hydro), "--out", str(tmp_path / "nope" / "fit")]) == 2
+    assert _one_line(capsys.readouterr().err) == (
+        f"dpgw radiation: --out {tmp_path}/nope/fit: no folder {tmp_path}/nope: "
+        "create it or give another stem"
+    )
+    log = tmp_path / "gps.txt"
+    log.write_text("$GPGGA,100000.00,5924.000000,N,01029.999988,E,4,12,0.80,20.259,M,,,2.0,0001*11\r\n")
+    (tmp_path / "afile").write_text("")
+    assert main(["replay", str(log), "--vessel", "cybership2", "--report", str(tmp_path / "afile")]) == 2
+    assert _one_line(capsys.readouterr().err).endswith(
+        "afile: a file, not a folder: give a folder (it is created)"
+    )
+    assert (
+        main(["replay", str(log), "--vessel", "cybership2", "--out", str(tmp_path / "nope" / "x.mcap")]) == 2
+    )
+    assert _one_line(capsys.readouterr().err).endswith(": create it or give another path")
+    assert not (tmp_path / "gps-replay.mcap").exists()

@@ -282,6 +282,22 @@ def test_simulator_log_replays_in_the_datum_its_truth_is_in(tmp_path: Path) -> N
     assert (datum.lat_deg, datum.lon_deg, datum.alt_m, datum.first_fix) == (63.4, 10.4, 12.0, False)
 
 
+def test_simulator_log_replays_with_its_own_vessel(tmp_path: Path) -> None:
+    """A simulator log names its vessel (metadata dpgw.sim): replay needs no --vessel; --vessel still wins; a
+    vessel that is not built in (only its name is in the log) is one message saying to give its file."""
+    log = tmp_path / "sim.mcap"
+    with McapLogWriter(log) as w:
+        Simulation(get_scenario("fossen_strand_1999"), seed=1, log=w).run(5.0)
+    assert build_config(open_inputs([log])).vessel.name == get_scenario("fossen_strand_1999").vessel.name
+    assert build_config(open_inputs([log]), vessel="cybership2").vessel.name == "cybership2"
+    other = tmp_path / "other.mcap"
+    with McapLogWriter(other) as w:
+        w.add_metadata("dpgw.sim", {"vessel": "my_ship", "mode": "open loop"})
+        w.write_raw_nmea("gyro1", b"$HEHDT,10.0,T*2C\r\n", 1_780_000_000_000_000_000)
+    with pytest.raises(ReplayError, match=r"vessel 'my_ship', which is not a built-in vessel: give its file"):
+        build_config(open_inputs([other]))
+
+
 def test_tlog_replay(tmp_path: Path) -> None:
     """A MAVLink tlog (8-byte µs time + frame per record) with GPS_RAW_INT, ATTITUDE and thruster status."""
     d = mv.dialect()
