@@ -231,6 +231,7 @@ def run(args: argparse.Namespace) -> int:
     summary = _summary(args, specs, result, wall)
     kinds = {s.label: (s.name, s.name in SCHEDULES_OMEGA0 or bool(s.params.get("adaptive"))) for s in specs}
     summary["wave_check"] = evidence.check(config.vessel.length_m, kinds).as_dict()
+    summary["measurements"] = evidence.measured()
     if args.report:
         written = _report(args, config.vessel.name, specs, result)
         summary["report"] = [str(p) for p in written]
@@ -245,9 +246,23 @@ def run(args: argparse.Namespace) -> int:
         print(cli_json.dumps(summary, indent=2))
     else:
         _print(summary)
-    for warning in summary["wave_check"]["warnings"]:
+    for warning in [*_no_estimates(summary), *summary["wave_check"]["warnings"]]:
         print(f"dpgw replay: warning: {warning}", file=sys.stderr)
     return 0
+
+
+def _no_estimates(s: dict[str, Any]) -> list[str]:
+    """Why an observer made no estimate, from what the fused measurements held."""
+    silent = [label for label, n in s["estimates"].items() if n == 0]
+    if not silent:
+        return []
+    m = s["measurements"]
+    return [
+        f"observer{'s' if len(silent) > 1 else ''} {', '.join(repr(x) for x in silent)} made no estimate: "
+        f"an observer needs position and heading, and of the {m['samples']} fused measurements "
+        f"{m['position']} had a position and {m['heading']} a heading. Replay it together with a log of the "
+        "missing sensor (several LOGs are merged by time)"
+    ]
 
 
 def serve(
@@ -347,6 +362,14 @@ class _WaveEvidence:
             elif o.topic == "/dp/estimate" or o.topic.startswith("/dp/estimates/"):
                 self.omega0.setdefault(msg.observer, []).append(msg.omega0)  # type: ignore[attr-defined]
 
+    def measured(self) -> dict[str, int]:
+        """How many fused measurements there were, and how many had a position and a heading."""
+        return {
+            "samples": len(self.eta),
+            "position": sum(1 for e in self.eta if e[0] is not None and e[1] is not None),
+            "heading": sum(1 for e in self.eta if e[2] is not None),
+        }
+
     def chain(self, then: Any) -> Any:
         def both(ev: Event, outputs: list[Output]) -> None:
             self.on_outputs(ev, outputs)
@@ -428,7 +451,8 @@ def _summary(
         "sentences": r.sentences,
         "wall_seconds": wall,
         "sentences_per_second": r.sentences / wall if wall > 0 else None,
-        "estimates": dict(r.estimates),
+        # every observer asked for, also one that made no estimate (a log without heading)
+        "estimates": {spec.label: r.estimates.get(spec.label, 0) for spec in specs},
         "observer_restarts": r.restarts,
         "counts": r.counts,
     }

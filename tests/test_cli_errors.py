@@ -405,3 +405,45 @@ def test_radiation_and_replay_check_where_they_write_before_working(
     )
     assert _one_line(capsys.readouterr().err).endswith(": create it or give another path")
     assert not (tmp_path / "gps-replay.mcap").exists()
+
+
+def test_replay_says_why_an_observer_made_no_estimate(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, a log without heading (gpsd's nmea-rtk.log) replayed with status 0, no observer line on the
+    console and `"estimates": {}` in --json: the observer asked for was not even named."""
+    from datetime import UTC, datetime, timedelta
+
+    from wire.codecs.nmea_encode import gga
+
+    t0 = datetime(2026, 5, 1, 10, 0, tzinfo=UTC)
+    fixes = [
+        gga("GP", t0 + timedelta(seconds=0.5 * k), 59.4 + 1e-6 * k, 10.5, 4, 12, 0.8, 20.0) for k in range(40)
+    ]
+    log = tmp_path / "gps.txt"
+    log.write_bytes(b"".join(f if isinstance(f, bytes) else f.encode() for f in fixes))
+    assert (
+        main(
+            [
+                "replay",
+                str(log),
+                "--vessel",
+                "mss_supply",
+                "--observer",
+                "passive",
+                "--observer",
+                "ekf",
+                "--json",
+            ]
+        )
+        == 0
+    )
+    out, err = capsys.readouterr()
+    s = json.loads(out)
+    assert s["estimates"] == {"passive": 0, "ekf": 0}
+    m = s["measurements"]
+    assert m["samples"] == 40 and m["position"] >= 35 and m["heading"] == 0
+    assert _one_line(err).startswith(
+        "dpgw replay: warning: observers 'passive', 'ekf' made no estimate: an observer needs position and "
+        f"heading, and of the 40 fused measurements {m['position']} had a position and 0 a heading."
+    )
