@@ -362,3 +362,15 @@ def test_welch_psd_holds_the_variance_of_a_sinusoid_and_the_level_of_white_noise
     assert q is not None
     inner = q.psd[5:-5]  # away from DC (detrend) and Nyquist
     assert float(np.mean(inner)) == pytest.approx(0.3**2 * dt / math.pi, rel=0.03)
+
+
+def test_zoom_row_only_when_it_shows_a_detail() -> None:
+    """The zoom row: the last 20 dominant periods (at least 60 s), only on a record at least twice as long.
+    Before, a 300 s simulator log with an 11.2 s sea got a 'zoom' on its last 225 s, three quarters of it."""
+    from gateway.report.plots import zoom_window
+
+    w = 2.0 * math.pi / 11.2
+    assert zoom_window(0.0, 300.0, [w, w, float("nan")]) is None
+    assert zoom_window(0.0, 900.0, [w, w, w]) == pytest.approx((900.0 - 224.0, 900.0))
+    assert zoom_window(0.0, 340.8, [3.9, 4.0, 2.9]) == pytest.approx((280.8, 340.8))  # a model: 60 s least
+    assert zoom_window(0.0, 100.0, []) is None and zoom_window(0.0, 120.0, []) == pytest.approx((60.0, 120.0))

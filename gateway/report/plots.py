@@ -27,6 +27,17 @@ _MEAS: dict[str, Any] = {"color": "0.70", "lw": 0.8}
 _TRUTH: dict[str, Any] = {"color": "0.35", "lw": 1.0, "ls": "--", "zorder": 50}
 
 
+def zoom_window(t_beg: float, t_end: float, peaks_rad_s: Any) -> tuple[float, float] | None:
+    """The zoom row's window (Torsetnes et al. Figs. 7-8): the last 20 dominant wave periods of the record,
+    at least 60 s; None (no zoom row) unless the record is at least twice as long, since a zoom on most of
+    the record shows nothing the first row does not."""
+    peaks = [w for w in peaks_rad_s if math.isfinite(w) and w > 0]
+    length = max(20.0 * 2.0 * math.pi / float(np.median(peaks)) if peaks else 0.0, 60.0)
+    if t_end - t_beg < 2.0 * length:
+        return None
+    return (t_end - length, t_end)
+
+
 def decimate(t: NDArray[Any], x: NDArray[Any], max_points: int = MAX_PLOT_POINTS) -> tuple[Array, Array]:
     """At most `max_points` points of a line that keep its envelope: the min and max of each bucket, in
     time order. NaN (gaps) survive where a whole bucket is NaN, so lines still break there."""
@@ -94,13 +105,11 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
     centre = float(np.arctan2(np.mean(np.sin(psi_ref)), np.mean(np.cos(psi_ref)))) if len(psi_ref) else 0.0
     suptitle = f"{data.title} — {data.vessel}" if data.vessel else data.title
 
-    # zoom window (Torsetnes et al. Figs. 7-8): the last 20 wave periods of the record, at least 60 s
-    peaks = [w for w in an.meas_peak if math.isfinite(w) and w > 0]
     t_end = span[1] or 0.0
     t_beg = span[0] or 0.0
-    zoom_len = 20.0 * 2.0 * math.pi / float(np.median(peaks)) if peaks else 0.05 * (t_end - t_beg)
-    zoom = (max(t_beg, t_end - max(zoom_len, 60.0)), t_end)
-    use_zoom = zoom[0] > t_beg + 0.05 * (t_end - t_beg)
+    window = zoom_window(t_beg, t_end, an.meas_peak)
+    use_zoom = window is not None
+    zoom = window or (t_beg, t_end)
 
     def figure(name: str, rows: int = 1) -> tuple[Any, Any]:
         fig = Figure(figsize=(15.0, 0.6 + 3.6 * rows), layout="constrained")
