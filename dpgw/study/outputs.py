@@ -117,7 +117,7 @@ def box_stats(values: Sequence[float]) -> dict[str, Any]:
     if len(v) == 0:
         return {"med": math.nan, "q1": math.nan, "q3": math.nan, "whislo": math.nan, "whishi": math.nan,
                 "fliers": np.array([])}  # fmt: skip
-    med, p5, p95, _ = spread(v)
+    med, p5, p95, _ = spread(v.tolist())
     q1, q3 = np.percentile(v, [25.0, 75.0])
     return {"med": med, "q1": float(q1), "q3": float(q3), "whislo": p5, "whishi": p95,
             "fliers": v[(v < p5) | (v > p95)]}  # fmt: skip
