@@ -498,6 +498,12 @@ def _print(s: dict[str, Any]) -> None:
     for where, c in s["counts"].items():
         print(f"  {where}: " + ", ".join(f"{k} {v}" for k, v in c.items()))
     for label, e in s.get("error_vs_truth", {}).items():
+        if not e["samples"]:
+            print(
+                f"  {label} vs truth: no estimate after the settle time {s['settle_s']:g} s to score "
+                "(give a shorter --settle)"
+            )
+            continue
         print(
             f"  {label} vs truth (after {s['settle_s']:.0f} s): RMS N {e['rms_north_m']:.3f} m, "
             f"E {e['rms_east_m']:.3f} m, heading {e['rms_heading_deg']:.3f} deg"

@@ -447,3 +447,19 @@ def test_replay_says_why_an_observer_made_no_estimate(
         "dpgw replay: warning: observers 'passive', 'ekf' made no estimate: an observer needs position and "
         f"heading, and of the 40 fused measurements {m['position']} had a position and 0 a heading."
     )
+
+
+def test_replay_with_a_settle_time_past_the_end_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: `passive vs truth (after 1000 s): RMS N nan m, E nan m, heading nan deg`."""
+    log = tmp_path / "sim.mcap"
+    assert main(["sim", "--scenario", "fossen_strand_1999", "--duration", "20", "--out", str(log)]) == 0
+    capsys.readouterr()
+    assert main(["replay", str(log), "--settle", "1000"]) == 0
+    out = capsys.readouterr().out
+    assert "nan" not in out
+    assert (
+        "  passive vs truth: no estimate after the settle time 1000 s to score (give a shorter --settle)"
+        in out
+    )
