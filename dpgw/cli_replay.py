@@ -177,6 +177,10 @@ def run(args: argparse.Namespace) -> int:
         # Without --observer, the observer the config names (the log's own for a gateway log: what ran live).
         own = config.observer.type
         specs = [parse_observer_spec(s) for s in args.observer] or [ObserverSpec(own, own, {})]
+        labels = [s.label for s in specs]
+        if twice := next((x for i, x in enumerate(labels) if x in labels[:i]), None):
+            # each observer's estimates are counted, published and reported under its label
+            raise ReplayError(f"--observer: label '{twice}' given twice (name each: SPEC@label)")
         pipeline = build_pipeline(config, specs, foxglove_channels=args.foxglove_channels)
     except ConfigError as exc:
         print(format_problems(exc), file=sys.stderr)

@@ -463,3 +463,19 @@ def test_replay_with_a_settle_time_past_the_end_says_so(
         "  passive vs truth: no estimate after the settle time 1000 s to score (give a shorter --settle)"
         in out
     )
+
+
+def test_replay_refuses_an_observer_label_given_twice(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, `--observer passive --observer passive` printed one observer with twice the estimates, and
+    `passive@a --observer ekf@a` counted and published both under one label."""
+    log = tmp_path / "gps.txt"
+    log.write_text("$GPGGA,100000.00,5924.000000,N,01029.999988,E,4,12,0.80,20.259,M,,,2.0,0001*11\r\n")
+    for specs in (["passive", "passive"], ["passive@a", "ekf@a"]):
+        argv = ["replay", str(log), "--vessel", "mss_supply"] + [f"--observer={s}" for s in specs]
+        assert main(argv) == 2
+        label = specs[0].partition("@")[2] or "passive"
+        assert _one_line(capsys.readouterr().err) == (
+            f"dpgw replay: --observer: label '{label}' given twice (name each: SPEC@label)"
+        )
