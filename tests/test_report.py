@@ -374,3 +374,40 @@ def test_zoom_row_only_when_it_shows_a_detail() -> None:
     assert zoom_window(0.0, 900.0, [w, w, w]) == pytest.approx((900.0 - 224.0, 900.0))
     assert zoom_window(0.0, 340.8, [3.9, 4.0, 2.9]) == pytest.approx((280.8, 340.8))  # a model: 60 s least
     assert zoom_window(0.0, 100.0, []) is None and zoom_window(0.0, 120.0, []) == pytest.approx((60.0, 120.0))
+
+
+def test_plots_mark_only_a_clear_wave_peak(data: ReplayData, tmp_path: Path) -> None:
+    """A DOF whose spectral maximum sits on the band edge has no wave peak (`peak_at_band_edge`): the omega0
+    plot draws no 'PSD peak of y' line for it and the PSD panel says so. Before, a dashed 'peak' line sat
+    at the band edge of a calm DOF (the USV log 202412051037: east and heading) beside the real one."""
+    from dataclasses import replace
+
+    pytest.importorskip("matplotlib")
+    from matplotlib.figure import Figure
+
+    from gateway.report.metrics import analyse
+    from gateway.report.plots import draw_plots
+
+    made: list[Any] = []
+
+    class Kept(Figure):  # type: ignore[misc]
+        def __init__(self, *args: Any, **kwargs: Any) -> None:
+            super().__init__(*args, **kwargs)
+            made.append(self)
+
+    calm = data.y.copy()  # east: no waves, a random walk (a spectrum falling through the band)
+    calm[:, 1] = lf_motion(data.t_meas)[:, 1] + np.cumsum(
+        np.random.default_rng(3).normal(0.0, 0.02, len(calm))
+    )
+    d = replace(data, y=calm)
+    an = analyse(d, None, None)
+    assert [an.metrics["measurement"][k]["peak_at_band_edge"] for k in DOFS] == [False, True, False]
+    draw_plots(d, an, tmp_path, Kept)
+    by_name = {f.get_suptitle().rsplit(": ", 1)[1]: f for f in made}
+    peak_lines = [
+        [ln for ln in ax.get_lines() if ln.get_label() == "PSD peak of y"] for ax in by_name["omega0"].axes
+    ]
+    assert [len(x) for x in peak_lines] == [1, 0, 1]
+    assert "PSD peak of y" in [t.get_text() for t in by_name["omega0"].legends[0].get_texts()]
+    notes = [" ".join(t.get_text() for t in ax.texts) for ax in by_name["psd"].axes]
+    assert "peak ω = 0.6" in notes[0] and "no clear wave peak" in notes[1] and "peak ω" not in notes[1]

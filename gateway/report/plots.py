@@ -107,7 +107,9 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
 
     t_end = span[1] or 0.0
     t_beg = span[0] or 0.0
-    window = zoom_window(t_beg, t_end, an.meas_peak)
+    measured = an.metrics["measurement"]
+    at_edge = [bool(measured[dof]["peak_at_band_edge"]) for dof in ("north", "east", "heading")]
+    window = zoom_window(t_beg, t_end, [w for w, edge in zip(an.meas_peak, at_edge, strict=True) if not edge])
     use_zoom = window is not None
     zoom = window or (t_beg, t_end)
 
@@ -152,7 +154,12 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
     def save(fig: Any, axes: Any, name: str) -> Path:
         for ax in axes[-1]:
             ax.set_xlabel(tlabel if name != "psd" else "frequency ω (rad/s)", fontsize=9)
-        handles, labels = axes[0][0].get_legend_handles_labels()
+        # every label of the first row once (a line drawn in one panel only still gets its entry)
+        found: dict[str, Any] = {}
+        for ax in axes[0]:
+            for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+                found.setdefault(label, handle)
+        handles, labels = list(found.values()), list(found)
         if handles:
             fig.legend(handles, labels, loc="outside lower center", ncols=min(len(handles), 6), fontsize=8)
         path = folder / f"{name}.png"
@@ -249,7 +256,7 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
         for i, tr_ in enumerate(traces):
             td, xd = decimate(tr_.t, tr_.omega0[:, k])
             ax.plot(td / scale, xd, color=colour(i), lw=1.2, zorder=z(i), label=f"ω₀ {tr_.label}")
-        if math.isfinite(an.meas_peak[k]):
+        if math.isfinite(an.meas_peak[k]) and not at_edge[k]:  # a maximum on the band edge is no wave
             ax.axhline(an.meas_peak[k], color="0.5", ls="--", lw=1.0, label="PSD peak of y")
         ax.set_ylabel("ω₀ (rad/s)", fontsize=9)
         ax.set_title(f"{DOF_SYMBOL[k]}: wave frequency in use", fontsize=9)
@@ -286,7 +293,9 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
             a = an.attenuation[i][k]
             notes.append(f"{tr_.label}: {a:+.1f} dB" if math.isfinite(a) else f"{tr_.label}: –")
         wp = an.meas_peak[k]
-        if math.isfinite(wp):
+        if math.isfinite(wp) and at_edge[k]:
+            notes.insert(0, f"no clear wave peak (largest at the band edge, {wp:.3g} rad/s)")
+        elif math.isfinite(wp):
             ax.axvline(wp, color="0.4", ls=":", lw=1.0)
             notes.insert(0, f"peak ω = {wp:.3g} rad/s (T = {2 * math.pi / wp:.3g} s)")
         if notes:
