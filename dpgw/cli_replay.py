@@ -35,9 +35,11 @@ DESCRIPTION = (
     "backwards or repeated time, duplicates) is counted, never fatal."
 )
 EPILOG = (
-    "observer specs: NAME[:key=value,...][@label], keys of the passive observer's tuning:\n"
+    "observer specs: NAME[:key=value,...][@label]; keys: the observer's own (a wrong key lists\n"
+    "them) and of the passive tuning, which passive, gain_scheduled and memory use all of:\n"
     "  wave_period_s, omega0, zeta, zeta_n, cutoff_ratio, omega_c, bias_time_constant_s,\n"
     "  velocity_injection, bias_corner_ratio, bias_corner\n"
+    "sdre and ekf only wave_period_s, omega0 and zeta; mmae none (its zeta is its own)\n"
     "examples:\n"
     "  dpgw replay trial.mcap --out again.mcap                      # a gateway log, its own config\n"
     "  dpgw replay usv.txt --vessel cybership2 --observer passive:wave_period_s=6 \\\n"

@@ -33,7 +33,7 @@ from mcap.reader import make_reader
 from gateway.config import GatewayConfig, default_config, parse_config
 from gateway.logreaders import LogCounts, nmea_text_events, nmea_text_events_reference, tlog_events
 from gateway.pipeline import USED_NMEA, ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
-from observers.factory import OBSERVER_PARAMS, OBSERVER_TYPES, Observer, make_observer
+from observers.factory import OBSERVER_PARAMS, OBSERVER_TUNING, OBSERVER_TYPES, Observer, make_observer
 from observers.passive_tuning import PassiveTuning
 from wire.mcap.reader import read_messages
 from wire.mcap.writer import McapLogWriter, raw_mavlink_record, raw_nmea_record
@@ -237,6 +237,14 @@ def merged_events(inputs: list[Input]) -> Iterator[Event]:
 TUNING_KEYS = set(PassiveTuning.__dataclass_fields__) | {"wave_period_s"}
 
 
+def tuning_keys(name: str) -> set[str]:
+    """The keys of the common tuning observer ``name`` uses (`observers.factory.OBSERVER_TUNING`);
+    ``wave_period_s`` sets ω0."""
+    used = OBSERVER_TUNING[name]
+    keys = TUNING_KEYS if used is None else set(used)
+    return keys | ({"wave_period_s"} if "omega0" in keys else set())
+
+
 @dataclass(frozen=True)
 class ObserverSpec:
     name: str
@@ -248,12 +256,16 @@ class ObserverSpec:
         for key, value in self.params.items():
             if key == "wave_period_s":
                 kw["omega0"] = 2 * math.pi / value
-            elif key in TUNING_KEYS:
+            elif key in tuning_keys(self.name):
                 kw[key] = value
         return PassiveTuning(**kw)
 
+    def tuning_params(self) -> dict[str, float]:
+        """The spec's keys of the common tuning (the rest are the observer's own)."""
+        return {k: v for k, v in self.params.items() if k in tuning_keys(self.name)}
+
     def observer_params(self) -> dict[str, Any]:
-        return {k: v for k, v in self.params.items() if k not in TUNING_KEYS}
+        return {k: v for k, v in self.params.items() if k not in tuning_keys(self.name)}
 
     def make(self, config: GatewayConfig) -> Observer:
         base = config.observer.params if self.name == config.observer.type else {}
@@ -274,10 +286,17 @@ def parse_observer_spec(text: str) -> ObserverSpec:
         raise ReplayError(
             f"observer spec '{text}': unknown observer '{name}' (known: {', '.join(OBSERVER_TYPES)})"
         )
-    keys = sorted(TUNING_KEYS | set(OBSERVER_PARAMS[name]))
+    keys = sorted(tuning_keys(name) | set(OBSERVER_PARAMS[name]))
     params: dict[str, float] = {}
     for item in filter(None, (s.strip() for s in rest.split(","))):
         key, eq, value = item.partition("=")
+        if eq and key in TUNING_KEYS and key not in keys:
+            used = sorted(tuning_keys(name))
+            raise ReplayError(
+                f"observer spec '{text}': {name} does not use {key} of the passive tuning "
+                f"({'it uses ' + ', '.join(used) if used else 'it uses none of it'}; its own keys: "
+                f"{', '.join(OBSERVER_PARAMS[name]) or 'none'})"
+            )
         if not eq or key not in keys:
             raise ReplayError(f"observer spec '{text}': '{item}' is not key=value with a key of {keys}")
         switch = {"true": 1.0, "false": 0.0}.get(value.strip().lower())  # adaptive=true, per_dof=false

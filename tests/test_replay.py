@@ -560,3 +560,25 @@ def test_observer_specs_keep_the_configs_integrity_and_command_sections() -> Non
     assert spec.commands == config.commands and spec.commands.max_setpoint_distance_m == 80.0
     assert spec.observer_name == "p" and [label for label, _ in spec.extra_observers] == ["sdre"]
     assert spec.control is None
+
+
+def test_an_observer_spec_sets_only_what_the_observer_uses() -> None:
+    """Before, every observer took every key of the passive tuning and ignored what it does not use:
+    `ekf:zeta_n=3` and `sdre:bias_time_constant_s=50` gave estimates bit for bit the defaults', every key
+    was lost on mmae, and `mmae:zeta=0.3` set the (unused) passive ζ instead of the MMAE bank's own ζ."""
+    for spec, key in (("ekf:zeta_n=3", "zeta_n"), ("sdre:bias_time_constant_s=50", "bias_time_constant_s")):
+        with pytest.raises(
+            ReplayError, match=f"does not use {key} of the passive tuning \\(it uses omega0, "
+        ):
+            parse_observer_spec(spec)
+    with pytest.raises(
+        ReplayError, match="mmae does not use wave_period_s of the passive tuning \\(it uses none"
+    ):
+        parse_observer_spec("mmae:wave_period_s=9")
+    mmae = parse_observer_spec("mmae:zeta=0.3")
+    assert mmae.observer_params() == {"zeta": 0.3} and mmae.tuning_params() == {}
+    ekf = parse_observer_spec("ekf:wave_period_s=9,zeta=0.2,position_sigma_m=0.5")
+    assert ekf.tuning_params() == {"wave_period_s": 9.0, "zeta": 0.2}
+    assert ekf.observer_params() == {"position_sigma_m": 0.5}
+    gs = parse_observer_spec("gain_scheduled:zeta_n=2,window_s=60")
+    assert gs.tuning_params() == {"zeta_n": 2.0} and gs.observer_params() == {"window_s": 60.0}
