@@ -205,7 +205,7 @@ def run(args: argparse.Namespace) -> int:
     elif not any(inp.kind == "mcap" for inp in inputs):
         topics = []  # a text log or tlog has no truth: nothing to score
     bar = _bar() if sys.stderr.isatty() and not args.json else None
-    evidence = _WaveEvidence()
+    evidence = _WaveEvidence(pipeline.fusion)
     on_outputs = evidence.on_outputs
     if publisher is not None:
         on_outputs = evidence.chain(publisher.on_outputs)
@@ -239,7 +239,7 @@ def run(args: argparse.Namespace) -> int:
     summary["wave_check"] = evidence.check(config.vessel.length_m, kinds).as_dict()
     summary["measurements"] = evidence.measured()
     if args.report:
-        written = _report(args, config.vessel.name, specs, result)
+        written = _report(args, config.vessel.name, specs, result, evidence.new)
         summary["report"] = [str(p) for p in written]
         if not any(p.suffix == ".png" for p in written):
             from gateway.report.plots import load_figure
@@ -354,10 +354,15 @@ class _WaveEvidence:
     """What the wave-tuning check needs, kept as the outputs go by: the measured η (stamp, N, E, ψ) and
     each observer's ω0. Plain tuples, no payload dicts: this runs on every replay."""
 
-    def __init__(self) -> None:
+    def __init__(self, fusion: Any = None) -> None:
         self.stamps: list[int] = []
         self.eta: list[list[float | None]] = []
         self.omega0: dict[str, list[list[float]]] = {}
+        # per /dp/measurement, which DOFs [N, E, ψ] the fusion received since the previous one (the others
+        # are held: the report's measurement counts only new samples)
+        self.fusion = fusion
+        self.new: list[tuple[bool, bool, bool]] = []
+        self._received: tuple[int, ...] = (-1, -1, -1)
 
     def on_outputs(self, ev: Event, outputs: list[Output]) -> None:
         for o in outputs:
@@ -365,6 +370,10 @@ class _WaveEvidence:
             if o.topic == "/dp/measurement":
                 self.stamps.append(msg.stamp_ns)  # type: ignore[attr-defined]
                 self.eta.append(msg.eta)  # type: ignore[attr-defined]
+                if self.fusion is not None:
+                    received = tuple(self.fusion.measurement_received_ns())
+                    self.new.append(tuple(r != p for r, p in zip(received, self._received, strict=True)))
+                    self._received = received
             elif o.topic == "/dp/estimate" or o.topic.startswith("/dp/estimates/"):
                 self.omega0.setdefault(msg.observer, []).append(msg.omega0)  # type: ignore[attr-defined]
 
@@ -518,7 +527,18 @@ def _print(s: dict[str, Any]) -> None:
         print(f"  report: {path}")
 
 
-def _report(args: argparse.Namespace, vessel: str, specs: list[ObserverSpec], r: ReplayResult) -> list[Path]:
+def _report(
+    args: argparse.Namespace,
+    vessel: str,
+    specs: list[ObserverSpec],
+    r: ReplayResult,
+    new: list[tuple[bool, bool, bool]],
+) -> list[Path]:
+    """The report of the replay. Its measurement is the fused stream with only the samples the fusion
+    received since the previous step (`new`): the pipeline steps on every input chunk with each DOF's
+    latest measurement held (docs/gateway.md), so a 2 Hz fix among 10 Hz headings appeared five times,
+    which made the sample interval the heading's, pulled the innovation's lag-1 autocorrelation towards 1
+    and its RMS down (the estimate catching up with a held fix)."""
     import numpy as np
 
     from gateway.report import ObserverTrace, ReplayData, write_report
@@ -529,6 +549,8 @@ def _report(args: argparse.Namespace, vessel: str, specs: list[ObserverSpec], r:
     t0 = meas[0]["stamp_ns"]
     t_meas = (np.array([m["stamp_ns"] for m in meas], dtype=np.int64) - t0) / 1e9
     y = np.array([[np.nan if v is None else v for v in m["eta"]] for m in meas], dtype=float)
+    if len(new) == len(y):
+        y[~np.array(new, dtype=bool)] = np.nan
     traces = []
     for spec, topic in zip(
         specs, ["/dp/estimate", *(f"/dp/estimates/{x.label}" for x in specs[1:])], strict=True

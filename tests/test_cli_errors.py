@@ -479,3 +479,34 @@ def test_replay_refuses_an_observer_label_given_twice(
         assert _one_line(capsys.readouterr().err) == (
             f"dpgw replay: --observer: label '{label}' given twice (name each: SPEC@label)"
         )
+
+
+def test_replay_report_counts_each_measurement_once(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The pipeline steps on every chunk with each DOF's latest measurement held, so a 1 Hz fix among
+    10 Hz headings was in the report ten times: sample interval 0.1 s for north, innovation statistics
+    over held copies. The report counts a DOF only when the fusion received it anew."""
+    log = tmp_path / "sim.mcap"
+    argv = [
+        "sim",
+        "--scenario",
+        "fossen_strand_1999",
+        "--duration",
+        "60",
+        "--gnss-rate",
+        "1",
+        "--gyro-rate",
+        "10",
+    ]
+    assert main([*argv, "--out", str(log)]) == 0
+    assert main(["replay", str(log), "--report", str(tmp_path / "rep"), "--json"]) == 0
+    capsys.readouterr()
+    m = json.loads((tmp_path / "rep" / "metrics.json").read_text())
+    meas = m["measurement"]
+    assert meas["north"]["sample_interval_s"] == pytest.approx(1.0, rel=0.02)
+    assert meas["heading"]["sample_interval_s"] == pytest.approx(0.1, rel=0.02)
+    assert (
+        40 <= meas["north"]["valid"] <= 61 and 500 <= meas["heading"]["valid"] <= 601
+    )  # (fixes its tests reject)
+    assert m["observers"]["passive"]["north"]["innovation"]["samples"] <= meas["north"]["valid"]
