@@ -411,3 +411,20 @@ def test_plots_mark_only_a_clear_wave_peak(data: ReplayData, tmp_path: Path) -> 
     assert "PSD peak of y" in [t.get_text() for t in by_name["omega0"].legends[0].get_texts()]
     notes = [" ".join(t.get_text() for t in ax.texts) for ax in by_name["psd"].axes]
     assert "peak ω = 0.6" in notes[0] and "no clear wave peak" in notes[1] and "peak ω" not in notes[1]
+
+
+def test_a_measurement_at_a_fraction_of_the_stream_rate_is_drawn_as_a_line() -> None:
+    """`dpgw replay --report` gives the report each measurement once (held copies NaN), so a 2 Hz fix in a
+    10 Hz stream is NaN at four samples of five: drawn as it was, the north and east measurement lines
+    vanished. Valid samples are joined; a real dropout (longer than the metrics bridge) still breaks."""
+    from gateway.report.plots import measured_line
+
+    t = np.arange(0.0, 100.0, 0.1)
+    x = np.sin(0.5 * t)
+    x[np.arange(len(t)) % 5 != 0] = np.nan  # 2 Hz in a 10 Hz stream
+    x[(t > 40.0) & (t < 50.0)] = np.nan  # a 10 s dropout
+    tl, xl = measured_line(t, x)
+    breaks = np.flatnonzero(np.isnan(xl))
+    assert len(breaks) == 1 and 40.0 < tl[breaks[0]] < 50.0  # one break, inside the dropout, at a time
+    assert np.count_nonzero(np.isfinite(xl)) == np.count_nonzero(np.isfinite(x))
+    assert np.all(np.diff(tl) > 0)

@@ -16,7 +16,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gateway.report.data import DOF_SYMBOL, Array, ReplayData
-from gateway.report.metrics import Analysis
+from gateway.report.metrics import MAX_GAP_SAMPLES, Analysis
+from gateway.report.spectra import nominal_dt
 from observers.kinematics import ssa
 
 # Each plotted line is decimated to at most this many points (its envelope kept).
@@ -36,6 +37,20 @@ def zoom_window(t_beg: float, t_end: float, peaks_rad_s: Any) -> tuple[float, fl
     if t_end - t_beg < 2.0 * length:
         return None
     return (t_end - length, t_end)
+
+
+def measured_line(t: Array, x: Array) -> tuple[Array, Array]:
+    """A measured DOF as a line: its valid samples joined, broken (a NaN) only where a gap is longer than
+    the metrics bridge (`MAX_GAP_SAMPLES` nominal intervals). A DOF measured at a fifth of the stream's
+    rate (a fix among headings; the other samples NaN) would otherwise be isolated points, drawn as
+    nothing."""
+    ok = np.isfinite(x)
+    t, x = np.asarray(t, dtype=float)[ok], np.asarray(x, dtype=float)[ok]
+    if len(t) < 2:
+        return t, x
+    gaps = np.flatnonzero(np.diff(t) > MAX_GAP_SAMPLES * nominal_dt(t)) + 1
+    # the break at the gap's middle (a time, so that a zoom window keeps it)
+    return np.insert(t, gaps, 0.5 * (t[gaps - 1] + t[gaps])), np.insert(x, gaps, np.nan)
 
 
 def decimate(t: NDArray[Any], x: NDArray[Any], max_points: int = MAX_PLOT_POINTS) -> tuple[Array, Array]:
@@ -181,7 +196,7 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
     fig, axes = figure("position", rows)
     for r, win in enumerate(windows):
         for k, ax in enumerate(axes[r]):
-            line(ax, t_meas, y[:, k], wrap=k == 2, window=win, label="measurement y", **_MEAS)
+            line(ax, *measured_line(t_meas, y[:, k]), wrap=k == 2, window=win, label="measurement y", **_MEAS)
             if truth is not None:
                 line(ax, truth[0], truth[1][:, k], wrap=k == 2, window=win, label="true LF η", **_TRUTH)
             for i, tr_ in enumerate(traces):
