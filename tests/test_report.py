@@ -428,3 +428,22 @@ def test_a_measurement_at_a_fraction_of_the_stream_rate_is_drawn_as_a_line() -> 
     assert len(breaks) == 1 and 40.0 < tl[breaks[0]] < 50.0  # one break, inside the dropout, at a time
     assert np.count_nonzero(np.isfinite(xl)) == np.count_nonzero(np.isfinite(x))
     assert np.all(np.diff(tl) > 0)
+
+
+@pytest.mark.parametrize(
+    ("t1", "text"),
+    [
+        (89.9043, "0.0 s to 89.9 s (89.9 s)"),
+        (1800.0, "0.0 s to 1800.0 s (30.0 min)"),
+        (176397.0, "0.0 s to 176397.0 s (49.0 h)"),
+    ],
+)
+def test_report_span_reads_in_the_plots_units(t1: float, text: str) -> None:
+    """Before: '0 s to 89.9043 s (89.9 s)', and a two-day merge of logs '(1.764e+05 s)'. The last record is
+    sampled once an hour, more slowly than a Welch segment is long: compute_metrics raised (nperseg=0)
+    where a metric it cannot compute is null."""
+    from gateway.report.markdown import report_markdown
+
+    t = np.linspace(0.0, t1, 50)
+    d = ReplayData(title="x", vessel="mss_supply", t_meas=t, y=np.zeros((50, 3)), traces=())
+    assert f"- span: {text}\n" in report_markdown(d, compute_metrics(d), "", [])
