@@ -85,6 +85,14 @@ def run(args: argparse.Namespace) -> int:
     if args.vessel and args.out:
         print("dpgw radiation: give --out or --vessel, not both", file=sys.stderr)
         return 2
+    if args.vessel:
+        from observers.vessel import VesselError, load_vessel
+
+        try:  # a misspelt name was taken for a file stem: NAME_radiation.npz in the current folder
+            load_vessel(args.vessel)
+        except VesselError as exc:
+            print(f"dpgw radiation: --vessel: {exc}", file=sys.stderr)
+            return 2
     if args.out and not args.out.resolve().parent.is_dir():
         print(
             f"dpgw radiation: --out {args.out}: no folder {args.out.parent}: create it or give another stem",

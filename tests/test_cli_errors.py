@@ -393,6 +393,12 @@ def test_radiation_and_replay_check_where_they_write_before_working(
         f"dpgw radiation: --out {tmp_path}/nope/fit: no folder {tmp_path}/nope: "
         "create it or give another stem"
     )
+    # a misspelt vessel name was taken for a file stem: nope_radiation.npz written in the current folder
+    assert main(["radiation", str(hydro), "--vessel", "nope"]) == 2
+    assert _one_line(capsys.readouterr().err).startswith(
+        "dpgw radiation: --vessel: vessel 'nope': not a built-in vessel (cybership2,"
+    )
+    assert not list(Path.cwd().glob("nope_radiation.*"))
     log = tmp_path / "gps.txt"
     log.write_text("$GPGGA,100000.00,5924.000000,N,01029.999988,E,4,12,0.80,20.259,M,,,2.0,0001*11\r\n")
     (tmp_path / "afile").write_text("")
