@@ -6,6 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from dpgw.cli_paths import missing_folder
+
 # observers.radiation's MIN_ORDER, MAX_ORDER and R2_TARGET, written here so that `dpgw radiation --help`
 # needs no numpy or scipy (the fit is imported by `run`); a test holds them equal.
 MIN_ORDER = 2
@@ -93,11 +95,8 @@ def run(args: argparse.Namespace) -> int:
         except VesselError as exc:
             print(f"dpgw radiation: --vessel: {exc}", file=sys.stderr)
             return 2
-    if args.out and not args.out.resolve().parent.is_dir():
-        print(
-            f"dpgw radiation: --out {args.out}: no folder {args.out.parent}: create it or give another stem",
-            file=sys.stderr,
-        )
+    if problem := missing_folder("--out", args.out):
+        print(f"dpgw radiation: {problem}", file=sys.stderr)
         return 2
     try:
         hydro = load_hydro(args.hydro)

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 from dpgw import cli_json
 from dpgw.cli_foxglove import add_foxglove_arg, connect_lines
+from dpgw.cli_paths import missing_folder
 from dpgw.cli_types import non_negative_float, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from observers.observer_names import OBSERVER_NAMES
@@ -166,12 +167,8 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
-    if args.out is not None and not Path(args.out).resolve().parent.is_dir():
-        print(
-            f"dpgw replay: --out {args.out}: no folder {Path(args.out).parent}: "
-            "create it or give another path",
-            file=sys.stderr,
-        )
+    if problem := missing_folder("--out", args.out):
+        print(f"dpgw replay: {problem}", file=sys.stderr)
         return 2
     try:
         inputs = open_inputs(args.logs)

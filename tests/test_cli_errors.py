@@ -354,6 +354,12 @@ def test_sim_open_loop_refuses_scenario_options_and_prints_json(
     assert main([*argv, "--duration", "100", "--realtime"]) == 2
     line = _one_line(capsys.readouterr().err)
     assert line.startswith("dpgw sim: --duration, --realtime: only with --scenario;"), line
+    # before, a traceback (FileNotFoundError) after the whole run
+    nowhere = tmp_path / "nope" / "s.csv"
+    assert main([*argv[:-1], str(nowhere)]) == 2
+    assert _one_line(capsys.readouterr().err) == (
+        f"dpgw sim: --csv {nowhere}: no folder {nowhere.parent}: create it or give another path"
+    )
     assert not (tmp_path / "s.csv").exists()
     assert main([*argv, "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
@@ -391,7 +397,7 @@ def test_radiation_and_replay_check_where_they_write_before_working(
     assert main(["radiation", str(hydro), "--out", str(tmp_path / "nope" / "fit")]) == 2
     assert _one_line(capsys.readouterr().err) == (
         f"dpgw radiation: --out {tmp_path}/nope/fit: no folder {tmp_path}/nope: "
-        "create it or give another stem"
+        "create it or give another path"
     )
     # a misspelt vessel name was taken for a file stem: nope_radiation.npz written in the current folder
     assert main(["radiation", str(hydro), "--vessel", "nope"]) == 2
