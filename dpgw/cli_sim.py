@@ -7,6 +7,7 @@ import sys
 from typing import TYPE_CHECKING, Any
 
 from dpgw import cli_json, cli_sim_inputs
+from dpgw.cli_paths import missing_folder
 from dpgw.cli_types import positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from simulator.scenario_names import SCENARIO_NAMES
@@ -171,6 +172,9 @@ def run(args: argparse.Namespace) -> int:
         return cli_sim_inputs.run(args)
     if args.vessel or args.csv or args.plant_option or args.wind or args.sea:
         print("dpgw sim: --vessel, --csv, --plant-option, --wind and --sea go with --inputs", file=sys.stderr)
+        return 2
+    if problem := missing_folder("--out", args.out):
+        print(f"dpgw sim: {problem}", file=sys.stderr)
         return 2
     return _run_scenario(args)
 

@@ -360,6 +360,13 @@ def test_sim_open_loop_refuses_scenario_options_and_prints_json(
     assert _one_line(capsys.readouterr().err) == (
         f"dpgw sim: --csv {nowhere}: no folder {nowhere.parent}: create it or give another path"
     )
+    assert (
+        main(["sim", "--scenario", "hassani", "--duration", "1", "--out", str(tmp_path / "nope" / "s.mcap")])
+        == 2
+    )
+    assert _one_line(capsys.readouterr().err).endswith(
+        "s.mcap: no folder " + str(nowhere.parent) + ": create it or give another path"
+    )
     assert not (tmp_path / "s.csv").exists()
     assert main([*argv, "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
