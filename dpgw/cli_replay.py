@@ -260,10 +260,15 @@ def _no_estimates(s: dict[str, Any]) -> list[str]:
     if not silent:
         return []
     m = s["measurements"]
+    who = f"observer{'s' if len(silent) > 1 else ''} {', '.join(repr(x) for x in silent)} made no estimate"
+    had = (
+        f"of the {m['samples']} fused measurements {m['position']} had a position and {m['heading']} "
+        "a heading"
+    )
+    if m["position"] and m["heading"]:  # not a missing sensor: the observer itself did not start
+        return [f"{who}, although {had}: the events in /dp/status of the output say why"]
     return [
-        f"observer{'s' if len(silent) > 1 else ''} {', '.join(repr(x) for x in silent)} made no estimate: "
-        f"an observer needs position and heading, and of the {m['samples']} fused measurements "
-        f"{m['position']} had a position and {m['heading']} a heading. Replay it together with a log of the "
+        f"{who}: an observer needs position and heading, and {had}. Replay it together with a log of the "
         "missing sensor (several LOGs are merged by time)"
     ]
 

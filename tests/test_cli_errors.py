@@ -529,3 +529,14 @@ def test_replay_report_counts_each_measurement_once(
         40 <= meas["north"]["valid"] <= 61 and 500 <= meas["heading"]["valid"] <= 601
     )  # (fixes its tests reject)
     assert m["observers"]["passive"]["north"]["innovation"]["samples"] <= meas["north"]["valid"]
+
+
+def test_no_estimate_with_both_sensors_is_not_blamed_on_a_missing_sensor() -> None:
+    from dpgw.cli_replay import _no_estimates
+
+    s = {"estimates": {"a": 0, "b": 3}, "measurements": {"samples": 10, "position": 9, "heading": 8}}
+    assert _no_estimates(s) == [
+        "observer 'a' made no estimate, although of the 10 fused measurements 9 had a position and 8 a "
+        "heading: the events in /dp/status of the output say why"
+    ]
+    assert _no_estimates({**s, "estimates": {"a": 1}}) == []
