@@ -137,6 +137,7 @@ def run(args: argparse.Namespace) -> int:
         ReplayError,
         build_config,
         build_pipeline,
+        carried_metadata,
         open_inputs,
         parse_observer_spec,
         run_replay,
@@ -210,6 +211,10 @@ def run(args: argparse.Namespace) -> int:
     try:
         with McapLogWriter(args.out, profile="dpgw-replay", flush_on_log_time=False) as out:
             out.add_metadata("dpgw.replay", {"logs": json.dumps([str(i.path) for i in inputs])})
+            for name, meta in carried_metadata(
+                inputs, own_config=args.config is None and args.vessel is None
+            ):
+                out.add_metadata(name, meta)
             result = run_replay(
                 inputs,
                 pipeline,

@@ -85,17 +85,35 @@ def logged_config(path: str | Path) -> dict[str, Any] | None:
     return None
 
 
-def logged_sim(path: str | Path) -> dict[str, str] | None:
-    """A simulator log's own description (metadata `SIM_METADATA`: scenario, seed, vessel, datum), if any."""
+def _logged(path: str | Path, name: str) -> dict[str, str] | None:
+    """The MCAP metadata record ``name`` of a log, if it has one."""
     with open(path, "rb") as f:
         reader = make_reader(f)
         try:
             for record in reader.iter_metadata():
-                if record.name == SIM_METADATA:
+                if record.name == name:
                     return dict(record.metadata)
         except Exception:  # a truncated file has no metadata index
             return None
     return None
+
+
+def logged_sim(path: str | Path) -> dict[str, str] | None:
+    """A simulator log's own description (metadata `SIM_METADATA`: scenario, seed, vessel, datum), if any."""
+    return _logged(path, SIM_METADATA)
+
+
+def carried_metadata(inputs: list[Input], *, own_config: bool) -> list[tuple[str, dict[str, str]]]:
+    """What a replay's output keeps of its first MCAP input's metadata, so that the output replays as
+    the input did: the simulator's description (vessel, datum of the truth it carries) and, when the
+    replay ran on the log's own configuration (``own_config``: no --config, no --vessel), that
+    configuration."""
+    for inp in inputs:
+        if inp.kind != "mcap":
+            continue
+        names = [SIM_METADATA, CONFIG_METADATA] if own_config else [SIM_METADATA]
+        return [(name, meta) for name in names if (meta := _logged(inp.path, name)) is not None]
+    return []
 
 
 def logged_datum(path: str | Path) -> dict[str, float] | None:

@@ -582,3 +582,22 @@ def test_an_observer_spec_sets_only_what_the_observer_uses() -> None:
     assert ekf.observer_params() == {"position_sigma_m": 0.5}
     gs = parse_observer_spec("gain_scheduled:zeta_n=2,window_s=60")
     assert gs.tuning_params() == {"zeta_n": 2.0} and gs.observer_params() == {"window_s": 60.0}
+
+
+def test_a_replays_output_replays_as_its_input_did(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The output keeps the simulator's description (vessel, datum) and, on the log's own configuration,
+    that configuration. Before, `dpgw replay OUT.mcap` of a replay's own output stopped with 'no
+    configuration in the log', though the output holds the raw input and the truth."""
+    from dpgw.cli import main
+
+    log, first, again = tmp_path / "sim.mcap", tmp_path / "a.mcap", tmp_path / "b.mcap"
+    with McapLogWriter(log) as w:
+        Simulation(get_scenario("fossen_strand_1999"), seed=2, log=w).run(40.0)
+    assert main(["replay", str(log), "--out", str(first), "--json"]) == 0
+    one = json.loads(capsys.readouterr().out)
+    assert main(["replay", str(first), "--out", str(again), "--json"]) == 0
+    two = json.loads(capsys.readouterr().out)
+    assert one["error_vs_truth"] == two["error_vs_truth"] and one["estimates"] == two["estimates"]
+    assert two["error_vs_truth"]["passive"]["samples"] > 50
