@@ -161,6 +161,23 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
+    zenoh = [
+        flag
+        for flag, value in (
+            ("--prefix", args.prefix),
+            ("--zenoh-listen", args.zenoh_listen),
+            ("--zenoh-connect", args.zenoh_connect),
+            ("--no-scouting", args.no_scouting),
+        )
+        if value
+    ]
+    if zenoh and not (args.speed or args.realtime):  # accepted and ignored before
+        print(
+            f"dpgw replay: {', '.join(zenoh)}: a replay publishes on Zenoh only when paced: add --speed X "
+            "or --realtime (as fast as the CPU allows, it writes --out and publishes nothing)",
+            file=sys.stderr,
+        )
+        return 2
     # Where the results go is checked before the replay, not found out after it.
     if args.report is not None and Path(args.report).exists() and not Path(args.report).is_dir():
         print(

@@ -540,3 +540,26 @@ def test_no_estimate_with_both_sensors_is_not_blamed_on_a_missing_sensor() -> No
         "heading: the events in /dp/status of the output say why"
     ]
     assert _no_estimates({**s, "estimates": {"a": 1}}) == []
+
+
+def test_replay_zenoh_options_without_pacing_are_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, --zenoh-connect, --prefix ... were accepted and ignored: an unpaced replay opens no session."""
+    log = tmp_path / "gps.txt"
+    log.write_text("$GPGGA,100000.00,5924.000000,N,01029.999988,E,4,12,0.80,20.259,M,,,2.0,0001*11\r\n")
+    argv = [
+        "replay",
+        str(log),
+        "--vessel",
+        "mss_supply",
+        "--zenoh-connect",
+        "tcp/127.0.0.1:7447",
+        "--prefix",
+        "x",
+    ]
+    assert main(argv) == 2
+    assert _one_line(capsys.readouterr().err).startswith(
+        "dpgw replay: --prefix, --zenoh-connect: a replay publishes on Zenoh only when paced: add --speed X"
+    )
+    assert not (tmp_path / "gps-replay.mcap").exists()
