@@ -176,6 +176,22 @@ def run(args: argparse.Namespace) -> int:
     if problem := missing_folder("--out", args.out):
         print(f"dpgw sim: {problem}", file=sys.stderr)
         return 2
+    if args.speed != 1.0 and not args.realtime:  # accepted and ignored before: the run went flat out
+        print("dpgw sim: --speed X paces a --realtime run: add --realtime", file=sys.stderr)
+        return 2
+    zenoh_only = [
+        flag
+        for flag, value in (
+            ("--prefix", args.prefix),
+            ("--zenoh-listen", args.zenoh_listen),
+            ("--zenoh-connect", args.zenoh_connect),
+            ("--zenoh-config", args.zenoh_config),
+        )
+        if value
+    ]
+    if zenoh_only and not args.zenoh:  # accepted and ignored before: no session was opened
+        print(f"dpgw sim: {', '.join(zenoh_only)}: only with --zenoh", file=sys.stderr)
+        return 2
     return _run_scenario(args)
 
 

@@ -563,3 +563,25 @@ def test_replay_zenoh_options_without_pacing_are_refused(
         "dpgw replay: --prefix, --zenoh-connect: a replay publishes on Zenoh only when paced: add --speed X"
     )
     assert not (tmp_path / "gps-replay.mcap").exists()
+
+
+@pytest.mark.parametrize(
+    ("extra", "words"),
+    [
+        (["--speed", "5"], "dpgw sim: --speed X paces a --realtime run: add --realtime"),
+        (
+            ["--prefix", "x", "--zenoh-listen", "tcp/127.0.0.1:0"],
+            "dpgw sim: --prefix, --zenoh-listen: only with --zenoh",
+        ),
+    ],
+)
+def test_sim_options_that_need_another_are_refused(
+    extra: list[str], words: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, each was accepted and ignored: the run went as fast as possible, no Zenoh session opened."""
+    assert (
+        main(["sim", "--scenario", "hassani", "--duration", "1", "--out", str(tmp_path / "s.mcap"), *extra])
+        == 2
+    )
+    assert _one_line(capsys.readouterr().err) == words
+    assert not (tmp_path / "s.mcap").exists()
