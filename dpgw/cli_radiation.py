@@ -6,8 +6,11 @@ import argparse
 import sys
 from pathlib import Path
 
-# observers.radiation's MAX_ORDER and R2_TARGET, written here so that `dpgw radiation --help` needs no
-# numpy or scipy (the fit is imported by `run`); a test holds them equal.
+from dpgw.cli_paths import missing_folder
+
+# observers.radiation's MIN_ORDER, MAX_ORDER and R2_TARGET, written here so that `dpgw radiation --help`
+# needs no numpy or scipy (the fit is imported by `run`); a test holds them equal.
+MIN_ORDER = 2
 MAX_ORDER = 10
 R2_TARGET = 0.99
 
@@ -38,18 +41,63 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "beside it), recording the data's SHA-256 and the settings",
     )
     p.add_argument(
-        "--max-order", type=int, default=MAX_ORDER, help=f"order cap per element (default {MAX_ORDER})"
+        "--max-order",
+        type=_order,
+        default=MAX_ORDER,
+        help=f"order cap per element, {MIN_ORDER} or more (default {MAX_ORDER})",
     )
     p.add_argument(
-        "--r2", type=float, default=R2_TARGET, help=f"R² an order must reach on A and B (default {R2_TARGET})"
+        "--r2",
+        type=_r2,
+        default=R2_TARGET,
+        help=f"R² an order must reach on A and B, between 0 and 1 (default {R2_TARGET})",
     )
     p.set_defaults(func=run)
+
+
+def _order(text: str) -> int:
+    """An order cap the fit can use: K(s) = s·G(s) needs a pole pair, so at least MIN_ORDER."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number (got {text})") from None
+    if value < MIN_ORDER:
+        raise argparse.ArgumentTypeError(
+            f"must be {MIN_ORDER} or more: K(s) needs a zero at s = 0 and a pole pair (got {text})"
+        )
+    return value
+
+
+def _r2(text: str) -> float:
+    """An R² target an order can reach: above 0, at most 1 (above 1 every order fails and the cap is used)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number (got {text})") from None
+    if not 0.0 < value <= 1.0:
+        raise argparse.ArgumentTypeError(f"must be above 0 and at most 1 (got {text})")
+    return value
 
 
 def run(args: argparse.Namespace) -> int:
     from observers import radiation
     from wire.hydro import HydroError, load_hydro, save_radiation_model
 
+    # What cannot be written is said before the fit, not after it.
+    if args.vessel and args.out:
+        print("dpgw radiation: give --out or --vessel, not both", file=sys.stderr)
+        return 2
+    if args.vessel:
+        from observers.vessel import VesselError, load_vessel
+
+        try:  # a misspelt name was taken for a file stem: NAME_radiation.npz in the current folder
+            load_vessel(args.vessel)
+        except VesselError as exc:
+            print(f"dpgw radiation: --vessel: {exc}", file=sys.stderr)
+            return 2
+    if problem := missing_folder("--out", args.out):
+        print(f"dpgw radiation: {problem}", file=sys.stderr)
+        return 2
     try:
         hydro = load_hydro(args.hydro)
     except HydroError as exc:
@@ -72,9 +120,6 @@ def run(args: argparse.Namespace) -> int:
     if args.vessel:
         from simulator.fluid_memory_cache import beside_vessel, file_sha256, meta_for
 
-        if args.out:
-            print("dpgw radiation: give --out or --vessel, not both", file=sys.stderr)
-            return 2
         used = {"max_order": args.max_order, "r2_target": args.r2, "significance": radiation.SIGNIFICANCE}
         meta = meta_for(file_sha256(args.hydro), str(args.vessel), args.hydro.name, used, hydro.MRB)
         stem = beside_vessel(args.vessel).with_suffix("")

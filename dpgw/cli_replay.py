@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 from dpgw import cli_json
 from dpgw.cli_foxglove import add_foxglove_arg, connect_lines
+from dpgw.cli_paths import missing_folder
 from dpgw.cli_types import non_negative_float, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from observers.observer_names import OBSERVER_NAMES
@@ -35,14 +36,16 @@ DESCRIPTION = (
     "backwards or repeated time, duplicates) is counted, never fatal."
 )
 EPILOG = (
-    "observer specs: NAME[:key=value,...][@label], keys of the passive observer's tuning:\n"
+    "observer specs: NAME[:key=value,...][@label]; keys: the observer's own (a wrong key lists\n"
+    "them) and of the passive tuning, which passive, gain_scheduled and memory use all of:\n"
     "  wave_period_s, omega0, zeta, zeta_n, cutoff_ratio, omega_c, bias_time_constant_s,\n"
     "  velocity_injection, bias_corner_ratio, bias_corner\n"
+    "sdre and ekf only wave_period_s, omega0 and zeta; mmae none (its zeta is its own)\n"
     "examples:\n"
     "  dpgw replay trial.mcap --out again.mcap                      # a gateway log, its own config\n"
     "  dpgw replay usv.txt --vessel cybership2 --observer passive:wave_period_s=6 \\\n"
     "       --observer passive:wave_period_s=10@long --out usv.mcap --report usv_report\n"
-    "  dpgw replay sim.mcap --vessel mss_supply --out est.mcap --json  # RMS errors vs the truth\n"
+    "  dpgw replay sim.mcap --out est.mcap --json   # RMS errors vs the truth (the log names its vessel)\n"
     "  dpgw replay trial.mcap --out again.mcap --speed 5              # publish on Zenoh, 5x\n"
     "  dpgw replay trial.mcap --foxglove          # watch it in Foxglove: play, pause, seek, speed"
 )
@@ -50,7 +53,11 @@ EPILOG = (
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("logs", nargs="+", metavar="LOG", help="MCAP, NMEA text or tlog files (merged by time)")
-    p.add_argument("--vessel", metavar="NAME|FILE", help="vessel (needed unless the log or --config has one)")
+    p.add_argument(
+        "--vessel",
+        metavar="NAME|FILE",
+        help="vessel (needed unless the log or --config has one; a simulator log names its own)",
+    )
     p.add_argument("--config", metavar="FILE", help="a gateway config (sources, lever arms, tuning)")
     p.add_argument(
         "--observer",
@@ -130,6 +137,7 @@ def run(args: argparse.Namespace) -> int:
         ReplayError,
         build_config,
         build_pipeline,
+        carried_metadata,
         open_inputs,
         parse_observer_spec,
         run_replay,
@@ -153,12 +161,43 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
+    zenoh = [
+        flag
+        for flag, value in (
+            ("--prefix", args.prefix),
+            ("--zenoh-listen", args.zenoh_listen),
+            ("--zenoh-connect", args.zenoh_connect),
+            ("--no-scouting", args.no_scouting),
+        )
+        if value
+    ]
+    if zenoh and not (args.speed or args.realtime):  # accepted and ignored before
+        print(
+            f"dpgw replay: {', '.join(zenoh)}: a replay publishes on Zenoh only when paced: add --speed X "
+            "or --realtime (as fast as the CPU allows, it writes --out and publishes nothing)",
+            file=sys.stderr,
+        )
+        return 2
+    # Where the results go is checked before the replay, not found out after it.
+    if args.report is not None and Path(args.report).exists() and not Path(args.report).is_dir():
+        print(
+            f"dpgw replay: --report {args.report}: a file, not a folder: give a folder (it is created)",
+            file=sys.stderr,
+        )
+        return 2
+    if problem := missing_folder("--out", args.out):
+        print(f"dpgw replay: {problem}", file=sys.stderr)
+        return 2
     try:
         inputs = open_inputs(args.logs)
         config = build_config(inputs, config_path=args.config, vessel=args.vessel)
         # Without --observer, the observer the config names (the log's own for a gateway log: what ran live).
         own = config.observer.type
         specs = [parse_observer_spec(s) for s in args.observer] or [ObserverSpec(own, own, {})]
+        labels = [s.label for s in specs]
+        if twice := next((x for i, x in enumerate(labels) if x in labels[:i]), None):
+            # each observer's estimates are counted, published and reported under its label
+            raise ReplayError(f"--observer: label '{twice}' given twice (name each: SPEC@label)")
         pipeline = build_pipeline(config, specs, foxglove_channels=args.foxglove_channels)
     except ConfigError as exc:
         print(format_problems(exc), file=sys.stderr)
@@ -181,7 +220,7 @@ def run(args: argparse.Namespace) -> int:
     elif not any(inp.kind == "mcap" for inp in inputs):
         topics = []  # a text log or tlog has no truth: nothing to score
     bar = _bar() if sys.stderr.isatty() and not args.json else None
-    evidence = _WaveEvidence()
+    evidence = _WaveEvidence(pipeline.fusion)
     on_outputs = evidence.on_outputs
     if publisher is not None:
         on_outputs = evidence.chain(publisher.on_outputs)
@@ -189,6 +228,10 @@ def run(args: argparse.Namespace) -> int:
     try:
         with McapLogWriter(args.out, profile="dpgw-replay", flush_on_log_time=False) as out:
             out.add_metadata("dpgw.replay", {"logs": json.dumps([str(i.path) for i in inputs])})
+            for name, meta in carried_metadata(
+                inputs, own_config=args.config is None and args.vessel is None
+            ):
+                out.add_metadata(name, meta)
             result = run_replay(
                 inputs,
                 pipeline,
@@ -213,8 +256,9 @@ def run(args: argparse.Namespace) -> int:
     summary = _summary(args, specs, result, wall)
     kinds = {s.label: (s.name, s.name in SCHEDULES_OMEGA0 or bool(s.params.get("adaptive"))) for s in specs}
     summary["wave_check"] = evidence.check(config.vessel.length_m, kinds).as_dict()
+    summary["measurements"] = evidence.measured()
     if args.report:
-        written = _report(args, config.vessel.name, specs, result)
+        written = _report(args, config.vessel.name, specs, result, evidence.new)
         summary["report"] = [str(p) for p in written]
         if not any(p.suffix == ".png" for p in written):
             from gateway.report.plots import load_figure
@@ -227,9 +271,28 @@ def run(args: argparse.Namespace) -> int:
         print(cli_json.dumps(summary, indent=2))
     else:
         _print(summary)
-    for warning in summary["wave_check"]["warnings"]:
+    for warning in [*_no_estimates(summary), *summary["wave_check"]["warnings"]]:
         print(f"dpgw replay: warning: {warning}", file=sys.stderr)
     return 0
+
+
+def _no_estimates(s: dict[str, Any]) -> list[str]:
+    """Why an observer made no estimate, from what the fused measurements held."""
+    silent = [label for label, n in s["estimates"].items() if n == 0]
+    if not silent:
+        return []
+    m = s["measurements"]
+    who = f"observer{'s' if len(silent) > 1 else ''} {', '.join(repr(x) for x in silent)} made no estimate"
+    had = (
+        f"of the {m['samples']} fused measurements {m['position']} had a position and {m['heading']} "
+        "a heading"
+    )
+    if m["position"] and m["heading"]:  # not a missing sensor: the observer itself did not start
+        return [f"{who}, although {had}: the events in /dp/status of the output say why"]
+    return [
+        f"{who}: an observer needs position and heading, and {had}. Replay it together with a log of the "
+        "missing sensor (several LOGs are merged by time)"
+    ]
 
 
 def serve(
@@ -315,10 +378,15 @@ class _WaveEvidence:
     """What the wave-tuning check needs, kept as the outputs go by: the measured η (stamp, N, E, ψ) and
     each observer's ω0. Plain tuples, no payload dicts: this runs on every replay."""
 
-    def __init__(self) -> None:
+    def __init__(self, fusion: Any = None) -> None:
         self.stamps: list[int] = []
         self.eta: list[list[float | None]] = []
         self.omega0: dict[str, list[list[float]]] = {}
+        # per /dp/measurement, which DOFs [N, E, ψ] the fusion received since the previous one (the others
+        # are held: the report's measurement counts only new samples)
+        self.fusion = fusion
+        self.new: list[tuple[bool, bool, bool]] = []
+        self._received: tuple[int, ...] = (-1, -1, -1)
 
     def on_outputs(self, ev: Event, outputs: list[Output]) -> None:
         for o in outputs:
@@ -326,8 +394,20 @@ class _WaveEvidence:
             if o.topic == "/dp/measurement":
                 self.stamps.append(msg.stamp_ns)  # type: ignore[attr-defined]
                 self.eta.append(msg.eta)  # type: ignore[attr-defined]
+                if self.fusion is not None:
+                    received = tuple(self.fusion.measurement_received_ns())
+                    self.new.append(tuple(r != p for r, p in zip(received, self._received, strict=True)))
+                    self._received = received
             elif o.topic == "/dp/estimate" or o.topic.startswith("/dp/estimates/"):
                 self.omega0.setdefault(msg.observer, []).append(msg.omega0)  # type: ignore[attr-defined]
+
+    def measured(self) -> dict[str, int]:
+        """How many fused measurements there were, and how many had a position and a heading."""
+        return {
+            "samples": len(self.eta),
+            "position": sum(1 for e in self.eta if e[0] is not None and e[1] is not None),
+            "heading": sum(1 for e in self.eta if e[2] is not None),
+        }
 
     def chain(self, then: Any) -> Any:
         def both(ev: Event, outputs: list[Output]) -> None:
@@ -410,7 +490,8 @@ def _summary(
         "sentences": r.sentences,
         "wall_seconds": wall,
         "sentences_per_second": r.sentences / wall if wall > 0 else None,
-        "estimates": dict(r.estimates),
+        # every observer asked for, also one that made no estimate (a log without heading)
+        "estimates": {spec.label: r.estimates.get(spec.label, 0) for spec in specs},
         "observer_restarts": r.restarts,
         "counts": r.counts,
     }
@@ -456,6 +537,12 @@ def _print(s: dict[str, Any]) -> None:
     for where, c in s["counts"].items():
         print(f"  {where}: " + ", ".join(f"{k} {v}" for k, v in c.items()))
     for label, e in s.get("error_vs_truth", {}).items():
+        if not e["samples"]:
+            print(
+                f"  {label} vs truth: no estimate after the settle time {s['settle_s']:g} s to score "
+                "(give a shorter --settle)"
+            )
+            continue
         print(
             f"  {label} vs truth (after {s['settle_s']:.0f} s): RMS N {e['rms_north_m']:.3f} m, "
             f"E {e['rms_east_m']:.3f} m, heading {e['rms_heading_deg']:.3f} deg"
@@ -464,7 +551,18 @@ def _print(s: dict[str, Any]) -> None:
         print(f"  report: {path}")
 
 
-def _report(args: argparse.Namespace, vessel: str, specs: list[ObserverSpec], r: ReplayResult) -> list[Path]:
+def _report(
+    args: argparse.Namespace,
+    vessel: str,
+    specs: list[ObserverSpec],
+    r: ReplayResult,
+    new: list[tuple[bool, bool, bool]],
+) -> list[Path]:
+    """The report of the replay. Its measurement is the fused stream with only the samples the fusion
+    received since the previous step (`new`): the pipeline steps on every input chunk with each DOF's
+    latest measurement held (docs/gateway.md), so a 2 Hz fix among 10 Hz headings appeared five times,
+    which made the sample interval the heading's, pulled the innovation's lag-1 autocorrelation towards 1
+    and its RMS down (the estimate catching up with a held fix)."""
     import numpy as np
 
     from gateway.report import ObserverTrace, ReplayData, write_report
@@ -475,6 +573,8 @@ def _report(args: argparse.Namespace, vessel: str, specs: list[ObserverSpec], r:
     t0 = meas[0]["stamp_ns"]
     t_meas = (np.array([m["stamp_ns"] for m in meas], dtype=np.int64) - t0) / 1e9
     y = np.array([[np.nan if v is None else v for v in m["eta"]] for m in meas], dtype=float)
+    if len(new) == len(y):
+        y[~np.array(new, dtype=bool)] = np.nan
     traces = []
     for spec, topic in zip(
         specs, ["/dp/estimate", *(f"/dp/estimates/{x.label}" for x in specs[1:])], strict=True

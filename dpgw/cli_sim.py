@@ -7,6 +7,7 @@ import sys
 from typing import TYPE_CHECKING, Any
 
 from dpgw import cli_json, cli_sim_inputs
+from dpgw.cli_paths import missing_folder
 from dpgw.cli_types import positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from simulator.scenario_names import SCENARIO_NAMES
@@ -140,9 +141,56 @@ def run(args: argparse.Namespace) -> int:
         )
         return 2
     if args.inputs is not None:
+        # A scenario's options do nothing open loop: refused rather than silently ignored.
+        given = [
+            flag
+            for flag, value in (
+                ("--duration", args.duration),  # the inputs' times set the length
+                ("--nmea", args.nmea),
+                ("--mavlink", args.mavlink),
+                ("--realtime", args.realtime),
+                ("--speed", args.speed != 1.0),
+                ("--gnss-rate", args.gnss_rate),
+                ("--gyro-rate", args.gyro_rate),
+                ("--faults", args.faults),
+                ("--ardupilot", args.ardupilot),
+                ("--zenoh", args.zenoh),
+                ("--prefix", args.prefix),
+                ("--zenoh-listen", args.zenoh_listen),
+                ("--zenoh-connect", args.zenoh_connect),
+                ("--zenoh-config", args.zenoh_config),
+            )
+            if value
+        ]
+        if given:
+            print(
+                f"dpgw sim: {', '.join(given)}: only with --scenario; open loop from --inputs takes "
+                "--vessel, --csv, --out, --initial, --plant-option, --wind, --sea, --seed and --json",
+                file=sys.stderr,
+            )
+            return 2
         return cli_sim_inputs.run(args)
     if args.vessel or args.csv or args.plant_option or args.wind or args.sea:
         print("dpgw sim: --vessel, --csv, --plant-option, --wind and --sea go with --inputs", file=sys.stderr)
+        return 2
+    if problem := missing_folder("--out", args.out):
+        print(f"dpgw sim: {problem}", file=sys.stderr)
+        return 2
+    if args.speed != 1.0 and not args.realtime:  # accepted and ignored before: the run went flat out
+        print("dpgw sim: --speed X paces a --realtime run: add --realtime", file=sys.stderr)
+        return 2
+    zenoh_only = [
+        flag
+        for flag, value in (
+            ("--prefix", args.prefix),
+            ("--zenoh-listen", args.zenoh_listen),
+            ("--zenoh-connect", args.zenoh_connect),
+            ("--zenoh-config", args.zenoh_config),
+        )
+        if value
+    ]
+    if zenoh_only and not args.zenoh:  # accepted and ignored before: no session was opened
+        print(f"dpgw sim: {', '.join(zenoh_only)}: only with --zenoh", file=sys.stderr)
         return 2
     return _run_scenario(args)
 

@@ -14,6 +14,8 @@ import sys
 from dataclasses import fields, replace
 from typing import TYPE_CHECKING, Any
 
+from dpgw.cli_paths import missing_folder
+
 if TYPE_CHECKING:
     from simulator.plant_params import PlantOptions
 
@@ -99,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from observers.vessel import VesselError, load_vessel
-    from simulator.open_loop import InputsError, read_inputs, run_open_loop, write_states
+    from simulator.open_loop import STATE_COLUMNS, InputsError, read_inputs, run_open_loop, write_states
     from simulator.plant_params import PlantError, PlantParams
 
     try:
@@ -109,6 +111,8 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(
                 "--inputs needs --csv STATES.csv and/or --out LOG.mcap (somewhere to write the states)"
             )
+        if problem := missing_folder("--csv", args.csv) or missing_folder("--out", args.out):
+            raise ValueError(problem)
         vessel = load_vessel(args.vessel)
         options = plant_options(args.plant_option)
         PlantParams.build(vessel, options)  # a vessel the plant cannot run is said before the inputs are read
@@ -166,6 +170,20 @@ def run(args: argparse.Namespace) -> int:
     if args.out:
         _write_log(args, vessel.name, inputs, states)
     end = states[-1]
+    if args.json:
+        from dpgw import cli_json
+
+        summary = {
+            "vessel": vessel.name,
+            "inputs": str(args.inputs),
+            "rows": len(states),
+            "seconds": float(end[0] - states[0][0]),
+            "end": dict(zip(STATE_COLUMNS, (float(x) for x in end), strict=True)),
+            "csv": args.csv,
+            "out": args.out,
+        }
+        print(cli_json.dumps(summary, indent=2))
+        return 0
     print(
         f"{vessel.name}: {len(states)} input rows, {end[0] - states[0][0]:.0f} s open loop; end at "
         f"N {end[1]:.1f} m, E {end[2]:.1f} m, heading {end[3]:.1f}°"

@@ -33,7 +33,7 @@ from mcap.reader import make_reader
 from gateway.config import GatewayConfig, default_config, parse_config
 from gateway.logreaders import LogCounts, nmea_text_events, nmea_text_events_reference, tlog_events
 from gateway.pipeline import USED_NMEA, ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
-from observers.factory import OBSERVER_PARAMS, OBSERVER_TYPES, Observer, make_observer
+from observers.factory import OBSERVER_PARAMS, OBSERVER_TUNING, OBSERVER_TYPES, Observer, make_observer
 from observers.passive_tuning import PassiveTuning
 from wire.mcap.reader import read_messages
 from wire.mcap.writer import McapLogWriter, raw_mavlink_record, raw_nmea_record
@@ -85,17 +85,61 @@ def logged_config(path: str | Path) -> dict[str, Any] | None:
     return None
 
 
-def logged_datum(path: str | Path) -> dict[str, float] | None:
-    """The NED datum a simulator log's truth is in (metadata `SIM_METADATA`), if the log has one."""
+def _logged(path: str | Path, name: str) -> dict[str, str] | None:
+    """The MCAP metadata record ``name`` of a log, if it has one."""
     with open(path, "rb") as f:
         reader = make_reader(f)
         try:
             for record in reader.iter_metadata():
-                if record.name == SIM_METADATA and "datum" in record.metadata:
-                    datum = json.loads(record.metadata["datum"])
-                    return {k: float(datum[k]) for k in ("lat_deg", "lon_deg", "alt_m")}
-        except Exception:  # a truncated file has no metadata index; an older log has no datum
+                if record.name == name:
+                    return dict(record.metadata)
+        except Exception:  # a truncated file has no metadata index
             return None
+    return None
+
+
+def logged_sim(path: str | Path) -> dict[str, str] | None:
+    """A simulator log's own description (metadata `SIM_METADATA`: scenario, seed, vessel, datum), if any."""
+    return _logged(path, SIM_METADATA)
+
+
+def carried_metadata(inputs: list[Input], *, own_config: bool) -> list[tuple[str, dict[str, str]]]:
+    """What a replay's output keeps of its first MCAP input's metadata, so that the output replays as
+    the input did: the simulator's description (vessel, datum of the truth it carries) and, when the
+    replay ran on the log's own configuration (``own_config``: no --config, no --vessel), that
+    configuration."""
+    for inp in inputs:
+        if inp.kind != "mcap":
+            continue
+        names = [SIM_METADATA, CONFIG_METADATA] if own_config else [SIM_METADATA]
+        return [(name, meta) for name in names if (meta := _logged(inp.path, name)) is not None]
+    return []
+
+
+def logged_datum(path: str | Path) -> dict[str, float] | None:
+    """The NED datum a simulator log's truth is in (metadata `SIM_METADATA`), if the log has one."""
+    meta = logged_sim(path)
+    if meta is None or "datum" not in meta:  # an older log has no datum
+        return None
+    datum = json.loads(meta["datum"])
+    return {k: float(datum[k]) for k in ("lat_deg", "lon_deg", "alt_m")}
+
+
+def logged_vessel(inputs: list[Input]) -> str | None:
+    """The built-in vessel a simulator log names (metadata `SIM_METADATA`), so that a log of `dpgw sim`
+    replays without --vessel. A vessel that is not built in (a vessel file) is an error naming it: the
+    log holds only its name, not the file."""
+    from observers.vessel_files import builtin_vessels
+
+    for inp in inputs:
+        if inp.kind == "mcap" and (meta := logged_sim(inp.path)) is not None and meta.get("vessel"):
+            name = meta["vessel"]
+            if name not in builtin_vessels():
+                raise ReplayError(
+                    f"{inp.path}: the simulator ran vessel '{name}', which is not a built-in vessel: give "
+                    "its file with --vessel FILE"
+                )
+            return name
     return None
 
 
@@ -211,6 +255,14 @@ def merged_events(inputs: list[Input]) -> Iterator[Event]:
 TUNING_KEYS = set(PassiveTuning.__dataclass_fields__) | {"wave_period_s"}
 
 
+def tuning_keys(name: str) -> set[str]:
+    """The keys of the common tuning observer ``name`` uses (`observers.factory.OBSERVER_TUNING`);
+    ``wave_period_s`` sets ω0."""
+    used = OBSERVER_TUNING[name]
+    keys = TUNING_KEYS if used is None else set(used)
+    return keys | ({"wave_period_s"} if "omega0" in keys else set())
+
+
 @dataclass(frozen=True)
 class ObserverSpec:
     name: str
@@ -222,12 +274,16 @@ class ObserverSpec:
         for key, value in self.params.items():
             if key == "wave_period_s":
                 kw["omega0"] = 2 * math.pi / value
-            elif key in TUNING_KEYS:
+            elif key in tuning_keys(self.name):
                 kw[key] = value
         return PassiveTuning(**kw)
 
+    def tuning_params(self) -> dict[str, float]:
+        """The spec's keys of the common tuning (the rest are the observer's own)."""
+        return {k: v for k, v in self.params.items() if k in tuning_keys(self.name)}
+
     def observer_params(self) -> dict[str, Any]:
-        return {k: v for k, v in self.params.items() if k not in TUNING_KEYS}
+        return {k: v for k, v in self.params.items() if k not in tuning_keys(self.name)}
 
     def make(self, config: GatewayConfig) -> Observer:
         base = config.observer.params if self.name == config.observer.type else {}
@@ -248,10 +304,17 @@ def parse_observer_spec(text: str) -> ObserverSpec:
         raise ReplayError(
             f"observer spec '{text}': unknown observer '{name}' (known: {', '.join(OBSERVER_TYPES)})"
         )
-    keys = sorted(TUNING_KEYS | set(OBSERVER_PARAMS[name]))
+    keys = sorted(tuning_keys(name) | set(OBSERVER_PARAMS[name]))
     params: dict[str, float] = {}
     for item in filter(None, (s.strip() for s in rest.split(","))):
         key, eq, value = item.partition("=")
+        if eq and key in TUNING_KEYS and key not in keys:
+            used = sorted(tuning_keys(name))
+            raise ReplayError(
+                f"observer spec '{text}': {name} does not use {key} of the passive tuning "
+                f"({'it uses ' + ', '.join(used) if used else 'it uses none of it'}; its own keys: "
+                f"{', '.join(OBSERVER_PARAMS[name]) or 'none'})"
+            )
         if not eq or key not in keys:
             raise ReplayError(f"observer spec '{text}': '{item}' is not key=value with a key of {keys}")
         switch = {"true": 1.0, "false": 0.0}.get(value.strip().lower())  # adaptive=true, per_dof=false
@@ -305,6 +368,8 @@ def build_config(
                 )
             tables = {**_as_replayed(tables), "log": {"path": ""}}
             return parse_config(tables, base_dir=inp.path.resolve().parent, where=f"{inp.path} (metadata)")
+    if vessel is None:
+        vessel = logged_vessel(inputs)
     if vessel is None:
         raise ReplayError("no configuration in the log: give --vessel NAME|FILE or --config FILE")
     tables = default_config(vessel)

@@ -68,6 +68,9 @@ class ObserverEntry:
     paper: str
     target: str  # "module:Class", the class having ``from_params`` (an `ObserverBuilder`)
     params: tuple[str, ...] = ()
+    tuning: tuple[str, ...] | None = None
+    """The fields of the common passive tuning (`PassiveTuning`) its ``from_params`` uses; None: all of
+    them. A replay or study spec that sets another is refused, not ignored."""
 
     def builder(self) -> ObserverBuilder:
         module, _, cls = self.target.partition(":")
@@ -111,12 +114,24 @@ _REGISTERED = (
         "observers.gain_scheduled:GainScheduledObserver",
         _GS_PARAMS,
     ),
-    ObserverEntry("mmae", "Hassani, Pascoal, Aguiar & Athans", "observers.mmae:MMAEObserver", _MMAE_PARAMS),
+    # the bank is designed from its own settings: no passive tuning (its `zeta` is its own parameter)
     ObserverEntry(
-        "sdre", "Snijders, van der Woude & Westhuis (2005)", "observers.sdre:SdreObserver", SDRE_PARAMS
+        "mmae", "Hassani, Pascoal, Aguiar & Athans", "observers.mmae:MMAEObserver", _MMAE_PARAMS, tuning=()
+    ),
+    # ω0 and ζ from the common tuning, the rest from the SDRE tuning's own fields
+    ObserverEntry(
+        "sdre",
+        "Snijders, van der Woude & Westhuis (2005)",
+        "observers.sdre:SdreObserver",
+        SDRE_PARAMS,
+        tuning=("omega0", "zeta"),
     ),
     ObserverEntry(
-        "ekf", "Balchen et al. (1980); Fossen (2021) Sec. 13.4", "observers.ekf:EkfObserver", EKF_PARAMS
+        "ekf",
+        "Balchen et al. (1980); Fossen (2021) Sec. 13.4",
+        "observers.ekf:EkfObserver",
+        EKF_PARAMS,
+        tuning=("omega0", "zeta"),
     ),
     # memory: the passive tuning plus a radiation model; froude_scale sets the length scale of the built-in
     # (supply-vessel) model, which otherwise follows the vessel's mass (docs/memory-observer.md)
@@ -130,6 +145,7 @@ OBSERVERS: dict[str, ObserverEntry] = {e.name: e for e in _REGISTERED}
 
 OBSERVER_TYPES = tuple(OBSERVERS)
 OBSERVER_PARAMS: dict[str, tuple[str, ...]] = {name: e.params for name, e in OBSERVERS.items()}
+OBSERVER_TUNING: dict[str, tuple[str, ...] | None] = {name: e.tuning for name, e in OBSERVERS.items()}
 
 
 class ObserverSpecError(ValueError):

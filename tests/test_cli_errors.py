@@ -338,3 +338,250 @@ def test_replay_with_an_unknown_vessel_name_lists_the_built_in_ones(
     err = capsys.readouterr().err
     assert "Traceback" not in err
     assert "vessel.name: not a built-in vessel" in err and "mss_supply" in err and 'got "mss_suply"' in err
+
+
+# --- the analyst's commands: what they cannot do is said before the work, and --json is JSON ------------
+
+OSV_INPUTS = REPO / "tests" / "data" / "mss-osv" / "steps_inputs.csv"
+
+
+def test_sim_open_loop_refuses_scenario_options_and_prints_json(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, --duration, --realtime, --nmea ... were accepted with --inputs and ignored, and --json
+    printed the plain-text line."""
+    argv = ["sim", "--vessel", "mss_osv", "--inputs", str(OSV_INPUTS), "--csv", str(tmp_path / "s.csv")]
+    assert main([*argv, "--duration", "100", "--realtime"]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert line.startswith("dpgw sim: --duration, --realtime: only with --scenario;"), line
+    # before, a traceback (FileNotFoundError) after the whole run
+    nowhere = tmp_path / "nope" / "s.csv"
+    assert main([*argv[:-1], str(nowhere)]) == 2
+    assert _one_line(capsys.readouterr().err) == (
+        f"dpgw sim: --csv {nowhere}: no folder {nowhere.parent}: create it or give another path"
+    )
+    assert (
+        main(["sim", "--scenario", "hassani", "--duration", "1", "--out", str(tmp_path / "nope" / "s.mcap")])
+        == 2
+    )
+    assert _one_line(capsys.readouterr().err).endswith(
+        "s.mcap: no folder " + str(nowhere.parent) + ": create it or give another path"
+    )
+    assert not (tmp_path / "s.csv").exists()
+    assert main([*argv, "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    last = (tmp_path / "s.csv").read_text().strip().splitlines()[-1].split(",")
+    assert summary["vessel"] == "mss_osv" and summary["rows"] == len(OSV_INPUTS.read_text().splitlines()) - 1
+    assert [summary["end"][k] for k in ("t", "north", "east", "psi_deg")] == pytest.approx(
+        [float(x) for x in last[:4]], rel=1e-8
+    )
+
+
+@pytest.mark.parametrize(
+    ("extra", "words"),
+    [
+        (["--max-order", "1"], "argument --max-order: must be 2 or more"),
+        (["--r2", "1.5"], "argument --r2: must be above 0 and at most 1 (got 1.5)"),
+    ],
+)
+def test_radiation_refuses_a_fit_setting_it_cannot_use(
+    extra: list[str], words: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, --max-order 1 ended in a ValueError traceback and --r2 1.5 fitted every element to the cap."""
+    with pytest.raises(SystemExit) as exit_:
+        main(["radiation", str(tmp_path / "hydro.npz"), *extra])
+    assert exit_.value.code == 2
+    assert f"dpgw radiation: error: {words}" in capsys.readouterr().err
+
+
+def test_radiation_and_replay_check_where_they_write_before_working(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, a stem in a missing folder was a FileNotFoundError traceback after the whole fit, and a
+    --report that is a file a FileExistsError traceback after the whole replay."""
+    hydro = tmp_path / "hydro.npz"
+    hydro.write_bytes(b"not read: the check comes first")
+    assert main(["radiation", str(hydro), "--out", str(tmp_path / "nope" / "fit")]) == 2
+    assert _one_line(capsys.readouterr().err) == (
+        f"dpgw radiation: --out {tmp_path}/nope/fit: no folder {tmp_path}/nope: "
+        "create it or give another path"
+    )
+    # a misspelt vessel name was taken for a file stem: nope_radiation.npz written in the current folder
+    assert main(["radiation", str(hydro), "--vessel", "nope"]) == 2
+    assert _one_line(capsys.readouterr().err).startswith(
+        "dpgw radiation: --vessel: vessel 'nope': not a built-in vessel (cybership2,"
+    )
+    assert not list(Path.cwd().glob("nope_radiation.*"))
+    log = tmp_path / "gps.txt"
+    log.write_text("$GPGGA,100000.00,5924.000000,N,01029.999988,E,4,12,0.80,20.259,M,,,2.0,0001*11\r\n")
+    (tmp_path / "afile").write_text("")
+    assert main(["replay", str(log), "--vessel", "cybership2", "--report", str(tmp_path / "afile")]) == 2
+    assert _one_line(capsys.readouterr().err).endswith(
+        "afile: a file, not a folder: give a folder (it is created)"
+    )
+    assert (
+        main(["replay", str(log), "--vessel", "cybership2", "--out", str(tmp_path / "nope" / "x.mcap")]) == 2
+    )
+    assert _one_line(capsys.readouterr().err).endswith(": create it or give another path")
+    assert not (tmp_path / "gps-replay.mcap").exists()
+
+
+def test_replay_says_why_an_observer_made_no_estimate(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, a log without heading (gpsd's nmea-rtk.log) replayed with status 0, no observer line on the
+    console and `"estimates": {}` in --json: the observer asked for was not even named."""
+    from datetime import UTC, datetime, timedelta
+
+    from wire.codecs.nmea_encode import gga
+
+    t0 = datetime(2026, 5, 1, 10, 0, tzinfo=UTC)
+    fixes = [
+        gga("GP", t0 + timedelta(seconds=0.5 * k), 59.4 + 1e-6 * k, 10.5, 4, 12, 0.8, 20.0) for k in range(40)
+    ]
+    log = tmp_path / "gps.txt"
+    log.write_bytes(b"".join(f if isinstance(f, bytes) else f.encode() for f in fixes))
+    assert (
+        main(
+            [
+                "replay",
+                str(log),
+                "--vessel",
+                "mss_supply",
+                "--observer",
+                "passive",
+                "--observer",
+                "ekf",
+                "--json",
+            ]
+        )
+        == 0
+    )
+    out, err = capsys.readouterr()
+    s = json.loads(out)
+    assert s["estimates"] == {"passive": 0, "ekf": 0}
+    m = s["measurements"]
+    assert m["samples"] == 40 and m["position"] >= 35 and m["heading"] == 0
+    assert _one_line(err).startswith(
+        "dpgw replay: warning: observers 'passive', 'ekf' made no estimate: an observer needs position and "
+        f"heading, and of the 40 fused measurements {m['position']} had a position and 0 a heading."
+    )
+
+
+def test_replay_with_a_settle_time_past_the_end_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: `passive vs truth (after 1000 s): RMS N nan m, E nan m, heading nan deg`."""
+    log = tmp_path / "sim.mcap"
+    assert main(["sim", "--scenario", "fossen_strand_1999", "--duration", "20", "--out", str(log)]) == 0
+    capsys.readouterr()
+    assert main(["replay", str(log), "--settle", "1000"]) == 0
+    out = capsys.readouterr().out
+    assert "nan" not in out
+    assert (
+        "  passive vs truth: no estimate after the settle time 1000 s to score (give a shorter --settle)"
+        in out
+    )
+
+
+def test_replay_refuses_an_observer_label_given_twice(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, `--observer passive --observer passive` printed one observer with twice the estimates, and
+    `passive@a --observer ekf@a` counted and published both under one label."""
+    log = tmp_path / "gps.txt"
+    log.write_text("$GPGGA,100000.00,5924.000000,N,01029.999988,E,4,12,0.80,20.259,M,,,2.0,0001*11\r\n")
+    for specs in (["passive", "passive"], ["passive@a", "ekf@a"]):
+        argv = ["replay", str(log), "--vessel", "mss_supply"] + [f"--observer={s}" for s in specs]
+        assert main(argv) == 2
+        label = specs[0].partition("@")[2] or "passive"
+        assert _one_line(capsys.readouterr().err) == (
+            f"dpgw replay: --observer: label '{label}' given twice (name each: SPEC@label)"
+        )
+
+
+def test_replay_report_counts_each_measurement_once(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The pipeline steps on every chunk with each DOF's latest measurement held, so a 1 Hz fix among
+    10 Hz headings was in the report ten times: sample interval 0.1 s for north, innovation statistics
+    over held copies. The report counts a DOF only when the fusion received it anew."""
+    log = tmp_path / "sim.mcap"
+    argv = [
+        "sim",
+        "--scenario",
+        "fossen_strand_1999",
+        "--duration",
+        "60",
+        "--gnss-rate",
+        "1",
+        "--gyro-rate",
+        "10",
+    ]
+    assert main([*argv, "--out", str(log)]) == 0
+    assert main(["replay", str(log), "--report", str(tmp_path / "rep"), "--json"]) == 0
+    capsys.readouterr()
+    m = json.loads((tmp_path / "rep" / "metrics.json").read_text())
+    meas = m["measurement"]
+    assert meas["north"]["sample_interval_s"] == pytest.approx(1.0, rel=0.02)
+    assert meas["heading"]["sample_interval_s"] == pytest.approx(0.1, rel=0.02)
+    assert (
+        40 <= meas["north"]["valid"] <= 61 and 500 <= meas["heading"]["valid"] <= 601
+    )  # (fixes its tests reject)
+    assert m["observers"]["passive"]["north"]["innovation"]["samples"] <= meas["north"]["valid"]
+
+
+def test_no_estimate_with_both_sensors_is_not_blamed_on_a_missing_sensor() -> None:
+    from dpgw.cli_replay import _no_estimates
+
+    s = {"estimates": {"a": 0, "b": 3}, "measurements": {"samples": 10, "position": 9, "heading": 8}}
+    assert _no_estimates(s) == [
+        "observer 'a' made no estimate, although of the 10 fused measurements 9 had a position and 8 a "
+        "heading: the events in /dp/status of the output say why"
+    ]
+    assert _no_estimates({**s, "estimates": {"a": 1}}) == []
+
+
+def test_replay_zenoh_options_without_pacing_are_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, --zenoh-connect, --prefix ... were accepted and ignored: an unpaced replay opens no session."""
+    log = tmp_path / "gps.txt"
+    log.write_text("$GPGGA,100000.00,5924.000000,N,01029.999988,E,4,12,0.80,20.259,M,,,2.0,0001*11\r\n")
+    argv = [
+        "replay",
+        str(log),
+        "--vessel",
+        "mss_supply",
+        "--zenoh-connect",
+        "tcp/127.0.0.1:7447",
+        "--prefix",
+        "x",
+    ]
+    assert main(argv) == 2
+    assert _one_line(capsys.readouterr().err).startswith(
+        "dpgw replay: --prefix, --zenoh-connect: a replay publishes on Zenoh only when paced: add --speed X"
+    )
+    assert not (tmp_path / "gps-replay.mcap").exists()
+
+
+@pytest.mark.parametrize(
+    ("extra", "words"),
+    [
+        (["--speed", "5"], "dpgw sim: --speed X paces a --realtime run: add --realtime"),
+        (
+            ["--prefix", "x", "--zenoh-listen", "tcp/127.0.0.1:0"],
+            "dpgw sim: --prefix, --zenoh-listen: only with --zenoh",
+        ),
+    ],
+)
+def test_sim_options_that_need_another_are_refused(
+    extra: list[str], words: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, each was accepted and ignored: the run went as fast as possible, no Zenoh session opened."""
+    assert (
+        main(["sim", "--scenario", "hassani", "--duration", "1", "--out", str(tmp_path / "s.mcap"), *extra])
+        == 2
+    )
+    assert _one_line(capsys.readouterr().err) == words
+    assert not (tmp_path / "s.mcap").exists()

@@ -98,7 +98,11 @@ def test_radiation_defaults_match_the_fit() -> None:
     from dpgw import cli_radiation
     from observers import radiation
 
-    assert (cli_radiation.MAX_ORDER, cli_radiation.R2_TARGET) == (radiation.MAX_ORDER, radiation.R2_TARGET)
+    assert (cli_radiation.MIN_ORDER, cli_radiation.MAX_ORDER, cli_radiation.R2_TARGET) == (
+        radiation.MIN_ORDER,
+        radiation.MAX_ORDER,
+        radiation.R2_TARGET,
+    )
 
 
 def test_dpgw_runs_blas_single_threaded_unless_told_otherwise() -> None:

@@ -282,6 +282,22 @@ def test_simulator_log_replays_in_the_datum_its_truth_is_in(tmp_path: Path) -> N
     assert (datum.lat_deg, datum.lon_deg, datum.alt_m, datum.first_fix) == (63.4, 10.4, 12.0, False)
 
 
+def test_simulator_log_replays_with_its_own_vessel(tmp_path: Path) -> None:
+    """A simulator log names its vessel (metadata dpgw.sim): replay needs no --vessel; --vessel still wins; a
+    vessel that is not built in (only its name is in the log) is one message saying to give its file."""
+    log = tmp_path / "sim.mcap"
+    with McapLogWriter(log) as w:
+        Simulation(get_scenario("fossen_strand_1999"), seed=1, log=w).run(5.0)
+    assert build_config(open_inputs([log])).vessel.name == get_scenario("fossen_strand_1999").vessel.name
+    assert build_config(open_inputs([log]), vessel="cybership2").vessel.name == "cybership2"
+    other = tmp_path / "other.mcap"
+    with McapLogWriter(other) as w:
+        w.add_metadata("dpgw.sim", {"vessel": "my_ship", "mode": "open loop"})
+        w.write_raw_nmea("gyro1", b"$HEHDT,10.0,T*2C\r\n", 1_780_000_000_000_000_000)
+    with pytest.raises(ReplayError, match=r"vessel 'my_ship', which is not a built-in vessel: give its file"):
+        build_config(open_inputs([other]))
+
+
 def test_tlog_replay(tmp_path: Path) -> None:
     """A MAVLink tlog (8-byte µs time + frame per record) with GPS_RAW_INT, ATTITUDE and thruster status."""
     d = mv.dialect()
@@ -544,3 +560,44 @@ def test_observer_specs_keep_the_configs_integrity_and_command_sections() -> Non
     assert spec.commands == config.commands and spec.commands.max_setpoint_distance_m == 80.0
     assert spec.observer_name == "p" and [label for label, _ in spec.extra_observers] == ["sdre"]
     assert spec.control is None
+
+
+def test_an_observer_spec_sets_only_what_the_observer_uses() -> None:
+    """Before, every observer took every key of the passive tuning and ignored what it does not use:
+    `ekf:zeta_n=3` and `sdre:bias_time_constant_s=50` gave estimates bit for bit the defaults', every key
+    was lost on mmae, and `mmae:zeta=0.3` set the (unused) passive ζ instead of the MMAE bank's own ζ."""
+    for spec, key in (("ekf:zeta_n=3", "zeta_n"), ("sdre:bias_time_constant_s=50", "bias_time_constant_s")):
+        with pytest.raises(
+            ReplayError, match=f"does not use {key} of the passive tuning \\(it uses omega0, "
+        ):
+            parse_observer_spec(spec)
+    with pytest.raises(
+        ReplayError, match="mmae does not use wave_period_s of the passive tuning \\(it uses none"
+    ):
+        parse_observer_spec("mmae:wave_period_s=9")
+    mmae = parse_observer_spec("mmae:zeta=0.3")
+    assert mmae.observer_params() == {"zeta": 0.3} and mmae.tuning_params() == {}
+    ekf = parse_observer_spec("ekf:wave_period_s=9,zeta=0.2,position_sigma_m=0.5")
+    assert ekf.tuning_params() == {"wave_period_s": 9.0, "zeta": 0.2}
+    assert ekf.observer_params() == {"position_sigma_m": 0.5}
+    gs = parse_observer_spec("gain_scheduled:zeta_n=2,window_s=60")
+    assert gs.tuning_params() == {"zeta_n": 2.0} and gs.observer_params() == {"window_s": 60.0}
+
+
+def test_a_replays_output_replays_as_its_input_did(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The output keeps the simulator's description (vessel, datum) and, on the log's own configuration,
+    that configuration. Before, `dpgw replay OUT.mcap` of a replay's own output stopped with 'no
+    configuration in the log', though the output holds the raw input and the truth."""
+    from dpgw.cli import main
+
+    log, first, again = tmp_path / "sim.mcap", tmp_path / "a.mcap", tmp_path / "b.mcap"
+    with McapLogWriter(log) as w:
+        Simulation(get_scenario("fossen_strand_1999"), seed=2, log=w).run(40.0)
+    assert main(["replay", str(log), "--out", str(first), "--json"]) == 0
+    one = json.loads(capsys.readouterr().out)
+    assert main(["replay", str(first), "--out", str(again), "--json"]) == 0
+    two = json.loads(capsys.readouterr().out)
+    assert one["error_vs_truth"] == two["error_vs_truth"] and one["estimates"] == two["estimates"]
+    assert two["error_vs_truth"]["passive"]["samples"] > 50

@@ -362,3 +362,88 @@ def test_welch_psd_holds_the_variance_of_a_sinusoid_and_the_level_of_white_noise
     assert q is not None
     inner = q.psd[5:-5]  # away from DC (detrend) and Nyquist
     assert float(np.mean(inner)) == pytest.approx(0.3**2 * dt / math.pi, rel=0.03)
+
+
+def test_zoom_row_only_when_it_shows_a_detail() -> None:
+    """The zoom row: the last 20 dominant periods (at least 60 s), only on a record at least twice as long.
+    Before, a 300 s simulator log with an 11.2 s sea got a 'zoom' on its last 225 s, three quarters of it."""
+    from gateway.report.plots import zoom_window
+
+    w = 2.0 * math.pi / 11.2
+    assert zoom_window(0.0, 300.0, [w, w, float("nan")]) is None
+    assert zoom_window(0.0, 900.0, [w, w, w]) == pytest.approx((900.0 - 224.0, 900.0))
+    assert zoom_window(0.0, 340.8, [3.9, 4.0, 2.9]) == pytest.approx((280.8, 340.8))  # a model: 60 s least
+    assert zoom_window(0.0, 100.0, []) is None and zoom_window(0.0, 120.0, []) == pytest.approx((60.0, 120.0))
+
+
+def test_plots_mark_only_a_clear_wave_peak(data: ReplayData, tmp_path: Path) -> None:
+    """A DOF whose spectral maximum sits on the band edge has no wave peak (`peak_at_band_edge`): the omega0
+    plot draws no 'PSD peak of y' line for it and the PSD panel says so. Before, a dashed 'peak' line sat
+    at the band edge of a calm DOF (the USV log 202412051037: east and heading) beside the real one."""
+    from dataclasses import replace
+
+    pytest.importorskip("matplotlib")
+    from matplotlib.figure import Figure
+
+    from gateway.report.metrics import analyse
+    from gateway.report.plots import draw_plots
+
+    made: list[Any] = []
+
+    class Kept(Figure):  # type: ignore[misc]
+        def __init__(self, *args: Any, **kwargs: Any) -> None:
+            super().__init__(*args, **kwargs)
+            made.append(self)
+
+    calm = data.y.copy()  # east: no waves, a random walk (a spectrum falling through the band)
+    calm[:, 1] = lf_motion(data.t_meas)[:, 1] + np.cumsum(
+        np.random.default_rng(3).normal(0.0, 0.02, len(calm))
+    )
+    d = replace(data, y=calm)
+    an = analyse(d, None, None)
+    assert [an.metrics["measurement"][k]["peak_at_band_edge"] for k in DOFS] == [False, True, False]
+    draw_plots(d, an, tmp_path, Kept)
+    by_name = {f.get_suptitle().rsplit(": ", 1)[1]: f for f in made}
+    peak_lines = [
+        [ln for ln in ax.get_lines() if ln.get_label() == "PSD peak of y"] for ax in by_name["omega0"].axes
+    ]
+    assert [len(x) for x in peak_lines] == [1, 0, 1]
+    assert "PSD peak of y" in [t.get_text() for t in by_name["omega0"].legends[0].get_texts()]
+    notes = [" ".join(t.get_text() for t in ax.texts) for ax in by_name["psd"].axes]
+    assert "peak ω = 0.6" in notes[0] and "no clear wave peak" in notes[1] and "peak ω" not in notes[1]
+
+
+def test_a_measurement_at_a_fraction_of_the_stream_rate_is_drawn_as_a_line() -> None:
+    """`dpgw replay --report` gives the report each measurement once (held copies NaN), so a 2 Hz fix in a
+    10 Hz stream is NaN at four samples of five: drawn as it was, the north and east measurement lines
+    vanished. Valid samples are joined; a real dropout (longer than the metrics bridge) still breaks."""
+    from gateway.report.plots import measured_line
+
+    t = np.arange(0.0, 100.0, 0.1)
+    x = np.sin(0.5 * t)
+    x[np.arange(len(t)) % 5 != 0] = np.nan  # 2 Hz in a 10 Hz stream
+    x[(t > 40.0) & (t < 50.0)] = np.nan  # a 10 s dropout
+    tl, xl = measured_line(t, x)
+    breaks = np.flatnonzero(np.isnan(xl))
+    assert len(breaks) == 1 and 40.0 < tl[breaks[0]] < 50.0  # one break, inside the dropout, at a time
+    assert np.count_nonzero(np.isfinite(xl)) == np.count_nonzero(np.isfinite(x))
+    assert np.all(np.diff(tl) > 0)
+
+
+@pytest.mark.parametrize(
+    ("t1", "text"),
+    [
+        (89.9043, "0.0 s to 89.9 s (89.9 s)"),
+        (1800.0, "0.0 s to 1800.0 s (30.0 min)"),
+        (176397.0, "0.0 s to 176397.0 s (49.0 h)"),
+    ],
+)
+def test_report_span_reads_in_the_plots_units(t1: float, text: str) -> None:
+    """Before: '0 s to 89.9043 s (89.9 s)', and a two-day merge of logs '(1.764e+05 s)'. The last record is
+    sampled once an hour, more slowly than a Welch segment is long: compute_metrics raised (nperseg=0)
+    where a metric it cannot compute is null."""
+    from gateway.report.markdown import report_markdown
+
+    t = np.linspace(0.0, t1, 50)
+    d = ReplayData(title="x", vessel="mss_supply", t_meas=t, y=np.zeros((50, 3)), traces=())
+    assert f"- span: {text}\n" in report_markdown(d, compute_metrics(d), "", [])

@@ -304,3 +304,21 @@ def test_parquet_table_where_pyarrow_is_installed(tmp_path: Path) -> None:
     write_table([{"observer": "a", "seed": 1, "x": 0.1 + 0.2, "y": math.nan}], tmp_path)
     table = pq.read_table(tmp_path / "results.parquet").to_pylist()
     assert table[0]["x"] == 0.1 + 0.2 and math.isnan(table[0]["y"])
+
+
+def test_box_whiskers_are_the_summarys_5_and_95_percent() -> None:
+    """The box plot's whiskers end at the p5 and p95 the summary table prints; the values beyond them are
+    points. Before, matplotlib's boxplot(whis=(5, 95)) ended them at the farthest value inside: with two
+    seeds both whiskers sat on the box and neither end matched the table."""
+    from dpgw.study.outputs import box_stats, spread
+
+    values = [0.07052594863867588, 0.11045939424054986, math.nan]
+    med, p5, p95, _ = spread(values)
+    b = box_stats(values)
+    assert (b["med"], b["whislo"], b["whishi"]) == (med, p5, p95)
+    assert b["q1"] == pytest.approx(0.0805093) and b["q3"] == pytest.approx(0.1004760)
+    assert sorted(b["fliers"]) == values[:2]
+    twelve = [float(k) for k in range(12)]
+    b = box_stats(twelve)
+    assert (b["whislo"], b["whishi"]) == pytest.approx((0.55, 10.45)) and list(b["fliers"]) == [0.0, 11.0]
+    assert math.isnan(box_stats([math.nan])["med"])

@@ -56,17 +56,12 @@ def loop_tables(case: CaseSpec, scenario: Any, nominal_tp_s: float) -> dict[str,
     """The gateway config of the loop: the scenario's sensors; every observer tuned to the scenario's own
     (nominal) wave period — what an operator sets from the forecast — not to the case's sea state."""
     from dpgw.closed_loop import gateway_tables
-    from gateway.replay import TUNING_KEYS, parse_observer_spec
+    from gateway.replay import parse_observer_spec
 
     tables = gateway_tables(scenario)
     loop = parse_observer_spec(case.loop_observer)
-    observer: dict[str, Any] = {"type": loop.name, "wave_period_s": nominal_tp_s}
-    params = {}
-    for key, value in loop.params.items():
-        if key in TUNING_KEYS:
-            observer[key] = value
-        else:
-            params[key] = value
+    observer: dict[str, Any] = {"type": loop.name, "wave_period_s": nominal_tp_s, **loop.tuning_params()}
+    params = loop.observer_params()
     if params:
         observer["params"] = params
     tables["observer"] = observer

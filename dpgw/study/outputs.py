@@ -108,6 +108,21 @@ def _slug(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_")
 
 
+def box_stats(values: Sequence[float]) -> dict[str, Any]:
+    """One box as matplotlib's ``bxp`` draws it: median, quartiles, whiskers at the summary's own 5 and
+    95 % (`spread`, linear percentiles) and the values beyond them as points. matplotlib's ``boxplot(whis=
+    (5, 95))`` ends a whisker at the farthest *value* inside the percentile instead: with a few seeds at the
+    box's edge, not at the table's figure."""
+    v = np.array([x for x in values if math.isfinite(x)], dtype=float)
+    if len(v) == 0:
+        return {"med": math.nan, "q1": math.nan, "q3": math.nan, "whislo": math.nan, "whishi": math.nan,
+                "fliers": np.array([])}  # fmt: skip
+    med, p5, p95, _ = spread(v.tolist())
+    q1, q3 = np.percentile(v, [25.0, 75.0])
+    return {"med": med, "q1": float(q1), "q3": float(q3), "whislo": p5, "whishi": p95,
+            "fliers": v[(v < p5) | (v > p95)]}  # fmt: skip
+
+
 def box_plots(rows: Sequence[dict[str, Any]], folder: Path) -> list[Path]:
     """One PNG per sea state: a panel per column of PLOT_COLUMNS, a box per observer (whiskers 5–95 %)."""
     import matplotlib
@@ -121,8 +136,7 @@ def box_plots(rows: Sequence[dict[str, Any]], folder: Path) -> list[Path]:
     for (scenario, sea), by_obs in groups(rows).items():
         fig, axes = plt.subplots(1, len(PLOT_COLUMNS), figsize=(4.0 * len(PLOT_COLUMNS), 4.0))
         for ax, col in zip(axes, PLOT_COLUMNS, strict=True):
-            data = [[r[col] for r in rs if math.isfinite(r[col])] for rs in by_obs.values()]
-            ax.boxplot(data, whis=(5, 95), showfliers=True)
+            ax.bxp([box_stats([r[col] for r in rs]) for rs in by_obs.values()], showfliers=True)
             ax.set_xticks(range(1, len(by_obs) + 1), list(by_obs), rotation=45, ha="right", fontsize=8)
             ax.set_title(headers[col], fontsize=9)
             ax.grid(True, axis="y", alpha=0.3)

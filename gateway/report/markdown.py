@@ -21,12 +21,23 @@ def _fmt(x: Any, digits: int = 3, scale: float = 1.0) -> str:
     return f"{float(x) * scale:.{digits}g}"
 
 
+def _span(m: dict[str, Any]) -> str:
+    """The span in seconds (0.1 s), its length also in min over 10 min and in h over 10 h, as the plots'
+    time axes: `4.4 %g` made a two-day merge of logs '(1.764e+05 s)' and 90 s '89.9043 s'."""
+    t0, t1 = m["span_s"]
+    d = m["duration_s"]
+    if t0 is None or t1 is None or d is None:
+        return "–"
+    length = f"{d:.1f} s" if d <= 600 else f"{d / 60:.1f} min" if d <= 36000 else f"{d / 3600:.1f} h"
+    return f"{t0:.1f} s to {t1:.1f} s ({length})"
+
+
 def report_markdown(data: ReplayData, m: dict[str, Any], plot_note: str, pngs: Sequence[Path]) -> str:
     deg = math.degrees(1.0)
     lines = [f"# Replay report: {data.title}", ""]
     lines += [
         f"- vessel: {data.vessel or '–'}",
-        f"- span: {_fmt(m['span_s'][0], 6)} s to {_fmt(m['span_s'][1], 6)} s ({_fmt(m['duration_s'], 4)} s)",
+        f"- span: {_span(m)}",
         f"- measurements: {m['measurement']['samples']} samples; metrics after a settle time of "
         f"{_fmt(m['settle_s'], 4)} s",
         f"- wave band searched: {m['wave_band_rad_s'][0]:.3g}–{m['wave_band_rad_s'][1]:.3g} rad/s "

@@ -16,7 +16,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gateway.report.data import DOF_SYMBOL, Array, ReplayData
-from gateway.report.metrics import Analysis
+from gateway.report.metrics import MAX_GAP_SAMPLES, Analysis
+from gateway.report.spectra import nominal_dt
 from observers.kinematics import ssa
 
 # Each plotted line is decimated to at most this many points (its envelope kept).
@@ -25,6 +26,31 @@ MAX_PLOT_POINTS = 20_000
 _COLOURS = ("black", "tab:blue", "tab:red", "tab:green", "tab:purple", "tab:orange", "tab:brown", "tab:cyan")
 _MEAS: dict[str, Any] = {"color": "0.70", "lw": 0.8}
 _TRUTH: dict[str, Any] = {"color": "0.35", "lw": 1.0, "ls": "--", "zorder": 50}
+
+
+def zoom_window(t_beg: float, t_end: float, peaks_rad_s: Any) -> tuple[float, float] | None:
+    """The zoom row's window (Torsetnes et al. Figs. 7-8): the last 20 dominant wave periods of the record,
+    at least 60 s; None (no zoom row) unless the record is at least twice as long, since a zoom on most of
+    the record shows nothing the first row does not."""
+    peaks = [w for w in peaks_rad_s if math.isfinite(w) and w > 0]
+    length = max(20.0 * 2.0 * math.pi / float(np.median(peaks)) if peaks else 0.0, 60.0)
+    if t_end - t_beg < 2.0 * length:
+        return None
+    return (t_end - length, t_end)
+
+
+def measured_line(t: Array, x: Array) -> tuple[Array, Array]:
+    """A measured DOF as a line: its valid samples joined, broken (a NaN) only where a gap is longer than
+    the metrics bridge (`MAX_GAP_SAMPLES` nominal intervals). A DOF measured at a fifth of the stream's
+    rate (a fix among headings; the other samples NaN) would otherwise be isolated points, drawn as
+    nothing."""
+    ok = np.isfinite(x)
+    t, x = np.asarray(t, dtype=float)[ok], np.asarray(x, dtype=float)[ok]
+    if len(t) < 2:
+        return t, x
+    gaps = np.flatnonzero(np.diff(t) > MAX_GAP_SAMPLES * nominal_dt(t)) + 1
+    # the break at the gap's middle (a time, so that a zoom window keeps it)
+    return np.insert(t, gaps, 0.5 * (t[gaps - 1] + t[gaps])), np.insert(x, gaps, np.nan)
 
 
 def decimate(t: NDArray[Any], x: NDArray[Any], max_points: int = MAX_PLOT_POINTS) -> tuple[Array, Array]:
@@ -94,13 +120,13 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
     centre = float(np.arctan2(np.mean(np.sin(psi_ref)), np.mean(np.cos(psi_ref)))) if len(psi_ref) else 0.0
     suptitle = f"{data.title} — {data.vessel}" if data.vessel else data.title
 
-    # zoom window (Torsetnes et al. Figs. 7-8): the last 20 wave periods of the record, at least 60 s
-    peaks = [w for w in an.meas_peak if math.isfinite(w) and w > 0]
     t_end = span[1] or 0.0
     t_beg = span[0] or 0.0
-    zoom_len = 20.0 * 2.0 * math.pi / float(np.median(peaks)) if peaks else 0.05 * (t_end - t_beg)
-    zoom = (max(t_beg, t_end - max(zoom_len, 60.0)), t_end)
-    use_zoom = zoom[0] > t_beg + 0.05 * (t_end - t_beg)
+    measured = an.metrics["measurement"]
+    at_edge = [bool(measured[dof]["peak_at_band_edge"]) for dof in ("north", "east", "heading")]
+    window = zoom_window(t_beg, t_end, [w for w, edge in zip(an.meas_peak, at_edge, strict=True) if not edge])
+    use_zoom = window is not None
+    zoom = window or (t_beg, t_end)
 
     def figure(name: str, rows: int = 1) -> tuple[Any, Any]:
         fig = Figure(figsize=(15.0, 0.6 + 3.6 * rows), layout="constrained")
@@ -143,7 +169,12 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
     def save(fig: Any, axes: Any, name: str) -> Path:
         for ax in axes[-1]:
             ax.set_xlabel(tlabel if name != "psd" else "frequency ω (rad/s)", fontsize=9)
-        handles, labels = axes[0][0].get_legend_handles_labels()
+        # every label of the first row once (a line drawn in one panel only still gets its entry)
+        found: dict[str, Any] = {}
+        for ax in axes[0]:
+            for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+                found.setdefault(label, handle)
+        handles, labels = list(found.values()), list(found)
         if handles:
             fig.legend(handles, labels, loc="outside lower center", ncols=min(len(handles), 6), fontsize=8)
         path = folder / f"{name}.png"
@@ -165,7 +196,7 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
     fig, axes = figure("position", rows)
     for r, win in enumerate(windows):
         for k, ax in enumerate(axes[r]):
-            line(ax, t_meas, y[:, k], wrap=k == 2, window=win, label="measurement y", **_MEAS)
+            line(ax, *measured_line(t_meas, y[:, k]), wrap=k == 2, window=win, label="measurement y", **_MEAS)
             if truth is not None:
                 line(ax, truth[0], truth[1][:, k], wrap=k == 2, window=win, label="true LF η", **_TRUTH)
             for i, tr_ in enumerate(traces):
@@ -240,7 +271,7 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
         for i, tr_ in enumerate(traces):
             td, xd = decimate(tr_.t, tr_.omega0[:, k])
             ax.plot(td / scale, xd, color=colour(i), lw=1.2, zorder=z(i), label=f"ω₀ {tr_.label}")
-        if math.isfinite(an.meas_peak[k]):
+        if math.isfinite(an.meas_peak[k]) and not at_edge[k]:  # a maximum on the band edge is no wave
             ax.axhline(an.meas_peak[k], color="0.5", ls="--", lw=1.0, label="PSD peak of y")
         ax.set_ylabel("ω₀ (rad/s)", fontsize=9)
         ax.set_title(f"{DOF_SYMBOL[k]}: wave frequency in use", fontsize=9)
@@ -277,7 +308,9 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
             a = an.attenuation[i][k]
             notes.append(f"{tr_.label}: {a:+.1f} dB" if math.isfinite(a) else f"{tr_.label}: –")
         wp = an.meas_peak[k]
-        if math.isfinite(wp):
+        if math.isfinite(wp) and at_edge[k]:
+            notes.insert(0, f"no clear wave peak (largest at the band edge, {wp:.3g} rad/s)")
+        elif math.isfinite(wp):
             ax.axvline(wp, color="0.4", ls=":", lw=1.0)
             notes.insert(0, f"peak ω = {wp:.3g} rad/s (T = {2 * math.pi / wp:.3g} s)")
         if notes:

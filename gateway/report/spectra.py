@@ -82,7 +82,9 @@ def welch(pieces: Sequence[Array], dt: float, seg_s: float, highpass: float | No
     lengths = [len(p) for p in pieces]
     if not lengths or max(lengths) < MIN_SPECTRUM_SAMPLES:
         return None
-    nper = next_fast_len(round(seg_s / dt), real=True)  # a segment a little longer, a fast FFT size
+    # a segment a little longer, a fast FFT size; never fewer samples than a spectrum needs (a record
+    # sampled more slowly than a segment is long made it 0, and scipy raised)
+    nper = next_fast_len(max(round(seg_s / dt), MIN_SPECTRUM_SAMPLES), real=True)
     if max(lengths) < nper:
         nper = max(lengths)
         pieces = [pieces[int(np.argmax(lengths))]]
