@@ -94,6 +94,16 @@ def example_files() -> list[Path]:
     return sorted(EXAMPLES.glob("*.toml"))
 
 
+@pytest.mark.parametrize("path", example_files(), ids=lambda p: p.name)
+def test_example_passes_the_check_command(path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`dpgw run --config FILE --check`, as examples/README.md prints it, accepts every example: the
+    command also checks what loading does not (the optional packages an enabled output needs)."""
+    from dpgw.cli import main
+
+    assert main(["run", "--config", str(path), "--check"]) == 0
+    assert f"{path.name}: ok" in capsys.readouterr().out
+
+
 def test_there_are_examples() -> None:
     names = {p.name for p in example_files()}
     assert {"two_serial_nmea_mavlink.toml", "nmea_udp_multiplexer.toml", "ardupilot_boat.toml"} <= names
