@@ -94,6 +94,21 @@ def test_study_file(tmp_path: Path) -> None:
         load_study_file(path)
 
 
+STUDY_FILES = sorted((Path(__file__).resolve().parents[1] / "examples" / "studies").glob("*.toml"))
+
+
+@pytest.mark.parametrize("path", STUDY_FILES, ids=lambda p: p.name)
+def test_shipped_study_files_load(path: Path) -> None:
+    """The study files docs/study.md regenerates its tables from load and pass the grid's checks (known
+    scenarios, observer specs that parse), so the printed commands get past their first step."""
+    spec = load_study_file(path)
+    assert spec.scenarios and spec.seeds and spec.cases()
+
+
+def test_there_are_shipped_study_files() -> None:
+    assert {p.name for p in STUDY_FILES} >= {"observers.toml", "torsetnes_tp.toml"}
+
+
 def test_cache_key_names_the_case_and_the_code() -> None:
     a, b = SMALL.cases()[:2]
     v = code_version()
