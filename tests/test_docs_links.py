@@ -78,3 +78,11 @@ def test_the_checks_find_what_they_look_for(tmp_path: Path) -> None:
         "gateway/nothing_here.py",
         "docs/config.md",
     ]
+
+
+def test_readme_lists_every_doc() -> None:
+    """README's "Documentation" section links every file of docs/: a new doc is not left unfound."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    section = readme.split("## Documentation", 1)[1]
+    linked = set(re.findall(r"\]\(docs/([\w.-]+\.md)\)", section))
+    assert {p.name for p in (ROOT / "docs").glob("*.md")} <= linked
