@@ -86,3 +86,13 @@ def test_readme_lists_every_doc() -> None:
     section = readme.split("## Documentation", 1)[1]
     linked = set(re.findall(r"\]\(docs/([\w.-]+\.md)\)", section))
     assert {p.name for p in (ROOT / "docs").glob("*.md")} <= linked
+
+
+def test_simulator_doc_has_a_row_per_scenario() -> None:
+    """docs/simulator.md's table of scenarios has a row for every scenario `dpgw sim --scenario` takes."""
+    from simulator.scenario_names import SCENARIO_NAMES
+
+    text = (ROOT / "docs" / "simulator.md").read_text(encoding="utf-8")
+    table = text.split("## Scenarios", 1)[1].split("\n## ", 1)[0]
+    rows = set(re.findall(r"^\| `(\w+)` \|", table, re.M))
+    assert set(SCENARIO_NAMES) == rows
