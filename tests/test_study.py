@@ -105,6 +105,20 @@ def test_shipped_study_files_load(path: Path) -> None:
     assert spec.scenarios and spec.seeds and spec.cases()
 
 
+def test_the_study_file_docs_study_md_shows_loads(tmp_path: Path) -> None:
+    """The example under "Study files" in docs/study.md is a study file the loader takes, as printed."""
+    import re
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "study.md").read_text(encoding="utf-8")
+    section = doc.split("## Study files", 1)[1]
+    (example,) = re.findall(r"```toml\n(.*?)```", section.split("\n## ", 1)[0], re.S)
+    path = tmp_path / "study.toml"
+    path.write_text(example)
+    spec = load_study_file(path)
+    assert spec.scenarios == ("torsetnes_2004", "hassani") and len(spec.seeds) == 8
+    assert len(spec.seas) == 3 * 2 + 1
+
+
 def test_there_are_shipped_study_files() -> None:
     assert {p.name for p in STUDY_FILES} >= {"observers.toml", "torsetnes_tp.toml"}
 
