@@ -104,6 +104,36 @@ def test_example_passes_the_check_command(path: Path, capsys: pytest.CaptureFixt
     assert f"{path.name}: ok" in capsys.readouterr().out
 
 
+def _doc_config_snippets() -> list[tuple[str, str]]:
+    """The TOML blocks of docs/*.md that are gateway config tables (not vessel, fault or study files)."""
+    import re
+
+    sections = {"[zenoh]", "[commands]", "[ros2]", "[keelson]", "[foxglove]", "[integrity]", "[control]"}
+    snippets = []
+    for doc in sorted((ROOT / "docs").glob("*.md")):
+        for block in re.findall(r"```toml\n(.*?)```", doc.read_text(encoding="utf-8"), re.S):
+            first = next(line.strip() for line in block.splitlines() if line.strip())
+            if first in sections:
+                snippets.append((doc.name, block))
+    return snippets
+
+
+@pytest.mark.parametrize("snippet", _doc_config_snippets(), ids=lambda s: s[0])
+def test_config_snippets_in_the_docs_are_valid(snippet: tuple[str, str], tmp_path: Path) -> None:
+    """A config table the docs show, added to a working config, loads as printed (a users file it names
+    is made, holding the users it names)."""
+    data = base() | tomllib.loads(snippet[1])
+    users = data.get("zenoh", {}).get("users_file")
+    if users:
+        names = [*data["zenoh"].get("commanders", []), "console"]
+        (tmp_path / users).write_text("".join(f"{n}:secret-{n}\n" for n in names))
+    parse(data, tmp_path)
+
+
+def test_the_docs_have_config_snippets() -> None:
+    assert {name for name, _ in _doc_config_snippets()} >= {"ros2.md", "security.md"}
+
+
 def test_there_are_examples() -> None:
     names = {p.name for p in example_files()}
     assert {"two_serial_nmea_mavlink.toml", "nmea_udp_multiplexer.toml", "ardupilot_boat.toml"} <= names
