@@ -456,6 +456,22 @@ def test_allow_unchecked_loads_a_failing_tuning(tmp_path: Path) -> None:
     assert [ch.name for ch in c.observer.failed_checks] == ["spr"]
 
 
+def test_injection_damping_ratio_zero_turns_the_floor_off(tmp_path: Path) -> None:
+    """`injection_damping_ratio = 0` is what `PassiveTuning` and `dpgw tune --injection-damping-ratio 0` call
+    "off"; the config refused it ("out of range ... positive"), so a tuning shown by dpgw tune could not be
+    written in the config. Zero is taken; a negative value is still refused."""
+    d = base()
+    d["observer"] = {"wave_period_s": 9, "injection_damping_ratio": 0}
+    assert parse(d, tmp_path).observer.tuning.injection_damping_ratio == 0.0
+    d["observer"] = {"wave_period_s": 9, "injection_damping_ratio": [0.4, 0, 0.4]}
+    assert parse(d, tmp_path).observer.tuning.injection_damping_ratio == (0.4, 0.0, 0.4)
+    d["observer"] = {"wave_period_s": 9, "injection_damping_ratio": -0.1}
+    (problem,) = problems_of(d, tmp_path)
+    assert problem.startswith("bad.toml: observer.injection_damping_ratio: out of range (expected a zero or ")
+    d["observer"] = {"wave_period_s": 9, "zeta": 0}  # the other ratios stay positive
+    assert "observer.zeta: out of range" in problems_of(d, tmp_path)[0]
+
+
 # --- bad configs ------------------------------------------------------------------------------------------
 
 # (id, {dotted path: value}, key path reported, a fragment of the message)
