@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import textwrap
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -25,6 +26,24 @@ if TYPE_CHECKING:
 # Only the parser is built at import; the pipeline (numpy, numba, scipy) and Zenoh are imported by the
 # functions that replay, so `dpgw replay --help` answers at once.
 
+# The keys of an observer spec that set the passive tuning (`gateway.replay.TUNING_KEYS`, written out here
+# so that --help imports no numerics; a test holds the two equal).
+SPEC_TUNING_KEYS = (
+    "wave_period_s",
+    "omega0",
+    "zeta",
+    "zeta_n",
+    "cutoff_ratio",
+    "omega_c",
+    "bias_time_constant_s",
+    "velocity_injection_ratio",
+    "velocity_injection",
+    "injection_damping_ratio",
+    "bias_corner_ratio",
+    "bias_corner",
+)
+SPEC_TUNING_KEYS_TEXT = "\n  ".join(textwrap.wrap(", ".join(SPEC_TUNING_KEYS), 76))
+
 NAME = "replay"
 HELP = "re-run observers on recorded logs (MCAP, NMEA text, MAVLink tlog), with a report"
 DESCRIPTION = (
@@ -36,11 +55,12 @@ DESCRIPTION = (
     "backwards or repeated time, duplicates) is counted, never fatal."
 )
 EPILOG = (
-    "observer specs: NAME[:key=value,...][@label]; keys: the observer's own (a wrong key lists\n"
-    "them) and of the passive tuning, which passive, gain_scheduled and memory use all of:\n"
-    "  wave_period_s, omega0, zeta, zeta_n, cutoff_ratio, omega_c, bias_time_constant_s,\n"
-    "  velocity_injection, bias_corner_ratio, bias_corner\n"
-    "sdre and ekf only wave_period_s, omega0 and zeta; mmae none (its zeta is its own)\n"
+    "observer specs: NAME[:key=value,...][@label]; keys: the observer's own\n"
+    "(a wrong key lists them) and of the passive tuning, all of which passive,\n"
+    "gain_scheduled and memory use:\n"
+    f"  {SPEC_TUNING_KEYS_TEXT}\n"
+    "sdre and ekf use only wave_period_s, omega0 and zeta; mmae none (its zeta\n"
+    "is its own)\n"
     "examples:\n"
     "  dpgw replay trial.mcap --out again.mcap                      # a gateway log, its own config\n"
     "  dpgw replay usv.txt --vessel cybership2 --observer passive:wave_period_s=6 \\\n"

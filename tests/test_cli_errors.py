@@ -278,6 +278,67 @@ def _example_commands() -> list[str]:
     return commands
 
 
+DOCS = [REPO / "README.md", REPO / "examples" / "README.md", *sorted((REPO / "docs").glob("*.md"))]
+
+
+def _doc_commands() -> list[str]:
+    """Every `dpgw …` command in a code block of README.md, examples/README.md and docs/*.md, as a reader
+    copies it: continuation lines joined, a path before `dpgw` (`.venv/bin/dpgw`), `sudo`, comments and
+    pipes cut, `&&`-chains split."""
+    commands = []
+    for doc in DOCS:
+        for block in re.findall(r"```[a-z]*\n(.*?)```", doc.read_text(encoding="utf-8"), re.S):
+            pending = ""
+            for line in block.splitlines():
+                text = pending + " " + line.strip() if pending else line.strip()
+                if text.endswith("\\"):
+                    pending = text[:-1].strip()
+                    continue
+                pending = ""
+                for part in re.split(r" && | ; ", text):
+                    part = re.sub(r"^(sudo (-u \w+ )?)?\S*?(?=\bdpgw )", "", part.strip())
+                    if part.startswith("dpgw "):
+                        commands.append(part.split("  #")[0].split(" | ")[0].strip())
+    return commands
+
+
+def test_the_docs_have_commands_to_check() -> None:
+    commands = _doc_commands()
+    assert "dpgw demo" in commands  # README's `.venv/bin/dpgw demo`
+    assert "dpgw run --config examples/two_serial_nmea_mavlink.toml --check" in commands
+
+
+@pytest.mark.parametrize("command", _doc_commands())
+def test_every_command_in_the_docs_parses(command: str) -> None:
+    """What README.md and docs/ print, the parser takes (files they name may be placeholders; the example
+    configs and study files they name are loaded by tests/test_config.py and tests/test_study.py)."""
+    import shlex
+
+    build_parser().parse_args(shlex.split(command)[1:])
+
+
+def test_every_option_the_docs_name_exists() -> None:
+    """Every `--option` the docs write after `dpgw COMMAND` (whole commands, usage lines and mentions such
+    as `dpgw replay --settle S`) is an option of that command: a renamed or removed option shows here."""
+    parsers = _subparsers()
+    wrong, seen = [], 0
+    for doc in DOCS:
+        text = doc.read_text(encoding="utf-8")
+        mentions = re.findall(r"`(dpgw [^`]+)`", text) + re.findall(r"(?m)^\s*(?:\S*/)?(dpgw \w+ .*)$", text)
+        for mention in mentions:
+            words = mention.split()
+            if words[1] not in parsers:
+                continue
+            known = {o for action in parsers[words[1]]._actions for o in action.option_strings}
+            for word in words[2:]:
+                for option in re.findall(r"(?:^|[\[/])(--[a-z][\w-]*)", word):
+                    seen += 1
+                    if option not in known:
+                        wrong.append(f"{doc.name}: {mention!r}: {option}")
+    assert seen > 100  # the docs name options, and they were found
+    assert not wrong, wrong
+
+
 @pytest.mark.parametrize("command", _example_commands())
 def test_every_help_example_parses(command: str) -> None:
     """What an example asks for, the parser takes (the files it names are placeholders)."""

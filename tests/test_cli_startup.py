@@ -105,6 +105,19 @@ def test_radiation_defaults_match_the_fit() -> None:
     )
 
 
+def test_replay_help_lists_every_spec_tuning_key() -> None:
+    """`dpgw replay --help` lists the keys an observer spec takes for the tuning: all that
+    `parse_observer_spec` takes (it left out velocity_injection_ratio and injection_damping_ratio)."""
+    from dpgw import cli_replay
+    from gateway.replay import TUNING_KEYS
+
+    assert set(cli_replay.SPEC_TUNING_KEYS) == TUNING_KEYS
+    assert len(cli_replay.SPEC_TUNING_KEYS) == len(TUNING_KEYS)
+    listed = " ".join(cli_replay.EPILOG.split("examples:")[0].split())
+    for key in TUNING_KEYS:
+        assert f" {key}," in listed, key
+
+
 def test_dpgw_runs_blas_single_threaded_unless_told_otherwise() -> None:
     """OpenBLAS's extra threads spin-wait after every small product (twice the CPU for the same wall time,
     measured in bench/bench_simulator.py): every dpgw command sets one thread before numpy loads, and a

@@ -94,6 +94,46 @@ def example_files() -> list[Path]:
     return sorted(EXAMPLES.glob("*.toml"))
 
 
+@pytest.mark.parametrize("path", example_files(), ids=lambda p: p.name)
+def test_example_passes_the_check_command(path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`dpgw run --config FILE --check`, as examples/README.md prints it, accepts every example: the
+    command also checks what loading does not (the optional packages an enabled output needs)."""
+    from dpgw.cli import main
+
+    assert main(["run", "--config", str(path), "--check"]) == 0
+    assert f"{path.name}: ok" in capsys.readouterr().out
+
+
+def _doc_config_snippets() -> list[tuple[str, str]]:
+    """The TOML blocks of docs/*.md that are gateway config tables (not vessel, fault or study files)."""
+    import re
+
+    sections = {"[zenoh]", "[commands]", "[ros2]", "[keelson]", "[foxglove]", "[integrity]", "[control]"}
+    snippets = []
+    for doc in sorted((ROOT / "docs").glob("*.md")):
+        for block in re.findall(r"```toml\n(.*?)```", doc.read_text(encoding="utf-8"), re.S):
+            first = next(line.strip() for line in block.splitlines() if line.strip())
+            if first in sections:
+                snippets.append((doc.name, block))
+    return snippets
+
+
+@pytest.mark.parametrize("snippet", _doc_config_snippets(), ids=lambda s: s[0])
+def test_config_snippets_in_the_docs_are_valid(snippet: tuple[str, str], tmp_path: Path) -> None:
+    """A config table the docs show, added to a working config, loads as printed (a users file it names
+    is made, holding the users it names)."""
+    data = base() | tomllib.loads(snippet[1])
+    users = data.get("zenoh", {}).get("users_file")
+    if users:
+        names = [*data["zenoh"].get("commanders", []), "console"]
+        (tmp_path / users).write_text("".join(f"{n}:secret-{n}\n" for n in names))
+    parse(data, tmp_path)
+
+
+def test_the_docs_have_config_snippets() -> None:
+    assert {name for name, _ in _doc_config_snippets()} >= {"ros2.md", "security.md"}
+
+
 def test_there_are_examples() -> None:
     names = {p.name for p in example_files()}
     assert {"two_serial_nmea_mavlink.toml", "nmea_udp_multiplexer.toml", "ardupilot_boat.toml"} <= names
@@ -414,6 +454,22 @@ def test_allow_unchecked_loads_a_failing_tuning(tmp_path: Path) -> None:
     d["observer"] = {"wave_period_s": 7, "bias_corner": 0.1, "allow_unchecked": True}
     c = parse(d, tmp_path)
     assert [ch.name for ch in c.observer.failed_checks] == ["spr"]
+
+
+def test_injection_damping_ratio_zero_turns_the_floor_off(tmp_path: Path) -> None:
+    """`injection_damping_ratio = 0` is what `PassiveTuning` and `dpgw tune --injection-damping-ratio 0` call
+    "off"; the config refused it ("out of range ... positive"), so a tuning shown by dpgw tune could not be
+    written in the config. Zero is taken; a negative value is still refused."""
+    d = base()
+    d["observer"] = {"wave_period_s": 9, "injection_damping_ratio": 0}
+    assert parse(d, tmp_path).observer.tuning.injection_damping_ratio == 0.0
+    d["observer"] = {"wave_period_s": 9, "injection_damping_ratio": [0.4, 0, 0.4]}
+    assert parse(d, tmp_path).observer.tuning.injection_damping_ratio == (0.4, 0.0, 0.4)
+    d["observer"] = {"wave_period_s": 9, "injection_damping_ratio": -0.1}
+    (problem,) = problems_of(d, tmp_path)
+    assert problem.startswith("bad.toml: observer.injection_damping_ratio: out of range (expected a zero or ")
+    d["observer"] = {"wave_period_s": 9, "zeta": 0}  # the other ratios stay positive
+    assert "observer.zeta: out of range" in problems_of(d, tmp_path)[0]
 
 
 # --- bad configs ------------------------------------------------------------------------------------------

@@ -98,8 +98,13 @@ ETA = "η = [N, E, ψ]: north, east, heading (clockwise from true north, in [-π
 NU = "ν = [u, v, r]: surge (forward), sway (starboard), yaw rate."
 TAU = "[X, Y, N]: surge force, sway force, yaw moment, in the body frame."
 STAMP = (
-    "Event time, UTC nanoseconds since the Unix epoch (sensor time where the sentence has one, else "
-    "receive time). JavaScript readers parse it as a double (~256 ns resolution)."
+    "Event time, UTC nanoseconds since the Unix epoch: when the input that produced it was received, on "
+    'the gateway\'s clock (the simulation time with `[time] clock = "sim"`; in a replay of an NMEA text '
+    "log, the sentences' own time). JavaScript readers parse it as a double (~256 ns resolution)."
+)
+TRUTH_STAMP = (
+    "Simulation time of the sample, UTC nanoseconds since the Unix epoch. JavaScript readers parse it as "
+    "a double (~256 ns resolution)."
 )
 
 EstimateStatus = Literal["initializing", "ok", "dead_reckoning", "degraded", "lost"]
@@ -321,7 +326,13 @@ class ThrusterFeedback(Message, kw_only=True):
 class SourceStatus(Record, kw_only=True):
     age_s: Annotated[float | None, doc("Time since the last message; null if none yet.", "s")]
     received: Annotated[int, doc("Sentences/frames decoded and used or understood (count).")]
-    rejected: Annotated[dict[str, int], doc('Rejected by reason (count), e.g. {"checksum": 2}.')]
+    rejected: Annotated[
+        dict[str, int],
+        doc(
+            'Rejected by reason (count), e.g. {"bad_checksum": 2}; the reasons are listed in '
+            'docs/gateway.md ("Bad input").'
+        ),
+    ]
     bytes: Annotated[int, doc("Bytes received (count).")]
     dropped: Annotated[
         int,
@@ -695,7 +706,7 @@ class TruthState(Message, kw_only=True):
 
     TITLE = "dpgw.TruthState"
 
-    stamp_ns: Annotated[int, doc(STAMP, "ns (UTC)")]
+    stamp_ns: Annotated[int, doc(TRUTH_STAMP, "ns (UTC)")]
     eta_lf: Annotated[Vec3, doc("True low-frequency " + ETA, "m, m, rad")]
     nu: Annotated[Vec3, doc("True low-frequency velocity " + NU, "m/s, m/s, rad/s")]
     bias: Annotated[Vec3, doc("True environmental force [X, Y, N], earth-fixed axes.", "N, N, N·m")]

@@ -154,22 +154,29 @@ def vector(n: int, default: Any = MISSING, *, unit: str = "", names: str = "") -
     return Field(default, json_schema_extra={"expected": expected})
 
 
-def _per_dof(allow_inf: bool) -> Callable[[Any], float | tuple[float, float, float]]:
+def _per_dof(
+    allow_inf: bool, allow_zero: bool = False
+) -> Callable[[Any], float | tuple[float, float, float]]:
     def check(value: Any) -> float | tuple[float, float, float]:
         items = value if isinstance(value, list) else [value]
         if (isinstance(value, list) and len(value) != 3) or not all(_is_number(v) for v in items):
             raise PydanticCustomError("wrong_type", "wrong type")
         xs = [float(v) for v in items]
-        if not all((math.isfinite(x) or (allow_inf and x == math.inf)) and x > 0 for x in xs):
+        if not all(
+            (math.isfinite(x) or (allow_inf and x == math.inf)) and (x > 0 or (allow_zero and x == 0))
+            for x in xs
+        ):
             raise PydanticCustomError("out_of_range", "out of range")
         return (xs[0], xs[1], xs[2]) if isinstance(value, list) else xs[0]
 
     return check
 
 
-def per_dof(*, unit: str = "", allow_inf: bool = False) -> Any:
-    """A positive number for all three degrees of freedom, or an array [surge, sway, yaw]."""
-    limit = "positive" + (" (inf allowed)" if allow_inf else "")
+def per_dof(*, unit: str = "", allow_inf: bool = False, zero: str = "") -> Any:
+    """A positive number for all three degrees of freedom, or an array [surge, sway, yaw]; ``zero`` (what 0
+    means) allows 0 too."""
+    limit = ("zero or positive" if zero else "positive") + (" (inf allowed)" if allow_inf else "")
+    limit += f" ({zero})" if zero else ""
     expected = f"a {limit} number{' ' + unit if unit else ''}, or an array of 3 [surge, sway, yaw]"
     return Field(None, json_schema_extra={"expected": expected})
 
@@ -178,6 +185,7 @@ Vector2 = Annotated[tuple[float, float], PlainValidator(_vector(2))]
 Vector3 = Annotated[tuple[float, float, float], PlainValidator(_vector(3))]
 PerDof = Annotated[float | tuple[float, float, float], PlainValidator(_per_dof(False))]
 PerDofOrInf = Annotated[float | tuple[float, float, float], PlainValidator(_per_dof(True))]
+PerDofOrZero = Annotated[float | tuple[float, float, float], PlainValidator(_per_dof(False, True))]
 
 
 def _table(value: Any) -> dict[str, Any]:
@@ -356,7 +364,8 @@ class ObserverTable(_Section):
     bias_time_constant_s: PerDofOrInf = per_dof(allow_inf=True)
     velocity_injection: PerDof = per_dof()
     velocity_injection_ratio: PerDof = per_dof()
-    injection_damping_ratio: PerDof = per_dof()
+    # 0 turns the damping floor off, as in `PassiveTuning` and `dpgw tune --injection-damping-ratio 0`
+    injection_damping_ratio: PerDofOrZero = per_dof(zero="0 = no floor")
     bias_corner_ratio: PerDof = per_dof()
     bias_corner: PerDof = per_dof()
     allow_unchecked: bool = boolean(_OBS["allow_unchecked"])
