@@ -87,10 +87,12 @@ def run(args: argparse.Namespace) -> int:
     if args.vessel and args.out:
         print("dpgw radiation: give --out or --vessel, not both", file=sys.stderr)
         return 2
-    if args.vessel:
+    if args.vessel and not Path(args.vessel).is_file():
+        # a name must be a built-in vessel: a misspelt one was taken for a file stem (NAME_radiation.npz
+        # in the current folder); a vessel file is only where the model goes (it may not be complete yet)
         from observers.vessel import VesselError, load_vessel
 
-        try:  # a misspelt name was taken for a file stem: NAME_radiation.npz in the current folder
+        try:
             load_vessel(args.vessel)
         except VesselError as exc:
             print(f"dpgw radiation: --vessel: {exc}", file=sys.stderr)
