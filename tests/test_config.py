@@ -1137,3 +1137,37 @@ def test_command_access_that_is_fine(tmp_path: Path) -> None:
     put(data, "sources.2.allow_unsigned", DELETE)
     put(data, "sources.2.signing_key", KEY)
     assert parse(data, tmp_path).source("thr").signing_key == bytes.fromhex(KEY)
+
+
+@pytest.mark.parametrize(
+    ("observer", "refused"),
+    [
+        ({"type": "ekf", "zeta": 0.1, "bias_time_constant_s": 500.0}, ["bias_time_constant_s"]),
+        (
+            {"type": "sdre", "wave_period_s": 8.0, "zeta_n": 1.0, "cutoff_ratio": 1.1},
+            ["zeta_n", "cutoff_ratio"],
+        ),
+        ({"type": "mmae", "wave_period_s": 8.0}, ["wave_period_s"]),
+        ({"type": "mmae", "zeta": 0.1}, ["zeta"]),  # the bank's own ζ goes in [observer.params]
+        ({"type": "sdre", "wave_period_s": 8.0, "zeta": 0.1}, []),
+        ({"type": "passive", "zeta_n": 1.0, "bias_time_constant_s": 500.0}, []),
+        ({"type": "memory", "zeta_n": 1.0}, []),
+        ({"type": "mmae", "params": {"zeta": 0.1}}, []),
+    ],
+)
+def test_a_tuning_key_the_observer_does_not_use_is_refused(
+    observer: dict[str, Any], refused: list[str], tmp_path: Path
+) -> None:
+    """Silently ignored, `[observer] type = "ekf"` with `bias_time_constant_s` looked like a tuning that
+    took effect: each such key is a problem naming the key and what the observer does use."""
+    data = base()
+    data["observer"] = observer
+    try:
+        parse(data, tmp_path)
+        problems: list[str] = []
+    except ConfigError as exc:
+        problems = exc.problems
+    found = [line for line in problems if "not used by" in line]
+    assert len(found) == len(refused), found
+    for key, line in zip(refused, found, strict=True):
+        assert f"observer.{key}" in line and f'"{observer["type"]}"' in line and "[observer.params]" in line

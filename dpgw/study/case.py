@@ -56,11 +56,14 @@ def loop_tables(case: CaseSpec, scenario: Any, nominal_tp_s: float) -> dict[str,
     """The gateway config of the loop: the scenario's sensors; every observer tuned to the scenario's own
     (nominal) wave period — what an operator sets from the forecast — not to the case's sea state."""
     from dpgw.closed_loop import gateway_tables
-    from gateway.replay import parse_observer_spec
+    from gateway.replay import parse_observer_spec, tuning_keys
 
     tables = gateway_tables(scenario)
     loop = parse_observer_spec(case.loop_observer)
-    observer: dict[str, Any] = {"type": loop.name, "wave_period_s": nominal_tp_s, **loop.tuning_params()}
+    observer: dict[str, Any] = {"type": loop.name}
+    if "wave_period_s" in tuning_keys(loop.name):  # (the MMAE bank takes none of the common tuning)
+        observer["wave_period_s"] = nominal_tp_s
+    observer.update(loop.tuning_params())
     params = loop.observer_params()
     if params:
         observer["params"] = params

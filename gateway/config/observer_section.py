@@ -15,7 +15,7 @@ from gateway.config.defaults import DEFAULTS
 from gateway.config.model import ObserverConfig
 from gateway.config.problems import Problems, show
 from gateway.config.schema import TUNING_KEYS, ObserverTable, read_table
-from observers.factory import ObserverSpecError, check_params
+from observers.factory import OBSERVER_TUNING, ObserverSpecError, check_params
 from observers.passive_tuning import PassiveTuning, TuningError, check_gains, passive_gains
 from observers.vessel import VesselModel, load_vessel
 
@@ -77,6 +77,8 @@ def read_observer(p: Problems, t: Mapping[str, Any], vessel: VesselModel | None)
             )
     params: dict[str, Any] = {}
     ptab, kind = v["params"], v["type"]
+    if kind is not None:
+        _refuse_unused_tuning(p, t, kind)
     if ptab is not None and kind is not None:
         try:
             check_params(kind, ptab)
@@ -101,6 +103,25 @@ def read_observer(p: Problems, t: Mapping[str, Any], vessel: VesselModel | None)
         checks=checks,
         params=params,
     )
+
+
+def _refuse_unused_tuning(p: Problems, t: Mapping[str, Any], kind: str) -> None:
+    """A key of the common tuning the chosen observer does not use is a mistake, not a no-op: the SDRE and
+    EKF observers take only ω0 (or the wave period) and ζ from it, the MMAE bank none (its settings,
+    its own ζ too, go in ``[observer.params]``). Silently ignored, such a key looks like a tuning that
+    took effect."""
+    used = OBSERVER_TUNING.get(kind)
+    if used is None:
+        return  # every key of the tuning
+    keys = {*used, *(("wave_period_s",) if "omega0" in used else ())}
+    what = ", ".join(sorted(keys)) if keys else "none of it"
+    for key in ("wave_period_s", "omega0", *TUNING_KEYS):
+        if key in t and key not in keys:
+            p.add(
+                f"observer.{key}",
+                f'not used by the "{kind}" observer (of the common tuning it uses {what}; its own '
+                "settings go in [observer.params])",
+            )
 
 
 def _key_of(line: str, where: str) -> str:
