@@ -114,6 +114,8 @@ def run(args: argparse.Namespace) -> int:
             print(format_problems(problems), file=sys.stderr)
             return 2
         print(describe(config))
+        for note in start_up_notes(config):
+            print(f"note: {note}")
         return 0
     with open(args.config, "rb") as f:
         tables = tomllib.load(f)
@@ -218,6 +220,24 @@ def status_line(status: dict[str, Any], elapsed_s: float) -> str:
         + ", ".join(parts)
         + (f"; alarms: {'; '.join(alarms)}" if alarms else "")
     )
+
+
+def start_up_notes(config: GatewayConfig) -> list[str]:
+    """What start-up would not refuse but an engineer should know: a UDP source listening on an address
+    that is not this computer's now (start-up waits for it, as for an interface still coming up at boot;
+    a typing mistake looks the same)."""
+    from gateway.sources import SourceError, open_source
+    from gateway.sources.udp import UdpSource
+
+    notes: list[str] = []
+    for sc in config.sources:
+        try:
+            source = open_source(sc.name, sc.url, timeout_s=sc.timeout_s)
+        except SourceError:
+            continue  # (a problem start_up_problems reports)
+        if isinstance(source, UdpSource) and (note := source.listen_address_note()):
+            notes.append(f"sources.{sc.name}.url: {note}")
+    return notes
 
 
 def start_up_problems(config: GatewayConfig) -> list[str]:

@@ -1171,3 +1171,22 @@ def test_a_tuning_key_the_observer_does_not_use_is_refused(
     assert len(found) == len(refused), found
     for key, line in zip(refused, found, strict=True):
         assert f"observer.{key}" in line and f'"{observer["type"]}"' in line and "[observer.params]" in line
+
+
+def test_the_check_command_notes_a_udp_address_this_computer_does_not_have(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A UDP source on an address no interface has is waited for at start-up (an interface slow to come
+    up at boot), so `--check` cannot refuse it; it says so, because a typing mistake looks the same.
+    (198.51.100.0/24 is TEST-NET-2: documentation only, never a real interface.)"""
+    from dpgw.cli import main
+
+    for host, noted in (("198.51.100.7", True), ("127.0.0.1", False), ("0.0.0.0", False)):
+        path = tmp_path / "vessel.toml"
+        path.write_text(
+            f'[vessel]\nname = "mss_supply"\n[log]\npath = ""\n[[sources]]\nname = "gps"\n'
+            f'url = "udp://{host}:10110"\nprotocol = "nmea"\nroles = ["position", "heading"]\n'
+        )
+        assert main(["run", "--config", str(path), "--check"]) == 0
+        out = capsys.readouterr().out
+        assert ("note: sources.gps.url: 198.51.100.7 is not an address of this computer now" in out) == noted

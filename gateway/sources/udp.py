@@ -55,7 +55,8 @@ class UdpSource(Source):
     address that is not yet this computer's is bound all the same (Linux ``IP_FREEBIND``), the source is
     not ``connected`` meanwhile (a ``/status`` alarm saying why), and datagrams are read as soon as the
     address appears (looked for every `ADDRESS_CHECK_S`). An address that never appears (a typing
-    mistake) keeps the alarm up; ``dpgw run --check`` cannot know, as the address may come later.
+    mistake) keeps the alarm up; ``dpgw run --check`` notes it (`listen_address_note`) but cannot refuse
+    it, as the address may come later.
     """
 
     kind = "udp"
@@ -165,6 +166,22 @@ class UdpSource(Source):
                 always=True,
             )
 
+    def listen_address_note(self) -> str | None:
+        """Without opening anything: why the address listened on is not this computer's now (it may be an
+        interface still to come up, or a typing mistake), or None. What ``dpgw run --check`` says."""
+        if not self.host or self.host in ("0.0.0.0", "::") or self.multicast:
+            return None
+        try:
+            family, local = self._resolve(self.host, 0, passive=True)
+        except SourceError as exc:
+            return exc.problem
+        if not _address_is_local(family, local):
+            return (
+                f"{self.host} is not an address of this computer now: the gateway will wait for its "
+                "interface to come up (if it never does, the address is wrong: ip -br addr)"
+            )
+        return None
+
     def _check_address(self) -> None:
         if self._local is not None and self._is_local():
             self.address_up = self.stats.connected = True
@@ -172,15 +189,7 @@ class UdpSource(Source):
 
     def _is_local(self) -> bool:
         """The specific unicast address bound (if any) belongs to an interface of this computer now."""
-        if self._local is None:
-            return True
-        family, local = self._local
-        with socket.socket(family, socket.SOCK_DGRAM) as probe:
-            try:
-                probe.bind((local[0], 0, *local[2:]))
-            except OSError as exc:
-                return exc.errno != errno.EADDRNOTAVAIL
-        return True
+        return self._local is None or _address_is_local(*self._local)
 
     def _size_buffer(self, sock: socket.socket) -> None:
         """Ask for `receive_buffer` (forced past net.core.rmem_max where permitted), note what was granted,
@@ -300,3 +309,14 @@ class UdpSource(Source):
         if sock is not None:
             sock.close()
         self.stats.connected = False
+
+
+def _address_is_local(family: int, local: tuple[Any, ...]) -> bool:
+    """Whether ``local`` (a socket address) belongs to an interface of this computer now: a probe socket
+    binds it on any port (refused with EADDRNOTAVAIL when it does not)."""
+    with socket.socket(family, socket.SOCK_DGRAM) as probe:
+        try:
+            probe.bind((local[0], 0, *local[2:]))
+        except OSError as exc:
+            return exc.errno != errno.EADDRNOTAVAIL
+    return True
