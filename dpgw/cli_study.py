@@ -202,7 +202,8 @@ def run(args: argparse.Namespace) -> int:
         if args.update_doc:
             doc_target(args.update_doc)  # before the study: a wrong file stops it now, not after an hour
     except (StudySpecError, ValueError) as exc:
-        print(f"dpgw study: {exc}", file=sys.stderr)
+        # (a spec's own messages start "study: " for library callers: said once here)
+        print(f"dpgw study: {str(exc).removeprefix('study: ')}", file=sys.stderr)
         return 2
     cache = None if args.no_cache else CaseCache(args.cache or args.out / "cache")
     workers = 0 if args.serial else args.workers
@@ -241,7 +242,8 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(text)
     print(
-        f"{result.cases} cases ({result.computed} run, {result.cached} from the cache) on {where} in "
+        f"{result.cases} case{'' if result.cases == 1 else 's'} ({result.computed} run, {result.cached} "
+        f"from the cache) on {where} in "
         f"{result.seconds:.1f} s; files in {args.out}/",
         file=sys.stderr,
     )

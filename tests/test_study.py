@@ -242,7 +242,8 @@ def test_cli_writes_table_summary_plots_and_json(tmp_path: Path, capsys: pytest.
     assert main(argv) == 0  # again: everything from the cache
     assert json.loads(capsys.readouterr().out)["cached"] == 2
     assert main(["study", "--scenario", "snijders_2005", "--observer", "nope", "--serial"]) == 2
-    assert "'observers'" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "'observers'" in err and "study: study:" not in err  # the spec's "study: " said once
     # a named table; a file without its markers stops the study before any case
     doc.write_text("<!-- study-table:x:begin -->\n<!-- study-table:x:end -->\n")
     assert main([*argv[:-1], f"{doc}#x"]) == 0
@@ -351,3 +352,15 @@ def test_box_whiskers_are_the_summarys_5_and_95_percent() -> None:
     b = box_stats(twelve)
     assert (b["whislo"], b["whishi"]) == pytest.approx((0.55, 10.45)) and list(b["fliers"]) == [0.0, 11.0]
     assert math.isnan(box_stats([math.nan])["med"])
+
+
+def test_the_summary_counts_seeds_and_cases_in_words() -> None:
+    """One seed is "1 seed", not "1 seeds" (the heading of each group of the summary)."""
+    from dpgw.study.outputs import SUMMARY_COLUMNS, summary_markdown
+
+    row = {"scenario": "hassani", "sea": "own sea", "observer": "passive", "seed": 0, "hs_m": 1.0,
+           "tp_s": 6.0, "duration_s": 60.0, "settle_s": 10.0}  # fmt: skip
+    row.update({column: 1.0 for column, _, _ in SUMMARY_COLUMNS})
+    for seeds, words in (([0], "1 seed,"), ([0, 1], "2 seeds,")):
+        text = summary_markdown([{**row, "seed": k} for k in seeds])
+        assert words in text, text

@@ -92,7 +92,8 @@ def summary_markdown(rows: Sequence[dict[str, Any]]) -> str:
         first = next(iter(by_obs.values()))[0]
         lines.append(
             f"### {scenario}, {sea} (Hs {first['hs_m']:g} m, Tp {first['tp_s']:g} s, "
-            f"{len(seeds)} seeds, {first['duration_s']:g} s scored from {first['settle_s']:g} s)"
+            f"{len(seeds)} seed{'s' if len(seeds) != 1 else ''}, {first['duration_s']:g} s scored from "
+            f"{first['settle_s']:g} s)"
         )
         lines.append("")
         lines.append("| observer | " + " | ".join(h for _, h, _ in SUMMARY_COLUMNS) + " |")
