@@ -306,6 +306,16 @@ def test_a_turning_vessel_far_from_the_origin() -> None:
 # --- the design ------------------------------------------------------------------------------------------
 
 
+def test_default_bank_is_the_papers_eight_candidates() -> None:
+    """Hassani et al. Sec. 4: eight candidates {0.3, 0.45, …, 1.35} rad/s covering peaks in [0.25, 1.4] rad/s;
+    the true 0.93 rad/s is not among them, and 0.9 rad/s (the fifth) is the one the paper sees win."""
+    printed = (0.3, 0.45, 0.6, 0.75, 0.9, 1.05, 1.2, 1.35)
+    assert printed == HASSANI_CANDIDATES
+    bank = design_bank(load_vessel("cybership2"))
+    np.testing.assert_array_equal(bank.candidates, printed)
+    assert 0.93 not in printed and int(np.argmin(np.abs(bank.candidates - 0.93))) == 4
+
+
 def test_default_noise_is_appendix_a_for_cybership2_and_froude_scales() -> None:
     cs2 = load_vessel("cybership2")
     Q, R = hassani_noise(cs2)
