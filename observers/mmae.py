@@ -242,8 +242,9 @@ def design_bank(
 ) -> MMAEBank:
     """Discretise (14) per candidate, solve the DARE, and tabulate gains and likelihood terms.
 
-    ``zeta``: ζ of the wave model (7); 0.25 by default (the paper's 0.1 puts the bank's likelihood peak 5 %
-    above a JONSWAP sea's peak: docs/mmae.md).
+    ``zeta``: ζ of the wave model (7); 0.25 by default. Hassani et al. leave ζ a symbol (Λ = diag 2ζᵢω0ᵢ);
+    the usual 0.1 (Fossen & Strand (1999) Sec. 6; Torsetnes et al. (2004) for JONSWAP) puts the bank's
+    likelihood peak 5 % above a JONSWAP sea's peak (docs/mmae.md).
 
     ``Q``: 9×9 (or 9 diagonal values) intensity of w = [w1; w2; w3]; default `hassani_noise`.
     ``R``: 3×3 (or 3 diagonal values) covariance of one measurement sample; default `hassani_noise`.
@@ -388,7 +389,8 @@ class MMAEObserver(ObserverBase):
     with the median of the last five windows, R = σ_n², wave_std = 0.7·σ_wave, when either moves by more
     than 30 % (filter states and weights kept). The weights start moving at the first identification,
     about one slowest period after the first sample. Hassani's (A.2) Q and R, the fallback before that, do not
-    identify real seas (docs/mmae.md). The default ζ is 0.25, not the paper's 0.1, for the same reason.
+    identify real seas (docs/mmae.md). The default ζ is 0.25, not the usual 0.1 (Hassani et al. give no
+    value), for the same reason.
 
     ``lf_output`` (default True; it applies when the noise is identified and Q is not given): the LF
     output stage, `observers.mmae_lf` — the bank keeps (A.2)'s LF noise Q2, Q3 and identifies ω0 as above;

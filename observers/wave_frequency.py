@@ -102,6 +102,11 @@ class WaveFrequencyConfig:
     """
 
     window_s: float = 300.0
+    # A5's example is T = 15 min. dpgw updates every minute: the first estimate then replaces a badly tuned
+    # start within a minute or two instead of a quarter of an hour. Frequent updates cost no jumps: the
+    # estimate is the median of the last peaks (`median_of`), the gain-scheduled observer ramps towards it
+    # within its contraction budget (`observers.gain_scheduled_analysis`), and the adaptive SDRE keeps its
+    # state across a new ω0.
     update_period_s: float = 60.0
     omega_min: float = 0.3
     omega_max: float = 1.6

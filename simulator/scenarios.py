@@ -3,14 +3,14 @@
 Each scenario fixes the vessel, the sea (a schedule of `SeaState`s), the slowly varying environment,
 the sensors and faults, and — until the gateway commands the thrusters (the DP controller) —
 a prescribed generalised force τ(t, ship) that the thrusters are asked to deliver. Where a paper does
-not give a number, the choice is made here and said in ``notes`` (and in docs/scenarios.md).
+not give a number, the choice is made here and said in ``notes`` (and in docs/simulator.md, "Scenarios").
 
 - fossen_strand_1999 — Fossen & Strand (1999) Sec. 6.1: Northern Clipper, τ of eq (61), WF motion
   limited to 10 m / 10 m / 1.0°, measurements at 1 Hz.
 - torsetnes_2004 — Torsetnes et al. (2004) Sec. V: MSS supply vessel at (0, 0), heading 45°, JONSWAP Hs 6 m.
 - snijders_2005 — Snijders et al. (2005) Sec. 4: the track (0,0) → (10,10) → (−10,−10) with a turn to 45°,
   JONSWAP Hs 5 m, Tp 12 s, γ 3.3.
-- hassani — Hassani et al. Sec. 5: CyberShip II, wave peak 0.93 rad/s, a 10 m step forward at t = 40 s.
+- hassani — Hassani et al. Sec. 4: CyberShip II, wave peak 0.93 rad/s, a 10 m step forward at t = 40 s.
 - hassani_sea_change — the same, the sea changing from Tp 6 s to Tp 12 s at t = 300 s (MMAE re-adaptation).
 - hajivand_2010 — Hajivand & Mousavizadegan (2010): three azimuths, τ of the paper.
 - mss_osv — MSS's offshore supply vessel (osv.m) on the full nonlinear plant in current, wind and waves.
@@ -243,6 +243,9 @@ def snijders_2005() -> Scenario:
 
 def hassani() -> Scenario:
     vessel = load_vessel("cybership2")
+    # The text of Sec. 4 gives the true peak as 0.93 rad/s, "not included in the original design set";
+    # the caption of its Fig. 3 says 0.85 rad/s. The text is taken: it names the value and the reason
+    # for it (a peak between candidates), and either value makes the 0.9 rad/s filter the nearest.
     wp = 0.93
     legs = [(40.0, 80.0, (10.0, 0.0, 0.0))]
     return Scenario(

@@ -165,7 +165,7 @@ def test_extended_matrix_matches_vessel_configuration(name: str) -> None:
     np.testing.assert_allclose(B @ np.array(f), vessel.generalized_force(cmd.thrust, cmd.azimuth), rtol=1e-12)
 
 
-def test_extended_matrix_signs_per_errata() -> None:
+def test_extended_matrix_has_the_signs_the_printed_22_lost() -> None:
     """Azimuth at (x, y): F_x contributes yaw −y·F_x, F_y contributes x·F_y (eq (22), signs restored)."""
     vessel = load_vessel("hajivand_vessel")
     B = extended_configuration_matrix(vessel)

@@ -105,8 +105,9 @@ def first_time(t: np.ndarray, cond: np.ndarray) -> float:
 
 
 @pytest.mark.slow
-def test_hassani_sea_selects_the_0_9_filter_within_90_s() -> None:
+def test_hassani_sea_selects_the_0_9_filter_within_a_minute() -> None:
     """True peak 0.93 rad/s (JONSWAP γ 3.3, Hs 0.08 m), CyberShip II, 10 Hz, the 10 m step at 40–80 s.
+    Hassani et al. Sec. 4: the fifth filter (0.9 rad/s) "is selected in about one minute".
 
     Measured (seed 0): the weight of the 0.9 rad/s filter first exceeds 0.9 at t = 42.2 s and is 0.984
     at 90 s. Initialisation: the filters start at the first measurement (ξ = 0, ν = 0, b_p = −τ) and the
@@ -119,7 +120,7 @@ def test_hassani_sea_selects_the_0_9_filter_within_90_s() -> None:
     r = obs.run(rec.t, rec.y, rec.tau)
     i09 = HASSANI_CANDIDATES.index(0.9)
     t_first = first_time(rec.t, r.extras["weights"][:, i09] > 0.9)
-    assert t_first <= 90.0, t_first
+    assert t_first <= 60.0, t_first
     assert r.extras["weights"][900, i09] > 0.9
     # the start-up transient: slowest closed-loop mode of each filter of the bank
     b = obs.bank
@@ -133,20 +134,24 @@ def test_hassani_sea_selects_the_0_9_filter_within_90_s() -> None:
 @pytest.mark.slow
 def test_hassani_sea_over_seeds() -> None:
     """The same over 12 seas (seeds 0–11). Measured: 11 of 12 reach weight > 0.9 for 0.9 rad/s within 90 s
-    (first crossings 14–73 s; seed 5 at 93 s); the blended ω0 averaged over 90–150 s is 0.900–0.921 rad/s
+    and 10 of 12 within the paper's "about one minute" (first crossings 14–73 s, median 35 s; seed 5 at
+    93 s); the blended ω0 averaged over 90–150 s is 0.900–0.921 rad/s
     (mean over the seeds 0.903): the bank settles on the candidate nearest the peak (0.9, 3 % below 0.93)
     and stays there (the weight floor of 1e-8; with 1e-3 the weight moved between 0.9 and 1.05 and the
     blended ω0 averaged 0.890–1.045)."""
     i09 = HASSANI_CANDIDATES.index(0.9)
     sea = get_scenario("hassani").sea[0][1]
     reached = 0
+    firsts = []
     blended = []
     for seed in range(12):
         rec = make_record(150.0, seed=seed)
         r = identifying_observer(rec.vessel, sea).run(rec.t, rec.y, rec.tau)
-        reached += first_time(rec.t, r.extras["weights"][:, i09] > 0.9) <= 90.0
+        firsts.append(first_time(rec.t, r.extras["weights"][:, i09] > 0.9))
+        reached += firsts[-1] <= 90.0
         blended.append(np.mean(r.omega0[900:, 0]))
     assert reached >= 11
+    assert sum(f <= 60.0 for f in firsts) >= 10 and np.median(firsts) <= 60.0, firsts
     assert np.all(np.abs(np.array(blended) / 0.93 - 1) < 0.04), blended
 
 
@@ -304,6 +309,16 @@ def test_a_turning_vessel_far_from_the_origin() -> None:
 
 
 # --- the design ------------------------------------------------------------------------------------------
+
+
+def test_default_bank_is_the_papers_eight_candidates() -> None:
+    """Hassani et al. Sec. 4: eight candidates {0.3, 0.45, …, 1.35} rad/s covering peaks in [0.25, 1.4] rad/s;
+    the true 0.93 rad/s is not among them, and 0.9 rad/s (the fifth) is the one the paper sees win."""
+    printed = (0.3, 0.45, 0.6, 0.75, 0.9, 1.05, 1.2, 1.35)
+    assert printed == HASSANI_CANDIDATES
+    bank = design_bank(load_vessel("cybership2"))
+    np.testing.assert_array_equal(bank.candidates, printed)
+    assert 0.93 not in printed and int(np.argmin(np.abs(bank.candidates - 0.93))) == 4
 
 
 def test_default_noise_is_appendix_a_for_cybership2_and_froude_scales() -> None:

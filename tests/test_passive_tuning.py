@@ -13,12 +13,15 @@ from observers.passive_tuning import (
     TuningError,
     check_spr,
     check_tuning_rule,
+    error_dynamics_matrix,
     error_eigenvalues,
     filter_gains,
+    h_transfer,
     notch_depth_db,
     passive_gains,
     slowest_error_rate,
 )
+from observers.state import ETA, XI1, XI2
 from observers.vessel import builtin_vessels, load_vessel
 
 
@@ -38,6 +41,34 @@ def test_wave_period_of_the_paper() -> None:
     """ω0 = 0.8976 rad/s is a 7.0 s wave period (2π/ω0)."""
     g = passive_gains(load_vessel("northern_clipper"), PassiveTuning.from_wave_period(7.0))
     assert g.omega0[0] == pytest.approx(0.8976, abs=1e-4)
+
+
+def test_papers_gains_shape_42_into_the_notch_filter_44() -> None:
+    """Fossen & Strand (1999) Sec. 5: equating (42) and (44) gives (45)-(47). At the paper's numbers (Sec. 6,
+    T = 1000 s) the position/wave error block of the observer's own error dynamics (at ψ = 0, input J ν̃ into
+    η, output ỹ) is h0 of (42), and (42) with the gains in use is the notch filter (44), to round-off; so is
+    `h_transfer` divided by h_B of (43). The printed (45), -2ωc(ζn - ζ)/ωc = -1.8, would not be."""
+    w0, z, zn, wc = 0.8976, 0.1, 1.0, 1.1
+    v = load_vessel("northern_clipper")
+    g = passive_gains(v, PassiveTuning(omega0=w0, omega_c=wc, bias_time_constant_s=1000.0))
+    omega = np.logspace(-3, 1, 41)
+    s = 1j * omega
+    h0d = (s**2 + 2 * z * w0 * s + w0**2) / ((s**2 + 2 * zn * w0 * s + w0**2) * (s + wc))  # (44)
+    k1, k2, k3 = g.k1[0], g.k2[0], g.k3[0]
+    h0_42 = (s**2 + 2 * z * w0 * s + w0**2) / (
+        s**3 + (k2 + k3 + 2 * z * w0) * s**2 + (w0**2 + 2 * z * w0 * k3 - k1 * w0**2) * s + w0**2 * k3
+    )
+    A = error_dynamics_matrix(v, g, 0.0)
+    for i in range(3):
+        idx = [XI1.start + i, XI2.start + i, ETA.start + i]
+        A0 = A[np.ix_(idx, idx)]  # A0 - K C0 of the proof of Proposition 1
+        h_ss = np.array([np.linalg.solve(si * np.eye(3) - A0, [0.0, 0.0, 1.0])[1:].sum() for si in s])
+        np.testing.assert_allclose(h_ss, h0d, rtol=1e-9)
+    np.testing.assert_allclose(h0_42, h0d, rtol=1e-12)
+    hB = np.diag(g.K4)[:, None] + np.diag(g.K3)[:, None] / (s[None, :] + g.t_inv[:, None])  # (43)
+    np.testing.assert_allclose(h_transfer(g, omega) / hB, np.broadcast_to(h0d, (3, omega.size)), rtol=1e-12)
+    printed_45 = -2 * wc * (zn - z) / wc
+    assert printed_45 == pytest.approx(-1.8) and abs(printed_45 - k1) > 0.4
 
 
 @pytest.mark.parametrize("name", builtin_vessels())

@@ -54,6 +54,40 @@ def test_other_papers_models() -> None:
     assert haj.D[1, 1] == pytest.approx(1.2e7)
 
 
+# M and D exactly as each paper prints them (Hajivand's M is its M_RB plus its A; its "1.210^7" is 1.2e7).
+PAPERS_MATRICES = {
+    "northern_clipper": (  # Fossen & Strand (1999), (56)-(57)
+        [[5.3122e6, 0, 0], [0, 8.2831e6, 0], [0, 0, 3.7454e9]],
+        [[5.0242e4, 0, 0], [0, 2.7229e5, -4.3933e6], [0, -4.3933e6, 4.1894e8]],
+    ),
+    "cybership2": (  # Hassani et al., (A.1)
+        [[25.8, 0, 0], [0, 33.8, 1.0115], [0, 1.0115, 2.76]],
+        [[2, 0, 0], [0, 7, 0.1], [0, 0.1, 0.5]],
+    ),
+    "snijders_ship": (  # Snijders, van der Woude & Westhuis (2005), Sec. 4
+        (1e9 * np.array([[0.0070, 0, 0], [0, 0.0110, -0.0130], [0, -0.0130, 3.1930]])).tolist(),
+        [[200000, 0, 0], [0, 100000, -700000], [0, -700000, 63900000]],
+    ),
+    "hajivand_vessel": (  # Hajivand & Mousavizadegan (2010), 'Simulations results': M_RB + A, D
+        (
+            np.array([[1.2e8, 0, 0], [0, 1.4e8, 3e7], [0, 3e7, 3.46e11]])
+            + np.array([[3e6, 0, 0], [0, 2.1e7, 3.5e7], [0, 3.5e7, 5.46e10]])
+        ).tolist(),
+        [[2e6, 0, 0], [0, 1.2e7, -7e6], [0, -7e6, 2.23e10]],
+    ),
+}
+
+
+@pytest.mark.parametrize("name", sorted(PAPERS_MATRICES))
+def test_papers_vessels_have_every_printed_entry(name: str) -> None:
+    """Every entry of M and D of the four papers' vessels, not one or two: a transposed coupling or a
+    dropped sign in a vessel file would move every observer table built on it."""
+    M, D = PAPERS_MATRICES[name]
+    v = load_vessel(name)
+    np.testing.assert_allclose(v.M, M, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(v.D, D, rtol=1e-12, atol=0)
+
+
 def test_user_vessel_from_toml(tmp_path: Path) -> None:
     f = tmp_path / "my_ship.toml"
     f.write_text(
