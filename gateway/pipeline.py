@@ -331,6 +331,10 @@ class Pipeline:
         self._parser_rejects: dict[tuple[str, str], int] = {}  # sum of _parser_seen, the fast check
         self._parser_skipped: dict[tuple[str, str], int] = {}  # its skipped_bytes already counted
         self._sender_rx: dict[tuple[str, str], int] = {}  # (source, peer) -> its last chunk's time
+        self.mavlink_peer: dict[str, str] = {}
+        """MAVLink source → the sender of the last frame it accepted (signature, system and component
+        checked): where the service sends the thruster commands. Not whoever sent the last datagram: one
+        stray or forged datagram on a shared link must not take the commands away from the drive."""
         self.t0_ns: int | None = None
         self.last_ns = 0
         self.mode = "standby"
@@ -748,6 +752,7 @@ class Pipeline:
             if spec.component_id is not None and msg.get_srcComponent() != spec.component_id:
                 c.rejected["other component"] += 1
                 continue
+            self.mavlink_peer[spec.name] = ev.peer
             frames.append(mv.reports(msg, spec.ardupilot))
         return self._use_reports(spec, c, ev.rx_ns, frames, out)
 

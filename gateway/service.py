@@ -135,6 +135,7 @@ class GatewayService:
         # MAVLink links that take the dialect's thruster commands: one encoder each (own sequence numbers,
         # signed when the link has a key)
         self._command_links: dict[str, Any] = {}
+        self._command_targets: dict[str, dict[str, int]] = {}  # the controller's ids; 0: broadcast
         for sc in config.sources:
             if sc.protocol == "mavlink" and sc.commands:
                 mav = mv.encoder(src_system=255, src_component=190)
@@ -147,6 +148,10 @@ class GatewayService:
                         sc.name,
                     )
                 self._command_links[sc.name] = mav
+                self._command_targets[sc.name] = {
+                    "target_system": sc.system_id or 0,
+                    "target_component": sc.component_id or 0,
+                }
         self.log: McapLogWriter | None = None
         self.published = 0
         self._zenoh_reached = True  # (a lost connection is logged when it is found lost, once)
@@ -506,15 +511,21 @@ class GatewayService:
             self.log.write_encoded(o.topic, body, o.stamp_ns, o.stamp_ns, schema=type(o.message))
 
     def _send_mavlink_commands(self, cmd: ThrusterCommand) -> None:
-        """AZIMUTH_THRUSTER_COMMAND per thruster down every MAVLink link configured with commands = true."""
+        """AZIMUTH_THRUSTER_COMMAND per thruster down every MAVLink link configured with commands = true,
+        addressed to the source's ``system_id`` / ``component_id`` (0, broadcast, where not set) and sent to
+        the sender of the last frame the link accepted (before the first one: the link's target or last
+        sender)."""
         sources = {s.name: s for s in self._sources}
         for name, mav in self._command_links.items():
             src = sources.get(name)
             if src is None:
                 continue
+            target = self._command_targets[name]
             frames = b"".join(
-                mv.azimuth_command_frame(mav, cmd.stamp_ns // 1000, int(th.id), th.thrust_n, th.azimuth_rad)
+                mv.azimuth_command_frame(
+                    mav, cmd.stamp_ns // 1000, int(th.id), th.thrust_n, th.azimuth_rad, **target
+                )
                 for th in cmd.thrusters
             )
-            if frames and not src.write(frames):
+            if frames and not src.write(frames, self.pipeline.mavlink_peer.get(name)):
                 src.stats.count_error("command not sent")

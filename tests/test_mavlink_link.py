@@ -1,0 +1,118 @@
+"""A running gateway and a thruster drive on a real MAVLink UDP link: what goes out, to whom, and what
+the feedback does to τ. The drive's side is pymavlink's generated code for the dpgw dialect."""
+
+from __future__ import annotations
+
+import socket
+import threading
+from collections.abc import Iterator
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import pytest
+from conftest import free_port, wait_for
+
+from gateway.config import parse_config
+from gateway.service import GatewayService
+from wire.codecs import mavlink as mv
+from wire.codecs import nmea_encode as enc
+
+KEY = bytes(range(32))
+DRIVE = (1, 1)  # the thruster controller's system and component id
+
+
+class Link:
+    """A gateway (GPS on UDP, thruster link on UDP with commands on) and the sockets of the other end."""
+
+    def __init__(self, tmp: Path, **thr: Any) -> None:
+        self.gps_port, self.thr_port = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_DGRAM)
+        tables: dict[str, Any] = {
+            "vessel": {"name": "cybership2"},
+            "datum": {"lat_deg": 59.4, "lon_deg": 10.5},
+            "sources": [
+                {"name": "gps", "url": f"udp://127.0.0.1:{self.gps_port}", "protocol": "nmea",
+                 "roles": ["position", "heading"]},
+                {"name": "thr", "url": f"udp://127.0.0.1:{self.thr_port}", "protocol": "mavlink",
+                 "roles": ["thrusters"], "commands": True, **thr},
+            ],
+            "control": {"initial_mode": "manual"},
+            "observer": {"wave_period_s": 9.0},
+            "zenoh": {"listen": [f"tcp/127.0.0.1:{free_port()}"], "multicast_scouting": False},
+            "log": {"path": ""},
+        }  # fmt: skip
+        self.service = GatewayService(parse_config(tables, base_dir=tmp), config_tables=tables)
+        self.sockets: list[socket.socket] = []
+        self.service.start()
+        self.loop = threading.Thread(target=self.service.run, name="consumer")
+        self.loop.start()
+
+    def udp(self) -> socket.socket:
+        s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        s.bind(("127.0.0.1", 0))
+        s.setblocking(False)
+        self.sockets.append(s)
+        return s
+
+    def gps(self, s: socket.socket) -> None:
+        gga = enc.gga("GP", datetime.now(UTC), 59.4, 10.5, 2, 12, 0.8, 20.0)
+        s.sendto((gga + enc.hdt("HE", 0.5)).encode(), ("127.0.0.1", self.gps_port))
+
+    def stop(self) -> None:
+        self.service.stop_event.set()
+        self.loop.join(timeout=30)
+        self.service.close()
+        for s in self.sockets:
+            s.close()
+
+
+def drained(s: socket.socket) -> bytes:
+    out = b""
+    while True:
+        try:
+            out += s.recv(65536)
+        except BlockingIOError:
+            return out
+
+
+@pytest.fixture
+def signed_link(tmp_path: Path) -> Iterator[Link]:
+    link = Link(tmp_path, signing_key=KEY.hex(), system_id=DRIVE[0], component_id=DRIVE[1])
+    try:
+        yield link
+    finally:
+        link.stop()
+
+
+def test_commands_go_signed_to_the_configured_drive_not_to_the_last_datagram(signed_link: Link) -> None:
+    """The drive (system 1, component 1, signing) reports; another vehicle (system 2, unsigned) talks on the
+    same port after every report. The commands are addressed to system 1 / component 1 (not broadcast, which
+    the other vehicle's controller would take), are signed with the link's key, and go to the drive's
+    address: the other sender, though the last one heard, receives nothing."""
+    link = signed_link
+    gps, drive, other = link.udp(), link.udp(), link.udp()
+    tx = mv.encoder(*DRIVE)
+    mv.setup_signing(tx, KEY, link_id=3)
+    intruder = mv.encoder(2, 1)
+    rx = mv.encoder(0, 0)  # pymavlink's parser on the drive's side, checking the signatures
+    mv.setup_signing(rx, KEY, sign_outgoing=False)
+    got: list[Any] = []
+    to_other = bytearray()
+
+    def exchange() -> bool:
+        link.gps(gps)
+        drive.sendto(mv.heartbeat_frame(tx), ("127.0.0.1", link.thr_port))
+        drive.sendto(mv.azimuth_status_frame(tx, 0, 1, 0.1, 20.0, 0.0, 0), ("127.0.0.1", link.thr_port))
+        other.sendto(mv.heartbeat_frame(intruder), ("127.0.0.1", link.thr_port))
+        to_other.extend(drained(other))
+        got.extend(m for m in rx.parse_buffer(drained(drive)) or [] if m.get_type() != "BAD_DATA")
+        return sum(m.get_type() == "AZIMUTH_THRUSTER_COMMAND" for m in got) >= 30
+
+    assert wait_for(exchange, 60.0, 0.05), f"the drive received {len(got)} frames"
+    commands = [m for m in got if m.get_type() == "AZIMUTH_THRUSTER_COMMAND"]
+    assert {(m.target_system, m.target_component) for m in commands} == {DRIVE}
+    assert {m.id for m in commands} == {1, 2, 3}  # cybership2's thrusters
+    assert all(m.get_signed() for m in commands)
+    assert not to_other, f"{len(to_other)} bytes of thruster commands went to the other vehicle"
+    c = link.service.pipeline.counters["thr"]
+    assert c.rejected["other system"] + c.rejected["unsigned"] > 0  # the other vehicle: counted, not used
