@@ -20,7 +20,8 @@ Pure numerics (no I/O, no clocks: times come with the data), shared by the live 
   matrix, `VesselModel.configuration_matrix`); without feedback, the demand (set by the controller or a
   manual τ). A thrust is fresh for ``feedback_timeout_ns`` after the report that carried it (thrust or
   shaft speed); an azimuth-only report (a servo output) moves the angle but does not make an old thrust
-  fresh again. Shaft speed becomes thrust by the thruster's own propeller law (`Thruster.thrust_at_rpm`).
+  fresh again. Shaft speed becomes thrust by the thruster's own propeller law (`Thruster.thrust_at_rpm`),
+  also for a dialect status whose thrust is NaN (a drive that measures speed but does not estimate thrust).
 
 Fusion owns its state: the pipeline reports what arrived through the ``add_*`` / ``set_*`` methods and reads
 through read-only properties and methods; nothing outside writes its fields.
@@ -392,12 +393,15 @@ class Fusion:
         self._thrust[thruster_id] = ThrusterFeedback(thrust_n, self._azimuth.get(thruster_id, 0.0), rx_ns)
         self._thrust_changes += 1
 
-    def add_thruster_rpm(self, rx_ns: int, thruster_id: int, rpm: float) -> None:
-        """Feedback of a thruster's shaft speed (rpm): thrust by the thruster's propeller law. A thruster the
-        vessel does not have is ignored (the config check refuses such a mapping)."""
+    def add_thruster_rpm(
+        self, rx_ns: int, thruster_id: int, rpm: float, azimuth_rad: float | None = None
+    ) -> None:
+        """Feedback of a thruster's shaft speed (rpm) and, if known, its azimuth (rad): thrust by the
+        thruster's propeller law. A thruster the vessel does not have is ignored (the config check refuses
+        such a mapping)."""
         th = self._thrusters.get(thruster_id)
         if th is not None:
-            self.add_thruster(rx_ns, thruster_id, th.thrust_at_rpm(rpm), None)
+            self.add_thruster(rx_ns, thruster_id, th.thrust_at_rpm(rpm), azimuth_rad)
 
     def add_thruster_azimuth(self, rx_ns: int, thruster_id: int, azimuth_rad: float) -> None:
         """Feedback of an azimuth alone (a servo output): moves the angle, leaves the thrust's time alone."""
