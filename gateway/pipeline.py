@@ -790,10 +790,14 @@ class Pipeline:
                         continue
                     # a drive that does not know its thrust sends NaN: then its shaft speed gives it
                     if r.thrust_n is not None and not math.isnan(r.thrust_n):
-                        self.fusion.add_thruster(rx_ns, r.thruster_id, r.thrust_n, r.azimuth_rad)
+                        self.fusion.add_thruster(
+                            rx_ns, r.thruster_id, r.thrust_n, r.azimuth_rad, spec.timeout_ns
+                        )
                         feedback = True
                     elif r.rpm is not None and not math.isnan(r.rpm):
-                        self.fusion.add_thruster_rpm(rx_ns, r.thruster_id, r.rpm, r.azimuth_rad)
+                        self.fusion.add_thruster_rpm(
+                            rx_ns, r.thruster_id, r.rpm, r.azimuth_rad, spec.timeout_ns
+                        )
                         feedback = True
                     elif r.azimuth_rad is not None:  # a servo: the angle goes out with the next thrust
                         self.fusion.add_thruster_azimuth(rx_ns, r.thruster_id, r.azimuth_rad)

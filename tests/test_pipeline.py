@@ -231,6 +231,25 @@ def test_an_azimuth_beyond_a_full_turn_is_out_of_range(azimuth: float) -> None:
     assert p.fusion.thrust[1][:2] == (1.5, pytest.approx(5.5))
 
 
+@pytest.mark.parametrize("timeout_s", [0.5, 5.0])
+def test_thruster_feedback_is_fresh_for_its_sources_timeout_as_status_says(timeout_s: float) -> None:
+    """A link that reports every 3 s with ``timeout_s = 5`` keeps τ on the feedback throughout; one with
+    ``timeout_s = 0.5`` is stale in `/status` 1 s after a report, and τ is then the demand, not the held
+    feedback (it was held a fixed 2 s whatever the source's timeout said)."""
+    p = pipeline(
+        [nmea_src("gps", ["position", "heading"]), mav_src("thr", ["thrusters"], timeout_s=timeout_s)],
+        vessel="cybership2",
+    )
+    mav = mv.encoder(1, 1)
+    for k in range(3):
+        p.feed(RawEvent(T0 + 3 * k * S, "thr", mv.azimuth_status_frame(mav, 0, 1, 1.0, 100.0, 0.0, 0)))
+        now = T0 + 3 * k * S + S
+        stale = any("thr: stale" in a for a in p.status(now).payload["alarms"])
+        assert p.fusion.tau(now)[1] == ("demand" if timeout_s < 1 else "feedback")
+        assert stale == (timeout_s < 1)
+        assert p.fusion.tau(now + 2 * S)[1] == ("demand" if timeout_s < 1 else "feedback")
+
+
 def test_frames_of_another_mavlink_system_or_component_are_rejected_and_counted() -> None:
     p = pipeline(
         [
