@@ -138,7 +138,10 @@ class GatewayService:
         self._command_targets: dict[str, dict[str, int]] = {}  # the controller's ids; 0: broadcast
         for sc in config.sources:
             if sc.protocol == "mavlink" and sc.commands:
-                mav = mv.encoder(src_system=255, src_component=190)
+                # the ids of the udpout hello (`gateway.sources.url`): an onboard computer, not a ground
+                # station (255): an autopilot that counts any frame from its GCS system as the GCS being
+                # there would trigger its GCS failsafe each time the commands pause
+                mav = mv.encoder(src_system=1, src_component=mv.dialect().MAV_COMP_ID_ONBOARD_COMPUTER)
                 if sc.signing_key is not None:
                     mv.setup_signing(mav, sc.signing_key, link_id=1)
                 else:  # the config refuses this unless allow_unsigned = true was written
@@ -513,8 +516,8 @@ class GatewayService:
     def _send_mavlink_commands(self, cmd: ThrusterCommand) -> None:
         """AZIMUTH_THRUSTER_COMMAND per thruster down every MAVLink link configured with commands = true,
         addressed to the source's ``system_id`` / ``component_id`` (0, broadcast, where not set) and sent to
-        the sender of the last frame the link accepted (before the first one: the link's target or last
-        sender)."""
+        the sender of the last frame the link accepted. Before the first one they go only down a link with
+        one far end (serial, TCP client, UDP with a target), never to an unknown sender of a shared one."""
         sources = {s.name: s for s in self._sources}
         for name, mav in self._command_links.items():
             src = sources.get(name)
@@ -527,5 +530,8 @@ class GatewayService:
                 )
                 for th in cmd.thrusters
             )
-            if frames and not src.write(frames, self.pipeline.mavlink_peer.get(name)):
-                src.stats.count_error("command not sent")
+            peer = self.pipeline.mavlink_peer.get(name)
+            if not frames:
+                continue
+            if (peer is None and src.shared) or not src.write(frames, peer):
+                src.stats.count_error("command not sent")  # (a shared link: no drive heard from yet)

@@ -85,10 +85,11 @@ def signed_link(tmp_path: Path) -> Iterator[Link]:
 
 
 def test_commands_go_signed_to_the_configured_drive_not_to_the_last_datagram(signed_link: Link) -> None:
-    """The drive (system 1, component 1, signing) reports; another vehicle (system 2, unsigned) talks on the
-    same port after every report. The commands are addressed to system 1 / component 1 (not broadcast, which
-    the other vehicle's controller would take), are signed with the link's key, and go to the drive's
-    address: the other sender, though the last one heard, receives nothing."""
+    """Another vehicle (system 2, unsigned) talks on the port first, then the drive (system 1, component
+    1, signing) reports too, the other vehicle after every report. The commands wait for the drive, are
+    addressed to system 1 / component 1 (not broadcast, which the other vehicle's controller would take),
+    are signed with the link's key, and go to the drive's address: the other sender, though the last one
+    heard, receives nothing."""
     link = signed_link
     gps, drive, other = link.udp(), link.udp(), link.udp()
     tx = mv.encoder(*DRIVE)
@@ -98,6 +99,17 @@ def test_commands_go_signed_to_the_configured_drive_not_to_the_last_datagram(sig
     mv.setup_signing(rx, KEY, sign_outgoing=False)
     got: list[Any] = []
     to_other = bytearray()
+    thr = next(s for s in link.service._sources if s.name == "thr")
+
+    def before_the_drive() -> bool:
+        """The other vehicle is the only sender: commands are made but go nowhere."""
+        link.gps(gps)
+        other.sendto(mv.heartbeat_frame(intruder), ("127.0.0.1", link.thr_port))
+        to_other.extend(drained(other))
+        return bool(to_other) or thr.stats.errors["command not sent"] >= 5
+
+    assert wait_for(before_the_drive, 60.0, 0.05), "the gateway made no commands"
+    assert not to_other, f"{len(to_other)} bytes of thruster commands went to the other vehicle"
 
     def exchange() -> bool:
         link.gps(gps)
@@ -113,6 +125,8 @@ def test_commands_go_signed_to_the_configured_drive_not_to_the_last_datagram(sig
     assert {(m.target_system, m.target_component) for m in commands} == {DRIVE}
     assert {m.id for m in commands} == {1, 2, 3}  # cybership2's thrusters
     assert all(m.get_signed() for m in commands)
+    # from an onboard computer (as the udpout hello), not a ground station's system 255
+    assert {(m.get_srcSystem(), m.get_srcComponent()) for m in commands} == {(1, 191)}
     assert not to_other, f"{len(to_other)} bytes of thruster commands went to the other vehicle"
     c = link.service.pipeline.counters["thr"]
     assert c.rejected["other system"] + c.rejected["unsigned"] > 0  # the other vehicle: counted, not used
