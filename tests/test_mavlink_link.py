@@ -131,6 +131,20 @@ def test_commands_go_signed_to_the_configured_drive_not_to_the_last_datagram(sig
     c = link.service.pipeline.counters["thr"]
     assert c.rejected["other system"] + c.rejected["unsigned"] > 0  # the other vehicle: counted, not used
 
+    # The drive goes (its socket closed): UDP cannot tell, the commands still go out, and the alarm is its
+    # feedback going stale in /status; the gateway carries on.
+    drive.close()
+    link.sockets.remove(drive)
+    sent0 = thr.stats.bytes_sent
+
+    def stale() -> bool:
+        link.gps(gps)
+        return any("thr: stale" in a for a in link.service.last_status().get("alarms", []))
+
+    assert wait_for(stale, 60.0, 0.05), link.service.last_status()
+    assert thr.stats.bytes_sent > sent0 and link.loop.is_alive()
+    assert link.service.pipeline.fusion.tau(link.service.pipeline.last_ns)[1] == "demand"
+
 
 def test_feedback_over_udp_is_used_or_counted_frame_by_frame(tmp_path: Path) -> None:
     """A drive's feedback on a real UDP port, with what a shared, noisy link carries: a MAVLink 1 heartbeat,
