@@ -25,7 +25,7 @@ DRIVE = (1, 1)  # the thruster controller's system and component id
 class Link:
     """A gateway (GPS on UDP, thruster link on UDP with commands on) and the sockets of the other end."""
 
-    def __init__(self, tmp: Path, **thr: Any) -> None:
+    def __init__(self, tmp: Path, thr_url: str | None = None, **thr: Any) -> None:
         self.gps_port, self.thr_port = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_DGRAM)
         tables: dict[str, Any] = {
             "vessel": {"name": "cybership2"},
@@ -33,7 +33,7 @@ class Link:
             "sources": [
                 {"name": "gps", "url": f"udp://127.0.0.1:{self.gps_port}", "protocol": "nmea",
                  "roles": ["position", "heading"]},
-                {"name": "thr", "url": f"udp://127.0.0.1:{self.thr_port}", "protocol": "mavlink",
+                {"name": "thr", "url": thr_url or f"udp://127.0.0.1:{self.thr_port}", "protocol": "mavlink",
                  "roles": ["thrusters"], "commands": True, **thr},
             ],
             "control": {"initial_mode": "manual"},
@@ -202,3 +202,28 @@ def test_feedback_over_udp_is_used_or_counted_frame_by_frame(tmp_path: Path) -> 
         assert tau == pytest.approx(expected)
     finally:
         link.stop()
+
+
+def test_signed_feedback_over_a_serial_pty_in_pieces(tmp_path: Path) -> None:
+    """A signed drive on a serial line (a pty at 115200 Bd), its frames arriving in 7-byte pieces as a slow
+    UART hands them over: every frame is reassembled and its signature checked; a replayed frame (same
+    signing timestamp) is rejected, and τ is the last good report's."""
+    from simulator.transports import PtySink
+
+    with PtySink(stale_s=None) as pty:
+        link = Link(tmp_path, f"serial://{pty.device}?baud=115200", commands=False, signing_key=KEY.hex())
+        try:
+            tx = mv.encoder(*DRIVE)
+            mv.setup_signing(tx, KEY, link_id=2)
+            frames = [mv.azimuth_status_frame(tx, 0, 1, 0.05 * k, 5.0 * k, 0.01 * k, 0) for k in range(1, 41)]
+            blob = b"".join(frames) + frames[-2]  # the last but one again: a replay
+            for i in range(0, len(blob), 7):
+                pty.write(blob[i : i + 7])
+            c = link.service.pipeline.counters["thr"]
+            assert wait_for(lambda: c.received + sum(c.rejected.values()) >= 41, 30.0), c
+            assert c.received == 40 and dict(c.rejected) == {"bad_signature": 1}
+            assert c.skipped_bytes == 0
+            fb = link.service.pipeline.fusion.thrust[1]
+            assert (fb.thrust_n, fb.azimuth_rad) == (pytest.approx(2.0), pytest.approx(0.4))
+        finally:
+            link.stop()
