@@ -39,7 +39,7 @@ import msgspec
 import zenoh
 
 from gateway.bus import command_acl, make_config, open_session
-from gateway.config import GatewayConfig, ZenohConfig
+from gateway.config import GatewayConfig, ZenohConfig, config_notes
 from gateway.outputs import InputSink, OutputSink, RawSentenceSink
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from gateway.sim_time import SimTime
@@ -134,6 +134,8 @@ class GatewayService:
         self._log_path = str(path) if path else None
         # MAVLink links that take the dialect's thruster commands: one encoder each (own sequence numbers,
         # signed when the link has a key)
+        for note in config_notes(config):
+            log.warning("%s", note)
         self._command_links: dict[str, Any] = {}
         self._command_targets: dict[str, dict[str, int]] = {}  # the controller's ids; 0: broadcast
         for sc in config.sources:
