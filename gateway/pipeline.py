@@ -1149,7 +1149,10 @@ class Pipeline:
         else:
             tau_allocated = o.tau  # no thruster layout: τ is the command (simulated vessels of the papers)
             self.control_alarms = []
-        self.fusion.set_tau_demand(tau_allocated)
+        if self.allocation is not None and self.allocator is not None:
+            self.fusion.set_tau_demand(tau_allocated, self.allocation.thrust, self.allocation.azimuth)
+        else:
+            self.fusion.set_tau_demand(tau_allocated)
         return [
             Output(
                 "/dp/thrusters/command",

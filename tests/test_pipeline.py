@@ -250,6 +250,36 @@ def test_thruster_feedback_is_fresh_for_its_sources_timeout_as_status_says(timeo
         assert p.fusion.tau(now + 2 * S)[1] == ("demand" if timeout_s < 1 else "feedback")
 
 
+def test_a_thruster_without_feedback_counts_in_tau_with_its_command() -> None:
+    """Feedback from the two azimuths only (the bow tunnel has no feedback link): τ for the observer is B(α)
+    of their reported thrusts and the tunnel's commanded thrust, not of zero for the tunnel."""
+    p = pipeline(
+        [nmea_src("gps", ["position", "heading"]), mav_src("thr", ["thrusters"])],
+        vessel="cybership2",
+        control={"initial_mode": "manual"},
+    )
+    p.feed(ControlEvent(T0, "tau", {"X": 0.0, "Y": 0.3, "N": 0.2}))
+    mav = mv.encoder(1, 1)
+    for k in range(10):
+        t = T0 + k * S // 5
+        p.feed(RawEvent(t, "gps", gga_at(0.0, 0.0) + enc.hdt("HE", 0.3).encode()))
+        for tid in (1, 2):
+            p.feed(RawEvent(t + 1, "thr", mv.azimuth_status_frame(mav, 0, tid, 0.4, 90.0, 1.0, 0)))
+    cmd = p.allocation
+    assert cmd is not None and abs(cmd.thrust[2]) > 0.05  # the tunnel is commanded
+    tau, source = p.fusion.tau(t + 2)
+    assert source == "feedback"
+    expected = p.spec.vessel.generalized_force([0.4, 0.4, cmd.thrust[2]], [1.0, 1.0, cmd.azimuth[2]])
+    np.testing.assert_allclose(tau, expected, rtol=1e-6)  # (float32 on the wire)
+    # in standby the thrusters are someone else's: the unknown one counts with no thrust
+    p.feed(ControlEvent(t + 3, "mode", "standby"))
+    p.feed(RawEvent(t + S, "gps", gga_at(0.0, 0.0) + enc.hdt("HE", 0.3).encode()))
+    tau, _ = p.fusion.tau(t + S)
+    np.testing.assert_allclose(
+        tau, p.spec.vessel.generalized_force([0.4, 0.4, 0.0], [1.0, 1.0, 0.0]), rtol=1e-6
+    )
+
+
 def test_frames_of_another_mavlink_system_or_component_are_rejected_and_counted() -> None:
     p = pipeline(
         [
