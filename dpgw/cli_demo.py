@@ -157,6 +157,9 @@ def demo_config(scenario: Any, pty_device: str, args: argparse.Namespace) -> dic
                 "commands": True,  # the dialect's AZIMUTH_THRUSTER_COMMAND back down the same link
                 # loopback between two processes of this demo: no signing (a vessel's link would be signed)
                 "allow_unsigned": True,
+                # the simulated drive: only its frames are used, and the commands are addressed to it
+                "system_id": scenario.feedback.system_id,
+                "component_id": scenario.feedback.component_id,
             }
         )
     cfg["control"] = {"initial_mode": args.mode}
@@ -248,7 +251,9 @@ def run(args: argparse.Namespace) -> int:
         mav_sink = UdpSink("127.0.0.1", ports["thrusters"])
         sinks.append(mav_sink)
         routes.append(Route(watched(mav_sink, "thrusters"), "mavlink"))
-        commands.append(MavlinkCommandInput(mav_sink))  # the loop closes over the MAVLink link
+        fb = scenario.feedback  # (set: the thrusters port exists only with feedback)
+        ids = (fb.system_id, fb.component_id) if fb is not None else (None, None)
+        commands.append(MavlinkCommandInput(mav_sink, *ids))  # the loop closes over the MAVLink link
     elif args.mode == "dp" and service._session is not None:
         commands.append(ZenohCommandInput(service._session, config.zenoh.prefix))  # τ for layout-less ships
     clock = RealtimeClock(speed=args.speed)
@@ -357,6 +362,7 @@ def summarise(
         "wall_seconds": wall_s,
         "log": args.out,
         "sent": dict(sim.summary.emissions),
+        "commands_applied": sim.summary.commands_applied,  # thruster commands the simulated drives took
         "sources": status["sources"],
         "estimates": len(est),
         "alarms": status["alarms"],

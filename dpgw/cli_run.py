@@ -225,11 +225,12 @@ def status_line(status: dict[str, Any], elapsed_s: float) -> str:
 def start_up_notes(config: GatewayConfig) -> list[str]:
     """What start-up would not refuse but an engineer should know: a UDP source listening on an address
     that is not this computer's now (start-up waits for it, as for an interface still coming up at boot;
-    a typing mistake looks the same)."""
+    a typing mistake looks the same); the config's own notes (`gateway.config.config_notes`)."""
+    from gateway.config import config_notes
     from gateway.sources import SourceError, open_source
     from gateway.sources.udp import UdpSource
 
-    notes: list[str] = []
+    notes: list[str] = config_notes(config)
     for sc in config.sources:
         try:
             source = open_source(sc.name, sc.url, timeout_s=sc.timeout_s)

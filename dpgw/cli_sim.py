@@ -245,7 +245,9 @@ def _run_scenario(args: argparse.Namespace) -> int:
             sink = open_sink(args.mavlink)
             sinks.append(sink)
             routes.append(Route(sink, "mavlink"))
-            commands.append(MavlinkCommandInput(sink))
+            fb = scenario.feedback  # the drive takes what is addressed to it (or broadcast)
+            ids = (fb.system_id, fb.component_id) if fb is not None else (None, None)
+            commands.append(MavlinkCommandInput(sink, *ids))
             print(f"MAVLink -> {sink.describe()}", file=sys.stderr)
         if args.zenoh:
             prefix = args.prefix or f"dp/{scenario.vessel.name}"

@@ -18,9 +18,14 @@ Pure numerics (no I/O, no clocks: times come with the data), shared by the live 
   often at a lower rate, so a fix must not clear it.
 - **τ** for the observer: Σ B(αᵢ) Tᵢ over the thrusters' reported thrust and azimuth (the configuration
   matrix, `VesselModel.configuration_matrix`); without feedback, the demand (set by the controller or a
-  manual τ). A thrust is fresh for ``feedback_timeout_ns`` after the report that carried it (thrust or
+  manual τ). A thrust is fresh for its source's ``timeout_s`` (the time after which `/status` calls that
+  source stale; ``feedback_timeout_ns`` where none is given) after the report that carried it (thrust or
   shaft speed); an azimuth-only report (a servo output) moves the angle but does not make an old thrust
-  fresh again. Shaft speed becomes thrust by the thruster's own propeller law (`Thruster.thrust_at_rpm`).
+  fresh again. While some thrusters' feedback is fresh and others' is not (a unit without a feedback
+  link, one whose reports stopped), those count with their commanded thrust and azimuth (from the last
+  allocation; none in standby or without one: then with no thrust). Shaft speed becomes thrust by the
+  thruster's own propeller law (`Thruster.thrust_at_rpm`), also for a dialect status whose thrust is NaN
+  (a drive that measures speed but does not estimate thrust).
 
 Fusion owns its state: the pipeline reports what arrived through the ``add_*`` / ``set_*`` methods and reads
 through read-only properties and methods; nothing outside writes its fields.
@@ -117,6 +122,7 @@ class Fusion:
         self._headings: deque[tuple[int, float]] = deque(maxlen=HEADING_HISTORY_MAX)
         self._sigma: dict[str, Held] = {}  # source -> its latest GST sigma (m), valid like a measurement
         self._thrust: dict[int, ThrusterFeedback] = {}
+        self._thrust_timeout: dict[int, int] = {}  # thruster id -> the timeout of the source that reported it
         # τ from feedback is a function of what is held and which of it is fresh: the last one, keyed by
         # (changes to _thrust, the fresh ids), so that the steps between feedback bursts do not recompute it
         self._thrust_changes = 0
@@ -127,6 +133,7 @@ class Fusion:
         self._azimuth: dict[int, float] = {}  # last reported azimuth, also before any thrust was reported
         self._thrusters: dict[int, Thruster] = {t.id: t for t in vessel.thrusters}
         self._tau_demand = _read_only(np.zeros(3))
+        self._thrust_demand: tuple[list[float], list[float]] | None = None  # (thrust, azimuth) per thruster
 
     # --- read-only views ----------------------------------------------------------------------------------
 
@@ -382,22 +389,39 @@ class Fusion:
 
     # --- thrusters and τ ------------------------------------------------------------------------------------
 
-    def add_thruster(self, rx_ns: int, thruster_id: int, thrust_n: float, azimuth_rad: float | None) -> None:
+    def add_thruster(
+        self,
+        rx_ns: int,
+        thruster_id: int,
+        thrust_n: float,
+        azimuth_rad: float | None,
+        timeout_ns: int | None = None,
+    ) -> None:
         """Feedback of a thruster's thrust (N) and, if known, its azimuth (rad); a non-finite thrust is
-        ignored, an unknown azimuth keeps the last one reported."""
+        ignored, an unknown azimuth keeps the last one reported. ``timeout_ns``: how long it stays fresh
+        (the reporting source's timeout; default ``feedback_timeout_ns``)."""
         if not math.isfinite(thrust_n):
             return
+        self._thrust_timeout[thruster_id] = self.feedback_timeout_ns if timeout_ns is None else timeout_ns
         if azimuth_rad is not None and math.isfinite(azimuth_rad):
             self._azimuth[thruster_id] = azimuth_rad
         self._thrust[thruster_id] = ThrusterFeedback(thrust_n, self._azimuth.get(thruster_id, 0.0), rx_ns)
         self._thrust_changes += 1
 
-    def add_thruster_rpm(self, rx_ns: int, thruster_id: int, rpm: float) -> None:
-        """Feedback of a thruster's shaft speed (rpm): thrust by the thruster's propeller law. A thruster the
-        vessel does not have is ignored (the config check refuses such a mapping)."""
+    def add_thruster_rpm(
+        self,
+        rx_ns: int,
+        thruster_id: int,
+        rpm: float,
+        azimuth_rad: float | None = None,
+        timeout_ns: int | None = None,
+    ) -> None:
+        """Feedback of a thruster's shaft speed (rpm) and, if known, its azimuth (rad): thrust by the
+        thruster's propeller law. A thruster the vessel does not have is ignored (the config check refuses
+        such a mapping)."""
         th = self._thrusters.get(thruster_id)
         if th is not None:
-            self.add_thruster(rx_ns, thruster_id, th.thrust_at_rpm(rpm), None)
+            self.add_thruster(rx_ns, thruster_id, th.thrust_at_rpm(rpm), azimuth_rad, timeout_ns)
 
     def add_thruster_azimuth(self, rx_ns: int, thruster_id: int, azimuth_rad: float) -> None:
         """Feedback of an azimuth alone (a servo output): moves the angle, leaves the thrust's time alone."""
@@ -409,9 +433,20 @@ class Fusion:
             self._thrust[thruster_id] = old._replace(azimuth_rad=azimuth_rad)
             self._thrust_changes += 1
 
-    def set_tau_demand(self, tau: ArrayLike) -> None:
-        """The τ [X, Y, N] demanded of the thrusters (controller, manual input, or zero in standby)."""
+    def set_tau_demand(
+        self, tau: ArrayLike, thrust_n: ArrayLike | None = None, azimuth_rad: ArrayLike | None = None
+    ) -> None:
+        """The τ [X, Y, N] demanded of the thrusters (controller, manual input, or zero in standby) and,
+        where an allocation made it, each thruster's commanded thrust (N) and azimuth (rad), in layout
+        order: what τ counts for a thruster whose feedback is not fresh while others' is."""
         self._tau_demand = _read_only(tau)
+        if thrust_n is None or azimuth_rad is None:
+            self._thrust_demand = None
+        else:
+            self._thrust_demand = (
+                np.asarray(thrust_n, dtype=float).tolist(),
+                np.asarray(azimuth_rad, dtype=float).tolist(),
+            )
 
     def set_feedback_usable(self, usable: bool) -> None:
         """Whether thruster feedback may be used for τ (a source sending out-of-range reports is not
@@ -426,9 +461,23 @@ class Fusion:
         held = self._tau_all_fresh  # (a thrust fresh at a time is fresh at every earlier one too)
         if held is not None and held[0] == self._thrust_changes and now_ns <= held[1]:
             return held[2].copy(), "feedback"
-        fresh = {tid: v for tid, v in self._thrust.items() if now_ns - v.rx_ns <= self.feedback_timeout_ns}
+        timeout = self._thrust_timeout
+        fresh = {tid: v for tid, v in self._thrust.items() if now_ns - v.rx_ns <= timeout[tid]}
         if not fresh:
             return self._tau_demand.copy(), "demand"
+        if len(fresh) < len(layout):
+            # some thrusters fresh, others not: those without fresh feedback count with their command
+            # (none in standby or without an allocation: then they count as giving no thrust)
+            demand = self._thrust_demand
+            mixed_thrust = [
+                fresh[t.id].thrust_n if t.id in fresh else demand[0][i] if demand else 0.0
+                for i, t in enumerate(layout)
+            ]
+            mixed_angle = [
+                fresh[t.id].azimuth_rad if t.id in fresh else demand[1][i] if demand else t.angle_rad
+                for i, t in enumerate(layout)
+            ]
+            return self.vessel.generalized_force(mixed_thrust, mixed_angle), "feedback"
         key = (self._thrust_changes, tuple(fresh))
         if self._tau_cached is not None and self._tau_cached[0] == key:
             tau = self._tau_cached[1]
@@ -437,7 +486,7 @@ class Fusion:
             angle = np.array([fresh[t.id].azimuth_rad if t.id in fresh else t.angle_rad for t in layout])
             tau = self.vessel.generalized_force(thrust, angle)
             self._tau_cached = (key, tau)
-        if len(fresh) == len(self._thrust):
-            until = min(v.rx_ns for v in fresh.values()) + self.feedback_timeout_ns
+        if len(fresh) == len(self._thrust):  # (here every thruster of the layout is fresh)
+            until = min(v.rx_ns + timeout[tid] for tid, v in fresh.items())
             self._tau_all_fresh = (self._thrust_changes, until, tau)
         return tau.copy(), "feedback"

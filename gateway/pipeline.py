@@ -331,6 +331,10 @@ class Pipeline:
         self._parser_rejects: dict[tuple[str, str], int] = {}  # sum of _parser_seen, the fast check
         self._parser_skipped: dict[tuple[str, str], int] = {}  # its skipped_bytes already counted
         self._sender_rx: dict[tuple[str, str], int] = {}  # (source, peer) -> its last chunk's time
+        self.mavlink_peer: dict[str, str] = {}
+        """MAVLink source → the sender of the last frame it accepted (signature, system and component
+        checked): where the service sends the thruster commands. Not whoever sent the last datagram: one
+        stray or forged datagram on a shared link must not take the commands away from the drive."""
         self.t0_ns: int | None = None
         self.last_ns = 0
         self.mode = "standby"
@@ -748,6 +752,7 @@ class Pipeline:
             if spec.component_id is not None and msg.get_srcComponent() != spec.component_id:
                 c.rejected["other component"] += 1
                 continue
+            self.mavlink_peer[spec.name] = ev.peer
             frames.append(mv.reports(msg, spec.ardupilot))
         return self._use_reports(spec, c, ev.rx_ns, frames, out)
 
@@ -783,11 +788,16 @@ class Pipeline:
                     if problem:
                         c.rejected["out_of_range"] += 1
                         continue
-                    if r.thrust_n is not None:
-                        self.fusion.add_thruster(rx_ns, r.thruster_id, r.thrust_n, r.azimuth_rad)
+                    # a drive that does not know its thrust sends NaN: then its shaft speed gives it
+                    if r.thrust_n is not None and not math.isnan(r.thrust_n):
+                        self.fusion.add_thruster(
+                            rx_ns, r.thruster_id, r.thrust_n, r.azimuth_rad, spec.timeout_ns
+                        )
                         feedback = True
-                    elif r.rpm is not None:
-                        self.fusion.add_thruster_rpm(rx_ns, r.thruster_id, r.rpm)
+                    elif r.rpm is not None and not math.isnan(r.rpm):
+                        self.fusion.add_thruster_rpm(
+                            rx_ns, r.thruster_id, r.rpm, r.azimuth_rad, spec.timeout_ns
+                        )
                         feedback = True
                     elif r.azimuth_rad is not None:  # a servo: the angle goes out with the next thrust
                         self.fusion.add_thruster_azimuth(rx_ns, r.thruster_id, r.azimuth_rad)
@@ -1139,7 +1149,10 @@ class Pipeline:
         else:
             tau_allocated = o.tau  # no thruster layout: τ is the command (simulated vessels of the papers)
             self.control_alarms = []
-        self.fusion.set_tau_demand(tau_allocated)
+        if self.allocation is not None and self.allocator is not None:
+            self.fusion.set_tau_demand(tau_allocated, self.allocation.thrust, self.allocation.azimuth)
+        else:
+            self.fusion.set_tau_demand(tau_allocated)
         return [
             Output(
                 "/dp/thrusters/command",

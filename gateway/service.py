@@ -39,7 +39,7 @@ import msgspec
 import zenoh
 
 from gateway.bus import command_acl, make_config, open_session
-from gateway.config import GatewayConfig, ZenohConfig
+from gateway.config import GatewayConfig, ZenohConfig, config_notes
 from gateway.outputs import InputSink, OutputSink, RawSentenceSink
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from gateway.sim_time import SimTime
@@ -134,10 +134,16 @@ class GatewayService:
         self._log_path = str(path) if path else None
         # MAVLink links that take the dialect's thruster commands: one encoder each (own sequence numbers,
         # signed when the link has a key)
+        for note in config_notes(config):
+            log.warning("%s", note)
         self._command_links: dict[str, Any] = {}
+        self._command_targets: dict[str, dict[str, int]] = {}  # the controller's ids; 0: broadcast
         for sc in config.sources:
             if sc.protocol == "mavlink" and sc.commands:
-                mav = mv.encoder(src_system=255, src_component=190)
+                # the ids of the udpout hello (`gateway.sources.url`): an onboard computer, not a ground
+                # station (255): an autopilot that counts any frame from its GCS system as the GCS being
+                # there would trigger its GCS failsafe each time the commands pause
+                mav = mv.encoder(src_system=1, src_component=mv.dialect().MAV_COMP_ID_ONBOARD_COMPUTER)
                 if sc.signing_key is not None:
                     mv.setup_signing(mav, sc.signing_key, link_id=1)
                 else:  # the config refuses this unless allow_unsigned = true was written
@@ -147,6 +153,10 @@ class GatewayService:
                         sc.name,
                     )
                 self._command_links[sc.name] = mav
+                self._command_targets[sc.name] = {
+                    "target_system": sc.system_id or 0,
+                    "target_component": sc.component_id or 0,
+                }
         self.log: McapLogWriter | None = None
         self.published = 0
         self._zenoh_reached = True  # (a lost connection is logged when it is found lost, once)
@@ -506,15 +516,24 @@ class GatewayService:
             self.log.write_encoded(o.topic, body, o.stamp_ns, o.stamp_ns, schema=type(o.message))
 
     def _send_mavlink_commands(self, cmd: ThrusterCommand) -> None:
-        """AZIMUTH_THRUSTER_COMMAND per thruster down every MAVLink link configured with commands = true."""
+        """AZIMUTH_THRUSTER_COMMAND per thruster down every MAVLink link configured with commands = true,
+        addressed to the source's ``system_id`` / ``component_id`` (0, broadcast, where not set) and sent to
+        the sender of the last frame the link accepted. Before the first one they go only down a link with
+        one far end (serial, TCP client, UDP with a target), never to an unknown sender of a shared one."""
         sources = {s.name: s for s in self._sources}
         for name, mav in self._command_links.items():
             src = sources.get(name)
             if src is None:
                 continue
+            target = self._command_targets[name]
             frames = b"".join(
-                mv.azimuth_command_frame(mav, cmd.stamp_ns // 1000, int(th.id), th.thrust_n, th.azimuth_rad)
+                mv.azimuth_command_frame(
+                    mav, cmd.stamp_ns // 1000, int(th.id), th.thrust_n, th.azimuth_rad, **target
+                )
                 for th in cmd.thrusters
             )
-            if frames and not src.write(frames):
-                src.stats.count_error("command not sent")
+            peer = self.pipeline.mavlink_peer.get(name)
+            if not frames:
+                continue
+            if (peer is None and src.shared) or not src.write(frames, peer):
+                src.stats.count_error("command not sent")  # (a shared link: no drive heard from yet)

@@ -38,10 +38,17 @@ Command = ThrusterCommand | TauCommand
 
 
 class MavlinkCommandInput:
-    """Reads AZIMUTH_THRUSTER_COMMAND frames that peers send on a sink (one parser per peer)."""
+    """Reads AZIMUTH_THRUSTER_COMMAND frames that peers send on a sink (one parser per peer).
 
-    def __init__(self, sink: Sink) -> None:
+    As the drive it stands in for: a command addressed to another system or component (``target_system``
+    / ``target_component`` neither 0, broadcast, nor this drive's ``system_id`` / ``component_id``) is
+    not taken, only counted (``rejected["other target"]``): on a link shared with other vehicles it is
+    theirs."""
+
+    def __init__(self, sink: Sink, system_id: int | None = None, component_id: int | None = None) -> None:
         self.sink = sink
+        self.system_id = system_id
+        self.component_id = component_id
         self.parsers: dict[str, FrameParser] = {}
         self.rejected: Counter[str] = Counter()
         self.received = 0
@@ -55,11 +62,22 @@ class MavlinkCommandInput:
                     continue
                 assert isinstance(msg, dialect().MAVLink_azimuth_thruster_command_message)
                 self.received += 1
+                if not (
+                    _addressed(msg.target_system, self.system_id)
+                    and _addressed(msg.target_component, self.component_id)
+                ):
+                    self.rejected["other target"] += 1
+                    continue
                 if not (math.isfinite(msg.thrust) and math.isfinite(msg.azimuth)):
                     self.rejected["non_finite"] += 1
                     continue
                 out.append(ThrusterCommand(int(msg.id), float(msg.thrust), float(msg.azimuth)))
         return out
+
+
+def _addressed(target: int, own: int | None) -> bool:
+    """A MAVLink target id names this receiver: 0 (broadcast), its own id, or any when it has none."""
+    return own is None or target in (0, own)
 
 
 class ZenohCommandInput:

@@ -196,6 +196,20 @@ def test_ardupilot_example() -> None:
     assert set(ap.ardupilot.esc.values()) <= ids
 
 
+def test_an_esc_on_a_thruster_that_reverses_is_noted(capsys: pytest.CaptureFixture[str]) -> None:
+    """ESC telemetry rpm has no sign: the example's bow tunnel (id 3, reverses) on ESC 3 gets a note from
+    `--check` (and a warning at start-up); the azimuths on ESC 1 and 2 turn instead and get none."""
+    from dpgw.cli import main
+
+    assert main(["run", "--config", str(EXAMPLES / "ardupilot_boat.toml"), "--check"]) == 0
+    notes = [line for line in capsys.readouterr().out.splitlines() if line.startswith("note:")]
+    assert notes == [
+        "note: sources.ardupilot.ardupilot.esc: ESC 3 reports thruster 3, which reverses "
+        "(min_thrust_n -1 N), but ESC telemetry rpm has no sign: its thrust is taken as ahead also when "
+        "it runs astern"
+    ]
+
+
 def test_systemd_unit() -> None:
     unit = (EXAMPLES / "dpgw.service").read_text()
     for line in (

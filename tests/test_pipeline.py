@@ -192,6 +192,94 @@ def test_dialect_and_ardupilot_thruster_feedback_give_tau() -> None:
     np.testing.assert_allclose(tau, v.generalized_force([2.0, 0.5, 0.5], [math.pi / 2, 0.0, math.pi / 2]))
 
 
+def test_a_drive_that_does_not_know_its_thrust_gives_it_by_its_shaft_speed() -> None:
+    """The dialect sends an unknown value as NaN. A drive that measures shaft speed but does not estimate
+    thrust: the thrust is the thruster's propeller law at that speed, at the azimuth of the same frame."""
+    p = pipeline(
+        [nmea_src("gps", ["position", "heading"]), mav_src("thr", ["thrusters"])], vessel="cybership2"
+    )
+    mav = mv.encoder(1, 1)
+    out = p.feed(RawEvent(T0, "thr", mv.azimuth_status_frame(mav, 0, 1, math.nan, 100.0, 0.5, 0)))
+    thrust, azimuth, _ = p.fusion.thrust[1]
+    assert thrust == pytest.approx(p.spec.vessel.thrusters[0].thrust_at_rpm(100.0)) and thrust > 0
+    assert azimuth == pytest.approx(0.5)
+    assert [o.topic for o in out].count("/dp/thrusters/feedback") == 1
+    # nothing known but the azimuth: the angle moves, the thrust keeps its time
+    p.feed(RawEvent(T0 + S, "thr", mv.azimuth_status_frame(mav, 0, 1, math.nan, math.nan, -0.5, 0)))
+    assert p.fusion.thrust[1] == (thrust, pytest.approx(-0.5), T0)
+    assert not p.counters["thr"].rejected
+
+
+@pytest.mark.parametrize("azimuth", [45.0, -90.0, 1e30])
+def test_an_azimuth_beyond_a_full_turn_is_out_of_range(azimuth: float) -> None:
+    """Radians in [-π, π) on the wire; [0, 2π) is taken too, beyond ±2π the number is no angle (degrees
+    most likely): counted out of range, τ unchanged."""
+    p = pipeline(
+        [nmea_src("gps", ["position", "heading"]), mav_src("thr", ["thrusters"])], vessel="cybership2"
+    )
+    mav, d = mv.encoder(1, 1), mv.dialect()
+    p.feed(RawEvent(T0, "thr", mv.azimuth_status_frame(mav, 0, 1, 1.0, 100.0, 0.5, 0)))
+    tau0, _ = p.fusion.tau(T0)
+    nan = math.nan
+    raw = d.MAVLink_azimuth_thruster_status_message(0, 1, 1.5, 100.0, azimuth, 0, nan, nan, nan, nan, 0)
+    p.feed(RawEvent(T0 + 1, "thr", mv.pack(mav, raw)))  # (the encode helper would wrap it)
+    assert p.counters["thr"].rejected["out_of_range"] == 1
+    assert p.fusion.thrust[1][:2] == (1.0, pytest.approx(0.5))
+    np.testing.assert_array_equal(p.fusion.tau(T0 + 1)[0], tau0)
+    in_range = d.MAVLink_azimuth_thruster_status_message(0, 1, 1.5, 100.0, 5.5, 0, nan, nan, nan, nan, 0)
+    p.feed(RawEvent(T0 + 2, "thr", mv.pack(mav, in_range)))  # a [0, 2π) drive
+    assert p.fusion.thrust[1][:2] == (1.5, pytest.approx(5.5))
+
+
+@pytest.mark.parametrize("timeout_s", [0.5, 5.0])
+def test_thruster_feedback_is_fresh_for_its_sources_timeout_as_status_says(timeout_s: float) -> None:
+    """A link that reports every 3 s with ``timeout_s = 5`` keeps τ on the feedback throughout; one with
+    ``timeout_s = 0.5`` is stale in `/status` 1 s after a report, and τ is then the demand, not the held
+    feedback (it was held a fixed 2 s whatever the source's timeout said)."""
+    p = pipeline(
+        [nmea_src("gps", ["position", "heading"]), mav_src("thr", ["thrusters"], timeout_s=timeout_s)],
+        vessel="cybership2",
+    )
+    mav = mv.encoder(1, 1)
+    for k in range(3):
+        p.feed(RawEvent(T0 + 3 * k * S, "thr", mv.azimuth_status_frame(mav, 0, 1, 1.0, 100.0, 0.0, 0)))
+        now = T0 + 3 * k * S + S
+        stale = any("thr: stale" in a for a in p.status(now).payload["alarms"])
+        assert p.fusion.tau(now)[1] == ("demand" if timeout_s < 1 else "feedback")
+        assert stale == (timeout_s < 1)
+        assert p.fusion.tau(now + 2 * S)[1] == ("demand" if timeout_s < 1 else "feedback")
+
+
+def test_a_thruster_without_feedback_counts_in_tau_with_its_command() -> None:
+    """Feedback from the two azimuths only (the bow tunnel has no feedback link): τ for the observer is B(α)
+    of their reported thrusts and the tunnel's commanded thrust, not of zero for the tunnel."""
+    p = pipeline(
+        [nmea_src("gps", ["position", "heading"]), mav_src("thr", ["thrusters"])],
+        vessel="cybership2",
+        control={"initial_mode": "manual"},
+    )
+    p.feed(ControlEvent(T0, "tau", {"X": 0.0, "Y": 0.3, "N": 0.2}))
+    mav = mv.encoder(1, 1)
+    for k in range(10):
+        t = T0 + k * S // 5
+        p.feed(RawEvent(t, "gps", gga_at(0.0, 0.0) + enc.hdt("HE", 0.3).encode()))
+        for tid in (1, 2):
+            p.feed(RawEvent(t + 1, "thr", mv.azimuth_status_frame(mav, 0, tid, 0.4, 90.0, 1.0, 0)))
+    cmd = p.allocation
+    assert cmd is not None and abs(cmd.thrust[2]) > 0.05  # the tunnel is commanded
+    tau, source = p.fusion.tau(t + 2)
+    assert source == "feedback"
+    expected = p.spec.vessel.generalized_force([0.4, 0.4, cmd.thrust[2]], [1.0, 1.0, cmd.azimuth[2]])
+    np.testing.assert_allclose(tau, expected, rtol=1e-6)  # (float32 on the wire)
+    # in standby the thrusters are someone else's: the unknown one counts with no thrust
+    p.feed(ControlEvent(t + 3, "mode", "standby"))
+    p.feed(RawEvent(t + S, "gps", gga_at(0.0, 0.0) + enc.hdt("HE", 0.3).encode()))
+    tau, _ = p.fusion.tau(t + S)
+    np.testing.assert_allclose(
+        tau, p.spec.vessel.generalized_force([0.4, 0.4, 0.0], [1.0, 1.0, 0.0]), rtol=1e-6
+    )
+
+
 def test_frames_of_another_mavlink_system_or_component_are_rejected_and_counted() -> None:
     p = pipeline(
         [

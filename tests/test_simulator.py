@@ -253,6 +253,27 @@ def test_mavlink_commands_close_the_loop() -> None:
     np.testing.assert_allclose(sim.thrusters.angle, [0.5, -0.5, 1.5], atol=1e-9)
 
 
+def test_the_simulated_drive_takes_only_commands_addressed_to_it() -> None:
+    """The drive (system 1, component 1 by default) takes broadcast commands and its own; one addressed to
+    another system or component is counted and not applied."""
+    from simulator.commands import MavlinkCommandInput
+
+    fb = ThrusterFeedbackConfig(rate_hz=2.0, system_id=4, component_id=9)
+    scenario = replace(get_scenario("hajivand_2010"), feedback=fb)
+    mav = MemorySink()
+    inp = MavlinkCommandInput(mav, fb.system_id, fb.component_id)
+    sim = Simulation(scenario, 0, routes=[Route(mav, "mavlink")], commands=[inp])
+    sim.run(5.0)
+    gw = encoder(src_system=1, src_component=191)
+    for target in ((5, 9), (4, 8), (4, 0), (0, 0)):  # other system, other component, ours, broadcast
+        mav.feed(
+            azimuth_command_frame(gw, 0, 1, 4e5, 0.5, target_system=target[0], target_component=target[1])
+        )
+    sim.run(6.0)
+    assert inp.received == 4 and inp.rejected == {"other target": 2}
+    assert sim.summary.commands_applied == 2
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

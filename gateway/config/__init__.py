@@ -38,7 +38,7 @@ from gateway.config.model import (
     ZenohConfig,
 )
 from gateway.config.problems import ConfigError, format_problems
-from gateway.config.summary import describe
+from gateway.config.summary import config_notes, describe
 
 __all__ = [
     "BAUD_RATES",
@@ -62,6 +62,7 @@ __all__ = [
     "StatusConfig",
     "TimeConfig",
     "ZenohConfig",
+    "config_notes",
     "default_config",
     "describe",
     "format_problems",

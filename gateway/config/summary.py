@@ -6,7 +6,7 @@ from typing import Any
 
 from gateway.config.model import GatewayConfig
 
-__all__ = ["describe"]
+__all__ = ["config_notes", "describe"]
 
 
 def describe(config: GatewayConfig) -> str:
@@ -37,6 +37,27 @@ def describe(config: GatewayConfig) -> str:
     if config.time.sim:
         lines.append(f"  clock: simulation time from {z.prefix}/sim/clock (not this computer's)")
     return "\n".join(lines)
+
+
+def config_notes(config: GatewayConfig) -> list[str]:
+    """What the config allows but an engineer should know (``--check`` prints them, start-up logs them):
+    an ArduPilot ESC wired to a thruster that reverses. ``ESC_TELEMETRY`` carries rpm unsigned, so that
+    thruster's feedback is taken as thrust ahead even while it runs astern (a tunnel pushing to port, a
+    skid-steering motor in reverse), and τ for the observer has the wrong sign for it then."""
+    notes = []
+    thrusters = {t.id: t for t in config.vessel.thrusters}
+    for sc in config.sources:
+        if sc.ardupilot is None:
+            continue
+        for esc, tid in sorted(sc.ardupilot.esc.items()):
+            th = thrusters.get(tid)
+            if th is not None and th.min_thrust_n < 0:
+                notes.append(
+                    f"sources.{sc.name}.ardupilot.esc: ESC {esc} reports thruster {tid}, which reverses "
+                    f"(min_thrust_n {th.min_thrust_n:g} N), but ESC telemetry rpm has no sign: its thrust "
+                    "is taken as ahead also when it runs astern"
+                )
+    return notes
 
 
 def show_dof(value: Any) -> str:

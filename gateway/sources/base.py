@@ -212,6 +212,13 @@ class Source(ABC):
         """
         return False
 
+    @property
+    def shared(self) -> bool:
+        """Whether any number of senders can reach this link and `write` without a ``peer`` answers
+        whoever spoke last (a listening UDP port) or everyone (a TCP server): what must reach one device
+        (thruster commands) then needs its ``peer``. False for a link with one far end."""
+        return False
+
     def age_s(self, now_mono_ns: int | None = None) -> float:
         """Seconds since the last chunk (``inf`` if none yet)."""
         last = self.stats.last_rx_mono_ns

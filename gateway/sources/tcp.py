@@ -160,6 +160,10 @@ class TcpListenSource(Source):
         self._accepted = 0
 
     @property
+    def shared(self) -> bool:
+        return True
+
+    @property
     def port(self) -> int:
         """The listening port (after `start`, the one chosen for port 0)."""
         return self._port

@@ -98,6 +98,10 @@ class UdpSource(Source):
         self._local: tuple[int, tuple[Any, ...]] | None = None  # (family, address) of a specific unicast bind
 
     @property
+    def shared(self) -> bool:
+        return self.target is None  # listening: anyone may send; with a target, that is the far end
+
+    @property
     def multicast(self) -> bool:
         try:
             return socket.inet_aton(self.host)[0] & 0xF0 == 0xE0 and self.host.count(".") == 3
