@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 from dpgw import cli_json
 from dpgw.cli_foxglove import add_foxglove_arg, connect_lines
 from dpgw.cli_paths import missing_folder
-from dpgw.cli_types import non_negative_float, positive_float
+from dpgw.cli_types import flags_given, non_negative_float, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from observers.observer_names import OBSERVER_NAMES
 
@@ -181,16 +181,12 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
-    zenoh = [
-        flag
-        for flag, value in (
-            ("--prefix", args.prefix),
-            ("--zenoh-listen", args.zenoh_listen),
-            ("--zenoh-connect", args.zenoh_connect),
-            ("--no-scouting", args.no_scouting),
-        )
-        if value
-    ]
+    zenoh = flags_given(
+        ("--prefix", args.prefix),
+        ("--zenoh-listen", args.zenoh_listen),
+        ("--zenoh-connect", args.zenoh_connect),
+        ("--no-scouting", args.no_scouting),
+    )
     if zenoh and not (args.speed or args.realtime):  # accepted and ignored before
         print(
             f"dpgw replay: {', '.join(zenoh)}: a replay publishes on Zenoh only when paced: add --speed X "

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any
 
 from dpgw import cli_json, cli_sim_inputs
 from dpgw.cli_paths import missing_folder
-from dpgw.cli_types import positive_float
+from dpgw.cli_types import flags_given, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from simulator.scenario_names import SCENARIO_NAMES
 
@@ -142,26 +142,22 @@ def run(args: argparse.Namespace) -> int:
         return 2
     if args.inputs is not None:
         # A scenario's options do nothing open loop: refused rather than silently ignored.
-        given = [
-            flag
-            for flag, value in (
-                ("--duration", args.duration),  # the inputs' times set the length
-                ("--nmea", args.nmea),
-                ("--mavlink", args.mavlink),
-                ("--realtime", args.realtime),
-                ("--speed", args.speed != 1.0),
-                ("--gnss-rate", args.gnss_rate),
-                ("--gyro-rate", args.gyro_rate),
-                ("--faults", args.faults),
-                ("--ardupilot", args.ardupilot),
-                ("--zenoh", args.zenoh),
-                ("--prefix", args.prefix),
-                ("--zenoh-listen", args.zenoh_listen),
-                ("--zenoh-connect", args.zenoh_connect),
-                ("--zenoh-config", args.zenoh_config),
-            )
-            if value
-        ]
+        given = flags_given(
+            ("--duration", args.duration),  # the inputs' times set the length
+            ("--nmea", args.nmea),
+            ("--mavlink", args.mavlink),
+            ("--realtime", args.realtime),
+            ("--speed", args.speed != 1.0),
+            ("--gnss-rate", args.gnss_rate),
+            ("--gyro-rate", args.gyro_rate),
+            ("--faults", args.faults),
+            ("--ardupilot", args.ardupilot),
+            ("--zenoh", args.zenoh),
+            ("--prefix", args.prefix),
+            ("--zenoh-listen", args.zenoh_listen),
+            ("--zenoh-connect", args.zenoh_connect),
+            ("--zenoh-config", args.zenoh_config),
+        )
         if given:
             print(
                 f"dpgw sim: {', '.join(given)}: only with --scenario; open loop from --inputs takes "
@@ -179,16 +175,12 @@ def run(args: argparse.Namespace) -> int:
     if args.speed != 1.0 and not args.realtime:  # accepted and ignored before: the run went flat out
         print("dpgw sim: --speed X paces a --realtime run: add --realtime", file=sys.stderr)
         return 2
-    zenoh_only = [
-        flag
-        for flag, value in (
-            ("--prefix", args.prefix),
-            ("--zenoh-listen", args.zenoh_listen),
-            ("--zenoh-connect", args.zenoh_connect),
-            ("--zenoh-config", args.zenoh_config),
-        )
-        if value
-    ]
+    zenoh_only = flags_given(
+        ("--prefix", args.prefix),
+        ("--zenoh-listen", args.zenoh_listen),
+        ("--zenoh-connect", args.zenoh_connect),
+        ("--zenoh-config", args.zenoh_config),
+    )
     if zenoh_only and not args.zenoh:  # accepted and ignored before: no session was opened
         print(f"dpgw sim: {', '.join(zenoh_only)}: only with --zenoh", file=sys.stderr)
         return 2

@@ -466,27 +466,32 @@ class Fusion:
         if not fresh:
             return self._tau_demand.copy(), "demand"
         if len(fresh) < len(layout):
-            # some thrusters fresh, others not: those without fresh feedback count with their command
-            # (none in standby or without an allocation: then they count as giving no thrust)
-            demand = self._thrust_demand
-            mixed_thrust = [
-                fresh[t.id].thrust_n if t.id in fresh else demand[0][i] if demand else 0.0
-                for i, t in enumerate(layout)
-            ]
-            mixed_angle = [
-                fresh[t.id].azimuth_rad if t.id in fresh else demand[1][i] if demand else t.angle_rad
-                for i, t in enumerate(layout)
-            ]
-            return self.vessel.generalized_force(mixed_thrust, mixed_angle), "feedback"
+            # some thrusters fresh, others not: those count with their command (not cached: it changes
+            # with every control step)
+            return self._tau_of(fresh, self._thrust_demand), "feedback"
         key = (self._thrust_changes, tuple(fresh))
         if self._tau_cached is not None and self._tau_cached[0] == key:
             tau = self._tau_cached[1]
         else:
-            thrust = np.array([fresh[t.id].thrust_n if t.id in fresh else 0.0 for t in layout])
-            angle = np.array([fresh[t.id].azimuth_rad if t.id in fresh else t.angle_rad for t in layout])
-            tau = self.vessel.generalized_force(thrust, angle)
+            tau = self._tau_of(fresh, None)
             self._tau_cached = (key, tau)
         if len(fresh) == len(self._thrust):  # (here every thruster of the layout is fresh)
             until = min(v.rx_ns + timeout[tid] for tid, v in fresh.items())
             self._tau_all_fresh = (self._thrust_changes, until, tau)
         return tau.copy(), "feedback"
+
+    def _tau_of(
+        self, fresh: dict[int, ThrusterFeedback], demand: tuple[list[float], list[float]] | None
+    ) -> Array:
+        """τ = Σ B(αᵢ) Tᵢ with each thruster's fresh feedback, else its command from ``demand`` (thrust and
+        azimuth in layout order), else no thrust at its fixed angle (standby, or no allocation)."""
+        layout = self.vessel.thrusters
+        thrust = [
+            fresh[t.id].thrust_n if t.id in fresh else demand[0][i] if demand else 0.0
+            for i, t in enumerate(layout)
+        ]
+        angle = [
+            fresh[t.id].azimuth_rad if t.id in fresh else demand[1][i] if demand else t.angle_rad
+            for i, t in enumerate(layout)
+        ]
+        return self.vessel.generalized_force(thrust, angle)

@@ -33,7 +33,14 @@ from mcap.reader import make_reader
 from gateway.config import GatewayConfig, default_config, parse_config
 from gateway.logreaders import LogCounts, nmea_text_events, nmea_text_events_reference, tlog_events
 from gateway.pipeline import USED_NMEA, ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
-from observers.factory import OBSERVER_PARAMS, OBSERVER_TUNING, OBSERVER_TYPES, Observer, make_observer
+from observers.factory import (
+    OBSERVER_PARAMS,
+    OBSERVER_TYPES,
+    TUNING_KEYS,
+    Observer,
+    make_observer,
+    tuning_keys,
+)
 from observers.passive_tuning import PassiveTuning
 from wire.mcap.reader import read_messages
 from wire.mcap.writer import McapLogWriter, raw_mavlink_record, raw_nmea_record
@@ -251,16 +258,6 @@ def merged_events(inputs: list[Input]) -> Iterator[Event]:
 
 
 # --- configuration and observers --------------------------------------------------------------------------
-
-TUNING_KEYS = set(PassiveTuning.__dataclass_fields__) | {"wave_period_s"}
-
-
-def tuning_keys(name: str) -> set[str]:
-    """The keys of the common tuning observer ``name`` uses (`observers.factory.OBSERVER_TUNING`);
-    ``wave_period_s`` sets ω0."""
-    used = OBSERVER_TUNING[name]
-    keys = TUNING_KEYS if used is None else set(used)
-    return keys | ({"wave_period_s"} if "omega0" in keys else set())
 
 
 @dataclass(frozen=True)

@@ -132,10 +132,10 @@ class GatewayService:
         self.stop_event = threading.Event()
         path = log_path if log_path is not None else config.log.path
         self._log_path = str(path) if path else None
-        # MAVLink links that take the dialect's thruster commands: one encoder each (own sequence numbers,
-        # signed when the link has a key)
         for note in config_notes(config):
             log.warning("%s", note)
+        # MAVLink links that take the dialect's thruster commands: one encoder each (own sequence numbers,
+        # signed when the link has a key)
         self._command_links: dict[str, Any] = {}
         self._command_targets: dict[str, dict[str, int]] = {}  # the controller's ids; 0: broadcast
         for sc in config.sources:
@@ -391,13 +391,14 @@ class GatewayService:
             return []
         info = self._session.info
         reached = any(True for _ in info.routers_zid()) or any(True for _ in info.peers_zid())
-        if reached == self._zenoh_reached:
-            pass
-        elif reached:
-            log.warning("zenoh: connected again (%s); outputs go out", ", ".join(connect))
-        else:
-            log.error("zenoh: lost %s; outputs are not reaching Zenoh until it is back", ", ".join(connect))
-        self._zenoh_reached = reached
+        if reached != self._zenoh_reached:  # logged once each way
+            if reached:
+                log.warning("zenoh: connected again (%s); outputs go out", ", ".join(connect))
+            else:
+                log.error(
+                    "zenoh: lost %s; outputs are not reaching Zenoh until it is back", ", ".join(connect)
+                )
+            self._zenoh_reached = reached
         if reached:
             return []
         return [

@@ -146,6 +146,17 @@ OBSERVERS: dict[str, ObserverEntry] = {e.name: e for e in _REGISTERED}
 OBSERVER_TYPES = tuple(OBSERVERS)
 OBSERVER_PARAMS: dict[str, tuple[str, ...]] = {name: e.params for name, e in OBSERVERS.items()}
 OBSERVER_TUNING: dict[str, tuple[str, ...] | None] = {name: e.tuning for name, e in OBSERVERS.items()}
+TUNING_KEYS = frozenset(PassiveTuning.__dataclass_fields__) | {"wave_period_s"}
+"""The keys that set the common tuning: the `PassiveTuning` fields, and ``wave_period_s`` (ω0 = 2π/Tp)."""
+
+
+def tuning_keys(name: str) -> frozenset[str]:
+    """The keys of the common tuning observer ``name`` uses (its entry's ``tuning``; all when None), with
+    ``wave_period_s`` wherever ω0 is used. A config or spec that sets another is refused, not ignored."""
+    used = OBSERVER_TUNING[name]
+    if used is None:
+        return TUNING_KEYS
+    return frozenset(used) | ({"wave_period_s"} if "omega0" in used else set())
 
 
 class ObserverSpecError(ValueError):

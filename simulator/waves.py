@@ -602,39 +602,22 @@ class WaveField:
         `motion_with_attitude` on that grid, joined, computed by the compiled carrier recurrence of
         `simulator._wave_kernel` (the simulator's 2 s blocks; equal to the numpy path to round-off)."""
         out = np.zeros((n, 6))
-        weights = (
-            self._ones(n)
-            if len(self.components) == 1
-            else self._weights(t0 + dt * np.arange(n, dtype=np.float64))
-        )
+        single = len(self.components) == 1  # (one sea state: no fade to weigh)
+        weights = np.ones((1, n)) if single else self._weights(t0 + dt * np.arange(n, dtype=np.float64))
         for c, w in zip(self.components, weights, strict=True):
             if not np.any(w):
                 continue
             chi = c.sea_state.direction_rad
             along = north * math.cos(chi) + east * math.sin(chi)
             tab_re, tab_im = c.motion_table_parts
-            x = (chi - heading) % (2.0 * math.pi) * ((tab_re.shape[1] - 1) / (2.0 * math.pi))  # _beta_index
-            j = min(int(x), tab_re.shape[1] - 2)
+            j, f = _beta_index(np.array([chi - heading]), tab_re.shape[1] - 1)
             # 6 columns with attitude RAOs, 3 without (the attitude then stays zero)
             _wave_kernel.synthesize(
-                c.omega, c.phase, c.wavenumber, float(along), float(t0), float(dt), tab_re, tab_im, j,
-                x - j, w, out[:, : tab_re.shape[2]],
+                c.omega, c.phase, c.wavenumber, float(along), float(t0), float(dt), tab_re, tab_im,
+                int(j[0]), float(f[0]), w, out[:, : tab_re.shape[2]],
             )  # fmt: skip
-        cos, sin = math.cos(heading), math.sin(heading)
-        surge, sway = out[:, 0].copy(), out[:, 1]
-        gain = self.motion_gain
-        out[:, 0] = (cos * surge - sin * sway) * gain[0]
-        out[:, 1] = (sin * surge + cos * sway) * gain[1]
-        out[:, 2] *= gain[2]
+        out[:, :3] = self._to_ned(out[:, :3], np.full(n, float(heading)))
         return out
-
-    @staticmethod
-    @lru_cache(maxsize=8)
-    def _ones(n: int) -> NDArray[np.float64]:
-        """Unit weights (1, n) of a field with one sea state (read only; shared)."""
-        ones = np.ones((1, n))
-        ones.flags.writeable = False
-        return ones
 
     def _to_ned(self, body: Array, psi: Array) -> Array:
         """Body surge/sway rotated to NED by ψ, yaw as is, times ``motion_gain``."""

@@ -56,7 +56,8 @@ def loop_tables(case: CaseSpec, scenario: Any, nominal_tp_s: float) -> dict[str,
     """The gateway config of the loop: the scenario's sensors; every observer tuned to the scenario's own
     (nominal) wave period — what an operator sets from the forecast — not to the case's sea state."""
     from dpgw.closed_loop import gateway_tables
-    from gateway.replay import parse_observer_spec, tuning_keys
+    from gateway.replay import parse_observer_spec
+    from observers.factory import tuning_keys
 
     tables = gateway_tables(scenario)
     loop = parse_observer_spec(case.loop_observer)

@@ -15,7 +15,7 @@ from gateway.config.defaults import DEFAULTS
 from gateway.config.model import ObserverConfig
 from gateway.config.problems import Problems, show
 from gateway.config.schema import TUNING_KEYS, ObserverTable, read_table
-from observers.factory import OBSERVER_TUNING, ObserverSpecError, check_params
+from observers.factory import ObserverSpecError, check_params, tuning_keys
 from observers.passive_tuning import PassiveTuning, TuningError, check_gains, passive_gains
 from observers.vessel import VesselModel, load_vessel
 
@@ -55,8 +55,8 @@ def read_observer(p: Problems, t: Mapping[str, Any], vessel: VesselModel | None)
         elif key in d and not any(key == ratio and explicit in t for explicit, ratio in _EXCLUSIVE):
             values[key] = d[key]
     # a problem in a key of the tuning itself (not rate_hz, type, ...) leaves nothing to check
-    tuning_keys = {"wave_period_s", "omega0", *TUNING_KEYS}
-    tuning_problems = [line for line in p.lines[n0:] if _key_of(line, p.where) in tuning_keys]
+    tuning_names = {"wave_period_s", "omega0", *TUNING_KEYS}
+    tuning_problems = [line for line in p.lines[n0:] if _key_of(line, p.where) in tuning_names]
     if tuning_problems or len(p.lines) > n_tuning or any(x is None for x in values.values()):
         return None
     # The tuning is complete: check it for this vessel even if other observer keys have problems.
@@ -110,10 +110,7 @@ def _refuse_unused_tuning(p: Problems, t: Mapping[str, Any], kind: str) -> None:
     EKF observers take only ω0 (or the wave period) and ζ from it, the MMAE bank none (its settings,
     its own ζ too, go in ``[observer.params]``). Silently ignored, such a key looks like a tuning that
     took effect."""
-    used = OBSERVER_TUNING.get(kind)
-    if used is None:
-        return  # every key of the tuning
-    keys = {*used, *(("wave_period_s",) if "omega0" in used else ())}
+    keys = tuning_keys(kind)
     what = ", ".join(sorted(keys)) if keys else "none of it"
     for key in ("wave_period_s", "omega0", *TUNING_KEYS):
         if key in t and key not in keys:

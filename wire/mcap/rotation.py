@@ -10,7 +10,7 @@ import os
 import re
 from pathlib import Path
 
-__all__ = ["StrPath", "log_files", "rotated_path"]
+__all__ = ["StrPath", "log_files", "next_index", "rotated_path"]
 
 StrPath = str | os.PathLike[str]
 
@@ -23,6 +23,18 @@ def rotated_path(path: StrPath, index: int) -> Path:
 
 def log_files(path: StrPath) -> list[Path]:
     """The existing files of the rotated set that starts at `path`, in writing order."""
+    return [q for _, q in _indexed(path)]
+
+
+def next_index(path: StrPath) -> int:
+    """The index after the last existing file of the set (0 when there is none): where a writer that
+    continues the set starts."""
+    files = _indexed(path)
+    return files[-1][0] + 1 if files else 0
+
+
+def _indexed(path: StrPath) -> list[tuple[int, Path]]:
+    """(index, file) of the existing files of the set, in writing order."""
     p = Path(path)
     pattern = re.compile(re.escape(p.stem) + r"_(\d{4,})" + re.escape(p.suffix) + "$")
     numbered = []
@@ -31,4 +43,4 @@ def log_files(path: StrPath) -> list[Path]:
             m = pattern.match(q.name)
             if m:
                 numbered.append((int(m.group(1)), q))
-    return ([p] if p.exists() else []) + [q for _, q in sorted(numbered)]
+    return ([(0, p)] if p.exists() else []) + sorted(numbered)

@@ -54,7 +54,7 @@ from mcap.writer import CompressionType, Writer
 from wire.json_payload import encode_json
 from wire.mcap.fast import _MESSAGE_HEAD, FastWriter
 from wire.mcap.format import RECORD_HEADER
-from wire.mcap.rotation import StrPath, log_files, rotated_path
+from wire.mcap.rotation import StrPath, next_index, rotated_path
 from wire.message_schema import json_schema
 from wire.messages import LocationFix, Message, RawMavlink, RawNmea, Time, message_for_topic
 
@@ -251,12 +251,7 @@ class McapLogWriter:
         self._max_log_ns: int | None = None
 
         if continue_set:
-            existing = log_files(self._base)
-            if existing:
-                last = existing[-1]
-                self._next_index = 1 + (
-                    0 if last == self._base else int(last.stem[len(self._base.stem) + 1 :])
-                )
+            self._next_index = next_index(self._base)
         # Open the first file now, so a bad path stops start-up with a clear error, not the first write. A
         # disk that is full (or failing) is not a mistake in the path: writing starts failed and retries.
         try:
@@ -397,8 +392,7 @@ class McapLogWriter:
                     self._warned_closed = True
                 return
             if self.error is not None and not self._recover_locked():
-                self.lost += 1
-                self._lost_since_fail += 1
+                self._drop(1)
                 return
             try:
                 self._write_locked(topic, data, log_time_ns, publish_time_ns, schema)
@@ -418,9 +412,7 @@ class McapLogWriter:
                     self._warned_closed = True
                 return
             if self.error is not None and not self._recover_locked():
-                n = sum(1 for _ in items)
-                self.lost += n
-                self._lost_since_fail += n
+                self._drop(sum(1 for _ in items))
                 return
             try:
                 writer = self._writer
@@ -609,10 +601,9 @@ class McapLogWriter:
             with contextlib.suppress(OSError):
                 f.close()  # (closes the descriptor even when its flush fails)
 
-    def _fail_locked(self, exc: OSError, what: str = "", lost: int = 0) -> None:
+    def _fail_locked(self, exc: OSError, lost: int = 0) -> None:
         """Writing failed: say so (once), drop the file, retry a new one in `retry_s`."""
-        path = exc.filename or (self.paths[-1] if self.paths else self._base)
-        error = what or f"cannot write {path}: {exc.strerror or exc}"
+        error = self._cannot_write(exc)
         if self.error is None:
             self.failures += 1
             self._lost_since_fail = 0
@@ -622,10 +613,19 @@ class McapLogWriter:
                 self.retry_s,
             )
         self.error = error
-        self.lost += lost
-        self._lost_since_fail += lost
+        self._drop(lost)
         self._abandon_file()
         self._retry_at = time.monotonic() + self.retry_s
+
+    def _cannot_write(self, exc: OSError) -> str:
+        """What `error` says of a failure: the file (the one being written if the error names none)."""
+        path = exc.filename or (self.paths[-1] if self.paths else self._base)
+        return f"cannot write {path}: {exc.strerror or exc}"
+
+    def _drop(self, n: int) -> None:
+        """``n`` messages not logged because writing has failed."""
+        self.lost += n
+        self._lost_since_fail += n
 
     def _recover_locked(self) -> bool:
         """After a failure, when `retry_s` has passed: open the next file of the set. True if writing."""
@@ -636,7 +636,7 @@ class McapLogWriter:
         try:
             self._open(self._next_index)
         except OSError as exc:
-            self.error = f"cannot write {exc.filename or self._base}: {exc.strerror or exc}"
+            self.error = self._cannot_write(exc)
             log.debug("log: still failing: %s", self.error)
             return False
         log.warning(
