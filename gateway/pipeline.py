@@ -31,6 +31,7 @@ from gateway.commands import CommandGate
 from gateway.config import ArdupilotMap, CommandsConfig, ControlConfig, GatewayConfig, IntegrityConfig
 from gateway.control.allocation import AllocationResult, PseudoInverseAllocator, QPAllocator, ThrusterCommand
 from gateway.control.controller import ControllerTuning, DPController
+from gateway.esc_direction import EscDirections
 from gateway.foxglove_channels import FoxgloveChannels
 from gateway.fusion import NS, Fusion
 from gateway.references import ReferenceMonitor
@@ -245,6 +246,8 @@ def _wiring(ardupilot: ArdupilotMap | None) -> mv.ArduPilotWiring | None:
         servo=dict(ardupilot.servo),
         servo_neutral_us=ardupilot.servo_neutral_us,
         servo_half_turn_us=ardupilot.servo_half_turn_us,
+        esc_direction=dict(ardupilot.esc_direction_servo),
+        esc_dead_band_us=ardupilot.esc_dead_band_us,
     )
 
 
@@ -278,6 +281,7 @@ class Pipeline:
         self.fusion = Fusion(
             spec.vessel, datum=datum, reference_point_m=spec.reference_point_m, pooling=ip.pooling
         )
+        self.esc_directions = EscDirections()  # the sign of ArduPilot ESC rpm, from the motor outputs
 
         def by_role(role: str) -> dict[str, int]:
             return {s.name: s.timeout_ns for s in spec.sources if role in s.roles}
@@ -782,6 +786,17 @@ class Pipeline:
                 if isinstance(r, mv.ThrusterReport):
                     if "thrusters" not in roles:
                         continue
+                    if (
+                        r.esc is not None
+                        and r.rpm
+                        and spec.ardupilot
+                        and r.esc in spec.ardupilot.esc_direction
+                    ):
+                        sign = self.esc_directions.sign(spec.name, r.esc, rx_ns)
+                        if not sign:  # rpm without a sign: not thrust (τ counts the command instead)
+                            c.rejected["esc_direction_unknown"] += 1
+                            continue
+                        r = replace(r, rpm=sign * r.rpm)
                     problem = self.monitor.feedback(
                         spec.name, rx_ns, r.thruster_id, r.thrust_n, r.azimuth_rad, r.rpm
                     )
@@ -805,6 +820,9 @@ class Pipeline:
                     if "position" not in roles or not r.valid:
                         continue
                     updated |= self._use_position(spec, rx_ns, r.lat_deg, r.lon_deg, None, out)
+                elif isinstance(r, mv.EscDirectionReport):
+                    if "thrusters" in roles:
+                        self.esc_directions.add(spec.name, r.esc, r.direction, rx_ns, spec.timeout_ns)
                 elif "heading" in roles:
                     updated |= self._use_heading(spec, rx_ns, r.heading_rad)
         if "thrusters" in roles:

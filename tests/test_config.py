@@ -196,18 +196,58 @@ def test_ardupilot_example() -> None:
     assert set(ap.ardupilot.esc.values()) <= ids
 
 
-def test_an_esc_on_a_thruster_that_reverses_is_noted(capsys: pytest.CaptureFixture[str]) -> None:
-    """ESC telemetry rpm has no sign: the example's bow tunnel (id 3, reverses) on ESC 3 gets a note from
-    `--check` (and a warning at start-up); the azimuths on ESC 1 and 2 turn instead and get none."""
+def test_an_esc_on_a_thruster_that_reverses_is_noted(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """ESC telemetry rpm has no sign: the example names the bow tunnel's (id 3, reverses) motor output, so
+    `--check` notes nothing; without that line, ESC 3 gets a note (and a warning at start-up) that says
+    what to add; the azimuths on ESC 1 and 2 turn instead and never get one."""
     from dpgw.cli import main
 
-    assert main(["run", "--config", str(EXAMPLES / "ardupilot_boat.toml"), "--check"]) == 0
-    notes = [line for line in capsys.readouterr().out.splitlines() if line.startswith("note:")]
-    assert notes == [
+    def notes(path: Path) -> list[str]:
+        assert main(["run", "--config", str(path), "--check"]) == 0
+        return [line for line in capsys.readouterr().out.splitlines() if line.startswith("note:")]
+
+    assert notes(EXAMPLES / "ardupilot_boat.toml") == []
+    text = (EXAMPLES / "ardupilot_boat.toml").read_text()
+    lines = [line for line in text.splitlines() if not line.startswith("esc_direction_servo")]
+    assert len(lines) == len(text.splitlines()) - 1
+    bare = tmp_path / "boat.toml"
+    bare.write_text("\n".join(lines) + "\n")
+    assert notes(bare) == [
         "note: sources.ardupilot.ardupilot.esc: ESC 3 reports thruster 3, which reverses "
         "(min_thrust_n -1 N), but ESC telemetry rpm has no sign: its thrust is taken as ahead also when "
-        "it runs astern"
+        "it runs astern (name its motor output in sources.ardupilot.ardupilot.esc_direction_servo, "
+        "e.g. {3 = channel})"
     ]
+
+
+def test_esc_direction_servo_forms_and_notes(tmp_path: Path) -> None:
+    """`esc_direction_servo` takes a channel (neutral 1500 µs) or {servo, neutral_us}; the dead band is
+    25 µs unless said. A reversing thruster's ESC is noted only while it has no direction source."""
+    from gateway.config import config_notes
+
+    d = base()
+    put(d, "sources.2.ardupilot", {"esc": {"1": 4, "2": 5, "3": 1}, "esc_direction_servo": {"1": 9}})
+    c = parse(d, tmp_path)
+    ap = c.source("thr").ardupilot
+    assert ap is not None and dict(ap.esc_direction_servo) == {1: (9, 1500.0)} and ap.esc_dead_band_us == 25.0
+    reversing = sorted(t.id for t in c.vessel.thrusters if t.min_thrust_n < 0)
+    assert 4 in reversing and 5 in reversing
+    assert [n.split(":")[1].strip().split(" reports")[0] for n in config_notes(c)] == ["ESC 2"]
+    put(
+        d,
+        "sources.2.ardupilot",
+        {
+            "esc": {"1": 4, "2": 5},
+            "esc_direction_servo": {"1": 9, "2": {"servo": 10, "neutral_us": 1520}},
+            "esc_dead_band_us": 40,
+        },
+    )
+    c = parse(d, tmp_path)
+    ap = c.source("thr").ardupilot
+    assert ap is not None and dict(ap.esc_direction_servo) == {1: (9, 1500.0), 2: (10, 1520.0)}
+    assert ap.esc_dead_band_us == 40.0 and config_notes(c) == []
 
 
 def test_systemd_unit() -> None:
@@ -761,6 +801,60 @@ BAD: list[tuple[str, dict[str, Any], str, str]] = [
         {"sources.2.ardupilot": {"esc": {"1": 1, "2": 1}}},
         "sources.thr.ardupilot.esc.2",
         "thruster 1 is also mapped from esc 1",
+    ),
+    (
+        "esc direction channel out of range",
+        {"sources.2.ardupilot": {"esc": {"1": 4}, "esc_direction_servo": {"1": 33}}},
+        "sources.thr.ardupilot.esc_direction_servo.1",
+        "not a servo output channel (expected 1 to 32, the SERVO_OUTPUT_RAW output of ESC 1's motor, got an "
+        "integer 33)",
+    ),
+    (
+        "esc direction from an azimuth servo",
+        {
+            "sources.2.ardupilot": {
+                "esc": {"1": 4, "2": 1},
+                "servo": {"3": 1},
+                "esc_direction_servo": {"1": 3},
+            }
+        },
+        "sources.thr.ardupilot.esc_direction_servo.1",
+        "servo output 3 is the azimuth servo of thruster 1 in sources.thr.ardupilot.servo",
+    ),
+    (
+        "esc direction of an ESC not mapped",
+        {"sources.2.ardupilot": {"esc": {"1": 4}, "esc_direction_servo": {"2": 5}}},
+        "sources.thr.ardupilot.esc_direction_servo.2",
+        "ESC 2 is not mapped to a thruster (expected one of the ESCs in sources.thr.ardupilot.esc: 1)",
+    ),
+    (
+        "esc direction table without servo",
+        {"sources.2.ardupilot": {"esc": {"1": 4}, "esc_direction_servo": {"1": {"neutral_us": 1520}}}},
+        "sources.thr.ardupilot.esc_direction_servo.1",
+        "has no servo",
+    ),
+    (
+        "esc direction neutral",
+        {
+            "sources.2.ardupilot": {
+                "esc": {"1": 4},
+                "esc_direction_servo": {"1": {"servo": 5, "neutral_us": 90}},
+            }
+        },
+        "sources.thr.ardupilot.esc_direction_servo.1.neutral_us",
+        "not a pulse width (expected 500 to 2500 µs, got 90)",
+    ),
+    (
+        "esc direction key",
+        {"sources.2.ardupilot": {"esc": {"1": 4}, "esc_direction_servo": {"1": {"channel": 5}}}},
+        "sources.thr.ardupilot.esc_direction_servo.1.channel",
+        "unknown key (expected one of: servo, neutral_us)",
+    ),
+    (
+        "esc dead band",
+        {"sources.2.ardupilot": {"esc": {"1": 4}, "esc_dead_band_us": -5}},
+        "sources.thr.ardupilot.esc_dead_band_us",
+        "not a pulse width (expected 0 to 400 µs, got -5)",
     ),
     ("ardupilot empty", {"sources.2.ardupilot": {}}, "sources.thr.ardupilot", "maps nothing"),
     (

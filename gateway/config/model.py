@@ -64,12 +64,16 @@ class DatumConfig:
 @dataclass(frozen=True)
 class ArdupilotMap:
     """ArduPilot feedback → thrusters: ESC index → thruster id (rpm), servo channel → thruster (azimuth), and
-    the servo calibration: azimuth = π (pwm − servo_neutral_us) / servo_half_turn_us."""
+    the servo calibration: azimuth = π (pwm − servo_neutral_us) / servo_half_turn_us; ESC index → (servo
+    channel of its reversible motor output, that output's neutral µs): the direction of its rpm, with the
+    dead band ± esc_dead_band_us around the neutral."""
 
     esc: Mapping[int, int] = field(default_factory=dict)
     servo: Mapping[int, int] = field(default_factory=dict)
     servo_neutral_us: float = 1500.0
     servo_half_turn_us: float = 400.0
+    esc_direction_servo: Mapping[int, tuple[int, float]] = field(default_factory=dict)
+    esc_dead_band_us: float = 25.0
 
 
 @dataclass(frozen=True)

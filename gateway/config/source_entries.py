@@ -254,8 +254,13 @@ def _read_source(
 
 
 def _read_ardupilot(p: Problems, t: Mapping[str, Any], path: str, vessel: VesselModel | None) -> ArdupilotMap:
-    p.unknown_keys(t, path, ("esc", "servo", "servo_neutral_us", "servo_half_turn_us"))
+    p.unknown_keys(
+        t,
+        path,
+        ("esc", "servo", "servo_neutral_us", "servo_half_turn_us", "esc_direction_servo", "esc_dead_band_us"),
+    )
     neutral = _servo_us(p, t, "servo_neutral_us", path, 1500.0, 500.0, 2500.0)
+    dead_band = _servo_us(p, t, "esc_dead_band_us", path, 25.0, 0.0, 400.0)
     half_turn = _servo_us(p, t, "servo_half_turn_us", path, 400.0, -1000.0, 1000.0)
     if abs(half_turn) < 1.0:
         p.add(
@@ -312,8 +317,70 @@ def _read_ardupilot(p: Problems, t: Mapping[str, Any], path: str, vessel: Vessel
             used[thruster] = int(k)
             maps[key][int(k)] = thruster
     return ArdupilotMap(
-        esc=maps["esc"], servo=maps["servo"], servo_neutral_us=neutral, servo_half_turn_us=half_turn
+        esc=maps["esc"],
+        servo=maps["servo"],
+        servo_neutral_us=neutral,
+        servo_half_turn_us=half_turn,
+        esc_direction_servo=_read_esc_direction(p, t, path, maps["esc"], maps["servo"]),
+        esc_dead_band_us=dead_band,
     )
+
+
+def _read_esc_direction(
+    p: Problems, t: Mapping[str, Any], path: str, esc: Mapping[int, int], servo: Mapping[int, int]
+) -> dict[int, tuple[int, float]]:
+    """``esc_direction_servo``: ESC index → its reversible motor output, as a channel (neutral 1500 µs) or
+    ``{servo = channel, neutral_us = µs}``; the ESC must be in ``esc``, the channel not an azimuth servo."""
+    key = "esc_direction_servo"
+    m = t.get(key)
+    if m is None:
+        return {}
+    if not isinstance(m, dict):
+        p.add(f"{path}.{key}", f"wrong type (expected a [{path}.{key}] table, got {kind(m)} {show(m)})")
+        return {}
+    out: dict[int, tuple[int, float]] = {}
+    for k, v in m.items():
+        name = f"{path}.{key}.{k}"
+        if not k.isdigit() or not 1 <= int(k) <= MAX_ARDUPILOT_INDEX:
+            p.add(name, f"not an ESC index (expected 1 to {MAX_ARDUPILOT_INDEX}, got {show(k)})")
+            continue
+        if int(k) not in esc:
+            p.add(
+                name,
+                f"ESC {k} is not mapped to a thruster (expected one of the ESCs in {path}.esc: "
+                f"{', '.join(str(i) for i in sorted(esc)) or 'none'})",
+            )
+            continue
+        neutral = 1500.0
+        if isinstance(v, dict):
+            p.unknown_keys(v, name, ("servo", "neutral_us"))
+            neutral = _servo_us(p, v, "neutral_us", name, 1500.0, 500.0, 2500.0)
+            if "servo" not in v:
+                p.add(name, "has no servo (expected { servo = channel, neutral_us = µs })")
+                continue
+            channel, where = v["servo"], f"{name}.servo"
+        else:
+            channel, where = v, name
+        if (
+            isinstance(channel, bool)
+            or not isinstance(channel, int)
+            or not 1 <= channel <= MAX_ARDUPILOT_INDEX
+        ):
+            p.add(
+                where,
+                f"not a servo output channel (expected 1 to {MAX_ARDUPILOT_INDEX}, the SERVO_OUTPUT_RAW "
+                f"output of ESC {k}'s motor, got {kind(channel)} {show(channel)})",
+            )
+            continue
+        if channel in servo:
+            p.add(
+                where,
+                f"servo output {channel} is the azimuth servo of thruster {servo[channel]} in {path}.servo "
+                f"(expected the channel of ESC {k}'s motor output)",
+            )
+            continue
+        out[int(k)] = (channel, neutral)
+    return out
 
 
 def _servo_us(

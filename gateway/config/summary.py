@@ -41,9 +41,10 @@ def describe(config: GatewayConfig) -> str:
 
 def config_notes(config: GatewayConfig) -> list[str]:
     """What the config allows but an engineer should know (``--check`` prints them, start-up logs them):
-    an ArduPilot ESC wired to a thruster that reverses. ``ESC_TELEMETRY`` carries rpm unsigned, so that
-    thruster's feedback is taken as thrust ahead even while it runs astern (a tunnel pushing to port, a
-    skid-steering motor in reverse), and τ for the observer has the wrong sign for it then."""
+    an ArduPilot ESC wired to a thruster that reverses, without ``esc_direction_servo`` for it.
+    ``ESC_TELEMETRY`` carries rpm unsigned, so that thruster's feedback is taken as thrust ahead even while
+    it runs astern (a tunnel pushing to port, a skid-steering motor in reverse), and τ for the observer has
+    the wrong sign for it then. With its motor output named, the sign comes from that output's pulse."""
     notes = []
     thrusters = {t.id: t for t in config.vessel.thrusters}
     for sc in config.sources:
@@ -51,11 +52,12 @@ def config_notes(config: GatewayConfig) -> list[str]:
             continue
         for esc, tid in sorted(sc.ardupilot.esc.items()):
             th = thrusters.get(tid)
-            if th is not None and th.min_thrust_n < 0:
+            if th is not None and th.min_thrust_n < 0 and esc not in sc.ardupilot.esc_direction_servo:
                 notes.append(
                     f"sources.{sc.name}.ardupilot.esc: ESC {esc} reports thruster {tid}, which reverses "
                     f"(min_thrust_n {th.min_thrust_n:g} N), but ESC telemetry rpm has no sign: its thrust "
-                    "is taken as ahead also when it runs astern"
+                    f"is taken as ahead also when it runs astern (name its motor output in "
+                    f"sources.{sc.name}.ardupilot.esc_direction_servo, e.g. {{{esc} = channel}})"
                 )
     return notes
 

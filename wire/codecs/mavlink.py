@@ -10,10 +10,10 @@ A small typed layer over the module mavgen generates (:mod:`wire.codecs.generate
 * :class:`FrameParser` (streaming) and :func:`parse_frames` (one buffer) decode frames robustly: bytes that
   are not a valid frame are skipped and counted per reason, never raised.
 * :func:`reports` turns a decoded message into typed SI records (:class:`PositionReport`,
-  :class:`HeadingReport`, :class:`ThrusterReport`): the MAVLink integer units (1e-7 degrees, centidegrees,
-  millimetres, PWM microseconds) end here, so the gateway behind the codec sees only degrees of latitude
-  and longitude, metres and radians. ArduPilot motor and servo outputs are mapped onto the vessel's
-  thrusters by the source's wiring (:class:`ArduPilotWiring`).
+  :class:`HeadingReport`, :class:`ThrusterReport`, :class:`EscDirectionReport`): the MAVLink integer units
+  (1e-7 degrees, centidegrees, millimetres, PWM microseconds) end here, so the gateway behind the codec
+  sees only degrees of latitude and longitude, metres and radians. ArduPilot motor and servo outputs are
+  mapped onto the vessel's thrusters by the source's wiring (:class:`ArduPilotWiring`).
 
 Message layouts: ``docs/mavlink-dialect.md``. MAVLink 2 framing: https://mavlink.io/en/guide/serialization.html;
 signing: https://mavlink.io/en/guide/message_signing.html.
@@ -29,6 +29,7 @@ from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import IntFlag
+from functools import cached_property
 from types import ModuleType
 from typing import Any
 
@@ -500,21 +501,39 @@ class ThrusterReport:
     ``thrust_n`` (N, negative astern) and ``azimuth_rad`` (direction of the thrust force, clockwise from
     the bow) are None when the frame does not carry them (NaN when the sender does not know them);
     ``rpm`` is the shaft speed as reported (ArduPilot ESC telemetry: unsigned, the direction is lost);
-    ``pwm_us`` the servo pulse width the azimuth was computed from."""
+    ``pwm_us`` the servo pulse width the azimuth was computed from; ``esc`` the ArduPilot ESC index whose
+    telemetry carried the (unsigned) rpm, None for any other frame."""
 
     thruster_id: int
     thrust_n: float | None = None
     azimuth_rad: float | None = None
     rpm: float | None = None
     pwm_us: int | None = None
+    esc: int | None = None
 
 
-Report = PositionReport | HeadingReport | ThrusterReport
+@dataclass(frozen=True, slots=True)
+class EscDirectionReport:
+    """The direction an ArduPilot reversible motor output drives an ESC: ``direction`` +1 ahead (pulse
+    above the output's neutral by more than the dead band), −1 astern (below it), 0 inside the dead band
+    (not driven); ``pwm_us`` the pulse width it was read from."""
+
+    esc: int
+    direction: int
+    pwm_us: int
+
+
+Report = PositionReport | HeadingReport | ThrusterReport | EscDirectionReport
 
 SERVO_NEUTRAL_US = 1500.0
 """Default servo pulse width of azimuth 0 (thrust ahead): the middle of a standard 1000-2000 µs servo."""
 SERVO_HALF_TURN_US = 400.0
 """Default change of pulse width for half a turn (π): −π…π is 1100…1900 µs, inside the standard range."""
+MOTOR_NEUTRAL_US = 1500.0
+"""Default neutral (``SERVOn_TRIM``) of a reversible motor output: ArduPilot's default trim."""
+ESC_DEAD_BAND_US = 25.0
+"""Default half width of the band around a motor output's neutral where the ESC is not driven (µs): the
+common ±25 µs of reversible (bidirectional) ESCs."""
 
 
 @dataclass(frozen=True)
@@ -525,17 +544,37 @@ class ArduPilotWiring:
     shaft speed the ESC reports. ``servo``: servo output channel (1-32; ``SERVO_OUTPUT_RAW`` port p carries
     channels 16p+1 … 16p+16) → azimuth thruster id, whose angle the pulse width sets linearly:
     azimuth = π (pwm − ``servo_neutral_us``) / ``servo_half_turn_us`` (a negative half turn reverses a
-    servo mounted the other way round).
+    servo mounted the other way round). ``esc_direction``: ESC index → (servo output channel of its
+    reversible motor output, that output's neutral in µs): the sign of the ESC's rpm, which its telemetry
+    does not carry; a pulse within ``esc_dead_band_us`` of the neutral does not drive the motor.
     """
 
     esc: Mapping[int, int] = field(default_factory=dict)
     servo: Mapping[int, int] = field(default_factory=dict)
     servo_neutral_us: float = SERVO_NEUTRAL_US
     servo_half_turn_us: float = SERVO_HALF_TURN_US
+    esc_direction: Mapping[int, tuple[int, float]] = field(default_factory=dict)
+    esc_dead_band_us: float = ESC_DEAD_BAND_US
 
     def azimuth_rad(self, pwm_us: float) -> float:
         """The azimuth (rad, not wrapped) a servo pulse width commands."""
         return (pwm_us - self.servo_neutral_us) / self.servo_half_turn_us * math.pi
+
+    def direction(self, pwm_us: float, neutral_us: float) -> int:
+        """+1 ahead / −1 astern for a motor output pulse beyond the dead band around its neutral, else 0."""
+        if pwm_us > neutral_us + self.esc_dead_band_us:
+            return 1
+        if pwm_us < neutral_us - self.esc_dead_band_us:
+            return -1
+        return 0
+
+    @cached_property
+    def direction_channels(self) -> Mapping[int, tuple[tuple[int, float], ...]]:
+        """Servo output channel → the (ESC index, neutral µs) whose direction it gives."""
+        out: dict[int, list[tuple[int, float]]] = {}
+        for esc, (channel, neutral) in sorted(self.esc_direction.items()):
+            out.setdefault(channel, []).append((esc, neutral))
+        return {ch: tuple(v) for ch, v in out.items()}
 
 
 _NO_WIRING = ArduPilotWiring()
@@ -548,9 +587,11 @@ def reports(msg: MAVLinkMessage, ardupilot: ArduPilotWiring | None = None) -> li
     gateway does not use.
 
     * ``AZIMUTH_THRUSTER_STATUS`` → a :class:`ThrusterReport` (thrust, azimuth, rpm);
-    * ``ESC_TELEMETRY_*`` → a :class:`ThrusterReport` (rpm) per ESC wired to a thruster;
-    * ``SERVO_OUTPUT_RAW`` → a :class:`ThrusterReport` (azimuth, pwm) per used channel wired to a thruster
-      (0 µs means the output is not in use);
+    * ``ESC_TELEMETRY_*`` → a :class:`ThrusterReport` (unsigned rpm, its ESC index) per ESC wired to a
+      thruster;
+    * ``SERVO_OUTPUT_RAW`` → a :class:`ThrusterReport` (azimuth, pwm) per used channel wired to a thruster,
+      then an :class:`EscDirectionReport` per ESC whose direction a used channel gives (0 µs means the
+      output is not in use);
     * ``GPS_RAW_INT`` → a :class:`PositionReport` with its fix type;
     * ``GLOBAL_POSITION_INT`` → a :class:`PositionReport`, then a :class:`HeadingReport` if ``hdg`` is known;
     * ``ATTITUDE`` → a :class:`HeadingReport` (its yaw).
@@ -566,7 +607,7 @@ def reports(msg: MAVLinkMessage, ardupilot: ArduPilotWiring | None = None) -> li
         for k, rpm in enumerate(m.rpm):
             tid = wiring.esc.get(first + k)
             if tid is not None:
-                out.append(ThrusterReport(tid, rpm=float(rpm)))
+                out.append(ThrusterReport(tid, rpm=float(rpm), esc=first + k))
         return out
     if mid == _dpgw.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW:
         out = []
@@ -576,6 +617,15 @@ def reports(msg: MAVLinkMessage, ardupilot: ArduPilotWiring | None = None) -> li
             pwm = int(getattr(m, name, 0) or 0)  # servo9..16 are extensions: absent in a short frame
             if tid is not None and pwm:
                 out.append(ThrusterReport(tid, azimuth_rad=wiring.azimuth_rad(pwm), pwm_us=pwm))
+        if wiring.esc_direction:
+            channels = wiring.direction_channels
+            for k, name in enumerate(_SERVO_FIELDS):
+                escs = channels.get(base + k + 1)
+                pwm = int(getattr(m, name, 0) or 0)
+                if escs is not None and pwm:
+                    out += [
+                        EscDirectionReport(esc, wiring.direction(pwm, neutral), pwm) for esc, neutral in escs
+                    ]
         return out
     if mid == _dpgw.MAVLINK_MSG_ID_GPS_RAW_INT:
         return [PositionReport(m.lat / 1e7, m.lon / 1e7, m.alt / 1e3, int(m.fix_type))]
