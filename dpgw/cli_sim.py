@@ -84,7 +84,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--ardupilot",
         action="store_true",
-        help="thrusters also report ArduPilot-style ESC_TELEMETRY and SERVO_OUTPUT_RAW",
+        help="thrusters also report ArduPilot-style ESC_TELEMETRY (ESC n = n-th thruster, |rpm|) and "
+        "SERVO_OUTPUT_RAW (outputs 1-16: azimuths; 17-32: reversible motor outputs, below 1500 µs astern: "
+        "map them with esc_direction_servo = {n = 16 + n}; docs/sensors.md)",
     )
     p.add_argument(
         "--zenoh",
@@ -213,7 +215,10 @@ def _run_scenario(args: argparse.Namespace) -> int:
                 )
         if args.ardupilot and scenario.feedback is not None:
             scenario = replace(
-                scenario, feedback=replace(scenario.feedback, ardupilot_esc=True, ardupilot_servo=True)
+                scenario,
+                feedback=replace(
+                    scenario.feedback, ardupilot_esc=True, ardupilot_servo=True, ardupilot_motor=True
+                ),
             )
     except (ValueError, OSError) as exc:
         print(f"dpgw sim: {exc}", file=sys.stderr)

@@ -176,7 +176,7 @@ def needs_wire(scenario: Scenario, log: McapLogWriter | None = None) -> bool:
     return (
         log is not None
         or any(f.kind in ("bad_checksum", "garbage") for f in scenario.faults)
-        or (feedback is not None and (feedback.ardupilot_esc or feedback.ardupilot_servo))
+        or (feedback is not None and feedback.ardupilot)
     )
 
 

@@ -169,7 +169,7 @@ class Simulation:
         if not wire:
             wire_faults = sorted({f.kind for f in scenario.faults if f.kind in ("bad_checksum", "garbage")})
             feedback = scenario.feedback
-            ardupilot = feedback is not None and (feedback.ardupilot_esc or feedback.ardupilot_servo)
+            ardupilot = feedback is not None and feedback.ardupilot
             problem = (
                 "routes" if routes else
                 "a raw log (log_raw=True)" if log is not None and log_raw else
@@ -244,7 +244,12 @@ class Simulation:
         for k, gcfg in enumerate(scenario.gyro):
             self.sensors.append(Gyro(gcfg, self.epoch, sensor_rngs[4 + k], self.faults))
         if scenario.feedback is not None and self.thrusters.n:
-            self.sensors.append(ThrusterFeedback(scenario.feedback, self.epoch, sensor_rngs[7], self.faults))
+            limits = {t.id: (t.min_thrust_n, t.max_thrust_n) for t in vessel.thrusters}
+            self.sensors.append(
+                ThrusterFeedback(
+                    scenario.feedback, self.epoch, sensor_rngs[7], self.faults, thrust_limits_n=limits
+                )
+            )
         for sensor in self.sensors:
             sensor.encode = wire
 

@@ -32,7 +32,7 @@ that line noise never changes the sensors' random streams.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Annotated, Any, Literal, NamedTuple, Protocol, runtime_checkable
 
@@ -356,10 +356,16 @@ class ThrusterFeedbackConfig:
     heartbeat_hz: float = 1.0
     ardupilot_esc: bool = False
     ardupilot_servo: bool = False
+    ardupilot_motor: bool = False
     latency_s: float = 0.0
 
     def __post_init__(self) -> None:
         _validate(self, _FEEDBACK_RULES)
+
+    @property
+    def ardupilot(self) -> bool:
+        """Whether any ArduPilot frame is sent (their meaning depends on the receiver's wiring)."""
+        return self.ardupilot_esc or self.ardupilot_servo or self.ardupilot_motor
 
 
 # ---------------------------------------------------------------------------------------------- sensors
@@ -431,6 +437,18 @@ def azimuth_to_pwm(azimuth_rad: float) -> int:
     """SERVO_OUTPUT_RAW pulse width (µs) of an azimuth: 1500 + 400·ssa(azimuth)/π; ahead (0) is 1500 µs,
     starboard (π/2) 1700 µs, port (−π/2) 1300 µs, astern 1100 µs (−π; +π wraps to −π)."""
     return round(SERVO_PWM_CENTER_US + SERVO_PWM_HALF_RANGE_US * ssa_scalar(azimuth_rad) / math.pi)
+
+
+def motor_pwm(thrust_n: float, min_thrust_n: float, max_thrust_n: float) -> int:
+    """A reversible motor output's pulse width (µs) for a thrust command, as ArduPilot drives a reversible
+    throttle (trim 1500 µs, range 1100-1900 µs): 1500 + 400·throttle, with the throttle the shaft speed
+    as a fraction of full speed on that side, sqrt(T / T_max) ahead and −sqrt(T / T_min) astern (the
+    quadratic propeller law T ∝ n|n|). A thruster that does not reverse (T_min ≥ 0) has no astern side."""
+    if thrust_n >= 0:
+        throttle = math.sqrt(min(thrust_n / max_thrust_n, 1.0)) if max_thrust_n > 0 else 0.0
+    else:
+        throttle = -math.sqrt(min(thrust_n / min_thrust_n, 1.0)) if min_thrust_n < 0 else 0.0
+    return round(SERVO_PWM_CENTER_US + SERVO_PWM_HALF_RANGE_US * throttle)
 
 
 def pwm_to_azimuth(pwm_us: float) -> float:
@@ -516,8 +534,11 @@ class Dgps(Sensor):
         faults: FaultSchedule | None = None,
         *,
         start: float = 0.0,
+        thrust_limits_n: Mapping[int, tuple[float, float]] | None = None,
     ) -> None:
         self.config = config
+        self.thrust_limits_n = dict(thrust_limits_n or {})
+        """Thruster id → (min, max) thrust (N): the scale of its motor output (`motor_pwm`)."""
         self.source = config.source
         self.datum = datum
         self.epoch = epoch
@@ -724,8 +745,11 @@ class Gyro(Sensor):
         faults: FaultSchedule | None = None,
         *,
         start: float = 0.0,
+        thrust_limits_n: Mapping[int, tuple[float, float]] | None = None,
     ) -> None:
         self.config = config
+        self.thrust_limits_n = dict(thrust_limits_n or {})
+        """Thruster id → (min, max) thrust (N): the scale of its motor output (`motor_pwm`)."""
         self.source = config.source
         self.epoch = epoch
         self.rng = rng
@@ -797,8 +821,10 @@ class ThrusterFeedback(Sensor):
     ``AZIMUTH_THRUSTER_STATUS`` at ``rate_hz``, a ``HEARTBEAT`` at ``heartbeat_hz`` (both from ``start``), and
     with ``ardupilot_esc`` / ``ardupilot_servo`` an ``ESC_TELEMETRY_1_TO_4`` per four thrusters (ESC n is the
     n-th thruster of ``ShipState.thrusters``; up to 32) / a ``SERVO_OUTPUT_RAW`` per 16 thrusters (port 0, 1;
-    output n = n-th thruster's azimuth, `azimuth_to_pwm`). All frames of one instant: heartbeat first, then
-    the status frames in thruster order, ESC telemetry, servo outputs."""
+    output n = n-th thruster's azimuth, `azimuth_to_pwm`); with ``ardupilot_motor`` a ``SERVO_OUTPUT_RAW``
+    on port 1 with each thruster's reversible motor output (output 16 + n = n-th thruster's, up to 16,
+    `motor_pwm` of its thrust setpoint within ``thrust_limits_n``). All frames of one instant: heartbeat
+    first, then the status frames in thruster order, motor outputs, ESC telemetry, servo outputs."""
 
     def __init__(
         self,
@@ -808,8 +834,11 @@ class ThrusterFeedback(Sensor):
         faults: FaultSchedule | None = None,
         *,
         start: float = 0.0,
+        thrust_limits_n: Mapping[int, tuple[float, float]] | None = None,
     ) -> None:
         self.config = config
+        self.thrust_limits_n = dict(thrust_limits_n or {})
+        """Thruster id → (min, max) thrust (N): the scale of its motor output (`motor_pwm`)."""
         self.source = config.source
         self.epoch = epoch
         self.rng = rng  # unused today: the drives' feedback is exact (kept for the common signature)
@@ -823,7 +852,7 @@ class ThrusterFeedback(Sensor):
         """False: emissions carry typed records instead of bytes (see `Emission.record`); not with the
         ArduPilot frames, whose meaning depends on the receiver's wiring."""
         self._esc_count = [0] * 32
-        ardupilot = config.ardupilot_esc or config.ardupilot_servo
+        ardupilot = config.ardupilot
         d = mv.dialect()
         self._autopilot = d.MAV_AUTOPILOT_ARDUPILOTMEGA if ardupilot else d.MAV_AUTOPILOT_INVALID
         # an ArduPilot Rover/boat in GUIDED (custom mode 15), armed, takes commands from a companion computer
@@ -866,7 +895,7 @@ class ThrusterFeedback(Sensor):
     def _records(self, state: ShipState, t: float, heartbeat: bool, status: bool) -> list[Emission]:
         """The frames of `sample` as a receiver decodes them (`Emission.record`): a heartbeat carries no
         report, a status one `ThrusterReport` with thrust, azimuth and rpm unrounded (float32 on the wire)."""
-        if self.config.ardupilot_esc or self.config.ardupilot_servo:
+        if self.config.ardupilot:
             raise ValueError(
                 "ThrusterFeedback: typed records need the dpgw dialect only (no ArduPilot frames)"
             )
@@ -912,6 +941,16 @@ class ThrusterFeedback(Sensor):
                     fault_code=FAULT_CODE_TRIP if failed else 0,
                 )
             )
+        if self.config.ardupilot_motor and readings:  # (before the ESC telemetry: the command that drove it)
+            if len(readings) > 16:
+                raise ValueError(
+                    f"ThrusterFeedback: ardupilot_motor puts the motor outputs on outputs 17-32 (port 1): at "
+                    f"most 16 thrusters, got {len(readings)}"
+                )
+            since_boot_us = round((t - self.start) * 1e6)
+            limits = self.thrust_limits_n
+            pwm = [motor_pwm(r.thrust_setpoint_n, *limits.get(r.id, (-1.0, 1.0))) for r in readings]
+            frames.append(mv.servo_output_raw_frame(self.mav, since_boot_us, pwm, port=1))
         if self.config.ardupilot_esc:
             for block, first in enumerate(mv.ESC_TELEMETRY_BLOCKS):
                 group = readings[4 * block : 4 * block + 4]
@@ -1040,6 +1079,7 @@ _FEEDBACK_RULES: dict[str, Rule] = {
     "heartbeat_hz": _rule(_number(ge=0.0, le=10.0), "must be in 0..10 Hz (0 = no heartbeat)"),
     "ardupilot_esc": _BOOLEAN_RULE,
     "ardupilot_servo": _BOOLEAN_RULE,
+    "ardupilot_motor": _BOOLEAN_RULE,
     "latency_s": _LATENCY_RULE,
 }
 

@@ -183,3 +183,72 @@ def test_esc_directions_keep_sources_apart() -> None:
     d = EscDirections()
     d.add("a", 1, -1, T0, S)
     assert (d.sign("a", 1, T0 + S), d.sign("a", 1, T0 + S + 1), d.sign("b", 1, T0)) == (-1, 0, 0)
+
+
+# --- the simulator -> the gateway -----------------------------------------------------------------------
+
+
+def sim_thruster_frames() -> list[tuple[float, bytes]]:
+    """The simulator's ArduPilot thruster link (ESC telemetry and motor outputs, as `dpgw sim --ardupilot`
+    sends them) while cybership2's bow tunnel is commanded ahead, astern, stopped and astern again."""
+    from dataclasses import replace
+
+    from simulator.runner import Simulation
+    from simulator.scenarios import get_scenario
+    from simulator.sensors import ThrusterFeedbackConfig
+
+    feedback = ThrusterFeedbackConfig(ardupilot_esc=True, ardupilot_servo=True, ardupilot_motor=True)
+    emitted: list[tuple[float, bytes]] = []
+    sim = Simulation(
+        replace(get_scenario("hassani"), feedback=feedback),
+        seed=1,
+        on_emit=lambda e: emitted.append((e.t_emit, e.data)) if e.source == "thrusters" else None,
+    )
+    sim.external_control = True  # the tunnel's thrust as commanded here, the azimuths idle
+    for thrust_n, seconds in ((0.6, 3.0), (-0.8, 3.0), (0.0, 2.0), (-0.5, 3.0)):
+        sim.thrusters.command_one(3, thrust_n)
+        sim.run(seconds)
+    return emitted
+
+
+def test_the_simulators_motor_outputs_give_the_gateway_the_tunnels_sign() -> None:
+    """Sim -> gateway through the bytes: with the tunnel's motor output (the sim's output 16 + 3) named in
+    `esc_direction_servo`, the thrust the gateway derives from the ESC's unsigned rpm has the sign and size
+    of the tunnel's true thrust (its own status frame of the same instant) wherever it pushes more than
+    0.05 N; without it, every astern sample is taken as ahead."""
+    frames = sim_thruster_frames()
+    signed = boat(esc_direction_servo={"3": 19})
+    unsigned = boat(esc_direction_servo={})
+    parser = mv.FrameParser()
+    truth: float | None = None
+    compared = []
+    for t_emit, data in frames:
+        (msg,) = parser.feed(data)
+        kind = msg.get_type()
+        if kind == "AZIMUTH_THRUSTER_STATUS":
+            if msg.id == 3:
+                truth = float(msg.thrust)  # the drive's own thrust (the dialect's status): the truth
+            continue
+        rx_ns = T0 + round(t_emit * S)
+        for p in (signed, unsigned):
+            p.feed(RawEvent(rx_ns, "ap", data))
+        fed = signed.fusion.thrust.get(3)
+        if kind == "ESC_TELEMETRY_1_TO_4" and truth is not None and fed is not None and fed[2] == rx_ns:
+            compared.append((truth, fed[0], unsigned.fusion.thrust[3][0]))
+    pushing = [(t, s, u) for t, s, u in compared if abs(t) > 0.05]
+    astern = [(t, s, u) for t, s, u in pushing if t < 0]
+    assert len(astern) >= 20 and len(pushing) - len(astern) >= 10  # 5 Hz: ~6 s astern, ~3 s ahead
+    for t, s, _ in pushing:
+        assert s == pytest.approx(t, abs=0.01)  # the ESC's whole rpm is the only rounding
+    assert all(u > 0 for _, _, u in astern)
+    assert not signed.counters["ap"].rejected
+
+
+def test_motor_pwm_is_the_shaft_speed_fraction_either_side_of_the_trim() -> None:
+    from simulator.sensors import motor_pwm
+
+    assert motor_pwm(0.0, -1.0, 1.0) == 1500
+    assert (motor_pwm(1.0, -1.0, 1.0), motor_pwm(-1.0, -1.0, 1.0)) == (1900, 1100)
+    assert motor_pwm(-0.8, -1.0, 1.0) == round(1500 - 400 * math.sqrt(0.8))  # 1142: astern
+    assert motor_pwm(0.5, -0.5, 2.0) == 1700  # a quarter of full thrust: half speed ahead
+    assert motor_pwm(-0.5, 0.0, 2.0) == 1500  # a thruster that does not reverse has no astern side
