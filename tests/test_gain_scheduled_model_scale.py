@@ -170,3 +170,32 @@ def test_model_in_a_basin_sea_converges_with_the_scaled_range_and_not_with_the_f
         assert np.all(old.omega0[k:, 0] / peak - 1 < -0.55), seed
     assert np.sum(np.array(worst) <= 0.15) >= 7, np.round(worst, 3)
     assert np.median(worst) <= 0.10, np.round(worst, 3)
+
+
+def test_the_hassani_cases_keep_the_full_scale_range() -> None:
+    """Hassani's case runs a full-scale sea (0.93 rad/s) on the 1:70 model's M and D: its scenarios set the
+    full-scale range for the gain-scheduled observer, which the study applies under the user's settings."""
+    from pathlib import Path
+
+    from dpgw.closed_loop import gateway_tables
+    from gateway.config import parse_config
+    from gateway.replay import parse_observer_spec
+    from simulator.scenarios import get_scenario
+
+    for name in ("hassani", "hassani_sea_change"):
+        scenario = get_scenario(name)
+        assert scenario.observer_params["gain_scheduled"] == {"omega_min": 0.3, "omega_max": 1.6}
+        config = parse_config(gateway_tables(scenario), base_dir=Path.cwd())
+        spec = parse_observer_spec("gain_scheduled")
+        obs = spec.make(config, scenario.observer_params.get("gain_scheduled"))
+        assert isinstance(obs, GainScheduledObserver)
+        assert obs.config == WaveFrequencyConfig()
+        np.testing.assert_allclose(obs.omega0_initial, 2 * math.pi / scenario.sea[0][1].tp_s)
+        # the user's own setting wins over the scenario's
+        mine = parse_observer_spec("gain_scheduled:omega_max=1.2").make(
+            config, scenario.observer_params["gain_scheduled"]
+        )
+        assert isinstance(mine, GainScheduledObserver) and mine.config.omega_max == 1.2
+        # without the scenario's setting the model's default would not hold the sea
+        default = spec.make(config)
+        assert isinstance(default, GainScheduledObserver) and default.config.omega_min > 2.0
