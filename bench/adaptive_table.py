@@ -72,7 +72,11 @@ def observers(scenario: Scenario, start: float) -> list[ObserverSpec]:
     LF output stage, `observers.mmae_lf`) and as the paper's blend (16) alone (``mmae_paper``)."""
     return [
         ObserverSpec("passive", "fixed", {"omega0": start}),
-        ObserverSpec("gain_scheduled", "gain_scheduled", {"omega0": start, "omega0_initial": start}),
+        ObserverSpec(
+            "gain_scheduled",
+            "gain_scheduled",
+            {**scenario.observer_params.get("gain_scheduled", {}), "omega0": start, "omega0_initial": start},
+        ),
         ObserverSpec("mmae", "mmae", {}),
         ObserverSpec("mmae", "mmae_paper", {"lf_output": False}),
     ]

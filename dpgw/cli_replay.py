@@ -271,7 +271,7 @@ def run(args: argparse.Namespace) -> int:
     wall = time.perf_counter() - t0
     summary = _summary(args, specs, result, wall)
     kinds = {s.label: (s.name, s.name in SCHEDULES_OMEGA0 or bool(s.params.get("adaptive"))) for s in specs}
-    summary["wave_check"] = evidence.check(config.vessel.length_m, kinds).as_dict()
+    summary["wave_check"] = evidence.check(config.vessel.length_m, config.vessel.model_scale, kinds).as_dict()
     summary["measurements"] = evidence.measured()
     if args.report:
         written = _report(args, config.vessel.name, specs, result, evidence.new)
@@ -432,7 +432,9 @@ class _WaveEvidence:
 
         return both
 
-    def check(self, vessel_length_m: float | None, kinds: dict[str, tuple[str, bool]]) -> Any:
+    def check(
+        self, vessel_length_m: float | None, model_scale: float | None, kinds: dict[str, tuple[str, bool]]
+    ) -> Any:
         import numpy as np
 
         from gateway.report.metrics import wave_band_for_length
@@ -441,7 +443,7 @@ class _WaveEvidence:
         t = (np.array(self.stamps, dtype=np.int64) - (self.stamps[0] if self.stamps else 0)) / 1e9
         y = np.array([[np.nan if v is None else v for v in e] for e in self.eta], dtype=float).reshape(-1, 3)
         w0 = {label: np.array(w, dtype=float) for label, w in self.omega0.items()}
-        return check_wave_tuning(t, y, wave_band_for_length(vessel_length_m), w0, kinds)
+        return check_wave_tuning(t, y, wave_band_for_length(vessel_length_m, model_scale), w0, kinds)
 
 
 class _Publisher:

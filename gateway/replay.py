@@ -23,7 +23,7 @@ import json
 import math
 import re
 from collections import Counter
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -282,13 +282,15 @@ class ObserverSpec:
     def observer_params(self) -> dict[str, Any]:
         return {k: v for k, v in self.params.items() if k not in tuning_keys(self.name)}
 
-    def make(self, config: GatewayConfig) -> Observer:
+    def make(self, config: GatewayConfig, defaults: Mapping[str, Any] | None = None) -> Observer:
+        """The observer for ``config``'s vessel: ``defaults`` (a scenario's, `Scenario.observer_params`)
+        under the config's params for this type, under the spec's own."""
         base = config.observer.params if self.name == config.observer.type else {}
         return make_observer(
             self.name,
             config.vessel,
             self.tuning(config.observer.tuning),
-            params={**base, **self.observer_params()},
+            params={**(defaults or {}), **base, **self.observer_params()},
             allow_unchecked=config.observer.allow_unchecked,
         )
 

@@ -57,6 +57,7 @@ from numpy.typing import ArrayLike, NDArray
 from observers import _gain_scheduled_kernel as sk
 from observers import _passive_kernel as pk
 from observers.base import ZERO3, Estimate, InitialState, ObserverBase, Run, batch_inputs
+from observers.froude import froude_scale
 from observers.gain_scheduled_analysis import (
     DEFAULT_TUNING,
     ContractionCheck,
@@ -68,7 +69,12 @@ from observers.passive import PassiveObserver, estimate_from_state, initial_stat
 from observers.passive_tuning import PassiveGains, PassiveTuning, passive_gains
 from observers.state import BIAS, ETA, N_STATE, NU, XI2, StateView
 from observers.vessel import VesselModel
-from observers.wave_frequency import WaveFrequencyConfig, WaveFrequencyEstimator
+from observers.wave_frequency import (
+    ESTIMATOR_KEYS,
+    WaveFrequencyConfig,
+    WaveFrequencyEstimator,
+    estimator_config,
+)
 
 Array = NDArray[np.float64]
 
@@ -84,6 +90,17 @@ __all__ = [
 
 
 # --- the observer -----------------------------------------------------------------------------------------
+
+
+def _initial_for_range(w: Array, config: WaveFrequencyConfig, scale: float) -> Array:
+    """Where ω0 starts when ``omega0_initial`` is not given: the tuning's ω0; on a 1:λ model whose range
+    does not hold it (the tuning's default, 2π/7 s, is a full-scale sea), the same sea Froude-scaled,
+    ω0·√λ (`observers.froude`), if the range holds that. Otherwise the tuning's ω0, refused below."""
+    inside = bool(np.all((w >= config.omega_min) & (w <= config.omega_max)))
+    if inside or scale == 1.0:
+        return w
+    scaled = w * math.sqrt(scale)
+    return scaled if bool(np.all((scaled >= config.omega_min) & (scaled <= config.omega_max))) else w
 
 
 def pack_tuning(vessel: VesselModel, tuning: PassiveTuning) -> Array:
@@ -121,8 +138,11 @@ class GainScheduledObserver(ObserverBase):
     frequency in use (3,), ``extra()`` the estimator's fields for the estimate message.
     `Run.extras`: ``"updates"``, the ω0 estimates made during the run, as (t, (ω0 per DOF)).
 
-    estimator: `WaveFrequencyConfig` (window, update period T, ω range of A6, per-DOF or shared).
-    omega0_initial: ω0 to start from (rad/s; one or per DOF), default the tuning's ω0.
+    estimator: `WaveFrequencyConfig` (window, update period T, ω range of A6, per-DOF or shared); default
+               the vessel's, `WaveFrequencyConfig.for_vessel` (0.3-1.6 rad/s for a ship, × √λ for a 1:λ
+               model: `observers.froude`).
+    omega0_initial: ω0 to start from (rad/s; one or per DOF), default the tuning's ω0 (Froude-scaled,
+                    ω0·√λ, on a model whose range does not hold it: `_initial_for_range`).
     ramp_time_constant_s: time constant of the first-order move of ω0 towards each new estimate.
     transient_gain: L0 = 2 ln(transient_gain) is the scheduling budget (module docstring).
     schedule: False keeps ω0 fixed (the estimator still runs and reports): the fixed observer.
@@ -144,7 +164,7 @@ class GainScheduledObserver(ObserverBase):
     ) -> None:
         self.vessel = vessel
         self.tuning = tuning or DEFAULT_TUNING
-        self.config = estimator or WaveFrequencyConfig()
+        self.config = estimator or WaveFrequencyConfig.for_vessel(vessel)
         self.h_max = float(h_max)
         self.max_hold_s = float(max_hold_s)
         if not (self.h_max > 0 and self.max_hold_s > 0):
@@ -157,6 +177,8 @@ class GainScheduledObserver(ObserverBase):
         w_init = np.broadcast_to(
             np.asarray(self.tuning.omega0 if omega0_initial is None else omega0_initial, dtype=float), (3,)
         ).copy()
+        if omega0_initial is None:
+            w_init = _initial_for_range(w_init, c, froude_scale(vessel))
         if not np.all((w_init >= c.omega_min) & (w_init <= c.omega_max)):
             raise ContractionError(
                 f"omega0_initial {w_init.tolist()} lies outside [omega_min, omega_max] = "
@@ -195,14 +217,12 @@ class GainScheduledObserver(ObserverBase):
         allow_unchecked: bool = False,
     ) -> GainScheduledObserver:  # fmt: skip
         """The observer `observers.factory` builds by name: the estimator's settings (window_s,
-        update_period_s, omega_min, omega_max, per_dof) and the observer's own (e.g. omega0_initial)."""
+        update_period_s, omega_min, omega_max, per_dof; the vessel's Froude-scaled defaults for those not
+        given, `observers.wave_frequency.estimator_config`) and the observer's own (e.g. omega0_initial)."""
         params = dict(params)
-        est_keys = ("window_s", "update_period_s", "omega_min", "omega_max", "per_dof")
-        est = {k: params.pop(k) for k in est_keys if k in params}
-        if "per_dof" in est:
-            est["per_dof"] = bool(est["per_dof"])
+        est = {k: params.pop(k) for k in ESTIMATOR_KEYS if k in params}
         return cls(
-            vessel, tuning, estimator=WaveFrequencyConfig(**est), allow_unchecked=allow_unchecked, **params
+            vessel, tuning, estimator=estimator_config(vessel, est), allow_unchecked=allow_unchecked, **params
         )
 
     # -- state -------------------------------------------------------------------------------------------

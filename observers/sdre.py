@@ -66,7 +66,7 @@ from observers.sdre_tuning import (
     table_gain,
 )
 from observers.vessel import VesselModel
-from observers.wave_frequency import WaveFrequencyConfig
+from observers.wave_frequency import estimator_config
 
 Array = NDArray[np.float64]
 
@@ -144,9 +144,7 @@ class SdreObserver(ObserverBase):
         sdre_tuning = SdreTuning(omega0=common.omega0, zeta=common.zeta, **params)
         weights = paper_weights(sdre_tuning.omega0, sdre_tuning.zeta) if literal else None
         if adaptive:
-            if "per_dof" in est:
-                est["per_dof"] = bool(est["per_dof"])
-            config = WaveFrequencyConfig(**est)
+            config = estimator_config(vessel, est)  # the vessel's Froude-scaled defaults where not given
             return AdaptiveSdreObserver(vessel, sdre_tuning, estimator=config, weights=weights)
         return cls(vessel, sdre_tuning, weights=weights)
 

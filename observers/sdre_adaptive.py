@@ -27,9 +27,9 @@ from observers.base import Estimate, Run, batch_inputs
 from observers.sdre import SdreObserver
 from observers.sdre_tuning import SdreTuning, SdreWeights
 from observers.vessel import VesselModel
-from observers.wave_frequency import WaveFrequencyConfig, WaveFrequencyEstimator
+from observers.wave_frequency import ESTIMATOR_KEYS, WaveFrequencyConfig, WaveFrequencyEstimator
 
-ESTIMATOR_PARAMS = ("window_s", "update_period_s", "omega_min", "omega_max", "per_dof")
+ESTIMATOR_PARAMS = ESTIMATOR_KEYS
 
 
 class AdaptiveSdreObserver(SdreObserver):
@@ -48,7 +48,7 @@ class AdaptiveSdreObserver(SdreObserver):
         weights: SdreWeights | None = None,
         **kwargs: Any,
     ) -> None:
-        self.estimator = WaveFrequencyEstimator(estimator or WaveFrequencyConfig())
+        self.estimator = WaveFrequencyEstimator(estimator or WaveFrequencyConfig.for_vessel(vessel))
         super().__init__(vessel, tuning, weights=weights, **kwargs)
         self._initial_tuning = self.tuning
         self._updates: list[tuple[float, tuple[float, float, float]]] = []

@@ -96,6 +96,9 @@ class VesselModel:
     description: str = ""
     thrusters: tuple[Thruster, ...] = field(default_factory=tuple)
     hull: HullParams | None = None  # the nonlinear plant's hull data (`observers.hull`); None: M and D only
+    model_scale: float | None = None
+    """λ of a 1:λ laboratory model (CyberShip II: 70); None for a ship. Sets the Froude scale of the
+    default wave-frequency ranges (`observers.froude`)."""
     _layout: tuple[Array, Array, Array, Array] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -107,6 +110,11 @@ class VesselModel:
             value = getattr(self, key)
             if not (math.isfinite(value) and value > 0):
                 raise VesselError(f"{where}: field '{key}': must be a positive finite number, got {value!r}")
+        if self.model_scale is not None and not (math.isfinite(self.model_scale) and self.model_scale > 0):
+            raise VesselError(
+                f"{where}: field 'model_scale': must be a positive finite number (the λ of a 1:λ model), "
+                f"got {self.model_scale!r}"
+            )
         ids = [t.id for t in self.thrusters]
         if len(set(ids)) != len(ids):
             raise VesselError(f"{where}: field 'thrusters': thruster ids must be unique, got {ids}")
@@ -250,6 +258,11 @@ def vessel_from_dict(data: dict[str, Any], where: str = "vessel") -> VesselModel
                 raise VesselError(f"{where}: field '{key}': missing (or give a [bis] table)")
         M, D = data["M"], data["D"]
     thrusters = tuple(_thruster(e, i, where) for i, e in enumerate(data.get("thrusters", [])))
+    scale = data.get("model_scale")
+    if scale is not None and (isinstance(scale, bool) or not isinstance(scale, int | float)):
+        raise VesselError(
+            f"{where}: field 'model_scale': must be a number (the λ of a 1:λ model), got {scale!r}"
+        )
     try:
         vessel = VesselModel(
             name=name,
@@ -260,6 +273,7 @@ def vessel_from_dict(data: dict[str, Any], where: str = "vessel") -> VesselModel
             source=str(data.get("source", "")),
             description=str(data.get("description", "")),
             thrusters=thrusters,
+            model_scale=None if scale is None else float(scale),
         )
     except VesselError as exc:
         # re-raise with the file named, keeping the field and reason

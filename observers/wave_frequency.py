@@ -57,8 +57,13 @@ sea, or dead sensors); the maximum lies on an edge of [ω_min, ω_max]. The esti
 for its new segments plus O(window/segment) to average them, numpy/scipy only, whatever the sample rate.
 
 **Model ships.** Froude scaling at length ratio λ = L_model/L_ship changes frequencies by 1/√λ and times
-by √λ: use ``WaveFrequencyConfig().scaled(λ)`` (e.g. CyberShip II, 1:70: λ = 1/70, ω in [2.5, 13.4] rad/s,
-window 36 s, update every 7.2 s).
+by √λ: ``WaveFrequencyConfig().scaled(λ)`` (e.g. CyberShip II, 1:70: λ = 1/70, ω in [2.5, 13.4] rad/s,
+window 36 s, update every 7.2 s). The observers' default is the vessel's own (`for_vessel`, with the scale
+of `observers.froude`): a ship keeps the settings above exactly, a model gets them Froude-scaled.
+`estimator_config` reads a config's keys on top: set neither ``omega_min`` nor ``omega_max`` and the
+whole default follows the vessel; set either and the range is yours — the other bound is the vessel's,
+the time settings (window, update period, segment …) stay the full-scale ones, valid for any range above
+0.3 rad/s (a model's shorter ones could not resolve a full-scale sea).
 """
 
 from __future__ import annotations
@@ -72,7 +77,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from observers.froude import froude_scale
 from observers.kinematics import ssa
+from observers.vessel import VesselModel
 
 Array = NDArray[np.float64]
 
@@ -183,6 +190,34 @@ class WaveFrequencyConfig:
             max_gap_s=self.max_gap_s * r,
             min_span_s=None if self.min_span_s is None else self.min_span_s * r,
         )
+
+    @classmethod
+    def for_vessel(cls, vessel: VesselModel) -> WaveFrequencyConfig:
+        """The default settings Froude-scaled to ``vessel`` (λ = `observers.froude.froude_scale`): a ship
+        (λ = 1) gets the defaults exactly, a 1:λ model ω × √λ and times ÷ √λ."""
+        lam = froude_scale(vessel)
+        return cls() if lam == 1.0 else cls().scaled(1.0 / lam)
+
+
+ESTIMATOR_KEYS = ("window_s", "update_period_s", "omega_min", "omega_max", "per_dof")
+"""The estimator's settings a config or observer spec may set (the rest keep their defaults)."""
+
+
+def estimator_config(vessel: VesselModel, params: dict[str, Any]) -> WaveFrequencyConfig:
+    """The estimator of a config's ``params`` (keys of `ESTIMATOR_KEYS`) for ``vessel``.
+
+    Neither ``omega_min`` nor ``omega_max`` given: `WaveFrequencyConfig.for_vessel`, Froude-scaled as a
+    whole. Either given: the full-scale defaults with the given bound(s), the missing one the vessel's
+    (module docstring, "Model ships"). Given window and period settings apply on top in both cases."""
+    given = {k: params[k] for k in ESTIMATOR_KEYS if k in params}
+    if "per_dof" in given:
+        given["per_dof"] = bool(given["per_dof"])
+    scaled = WaveFrequencyConfig.for_vessel(vessel)
+    if "omega_min" not in given and "omega_max" not in given:
+        return replace(scaled, **given)
+    given.setdefault("omega_min", scaled.omega_min)
+    given.setdefault("omega_max", scaled.omega_max)
+    return WaveFrequencyConfig(**given)
 
 
 @dataclass(frozen=True)

@@ -158,7 +158,8 @@ def test_wave_band_follows_the_vessel() -> None:
     w = 7.0  # a model-basin wave
     y = np.column_stack([0.05 * np.sin(w * t), 0.03 * np.sin(w * t), 0.01 * np.sin(w * t)])
     m = compute_metrics(ReplayData("basin", "cybership2", t, y, ()))
-    assert m["wave_band_rad_s"] == pytest.approx([lo, hi])
+    # CyberShip II's file says 1:70 (model_scale): the band × √70, the observers' rule (observers.froude)
+    assert m["wave_band_rad_s"] == pytest.approx([0.2 * math.sqrt(70), 2.0 * math.sqrt(70)])
     assert m["measurement"]["north"]["dominant_frequency_rad_s"] == pytest.approx(w, rel=0.05)
     given = compute_metrics(ReplayData("basin", "cybership2", t, y, ()), wave_band=(0.5, 3.0))
     assert given["wave_band_rad_s"] == [0.5, 3.0] and given["wave_band_basis"] == "given"

@@ -65,7 +65,7 @@ def loop_tables(case: CaseSpec, scenario: Any, nominal_tp_s: float) -> dict[str,
     if "wave_period_s" in tuning_keys(loop.name):  # (the MMAE bank takes none of the common tuning)
         observer["wave_period_s"] = nominal_tp_s
     observer.update(loop.tuning_params())
-    params = loop.observer_params()
+    params = {**scenario.observer_params.get(loop.name, {}), **loop.observer_params()}
     if params:
         observer["params"] = params
     tables["observer"] = observer
@@ -132,7 +132,7 @@ def score_case(case: CaseSpec, scenario: Any) -> list[dict[str, Any]]:
     traces = []
     for text in case.observers:
         spec = parse_observer_spec(text)
-        run = spec.make(config).run(t, y, tau)
+        run = spec.make(config, scenario.observer_params.get(spec.name)).run(t, y, tau)
         ok = run.status != STATUS_INITIALIZING
         te = run.t[ok]
         row: dict[str, Any] = {

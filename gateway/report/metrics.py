@@ -20,14 +20,16 @@ from numpy.typing import NDArray
 from gateway.report.data import DOF, Array, Prepared, ReplayData, prepare
 from gateway.report.spectra import Psd, band_power, nominal_dt, peak, resample, valid_samples, welch
 from gateway.scoring import Score, score
+from observers.froude import MODEL_MAX_LENGTH_M as MODEL_MAX_LENGTH_M
+from observers.froude import PROTOTYPE_LENGTH_M as PROTOTYPE_LENGTH_M
+from observers.froude import froude_scale_of, scaled_frequencies
 from observers.kinematics import ssa
 
 # The wave band searched for the spectral peak at full scale (rad/s: periods 3.1 s to 31 s).
 FULL_SCALE_WAVE_BAND = (0.2, 2.0)
-# Vessels shorter than this are laboratory models: the band is Froude-scaled from a prototype of
-# PROTOTYPE_LENGTH_M (wave frequencies scale with 1/sqrt(length)).
-MODEL_MAX_LENGTH_M = 10.0
-PROTOTYPE_LENGTH_M = 80.0
+# A model's band is Froude-scaled by its scale λ (`observers.froude`, the rule the observers' default ω0
+# ranges use): its model_scale, or for a vessel shorter than MODEL_MAX_LENGTH_M a PROTOTYPE_LENGTH_M
+# prototype (wave frequencies scale with 1/sqrt(length)).
 # Default settle time: the first SETTLE_FRACTION of the replay, at most SETTLE_MAX_S seconds.
 SETTLE_FRACTION = 0.1
 SETTLE_MAX_S = 60.0
@@ -51,27 +53,27 @@ def _interp(t_query: Array, t: Array, x: Array, angle: bool = False) -> Array:
     return ssa(out) if angle else out
 
 
-def wave_band_for_length(length_m: float | None) -> tuple[float, float]:
-    """The wave band (rad/s) searched for the spectral peak: 0.2-2.0 rad/s at full scale; for a model
-    shorter than 10 m, Froude-scaled from an 80 m prototype (ω ∝ 1/sqrt(L))."""
-    lo, hi = FULL_SCALE_WAVE_BAND
-    if length_m is None or not math.isfinite(length_m) or length_m <= 0 or length_m >= MODEL_MAX_LENGTH_M:
-        return lo, hi
-    k = math.sqrt(PROTOTYPE_LENGTH_M / length_m)
-    return lo * k, hi * k
+def wave_band_for_length(length_m: float | None, model_scale: float | None = None) -> tuple[float, float]:
+    """The wave band (rad/s) searched for the spectral peak: 0.2-2.0 rad/s at full scale; for a 1:λ model
+    × √λ (`observers.froude.froude_scale_of`: λ = ``model_scale``, or for a vessel shorter than 10 m the
+    ratio to an 80 m prototype)."""
+    lo, hi = scaled_frequencies(FULL_SCALE_WAVE_BAND, froude_scale_of(length_m, model_scale))
+    return lo, hi
 
 
 @lru_cache(maxsize=32)
-def _vessel_length(vessel: str) -> float | None:
-    """Length of a built-in vessel (or a vessel TOML path); None if unknown. Reads package data only."""
+def _vessel_scale(vessel: str) -> tuple[float | None, float | None]:
+    """Length and model scale of a built-in vessel (or a vessel TOML path); None if unknown. Reads package
+    data only."""
     if not vessel:
-        return None
+        return None, None
     try:
         from observers.vessel import load_vessel
 
-        return float(load_vessel(vessel).length_m)
+        v = load_vessel(vessel)
+        return float(v.length_m), v.model_scale
     except Exception:
-        return None
+        return None, None
 
 
 def _neighbours(t: Array, dt: float) -> NDArray[np.bool_]:
@@ -114,10 +116,12 @@ def analyse(data: ReplayData, wave_band: tuple[float, float] | None, settle_s: f
     settle_t = t0 + settle_s
 
     if wave_band is None:
-        length = _vessel_length(data.vessel)
-        band = wave_band_for_length(length)
+        length, model_scale = _vessel_scale(data.vessel)
+        band = wave_band_for_length(length, model_scale)
         if length is None:
             basis = f"full scale (vessel '{data.vessel}' not found: length unknown)"
+        elif model_scale is not None:
+            basis = f"Froude-scaled: 1:{model_scale:g} model (L = {length:g} m)"
         elif length < MODEL_MAX_LENGTH_M:
             basis = f"Froude-scaled: model of L = {length:g} m, prototype {PROTOTYPE_LENGTH_M:g} m"
         else:
