@@ -17,6 +17,7 @@ from collections.abc import Callable  # noqa: E402
 from typing import Any, TypeVar  # noqa: E402
 
 import pynmea2  # noqa: E402
+from alone_lock import pytest_runtest_protocol  # noqa: E402, F401  (the ``alone`` marker's hook)
 
 T = TypeVar("T")
 

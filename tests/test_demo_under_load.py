@@ -52,6 +52,7 @@ def figures(s: dict[str, Any]) -> str:
 
 
 @pytest.mark.slow  # two demos of 120 s of sea: about a minute
+@pytest.mark.alone  # its bounds are for two hogs, not for another test's simulation beside them
 def test_the_demo_under_two_cpu_hogs_keeps_one_time_base_and_station(tmp_path: Path) -> None:
     quiet = demo(tmp_path / "quiet.mcap")
     hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
