@@ -188,6 +188,7 @@ class GatewayService:
                 self._status_json = initial.message.encode()
             if self._session is not None:
                 self._attach(self._session)
+            self._start_sinks(self._session)
             if self._log_path:
                 # continue_set: a restarted service (systemd, a reboot) adds to the set, never overwrites it
                 self.log = McapLogWriter(
@@ -216,7 +217,7 @@ class GatewayService:
             return None
 
     def _attach(self, s: zenoh.Session) -> None:
-        """Declare the publishers, the input subscribers and the status queryable; start the sinks."""
+        """Declare the publishers, the input subscribers and the status queryable."""
         for topic in ("estimate", "measurement", "status", "thrusters/feedback", "thrusters/command"):
             key = f"{self.prefix}/{topic}"
             self._publishers[key] = s.declare_publisher(key, encoding=JSON)
@@ -226,12 +227,19 @@ class GatewayService:
             key = f"{self.prefix}/{SIM_CLOCK_KEY}"
             self._declared.append(s.declare_subscriber(key, self._on_clock))
         self._declared.append(s.declare_queryable(f"{self.prefix}/status", self._on_query))
+
+    def _start_sinks(self, session: zenoh.Session | None) -> None:
+        """Start the sinks not started yet: without a session (a client whose router has not answered),
+        only those that need no Zenoh (``needs_zenoh = False``: the Foxglove server), which then fail at
+        start-up like the others (a port in use) and show the bridge the gateway meanwhile."""
         for sink in self.sinks:
+            if sink in self._started or (session is None and getattr(sink, "needs_zenoh", True)):
+                continue
             if isinstance(sink, InputSink):  # its commands take the path of <prefix>/<key>
                 sink.bind_inputs(self.submit)
-            sink.start(s)
+            sink.start(session)  # type: ignore[arg-type]  # None only for a sink that needs no Zenoh
             self._started.append(sink)
-        taps = [sink for sink in self.sinks if isinstance(sink, RawSentenceSink)]
+        taps = [sink for sink in self._started if isinstance(sink, RawSentenceSink)]
         if taps:
             self.pipeline.sentence_tap = self._sentence_tap(taps)
 
@@ -246,6 +254,7 @@ class GatewayService:
         self._session = session
         try:
             self._attach(session)
+            self._start_sinks(session)
         except Exception:
             self._internal_error("zenoh", "the session opened when the router answered")
         log.warning("zenoh: connected to %s; outputs go out", ", ".join(self.config.zenoh.connect))

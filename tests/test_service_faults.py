@@ -18,7 +18,7 @@ import sys
 import threading
 import time
 import tracemalloc
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
 from datetime import UTC, datetime
 from pathlib import Path
@@ -26,7 +26,7 @@ from typing import Any
 
 import pytest
 import zenoh
-from conftest import free_port, wait_for
+from conftest import Recorder, free_port, wait_for
 
 import wire.mcap.writer as mcap_writer
 from gateway.bus import UnreachableError, isolated_config, make_config, open_session
@@ -36,6 +36,7 @@ from simulator.transports import PtySink
 from wire.codecs import nmea_encode as enc
 from wire.mcap.reader import log_files, read_messages
 from wire.mcap.rotation import rotated_path
+from wire.messages import Estimate
 
 
 def burst(k: int) -> bytes:
@@ -47,7 +48,12 @@ class Live:
     """A running `GatewayService` (consumer loop in a thread) and a Zenoh client counting its estimates."""
 
     def __init__(
-        self, tmp_path: Path, url: str, connect: list[str] | None = None, mode: str = "peer"
+        self,
+        tmp_path: Path,
+        url: str,
+        connect: list[str] | None = None,
+        mode: str = "peer",
+        sinks: Sequence[Any] = (),
     ) -> None:
         self.zport = free_port()
         self.log_path = tmp_path / "dpgw.mcap"
@@ -66,7 +72,9 @@ class Live:
             "status": {"rate_hz": 10.0},
             "log": {"path": str(self.log_path), "flush_interval_s": 0.1},
         }
-        self.service = GatewayService(parse_config(self.tables, base_dir=tmp_path), config_tables=self.tables)
+        self.service = GatewayService(
+            parse_config(self.tables, base_dir=tmp_path), config_tables=self.tables, sinks=sinks
+        )
         self.estimates = 0
         self._lock = threading.Lock()
 
@@ -283,8 +291,12 @@ def test_a_client_gateway_starts_before_its_router(tmp_path: Path, caplog: pytes
     def zenoh_alarms(live: Live) -> list[str]:
         return [a for a in live.service.last_status().get("alarms", []) if a.startswith("zenoh:")]
 
+    class Local(Recorder):  # a sink that needs no Zenoh (as the Foxglove server)
+        needs_zenoh = False
+
+    local, behind = Local(), Recorder()
     caplog.set_level(logging.WARNING, logger="dpgw")
-    live = Live(tmp_path, f"udp://127.0.0.1:{udp}", connect=[router], mode="client")
+    live = Live(tmp_path, f"udp://127.0.0.1:{udp}", connect=[router], mode="client", sinks=[local, behind])
     live.service.start()  # nobody at the router's endpoint: it starts all the same
     live.loop = threading.Thread(target=live.service.run, name="consumer")
     live.loop.start()
@@ -295,11 +307,13 @@ def test_a_client_gateway_starts_before_its_router(tmp_path: Path, caplog: pytes
         assert wait_for(lambda: send() or live.service.pipeline.estimates >= before + 10, 30.0)
         assert wait_for(lambda: send() or zenoh_alarms(live), 30.0), "no alarm without the router"
         assert zenoh_alarms(live)[0].startswith(f"zenoh: not connected to {router}")
+        assert local.of(Estimate) and not behind.outputs  # (a Zenoh sink starts with the session)
         proc = start_router(router, listened)
         assert wait_for(lambda: send() or not zenoh_alarms(live), 30.0), zenoh_alarms(live)
         live.client = open_session(make_config(mode="client", connect=[router], multicast_scouting=False))
         live._sub = live.client.declare_subscriber("dp/f/estimate", live._on_estimate)
         live.estimates_go_on(send, 10)  # the console behind the router has the estimates
+        assert behind.of(Estimate)
         proc.kill()  # the router restarts
         proc.wait()
         assert wait_for(lambda: send() or zenoh_alarms(live), 30.0), "no alarm with the router gone"
