@@ -29,7 +29,7 @@ import zenoh
 from conftest import Recorder, free_port, wait_for
 
 import wire.mcap.writer as mcap_writer
-from gateway.bus import UnreachableError, isolated_config, make_config, open_session
+from gateway.bus import BusError, Dialler, UnreachableError, isolated_config, make_config, open_session
 from gateway.config import parse_config
 from gateway.service import GatewayService
 from simulator.transports import PtySink
@@ -356,6 +356,34 @@ def test_a_client_with_a_zenoh_config_file_keeps_what_the_file_says(tmp_path: Pa
     live.service = GatewayService(parse_config(live.tables, base_dir=tmp_path), config_tables=live.tables)
     with pytest.raises(UnreachableError, match=f"cannot connect to {router}"):
         live.service.start()
+
+
+def test_a_client_gateway_without_its_router_still_stops_on_a_port_in_use(tmp_path: Path) -> None:
+    """Waiting for the router is for a router not up yet, not for a configuration mistake: a listener's
+    port in use stops start-up with the message naming zenoh.listen, as in peer mode."""
+    router = f"tcp/127.0.0.1:{free_port()}"
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        endpoint = f"tcp/127.0.0.1:{taken.getsockname()[1]}"
+        live = Live(tmp_path, "udp://127.0.0.1:0", connect=[router], mode="client")
+        live.tables["zenoh"]["listen"] = [endpoint]
+        live.service = GatewayService(parse_config(live.tables, base_dir=tmp_path), config_tables=live.tables)
+        with pytest.raises(BusError) as info:
+            live.service.start()
+    assert not isinstance(info.value, UnreachableError)
+    assert str(info.value).startswith(f"zenoh.listen: cannot listen on {endpoint}: address in use")
+
+
+def test_a_dialler_dials_until_closed() -> None:
+    """The gateway's dialler (a client's router not up yet) dials again and again, and stops when closed:
+    a gateway told to stop while its router is away stops, leaving no thread behind."""
+    router = f"tcp/127.0.0.1:{free_port()}"
+    dialler = Dialler(lambda: make_config(mode="client", connect=[router], multicast_scouting=False), 0.05)
+    assert wait_for(lambda: dialler.dials >= 3, 30.0), "it does not dial again"
+    dialler.close()
+    assert dialler.take() is None and dialler.error is None
+    assert not [t for t in threading.enumerate() if t.name == "zenoh-dialler"]
 
 
 def _open_fds() -> int:
