@@ -274,8 +274,8 @@ class Dialler:
     order the services come up in, and must stop when told. So the thread dials again every ``period_s``
     with the fail-fast open (cancelled by `close` between two dials); once connected, a lost router is
     Zenoh's business (it redials it by itself). ``config`` builds a fresh `zenoh.Config` for each dial.
-    Another failure than `UnreachableError` (a listener's address taken meanwhile) ends the dialling: it is
-    kept in `error`.
+    Another failure than `UnreachableError` (a listener's port taken meanwhile by another program) is kept
+    in `error` for the status to say, and the dialling goes on: the port may be freed.
     """
 
     def __init__(self, config: Callable[[], zenoh.Config], period_s: float = REDIAL_S) -> None:
@@ -295,10 +295,12 @@ class Dialler:
             try:
                 session = open_session(self._config())
             except UnreachableError:
+                self.error = None
                 continue
             except BusError as exc:
                 self.error = exc
-                return
+                continue
+            self.error = None
             with self._lock:
                 if self._stop.is_set():  # closed while this dial succeeded
                     session.close()

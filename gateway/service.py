@@ -38,7 +38,7 @@ from typing import Any
 import msgspec
 import zenoh
 
-from gateway.bus import Dialler, UnreachableError, command_acl, make_config, open_session
+from gateway.bus import REDIAL_S, Dialler, UnreachableError, command_acl, make_config, open_session
 from gateway.config import GatewayConfig, ZenohConfig, config_notes
 from gateway.outputs import InputSink, OutputSink, RawSentenceSink
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
@@ -436,8 +436,9 @@ class GatewayService:
     def _zenoh_alarms(self) -> list[str]:
         """With ``connect`` endpoints (a router, a console), or a client dialling its router: an alarm while
         the session reaches none of them nor any other peer. Zenoh redials them by itself (a restarted router
-        is back within a second), a `Dialler` a client's router that was not up when the gateway started;
-        meanwhile the status cannot reach Zenoh, but it goes to the log, Foxglove and ``dpgw run -v``."""
+        is back within a second); a client's router that was not up when the gateway started is dialled by
+        a `Dialler`, whose last failure, if another than nobody answering, the alarm adds. Meanwhile the
+        status cannot reach Zenoh, but it goes to the log, Foxglove and ``dpgw run -v``."""
         connect = self.config.zenoh.connect or ["a router (multicast scouting)"]
         if self._dialler is not None:  # a client whose router has not answered yet
             reached = False
@@ -456,9 +457,11 @@ class GatewayService:
             self._zenoh_reached = reached
         if reached:
             return []
-        return [
-            f"zenoh: not connected to {', '.join(connect)} (Zenoh redials it); outputs go nowhere meanwhile"
-        ]
+        who = "Zenoh redials it" if self._dialler is None else f"dialled every {REDIAL_S:g} s"
+        alarm = f"zenoh: not connected to {', '.join(connect)} ({who}); outputs go nowhere meanwhile"
+        if self._dialler is not None and self._dialler.error is not None:
+            alarm += f"; last dial: {self._dialler.error}"
+        return [alarm]
 
     def _clock_alarms(self) -> list[str]:
         if self.sim_time is None:

@@ -306,7 +306,7 @@ def test_a_client_gateway_starts_before_its_router(tmp_path: Path, caplog: pytes
         before = live.service.pipeline.estimates
         assert wait_for(lambda: send() or live.service.pipeline.estimates >= before + 10, 30.0)
         assert wait_for(lambda: send() or zenoh_alarms(live), 30.0), "no alarm without the router"
-        assert zenoh_alarms(live)[0].startswith(f"zenoh: not connected to {router}")
+        assert zenoh_alarms(live)[0].startswith(f"zenoh: not connected to {router} (dialled every 0.5 s)")
         assert local.of(Estimate) and not behind.outputs  # (a Zenoh sink starts with the session)
         proc = start_router(router, listened)
         assert wait_for(lambda: send() or not zenoh_alarms(live), 30.0), zenoh_alarms(live)
@@ -376,13 +376,29 @@ def test_a_client_gateway_without_its_router_still_stops_on_a_port_in_use(tmp_pa
 
 
 def test_a_dialler_dials_until_closed() -> None:
-    """The gateway's dialler (a client's router not up yet) dials again and again, and stops when closed:
-    a gateway told to stop while its router is away stops, leaving no thread behind."""
+    """The gateway's dialler (a client's router not up yet) dials again and again; another failure than
+    nobody answering (its listener's port taken meanwhile) is kept for the status and it dials on; it
+    stops when closed: a gateway told to stop while its router is away stops, leaving no thread behind."""
     router = f"tcp/127.0.0.1:{free_port()}"
-    dialler = Dialler(lambda: make_config(mode="client", connect=[router], multicast_scouting=False), 0.05)
-    assert wait_for(lambda: dialler.dials >= 3, 30.0), "it does not dial again"
-    dialler.close()
-    assert dialler.take() is None and dialler.error is None
+    listen: list[str] = []
+    dialler = Dialler(
+        lambda: make_config(mode="client", connect=[router], listen=listen, multicast_scouting=False), 0.05
+    )
+    with socket.socket() as taken:
+        try:
+            assert wait_for(lambda: dialler.dials >= 3, 30.0), "it does not dial again"
+            assert dialler.error is None
+            taken.bind(("127.0.0.1", 0))
+            taken.listen()
+            listen.append(f"tcp/127.0.0.1:{taken.getsockname()[1]}")
+            assert wait_for(lambda: dialler.error is not None, 30.0), "the port in use is not kept"
+            assert dialler.error is not None and dialler.error.key == "listen"
+            assert "address in use" in str(dialler.error)
+            dials = dialler.dials
+            assert wait_for(lambda: dialler.dials >= dials + 3, 30.0), "it stopped dialling"
+        finally:
+            dialler.close()
+    assert dialler.take() is None
     assert not [t for t in threading.enumerate() if t.name == "zenoh-dialler"]
 
 
