@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import json
 import re
-from collections.abc import Mapping, Sequence
+import threading
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -45,6 +46,11 @@ class BusError(RuntimeError):
 
     def __str__(self) -> str:
         return self.describe()
+
+
+class UnreachableError(BusError):
+    """Nothing answers at the ``connect`` endpoints (a client found no router): the configuration may be
+    right, the router not up yet. `Dialler` waits for it."""
 
 
 _RUST_LOCATION = re.compile(r"\s*\bat /\S+\.rs:\d+\.?")
@@ -109,7 +115,7 @@ def _explain(exc: Exception, listen: Sequence[str], connect: Sequence[str]) -> B
         return BusError(f"{ep}: unknown host name", key=key, fix="check the name, or write the IP address")
     if "unable to connect" in low:
         key, ep = pick("connect")
-        return BusError(
+        return UnreachableError(
             f"cannot connect to {ep}",
             key=key,
             fix="is a Zenoh router or peer running there? check the address and the port",
@@ -130,6 +136,11 @@ def _endpoints(config: zenoh.Config, key: str) -> list[str]:
     if isinstance(value, dict):  # per-mode endpoints ({"peer": [...], "router": [...]})
         return [str(e) for v in value.values() for e in (v if isinstance(v, list) else [v])]
     return [str(e) for e in value] if isinstance(value, list) else []
+
+
+REDIAL_S = 0.5
+"""How often a client session dials a router that is not up yet or lost (s): one TCP connect attempt,
+well under a millisecond of work when nobody answers."""
 
 
 def make_config(
@@ -158,6 +169,12 @@ def make_config(
     conf: dict[str, Any] = {"mode": mode, "scouting": {"multicast": {"enabled": multicast_scouting}}}
     if connect:
         conf["connect"] = {"endpoints": list(connect)}
+    if mode == "client":
+        # A lost router is redialled every REDIAL_S, as `Dialler` dials one not up yet (Zenoh's default
+        # backs off to 4 s). The open itself keeps Zenoh's client default: one dial, fail at once.
+        period_ms = round(REDIAL_S * 1000)
+        retry = {"period_init_ms": period_ms, "period_max_ms": period_ms, "period_increase_factor": 1}
+        conf.setdefault("connect", {})["retry"] = retry
     if listen:
         conf["listen"] = {"endpoints": list(listen)}
     if not dial_scouted:
@@ -246,3 +263,61 @@ def open_session(config: zenoh.Config) -> zenoh.Session:
         return zenoh.open(config)
     except Exception as exc:
         raise _explain(exc, _endpoints(config, "listen"), _endpoints(config, "connect")) from None
+
+
+class Dialler:
+    """A client session opened as soon as its router answers, in a thread of its own.
+
+    Zenoh 1.x opens a client session only once it has reached a router: ``zenoh.open`` either fails at
+    once (a client's default, ``connect.exit_on_failure``) or, with ``connect.timeout_ms = -1``, blocks
+    until the router comes, in a call no one can cancel. A gateway on a vessel must start whatever the
+    order the services come up in, and must stop when told. So the thread dials again every ``period_s``
+    with the fail-fast open (cancelled by `close` between two dials); once connected, a lost router is
+    Zenoh's business (it redials it by itself). ``config`` builds a fresh `zenoh.Config` for each dial.
+    Another failure than `UnreachableError` (a listener's port taken meanwhile by another program) is kept
+    in `error` for the status to say, and the dialling goes on: the port may be freed.
+    """
+
+    def __init__(self, config: Callable[[], zenoh.Config], period_s: float = REDIAL_S) -> None:
+        self._config = config
+        self._period_s = period_s
+        self._stop = threading.Event()
+        self._lock = threading.Lock()
+        self._session: zenoh.Session | None = None
+        self.error: BusError | None = None
+        self.dials = 0
+        self._thread = threading.Thread(target=self._run, name="zenoh-dialler", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.wait(self._period_s):
+            self.dials += 1
+            try:
+                session = open_session(self._config())
+            except UnreachableError:
+                self.error = None
+                continue
+            except BusError as exc:
+                self.error = exc
+                continue
+            self.error = None
+            with self._lock:
+                if self._stop.is_set():  # closed while this dial succeeded
+                    session.close()
+                else:
+                    self._session = session
+            return
+
+    def take(self) -> zenoh.Session | None:
+        """The open session once it has connected (once: the caller owns it then), else None."""
+        with self._lock:
+            session, self._session = self._session, None
+        return session
+
+    def close(self) -> None:
+        """Stop dialling; a session opened and never taken is closed."""
+        self._stop.set()
+        self._thread.join()
+        session = self.take()
+        if session is not None:
+            session.close()

@@ -38,7 +38,7 @@ from typing import Any
 import msgspec
 import zenoh
 
-from gateway.bus import command_acl, make_config, open_session
+from gateway.bus import REDIAL_S, Dialler, UnreachableError, command_acl, make_config, open_session
 from gateway.config import GatewayConfig, ZenohConfig, config_notes
 from gateway.outputs import InputSink, OutputSink, RawSentenceSink
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
@@ -117,6 +117,8 @@ class GatewayService:
         self._sources: list[Source] = []
         self._publishers: dict[str, zenoh.Publisher] = {}
         self._declared: list[Any] = []
+        self._started: list[OutputSink] = []  # the sinks started (with the session), in order
+        self._dialler: Dialler | None = None  # a client's session while its router is not up yet
         self._status_json = b"{}"
         self._status_lock = threading.Lock()
         self._wall0_ns = 0
@@ -177,23 +179,16 @@ class GatewayService:
                 self._sources.append(src)
                 src.start(self._queue.put)
             if self._session is None:
-                self._session = open_session(zenoh_config(self.config.zenoh))
-            s = self._session
-            for topic in ("estimate", "measurement", "status", "thrusters/feedback", "thrusters/command"):
-                key = f"{self.prefix}/{topic}"
-                self._publishers[key] = s.declare_publisher(key, encoding=JSON)
-            for key in INPUT_KEYS:
-                self._declared.append(s.declare_subscriber(f"{self.prefix}/{key}", self._on_input(key)))
-            if self.sim_time is not None:
-                key = f"{self.prefix}/{SIM_CLOCK_KEY}"
-                self._declared.append(s.declare_subscriber(key, self._on_clock))
+                self._session = self._open_session()
             # A query that arrives before the loop's first status tick gets a real status, never ``{}``;
             # the consumer loop is not running yet, so reading the pipeline here is race-free.
             now = self._now()
             initial = self.pipeline.status(time.time_ns() if now is None else now, self._alarms())
             with self._status_lock:
                 self._status_json = initial.message.encode()
-            self._declared.append(s.declare_queryable(f"{self.prefix}/status", self._on_query))
+            if self._session is not None:
+                self._attach(self._session)
+            self._start_sinks(self._session)
             if self._log_path:
                 # continue_set: a restarted service (systemd, a reboot) adds to the set, never overwrites it
                 self.log = McapLogWriter(
@@ -203,19 +198,73 @@ class GatewayService:
                 if self.config_tables is not None:  # lets replay rebuild exactly this pipeline
                     meta["json"] = json.dumps(self.config_tables)
                 self.log.add_metadata("dpgw.config", meta)
-            for sink in self.sinks:
-                if isinstance(sink, InputSink):  # its commands take the path of <prefix>/<key>
-                    sink.bind_inputs(self.submit)
-                sink.start(s)
-            taps = [sink for sink in self.sinks if isinstance(sink, RawSentenceSink)]
-            if taps:
-                self.pipeline.sentence_tap = self._sentence_tap(taps)
         except BaseException:
             self.close()
             raise
 
-    def close(self) -> None:
+    def _open_session(self) -> zenoh.Session | None:
+        """The configured session; None while a client (``mode = "client"``, no ``config_file``) waits
+        for its router: a `Dialler` opens it when the router answers and the consumer loop attaches it."""
+        z = self.config.zenoh
+        try:
+            return open_session(zenoh_config(z))
+        except UnreachableError as exc:
+            if z.mode != "client" or z.config_file:  # a config file keeps what it says (Zenoh: fail)
+                raise
+            log.error("zenoh: %s; the gateway starts and dials it until it answers", exc.problem)
+            self._dialler = Dialler(lambda: zenoh_config(z))
+            self._zenoh_reached = False
+            return None
+
+    def _attach(self, s: zenoh.Session) -> None:
+        """Declare the publishers, the input subscribers and the status queryable."""
+        for topic in ("estimate", "measurement", "status", "thrusters/feedback", "thrusters/command"):
+            key = f"{self.prefix}/{topic}"
+            self._publishers[key] = s.declare_publisher(key, encoding=JSON)
+        for key in INPUT_KEYS:
+            self._declared.append(s.declare_subscriber(f"{self.prefix}/{key}", self._on_input(key)))
+        if self.sim_time is not None:
+            key = f"{self.prefix}/{SIM_CLOCK_KEY}"
+            self._declared.append(s.declare_subscriber(key, self._on_clock))
+        self._declared.append(s.declare_queryable(f"{self.prefix}/status", self._on_query))
+
+    def _start_sinks(self, session: zenoh.Session | None) -> None:
+        """Start the sinks not started yet: without a session (a client whose router has not answered),
+        only those that need no Zenoh (``needs_zenoh = False``: the Foxglove server), which then fail at
+        start-up like the others (a port in use) and show the bridge the gateway meanwhile."""
         for sink in self.sinks:
+            if sink in self._started or (session is None and getattr(sink, "needs_zenoh", True)):
+                continue
+            if isinstance(sink, InputSink):  # its commands take the path of <prefix>/<key>
+                sink.bind_inputs(self.submit)
+            sink.start(session)  # type: ignore[arg-type]  # None only for a sink that needs no Zenoh
+            self._started.append(sink)
+        taps = [sink for sink in self._started if isinstance(sink, RawSentenceSink)]
+        if taps:
+            self.pipeline.sentence_tap = self._sentence_tap(taps)
+
+    def _take_dialled(self) -> None:
+        """The session of a client whose router has just answered: attached on the consumer thread."""
+        assert self._dialler is not None
+        session = self._dialler.take()
+        if session is None:
+            return
+        self._dialler.close()
+        self._dialler = None
+        self._session = session
+        try:
+            self._attach(session)
+            self._start_sinks(session)
+        except Exception:
+            self._internal_error("zenoh", "the session opened when the router answered")
+        log.warning("zenoh: connected to %s; outputs go out", ", ".join(self.config.zenoh.connect))
+        self._zenoh_reached = True
+
+    def close(self) -> None:
+        if self._dialler is not None:
+            self._dialler.close()
+            self._dialler = None
+        for sink in self._started:
             try:
                 sink.close()
             except Exception:
@@ -299,6 +348,8 @@ class GatewayService:
         while not self.stop_event.is_set():
             if deadline is not None and time.monotonic() >= deadline:
                 break
+            if self._dialler is not None:
+                self._take_dialled()
             try:
                 item = self._queue.get(timeout=0.05)
             except queue.Empty:
@@ -383,14 +434,19 @@ class GatewayService:
         return alarms
 
     def _zenoh_alarms(self) -> list[str]:
-        """With ``connect`` endpoints (a router, a console): an alarm while the session reaches none of
-        them nor any other peer. Zenoh redials them by itself (a restarted router is back within a second);
-        meanwhile the status cannot reach Zenoh, but it goes to the log, Foxglove and ``dpgw run -v``."""
-        connect = self.config.zenoh.connect
-        if not connect or self._session is None:
+        """With ``connect`` endpoints (a router, a console), or a client dialling its router: an alarm while
+        the session reaches none of them nor any other peer. Zenoh redials them by itself (a restarted router
+        is back within a second); a client's router that was not up when the gateway started is dialled by
+        a `Dialler`, whose last failure, if another than nobody answering, the alarm adds. Meanwhile the
+        status cannot reach Zenoh, but it goes to the log, Foxglove and ``dpgw run -v``."""
+        connect = self.config.zenoh.connect or ["a router (multicast scouting)"]
+        if self._dialler is not None:  # a client whose router has not answered yet
+            reached = False
+        elif not self.config.zenoh.connect or self._session is None:
             return []
-        info = self._session.info
-        reached = any(True for _ in info.routers_zid()) or any(True for _ in info.peers_zid())
+        else:
+            info = self._session.info
+            reached = any(True for _ in info.routers_zid()) or any(True for _ in info.peers_zid())
         if reached != self._zenoh_reached:  # logged once each way
             if reached:
                 log.warning("zenoh: connected again (%s); outputs go out", ", ".join(connect))
@@ -401,9 +457,11 @@ class GatewayService:
             self._zenoh_reached = reached
         if reached:
             return []
-        return [
-            f"zenoh: not connected to {', '.join(connect)} (Zenoh redials it); outputs go nowhere meanwhile"
-        ]
+        who = "Zenoh redials it" if self._dialler is None else f"dialled every {REDIAL_S:g} s"
+        alarm = f"zenoh: not connected to {', '.join(connect)} ({who}); outputs go nowhere meanwhile"
+        if self._dialler is not None and self._dialler.error is not None:
+            alarm += f"; last dial: {self._dialler.error}"
+        return [alarm]
 
     def _clock_alarms(self) -> list[str]:
         if self.sim_time is None:
@@ -472,7 +530,7 @@ class GatewayService:
                 for text in o.message.events:
                     log.warning("%s", text)
         encoded = self._publish(outputs)
-        for sink in self.sinks:
+        for sink in self._started:
             try:
                 sink.emit(outputs, encoded)
             except Exception:

@@ -18,7 +18,7 @@ import sys
 import threading
 import time
 import tracemalloc
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
 from datetime import UTC, datetime
 from pathlib import Path
@@ -26,16 +26,17 @@ from typing import Any
 
 import pytest
 import zenoh
-from conftest import free_port, wait_for
+from conftest import Recorder, free_port, wait_for
 
 import wire.mcap.writer as mcap_writer
-from gateway.bus import isolated_config, make_config, open_session
+from gateway.bus import BusError, Dialler, UnreachableError, isolated_config, make_config, open_session
 from gateway.config import parse_config
 from gateway.service import GatewayService
 from simulator.transports import PtySink
 from wire.codecs import nmea_encode as enc
 from wire.mcap.reader import log_files, read_messages
 from wire.mcap.rotation import rotated_path
+from wire.messages import Estimate
 
 
 def burst(k: int) -> bytes:
@@ -46,7 +47,14 @@ def burst(k: int) -> bytes:
 class Live:
     """A running `GatewayService` (consumer loop in a thread) and a Zenoh client counting its estimates."""
 
-    def __init__(self, tmp_path: Path, url: str, connect: list[str] | None = None) -> None:
+    def __init__(
+        self,
+        tmp_path: Path,
+        url: str,
+        connect: list[str] | None = None,
+        mode: str = "peer",
+        sinks: Sequence[Any] = (),
+    ) -> None:
         self.zport = free_port()
         self.log_path = tmp_path / "dpgw.mcap"
         self.tables = {
@@ -55,7 +63,8 @@ class Live:
             "sources": [{"name": "gps", "url": url, "protocol": "nmea", "roles": ["position", "heading"]}],
             "observer": {"wave_period_s": 9.0},
             "zenoh": {
-                "listen": [f"tcp/127.0.0.1:{self.zport}"],
+                "mode": mode,
+                "listen": [f"tcp/127.0.0.1:{self.zport}"] if mode == "peer" else [],
                 "connect": connect or [],
                 "multicast_scouting": False,
                 "prefix": "dp/f",
@@ -63,7 +72,9 @@ class Live:
             "status": {"rate_hz": 10.0},
             "log": {"path": str(self.log_path), "flush_interval_s": 0.1},
         }
-        self.service = GatewayService(parse_config(self.tables, base_dir=tmp_path), config_tables=self.tables)
+        self.service = GatewayService(
+            parse_config(self.tables, base_dir=tmp_path), config_tables=self.tables, sinks=sinks
+        )
         self.estimates = 0
         self._lock = threading.Lock()
 
@@ -189,21 +200,26 @@ def test_a_usb_serial_adapter_unplugged_and_back(tmp_path: Path) -> None:
 
 
 _ROUTER = """
-import json, sys, zenoh
+import json, sys, time, zenoh
 listen = {"endpoints": [sys.argv[1]]}
 conf = {"mode": "router", "listen": listen, "scouting": {"multicast": {"enabled": False}}}
 session = zenoh.open(zenoh.Config.from_json5(json.dumps(conf)))
-print("up", flush=True)
+print("up", time.time(), flush=True)  # (when it listens: zenoh.open has bound its listener)
 sys.stdin.read()  # until the test closes stdin or kills it
 """
 
 
-def start_router(endpoint: str) -> subprocess.Popen[str]:
-    """A Zenoh router (what zenohd is) in a process of its own; returns once it listens."""
+def start_router(endpoint: str, listened: list[float] | None = None) -> subprocess.Popen[str]:
+    """A Zenoh router (what zenohd is) in a process of its own; returns once it listens (the time it
+    began to, wall clock, appended to ``listened``)."""
     proc = subprocess.Popen(
         [sys.executable, "-c", _ROUTER, endpoint], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
     )
-    assert proc.stdout is not None and proc.stdout.readline().strip() == "up"
+    assert proc.stdout is not None
+    word, at = proc.stdout.readline().split()
+    assert word == "up"
+    if listened is not None:
+        listened.append(float(at))
     return proc
 
 
@@ -255,6 +271,135 @@ def test_the_zenoh_router_restarting(tmp_path: Path, caplog: pytest.LogCaptureFi
     assert len(said) == 2 and "lost" in said[0] and "connected again" in said[1], said
     statuses = [m for _, _, _, m in read_messages(log_files(live.log_path), "/dp/status")]
     assert any(any(a.startswith("zenoh: not connected") for a in s.get("alarms", [])) for s in statuses)
+
+
+def test_a_client_gateway_starts_before_its_router(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """``mode = "client"``: the router in zenoh.connect is not up when the gateway starts (services start in
+    any order). The gateway starts all the same, runs its pipeline, and says Zenoh is not connected; the
+    router comes: a console behind it receives the estimates, the alarm clears. The router restarts: the
+    estimates reach the console again, without restarting the gateway."""
+    router = f"tcp/127.0.0.1:{free_port()}"
+    udp = free_port(socket.SOCK_DGRAM)
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    k = [0]
+
+    def send() -> None:
+        tx.sendto(burst(k[0]), ("127.0.0.1", udp))
+        k[0] += 1
+        time.sleep(0.02)
+
+    def zenoh_alarms(live: Live) -> list[str]:
+        return [a for a in live.service.last_status().get("alarms", []) if a.startswith("zenoh:")]
+
+    class Local(Recorder):  # a sink that needs no Zenoh (as the Foxglove server)
+        needs_zenoh = False
+
+    local, behind = Local(), Recorder()
+    caplog.set_level(logging.WARNING, logger="dpgw")
+    live = Live(tmp_path, f"udp://127.0.0.1:{udp}", connect=[router], mode="client", sinks=[local, behind])
+    live.service.start()  # nobody at the router's endpoint: it starts all the same
+    live.loop = threading.Thread(target=live.service.run, name="consumer")
+    live.loop.start()
+    proc = None
+    listened: list[float] = []
+    try:
+        before = live.service.pipeline.estimates
+        assert wait_for(lambda: send() or live.service.pipeline.estimates >= before + 10, 30.0)
+        assert wait_for(lambda: send() or zenoh_alarms(live), 30.0), "no alarm without the router"
+        assert zenoh_alarms(live)[0].startswith(f"zenoh: not connected to {router} (dialled every 0.5 s)")
+        assert local.of(Estimate) and not behind.outputs  # (a Zenoh sink starts with the session)
+        proc = start_router(router, listened)
+        assert wait_for(lambda: send() or not zenoh_alarms(live), 30.0), zenoh_alarms(live)
+        live.client = open_session(make_config(mode="client", connect=[router], multicast_scouting=False))
+        live._sub = live.client.declare_subscriber("dp/f/estimate", live._on_estimate)
+        live.estimates_go_on(send, 10)  # the console behind the router has the estimates
+        assert behind.of(Estimate)
+        proc.kill()  # the router restarts
+        proc.wait()
+        assert wait_for(lambda: send() or zenoh_alarms(live), 30.0), "no alarm with the router gone"
+        proc = start_router(router, listened)
+        assert wait_for(lambda: send() or not zenoh_alarms(live), 30.0), zenoh_alarms(live)
+        live.estimates_go_on(send, 10)
+    finally:
+        tx.close()
+        if hasattr(live, "client"):
+            live.__exit__()
+        else:
+            live.service.stop_event.set()
+            live.loop.join(timeout=30)
+            live.service.close()
+        if proc is not None:
+            proc.kill()
+            proc.wait()
+    records = [r for r in caplog.records if r.getMessage().startswith("zenoh:")]
+    said = [r.getMessage() for r in records]
+    assert said[0].startswith(f"zenoh: cannot connect to {router}") and "dials it" in said[0], said
+    assert said[1] == f"zenoh: connected to {router}; outputs go out", said
+    assert "lost" in said[2] and "connected again" in said[3], said
+    # (the connection's delay after the router comes: bench/zenoh_redial.py; here it is the router's own
+    # start-up that takes longer than a dial period)
+    assert records[1].created < listened[0] + 10.0 and records[3].created < listened[1] + 10.0
+
+
+def test_a_client_with_a_zenoh_config_file_keeps_what_the_file_says(tmp_path: Path) -> None:
+    """A Zenoh config file is the user's own: a client whose file says nothing of ``exit_on_failure`` fails
+    to start without its router, as Zenoh's default for clients is."""
+    router = f"tcp/127.0.0.1:{free_port()}"
+    conf = {
+        "mode": "client",
+        "connect": {"endpoints": [router]},
+        "scouting": {"multicast": {"enabled": False}},
+    }
+    (tmp_path / "zenoh.json5").write_text(json.dumps(conf))
+    live = Live(tmp_path, "udp://127.0.0.1:0", connect=[router], mode="client")
+    live.tables["zenoh"] = {"config_file": str(tmp_path / "zenoh.json5"), "prefix": "dp/f"}
+    live.service = GatewayService(parse_config(live.tables, base_dir=tmp_path), config_tables=live.tables)
+    with pytest.raises(UnreachableError, match=f"cannot connect to {router}"):
+        live.service.start()
+
+
+def test_a_client_gateway_without_its_router_still_stops_on_a_port_in_use(tmp_path: Path) -> None:
+    """Waiting for the router is for a router not up yet, not for a configuration mistake: a listener's
+    port in use stops start-up with the message naming zenoh.listen, as in peer mode."""
+    router = f"tcp/127.0.0.1:{free_port()}"
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        endpoint = f"tcp/127.0.0.1:{taken.getsockname()[1]}"
+        live = Live(tmp_path, "udp://127.0.0.1:0", connect=[router], mode="client")
+        live.tables["zenoh"]["listen"] = [endpoint]
+        live.service = GatewayService(parse_config(live.tables, base_dir=tmp_path), config_tables=live.tables)
+        with pytest.raises(BusError) as info:
+            live.service.start()
+    assert not isinstance(info.value, UnreachableError)
+    assert str(info.value).startswith(f"zenoh.listen: cannot listen on {endpoint}: address in use")
+
+
+def test_a_dialler_dials_until_closed() -> None:
+    """The gateway's dialler (a client's router not up yet) dials again and again; another failure than
+    nobody answering (its listener's port taken meanwhile) is kept for the status and it dials on; it
+    stops when closed: a gateway told to stop while its router is away stops, leaving no thread behind."""
+    router = f"tcp/127.0.0.1:{free_port()}"
+    listen: list[str] = []
+    dialler = Dialler(
+        lambda: make_config(mode="client", connect=[router], listen=listen, multicast_scouting=False), 0.05
+    )
+    with socket.socket() as taken:
+        try:
+            assert wait_for(lambda: dialler.dials >= 3, 30.0), "it does not dial again"
+            assert dialler.error is None
+            taken.bind(("127.0.0.1", 0))
+            taken.listen()
+            listen.append(f"tcp/127.0.0.1:{taken.getsockname()[1]}")
+            assert wait_for(lambda: dialler.error is not None, 30.0), "the port in use is not kept"
+            assert dialler.error is not None and dialler.error.key == "listen"
+            assert "address in use" in str(dialler.error)
+            dials = dialler.dials
+            assert wait_for(lambda: dialler.dials >= dials + 3, 30.0), "it stopped dialling"
+        finally:
+            dialler.close()
+    assert dialler.take() is None
+    assert not [t for t in threading.enumerate() if t.name == "zenoh-dialler"]
 
 
 def _open_fds() -> int:

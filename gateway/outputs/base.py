@@ -22,7 +22,9 @@ class OutputSink(Protocol):
 
     def start(self, session: zenoh.Session) -> None:
         """Open sockets and declarations (called once, with the gateway's open Zenoh session, which a sink
-        may declare publishers, subscribers and liveliness tokens on but must not close)."""
+        may declare publishers, subscribers and liveliness tokens on but must not close). A client gateway
+        (``mode = "client"``) opens its session when its router answers, and starts its sinks then; a
+        sink with the attribute ``needs_zenoh = False`` is started at once, with None."""
 
     def emit(self, outputs: list[Output], encoded: list[bytes]) -> None:
         """One batch of outputs and their JSON encodings (the same order)."""

@@ -222,6 +222,7 @@ class FoxgloveServerSink:
     none (a live gateway cannot be paused)."""
 
     name = "foxglove"
+    needs_zenoh = False  # started with the gateway even while a client's router has not answered
 
     def __init__(
         self,
