@@ -6,6 +6,9 @@ Two cases, each round with a real Zenoh router opened in this process on a loopb
   when its router is not up yet); the router opens after a random wait (so that it falls anywhere in the
   dial period); measured from the moment the router is ready (its ``zenoh.open`` returned) to the moment
   the dialler hands over a connected session.
+* ``first, peer``: a peer session (the default mode) whose router in ``connect`` is not up when it
+  opens; Zenoh dials it in the background (the gateway's redial period against Zenoh's default back-off);
+  measured from the router ready to the peer listing it among its routers.
 * ``restart``: a connected client; the router closes and opens again after a random 0.5-3 s; measured
   from the moment the router is ready to the moment the client lists it among its routers again. Side by side:
   the gateway's redial period (``connect.retry``, `gateway.bus.REDIAL_S`) and Zenoh's default back-off
@@ -71,8 +74,8 @@ def open_router(endpoint: str) -> tuple[zenoh.Session, float, float]:
     return router, listening[0], opened
 
 
-def client_config(endpoint: str, zenoh_default: bool = False) -> zenoh.Config:
-    config = make_config(mode="client", connect=[endpoint], multicast_scouting=False)
+def client_config(endpoint: str, zenoh_default: bool = False, mode: str = "client") -> zenoh.Config:
+    config = make_config(mode=mode, connect=[endpoint], multicast_scouting=False)
     if zenoh_default:
         config.insert_json5("connect/retry", json.dumps(ZENOH_DEFAULT_RETRY))
     return config
@@ -114,6 +117,23 @@ def first(rng: random.Random) -> tuple[float, float]:
     return t2 - t1, t1 - t0
 
 
+def first_peer(rng: random.Random, zenoh_default: bool) -> tuple[float, float]:
+    """(connected - router ready, ready - listening) for a peer session (``mode = "peer"``, the default)
+    whose router in ``connect`` was not up when it opened: Zenoh dials it in the background."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    peer = zenoh.open(client_config(endpoint, zenoh_default, mode="peer"))
+    try:
+        time.sleep(rng.uniform(0.6, 3.0))
+        router, t0, t1 = open_router(endpoint)
+        try:
+            t2 = wait(lambda: any(True for _ in peer.info.routers_zid()))
+        finally:
+            router.close()
+    finally:
+        peer.close()
+    return t2 - t1, t1 - t0
+
+
 def restart(rng: random.Random, zenoh_default: bool) -> tuple[float, float]:
     """(connected again - router ready, ready - listening) for a router that closed and came back."""
     endpoint = f"tcp/127.0.0.1:{free_port()}"
@@ -142,11 +162,15 @@ def main() -> None:
         "first (Dialler)": [],
         "restart (gateway retry)": [],
         "restart (Zenoh default retry)": [],
+        "first, peer (gateway retry)": [],
+        "first, peer (Zenoh default retry)": [],
     }
     for _ in range(args.rounds):
         cases["first (Dialler)"].append(first(rng))
         cases["restart (gateway retry)"].append(restart(rng, zenoh_default=False))
         cases["restart (Zenoh default retry)"].append(restart(rng, zenoh_default=True))
+        cases["first, peer (gateway retry)"].append(first_peer(rng, zenoh_default=False))
+        cases["first, peer (Zenoh default retry)"].append(first_peer(rng, zenoh_default=True))
     out = {
         name: {
             "median_s": statistics.median(d for d, _ in v),

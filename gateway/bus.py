@@ -139,8 +139,8 @@ def _endpoints(config: zenoh.Config, key: str) -> list[str]:
 
 
 REDIAL_S = 0.5
-"""How often a client session dials a router that is not up yet or lost (s): one TCP connect attempt,
-well under a millisecond of work when nobody answers."""
+"""How often a session dials a ``connect`` endpoint (a router, a console) that is not up yet or lost (s):
+one TCP connect attempt, well under a millisecond of work when nobody answers."""
 
 
 def make_config(
@@ -169,9 +169,12 @@ def make_config(
     conf: dict[str, Any] = {"mode": mode, "scouting": {"multicast": {"enabled": multicast_scouting}}}
     if connect:
         conf["connect"] = {"endpoints": list(connect)}
-    if mode == "client":
-        # A lost router is redialled every REDIAL_S, as `Dialler` dials one not up yet (Zenoh's default
-        # backs off to 4 s). The open itself keeps Zenoh's client default: one dial, fail at once.
+    if mode == "client" or connect:
+        # A router or console that is not up yet or lost is redialled every REDIAL_S (Zenoh's default
+        # backs off from 1 s to 4 s): a peer's endpoints in the background from the start, a client's once
+        # it has connected (until then `Dialler` dials it). One TCP connect per period to a dead endpoint
+        # costs nothing; a DP gateway's outputs are back within a period of the router's return. The open
+        # itself keeps Zenoh's defaults (a client: one dial, fail at once).
         period_ms = round(REDIAL_S * 1000)
         retry = {"period_init_ms": period_ms, "period_max_ms": period_ms, "period_increase_factor": 1}
         conf.setdefault("connect", {})["retry"] = retry
