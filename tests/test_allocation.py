@@ -472,3 +472,58 @@ def test_solve_time_reported() -> None:
     vessel = load_vessel("mss_supply")
     r = QPAllocator(vessel).allocate([1e5, 0.0, 0.0])
     assert 0.0 < r.solve_time_s < 1.0
+
+
+@pytest.mark.parametrize("solver", ["compiled", "daqp"])
+def test_unavailable_thruster_gets_nothing_and_the_others_take_its_share_at_their_rates(solver: str) -> None:
+    """A tripped drive (thruster 1, aft port azimuth of mss_supply) is taken out of the allocation: from the
+    next step it is commanded zero thrust, the others change by at most their rate limits per step and meet
+    a feasible demand again within their time constants; back in service, it ramps up from zero at its own
+    thrust rate and shares the load again."""
+    vessel = load_vessel("mss_supply")
+    dt = 0.1
+    alloc = QPAllocator(vessel, dt=dt, solver=solver)
+    L = alloc.layout
+    dT = alloc.thrust_rate * dt
+    turn = np.where(L.is_az, L.rate * dt, 0.0)
+    tau = np.array([3.0e5, 1.0e5, 2.0e6])
+    cmd = ThrusterCommand.at_rest(vessel)
+    for _ in range(300):
+        cmd = alloc.allocate(tau, cmd).command
+    assert cmd.thrust[0] > 5e4  # thruster 1 carries a share before it trips
+    alloc.set_available({1: False})
+    assert alloc.available.tolist() == [False, True, True, True, True, True]
+    met_at = None
+    for k in range(300):
+        res = alloc.allocate(tau, cmd)
+        assert res.thrust[0] == 0.0
+        others = slice(1, None)
+        assert np.all(np.abs(res.thrust[others] - cmd.thrust[others]) <= dT[others] * (1 + 1e-9) + 1e-6)
+        assert np.all(np.abs(ssa(res.azimuth - cmd.azimuth)) <= turn + ANGLE_TOL)
+        if met_at is None and not res.saturated:
+            met_at = k * dt
+        cmd = res.command
+    assert met_at is not None and met_at < 20.0
+    assert np.allclose(res.tau_allocated, tau, rtol=1e-6, atol=1e-6 * L.tau_ref.max())
+    alloc.set_available({1: True})
+    before = cmd.thrust[0]
+    res = alloc.allocate(tau, cmd)
+    assert res.thrust[0] - before <= dT[0] * (1 + 1e-9) + 1e-6
+    for _ in range(300):
+        cmd = alloc.allocate(tau, cmd).command
+    assert cmd.thrust[0] > 5e4
+
+
+def test_pseudo_inverse_leaves_an_unavailable_thruster_out() -> None:
+    vessel = load_vessel("mss_supply")
+    alloc = PseudoInverseAllocator(vessel)
+    alloc.set_available([True, True, False, True, True, True])
+    res = alloc.allocate([1.0e5, 5.0e4, 1.0e6])
+    assert res.thrust[2] == 0.0
+    assert np.allclose(res.tau_allocated, [1.0e5, 5.0e4, 1.0e6], rtol=1e-9, atol=1e-3)
+
+
+def test_set_available_refuses_unknown_ids() -> None:
+    alloc = QPAllocator(load_vessel("mss_supply"))
+    with pytest.raises(ValueError, match="unknown thruster"):
+        alloc.set_available({99: False})

@@ -143,6 +143,9 @@ class _Layout:
         self.y = np.array([t.y_m for t in th], dtype=float)
         self.tmax = np.array([t.max_thrust_n for t in th], dtype=float)
         self.tmin = np.where(self.is_az, 0.0, np.array([min(t.min_thrust_n, 0.0) for t in th], dtype=float))
+        # the configured limits; ``tmax``/``tmin`` are zero for a thruster out of service (`set_available`)
+        self.tmax_rated, self.tmin_rated = self.tmax.copy(), self.tmin.copy()
+        self.available = np.ones(self.n, dtype=bool)
         # scale of each thruster's force: its largest thrust magnitude
         self.cap = np.maximum(self.tmax, -self.tmin)
         self.rate = np.array([t.azimuth_rate_rad_s for t in th], dtype=float)
@@ -173,6 +176,23 @@ class _Layout:
         tau_ref = contrib @ self.cap
         floor = max(float(tau_ref.max()), 1.0) * 1e-3
         self.tau_ref = np.maximum(tau_ref, floor)
+
+    def availability(self, available: Mapping[int, bool] | Sequence[bool]) -> Array:
+        """The availability mask in layout order from {id: available} (ids not named keep their state) or
+        one bool per thruster."""
+        mask = self.available.copy()
+        if isinstance(available, Mapping):
+            unknown = set(available) - set(self.ids)
+            if unknown:
+                raise ValueError(f"available: unknown thruster ids {sorted(unknown)}; layout has {self.ids}")
+            for tid, ok in available.items():
+                mask[self.ids.index(tid)] = bool(ok)
+        else:
+            values = [bool(v) for v in available]
+            if len(values) != self.n:
+                raise ValueError(f"available: {len(values)} values for {self.n} thrusters")
+            mask[:] = values
+        return mask
 
     def tau_of(self, thrust: Array, azimuth: Array) -> Array:
         """τ = B(α) T (N, N, N·m): same as ``VesselModel.generalized_force``."""
@@ -241,8 +261,23 @@ class PseudoInverseAllocator:
     ) -> None:
         self.layout = L = _Layout(vessel, weights)
         w_ext = (L.weights / L.cap**2)[L.owner]
+        self._w_ext = w_ext
         self.pinv = _weighted_pinv(L.B, w_ext)
         self.idle_thrust = idle_thrust_fraction * L.cap
+
+    @property
+    def available(self) -> Array:
+        """Which thrusters the allocation may use (layout order; all, unless `set_available` said not)."""
+        return self.layout.available.copy()
+
+    def set_available(self, available: Mapping[int, bool] | Sequence[bool]) -> None:
+        """Take thrusters out of the allocation (a tripped drive, local control, an emergency stop) or put
+        them back: {id: bool} or one bool per thruster. An unavailable thruster is commanded zero thrust and
+        the others share τ."""
+        L = self.layout
+        L.available = L.availability(available)
+        keep = L.available[L.owner]
+        self.pinv = _weighted_pinv(L.B * keep[None, :], self._w_ext)
 
     def allocate(self, tau_demand: ArrayLike, previous: ThrusterCommand | None = None) -> AllocationResult:
         t0 = time.perf_counter()
@@ -453,6 +488,29 @@ class QPAllocator:
         self.solver = solver
         self.fallbacks = 0  # steps where the compiled solver gave up and DAQP solved (diagnostic)
         self._kernel_args = self._build_kernel_args() if solver == "compiled" else ()
+
+    @property
+    def available(self) -> Array:
+        """Which thrusters the allocation may use (layout order; all, unless `set_available` said not)."""
+        return self.layout.available.copy()
+
+    def set_available(self, available: Mapping[int, bool] | Sequence[bool]) -> None:
+        """Take thrusters out of the allocation (a tripped drive, local control, an emergency stop) or put
+        them back: {id: bool} or one bool per thruster, from the next step on.
+
+        An unavailable thruster's thrust limits become [0, 0]: its previous thrust is read as zero (a tripped
+        drive delivers nothing, so the others' rate limits start from what is really there), it is
+        commanded zero, and the QP shares τ among the others, each within its own rate limits. Back in
+        service it starts from zero and ramps up at its thrust rate. Its azimuth is left where it was
+        (no idle steering: a dead drive does not turn, and one in local control is not ours to turn).
+        The scaling (τ_ref, the force scales) keeps the rated figures, so the weights do not change."""
+        L = self.layout
+        L.available = L.availability(available)
+        # in place: the compiled step holds these arrays
+        L.tmax[:] = np.where(L.available, L.tmax_rated, 0.0)
+        L.tmin[:] = np.where(L.available, L.tmin_rated, 0.0)
+        keep = L.available[L.owner]
+        self._pinv[:] = _weighted_pinv(L.B * keep[None, :], (L.weights / L.cap**2)[L.owner])
 
     # ---- problem structure (constant) ------------------------------------------------------------------
 
