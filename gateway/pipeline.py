@@ -294,6 +294,7 @@ class Pipeline:
             {t.id: t for t in spec.vessel.thrusters},
         )
         self._events: list[str] = []  # reference state changes not yet in a status
+        self.thrusters_out: dict[int, str] = {}  # thruster id -> why its drive does not take DP commands
         self._last_est: Estimate | None = None
         # the last estimate as floats for `_prediction`: (estimate, eta, nu, eta_wf, cos ψ, sin ψ)
         self._pred_base: tuple[Estimate, list[float], list[float], list[float], float, float] | None = None
@@ -786,6 +787,8 @@ class Pipeline:
                 if isinstance(r, mv.ThrusterReport):
                     if "thrusters" not in roles:
                         continue
+                    if r.flags is not None:
+                        self._thruster_flags(r.thruster_id, r.flags)
                     if (
                         r.esc is not None
                         and r.rpm
@@ -871,6 +874,28 @@ class Pipeline:
                 self.manual_tau = tau
                 if self.mode == "manual" and self.controller is None:
                     self.fusion.set_tau_demand(tau)
+
+    def _thruster_flags(self, thruster_id: int, flags: int) -> None:
+        """A drive's status flags: a thruster whose drive says it will not deliver DP commands (`OUT_FLAGS`:
+        a shutdown-class fault, an emergency stop, local control) is taken out of the thrust allocation at
+        once and alarmed while it is out; when its flags clear it is put back. Flags 0 (a sender that does
+        not report them) say nothing against the thruster. Announced as status events on each change."""
+        if thruster_id not in self._thruster_ids:
+            return
+        why = ", ".join(name for bit, name in OUT_FLAGS if flags & bit)
+        old = self.thrusters_out.get(thruster_id, "")
+        if why == old:
+            return
+        if why:
+            self.thrusters_out[thruster_id] = why
+            self._events.append(f"thruster {thruster_id} out of DP ({why}): removed from thrust allocation")
+        else:
+            del self.thrusters_out[thruster_id]
+            self._events.append(
+                f"thruster {thruster_id} back in DP ({old} cleared): in thrust allocation again"
+            )
+        if self.allocator is not None:
+            self.allocator.set_available({thruster_id: not why})
 
     # --- observer and outputs -------------------------------------------------------------------------------
 
@@ -1312,6 +1337,7 @@ class Pipeline:
         """Per-source age, counts, rejects by reason, and the alarms: the caller's, the controller's, and
         one per source that sent nothing yet or went stale."""
         alarms = list(alarms or []) + self.control_alarms
+        alarms += [f"thruster {tid} out of DP ({why})" for tid, why in sorted(self.thrusters_out.items())]
         references: dict[str, list[ReferenceStatus]] = {}
         for name, states in self.monitor.states().items():
             references[name] = [
@@ -1352,6 +1378,14 @@ class Pipeline:
             ),
         )
 
+
+OUT_FLAGS = (
+    (mv.AzimuthThrusterFlags.FAULT, "fault"),
+    (mv.AzimuthThrusterFlags.EMERGENCY_STOP, "emergency stop"),
+    (mv.AzimuthThrusterFlags.LOCAL_CONTROL, "local control"),
+)
+"""Drive flags under which a thruster does not deliver DP commands, with the words of its alarm. The others
+(WARNING, THRUST_LIMITED, …) leave it in the allocation: it still delivers, perhaps less."""
 
 MAX_SENDERS = 64
 """Senders per source that get a framer of their own; more (a scan, a flood of spoofed addresses) share

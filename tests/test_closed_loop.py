@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from dpgw.closed_loop import is_foxglove_topic, needs_wire, run_closed_loop
+from simulator.clock import SimEpoch
 from simulator.faults import Fault
 from simulator.runner import Simulation
 from simulator.scenarios import get_scenario
@@ -183,3 +184,39 @@ def test_only_foxglove_topics_turn_the_foxglove_channels_on() -> None:
     ]
     assert not any(map(is_foxglove_topic, json_topics))
     assert all(map(is_foxglove_topic, foxglove))
+
+
+@pytest.mark.parametrize("wire", [False, True])
+def test_tripped_thruster_leaves_the_allocation_at_once_and_comes_back(wire: bool) -> None:
+    """Thruster 1 (aft port azimuth of mss_supply) trips at 120 s and is reset at 200 s: its drive reports
+    FAULT in AZIMUTH_THRUSTER_STATUS. The gateway must stop commanding it within one feedback period and a
+    control step, alarm it in every status while it is out, hand its share to the others (the vessel stays
+    on station), and use it again once the flag clears. (Before: it was commanded 70-100 kN throughout the
+    trip, no alarm, and the integrator carried the loss.)"""
+    sc = replace(get_scenario("torsetnes_2004"), faults=(Fault("thruster_failure", "1", 120.0, 200.0),))
+    r = run_closed_loop(
+        sc, 260.0, seed=1, events=HOLD, status_every_s=1.0, wire=wire, collect=("/dp/status",)
+    )
+    t0 = SimEpoch(sc.start_utc).stamp_ns(0.0)  # sim time 0
+    t = np.array([(c.stamp_ns - t0) / 1e9 for c in r.command_messages])
+    t1 = np.array([c.thrusters[0].thrust_n for c in r.command_messages])
+    assert np.median(t1[(t > 60) & (t < 120)]) > 1e4  # it carried load before
+    out = (t >= 120.0 + 0.5) & (t < 200.0)  # feedback at 5 Hz, control at 10 Hz
+    assert np.all(t1[out] == 0.0)
+    back = t >= 200.0 + 5.0
+    assert np.median(t1[back]) > 1e4
+    alarmed = [
+        (s["stamp_ns"] - t0) / 1e9
+        for s in r.statuses
+        if "thruster 1 out of DP (fault)" in s.get("alarms", [])
+    ]
+    assert alarmed and min(alarmed) < 122.0 and max(alarmed) < 202.0
+    assert len(alarmed) >= 75  # in every 1 s status while out
+    # each change is announced at once, in a status of its own
+    events = [((s["stamp_ns"] - t0) / 1e9, e) for s in r.collected["/dp/status"] for e in s.get("events", [])]
+    assert [round(t_ev) for t_ev, e in events if e.startswith("thruster 1 out of DP (fault)")] == [120]
+    assert [round(t_ev) for t_ev, e in events if e.startswith("thruster 1 back in DP")] == [200]
+    # on station as without the trip: seed 1 peaks at 1.54 m from 120 s on without it, 1.55 m with it, and
+    # 2.03 m when the dead unit was still allocated
+    d = np.hypot(r.eta_lf[:, 0], r.eta_lf[:, 1])
+    assert d[r.t >= 120.0].max() < 1.75
