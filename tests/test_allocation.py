@@ -527,3 +527,25 @@ def test_set_available_refuses_unknown_ids() -> None:
     alloc = QPAllocator(load_vessel("mss_supply"))
     with pytest.raises(ValueError, match="unknown thruster"):
         alloc.set_available({99: False})
+
+
+@pytest.mark.parametrize("solver", ["compiled", "daqp"])
+@pytest.mark.parametrize("scale", [1e4, 1e15, 1e30, 1e300])
+def test_absurdly_large_finite_demand_gives_full_thrust_the_right_way(solver: str, scale: float) -> None:
+    """A finite demand far beyond capacity (a wild estimate, a broken controller) is saturated, never a
+    solver failure that holds the thrusters where they were: from rest, surge ahead at full capacity, the
+    shortfall reported against the demand as given."""
+    vessel = load_vessel("mss_supply")
+    alloc = QPAllocator(vessel, dt=0.1, solver=solver)
+    tau = np.array([1.0, 0.0, 0.0]) * scale * 1e3
+    cmd = ThrusterCommand.at_rest(vessel)
+    for _ in range(300):
+        res = alloc.allocate(tau, cmd)
+        assert res.status == "optimal" and res.saturated and len(res.alarms) == 1
+        assert np.all(np.isfinite(res.thrust))
+        cmd = res.command
+    az_capacity = sum(t.max_thrust_n for t in vessel.thrusters if t.kind == "azimuth")
+    assert res.tau_allocated[0] == pytest.approx(az_capacity, rel=1e-6)
+    assert abs(res.tau_allocated[1]) < 1e-6 * az_capacity
+    assert np.array_equal(res.tau_demand, tau) and np.array_equal(res.slack, tau - res.tau_allocated)
+    assert alloc.fallbacks == 0

@@ -54,6 +54,10 @@ BoolArray = NDArray[np.bool_]
 TWO_PI = 2.0 * math.pi
 _ANGLE_EPS = 1e-9  # rad: an azimuth this close to a forbidden sector's edge is on the edge, not inside
 _SAT_TOL = 1e-6  # scaled slack (fraction of τ_ref) above which the allocation reports saturation
+DEMAND_CLIP = 100.0
+"""A demand larger than this many times τ_ref in some DOF is allocated as the same direction at that size
+(`QPAllocator.allocate`): a hundred times what all thrusters together could give in that DOF, so the
+achieved τ is the same for any practical purpose, and the QP stays well scaled."""
 
 __all__ = [
     "AllocationResult",
@@ -754,40 +758,48 @@ class QPAllocator:
         x, y, n = tau.tolist()  # three floats: cheaper than numpy's isfinite and all on an array of three
         if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(n)):
             return _hold(L, tau, previous, "invalid_input", "thrust allocation: non-finite τ demand", t0)
+        # a demand far beyond capacity is solved as the same direction at DEMAND_CLIP × τ_ref (the result
+        # and its shortfall still name the demand as given): in scaled units of 10⁸ and more the slack's
+        # weight swamps the QP's other terms and the solvers fail
+        tau_qp = tau
+        over = max(abs(x) / L.tau_ref[0], abs(y) / L.tau_ref[1], abs(n) / L.tau_ref[2])
+        if over > DEMAND_CLIP:
+            tau_qp = tau * (DEMAND_CLIP / over)
         if self._kernel_args:
-            res = self._allocate_compiled(tau, previous, t0)
+            res = self._allocate_compiled(tau_qp, previous, t0, tau)
             if res is not None:
                 return res
             self.fallbacks += 1  # the compiled solver gave up on this QP: DAQP solves it
         lim = self.limits(previous)
-        sol = self._solve(tau, lim)
+        sol = self._solve(tau_qp, lim)
         if sol.status != "optimal":
             return _hold(L, tau, previous, sol.status, f"thrust allocation: QP {sol.status}", t0)
-        thrust, angle = self._commands(tau, sol.forces, lim)
+        thrust, angle = self._commands(tau_qp, sol.forces, lim)
         tau_alloc = L.tau_of(thrust, angle)
         slack = tau - tau_alloc
-        saturated = bool(np.max(np.abs(sol.slack) / L.tau_ref) > _SAT_TOL)
+        saturated = tau_qp is not tau or bool(np.max(np.abs(sol.slack) / L.tau_ref) > _SAT_TOL)
         alarms = (_saturation_alarm(tau, slack),) if saturated else ()
         return AllocationResult(
             thrust, angle, tau_alloc, tau, slack, saturated, alarms, time.perf_counter() - t0, "optimal"
         )
 
     def _allocate_compiled(
-        self, tau: Array, previous: ThrusterCommand | None, t0: float
+        self, tau_qp: Array, previous: ThrusterCommand | None, t0: float, tau: Array
     ) -> AllocationResult | None:
-        """`allocate` in one compiled call; None if its solver gave up (the caller then uses DAQP)."""
+        """`allocate` in one compiled call for the demand ``tau_qp`` (``tau`` as given, for the result);
+        None if its solver gave up (the caller then uses DAQP)."""
         L = self.layout
         if previous is None:
             prev_thrust, prev_angle = self._rest_thrust, L.fixed_angle
         else:
             prev_thrust = np.asarray(previous.thrust, dtype=float).reshape(L.n)
             prev_angle = np.asarray(previous.azimuth, dtype=float).reshape(L.n)
-        if _kernel.allocate_step(tau, prev_thrust, prev_angle, *self._kernel_args) != _kernel.OK:
+        if _kernel.allocate_step(tau_qp, prev_thrust, prev_angle, *self._kernel_args) != _kernel.OK:
             return None
         thrust_o, angle_o, tau_o, info = self._k_out
         thrust, angle, tau_alloc = thrust_o.copy(), angle_o.copy(), tau_o.copy()
         slack = tau - tau_alloc
-        saturated = bool(info[3] > _SAT_TOL)
+        saturated = tau_qp is not tau or bool(info[3] > _SAT_TOL)
         alarms = (_saturation_alarm(tau, slack),) if saturated else ()
         return AllocationResult(
             thrust, angle, tau_alloc, tau, slack, saturated, alarms, time.perf_counter() - t0, "optimal"
