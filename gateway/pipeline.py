@@ -1111,6 +1111,24 @@ class Pipeline:
             return None
         return target if np.all(np.isfinite(target)) else None
 
+    def _take_over(self, now_ns: int) -> np.ndarray:
+        """Leaving standby, the thrusters are someone else's until now (a lever, a joystick, another
+        system) and may be carrying the load: start from what they deliver. The allocation's state becomes
+        each thruster's fresh feedback (thrust, azimuth), so the first command's rate limits are counted
+        from where the thrusters are, not from the last command before standby; and the τ to continue from
+        (the controller's bumpless start) is the τ of that feedback. Without fresh feedback: the last
+        command and τ = 0, as before."""
+        tau, source = self.fusion.tau(now_ns)
+        if self.allocator is not None and self.command is not None:
+            thrust, azimuth = self.command.thrust.copy(), self.command.azimuth.copy()
+            fresh = self.fusion.fresh_thrust(now_ns)
+            for i, tid in enumerate(self._thruster_ids):
+                fb = fresh.get(tid)
+                if fb is not None:
+                    thrust[i], azimuth[i] = fb.thrust_n, fb.azimuth_rad
+            self.command = ThrusterCommand(thrust, azimuth)
+        return tau if source == "feedback" else np.zeros(3)
+
     def _raw_feedback(self, t: float, est: Estimate) -> tuple[np.ndarray, np.ndarray]:
         """η and ν for a DP system without a wave filter (``[control] feedback = "measurement"``, only to
         show what wave filtering buys): the raw measurement, and a dirty derivative of it (first-order
@@ -1136,7 +1154,10 @@ class Pipeline:
         assert ctl is not None
         self._last_control_ns = now_ns
         if ctl.mode != self.mode:
-            ctl.set_mode(self.mode, tau_now=self.fusion.tau_demand)
+            tau_now = self.fusion.tau_demand
+            if ctl.mode == "standby":
+                tau_now = self._take_over(now_ns)
+            ctl.set_mode(self.mode, tau_now=tau_now)
         pending = self._pending_setpoint
         if pending is not None:
             target = self._setpoint_ned(pending)

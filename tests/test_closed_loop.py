@@ -220,3 +220,25 @@ def test_tripped_thruster_leaves_the_allocation_at_once_and_comes_back(wire: boo
     # 2.03 m when the dead unit was still allocated
     d = np.hypot(r.eta_lf[:, 0], r.eta_lf[:, 1])
     assert d[r.t >= 120.0].max() < 1.75
+
+
+def test_engaging_dp_from_standby_takes_over_what_the_thrusters_deliver() -> None:
+    """In standby the thrusters are someone else's (here the scenario's own thrust holds part of the load).
+    Engaging DP at 200 s must start from what they deliver: the first command's τ is the τ of the thrusters'
+    feedback (no step), and the allocation counts its rate limits from the thrusters' reported state, not
+    from the command it last sent before standby. (Before: the first DP command was τ = 0 and every
+    thruster at rest, a step of 146 kN, 259 kN, 1.6 MN·m from what the thrusters delivered.)"""
+    sc = get_scenario("torsetnes_2004")
+    events = [(0.0, "mode", "standby"), (200.0, "mode", "dp")]
+    r = run_closed_loop(sc, 260.0, seed=1, events=events, collect=("/dp/measurement",))
+    first = next(c for c in r.command_messages if c.mode == "dp")
+    fed = [m for m in r.collected["/dp/measurement"] if m["stamp_ns"] <= first.stamp_ns]
+    assert fed[-1]["tau_source"] == "feedback"
+    tau_fb = np.array(fed[-1]["tau"])
+    assert np.linalg.norm(tau_fb[:2]) > 1e5  # the thrusters were carrying a load
+    capacity = np.array([1.05e6, 1.05e6, 3.0e7])  # mss_supply, order of magnitude per DOF
+    assert np.all(np.abs(np.array(first.tau_demand) - tau_fb) <= 1e-6 * capacity)
+    assert np.all(np.abs(np.array(first.tau_allocated) - tau_fb) <= 1e-3 * capacity)
+    e0 = r.eta_lf[np.searchsorted(r.t, 200.0)]
+    after = r.t >= 200.0
+    assert np.degrees(np.abs(r.eta_lf[after, 2] - e0[2])).max() < 2.0  # measured 1.2° (3.2° before)
