@@ -1111,6 +1111,28 @@ class Pipeline:
             return None
         return target if np.all(np.isfinite(target)) else None
 
+    def _deviation_alarms(self, eta_error: np.ndarray) -> list[str]:
+        """In dp: the position's distance from the DP reference against the watch circles drawn around
+        the setpoint (warning, alarm; `FoxgloveChannels.watch_circles_m`), and the heading's difference
+        against `HEADING_LIMITS_DEG`. The reference, not the target: during a setpoint move the vessel
+        follows the reference, and only a vessel that cannot (a drive-off, a load beyond capability, a
+        thruster lost) is off it."""
+        out = []
+        d = math.hypot(float(eta_error[0]), float(eta_error[1]))
+        circles = self.foxglove.watch_circles_m
+        for radius, word in sorted(zip(circles, ("warning", "alarm"), strict=False), reverse=True):
+            if d > radius:
+                out.append(
+                    f"position {d:.1f} m off the DP reference: beyond the {word} circle ({radius:g} m)"
+                )
+                break
+        dpsi = abs(math.degrees(float(eta_error[2])))
+        for limit, word in sorted(zip(HEADING_LIMITS_DEG, ("warning", "alarm"), strict=True), reverse=True):
+            if dpsi > limit:
+                out.append(f"heading {dpsi:.1f}° off the DP reference: beyond the {word} limit ({limit:g}°)")
+                break
+        return out
+
     def _take_over(self, now_ns: int) -> np.ndarray:
         """Leaving standby, the thrusters are someone else's until now (a lever, a joystick, another
         system) and may be carrying the load: start from what they deliver. The allocation's state becomes
@@ -1196,6 +1218,7 @@ class Pipeline:
             self.fusion.set_tau_demand(np.zeros(3))
             self.control_alarms = []
             return scene  # standby commands nothing: the thrusters are someone else's
+        deviation = self._deviation_alarms(o.eta_error) if self.mode == "dp" and o.valid else []
         thrusters: list[Thruster] = []
         saturated = False
         if self.allocator is not None:
@@ -1203,7 +1226,7 @@ class Pipeline:
             self.allocation, self.command = res, res.command
             tau_allocated = res.tau_allocated
             saturated = res.saturated
-            self.control_alarms = list(res.alarms)
+            self.control_alarms = list(res.alarms) + deviation
             thrusters = [
                 Thruster(id=tid, thrust_n=f, azimuth_rad=a)
                 for tid, f, a in zip(
@@ -1212,7 +1235,7 @@ class Pipeline:
             ]
         else:
             tau_allocated = o.tau  # no thruster layout: τ is the command (simulated vessels of the papers)
-            self.control_alarms = []
+            self.control_alarms = deviation
         if self.allocation is not None and self.allocator is not None:
             self.fusion.set_tau_demand(tau_allocated, self.allocation.thrust, self.allocation.azimuth)
         else:
@@ -1399,6 +1422,9 @@ class Pipeline:
             ),
         )
 
+
+HEADING_LIMITS_DEG = (3.0, 5.0)
+"""Heading deviation from the DP reference (warning, alarm), degrees: the usual DP console defaults."""
 
 OUT_FLAGS = (
     (mv.AzimuthThrusterFlags.FAULT, "fault"),

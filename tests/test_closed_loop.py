@@ -242,3 +242,31 @@ def test_engaging_dp_from_standby_takes_over_what_the_thrusters_deliver() -> Non
     e0 = r.eta_lf[np.searchsorted(r.t, 200.0)]
     after = r.t >= 200.0
     assert np.degrees(np.abs(r.eta_lf[after, 2] - e0[2])).max() < 2.0  # measured 1.2° (3.2° before)
+
+
+def test_drift_off_beyond_capability_is_alarmed_in_words() -> None:
+    """All three azimuths trip at 100 s (only the tunnels left: no surge at all) and the vessel drifts
+    off; the operator must see why and how far: the thrusters out, the allocation saturated, and the
+    position deviation from the DP reference against the warning and alarm circles (5 m, 10 m, those drawn
+    around the setpoint). Before any trip, station keeping raises none of these."""
+    faults = tuple(Fault("thruster_failure", str(i), 100.0) for i in (1, 2, 3))
+    sc = replace(get_scenario("torsetnes_2004"), faults=faults)
+    r = run_closed_loop(sc, 260.0, seed=1, events=HOLD, status_every_s=1.0)
+    t0 = SimEpoch(sc.start_utc).stamp_ns(0.0)
+    d = np.hypot(r.eta_lf[:, 0], r.eta_lf[:, 1])
+    statuses = [((s["stamp_ns"] - t0) / 1e9, s["alarms"]) for s in r.statuses]
+    for t, alarms in statuses:
+        if 60.0 < t < 100.0:
+            assert not [a for a in alarms if "DP reference" in a or "saturated" in a or "out of DP" in a]
+    late = [alarms for t, alarms in statuses if t > 250.0]
+    assert d[r.t > 250.0].min() > 10.0  # well off (measured ~25 m)
+    for alarms in late:
+        assert any(a.startswith("thrust allocation saturated") for a in alarms)
+        assert {"thruster 1 out of DP (fault)", "thruster 2 out of DP (fault)"} <= set(alarms)
+        position = [a for a in alarms if a.startswith("position")]
+        assert len(position) == 1 and "off the DP reference" in position[0]
+        assert "beyond the alarm circle (10 m)" in position[0]
+    warned = [
+        alarms for t, alarms in statuses if 100.0 < t < 250.0 and any("warning circle" in a for a in alarms)
+    ]
+    assert warned  # on the way out it passed the warning circle first
