@@ -549,3 +549,41 @@ def test_absurdly_large_finite_demand_gives_full_thrust_the_right_way(solver: st
     assert abs(res.tau_allocated[1]) < 1e-6 * az_capacity
     assert np.array_equal(res.tau_demand, tau) and np.array_equal(res.slack, tau - res.tau_allocated)
     assert alloc.fallbacks == 0
+
+
+def _with_sector(sector_deg: tuple[float, float]) -> VesselModel:
+    from dataclasses import replace
+
+    base = load_vessel("mss_supply")
+    th = list(base.thrusters)
+    th[2] = replace(th[2], forbidden_sectors_deg=(sector_deg,))  # the bow azimuth, id 3
+    return replace(base, thrusters=tuple(th))
+
+
+@pytest.mark.parametrize("solver", ["compiled", "daqp"])
+def test_vessel_file_barred_zones_are_respected_by_default(solver: str) -> None:
+    """The barred zones of the vessel's layout (thruster-thruster interaction, hull) apply to every
+    `QPAllocator` of that vessel without being passed again: the bow azimuth never pushes aft in its
+    sector, even for an astern demand that the unconstrained allocation would meet with it pushing aft."""
+    vessel = _with_sector((150.0, -150.0))
+    alloc = QPAllocator(vessel, dt=0.1, solver=solver)
+    assert 2 in alloc.forbidden
+    lo, hi = math.radians(150.0), math.radians(210.0)
+    cmd = ThrusterCommand.at_rest(vessel)
+    for k in range(600):
+        tau = np.array([-3.0e5, 2.0e4 * math.sin(0.01 * k), 0.0])
+        res = alloc.allocate(tau, cmd)
+        a = float(res.azimuth[2]) % (2 * math.pi)
+        if res.thrust[2] > 1e-3 * 2.5e5:
+            assert not (lo + 1e-9 < a < hi - 1e-9), (k, math.degrees(a))
+        cmd = res.command
+    free = QPAllocator(load_vessel("mss_supply"), dt=0.1, solver=solver)
+    res = free.allocate(
+        [-3.0e5, 0.0, 0.0], ThrusterCommand(np.zeros(6), np.array([math.pi] * 3 + [math.pi / 2] * 3))
+    )
+    assert abs(ssa(res.azimuth[2] - math.pi)) < 1e-6 and res.thrust[2] > 1e4  # without it, it pushes aft
+
+
+def test_explicit_sectors_replace_the_vessel_file_ones() -> None:
+    vessel = _with_sector((150.0, -150.0))
+    assert QPAllocator(vessel, forbidden_sectors={}).forbidden == {}

@@ -422,7 +422,8 @@ class QPAllocator:
     ``slack_weight`` — ρ₂ (one value or [X, Y, N]), quadratic weight of the scaled slack s/τ_ref.
     ``slack_l1_weight`` — ρ₁, the exact (ℓ₁) penalty weight; default √ρ₂.
     ``forbidden_sectors`` — {azimuth id: [(start_rad, end_rad), …]}: force directions (the same convention
-    as the output azimuth) that must not be used, from start clockwise to end.
+    as the output azimuth) that must not be used, from start clockwise to end. None (default): the
+    vessel's own (`Thruster.forbidden_sectors_deg`); given, it replaces them.
     ``thrust_rate`` — {id: N/s} maximum thrust change rate; default T_max / thrust_time_constant_s.
     ``polygon_sides`` — sides of the regular polygon inscribed in |F| ≤ T_max.
     ``idle_thrust_fraction`` — an azimuth below this fraction of its T_max is idle: its angle does not
@@ -472,6 +473,12 @@ class QPAllocator:
         self.polygon_sides = int(polygon_sides)
         self.idle_thrust = float(idle_thrust_fraction) * L.cap
         self.idle_steering = bool(idle_steering)
+        if forbidden_sectors is None:  # the barred zones of the vessel's layout
+            forbidden_sectors = {
+                t.id: [(math.radians(a), math.radians(b)) for a, b in t.forbidden_sectors_deg]
+                for t in vessel.thrusters
+                if t.forbidden_sectors_deg
+            }
         self.forbidden = _forbidden(forbidden_sectors, L)
         default_rate = np.where(L.time_constant > 0, L.cap / np.maximum(L.time_constant, 1e-300), np.inf)
         rate = _per_thruster(thrust_rate, L.ids, "thrust_rate", default=math.nan)
