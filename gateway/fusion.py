@@ -164,6 +164,14 @@ class Fusion:
         """Thruster id → its latest feedback (thrusters that reported a thrust or shaft speed)."""
         return MappingProxyType(self._thrust)
 
+    def fresh_thrust(self, now_ns: int) -> dict[int, ThrusterFeedback]:
+        """Thruster id → its feedback, for the thrusters whose feedback is fresh at ``now_ns`` (within its
+        source's timeout) and usable (`set_feedback_usable`)."""
+        if not self._feedback_ok:
+            return {}
+        timeout = self._thrust_timeout
+        return {tid: v for tid, v in self._thrust.items() if now_ns - v.rx_ns <= timeout[tid]}
+
     @property
     def tau_demand(self) -> Array:
         """The demanded τ [X, Y, N] (read-only array; change it with `set_tau_demand`)."""

@@ -294,6 +294,7 @@ class Pipeline:
             {t.id: t for t in spec.vessel.thrusters},
         )
         self._events: list[str] = []  # reference state changes not yet in a status
+        self.thrusters_out: dict[int, str] = {}  # thruster id -> why its drive does not take DP commands
         self._last_est: Estimate | None = None
         # the last estimate as floats for `_prediction`: (estimate, eta, nu, eta_wf, cos ψ, sin ψ)
         self._pred_base: tuple[Estimate, list[float], list[float], list[float], float, float] | None = None
@@ -786,6 +787,8 @@ class Pipeline:
                 if isinstance(r, mv.ThrusterReport):
                     if "thrusters" not in roles:
                         continue
+                    if r.flags is not None:
+                        self._thruster_flags(r.thruster_id, r.flags)
                     if (
                         r.esc is not None
                         and r.rpm
@@ -871,6 +874,28 @@ class Pipeline:
                 self.manual_tau = tau
                 if self.mode == "manual" and self.controller is None:
                     self.fusion.set_tau_demand(tau)
+
+    def _thruster_flags(self, thruster_id: int, flags: int) -> None:
+        """A drive's status flags: a thruster whose drive says it will not deliver DP commands (`OUT_FLAGS`:
+        a shutdown-class fault, an emergency stop, local control) is taken out of the thrust allocation at
+        once and alarmed while it is out; when its flags clear it is put back. Flags 0 (a sender that does
+        not report them) say nothing against the thruster. Announced as status events on each change."""
+        if thruster_id not in self._thruster_ids:
+            return
+        why = ", ".join(name for bit, name in OUT_FLAGS if flags & bit)
+        old = self.thrusters_out.get(thruster_id, "")
+        if why == old:
+            return
+        if why:
+            self.thrusters_out[thruster_id] = why
+            self._events.append(f"thruster {thruster_id} out of DP ({why}): removed from thrust allocation")
+        else:
+            del self.thrusters_out[thruster_id]
+            self._events.append(
+                f"thruster {thruster_id} back in DP ({old} cleared): in thrust allocation again"
+            )
+        if self.allocator is not None:
+            self.allocator.set_available({thruster_id: not why})
 
     # --- observer and outputs -------------------------------------------------------------------------------
 
@@ -1086,6 +1111,46 @@ class Pipeline:
             return None
         return target if np.all(np.isfinite(target)) else None
 
+    def _deviation_alarms(self, eta_error: np.ndarray) -> list[str]:
+        """In dp: the position's distance from the DP reference against the watch circles drawn around
+        the setpoint (warning, alarm; `FoxgloveChannels.watch_circles_m`), and the heading's difference
+        against `HEADING_LIMITS_DEG`. The reference, not the target: during a setpoint move the vessel
+        follows the reference, and only a vessel that cannot (a drive-off, a load beyond capability, a
+        thruster lost) is off it."""
+        out = []
+        d = math.hypot(float(eta_error[0]), float(eta_error[1]))
+        circles = self.foxglove.watch_circles_m
+        for radius, word in sorted(zip(circles, ("warning", "alarm"), strict=False), reverse=True):
+            if d > radius:
+                out.append(
+                    f"position {d:.1f} m off the DP reference: beyond the {word} circle ({radius:g} m)"
+                )
+                break
+        dpsi = abs(math.degrees(float(eta_error[2])))
+        for limit, word in sorted(zip(HEADING_LIMITS_DEG, ("warning", "alarm"), strict=True), reverse=True):
+            if dpsi > limit:
+                out.append(f"heading {dpsi:.1f}° off the DP reference: beyond the {word} limit ({limit:g}°)")
+                break
+        return out
+
+    def _take_over(self, now_ns: int) -> np.ndarray:
+        """Leaving standby, the thrusters are someone else's until now (a lever, a joystick, another
+        system) and may be carrying the load: start from what they deliver. The allocation's state becomes
+        each thruster's fresh feedback (thrust, azimuth), so the first command's rate limits are counted
+        from where the thrusters are, not from the last command before standby; and the τ to continue from
+        (the controller's bumpless start) is the τ of that feedback. Without fresh feedback: the last
+        command and τ = 0, as before."""
+        tau, source = self.fusion.tau(now_ns)
+        if self.allocator is not None and self.command is not None:
+            thrust, azimuth = self.command.thrust.copy(), self.command.azimuth.copy()
+            fresh = self.fusion.fresh_thrust(now_ns)
+            for i, tid in enumerate(self._thruster_ids):
+                fb = fresh.get(tid)
+                if fb is not None:
+                    thrust[i], azimuth[i] = fb.thrust_n, fb.azimuth_rad
+            self.command = ThrusterCommand(thrust, azimuth)
+        return tau if source == "feedback" else np.zeros(3)
+
     def _raw_feedback(self, t: float, est: Estimate) -> tuple[np.ndarray, np.ndarray]:
         """η and ν for a DP system without a wave filter (``[control] feedback = "measurement"``, only to
         show what wave filtering buys): the raw measurement, and a dirty derivative of it (first-order
@@ -1111,7 +1176,10 @@ class Pipeline:
         assert ctl is not None
         self._last_control_ns = now_ns
         if ctl.mode != self.mode:
-            ctl.set_mode(self.mode, tau_now=self.fusion.tau_demand)
+            tau_now = self.fusion.tau_demand
+            if ctl.mode == "standby":
+                tau_now = self._take_over(now_ns)
+            ctl.set_mode(self.mode, tau_now=tau_now)
         pending = self._pending_setpoint
         if pending is not None:
             target = self._setpoint_ned(pending)
@@ -1150,6 +1218,7 @@ class Pipeline:
             self.fusion.set_tau_demand(np.zeros(3))
             self.control_alarms = []
             return scene  # standby commands nothing: the thrusters are someone else's
+        deviation = self._deviation_alarms(o.eta_error) if self.mode == "dp" and o.valid else []
         thrusters: list[Thruster] = []
         saturated = False
         if self.allocator is not None:
@@ -1157,7 +1226,7 @@ class Pipeline:
             self.allocation, self.command = res, res.command
             tau_allocated = res.tau_allocated
             saturated = res.saturated
-            self.control_alarms = list(res.alarms)
+            self.control_alarms = list(res.alarms) + deviation
             thrusters = [
                 Thruster(id=tid, thrust_n=f, azimuth_rad=a)
                 for tid, f, a in zip(
@@ -1166,7 +1235,7 @@ class Pipeline:
             ]
         else:
             tau_allocated = o.tau  # no thruster layout: τ is the command (simulated vessels of the papers)
-            self.control_alarms = []
+            self.control_alarms = deviation
         if self.allocation is not None and self.allocator is not None:
             self.fusion.set_tau_demand(tau_allocated, self.allocation.thrust, self.allocation.azimuth)
         else:
@@ -1312,6 +1381,7 @@ class Pipeline:
         """Per-source age, counts, rejects by reason, and the alarms: the caller's, the controller's, and
         one per source that sent nothing yet or went stale."""
         alarms = list(alarms or []) + self.control_alarms
+        alarms += [f"thruster {tid} out of DP ({why})" for tid, why in sorted(self.thrusters_out.items())]
         references: dict[str, list[ReferenceStatus]] = {}
         for name, states in self.monitor.states().items():
             references[name] = [
@@ -1352,6 +1422,17 @@ class Pipeline:
             ),
         )
 
+
+HEADING_LIMITS_DEG = (3.0, 5.0)
+"""Heading deviation from the DP reference (warning, alarm), degrees: the usual DP console defaults."""
+
+OUT_FLAGS = (
+    (mv.AzimuthThrusterFlags.FAULT, "fault"),
+    (mv.AzimuthThrusterFlags.EMERGENCY_STOP, "emergency stop"),
+    (mv.AzimuthThrusterFlags.LOCAL_CONTROL, "local control"),
+)
+"""Drive flags under which a thruster does not deliver DP commands, with the words of its alarm. The others
+(WARNING, THRUST_LIMITED, …) leave it in the allocation: it still delivers, perhaps less."""
 
 MAX_SENDERS = 64
 """Senders per source that get a framer of their own; more (a scan, a flood of spoofed addresses) share

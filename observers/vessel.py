@@ -61,6 +61,10 @@ class Thruster:
     ``max_rpm`` is the shaft speed at which ``max_thrust_n`` is reached: with the propeller law it turns a
     measured shaft speed into thrust (`thrust_at_rpm`). The default, 200 rpm, is what the simulator's
     drives report; set the real one for a vessel whose drives report rpm (ArduPilot ESC telemetry).
+    ``forbidden_sectors_deg`` are an azimuth's barred zones: force directions (the convention of its
+    azimuth: clockwise from the bow, degrees) it must not push in, each (start, end) from start clockwise
+    to end — thruster-thruster interaction, the hull, a sensor in the race. Thrust allocation
+    (`gateway.control.allocation.QPAllocator`) keeps out of them.
     """
 
     id: int
@@ -73,6 +77,7 @@ class Thruster:
     thrust_time_constant_s: float = 1.0
     angle_rad: float = 0.0
     max_rpm: float = DEFAULT_MAX_RPM
+    forbidden_sectors_deg: tuple[tuple[float, float], ...] = ()
 
     def thrust_at_rpm(self, rpm: float) -> float:
         """Thrust (N) at a shaft speed (rpm, negative astern) by the quadratic propeller law T = K n|n| of a
@@ -218,8 +223,12 @@ def _thruster(entry: Any, index: int, where: str) -> Thruster:
     default_angle = {"tunnel": math.pi / 2, "main": 0.0, "azimuth": 0.0}[kind]
     values = dict(entry)
     values.setdefault("angle_rad", default_angle)
+    if "forbidden_sectors_deg" in values:
+        values["forbidden_sectors_deg"] = _sectors(
+            values["forbidden_sectors_deg"], kind, f"{where}: field '{key}"
+        )
     for name, value in values.items():
-        if name == "kind":
+        if name in ("kind", "forbidden_sectors_deg"):
             continue
         if not isinstance(value, int | float) or not math.isfinite(value):
             raise VesselError(f"{where}: field '{key}.{name}': must be a finite number, got {value!r}")
@@ -229,6 +238,26 @@ def _thruster(entry: Any, index: int, where: str) -> Thruster:
     if kind == "azimuth" and values.get("azimuth_rate_rad_s", 0.0) <= 0:
         raise VesselError(f"{where}: field '{key}.azimuth_rate_rad_s': an azimuth needs a positive slew rate")
     return Thruster(**values)
+
+
+def _sectors(value: Any, kind: str, where: str) -> tuple[tuple[float, float], ...]:
+    """``forbidden_sectors_deg``: a list of [start, end] pairs of finite degrees, each a non-empty sector;
+    ``where`` is the message's prefix up to the thruster's key (without its closing quote)."""
+    field = f"{where}.forbidden_sectors_deg'"
+    if kind != "azimuth":
+        raise VesselError(f"{field}: only an azimuth has barred zones (a {kind} has a fixed direction)")
+    if not isinstance(value, list) or not all(isinstance(p, list) and len(p) == 2 for p in value):
+        raise VesselError(f"{field}: must be a list of [start, end] pairs (degrees), got {value!r}")
+    out = []
+    for start, end in value:
+        if not all(
+            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in (start, end)
+        ):
+            raise VesselError(f"{field}: must be finite numbers of degrees, got {[start, end]!r}")
+        if (float(end) - float(start)) % 360.0 == 0.0:
+            raise VesselError(f"{field}: sector [{start}, {end}] is empty or the whole circle")
+        out.append((float(start), float(end)))
+    return tuple(out)
 
 
 def vessel_from_dict(data: dict[str, Any], where: str = "vessel") -> VesselModel:

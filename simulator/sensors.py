@@ -894,7 +894,8 @@ class ThrusterFeedback(Sensor):
 
     def _records(self, state: ShipState, t: float, heartbeat: bool, status: bool) -> list[Emission]:
         """The frames of `sample` as a receiver decodes them (`Emission.record`): a heartbeat carries no
-        report, a status one `ThrusterReport` with thrust, azimuth and rpm unrounded (float32 on the wire)."""
+        report, a status one `ThrusterReport` with thrust, azimuth and rpm unrounded (float32 on the wire) and
+        the drive's flags."""
         if self.config.ardupilot:
             raise ValueError(
                 "ThrusterFeedback: typed records need the dpgw dialect only (no ArduPilot frames)"
@@ -910,7 +911,10 @@ class ThrusterFeedback(Sensor):
                     thrust = bogus.param("thrust_n", thrust)
                     rpm = bogus.param("rpm", rpm)
                     azimuth = bogus.param("azimuth_rad", azimuth)
-                report = mv.ThrusterReport(reading.id, float(thrust), float(azimuth), float(rpm))
+                key = _ID_TEXT[reading.id]
+                failed = reading.failed or self.faults.active("thruster_failure", key, t) is not None
+                flags = int(_FLAGS_FAILED if failed else _FLAGS_OK)
+                report = mv.ThrusterReport(reading.id, float(thrust), float(azimuth), float(rpm), flags=flags)
                 out.append(Emission.trusted(t_emit, self.source, "mavlink", b"", t, (report,)))
         return out
 

@@ -472,3 +472,118 @@ def test_solve_time_reported() -> None:
     vessel = load_vessel("mss_supply")
     r = QPAllocator(vessel).allocate([1e5, 0.0, 0.0])
     assert 0.0 < r.solve_time_s < 1.0
+
+
+@pytest.mark.parametrize("solver", ["compiled", "daqp"])
+def test_unavailable_thruster_gets_nothing_and_the_others_take_its_share_at_their_rates(solver: str) -> None:
+    """A tripped drive (thruster 1, aft port azimuth of mss_supply) is taken out of the allocation: from the
+    next step it is commanded zero thrust, the others change by at most their rate limits per step and meet
+    a feasible demand again within their time constants; back in service, it ramps up from zero at its own
+    thrust rate and shares the load again."""
+    vessel = load_vessel("mss_supply")
+    dt = 0.1
+    alloc = QPAllocator(vessel, dt=dt, solver=solver)
+    L = alloc.layout
+    dT = alloc.thrust_rate * dt
+    turn = np.where(L.is_az, L.rate * dt, 0.0)
+    tau = np.array([3.0e5, 1.0e5, 2.0e6])
+    cmd = ThrusterCommand.at_rest(vessel)
+    for _ in range(300):
+        cmd = alloc.allocate(tau, cmd).command
+    assert cmd.thrust[0] > 5e4  # thruster 1 carries a share before it trips
+    alloc.set_available({1: False})
+    assert alloc.available.tolist() == [False, True, True, True, True, True]
+    met_at = None
+    for k in range(300):
+        res = alloc.allocate(tau, cmd)
+        assert res.thrust[0] == 0.0
+        others = slice(1, None)
+        assert np.all(np.abs(res.thrust[others] - cmd.thrust[others]) <= dT[others] * (1 + 1e-9) + 1e-6)
+        assert np.all(np.abs(ssa(res.azimuth - cmd.azimuth)) <= turn + ANGLE_TOL)
+        if met_at is None and not res.saturated:
+            met_at = k * dt
+        cmd = res.command
+    assert met_at is not None and met_at < 20.0
+    assert np.allclose(res.tau_allocated, tau, rtol=1e-6, atol=1e-6 * L.tau_ref.max())
+    alloc.set_available({1: True})
+    before = cmd.thrust[0]
+    res = alloc.allocate(tau, cmd)
+    assert res.thrust[0] - before <= dT[0] * (1 + 1e-9) + 1e-6
+    for _ in range(300):
+        cmd = alloc.allocate(tau, cmd).command
+    assert cmd.thrust[0] > 5e4
+
+
+def test_pseudo_inverse_leaves_an_unavailable_thruster_out() -> None:
+    vessel = load_vessel("mss_supply")
+    alloc = PseudoInverseAllocator(vessel)
+    alloc.set_available([True, True, False, True, True, True])
+    res = alloc.allocate([1.0e5, 5.0e4, 1.0e6])
+    assert res.thrust[2] == 0.0
+    assert np.allclose(res.tau_allocated, [1.0e5, 5.0e4, 1.0e6], rtol=1e-9, atol=1e-3)
+
+
+def test_set_available_refuses_unknown_ids() -> None:
+    alloc = QPAllocator(load_vessel("mss_supply"))
+    with pytest.raises(ValueError, match="unknown thruster"):
+        alloc.set_available({99: False})
+
+
+@pytest.mark.parametrize("solver", ["compiled", "daqp"])
+@pytest.mark.parametrize("scale", [1e4, 1e15, 1e30, 1e300])
+def test_absurdly_large_finite_demand_gives_full_thrust_the_right_way(solver: str, scale: float) -> None:
+    """A finite demand far beyond capacity (a wild estimate, a broken controller) is saturated, never a
+    solver failure that holds the thrusters where they were: from rest, surge ahead at full capacity, the
+    shortfall reported against the demand as given."""
+    vessel = load_vessel("mss_supply")
+    alloc = QPAllocator(vessel, dt=0.1, solver=solver)
+    tau = np.array([1.0, 0.0, 0.0]) * scale * 1e3
+    cmd = ThrusterCommand.at_rest(vessel)
+    for _ in range(300):
+        res = alloc.allocate(tau, cmd)
+        assert res.status == "optimal" and res.saturated and len(res.alarms) == 1
+        assert np.all(np.isfinite(res.thrust))
+        cmd = res.command
+    az_capacity = sum(t.max_thrust_n for t in vessel.thrusters if t.kind == "azimuth")
+    assert res.tau_allocated[0] == pytest.approx(az_capacity, rel=1e-6)
+    assert abs(res.tau_allocated[1]) < 1e-6 * az_capacity
+    assert np.array_equal(res.tau_demand, tau) and np.array_equal(res.slack, tau - res.tau_allocated)
+    assert alloc.fallbacks == 0
+
+
+def _with_sector(sector_deg: tuple[float, float]) -> VesselModel:
+    from dataclasses import replace
+
+    base = load_vessel("mss_supply")
+    th = list(base.thrusters)
+    th[2] = replace(th[2], forbidden_sectors_deg=(sector_deg,))  # the bow azimuth, id 3
+    return replace(base, thrusters=tuple(th))
+
+
+@pytest.mark.parametrize("solver", ["compiled", "daqp"])
+def test_vessel_file_barred_zones_are_respected_by_default(solver: str) -> None:
+    """The barred zones of the vessel's layout (thruster-thruster interaction, hull) apply to every
+    `QPAllocator` of that vessel without being passed again: the bow azimuth never pushes aft in its
+    sector, even for an astern demand that the unconstrained allocation would meet with it pushing aft."""
+    vessel = _with_sector((150.0, -150.0))
+    alloc = QPAllocator(vessel, dt=0.1, solver=solver)
+    assert 2 in alloc.forbidden
+    lo, hi = math.radians(150.0), math.radians(210.0)
+    cmd = ThrusterCommand.at_rest(vessel)
+    for k in range(600):
+        tau = np.array([-3.0e5, 2.0e4 * math.sin(0.01 * k), 0.0])
+        res = alloc.allocate(tau, cmd)
+        a = float(res.azimuth[2]) % (2 * math.pi)
+        if res.thrust[2] > 1e-3 * 2.5e5:
+            assert not (lo + 1e-9 < a < hi - 1e-9), (k, math.degrees(a))
+        cmd = res.command
+    free = QPAllocator(load_vessel("mss_supply"), dt=0.1, solver=solver)
+    res = free.allocate(
+        [-3.0e5, 0.0, 0.0], ThrusterCommand(np.zeros(6), np.array([math.pi] * 3 + [math.pi / 2] * 3))
+    )
+    assert abs(ssa(res.azimuth[2] - math.pi)) < 1e-6 and res.thrust[2] > 1e4  # without it, it pushes aft
+
+
+def test_explicit_sectors_replace_the_vessel_file_ones() -> None:
+    vessel = _with_sector((150.0, -150.0))
+    assert QPAllocator(vessel, forbidden_sectors={}).forbidden == {}

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from dpgw.closed_loop import is_foxglove_topic, needs_wire, run_closed_loop
+from simulator.clock import SimEpoch
 from simulator.faults import Fault
 from simulator.runner import Simulation
 from simulator.scenarios import get_scenario
@@ -183,3 +184,89 @@ def test_only_foxglove_topics_turn_the_foxglove_channels_on() -> None:
     ]
     assert not any(map(is_foxglove_topic, json_topics))
     assert all(map(is_foxglove_topic, foxglove))
+
+
+@pytest.mark.parametrize("wire", [False, True])
+def test_tripped_thruster_leaves_the_allocation_at_once_and_comes_back(wire: bool) -> None:
+    """Thruster 1 (aft port azimuth of mss_supply) trips at 120 s and is reset at 200 s: its drive reports
+    FAULT in AZIMUTH_THRUSTER_STATUS. The gateway must stop commanding it within one feedback period and a
+    control step, alarm it in every status while it is out, hand its share to the others (the vessel stays
+    on station), and use it again once the flag clears. (Before: it was commanded 70-100 kN throughout the
+    trip, no alarm, and the integrator carried the loss.)"""
+    sc = replace(get_scenario("torsetnes_2004"), faults=(Fault("thruster_failure", "1", 120.0, 200.0),))
+    r = run_closed_loop(
+        sc, 260.0, seed=1, events=HOLD, status_every_s=1.0, wire=wire, collect=("/dp/status",)
+    )
+    t0 = SimEpoch(sc.start_utc).stamp_ns(0.0)  # sim time 0
+    t = np.array([(c.stamp_ns - t0) / 1e9 for c in r.command_messages])
+    t1 = np.array([c.thrusters[0].thrust_n for c in r.command_messages])
+    assert np.median(t1[(t > 60) & (t < 120)]) > 1e4  # it carried load before
+    out = (t >= 120.0 + 0.5) & (t < 200.0)  # feedback at 5 Hz, control at 10 Hz
+    assert np.all(t1[out] == 0.0)
+    back = t >= 200.0 + 5.0
+    assert np.median(t1[back]) > 1e4
+    alarmed = [
+        (s["stamp_ns"] - t0) / 1e9
+        for s in r.statuses
+        if "thruster 1 out of DP (fault)" in s.get("alarms", [])
+    ]
+    assert alarmed and min(alarmed) < 122.0 and max(alarmed) < 202.0
+    assert len(alarmed) >= 75  # in every 1 s status while out
+    # each change is announced at once, in a status of its own
+    events = [((s["stamp_ns"] - t0) / 1e9, e) for s in r.collected["/dp/status"] for e in s.get("events", [])]
+    assert [round(t_ev) for t_ev, e in events if e.startswith("thruster 1 out of DP (fault)")] == [120]
+    assert [round(t_ev) for t_ev, e in events if e.startswith("thruster 1 back in DP")] == [200]
+    # on station as without the trip: seed 1 peaks at 1.54 m from 120 s on without it, 1.55 m with it, and
+    # 2.03 m when the dead unit was still allocated
+    d = np.hypot(r.eta_lf[:, 0], r.eta_lf[:, 1])
+    assert d[r.t >= 120.0].max() < 1.75
+
+
+def test_engaging_dp_from_standby_takes_over_what_the_thrusters_deliver() -> None:
+    """In standby the thrusters are someone else's (here the scenario's own thrust holds part of the load).
+    Engaging DP at 200 s must start from what they deliver: the first command's τ is the τ of the thrusters'
+    feedback (no step), and the allocation counts its rate limits from the thrusters' reported state, not
+    from the command it last sent before standby. (Before: the first DP command was τ = 0 and every
+    thruster at rest, a step of 146 kN, 259 kN, 1.6 MN·m from what the thrusters delivered.)"""
+    sc = get_scenario("torsetnes_2004")
+    events = [(0.0, "mode", "standby"), (200.0, "mode", "dp")]
+    r = run_closed_loop(sc, 260.0, seed=1, events=events, collect=("/dp/measurement",))
+    first = next(c for c in r.command_messages if c.mode == "dp")
+    fed = [m for m in r.collected["/dp/measurement"] if m["stamp_ns"] <= first.stamp_ns]
+    assert fed[-1]["tau_source"] == "feedback"
+    tau_fb = np.array(fed[-1]["tau"])
+    assert np.linalg.norm(tau_fb[:2]) > 1e5  # the thrusters were carrying a load
+    capacity = np.array([1.05e6, 1.05e6, 3.0e7])  # mss_supply, order of magnitude per DOF
+    assert np.all(np.abs(np.array(first.tau_demand) - tau_fb) <= 1e-6 * capacity)
+    assert np.all(np.abs(np.array(first.tau_allocated) - tau_fb) <= 1e-3 * capacity)
+    e0 = r.eta_lf[np.searchsorted(r.t, 200.0)]
+    after = r.t >= 200.0
+    assert np.degrees(np.abs(r.eta_lf[after, 2] - e0[2])).max() < 2.0  # measured 1.2° (3.2° before)
+
+
+def test_drift_off_beyond_capability_is_alarmed_in_words() -> None:
+    """All three azimuths trip at 100 s (only the tunnels left: no surge at all) and the vessel drifts
+    off; the operator must see why and how far: the thrusters out, the allocation saturated, and the
+    position deviation from the DP reference against the warning and alarm circles (5 m, 10 m, those drawn
+    around the setpoint). Before any trip, station keeping raises none of these."""
+    faults = tuple(Fault("thruster_failure", str(i), 100.0) for i in (1, 2, 3))
+    sc = replace(get_scenario("torsetnes_2004"), faults=faults)
+    r = run_closed_loop(sc, 260.0, seed=1, events=HOLD, status_every_s=1.0)
+    t0 = SimEpoch(sc.start_utc).stamp_ns(0.0)
+    d = np.hypot(r.eta_lf[:, 0], r.eta_lf[:, 1])
+    statuses = [((s["stamp_ns"] - t0) / 1e9, s["alarms"]) for s in r.statuses]
+    for t, alarms in statuses:
+        if 60.0 < t < 100.0:
+            assert not [a for a in alarms if "DP reference" in a or "saturated" in a or "out of DP" in a]
+    late = [alarms for t, alarms in statuses if t > 250.0]
+    assert d[r.t > 250.0].min() > 10.0  # well off (measured ~25 m)
+    for alarms in late:
+        assert any(a.startswith("thrust allocation saturated") for a in alarms)
+        assert {"thruster 1 out of DP (fault)", "thruster 2 out of DP (fault)"} <= set(alarms)
+        position = [a for a in alarms if a.startswith("position")]
+        assert len(position) == 1 and "off the DP reference" in position[0]
+        assert "beyond the alarm circle (10 m)" in position[0]
+    warned = [
+        alarms for t, alarms in statuses if 100.0 < t < 250.0 and any("warning circle" in a for a in alarms)
+    ]
+    assert warned  # on the way out it passed the warning circle first

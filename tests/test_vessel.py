@@ -147,3 +147,21 @@ def test_bad_files(tmp_path: Path) -> None:
     bad.write_text("name = 'x'\nM = [[1,2]\n")
     with pytest.raises(VesselError, match="not valid TOML"):
         load_vessel(bad)
+
+
+def test_barred_zones_read_from_the_vessel_file() -> None:
+    az = {"id": 3, "kind": "azimuth", "x_m": 25, "y_m": 0, "max_thrust_n": 2e5, "azimuth_rate_rad_s": 0.2}
+    v = vessel_from_dict({**GOOD, "thrusters": [{**az, "forbidden_sectors_deg": [[150, -150], [60, 80]]}]})
+    assert v.thrusters[0].forbidden_sectors_deg == ((150.0, -150.0), (60.0, 80.0))
+    for bad, reason in (
+        ([[150]], "pairs"),
+        ([[150, "x"]], "finite"),
+        ([[10, 10]], "empty"),
+        (5, "pairs"),
+    ):
+        with pytest.raises(VesselError) as err:
+            vessel_from_dict({**GOOD, "thrusters": [{**az, "forbidden_sectors_deg": bad}]}, "ship.toml")
+        assert "thrusters[0].forbidden_sectors_deg" in str(err.value) and reason in str(err.value), err.value
+    tunnel = {"id": 4, "kind": "tunnel", "x_m": 30, "y_m": 0, "max_thrust_n": 1e5, "min_thrust_n": -1e5}
+    with pytest.raises(VesselError, match="only an azimuth"):
+        vessel_from_dict({**GOOD, "thrusters": [{**tunnel, "forbidden_sectors_deg": [[0, 10]]}]}, "ship.toml")

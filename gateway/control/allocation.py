@@ -54,6 +54,10 @@ BoolArray = NDArray[np.bool_]
 TWO_PI = 2.0 * math.pi
 _ANGLE_EPS = 1e-9  # rad: an azimuth this close to a forbidden sector's edge is on the edge, not inside
 _SAT_TOL = 1e-6  # scaled slack (fraction of τ_ref) above which the allocation reports saturation
+DEMAND_CLIP = 100.0
+"""A demand larger than this many times τ_ref in some DOF is allocated as the same direction at that size
+(`QPAllocator.allocate`): a hundred times what all thrusters together could give in that DOF, so the
+achieved τ is the same for any practical purpose, and the QP stays well scaled."""
 
 __all__ = [
     "AllocationResult",
@@ -143,6 +147,9 @@ class _Layout:
         self.y = np.array([t.y_m for t in th], dtype=float)
         self.tmax = np.array([t.max_thrust_n for t in th], dtype=float)
         self.tmin = np.where(self.is_az, 0.0, np.array([min(t.min_thrust_n, 0.0) for t in th], dtype=float))
+        # the configured limits; ``tmax``/``tmin`` are zero for a thruster out of service (`set_available`)
+        self.tmax_rated, self.tmin_rated = self.tmax.copy(), self.tmin.copy()
+        self.available = np.ones(self.n, dtype=bool)
         # scale of each thruster's force: its largest thrust magnitude
         self.cap = np.maximum(self.tmax, -self.tmin)
         self.rate = np.array([t.azimuth_rate_rad_s for t in th], dtype=float)
@@ -173,6 +180,23 @@ class _Layout:
         tau_ref = contrib @ self.cap
         floor = max(float(tau_ref.max()), 1.0) * 1e-3
         self.tau_ref = np.maximum(tau_ref, floor)
+
+    def availability(self, available: Mapping[int, bool] | Sequence[bool]) -> Array:
+        """The availability mask in layout order from {id: available} (ids not named keep their state) or
+        one bool per thruster."""
+        mask = self.available.copy()
+        if isinstance(available, Mapping):
+            unknown = set(available) - set(self.ids)
+            if unknown:
+                raise ValueError(f"available: unknown thruster ids {sorted(unknown)}; layout has {self.ids}")
+            for tid, ok in available.items():
+                mask[self.ids.index(tid)] = bool(ok)
+        else:
+            values = [bool(v) for v in available]
+            if len(values) != self.n:
+                raise ValueError(f"available: {len(values)} values for {self.n} thrusters")
+            mask[:] = values
+        return mask
 
     def tau_of(self, thrust: Array, azimuth: Array) -> Array:
         """τ = B(α) T (N, N, N·m): same as ``VesselModel.generalized_force``."""
@@ -241,8 +265,23 @@ class PseudoInverseAllocator:
     ) -> None:
         self.layout = L = _Layout(vessel, weights)
         w_ext = (L.weights / L.cap**2)[L.owner]
+        self._w_ext = w_ext
         self.pinv = _weighted_pinv(L.B, w_ext)
         self.idle_thrust = idle_thrust_fraction * L.cap
+
+    @property
+    def available(self) -> Array:
+        """Which thrusters the allocation may use (layout order; all, unless `set_available` said not)."""
+        return self.layout.available.copy()
+
+    def set_available(self, available: Mapping[int, bool] | Sequence[bool]) -> None:
+        """Take thrusters out of the allocation (a tripped drive, local control, an emergency stop) or put
+        them back: {id: bool} or one bool per thruster. An unavailable thruster is commanded zero thrust and
+        the others share τ."""
+        L = self.layout
+        L.available = L.availability(available)
+        keep = L.available[L.owner]
+        self.pinv = _weighted_pinv(L.B * keep[None, :], self._w_ext)
 
     def allocate(self, tau_demand: ArrayLike, previous: ThrusterCommand | None = None) -> AllocationResult:
         t0 = time.perf_counter()
@@ -383,7 +422,8 @@ class QPAllocator:
     ``slack_weight`` — ρ₂ (one value or [X, Y, N]), quadratic weight of the scaled slack s/τ_ref.
     ``slack_l1_weight`` — ρ₁, the exact (ℓ₁) penalty weight; default √ρ₂.
     ``forbidden_sectors`` — {azimuth id: [(start_rad, end_rad), …]}: force directions (the same convention
-    as the output azimuth) that must not be used, from start clockwise to end.
+    as the output azimuth) that must not be used, from start clockwise to end. None (default): the
+    vessel's own (`Thruster.forbidden_sectors_deg`); given, it replaces them.
     ``thrust_rate`` — {id: N/s} maximum thrust change rate; default T_max / thrust_time_constant_s.
     ``polygon_sides`` — sides of the regular polygon inscribed in |F| ≤ T_max.
     ``idle_thrust_fraction`` — an azimuth below this fraction of its T_max is idle: its angle does not
@@ -433,6 +473,12 @@ class QPAllocator:
         self.polygon_sides = int(polygon_sides)
         self.idle_thrust = float(idle_thrust_fraction) * L.cap
         self.idle_steering = bool(idle_steering)
+        if forbidden_sectors is None:  # the barred zones of the vessel's layout
+            forbidden_sectors = {
+                t.id: [(math.radians(a), math.radians(b)) for a, b in t.forbidden_sectors_deg]
+                for t in vessel.thrusters
+                if t.forbidden_sectors_deg
+            }
         self.forbidden = _forbidden(forbidden_sectors, L)
         default_rate = np.where(L.time_constant > 0, L.cap / np.maximum(L.time_constant, 1e-300), np.inf)
         rate = _per_thruster(thrust_rate, L.ids, "thrust_rate", default=math.nan)
@@ -453,6 +499,29 @@ class QPAllocator:
         self.solver = solver
         self.fallbacks = 0  # steps where the compiled solver gave up and DAQP solved (diagnostic)
         self._kernel_args = self._build_kernel_args() if solver == "compiled" else ()
+
+    @property
+    def available(self) -> Array:
+        """Which thrusters the allocation may use (layout order; all, unless `set_available` said not)."""
+        return self.layout.available.copy()
+
+    def set_available(self, available: Mapping[int, bool] | Sequence[bool]) -> None:
+        """Take thrusters out of the allocation (a tripped drive, local control, an emergency stop) or put
+        them back: {id: bool} or one bool per thruster, from the next step on.
+
+        An unavailable thruster's thrust limits become [0, 0]: its previous thrust is read as zero (a tripped
+        drive delivers nothing, so the others' rate limits start from what is really there), it is
+        commanded zero, and the QP shares τ among the others, each within its own rate limits. Back in
+        service it starts from zero and ramps up at its thrust rate. Its azimuth is left where it was
+        (no idle steering: a dead drive does not turn, and one in local control is not ours to turn).
+        The scaling (τ_ref, the force scales) keeps the rated figures, so the weights do not change."""
+        L = self.layout
+        L.available = L.availability(available)
+        # in place: the compiled step holds these arrays
+        L.tmax[:] = np.where(L.available, L.tmax_rated, 0.0)
+        L.tmin[:] = np.where(L.available, L.tmin_rated, 0.0)
+        keep = L.available[L.owner]
+        self._pinv[:] = _weighted_pinv(L.B * keep[None, :], (L.weights / L.cap**2)[L.owner])
 
     # ---- problem structure (constant) ------------------------------------------------------------------
 
@@ -696,40 +765,48 @@ class QPAllocator:
         x, y, n = tau.tolist()  # three floats: cheaper than numpy's isfinite and all on an array of three
         if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(n)):
             return _hold(L, tau, previous, "invalid_input", "thrust allocation: non-finite τ demand", t0)
+        # a demand far beyond capacity is solved as the same direction at DEMAND_CLIP × τ_ref (the result
+        # and its shortfall still name the demand as given): in scaled units of 10⁸ and more the slack's
+        # weight swamps the QP's other terms and the solvers fail
+        tau_qp = tau
+        over = max(abs(x) / L.tau_ref[0], abs(y) / L.tau_ref[1], abs(n) / L.tau_ref[2])
+        if over > DEMAND_CLIP:
+            tau_qp = tau * (DEMAND_CLIP / over)
         if self._kernel_args:
-            res = self._allocate_compiled(tau, previous, t0)
+            res = self._allocate_compiled(tau_qp, previous, t0, tau)
             if res is not None:
                 return res
             self.fallbacks += 1  # the compiled solver gave up on this QP: DAQP solves it
         lim = self.limits(previous)
-        sol = self._solve(tau, lim)
+        sol = self._solve(tau_qp, lim)
         if sol.status != "optimal":
             return _hold(L, tau, previous, sol.status, f"thrust allocation: QP {sol.status}", t0)
-        thrust, angle = self._commands(tau, sol.forces, lim)
+        thrust, angle = self._commands(tau_qp, sol.forces, lim)
         tau_alloc = L.tau_of(thrust, angle)
         slack = tau - tau_alloc
-        saturated = bool(np.max(np.abs(sol.slack) / L.tau_ref) > _SAT_TOL)
+        saturated = tau_qp is not tau or bool(np.max(np.abs(sol.slack) / L.tau_ref) > _SAT_TOL)
         alarms = (_saturation_alarm(tau, slack),) if saturated else ()
         return AllocationResult(
             thrust, angle, tau_alloc, tau, slack, saturated, alarms, time.perf_counter() - t0, "optimal"
         )
 
     def _allocate_compiled(
-        self, tau: Array, previous: ThrusterCommand | None, t0: float
+        self, tau_qp: Array, previous: ThrusterCommand | None, t0: float, tau: Array
     ) -> AllocationResult | None:
-        """`allocate` in one compiled call; None if its solver gave up (the caller then uses DAQP)."""
+        """`allocate` in one compiled call for the demand ``tau_qp`` (``tau`` as given, for the result);
+        None if its solver gave up (the caller then uses DAQP)."""
         L = self.layout
         if previous is None:
             prev_thrust, prev_angle = self._rest_thrust, L.fixed_angle
         else:
             prev_thrust = np.asarray(previous.thrust, dtype=float).reshape(L.n)
             prev_angle = np.asarray(previous.azimuth, dtype=float).reshape(L.n)
-        if _kernel.allocate_step(tau, prev_thrust, prev_angle, *self._kernel_args) != _kernel.OK:
+        if _kernel.allocate_step(tau_qp, prev_thrust, prev_angle, *self._kernel_args) != _kernel.OK:
             return None
         thrust_o, angle_o, tau_o, info = self._k_out
         thrust, angle, tau_alloc = thrust_o.copy(), angle_o.copy(), tau_o.copy()
         slack = tau - tau_alloc
-        saturated = bool(info[3] > _SAT_TOL)
+        saturated = tau_qp is not tau or bool(info[3] > _SAT_TOL)
         alarms = (_saturation_alarm(tau, slack),) if saturated else ()
         return AllocationResult(
             thrust, angle, tau_alloc, tau, slack, saturated, alarms, time.perf_counter() - t0, "optimal"

@@ -502,7 +502,8 @@ class ThrusterReport:
     the bow) are None when the frame does not carry them (NaN when the sender does not know them);
     ``rpm`` is the shaft speed as reported (ArduPilot ESC telemetry: unsigned, the direction is lost);
     ``pwm_us`` the servo pulse width the azimuth was computed from; ``esc`` the ArduPilot ESC index whose
-    telemetry carried the (unsigned) rpm, None for any other frame."""
+    telemetry carried the (unsigned) rpm, None for any other frame; ``flags`` the drive's
+    `AzimuthThrusterFlags` (``AZIMUTH_THRUSTER_STATUS`` only, None for any other frame)."""
 
     thruster_id: int
     thrust_n: float | None = None
@@ -510,6 +511,7 @@ class ThrusterReport:
     rpm: float | None = None
     pwm_us: int | None = None
     esc: int | None = None
+    flags: int | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -599,7 +601,9 @@ def reports(msg: MAVLinkMessage, ardupilot: ArduPilotWiring | None = None) -> li
     m: Any = msg  # pymavlink messages carry their fields as dynamic attributes
     mid = m.get_msgId()
     if mid == AZIMUTH_THRUSTER_STATUS_ID:
-        return [ThrusterReport(int(m.id), float(m.thrust), float(m.azimuth), float(m.rpm))]
+        return [
+            ThrusterReport(int(m.id), float(m.thrust), float(m.azimuth), float(m.rpm), flags=int(m.flags))
+        ]
     wiring = ardupilot or _NO_WIRING
     first = _ESC_FIRST.get(mid)
     if first is not None:
