@@ -130,7 +130,7 @@ class EkfObserver(ObserverBase):
         """Built by name (`observers.factory`): ω0 and ζ from the common ``tuning``, the rest the fields of
         `SdreTuning` (sensor noise, wave motion, LF bandwidth). ``allow_unchecked`` relaxes nothing: a
         tuning that cannot give a stable filter is refused by `sdre_weights`."""
-        common = tuning or PassiveTuning()
+        common = tuning or PassiveTuning.for_vessel(vessel)  # a model's default is Froude-scaled
         return cls(vessel, SdreTuning(omega0=common.omega0, zeta=common.zeta, **params))
 
     def set_weights(self, weights: SdreWeights) -> None:

@@ -94,13 +94,19 @@ __all__ = [
 
 def _initial_for_range(w: Array, config: WaveFrequencyConfig, scale: float) -> Array:
     """Where ω0 starts when ``omega0_initial`` is not given: the tuning's ω0; on a 1:λ model whose range
-    does not hold it (the tuning's default, 2π/7 s, is a full-scale sea), the same sea Froude-scaled,
-    ω0·√λ (`observers.froude`), if the range holds that. Otherwise the tuning's ω0, refused below."""
-    inside = bool(np.all((w >= config.omega_min) & (w <= config.omega_max)))
-    if inside or scale == 1.0:
+    does not hold it, the same sea in the range's scale (`observers.froude`), if the range holds that:
+    ω0·√λ where the tuning's ω0 is a full-scale sea (``DEFAULT_TUNING``'s 2π/7 s) and the range the
+    model's, ω0/√λ where the tuning's is the model's default (`PassiveTuning.for_vessel`, what a config
+    without a wave period gives) and the range a full-scale one (Hassani's case). Otherwise the tuning's
+    ω0, refused below."""
+
+    def holds(x: Array) -> bool:
+        return bool(np.all((x >= config.omega_min) & (x <= config.omega_max)))
+
+    if holds(w) or scale == 1.0:
         return w
-    scaled = w * math.sqrt(scale)
-    return scaled if bool(np.all((scaled >= config.omega_min) & (scaled <= config.omega_max))) else w
+    r = math.sqrt(scale)
+    return next((x for x in (w * r, w / r) if holds(x)), w)
 
 
 def pack_tuning(vessel: VesselModel, tuning: PassiveTuning) -> Array:

@@ -29,17 +29,32 @@ Fossen & Strand (1999), Sec. 5, with two of the paper's misprints corrected (sai
   controller's damping term passes ν̂ to the thrusters; 0.12 ω0 keeps the commanded thrust's wave-band
   content ≥ 20 dB below a controller fed the raw measurements (tests/test_station_keeping.py) while every
   built-in vessel's slowest error pole stays faster than −0.01 s⁻¹.
+* **The default follows the vessel** (`PassiveTuning.for_vessel`). The defaults above are a ship's: ω0 =
+  2π/7 s, a North Sea DP day. A 1:λ model (`observers.froude`: CyberShip II is 1:70) sails in that sea
+  made small by Froude's law, times ÷ √λ and frequencies × √λ, and its own LF dynamics (Dᵢᵢ/Mᵢᵢ) are
+  √λ faster too. So a model's default is the ship's Froude-scaled field by field::
+
+      ω0, ωc, a, ρ  (rad/s, 1/s)  →  × √λ          T (s)  →  ÷ √λ          ζ, ζn and the ratios: kept
+
+  (for CyberShip II ω0 = 0.8976·√70 = 7.51 rad/s, a 0.84 s basin sea). With λ = 1 (every vessel of
+  10 m or more without a ``model_scale``) the tuning is `PassiveTuning()` exactly. The ship's default on
+  the model puts the notch (0.90 rad/s) and cut-off (1.1 rad/s) inside the model's LF band: measured on
+  CyberShip II (tests/test_passive_model_scale.py), its LF estimate follows the model's slow motion
+  (−5 dB at 0.5 rad/s, −19 dB at 1 rad/s), the rest goes to the WF estimate, and the slowest error
+  pole is −0.011 s⁻¹ against −0.34 s⁻¹ scaled.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from observers.froude import froude_scale
 from observers.kinematics import rotation
 from observers.state import BIAS, ETA, N_STATE, NU, XI, XI1, XI2
 from observers.vessel import VesselModel
@@ -48,6 +63,11 @@ Array = NDArray[np.float64]
 
 PAPER_CUTOFF_RATIO = 1.1 / 0.8976
 """ωc/ω0 of Fossen & Strand (1999) Sec. 6: ωc = 1.1 rad/s for ω0 = 0.8976 rad/s (a 7.0 s wave period)."""
+
+FREQUENCY_FIELDS = ("omega0", "omega_c", "velocity_injection", "bias_corner")
+"""The `PassiveTuning` fields that are frequencies or rates (rad/s, 1/s): × √λ on a 1:λ model."""
+TIME_FIELDS = ("bias_time_constant_s",)
+"""The `PassiveTuning` fields that are times (s): ÷ √λ on a 1:λ model. The rest are ratios (kept)."""
 
 TUNING_RULE_MARGIN = 10.0
 """How much larger λ/κ must be than 1/T for "1/T ≪ λ/κ" of rule (48)."""
@@ -116,6 +136,31 @@ class PassiveTuning:
     def with_omega0(self, omega0: ArrayLike) -> PassiveTuning:
         return replace(self, omega0=omega0)
 
+    @classmethod
+    def for_vessel(cls, vessel: VesselModel, **given: Any) -> PassiveTuning:
+        """The default tuning for ``vessel`` (module docstring, "The default follows the vessel"): the
+        fields in ``given`` as given, every other field's default Froude-scaled to the vessel's λ
+        (`observers.froude.froude_scale`). For a full-scale vessel (λ = 1) this is ``cls(**given)``."""
+        defaults = {k: v for k, v in cls().__dict__.items() if k not in given}
+        return cls(**froude_scaled_fields(defaults, froude_scale(vessel)), **given)
+
+
+def froude_scaled_fields(values: Mapping[str, Any], scale: float) -> dict[str, Any]:
+    """``values`` (some `PassiveTuning` fields) for a 1:``scale`` model: `FREQUENCY_FIELDS` × √λ,
+    `TIME_FIELDS` ÷ √λ (∞ stays ∞), None and the dimensionless fields as they are. λ = 1 returns them
+    untouched (the same objects: a ship's tuning is today's exactly)."""
+    if scale == 1.0:
+        return dict(values)
+    r = math.sqrt(scale)
+    out = dict(values)
+    for key, value in values.items():
+        if value is None or (key not in FREQUENCY_FIELDS and key not in TIME_FIELDS):
+            continue
+        a = np.asarray(value, dtype=float)
+        scaled = a * r if key in FREQUENCY_FIELDS else a / r
+        out[key] = float(scaled) if scaled.ndim == 0 else tuple(float(x) for x in scaled)
+    return out
+
 
 @dataclass(frozen=True)
 class PassiveGains:
@@ -180,8 +225,9 @@ def _damping_floor(vessel: VesselModel, tuning: PassiveTuning) -> Array:
 
 
 def passive_gains(vessel: VesselModel, tuning: PassiveTuning | None = None) -> PassiveGains:
-    """Gains of eqs (45)–(47) and the vessel-scaled injection gains for ``vessel``."""
-    tuning = tuning or PassiveTuning()
+    """Gains of eqs (45)–(47) and the vessel-scaled injection gains for ``vessel``; without a ``tuning``
+    the vessel's default (`PassiveTuning.for_vessel`: Froude-scaled on a model)."""
+    tuning = tuning or PassiveTuning.for_vessel(vessel)
     w0 = _vec3(tuning.omega0, "omega0")
     zeta = _vec3(tuning.zeta, "zeta")
     zeta_n = _vec3(tuning.zeta_n, "zeta_n")

@@ -140,7 +140,7 @@ class SdreObserver(ObserverBase):
             raise ValueError(
                 f"{', '.join(est)}: settings of the wave-frequency estimator (expected adaptive = true)"
             )
-        common = tuning or PassiveTuning()
+        common = tuning or PassiveTuning.for_vessel(vessel)  # a model's default is Froude-scaled
         sdre_tuning = SdreTuning(omega0=common.omega0, zeta=common.zeta, **params)
         weights = paper_weights(sdre_tuning.omega0, sdre_tuning.zeta) if literal else None
         if adaptive:

@@ -24,6 +24,7 @@ from gateway.config import (
     load_config,
     parse_config,
 )
+from gateway.config.defaults import DEFAULTS
 from observers.passive_tuning import PassiveTuning
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -282,10 +283,10 @@ def test_defaults_fill_in(tmp_path: Path) -> None:
     assert (thr.system_id, thr.signing_key, thr.allow_unsigned, thr.ardupilot) == (None, None, False, None)
     o = c.observer
     assert (o.type, o.rate_hz, o.allow_unchecked) == ("passive", d["observer"]["rate_hz"], False)
-    assert o.tuning.omega0 == pytest.approx(2 * math.pi / d["observer"]["wave_period_s"])
+    assert o.tuning.omega0 == pytest.approx(2 * math.pi / DEFAULTS["observer"]["wave_period_s"])
     assert o.tuning.omega0 == pytest.approx(PassiveTuning().omega0)
     for key in ("zeta", "zeta_n", "cutoff_ratio", "bias_time_constant_s", "velocity_injection_ratio"):
-        assert getattr(o.tuning, key) == getattr(PassiveTuning(), key) == d["observer"][key]
+        assert getattr(o.tuning, key) == getattr(PassiveTuning(), key) == DEFAULTS["observer"][key]
     assert o.tuning.omega_c is None and o.tuning.bias_corner is None and o.tuning.velocity_injection is None
     assert [ch.ok for ch in o.checks] == [True, True]
     z = c.zenoh
@@ -330,6 +331,19 @@ def test_default_config_is_the_parser_defaults(tmp_path: Path) -> None:
     for name in ("reference_point_m", "datum", "sources", "observer", "zenoh", "log", "status"):
         assert getattr(from_defaults, name) == getattr(implicit, name), name
     assert default_config("cybership2")["vessel"]["name"] == "cybership2"
+    # the tuning is left to the parser, which Froude-scales it for a model (as leaving it out does)
+    model = default_config("cybership2")
+    model["sources"] = base()["sources"]
+    model["sources"][0]["lever_arm_m"] = [0.5, 0.0, -1.0]  # on the 2.5 m model
+    assert "wave_period_s" not in model["observer"] and model["observer"]["type"] == "passive"
+    implicit_model = {**base(), "vessel": {"name": "cybership2"}, "sources": model["sources"]}
+    assert (
+        parse_config(model, base_dir=tmp_path).observer
+        == parse_config(implicit_model, base_dir=tmp_path).observer
+    )
+    assert parse_config(model, base_dir=tmp_path).observer.tuning.omega0 == pytest.approx(
+        2 * math.pi / 7.0 * math.sqrt(70.0)
+    )
     assert default_config("my_ship.toml")["vessel"] == {
         "file": "my_ship.toml",
         "reference_point_m": [0.0, 0.0],

@@ -10,6 +10,7 @@ import pytest
 from model_data import simulate_model
 from scipy.integrate import solve_ivp
 
+from observers.froude import froude_scale
 from observers.kinematics import rotation, ssa
 from observers.passive import PassiveObserver, reference_derivative, reference_run
 from observers.passive_tuning import PassiveTuning, lf_response, notch_depth_db, passive_gains
@@ -30,8 +31,13 @@ def test_global_exponential_convergence_from_far_off(name: str) -> None:
 
     The vessel turns continuously, so the heading crosses ±180° several times. The error must shrink at
     least as fast as exp(-0.01 t) down to the floor set by sampling at 10 Hz (speed × half a sample).
+    A model's default tuning is Froude-scaled (`PassiveTuning.for_vessel`: ω0 × √λ), so its data are
+    sampled Froude-scaled too, at 10·√λ Hz (84 Hz for CyberShip II, a basin's motion capture rate): the
+    same sampling relative to its dynamics as a ship's at 10 Hz. At 10 Hz its scaled gains (ωc 9.2 rad/s)
+    leave a velocity error of 1.3 mm/s from the sample-and-hold and the 0.1 s integration step.
     """
     vessel = load_vessel(name)
+    dt = 0.1 / math.sqrt(froude_scale(vessel))
     gains = passive_gains(vessel)
     nu_cruise = cruise(name)
     tau_c = vessel.D @ nu_cruise
@@ -44,7 +50,7 @@ def test_global_exponential_convergence_from_far_off(name: str) -> None:
     x0[ETA] = [100.0, -20.0, math.radians(175.0)]
     x0[BIAS] = vessel.D @ np.array([0.05, -0.05, 0.001])  # bias
     x0[NU] = nu_cruise
-    t = np.arange(0.0, 1200.0, 0.1)
+    t = np.arange(0.0, 1200.0, dt)
     X, y = simulate_model(vessel, gains, t, x0, tau)
     assert np.sum(np.abs(np.diff(y[:, 2])) > math.pi) >= 2, "heading must cross ±180° in this test"
 
@@ -59,10 +65,10 @@ def test_global_exponential_convergence_from_far_off(name: str) -> None:
     e_pos = np.linalg.norm(r.eta[:, :2] - X[1:, I_ETA:I_PSI], axis=1)
     e_psi = np.abs(ssa(r.eta[:, 2] - X[1:, I_PSI]))
     speed = np.linalg.norm(nu_cruise[:2]) * 1.2
-    floor_pos = 2 * speed * 0.05 + 1e-3
-    floor_psi = 2 * nu_cruise[2] * 1.2 * 0.05 + 1e-4
+    floor_pos = 2 * speed * dt / 2 + 1e-3
+    floor_psi = 2 * nu_cruise[2] * 1.2 * dt / 2 + 1e-4
     for T in (200, 400, 600, 900, 1199):
-        k = int(T * 10) - 1
+        k = int(T / dt) - 1
         envelope = math.exp(-0.01 * T)
         assert e_pos[k] <= 50 * math.sqrt(2) * envelope + floor_pos, (T, e_pos[k])
         assert e_psi[k] <= math.radians(170) * envelope + floor_psi, (T, e_psi[k])

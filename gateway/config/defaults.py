@@ -86,11 +86,18 @@ def default_config(vessel: str = "mss_supply") -> dict[str, Any]:
         "vessel": vessel_table,
         "datum": {"first_fix": True},
         "sources": [],
-        "observer": copy_table(DEFAULTS["observer"]),
+        # The tuning's defaults depend on the vessel (a model's are Froude-scaled: PassiveTuning.for_vessel);
+        # a key written here would count as given, so the parser fills them in for the vessel.
+        "observer": {k: v for k, v in DEFAULTS["observer"].items() if k not in TUNING_DEFAULT_KEYS},
         "zenoh": copy_table(DEFAULTS["zenoh"]),
         "log": copy_table(DEFAULTS["log"]),
         "status": copy_table(DEFAULTS["status"]),
     }
+
+
+TUNING_DEFAULT_KEYS = frozenset(PassiveTuning.__dataclass_fields__) | {"wave_period_s"}
+"""The keys of ``DEFAULTS["observer"]`` that are the passive tuning's (a ship's values; `default_config`
+leaves them out)."""
 
 
 def copy_table(table: dict[str, Any]) -> dict[str, Any]:

@@ -16,7 +16,14 @@ from gateway.config.model import ObserverConfig
 from gateway.config.problems import Problems, show
 from gateway.config.schema import TUNING_KEYS, ObserverTable, read_table
 from observers.factory import ObserverSpecError, check_params, tuning_keys
-from observers.passive_tuning import PassiveTuning, TuningError, check_gains, passive_gains
+from observers.froude import froude_scale
+from observers.passive_tuning import (
+    PassiveTuning,
+    TuningError,
+    check_gains,
+    froude_scaled_fields,
+    passive_gains,
+)
 from observers.vessel import VesselModel, load_vessel
 
 __all__ = ["read_observer"]
@@ -54,6 +61,13 @@ def read_observer(p: Problems, t: Mapping[str, Any], vessel: VesselModel | None)
             values[key] = v[key]
         elif key in d and not any(key == ratio and explicit in t for explicit, ratio in _EXCLUSIVE):
             values[key] = d[key]
+    # The defaults are a ship's: on a model (or small craft) those not given are Froude-scaled to it,
+    # frequencies × √λ, times ÷ √λ (`PassiveTuning.for_vessel`); given values are the user's, kept.
+    # Without a usable vessel nothing runs; the checks' stand-in is full scale (they depend on ratios).
+    defaulted = {
+        k: x for k, x in values.items() if k not in t and not (k == "omega0" and "wave_period_s" in t)
+    }
+    values.update(froude_scaled_fields(defaulted, froude_scale(vessel) if vessel is not None else 1.0))
     # a problem in a key of the tuning itself (not rate_hz, type, ...) leaves nothing to check
     tuning_names = {"wave_period_s", "omega0", *TUNING_KEYS}
     tuning_problems = [line for line in p.lines[n0:] if _key_of(line, p.where) in tuning_names]

@@ -99,12 +99,12 @@ class WaveCheck:
             if not o.mistuned:
                 continue
             what = (
-                f"the measured wave peak is {w:.2f} rad/s (period {2 * math.pi / w:.1f} s, in {where}) but "
+                f"the measured wave peak is {w:.2f} rad/s (period {_period(w)} s, in {where}) but "
                 f"observer '{o.label}' filtered waves at ω0 = {o.omega0:.2f} rad/s "
-                f"(period {2 * math.pi / o.omega0:.1f} s): its wave-frequency estimate is not the waves, and "
+                f"(period {_period(o.omega0)} s): its wave-frequency estimate is not the waves, and "
                 "wave motion leaks into the LF estimate."
             )
-            period = f"{2 * math.pi / w:.1f}"
+            period = _period(w)
             scheduled = f"wave_period_s={period},omega_min={_fmt(w / 2.0)},omega_max={_fmt(2.0 * w)}"
             if o.adaptive:
                 todo = f"Its ω0 range does not reach the sea's: re-run with --observer {o.kind}:{scheduled}"
@@ -145,6 +145,13 @@ class WaveCheck:
 
 def _fmt(x: float) -> str:
     return f"{x:.2g}"
+
+
+def _period(omega: float) -> str:
+    """2π/ω in s, to 0.1 s, or 0.01 s below 1 s: a model's basin sea (0.84 s, 7 s Froude-scaled at 1:70)
+    rounded to 0.1 s would be advised 5 % off."""
+    p = 2 * math.pi / omega
+    return f"{p:.1f}" if p >= 1.0 else f"{p:.2f}"
 
 
 def dof_peak(t: Array, x: Array, band: tuple[float, float], angle: bool = False) -> DofPeak:
