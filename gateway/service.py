@@ -72,6 +72,13 @@ class _Input:
     rx_mono_ns: int
 
 
+def _utc(ns: int) -> str:
+    """A simulation time (UTC ns) as a person reads it in the logs: 2026-06-01 10:02:23.7."""
+    from datetime import UTC, datetime
+
+    return datetime.fromtimestamp(ns / 1e9, UTC).strftime("%Y-%m-%d %H:%M:%S.%f")[:-5]
+
+
 def zenoh_config(z: ZenohConfig) -> zenoh.Config:
     """The `zenoh.Config` of the configured session (`gateway.bus.make_config`); opens nothing.
 
@@ -130,6 +137,8 @@ class GatewayService:
         self.held_dropped = 0
         """Items dropped while waiting for the first simulation clock tick (more than `HOLD_MAX`)."""
         self.clock_rejected = 0
+        self.restart_dropped = 0
+        """Inputs not handled since the simulator restarted (its time went back): another run of the plant."""
         """Simulation clock ticks that were not a valid `SimClock`."""
         self.stop_event = threading.Event()
         path = log_path if log_path is not None else config.log.path
@@ -183,7 +192,9 @@ class GatewayService:
             # A query that arrives before the loop's first status tick gets a real status, never ``{}``;
             # the consumer loop is not running yet, so reading the pipeline here is race-free.
             now = self._now()
-            initial = self.pipeline.status(time.time_ns() if now is None else now, self._alarms())
+            initial = (
+                self._status_without_time() if now is None else self.pipeline.status(now, self._alarms())
+            )
             with self._status_lock:
                 self._status_json = initial.message.encode()
             if self._session is not None:
@@ -311,7 +322,10 @@ class GatewayService:
         except (msgspec.DecodeError, msgspec.ValidationError):
             self.clock_rejected += 1
             return
+        restarted = self.sim_time.went_back is not None
         self.sim_time.on_tick(tick.stamp_ns, tick.period_s, mono)
+        if not restarted and self.sim_time.went_back is not None:
+            log.error("%s", self._restart_alarm())
 
     def _on_query(self, query: zenoh.Query) -> None:
         with self._status_lock:
@@ -372,14 +386,25 @@ class GatewayService:
                 next_status = mono + status_period_ns
                 try:
                     if now is None:  # no time yet: the status goes out (stamped with the wall), not logged
-                        self._publish([self.pipeline.status(time.time_ns(), self._alarms())])
+                        self._publish([self._status_without_time()])
                     else:
                         self._emit([self.pipeline.status(now, self._alarms())])
                 except Exception:
                     self._internal_error("status", "the status")
 
+    def _status_without_time(self) -> Output:
+        """The status while the pipeline has no time yet (``clock = "sim"`` before the first tick): stamped
+        with the wall clock for Zenoh and ``dpgw run -v``, and kept out of everything that is logged, its
+        Foxglove log lines included (a line at the wall clock in a log on the plant's time, months apart,
+        would stretch the log's timeline and make the writer rotate the file)."""
+        now = time.time_ns()
+        return Output("/dp/status", self.pipeline.status_message(now, self._alarms()), now)
+
     def _take(self, item: Chunk | _Input) -> None:
         """Handle an item, or hold it while there is no simulation time yet."""
+        if self.sim_time is not None and self.sim_time.went_back is not None:
+            self.restart_dropped += 1  # another run of the plant: not stamped onto this one (sim_time)
+            return
         if self.sim_time is not None and (self._held or not self.sim_time.started):
             if not self.sim_time.started:
                 if len(self._held) == HOLD_MAX:
@@ -475,6 +500,8 @@ class GatewayService:
                     f'clock: no simulation time on {key} yet (clock = "sim"): {len(self._held)} inputs '
                     "held; is the simulator publishing its clock on this prefix (dpgw sim --zenoh)?"
                 )
+        elif self.sim_time.went_back is not None:
+            alarms.append(self._restart_alarm())
         elif silent_s > CLOCK_SILENT_S:
             alarms.append(f"clock: no simulation clock tick on {key} for {silent_s:.0f} s")
         if self.held_dropped:
@@ -482,6 +509,17 @@ class GatewayService:
         if self.clock_rejected:
             alarms.append(f"clock: {self.clock_rejected} ticks on {key} were not a dpgw.SimClock")
         return alarms
+
+    def _restart_alarm(self) -> str:
+        """What the gateway says once the simulator has started again under it."""
+        assert self.sim_time is not None and self.sim_time.went_back is not None
+        newest, tick = self.sim_time.went_back
+        return (
+            f"clock: the simulation time on {self.prefix}/{SIM_CLOCK_KEY} went back "
+            f"{(newest - tick) / 1e9:.1f} s (to {_utc(tick)}, from {_utc(newest)}): the simulator started "
+            f"again; its data is another run of the plant and is not handled ({self.restart_dropped} "
+            "inputs not handled): restart dpgw run to follow it"
+        )
 
     def _handle(self, item: Chunk | _Input) -> None:
         self._handle_item(item)
