@@ -398,7 +398,7 @@ class GatewayService:
         Foxglove log lines included (a line at the wall clock in a log on the plant's time, months apart,
         would stretch the log's timeline and make the writer rotate the file)."""
         now = time.time_ns()
-        return Output("/dp/status", self.pipeline.status_message(now, self._alarms()), now)
+        return Output("/dp/status", self.pipeline.status_message(now, self._alarms(), remember=False), now)
 
     def _take(self, item: Chunk | _Input) -> None:
         """Handle an item, or hold it while there is no simulation time yet."""
