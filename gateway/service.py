@@ -27,6 +27,7 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
+import os
 import queue
 import threading
 import time
@@ -60,6 +61,33 @@ HOLD_MAX = 10_000
 """Items held while waiting for the first simulation clock tick (a minute of a busy bench's input)."""
 CLOCK_SILENT_S = 5.0
 """With ``clock = "sim"``: no tick for this long (wall s) raises a status alarm."""
+
+
+class LogPathError(OSError):
+    """The log cannot be opened where it is configured (its folder cannot be made, or is not writable):
+    a mistake in the configuration, which stops start-up. `problem` says what and what to do."""
+
+    def __init__(self, problem: str) -> None:
+        super().__init__(problem)
+        self.problem = problem
+
+
+def _open_log(path: str, options: dict[str, Any]) -> McapLogWriter:
+    """The gateway's log writer at ``path``, its folder made first (the default ``logs/dpgw.mcap`` and the
+    examples' paths are in a folder beside the config that a fresh checkout or install does not have).
+    ``continue_set``: a restarted service (systemd, a reboot) adds to the set, never overwrites it."""
+    folder = os.path.dirname(os.path.abspath(path))
+    fix = "choose a folder the gateway may write to (a service: its LogsDirectory, /var/log/dpgw)"
+    try:
+        os.makedirs(folder, exist_ok=True)
+    except FileExistsError:
+        raise LogPathError(f"cannot make the log's folder {folder}: a file is in the way — {fix}") from None
+    except OSError as exc:
+        raise LogPathError(f"cannot make the log's folder {folder}: {exc.strerror or exc} — {fix}") from None
+    try:
+        return McapLogWriter(path, profile="dpgw", continue_set=True, **options)
+    except OSError as exc:
+        raise LogPathError(f"cannot write {path}: {exc.strerror or exc} — {fix}") from None
 
 
 @dataclass(frozen=True)
@@ -201,10 +229,7 @@ class GatewayService:
                 self._attach(self._session)
             self._start_sinks(self._session)
             if self._log_path:
-                # continue_set: a restarted service (systemd, a reboot) adds to the set, never overwrites it
-                self.log = McapLogWriter(
-                    self._log_path, profile="dpgw", continue_set=True, **self.config.log.writer_options()
-                )
+                self.log = _open_log(self._log_path, self.config.log.writer_options())
                 meta = {"vessel": self.config.vessel.name, "prefix": self.prefix}
                 if self.config_tables is not None:  # lets replay rebuild exactly this pipeline
                     meta["json"] = json.dumps(self.config_tables)
