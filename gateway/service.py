@@ -57,6 +57,10 @@ INPUT_KEYS = ("setpoint", "mode", "tau")
 TRACEBACKS_LOGGED = 10
 """Internal errors logged with a full traceback per source; after that every 1000th, so that a bug hit by
 every chunk of a 50 Hz source cannot flood the log."""
+HOLD_SILENT_NS = 1_000_000_000
+"""With ``clock = "sim"``: what is received after this long (wall ns) without a tick is held until the next
+tick says which run of the plant it is of: this one's (a paused simulator continued) or a new one's (a
+restarted simulator whose data came before its ticks got through). A simulator at 1x ticks every 50 ms."""
 HOLD_MAX = 10_000
 """Items held while waiting for the first simulation clock tick (a minute of a busy bench's input)."""
 CLOCK_SILENT_S = 5.0
@@ -163,7 +167,7 @@ class GatewayService:
         """Receive stamps with ``clock = "wall"``: this computer's UTC clock without its backward steps."""
         self._held: deque[Chunk | _Input] = deque(maxlen=HOLD_MAX)
         self.held_dropped = 0
-        """Items dropped while waiting for the first simulation clock tick (more than `HOLD_MAX`)."""
+        """Items dropped while waiting for a simulation clock tick (more than `HOLD_MAX` held)."""
         self.clock_rejected = 0
         self.restart_dropped = 0
         """Inputs not handled since the simulator restarted (its time went back): another run of the plant."""
@@ -426,22 +430,37 @@ class GatewayService:
         return Output("/dp/status", self.pipeline.status_message(now, self._alarms(), remember=False), now)
 
     def _take(self, item: Chunk | _Input) -> None:
-        """Handle an item, or hold it while there is no simulation time yet."""
-        if self.sim_time is not None and self.sim_time.went_back is not None:
+        """Handle an item, or hold it while there is no simulation time for it yet: before the first tick,
+        and (`HOLD_SILENT_NS`) while the clock has been silent, until a tick says which run it belongs to."""
+        st = self.sim_time
+        if st is None:
+            self._handle(item)
+            return
+        if st.went_back is not None:
+            self._release_held()  # (drops what is held)
             self.restart_dropped += 1  # another run of the plant: not stamped onto this one (sim_time)
             return
-        if self.sim_time is not None and (self._held or not self.sim_time.started):
-            if not self.sim_time.started:
-                if len(self._held) == HOLD_MAX:
-                    self.held_dropped += 1
-                self._held.append(item)
-                return
+        if self._held:
             self._release_held()
+        if not st.started or self._held or st.silent_since(item.rx_mono_ns, HOLD_SILENT_NS):
+            if len(self._held) == HOLD_MAX:
+                self.held_dropped += 1
+            self._held.append(item)
+            return
         self._handle(item)
 
     def _release_held(self) -> None:
-        """What came before the first tick, in order (stamped with the first tick's time)."""
-        while self._held:
+        """What is held, in order, as soon as a tick came after it (what came before the first tick is
+        stamped with the first tick's time); all of it dropped and counted once the simulator restarted
+        (its time went back): it came between the old run's last tick and the new run's first."""
+        st = self.sim_time
+        while self._held and st is not None and st.started:
+            if st.went_back is not None:
+                self.restart_dropped += len(self._held)
+                self._held.clear()
+                return
+            if st.silent_since(self._held[0].rx_mono_ns, HOLD_SILENT_NS):
+                return  # no tick since: which run it is of is not known yet
             self._handle(self._held.popleft())
 
     def drain(self) -> None:
@@ -528,9 +547,10 @@ class GatewayService:
         elif self.sim_time.went_back is not None:
             alarms.append(self._restart_alarm())
         elif silent_s > CLOCK_SILENT_S:
-            alarms.append(f"clock: no simulation clock tick on {key} for {silent_s:.0f} s")
+            held = f" ({len(self._held)} inputs held until one comes)" if self._held else ""
+            alarms.append(f"clock: no simulation clock tick on {key} for {silent_s:.0f} s{held}")
         if self.held_dropped:
-            alarms.append(f"clock: {self.held_dropped} inputs dropped while waiting for the first tick")
+            alarms.append(f"clock: {self.held_dropped} inputs dropped while waiting for a tick")
         if self.clock_rejected:
             alarms.append(f"clock: {self.clock_rejected} ticks on {key} were not a dpgw.SimClock")
         return alarms

@@ -62,8 +62,6 @@ class SimTime:
         self.went_back: tuple[int, int] | None = None
         """(newest simulation time, the tick's) of the first tick that went back more than
         `RESTART_BACK_NS`: the simulator started again; None while it has not."""
-        self.last_restart_tick_mono_ns: int | None = None
-        """Receive instant of the newest tick of a restarted simulator."""
 
     @property
     def started(self) -> bool:
@@ -75,10 +73,8 @@ class SimTime:
         with self._lock:
             if not (period_s > 0.0) or (self._sim and sim_ns < self._sim[-1]):
                 self.ignored += 1
-                if period_s > 0.0 and sim_ns < self._sim[-1] - RESTART_BACK_NS:
-                    if self.went_back is None:
-                        self.went_back = (self._sim[-1], sim_ns)
-                    self.last_restart_tick_mono_ns = mono_ns
+                if period_s > 0.0 and sim_ns < self._sim[-1] - RESTART_BACK_NS and self.went_back is None:
+                    self.went_back = (self._sim[-1], sim_ns)
                 return
             if self._mono and mono_ns < self._mono[-1]:
                 mono_ns = self._mono[-1]  # callbacks of two Zenoh threads may swap; keep the order
@@ -89,6 +85,13 @@ class SimTime:
                 del self._sim[:-_KEEP_TICKS]
             self._period_ns = round(period_s * 1e9)
             self.ticks += 1
+
+    def silent_since(self, mono_ns: int, gap_ns: int) -> bool:
+        """No tick has come from ``gap_ns`` before ``mono_ns`` until now: something received at ``mono_ns``
+        came while the clock was silent, and nothing has said since which run of the plant it belongs to
+        (a paused simulator's, or a restarted one's whose ticks are not through yet)."""
+        with self._lock:
+            return bool(self._mono) and self._mono[-1] < mono_ns - gap_ns
 
     def silent_s(self, mono_ns: int) -> float | None:
         """Wall seconds since the last tick (None before the first)."""

@@ -171,6 +171,8 @@ def chunk(rx_mono_ns: int) -> Chunk:
 
 
 def test_the_gateway_holds_data_until_the_first_tick_then_stamps_with_simulation_time(tmp_path: Path) -> None:
+    import time
+
     service = sim_service(tmp_path)
     assert service.sim_time is not None and service._now() is None
     service._take(chunk(1_000))
@@ -180,7 +182,7 @@ def test_the_gateway_holds_data_until_the_first_tick_then_stamps_with_simulation
     service._on_clock(Sample(SimClock(stamp_ns=t0, period_s=0.05, speed=10.0).encode()))
     service._on_clock(Sample(b"not a tick"))
     assert service.clock_rejected == 1
-    service._take(chunk(10**18))  # after the tick (a receive instant later than any tick so far)
+    service._take(chunk(time.monotonic_ns()))  # after the tick (a receive instant later than any tick so far)
     c = service.pipeline.counters["mux"]
     assert not service._held and c.bytes == 3 * len(chunk(0).data)
     # the held chunks at the first tick's time; the later one at most one tick ahead of it
@@ -309,3 +311,32 @@ def test_a_restarted_simulator_is_said_and_its_data_not_mixed_into_the_run(tmp_p
     other.sim_time.on_tick(t0 + 100_000_000, 0.05, 1)
     other.sim_time.on_tick(t0 + 50_000_000, 0.05, 2)
     assert other.sim_time.went_back is None
+
+
+def test_data_before_a_restarted_simulators_first_tick_is_not_mixed_in_either(tmp_path: Path) -> None:
+    """The new run's first data can come before its first tick does (UDP and the pty are up at once, the
+    Zenoh session to the new simulator takes seconds): received while the clock has been silent, it is
+    held until a tick says which run it belongs to. A tick going back: another run, dropped and counted; a
+    tick going on (a paused simulator continued): this run, handled."""
+    import time
+
+    t0 = 1_600_000_000 * 10**9
+    now = time.monotonic_ns()
+    for restarted in (True, False):
+        service = sim_service(tmp_path)
+        assert service.sim_time is not None
+        for k in range(200):  # 10 s of a run whose last tick came 10 s ago
+            service.sim_time.on_tick(t0 + k * 50_000_000, 0.05, now - 20 * 10**9 + k * 50_000_000)
+        service._take(chunk(now - 15 * 10**9))  # while the ticks came: handled at once
+        handled = service.pipeline.counters["mux"].bytes
+        assert handled > 0
+        service._take(chunk(now))  # after 10 s of silence: held until a tick says whose it is
+        assert service.pipeline.counters["mux"].bytes == handled and len(service._held) == 1
+        back = t0 if restarted else t0 + 200 * 50_000_000
+        service._on_clock(Sample(SimClock(stamp_ns=back, period_s=0.05, speed=1.0).encode()))
+        service._release_held()
+        assert not service._held
+        if restarted:
+            assert service.pipeline.counters["mux"].bytes == handled and service.restart_dropped == 1
+        else:
+            assert service.pipeline.counters["mux"].bytes == 2 * handled and service.restart_dropped == 0
