@@ -559,10 +559,11 @@ class GatewayService:
         """What the gateway says once the simulator has started again under it."""
         assert self.sim_time is not None and self.sim_time.went_back is not None
         newest, tick = self.sim_time.went_back
+        not_handled = self.restart_dropped + len(self._held)  # (the held: dropped at the next release)
         return (
             f"clock: the simulation time on {self.prefix}/{SIM_CLOCK_KEY} went back "
             f"{(newest - tick) / 1e9:.1f} s (to {_utc(tick)}, from {_utc(newest)}): the simulator started "
-            f"again; its data is another run of the plant and is not handled ({self.restart_dropped} "
+            f"again; its data is another run of the plant and is not handled ({not_handled} "
             "inputs not handled): restart dpgw run to follow it"
         )
 
