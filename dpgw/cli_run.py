@@ -93,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
         load_config,
     )
     from gateway.outputs.build import OutputError, sinks_from_config
-    from gateway.service import GatewayService
+    from gateway.service import GatewayService, LogPathError
     from gateway.sources import SourceError
 
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(message)s")
@@ -131,6 +131,10 @@ def run(args: argparse.Namespace) -> int:
         service.start()
     except BusError as exc:
         print(f"dpgw run: {config.path}: {exc}", file=sys.stderr)
+        return 2
+    except LogPathError as exc:
+        where = "--log" if args.log else f"{config.path}: log.path"
+        print(f"dpgw run: {where}: {exc.problem}", file=sys.stderr)
         return 2
     except (SourceError, OSError) as exc:
         print(f"dpgw run: {exc}", file=sys.stderr)

@@ -19,6 +19,9 @@ if TYPE_CHECKING:
 # imported by `run`, so `dpgw sim --help` answers at once.
 
 
+RESYNC_LAG_S = 1.0
+"""With --realtime: a lag behind the schedule beyond this (wall s) is not caught up (the clock re-anchors)."""
+
 NAME = "sim"
 HELP = "simulate a vessel at sea that speaks NMEA and MAVLink on real transports"
 DESCRIPTION = (
@@ -267,7 +270,12 @@ def _run_scenario(args: argparse.Namespace) -> int:
         for s in sinks:
             s.close()
         return 2
-    clock: Clock = RealtimeClock(speed=args.speed) if args.realtime else VirtualClock()
+    # A paced run stopped for longer than RESYNC_LAG_S (Ctrl-Z, a debugger, a suspended laptop, a stalled
+    # machine) continues from where it was instead of catching the pause up in a burst of sea that no
+    # gateway in the loop could follow; shorter lags are caught up, so the pace holds on average.
+    clock: Clock = (
+        RealtimeClock(speed=args.speed, resync_lag_s=RESYNC_LAG_S) if args.realtime else VirtualClock()
+    )
     sim = Simulation(scenario, args.seed, routes=routes, log=log, clock=clock, commands=commands)
     if session is not None and args.realtime:  # a gateway on `clock = "sim"` stamps with this
         from simulator.sim_clock import SimClockPublisher

@@ -295,6 +295,7 @@ class Pipeline:
         )
         self._events: list[str] = []  # reference state changes not yet in a status
         self.thrusters_out: dict[int, str] = {}  # thruster id -> why its drive does not take DP commands
+        self._caller_alarms: list[str] = []  # the alarms the caller (the service) gave the last status
         self._last_est: Estimate | None = None
         # the last estimate as floats for `_prediction`: (estimate, eta, nu, eta_wf, cos ψ, sin ψ)
         self._pred_base: tuple[Estimate, list[float], list[float], list[float], float, float] | None = None
@@ -1377,10 +1378,21 @@ class Pipeline:
             self.foxglove.on_status(message)
         return Output("/dp/status", message, now_ns)
 
-    def status_message(self, now_ns: int, alarms: list[str] | None = None) -> Status:
-        """Per-source age, counts, rejects by reason, and the alarms: the caller's, the controller's, and
-        one per source that sent nothing yet or went stale."""
-        alarms = list(alarms or []) + self.control_alarms
+    def status_message(
+        self, now_ns: int, alarms: list[str] | None = None, *, remember: bool = True
+    ) -> Status:
+        """Per-source age, counts, rejects by reason, and the alarms: the caller's, the controller's, one
+        per thruster out of DP, and one per source that sent nothing yet or went stale. Without ``alarms``
+        (a status made at once for a reference state change) the caller's last ones: the service's alarms
+        (clock, Zenoh, a device) are still up, and a status without them would clear them on /status and in
+        the alarm log.
+        ``remember=False``: a status for Zenoh only (before the pipeline has a time), whose alarms are not
+        carried into the next."""
+        if alarms is None:
+            alarms = self._caller_alarms
+        elif remember:
+            self._caller_alarms = list(alarms)
+        alarms = list(alarms) + self.control_alarms
         alarms += [f"thruster {tid} out of DP ({why})" for tid, why in sorted(self.thrusters_out.items())]
         references: dict[str, list[ReferenceStatus]] = {}
         for name, states in self.monitor.states().items():

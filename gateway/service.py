@@ -27,6 +27,7 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
+import os
 import queue
 import threading
 import time
@@ -56,10 +57,41 @@ INPUT_KEYS = ("setpoint", "mode", "tau")
 TRACEBACKS_LOGGED = 10
 """Internal errors logged with a full traceback per source; after that every 1000th, so that a bug hit by
 every chunk of a 50 Hz source cannot flood the log."""
+HOLD_SILENT_NS = 1_000_000_000
+"""With ``clock = "sim"``: what is received after this long (wall ns) without a tick is held until the next
+tick says which run of the plant it is of: this one's (a paused simulator continued) or a new one's (a
+restarted simulator whose data came before its ticks got through). A simulator at 1x ticks every 50 ms."""
 HOLD_MAX = 10_000
 """Items held while waiting for the first simulation clock tick (a minute of a busy bench's input)."""
 CLOCK_SILENT_S = 5.0
 """With ``clock = "sim"``: no tick for this long (wall s) raises a status alarm."""
+
+
+class LogPathError(OSError):
+    """The log cannot be opened where it is configured (its folder cannot be made, or is not writable):
+    a mistake in the configuration, which stops start-up. `problem` says what and what to do."""
+
+    def __init__(self, problem: str) -> None:
+        super().__init__(problem)
+        self.problem = problem
+
+
+def _open_log(path: str, options: dict[str, Any]) -> McapLogWriter:
+    """The gateway's log writer at ``path``, its folder made first (the default ``logs/dpgw.mcap`` and the
+    examples' paths are in a folder beside the config that a fresh checkout or install does not have).
+    ``continue_set``: a restarted service (systemd, a reboot) adds to the set, never overwrites it."""
+    folder = os.path.dirname(os.path.abspath(path))
+    fix = "choose a folder the gateway may write to (a service: its LogsDirectory, /var/log/dpgw)"
+    try:
+        os.makedirs(folder, exist_ok=True)
+    except FileExistsError:
+        raise LogPathError(f"cannot make the log's folder {folder}: a file is in the way — {fix}") from None
+    except OSError as exc:
+        raise LogPathError(f"cannot make the log's folder {folder}: {exc.strerror or exc} — {fix}") from None
+    try:
+        return McapLogWriter(path, profile="dpgw", continue_set=True, **options)
+    except OSError as exc:
+        raise LogPathError(f"cannot write {path}: {exc.strerror or exc} — {fix}") from None
 
 
 @dataclass(frozen=True)
@@ -70,6 +102,13 @@ class _Input:
     payload: Any
     rx_ns: int
     rx_mono_ns: int
+
+
+def _utc(ns: int) -> str:
+    """A simulation time (UTC ns) as a person reads it in the logs: 2026-06-01 10:02:23.7."""
+    from datetime import UTC, datetime
+
+    return datetime.fromtimestamp(ns / 1e9, UTC).strftime("%Y-%m-%d %H:%M:%S.%f")[:-5]
 
 
 def zenoh_config(z: ZenohConfig) -> zenoh.Config:
@@ -128,8 +167,10 @@ class GatewayService:
         """Receive stamps with ``clock = "wall"``: this computer's UTC clock without its backward steps."""
         self._held: deque[Chunk | _Input] = deque(maxlen=HOLD_MAX)
         self.held_dropped = 0
-        """Items dropped while waiting for the first simulation clock tick (more than `HOLD_MAX`)."""
+        """Items dropped while waiting for a simulation clock tick (more than `HOLD_MAX` held)."""
         self.clock_rejected = 0
+        self.restart_dropped = 0
+        """Inputs not handled since the simulator restarted (its time went back): another run of the plant."""
         """Simulation clock ticks that were not a valid `SimClock`."""
         self.stop_event = threading.Event()
         path = log_path if log_path is not None else config.log.path
@@ -183,17 +224,16 @@ class GatewayService:
             # A query that arrives before the loop's first status tick gets a real status, never ``{}``;
             # the consumer loop is not running yet, so reading the pipeline here is race-free.
             now = self._now()
-            initial = self.pipeline.status(time.time_ns() if now is None else now, self._alarms())
+            initial = (
+                self._status_without_time() if now is None else self.pipeline.status(now, self._alarms())
+            )
             with self._status_lock:
                 self._status_json = initial.message.encode()
             if self._session is not None:
                 self._attach(self._session)
             self._start_sinks(self._session)
             if self._log_path:
-                # continue_set: a restarted service (systemd, a reboot) adds to the set, never overwrites it
-                self.log = McapLogWriter(
-                    self._log_path, profile="dpgw", continue_set=True, **self.config.log.writer_options()
-                )
+                self.log = _open_log(self._log_path, self.config.log.writer_options())
                 meta = {"vessel": self.config.vessel.name, "prefix": self.prefix}
                 if self.config_tables is not None:  # lets replay rebuild exactly this pipeline
                     meta["json"] = json.dumps(self.config_tables)
@@ -311,7 +351,10 @@ class GatewayService:
         except (msgspec.DecodeError, msgspec.ValidationError):
             self.clock_rejected += 1
             return
+        restarted = self.sim_time.went_back is not None
         self.sim_time.on_tick(tick.stamp_ns, tick.period_s, mono)
+        if not restarted and self.sim_time.went_back is not None:
+            log.error("%s", self._restart_alarm())
 
     def _on_query(self, query: zenoh.Query) -> None:
         with self._status_lock:
@@ -372,26 +415,52 @@ class GatewayService:
                 next_status = mono + status_period_ns
                 try:
                     if now is None:  # no time yet: the status goes out (stamped with the wall), not logged
-                        self._publish([self.pipeline.status(time.time_ns(), self._alarms())])
+                        self._publish([self._status_without_time()])
                     else:
                         self._emit([self.pipeline.status(now, self._alarms())])
                 except Exception:
                     self._internal_error("status", "the status")
 
+    def _status_without_time(self) -> Output:
+        """The status while the pipeline has no time yet (``clock = "sim"`` before the first tick): stamped
+        with the wall clock for Zenoh and ``dpgw run -v``, and kept out of everything that is logged, its
+        Foxglove log lines included (a line at the wall clock in a log on the plant's time, months apart,
+        would stretch the log's timeline and make the writer rotate the file)."""
+        now = time.time_ns()
+        return Output("/dp/status", self.pipeline.status_message(now, self._alarms(), remember=False), now)
+
     def _take(self, item: Chunk | _Input) -> None:
-        """Handle an item, or hold it while there is no simulation time yet."""
-        if self.sim_time is not None and (self._held or not self.sim_time.started):
-            if not self.sim_time.started:
-                if len(self._held) == HOLD_MAX:
-                    self.held_dropped += 1
-                self._held.append(item)
-                return
+        """Handle an item, or hold it while there is no simulation time for it yet: before the first tick,
+        and (`HOLD_SILENT_NS`) while the clock has been silent, until a tick says which run it belongs to."""
+        st = self.sim_time
+        if st is None:
+            self._handle(item)
+            return
+        if st.went_back is not None:
+            self._release_held()  # (drops what is held)
+            self.restart_dropped += 1  # another run of the plant: not stamped onto this one (sim_time)
+            return
+        if self._held:
             self._release_held()
+        if not st.started or self._held or st.silent_since(item.rx_mono_ns, HOLD_SILENT_NS):
+            if len(self._held) == HOLD_MAX:
+                self.held_dropped += 1
+            self._held.append(item)
+            return
         self._handle(item)
 
     def _release_held(self) -> None:
-        """What came before the first tick, in order (stamped with the first tick's time)."""
-        while self._held:
+        """What is held, in order, as soon as a tick came after it (what came before the first tick is
+        stamped with the first tick's time); all of it dropped and counted once the simulator restarted
+        (its time went back): it came between the old run's last tick and the new run's first."""
+        st = self.sim_time
+        while self._held and st is not None and st.started:
+            if st.went_back is not None:
+                self.restart_dropped += len(self._held)
+                self._held.clear()
+                return
+            if st.silent_since(self._held[0].rx_mono_ns, HOLD_SILENT_NS):
+                return  # no tick since: which run it is of is not known yet
             self._handle(self._held.popleft())
 
     def drain(self) -> None:
@@ -475,13 +544,28 @@ class GatewayService:
                     f'clock: no simulation time on {key} yet (clock = "sim"): {len(self._held)} inputs '
                     "held; is the simulator publishing its clock on this prefix (dpgw sim --zenoh)?"
                 )
+        elif self.sim_time.went_back is not None:
+            alarms.append(self._restart_alarm())
         elif silent_s > CLOCK_SILENT_S:
-            alarms.append(f"clock: no simulation clock tick on {key} for {silent_s:.0f} s")
+            held = f" ({len(self._held)} inputs held until one comes)" if self._held else ""
+            alarms.append(f"clock: no simulation clock tick on {key} for {silent_s:.0f} s{held}")
         if self.held_dropped:
-            alarms.append(f"clock: {self.held_dropped} inputs dropped while waiting for the first tick")
+            alarms.append(f"clock: {self.held_dropped} inputs dropped while waiting for a tick")
         if self.clock_rejected:
             alarms.append(f"clock: {self.clock_rejected} ticks on {key} were not a dpgw.SimClock")
         return alarms
+
+    def _restart_alarm(self) -> str:
+        """What the gateway says once the simulator has started again under it."""
+        assert self.sim_time is not None and self.sim_time.went_back is not None
+        newest, tick = self.sim_time.went_back
+        not_handled = self.restart_dropped + len(self._held)  # (the held: dropped at the next release)
+        return (
+            f"clock: the simulation time on {self.prefix}/{SIM_CLOCK_KEY} went back "
+            f"{(newest - tick) / 1e9:.1f} s (to {_utc(tick)}, from {_utc(newest)}): the simulator started "
+            f"again; its data is another run of the plant and is not handled ({not_handled} "
+            "inputs not handled): restart dpgw run to follow it"
+        )
 
     def _handle(self, item: Chunk | _Input) -> None:
         self._handle_item(item)

@@ -18,6 +18,13 @@ order, or when the observed rate overshot a tick that came late).
 
 Before the first tick there is no simulation time: `stamp` returns None and the caller holds the data
 (the service releases it, stamped with the first tick's time, when the first tick comes).
+
+A tick more than `RESTART_BACK_NS` behind the newest is a simulator that started again (a bench restarts
+`dpgw sim` under a running gateway; its time starts again from its epoch): `went_back` keeps the first
+such jump. Its data belongs to another run of the plant: the service does not stamp it onto this one (every
+chunk would get this run's last time, Δt = 0, and the observer a second vessel's measurements), it counts
+it and alarms until the gateway is restarted. A tick a little behind (two Zenoh threads' callbacks
+swapped) is only ignored.
 """
 
 from __future__ import annotations
@@ -25,11 +32,14 @@ from __future__ import annotations
 import threading
 from bisect import bisect_left, bisect_right
 
-__all__ = ["RATE_WINDOW_NS", "SimTime"]
+__all__ = ["RATE_WINDOW_NS", "RESTART_BACK_NS", "SimTime"]
 
 RATE_WINDOW_NS = 1_000_000_000
 """Wall time over which the simulation rate is measured: long enough to average the simulator thread's
 scheduling jitter, short enough to follow a change of speed within a second."""
+RESTART_BACK_NS = 1_000_000_000
+"""A tick this far (sim ns) behind the newest is a restarted simulator, not two ticks swapped in delivery
+(those are a tick period apart, 0.05 s)."""
 _KEEP_TICKS = 16384
 """Ticks kept (about 20 s at 10x with a tick per event): a chunk that waited in the queue that long on a
 busy machine is still stamped from the ticks around its receive instant."""
@@ -49,6 +59,9 @@ class SimTime:
         """Ticks taken."""
         self.ignored = 0
         """Ticks ignored: going back in time (a restarted simulator) or not a valid tick."""
+        self.went_back: tuple[int, int] | None = None
+        """(newest simulation time, the tick's) of the first tick that went back more than
+        `RESTART_BACK_NS`: the simulator started again; None while it has not."""
 
     @property
     def started(self) -> bool:
@@ -60,6 +73,8 @@ class SimTime:
         with self._lock:
             if not (period_s > 0.0) or (self._sim and sim_ns < self._sim[-1]):
                 self.ignored += 1
+                if period_s > 0.0 and sim_ns < self._sim[-1] - RESTART_BACK_NS and self.went_back is None:
+                    self.went_back = (self._sim[-1], sim_ns)
                 return
             if self._mono and mono_ns < self._mono[-1]:
                 mono_ns = self._mono[-1]  # callbacks of two Zenoh threads may swap; keep the order
@@ -70,6 +85,13 @@ class SimTime:
                 del self._sim[:-_KEEP_TICKS]
             self._period_ns = round(period_s * 1e9)
             self.ticks += 1
+
+    def silent_since(self, mono_ns: int, gap_ns: int) -> bool:
+        """No tick has come from ``gap_ns`` before ``mono_ns`` until now: something received at ``mono_ns``
+        came while the clock was silent, and nothing has said since which run of the plant it belongs to
+        (a paused simulator's, or a restarted one's whose ticks are not through yet)."""
+        with self._lock:
+            return bool(self._mono) and self._mono[-1] < mono_ns - gap_ns
 
     def silent_s(self, mono_ns: int) -> float | None:
         """Wall seconds since the last tick (None before the first)."""

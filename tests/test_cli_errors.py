@@ -646,3 +646,40 @@ def test_sim_options_that_need_another_are_refused(
     )
     assert _one_line(capsys.readouterr().err) == words
     assert not (tmp_path / "s.mcap").exists()
+
+
+def _run_with_log(tmp_path: Path, log_path: str, *more: str) -> subprocess.CompletedProcess[str]:
+    cfg = tmp_path / "vessel.toml"
+    cfg.write_text(
+        '[vessel]\nname = "mss_supply"\n[[sources]]\nname = "gps"\nurl = "udp://127.0.0.1:0"\n'
+        'protocol = "nmea"\nroles = ["position", "heading"]\n[observer]\nwave_period_s = 9.0\n'
+        "[zenoh]\nmulticast_scouting = false\n"  # (listening on a port the system picks)
+        + (f'[log]\npath = "{log_path}"\n' if log_path else "")
+    )
+    return subprocess.run(
+        [sys.executable, "-m", "dpgw", "run", "--config", str(cfg), "--duration", "0.5", *more],
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+
+
+def test_run_makes_the_folder_of_its_log(tmp_path: Path) -> None:
+    """The default log path (`logs/dpgw.mcap`) and every example's (`logs/...`) is in a folder beside the
+    config: `dpgw run --config examples/hil_bench.toml`, as printed, stopped with "[Errno 2] No such file or
+    directory" when that folder was not there yet."""
+    p = _run_with_log(tmp_path, "")  # the default
+    assert p.returncode == 0, p.stderr
+    assert (tmp_path / "logs" / "dpgw.mcap").stat().st_size > 0
+    p = _run_with_log(tmp_path, "trials/2026/bench.mcap")
+    assert p.returncode == 0, p.stderr
+    assert (tmp_path / "trials" / "2026" / "bench.mcap").stat().st_size > 0
+
+
+def test_a_log_folder_that_cannot_be_made_stops_start_up_with_one_message(tmp_path: Path) -> None:
+    (tmp_path / "afile").write_text("not a folder")
+    p = _run_with_log(tmp_path, "afile/dpgw.mcap")
+    assert p.returncode == 2
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and "log.path" in lines[0] and str(tmp_path / "afile") in lines[0], p.stderr
+    assert "Errno" not in lines[0] and "choose" in lines[0]
+    p = _run_with_log(tmp_path, "", "--log", str(tmp_path / "afile" / "x.mcap"))
+    assert p.returncode == 2 and "--log" in p.stderr, p.stderr

@@ -688,3 +688,21 @@ def test_fusion_tau_held_while_all_fresh_equals_a_fresh_pass() -> None:
     for rx, tid, f, a in [*reports, (last + 5, ids[0], -5000.0, 0.3)]:
         once.add_thruster(rx, tid, f, a)
     assert held.tau(last + 6)[0].tolist() == once.tau(last + 6)[0].tolist()
+
+
+def test_a_reference_state_change_keeps_the_services_alarms() -> None:
+    """The service's own alarms (the clock, Zenoh, a disconnected device) come with its periodic status; a
+    status the pipeline makes at once for a reference state change must carry them too. Without them it
+    says on /status that they are gone, and the alarm log (/dp/log) writes "alarm cleared" at every state
+    change and raises the alarm again a second later."""
+    p = pipeline([nmea_src("gps", ["position"], timeout_s=1.0), nmea_src("gyro", ["heading"], timeout_s=1.0)])
+    service_alarm = "clock: no simulation clock tick on dp/mss_supply/sim/clock for 7 s"
+    p.status(T0, [service_alarm])
+    out = []
+    for k in range(1, 20):  # the gyro comes up (stale -> ok): a state change, and its status at once
+        out += p.feed(RawEvent(T0 + k * S // 5, "gyro", enc.hdt("HE", 0.2).encode()))
+    statuses = [o.payload for o in out if o.topic == "/dp/status"]
+    assert statuses and any(s["events"] for s in statuses)
+    assert all(service_alarm in s["alarms"] for s in statuses)
+    lines = [json.loads(o.message.encode())["message"] for o in out if o.topic == "/dp/log"]
+    assert not [x for x in lines if "cleared: clock" in x], lines

@@ -171,6 +171,8 @@ def chunk(rx_mono_ns: int) -> Chunk:
 
 
 def test_the_gateway_holds_data_until_the_first_tick_then_stamps_with_simulation_time(tmp_path: Path) -> None:
+    import time
+
     service = sim_service(tmp_path)
     assert service.sim_time is not None and service._now() is None
     service._take(chunk(1_000))
@@ -180,7 +182,7 @@ def test_the_gateway_holds_data_until_the_first_tick_then_stamps_with_simulation
     service._on_clock(Sample(SimClock(stamp_ns=t0, period_s=0.05, speed=10.0).encode()))
     service._on_clock(Sample(b"not a tick"))
     assert service.clock_rejected == 1
-    service._take(chunk(10**18))  # after the tick (a receive instant later than any tick so far)
+    service._take(chunk(time.monotonic_ns()))  # after the tick (a receive instant later than any tick so far)
     c = service.pipeline.counters["mux"]
     assert not service._held and c.bytes == 3 * len(chunk(0).data)
     # the held chunks at the first tick's time; the later one at most one tick ahead of it
@@ -245,3 +247,96 @@ def test_a_missing_or_silent_simulation_clock_is_an_alarm(tmp_path: Path) -> Non
     assert service.sim_time is not None
     service.sim_time.on_tick(10**18, 0.05, time.monotonic_ns() - 6 * 10**9)  # one tick, 6 s ago
     assert any("no simulation clock tick on dp/mss_supply/sim/clock for 6 s" in a for a in service._alarms())
+
+
+# --- a HIL bench in two processes: what the log and the alarms say ------------------------------------------
+
+
+def _log_times(path: Path) -> list[tuple[str, int]]:
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as f:
+        return [(ch.topic, m.log_time) for _, ch, m in make_reader(f).iter_messages(log_time_order=False)]
+
+
+def test_a_log_on_simulation_time_holds_no_wall_clock_stamp(tmp_path: Path) -> None:
+    """The statuses made while no tick has come (at start-up, while the simulator is not up yet) go out on
+    Zenoh stamped with the wall clock, but nothing of them may reach the log: a log line at the wall clock
+    in a log on the plant's time (months apart) stretches its timeline and rotates the file."""
+    import time
+
+    from wire.mcap.writer import McapLogWriter
+
+    service = sim_service(tmp_path, status_hz=10.0)
+    service.log = McapLogWriter(tmp_path / "gw.mcap", profile="dpgw")
+    service._wall0_ns = time.time_ns() - 10**10  # started 10 s ago: the "no time yet" alarm is up
+    service.run(duration_s=0.3)  # statuses without a time: published, not logged
+    t0 = 1_600_000_000 * 10**9  # the plant's time: years from the wall clock
+    service._on_clock(Sample(SimClock(stamp_ns=t0, period_s=0.05, speed=1.0).encode()))
+    service._queue.put(chunk(time.monotonic_ns()))
+    service.run(duration_s=0.3)
+    service.log.close()
+    times = _log_times(tmp_path / "gw.mcap")
+    assert any(topic == "/dp/status" for topic, _ in times)  # the statuses from the first tick on
+    late = [(topic, ns) for topic, ns in times if not t0 <= ns <= t0 + 10**9]
+    assert not late, f"stamped off the simulation time: {late[:5]}"
+
+
+def test_a_restarted_simulator_is_said_and_its_data_not_mixed_into_the_run(tmp_path: Path) -> None:
+    """A simulator restarted under a running gateway starts its time again (from its epoch): its ticks go
+    back. The gateway says so, and does not stamp the new run's data onto the old run's time (where every
+    chunk would get the old run's last tick, Δt = 0, and the observer a second vessel's measurements)."""
+    import time
+
+    service = sim_service(tmp_path)
+    assert service.sim_time is not None
+    t0 = 1_600_000_000 * 10**9
+    for k in range(200):  # 10 s of the first run
+        service._on_clock(Sample(SimClock(stamp_ns=t0 + k * 50_000_000, period_s=0.05, speed=1.0).encode()))
+    service._take(chunk(time.monotonic_ns()))
+    handled = service.pipeline.counters["mux"].bytes
+    assert handled > 0
+    # the simulator restarts: its time from its epoch again
+    service._on_clock(Sample(SimClock(stamp_ns=t0, period_s=0.05, speed=1.0).encode()))
+    service._on_clock(Sample(SimClock(stamp_ns=t0 + 50_000_000, period_s=0.05, speed=1.0).encode()))
+    service._take(chunk(time.monotonic_ns()))
+    assert service.pipeline.counters["mux"].bytes == handled  # not stamped onto the first run
+    alarms = service._alarms()
+    said = [a for a in alarms if "went back" in a]
+    assert len(said) == 1 and "restart dpgw run" in said[0] and "1 inputs not handled" in said[0], alarms
+    assert not any("no simulation clock tick" in a for a in alarms)  # ticks are coming: not silent
+    # a tick swapped by two Zenoh threads (one period back) is not a restart
+    other = sim_service(tmp_path)
+    assert other.sim_time is not None
+    other.sim_time.on_tick(t0 + 100_000_000, 0.05, 1)
+    other.sim_time.on_tick(t0 + 50_000_000, 0.05, 2)
+    assert other.sim_time.went_back is None
+
+
+def test_data_before_a_restarted_simulators_first_tick_is_not_mixed_in_either(tmp_path: Path) -> None:
+    """The new run's first data can come before its first tick does (UDP and the pty are up at once, the
+    Zenoh session to the new simulator takes seconds): received while the clock has been silent, it is
+    held until a tick says which run it belongs to. A tick going back: another run, dropped and counted; a
+    tick going on (a paused simulator continued): this run, handled."""
+    import time
+
+    t0 = 1_600_000_000 * 10**9
+    now = time.monotonic_ns()
+    for restarted in (True, False):
+        service = sim_service(tmp_path)
+        assert service.sim_time is not None
+        for k in range(200):  # 10 s of a run whose last tick came 10 s ago
+            service.sim_time.on_tick(t0 + k * 50_000_000, 0.05, now - 20 * 10**9 + k * 50_000_000)
+        service._take(chunk(now - 15 * 10**9))  # while the ticks came: handled at once
+        handled = service.pipeline.counters["mux"].bytes
+        assert handled > 0
+        service._take(chunk(now))  # after 10 s of silence: held until a tick says whose it is
+        assert service.pipeline.counters["mux"].bytes == handled and len(service._held) == 1
+        back = t0 if restarted else t0 + 200 * 50_000_000
+        service._on_clock(Sample(SimClock(stamp_ns=back, period_s=0.05, speed=1.0).encode()))
+        service._release_held()
+        assert not service._held
+        if restarted:
+            assert service.pipeline.counters["mux"].bytes == handled and service.restart_dropped == 1
+        else:
+            assert service.pipeline.counters["mux"].bytes == 2 * handled and service.restart_dropped == 0

@@ -454,3 +454,65 @@ def test_a_run_in_chunks_is_one_run(tmp_path: Path) -> None:
         out.append((bytes(nmea.data), bytes(mav.data), list(read_messages(path))))
     assert out[0] == out[1]
     assert sum(1 for m in out[0][2] if m[0] == "/truth/state") == 201
+
+
+def _gga_seconds(datagram: bytes) -> float | None:
+    """Seconds of the day of a GGA (the fix time: the simulator's clock)."""
+    text = datagram.decode("ascii", "replace")
+    if not text.startswith("$GPGGA,"):
+        return None
+    hhmmss = text.split(",")[1]
+    return int(hhmmss[:2]) * 3600 + int(hhmmss[2:4]) * 60 + float(hhmmss[4:])
+
+
+@pytest.mark.slow  # ~10 s: a paced run stopped and continued
+def test_a_paused_realtime_simulator_continues_where_it_was_not_in_a_burst() -> None:
+    """A bench engineer stops `dpgw sim --realtime` (Ctrl-Z, a debugger, a suspended laptop) and continues
+    it: the sea goes on from where it was, at its speed. Catching the pause up in a burst ran minutes of
+    sea in a second of wall time: the gateway's commands, computed at wall speed, then act on a plant that
+    moved on by hundreds of their own periods."""
+    import signal
+
+    speed = 4.0
+    rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    rx.bind(("127.0.0.1", 0))
+    port = rx.getsockname()[1]
+    proc = _dpgw(
+        "--scenario", "torsetnes_2004", "--nmea", f"dgps1=udp://127.0.0.1:{port}", "--gnss-rate", "10",
+        "--realtime", "--speed", str(speed), "--duration", "600",
+    )  # fmt: skip
+
+    seen: list[float] = []
+
+    def newest(until: float) -> float | None:
+        """The newest fix time received until the wall instant ``until``."""
+        while (left := until - time.monotonic()) > 0:
+            rx.settimeout(left)
+            try:
+                s = _gga_seconds(rx.recv(4096))
+            except TimeoutError:
+                break
+            if s is not None:
+                seen.append(s)
+        return seen[-1] if seen else None
+
+    try:
+        # running: a couple of seconds of fixes received
+        assert wait_for(lambda: newest(time.monotonic() + 0.1) is not None and len(seen) > 20, 60.0)
+        proc.send_signal(signal.SIGSTOP)
+        before = newest(time.monotonic() + 0.5)  # (what was sent before the stop, drained)
+        time.sleep(3.0)  # the pause is the stimulus: 3 s of wall, 12 s of sea at 4x
+        proc.send_signal(signal.SIGCONT)
+        resumed = time.monotonic()
+        after = newest(resumed + 1.5)
+        elapsed = time.monotonic() - resumed
+    finally:
+        proc.send_signal(signal.SIGCONT)
+        proc.terminate()
+        proc.wait(timeout=30)
+        rx.close()
+    assert before is not None and after is not None
+    advanced = after - before
+    # from where it was, at its speed (a burst would add the 12 s of the pause)
+    assert 0.0 < advanced <= speed * elapsed + 1.5, (advanced, elapsed)
+    assert proc.returncode == 0
