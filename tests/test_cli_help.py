@@ -51,7 +51,7 @@ def test_descriptions_wrap_and_examples_keep_their_layout() -> None:
     text = _subparsers()["replay"].format_help()
     width = max(len(line) for line in text.splitlines())
     assert width <= 120  # argparse's width: $COLUMNS or 80 less 2, never one line per paragraph
-    assert "       --observer passive:wave_period_s=10@long" in text  # a continuation line, as written
+    assert "       --observer passive:wave_period_s=2.5@long" in text  # a continuation line, as written
 
 
 def test_demo_help_lists_the_scenarios() -> None:
