@@ -35,7 +35,7 @@ from gateway.bus import isolated_config, open_session
 from gateway.config import ConfigError, parse_config
 from gateway.outputs import InputSink, RawSentenceSink
 from gateway.outputs.build import output_problems, sinks_from_config
-from gateway.outputs.ros2 import Ros2Sink, ros_typestore, setpoint_payload
+from gateway.outputs.ros2 import Ros2Sink, navsat_status, ros_typestore, setpoint_payload
 from gateway.service import GatewayService
 from tests.conftest import Recorder, free_port, wait_for
 from wire import rmw_zenoh as rz
@@ -492,3 +492,20 @@ def test_missing_packages_and_bad_topic_names_stop_start_up(
     from dpgw.cli_run import start_up_problems  # `dpgw run --check` says them too
 
     assert [p for p in start_up_problems(config) if "ros2" in p or "1gps" in p] == problems
+
+
+def test_gga_quality_maps_to_navsat_status_as_nmea_navsat_driver_does() -> None:
+    """ROS's NMEA driver (nmea_navsat_driver, whose NavSatFix most ROS nodes are written against) gives
+    GGA quality 1 STATUS_FIX, 2 SBAS, 4/5/9 GBAS, and every other quality (0 invalid, 3 PPS, 6 dead
+    reckoning, 7 manual, 8 simulator) STATUS_NO_FIX: a dead-reckoned or simulated position must not reach
+    a ROS consumer (navsat_transform, a map) as a satellite fix. The service bits are the talker's."""
+    s = ros_typestore().types["sensor_msgs/msg/NavSatStatus"]
+    expected = {1: s.STATUS_FIX, 2: s.STATUS_SBAS_FIX, 4: s.STATUS_GBAS_FIX, 5: s.STATUS_GBAS_FIX}
+    expected[9] = s.STATUS_GBAS_FIX
+    for quality in range(10):
+        want = expected.get(quality, s.STATUS_NO_FIX)
+        assert navsat_status(quality, "GP") == (want, s.SERVICE_GPS), quality
+    assert navsat_status(1, "GL")[1] == s.SERVICE_GLONASS
+    assert navsat_status(1, "GA")[1] == s.SERVICE_GALILEO
+    assert navsat_status(1, "GB")[1] == navsat_status(1, "BD")[1] == s.SERVICE_COMPASS
+    assert navsat_status(1, "GN")[1] == 0  # several constellations: the talker does not say which

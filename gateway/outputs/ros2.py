@@ -17,7 +17,8 @@ Topics (``[ros2]``; names relative to ``namespace``, ``/dpgw`` by default):
 - ``pose`` — ``geometry_msgs/msg/PoseStamped``: the same pose.
 - ``fix/<source>`` — ``sensor_msgs/msg/NavSatFix`` of each GNSS fix a receiver gives (``/gnss/<source>/
   fix``): ellipsoidal height, GST's 1σ as a diagonal ENU covariance (else unknown), the status from
-  GGA's quality as nmea_navsat_driver maps it (1 fix, 2 SBAS, 4/5/9 GBAS), the service from the talker.
+  GGA's quality as nmea_navsat_driver maps it (1 fix, 2 SBAS, 4/5/9 GBAS, any other no fix), the service
+  from the talker.
 - ``setpoint`` (subscribed) — ``geometry_msgs/msg/PoseStamped`` in ``frame_id`` only: (x, y) = (E, N) at
   the datum and the yaw about +z = π/2 − ψ become dpgw's ``{north_m, east_m, heading_deg}``, handed to the
   gateway's input path (`InputSink`): logged, checked and counted by `gateway.commands` exactly like a
@@ -67,11 +68,19 @@ REFUSALS_LOGGED = 20
 """Refused setpoints logged one by one; after that every 1000th (all are counted)."""
 
 # GGA fix quality → sensor_msgs/NavSatStatus.status, as nmea_navsat_driver maps it (the ROS driver whose
-# output most ROS nodes expect): autonomous → FIX, DGPS → SBAS, RTK fixed/float and WAAS → GBAS.
-STATUS_FIX, STATUS_SBAS_FIX, STATUS_GBAS_FIX = 0, 1, 2
+# output most ROS nodes expect): autonomous → FIX, DGPS → SBAS, RTK fixed/float and WAAS → GBAS, and any
+# other quality (0 invalid, 3 PPS, 6 dead reckoning, 7 manual input, 8 simulator) → NO_FIX.
+STATUS_NO_FIX, STATUS_FIX, STATUS_SBAS_FIX, STATUS_GBAS_FIX = -1, 0, 1, 2
 GGA_STATUS = {1: STATUS_FIX, 2: STATUS_SBAS_FIX, 4: STATUS_GBAS_FIX, 5: STATUS_GBAS_FIX, 9: STATUS_GBAS_FIX}
 # NMEA talker → NavSatStatus.service (a bitmask; GN, "several constellations", does not say which)
 TALKER_SERVICE = {"GP": 1, "GL": 2, "GB": 4, "BD": 4, "GA": 8}
+
+
+def navsat_status(gga_quality: int, talker: str) -> tuple[int, int]:
+    """(NavSatStatus.status, NavSatStatus.service) of a GGA's fix quality and talker. A quality that is no
+    satellite fix (dead reckoning, manual, simulator, PPS, invalid) is STATUS_NO_FIX, as nmea_navsat_driver
+    has it: a ROS node that takes any status ≥ STATUS_FIX as a satellite fix must not be given one."""
+    return GGA_STATUS.get(gga_quality, STATUS_NO_FIX), TALKER_SERVICE.get(talker, 0)
 
 
 def ros_typestore() -> Any:
@@ -195,10 +204,7 @@ class Ros2Sink:
                 return
         fields = text[: star if star > 0 else None].split(",")
         if len(fields) > 6 and fields[6].isdigit():
-            self._quality[source] = (
-                GGA_STATUS.get(int(fields[6]), STATUS_FIX),
-                TALKER_SERVICE.get(text[1:3], 0),
-            )
+            self._quality[source] = navsat_status(int(fields[6]), text[1:3])
 
     def close(self) -> None:
         for d in [*self._declared, *(p.pub for p in self._pubs.values())]:
