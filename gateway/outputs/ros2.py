@@ -16,7 +16,7 @@ Topics (``[ros2]``; names relative to ``namespace``, ``/dpgw`` by default):
   all zeros, which ROS messages read as "unknown" (sensor_msgs/Imu's stated convention).
 - ``pose`` — ``geometry_msgs/msg/PoseStamped``: the same pose.
 - ``fix/<source>`` — ``sensor_msgs/msg/NavSatFix`` of each GNSS fix a receiver gives (``/gnss/<source>/
-  fix``): ellipsoidal height, GST's 1σ as a diagonal ENU covariance (else unknown), the status from
+  fix``): ellipsoidal height (NaN until the receiver gave one), GST's 1σ as a diagonal ENU covariance (else unknown), the status from
   GGA's quality as nmea_navsat_driver maps it (1 fix, 2 SBAS, 4/5/9 GBAS, any other no fix), the service
   from the talker.
 - ``setpoint`` (subscribed) — ``geometry_msgs/msg/PoseStamped`` in ``frame_id`` only: (x, y) = (E, N) at
@@ -132,6 +132,7 @@ class Ros2Sink:
         self._pubs: dict[str, _Publisher] = {}
         self._declared: list[Any] = []
         self._quality: dict[str, tuple[int, int]] = {}  # source → (status, service) of its last GGA
+        self._has_height: set[str] = set()  # sources that have given a height (GGA/GNS altitude field)
 
     # --- OutputSink / InputSink -------------------------------------------------------------------------
 
@@ -190,10 +191,11 @@ class Ros2Sink:
                 self._fix(m)
 
     def raw_nmea(self, source: str, rx_ns: int, text: str, peer: str) -> None:
-        """Keeps each receiver's GGA quality and talker for its NavSatFix status (the fix that follows in
-        the same chunk's outputs comes from this sentence); a sentence failing its checksum is skipped, as
-        the pipeline skips it."""
-        if text[3:7] != "GGA," or source not in self.fix_sources:
+        """Keeps each receiver's GGA quality and talker for its NavSatFix status, and whether it has given
+        a height (the fix that follows in the same chunk's outputs comes from this sentence); a sentence
+        failing its checksum is skipped, as the pipeline skips it."""
+        kind = text[3:7]
+        if (kind != "GGA," and kind != "GNS,") or source not in self.fix_sources:
             return
         star = text.rfind("*")
         if star > 0:
@@ -203,7 +205,9 @@ class Ros2Sink:
             if text[star + 1 : star + 3].upper() != f"{x:02X}":
                 return
         fields = text[: star if star > 0 else None].split(",")
-        if len(fields) > 6 and fields[6].isdigit():
+        if len(fields) > 9 and fields[9]:  # (field 9 is the altitude in GGA and in GNS)
+            self._has_height.add(source)  # the pipeline keeps a height once given: so does this
+        if kind == "GGA," and len(fields) > 6 and fields[6].isdigit():
             self._quality[source] = navsat_status(int(fields[6]), text[1:3])
 
     def close(self) -> None:
@@ -263,12 +267,15 @@ class Ros2Sink:
         if name not in self._pubs:
             return
         status, service = self._quality.get(f.frame_id, (STATUS_FIX, 0))
+        # NavSatFix's "quiet NaN if no altitude is available": the LocationFix says 0 for a source that
+        # has given no height (a MAVLink position, a GGA with the field empty), not a height on the ellipsoid
+        altitude = f.altitude if f.frame_id in self._has_height else math.nan
         msg = self._NavSatFix(
             header=self._header(f.timestamp.sec * NS + f.timestamp.nsec, f.frame_id),
             status=self._NavSatStatus(status=status, service=service),
             latitude=f.latitude,
             longitude=f.longitude,
-            altitude=f.altitude,
+            altitude=altitude,
             position_covariance=np.asarray(f.position_covariance, dtype=np.float64),
             position_covariance_type=f.position_covariance_type,
         )
