@@ -16,9 +16,9 @@ Topics (``[ros2]``; names relative to ``namespace``, ``/dpgw`` by default):
   all zeros, which ROS messages read as "unknown" (sensor_msgs/Imu's stated convention).
 - ``pose`` — ``geometry_msgs/msg/PoseStamped``: the same pose.
 - ``fix/<source>`` — ``sensor_msgs/msg/NavSatFix`` of each GNSS fix a receiver gives (``/gnss/<source>/
-  fix``): ellipsoidal height (NaN until the receiver gave one), GST's 1σ as a diagonal ENU covariance (else unknown), the status from
-  GGA's quality as nmea_navsat_driver maps it (1 fix, 2 SBAS, 4/5/9 GBAS, any other no fix), the service
-  from the talker.
+  fix``): ellipsoidal height (NaN until the receiver gave one), GST's 1σ as a diagonal ENU covariance
+  (else unknown), the status from GGA's quality as nmea_navsat_driver maps it (1 fix, 2 SBAS, 4/5/9 GBAS,
+  any other no fix), the service from the talker.
 - ``setpoint`` (subscribed) — ``geometry_msgs/msg/PoseStamped`` in ``frame_id`` only: (x, y) = (E, N) at
   the datum and the yaw about +z = π/2 − ψ become dpgw's ``{north_m, east_m, heading_deg}``, handed to the
   gateway's input path (`InputSink`): logged, checked and counted by `gateway.commands` exactly like a
