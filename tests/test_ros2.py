@@ -533,10 +533,13 @@ def test_navsat_fix_altitude_is_nan_until_the_receiver_gave_a_height(tmp_path: P
         # the listener's subscription reaches the sink's session: a fix is delivered
         wait_for(lambda: sink.emit([Output("/gnss/dgps1/fix", probe, 1)], []) or listener.of(FIX_KEY))
         t = datetime.now(UTC)
+        no_fix = enc.gga("GP", t, LAT, LON, 0, 0, None, ALT, SEP).rstrip("\r\n")  # quality 0: no height
         no_height = enc.gga("GP", t, LAT, LON, 1, 9, 0.9, None, None).rstrip("\r\n")
         with_height = enc.gga("GP", t, LAT, LON, 1, 9, 0.9, ALT, SEP).rstrip("\r\n")
-        for k, (text, altitude) in enumerate([(no_height, 0.0), (with_height, ALT + SEP)], start=1):
-            sink.raw_nmea("dgps1", k * 1000, text, "test")
+        steps = [([no_fix, no_height], 0.0), ([with_height], ALT + SEP)]
+        for k, (texts, altitude) in enumerate(steps, start=1):
+            for text in texts:
+                sink.raw_nmea("dgps1", k * 1000, text, "test")
             fix = LocationFix(
                 timestamp=Time(sec=k, nsec=0), frame_id="dgps1", latitude=LAT, longitude=LON,
                 altitude=altitude, position_covariance=[0.0] * 9, position_covariance_type=0,

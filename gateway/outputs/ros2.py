@@ -205,8 +205,10 @@ class Ros2Sink:
             if text[star + 1 : star + 3].upper() != f"{x:02X}":
                 return
         fields = text[: star if star > 0 else None].split(",")
-        if len(fields) > 9 and fields[9]:  # (field 9 is the altitude in GGA and in GNS)
-            self._has_height.add(source)  # the pipeline keeps a height once given: so does this
+        # field 9 is the altitude in GGA and in GNS; a sentence without a fix (GGA quality 0, GNS mode all
+        # N) gives the pipeline no height, so none here either. The pipeline keeps a height: so does this.
+        if len(fields) > 9 and fields[9] and fields[6].strip("0N"):
+            self._has_height.add(source)
         if kind == "GGA," and len(fields) > 6 and fields[6].isdigit():
             self._quality[source] = navsat_status(int(fields[6]), text[1:3])
 
