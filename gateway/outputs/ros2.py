@@ -16,8 +16,9 @@ Topics (``[ros2]``; names relative to ``namespace``, ``/dpgw`` by default):
   all zeros, which ROS messages read as "unknown" (sensor_msgs/Imu's stated convention).
 - ``pose`` — ``geometry_msgs/msg/PoseStamped``: the same pose.
 - ``fix/<source>`` — ``sensor_msgs/msg/NavSatFix`` of each GNSS fix a receiver gives (``/gnss/<source>/
-  fix``): ellipsoidal height, GST's 1σ as a diagonal ENU covariance (else unknown), the status from
-  GGA's quality as nmea_navsat_driver maps it (1 fix, 2 SBAS, 4/5/9 GBAS), the service from the talker.
+  fix``): ellipsoidal height (NaN until the receiver gave one), GST's 1σ as a diagonal ENU covariance
+  (else unknown), the status from GGA's quality as nmea_navsat_driver maps it (1 fix, 2 SBAS, 4/5/9 GBAS,
+  any other no fix), the service from the talker.
 - ``setpoint`` (subscribed) — ``geometry_msgs/msg/PoseStamped`` in ``frame_id`` only: (x, y) = (E, N) at
   the datum and the yaw about +z = π/2 − ψ become dpgw's ``{north_m, east_m, heading_deg}``, handed to the
   gateway's input path (`InputSink`): logged, checked and counted by `gateway.commands` exactly like a
@@ -67,11 +68,19 @@ REFUSALS_LOGGED = 20
 """Refused setpoints logged one by one; after that every 1000th (all are counted)."""
 
 # GGA fix quality → sensor_msgs/NavSatStatus.status, as nmea_navsat_driver maps it (the ROS driver whose
-# output most ROS nodes expect): autonomous → FIX, DGPS → SBAS, RTK fixed/float and WAAS → GBAS.
-STATUS_FIX, STATUS_SBAS_FIX, STATUS_GBAS_FIX = 0, 1, 2
+# output most ROS nodes expect): autonomous → FIX, DGPS → SBAS, RTK fixed/float and WAAS → GBAS, and any
+# other quality (0 invalid, 3 PPS, 6 dead reckoning, 7 manual input, 8 simulator) → NO_FIX.
+STATUS_NO_FIX, STATUS_FIX, STATUS_SBAS_FIX, STATUS_GBAS_FIX = -1, 0, 1, 2
 GGA_STATUS = {1: STATUS_FIX, 2: STATUS_SBAS_FIX, 4: STATUS_GBAS_FIX, 5: STATUS_GBAS_FIX, 9: STATUS_GBAS_FIX}
 # NMEA talker → NavSatStatus.service (a bitmask; GN, "several constellations", does not say which)
 TALKER_SERVICE = {"GP": 1, "GL": 2, "GB": 4, "BD": 4, "GA": 8}
+
+
+def navsat_status(gga_quality: int, talker: str) -> tuple[int, int]:
+    """(NavSatStatus.status, NavSatStatus.service) of a GGA's fix quality and talker. A quality that is no
+    satellite fix (dead reckoning, manual, simulator, PPS, invalid) is STATUS_NO_FIX, as nmea_navsat_driver
+    has it: a ROS node that takes any status ≥ STATUS_FIX as a satellite fix must not be given one."""
+    return GGA_STATUS.get(gga_quality, STATUS_NO_FIX), TALKER_SERVICE.get(talker, 0)
 
 
 def ros_typestore() -> Any:
@@ -123,6 +132,7 @@ class Ros2Sink:
         self._pubs: dict[str, _Publisher] = {}
         self._declared: list[Any] = []
         self._quality: dict[str, tuple[int, int]] = {}  # source → (status, service) of its last GGA
+        self._has_height: set[str] = set()  # sources that have given a height (GGA/GNS altitude field)
 
     # --- OutputSink / InputSink -------------------------------------------------------------------------
 
@@ -181,10 +191,11 @@ class Ros2Sink:
                 self._fix(m)
 
     def raw_nmea(self, source: str, rx_ns: int, text: str, peer: str) -> None:
-        """Keeps each receiver's GGA quality and talker for its NavSatFix status (the fix that follows in
-        the same chunk's outputs comes from this sentence); a sentence failing its checksum is skipped, as
-        the pipeline skips it."""
-        if text[3:7] != "GGA," or source not in self.fix_sources:
+        """Keeps each receiver's GGA quality and talker for its NavSatFix status, and whether it has given
+        a height (the fix that follows in the same chunk's outputs comes from this sentence); a sentence
+        failing its checksum is skipped, as the pipeline skips it."""
+        kind = text[3:7]
+        if (kind != "GGA," and kind != "GNS,") or source not in self.fix_sources:
             return
         star = text.rfind("*")
         if star > 0:
@@ -194,11 +205,12 @@ class Ros2Sink:
             if text[star + 1 : star + 3].upper() != f"{x:02X}":
                 return
         fields = text[: star if star > 0 else None].split(",")
-        if len(fields) > 6 and fields[6].isdigit():
-            self._quality[source] = (
-                GGA_STATUS.get(int(fields[6]), STATUS_FIX),
-                TALKER_SERVICE.get(text[1:3], 0),
-            )
+        # field 9 is the altitude in GGA and in GNS; a sentence without a fix (GGA quality 0, GNS mode all
+        # N) gives the pipeline no height, so none here either. The pipeline keeps a height: so does this.
+        if len(fields) > 9 and fields[9] and fields[6].strip("0N"):
+            self._has_height.add(source)
+        if kind == "GGA," and len(fields) > 6 and fields[6].isdigit():
+            self._quality[source] = navsat_status(int(fields[6]), text[1:3])
 
     def close(self) -> None:
         for d in [*self._declared, *(p.pub for p in self._pubs.values())]:
@@ -257,12 +269,15 @@ class Ros2Sink:
         if name not in self._pubs:
             return
         status, service = self._quality.get(f.frame_id, (STATUS_FIX, 0))
+        # NavSatFix's "quiet NaN if no altitude is available": the LocationFix says 0 for a source that
+        # has given no height (a MAVLink position, a GGA with the field empty), not a height on the ellipsoid
+        altitude = f.altitude if f.frame_id in self._has_height else math.nan
         msg = self._NavSatFix(
             header=self._header(f.timestamp.sec * NS + f.timestamp.nsec, f.frame_id),
             status=self._NavSatStatus(status=status, service=service),
             latitude=f.latitude,
             longitude=f.longitude,
-            altitude=f.altitude,
+            altitude=altitude,
             position_covariance=np.asarray(f.position_covariance, dtype=np.float64),
             position_covariance_type=f.position_covariance_type,
         )
