@@ -555,3 +555,67 @@ def test_navsat_fix_altitude_is_nan_until_the_receiver_gave_a_height(tmp_path: P
         sink.close()
         client.close()
         server.close()
+
+
+def test_with_sim_time_the_simulators_ticks_go_out_on_clock(tmp_path: Path) -> None:
+    """``[time] clock = "sim"``: the other topics' stamps are the plant's time, so ROS nodes run with
+    ``use_sim_time`` need that time on ``/clock`` (rosgraph_msgs/Clock), as a simulator gives it to ROS.
+    The sink forwards every tick of ``<prefix>/sim/clock`` there, with rmw_zenoh's key, attachment and a
+    publisher token with rclcpp's ClockQoS (best effort, depth 1); a tick that does not decode is counted
+    and dropped. Without ``clock = "sim"`` there is no /clock."""
+    import msgspec
+
+    from wire.messages import SIM_CLOCK_KEY, SimClock
+
+    zport = free_port()
+    sim_tables = {**tables(free_port(socket.SOCK_DGRAM), zport), "time": {"clock": "sim"}}
+    config = parse_config(sim_tables, base_dir=tmp_path)
+    wall = parse_config(tables(free_port(socket.SOCK_DGRAM), zport), base_dir=tmp_path)
+    assert "clock" not in sinks_from_config(wall)[0].topics  # type: ignore[attr-defined]
+    server = open_session(isolated_config(listen=[f"tcp/127.0.0.1:{zport}"]))
+    client = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{zport}"]))
+    sink = sinks_from_config(config)[0]
+    assert isinstance(sink, Ros2Sink)
+    store = ros_typestore()
+    key = rz.topic_key(
+        DOMAIN, "/clock", "rosgraph_msgs/msg/Clock", store.hash_rihs01("rosgraph_msgs/msg/Clock")
+    )
+    ticks = client.declare_publisher(
+        f"dp/r/{SIM_CLOCK_KEY}", congestion_control=zenoh.CongestionControl.BLOCK
+    )
+    try:
+        listener = RosListener(client, store)
+        sink.start(server)
+        t0 = 1_780_000_000_123_456_789  # a simulated instant, months from this computer's clock
+
+        def tick(k: int) -> int:
+            stamp = t0 + k * 50_000_000
+            ticks.put(msgspec.json.encode(SimClock(stamp_ns=stamp, period_s=0.05, speed=1.0)))
+            return stamp
+
+        # the tick publisher reaches the sink's subscriber and the listener the sink's /clock: one gets out
+        assert wait_for(lambda: tick(0) and listener.of(key), 30.0), "no /clock sample"
+        ticks.put(b"not a tick")
+        stamps = [tick(k) for k in range(1, 21)]
+
+        def forwarded() -> list[int]:  # (the probe's ticks, all at t0, may still be arriving: left out)
+            got = (m.clock.sec * 1_000_000_000 + m.clock.nanosec for _, _, _, m in listener.of(key))
+            return [stamp for stamp in got if stamp > t0]
+
+        assert wait_for(lambda: len(forwarded()) >= 20, 30.0)
+        assert forwarded() == stamps
+        seqs = [seq for seq, _, _, _ in listener.of(key)]
+        assert seqs == list(range(1, len(seqs) + 1))  # rmw_zenoh's attachment: the publisher's own count
+        assert wait_for(lambda: sink.refused["clock tick"] == 1)
+        assert listener.bad == []
+        clock_tokens = [t for t in sink.tokens if "%clock/" in t]
+        assert len(clock_tokens) == 1
+        parsed = rz.parse_token(clock_tokens[0])
+        assert (
+            parsed.topic == "/clock" and parsed.qos == rz.Qos(reliability=rz.BEST_EFFORT, depth=1).keyexpr()
+        )
+    finally:
+        sink.close()
+        ticks.undeclare()
+        client.close()
+        server.close()
