@@ -293,15 +293,24 @@ def check_values(listener: Listener, recorder: Recorder, sent: list[str]) -> Non
     assert statuses
 
 
-def test_feedback_alarms_and_state_changes_reach_keelson(tmp_path: Path) -> None:
+def status(t: int, alarms: list[Any], events: list[str], mode: str = "dp") -> Output:
+    """A `/dp/status` output at ``t`` with these alarms and reference state changes."""
+    message = Status(
+        stamp_ns=t, mode=mode, observer="passive", initialized=True, estimates=1, sources={},
+        alarms=alarms, references={}, events=events,
+    )  # fmt: skip
+    return Output("/dp/status", message, t)
+
+
+def test_feedback_alarms_and_state_changes_reach_keelson(
+    tmp_path: Path, loopback_sessions: tuple[int, Any, Any]
+) -> None:
     """What the NMEA-only service above does not produce: τ from the thrusters' feedback (a MAVLink link)
     and alarms (raised once, cleared once, as objects too) and reference state changes, as log messages."""
-    zport = free_port()
+    zport, server, client = loopback_sessions
     config = parse_config(
         tables(free_port(socket.SOCK_DGRAM), zport, log_source_id="dpgw/log"), base_dir=tmp_path
     )
-    server = open_session(isolated_config(listen=[f"tcp/127.0.0.1:{zport}"]))
-    client = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{zport}"]))
     sink = sinks_from_config(config)[0]
     assert isinstance(sink, KeelsonSink)
     try:
@@ -309,21 +318,14 @@ def test_feedback_alarms_and_state_changes_reach_keelson(tmp_path: Path) -> None
         sink.start(server)
         wait_for(lambda: len(list(client.liveliness().get(f"{BASE}/@v0/{ENTITY}/pubsub/*/dpgw/log"))) == 1)
 
-        def status(t: int, mode: str, alarms: list[Any], events: list[str]) -> Output:
-            message = Status(
-                stamp_ns=t, mode=mode, observer="passive", initialized=True, estimates=1, sources={},
-                alarms=alarms, references={}, events=events,
-            )  # fmt: skip
-            return Output("/dp/status", message, t)
-
         fb = ThrusterFeedback(stamp_ns=5, tau_allocated=[1000.5, -2000.25, 30000.125], thrusters=[])
         stale, sat = "dgps1: position stale", {"code": "sat", "message": "thrust saturated"}
         batches = [
             [Output("/dp/thrusters/feedback", fb, 5)],
-            [status(10, "standby", [], [])],
-            [status(20, "standby", [stale, sat], ["dgps1: stale"])],
-            [status(30, "standby", [stale, sat], [])],
-            [status(40, "manual", [stale], ["dgps1: ok again"])],
+            [status(10, [], [], mode="standby")],
+            [status(20, [stale, sat], ["dgps1: stale"], mode="standby")],
+            [status(30, [stale, sat], [], mode="standby")],
+            [status(40, [stale], ["dgps1: ok again"], mode="manual")],
         ]
         for batch in batches:
             sink.emit(batch, [o.message.encode() for o in batch])
@@ -348,8 +350,6 @@ def test_feedback_alarms_and_state_changes_reach_keelson(tmp_path: Path) -> None
         ]
     finally:
         sink.close()
-        client.close()
-        server.close()
 
 
 def test_keelson_config_errors_name_the_key(tmp_path: Path) -> None:
@@ -380,7 +380,7 @@ def test_a_missing_keelson_package_stops_start_up_with_one_message(
 
 
 def test_keelson_log_follows_alarm_identity_and_state_severity_and_fixes_carry_nine_covariances(
-    tmp_path: Path,
+    tmp_path: Path, loopback_sessions: tuple[int, Any, Any]
 ) -> None:
     """What a Keelson log or map consumer relies on:
     - an alarm whose text carries a growing figure ("stale (3.1 s without data)" → "(4.1 s …)") is the same
@@ -389,23 +389,14 @@ def test_keelson_log_follows_alarm_identity_and_state_severity_and_fixes_carry_n
       suspect, ERROR rejected), as on dpgw's own `/dp/log`;
     - every `foxglove.LocationFix` has the 9 covariance entries Foxglove's schema requires (the estimate's
       and the measurement's are UNKNOWN, all zero), so a consumer indexing it (a NavSatFix bridge) works."""
-    zport = free_port()
+    zport, server, client = loopback_sessions
     config = parse_config(tables(free_port(socket.SOCK_DGRAM), zport), base_dir=tmp_path)
-    server = open_session(isolated_config(listen=[f"tcp/127.0.0.1:{zport}"]))
-    client = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{zport}"]))
     sink = sinks_from_config(config)[0]
     assert isinstance(sink, KeelsonSink)
     try:
         listener = Listener(client)
         sink.start(server)
         wait_for(lambda: len(list(client.liveliness().get(f"{BASE}/@v0/{ENTITY}/pubsub/*/dpgw"))) == 1)
-
-        def status(t: int, alarms: list[Any], events: list[str]) -> Output:
-            message = Status(
-                stamp_ns=t, mode="dp", observer="passive", initialized=True, estimates=1, sources={},
-                alarms=alarms, references={}, events=events,
-            )  # fmt: skip
-            return Output("/dp/status", message, t)
 
         ref = "position reference dgps1"
         est = Estimate(
@@ -449,5 +440,3 @@ def test_keelson_log_follows_alarm_identity_and_state_severity_and_fixes_carry_n
             assert fix.position_covariance_type == fix.UNKNOWN
     finally:
         sink.close()
-        client.close()
-        server.close()

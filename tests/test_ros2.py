@@ -512,15 +512,15 @@ def test_gga_quality_maps_to_navsat_status_as_nmea_navsat_driver_does() -> None:
     assert navsat_status(1, "GN")[1] == 0  # several constellations: the talker does not say which
 
 
-def test_navsat_fix_altitude_is_nan_until_the_receiver_gave_a_height(tmp_path: Path) -> None:
+def test_navsat_fix_altitude_is_nan_until_the_receiver_gave_a_height(
+    tmp_path: Path, loopback_sessions: tuple[int, Any, Any]
+) -> None:
     """sensor_msgs/NavSatFix: "altitude … (quiet NaN if no altitude is available)". A receiver that has
     not given a height (a GGA with its altitude field empty, a MAVLink position: dpgw's LocationFix then
     says 0) must not reach ROS as a fix on the ellipsoid, tens of metres off; once it has, the height is
     GGA's, ellipsoidal."""
-    zport = free_port()
+    zport, server, client = loopback_sessions
     config = parse_config(tables(free_port(socket.SOCK_DGRAM), zport), base_dir=tmp_path)
-    server = open_session(isolated_config(listen=[f"tcp/127.0.0.1:{zport}"]))
-    client = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{zport}"]))
     sink = sinks_from_config(config)[0]
     assert isinstance(sink, Ros2Sink)
     try:
@@ -553,11 +553,11 @@ def test_navsat_fix_altitude_is_nan_until_the_receiver_gave_a_height(tmp_path: P
         assert listener.bad == []
     finally:
         sink.close()
-        client.close()
-        server.close()
 
 
-def test_with_sim_time_the_simulators_ticks_go_out_on_clock(tmp_path: Path) -> None:
+def test_with_sim_time_the_simulators_ticks_go_out_on_clock(
+    tmp_path: Path, loopback_sessions: tuple[int, Any, Any]
+) -> None:
     """``[time] clock = "sim"``: the other topics' stamps are the plant's time, so ROS nodes run with
     ``use_sim_time`` need that time on ``/clock`` (rosgraph_msgs/Clock), as a simulator gives it to ROS.
     The sink forwards every tick of ``<prefix>/sim/clock`` there, with rmw_zenoh's key, attachment and a
@@ -567,13 +567,11 @@ def test_with_sim_time_the_simulators_ticks_go_out_on_clock(tmp_path: Path) -> N
 
     from wire.messages import SIM_CLOCK_KEY, SimClock
 
-    zport = free_port()
+    zport, server, client = loopback_sessions
     sim_tables = {**tables(free_port(socket.SOCK_DGRAM), zport), "time": {"clock": "sim"}}
     config = parse_config(sim_tables, base_dir=tmp_path)
     wall = parse_config(tables(free_port(socket.SOCK_DGRAM), zport), base_dir=tmp_path)
     assert "clock" not in sinks_from_config(wall)[0].topics  # type: ignore[attr-defined]
-    server = open_session(isolated_config(listen=[f"tcp/127.0.0.1:{zport}"]))
-    client = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{zport}"]))
     sink = sinks_from_config(config)[0]
     assert isinstance(sink, Ros2Sink)
     store = ros_typestore()
@@ -617,5 +615,3 @@ def test_with_sim_time_the_simulators_ticks_go_out_on_clock(tmp_path: Path) -> N
     finally:
         sink.close()
         ticks.undeclare()
-        client.close()
-        server.close()
