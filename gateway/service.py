@@ -169,9 +169,9 @@ class GatewayService:
         self.held_dropped = 0
         """Items dropped while waiting for a simulation clock tick (more than `HOLD_MAX` held)."""
         self.clock_rejected = 0
+        """Simulation clock ticks that were not a valid `SimClock`."""
         self.restart_dropped = 0
         """Inputs not handled since the simulator restarted (its time went back): another run of the plant."""
-        """Simulation clock ticks that were not a valid `SimClock`."""
         self.stop_event = threading.Event()
         path = log_path if log_path is not None else config.log.path
         self._log_path = str(path) if path else None
