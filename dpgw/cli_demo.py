@@ -251,9 +251,8 @@ def run(args: argparse.Namespace) -> int:
         mav_sink = UdpSink("127.0.0.1", ports["thrusters"])
         sinks.append(mav_sink)
         routes.append(Route(watched(mav_sink, "thrusters"), "mavlink"))
-        fb = scenario.feedback  # (set: the thrusters port exists only with feedback)
-        ids = (fb.system_id, fb.component_id) if fb is not None else (None, None)
-        commands.append(MavlinkCommandInput(mav_sink, *ids))  # the loop closes over the MAVLink link
+        # the loop closes over the MAVLink link (the thrusters port exists only with feedback)
+        commands.append(MavlinkCommandInput.for_drive(mav_sink, scenario.feedback))
     elif args.mode == "dp" and service._session is not None:
         commands.append(ZenohCommandInput(service._session, config.zenoh.prefix))  # τ for layout-less ships
     clock = RealtimeClock(speed=args.speed)

@@ -245,9 +245,7 @@ def _run_scenario(args: argparse.Namespace) -> int:
             sink = open_sink(args.mavlink)
             sinks.append(sink)
             routes.append(Route(sink, "mavlink"))
-            fb = scenario.feedback  # the drive takes what is addressed to it (or broadcast)
-            ids = (fb.system_id, fb.component_id) if fb is not None else (None, None)
-            commands.append(MavlinkCommandInput(sink, *ids))
+            commands.append(MavlinkCommandInput.for_drive(sink, scenario.feedback))
             print(f"MAVLink -> {sink.describe()}", file=sys.stderr)
         if args.zenoh:
             prefix = args.prefix or f"dp/{scenario.vessel.name}"
