@@ -39,7 +39,7 @@ from typing import Any
 import msgspec
 import zenoh
 
-from gateway.bus import REDIAL_S, Dialler, UnreachableError, command_acl, make_config, open_session
+from gateway.bus import JSON, REDIAL_S, Dialler, UnreachableError, command_acl, make_config, open_session
 from gateway.config import GatewayConfig, ZenohConfig, config_notes
 from gateway.outputs import InputSink, OutputSink, RawSentenceSink
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
@@ -52,7 +52,6 @@ from wire.messages import SIM_CLOCK_KEY, SimClock, Status, ThrusterCommand
 
 log = logging.getLogger("dpgw")
 
-JSON = zenoh.Encoding.APPLICATION_JSON
 INPUT_KEYS = ("setpoint", "mode", "tau")
 TRACEBACKS_LOGGED = 10
 """Internal errors logged with a full traceback per source; after that every 1000th, so that a bug hit by
