@@ -33,6 +33,9 @@ MAX_LOOP_DELAY_S = 0.3
 beyond it the simulation pauses until the gateway has caught up, and when it persists the demo slows
 down. A few sensor samples: small beside a DP vessel's seconds-long dynamics, and still small for the
 model-scale vessel of the `hassani` scenario."""
+SIM_CHUNK_S = 1.0
+"""Sea simulated between two looks at whether the demo was stopped (s): at the demo's speeds a stop
+takes effect within a fraction of a second of wall time."""
 
 
 NAME = "demo"
@@ -346,11 +349,6 @@ def run(args: argparse.Namespace) -> int:
     else:
         print_summary(summary)
     return 0
-
-
-SIM_CHUNK_S = 1.0
-"""Sea simulated between two looks at whether the demo was stopped (s): at the demo's speeds a stop
-takes effect within a fraction of a second of wall time."""
 
 
 def hold_setpoint(scenario: Any) -> dict[str, float]:
