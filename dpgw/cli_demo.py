@@ -33,6 +33,9 @@ MAX_LOOP_DELAY_S = 0.3
 beyond it the simulation pauses until the gateway has caught up, and when it persists the demo slows
 down. A few sensor samples: small beside a DP vessel's seconds-long dynamics, and still small for the
 model-scale vessel of the `hassani` scenario."""
+SIM_CHUNK_S = 1.0
+"""Sea simulated between two looks at whether the demo was stopped (s): at the demo's speeds a stop
+takes effect within a fraction of a second of wall time."""
 
 
 NAME = "demo"
@@ -251,9 +254,8 @@ def run(args: argparse.Namespace) -> int:
         mav_sink = UdpSink("127.0.0.1", ports["thrusters"])
         sinks.append(mav_sink)
         routes.append(Route(watched(mav_sink, "thrusters"), "mavlink"))
-        fb = scenario.feedback  # (set: the thrusters port exists only with feedback)
-        ids = (fb.system_id, fb.component_id) if fb is not None else (None, None)
-        commands.append(MavlinkCommandInput(mav_sink, *ids))  # the loop closes over the MAVLink link
+        # the loop closes over the MAVLink link (the thrusters port exists only with feedback)
+        commands.append(MavlinkCommandInput.for_drive(mav_sink, scenario.feedback))
     elif args.mode == "dp" and service._session is not None:
         commands.append(ZenohCommandInput(service._session, config.zenoh.prefix))  # τ for layout-less ships
     clock = RealtimeClock(speed=args.speed)
@@ -347,11 +349,6 @@ def run(args: argparse.Namespace) -> int:
     else:
         print_summary(summary)
     return 0
-
-
-SIM_CHUNK_S = 1.0
-"""Sea simulated between two looks at whether the demo was stopped (s): at the demo's speeds a stop
-takes effect within a fraction of a second of wall time."""
 
 
 def hold_setpoint(scenario: Any) -> dict[str, float]:

@@ -456,12 +456,9 @@ class _Publisher:
     """--speed / --realtime: pace by event time and publish on Zenoh as if live."""
 
     def __init__(self, args: argparse.Namespace, prefix: str, speed: float) -> None:
-        import zenoh
+        from gateway.bus import JSON, make_config, open_session
 
-        from gateway.bus import make_config, open_session
-
-        self._json = zenoh.Encoding.APPLICATION_JSON
-
+        self._json = JSON
         self.session = open_session(
             make_config(
                 connect=args.zenoh_connect, listen=args.zenoh_listen, multicast_scouting=not args.no_scouting
