@@ -825,6 +825,21 @@ def test_a_full_disk_at_start_up_starts_failed_and_a_bad_path_still_stops(tmp_pa
         McapLogWriter(tmp_path / "no" / "such" / "dir.mcap", background_flush=False)
 
 
+def test_write_many_on_a_full_disk_counts_every_message_lost(tmp_path: Path) -> None:
+    """Replay's `write_many` on a failed log drops the whole cycle and counts each of its messages, as
+    one `write_encoded` per message would."""
+    from wire.messages import RawNmea
+
+    path = tmp_path / "run.mcap"
+    path.symlink_to("/dev/full")
+    w = McapLogWriter(path, background_flush=False, fsync=False, retry_s=3600.0)
+    records = [(f"/raw/nmea/s{k}", b"$GPHDT,1.0,T*00", T0 + k, RawNmea) for k in range(3)]
+    w.write_many(records)
+    w.write_many(records[:2])
+    assert w.error is not None and w.lost == 5
+    w.close()
+
+
 def test_the_log_directory_gone_at_a_rotation_then_back(tmp_path: Path) -> None:
     """The directory moved away (a disk unmounted, a careless rm) before a rotation: the new file cannot be
     opened; when it is back, writing goes on in the next file of the set."""

@@ -42,7 +42,7 @@ import math
 import os
 import threading
 import time
-from collections.abc import Iterable, Mapping, Sequence, Sized
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import IO, Any
 
@@ -399,12 +399,14 @@ class McapLogWriter:
             except OSError as exc:
                 self._fail_locked(exc, lost=1)
 
-    def write_many(self, items: Iterable[tuple[str, bytes, int, SchemaSpec | None]]) -> None:
+    def write_many(self, items: Sequence[tuple[str, bytes, int, SchemaSpec | None]]) -> None:
         """`write_encoded` for several payloads in order, each ``(topic, data, time_ns, schema)`` with the
         same log and publish time: one lock and one flush-time check for all of them (replay writes a
         cycle's raw input and outputs at once, ~4 messages; the per-call overhead was a third of the
         writing). Rotation by size is still checked after every message, so files split as with
-        `write_encoded`."""
+        `write_encoded`. A sequence, not any iterable, so that a write that fails counts every message
+        of the call as lost however far it got, the same way whether the writer was already failed or
+        failed now."""
         with self._lock:
             if self._closed:
                 if not self._warned_closed:
@@ -412,7 +414,7 @@ class McapLogWriter:
                     self._warned_closed = True
                 return
             if self.error is not None and not self._recover_locked():
-                self._drop(sum(1 for _ in items))
+                self._drop(len(items))
                 return
             try:
                 writer = self._writer
@@ -431,7 +433,7 @@ class McapLogWriter:
                 if wrote:
                     self._after_write()
             except OSError as exc:
-                self._fail_locked(exc, lost=len(items) if isinstance(items, Sized) else 1)
+                self._fail_locked(exc, lost=len(items))
 
     def _write_many_fast(self, writer: FastWriter, items: Iterable[tuple[str, bytes, int, Any]]) -> bool:
         """`write_many`'s loop without rotation: `_write_locked` (known channel) and `FastWriter.add_message`
