@@ -364,6 +364,7 @@ class Pipeline:
         self.allocation: AllocationResult | None = None
         self.control_alarms: list[str] = []
         self._pending_setpoint: dict[str, Any] | None = None
+        self._returns_seen = 0  # the controller's governed returns already announced
         self._raw: tuple[float, np.ndarray, np.ndarray] | None = None
         self._last_control_ns = 0
         self._next_control_ns = 0
@@ -372,7 +373,12 @@ class Pipeline:
             self.mode = cc.initial_mode
             self._control_period_ns = int(NS / cc.rate_hz)
             self.controller = DPController(
-                spec.vessel, ControllerTuning(bandwidth_rad_s=cc.bandwidth_rad_s, damping=cc.damping)
+                spec.vessel,
+                ControllerTuning(
+                    bandwidth_rad_s=cc.bandwidth_rad_s,
+                    damping=cc.damping,
+                    return_speed_mps=cc.return_speed_mps,
+                ),
             )
             if spec.vessel.thrusters:
                 self.allocator = (
@@ -1205,6 +1211,10 @@ class Pipeline:
             tau_allocated=None if prev is None else prev.tau_allocated,
             tau_manual=self.manual_tau,
         )
+        if ctl.returns != self._returns_seen:  # a governed return began: announced once, as an event
+            self._returns_seen = ctl.returns
+            if ctl.last_return is not None:
+                self._events.append(ctl.last_return)
         scene: list[Output] = []
         if self._foxglove_on:  # (the setpoint scene is made only for the Foxglove channels)
             target = o.reference.target if self.mode == "dp" else None

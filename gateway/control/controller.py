@@ -155,6 +155,9 @@ class ControllerTuning:
     reference_bandwidth_rad_s: ω of the reference model, one value or (translation, yaw); None: the
                                closed-loop ωn (min of surge and sway for translation).
     tracking_time_s:           Tₜ of back-calculation anti-windup, per DOF; None: 1/ωn.
+    return_speed_mps:          speed limit over ground of a governed return to the station (a vessel
+                               found far off its reference and coming back, `DPController`); None:
+                               ``max_speed_mps``. At most ``max_speed_mps``.
     """
 
     bandwidth_rad_s: float | tuple[float, ...] | None = None
@@ -168,6 +171,7 @@ class ControllerTuning:
     max_yaw_accel_rad_s2: float | None = None
     reference_bandwidth_rad_s: float | tuple[float, ...] | None = None
     tracking_time_s: float | tuple[float, ...] | None = None
+    return_speed_mps: float | None = None
 
     def resolved(self, vessel: VesselModel) -> ControllerTuning:
         """This tuning with every default filled in for ``vessel`` and per-DOF values as tuples, checked."""
@@ -182,6 +186,13 @@ class ControllerTuning:
         ref = self.reference_bandwidth_rad_s
         ref_w = _per_dof((min(wn[0], wn[1]), wn[2]) if ref is None else ref, "reference_bandwidth_rad_s", n=2)
         tt = self.tracking_time_s
+        ret = limits["max_speed_mps"] if self.return_speed_mps is None else self.return_speed_mps
+        ret = _per_dof(ret, "return_speed_mps", n=1)[0]
+        if ret > limits["max_speed_mps"]:
+            raise ControllerError(
+                f"tuning 'return_speed_mps': must be at most the reference's max_speed_mps "
+                f"({limits['max_speed_mps']:g} m/s), got {self.return_speed_mps!r}"
+            )
         return replace(
             self,
             bandwidth_rad_s=wn,
@@ -191,6 +202,7 @@ class ControllerTuning:
             feedforward=bool(self.feedforward),
             reference_bandwidth_rad_s=ref_w,
             tracking_time_s=tuple(1.0 / w for w in wn) if tt is None else _per_dof(tt, "tracking_time_s"),
+            return_speed_mps=ret,
             **limits,
         )
 
@@ -364,6 +376,17 @@ class DPController:
             [self._k, self._has_i.astype(float), np.broadcast_to(self._tracking_rate, (3,))]
         ).astype(float)
         self._rp: Array | None = None  # the reference model's constants, packed on first use
+        # governed return (`_govern_return`): the error beyond which the feedback alone would bring the
+        # vessel back faster than the return speed / the yaw-rate limit (peak of the critically damped
+        # step response e₀·ω/e)
+        wn = self.gains.omega_n
+        self.return_speed_mps = float(_num(tu.return_speed_mps)[0])
+        self.return_radius_m = math.e * self.return_speed_mps / float(min(wn[0], wn[1]))
+        self.return_heading_rad = math.e * limits.max_yaw_rate_rad_s / float(wn[2])
+        self.returns = 0
+        """Governed returns started so far (each restart of the reference's trajectory at the vessel)."""
+        self.last_return: str | None = None
+        """The words of the last governed return, for the status (`gateway.pipeline`)."""
 
     # -- commands ---------------------------------------------------------------------------------------
     @property
@@ -467,6 +490,8 @@ class DPController:
         if eta is None or nu is None:
             # no estimate (observer initialising): hold τ, freeze integrator; the reference waits
             return self._output(t, False, self.reference.state, ZERO3, ZERO3, ZERO3, ZERO3, ZERO3, ZERO3)
+        if not self._entering:
+            self._govern_return(eta, nu)
         if self.compiled and not self._entering:
             return self._update_dp_compiled(t, dt, eta, nu, b, saturated, tau_alloc)
         R = rotation(float(eta[2]))
@@ -509,6 +534,58 @@ class DPController:
         tau_i = -self.gains.Ki @ (R.T @ self._z)
         self._tau = tau_p + tau_i + tau_d + tau_ff
         return self._output(t, True, ref, e, nu_err, tau_p, tau_i, tau_d, tau_ff)
+
+    def _govern_return(self, eta: Array, nu: Array) -> None:
+        """A vessel far off its reference and coming back to it returns at the reference model's pace.
+
+        Translation: when the estimate is more than ``return_radius_m`` from η_d and its velocity over
+        ground relative to η_d' closes the distance (or holds it), the reference's trajectory (η_d, η_d',
+        prefilter) restarts at η̂ moving with J(ψ̂)ν̂, its speed limit lowered to ``return_speed_mps``;
+        the target — the operator's setpoint — does not move. The reference then brakes the vessel's
+        motion at ≤ a_max and walks it back at ≤ the return speed. Heading the same with
+        ``return_heading_rad`` and the reference's yaw-rate limit. While the vessel still moves away (a
+        drift-off beyond capability), nothing is restarted: the full error keeps pushing it back and the
+        deviation alarms measure it from where the reference was. The integrator: back-calculation
+        makes it hold a force against the unachievable P term, so it restarts at zero for the restarted
+        DOFs."""
+        n_d, e_d, psi_d, vn_d, ve_d, r_d = self.reference.trajectory()
+        x0, x1, x2 = eta.tolist()
+        u, v, r = nu.tolist()
+        c, s = math.cos(x2), math.sin(x2)
+        xd0, xd1 = c * u - s * v, s * u + c * v
+        dn, de = x0 - n_d, x1 - e_d
+        dist = math.hypot(dn, de)
+        trans = dist > self.return_radius_m and dn * (xd0 - vn_d) + de * (xd1 - ve_d) <= 0.0
+        dpsi = ssa_scalar(x2 - psi_d)
+        yaw = abs(dpsi) > self.return_heading_rad and dpsi * (r - r_d) <= 0.0
+        if not (trans or yaw):
+            return
+        self.reference.restart(
+            eta,
+            (xd0, xd1, r),
+            translation=trans,
+            yaw=yaw,
+            max_speed_mps=self.return_speed_mps if trans else None,
+        )
+        # The integrator restarts too, for the restarted DOFs: through the saturated drift-off
+        # back-calculation has pulled the integral term against the (huge, unachievable) P term, so it holds
+        # a force pointing away from the station; with the error gone it would drive the vessel off again.
+        # The load is carried by the bias feed-forward b̂; the integrator re-learns the residual.
+        if trans:
+            self._z[0] = self._z[1] = 0.0
+        if yaw:
+            self._z[2] = 0.0
+        words = []
+        if trans:
+            words.append(f"{dist:.1f} m off at ≤ {self.return_speed_mps:.2f} m/s")
+        if yaw:
+            rate = math.degrees(self.reference.limits.max_yaw_rate_rad_s)
+            words.append(f"{math.degrees(abs(dpsi)):.1f}° off at ≤ {rate:.2f}°/s")
+        self.returns += 1
+        self.last_return = (
+            "returning to station: " + ", ".join(words) + " (the reference restarted at the vessel; "
+            "setpoint unchanged)"
+        )
 
     def _update_dp_compiled(
         self,
