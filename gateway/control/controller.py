@@ -158,6 +158,8 @@ class ControllerTuning:
     return_speed_mps:          speed limit over ground of a governed return to the station (a vessel
                                found far off its reference and coming back, `DPController`); None:
                                ``max_speed_mps``. At most ``max_speed_mps``.
+    governed_return:           restart the reference at a vessel found far off it and coming back
+                               (True, the default); False: the full error drives the return.
     """
 
     bandwidth_rad_s: float | tuple[float, ...] | None = None
@@ -172,6 +174,7 @@ class ControllerTuning:
     reference_bandwidth_rad_s: float | tuple[float, ...] | None = None
     tracking_time_s: float | tuple[float, ...] | None = None
     return_speed_mps: float | None = None
+    governed_return: bool = True
 
     def resolved(self, vessel: VesselModel) -> ControllerTuning:
         """This tuning with every default filled in for ``vessel`` and per-DOF values as tuples, checked."""
@@ -203,6 +206,7 @@ class ControllerTuning:
             reference_bandwidth_rad_s=ref_w,
             tracking_time_s=tuple(1.0 / w for w in wn) if tt is None else _per_dof(tt, "tracking_time_s"),
             return_speed_mps=ret,
+            governed_return=bool(self.governed_return),
             **limits,
         )
 
@@ -490,7 +494,7 @@ class DPController:
         if eta is None or nu is None:
             # no estimate (observer initialising): hold τ, freeze integrator; the reference waits
             return self._output(t, False, self.reference.state, ZERO3, ZERO3, ZERO3, ZERO3, ZERO3, ZERO3)
-        if not self._entering:
+        if self.tuning.governed_return and not self._entering:
             self._govern_return(eta, nu)
         if self.compiled and not self._entering:
             return self._update_dp_compiled(t, dt, eta, nu, b, saturated, tau_alloc)
