@@ -1118,25 +1118,25 @@ class Pipeline:
             return None
         return target if np.all(np.isfinite(target)) else None
 
-    def _deviation_alarms(self, eta_error: np.ndarray) -> list[str]:
+    def _deviation_alarms(self, eta_error: np.ndarray, of: str = "the DP reference") -> list[str]:
         """In dp: the position's distance from the DP reference against the watch circles drawn around
         the setpoint (warning, alarm; `FoxgloveChannels.watch_circles_m`), and the heading's difference
         against `HEADING_LIMITS_DEG`. The reference, not the target: during a setpoint move the vessel
         follows the reference, and only a vessel that cannot (a drive-off, a load beyond capability, a
-        thruster lost) is off it."""
+        thruster lost) is off it. During a governed return (`DPController.returning`) the reference
+        restarted at the vessel, so the caller gives the distance from the setpoint instead: the vessel
+        stays alarmed until it is back inside the circles."""
         out = []
         d = math.hypot(float(eta_error[0]), float(eta_error[1]))
         circles = self.foxglove.watch_circles_m
         for radius, word in sorted(zip(circles, ("warning", "alarm"), strict=False), reverse=True):
             if d > radius:
-                out.append(
-                    f"position {d:.1f} m off the DP reference: beyond the {word} circle ({radius:g} m)"
-                )
+                out.append(f"position {d:.1f} m off {of}: beyond the {word} circle ({radius:g} m)")
                 break
         dpsi = abs(math.degrees(float(eta_error[2])))
         for limit, word in sorted(zip(HEADING_LIMITS_DEG, ("warning", "alarm"), strict=True), reverse=True):
             if dpsi > limit:
-                out.append(f"heading {dpsi:.1f}° off the DP reference: beyond the {word} limit ({limit:g}°)")
+                out.append(f"heading {dpsi:.1f}° off {of}: beyond the {word} limit ({limit:g}°)")
                 break
         return out
 
@@ -1229,7 +1229,14 @@ class Pipeline:
             self.fusion.set_tau_demand(np.zeros(3))
             self.control_alarms = []
             return scene  # standby commands nothing: the thrusters are someone else's
-        deviation = self._deviation_alarms(o.eta_error) if self.mode == "dp" and o.valid else []
+        deviation: list[str] = []
+        if self.mode == "dp" and o.valid:
+            if ctl.returning:  # off the station not by the operator's choice: measured from the setpoint
+                off = np.asarray(eta_in, dtype=float) - o.reference.target
+                off[2] = ssa_scalar(float(off[2]))
+                deviation = self._deviation_alarms(off, "the DP setpoint (returning)")
+            else:
+                deviation = self._deviation_alarms(o.eta_error)
         thrusters: list[Thruster] = []
         saturated = False
         if self.allocator is not None:

@@ -301,3 +301,15 @@ def test_return_after_a_drift_off_is_governed_by_the_reference_model() -> None:
     assert len(events) == 1
     t_ev, words = events[0]
     assert 400.0 < t_ev < 420.0 and "at ≤ 0.50 m/s" in words and "setpoint unchanged" in words
+    # the reference restarted at the vessel, but the vessel is still off its station: alarmed from the
+    # setpoint until it is back inside the circle
+    alarmed = [
+        ((s["stamp_ns"] - t0) / 1e9, a)
+        for s in r.statuses
+        for a in s.get("alarms", [])
+        if "off the DP setpoint (returning)" in a and "alarm circle" in a
+    ]
+    assert alarmed and alarmed[0][0] < t_ev + 2.0
+    t_last = alarmed[-1][0]
+    assert d[np.searchsorted(r.t, t_last)] > 9.0  # alarmed while beyond ~10 m
+    assert d[np.searchsorted(r.t, t_last + 5.0)] < 11.0  # and no longer once inside

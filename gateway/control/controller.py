@@ -104,6 +104,12 @@ DEFAULT_MAX_SPEED_MPS = 0.5
 DEFAULT_MAX_ACCEL_MPS2 = 0.05
 DEFAULT_MAX_YAW_RATE_RAD_S = math.radians(2.0)
 DEFAULT_MAX_YAW_ACCEL_RAD_S2 = math.radians(0.2)
+RETURN_CLOSING = 0.1
+"""A governed return starts only while the vessel closes on its reference at this fraction of the return
+speed (or yaw-rate limit) or faster: not while it is merely held where it is (`DPController`)."""
+RETURN_HOME = 0.05
+"""A governed return ends when the reference is this fraction of the return radius (and heading) from
+its target."""
 
 ZERO3 = np.zeros(3)
 
@@ -389,6 +395,10 @@ class DPController:
         self.return_heading_rad = math.e * limits.max_yaw_rate_rad_s / float(wn[2])
         self.returns = 0
         """Governed returns started so far (each restart of the reference's trajectory at the vessel)."""
+        self.returning = False
+        """A governed return is under way: from a restart until the reference is back at its target (or a
+        new target, a new mode). The vessel is off its station not by the operator's choice, so the
+        deviation alarms measure from the target meanwhile (`gateway.pipeline`)."""
         self.last_return: str | None = None
         """The words of the last governed return, for the status (`gateway.pipeline`)."""
 
@@ -417,6 +427,7 @@ class DPController:
             raise ControllerError(f"mode: must be one of {MODES}, got {mode!r}")
         if mode == self._mode:
             return
+        self.returning = False
         if self._mode == "dp":
             self._setpoint = None  # leaving dp: re-entering holds the present position unless told otherwise
         if mode == "dp":
@@ -436,6 +447,8 @@ class DPController:
             )
         r = r.copy()
         r[2] = ssa_scalar(float(r[2]))
+        if self._setpoint is None or not np.array_equal(r, self._setpoint):
+            self.returning = False  # the operator's own move from here on
         self._setpoint = r
         if self._mode == "dp" and not self._entering:
             self.reference.set_target(r)
@@ -553,17 +566,27 @@ class DPController:
         makes it hold a force against the unachievable P term, so it restarts at zero for the restarted
         DOFs."""
         n_d, e_d, psi_d, vn_d, ve_d, r_d = self.reference.trajectory()
+        if self.returning and self._reference_home(n_d, e_d, psi_d):
+            self.returning = False
         x0, x1, x2 = eta.tolist()
         u, v, r = nu.tolist()
         c, s = math.cos(x2), math.sin(x2)
         xd0, xd1 = c * u - s * v, s * u + c * v
         dn, de = x0 - n_d, x1 - e_d
         dist = math.hypot(dn, de)
-        trans = dist > self.return_radius_m and dn * (xd0 - vn_d) + de * (xd1 - ve_d) <= 0.0
+        # Coming back: closing on the reference at a tenth of the return speed or more. A vessel merely
+        # held where it is (a load at the edge of its capability) is not restarted: each restart zeroes
+        # the integrator, the force that holds it, and it would drift off again.
+        trans = (
+            dist > self.return_radius_m
+            and dn * (xd0 - vn_d) + de * (xd1 - ve_d) < -RETURN_CLOSING * self.return_speed_mps * dist
+        )
         dpsi = ssa_scalar(x2 - psi_d)
-        yaw = abs(dpsi) > self.return_heading_rad and dpsi * (r - r_d) <= 0.0
+        closing_rate = RETURN_CLOSING * self.reference.limits.max_yaw_rate_rad_s
+        yaw = abs(dpsi) > self.return_heading_rad and dpsi * (r - r_d) < -closing_rate * abs(dpsi)
         if not (trans or yaw):
             return
+        self.returning = True
         self.reference.restart(
             eta,
             (xd0, xd1, r),
@@ -589,6 +612,14 @@ class DPController:
         self.last_return = (
             "returning to station: " + ", ".join(words) + " (the reference restarted at the vessel; "
             "setpoint unchanged)"
+        )
+
+    def _reference_home(self, n_d: float, e_d: float, psi_d: float) -> bool:
+        """The reference is back at its target: within a twentieth of the return radius and heading."""
+        tn, te, tpsi = self.reference.target.tolist()
+        return (
+            math.hypot(n_d - tn, e_d - te) <= RETURN_HOME * self.return_radius_m
+            and abs(ssa_scalar(psi_d - tpsi)) <= RETURN_HOME * self.return_heading_rad
         )
 
     def _update_dp_compiled(
