@@ -364,6 +364,7 @@ class Pipeline:
         self.allocation: AllocationResult | None = None
         self.control_alarms: list[str] = []
         self._pending_setpoint: dict[str, Any] | None = None
+        self._returns_seen = 0  # the controller's governed returns already announced
         self._raw: tuple[float, np.ndarray, np.ndarray] | None = None
         self._last_control_ns = 0
         self._next_control_ns = 0
@@ -372,7 +373,12 @@ class Pipeline:
             self.mode = cc.initial_mode
             self._control_period_ns = int(NS / cc.rate_hz)
             self.controller = DPController(
-                spec.vessel, ControllerTuning(bandwidth_rad_s=cc.bandwidth_rad_s, damping=cc.damping)
+                spec.vessel,
+                ControllerTuning(
+                    bandwidth_rad_s=cc.bandwidth_rad_s,
+                    damping=cc.damping,
+                    return_speed_mps=cc.return_speed_mps,
+                ),
             )
             if spec.vessel.thrusters:
                 self.allocator = (
@@ -1112,25 +1118,25 @@ class Pipeline:
             return None
         return target if np.all(np.isfinite(target)) else None
 
-    def _deviation_alarms(self, eta_error: np.ndarray) -> list[str]:
+    def _deviation_alarms(self, eta_error: np.ndarray, of: str = "the DP reference") -> list[str]:
         """In dp: the position's distance from the DP reference against the watch circles drawn around
         the setpoint (warning, alarm; `FoxgloveChannels.watch_circles_m`), and the heading's difference
         against `HEADING_LIMITS_DEG`. The reference, not the target: during a setpoint move the vessel
         follows the reference, and only a vessel that cannot (a drive-off, a load beyond capability, a
-        thruster lost) is off it."""
+        thruster lost) is off it. During a governed return (`DPController.returning`) the reference
+        restarted at the vessel, so the caller gives the distance from the setpoint instead: the vessel
+        stays alarmed until it is back inside the circles."""
         out = []
         d = math.hypot(float(eta_error[0]), float(eta_error[1]))
         circles = self.foxglove.watch_circles_m
         for radius, word in sorted(zip(circles, ("warning", "alarm"), strict=False), reverse=True):
             if d > radius:
-                out.append(
-                    f"position {d:.1f} m off the DP reference: beyond the {word} circle ({radius:g} m)"
-                )
+                out.append(f"position {d:.1f} m off {of}: beyond the {word} circle ({radius:g} m)")
                 break
         dpsi = abs(math.degrees(float(eta_error[2])))
         for limit, word in sorted(zip(HEADING_LIMITS_DEG, ("warning", "alarm"), strict=True), reverse=True):
             if dpsi > limit:
-                out.append(f"heading {dpsi:.1f}° off the DP reference: beyond the {word} limit ({limit:g}°)")
+                out.append(f"heading {dpsi:.1f}° off {of}: beyond the {word} limit ({limit:g}°)")
                 break
         return out
 
@@ -1205,6 +1211,10 @@ class Pipeline:
             tau_allocated=None if prev is None else prev.tau_allocated,
             tau_manual=self.manual_tau,
         )
+        if ctl.returns != self._returns_seen:  # a governed return began: announced once, as an event
+            self._returns_seen = ctl.returns
+            if ctl.last_return is not None:
+                self._events.append(ctl.last_return)
         scene: list[Output] = []
         if self._foxglove_on:  # (the setpoint scene is made only for the Foxglove channels)
             target = o.reference.target if self.mode == "dp" else None
@@ -1219,7 +1229,14 @@ class Pipeline:
             self.fusion.set_tau_demand(np.zeros(3))
             self.control_alarms = []
             return scene  # standby commands nothing: the thrusters are someone else's
-        deviation = self._deviation_alarms(o.eta_error) if self.mode == "dp" and o.valid else []
+        deviation: list[str] = []
+        if self.mode == "dp" and o.valid:
+            if ctl.returning:  # off the station not by the operator's choice: measured from the setpoint
+                off = np.asarray(eta_in, dtype=float) - o.reference.target
+                off[2] = ssa_scalar(float(off[2]))
+                deviation = self._deviation_alarms(off, "the DP setpoint (returning)")
+            else:
+                deviation = self._deviation_alarms(o.eta_error)
         thrusters: list[Thruster] = []
         saturated = False
         if self.allocator is not None:

@@ -1312,3 +1312,25 @@ def test_the_check_command_notes_a_udp_address_this_computer_does_not_have(
         assert main(["run", "--config", str(path), "--check"]) == 0
         out = capsys.readouterr().out
         assert ("note: sources.gps.url: 198.51.100.7 is not an address of this computer now" in out) == noted
+
+
+def test_control_return_speed_is_checked_against_the_vessels_reference_speed(tmp_path: Path) -> None:
+    """`[control] return_speed_mps` reaches the controller; above the reference model's Froude-scaled speed
+    limit (0.5 m/s for the 76.2 m mss_supply), zero or negative, start-up stops naming the key."""
+    from gateway.control.controller import ControllerTuning, DPController
+
+    d = base()  # mss_supply
+    d["control"] = {"return_speed_mps": 0.3}
+    cfg = parse(d, tmp_path)
+    assert cfg.control is not None and cfg.control.return_speed_mps == 0.3
+    ctl = DPController(cfg.vessel, ControllerTuning(return_speed_mps=cfg.control.return_speed_mps))
+    assert ctl.return_speed_mps == 0.3
+    d["control"] = {}
+    assert parse(d, tmp_path).control.return_speed_mps is None  # type: ignore[union-attr]
+    d["control"] = {"return_speed_mps": 0.8}
+    (problem,) = problems_of(d, tmp_path)
+    assert problem.startswith("bad.toml: control.return_speed_mps: above the reference model's speed limit")
+    assert "at most 0.5 m/s" in problem and "got 0.8" in problem
+    d["control"] = {"return_speed_mps": 0}
+    (problem,) = problems_of(d, tmp_path)
+    assert problem.startswith("bad.toml: control.return_speed_mps: out of range")

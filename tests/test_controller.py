@@ -344,9 +344,10 @@ def test_heading_takes_the_short_way(supply: VesselModel) -> None:
 
 
 # ------------------------------------------------------------------------------------- anti-windup
-def _drift_off(supply: VesselModel, antiwindup: str) -> tuple[float, float]:
+def _drift_off(supply: VesselModel, antiwindup: str, governed_return: bool = False) -> tuple[float, float]:
     """τ clipped to 50 kN; a 80 kN beam current for 600 s (drift-off), then 20 kN. Returns
-    (largest drift, overshoot past the setpoint on the way back) in m."""
+    (largest drift, overshoot past the setpoint on the way back) in m. The governed return is off unless
+    asked: it restarts the integrator on the way back and would hide what the anti-windup does."""
     clip = np.array([5e4, 5e4, 3e6])
 
     def bias(t: float) -> Array:
@@ -354,7 +355,7 @@ def _drift_off(supply: VesselModel, antiwindup: str) -> tuple[float, float]:
             return np.zeros(3)
         return np.array([0.0, 8e4 if t < 610 else 2e4, 0.0])
 
-    ctrl = DPController(supply)
+    ctrl = DPController(supply, ControllerTuning(governed_return=governed_return))
     plant = VesselDynamics(supply)
     ctrl.set_mode("dp")
     run = simulate(ctrl, plant, 3000.0, 0.2, bias=bias, clip=clip, antiwindup=antiwindup)
@@ -373,6 +374,11 @@ def test_anti_windup(supply: VesselModel) -> None:
     assert over_ci <= 0.3  # measured ≈ 0.07 m
     assert over_no > 30  # measured ≈ 71 m: the wound-up integrator throws the vessel past the setpoint
     assert max(over_bc, over_ci) < over_no / 100
+    # with the governed return (the default), even without anti-windup the restart of the reference and
+    # the integrator at the vessel keeps the return from throwing it past the setpoint (the restart waits
+    # for the vessel to close at a tenth of the return speed, so some of the wound-up push is spent first)
+    _, over_gov = _drift_off(supply, "none", governed_return=True)
+    assert over_gov < 15  # measured 10.5 m (71 m without the governed return)
 
 
 # ---------------------------------------------------------------------------------------- modes
@@ -533,3 +539,111 @@ def test_reference_body_frame_quantities() -> None:
     assert np.allclose(s1.nu_d, [c * ed[0] + s * ed[1], -s * ed[0] + c * ed[1], ed[2]])
     central = (s2.nu_d - s0.nu_d) / (2 * h)
     assert np.allclose(central, s1.nu_dot_d, rtol=0, atol=5e-5)  # the turn term r_d·[v, −u] is ≈ 4e-3
+
+
+# ------------------------------------------------------------------------------------ governed return
+def test_reference_restart_keeps_the_target_and_returns_within_the_lower_speed(supply: VesselModel) -> None:
+    """`ReferenceModel.restart` moves the trajectory (not the target) to a vessel 100 m off and moving away
+    at 0.4 m/s: the reference brakes that at ≤ a_max, comes back at ≤ the lowered speed limit, ends on the
+    target without overshoot; a new, different target restores the reference's own limit."""
+    d = froude_defaults(supply)
+    limits = ReferenceLimits(
+        d["max_speed_mps"], d["max_accel_mps2"], d["max_yaw_rate_rad_s"], d["max_yaw_accel_rad_s2"]
+    )
+    ref = ReferenceModel(0.07, limits)
+    ref.reset([0.0, 0.0, 0.5])
+    ref.restart([60.0, 80.0, 0.5], [0.24, 0.32, 0.0], yaw=False, max_speed_mps=0.3)
+    assert ref.speed_limit == 0.3
+    assert np.array_equal(ref.target, [0.0, 0.0, 0.5])
+    states = [ref.step(0.1) for _ in range(9000)]
+    eta = np.array([s.eta_d for s in states])
+    speed = np.hypot(*np.array([s.eta_dot_d[:2] for s in states]).T)
+    accel = np.hypot(*np.array([s.eta_ddot_d[:2] for s in states]).T)
+    assert speed[speed.argmin() :].max() <= 0.3 + 1e-12  # after braking: within the return speed
+    assert speed.max() <= 0.4 + 1e-12 and accel.max() <= 0.05 + 1e-12
+    along = eta[:, :2] @ np.array([0.6, 0.8])  # distance along the line from the target to the vessel
+    assert along.min() >= -1e-6 and np.hypot(*eta[-1, :2]) < 1e-3  # on the target, no overshoot
+    ref.set_target([0.0, 0.0, 0.5])  # the same target again: still the return's limit
+    assert ref.speed_limit == 0.3
+    ref.set_target([10.0, 0.0, 0.5])
+    assert ref.speed_limit == d["max_speed_mps"]
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_far_off_vessel_coming_back_restarts_the_reference_not_the_station(
+    supply: VesselModel, compiled: bool
+) -> None:
+    """A vessel beyond the return radius (e·v_ret/ωn = 19.4 m for mss_supply at 0.5 m/s, 0.07 rad/s) and
+    closing on its reference gets the reference's trajectory restarted at its position and velocity, the
+    return speed as the limit, the integrator of the restarted DOFs at zero; the station stays. Moving away
+    (a drift-off), or inside the radius, nothing is restarted."""
+    ctl = DPController(supply, ControllerTuning(return_speed_mps=0.3), compiled=compiled)
+    assert ctl.return_radius_m == pytest.approx(math.e * 0.3 / 0.07)
+    station = np.array([0.0, 0.0, 0.3])
+    ctl.set_setpoint(station)
+    ctl.set_mode("dp")
+    zero = np.zeros(3)
+    ctl.update(0.0, station, zero, zero)
+    away = np.array([0.0, 0.4, 0.0])  # body: at ψ = 0.3 rad, mostly east, i.e. away from the station
+    for k in range(1, 50):  # drifting off, 4 m → 24 m east: no restart, the integrator winds
+        ctl.update(0.1 * k, [0.0, 4.0 + 0.4 * k, 0.3], away, zero)
+    assert ctl.returns == 0 and ctl.integral[1] > 20  # wound: η̃ up to 24 m for 5 s
+    o = ctl.update(5.0, [0.0, 24.0, 0.3], -away, zero)  # coming back
+    assert ctl.returns == 1 and ctl.last_return is not None
+    assert ctl.last_return.startswith("returning to station: 24.0 m off at ≤ 0.30 m/s")
+    assert np.allclose(o.reference.target, station, atol=1e-15, rtol=1e-15)  # the station stays
+    assert np.allclose(ctl.reference.target, station, atol=1e-15, rtol=1e-15)
+    assert ctl.reference.speed_limit == 0.3
+    assert np.hypot(o.eta_error[0], o.eta_error[1]) < 0.05  # restarted at the vessel, then 0.1 s at 0.4 m/s
+    assert np.abs(o.integral[:2]).max() < 0.005  # restarted at 0, then one step of η̃·dt (was > 20 m·s)
+    n = ctl.returns
+    for k in range(51, 60):  # following the restarted reference: no further restart
+        ctl.update(0.1 * k, [0.0, 24.0 - 0.05 * (k - 50), 0.3], -0.5 * away, zero)
+    assert ctl.returns == n
+    near = DPController(supply, compiled=compiled)  # 15 m off (inside 19.4 m), coming back: the feedback
+    near.set_setpoint(station)
+    near.set_mode("dp")
+    near.update(0.0, station, zero, zero)
+    near.update(0.1, [0.0, 15.0, 0.3], -away, zero)
+    assert near.returns == 0
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_a_vessel_held_far_off_is_not_restarted_and_a_return_ends_at_the_station(
+    supply: VesselModel, compiled: bool
+) -> None:
+    """Held where it is 30 m off (a load at the edge of capability: no closing speed), the vessel keeps the
+    full error and its integrator: a restart would zero the integral that holds it. Closing at 0.2 m/s
+    it restarts; `returning` stays set until the reference is home, and a new setpoint ends it."""
+    ctl = DPController(supply, compiled=compiled)
+    station = np.array([0.0, 0.0, 0.0])
+    ctl.set_setpoint(station)
+    ctl.set_mode("dp")
+    zero = np.zeros(3)
+    ctl.update(0.0, station, zero, zero)
+    for k in range(1, 300):  # 30 s held 30 m north, still
+        ctl.update(0.1 * k, [30.0, 0.0, 0.0], zero, zero)
+    assert ctl.returns == 0 and not ctl.returning and ctl.integral[0] > 0.0
+    creep = np.array([-0.02, 0.0, 0.0])  # closing at 0.02 m/s: under a tenth of the return speed
+    ctl.update(30.0, [30.0, 0.0, 0.0], creep, zero)
+    assert ctl.returns == 0
+    ctl.update(30.1, [30.0, 0.0, 0.0], 10 * creep, zero)  # closing at 0.2 m/s
+    assert ctl.returns == 1 and ctl.returning
+    t, k = 30.2, 0
+    while ctl.returning and k < 20000:  # the vessel on its reference, walked home
+        ref = ctl.reference.state
+        ctl.update(t, ref.eta_d, ref.nu_d, zero)
+        t, k = t + 0.1, k + 1
+    assert not ctl.returning and np.hypot(*ctl.reference.state.eta_d[:2]) <= 0.05 * ctl.return_radius_m
+    ctl.update(t, [30.0, 0.0, 0.0], 10 * creep, zero)  # far off again, closing: a second return
+    assert ctl.returns == 2 and ctl.returning
+    ctl.set_setpoint([5.0, 0.0, 0.0])  # the operator's own move: no longer a return
+    assert not ctl.returning
+
+
+def test_return_speed_above_the_reference_limit_is_refused(supply: VesselModel) -> None:
+    with pytest.raises(ControllerError, match=r"return_speed_mps.*at most"):
+        DPController(supply, ControllerTuning(return_speed_mps=0.6))
+    with pytest.raises(ControllerError, match="return_speed_mps"):
+        DPController(supply, ControllerTuning(return_speed_mps=0.0))
+    assert DPController(supply).return_speed_mps == froude_defaults(supply)["max_speed_mps"]

@@ -51,6 +51,7 @@ from gateway.config.schema import (
     read_table,
 )
 from gateway.config.source_entries import read_sources
+from gateway.control.controller import froude_defaults
 from observers.vessel import VesselError, VesselModel, builtin_vessels, load_vessel
 from wire.rmw_zenoh import fully_qualified, is_ros_name
 from wire.urls import UrlError, split_host_port, valid_host
@@ -122,7 +123,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
     zenoh_config = _read_zenoh(p, data, base_dir, vessel)
     log = _read_log(p, data, base_dir)
     status = _read_status(p, data)
-    control = _read_control(p, data)
+    control = _read_control(p, data, vessel)
     integrity = _read_integrity(p, data)
     commands = _read_commands(p, data)
     time_config = _read_time(p, data)
@@ -487,12 +488,22 @@ def _read_time(p: Problems, data: Mapping[str, Any]) -> TimeConfig | None:
     return None if clock is None else TimeConfig(clock=clock)
 
 
-def _read_control(p: Problems, data: Mapping[str, Any]) -> ControlConfig | None:
+def _read_control(p: Problems, data: Mapping[str, Any], vessel: VesselModel | None) -> ControlConfig | None:
     t = _section(p, data, "control")
     if t is None:
         return None
     n0 = len(p)
     v = read_table(ControlTable, t, "control", p)
+    ret = v["return_speed_mps"]
+    if ret is not None and vessel is not None:
+        top = froude_defaults(vessel)["max_speed_mps"]
+        if ret > top:
+            p.add(
+                "control.return_speed_mps",
+                f"above the reference model's speed limit (expected at most {top:.3g} m/s for this "
+                f"{vessel.length_m:g} m vessel, got {show(t['return_speed_mps'])}): a return may not be "
+                "faster than a setpoint move",
+            )
     if len(p) != n0:
         return None
     return ControlConfig(
@@ -502,6 +513,7 @@ def _read_control(p: Problems, data: Mapping[str, Any]) -> ControlConfig | None:
         bandwidth_rad_s=v["bandwidth_rad_s"],
         damping=v["damping"],
         feedback=v["feedback"],
+        return_speed_mps=ret,
     )
 
 

@@ -190,6 +190,9 @@ class ControlConfig:
     feedback: str = "estimate"
     """What the controller's position/heading term sees: the observer's LF estimate (always, at sea), or
     the raw measurement — only to demonstrate what wave filtering buys (the same controller, same ν̂)."""
+    return_speed_mps: float | None = None
+    """Speed limit of a governed return to the station after the vessel was far off its reference
+    (docs/controller.md); None: the reference model's speed limit (0.5 m/s at 76.2 m, Froude-scaled)."""
 
 
 @dataclass(frozen=True)

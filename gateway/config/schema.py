@@ -429,6 +429,7 @@ class ControlTable(_Section):
     bandwidth_rad_s: PerDof = per_dof(unit="rad/s")
     damping: float = number(_C["damping"], lo=0.3, hi=3.0)
     feedback: str = choice(_C["feedback"], FEEDBACKS)
+    return_speed_mps: float | None = number(None, lo=0.0, lo_open=True, unit="m/s")
 
 
 _I = DEFAULTS["integrity"]

@@ -104,6 +104,12 @@ DEFAULT_MAX_SPEED_MPS = 0.5
 DEFAULT_MAX_ACCEL_MPS2 = 0.05
 DEFAULT_MAX_YAW_RATE_RAD_S = math.radians(2.0)
 DEFAULT_MAX_YAW_ACCEL_RAD_S2 = math.radians(0.2)
+RETURN_CLOSING = 0.1
+"""A governed return starts only while the vessel closes on its reference at this fraction of the return
+speed (or yaw-rate limit) or faster: not while it is merely held where it is (`DPController`)."""
+RETURN_HOME = 0.05
+"""A governed return ends when the reference is this fraction of the return radius (and heading) from
+its target."""
 
 ZERO3 = np.zeros(3)
 
@@ -155,6 +161,11 @@ class ControllerTuning:
     reference_bandwidth_rad_s: ω of the reference model, one value or (translation, yaw); None: the
                                closed-loop ωn (min of surge and sway for translation).
     tracking_time_s:           Tₜ of back-calculation anti-windup, per DOF; None: 1/ωn.
+    return_speed_mps:          speed limit over ground of a governed return to the station (a vessel
+                               found far off its reference and coming back, `DPController`); None:
+                               ``max_speed_mps``. At most ``max_speed_mps``.
+    governed_return:           restart the reference at a vessel found far off it and coming back
+                               (True, the default); False: the full error drives the return.
     """
 
     bandwidth_rad_s: float | tuple[float, ...] | None = None
@@ -168,6 +179,8 @@ class ControllerTuning:
     max_yaw_accel_rad_s2: float | None = None
     reference_bandwidth_rad_s: float | tuple[float, ...] | None = None
     tracking_time_s: float | tuple[float, ...] | None = None
+    return_speed_mps: float | None = None
+    governed_return: bool = True
 
     def resolved(self, vessel: VesselModel) -> ControllerTuning:
         """This tuning with every default filled in for ``vessel`` and per-DOF values as tuples, checked."""
@@ -182,6 +195,13 @@ class ControllerTuning:
         ref = self.reference_bandwidth_rad_s
         ref_w = _per_dof((min(wn[0], wn[1]), wn[2]) if ref is None else ref, "reference_bandwidth_rad_s", n=2)
         tt = self.tracking_time_s
+        ret = limits["max_speed_mps"] if self.return_speed_mps is None else self.return_speed_mps
+        ret = _per_dof(ret, "return_speed_mps", n=1)[0]
+        if ret > limits["max_speed_mps"]:
+            raise ControllerError(
+                f"tuning 'return_speed_mps': must be at most the reference's max_speed_mps "
+                f"({limits['max_speed_mps']:g} m/s), got {self.return_speed_mps!r}"
+            )
         return replace(
             self,
             bandwidth_rad_s=wn,
@@ -191,6 +211,8 @@ class ControllerTuning:
             feedforward=bool(self.feedforward),
             reference_bandwidth_rad_s=ref_w,
             tracking_time_s=tuple(1.0 / w for w in wn) if tt is None else _per_dof(tt, "tracking_time_s"),
+            return_speed_mps=ret,
+            governed_return=bool(self.governed_return),
             **limits,
         )
 
@@ -364,6 +386,21 @@ class DPController:
             [self._k, self._has_i.astype(float), np.broadcast_to(self._tracking_rate, (3,))]
         ).astype(float)
         self._rp: Array | None = None  # the reference model's constants, packed on first use
+        # governed return (`_govern_return`): the error beyond which the feedback alone would bring the
+        # vessel back faster than the return speed / the yaw-rate limit (peak of the critically damped
+        # step response e₀·ω/e)
+        wn = self.gains.omega_n
+        self.return_speed_mps = float(_num(tu.return_speed_mps)[0])
+        self.return_radius_m = math.e * self.return_speed_mps / float(min(wn[0], wn[1]))
+        self.return_heading_rad = math.e * limits.max_yaw_rate_rad_s / float(wn[2])
+        self.returns = 0
+        """Governed returns started so far (each restart of the reference's trajectory at the vessel)."""
+        self.returning = False
+        """A governed return is under way: from a restart until the reference is back at its target (or a
+        new target, a new mode). The vessel is off its station not by the operator's choice, so the
+        deviation alarms measure from the target meanwhile (`gateway.pipeline`)."""
+        self.last_return: str | None = None
+        """The words of the last governed return, for the status (`gateway.pipeline`)."""
 
     # -- commands ---------------------------------------------------------------------------------------
     @property
@@ -390,6 +427,7 @@ class DPController:
             raise ControllerError(f"mode: must be one of {MODES}, got {mode!r}")
         if mode == self._mode:
             return
+        self.returning = False
         if self._mode == "dp":
             self._setpoint = None  # leaving dp: re-entering holds the present position unless told otherwise
         if mode == "dp":
@@ -409,6 +447,8 @@ class DPController:
             )
         r = r.copy()
         r[2] = ssa_scalar(float(r[2]))
+        if self._setpoint is None or not np.array_equal(r, self._setpoint):
+            self.returning = False  # the operator's own move from here on
         self._setpoint = r
         if self._mode == "dp" and not self._entering:
             self.reference.set_target(r)
@@ -467,6 +507,8 @@ class DPController:
         if eta is None or nu is None:
             # no estimate (observer initialising): hold τ, freeze integrator; the reference waits
             return self._output(t, False, self.reference.state, ZERO3, ZERO3, ZERO3, ZERO3, ZERO3, ZERO3)
+        if self.tuning.governed_return and not self._entering:
+            self._govern_return(eta, nu)
         if self.compiled and not self._entering:
             return self._update_dp_compiled(t, dt, eta, nu, b, saturated, tau_alloc)
         R = rotation(float(eta[2]))
@@ -509,6 +551,76 @@ class DPController:
         tau_i = -self.gains.Ki @ (R.T @ self._z)
         self._tau = tau_p + tau_i + tau_d + tau_ff
         return self._output(t, True, ref, e, nu_err, tau_p, tau_i, tau_d, tau_ff)
+
+    def _govern_return(self, eta: Array, nu: Array) -> None:
+        """A vessel far off its reference and coming back to it returns at the reference model's pace.
+
+        Translation: when the estimate is more than ``return_radius_m`` from η_d and its velocity over
+        ground relative to η_d' closes the distance (or holds it), the reference's trajectory (η_d, η_d',
+        prefilter) restarts at η̂ moving with J(ψ̂)ν̂, its speed limit lowered to ``return_speed_mps``;
+        the target — the operator's setpoint — does not move. The reference then brakes the vessel's
+        motion at ≤ a_max and walks it back at ≤ the return speed. Heading the same with
+        ``return_heading_rad`` and the reference's yaw-rate limit. While the vessel still moves away (a
+        drift-off beyond capability), nothing is restarted: the full error keeps pushing it back and the
+        deviation alarms measure it from where the reference was. The integrator: back-calculation
+        makes it hold a force against the unachievable P term, so it restarts at zero for the restarted
+        DOFs."""
+        n_d, e_d, psi_d, vn_d, ve_d, r_d = self.reference.trajectory()
+        if self.returning and self._reference_home(n_d, e_d, psi_d):
+            self.returning = False
+        x0, x1, x2 = eta.tolist()
+        u, v, r = nu.tolist()
+        c, s = math.cos(x2), math.sin(x2)
+        xd0, xd1 = c * u - s * v, s * u + c * v
+        dn, de = x0 - n_d, x1 - e_d
+        dist = math.hypot(dn, de)
+        # Coming back: closing on the reference at a tenth of the return speed or more. A vessel merely
+        # held where it is (a load at the edge of its capability) is not restarted: each restart zeroes
+        # the integrator, the force that holds it, and it would drift off again.
+        trans = (
+            dist > self.return_radius_m
+            and dn * (xd0 - vn_d) + de * (xd1 - ve_d) < -RETURN_CLOSING * self.return_speed_mps * dist
+        )
+        dpsi = ssa_scalar(x2 - psi_d)
+        closing_rate = RETURN_CLOSING * self.reference.limits.max_yaw_rate_rad_s
+        yaw = abs(dpsi) > self.return_heading_rad and dpsi * (r - r_d) < -closing_rate * abs(dpsi)
+        if not (trans or yaw):
+            return
+        self.returning = True
+        self.reference.restart(
+            eta,
+            (xd0, xd1, r),
+            translation=trans,
+            yaw=yaw,
+            max_speed_mps=self.return_speed_mps if trans else None,
+        )
+        # The integrator restarts too, for the restarted DOFs: through the saturated drift-off
+        # back-calculation has pulled the integral term against the (huge, unachievable) P term, so it holds
+        # a force pointing away from the station; with the error gone it would drive the vessel off again.
+        # The load is carried by the bias feed-forward b̂; the integrator re-learns the residual.
+        if trans:
+            self._z[0] = self._z[1] = 0.0
+        if yaw:
+            self._z[2] = 0.0
+        words = []
+        if trans:
+            words.append(f"{dist:.1f} m off at ≤ {self.return_speed_mps:.2f} m/s")
+        if yaw:
+            rate = math.degrees(self.reference.limits.max_yaw_rate_rad_s)
+            words.append(f"{math.degrees(abs(dpsi)):.1f}° off at ≤ {rate:.2f}°/s")
+        self.returns += 1
+        self.last_return = (
+            "returning to station: " + ", ".join(words) + " (the reference restarted at the vessel; "
+            "setpoint unchanged)"
+        )
+
+    def _reference_home(self, n_d: float, e_d: float, psi_d: float) -> bool:
+        """The reference is back at its target: within a twentieth of the return radius and heading."""
+        tn, te, tpsi = self.reference.target.tolist()
+        return (
+            math.hypot(n_d - tn, e_d - te) <= RETURN_HOME * self.return_radius_m
+            and abs(ssa_scalar(psi_d - tpsi)) <= RETURN_HOME * self.return_heading_rad
+        )
 
     def _update_dp_compiled(
         self,

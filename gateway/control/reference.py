@@ -139,6 +139,7 @@ class ReferenceModel:
         self._w_t = min(w_t, 2.0 * limits.max_accel_mps2 / limits.max_speed_mps)
         self._w_y = min(w_y, 2.0 * limits.max_yaw_accel_rad_s2 / limits.max_yaw_rate_rad_s)
         self._h_max = H_FACTOR / max(self._w_t, self._w_y)
+        self._vmax = limits.max_speed_mps  # the speed limit in force (lower during a governed return)
         self._p = np.zeros(2)  # η_d (N, E)
         self._v = np.zeros(2)  # η_d' (N, E)
         self._f = np.zeros(2)  # prefilter state x_f (N, E)
@@ -164,18 +165,60 @@ class ReferenceModel:
         self._psi = ssa_scalar(float(e[2]))
         self._r = float(ed[2])
         self._f_psi = self._psi
+        self._vmax = self.limits.max_speed_mps
         self.set_target(e if target is None else target)
+
+    def restart(
+        self,
+        eta: ArrayLike,
+        eta_dot: ArrayLike,
+        *,
+        translation: bool = True,
+        yaw: bool = True,
+        max_speed_mps: float | None = None,
+    ) -> None:
+        """Restart the trajectory (η_d, η_d', prefilter) of the chosen groups at η moving with η' (earth
+        frame), keeping the target: the reference then brakes η' at the acceleration limit and moves to the
+        same target within the limits. ``max_speed_mps`` lowers the speed limit (never above
+        ``limits.max_speed_mps``) until the next different target or `reset`.
+
+        This is how a vessel far off its reference comes back at the reference's pace without the
+        target (the operator's setpoint) moving (`gateway.control.controller`, governed return)."""
+        e = _vec3(eta, "eta")
+        ed = _vec3(eta_dot, "eta_dot")
+        if translation:
+            self._p = e[:2].copy()
+            self._v = ed[:2].copy()
+            self._f = e[:2].copy()
+        if yaw:
+            self._psi = ssa_scalar(float(e[2]))
+            self._r = float(ed[2])
+            self._f_psi = self._psi
+        if max_speed_mps is not None:
+            self._vmax = min(_positive(max_speed_mps, "max_speed_mps"), self.limits.max_speed_mps)
+
+    @property
+    def speed_limit(self) -> float:
+        """The speed limit in force (m/s over ground): ``limits.max_speed_mps``, or a return's lower one."""
+        return self._vmax
+
+    def trajectory(self) -> tuple[float, float, float, float, float, float]:
+        """(N_d, E_d, ψ_d, N_d', E_d', ψ_d') as floats, earth frame: the state without a `ReferenceState`."""
+        p, v = self._p.tolist(), self._v.tolist()
+        return (p[0], p[1], self._psi, v[0], v[1], self._r)
 
     def set_target(self, eta_target: ArrayLike) -> None:
         """New target r = [N, E, ψ] (m, m, rad); the reference moves to it from its present state."""
         r = _vec3(eta_target, "eta_target")
         r[2] = ssa_scalar(float(r[2]))
+        if not np.array_equal(r, self._target):
+            self._vmax = self.limits.max_speed_mps  # a new move: the reference's own limit again
         self._target = r
 
     def _accel(self) -> tuple[Array, float]:
         lim = self.limits
         w, wy = self._w_t, self._w_y
-        v_c = _sat(0.5 * w * (self._f - self._p), lim.max_speed_mps)
+        v_c = _sat(0.5 * w * (self._f - self._p), self._vmax)
         a = _sat(2.0 * w * (v_c - self._v), lim.max_accel_mps2)
         r_c = _sat_scalar(0.5 * wy * ssa_scalar(self._f_psi - self._psi), lim.max_yaw_rate_rad_s)
         ar = _sat_scalar(2.0 * wy * (r_c - self._r), lim.max_yaw_accel_rad_s2)
@@ -197,7 +240,7 @@ class ReferenceModel:
             v0, v1 = self._v.tolist()
             lim = self.limits
             w, wy = self._w_t, self._w_y
-            vmax, amax = lim.max_speed_mps, lim.max_accel_mps2
+            vmax, amax = self._vmax, lim.max_accel_mps2
             hw, tw = 0.5 * w, 2.0 * w
             hh = 0.5 * h * h
             for _ in range(n):
@@ -236,7 +279,7 @@ class ReferenceModel:
                 self._w_t,
                 self._w_y,
                 self._h_max,
-                lim.max_speed_mps,
+                self._vmax,
                 lim.max_accel_mps2,
                 lim.max_yaw_rate_rad_s,
                 lim.max_yaw_accel_rad_s2,
