@@ -208,10 +208,10 @@ def test_a_simulator_restarted_under_the_gateway_is_followed(tmp_path: Path) -> 
         for topic in {topic for topic, _ in written}:  # each channel in order: no second run's time in it
             on = [t for name, t in written if name == topic]
             assert on == sorted(on), f"{path.name} {topic}: log times out of order"
-        # across channels, a status made at "now" may precede a chunk received a moment before it and
-        # handled after it (stamped at its receive instant): less than a tick (50 ms) apart
+        # across channels, less than a second back (another run's time would be tens of seconds back):
+        # the Foxglove log lines of a status come up to ~0.1 s behind the outputs written before them
         times = [t for _, t in written]
-        assert min(b - a for a, b in itertools.pairwise(times)) > -50_000_000, path.name
+        assert min(b - a for a, b in itertools.pairwise(times)) > -1_000_000_000, path.name
         times.sort()
         t_truth, _ = lf_truth(truth)
         assert t_truth[0] - 1.0 <= times[0] / 1e9 and times[-1] / 1e9 <= t_truth[-1] + 1.0, path.name
