@@ -406,6 +406,27 @@ class Pipeline:
         }
         self._thruster_ids = [th.id for th in spec.vessel.thrusters]
 
+    def start_over(self, spec: PipelineSpec, event: str) -> Pipeline:
+        """A pipeline as at start-up for another run of the plant (a simulator started again under the
+        live gateway, `gateway.service`), built from ``spec`` (a fresh one: new observers), that keeps
+        what counts over the gateway's life: the sources' counters (the same objects, in the same dict)
+        but not their freshness (no data yet from the new run), the estimates published, the observer
+        restarts, the command counters, the raw-sentence tap. Everything else starts over: observers,
+        fusion (a datum from the first fix, if so configured), reference tests, controller and allocation,
+        the mode from ``control.initial_mode`` and no setpoint, the framers and MAVLink parsers, the
+        drives' flags. ``event`` goes out, once, in its first status."""
+        new = Pipeline(spec)
+        for c in self.counters.values():
+            c.last_rx_ns = 0
+        new.counters = self.counters
+        new.estimates = self.estimates
+        new.restarts = self.restarts
+        new.commands.counters = self.commands.counters
+        new.sentence_tap = self.sentence_tap
+        new._caller_alarms = list(self._caller_alarms)
+        new._events.append(event)
+        return new
+
     @staticmethod
     def _mavlink_parser(s: SourceSpec) -> mv.FrameParser:
         if s.signing_key is None:

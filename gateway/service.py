@@ -19,7 +19,9 @@ simulator publishes on ``<prefix>/sim/clock`` (`gateway.sim_time`: interpolated 
 one tick ahead), so everything downstream (observer, controller, commands, log, reference checks, dead
 reckoning) lives on the plant's time. Until the first tick arrives there is no time to stamp with: what is
 received is held, in order (at most `HOLD_MAX` items, the oldest dropped and counted), and handled, stamped
-with the first tick's time, when it comes.
+with the first tick's time, when it comes. A simulator started again under the gateway (its time goes back)
+is followed: the log goes on in the next file of its set, the pipeline starts over as at start-up, and the
+stamps come from the new run's ticks (`GatewayService._follow_new_run`).
 """
 
 from __future__ import annotations
@@ -169,8 +171,9 @@ class GatewayService:
         """Items dropped while waiting for a simulation clock tick (more than `HOLD_MAX` held)."""
         self.clock_rejected = 0
         """Simulation clock ticks that were not a valid `SimClock`."""
-        self.restart_dropped = 0
-        """Inputs not handled since the simulator restarted (its time went back): another run of the plant."""
+        self.runs_followed = 0
+        """New runs of the plant followed: the simulator started again under the gateway (its time went
+        back)."""
         self.stop_event = threading.Event()
         path = log_path if log_path is not None else config.log.path
         self._log_path = str(path) if path else None
@@ -350,10 +353,7 @@ class GatewayService:
         except (msgspec.DecodeError, msgspec.ValidationError):
             self.clock_rejected += 1
             return
-        restarted = self.sim_time.went_back is not None
         self.sim_time.on_tick(tick.stamp_ns, tick.period_s, mono)
-        if not restarted and self.sim_time.went_back is not None:
-            log.error("%s", self._restart_alarm())
 
     def _on_query(self, query: zenoh.Query) -> None:
         with self._status_lock:
@@ -396,9 +396,12 @@ class GatewayService:
                 item = self._queue.get(timeout=0.05)
             except queue.Empty:
                 item = None
+            st = self.sim_time
             if item is not None:
                 self._take(item)
-            elif self._held and self.sim_time is not None and self.sim_time.started:
+            elif st is not None and st.started and (self._held or st.went_back is not None):
+                if st.went_back is not None:  # nothing of the old run waits: follow the new one now
+                    self._follow_new_run()
                 self._release_held()
             mono = time.monotonic_ns()
             # While items wait in the queue, "now" is the newest time handled (none before the first): a
@@ -435,10 +438,8 @@ class GatewayService:
         if st is None:
             self._handle(item)
             return
-        if st.went_back is not None:
-            self._release_held()  # (drops what is held)
-            self.restart_dropped += 1  # another run of the plant: not stamped onto this one (sim_time)
-            return
+        if st.went_back is not None and st.of_new_run(item.rx_mono_ns, HOLD_SILENT_NS):
+            self._follow_new_run()  # (what came before it, the old run's, has been handled)
         if self._held:
             self._release_held()
         if not st.started or self._held or st.silent_since(item.rx_mono_ns, HOLD_SILENT_NS):
@@ -450,14 +451,13 @@ class GatewayService:
 
     def _release_held(self) -> None:
         """What is held, in order, as soon as a tick came after it (what came before the first tick is
-        stamped with the first tick's time); all of it dropped and counted once the simulator restarted
-        (its time went back): it came between the old run's last tick and the new run's first."""
+        stamped with the first tick's time). Once the simulator has started again (its time went back),
+        what is held came between the old run's last tick and the new run's first: the new run's, handled
+        in it, stamped with its first tick's time."""
         st = self.sim_time
         while self._held and st is not None and st.started:
             if st.went_back is not None:
-                self.restart_dropped += len(self._held)
-                self._held.clear()
-                return
+                self._follow_new_run()
             if st.silent_since(self._held[0].rx_mono_ns, HOLD_SILENT_NS):
                 return  # no tick since: which run it is of is not known yet
             self._handle(self._held.popleft())
@@ -543,8 +543,6 @@ class GatewayService:
                     f'clock: no simulation time on {key} yet (clock = "sim"): {len(self._held)} inputs '
                     "held; is the simulator publishing its clock on this prefix (dpgw sim --zenoh)?"
                 )
-        elif self.sim_time.went_back is not None:
-            alarms.append(self._restart_alarm())
         elif silent_s > CLOCK_SILENT_S:
             held = f" ({len(self._held)} inputs held until one comes)" if self._held else ""
             alarms.append(f"clock: no simulation clock tick on {key} for {silent_s:.0f} s{held}")
@@ -554,17 +552,30 @@ class GatewayService:
             alarms.append(f"clock: {self.clock_rejected} ticks on {key} were not a dpgw.SimClock")
         return alarms
 
-    def _restart_alarm(self) -> str:
-        """What the gateway says once the simulator has started again under it."""
-        assert self.sim_time is not None and self.sim_time.went_back is not None
-        newest, tick = self.sim_time.went_back
-        not_handled = self.restart_dropped + len(self._held)  # (the held: dropped at the next release)
-        return (
-            f"clock: the simulation time on {self.prefix}/{SIM_CLOCK_KEY} went back "
-            f"{(newest - tick) / 1e9:.1f} s (to {_utc(tick)}, from {_utc(newest)}): the simulator started "
-            f"again; its data is another run of the plant and is not handled ({not_handled} "
-            "inputs not handled): restart dpgw run to follow it"
+    def _follow_new_run(self) -> None:
+        """The simulator started again under the gateway (its time went back): follow the new run of the
+        plant as a gateway started with it would. The log finishes its file and goes on in the next of the
+        set, so each run is a file of its own that replays alone (one log of two runs on overlapping
+        times could not be told apart). The pipeline starts over as at start-up (`Pipeline.start_over`:
+        observers, fusion, reference tests, controller and mode, the sources' freshness), keeping its
+        counts: the old run's estimate, setpoint and integrator are of another vessel's sea. The stamps
+        come from the new run's ticks. Said once, in the gateway's log and in the next status."""
+        st = self.sim_time
+        assert st is not None
+        newest, tick = st.follow()
+        self.runs_followed += 1
+        where = ""
+        if self.log is not None:
+            where = f"; log continues in {self.log.rotate().name}"
+        held = f"; {len(self._held)} inputs held for its first tick go to it" if self._held else ""
+        event = (
+            f"clock: the simulator started again (the simulation time on {self.prefix}/{SIM_CLOCK_KEY} went "
+            f"back {(newest - tick) / 1e9:.1f} s, to {_utc(tick)} from {_utc(newest)}): following the new "
+            f"run (run {st.runs} of this gateway){where}{held}"
         )
+        # (said by the next status, on the new run's time: a status now could be stamped after the held
+        # inputs, and the new file's times would not be in order)
+        self.pipeline = self.pipeline.start_over(PipelineSpec.from_config(self.config), event)
 
     def _handle(self, item: Chunk | _Input) -> None:
         self._handle_item(item)

@@ -20,10 +20,13 @@ Before the first tick there is no simulation time: `stamp` returns None and the 
 (the service releases it, stamped with the first tick's time, when the first tick comes).
 
 A tick more than `RESTART_BACK_NS` behind the newest is a simulator that started again (a bench restarts
-`dpgw sim` under a running gateway; its time starts again from its epoch): `went_back` keeps the first
-such jump. Its data belongs to another run of the plant: the service does not stamp it onto this one (every
-chunk would get this run's last time, Δt = 0, and the observer a second vessel's measurements), it counts
-it and alarms until the gateway is restarted. A tick a little behind (two Zenoh threads' callbacks
+`dpgw sim` under a running gateway; its time starts again from its epoch): a new run of the plant. Its
+ticks gather apart (`went_back` says so, `restart_mono_ns` when its first tick came) while the stamps still
+come from the run being handled, so what the consumer still has of the old run, received before the new
+run's first tick, is stamped on the old run's time. The consumer `follow`s the new run when it reaches the
+new run's data: from then on stamps come from the new run's ticks only, anchored on its first (what was
+received before it, stamped with its time exactly, as before the first tick of all), and they start again
+from there (stamps never go back within a run). A tick a little behind (two Zenoh threads' callbacks
 swapped) is only ignored.
 """
 
@@ -45,23 +48,62 @@ _KEEP_TICKS = 16384
 busy machine is still stamped from the ticks around its receive instant."""
 
 
+class _Ticks:
+    """The ticks kept of one run of the plant: receive instants and simulation times, both ascending."""
+
+    __slots__ = ("mono", "period_ns", "sim")
+
+    def __init__(self) -> None:
+        self.mono: list[int] = []
+        self.sim: list[int] = []
+        self.period_ns = 0
+
+    def add(self, sim_ns: int, period_s: float, mono_ns: int) -> None:
+        if self.mono and mono_ns < self.mono[-1]:
+            mono_ns = self.mono[-1]  # callbacks of two Zenoh threads may swap; keep the order
+        self.mono.append(mono_ns)
+        self.sim.append(sim_ns)
+        if len(self.mono) > 2 * _KEEP_TICKS:  # amortised trim
+            del self.mono[:-_KEEP_TICKS]
+            del self.sim[:-_KEEP_TICKS]
+        self.period_ns = round(period_s * 1e9)
+
+    def rate(self, k: int) -> float:
+        """The rate over the window of wall time ending at tick ``k``."""
+        w_k = self.mono[k]
+        i = min(bisect_left(self.mono, w_k - RATE_WINDOW_NS), k)
+        return (self.sim[k] - self.sim[i]) / (w_k - self.mono[i]) if w_k > self.mono[i] else 0.0
+
+    def at(self, mono_ns: int) -> int | None:
+        if not self.mono:
+            return None
+        # the last tick received at or before mono_ns (before every tick kept: the oldest, exactly)
+        k = max(bisect_right(self.mono, mono_ns) - 1, 0)
+        ahead = min(self.rate(k) * max(mono_ns - self.mono[k], 0), self.period_ns)
+        return min(self.sim[k] + round(ahead), self.sim[-1] + self.period_ns)
+
+
 class SimTime:
     """Maps monotonic receive instants (ns) to simulation time (UTC ns); thread-safe (ticks arrive on
     Zenoh's threads, stamps are asked for by the service's consumer)."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
-        self._mono: list[int] = []  # receive instants of the ticks kept, ascending
-        self._sim: list[int] = []  # their simulation times, ascending
-        self._period_ns = 0
+        self._run = _Ticks()  # the run stamps come from
+        self._new: _Ticks | None = None  # a new run's ticks, until the consumer follows it
         self._last_out: int | None = None
         self.ticks = 0
-        """Ticks taken."""
+        """Ticks taken (of every run)."""
         self.ignored = 0
-        """Ticks ignored: going back in time (a restarted simulator) or not a valid tick."""
+        """Ticks ignored: a little behind the newest (swapped in delivery) or not a valid tick."""
         self.went_back: tuple[int, int] | None = None
-        """(newest simulation time, the tick's) of the first tick that went back more than
-        `RESTART_BACK_NS`: the simulator started again; None while it has not."""
+        """(newest simulation time of the run being stamped, the new run's first tick) while a tick went
+        back more than `RESTART_BACK_NS` (the simulator started again) and the new run is not followed
+        yet; None otherwise."""
+        self.restart_mono_ns = 0
+        """The receive instant of the new run's first tick (while `went_back` is set)."""
+        self.runs = 1
+        """Runs of the plant stamped so far: 1, and one more at each `follow`."""
 
     @property
     def started(self) -> bool:
@@ -71,67 +113,76 @@ class SimTime:
     def on_tick(self, sim_ns: int, period_s: float, mono_ns: int) -> None:
         """A tick received at monotonic ``mono_ns``: the simulation is at ``sim_ns`` (UTC ns)."""
         with self._lock:
-            if not (period_s > 0.0) or (self._sim and sim_ns < self._sim[-1]):
+            if not (period_s > 0.0):
                 self.ignored += 1
-                if period_s > 0.0 and sim_ns < self._sim[-1] - RESTART_BACK_NS and self.went_back is None:
-                    self.went_back = (self._sim[-1], sim_ns)
                 return
-            if self._mono and mono_ns < self._mono[-1]:
-                mono_ns = self._mono[-1]  # callbacks of two Zenoh threads may swap; keep the order
-            self._mono.append(mono_ns)
-            self._sim.append(sim_ns)
-            if len(self._mono) > 2 * _KEEP_TICKS:  # amortised trim
-                del self._mono[:-_KEEP_TICKS]
-                del self._sim[:-_KEEP_TICKS]
-            self._period_ns = round(period_s * 1e9)
+            run = self._run if self._new is None else self._new
+            if run.sim and sim_ns < run.sim[-1]:
+                if sim_ns >= run.sim[-1] - RESTART_BACK_NS:
+                    self.ignored += 1  # two ticks swapped in delivery
+                    return
+                # the simulator started again (again: the newest restart is the one to follow)
+                self.went_back = (self._run.sim[-1], sim_ns)
+                self.restart_mono_ns = mono_ns
+                run = self._new = _Ticks()
+            run.add(sim_ns, period_s, mono_ns)
             self.ticks += 1
+
+    def of_new_run(self, mono_ns: int, gap_ns: int) -> bool:
+        """While a new run waits to be followed: something received at ``mono_ns`` is of it, having come
+        after its first tick, or after ``gap_ns`` without a tick of the run being stamped (between the old
+        run's last tick and the new run's first: it cannot be the old run's, whose ticks had stopped)."""
+        with self._lock:
+            if self._new is None:
+                return False
+            return mono_ns >= self.restart_mono_ns or self._run.mono[-1] < mono_ns - gap_ns
+
+    def follow(self) -> tuple[int, int]:
+        """Stamp from the new run's ticks from now on (call while `went_back` is set); returns what
+        `went_back` said."""
+        with self._lock:
+            assert self._new is not None and self.went_back is not None
+            went_back, self.went_back = self.went_back, None
+            self._run, self._new = self._new, None
+            self._last_out = None
+            self.runs += 1
+            return went_back
 
     def silent_since(self, mono_ns: int, gap_ns: int) -> bool:
         """No tick has come from ``gap_ns`` before ``mono_ns`` until now: something received at ``mono_ns``
         came while the clock was silent, and nothing has said since which run of the plant it belongs to
         (a paused simulator's, or a restarted one's whose ticks are not through yet)."""
         with self._lock:
-            return bool(self._mono) and self._mono[-1] < mono_ns - gap_ns
+            return bool(self._run.mono) and self._newest_mono() < mono_ns - gap_ns
 
     def silent_s(self, mono_ns: int) -> float | None:
-        """Wall seconds since the last tick (None before the first)."""
+        """Wall seconds since the last tick (of any run; None before the first)."""
         with self._lock:
-            return (mono_ns - self._mono[-1]) / 1e9 if self._mono else None
+            return (mono_ns - self._newest_mono()) / 1e9 if self._run.mono else None
+
+    def _newest_mono(self) -> int:
+        return self._new.mono[-1] if self._new is not None else self._run.mono[-1]
 
     def rate(self) -> float:
         """Simulation seconds per wall second over the last `RATE_WINDOW_NS` (0.0 before two ticks apart
         in wall time)."""
         with self._lock:
-            return self._rate(len(self._mono) - 1) if self._mono else 0.0
-
-    def _rate(self, k: int) -> float:
-        """The rate over the window of wall time ending at tick ``k``."""
-        w_k = self._mono[k]
-        i = min(bisect_left(self._mono, w_k - RATE_WINDOW_NS), k)
-        return (self._sim[k] - self._sim[i]) / (w_k - self._mono[i]) if w_k > self._mono[i] else 0.0
-
-    def _at(self, mono_ns: int) -> int | None:
-        if not self._mono:
-            return None
-        # the last tick received at or before mono_ns (before every tick kept: the oldest, exactly)
-        k = max(bisect_right(self._mono, mono_ns) - 1, 0)
-        ahead = min(self._rate(k) * max(mono_ns - self._mono[k], 0), self._period_ns)
-        return min(self._sim[k] + round(ahead), self._sim[-1] + self._period_ns)
+            return self._run.rate(len(self._run.mono) - 1) if self._run.mono else 0.0
 
     def now(self, mono_ns: int) -> int | None:
         """Simulation time at ``mono_ns`` without handing out a stamp (for ticks and status); None before
         the first tick."""
         with self._lock:
-            t = self._at(mono_ns)
+            t = self._run.at(mono_ns)
             if t is not None and self._last_out is not None:
                 t = max(t, self._last_out)
             return t
 
     def stamp(self, mono_ns: int) -> int | None:
-        """The stamp of something received at ``mono_ns``: never less than the last stamp handed out;
-        None before the first tick."""
+        """The stamp of something received at ``mono_ns``: never less than the last stamp handed out (in
+        this run); None before the first tick."""
         with self._lock:
-            t = self._at(mono_ns)
+            t = self._run.at(mono_ns)
             if t is None:
                 return None
             if self._last_out is not None and t < self._last_out:

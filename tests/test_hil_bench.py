@@ -5,6 +5,7 @@ stop both with complete logs."""
 
 from __future__ import annotations
 
+import itertools
 import json
 import signal
 import socket
@@ -59,11 +60,11 @@ def complete(path: Path) -> tuple[int, int]:
     return s.statistics.message_count, len(s.chunk_indexes)
 
 
-@pytest.mark.slow  # ~40 s: two processes, 100 s of sea at 4x
-def test_the_documented_two_process_bench_closes_the_loop_and_stops_cleanly(tmp_path: Path) -> None:
+def bench(tmp_path: Path) -> tuple[Path, list[str]]:
+    """The example as printed, on this test's free ports and paths: (the gateway's config, the `dpgw sim`
+    arguments without ``--out``)."""
     nmea, mav, zport = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_DGRAM), free_port()
-    gyro, log, truth_log = tmp_path / "gyro", tmp_path / "hil.mcap", tmp_path / "sim.mcap"
-    # the example as printed, on this test's free ports and paths
+    gyro, log = tmp_path / "gyro", tmp_path / "hil.mcap"
     text = EXAMPLE.read_text()
     for old, new in [
         ("udp://127.0.0.1:10110", f"udp://127.0.0.1:{nmea}"),
@@ -76,11 +77,19 @@ def test_the_documented_two_process_bench_closes_the_loop_and_stops_cleanly(tmp_
         text = text.replace(old, new)
     cfg = tmp_path / "hil_bench.toml"
     cfg.write_text(text)
-    sim = dpgw(
+    sim_args = [
         "sim", "--scenario", "torsetnes_2004", "--nmea", f"dgps1=udp://127.0.0.1:{nmea}",
         "--nmea", f"gyro1=pty://{gyro}", "--mavlink", f"udp://127.0.0.1:{mav}", "--realtime", "--speed", "4",
-        "--zenoh", "--zenoh-listen", f"tcp/127.0.0.1:{zport}", "--out", str(truth_log), "--json",
-    )  # fmt: skip
+        "--zenoh", "--zenoh-listen", f"tcp/127.0.0.1:{zport}", "--json",
+    ]  # fmt: skip
+    return cfg, sim_args
+
+
+@pytest.mark.slow  # ~40 s: two processes, 100 s of sea at 4x
+def test_the_documented_two_process_bench_closes_the_loop_and_stops_cleanly(tmp_path: Path) -> None:
+    cfg, sim_args = bench(tmp_path)
+    gyro, log, truth_log = tmp_path / "gyro", tmp_path / "hil.mcap", tmp_path / "sim.mcap"
+    sim = dpgw(*sim_args, "--out", str(truth_log))
     gw: subprocess.Popen[str] | None = None
     try:
         assert wait_for(gyro.exists, 60.0), "the simulator made no pty"
@@ -134,3 +143,102 @@ def test_the_documented_two_process_bench_closes_the_loop_and_stops_cleanly(tmp_
     # station keeping in the closed loop: the vessel stays near its setpoint (where it started)
     drift = np.hypot(*(eta_truth[t_truth >= t_truth[0] + 30.0, :2] - eta_truth[0, :2]).T)
     assert drift.max() < 10.0, drift.max()
+
+
+def log_times(path: Path) -> list[tuple[str, int]]:
+    """(topic, log time) of one file's messages, in the order written."""
+    with open(path, "rb") as f:
+        return [(ch.topic, m.log_time) for _, ch, m in make_reader(f).iter_messages(log_time_order=False)]
+
+
+def lf_truth(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    truth = [p for _, _, _, p in read_messages(path, "/truth/state")]
+    return np.array([p["stamp_ns"] for p in truth]) / 1e9, np.array([p["eta_lf"] for p in truth])
+
+
+def estimates(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    est = [p for _, _, _, p in read_messages(path, "/dp/estimate")]
+    return np.array([p["stamp_ns"] for p in est]) / 1e9, np.array([p["eta"] for p in est], dtype=float)
+
+
+@pytest.mark.slow  # ~60 s: three processes, 40 + 80 s of sea at 4x
+def test_a_simulator_restarted_under_the_gateway_is_followed(tmp_path: Path) -> None:
+    """The bench stops `dpgw sim` and starts it again (another seed: another sea) under a running `dpgw
+    run`: its time starts again from its epoch. The gateway follows the new run: its log goes on in the
+    next file of the set, each file one run on its own (times in order, within that run's span) that
+    replays alone to the same estimates; the estimate converges onto the new run's truth; and the gateway
+    says so once (its log and its status)."""
+    cfg, sim_args = bench(tmp_path)
+    gyro, log, log2 = tmp_path / "gyro", tmp_path / "hil.mcap", tmp_path / "hil_0001.mcap"
+    truth1, truth2 = tmp_path / "sim1.mcap", tmp_path / "sim2.mcap"
+    procs: list[subprocess.Popen[str]] = []
+    try:
+        procs.append(sim := dpgw(*sim_args, "--out", str(truth1)))
+        assert wait_for(gyro.exists, 60.0), "the simulator made no pty"
+        procs.append(gw := dpgw("run", "--config", str(cfg), "-v"))
+        said: list[str] = []
+        lines_of(gw.stderr, said)
+        assert wait_for(lambda: estimates_said(said) >= 400 or gw.poll() is not None, 180.0), "".join(said)
+        sim.send_signal(signal.SIGTERM)  # the bench stops the simulator ...
+        assert sim.wait(timeout=60) == 0
+        before = estimates_said(said)
+        procs.append(sim := dpgw(*sim_args, "--out", str(truth2), "--seed", "7"))  # ... and starts it again
+        assert wait_for(lambda: any("following the new run" in line for line in said), 120.0), "".join(said)
+        assert wait_for(lambda: estimates_said(said) >= before + 800 or gw.poll() is not None, 180.0), (
+            "".join(said)
+        )
+        gw.send_signal(signal.SIGINT)
+        assert gw.wait(timeout=60) == 0, "".join(said)
+        sim.send_signal(signal.SIGTERM)
+        assert sim.wait(timeout=60) == 0
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+                p.wait()
+    # said once in the gateway's log, naming the file the log goes on in
+    followed = [line for line in said if "following the new run" in line]
+    assert len(followed) == 1 and "log continues in hil_0001.mcap" in followed[0], followed
+    assert "went back" in followed[0] and "restart dpgw run" not in "".join(said)
+    # two files, one a run, each complete and on its own run's time, in order
+    assert sorted(tmp_path.glob("hil*.mcap")) == [log, log2]
+    for path, truth in ((log, truth1), (log2, truth2)):
+        assert complete(path)[0] > 0
+        written = log_times(path)
+        for topic in {topic for topic, _ in written}:  # each channel in order: no second run's time in it
+            on = [t for name, t in written if name == topic]
+            assert on == sorted(on), f"{path.name} {topic}: log times out of order"
+        # across channels, less than a second back (another run's time would be tens of seconds back):
+        # the Foxglove log lines of a status come up to ~0.1 s behind the outputs written before them
+        times = [t for _, t in written]
+        assert min(b - a for a, b in itertools.pairwise(times)) > -1_000_000_000, path.name
+        times.sort()
+        t_truth, _ = lf_truth(truth)
+        assert t_truth[0] - 1.0 <= times[0] / 1e9 and times[-1] / 1e9 <= t_truth[-1] + 1.0, path.name
+    # said once in the status: the new file's, not the old one's
+    events = [
+        (path.name, e)
+        for path in (log, log2)
+        for _, _, _, p in read_messages(path, "/dp/status")
+        for e in p.get("events", [])
+        if "following the new run" in e
+    ]
+    assert [name for name, _ in events] == ["hil_0001.mcap"], events
+    # the estimate converges onto the new run's truth (the gateway joins it from its first second)
+    t_truth, eta_truth = lf_truth(truth2)
+    t_est, eta_est = estimates(log2)
+    s = score(t_est, eta_est, t_truth, eta_truth, settle_s=30.0)
+    assert s.samples > 400
+    assert s.horizontal_rms_m < 1.5 and np.degrees(s.rms[2]) < 3.0, s.as_dict()
+    # the new run's file replays alone, to the estimates the live gateway published
+    out = tmp_path / "replay2.mcap"
+    done = subprocess.run(
+        [sys.executable, "-m", "dpgw", "replay", str(log2), "--out", str(out), "--json"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr
+    t_rep, eta_rep = estimates(out)
+    assert len(t_rep) == len(t_est) and np.array_equal(t_rep, t_est)
+    assert np.max(np.abs(eta_rep - eta_est)) < 1e-6

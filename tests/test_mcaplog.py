@@ -890,3 +890,20 @@ def test_a_restarted_writer_continues_the_set_and_overwrites_nothing(tmp_path: P
     assert w2.paths == [rotated_path(path, 3)]
     assert {f: f.read_bytes() for f in before} == before
     assert _ticks(path) == list(range(26))
+
+
+def test_rotate_starts_the_next_file_now_and_keeps_a_file_without_messages(tmp_path: Path) -> None:
+    """`rotate` (a simulator started again under the gateway): the file is finished and the next of the set
+    takes what follows, earlier log times included; a file with nothing in it yet is kept, not left empty."""
+    from wire.mcap.reader import read_messages
+
+    w = McapLogWriter(tmp_path / "run.mcap", background_flush=False, fsync=False)
+    assert w.rotate() == tmp_path / "run.mcap"  # nothing written yet: the same file
+    w.write("/dp/mode", {"mode": "dp"}, 100 * 10**9, 100 * 10**9)
+    assert w.rotate() == tmp_path / "run_0001.mcap"
+    w.write("/dp/mode", {"mode": "standby"}, 10 * 10**9, 10 * 10**9)  # the new run's time: earlier
+    w.close()
+    assert w.paths == [tmp_path / "run.mcap", tmp_path / "run_0001.mcap"]
+    first = [(t, p) for _, t, _, p in read_messages(tmp_path / "run.mcap", "/dp/mode")]
+    second = [(t, p) for _, t, _, p in read_messages(tmp_path / "run_0001.mcap", "/dp/mode")]
+    assert [p["mode"] for _, p in first] == ["dp"] and [p["mode"] for _, p in second] == ["standby"]

@@ -184,8 +184,10 @@ class Sample:
         return self.body
 
 
-def sim_service(tmp_path: Path, clock: str = "sim", status_hz: float = 1.0) -> GatewayService:
-    tables = {
+def sim_service(
+    tmp_path: Path, clock: str = "sim", status_hz: float = 1.0, commands: list[str] | None = None
+) -> GatewayService:
+    tables: dict[str, Any] = {
         "vessel": {"name": "mss_supply"},
         "datum": {"lat_deg": 59.4, "lon_deg": 10.5},
         "sources": [
@@ -195,6 +197,8 @@ def sim_service(tmp_path: Path, clock: str = "sim", status_hz: float = 1.0) -> G
         "status": {"rate_hz": status_hz},
         "time": {"clock": clock},
     }
+    if commands:
+        tables["commands"] = {"accept": commands}
     return GatewayService(parse_config(tables, base_dir=tmp_path))
 
 
@@ -314,42 +318,123 @@ def test_a_log_on_simulation_time_holds_no_wall_clock_stamp(tmp_path: Path) -> N
     assert not late, f"stamped off the simulation time: {late[:5]}"
 
 
-def test_a_restarted_simulator_is_said_and_its_data_not_mixed_into_the_run(tmp_path: Path) -> None:
+S = 1_000_000_000
+TICK_NS = 50_000_000
+
+
+def fix(north: float, east: float, psi_deg: float, t_ns: int) -> bytes:
+    """A DGPS fix (UTC time ``t_ns``) and a gyro heading, as one chunk of the `mux` source."""
+    import math
+    from datetime import UTC, datetime
+
+    from wire.codecs import nmea_encode as enc
+    from wire.geodesy import LocalFrame
+
+    lat, lon, _ = LocalFrame(59.4, 10.5).to_geodetic(north, east, 0.0)
+    gga = enc.gga("GP", datetime.fromtimestamp(t_ns / S, UTC), lat, lon, 2, 12, 0.8, 20.0)
+    return (gga + enc.hdt("HE", math.radians(psi_deg))).encode()
+
+
+def run_of_the_plant(
+    service: GatewayService, t0: int, mono0: int, at: tuple[float, float, float], seconds: float = 10.0
+) -> None:
+    """A run of the simulator as the gateway sees it: a tick every 50 ms at 1x from ``t0`` (received from
+    monotonic ``mono0`` on) and, 1 ms after every other tick, a fix and a heading of a vessel at ``at``
+    (with a little noise: a value that never changes is a frozen sensor)."""
+    import math
+
+    assert service.sim_time is not None
+    n, e, psi = at
+    for k in range(round(seconds / 0.05)):
+        t, mono = t0 + k * TICK_NS, mono0 + k * TICK_NS
+        service.sim_time.on_tick(t, 0.05, mono)
+        if k % 2 == 0:
+            data = fix(n + 0.2 * math.sin(k), e + 0.2 * math.cos(k), psi + 0.05 * math.sin(k), t)
+            service._take(Chunk("mux", data, rx_ns=1, rx_mono_ns=mono + 10**6))
+
+
+def _messages(path: Path) -> list[tuple[str, int, dict[str, Any]]]:
+    """(topic, log time, payload) of every message of one file, in the order written."""
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as f:
+        return [
+            (ch.topic, m.log_time, json.loads(m.data))
+            for _, ch, m in make_reader(f).iter_messages(log_time_order=False)
+        ]
+
+
+def test_a_restarted_simulator_is_followed_in_a_file_of_its_own(tmp_path: Path) -> None:
     """A simulator restarted under a running gateway starts its time again (from its epoch): its ticks go
-    back. The gateway says so, and does not stamp the new run's data onto the old run's time (where every
-    chunk would get the old run's last tick, Δt = 0, and the observer a second vessel's measurements)."""
+    back more than a second. The gateway follows the new run as a gateway started with it would: what it
+    still had of the old run goes to the old run; the log goes on in the next file of its set; the pipeline
+    starts over (a fresh observer: the new run's first estimate is where the new vessel is, not a blend
+    with the old one; the mode back to the configured one); the counts go on; and the status says so once."""
+    import math
     import time
 
-    service = sim_service(tmp_path)
-    assert service.sim_time is not None
-    t0 = 1_600_000_000 * 10**9
-    for k in range(200):  # 10 s of the first run
-        service._on_clock(Sample(SimClock(stamp_ns=t0 + k * 50_000_000, period_s=0.05, speed=1.0).encode()))
-    service._take(chunk(time.monotonic_ns()))
-    handled = service.pipeline.counters["mux"].bytes
-    assert handled > 0
-    # the simulator restarts: its time from its epoch again
-    service._on_clock(Sample(SimClock(stamp_ns=t0, period_s=0.05, speed=1.0).encode()))
-    service._on_clock(Sample(SimClock(stamp_ns=t0 + 50_000_000, period_s=0.05, speed=1.0).encode()))
-    service._take(chunk(time.monotonic_ns()))
-    assert service.pipeline.counters["mux"].bytes == handled  # not stamped onto the first run
-    alarms = service._alarms()
-    said = [a for a in alarms if "went back" in a]
-    assert len(said) == 1 and "restart dpgw run" in said[0] and "1 inputs not handled" in said[0], alarms
-    assert not any("no simulation clock tick" in a for a in alarms)  # ticks are coming: not silent
+    from gateway.service import _Input
+    from wire.mcap.writer import McapLogWriter
+
+    service = sim_service(tmp_path, status_hz=10.0, commands=["mode"])
+    service.log = McapLogWriter(tmp_path / "gw.mcap", profile="dpgw", continue_set=True)
+    st = service.sim_time
+    assert st is not None
+    t0, mono0 = 1_600_000_000 * S, time.monotonic_ns() - 60 * S
+    run_of_the_plant(service, t0, mono0, (100.0, 0.0, 45.0))  # the first run: 10 s at (100 m N, 45°)
+    service._take(_Input("mode", "manual", 1, mono0 + 10 * S))
+    first = service.pipeline
+    assert first.mode == "manual" and first.estimates > 0
+    received = first.counters["mux"].received
+    # the consumer is behind: a chunk of the old run (0.2 s after its last tick) and one of the new run (1.5 s
+    # after the old run's last tick, before the new run's first: its UDP was up before its Zenoh) wait while
+    # the new run's first tick comes, at its epoch again
+    late = Chunk("mux", fix(100.0, 0.0, 45.0, t0 + 10 * S), rx_ns=1, rx_mono_ns=mono0 + 10_200_000_000)
+    early = Chunk("mux", fix(-50.0, 30.0, 200.0, t0), rx_ns=1, rx_mono_ns=mono0 + 11_500_000_000)
+    st.on_tick(t0, 0.05, mono0 + 12 * S)
+    assert st.went_back == (t0 + 199 * TICK_NS, t0) and service.pipeline is first  # not followed yet
+    service._take(late)  # the old run's: handled in it, on its time
+    assert service.pipeline is first and first.counters["mux"].received == received + 2
+    assert first.last_ns >= t0 + 199 * TICK_NS
+    service._take(early)  # the new run's: followed
+    second = service.pipeline
+    assert second is not first and st.went_back is None and service.runs_followed == 1
+    assert second.mode == "standby"  # as at start-up, not the old run's manual
+    assert second.last_ns == t0  # stamped with the new run's first tick's time
+    run_of_the_plant(service, t0 + TICK_NS, mono0 + 12 * S + TICK_NS, (-50.0, 30.0, 200.0))
+    assert second.counters["mux"].received == received + 2 + 2 + 200  # the counts go on
+    service.run(duration_s=0.3)  # statuses
+    service.log.close()
+    files = [tmp_path / "gw.mcap", tmp_path / "gw_0001.mcap"]
+    assert service.log.paths == files
+    said = []
+    for path in files:
+        messages = _messages(path)
+        times = [t for _, t, _ in messages]
+        assert times == sorted(times), f"{path.name}: log times not in order"
+        assert t0 <= times[0] and times[-1] <= t0 + 11 * S, path.name  # one run's time
+        statuses = [p for topic, _, p in messages if topic == "/dp/status"]
+        said += [(path.name, e) for p in statuses for e in p.get("events", [])]
+    followed = [(name, e) for name, e in said if "following the new run" in e]
+    assert len(followed) == 1 and followed[0][0] == "gw_0001.mcap", said
+    assert "went back 9.9 s" in followed[0][1] and "log continues in gw_0001.mcap" in followed[0][1]
+    # the new run's first estimate: where the new vessel is (a fresh observer), not the old one's
+    est = [p for topic, _, p in _messages(files[1]) if topic == "/dp/estimate"]
+    n, e, psi = est[0]["eta"]
+    assert math.hypot(n + 50.0, e - 30.0) < 1.0 and abs(math.degrees(psi) % 360.0 - 200.0) < 1.0, est[0]
     # a tick swapped by two Zenoh threads (one period back) is not a restart
     other = sim_service(tmp_path)
     assert other.sim_time is not None
     other.sim_time.on_tick(t0 + 100_000_000, 0.05, 1)
     other.sim_time.on_tick(t0 + 50_000_000, 0.05, 2)
-    assert other.sim_time.went_back is None
+    assert other.sim_time.went_back is None and other.sim_time.ignored == 1
 
 
-def test_data_before_a_restarted_simulators_first_tick_is_not_mixed_in_either(tmp_path: Path) -> None:
+def test_data_before_a_restarted_simulators_first_tick_goes_to_the_run_its_tick_says(tmp_path: Path) -> None:
     """The new run's first data can come before its first tick does (UDP and the pty are up at once, the
     Zenoh session to the new simulator takes seconds): received while the clock has been silent, it is
-    held until a tick says which run it belongs to. A tick going back: another run, dropped and counted; a
-    tick going on (a paused simulator continued): this run, handled."""
+    held until a tick says which run it belongs to. A tick going back: the new run's, handled in it at its
+    first tick's time; a tick going on (a paused simulator continued): this run's, handled in it."""
     import time
 
     t0 = 1_600_000_000 * 10**9
@@ -360,15 +445,15 @@ def test_data_before_a_restarted_simulators_first_tick_is_not_mixed_in_either(tm
         for k in range(200):  # 10 s of a run whose last tick came 10 s ago
             service.sim_time.on_tick(t0 + k * 50_000_000, 0.05, now - 20 * 10**9 + k * 50_000_000)
         service._take(chunk(now - 15 * 10**9))  # while the ticks came: handled at once
-        handled = service.pipeline.counters["mux"].bytes
+        first = service.pipeline
+        handled = first.counters["mux"].bytes
         assert handled > 0
         service._take(chunk(now))  # after 10 s of silence: held until a tick says whose it is
-        assert service.pipeline.counters["mux"].bytes == handled and len(service._held) == 1
+        assert first.counters["mux"].bytes == handled and len(service._held) == 1
         back = t0 if restarted else t0 + 200 * 50_000_000
         service._on_clock(Sample(SimClock(stamp_ns=back, period_s=0.05, speed=1.0).encode()))
         service._release_held()
         assert not service._held
-        if restarted:
-            assert service.pipeline.counters["mux"].bytes == handled and service.restart_dropped == 1
-        else:
-            assert service.pipeline.counters["mux"].bytes == 2 * handled and service.restart_dropped == 0
+        assert service.pipeline.counters["mux"].bytes == 2 * handled  # handled, in one run or the other
+        assert service.pipeline.counters["mux"].last_rx_ns == back  # at the time of the tick after it
+        assert (service.pipeline is not first) == restarted and service.runs_followed == int(restarted)

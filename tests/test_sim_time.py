@@ -66,14 +66,27 @@ def test_follows_a_change_of_speed_within_the_rate_window() -> None:
     assert abs(clock.rate() - 2.0) < 1e-9
 
 
-def test_a_tick_going_back_is_ignored_and_stamps_never_go_back() -> None:
+def test_a_tick_going_back_is_a_new_run_stamped_apart_once_followed() -> None:
     clock = SimTime()
-    regular(clock, 10, speed=1.0)
-    clock.on_tick(EPOCH, PERIOD_S, 10**12)  # a restarted simulator
-    assert clock.ignored == 1
-    a = clock.stamp(10**12)
-    b = clock.stamp(0)  # handled later, received earlier (another source's chunk)
-    assert a is not None and b is not None and b >= a
+    ticks = regular(clock, 40, speed=1.0)  # 2 s of a run
+    wall_end, sim_end = ticks[-1]
+    clock.on_tick(sim_end - 20_000_000, PERIOD_S, wall_end + 1)  # a tick swapped in delivery: ignored
+    assert clock.ignored == 1 and clock.went_back is None
+    restart = wall_end + 3 * 10**9
+    clock.on_tick(EPOCH, PERIOD_S, restart)  # a restarted simulator: its epoch again
+    clock.on_tick(EPOCH + 50_000_000, PERIOD_S, restart + 50_000_000)
+    assert clock.went_back == (sim_end, EPOCH) and clock.restart_mono_ns == restart
+    # until followed, stamps come from the old run (what the consumer still has of it), never going back
+    a = clock.stamp(wall_end)
+    b = clock.stamp(wall_end - 10**9)
+    assert a == sim_end and b == a
+    assert not clock.of_new_run(wall_end + 500_000_000, 10**9)  # 0.5 s after the old run's last tick
+    assert clock.of_new_run(wall_end + 1_500_000_000, 10**9)  # 1.5 s after it: not the old run's
+    assert clock.of_new_run(restart + 1, 10**9)  # after the new run's first tick
+    assert clock.follow() == (sim_end, EPOCH) and clock.went_back is None and clock.runs == 2
+    assert clock.stamp(wall_end + 2 * 10**9) == EPOCH  # before the new run's first tick: its time exactly
+    assert clock.stamp(restart + 50_000_000) == EPOCH + 50_000_000
+    assert not clock.of_new_run(restart + 10**10, 10**9)  # nothing pending any more
 
 
 @settings(max_examples=200, deadline=None)

@@ -520,6 +520,23 @@ class McapLogWriter:
                 except OSError as exc:
                     self._fail_locked(exc)
 
+    def rotate(self) -> Path:
+        """Finish the file being written and start the next of the set now, as a size or time limit
+        would (the gateway starts a file for each run of a restarted simulator, so that each replays
+        alone); a file with no message yet is kept instead. Returns the file written from now on (the one
+        to be tried next while writing has failed). The log-time flush starts again with the new file:
+        its times may be earlier than the last file's."""
+        with self._lock:
+            if not self._closed and self.error is None:
+                try:
+                    if self._writer is None or self._file_first_log_ns is not None:
+                        self._finish_file()
+                        self._open(self._next_index)
+                except OSError as exc:
+                    self._fail_locked(exc)
+            self._max_log_ns = self._last_flush_log_ns = None
+            return self.paths[-1] if self._writer is not None else rotated_path(self._base, self._next_index)
+
     def flush(self, fsync: bool | None = None) -> None:
         """Close the open chunk and hand everything to the OS now; fsync too if `fsync` (default: the
         writer's setting)."""
