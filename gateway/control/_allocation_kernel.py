@@ -341,13 +341,17 @@ def allocate_step(
     has_sectors,
     pinv,
     idle_steering,
-    # the QP's constant parts
+    turn_cw,
+    turn_floor,
+    bias_frac,
+    # the QP's constant parts (Pd without the turn cost, which depends on the present thrust)
     Pd,
     q,
     A0,
     poly_scale,
     n_sides,
     # work arrays
+    Pw,
     A,
     ub_A,
     lb,
@@ -401,6 +405,10 @@ def allocate_step(
     along_min = np.empty(n)
     lower = np.empty(n)
     upper = np.empty(n)
+    n_az_on = 0  # azimuths in service: thrust biasing needs two or more
+    for i in range(n):
+        if is_az[i] and tmax[i] > 0.0:
+            n_az_on += 1
     for i in range(n):
         lo, hi = turn[i], turn[i]
         if has_sectors:
@@ -434,8 +442,17 @@ def allocate_step(
         down, up = thrust[i] - dT[i], thrust[i] + dT[i]
         upper[i] = min(tmax[i], up)
         along_min[i] = down if (along_ok and down > 0) else -math.inf
+        if bias_frac > 0.0 and n_az_on >= 2 and is_az[i] and not blocked[i]:
+            floor = min(bias_frac * tmax[i], upper[i])
+            if floor > 0.0:
+                along_min[i] = max(along_min[i], floor)
         lower[i] = max(tmin[i], down)
-    # ---- QPAllocator._qp
+    # ---- QPAllocator._qp (and _p_diag: the turn cost over the present thrust)
+    Pw[:] = Pd
+    for i in range(n):
+        if is_az[i]:
+            t0 = max(thrust[i] / cap[i], turn_floor)
+            Pw[first[i] + 1] += turn_cw[i] / (t0 * t0)
     A[:, :] = A0
     ub_A[:] = math.inf
     for k in range(n_ext):
@@ -486,7 +503,7 @@ def allocate_step(
         info[0] = FAIL_CHECK
         return FAIL_CHECK
     status, iters, _ = gi_solve(
-        Pd, q, A[:3], b_eq, si, sv, sb, m, xs, active, u, J, R, d, z, r, 50 * (m + nx)
+        Pw, q, A[:3], b_eq, si, sv, sb, m, xs, active, u, J, R, d, z, r, 50 * (m + nx)
     )
     info[0] = status
     info[1] = iters
@@ -494,7 +511,7 @@ def allocate_step(
         return status
     obj = 0.0
     for k in range(nx):
-        obj += 0.5 * Pd[k] * xs[k] * xs[k] + q[k] * xs[k]
+        obj += 0.5 * Pw[k] * xs[k] * xs[k] + q[k] * xs[k]
     info[2] = obj
     smax = 0.0
     for i in range(3):

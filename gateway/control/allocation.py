@@ -14,13 +14,17 @@ Then τ = B f with B constant, and an azimuth's thrust is |Fᵢ|, its angle atan
   active-set solver), with this module's Python path around DAQP (dual active set, warm-started) as its
   tested reference and fallback (``solver="daqp"``)::
 
-      min  ½ Σᵢ wᵢ (p |f̂ᵢ|² + c (f̂ᵢ·nᵢ)²)  +  Σⱼ ρ₁,ⱼ |ŝⱼ| + ½ ρ₂,ⱼ ŝⱼ²
+      min  ½ Σᵢ wᵢ (p |f̂ᵢ|² + c (f̂ᵢ·nᵢ / max(T̂₀,ᵢ, θ))²)  +  Σⱼ ρ₁,ⱼ |ŝⱼ| + ½ ρ₂,ⱼ ŝⱼ²
       s.t. B f + s = τ,  f in the per-thruster convex sets of this step (docs/allocation.md)
 
   in scaled units f̂ᵢ = fᵢ / T_max,i, ŝⱼ = sⱼ / τ_ref,j: a quadratic power proxy (p = ``power_weight``), a
-  penalty on the force across each azimuth's current direction nᵢ (c = ``turn_weight``: prefer small angle
-  changes), and an exact (ℓ₁) plus heavy quadratic (ℓ₂) penalty on the slack s, so that a feasible τ is
-  met exactly and an infeasible one gives the closest achievable τ with ``saturated=True``.
+  cost on each azimuth's turn (c = ``turn_weight``): the force across its current direction nᵢ divided by
+  its present thrust T̂₀,ᵢ (floored at θ = ``turn_thrust_floor``) is the angle turned, so a turn costs
+  the same at low thrust as at high, and an exact (ℓ₁) plus heavy quadratic (ℓ₂) penalty on the slack s,
+  so that a feasible τ is met exactly and an infeasible one gives the closest achievable τ with
+  ``saturated=True``. With two or more azimuths in service each keeps at least ``bias_fraction`` of its
+  T_max along its present direction (thrust biasing: they push against each other, and the resultant
+  turns by changing magnitudes instead of slewing the azimuths).
 
 The convex sets, their approximations (inscribed polygon for |F| ≤ T_max, rate cone around the previous
 azimuth clipped by forbidden sectors, half-plane lower thrust bound) and the scaling are documented in
@@ -418,7 +422,10 @@ class QPAllocator:
     ``dt`` (s) — the allocation period; the rate limits allow what the thrusters can do in ``dt``.
     ``weights`` — per thruster ({id: w} or layout order), relative cost of its scaled force |F/T_max|².
     ``power_weight`` — p, weight of the power proxy Σ wᵢ |F/T_max|².
-    ``turn_weight`` — c, weight of the force across an azimuth's current direction (prefer small turns).
+    ``turn_weight`` — c, weight of an azimuth's turn: of (force across its current direction / its present
+    thrust)², the angle turned in rad², the thrust floored at ``turn_thrust_floor`` × T_max.
+    ``bias_fraction`` — with two or more azimuths in service, each keeps at least this fraction of its
+    T_max along its present direction (thrust biasing; 0: none).
     ``slack_weight`` — ρ₂ (one value or [X, Y, N]), quadratic weight of the scaled slack s/τ_ref.
     ``slack_l1_weight`` — ρ₁, the exact (ℓ₁) penalty weight; default √ρ₂.
     ``forbidden_sectors`` — {azimuth id: [(start_rad, end_rad), …]}: force directions (the same convention
@@ -443,7 +450,9 @@ class QPAllocator:
         dt: float = 0.1,
         weights: Mapping[int, float] | Sequence[float] | None = None,
         power_weight: float = 1.0,
-        turn_weight: float = 1.0,
+        turn_weight: float = 100.0,
+        turn_thrust_floor: float = 0.1,
+        bias_fraction: float = 0.1,
         slack_weight: float | Sequence[float] = 1e6,
         slack_l1_weight: float | Sequence[float] | None = None,
         forbidden_sectors: Mapping[int, Sequence[tuple[float, float]]] | None = None,
@@ -461,10 +470,14 @@ class QPAllocator:
             raise ValueError(f"polygon_sides must be at least 6, got {polygon_sides}")
         if not (power_weight > 0 and turn_weight >= 0):
             raise ValueError("power_weight must be positive and turn_weight non-negative")
+        if not (0 < turn_thrust_floor <= 1 and 0 <= bias_fraction < 1):
+            raise ValueError("turn_thrust_floor must be in (0, 1] and bias_fraction in [0, 1)")
         self.layout = L = _Layout(vessel, weights)
         self.dt = float(dt)
         self.power_weight = float(power_weight)
         self.turn_weight = float(turn_weight)
+        self.turn_thrust_floor = float(turn_thrust_floor)
+        self.bias_fraction = float(bias_fraction)
         self.rho2 = np.broadcast_to(np.asarray(slack_weight, dtype=float), (3,)).copy()
         rho1 = np.sqrt(self.rho2) if slack_l1_weight is None else slack_l1_weight
         self.rho1 = np.broadcast_to(np.asarray(rho1, dtype=float), (3,)).copy()
@@ -537,10 +550,10 @@ class QPAllocator:
         self.n_rows = 3 + n_az * (N + 2)
         P = np.zeros(self.n_x)
         P[L.first] = self.power_weight * L.weights
-        P[self._ka + 1] = (self.power_weight + self.turn_weight) * L.weights[self._az]
+        P[self._ka + 1] = self.power_weight * L.weights[self._az]
         P[L.n_ext :] = np.r_[self.rho2, self.rho2]
-        self._P_diag = P
-        self.P = np.diag(P)
+        self._P_diag = P  # without the turn cost, which depends on the present thrust (`_p_diag`)
+        self._turn_cw = self.turn_weight * L.weights[self._az]
         self.q = np.r_[np.zeros(L.n_ext), self.rho1, self.rho1]
         # polygon: vertex k at 2πk/N from the previous azimuth, face normals half-way between vertices
         theta = TWO_PI * (np.arange(N) + 0.5) / N
@@ -576,6 +589,8 @@ class QPAllocator:
             sec_count[i] = len(sectors)
         n_x, n_rows = self.n_x, self.n_rows
         m_max = n_rows + 2 * n_x
+        turn_cw = np.zeros(L.n)
+        turn_cw[self._az] = self._turn_cw
         self._k_out = (np.empty(L.n), np.empty(L.n), np.empty(3), np.zeros(4))
         self._k_x = np.empty(n_x)
         f = np.ascontiguousarray
@@ -600,12 +615,16 @@ class QPAllocator:
             bool(self.forbidden),
             f(self._pinv),
             self.idle_steering,
+            turn_cw,
+            self.turn_thrust_floor,
+            self.bias_fraction,
             self._P_diag,
             self.q,
             self._A,
             self._poly_scale,
             self.polygon_sides,
-            np.empty((n_rows, n_x)),  # work: A, ub_A, lb, ub
+            np.empty(n_x),  # work: the step's Hessian diagonal, A, ub_A, lb, ub
+            np.empty((n_rows, n_x)),
             np.empty(n_rows),
             np.empty(n_x),
             np.empty(n_x),
@@ -651,6 +670,13 @@ class QPAllocator:
             along_ok = L.is_az
         down, up = thrust - self._dT, thrust + self._dT
         upper = np.minimum(L.tmax, up)
+        along_min = np.where(along_ok & (down > 0), down, -np.inf)
+        if self.bias_fraction > 0 and np.count_nonzero(L.is_az & (L.tmax > 0)) >= 2:
+            # thrust biasing: at least β·T_max along the present direction (up to what this step can
+            # reach there, so it ramps up at the thrust rate from below)
+            floor = np.minimum(self.bias_fraction * L.tmax, upper)
+            biased = L.is_az & ~blocked & (floor > 0)
+            along_min = np.where(biased, np.maximum(along_min, floor), along_min)
         return StepLimits(
             angle=angle,
             thrust=thrust,
@@ -658,7 +684,7 @@ class QPAllocator:
             arc_hi=arc_hi,
             cone=cone,
             radius=upper,
-            along_min=np.where(along_ok & (down > 0), down, -np.inf),
+            along_min=along_min,
             blocked=blocked,
             lower=np.maximum(L.tmin, down),
             upper=upper,
@@ -704,7 +730,16 @@ class QPAllocator:
         kf, fixed = self._kf, self._fixed
         lb[kf] = lim.lower[fixed] / L.cap[fixed]
         ub[kf] = lim.upper[fixed] / L.cap[fixed]
-        return QPData(self.P, self.q, A, tau / L.tau_ref, ub_A, lb, ub, 3)
+        return QPData(np.diag(self._p_diag(lim)), self.q, A, tau / L.tau_ref, ub_A, lb, ub, 3)
+
+    def _p_diag(self, lim: StepLimits) -> Array:
+        """The Hessian's diagonal for this step: the power proxy, the slack weights and the turn cost
+        c·wᵢ / max(T̂₀,ᵢ, θ)² on each azimuth's across component b̂ (b̂ / T̂₀ is the angle turned)."""
+        P = self._P_diag.copy()
+        az = self._az
+        t0 = np.maximum(lim.thrust[az] / self.layout.cap[az], self.turn_thrust_floor)
+        P[self._ka + 1] += self._turn_cw / (t0 * t0)
+        return P
 
     # ---- solve -----------------------------------------------------------------------------------------
 
@@ -715,7 +750,7 @@ class QPAllocator:
         if self.solver == "compiled":
             d = self._qp(tau, lim)
             x, status, iterations = _kernel.solve_qp_data(
-                self._P_diag, d.q, d.A, d.b_eq, d.ub_A, d.lb, d.ub, 3
+                np.ascontiguousarray(np.diag(d.P)), d.q, d.A, d.b_eq, d.ub_A, d.lb, d.ub, 3
             )
             if status == _kernel.OK:
                 return self._solution(x, lim, d, iterations)
@@ -733,7 +768,7 @@ class QPAllocator:
             self._model = daqp.Model()
             self._model.setup(d.P, d.q, d.A, bupper, blower, sense)
         else:  # same structure: new values, the previous active set is the warm start
-            self._model.update(A=d.A, bupper=bupper, blower=blower)
+            self._model.update(H=d.P, A=d.A, bupper=bupper, blower=blower)
         x, _fval, exitflag, info = self._model.solve()
         if exitflag < 1 or not np.all(np.isfinite(x)):
             self._model = None  # start afresh next time
@@ -753,7 +788,7 @@ class QPAllocator:
         forces[ka], forces[ka + 1] = a * c - b * s, a * s + b * c
         forces[kf] = x[kf] * L.cap[self._fixed]
         slack = (x[L.n_ext : L.n_ext + 3] - x[L.n_ext + 3 :]) * L.tau_ref
-        objective = float(0.5 * np.dot(self._P_diag * x, x) + np.dot(d.q, x))
+        objective = float(0.5 * np.dot(np.diag(d.P) * x, x) + np.dot(d.q, x))
         return QPSolution(forces, slack, objective, "optimal", iterations)
 
     def allocate(self, tau_demand: ArrayLike, previous: ThrusterCommand | None = None) -> AllocationResult:
@@ -938,7 +973,9 @@ def reference_solve_cvxpy(
         along = np.array([math.cos(a), math.sin(a)])
         across = np.array([-math.sin(a), math.cos(a)])  # 90° clockwise of it
         cost.append(0.5 * A.power_weight * w * cp.sum_squares(F))
-        cost.append(0.5 * A.turn_weight * w * cp.square(across @ F))
+        # the turn: the force across the previous azimuth over the previous thrust (floored), in rad
+        t0 = max(lim.thrust[i] / L.cap[i], A.turn_thrust_floor)
+        cost.append(0.5 * A.turn_weight * w * cp.square(across @ F / t0))
         if lim.blocked[i]:  # previous azimuth inside a forbidden sector
             cons.append(F == 0)
             continue
