@@ -7,11 +7,17 @@ commanded azimuth changes |ssa(αₖ₊₁ − αₖ)| over a window, per minute
 of the same run (true LF position and heading error, p95) beside it.
 
     python -m dpgw.azimuth_travel --scenario torsetnes_2004 --json
+    python -m dpgw.azimuth_travel --before      # also the allocation as it was, side by side
+
+``--before`` runs the same loop with the allocation's earlier tuning (`BEFORE`: the turn cost on the
+cross force, c = 1, no thrust biasing, ρ₁ = √ρ₂), to compare in one run.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import functools
 import json
 import math
 import sys
@@ -20,20 +26,46 @@ from typing import Any
 
 import numpy as np
 
+import gateway.pipeline
 from dpgw.cli_demo import hold_setpoint
 from dpgw.closed_loop import ClosedLoopRun, run_closed_loop
+from gateway.control.allocation import QPAllocator
 from simulator.clock import SimEpoch
 from simulator.scenarios import get_scenario
+
+BEFORE: dict[str, Any] = {
+    "turn_weight": 1.0,
+    "turn_thrust_floor": 1.0,  # the cost on the cross force itself, not over the present thrust
+    "bias_fraction": 0.0,
+    "slack_l1_weight": 1e3,
+}
+"""The allocation's options before the azimuths were stopped from hunting (`docs/allocation.md`)."""
+
+
+@contextlib.contextmanager
+def _allocator_options(options: dict[str, Any] | None) -> Any:
+    """The gateway pipeline's QP allocator made with ``options`` while the block runs (None: as is)."""
+    if not options:
+        yield
+        return
+    saved = gateway.pipeline.QPAllocator
+    gateway.pipeline.QPAllocator = functools.partial(QPAllocator, **options)  # type: ignore[misc,assignment]
+    try:
+        yield
+    finally:
+        gateway.pipeline.QPAllocator = saved  # type: ignore[misc]
 
 
 @dataclass(frozen=True)
 class TravelFigures:
     scenario: str
+    allocation: str  # "default" or "before"
     seed: int
     window_s: tuple[float, float]
     travel_deg_per_min: dict[str, float]  # thruster id -> commanded azimuth travel, °/min
     slew_deg_per_min: dict[str, float]  # thruster id -> its rated slew rate, °/min
     thrust_median_fraction: dict[str, float]  # thruster id -> median commanded thrust / T_max
+    saturated_fraction: float  # of the window's allocation steps reported saturated
     position_p95_m: float  # true LF horizontal distance from the station
     heading_p95_deg: float  # true LF |heading error|
 
@@ -42,14 +74,17 @@ def _ssa(a: np.ndarray) -> np.ndarray:
     return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
-def travel_of(run: ClosedLoopRun, scenario: Any, t0: float, t1: float, seed: int = 0) -> TravelFigures:
+def travel_of(
+    run: ClosedLoopRun, scenario: Any, t0: float, t1: float, seed: int = 0, allocation: str = "default"
+) -> TravelFigures:
     """The figures of a run over [t0, t1] s (sim time)."""
     vessel = scenario.vessel
     az = [th for th in vessel.thrusters if th.kind == "azimuth"]
-    times, angles, thrusts = [], [], []
+    times, angles, thrusts, saturated = [], [], [], []
     for m in run.command_messages:
         if not m.thrusters:
             continue
+        saturated.append(bool(m.saturated))
         by_id = {str(th.id): th for th in m.thrusters}
         times.append(m.stamp_ns)
         angles.append([by_id[str(th.id)].azimuth_rad for th in az])
@@ -68,6 +103,7 @@ def travel_of(run: ClosedLoopRun, scenario: Any, t0: float, t1: float, seed: int
     head = np.degrees(np.abs(_ssa(run.eta_lf[keep, 2] - psi)))
     return TravelFigures(
         scenario=scenario.name,
+        allocation=allocation,
         seed=seed,
         window_s=(t0, t1),
         travel_deg_per_min={
@@ -77,19 +113,28 @@ def travel_of(run: ClosedLoopRun, scenario: Any, t0: float, t1: float, seed: int
         thrust_median_fraction={
             str(th.id): float(np.median(f[:, k]) / th.max_thrust_n) for k, th in enumerate(az)
         },
+        saturated_fraction=float(np.mean(np.asarray(saturated)[sel])),
         position_p95_m=float(np.percentile(pos, 95)),
         heading_p95_deg=float(np.percentile(head, 95)),
     )
 
 
 def measure(
-    scenario_name: str, *, seed: int = 1, settle_s: float = 200.0, window_s: float = 400.0
+    scenario_name: str,
+    *,
+    seed: int = 1,
+    settle_s: float = 200.0,
+    window_s: float = 400.0,
+    allocator_options: dict[str, Any] | None = None,
 ) -> TravelFigures:
-    """Hold the scenario's start station for ``settle_s + window_s`` and measure over the window."""
+    """Hold the scenario's start station for ``settle_s + window_s`` and measure over the window.
+    ``allocator_options``: `QPAllocator` options for the gateway's allocation (e.g. `BEFORE`)."""
     sc = get_scenario(scenario_name)
     events = [(0.0, "setpoint", hold_setpoint(sc))]
-    run = run_closed_loop(sc, settle_s + window_s, seed=seed, events=events)
-    return travel_of(run, sc, settle_s, settle_s + window_s, seed)
+    with _allocator_options(allocator_options):
+        run = run_closed_loop(sc, settle_s + window_s, seed=seed, events=events)
+    label = "before" if allocator_options == BEFORE else ("options" if allocator_options else "default")
+    return travel_of(run, sc, settle_s, settle_s + window_s, seed, label)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -106,20 +151,35 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--settle", type=float, default=200.0, help="s held before the window (default 200)")
     p.add_argument("--window", type=float, default=400.0, help="s measured (default 400)")
     p.add_argument("--json", action="store_true", help="one JSON object per scenario, for programs")
+    p.add_argument(
+        "--before",
+        action="store_true",
+        help="also run the allocation's earlier tuning (BEFORE), side by side",
+    )
     args = p.parse_args(argv)
+    runs = [None, BEFORE] if args.before else [None]
     for name in args.scenario or ["torsetnes_2004", "hassani"]:
-        fig = measure(name, seed=args.seed, settle_s=args.settle, window_s=args.window)
-        if args.json:
-            print(json.dumps(asdict(fig)))
-        else:
-            print(f"{fig.scenario} (seed {fig.seed}, {fig.window_s[0]:.0f}-{fig.window_s[1]:.0f} s):")
-            for k, v in fig.travel_deg_per_min.items():
+        for options in runs:
+            fig = measure(
+                name, seed=args.seed, settle_s=args.settle, window_s=args.window, allocator_options=options
+            )
+            if args.json:
+                print(json.dumps(asdict(fig)))
+            else:
                 print(
-                    f"  azimuth {k}: {v:7.1f} °/min  (slew {fig.slew_deg_per_min[k]:.0f} °/min, "
-                    f"median thrust {100 * fig.thrust_median_fraction[k]:.1f} % of T_max)"
+                    f"{fig.scenario}, allocation {fig.allocation} "
+                    f"(seed {fig.seed}, {fig.window_s[0]:.0f}-{fig.window_s[1]:.0f} s):"
                 )
-            print(f"  position p95 {fig.position_p95_m:.3f} m, heading p95 {fig.heading_p95_deg:.3f}°")
-        sys.stdout.flush()
+                for k, v in fig.travel_deg_per_min.items():
+                    print(
+                        f"  azimuth {k}: {v:7.1f} °/min  (slew {fig.slew_deg_per_min[k]:.0f} °/min, "
+                        f"median thrust {100 * fig.thrust_median_fraction[k]:.1f} % of T_max)"
+                    )
+                print(
+                    f"  position p95 {fig.position_p95_m:.3f} m, heading p95 {fig.heading_p95_deg:.3f}°, "
+                    f"saturated {100 * fig.saturated_fraction:.1f} % of the steps"
+                )
+            sys.stdout.flush()
     return 0
 
 

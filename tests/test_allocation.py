@@ -228,7 +228,7 @@ def test_feasible_demand_met_exactly_and_every_limit_holds(name: str, with_secto
     sectors = sectors_for(vessel) if with_sectors else None
     rng = np.random.default_rng(11)
     for dt in (0.1, 1.0, 5.0):
-        qp = QPAllocator(vessel, dt=dt, forbidden_sectors=sectors)
+        qp = QPAllocator(vessel, dt=dt, forbidden_sectors=sectors, bias_fraction=0.0)
         for _ in range(15):
             prev = random_state(vessel, rng, sectors, fraction=0.9)
             target = reachable_state(qp, prev, rng, sectors)
@@ -396,8 +396,9 @@ def test_slow_zero_crossing_does_not_swing_azimuths(name: str) -> None:
 
 
 def test_near_zero_thrust_azimuth_keeps_its_angle() -> None:
+    """Without thrust biasing (with it, the azimuths never go idle: next test)."""
     vessel = load_vessel("mss_supply")
-    qp = QPAllocator(vessel)
+    qp = QPAllocator(vessel, bias_fraction=0.0)
     L = qp.layout
     prev = PseudoInverseAllocator(vessel).allocate(np.array([0.1, 0.05, 0.02]) * L.tau_ref).command
     rng = np.random.default_rng(4)
@@ -409,6 +410,30 @@ def test_near_zero_thrust_azimuth_keeps_its_angle() -> None:
         r = qp.allocate(rng.normal(size=3) * 1e-7 * L.tau_ref, prev)
         np.testing.assert_array_equal(r.azimuth[L.is_az], parked[L.is_az])
         prev = r.command
+
+
+def test_biased_azimuths_hold_their_angles_at_zero_demand() -> None:
+    """Thrust biasing: the demand drops to zero and the azimuths keep at least β·T_max each, pushing
+    against each other (τ met exactly). With noise around zero demand they do not hunt: each travels
+    less than 5 % of its slew rate. (They still drift slowly, 10-30 °/min at first and less later,
+    towards the biased configuration of least power: measured over 5 min, the aft pair splaying to
+    about ±40° and the bow azimuth turning aft.)"""
+    vessel = load_vessel("mss_supply")
+    qp = QPAllocator(vessel)
+    L = qp.layout
+    prev = PseudoInverseAllocator(vessel).allocate(np.array([0.1, 0.05, 0.02]) * L.tau_ref).command
+    for _ in range(600):
+        r = qp.allocate(np.zeros(3), prev)
+        prev = r.command
+    assert not r.saturated and np.all(np.abs(r.tau_allocated) <= 1e-6 * L.tau_ref)
+    assert np.all(prev.thrust[L.is_az] >= (qp.bias_fraction - 1e-9) * L.cap[L.is_az])
+    rng = np.random.default_rng(4)
+    travel = np.zeros(L.n)
+    for _ in range(600):  # 60 s
+        r = qp.allocate(rng.normal(size=3) * 1e-7 * L.tau_ref, prev)
+        travel += np.abs(ssa(r.azimuth - prev.azimuth))
+        prev = r.command
+    assert np.all(travel[L.is_az] < 0.05 * L.rate[L.is_az] * 60.0)
 
 
 def test_azimuth_pointing_the_wrong_way_turns_round() -> None:

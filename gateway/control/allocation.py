@@ -427,7 +427,8 @@ class QPAllocator:
     ``bias_fraction`` — with two or more azimuths in service, each keeps at least this fraction of its
     T_max along its present direction (thrust biasing; 0: none).
     ``slack_weight`` — ρ₂ (one value or [X, Y, N]), quadratic weight of the scaled slack s/τ_ref.
-    ``slack_l1_weight`` — ρ₁, the exact (ℓ₁) penalty weight; default √ρ₂.
+    ``slack_l1_weight`` — ρ₁, the exact (ℓ₁) penalty weight; default ρ₂/10 (above the multipliers the
+    turn cost can make, so that a feasible demand is met exactly).
     ``forbidden_sectors`` — {azimuth id: [(start_rad, end_rad), …]}: force directions (the same convention
     as the output azimuth) that must not be used, from start clockwise to end. None (default): the
     vessel's own (`Thruster.forbidden_sectors_deg`); given, it replaces them.
@@ -479,7 +480,7 @@ class QPAllocator:
         self.turn_thrust_floor = float(turn_thrust_floor)
         self.bias_fraction = float(bias_fraction)
         self.rho2 = np.broadcast_to(np.asarray(slack_weight, dtype=float), (3,)).copy()
-        rho1 = np.sqrt(self.rho2) if slack_l1_weight is None else slack_l1_weight
+        rho1 = 0.1 * self.rho2 if slack_l1_weight is None else slack_l1_weight
         self.rho1 = np.broadcast_to(np.asarray(rho1, dtype=float), (3,)).copy()
         if not (np.all(self.rho2 > 0) and np.all(self.rho1 >= 0)):
             raise ValueError("slack_weight must be positive and slack_l1_weight non-negative")
@@ -991,13 +992,14 @@ def reference_solve_cvxpy(
             cons.append(along @ F >= lim.along_min[i] / L.cap[i])
     prob = cp.Problem(cp.Minimize(cp.sum(cp.hstack(cost))), cons)
     # Clarabel, tight: when saturated the objective is large, so the relative gap alone would stop early;
-    # if it cannot certify that, once more with a little more room on feasibility
+    # if it cannot certify that, once or twice more with a little more room (feasibility, then the gap)
     attempts: list[dict[str, Any]] = (
         [dict(solver_options)]
         if solver_options
         else [
             {"solver": cp.CLARABEL, "tol_gap_abs": 1e-10, "tol_gap_rel": 1e-13, "tol_feas": 1e-10},
             {"solver": cp.CLARABEL, "tol_gap_abs": 1e-10, "tol_gap_rel": 1e-13, "tol_feas": 1e-9},
+            {"solver": cp.CLARABEL, "tol_gap_abs": 1e-9, "tol_gap_rel": 1e-10, "tol_feas": 1e-8},
         ]
     )
     for options in attempts:
