@@ -96,7 +96,7 @@ def daqp_warm() -> Solve:
             model.setup(d.P, d.q, d.A, bu, bl, _sense(d))
             state["setup"] = True
         else:
-            model.update(A=d.A, bupper=bu, blower=bl)
+            model.update(H=d.P, A=d.A, bupper=bu, blower=bl)  # H: the turn cost follows the thrust
         x, _, flag, _ = model.solve()
         return np.asarray(x) if flag >= 1 else None
 
@@ -189,7 +189,7 @@ def osqp_warm(datas: list[QPData], eps: float) -> Solve:
             )  # fmt: skip
             state["setup"] = True
         else:
-            solver.update(Ax=A[rows, cols], l=lo, u=hi)
+            solver.update(Px=np.diag(d.P).copy(), Ax=A[rows, cols], l=lo, u=hi)
         res = solver.solve()
         return np.asarray(res.x) if res.info.status_val == 1 else None  # 1: solved
 
@@ -256,7 +256,7 @@ def piqp_update() -> Solve:
             s.setup(np.asfortranarray(d.P), d.q, A_eq, d.b_eq, G, None, h_u, d.lb, d.ub)
             state["s"] = s
         else:
-            state["s"].update(A=A_eq, b=d.b_eq, G=G, h_u=h_u, x_l=d.lb, x_u=d.ub)
+            state["s"].update(P=np.asfortranarray(d.P), A=A_eq, b=d.b_eq, G=G, h_u=h_u, x_l=d.lb, x_u=d.ub)
         status = state["s"].solve()
         return np.asarray(state["s"].result.x) if status == piqp.PIQP_SOLVED else None
 

@@ -227,9 +227,10 @@ _BEFORE = {
 @pytest.mark.parametrize("name", sorted(_BEFORE))
 def test_azimuths_do_not_hunt_in_station_keeping(name: str) -> None:
     """Holding station, every azimuth travels less than 10 % of its slew rate (measured: torsetnes_2004
-    31, 17, 8 °/min of 722 = 4.3, 2.4, 1.1 %; hassani 206, 263 of 5844 °/min = 3.5, 4.5 % — before: 75-87 %
-    and 38 %), and the station keeping is not more than 10 % worse than before in position or heading p95
-    (measured: 0.78 m and 1.75° against 0.87 m and 1.78°; 0.229 m and 6.09° against 0.232 m and 6.04°)."""
+    27, 10, 14 °/min of 722 = 3.8, 1.3, 1.9 %; hassani 207, 263 of 5844 °/min = 3.5, 4.5 % — before: 46-87 %
+    and 37-38 %), and the station keeping is not more than 10 % worse than before in position or heading
+    p95 (measured: 0.80 m and 1.74° against 0.87 m and 1.78°; 0.229 m and 6.09° against 0.232 m and
+    6.04°). The before figures are what `dpgw.azimuth_travel --before` gives (`BEFORE`)."""
     from dpgw.azimuth_travel import measure
 
     fig = measure(name, seed=1, settle_s=200.0, window_s=400.0)
