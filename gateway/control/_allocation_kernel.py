@@ -2,9 +2,10 @@
 
 One call does what `QPAllocator.allocate` does in Python around DAQP — the previous state made
 consistent (`_Layout.state`), the step's convex limits (`QPAllocator.limits`), the scaled QP
-(`QPAllocator._qp`), its solution, and the commands (`QPAllocator._commands`) — line for line with those
-methods, so that the per-step cost is one compiled call instead of some two hundred small numpy and
-Python operations (the QP itself is a few µs; the Python around it was most of the ~100 µs).
+(`QPAllocator._qp`, its Hessian `_p_diag`), its solution, and the commands (`QPAllocator._commands`) —
+line for line with those methods, so that the per-step cost is one compiled call instead of some two
+hundred small numpy and Python operations (the QP itself is a few µs; the Python around it was most of
+the ~100 µs).
 
 The QP solver is the dual active-set method of Goldfarb & Idnani (1983), "A numerically stable dual
 method for solving strictly convex quadratic programs", Math. Programming 27, 1–33 — the algorithm of
