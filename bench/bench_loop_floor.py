@@ -44,6 +44,7 @@ from gateway.pipeline import Pipeline  # noqa: E402
 from observers import _passive_kernel as obs_kernel  # noqa: E402
 from simulator.runner import WF_BLOCK_S, Simulation  # noqa: E402
 from simulator.scenarios import get_scenario  # noqa: E402
+from simulator.vessel_dynamics import MAX_STEP_S  # noqa: E402
 
 HOLD = [(0.0, "setpoint", {"north_m": 0.0, "east_m": 0.0, "heading_deg": 45.0})]
 TARGET = 3000.0
@@ -151,13 +152,13 @@ def measure(seconds: float, calls: int) -> dict[str, Any]:
     ticks = max(100, calls // 10)
     t0 = time.process_time()
     for _ in range(ticks):
-        sim._advance_fused(2, 0.05)  # 0.1 s: two sub-steps of at most 0.05 s, as the runner splits it
+        sim._advance_fused(2, MAX_STEP_S)  # 0.1 s: two sub-steps of at most 0.05 s, as the runner splits it
     us_plant = 1e6 * (time.process_time() - t0) / ticks
 
     field = sim._wf.field
     blocks = max(20, calls // 100)
-    n_grid = round(WF_BLOCK_S / 0.05) + 1
-    grid = 0.05 * np.arange(n_grid)
+    n_grid = round(WF_BLOCK_S / MAX_STEP_S) + 1  # the runner's block grid (`simulator.runner._WaveCache`)
+    grid = MAX_STEP_S * np.arange(n_grid)
     heading = math.radians(45.0)
     t0 = time.process_time()
     for k in range(blocks):
@@ -165,7 +166,7 @@ def measure(seconds: float, calls: int) -> dict[str, Any]:
     us_waves_numpy = 1e6 * (time.process_time() - t0) / blocks / WF_BLOCK_S
     t0 = time.process_time()
     for k in range(blocks):
-        field.motion_block(WF_BLOCK_S * k, 0.05, n_grid, heading, 0.0, 0.0)
+        field.motion_block(WF_BLOCK_S * k, MAX_STEP_S, n_grid, heading, 0.0, 0.0)
     us_waves = 1e6 * (time.process_time() - t0) / blocks / WF_BLOCK_S
 
     per_second = {

@@ -33,6 +33,9 @@ MAX_LOOP_DELAY_S = 0.3
 beyond it the simulation pauses until the gateway has caught up, and when it persists the demo slows
 down. A few sensor samples: small beside a DP vessel's seconds-long dynamics, and still small for the
 model-scale vessel of the `hassani` scenario."""
+SIM_CHUNK_S = 1.0
+"""Sea simulated between two looks at whether the demo was stopped (s): at the demo's speeds a stop
+takes effect within a fraction of a second of wall time."""
 
 
 NAME = "demo"
@@ -251,9 +254,8 @@ def run(args: argparse.Namespace) -> int:
         mav_sink = UdpSink("127.0.0.1", ports["thrusters"])
         sinks.append(mav_sink)
         routes.append(Route(watched(mav_sink, "thrusters"), "mavlink"))
-        fb = scenario.feedback  # (set: the thrusters port exists only with feedback)
-        ids = (fb.system_id, fb.component_id) if fb is not None else (None, None)
-        commands.append(MavlinkCommandInput(mav_sink, *ids))  # the loop closes over the MAVLink link
+        # the loop closes over the MAVLink link (the thrusters port exists only with feedback)
+        commands.append(MavlinkCommandInput.for_drive(mav_sink, scenario.feedback))
     elif args.mode == "dp" and service._session is not None:
         commands.append(ZenohCommandInput(service._session, config.zenoh.prefix))  # τ for layout-less ships
     clock = RealtimeClock(speed=args.speed)
@@ -294,18 +296,29 @@ def run(args: argparse.Namespace) -> int:
         max_downstream_s=MAX_LOOP_DELAY_S,
     )
     sim_error: list[BaseException] = []
+    # Ctrl-C or SIGTERM: the simulation ends its current second of sea before the gateway closes the
+    # session and the log it writes to (it once went on into the closed session and the stop read as
+    # "the simulator failed"); the summary covers what ran and says it was interrupted.
+    interrupted, stop_sim = threading.Event(), threading.Event()
 
     def simulate() -> None:
         try:
-            sim.run(args.duration)
-            time.sleep(0.3)  # let the last bytes arrive
+            while sim.t < args.duration - 1e-9 and not stop_sim.is_set():
+                sim.run(min(SIM_CHUNK_S, args.duration - sim.t))
+            if not stop_sim.is_set():
+                time.sleep(0.3)  # let the last bytes arrive
         except BaseException as exc:  # reported below, never a silent hang
             sim_error.append(exc)
         finally:
             service.stop_event.set()
 
-    signal.signal(signal.SIGINT, lambda *_: service.stop_event.set())
-    signal.signal(signal.SIGTERM, lambda *_: service.stop_event.set())
+    def on_signal(*_: object) -> None:
+        interrupted.set()
+        stop_sim.set()
+        service.stop_event.set()
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
     thread = threading.Thread(target=simulate, name="dpgw-demo-sim", daemon=True)
     wall0 = time.monotonic()
     thread.start()
@@ -313,11 +326,12 @@ def run(args: argparse.Namespace) -> int:
         service.run()
         service.drain()
     finally:
+        stop_sim.set()  # (if the gateway stopped first, the simulation follows)
+        thread.join(timeout=5)
         final_status = service.pipeline.status(service.pipeline.last_ns).payload
         service.close()
         for s in sinks:
             s.close()
-        thread.join(timeout=5)
     if sim_error:
         print(f"dpgw demo: the simulator failed: {sim_error[0]!r}", file=sys.stderr)
         return 1
@@ -329,6 +343,7 @@ def run(args: argparse.Namespace) -> int:
         "pauses": publisher.pauses,
         "paused_s": publisher.paused_s,
     }
+    summary["interrupted"] = interrupted.is_set()
     if args.json:
         print(cli_json.dumps(summary, indent=2))
     else:

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from dpgw.cli_paths import missing_folder
-from dpgw.cli_types import positive_float, positive_int
+from dpgw.cli_types import finite_float, int_at_least
 
 # observers.radiation's MIN_ORDER, MAX_ORDER and R2_TARGET, written here so that `dpgw radiation --help`
 # needs no numpy or scipy (the fit is imported by `run`); a test holds them equal.
@@ -56,20 +56,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.set_defaults(func=run)
 
 
-def _order(text: str) -> int:
-    """An order cap the fit can use: K(s) = s·G(s) needs a pole pair, so at least MIN_ORDER."""
-    value = positive_int(text)
-    if value < MIN_ORDER:
-        raise argparse.ArgumentTypeError(
-            f"must be {MIN_ORDER} or more: K(s) needs a zero at s = 0 and a pole pair (got {text})"
-        )
-    return value
+_order = int_at_least(MIN_ORDER, "K(s) needs a zero at s = 0 and a pole pair")
+"""An order cap the fit can use: K(s) = s·G(s) needs a pole pair, so at least MIN_ORDER."""
 
 
 def _r2(text: str) -> float:
     """An R² target an order can reach: above 0, at most 1 (above 1 every order fails and the cap is used)."""
-    value = positive_float(text)
-    if value > 1.0:
+    value = finite_float(text)
+    if not 0.0 < value <= 1.0:
         raise argparse.ArgumentTypeError(f"must be above 0 and at most 1 (got {text})")
     return value
 

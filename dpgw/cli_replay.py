@@ -456,8 +456,9 @@ class _Publisher:
     """--speed / --realtime: pace by event time and publish on Zenoh as if live."""
 
     def __init__(self, args: argparse.Namespace, prefix: str, speed: float) -> None:
-        from gateway.bus import make_config, open_session
+        from gateway.bus import JSON, make_config, open_session
 
+        self._json = JSON
         self.session = open_session(
             make_config(
                 connect=args.zenoh_connect, listen=args.zenoh_listen, multicast_scouting=not args.no_scouting
@@ -477,7 +478,8 @@ class _Publisher:
             time.sleep(delay)
         for o in outputs:
             if o.zenoh and o.topic.startswith("/dp/"):
-                self.session.put(f"{self.prefix}/{o.topic[4:]}", o.message.encode())
+                # JSON, said as the live gateway says it: a reader that checks the encoding sees the same
+                self.session.put(f"{self.prefix}/{o.topic[4:]}", o.message.encode(), encoding=self._json)
 
     def close(self) -> None:
         self.session.close()

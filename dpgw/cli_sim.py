@@ -158,10 +158,7 @@ def run(args: argparse.Namespace) -> int:
             ("--faults", args.faults),
             ("--ardupilot", args.ardupilot),
             ("--zenoh", args.zenoh),
-            ("--prefix", args.prefix),
-            ("--zenoh-listen", args.zenoh_listen),
-            ("--zenoh-connect", args.zenoh_connect),
-            ("--zenoh-config", args.zenoh_config),
+            *_session_options(args),
         )
         if given:
             print(
@@ -180,16 +177,21 @@ def run(args: argparse.Namespace) -> int:
     if args.speed != 1.0 and not args.realtime:  # accepted and ignored before: the run went flat out
         print("dpgw sim: --speed X paces a --realtime run: add --realtime", file=sys.stderr)
         return 2
-    zenoh_only = flags_given(
+    zenoh_only = flags_given(*_session_options(args))
+    if zenoh_only and not args.zenoh:  # accepted and ignored before: no session was opened
+        print(f"dpgw sim: {', '.join(zenoh_only)}: only with --zenoh", file=sys.stderr)
+        return 2
+    return _run_scenario(args)
+
+
+def _session_options(args: argparse.Namespace) -> tuple[tuple[str, object], ...]:
+    """The options of the Zenoh session that --zenoh opens, as `flags_given` takes them."""
+    return (
         ("--prefix", args.prefix),
         ("--zenoh-listen", args.zenoh_listen),
         ("--zenoh-connect", args.zenoh_connect),
         ("--zenoh-config", args.zenoh_config),
     )
-    if zenoh_only and not args.zenoh:  # accepted and ignored before: no session was opened
-        print(f"dpgw sim: {', '.join(zenoh_only)}: only with --zenoh", file=sys.stderr)
-        return 2
-    return _run_scenario(args)
 
 
 def _run_scenario(args: argparse.Namespace) -> int:
@@ -245,9 +247,7 @@ def _run_scenario(args: argparse.Namespace) -> int:
             sink = open_sink(args.mavlink)
             sinks.append(sink)
             routes.append(Route(sink, "mavlink"))
-            fb = scenario.feedback  # the drive takes what is addressed to it (or broadcast)
-            ids = (fb.system_id, fb.component_id) if fb is not None else (None, None)
-            commands.append(MavlinkCommandInput(sink, *ids))
+            commands.append(MavlinkCommandInput.for_drive(sink, scenario.feedback))
             print(f"MAVLink -> {sink.describe()}", file=sys.stderr)
         if args.zenoh:
             prefix = args.prefix or f"dp/{scenario.vessel.name}"

@@ -16,6 +16,11 @@ from typing import TypeVar
 _T = TypeVar("_T", int, float)
 
 
+def finite_float(text: str) -> float:
+    """A finite number (no inf, no nan); the range checks are the caller's."""
+    return _number(text)
+
+
 def positive_float(text: str) -> float:
     """A finite number > 0."""
     value = _number(text)
@@ -32,12 +37,22 @@ def non_negative_float(text: str) -> float:
     return value
 
 
-def positive_int(text: str) -> int:
-    """A whole number >= 1."""
-    value = _parsed(text, int, "a whole number")
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be 1 or more (got {text})")
-    return value
+def int_at_least(minimum: int, why: str = "") -> Callable[[str], int]:
+    """An argument type for a whole number >= ``minimum``; ``why`` (the reason for the minimum) goes into
+    the message of a number below it."""
+
+    def parse(text: str) -> int:
+        value = _parsed(text, int, "a whole number")
+        if value < minimum:
+            reason = f": {why}" if why else ""
+            raise argparse.ArgumentTypeError(f"must be {minimum} or more{reason} (got {text})")
+        return value
+
+    return parse
+
+
+positive_int = int_at_least(1)
+"""A whole number >= 1."""
 
 
 def flags_given(*options: tuple[str, object]) -> list[str]:

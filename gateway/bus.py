@@ -53,6 +53,9 @@ class UnreachableError(BusError):
     right, the router not up yet. `Dialler` waits for it."""
 
 
+JSON = zenoh.Encoding.APPLICATION_JSON
+"""The encoding every dpgw payload is put with (docs/interfaces.md): the gateway's, and a paced replay's."""
+
 _RUST_LOCATION = re.compile(r"\s*\bat /\S+\.rs:\d+\.?")
 _ENDPOINT_FORM = "PROTOCOL/HOST:PORT, e.g. tcp/0.0.0.0:7447"
 

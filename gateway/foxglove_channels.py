@@ -85,10 +85,19 @@ class _Output(Protocol):
     def stamp_ns(self) -> int: ...
 
 
-def _alarm_key(text: str) -> str:
+def alarm_key(text: str) -> str:
     """An alarm's identity: its text with the numbers masked, so "stale (3.1 s without data)" growing to
-    "(4.1 s ...)" is the same alarm still active, not one cleared and another raised."""
+    "(4.1 s ...)" is the same alarm still active, not one cleared and another raised. Every log of alarms
+    raised and cleared (this `/dp/log`, Keelson's `log_message`) tells alarms apart by it."""
     return _NUMBER.sub("#", text)
+
+
+def state_change_level(text: str) -> int:
+    """The Foxglove log level (`foxglove.Log`'s, which Keelson's `log_message` shares) of a reference state
+    change's text (``"<role> reference <source>: <old> -> <new>[: why]"``): that of its new state, INFO
+    back to ok, WARNING stale or suspect, ERROR rejected; WARNING for a text of another form."""
+    m = _NEW_STATE.search(text)
+    return _STATE_LEVEL.get(m.group(1), fx.LOG_WARNING) if m else fx.LOG_WARNING
 
 
 class FoxgloveChannels:
@@ -234,11 +243,9 @@ class FoxgloveChannels:
         ns = status.stamp_ns
         out: list[tuple[str, Message, int]] = []
         for text in status.events:
-            m = _NEW_STATE.search(text)
-            level = _STATE_LEVEL.get(m.group(1), fx.LOG_WARNING) if m else fx.LOG_WARNING
-            out.append(("/dp/log", fx.log(ns, level, text, "dpgw.reference"), ns))
+            out.append(("/dp/log", fx.log(ns, state_change_level(text), text, "dpgw.reference"), ns))
         active = {
-            _alarm_key(a): a
+            alarm_key(a): a
             for a in (a if isinstance(a, str) else str(a.get("message", a)) for a in status.alarms)
         }
         for key, text in active.items():

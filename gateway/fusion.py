@@ -167,8 +167,10 @@ class Fusion:
     def fresh_thrust(self, now_ns: int) -> dict[int, ThrusterFeedback]:
         """Thruster id → its feedback, for the thrusters whose feedback is fresh at ``now_ns`` (within its
         source's timeout) and usable (`set_feedback_usable`)."""
-        if not self._feedback_ok:
-            return {}
+        return self._fresh_thrust(now_ns) if self._feedback_ok else {}
+
+    def _fresh_thrust(self, now_ns: int) -> dict[int, ThrusterFeedback]:
+        """Thruster id → its feedback, for the thrusters whose feedback is within its source's timeout."""
         timeout = self._thrust_timeout
         return {tid: v for tid, v in self._thrust.items() if now_ns - v.rx_ns <= timeout[tid]}
 
@@ -469,8 +471,7 @@ class Fusion:
         held = self._tau_all_fresh  # (a thrust fresh at a time is fresh at every earlier one too)
         if held is not None and held[0] == self._thrust_changes and now_ns <= held[1]:
             return held[2].copy(), "feedback"
-        timeout = self._thrust_timeout
-        fresh = {tid: v for tid, v in self._thrust.items() if now_ns - v.rx_ns <= timeout[tid]}
+        fresh = self._fresh_thrust(now_ns)
         if not fresh:
             return self._tau_demand.copy(), "demand"
         if len(fresh) < len(layout):
@@ -484,7 +485,7 @@ class Fusion:
             tau = self._tau_of(fresh, None)
             self._tau_cached = (key, tau)
         if len(fresh) == len(self._thrust):  # (here every thruster of the layout is fresh)
-            until = min(v.rx_ns + timeout[tid] for tid, v in fresh.items())
+            until = min(v.rx_ns + self._thrust_timeout[tid] for tid, v in fresh.items())
             self._tau_all_fresh = (self._thrust_changes, until, tau)
         return tau.copy(), "feedback"
 

@@ -1226,6 +1226,7 @@ class Pipeline:
             res = self.allocator.allocate(o.tau, self.command)
             self.allocation, self.command = res, res.command
             tau_allocated = res.tau_allocated
+            self.fusion.set_tau_demand(tau_allocated, res.thrust, res.azimuth)
             saturated = res.saturated
             self.control_alarms = list(res.alarms) + deviation
             thrusters = [
@@ -1237,9 +1238,6 @@ class Pipeline:
         else:
             tau_allocated = o.tau  # no thruster layout: τ is the command (simulated vessels of the papers)
             self.control_alarms = deviation
-        if self.allocation is not None and self.allocator is not None:
-            self.fusion.set_tau_demand(tau_allocated, self.allocation.thrust, self.allocation.azimuth)
-        else:
             self.fusion.set_tau_demand(tau_allocated)
         return [
             Output(

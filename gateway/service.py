@@ -39,7 +39,7 @@ from typing import Any
 import msgspec
 import zenoh
 
-from gateway.bus import REDIAL_S, Dialler, UnreachableError, command_acl, make_config, open_session
+from gateway.bus import JSON, REDIAL_S, Dialler, UnreachableError, command_acl, make_config, open_session
 from gateway.config import GatewayConfig, ZenohConfig, config_notes
 from gateway.outputs import InputSink, OutputSink, RawSentenceSink
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
@@ -52,7 +52,6 @@ from wire.messages import SIM_CLOCK_KEY, SimClock, Status, ThrusterCommand
 
 log = logging.getLogger("dpgw")
 
-JSON = zenoh.Encoding.APPLICATION_JSON
 INPUT_KEYS = ("setpoint", "mode", "tau")
 TRACEBACKS_LOGGED = 10
 """Internal errors logged with a full traceback per source; after that every 1000th, so that a bug hit by
@@ -169,9 +168,9 @@ class GatewayService:
         self.held_dropped = 0
         """Items dropped while waiting for a simulation clock tick (more than `HOLD_MAX` held)."""
         self.clock_rejected = 0
+        """Simulation clock ticks that were not a valid `SimClock`."""
         self.restart_dropped = 0
         """Inputs not handled since the simulator restarted (its time went back): another run of the plant."""
-        """Simulation clock ticks that were not a valid `SimClock`."""
         self.stop_event = threading.Event()
         path = log_path if log_path is not None else config.log.path
         self._log_path = str(path) if path else None

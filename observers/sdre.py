@@ -66,7 +66,7 @@ from observers.sdre_tuning import (
     table_gain,
 )
 from observers.vessel import VesselModel
-from observers.wave_frequency import estimator_config
+from observers.wave_frequency import ESTIMATOR_KEYS, estimator_config
 
 Array = NDArray[np.float64]
 
@@ -133,9 +133,9 @@ class SdreObserver(ObserverBase):
         params = dict(params)
         literal = bool(params.pop("paper_weights", False))
         adaptive = bool(params.pop("adaptive", False))
-        from observers.sdre_adaptive import ESTIMATOR_PARAMS, AdaptiveSdreObserver  # (it builds on this one)
+        from observers.sdre_adaptive import AdaptiveSdreObserver  # (it builds on this one)
 
-        est = {k: params.pop(k) for k in ESTIMATOR_PARAMS if k in params}
+        est = {k: params.pop(k) for k in ESTIMATOR_KEYS if k in params}
         if est and not adaptive:
             raise ValueError(
                 f"{', '.join(est)}: settings of the wave-frequency estimator (expected adaptive = true)"

@@ -27,9 +27,7 @@ from observers.base import Estimate, Run, batch_inputs
 from observers.sdre import SdreObserver
 from observers.sdre_tuning import SdreTuning, SdreWeights
 from observers.vessel import VesselModel
-from observers.wave_frequency import ESTIMATOR_KEYS, WaveFrequencyConfig, WaveFrequencyEstimator
-
-ESTIMATOR_PARAMS = ESTIMATOR_KEYS
+from observers.wave_frequency import WaveFrequencyConfig, WaveFrequencyEstimator
 
 
 class AdaptiveSdreObserver(SdreObserver):

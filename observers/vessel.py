@@ -224,9 +224,8 @@ def _thruster(entry: Any, index: int, where: str) -> Thruster:
     values = dict(entry)
     values.setdefault("angle_rad", default_angle)
     if "forbidden_sectors_deg" in values:
-        values["forbidden_sectors_deg"] = _sectors(
-            values["forbidden_sectors_deg"], kind, f"{where}: field '{key}"
-        )
+        label = f"{where}: field '{key}.forbidden_sectors_deg'"
+        values["forbidden_sectors_deg"] = _sectors(values["forbidden_sectors_deg"], kind, label)
     for name, value in values.items():
         if name in ("kind", "forbidden_sectors_deg"):
             continue
@@ -240,22 +239,21 @@ def _thruster(entry: Any, index: int, where: str) -> Thruster:
     return Thruster(**values)
 
 
-def _sectors(value: Any, kind: str, where: str) -> tuple[tuple[float, float], ...]:
+def _sectors(value: Any, kind: str, label: str) -> tuple[tuple[float, float], ...]:
     """``forbidden_sectors_deg``: a list of [start, end] pairs of finite degrees, each a non-empty sector;
-    ``where`` is the message's prefix up to the thruster's key (without its closing quote)."""
-    field = f"{where}.forbidden_sectors_deg'"
+    ``label`` names the field in the messages (``vessel: field 'thrusters[0].forbidden_sectors_deg'``)."""
     if kind != "azimuth":
-        raise VesselError(f"{field}: only an azimuth has barred zones (a {kind} has a fixed direction)")
+        raise VesselError(f"{label}: only an azimuth has barred zones (a {kind} has a fixed direction)")
     if not isinstance(value, list) or not all(isinstance(p, list) and len(p) == 2 for p in value):
-        raise VesselError(f"{field}: must be a list of [start, end] pairs (degrees), got {value!r}")
+        raise VesselError(f"{label}: must be a list of [start, end] pairs (degrees), got {value!r}")
     out = []
     for start, end in value:
         if not all(
             isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in (start, end)
         ):
-            raise VesselError(f"{field}: must be finite numbers of degrees, got {[start, end]!r}")
+            raise VesselError(f"{label}: must be finite numbers of degrees, got {[start, end]!r}")
         if (float(end) - float(start)) % 360.0 == 0.0:
-            raise VesselError(f"{field}: sector [{start}, {end}] is empty or the whole circle")
+            raise VesselError(f"{label}: sector [{start}, {end}] is empty or the whole circle")
         out.append((float(start), float(end)))
     return tuple(out)
 

@@ -13,10 +13,13 @@ import math
 import threading
 from collections import Counter
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from simulator.transports import Sink
 from wire.codecs.mavlink import AZIMUTH_THRUSTER_COMMAND_ID, FrameParser, dialect
+
+if TYPE_CHECKING:
+    from simulator.sensors import ThrusterFeedbackConfig
 
 
 @dataclass(frozen=True)
@@ -52,6 +55,14 @@ class MavlinkCommandInput:
         self.parsers: dict[str, FrameParser] = {}
         self.rejected: Counter[str] = Counter()
         self.received = 0
+
+    @classmethod
+    def for_drive(cls, sink: Sink, drive: ThrusterFeedbackConfig | None) -> MavlinkCommandInput:
+        """As the scenario's simulated drive: it takes what is addressed to its ids (or broadcast); without
+        a drive (no thruster feedback), every target."""
+        if drive is None:
+            return cls(sink)
+        return cls(sink, drive.system_id, drive.component_id)
 
     def poll(self) -> list[Command]:
         out: list[Command] = []

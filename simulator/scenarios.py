@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 
 from observers.kinematics import rotation
 from observers.vessel import VesselModel, load_vessel
+from observers.wave_frequency import WaveFrequencyConfig
 from simulator.current import CurrentModel
 from simulator.environment import BiasModel
 from simulator.faults import Fault
@@ -175,9 +176,12 @@ def trajectory_law(vessel: VesselModel, legs: Sequence[tuple[float, float, Seque
 
 # --- the scenarios -----------------------------------------------------------------------------------------
 
-FULL_SCALE_OMEGA_RANGE = {"omega_min": 0.3, "omega_max": 1.6}
-"""The full-scale ω0 range (rad/s) of the gain-scheduled observer, set explicitly where a paper's case runs
-full-scale seas on a model ship (`hassani`)."""
+FULL_SCALE_OMEGA_RANGE = {
+    "omega_min": WaveFrequencyConfig.omega_min,
+    "omega_max": WaveFrequencyConfig.omega_max,
+}
+"""The full-scale ω0 range (rad/s) of the gain-scheduled observer (the estimator's defaults, 0.3-1.6 rad/s),
+set explicitly where a paper's case runs full-scale seas on a model ship (`hassani`)."""
 
 
 def fossen_strand_1999() -> Scenario:

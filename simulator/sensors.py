@@ -534,11 +534,8 @@ class Dgps(Sensor):
         faults: FaultSchedule | None = None,
         *,
         start: float = 0.0,
-        thrust_limits_n: Mapping[int, tuple[float, float]] | None = None,
     ) -> None:
         self.config = config
-        self.thrust_limits_n = dict(thrust_limits_n or {})
-        """Thruster id → (min, max) thrust (N): the scale of its motor output (`motor_pwm`)."""
         self.source = config.source
         self.datum = datum
         self.epoch = epoch
@@ -745,11 +742,8 @@ class Gyro(Sensor):
         faults: FaultSchedule | None = None,
         *,
         start: float = 0.0,
-        thrust_limits_n: Mapping[int, tuple[float, float]] | None = None,
     ) -> None:
         self.config = config
-        self.thrust_limits_n = dict(thrust_limits_n or {})
-        """Thruster id → (min, max) thrust (N): the scale of its motor output (`motor_pwm`)."""
         self.source = config.source
         self.epoch = epoch
         self.rng = rng

@@ -64,7 +64,9 @@ class SimClockPublisher:
         """Times the simulation waited for the receiver."""
         self.paused_s = 0.0
         """Wall seconds spent waiting for the receiver."""
-        self._publisher = session.declare_publisher(self.key)
+        # JSON, said as every dpgw payload says it (docs/interfaces.md); a string, as zenoh takes it: the
+        # simulator does not import zenoh
+        self._publisher = session.declare_publisher(self.key, encoding="application/json")
         self._last_t = -1.0
         self.published = 0
 

@@ -13,10 +13,11 @@ for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import socket  # noqa: E402
 import threading  # noqa: E402
 import time  # noqa: E402
-from collections.abc import Callable  # noqa: E402
+from collections.abc import Callable, Iterator  # noqa: E402
 from typing import Any, TypeVar  # noqa: E402
 
 import pynmea2  # noqa: E402
+import pytest  # noqa: E402
 from alone_lock import pytest_runtest_protocol  # noqa: E402, F401  (the ``alone`` marker's hook)
 
 T = TypeVar("T")
@@ -56,6 +57,22 @@ def connect_when_listening(port: int, timeout: float = 30.0, alive: Callable[[],
             if time.monotonic() >= deadline or (alive is not None and not alive()):
                 raise AssertionError(f"no Zenoh peer listening on 127.0.0.1:{port}: {exc}") from exc
             time.sleep(0.1)
+
+
+@pytest.fixture
+def loopback_sessions() -> Iterator[tuple[int, Any, Any]]:
+    """(port, server, client): two Zenoh sessions joined on 127.0.0.1:port, one listening (the gateway's
+    side: start a sink on it) and one connecting (a consumer's); closed after the test."""
+    from gateway.bus import isolated_config, open_session
+
+    port = free_port()
+    server = open_session(isolated_config(listen=[f"tcp/127.0.0.1:{port}"]))
+    client = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{port}"]))
+    try:
+        yield port, server, client
+    finally:
+        client.close()
+        server.close()
 
 
 def free_port(kind: int = socket.SOCK_STREAM) -> int:

@@ -442,6 +442,8 @@ def test_sim_open_loop_refuses_scenario_options_and_prints_json(
     ("extra", "words"),
     [
         (["--max-order", "1"], "argument --max-order: must be 2 or more"),
+        (["--max-order", "0"], "argument --max-order: must be 2 or more: K(s) needs"),
+        (["--r2", "0"], "argument --r2: must be above 0 and at most 1 (got 0)"),
         (["--r2", "1.5"], "argument --r2: must be above 0 and at most 1 (got 1.5)"),
     ],
 )

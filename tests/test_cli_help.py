@@ -51,7 +51,7 @@ def test_descriptions_wrap_and_examples_keep_their_layout() -> None:
     text = _subparsers()["replay"].format_help()
     width = max(len(line) for line in text.splitlines())
     assert width <= 120  # argparse's width: $COLUMNS or 80 less 2, never one line per paragraph
-    assert "       --observer passive:wave_period_s=10@long" in text  # a continuation line, as written
+    assert "       --observer passive:wave_period_s=2.5@long" in text  # a continuation line, as written
 
 
 def test_demo_help_lists_the_scenarios() -> None:
@@ -187,23 +187,23 @@ def test_run_prints_a_start_up_line(tmp_path: Path) -> None:
         'protocol = "nmea"\nroles = ["position", "heading"]\n[observer]\nwave_period_s = 9.0\n'
         f'[zenoh]\nlisten = ["tcp/127.0.0.1:{zport}"]\nmulticast_scouting = false\n[log]\npath = "{log}"\n'
     )
-    p = subprocess.run(
-        [sys.executable, "-m", "dpgw", "run", "--config", str(cfg), "--duration", "0.5"],
-        capture_output=True, text=True, timeout=60,
-    )  # fmt: skip
-    assert p.returncode == 0, p.stderr
-    line = next(ln for ln in p.stderr.splitlines() if ln.startswith("dpgw run: vessel"))
+
+    def start_up_line() -> str:
+        """Run the gateway for half a second; its start-up line."""
+        p = subprocess.run(
+            [sys.executable, "-m", "dpgw", "run", "--config", str(cfg), "--duration", "0.5"],
+            capture_output=True, text=True, timeout=60,
+        )  # fmt: skip
+        assert p.returncode == 0, p.stderr
+        return next(ln for ln in p.stderr.splitlines() if ln.startswith("dpgw run: vessel"))
+
+    line = start_up_line()
     assert re.search(r"sources gps udp://127\.0\.0\.1:0, port \d+;", line), line
     assert f"listen tcp/127.0.0.1:{zport}" in line and "prefix dp/mss_supply" in line
     assert f"log {log}" in line
     # restarted (systemd, a reboot): the log goes on in the next file of the set; the first is kept
     first = log.read_bytes()
-    p = subprocess.run(
-        [sys.executable, "-m", "dpgw", "run", "--config", str(cfg), "--duration", "0.5"],
-        capture_output=True, text=True, timeout=60,
-    )  # fmt: skip
-    assert p.returncode == 0, p.stderr
-    line = next(ln for ln in p.stderr.splitlines() if ln.startswith("dpgw run: vessel"))
+    line = start_up_line()
     assert f"log {tmp_path / 'trial_0001.mcap'}" in line, line
     assert log.read_bytes() == first
 

@@ -16,12 +16,14 @@ as well), so it cannot show the station-keeping bound in a test of this length.
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import sys
 from pathlib import Path
 from typing import Any
 
 import pytest
+from conftest import wait_for
 
 SCENARIO = "hassani"
 DURATION_S = "120"
@@ -73,3 +75,39 @@ def test_the_demo_under_two_cpu_hogs_keeps_one_time_base_and_station(tmp_path: P
         assert run["estimates"] > 1000
     rms_quiet = quiet["error_vs_truth"]["horizontal_rms_m"]
     assert loaded["error_vs_truth"]["horizontal_rms_m"] <= 1.25 * rms_quiet
+
+
+@pytest.mark.slow  # a demo started and stopped: a few seconds
+def test_a_demo_stopped_with_ctrl_c_ends_cleanly_and_says_it_was_interrupted(tmp_path: Path) -> None:
+    """Ctrl-C during `dpgw demo`: the simulation ends its current second of sea before the gateway
+    closes the Zenoh session and the log, so the stop is not reported as a failure of the simulator (it
+    was: the simulation went on into the closed session), the exit status is 0, the JSON summary covers
+    what ran and says it was interrupted, and the log is complete (its summary section readable)."""
+    from mcap.reader import make_reader
+
+    out = tmp_path / "stopped.mcap"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "dpgw", "demo", "--duration", "3600", "--out", str(out), "--json",
+         "--no-scouting"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        # running: the log has its first chunk of data (the writer closes a chunk each wall second)
+        assert wait_for(
+            lambda: proc.poll() is not None or (out.exists() and out.stat().st_size > 20_000), 120
+        )
+        assert proc.poll() is None, proc.communicate()
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 0, stderr
+    assert "failed" not in stderr, stderr
+    summary = json.loads(stdout)
+    assert summary["interrupted"] is True
+    assert 0 < summary["sim_seconds"] < 3600
+    with out.open("rb") as f:
+        stats = make_reader(f).get_summary()
+    assert stats is not None and stats.statistics is not None and stats.statistics.message_count > 0

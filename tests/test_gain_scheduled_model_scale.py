@@ -9,25 +9,22 @@ station-keeping law, plus the `hassani` scenario's sensor noise (1 cm RTK positi
 from __future__ import annotations
 
 import math
-from functools import lru_cache
 
+import basin_sea
 import numpy as np
 import pytest
+from basin_sea import MODEL, RATE
 
 from observers.factory import make_observer
 from observers.froude import MODEL_MAX_LENGTH_M, PROTOTYPE_LENGTH_M, froude_scale, froude_scale_of
 from observers.gain_scheduled import GainScheduledObserver
-from observers.kinematics import rotation, ssa
 from observers.passive_tuning import PassiveTuning
 from observers.vessel import VesselError, load_vessel, vessel_from_dict
 from observers.wave_frequency import WaveFrequencyConfig, estimator_config
 from simulator.spectra import SeaState
-from simulator.vessel_dynamics import VesselDynamics
-from simulator.waves import WaveField, WaveResponse
+from simulator.waves import WaveResponse
 
-MODEL = load_vessel("cybership2")
 SHIP = load_vessel("mss_supply")
-RATE = 10.0
 BASIN_SEA = SeaState(hs_m=0.06, tp_s=2 * math.pi / 3.8, gamma=3.3, direction_rad=math.radians(150.0))
 
 
@@ -109,32 +106,9 @@ def true_peak(sea: SeaState) -> float:
     return float(w[np.argmax((S / S.sum(axis=0)).sum(axis=1))])
 
 
-@lru_cache(maxsize=8)
 def basin(duration_s: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """(t, y): measured position/heading at 10 Hz = LF motion + WF motion + noise (module docstring)."""
-    rng = np.random.default_rng(seed)
-    field = WaveField(schedule=[(0.0, BASIN_SEA)], response=WaveResponse.for_vessel(MODEL), seed=seed)
-    n = int(duration_s * RATE)
-    t = np.arange(n) / RATE
-    dyn = VesselDynamics(MODEL)
-    m = np.diag(MODEL.M)
-    s = math.sqrt(70.0)
-    wn = 2 * math.pi / 120.0 * s  # the full-scale test's slow station keeping, Froude-scaled
-    kp, kd = m * wn**2, m * 2 * 0.7 * wn
-    periods = rng.uniform(100.0, 600.0, (3, 4)) / s
-    phases = rng.uniform(0, 2 * math.pi, (3, 4))
-    amps = (m * np.array([0.02, 0.02, 0.02]))[:, None] * rng.uniform(0.5, 1.0, (3, 4))
-    lf = np.empty((n, 3))
-    for k in range(n):
-        eta, nu = dyn.eta, dyn.nu
-        lf[k] = eta
-        err = eta.copy()
-        err[2] = ssa(err[2])
-        force = np.sum(amps * np.sin(2 * math.pi * t[k] / periods + phases), axis=1)
-        dyn.step(1.0 / RATE, force - kp * (rotation(eta[2]).T @ err) - kd * nu)
-    wf = field.motion(t, lf[:, 2], lf[:, 0], lf[:, 1])
-    y = lf + wf + rng.standard_normal((n, 3)) * np.array([0.01, 0.01, math.radians(0.1)])
-    y[:, 2] = ssa(y[:, 2])
+    """(t, y): the measured position/heading in `BASIN_SEA` (`basin_sea.basin`)."""
+    t, y, _, _ = basin_sea.basin(BASIN_SEA, duration_s, seed)
     return t, y
 
 

@@ -26,7 +26,14 @@ from gateway.pipeline import Output  # noqa: E402
 from gateway.service import GatewayService  # noqa: E402
 from tests.conftest import Recorder, free_port, wait_for  # noqa: E402
 from wire.codecs import nmea_encode as enc  # noqa: E402
-from wire.messages import Estimate, Measurement, Status, ThrusterCommand, ThrusterFeedback  # noqa: E402
+from wire.messages import (  # noqa: E402
+    Datum,
+    Estimate,
+    Measurement,
+    Status,
+    ThrusterCommand,
+    ThrusterFeedback,
+)
 
 BASE = "keelson"
 ENTITY = "test_ship"
@@ -286,15 +293,24 @@ def check_values(listener: Listener, recorder: Recorder, sent: list[str]) -> Non
     assert statuses
 
 
-def test_feedback_alarms_and_state_changes_reach_keelson(tmp_path: Path) -> None:
+def status(t: int, alarms: list[Any], events: list[str], mode: str = "dp") -> Output:
+    """A `/dp/status` output at ``t`` with these alarms and reference state changes."""
+    message = Status(
+        stamp_ns=t, mode=mode, observer="passive", initialized=True, estimates=1, sources={},
+        alarms=alarms, references={}, events=events,
+    )  # fmt: skip
+    return Output("/dp/status", message, t)
+
+
+def test_feedback_alarms_and_state_changes_reach_keelson(
+    tmp_path: Path, loopback_sessions: tuple[int, Any, Any]
+) -> None:
     """What the NMEA-only service above does not produce: τ from the thrusters' feedback (a MAVLink link)
     and alarms (raised once, cleared once, as objects too) and reference state changes, as log messages."""
-    zport = free_port()
+    zport, server, client = loopback_sessions
     config = parse_config(
         tables(free_port(socket.SOCK_DGRAM), zport, log_source_id="dpgw/log"), base_dir=tmp_path
     )
-    server = open_session(isolated_config(listen=[f"tcp/127.0.0.1:{zport}"]))
-    client = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{zport}"]))
     sink = sinks_from_config(config)[0]
     assert isinstance(sink, KeelsonSink)
     try:
@@ -302,21 +318,14 @@ def test_feedback_alarms_and_state_changes_reach_keelson(tmp_path: Path) -> None
         sink.start(server)
         wait_for(lambda: len(list(client.liveliness().get(f"{BASE}/@v0/{ENTITY}/pubsub/*/dpgw/log"))) == 1)
 
-        def status(t: int, mode: str, alarms: list[Any], events: list[str]) -> Output:
-            message = Status(
-                stamp_ns=t, mode=mode, observer="passive", initialized=True, estimates=1, sources={},
-                alarms=alarms, references={}, events=events,
-            )  # fmt: skip
-            return Output("/dp/status", message, t)
-
         fb = ThrusterFeedback(stamp_ns=5, tau_allocated=[1000.5, -2000.25, 30000.125], thrusters=[])
         stale, sat = "dgps1: position stale", {"code": "sat", "message": "thrust saturated"}
         batches = [
             [Output("/dp/thrusters/feedback", fb, 5)],
-            [status(10, "standby", [], [])],
-            [status(20, "standby", [stale, sat], ["dgps1: stale"])],
-            [status(30, "standby", [stale, sat], [])],
-            [status(40, "manual", [stale], ["dgps1: ok again"])],
+            [status(10, [], [], mode="standby")],
+            [status(20, [stale, sat], ["dgps1: stale"], mode="standby")],
+            [status(30, [stale, sat], [], mode="standby")],
+            [status(40, [stale], ["dgps1: ok again"], mode="manual")],
         ]
         for batch in batches:
             sink.emit(batch, [o.message.encode() for o in batch])
@@ -341,8 +350,6 @@ def test_feedback_alarms_and_state_changes_reach_keelson(tmp_path: Path) -> None
         ]
     finally:
         sink.close()
-        client.close()
-        server.close()
 
 
 def test_keelson_config_errors_name_the_key(tmp_path: Path) -> None:
@@ -370,3 +377,66 @@ def test_a_missing_keelson_package_stops_start_up_with_one_message(
     from dpgw.cli_run import start_up_problems  # `dpgw run --check` says it too
 
     assert [p for p in start_up_problems(config) if "keelson" in p] == problems
+
+
+def test_keelson_log_follows_alarm_identity_and_state_severity_and_fixes_carry_nine_covariances(
+    tmp_path: Path, loopback_sessions: tuple[int, Any, Any]
+) -> None:
+    """What a Keelson log or map consumer relies on:
+    - an alarm whose text carries a growing figure ("stale (3.1 s without data)" → "(4.1 s …)") is the same
+      alarm still active: raised once, not cleared and raised again at every status;
+    - a reference state change has the severity of its new state (INFO back to ok, WARNING stale or
+      suspect, ERROR rejected), as on dpgw's own `/dp/log`;
+    - every `foxglove.LocationFix` has the 9 covariance entries Foxglove's schema requires (the estimate's
+      and the measurement's are UNKNOWN, all zero), so a consumer indexing it (a NavSatFix bridge) works."""
+    zport, server, client = loopback_sessions
+    config = parse_config(tables(free_port(socket.SOCK_DGRAM), zport), base_dir=tmp_path)
+    sink = sinks_from_config(config)[0]
+    assert isinstance(sink, KeelsonSink)
+    try:
+        listener = Listener(client)
+        sink.start(server)
+        wait_for(lambda: len(list(client.liveliness().get(f"{BASE}/@v0/{ENTITY}/pubsub/*/dpgw"))) == 1)
+
+        ref = "position reference dgps1"
+        est = Estimate(
+            stamp_ns=5, observer="passive", status="ok", eta=[1.0, 2.0, 0.3], nu=[0.0, 0.0, 0.0],
+            bias=[0.0, 0.0, 0.0], eta_wf=[0.0, 0.0, 0.0], omega0=[0.8, 0.8, 0.8], lat_deg=LAT,
+            lon_deg=LON, heading_deg=17.2, datum=Datum(lat_deg=LAT, lon_deg=LON),
+        )  # fmt: skip
+        meas = Measurement(
+            stamp_ns=5, eta=[1.0, 2.0, 0.3], valid=[True, True, True], sources=["dgps1"], quality=2,
+            sigma_m=0.5, tau=[0.0, 0.0, 0.0], tau_source="command",
+        )  # fmt: skip
+        batches = [
+            [Output("/dp/measurement", meas, 5), Output("/dp/estimate", est, 5)],
+            [status(10, ["source dgps1: stale (3.1 s without data)"], [f"{ref}: ok -> stale: no data"])],
+            [status(20, ["source dgps1: stale (4.1 s without data)"], [])],
+            [status(30, ["source dgps1: stale (5.1 s without data)"], [f"{ref}: stale -> rejected: jump"])],
+            [status(40, [], [f"{ref}: rejected -> suspect", f"{ref}: suspect -> ok"])],
+        ]
+        for batch in batches:
+            sink.emit(batch, [o.message.encode() for o in batch])
+        wait_for(  # the last line: a log's lines arrive in order (one publisher)
+            lambda: any(
+                m.timestamp.ToNanoseconds() == 40 and m.message.startswith("alarm cleared")
+                for m in listener.of("log_message", "dpgw")
+            )
+        )
+        wait_for(lambda: listener.of("location_fix", "dpgw/measurement"))
+        logs = [(m.timestamp.ToNanoseconds(), m.level, m.message) for m in listener.of("log_message", "dpgw")]
+        Log = type(listener.of("log_message", "dpgw")[0])
+        assert logs == [
+            (10, Log.WARNING, f"{ref}: ok -> stale: no data"),
+            (10, Log.ERROR, "alarm: source dgps1: stale (3.1 s without data)"),
+            (30, Log.ERROR, f"{ref}: stale -> rejected: jump"),
+            (40, Log.WARNING, f"{ref}: rejected -> suspect"),
+            (40, Log.INFO, f"{ref}: suspect -> ok"),
+            (40, Log.INFO, "alarm cleared: source dgps1: stale (5.1 s without data)"),
+        ]
+        for sid in ("dpgw/estimate", "dpgw/measurement"):
+            (fix,) = listener.of("location_fix", sid)
+            assert list(fix.position_covariance) == [0.0] * 9
+            assert fix.position_covariance_type == fix.UNKNOWN
+    finally:
+        sink.close()

@@ -12,19 +12,19 @@ from __future__ import annotations
 
 import math
 import re
-from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+from basin_sea import MODEL, RATE, basin
 
 from gateway.report.metrics import wave_band_for_length
 from gateway.report.wave_check import check_wave_tuning
 from observers.factory import make_observer
 from observers.froude import froude_scale
 from observers.gain_scheduled import GainScheduledObserver
-from observers.kinematics import rotation, ssa
+from observers.kinematics import ssa
 from observers.passive import PassiveObserver
 from observers.passive_tuning import (
     FREQUENCY_FIELDS,
@@ -36,12 +36,8 @@ from observers.passive_tuning import (
 )
 from observers.vessel import builtin_vessels, load_vessel
 from simulator.spectra import SeaState
-from simulator.vessel_dynamics import VesselDynamics
-from simulator.waves import WaveField, WaveResponse
 
-MODEL = load_vessel("cybership2")
 R = math.sqrt(70.0)
-RATE = 10.0
 SHIPS = [name for name in builtin_vessels() if froude_scale(load_vessel(name)) == 1.0]
 DEFAULT_SEA = SeaState(hs_m=0.05, tp_s=7.0 / R, gamma=3.3, direction_rad=math.radians(150.0))
 BASIN_SEA = SeaState(hs_m=0.06, tp_s=2 * math.pi / 3.8, gamma=3.3, direction_rad=math.radians(150.0))
@@ -143,34 +139,6 @@ def test_the_hassani_cases_keep_the_papers_wave_peak() -> None:
 
 
 # --- the model in a basin sea -----------------------------------------------------------------------------
-
-
-@lru_cache(maxsize=8)
-def basin(sea: SeaState, duration_s: float, seed: int) -> tuple[np.ndarray, ...]:
-    """(t, y, lf, wf): measured position/heading at 10 Hz, its true LF and WF parts (module docstring)."""
-    rng = np.random.default_rng(seed)
-    field = WaveField(schedule=[(0.0, sea)], response=WaveResponse.for_vessel(MODEL), seed=seed)
-    n = int(duration_s * RATE)
-    t = np.arange(n) / RATE
-    dyn = VesselDynamics(MODEL)
-    m = np.diag(MODEL.M)
-    wn = 2 * math.pi / 120.0 * R
-    kp, kd = m * wn**2, m * 2 * 0.7 * wn
-    periods = rng.uniform(100.0, 600.0, (3, 4)) / R
-    phases = rng.uniform(0, 2 * math.pi, (3, 4))
-    amps = (m * np.array([0.02, 0.02, 0.02]))[:, None] * rng.uniform(0.5, 1.0, (3, 4))
-    lf = np.empty((n, 3))
-    for k in range(n):
-        eta, nu = dyn.eta, dyn.nu
-        lf[k] = eta
-        err = eta.copy()
-        err[2] = ssa(err[2])
-        force = np.sum(amps * np.sin(2 * math.pi * t[k] / periods + phases), axis=1)
-        dyn.step(1.0 / RATE, force - kp * (rotation(eta[2]).T @ err) - kd * nu)
-    wf = field.motion(t, lf[:, 2], lf[:, 0], lf[:, 1])
-    y = lf + wf + rng.standard_normal((n, 3)) * np.array([0.01, 0.01, math.radians(0.1)])
-    y[:, 2] = ssa(y[:, 2])
-    return t, y, lf, wf
 
 
 def errors(tuning: PassiveTuning, sea: SeaState, seed: int) -> dict[str, float]:

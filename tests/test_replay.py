@@ -15,6 +15,7 @@ import termios
 import time
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -328,7 +329,7 @@ def test_tlog_replay(tmp_path: Path) -> None:
 @pytest.mark.slow
 def test_speed_publishes_on_zenoh_as_if_live(tmp_path: Path) -> None:
     """`--speed 10`: estimates go out on Zenoh (in another process, this test's) paced at 10× the log's
-    time, as a live gateway would publish them."""
+    time, as a live gateway would publish them: with the live gateway's encoding, `application/json`."""
     log = tmp_path / "trial.nmea"
     t0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
     write_text_log(log, [t0 + timedelta(seconds=0.2 * k) for k in range(300)])  # 60 s at 5 Hz
@@ -344,17 +345,21 @@ def test_speed_publishes_on_zenoh_as_if_live(tmp_path: Path) -> None:
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
     received: list[tuple[float, dict]] = []  # type: ignore[type-arg]
+    encodings: set[str] = set()
+
+    def on_sample(s: Any) -> None:
+        encodings.add(str(s.encoding))
+        received.append((time.monotonic(), json.loads(s.payload.to_bytes())))
+
     session = connect_when_listening(port, alive=lambda: proc.poll() is None)
-    sub = session.declare_subscriber(
-        "test/replay/estimate",
-        lambda s: received.append((time.monotonic(), json.loads(s.payload.to_bytes()))),
-    )
+    sub = session.declare_subscriber("test/replay/estimate", on_sample)
     stdout, stderr = proc.communicate(timeout=120)
     sub.undeclare()
     session.close()
     assert proc.returncode == 0, stderr
     assert json.loads(stdout)["estimates"]["passive"] == 300
     assert len(received) >= 150  # the subscriber joins a second or two into the 6 s run
+    assert encodings == {"application/json"}
     stamps = [p["stamp_ns"] for _, p in received]
     assert stamps == sorted(stamps)
     wall = received[-1][0] - received[0][0]

@@ -35,12 +35,13 @@ from gateway.bus import isolated_config, open_session
 from gateway.config import ConfigError, parse_config
 from gateway.outputs import InputSink, RawSentenceSink
 from gateway.outputs.build import output_problems, sinks_from_config
-from gateway.outputs.ros2 import Ros2Sink, ros_typestore, setpoint_payload
+from gateway.outputs.ros2 import Ros2Sink, navsat_status, ros_typestore, setpoint_payload
+from gateway.pipeline import Output
 from gateway.service import GatewayService
 from tests.conftest import Recorder, free_port, wait_for
 from wire import rmw_zenoh as rz
 from wire.codecs import nmea_encode as enc
-from wire.messages import Estimate, LocationFix
+from wire.messages import Estimate, LocationFix, Time
 
 # RIHS01 hashes as ROS 2 Jazzy publishes them (rosidl's generated type descriptions; std_msgs/String is
 # also the one rmw_zenoh's design document shows in its keys)
@@ -492,3 +493,125 @@ def test_missing_packages_and_bad_topic_names_stop_start_up(
     from dpgw.cli_run import start_up_problems  # `dpgw run --check` says them too
 
     assert [p for p in start_up_problems(config) if "ros2" in p or "1gps" in p] == problems
+
+
+def test_gga_quality_maps_to_navsat_status_as_nmea_navsat_driver_does() -> None:
+    """ROS's NMEA driver (nmea_navsat_driver, whose NavSatFix most ROS nodes are written against) gives
+    GGA quality 1 STATUS_FIX, 2 SBAS, 4/5/9 GBAS, and every other quality (0 invalid, 3 PPS, 6 dead
+    reckoning, 7 manual, 8 simulator) STATUS_NO_FIX: a dead-reckoned or simulated position must not reach
+    a ROS consumer (navsat_transform, a map) as a satellite fix. The service bits are the talker's."""
+    s = ros_typestore().types["sensor_msgs/msg/NavSatStatus"]
+    expected = {1: s.STATUS_FIX, 2: s.STATUS_SBAS_FIX, 4: s.STATUS_GBAS_FIX, 5: s.STATUS_GBAS_FIX}
+    expected[9] = s.STATUS_GBAS_FIX
+    for quality in range(10):
+        want = expected.get(quality, s.STATUS_NO_FIX)
+        assert navsat_status(quality, "GP") == (want, s.SERVICE_GPS), quality
+    assert navsat_status(1, "GL")[1] == s.SERVICE_GLONASS
+    assert navsat_status(1, "GA")[1] == s.SERVICE_GALILEO
+    assert navsat_status(1, "GB")[1] == navsat_status(1, "BD")[1] == s.SERVICE_COMPASS
+    assert navsat_status(1, "GN")[1] == 0  # several constellations: the talker does not say which
+
+
+def test_navsat_fix_altitude_is_nan_until_the_receiver_gave_a_height(
+    tmp_path: Path, loopback_sessions: tuple[int, Any, Any]
+) -> None:
+    """sensor_msgs/NavSatFix: "altitude … (quiet NaN if no altitude is available)". A receiver that has
+    not given a height (a GGA with its altitude field empty, a MAVLink position: dpgw's LocationFix then
+    says 0) must not reach ROS as a fix on the ellipsoid, tens of metres off; once it has, the height is
+    GGA's, ellipsoidal."""
+    zport, server, client = loopback_sessions
+    config = parse_config(tables(free_port(socket.SOCK_DGRAM), zport), base_dir=tmp_path)
+    sink = sinks_from_config(config)[0]
+    assert isinstance(sink, Ros2Sink)
+    try:
+        listener = RosListener(client, ros_typestore())
+        sink.start(server)
+        probe = LocationFix(
+            timestamp=Time(sec=0, nsec=1), frame_id="dgps1", latitude=LAT, longitude=LON, altitude=0.0,
+            position_covariance=[0.0] * 9, position_covariance_type=0,
+        )  # fmt: skip
+        # the listener's subscription reaches the sink's session: a fix is delivered
+        wait_for(lambda: sink.emit([Output("/gnss/dgps1/fix", probe, 1)], []) or listener.of(FIX_KEY))
+        t = datetime.now(UTC)
+        no_fix = enc.gga("GP", t, LAT, LON, 0, 0, None, ALT, SEP).rstrip("\r\n")  # quality 0: no height
+        no_height = enc.gga("GP", t, LAT, LON, 1, 9, 0.9, None, None).rstrip("\r\n")
+        with_height = enc.gga("GP", t, LAT, LON, 1, 9, 0.9, ALT, SEP).rstrip("\r\n")
+        steps = [([no_fix, no_height], 0.0), ([with_height], ALT + SEP)]
+        for k, (texts, altitude) in enumerate(steps, start=1):
+            for text in texts:
+                sink.raw_nmea("dgps1", k * 1000, text, "test")
+            fix = LocationFix(
+                timestamp=Time(sec=k, nsec=0), frame_id="dgps1", latitude=LAT, longitude=LON,
+                altitude=altitude, position_covariance=[0.0] * 9, position_covariance_type=0,
+            )  # fmt: skip
+            sink.emit([Output("/gnss/dgps1/fix", fix, k * 1_000_000_000)], [])
+        assert wait_for(lambda: {s[3].header.stamp.sec for s in listener.of(FIX_KEY)} >= {1, 2})
+        by_sec = {s[3].header.stamp.sec: s[3] for s in listener.of(FIX_KEY)}
+        assert math.isnan(by_sec[0].altitude)  # the probe: no GGA at all yet
+        assert math.isnan(by_sec[1].altitude)
+        assert by_sec[2].altitude == pytest.approx(ALT + SEP, abs=1e-9)
+        assert listener.bad == []
+    finally:
+        sink.close()
+
+
+def test_with_sim_time_the_simulators_ticks_go_out_on_clock(
+    tmp_path: Path, loopback_sessions: tuple[int, Any, Any]
+) -> None:
+    """``[time] clock = "sim"``: the other topics' stamps are the plant's time, so ROS nodes run with
+    ``use_sim_time`` need that time on ``/clock`` (rosgraph_msgs/Clock), as a simulator gives it to ROS.
+    The sink forwards every tick of ``<prefix>/sim/clock`` there, with rmw_zenoh's key, attachment and a
+    publisher token with rclcpp's ClockQoS (best effort, depth 1); a tick that does not decode is counted
+    and dropped. Without ``clock = "sim"`` there is no /clock."""
+    import msgspec
+
+    from wire.messages import SIM_CLOCK_KEY, SimClock
+
+    zport, server, client = loopback_sessions
+    sim_tables = {**tables(free_port(socket.SOCK_DGRAM), zport), "time": {"clock": "sim"}}
+    config = parse_config(sim_tables, base_dir=tmp_path)
+    wall = parse_config(tables(free_port(socket.SOCK_DGRAM), zport), base_dir=tmp_path)
+    assert "clock" not in sinks_from_config(wall)[0].topics  # type: ignore[attr-defined]
+    sink = sinks_from_config(config)[0]
+    assert isinstance(sink, Ros2Sink)
+    store = ros_typestore()
+    key = rz.topic_key(
+        DOMAIN, "/clock", "rosgraph_msgs/msg/Clock", store.hash_rihs01("rosgraph_msgs/msg/Clock")
+    )
+    ticks = client.declare_publisher(
+        f"dp/r/{SIM_CLOCK_KEY}", congestion_control=zenoh.CongestionControl.BLOCK
+    )
+    try:
+        listener = RosListener(client, store)
+        sink.start(server)
+        t0 = 1_780_000_000_123_456_789  # a simulated instant, months from this computer's clock
+
+        def tick(k: int) -> int:
+            stamp = t0 + k * 50_000_000
+            ticks.put(msgspec.json.encode(SimClock(stamp_ns=stamp, period_s=0.05, speed=1.0)))
+            return stamp
+
+        # the tick publisher reaches the sink's subscriber and the listener the sink's /clock: one gets out
+        assert wait_for(lambda: tick(0) and listener.of(key), 30.0), "no /clock sample"
+        ticks.put(b"not a tick")
+        stamps = [tick(k) for k in range(1, 21)]
+
+        def forwarded() -> list[int]:  # (the probe's ticks, all at t0, may still be arriving: left out)
+            got = (m.clock.sec * 1_000_000_000 + m.clock.nanosec for _, _, _, m in listener.of(key))
+            return [stamp for stamp in got if stamp > t0]
+
+        assert wait_for(lambda: len(forwarded()) >= 20, 30.0)
+        assert forwarded() == stamps
+        seqs = [seq for seq, _, _, _ in listener.of(key)]
+        assert seqs == list(range(1, len(seqs) + 1))  # rmw_zenoh's attachment: the publisher's own count
+        assert wait_for(lambda: sink.refused["clock tick"] == 1)
+        assert listener.bad == []
+        clock_tokens = [t for t in sink.tokens if "%clock/" in t]
+        assert len(clock_tokens) == 1
+        parsed = rz.parse_token(clock_tokens[0])
+        assert (
+            parsed.topic == "/clock" and parsed.qos == rz.Qos(reliability=rz.BEST_EFFORT, depth=1).keyexpr()
+        )
+    finally:
+        sink.close()
+        ticks.undeclare()

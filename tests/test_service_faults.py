@@ -223,6 +223,24 @@ def start_router(endpoint: str, listened: list[float] | None = None) -> subproce
     return proc
 
 
+def bursts_to(tx: socket.socket, port: int) -> Callable[[], None]:
+    """A function that sends the next burst (`burst`) to 127.0.0.1:``port``, paced at 50 a second: called
+    from inside `wait_for`, the stream goes on while a test waits for what it does."""
+    k = [0]
+
+    def send() -> None:
+        tx.sendto(burst(k[0]), ("127.0.0.1", port))
+        k[0] += 1
+        time.sleep(0.02)
+
+    return send
+
+
+def zenoh_alarms(live: Live) -> list[str]:
+    """The Zenoh link's alarms in the gateway's last status."""
+    return [a for a in live.service.last_status().get("alarms", []) if a.startswith("zenoh:")]
+
+
 def test_the_zenoh_router_restarting(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
     """The gateway connects to a router (zenoh.connect); a console reaches it through the router. The router
     is killed: /status (in the log, on Foxglove, on -v) says Zenoh is not connected; the router is started
@@ -230,15 +248,7 @@ def test_the_zenoh_router_restarting(tmp_path: Path, caplog: pytest.LogCaptureFi
     router = f"tcp/127.0.0.1:{free_port()}"
     udp = free_port(socket.SOCK_DGRAM)
     tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    k = [0]
-
-    def send() -> None:
-        tx.sendto(burst(k[0]), ("127.0.0.1", udp))
-        k[0] += 1
-        time.sleep(0.02)
-
-    def zenoh_alarms(live: Live) -> list[str]:
-        return [a for a in live.service.last_status().get("alarms", []) if a.startswith("zenoh:")]
+    send = bursts_to(tx, udp)
 
     proc = start_router(router)
     caplog.set_level(logging.WARNING, logger="dpgw")
@@ -281,15 +291,7 @@ def test_a_client_gateway_starts_before_its_router(tmp_path: Path, caplog: pytes
     router = f"tcp/127.0.0.1:{free_port()}"
     udp = free_port(socket.SOCK_DGRAM)
     tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    k = [0]
-
-    def send() -> None:
-        tx.sendto(burst(k[0]), ("127.0.0.1", udp))
-        k[0] += 1
-        time.sleep(0.02)
-
-    def zenoh_alarms(live: Live) -> list[str]:
-        return [a for a in live.service.last_status().get("alarms", []) if a.startswith("zenoh:")]
+    send = bursts_to(tx, udp)
 
     class Local(Recorder):  # a sink that needs no Zenoh (as the Foxglove server)
         needs_zenoh = False

@@ -30,7 +30,7 @@ class FakeSession:
     def __init__(self) -> None:
         self.puts: list[tuple[str, bytes]] = []
 
-    def declare_publisher(self, key: str) -> Any:
+    def declare_publisher(self, key: str, encoding: str | None = None) -> Any:
         session = self
 
         class Pub:
@@ -56,6 +56,38 @@ class TickAwareSink(Sink):
 
     def describe(self) -> str:
         return "test"
+
+
+def test_ticks_go_out_on_zenoh_as_json_like_every_dpgw_payload() -> None:
+    """A real Zenoh subscriber gets the tick with the encoding every dpgw payload has, `application/json`
+    (docs/interfaces.md), and the tick decodes as a `dpgw.SimClock`."""
+    from datetime import UTC, datetime
+
+    from gateway.bus import isolated_config, open_session
+    from tests.conftest import free_port, wait_for
+
+    port = free_port()
+    server = open_session(isolated_config(listen=[f"tcp/127.0.0.1:{port}"]))
+    client = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{port}"]))
+    got: list[tuple[str, bytes]] = []
+    try:
+        sub = client.declare_subscriber(
+            "dp/t/sim/clock", lambda s: got.append((str(s.encoding), s.payload.to_bytes()))
+        )
+        epoch = SimEpoch(datetime(2026, 3, 1, tzinfo=UTC))
+        pub = SimClockPublisher(server, "dp/t", epoch, VirtualClock(), period_s=0.05)
+        t = 0.0
+        while not got and t < 10.0:  # until the subscription has reached the publisher's side
+            t += 0.05
+            pub(t)
+            wait_for(lambda: got, timeout=0.2)
+        encoding, body = got[0]
+        assert encoding == "application/json"
+        assert SimClock(**json.loads(body)).stamp_ns >= epoch.stamp_ns(0.05)
+        sub.undeclare()
+    finally:
+        client.close()
+        server.close()
 
 
 def test_ticks_come_before_every_burst_and_at_least_every_period() -> None:

@@ -76,7 +76,7 @@ def location_fix(
     heading_rad: float | None = None,
 ) -> LocationFix:
     """A `foxglove.LocationFix`; ``sigma_enu_m``: 1σ east, north, up (GST's longitude, latitude and
-    altitude errors). GST reports no correlation between the axes, so the covariance is diagonal
+    altitude errors). Only GST's per-axis σ are used (not its error ellipse), so the covariance is diagonal
     (type DIAGONAL_KNOWN); without GST it is all zero and UNKNOWN. ``heading_rad``: clockwise from true
     north, the estimate's ψ (a GNSS fix has none of its own)."""
     if sigma_enu_m is None:

@@ -28,6 +28,9 @@ from observers.vessel import VesselModel, load_vessel
 
 __all__ = ["read_observer"]
 
+_TUNING_NAMES = ("wave_period_s", "omega0", *TUNING_KEYS)
+"""The keys of the common tuning (the wave period or ω0, and the passive tuning's)."""
+
 _EXCLUSIVE = (
     ("omega_c", "cutoff_ratio"),
     ("bias_corner", "bias_corner_ratio"),
@@ -69,8 +72,7 @@ def read_observer(p: Problems, t: Mapping[str, Any], vessel: VesselModel | None)
     }
     values.update(froude_scaled_fields(defaulted, froude_scale(vessel) if vessel is not None else 1.0))
     # a problem in a key of the tuning itself (not rate_hz, type, ...) leaves nothing to check
-    tuning_names = {"wave_period_s", "omega0", *TUNING_KEYS}
-    tuning_problems = [line for line in p.lines[n0:] if _key_of(line, p.where) in tuning_names]
+    tuning_problems = [line for line in p.lines[n0:] if _key_of(line, p.where) in _TUNING_NAMES]
     if tuning_problems or len(p.lines) > n_tuning or any(x is None for x in values.values()):
         return None
     # The tuning is complete: check it for this vessel even if other observer keys have problems.
@@ -126,7 +128,7 @@ def _refuse_unused_tuning(p: Problems, t: Mapping[str, Any], kind: str) -> None:
     took effect."""
     keys = tuning_keys(kind)
     what = ", ".join(sorted(keys)) if keys else "none of it"
-    for key in ("wave_period_s", "omega0", *TUNING_KEYS):
+    for key in _TUNING_NAMES:
         if key in t and key not in keys:
             p.add(
                 f"observer.{key}",

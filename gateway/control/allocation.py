@@ -202,6 +202,12 @@ class _Layout:
             mask[:] = values
         return mask
 
+    def weighted_pinv(self) -> Array:
+        """The weighted pseudo-inverse of B (weights wᵢ / T_max,i² per force variable) over the available
+        thrusters: the columns of those out of service are zero, so they get no force."""
+        keep = self.available[self.owner]
+        return _weighted_pinv(self.B * keep[None, :], (self.weights / self.cap**2)[self.owner])
+
     def tau_of(self, thrust: Array, azimuth: Array) -> Array:
         """τ = B(α) T (N, N, N·m): same as ``VesselModel.generalized_force``."""
         fx, fy = thrust * np.cos(azimuth), thrust * np.sin(azimuth)
@@ -268,9 +274,7 @@ class PseudoInverseAllocator:
         idle_thrust_fraction: float = 1e-3,
     ) -> None:
         self.layout = L = _Layout(vessel, weights)
-        w_ext = (L.weights / L.cap**2)[L.owner]
-        self._w_ext = w_ext
-        self.pinv = _weighted_pinv(L.B, w_ext)
+        self.pinv = L.weighted_pinv()
         self.idle_thrust = idle_thrust_fraction * L.cap
 
     @property
@@ -284,8 +288,7 @@ class PseudoInverseAllocator:
         the others share τ."""
         L = self.layout
         L.available = L.availability(available)
-        keep = L.available[L.owner]
-        self.pinv = _weighted_pinv(L.B * keep[None, :], self._w_ext)
+        self.pinv = L.weighted_pinv()
 
     def allocate(self, tau_demand: ArrayLike, previous: ThrusterCommand | None = None) -> AllocationResult:
         t0 = time.perf_counter()
@@ -507,7 +510,7 @@ class QPAllocator:
         for arr in (self._blocked0, self._arc_lo0, self._arc_hi0, self._cone0):
             arr.setflags(write=False)
         # unconstrained direction each azimuth would take (idle steering): same weights, no limits
-        self._pinv = _weighted_pinv(L.B, (L.weights / L.cap**2)[L.owner])
+        self._pinv = L.weighted_pinv()
         self._build_structure()
         self._model: Any = None  # DAQP workspace, set up on the first solve and updated after
         self.solver = solver
@@ -534,8 +537,7 @@ class QPAllocator:
         # in place: the compiled step holds these arrays
         L.tmax[:] = np.where(L.available, L.tmax_rated, 0.0)
         L.tmin[:] = np.where(L.available, L.tmin_rated, 0.0)
-        keep = L.available[L.owner]
-        self._pinv[:] = _weighted_pinv(L.B * keep[None, :], (L.weights / L.cap**2)[L.owner])
+        self._pinv[:] = L.weighted_pinv()
 
     # ---- problem structure (constant) ------------------------------------------------------------------
 

@@ -122,10 +122,10 @@ class _Listener(ServerListener):
     def __init__(
         self,
         playback: Callable[[PlaybackControlRequest], PlaybackState | None] | None,
-        subscriptions: _Subscriptions | None = None,
+        subscriptions: _Subscriptions,
     ) -> None:
         self._playback = playback
-        self._subscriptions = subscriptions if subscriptions is not None else _Subscriptions()
+        self._subscriptions = subscriptions
 
     def on_subscribe(self, client: Client, channel: ChannelView) -> None:
         log.info("foxglove: client %d subscribed to %s", client.id, channel.topic)

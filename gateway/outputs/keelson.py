@@ -29,6 +29,7 @@ from keelson.payloads.foxglove.Log_pb2 import Log
 from keelson.payloads.Primitives_pb2 import TimestampedFloat, TimestampedString
 
 from gateway.config import GatewayConfig, KeelsonConfig
+from gateway.foxglove_channels import alarm_key, state_change_level
 from wire.geodesy import LocalFrame
 from wire.messages import (
     Estimate,
@@ -54,6 +55,7 @@ ESTIMATE_TOPIC = "/dp/estimate"
 """Only the main observer's estimate goes out: the comparison observers (``/dp/estimates/<label>``) are
 for the log and for tuning, not for other programs aboard."""
 FIX_TOPIC_PREFIX = "/gnss/"
+_UNKNOWN_COVARIANCE = (0.0,) * 9
 
 
 class KeelsonSink:
@@ -78,7 +80,7 @@ class KeelsonSink:
         self._tokens: list[Any] = []
         # the datum, to place the measured position: the configured one, else the estimate's (first fix)
         self._frame = None if datum is None else LocalFrame(datum[0], datum[1], datum_alt_m)
-        self._alarms: frozenset[str] = frozenset()
+        self._alarms: dict[str, str] = {}  # alarm_key -> text of the alarms active at the last status
         self._mode: str | None = None
         self._sensor_ids = {s: cfg.sensor(s) for s in self.sources}
         self._dispatch: dict[type, Callable[[Output, int], None]] = {
@@ -191,11 +193,16 @@ class KeelsonSink:
         covariance: Sequence[float] | None = None,
         covariance_type: int = 0,
     ) -> None:
+        """A ``location_fix``. Foxglove's schema (the payload type's) requires 9 covariance entries, and
+        consumers index them (a bridge to ROS's NavSatFix, whose array is fixed at 9): without a covariance
+        (the estimate's, the measurement's) they are 9 zeros with type UNKNOWN, never an empty array."""
         msg = PbLocationFix(frame_id=frame_id, latitude=lat, longitude=lon, altitude=altitude)
         msg.timestamp.FromNanoseconds(stamp_ns)
         if covariance is not None:
             msg.position_covariance.extend(covariance)
             msg.position_covariance_type = covariance_type
+        else:
+            msg.position_covariance.extend(_UNKNOWN_COVARIANCE)
         self._put("location_fix", source_id, msg, now_ns)
 
     # --- one function per dpgw message ---------------------------------------------------------------
@@ -273,12 +280,19 @@ class KeelsonSink:
 
     def _status(self, o: Output, now: int) -> None:
         """``log_message``: what changed since the last status, never the whole status again: each
-        reference state change (WARNING), an alarm raised (ERROR) or cleared (INFO), a mode change (INFO)."""
+        reference state change (at its new state's level: INFO back to ok, WARNING stale or suspect, ERROR
+        rejected, as on `/dp/log`), an alarm raised (ERROR) or cleared (INFO), a mode change (INFO). An
+        alarm is known by its text with the numbers masked (`alarm_key`): "stale (3.1 s without data)"
+        becoming "(4.1 s ...)" at the next status is the same alarm still active."""
         s: Status = o.message  # type: ignore[assignment]
-        lines: list[tuple[Any, str]] = [(Log.WARNING, text) for text in s.events]
-        alarms = frozenset(a if isinstance(a, str) else _alarm_text(a) for a in s.alarms)
-        lines += [(Log.ERROR, f"alarm: {a}") for a in sorted(alarms - self._alarms)]
-        lines += [(Log.INFO, f"alarm cleared: {a}") for a in sorted(self._alarms - alarms)]
+        lines: list[tuple[Any, str]] = [(state_change_level(text), text) for text in s.events]
+        texts = (a if isinstance(a, str) else _alarm_text(a) for a in s.alarms)
+        alarms = {alarm_key(a): a for a in texts}
+        lines += [(Log.ERROR, f"alarm: {alarms[k]}") for k in sorted(alarms.keys() - self._alarms.keys())]
+        lines += [
+            (Log.INFO, f"alarm cleared: {self._alarms[k]}")
+            for k in sorted(self._alarms.keys() - alarms.keys())
+        ]
         self._alarms = alarms
         if s.mode != self._mode:
             if self._mode is not None:

@@ -16,8 +16,14 @@ Topics (``[ros2]``; names relative to ``namespace``, ``/dpgw`` by default):
   all zeros, which ROS messages read as "unknown" (sensor_msgs/Imu's stated convention).
 - ``pose`` — ``geometry_msgs/msg/PoseStamped``: the same pose.
 - ``fix/<source>`` — ``sensor_msgs/msg/NavSatFix`` of each GNSS fix a receiver gives (``/gnss/<source>/
-  fix``): ellipsoidal height, GST's 1σ as a diagonal ENU covariance (else unknown), the status from
-  GGA's quality as nmea_navsat_driver maps it (1 fix, 2 SBAS, 4/5/9 GBAS), the service from the talker.
+  fix``): ellipsoidal height (NaN until the receiver gave one), GST's 1σ as a diagonal ENU covariance
+  (else unknown), the status from GGA's quality as nmea_navsat_driver maps it (1 fix, 2 SBAS, 4/5/9 GBAS,
+  any other no fix), the service from the talker.
+- ``/clock`` — ``rosgraph_msgs/msg/Clock``, only with ``[time] clock = "sim"``: the simulator's ticks
+  (``<prefix>/sim/clock``) as ROS's simulation clock, best effort, keep-last 1 (rclcpp's ``ClockQoS``).
+  The stamps of the other topics are then the plant's time; a ROS node run with ``use_sim_time`` reads
+  the same time from ``/clock`` (without it the node's own clock is the wall clock, months from the
+  stamps). An absolute topic, as ROS has it, whatever ``namespace``.
 - ``setpoint`` (subscribed) — ``geometry_msgs/msg/PoseStamped`` in ``frame_id`` only: (x, y) = (E, N) at
   the datum and the yaw about +z = π/2 − ψ become dpgw's ``{north_m, east_m, heading_deg}``, handed to the
   gateway's input path (`InputSink`): logged, checked and counted by `gateway.commands` exactly like a
@@ -38,6 +44,7 @@ from collections import Counter
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
+import msgspec
 import numpy as np
 from rosbags.typesys import Stores, get_typestore
 
@@ -45,7 +52,7 @@ from gateway.config import GatewayConfig, Ros2Config
 from gateway.outputs.base import Submit
 from wire import rmw_zenoh as rz
 from wire.foxglove import heading_yaw
-from wire.messages import Estimate, LocationFix
+from wire.messages import SIM_CLOCK_KEY, Estimate, LocationFix, SimClock
 
 if TYPE_CHECKING:
     import zenoh
@@ -57,6 +64,10 @@ log = logging.getLogger(__name__)
 ODOMETRY = "nav_msgs/msg/Odometry"
 NAV_SAT_FIX = "sensor_msgs/msg/NavSatFix"
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+CLOCK = "rosgraph_msgs/msg/Clock"
+CLOCK_TOPIC = "/clock"
+CLOCK_QOS = rz.Qos(reliability=rz.BEST_EFFORT, depth=1)
+"""rclcpp's ``ClockQoS``: the sensor-data profile (best effort) at depth 1; a late tick is worth nothing."""
 ESTIMATE_TOPIC = "/dp/estimate"
 """Only the main observer's estimate: the comparison observers are for the log and for tuning."""
 FIX_TOPIC_PREFIX = "/gnss/"
@@ -67,11 +78,19 @@ REFUSALS_LOGGED = 20
 """Refused setpoints logged one by one; after that every 1000th (all are counted)."""
 
 # GGA fix quality → sensor_msgs/NavSatStatus.status, as nmea_navsat_driver maps it (the ROS driver whose
-# output most ROS nodes expect): autonomous → FIX, DGPS → SBAS, RTK fixed/float and WAAS → GBAS.
-STATUS_FIX, STATUS_SBAS_FIX, STATUS_GBAS_FIX = 0, 1, 2
+# output most ROS nodes expect): autonomous → FIX, DGPS → SBAS, RTK fixed/float and WAAS → GBAS, and any
+# other quality (0 invalid, 3 PPS, 6 dead reckoning, 7 manual input, 8 simulator) → NO_FIX.
+STATUS_NO_FIX, STATUS_FIX, STATUS_SBAS_FIX, STATUS_GBAS_FIX = -1, 0, 1, 2
 GGA_STATUS = {1: STATUS_FIX, 2: STATUS_SBAS_FIX, 4: STATUS_GBAS_FIX, 5: STATUS_GBAS_FIX, 9: STATUS_GBAS_FIX}
 # NMEA talker → NavSatStatus.service (a bitmask; GN, "several constellations", does not say which)
 TALKER_SERVICE = {"GP": 1, "GL": 2, "GB": 4, "BD": 4, "GA": 8}
+
+
+def navsat_status(gga_quality: int, talker: str) -> tuple[int, int]:
+    """(NavSatStatus.status, NavSatStatus.service) of a GGA's fix quality and talker. A quality that is no
+    satellite fix (dead reckoning, manual, simulator, PPS, invalid) is STATUS_NO_FIX, as nmea_navsat_driver
+    has it: a ROS node that takes any status ≥ STATUS_FIX as a satellite fix must not be given one."""
+    return GGA_STATUS.get(gga_quality, STATUS_NO_FIX), TALKER_SERVICE.get(talker, 0)
 
 
 def ros_typestore() -> Any:
@@ -84,9 +103,12 @@ class Ros2Sink:
 
     name = "ros2"
 
-    def __init__(self, cfg: Ros2Config, fix_sources: Sequence[str]) -> None:
+    def __init__(self, cfg: Ros2Config, fix_sources: Sequence[str], sim_clock_key: str | None = None) -> None:
+        """``sim_clock_key``: the Zenoh key of the simulator's ticks (`wire.messages.SimClock`), with
+        ``[time] clock = "sim"``: they go out on ``/clock``."""
         self.cfg = cfg
         self.fix_sources = tuple(fix_sources)
+        self.sim_clock_key = sim_clock_key
         self.store = ros_typestore()
         t = self.store.types
         self._Time, self._Header = t["builtin_interfaces/msg/Time"], t["std_msgs/msg/Header"]
@@ -97,8 +119,9 @@ class Ros2Sink:
         self._TwistCov = t["geometry_msgs/msg/TwistWithCovariance"]
         self._Odometry, self._PoseStamped = t[ODOMETRY], t[POSE_STAMPED]
         self._NavSatFix, self._NavSatStatus = t[NAV_SAT_FIX], t["sensor_msgs/msg/NavSatStatus"]
+        self._Clock = t[CLOCK]
         self._unknown36 = np.zeros(36)  # shared: never written
-        self.hashes = {ty: self.store.hash_rihs01(ty) for ty in (ODOMETRY, NAV_SAT_FIX, POSE_STAMPED)}
+        self.hashes = {ty: self.store.hash_rihs01(ty) for ty in (ODOMETRY, NAV_SAT_FIX, POSE_STAMPED, CLOCK)}
         ns = cfg.namespace
         self.topics = {
             "odom": rz.fully_qualified(ns, cfg.odom_topic),
@@ -108,10 +131,13 @@ class Ros2Sink:
         self.topics.update(
             {f"fix/{s}": rz.fully_qualified(ns, f"{cfg.fix_topic}/{s}") for s in self.fix_sources}
         )
+        if sim_clock_key is not None:
+            self.topics["clock"] = CLOCK_TOPIC
         self.published: Counter[str] = Counter()
         """Samples put, by topic."""
         self.refused: Counter[str] = Counter()
-        """Setpoints refused here, by reason (what passes goes on to `gateway.commands`)."""
+        """Setpoints refused here, by reason (what passes goes on to `gateway.commands`), and simulator ticks
+        that do not decode ("clock tick")."""
         self.setpoints = 0
         """Setpoints handed to the gateway's input path."""
         self.tokens: list[str] = []
@@ -123,6 +149,7 @@ class Ros2Sink:
         self._pubs: dict[str, _Publisher] = {}
         self._declared: list[Any] = []
         self._quality: dict[str, tuple[int, int]] = {}  # source → (status, service) of its last GGA
+        self._has_height: set[str] = set()  # sources that have given a height (GGA/GNS altitude field)
 
     # --- OutputSink / InputSink -------------------------------------------------------------------------
 
@@ -143,21 +170,26 @@ class Ros2Sink:
             self.tokens.append(key)
 
         token(rz.node_token(c.domain_id, zid, node_id, c.namespace, c.node_name))
-        outputs = [("odom", ODOMETRY), ("pose", POSE_STAMPED)]
-        outputs += [(f"fix/{s}", NAV_SAT_FIX) for s in self.fix_sources]
-        for name, ros_type in outputs:
+        outputs = [("odom", ODOMETRY, QOS), ("pose", POSE_STAMPED, QOS)]
+        outputs += [(f"fix/{s}", NAV_SAT_FIX, QOS) for s in self.fix_sources]
+        if self.sim_clock_key is not None:
+            outputs.append(("clock", CLOCK, CLOCK_QOS))
+        for name, ros_type, qos in outputs:
             topic, type_hash = self.topics[name], self.hashes[ros_type]
             key = rz.entity_token(
                 c.domain_id, zid, node_id, next(entity_ids), rz.PUBLISHER, c.namespace, c.node_name,
-                topic, ros_type, type_hash, QOS,
+                topic, ros_type, type_hash, qos,
             )  # fmt: skip
+            reliable = qos.reliability == rz.RELIABLE
             pub = session.declare_publisher(
                 rz.topic_key(c.domain_id, topic, ros_type, type_hash),
-                reliability=zenoh.Reliability.RELIABLE,
+                reliability=zenoh.Reliability.RELIABLE if reliable else zenoh.Reliability.BEST_EFFORT,
                 congestion_control=zenoh.CongestionControl.DROP,  # keep-last: a slow reader loses samples
             )
             self._pubs[name] = _Publisher(pub, rz.entity_gid(key))
             token(key)
+        if self.sim_clock_key is not None:
+            self._declared.append(session.declare_subscriber(self.sim_clock_key, self._on_sim_clock))
         topic, type_hash = self.topics["setpoint"], self.hashes[POSE_STAMPED]
         self._declared.append(
             session.declare_subscriber(
@@ -181,10 +213,11 @@ class Ros2Sink:
                 self._fix(m)
 
     def raw_nmea(self, source: str, rx_ns: int, text: str, peer: str) -> None:
-        """Keeps each receiver's GGA quality and talker for its NavSatFix status (the fix that follows in
-        the same chunk's outputs comes from this sentence); a sentence failing its checksum is skipped, as
-        the pipeline skips it."""
-        if text[3:7] != "GGA," or source not in self.fix_sources:
+        """Keeps each receiver's GGA quality and talker for its NavSatFix status, and whether it has given
+        a height (the fix that follows in the same chunk's outputs comes from this sentence); a sentence
+        failing its checksum is skipped, as the pipeline skips it."""
+        kind = text[3:7]
+        if (kind != "GGA," and kind != "GNS,") or source not in self.fix_sources:
             return
         star = text.rfind("*")
         if star > 0:
@@ -194,11 +227,12 @@ class Ros2Sink:
             if text[star + 1 : star + 3].upper() != f"{x:02X}":
                 return
         fields = text[: star if star > 0 else None].split(",")
-        if len(fields) > 6 and fields[6].isdigit():
-            self._quality[source] = (
-                GGA_STATUS.get(int(fields[6]), STATUS_FIX),
-                TALKER_SERVICE.get(text[1:3], 0),
-            )
+        # field 9 is the altitude in GGA and in GNS; a sentence without a fix (GGA quality 0, GNS mode all
+        # N) gives the pipeline no height, so none here either. The pipeline keeps a height: so does this.
+        if len(fields) > 9 and fields[9] and fields[6].strip("0N"):
+            self._has_height.add(source)
+        if kind == "GGA," and len(fields) > 6 and fields[6].isdigit():
+            self._quality[source] = navsat_status(int(fields[6]), text[1:3])
 
     def close(self) -> None:
         for d in [*self._declared, *(p.pub for p in self._pubs.values())]:
@@ -257,18 +291,32 @@ class Ros2Sink:
         if name not in self._pubs:
             return
         status, service = self._quality.get(f.frame_id, (STATUS_FIX, 0))
+        # NavSatFix's "quiet NaN if no altitude is available": the LocationFix says 0 for a source that
+        # has given no height (a MAVLink position, a GGA with the field empty), not a height on the ellipsoid
+        altitude = f.altitude if f.frame_id in self._has_height else math.nan
         msg = self._NavSatFix(
             header=self._header(f.timestamp.sec * NS + f.timestamp.nsec, f.frame_id),
             status=self._NavSatStatus(status=status, service=service),
             latitude=f.latitude,
             longitude=f.longitude,
-            altitude=f.altitude,
+            altitude=altitude,
             position_covariance=np.asarray(f.position_covariance, dtype=np.float64),
             position_covariance_type=f.position_covariance_type,
         )
         self._put(name, msg, NAV_SAT_FIX)
 
     # --- the setpoint (a Zenoh thread) --------------------------------------------------------------------
+
+    def _on_sim_clock(self, sample: zenoh.Sample) -> None:
+        """A simulator tick → ``/clock``; one that does not decode is counted (`refused`) and dropped (the
+        gateway's own clock subscriber counts and alarms it too)."""
+        try:
+            tick = msgspec.json.decode(sample.payload.to_bytes(), type=SimClock)
+        except (msgspec.DecodeError, msgspec.ValidationError):
+            self.refused["clock tick"] += 1
+            return
+        stamp = tick.stamp_ns
+        self._put("clock", self._Clock(clock=self._Time(sec=stamp // NS, nanosec=stamp % NS)), CLOCK)
 
     def _on_setpoint(self, sample: zenoh.Sample) -> None:
         raw = sample.payload.to_bytes()
@@ -327,5 +375,7 @@ def setpoint_payload(msg: Any, frame_id: str) -> dict[str, float] | str:
 
 
 def ros2_sink(config: GatewayConfig) -> Ros2Sink:
-    """The sink ``[ros2]`` describes: a NavSatFix topic for every source with the ``position`` role."""
-    return Ros2Sink(config.ros2, [s.name for s in config.sources_for("position")])
+    """The sink ``[ros2]`` describes: a NavSatFix topic for every source with the ``position`` role, and
+    ``/clock`` with ``[time] clock = "sim"``."""
+    clock_key = f"{config.zenoh.prefix}/{SIM_CLOCK_KEY}" if config.time.sim else None
+    return Ros2Sink(config.ros2, [s.name for s in config.sources_for("position")], clock_key)

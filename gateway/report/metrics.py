@@ -20,16 +20,14 @@ from numpy.typing import NDArray
 from gateway.report.data import DOF, Array, Prepared, ReplayData, prepare
 from gateway.report.spectra import Psd, band_power, nominal_dt, peak, resample, valid_samples, welch
 from gateway.scoring import Score, score
-from observers.froude import MODEL_MAX_LENGTH_M as MODEL_MAX_LENGTH_M
-from observers.froude import PROTOTYPE_LENGTH_M as PROTOTYPE_LENGTH_M
-from observers.froude import froude_scale_of, scaled_frequencies
+from observers.froude import MODEL_MAX_LENGTH_M, PROTOTYPE_LENGTH_M, froude_scale_of, scaled_frequencies
 from observers.kinematics import ssa
 
-# The wave band searched for the spectral peak at full scale (rad/s: periods 3.1 s to 31 s).
+# The wave band searched for the spectral peak at full scale (rad/s: periods 3.1 s to 31 s). A model's
+# band is Froude-scaled by its scale λ (`observers.froude`, the rule the observers' default ω0 ranges use):
+# its model_scale, or for a vessel shorter than MODEL_MAX_LENGTH_M a PROTOTYPE_LENGTH_M prototype (wave
+# frequencies scale with 1/sqrt(length)).
 FULL_SCALE_WAVE_BAND = (0.2, 2.0)
-# A model's band is Froude-scaled by its scale λ (`observers.froude`, the rule the observers' default ω0
-# ranges use): its model_scale, or for a vessel shorter than MODEL_MAX_LENGTH_M a PROTOTYPE_LENGTH_M
-# prototype (wave frequencies scale with 1/sqrt(length)).
 # Default settle time: the first SETTLE_FRACTION of the replay, at most SETTLE_MAX_S seconds.
 SETTLE_FRACTION = 0.1
 SETTLE_MAX_S = 60.0

@@ -188,7 +188,9 @@ class TcpListenSource(Source):
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # restart at once; no sharing on Linux
             try:
                 sock.bind(address)
-                sock.listen(16)
+                # a backlog as deep as the client limit: a burst of peers (sensors redialling after a switch
+                # restart) waits in the queue; a full queue drops SYNs, which the peer resends after 1 s
+                sock.listen(self.MAX_CLIENTS)
             except OSError as exc:
                 raise SourceError(
                     self.name, self.url, *bind_problem(fmt_addr(address), exc, "TCP port")

@@ -102,6 +102,12 @@ class UdpSource(Source):
         return self.target is None  # listening: anyone may send; with a target, that is the far end
 
     @property
+    def _one_address(self) -> bool:
+        """Listening on one unicast address (not on every address, not on a multicast group): one that an
+        interface still to come up may not have yet."""
+        return bool(self.host) and self.host not in ("0.0.0.0", "::") and not self.multicast
+
+    @property
     def multicast(self) -> bool:
         try:
             return socket.inet_aton(self.host)[0] & 0xF0 == 0xE0 and self.host.count(".") == 3
@@ -142,7 +148,7 @@ class UdpSource(Source):
             if self.multicast:
                 # many programs may listen to one group; a unicast port stays exclusive (in use = error)
                 sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-            elif host not in ("0.0.0.0", "::") and bind_family in _FREEBIND:
+            elif self._one_address and bind_family in _FREEBIND:
                 self._local = (bind_family, local)
                 with contextlib.suppress(OSError):  # (elsewhere: an address not up is refused as before)
                     sock.setsockopt(*_FREEBIND[bind_family], 1)
@@ -173,7 +179,7 @@ class UdpSource(Source):
     def listen_address_note(self) -> str | None:
         """Without opening anything: why the address listened on is not this computer's now (it may be an
         interface still to come up, or a typing mistake), or None. What ``dpgw run --check`` says."""
-        if not self.host or self.host in ("0.0.0.0", "::") or self.multicast:
+        if not self._one_address:
             return None
         try:
             family, local = self._resolve(self.host, 0, passive=True)
