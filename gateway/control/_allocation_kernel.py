@@ -345,7 +345,8 @@ def allocate_step(
     turn_cw,
     turn_floor,
     bias_frac,
-    # the QP's constant parts (Pd without the turn cost, which depends on the present thrust)
+    # the QP's constant parts (Pd without the turn cost, which depends on the present thrust; A0 with the
+    # bias rows' coefficients, their bounds set per step)
     Pd,
     q,
     A0,
@@ -443,10 +444,6 @@ def allocate_step(
         down, up = thrust[i] - dT[i], thrust[i] + dT[i]
         upper[i] = min(tmax[i], up)
         along_min[i] = down if (along_ok and down > 0) else -math.inf
-        if bias_frac > 0.0 and n_az_on >= 2 and is_az[i] and not blocked[i]:
-            floor = min(bias_frac * tmax[i], upper[i])
-            if floor > 0.0:
-                along_min[i] = max(along_min[i], floor)
         lower[i] = max(tmin[i], down)
     # ---- QPAllocator._qp (and _p_diag: the turn cost over the present thrust)
     Pw[:] = Pd
@@ -459,7 +456,7 @@ def allocate_step(
     for k in range(n_ext):
         lb[k] = -math.inf
         ub[k] = math.inf
-    for k in range(n_ext, nx):
+    for k in range(n_ext, nx):  # slack ŝ⁺, ŝ⁻ and the bias shortfalls e: non-negative
         lb[k] = 0.0
         ub[k] = math.inf
     sx, sy, sn = 1.0 / tau_ref[0], 1.0 / tau_ref[1], 1.0 / tau_ref[2]
@@ -476,10 +473,13 @@ def allocate_step(
         A[0, k], A[1, k], A[2, k] = c * cp * sx, s * cp * sy, (x * s - y * c) * cp * sn
         A[0, k + 1], A[1, k + 1], A[2, k + 1] = -s * cp * sx, c * cp * sy, (x * c + y * s) * cp * sn
         rad = upper[i] / cp
-        r0 = 3 + j * (N + 2)
+        r0 = 3 + j * (N + 3)
         j += 1
         for m in range(N):
             ub_A[r0 + m] = rad * poly_scale
+        if bias_frac > 0.0 and n_az_on >= 2 and not blocked[i]:
+            # thrust biasing, soft: â + e ≥ min(β T_max, r) / T_cap, e ≥ 0 priced in the objective
+            ub_A[r0 + N + 2] = -min(bias_frac * tmax[i], upper[i]) / cp
         if blocked[i]:
             lb[k] = 0.0
             ub[k] = 0.0

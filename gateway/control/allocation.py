@@ -22,9 +22,11 @@ Then τ = B f with B constant, and an azimuth's thrust is |Fᵢ|, its angle atan
   its present thrust T̂₀,ᵢ (floored at θ = ``turn_thrust_floor``) is the angle turned, so a turn costs
   the same at low thrust as at high, and an exact (ℓ₁) plus heavy quadratic (ℓ₂) penalty on the slack s,
   so that a feasible τ is met exactly and an infeasible one gives the closest achievable τ with
-  ``saturated=True``. With two or more azimuths in service each keeps at least ``bias_fraction`` of its
+  ``saturated=True``. With two or more azimuths in service each is asked to keep ``bias_fraction`` of its
   T_max along its present direction (thrust biasing: they push against each other, and the resultant
-  turns by changing magnitudes instead of slewing the azimuths).
+  turns by changing magnitudes instead of slewing the azimuths) — a soft floor: its shortfall eᵢ ≥ 0 is
+  priced (``bias_l1_weight`` eᵢ + ½ ``bias_weight`` eᵢ²) far below the slack, so the bias gives way
+  whenever it and τ cannot both be had, and never makes a reachable τ unreachable.
 
 The convex sets, their approximations (inscribed polygon for |F| ≤ T_max, rate cone around the previous
 azimuth clipped by forbidden sectors, half-plane lower thrust bound) and the scaling are documented in
@@ -366,7 +368,8 @@ class StepLimits:
     Azimuths: ``angle`` is the previous azimuth; the new force direction must lie in
     [angle − arc_lo, angle + arc_hi] (``cone`` True; arc_lo + arc_hi ≤ π so the sector is convex) or is
     free (``cone`` False); |F| ≤ ``radius`` (N) through the inscribed polygon; the component along
-    ``angle`` ≥ ``along_min`` (N, −inf for none); ``blocked`` (previous azimuth inside a forbidden sector):
+    ``angle`` ≥ ``along_min`` (N, −inf for none) and, at a price (thrust biasing), ≥ ``bias_floor`` (N,
+    −inf for none); ``blocked`` (previous azimuth inside a forbidden sector):
     F = 0. Tunnels and main propellers: ``lower`` ≤ u ≤ ``upper`` (N, signed). ``thrust`` is the previous
     thrust. Fields that belong to the other kind of thruster are not used.
     """
@@ -378,6 +381,7 @@ class StepLimits:
     cone: BoolArray
     radius: Array
     along_min: Array
+    bias_floor: Array
     blocked: BoolArray
     lower: Array
     upper: Array
@@ -385,13 +389,13 @@ class StepLimits:
 
 @dataclass(frozen=True)
 class QPData:
-    """The QP of one step in scaled variables x = [f̂ (rotated frame), ŝ⁺ (3), ŝ⁻ (3)]::
+    """The QP of one step in scaled variables x = [f̂ (rotated frame), ŝ⁺ (3), ŝ⁻ (3), e (one per azimuth)]::
 
         min ½ xᵀPx + qᵀx   s.t.   lb ≤ x ≤ ub,   A[:n_eq] x = b_eq,   A[n_eq:] x ≤ ub_A
 
     ``A`` rows: the n_eq = 3 equality rows B̂ f̂ + ŝ⁺ − ŝ⁻ = τ̂, then per azimuth its polygon rows and two
-    cone rows (all zero, with ub_A = inf, where unused; ub_A[:n_eq] is unused). Absent bounds are ±inf.
-    Used by the solver here and by the solver comparison in ``bench/``.
+    cone rows and its bias-floor row −â − e ≤ −floor (unused: ub_A = inf; ub_A[:n_eq] is unused).
+    Absent bounds are ±inf. Used by the solver here and by the solver comparison in ``bench/``.
     """
 
     P: Array
@@ -427,8 +431,11 @@ class QPAllocator:
     ``power_weight`` — p, weight of the power proxy Σ wᵢ |F/T_max|².
     ``turn_weight`` — c, weight of an azimuth's turn: of (force across its current direction / its present
     thrust)², the angle turned in rad², the thrust floored at ``turn_thrust_floor`` × T_max.
-    ``bias_fraction`` — with two or more azimuths in service, each keeps at least this fraction of its
-    T_max along its present direction (thrust biasing; 0: none).
+    ``bias_fraction`` — β: with two or more azimuths in service, each is to keep this fraction of its
+    T_max along its present direction (thrust biasing; 0: none), a soft floor â + e ≥ β with the
+    shortfall e ≥ 0 priced ``bias_l1_weight`` · e + ½ ``bias_weight`` · e² (scaled units): above the
+    power and turn costs' gradients, so that it holds when it can, and 10⁴ times below the slack's ρ₁, so
+    that τ always wins over it.
     ``slack_weight`` — ρ₂ (one value or [X, Y, N]), quadratic weight of the scaled slack s/τ_ref.
     ``slack_l1_weight`` — ρ₁, the exact (ℓ₁) penalty weight; default ρ₂/10 (above the multipliers the
     turn cost can make, so that a feasible demand is met exactly).
@@ -457,6 +464,8 @@ class QPAllocator:
         turn_weight: float = 100.0,
         turn_thrust_floor: float = 0.1,
         bias_fraction: float = 0.1,
+        bias_weight: float = 1e3,
+        bias_l1_weight: float = 10.0,
         slack_weight: float | Sequence[float] = 1e6,
         slack_l1_weight: float | Sequence[float] | None = None,
         forbidden_sectors: Mapping[int, Sequence[tuple[float, float]]] | None = None,
@@ -482,6 +491,9 @@ class QPAllocator:
         self.turn_weight = float(turn_weight)
         self.turn_thrust_floor = float(turn_thrust_floor)
         self.bias_fraction = float(bias_fraction)
+        self.bias_weight, self.bias_l1_weight = float(bias_weight), float(bias_l1_weight)
+        if not (self.bias_weight > 0 and self.bias_l1_weight >= 0):
+            raise ValueError("bias_weight must be positive and bias_l1_weight non-negative")
         self.rho2 = np.broadcast_to(np.asarray(slack_weight, dtype=float), (3,)).copy()
         rho1 = 0.1 * self.rho2 if slack_l1_weight is None else slack_l1_weight
         self.rho1 = np.broadcast_to(np.asarray(rho1, dtype=float), (3,)).copy()
@@ -549,24 +561,26 @@ class QPAllocator:
         self._ka = L.first[self._az]  # variable â (along) of each azimuth; b̂ (across) is the next one
         self._kf = L.first[self._fixed]
         n_az = len(self._az)
-        self.n_x = L.n_ext + 6
-        self.n_rows = 3 + n_az * (N + 2)
+        self.n_x = L.n_ext + 6 + n_az  # forces, ŝ⁺, ŝ⁻, the azimuths' bias shortfalls e
+        self.n_rows = 3 + n_az * (N + 3)  # τ; per azimuth: polygon, two cone edges, the bias floor
         P = np.zeros(self.n_x)
         P[L.first] = self.power_weight * L.weights
         P[self._ka + 1] = self.power_weight * L.weights[self._az]
-        P[L.n_ext :] = np.r_[self.rho2, self.rho2]
+        P[L.n_ext : L.n_ext + 6] = np.r_[self.rho2, self.rho2]
+        P[L.n_ext + 6 :] = self.bias_weight
         self._P_diag = P  # without the turn cost, which depends on the present thrust (`_p_diag`)
         self._turn_cw = self.turn_weight * L.weights[self._az]
-        self.q = np.r_[np.zeros(L.n_ext), self.rho1, self.rho1]
+        self.q = np.r_[np.zeros(L.n_ext), self.rho1, self.rho1, np.full(n_az, self.bias_l1_weight)]
         # polygon: vertex k at 2πk/N from the previous azimuth, face normals half-way between vertices
         theta = TWO_PI * (np.arange(N) + 0.5) / N
         self._poly_scale = math.cos(math.pi / N)
         A = np.zeros((self.n_rows, self.n_x))
-        A[0:3, L.n_ext :] = np.c_[np.eye(3), -np.eye(3)]
+        A[0:3, L.n_ext : L.n_ext + 6] = np.c_[np.eye(3), -np.eye(3)]
         for j, k in enumerate(self._ka):
-            r0 = 3 + j * (N + 2)
+            r0 = 3 + j * (N + 3)
             A[r0 : r0 + N, k] = np.cos(theta)
             A[r0 : r0 + N, k + 1] = np.sin(theta)
+            A[r0 + N + 2, k] = A[r0 + N + 2, L.n_ext + 6 + j] = -1.0  # −â − e ≤ −floor (bound per step)
         A[0:3, self._kf] = L.B[:, self._kf] * L.cap[self._fixed] / L.tau_ref[:, None]
         self._A = A
         self._ubA0 = np.full(self.n_rows, np.inf)
@@ -574,7 +588,7 @@ class QPAllocator:
         self._ka_list = self._ka.tolist()
         self._cap_list, self._x_list, self._y_list = L.cap.tolist(), L.x.tolist(), L.y.tolist()
         self._idle_list, self._turn_list = self.idle_thrust.tolist(), self._turn.tolist()
-        self._lb0 = np.r_[np.full(L.n_ext, -np.inf), np.zeros(6)]
+        self._lb0 = np.r_[np.full(L.n_ext, -np.inf), np.zeros(6 + n_az)]
         self._ub0 = np.full(self.n_x, np.inf)
         self._blower_rows = np.full(self.n_rows - 3, -np.inf)
         self._rest_thrust = np.zeros(L.n)
@@ -674,12 +688,12 @@ class QPAllocator:
         down, up = thrust - self._dT, thrust + self._dT
         upper = np.minimum(L.tmax, up)
         along_min = np.where(along_ok & (down > 0), down, -np.inf)
+        bias_floor = np.full(L.n, -np.inf)
         if self.bias_fraction > 0 and np.count_nonzero(L.is_az & (L.tmax > 0)) >= 2:
-            # thrust biasing: at least β·T_max along the present direction (up to what this step can
-            # reach there, so it ramps up at the thrust rate from below)
-            floor = np.minimum(self.bias_fraction * L.tmax, upper)
-            biased = L.is_az & ~blocked & (floor > 0)
-            along_min = np.where(biased, np.maximum(along_min, floor), along_min)
+            # thrust biasing: β·T_max along the present direction (up to what this step can reach there,
+            # so it ramps up at the thrust rate from below), a soft floor: see `_qp`
+            biased = L.is_az & ~blocked
+            bias_floor[biased] = np.minimum(self.bias_fraction * L.tmax, upper)[biased]
         return StepLimits(
             angle=angle,
             thrust=thrust,
@@ -688,6 +702,7 @@ class QPAllocator:
             cone=cone,
             radius=upper,
             along_min=along_min,
+            bias_floor=bias_floor,
             blocked=blocked,
             lower=np.maximum(L.tmin, down),
             upper=upper,
@@ -707,6 +722,7 @@ class QPAllocator:
         lb, ub = self._lb0.copy(), self._ub0.copy()
         sx, sy, sn = (float(v) for v in 1.0 / L.tau_ref)
         angle, radius, along_min = lim.angle.tolist(), lim.radius.tolist(), lim.along_min.tolist()
+        bias_floor = lim.bias_floor.tolist()
         arc_lo, arc_hi, cone, blocked = lim.arc_lo.tolist(), lim.arc_hi.tolist(), lim.cone, lim.blocked
         for j, i in enumerate(self._az_list):
             k = self._ka_list[j]
@@ -716,8 +732,10 @@ class QPAllocator:
             A[0, k], A[1, k], A[2, k] = c * cap * sx, s * cap * sy, (x * s - y * c) * cap * sn
             A[0, k + 1], A[1, k + 1], A[2, k + 1] = -s * cap * sx, c * cap * sy, (x * c + y * s) * cap * sn
             rad = radius[i] / cap
-            r0 = 3 + j * (N + 2)
+            r0 = 3 + j * (N + 3)
             ub_A[r0 : r0 + N] = rad * self._poly_scale
+            if bias_floor[i] > -math.inf:  # â + e ≥ floor, e ≥ 0 priced: the soft bias floor
+                ub_A[r0 + N + 2] = -bias_floor[i] / cap
             if blocked[i]:
                 lb[k] = ub[k] = lb[k + 1] = ub[k + 1] = 0.0
                 continue
@@ -770,6 +788,9 @@ class QPAllocator:
             sense[self.n_x : self.n_x + 3] = 5  # equality rows
             self._model = daqp.Model()
             self._model.setup(d.P, d.q, d.A, bupper, blower, sense)
+            # feasibility to 1e-9, not DAQP's 1e-6: the bias shortfall's linear price would otherwise buy
+            # a violation of a cone edge by 1e-6 (the compiled solver is exact there)
+            self._model.settings = {**self._model.settings, "primal_tol": 1e-9}
         else:  # same structure: new values, the previous active set is the warm start
             self._model.update(H=d.P, A=d.A, bupper=bupper, blower=blower)
         x, _fval, exitflag, info = self._model.solve()
@@ -790,7 +811,7 @@ class QPAllocator:
         forces = np.empty(L.n_ext)
         forces[ka], forces[ka + 1] = a * c - b * s, a * s + b * c
         forces[kf] = x[kf] * L.cap[self._fixed]
-        slack = (x[L.n_ext : L.n_ext + 3] - x[L.n_ext + 3 :]) * L.tau_ref
+        slack = (x[L.n_ext : L.n_ext + 3] - x[L.n_ext + 3 : L.n_ext + 6]) * L.tau_ref
         objective = float(0.5 * np.dot(np.diag(d.P) * x, x) + np.dot(d.q, x))
         return QPSolution(forces, slack, objective, "optimal", iterations)
 
@@ -992,6 +1013,10 @@ def reference_solve_cvxpy(
             cons.append(math.cos(e_lo) * F[1] - math.sin(e_lo) * F[0] >= 0)
         if np.isfinite(lim.along_min[i]):  # thrust-rate limit downwards
             cons.append(along @ F >= lim.along_min[i] / L.cap[i])
+        if np.isfinite(lim.bias_floor[i]):  # thrust biasing: a floor along it, its shortfall priced
+            e = cp.Variable(nonneg=True)
+            cons.append(along @ F + e >= lim.bias_floor[i] / L.cap[i])
+            cost += [A.bias_l1_weight * e, 0.5 * A.bias_weight * cp.square(e)]
     prob = cp.Problem(cp.Minimize(cp.sum(cp.hstack(cost))), cons)
     # Clarabel, tight: when saturated the objective is large, so the relative gap alone would stop early;
     # if it cannot certify that, once or twice more with a little more room (feasibility, then the gap)
