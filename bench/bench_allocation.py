@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from dpgw.azimuth_travel import BEFORE  # the allocation's options before the anti-hunting terms
 from gateway.control.allocation import (
     PseudoInverseAllocator,
     QPAllocator,
@@ -308,6 +309,11 @@ def main() -> None:
         "QPAllocator.allocate, compiled (default)": QPAllocator(vessel, forbidden_sectors=sectors),
         "QPAllocator.allocate, daqp (Python path)": QPAllocator(
             vessel, forbidden_sectors=sectors, solver="daqp"
+        ),
+        # the same without the anti-hunting terms (turn cost on the cross force, no thrust bias): their
+        # cost in time, side by side
+        "QPAllocator.allocate, compiled, BEFORE (no anti-hunting)": QPAllocator(
+            vessel, forbidden_sectors=sectors, **BEFORE
         ),
         "PseudoInverseAllocator.allocate": PseudoInverseAllocator(vessel),
     }
