@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from dpgw.azimuth_travel import BEFORE  # the allocation's options before the anti-hunting terms
 from gateway.control.allocation import (
     PseudoInverseAllocator,
     QPAllocator,
@@ -96,7 +97,7 @@ def daqp_warm() -> Solve:
             model.setup(d.P, d.q, d.A, bu, bl, _sense(d))
             state["setup"] = True
         else:
-            model.update(A=d.A, bupper=bu, blower=bl)
+            model.update(H=d.P, A=d.A, bupper=bu, blower=bl)  # H: the turn cost follows the thrust
         x, _, flag, _ = model.solve()
         return np.asarray(x) if flag >= 1 else None
 
@@ -189,7 +190,7 @@ def osqp_warm(datas: list[QPData], eps: float) -> Solve:
             )  # fmt: skip
             state["setup"] = True
         else:
-            solver.update(Ax=A[rows, cols], l=lo, u=hi)
+            solver.update(Px=np.diag(d.P).copy(), Ax=A[rows, cols], l=lo, u=hi)
         res = solver.solve()
         return np.asarray(res.x) if res.info.status_val == 1 else None  # 1: solved
 
@@ -256,7 +257,7 @@ def piqp_update() -> Solve:
             s.setup(np.asfortranarray(d.P), d.q, A_eq, d.b_eq, G, None, h_u, d.lb, d.ub)
             state["s"] = s
         else:
-            state["s"].update(A=A_eq, b=d.b_eq, G=G, h_u=h_u, x_l=d.lb, x_u=d.ub)
+            state["s"].update(P=np.asfortranarray(d.P), A=A_eq, b=d.b_eq, G=G, h_u=h_u, x_l=d.lb, x_u=d.ub)
         status = state["s"].solve()
         return np.asarray(state["s"].result.x) if status == piqp.PIQP_SOLVED else None
 
@@ -308,6 +309,11 @@ def main() -> None:
         "QPAllocator.allocate, compiled (default)": QPAllocator(vessel, forbidden_sectors=sectors),
         "QPAllocator.allocate, daqp (Python path)": QPAllocator(
             vessel, forbidden_sectors=sectors, solver="daqp"
+        ),
+        # the same without the anti-hunting terms (turn cost on the cross force, no thrust bias): their
+        # cost in time, side by side
+        "QPAllocator.allocate, compiled, BEFORE (no anti-hunting)": QPAllocator(
+            vessel, forbidden_sectors=sectors, **BEFORE
         ),
         "PseudoInverseAllocator.allocate": PseudoInverseAllocator(vessel),
     }

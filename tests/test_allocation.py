@@ -201,7 +201,9 @@ def test_pseudo_inverse_meets_feasible_demand_and_scales_infeasible(name: str) -
 def test_pseudo_inverse_agrees_with_qp_when_no_constraint_is_active() -> None:
     for name in VESSELS:
         vessel = load_vessel(name)
-        pinv, qp = PseudoInverseAllocator(vessel), QPAllocator(vessel)
+        # without thrust biasing: the bias floor (each azimuth ≥ β·T_max) is by design not the unconstrained
+        # optimum; the turn cost still has zero gradient at the previous direction, so it does not move it
+        pinv, qp = PseudoInverseAllocator(vessel), QPAllocator(vessel, bias_fraction=0.0)
         rng = np.random.default_rng(3)
         L = qp.layout
         for _ in range(40):
@@ -226,7 +228,7 @@ def test_feasible_demand_met_exactly_and_every_limit_holds(name: str, with_secto
     sectors = sectors_for(vessel) if with_sectors else None
     rng = np.random.default_rng(11)
     for dt in (0.1, 1.0, 5.0):
-        qp = QPAllocator(vessel, dt=dt, forbidden_sectors=sectors)
+        qp = QPAllocator(vessel, dt=dt, forbidden_sectors=sectors, bias_fraction=0.0)
         for _ in range(15):
             prev = random_state(vessel, rng, sectors, fraction=0.9)
             target = reachable_state(qp, prev, rng, sectors)
@@ -394,8 +396,9 @@ def test_slow_zero_crossing_does_not_swing_azimuths(name: str) -> None:
 
 
 def test_near_zero_thrust_azimuth_keeps_its_angle() -> None:
+    """Without thrust biasing (with it, the azimuths never go idle: next test)."""
     vessel = load_vessel("mss_supply")
-    qp = QPAllocator(vessel)
+    qp = QPAllocator(vessel, bias_fraction=0.0)
     L = qp.layout
     prev = PseudoInverseAllocator(vessel).allocate(np.array([0.1, 0.05, 0.02]) * L.tau_ref).command
     rng = np.random.default_rng(4)
@@ -407,6 +410,50 @@ def test_near_zero_thrust_azimuth_keeps_its_angle() -> None:
         r = qp.allocate(rng.normal(size=3) * 1e-7 * L.tau_ref, prev)
         np.testing.assert_array_equal(r.azimuth[L.is_az], parked[L.is_az])
         prev = r.command
+
+
+def test_bias_gives_way_to_tau_and_azimuths_hold_at_zero_demand() -> None:
+    """Thrust biasing is a soft floor: the demand drops to zero from a configuration where the azimuths
+    all push roughly the same way, so they cannot keep β·T_max each and still give τ = 0. τ wins: once
+    the thrusts are down (thrust rate), it is met exactly and never reported saturated (a hard floor left
+    it unreachable while they turned), the azimuths going idle instead. With noise around zero demand
+    they do not hunt: each travels less than 5 % of its slew rate."""
+    vessel = load_vessel("mss_supply")
+    qp = QPAllocator(vessel)
+    L = qp.layout
+    prev = PseudoInverseAllocator(vessel).allocate(np.array([0.1, 0.05, 0.02]) * L.tau_ref).command
+    for k in range(600):
+        r = qp.allocate(np.zeros(3), prev)
+        # the first steps are short of τ = 0 for real: the thrusts come down at their thrust rate
+        assert k < 100 or (not r.saturated and np.all(np.abs(r.tau_allocated) <= 1e-6 * L.tau_ref))
+        prev = r.command
+    rng = np.random.default_rng(4)
+    travel = np.zeros(L.n)
+    for _ in range(600):  # 60 s
+        r = qp.allocate(rng.normal(size=3) * 1e-7 * L.tau_ref, prev)
+        assert not r.saturated
+        travel += np.abs(ssa(r.azimuth - prev.azimuth))
+        prev = r.command
+    assert np.all(travel[L.is_az] < 0.05 * L.rate[L.is_az] * 60.0)
+
+
+def test_bias_floor_holds_where_the_azimuths_can_push_against_each_other() -> None:
+    """Azimuths that can cancel each other's force (mss_supply's aft pair splayed ±60° and the bow one
+    pointing aft) keep the bias β·T_max at zero demand: its shortfall is priced above the power cost."""
+    vessel = load_vessel("mss_supply")
+    qp = QPAllocator(vessel)
+    L = qp.layout
+    az = np.flatnonzero(L.is_az)
+    angle = np.zeros(L.n)
+    angle[az] = np.radians([60.0, -60.0, 180.0])[: len(az)]
+    thrust = np.zeros(L.n)
+    thrust[az] = 0.1 * L.cap[az]
+    prev = ThrusterCommand(thrust=thrust, azimuth=angle)
+    for _ in range(50):
+        r = qp.allocate(np.zeros(3), prev)
+        assert not r.saturated and np.all(np.abs(r.tau_allocated) <= 1e-6 * L.tau_ref)
+        prev = r.command
+    assert np.all(prev.thrust[az] >= (qp.bias_fraction - 1e-6) * L.cap[az]), prev.thrust[az] / L.cap[az]
 
 
 def test_azimuth_pointing_the_wrong_way_turns_round() -> None:

@@ -64,7 +64,10 @@ def test_compiled_qp_matches_daqp(case: tuple[str, float, bool, int, float]) -> 
     scale = L.cap[L.owner]
     np.testing.assert_allclose(a.forces / scale, b.forces / scale, rtol=0, atol=X_TOL)
     np.testing.assert_allclose(a.slack / L.tau_ref, b.slack / L.tau_ref, rtol=0, atol=X_TOL)
-    assert abs(a.objective - b.objective) <= 1e-9 * (1.0 + abs(b.objective))
+    # 1e-8 relative: with ρ₁ = ρ₂/10 an infeasible demand's objective is mostly ρ₁|ŝ| + ½ρ₂ŝ² (10⁵ times the
+    # slack), so the two solvers' round-off in ŝ shows 100 times larger in it than with ρ₁ = √ρ₂ (seen:
+    # 1.9e-9 at an objective of 427, the forces equal within X_TOL)
+    assert abs(a.objective - b.objective) <= 1e-8 * (1.0 + abs(b.objective))
 
 
 @pytest.mark.slow

@@ -146,6 +146,19 @@ def no_saturated_command(b: Bench, since: int) -> bool:
     return not any(o.payload["saturated"] for o in b.outputs[since:] if o.topic == "/dp/thrusters/command")
 
 
+def test_calm_station_keeping_raises_no_saturation_flag() -> None:
+    """A minute on station in calm conditions: no thrust command is flagged saturated once the thrusters
+    are running (the first second: from rest, the azimuths pointing ahead cannot give a small astern
+    demand until they have turned — a real shortfall, flagged). The allocation's anti-hunting terms (turn
+    cost, soft thrust bias) must never take τ: measured 0 of 590 (the allocation before them: 28 of 500
+    after 10 s)."""
+    b = Bench(control=True)
+    b.run(60)
+    cmds = [o.payload for o in b.outputs if o.topic == "/dp/thrusters/command"]
+    assert len(cmds) == 600
+    assert [i for i, c in enumerate(cmds) if c["saturated"] and i >= 10] == []
+
+
 # --- Must show: single wild inputs --------------------------------------------------------------------
 
 

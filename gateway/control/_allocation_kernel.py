@@ -2,9 +2,10 @@
 
 One call does what `QPAllocator.allocate` does in Python around DAQP — the previous state made
 consistent (`_Layout.state`), the step's convex limits (`QPAllocator.limits`), the scaled QP
-(`QPAllocator._qp`), its solution, and the commands (`QPAllocator._commands`) — line for line with those
-methods, so that the per-step cost is one compiled call instead of some two hundred small numpy and
-Python operations (the QP itself is a few µs; the Python around it was most of the ~100 µs).
+(`QPAllocator._qp`, its Hessian `_p_diag`), its solution, and the commands (`QPAllocator._commands`) —
+line for line with those methods, so that the per-step cost is one compiled call instead of some two
+hundred small numpy and Python operations (the QP itself is a few µs; the Python around it was most of
+the ~100 µs).
 
 The QP solver is the dual active-set method of Goldfarb & Idnani (1983), "A numerically stable dual
 method for solving strictly convex quadratic programs", Math. Programming 27, 1–33 — the algorithm of
@@ -341,13 +342,18 @@ def allocate_step(
     has_sectors,
     pinv,
     idle_steering,
-    # the QP's constant parts
+    turn_cw,
+    turn_floor,
+    bias_frac,
+    # the QP's constant parts (Pd without the turn cost, which depends on the present thrust; A0 with the
+    # bias rows' coefficients, their bounds set per step)
     Pd,
     q,
     A0,
     poly_scale,
     n_sides,
     # work arrays
+    Pw,
     A,
     ub_A,
     lb,
@@ -401,6 +407,10 @@ def allocate_step(
     along_min = np.empty(n)
     lower = np.empty(n)
     upper = np.empty(n)
+    n_az_on = 0  # azimuths in service: thrust biasing needs two or more
+    for i in range(n):
+        if is_az[i] and tmax[i] > 0.0:
+            n_az_on += 1
     for i in range(n):
         lo, hi = turn[i], turn[i]
         if has_sectors:
@@ -435,13 +445,18 @@ def allocate_step(
         upper[i] = min(tmax[i], up)
         along_min[i] = down if (along_ok and down > 0) else -math.inf
         lower[i] = max(tmin[i], down)
-    # ---- QPAllocator._qp
+    # ---- QPAllocator._qp (and _p_diag: the turn cost over the present thrust)
+    Pw[:] = Pd
+    for i in range(n):
+        if is_az[i]:
+            t0 = max(thrust[i] / cap[i], turn_floor)
+            Pw[first[i] + 1] += turn_cw[i] / (t0 * t0)
     A[:, :] = A0
     ub_A[:] = math.inf
     for k in range(n_ext):
         lb[k] = -math.inf
         ub[k] = math.inf
-    for k in range(n_ext, nx):
+    for k in range(n_ext, nx):  # slack ŝ⁺, ŝ⁻ and the bias shortfalls e: non-negative
         lb[k] = 0.0
         ub[k] = math.inf
     sx, sy, sn = 1.0 / tau_ref[0], 1.0 / tau_ref[1], 1.0 / tau_ref[2]
@@ -458,10 +473,13 @@ def allocate_step(
         A[0, k], A[1, k], A[2, k] = c * cp * sx, s * cp * sy, (x * s - y * c) * cp * sn
         A[0, k + 1], A[1, k + 1], A[2, k + 1] = -s * cp * sx, c * cp * sy, (x * c + y * s) * cp * sn
         rad = upper[i] / cp
-        r0 = 3 + j * (N + 2)
+        r0 = 3 + j * (N + 3)
         j += 1
         for m in range(N):
             ub_A[r0 + m] = rad * poly_scale
+        if bias_frac > 0.0 and n_az_on >= 2 and not blocked[i]:
+            # thrust biasing, soft: â + e ≥ min(β T_max, r) / T_cap, e ≥ 0 priced in the objective
+            ub_A[r0 + N + 2] = -min(bias_frac * tmax[i], upper[i]) / cp
         if blocked[i]:
             lb[k] = 0.0
             ub[k] = 0.0
@@ -486,7 +504,7 @@ def allocate_step(
         info[0] = FAIL_CHECK
         return FAIL_CHECK
     status, iters, _ = gi_solve(
-        Pd, q, A[:3], b_eq, si, sv, sb, m, xs, active, u, J, R, d, z, r, 50 * (m + nx)
+        Pw, q, A[:3], b_eq, si, sv, sb, m, xs, active, u, J, R, d, z, r, 50 * (m + nx)
     )
     info[0] = status
     info[1] = iters
@@ -494,7 +512,7 @@ def allocate_step(
         return status
     obj = 0.0
     for k in range(nx):
-        obj += 0.5 * Pd[k] * xs[k] * xs[k] + q[k] * xs[k]
+        obj += 0.5 * Pw[k] * xs[k] * xs[k] + q[k] * xs[k]
     info[2] = obj
     smax = 0.0
     for i in range(3):

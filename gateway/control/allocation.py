@@ -14,13 +14,19 @@ Then τ = B f with B constant, and an azimuth's thrust is |Fᵢ|, its angle atan
   active-set solver), with this module's Python path around DAQP (dual active set, warm-started) as its
   tested reference and fallback (``solver="daqp"``)::
 
-      min  ½ Σᵢ wᵢ (p |f̂ᵢ|² + c (f̂ᵢ·nᵢ)²)  +  Σⱼ ρ₁,ⱼ |ŝⱼ| + ½ ρ₂,ⱼ ŝⱼ²
+      min  ½ Σᵢ wᵢ (p |f̂ᵢ|² + c (f̂ᵢ·nᵢ / max(T̂₀,ᵢ, θ))²)  +  Σⱼ ρ₁,ⱼ |ŝⱼ| + ½ ρ₂,ⱼ ŝⱼ²
       s.t. B f + s = τ,  f in the per-thruster convex sets of this step (docs/allocation.md)
 
   in scaled units f̂ᵢ = fᵢ / T_max,i, ŝⱼ = sⱼ / τ_ref,j: a quadratic power proxy (p = ``power_weight``), a
-  penalty on the force across each azimuth's current direction nᵢ (c = ``turn_weight``: prefer small angle
-  changes), and an exact (ℓ₁) plus heavy quadratic (ℓ₂) penalty on the slack s, so that a feasible τ is
-  met exactly and an infeasible one gives the closest achievable τ with ``saturated=True``.
+  cost on each azimuth's turn (c = ``turn_weight``): the force across its current direction nᵢ divided by
+  its present thrust T̂₀,ᵢ (floored at θ = ``turn_thrust_floor``) is the angle turned, so a turn costs
+  the same at low thrust as at high, and an exact (ℓ₁) plus heavy quadratic (ℓ₂) penalty on the slack s,
+  so that a feasible τ is met exactly and an infeasible one gives the closest achievable τ with
+  ``saturated=True``. With two or more azimuths in service each is asked to keep ``bias_fraction`` of its
+  T_max along its present direction (thrust biasing: they push against each other, and the resultant
+  turns by changing magnitudes instead of slewing the azimuths) — a soft floor: its shortfall eᵢ ≥ 0 is
+  priced (``bias_l1_weight`` eᵢ + ½ ``bias_weight`` eᵢ²) far below the slack, so the bias gives way
+  whenever it and τ cannot both be had, and never makes a reachable τ unreachable.
 
 The convex sets, their approximations (inscribed polygon for |F| ≤ T_max, rate cone around the previous
 azimuth clipped by forbidden sectors, half-plane lower thrust bound) and the scaling are documented in
@@ -362,7 +368,8 @@ class StepLimits:
     Azimuths: ``angle`` is the previous azimuth; the new force direction must lie in
     [angle − arc_lo, angle + arc_hi] (``cone`` True; arc_lo + arc_hi ≤ π so the sector is convex) or is
     free (``cone`` False); |F| ≤ ``radius`` (N) through the inscribed polygon; the component along
-    ``angle`` ≥ ``along_min`` (N, −inf for none); ``blocked`` (previous azimuth inside a forbidden sector):
+    ``angle`` ≥ ``along_min`` (N, −inf for none) and, at a price (thrust biasing), ≥ ``bias_floor`` (N,
+    −inf for none); ``blocked`` (previous azimuth inside a forbidden sector):
     F = 0. Tunnels and main propellers: ``lower`` ≤ u ≤ ``upper`` (N, signed). ``thrust`` is the previous
     thrust. Fields that belong to the other kind of thruster are not used.
     """
@@ -374,6 +381,7 @@ class StepLimits:
     cone: BoolArray
     radius: Array
     along_min: Array
+    bias_floor: Array
     blocked: BoolArray
     lower: Array
     upper: Array
@@ -381,13 +389,13 @@ class StepLimits:
 
 @dataclass(frozen=True)
 class QPData:
-    """The QP of one step in scaled variables x = [f̂ (rotated frame), ŝ⁺ (3), ŝ⁻ (3)]::
+    """The QP of one step in scaled variables x = [f̂ (rotated frame), ŝ⁺ (3), ŝ⁻ (3), e (one per azimuth)]::
 
         min ½ xᵀPx + qᵀx   s.t.   lb ≤ x ≤ ub,   A[:n_eq] x = b_eq,   A[n_eq:] x ≤ ub_A
 
     ``A`` rows: the n_eq = 3 equality rows B̂ f̂ + ŝ⁺ − ŝ⁻ = τ̂, then per azimuth its polygon rows and two
-    cone rows (all zero, with ub_A = inf, where unused; ub_A[:n_eq] is unused). Absent bounds are ±inf.
-    Used by the solver here and by the solver comparison in ``bench/``.
+    cone rows and its bias-floor row −â − e ≤ −floor (unused: ub_A = inf; ub_A[:n_eq] is unused).
+    Absent bounds are ±inf. Used by the solver here and by the solver comparison in ``bench/``.
     """
 
     P: Array
@@ -421,9 +429,16 @@ class QPAllocator:
     ``dt`` (s) — the allocation period; the rate limits allow what the thrusters can do in ``dt``.
     ``weights`` — per thruster ({id: w} or layout order), relative cost of its scaled force |F/T_max|².
     ``power_weight`` — p, weight of the power proxy Σ wᵢ |F/T_max|².
-    ``turn_weight`` — c, weight of the force across an azimuth's current direction (prefer small turns).
+    ``turn_weight`` — c, weight of an azimuth's turn: of (force across its current direction / its present
+    thrust)², the angle turned in rad², the thrust floored at ``turn_thrust_floor`` × T_max.
+    ``bias_fraction`` — β: with two or more azimuths in service, each is to keep this fraction of its
+    T_max along its present direction (thrust biasing; 0: none), a soft floor â + e ≥ β with the
+    shortfall e ≥ 0 priced ``bias_l1_weight`` · e + ½ ``bias_weight`` · e² (scaled units): above the
+    power and turn costs' gradients, so that it holds when it can, and 10⁴ times below the slack's ρ₁, so
+    that τ always wins over it.
     ``slack_weight`` — ρ₂ (one value or [X, Y, N]), quadratic weight of the scaled slack s/τ_ref.
-    ``slack_l1_weight`` — ρ₁, the exact (ℓ₁) penalty weight; default √ρ₂.
+    ``slack_l1_weight`` — ρ₁, the exact (ℓ₁) penalty weight; default ρ₂/10 (above the multipliers the
+    turn cost can make, so that a feasible demand is met exactly).
     ``forbidden_sectors`` — {azimuth id: [(start_rad, end_rad), …]}: force directions (the same convention
     as the output azimuth) that must not be used, from start clockwise to end. None (default): the
     vessel's own (`Thruster.forbidden_sectors_deg`); given, it replaces them.
@@ -446,7 +461,11 @@ class QPAllocator:
         dt: float = 0.1,
         weights: Mapping[int, float] | Sequence[float] | None = None,
         power_weight: float = 1.0,
-        turn_weight: float = 1.0,
+        turn_weight: float = 100.0,
+        turn_thrust_floor: float = 0.1,
+        bias_fraction: float = 0.1,
+        bias_weight: float = 1e3,
+        bias_l1_weight: float = 10.0,
         slack_weight: float | Sequence[float] = 1e6,
         slack_l1_weight: float | Sequence[float] | None = None,
         forbidden_sectors: Mapping[int, Sequence[tuple[float, float]]] | None = None,
@@ -464,12 +483,19 @@ class QPAllocator:
             raise ValueError(f"polygon_sides must be at least 6, got {polygon_sides}")
         if not (power_weight > 0 and turn_weight >= 0):
             raise ValueError("power_weight must be positive and turn_weight non-negative")
+        if not (0 < turn_thrust_floor <= 1 and 0 <= bias_fraction < 1):
+            raise ValueError("turn_thrust_floor must be in (0, 1] and bias_fraction in [0, 1)")
         self.layout = L = _Layout(vessel, weights)
         self.dt = float(dt)
         self.power_weight = float(power_weight)
         self.turn_weight = float(turn_weight)
+        self.turn_thrust_floor = float(turn_thrust_floor)
+        self.bias_fraction = float(bias_fraction)
+        self.bias_weight, self.bias_l1_weight = float(bias_weight), float(bias_l1_weight)
+        if not (self.bias_weight > 0 and self.bias_l1_weight >= 0):
+            raise ValueError("bias_weight must be positive and bias_l1_weight non-negative")
         self.rho2 = np.broadcast_to(np.asarray(slack_weight, dtype=float), (3,)).copy()
-        rho1 = np.sqrt(self.rho2) if slack_l1_weight is None else slack_l1_weight
+        rho1 = 0.1 * self.rho2 if slack_l1_weight is None else slack_l1_weight
         self.rho1 = np.broadcast_to(np.asarray(rho1, dtype=float), (3,)).copy()
         if not (np.all(self.rho2 > 0) and np.all(self.rho1 >= 0)):
             raise ValueError("slack_weight must be positive and slack_l1_weight non-negative")
@@ -535,24 +561,26 @@ class QPAllocator:
         self._ka = L.first[self._az]  # variable â (along) of each azimuth; b̂ (across) is the next one
         self._kf = L.first[self._fixed]
         n_az = len(self._az)
-        self.n_x = L.n_ext + 6
-        self.n_rows = 3 + n_az * (N + 2)
+        self.n_x = L.n_ext + 6 + n_az  # forces, ŝ⁺, ŝ⁻, the azimuths' bias shortfalls e
+        self.n_rows = 3 + n_az * (N + 3)  # τ; per azimuth: polygon, two cone edges, the bias floor
         P = np.zeros(self.n_x)
         P[L.first] = self.power_weight * L.weights
-        P[self._ka + 1] = (self.power_weight + self.turn_weight) * L.weights[self._az]
-        P[L.n_ext :] = np.r_[self.rho2, self.rho2]
-        self._P_diag = P
-        self.P = np.diag(P)
-        self.q = np.r_[np.zeros(L.n_ext), self.rho1, self.rho1]
+        P[self._ka + 1] = self.power_weight * L.weights[self._az]
+        P[L.n_ext : L.n_ext + 6] = np.r_[self.rho2, self.rho2]
+        P[L.n_ext + 6 :] = self.bias_weight
+        self._P_diag = P  # without the turn cost, which depends on the present thrust (`_p_diag`)
+        self._turn_cw = self.turn_weight * L.weights[self._az]
+        self.q = np.r_[np.zeros(L.n_ext), self.rho1, self.rho1, np.full(n_az, self.bias_l1_weight)]
         # polygon: vertex k at 2πk/N from the previous azimuth, face normals half-way between vertices
         theta = TWO_PI * (np.arange(N) + 0.5) / N
         self._poly_scale = math.cos(math.pi / N)
         A = np.zeros((self.n_rows, self.n_x))
-        A[0:3, L.n_ext :] = np.c_[np.eye(3), -np.eye(3)]
+        A[0:3, L.n_ext : L.n_ext + 6] = np.c_[np.eye(3), -np.eye(3)]
         for j, k in enumerate(self._ka):
-            r0 = 3 + j * (N + 2)
+            r0 = 3 + j * (N + 3)
             A[r0 : r0 + N, k] = np.cos(theta)
             A[r0 : r0 + N, k + 1] = np.sin(theta)
+            A[r0 + N + 2, k] = A[r0 + N + 2, L.n_ext + 6 + j] = -1.0  # −â − e ≤ −floor (bound per step)
         A[0:3, self._kf] = L.B[:, self._kf] * L.cap[self._fixed] / L.tau_ref[:, None]
         self._A = A
         self._ubA0 = np.full(self.n_rows, np.inf)
@@ -560,7 +588,7 @@ class QPAllocator:
         self._ka_list = self._ka.tolist()
         self._cap_list, self._x_list, self._y_list = L.cap.tolist(), L.x.tolist(), L.y.tolist()
         self._idle_list, self._turn_list = self.idle_thrust.tolist(), self._turn.tolist()
-        self._lb0 = np.r_[np.full(L.n_ext, -np.inf), np.zeros(6)]
+        self._lb0 = np.r_[np.full(L.n_ext, -np.inf), np.zeros(6 + n_az)]
         self._ub0 = np.full(self.n_x, np.inf)
         self._blower_rows = np.full(self.n_rows - 3, -np.inf)
         self._rest_thrust = np.zeros(L.n)
@@ -578,6 +606,8 @@ class QPAllocator:
             sec_count[i] = len(sectors)
         n_x, n_rows = self.n_x, self.n_rows
         m_max = n_rows + 2 * n_x
+        turn_cw = np.zeros(L.n)
+        turn_cw[self._az] = self._turn_cw
         self._k_out = (np.empty(L.n), np.empty(L.n), np.empty(3), np.zeros(4))
         self._k_x = np.empty(n_x)
         f = np.ascontiguousarray
@@ -602,12 +632,16 @@ class QPAllocator:
             bool(self.forbidden),
             f(self._pinv),
             self.idle_steering,
+            turn_cw,
+            self.turn_thrust_floor,
+            self.bias_fraction,
             self._P_diag,
             self.q,
             self._A,
             self._poly_scale,
             self.polygon_sides,
-            np.empty((n_rows, n_x)),  # work: A, ub_A, lb, ub
+            np.empty(n_x),  # work: the step's Hessian diagonal, A, ub_A, lb, ub
+            np.empty((n_rows, n_x)),
             np.empty(n_rows),
             np.empty(n_x),
             np.empty(n_x),
@@ -653,6 +687,13 @@ class QPAllocator:
             along_ok = L.is_az
         down, up = thrust - self._dT, thrust + self._dT
         upper = np.minimum(L.tmax, up)
+        along_min = np.where(along_ok & (down > 0), down, -np.inf)
+        bias_floor = np.full(L.n, -np.inf)
+        if self.bias_fraction > 0 and np.count_nonzero(L.is_az & (L.tmax > 0)) >= 2:
+            # thrust biasing: β·T_max along the present direction (up to what this step can reach there,
+            # so it ramps up at the thrust rate from below), a soft floor: see `_qp`
+            biased = L.is_az & ~blocked
+            bias_floor[biased] = np.minimum(self.bias_fraction * L.tmax, upper)[biased]
         return StepLimits(
             angle=angle,
             thrust=thrust,
@@ -660,7 +701,8 @@ class QPAllocator:
             arc_hi=arc_hi,
             cone=cone,
             radius=upper,
-            along_min=np.where(along_ok & (down > 0), down, -np.inf),
+            along_min=along_min,
+            bias_floor=bias_floor,
             blocked=blocked,
             lower=np.maximum(L.tmin, down),
             upper=upper,
@@ -680,6 +722,7 @@ class QPAllocator:
         lb, ub = self._lb0.copy(), self._ub0.copy()
         sx, sy, sn = (float(v) for v in 1.0 / L.tau_ref)
         angle, radius, along_min = lim.angle.tolist(), lim.radius.tolist(), lim.along_min.tolist()
+        bias_floor = lim.bias_floor.tolist()
         arc_lo, arc_hi, cone, blocked = lim.arc_lo.tolist(), lim.arc_hi.tolist(), lim.cone, lim.blocked
         for j, i in enumerate(self._az_list):
             k = self._ka_list[j]
@@ -689,8 +732,10 @@ class QPAllocator:
             A[0, k], A[1, k], A[2, k] = c * cap * sx, s * cap * sy, (x * s - y * c) * cap * sn
             A[0, k + 1], A[1, k + 1], A[2, k + 1] = -s * cap * sx, c * cap * sy, (x * c + y * s) * cap * sn
             rad = radius[i] / cap
-            r0 = 3 + j * (N + 2)
+            r0 = 3 + j * (N + 3)
             ub_A[r0 : r0 + N] = rad * self._poly_scale
+            if bias_floor[i] > -math.inf:  # â + e ≥ floor, e ≥ 0 priced: the soft bias floor
+                ub_A[r0 + N + 2] = -bias_floor[i] / cap
             if blocked[i]:
                 lb[k] = ub[k] = lb[k + 1] = ub[k + 1] = 0.0
                 continue
@@ -706,7 +751,16 @@ class QPAllocator:
         kf, fixed = self._kf, self._fixed
         lb[kf] = lim.lower[fixed] / L.cap[fixed]
         ub[kf] = lim.upper[fixed] / L.cap[fixed]
-        return QPData(self.P, self.q, A, tau / L.tau_ref, ub_A, lb, ub, 3)
+        return QPData(np.diag(self._p_diag(lim)), self.q, A, tau / L.tau_ref, ub_A, lb, ub, 3)
+
+    def _p_diag(self, lim: StepLimits) -> Array:
+        """The Hessian's diagonal for this step: the power proxy, the slack weights and the turn cost
+        c·wᵢ / max(T̂₀,ᵢ, θ)² on each azimuth's across component b̂ (b̂ / T̂₀ is the angle turned)."""
+        P = self._P_diag.copy()
+        az = self._az
+        t0 = np.maximum(lim.thrust[az] / self.layout.cap[az], self.turn_thrust_floor)
+        P[self._ka + 1] += self._turn_cw / (t0 * t0)
+        return P
 
     # ---- solve -----------------------------------------------------------------------------------------
 
@@ -717,7 +771,7 @@ class QPAllocator:
         if self.solver == "compiled":
             d = self._qp(tau, lim)
             x, status, iterations = _kernel.solve_qp_data(
-                self._P_diag, d.q, d.A, d.b_eq, d.ub_A, d.lb, d.ub, 3
+                np.ascontiguousarray(np.diag(d.P)), d.q, d.A, d.b_eq, d.ub_A, d.lb, d.ub, 3
             )
             if status == _kernel.OK:
                 return self._solution(x, lim, d, iterations)
@@ -734,8 +788,11 @@ class QPAllocator:
             sense[self.n_x : self.n_x + 3] = 5  # equality rows
             self._model = daqp.Model()
             self._model.setup(d.P, d.q, d.A, bupper, blower, sense)
+            # feasibility to 1e-9, not DAQP's 1e-6: the bias shortfall's linear price would otherwise buy
+            # a violation of a cone edge by 1e-6 (the compiled solver is exact there)
+            self._model.settings = {**self._model.settings, "primal_tol": 1e-9}
         else:  # same structure: new values, the previous active set is the warm start
-            self._model.update(A=d.A, bupper=bupper, blower=blower)
+            self._model.update(H=d.P, A=d.A, bupper=bupper, blower=blower)
         x, _fval, exitflag, info = self._model.solve()
         if exitflag < 1 or not np.all(np.isfinite(x)):
             self._model = None  # start afresh next time
@@ -754,8 +811,8 @@ class QPAllocator:
         forces = np.empty(L.n_ext)
         forces[ka], forces[ka + 1] = a * c - b * s, a * s + b * c
         forces[kf] = x[kf] * L.cap[self._fixed]
-        slack = (x[L.n_ext : L.n_ext + 3] - x[L.n_ext + 3 :]) * L.tau_ref
-        objective = float(0.5 * np.dot(self._P_diag * x, x) + np.dot(d.q, x))
+        slack = (x[L.n_ext : L.n_ext + 3] - x[L.n_ext + 3 : L.n_ext + 6]) * L.tau_ref
+        objective = float(0.5 * np.dot(np.diag(d.P) * x, x) + np.dot(d.q, x))
         return QPSolution(forces, slack, objective, "optimal", iterations)
 
     def allocate(self, tau_demand: ArrayLike, previous: ThrusterCommand | None = None) -> AllocationResult:
@@ -940,7 +997,9 @@ def reference_solve_cvxpy(
         along = np.array([math.cos(a), math.sin(a)])
         across = np.array([-math.sin(a), math.cos(a)])  # 90° clockwise of it
         cost.append(0.5 * A.power_weight * w * cp.sum_squares(F))
-        cost.append(0.5 * A.turn_weight * w * cp.square(across @ F))
+        # the turn: the force across the previous azimuth over the previous thrust (floored), in rad
+        t0 = max(lim.thrust[i] / L.cap[i], A.turn_thrust_floor)
+        cost.append(0.5 * A.turn_weight * w * cp.square(across @ F / t0))
         if lim.blocked[i]:  # previous azimuth inside a forbidden sector
             cons.append(F == 0)
             continue
@@ -954,15 +1013,20 @@ def reference_solve_cvxpy(
             cons.append(math.cos(e_lo) * F[1] - math.sin(e_lo) * F[0] >= 0)
         if np.isfinite(lim.along_min[i]):  # thrust-rate limit downwards
             cons.append(along @ F >= lim.along_min[i] / L.cap[i])
+        if np.isfinite(lim.bias_floor[i]):  # thrust biasing: a floor along it, its shortfall priced
+            e = cp.Variable(nonneg=True)
+            cons.append(along @ F + e >= lim.bias_floor[i] / L.cap[i])
+            cost += [A.bias_l1_weight * e, 0.5 * A.bias_weight * cp.square(e)]
     prob = cp.Problem(cp.Minimize(cp.sum(cp.hstack(cost))), cons)
     # Clarabel, tight: when saturated the objective is large, so the relative gap alone would stop early;
-    # if it cannot certify that, once more with a little more room on feasibility
+    # if it cannot certify that, once or twice more with a little more room (feasibility, then the gap)
     attempts: list[dict[str, Any]] = (
         [dict(solver_options)]
         if solver_options
         else [
             {"solver": cp.CLARABEL, "tol_gap_abs": 1e-10, "tol_gap_rel": 1e-13, "tol_feas": 1e-10},
             {"solver": cp.CLARABEL, "tol_gap_abs": 1e-10, "tol_gap_rel": 1e-13, "tol_feas": 1e-9},
+            {"solver": cp.CLARABEL, "tol_gap_abs": 1e-9, "tol_gap_rel": 1e-10, "tol_feas": 1e-8},
         ]
     )
     for options in attempts:
