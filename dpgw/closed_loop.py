@@ -215,8 +215,10 @@ def run_closed_loop(
     /dp/status is kept that often (at the end of a chunk; at most once a chunk) in ``statuses``: what an
     operator station would see, to time alarms. ``wire``: True feeds the pipeline the bytes, False the typed
     records (module docstring); None (default) the records unless a log, a wire-side fault or ArduPilot
-    feedback needs the bytes. ``collect``: pipeline topics (e.g. "/dp/measurement") whose payloads are
-    kept in ``collected`` (the typed messages in ``collected_messages``), in order."""
+    feedback needs the bytes. ``tables`` (default `gateway_tables`) get the scenario's observer settings
+    under their own (`with_scenario_observer`), as a study of the scenario does. ``collect``: pipeline
+    topics (e.g. "/dp/measurement") whose payloads are kept in ``collected`` (the typed messages in
+    ``collected_messages``), in order."""
     if wire is None:
         wire = needs_wire(scenario, log)
     tables = with_scenario_observer(tables or gateway_tables(scenario), scenario)
