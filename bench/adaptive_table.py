@@ -37,6 +37,7 @@ from dpgw.closed_loop import run_closed_loop
 from gateway.replay import ObserverSpec, build_config, build_pipeline, open_inputs, run_replay
 from gateway.report import ObserverTrace, ReplayData, compute_metrics
 from gateway.scoring import score
+from observers.factory import with_defaults
 from simulator.runner import Route, Simulation
 from simulator.scenarios import Scenario, get_scenario
 from simulator.transports import MemorySink
@@ -75,7 +76,11 @@ def observers(scenario: Scenario, start: float) -> list[ObserverSpec]:
         ObserverSpec(
             "gain_scheduled",
             "gain_scheduled",
-            {**scenario.observer_params.get("gain_scheduled", {}), "omega0": start, "omega0_initial": start},
+            with_defaults(
+                "gain_scheduled",
+                scenario.observer_params.get("gain_scheduled"),
+                {"omega0": start, "omega0_initial": start},
+            ),
         ),
         ObserverSpec("mmae", "mmae", {}),
         ObserverSpec("mmae", "mmae_paper", {"lf_output": False}),

@@ -33,6 +33,9 @@ MAX_LOOP_DELAY_S = 0.3
 beyond it the simulation pauses until the gateway has caught up, and when it persists the demo slows
 down. A few sensor samples: small beside a DP vessel's seconds-long dynamics, and still small for the
 model-scale vessel of the `hassani` scenario."""
+DEMO_OBSERVER = "passive"
+"""The demo's observer type. Its settings for the scenario are the study's (`dpgw.closed_loop.
+with_scenario_observer`): a scenario's `observer_params` for this type apply."""
 SIM_CHUNK_S = 1.0
 """Sea simulated between two looks at whether the demo was stopped (s): at the demo's speeds a stop
 takes effect within a fraction of a second of wall time."""
@@ -126,6 +129,7 @@ def foxglove_server(args: argparse.Namespace) -> tuple[Any, str] | None:
 
 
 def demo_config(scenario: Any, pty_device: str, args: argparse.Namespace) -> dict[str, Any]:
+    from dpgw.closed_loop import with_scenario_observer
     from gateway.config import default_config
 
     cfg = default_config(scenario.vessel.name)
@@ -167,7 +171,7 @@ def demo_config(scenario: Any, pty_device: str, args: argparse.Namespace) -> dic
         )
     cfg["control"] = {"initial_mode": args.mode}
     tp = scenario.sea[0][1].tp_s
-    cfg["observer"] = {"type": "passive", "wave_period_s": tp}
+    cfg["observer"] = {"type": DEMO_OBSERVER, "wave_period_s": tp}
     cfg["zenoh"] = {
         "mode": "peer",
         "listen": list(args.zenoh_listen),
@@ -177,7 +181,8 @@ def demo_config(scenario: Any, pty_device: str, args: argparse.Namespace) -> dic
     cfg["log"] = {"path": str(Path(args.out).resolve())}
     # the gateway lives on the simulator's time, whatever the load (docs/gateway.md, "Simulation time")
     cfg["time"] = {"clock": "sim"}
-    return cfg
+    # the scenario's observer settings as a study of it applies them (the hassani range, docs/simulator.md)
+    return with_scenario_observer(cfg, scenario)
 
 
 def run(args: argparse.Namespace) -> int:

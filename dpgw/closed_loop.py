@@ -27,7 +27,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gateway.config import parse_config
+from gateway.config.defaults import DEFAULTS
 from gateway.pipeline import ControlEvent, Pipeline, PipelineSpec, RawEvent
+from observers.factory import with_defaults
 from simulator.commands import Command, TauCommand, ThrusterCommand
 from simulator.faults import FaultSchedule
 from simulator.runner import Route, Simulation
@@ -124,6 +126,19 @@ def gateway_tables(scenario: Scenario, **control: Any) -> dict[str, Any]:
     }
 
 
+def with_scenario_observer(tables: dict[str, Any], scenario: Scenario) -> dict[str, Any]:
+    """``tables`` (a gateway config) with the scenario's observer settings (`Scenario.observer_params`) for
+    its ``[observer] type`` under the config's own ``params`` (`observers.factory.with_defaults`, the merge
+    the study and the replay use): what the in-process loop and ``dpgw demo`` run, so that they run the
+    observer a study of the same scenario runs. A new dict; applying it twice changes nothing."""
+    observer = dict(tables.get("observer", {}))
+    kind = observer.get("type", DEFAULTS["observer"]["type"])
+    params = with_defaults(kind, scenario.observer_params.get(kind), observer.get("params", {}))
+    if params:
+        observer["params"] = params
+    return {**tables, "observer": observer}
+
+
 def _grouped(sim: Simulation, typed: list[tuple[float, int, str, Emission]], sources: Any) -> list[RawEvent]:
     """The typed emissions as pipeline events: one per sentence or frame as on the wire, except that what
     cannot step the observer joins the event before it from the same source at the same instant — the
@@ -200,11 +215,13 @@ def run_closed_loop(
     /dp/status is kept that often (at the end of a chunk; at most once a chunk) in ``statuses``: what an
     operator station would see, to time alarms. ``wire``: True feeds the pipeline the bytes, False the typed
     records (module docstring); None (default) the records unless a log, a wire-side fault or ArduPilot
-    feedback needs the bytes. ``collect``: pipeline topics (e.g. "/dp/measurement") whose payloads are
-    kept in ``collected`` (the typed messages in ``collected_messages``), in order."""
+    feedback needs the bytes. ``tables`` (default `gateway_tables`) get the scenario's observer settings
+    under their own (`with_scenario_observer`), as a study of the scenario does. ``collect``: pipeline
+    topics (e.g. "/dp/measurement") whose payloads are kept in ``collected`` (the typed messages in
+    ``collected_messages``), in order."""
     if wire is None:
         wire = needs_wire(scenario, log)
-    tables = tables or gateway_tables(scenario)
+    tables = with_scenario_observer(tables or gateway_tables(scenario), scenario)
     # the Foxglove-native channels mirror the outputs for a log or a viewer: made only if a caller collects
     # one of them (a study collects /dp/measurement, a JSON channel); the estimates and commands are the same
     # either way

@@ -40,6 +40,7 @@ from observers.factory import (
     Observer,
     make_observer,
     tuning_keys,
+    with_defaults,
 )
 from observers.passive_tuning import PassiveTuning
 from wire.mcap.reader import read_messages
@@ -290,7 +291,7 @@ class ObserverSpec:
             self.name,
             config.vessel,
             self.tuning(config.observer.tuning),
-            params={**(defaults or {}), **base, **self.observer_params()},
+            params=with_defaults(self.name, defaults, {**base, **self.observer_params()}),
             allow_unchecked=config.observer.allow_unchecked,
         )
 

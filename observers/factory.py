@@ -159,6 +159,27 @@ def tuning_keys(name: str) -> frozenset[str]:
     return frozenset(used) | ({"wave_period_s"} if "omega0" in used else set())
 
 
+_ESTIMATOR_PARAMS = ("window_s", "update_period_s", "omega_min", "omega_max", "per_dof")
+"""The wave-frequency estimator's settings (`observers.wave_frequency.ESTIMATOR_KEYS`): an SDRE takes them
+only with ``adaptive = true``."""
+
+
+def with_defaults(kind: str, defaults: Mapping[str, Any] | None, params: Mapping[str, Any]) -> dict[str, Any]:
+    """Observer ``kind``'s ``params`` (the user's: a config's, a replay or study spec's) over ``defaults``
+    (a scenario's, `simulator.scenarios.Scenario.observer_params`): the one merge every place that builds a
+    scenario's observer uses — the study, the replay, the in-process closed loop and ``dpgw demo``.
+
+    A default is left out where the observer, with the user's params, has no use for it and would refuse
+    it: the estimator's settings go to an ``sdre`` only when it is adaptive (a fixed SDRE has no
+    estimator). Given by the user, they are passed on as given (and refused there, with the reason)."""
+    merged = {**(defaults or {}), **params}
+    if kind == "sdre" and not merged.get("adaptive"):
+        for key in _ESTIMATOR_PARAMS:
+            if key not in params:
+                merged.pop(key, None)
+    return merged
+
+
 class ObserverSpecError(ValueError):
     """An unknown observer or parameter; the message names it and lists the known ones."""
 

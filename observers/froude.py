@@ -23,7 +23,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Protocol
+from typing import Literal, Protocol, TypeVar
+
+import numpy as np
+from numpy.typing import NDArray
 
 MODEL_MAX_LENGTH_M = 10.0
 """Vessels shorter than this without a ``model_scale`` are taken as models (or small craft) of a prototype."""
@@ -56,9 +59,26 @@ def froude_scale(vessel: _Scaled) -> float:
     return froude_scale_of(vessel.length_m, vessel.model_scale)
 
 
+Quantity = TypeVar("Quantity", float, NDArray[np.float64])
+
+
+def froude_scaled(value: Quantity, scale: float, kind: Literal["frequency", "time"]) -> Quantity:
+    """A full-scale frequency or rate (rad/s, 1/s) or time (s) as the 1:``scale`` model sees it (Froude)::
+
+        frequency × √λ,      time ÷ √λ,      λ = ``scale``
+
+    The one place dpgw writes Froude's √λ for the observers' defaults (`froude_scale`'s λ). λ = 1 returns
+    ``value`` itself: a ship's numbers are today's bit for bit. ``value`` is a float or a float array; to go
+    back from the model's scale to the ship's, scale a frequency as a time (÷ √λ) and a time as a
+    frequency (× √λ)."""
+    if scale == 1.0:
+        return value
+    if kind not in ("frequency", "time"):
+        raise ValueError(f"kind must be 'frequency' or 'time', got {kind!r}")
+    r = math.sqrt(scale)
+    return value * r if kind == "frequency" else value / r
+
+
 def scaled_frequencies(full_scale: Sequence[float], scale: float) -> tuple[float, ...]:
     """Full-scale frequencies (rad/s) as the 1:``scale`` model sees them: × √λ. λ = 1 returns them exactly."""
-    if scale == 1.0:
-        return tuple(float(w) for w in full_scale)
-    r = math.sqrt(scale)
-    return tuple(float(w) * r for w in full_scale)
+    return tuple(froude_scaled(float(w), scale, "frequency") for w in full_scale)

@@ -27,8 +27,9 @@ Default bias model: the paper's random walk (31), T = ∞ (``PassiveTuning(bias_
 
 **Scheduling without jumps.** The observer state is never touched by a gain change (it is the state of
 (29)–(33) for whatever ω̄0), and ω̄0 itself moves continuously: a first-order lag towards each new
-estimate (``ramp_time_constant_s``, 15 s), the gains recomputed in closed form at every sample (`gains_at`,
-the arithmetic of `passive_gains`), and the speed limited by a contraction budget. The compiled loop
+estimate (``ramp_time_constant_s``, 15 s on a ship, ÷ √λ on a 1:λ model), the gains recomputed in closed
+form at every sample (`gains_at`, the arithmetic of `passive_gains`), and the speed limited by a contraction
+budget. The compiled loop
 (`observers._gain_scheduled_kernel`) runs the passive kernel (`observers._passive_kernel`) sample by sample
 with the scheduled gains. The estimates depend on the measurements only, so batch `run` first takes the record
 through the estimator (vectorised appends up to each update time) and then makes one compiled pass that
@@ -57,7 +58,7 @@ from numpy.typing import ArrayLike, NDArray
 from observers import _gain_scheduled_kernel as sk
 from observers import _passive_kernel as pk
 from observers.base import ZERO3, Estimate, InitialState, ObserverBase, Run, batch_inputs
-from observers.froude import froude_scale
+from observers.froude import froude_scale, froude_scaled
 from observers.gain_scheduled_analysis import (
     DEFAULT_TUNING,
     ContractionCheck,
@@ -91,6 +92,14 @@ __all__ = [
 
 # --- the observer -----------------------------------------------------------------------------------------
 
+H_MAX_S = 0.1
+"""A ship's RK4 sub-step (s): the fastest error pole over its ω0 range (0.3-1.6 rad/s) is −2.4 s⁻¹, so
+|λ|·h ≤ 0.24. A 1:λ model's poles are √λ faster (−20 s⁻¹ at CyberShip II's 13.4 rad/s, |λ|·h = 2.0 at
+0.1 s, near RK4's stability edge): its default is H_MAX_S ÷ √λ (`observers.froude.froude_scaled`)."""
+RAMP_TIME_CONSTANT_S = 15.0
+"""A ship's ω0 ramp (s), a quarter of its estimator's 60 s update period: ω0 settles before the next
+estimate. A time, so ÷ √λ on a 1:λ model (1.8 s for CyberShip II, whose updates come every 7.2 s)."""
+
 
 def _initial_for_range(w: Array, config: WaveFrequencyConfig, scale: float) -> Array:
     """Where ω0 starts when ``omega0_initial`` is not given: the tuning's ω0; on a 1:λ model whose range
@@ -105,8 +114,8 @@ def _initial_for_range(w: Array, config: WaveFrequencyConfig, scale: float) -> A
 
     if holds(w) or scale == 1.0:
         return w
-    r = math.sqrt(scale)
-    return next((x for x in (w * r, w / r) if holds(x)), w)
+    up, down = froude_scaled(w, scale, "frequency"), froude_scaled(w, scale, "time")  # ω0·√λ, ω0/√λ
+    return next((x for x in (up, down) if holds(x)), w)
 
 
 def pack_tuning(vessel: VesselModel, tuning: PassiveTuning) -> Array:
@@ -147,9 +156,15 @@ class GainScheduledObserver(ObserverBase):
     estimator: `WaveFrequencyConfig` (window, update period T, ω range of A6, per-DOF or shared); default
                the vessel's, `WaveFrequencyConfig.for_vessel` (0.3-1.6 rad/s for a ship, × √λ for a 1:λ
                model: `observers.froude`).
+    tuning: the LF tuning (ratios to ω0, ζ, ζn, bias model); default the vessel's,
+            `PassiveTuning.for_vessel` (as every observer's: Froude-scaled on a model).
     omega0_initial: ω0 to start from (rad/s; one or per DOF), default the tuning's ω0 (Froude-scaled,
-                    ω0·√λ, on a model whose range does not hold it: `_initial_for_range`).
-    ramp_time_constant_s: time constant of the first-order move of ω0 towards each new estimate.
+                    ω0·√λ or ω0/√λ, on a model whose range does not hold it: `_initial_for_range`).
+    h_max: RK4 sub-step (s); default `H_MAX_S` (0.1 s) on a ship, ÷ √λ on a 1:λ model.
+    ramp_time_constant_s: time constant of the first-order move of ω0 towards each new estimate; default
+                          `RAMP_TIME_CONSTANT_S` (15 s) on a ship, ÷ √λ on a 1:λ model.
+    max_hold_s: a gap longer than this is dead reckoning except for its last ``max_hold_s`` (2 s, not
+                scaled: a sensor-dropout setting, the same as the passive observer's).
     transient_gain: L0 = 2 ln(transient_gain) is the scheduling budget (module docstring).
     schedule: False keeps ω0 fixed (the estimator still runs and reports): the fixed observer.
     """
@@ -162,19 +177,22 @@ class GainScheduledObserver(ObserverBase):
         estimator: WaveFrequencyConfig | None = None,
         omega0_initial: ArrayLike | None = None,
         allow_unchecked: bool = False,
-        h_max: float = 0.1,
+        h_max: float | None = None,
         max_hold_s: float = 2.0,
-        ramp_time_constant_s: float = 15.0,
+        ramp_time_constant_s: float | None = None,
         transient_gain: float = 10.0,
         schedule: bool = True,
     ) -> None:
         self.vessel = vessel
-        self.tuning = tuning or DEFAULT_TUNING
+        scale = froude_scale(vessel)
+        self.tuning = tuning or PassiveTuning.for_vessel(vessel)
         self.config = estimator or WaveFrequencyConfig.for_vessel(vessel)
-        self.h_max = float(h_max)
+        self.h_max = float(froude_scaled(H_MAX_S, scale, "time") if h_max is None else h_max)
         self.max_hold_s = float(max_hold_s)
         if not (self.h_max > 0 and self.max_hold_s > 0):
             raise ValueError("h_max and max_hold_s must be positive")
+        if ramp_time_constant_s is None:
+            ramp_time_constant_s = froude_scaled(RAMP_TIME_CONSTANT_S, scale, "time")
         if not (math.isfinite(ramp_time_constant_s) and ramp_time_constant_s >= 0):
             raise ValueError(f"ramp_time_constant_s must be ≥ 0, got {ramp_time_constant_s!r}")
         self.ramp_time_constant_s = float(ramp_time_constant_s)
@@ -184,7 +202,7 @@ class GainScheduledObserver(ObserverBase):
             np.asarray(self.tuning.omega0 if omega0_initial is None else omega0_initial, dtype=float), (3,)
         ).copy()
         if omega0_initial is None:
-            w_init = _initial_for_range(w_init, c, froude_scale(vessel))
+            w_init = _initial_for_range(w_init, c, scale)
         if not np.all((w_init >= c.omega_min) & (w_init <= c.omega_max)):
             raise ContractionError(
                 f"omega0_initial {w_init.tolist()} lies outside [omega_min, omega_max] = "

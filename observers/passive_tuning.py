@@ -54,7 +54,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from observers.froude import froude_scale
+from observers.froude import froude_scale, froude_scaled
 from observers.kinematics import rotation
 from observers.state import BIAS, ETA, N_STATE, NU, XI, XI1, XI2
 from observers.vessel import VesselModel
@@ -151,13 +151,15 @@ def froude_scaled_fields(values: Mapping[str, Any], scale: float) -> dict[str, A
     untouched (the same objects: a ship's tuning is today's exactly)."""
     if scale == 1.0:
         return dict(values)
-    r = math.sqrt(scale)
     out = dict(values)
     for key, value in values.items():
         if value is None or (key not in FREQUENCY_FIELDS and key not in TIME_FIELDS):
             continue
-        a = np.asarray(value, dtype=float)
-        scaled = a * r if key in FREQUENCY_FIELDS else a / r
+        scaled = np.asarray(
+            froude_scaled(
+                np.asarray(value, dtype=float), scale, "frequency" if key in FREQUENCY_FIELDS else "time"
+            )
+        )
         out[key] = float(scaled) if scaled.ndim == 0 else tuple(float(x) for x in scaled)
     return out
 

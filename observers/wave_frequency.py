@@ -56,10 +56,11 @@ sea, or dead sensors); the maximum lies on an edge of [ω_min, ω_max]. The esti
 **Cost.** `add` appends arrays (amortised O(1) per sample, vectorised in batch use); an update is O(T)
 for its new segments plus O(window/segment) to average them, numpy/scipy only, whatever the sample rate.
 
-**Model ships.** Froude scaling at length ratio λ = L_model/L_ship changes frequencies by 1/√λ and times
-by √λ: ``WaveFrequencyConfig().scaled(λ)`` (e.g. CyberShip II, 1:70: λ = 1/70, ω in [2.5, 13.4] rad/s,
-window 36 s, update every 7.2 s). The observers' default is the vessel's own (`for_vessel`, with the scale
-of `observers.froude`): a ship keeps the settings above exactly, a model gets them Froude-scaled.
+**Model ships.** Froude scaling to a 1:λ model (λ = L_ship/L_model) changes frequencies by √λ and times
+by 1/√λ: ``WaveFrequencyConfig().for_model(λ)`` (e.g. CyberShip II, 1:70: ω in [2.5, 13.4] rad/s,
+window 36 s, update every 7.2 s; ``scaled(L_model/L_ship)`` is the same with the length ratio). The
+observers' default is the vessel's own (`for_vessel`, with the scale of `observers.froude`): a ship keeps
+the settings above exactly, a model gets them Froude-scaled.
 `estimator_config` reads a config's keys on top: set neither ``omega_min`` nor ``omega_max`` and the
 whole default follows the vessel; set either and the range is yours — the other bound is the vessel's,
 the time settings (window, update period, segment …) stay the full-scale ones, valid for any range above
@@ -77,7 +78,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from observers.froude import froude_scale
+from observers.froude import froude_scale, froude_scaled
 from observers.kinematics import ssa
 from observers.vessel import VesselModel
 
@@ -174,29 +175,42 @@ class WaveFrequencyConfig:
             return self.min_span_s
         return min(2.0 * (2.0 * math.pi / self.omega_min), self.segment_s)
 
-    def scaled(self, length_ratio: float) -> WaveFrequencyConfig:
-        """Froude-scaled copy for a vessel λ = ``length_ratio`` times as long: ω × 1/√λ, times × √λ."""
-        if not (math.isfinite(length_ratio) and length_ratio > 0):
-            raise ValueError(f"length ratio must be a positive number, got {length_ratio!r}")
-        r = math.sqrt(length_ratio)
+    def for_model(self, scale: float) -> WaveFrequencyConfig:
+        """These settings as a 1:``scale`` model sees them (λ = L_full/L_model, `observers.froude`):
+        frequencies × √λ, times ÷ √λ (`observers.froude.froude_scaled`); λ = 1 returns them exactly."""
+        if not (math.isfinite(scale) and scale > 0):
+            raise ValueError(f"Froude scale must be a positive number, got {scale!r}")
+
+        def w(value: float) -> float:
+            return froude_scaled(value, scale, "frequency")
+
+        def t(value: float) -> float:
+            return froude_scaled(value, scale, "time")
+
         return replace(
             self,
-            window_s=self.window_s * r,
-            update_period_s=self.update_period_s * r,
-            omega_min=self.omega_min / r,
-            omega_max=self.omega_max / r,
-            segment_s=self.segment_s * r,
-            resample_hz=None if self.resample_hz is None else self.resample_hz / r,
-            max_gap_s=self.max_gap_s * r,
-            min_span_s=None if self.min_span_s is None else self.min_span_s * r,
+            window_s=t(self.window_s),
+            update_period_s=t(self.update_period_s),
+            omega_min=w(self.omega_min),
+            omega_max=w(self.omega_max),
+            segment_s=t(self.segment_s),
+            resample_hz=None if self.resample_hz is None else w(self.resample_hz),
+            max_gap_s=t(self.max_gap_s),
+            min_span_s=None if self.min_span_s is None else t(self.min_span_s),
         )
+
+    def scaled(self, length_ratio: float) -> WaveFrequencyConfig:
+        """Froude-scaled copy for a vessel ``length_ratio`` times as long: ω × 1/√ratio, times × √ratio
+        (`for_model` with λ = 1/``length_ratio``)."""
+        if not (math.isfinite(length_ratio) and length_ratio > 0):
+            raise ValueError(f"length ratio must be a positive number, got {length_ratio!r}")
+        return self.for_model(1.0 / length_ratio)
 
     @classmethod
     def for_vessel(cls, vessel: VesselModel) -> WaveFrequencyConfig:
         """The default settings Froude-scaled to ``vessel`` (λ = `observers.froude.froude_scale`): a ship
-        (λ = 1) gets the defaults exactly, a 1:λ model ω × √λ and times ÷ √λ."""
-        lam = froude_scale(vessel)
-        return cls() if lam == 1.0 else cls().scaled(1.0 / lam)
+        (λ = 1) gets the defaults exactly, a 1:λ model ω × √λ and times ÷ √λ (`for_model`)."""
+        return cls().for_model(froude_scale(vessel))
 
 
 ESTIMATOR_KEYS = ("window_s", "update_period_s", "omega_min", "omega_max", "per_dof")

@@ -87,7 +87,9 @@ class Scenario:
     wind: WindModel | None = None
     # Observer settings by observer type that the scenario's case needs, under the user's own: the papers'
     # numbers where the vessel's default would differ (the `hassani` model ship in full-scale seas keeps
-    # the full-scale ω0 range, not its Froude-scaled default). Applied by the study and the benches.
+    # the full-scale ω0 range, not its Froude-scaled default). Applied the one way
+    # (`observers.factory.with_defaults`) by the study, the replay, the in-process closed loop, `dpgw demo`
+    # and the benches; an estimator setting reaches an SDRE only when it is adaptive.
     observer_params: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -180,8 +182,9 @@ FULL_SCALE_OMEGA_RANGE = {
     "omega_min": WaveFrequencyConfig.omega_min,
     "omega_max": WaveFrequencyConfig.omega_max,
 }
-"""The full-scale ω0 range (rad/s) of the gain-scheduled observer (the estimator's defaults, 0.3-1.6 rad/s),
-set explicitly where a paper's case runs full-scale seas on a model ship (`hassani`)."""
+"""The full-scale ω0 range (rad/s) of the wave-frequency estimator (its defaults, 0.3-1.6 rad/s), set
+explicitly where a paper's case runs full-scale seas on a model ship (`hassani`): for every observer that
+searches it, the gain-scheduled one and the adaptive SDRE."""
 
 
 def fossen_strand_1999() -> Scenario:
@@ -275,10 +278,13 @@ def hassani() -> Scenario:
         notes="The 1:70 model in a basin: Hs 0.08 m (the paper gives only the peak frequency), position "
         "from a 10 Hz RTK-class reference. The step is a minimum-jerk move over 40 s from t = 40 s. The "
         "paper's sea (0.93 rad/s, candidates 0.3-1.35 rad/s) is a full-scale one on the model's M and D: a "
-        "gain-scheduled observer searches the full-scale 0.3-1.6 rad/s here, not the model's Froude-scaled "
-        "default (2.5-13.4 rad/s), which would not hold it.",
+        "gain-scheduled observer (and an adaptive SDRE) searches the full-scale 0.3-1.6 rad/s here, not the "
+        "model's Froude-scaled default (2.5-13.4 rad/s), which would not hold it.",
         extra={"legs": legs},
-        observer_params={"gain_scheduled": dict(FULL_SCALE_OMEGA_RANGE)},
+        observer_params={
+            "gain_scheduled": dict(FULL_SCALE_OMEGA_RANGE),
+            "sdre": dict(FULL_SCALE_OMEGA_RANGE),
+        },
     )
 
 

@@ -55,7 +55,7 @@ def build_scenario(case: CaseSpec) -> Any:
 def loop_tables(case: CaseSpec, scenario: Any, nominal_tp_s: float) -> dict[str, Any]:
     """The gateway config of the loop: the scenario's sensors; every observer tuned to the scenario's own
     (nominal) wave period — what an operator sets from the forecast — not to the case's sea state."""
-    from dpgw.closed_loop import gateway_tables
+    from dpgw.closed_loop import gateway_tables, with_scenario_observer
     from gateway.replay import parse_observer_spec
     from observers.factory import tuning_keys
 
@@ -65,11 +65,10 @@ def loop_tables(case: CaseSpec, scenario: Any, nominal_tp_s: float) -> dict[str,
     if "wave_period_s" in tuning_keys(loop.name):  # (the MMAE bank takes none of the common tuning)
         observer["wave_period_s"] = nominal_tp_s
     observer.update(loop.tuning_params())
-    params = {**scenario.observer_params.get(loop.name, {}), **loop.observer_params()}
-    if params:
-        observer["params"] = params
+    if loop.observer_params():
+        observer["params"] = loop.observer_params()
     tables["observer"] = observer
-    return tables
+    return with_scenario_observer(tables, scenario)  # the scenario's settings under the spec's
 
 
 def run_case(case_dict: dict[str, Any]) -> list[dict[str, Any]]:
