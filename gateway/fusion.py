@@ -13,9 +13,10 @@ Pure numerics (no I/O, no clocks: times come with the data), shared by the live 
   position injection in proportion to the step rate.
 - **Source priority.** Of several sources with the same role, the one with the lowest ``priority`` that is
   fresh is used (failover); a fix from a lower-ranked source is ignored while a better one is fresh.
-- **Position sigma.** A GST's 1σ horizontal error belongs to the fixes of its own source and holds, like a
-  measurement, until it is older than that source's timeout: receivers send GST after (not with) each GGA,
-  often at a lower rate, so a fix must not clear it.
+- **Position covariance.** A GST's horizontal covariance (north/east, from its error ellipse when it has
+  one: `wire.gst_covariance`) belongs to the fixes of its own source and holds, like a measurement, until
+  it is older than that source's timeout: receivers send GST after (not with) each GGA, often at a lower
+  rate, so a fix must not clear it.
 - **τ** for the observer: Σ B(αᵢ) Tᵢ over the thrusters' reported thrust and azimuth (the configuration
   matrix, `VesselModel.configuration_matrix`); without feedback, the demand (set by the controller or a
   manual τ). A thrust is fresh for its source's ``timeout_s`` (the time after which `/status` calls that
@@ -120,7 +121,8 @@ class Fusion:
         self._feedback_ok = True
         self._quality = 0
         self._headings: deque[tuple[int, float]] = deque(maxlen=HEADING_HISTORY_MAX)
-        self._sigma: dict[str, Held] = {}  # source -> its latest GST sigma (m), valid like a measurement
+        # source -> (its latest GST covariance (C_NN, C_NE, C_EE; m²), valid until ns): like a measurement
+        self._cov: dict[str, tuple[tuple[float, float, float], int]] = {}
         self._thrust: dict[int, ThrusterFeedback] = {}
         self._thrust_timeout: dict[int, int] = {}  # thruster id -> the timeout of the source that reported it
         # τ from feedback is a function of what is held and which of it is fresh: the last one, keyed by
@@ -357,18 +359,30 @@ class Fusion:
         """The sources pooled into the latest heading."""
         return self._heading_sources
 
-    def add_position_sigma(self, rx_ns: int, sigma_m: float, source: str, valid_ns: int) -> None:
-        """A source's horizontal 1σ position error (m, from GST), valid for ``valid_ns`` after ``rx_ns``."""
-        if math.isfinite(sigma_m) and sigma_m >= 0:
-            self._sigma[source] = Held(sigma_m, rx_ns, source, 0, valid_ns)
+    def add_position_covariance(
+        self, rx_ns: int, cov_ne: tuple[float, float, float], source: str, valid_ns: int
+    ) -> None:
+        """A source's horizontal position covariance (C_NN, C_NE, C_EE; m², from GST), valid for
+        ``valid_ns`` after ``rx_ns``. One that is no covariance (a negative or non-finite variance, a
+        correlation beyond ±1) is not kept."""
+        nn, ne, ee = cov_ne
+        if nn >= 0.0 and ee >= 0.0 and ne * ne <= nn * ee * (1.0 + 1e-9) and math.isfinite(nn + ne + ee):
+            self._cov[source] = (cov_ne, rx_ns + valid_ns)
+
+    def position_covariance_ne(self, now_ns: int) -> tuple[float, float, float] | None:
+        """The horizontal covariance (C_NN, C_NE, C_EE; m²) of the position in use: its source's GST
+        covariance while both are fresh, else None."""
+        pos = self._north
+        held = self._cov.get(pos.source)  # (no GST from this source: the common case, asked every step)
+        if held is None or now_ns > held[1] or not pos.fresh(now_ns):
+            return None
+        return held[0]
 
     def position_sigma_m(self, now_ns: int) -> float | None:
-        """The 1σ error of the position in use: its source's GST sigma while both are fresh, else None."""
-        pos = self._north
-        sigma = self._sigma.get(pos.source)  # (no GST from this source: the common case, asked every step)
-        if sigma is None or not sigma.fresh(now_ns) or not pos.fresh(now_ns):
-            return None
-        return sigma.value
+        """The 1σ error of the position in use, √((C_NN + C_EE) / 2) of `position_covariance_ne` (the RMS
+        of the north and east σ), else None."""
+        cov = self.position_covariance_ne(now_ns)
+        return None if cov is None else math.sqrt((cov[0] + cov[2]) / 2.0)
 
     # --- what the observer gets ----------------------------------------------------------------------------
 

@@ -35,6 +35,28 @@ GGA_QUALITY_NAMES = {
 DIVERGENCE_CLEAR = 0.8  # hysteresis: a divergence alarm clears below 80 % of its threshold
 
 
+ELLIPSE_EPS_M2 = 1e-12
+"""Added to both variances before `ellipse_reach` inverts a covariance: a receiver's ellipse with a zero
+minor axis (a line) becomes invertible, its reach across the line 3 µm instead of a division by zero."""
+
+
+def ellipse_reach(cov_ne: tuple[float, float, float], dn: float, de: float) -> float:
+    """How far the 1σ ellipse of the covariance (C_NN, C_NE, C_EE) reaches from its centre in the
+    direction of (dn, de): 1 / √(uᵀ C⁻¹ u) with u = (dn, de) / ‖(dn, de)‖, the radius of the ellipse
+    xᵀ C⁻¹ x = 1 along u. With C⁻¹ = adj(C) / det(C), adj(C) = [[C_EE, −C_NE], [−C_NE, C_NN]]::
+
+        reach² = det(C) ‖d‖² / (C_EE dn² − 2 C_NE dn de + C_NN de²)
+
+    (the semi-major axis along the major axis, the semi-minor across it, σ for a circle). 0 for a zero
+    direction."""
+    nn, ne, ee = cov_ne[0] + ELLIPSE_EPS_M2, cov_ne[1], cov_ne[2] + ELLIPSE_EPS_M2
+    d2 = dn * dn + de * de
+    q = ee * dn * dn - 2.0 * ne * dn * de + nn * de * de
+    if d2 == 0.0 or q <= 0.0:
+        return 0.0
+    return math.sqrt(max(nn * ee - ne * ne, 0.0) * d2 / q)
+
+
 class Prediction(NamedTuple):
     """Where the observer expects the next value (N, E) or (ψ,), and how long since the estimate last had
     a measurement of that DOF (s): an old prediction is trusted less, and not at all past a limit.
@@ -293,15 +315,31 @@ class ReferenceMonitor:
         return r is not None and r.state.usable
 
     def beyond_prediction_gate(
-        self, role: str, value: tuple[float, ...], predicted: tuple[float, ...], sigma: float | None = None
+        self,
+        role: str,
+        value: tuple[float, ...],
+        predicted: tuple[float, ...],
+        cov_ne: tuple[float, float, float] | None = None,
     ) -> str:
         """Whether ``value`` lies outside the prediction test's gate around ``predicted`` (the gate
-        without its growth with age, plus 3σ when given), in words for an event ("6.2 m from the
-        dead-reckoned estimate (gate 5 m)"); "" inside. What the pipeline asks of a reference that comes
-        back after an outage (`Pipeline._reacquire`)."""
+        without its growth with age, grown by the 3σ error ellipse of the position's covariance
+        ``cov_ne`` = (C_NN, C_NE, C_EE) when given), in words for an event ("6.2 m from the dead-reckoned
+        estimate (gate 5 m)"); "" inside. What the pipeline asks of a reference that comes back after an
+        outage (`Pipeline._reacquire`).
+
+        With the covariance the gate is the fixed gate g plus the reach of the 3σ ellipse in the
+        innovation's direction u = d / ‖d‖ (`ellipse_reach`)::
+
+            ‖d‖ ≤ g + 3 / √(uᵀ C⁻¹ u)
+
+        which for g = 0 is the Mahalanobis test dᵀ C⁻¹ d ≤ 3², and for a circle C = σ² I the gate g + 3σ
+        of a scalar σ: a fix off along the receiver's narrow axis is caught sooner than one off along its
+        wide axis."""
         lim = self._limits[role]
-        gate = lim.gate + 3 * (sigma or 0.0)
         off = divergence(value, predicted, angle=role == "heading")
+        gate = lim.gate
+        if cov_ne is not None and off > gate:
+            gate += 3.0 * ellipse_reach(cov_ne, value[0] - predicted[0], value[1] - predicted[1])
         if off <= gate:
             return ""
         return f"{self._fmt(off, lim)} from the dead-reckoned estimate (gate {self._fmt(gate, lim)})"
