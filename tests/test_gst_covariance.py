@@ -84,9 +84,9 @@ def test_equal_axes_are_a_circle_whatever_the_orientation(a: float, theta: float
 
 
 def test_a_real_receivers_ellipse_gives_its_own_latitude_and_longitude_sigmas() -> None:
-    """Septentrio PolaRx2 (gpsd's log): an ellipse 80 times longer than wide, 1.8° off north. Its marginals
-    are the sentence's σ lat / σ lon to the print resolution (3 decimals of m and °), which fixes θ as measured from
-    north: from east they would be swapped (σ_N ≈ 10.7 m, σ_E ≈ 317.6 m)."""
+    """Septentrio PolaRx2 (gpsd's log): an ellipse 80 times longer than wide, 1.8° off north. Its
+    marginals are the sentence's σ lat / σ lon to the print resolution (3 decimals of m and °), which
+    fixes θ as measured from north: from east they would be swapped (σ_N ≈ 10.7 m, σ_E ≈ 317.6 m)."""
     data = log_bytes(need(GPSD / "polarx2.log"))
     gsts = [s for line in data.decode().splitlines() if "GST" in line and isinstance(s := decode(line), Gst)]
     assert len(gsts) == 5
