@@ -52,6 +52,8 @@ Array = NDArray[np.float64]
 NS = 1_000_000_000
 HEADING_HISTORY_NS = 5 * NS
 HEADING_HISTORY_MAX = 512  # and at most this many (a 50 Hz gyro fills 250 in 5 s; replay feeds far faster)
+SHAPE_FLOOR = 0.01
+"""Added to both axes of a GST ellipse's unit shape before it shapes a pooling weight (`_shaped_mean`)."""
 FEEDBACK_TIMEOUT_NS = 2 * NS
 """Thruster feedback older than this is not used for τ (the demand is, as without feedback)."""
 
@@ -315,12 +317,55 @@ class Fusion:
         if len(use) == 1:  # one source: its numbers exactly (a weighted mean of one is not bit-exact)
             north, east = newest.value, use[0][1]
         else:
-            w = sum(v[3] for v in use)
-            north = sum(v[3] * v[0].value for v in use) / w
-            east = sum(v[3] * v[1] for v in use) / w
+            shaped = self._shaped_mean(use, now_ns) if self._cov else None
+            if shaped is not None:
+                north, east = shaped
+            else:
+                w = sum(v[3] for v in use)
+                north = sum(v[3] * v[0].value for v in use) / w
+                east = sum(v[3] * v[1] for v in use) / w
         self._north = Held(north, newest.rx_ns, lead.source, lead.priority, newest.valid_ns)
         self._east = Held(east, newest.rx_ns, lead.source, lead.priority, newest.valid_ns)
         self._quality = min(v[2] for v in use) if len(use) > 1 else use[0][2]
+
+    def _shaped_mean(self, use: list, now_ns: int) -> tuple[float, float] | None:
+        """The weighted mean of the pooled fixes with each source's GST error ellipse as the shape of its
+        weight; None when no pooled source has a fresh GST covariance (the scalar mean then).
+
+        Source i counts with the information matrix Wᵢ = wᵢ Sᵢ⁻¹: wᵢ its pooling weight (the inverse
+        measured variance, as without GST) and Sᵢ the shape of its covariance Cᵢ — scaled to a unit RMS
+        σ, Ĉ = Cᵢ / (tr Cᵢ / 2), with `SHAPE_FLOOR` added to both axes (Sᵢ = (Ĉ + f I) / (1 + f)) so that
+        no ellipse is thinner than about 14:1 in σ and no source takes all the weight across its narrow
+        axis; S = I for a source without GST or with a zero covariance, and for a circle. The pooled
+        position is x = (Σ Wᵢ)⁻¹ Σ Wᵢ xᵢ, the information-weighted mean. So the measured spread still
+        says how much a source counts and the receiver's ellipse only in which direction: two receivers
+        with crossed ellipses each supply their good axis, and with circles it is the scalar mean."""
+        cov = self._cov
+        if not any(v[0].source in cov and now_ns <= cov[v[0].source][1] for v in use):
+            return None
+        a = b = c = hn = he = 0.0  # Σ W = [[a, b], [b, c]], Σ W x = (hn, he)
+        f = SHAPE_FLOOR
+        for v in use:
+            w, n, e = v[3], v[0].value, v[1]
+            held = cov.get(v[0].source)
+            half_trace = 0.0
+            if held is not None and now_ns <= held[1]:
+                (nn, ne, ee), _ = held
+                half_trace = (nn + ee) / 2.0
+            if half_trace > 0.0:
+                k = 1.0 / (half_trace * (1.0 + f))
+                snn, sne, see = (nn / half_trace + f) / (1.0 + f), ne * k, (ee / half_trace + f) / (1.0 + f)
+                det = snn * see - sne * sne
+                wnn, wne, wee = w * see / det, -w * sne / det, w * snn / det
+            else:
+                wnn, wne, wee = w, 0.0, w
+            a += wnn
+            b += wne
+            c += wee
+            hn += wnn * n + wne * e
+            he += wne * n + wee * e
+        det = a * c - b * b
+        return (c * hn - b * he) / det, (a * he - b * hn) / det
 
     def _pool_heading(self, now_ns: int) -> Held:
         key = (now_ns, self._hdg_changes, self.pooling)

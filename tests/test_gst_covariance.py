@@ -11,8 +11,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from gateway.fusion import SHAPE_FLOOR, Fusion
 from gateway.pipeline import RawEvent
 from gateway.references.monitor import ELLIPSE_EPS_M2, ellipse_reach
+from observers.vessel import load_vessel
 from tests.test_nmea_decode import GPSD, log_bytes, need
 from tests.test_pipeline import T0, S, gga_at, nmea_src, pipeline
 from wire.codecs import nmea_encode as enc
@@ -261,3 +263,84 @@ def test_the_reacquisition_gate_is_wider_along_the_receivers_wide_axis() -> None
     circle = (sigma**2, 0.0, sigma**2)
     assert m.beyond_prediction_gate("position", (r, -r), (0.0, 0.0), cov_ne=circle) == ""
     assert m.beyond_prediction_gate("position", (r, -r), (0.0, 0.0)) != ""  # no covariance: the fixed gate
+
+
+# ---------------------------------------------------------------------------------------------- pooling
+
+
+def _pooled(fusion: Fusion, now: int) -> tuple[float, float]:
+    y, valid = fusion.measurement(now)
+    assert valid[0] and valid[1]
+    return float(y[0]), float(y[1])
+
+
+def test_pooling_takes_each_receivers_good_axis_from_its_ellipse() -> None:
+    """Two receivers, equally weighted by their measured spread: A long north-south at (0, 0), B long
+    east-west at (2, 2). Pooled with their ellipses as the shape of their weights, the position takes its
+    north from B and its east from A (the information-weighted mean, checked against matrices); without
+    GST it is the plain mean (1, 1), as it was."""
+    vessel = load_vessel("mss_supply")
+    f = Fusion(vessel)
+    valid = 10 * S
+    f.use_position(T0, 0.0, 0.0, "a", 1, valid, weight=4.0)
+    f.use_position(T0, 2.0, 2.0, "b", 2, valid, weight=4.0)
+    assert _pooled(f, T0 + 1) == (1.0, 1.0)
+    ca = ellipse_covariance_ne(3.0, 0.3, 0.0)
+    cb = ellipse_covariance_ne(3.0, 0.3, math.pi / 2)
+    f.add_position_covariance(T0, ca, "a", valid)
+    f.add_position_covariance(T0, cb, "b", valid)
+    f.use_position(T0 + 2, 2.0, 2.0, "b", 2, valid, weight=4.0)  # (a change: pooled again)
+    n, e = _pooled(f, T0 + 2)
+    assert n > 1.9 and e < 0.1
+
+    def info(c: tuple[float, float, float]) -> np.ndarray:
+        m = as_matrix(*c) / ((c[0] + c[2]) / 2)
+        return 4.0 * np.linalg.inv((m + SHAPE_FLOOR * np.eye(2)) / (1 + SHAPE_FLOOR))
+
+    wa, wb = info(ca), info(cb)
+    expected = np.linalg.solve(wa + wb, wb @ np.array([2.0, 2.0]))
+    assert (n, e) == pytest.approx(tuple(expected), abs=1e-12)
+    # a circle shapes nothing: the scalar mean again; a stale covariance is not used
+    f.add_position_covariance(T0, (0.25, 0.0, 0.25), "a", valid)
+    f.add_position_covariance(T0, (0.25, 0.0, 0.25), "b", valid)
+    f.use_position(T0 + 3, 2.0, 2.0, "b", 2, valid, weight=4.0)
+    assert _pooled(f, T0 + 3) == pytest.approx((1.0, 1.0), abs=1e-12)
+    f.add_position_covariance(T0, ca, "a", S)
+    f.add_position_covariance(T0, cb, "b", S)
+    f.use_position(T0 + 2 * S, 2.0, 2.0, "b", 2, valid, weight=4.0)
+    assert _pooled(f, T0 + 2 * S) == (1.0, 1.0)
+
+
+@given(
+    st.lists(
+        st.tuples(
+            st.floats(-50, 50), st.floats(-50, 50), st.floats(0.01, 100.0),
+            st.one_of(st.none(), st.tuples(st.floats(0.0, 10.0), st.floats(0.0, 10.0), angles)),
+        ),
+        min_size=2, max_size=4,
+    )
+)  # fmt: skip
+def test_the_shaped_pooled_position_is_the_information_weighted_mean(
+    fixes: list[tuple[float, float, float, tuple[float, float, float] | None]],
+) -> None:
+    """Whatever the ellipses (lines, zeros, circles, none): the pooled position is (Σ Wᵢ)⁻¹ Σ Wᵢ xᵢ of
+    the matrices (a numpy reference beside the scalar kernel), and fixes that agree pool to that point."""
+    vessel = load_vessel("mss_supply")
+    f, same = Fusion(vessel), Fusion(vessel)
+    total, moment = np.zeros((2, 2)), np.zeros(2)
+    for i, (n, e, w, ell) in enumerate(fixes):
+        shape = np.eye(2)
+        if ell is not None:
+            c = ellipse_covariance_ne(*ell)
+            f.add_position_covariance(T0, c, str(i), 10 * S)
+            same.add_position_covariance(T0, c, str(i), 10 * S)
+            if c[0] + c[2] > 0:
+                shape = (as_matrix(*c) / ((c[0] + c[2]) / 2) + SHAPE_FLOOR * np.eye(2)) / (1 + SHAPE_FLOOR)
+        f.use_position(T0, n, e, str(i), i, 10 * S, weight=w)
+        same.use_position(T0, 3.0, -4.0, str(i), i, 10 * S, weight=w)
+        wi = w * np.linalg.inv(shape)
+        total += wi
+        moment += wi @ np.array([n, e])
+    expected = np.linalg.solve(total, moment)
+    assert _pooled(f, T0) == pytest.approx(tuple(expected), abs=1e-9 * (1 + np.abs(expected).max()))
+    assert _pooled(same, T0) == pytest.approx((3.0, -4.0), abs=1e-12)
