@@ -16,7 +16,8 @@ Pure numerics (no I/O, no clocks: times come with the data), shared by the live 
 - **Position covariance.** A GST's horizontal covariance (north/east, from its error ellipse when it has
   one: `wire.gst_covariance`) belongs to the fixes of its own source and holds, like a measurement, until
   it is older than that source's timeout: receivers send GST after (not with) each GGA, often at a lower
-  rate, so a fix must not clear it.
+  rate, so a fix must not clear it. Its shape (not its size) shapes the source's pooling weight
+  (`Fusion._shaped_mean`).
 - **τ** for the observer: Σ B(αᵢ) Tᵢ over the thrusters' reported thrust and azimuth (the configuration
   matrix, `VesselModel.configuration_matrix`); without feedback, the demand (set by the controller or a
   manual τ). A thrust is fresh for its source's ``timeout_s`` (the time after which `/status` calls that
@@ -47,13 +48,12 @@ from numpy.typing import ArrayLike, NDArray
 from observers.kinematics import ssa_scalar
 from observers.vessel import Thruster, VesselModel
 from wire.geodesy import LocalFrame
+from wire.gst_covariance import unit_shape
 
 Array = NDArray[np.float64]
 NS = 1_000_000_000
 HEADING_HISTORY_NS = 5 * NS
 HEADING_HISTORY_MAX = 512  # and at most this many (a 50 Hz gyro fills 250 in 5 s; replay feeds far faster)
-SHAPE_FLOOR = 0.01
-"""Added to both axes of a GST ellipse's unit shape before it shapes a pooling weight (`_shaped_mean`)."""
 FEEDBACK_TIMEOUT_NS = 2 * NS
 """Thruster feedback older than this is not used for τ (the demand is, as without feedback)."""
 
@@ -334,29 +334,25 @@ class Fusion:
 
         Source i counts with the information matrix Wᵢ = wᵢ Sᵢ⁻¹: wᵢ its pooling weight (the inverse
         measured variance, as without GST) and Sᵢ the shape of its covariance Cᵢ — scaled to a unit RMS
-        σ, Ĉ = Cᵢ / (tr Cᵢ / 2), with `SHAPE_FLOOR` added to both axes (Sᵢ = (Ĉ + f I) / (1 + f)) so that
-        no ellipse is thinner than about 14:1 in σ and no source takes all the weight across its narrow
-        axis; S = I for a source without GST or with a zero covariance, and for a circle. The pooled
-        position is x = (Σ Wᵢ)⁻¹ Σ Wᵢ xᵢ, the information-weighted mean. So the measured spread still
-        says how much a source counts and the receiver's ellipse only in which direction: two receivers
-        with crossed ellipses each supply their good axis, and with circles it is the scalar mean."""
+        σ, Ĉ = Cᵢ / (tr Cᵢ / 2), with a floor added to both axes (Sᵢ = (Ĉ + f I) / (1 + f),
+        `wire.gst_covariance.unit_shape`) so that no source takes all the weight across a needle-thin
+        ellipse's narrow axis; S = I for a source without GST or with a zero covariance, and for a circle.
+        The pooled position is x = (Σ Wᵢ)⁻¹ Σ Wᵢ xᵢ, the information-weighted mean. So the measured
+        spread still says how much a source counts and the receiver's ellipse only in which direction:
+        two receivers with crossed ellipses each supply their good axis; with circles it is the scalar
+        mean."""
         cov = self._cov
         if not any(v[0].source in cov and now_ns <= cov[v[0].source][1] for v in use):
             return None
         a = b = c = hn = he = 0.0  # Σ W = [[a, b], [b, c]], Σ W x = (hn, he)
-        f = SHAPE_FLOOR
         for v in use:
             w, n, e = v[3], v[0].value, v[1]
             held = cov.get(v[0].source)
-            half_trace = 0.0
-            if held is not None and now_ns <= held[1]:
-                (nn, ne, ee), _ = held
-                half_trace = (nn + ee) / 2.0
-            if half_trace > 0.0:
-                k = 1.0 / (half_trace * (1.0 + f))
-                snn, sne, see = (nn / half_trace + f) / (1.0 + f), ne * k, (ee / half_trace + f) / (1.0 + f)
-                det = snn * see - sne * sne
-                wnn, wne, wee = w * see / det, -w * sne / det, w * snn / det
+            shape = unit_shape(held[0]) if held is not None and now_ns <= held[1] else None
+            if shape is not None:  # W = w S⁻¹
+                snn, sne, see = shape
+                k = w / (snn * see - sne * sne)
+                wnn, wne, wee = see * k, -sne * k, snn * k
             else:
                 wnn, wne, wee = w, 0.0, w
             a += wnn

@@ -52,7 +52,7 @@ from wire.codecs import nmea as nmea_codec
 from wire.codecs.nmea_framing import NmeaFramer
 from wire.foxglove import ellipsoidal_height_m, location_fix
 from wire.geodesy import LocalFrame
-from wire.gst_covariance import INCONSISTENT, GstCovariance, gst_covariance
+from wire.gst_covariance import INCONSISTENT, GstCovariance, gst_covariance, unit_shape
 from wire.messages import (
     CommandStatus,
     Datum,
@@ -685,7 +685,9 @@ class Pipeline:
         if self._foxglove_on:
             self._location_fix(spec.name, rx_ns, lat, lon, out)
         pred = self._prediction(rx_ns, 0)
-        if self.monitor.position(spec.name, rx_ns, ned[0], ned[1], quality, pred):
+        cov = self._fix_cov.get(spec.name)  # its GST's shape, while fresh (`wire.gst_covariance.unit_shape`)
+        shape = unit_shape((cov[1].nn, cov[1].ne, cov[1].ee)) if cov is not None and rx_ns <= cov[0] else None
+        if self.monitor.position(spec.name, rx_ns, ned[0], ned[1], quality, pred, shape):
             weight = self.monitor.weight("position", spec.name) if "position" in self._pooled else 1.0
             q = 1 if quality is None else quality
             self.fusion.use_position(rx_ns, *ned, spec.name, spec.priority, spec.timeout_ns, q, weight)

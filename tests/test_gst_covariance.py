@@ -11,9 +11,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from gateway.fusion import SHAPE_FLOOR, Fusion
+from gateway.fusion import Fusion
 from gateway.pipeline import RawEvent
-from gateway.references.monitor import ELLIPSE_EPS_M2, ellipse_reach
+from gateway.references import ReferenceMonitor
+from gateway.references.monitor import ELLIPSE_EPS_M2, Prediction, ellipse_reach
 from observers.vessel import load_vessel
 from tests.test_nmea_decode import GPSD, log_bytes, need
 from tests.test_pipeline import T0, S, gga_at, nmea_src, pipeline
@@ -23,8 +24,10 @@ from wire.gst_covariance import (
     AXES,
     ELLIPSE,
     INCONSISTENT,
+    SHAPE_FLOOR,
     ellipse_covariance_ne,
     gst_covariance,
+    unit_shape,
 )
 
 sigmas = st.floats(0.0, 1e3, allow_subnormal=False)
@@ -344,3 +347,34 @@ def test_the_shaped_pooled_position_is_the_information_weighted_mean(
     expected = np.linalg.solve(total, moment)
     assert _pooled(f, T0) == pytest.approx(tuple(expected), abs=1e-9 * (1 + np.abs(expected).max()))
     assert _pooled(same, T0) == pytest.approx((3.0, -4.0), abs=1e-12)
+
+
+def _monitor_with_spread() -> ReferenceMonitor:
+    """A pipeline's reference monitor whose DGPS has scattered 1 m (1σ, measured) for 12 fixes."""
+    m = pipeline([nmea_src("gps", ["position", "heading"])]).monitor
+    for k in range(12):
+        assert m.position("gps", T0 + k * S // 10, 0.0, 2.0 * (k % 2), 1, None)
+    assert m.sigma_m("gps") == pytest.approx(1.0)
+    return m
+
+
+@pytest.mark.parametrize(
+    ("innovation", "isotropic", "shaped"),
+    [((8.6, 0.0), False, True), ((0.0, 6.0), True, False), ((0.0, 4.9), True, True)],
+)
+def test_the_prediction_test_is_shaped_by_the_receivers_ellipse(
+    innovation: tuple[float, float], isotropic: bool, shaped: bool
+) -> None:
+    """The gate g + 3σ (σ the measured spread, about 1 m: 8 m) becomes g + 3σ·reach of the unit shape of
+    a GST ellipse long north-south (3 m by 0.1 m): about 9.2 m to the north, 5.3 m to the east, so a fix
+    8.6 m north of the prediction passes and one 6 m east does not; inside the fixed gate both pass."""
+    fix = (0.0, 1.0)
+    pred = Prediction((fix[0] - innovation[0], fix[1] - innovation[1]), 0.0)
+    shape = unit_shape(ellipse_covariance_ne(3.0, 0.1, 0.0))
+    assert shape is not None
+    assert _monitor_with_spread().position("gps", T0 + 2 * S, *fix, 1, pred) is isotropic
+    assert _monitor_with_spread().position("gps", T0 + 2 * S, *fix, 1, pred, shape) is shaped
+    # a circle is no shape: the isotropic test to the bit
+    circle = unit_shape((0.3, 0.0, 0.3))
+    assert circle == pytest.approx((1.0, 0.0, 1.0))
+    assert _monitor_with_spread().position("gps", T0 + 2 * S, *fix, 1, pred, circle) is isotropic

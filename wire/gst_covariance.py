@@ -102,3 +102,21 @@ def gst_covariance(g: Gst) -> GstCovariance | None:
     if lat is None or lon is None:
         return None
     return GstCovariance(lat * lat, 0.0, lon * lon, uu, AXES)
+
+
+SHAPE_FLOOR: Final = 0.01
+"""Added to both axes of an ellipse's unit shape (`unit_shape`): no shape thinner than about 14:1 in σ."""
+
+
+def unit_shape(cov_ne: tuple[float, float, float]) -> tuple[float, float, float] | None:
+    """The shape of a horizontal covariance without its size: (Ĉ + f I) / (1 + f) with Ĉ = C / (tr C / 2)
+    (unit RMS σ, the trace of I) and f = `SHAPE_FLOOR`, so that a line or a needle-thin ellipse does not
+    make one axis count infinitely; I for a circle; None for a zero covariance (no shape). What lets a
+    receiver's ellipse say in which direction its fixes are good while dpgw's measured spread of the same
+    fixes says how good (the pooling weights, the prediction test: docs/integrity.md)."""
+    nn, ne, ee = cov_ne
+    half_trace = (nn + ee) / 2.0
+    if not half_trace > 0.0:
+        return None
+    k = 1.0 / (half_trace * (1.0 + SHAPE_FLOOR))
+    return (nn + SHAPE_FLOOR * half_trace) * k, ne * k, (ee + SHAPE_FLOOR * half_trace) * k

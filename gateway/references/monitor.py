@@ -163,8 +163,11 @@ class ReferenceMonitor:
         east: float,
         quality: int | None,
         pred: Prediction | None,
+        shape_ne: tuple[float, float, float] | None = None,
     ) -> bool:
-        """Test one fix (reference point, local NED). Returns whether it may be used."""
+        """Test one fix (reference point, local NED). Returns whether it may be used. ``shape_ne``: the
+        unit shape of the source's GST error ellipse (`wire.gst_covariance.unit_shape`), which turns the
+        prediction test's 3σ of the measured spread into an ellipse of the same size (below)."""
         ref = self._refs["position"][source]
         if quality is not None and quality not in self.p.gga_quality:
             name = GGA_QUALITY_NAMES.get(quality, "")
@@ -173,7 +176,7 @@ class ReferenceMonitor:
         if not (math.isfinite(north) and math.isfinite(east)):
             ref.state.fail(now_ns, "position not finite")
             return False
-        return self._check(ref, "position", now_ns, (north, east), pred)
+        return self._check(ref, "position", now_ns, (north, east), pred, shape_ne)
 
     def heading(self, source: str, now_ns: int, psi: float, pred: Prediction | None) -> bool:
         """Test one heading (rad). Returns whether it may be used."""
@@ -188,8 +191,20 @@ class ReferenceMonitor:
         return f"{x * lim.scale:.3g} {lim.unit}"
 
     def _check(
-        self, ref: _Ref, role: str, now_ns: int, v: tuple[float, ...], pred: Prediction | None
+        self,
+        ref: _Ref,
+        role: str,
+        now_ns: int,
+        v: tuple[float, ...],
+        pred: Prediction | None,
+        shape_ne: tuple[float, float, float] | None = None,
     ) -> bool:
+        """The tests in order (module docstring). The prediction test's gate is g + 3σ + growth·age with σ
+        the source's measured spread; with the unit shape S of its GST ellipse (trace 2, as I's) the 3σ
+        becomes the reach of the ellipse σ² S toward the innovation d (`ellipse_reach`): a
+        Mahalanobis test dᵀ (σ² S)⁻¹ d ≤ 3² widened by the fixed gate and the growth, as
+        `beyond_prediction_gate` does with the covariance itself. The spread still sets the size: S only
+        says in which direction the receiver's fixes scatter more."""
         tr, st, lim = ref.track, ref.state, ref.limits
         if tr.good is not None:
             dt = (now_ns - tr.good_ns) / NS
@@ -210,8 +225,11 @@ class ReferenceMonitor:
             st.fail(now_ns, f"variance: measured 1σ {sigma:.2f} m (limit {lim.max_sigma:g} m)")
             return False
         if pred is not None and pred.age_s <= self.p.prediction_max_age_s:
-            limit = lim.gate + 3 * (sigma or 0.0) + lim.grow * pred.age_s
             innov = tr.distance(v, pred.value)
+            spread = sigma or 0.0
+            if shape_ne is not None and spread:
+                spread *= ellipse_reach(shape_ne, v[0] - pred.value[0], v[1] - pred.value[1])
+            limit = lim.gate + 3 * spread + lim.grow * pred.age_s
             if innov > limit:
                 fmt = self._fmt
                 st.fail(
