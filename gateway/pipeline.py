@@ -586,7 +586,7 @@ class Pipeline:
             if cov is None:
                 return False
             if cov.origin == INCONSISTENT:  # its ellipse disagrees with its own σ lat / lon: those are used
-                self.counters[spec.name].rejected["gst_ellipse_inconsistent"] += 1
+                self.counters[spec.name].rejected["test_gst_ellipse"] += 1
             self.fusion.add_position_covariance(rx_ns, (cov.nn, cov.ne, cov.ee), spec.name, spec.timeout_ns)
             self._fix_cov[spec.name] = (rx_ns + spec.timeout_ns, cov)
         return False
