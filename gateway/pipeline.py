@@ -927,6 +927,7 @@ class Pipeline:
         if valid[2]:
             measured[2] = now_ns
         names = (fusion.position_sources if valid[0] else ()) + (fusion.heading_sources if valid[2] else ())
+        cov = fusion.position_covariance_ne(now_ns)  # (its GST's; sigma_m is its RMS σ)
         out = [
             Output(
                 "/dp/measurement",
@@ -936,9 +937,10 @@ class Pipeline:
                     valid=valid,
                     sources=_source_names(names),
                     quality=fusion.quality,
-                    sigma_m=fusion.position_sigma_m(now_ns),
+                    sigma_m=None if cov is None else math.sqrt((cov[0] + cov[2]) / 2.0),
                     tau=tau.tolist(),
                     tau_source=tau_source,
+                    covariance_ne_m2=None if cov is None else list(cov),
                 ),
                 now_ns,
             )

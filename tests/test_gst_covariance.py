@@ -231,6 +231,7 @@ def test_the_pipeline_publishes_the_ellipse_and_counts_one_that_disagrees() -> N
     assert ne == pytest.approx(0.0909, abs=1e-4)
     (m,) = [o.payload for o in out if o.topic == "/dp/measurement"]
     assert m["sigma_m"] == pytest.approx(math.sqrt((nn + ee) / 2))
+    assert m["covariance_ne_m2"] == pytest.approx([nn, ne, ee])
     assert p.fusion.position_covariance_ne(T0 + S) == pytest.approx((nn, ne, ee))
     assert not p.counters["gps"].rejected
     # an ellipse that is not its own σ lat / lon: the per-axis σ, diagonal, and counted

@@ -13,17 +13,17 @@ With R(θ) = [[cos θ, −sin θ], [sin θ, cos θ]] in (N, E)::
 
 An axis has no direction: θ and θ + 180° give the same matrix, and a = b is a circle whatever θ. The
 marginals C_NN and C_EE are σ_N² and σ_E², so a receiver that fills both parts of GST gives the same
-figures twice: checked on a Septentrio PolaRx2 log (a = 317.719, b = 3.872, θ = 1.791°: √C_NN = 317.563,
-√C_EE = 10.659, the sentence's σ_lat 317.563 and σ_lon 10.659). The marginals fix which axis θ is
-measured from (from east, σ_N and σ_E would swap) but not its sense, which the sentence's definition
-gives (clockwise, as a bearing).
+figures twice: checked on a Septentrio PolaRx2 log (a = 317.719, b = 3.872, θ = 1.791°: √C_NN = 317.564,
+√C_EE = 10.657, the sentence's σ_lat 317.563 and σ_lon 10.659, within what printing θ to 0.001° moves).
+The marginals fix which axis θ is measured from (from east, σ_N and σ_E would swap) but not its sense,
+which the sentence's definition gives (clockwise, as a bearing).
 
 **Which fields win.** The ellipse when it is complete (a, b and θ, or a = b without θ), because it alone
 has the correlation; its marginals must then agree with σ_N and σ_E when the receiver gives those too,
 within `AGREE_REL` (or `AGREE_ABS_M`, the print resolution of a receiver with one decimal). When they
 disagree the receiver has filled the ellipse with something else (another confidence level, the range
-residuals' ellipse, a stale value): the per-axis σ_N, σ_E win — they are what the fix's per-axis
-precision is everywhere else (gpsd's epx/epy, nmea_navsat_driver's NavSatFix) and what dpgw used before —
+residuals' ellipse, a stale value): the per-axis σ_N, σ_E win — they are the fix's per-axis precision
+itself, what a ROS driver such as nmea_navsat_driver puts on a NavSatFix, and what dpgw used before —
 and the covariance is diagonal, reported as `INCONSISTENT`. Without a complete ellipse: σ_N, σ_E on the
 diagonal. Without either: no covariance. The up variance is σ_U² (0 without it), uncorrelated with the
 horizontal (GST gives no more).
