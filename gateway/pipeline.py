@@ -354,8 +354,9 @@ class Pipeline:
         # per source, the last GGA height and GST covariance, carried on its LocationFix
         self._fix_alt_m: dict[str, float] = {}
         self._fix_time: dict[str, tuple[float, int]] = {}  # source -> (UTC s of day, rx ns) of its last fix
-        # (GST fresh until, covariance): a GST older than the source's timeout no longer describes its fixes
-        self._fix_cov: dict[str, tuple[int, GstCovariance]] = {}
+        # (GST fresh until, covariance, its unit shape): a GST older than the source's timeout no longer
+        # describes its fixes
+        self._fix_cov: dict[str, tuple[int, GstCovariance, tuple[float, float, float] | None]] = {}
         self.foxglove = FoxgloveChannels(spec.vessel)
         self._foxglove_on = spec.foxglove_channels
         cc = spec.control
@@ -587,8 +588,9 @@ class Pipeline:
                 return False
             if cov.origin == INCONSISTENT:  # its ellipse disagrees with its own σ lat / lon: those are used
                 self.counters[spec.name].rejected["test_gst_ellipse"] += 1
-            self.fusion.add_position_covariance(rx_ns, (cov.nn, cov.ne, cov.ee), spec.name, spec.timeout_ns)
-            self._fix_cov[spec.name] = (rx_ns + spec.timeout_ns, cov)
+            ne = (cov.nn, cov.ne, cov.ee)
+            self.fusion.add_position_covariance(rx_ns, ne, spec.name, spec.timeout_ns)
+            self._fix_cov[spec.name] = (rx_ns + spec.timeout_ns, cov, unit_shape(ne))
         return False
 
     def _fix_time_backwards(self, spec: SourceSpec, rx_ns: int, time_s: float) -> bool:
@@ -685,8 +687,8 @@ class Pipeline:
         if self._foxglove_on:
             self._location_fix(spec.name, rx_ns, lat, lon, out)
         pred = self._prediction(rx_ns, 0)
-        cov = self._fix_cov.get(spec.name)  # its GST's shape, while fresh (`wire.gst_covariance.unit_shape`)
-        shape = unit_shape((cov[1].nn, cov[1].ne, cov[1].ee)) if cov is not None and rx_ns <= cov[0] else None
+        held = self._fix_cov.get(spec.name)  # its GST's shape while fresh (`wire.gst_covariance.unit_shape`)
+        shape = held[2] if held is not None and rx_ns <= held[0] else None
         if self.monitor.position(spec.name, rx_ns, ned[0], ned[1], quality, pred, shape):
             weight = self.monitor.weight("position", spec.name) if "position" in self._pooled else 1.0
             q = 1 if quality is None else quality
@@ -1327,8 +1329,8 @@ class Pipeline:
         return out
 
     def _fresh_cov(self, source: str, rx_ns: int) -> GstCovariance | None:
-        until, cov = self._fix_cov.get(source, (0, None))
-        return cov if rx_ns <= until else None
+        held = self._fix_cov.get(source)
+        return held[1] if held is not None and rx_ns <= held[0] else None
 
     def _location_fix(self, source: str, rx_ns: int, lat: float, lon: float, out: list[Output]) -> None:
         """The fix's `foxglove.LocationFix`, onto ``out`` (called with the Foxglove channels on)."""
