@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import socket
 import statistics
 import sys
@@ -33,6 +34,7 @@ from gateway.config import parse_config
 from gateway.outputs.build import sinks_from_config
 from gateway.pipeline import Output
 from wire.foxglove import location_fix
+from wire.gst_covariance import ELLIPSE, GstCovariance, ellipse_covariance_ne
 from wire.messages import Datum, Estimate
 
 VARIANTS = ("off", "ros2", "keelson")
@@ -48,10 +50,13 @@ def estimate(k: int) -> Output:
     return Output("/dp/estimate", e, t)
 
 
+FIX_COVARIANCE = GstCovariance(*ellipse_covariance_ne(0.5, 0.2, math.radians(30.0)), 0.81, ELLIPSE)
+
+
 def fix(k: int) -> Output:
     t = 1_780_000_000_000_000_000 + k * 100_000_000
     return Output(
-        "/gnss/dgps1/fix", location_fix(t, "dgps1", 59.40001, 10.49996, 55.5, (0.3, 0.4, 0.9)), t, zenoh=False
+        "/gnss/dgps1/fix", location_fix(t, "dgps1", 59.40001, 10.49996, 55.5, FIX_COVARIANCE), t, zenoh=False
     )
 
 

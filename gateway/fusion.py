@@ -13,9 +13,11 @@ Pure numerics (no I/O, no clocks: times come with the data), shared by the live 
   position injection in proportion to the step rate.
 - **Source priority.** Of several sources with the same role, the one with the lowest ``priority`` that is
   fresh is used (failover); a fix from a lower-ranked source is ignored while a better one is fresh.
-- **Position sigma.** A GST's 1σ horizontal error belongs to the fixes of its own source and holds, like a
-  measurement, until it is older than that source's timeout: receivers send GST after (not with) each GGA,
-  often at a lower rate, so a fix must not clear it.
+- **Position covariance.** A GST's horizontal covariance (north/east, from its error ellipse when it has
+  one: `wire.gst_covariance`) belongs to the fixes of its own source and holds, like a measurement, until
+  it is older than that source's timeout: receivers send GST after (not with) each GGA, often at a lower
+  rate, so a fix must not clear it. Its shape (not its size) shapes the source's pooling weight
+  (`Fusion._shaped_mean`).
 - **τ** for the observer: Σ B(αᵢ) Tᵢ over the thrusters' reported thrust and azimuth (the configuration
   matrix, `VesselModel.configuration_matrix`); without feedback, the demand (set by the controller or a
   manual τ). A thrust is fresh for its source's ``timeout_s`` (the time after which `/status` calls that
@@ -46,6 +48,7 @@ from numpy.typing import ArrayLike, NDArray
 from observers.kinematics import ssa_scalar
 from observers.vessel import Thruster, VesselModel
 from wire.geodesy import LocalFrame
+from wire.gst_covariance import unit_shape
 
 Array = NDArray[np.float64]
 NS = 1_000_000_000
@@ -120,7 +123,8 @@ class Fusion:
         self._feedback_ok = True
         self._quality = 0
         self._headings: deque[tuple[int, float]] = deque(maxlen=HEADING_HISTORY_MAX)
-        self._sigma: dict[str, Held] = {}  # source -> its latest GST sigma (m), valid like a measurement
+        # source -> (its latest GST covariance (C_NN, C_NE, C_EE; m²), valid until ns): like a measurement
+        self._cov: dict[str, tuple[tuple[float, float, float], int]] = {}
         self._thrust: dict[int, ThrusterFeedback] = {}
         self._thrust_timeout: dict[int, int] = {}  # thruster id -> the timeout of the source that reported it
         # τ from feedback is a function of what is held and which of it is fresh: the last one, keyed by
@@ -313,12 +317,51 @@ class Fusion:
         if len(use) == 1:  # one source: its numbers exactly (a weighted mean of one is not bit-exact)
             north, east = newest.value, use[0][1]
         else:
-            w = sum(v[3] for v in use)
-            north = sum(v[3] * v[0].value for v in use) / w
-            east = sum(v[3] * v[1] for v in use) / w
+            shaped = self._shaped_mean(use, now_ns) if self._cov else None
+            if shaped is not None:
+                north, east = shaped
+            else:
+                w = sum(v[3] for v in use)
+                north = sum(v[3] * v[0].value for v in use) / w
+                east = sum(v[3] * v[1] for v in use) / w
         self._north = Held(north, newest.rx_ns, lead.source, lead.priority, newest.valid_ns)
         self._east = Held(east, newest.rx_ns, lead.source, lead.priority, newest.valid_ns)
         self._quality = min(v[2] for v in use) if len(use) > 1 else use[0][2]
+
+    def _shaped_mean(self, use: list, now_ns: int) -> tuple[float, float] | None:
+        """The weighted mean of the pooled fixes with each source's GST error ellipse as the shape of its
+        weight; None when no pooled source has a fresh GST covariance (the scalar mean then).
+
+        Source i counts with the information matrix Wᵢ = wᵢ Sᵢ⁻¹: wᵢ its pooling weight (the inverse
+        measured variance, as without GST) and Sᵢ the shape of its covariance Cᵢ — scaled to a unit RMS
+        σ, Ĉ = Cᵢ / (tr Cᵢ / 2), with a floor added to both axes (Sᵢ = (Ĉ + f I) / (1 + f),
+        `wire.gst_covariance.unit_shape`) so that no source takes all the weight across a needle-thin
+        ellipse's narrow axis; S = I for a source without GST or with a zero covariance, and for a circle.
+        The pooled position is x = (Σ Wᵢ)⁻¹ Σ Wᵢ xᵢ, the information-weighted mean. So the measured
+        spread still says how much a source counts and the receiver's ellipse only in which direction:
+        two receivers with crossed ellipses each supply their good axis; with circles it is the scalar
+        mean."""
+        cov = self._cov
+        if not any(v[0].source in cov and now_ns <= cov[v[0].source][1] for v in use):
+            return None
+        a = b = c = hn = he = 0.0  # Σ W = [[a, b], [b, c]], Σ W x = (hn, he)
+        for v in use:
+            w, n, e = v[3], v[0].value, v[1]
+            held = cov.get(v[0].source)
+            shape = unit_shape(held[0]) if held is not None and now_ns <= held[1] else None
+            if shape is not None:  # W = w S⁻¹
+                snn, sne, see = shape
+                k = w / (snn * see - sne * sne)
+                wnn, wne, wee = see * k, -sne * k, snn * k
+            else:
+                wnn, wne, wee = w, 0.0, w
+            a += wnn
+            b += wne
+            c += wee
+            hn += wnn * n + wne * e
+            he += wne * n + wee * e
+        det = a * c - b * b
+        return (c * hn - b * he) / det, (a * he - b * hn) / det
 
     def _pool_heading(self, now_ns: int) -> Held:
         key = (now_ns, self._hdg_changes, self.pooling)
@@ -357,18 +400,30 @@ class Fusion:
         """The sources pooled into the latest heading."""
         return self._heading_sources
 
-    def add_position_sigma(self, rx_ns: int, sigma_m: float, source: str, valid_ns: int) -> None:
-        """A source's horizontal 1σ position error (m, from GST), valid for ``valid_ns`` after ``rx_ns``."""
-        if math.isfinite(sigma_m) and sigma_m >= 0:
-            self._sigma[source] = Held(sigma_m, rx_ns, source, 0, valid_ns)
+    def add_position_covariance(
+        self, rx_ns: int, cov_ne: tuple[float, float, float], source: str, valid_ns: int
+    ) -> None:
+        """A source's horizontal position covariance (C_NN, C_NE, C_EE; m², from GST), valid for
+        ``valid_ns`` after ``rx_ns``. One that is no covariance (a negative or non-finite variance, a
+        correlation beyond ±1) is not kept."""
+        nn, ne, ee = cov_ne
+        if nn >= 0.0 and ee >= 0.0 and ne * ne <= nn * ee * (1.0 + 1e-9) and math.isfinite(nn + ne + ee):
+            self._cov[source] = (cov_ne, rx_ns + valid_ns)
+
+    def position_covariance_ne(self, now_ns: int) -> tuple[float, float, float] | None:
+        """The horizontal covariance (C_NN, C_NE, C_EE; m²) of the position in use: its source's GST
+        covariance while both are fresh, else None."""
+        pos = self._north
+        held = self._cov.get(pos.source)  # (no GST from this source: the common case, asked every step)
+        if held is None or now_ns > held[1] or not pos.fresh(now_ns):
+            return None
+        return held[0]
 
     def position_sigma_m(self, now_ns: int) -> float | None:
-        """The 1σ error of the position in use: its source's GST sigma while both are fresh, else None."""
-        pos = self._north
-        sigma = self._sigma.get(pos.source)  # (no GST from this source: the common case, asked every step)
-        if sigma is None or not sigma.fresh(now_ns) or not pos.fresh(now_ns):
-            return None
-        return sigma.value
+        """The 1σ error of the position in use, √((C_NN + C_EE) / 2) of `position_covariance_ne` (the RMS
+        of the north and east σ), else None."""
+        cov = self.position_covariance_ne(now_ns)
+        return None if cov is None else math.sqrt((cov[0] + cov[2]) / 2.0)
 
     # --- what the observer gets ----------------------------------------------------------------------------
 

@@ -52,6 +52,7 @@ from wire.codecs import nmea as nmea_codec
 from wire.codecs.nmea_framing import NmeaFramer
 from wire.foxglove import ellipsoidal_height_m, location_fix
 from wire.geodesy import LocalFrame
+from wire.gst_covariance import INCONSISTENT, GstCovariance, gst_covariance, unit_shape
 from wire.messages import (
     CommandStatus,
     Datum,
@@ -350,11 +351,12 @@ class Pipeline:
         self.commands = CommandGate(spec.commands.accept, spec.commands.max_setpoint_distance_m, spec.vessel)
         self.estimate_status: str | None = None  # of the last published estimate (the DP-mode check)
         self._last_fix_ns: dict[str, int] = {}
-        # per source, the last GGA height and GST 1σ (east, north, up), carried on its LocationFix
+        # per source, the last GGA height and GST covariance, carried on its LocationFix
         self._fix_alt_m: dict[str, float] = {}
         self._fix_time: dict[str, tuple[float, int]] = {}  # source -> (UTC s of day, rx ns) of its last fix
-        # (GST fresh until, σ): a GST older than the source's timeout no longer describes its fixes
-        self._fix_sigma_enu_m: dict[str, tuple[int, tuple[float, float, float]]] = {}
+        # (GST fresh until, covariance, its unit shape): a GST older than the source's timeout no longer
+        # describes its fixes
+        self._fix_cov: dict[str, tuple[int, GstCovariance, tuple[float, float, float] | None]] = {}
         self.foxglove = FoxgloveChannels(spec.vessel)
         self._foxglove_on = spec.foxglove_channels
         cc = spec.control
@@ -607,19 +609,15 @@ class Pipeline:
             if "heading" in spec.roles and s.valid and s.heading_rad is not None:
                 return self._use_heading(spec, rx_ns, s.heading_rad)
             return False
-        if (
-            kind is nmea_codec.Gst
-            and "position" in spec.roles
-            and s.sigma_lat_m is not None
-            and s.sigma_lon_m is not None
-        ):
-            # one horizontal 1σ: the RMS of the latitude and longitude sigmas
-            sigma = math.hypot(s.sigma_lat_m, s.sigma_lon_m) / math.sqrt(2)
-            self.fusion.add_position_sigma(rx_ns, sigma, spec.name, spec.timeout_ns)
-            self._fix_sigma_enu_m[spec.name] = (
-                rx_ns + spec.timeout_ns,
-                (s.sigma_lon_m, s.sigma_lat_m, s.sigma_alt_m or 0.0),
-            )
+        if kind is nmea_codec.Gst and "position" in spec.roles:
+            cov = gst_covariance(s)  # the error ellipse in full when it has one (`wire.gst_covariance`)
+            if cov is None:
+                return False
+            if cov.origin == INCONSISTENT:  # its ellipse disagrees with its own σ lat / lon: those are used
+                self.counters[spec.name].rejected["test_gst_ellipse"] += 1
+            ne = (cov.nn, cov.ne, cov.ee)
+            self.fusion.add_position_covariance(rx_ns, ne, spec.name, spec.timeout_ns)
+            self._fix_cov[spec.name] = (rx_ns + spec.timeout_ns, cov, unit_shape(ne))
         return False
 
     def _fix_time_backwards(self, spec: SourceSpec, rx_ns: int, time_s: float) -> bool:
@@ -716,7 +714,9 @@ class Pipeline:
         if self._foxglove_on:
             self._location_fix(spec.name, rx_ns, lat, lon, out)
         pred = self._prediction(rx_ns, 0)
-        if self.monitor.position(spec.name, rx_ns, ned[0], ned[1], quality, pred):
+        held = self._fix_cov.get(spec.name)  # its GST's shape while fresh (`wire.gst_covariance.unit_shape`)
+        shape = held[2] if held is not None and rx_ns <= held[0] else None
+        if self.monitor.position(spec.name, rx_ns, ned[0], ned[1], quality, pred, shape):
             weight = self.monitor.weight("position", spec.name) if "position" in self._pooled else 1.0
             q = 1 if quality is None else quality
             self.fusion.use_position(rx_ns, *ned, spec.name, spec.priority, spec.timeout_ns, q, weight)
@@ -956,6 +956,7 @@ class Pipeline:
         if valid[2]:
             measured[2] = now_ns
         names = (fusion.position_sources if valid[0] else ()) + (fusion.heading_sources if valid[2] else ())
+        cov = fusion.position_covariance_ne(now_ns)  # (its GST's; sigma_m is its RMS σ)
         out = [
             Output(
                 "/dp/measurement",
@@ -965,9 +966,10 @@ class Pipeline:
                     valid=valid,
                     sources=_source_names(names),
                     quality=fusion.quality,
-                    sigma_m=fusion.position_sigma_m(now_ns),
+                    sigma_m=None if cov is None else math.sqrt((cov[0] + cov[2]) / 2.0),
                     tau=tau.tolist(),
                     tau_source=tau_source,
+                    covariance_ne_m2=None if cov is None else list(cov),
                 ),
                 now_ns,
             )
@@ -1012,9 +1014,9 @@ class Pipeline:
         - back after ``lost_after_s`` (the estimate was reported lost): the observers restart from the
           measurement at once, as at start-up;
         - back after any break (measured now, not at the last step) and inside the prediction gate of
-          the dead-reckoned prediction (``prediction_gate_m`` plus 3σ of the position's GST sigma when
-          known; ``prediction_gate_deg``; without its growth with age): the dead reckoning held, and the
-          observers carry on with the measurement as before the outage;
+          the dead-reckoned prediction (``prediction_gate_m`` grown by the 3σ ellipse of the position's
+          GST covariance when known; ``prediction_gate_deg``; without its growth with age): the dead
+          reckoning held, and the observers carry on with the measurement as before the outage;
         - back outside that gate (after a short break, a fix the prediction test let through only
           because its gate grows with the age; after ``prediction_max_age_s``, any): the DOF is
           re-acquired. Until it has been measured for ``restart_confirm_s`` without a break its
@@ -1028,7 +1030,7 @@ class Pipeline:
           against it.
 
         The gate and its words are the reference monitor's (`ReferenceMonitor.beyond_prediction_gate`),
-        with the pooled position's GST sigma when known.
+        with the pooled position's GST covariance when known.
 
         A restart is `Observer.reset` and the step with y, which initialises the observer as its first
         measurement does (a DOF with no fresh value then takes the prediction's). Announced as a status
@@ -1094,8 +1096,8 @@ class Pipeline:
             return ""
         if dof == 0:
             value = (float(y[0]), float(y[1]))
-            sigma = self.fusion.position_sigma_m(now_ns)
-            return self.monitor.beyond_prediction_gate("position", value, pred.value, sigma)
+            cov = self.fusion.position_covariance_ne(now_ns)
+            return self.monitor.beyond_prediction_gate("position", value, pred.value, cov_ne=cov)
         return self.monitor.beyond_prediction_gate("heading", (float(y[2]),), pred.value)
 
     def _observe(
@@ -1364,9 +1366,9 @@ class Pipeline:
                 out.append("ok" if self.monitor.health("heading") == "ok" else "degraded")
         return out
 
-    def _fresh_sigma(self, source: str, rx_ns: int) -> tuple[float, float, float] | None:
-        until, sigma = self._fix_sigma_enu_m.get(source, (0, None))
-        return sigma if rx_ns <= until else None
+    def _fresh_cov(self, source: str, rx_ns: int) -> GstCovariance | None:
+        held = self._fix_cov.get(source)
+        return held[1] if held is not None and rx_ns <= held[0] else None
 
     def _location_fix(self, source: str, rx_ns: int, lat: float, lon: float, out: list[Output]) -> None:
         """The fix's `foxglove.LocationFix`, onto ``out`` (called with the Foxglove channels on)."""
@@ -1383,7 +1385,7 @@ class Pipeline:
                     lat,
                     lon,
                     self._fix_alt_m.get(source, 0.0),
-                    self._fresh_sigma(source, rx_ns),
+                    self._fresh_cov(source, rx_ns),
                 ),
                 rx_ns,
                 zenoh=False,

@@ -25,6 +25,7 @@ from tests.test_pipeline import T0, S, gga_at, nmea_src, pipeline
 from wire import foxglove as fx
 from wire.codecs import nmea
 from wire.codecs import nmea_encode as enc
+from wire.gst_covariance import ellipse_covariance_ne
 from wire.mcap.reader import read_messages, summary
 from wire.message_schema import json_schema
 from wire.messages import ANY, MESSAGES, message_for_topic
@@ -97,7 +98,7 @@ def test_every_foxglove_channel_decodes_with_the_schema_it_carries(demo_log: Pat
 def test_gnss_fixes_hold_gga_altitude_and_gst_covariance(demo_log: Path) -> None:
     timeout_ns = int(config_from_log(demo_log).sources[0].timeout_s * S)
     # what each GGA's fix must hold, from the raw sentences in the order the gateway took them
-    expected: dict[int, tuple[float, list[float]]] = {}
+    expected: dict[int, tuple[float, list[float], int]] = {}
     gst: tuple[int, nmea.Gst] | None = None
     for _, log_ns, _, raw in read_messages(demo_log, "/raw/nmea/dgps1"):
         for text in raw["text"].splitlines():
@@ -105,12 +106,16 @@ def test_gnss_fixes_hold_gga_altitude_and_gst_covariance(demo_log: Path) -> None
             if isinstance(s, nmea.Gst):
                 gst = (log_ns, s)
             elif isinstance(s, nmea.Gga) and s.valid and log_ns not in expected:
-                cov = [0.0] * 9
+                cov, kind = [0.0] * 9, 0
                 if gst is not None and log_ns - gst[0] <= timeout_ns:
                     g = gst[1]
-                    cov = [g.sigma_lon_m**2, 0, 0, 0, g.sigma_lat_m**2, 0, 0, 0, (g.sigma_alt_m or 0.0) ** 2]
+                    # the simulator's receiver draws a circle: its ellipse, a known covariance (type 3)
+                    # with no east-north term, and the marginals its σ lat / lon
+                    nn, ne, ee = ellipse_covariance_ne(g.sigma_major_m, g.sigma_minor_m, g.orient_rad)
+                    assert (nn, ee) == pytest.approx((g.sigma_lat_m**2, g.sigma_lon_m**2), rel=1e-2)
+                    cov, kind = [ee, ne, 0, ne, nn, 0, 0, 0, (g.sigma_alt_m or 0.0) ** 2], 3
                 alt = (s.alt_m or 0.0) + (s.geoid_sep_m or 0.0)
-                expected[log_ns] = (alt, cov)
+                expected[log_ns] = (alt, cov, kind)
     fixes = list(read_messages(demo_log, "/gnss/dgps1/fix"))
     gga_stamps = sorted(expected)
     # every fix: one for each GGA the gateway took (those after the datum was set)
@@ -118,13 +123,13 @@ def test_gnss_fixes_hold_gga_altitude_and_gst_covariance(demo_log: Path) -> None
     assert len(fixes) >= 60  # a 40 s demo, DGPS at 2 Hz
     with_cov = 0
     for _, log_ns, _, fix in fixes:
-        alt, cov = expected[_ns(fix["timestamp"])]
+        alt, cov, kind = expected[_ns(fix["timestamp"])]
         assert log_ns == _ns(fix["timestamp"])
         assert fix["altitude"] == pytest.approx(alt, abs=1e-9) and alt > 1.0  # the demo's antenna height
         assert fix["position_covariance"] == pytest.approx(cov)
-        assert fix["position_covariance_type"] == (2 if any(cov) else 0)
+        assert fix["position_covariance_type"] == kind
         assert "heading" not in fix  # a GNSS fix has no heading of its own
-        with_cov += fix["position_covariance_type"] == 2
+        with_cov += fix["position_covariance_type"] == 3
     assert with_cov >= len(fixes) - 2  # every fix after the first GST
 
 

@@ -26,6 +26,7 @@ from gateway.pipeline import Output  # noqa: E402
 from gateway.service import GatewayService  # noqa: E402
 from tests.conftest import Recorder, free_port, wait_for  # noqa: E402
 from wire.codecs import nmea_encode as enc  # noqa: E402
+from wire.gst_covariance import ellipse_covariance_ne  # noqa: E402
 from wire.messages import (  # noqa: E402
     Datum,
     Estimate,
@@ -38,7 +39,11 @@ from wire.messages import (  # noqa: E402
 BASE = "keelson"
 ENTITY = "test_ship"
 LAT, LON, ALT, SEP = 59.4, 10.5, 20.0, 35.5
-SIGMA_LAT, SIGMA_LON, SIGMA_ALT = 0.4, 0.3, 0.9
+# the receiver's error ellipse: 0.5 m by 0.2 m, its major axis 30° east of north; σ lat / lon its marginals
+SIGMA_MAJOR, SIGMA_MINOR, ORIENT_DEG = 0.5, 0.2, 30.0
+SIGMA_LAT, SIGMA_LON, SIGMA_ALT = 0.444, 0.304, 0.9
+C_NN, C_NE, C_EE = ellipse_covariance_ne(SIGMA_MAJOR, SIGMA_MINOR, math.radians(ORIENT_DEG))
+ENU_COVARIANCE = [C_EE, C_NE, 0, C_NE, C_NN, 0, 0, 0, SIGMA_ALT**2]  # east, north, up; row-major
 SUBJECTS = {
     "location_fix",
     "heading_true_north_deg",
@@ -113,7 +118,8 @@ def sentences(k: int) -> list[str]:
     return [
         enc.gga("GP", t, LAT + 2e-6 * math.sin(k / 5), LON, 2, 12, 0.8, ALT, SEP).rstrip("\r\n"),
         enc.gst(
-            "GP", t, rms_m=0.5, sigma_major_m=0.4, sigma_minor_m=0.3, orient_rad=0.0,
+            "GP", t, rms_m=0.5, sigma_major_m=SIGMA_MAJOR, sigma_minor_m=SIGMA_MINOR,
+            orient_rad=math.radians(ORIENT_DEG),
             sigma_lat_m=SIGMA_LAT, sigma_lon_m=SIGMA_LON, sigma_alt_m=SIGMA_ALT,
         ).rstrip("\r\n"),
         enc.hdt("HE", 0.5 + 0.01 * math.sin(k / 3)).rstrip("\r\n"),
@@ -254,16 +260,16 @@ def check_values(listener: Listener, recorder: Recorder, sent: list[str]) -> Non
             assert m_sigma[t].value == pytest.approx(m.sigma_m, rel=F32)
     assert m_heading and m_fix and m_sigma
 
-    # the receiver's own fix: GGA's ellipsoidal height, GST's σ as a diagonal ENU covariance
+    # the receiver's own fix: GGA's ellipsoidal height, GST's error ellipse as a full ENU covariance
     for f in listener.of("location_fix", sensor):
         assert f.frame_id == "dgps1"
         assert f.latitude == pytest.approx(LAT, abs=3e-6) and f.longitude == pytest.approx(LON, abs=1e-9)
         assert f.altitude == pytest.approx(ALT + SEP, abs=1e-9)
-        if f.position_covariance_type == f.DIAGONAL_KNOWN:
-            assert list(f.position_covariance) == pytest.approx(
-                [SIGMA_LON**2, 0, 0, 0, SIGMA_LAT**2, 0, 0, 0, SIGMA_ALT**2]
-            )
-    assert any(f.position_covariance_type == f.DIAGONAL_KNOWN for f in listener.of("location_fix", sensor))
+        assert f.position_covariance_type in (f.UNKNOWN, f.KNOWN)
+        if f.position_covariance_type == f.KNOWN:
+            assert list(f.position_covariance) == pytest.approx(ENU_COVARIANCE)
+    assert any(f.position_covariance_type == f.KNOWN for f in listener.of("location_fix", sensor))
+    assert C_NE > 0.09  # (the east-north term is there: the test would see it swapped or dropped)
 
     # raw sentences: every one sent, as sent, in order
     raw = [m.value for m in listener.of("raw_nmea0183", sensor)]

@@ -41,6 +41,7 @@ from gateway.service import GatewayService
 from tests.conftest import Recorder, free_port, wait_for
 from wire import rmw_zenoh as rz
 from wire.codecs import nmea_encode as enc
+from wire.gst_covariance import ellipse_covariance_ne
 from wire.messages import Estimate, LocationFix, Time
 
 # RIHS01 hashes as ROS 2 Jazzy publishes them (rosidl's generated type descriptions; std_msgs/String is
@@ -57,7 +58,11 @@ STRING_HASH = PUBLISHED_HASHES["std_msgs/msg/String"]
 ADD_TWO_INTS_HASH = "RIHS01_e118de6bf5eeb66a2491b5bda11202e7b68f198d6f67922cf30364858239c81a"
 
 LAT, LON, ALT, SEP = 59.4, 10.5, 20.0, 35.5
-SIGMA_LAT, SIGMA_LON, SIGMA_ALT = 0.4, 0.3, 0.9
+# the receiver's error ellipse: 0.5 m by 0.2 m, its major axis 30° east of north; σ lat / lon its marginals
+SIGMA_MAJOR, SIGMA_MINOR, ORIENT_DEG = 0.5, 0.2, 30.0
+SIGMA_LAT, SIGMA_LON, SIGMA_ALT = 0.444, 0.304, 0.9
+C_NN, C_NE, C_EE = ellipse_covariance_ne(SIGMA_MAJOR, SIGMA_MINOR, math.radians(ORIENT_DEG))
+ENU_COVARIANCE = [C_EE, C_NE, 0, C_NE, C_NN, 0, 0, 0, SIGMA_ALT**2]  # east, north, up; row-major
 DOMAIN = 7
 ODOM_KEY = f"{DOMAIN}/dpgw/odom/nav_msgs::msg::dds_::Odometry_/{PUBLISHED_HASHES['nav_msgs/msg/Odometry']}"
 POSE_KEY = (
@@ -268,7 +273,8 @@ def sentences(k: int) -> list[str]:
     return [
         enc.gga("GP", t, LAT + 2e-6 * math.sin(k / 5), LON, 2, 12, 0.8, ALT, SEP).rstrip("\r\n"),
         enc.gst(
-            "GP", t, rms_m=0.5, sigma_major_m=0.4, sigma_minor_m=0.3, orient_rad=0.0,
+            "GP", t, rms_m=0.5, sigma_major_m=SIGMA_MAJOR, sigma_minor_m=SIGMA_MINOR,
+            orient_rad=math.radians(ORIENT_DEG),
             sigma_lat_m=SIGMA_LAT, sigma_lon_m=SIGMA_LON, sigma_alt_m=SIGMA_ALT,
         ).rstrip("\r\n"),
         enc.hdt("HE", 30.0 + 0.02 * math.sin(k / 3)).rstrip("\r\n"),
@@ -436,7 +442,8 @@ def check_samples(
         assert ps.header.frame_id == "ltp" and ps.pose == p
     assert any(o.twist.twist.angular.z != 0.0 for o in odoms)
 
-    # NavSatFix: every receiver fix, GGA's ellipsoidal height, GST's σ in ENU, DGPS status, GPS service
+    # NavSatFix: every receiver fix, GGA's ellipsoidal height, GST's ellipse as a full ENU covariance (the
+    # east-north term where east-north is, east first), DGPS status, GPS service
     fixes = {
         f.timestamp.sec * 1_000_000_000 + f.timestamp.nsec: f
         for f in recorder.of(LocationFix, "/gnss/dgps1/fix")
@@ -452,11 +459,11 @@ def check_samples(
         assert list(n.position_covariance) == list(f.position_covariance)
         assert n.position_covariance_type == f.position_covariance_type
     assert any(
-        n.position_covariance_type == n.COVARIANCE_TYPE_DIAGONAL_KNOWN
-        and list(n.position_covariance)
-        == pytest.approx([SIGMA_LON**2, 0, 0, 0, SIGMA_LAT**2, 0, 0, 0, SIGMA_ALT**2])
+        n.position_covariance_type == n.COVARIANCE_TYPE_KNOWN
+        and list(n.position_covariance) == pytest.approx(ENU_COVARIANCE)
         for n in navsat
     )
+    assert C_NE > 0.09 and C_EE < C_NN  # (east and north not interchangeable, the cross term not zero)
     assert sink.published["odom"] == len(odoms) and sink.published["fix/dgps1"] == len(navsat)
 
 

@@ -2,7 +2,7 @@
 
 Foxglove's Map panel draws `foxglove.LocationFix` with its covariance ellipse and the 3D panel reads the
 altitude, so a fix carries the receiver's own figures rather than zeros: the ellipsoidal height from GGA
-and the 1σ errors from GST (docs/foxglove.md).
+and the covariance from GST's error ellipse (docs/foxglove.md).
 
 **Frames.** dpgw computes in local NED at the datum with a body frame x forward, y starboard, z down
 (Fossen's convention). Foxglove's 3D panel, like ROS (REP 103), expects z up: drawn in NED the scene is
@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+from wire.gst_covariance import GstCovariance
 from wire.messages import (
     ArrowPrimitive,
     Color,
@@ -53,6 +54,7 @@ NS = 1_000_000_000
 
 COVARIANCE_UNKNOWN = 0
 COVARIANCE_DIAGONAL_KNOWN = 2
+COVARIANCE_KNOWN = 3
 
 
 def ellipsoidal_height_m(alt_msl_m: float | None, geoid_sep_m: float | None) -> float:
@@ -72,20 +74,20 @@ def location_fix(
     lat_deg: float,
     lon_deg: float,
     altitude_m: float = 0.0,
-    sigma_enu_m: tuple[float, float, float] | None = None,
+    covariance: GstCovariance | None = None,
     heading_rad: float | None = None,
 ) -> LocationFix:
-    """A `foxglove.LocationFix`; ``sigma_enu_m``: 1σ east, north, up (GST's longitude, latitude and
-    altitude errors). Only GST's per-axis σ are used (not its error ellipse), so the covariance is diagonal
-    (type DIAGONAL_KNOWN); without GST it is all zero and UNKNOWN. ``heading_rad``: clockwise from true
-    north, the estimate's ψ (a GNSS fix has none of its own)."""
-    if sigma_enu_m is None:
+    """A `foxglove.LocationFix`; ``covariance``: the receiver's GST covariance (`wire.gst_covariance`),
+    given in east, north, up, row-major (the schema's order, as ROS's NavSatFix): type KNOWN when it
+    came from the error ellipse (the east-north term filled in), DIAGONAL_KNOWN when only GST's per-axis
+    σ were usable; without GST it is all zero and UNKNOWN. ``heading_rad``: clockwise from true north,
+    the estimate's ψ (a GNSS fix has none of its own)."""
+    if covariance is None:
         cov = [0.0] * 9
         kind = COVARIANCE_UNKNOWN
     else:
-        e, n, u = sigma_enu_m
-        cov = [e * e, 0.0, 0.0, 0.0, n * n, 0.0, 0.0, 0.0, u * u]
-        kind = COVARIANCE_DIAGONAL_KNOWN
+        cov = covariance.enu()
+        kind = COVARIANCE_KNOWN if covariance.full else COVARIANCE_DIAGONAL_KNOWN
     return LocationFix(
         timestamp=Time(sec=stamp_ns // NS, nsec=stamp_ns % NS),
         frame_id=frame_id,

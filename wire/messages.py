@@ -270,7 +270,12 @@ class Measurement(Message, kw_only=True):
         ),
     ]
     sigma_m: Annotated[
-        float | None, doc("Position standard deviation from the receiver's GST; null if none.", "m")
+        float | None,
+        doc(
+            "Horizontal 1σ of the position in use from its receiver's GST: √((C_NN + C_EE)/2), the RMS of "
+            "the north and east σ; null if none.",
+            "m",
+        ),
     ]
     tau: Annotated[Vec3, doc("Generalised force the observer was given " + TAU, "N, N, N·m")]
     tau_source: Annotated[
@@ -279,6 +284,15 @@ class Measurement(Message, kw_only=True):
             "Where tau came from: `feedback` (the thrusters' reported thrust) or `demand` (the last command)."
         ),
     ]
+    covariance_ne_m2: Annotated[
+        Vec3 | None,
+        doc(
+            "Horizontal covariance of the position in use, [C_NN, C_NE, C_EE] in north/east, from its "
+            "receiver's GST (the full error ellipse when the sentence has one: docs/nmea.md); left out "
+            "without a fresh GST.",
+            "m², m², m²",
+        ),
+    ] = None
 
 
 class Thruster(Record, kw_only=True):

@@ -35,6 +35,28 @@ GGA_QUALITY_NAMES = {
 DIVERGENCE_CLEAR = 0.8  # hysteresis: a divergence alarm clears below 80 % of its threshold
 
 
+ELLIPSE_EPS_M2 = 1e-12
+"""Added to both variances before `ellipse_reach` inverts a covariance: a receiver's ellipse with a zero
+minor axis (a line) becomes invertible, its reach across the line 3 µm instead of a division by zero."""
+
+
+def ellipse_reach(cov_ne: tuple[float, float, float], dn: float, de: float) -> float:
+    """How far the 1σ ellipse of the covariance (C_NN, C_NE, C_EE) reaches from its centre in the
+    direction of (dn, de): 1 / √(uᵀ C⁻¹ u) with u = (dn, de) / ‖(dn, de)‖, the radius of the ellipse
+    xᵀ C⁻¹ x = 1 along u. With C⁻¹ = adj(C) / det(C), adj(C) = [[C_EE, −C_NE], [−C_NE, C_NN]]::
+
+        reach² = det(C) ‖d‖² / (C_EE dn² − 2 C_NE dn de + C_NN de²)
+
+    (the semi-major axis along the major axis, the semi-minor across it, σ for a circle). 0 for a zero
+    direction."""
+    nn, ne, ee = cov_ne[0] + ELLIPSE_EPS_M2, cov_ne[1], cov_ne[2] + ELLIPSE_EPS_M2
+    d2 = dn * dn + de * de
+    q = ee * dn * dn - 2.0 * ne * dn * de + nn * de * de
+    if d2 == 0.0 or q <= 0.0:
+        return 0.0
+    return math.sqrt(max(nn * ee - ne * ne, 0.0) * d2 / q)
+
+
 class Prediction(NamedTuple):
     """Where the observer expects the next value (N, E) or (ψ,), and how long since the estimate last had
     a measurement of that DOF (s): an old prediction is trusted less, and not at all past a limit.
@@ -141,8 +163,11 @@ class ReferenceMonitor:
         east: float,
         quality: int | None,
         pred: Prediction | None,
+        shape_ne: tuple[float, float, float] | None = None,
     ) -> bool:
-        """Test one fix (reference point, local NED). Returns whether it may be used."""
+        """Test one fix (reference point, local NED). Returns whether it may be used. ``shape_ne``: the
+        unit shape of the source's GST error ellipse (`wire.gst_covariance.unit_shape`), which turns the
+        prediction test's 3σ of the measured spread into an ellipse of the same size (below)."""
         ref = self._refs["position"][source]
         if quality is not None and quality not in self.p.gga_quality:
             name = GGA_QUALITY_NAMES.get(quality, "")
@@ -151,7 +176,7 @@ class ReferenceMonitor:
         if not (math.isfinite(north) and math.isfinite(east)):
             ref.state.fail(now_ns, "position not finite")
             return False
-        return self._check(ref, "position", now_ns, (north, east), pred)
+        return self._check(ref, "position", now_ns, (north, east), pred, shape_ne)
 
     def heading(self, source: str, now_ns: int, psi: float, pred: Prediction | None) -> bool:
         """Test one heading (rad). Returns whether it may be used."""
@@ -166,8 +191,20 @@ class ReferenceMonitor:
         return f"{x * lim.scale:.3g} {lim.unit}"
 
     def _check(
-        self, ref: _Ref, role: str, now_ns: int, v: tuple[float, ...], pred: Prediction | None
+        self,
+        ref: _Ref,
+        role: str,
+        now_ns: int,
+        v: tuple[float, ...],
+        pred: Prediction | None,
+        shape_ne: tuple[float, float, float] | None = None,
     ) -> bool:
+        """The tests in order (module docstring). The prediction test's gate is g + 3σ + growth·age with σ
+        the source's measured spread; with the unit shape S of its GST ellipse (trace 2, as I's) the 3σ
+        becomes the reach of the ellipse σ² S toward the innovation d (`ellipse_reach`): a
+        Mahalanobis test dᵀ (σ² S)⁻¹ d ≤ 3² widened by the fixed gate and the growth, as
+        `beyond_prediction_gate` does with the covariance itself. The spread still sets the size: S only
+        says in which direction the receiver's fixes scatter more."""
         tr, st, lim = ref.track, ref.state, ref.limits
         if tr.good is not None:
             dt = (now_ns - tr.good_ns) / NS
@@ -188,8 +225,11 @@ class ReferenceMonitor:
             st.fail(now_ns, f"variance: measured 1σ {sigma:.2f} m (limit {lim.max_sigma:g} m)")
             return False
         if pred is not None and pred.age_s <= self.p.prediction_max_age_s:
-            limit = lim.gate + 3 * (sigma or 0.0) + lim.grow * pred.age_s
             innov = tr.distance(v, pred.value)
+            spread = sigma or 0.0
+            if shape_ne is not None and spread:
+                spread *= ellipse_reach(shape_ne, v[0] - pred.value[0], v[1] - pred.value[1])
+            limit = lim.gate + 3 * spread + lim.grow * pred.age_s
             if innov > limit:
                 fmt = self._fmt
                 st.fail(
@@ -293,15 +333,31 @@ class ReferenceMonitor:
         return r is not None and r.state.usable
 
     def beyond_prediction_gate(
-        self, role: str, value: tuple[float, ...], predicted: tuple[float, ...], sigma: float | None = None
+        self,
+        role: str,
+        value: tuple[float, ...],
+        predicted: tuple[float, ...],
+        cov_ne: tuple[float, float, float] | None = None,
     ) -> str:
         """Whether ``value`` lies outside the prediction test's gate around ``predicted`` (the gate
-        without its growth with age, plus 3σ when given), in words for an event ("6.2 m from the
-        dead-reckoned estimate (gate 5 m)"); "" inside. What the pipeline asks of a reference that comes
-        back after an outage (`Pipeline._reacquire`)."""
+        without its growth with age, grown by the 3σ error ellipse of the position's covariance
+        ``cov_ne`` = (C_NN, C_NE, C_EE) when given), in words for an event ("6.2 m from the dead-reckoned
+        estimate (gate 5 m)"); "" inside. What the pipeline asks of a reference that comes back after an
+        outage (`Pipeline._reacquire`).
+
+        With the covariance the gate is the fixed gate g plus the reach of the 3σ ellipse in the
+        innovation's direction u = d / ‖d‖ (`ellipse_reach`)::
+
+            ‖d‖ ≤ g + 3 / √(uᵀ C⁻¹ u)
+
+        which for g = 0 is the Mahalanobis test dᵀ C⁻¹ d ≤ 3², and for a circle C = σ² I the gate g + 3σ
+        of a scalar σ: a fix off along the receiver's narrow axis is caught sooner than one off along its
+        wide axis."""
         lim = self._limits[role]
-        gate = lim.gate + 3 * (sigma or 0.0)
         off = divergence(value, predicted, angle=role == "heading")
+        gate = lim.gate
+        if cov_ne is not None and off > gate:
+            gate += 3.0 * ellipse_reach(cov_ne, value[0] - predicted[0], value[1] - predicted[1])
         if off <= gate:
             return ""
         return f"{self._fmt(off, lim)} from the dead-reckoned estimate (gate {self._fmt(gate, lim)})"

@@ -1,0 +1,122 @@
+"""A GNSS fix's position covariance from NMEA GST: the error ellipse in full, not only its per-axis σ.
+
+GST gives, 1σ in metres: the semi-major and semi-minor axes of the horizontal error ellipse (a, b), the
+orientation θ of the semi-major axis, and the standard deviations of latitude, longitude and altitude
+(σ_N, σ_E, σ_U). The ellipse is the horizontal covariance's eigen-decomposition (docs/nmea.md).
+
+**Convention.** θ is a bearing, like every NMEA angle: from true north, clockwise (toward east), so the
+major axis points along u = (cos θ, sin θ) in (north, east) and the minor axis along v = (−sin θ, cos θ).
+With R(θ) = [[cos θ, −sin θ], [sin θ, cos θ]] in (N, E)::
+
+    C_NE = R(θ) diag(a², b²) R(θ)ᵀ = a² u uᵀ + b² v vᵀ
+    C_NN = a² cos²θ + b² sin²θ,  C_EE = a² sin²θ + b² cos²θ,  C_NE = (a² − b²) sin θ cos θ.
+
+An axis has no direction: θ and θ + 180° give the same matrix, and a = b is a circle whatever θ. The
+marginals C_NN and C_EE are σ_N² and σ_E², so a receiver that fills both parts of GST gives the same
+figures twice: checked on a Septentrio PolaRx2 log (a = 317.719, b = 3.872, θ = 1.791°: √C_NN = 317.564,
+√C_EE = 10.657, the sentence's σ_lat 317.563 and σ_lon 10.659, within what printing θ to 0.001° moves).
+The marginals fix which axis θ is measured from (from east, σ_N and σ_E would swap) but not its sense,
+which the sentence's definition gives (clockwise, as a bearing).
+
+**Which fields win.** The ellipse when it is complete (a, b and θ, or a = b without θ), because it alone
+has the correlation; its marginals must then agree with σ_N and σ_E when the receiver gives those too,
+within `AGREE_REL` (or `AGREE_ABS_M`, the print resolution of a receiver with one decimal). When they
+disagree the receiver has filled the ellipse with something else (another confidence level, the range
+residuals' ellipse, a stale value): the per-axis σ_N, σ_E win — they are the fix's per-axis precision
+itself, what a ROS driver such as nmea_navsat_driver puts on a NavSatFix, and what dpgw used before —
+and the covariance is diagonal, reported as `INCONSISTENT`. Without a complete ellipse: σ_N, σ_E on the
+diagonal. Without either: no covariance. The up variance is σ_U² (0 without it), uncorrelated with the
+horizontal (GST gives no more).
+
+Negative σ and a non-finite orientation never get here: the decoder rejects such a sentence as a
+``bad_field`` (`wire.codecs.nmea`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Final, NamedTuple
+
+from wire.codecs.nmea import Gst
+
+AGREE_REL: Final = 0.1
+"""The ellipse's marginal σ and the sentence's σ_lat / σ_lon agree within 10 % ..."""
+AGREE_ABS_M: Final = 0.1
+"""... or within 0.1 m (a receiver printing one decimal rounds each of the four figures by 0.05 m)."""
+
+ELLIPSE, AXES, INCONSISTENT = "ellipse", "axes", "inconsistent"
+"""Where a `GstCovariance` came from: the full ellipse; σ_lat / σ_lon alone (no complete ellipse); σ_lat /
+σ_lon because the ellipse disagrees with them."""
+
+
+class GstCovariance(NamedTuple):
+    """A fix's position covariance (m²): the horizontal in north/east and the up variance."""
+
+    nn: float
+    ne: float
+    ee: float
+    uu: float
+    origin: str  # ELLIPSE, AXES or INCONSISTENT
+
+    @property
+    def full(self) -> bool:
+        """Whether the off-diagonal is known (from the ellipse), not merely zero by assumption."""
+        return self.origin == ELLIPSE
+
+    def enu(self) -> list[float]:
+        """The 3×3 covariance in east, north, up, row-major (NavSatFix's and Foxglove's order): the
+        horizontal block is the north/east one with both indices swapped, so the off-diagonal stays
+        C_NE (cov(E, N) = cov(N, E))."""
+        return [self.ee, self.ne, 0.0, self.ne, self.nn, 0.0, 0.0, 0.0, self.uu]
+
+    def sigma_m(self) -> float:
+        """One horizontal 1σ: √((C_NN + C_EE) / 2), the RMS of the two marginals (the trace, so the same
+        whatever the axes)."""
+        return math.sqrt((self.nn + self.ee) / 2.0)
+
+
+def ellipse_covariance_ne(
+    sigma_major_m: float, sigma_minor_m: float, orient_rad: float
+) -> tuple[float, float, float]:
+    """(C_NN, C_NE, C_EE) of the error ellipse: R(θ) diag(a², b²) R(θ)ᵀ, θ clockwise from north."""
+    a2, b2 = sigma_major_m * sigma_major_m, sigma_minor_m * sigma_minor_m
+    c, s = math.cos(orient_rad), math.sin(orient_rad)
+    return a2 * c * c + b2 * s * s, (a2 - b2) * s * c, a2 * s * s + b2 * c * c
+
+
+def _agree(marginal_var: float, sigma: float) -> bool:
+    m = math.sqrt(marginal_var)
+    return abs(m - sigma) <= max(AGREE_REL * sigma, AGREE_ABS_M)
+
+
+def gst_covariance(g: Gst) -> GstCovariance | None:
+    """The position covariance a GST gives (the rules in the module docstring), or None without one."""
+    a, b, theta = g.sigma_major_m, g.sigma_minor_m, g.orient_rad
+    lat, lon = g.sigma_lat_m, g.sigma_lon_m
+    uu = (g.sigma_alt_m or 0.0) ** 2
+    if a is not None and b is not None and (theta is not None or a == b):
+        nn, ne, ee = ellipse_covariance_ne(a, b, theta or 0.0)
+        if lat is None or lon is None or (_agree(nn, lat) and _agree(ee, lon)):
+            return GstCovariance(nn, ne, ee, uu, ELLIPSE)
+        return GstCovariance(lat * lat, 0.0, lon * lon, uu, INCONSISTENT)
+    if lat is None or lon is None:
+        return None
+    return GstCovariance(lat * lat, 0.0, lon * lon, uu, AXES)
+
+
+SHAPE_FLOOR: Final = 0.01
+"""Added to both axes of an ellipse's unit shape (`unit_shape`): no shape thinner than about 14:1 in σ."""
+
+
+def unit_shape(cov_ne: tuple[float, float, float]) -> tuple[float, float, float] | None:
+    """The shape of a horizontal covariance without its size: (Ĉ + f I) / (1 + f) with Ĉ = C / (tr C / 2)
+    (unit RMS σ, the trace of I) and f = `SHAPE_FLOOR`, so that a line or a needle-thin ellipse does not
+    make one axis count infinitely; I for a circle; None for a zero covariance (no shape). What lets a
+    receiver's ellipse say in which direction its fixes are good while dpgw's measured spread of the same
+    fixes says how good (the pooling weights, the prediction test: docs/integrity.md)."""
+    nn, ne, ee = cov_ne
+    half_trace = (nn + ee) / 2.0
+    if not half_trace > 0.0:
+        return None
+    k = 1.0 / (half_trace * (1.0 + SHAPE_FLOOR))
+    return (nn + SHAPE_FLOOR * half_trace) * k, ne * k, (ee + SHAPE_FLOOR * half_trace) * k
