@@ -216,9 +216,8 @@ def test_tripped_thruster_leaves_the_allocation_at_once_and_comes_back(wire: boo
     events = [((s["stamp_ns"] - t0) / 1e9, e) for s in r.collected["/dp/status"] for e in s.get("events", [])]
     assert [round(t_ev) for t_ev, e in events if e.startswith("thruster 1 out of DP (fault)")] == [120]
     assert [round(t_ev) for t_ev, e in events if e.startswith("thruster 1 back in DP")] == [200]
-    # on station: seed 1 peaks at 1.55 m from 120 s on with the trip (1.75 m without it, in the first
-    # minutes while the azimuths settle into their biased configuration), and 2.03 m when the dead unit
-    # was still allocated
+    # on station: seed 1 peaks at 1.54 m from 120 s on with the trip (1.55 m without it: a wave group at
+    # 191.5 s), and 2.03 m when the dead unit was still allocated
     d = np.hypot(r.eta_lf[:, 0], r.eta_lf[:, 1])
     assert d[r.t >= 120.0].max() < 1.75
 
