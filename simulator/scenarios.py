@@ -34,7 +34,7 @@ from simulator.current import CurrentModel
 from simulator.environment import BiasModel
 from simulator.faults import Fault
 from simulator.plant_params import PlantOptions
-from simulator.sensors import Datum, DgpsConfig, GyroConfig, ThrusterFeedbackConfig
+from simulator.sensors import AnemometerConfig, Datum, DgpsConfig, GyroConfig, ThrusterFeedbackConfig
 from simulator.spectra import SeaState
 from simulator.wind import WindModel
 
@@ -72,6 +72,9 @@ class Scenario:
     dgps: tuple[DgpsConfig, ...] = (DgpsConfig(),)
     gyro: tuple[GyroConfig, ...] = (GyroConfig(),)
     feedback: ThrusterFeedbackConfig | None = ThrusterFeedbackConfig()
+    # Anemometers (MWV, relative wind): None is one `AnemometerConfig()` when the scenario has wind and none
+    # without (`anemometers`); () none even with wind.
+    anemometer: tuple[AnemometerConfig, ...] | None = None
     faults: tuple[Fault, ...] = ()
     datum: Datum = Datum(59.4, 10.5)  # Oslofjord, off Horten
     start_utc: datetime = datetime(2026, 6, 1, 10, 0, 0, tzinfo=UTC)
@@ -98,6 +101,17 @@ class Scenario:
                 f"scenario '{self.name}': field 'plant': current and wind need plant = \"full\" (the model "
                 "plant has no relative velocity and no wind areas)"
             )
+        if self.anemometer and self.wind is None:
+            raise ValueError(
+                f"scenario '{self.name}': field 'anemometer': an anemometer needs a wind (field 'wind')"
+            )
+
+    @property
+    def anemometers(self) -> tuple[AnemometerConfig, ...]:
+        """The anemometers the scenario has: as given, or one with the defaults where there is wind."""
+        if self.anemometer is not None:
+            return self.anemometer
+        return (AnemometerConfig(),) if self.wind is not None else ()
 
     def with_sensor_rates(self, gnss_hz: float | None = None, gyro_hz: float | None = None) -> Scenario:
         dgps = tuple(replace(d, rate_hz=gnss_hz) for d in self.dgps) if gnss_hz else self.dgps
