@@ -28,7 +28,14 @@ from typing import Any
 import numpy as np
 
 from gateway.commands import CommandGate
-from gateway.config import ArdupilotMap, CommandsConfig, ControlConfig, GatewayConfig, IntegrityConfig
+from gateway.config import (
+    ArdupilotMap,
+    CommandsConfig,
+    ControlConfig,
+    GatewayConfig,
+    IntegrityConfig,
+    wind_feedforward_off,
+)
 from gateway.control.allocation import AllocationResult, PseudoInverseAllocator, QPAllocator, ThrusterCommand
 from gateway.control.controller import ControllerTuning, DPController
 from gateway.esc_direction import EscDirections
@@ -66,7 +73,7 @@ from wire.messages import (
 from wire.messages import Estimate as EstimateMessage
 from wire.messages import ThrusterCommand as CommandMessage
 
-USED_NMEA = frozenset({"GGA", "GNS", "HDT", "THS", "HDG", "GST"})
+USED_NMEA = frozenset({"GGA", "GNS", "HDT", "THS", "HDG", "GST", "MWV"})
 """Sentences the fusion uses; others (RMC, VTG, ZDA, ROT ...) are checked and counted, not parsed."""
 RAW_VELOCITY_FILTER_S = 1.0
 """Dirty-derivative filter of the measurement-fed comparison controller (no wave filter)."""
@@ -372,7 +379,13 @@ class Pipeline:
             self.mode = cc.initial_mode
             self._control_period_ns = int(NS / cc.rate_hz)
             self.controller = DPController(
-                spec.vessel, ControllerTuning(bandwidth_rad_s=cc.bandwidth_rad_s, damping=cc.damping)
+                spec.vessel,
+                ControllerTuning(
+                    bandwidth_rad_s=cc.bandwidth_rad_s,
+                    damping=cc.damping,
+                    wind_feedforward_gain=cc.wind_feedforward_gain,
+                    wind_filter_s=cc.wind_filter_s,
+                ),
             )
             if spec.vessel.thrusters:
                 self.allocator = (
@@ -399,6 +412,16 @@ class Pipeline:
             role for role in ("position", "heading") if sum(role in s.roles for s in spec.sources) > 1
         }
         self._thruster_ids = [th.id for th in spec.vessel.thrusters]
+        self._wind_sources = tuple(s.name for s in spec.sources if "wind" in s.roles)
+        self.wind_feedforward: str | None = None
+        """Why the controller's wind feed-forward is off ("" while it is on; None without a controller)."""
+        self._wind_used = False  # a controller with wind feed-forward and a wind source to feed it
+        if self.controller is not None and cc is not None:
+            why = wind_feedforward_off(cc, spec.vessel, (s.roles for s in spec.sources))
+            self._wind_used = not why and self.controller.wind is not None
+            self.wind_feedforward = why or "no wind measured yet"
+            if why:  # said once, in the first status
+                self._events.append(f"wind feed-forward off: {why}")
 
     @staticmethod
     def _mavlink_parser(s: SourceSpec) -> mv.FrameParser:
@@ -579,6 +602,21 @@ class Pipeline:
         if kind is nmea_codec.Heading:
             if "heading" in spec.roles and s.valid and s.heading_rad is not None:
                 return self._use_heading(spec, rx_ns, s.heading_rad)
+            return False
+        if kind is nmea_codec.Mwv:
+            if "wind" in spec.roles:
+                if s.valid:
+                    self.fusion.add_wind(
+                        rx_ns,
+                        s.speed_mps,
+                        s.angle_rad,
+                        s.reference,
+                        spec.name,
+                        spec.priority,
+                        spec.timeout_ns,
+                    )
+                else:  # status V or an empty field: the anemometer says it has no measurement
+                    self.counters[spec.name].rejected["wind_invalid"] += 1
             return False
         if (
             kind is nmea_codec.Gst
@@ -1204,6 +1242,7 @@ class Pipeline:
             saturated=bool(prev is not None and prev.saturated),
             tau_allocated=None if prev is None else prev.tau_allocated,
             tau_manual=self.manual_tau,
+            relative_wind=self._relative_wind(now_ns, est) if self._wind_used else None,
         )
         scene: list[Output] = []
         if self._foxglove_on:  # (the setpoint scene is made only for the Foxglove channels)
@@ -1255,6 +1294,34 @@ class Pipeline:
             ),
             *scene,
         ]
+
+    def _relative_wind(self, now_ns: int, est: Estimate) -> tuple[float, float] | None:
+        """The wind for the controller's feed-forward: the best fresh anemometer's relative wind (u_rw, v_rw),
+        body frame (a true wind, MWV reference T, plus the estimated velocity ν̂: u_rw = u + V_t cos β_t),
+        or None. Says once, in the status events, when the feed-forward goes off and when it comes back."""
+        w = self.fusion.wind(now_ns)
+        source = ""
+        if w is None:
+            wind = None
+            why = (
+                "no wind measured yet"
+                if self.wind_feedforward == "no wind measured yet"
+                else f"no valid wind from {', '.join(self._wind_sources)} within the source timeout"
+            )
+        else:
+            u, v, reference, source = w
+            why = ""
+            if reference == "T":
+                nu = est.nu
+                u, v = u + float(nu[0]), v + float(nu[1])
+            wind = (u, v)
+        if why != self.wind_feedforward:
+            if why and self.wind_feedforward == "":
+                self._events.append(f"wind feed-forward off: {why}")
+            elif not why:
+                self._events.append(f"wind feed-forward on: wind from {source}")
+            self.wind_feedforward = why
+        return wind
 
     def _estimate(
         self, label: str, obs: Observer, est: Estimate, now_ns: int, valid: list[bool] | None = None

@@ -502,6 +502,8 @@ def _read_control(p: Problems, data: Mapping[str, Any]) -> ControlConfig | None:
         bandwidth_rad_s=v["bandwidth_rad_s"],
         damping=v["damping"],
         feedback=v["feedback"],
+        wind_feedforward_gain=v["wind_feedforward_gain"],
+        wind_filter_s=v["wind_filter_s"],
     )
 
 

@@ -18,10 +18,11 @@ from observers.vessel import VesselModel
 
 PROTOCOLS = ("nmea", "mavlink")
 ROLES: dict[str, tuple[str, ...]] = {
-    "nmea": ("position", "heading"),
+    "nmea": ("position", "heading", "wind"),
     "mavlink": ("thrusters", "position", "heading"),
 }
-"""The roles a source of each protocol can have."""
+"""The roles a source of each protocol can have. ``wind``: an anemometer's MWV, for the controller's wind
+feed-forward (docs/controller.md)."""
 OBSERVER_TYPES = _OBSERVER_TYPES  # every observer registered in observers.factory, by name
 COMPRESSIONS = ("zstd", "lz4", "none")
 ZENOH_MODES = ("peer", "client")
@@ -190,6 +191,10 @@ class ControlConfig:
     feedback: str = "estimate"
     """What the controller's position/heading term sees: the observer's LF estimate (always, at sea), or
     the raw measurement — only to demonstrate what wave filtering buys (the same controller, same ν̂)."""
+    wind_feedforward_gain: float = 1.0
+    """k_w ∈ [0, 1] of the wind feed-forward from a ``wind`` source (0: off)."""
+    wind_filter_s: float = 2.0
+    """Time constant (s) of the low-pass on the measured wind before the feed-forward."""
 
 
 @dataclass(frozen=True)

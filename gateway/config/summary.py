@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Any
 
-from gateway.config.model import GatewayConfig
+from gateway.config.model import ControlConfig, GatewayConfig
+from observers.vessel import VesselModel
 
-__all__ = ["config_notes", "describe"]
+__all__ = ["config_notes", "describe", "wind_feedforward_off"]
 
 
 def describe(config: GatewayConfig) -> str:
@@ -46,6 +48,10 @@ def config_notes(config: GatewayConfig) -> list[str]:
     it runs astern (a tunnel pushing to port, a skid-steering motor in reverse), and τ for the observer has
     the wrong sign for it then. With its motor output named, the sign comes from that output's pulse."""
     notes = []
+    if config.control is not None:
+        why = wind_feedforward_off(config.control, config.vessel, (s.roles for s in config.sources))
+        if why:
+            notes.append(f"control: wind feed-forward off: {why}")
     thrusters = {t.id: t for t in config.vessel.thrusters}
     for sc in config.sources:
         if sc.ardupilot is None:
@@ -66,3 +72,16 @@ def show_dof(value: Any) -> str:
     if isinstance(value, tuple | list):
         return "[" + ", ".join(f"{v:.4g}" for v in value) + "]"
     return f"{value:.4g}"
+
+
+def wind_feedforward_off(control: ControlConfig, vessel: VesselModel, roles: Iterable[Iterable[str]]) -> str:
+    """Why the controller can have no wind feed-forward ("" if it can): a gain of 0, a vessel without wind
+    areas (``[hull.wind]``), or no source with role ``wind`` (``roles``: each source's roles). Said once at
+    start-up (`config_notes`) and in the pipeline's first status."""
+    if control.wind_feedforward_gain == 0:
+        return "control.wind_feedforward_gain = 0"
+    if vessel.hull is None or vessel.hull.wind is None:
+        return f"vessel '{vessel.name}' has no wind areas ([hull.wind], docs/vessels.md)"
+    if not any("wind" in r for r in roles):
+        return 'no source has role "wind" (an anemometer sending MWV)'
+    return ""
