@@ -518,7 +518,7 @@ class Pipeline:
             if ghost is None:
                 ghost = self._ghost = copy.deepcopy(self.observer)
             tau, _ = self.fusion.tau(now_ns)
-            est = ghost.predict(self._t(now_ns), tau)
+            est = ghost.predict(self._t(now_ns), self._with_wind_load(tau))
             if est.status != STATUS_NAMES[0]:
                 out.append(
                     Output(
@@ -946,6 +946,7 @@ class Pipeline:
         fusion = self.fusion
         y, valid = fusion.measurement(now_ns)
         tau, tau_source = fusion.tau(now_ns)
+        tau_obs = self._with_wind_load(tau)
         t = (now_ns - self.t0_ns) / 1e9 if self.t0_ns is not None else 0.0  # (`_t`; feed set t0_ns)
         measured = self._measured_ns
         y_obs = y
@@ -957,7 +958,7 @@ class Pipeline:
             or (valid[2] and measured[2] and measured[2] != before)
         ) and self._last_est is not None:
             y_obs = self._reacquire(now_ns, y, valid)
-        est = self._observe(self.observer, t, y_obs, tau, valid)
+        est = self._observe(self.observer, t, y_obs, tau_obs, valid)
         self._last_est, self._last_est_ns, self._last_step_ns = est, now_ns, now_ns
         self._ghost = None  # a silence ends with a step
         if valid[0]:
@@ -1004,7 +1005,7 @@ class Pipeline:
                 self._next_control_ns = now_ns + self._control_period_ns
                 out.extend(self._control_step(t, est, now_ns))
         for label, obs in self.spec.extra_observers:
-            e = self._observe(obs, t, y_obs, tau, valid)
+            e = self._observe(obs, t, y_obs, tau_obs, valid)
             if e.status != STATUS_NAMES[0]:
                 out.append(Output(f"/dp/estimates/{label}", self._estimate(label, obs, e, now_ns), now_ns))
         return out
@@ -1294,6 +1295,19 @@ class Pipeline:
             ),
             *scene,
         ]
+
+    def _with_wind_load(self, tau: np.ndarray) -> np.ndarray:
+        """τ for the observer: the thrusters' τ plus the wind force the controller's feed-forward answers
+        (−τ_wind = k_w τ̂_w, while it has a fresh wind), a known force of the observer's model
+        M ν' + D ν = τ + Jᵀ b. Without it b̂ would hold the wind too and the bias feed-forward −Jᵀ b̂ would
+        cancel the wind a second time (the integrator taking the excess back, slowly); with it b̂ is the
+        rest of the load, and (1 − k_w) of the wind."""
+        if not self._wind_used:
+            return tau
+        wind = self.controller.wind if self.controller is not None else None
+        if wind is None or not wind.active:
+            return tau
+        return tau - wind.tau
 
     def _relative_wind(self, now_ns: int, est: Estimate) -> tuple[float, float] | None:
         """The wind for the controller's feed-forward: the best fresh anemometer's relative wind (u_rw, v_rw),

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from dpgw.closed_loop import gateway_tables, run_closed_loop
-from gateway.config import ConfigError, config_notes, parse_config
+from gateway.config import ConfigError, describe, parse_config, wind_feedforward_line
 from gateway.pipeline import Pipeline, PipelineSpec, RawEvent
 from simulator.faults import Fault
 from simulator.scenarios import get_scenario
@@ -99,28 +99,27 @@ def test_invalid_and_malformed_mwv_are_counted_not_used() -> None:
 def test_start_up_says_once_why_the_wind_feedforward_is_off() -> None:
     scenario = get_scenario("mss_supply_storm")
     tables = gateway_tables(scenario)
-    assert config_notes(parse_config(tables, base_dir=Path.cwd())) == []
-    assert Pipeline(PipelineSpec.from_config(parse_config(tables, base_dir=Path.cwd()))).wind_feedforward == (
-        "no wind measured yet"
-    )
+    config = parse_config(tables, base_dir=Path.cwd())
+    assert wind_feedforward_line(config) == "wind feed-forward on: from wind1, gain 1, filter 2 s"
+    assert "  wind feed-forward on: from wind1" in describe(config)
+    assert Pipeline(PipelineSpec.from_config(config)).wind_feedforward == "no wind measured yet"
     no_wind = dict(tables, sources=[s for s in tables["sources"] if s["name"] != "wind1"])
     config = parse_config(no_wind, base_dir=Path.cwd())
-    note = 'control: wind feed-forward off: no source has role "wind" (an anemometer sending MWV)'
-    assert config_notes(config) == [note]
+    why = 'no source has role "wind" (an anemometer sending MWV)'
+    assert wind_feedforward_line(config) == f"wind feed-forward off: {why}"
     p = Pipeline(PipelineSpec.from_config(config))
-    first = p.status_message(1)
-    assert first.events == ['wind feed-forward off: no source has role "wind" (an anemometer sending MWV)']
+    assert p.status_message(1).events == [f"wind feed-forward off: {why}"]
     assert p.status_message(2).events == []  # once
     small = gateway_tables(get_scenario("hassani"))  # cybership2: no [hull.wind]
     small["sources"].append(dict(tables["sources"][-2]))  # the wind source
     assert small["sources"][-1]["roles"] == ["wind"]
-    assert config_notes(parse_config(small, base_dir=Path.cwd())) == [
-        "control: wind feed-forward off: vessel 'cybership2' has no wind areas ([hull.wind], docs/vessels.md)"
-    ]
+    assert wind_feedforward_line(parse_config(small, base_dir=Path.cwd())) == (
+        "wind feed-forward off: vessel 'cybership2' has no wind areas ([hull.wind], docs/vessels.md)"
+    )
     off = gateway_tables(scenario, wind_feedforward_gain=0)
-    assert config_notes(parse_config(off, base_dir=Path.cwd())) == [
-        "control: wind feed-forward off: control.wind_feedforward_gain = 0"
-    ]
+    assert wind_feedforward_line(parse_config(off, base_dir=Path.cwd())) == (
+        "wind feed-forward off: control.wind_feedforward_gain = 0"
+    )
 
 
 @pytest.mark.parametrize(

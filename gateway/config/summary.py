@@ -8,7 +8,7 @@ from typing import Any
 from gateway.config.model import ControlConfig, GatewayConfig
 from observers.vessel import VesselModel
 
-__all__ = ["config_notes", "describe", "wind_feedforward_off"]
+__all__ = ["config_notes", "describe", "wind_feedforward_line", "wind_feedforward_off"]
 
 
 def describe(config: GatewayConfig) -> str:
@@ -35,6 +35,9 @@ def describe(config: GatewayConfig) -> str:
         + (f", connect {list(z.connect)}" if z.connect else "")
         + (f", listen {list(z.listen)}" if z.listen else "")
     )
+    line = wind_feedforward_line(config)
+    if line:
+        lines.append(f"  {line}")
     lines.append(f"  log {config.log.path}" if config.log.enabled else "  log disabled")
     if config.time.sim:
         lines.append(f"  clock: simulation time from {z.prefix}/sim/clock (not this computer's)")
@@ -48,10 +51,6 @@ def config_notes(config: GatewayConfig) -> list[str]:
     it runs astern (a tunnel pushing to port, a skid-steering motor in reverse), and τ for the observer has
     the wrong sign for it then. With its motor output named, the sign comes from that output's pulse."""
     notes = []
-    if config.control is not None:
-        why = wind_feedforward_off(config.control, config.vessel, (s.roles for s in config.sources))
-        if why:
-            notes.append(f"control: wind feed-forward off: {why}")
     thrusters = {t.id: t for t in config.vessel.thrusters}
     for sc in config.sources:
         if sc.ardupilot is None:
@@ -85,3 +84,19 @@ def wind_feedforward_off(control: ControlConfig, vessel: VesselModel, roles: Ite
     if not any("wind" in r for r in roles):
         return 'no source has role "wind" (an anemometer sending MWV)'
     return ""
+
+
+def wind_feedforward_line(config: GatewayConfig) -> str:
+    """The controller's wind feed-forward in one line ("" without a controller): on, from which sources,
+    with its gain and filter, or off and why. `describe` shows it and the gateway logs it at start-up."""
+    cc = config.control
+    if cc is None:
+        return ""
+    why = wind_feedforward_off(cc, config.vessel, (s.roles for s in config.sources))
+    if why:
+        return f"wind feed-forward off: {why}"
+    names = ", ".join(s.name for s in config.sources if "wind" in s.roles)
+    return (
+        f"wind feed-forward on: from {names}, gain {cc.wind_feedforward_gain:g}, "
+        f"filter {cc.wind_filter_s:g} s"
+    )
