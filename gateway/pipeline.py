@@ -301,6 +301,7 @@ class Pipeline:
             {t.id: t for t in spec.vessel.thrusters},
         )
         self._events: list[str] = []  # reference state changes not yet in a status
+        self._startup_events: list[str] = []  # said once, in the first status
         self.thrusters_out: dict[int, str] = {}  # thruster id -> why its drive does not take DP commands
         self._caller_alarms: list[str] = []  # the alarms the caller (the service) gave the last status
         self._last_est: Estimate | None = None
@@ -420,8 +421,8 @@ class Pipeline:
             why = wind_feedforward_off(cc, spec.vessel, (s.roles for s in spec.sources))
             self._wind_used = not why and self.controller.wind is not None
             self.wind_feedforward = why or "no wind measured yet"
-            if why:  # said once, in the first status
-                self._events.append(f"wind feed-forward off: {why}")
+            if why:  # said once, in the first status (which it does not hasten)
+                self._startup_events.append(f"wind feed-forward off: {why}")
 
     @staticmethod
     def _mavlink_parser(s: SourceSpec) -> mv.FrameParser:
@@ -1489,7 +1490,8 @@ class Pipeline:
                 for st in states
                 if st.state in ("rejected", "suspect")
             ]
-        events, self._events = self._events, []
+        events, self._events = self._startup_events + self._events, []
+        self._startup_events = []
         for name, c in self.counters.items():
             spec = self.sources[name]
             if c.last_rx_ns == 0:
