@@ -73,7 +73,7 @@ from wire.messages import (
 from wire.messages import Estimate as EstimateMessage
 from wire.messages import ThrusterCommand as CommandMessage
 
-USED_NMEA = frozenset({"GGA", "GNS", "HDT", "THS", "HDG", "GST", "MWV"})
+USED_NMEA = frozenset({"GGA", "GNS", "HDT", "THS", "HDG", "GST", "MWV", "VWR"})
 """Sentences the fusion uses; others (RMC, VTG, ZDA, ROT ...) are checked and counted, not parsed."""
 RAW_VELOCITY_FILTER_S = 1.0
 """Dirty-derivative filter of the measurement-fed comparison controller (no wave filter)."""

@@ -575,7 +575,7 @@ def test_rot_round_trip(rate: float, valid: bool) -> None:
 def test_every_supported_type_is_round_tripped_above() -> None:
     assert set(SENTENCE_TYPES) == {
         *("GGA", "GNS", "RMC", "VTG", "GST", "ZDA", "HDT", "THS", "HDG", "ROT"),
-        "MWV",  # tests/test_nmea_mwv.py
+        *("MWV", "VWR"),  # tests/test_nmea_mwv.py
     }
 
 

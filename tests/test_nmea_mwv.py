@@ -95,9 +95,12 @@ def test_mwv_too_few_fields() -> None:
     assert isinstance(result, Reject) and result.reason == BAD_FORMAT
 
 
-@given(fields=st.lists(st.text(alphabet="0123456789.-+eEAVRTKMNSX ", max_size=8), min_size=0, max_size=8))
-def test_mwv_any_fields_decode_or_reject_without_raising(fields: list[str]) -> None:
-    result = decode(line(",".join(["WIMWV", *fields])))
+@given(
+    address=st.sampled_from(["WIMWV", "IIVWR"]),
+    fields=st.lists(st.text(alphabet="0123456789.-+eEAVRTKMNSLX ", max_size=8), min_size=0, max_size=9),
+)
+def test_mwv_any_fields_decode_or_reject_without_raising(address: str, fields: list[str]) -> None:
+    result = decode(line(",".join([address, *fields])))
     if isinstance(result, Reject):
         assert result.reason in REJECT_REASONS and "decoder error" not in result.detail
     else:
@@ -114,3 +117,25 @@ def test_encoder_refuses_bad_arguments() -> None:
         enc.mwv("WI", 0.0, 1.0, unit="F")
     with pytest.raises(ValueError):
         enc.mwv("WI", 0.0, -1.0)
+
+
+def test_vwr_is_the_same_relative_wind() -> None:
+    starboard = ok(line("IIVWR,40.0,R,20.0,N,10.3,M,37.1,K"))
+    assert starboard.kind == "VWR" and starboard.reference == "R" and starboard.valid
+    assert starboard.angle_rad == pytest.approx(math.radians(40.0)) and starboard.speed_mps == pytest.approx(
+        10.3
+    )
+    port = ok(line("IIVWR,120.5,L,20.0,N,,M,,K"))
+    assert port.angle_rad == pytest.approx(math.radians(-120.5))
+    assert port.speed_mps == pytest.approx(20.0 * 1852 / 3600)
+    assert ok(line("IIVWR,180.0,L,,N,,M,36.0,K")).speed_mps == pytest.approx(10.0)
+    assert ok(line("IIVWR,180.0,L,,N,,M,36.0,K")).angle_rad == pytest.approx(-math.pi)
+    assert not ok(line("IIVWR,,,,N,,M,,K")).valid
+    bad = [
+        ("IIVWR,190.0,R,1,N,,M,,K", "wind angle and side"),
+        ("IIVWR,10.0,X,1,N,,M,,K", "wind angle and side"),
+        ("IIVWR,10.0,L,-1,N,,M,,K", "speed knots"),
+    ]
+    for body, name in bad:
+        result = decode(line(body))
+        assert isinstance(result, Reject) and result.reason == BAD_FIELD and f"VWR {name}" in result.detail

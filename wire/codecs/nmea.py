@@ -24,7 +24,7 @@ measurement comes back with ``valid=False`` (GGA quality 0, RMC status V, THS mo
 
 Supported sentence types, any talker (``GP``, ``GN``, ``GL``, ``GA``, ``GB``, ``BD``, ``HE``, ``HC``, ``IN``,
 ``II``, ``WI``, ...): GGA, GNS, RMC, VTG, GST, ZDA (:class:`Gga`, :class:`Gns`, :class:`Rmc`, :class:`Vtg`,
-:class:`Gst`, :class:`Zda`), HDT, THS, HDG (:class:`Heading`), ROT (:class:`Rot`) and MWV (:class:`Mwv`,
+:class:`Gst`, :class:`Zda`), HDT, THS, HDG (:class:`Heading`), ROT (:class:`Rot`), MWV and VWR (:class:`Mwv`,
 wind speed and angle: knots, km/h and statute mph become m/s). The layouts are the
 ones :mod:`wire.codecs.nmea_encode` writes (NMEA 0183 v4.10), read leniently: missing trailing fields
 are empty, extra trailing fields (newer NMEA versions) are ignored. ``docs/nmea.md`` has the details.
@@ -220,9 +220,13 @@ class Mwv:
     unit was sent (K km/h, M m/s, N knots, S statute miles per hour). ``reference`` is ``R`` (relative: the
     apparent wind the vessel feels, its own velocity included) or ``T`` (theoretical: the true wind,
     still given relative to the bow). ``valid``: status ``A`` with an angle, a reference and a speed;
-    status ``V`` or an empty field gives ``valid=False``."""
+    status ``V`` or an empty field gives ``valid=False``.
 
-    kind: Literal["MWV"] = field(default="MWV", init=False)
+    The older VWR (relative wind, the angle 0-180° with ``L``/``R`` for the side) decodes to the same class
+    with ``kind`` ``"VWR"``, ``reference`` ``"R"``, and ``valid`` for an angle, a side and a speed (VWR has
+    no status field)."""
+
+    kind: Literal["MWV", "VWR"] = field(default="MWV", init=False)
     talker: str
     angle_rad: float | None
     reference: str | None
@@ -243,7 +247,7 @@ class Rot:
 Sentence: TypeAlias = Gga | Gns | Rmc | Vtg | Gst | Zda | Heading | Rot | Mwv
 """What :func:`decode` returns for a sentence it uses; ``kind`` tells them apart."""
 
-SENTENCE_TYPES: Final = ("GGA", "GNS", "RMC", "VTG", "GST", "ZDA", "HDT", "THS", "HDG", "ROT", "MWV")
+SENTENCE_TYPES: Final = ("GGA", "GNS", "RMC", "VTG", "GST", "ZDA", "HDT", "THS", "HDG", "ROT", "MWV", "VWR")
 """The sentence formatters :func:`decode` decodes; every other well-formed sentence is ``unsupported``."""
 
 
@@ -412,6 +416,7 @@ _WIDTH: Final = {
     "variation": 2,
     "day,month,year": 3,
     "wind speed": 2,
+    "wind angle and side": 2,
 }
 _PAD: Final = [""] * 16
 
@@ -917,6 +922,43 @@ def _mwv(talker: str, p: list[str]) -> Mwv | Reject:
     return Mwv(talker, angle, reference, speed, valid)
 
 
+def _side_angle(s: str, side: str) -> float | None:
+    """VWR's angle: degrees [0, 180] off the bow and ``L`` (port, negative) or ``R`` (starboard) → rad."""
+    if not s:
+        return None
+    v = float(s)
+    if not 0.0 <= v <= 180.0:
+        raise ValueError(s)
+    if side == "R":
+        return ssa_scalar(v * _RAD)
+    if side == "L":
+        return ssa_scalar(-v * _RAD)
+    raise ValueError(side)
+
+
+_VWR_LAYOUT: Final[tuple[_Field, ...]] = (
+    (1, "wind angle and side", _side_angle, 2),
+    (3, "speed knots", _nonneg, None),
+    (5, "speed m/s", _nonneg, None),
+    (7, "speed km/h", _nonneg, None),
+)
+
+
+def _vwr(talker: str, p: list[str]) -> Mwv | Reject:
+    """``$--VWR,x.x,a,x.x,N,x.x,M,x.x,K``: relative wind angle 0-180° and side L/R, speed in knots, m/s and
+    km/h (the first of m/s, knots, km/h that is given is used); decoded as an `Mwv` of kind VWR."""
+    v = _fields("VWR", p, 3, 9, _VWR_LAYOUT)
+    if isinstance(v, Reject):
+        return v
+    angle, knots, mps, kmh = v
+    speed = mps if mps is not None else knots * MPS_PER_KNOT if knots is not None else None
+    if speed is None and kmh is not None:
+        speed = kmh / 3.6
+    out = Mwv(talker, angle, "R", speed, angle is not None and speed is not None)
+    object.__setattr__(out, "kind", "VWR")  # (kind is not an __init__ field)
+    return out
+
+
 _DECODERS: Final[dict[str, _Decoder]] = {
     "GGA": _gga,
     "GNS": _gns,
@@ -929,4 +971,5 @@ _DECODERS: Final[dict[str, _Decoder]] = {
     "HDG": _hdg,
     "ROT": _rot,
     "MWV": _mwv,
+    "VWR": _vwr,
 }
