@@ -154,6 +154,16 @@ def demo_config(scenario: Any, pty_device: str, args: argparse.Namespace) -> dic
             "timeout_s": 2.0,
         },
     ]
+    for anemometer in scenario.anemometers:  # a scenario with wind: the controller's wind feed-forward
+        cfg["sources"].append(
+            {
+                "name": anemometer.source,
+                "url": "udp://127.0.0.1:0",
+                "protocol": "nmea",
+                "roles": ["wind"],
+                "timeout_s": max(2.0, 3.0 / anemometer.rate_hz),
+            }
+        )
     if scenario.feedback is not None and scenario.vessel.thrusters:
         cfg["sources"].append(
             {
@@ -254,6 +264,10 @@ def run(args: argparse.Namespace) -> int:
         Route(watched(dgps_sink, scenario.dgps[0].source), "nmea", frozenset({scenario.dgps[0].source})),
         Route(watched(pty, scenario.gyro[0].source), "nmea", frozenset({scenario.gyro[0].source})),
     ]
+    for anemometer in scenario.anemometers:
+        wind_sink = UdpSink("127.0.0.1", ports[anemometer.source])
+        sinks.append(wind_sink)
+        routes.append(Route(watched(wind_sink, anemometer.source), "nmea", frozenset({anemometer.source})))
     commands: list[Any] = []
     if "thrusters" in ports:
         mav_sink = UdpSink("127.0.0.1", ports["thrusters"])

@@ -58,7 +58,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=[],
         metavar="[SOURCE=]URL|pty",
         help="where NMEA goes (repeatable): pty, pty:///path/link, udp://H:P, tcp-listen://H:P (a server), "
-        "serial:///dev/ttyX?baud=N, file:///path; SOURCE= sends one sensor only (dgps1, gyro1)",
+        "serial:///dev/ttyX?baud=N, file:///path; SOURCE= sends one sensor only (dgps1, gyro1; wind1, the "
+        "anemometer, where the scenario has wind)",
     )
     p.add_argument(
         "--mavlink", metavar="URL", help="where thruster MAVLink goes (and commands come back from)"

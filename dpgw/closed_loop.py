@@ -101,7 +101,9 @@ class ClosedLoopRun:
 
 def gateway_tables(scenario: Scenario, **control: Any) -> dict[str, Any]:
     """A gateway config for a scenario's sensors (what `dpgw demo` builds, without transports). Several
-    DGPS or gyros become redundant sources, ranked in the scenario's order (priority 1, 2, …)."""
+    DGPS or gyros become redundant sources, ranked in the scenario's order (priority 1, 2, …); the
+    anemometers of a scenario with wind are ``wind`` sources (the controller's wind feed-forward; ``control``
+    ``wind_feedforward_gain=0`` turns it off)."""
     sources: list[dict[str, Any]] = [
         {"name": dgps.source, "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position"],
          "lever_arm_m": list(dgps.lever_arm_m), "timeout_s": max(2.0, 3.0 / dgps.rate_hz), "priority": k + 1}
@@ -110,6 +112,10 @@ def gateway_tables(scenario: Scenario, **control: Any) -> dict[str, Any]:
         {"name": gyro.source, "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["heading"],
          "priority": k + 1}
         for k, gyro in enumerate(scenario.gyro)
+    ] + [
+        {"name": a.source, "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["wind"],
+         "timeout_s": max(2.0, 3.0 / a.rate_hz), "priority": k + 1}
+        for k, a in enumerate(scenario.anemometers)
     ]  # fmt: skip
     if scenario.feedback is not None and scenario.vessel.thrusters:
         sources.append(
@@ -234,7 +240,11 @@ def run_closed_loop(
     def now() -> float:
         return sim.t
 
-    names = [d.source for d in scenario.dgps] + [g.source for g in scenario.gyro]
+    names = (
+        [d.source for d in scenario.dgps]
+        + [g.source for g in scenario.gyro]
+        + [a.source for a in scenario.anemometers]
+    )
     routes = []
     typed: list[tuple[float, int, str, Emission]] = []
     if wire:

@@ -29,6 +29,11 @@ Pure numerics (no I/O, no clocks: times come with the data), shared by the live 
   thruster's own propeller law (`Thruster.thrust_at_rpm`), also for a dialect status whose thrust is NaN
   (a drive that measures speed but does not estimate thrust).
 
+- **Wind.** An anemometer's latest valid MWV (role ``wind``), held like a measurement until it is older than
+  its source's timeout; of several, the best-ranked fresh one. Stored as body-frame components, u = V cos β,
+  v = V sin β (β from the bow), with its reference: ``R`` is the relative wind the controller's feed-forward
+  uses as it is; ``T`` (true wind) needs the vessel's velocity added (`gateway.pipeline`).
+
 Fusion owns its state: the pipeline reports what arrived through the ``add_*`` / ``set_*`` methods and reads
 through read-only properties and methods; nothing outside writes its fields.
 """
@@ -138,6 +143,7 @@ class Fusion:
         self._thrusters: dict[int, Thruster] = {t.id: t for t in vessel.thrusters}
         self._tau_demand = _read_only(np.zeros(3))
         self._thrust_demand: tuple[list[float], list[float]] | None = None  # (thrust, azimuth) per thruster
+        self._wind: dict[str, tuple[Held, float, str]] = {}  # source -> (u as a Held, v, reference R/T)
 
     # --- read-only views ----------------------------------------------------------------------------------
 
@@ -424,6 +430,30 @@ class Fusion:
         of the north and east σ), else None."""
         cov = self.position_covariance_ne(now_ns)
         return None if cov is None else math.sqrt((cov[0] + cov[2]) / 2.0)
+
+    # --- wind ---------------------------------------------------------------------------------------------
+
+    def add_wind(
+        self, rx_ns: int, speed_mps: float, angle_rad: float, reference: str, source: str, priority: int,
+        valid_ns: int,
+    ) -> None:  # fmt: skip
+        """An anemometer's wind (MWV): ``speed_mps`` from ``angle_rad`` clockwise from the bow, reference
+        ``R`` (relative) or ``T`` (true), valid for ``valid_ns`` after ``rx_ns``."""
+        if not (math.isfinite(speed_mps) and math.isfinite(angle_rad)) or speed_mps < 0:
+            return
+        u, v = speed_mps * math.cos(angle_rad), speed_mps * math.sin(angle_rad)
+        self._wind[source] = (Held(u, rx_ns, source, priority, valid_ns), v, reference)
+
+    def wind(self, now_ns: int) -> tuple[float, float, str, str] | None:
+        """(u, v, reference, source) of the best-ranked fresh wind (body frame, m/s; module docstring), or
+        None when no wind source is fresh."""
+        best: tuple[Held, float, str] | None = None
+        for held, v, ref in self._wind.values():
+            if held.fresh(now_ns) and (best is None or held.priority < best[0].priority):
+                best = (held, v, ref)
+        if best is None:
+            return None
+        return best[0].value, best[1], best[2], best[0].source
 
     # --- what the observer gets ----------------------------------------------------------------------------
 

@@ -28,7 +28,14 @@ from typing import Any
 import numpy as np
 
 from gateway.commands import CommandGate
-from gateway.config import ArdupilotMap, CommandsConfig, ControlConfig, GatewayConfig, IntegrityConfig
+from gateway.config import (
+    ArdupilotMap,
+    CommandsConfig,
+    ControlConfig,
+    GatewayConfig,
+    IntegrityConfig,
+    wind_feedforward_off,
+)
 from gateway.control.allocation import AllocationResult, PseudoInverseAllocator, QPAllocator, ThrusterCommand
 from gateway.control.controller import ControllerTuning, DPController
 from gateway.esc_direction import EscDirections
@@ -67,7 +74,7 @@ from wire.messages import (
 from wire.messages import Estimate as EstimateMessage
 from wire.messages import ThrusterCommand as CommandMessage
 
-USED_NMEA = frozenset({"GGA", "GNS", "HDT", "THS", "HDG", "GST"})
+USED_NMEA = frozenset({"GGA", "GNS", "HDT", "THS", "HDG", "GST", "MWV", "VWR"})
 """Sentences the fusion uses; others (RMC, VTG, ZDA, ROT ...) are checked and counted, not parsed."""
 RAW_VELOCITY_FILTER_S = 1.0
 """Dirty-derivative filter of the measurement-fed comparison controller (no wave filter)."""
@@ -295,6 +302,7 @@ class Pipeline:
             {t.id: t for t in spec.vessel.thrusters},
         )
         self._events: list[str] = []  # reference state changes not yet in a status
+        self._startup_events: list[str] = []  # said once, in the first status
         self.thrusters_out: dict[int, str] = {}  # thruster id -> why its drive does not take DP commands
         self._caller_alarms: list[str] = []  # the alarms the caller (the service) gave the last status
         self._last_est: Estimate | None = None
@@ -380,6 +388,8 @@ class Pipeline:
                     bandwidth_rad_s=cc.bandwidth_rad_s,
                     damping=cc.damping,
                     return_speed_mps=cc.return_speed_mps,
+                    wind_feedforward_gain=cc.wind_feedforward_gain,
+                    wind_filter_s=cc.wind_filter_s,
                 ),
             )
             if spec.vessel.thrusters:
@@ -407,6 +417,16 @@ class Pipeline:
             role for role in ("position", "heading") if sum(role in s.roles for s in spec.sources) > 1
         }
         self._thruster_ids = [th.id for th in spec.vessel.thrusters]
+        self._wind_sources = tuple(s.name for s in spec.sources if "wind" in s.roles)
+        self.wind_feedforward: str | None = None
+        """Why the controller's wind feed-forward is off ("" while it is on; None without a controller)."""
+        self._wind_used = False  # a controller with wind feed-forward and a wind source to feed it
+        if self.controller is not None and cc is not None:
+            why = wind_feedforward_off(cc, spec.vessel, (s.roles for s in spec.sources))
+            self._wind_used = not why and self.controller.wind is not None
+            self.wind_feedforward = why or "no wind measured yet"
+            if why:  # said once, in the first status (which it does not hasten)
+                self._startup_events.append(f"wind feed-forward off: {why}")
 
     def start_over(self, spec: PipelineSpec, event: str) -> Pipeline:
         """A pipeline as at start-up for another run of the plant (a simulator started again under the
@@ -524,7 +544,7 @@ class Pipeline:
             if ghost is None:
                 ghost = self._ghost = copy.deepcopy(self.observer)
             tau, _ = self.fusion.tau(now_ns)
-            est = ghost.predict(self._t(now_ns), tau)
+            est = ghost.predict(self._t(now_ns), self._with_wind_load(tau))
             if est.status != STATUS_NAMES[0]:
                 out.append(
                     Output(
@@ -608,6 +628,21 @@ class Pipeline:
         if kind is nmea_codec.Heading:
             if "heading" in spec.roles and s.valid and s.heading_rad is not None:
                 return self._use_heading(spec, rx_ns, s.heading_rad)
+            return False
+        if kind is nmea_codec.Mwv:
+            if "wind" in spec.roles:
+                if s.valid:
+                    self.fusion.add_wind(
+                        rx_ns,
+                        s.speed_mps,
+                        s.angle_rad,
+                        s.reference,
+                        spec.name,
+                        spec.priority,
+                        spec.timeout_ns,
+                    )
+                else:  # status V or an empty field: the anemometer says it has no measurement
+                    self.counters[spec.name].rejected["wind_invalid"] += 1
             return False
         if kind is nmea_codec.Gst and "position" in spec.roles:
             cov = gst_covariance(s)  # the error ellipse in full when it has one (`wire.gst_covariance`)
@@ -935,6 +970,7 @@ class Pipeline:
         fusion = self.fusion
         y, valid = fusion.measurement(now_ns)
         tau, tau_source = fusion.tau(now_ns)
+        tau_obs = self._with_wind_load(tau)
         t = (now_ns - self.t0_ns) / 1e9 if self.t0_ns is not None else 0.0  # (`_t`; feed set t0_ns)
         measured = self._measured_ns
         y_obs = y
@@ -946,7 +982,7 @@ class Pipeline:
             or (valid[2] and measured[2] and measured[2] != before)
         ) and self._last_est is not None:
             y_obs = self._reacquire(now_ns, y, valid)
-        est = self._observe(self.observer, t, y_obs, tau, valid)
+        est = self._observe(self.observer, t, y_obs, tau_obs, valid)
         self._last_est, self._last_est_ns, self._last_step_ns = est, now_ns, now_ns
         self._ghost = None  # a silence ends with a step
         if valid[0]:
@@ -995,7 +1031,7 @@ class Pipeline:
                 self._next_control_ns = now_ns + self._control_period_ns
                 out.extend(self._control_step(t, est, now_ns))
         for label, obs in self.spec.extra_observers:
-            e = self._observe(obs, t, y_obs, tau, valid)
+            e = self._observe(obs, t, y_obs, tau_obs, valid)
             if e.status != STATUS_NAMES[0]:
                 out.append(Output(f"/dp/estimates/{label}", self._estimate(label, obs, e, now_ns), now_ns))
         return out
@@ -1233,6 +1269,7 @@ class Pipeline:
             saturated=bool(prev is not None and prev.saturated),
             tau_allocated=None if prev is None else prev.tau_allocated,
             tau_manual=self.manual_tau,
+            relative_wind=self._relative_wind(now_ns, est) if self._wind_used else None,
         )
         if ctl.returns != self._returns_seen:  # a governed return began: announced once, as an event
             self._returns_seen = ctl.returns
@@ -1295,6 +1332,47 @@ class Pipeline:
             ),
             *scene,
         ]
+
+    def _with_wind_load(self, tau: np.ndarray) -> np.ndarray:
+        """τ for the observer: the thrusters' τ plus the wind force the controller's feed-forward answers
+        (−τ_wind = k_w τ̂_w, while it has a fresh wind), a known force of the observer's model
+        M ν' + D ν = τ + Jᵀ b. Without it b̂ would hold the wind too and the bias feed-forward −Jᵀ b̂ would
+        cancel the wind a second time (the integrator taking the excess back, slowly); with it b̂ is the
+        rest of the load, and (1 − k_w) of the wind."""
+        if not self._wind_used:
+            return tau
+        wind = self.controller.wind if self.controller is not None else None
+        if wind is None or not wind.active:
+            return tau
+        return tau - wind.tau
+
+    def _relative_wind(self, now_ns: int, est: Estimate) -> tuple[float, float] | None:
+        """The wind for the controller's feed-forward: the best fresh anemometer's relative wind (u_rw, v_rw),
+        body frame (a true wind, MWV reference T, plus the estimated velocity ν̂: u_rw = u + V_t cos β_t),
+        or None. Says once, in the status events, when the feed-forward goes off and when it comes back."""
+        w = self.fusion.wind(now_ns)
+        source = ""
+        if w is None:
+            wind = None
+            why = (
+                "no wind measured yet"
+                if self.wind_feedforward == "no wind measured yet"
+                else f"no valid wind from {', '.join(self._wind_sources)} within the source timeout"
+            )
+        else:
+            u, v, reference, source = w
+            why = ""
+            if reference == "T":
+                nu = est.nu
+                u, v = u + float(nu[0]), v + float(nu[1])
+            wind = (u, v)
+        if why != self.wind_feedforward:
+            if why and self.wind_feedforward == "":
+                self._events.append(f"wind feed-forward off: {why}")
+            elif not why:
+                self._events.append(f"wind feed-forward on: wind from {source}")
+            self.wind_feedforward = why
+        return wind
 
     def _estimate(
         self, label: str, obs: Observer, est: Estimate, now_ns: int, valid: list[bool] | None = None
@@ -1448,7 +1526,8 @@ class Pipeline:
                 for st in states
                 if st.state in ("rejected", "suspect")
             ]
-        events, self._events = self._events, []
+        events, self._events = self._startup_events + self._events, []
+        self._startup_events = []
         for name, c in self.counters.items():
             spec = self.sources[name]
             if c.last_rx_ns == 0:

@@ -42,7 +42,7 @@ import msgspec
 import zenoh
 
 from gateway.bus import JSON, REDIAL_S, Dialler, UnreachableError, command_acl, make_config, open_session
-from gateway.config import GatewayConfig, ZenohConfig, config_notes
+from gateway.config import GatewayConfig, ZenohConfig, config_notes, wind_feedforward_line
 from gateway.outputs import InputSink, OutputSink, RawSentenceSink
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from gateway.sim_time import SimTime
@@ -179,6 +179,9 @@ class GatewayService:
         self._log_path = str(path) if path else None
         for note in config_notes(config):
             log.warning("%s", note)
+        wind = wind_feedforward_line(config)
+        if wind:  # once, at start-up (also the first /status event when off)
+            log.info("%s", wind)
         # MAVLink links that take the dialect's thruster commands: one encoder each (own sequence numbers,
         # signed when the link has a key)
         self._command_links: dict[str, Any] = {}

@@ -151,3 +151,43 @@ def hull_from_dict(data: Any, where: str, mass_kg: float, M: Array) -> HullParam
             f"(within 0.5 %); they differ by {100 * worst:.2g} % (M_RB + M_A = {total.round(0).tolist()})"
         )
     return hull
+
+
+def relative_wind(speed_mps: float, from_deg: float, psi: float, u: float, v: float) -> tuple[float, float]:
+    """(u_rw, v_rw) = (u − u_w, v − v_w): the vessel's velocity relative to the air, body frame, for a wind
+    of ``speed_mps`` blowing from ``from_deg`` (degrees clockwise from north, as a wind is given) and a
+    vessel at heading ψ moving at (u, v) — Fossen (2021) eq (10.10). An anemometer on the vessel reads
+    this as an apparent wind of speed √(u_rw² + v_rw²) from β = atan2(v_rw, u_rw) clockwise from the bow
+    (NMEA MWV, reference R)."""
+    towards = math.radians(from_deg + 180.0)
+    wn, we = speed_mps * math.cos(towards), speed_mps * math.sin(towards)
+    c, s = math.cos(psi), math.sin(psi)
+    return u - (c * wn + s * we), v - (-s * wn + c * we)
+
+
+def apparent_wind_body(speed_mps: float, angle_rad: float) -> tuple[float, float]:
+    """(u_rw, v_rw) of an apparent (relative) wind measured on board: ``speed_mps`` from ``angle_rad``
+    clockwise from the bow (MWV reference R). The inverse of reading `relative_wind` as speed and angle:
+    u_rw = V cos β, v_rw = V sin β (a wind from ahead, β = 0, is the vessel moving into still air)."""
+    return speed_mps * math.cos(angle_rad), speed_mps * math.sin(angle_rad)
+
+
+def relative_wind_force(
+    area: WindArea, length_m: float, u_rw: float, v_rw: float
+) -> tuple[float, float, float]:
+    """[X, Y, N] (body frame) of the relative wind (u_rw, v_rw) on a hull with wind areas ``area`` and length
+    L: Fossen (2021) eqs (10.10)–(10.12),
+
+        V_rw² = u_rw² + v_rw²,  γ_rw = −atan2(v_rw, u_rw)  (0: wind on the bow)
+        X = ½ ρ_a V_rw² C_X(γ) A_F,  Y = ½ ρ_a V_rw² C_Y(γ) A_L,  N = ½ ρ_a V_rw² C_N(γ) A_L L
+        C_X = −c_x cos γ,  C_Y = c_y sin γ,  C_N = c_n sin 2γ
+
+    The one wind force of dpgw: the simulator's plant (`simulator.wind.wind_force`) and the DP
+    controller's wind feed-forward (`gateway.control.wind_feedforward`) both call it."""
+    q = 0.5 * AIR_DENSITY * (u_rw * u_rw + v_rw * v_rw)
+    gamma = -math.atan2(v_rw, u_rw)
+    return (
+        -q * area.cx * math.cos(gamma) * area.frontal_area_m2,
+        q * area.cy * math.sin(gamma) * area.lateral_area_m2,
+        q * area.cn * math.sin(2.0 * gamma) * area.lateral_area_m2 * length_m,
+    )

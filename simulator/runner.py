@@ -42,6 +42,7 @@ from simulator.plant import FullPlant
 from simulator.plant_env import PlantEnvironment
 from simulator.scenarios import Scenario, ShipNow
 from simulator.sensors import (
+    Anemometer,
     Dgps,
     Emission,
     Gyro,
@@ -238,7 +239,7 @@ class Simulation:
         self._failure_faults = any(f.kind == "thruster_failure" for f in scenario.faults)
         self.fault_rng = np.random.default_rng(fault_seq)
         sensor_rngs = [np.random.default_rng(s) for s in sensor_seq.spawn(8)]
-        self.sensors: list[Dgps | Gyro | ThrusterFeedback] = []
+        self.sensors: list[Dgps | Gyro | ThrusterFeedback | Anemometer] = []
         for k, cfg in enumerate(scenario.dgps):
             self.sensors.append(Dgps(cfg, scenario.datum, self.epoch, sensor_rngs[k], self.faults))
         for k, gcfg in enumerate(scenario.gyro):
@@ -250,11 +251,21 @@ class Simulation:
                     scenario.feedback, self.epoch, sensor_rngs[7], self.faults, thrust_limits_n=limits
                 )
             )
+        if self.plant_env is not None and self.plant_env.wind is not None:
+            wind = self.plant_env.wind
+            model = wind.model
+
+            def wind_at(t: float) -> tuple[float, float]:
+                return wind.speed(t), model.from_deg
+
+            # their own streams, spawned after all others (adding an anemometer changes no other stream)
+            for acfg, aseq in zip(scenario.anemometers, ss.spawn(len(scenario.anemometers)), strict=True):
+                self.sensors.append(Anemometer(acfg, wind_at, np.random.default_rng(aseq), self.faults))
         for sensor in self.sensors:
             sensor.encode = wire
 
-        self._sensors_seen: list[Dgps | Gyro | ThrusterFeedback] = []
-        self._sensor_kinds: list[tuple[Dgps | Gyro | ThrusterFeedback, bool]] = []
+        self._sensors_seen: list[Dgps | Gyro | ThrusterFeedback | Anemometer] = []
+        self._sensor_kinds: list[tuple[Dgps | Gyro | ThrusterFeedback | Anemometer, bool]] = []
         self.t = 0.0
         self._sea_valid = (math.inf, -math.inf)
         self._sea_cached = scenario.sea[0][1]

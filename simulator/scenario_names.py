@@ -14,4 +14,5 @@ SCENARIO_NAMES: tuple[str, ...] = (
     "hajivand_2010",
     "mss_osv",
     "mss_supply_storm",
+    "mss_supply_wind",
 )

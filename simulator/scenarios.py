@@ -34,7 +34,7 @@ from simulator.current import CurrentModel
 from simulator.environment import BiasModel
 from simulator.faults import Fault
 from simulator.plant_params import PlantOptions
-from simulator.sensors import Datum, DgpsConfig, GyroConfig, ThrusterFeedbackConfig
+from simulator.sensors import AnemometerConfig, Datum, DgpsConfig, GyroConfig, ThrusterFeedbackConfig
 from simulator.spectra import SeaState
 from simulator.wind import WindModel
 
@@ -72,6 +72,9 @@ class Scenario:
     dgps: tuple[DgpsConfig, ...] = (DgpsConfig(),)
     gyro: tuple[GyroConfig, ...] = (GyroConfig(),)
     feedback: ThrusterFeedbackConfig | None = ThrusterFeedbackConfig()
+    # Anemometers (MWV, relative wind): None is one `AnemometerConfig()` when the scenario has wind and none
+    # without (`anemometers`); () none even with wind.
+    anemometer: tuple[AnemometerConfig, ...] | None = None
     faults: tuple[Fault, ...] = ()
     datum: Datum = Datum(59.4, 10.5)  # Oslofjord, off Horten
     start_utc: datetime = datetime(2026, 6, 1, 10, 0, 0, tzinfo=UTC)
@@ -100,6 +103,17 @@ class Scenario:
                 f"scenario '{self.name}': field 'plant': current and wind need plant = \"full\" (the model "
                 "plant has no relative velocity and no wind areas)"
             )
+        if self.anemometer and self.wind is None:
+            raise ValueError(
+                f"scenario '{self.name}': field 'anemometer': an anemometer needs a wind (field 'wind')"
+            )
+
+    @property
+    def anemometers(self) -> tuple[AnemometerConfig, ...]:
+        """The anemometers the scenario has: as given, or one with the defaults where there is wind."""
+        if self.anemometer is not None:
+            return self.anemometer
+        return (AnemometerConfig(),) if self.wind is not None else ()
 
     def with_sensor_rates(self, gnss_hz: float | None = None, gyro_hz: float | None = None) -> Scenario:
         dgps = tuple(replace(d, rate_hz=gnss_hz) for d in self.dgps) if gnss_hz else self.dgps
@@ -397,6 +411,49 @@ def mss_supply_storm() -> Scenario:
     )
 
 
+def mss_supply_wind(speed_mps: float = 18.0) -> Scenario:
+    """The MSS supply vessel on the full plant in a strong gusting wind and a small sea: a wind-dominated
+    case, where what the wind does between two position fixes is what the controller has to answer."""
+    from simulator.fluid_memory_cache import load_fluid_memory  # (reads the stored model: ~10 ms)
+
+    vessel = load_vessel("mss_supply")
+    heading = 45.0
+    return Scenario(
+        name="mss_supply_wind" if speed_mps == 18.0 else f"mss_supply_wind_{speed_mps:g}",
+        description=f"MSS supply vessel on the full plant with fluid memory, keeping (0, 0), heading 45°, "
+        f"{speed_mps:g} m/s NORSOK wind 60° off the bow, JONSWAP Hs 1.5 m, 0.3 m/s current",
+        vessel=vessel,
+        duration_s=1800.0,
+        eta0=(0.0, 0.0, math.radians(heading)),
+        sea=(
+            (
+                0.0,
+                SeaState(hs_m=1.5, tp_s=7.0, gamma=3.3, direction_rad=math.radians(heading + 180.0 + 60.0)),
+            ),
+        ),
+        tau=_hold_against_mean_load,
+        bias=BiasModel(sigma=(1e4, 1e4, 3e5), time_constant_s=(600.0, 600.0, 600.0)),
+        dgps=(DgpsConfig(rate_hz=2.0, sigma_m=0.3),),
+        gyro=(GyroConfig(rate_hz=10.0),),
+        plant="full",
+        plant_options=PlantOptions(radiation=load_fluid_memory("mss_supply")),
+        current=CurrentModel(
+            speed_mps=0.3,
+            direction_deg=heading + 180.0 + 30.0,
+            speed_sigma_mps=0.02,
+            direction_sigma_deg=5.0,
+            time_constant_s=900.0,
+            speed_limits_mps=(0.2, 0.4),
+            direction_limits_deg=(heading + 180.0 + 15.0, heading + 180.0 + 45.0),
+        ),
+        wind=WindModel(speed_mps=speed_mps, from_deg=heading + 60.0, gust="norsok"),
+        notes="A wind-dominated case for the wind feed-forward (docs/controller.md): "
+        f"{speed_mps:g} m/s 1-hour mean at 10 m with NORSOK gusts, 60° off the bow (the gusts push "
+        "sideways and turn the bow), a small sea (Hs 1.5 m, Tp 7 s, from the same side) and a weak "
+        "current; the anemometer at the wind reference height (2 Hz, ±0.3 m/s, ±2°).",
+    )
+
+
 SCENARIOS: dict[str, Callable[[], Scenario]] = {
     "fossen_strand_1999": fossen_strand_1999,
     "torsetnes_2004": torsetnes_2004,
@@ -406,6 +463,7 @@ SCENARIOS: dict[str, Callable[[], Scenario]] = {
     "hajivand_2010": hajivand_2010,
     "mss_osv": mss_osv,
     "mss_supply_storm": mss_supply_storm,
+    "mss_supply_wind": mss_supply_wind,
 }
 
 

@@ -17,6 +17,9 @@ Models (docs/sensors.md has the full description):
   velocity noise. Fixes on the UTC grid of the output rate (like a receiver locked to GPS time); one burst
   per fix: GGA or GNS, then RMC, VTG, GST, ZDA as configured.
 * `Gyro` — heading ψ + white noise, wrapped; rate of turn r + white noise: HDT, THS, ROT, HDG.
+* `Anemometer` — the relative (apparent) wind at the mast: the plant's wind (mean + gust, at the vessel's
+  wind reference height) minus the vessel's own LF velocity, as speed and angle from the bow, plus white
+  noise on each: NMEA MWV, reference R.
 * `ThrusterFeedback` — per thruster one ``AZIMUTH_THRUSTER_STATUS``, a ``HEARTBEAT`` (surface boat), and
   optionally ArduPilot-style ``ESC_TELEMETRY_x_TO_y`` (rpm) and ``SERVO_OUTPUT_RAW`` (azimuth as PWM), all
   through one MAVLink encoder so sequence numbers run like on a real link.
@@ -32,7 +35,7 @@ that line noise never changes the sensors' random streams.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Annotated, Any, Literal, NamedTuple, Protocol, runtime_checkable
 
@@ -41,6 +44,7 @@ import pymap3d
 from numpy.typing import ArrayLike, NDArray
 from pydantic import AfterValidator, ConfigDict, Field, TypeAdapter, ValidationError
 
+from observers.hull import relative_wind
 from observers.kinematics import ssa_scalar
 from observers.vessel import THRUSTER_KINDS
 from simulator.clock import SimEpoch
@@ -60,6 +64,8 @@ __all__ = [
     "SERVO_PWM_HALF_RANGE_US",
     "THRUSTER_KINDS",
     "VERTICAL_SIGMA_FACTOR",
+    "Anemometer",
+    "AnemometerConfig",
     "Datum",
     "Dgps",
     "DgpsConfig",
@@ -342,6 +348,29 @@ class GyroConfig:
     def __post_init__(self) -> None:
         object.__setattr__(self, "sentences", tuple(self.sentences))
         _validate(self, _GYRO_RULES)
+
+
+@dataclass(frozen=True)
+class AnemometerConfig:
+    """An ultrasonic anemometer on the mast, sending MWV (relative wind) at ``rate_hz``.
+
+    ``sigma_speed_mps`` and ``sigma_angle_rad`` are the white noise (1σ) on the apparent speed and angle:
+    the defaults are a marine ultrasonic sensor's stated accuracy (±0.3 m/s, ±2°, e.g. Gill WindObserver,
+    Vaisala WMT700 class), at 2 Hz (such sensors output 1-4 Hz, up to 10). ``unit`` is MWV's speed unit
+    (M m/s, N knots, K km/h, S mph). The sensor is taken to stand at the vessel's wind reference height
+    (``[hull.wind] height_m``), so it sees the speed the plant's wind force is computed with; the mast's
+    wave-frequency roll is not in its reading."""
+
+    source: str = "wind1"
+    talker: str = "WI"
+    rate_hz: float = 2.0
+    sigma_speed_mps: float = 0.3
+    sigma_angle_rad: float = math.radians(2.0)
+    latency_s: float = 0.05
+    unit: str = "M"
+
+    def __post_init__(self) -> None:
+        _validate(self, _ANEMOMETER_RULES)
 
 
 @dataclass(frozen=True)
@@ -802,6 +831,65 @@ class Gyro(Sensor):
         return ssa_scalar(heading), rate
 
 
+WindAt = Callable[[float], tuple[float, float]]
+"""The true wind at sim time t: (speed m/s at the vessel's wind reference height, from degrees)."""
+
+
+class Anemometer(Sensor):
+    """An anemometer (see `AnemometerConfig`), free-running at ``start + k / rate_hz``. ``wind`` gives the
+    true wind at a time (`simulator.wind.Wind`: mean + gust); the reading is the apparent wind
+    `observers.hull.relative_wind` of the vessel's LF velocity, the same function the plant's wind force
+    and the gateway's feed-forward start from."""
+
+    def __init__(
+        self,
+        config: AnemometerConfig,
+        wind: WindAt,
+        rng: np.random.Generator,
+        faults: FaultSchedule | None = None,
+        *,
+        start: float = 0.0,
+    ) -> None:
+        self.config = config
+        self.source = config.source
+        self.wind = wind
+        self.rng = rng
+        self.faults = faults if faults is not None else FaultSchedule()
+        self._schedule = _Schedule(config.rate_hz, start)
+        self._freeze = _Freezer()
+        self.encode = True
+        """False: emissions carry typed records instead of bytes (see `Emission.record`)."""
+
+    def next_time(self) -> float:
+        return self._schedule.next()
+
+    def sample(self, state: ShipState) -> list[Emission]:
+        t = float(state.t)
+        if not self._schedule.due(t):
+            return []
+        self._schedule.advance_past(t)
+        if self.faults.active("dropout", self.source, t):
+            return []
+        angle, speed = self._freeze(self.faults.active("frozen", self.source, t), self.measure(state, t))
+        cfg = self.config
+        t_emit = t + cfg.latency_s
+        if not self.encode:
+            record = nmea_codec.Mwv(cfg.talker, angle, "R", speed, True)
+            return [Emission.trusted(t_emit, self.source, "nmea", b"", t, record)]
+        text = nmea.mwv(cfg.talker, angle, speed, "R", cfg.unit)
+        return [Emission.trusted(t_emit, self.source, "nmea", text.encode("ascii"), t)]
+
+    def measure(self, state: ShipState, t: float) -> tuple[float, float]:
+        """(angle from the bow in [-π, π), speed ≥ 0) of the apparent wind at t, noise included."""
+        speed, from_deg = self.wind(t)
+        u, v, _ = state.nu.tolist()
+        urw, vrw = relative_wind(speed, from_deg, float(state.eta[2]), u, v)
+        w = self.rng.standard_normal(2).tolist()
+        cfg = self.config
+        angle = ssa_scalar(math.atan2(vrw, urw) + cfg.sigma_angle_rad * w[0])
+        return angle, max(math.hypot(urw, vrw) + cfg.sigma_speed_mps * w[1], 0.0)
+
+
 def _heading_record(kind: str, talker: str, heading: float) -> nmea_codec.Heading | None:
     """A gyro sentence as a receiver decodes it: HDT, THS (mode A) and HDG (its variation added back:
     true heading) carry the heading; ROT is not used by a DP gateway."""
@@ -1068,6 +1156,17 @@ _GYRO_RULES: dict[str, Rule] = {
     "latency_s": _LATENCY_RULE,
     "sigma_rot_rad_s": _rule(_number(ge=0.0), "must be >= 0 rad/s"),
     "variation_rad": _rule(_number(ge=-math.pi, le=math.pi), "must be in [-π, π] rad"),
+}
+_ANEMOMETER_RULES: dict[str, Rule] = {
+    "source": _SOURCE_RULE,
+    "talker": _TALKER_RULE,
+    "rate_hz": _rule(_number(gt=0.0, le=20.0), "must be in (0, 20] Hz"),
+    "sigma_speed_mps": _rule(_number(ge=0.0), "must be >= 0 m/s"),
+    "sigma_angle_rad": _rule(_number(ge=0.0, le=math.pi), "must be in [0, π] rad"),
+    "latency_s": _LATENCY_RULE,
+    "unit": _rule(
+        _one_of(("M", "N", "K", "S")), "must be one of 'M' (m/s), 'N' (knots), 'K' (km/h), 'S' (mph)"
+    ),
 }
 _FEEDBACK_RULES: dict[str, Rule] = {
     "source": _SOURCE_RULE,

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from observers.hull import AIR_DENSITY, WindArea
+from observers.hull import WindArea, relative_wind, relative_wind_force
 
 Array = NDArray[np.float64]
 
@@ -131,17 +131,8 @@ def wind_force(
     area: WindArea, length_m: float, speed: float, from_deg: float, psi: float, u: float, v: float
 ) -> tuple[float, float, float]:
     """[X, Y, N] (body frame) of a wind of this speed from this direction on a vessel at heading ψ moving at
-    (u, v): Fossen (2021) eqs (10.10)–(10.12) on the relative wind."""
-    u, v = float(u), float(v)  # numpy scalars would make every operation below ten times slower
-    towards = math.radians(from_deg + 180.0)
-    wn, we = speed * math.cos(towards), speed * math.sin(towards)
-    c, s = math.cos(psi), math.sin(psi)
-    urw = u - (c * wn + s * we)
-    vrw = v - (-s * wn + c * we)
-    q = 0.5 * AIR_DENSITY * (urw * urw + vrw * vrw)
-    gamma = -math.atan2(vrw, urw)
-    return (
-        -q * area.cx * math.cos(gamma) * area.frontal_area_m2,
-        q * area.cy * math.sin(gamma) * area.lateral_area_m2,
-        q * area.cn * math.sin(2.0 * gamma) * area.lateral_area_m2 * length_m,
-    )
+    (u, v): Fossen (2021) eqs (10.10)–(10.12) on the relative wind, by the numerics layer's
+    `observers.hull.relative_wind` and `observers.hull.relative_wind_force` (the functions the DP
+    controller's wind feed-forward uses too)."""
+    urw, vrw = relative_wind(float(speed), from_deg, float(psi), float(u), float(v))
+    return relative_wind_force(area, length_m, urw, vrw)

@@ -31,6 +31,7 @@ from wire.codecs.nmea import (
     Gns,
     Gst,
     Heading,
+    Mwv,
     Reject,
     Rmc,
     Rot,
@@ -572,7 +573,10 @@ def test_rot_round_trip(rate: float, valid: bool) -> None:
 
 
 def test_every_supported_type_is_round_tripped_above() -> None:
-    assert set(SENTENCE_TYPES) == {"GGA", "GNS", "RMC", "VTG", "GST", "ZDA", "HDT", "THS", "HDG", "ROT"}
+    assert set(SENTENCE_TYPES) == {
+        *("GGA", "GNS", "RMC", "VTG", "GST", "ZDA", "HDT", "THS", "HDG", "ROT"),
+        *("MWV", "VWR"),  # tests/test_nmea_mwv.py
+    }
 
 
 # ---------------------------------------------------------------------------------------------- semantics
@@ -906,7 +910,7 @@ def check_stream(data: bytes, cuts: list[int]) -> list[Frame]:
             assert frame.text.encode("ascii") == frame.raw and frame.text.isprintable()
             assert len(frame.text) <= 180
             result = decode(frame.text)
-            assert isinstance(result, Reject | Gga | Gns | Rmc | Vtg | Gst | Zda | Heading | Rot)
+            assert isinstance(result, Reject | Gga | Gns | Rmc | Vtg | Gst | Zda | Heading | Rot | Mwv)
             if isinstance(result, Reject):
                 assert result.reason in REJECT_REASONS and "decoder error" not in result.detail
             result = decode(frame.text, require_checksum=False)

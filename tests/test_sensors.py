@@ -19,6 +19,8 @@ import pytest
 from simulator.clock import SimEpoch
 from simulator.faults import Fault, FaultSchedule
 from simulator.sensors import (
+    Anemometer,
+    AnemometerConfig,
     Datum,
     Dgps,
     DgpsConfig,
@@ -71,7 +73,7 @@ def cruise(t: float) -> ShipState:
 
 
 def run(
-    sensor: Dgps | Gyro | ThrusterFeedback,
+    sensor: Dgps | Gyro | ThrusterFeedback | Anemometer,
     state: Callable[[float], ShipState],
     t_end: float,
     wire_seed: int = 99,
@@ -775,3 +777,105 @@ def test_the_simulators_unchecked_constructors_make_the_same_objects() -> None:
     for args in ((1.5, "dgps1", "nmea", b"$GPZDA*00\r\n", 1.4), (2.0, "thrusters", "mavlink", b"", 2.0, ())):
         fast, slow = Emission.trusted(*args), Emission(*args)
         assert fast == slow and vars(fast) == vars(slow) and hash(fast) == hash(slow)
+
+
+# ---------------------------------------------------------------------------------------------- anemometer
+
+
+def apparent_wind_truth(speed: float, from_deg: float, state: ShipState) -> tuple[float, float]:
+    """(speed, angle from the bow in degrees [0, 360)) of the wind felt on board, written out from the
+    vectors: air velocity over ground minus the ship's velocity over ground, seen from the bow."""
+    to = math.radians(from_deg) + math.pi
+    air_ne = speed * np.array([math.cos(to), math.sin(to)])
+    psi = float(state.eta[2])
+    R = np.array([[math.cos(psi), -math.sin(psi)], [math.sin(psi), math.cos(psi)]])
+    ship_ne = R @ state.nu[:2]
+    rel_body = R.T @ (air_ne - ship_ne)  # the air's velocity relative to the ship, body frame
+    # the wind comes from the opposite of where the air goes
+    return float(np.hypot(*rel_body)), math.degrees(math.atan2(-rel_body[1], -rel_body[0])) % 360.0
+
+
+def anemometer(seed: int = 0, faults: Sequence[Fault] = (), wind: tuple[float, float] = (15.0, 85.0),
+               **config: Any) -> Anemometer:  # fmt: skip
+    return Anemometer(
+        AnemometerConfig(**config), lambda t: wind, np.random.default_rng(seed), FaultSchedule(faults)
+    )
+
+
+def test_anemometer_reads_the_apparent_wind_in_mwv() -> None:
+    sensor = anemometer(sigma_speed_mps=0.0, sigma_angle_rad=0.0, rate_hz=4.0)
+    emissions = run(sensor, cruise, 30.0)
+    assert len(emissions) == 120  # 4 Hz
+    for em in emissions:
+        msg = parse(em)
+        assert isinstance(msg, pynmea2.MWV) and em.data[1:3] == b"WI"
+        assert msg.reference == "R" and msg.wind_speed_units == "M" and msg.status == "A"
+        speed, angle = apparent_wind_truth(15.0, 85.0, cruise(em.t_measured))
+        assert float(msg.wind_speed) == pytest.approx(speed, abs=0.05 + 1e-9)
+        assert abs(angle_diff_deg(float(msg.wind_angle), angle)) <= 0.05 + 1e-9
+        assert em.t_emit == pytest.approx(em.t_measured + 0.05)
+
+
+def test_anemometer_ship_moving_in_still_air_feels_a_head_wind() -> None:
+    def ahead(t: float) -> ShipState:
+        return ShipState(t, np.array([0.0, 0.0, 1.0]), np.array([5.0, 0.0, 0.0]))
+
+    msg = parse(run(anemometer(wind=(0.0, 0.0), sigma_speed_mps=0.0, sigma_angle_rad=0.0), ahead, 1.0)[0])
+    assert float(msg.wind_speed) == pytest.approx(5.0) and float(msg.wind_angle) in (0.0, 360.0)
+
+
+def test_anemometer_noise_has_the_configured_spread() -> None:
+    def still(t: float) -> ShipState:
+        return ShipState(t, np.array([0.0, 0.0, 0.3]), np.zeros(3))
+
+    sensor = anemometer(seed=4, rate_hz=10.0, unit="N")
+    speeds, angles = [], []
+    for em in run(sensor, still, 400.0):
+        msg = parse(em)
+        assert msg.wind_speed_units == "N"
+        speeds.append(float(msg.wind_speed) * KNOT)
+        angles.append(float(msg.wind_angle))
+    speed, angle = apparent_wind_truth(15.0, 85.0, still(0.0))
+    assert np.mean(speeds) == pytest.approx(speed, abs=0.03)
+    assert np.std(speeds) == pytest.approx(0.3, rel=0.1)
+    diffs = [angle_diff_deg(a, angle) for a in angles]
+    assert abs(np.mean(diffs)) < 0.2 and np.std(diffs) == pytest.approx(2.0, rel=0.1)
+
+
+def test_anemometer_dropout_and_bad_config() -> None:
+    sensor = anemometer(faults=[Fault("dropout", "wind1", 10.0, 20.0)])
+    times = [em.t_measured for em in run(sensor, cruise, 30.0)]
+    assert times and not any(10.0 <= t < 20.0 for t in times)
+    with pytest.raises(ValueError, match=r"AnemometerConfig.rate_hz"):
+        AnemometerConfig(rate_hz=0.0)
+    with pytest.raises(ValueError, match=r"AnemometerConfig.unit"):
+        AnemometerConfig(unit="F")
+
+
+def test_scenarios_with_wind_have_an_anemometer_that_sees_the_plant_wind() -> None:
+    from observers.hull import relative_wind
+    from simulator.runner import Simulation
+    from simulator.scenarios import get_scenario
+
+    scenario = get_scenario("mss_supply_storm")
+    assert [a.source for a in scenario.anemometers] == ["wind1"]
+    assert get_scenario("torsetnes_2004").anemometers == ()
+    got: list[Emission] = []
+    sim = Simulation(scenario, 3, wire=False, on_emit=got.append)
+    sim.run(20.0)
+    mwv = [e for e in got if e.source == "wind1"]
+    assert len(mwv) == pytest.approx(40, abs=1)
+    env = sim.plant_env
+    assert env is not None and env.wind is not None
+    gusty = [env.wind.speed(e.t_measured) for e in mwv]
+    assert max(gusty) - min(gusty) > 0.5  # the plant's gusts reach the reading
+    errors = []
+    for e in mwv:
+        rec = e.record
+        assert rec.valid and rec.reference == "R"
+        # the vessel barely moves in 20 s of station keeping: its velocity changes the wind by < 0.5 m/s
+        u, v = relative_wind(
+            env.wind.speed(e.t_measured), env.wind.model.from_deg, scenario.eta0[2], 0.0, 0.0
+        )
+        errors.append(rec.speed_mps - math.hypot(u, v))
+    assert abs(np.mean(errors)) < 0.5 and np.std(errors) < 0.6

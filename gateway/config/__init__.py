@@ -38,7 +38,7 @@ from gateway.config.model import (
     ZenohConfig,
 )
 from gateway.config.problems import ConfigError, format_problems
-from gateway.config.summary import config_notes, describe
+from gateway.config.summary import config_notes, describe, wind_feedforward_line, wind_feedforward_off
 
 __all__ = [
     "BAUD_RATES",
@@ -68,4 +68,6 @@ __all__ = [
     "format_problems",
     "load_config",
     "parse_config",
+    "wind_feedforward_line",
+    "wind_feedforward_off",
 ]

@@ -65,6 +65,8 @@ DEFAULTS: dict[str, dict[str, Any]] = {
         "allocator": "qp",
         "damping": 1.0,
         "feedback": "estimate",
+        "wind_feedforward_gain": 1.0,
+        "wind_filter_s": 2.0,
     },
     "integrity": {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(IntegrityConfig()).items()},
 }

@@ -514,6 +514,8 @@ def _read_control(p: Problems, data: Mapping[str, Any], vessel: VesselModel | No
         damping=v["damping"],
         feedback=v["feedback"],
         return_speed_mps=ret,
+        wind_feedforward_gain=v["wind_feedforward_gain"],
+        wind_filter_s=v["wind_filter_s"],
     )
 
 

@@ -18,10 +18,11 @@ from observers.vessel import VesselModel
 
 PROTOCOLS = ("nmea", "mavlink")
 ROLES: dict[str, tuple[str, ...]] = {
-    "nmea": ("position", "heading"),
+    "nmea": ("position", "heading", "wind"),
     "mavlink": ("thrusters", "position", "heading"),
 }
-"""The roles a source of each protocol can have."""
+"""The roles a source of each protocol can have. ``wind``: an anemometer's MWV, for the controller's wind
+feed-forward (docs/controller.md)."""
 OBSERVER_TYPES = _OBSERVER_TYPES  # every observer registered in observers.factory, by name
 COMPRESSIONS = ("zstd", "lz4", "none")
 ZENOH_MODES = ("peer", "client")
@@ -193,6 +194,10 @@ class ControlConfig:
     return_speed_mps: float | None = None
     """Speed limit of a governed return to the station after the vessel was far off its reference
     (docs/controller.md); None: the reference model's speed limit (0.5 m/s at 76.2 m, Froude-scaled)."""
+    wind_feedforward_gain: float = 1.0
+    """k_w ∈ [0, 1] of the wind feed-forward from a ``wind`` source (0: off)."""
+    wind_filter_s: float = 2.0
+    """Time constant (s) of the low-pass on the measured wind before the feed-forward."""
 
 
 @dataclass(frozen=True)

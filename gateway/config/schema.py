@@ -430,6 +430,8 @@ class ControlTable(_Section):
     damping: float = number(_C["damping"], lo=0.3, hi=3.0)
     feedback: str = choice(_C["feedback"], FEEDBACKS)
     return_speed_mps: float | None = number(None, lo=0.0, lo_open=True, unit="m/s")
+    wind_feedforward_gain: float = number(_C["wind_feedforward_gain"], lo=0.0, hi=1.0)
+    wind_filter_s: float = number(_C["wind_filter_s"], lo=0.0, hi=120.0, lo_open=True, unit="s")
 
 
 _I = DEFAULTS["integrity"]

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Any
 
-from gateway.config.model import GatewayConfig
+from gateway.config.model import ControlConfig, GatewayConfig
+from observers.vessel import VesselModel
 
-__all__ = ["config_notes", "describe"]
+__all__ = ["config_notes", "describe", "wind_feedforward_line", "wind_feedforward_off"]
 
 
 def describe(config: GatewayConfig) -> str:
@@ -33,6 +35,9 @@ def describe(config: GatewayConfig) -> str:
         + (f", connect {list(z.connect)}" if z.connect else "")
         + (f", listen {list(z.listen)}" if z.listen else "")
     )
+    line = wind_feedforward_line(config)
+    if line:
+        lines.append(f"  {line}")
     lines.append(f"  log {config.log.path}" if config.log.enabled else "  log disabled")
     if config.time.sim:
         lines.append(f"  clock: simulation time from {z.prefix}/sim/clock (not this computer's)")
@@ -66,3 +71,32 @@ def show_dof(value: Any) -> str:
     if isinstance(value, tuple | list):
         return "[" + ", ".join(f"{v:.4g}" for v in value) + "]"
     return f"{value:.4g}"
+
+
+def wind_feedforward_off(control: ControlConfig, vessel: VesselModel, roles: Iterable[Iterable[str]]) -> str:
+    """Why the controller can have no wind feed-forward ("" if it can): a gain of 0, a vessel without wind
+    areas (``[hull.wind]``), or no source with role ``wind`` (``roles``: each source's roles). Said once at
+    start-up (`config_notes`) and in the pipeline's first status."""
+    if control.wind_feedforward_gain == 0:
+        return "control.wind_feedforward_gain = 0"
+    if vessel.hull is None or vessel.hull.wind is None:
+        return f"vessel '{vessel.name}' has no wind areas ([hull.wind], docs/vessels.md)"
+    if not any("wind" in r for r in roles):
+        return 'no source has role "wind" (an anemometer sending MWV)'
+    return ""
+
+
+def wind_feedforward_line(config: GatewayConfig) -> str:
+    """The controller's wind feed-forward in one line ("" without a controller): on, from which sources,
+    with its gain and filter, or off and why. `describe` shows it and the gateway logs it at start-up."""
+    cc = config.control
+    if cc is None:
+        return ""
+    why = wind_feedforward_off(cc, config.vessel, (s.roles for s in config.sources))
+    if why:
+        return f"wind feed-forward off: {why}"
+    names = ", ".join(s.name for s in config.sources if "wind" in s.roles)
+    return (
+        f"wind feed-forward on: from {names}, gain {cc.wind_feedforward_gain:g}, "
+        f"filter {cc.wind_filter_s:g} s"
+    )

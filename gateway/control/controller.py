@@ -13,6 +13,7 @@ measurement: that is the point of wave filtering; eqs (67)–(70) are (57)–(59
     τ = − Kp Jᵀ(ψ̂) η̃ − Kd ν̃ − Ki Jᵀ(ψ̂) z                                           (59), (69)–(70)
         + M ν̇_d + D ν_d                       (reference feed-forward, ``feedforward``)
         − Jᵀ(ψ̂) b̂                             (bias feed-forward, ``bias_feedforward``)
+        − k_w τ̂_w(ū_rw, v̄_rw)                  (wind feed-forward, `gateway.control.wind_feedforward`)
     ν̃ = ν̂ − Jᵀ(ψ̂) η_d'
 
 Notes on the paper (its ξ in (57)–(70) is the integral of η, not the wave state, whatever the print suggests):
@@ -59,6 +60,14 @@ describe what allocation made of the previous demand):
 * ``saturated`` without ``tau_allocated``: conditional integration — the integrator is frozen.
 * not saturated: plain integration.
 
+Wind feed-forward (`update(..., relative_wind=(u_rw, v_rw))`, the anemometer's apparent wind in body axes):
+the wind force of the vessel's ``[hull.wind]`` areas on the low-passed measured wind, by the function the
+simulator's plant uses (`observers.hull.relative_wind_force`), taken off τ with gain k_w
+(``wind_feedforward_gain``, 0 = off) after a first-order filter of time constant ``wind_filter_s``. It
+counters a gust as it is measured instead of after the position has drifted and the integrator has
+caught up. The filter runs in every mode (so it is warm on entering dp); the term acts only in dp. A
+vessel without ``[hull.wind]`` has none (`DPController.wind` is None).
+
 Modes: ``standby`` (τ = 0, integrator reset, reference follows the estimate), ``dp`` (station keeping and
 tracking through the reference model, `gateway.control.reference`), ``manual`` (τ from outside, held
 until the next one; integrator reset; reference follows the estimate). Bumpless transfer into ``dp``:
@@ -79,7 +88,7 @@ angular accelerations × λ^(-1). For the 1.255 m CyberShip II (1:70 model) ωn 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -87,6 +96,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from gateway.control import _controller_kernel as _ck
 from gateway.control.reference import ReferenceLimits, ReferenceModel, ReferenceState
+from gateway.control.wind_feedforward import WindFeedForward
 from observers.kinematics import rotation, ssa_scalar
 from observers.vessel import VesselModel
 
@@ -110,6 +120,8 @@ speed (or yaw-rate limit) or faster: not while it is merely held where it is (`D
 RETURN_HOME = 0.05
 """A governed return ends when the reference is this fraction of the return radius (and heading) from
 its target."""
+DEFAULT_WIND_FILTER_S = 2.0
+"""Time constant of the wind feed-forward's low-pass (s): see docs/controller.md for the measurement."""
 
 ZERO3 = np.zeros(3)
 
@@ -166,6 +178,8 @@ class ControllerTuning:
                                ``max_speed_mps``. At most ``max_speed_mps``.
     governed_return:           restart the reference at a vessel found far off it and coming back
                                (True, the default); False: the full error drives the return.
+    wind_feedforward_gain:     k_w ∈ [0, 1] of the wind feed-forward (0: off; 1: the whole measured force).
+    wind_filter_s:             T_w > 0 of the measured wind's first-order low-pass (s).
     """
 
     bandwidth_rad_s: float | tuple[float, ...] | None = None
@@ -181,6 +195,8 @@ class ControllerTuning:
     tracking_time_s: float | tuple[float, ...] | None = None
     return_speed_mps: float | None = None
     governed_return: bool = True
+    wind_feedforward_gain: float = 1.0
+    wind_filter_s: float = DEFAULT_WIND_FILTER_S
 
     def resolved(self, vessel: VesselModel) -> ControllerTuning:
         """This tuning with every default filled in for ``vessel`` and per-DOF values as tuples, checked."""
@@ -202,6 +218,14 @@ class ControllerTuning:
                 f"tuning 'return_speed_mps': must be at most the reference's max_speed_mps "
                 f"({limits['max_speed_mps']:g} m/s), got {self.return_speed_mps!r}"
             )
+        gain = self.wind_feedforward_gain
+        if isinstance(gain, bool) or not isinstance(gain, int | float) or not 0.0 <= gain <= 1.0:
+            raise ControllerError(
+                f"tuning 'wind_feedforward_gain': must be a number in [0, 1] (0 = off), got {gain!r}"
+            )
+        wf = self.wind_filter_s
+        if isinstance(wf, bool) or not isinstance(wf, int | float) or not (math.isfinite(wf) and wf > 0):
+            raise ControllerError(f"tuning 'wind_filter_s': must be a finite number > 0 s, got {wf!r}")
         return replace(
             self,
             bandwidth_rad_s=wn,
@@ -213,6 +237,8 @@ class ControllerTuning:
             tracking_time_s=tuple(1.0 / w for w in wn) if tt is None else _per_dof(tt, "tracking_time_s"),
             return_speed_mps=ret,
             governed_return=bool(self.governed_return),
+            wind_feedforward_gain=float(gain),
+            wind_filter_s=float(wf),
             **limits,
         )
 
@@ -299,7 +325,9 @@ class ControllerOutput:
     eta_error:  η̃ = η̂ − η_d, earth frame, heading by ssa (zero outside dp).
     nu_error:   ν̃ = ν̂ − Jᵀ(ψ̂) η_d', body frame (zero outside dp).
     integral:   z = ∫η̃ dt, earth frame (m·s, m·s, rad·s).
-    tau_p, tau_i, tau_d, tau_ff: the terms of τ (P, I, D, feed-forward incl. bias); zero outside dp.
+    tau_p, tau_i, tau_d, tau_ff: the terms of τ (P, I, D, feed-forward incl. bias and wind); zero outside
+                dp.
+    tau_wind:   the wind feed-forward −k_w τ̂_w within tau_ff (zero outside dp or without a wind measurement).
     """
 
     t: float
@@ -314,6 +342,7 @@ class ControllerOutput:
     tau_i: Array
     tau_d: Array
     tau_ff: Array
+    tau_wind: Array = field(default_factory=lambda: np.zeros(3))
 
 
 def _num(value: float | tuple[float, ...] | None) -> Array:
@@ -401,6 +430,13 @@ class DPController:
         deviation alarms measure from the target meanwhile (`gateway.pipeline`)."""
         self.last_return: str | None = None
         """The words of the last governed return, for the status (`gateway.pipeline`)."""
+        hull = vessel.hull
+        self.wind: WindFeedForward | None = None
+        """The wind feed-forward; None for a vessel without wind areas or with gain 0."""
+        if hull is not None and hull.wind is not None and tu.wind_feedforward_gain > 0:
+            self.wind = WindFeedForward(
+                hull.wind, vessel.length_m, tu.wind_filter_s, tu.wind_feedforward_gain
+            )
 
     # -- commands ---------------------------------------------------------------------------------------
     @property
@@ -464,12 +500,15 @@ class DPController:
         saturated: bool = False,
         tau_allocated: ArrayLike | None = None,
         tau_manual: ArrayLike | None = None,
+        relative_wind: tuple[float, float] | None = None,
     ) -> ControllerOutput:
         """One control step at time t (s; any origin, variable steps; dt = t − previous t).
 
         eta_hat = [N, E, ψ] (m, m, rad), nu_hat = [u, v, r], bias_hat = earth-fixed b̂ [N, N, N·m] (None or
         non-finite: no bias feed-forward). ``saturated``/``tau_allocated``: allocation's verdict on the
         previous τ (anti-windup). ``tau_manual``: the manual τ (manual mode; held until the next one).
+        ``relative_wind``: the measured apparent wind (u_rw, v_rw), body frame, m/s; None: none usable (wind
+        feed-forward off).
         """
         t = float(t)
         dt = 0.0 if self._t is None or not math.isfinite(t) else t - self._t
@@ -480,8 +519,9 @@ class DPController:
         eta = _finite3(eta_hat)
         nu = _finite3(nu_hat)
         b = _finite3(bias_hat)
+        tau_w = ZERO3 if self.wind is None else self.wind.update(dt, relative_wind)
         if self._mode == "dp":
-            return self._update_dp(t, dt, eta, nu, b, saturated, _finite3(tau_allocated))
+            return self._update_dp(t, dt, eta, nu, b, saturated, _finite3(tau_allocated), tau_w)
         self._z = np.zeros(3)
         if self._mode == "manual":
             tm = _finite3(tau_manual)
@@ -503,6 +543,7 @@ class DPController:
         b: Array | None,
         saturated: bool,
         tau_alloc: Array | None,
+        tau_w: Array = ZERO3,
     ) -> ControllerOutput:
         if eta is None or nu is None:
             # no estimate (observer initialising): hold τ, freeze integrator; the reference waits
@@ -510,7 +551,7 @@ class DPController:
         if self.tuning.governed_return and not self._entering:
             self._govern_return(eta, nu)
         if self.compiled and not self._entering:
-            return self._update_dp_compiled(t, dt, eta, nu, b, saturated, tau_alloc)
+            return self._update_dp_compiled(t, dt, eta, nu, b, saturated, tau_alloc, tau_w)
         R = rotation(float(eta[2]))
         if self._entering:
             self.reference.reset(eta, R @ nu, target=self._setpoint)
@@ -525,6 +566,7 @@ class DPController:
             tau_ff = tau_ff + self._M @ ref.nu_dot_d + self._D @ ref.nu_d
         if self.tuning.bias_feedforward and b is not None:
             tau_ff = tau_ff - R.T @ b
+        tau_ff = tau_ff + tau_w
         tau_p = -self.gains.Kp @ (R.T @ e)
         tau_d = -self.gains.Kd @ nu_err
         if self._entering:
@@ -550,7 +592,7 @@ class DPController:
         self._z[~self._has_i] = 0.0
         tau_i = -self.gains.Ki @ (R.T @ self._z)
         self._tau = tau_p + tau_i + tau_d + tau_ff
-        return self._output(t, True, ref, e, nu_err, tau_p, tau_i, tau_d, tau_ff)
+        return self._output(t, True, ref, e, nu_err, tau_p, tau_i, tau_d, tau_ff, tau_w)
 
     def _govern_return(self, eta: Array, nu: Array) -> None:
         """A vessel far off its reference and coming back to it returns at the reference model's pace.
@@ -631,8 +673,11 @@ class DPController:
         b: Array | None,
         saturated: bool,
         tau_alloc: Array | None,
+        tau_w: Array = ZERO3,
     ) -> ControllerOutput:
-        """`_update_dp` after the first dp step, in one compiled call (`_controller_kernel.dp_step`)."""
+        """`_update_dp` after the first dp step, in one compiled call (`_controller_kernel.dp_step`); the
+        wind feed-forward, a known term, is added to τ and τ_ff after it (so the τ that back-calculation
+        compares with the allocated force at the next step includes it, as in `_update_dp`)."""
         rs, rp = self.reference.packed()
         use_b = self.tuning.bias_feedforward and b is not None
         inp = np.concatenate(
@@ -659,6 +704,9 @@ class DPController:
             self._dof,
         )
         self.reference.set_packed(rs)
+        if tau_w is not ZERO3:
+            o[0:3] += tau_w
+            o[21:24] += tau_w
         self._tau, self._z = o[0:3].copy(), o[3:6].copy()
         ref = ReferenceState(o[24:27], o[27:30], o[30:33], o[33:36], o[36:39], self.reference.target)
         return ControllerOutput(
@@ -674,6 +722,7 @@ class DPController:
             tau_i=o[15:18],
             tau_d=o[18:21],
             tau_ff=o[21:24],
+            tau_wind=tau_w.copy(),
         )
 
     def _output(
@@ -687,6 +736,7 @@ class DPController:
         tau_i: Array,
         tau_d: Array,
         tau_ff: Array,
+        tau_w: Array = ZERO3,
     ) -> ControllerOutput:
         return ControllerOutput(
             t=t,
@@ -701,6 +751,7 @@ class DPController:
             tau_i=np.array(tau_i, dtype=float),
             tau_d=np.array(tau_d, dtype=float),
             tau_ff=np.array(tau_ff, dtype=float),
+            tau_wind=np.array(tau_w, dtype=float),
         )
 
 

@@ -23,8 +23,9 @@ A field a receiver leaves empty is not an error: it decodes as ``None``, and a s
 measurement comes back with ``valid=False`` (GGA quality 0, RMC status V, THS mode V, an empty HDT).
 
 Supported sentence types, any talker (``GP``, ``GN``, ``GL``, ``GA``, ``GB``, ``BD``, ``HE``, ``HC``, ``IN``,
-``II``, ...): GGA, GNS, RMC, VTG, GST, ZDA (:class:`Gga`, :class:`Gns`, :class:`Rmc`, :class:`Vtg`,
-:class:`Gst`, :class:`Zda`), HDT, THS, HDG (:class:`Heading`) and ROT (:class:`Rot`). The layouts are the
+``II``, ``WI``, ...): GGA, GNS, RMC, VTG, GST, ZDA (:class:`Gga`, :class:`Gns`, :class:`Rmc`, :class:`Vtg`,
+:class:`Gst`, :class:`Zda`), HDT, THS, HDG (:class:`Heading`), ROT (:class:`Rot`), MWV and VWR (:class:`Mwv`,
+wind speed and angle: knots, km/h and statute mph become m/s). The layouts are the
 ones :mod:`wire.codecs.nmea_encode` writes (NMEA 0183 v4.10), read leniently: missing trailing fields
 are empty, extra trailing fields (newer NMEA versions) are ignored. ``docs/nmea.md`` has the details.
 
@@ -213,6 +214,27 @@ class Heading:
 
 
 @dataclass(frozen=True)
+class Mwv:
+    """MWV, wind speed and angle (an anemometer). ``angle_rad`` is the direction the wind comes *from*,
+    clockwise from the bow, in [-π, π) (0: on the bow, +π/2: from starboard); ``speed_mps`` in m/s whatever
+    unit was sent (K km/h, M m/s, N knots, S statute miles per hour). ``reference`` is ``R`` (relative: the
+    apparent wind the vessel feels, its own velocity included) or ``T`` (theoretical: the true wind,
+    still given relative to the bow). ``valid``: status ``A`` with an angle, a reference and a speed;
+    status ``V`` or an empty field gives ``valid=False``.
+
+    The older VWR (relative wind, the angle 0-180° with ``L``/``R`` for the side) decodes to the same class
+    with ``kind`` ``"VWR"``, ``reference`` ``"R"``, and ``valid`` for an angle, a side and a speed (VWR has
+    no status field)."""
+
+    kind: Literal["MWV", "VWR"] = field(default="MWV", init=False)
+    talker: str
+    angle_rad: float | None
+    reference: str | None
+    speed_mps: float | None
+    valid: bool
+
+
+@dataclass(frozen=True)
 class Rot:
     """ROT, rate of turn in rad/s (positive: bow to starboard). ``valid``: a rate and status ``A``."""
 
@@ -222,10 +244,10 @@ class Rot:
     valid: bool
 
 
-Sentence: TypeAlias = Gga | Gns | Rmc | Vtg | Gst | Zda | Heading | Rot
+Sentence: TypeAlias = Gga | Gns | Rmc | Vtg | Gst | Zda | Heading | Rot | Mwv
 """What :func:`decode` returns for a sentence it uses; ``kind`` tells them apart."""
 
-SENTENCE_TYPES: Final = ("GGA", "GNS", "RMC", "VTG", "GST", "ZDA", "HDT", "THS", "HDG", "ROT")
+SENTENCE_TYPES: Final = ("GGA", "GNS", "RMC", "VTG", "GST", "ZDA", "HDT", "THS", "HDG", "ROT", "MWV", "VWR")
 """The sentence formatters :func:`decode` decodes; every other well-formed sentence is ``unsupported``."""
 
 
@@ -393,6 +415,8 @@ _WIDTH: Final = {
     "deviation": 2,
     "variation": 2,
     "day,month,year": 3,
+    "wind speed": 2,
+    "wind angle and side": 2,
 }
 _PAD: Final = [""] * 16
 
@@ -858,6 +882,83 @@ def _rot(talker: str, p: list[str]) -> Rot | Reject:
     return Rot(talker, rate, rate is not None and status == "A")
 
 
+MPS_PER_UNIT: Final = {"M": 1.0, "K": 1.0 / 3.6, "N": MPS_PER_KNOT, "S": 1609.344 / 3600.0}
+"""MWV's speed units in m/s: M m/s, K km/h, N knots, S statute miles per hour."""
+_WIND_REFERENCES: Final = frozenset("RT")
+
+
+def _wind_speed(s: str, unit: str) -> float | None:
+    """A speed ≥ 0 and its unit letter → m/s (a speed without a known unit is a bad field)."""
+    v = _nonneg(s)
+    if v is None:
+        return None
+    return v * MPS_PER_UNIT[unit]  # KeyError: no or an unknown unit
+
+
+def _wind_reference(s: str) -> str | None:
+    if not s:
+        return None
+    if s not in _WIND_REFERENCES:
+        raise ValueError(s)
+    return s
+
+
+_MWV_LAYOUT: Final[tuple[_Field, ...]] = (
+    (1, "wind angle", _bearing, None),
+    (2, "reference", _wind_reference, None),
+    (3, "wind speed", _wind_speed, 4),
+    (5, "status", _status, None),
+)
+
+
+def _mwv(talker: str, p: list[str]) -> Mwv | Reject:
+    """``$--MWV,x.x,a,x.x,a,A``: angle (degrees from the bow, clockwise, 0-360), reference R/T, speed,
+    unit K/M/N/S, status A/V. A missing status field reads as empty (not valid)."""
+    v = _fields("MWV", p, 5, 6, _MWV_LAYOUT)
+    if isinstance(v, Reject):
+        return v
+    angle, reference, speed, status = v
+    valid = status == "A" and angle is not None and reference is not None and speed is not None
+    return Mwv(talker, angle, reference, speed, valid)
+
+
+def _side_angle(s: str, side: str) -> float | None:
+    """VWR's angle: degrees [0, 180] off the bow and ``L`` (port, negative) or ``R`` (starboard) → rad."""
+    if not s:
+        return None
+    v = float(s)
+    if not 0.0 <= v <= 180.0:
+        raise ValueError(s)
+    if side == "R":
+        return ssa_scalar(v * _RAD)
+    if side == "L":
+        return ssa_scalar(-v * _RAD)
+    raise ValueError(side)
+
+
+_VWR_LAYOUT: Final[tuple[_Field, ...]] = (
+    (1, "wind angle and side", _side_angle, 2),
+    (3, "speed knots", _nonneg, None),
+    (5, "speed m/s", _nonneg, None),
+    (7, "speed km/h", _nonneg, None),
+)
+
+
+def _vwr(talker: str, p: list[str]) -> Mwv | Reject:
+    """``$--VWR,x.x,a,x.x,N,x.x,M,x.x,K``: relative wind angle 0-180° and side L/R, speed in knots, m/s and
+    km/h (the first of m/s, knots, km/h that is given is used); decoded as an `Mwv` of kind VWR."""
+    v = _fields("VWR", p, 3, 9, _VWR_LAYOUT)
+    if isinstance(v, Reject):
+        return v
+    angle, knots, mps, kmh = v
+    speed = mps if mps is not None else knots * MPS_PER_KNOT if knots is not None else None
+    if speed is None and kmh is not None:
+        speed = kmh / 3.6
+    out = Mwv(talker, angle, "R", speed, angle is not None and speed is not None)
+    object.__setattr__(out, "kind", "VWR")  # (kind is not an __init__ field)
+    return out
+
+
 _DECODERS: Final[dict[str, _Decoder]] = {
     "GGA": _gga,
     "GNS": _gns,
@@ -869,4 +970,6 @@ _DECODERS: Final[dict[str, _Decoder]] = {
     "THS": _ths,
     "HDG": _hdg,
     "ROT": _rot,
+    "MWV": _mwv,
+    "VWR": _vwr,
 }

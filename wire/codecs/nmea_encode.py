@@ -426,6 +426,36 @@ def rot(talker: str, rate_rad_s: float | None, valid: bool = True, *, decimals: 
     return _build(talker, "ROT", [_fixed(rate, decimals), "A" if valid else "V"])
 
 
+MWV_UNITS = {"M": 1.0, "K": 3.6, "N": 3600.0 / 1852.0, "S": 3600.0 / 1609.344}
+"""MWV's speed units per m/s: M m/s, K km/h, N knots, S statute miles per hour."""
+
+
+def mwv(
+    talker: str,
+    angle_rad: float | None,
+    speed_mps: float | None,
+    reference: str = "R",
+    unit: str = "M",
+    valid: bool = True,
+    *,
+    decimals: int = 1,
+) -> str:
+    """MWV, wind speed and angle (an anemometer)::
+
+        $--MWV,x.x,a,x.x,a,A*hh
+               1   2 3   4 5
+
+    1 wind angle, degrees [0, 360) clockwise from the bow, the direction the wind comes from, 2 reference
+    R relative (apparent) / T theoretical (true), 3 wind speed, 4 its unit K km/h, M m/s, N knots, S statute
+    mph, 5 status A valid / V invalid.
+    """
+    _one_of("reference", reference, "RT")
+    _one_of("unit", unit, "KMNS")
+    speed = _speed(speed_mps, MWV_UNITS[unit], decimals)
+    status = "A" if valid else "V"
+    return _build(talker, "MWV", [_deg360(angle_rad, decimals), reference, speed, unit, status])
+
+
 def hdg(
     talker: str,
     heading_mag_rad: float | None,
