@@ -184,3 +184,45 @@ def test_the_observer_is_told_the_wind_force_so_its_bias_is_the_rest() -> None:
     diff = bias[0.0] - bias[1.0]
     # measured: (65.5 kN, -92.9 kN, -1028 kN·m) against (68.0, -97.5, -1049): within 5 %
     assert np.all(np.abs(diff - earth) <= 0.1 * np.abs(earth)), (diff, earth)
+
+
+@pytest.mark.parametrize("from_deg", [20.0, 110.0, 200.0, 300.0])
+@pytest.mark.parametrize(("psi", "u", "v"), [(0.0, 1.5, 0.0), (0.9, 0.8, -0.6), (-2.4, -0.5, 1.2)])
+def test_true_wind_gives_the_feedforward_of_the_relative_wind_it_makes(
+    from_deg: float, psi: float, u: float, v: float
+) -> None:
+    """The same true wind on a moving vessel, sent as MWV reference T (true, still relative to the bow) to
+    one gateway and as the apparent wind it makes, reference R, to another: the controller's wind input
+    and the feed-forward τ are the same (the T path adds ν̂, u_rw = u + V_t cos β_t)."""
+    from observers.base import Estimate
+    from observers.hull import relative_wind
+
+    speed = 14.0
+    urw, vrw = relative_wind(speed, from_deg, psi, u, v)
+    sent = {
+        "R": (math.atan2(vrw, urw), math.hypot(urw, vrw)),
+        "T": (math.radians(from_deg) - psi, speed),  # the true wind's angle from the bow
+    }
+    est = Estimate(1.0, np.array([0.0, 0.0, psi]), np.array([u, v, 0.01]), np.zeros(3), np.zeros(3), "ok")
+    t = 1_700_000_000 * NS
+    got, tau = {}, {}
+    for reference, (angle, spd) in sent.items():
+        p = pipeline_for()
+        angle = math.remainder(angle, 2 * math.pi) % (2 * math.pi)
+        text = enc.mwv("WI", angle, spd, reference, decimals=6)
+        p.feed(RawEvent(t, "wind1", text.encode("ascii")))
+        assert p.fusion.wind(t) is not None and p.fusion.wind(t)[2] == reference  # type: ignore[index]
+        wind = p._relative_wind(t, est)
+        assert wind is not None
+        got[reference] = wind
+        ctl = p.controller
+        assert ctl is not None and ctl.wind is not None
+        ctl.wind.update(0.0, wind)  # the filter's first sample: dt 0 keeps it at zero
+        for _ in range(300):
+            ctl.wind.update(0.1, wind)  # 30 s = 15 T_w: converged
+        tau[reference] = ctl.wind.tau.copy()
+    np.testing.assert_allclose(got["T"], got["R"], rtol=0, atol=1e-5)
+    np.testing.assert_allclose(got["R"], (urw, vrw), rtol=0, atol=1e-5)
+    scale = np.abs(tau["R"]).max()
+    assert scale > 1e3  # a real force (N), not two zeros
+    np.testing.assert_allclose(tau["T"], tau["R"], rtol=0, atol=1e-5 * scale)
