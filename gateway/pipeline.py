@@ -77,6 +77,13 @@ from wire.messages import ThrusterCommand as CommandMessage
 USED_NMEA = frozenset({"GGA", "GNS", "HDT", "THS", "HDG", "GST", "MWV", "VWR"})
 """Sentences the fusion uses; others (RMC, VTG, ZDA, ROT ...) are checked and counted, not parsed."""
 RAW_VELOCITY_FILTER_S = 1.0
+WIND_ON_CONFIRM_S = 10.0
+"""After the wind feed-forward was announced off, how long the wind must be fresh without a break before
+it is announced on again (`Pipeline._relative_wind`): an anemometer that loses most of its sentences
+(corrupt, invalid) goes stale and fresh again every few seconds, and an operator told "off", "on", "off"
+… at that rate stops reading the events. Longer than the gaps of such a flapping source (a timeout of a
+few seconds) and than the feed-forward's ramp back in (≈ 3 T_w = 6 s at the default filter), so "on"
+says that the term is back in full. The feed-forward itself uses every fresh wind at once."""
 """Dirty-derivative filter of the measurement-fed comparison controller (no wave filter)."""
 _INITIALIZING = STATUS_NAMES[STATUS_INITIALIZING]
 FIX_PERIOD_NS = 0
@@ -419,7 +426,9 @@ class Pipeline:
         self._thruster_ids = [th.id for th in spec.vessel.thrusters]
         self._wind_sources = tuple(s.name for s in spec.sources if "wind" in s.roles)
         self.wind_feedforward: str | None = None
-        """Why the controller's wind feed-forward is off ("" while it is on; None without a controller)."""
+        """Why the controller's wind feed-forward is off, as announced ("" while it is on; None without a
+        controller): after an "off", "on" only once the wind has held for `WIND_ON_CONFIRM_S`."""
+        self._wind_fresh_since_ns: int | None = None  # start of the present unbroken run of fresh wind
         self._wind_used = False  # a controller with wind feed-forward and a wind source to feed it
         if self.controller is not None and cc is not None:
             why = wind_feedforward_off(cc, spec.vessel, (s.roles for s in spec.sources))
@@ -1349,19 +1358,31 @@ class Pipeline:
     def _relative_wind(self, now_ns: int, est: Estimate) -> tuple[float, float] | None:
         """The wind for the controller's feed-forward: the best fresh anemometer's relative wind (u_rw, v_rw),
         body frame (a true wind, MWV reference T, plus the estimated velocity ν̂: u_rw = u + V_t cos β_t),
-        or None. Says once, in the status events, when the feed-forward goes off and when it comes back."""
+        or None. Says in the status events when the feed-forward goes off (at once) and when it is back (the
+        first wind at once; after an "off", once the wind has been fresh without a break for
+        `WIND_ON_CONFIRM_S`, so that a flapping anemometer gives one "off", not one per lost sentence)."""
         w = self.fusion.wind(now_ns)
         source = ""
+        announced = self.wind_feedforward
         if w is None:
             wind = None
+            self._wind_fresh_since_ns = None
             why = (
                 "no wind measured yet"
-                if self.wind_feedforward == "no wind measured yet"
+                if announced == "no wind measured yet"
                 else f"no valid wind from {', '.join(self._wind_sources)} within the source timeout"
             )
         else:
             u, v, reference, source = w
+            if self._wind_fresh_since_ns is None:
+                self._wind_fresh_since_ns = now_ns
             why = ""
+            if (
+                announced
+                and announced != "no wind measured yet"
+                and now_ns - self._wind_fresh_since_ns < WIND_ON_CONFIRM_S * NS
+            ):
+                why = announced  # announced off: back "on" only once it has held (`WIND_ON_CONFIRM_S`)
             if reference == "T":
                 nu = est.nu
                 u, v = u + float(nu[0]), v + float(nu[1])

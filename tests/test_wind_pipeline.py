@@ -13,7 +13,7 @@ import pytest
 
 from dpgw.closed_loop import gateway_tables, run_closed_loop
 from gateway.config import ConfigError, describe, parse_config, wind_feedforward_line
-from gateway.pipeline import Pipeline, PipelineSpec, RawEvent
+from gateway.pipeline import WIND_ON_CONFIRM_S, Pipeline, PipelineSpec, RawEvent
 from simulator.faults import Fault
 from simulator.scenarios import get_scenario
 from wire.codecs import nmea_encode as enc
@@ -30,8 +30,8 @@ def events_of(run: Any) -> list[tuple[float, str]]:
 
 def test_stale_and_corrupt_anemometer_is_flagged_and_the_gateway_keeps_station() -> None:
     """Wind bytes with bad checksums and line noise, then 40 s of silence: the rejects are counted, the
-    feed-forward goes off once (an event) and back on once when the wind returns; estimates and
-    commands never stop and the vessel stays within a few metres."""
+    feed-forward goes off once (an event) and back on once when the wind has returned for
+    `WIND_ON_CONFIRM_S`; estimates and commands never stop and the vessel stays within a few metres."""
     base = get_scenario("mss_supply_storm")
     scenario = replace(
         base,
@@ -58,7 +58,10 @@ def test_stale_and_corrupt_anemometer_is_flagged_and_the_gateway_keeps_station()
     # corrupted (20-40 s) can do that, and the dropout (60-100 s) does, within a control tick or two
     assert all(20.0 < t < 42.5 or 60.0 < t < 62.5 for t in offs), times
     assert any(60.0 < t < 62.5 for t in offs)
-    assert 100.0 <= times[-1] < 101.0
+    # back on once the wind has held for WIND_ON_CONFIRM_S (10 s) after the dropout
+    assert 100.0 + WIND_ON_CONFIRM_S <= times[-1] < 101.0 + WIND_ON_CONFIRM_S
+    ons = [t for t, e in zip(times, texts, strict=True) if e == on]
+    assert all(b - a >= WIND_ON_CONFIRM_S for a, b in zip(offs, ons[1:], strict=True))  # no flapping
     stale_alarms = [
         a for s in run.collected["/dp/status"] for a in s["alarms"] if a.startswith("source wind1: stale")
     ]
@@ -226,3 +229,40 @@ def test_true_wind_gives_the_feedforward_of_the_relative_wind_it_makes(
     scale = np.abs(tau["R"]).max()
     assert scale > 1e3  # a real force (N), not two zeros
     np.testing.assert_allclose(tau["T"], tau["R"], rtol=0, atol=1e-5 * scale)
+
+
+def test_a_flapping_anemometer_is_said_off_once_and_on_once_it_holds() -> None:
+    """An anemometer that loses six sentences in seven (2 Hz: a good one every 3.5 s, gaps beyond its 2 s
+    timeout) for 60 s, then sends cleanly: the feed-forward uses each fresh wind at once (as before), but
+    the status says "off" once and "on" once, when the wind has held for `WIND_ON_CONFIRM_S` — not "on",
+    "off" at every good sentence (before: 35 events)."""
+    from observers.base import Estimate
+
+    p = pipeline_for()
+    est = Estimate(0.0, np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), "ok")
+    t0 = 1_700_000_000 * NS
+    good = enc.mwv("WI", math.radians(40.0), 15.0).encode("ascii")
+    bad = b"$WIMWV,40.0,R,15.0,M,A*00\r\n"  # bad checksum
+    events: list[tuple[float, str]] = []
+    used = []
+    for k in range(1000):  # 100 s at the control rate, 10 Hz
+        now = t0 + k * NS // 10
+        if k % 5 == 0:  # an MWV every 0.5 s: from 5 s to 65 s six of seven are corrupt
+            n = k // 5
+            p.feed(RawEvent(now, "wind1", good if not (10 <= n < 130) or n % 7 == 0 else bad))
+        wind = p._relative_wind(now, est)
+        used.append(wind is not None)
+        events += [((now - t0) / NS, e) for e in p.status_message(now).events if "wind feed-forward" in e]
+    on, off = (
+        "wind feed-forward on: wind from wind1",
+        ("wind feed-forward off: no valid wind from wind1 within the source timeout"),
+    )
+    assert p.counters["wind1"].rejected["bad_checksum"] > 90
+    # the feed-forward itself still follows the wind: on for 2 s after each good sentence of the flapping
+    flapping = np.array(used[70:650])
+    assert 0.4 < flapping.mean() < 0.8 and np.count_nonzero(np.diff(flapping.astype(int)) == -1) > 10
+    assert [e for _, e in events] == [on, off, on], events
+    t_on, t_off, t_back = (t for t, _ in events)
+    assert t_on == 0.0 and 6.5 < t_off < 7.5  # the last good sentence before the flapping at 4.5 s
+    clean = 0.5 * max(n for n in range(10, 130) if n % 7 == 0)  # 63 s: unbroken fresh wind from here
+    assert clean + WIND_ON_CONFIRM_S <= t_back < clean + WIND_ON_CONFIRM_S + 0.2
