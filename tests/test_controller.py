@@ -647,3 +647,28 @@ def test_return_speed_above_the_reference_limit_is_refused(supply: VesselModel) 
     with pytest.raises(ControllerError, match="return_speed_mps"):
         DPController(supply, ControllerTuning(return_speed_mps=0.0))
     assert DPController(supply).return_speed_mps == froude_defaults(supply)["max_speed_mps"]
+
+
+def test_compiled_and_readable_agree_through_a_governed_return(supply: VesselModel) -> None:
+    """The compiled step takes the reference's constants per step (`ReferenceModel.packed`): through a
+    governed return, whose restart lowers the speed limit to the return speed, both steps give the same τ
+    and the same reference, which walks back at ≤ the return speed."""
+    ctls = [DPController(supply, ControllerTuning(return_speed_mps=0.2), compiled=c) for c in (True, False)]
+    station, zero = np.zeros(3), np.zeros(3)
+    outs: list[list[Any]] = [[], []]
+    for ctl, out in zip(ctls, outs, strict=True):
+        ctl.set_setpoint(station)
+        ctl.set_mode("dp")
+        ctl.update(0.0, station, zero, zero)
+        ctl.update(0.1, [40.0, 0.0, 0.0], [-0.3, 0.0, 0.0], zero)  # 40 m off, closing: a return
+        assert ctl.returns == 1
+        for k in range(2, 1500):  # the vessel 2 m behind its reference, on its way home
+            ref = ctl.reference.state
+            out.append(ctl.update(0.1 * k, ref.eta_d + np.array([2.0, 0.0, 0.0]), ref.nu_d, zero))
+    for a, b in zip(*outs, strict=True):
+        np.testing.assert_allclose(a.tau, b.tau, rtol=0, atol=1e-9 * (1.0 + np.abs(b.tau).max()))
+        np.testing.assert_allclose(a.reference.eta_d, b.reference.eta_d, rtol=0, atol=1e-9)
+    speed = np.array([np.hypot(*o.reference.eta_dot_d[:2]) for o in outs[0]])
+    # restarted at the vessel's 0.3 m/s, slowed (first order, 1/(2ω) = 7 s) to the return speed, held there
+    assert speed[0] > 0.28 and np.all(np.diff(speed) <= 1e-12)
+    assert abs(speed[-300:] - 0.2).max() < 1e-6

@@ -414,7 +414,6 @@ class DPController:
         self._dof = np.vstack(
             [self._k, self._has_i.astype(float), np.broadcast_to(self._tracking_rate, (3,))]
         ).astype(float)
-        self._rp: Array | None = None  # the reference model's constants, packed on first use
         # governed return (`_govern_return`): the error beyond which the feedback alone would bring the
         # vessel back faster than the return speed / the yaw-rate limit (peak of the critically damped
         # step response e₀·ω/e)
