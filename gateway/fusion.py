@@ -50,6 +50,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from observers.hull import apparent_wind_body
 from observers.kinematics import ssa_scalar
 from observers.vessel import Thruster, VesselModel
 from wire.geodesy import LocalFrame
@@ -96,6 +97,12 @@ def _read_only(a: ArrayLike) -> Array:
     out = np.array(a, dtype=float).reshape(3)
     out.setflags(write=False)
     return out
+
+
+def rms_sigma_m(cov_ne: tuple[float, float, float] | None) -> float | None:
+    """One horizontal 1σ of a covariance (C_NN, C_NE, C_EE; m²): √((C_NN + C_EE) / 2), the RMS of the north
+    and east σ (None for None)."""
+    return None if cov_ne is None else math.sqrt((cov_ne[0] + cov_ne[2]) / 2.0)
 
 
 class Fusion:
@@ -428,8 +435,7 @@ class Fusion:
     def position_sigma_m(self, now_ns: int) -> float | None:
         """The 1σ error of the position in use, √((C_NN + C_EE) / 2) of `position_covariance_ne` (the RMS
         of the north and east σ), else None."""
-        cov = self.position_covariance_ne(now_ns)
-        return None if cov is None else math.sqrt((cov[0] + cov[2]) / 2.0)
+        return rms_sigma_m(self.position_covariance_ne(now_ns))
 
     # --- wind ---------------------------------------------------------------------------------------------
 
@@ -441,7 +447,7 @@ class Fusion:
         ``R`` (relative) or ``T`` (true), valid for ``valid_ns`` after ``rx_ns``."""
         if not (math.isfinite(speed_mps) and math.isfinite(angle_rad)) or speed_mps < 0:
             return
-        u, v = speed_mps * math.cos(angle_rad), speed_mps * math.sin(angle_rad)
+        u, v = apparent_wind_body(speed_mps, angle_rad)  # (reference T: the same polar-to-body step)
         self._wind[source] = (Held(u, rx_ns, source, priority, valid_ns), v, reference)
 
     def wind(self, now_ns: int) -> tuple[float, float, str, str] | None:

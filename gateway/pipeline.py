@@ -40,7 +40,7 @@ from gateway.control.allocation import AllocationResult, PseudoInverseAllocator,
 from gateway.control.controller import ControllerTuning, DPController
 from gateway.esc_direction import EscDirections
 from gateway.foxglove_channels import FoxgloveChannels
-from gateway.fusion import NS, Fusion
+from gateway.fusion import NS, Fusion, rms_sigma_m
 from gateway.references import ReferenceMonitor
 from gateway.references.monitor import Prediction
 from observers.base import (
@@ -1011,7 +1011,7 @@ class Pipeline:
                     valid=valid,
                     sources=_source_names(names),
                     quality=fusion.quality,
-                    sigma_m=None if cov is None else math.sqrt((cov[0] + cov[2]) / 2.0),
+                    sigma_m=rms_sigma_m(cov),
                     tau=tau.tolist(),
                     tau_source=tau_source,
                     covariance_ne_m2=None if cov is None else list(cov),
