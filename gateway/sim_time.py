@@ -27,7 +27,8 @@ run's first tick, is stamped on the old run's time. The consumer `follow`s the n
 new run's data: from then on stamps come from the new run's ticks only, anchored on its first (what was
 received before it, stamped with its time exactly, as before the first tick of all), and they start again
 from there (stamps never go back within a run). A tick a little behind (two Zenoh threads' callbacks
-swapped) is only ignored.
+swapped) is only ignored, and so is a tick of the old run delivered after the new run's first (swapped
+the same way at the restart: near the old run's newest, far ahead of the new run's).
 """
 
 from __future__ import annotations
@@ -92,10 +93,12 @@ class SimTime:
         self._run = _Ticks()  # the run stamps come from
         self._new: _Ticks | None = None  # a new run's ticks, until the consumer follows it
         self._last_out: int | None = None
+        self._left_newest: int | None = None  # the newest tick of the run the last restart left
         self.ticks = 0
         """Ticks taken (of every run)."""
         self.ignored = 0
-        """Ticks ignored: a little behind the newest (swapped in delivery) or not a valid tick."""
+        """Ticks ignored: a little behind the newest (swapped in delivery), a late tick of the run a restart
+        left (near its newest, far ahead of the new run's), or not a valid tick."""
         self.went_back: tuple[int, int] | None = None
         """(newest simulation time of the run being stamped, the new run's first tick) while a tick went
         back more than `RESTART_BACK_NS` (the simulator started again) and the new run is not followed
@@ -124,7 +127,18 @@ class SimTime:
                 # the simulator started again (again: the newest restart is the one to follow)
                 self.went_back = (self._run.sim[-1], sim_ns)
                 self.restart_mono_ns = mono_ns
+                self._left_newest = run.sim[-1]
                 run = self._new = _Ticks()
+            elif (
+                run.sim
+                and sim_ns > run.sim[-1] + RESTART_BACK_NS
+                and self._left_newest is not None
+                and abs(sim_ns - self._left_newest) <= RESTART_BACK_NS
+            ):
+                # a tick of the run just left, delivered after the new run's first (swapped like above):
+                # not the new run jumping ahead, whose next tick would look like another restart
+                self.ignored += 1
+                return
             run.add(sim_ns, period_s, mono_ns)
             self.ticks += 1
 

@@ -37,7 +37,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Annotated, Any, Literal, NamedTuple, Protocol, runtime_checkable
+from typing import Annotated, Any, Generic, Literal, NamedTuple, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 import pymap3d
@@ -531,6 +531,51 @@ class _Freezer:
         return self._value
 
 
+class _SourceConfig(Protocol):
+    @property
+    def source(self) -> str: ...
+
+
+_C = TypeVar("_C", bound=_SourceConfig)
+_M = TypeVar("_M")
+
+
+class _Sampled(Generic[_C, _M]):
+    """What the NMEA sensors share (`Dgps`, `Gyro`, `Anemometer`): their config and random stream, a
+    sample schedule, the faults applied at the sample (``dropout``: nothing sent; ``frozen``: the window's
+    first measurement repeated, the random stream drawn all the same) and the ``encode`` switch. A sensor
+    gives `_measure`, and its `sample` turns what `_sampled` returns into emissions."""
+
+    def __init__(
+        self, config: _C, rng: np.random.Generator, faults: FaultSchedule | None, schedule: _Schedule
+    ) -> None:
+        self.config = config
+        self.source = config.source
+        self.rng = rng
+        self.faults = faults if faults is not None else FaultSchedule()
+        self._schedule = schedule
+        self._freeze = _Freezer()
+        self.encode = True
+        """False: emissions carry typed records instead of bytes (see `Emission.record`)."""
+
+    def next_time(self) -> float:
+        return self._schedule.next()
+
+    def _sampled(self, state: ShipState) -> tuple[float, _M] | None:
+        """(t, the measurement at t, frozen while a ``frozen`` fault is on) when a sample is due at
+        ``state.t`` and no ``dropout`` is on; the schedule advances past t whenever one was due."""
+        t = float(state.t)
+        if not self._schedule.due(t):
+            return None
+        self._schedule.advance_past(t)
+        if self.faults.active("dropout", self.source, t):
+            return None
+        return t, self._freeze(self.faults.active("frozen", self.source, t), self._measure(state, t))
+
+    def _measure(self, state: ShipState, t: float) -> _M:
+        raise NotImplementedError
+
+
 class _Burst(NamedTuple):
     kinds: tuple[str, ...]
     utc: Any  # datetime
@@ -549,7 +594,7 @@ class _Fix(NamedTuple):
     cog_rad: float
 
 
-class Dgps(Sensor):
+class Dgps(_Sampled[DgpsConfig, _Fix], Sensor):
     """A DGPS/RTK receiver (see `DgpsConfig`). Fixes fall on the UTC grid of the output rate (whole seconds
     at 1 Hz, .0/.2/.4… at 5 Hz), the first at or after ``start``; every sentence of a burst carries the fix
     time and leaves at fix time + latency."""
@@ -564,37 +609,24 @@ class Dgps(Sensor):
         *,
         start: float = 0.0,
     ) -> None:
-        self.config = config
-        self.source = config.source
-        self.datum = datum
-        self.epoch = epoch
-        self.rng = rng
-        self.faults = faults if faults is not None else FaultSchedule()
         period = 1.0 / config.rate_hz
         past_second = (epoch.stamp_ns(start) % 1_000_000_000) / 1e9
-        self._schedule = _Schedule(config.rate_hz, start + (-past_second) % period)
+        super().__init__(config, rng, faults, _Schedule(config.rate_hz, start + (-past_second) % period))
+        self.datum = datum
+        self.epoch = epoch
         self._sigma = np.array([1.0, 1.0, VERTICAL_SIGMA_FACTOR]) * config.sigma_m
         self._noise: NDArray[np.float64] | None = None
         self._t_noise = 0.0
-        self._freeze = _Freezer()
         self._mode = DGPS_QUALITIES[config.quality]
         self._kinds_all = config.sentences
         self._kinds_fast = tuple(k for k in config.sentences if k not in config.slow_sentences)
         self._lever_arm = config.lever_arm_xyz
-        self.encode = True
-        """False: emissions carry typed records instead of bytes (see `Emission.record`)."""
-
-    def next_time(self) -> float:
-        return self._schedule.next()
 
     def sample(self, state: ShipState) -> list[Emission]:
-        t = float(state.t)
-        if not self._schedule.due(t):
+        sampled = self._sampled(state)
+        if sampled is None:
             return []
-        self._schedule.advance_past(t)
-        if self.faults.active("dropout", self.source, t):
-            return []
-        fix = self._freeze(self.faults.active("frozen", self.source, t), self._measure(state, t))
+        t, fix = sampled
         t_emit = t + self.config.latency_s
         if not self.encode:
             return [Emission.trusted(t_emit, self.source, "nmea", b"", t, r) for r in self._records(fix, t)]
@@ -760,7 +792,7 @@ class Dgps(Sensor):
         return out
 
 
-class Gyro(Sensor):
+class Gyro(_Sampled[GyroConfig, tuple[float, float]], Sensor):
     """A gyro compass (see `GyroConfig`), free-running at ``start + k / rate_hz``."""
 
     def __init__(
@@ -772,27 +804,14 @@ class Gyro(Sensor):
         *,
         start: float = 0.0,
     ) -> None:
-        self.config = config
-        self.source = config.source
+        super().__init__(config, rng, faults, _Schedule(config.rate_hz, start))
         self.epoch = epoch
-        self.rng = rng
-        self.faults = faults if faults is not None else FaultSchedule()
-        self._schedule = _Schedule(config.rate_hz, start)
-        self._freeze = _Freezer()
-        self.encode = True
-        """False: emissions carry typed records instead of bytes (see `Emission.record`)."""
-
-    def next_time(self) -> float:
-        return self._schedule.next()
 
     def sample(self, state: ShipState) -> list[Emission]:
-        t = float(state.t)
-        if not self._schedule.due(t):
+        sampled = self._sampled(state)
+        if sampled is None:
             return []
-        self._schedule.advance_past(t)
-        if self.faults.active("dropout", self.source, t):
-            return []
-        heading, rate = self._freeze(self.faults.active("frozen", self.source, t), self._measure(state, t))
+        t, (heading, rate) = sampled
         cfg = self.config
         t_emit = t + cfg.latency_s
         if not self.encode:
@@ -835,7 +854,7 @@ WindAt = Callable[[float], tuple[float, float]]
 """The true wind at sim time t: (speed m/s at the vessel's wind reference height, from degrees)."""
 
 
-class Anemometer(Sensor):
+class Anemometer(_Sampled[AnemometerConfig, tuple[float, float]], Sensor):
     """An anemometer (see `AnemometerConfig`), free-running at ``start + k / rate_hz``. ``wind`` gives the
     true wind at a time (`simulator.wind.Wind`: mean + gust); the reading is the apparent wind
     `observers.hull.relative_wind` of the vessel's LF velocity, the same function the plant's wind force
@@ -850,27 +869,14 @@ class Anemometer(Sensor):
         *,
         start: float = 0.0,
     ) -> None:
-        self.config = config
-        self.source = config.source
+        super().__init__(config, rng, faults, _Schedule(config.rate_hz, start))
         self.wind = wind
-        self.rng = rng
-        self.faults = faults if faults is not None else FaultSchedule()
-        self._schedule = _Schedule(config.rate_hz, start)
-        self._freeze = _Freezer()
-        self.encode = True
-        """False: emissions carry typed records instead of bytes (see `Emission.record`)."""
-
-    def next_time(self) -> float:
-        return self._schedule.next()
 
     def sample(self, state: ShipState) -> list[Emission]:
-        t = float(state.t)
-        if not self._schedule.due(t):
+        sampled = self._sampled(state)
+        if sampled is None:
             return []
-        self._schedule.advance_past(t)
-        if self.faults.active("dropout", self.source, t):
-            return []
-        angle, speed = self._freeze(self.faults.active("frozen", self.source, t), self.measure(state, t))
+        t, (angle, speed) = sampled
         cfg = self.config
         t_emit = t + cfg.latency_s
         if not self.encode:
@@ -879,7 +885,7 @@ class Anemometer(Sensor):
         text = nmea.mwv(cfg.talker, angle, speed, "R", cfg.unit)
         return [Emission.trusted(t_emit, self.source, "nmea", text.encode("ascii"), t)]
 
-    def measure(self, state: ShipState, t: float) -> tuple[float, float]:
+    def _measure(self, state: ShipState, t: float) -> tuple[float, float]:
         """(angle from the bow in [-π, π), speed ≥ 0) of the apparent wind at t, noise included."""
         speed, from_deg = self.wind(t)
         u, v, _ = state.nu.tolist()

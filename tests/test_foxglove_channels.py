@@ -113,7 +113,8 @@ def test_gnss_fixes_hold_gga_altitude_and_gst_covariance(demo_log: Path) -> None
                     # with no east-north term, and the marginals its σ lat / lon
                     nn, ne, ee = ellipse_covariance_ne(g.sigma_major_m, g.sigma_minor_m, g.orient_rad)
                     assert (nn, ee) == pytest.approx((g.sigma_lat_m**2, g.sigma_lon_m**2), rel=1e-2)
-                    cov, kind = [ee, ne, 0, ne, nn, 0, 0, 0, (g.sigma_alt_m or 0.0) ** 2], 3
+                    assert g.sigma_alt_m is not None  # (else the up variance is approximated, type 1)
+                    cov, kind = [ee, ne, 0, ne, nn, 0, 0, 0, g.sigma_alt_m**2], 3
                 alt = (s.alt_m or 0.0) + (s.geoid_sep_m or 0.0)
                 expected[log_ns] = (alt, cov, kind)
     fixes = list(read_messages(demo_log, "/gnss/dgps1/fix"))

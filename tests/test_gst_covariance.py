@@ -20,11 +20,13 @@ from tests.test_nmea_decode import GPSD, log_bytes, need
 from tests.test_pipeline import T0, S, gga_at, nmea_src, pipeline
 from wire.codecs import nmea_encode as enc
 from wire.codecs.nmea import Gst, decode
+from wire.foxglove import COVARIANCE_APPROXIMATED, COVARIANCE_KNOWN, location_fix
 from wire.gst_covariance import (
     AXES,
     ELLIPSE,
     INCONSISTENT,
     SHAPE_FLOOR,
+    UP_PER_HORIZONTAL,
     ellipse_covariance_ne,
     gst_covariance,
     unit_shape,
@@ -139,10 +141,10 @@ def test_missing_fields_fall_back_to_what_is_given_and_a_disagreeing_ellipse_los
     )
     # an ellipse without its orientation: the same
     cov = gst_covariance(_gst(sigma_major_m=0.5, sigma_minor_m=0.2, sigma_lat_m=0.3, sigma_lon_m=0.4))
-    assert cov is not None and cov.origin == AXES and cov.uu == 0.0
+    assert cov is not None and cov.origin == AXES and not cov.up_known  # (no σ alt: approximated)
     # a circle needs no orientation
     cov = gst_covariance(_gst(sigma_major_m=0.5, sigma_minor_m=0.5))
-    assert cov is not None and cov[:4] == pytest.approx((0.25, 0.0, 0.25, 0.0)) and cov.origin == ELLIPSE
+    assert cov is not None and cov[:4] == pytest.approx((0.25, 0.0, 0.25, 1.0)) and cov.origin == ELLIPSE
     # the ellipse alone
     cov = gst_covariance(_gst(sigma_major_m=0.5, sigma_minor_m=0.2, orient_rad=math.radians(30)))
     assert (
@@ -154,7 +156,7 @@ def test_missing_fields_fall_back_to_what_is_given_and_a_disagreeing_ellipse_los
     cov = gst_covariance(
         _gst(sigma_major_m=5.0, sigma_minor_m=0.2, orient_rad=0.0, sigma_lat_m=0.3, sigma_lon_m=0.4)
     )
-    assert cov is not None and cov[:4] == pytest.approx((0.09, 0.0, 0.16, 0.0)) and cov.origin == INCONSISTENT
+    assert cov is not None and cov[:3] == pytest.approx((0.09, 0.0, 0.16)) and cov.origin == INCONSISTENT
     # nothing horizontal
     assert gst_covariance(_gst(sigma_alt_m=1.0)) is None
     assert gst_covariance(_gst(sigma_lat_m=0.3)) is None
@@ -379,3 +381,34 @@ def test_the_prediction_test_is_shaped_by_the_receivers_ellipse(
     circle = unit_shape((0.3, 0.0, 0.3))
     assert circle == pytest.approx((1.0, 0.0, 1.0))
     assert _monitor_with_spread().position("gps", T0 + 2 * S, *fix, 1, pred, circle) is isotropic
+
+
+def test_an_empty_altitude_sigma_is_not_published_as_an_exact_height() -> None:
+    # GST with the ellipse and σ lat / lon but σ alt empty (receivers that give no vertical error)
+    text = "GPGST,120000.00,0.5,0.5,0.2,30.0,0.444,0.304,"
+    g = decode(f"${text}*{enc.checksum(text)}")
+    assert isinstance(g, Gst) and g.sigma_alt_m is None
+    cov = gst_covariance(g)
+    assert cov is not None and cov.origin == ELLIPSE and not cov.up_known
+    # the up variance: (2 σ_H)², σ_H the horizontal RMS σ (nmea_navsat_driver's vertical / horizontal)
+    assert cov.uu == pytest.approx(UP_PER_HORIZONTAL**2 * (cov.nn + cov.ee) / 2) and cov.uu > 0
+    # published as APPROXIMATED (1): the horizontal block is the ellipse's, the up variance an estimate
+    fix = location_fix(0, "gps", 59.0, 10.0, covariance=cov)
+    assert fix.position_covariance_type == COVARIANCE_APPROXIMATED
+    assert fix.position_covariance == pytest.approx(
+        [cov.ee, cov.ne, 0, cov.ne, cov.nn, 0, 0, 0, 4 * (cov.nn + cov.ee) / 2]
+    )
+    # the same through the pipeline; with σ alt given the type is KNOWN again
+    p = pipeline([nmea_src("gps", ["position", "heading"], timeout_s=2.0)])
+    hdt = enc.hdt("HE", 0.3).encode()
+    p.feed(RawEvent(T0, "gps", gga_at(0.0, 0.0) + hdt))
+    p.feed(RawEvent(T0 + S // 10, "gps", f"${text}*{enc.checksum(text)}\r\n".encode()))
+    out = p.feed(RawEvent(T0 + S, "gps", gga_at(0.0, 0.0) + hdt))
+    (payload,) = [o.payload for o in out if o.topic == "/gnss/gps/fix"]
+    assert payload["position_covariance_type"] == COVARIANCE_APPROXIMATED
+    assert payload["position_covariance"][8] == pytest.approx(cov.uu)
+    p.feed(RawEvent(T0 + 2 * S, "gps", _gst_bytes(0.5, 0.2, 30.0, 0.444, 0.304)))
+    out = p.feed(RawEvent(T0 + 3 * S, "gps", gga_at(0.0, 0.0) + hdt))
+    (payload,) = [o.payload for o in out if o.topic == "/gnss/gps/fix"]
+    assert payload["position_covariance_type"] == COVARIANCE_KNOWN
+    assert payload["position_covariance"][8] == pytest.approx(1.0)

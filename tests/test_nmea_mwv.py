@@ -115,7 +115,7 @@ def test_encoder_refuses_bad_arguments() -> None:
         enc.mwv("WI", 0.0, 1.0, reference="X")
     with pytest.raises(ValueError):
         enc.mwv("WI", 0.0, 1.0, unit="F")
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="wind speed cannot be negative"):
         enc.mwv("WI", 0.0, -1.0)
 
 

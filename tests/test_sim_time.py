@@ -89,6 +89,31 @@ def test_a_tick_going_back_is_a_new_run_stamped_apart_once_followed() -> None:
     assert not clock.of_new_run(restart + 10**10, 10**9)  # nothing pending any more
 
 
+def test_a_late_tick_of_the_old_run_is_not_a_second_restart() -> None:
+    """A tick of the old run delivered after the new run's first (two Zenoh threads' callbacks swapped at
+    the restart) is the old run's straggler: ignored, not taken as the new run jumping ahead (whose next
+    tick would then look like a second restart: a spurious run, log file and pipeline start-over)."""
+    for follow_first in (False, True):
+        clock = SimTime()
+        ticks = regular(clock, 40, speed=1.0)
+        wall_end, sim_end = ticks[-1]
+        restart = wall_end + 3 * 10**9
+        clock.on_tick(EPOCH, PERIOD_S, restart)  # the new run's first tick
+        if follow_first:  # the consumer follows at once
+            assert clock.follow() == (sim_end, EPOCH)
+        clock.on_tick(sim_end + 50_000_000, PERIOD_S, restart + 1)  # the old run's last, delivered late
+        clock.on_tick(EPOCH + 50_000_000, PERIOD_S, restart + 50_000_000)
+        clock.on_tick(EPOCH + 100_000_000, PERIOD_S, restart + 100_000_000)
+        assert clock.ignored == 1
+        if not follow_first:
+            assert clock.went_back == (sim_end, EPOCH) and clock.restart_mono_ns == restart
+            clock.follow()
+        assert clock.went_back is None and clock.runs == 2
+        # stamps on the new run's time, never the old run's
+        assert clock.stamp(restart + 50_000_000) == EPOCH + 50_000_000
+        assert clock.stamp(restart + 100_000_000) == EPOCH + 100_000_000
+
+
 @settings(max_examples=200, deadline=None)
 @given(
     gaps=st.lists(

@@ -53,6 +53,7 @@ DELETE_MATCHING_ID = 0
 NS = 1_000_000_000
 
 COVARIANCE_UNKNOWN = 0
+COVARIANCE_APPROXIMATED = 1
 COVARIANCE_DIAGONAL_KNOWN = 2
 COVARIANCE_KNOWN = 3
 
@@ -80,14 +81,18 @@ def location_fix(
     """A `foxglove.LocationFix`; ``covariance``: the receiver's GST covariance (`wire.gst_covariance`),
     given in east, north, up, row-major (the schema's order, as ROS's NavSatFix): type KNOWN when it
     came from the error ellipse (the east-north term filled in), DIAGONAL_KNOWN when only GST's per-axis
-    σ were usable; without GST it is all zero and UNKNOWN. ``heading_rad``: clockwise from true north,
-    the estimate's ψ (a GNSS fix has none of its own)."""
+    σ were usable, APPROXIMATED when GST had no σ_alt (the up variance is then an estimate from the
+    horizontal: `GstCovariance.up_known`); without GST it is all zero and UNKNOWN. ``heading_rad``:
+    clockwise from true north, the estimate's ψ (a GNSS fix has none of its own)."""
     if covariance is None:
         cov = [0.0] * 9
         kind = COVARIANCE_UNKNOWN
     else:
         cov = covariance.enu()
-        kind = COVARIANCE_KNOWN if covariance.full else COVARIANCE_DIAGONAL_KNOWN
+        if not covariance.up_known:
+            kind = COVARIANCE_APPROXIMATED
+        else:
+            kind = COVARIANCE_KNOWN if covariance.full else COVARIANCE_DIAGONAL_KNOWN
     return LocationFix(
         timestamp=Time(sec=stamp_ns // NS, nsec=stamp_ns % NS),
         frame_id=frame_id,

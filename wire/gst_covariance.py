@@ -25,8 +25,12 @@ disagree the receiver has filled the ellipse with something else (another confid
 residuals' ellipse, a stale value): the per-axis σ_N, σ_E win — they are the fix's per-axis precision
 itself, what a ROS driver such as nmea_navsat_driver puts on a NavSatFix, and what dpgw used before —
 and the covariance is diagonal, reported as `INCONSISTENT`. Without a complete ellipse: σ_N, σ_E on the
-diagonal. Without either: no covariance. The up variance is σ_U² (0 without it), uncorrelated with the
-horizontal (GST gives no more).
+diagonal. Without either: no covariance. The up variance is σ_U², uncorrelated with the horizontal (GST
+gives no more). Without σ_U it is not known, and 0 there would read as an exact height: it is then
+approximated as (`UP_PER_HORIZONTAL` σ_H)², σ_H = √((C_NN + C_EE)/2), the way ROS's nmea_navsat_driver
+approximates a fix's vertical error (twice its horizontal one: satellites are all above the antenna, so
+VDOP is typically 1.5-2 × HDOP), and `up_known` is False: the published covariance type is then
+APPROXIMATED (ROS NavSatFix, Foxglove LocationFix), not KNOWN or DIAGONAL_KNOWN.
 
 Negative σ and a non-finite orientation never get here: the decoder rejects such a sentence as a
 ``bad_field`` (`wire.codecs.nmea`).
@@ -49,14 +53,21 @@ ELLIPSE, AXES, INCONSISTENT = "ellipse", "axes", "inconsistent"
 σ_lon because the ellipse disagrees with them."""
 
 
+UP_PER_HORIZONTAL: Final = 2.0
+"""Without GST's σ_alt, the up 1σ taken as this many times the horizontal (RMS) 1σ (nmea_navsat_driver's
+ratio: its altitude σ is 2 × HDOP × ε where its horizontal σ is HDOP × ε)."""
+
+
 class GstCovariance(NamedTuple):
-    """A fix's position covariance (m²): the horizontal in north/east and the up variance."""
+    """A fix's position covariance (m²): the horizontal in north/east and the up variance (``up_known``
+    False: σ_alt was empty and ``uu`` is approximated from the horizontal)."""
 
     nn: float
     ne: float
     ee: float
     uu: float
     origin: str  # ELLIPSE, AXES or INCONSISTENT
+    up_known: bool = True
 
     @property
     def full(self) -> bool:
@@ -93,15 +104,21 @@ def gst_covariance(g: Gst) -> GstCovariance | None:
     """The position covariance a GST gives (the rules in the module docstring), or None without one."""
     a, b, theta = g.sigma_major_m, g.sigma_minor_m, g.orient_rad
     lat, lon = g.sigma_lat_m, g.sigma_lon_m
-    uu = (g.sigma_alt_m or 0.0) ** 2
     if a is not None and b is not None and (theta is not None or a == b):
         nn, ne, ee = ellipse_covariance_ne(a, b, theta or 0.0)
         if lat is None or lon is None or (_agree(nn, lat) and _agree(ee, lon)):
-            return GstCovariance(nn, ne, ee, uu, ELLIPSE)
-        return GstCovariance(lat * lat, 0.0, lon * lon, uu, INCONSISTENT)
+            return _with_up(nn, ne, ee, g.sigma_alt_m, ELLIPSE)
+        return _with_up(lat * lat, 0.0, lon * lon, g.sigma_alt_m, INCONSISTENT)
     if lat is None or lon is None:
         return None
-    return GstCovariance(lat * lat, 0.0, lon * lon, uu, AXES)
+    return _with_up(lat * lat, 0.0, lon * lon, g.sigma_alt_m, AXES)
+
+
+def _with_up(nn: float, ne: float, ee: float, sigma_alt_m: float | None, origin: str) -> GstCovariance:
+    """The covariance with its up variance: σ_alt², or without σ_alt (UP_PER_HORIZONTAL σ_H)², not known."""
+    if sigma_alt_m is not None:
+        return GstCovariance(nn, ne, ee, sigma_alt_m * sigma_alt_m, origin)
+    return GstCovariance(nn, ne, ee, UP_PER_HORIZONTAL * UP_PER_HORIZONTAL * (nn + ee) / 2.0, origin, False)
 
 
 SHAPE_FLOOR: Final = 0.01

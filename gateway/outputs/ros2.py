@@ -16,9 +16,10 @@ Topics (``[ros2]``; names relative to ``namespace``, ``/dpgw`` by default):
   all zeros, which ROS messages read as "unknown" (sensor_msgs/Imu's stated convention).
 - ``pose`` — ``geometry_msgs/msg/PoseStamped``: the same pose.
 - ``fix/<source>`` — ``sensor_msgs/msg/NavSatFix`` of each GNSS fix a receiver gives (``/gnss/<source>/
-  fix``): ellipsoidal height (NaN until the receiver gave one), GST's 1σ as a diagonal ENU covariance
-  (else unknown), the status from GGA's quality as nmea_navsat_driver maps it (1 fix, 2 SBAS, 4/5/9 GBAS,
-  any other no fix), the service from the talker.
+  fix``): ellipsoidal height (NaN until the receiver gave one), GST's covariance in ENU (full from its
+  error ellipse, else diagonal; approximated without σ_alt; else unknown: docs/ros2.md), the status
+  from GGA's quality as nmea_navsat_driver maps it (1 fix, 2 SBAS, 4/5/9 GBAS, any other no fix), the
+  service from the talker.
 - ``/clock`` — ``rosgraph_msgs/msg/Clock``, only with ``[time] clock = "sim"``: the simulator's ticks
   (``<prefix>/sim/clock``) as ROS's simulation clock, best effort, keep-last 1 (rclcpp's ``ClockQoS``).
   The stamps of the other topics are then the plant's time; a ROS node run with ``use_sim_time`` reads

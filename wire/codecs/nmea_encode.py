@@ -451,7 +451,7 @@ def mwv(
     """
     _one_of("reference", reference, "RT")
     _one_of("unit", unit, "KMNS")
-    speed = _speed(speed_mps, MWV_UNITS[unit], decimals)
+    speed = _speed(speed_mps, MWV_UNITS[unit], decimals, "wind speed")
     status = "A" if valid else "V"
     return _build(talker, "MWV", [_deg360(angle_rad, decimals), reference, speed, unit, status])
 
@@ -638,12 +638,12 @@ def _east_west(angle_rad: float | None, decimals: int) -> tuple[Field, Field]:
     return text, "W" if west else "E"
 
 
-def _speed(speed_mps: float | None, factor: float, decimals: int) -> Field:
+def _speed(speed_mps: float | None, factor: float, decimals: int, what: str = "speed over ground") -> Field:
     if speed_mps is None:
         return None
-    speed = _finite("speed", speed_mps)
+    speed = _finite(what, speed_mps)
     if speed < 0:
-        raise ValueError(f"speed over ground cannot be negative, got {speed} m/s")
+        raise ValueError(f"{what} cannot be negative, got {speed} m/s")
     return _fixed(speed * factor, decimals)
 
 
