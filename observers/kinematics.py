@@ -42,3 +42,24 @@ def rotation(psi: float) -> NDArray[np.float64]:
     """J(ψ) of eq (2): body-frame velocity to earth-fixed (NED) rate of change."""
     c, s = math.cos(psi), math.sin(psi)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def lever_arm_ned(
+    psi: float, phi: float, theta: float, x: float, y: float, z: float
+) -> tuple[float, float, float]:
+    """A body-frame lever arm [x, y, z] (x forward, y starboard, z down) turned into NED by the zyx Euler
+    angles: R_zyx(φ, θ, ψ)·[x, y, z] (Fossen 2021, eq. 2.18), with φ roll (starboard down positive), θ
+    pitch (bow up positive), ψ heading::
+
+        R_zyx = R_z(ψ) R_y(θ) R_x(φ)
+
+    computed as the three plane rotations in turn (roll, then pitch, then heading) on plain floats. With
+    φ = θ = 0 it is J(ψ)[x, y] of eq (1) and z unchanged. The one definition: the simulator's antenna
+    (`simulator.sensors.antenna_ned`) and the gateway's lever-arm compensation (`gateway.fusion`) both
+    call it, so that compensating a simulated fix with the true attitude gives the reference point back
+    to rounding."""
+    cf, sf, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
+    y1, z1 = cf * y - sf * z, sf * y + cf * z  # R_x(φ)
+    x2, z2 = ct * x + st * z1, -st * x + ct * z1  # R_y(θ)
+    c, s = math.cos(psi), math.sin(psi)  # R_z(ψ)
+    return c * x2 - s * y1, s * x2 + c * y1, z2

@@ -45,7 +45,7 @@ from numpy.typing import ArrayLike, NDArray
 from pydantic import AfterValidator, ConfigDict, Field, TypeAdapter, ValidationError
 
 from observers.hull import relative_wind
-from observers.kinematics import ssa_scalar
+from observers.kinematics import lever_arm_ned, ssa_scalar
 from observers.vessel import THRUSTER_KINDS
 from simulator.clock import SimEpoch
 from simulator.faults import QUALITY_MODES, Fault, FaultSchedule
@@ -443,13 +443,11 @@ def antenna_ned_floats(
     north: float, east: float, psi: float, x: float, y: float, z: float,
     heave: float, phi: float, theta: float,
 ) -> tuple[float, float, float]:  # fmt: skip
-    """`antenna_ned` on plain floats (the simulator's loop: no arrays in or out)."""
-    # body → level frame by roll then pitch (R_y(θ) R_x(φ)), then the heading rotation
-    cf, sf, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
-    y1, z1 = cf * y - sf * z, sf * y + cf * z
-    x2, z2 = ct * x + st * z1, -st * x + ct * z1
-    c, s = math.cos(psi), math.sin(psi)
-    return north + c * x2 - s * y1, east + s * x2 + c * y1, heave + z2
+    """`antenna_ned` on plain floats (the simulator's loop: no arrays in or out): the reference point plus
+    the lever arm turned by `observers.kinematics.lever_arm_ned` (R_zyx(φ, θ, ψ)), the rotation the
+    gateway's MRU compensation inverts."""
+    dn, de, dd = lever_arm_ned(psi, phi, theta, x, y, z)
+    return north + dn, east + de, heave + dd
 
 
 def antenna_velocity(eta: ArrayLike, nu: ArrayLike, lever_arm_m: Sequence[float]) -> NDArray[np.float64]:

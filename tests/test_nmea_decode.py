@@ -27,6 +27,7 @@ from wire.codecs.nmea import (
     REJECT_REASONS,
     SENTENCE_TYPES,
     UNSUPPORTED,
+    Attitude,
     Gga,
     Gns,
     Gst,
@@ -164,8 +165,8 @@ EXPECTED = {
         {"GPGST": 5, "GPGGA": 5, "GPGNS": 5, "GPRMC": 5, "GPVTG": 5, "GPZDA": 5},
     ),
     "gpsd-logs/rst39.log": (
-        {"unsupported": 100, "unsupported proprietary PASHR": 100},
-        {"GPGGA": 40, "GPRMC": 4, "GPHDT": 4, "GPZDA": 4},
+        {},
+        {"GPGGA": 40, "GPRMC": 4, "GPHDT": 4, "GPZDA": 4, "PASHR": 100},  # PASHR: MRU attitude at 25 Hz
     ),
     "gpsd-logs/saab-r4.log": (
         {
@@ -680,7 +681,8 @@ def test_lower_case_checksum_and_a_trailing_line_end_are_accepted() -> None:
         (line("GNTHS,12.5"), BAD_FORMAT, "fields"),
         (line("GPGSV,3,1,10,25,70,260,46"), UNSUPPORTED, "GSV"),
         (line("GNGSA,A,3,05,12,,,,,,,,,,,1.7,0.8,1.6,1"), UNSUPPORTED, "GSA"),
-        (line("PASHR,204132.000,010.51,T,+00.39,-00.79,-00.84,0.151,0.075,0.555,1,0"), UNSUPPORTED, "PASHR"),
+        (line("PASHR,POS,0,10,123519.00,4807.038,N"), UNSUPPORTED, "PASHR"),  # an Ashtech reply
+        (line("PFEC,GPatt,123.4,1.2,0.5"), UNSUPPORTED, "PFEC"),
         ("!AIVDM,1,1,,B,13aGhtw0R<OJf=6LgQ?Ad1FF05`L,0*24", UNSUPPORTED, "VDM"),
         (line("GPGGA,1235,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,"), BAD_FIELD, "time"),
         (line("GPGGA,253519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,"), BAD_FIELD, "time"),
@@ -910,7 +912,9 @@ def check_stream(data: bytes, cuts: list[int]) -> list[Frame]:
             assert frame.text.encode("ascii") == frame.raw and frame.text.isprintable()
             assert len(frame.text) <= 180
             result = decode(frame.text)
-            assert isinstance(result, Reject | Gga | Gns | Rmc | Vtg | Gst | Zda | Heading | Rot | Mwv)
+            assert isinstance(
+                result, Reject | Gga | Gns | Rmc | Vtg | Gst | Zda | Heading | Rot | Mwv | Attitude
+            )
             if isinstance(result, Reject):
                 assert result.reason in REJECT_REASONS and "decoder error" not in result.detail
             result = decode(frame.text, require_checksum=False)
@@ -939,11 +943,7 @@ def test_valid_streams_chopped_anywhere_give_the_same_sentences(case: tuple[byte
         rest = rest[len(s) :]
     assert [f.raw for f in frames] == expected
     for frame in frames:
-        if (
-            frame.reason is None
-            and frame.text is not None
-            and not frame.text.startswith(("$GPGSV", "$PASHR"))
-        ):
+        if frame.reason is None and frame.text is not None and not frame.text.startswith("$GPGSV"):
             assert not isinstance(decode(frame.text), Reject)
 
 

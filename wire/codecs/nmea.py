@@ -15,7 +15,7 @@ Reject reasons (:data:`REJECT_REASONS`):
 ``bad_format``   not a sentence: no ``$``/``!``, non-ASCII text, a malformed address field, or fewer
                  fields than the sentence type needs
 ``unsupported``  a well-formed sentence of a type dpgw does not use (GSA, GSV, GLL, proprietary
-                 ``$P...``, AIS ``!AIVDM``, ...): counted, not an error
+                 ``$P...`` other than PASHR/PHTRO, AIS ``!AIVDM``, ...): counted, not an error
 ``bad_field``    a field of a supported sentence does not parse or is out of range; ``detail`` names it
 =============== ================================================================================
 
@@ -25,7 +25,9 @@ measurement comes back with ``valid=False`` (GGA quality 0, RMC status V, THS mo
 Supported sentence types, any talker (``GP``, ``GN``, ``GL``, ``GA``, ``GB``, ``BD``, ``HE``, ``HC``, ``IN``,
 ``II``, ``WI``, ...): GGA, GNS, RMC, VTG, GST, ZDA (:class:`Gga`, :class:`Gns`, :class:`Rmc`, :class:`Vtg`,
 :class:`Gst`, :class:`Zda`), HDT, THS, HDG (:class:`Heading`), ROT (:class:`Rot`), MWV and VWR (:class:`Mwv`,
-wind speed and angle: knots, km/h and statute mph become m/s). The layouts are the
+wind speed and angle: knots, km/h and statute mph become m/s); and two proprietary motion reference unit
+(MRU) sentences, ``$PASHR`` and ``$PHTRO`` (:class:`Attitude`: roll and pitch in dpgw's signs, starboard
+down and bow up positive). The layouts are the
 ones :mod:`wire.codecs.nmea_encode` writes (NMEA 0183 v4.10), read leniently: missing trailing fields
 are empty, extra trailing fields (newer NMEA versions) are ignored. ``docs/nmea.md`` has the details.
 
@@ -244,11 +246,47 @@ class Rot:
     valid: bool
 
 
-Sentence: TypeAlias = Gga | Gns | Rmc | Vtg | Gst | Zda | Heading | Rot | Mwv
+@dataclass(frozen=True)
+class Attitude:
+    """A motion reference unit's (MRU's) attitude: proprietary ``$PASHR`` (Applanix POS MV, Hemisphere,
+    OxTS, Trimble: time, true heading, roll, pitch, heave, their 1σ, aiding and IMU status) or ``$PHTRO``
+    (iXblue Octans / Phins: pitch and roll as magnitudes with side letters).
+
+    dpgw's signs, whatever the sentence: ``roll_rad`` positive starboard down (port up), ``pitch_rad``
+    positive bow up (Fossen's φ and θ of the NED/body frames); ``heave_up_m`` positive up, as PASHR sends
+    it. PASHR's signs are these already (roll + port up, pitch + bow up, heave + up); PHTRO's letters map
+    ``M`` (bow up) → +pitch, ``P`` (bow down) → −pitch, ``T`` (port up, starboard down) → +roll, ``B``
+    (port down) → −roll. ``valid``: roll and pitch both present. ``talker`` is ``""`` (a proprietary
+    sentence has none: its address is ``P``, the manufacturer and the type)."""
+
+    kind: Literal["PASHR", "PHTRO"]
+    talker: str
+    time_s: float | None
+    """UTC time of the measurement, seconds of the UTC day (PASHR; None for PHTRO, which carries none)."""
+    roll_rad: float | None
+    pitch_rad: float | None
+    heading_rad: float | None
+    """True heading in [-π, π) (PASHR, when its field 3 is ``T``); None for PHTRO."""
+    heave_up_m: float | None
+    roll_sigma_rad: float | None
+    pitch_sigma_rad: float | None
+    heading_sigma_rad: float | None
+    aiding: int | None
+    """PASHR field 10, GNSS aiding status (0 none, 1 GNSS, 2 GNSS and heading aiding): reported, not used."""
+    imu: int | None
+    """PASHR field 11, the IMU status flag: reported, not used (vendors give it opposite meanings)."""
+    valid: bool
+
+
+Sentence: TypeAlias = Gga | Gns | Rmc | Vtg | Gst | Zda | Heading | Rot | Mwv | Attitude
 """What :func:`decode` returns for a sentence it uses; ``kind`` tells them apart."""
 
 SENTENCE_TYPES: Final = ("GGA", "GNS", "RMC", "VTG", "GST", "ZDA", "HDT", "THS", "HDG", "ROT", "MWV", "VWR")
 """The sentence formatters :func:`decode` decodes; every other well-formed sentence is ``unsupported``."""
+
+PROPRIETARY_TYPES: Final = ("PASHR", "PHTRO")
+"""The proprietary sentences (whole address fields) :func:`decode` decodes: MRU attitude (`Attitude`);
+every other proprietary sentence is ``unsupported``."""
 
 
 # ---------------------------------------------------------------------------------------------- construction
@@ -388,6 +426,8 @@ def _address(address: str) -> tuple[str, _Decoder] | Reject:
             entry = Reject(UNSUPPORTED, kind)
         else:
             entry = (talker, decoder)
+    elif address in _PROPRIETARY:
+        entry = ("", _PROPRIETARY[address])  # (a proprietary sentence has no talker id)
     elif address[:1] == "P" and address.isalnum() and address.isupper() and len(address) >= 2:
         entry = Reject(UNSUPPORTED, f"proprietary {address}")
     else:
@@ -417,6 +457,8 @@ _WIDTH: Final = {
     "day,month,year": 3,
     "wind speed": 2,
     "wind angle and side": 2,
+    "pitch and side": 2,
+    "roll and side": 2,
 }
 _PAD: Final = [""] * 16
 
@@ -973,3 +1015,108 @@ _DECODERS: Final[dict[str, _Decoder]] = {
     "MWV": _mwv,
     "VWR": _vwr,
 }
+
+
+# ---------------------------------------------------------------------------------------------- proprietary
+# MRU attitude. Signs are turned into dpgw's here (roll + starboard down, pitch + bow up): the rest of dpgw
+# never sees a vendor's convention.
+
+
+def _signed_degrees(s: str, limit: float) -> float | None:
+    """Optional signed degrees within ±limit (a leading ``+`` allowed, as POS MV sends) → rad."""
+    if not s:
+        return None
+    v = float(s)
+    if not -limit <= v <= limit:  # (NaN fails too)
+        raise ValueError(s)
+    return v * _RAD
+
+
+def _sigma_degrees(s: str) -> float | None:
+    """Optional 1σ in degrees ≥ 0 → rad."""
+    v = _nonneg(s)
+    return None if v is None else v * _RAD
+
+
+def _true_flag(s: str) -> str:
+    """PASHR field 3: ``T`` (true heading) or empty."""
+    if s and s != "T":
+        raise ValueError(s)
+    return s
+
+
+def _flag(s: str) -> int | None:
+    """A single-digit status flag, or empty."""
+    if not s:
+        return None
+    if len(s) != 1 or not s.isdigit():
+        raise ValueError(s)
+    return int(s)
+
+
+_PASHR_LAYOUT: Final[tuple[_Field, ...]] = (
+    (1, "time", parse_time_of_day, None),
+    (2, "heading", _bearing, None),
+    (3, "true flag", _true_flag, None),
+    (4, "roll", lambda s: _signed_degrees(s, 180.0), None),
+    (5, "pitch", lambda s: _signed_degrees(s, 90.0), None),
+    (6, "heave", _float, None),
+    (7, "roll sigma", _sigma_degrees, None),
+    (8, "pitch sigma", _sigma_degrees, None),
+    (9, "heading sigma", _sigma_degrees, None),
+    (10, "aiding status", _flag, None),
+    (11, "IMU status", _flag, None),
+)
+
+
+def _pashr(talker: str, p: list[str]) -> Attitude | Reject:
+    """``$PASHR,hhmmss.sss,HHH.HH,T,RRR.RR,PPP.PP,heave,rr.rrr,pp.ppp,hh.hhh,a,b``: time, true heading,
+    roll (+ port up), pitch (+ bow up), heave (m, + up), 1σ of roll, pitch and heading (degrees), GNSS
+    aiding and IMU status. Ashtech receivers use the same address for their command replies
+    (``$PASHR,POS,...``, a letter in field 1): those are ``unsupported``, not bad fields."""
+    if len(p) > 1 and p[1][:1].isalpha():
+        return Reject(UNSUPPORTED, f"proprietary PASHR,{p[1][:8]}")
+    v = _fields("PASHR", p, 6, 12, _PASHR_LAYOUT)
+    if isinstance(v, Reject):
+        return v
+    time_s, heading, flag, roll, pitch, heave, s_roll, s_pitch, s_heading, aiding, imu = v
+    if flag != "T":
+        heading = None  # a heading not marked true is not one dpgw can use
+    valid = roll is not None and pitch is not None
+    return Attitude(
+        "PASHR", talker, time_s, roll, pitch, heading, heave, s_roll, s_pitch, s_heading, aiding, imu, valid
+    )
+
+
+def _side_degrees(s: str, side: str, limit: float, plus: str, minus: str) -> float | None:
+    """A magnitude in degrees within [0, limit] and its side letter → signed rad."""
+    if not s:
+        return None
+    v = float(s)
+    if not 0.0 <= v <= limit:
+        raise ValueError(s)
+    if side == plus:
+        return v * _RAD
+    if side == minus:
+        return -v * _RAD
+    raise ValueError(side)
+
+
+_PHTRO_LAYOUT: Final[tuple[_Field, ...]] = (
+    (1, "pitch and side", lambda s, side: _side_degrees(s, side, 90.0, "M", "P"), 2),
+    (3, "roll and side", lambda s, side: _side_degrees(s, side, 180.0, "T", "B"), 4),
+)
+
+
+def _phtro(talker: str, p: list[str]) -> Attitude | Reject:
+    """``$PHTRO,x.xx,a,y.yy,b``: pitch magnitude, ``M`` bow up / ``P`` bow down; roll magnitude, ``B`` port
+    down / ``T`` port up (iXblue's letters: French *monte*/*plonge*, *bâbord*/*tribord*)."""
+    v = _fields("PHTRO", p, 5, 5, _PHTRO_LAYOUT)
+    if isinstance(v, Reject):
+        return v
+    pitch, roll = v
+    valid = roll is not None and pitch is not None
+    return Attitude("PHTRO", talker, None, roll, pitch, None, None, None, None, None, None, None, valid)
+
+
+_PROPRIETARY: Final[dict[str, _Decoder]] = {"PASHR": _pashr, "PHTRO": _phtro}

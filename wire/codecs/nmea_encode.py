@@ -665,3 +665,94 @@ def _one_of(name: str, value: str, allowed: str) -> str:
     if len(value) != 1 or value not in allowed:
         raise ValueError(f"{name} must be one of {list(allowed)}, got {value!r}")
     return value
+
+
+# ------------------------------------------------------------------------------------------------ MRU attitude
+
+
+def _build_proprietary(address: str, fields: Iterable[Field]) -> str:
+    """``$<address>,<fields>*HH\\r\\n`` for a proprietary sentence (``P`` + manufacturer + type: the
+    address is not a talker and a formatter). Fields formatted by this module."""
+    body = ",".join([address, *[f or "" for f in fields]])
+    return f"${body}*{checksum(body)}\r\n"
+
+
+def _signed(value: float | None, decimals: int) -> Field:
+    """Fixed-point text with an explicit sign (``+00.39``, ``-01.20``), as MRUs print attitude."""
+    text = _fixed(value, decimals)
+    if text is None or text[0] == "-":
+        return text
+    return "+" + text
+
+
+def pashr(
+    t_utc: datetime,
+    roll_rad: float | None,
+    pitch_rad: float | None,
+    *,
+    heading_rad: float | None = None,
+    heave_up_m: float | None = None,
+    roll_sigma_rad: float | None = None,
+    pitch_sigma_rad: float | None = None,
+    heading_sigma_rad: float | None = None,
+    aiding: int | None = 1,
+    imu: int | None = 1,
+    time_decimals: int = 3,
+    decimals: int = 2,
+) -> str:
+    """PASHR, attitude of a motion reference unit (Applanix POS MV, Hemisphere, OxTS, Trimble)::
+
+        $PASHR,hhmmss.sss,HHH.HH,T,RRR.RR,PPP.PP,x.xx,r.rrr,p.ppp,h.hhh,a,b*hh
+               1          2      3 4      5      6    7     8     9     10 11
+
+    1 UTC time, 2 true heading, degrees [0, 360), 3 ``T`` (true; empty without a heading), 4 roll,
+    degrees, + port up (starboard down, dpgw's φ), 5 pitch, degrees, + bow up (dpgw's θ), 6 heave, m,
+    + up, 7-9 1σ of roll, pitch and heading, degrees, 10 GNSS aiding status (0 none, 1 GNSS, 2 GNSS and
+    heading), 11 IMU status flag. Angles with ``decimals`` decimals and an explicit sign, as POS MV prints.
+    """
+    for name, flag in (("aiding", aiding), ("imu", imu)):
+        if flag is not None and not 0 <= flag <= 9:
+            raise ValueError(f"PASHR {name} status must be one digit, got {flag}")
+    sigma = [None if v is None else math.degrees(_finite("sigma", v)) for v in
+             (roll_sigma_rad, pitch_sigma_rad, heading_sigma_rad)]  # fmt: skip
+    roll = None if roll_rad is None else math.degrees(_finite("roll_rad", roll_rad))
+    pitch = None if pitch_rad is None else math.degrees(_finite("pitch_rad", pitch_rad))
+    if roll is not None and not -180.0 <= roll <= 180.0:
+        raise ValueError(f"roll must be within ±180°, got {roll}°")
+    if pitch is not None and not -90.0 <= pitch <= 90.0:
+        raise ValueError(f"pitch must be within ±90°, got {pitch}°")
+    fields = [
+        _time(_rounded(t_utc, time_decimals), time_decimals),
+        _deg360(heading_rad, decimals),
+        None if heading_rad is None else "T",
+        _signed(roll, decimals),
+        _signed(pitch, decimals),
+        _signed(heave_up_m, 2),
+        *[_fixed(v, 3) for v in sigma],
+        None if aiding is None else str(aiding),
+        None if imu is None else str(imu),
+    ]
+    return _build_proprietary("PASHR", fields)
+
+
+def phtro(roll_rad: float | None, pitch_rad: float | None, *, decimals: int = 2) -> str:
+    """PHTRO, pitch and roll of an iXblue MRU/INS (Octans, Phins, Hydrins)::
+
+        $PHTRO,x.xx,a,y.yy,b*hh
+               1    2 3    4
+
+    1 pitch, degrees, magnitude, 2 ``M`` bow up / ``P`` bow down, 3 roll, degrees, magnitude, 4 ``T`` port
+    up (starboard down: dpgw's positive φ) / ``B`` port down. A zero angle is sent with ``M`` / ``T``.
+    """
+    fields: list[Field] = []
+    for value, limit, plus, minus in ((pitch_rad, 90.0, "M", "P"), (roll_rad, 180.0, "T", "B")):
+        if value is None:
+            fields += [None, None]
+            continue
+        degrees = math.degrees(_finite("angle", value))
+        if not -limit <= degrees <= limit:
+            raise ValueError(f"PHTRO angle must be within ±{limit:g}°, got {degrees}°")
+        text = _fixed(abs(degrees), decimals)
+        assert text is not None
+        fields += [text, minus if degrees < 0 and text.strip("0.") != "" else plus]
+    return _build_proprietary("PHTRO", fields)
