@@ -667,7 +667,7 @@ def _one_of(name: str, value: str, allowed: str) -> str:
     return value
 
 
-# ------------------------------------------------------------------------------------------------ MRU attitude
+# ---------------------------------------------------------------------------------------------- MRU attitude
 
 
 def _build_proprietary(address: str, fields: Iterable[Field]) -> str:
