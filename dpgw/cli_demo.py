@@ -164,6 +164,16 @@ def demo_config(scenario: Any, pty_device: str, args: argparse.Namespace) -> dic
                 "timeout_s": max(2.0, 3.0 / anemometer.rate_hz),
             }
         )
+    for mru in scenario.mru:  # a motion reference unit: roll and pitch for the lever-arm compensation
+        cfg["sources"].append(
+            {
+                "name": mru.source,
+                "url": "udp://127.0.0.1:0",
+                "protocol": "nmea",
+                "roles": ["attitude"],
+                "timeout_s": max(0.5, 3.0 / mru.rate_hz),
+            }
+        )
     if scenario.feedback is not None and scenario.vessel.thrusters:
         cfg["sources"].append(
             {
@@ -268,6 +278,10 @@ def run(args: argparse.Namespace) -> int:
         wind_sink = UdpSink("127.0.0.1", ports[anemometer.source])
         sinks.append(wind_sink)
         routes.append(Route(watched(wind_sink, anemometer.source), "nmea", frozenset({anemometer.source})))
+    for mru in scenario.mru:
+        mru_sink = UdpSink("127.0.0.1", ports[mru.source])
+        sinks.append(mru_sink)
+        routes.append(Route(watched(mru_sink, mru.source), "nmea", frozenset({mru.source})))
     commands: list[Any] = []
     if "thrusters" in ports:
         mav_sink = UdpSink("127.0.0.1", ports["thrusters"])

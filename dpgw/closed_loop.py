@@ -103,7 +103,8 @@ def gateway_tables(scenario: Scenario, **control: Any) -> dict[str, Any]:
     """A gateway config for a scenario's sensors (what `dpgw demo` builds, without transports). Several
     DGPS or gyros become redundant sources, ranked in the scenario's order (priority 1, 2, …); the
     anemometers of a scenario with wind are ``wind`` sources (the controller's wind feed-forward; ``control``
-    ``wind_feedforward_gain=0`` turns it off)."""
+    ``wind_feedforward_gain=0`` turns it off); its MRUs are ``attitude`` sources (the lever-arm
+    compensation by roll and pitch)."""
     sources: list[dict[str, Any]] = [
         {"name": dgps.source, "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position"],
          "lever_arm_m": list(dgps.lever_arm_m), "timeout_s": max(2.0, 3.0 / dgps.rate_hz), "priority": k + 1}
@@ -116,6 +117,10 @@ def gateway_tables(scenario: Scenario, **control: Any) -> dict[str, Any]:
         {"name": a.source, "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["wind"],
          "timeout_s": max(2.0, 3.0 / a.rate_hz), "priority": k + 1}
         for k, a in enumerate(scenario.anemometers)
+    ] + [
+        {"name": m.source, "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["attitude"],
+         "timeout_s": max(0.5, 3.0 / m.rate_hz), "priority": k + 1}
+        for k, m in enumerate(scenario.mru)
     ]  # fmt: skip
     if scenario.feedback is not None and scenario.vessel.thrusters:
         sources.append(
@@ -244,6 +249,7 @@ def run_closed_loop(
         [d.source for d in scenario.dgps]
         + [g.source for g in scenario.gyro]
         + [a.source for a in scenario.anemometers]
+        + [m.source for m in scenario.mru]
     )
     routes = []
     typed: list[tuple[float, int, str, Emission]] = []

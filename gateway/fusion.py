@@ -6,7 +6,12 @@ Pure numerics (no I/O, no clocks: times come with the data), shared by the live 
   valid fix (DESIGN.md conventions), with `wire.geodesy.LocalFrame` (exact WGS-84).
 - **Lever arms.** An antenna at body-frame (x, y) from the reference point measures
   p_ref = p_antenna − J(ψ)[x, y] (DESIGN.md). ψ is the heading of the same cycle: the heading received
-  closest in time to the fix (an epoch), from a short history.
+  closest in time to the fix (an epoch), from a short history. With a fresh attitude from a motion
+  reference unit (role ``attitude``: roll φ, pitch θ), the whole arm (x, y, z) is turned by
+  R_zyx(φ, θ, ψ) (Fossen 2021, eq. 2.18; `observers.kinematics.lever_arm_ned`, the simulator's antenna
+  rotation): p_ref = p_antenna − [R_zyx(φ, θ, ψ)(x, y, z)]_NE, which takes out the wave-frequency motion a
+  high antenna makes as the vessel rolls and pitches. The attitude is paired with the fix like the
+  heading (the sample received closest in time, within its source's timeout); with none, heading only.
 - **Held measurements.** The observer runs on the latest measurement of each DOF, held until it is older
   than its source's timeout; then that DOF is missing (dead reckoning). Holding matters: the passive
   observer is a continuous-time filter, and seeing a 1 Hz fix only at the instant it arrives would cut the
@@ -51,7 +56,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from observers.hull import apparent_wind_body
-from observers.kinematics import ssa_scalar
+from observers.kinematics import lever_arm_ned, ssa_scalar
 from observers.vessel import Thruster, VesselModel
 from wire.geodesy import LocalFrame
 from wire.gst_covariance import unit_shape
@@ -60,6 +65,8 @@ Array = NDArray[np.float64]
 NS = 1_000_000_000
 HEADING_HISTORY_NS = 5 * NS
 HEADING_HISTORY_MAX = 512  # and at most this many (a 50 Hz gyro fills 250 in 5 s; replay feeds far faster)
+ATTITUDE_HISTORY_NS = 5 * NS
+ATTITUDE_HISTORY_MAX = 512  # an MRU at 100 Hz fills 500 in 5 s
 FEEDBACK_TIMEOUT_NS = 2 * NS
 """Thruster feedback older than this is not used for τ (the demand is, as without feedback)."""
 
@@ -151,6 +158,12 @@ class Fusion:
         self._tau_demand = _read_only(np.zeros(3))
         self._thrust_demand: tuple[list[float], list[float]] | None = None  # (thrust, azimuth) per thruster
         self._wind: dict[str, tuple[Held, float, str]] = {}  # source -> (u as a Held, v, reference R/T)
+        # MRU attitude: source -> (priority, valid_ns, history of (rx_ns, roll, pitch))
+        self._attitude: dict[str, tuple[int, int, deque[tuple[int, float, float]]]] = {}
+        self.last_compensation = ""
+        """How the last fix with a lever arm was compensated: ``"attitude"`` (R_zyx(φ, θ, ψ), the MRU source
+        in `attitude_source`), ``"heading"`` (J(ψ) only) or ``""`` (none yet, or no lever arm)."""
+        self.attitude_source = ""
 
     # --- read-only views ----------------------------------------------------------------------------------
 
@@ -232,18 +245,68 @@ class Fusion:
             return math.nan
         return best
 
+    # --- attitude (MRU) ----------------------------------------------------------------------------------
+
+    def add_attitude(
+        self, rx_ns: int, roll_rad: float, pitch_rad: float, source: str, priority: int, valid_ns: int
+    ) -> None:
+        """A motion reference unit's roll φ (starboard down +) and pitch θ (bow up +), rad."""
+        entry = self._attitude.get(source)
+        if entry is None:
+            entry = self._attitude[source] = (priority, valid_ns, deque(maxlen=ATTITUDE_HISTORY_MAX))
+        history = entry[2]
+        history.append((rx_ns, roll_rad, pitch_rad))
+        while history and rx_ns - history[0][0] > ATTITUDE_HISTORY_NS:
+            history.popleft()
+
+    def drop_attitude(self, source: str) -> None:
+        """An attitude source's data may not be used: forget what it sent."""
+        self._attitude.pop(source, None)
+
+    def attitude_at(self, t_ns: int) -> tuple[float, float, str] | None:
+        """(roll, pitch, source) received closest in time to t (the same cycle as a fix) from the
+        best-ranked attitude source that has one within its timeout of t; None if none has."""
+        best: tuple[int, float, float, float, str] | None = None  # (priority, |dt|, roll, pitch, source)
+        for source, (priority, valid_ns, history) in self._attitude.items():
+            if best is not None and priority > best[0]:
+                continue
+            found_dt, roll, pitch = None, math.nan, math.nan
+            for t, phi, theta in reversed(history):  # (walk back until the gap grows, as `heading_at`)
+                dt = abs(t - t_ns)
+                if found_dt is not None and dt > found_dt:
+                    break
+                found_dt, roll, pitch = dt, phi, theta
+            if found_dt is None or found_dt > valid_ns:
+                continue
+            if best is None or (priority, found_dt) < best[:2]:
+                best = (priority, found_dt, roll, pitch, source)
+        return None if best is None else (best[2], best[3], best[4])
+
     # --- position -----------------------------------------------------------------------------------------
 
     def reference_position(
         self, rx_ns: int, lat_deg: float, lon_deg: float, lever_arm_m: tuple[float, float, float]
     ) -> tuple[float, float] | None:
         """A GNSS fix of an antenna as the reference point's NED position (the datum is set by the first
-        fix if none); None when a lever arm has no heading of the same cycle to be compensated with."""
+        fix if none); None when a lever arm has no heading of the same cycle to be compensated with.
+
+        p_ref = p_antenna − [R_zyx(φ, θ, ψ)(x, y, z)]_NE with a fresh MRU attitude (`attitude_at`), else
+        p_ref = p_antenna − J(ψ)[x, y]; (x, y, z) is the lever arm from the reference point (whose z is the
+        reference point's own, 0)."""
         if self._datum is None:
             self._datum = LocalFrame(lat_deg, lon_deg, 0.0)
         north, east, _ = self._datum.to_ned(lat_deg, lon_deg, 0.0)
         x = lever_arm_m[0] - self.reference_point_m[0]
         y = lever_arm_m[1] - self.reference_point_m[1]
+        z = lever_arm_m[2]
+        attitude = self.attitude_at(rx_ns) if self._attitude and (x or y or z) else None
+        if attitude is not None:
+            psi = self.heading_at(rx_ns)
+            if math.isnan(psi):
+                return None
+            dn, de, _ = lever_arm_ned(psi, attitude[0], attitude[1], x, y, z)
+            self.last_compensation, self.attitude_source = "attitude", attitude[2]
+            return north - dn, east - de
         if x or y:
             psi = self.heading_at(rx_ns)
             if math.isnan(psi):
@@ -251,6 +314,9 @@ class Fusion:
             c, s = math.cos(psi), math.sin(psi)
             north -= c * x - s * y
             east -= s * x + c * y
+            self.last_compensation = "heading"
+        elif z:
+            self.last_compensation = "heading"  # (a vertical arm: nothing to take out without an attitude)
         return north, east
 
     def use_position(

@@ -425,6 +425,11 @@ class Pipeline:
         }
         self._thruster_ids = [th.id for th in spec.vessel.thrusters]
         self._wind_sources = tuple(s.name for s in spec.sources if "wind" in s.roles)
+        self._attitude_sources = tuple(s.name for s in spec.sources if "attitude" in s.roles)
+        self.lever_arm_compensation: Counter[str] = Counter()
+        """Fixes by how their lever arm was compensated, with an attitude source configured: ``attitude``
+        (R_zyx(φ, θ, ψ)) or ``heading`` (no fresh attitude: J(ψ) alone)."""
+        self._compensation_said = ""
         self.wind_feedforward: str | None = None
         """Why the controller's wind feed-forward is off, as announced ("" while it is on; None without a
         controller): after an "off", "on" only once the wind has held for `WIND_ON_CONFIRM_S`."""
@@ -638,6 +643,15 @@ class Pipeline:
             if "heading" in spec.roles and s.valid and s.heading_rad is not None:
                 return self._use_heading(spec, rx_ns, s.heading_rad)
             return False
+        if kind is nmea_codec.Attitude:
+            if "attitude" in spec.roles:
+                if s.valid:
+                    self.fusion.add_attitude(
+                        rx_ns, s.roll_rad, s.pitch_rad, spec.name, spec.priority, spec.timeout_ns
+                    )
+                else:  # an empty roll or pitch: the MRU says it has no measurement
+                    self.counters[spec.name].rejected["attitude_invalid"] += 1
+            return False
         if kind is nmea_codec.Mwv:
             if "wind" in spec.roles:
                 if s.valid:
@@ -755,6 +769,8 @@ class Pipeline:
         ned = self.fusion.reference_position(rx_ns, lat, lon, spec.lever_arm_m)
         if ned is None:
             return False  # a lever arm without a heading of the same cycle cannot be compensated
+        if self._attitude_sources:
+            self._note_compensation(spec.name)
         if self._foxglove_on:
             self._location_fix(spec.name, rx_ns, lat, lon, out)
         pred = self._prediction(rx_ns, 0)
@@ -768,6 +784,27 @@ class Pipeline:
             self._count_test_reject(spec.name, "position")
             self.fusion.drop_position(spec.name)
         return True
+
+    def _note_compensation(self, source: str) -> None:
+        """Count how a fix's lever arm was compensated (`Fusion.reference_position`: ``attitude`` with the
+        MRU's roll and pitch, ``heading`` alone while no attitude is fresh) and say in the status when
+        that changes: once on, once off, not per fix."""
+        how = self.fusion.last_compensation
+        if not how:
+            return
+        self.lever_arm_compensation[how] += 1
+        if how == "heading":
+            self.counters[source].rejected["lever_arm_heading_only"] += (
+                1  # (not a reject: the fix is used, by J(ψ))
+            )
+        if how != self._compensation_said:
+            if how == "attitude":
+                text = f"lever-arm compensation: roll and pitch from {self.fusion.attitude_source} (MRU) on"
+            else:
+                names = ", ".join(self._attitude_sources)
+                text = f"lever-arm compensation: heading only (no fresh attitude from {names})"
+            self._events.append(text)
+            self._compensation_said = how
 
     def _use_heading(self, spec: SourceSpec, rx_ns: int, psi: float) -> bool:
         if self.monitor.heading(spec.name, rx_ns, psi, self._prediction(rx_ns, 2)):

@@ -46,6 +46,7 @@ from simulator.sensors import (
     Dgps,
     Emission,
     Gyro,
+    Mru,
     ShipState,
     ThrusterFeedback,
     ThrusterReading,
@@ -239,7 +240,7 @@ class Simulation:
         self._failure_faults = any(f.kind == "thruster_failure" for f in scenario.faults)
         self.fault_rng = np.random.default_rng(fault_seq)
         sensor_rngs = [np.random.default_rng(s) for s in sensor_seq.spawn(8)]
-        self.sensors: list[Dgps | Gyro | ThrusterFeedback | Anemometer] = []
+        self.sensors: list[Dgps | Gyro | ThrusterFeedback | Anemometer | Mru] = []
         for k, cfg in enumerate(scenario.dgps):
             self.sensors.append(Dgps(cfg, scenario.datum, self.epoch, sensor_rngs[k], self.faults))
         for k, gcfg in enumerate(scenario.gyro):
@@ -261,11 +262,14 @@ class Simulation:
             # their own streams, spawned after all others (adding an anemometer changes no other stream)
             for acfg, aseq in zip(scenario.anemometers, ss.spawn(len(scenario.anemometers)), strict=True):
                 self.sensors.append(Anemometer(acfg, wind_at, np.random.default_rng(aseq), self.faults))
+        # MRUs: their own streams, spawned after all others (adding one changes no other stream)
+        for mcfg, mseq in zip(scenario.mru, ss.spawn(len(scenario.mru)), strict=True):
+            self.sensors.append(Mru(mcfg, self.epoch, np.random.default_rng(mseq), self.faults))
         for sensor in self.sensors:
             sensor.encode = wire
 
-        self._sensors_seen: list[Dgps | Gyro | ThrusterFeedback | Anemometer] = []
-        self._sensor_kinds: list[tuple[Dgps | Gyro | ThrusterFeedback | Anemometer, bool]] = []
+        self._sensors_seen: list[Dgps | Gyro | ThrusterFeedback | Anemometer | Mru] = []
+        self._sensor_kinds: list[tuple[Dgps | Gyro | ThrusterFeedback | Anemometer | Mru, bool]] = []
         self.t = 0.0
         self._sea_valid = (math.inf, -math.inf)
         self._sea_cached = scenario.sea[0][1]

@@ -8,6 +8,7 @@ for that; a test holds this tuple equal to the keys of `simulator.scenarios.SCEN
 SCENARIO_NAMES: tuple[str, ...] = (
     "fossen_strand_1999",
     "torsetnes_2004",
+    "torsetnes_2004_mast",
     "snijders_2005",
     "hassani",
     "hassani_sea_change",

@@ -34,7 +34,14 @@ from simulator.current import CurrentModel
 from simulator.environment import BiasModel
 from simulator.faults import Fault
 from simulator.plant_params import PlantOptions
-from simulator.sensors import AnemometerConfig, Datum, DgpsConfig, GyroConfig, ThrusterFeedbackConfig
+from simulator.sensors import (
+    AnemometerConfig,
+    Datum,
+    DgpsConfig,
+    GyroConfig,
+    MruConfig,
+    ThrusterFeedbackConfig,
+)
 from simulator.spectra import SeaState
 from simulator.wind import WindModel
 
@@ -75,6 +82,8 @@ class Scenario:
     # Anemometers (MWV, relative wind): None is one `AnemometerConfig()` when the scenario has wind and none
     # without (`anemometers`); () none even with wind.
     anemometer: tuple[AnemometerConfig, ...] | None = None
+    # Motion reference units (roll and pitch for the gateway's lever-arm compensation): none unless asked.
+    mru: tuple[MruConfig, ...] = ()
     faults: tuple[Fault, ...] = ()
     datum: Datum = Datum(59.4, 10.5)  # Oslofjord, off Horten
     start_utc: datetime = datetime(2026, 6, 1, 10, 0, 0, tzinfo=UTC)
@@ -241,6 +250,24 @@ def torsetnes_2004() -> Scenario:
         notes="Tp = 11.5 s for Hs = 6 m (the paper gives none; DNV-RP-C205's steepness band is 8.8–13.4 "
         "s): a wave filter left at ω0 = 0.83 rad/s is badly tuned. Waves 30° off the bow. Until the DP "
         "controller exists, τ cancels the known mean load (current and mean wave drift) only.",
+    )
+
+
+def torsetnes_2004_mast() -> Scenario:
+    """Torsetnes' case with the DGPS antenna on a 25 m mast (10 m forward of and 2 m to starboard of the
+    reference point) and an MRU (PHTRO, 10 Hz, 0.02°): the case for the gateway's roll/pitch lever-arm
+    compensation (docs/gateway.md). In Hs 6 m the vessel rolls and pitches 2-3° (1σ), and the antenna
+    moves 0.44 m per degree of roll. A gateway config without the MRU source is the same run without
+    compensation (the MRU's random stream is its own: the other sensors' bytes are the same)."""
+    base = torsetnes_2004()
+    return replace(
+        base,
+        name="torsetnes_2004_mast",
+        description=base.description + "; DGPS antenna on a 25 m mast, MRU (PHTRO 10 Hz)",
+        dgps=(DgpsConfig(rate_hz=2.0, sigma_m=0.3, lever_arm_m=(10.0, 2.0, -25.0)),),
+        mru=(MruConfig(),),
+        notes=base.notes + " The antenna 25 m above the reference point (a mast over the bridge): its "
+        "wave-frequency roll and pitch motion is what an MRU lets the gateway take out of each fix.",
     )
 
 
@@ -457,6 +484,7 @@ def mss_supply_wind(speed_mps: float = 18.0) -> Scenario:
 SCENARIOS: dict[str, Callable[[], Scenario]] = {
     "fossen_strand_1999": fossen_strand_1999,
     "torsetnes_2004": torsetnes_2004,
+    "torsetnes_2004_mast": torsetnes_2004_mast,
     "snijders_2005": snijders_2005,
     "hassani": hassani,
     "hassani_sea_change": hassani_sea_change,

@@ -20,6 +20,9 @@ Models (docs/sensors.md has the full description):
 * `Anemometer` — the relative (apparent) wind at the mast: the plant's wind (mean + gust, at the vessel's
   wind reference height) minus the vessel's own LF velocity, as speed and angle from the bow, plus white
   noise on each: NMEA MWV, reference R.
+* `Mru` — a motion reference unit: the reference point's wave-frequency roll φ and pitch θ (the RAOs'
+  attitude the `Dgps` antenna is turned by) + white noise, as proprietary ``$PHTRO`` (iXblue) or ``$PASHR``
+  (POS MV-style, with heading and heave): what a DP system's lever-arm compensation needs.
 * `ThrusterFeedback` — per thruster one ``AZIMUTH_THRUSTER_STATUS``, a ``HEARTBEAT`` (surface boat), and
   optionally ArduPilot-style ``ESC_TELEMETRY_x_TO_y`` (rpm) and ``SERVO_OUTPUT_RAW`` (azimuth as PWM), all
   through one MAVLink encoder so sequence numbers run like on a real link.
@@ -60,6 +63,7 @@ __all__ = [
     "DGPS_QUALITIES",
     "FAULT_CODE_TRIP",
     "GYRO_SENTENCES",
+    "MRU_SENTENCES",
     "SERVO_PWM_CENTER_US",
     "SERVO_PWM_HALF_RANGE_US",
     "THRUSTER_KINDS",
@@ -72,6 +76,8 @@ __all__ = [
     "Emission",
     "Gyro",
     "GyroConfig",
+    "Mru",
+    "MruConfig",
     "Sensor",
     "ShipState",
     "ThrusterFeedback",
@@ -91,6 +97,7 @@ DGPS_QUALITIES = {1: "A", 2: "D", 4: "R", 5: "F"}
 """GGA quality → mode indicator of GNS (per constellation), RMC and VTG: 1 autonomous (SPS), 2 differential,
 4 RTK fixed, 5 RTK float."""
 GYRO_SENTENCES = ("HDT", "THS", "ROT", "HDG")
+MRU_SENTENCES = ("PHTRO", "PASHR")
 VERTICAL_SIGMA_FACTOR = 1.5
 """Vertical GNSS noise = this × the horizontal σ (satellite geometry makes height worse than position)."""
 SERVO_PWM_CENTER_US = 1500
@@ -371,6 +378,26 @@ class AnemometerConfig:
 
     def __post_init__(self) -> None:
         _validate(self, _ANEMOMETER_RULES)
+
+
+@dataclass(frozen=True)
+class MruConfig:
+    """A motion reference unit (MRU) at the reference point, sending roll and pitch at ``rate_hz``.
+
+    ``sentence``: ``PHTRO`` (iXblue Octans: pitch and roll only) or ``PASHR`` (POS MV-style: also time,
+    true heading, heave and the 1σ of each). ``sigma_rad`` is the white noise on roll and pitch (1σ): 0.02°
+    is a DP-class MRU's stated accuracy (Kongsberg MRU 5, iXblue Octans: 0.01°); ``sigma_heading_rad`` the
+    noise on PASHR's heading. Latency 10 ms (an MRU outputs within a few ms of its sample)."""
+
+    source: str = "mru1"
+    sentence: str = "PHTRO"
+    rate_hz: float = 10.0
+    sigma_rad: float = math.radians(0.02)
+    sigma_heading_rad: float = math.radians(0.05)
+    latency_s: float = 0.01
+
+    def __post_init__(self) -> None:
+        _validate(self, _MRU_RULES)
 
 
 @dataclass(frozen=True)
@@ -894,6 +921,79 @@ class Anemometer(_Sampled[AnemometerConfig, tuple[float, float]], Sensor):
         return angle, max(math.hypot(urw, vrw) + cfg.sigma_speed_mps * w[1], 0.0)
 
 
+class Mru(_Sampled[MruConfig, tuple[float, float, float, float]], Sensor):
+    """A motion reference unit (see `MruConfig`), free-running at ``start + k / rate_hz``: the state's
+    wave-frequency roll and pitch (``ShipState.attitude``, dpgw's signs: starboard down, bow up) plus white
+    noise, as PHTRO or PASHR (the sentence carries the signs its maker uses: `wire.codecs.nmea_encode`).
+    Faults: ``dropout`` and ``frozen`` (`_Sampled`), the ones a stale or stuck MRU shows."""
+
+    def __init__(
+        self,
+        config: MruConfig,
+        epoch: SimEpoch,
+        rng: np.random.Generator,
+        faults: FaultSchedule | None = None,
+        *,
+        start: float = 0.0,
+    ) -> None:
+        super().__init__(config, rng, faults, _Schedule(config.rate_hz, start))
+        self.epoch = epoch
+
+    def sample(self, state: ShipState) -> list[Emission]:
+        sampled = self._sampled(state)
+        if sampled is None:
+            return []
+        t, (roll, pitch, heading, heave_down) = sampled
+        cfg = self.config
+        t_emit = t + cfg.latency_s
+        pashr = cfg.sentence == "PASHR"
+        if not self.encode:
+            record = nmea_codec.Attitude(
+                "PASHR" if pashr else "PHTRO",
+                "",
+                self._seconds(t) if pashr else None,
+                roll,
+                pitch,
+                heading if pashr else None,
+                -heave_down if pashr else None,
+                cfg.sigma_rad if pashr else None,
+                cfg.sigma_rad if pashr else None,
+                cfg.sigma_heading_rad if pashr else None,
+                1 if pashr else None,
+                1 if pashr else None,
+                True,
+            )
+            return [Emission.trusted(t_emit, self.source, "nmea", b"", t, record)]
+        if pashr:
+            text = nmea.pashr(
+                self.epoch.utc(t),
+                roll,
+                pitch,
+                heading_rad=heading,
+                heave_up_m=-heave_down,
+                roll_sigma_rad=cfg.sigma_rad,
+                pitch_sigma_rad=cfg.sigma_rad,
+                heading_sigma_rad=cfg.sigma_heading_rad,
+            )
+        else:
+            text = nmea.phtro(roll, pitch)
+        return [Emission.trusted(t_emit, self.source, "nmea", text.encode("ascii"), t)]
+
+    def _seconds(self, t: float) -> float:
+        utc = self.epoch.utc(t)
+        return utc.hour * 3600 + utc.minute * 60 + utc.second + utc.microsecond * 1e-6
+
+    def _measure(self, state: ShipState, t: float) -> tuple[float, float, float, float]:
+        """(roll, pitch, heading, heave down) at t, noise included."""
+        heave, phi, theta = state.attitude.tolist()
+        w = self.rng.standard_normal(3).tolist()
+        cfg = self.config
+        roll = phi + cfg.sigma_rad * w[0]
+        pitch = theta + cfg.sigma_rad * w[1]
+        heading = ssa_scalar(float(state.eta[2]) + cfg.sigma_heading_rad * w[2])
+        return roll, pitch, heading, heave
+
+
 def _heading_record(kind: str, talker: str, heading: float) -> nmea_codec.Heading | None:
     """A gyro sentence as a receiver decodes it: HDT, THS (mode A) and HDG (its variation added back:
     true heading) carry the heading; ROT is not used by a DP gateway."""
@@ -1171,6 +1271,14 @@ _ANEMOMETER_RULES: dict[str, Rule] = {
     "unit": _rule(
         _one_of(("M", "N", "K", "S")), "must be one of 'M' (m/s), 'N' (knots), 'K' (km/h), 'S' (mph)"
     ),
+}
+_MRU_RULES: dict[str, Rule] = {
+    "source": _SOURCE_RULE,
+    "sentence": _rule(_one_of(MRU_SENTENCES), f"must be one of {MRU_SENTENCES}"),
+    "rate_hz": _rule(_number(gt=0.0, le=100.0), "must be in (0, 100] Hz"),
+    "sigma_rad": _rule(_number(ge=0.0, le=0.1), "must be in [0, 0.1] rad"),
+    "sigma_heading_rad": _rule(_number(ge=0.0, le=0.1), "must be in [0, 0.1] rad"),
+    "latency_s": _LATENCY_RULE,
 }
 _FEEDBACK_RULES: dict[str, Rule] = {
     "source": _SOURCE_RULE,

@@ -18,11 +18,12 @@ from observers.vessel import VesselModel
 
 PROTOCOLS = ("nmea", "mavlink")
 ROLES: dict[str, tuple[str, ...]] = {
-    "nmea": ("position", "heading", "wind"),
+    "nmea": ("position", "heading", "wind", "attitude"),
     "mavlink": ("thrusters", "position", "heading"),
 }
 """The roles a source of each protocol can have. ``wind``: an anemometer's MWV, for the controller's wind
-feed-forward (docs/controller.md)."""
+feed-forward (docs/controller.md). ``attitude``: a motion reference unit's roll and pitch (PASHR, PHTRO),
+for the lever-arm compensation of the position sources (docs/gateway.md)."""
 OBSERVER_TYPES = _OBSERVER_TYPES  # every observer registered in observers.factory, by name
 COMPRESSIONS = ("zstd", "lz4", "none")
 ZENOH_MODES = ("peer", "client")

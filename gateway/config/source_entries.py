@@ -143,7 +143,8 @@ def _read_source(
     roles_exp = (
         "an array of roles from " + ", ".join(f'"{x}"' for x in allowed) + f' (protocol "{protocol}")'
         if protocol
-        else "an array of roles: nmea: position, heading, wind; mavlink: thrusters, position, heading"
+        else "an array of roles: nmea: position, heading, wind, attitude; "
+        "mavlink: thrusters, position, heading"
     )
     v = read_table(SourceTable, t, path, p, expected={"roles": roles_exp})
     name, roles = v["name"], v["roles"]
