@@ -50,8 +50,13 @@ def test_everything_emitted_parses_with_independent_parsers(name: str) -> None:
     kinds = set()
     for line in lines:
         msg = pynmea2.parse(line, check=True)  # raises on a bad checksum
-        kinds.add(msg.sentence_type)
+        if isinstance(msg, pynmea2.ProprietarySentence):  # an MRU's PHTRO: manufacturer HTR, type O
+            kinds.add(f"P{msg.manufacturer}{msg.data[0]}")
+        else:
+            kinds.add(msg.sentence_type)
     assert {"GGA", "HDT"} <= kinds or {"GNS", "HDT"} <= kinds
+    if sim.scenario.mru:
+        assert {"PHTRO"} <= kinds
     if sim.thrusters.n:
         mavlink = dialect().MAVLink(None)
         msgs = mavlink.parse_buffer(mav) or []
