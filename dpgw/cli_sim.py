@@ -59,7 +59,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="[SOURCE=]URL|pty",
         help="where NMEA goes (repeatable): pty, pty:///path/link, udp://H:P, tcp-listen://H:P (a server), "
         "serial:///dev/ttyX?baud=N, file:///path; SOURCE= sends one sensor only (dgps1, gyro1; wind1, the "
-        "anemometer, where the scenario has wind)",
+        "anemometer, where the scenario has wind; mru1, the motion reference unit, where it has one: "
+        "torsetnes_2004_mast)",
     )
     p.add_argument(
         "--mavlink", metavar="URL", help="where thruster MAVLink goes (and commands come back from)"
