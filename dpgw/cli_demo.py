@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import shlex
 import sys
 import time
 from pathlib import Path
@@ -362,13 +363,19 @@ def run(args: argparse.Namespace) -> int:
         stop_sim.set()  # (if the gateway stopped first, the simulation follows)
         thread.join(timeout=5)
         final_status = service.pipeline.status(service.pipeline.last_ns).payload
+        # The files this run wrote: an --out that exists already is not overwritten, the run goes on in
+        # the next file of its set (demo_0001.mcap, as a restarted gateway's log does), and a long run may
+        # rotate; the summary scores and names these, not whatever --out held before. (Taken before
+        # `close`, which lets the writer go; its list is complete once it is closed.)
+        writer = service.log
         service.close()
+        written = [str(p) for p in writer.paths] if writer is not None else []
         for s in sinks:
             s.close()
     if sim_error:
         print(f"dpgw demo: the simulator failed: {sim_error[0]!r}", file=sys.stderr)
         return 1
-    summary = summarise(args, sim, final_status, time.monotonic() - wall0)
+    summary = summarise(args, sim, final_status, time.monotonic() - wall0, written or [args.out])
     summary["speed"] = {
         "requested": args.speed,
         "final": clock.speed,
@@ -395,20 +402,23 @@ WAVE_BAND = (0.3, 2.0)
 
 
 def summarise(
-    args: argparse.Namespace, sim: Simulation, status: dict[str, Any], wall_s: float
+    args: argparse.Namespace, sim: Simulation, status: dict[str, Any], wall_s: float, logs: list[str]
 ) -> dict[str, Any]:
+    """The demo's summary from ``logs``, the files this run wrote (one unless it rotated)."""
     import numpy as np
 
     from gateway.scoring import score
     from wire.mcap.reader import read_messages
 
-    est = [(p["stamp_ns"], p["eta"]) for _, _, _, p in read_messages(args.out, "/dp/estimate")]
-    truth = [(p["stamp_ns"], p["eta_lf"]) for _, _, _, p in read_messages(args.out, "/truth/state")]
+    est = [(p["stamp_ns"], p["eta"]) for _, _, _, p in read_messages(logs, "/dp/estimate")]
+    truth = [(p["stamp_ns"], p["eta_lf"]) for _, _, _, p in read_messages(logs, "/truth/state")]
+    shown = " ".join(shlex.quote(p) for p in logs)
     result: dict[str, Any] = {
         "scenario": sim.scenario.name,
         "sim_seconds": sim.t,
         "wall_seconds": wall_s,
-        "log": args.out,
+        "log": logs[0],
+        "logs": logs,
         "sent": dict(sim.summary.emissions),
         "commands_applied": sim.summary.commands_applied,  # thruster commands the simulated drives took
         "sources": status["sources"],
@@ -422,19 +432,19 @@ def summarise(
         s = score(te, np.array([e[1] for e in est]), tt, np.array([t[1] for t in truth]), settle_s=SETTLE_S)
         result["error_vs_truth"] = s.as_dict()
         result["settle_s"] = SETTLE_S
-        result["station_keeping"] = station_keeping(args.out, tt, np.array([t[1] for t in truth]), t0)
-    result["fix_stamp_lag_s"] = fix_stamp_lag_s(args.out, sim.scenario.dgps[0].source)
+        result["station_keeping"] = station_keeping(logs, tt, np.array([t[1] for t in truth]), t0)
+    result["fix_stamp_lag_s"] = fix_stamp_lag_s(logs, sim.scenario.dgps[0].source)
     result["next"] = [
-        f"look at it: open {args.out} in Foxglove and import the layout {layout_path()} (map, 3D view "
+        f"look at it: open {shown} in Foxglove and import the layout {layout_path()} (map, 3D view "
         "with hull, thrusters and setpoint, measurement against estimate per DOF, alarm log); "
         "/dp/estimate.eta[0] against /truth/state.eta_lf[0] in a Plot panel shows the error",
-        f"replay it in Foxglove, with play, pause and seek: dpgw replay {args.out} --foxglove",
-        f"replay it: dpgw replay {args.out} --report {Path(args.out).stem}-report",
+        f"replay it in Foxglove, with play, pause and seek: dpgw replay {shown} --foxglove",
+        f"replay it: dpgw replay {shown} --report {Path(logs[0]).stem}-report",
     ]
     return result
 
 
-def station_keeping(log: str, t_truth: Any, eta_truth: Any, t0_ns: int) -> dict[str, Any] | None:
+def station_keeping(log: list[str], t_truth: Any, eta_truth: Any, t0_ns: int) -> dict[str, Any] | None:
     """How well the vessel kept station after the settle time: the true LF position's distance from, and
     heading's difference to, the controller's reference (the setpoint through the reference model), p95;
     and the share of the commanded force's variance in the wave band (what wave filtering keeps out)."""
@@ -474,7 +484,7 @@ def station_keeping(log: str, t_truth: Any, eta_truth: Any, t0_ns: int) -> dict[
     return out
 
 
-def fix_stamp_lag_s(log: str, source: str) -> dict[str, float] | None:
+def fix_stamp_lag_s(log: list[str], source: str) -> dict[str, float] | None:
     """How much later the gateway stamped each DGPS fix than the fix's own time (the GGA time of day,
     which the simulator writes from its clock): per fix, received stamp − fix time. On one time base it
     is the receiver's latency (0.1 s in the scenarios) and nearly constant; a gateway clock drifting from
@@ -512,7 +522,7 @@ def _one_decimal(x: float) -> str:
 def print_summary(r: dict[str, Any]) -> None:
     print(
         f"dpgw demo: {r['scenario']}, {r['sim_seconds']:.0f} s of sea in {r['wall_seconds']:.1f} s; "
-        f"log {r['log']}"
+        f"log {' '.join(r['logs'])}"
     )
     print(f"  {'source':12s} {'sent':>8s} {'received':>9s}  rejected")
     for name, c in r["sources"].items():

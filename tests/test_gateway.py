@@ -387,6 +387,31 @@ def test_replaying_the_demo_log_reproduces_the_estimates(demo_run: dict) -> None
     )
 
 
+@pytest.mark.slow  # the demo fixture, then a second demo of 70 s of sea, ~10 s
+def test_a_second_demo_on_the_same_out_scores_and_names_its_own_file(
+    demo_run: dict,  # type: ignore[type-arg]
+    tmp_path: Path,
+) -> None:
+    """--out names a log that exists: the run goes on in the next file of its set (demo_0001.mcap), and the
+    summary must score and name that file, not the earlier run's (it once printed the old run's figures and
+    told the user to open and replay the old file)."""
+    import shutil
+
+    old = tmp_path / "demo.mcap"
+    shutil.copyfile(demo_run["log"], old)
+    before = old.read_bytes()
+    proc = dpgw("demo", "--duration", "70", "--speed", "10", "--out", str(old), "--json", "--no-scouting")
+    stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 0, stderr
+    summary_ = json.loads(stdout)
+    new = tmp_path / "demo_0001.mcap"
+    assert summary_["log"] == str(new) and summary_["logs"] == [str(new)]
+    assert old.read_bytes() == before  # the earlier run's log untouched
+    estimates = sum(1 for _ in read_messages(new, "/dp/estimate"))
+    assert summary_["estimates"] == estimates != demo_run["summary"]["estimates"]
+    assert all(str(new) in line for line in summary_["next"])
+
+
 def test_test_sessions_ignore_a_zenoh_config_in_the_environment(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
