@@ -79,14 +79,14 @@ def _dot_row(p, n_eq, Ceq, si, sv, v):
 
 
 @njit(cache=True)
-def _bounded_start(Pd, q, n_eq, si, sv, sb, m_in, m_gen, x, active, u, J, R, mark):
+def _bounded_start(Pd, q, n_eq, si, sv, sb, m_in, m_gen, x, active, u, Jt, R, mark):
     """The dual method's start: the minimum of ½xᵀHx + qᵀx over the simple bounds alone, with every bound
     it meets active. H is diagonal, so that minimum is the unconstrained x₀ = −H⁻¹q clipped to the bounds,
     and its active set is known without a single iteration: for the bound vₖxₖ ≥ b (v = ±1) that x₀
     violates, xₖ = v·b and its multiplier is uₖ = v(Pₖxₖ + qₖ) = v·Pₖ(xₖ − x₀ₖ) > 0 — dual feasible, as
     G&I's start must be. J = L⁻ᵀQ is the diagonal diag(1/√P) with its columns permuted (the clipped
     variables' first, in the order their bounds are active, signed by v) and R = diag(1/√Pₖ) of the
-    clipped ones: Jᵀ N_active = [R; 0] holds exactly.
+    clipped ones: Jᵀ N_active = [R; 0] holds exactly. Jt holds Jᵀ (as in `gi_solve`).
 
     Why: the shortfall variables (the τ slacks ŝ±, the bias shortfalls e) have q > 0 and bound 0, so x₀
     has every one of them negative; from x = x₀ the method adds them one at a time, and in the meantime
@@ -100,7 +100,7 @@ def _bounded_start(Pd, q, n_eq, si, sv, sb, m_in, m_gen, x, active, u, J, R, mar
         x[k] = -q[k] / Pd[k]
         mark[k] = -1.0
         for j in range(n):
-            J[k, j] = 0.0
+            Jt[k, j] = 0.0
             R[k, j] = 0.0
     for i in range(m_gen, m_in):
         k = si[i, 0]
@@ -115,29 +115,31 @@ def _bounded_start(Pd, q, n_eq, si, sv, sb, m_in, m_gen, x, active, u, J, R, mar
     for k in range(n):
         h = 1.0 / math.sqrt(Pd[k])
         if mark[k] < 0.0:
-            J[k, c] = h
+            Jt[c, k] = h
             c += 1
         else:
             a = int(mark[k])
-            J[k, a] = sv[active[a] - n_eq, 0] * h
+            Jt[a, k] = sv[active[a] - n_eq, 0] * h
             R[a, a] = h
     return nact
 
 
 @njit(cache=True)
-def gi_solve(Pd, q, Ceq, beq, si, sv, sb, m_in, m_gen, x, active, u, J, R, d, z, r, max_iter):
+def gi_solve(Pd, q, Ceq, beq, si, sv, sb, m_in, m_gen, x, active, u, Jt, R, d, z, r, max_iter):
     """min ½xᵀdiag(Pd)x + qᵀx s.t. Ceq x = beq (dense rows) and, for i < m_in,
     sv[i,0]·x[si[i,0]] + sv[i,1]·x[si[i,1]] ≥ sb[i] (every inequality of the allocation's QP — bounds,
     polygon faces, cone edges — touches at most two variables, so a scan of all of them is O(m)).
     Rows i ≥ m_gen are simple bounds (sv[i,0] = ±1, sv[i,1] = 0; at most one violated per variable at
     the start, as `constraints_of` writes them): the start is their minimum (see `_bounded_start`).
 
-    Work arrays J, R (n×n), d, z, r, u (n), active (int, n): the caller's (nothing is allocated per call).
+    Work arrays Jt, R (n×n), d, z, r, u (n), active (int, n): the caller's (nothing is allocated per call).
+    Jt holds Jᵀ (its row j is J's column j), so that the Givens rotations of J's columns and z = J₂d₂ run
+    along contiguous memory (the arithmetic, and its order, is that of J itself).
     Constraint p is an equality for p < n_eq, inequality p − n_eq otherwise. Returns (status, iterations,
     number active); x holds the solution."""
     n = Pd.shape[0]
     n_eq = Ceq.shape[0]
-    nact = _bounded_start(Pd, q, n_eq, si, sv, sb, m_in, m_gen, x, active, u, J, R, z)
+    nact = _bounded_start(Pd, q, n_eq, si, sv, sb, m_in, m_gen, x, active, u, Jt, R, z)
     it = 0
     next_eq = 0
     while True:
@@ -173,24 +175,27 @@ def gi_solve(Pd, q, Ceq, beq, si, sv, sb, m_in, m_gen, x, active, u, J, R, d, z,
                 return FAIL_ITER, it, nact
             s_p = sign_p * (_dot_row(p, n_eq, Ceq, si, sv, x) - b_p)
             # d = Jᵀ n_p
-            if p < n_eq:
+            if p < n_eq:  # each d[j] summed over k in order, the n sums side by side
                 for j in range(n):
-                    acc = 0.0
-                    for k in range(n):
-                        acc += J[k, j] * Ceq[p, k]
-                    d[j] = sign_p * acc
+                    d[j] = 0.0
+                for k in range(n):
+                    ck = Ceq[p, k]
+                    if ck != 0.0:
+                        for j in range(n):
+                            d[j] += Jt[j, k] * ck
+                for j in range(n):
+                    d[j] *= sign_p
             else:
                 i0, i1 = si[p - n_eq, 0], si[p - n_eq, 1]
                 v0, v1 = sv[p - n_eq, 0], sv[p - n_eq, 1]
                 for j in range(n):
-                    d[j] = v0 * J[i0, j] + v1 * J[i1, j]
-            zz = 0.0
-            for k in range(n):
-                acc = 0.0
-                for j in range(nact, n):
-                    acc += J[k, j] * d[j]
-                z[k] = acc
-                zz += acc * acc
+                    d[j] = v0 * Jt[j, i0] + v1 * Jt[j, i1]
+            for k in range(n):  # z = J₂d₂, row by row of Jt (contiguous; each z[k] summed over j in order)
+                z[k] = 0.0
+            for j in range(nact, n):
+                dj = d[j]
+                for k in range(n):
+                    z[k] += Jt[j, k] * dj
             zn = 0.0  # zᵀn_p = |d₂|² (J₂J₂ᵀ is the projector)
             dnorm = 0.0
             for j in range(n):
@@ -225,16 +230,16 @@ def gi_solve(Pd, q, Ceq, beq, si, sv, sb, m_in, m_gen, x, active, u, J, R, d, z,
             if t2 <= t1:
                 # add p: Givens rotations zero d[nact+1:], applied to J's columns
                 for j in range(n - 1, nact, -1):
-                    c, sn, h = _givens(d[j - 1], d[j])
-                    if h == 0.0:
+                    if d[j] == 0.0:  # nothing to zero (J is sparse after the start): no rotation
                         continue
+                    c, sn, h = _givens(d[j - 1], d[j])
                     d[j - 1] = h
                     d[j] = 0.0
                     for k in range(n):
-                        a1 = J[k, j - 1]
-                        a2 = J[k, j]
-                        J[k, j - 1] = c * a1 + sn * a2
-                        J[k, j] = -sn * a1 + c * a2
+                        a1 = Jt[j - 1, k]
+                        a2 = Jt[j, k]
+                        Jt[j - 1, k] = c * a1 + sn * a2
+                        Jt[j, k] = -sn * a1 + c * a2
                 for a in range(nact + 1):
                     R[a, nact] = d[a]
                 active[nact] = p
@@ -251,9 +256,9 @@ def gi_solve(Pd, q, Ceq, beq, si, sv, sb, m_in, m_gen, x, active, u, J, R, d, z,
                 R[k, nact - 1] = 0.0
             nact -= 1
             for a in range(drop, nact):
-                c, sn, h = _givens(R[a, a], R[a + 1, a])
-                if h == 0.0:
+                if R[a + 1, a] == 0.0:
                     continue
+                c, sn, h = _givens(R[a, a], R[a + 1, a])
                 for j in range(a, nact):
                     a1 = R[a, j]
                     a2 = R[a + 1, j]
@@ -261,10 +266,10 @@ def gi_solve(Pd, q, Ceq, beq, si, sv, sb, m_in, m_gen, x, active, u, J, R, d, z,
                     R[a + 1, j] = -sn * a1 + c * a2
                 R[a + 1, a] = 0.0
                 for k in range(n):
-                    a1 = J[k, a]
-                    a2 = J[k, a + 1]
-                    J[k, a] = c * a1 + sn * a2
-                    J[k, a + 1] = -sn * a1 + c * a2
+                    a1 = Jt[a, k]
+                    a2 = Jt[a + 1, k]
+                    Jt[a, k] = c * a1 + sn * a2
+                    Jt[a + 1, k] = -sn * a1 + c * a2
     # final check of the primal solution (what a wrong answer would show first)
     for p in range(n_eq):
         s = _dot_row(p, n_eq, Ceq, si, sv, x) - beq[p]
