@@ -11,9 +11,11 @@ The QP solver is the dual active-set method of Goldfarb & Idnani (1983), "A nume
 method for solving strictly convex quadratic programs", Math. Programming 27, 1–33 — the algorithm of
 ``quadprog`` (Turlach's qpgen2), which docs/allocation.md measured to agree with DAQP to 1e-9 on the
 allocation's QPs. Written here for a **diagonal** Hessian H = diag(P) (the allocation's objective is
-separable), which makes the start exact and cheap: the unconstrained minimum x₀ = −H⁻¹q and
-J₀ = L⁻ᵀ = diag(1/√P). For constraints nᵢᵀx ≥ bᵢ (equalities nᵢᵀx = bᵢ) it keeps J = L⁻ᵀQ and the upper
-triangular R of the active normals (Jᵀ N_active = [R; 0]), and repeats (G&I Sec. 3, steps 1–3):
+separable), which makes the start exact and cheap: G&I start at the unconstrained minimum x₀ = −H⁻¹q with
+J₀ = L⁻ᵀ = diag(1/√P); here, one better, at the minimum over the simple bounds alone (x₀ clipped to them,
+those bounds active, J₀'s columns permuted: `_bounded_start`). For constraints
+nᵢᵀx ≥ bᵢ (equalities nᵢᵀx = bᵢ) it keeps J = L⁻ᵀQ and the upper triangular R of the active normals
+(Jᵀ N_active = [R; 0]), and repeats (G&I Sec. 3, steps 1–3):
 
 1. Pick the most violated constraint p (sᵢ = nᵢᵀx − bᵢ < −tol); none: x is optimal.
 2. d = Jᵀn_p; primal direction z = J₂d₂ (J₂: the columns beyond the active set); dual direction
@@ -23,12 +25,14 @@ triangular R of the active normals (Jᵀ N_active = [R; 0]), and repeats (G&I Se
    rotations zero d below position q+1, applied to J's columns); else drop the blocking constraint
    (Givens rotations restore R's triangle, applied to J) and go to 2 with the same p.
 
-Equalities are added first (a violated one's sign is chosen so that it is "violated") and never dropped;
-their multipliers are free. Exact to round-off like any active-set method (the heavy slack weight makes
-the QP ill-conditioned, 10⁶; first-order methods stop far from the optimum there). It cold-starts every
-step: with ~10 constraints active that is ~10 additions of O(n²) each, ~1-3 µs here. If it ever fails
-(iteration limit, infeasible to round-off, or a final primal violation above tolerance), the caller falls
-back to the DAQP path for that step, so a wrong answer is never returned silently.
+Equalities are added first after the start (a violated one's sign is chosen so that it is "violated") and
+never dropped; their multipliers are free. Exact to round-off like any active-set method (the heavy slack
+weight makes the QP ill-conditioned, 10⁶; first-order methods stop far from the optimum there). It starts
+afresh every step (no state from the previous one): the bounded start holds the τ slacks and bias
+shortfalls at zero from the outset, and the rest is ~13 iterations of O(n²) each on the benchmark's
+sequence, ~6 µs. If it ever fails (iteration limit, infeasible to round-off, or a final primal violation
+above tolerance), the caller falls back to the DAQP path for that step, so a wrong answer is never
+returned silently.
 
 ``tests/test_allocation_kernel.py`` checks this against DAQP (the QP's solution, hypothesis) and against
 the Python path (the whole step) on random feasible and infeasible cases.
@@ -313,9 +317,11 @@ def constraints_of(A, ub_A, lb, ub, n_eq, si, sv, sb):
     return m, m_gen
 
 
-def solve_qp_data(P_diag, q, A, b_eq, ub_A, lb, ub, n_eq):
+def solve_qp_data(P_diag, q, A, b_eq, ub_A, lb, ub, n_eq, bounded_start=True):
     """Solve one `allocation.QPData` (diagonal P given as its diagonal) with `gi_solve`: (x, status,
-    iterations). For tests and the benchmark; the allocator's own step builds its QP inside the kernel."""
+    iterations). For tests and the benchmark; the allocator's own step builds its QP inside the kernel.
+    ``bounded_start=False``: G&I's own start at the unconstrained minimum (no bound active), the
+    reference the bounded start (`_bounded_start`) is tested against."""
     n = A.shape[1]
     m_max = A.shape[0] + 2 * n
     si, sv, sb = np.empty((m_max, 2), dtype=np.int64), np.empty((m_max, 2)), np.empty(m_max)
@@ -333,7 +339,7 @@ def solve_qp_data(P_diag, q, A, b_eq, ub_A, lb, ub, n_eq):
         sv,
         sb,
         m,
-        m_gen,
+        m_gen if bounded_start else m,
         x,
         *w,
         np.empty(n),
