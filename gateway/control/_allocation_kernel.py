@@ -11,9 +11,11 @@ The QP solver is the dual active-set method of Goldfarb & Idnani (1983), "A nume
 method for solving strictly convex quadratic programs", Math. Programming 27, 1–33 — the algorithm of
 ``quadprog`` (Turlach's qpgen2), which docs/allocation.md measured to agree with DAQP to 1e-9 on the
 allocation's QPs. Written here for a **diagonal** Hessian H = diag(P) (the allocation's objective is
-separable), which makes the start exact and cheap: the unconstrained minimum x₀ = −H⁻¹q and
-J₀ = L⁻ᵀ = diag(1/√P). For constraints nᵢᵀx ≥ bᵢ (equalities nᵢᵀx = bᵢ) it keeps J = L⁻ᵀQ and the upper
-triangular R of the active normals (Jᵀ N_active = [R; 0]), and repeats (G&I Sec. 3, steps 1–3):
+separable), which makes the start exact and cheap: G&I start at the unconstrained minimum x₀ = −H⁻¹q with
+J₀ = L⁻ᵀ = diag(1/√P); here, one better, at the minimum over the simple bounds alone (x₀ clipped to them,
+those bounds active, J₀'s columns permuted: `_bounded_start`). For constraints
+nᵢᵀx ≥ bᵢ (equalities nᵢᵀx = bᵢ) it keeps J = L⁻ᵀQ and the upper triangular R of the active normals
+(Jᵀ N_active = [R; 0]), and repeats (G&I Sec. 3, steps 1–3):
 
 1. Pick the most violated constraint p (sᵢ = nᵢᵀx − bᵢ < −tol); none: x is optimal.
 2. d = Jᵀn_p; primal direction z = J₂d₂ (J₂: the columns beyond the active set); dual direction
@@ -23,12 +25,14 @@ triangular R of the active normals (Jᵀ N_active = [R; 0]), and repeats (G&I Se
    rotations zero d below position q+1, applied to J's columns); else drop the blocking constraint
    (Givens rotations restore R's triangle, applied to J) and go to 2 with the same p.
 
-Equalities are added first (a violated one's sign is chosen so that it is "violated") and never dropped;
-their multipliers are free. Exact to round-off like any active-set method (the heavy slack weight makes
-the QP ill-conditioned, 10⁶; first-order methods stop far from the optimum there). It cold-starts every
-step: with ~10 constraints active that is ~10 additions of O(n²) each, ~1-3 µs here. If it ever fails
-(iteration limit, infeasible to round-off, or a final primal violation above tolerance), the caller falls
-back to the DAQP path for that step, so a wrong answer is never returned silently.
+Equalities are added first after the start (a violated one's sign is chosen so that it is "violated") and
+never dropped; their multipliers are free. Exact to round-off like any active-set method (the heavy slack
+weight makes the QP ill-conditioned, 10⁶; first-order methods stop far from the optimum there). It starts
+afresh every step (no state from the previous one): the bounded start holds the τ slacks and bias
+shortfalls at zero from the outset, and the rest is ~13 iterations of O(n²) each on the benchmark's
+sequence, ~6 µs. If it ever fails (iteration limit, infeasible to round-off, or a final primal violation
+above tolerance), the caller falls back to the DAQP path for that step, so a wrong answer is never
+returned silently.
 
 ``tests/test_allocation_kernel.py`` checks this against DAQP (the QP's solution, hypothesis) and against
 the Python path (the whole step) on random feasible and infeasible cases.
@@ -79,23 +83,67 @@ def _dot_row(p, n_eq, Ceq, si, sv, v):
 
 
 @njit(cache=True)
-def gi_solve(Pd, q, Ceq, beq, si, sv, sb, m_in, x, active, u, J, R, d, z, r, max_iter):
+def _bounded_start(Pd, q, n_eq, si, sv, sb, m_in, m_gen, x, active, u, Jt, R, mark):
+    """The dual method's start: the minimum of ½xᵀHx + qᵀx over the simple bounds alone, with every bound
+    it meets active. H is diagonal, so that minimum is the unconstrained x₀ = −H⁻¹q clipped to the bounds,
+    and its active set is known without a single iteration: for the bound vₖxₖ ≥ b (v = ±1) that x₀
+    violates, xₖ = v·b and its multiplier is uₖ = v(Pₖxₖ + qₖ) = v·Pₖ(xₖ − x₀ₖ) > 0 — dual feasible, as
+    G&I's start must be. J = L⁻ᵀQ is the diagonal diag(1/√P) with its columns permuted (the clipped
+    variables' first, in the order their bounds are active, signed by v) and R = diag(1/√Pₖ) of the
+    clipped ones: Jᵀ N_active = [R; 0] holds exactly. Jt holds Jᵀ (as in `gi_solve`).
+
+    Why: the shortfall variables (the τ slacks ŝ±, the bias shortfalls e) have q > 0 and bound 0, so x₀
+    has every one of them negative; from x = x₀ the method adds them one at a time, and in the meantime
+    the τ equalities, met through slacks that are not yet held at zero, move the forces onto bounds and
+    faces that it must drop again (with the turn cost and the bias floor: ~42 iterations a step on the
+    benchmark's sequence instead of ~12). The optimum is the same (the QP is strictly convex); only the
+    path to it, and its round-off (~1e-11 scaled), differ. Returns the number active."""
+    n = Pd.shape[0]
+    nact = 0
+    for k in range(n):
+        x[k] = -q[k] / Pd[k]
+        mark[k] = -1.0
+        for j in range(n):
+            Jt[k, j] = 0.0
+            R[k, j] = 0.0
+    for i in range(m_gen, m_in):
+        k = si[i, 0]
+        v = sv[i, 0]
+        if mark[k] < 0.0 and v * x[k] - sb[i] < -FEAS_TOL:
+            x[k] = v * sb[i]
+            u[nact] = v * (Pd[k] * x[k] + q[k])
+            active[nact] = i + n_eq
+            mark[k] = nact
+            nact += 1
+    c = nact
+    for k in range(n):
+        h = 1.0 / math.sqrt(Pd[k])
+        if mark[k] < 0.0:
+            Jt[c, k] = h
+            c += 1
+        else:
+            a = int(mark[k])
+            Jt[a, k] = sv[active[a] - n_eq, 0] * h
+            R[a, a] = h
+    return nact
+
+
+@njit(cache=True)
+def gi_solve(Pd, q, Ceq, beq, si, sv, sb, m_in, m_gen, x, active, u, Jt, R, d, z, r, max_iter):
     """min ½xᵀdiag(Pd)x + qᵀx s.t. Ceq x = beq (dense rows) and, for i < m_in,
     sv[i,0]·x[si[i,0]] + sv[i,1]·x[si[i,1]] ≥ sb[i] (every inequality of the allocation's QP — bounds,
     polygon faces, cone edges — touches at most two variables, so a scan of all of them is O(m)).
+    Rows i ≥ m_gen are simple bounds (sv[i,0] = ±1, sv[i,1] = 0; at most one violated per variable at
+    the start, as `constraints_of` writes them): the start is their minimum (see `_bounded_start`).
 
-    Work arrays J, R (n×n), d, z, r, u (n), active (int, n): the caller's (nothing is allocated per call).
+    Work arrays Jt, R (n×n), d, z, r, u (n), active (int, n): the caller's (nothing is allocated per call).
+    Jt holds Jᵀ (its row j is J's column j), so that the Givens rotations of J's columns and z = J₂d₂ run
+    along contiguous memory (the arithmetic, and its order, is that of J itself).
     Constraint p is an equality for p < n_eq, inequality p − n_eq otherwise. Returns (status, iterations,
     number active); x holds the solution."""
     n = Pd.shape[0]
     n_eq = Ceq.shape[0]
-    for i in range(n):
-        x[i] = -q[i] / Pd[i]
-        for j in range(n):
-            J[i, j] = 0.0
-            R[i, j] = 0.0
-        J[i, i] = 1.0 / math.sqrt(Pd[i])
-    nact = 0
+    nact = _bounded_start(Pd, q, n_eq, si, sv, sb, m_in, m_gen, x, active, u, Jt, R, z)
     it = 0
     next_eq = 0
     while True:
@@ -131,24 +179,27 @@ def gi_solve(Pd, q, Ceq, beq, si, sv, sb, m_in, x, active, u, J, R, d, z, r, max
                 return FAIL_ITER, it, nact
             s_p = sign_p * (_dot_row(p, n_eq, Ceq, si, sv, x) - b_p)
             # d = Jᵀ n_p
-            if p < n_eq:
+            if p < n_eq:  # each d[j] summed over k in order, the n sums side by side
                 for j in range(n):
-                    acc = 0.0
-                    for k in range(n):
-                        acc += J[k, j] * Ceq[p, k]
-                    d[j] = sign_p * acc
+                    d[j] = 0.0
+                for k in range(n):
+                    ck = Ceq[p, k]
+                    if ck != 0.0:
+                        for j in range(n):
+                            d[j] += Jt[j, k] * ck
+                for j in range(n):
+                    d[j] *= sign_p
             else:
                 i0, i1 = si[p - n_eq, 0], si[p - n_eq, 1]
                 v0, v1 = sv[p - n_eq, 0], sv[p - n_eq, 1]
                 for j in range(n):
-                    d[j] = v0 * J[i0, j] + v1 * J[i1, j]
-            zz = 0.0
-            for k in range(n):
-                acc = 0.0
-                for j in range(nact, n):
-                    acc += J[k, j] * d[j]
-                z[k] = acc
-                zz += acc * acc
+                    d[j] = v0 * Jt[j, i0] + v1 * Jt[j, i1]
+            for k in range(n):  # z = J₂d₂, row by row of Jt (contiguous; each z[k] summed over j in order)
+                z[k] = 0.0
+            for j in range(nact, n):
+                dj = d[j]
+                for k in range(n):
+                    z[k] += Jt[j, k] * dj
             zn = 0.0  # zᵀn_p = |d₂|² (J₂J₂ᵀ is the projector)
             dnorm = 0.0
             for j in range(n):
@@ -183,16 +234,16 @@ def gi_solve(Pd, q, Ceq, beq, si, sv, sb, m_in, x, active, u, J, R, d, z, r, max
             if t2 <= t1:
                 # add p: Givens rotations zero d[nact+1:], applied to J's columns
                 for j in range(n - 1, nact, -1):
-                    c, sn, h = _givens(d[j - 1], d[j])
-                    if h == 0.0:
+                    if d[j] == 0.0:  # nothing to zero (J is sparse after the start): no rotation
                         continue
+                    c, sn, h = _givens(d[j - 1], d[j])
                     d[j - 1] = h
                     d[j] = 0.0
                     for k in range(n):
-                        a1 = J[k, j - 1]
-                        a2 = J[k, j]
-                        J[k, j - 1] = c * a1 + sn * a2
-                        J[k, j] = -sn * a1 + c * a2
+                        a1 = Jt[j - 1, k]
+                        a2 = Jt[j, k]
+                        Jt[j - 1, k] = c * a1 + sn * a2
+                        Jt[j, k] = -sn * a1 + c * a2
                 for a in range(nact + 1):
                     R[a, nact] = d[a]
                 active[nact] = p
@@ -209,9 +260,9 @@ def gi_solve(Pd, q, Ceq, beq, si, sv, sb, m_in, x, active, u, J, R, d, z, r, max
                 R[k, nact - 1] = 0.0
             nact -= 1
             for a in range(drop, nact):
-                c, sn, h = _givens(R[a, a], R[a + 1, a])
-                if h == 0.0:
+                if R[a + 1, a] == 0.0:
                     continue
+                c, sn, h = _givens(R[a, a], R[a + 1, a])
                 for j in range(a, nact):
                     a1 = R[a, j]
                     a2 = R[a + 1, j]
@@ -219,10 +270,10 @@ def gi_solve(Pd, q, Ceq, beq, si, sv, sb, m_in, x, active, u, J, R, d, z, r, max
                     R[a + 1, j] = -sn * a1 + c * a2
                 R[a + 1, a] = 0.0
                 for k in range(n):
-                    a1 = J[k, a]
-                    a2 = J[k, a + 1]
-                    J[k, a] = c * a1 + sn * a2
-                    J[k, a + 1] = -sn * a1 + c * a2
+                    a1 = Jt[a, k]
+                    a2 = Jt[a + 1, k]
+                    Jt[a, k] = c * a1 + sn * a2
+                    Jt[a + 1, k] = -sn * a1 + c * a2
     # final check of the primal solution (what a wrong answer would show first)
     for p in range(n_eq):
         s = _dot_row(p, n_eq, Ceq, si, sv, x) - beq[p]
@@ -238,7 +289,8 @@ def gi_solve(Pd, q, Ceq, beq, si, sv, sb, m_in, x, active, u, J, R, d, z, r, max
 def constraints_of(A, ub_A, lb, ub, n_eq, si, sv, sb):
     """The inequalities of the QP of `allocation.QPData` (A[n_eq:]x ≤ ub_A, lb ≤ x ≤ ub) as rows
     sv[i,0]·x[si[i,0]] + sv[i,1]·x[si[i,1]] ≥ sb[i]: the finite general rows, then the finite bounds.
-    Returns the row count, or −1 if a general row has more than two nonzeros (not this QP's structure)."""
+    Returns (row count, number of general rows), or (−1, −1) if a general row has more than two nonzeros
+    (not this QP's structure)."""
     n = A.shape[1]
     m = 0
     for i in range(n_eq, A.shape[0]):
@@ -248,12 +300,13 @@ def constraints_of(A, ub_A, lb, ub, n_eq, si, sv, sb):
             for k in range(n):
                 if A[i, k] != 0.0:
                     if cnt == 2:
-                        return -1
+                        return -1, -1
                     si[m, cnt] = k
                     sv[m, cnt] = -A[i, k]
                     cnt += 1
             sb[m] = -ub_A[i]
             m += 1
+    m_gen = m
     for j in range(n):
         if lb[j] > -math.inf:
             si[m, 0], si[m, 1], sv[m, 0], sv[m, 1], sb[m] = j, j, 1.0, 0.0, lb[j]
@@ -261,16 +314,18 @@ def constraints_of(A, ub_A, lb, ub, n_eq, si, sv, sb):
         if ub[j] < math.inf:
             si[m, 0], si[m, 1], sv[m, 0], sv[m, 1], sb[m] = j, j, -1.0, 0.0, -ub[j]
             m += 1
-    return m
+    return m, m_gen
 
 
-def solve_qp_data(P_diag, q, A, b_eq, ub_A, lb, ub, n_eq):
+def solve_qp_data(P_diag, q, A, b_eq, ub_A, lb, ub, n_eq, bounded_start=True):
     """Solve one `allocation.QPData` (diagonal P given as its diagonal) with `gi_solve`: (x, status,
-    iterations). For tests and the benchmark; the allocator's own step builds its QP inside the kernel."""
+    iterations). For tests and the benchmark; the allocator's own step builds its QP inside the kernel.
+    ``bounded_start=False``: G&I's own start at the unconstrained minimum (no bound active), the
+    reference the bounded start (`_bounded_start`) is tested against."""
     n = A.shape[1]
     m_max = A.shape[0] + 2 * n
     si, sv, sb = np.empty((m_max, 2), dtype=np.int64), np.empty((m_max, 2)), np.empty(m_max)
-    m = constraints_of(np.ascontiguousarray(A, dtype=float), ub_A, lb, ub, n_eq, si, sv, sb)
+    m, m_gen = constraints_of(np.ascontiguousarray(A, dtype=float), ub_A, lb, ub, n_eq, si, sv, sb)
     if m < 0:
         return np.full(n, np.nan), FAIL_CHECK, 0
     x = np.empty(n)
@@ -284,6 +339,7 @@ def solve_qp_data(P_diag, q, A, b_eq, ub_A, lb, ub, n_eq):
         sv,
         sb,
         m,
+        m_gen if bounded_start else m,
         x,
         *w,
         np.empty(n),
@@ -499,12 +555,12 @@ def allocate_step(
     for i in range(3):
         b_eq[i] = tau[i] / tau_ref[i]
     # ---- solve
-    m = constraints_of(A, ub_A, lb, ub, 3, si, sv, sb)
+    m, m_gen = constraints_of(A, ub_A, lb, ub, 3, si, sv, sb)
     if m < 0:
         info[0] = FAIL_CHECK
         return FAIL_CHECK
     status, iters, _ = gi_solve(
-        Pw, q, A[:3], b_eq, si, sv, sb, m, xs, active, u, J, R, d, z, r, 50 * (m + nx)
+        Pw, q, A[:3], b_eq, si, sv, sb, m, m_gen, xs, active, u, J, R, d, z, r, 50 * (m + nx)
     )
     info[0] = status
     info[1] = iters
