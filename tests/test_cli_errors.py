@@ -194,6 +194,7 @@ def test_demo_too_short_to_score_says_how_long_to_run(capsys: pytest.CaptureFixt
     print_summary(
         {
             "scenario": "torsetnes_2004", "sim_seconds": 50.0, "wall_seconds": 5.0, "log": "d.mcap",
+            "logs": ["d.mcap"],
             "sources": {}, "sent": {}, "estimates": 10, "alarms": [], "settle_s": SETTLE_S,
             "error_vs_truth": {"samples": 0, "horizontal_rms_m": nan},
             "station_keeping": {
