@@ -167,6 +167,7 @@ def run(args: argparse.Namespace) -> int:
         open_inputs,
         parse_observer_spec,
         run_replay,
+        runs_its_own_controller,
     )
     from observers.passive_tuning import TuningError
     from observers.vessel import VesselError
@@ -220,7 +221,10 @@ def run(args: argparse.Namespace) -> int:
         if twice := next((x for i, x in enumerate(labels) if x in labels[:i]), None):
             # each observer's estimates are counted, published and reported under its label
             raise ReplayError(f"--observer: label '{twice}' given twice (name each: SPEC@label)")
-        pipeline = build_pipeline(config, specs, foxglove_channels=args.foxglove_channels)
+        own_controller = runs_its_own_controller(inputs, args.config, args.vessel)
+        pipeline = build_pipeline(
+            config, specs, foxglove_channels=args.foxglove_channels, controller=own_controller
+        )
     except ConfigError as exc:
         print(format_problems(exc), file=sys.stderr)
         return 2
@@ -328,9 +332,10 @@ def serve(
     from foxglove.websocket import PlaybackCommand, PlaybackControlRequest, PlaybackState, PlaybackStatus
 
     from gateway.outputs.foxglove_server import FoxgloveServerError, FoxgloveServerSink
-    from gateway.replay import build_pipeline, merged_events
+    from gateway.replay import build_pipeline, merged_events, runs_its_own_controller
     from gateway.replay_player import ENDED, PLAYING, PlayerState, ReplayPlayer
 
+    own = runs_its_own_controller(inputs, args.config, args.vessel)
     first = last = None
     for ev in merged_events(inputs):  # the span the app's time line shows (one pass, reading only)
         first = ev.rx_ns if first is None else first
@@ -359,7 +364,7 @@ def serve(
         host, port, server_name=f"dpgw replay {name}", playback=on_request, time_range_ns=(first, last)
     )
     player = ReplayPlayer(
-        lambda: (build_pipeline(config, specs), merged_events(inputs)),
+        lambda: (build_pipeline(config, specs, controller=own), merged_events(inputs)),
         (first, last),
         lambda outputs: sink.emit(outputs, [o.message.encode() for o in outputs]),
         on_time=sink.broadcast_time,

@@ -402,10 +402,20 @@ def build_config(
 
 
 def build_pipeline(
-    config: GatewayConfig, specs: list[ObserverSpec], *, foxglove_channels: bool = True
+    config: GatewayConfig,
+    specs: list[ObserverSpec],
+    *,
+    foxglove_channels: bool = True,
+    controller: bool = False,
 ) -> Pipeline:
-    """The live pipeline for ``config`` with the observers of ``specs`` (estimation only: replay commands
-    no thrusters); ``foxglove_channels=False`` leaves out the Foxglove-native channels."""
+    """The live pipeline for ``config`` with the observers of ``specs``; ``foxglove_channels=False`` leaves
+    out the Foxglove-native channels. Estimation only unless ``controller``: replay sends no command
+    anywhere, and a controller would only make the observer believe its own commands were delivered
+    (without thruster feedback the observer's τ is the commanded one) on a trial where something else
+    drove the thrusters. ``controller=True`` is for a dpgw log replayed with its own config: the live
+    gateway's controller then did command the vessel, and its state is part of what the observer saw
+    (the wind feed-forward's load, the commanded τ when feedback was stale), so the replay keeps it to
+    reproduce the live estimates; the commands it recomputes go to the output log only."""
     spec = dataclasses.replace(PipelineSpec.from_config(config), foxglove_channels=foxglove_channels)
     if specs:
         # Only the observers change: every other part of the config's pipeline (reference checks,
@@ -417,9 +427,22 @@ def build_pipeline(
             observer=primary.make(config),
             observer_name=primary.label,
             extra_observers=tuple((s.label, s.make(config)) for s in specs[1:]),
-            control=None,  # estimation only, as the docstring says: replay commands no thrusters
         )
+    if not controller:
+        spec = dataclasses.replace(spec, control=None)
     return Pipeline(spec)
+
+
+def runs_its_own_controller(
+    inputs: list[Input], config_path: str | Path | None, vessel: str | None = None
+) -> bool:
+    """True when the replay's config is a dpgw log's own (no ``--config``, no other ``--vessel``): the live
+    gateway's controller drove the vessel, and `build_pipeline` keeps it (``controller=True``)."""
+    return (
+        config_path is None
+        and vessel is None
+        and any(inp.kind == "mcap" and logged_config(inp.path) is not None for inp in inputs)
+    )
 
 
 # --- the job ----------------------------------------------------------------------------------------------
