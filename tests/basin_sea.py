@@ -15,8 +15,9 @@ from functools import lru_cache
 
 import numpy as np
 
+from observers.froude import froude_scale
 from observers.kinematics import rotation, ssa
-from observers.vessel import load_vessel
+from observers.vessel import builtin_vessels, load_vessel
 from simulator.spectra import SeaState
 from simulator.vessel_dynamics import VesselDynamics
 from simulator.waves import WaveField, WaveResponse
@@ -26,6 +27,10 @@ RATE = 10.0
 """Hz: the `hassani` scenario's RTK and gyro rate."""
 SCALE = math.sqrt(70.0)
 """Froude: the model's times are the ship's ÷ √70, its frequencies × √70."""
+SHIPS = [name for name in builtin_vessels() if froude_scale(load_vessel(name)) == 1.0]
+"""The built-in full-scale vessels: their defaults must stay exactly the unscaled ones."""
+DEFAULT_SEA = SeaState(hs_m=0.05, tp_s=7.0 / SCALE, gamma=3.3, direction_rad=math.radians(150.0))
+"""The ships' default 7 s sea, Froude-scaled to the model (0.84 s)."""
 
 
 @lru_cache(maxsize=8)

@@ -106,3 +106,10 @@ class Recorder:
         """The messages of type ``kind`` (on ``topic``, or on any)."""
         with self.lock:
             return [o.message for o in self.outputs if type(o.message) is kind and topic in (None, o.topic)]
+
+
+def nmea_line(body: str) -> str:
+    """``$<body>*HH`` with its checksum (no line end): a sentence from its text between ``$`` and ``*``."""
+    from wire.codecs.nmea_encode import checksum
+
+    return f"${body}*{checksum(body)}"

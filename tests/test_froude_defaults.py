@@ -12,9 +12,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from basin_sea import MODEL, basin
+from basin_sea import DEFAULT_SEA, MODEL, SHIPS, basin
+from basin_sea import SCALE as R
 
-from observers.froude import froude_scale, froude_scaled, scaled_frequencies
+from observers.froude import froude_scaled, scaled_frequencies
 from observers.gain_scheduled import (
     DEFAULT_TUNING,
     H_MAX_S,
@@ -23,13 +24,10 @@ from observers.gain_scheduled import (
     _initial_for_range,
 )
 from observers.passive_tuning import PassiveTuning, froude_scaled_fields
-from observers.vessel import builtin_vessels, load_vessel
+from observers.vessel import load_vessel
 from observers.wave_frequency import WaveFrequencyConfig
 from simulator.scenarios import FULL_SCALE_OMEGA_RANGE, get_scenario
-from simulator.spectra import SeaState
 
-R = math.sqrt(70.0)
-SHIPS = [name for name in builtin_vessels() if froude_scale(load_vessel(name)) == 1.0]
 HASSANI_RANGE = {"omega_min": 0.3, "omega_max": 1.6}
 
 
@@ -92,7 +90,7 @@ def test_the_models_default_step_integrates_its_fast_error_dynamics() -> None:
     """A model's error poles are √70 faster than a ship's (−20 s⁻¹ at 13.4 rad/s): the ship's 0.1 s step
     leaves an integration error of the order of a millimetre in a 7.5 rad/s basin sea (a fifth of the
     observer's own LF error there); the scaled step agrees with a 1 ms reference to round-off level."""
-    sea = SeaState(hs_m=0.05, tp_s=7.0 / R, gamma=3.3, direction_rad=math.radians(150.0))
+    sea = DEFAULT_SEA
     t, y, _, _ = basin(sea, 300.0, 0)
     reference = GainScheduledObserver(MODEL, h_max=0.001).run(t, y).eta[1500:, :2]
 

@@ -9,6 +9,7 @@ from datetime import UTC, datetime, timedelta
 
 import pynmea2
 import pytest
+from conftest import nmea_line
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -27,8 +28,7 @@ from wire.codecs.nmea import (
 HALF_CENTI_DEG = math.radians(0.005) + 1e-12
 
 
-def line(body: str) -> str:
-    return f"${body}*{enc.checksum(body)}"
+line = nmea_line
 
 
 def ok(text: str) -> Attitude:

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pynmea2
 import pytest
+from conftest import nmea_line
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
@@ -100,9 +101,7 @@ def rejected(text: str, **kwargs: bool) -> Reject:
     return result
 
 
-def line(body: str) -> str:
-    """``$body*HH`` with a correct checksum."""
-    return f"${body}*{enc.checksum(body)}"
+line = nmea_line
 
 
 # ---------------------------------------------------------------------------------------------- real data

@@ -6,15 +6,14 @@ from __future__ import annotations
 import math
 
 import pytest
+from conftest import nmea_line
 from hypothesis import given
 from hypothesis import strategies as st
 
 from wire.codecs import nmea_encode as enc
 from wire.codecs.nmea import BAD_FIELD, BAD_FORMAT, MPS_PER_UNIT, REJECT_REASONS, Mwv, Reject, decode
 
-
-def line(body: str) -> str:
-    return f"${body}*{enc.checksum(body)}"
+line = nmea_line
 
 
 def ok(text: str) -> Mwv:

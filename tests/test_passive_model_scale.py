@@ -17,12 +17,12 @@ from typing import Any
 
 import numpy as np
 import pytest
-from basin_sea import MODEL, RATE, basin
+from basin_sea import DEFAULT_SEA, MODEL, RATE, SHIPS, basin
+from basin_sea import SCALE as R
 
 from gateway.report.metrics import wave_band_for_length
 from gateway.report.wave_check import check_wave_tuning
 from observers.factory import make_observer
-from observers.froude import froude_scale
 from observers.gain_scheduled import GainScheduledObserver
 from observers.kinematics import ssa
 from observers.passive import PassiveObserver
@@ -34,12 +34,9 @@ from observers.passive_tuning import (
     froude_scaled_fields,
     passive_gains,
 )
-from observers.vessel import builtin_vessels, load_vessel
+from observers.vessel import load_vessel
 from simulator.spectra import SeaState
 
-R = math.sqrt(70.0)
-SHIPS = [name for name in builtin_vessels() if froude_scale(load_vessel(name)) == 1.0]
-DEFAULT_SEA = SeaState(hs_m=0.05, tp_s=7.0 / R, gamma=3.3, direction_rad=math.radians(150.0))
 BASIN_SEA = SeaState(hs_m=0.06, tp_s=2 * math.pi / 3.8, gamma=3.3, direction_rad=math.radians(150.0))
 SETTLE_S = 150.0
 
