@@ -793,10 +793,8 @@ class Pipeline:
         if not how:
             return
         self.lever_arm_compensation[how] += 1
-        if how == "heading":
-            self.counters[source].rejected["lever_arm_heading_only"] += (
-                1  # (not a reject: the fix is used, by J(ψ))
-            )
+        if how == "heading":  # (not a reject: the fix is used, by J(ψ); counted where an operator looks)
+            self.counters[source].rejected["lever_arm_heading_only"] += 1
         if how != self._compensation_said:
             if how == "attitude":
                 text = f"lever-arm compensation: roll and pitch from {self.fusion.attitude_source} (MRU) on"

@@ -440,30 +440,21 @@ def mss_supply_storm() -> Scenario:
 
 def mss_supply_wind(speed_mps: float = 18.0) -> Scenario:
     """The MSS supply vessel on the full plant in a strong gusting wind and a small sea: a wind-dominated
-    case, where what the wind does between two position fixes is what the controller has to answer."""
-    from simulator.fluid_memory_cache import load_fluid_memory  # (reads the stored model: ~10 ms)
-
-    vessel = load_vessel("mss_supply")
+    case, where what the wind does between two position fixes is what the controller has to answer. The
+    storm's vessel, plant, sensors and slowly varying load (`mss_supply_storm`), in other weather."""
     heading = 45.0
-    return Scenario(
+    return replace(
+        mss_supply_storm(),
         name="mss_supply_wind" if speed_mps == 18.0 else f"mss_supply_wind_{speed_mps:g}",
         description=f"MSS supply vessel on the full plant with fluid memory, keeping (0, 0), heading 45°, "
         f"{speed_mps:g} m/s NORSOK wind 60° off the bow, JONSWAP Hs 1.5 m, 0.3 m/s current",
-        vessel=vessel,
         duration_s=1800.0,
-        eta0=(0.0, 0.0, math.radians(heading)),
         sea=(
             (
                 0.0,
                 SeaState(hs_m=1.5, tp_s=7.0, gamma=3.3, direction_rad=math.radians(heading + 180.0 + 60.0)),
             ),
         ),
-        tau=_hold_against_mean_load,
-        bias=BiasModel(sigma=(1e4, 1e4, 3e5), time_constant_s=(600.0, 600.0, 600.0)),
-        dgps=(DgpsConfig(rate_hz=2.0, sigma_m=0.3),),
-        gyro=(GyroConfig(rate_hz=10.0),),
-        plant="full",
-        plant_options=PlantOptions(radiation=load_fluid_memory("mss_supply")),
         current=CurrentModel(
             speed_mps=0.3,
             direction_deg=heading + 180.0 + 30.0,
