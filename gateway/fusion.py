@@ -47,10 +47,10 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -231,19 +231,10 @@ class Fusion:
 
     def heading_at(self, t_ns: int) -> float:
         """The heading received closest in time to t (the same cycle as a fix); NaN if none is recent."""
-        if not self._headings:
+        found = _nearest_in_time(self._headings, t_ns)
+        if found is None or found[0] > self._heading.valid_ns:
             return math.nan
-        # Fixes pair with recent headings: walk back from the newest until the gap starts to grow
-        # (no copy of the history per fix).
-        best_dt, best = None, math.nan
-        for t, psi in reversed(self._headings):
-            dt = abs(t - t_ns)
-            if best_dt is not None and dt > best_dt:
-                break
-            best_dt, best = dt, psi
-        if best_dt is None or best_dt > self._heading.valid_ns:
-            return math.nan
-        return best
+        return float(found[1][1])
 
     # --- attitude (MRU) ----------------------------------------------------------------------------------
 
@@ -270,14 +261,10 @@ class Fusion:
         for source, (priority, valid_ns, history) in self._attitude.items():
             if best is not None and priority > best[0]:
                 continue
-            found_dt, roll, pitch = None, math.nan, math.nan
-            for t, phi, theta in reversed(history):  # (walk back until the gap grows, as `heading_at`)
-                dt = abs(t - t_ns)
-                if found_dt is not None and dt > found_dt:
-                    break
-                found_dt, roll, pitch = dt, phi, theta
-            if found_dt is None or found_dt > valid_ns:
+            found = _nearest_in_time(history, t_ns)
+            if found is None or found[0] > valid_ns:
                 continue
+            found_dt, (_, roll, pitch) = found
             if best is None or (priority, found_dt) < best[:2]:
                 best = (priority, found_dt, roll, pitch, source)
         return None if best is None else (best[2], best[3], best[4])
@@ -661,3 +648,16 @@ class Fusion:
             for i, t in enumerate(layout)
         ]
         return self.vessel.generalized_force(thrust, angle)
+
+
+def _nearest_in_time(history: Sequence[tuple[Any, ...]], t_ns: int) -> tuple[int, tuple[Any, ...]] | None:
+    """(|Δt|, entry) of the entry of a time-ordered history of (t_ns, ...) received closest to t_ns; None
+    when it is empty. A fix pairs with recent samples (its cycle's heading, attitude): walk back from the
+    newest until the gap starts to grow, with no copy of the history per fix."""
+    best: tuple[int, tuple[Any, ...]] | None = None
+    for entry in reversed(history):
+        dt = abs(entry[0] - t_ns)
+        if best is not None and dt > best[0]:
+            break
+        best = (dt, entry)
+    return best
