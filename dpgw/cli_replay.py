@@ -221,7 +221,7 @@ def run(args: argparse.Namespace) -> int:
         if twice := next((x for i, x in enumerate(labels) if x in labels[:i]), None):
             # each observer's estimates are counted, published and reported under its label
             raise ReplayError(f"--observer: label '{twice}' given twice (name each: SPEC@label)")
-        own_controller = runs_its_own_controller(inputs, args.config, args.vessel)
+        own_controller = runs_its_own_controller(inputs, own_config=own_config(args))
         pipeline = build_pipeline(
             config, specs, foxglove_channels=args.foxglove_channels, controller=own_controller
         )
@@ -254,9 +254,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         with McapLogWriter(args.out, profile="dpgw-replay", flush_on_log_time=False) as out:
             out.add_metadata("dpgw.replay", {"logs": json.dumps([str(i.path) for i in inputs])})
-            for name, meta in carried_metadata(
-                inputs, own_config=args.config is None and args.vessel is None
-            ):
+            for name, meta in carried_metadata(inputs, own_config=own_config(args)):
                 out.add_metadata(name, meta)
             result = run_replay(
                 inputs,
@@ -321,6 +319,11 @@ def _no_estimates(s: dict[str, Any]) -> list[str]:
     ]
 
 
+def own_config(args: argparse.Namespace) -> bool:
+    """The replay runs on the logs' own configuration: no --config, no --vessel."""
+    return args.config is None and args.vessel is None
+
+
 def serve(
     args: argparse.Namespace, inputs: list[Any], config: Any, specs: list[Any], speed: float | None
 ) -> int:
@@ -335,7 +338,7 @@ def serve(
     from gateway.replay import build_pipeline, merged_events, runs_its_own_controller
     from gateway.replay_player import ENDED, PLAYING, PlayerState, ReplayPlayer
 
-    own = runs_its_own_controller(inputs, args.config, args.vessel)
+    own = runs_its_own_controller(inputs, own_config=own_config(args))
     first = last = None
     for ev in merged_events(inputs):  # the span the app's time line shows (one pass, reading only)
         first = ev.rx_ns if first is None else first

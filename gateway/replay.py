@@ -433,16 +433,11 @@ def build_pipeline(
     return Pipeline(spec)
 
 
-def runs_its_own_controller(
-    inputs: list[Input], config_path: str | Path | None, vessel: str | None = None
-) -> bool:
-    """True when the replay's config is a dpgw log's own (no ``--config``, no other ``--vessel``): the live
-    gateway's controller drove the vessel, and `build_pipeline` keeps it (``controller=True``)."""
-    return (
-        config_path is None
-        and vessel is None
-        and any(inp.kind == "mcap" and logged_config(inp.path) is not None for inp in inputs)
-    )
+def runs_its_own_controller(inputs: list[Input], *, own_config: bool) -> bool:
+    """True when the replay runs on a dpgw log's own configuration (``own_config``: no --config, no
+    --vessel, as for `carried_metadata`) and a log has one: the live gateway's controller drove the
+    vessel, and `build_pipeline` keeps it (``controller=True``)."""
+    return own_config and any(inp.kind == "mcap" and logged_config(inp.path) is not None for inp in inputs)
 
 
 # --- the job ----------------------------------------------------------------------------------------------
