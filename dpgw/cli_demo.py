@@ -527,6 +527,8 @@ def print_summary(r: dict[str, Any]) -> None:
     print(f"  {'source':12s} {'sent':>8s} {'received':>9s}  rejected")
     for name, c in r["sources"].items():
         rej = ", ".join(f"{k} {v}" for k, v in c["rejected"].items()) or "none"
+        if c.get("warnings"):  # used, with a caveat
+            rej += "; warnings: " + ", ".join(f"{k} {v}" for k, v in c["warnings"].items())
         print(f"  {name:12s} {r['sent'].get(name, 0):8d} {c['received']:9d}  {rej}")
     print(f"  estimates published: {r['estimates']}")
     e = r.get("error_vs_truth")

@@ -270,6 +270,7 @@ def _wiring(ardupilot: ArdupilotMap | None) -> mv.ArduPilotWiring | None:
 class SourceCounters:
     received: int = 0  # sentences/frames decoded and used or understood
     rejected: Counter[str] = field(default_factory=Counter)
+    warnings: Counter[str] = field(default_factory=Counter)  # used, with a caveat (not rejected)
     bytes: int = 0
     last_rx_ns: int = 0
     dropped: int = 0  # lost before the gateway read them (the kernel's count; the service sets it)
@@ -281,6 +282,7 @@ class SourceCounters:
             age_s=age,
             received=self.received,
             rejected=dict(self.rejected),
+            warnings=dict(self.warnings),
             bytes=self.bytes,
             dropped=self.dropped,
             skipped_bytes=self.skipped_bytes,
@@ -672,7 +674,7 @@ class Pipeline:
             if cov is None:
                 return False
             if cov.origin == INCONSISTENT:  # its ellipse disagrees with its own σ lat / lon: those are used
-                self.counters[spec.name].rejected["test_gst_ellipse"] += 1
+                self.counters[spec.name].warnings["gst_ellipse_inconsistent"] += 1
             ne = (cov.nn, cov.ne, cov.ee)
             self.fusion.add_position_covariance(rx_ns, ne, spec.name, spec.timeout_ns)
             self._fix_cov[spec.name] = (rx_ns + spec.timeout_ns, cov, unit_shape(ne))
@@ -793,8 +795,8 @@ class Pipeline:
         if not how:
             return
         self.lever_arm_compensation[how] += 1
-        if how == "heading":  # (not a reject: the fix is used, by J(ψ); counted where an operator looks)
-            self.counters[source].rejected["lever_arm_heading_only"] += 1
+        if how == "heading":  # the fix is used, by J(ψ) alone: a caveat, not a reject
+            self.counters[source].warnings["lever_arm_heading_only"] += 1
         if how != self._compensation_said:
             if how == "attitude":
                 text = f"lever-arm compensation: roll and pitch from {self.fusion.attitude_source} (MRU) on"

@@ -549,7 +549,8 @@ def run_replay(
     now = pipeline.last_ns
     status = pipeline.status_message(now)
     for name, c in status.sources.items():
-        result.counts[f"source {name}"] = {"received": c.received, **c.rejected}
+        warned = {f"warning {k}": v for k, v in c.warnings.items()}  # (used: apart from the rejects)
+        result.counts[f"source {name}"] = {"received": c.received, **c.rejected, **warned}
     for inp in inputs:
         if inp.kind != "mcap":
             result.counts[f"log {inp.path.name}"] = {

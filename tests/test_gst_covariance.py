@@ -242,7 +242,8 @@ def test_the_pipeline_publishes_the_ellipse_and_counts_one_that_disagrees() -> N
     (fix,) = [o.payload for o in out if o.topic == "/gnss/gps/fix"]
     assert fix["position_covariance_type"] == 2
     assert fix["position_covariance"] == pytest.approx([0.304**2, 0, 0, 0, 0.444**2, 0, 0, 0, 1.0])
-    assert p.counters["gps"].rejected == {"test_gst_ellipse": 1}
+    assert p.counters["gps"].rejected == {}  # used: a caveat, not a reject
+    assert p.counters["gps"].warnings == {"gst_ellipse_inconsistent": 1}
     # a negative σ or an orientation that is no number: a rejected sentence, the last good one stands
     bad = [b"$GPGST,120000.00,0.5,-1,0.2,30,0.4,0.3,1.0", b"$GPGST,120000.00,0.5,0.5,0.2,nan,0.4,0.3,1.0"]
     for body in bad:

@@ -241,7 +241,8 @@ def test_pipeline_compensates_roll_and_pitch_with_a_fresh_mru_and_heading_only_w
         "lever-arm compensation: heading only (no fresh attitude from mru)"
     ]
     status = p.status(t + 3000).payload
-    assert status["sources"]["gps"]["rejected"]["lever_arm_heading_only"] == 3
+    assert status["sources"]["gps"]["warnings"]["lever_arm_heading_only"] == 3  # (used: not a reject)
+    assert "lever_arm_heading_only" not in status["sources"]["gps"]["rejected"]
     assert any("source mru: stale" in a for a in status["alarms"])
     # back
     t += S // 2
@@ -262,7 +263,7 @@ def test_without_an_attitude_source_nothing_changes_and_nothing_is_said() -> Non
         out += p.feed(RawEvent(t + 2000, "gps", gga_of_antenna(psi, 0.0, 0.0, ref)))
     np.testing.assert_allclose(measurements(out)[-1]["eta"][:2], ref, atol=0.005)
     assert not p.lever_arm_compensation and not lever_arm_events(p, out, T0 + 2 * S)
-    assert "lever_arm_heading_only" not in p.status(T0 + 2 * S).payload["sources"]["gps"]["rejected"]
+    assert "warnings" not in p.status(T0 + 2 * S).payload["sources"]["gps"]  # (left out while empty)
 
 
 def test_bad_and_empty_attitude_sentences_are_counted_not_used() -> None:

@@ -347,6 +347,14 @@ class SourceStatus(Record, kw_only=True):
             'docs/gateway.md ("Bad input").'
         ),
     ]
+    warnings: Annotated[
+        dict[str, int],
+        doc(
+            'Used, with a caveat, by reason (count), e.g. {"lever_arm_heading_only": 12}: the sentence was '
+            "not rejected, but something about it is worth an operator's eye; the reasons are listed in "
+            'docs/gateway.md ("Bad input"). Left out while empty.'
+        ),
+    ] = msgspec.field(default_factory=dict)
     bytes: Annotated[int, doc("Bytes received (count).")]
     dropped: Annotated[
         int,

@@ -44,7 +44,7 @@ class ReplayData:
     truth_t: NDArray[Any] | None = None  # simulator logs: /truth/state
     truth_eta_lf: NDArray[Any] | None = None
     truth_eta_wf: NDArray[Any] | None = None
-    # per source {"received": n, "<reject reason>": n, ...};
+    # per source {"received": n, "<reject reason>": n, "warning <reason>": n, ...};
     # per input log {"truncated": n, "time_gap": n, "time_backwards": n, ...}
     counts: Mapping[str, Mapping[str, int]] = field(default_factory=dict)
 
