@@ -614,22 +614,23 @@ def reports(msg: MAVLinkMessage, ardupilot: ArduPilotWiring | None = None) -> li
                 out.append(ThrusterReport(tid, rpm=float(rpm), esc=first + k))
         return out
     if mid == _dpgw.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW:
-        out = []
         base = 16 * int(m.port)
-        for k, name in enumerate(_SERVO_FIELDS):
-            tid = wiring.servo.get(base + k + 1)
-            pwm = int(getattr(m, name, 0) or 0)  # servo9..16 are extensions: absent in a short frame
-            if tid is not None and pwm:
-                out.append(ThrusterReport(tid, azimuth_rad=wiring.azimuth_rad(pwm), pwm_us=pwm))
+        # (channel, pulse width) of the outputs in use; servo9..16 are extensions: absent in a short frame
+        used = [
+            (base + k + 1, pwm)
+            for k, name in enumerate(_SERVO_FIELDS)
+            if (pwm := int(getattr(m, name, 0) or 0))
+        ]
+        out = [
+            ThrusterReport(tid, azimuth_rad=wiring.azimuth_rad(pwm), pwm_us=pwm)
+            for channel, pwm in used
+            if (tid := wiring.servo.get(channel)) is not None
+        ]
         if wiring.esc_direction:
             channels = wiring.direction_channels
-            for k, name in enumerate(_SERVO_FIELDS):
-                escs = channels.get(base + k + 1)
-                pwm = int(getattr(m, name, 0) or 0)
-                if escs is not None and pwm:
-                    out += [
-                        EscDirectionReport(esc, wiring.direction(pwm, neutral), pwm) for esc, neutral in escs
-                    ]
+            for channel, pwm in used:
+                for esc, neutral in channels.get(channel, ()):
+                    out.append(EscDirectionReport(esc, wiring.direction(pwm, neutral), pwm))
         return out
     if mid == _dpgw.MAVLINK_MSG_ID_GPS_RAW_INT:
         return [PositionReport(m.lat / 1e7, m.lon / 1e7, m.alt / 1e3, int(m.fix_type))]
