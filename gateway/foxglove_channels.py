@@ -25,8 +25,8 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Sequence
-from typing import Protocol
+from collections.abc import Iterable, Sequence
+from typing import Any, Protocol
 
 from observers.vessel import Thruster, VesselModel
 from wire import foxglove as fx
@@ -92,6 +92,27 @@ def alarm_key(text: str) -> str:
     return _NUMBER.sub("#", text)
 
 
+def alarm_text(alarm: str | dict[str, Any]) -> str:
+    """A status's alarm as one line: a text as it is, an object (``code``, ``message``) as "code: message"."""
+    return alarm if isinstance(alarm, str) else f"{alarm.get('code', '?')}: {alarm.get('message', '')}"
+
+
+class AlarmChanges:
+    """The alarms raised and cleared since the last status, each alarm known by `alarm_key`: what every log
+    of alarms (this `/dp/log`, Keelson's `log_message`) says, rather than the whole list at every status."""
+
+    def __init__(self) -> None:
+        self.active: dict[str, str] = {}  # alarm_key -> text, of the alarms active at the last status
+
+    def update(self, alarms: Iterable[str | dict[str, Any]]) -> tuple[list[str], list[str]]:
+        """(raised, cleared) texts since the last call, each in the order the statuses listed them."""
+        now = {alarm_key(t): t for t in map(alarm_text, alarms)}
+        raised = [t for k, t in now.items() if k not in self.active]
+        cleared = [t for k, t in self.active.items() if k not in now]
+        self.active = now
+        return raised, cleared
+
+
 def state_change_level(text: str) -> int:
     """The Foxglove log level (`foxglove.Log`'s, which Keelson's `log_message` shares) of a reference state
     change's text (``"<role> reference <source>: <old> -> <new>[: why]"``): that of its new state, INFO
@@ -112,7 +133,7 @@ class FoxgloveChannels:
         self._next_feedback_ns = 0
         self._setpoint: tuple[float, float, float] | None = None
         self._next_setpoint_ns = 0
-        self._alarms: dict[str, str] = {}  # key -> text of the alarms active at the last status
+        self._alarms = AlarmChanges()
         self._pending: list[tuple[str, Message, int]] = []
 
     # --- what the pipeline calls ----------------------------------------------------------------------------
@@ -244,15 +265,8 @@ class FoxgloveChannels:
         out: list[tuple[str, Message, int]] = []
         for text in status.events:
             out.append(("/dp/log", fx.log(ns, state_change_level(text), text, "dpgw.reference"), ns))
-        active = {
-            alarm_key(a): a
-            for a in (a if isinstance(a, str) else str(a.get("message", a)) for a in status.alarms)
-        }
-        for key, text in active.items():
-            if key not in self._alarms:
-                out.append(("/dp/log", fx.log(ns, fx.LOG_WARNING, f"alarm: {text}", "dpgw.alarm"), ns))
-        for key, text in self._alarms.items():
-            if key not in active:
-                out.append(("/dp/log", fx.log(ns, fx.LOG_INFO, f"alarm cleared: {text}", "dpgw.alarm"), ns))
-        self._alarms = active
+        raised, cleared = self._alarms.update(status.alarms)
+        lines = [(fx.LOG_WARNING, f"alarm: {t}") for t in raised]
+        lines += [(fx.LOG_INFO, f"alarm cleared: {t}") for t in cleared]
+        out += [("/dp/log", fx.log(ns, level, text, "dpgw.alarm"), ns) for level, text in lines]
         return out

@@ -29,7 +29,7 @@ from keelson.payloads.foxglove.Log_pb2 import Log
 from keelson.payloads.Primitives_pb2 import TimestampedFloat, TimestampedString
 
 from gateway.config import GatewayConfig, KeelsonConfig
-from gateway.foxglove_channels import alarm_key, state_change_level
+from gateway.foxglove_channels import AlarmChanges, state_change_level
 from wire.geodesy import LocalFrame
 from wire.messages import (
     Estimate,
@@ -80,7 +80,7 @@ class KeelsonSink:
         self._tokens: list[Any] = []
         # the datum, to place the measured position: the configured one, else the estimate's (first fix)
         self._frame = None if datum is None else LocalFrame(datum[0], datum[1], datum_alt_m)
-        self._alarms: dict[str, str] = {}  # alarm_key -> text of the alarms active at the last status
+        self._alarms = AlarmChanges()
         self._mode: str | None = None
         self._sensor_ids = {s: cfg.sensor(s) for s in self.sources}
         self._dispatch: dict[type, Callable[[Output, int], None]] = {
@@ -282,18 +282,13 @@ class KeelsonSink:
         """``log_message``: what changed since the last status, never the whole status again: each
         reference state change (at its new state's level: INFO back to ok, WARNING stale or suspect, ERROR
         rejected, as on `/dp/log`), an alarm raised (ERROR) or cleared (INFO), a mode change (INFO). An
-        alarm is known by its text with the numbers masked (`alarm_key`): "stale (3.1 s without data)"
+        alarm is known by its text with the numbers masked (`AlarmChanges`): "stale (3.1 s without data)"
         becoming "(4.1 s ...)" at the next status is the same alarm still active."""
         s: Status = o.message  # type: ignore[assignment]
         lines: list[tuple[Any, str]] = [(state_change_level(text), text) for text in s.events]
-        texts = (a if isinstance(a, str) else _alarm_text(a) for a in s.alarms)
-        alarms = {alarm_key(a): a for a in texts}
-        lines += [(Log.ERROR, f"alarm: {alarms[k]}") for k in sorted(alarms.keys() - self._alarms.keys())]
-        lines += [
-            (Log.INFO, f"alarm cleared: {self._alarms[k]}")
-            for k in sorted(self._alarms.keys() - alarms.keys())
-        ]
-        self._alarms = alarms
+        raised, cleared = self._alarms.update(s.alarms)
+        lines += [(Log.ERROR, f"alarm: {t}") for t in raised]
+        lines += [(Log.INFO, f"alarm cleared: {t}") for t in cleared]
         if s.mode != self._mode:
             if self._mode is not None:
                 lines.append((Log.INFO, f"mode: {self._mode} -> {s.mode}"))
@@ -302,11 +297,6 @@ class KeelsonSink:
             msg = Log(level=level, message=text, name=NAME)
             msg.timestamp.FromNanoseconds(s.stamp_ns)
             self._put("log_message", self.cfg.log_source_id, msg, now)
-
-
-def _alarm_text(alarm: dict[str, Any]) -> str:
-    """An alarm given as an object (``code``, ``message``) as one line."""
-    return f"{alarm.get('code', '?')}: {alarm.get('message', '')}"
 
 
 def keelson_sink(config: GatewayConfig) -> KeelsonSink:
