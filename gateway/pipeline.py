@@ -31,12 +31,14 @@ from gateway.commands import CommandGate
 from gateway.config import (
     ArdupilotMap,
     CommandsConfig,
+    ConsequenceConfig,
     ControlConfig,
     GatewayConfig,
     IntegrityConfig,
     wind_feedforward_off,
 )
 from gateway.control.allocation import AllocationResult, PseudoInverseAllocator, QPAllocator, ThrusterCommand
+from gateway.control.consequence import ConsequenceAnalysis, FailureCase
 from gateway.control.controller import ControllerTuning, DPController
 from gateway.esc_direction import EscDirections
 from gateway.foxglove_channels import FoxgloveChannels
@@ -62,7 +64,9 @@ from wire.geodesy import LocalFrame
 from wire.gst_covariance import INCONSISTENT, GstCovariance, gst_covariance, unit_shape
 from wire.messages import (
     CommandStatus,
+    ConsequenceStatus,
     Datum,
+    FailureCaseStatus,
     Measurement,
     Message,
     ReferenceStatus,
@@ -204,6 +208,8 @@ class PipelineSpec:
     """Reference and feedback tests (`gateway.references`)."""
     commands: CommandsConfig = field(default_factory=CommandsConfig)
     """Which command inputs are taken (none by default) and their limits (`gateway.commands`)."""
+    consequence: ConsequenceConfig = field(default_factory=ConsequenceConfig)
+    """The online consequence analysis in DP (`gateway.control.consequence`)."""
     foxglove_channels: bool = True
     """Make the Foxglove-native channels (`gateway.foxglove_channels`, and each GNSS fix's
     `foxglove.LocationFix`). On by default, so every log opens in Foxglove as it is; `dpgw replay
@@ -250,6 +256,7 @@ class PipelineSpec:
             control=config.control,
             integrity=config.integrity,
             commands=config.commands,
+            consequence=config.consequence,
         )
 
 
@@ -408,6 +415,13 @@ class Pipeline:
                     else PseudoInverseAllocator(spec.vessel)
                 )
                 self.command = ThrusterCommand.at_rest(spec.vessel)
+        q = spec.consequence
+        self.consequence: ConsequenceAnalysis | None = None
+        self._consequence_ns = 0  # when its failure cases were last tested
+        if self.allocator is not None and q.enabled and len(spec.vessel.thrusters) > 1:
+            self.consequence = ConsequenceAnalysis(
+                spec.vessel.thrusters, failure_groups=q.failure_groups, filter_s=q.filter_s
+            )
         self._best_priority = {
             role: min(s.priority for s in spec.sources if role in s.roles)
             for role in ("position", "heading")
@@ -1334,6 +1348,8 @@ class Pipeline:
         if self.mode == "standby":
             self.fusion.set_tau_demand(np.zeros(3))
             self.control_alarms = []
+            if self.consequence is not None:
+                self.consequence.reset()
             return scene  # standby commands nothing: the thrusters are someone else's
         deviation: list[str] = []
         if self.mode == "dp" and o.valid:
@@ -1352,6 +1368,7 @@ class Pipeline:
             self.fusion.set_tau_demand(tau_allocated, res.thrust, res.azimuth)
             saturated = res.saturated
             self.control_alarms = list(res.alarms) + deviation
+            self._consequence_step(t, now_ns, tau_allocated)
             thrusters = [
                 Thruster(id=tid, thrust_n=f, azimuth_rad=a)
                 for tid, f, a in zip(
@@ -1378,6 +1395,40 @@ class Pipeline:
             ),
             *scene,
         ]
+
+    def _consequence_step(self, t: float, now_ns: int, tau_allocated: np.ndarray) -> None:
+        """The consequence analysis on the allocated τ, in DP only (in manual the operator holds the
+        position, and the analysis forgets the load); its alarm joins the controller's."""
+        ca = self.consequence
+        if ca is None:
+            return
+        if self.mode != "dp":
+            ca.reset()
+            return
+        if ca.update(t, tau_allocated, self.thrusters_out.keys()) is not None:
+            self._consequence_ns = now_ns
+        text = ca.alarm_text()
+        if text is not None:
+            self.control_alarms.append(text)
+
+    def _consequence_status(self) -> ConsequenceStatus | None:
+        """What the last consequence analysis found, for the status; None outside DP or before the first."""
+        ca = self.consequence
+        v = None if ca is None or self.mode != "dp" else ca.verdict
+        if v is None:
+            return None
+
+        def case(c: FailureCase) -> FailureCaseStatus:
+            return FailureCaseStatus(lost=list(c.lost), utilisation=_finite_or_none(c.utilisation))
+
+        worst = v.worst
+        return ConsequenceStatus(
+            stamp_ns=self._consequence_ns,
+            load=list(v.load),
+            utilisation=_finite_or_none(v.intact),
+            worst=None if worst is None else case(worst),
+            cases=[case(c) for c in v.cases],
+        )
 
     def _with_wind_load(self, tau: np.ndarray) -> np.ndarray:
         """τ for the observer: the thrusters' τ plus the wind force the controller's feed-forward answers
@@ -1607,7 +1658,12 @@ class Pipeline:
                 refused=dict(self.commands.counters.refused),
                 last_refused=self.commands.counters.last_refused,
             ),
+            consequence=self._consequence_status(),
         )
+
+
+def _finite_or_none(x: float) -> float | None:
+    return x if math.isfinite(x) else None
 
 
 HEADING_LIMITS_DEG = (3.0, 5.0)

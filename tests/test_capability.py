@@ -196,3 +196,44 @@ def test_qp_allocator_meets_what_the_lp_says_can_be_held_and_not_more(name: str,
         tau = direction * k0 / target  # k*(tau) = target
         assert lp.scale(tau) == pytest.approx(target, rel=1e-6)
         assert _settle(vessel, tau, failed) == (target < 1.0), (j, target, tau)
+
+
+def _with_sectors(vessel: VesselModel) -> list[Thruster]:
+    """The vessel's thrusters, its azimuths given a barred sector each (30° and 200° wide in turn): the LP
+    in several convex pieces."""
+    out = []
+    for i, t in enumerate(vessel.thrusters):
+        if t.kind == "azimuth":
+            t = replace(t, forbidden_sectors_deg=((60.0, 90.0),) if i % 2 == 0 else ((150.0, 350.0),))
+        out.append(t)
+    return out
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    tau=taus,
+    name=st.sampled_from(["mss_supply", "hajivand_vessel", "cybership2", "mss_osv"]),
+    sectors=st.booleans(),
+    fail=st.sampled_from([None, 1, 2, 3]),
+)
+def test_daqp_agrees_with_highs(
+    tau: tuple[float, float, float], name: str, sectors: bool, fail: int | None
+) -> None:
+    """The fast solver (DAQP) and the reference (HiGHS) give the same k* on the same LPs: the vessels'
+    layouts, with barred sectors (several convex pieces) and a thruster failed."""
+    v = load_vessel(name)
+    th = _with_sectors(v) if sectors else list(v.thrusters)
+    failed = {fail} if fail is not None and fail <= len(th) else set()
+    t = np.array(tau) * np.array([1.0, 1.0, v.length_m / 2]) * max(x.max_thrust_n for x in th)
+    lp = CapabilityLP(th, failed=failed)
+    fast = lp.solve(t)
+    ref = CapabilityLP(th, failed=failed, solver="highs").solve(t)
+    assert lp.fallbacks == 0  # (every LP solved by DAQP itself, not handed to HiGHS)
+    assert fast.scale == pytest.approx(ref.scale, rel=1e-6, abs=1e-9)
+    got = v.generalized_force(fast.thrust, fast.azimuth)
+    np.testing.assert_allclose(got, fast.scale * t, rtol=1e-6, atol=1e-6 * np.abs(t).max())
+
+
+def test_an_unknown_solver_is_refused() -> None:
+    with pytest.raises(ValueError, match="solver"):
+        CapabilityLP(four_azimuths(), solver="glpk")

@@ -48,8 +48,10 @@ __all__ = [
     "TOPICS",
     "AnyObject",
     "CommandStatus",
+    "ConsequenceStatus",
     "Datum",
     "Estimate",
+    "FailureCaseStatus",
     "FrameTransform",
     "FrameTransforms",
     "LocationFix",
@@ -398,6 +400,34 @@ class CommandStatus(Record, kw_only=True):
     last_refused: Annotated[str | None, doc("Why the last refused input was refused; null if none.")] = None
 
 
+class FailureCaseStatus(Record, kw_only=True):
+    lost: Annotated[list[int], doc("Thruster ids lost together in this failure case.")]
+    utilisation: Annotated[
+        float | None,
+        doc(
+            "Share of the remaining thrusters' capacity the present load would take after the failure "
+            "(1 = all of it; over 1: position lost); null: the rest cannot push against it at all."
+        ),
+    ]
+
+
+class ConsequenceStatus(Record, kw_only=True):
+    stamp_ns: Annotated[int, doc("When the failure cases were last tested.", "ns (UTC)")]
+    load: Annotated[
+        list[float],
+        msgspec.Meta(min_length=3, max_length=3),
+        doc("The mean load tested, the allocated τ low-passed, body frame [X, Y, N].", "N, N, N·m"),
+    ]
+    utilisation: Annotated[
+        float | None,
+        doc("Share of the capacity of the thrusters in service the load takes now; null: unreachable."),
+    ]
+    worst: Annotated[
+        FailureCaseStatus | None, doc("The failure case of the highest utilisation; null if none to test.")
+    ] = None
+    cases: Annotated[list[FailureCaseStatus], doc("Every failure case tested, in the configured order.")] = []
+
+
 class Status(Message, kw_only=True):
     """Gateway health (Zenoh `<prefix>/status`, also the answer to a query on that key)."""
 
@@ -426,6 +456,13 @@ class Status(Message, kw_only=True):
     ] = []
     commands: Annotated[
         CommandStatus | None, doc("The command inputs (mode, setpoint, τ): taken, refused and why.")
+    ] = None
+    consequence: Annotated[
+        ConsequenceStatus | None,
+        doc(
+            "The online consequence analysis in DP: would the thrusters left after the worst-case failure "
+            "hold the present load (docs/controller.md); null outside DP or without a thruster layout."
+        ),
     ] = None
 
 

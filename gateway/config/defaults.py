@@ -68,6 +68,7 @@ DEFAULTS: dict[str, dict[str, Any]] = {
         "wind_feedforward_gain": 1.0,
         "wind_filter_s": 2.0,
     },
+    "consequence": {"enabled": True, "failure_groups": [], "filter_s": 30.0},
     "integrity": {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(IntegrityConfig()).items()},
 }
 

@@ -21,6 +21,7 @@ from gateway.config.model import (
     COMMAND_INPUTS,
     ZENOH_PROTOCOLS,
     CommandsConfig,
+    ConsequenceConfig,
     ControlConfig,
     DatumConfig,
     FoxgloveConfig,
@@ -37,6 +38,7 @@ from gateway.config.observer_section import read_observer
 from gateway.config.problems import ConfigError, Problems, did_you_mean, kind, show
 from gateway.config.schema import (
     CommandsTable,
+    ConsequenceTable,
     ControlTable,
     DatumTable,
     FoxgloveTable,
@@ -67,6 +69,7 @@ _TOP_KEYS = (
     "log",
     "status",
     "control",
+    "consequence",
     "integrity",
     "commands",
     "time",
@@ -125,6 +128,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
     status = _read_status(p, data)
     control = _read_control(p, data, vessel)
     integrity = _read_integrity(p, data)
+    consequence = _read_consequence(p, data, vessel)
     commands = _read_commands(p, data)
     time_config = _read_time(p, data)
     keelson = _read_keelson(p, data)
@@ -136,7 +140,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
     assert vessel is not None and vessel_source is not None and reference_point is not None
     assert datum is not None and sources is not None and observer is not None
     assert zenoh_config is not None and log is not None and status is not None and control is not None
-    assert integrity is not None
+    assert integrity is not None and consequence is not None
     assert commands is not None and time_config is not None and keelson is not None and ros2 is not None
     assert foxglove is not None
     return GatewayConfig(
@@ -152,6 +156,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
         path=path,
         control=control,
         integrity=integrity,
+        consequence=consequence,
         commands=commands,
         time=time_config,
         keelson=keelson,
@@ -516,6 +521,39 @@ def _read_control(p: Problems, data: Mapping[str, Any], vessel: VesselModel | No
         return_speed_mps=ret,
         wind_feedforward_gain=v["wind_feedforward_gain"],
         wind_filter_s=v["wind_filter_s"],
+    )
+
+
+def _read_consequence(
+    p: Problems, data: Mapping[str, Any], vessel: VesselModel | None
+) -> ConsequenceConfig | None:
+    t = _section(p, data, "consequence")
+    if t is None:
+        return None
+    n0 = len(p)
+    v = read_table(ConsequenceTable, t, "consequence", p)
+    groups = v["failure_groups"]
+    if groups is not None and vessel is not None:
+        ids = {th.id for th in vessel.thrusters}
+        for i, g in enumerate(groups):
+            unknown = sorted(set(g) - ids)
+            if not g or unknown:
+                known = ", ".join(str(k) for k in sorted(ids)) or "none"
+                what = (
+                    "an empty group"
+                    if not g
+                    else f"no thruster {', '.join(map(str, unknown))} on this vessel"
+                )
+                p.add(
+                    f"consequence.failure_groups[{i}]",
+                    f"{what} (expected ids of the vessel's thrusters: {known}; got {show(g)})",
+                )
+    if len(p) != n0:
+        return None
+    return ConsequenceConfig(
+        enabled=v["enabled"],
+        failure_groups=tuple(tuple(g) for g in groups),
+        filter_s=v["filter_s"],
     )
 
 

@@ -202,6 +202,17 @@ class ControlConfig:
 
 
 @dataclass(frozen=True)
+class ConsequenceConfig:
+    """The online consequence analysis (docs/controller.md, "Consequence analysis"): whether it runs (in
+    DP, with a thruster layout), the worst-case failures it tests (groups of thruster ids lost together;
+    empty: each thruster alone) and the time constant (s) of the mean load it tests them against."""
+
+    enabled: bool = True
+    failure_groups: tuple[tuple[int, ...], ...] = ()
+    filter_s: float = 30.0
+
+
+@dataclass(frozen=True)
 class CommandsConfig:
     """Which Zenoh command inputs the pipeline takes (none unless listed) and the setpoint's largest
     distance from the present position (m)."""
@@ -384,6 +395,7 @@ class GatewayConfig:
     status: StatusConfig
     path: Path
     control: ControlConfig = field(default_factory=ControlConfig)
+    consequence: ConsequenceConfig = field(default_factory=ConsequenceConfig)
     integrity: IntegrityConfig = field(default_factory=IntegrityConfig)
     commands: CommandsConfig = field(default_factory=CommandsConfig)
     time: TimeConfig = field(default_factory=TimeConfig)

@@ -434,6 +434,23 @@ class ControlTable(_Section):
     wind_filter_s: float = number(_C["wind_filter_s"], lo=0.0, hi=120.0, lo_open=True, unit="s")
 
 
+_Q = DEFAULTS["consequence"]
+
+
+class ConsequenceTable(_Section):
+    """``[consequence]``: the online consequence analysis (worst-case failure) in DP."""
+
+    enabled: bool = boolean(_Q["enabled"])
+    failure_groups: list[list[int]] = Field(
+        _Q["failure_groups"],
+        json_schema_extra={
+            "expected": "an array of arrays of thruster ids lost together, e.g. [[1, 2], [3, 4]] "
+            "([]: each thruster alone)"
+        },
+    )
+    filter_s: float = number(_Q["filter_s"], lo=1.0, hi=600.0, unit="s")
+
+
 _I = DEFAULTS["integrity"]
 
 

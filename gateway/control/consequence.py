@@ -1,0 +1,238 @@
+"""Online consequence analysis: would the vessel stay in position if its worst-case failure happened now?
+
+IMO's guidelines for DP vessels ask this of a DP class 2 or 3 control system (MSC/Circ.645 §3.4.2.4,
+carried into MSC.1/Circ.1580): a function that continuously verifies that the thrusters left in operation
+after the worst-case failure can still give the resultant force and moment needed before it, with an
+alarm when that failure would lose the position for want of thrust in the prevailing conditions.
+
+Pure numerics (DESIGN.md rule 2): the thrust the allocation gives, in; the verdict, out; time only through
+``t``.
+
+**The load.** What the thrusters must hold is what they give now, without its fast part: τ̄, the
+allocated τ = [X, Y, N] (body frame) through a first-order low-pass of time constant T (``filter_s``),
+exactly discretised for each step::
+
+    τ̄ ← τ̄ + (1 − e^(−dt/T)) (τ − τ̄)
+
+A DP vessel's mean environmental load moves over minutes; gusts and the controller's answer to the
+slow drift move τ over tens of seconds. T of 30 s keeps the verdict on the mean load, as the guidelines'
+"prevailing environmental conditions" ask, rather than on every gust.
+
+**The test.** For each failure case g (a set of thrusters lost together: by default each thruster alone;
+``failure_groups`` for a switchboard, an engine room or a fuel system that takes several with it) and the
+thrusters in service now, k_g = the largest k with k τ̄ within what the rest can give
+(`gateway.control.capability.attainable_scale`). k_g ≥ 1: the load is held after that failure; the
+utilisation 1/k_g is the share of the remaining capacity it takes (over 100 %: position lost). The worst
+case is the g of least k_g. An alarm is raised when the worst case's utilisation passes 100 %, and
+cleared when it falls below ``clear_utilisation`` (95 %): a load at the limit does not make the alarm
+flap.
+
+**When.** Each evaluation solves one small linear programme per failure case; the load changes slowly,
+so it is redone when τ̄ has moved by more than ``retest_fraction`` (2 %) of the thrusters' capacity in
+any degree of freedom since the last one, when a thruster has left or rejoined the allocation, and at
+least every ``max_period_s`` (60 s) — never more often than every ``min_period_s`` (1 s).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Collection, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from gateway.control.capability import CapabilityLP
+from observers.vessel import Thruster
+
+Array = NDArray[np.float64]
+
+Attainable = Callable[[Sequence[Thruster], Array, Collection[int]], float]
+"""(thrusters, τ, failed ids) → the largest k with k τ attainable (`capability.attainable_scale`)."""
+
+
+class CachedCapability:
+    """`capability.attainable_scale` with one `CapabilityLP` kept per set of failed thrusters: the failure
+    cases come back at every evaluation, and building an LP's constraints costs as much as solving it."""
+
+    def __init__(self) -> None:
+        self._lps: dict[frozenset[int], CapabilityLP] = {}
+
+    def __call__(self, thrusters: Sequence[Thruster], tau: Array, failed: Collection[int]) -> float:
+        key = frozenset(failed)
+        lp = self._lps.get(key)
+        if lp is None:
+            lp = self._lps[key] = CapabilityLP(thrusters, failed=key)
+        return lp.scale(tau)
+
+
+@dataclass(frozen=True)
+class FailureCase:
+    """The verdict for one failure case: the thrusters lost, and the utilisation of the rest by the
+    present load (1/k; inf when the rest cannot push that way at all)."""
+
+    lost: tuple[int, ...]
+    utilisation: float
+
+    @property
+    def holds(self) -> bool:
+        return self.utilisation <= 1.0
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """One evaluation: the load τ̄ (body frame [X, Y, N]), the utilisation with every thruster in service
+    now (``intact``), each failure case, and the worst of them (None: no case to test, e.g. one thruster
+    in service)."""
+
+    t: float
+    load: tuple[float, float, float]
+    intact: float
+    cases: tuple[FailureCase, ...]
+
+    @property
+    def worst(self) -> FailureCase | None:
+        return max(self.cases, key=lambda c: c.utilisation) if self.cases else None
+
+
+MIN_SCALE = 1e-6
+"""A k* below this is none: the LP's round-off, not a load the rest could hold a millionth of."""
+
+
+def _utilisation(k: float) -> float:
+    return 0.0 if math.isinf(k) else (math.inf if k < MIN_SCALE else 1.0 / k)
+
+
+class ConsequenceAnalysis:
+    """The online consequence analysis of a thruster layout (module docstring)."""
+
+    def __init__(
+        self,
+        thrusters: Sequence[Thruster],
+        attainable: Attainable | None = None,
+        *,
+        failure_groups: Sequence[Sequence[int]] = (),
+        filter_s: float = 30.0,
+        clear_utilisation: float = 0.95,
+        retest_fraction: float = 0.02,
+        min_period_s: float = 1.0,
+        max_period_s: float = 60.0,
+    ) -> None:
+        if not (math.isfinite(filter_s) and filter_s > 0):
+            raise ValueError(f"consequence analysis: filter_s must be > 0 s, got {filter_s!r}")
+        if not 0.0 < clear_utilisation < 1.0:
+            raise ValueError(
+                f"consequence analysis: clear_utilisation must be in (0, 1), got {clear_utilisation!r}"
+            )
+        self.thrusters = tuple(thrusters)
+        ids = {t.id for t in self.thrusters}
+        groups = [tuple(g) for g in failure_groups] or [(t.id,) for t in self.thrusters]
+        unknown = sorted({i for g in groups for i in g} - ids)
+        if unknown:
+            raise ValueError(
+                f"consequence analysis: failure groups name thrusters {unknown}, not in the layout"
+            )
+        self.groups = tuple(groups)
+        self.attainable: Attainable = CachedCapability() if attainable is None else attainable
+        self.filter_s = float(filter_s)
+        self.clear_utilisation = float(clear_utilisation)
+        self.min_period_s = float(min_period_s)
+        self.max_period_s = float(max_period_s)
+        # what "2 % of capacity" is per DOF: the sum of the thrusters' largest thrusts (X, Y) and that
+        # times the largest lever arm (N)
+        cap = sum(t.max_thrust_n for t in self.thrusters)
+        arm = max((math.hypot(t.x_m, t.y_m) for t in self.thrusters), default=1.0)
+        self._retest = (retest_fraction * cap, retest_fraction * cap, retest_fraction * cap * arm)
+        self.load = [0.0, 0.0, 0.0]
+        """τ̄, body frame [X, Y, N] (N, N, N·m)."""
+        self._t: float | None = None
+        self._dt = math.nan
+        self._alpha = 0.0
+        self._tested_at: float | None = None
+        self._tested_load = [0.0, 0.0, 0.0]
+        self._tested_out: frozenset[int] = frozenset()
+        self.verdict: Verdict | None = None
+        self.alarm = False
+        """Whether the alarm is up: the worst case's utilisation passed 100 % and has not yet fallen below
+        ``clear_utilisation``."""
+
+    def reset(self) -> None:
+        """Forget the load (a restart, or the thrusters handed to someone else)."""
+        self.load = [0.0, 0.0, 0.0]
+        self._t = self._tested_at = None
+        self.verdict = None
+        self.alarm = False
+
+    def update(self, t: float, tau: ArrayLike, out: Collection[int] = ()) -> Verdict | None:
+        """One control step at time t (s) with the allocated τ (body frame); ``out``: the ids of thrusters
+        not in service now (out of DP). Returns a new verdict when one was evaluated, else None."""
+        # (on plain floats: this runs at every control step, the evaluation only now and then)
+        x, y, n = np.asarray(tau, dtype=float).tolist()
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(n) and math.isfinite(t)):
+            return None
+        load = self.load
+        if self._t is None:
+            load[:] = (x, y, n)
+        else:
+            dt = t - self._t
+            if dt > 0:
+                if dt != self._dt:
+                    self._dt, self._alpha = dt, 1.0 - math.exp(-dt / self.filter_s)
+                a = self._alpha
+                load[0] += a * (x - load[0])
+                load[1] += a * (y - load[1])
+                load[2] += a * (n - load[2])
+        self._t = t
+        if self._tested_at is not None and t - self._tested_at < self.min_period_s:
+            return None
+        out = frozenset(out)
+        if not self._due(t, out):
+            return None
+        return self.evaluate(t, out)
+
+    def _due(self, t: float, out: frozenset[int]) -> bool:
+        if self._tested_at is None:
+            return True
+        if t - self._tested_at >= self.max_period_s or out != self._tested_out:
+            return True
+        load, was, step = self.load, self._tested_load, self._retest
+        return any(abs(load[j] - was[j]) > step[j] for j in range(3))
+
+    def evaluate(self, t: float, out: frozenset[int] = frozenset()) -> Verdict:
+        """Test every failure case against the present load now (`update` decides when on its own)."""
+        load = np.array(self.load)
+        intact = _utilisation(self.attainable(self.thrusters, load, out))
+        cases = []
+        for g in self.groups:
+            lost = frozenset(g) - out  # (a thruster already out cannot be lost again)
+            if not lost or lost | out >= {th.id for th in self.thrusters}:
+                continue  # nothing left to lose, or nothing left at all: no case
+            k = self.attainable(self.thrusters, load, out | lost)
+            cases.append(FailureCase(tuple(sorted(lost)), _utilisation(k)))
+        verdict = Verdict(t, (float(load[0]), float(load[1]), float(load[2])), intact, tuple(cases))
+        worst = verdict.worst
+        if worst is None:
+            self.alarm = False
+        elif worst.utilisation > 1.0:
+            self.alarm = True
+        elif worst.utilisation < self.clear_utilisation:
+            self.alarm = False
+        self.verdict = verdict
+        self._tested_at, self._tested_load, self._tested_out = t, list(self.load), out
+        return verdict
+
+    def alarm_text(self) -> str | None:
+        """The alarm's words while it is up, else None."""
+        worst = self.verdict.worst if self.verdict is not None else None
+        if not self.alarm or worst is None:
+            return None
+        lost = ", ".join(str(i) for i in worst.lost)
+        which = f"thruster {lost}" if len(worst.lost) == 1 else f"thrusters {lost}"
+        if math.isinf(worst.utilisation):
+            return (
+                f"consequence analysis: after losing {which} the rest could not push against the present load"
+            )
+        return (
+            f"consequence analysis: after losing {which} the rest would need {100 * worst.utilisation:.0f} % "
+            "of their thrust for the present load: position would be lost"
+        )

@@ -1,0 +1,128 @@
+"""The online consequence analysis's logic (`gateway.control.consequence`): the load it tests, the failure
+cases, when it tests them and its alarm's hysteresis.
+
+Its verdicts come from `capability.attainable_scale`, tested on its own (tests/test_capability.py). Here
+the attainable set is a box, each thruster adding capacity per degree of freedom, so that every expected
+utilisation is a sum and a division."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Collection, Sequence
+
+import numpy as np
+import pytest
+
+from gateway.control.consequence import ConsequenceAnalysis
+from observers.vessel import Thruster
+
+# capacity per thruster and DOF [X, Y, N], for the box model below
+CAP = {1: (100.0, 50.0, 1000.0), 2: (100.0, 50.0, 1000.0), 3: (0.0, 100.0, 3000.0)}
+THRUSTERS = [Thruster(id=i, kind="azimuth", x_m=10.0 * i, y_m=0.0, max_thrust_n=100.0) for i in CAP]
+
+
+def box(thrusters: Sequence[Thruster], tau: np.ndarray, failed: Collection[int]) -> float:
+    box.calls += 1  # type: ignore[attr-defined]
+    cap = np.sum([CAP[t.id] for t in thrusters if t.id not in failed] or [np.zeros(3)], axis=0)
+    with np.errstate(divide="ignore"):
+        ks = [c / abs(x) if x else math.inf for c, x in zip(cap, tau, strict=True)]
+    return float(min(ks))
+
+
+box.calls = 0  # type: ignore[attr-defined]
+
+
+def analysis(**kw: object) -> ConsequenceAnalysis:
+    return ConsequenceAnalysis(THRUSTERS, box, **kw)  # type: ignore[arg-type]
+
+
+def test_each_thruster_alone_is_a_failure_case_and_the_worst_is_the_highest_utilisation() -> None:
+    ca = analysis()
+    v = ca.update(0.0, [50.0, 60.0, 0.0])
+    assert v is not None
+    assert v.intact == pytest.approx(max(50 / 200, 60 / 200))
+    by_lost = {c.lost: c.utilisation for c in v.cases}
+    assert by_lost == {(1,): pytest.approx(0.5), (2,): pytest.approx(0.5), (3,): pytest.approx(0.6)}
+    assert v.worst is not None and v.worst.lost == (3,) and v.worst.holds
+    assert not ca.alarm and ca.alarm_text() is None
+
+
+def test_a_failure_group_loses_its_thrusters_together() -> None:
+    ca = analysis(failure_groups=[[1, 2], [3]])
+    v = ca.update(0.0, [20.0, 60.0, 0.0])
+    assert v is not None
+    assert {c.lost: c.utilisation for c in v.cases} == {(1, 2): math.inf, (3,): pytest.approx(0.6)}
+    assert v.worst is not None and v.worst.lost == (1, 2)
+    assert ca.alarm
+    assert ca.alarm_text() == (
+        "consequence analysis: after losing thrusters 1, 2 the rest could not push against the present load"
+    )
+
+
+def test_the_alarm_is_raised_over_100_percent_and_cleared_below_95() -> None:
+    ca = analysis(filter_s=1e-3, min_period_s=0.0)  # (the load follows τ at once)
+    ca.update(0.0, [0.0, 101.0, 0.0])  # losing 3: 101 of 100 in sway
+    assert ca.alarm
+    text = ca.alarm_text()
+    assert text is not None and "thruster 3 " in text and "101 %" in text
+    ca.update(1.0, [0.0, 97.0, 0.0])  # 97 %: between the two thresholds, still up
+    assert ca.alarm
+    ca.update(2.0, [0.0, 94.0, 0.0])
+    assert not ca.alarm and ca.alarm_text() is None
+    ca.update(3.0, [0.0, 99.0, 0.0])  # 99 %: below 100, stays down
+    assert not ca.alarm
+
+
+def test_the_load_is_the_allocated_tau_low_passed() -> None:
+    ca = analysis(filter_s=30.0)
+    ca.update(0.0, [0.0, 0.0, 0.0])
+    for k in range(1, 301):  # a step to 90 N of sway, 30 s at 10 Hz: one time constant
+        ca.update(0.1 * k, [0.0, 90.0, 0.0])
+    assert ca.load[1] == pytest.approx(90.0 * (1 - math.exp(-1.0)), rel=1e-9)
+    # a gust of one step moves the mean by 1/300 of itself, not to it
+    before = ca.load[1]
+    ca.update(30.1, [0.0, 1000.0, 0.0])
+    assert ca.load[1] - before == pytest.approx((1000.0 - before) * (1 - math.exp(-0.1 / 30)), rel=1e-9)
+
+
+def test_failure_cases_are_retested_when_the_load_moves_a_thruster_changes_or_a_minute_passes() -> None:
+    ca = analysis(filter_s=1e-3)
+    box.calls = 0  # type: ignore[attr-defined]
+    per_test = 1 + 3  # intact + three cases
+    assert ca.update(0.0, [10.0, 10.0, 0.0]) is not None
+    # the same load at 10 Hz for 59 s: nothing new to test
+    assert all(ca.update(0.1 * k, [10.0, 10.0, 0.0]) is None for k in range(1, 590))
+    assert box.calls == per_test  # type: ignore[attr-defined]
+    assert ca.update(60.0, [10.0, 10.0, 0.0]) is not None  # a minute on
+    # 2 % of capacity is 2 % of 300 N in sway: 5 N is below, 7 N above
+    assert ca.update(61.0, [10.0, 15.0, 0.0]) is None
+    assert ca.update(62.0, [10.0, 17.0, 0.0]) is not None
+    # not more often than once a second, however much the load moves
+    assert ca.update(62.5, [10.0, 60.0, 0.0]) is None
+    assert ca.update(63.0, [10.0, 60.0, 0.0]) is not None
+    # a thruster out of DP: tested at once (after the second), and it is no case any more
+    v = ca.update(64.0, [10.0, 60.0, 0.0], out={3})
+    assert v is not None
+    assert [c.lost for c in v.cases] == [(1,), (2,)]
+    assert v.intact == pytest.approx(60 / 100)  # sway from 1 and 2 alone
+
+
+def test_nothing_left_to_lose_is_no_case_and_no_alarm() -> None:
+    ca = analysis(failure_groups=[[1, 2, 3]])
+    v = ca.update(0.0, [10.0, 10.0, 0.0])
+    assert v is not None and v.cases == () and v.worst is None and not ca.alarm
+
+
+def test_reset_forgets_the_load_and_the_alarm() -> None:
+    ca = analysis(filter_s=1e-3)
+    ca.update(0.0, [0.0, 150.0, 0.0])
+    assert ca.alarm
+    ca.reset()
+    assert not ca.alarm and ca.verdict is None and not np.any(ca.load)
+
+
+def test_bad_settings_and_unknown_thrusters_are_refused() -> None:
+    with pytest.raises(ValueError, match="filter_s"):
+        analysis(filter_s=0.0)
+    with pytest.raises(ValueError, match=r"\[7\]"):
+        analysis(failure_groups=[[1, 7]])
