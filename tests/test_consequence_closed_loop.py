@@ -79,3 +79,19 @@ def test_off_when_disabled_and_outside_dp() -> None:
     assert any("consequence" in s for s in on.statuses if s["mode"] == "dp")
     standby = [s for s in on.statuses if s["mode"] == "standby"]
     assert standby and all("consequence" not in s for s in standby)
+
+
+def test_the_config_summary_says_what_is_tested() -> None:
+    from pathlib import Path
+
+    from gateway.config import describe, parse_config
+
+    tables = gateway_tables(get_scenario("mss_supply_storm"))
+    assert "consequence analysis in dp: each thruster lost alone" in describe(
+        parse_config(tables, base_dir=Path())
+    )
+    tables["consequence"] = {"failure_groups": [[1, 2], [3, 4, 5]]}
+    text = describe(parse_config(tables, base_dir=Path()))
+    assert "consequence analysis in dp: thrusters 1+2, 3+4+5 lost together" in text
+    tables["consequence"] = {"enabled": False}
+    assert "consequence analysis off" in describe(parse_config(tables, base_dir=Path()))

@@ -38,6 +38,9 @@ def describe(config: GatewayConfig) -> str:
     line = wind_feedforward_line(config)
     if line:
         lines.append(f"  {line}")
+    line = consequence_line(config)
+    if line:
+        lines.append(f"  {line}")
     lines.append(f"  log {config.log.path}" if config.log.enabled else "  log disabled")
     if config.time.sim:
         lines.append(f"  clock: simulation time from {z.prefix}/sim/clock (not this computer's)")
@@ -65,6 +68,20 @@ def config_notes(config: GatewayConfig) -> list[str]:
                     f"sources.{sc.name}.ardupilot.esc_direction_servo, e.g. {{{esc} = channel}})"
                 )
     return notes
+
+
+def consequence_line(config: GatewayConfig) -> str:
+    """The consequence analysis in one line ("" when the vessel has fewer than two thrusters): off, or the
+    failure cases it tests in DP."""
+    if len(config.vessel.thrusters) < 2:
+        return ""
+    q = config.consequence
+    if not q.enabled:
+        return "consequence analysis off (consequence.enabled = false)"
+    if not q.failure_groups:
+        return "consequence analysis in dp: each thruster lost alone"
+    groups = ", ".join("+".join(str(i) for i in g) for g in q.failure_groups)
+    return f"consequence analysis in dp: thrusters {groups} lost together"
 
 
 def show_dof(value: Any) -> str:
