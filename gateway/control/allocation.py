@@ -52,7 +52,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from gateway.control import _allocation_kernel as _kernel
 from observers.kinematics import ssa, ssa_scalar
-from observers.vessel import VesselModel
+from observers.vessel import Thruster, VesselModel
 
 Array = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -75,6 +75,7 @@ __all__ = [
     "ThrusterCommand",
     "extended_configuration_matrix",
     "reference_solve_cvxpy",
+    "thruster_configuration_matrix",
 ]
 
 
@@ -128,8 +129,13 @@ class AllocationResult:
 def extended_configuration_matrix(vessel: VesselModel) -> Array:
     """B (3 × n_ext) of τ = B f: two columns [1, 0, −y]ᵀ, [0, 1, x]ᵀ per azimuth (F_x, F_y), one column
     [cos α, sin α, x sin α − y cos α]ᵀ per tunnel or main propeller (signed thrust), in layout order."""
+    return thruster_configuration_matrix(vessel.thrusters)
+
+
+def thruster_configuration_matrix(thrusters: Sequence[Thruster]) -> Array:
+    """`extended_configuration_matrix` of a list of thrusters (layout order)."""
     cols: list[list[float]] = []
-    for t in vessel.thrusters:
+    for t in thrusters:
         if t.kind == "azimuth":
             cols += [[1.0, 0.0, -t.y_m], [0.0, 1.0, t.x_m]]
         else:
