@@ -270,7 +270,11 @@ def capability(
             return cache[u]
 
         for lp, out in zip(problems, per_case, strict=True):
-            out.append(limit_speed(lambda u, lp=lp: lp.scale(demand(u)), u_limit=u_limit))  # type: ignore[misc]
+
+            def scale_at(u: float, lp: CapabilityLP = lp) -> float:
+                return lp.scale(demand(u))
+
+            out.append(limit_speed(scale_at, u_limit=u_limit))
     cases = tuple(
         CapabilityCase(label, failed, tuple(u))
         for (label, failed), u in zip(conditions, per_case, strict=True)
@@ -278,9 +282,8 @@ def capability(
     worst = worst_failed = None
     if failures != "none":
         fail_cases = cases[1:]
-        idx = [
-            min(range(len(fail_cases)), key=lambda j, i=i: fail_cases[j].u_max[i]) for i in range(len(dirs))
-        ]
+        table = np.array([c.u_max for c in fail_cases])  # failures × directions
+        idx = [int(j) for j in np.argmin(table, axis=0)]  # the first failure of the least U_max
         worst = tuple(fail_cases[j].u_max[i] for i, j in enumerate(idx))
         worst_failed = tuple(fail_cases[j].failed[0] for j in idx)
         if failures == "worst":
@@ -295,10 +298,12 @@ def plot(result: CapabilityResult, path: str) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.projections.polar import PolarAxes
 
     theta = np.radians(np.append(result.directions_deg, result.directions_deg[0]))
     fig = plt.figure(figsize=(7.0, 7.6))
     ax = fig.add_subplot(projection="polar")
+    assert isinstance(ax, PolarAxes)
     ax.set_theta_zero_location("N")
     ax.set_theta_direction(-1)
     u = np.array(result.intact.u_max)
