@@ -73,6 +73,11 @@ CALM_U_MPS = 0.5
 """Below this wind speed the Pierson–Moskowitz sea is calm (Hs < 6 mm): no drift computed."""
 
 
+def default_current(vessel: VesselModel) -> float:
+    """`DEFAULT_CURRENT_MPS`, Froude-scaled (÷ √λ) for a 1:λ laboratory model (``vessel.model_scale``)."""
+    return DEFAULT_CURRENT_MPS / math.sqrt(vessel.model_scale or 1.0)
+
+
 def pm_sea(u10: float) -> tuple[float, float]:
     """(Hs m, Tp s) of the fully developed Pierson–Moskowitz sea of a 1-hour mean wind U₁₀ (module
     docstring): Hs = 0.21 U₁₉.₅²/g, Tp = 2π U₁₉.₅ / (0.877 g)."""
@@ -98,7 +103,7 @@ class Environment:
         if self.waves:
             parts.append("fully developed PM sea Hs = 0.21 U19.5²/g")
         if self.current:
-            parts.append(f"current {self.current_mps:g} m/s")
+            parts.append(f"current {self.current_mps:.3g} m/s")
         return ", ".join(parts) + ", co-linear" if parts else "no environment"
 
 
@@ -122,8 +127,15 @@ class EnvironmentLoads:
             if environment.current:
                 self.warnings.append(
                     f"vessel '{vessel.name}' has no [hull] table: current load from the linear damping D "
-                    "only (no quadratic drag: underestimated in a strong current)"
+                    "extrapolated to the current speed (no quadratic drag; D is fitted for slow motions: "
+                    "read the current term with caution)"
                 )
+        if vessel.model_scale is not None:
+            self.warnings.append(
+                f"vessel '{vessel.name}' is a 1:{vessel.model_scale:g} model: U and the current are at the "
+                f"model's scale (full scale: × {math.sqrt(vessel.model_scale):.3g}); the wind profile is not "
+                "Froude-scaled"
+            )
         self.plant = FullPlant(vessel, options=options)
         self.waves = WaveResponse.for_vessel(vessel) if environment.waves else None
         if self.waves is not None and vessel.name != "mss_supply":
@@ -159,15 +171,18 @@ class EnvironmentLoads:
 
 
 def limit_speed(
-    scale_at: Callable[[float], float], *, u_limit: float = U_LIMIT_MPS, tol: float = U_TOL_MPS
+    scale_at: Callable[[float], float],
+    *,
+    u_limit: float = U_LIMIT_MPS,
+    grid: float = U_GRID_MPS,
+    tol: float = U_TOL_MPS,
 ) -> float:
-    """U_max: the largest U ≤ ``u_limit`` with ``scale_at(u)`` ≥ 1 on [0, U] (scanned every `U_GRID_MPS`,
+    """U_max: the largest U ≤ ``u_limit`` with ``scale_at(u)`` ≥ 1 on [0, U] (scanned every ``grid``,
     then bisected to ``tol``); 0 when even U = 0 cannot be held, ``u_limit`` when nothing below it fails."""
     if scale_at(0.0) < 1.0:
         return 0.0
     lo = 0.0
-    grid = np.arange(U_GRID_MPS, u_limit + 1e-9, U_GRID_MPS)
-    for u in grid:
+    for u in np.arange(grid, u_limit + 1e-9, grid):
         if scale_at(float(u)) < 1.0:
             hi = float(u)
             break
@@ -186,7 +201,7 @@ def limit_speed(
 @dataclass(frozen=True)
 class CapabilityCase:
     """One thruster condition: ``label`` ("intact", "thruster 3 failed"), the ``failed`` ids and U_max
-    per direction (m/s; `U_LIMIT_MPS` means at least that)."""
+    per direction (m/s; the result's ``u_limit`` means at least that)."""
 
     label: str
     failed: tuple[int, ...]
@@ -196,7 +211,8 @@ class CapabilityCase:
 @dataclass(frozen=True)
 class CapabilityResult:
     """A capability plot's numbers. ``worst``: per direction the smallest U_max over the single failures
-    (None when failures were not analysed), ``worst_failed`` which thruster gives it."""
+    (None when failures were not analysed), ``worst_failed`` which thruster gives it; ``u_limit`` where
+    the search stopped (a U_max equal to it means at least that)."""
 
     vessel: str
     directions_deg: tuple[float, ...]
@@ -205,6 +221,7 @@ class CapabilityResult:
     worst: tuple[float, ...] | None = None
     worst_failed: tuple[int, ...] | None = None
     warnings: tuple[str, ...] = field(default=())
+    u_limit: float = U_LIMIT_MPS
 
     @property
     def intact(self) -> CapabilityCase:
@@ -221,7 +238,7 @@ class CapabilityResult:
                 "wave_relation": "Pierson-Moskowitz fully developed: Hs = 0.21 U19.5^2/g, wp = 0.877 g/U19.5",
             },
             "direction_convention": "environment coming from, degrees clockwise from the bow",
-            "u_limit_mps": U_LIMIT_MPS,
+            "u_limit_mps": self.u_limit,
             "directions_deg": list(self.directions_deg),
             "cases": [
                 {"label": c.label, "failed": list(c.failed), "u_max_mps": list(c.u_max)} for c in self.cases
@@ -240,10 +257,12 @@ def capability(
     directions_deg: Sequence[float] | None = None,
     step_deg: float = 10.0,
     failures: str = "each",
-    u_limit: float = U_LIMIT_MPS,
+    u_limit: float | None = None,
 ) -> CapabilityResult:
     """U_max per direction, intact and (``failures`` "each" or "worst") after each single thruster
-    failure; "none": intact only. "worst" keeps only the intact case and the per-direction minimum."""
+    failure; "none": intact only. "worst" keeps only the intact case and the per-direction minimum.
+    The search (`limit_speed`) stops at ``u_limit`` (default `U_LIMIT_MPS`); its grid, tolerance and
+    default limit are Froude-scaled (÷ √λ) for a 1:λ laboratory model."""
     if failures not in ("none", "each", "worst"):
         raise ValueError(f"failures must be 'none', 'each' or 'worst', got {failures!r}")
     if not vessel.thrusters:
@@ -254,6 +273,9 @@ def capability(
         n = max(1, round(360.0 / step_deg))
         directions_deg = [i * 360.0 / n for i in range(n)]
     dirs = tuple(float(d) for d in directions_deg)
+    froude = math.sqrt(vessel.model_scale or 1.0)
+    u_limit = U_LIMIT_MPS / froude if u_limit is None else float(u_limit)
+    grid, tol = U_GRID_MPS / froude, U_TOL_MPS / froude
     loads = EnvironmentLoads(vessel, environment)
     conditions: list[tuple[str, tuple[int, ...]]] = [("intact", ())]
     if failures != "none":
@@ -274,7 +296,7 @@ def capability(
             def scale_at(u: float, lp: CapabilityLP = lp) -> float:
                 return lp.scale(demand(u))
 
-            out.append(limit_speed(scale_at, u_limit=u_limit))
+            out.append(limit_speed(scale_at, u_limit=u_limit, grid=grid, tol=tol))
     cases = tuple(
         CapabilityCase(label, failed, tuple(u))
         for (label, failed), u in zip(conditions, per_case, strict=True)
@@ -288,7 +310,9 @@ def capability(
         worst_failed = tuple(fail_cases[j].failed[0] for j in idx)
         if failures == "worst":
             cases = cases[:1]
-    return CapabilityResult(vessel.name, dirs, environment, cases, worst, worst_failed, tuple(loads.warnings))
+    return CapabilityResult(
+        vessel.name, dirs, environment, cases, worst, worst_failed, tuple(loads.warnings), u_limit
+    )
 
 
 def plot(result: CapabilityResult, path: str) -> None:
@@ -315,10 +339,13 @@ def plot(result: CapabilityResult, path: str) -> None:
         w = np.array(result.worst)
         ax.plot(theta, np.append(w, w[0]), "-s", color="tab:red", ms=3, label="worst single failure")
     ax.set_rlabel_position(135)
-    ax.set_rlim(0.0, U_LIMIT_MPS)
+    ax.set_rlim(0.0, result.u_limit)
     ax.legend(loc="lower right", bbox_to_anchor=(1.1, -0.12), fontsize=8)
     fig.text(
-        0.5, 0.05, f"radial: U_max (m/s, 1-hour mean wind at 10 m); {U_LIMIT_MPS:g} = at least", ha="center"
+        0.5,
+        0.05,
+        f"radial: U_max (m/s, 1-hour mean wind at 10 m); {result.u_limit:.3g} = at least",
+        ha="center",
     )
     env = result.environment.describe()
     fig.suptitle(

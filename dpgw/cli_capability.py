@@ -25,7 +25,8 @@ DESCRIPTION = (
     "drift of a fully developed Pierson-Moskowitz sea of that wind (Hs = 0.21 U19.5²/g), all from the same "
     "direction. Quasi-static: the mean loads against the thrusters' limits (their barred sectors "
     f"respected), no dynamic allowance. Intact, and after each single thruster failure. U_max = "
-    f"{U_LIMIT_MPS:g} means at least {U_LIMIT_MPS:g} m/s; 0 means even the current alone is too much. "
+    f"{U_LIMIT_MPS:g} means at least {U_LIMIT_MPS:g} m/s (a laboratory model: Froude-scaled); 0 means "
+    "even the current alone is too much. "
     "Method and assumptions: docs/capability.md."
 )
 EPILOG = (
@@ -45,10 +46,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--current-mps",
         type=non_negative_float,
-        default=DEFAULT_CURRENT_MPS,
+        default=None,
         metavar="MPS",
         help=f"current speed (m/s), from the same direction as the wind (default {DEFAULT_CURRENT_MPS:g}, "
-        "1.5 kn; 0: wind and waves only)",
+        "1.5 kn, Froude-scaled for a laboratory model; 0: wind and waves only)",
     )
     p.add_argument(
         "--step-deg",
@@ -95,9 +96,10 @@ def run(args: argparse.Namespace) -> int:
     if problem := missing_folder("--plot", args.plot):
         print(f"dpgw capability: {problem}", file=sys.stderr)
         return 2
-    from dpgw.capability import Environment, capability, plot
+    from dpgw.capability import Environment, capability, default_current, plot
 
-    env = Environment(current_mps=args.current_mps, current=args.current_mps > 0, waves=not args.no_waves)
+    current = default_current(vessel) if args.current_mps is None else args.current_mps
+    env = Environment(current_mps=current, current=current > 0, waves=not args.no_waves)
     result = capability(vessel, environment=env, step_deg=args.step_deg, failures=args.failures)
     if args.plot:
         plot(result, str(args.plot))
@@ -120,7 +122,8 @@ def _print_table(result: object) -> None:
         f"DP capability of {result.vessel}: U_max (m/s, 1-hour mean wind at 10 m); "
         f"{result.environment.describe()}"
     )
-    print(f"environment from (deg, clockwise from the bow); {U_LIMIT_MPS:g} = at least {U_LIMIT_MPS:g}")
+    lim = result.u_limit
+    print(f"environment from (deg, clockwise from the bow); {lim:.3g} = at least {lim:.3g}")
     cols = [(c.label, c.u_max) for c in result.cases]
     if result.worst is not None and len(result.cases) == 1:
         cols.append(("worst failure", result.worst))
@@ -132,5 +135,5 @@ def _print_table(result: object) -> None:
         line = f"{d:6.1f} " + " ".join(f"{u[i]:18.1f}" for _, u in cols)
         if result.worst_failed is not None and result.worst is not None:
             # no failure limits it below the search's end: no thruster to name
-            line += f"  {result.worst_failed[i]:d}" if result.worst[i] < U_LIMIT_MPS else "  -"
+            line += f"  {result.worst_failed[i]:d}" if result.worst[i] < lim else "  -"
         print(line)

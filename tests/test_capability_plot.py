@@ -21,6 +21,7 @@ from dpgw.capability import (
     Environment,
     EnvironmentLoads,
     capability,
+    default_current,
     limit_speed,
     pm_sea,
 )
@@ -72,6 +73,10 @@ def test_missing_data_is_left_out_with_a_warning() -> None:
     loads = EnvironmentLoads(bare)
     text = " ".join(loads.warnings)
     assert "no [hull.wind]" in text and "linear damping D" in text and "Froude-scaled" in text
+    model = EnvironmentLoads(load_vessel("cybership2"))
+    assert any("1:70 model" in w for w in model.warnings)
+    assert default_current(load_vessel("cybership2")) == pytest.approx(0.75 / math.sqrt(70.0))
+    assert default_current(load_vessel("mss_supply")) == 0.75
     assert not np.any(loads.components(20.0, 1.0)["wind"])
     assert np.any(loads.components(20.0, 1.0)["current"])
     assert EnvironmentLoads(load_vessel("mss_supply")).warnings == []
