@@ -35,7 +35,7 @@ barred sectors. docs/capability.md.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -219,7 +219,7 @@ class CapabilityResult:
     environment: Environment
     cases: tuple[CapabilityCase, ...]
     worst: tuple[float, ...] | None = None
-    worst_failed: tuple[int, ...] | None = None
+    worst_failed: tuple[tuple[int, ...], ...] | None = None
     warnings: tuple[str, ...] = field(default=())
     u_limit: float = U_LIMIT_MPS
 
@@ -245,7 +245,7 @@ class CapabilityResult:
             ],
             "worst_failure": None
             if self.worst is None
-            else {"u_max_mps": list(self.worst), "failed": list(self.worst_failed or ())},
+            else {"u_max_mps": list(self.worst), "failed": [list(f) for f in self.worst_failed or ()]},
             "warnings": list(self.warnings),
         }
 
@@ -257,10 +257,13 @@ def capability(
     directions_deg: Sequence[float] | None = None,
     step_deg: float = 10.0,
     failures: str = "each",
+    failure_groups: Sequence[Collection[int]] | None = None,
     u_limit: float | None = None,
 ) -> CapabilityResult:
-    """U_max per direction, intact and (``failures`` "each" or "worst") after each single thruster
-    failure; "none": intact only. "worst" keeps only the intact case and the per-direction minimum.
+    """U_max per direction, intact and (``failures`` "each" or "worst") after each single failure;
+    "none": intact only. "worst" keeps only the intact case and the per-direction minimum. A failure is
+    one thruster, or with ``failure_groups`` each group of thrusters lost together (a switchboard, an
+    engine room: the worst-case failure of the vessel's FMEA).
     The search (`limit_speed`) stops at ``u_limit`` (default `U_LIMIT_MPS`); its grid, tolerance and
     default limit are Froude-scaled (÷ √λ) for a 1:λ laboratory model."""
     if failures not in ("none", "each", "worst"):
@@ -279,7 +282,16 @@ def capability(
     loads = EnvironmentLoads(vessel, environment)
     conditions: list[tuple[str, tuple[int, ...]]] = [("intact", ())]
     if failures != "none":
-        conditions += [(f"thruster {t.id} failed", (t.id,)) for t in vessel.thrusters]
+        groups = [(t.id,) for t in vessel.thrusters] if failure_groups is None else failure_groups
+        ids = {t.id for t in vessel.thrusters}
+        for group in groups:
+            g = tuple(sorted(set(group)))
+            if not g or set(g) - ids:
+                raise ValueError(
+                    f"failure group {list(group)}: give thruster ids of the vessel ({sorted(ids)})"
+                )
+            name = f"thruster {g[0]}" if len(g) == 1 else "thrusters " + "+".join(map(str, g))
+            conditions.append((f"{name} failed", g))
     problems = [CapabilityLP(vessel.thrusters, failed=f) for _, f in conditions]
     per_case: list[list[float]] = [[] for _ in conditions]
     for d in dirs:
@@ -307,7 +319,7 @@ def capability(
         table = np.array([c.u_max for c in fail_cases])  # failures × directions
         idx = [int(j) for j in np.argmin(table, axis=0)]  # the first failure of the least U_max
         worst = tuple(fail_cases[j].u_max[i] for i, j in enumerate(idx))
-        worst_failed = tuple(fail_cases[j].failed[0] for j in idx)
+        worst_failed = tuple(fail_cases[j].failed for j in idx)
         if failures == "worst":
             cases = cases[:1]
     return CapabilityResult(

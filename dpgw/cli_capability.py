@@ -35,6 +35,7 @@ EPILOG = (
     "  dpgw capability --vessel mss_supply --plot cap.png   # and the polar plot\n"
     "  dpgw capability --vessel mss_osv --failures each --json   # every failure\n"
     "  dpgw capability --vessel my_ship.toml --current-mps 1.0 --step-deg 15\n"
+    "  dpgw capability --vessel mss_supply --failure-group 1,4 --failure-group 2,5,6   # switchboards\n"
     f"built-in vessels: {', '.join(builtin_vessels())}"
 )
 
@@ -65,10 +66,30 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="none: intact only; each: intact and every single thruster failure; worst (default): intact "
         "and, per direction, the worst single failure",
     )
+    p.add_argument(
+        "--failure-group",
+        action="append",
+        type=_group,
+        metavar="IDS",
+        help="thruster ids lost together, comma-separated (a switchboard: --failure-group 1,4); repeat for "
+        "each group; given, the groups are the failures analysed instead of single thrusters",
+    )
     p.add_argument("--no-waves", action="store_true", help="leave the wave drift out (wind and current only)")
     p.add_argument("--plot", type=Path, metavar="FILE", help="write the polar plot (.png, .svg or .pdf)")
     p.add_argument("--json", action="store_true", help="print the result as JSON instead of a table")
     p.set_defaults(func=run)
+
+
+def _group(text: str) -> tuple[int, ...]:
+    try:
+        ids = tuple(int(x) for x in text.split(",") if x.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"must be thruster ids separated by commas, e.g. 1,4 (got {text})"
+        ) from None
+    if not ids:
+        raise argparse.ArgumentTypeError(f"must name at least one thruster id (got {text!r})")
+    return ids
 
 
 def _step(text: str) -> float:
@@ -100,7 +121,17 @@ def run(args: argparse.Namespace) -> int:
 
     current = default_current(vessel) if args.current_mps is None else args.current_mps
     env = Environment(current_mps=current, current=current > 0, waves=not args.no_waves)
-    result = capability(vessel, environment=env, step_deg=args.step_deg, failures=args.failures)
+    try:
+        result = capability(
+            vessel,
+            environment=env,
+            step_deg=args.step_deg,
+            failures=args.failures,
+            failure_groups=args.failure_group,
+        )
+    except ValueError as exc:  # a failure group naming a thruster the vessel does not have
+        print(f"dpgw capability: --failure-group: {exc}", file=sys.stderr)
+        return 2
     if args.plot:
         plot(result, str(args.plot))
     if args.json:
@@ -129,11 +160,12 @@ def _print_table(result: object) -> None:
         cols.append(("worst failure", result.worst))
     head = f"{'from':>6s} " + " ".join(f"{label:>18s}" for label, _ in cols)
     if result.worst_failed is not None:
-        head += "  worst: thruster"
+        head += "  worst: thrusters failed"
     print(head)
     for i, d in enumerate(result.directions_deg):
         line = f"{d:6.1f} " + " ".join(f"{u[i]:18.1f}" for _, u in cols)
         if result.worst_failed is not None and result.worst is not None:
             # no failure limits it below the search's end: no thruster to name
-            line += f"  {result.worst_failed[i]:d}" if result.worst[i] < lim else "  -"
+            failed = "+".join(map(str, result.worst_failed[i]))
+            line += f"  {failed}" if result.worst[i] < lim else "  -"
         print(line)

@@ -104,7 +104,7 @@ def test_u_max_is_where_the_thrusters_scale_crosses_one_and_worst_is_the_minimum
     for i in range(2):
         fails = [c.u_max[i] for c in res.cases[1:]]
         assert res.worst[i] == min(fails) <= res.intact.u_max[i]
-        assert res.cases[1:][fails.index(min(fails))].failed == (res.worst_failed[i],)
+        assert res.cases[1:][fails.index(min(fails))].failed == res.worst_failed[i]
 
 
 def test_the_command_prints_a_table_json_and_a_plot(tmp_path, capsys: pytest.CaptureFixture[str]) -> None:  # type: ignore[no-untyped-def]
@@ -122,6 +122,20 @@ def test_the_command_prints_a_table_json_and_a_plot(tmp_path, capsys: pytest.Cap
     assert "intact" in out and "worst failure" in out and " 90.0 " in out
     assert main(["capability", "--vessel", "no_such_ship"]) == 2
     assert "not a built-in vessel" in capsys.readouterr().err
+    assert main(["capability", "--vessel", "mss_supply", "--failure-group", "1,9"]) == 2
+    assert "--failure-group" in capsys.readouterr().err
+
+
+def test_a_failure_group_is_no_better_than_any_of_its_thrusters_alone() -> None:
+    v = load_vessel("mss_supply")
+    single = capability(v, directions_deg=[90.0], failures="each")
+    group = capability(v, directions_deg=[90.0], failure_groups=[(1, 4), (3,)])
+    assert [c.label for c in group.cases] == ["intact", "thrusters 1+4 failed", "thruster 3 failed"]
+    by_label = {c.label: c.u_max[0] for c in single.cases}
+    assert group.cases[1].u_max[0] <= min(by_label["thruster 1 failed"], by_label["thruster 4 failed"])
+    assert group.cases[2].u_max[0] == by_label["thruster 3 failed"]
+    assert group.worst is not None and group.worst_failed is not None
+    assert group.worst[0] == min(group.cases[1].u_max[0], group.cases[2].u_max[0])
 
 
 def test_quasi_static_limit_agrees_with_the_closed_loop() -> None:
