@@ -21,8 +21,9 @@ plot of a DP vessel's documentation. The environment is co-linear (wind, waves a
   ShipX supply vessel's coefficients, Froude-scaled for a vessel other than ``mss_supply``), in a fully
   developed Pierson–Moskowitz sea of the wind: Hs = 0.21 U₁₉.₅²/g, ω_p = 0.877 g/U₁₉.₅
   (Pierson & Moskowitz 1964; α = 0.0081, β = 0.74: Hs = 2√(α/β) g/ω₀², ω_p = (4β/5)^¼ ω₀,
-  ω₀ = g/U₁₉.₅), U₁₉.₅ from U by the same NORSOK profile. A fully developed sea is the largest the
-  wind makes: conservative for a short fetch.
+  ω₀ = g/U₁₉.₅), U₁₉.₅ from U by the same NORSOK profile. A fully developed sea has the largest Hs
+  the wind makes, but also the longest Tp, where a vessel of DP-vessel size drifts less per m² of Hs:
+  not conservative for drift against a younger, fetch-limited sea (docs/capability.md).
 
 A missing ingredient (no ``[hull.wind]``: no wind load; no ``[hull]``: the current load from the linear
 damping D alone) is left out with a warning in `CapabilityResult.warnings`, never silently.
