@@ -345,12 +345,14 @@ def plot(result: CapabilityResult, path: str) -> None:
     ax.set_theta_direction(-1)
     u = np.array(result.intact.u_max)
     ax.plot(theta, np.append(u, u[0]), "-o", color="tab:blue", ms=3, label="intact")
-    for case in result.cases[1:]:
+    for k, case in enumerate(result.cases[1:]):
         v = np.array(case.u_max)
-        ax.plot(theta, np.append(v, v[0]), "-", color="0.7", lw=0.8)
+        ax.plot(theta, np.append(v, v[0]), "-", color="0.7", lw=0.8, label="each failure" if k == 0 else None)
     if result.worst is not None:
         w = np.array(result.worst)
-        ax.plot(theta, np.append(w, w[0]), "-s", color="tab:red", ms=3, label="worst single failure")
+        single = all(len(f) == 1 for f in result.worst_failed or ())
+        label = "worst single failure" if single else "worst failure"
+        ax.plot(theta, np.append(w, w[0]), "-s", color="tab:red", ms=3, label=label)
     ax.set_rlabel_position(135)
     ax.set_rlim(0.0, result.u_limit)
     ax.legend(loc="lower right", bbox_to_anchor=(1.1, -0.12), fontsize=8)
