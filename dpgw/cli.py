@@ -19,10 +19,30 @@ import os
 import sys
 from collections.abc import Sequence
 
-from dpgw import cli_demo, cli_listen, cli_radiation, cli_replay, cli_run, cli_sim, cli_study, cli_tune
+from dpgw import (
+    cli_capability,
+    cli_demo,
+    cli_listen,
+    cli_radiation,
+    cli_replay,
+    cli_run,
+    cli_sim,
+    cli_study,
+    cli_tune,
+)
 from dpgw.cli_help import HelpFormatter
 
-SUBCOMMANDS = [cli_run, cli_demo, cli_sim, cli_replay, cli_tune, cli_listen, cli_radiation, cli_study]
+SUBCOMMANDS = [
+    cli_run,
+    cli_demo,
+    cli_sim,
+    cli_replay,
+    cli_tune,
+    cli_listen,
+    cli_radiation,
+    cli_study,
+    cli_capability,
+]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -165,6 +165,15 @@ def test_the_optimal_forces_give_k_tau_within_every_limit(name: str) -> None:
             assert lo - 1e-6 * t.max_thrust_n <= u <= t.max_thrust_n * (1 + 1e-6)
 
 
+def barred_supply() -> VesselModel:
+    """mss_supply with a 60° barred sector on a stern azimuth (to starboard) and the bow azimuth (astern)."""
+    base = load_vessel("mss_supply")
+    th = list(base.thrusters)
+    th[0] = replace(th[0], forbidden_sectors_deg=((60.0, 120.0),))
+    th[2] = replace(th[2], forbidden_sectors_deg=((150.0, -150.0),))
+    return replace(base, thrusters=tuple(th))
+
+
 def _settle(vessel: VesselModel, tau: np.ndarray, failed: set[int]) -> bool:
     """Whether `QPAllocator`, given the steady demand τ long enough to turn and ramp every thruster,
     ends up saturated."""
@@ -181,12 +190,19 @@ def _settle(vessel: VesselModel, tau: np.ndarray, failed: set[int]) -> bool:
 
 @pytest.mark.parametrize(
     ("name", "failed"),
-    [("mss_supply", set()), ("mss_supply", {1}), ("hajivand_vessel", set()), ("mss_osv", set())],
+    [
+        ("mss_supply", set()),
+        ("mss_supply", {1}),
+        ("mss_supply_barred", set()),
+        ("hajivand_vessel", set()),
+        ("mss_osv", set()),
+    ],
 )
 def test_qp_allocator_meets_what_the_lp_says_can_be_held_and_not_more(name: str, failed: set[int]) -> None:
     """k* > 1.05: the run-time allocator (its polygon has 16 sides, cos(π/16) = 0.981) meets τ without
-    saturation; k* < 0.95: it saturates."""
-    vessel = load_vessel(name)
+    saturation; k* < 0.95: it saturates. Also with barred sectors (the allocator's rate cone clipped by
+    them, the LP's convex pieces)."""
+    vessel = barred_supply() if name == "mss_supply_barred" else load_vessel(name)
     lp = CapabilityLP(vessel.thrusters, failed=failed)
     rng = np.random.default_rng(11)
     for j in range(6):

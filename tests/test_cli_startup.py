@@ -76,7 +76,17 @@ def test_help_pages_import_nothing_heavy() -> None:
 
 
 def test_every_command_is_covered() -> None:
-    assert sorted(COMMANDS) == ["demo", "listen", "radiation", "replay", "run", "sim", "study", "tune"]
+    assert sorted(COMMANDS) == [
+        "capability",
+        "demo",
+        "listen",
+        "radiation",
+        "replay",
+        "run",
+        "sim",
+        "study",
+        "tune",
+    ]
 
 
 def test_scenario_names_match_the_scenarios() -> None:
@@ -104,6 +114,13 @@ def test_radiation_defaults_match_the_fit() -> None:
         radiation.MAX_ORDER,
         radiation.R2_TARGET,
     )
+
+
+def test_capability_defaults_match_the_analysis() -> None:
+    from dpgw import capability, cli_capability
+
+    assert cli_capability.DEFAULT_CURRENT_MPS == capability.DEFAULT_CURRENT_MPS
+    assert cli_capability.U_LIMIT_MPS == capability.U_LIMIT_MPS
 
 
 def test_replay_help_lists_every_spec_tuning_key() -> None:

@@ -1,0 +1,372 @@
+"""DP capability plot: the largest wind speed, with its current and waves, the thrusters can hold against.
+
+For each direction β the environment comes from (degrees clockwise from the bow: 0 on the bow, 90 on
+the starboard beam), intact and after each single thruster failure, the quasi-static balance
+
+    τ_env(U, β) + τ_thr = 0,      τ_env = τ_wind(U, β) + τ_current(V_c, β) + τ_drift(Hs(U), Tp(U), β)
+
+is asked of the thrusters through `gateway.control.capability` (k* = the largest multiple of −τ_env they
+can give), and U_max(β) is the largest U such that k*(−τ_env(u, β)) ≥ 1 for every u ≤ U: the capability
+plot of a DP vessel's documentation. The environment is co-linear (wind, waves and current from the same
+β) and the vessel at rest at heading 0:
+
+* wind: `observers.hull.relative_wind_force` (Fossen 2021 eqs (10.10)–(10.12), the simulator's and the
+  wind feed-forward's own) for the vessel's ``[hull.wind]`` areas; U is the 1-hour mean at 10 m, brought
+  to the areas' reference height by the NORSOK profile (`simulator.wind.norsok_mean`, as the simulator
+  does with NORSOK gusts);
+* current: `simulator.plant.FullPlant.current_load` — the full plant's hydrodynamic force on the hull
+  held still in the current (surge resistance, cross-flow drag, the Munk moment of C_A(ν_r)ν_r), the
+  same numbers the simulator applies; V_c fixed (``current_mps``), flowing towards β + 180°;
+* waves: the mean drift 2∫S(ω)C(ω, β)dω of `simulator.waves.WaveResponse.mean_drift_force` (the
+  ShipX supply vessel's coefficients, Froude-scaled for a vessel other than ``mss_supply``), in a fully
+  developed Pierson–Moskowitz sea of the wind: Hs = 0.21 U₁₉.₅²/g, ω_p = 0.877 g/U₁₉.₅
+  (Pierson & Moskowitz 1964; α = 0.0081, β = 0.74: Hs = 2√(α/β) g/ω₀², ω_p = (4β/5)^¼ ω₀,
+  ω₀ = g/U₁₉.₅), U₁₉.₅ from U by the same NORSOK profile. A fully developed sea has the largest Hs
+  the wind makes, but also the longest Tp, where a vessel of DP-vessel size drifts less per m² of Hs:
+  not conservative for drift against a younger, fetch-limited sea (docs/capability.md).
+
+A missing ingredient (no ``[hull.wind]``: no wind load; no ``[hull]``: the current load from the linear
+damping D alone) is left out with a warning in `CapabilityResult.warnings`, never silently.
+
+Quasi-static: no dynamic allowance (the standard analyses add one, e.g. a margin on the thrust or on the
+loads for the gusts, the slowly varying drift and the controller's reserve), no thrust loss beyond the
+barred sectors. docs/capability.md.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Collection, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from gateway.control.capability import CapabilityLP
+from observers.hull import relative_wind, relative_wind_force
+from observers.vessel import VesselModel
+from simulator.plant import FullPlant
+from simulator.plant_params import DEFAULT_OPTIONS, PlantOptions
+from simulator.spectra import SeaState
+from simulator.waves import G, WaveResponse
+from simulator.wind import norsok_mean
+
+Array = NDArray[np.float64]
+
+DEFAULT_CURRENT_MPS = 0.75
+"""1.5 kn: a moderate offshore surface current, the order used in published capability plots; give the
+site's figure with ``current_mps``."""
+PM_HS = 0.21
+"""Hs = 0.21 U₁₉.₅²/g of a fully developed Pierson–Moskowitz sea."""
+PM_PEAK = 0.877
+"""ω_p = 0.877 g/U₁₉.₅ of a fully developed Pierson–Moskowitz sea."""
+U_LIMIT_MPS = 40.0
+"""The search stops here (beyond Beaufort 12, 32.7 m/s): a vessel that holds beyond it is reported as
+holding at least this."""
+U_GRID_MPS = 2.0
+"""The scan step in U before the bisection: a loss of position between two grid speeds that is regained
+at the next (k* not monotonic in U, possible when the yaw moments change sign) is missed only if it is
+narrower than this."""
+U_TOL_MPS = 0.02
+"""Bisection tolerance on U_max (m/s)."""
+CALM_U_MPS = 0.5
+"""Below this wind speed the Pierson–Moskowitz sea is calm (Hs < 6 mm): no drift computed."""
+
+
+def default_current(vessel: VesselModel) -> float:
+    """`DEFAULT_CURRENT_MPS`, Froude-scaled (÷ √λ) for a 1:λ laboratory model (``vessel.model_scale``)."""
+    return DEFAULT_CURRENT_MPS / math.sqrt(vessel.model_scale or 1.0)
+
+
+def pm_sea(u10: float) -> tuple[float, float]:
+    """(Hs m, Tp s) of the fully developed Pierson–Moskowitz sea of a 1-hour mean wind U₁₀ (module
+    docstring): Hs = 0.21 U₁₉.₅²/g, Tp = 2π U₁₉.₅ / (0.877 g)."""
+    u195 = norsok_mean(u10, 19.5)
+    return PM_HS * u195**2 / G, 2.0 * math.pi * u195 / (PM_PEAK * G)
+
+
+@dataclass(frozen=True)
+class Environment:
+    """The environment relation of the plot. ``current_mps`` the fixed current; ``wind``, ``current``,
+    ``waves`` switch each load on or off (a wind-and-current-only plot, or a check against a simulation
+    without waves)."""
+
+    current_mps: float = DEFAULT_CURRENT_MPS
+    wind: bool = True
+    current: bool = True
+    waves: bool = True
+
+    def describe(self) -> str:
+        parts = []
+        if self.wind:
+            parts.append("wind U (1-h mean, 10 m)")
+        if self.waves:
+            parts.append("fully developed PM sea Hs = 0.21 U19.5²/g")
+        if self.current:
+            parts.append(f"current {self.current_mps:.3g} m/s")
+        return ", ".join(parts) + ", co-linear" if parts else "no environment"
+
+
+class EnvironmentLoads:
+    """τ_env(U, β) on a vessel at rest (module docstring). ``warnings``: what is missing or estimated."""
+
+    def __init__(self, vessel: VesselModel, environment: Environment = Environment()) -> None:
+        self.vessel = vessel
+        self.environment = environment
+        self.warnings: list[str] = []
+        hull = vessel.hull
+        self.area = hull.wind if hull is not None else None
+        if environment.wind and self.area is None:
+            self.warnings.append(
+                f"vessel '{vessel.name}' has no [hull.wind] areas: no wind load (the plot is for current and "
+                "waves only)"
+            )
+        options = DEFAULT_OPTIONS
+        if hull is None:
+            options = PlantOptions(coriolis=False, surge_resistance=False, crossflow=False)
+            if environment.current:
+                self.warnings.append(
+                    f"vessel '{vessel.name}' has no [hull] table: current load from the linear damping D "
+                    "extrapolated to the current speed (no quadratic drag; D is fitted for slow motions: "
+                    "read the current term with caution)"
+                )
+        if vessel.model_scale is not None:
+            self.warnings.append(
+                f"vessel '{vessel.name}' is a 1:{vessel.model_scale:g} model: U and the current are at the "
+                f"model's scale (full scale: × {math.sqrt(vessel.model_scale):.3g}); the wind profile is not "
+                "Froude-scaled"
+            )
+        self.plant = FullPlant(vessel, options=options)
+        self.waves = WaveResponse.for_vessel(vessel) if environment.waves else None
+        if self.waves is not None and vessel.name != "mss_supply":
+            self.warnings.append(
+                f"wave drift: the ShipX supply vessel's drift coefficients Froude-scaled to L = "
+                f"{vessel.length_m:g} m (no data of this vessel's own)"
+            )
+
+    def components(self, u10: float, beta_rad: float) -> dict[str, Array]:
+        """{"wind", "current", "waves"} loads [X, Y, N] (N, N, N·m, body frame) of wind speed ``u10`` with
+        everything coming from β (rad, clockwise from the bow)."""
+        env = self.environment
+        zero = np.zeros(3)
+        wind, current, waves = zero, zero, zero
+        if env.wind and self.area is not None and u10 > 0:
+            speed = norsok_mean(u10, self.area.height_m)
+            urw, vrw = relative_wind(speed, math.degrees(beta_rad), 0.0, 0.0, 0.0)
+            wind = np.array(relative_wind_force(self.area, self.vessel.length_m, urw, vrw))
+        if env.current and env.current_mps > 0:
+            towards = beta_rad + math.pi
+            vc = env.current_mps * np.array([math.cos(towards), math.sin(towards)])
+            current = np.array(self.plant.current_load(vc), dtype=float)
+        if self.waves is not None and u10 >= CALM_U_MPS:
+            hs, tp = pm_sea(u10)
+            sea = SeaState(hs_m=hs, tp_s=tp, kind="pm", direction_rad=beta_rad + math.pi)
+            waves = np.asarray(self.waves.mean_drift_force(sea, 0.0), dtype=float)
+        return {"wind": wind, "current": current, "waves": waves}
+
+    def tau(self, u10: float, beta_rad: float) -> Array:
+        """τ_env: the sum of the `components`."""
+        c = self.components(u10, beta_rad)
+        return np.asarray(c["wind"] + c["current"] + c["waves"], dtype=float)
+
+
+def limit_speed(
+    scale_at: Callable[[float], float],
+    *,
+    u_limit: float = U_LIMIT_MPS,
+    grid: float = U_GRID_MPS,
+    tol: float = U_TOL_MPS,
+) -> float:
+    """U_max: the largest U ≤ ``u_limit`` with ``scale_at(u)`` ≥ 1 on [0, U] (scanned every ``grid``,
+    then bisected to ``tol``); 0 when even U = 0 cannot be held, ``u_limit`` when nothing below it fails."""
+    if scale_at(0.0) < 1.0:
+        return 0.0
+    lo = 0.0
+    for u in np.arange(grid, u_limit + 1e-9, grid):
+        if scale_at(float(u)) < 1.0:
+            hi = float(u)
+            break
+        lo = float(u)
+    else:
+        return u_limit
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        if scale_at(mid) >= 1.0:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+@dataclass(frozen=True)
+class CapabilityCase:
+    """One thruster condition: ``label`` ("intact", "thruster 3 failed"), the ``failed`` ids and U_max
+    per direction (m/s; the result's ``u_limit`` means at least that)."""
+
+    label: str
+    failed: tuple[int, ...]
+    u_max: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class CapabilityResult:
+    """A capability plot's numbers. ``worst``: per direction the smallest U_max over the single failures
+    (None when failures were not analysed), ``worst_failed`` which thruster gives it; ``u_limit`` where
+    the search stopped (a U_max equal to it means at least that)."""
+
+    vessel: str
+    directions_deg: tuple[float, ...]
+    environment: Environment
+    cases: tuple[CapabilityCase, ...]
+    worst: tuple[float, ...] | None = None
+    worst_failed: tuple[tuple[int, ...], ...] | None = None
+    warnings: tuple[str, ...] = field(default=())
+    u_limit: float = U_LIMIT_MPS
+
+    @property
+    def intact(self) -> CapabilityCase:
+        return self.cases[0]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "vessel": self.vessel,
+            "environment": {
+                "relation": self.environment.describe(),
+                "current_mps": self.environment.current_mps if self.environment.current else 0.0,
+                "wind": self.environment.wind,
+                "waves": self.environment.waves,
+                "wave_relation": "Pierson-Moskowitz fully developed: Hs = 0.21 U19.5^2/g, wp = 0.877 g/U19.5",
+            },
+            "direction_convention": "environment coming from, degrees clockwise from the bow",
+            "u_limit_mps": self.u_limit,
+            "directions_deg": list(self.directions_deg),
+            "cases": [
+                {"label": c.label, "failed": list(c.failed), "u_max_mps": list(c.u_max)} for c in self.cases
+            ],
+            "worst_failure": None
+            if self.worst is None
+            else {"u_max_mps": list(self.worst), "failed": [list(f) for f in self.worst_failed or ()]},
+            "warnings": list(self.warnings),
+        }
+
+
+def capability(
+    vessel: VesselModel,
+    *,
+    environment: Environment = Environment(),
+    directions_deg: Sequence[float] | None = None,
+    step_deg: float = 10.0,
+    failures: str = "each",
+    failure_groups: Sequence[Collection[int]] | None = None,
+    u_limit: float | None = None,
+) -> CapabilityResult:
+    """U_max per direction, intact and (``failures`` "each" or "worst") after each single failure;
+    "none": intact only. "worst" keeps only the intact case and the per-direction minimum. A failure is
+    one thruster, or with ``failure_groups`` each group of thrusters lost together (a switchboard, an
+    engine room: the worst-case failure of the vessel's FMEA).
+    The search (`limit_speed`) stops at ``u_limit`` (default `U_LIMIT_MPS`); its grid, tolerance and
+    default limit are Froude-scaled (÷ √λ) for a 1:λ laboratory model."""
+    if failures not in ("none", "each", "worst"):
+        raise ValueError(f"failures must be 'none', 'each' or 'worst', got {failures!r}")
+    if not vessel.thrusters:
+        raise ValueError(f"vessel '{vessel.name}' has no thrusters: nothing to hold position with")
+    if directions_deg is None:
+        if not (0 < step_deg <= 180):
+            raise ValueError(f"step_deg must be in (0, 180], got {step_deg!r}")
+        n = max(1, round(360.0 / step_deg))
+        directions_deg = [i * 360.0 / n for i in range(n)]
+    dirs = tuple(float(d) for d in directions_deg)
+    froude = math.sqrt(vessel.model_scale or 1.0)
+    u_limit = U_LIMIT_MPS / froude if u_limit is None else float(u_limit)
+    grid, tol = U_GRID_MPS / froude, U_TOL_MPS / froude
+    loads = EnvironmentLoads(vessel, environment)
+    conditions: list[tuple[str, tuple[int, ...]]] = [("intact", ())]
+    if failures != "none":
+        groups = [(t.id,) for t in vessel.thrusters] if failure_groups is None else failure_groups
+        ids = {t.id for t in vessel.thrusters}
+        for group in groups:
+            g = tuple(sorted(set(group)))
+            if not g or set(g) - ids:
+                raise ValueError(
+                    f"failure group {list(group)}: give thruster ids of the vessel ({sorted(ids)})"
+                )
+            name = f"thruster {g[0]}" if len(g) == 1 else "thrusters " + "+".join(map(str, g))
+            conditions.append((f"{name} failed", g))
+    problems = [CapabilityLP(vessel.thrusters, failed=f) for _, f in conditions]
+    per_case: list[list[float]] = [[] for _ in conditions]
+    for d in dirs:
+        beta = math.radians(d)
+        cache: dict[float, Array] = {}
+
+        def demand(u: float, beta: float = beta, cache: dict[float, Array] = cache) -> Array:
+            if u not in cache:
+                cache[u] = -loads.tau(u, beta)
+            return cache[u]
+
+        for lp, out in zip(problems, per_case, strict=True):
+
+            def scale_at(u: float, lp: CapabilityLP = lp) -> float:
+                return lp.scale(demand(u))
+
+            out.append(limit_speed(scale_at, u_limit=u_limit, grid=grid, tol=tol))
+    cases = tuple(
+        CapabilityCase(label, failed, tuple(u))
+        for (label, failed), u in zip(conditions, per_case, strict=True)
+    )
+    worst = worst_failed = None
+    if failures != "none":
+        fail_cases = cases[1:]
+        table = np.array([c.u_max for c in fail_cases])  # failures × directions
+        idx = [int(j) for j in np.argmin(table, axis=0)]  # the first failure of the least U_max
+        worst = tuple(fail_cases[j].u_max[i] for i, j in enumerate(idx))
+        worst_failed = tuple(fail_cases[j].failed for j in idx)
+        if failures == "worst":
+            cases = cases[:1]
+    return CapabilityResult(
+        vessel.name, dirs, environment, cases, worst, worst_failed, tuple(loads.warnings), u_limit
+    )
+
+
+def plot(result: CapabilityResult, path: str) -> None:
+    """The classic polar capability plot: 0° = environment from ahead, clockwise, U_max radial (m/s),
+    intact and worst single failure, written to ``path`` (PNG, SVG, PDF by its suffix)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.projections.polar import PolarAxes
+
+    theta = np.radians(np.append(result.directions_deg, result.directions_deg[0]))
+    fig = plt.figure(figsize=(7.0, 7.6))
+    ax = fig.add_subplot(projection="polar")
+    assert isinstance(ax, PolarAxes)
+    ax.set_theta_zero_location("N")
+    ax.set_theta_direction(-1)
+    u = np.array(result.intact.u_max)
+    ax.plot(theta, np.append(u, u[0]), "-o", color="tab:blue", ms=3, label="intact")
+    for k, case in enumerate(result.cases[1:]):
+        v = np.array(case.u_max)
+        ax.plot(theta, np.append(v, v[0]), "-", color="0.7", lw=0.8, label="each failure" if k == 0 else None)
+    if result.worst is not None:
+        w = np.array(result.worst)
+        single = all(len(f) == 1 for f in result.worst_failed or ())
+        label = "worst single failure" if single else "worst failure"
+        ax.plot(theta, np.append(w, w[0]), "-s", color="tab:red", ms=3, label=label)
+    ax.set_rlabel_position(135)
+    ax.set_rlim(0.0, result.u_limit)
+    ax.legend(loc="lower right", bbox_to_anchor=(1.1, -0.12), fontsize=8)
+    fig.text(
+        0.5,
+        0.05,
+        f"radial: U_max (m/s, 1-hour mean wind at 10 m); {result.u_limit:.3g} = at least",
+        ha="center",
+    )
+    env = result.environment.describe()
+    fig.suptitle(
+        f"DP capability: {result.vessel}\n{env}\n(environment from, clockwise from the bow)", fontsize=10
+    )
+    if result.warnings:
+        fig.text(0.01, 0.005, "\n".join("note: " + w for w in result.warnings), fontsize=6, va="bottom")
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

@@ -1,0 +1,171 @@
+"""``dpgw capability``: the DP capability plot of a vessel, intact and after single thruster failures."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from dpgw import cli_json
+from dpgw.cli_paths import missing_folder
+from dpgw.cli_types import non_negative_float
+from observers.vessel_files import builtin_vessels
+
+# dpgw.capability's DEFAULT_CURRENT_MPS and U_LIMIT_MPS, written here so that `dpgw capability --help` needs
+# no numpy or scipy (the analysis is imported by `run`); a test holds them equal.
+DEFAULT_CURRENT_MPS = 0.75
+U_LIMIT_MPS = 40.0
+
+NAME = "capability"
+HELP = "DP capability plot: the largest wind (with its current and waves) the thrusters hold against"
+DESCRIPTION = (
+    "For each direction the environment comes from (0° = on the bow, clockwise), find the largest wind "
+    "speed U (1-hour mean at 10 m) at which the thrusters can still balance the mean loads and hold position "
+    "and heading: wind on the vessel's [hull.wind] areas, a fixed current (--current-mps) and the mean wave "
+    "drift of a fully developed Pierson-Moskowitz sea of that wind (Hs = 0.21 U19.5²/g), all from the same "
+    "direction. Quasi-static: the mean loads against the thrusters' limits (their barred sectors "
+    f"respected), no dynamic allowance. Intact, and after each single thruster failure. U_max = "
+    f"{U_LIMIT_MPS:g} means at least {U_LIMIT_MPS:g} m/s (a laboratory model: Froude-scaled); 0 means "
+    "even the current alone is too much. "
+    "Method and assumptions: docs/capability.md."
+)
+EPILOG = (
+    "examples:\n"
+    "  dpgw capability --vessel mss_supply                  # intact and worst failure\n"
+    "  dpgw capability --vessel mss_supply --plot cap.png   # and the polar plot\n"
+    "  dpgw capability --vessel mss_osv --failures each --json   # every failure\n"
+    "  dpgw capability --vessel my_ship.toml --current-mps 1.0 --step-deg 15\n"
+    "  dpgw capability --vessel mss_supply --failure-group 1,4 --failure-group 2,5,6   # switchboards\n"
+    f"built-in vessels: {', '.join(builtin_vessels())}"
+)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--vessel", required=True, metavar="NAME|FILE", help="built-in vessel name or a vessel TOML file"
+    )
+    p.add_argument(
+        "--current-mps",
+        type=non_negative_float,
+        default=None,
+        metavar="MPS",
+        help=f"current speed (m/s), from the same direction as the wind (default {DEFAULT_CURRENT_MPS:g}, "
+        "1.5 kn, Froude-scaled for a laboratory model; 0: wind and waves only)",
+    )
+    p.add_argument(
+        "--step-deg",
+        type=_step,
+        default=10.0,
+        metavar="DEG",
+        help="direction step (degrees, dividing 360 into whole steps is best; default 10)",
+    )
+    p.add_argument(
+        "--failures",
+        choices=("none", "each", "worst"),
+        default="worst",
+        help="none: intact only; each: intact and every single thruster failure; worst (default): intact "
+        "and, per direction, the worst single failure",
+    )
+    p.add_argument(
+        "--failure-group",
+        action="append",
+        type=_group,
+        metavar="IDS",
+        help="thruster ids lost together, comma-separated (a switchboard: --failure-group 1,4); repeat for "
+        "each group; given, the groups are the failures analysed instead of single thrusters",
+    )
+    p.add_argument("--no-waves", action="store_true", help="leave the wave drift out (wind and current only)")
+    p.add_argument("--plot", type=Path, metavar="FILE", help="write the polar plot (.png, .svg or .pdf)")
+    p.add_argument("--json", action="store_true", help="print the result as JSON instead of a table")
+    p.set_defaults(func=run)
+
+
+def _group(text: str) -> tuple[int, ...]:
+    try:
+        ids = tuple(int(x) for x in text.split(",") if x.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"must be thruster ids separated by commas, e.g. 1,4 (got {text})"
+        ) from None
+    if not ids:
+        raise argparse.ArgumentTypeError(f"must name at least one thruster id (got {text!r})")
+    return ids
+
+
+def _step(text: str) -> float:
+    value = non_negative_float(text)
+    if not 0.0 < value <= 180.0:
+        raise argparse.ArgumentTypeError(f"must be above 0 and at most 180 degrees (got {text})")
+    return value
+
+
+def run(args: argparse.Namespace) -> int:
+    from observers.vessel import VesselError, load_vessel
+
+    try:
+        vessel = load_vessel(args.vessel)
+    except VesselError as exc:
+        print(f"dpgw capability: --vessel: {exc}", file=sys.stderr)
+        return 2
+    if not vessel.thrusters:
+        print(
+            f"dpgw capability: vessel '{vessel.name}' has no thrusters: give a vessel with a [[thrusters]] "
+            "layout (docs/vessels.md)",
+            file=sys.stderr,
+        )
+        return 2
+    if problem := missing_folder("--plot", args.plot):
+        print(f"dpgw capability: {problem}", file=sys.stderr)
+        return 2
+    from dpgw.capability import Environment, capability, default_current, plot
+
+    current = default_current(vessel) if args.current_mps is None else args.current_mps
+    env = Environment(current_mps=current, current=current > 0, waves=not args.no_waves)
+    try:
+        result = capability(
+            vessel,
+            environment=env,
+            step_deg=args.step_deg,
+            failures=args.failures,
+            failure_groups=args.failure_group,
+        )
+    except ValueError as exc:  # a failure group naming a thruster the vessel does not have
+        print(f"dpgw capability: --failure-group: {exc}", file=sys.stderr)
+        return 2
+    if args.plot:
+        plot(result, str(args.plot))
+    if args.json:
+        print(cli_json.dumps(result.to_dict(), indent=1))
+    else:
+        _print_table(result)
+        if args.plot:
+            print(f"wrote {args.plot}")
+    for warning in result.warnings:
+        print(f"dpgw capability: note: {warning}", file=sys.stderr)
+    return 0
+
+
+def _print_table(result: object) -> None:
+    from dpgw.capability import CapabilityResult
+
+    assert isinstance(result, CapabilityResult)
+    print(
+        f"DP capability of {result.vessel}: U_max (m/s, 1-hour mean wind at 10 m); "
+        f"{result.environment.describe()}"
+    )
+    lim = result.u_limit
+    print(f"environment from (deg, clockwise from the bow); {lim:.3g} = at least {lim:.3g}")
+    cols = [(c.label, c.u_max) for c in result.cases]
+    if result.worst is not None and len(result.cases) == 1:
+        cols.append(("worst failure", result.worst))
+    head = f"{'from':>6s} " + " ".join(f"{label:>18s}" for label, _ in cols)
+    if result.worst_failed is not None:
+        head += "  worst: thrusters failed"
+    print(head)
+    for i, d in enumerate(result.directions_deg):
+        line = f"{d:6.1f} " + " ".join(f"{u[i]:18.1f}" for _, u in cols)
+        if result.worst_failed is not None and result.worst is not None:
+            # no failure limits it below the search's end: no thruster to name
+            failed = "+".join(map(str, result.worst_failed[i]))
+            line += f"  {failed}" if result.worst[i] < lim else "  -"
+        print(line)

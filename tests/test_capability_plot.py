@@ -1,0 +1,192 @@
+"""The DP capability plot: dpgw/capability.py and ``dpgw capability``.
+
+The environment relation (the Pierson–Moskowitz sea of the wind), the loads' port/starboard symmetry
+and the terms left out with a warning, the U_max search on known functions, U_max as the point where the
+thrusters' scale k* crosses 1, the worst failure as the minimum, the command's table, JSON and plot, and,
+once, the quasi-static limit against the closed loop: the gateway in the simulator holds station at
+0.8 U_max and is blown off at 1.3 U_max.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from dpgw.capability import (
+    U_TOL_MPS,
+    Environment,
+    EnvironmentLoads,
+    capability,
+    default_current,
+    limit_speed,
+    pm_sea,
+)
+from dpgw.cli import main
+from gateway.control.capability import CapabilityLP
+from observers.vessel import load_vessel
+from simulator.spectra import SeaState
+from simulator.waves import G
+from simulator.wind import norsok_mean
+
+
+def test_pm_sea_is_the_fully_developed_pierson_moskowitz_spectrum() -> None:
+    """The (Hs, Tp) of `pm_sea` through the simulator's PM spectrum give Pierson & Moskowitz's one-parameter
+    spectrum S(ω) = α g²/ω⁵ exp(−0.74 (g/(U₁₉.₅ ω))⁴), α = 0.0081, to the rounding of 0.21 and 0.877."""
+    for u10 in (8.0, 15.0, 25.0):
+        hs, tp = pm_sea(u10)
+        u195 = norsok_mean(u10, 19.5)
+        w = np.linspace(0.2, 2.5, 200)
+        ours = SeaState(hs_m=hs, tp_s=tp, kind="pm").spectrum(w)
+        theirs = 0.0081 * G**2 / w**5 * np.exp(-0.74 * (G / (u195 * w)) ** 4)
+        np.testing.assert_allclose(ours, theirs, rtol=0.02, atol=1e-3 * theirs.max())
+
+
+def test_loads_mirror_port_and_starboard_and_point_the_right_way() -> None:
+    loads = EnvironmentLoads(load_vessel("mss_supply"))
+    for beta in (30.0, 90.0, 135.0):
+        a = loads.components(20.0, math.radians(beta))
+        b = loads.components(20.0, math.radians(-beta))
+        for key in ("wind", "current", "waves"):
+            np.testing.assert_allclose(
+                b[key], a[key] * [1, -1, -1], rtol=1e-6, atol=1e-6 * np.abs(a[key]).max()
+            )
+    head = loads.components(20.0, 0.0)
+    assert head["wind"][0] < 0 and head["current"][0] < 0 and head["waves"][0] < 0  # from ahead: astern
+    beam = loads.components(20.0, math.radians(90.0))  # from starboard: pushed to port
+    assert beam["wind"][1] < 0 and beam["current"][1] < 0 and beam["waves"][1] < 0
+    # wind ∝ U² through the NORSOK profile; current independent of U
+    w1, w2 = loads.components(10.0, 1.0)["wind"], loads.components(20.0, 1.0)["wind"]
+    ratio = (norsok_mean(20.0, 10.0 if loads.area is None else loads.area.height_m)) ** 2 / (
+        norsok_mean(10.0, 10.0 if loads.area is None else loads.area.height_m)
+    ) ** 2
+    np.testing.assert_allclose(w2, w1 * ratio, rtol=1e-9)
+    np.testing.assert_allclose(loads.components(10.0, 1.0)["current"], loads.components(30.0, 1.0)["current"])
+
+
+def test_missing_data_is_left_out_with_a_warning() -> None:
+    bare = load_vessel("hajivand_vessel")  # M, D and thrusters only
+    assert bare.hull is None
+    loads = EnvironmentLoads(bare)
+    text = " ".join(loads.warnings)
+    assert "no [hull.wind]" in text and "linear damping D" in text and "Froude-scaled" in text
+    model = EnvironmentLoads(load_vessel("cybership2"))
+    assert any("1:70 model" in w for w in model.warnings)
+    assert default_current(load_vessel("cybership2")) == pytest.approx(0.75 / math.sqrt(70.0))
+    assert default_current(load_vessel("mss_supply")) == 0.75
+    assert not np.any(loads.components(20.0, 1.0)["wind"])
+    assert np.any(loads.components(20.0, 1.0)["current"])
+    assert EnvironmentLoads(load_vessel("mss_supply")).warnings == []
+
+
+def test_limit_speed_finds_the_crossing() -> None:
+    assert limit_speed(lambda u: (20.0 / u) ** 2 if u else math.inf) == pytest.approx(20.0, abs=U_TOL_MPS)
+    assert limit_speed(lambda u: 0.5) == 0.0  # not even U = 0
+    assert limit_speed(lambda u: 2.0, u_limit=30.0) == 30.0
+    # lost between 11 and 13 m/s and regained above: the first loss counts
+    assert limit_speed(lambda u: 0.9 if 11.5 < u < 12.5 else 1.5) == pytest.approx(11.5, abs=U_TOL_MPS)
+
+
+def test_u_max_is_where_the_thrusters_scale_crosses_one_and_worst_is_the_minimum() -> None:
+    v = load_vessel("mss_supply")
+    res = capability(v, directions_deg=[60.0, 90.0], failures="each")
+    loads = EnvironmentLoads(v)
+    for case in res.cases:
+        lp = CapabilityLP(v.thrusters, failed=case.failed)
+        for d, u in zip(res.directions_deg, case.u_max, strict=True):
+            assert 0 < u < 40.0
+            assert lp.scale(-loads.tau(u, math.radians(d))) >= 1.0
+            assert lp.scale(-loads.tau(u + 2 * U_TOL_MPS, math.radians(d))) < 1.0
+    assert res.worst is not None and res.worst_failed is not None
+    for i in range(2):
+        fails = [c.u_max[i] for c in res.cases[1:]]
+        assert res.worst[i] == min(fails) <= res.intact.u_max[i]
+        assert res.cases[1:][fails.index(min(fails))].failed == res.worst_failed[i]
+
+
+def test_the_command_prints_a_table_json_and_a_plot(tmp_path, capsys: pytest.CaptureFixture[str]) -> None:  # type: ignore[no-untyped-def]
+    png = tmp_path / "cap.png"
+    args = ["capability", "--vessel", "mss_supply", "--step-deg", "90", "--failures", "worst"]
+    assert main([*args, "--json", "--plot", str(png)]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["directions_deg"] == [0.0, 90.0, 180.0, 270.0]
+    intact = doc["cases"][0]["u_max_mps"]
+    worst = doc["worst_failure"]["u_max_mps"]
+    assert intact[1] == pytest.approx(intact[3]) and all(w <= i for w, i in zip(worst, intact, strict=True))
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "intact" in out and "worst failure" in out and " 90.0 " in out
+    assert main(["capability", "--vessel", "no_such_ship"]) == 2
+    assert "not a built-in vessel" in capsys.readouterr().err
+    assert main(["capability", "--vessel", "mss_supply", "--failure-group", "1,9"]) == 2
+    assert "--failure-group" in capsys.readouterr().err
+
+
+def test_a_failure_group_is_no_better_than_any_of_its_thrusters_alone() -> None:
+    v = load_vessel("mss_supply")
+    single = capability(v, directions_deg=[90.0], failures="each")
+    group = capability(v, directions_deg=[90.0], failure_groups=[(1, 4), (3,)])
+    assert [c.label for c in group.cases] == ["intact", "thrusters 1+4 failed", "thruster 3 failed"]
+    by_label = {c.label: c.u_max[0] for c in single.cases}
+    assert group.cases[1].u_max[0] <= min(by_label["thruster 1 failed"], by_label["thruster 4 failed"])
+    assert group.cases[2].u_max[0] == by_label["thruster 3 failed"]
+    assert group.worst is not None and group.worst_failed is not None
+    assert group.worst[0] == min(group.cases[1].u_max[0], group.cases[2].u_max[0])
+
+
+def test_quasi_static_limit_agrees_with_the_closed_loop() -> None:
+    """mss_supply in the simulator (full plant, steady wind and current from the starboard beam, no waves,
+    no bias) under the gateway's own DP controller and allocation: it holds station at 0.8 U_max and is
+    blown off at 1.3 U_max. Loads by the same functions as the analysis; with ``gust="none"`` the simulator
+    takes the wind speed as given at the areas' height, so it is given U brought up by the NORSOK profile.
+    U_max here (~45 m/s, wind and current only) is beyond any real wind: the test is of the balance."""
+    from dpgw.closed_loop import run_closed_loop
+    from simulator.current import CurrentModel
+    from simulator.environment import BiasModel
+    from simulator.plant_params import PlantOptions
+    from simulator.scenarios import mss_supply_storm
+    from simulator.wind import WindModel
+
+    v = load_vessel("mss_supply")
+    assert v.hull is not None and v.hull.wind is not None
+    beta, current = 90.0, 0.75
+    env = Environment(current_mps=current, waves=False)
+    u_max = capability(v, environment=env, directions_deg=[beta], failures="none", u_limit=80.0).intact.u_max[
+        0
+    ]
+    assert 30.0 < u_max < 80.0
+    base = mss_supply_storm()
+    final: dict[float, tuple[float, float, float]] = {}
+    for factor in (0.8, 1.3):
+        u = factor * u_max
+        scenario = replace(
+            base,
+            name="capability_check",
+            eta0=(0.0, 0.0, 0.0),
+            sea=((0.0, SeaState(hs_m=0.0, tp_s=10.0)),),
+            bias=BiasModel(),
+            plant_options=PlantOptions(),  # no fluid memory: steady loads, and faster
+            current=CurrentModel(speed_mps=current, direction_deg=beta + 180.0),
+            wind=WindModel(speed_mps=norsok_mean(u, v.hull.wind.height_m), from_deg=beta, gust="none"),
+        )
+        run = run_closed_loop(
+            scenario,
+            600.0,
+            seed=1,
+            events=[(0.0, "setpoint", {"north_m": 0.0, "east_m": 0.0, "heading_deg": 0.0})],
+        )
+        dist = np.hypot(run.eta_lf[:, 0], run.eta_lf[:, 1])
+        late = run.t >= 450.0
+        half = int(np.searchsorted(run.t, 300.0))
+        final[factor] = (
+            float(dist[late].max()),
+            float(np.degrees(np.abs(run.eta_lf[late, 2])).max()),
+            float(dist[-1] - dist[half]),
+        )
+    held, lost = final[0.8], final[1.3]
+    assert held[0] < 1.0 and held[1] < 1.0, held  # at 0.8 U_max: on station, on heading
+    assert lost[0] > 50.0 and lost[2] > 20.0, lost  # at 1.3 U_max: far off and still going
