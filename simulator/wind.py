@@ -9,6 +9,9 @@ gust spectrum, a_i = √(2 S(f_i) Δf_i), on log-spaced frequencies with jitter 
   is U₀ (1 + C ln(z/10)), C = 0.0573 √(1 + 0.15 U₀).
 - Harris (1971): f S(f) / (κ U₁₀²) = 4 f̃ / (2 + f̃²)^{5/6}, f̃ = f L / U₁₀, L = 1800 m, κ = 0.002.
 
+The mean at the wind areas' height is the NORSOK profile's for every spectrum, ``none`` included: the
+speed given is the 1-hour mean at 10 m whichever shapes the gusts.
+
 The series is evaluated on a 0.25 s grid in 64 s blocks (one vectorised call per block) and interpolated:
 the spectrum has no energy that matters to a ship's LF motion above 0.2 Hz.
 
@@ -82,7 +85,9 @@ class Wind:
         self.area = area
         self.length_m = length_m
         z = area.height_m
-        self.mean = norsok_mean(model.speed_mps, z) if model.gust == "norsok" else model.speed_mps
+        # the mean at the areas' height by the NORSOK profile whatever the gust spectrum: the speed is the
+        # 10 m mean in every case, and the profile belongs to the mean wind, the spectra only to its gusts
+        self.mean = norsok_mean(model.speed_mps, z)
         edges = np.geomspace(model.f_min_hz, model.f_max_hz, model.components + 1)
         df = np.diff(edges)
         f = edges[:-1] + df * rng.uniform(0.0, 1.0, model.components)  # jitter: no common period

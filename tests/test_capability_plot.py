@@ -141,9 +141,9 @@ def test_a_failure_group_is_no_better_than_any_of_its_thrusters_alone() -> None:
 def test_quasi_static_limit_agrees_with_the_closed_loop() -> None:
     """mss_supply in the simulator (full plant, steady wind and current from the starboard beam, no waves,
     no bias) under the gateway's own DP controller and allocation: it holds station at 0.8 U_max and is
-    blown off at 1.3 U_max. Loads by the same functions as the analysis; with ``gust="none"`` the simulator
-    takes the wind speed as given at the areas' height, so it is given U brought up by the NORSOK profile.
-    U_max here (~45 m/s, wind and current only) is beyond any real wind: the test is of the balance."""
+    blown off at 1.3 U_max. Loads by the same functions as the analysis (U the 10 m mean in both, brought
+    to the areas' height by the same NORSOK profile). U_max here (~45 m/s, wind and current only) is
+    beyond any real wind: the test is of the balance."""
     from dpgw.closed_loop import run_closed_loop
     from simulator.current import CurrentModel
     from simulator.environment import BiasModel
@@ -171,7 +171,7 @@ def test_quasi_static_limit_agrees_with_the_closed_loop() -> None:
             bias=BiasModel(),
             plant_options=PlantOptions(),  # no fluid memory: steady loads, and faster
             current=CurrentModel(speed_mps=current, direction_deg=beta + 180.0),
-            wind=WindModel(speed_mps=norsok_mean(u, v.hull.wind.height_m), from_deg=beta, gust="none"),
+            wind=WindModel(speed_mps=u, from_deg=beta, gust="none"),
         )
         run = run_closed_loop(
             scenario,
