@@ -794,19 +794,21 @@ class Pipeline:
 
     def _use_attitude(self, spec: SourceSpec, rx_ns: int, s: nmea_codec.Attitude) -> None:
         """An MRU's roll and pitch through its tests (`ReferenceMonitor.attitude`): into the fusion if they
-        may be used; else its attitude is forgotten (the lever arm falls back to heading only, as when the
-        MRU is stale) and the sample is counted by test (``test_attitude_jump``, …)."""
+        may be used. A failing sample is counted by test (``test_attitude_jump``, …) and not used; while
+        the MRU is rejected or readmitting its attitude is forgotten (the lever arm falls back to heading
+        only, as when the MRU is stale)."""
         roll, pitch = s.roll_rad, s.pitch_rad
         assert roll is not None and pitch is not None  # (``valid``)
         sigmas = (s.roll_sigma_rad, s.pitch_sigma_rad)
         if self.monitor.attitude(spec.name, rx_ns, roll, pitch, s.time_s, sigmas):
             self.fusion.add_attitude(rx_ns, roll, pitch, spec.name, spec.priority, spec.timeout_ns, s.time_s)
             return
-        self.fusion.drop_attitude(spec.name)
-        reason = self.monitor.reason("attitude", spec.name)
-        if not reason.startswith("readmitting"):
-            word = reason.split(":")[0].split(" ")[0].lower() or "failed"
+        why = self.monitor.attitude_problem(spec.name)  # ("" for a passing sample while readmitting)
+        if why:
+            word = why.split(":")[0].split(" ")[0].lower() or "failed"
             self.counters[spec.name].rejected[f"test_attitude_{word}"] += 1
+        if not self.monitor.attitude_usable(spec.name):
+            self.fusion.drop_attitude(spec.name)  # (else one sample dropped: the good ones around it stay)
 
     def _note_compensation(self, source: str) -> None:
         """Count how a fix's lever arm was compensated (`Fusion.reference_position`: ``attitude`` with the

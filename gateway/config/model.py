@@ -380,6 +380,10 @@ class IntegrityConfig:
     attitude_max_sigma_deg: float = 0.5
     """An MRU reporting its own roll or pitch 1σ (PASHR fields 7-8) above this is not trusted: a DP MRU
     reports 0.01-0.05°; an INS still aligning or unaided reports degrees. 0.5° on a 25 m mast is 0.2 m."""
+    attitude_rejects: int = 3
+    """An MRU sample that fails a test is never used; this many within ``readmit_s`` reject the MRU (heading
+    only until it has passed for ``readmit_s``). One spike (two failing samples: up and down) is dropped
+    while the samples around it go on compensating; a frozen or out-of-range MRU is out on its third."""
     attitude_time: str = "sensor"
     """How an attitude is paired with a fix: ``sensor`` (by both sentences' own UTC times where both have
     one: PASHR and GGA/GNS; else by receive time) or ``receive`` (by receive time always: for an MRU whose

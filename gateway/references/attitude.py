@@ -5,10 +5,11 @@ MRU's attitude").
 
 Every sample goes through, in order (the first failure rejects it, with that reason):
 
+- **range**: |φ| or |θ| above ``attitude_max_deg``, or not finite (such a sample is not remembered as the
+  previous one of the jump and freeze tests).
 - **sigma** (PASHR only): the MRU's own 1σ of roll or pitch above ``attitude_max_sigma_deg`` (an INS
   aligning or unaided says so there). PASHR's aiding and IMU status flags are not used: roll and pitch are
   referenced to gravity and stay good without GNSS aiding, and makers give the IMU flag opposite meanings.
-- **range**: |φ| or |θ| above ``attitude_max_deg``, or not finite.
 - **jump**: the change from the source's previous sample (received, passing or not) beyond
   ``attitude_jump_deg + attitude_max_rate_deg_s × Δt`` on either axis, Δt between the two samples' own
   UTC times where both have one (PASHR), else between their receive times. Against the previous sample,
@@ -60,7 +61,8 @@ class AttitudeTrack:
     """What the tests of one MRU remember: its previous sample and since when its values repeat."""
 
     def __init__(self) -> None:
-        self.last_ns = 0  # receive time of the previous sample (0: none yet)
+        self.rx_ns = 0  # receive time of the latest sample, whatever it was (0: none yet): for staleness
+        self.last_ns = 0  # receive time of the previous sample judged possible (in range)
         self.prev: tuple[float, float, float | None] | None = None  # (roll, pitch, UTC s of day)
         self.same_since_ns = 0
 
@@ -78,24 +80,23 @@ class AttitudeTrack:
         (module docstring). Remembers the sample for the next one's jump and freeze tests; after a silence
         longer than ``timeout_ns`` the jump and freeze tests start afresh."""
         prev, last_ns = self.prev, self.last_ns
+        self.rx_ns = now_ns
         if prev is not None and now_ns - last_ns > timeout_ns:
             prev = None
-        finite = math.isfinite(roll) and math.isfinite(pitch)
-        if finite:
-            if prev is None or (roll, pitch) != prev[:2]:
-                self.same_since_ns = now_ns
-            self.prev, self.last_ns = (roll, pitch, utc_s), now_ns
+        if not (math.isfinite(roll) and math.isfinite(pitch)):
+            return "range: roll or pitch not finite"
+        for axis, v in (("roll", roll), ("pitch", pitch)):
+            if abs(v) > lim.max_rad:  # (not remembered: the next sample is judged against a possible one)
+                return f"range: {axis} {v / DEG:.1f}° beyond ±{lim.max_rad / DEG:g}°"
+        if prev is None or (roll, pitch) != prev[:2]:
+            self.same_since_ns = now_ns
+        self.prev, self.last_ns = (roll, pitch, utc_s), now_ns
         for axis, sigma in zip(("roll", "pitch"), sigmas, strict=True):
             if sigma is not None and sigma > lim.max_sigma_rad:
                 return (
                     f"sigma: the MRU reports its {axis} 1σ as {sigma / DEG:.3g}° "
                     f"(limit {lim.max_sigma_rad / DEG:g}°)"
                 )
-        if not finite:
-            return "range: roll or pitch not finite"
-        for axis, v in (("roll", roll), ("pitch", pitch)):
-            if abs(v) > lim.max_rad:
-                return f"range: {axis} {v / DEG:.1f}° beyond ±{lim.max_rad / DEG:g}°"
         if prev is not None:
             dt = (now_ns - last_ns) / NS
             if utc_s is not None and prev[2] is not None:

@@ -149,6 +149,8 @@ class ReferenceMonitor:
         self._attitude = {
             n: (SourceState(n, "attitude", readmit), AttitudeTrack(), t) for n, t in (attitudes or {}).items()
         }
+        self._attitude_rejects: dict[str, deque[int]] = {n: deque() for n in self._attitude}
+        self._attitude_why: dict[str, str] = {}
         for refs in self._refs.values():
             for r in refs.values():
                 r.alone = len(refs) == 1
@@ -307,14 +309,35 @@ class ReferenceMonitor:
         sigmas: tuple[float | None, float | None] = (None, None),
     ) -> bool:
         """Test one MRU sample (rad; `AttitudeTrack.problem`). Returns whether it may be used: it passed,
-        and the source is not readmitting after a rejection."""
+        and the source is not rejected or readmitting. A failing sample is never used; it rejects the
+        source when ``attitude_rejects`` samples failed within ``readmit_s`` (or when the source is
+        rejected or readmitting already): an MRU sends 10-100 samples a second, and one outlier (a spike
+        fails twice: on its way up and down) is dropped while its neighbours go on compensating the fixes,
+        where taking the MRU out for ``readmit_s`` would switch every fix to heading only and back (which
+        costs the observer a transient, docs/integrity.md). A frozen or out-of-range MRU fails every
+        sample and is rejected on the third."""
         st, track, timeout_ns = self._attitude[source]
         why = track.problem(self._attitude_limits, now_ns, timeout_ns, roll, pitch, utc_s, sigmas)
+        recent = self._attitude_rejects[source]
+        while recent and now_ns - recent[0] > st.readmit_ns:
+            recent.popleft()
         if why:
-            st.fail(now_ns, why)
+            recent.append(now_ns)
+            if len(recent) >= self.p.attitude_rejects or st.state not in (OK, STALE):
+                st.fail(now_ns, why)
+            self._attitude_why[source] = why
             return False
+        self._attitude_why[source] = ""
         st.passed(now_ns)
         return st.usable
+
+    def attitude_problem(self, source: str) -> str:
+        """Why the MRU's latest sample failed (its test's name first); "" when it passed."""
+        return self._attitude_why.get(source, "")
+
+    def attitude_usable(self, source: str) -> bool:
+        """The MRU is in use: neither rejected, readmitting nor stale."""
+        return self._attitude[source][0].usable
 
     # --- thruster feedback -------------------------------------------------------------------------------
 
@@ -357,7 +380,7 @@ class ReferenceMonitor:
             if last and now_ns - last > r.timeout_ns:
                 r.state.stale(now_ns, (now_ns - last) / NS)
         for st, track, timeout_ns in self._attitude.values():
-            last = track.last_ns
+            last = track.rx_ns
             if last and now_ns - last > timeout_ns:
                 st.stale(now_ns, (now_ns - last) / NS)
 
