@@ -382,8 +382,8 @@ class IntegrityConfig:
     reports 0.01-0.05°; an INS still aligning or unaided reports degrees. 0.5° on a 25 m mast is 0.2 m."""
     attitude_rejects: int = 3
     """An MRU sample that fails a test is never used; this many within ``readmit_s`` reject the MRU (heading
-    only until it has passed for ``readmit_s``). One spike (two failing samples: up and down) is dropped
-    while the samples around it go on compensating; a frozen or out-of-range MRU is out on its third."""
+    only until it has passed for ``readmit_s``). One spike (one failing sample) is dropped while the
+    samples around it go on compensating; a frozen, offset or out-of-range MRU is out on its third."""
     attitude_time: str = "sensor"
     """How an attitude is paired with a fix: ``sensor`` (by both sentences' own UTC times where both have
     one: PASHR and GGA/GNS; else by receive time) or ``receive`` (by receive time always: for an MRU whose

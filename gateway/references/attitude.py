@@ -10,12 +10,18 @@ Every sample goes through, in order (the first failure rejects it, with that rea
 - **sigma** (PASHR only): the MRU's own 1σ of roll or pitch above ``attitude_max_sigma_deg`` (an INS
   aligning or unaided says so there). PASHR's aiding and IMU status flags are not used: roll and pitch are
   referenced to gravity and stay good without GNSS aiding, and makers give the IMU flag opposite meanings.
-- **jump**: the change from the source's previous sample (received, passing or not) beyond
-  ``attitude_jump_deg + attitude_max_rate_deg_s × Δt`` on either axis, Δt between the two samples' own
-  UTC times where both have one (PASHR), else between their receive times. Against the previous sample,
-  not the last good one: roll is continuous, so a spike fails on its way up and on its way down, and an
-  MRU that steps to an offset fails at the step; a limit growing with the time since the last good
-  sample would let a spike's own value back within a fraction of a second at a ship's roll rate.
+- **jump**: the change from the source's previous sample beyond ``attitude_jump_deg +
+  attitude_max_rate_deg_s × Δt`` on either axis, Δt between the two samples' own UTC times where both
+  have one (PASHR), else between their receive times. Against the previous sample, not the last good one:
+  roll is continuous, so a spike or a step to an offset fails where it jumps; a limit growing with the
+  time since the last good sample would let a spike's value back within a fraction of a second.
+- **offset**: the sample after a jump tells a spike from a step. Back near where the MRU would have been
+  without the jump (the sample before it moved on at its rate), it was a spike, over; near the jumped-to
+  values (moved on likewise), the step stayed: it is added to the MRU's offset, and while the offset
+  exceeds ``attitude_jump_deg`` every sample fails, until the MRU steps back (the offset sums to ~0) or
+  falls silent longer than its timeout (restarted: its tests start afresh). A roll cannot step, so an
+  MRU that stepped and stayed is wrong on one side of the step; which side, one MRU cannot tell, and the
+  side after it is the one that is not trusted.
 - **freeze**: the same decoded roll and pitch, exactly, for ``attitude_freeze_s`` (an MRU repeating a
   buffer). Exact repetition, not small motion: a vessel in a flat-calm basin may hardly move, but the MRU's
   own noise still moves its last digit.
@@ -58,13 +64,19 @@ class AttitudeLimits:
 
 
 class AttitudeTrack:
-    """What the tests of one MRU remember: its previous sample and since when its values repeat."""
+    """What the tests of one MRU remember: its previous sample, its latest rate, since when its values
+    repeat, the sample before a jump not yet judged, and the steps that stayed (an offset)."""
 
     def __init__(self) -> None:
         self.rx_ns = 0  # receive time of the latest sample, whatever it was (0: none yet): for staleness
         self.last_ns = 0  # receive time of the previous sample judged possible (in range)
         self.prev: tuple[float, float, float | None] | None = None  # (roll, pitch, UTC s of day)
+        self.rate = (0.0, 0.0)  # (roll, pitch) rate between the last two samples that did not jump, rad/s
         self.same_since_ns = 0
+        # after a failed jump: (roll, pitch) expected had there been none (the sample before it moved on by
+        # its rate to the jump's time), the jumped-to values, and the rate; judged by the next sample
+        self.pending: tuple[tuple[float, float], tuple[float, float], tuple[float, float]] | None = None
+        self.offset = (0.0, 0.0)  # the sum of the steps that stayed (roll, pitch), rad
 
     def problem(
         self,
@@ -77,12 +89,12 @@ class AttitudeTrack:
         sigmas: tuple[float | None, float | None] = (None, None),
     ) -> str:
         """Why this sample may not be used ("" if it may), its reason starting with the test's name
-        (module docstring). Remembers the sample for the next one's jump and freeze tests; after a silence
-        longer than ``timeout_ns`` the jump and freeze tests start afresh."""
+        (module docstring). Remembers the sample for the next one's tests; after a silence longer than
+        ``timeout_ns`` (the MRU restarted, or the link) the jump, offset and freeze tests start afresh."""
         prev, last_ns = self.prev, self.last_ns
         self.rx_ns = now_ns
         if prev is not None and now_ns - last_ns > timeout_ns:
-            prev = None
+            prev, self.pending, self.offset, self.rate = None, None, (0.0, 0.0), (0.0, 0.0)
         if not (math.isfinite(roll) and math.isfinite(pitch)):
             return "range: roll or pitch not finite"
         for axis, v in (("roll", roll), ("pitch", pitch)):
@@ -98,19 +110,59 @@ class AttitudeTrack:
                     f"(limit {lim.max_sigma_rad / DEG:g}°)"
                 )
         if prev is not None:
-            dt = (now_ns - last_ns) / NS
-            if utc_s is not None and prev[2] is not None:
-                step = utc_step_s(prev[2], utc_s)
-                if step > 0.0:
-                    dt = step
-            limit = lim.jump_rad + lim.rate_rad_s * dt
-            for axis, v, before in (("roll", roll, prev[0]), ("pitch", pitch, prev[1])):
-                if abs(v - before) > limit:
-                    return (
-                        f"jump: {axis} changed {(v - before) / DEG:+.2f}° in {dt:.2g} s "
-                        f"(limit {limit / DEG:.2g}°)"
-                    )
+            why = self._jump(lim, now_ns - last_ns, roll, pitch, prev, utc_s)
+            if why:
+                return why
+        off = max(self.offset, key=abs)
+        if abs(off) > lim.jump_rad:
+            axis = "roll" if off == self.offset[0] else "pitch"
+            return f"offset: {axis} stepped {off / DEG:+.2f}° and stayed (in use again once it steps back)"
         frozen_ns = now_ns - self.same_since_ns
         if frozen_ns >= lim.freeze_ns:
             return f"freeze: the same roll and pitch for {frozen_ns / NS:.1f} s"
+        return ""
+
+    def _jump(
+        self,
+        lim: AttitudeLimits,
+        dt_ns: int,
+        roll: float,
+        pitch: float,
+        prev: tuple[float, float, float | None],
+        utc_s: float | None,
+    ) -> str:
+        """The jump test against the previous sample, and the judgement of a jump by the sample after it:
+        back near where the MRU would have been without it (extrapolated by its rate) is a spike (this
+        sample passes); near the jumped-to values is a step that stayed, added to `offset`."""
+        dt = dt_ns / NS
+        if utc_s is not None and prev[2] is not None:
+            step = utc_step_s(prev[2], utc_s)
+            if step > 0.0:
+                dt = step
+        pending, self.pending = self.pending, None
+        if pending is not None:
+            expected, jumped, rate = pending
+            here = (expected[0] + rate[0] * dt, expected[1] + rate[1] * dt)
+            back = max(abs(roll - here[0]), abs(pitch - here[1]))
+            stay = max(abs(roll - jumped[0] - rate[0] * dt), abs(pitch - jumped[1] - rate[1] * dt))
+            if back <= stay:
+                return ""  # a spike, over: this sample continues the motion from before it
+            self.offset = (
+                self.offset[0] + jumped[0] - expected[0],
+                self.offset[1] + jumped[1] - expected[1],
+            )
+            self.rate = ((roll - prev[0]) / dt, (pitch - prev[1]) / dt) if dt > 0.0 else self.rate
+            return ""
+        limit = lim.jump_rad + lim.rate_rad_s * dt
+        for axis, v, before in (("roll", roll, prev[0]), ("pitch", pitch, prev[1])):
+            if abs(v - before) > limit:
+                rate = self.rate
+                expected = (prev[0] + rate[0] * dt, prev[1] + rate[1] * dt)
+                self.pending = (expected, (roll, pitch), rate)
+                return (
+                    f"jump: {axis} changed {(v - before) / DEG:+.2f}° in {dt:.2g} s "
+                    f"(limit {limit / DEG:.2g}°)"
+                )
+        if dt > 0.0:
+            self.rate = ((roll - prev[0]) / dt, (pitch - prev[1]) / dt)
         return ""

@@ -311,11 +311,11 @@ class ReferenceMonitor:
         """Test one MRU sample (rad; `AttitudeTrack.problem`). Returns whether it may be used: it passed,
         and the source is not rejected or readmitting. A failing sample is never used; it rejects the
         source when ``attitude_rejects`` samples failed within ``readmit_s`` (or when the source is
-        rejected or readmitting already): an MRU sends 10-100 samples a second, and one outlier (a spike
-        fails twice: on its way up and down) is dropped while its neighbours go on compensating the fixes,
-        where taking the MRU out for ``readmit_s`` would switch every fix to heading only and back (which
-        costs the observer a transient, docs/integrity.md). A frozen or out-of-range MRU fails every
-        sample and is rejected on the third."""
+        rejected or readmitting already): an MRU sends 10-100 samples a second, and one outlier (a spike)
+        is dropped while its neighbours go on compensating the fixes, where taking the MRU out for
+        ``readmit_s`` would switch every fix to heading only and back (which costs the observer a
+        transient, docs/integrity.md). A frozen, offset or out-of-range MRU fails every sample and is
+        rejected on the third."""
         st, track, timeout_ns = self._attitude[source]
         why = track.problem(self._attitude_limits, now_ns, timeout_ns, roll, pitch, utc_s, sigmas)
         recent = self._attitude_rejects[source]
