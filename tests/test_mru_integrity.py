@@ -25,7 +25,6 @@ from gateway.fusion import Fusion
 from gateway.pipeline import Pipeline, PipelineSpec, RawEvent
 from gateway.references.attitude import AttitudeLimits, AttitudeTrack
 from gateway.references.params import IntegrityParams
-from observers.kinematics import lever_arm_ned
 from observers.vessel import load_vessel
 from simulator.clock import SimEpoch
 from simulator.faults import Fault, FaultSchedule
@@ -443,11 +442,3 @@ def test_closed_loop_station_keeping_rides_through_a_frozen_an_offset_and_a_spik
     believed = bench.one(1, 900.0, True, faults=frozen_fault, integrity=wide)
     assert believed["lf_rms_m"] > 2.5 * frozen["lf_rms_m"], (frozen, believed)
     assert believed["station_max_m"] > frozen["station_max_m"] + 0.5, (frozen, believed)
-
-
-def test_lever_arm_ned_is_what_the_fix_was_compensated_with() -> None:
-    """(The pipeline tests above take the truth from `antenna_ned`; the gateway inverts `lever_arm_ned`:
-    the two agree, so an error in a fix is the attitude's, not the kinematics'.)"""
-    psi, phi, theta = 0.5, 3 * DEG, -2 * DEG
-    ant = antenna_ned([0.0, 0.0, psi], ARM, [0.0, phi, theta])
-    np.testing.assert_allclose(ant[:2], lever_arm_ned(psi, phi, theta, *ARM)[:2], atol=1e-12)
