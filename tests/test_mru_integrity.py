@@ -119,9 +119,19 @@ def test_the_jump_test_uses_the_sensor_time_between_samples_where_it_has_one() -
     tr = AttitudeTrack()
     assert tr.problem(LIMITS, T0, S, 0.0, 0.0, utc_s=36000.0) == ""
     assert tr.problem(LIMITS, T0 + 1000, S, 2.5 * DEG, 0.0, utc_s=36000.1) == ""
-    tr = AttitudeTrack()  # without times: received 1 µs apart, 2.5° is a jump
+    tr = AttitudeTrack()  # without times, the first two received 1 µs apart: 2.5° is a jump
     assert tr.problem(LIMITS, T0, S, 0.0, 0.0) == ""
     assert tr.problem(LIMITS, T0 + 1000, S, 2.5 * DEG, 0.0).startswith("jump:")
+
+
+def test_without_sensor_times_a_link_that_batches_samples_raises_no_alarm() -> None:
+    """PHTRO at 10 Hz rolling ±20° at 6 s (21°/s, 2.1° a sample) delivered in pairs (0 s, then 0.2 s
+    apart): Δt is at least the mean interval, so no sample fails; a 20° spike in it still does."""
+    w = 2 * math.pi / 6.0
+    samples = [(T0 + (k // 2) * S // 5, 20 * DEG * math.sin(w * k / 10), 0.0) for k in range(600)]
+    assert not any(track_problems(samples))
+    samples[301] = (samples[301][0], samples[301][1] + 20 * DEG, 0.0)
+    assert [k for k, p in enumerate(track_problems(samples)) if p] == [301]
 
 
 def test_after_a_silence_the_jump_and_freeze_tests_start_afresh() -> None:

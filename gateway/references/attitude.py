@@ -12,7 +12,8 @@ Every sample goes through, in order (the first failure rejects it, with that rea
   referenced to gravity and stay good without GNSS aiding, and makers give the IMU flag opposite meanings.
 - **jump**: the change from the source's previous sample beyond ``attitude_jump_deg +
   attitude_max_rate_deg_s × Δt`` on either axis, Δt between the two samples' own UTC times where both
-  have one (PASHR), else between their receive times. Against the previous sample, not the last good one:
+  have one (PASHR), else between their receive times but at least their mean interval (a link that
+  batches delivers two samples at once). Against the previous sample, not the last good one:
   roll is continuous, so a spike or a step to an offset fails where it jumps; a limit growing with the
   time since the last good sample would let a spike's value back within a fraction of a second.
 - **offset**: the sample after a jump tells a spike from a step. Back near where the MRU would have been
@@ -40,6 +41,10 @@ from gateway.references.state import NS
 from wire.codecs.nmea_time import utc_step_s
 
 DEG = math.pi / 180.0
+INTERVAL_GAIN = 0.1
+"""Gain of the mean receive interval of an MRU's samples (about the last ten): without sensor times the
+jump test's Δt is at least that mean, so two samples a link delivers together (the same receive time)
+are allowed the change of one sample interval, not of none."""
 
 
 @dataclass(frozen=True)
@@ -77,6 +82,8 @@ class AttitudeTrack:
         # its rate to the jump's time), the jumped-to values, and the rate; judged by the next sample
         self.pending: tuple[tuple[float, float], tuple[float, float], tuple[float, float]] | None = None
         self.offset = (0.0, 0.0)  # the sum of the steps that stayed (roll, pitch), rad
+        self.interval_s = 0.0  # mean receive interval (EMA) of the MRU's samples, s
+        self.rate_known = False  # `rate` measured (two samples that did not jump): a jump can be judged
 
     def problem(
         self,
@@ -95,6 +102,7 @@ class AttitudeTrack:
         self.rx_ns = now_ns
         if prev is not None and now_ns - last_ns > timeout_ns:
             prev, self.pending, self.offset, self.rate = None, None, (0.0, 0.0), (0.0, 0.0)
+            self.rate_known = False
         if not (math.isfinite(roll) and math.isfinite(pitch)):
             return "range: roll or pitch not finite"
         for axis, v in (("roll", roll), ("pitch", pitch)):
@@ -133,14 +141,23 @@ class AttitudeTrack:
     ) -> str:
         """The jump test against the previous sample, and the judgement of a jump by the sample after it:
         back near where the MRU would have been without it (extrapolated by its rate) is a spike (this
-        sample passes); near the jumped-to values is a step that stayed, added to `offset`."""
+        sample passes); near the jumped-to values is a step that stayed, added to `offset`. Before the
+        MRU's rate is known (its first samples) a jump is only a jump: an offset needs the extrapolation,
+        else the motion of the first samples would count as a step."""
         dt = dt_ns / NS
+        if dt > 0.0:  # (a link that batches delivers some samples together: the mean keeps the spacing)
+            self.interval_s = (
+                dt if not self.interval_s else self.interval_s + INTERVAL_GAIN * (dt - self.interval_s)
+            )
+        dt = max(dt, self.interval_s)
         if utc_s is not None and prev[2] is not None:
             step = utc_step_s(prev[2], utc_s)
             if step > 0.0:
                 dt = step
+        if dt <= 0.0:
+            return ""  # (the first two samples at once, without times: no spacing to judge a change by)
         pending, self.pending = self.pending, None
-        if pending is not None:
+        if pending is not None and self.rate_known:
             expected, jumped, rate = pending
             here = (expected[0] + rate[0] * dt, expected[1] + rate[1] * dt)
             back = max(abs(roll - here[0]), abs(pitch - here[1]))
@@ -151,7 +168,7 @@ class AttitudeTrack:
                 self.offset[0] + jumped[0] - expected[0],
                 self.offset[1] + jumped[1] - expected[1],
             )
-            self.rate = ((roll - prev[0]) / dt, (pitch - prev[1]) / dt) if dt > 0.0 else self.rate
+            self.rate = ((roll - prev[0]) / dt, (pitch - prev[1]) / dt)
             return ""
         limit = lim.jump_rad + lim.rate_rad_s * dt
         for axis, v, before in (("roll", roll, prev[0]), ("pitch", pitch, prev[1])):
@@ -163,6 +180,5 @@ class AttitudeTrack:
                     f"jump: {axis} changed {(v - before) / DEG:+.2f}° in {dt:.2g} s "
                     f"(limit {limit / DEG:.2g}°)"
                 )
-        if dt > 0.0:
-            self.rate = ((roll - prev[0]) / dt, (pitch - prev[1]) / dt)
+        self.rate, self.rate_known = ((roll - prev[0]) / dt, (pitch - prev[1]) / dt), True
         return ""
