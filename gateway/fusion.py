@@ -12,6 +12,13 @@ Pure numerics (no I/O, no clocks: times come with the data), shared by the live 
   rotation): p_ref = p_antenna − [R_zyx(φ, θ, ψ)(x, y, z)]_NE, which takes out the wave-frequency motion a
   high antenna makes as the vessel rolls and pitches. The attitude is paired with the fix like the
   heading (the sample received closest in time, within its source's timeout); with none, heading only.
+  **Sensor time.** When both the fix (GGA/GNS) and the MRU's sentence (PASHR) carry their own UTC time of
+  day, the attitude is instead taken at the fix's own time, linearly interpolated between the two MRU
+  samples around it (`_at_sensor_time`; ``pair_by_sensor_time``): a receiver's fix leaves it ~0.1 s after
+  its epoch while an MRU's sample leaves within ~0.01 s, and pairing by receive time leaves that
+  difference × the roll rate in every fix (docs/gateway.md, "Pairing by sensor time"). Both clocks must
+  be GNSS time (an MRU aided by the same receiver, as a DP MRU is). Without a time on either side, or
+  without two MRU samples within `ATTITUDE_INTERP_GAP_S` around the fix's time: receive time as above.
 - **Held measurements.** The observer runs on the latest measurement of each DOF, held until it is older
   than its source's timeout; then that DOF is missing (dead reckoning). Holding matters: the passive
   observer is a continuous-time filter, and seeing a 1 Hz fix only at the instant it arrives would cut the
@@ -58,6 +65,7 @@ from numpy.typing import ArrayLike, NDArray
 from observers.hull import apparent_wind_body
 from observers.kinematics import lever_arm_ned, ssa_scalar
 from observers.vessel import Thruster, VesselModel
+from wire.codecs.nmea_time import utc_step_s
 from wire.geodesy import LocalFrame
 from wire.gst_covariance import unit_shape
 
@@ -67,6 +75,9 @@ HEADING_HISTORY_NS = 5 * NS
 HEADING_HISTORY_MAX = 512  # and at most this many (a 50 Hz gyro fills 250 in 5 s; replay feeds far faster)
 ATTITUDE_HISTORY_NS = 5 * NS
 ATTITUDE_HISTORY_MAX = 512  # an MRU at 100 Hz fills 500 in 5 s
+ATTITUDE_INTERP_GAP_S = 0.5
+"""Pairing by sensor time interpolates between two MRU samples at most this far apart (s): an MRU sends at
+5-100 Hz, so a wider gap is a dropout, across which the roll is not a straight line."""
 FEEDBACK_TIMEOUT_NS = 2 * NS
 """Thruster feedback older than this is not used for τ (the demand is, as without feedback)."""
 
@@ -158,8 +169,11 @@ class Fusion:
         self._tau_demand = _read_only(np.zeros(3))
         self._thrust_demand: tuple[list[float], list[float]] | None = None  # (thrust, azimuth) per thruster
         self._wind: dict[str, tuple[Held, float, str]] = {}  # source -> (u as a Held, v, reference R/T)
-        # MRU attitude: source -> (priority, valid_ns, history of (rx_ns, roll, pitch))
-        self._attitude: dict[str, tuple[int, int, deque[tuple[int, float, float]]]] = {}
+        # MRU attitude: source -> (priority, valid_ns, history of (rx_ns, roll, pitch, UTC s of day or None))
+        self._attitude: dict[str, tuple[int, int, deque[tuple[int, float, float, float | None]]]] = {}
+        self.pair_by_sensor_time = True
+        """Pair a fix and an attitude by their own UTC times where both have one (`attitude_at`); False:
+        by receive time always (``[integrity] attitude_time = "receive"``)."""
         self.last_compensation = ""
         """How the last fix with a lever arm was compensated: ``"attitude"`` (R_zyx(φ, θ, ψ), the MRU source
         in `attitude_source`), ``"heading"`` (J(ψ) only) or ``""`` (none yet, or no lever arm)."""
@@ -239,14 +253,22 @@ class Fusion:
     # --- attitude (MRU) ----------------------------------------------------------------------------------
 
     def add_attitude(
-        self, rx_ns: int, roll_rad: float, pitch_rad: float, source: str, priority: int, valid_ns: int
+        self,
+        rx_ns: int,
+        roll_rad: float,
+        pitch_rad: float,
+        source: str,
+        priority: int,
+        valid_ns: int,
+        utc_s: float | None = None,
     ) -> None:
-        """A motion reference unit's roll φ (starboard down +) and pitch θ (bow up +), rad."""
+        """A motion reference unit's roll φ (starboard down +) and pitch θ (bow up +), rad, that passed its
+        source's tests; ``utc_s``: the sentence's own UTC time of day (PASHR), None without one."""
         entry = self._attitude.get(source)
         if entry is None:
             entry = self._attitude[source] = (priority, valid_ns, deque(maxlen=ATTITUDE_HISTORY_MAX))
         history = entry[2]
-        history.append((rx_ns, roll_rad, pitch_rad))
+        history.append((rx_ns, roll_rad, pitch_rad, utc_s))
         while history and rx_ns - history[0][0] > ATTITUDE_HISTORY_NS:
             history.popleft()
 
@@ -254,9 +276,11 @@ class Fusion:
         """An attitude source's data may not be used: forget what it sent."""
         self._attitude.pop(source, None)
 
-    def attitude_at(self, t_ns: int) -> tuple[float, float, str] | None:
+    def attitude_at(self, t_ns: int, utc_s: float | None = None) -> tuple[float, float, str] | None:
         """(roll, pitch, source) received closest in time to t (the same cycle as a fix) from the
-        best-ranked attitude source that has one within its timeout of t; None if none has."""
+        best-ranked attitude source that has one within its timeout of t; None if none has. With the fix's
+        own UTC time of day ``utc_s`` (and `pair_by_sensor_time`), the chosen source's attitude at that
+        time (`_at_sensor_time`) where its samples carry times around it."""
         best: tuple[int, float, float, float, str] | None = None  # (priority, |dt|, roll, pitch, source)
         for source, (priority, valid_ns, history) in self._attitude.items():
             if best is not None and priority > best[0]:
@@ -264,29 +288,41 @@ class Fusion:
             found = _nearest_in_time(history, t_ns)
             if found is None or found[0] > valid_ns:
                 continue
-            found_dt, (_, roll, pitch) = found
+            found_dt, (_, roll, pitch, _) = found
             if best is None or (priority, found_dt) < best[:2]:
                 best = (priority, found_dt, roll, pitch, source)
-        return None if best is None else (best[2], best[3], best[4])
+        if best is None:
+            return None
+        if utc_s is not None and self.pair_by_sensor_time:
+            at = _at_sensor_time(self._attitude[best[4]][2], utc_s)
+            if at is not None:
+                return at[0], at[1], best[4]
+        return best[2], best[3], best[4]
 
     # --- position -----------------------------------------------------------------------------------------
 
     def reference_position(
-        self, rx_ns: int, lat_deg: float, lon_deg: float, lever_arm_m: tuple[float, float, float]
+        self,
+        rx_ns: int,
+        lat_deg: float,
+        lon_deg: float,
+        lever_arm_m: tuple[float, float, float],
+        utc_s: float | None = None,
     ) -> tuple[float, float] | None:
         """A GNSS fix of an antenna as the reference point's NED position (the datum is set by the first
         fix if none); None when a lever arm has no heading of the same cycle to be compensated with.
 
         p_ref = p_antenna − [R_zyx(φ, θ, ψ)(x, y, z)]_NE with a fresh MRU attitude (`attitude_at`), else
         p_ref = p_antenna − J(ψ)[x, y]; (x, y, z) is the lever arm from the reference point (whose z is the
-        reference point's own, 0)."""
+        reference point's own, 0). ``utc_s``: the fix's own UTC time of day (GGA, GNS), for pairing it
+        with the MRU by sensor time."""
         if self._datum is None:
             self._datum = LocalFrame(lat_deg, lon_deg, 0.0)
         north, east, _ = self._datum.to_ned(lat_deg, lon_deg, 0.0)
         x = lever_arm_m[0] - self.reference_point_m[0]
         y = lever_arm_m[1] - self.reference_point_m[1]
         z = lever_arm_m[2]
-        attitude = self.attitude_at(rx_ns) if self._attitude and (x or y or z) else None
+        attitude = self.attitude_at(rx_ns, utc_s) if self._attitude and (x or y or z) else None
         if attitude is not None:
             psi = self.heading_at(rx_ns)
             if math.isnan(psi):
@@ -661,3 +697,28 @@ def _nearest_in_time(history: Sequence[tuple[Any, ...]], t_ns: int) -> tuple[int
             break
         best = (dt, entry)
     return best
+
+
+def _at_sensor_time(
+    history: Sequence[tuple[int, float, float, float | None]], utc_s: float
+) -> tuple[float, float] | None:
+    """(roll, pitch) at the UTC time of day ``utc_s``, linearly interpolated between the two samples of a
+    time-ordered MRU history whose own times (the 4th item) lie on either side of it, at most
+    `ATTITUDE_INTERP_GAP_S` apart (a sample at exactly that time is taken as it is); None when there are
+    none such (no times, the fix's time past the newest sample, a gap). Steps between times of day are
+    taken modulo a day (`utc_step_s`), so midnight is no gap. Walks back from the newest sample."""
+    after: tuple[float, float, float] | None = None  # (step from the fix's time ≥ 0, roll, pitch)
+    for _, roll, pitch, t in reversed(history):
+        if t is None:
+            return None
+        step = utc_step_s(utc_s, t)
+        if step >= 0.0:
+            after = (step, roll, pitch)
+            if step == 0.0:
+                return roll, pitch
+            continue
+        if after is None or after[0] - step > ATTITUDE_INTERP_GAP_S:
+            return None
+        w = -step / (after[0] - step)  # the weight of the later sample
+        return roll + w * (after[1] - roll), pitch + w * (after[2] - pitch)
+    return None

@@ -59,6 +59,7 @@ from observers.vessel import VesselModel
 from wire.codecs import mavlink as mv
 from wire.codecs import nmea as nmea_codec
 from wire.codecs.nmea_framing import NmeaFramer
+from wire.codecs.nmea_time import utc_step_s
 from wire.foxglove import ellipsoidal_height_m, location_fix
 from wire.geodesy import LocalFrame
 from wire.gst_covariance import INCONSISTENT, GstCovariance, gst_covariance, unit_shape
@@ -316,7 +317,9 @@ class Pipeline:
             by_role("heading"),
             by_role("thrusters"),
             {t.id: t for t in spec.vessel.thrusters},
+            by_role("attitude"),
         )
+        self.fusion.pair_by_sensor_time = ip.attitude_time == "sensor"
         self._events: list[str] = []  # reference state changes not yet in a status
         self._startup_events: list[str] = []  # said once, in the first status
         self.thrusters_out: dict[int, str] = {}  # thruster id -> why its drive does not take DP commands
@@ -654,7 +657,7 @@ class Pipeline:
             if s.alt_m is not None and self._foxglove_on:  # (the height goes only on the LocationFix)
                 self._fix_alt_m[spec.name] = ellipsoidal_height_m(s.alt_m, s.geoid_sep_m)
             quality = s.quality if kind is nmea_codec.Gga else None
-            return self._use_position(spec, rx_ns, s.lat_deg, s.lon_deg, quality, out)
+            return self._use_position(spec, rx_ns, s.lat_deg, s.lon_deg, quality, out, s.time_s)
         if kind is nmea_codec.Heading:
             if "heading" in spec.roles and s.valid and s.heading_rad is not None:
                 return self._use_heading(spec, rx_ns, s.heading_rad)
@@ -662,9 +665,7 @@ class Pipeline:
         if kind is nmea_codec.Attitude:
             if "attitude" in spec.roles:
                 if s.valid:
-                    self.fusion.add_attitude(
-                        rx_ns, s.roll_rad, s.pitch_rad, spec.name, spec.priority, spec.timeout_ns
-                    )
+                    self._use_attitude(spec, rx_ns, s)
                 else:  # an empty roll or pitch: the MRU says it has no measurement
                     self.counters[spec.name].rejected["attitude_invalid"] += 1
             return False
@@ -704,10 +705,8 @@ class Pipeline:
         last fix is older than that, the next one starts the time afresh (and the jump test judges its
         position)."""
         last = self._fix_time.get(spec.name)
-        if last is not None and rx_ns - last[1] <= spec.timeout_ns:
-            step = (time_s - last[0] + 43_200.0) % 86_400.0 - 43_200.0
-            if step < 0.0:
-                return True
+        if last is not None and rx_ns - last[1] <= spec.timeout_ns and utc_step_s(last[0], time_s) < 0.0:
+            return True
         self._fix_time[spec.name] = (time_s, rx_ns)
         return False
 
@@ -778,11 +777,19 @@ class Pipeline:
             del self._parser_skipped[key]
 
     def _use_position(
-        self, spec: SourceSpec, rx_ns: int, lat: float, lon: float, quality: int | None, out: list[Output]
+        self,
+        spec: SourceSpec,
+        rx_ns: int,
+        lat: float,
+        lon: float,
+        quality: int | None,
+        out: list[Output],
+        utc_s: float | None = None,
     ) -> bool:
         """A fix through the source's tests (`gateway.references`), then into the fusion if it passes. True
-        when the observer should step (also for a rejected fix: the estimate goes on at the source's rate)."""
-        ned = self.fusion.reference_position(rx_ns, lat, lon, spec.lever_arm_m)
+        when the observer should step (also for a rejected fix: the estimate goes on at the source's rate).
+        ``utc_s``: the fix's own UTC time of day (GGA, GNS), which pairs it with the MRU by sensor time."""
+        ned = self.fusion.reference_position(rx_ns, lat, lon, spec.lever_arm_m, utc_s)
         if ned is None:
             return False  # a lever arm without a heading of the same cycle cannot be compensated
         if self._attitude_sources:
@@ -801,6 +808,24 @@ class Pipeline:
             self.fusion.drop_position(spec.name)
         return True
 
+    def _use_attitude(self, spec: SourceSpec, rx_ns: int, s: nmea_codec.Attitude) -> None:
+        """An MRU's roll and pitch through its tests (`ReferenceMonitor.attitude`): into the fusion if they
+        may be used. A failing sample is counted by test (``test_attitude_jump``, …) and not used; while
+        the MRU is rejected or readmitting its attitude is forgotten (the lever arm falls back to heading
+        only, as when the MRU is stale)."""
+        roll, pitch = s.roll_rad, s.pitch_rad
+        assert roll is not None and pitch is not None  # (``valid``)
+        sigmas = (s.roll_sigma_rad, s.pitch_sigma_rad)
+        if self.monitor.attitude(spec.name, rx_ns, roll, pitch, s.time_s, sigmas):
+            self.fusion.add_attitude(rx_ns, roll, pitch, spec.name, spec.priority, spec.timeout_ns, s.time_s)
+            return
+        why = self.monitor.attitude_problem(spec.name)  # ("" for a passing sample while readmitting)
+        if why:
+            word = why.split(":")[0].split(" ")[0].lower() or "failed"
+            self.counters[spec.name].rejected[f"test_attitude_{word}"] += 1
+        if not self.monitor.attitude_usable(spec.name):
+            self.fusion.drop_attitude(spec.name)  # (else one sample dropped: the good ones around it stay)
+
     def _note_compensation(self, source: str) -> None:
         """Count how a fix's lever arm was compensated (`Fusion.reference_position`: ``attitude`` with the
         MRU's roll and pitch, ``heading`` alone while no attitude is fresh) and say in the status when
@@ -816,7 +841,15 @@ class Pipeline:
                 text = f"lever-arm compensation: roll and pitch from {self.fusion.attitude_source} (MRU) on"
             else:
                 names = ", ".join(self._attitude_sources)
+                why = "; ".join(
+                    f"{n} {st.state}: {st.reason}"
+                    for n in self._attitude_sources
+                    for st in self.monitor.states().get(n, ())
+                    if st.role == "attitude" and st.state in ("rejected", "suspect")
+                )
                 text = f"lever-arm compensation: heading only (no fresh attitude from {names})"
+                if why:
+                    text = f"lever-arm compensation: heading only (attitude not trusted: {why})"
             self._events.append(text)
             self._compensation_said = how
 

@@ -15,7 +15,8 @@ kind                 effect                                        params
                      the window repeats; sentences keep flowing
                      with advancing times
 ``jump``             a step added to the reported value for the    ``north_m``, ``east_m`` (GNSS);
-                     whole window                                  ``heading_rad`` (gyro); at least one
+                     whole window (a window of one sample is a     ``heading_rad`` (gyro); ``roll_rad``,
+                     spike, a long one an offset)                  ``pitch_rad`` (MRU); at least one
 ``noise_burst``      extra white noise on top of the normal noise  ``sigma_m`` (GNSS, per axis),
                                                                    ``sigma_rad`` (gyro); at least one
 ``bad_checksum``     sentences go out with a wrong NMEA checksum   ``probability`` per emission (default 1)
@@ -105,7 +106,7 @@ _PARAMS: dict[str, dict[str, float | None]] = {
     # name -> default (None: optional, no default)
     "dropout": {},
     "frozen": {},
-    "jump": {"north_m": None, "east_m": None, "heading_rad": None},
+    "jump": {"north_m": None, "east_m": None, "heading_rad": None, "roll_rad": None, "pitch_rad": None},
     "noise_burst": {"sigma_m": None, "sigma_rad": None},
     "bad_checksum": {"probability": 1.0},
     "garbage": {"probability": 1.0, "max_bytes": 40.0},

@@ -925,7 +925,8 @@ class Mru(_Sampled[MruConfig, tuple[float, float, float, float]], Sensor):
     """A motion reference unit (see `MruConfig`), free-running at ``start + k / rate_hz``: the state's
     wave-frequency roll and pitch (``ShipState.attitude``, dpgw's signs: starboard down, bow up) plus white
     noise, as PHTRO or PASHR (the sentence carries the signs its maker uses: `wire.codecs.nmea_encode`).
-    Faults: ``dropout`` and ``frozen`` (`_Sampled`), the ones a stale or stuck MRU shows."""
+    Faults: ``dropout`` and ``frozen`` (`_Sampled`), the ones a stale or stuck MRU shows, and ``jump``
+    (``roll_rad``, ``pitch_rad`` added in its window: a spike for one sample, an offset for longer)."""
 
     def __init__(
         self,
@@ -990,6 +991,10 @@ class Mru(_Sampled[MruConfig, tuple[float, float, float, float]], Sensor):
         cfg = self.config
         roll = phi + cfg.sigma_rad * w[0]
         pitch = theta + cfg.sigma_rad * w[1]
+        jump = self.faults.active("jump", self.source, t)
+        if jump is not None:
+            roll += jump.param("roll_rad")
+            pitch += jump.param("pitch_rad")
         heading = ssa_scalar(float(state.eta[2]) + cfg.sigma_heading_rad * w[2])
         return roll, pitch, heading, heave
 

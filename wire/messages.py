@@ -376,7 +376,9 @@ class SourceStatus(Record, kw_only=True):
 
 
 class ReferenceStatus(Record, kw_only=True):
-    role: Annotated[str, doc("What the source is tested as: `position`, `heading` or `thrusters`.")]
+    role: Annotated[
+        str, doc("What the source is tested as: `position`, `heading`, `thrusters` or `attitude` (an MRU).")
+    ]
     state: Annotated[
         Literal["ok", "suspect", "rejected", "stale"],
         doc(

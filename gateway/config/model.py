@@ -31,6 +31,7 @@ CONTROL_MODES = ("standby", "dp", "manual")
 COMMAND_INPUTS = ("mode", "setpoint", "tau")
 ALLOCATORS = ("qp", "pseudo_inverse")
 POOLINGS = ("weighted", "priority")
+ATTITUDE_TIMES = ("sensor", "receive")
 FEEDBACKS = ("estimate", "measurement")
 CLOCKS = ("wall", "sim")
 BAUD_RATES = (
@@ -373,6 +374,31 @@ class IntegrityConfig:
     feedback_rejects: int = 3
     """This many out-of-range feedback frames within ``readmit_s`` make the feedback source suspect: τ for
     the observer comes from the demand until it has been clean for ``readmit_s``."""
+    attitude_max_deg: float = 30.0
+    """An MRU's |roll| or |pitch| beyond this is out of range. A vessel rolling 30° is far past any DP
+    operation's limit and near capsize for most hulls; a sentence saying so is a fault (an MRU mounted or
+    configured wrongly, a unit still aligning)."""
+    attitude_max_rate_deg_s: float = 20.0
+    """Fastest plausible roll or pitch rate: roll φ = φₐ sin(2πt/T) turns at most φₐ 2π/T, and ±20° at a
+    6 s period (a stiff small vessel in a beam sea, far past DP limits) is 21°/s. At 10 Hz, 2° a sample."""
+    attitude_jump_deg: float = 1.0
+    """Allowance on top of rate × time between consecutive MRU samples (a DP MRU is good to 0.01-0.05°,
+    a sentence rounds to 0.01°): with the rate, 3° between samples at 10 Hz."""
+    attitude_freeze_s: float = 2.0
+    """An MRU repeating the same roll and pitch exactly (the decoded values, bit for bit) this long is
+    frozen: at sea the hull always moves, and even in a flat-calm basin an MRU's own noise (0.01-0.02°)
+    moves the last of its two decimals; a quieter MRU in a basin may need a longer time."""
+    attitude_max_sigma_deg: float = 0.5
+    """An MRU reporting its own roll or pitch 1σ (PASHR fields 7-8) above this is not trusted: a DP MRU
+    reports 0.01-0.05°; an INS still aligning or unaided reports degrees. 0.5° on a 25 m mast is 0.2 m."""
+    attitude_rejects: int = 3
+    """An MRU sample that fails a test is never used; this many within ``readmit_s`` reject the MRU (heading
+    only until it has passed for ``readmit_s``). One spike (one failing sample) is dropped while the
+    samples around it go on compensating; a frozen, offset or out-of-range MRU is out on its third."""
+    attitude_time: str = "sensor"
+    """How an attitude is paired with a fix: ``sensor`` (by both sentences' own UTC times where both have
+    one: PASHR and GGA/GNS; else by receive time) or ``receive`` (by receive time always: for an MRU whose
+    clock is not GNSS time)."""
 
 
 @dataclass(frozen=True)

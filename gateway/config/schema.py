@@ -30,6 +30,7 @@ from pydantic_core import PydanticCustomError
 from gateway.config.defaults import DEFAULTS
 from gateway.config.model import (
     ALLOCATORS,
+    ATTITUDE_TIMES,
     CLOCKS,
     COMPRESSIONS,
     CONTROL_MODES,
@@ -489,6 +490,13 @@ class IntegrityTable(_Section):
     dead_reckoning_rate_hz: float = number(_I["dead_reckoning_rate_hz"], lo=0.1, hi=100.0, unit="Hz")
     thrust_margin: float = number(_I["thrust_margin"], lo=1.0, hi=10.0)
     feedback_rejects: int = integer(_I["feedback_rejects"], lo=1)
+    attitude_max_deg: float = _positive("attitude_max_deg", "deg", 90.0)
+    attitude_max_rate_deg_s: float = _positive("attitude_max_rate_deg_s", "deg/s")
+    attitude_jump_deg: float = _positive("attitude_jump_deg", "deg", 180.0)
+    attitude_freeze_s: float = _positive("attitude_freeze_s", "s")
+    attitude_max_sigma_deg: float = _positive("attitude_max_sigma_deg", "deg", 90.0)
+    attitude_rejects: int = integer(_I["attitude_rejects"], lo=1)
+    attitude_time: str = choice(_I["attitude_time"], ATTITUDE_TIMES)
 
 
 _CMD = DEFAULTS["commands"]

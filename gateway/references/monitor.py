@@ -5,7 +5,8 @@ Every fix goes through, in order (the first failure rejects it, with that reason
 quality → jump/rate (against the source's last good value, allowance + speed × time) → freeze → variance →
 prediction (against the observer's prediction, gated by the expected spread) → median of ≥ 3 references.
 With exactly two references of a role their divergence raises a soft alarm on both (still used: nobody can
-tell which is wrong). A rejected source is used again after passing for ``readmit_s``.
+tell which is wrong). A rejected source is used again after passing for ``readmit_s``. An MRU's roll and
+pitch (role ``attitude``) have tests of their own (`gateway.references.attitude`) and the same states.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Literal, NamedTuple
 
+from gateway.references.attitude import AttitudeLimits, AttitudeTrack
 from gateway.references.feedback import feedback_problem
 from gateway.references.params import IntegrityParams
 from gateway.references.state import NS, OK, STALE, SourceState, StateChange
@@ -100,8 +102,9 @@ class ReferenceMonitor:
         headings: Mapping[str, int],
         feedback: Mapping[str, int] | None = None,
         thrusters: Mapping[int, Thruster] | None = None,
+        attitudes: Mapping[str, int] | None = None,
     ) -> None:
-        """``positions``, ``headings``, ``feedback``: source name → its timeout (ns)."""
+        """``positions``, ``headings``, ``feedback``, ``attitudes``: source name → its timeout (ns)."""
         self.p = params
         readmit = int(params.readmit_s * NS)
         p = params
@@ -142,12 +145,19 @@ class ReferenceMonitor:
             },
         }
         self._feedback = {n: SourceState(n, "thrusters", readmit) for n in (feedback or {})}
+        self._attitude_limits = AttitudeLimits.of(params)
+        self._attitude = {
+            n: (SourceState(n, "attitude", readmit), AttitudeTrack(), t) for n, t in (attitudes or {}).items()
+        }
+        self._attitude_rejects: dict[str, deque[int]] = {n: deque() for n in self._attitude}
+        self._attitude_why: dict[str, str] = {}
         for refs in self._refs.values():
             for r in refs.values():
                 r.alone = len(refs) == 1
         # flat lists for what runs on every event: staleness, state changes, health
         self._all_refs = [r for refs in self._refs.values() for r in refs.values()]
         self._all_states = [r.state for r in self._all_refs] + list(self._feedback.values())
+        self._all_states += [a[0] for a in self._attitude.values()]
         self._role_states = {role: [r.state for r in refs.values()] for role, refs in self._refs.items()}
         self._weight_floor = {"position": p.min_sigma_m, "heading": math.radians(0.05)}
         self._feedback_rejects: dict[str, deque[int]] = {n: deque() for n in self._feedback}
@@ -287,6 +297,48 @@ class ReferenceMonitor:
             ref.state.soft(now_ns, "")
         return True
 
+    # --- attitude (MRU) ----------------------------------------------------------------------------------
+
+    def attitude(
+        self,
+        source: str,
+        now_ns: int,
+        roll: float,
+        pitch: float,
+        utc_s: float | None = None,
+        sigmas: tuple[float | None, float | None] = (None, None),
+    ) -> bool:
+        """Test one MRU sample (rad; `AttitudeTrack.problem`). Returns whether it may be used: it passed,
+        and the source is not rejected or readmitting. A failing sample is never used; it rejects the
+        source when ``attitude_rejects`` samples failed within ``readmit_s`` (or when the source is
+        rejected or readmitting already): an MRU sends 10-100 samples a second, and one outlier (a spike)
+        is dropped while its neighbours go on compensating the fixes, where taking the MRU out for
+        ``readmit_s`` would switch every fix to heading only and back (which costs the observer a
+        transient, docs/integrity.md). A frozen, offset or out-of-range MRU fails every sample and is
+        rejected on the third."""
+        st, track, timeout_ns = self._attitude[source]
+        why = track.problem(self._attitude_limits, now_ns, timeout_ns, roll, pitch, utc_s, sigmas)
+        recent = self._attitude_rejects[source]
+        while recent and now_ns - recent[0] > st.readmit_ns:
+            recent.popleft()
+        if why:
+            recent.append(now_ns)
+            if len(recent) >= self.p.attitude_rejects or st.state not in (OK, STALE):
+                st.fail(now_ns, why)
+            self._attitude_why[source] = why
+            return False
+        self._attitude_why[source] = ""
+        st.passed(now_ns)
+        return st.usable
+
+    def attitude_problem(self, source: str) -> str:
+        """Why the MRU's latest sample failed (its test's name first); "" when it passed."""
+        return self._attitude_why.get(source, "")
+
+    def attitude_usable(self, source: str) -> bool:
+        """The MRU is in use: neither rejected, readmitting nor stale."""
+        return self._attitude[source][0].usable
+
     # --- thruster feedback -------------------------------------------------------------------------------
 
     def feedback(
@@ -327,6 +379,10 @@ class ReferenceMonitor:
             last = r.track.last_ns
             if last and now_ns - last > r.timeout_ns:
                 r.state.stale(now_ns, (now_ns - last) / NS)
+        for st, track, timeout_ns in self._attitude.values():
+            last = track.rx_ns
+            if last and now_ns - last > timeout_ns:
+                st.stale(now_ns, (now_ns - last) / NS)
 
     def usable(self, role: str, source: str) -> bool:
         r = self._refs[role].get(source)
@@ -391,6 +447,8 @@ class ReferenceMonitor:
                 out.setdefault(n, []).append(r.state)
         for n, st in self._feedback.items():
             out.setdefault(n, []).append(st)
+        for n, (st, _, _) in self._attitude.items():
+            out.setdefault(n, []).append(st)
         return out
 
     def drain(self) -> list[StateChange]:
@@ -404,6 +462,8 @@ class ReferenceMonitor:
         return sorted(changes, key=lambda c: c.stamp_ns)
 
     def reason(self, role: str, source: str) -> str:
+        if role == "attitude":
+            return self._attitude[source][0].reason
         return self._refs[role][source].state.reason
 
     def is_stale(self, role: str, source: str) -> bool:

@@ -59,3 +59,15 @@ def time_of_day_or_none(field: str) -> float | None:
         return parse_time_of_day(field)
     except ValueError:
         return None
+
+
+HALF_DAY_S = 43_200.0
+
+
+def utc_step_s(from_s: float, to_s: float) -> float:
+    """The signed step (s) from one UTC time of day to another, taken modulo a day into [−12 h, 12 h):
+    23:59:59.9 → 00:00:00.1 is +0.2 s, not −86399.8 s. Two times of day of sentences received within
+    hours of each other (a fix and the one before it, a fix and an MRU sample) are ordered and spaced by
+    this without a date: the one comparison of NMEA times the gateway makes (the fix time-order test,
+    pairing an MRU sample with a fix by their own times)."""
+    return (to_s - from_s + HALF_DAY_S) % 86_400.0 - HALF_DAY_S

@@ -1,0 +1,184 @@
+"""The tests of a motion reference unit's (MRU's) roll and pitch before the lever-arm compensation uses
+them (`gateway.fusion`): one wrong attitude moves a high antenna's reference point by the arm × the angle
+(25 m × 5° ≈ 2.2 m), so an MRU is judged like a position or heading reference (docs/integrity.md, "The
+MRU's attitude").
+
+Every sample goes through, in order (the first failure rejects it, with that reason):
+
+- **range**: |φ| or |θ| above ``attitude_max_deg``, or not finite (such a sample is not remembered as the
+  previous one of the jump and freeze tests).
+- **sigma** (PASHR only): the MRU's own 1σ of roll or pitch above ``attitude_max_sigma_deg`` (an INS
+  aligning or unaided says so there). PASHR's aiding and IMU status flags are not used: roll and pitch are
+  referenced to gravity and stay good without GNSS aiding, and makers give the IMU flag opposite meanings.
+- **jump**: the change from the source's previous sample beyond ``attitude_jump_deg +
+  attitude_max_rate_deg_s × Δt`` on either axis, Δt between the two samples' own UTC times where both
+  have one (PASHR), else between their receive times but at least their mean interval (a link that
+  batches delivers two samples at once). Against the previous sample, not the last good one:
+  roll is continuous, so a spike or a step to an offset fails where it jumps; a limit growing with the
+  time since the last good sample would let a spike's value back within a fraction of a second.
+- **offset**: the sample after a jump tells a spike from a step. Back near where the MRU would have been
+  without the jump (the sample before it moved on at its rate), it was a spike, over; near the jumped-to
+  values (moved on likewise), the step stayed: it is added to the MRU's offset, and while the offset
+  exceeds ``attitude_jump_deg`` every sample fails, until the MRU steps back (the offset sums to ~0) or
+  falls silent longer than its timeout (restarted: its tests start afresh). A roll cannot step, so an
+  MRU that stepped and stayed is wrong on one side of the step; which side, one MRU cannot tell, and the
+  side after it is the one that is not trusted.
+- **freeze**: the same decoded roll and pitch, exactly, for ``attitude_freeze_s`` (an MRU repeating a
+  buffer). Exact repetition, not small motion: a vessel in a flat-calm basin may hardly move, but the MRU's
+  own noise still moves its last digit.
+
+A rejected MRU is used again after passing for ``readmit_s`` (`SourceState`). What no test of one MRU can
+see: an offset that grows slowly, or one present from the start (it needs a second MRU to compare with).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from gateway.references.params import IntegrityParams
+from gateway.references.state import NS
+from wire.codecs.nmea_time import utc_step_s
+
+DEG = math.pi / 180.0
+INTERVAL_GAIN = 0.1
+"""Gain of the mean receive interval of an MRU's samples (about the last ten): without sensor times the
+jump test's Δt is at least that mean, so two samples a link delivers together (the same receive time)
+are allowed the change of one sample interval, not of none."""
+
+
+@dataclass(frozen=True)
+class AttitudeLimits:
+    """The ``[integrity]`` attitude thresholds in rad, rad/s and ns, worked out once."""
+
+    max_rad: float
+    rate_rad_s: float
+    jump_rad: float
+    freeze_ns: int
+    max_sigma_rad: float
+
+    @classmethod
+    def of(cls, p: IntegrityParams) -> AttitudeLimits:
+        return cls(
+            max_rad=p.attitude_max_deg * DEG,
+            rate_rad_s=p.attitude_max_rate_deg_s * DEG,
+            jump_rad=p.attitude_jump_deg * DEG,
+            freeze_ns=int(p.attitude_freeze_s * NS),
+            max_sigma_rad=p.attitude_max_sigma_deg * DEG,
+        )
+
+
+class AttitudeTrack:
+    """What the tests of one MRU remember: its previous sample, its latest rate, since when its values
+    repeat, the sample before a jump not yet judged, and the steps that stayed (an offset)."""
+
+    def __init__(self) -> None:
+        self.rx_ns = 0  # receive time of the latest sample, whatever it was (0: none yet): for staleness
+        self.last_ns = 0  # receive time of the previous sample judged possible (in range)
+        self.prev: tuple[float, float, float | None] | None = None  # (roll, pitch, UTC s of day)
+        self.rate = (0.0, 0.0)  # (roll, pitch) rate between the last two samples that did not jump, rad/s
+        self.same_since_ns = 0
+        # after a failed jump: (roll, pitch) expected had there been none (the sample before it moved on by
+        # its rate to the jump's time), the jumped-to values, and the rate; judged by the next sample
+        self.pending: tuple[tuple[float, float], tuple[float, float], tuple[float, float]] | None = None
+        self.offset = (0.0, 0.0)  # the sum of the steps that stayed (roll, pitch), rad
+        self.interval_s = 0.0  # mean receive interval (EMA) of the MRU's samples, s
+        self.rate_known = False  # `rate` measured (two samples that did not jump): a jump can be judged
+
+    def problem(
+        self,
+        lim: AttitudeLimits,
+        now_ns: int,
+        timeout_ns: int,
+        roll: float,
+        pitch: float,
+        utc_s: float | None = None,
+        sigmas: tuple[float | None, float | None] = (None, None),
+    ) -> str:
+        """Why this sample may not be used ("" if it may), its reason starting with the test's name
+        (module docstring). Remembers the sample for the next one's tests; after a silence longer than
+        ``timeout_ns`` (the MRU restarted, or the link) the jump, offset and freeze tests start afresh."""
+        prev, last_ns = self.prev, self.last_ns
+        self.rx_ns = now_ns
+        if prev is not None and now_ns - last_ns > timeout_ns:
+            prev, self.pending, self.offset, self.rate = None, None, (0.0, 0.0), (0.0, 0.0)
+            self.rate_known = False
+        if not (math.isfinite(roll) and math.isfinite(pitch)):
+            return "range: roll or pitch not finite"
+        for axis, v in (("roll", roll), ("pitch", pitch)):
+            if abs(v) > lim.max_rad:  # (not remembered: the next sample is judged against a possible one)
+                return f"range: {axis} {v / DEG:.1f}° beyond ±{lim.max_rad / DEG:g}°"
+        if prev is None or (roll, pitch) != prev[:2]:
+            self.same_since_ns = now_ns
+        self.prev, self.last_ns = (roll, pitch, utc_s), now_ns
+        for axis, sigma in zip(("roll", "pitch"), sigmas, strict=True):
+            if sigma is not None and sigma > lim.max_sigma_rad:
+                return (
+                    f"sigma: the MRU reports its {axis} 1σ as {sigma / DEG:.3g}° "
+                    f"(limit {lim.max_sigma_rad / DEG:g}°)"
+                )
+        if prev is not None:
+            why = self._jump(lim, now_ns - last_ns, roll, pitch, prev, utc_s)
+            if why:
+                return why
+        off = max(self.offset, key=abs)
+        if abs(off) > lim.jump_rad:
+            axis = "roll" if off == self.offset[0] else "pitch"
+            return f"offset: {axis} stepped {off / DEG:+.2f}° and stayed (in use again once it steps back)"
+        frozen_ns = now_ns - self.same_since_ns
+        if frozen_ns >= lim.freeze_ns:
+            return f"freeze: the same roll and pitch for {frozen_ns / NS:.1f} s"
+        return ""
+
+    def _jump(
+        self,
+        lim: AttitudeLimits,
+        dt_ns: int,
+        roll: float,
+        pitch: float,
+        prev: tuple[float, float, float | None],
+        utc_s: float | None,
+    ) -> str:
+        """The jump test against the previous sample, and the judgement of a jump by the sample after it:
+        back near where the MRU would have been without it (extrapolated by its rate) is a spike (this
+        sample passes); near the jumped-to values is a step that stayed, added to `offset`. Before the
+        MRU's rate is known (its first samples) a jump is only a jump: an offset needs the extrapolation,
+        else the motion of the first samples would count as a step."""
+        dt = dt_ns / NS
+        if dt > 0.0:  # (a link that batches delivers some samples together: the mean keeps the spacing)
+            self.interval_s = (
+                dt if not self.interval_s else self.interval_s + INTERVAL_GAIN * (dt - self.interval_s)
+            )
+        dt = max(dt, self.interval_s)
+        if utc_s is not None and prev[2] is not None:
+            step = utc_step_s(prev[2], utc_s)
+            if step > 0.0:
+                dt = step
+        if dt <= 0.0:
+            return ""  # (the first two samples at once, without times: no spacing to judge a change by)
+        pending, self.pending = self.pending, None
+        if pending is not None and self.rate_known:
+            expected, jumped, rate = pending
+            here = (expected[0] + rate[0] * dt, expected[1] + rate[1] * dt)
+            back = max(abs(roll - here[0]), abs(pitch - here[1]))
+            stay = max(abs(roll - jumped[0] - rate[0] * dt), abs(pitch - jumped[1] - rate[1] * dt))
+            if back <= stay:
+                return ""  # a spike, over: this sample continues the motion from before it
+            self.offset = (
+                self.offset[0] + jumped[0] - expected[0],
+                self.offset[1] + jumped[1] - expected[1],
+            )
+            self.rate = ((roll - prev[0]) / dt, (pitch - prev[1]) / dt)
+            return ""
+        limit = lim.jump_rad + lim.rate_rad_s * dt
+        for axis, v, before in (("roll", roll, prev[0]), ("pitch", pitch, prev[1])):
+            if abs(v - before) > limit:
+                rate = self.rate
+                expected = (prev[0] + rate[0] * dt, prev[1] + rate[1] * dt)
+                self.pending = (expected, (roll, pitch), rate)
+                return (
+                    f"jump: {axis} changed {(v - before) / DEG:+.2f}° in {dt:.2g} s "
+                    f"(limit {limit / DEG:.2g}°)"
+                )
+        self.rate, self.rate_known = ((roll - prev[0]) / dt, (pitch - prev[1]) / dt), True
+        return ""
