@@ -78,6 +78,10 @@ ATTITUDE_HISTORY_MAX = 512  # an MRU at 100 Hz fills 500 in 5 s
 ATTITUDE_INTERP_GAP_S = 0.5
 """Pairing by sensor time interpolates between two MRU samples at most this far apart (s): an MRU sends at
 5-100 Hz, so a wider gap is a dropout, across which the roll is not a straight line."""
+SENSOR_TIME_MAX_SKEW_NS = NS // 2
+"""Pairing by sensor time takes an MRU sample only if it was received within this of the fix (0.5 s): a
+latency difference is tens to hundreds of ms; a larger gap between the sample the clocks pair and the
+one received with the fix means the clocks are not the same time, and receive time is used instead."""
 FEEDBACK_TIMEOUT_NS = 2 * NS
 """Thruster feedback older than this is not used for τ (the demand is, as without feedback)."""
 
@@ -294,7 +298,7 @@ class Fusion:
         if best is None:
             return None
         if utc_s is not None and self.pair_by_sensor_time:
-            at = _at_sensor_time(self._attitude[best[4]][2], utc_s)
+            at = _at_sensor_time(self._attitude[best[4]][2], utc_s, t_ns)
             if at is not None:
                 return at[0], at[1], best[4]
         return best[2], best[3], best[4]
@@ -700,7 +704,7 @@ def _nearest_in_time(history: Sequence[tuple[Any, ...]], t_ns: int) -> tuple[int
 
 
 def _at_sensor_time(
-    history: Sequence[tuple[int, float, float, float | None]], utc_s: float
+    history: Sequence[tuple[int, float, float, float | None]], utc_s: float, t_ns: int
 ) -> tuple[float, float] | None:
     """(roll, pitch) at the UTC time of day ``utc_s``, linearly interpolated between the two samples of a
     time-ordered MRU history whose own times (the 4th item) lie on either side of it, at most
@@ -708,16 +712,20 @@ def _at_sensor_time(
     none such (no times, the fix's time past the newest sample, a gap). Steps between times of day are
     taken modulo a day (`utc_step_s`), so midnight is no gap. Walks back from the newest sample."""
     after: tuple[float, float, float] | None = None  # (step from the fix's time ≥ 0, roll, pitch)
-    for _, roll, pitch, t in reversed(history):
+    for rx_ns, roll, pitch, t in reversed(history):
         if t is None:
             return None
         step = utc_step_s(utc_s, t)
         if step >= 0.0:
             after = (step, roll, pitch)
             if step == 0.0:
-                return roll, pitch
+                return (roll, pitch) if abs(rx_ns - t_ns) <= SENSOR_TIME_MAX_SKEW_NS else None
             continue
         if after is None or after[0] - step > ATTITUDE_INTERP_GAP_S:
+            return None
+        if abs(rx_ns - t_ns) > SENSOR_TIME_MAX_SKEW_NS:
+            # the two clocks disagree by more than any latency: the MRU's is not GNSS time (set by hand,
+            # free running), and its "same time" is another moment; receive time is then the better guess
             return None
         w = -step / (after[0] - step)  # the weight of the later sample
         return roll + w * (after[1] - roll), pitch + w * (after[2] - pitch)

@@ -352,6 +352,18 @@ def test_pairing_by_time_crosses_midnight_and_not_a_gap() -> None:
     assert f.attitude_at(T0 + S // 10, 36000.4) == pytest.approx((0.08, -0.08, "mru"))  # receive time
 
 
+def test_an_mru_clock_that_is_not_gnss_time_falls_back_to_receive_time() -> None:
+    """An MRU whose clock runs 2 s behind the receiver's (set by hand, free running): its samples "at the
+    fix's time" were received 2 s after it, so they are another moment's roll; pairing by its clock would
+    put that in the fix. Receive time is used instead."""
+    times = [36000.0 + 0.1 * k for k in range(40)]  # 4 s of samples, 10 Hz
+    rolls = [0.001 * k for k in range(40)]
+    f = fusion_with_samples(times, rolls)
+    t_fix = T0 + 5 * S // 10  # the fix received with the 6th sample, its clock says 36002.45
+    assert f.attitude_at(t_fix, 36002.45) == pytest.approx((0.005, -0.005, "mru"))  # the 6th: receive time
+    assert f.attitude_at(t_fix, 36000.45) == pytest.approx((0.0045, -0.0045, "mru"))  # same clock: its time
+
+
 def test_pipeline_pairs_a_late_fix_with_the_attitude_of_its_epoch() -> None:
     """A fix received 0.35 s after its epoch (the MRU's samples of 0.3 s later already in): by sensor
     time it lands on the reference point; by receive time it carries 0.3 s of roll motion."""
