@@ -38,6 +38,7 @@ from gateway.config import (
 )
 from gateway.control.allocation import AllocationResult, PseudoInverseAllocator, QPAllocator, ThrusterCommand
 from gateway.control.controller import ControllerTuning, DPController
+from gateway.control.wind_feedforward import observer_bias_time_s
 from gateway.esc_direction import EscDirections
 from gateway.foxglove_channels import FoxgloveChannels
 from gateway.fusion import NS, Fusion, rms_sigma_m
@@ -397,6 +398,10 @@ class Pipeline:
                     return_speed_mps=cc.return_speed_mps,
                     wind_feedforward_gain=cc.wind_feedforward_gain,
                     wind_filter_s=cc.wind_filter_s,
+                    wind_loss_fade_s=cc.wind_loss_fade_s,
+                ),
+                observer_bias_time_s=(
+                    observer_bias_time_s(spec.vessel, spec.observer) if cc.feedback == "estimate" else None
                 ),
             )
             if spec.vessel.thrusters:
@@ -1379,14 +1384,14 @@ class Pipeline:
 
     def _with_wind_load(self, tau: np.ndarray) -> np.ndarray:
         """τ for the observer: the thrusters' τ plus the wind force the controller's feed-forward answers
-        (−τ_wind = k_w τ̂_w, while it has a fresh wind), a known force of the observer's model
-        M ν' + D ν = τ + Jᵀ b. Without it b̂ would hold the wind too and the bias feed-forward −Jᵀ b̂ would
-        cancel the wind a second time (the integrator taking the excess back, slowly); with it b̂ is the
-        rest of the load, and (1 − k_w) of the wind."""
+        (−τ_wind = k_w τ̂_w, with a fresh wind and while a lost one fades), a known force of the observer's
+        model M ν' + D ν = τ + Jᵀ b. Without it b̂ would hold the wind too and the bias feed-forward −Jᵀ b̂
+        would cancel the wind a second time (the integrator taking the excess back, slowly); with it b̂ is
+        the rest of the load, and (1 − k_w) of the wind; as a lost wind's force fades, b̂ takes it over."""
         if not self._wind_used:
             return tau
         wind = self.controller.wind if self.controller is not None else None
-        if wind is None or not wind.active:
+        if wind is None or not (wind.active or wind.fading):
             return tau
         return tau - wind.tau
 
@@ -1424,7 +1429,11 @@ class Pipeline:
             wind = (u, v)
         if why != self.wind_feedforward:
             if why and self.wind_feedforward == "":
-                self._events.append(f"wind feed-forward off: {why}")
+                ff = self.controller.wind if self.controller is not None else None
+                if ff is not None and ff.fade_s > 0:  # held and fading out (`WindFeedForward`)
+                    self._events.append(f"wind feed-forward fading out over {ff.fade_s:.0f} s: {why}")
+                else:
+                    self._events.append(f"wind feed-forward off: {why}")
             elif not why:
                 self._events.append(f"wind feed-forward on: wind from {source}")
             self.wind_feedforward = why

@@ -46,7 +46,7 @@ def test_stale_and_corrupt_anemometer_is_flagged_and_the_gateway_keeps_station()
     assert wind["rejected"].get("bad_checksum", 0) > 5 and wind["received"] > 150
     events = events_of(run)
     on = "wind feed-forward on: wind from wind1"
-    off = "wind feed-forward off: no valid wind from wind1 within the source timeout"
+    off = "wind feed-forward fading out over 286 s: no valid wind from wind1 within the source timeout"
     texts = [e for _, e in events]
     # said once per change: on and off alternate, starting and ending on
     assert texts[0] == on and texts[-1] == on and len(texts) % 2 == 1, texts
@@ -255,7 +255,7 @@ def test_a_flapping_anemometer_is_said_off_once_and_on_once_it_holds() -> None:
         events += [((now - t0) / NS, e) for e in p.status_message(now).events if "wind feed-forward" in e]
     on, off = (
         "wind feed-forward on: wind from wind1",
-        ("wind feed-forward off: no valid wind from wind1 within the source timeout"),
+        ("wind feed-forward fading out over 286 s: no valid wind from wind1 within the source timeout"),
     )
     assert p.counters["wind1"].rejected["bad_checksum"] > 90
     # the feed-forward itself still follows the wind: on for 2 s after each good sentence of the flapping
