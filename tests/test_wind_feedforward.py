@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from gateway.control.controller import ControllerError, ControllerTuning, DPController
-from gateway.control.wind_feedforward import WindFeedForward
+from gateway.control.wind_feedforward import Array, WindFeedForward, default_fade_s
 from observers.hull import apparent_wind_body, relative_wind, relative_wind_force
 from observers.vessel import load_vessel
 from simulator.wind import Wind, WindModel, wind_force
@@ -139,3 +139,120 @@ def test_compiled_and_readable_agree_with_wind_and_saturation(supply) -> None:  
         np.testing.assert_allclose(a.tau, b.tau, rtol=0, atol=1e-9 * scale)
         np.testing.assert_allclose(a.tau_wind, b.tau_wind, rtol=0, atol=1e-9 * scale)
         np.testing.assert_allclose(a.integral, b.integral, rtol=1e-9, atol=1e-9)
+
+
+# -- losing the wind: hold and fade ---------------------------------------------------------------------
+def _steady(ff: WindFeedForward, wind: tuple[float, float], seconds: float = 30.0, dt: float = 0.1) -> Array:
+    for _ in range(round(seconds / dt)):
+        ff.update(dt, wind)
+    return ff.tau.copy()
+
+
+@pytest.mark.parametrize("dt", [0.1, 0.25, 1.0])
+def test_a_lost_wind_is_held_and_faded_out_linearly(supply, dt: float) -> None:  # type: ignore[no-untyped-def]
+    """After the loss τ_wind = (1 − t/T_f) τ_held in every component (direction kept), at any control step,
+    zero from T_f on; the first step after the loss is no step in the thrust demand."""
+    fade = 40.0
+    ff = WindFeedForward(supply.hull.wind, supply.length_m, filter_s=2.0, gain=0.8, fade_s=fade)
+    held = _steady(ff, (14.0, -6.0))
+    assert np.all(np.abs(held) > 1e3)
+    n_fade = round(fade / dt)
+    for k in range(1, n_fade + 5):
+        tau = ff.update(dt, None)
+        w = max(0.0, 1.0 - k * dt / fade)
+        np.testing.assert_allclose(tau, w * held, rtol=1e-9, atol=1e-9 * np.abs(held).max())
+        assert ff.fading == (w > 0) and not ff.active
+    assert np.all(ff.tau == 0) and ff.filtered == (0.0, 0.0) and ff.weight == 0.0
+
+
+def test_invalid_wind_fades_like_a_missing_one(supply) -> None:  # type: ignore[no-untyped-def]
+    a = WindFeedForward(supply.hull.wind, supply.length_m, 2.0, 1.0, fade_s=20.0)
+    b = WindFeedForward(supply.hull.wind, supply.length_m, 2.0, 1.0, fade_s=20.0)
+    _steady(a, (12.0, 5.0)), _steady(b, (12.0, 5.0))
+    bad: list[tuple[float, float] | None] = [(math.nan, 1.0), (1.0, math.inf), (-math.inf, math.nan)]
+    for k in range(60):
+        np.testing.assert_array_equal(a.update(0.1, None), b.update(0.1, bad[k % 3]))
+    assert a.fading and b.fading and 0.65 < b.weight < 0.75
+    # a non-finite or negative step does not move the fade (nor the filter)
+    w = b.weight
+    for dt in (math.nan, -1.0, math.inf, 0.0):
+        b.update(dt, None)
+        assert b.weight == w and np.all(np.isfinite(b.tau))
+
+
+def test_wind_back_while_fading_continues_from_the_faded_force(supply) -> None:  # type: ignore[no-untyped-def]
+    """Lost for 10 s of a 40 s fade, then back at the same wind: the first τ is the faded force moved one
+    filter step toward the measurement (no step, no restart from zero), and the filter state is the
+    faded one: √w (ū₀, v̄₀) for the first-order low-pass to continue from."""
+    ff = WindFeedForward(supply.hull.wind, supply.length_m, filter_s=2.0, gain=1.0, fade_s=40.0)
+    wind = (15.0, 3.0)
+    held = _steady(ff, wind)
+    u0, v0 = ff.filtered
+    for _ in range(100):
+        faded = ff.update(0.1, None)
+    w = 0.75
+    np.testing.assert_allclose(faded, w * held, rtol=1e-9)
+    np.testing.assert_allclose(ff.filtered, (math.sqrt(w) * u0, math.sqrt(w) * v0), rtol=1e-12)
+    back = ff.update(0.1, wind)
+    assert ff.active and not ff.fading
+    alpha = 1.0 - math.exp(-0.1 / 2.0)
+    s = math.sqrt(w)
+    expect_uv = (s * u0 + alpha * (wind[0] - s * u0), s * v0 + alpha * (wind[1] - s * v0))
+    np.testing.assert_allclose(ff.filtered, expect_uv, rtol=1e-12)
+    x, y, n = relative_wind_force(supply.hull.wind, supply.length_m, *expect_uv)
+    np.testing.assert_allclose(back, [-x, -y, -n], rtol=1e-12)
+    # between the faded and the full force, far from zero; converging to the full force in ≈ 3 T_w
+    assert np.all(np.abs(back) > 0.75 * np.abs(held)) and np.all(np.abs(back) < np.abs(held))
+    np.testing.assert_allclose(_steady(ff, wind, 20.0), held, rtol=1e-3)
+
+
+def test_wind_back_after_a_complete_fade_ramps_in_from_zero(supply) -> None:  # type: ignore[no-untyped-def]
+    ff = WindFeedForward(supply.hull.wind, supply.length_m, filter_s=2.0, gain=1.0, fade_s=5.0)
+    full = _steady(ff, (15.0, 3.0))
+    for _ in range(51):
+        ff.update(0.1, None)
+    assert not ff.fading and np.all(ff.tau == 0)
+    back = ff.update(0.1, (15.0, 3.0))
+    assert ff.active and 0 < abs(back[0]) < 0.01 * abs(full[0])  # from zero, not a step
+
+
+def test_a_loss_during_the_fade_in_restarts_the_fade_from_the_present_force(supply) -> None:  # type: ignore[no-untyped-def]
+    """Lost, back briefly, lost again (a flapping anemometer): every loss holds the present force, so the
+    output is continuous through every change and never exceeds the last measured force."""
+    ff = WindFeedForward(supply.hull.wind, supply.length_m, filter_s=2.0, gain=1.0, fade_s=60.0)
+    full = _steady(ff, (12.0, -4.0))
+    prev = full
+    rng = np.random.default_rng(3)
+    for _ in range(600):
+        wind = (12.0, -4.0) if rng.random() < 0.3 else None
+        tau = ff.update(0.1, wind)
+        assert np.all(np.abs(tau - prev) <= 0.06 * np.abs(full))  # ≤ one filter step (1 − e^−0.05 ≈ 5 %)
+        assert np.all(np.abs(tau) <= np.abs(full) * (1 + 1e-6))  # (30 s of filter: converged to e^-15)
+        prev = tau
+
+
+def test_fade_time_default_and_checks(supply) -> None:  # type: ignore[no-untyped-def]
+    """Default T_f = 2 max(T_i, T_b); [control] wind_loss_fade_s = 0 drops at once; a bad value stops
+    start-up naming the field."""
+    assert default_fade_s(143.0, 96.0) == 2 * 143.0
+    assert default_fade_s(100.0, 250.0) == 2 * 250.0
+    assert default_fade_s(math.inf, 50.0) == 100.0 and default_fade_s(80.0, None) == 160.0
+    assert default_fade_s(math.inf, None) == 0.0
+    ctl = DPController(supply)
+    a = ctl.gains.integral_pole
+    assert ctl.wind is not None and ctl.wind.fade_s == pytest.approx(2.0 / a.min())  # 286 s at 76.2 m
+    slow_observer = DPController(supply, observer_bias_time_s=400.0)
+    assert slow_observer.wind is not None and slow_observer.wind.fade_s == 800.0
+    at_once = DPController(supply, ControllerTuning(wind_loss_fade_s=0.0))
+    assert at_once.wind is not None and at_once.wind.fade_s == 0.0
+    for bad in (-1.0, math.nan, math.inf, True, "slow"):
+        with pytest.raises(ControllerError, match="wind_loss_fade_s"):
+            DPController(supply, ControllerTuning(wind_loss_fade_s=bad))  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="fade"):
+        WindFeedForward(supply.hull.wind, supply.length_m, 2.0, 1.0, fade_s=-1.0)
+    from gateway.control.wind_feedforward import observer_bias_time_s
+    from observers.factory import make_observer
+
+    t_b = observer_bias_time_s(supply, make_observer("passive", supply))
+    assert t_b is not None and 10.0 < t_b < 1000.0
+    assert observer_bias_time_s(supply, object()) is None

@@ -70,6 +70,10 @@ a fraction that measured (docs/controller.md, "Losing the wind") well below the 
 holding an old wind for much longer than the loop needs."""
 
 
+WEIGHT_DONE = 1e-9
+"""A fade whose remaining weight w is this small has ended."""
+
+
 def default_fade_s(integral_time_s: float, bias_time_s: float | None = None) -> float:
     """T_f = `FADE_PER_TAKEOVER` × max(T_i, T_b): T_i = 1/a, the slowest integral pole of the controller
     (a = ρ ωn, `gateway.control.controller`), T_b the time constant of the observer's slowest error mode,
@@ -157,8 +161,8 @@ class WindFeedForward:
         if self.fade_s <= 0.0 or self.weight <= 0.0:
             self.reset()
             return self.tau
-        self.weight = max(0.0, self.weight - dt / self.fade_s)
-        if self.weight == 0.0:
+        self.weight -= dt / self.fade_s
+        if self.weight <= WEIGHT_DONE:  # (dt/T_f summed in floating point: the end is at T_f, not after)
             self.reset()
             return self.tau
         s = math.sqrt(self.weight)
