@@ -132,12 +132,64 @@ def test_start_up_says_once_why_the_wind_feedforward_is_off() -> None:
         ("wind_feedforward_gain", -0.1, "control.wind_feedforward_gain"),
         ("wind_filter_s", 0.0, "control.wind_filter_s"),
         ("wind_filter_s", "fast", "control.wind_filter_s"),
+        ("wind_loss_fade_s", -1.0, "control.wind_loss_fade_s"),
+        ("wind_loss_fade_s", 7200.0, "control.wind_loss_fade_s"),
+        ("wind_loss_fade_s", "slow", "control.wind_loss_fade_s"),
     ],
 )
 def test_bad_wind_tuning_stops_start_up_naming_the_key(key: str, value: Any, words: str) -> None:
     tables = gateway_tables(get_scenario("mss_supply_storm"), **{key: value})
     with pytest.raises(ConfigError, match=words.replace(".", r"\.")):
         parse_config(tables, base_dir=Path.cwd())
+
+
+def test_the_loss_fade_is_configured_or_derived() -> None:
+    """[control] wind_loss_fade_s reaches the controller; without it the fade is twice the slower of the
+    integral time (143 s for mss_supply) and the observer's bias mode (96 s here): 286 s; 0 drops at once."""
+    assert pipeline_for(wind_loss_fade_s=120).controller.wind.fade_s == 120.0  # type: ignore[union-attr]
+    assert pipeline_for(wind_loss_fade_s=0).controller.wind.fade_s == 0.0  # type: ignore[union-attr]
+    p = pipeline_for()
+    ctl = p.controller
+    assert ctl is not None and ctl.wind is not None
+    from gateway.control.wind_feedforward import observer_bias_time_s
+
+    t_b = observer_bias_time_s(p.spec.vessel, p.observer)
+    t_i = 1.0 / float(ctl.gains.integral_pole.min())
+    assert t_b is not None and t_b < t_i
+    assert ctl.wind.fade_s == pytest.approx(2.0 * t_i) == pytest.approx(285.714, rel=1e-5)
+
+
+def test_a_lost_wind_stays_a_known_load_of_the_observer_while_it_fades() -> None:
+    """The observer's τ is τ − τ_wind while a lost wind fades (b̂ takes the force as it is taken off), and
+    the plain τ once the fade is done; the status says "fading out" once."""
+    from observers.base import Estimate
+
+    p = pipeline_for(wind_loss_fade_s=20.0)
+    ctl = p.controller
+    assert ctl is not None and ctl.wind is not None
+    est = Estimate(0.0, np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), "ok")
+    t0 = 1_700_000_000 * NS
+    tau = np.array([1e4, -2e4, 3e5])
+    events: list[str] = []
+    for k in range(600):  # 60 s at 10 Hz: wind for 10 s, then none
+        now = t0 + k * NS // 10
+        if k < 100 and k % 5 == 0:
+            p.feed(RawEvent(now, "wind1", enc.mwv("WI", math.radians(60.0), 18.0).encode("ascii")))
+        ctl.wind.update(0.0 if k == 0 else 0.1, p._relative_wind(now, est))
+        events += [e for e in p.status_message(now).events if "wind feed-forward" in e]
+        if k == 99:
+            full = ctl.wind.tau.copy()
+            np.testing.assert_array_equal(p._with_wind_load(tau), tau - full)
+        if k == 100 + 20 + 100:  # 10 s into the fade (the wind went stale 2 s after the last sentence)
+            assert ctl.wind.fading and np.all(np.abs(ctl.wind.tau) < np.abs(full))
+            assert np.all(np.abs(ctl.wind.tau) > 0.3 * np.abs(full))
+            np.testing.assert_array_equal(p._with_wind_load(tau), tau - ctl.wind.tau)
+    assert not ctl.wind.fading and np.all(ctl.wind.tau == 0)
+    np.testing.assert_array_equal(p._with_wind_load(tau), tau)
+    assert events == [
+        "wind feed-forward on: wind from wind1",
+        "wind feed-forward fading out over 20 s: no valid wind from wind1 within the source timeout",
+    ]
 
 
 def test_wind_role_is_for_nmea_sources_only() -> None:
