@@ -16,7 +16,9 @@ dropped at once when the wind is lost (``wind_loss_fade_s = 0``, the behaviour b
 default fade (or ``--fade`` s). Printed: the peak horizontal position and heading deviation from the
 setpoint in the ``--window`` s after the loss (and, for scale, the peak in the same length before it).
 
-    python bench/wind_feedforward.py --loss 600 --duration 1200 [--window 600] [--fade 286]
+    python bench/wind_feedforward.py --loss 600 --duration 1200 [--window 600] [--fade 286] [--back 700]
+
+``--back T2``: the anemometer sends again from T2 (a return while the fade runs, or after it).
 """
 
 from __future__ import annotations
@@ -48,9 +50,9 @@ def station_errors(
     }
 
 
-def with_anemometer_loss(scenario: Scenario, t_loss: float) -> Scenario:
-    """The scenario with every anemometer silent from ``t_loss`` on (a ``dropout`` fault)."""
-    lost = tuple(Fault("dropout", a.source, t_loss) for a in scenario.anemometers)
+def with_anemometer_loss(scenario: Scenario, t_loss: float, t_back: float = math.inf) -> Scenario:
+    """The scenario with every anemometer silent from ``t_loss`` to ``t_back`` (a ``dropout`` fault)."""
+    lost = tuple(Fault("dropout", a.source, t_loss, t_back) for a in scenario.anemometers)
     return replace(scenario, faults=(*scenario.faults, *lost))
 
 
@@ -61,11 +63,12 @@ def loss_deviation(
     t_loss: float,
     window_s: float,
     settle_s: float = 300.0,
+    t_back: float = math.inf,
     **control: Any,
 ) -> dict[str, float]:
     """Peak horizontal position (m) and heading (deg) deviation of the true LF pose from the setpoint in
     the ``window_s`` after the anemometer is lost at ``t_loss``, and before it (from ``settle_s``)."""
-    sc = with_anemometer_loss(scenario, t_loss)
+    sc = with_anemometer_loss(scenario, t_loss, t_back)
     run = run_closed_loop(sc, duration_s, seed=seed, tables=gateway_tables(sc, **control))
     pos = np.hypot(run.eta_lf[:, 0] - sc.eta0[0], run.eta_lf[:, 1] - sc.eta0[1])
     hdg = np.degrees(np.abs((run.eta_lf[:, 2] - sc.eta0[2] + math.pi) % (2 * math.pi) - math.pi))
@@ -95,6 +98,7 @@ def compare_loss(
     window_s: float,
     settle_s: float,
     fade_s: float | None = None,
+    t_back: float = math.inf,
 ) -> list[dict[str, Any]]:
     rows = []
     for seed in seeds:
@@ -102,7 +106,9 @@ def compare_loss(
         for case, control in LOSS_CASES.items():
             if case == "fade" and fade_s is not None:
                 control = {**control, "wind_loss_fade_s": fade_s}
-            row[case] = loss_deviation(scenario, seed, duration_s, t_loss, window_s, settle_s, **control)
+            row[case] = loss_deviation(
+                scenario, seed, duration_s, t_loss, window_s, settle_s, t_back, **control
+            )
         rows.append(row)
     return rows
 
@@ -110,7 +116,9 @@ def compare_loss(
 def print_loss(scenario: Scenario, rows: list[dict[str, Any]], a: argparse.Namespace) -> None:
     fade = "default" if a.fade is None else f"{a.fade:g} s"
     print(
-        f"{scenario.name}: anemometer lost at {a.loss:g} s; peak deviation in the {a.window:g} s after "
+        f"{scenario.name}: anemometer lost at {a.loss:g} s"
+        + ("" if a.back is None else f", back at {a.back:g} s")
+        + f"; peak deviation in the {a.window:g} s after "
         f"(before: from {a.settle:g} s to the loss); fade {fade}"
     )
     print(
@@ -154,12 +162,14 @@ def main() -> None:
     p.add_argument("--filter", type=float, default=2.0, help="wind_filter_s of the 'on' runs")
     p.add_argument("--loss", type=float, default=None, help="lose the anemometer at this sim time (s)")
     p.add_argument("--window", type=float, default=600.0, help="--loss: seconds after the loss scored")
+    p.add_argument("--back", type=float, default=None, help="--loss: the anemometer back at this time (s)")
     p.add_argument("--fade", type=float, default=None, help="--loss: wind_loss_fade_s (default: derived)")
     p.add_argument("--json", action="store_true")
     a = p.parse_args()
     scenario = mss_supply_wind(a.wind) if a.wind is not None else get_scenario(a.scenario)
     if a.loss is not None:
-        rows = compare_loss(scenario, a.seeds, a.duration, a.loss, a.window, a.settle, a.fade)
+        back = math.inf if a.back is None else a.back
+        rows = compare_loss(scenario, a.seeds, a.duration, a.loss, a.window, a.settle, a.fade, back)
         if a.json:
             print(json.dumps({"scenario": scenario.name, "loss_s": a.loss, "rows": rows}))
         else:
