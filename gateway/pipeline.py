@@ -83,8 +83,9 @@ WIND_ON_CONFIRM_S = 10.0
 it is announced on again (`Pipeline._relative_wind`): an anemometer that loses most of its sentences
 (corrupt, invalid) goes stale and fresh again every few seconds, and an operator told "off", "on", "off"
 … at that rate stops reading the events. Longer than the gaps of such a flapping source (a timeout of a
-few seconds) and than the feed-forward's ramp back in (≈ 3 T_w = 6 s at the default filter), so "on"
-says that the term is back in full. The feed-forward itself uses every fresh wind at once."""
+few seconds) and than the feed-forward's filter ramp (≈ 3 T_w = 6 s at the default filter). After a loss
+the force comes back at the pace it faded (`WindFeedForward`), and "on" says how long that still takes.
+The feed-forward itself uses every fresh wind at once."""
 """Dirty-derivative filter of the measurement-fed comparison controller (no wave filter)."""
 _INITIALIZING = STATUS_NAMES[STATUS_INITIALIZING]
 FIX_PERIOD_NS = 0
@@ -1428,14 +1429,16 @@ class Pipeline:
                 u, v = u + float(nu[0]), v + float(nu[1])
             wind = (u, v)
         if why != self.wind_feedforward:
+            ff = self.controller.wind if self.controller is not None else None
             if why and self.wind_feedforward == "":
-                ff = self.controller.wind if self.controller is not None else None
                 if ff is not None and ff.fade_s > 0:  # held and fading out (`WindFeedForward`)
                     self._events.append(f"wind feed-forward fading out over {ff.fade_s:.0f} s: {why}")
                 else:
                     self._events.append(f"wind feed-forward off: {why}")
             elif not why:
-                self._events.append(f"wind feed-forward on: wind from {source}")
+                rest = 0.0 if ff is None or not ff.fading_in else (1.0 - ff.weight) * ff.fade_s
+                more = f", fading in over {rest:.0f} s" if rest >= 0.5 else ""
+                self._events.append(f"wind feed-forward on: wind from {source}{more}")
             self.wind_feedforward = why
         return wind
 

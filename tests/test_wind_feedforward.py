@@ -155,6 +155,7 @@ def test_a_lost_wind_is_held_and_faded_out_linearly(supply, dt: float) -> None: 
     fade = 40.0
     ff = WindFeedForward(supply.hull.wind, supply.length_m, filter_s=2.0, gain=0.8, fade_s=fade)
     held = _steady(ff, (14.0, -6.0))
+    held_wind = ff.filtered
     assert np.all(np.abs(held) > 1e3)
     n_fade = round(fade / dt)
     for k in range(1, n_fade + 5):
@@ -162,7 +163,8 @@ def test_a_lost_wind_is_held_and_faded_out_linearly(supply, dt: float) -> None: 
         w = max(0.0, 1.0 - k * dt / fade)
         np.testing.assert_allclose(tau, w * held, rtol=1e-9, atol=1e-9 * np.abs(held).max())
         assert ff.fading == (w > 0) and not ff.active
-    assert np.all(ff.tau == 0) and ff.filtered == (0.0, 0.0) and ff.weight == 0.0
+    assert np.all(ff.tau == 0) and ff.weight == 0.0
+    assert ff.filtered == held_wind  # the filter holds the lost wind
 
 
 def test_invalid_wind_fades_like_a_missing_one(supply) -> None:  # type: ignore[no-untyped-def]
@@ -181,39 +183,60 @@ def test_invalid_wind_fades_like_a_missing_one(supply) -> None:  # type: ignore[
 
 
 def test_wind_back_while_fading_continues_from_the_faded_force(supply) -> None:  # type: ignore[no-untyped-def]
-    """Lost for 10 s of a 40 s fade, then back at the same wind: the first τ is the faded force moved one
-    filter step toward the measurement (no step, no restart from zero), and the filter state is the
-    faded one: √w (ū₀, v̄₀) for the first-order low-pass to continue from."""
+    """Lost for 10 s of a 40 s fade (w = 0.75), then back: the first τ is w (+ one step of the fade in) times
+    the force of the held filter state moved one filter step toward the new measurement — continuous, not
+    from zero — and w climbs back to 1 at the fade's pace (10 s), the filter following the new wind."""
     ff = WindFeedForward(supply.hull.wind, supply.length_m, filter_s=2.0, gain=1.0, fade_s=40.0)
-    wind = (15.0, 3.0)
-    held = _steady(ff, wind)
+    held = _steady(ff, (15.0, 3.0))
     u0, v0 = ff.filtered
     for _ in range(100):
         faded = ff.update(0.1, None)
-    w = 0.75
-    np.testing.assert_allclose(faded, w * held, rtol=1e-9)
-    np.testing.assert_allclose(ff.filtered, (math.sqrt(w) * u0, math.sqrt(w) * v0), rtol=1e-12)
-    back = ff.update(0.1, wind)
-    assert ff.active and not ff.fading
+    np.testing.assert_allclose(faded, 0.75 * held, rtol=1e-9)
+    assert ff.filtered == (u0, v0)
+    new_wind = (13.0, 5.0)  # the wind changed meanwhile
+    back = ff.update(0.1, new_wind)
+    assert ff.active and ff.fading_in and not ff.fading
     alpha = 1.0 - math.exp(-0.1 / 2.0)
-    s = math.sqrt(w)
-    expect_uv = (s * u0 + alpha * (wind[0] - s * u0), s * v0 + alpha * (wind[1] - s * v0))
-    np.testing.assert_allclose(ff.filtered, expect_uv, rtol=1e-12)
-    x, y, n = relative_wind_force(supply.hull.wind, supply.length_m, *expect_uv)
-    np.testing.assert_allclose(back, [-x, -y, -n], rtol=1e-12)
-    # between the faded and the full force, far from zero; converging to the full force in ≈ 3 T_w
-    assert np.all(np.abs(back) > 0.75 * np.abs(held)) and np.all(np.abs(back) < np.abs(held))
-    np.testing.assert_allclose(_steady(ff, wind, 20.0), held, rtol=1e-3)
+    uv = (u0 + alpha * (new_wind[0] - u0), v0 + alpha * (new_wind[1] - v0))
+    np.testing.assert_allclose(ff.filtered, uv, rtol=1e-12)
+    x, y, n = relative_wind_force(supply.hull.wind, supply.length_m, *uv)
+    np.testing.assert_allclose(back, -(0.75 + 0.1 / 40.0) * np.array([x, y, n]), rtol=1e-9)
+    assert np.all(np.abs(back - faded) < 0.05 * np.abs(held))  # no step
+    full = -np.array(relative_wind_force(supply.hull.wind, supply.length_m, *new_wind))
+    for k in range(2, 101):
+        ff.update(0.1, new_wind)
+        w = min(1.0, 0.75 + k * 0.1 / 40.0)
+        assert ff.weight == pytest.approx(w, abs=1e-12)
+    assert ff.weight == 1.0 and not ff.fading_in
+    np.testing.assert_allclose(_steady(ff, new_wind, 20.0), full, rtol=1e-6)  # and the filter converged
 
 
-def test_wind_back_after_a_complete_fade_ramps_in_from_zero(supply) -> None:  # type: ignore[no-untyped-def]
+def test_wind_back_after_a_complete_fade_fades_in_over_the_fade_time(supply) -> None:  # type: ignore[no-untyped-def]
+    """After a complete fade b̂ holds the whole wind; the returning wind's force comes back as it went,
+    linearly over T_f (the observer hands the load back at that pace), not in the filter's few seconds."""
     ff = WindFeedForward(supply.hull.wind, supply.length_m, filter_s=2.0, gain=1.0, fade_s=5.0)
     full = _steady(ff, (15.0, 3.0))
-    for _ in range(51):
+    for _ in range(60):
         ff.update(0.1, None)
     assert not ff.fading and np.all(ff.tau == 0)
-    back = ff.update(0.1, (15.0, 3.0))
-    assert ff.active and 0 < abs(back[0]) < 0.01 * abs(full[0])  # from zero, not a step
+    for k in range(1, 51):
+        tau = ff.update(0.1, (15.0, 3.0))
+        np.testing.assert_allclose(tau, min(1.0, k * 0.1 / 5.0) * full, rtol=1e-6)
+    assert ff.weight == 1.0 and not ff.fading_in
+
+
+def test_the_first_wind_comes_in_through_the_filter_alone(supply) -> None:  # type: ignore[no-untyped-def]
+    """At the start (and after `reset`) there is no load for b̂ to hand back: the first wind is fed forward in
+    full through the filter's ramp (≈ 3 T_w), as without a fade."""
+    for fade in (0.0, 286.0):
+        ff = WindFeedForward(supply.hull.wind, supply.length_m, filter_s=2.0, gain=1.0, fade_s=fade)
+        ff.update(0.0, (15.0, 3.0))
+        assert ff.weight == 1.0 and not ff.fading_in
+        tau = _steady(ff, (15.0, 3.0), seconds=6.0)
+        full = -np.array(relative_wind_force(supply.hull.wind, supply.length_m, 15.0, 3.0))
+        assert np.all(np.abs(tau) > 0.9 * np.abs(full))
+        ff.reset()
+        assert ff.weight == 0.0 and ff.filtered == (0.0, 0.0) and np.all(ff.tau == 0)
 
 
 def test_a_loss_during_the_fade_in_restarts_the_fade_from_the_present_force(supply) -> None:  # type: ignore[no-untyped-def]

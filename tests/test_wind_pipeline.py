@@ -4,6 +4,7 @@ fusion; a bad, invalid or stale anemometer is counted and flagged, and the gatew
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -48,9 +49,12 @@ def test_stale_and_corrupt_anemometer_is_flagged_and_the_gateway_keeps_station()
     on = "wind feed-forward on: wind from wind1"
     off = "wind feed-forward fading out over 286 s: no valid wind from wind1 within the source timeout"
     texts = [e for _, e in events]
-    # said once per change: on and off alternate, starting and ending on
-    assert texts[0] == on and texts[-1] == on and len(texts) % 2 == 1, texts
-    assert all(e == (on if k % 2 == 0 else off) for k, e in enumerate(texts)), texts
+    # said once per change: on and off alternate, starting and ending on; back after a loss the force
+    # fades in over what is left of the fade (the dropout took ≈ 40 s of 286 s off, ≈ 10 s came back)
+    assert texts[0] == on and texts[-1].startswith(on) and len(texts) % 2 == 1, texts
+    assert all(e.startswith(on) if k % 2 == 0 else e == off for k, e in enumerate(texts)), texts
+    rest = re.fullmatch(re.escape(on) + r", fading in over (\d+) s", texts[-1])
+    assert rest is not None and 15 <= int(rest.group(1)) <= 40, texts[-1]
     t0 = run.collected["/dp/status"][0]["stamp_ns"] - run.collected["/dp/status"][0]["stamp_ns"] % NS
     times = [(t - t0) / NS for t, _ in events]
     offs = [t for t, e in zip(times, texts, strict=True) if e == off]
@@ -60,7 +64,7 @@ def test_stale_and_corrupt_anemometer_is_flagged_and_the_gateway_keeps_station()
     assert any(60.0 < t < 62.5 for t in offs)
     # back on once the wind has held for WIND_ON_CONFIRM_S (10 s) after the dropout
     assert 100.0 + WIND_ON_CONFIRM_S <= times[-1] < 101.0 + WIND_ON_CONFIRM_S
-    ons = [t for t, e in zip(times, texts, strict=True) if e == on]
+    ons = [t for t, e in zip(times, texts, strict=True) if e.startswith(on)]
     assert all(b - a >= WIND_ON_CONFIRM_S for a, b in zip(offs, ons[1:], strict=True))  # no flapping
     stale_alarms = [
         a for s in run.collected["/dp/status"] for a in s["alarms"] if a.startswith("source wind1: stale")

@@ -67,7 +67,8 @@ simulator's plant uses (`observers.hull.relative_wind_force`), taken off τ with
 counters a gust as it is measured instead of after the position has drifted and the integrator has
 caught up. When the wind is lost the last force is held and faded out linearly over ``wind_loss_fade_s``
 (default `wind_feedforward.default_fade_s`: twice the slower of the integral time 1/a and the observer's
-bias-mode time given as ``observer_bias_time_s``), so the integrator and b̂ take the load over gradually.
+bias-mode time given as ``observer_bias_time_s``), so the integrator and b̂ take the load over gradually;
+when it is back, the force returns at the same pace.
 The filter runs in every mode (so it is warm on entering dp); the term acts only in dp. A vessel without
 ``[hull.wind]`` has none (`DPController.wind` is None).
 

@@ -27,27 +27,28 @@ which is what the feed-forward is for.
 
 Losing the wind (the anemometer stale or invalid: ``update(dt, None)``) does not drop the term: that would
 step the thrust demand by the whole wind load, and the vessel would drift off until the integral term and
-the bias estimate b̂ had taken it. The last filtered wind is held and its force faded out linearly to zero
-over T_f (``fade_s``, `[control] wind_loss_fade_s`)::
+the bias estimate b̂ had taken it. The filter holds the last wind and its force is faded out linearly to
+zero over T_f (``fade_s``, `[control] wind_loss_fade_s`) by a weight w::
 
-    w ← max(0, w − dt/T_f),   (ū_rw, v̄_rw) = √w (ū₀, v̄₀),   so   τ_wind = −k_w w τ̂_w(ū₀, v̄₀)
+    τ_wind = −k_w w τ̂_w(ū_rw, v̄_rw),   w ← max(0, w − dt/T_f) while lost,  min(1, w + dt/T_f) while measured
 
-(ū₀, v̄₀: the filter's state when the wind was lost; the force is quadratic in the wind speed at a fixed
-angle, Fossen (2021) (10.10)–(10.12), so scaling the components by √w scales the whole force by w and keeps
-its direction). The observer is given τ − τ_wind (`gateway.pipeline`), so the faded part of the force shows
-in its velocity error and moves into b̂ at the pace it is taken off, which the bias feed-forward −Jᵀb̂ and
-the integrator answer: the load changes hands instead of dropping. Linear, not exponential: a tracker with
-time constant T (b̂, the integrator) following a ramp of duration T_f lags it by ≈ F·T/T_f, an exponential
-e^(−t/T_f) starts at the same rate and needs ≈ 3 T_f to be gone; for the same end the linear fade leaves a
-third of the unanswered force, and it ends at a definite time the operator can be told. The held wind is
-the filter's state at the loss (the last seconds' gust included): whatever is held, the observer sees it as
-a known force and b̂ takes the difference to the true wind, as it takes the whole wind without feed-forward.
+The observer is given τ − τ_wind (`gateway.pipeline`), so whatever force is held it treats as known and
+b̂ takes the difference to the true load; as w falls, the faded part shows in the observer's velocity
+error and moves into b̂ at the pace it is taken off, which the bias feed-forward −Jᵀb̂ and the integrator
+answer: the load changes hands instead of dropping. Linear, not exponential: a loop that takes a load
+over with time constant T (b̂, the integrator) lags a ramp of duration T_f by ≈ F·T/T_f; an exponential
+e^(−t/T_f) starts at the same rate and needs ≈ 3 T_f to be gone, so for the same end the linear fade
+leaves a third of the unanswered force, and it ends at a time the operator can be told.
 
-The wind back while the fade runs: the filter continues from its present, faded state (√w (ū₀, v̄₀)) toward
-the new measurement, so the force moves from where it is, not from zero; after a complete fade that state
-is zero and the term ramps in over ≈ 3 T_w, as at start. T_f = 0 drops the term at once (and the filter
-restarts from zero on return). Default T_f: `default_fade_s`, from the times in which the controller's
-integral term and the observer's bias estimate take a load over.
+The wind back: the filter continues from the held wind toward the new measurement (T_w), and w climbs
+back to 1 at the same pace, from wherever the fade had got to — the force continues from its present,
+faded value, never from zero. After a complete fade b̂ holds the whole wind, and the force then comes
+back over T_f rather than the filter's ≈ 3 T_w: handed back as fast as b̂ can let it go (measured: the
+filter's ramp made the return as large an excursion as the loss, docs/controller.md). The first wind since
+the start (or `reset`) has no load to take from b̂ and is fed forward in full through the filter's ramp,
+as before. T_f = 0 drops the term at once and restarts the filter from zero on return. Default T_f:
+`default_fade_s`, from the times in which the controller's integral term and the observer's bias estimate
+take a load over.
 """
 
 from __future__ import annotations
@@ -96,8 +97,8 @@ def observer_bias_time_s(vessel: VesselModel, observer: object) -> float | None:
 
 
 class WindFeedForward:
-    """τ_wind = −k_w τ̂_w of the low-passed relative wind, held and faded out when it is lost (module
-    docstring)."""
+    """τ_wind = −k_w w τ̂_w of the low-passed relative wind; w fades out when the wind is lost and back in
+    when it returns (module docstring)."""
 
     def __init__(
         self, area: WindArea, length_m: float, filter_s: float, gain: float, fade_s: float = 0.0
@@ -113,27 +114,33 @@ class WindFeedForward:
         self.filter_s = float(filter_s)
         self.gain = float(gain)
         self.fade_s = float(fade_s)
-        """T_f: the held force fades linearly to zero over this time after the wind is lost (0: at once)."""
+        """T_f: w moves between 0 and 1 over this time after the wind is lost or back (0: at once)."""
         self.u = 0.0
         self.v = 0.0
         self.active = False
         """Whether the last `update` had a measurement."""
         self.weight = 0.0
-        """w: the fraction of the held force still fed forward while fading (1 at the loss, 0 when done)."""
-        self._held = (0.0, 0.0)
+        """w ∈ [0, 1]: the fraction of the filtered wind's force fed forward."""
+        self._seen = False  # a wind measured since the start (or `reset`)
         self.tau = np.zeros(3)
-        """The last output τ_wind, body frame [X, Y, N] (nonzero also while fading)."""
+        """The last output τ_wind, body frame [X, Y, N] (nonzero also while a lost wind fades)."""
 
     @property
     def fading(self) -> bool:
-        """The wind is lost and the held force is not yet faded out."""
+        """The wind is lost and its held force is not yet faded out."""
         return not self.active and self.weight > 0.0
 
+    @property
+    def fading_in(self) -> bool:
+        """The wind is back after a loss and its force is not yet fed forward in full."""
+        return self.active and self.weight < 1.0
+
     def reset(self) -> None:
+        """As at the start: no wind, filter at zero; the next wind comes in through the filter alone."""
         self.u = self.v = 0.0
         self.active = False
         self.weight = 0.0
-        self._held = (0.0, 0.0)
+        self._seen = False
         self.tau = np.zeros(3)
 
     def update(self, dt: float, relative_wind: tuple[float, float] | None) -> Array:
@@ -145,37 +152,40 @@ class WindFeedForward:
         if relative_wind is not None:
             u, v = relative_wind
         if not (math.isfinite(u) and math.isfinite(v)):
-            return self._fade(dt)
+            return self._lost(dt)
+        if not self._seen or self.fade_s <= 0.0:
+            self.weight = 1.0  # the first wind since the start: in through the filter's ramp alone
+        else:
+            self.weight += dt / self.fade_s
+            if self.weight >= 1.0 - WEIGHT_DONE:  # (dt/T_f summed in floating point: done at T_f)
+                self.weight = 1.0
         alpha = 1.0 - math.exp(-dt / self.filter_s) if dt > 0 else 0.0
         self.u += alpha * (u - self.u)
         self.v += alpha * (v - self.v)
         self.active = True
-        self.weight = 1.0
+        self._seen = True
         return self._force()
 
-    def _fade(self, dt: float) -> Array:
-        if self.active:  # the loss: hold the present state (a fade restarted at its present force)
-            self._held = (self.u, self.v)
-            self.weight = 1.0
-            self.active = False
-        if self.fade_s <= 0.0 or self.weight <= 0.0:
+    def _lost(self, dt: float) -> Array:
+        self.active = False
+        if self.fade_s <= 0.0:
             self.reset()
             return self.tau
         self.weight -= dt / self.fade_s
-        if self.weight <= WEIGHT_DONE:  # (dt/T_f summed in floating point: the end is at T_f, not after)
-            self.reset()
-            return self.tau
-        s = math.sqrt(self.weight)
-        self.u, self.v = s * self._held[0], s * self._held[1]
+        if self.weight <= WEIGHT_DONE:
+            self.weight = 0.0
         return self._force()
 
     def _force(self) -> Array:
+        if self.weight == 0.0:
+            self.tau = np.zeros(3)
+            return self.tau
         x, y, n = relative_wind_force(self.area, self.length_m, self.u, self.v)
-        k = -self.gain
+        k = -self.gain * self.weight
         self.tau = np.array([k * x, k * y, k * n])
         return self.tau
 
     @property
     def filtered(self) -> tuple[float, float]:
-        """(ū_rw, v̄_rw), m/s: the filter's state (while fading, the held wind scaled by √w)."""
+        """(ū_rw, v̄_rw), m/s: the filter's state (held while the wind is lost)."""
         return self.u, self.v
