@@ -40,6 +40,7 @@ from gateway.config import (
 from gateway.control.allocation import AllocationResult, PseudoInverseAllocator, QPAllocator, ThrusterCommand
 from gateway.control.consequence import ConsequenceAnalysis, FailureCase
 from gateway.control.controller import ControllerTuning, DPController
+from gateway.control.wind_feedforward import observer_bias_time_s
 from gateway.esc_direction import EscDirections
 from gateway.foxglove_channels import FoxgloveChannels
 from gateway.fusion import NS, Fusion, rms_sigma_m
@@ -87,8 +88,9 @@ WIND_ON_CONFIRM_S = 10.0
 it is announced on again (`Pipeline._relative_wind`): an anemometer that loses most of its sentences
 (corrupt, invalid) goes stale and fresh again every few seconds, and an operator told "off", "on", "off"
 … at that rate stops reading the events. Longer than the gaps of such a flapping source (a timeout of a
-few seconds) and than the feed-forward's ramp back in (≈ 3 T_w = 6 s at the default filter), so "on"
-says that the term is back in full. The feed-forward itself uses every fresh wind at once."""
+few seconds) and than the feed-forward's filter ramp (≈ 3 T_w = 6 s at the default filter). After a loss
+the force comes back at the pace it faded (`WindFeedForward`), and "on" says how long that still takes.
+The feed-forward itself uses every fresh wind at once."""
 """Dirty-derivative filter of the measurement-fed comparison controller (no wave filter)."""
 _INITIALIZING = STATUS_NAMES[STATUS_INITIALIZING]
 FIX_PERIOD_NS = 0
@@ -409,6 +411,10 @@ class Pipeline:
                     return_speed_mps=cc.return_speed_mps,
                     wind_feedforward_gain=cc.wind_feedforward_gain,
                     wind_filter_s=cc.wind_filter_s,
+                    wind_loss_fade_s=cc.wind_loss_fade_s,
+                ),
+                observer_bias_time_s=(
+                    observer_bias_time_s(spec.vessel, spec.observer) if cc.feedback == "estimate" else None
                 ),
             )
             if spec.vessel.thrusters:
@@ -1465,14 +1471,14 @@ class Pipeline:
 
     def _with_wind_load(self, tau: np.ndarray) -> np.ndarray:
         """τ for the observer: the thrusters' τ plus the wind force the controller's feed-forward answers
-        (−τ_wind = k_w τ̂_w, while it has a fresh wind), a known force of the observer's model
-        M ν' + D ν = τ + Jᵀ b. Without it b̂ would hold the wind too and the bias feed-forward −Jᵀ b̂ would
-        cancel the wind a second time (the integrator taking the excess back, slowly); with it b̂ is the
-        rest of the load, and (1 − k_w) of the wind."""
+        (−τ_wind = k_w τ̂_w, with a fresh wind and while a lost one fades), a known force of the observer's
+        model M ν' + D ν = τ + Jᵀ b. Without it b̂ would hold the wind too and the bias feed-forward −Jᵀ b̂
+        would cancel the wind a second time (the integrator taking the excess back, slowly); with it b̂ is
+        the rest of the load, and (1 − k_w) of the wind; as a lost wind's force fades, b̂ takes it over."""
         if not self._wind_used:
             return tau
         wind = self.controller.wind if self.controller is not None else None
-        if wind is None or not wind.active:
+        if wind is None or not (wind.active or wind.fading):
             return tau
         return tau - wind.tau
 
@@ -1509,10 +1515,16 @@ class Pipeline:
                 u, v = u + float(nu[0]), v + float(nu[1])
             wind = (u, v)
         if why != self.wind_feedforward:
+            ff = self.controller.wind if self.controller is not None else None
             if why and self.wind_feedforward == "":
-                self._events.append(f"wind feed-forward off: {why}")
+                if ff is not None and ff.fade_s > 0:  # held and fading out (`WindFeedForward`)
+                    self._events.append(f"wind feed-forward fading out over {ff.fade_s:.0f} s: {why}")
+                else:
+                    self._events.append(f"wind feed-forward off: {why}")
             elif not why:
-                self._events.append(f"wind feed-forward on: wind from {source}")
+                rest = 0.0 if ff is None or not ff.fading_in else (1.0 - ff.weight) * ff.fade_s
+                more = f", fading in over {rest:.0f} s" if rest >= 0.5 else ""
+                self._events.append(f"wind feed-forward on: wind from {source}{more}")
             self.wind_feedforward = why
         return wind
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from gateway.control.controller import ControllerError, ControllerTuning, DPController
-from gateway.control.wind_feedforward import WindFeedForward
+from gateway.control.wind_feedforward import Array, WindFeedForward, default_fade_s
 from observers.hull import apparent_wind_body, relative_wind, relative_wind_force
 from observers.vessel import load_vessel
 from simulator.wind import Wind, WindModel, wind_force
@@ -139,3 +139,143 @@ def test_compiled_and_readable_agree_with_wind_and_saturation(supply) -> None:  
         np.testing.assert_allclose(a.tau, b.tau, rtol=0, atol=1e-9 * scale)
         np.testing.assert_allclose(a.tau_wind, b.tau_wind, rtol=0, atol=1e-9 * scale)
         np.testing.assert_allclose(a.integral, b.integral, rtol=1e-9, atol=1e-9)
+
+
+# -- losing the wind: hold and fade ---------------------------------------------------------------------
+def _steady(ff: WindFeedForward, wind: tuple[float, float], seconds: float = 30.0, dt: float = 0.1) -> Array:
+    for _ in range(round(seconds / dt)):
+        ff.update(dt, wind)
+    return ff.tau.copy()
+
+
+@pytest.mark.parametrize("dt", [0.1, 0.25, 1.0])
+def test_a_lost_wind_is_held_and_faded_out_linearly(supply, dt: float) -> None:  # type: ignore[no-untyped-def]
+    """After the loss τ_wind = (1 − t/T_f) τ_held in every component (direction kept), at any control step,
+    zero from T_f on; the first step after the loss is no step in the thrust demand."""
+    fade = 40.0
+    ff = WindFeedForward(supply.hull.wind, supply.length_m, filter_s=2.0, gain=0.8, fade_s=fade)
+    held = _steady(ff, (14.0, -6.0))
+    held_wind = ff.filtered
+    assert np.all(np.abs(held) > 1e3)
+    n_fade = round(fade / dt)
+    for k in range(1, n_fade + 5):
+        tau = ff.update(dt, None)
+        w = max(0.0, 1.0 - k * dt / fade)
+        np.testing.assert_allclose(tau, w * held, rtol=1e-9, atol=1e-9 * np.abs(held).max())
+        assert ff.fading == (w > 0) and not ff.active
+    assert np.all(ff.tau == 0) and ff.weight == 0.0
+    assert ff.filtered == held_wind  # the filter holds the lost wind
+
+
+def test_invalid_wind_fades_like_a_missing_one(supply) -> None:  # type: ignore[no-untyped-def]
+    a = WindFeedForward(supply.hull.wind, supply.length_m, 2.0, 1.0, fade_s=20.0)
+    b = WindFeedForward(supply.hull.wind, supply.length_m, 2.0, 1.0, fade_s=20.0)
+    _steady(a, (12.0, 5.0)), _steady(b, (12.0, 5.0))
+    bad: list[tuple[float, float] | None] = [(math.nan, 1.0), (1.0, math.inf), (-math.inf, math.nan)]
+    for k in range(60):
+        np.testing.assert_array_equal(a.update(0.1, None), b.update(0.1, bad[k % 3]))
+    assert a.fading and b.fading and 0.65 < b.weight < 0.75
+    # a non-finite or negative step does not move the fade (nor the filter)
+    w = b.weight
+    for dt in (math.nan, -1.0, math.inf, 0.0):
+        b.update(dt, None)
+        assert b.weight == w and np.all(np.isfinite(b.tau))
+
+
+def test_wind_back_while_fading_continues_from_the_faded_force(supply) -> None:  # type: ignore[no-untyped-def]
+    """Lost for 10 s of a 40 s fade (w = 0.75), then back: the first τ is w (+ one step of the fade in) times
+    the force of the held filter state moved one filter step toward the new measurement — continuous, not
+    from zero — and w climbs back to 1 at the fade's pace (10 s), the filter following the new wind."""
+    ff = WindFeedForward(supply.hull.wind, supply.length_m, filter_s=2.0, gain=1.0, fade_s=40.0)
+    held = _steady(ff, (15.0, 3.0))
+    u0, v0 = ff.filtered
+    for _ in range(100):
+        faded = ff.update(0.1, None)
+    np.testing.assert_allclose(faded, 0.75 * held, rtol=1e-9)
+    assert ff.filtered == (u0, v0)
+    new_wind = (13.0, 5.0)  # the wind changed meanwhile
+    back = ff.update(0.1, new_wind)
+    assert ff.active and ff.fading_in and not ff.fading
+    alpha = 1.0 - math.exp(-0.1 / 2.0)
+    uv = (u0 + alpha * (new_wind[0] - u0), v0 + alpha * (new_wind[1] - v0))
+    np.testing.assert_allclose(ff.filtered, uv, rtol=1e-12)
+    x, y, n = relative_wind_force(supply.hull.wind, supply.length_m, *uv)
+    np.testing.assert_allclose(back, -(0.75 + 0.1 / 40.0) * np.array([x, y, n]), rtol=1e-9)
+    assert np.all(np.abs(back - faded) < 0.05 * np.abs(held))  # no step
+    full = -np.array(relative_wind_force(supply.hull.wind, supply.length_m, *new_wind))
+    for k in range(2, 101):
+        ff.update(0.1, new_wind)
+        w = min(1.0, 0.75 + k * 0.1 / 40.0)
+        assert ff.weight == pytest.approx(w, abs=1e-12)
+    assert ff.weight == 1.0 and not ff.fading_in
+    np.testing.assert_allclose(_steady(ff, new_wind, 20.0), full, rtol=1e-6)  # and the filter converged
+
+
+def test_wind_back_after_a_complete_fade_fades_in_over_the_fade_time(supply) -> None:  # type: ignore[no-untyped-def]
+    """After a complete fade b̂ holds the whole wind; the returning wind's force comes back as it went,
+    linearly over T_f (the observer hands the load back at that pace), not in the filter's few seconds."""
+    ff = WindFeedForward(supply.hull.wind, supply.length_m, filter_s=2.0, gain=1.0, fade_s=5.0)
+    full = _steady(ff, (15.0, 3.0))
+    for _ in range(60):
+        ff.update(0.1, None)
+    assert not ff.fading and np.all(ff.tau == 0)
+    for k in range(1, 51):
+        tau = ff.update(0.1, (15.0, 3.0))
+        np.testing.assert_allclose(tau, min(1.0, k * 0.1 / 5.0) * full, rtol=1e-6)
+    assert ff.weight == 1.0 and not ff.fading_in
+
+
+def test_the_first_wind_comes_in_through_the_filter_alone(supply) -> None:  # type: ignore[no-untyped-def]
+    """At the start (and after `reset`) there is no load for b̂ to hand back: the first wind is fed forward in
+    full through the filter's ramp (≈ 3 T_w), as without a fade."""
+    for fade in (0.0, 286.0):
+        ff = WindFeedForward(supply.hull.wind, supply.length_m, filter_s=2.0, gain=1.0, fade_s=fade)
+        ff.update(0.0, (15.0, 3.0))
+        assert ff.weight == 1.0 and not ff.fading_in
+        tau = _steady(ff, (15.0, 3.0), seconds=6.0)
+        full = -np.array(relative_wind_force(supply.hull.wind, supply.length_m, 15.0, 3.0))
+        assert np.all(np.abs(tau) > 0.9 * np.abs(full))
+        ff.reset()
+        assert ff.weight == 0.0 and ff.filtered == (0.0, 0.0) and np.all(ff.tau == 0)
+
+
+def test_a_loss_during_the_fade_in_restarts_the_fade_from_the_present_force(supply) -> None:  # type: ignore[no-untyped-def]
+    """Lost, back briefly, lost again (a flapping anemometer): every loss holds the present force, so the
+    output is continuous through every change and never exceeds the last measured force."""
+    ff = WindFeedForward(supply.hull.wind, supply.length_m, filter_s=2.0, gain=1.0, fade_s=60.0)
+    full = _steady(ff, (12.0, -4.0))
+    prev = full
+    rng = np.random.default_rng(3)
+    for _ in range(600):
+        wind = (12.0, -4.0) if rng.random() < 0.3 else None
+        tau = ff.update(0.1, wind)
+        assert np.all(np.abs(tau - prev) <= 0.06 * np.abs(full))  # ≤ one filter step (1 − e^−0.05 ≈ 5 %)
+        assert np.all(np.abs(tau) <= np.abs(full) * (1 + 1e-6))  # (30 s of filter: converged to e^-15)
+        prev = tau
+
+
+def test_fade_time_default_and_checks(supply) -> None:  # type: ignore[no-untyped-def]
+    """Default T_f = 2 max(T_i, T_b); [control] wind_loss_fade_s = 0 drops at once; a bad value stops
+    start-up naming the field."""
+    assert default_fade_s(143.0, 96.0) == 2 * 143.0
+    assert default_fade_s(100.0, 250.0) == 2 * 250.0
+    assert default_fade_s(math.inf, 50.0) == 100.0 and default_fade_s(80.0, None) == 160.0
+    assert default_fade_s(math.inf, None) == 0.0
+    ctl = DPController(supply)
+    a = ctl.gains.integral_pole
+    assert ctl.wind is not None and ctl.wind.fade_s == pytest.approx(2.0 / a.min())  # 286 s at 76.2 m
+    slow_observer = DPController(supply, observer_bias_time_s=400.0)
+    assert slow_observer.wind is not None and slow_observer.wind.fade_s == 800.0
+    at_once = DPController(supply, ControllerTuning(wind_loss_fade_s=0.0))
+    assert at_once.wind is not None and at_once.wind.fade_s == 0.0
+    for bad in (-1.0, math.nan, math.inf, True, "slow"):
+        with pytest.raises(ControllerError, match="wind_loss_fade_s"):
+            DPController(supply, ControllerTuning(wind_loss_fade_s=bad))  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="fade"):
+        WindFeedForward(supply.hull.wind, supply.length_m, 2.0, 1.0, fade_s=-1.0)
+    from gateway.control.wind_feedforward import observer_bias_time_s
+    from observers.factory import make_observer
+
+    t_b = observer_bias_time_s(supply, make_observer("passive", supply))
+    assert t_b is not None and 10.0 < t_b < 1000.0
+    assert observer_bias_time_s(supply, object()) is None

@@ -521,6 +521,7 @@ def _read_control(p: Problems, data: Mapping[str, Any], vessel: VesselModel | No
         return_speed_mps=ret,
         wind_feedforward_gain=v["wind_feedforward_gain"],
         wind_filter_s=v["wind_filter_s"],
+        wind_loss_fade_s=v["wind_loss_fade_s"],
     )
 
 

@@ -200,6 +200,10 @@ class ControlConfig:
     """k_w ∈ [0, 1] of the wind feed-forward from a ``wind`` source (0: off)."""
     wind_filter_s: float = 2.0
     """Time constant (s) of the low-pass on the measured wind before the feed-forward."""
+    wind_loss_fade_s: float | None = None
+    """After the wind is lost, its last force fades linearly to zero over this time (s; 0: drops at
+    once); None: twice the slower of the controller's integral time and the observer's bias mode
+    (docs/controller.md)."""
 
 
 @dataclass(frozen=True)

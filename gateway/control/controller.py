@@ -65,8 +65,12 @@ the wind force of the vessel's ``[hull.wind]`` areas on the low-passed measured 
 simulator's plant uses (`observers.hull.relative_wind_force`), taken off τ with gain k_w
 (``wind_feedforward_gain``, 0 = off) after a first-order filter of time constant ``wind_filter_s``. It
 counters a gust as it is measured instead of after the position has drifted and the integrator has
-caught up. The filter runs in every mode (so it is warm on entering dp); the term acts only in dp. A
-vessel without ``[hull.wind]`` has none (`DPController.wind` is None).
+caught up. When the wind is lost the last force is held and faded out linearly over ``wind_loss_fade_s``
+(default `wind_feedforward.default_fade_s`: twice the slower of the integral time 1/a and the observer's
+bias-mode time given as ``observer_bias_time_s``), so the integrator and b̂ take the load over gradually;
+when it is back, the force returns at the same pace.
+The filter runs in every mode (so it is warm on entering dp); the term acts only in dp. A vessel without
+``[hull.wind]`` has none (`DPController.wind` is None).
 
 Modes: ``standby`` (τ = 0, integrator reset, reference follows the estimate), ``dp`` (station keeping and
 tracking through the reference model, `gateway.control.reference`), ``manual`` (τ from outside, held
@@ -96,7 +100,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from gateway.control import _controller_kernel as _ck
 from gateway.control.reference import ReferenceLimits, ReferenceModel, ReferenceState
-from gateway.control.wind_feedforward import WindFeedForward
+from gateway.control.wind_feedforward import WindFeedForward, default_fade_s
 from observers.kinematics import rotation, ssa_scalar
 from observers.vessel import VesselModel
 
@@ -180,6 +184,8 @@ class ControllerTuning:
                                (True, the default); False: the full error drives the return.
     wind_feedforward_gain:     k_w ∈ [0, 1] of the wind feed-forward (0: off; 1: the whole measured force).
     wind_filter_s:             T_w > 0 of the measured wind's first-order low-pass (s).
+    wind_loss_fade_s:          T_f ≥ 0: after the wind is lost its force fades linearly to zero over T_f
+                               (s; 0: drops at once); None: `wind_feedforward.default_fade_s`.
     """
 
     bandwidth_rad_s: float | tuple[float, ...] | None = None
@@ -197,6 +203,7 @@ class ControllerTuning:
     governed_return: bool = True
     wind_feedforward_gain: float = 1.0
     wind_filter_s: float = DEFAULT_WIND_FILTER_S
+    wind_loss_fade_s: float | None = None
 
     def resolved(self, vessel: VesselModel) -> ControllerTuning:
         """This tuning with every default filled in for ``vessel`` and per-DOF values as tuples, checked."""
@@ -226,6 +233,15 @@ class ControllerTuning:
         wf = self.wind_filter_s
         if isinstance(wf, bool) or not isinstance(wf, int | float) or not (math.isfinite(wf) and wf > 0):
             raise ControllerError(f"tuning 'wind_filter_s': must be a finite number > 0 s, got {wf!r}")
+        fade = self.wind_loss_fade_s
+        if fade is not None and (
+            isinstance(fade, bool)
+            or not isinstance(fade, int | float)
+            or not (math.isfinite(fade) and fade >= 0)
+        ):
+            raise ControllerError(
+                f"tuning 'wind_loss_fade_s': must be a finite number >= 0 s (0: drop at once), got {fade!r}"
+            )
         return replace(
             self,
             bandwidth_rad_s=wn,
@@ -239,6 +255,7 @@ class ControllerTuning:
             governed_return=bool(self.governed_return),
             wind_feedforward_gain=float(gain),
             wind_filter_s=float(wf),
+            wind_loss_fade_s=None if fade is None else float(fade),
             **limits,
         )
 
@@ -374,10 +391,19 @@ class DPController:
     Starts in ``standby``. Call `update` once per control tick with the observer's estimate.
     """
 
-    def __init__(self, vessel: VesselModel, tuning: ControllerTuning | None = None, *, compiled: bool = True):
+    def __init__(
+        self,
+        vessel: VesselModel,
+        tuning: ControllerTuning | None = None,
+        *,
+        compiled: bool = True,
+        observer_bias_time_s: float | None = None,
+    ):
         """``compiled``: run the steps of dp mode after the first in one compiled call
         (`gateway.control._controller_kernel`, the same equations on scalars; round-off apart the same
-        numbers); False: this module's numpy code throughout, the reference the kernel is tested against."""
+        numbers); False: this module's numpy code throughout, the reference the kernel is tested against.
+        ``observer_bias_time_s``: the time constant of the feeding observer's slowest (bias) mode, for the
+        default wind loss fade (`wind_feedforward.default_fade_s`); None: the integral time alone."""
         self.vessel = vessel
         self.compiled = compiled
         self.tuning = (tuning or ControllerTuning()).resolved(vessel)
@@ -433,8 +459,13 @@ class DPController:
         self.wind: WindFeedForward | None = None
         """The wind feed-forward; None for a vessel without wind areas or with gain 0."""
         if hull is not None and hull.wind is not None and tu.wind_feedforward_gain > 0:
+            fade = tu.wind_loss_fade_s
+            if fade is None:
+                a = self.gains.integral_pole
+                integral_s = 1.0 / float(a[a > 0].min()) if np.any(a > 0) else math.inf
+                fade = default_fade_s(integral_s, observer_bias_time_s)
             self.wind = WindFeedForward(
-                hull.wind, vessel.length_m, tu.wind_filter_s, tu.wind_feedforward_gain
+                hull.wind, vessel.length_m, tu.wind_filter_s, tu.wind_feedforward_gain, fade
             )
 
     # -- commands ---------------------------------------------------------------------------------------
