@@ -22,6 +22,7 @@ import heapq
 import json
 import math
 import re
+import struct
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
@@ -43,7 +44,7 @@ from observers.factory import (
     with_defaults,
 )
 from observers.passive_tuning import PassiveTuning
-from wire.mcap.reader import read_messages
+from wire.mcap.reader import read_messages, read_metadata
 from wire.mcap.writer import McapLogWriter, raw_mavlink_record, raw_nmea_record
 from wire.messages import SIM_METADATA, Estimate, Message, RawMavlink, RawNmea, encoder_of
 
@@ -80,30 +81,22 @@ def input_kind(path: str | Path) -> str:
 
 
 def logged_config(path: str | Path) -> dict[str, Any] | None:
-    """The configuration (as the TOML tables) a live run stored in its log, if any."""
-    with open(path, "rb") as f:
-        reader = make_reader(f)
-        try:
-            for record in reader.iter_metadata():
-                if record.name == CONFIG_METADATA and "json" in record.metadata:
-                    data: dict[str, Any] = json.loads(record.metadata["json"])
-                    return data
-        except Exception:  # a truncated file has no metadata index: fall through
-            return None
-    return None
+    """The configuration (as the TOML tables) a live run stored in its log, if any; also from a log cut by
+    `kill -9` or power loss (the record is at the file's start)."""
+    meta = _logged(path, CONFIG_METADATA)
+    if meta is None or "json" not in meta:
+        return None
+    data: dict[str, Any] = json.loads(meta["json"])
+    return data
 
 
 def _logged(path: str | Path, name: str) -> dict[str, str] | None:
-    """The MCAP metadata record ``name`` of a log, if it has one."""
-    with open(path, "rb") as f:
-        reader = make_reader(f)
-        try:
-            for record in reader.iter_metadata():
-                if record.name == name:
-                    return dict(record.metadata)
-        except Exception:  # a truncated file has no metadata index
-            return None
-    return None
+    """The MCAP metadata record ``name`` of a log (complete or cut), if it has one."""
+    try:
+        records = read_metadata(path)
+    except (OSError, ValueError, struct.error):  # unreadable, or not MCAP: the caller reports that
+        return None
+    return next((meta for record_name, meta in records if record_name == name), None)
 
 
 def logged_sim(path: str | Path) -> dict[str, str] | None:

@@ -283,6 +283,49 @@ def test_simulator_log_replays_in_the_datum_its_truth_is_in(tmp_path: Path) -> N
     assert (datum.lat_deg, datum.lon_deg, datum.alt_m, datum.first_fix) == (63.4, 10.4, 12.0, False)
 
 
+def test_a_cut_log_replays_with_its_own_configuration(tmp_path: Path) -> None:
+    """A log cut by kill -9 or power loss (no summary, no metadata index) still carries the configuration and
+    the simulator's description at its start: replay finds them, as in a complete log, instead of asking
+    for --vessel."""
+    from gateway.replay import build_config, open_inputs
+
+    log = tmp_path / "sim.mcap"
+    with McapLogWriter(log, background_flush=False, fsync=False) as w:
+        w.add_metadata(
+            "dpgw.config",
+            {
+                "json": json.dumps(
+                    {
+                        "vessel": {"name": "cybership2"},
+                        "sources": [
+                            {
+                                "name": "dgps1",
+                                "url": "udp://127.0.0.1:10110",
+                                "protocol": "nmea",
+                                "roles": ["position"],
+                            },
+                            {
+                                "name": "gyro1",
+                                "url": "udp://127.0.0.1:10111",
+                                "protocol": "nmea",
+                                "roles": ["heading"],
+                            },
+                        ],
+                        "observer": {"wave_period_s": 1.25},
+                    }
+                )
+            },
+        )
+        Simulation(get_scenario("fossen_strand_1999"), seed=1, log=w).run(5.0)
+    data = log.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) * 2 // 3])
+    assert sum(1 for _ in read_messages(cut)) > 0
+    config = build_config(open_inputs([cut]))
+    assert config.vessel.name == "cybership2"  # the config's, not the simulator's northern_clipper
+    assert np.allclose(config.observer.tuning.omega0, 2 * math.pi / 1.25)
+
+
 def test_simulator_log_replays_with_its_own_vessel(tmp_path: Path) -> None:
     """A simulator log names its vessel (metadata dpgw.sim): replay needs no --vessel; --vessel still wins; a
     vessel that is not built in (only its name is in the log) is one message saying to give its file."""
