@@ -63,6 +63,8 @@ class ReplayError(ValueError):
 def input_kind(path: str | Path) -> str:
     """'mcap', 'tlog' or 'nmea' (a text log), from the file's first bytes and name."""
     p = Path(path)
+    if p.is_dir():
+        raise ReplayError(f"{p}: a folder, not a log file: give the logs in it (e.g. {p / '*.mcap'})")
     if not p.is_file():
         raise ReplayError(f"{p}: no such log file")
     with p.open("rb") as f:
@@ -364,7 +366,14 @@ def build_config(
     if vessel is None:
         vessel = logged_vessel(inputs)
     if vessel is None:
-        raise ReplayError("no configuration in the log: give --vessel NAME|FILE or --config FILE")
+        logs = ", ".join(str(inp.path) for inp in inputs)
+        what = (
+            "carries no configuration (not a dpgw gateway or simulator log, or cut before its start was"
+            " saved)"
+            if any(inp.kind == "mcap" for inp in inputs)
+            else "names no vessel (an NMEA text log or a tlog does not)"
+        )
+        raise ReplayError(f"{logs}: {what}: give --vessel NAME|FILE or --config FILE")
     tables = default_config(vessel)
     # A simulator's log says which datum its truth is in: replay there, not at the first fix (a wave-moved,
     # noisy position ~1 m off, which every score against the truth would carry as a constant error).

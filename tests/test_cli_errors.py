@@ -65,6 +65,35 @@ def test_replay_of_binary_data_finds_nothing_and_says_what_to_give(
     assert not (tmp_path / "capture-replay.mcap").exists()  # no empty output left behind
 
 
+def test_replay_of_a_folder_says_it_is_one(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    assert main(["replay", str(folder), "--vessel", "mss_supply"]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert (
+        line == f"dpgw replay: {folder}: a folder, not a log file: give the logs in it (e.g. {folder}/*.mcap)"
+    )
+
+
+def test_replay_without_a_vessel_says_which_log_names_none(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    text = tmp_path / "trial.txt"
+    text.write_text("$GPGGA,120000.00,5924.0,N,01030.0,E,2,08,0.9,10.0,M,40.0,M,,*4C\r\n")
+    assert main(["replay", str(text)]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert line == (
+        f"dpgw replay: {text}: names no vessel (an NMEA text log or a tlog does not): give --vessel "
+        "NAME|FILE or --config FILE"
+    )
+    mcap = tmp_path / "other.mcap"
+    mcap.write_bytes(b"\x89MCAP0\r\n" + bytes(12))  # an MCAP file cut just after its magic
+    assert main(["replay", str(mcap)]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert line.startswith(f"dpgw replay: {mcap}: carries no configuration"), line
+    assert line.endswith("give --vessel NAME|FILE or --config FILE"), line
+
+
 def _tlog_record(t_us: int) -> bytes:
     """A tlog record: the time (µs, big-endian) and an (empty, unchecked) MAVLink 2 frame of 12 bytes."""
     return struct.pack(">Q", t_us) + b"\xfd\x00" + bytes(10)
