@@ -281,6 +281,7 @@ def run(args: argparse.Namespace) -> int:
     kinds = {s.label: (s.name, s.name in SCHEDULES_OMEGA0 or bool(s.params.get("adaptive"))) for s in specs}
     summary["wave_check"] = evidence.check(config.vessel.length_m, config.vessel.model_scale, kinds).as_dict()
     summary["measurements"] = evidence.measured()
+    summary["cut_logs"] = cut_logs(inputs)
     if args.report:
         written = _report(args, config.vessel.name, specs, result, evidence.new)
         summary["report"] = [str(p) for p in written]
@@ -295,9 +296,25 @@ def run(args: argparse.Namespace) -> int:
         print(cli_json.dumps(summary, indent=2))
     else:
         _print(summary)
-    for warning in [*_no_estimates(summary), *summary["wave_check"]["warnings"]]:
+    for warning in [*_cut(summary), *_no_estimates(summary), *summary["wave_check"]["warnings"]]:
         print(f"dpgw replay: warning: {warning}", file=sys.stderr)
     return 0
+
+
+def cut_logs(inputs: list[Any]) -> list[str]:
+    """The MCAP inputs that end without MCAP's footer: cut by `kill -9` or power loss (or still written)."""
+    from wire.mcap.reader import is_complete
+
+    return [str(inp.path) for inp in inputs if inp.kind == "mcap" and not is_complete(inp.path)]
+
+
+def _cut(s: dict[str, Any]) -> list[str]:
+    """A log cut short is replayed up to its last complete record: say so, it is not the whole trial."""
+    return [
+        f"{path} ends without its summary (the writer was killed or lost power, or is still writing it): "
+        "replayed up to its last complete record"
+        for path in s["cut_logs"]
+    ]
 
 
 def _no_estimates(s: dict[str, Any]) -> list[str]:

@@ -326,6 +326,26 @@ def test_a_cut_log_replays_with_its_own_configuration(tmp_path: Path) -> None:
     assert np.allclose(config.observer.tuning.omega0, 2 * math.pi / 1.25)
 
 
+def test_replay_of_a_cut_log_says_it_was_cut(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A log cut short replays up to its last complete record, and the replay says so (on the console and
+    as `cut_logs` in --json): the result is not the whole trial."""
+    from dpgw.cli import main
+
+    log = tmp_path / "sim.mcap"
+    with McapLogWriter(log, background_flush=False, fsync=False) as w:
+        Simulation(get_scenario("fossen_strand_1999"), seed=1, log=w).run(20.0)
+    assert main(["replay", str(log), "--out", str(tmp_path / "a.mcap"), "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["cut_logs"] == []
+    assert "ends without its summary" not in err
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(log.read_bytes()[: log.stat().st_size * 2 // 3])
+    assert main(["replay", str(cut), "--out", str(tmp_path / "b.mcap"), "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["cut_logs"] == [str(cut)]
+    assert f"dpgw replay: warning: {cut} ends without its summary" in err
+
+
 def test_simulator_log_replays_with_its_own_vessel(tmp_path: Path) -> None:
     """A simulator log names its vessel (metadata dpgw.sim): replay needs no --vessel; --vessel still wins; a
     vessel that is not built in (only its name is in the log) is one message saying to give its file."""

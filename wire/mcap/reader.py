@@ -25,7 +25,15 @@ from mcap.well_known import MessageEncoding, SchemaEncoding
 from wire.mcap.format import MAGIC, OPCODE_DATA_END, OPCODE_FOOTER, OPCODE_METADATA, RECORD_HEADER
 from wire.mcap.rotation import StrPath, log_files
 
-__all__ = ["ChannelSummary", "LogSummary", "log_files", "read_messages", "read_metadata", "summary"]
+__all__ = [
+    "ChannelSummary",
+    "LogSummary",
+    "is_complete",
+    "log_files",
+    "read_messages",
+    "read_metadata",
+    "summary",
+]
 
 
 def _whole_records(f: IO[bytes]) -> tuple[int, bool]:
@@ -56,6 +64,13 @@ def _whole_records(f: IO[bytes]) -> tuple[int, bool]:
                 return pos + len(MAGIC), True
             break
     return pos, False
+
+
+def is_complete(path: StrPath) -> bool:
+    """Whether a file ends in MCAP's footer and closing magic (False for one cut by `kill -9` or power
+    loss, or still being written). Walks the record headers with seeks: cheap on any size."""
+    with open(path, "rb") as f:
+        return _whole_records(f)[1]
 
 
 class _Slice(io.RawIOBase):
