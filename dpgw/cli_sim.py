@@ -210,7 +210,19 @@ def _run_scenario(args: argparse.Namespace) -> int:
     from wire.mcap.writer import McapLogWriter
 
     try:
-        scenario = get_scenario(args.scenario).with_sensor_rates(args.gnss_rate, args.gyro_rate)
+        scenario = get_scenario(args.scenario)
+        for flag, rates in (("--gnss-rate", (args.gnss_rate, None)), ("--gyro-rate", (None, args.gyro_rate))):
+            try:
+                scenario = scenario.with_sensor_rates(*rates)
+            except ValueError as exc:  # (the sensor's own check names its class and field: name the option)
+                raise ValueError(f"{flag}: {str(exc).split(': ', 1)[-1]}") from None
+        for spec in args.nmea:
+            sources = _parse_route(spec, "nmea")[1] or frozenset()
+            if unknown := sorted(sources - set(scenario.nmea_sources())):
+                raise ValueError(
+                    f"--nmea {spec}: {args.scenario} has no NMEA talker '{unknown[0]}' (it has "
+                    f"{', '.join(scenario.nmea_sources())}; without SOURCE= every one goes to the URL)"
+                )
         if args.faults:
             scenario = replace(scenario, faults=scenario.faults + load_faults(args.faults))
             commands_in_file = sorted({f.kind for f in scenario.faults if f.kind in COMMAND_KINDS})
@@ -265,7 +277,10 @@ def _run_scenario(args: argparse.Namespace) -> int:
             # chunks, each with its own compression call and indexes. Chunks then close by size (and
             # every second of wall time, which bounds the loss if the process dies).
             # (the simulation writes its own metadata: scenario, seed, vessel and datum)
-            log = McapLogWriter(args.out, profile="dpgw-sim", flush_on_log_time=bool(args.realtime))
+            try:
+                log = McapLogWriter(args.out, profile="dpgw-sim", flush_on_log_time=bool(args.realtime))
+            except OSError as exc:
+                raise OSError(f"--out {args.out}: cannot write the log: {exc.strerror or exc}") from None
     except (TransportError, BusError, OSError) as exc:
         message = exc.describe(ZENOH_FLAGS) if isinstance(exc, BusError) else str(exc)
         print(f"dpgw sim: {message}", file=sys.stderr)

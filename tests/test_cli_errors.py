@@ -658,6 +658,26 @@ def test_replay_zenoh_options_without_pacing_are_refused(
     assert not (tmp_path / "gps-replay.mcap").exists()
 
 
+def test_sim_names_its_own_options_in_what_it_refuses(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: --nmea gps9=pty (no such talker) ran and sent nothing to the pty, silently; --gnss-rate 50
+    said 'DgpsConfig.rate_hz: ...'; --out on a path that cannot be written printed a bare errno."""
+    assert main(["sim", "--scenario", "hassani", "--duration", "1", "--nmea", "gps9=pty"]) == 2
+    assert _one_line(capsys.readouterr().err) == (
+        "dpgw sim: --nmea gps9=pty: hassani has no NMEA talker 'gps9' (it has dgps1, gyro1; without SOURCE= "
+        "every one goes to the URL)"
+    )
+    assert main(["sim", "--scenario", "hassani", "--duration", "1", "--gnss-rate", "50"]) == 2
+    assert _one_line(capsys.readouterr().err) == "dpgw sim: --gnss-rate: must be in 1..10 Hz, got 50.0"
+    assert main(["sim", "--scenario", "hassani", "--duration", "1", "--gyro-rate", "50"]) == 2
+    assert _one_line(capsys.readouterr().err).startswith("dpgw sim: --gyro-rate: must be in")
+    folder = tmp_path / "a-folder.mcap"
+    folder.mkdir()
+    assert main(["sim", "--scenario", "hassani", "--duration", "1", "--out", str(folder)]) == 2
+    assert _one_line(capsys.readouterr().err).startswith(f"dpgw sim: --out {folder}: cannot write the log: ")
+
+
 @pytest.mark.parametrize(
     ("extra", "words"),
     [
