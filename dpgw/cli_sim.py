@@ -217,8 +217,8 @@ def _run_scenario(args: argparse.Namespace) -> int:
             except ValueError as exc:  # (the sensor's own check names its class and field: name the option)
                 raise ValueError(f"{flag}: {str(exc).split(': ', 1)[-1]}") from None
         for spec in args.nmea:
-            sources = _parse_route(spec, "nmea")[1] or frozenset()
-            if unknown := sorted(sources - set(scenario.nmea_sources())):
+            picked = _parse_route(spec, "nmea")[1] or frozenset()
+            if unknown := sorted(picked - set(scenario.nmea_sources())):
                 raise ValueError(
                     f"--nmea {spec}: {args.scenario} has no NMEA talker '{unknown[0]}' (it has "
                     f"{', '.join(scenario.nmea_sources())}; without SOURCE= every one goes to the URL)"

@@ -127,8 +127,9 @@ class Scenario:
     def nmea_sources(self) -> tuple[str, ...]:
         """The names of the scenario's NMEA talkers (DGPS, gyros, anemometers, MRUs): what
         `dpgw sim --nmea SOURCE=URL` may pick."""
-        talkers = (*self.dgps, *self.gyro, *self.anemometers, *self.mru)
-        return tuple(dict.fromkeys(t.source for t in talkers))
+        names = [t.source for t in self.dgps] + [t.source for t in self.gyro]
+        names += [t.source for t in self.anemometers] + [t.source for t in self.mru]
+        return tuple(dict.fromkeys(names))
 
     def with_sensor_rates(self, gnss_hz: float | None = None, gyro_hz: float | None = None) -> Scenario:
         dgps = tuple(replace(d, rate_hz=gnss_hz) for d in self.dgps) if gnss_hz else self.dgps
