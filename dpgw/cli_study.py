@@ -48,7 +48,12 @@ def doc_markers(section: str) -> tuple[str, str]:
 
 
 def _numbers(text: str) -> list[float]:
-    return [float(v) for v in text.split(",") if v.strip()]
+    try:
+        return [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected numbers separated by commas, e.g. 2,4.5,6"
+        ) from None
 
 
 def _seeds(text: str) -> list[int]:
@@ -56,7 +61,15 @@ def _seeds(text: str) -> list[int]:
     out: list[int] = []
     for part in filter(None, (p.strip() for p in text.split(","))):
         lo, dash, hi = part.partition("-")
-        out += list(range(int(lo), int(hi) + 1)) if dash else [int(part)]
+        try:
+            first, last = (int(lo), int(hi)) if dash else (int(part), int(part))
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"{part!r}: expected whole numbers and ranges, e.g. 0-7,9"
+            ) from None
+        if last < first:
+            raise argparse.ArgumentTypeError(f"{part!r}: an empty range (write {last}-{first})")
+        out += range(first, last + 1)
     return out
 
 

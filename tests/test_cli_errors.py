@@ -202,6 +202,14 @@ def test_json_output_has_no_nan_or_infinity() -> None:
     }  # fmt: skip
 
 
+def test_tune_refuses_an_infinite_wave_period(capsys: pytest.CaptureFixture[str]) -> None:
+    """Before: 'tuning 'omega0': must be positive (per DOF or one for all), got [0.0, 0.0, 0.0]'."""
+    assert main(["tune", "--vessel", "mss_supply", "--wave-period", "inf"]) == 2
+    assert _one_line(capsys.readouterr().err) == (
+        "dpgw tune: --wave-period must be a positive, finite number of seconds"
+    )
+
+
 def test_tune_json_is_standard_json() -> None:
     """The default random-walk bias has T = inf: printed as null, not Infinity (which most parsers reject)."""
     p = subprocess.run(
@@ -253,6 +261,10 @@ def test_demo_too_short_to_score_says_how_long_to_run(capsys: pytest.CaptureFixt
             ["run", "--config", "x.toml", "--duration", "abc"],
             "argument --duration: must be a number (got abc)",
         ),
+        # before: "invalid _seeds value: 'x'" (the function's name) and "'seeds' is empty"
+        (["study", "--seeds", "x"], "argument --seeds: 'x': expected whole numbers and ranges, e.g. 0-7,9"),
+        (["study", "--seeds", "0-3,7-5"], "argument --seeds: '7-5': an empty range (write 5-7)"),
+        (["study", "--hs", "2,four"], "argument --hs: '2,four': expected numbers separated by commas"),
     ],
 )
 def test_a_duration_speed_or_count_that_cannot_be_is_refused(
