@@ -202,6 +202,26 @@ def test_json_output_has_no_nan_or_infinity() -> None:
     }  # fmt: skip
 
 
+@pytest.mark.parametrize(
+    ("key", "says"),
+    [
+        ("/dp/estimate", "— did you mean 'dp/estimate'?"),  # an MCAP topic given as a key
+        ("dp//x", "— did you mean 'dp/x'?"),
+        ("dp/#", "(`#` and `?` are forbidden characters)."),
+        ("dp/**/**", "`**/**` must be replaced by `**`"),
+    ],
+)
+def test_listen_to_a_key_that_is_not_one_says_what_to_write(
+    key: str, says: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: a Zenoh traceback (ZError ... at /root/.cargo/...borrowed.rs:777)."""
+    assert main(["listen", key, "--duration", "1", "--no-scouting"]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert line.startswith(f"dpgw listen: '{key}' is not a Zenoh key expression ("), line
+    assert says in line and ".rs:" not in line
+    assert "with no leading or trailing '/'" in line
+
+
 def test_tune_refuses_an_infinite_wave_period(capsys: pytest.CaptureFixture[str]) -> None:
     """Before: 'tuning 'omega0': must be positive (per DOF or one for all), got [0.0, 0.0, 0.0]'."""
     assert main(["tune", "--vessel", "mss_supply", "--wave-period", "inf"]) == 2
