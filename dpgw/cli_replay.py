@@ -201,6 +201,12 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
+    if args.prefix is not None:
+        from gateway.config.load import prefix_problem
+
+        if problem := prefix_problem(args.prefix):
+            print(f"dpgw replay: --prefix: {problem}", file=sys.stderr)
+            return 2
     # Where the results go is checked before the replay, not found out after it.
     if args.report is not None and Path(args.report).exists() and not Path(args.report).is_dir():
         print(

@@ -179,6 +179,12 @@ def run(args: argparse.Namespace) -> int:
     if args.speed != 1.0 and not args.realtime:  # accepted and ignored before: the run went flat out
         print("dpgw sim: --speed X paces a --realtime run: add --realtime", file=sys.stderr)
         return 2
+    if args.prefix is not None:
+        from gateway.config.load import prefix_problem
+
+        if problem := prefix_problem(args.prefix):
+            print(f"dpgw sim: --prefix: {problem}", file=sys.stderr)
+            return 2
     zenoh_only = flags_given(*_session_options(args))
     if zenoh_only and not args.zenoh:  # accepted and ignored before: no session was opened
         print(f"dpgw sim: {', '.join(zenoh_only)}: only with --zenoh", file=sys.stderr)

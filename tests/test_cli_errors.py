@@ -222,6 +222,23 @@ def test_listen_to_a_key_that_is_not_one_says_what_to_write(
     assert "with no leading or trailing '/'" in line
 
 
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["sim", "--scenario", "hassani", "--duration", "1", "--zenoh", "--prefix", "/dp/x"],
+        ["replay", "x.mcap", "--speed", "100", "--prefix", "/dp/x"],
+    ],
+)
+def test_a_prefix_that_is_no_key_is_refused_before_anything_starts(
+    argv: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: a Zenoh traceback at the first put (the replay after reading its logs)."""
+    assert main(argv) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert line.startswith(f"dpgw {argv[0]}: --prefix: empty chunk in the key expression"), line
+    assert 'e.g. dp/my_ship, got "/dp/x"' in line
+
+
 def test_tune_refuses_an_infinite_wave_period(capsys: pytest.CaptureFixture[str]) -> None:
     """Before: 'tuning 'omega0': must be positive (per DOF or one for all), got [0.0, 0.0, 0.0]'."""
     assert main(["tune", "--vessel", "mss_supply", "--wave-period", "inf"]) == 2
