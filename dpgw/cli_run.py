@@ -67,7 +67,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "127.0.0.1:8765)",
         bare=FROM_CONFIG,
     )
-    p.add_argument("--json", action="store_true", help="print the exit summary as JSON")
+    p.add_argument(
+        "--json",
+        action="store_true",
+        help="print the exit summary as JSON; with --check, the check as JSON on stdout: {config, ok, "
+        "problems, summary, notes}",
+    )
     p.add_argument(
         "-v",
         "--verbose",
@@ -100,6 +105,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         config = load_config(args.config)
     except ConfigError as exc:
+        if args.check and args.json:
+            return _check_json(args.config, exc.problems)
         print(format_problems(exc), file=sys.stderr)
         return 2
     if args.clock is not None:
@@ -110,6 +117,8 @@ def run(args: argparse.Namespace) -> int:
         config = replace(config, foxglove=FoxgloveConfig(enabled=True, host=host, port=port))
     if args.check:
         problems = start_up_problems(config)
+        if args.json:
+            return _check_json(args.config, problems, describe(config), start_up_notes(config))
         if problems:
             print(format_problems(problems), file=sys.stderr)
             return 2
@@ -224,6 +233,19 @@ def status_line(status: dict[str, Any], elapsed_s: float) -> str:
         + ", ".join(parts)
         + (f"; alarms: {'; '.join(alarms)}" if alarms else "")
     )
+
+
+def _check_json(path: str, problems: list[str], summary: str = "", notes: list[str] | None = None) -> int:
+    """``--check --json``: the check for a program (CI over a fleet's configs), status 0 or 2 as without."""
+    out = {
+        "config": str(path),
+        "ok": not problems,
+        "problems": problems,
+        "summary": summary.splitlines() if not problems else [],
+        "notes": (notes or []) if not problems else [],
+    }
+    print(cli_json.dumps(out, indent=2))
+    return 2 if problems else 0
 
 
 def start_up_notes(config: GatewayConfig) -> list[str]:

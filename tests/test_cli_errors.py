@@ -239,6 +239,27 @@ def test_a_prefix_that_is_no_key_is_refused_before_anything_starts(
     assert 'e.g. dp/my_ship, got "/dp/x"' in line
 
 
+def test_run_check_json_is_the_check_for_a_program(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, --check ignored --json: a program checking a fleet's configs had to parse the text."""
+    good = REPO / "examples" / "nmea_udp_multiplexer.toml"
+    assert main(["run", "--config", str(good), "--check", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["ok"] is True and out["problems"] == [] and out["config"] == str(good)
+    assert out["summary"][0] == f"config {good}: ok"
+    bad = tmp_path / "bad.toml"
+    bad.write_text(good.read_text().replace("[observer]", "[observer]\nwave_perod_s = 9.0", 1))
+    assert main(["run", "--config", str(bad), "--check", "--json"]) == 2
+    out = json.loads(capsys.readouterr().out)
+    assert out["ok"] is False and out["summary"] == []
+    assert any("observer.wave_perod_s: unknown key" in p for p in out["problems"]), out
+    assert main(["run", "--config", str(tmp_path / "nope.toml"), "--check", "--json"]) == 2
+    assert json.loads(capsys.readouterr().out)["problems"] == [
+        f"{tmp_path / 'nope.toml'}: cannot read: no such file"
+    ]
+
+
 def test_tune_refuses_an_infinite_wave_period(capsys: pytest.CaptureFixture[str]) -> None:
     """Before: 'tuning 'omega0': must be positive (per DOF or one for all), got [0.0, 0.0, 0.0]'."""
     assert main(["tune", "--vessel", "mss_supply", "--wave-period", "inf"]) == 2
