@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import random
 import re
 import struct
@@ -258,6 +259,26 @@ def test_run_check_json_is_the_check_for_a_program(
     assert json.loads(capsys.readouterr().out)["problems"] == [
         f"{tmp_path / 'nope.toml'}: cannot read: no such file"
     ]
+
+
+def test_output_to_a_reader_that_has_gone_stops_quietly(tmp_path: Path) -> None:
+    """`dpgw tune --json | head -1`: the reader stops reading; before, a BrokenPipeError traceback. The
+    pipe's read end is closed before the command starts, so its first write fails, whatever the timing."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        proc = subprocess.run(
+            [sys.executable, "-m", "dpgw", "tune", "--vessel", "mss_supply", "--wave-period", "9", "--json"],
+            stdout=write_end,
+            stderr=subprocess.PIPE,
+            text=True,
+            cwd=REPO,
+            timeout=120,
+        )
+    finally:
+        os.close(write_end)
+    assert proc.stderr == "", proc.stderr
+    assert proc.returncode == 128 + 13
 
 
 def test_tune_refuses_an_infinite_wave_period(capsys: pytest.CaptureFixture[str]) -> None:
