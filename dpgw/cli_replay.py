@@ -217,6 +217,14 @@ def run(args: argparse.Namespace) -> int:
     if problem := missing_folder("--out", args.out):
         print(f"dpgw replay: {problem}", file=sys.stderr)
         return 2
+    if args.vessel is not None:  # (checked as the flag it is, not as the config key it becomes)
+        from observers.vessel import load_vessel
+
+        try:
+            load_vessel(args.vessel)
+        except VesselError as exc:
+            print(f"dpgw replay: --vessel: {exc}", file=sys.stderr)
+            return 2
     try:
         inputs = open_inputs(args.logs)
         config = build_config(inputs, config_path=args.config, vessel=args.vessel)

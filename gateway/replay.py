@@ -356,10 +356,10 @@ def build_config(
         if inp.kind == "mcap" and (tables := logged_config(inp.path)) is not None:
             if vessel is not None:
                 tables = dict(tables)
-                tables["vessel"] = (
+                tables["vessel"] = (  # a --vessel file is where the user said, not beside the log
                     {"name": vessel}
                     if "/" not in vessel and not vessel.endswith(".toml")
-                    else {"file": vessel}
+                    else {"file": str(Path(vessel).resolve())}
                 )
             tables = {**_as_replayed(tables), "log": {"path": ""}}
             return parse_config(tables, base_dir=inp.path.resolve().parent, where=f"{inp.path} (metadata)")

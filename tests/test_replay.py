@@ -326,6 +326,33 @@ def test_a_cut_log_replays_with_its_own_configuration(tmp_path: Path) -> None:
     assert np.allclose(config.observer.tuning.omega0, 2 * math.pi / 1.25)
 
 
+def test_a_vessel_file_given_for_a_gateway_log_is_where_the_user_said(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """--vessel ship.toml is relative to where dpgw runs, also for a log that carries its own config (before:
+    relative to the log's folder, where a vessel file given on the command line is not)."""
+    from importlib import resources
+
+    from gateway.replay import build_config, open_inputs
+
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    log = logs / "trial.mcap"
+    sources = [
+        {"name": "dgps1", "url": "udp://127.0.0.1:10110", "protocol": "nmea", "roles": ["position"]},
+        {"name": "gyro1", "url": "udp://127.0.0.1:10111", "protocol": "nmea", "roles": ["heading"]},
+    ]
+    with McapLogWriter(log, background_flush=False, fsync=False) as w:
+        w.add_metadata(
+            "dpgw.config", {"json": json.dumps({"vessel": {"name": "mss_supply"}, "sources": sources})}
+        )
+        Simulation(get_scenario("fossen_strand_1999"), seed=1, log=w).run(2.0)
+    ship = (resources.files("observers") / "vessels" / "cybership2.toml").read_text(encoding="utf-8")
+    (tmp_path / "ship.toml").write_text(ship.replace('name = "cybership2"', 'name = "my_ship"', 1))
+    monkeypatch.chdir(tmp_path)
+    assert build_config(open_inputs([log]), vessel="ship.toml").vessel.name == "my_ship"
+
+
 def test_replay_of_a_cut_log_says_it_was_cut(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A log cut short replays up to its last complete record, and the replay says so (on the console and
     as `cut_logs` in --json): the result is not the whole trial."""
