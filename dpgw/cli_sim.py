@@ -101,6 +101,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--prefix", help="Zenoh key prefix (default dp/<vessel>)")
     add_endpoint_args(p)
+    p.add_argument("--no-scouting", action="store_true", help="Zenoh multicast scouting off")
     p.add_argument("--zenoh-config", metavar="FILE", help="a Zenoh JSON5 config file (overrides the above)")
     p.add_argument("--json", action="store_true", help="print the run summary as JSON")
     cli_sim_inputs.add_arguments(p)
@@ -198,6 +199,7 @@ def _session_options(args: argparse.Namespace) -> tuple[tuple[str, object], ...]
         ("--prefix", args.prefix),
         ("--zenoh-listen", args.zenoh_listen),
         ("--zenoh-connect", args.zenoh_connect),
+        ("--no-scouting", args.no_scouting),
         ("--zenoh-config", args.zenoh_config),
     )
 
@@ -273,7 +275,10 @@ def _run_scenario(args: argparse.Namespace) -> int:
             prefix = args.prefix or f"dp/{scenario.vessel.name}"
             session = open_session(
                 make_config(
-                    connect=args.zenoh_connect, listen=args.zenoh_listen, config_file=args.zenoh_config
+                    connect=args.zenoh_connect,
+                    listen=args.zenoh_listen,
+                    multicast_scouting=not args.no_scouting,
+                    config_file=args.zenoh_config,
                 )
             )
             commands.append(ZenohCommandInput(session, prefix))

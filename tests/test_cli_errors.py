@@ -797,6 +797,8 @@ def test_sim_names_its_own_options_in_what_it_refuses(
             ["--prefix", "x", "--zenoh-listen", "tcp/127.0.0.1:0"],
             "dpgw sim: --prefix, --zenoh-listen: only with --zenoh",
         ),
+        # --no-scouting, as demo, replay and listen take it (before: "unrecognized arguments")
+        (["--no-scouting"], "dpgw sim: --no-scouting: only with --zenoh"),
     ],
 )
 def test_sim_options_that_need_another_are_refused(
