@@ -77,9 +77,36 @@ def input_kind(path: str | Path) -> str:
         raise ReplayError(
             f"{p}: not an MCAP file (it does not start with MCAP's magic bytes): another format named .mcap"
         )
+    if _raw_mavlink_stream(p):
+        raise ReplayError(
+            f"{p}: a raw MAVLink byte stream (frames without record times, as `dpgw sim --mavlink "
+            "file://...` writes), not a tlog (each record an 8-byte time, then its frame): replay needs the "
+            "times; give a tlog (MAVProxy, Mission Planner, QGroundControl) or the gateway's MCAP log"
+        )
     if p.suffix.lower() in (".tlog", ".bin") or (len(head) > 8 and head[8] in (0xFE, 0xFD)):
         return "tlog"
     return "nmea"
+
+
+def _raw_mavlink_stream(path: Path) -> bool:
+    """Whether a file starts with two back-to-back MAVLink frames (v1 0xFE or v2 0xFD), not tlog records.
+
+    A tlog record starts with its time (big-endian µs since 1970: a first byte of 0 until the year 2540),
+    so a file that starts with a start-of-frame marker, and has another right after the first frame's
+    length, is frames alone."""
+    with path.open("rb") as f:
+        head = f.read(2 * 280)
+    at = 0
+    for _ in range(2):
+        if len(head) < at + 2 or head[at] not in (0xFD, 0xFE):
+            return False
+        if head[at] == 0xFE:  # v1: STX, len, seq, sys, comp, msgid, payload, crc (2)
+            at += 8 + head[at + 1]
+        else:  # v2: STX, len, incompat, compat, seq, sys, comp, msgid (3), payload, crc (2), signature (13)
+            if len(head) < at + 3:
+                return False
+            at += 12 + head[at + 1] + (13 if head[at + 2] & 0x01 else 0)
+    return at <= len(head) and (at == len(head) or head[at] in (0xFD, 0xFE))
 
 
 def logged_config(path: str | Path) -> dict[str, Any] | None:

@@ -95,6 +95,23 @@ def test_replay_without_a_vessel_says_which_log_names_none(
     assert line.endswith("give --vessel NAME|FILE or --config FILE"), line
 
 
+def test_replay_of_a_raw_mavlink_stream_says_it_is_no_tlog(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`dpgw sim --mavlink file://x.tlog` writes frames without record times; before, replay read them as
+    tlog records (bad_record, bad_time) and ran on without the thrusters, or found 'nothing to replay'."""
+    raw = tmp_path / "thrusters.tlog"
+    assert main(["sim", "--scenario", "hassani", "--duration", "2", "--mavlink", f"file://{raw}"]) == 0
+    capsys.readouterr()
+    assert raw.stat().st_size > 0
+    assert main(["replay", str(raw), "--vessel", "cybership2"]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert line.startswith(f"dpgw replay: {raw}: a raw MAVLink byte stream (frames without record times"), (
+        line
+    )
+    assert not (tmp_path / "thrusters-replay.mcap").exists()
+
+
 def _tlog_record(t_us: int) -> bytes:
     """A tlog record: the time (µs, big-endian) and an (empty, unchecked) MAVLink 2 frame of 12 bytes."""
     return struct.pack(">Q", t_us) + b"\xfd\x00" + bytes(10)
