@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
 import textwrap
 import time
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -264,9 +266,11 @@ def run(args: argparse.Namespace) -> int:
     on_outputs = evidence.on_outputs
     if publisher is not None:
         on_outputs = evidence.chain(publisher.on_outputs)
+    stop = _StopOnSignal()
+    on_outputs = stop.between_events(on_outputs)
     t0 = time.perf_counter()
     try:
-        with McapLogWriter(args.out, profile="dpgw-replay", flush_on_log_time=False) as out:
+        with stop, McapLogWriter(args.out, profile="dpgw-replay", flush_on_log_time=False) as out:
             out.add_metadata("dpgw.replay", {"logs": json.dumps([str(i.path) for i in inputs])})
             for name, meta in carried_metadata(inputs, own_config=own_config(args)):
                 out.add_metadata(name, meta)
@@ -281,6 +285,15 @@ def run(args: argparse.Namespace) -> int:
     except (BusError, OSError) as exc:
         print(f"dpgw replay: {exc}", file=sys.stderr)
         return 2
+    except _StopRequestedError as exc:
+        if bar is not None:
+            bar.close()  # (before the line; closing it again below does nothing)
+        print(
+            f"dpgw replay: stopped ({exc.name}) after {stop.events} events, at log time {exc.at}; {args.out} "
+            "holds what was replayed until then (a complete MCAP file); no summary or report",
+            file=sys.stderr,
+        )
+        return 128 + exc.signum
     finally:
         if bar is not None:
             bar.close()
@@ -489,6 +502,47 @@ class _WaveEvidence:
         y = np.array([[np.nan if v is None else v for v in e] for e in self.eta], dtype=float).reshape(-1, 3)
         w0 = {label: np.array(w, dtype=float) for label, w in self.omega0.items()}
         return check_wave_tuning(t, y, wave_band_for_length(vessel_length_m, model_scale), w0, kinds)
+
+
+class _StopRequestedError(Exception):
+    def __init__(self, signum: int, at: str) -> None:
+        super().__init__(signum)
+        self.signum, self.at = signum, at
+        self.name = signal.Signals(signum).name
+
+
+class _StopOnSignal:
+    """Ctrl-C (SIGINT) or SIGTERM while replaying: stop between two events, so that the output is closed
+    as a complete file and the command ends with one line, not a KeyboardInterrupt traceback (or, on
+    SIGTERM, a killed process and an output without its summary). A paced replay (--speed, --realtime) is
+    a long-running process that is stopped this way; so is a long log replayed flat out."""
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+        self.events = 0
+        self._previous: dict[int, Any] = {}
+
+    def __enter__(self) -> _StopOnSignal:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            self._previous[sig] = signal.signal(sig, self._on_signal)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+
+    def _on_signal(self, signum: int, _frame: object) -> None:
+        self.signum = signum
+
+    def between_events(self, then: Any) -> Any:
+        def checked(ev: Event, outputs: list[Output]) -> None:
+            then(ev, outputs)
+            self.events += 1
+            if self.signum is not None:
+                at = datetime.fromtimestamp(ev.rx_ns / 1e9, tz=UTC).strftime("%Y-%m-%d %H:%M:%S.%f")[:-4]
+                raise _StopRequestedError(self.signum, at)
+
+        return checked
 
 
 class _Publisher:

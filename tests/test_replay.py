@@ -7,6 +7,7 @@ import json
 import math
 import os
 import pty
+import signal
 import socket
 import struct
 import subprocess
@@ -39,6 +40,7 @@ from wire.codecs import nmea_encode as enc
 from wire.mcap.reader import read_messages
 from wire.mcap.writer import McapLogWriter
 
+REPO = Path(__file__).resolve().parents[1]
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 USV = DATA / "usv-nmea"
 
@@ -179,6 +181,46 @@ def write_text_log(path: Path, times: list[datetime], *, dup: int | None = None)
         if dup == k:
             lines.append(cycle[-1])
     path.write_text("".join(lines))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_paced_replay_stops_on_ctrl_c_or_sigterm_with_a_complete_output(
+    tmp_path: Path, sig: signal.Signals
+) -> None:
+    """Before: Ctrl-C gave a KeyboardInterrupt traceback; SIGTERM killed the process and left the output
+    without its summary. Now it stops between two events, closes the output and says so in one line."""
+    from conftest import wait_for
+
+    from wire.mcap.reader import summary
+
+    log, out = tmp_path / "trial.txt", tmp_path / "out.mcap"
+    t0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
+    write_text_log(log, [t0 + timedelta(seconds=k) for k in range(600)])  # 10 min: never done at --speed 5
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    argv = [sys.executable, "-m", "dpgw", "replay", str(log), "--vessel", "mss_supply", "--out", str(out)]
+    proc = subprocess.Popen(
+        [*argv, "--speed", "5", "--no-scouting"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        cwd=tmp_path,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # as a terminal starts it
+    )
+    try:
+        # replaying: the output has its first chunk (the writer flushes about every second of wall time)
+        wait_for(lambda: proc.poll() is not None or (out.exists() and out.stat().st_size > 1000), 120.0)
+        assert proc.poll() is None, proc.communicate()
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 128 + sig, err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert err.startswith(f"dpgw replay: stopped ({sig.name}) after "), err
+    info = summary(out)
+    assert info.complete and info.channels["/dp/estimate"].message_count > 0
 
 
 def test_midnight_rollover_and_bad_time_are_counted(tmp_path: Path) -> None:
