@@ -205,7 +205,6 @@ def update_doc(spec: str, text: str, command: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from dpgw.study import outputs
     from dpgw.study.cache import CaseCache
     from dpgw.study.runner import StudyRunError, run_study
     from dpgw.study.spec import StudySpecError
@@ -228,6 +227,29 @@ def run(args: argparse.Namespace) -> int:
     except StudyRunError as exc:
         print(f"dpgw study: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C: an hour's study is stopped this way; say what is kept, no traceback
+        kept = (
+            f"the cases done are cached in {cache.folder}: the same command resumes from them"
+            if cache is not None
+            else "nothing is kept (--no-cache)"
+        )
+        print(f"\ndpgw study: stopped (Ctrl-C); {kept}", file=sys.stderr)
+        return 130
+    try:
+        return _write_outputs(args, result)
+    except KeyboardInterrupt:
+        print(
+            f"\ndpgw study: stopped (Ctrl-C) while writing the outputs in {args.out}; the cases are cached: "
+            "run the same command again to write them",
+            file=sys.stderr,
+        )
+        return 130
+
+
+def _write_outputs(args: argparse.Namespace, result: Any) -> int:
+    """The table, the summary, the plots and the report of a finished study."""
+    from dpgw.study import outputs
+
     files = outputs.write_table(result.rows, args.out)
     text = outputs.summary_markdown(result.rows)
     (args.out / "summary.md").write_text(text + "\n")

@@ -316,6 +316,24 @@ def test_replay_vessel_mistakes_name_the_flag(tmp_path: Path, capsys: pytest.Cap
     )
 
 
+def test_study_stopped_with_ctrl_c_says_what_is_kept(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Before: a KeyboardInterrupt traceback from wherever the study was (a case, Dask, matplotlib)."""
+    import dpgw.study.runner
+
+    def interrupted(*_args: object, **_kwargs: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(dpgw.study.runner, "run_study", interrupted)
+    argv = ["study", "--scenario", "hassani", "--seeds", "0", "--serial", "--out", str(tmp_path / "s")]
+    assert main(argv) == 130
+    assert _one_line(capsys.readouterr().err) == (
+        f"dpgw study: stopped (Ctrl-C); the cases done are cached in {tmp_path / 's' / 'cache'}: the same "
+        "command resumes from them"
+    )
+
+
 def test_tune_refuses_an_infinite_wave_period(capsys: pytest.CaptureFixture[str]) -> None:
     """Before: 'tuning 'omega0': must be positive (per DOF or one for all), got [0.0, 0.0, 0.0]'."""
     assert main(["tune", "--vessel", "mss_supply", "--wave-period", "inf"]) == 2
