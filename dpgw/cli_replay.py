@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 from dpgw import cli_json
 from dpgw.cli_foxglove import add_foxglove_arg, connect_lines
-from dpgw.cli_paths import missing_folder
+from dpgw.cli_paths import mcap_path_problem
 from dpgw.cli_types import flags_given, non_negative_float, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from observers.observer_names import OBSERVER_NAMES
@@ -216,7 +216,7 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
-    if problem := missing_folder("--out", args.out):
+    if problem := mcap_path_problem("--out", args.out):
         print(f"dpgw replay: {problem}", file=sys.stderr)
         return 2
     if args.vessel is not None:  # (checked as the flag it is, not as the config key it becomes)

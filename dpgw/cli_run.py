@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 from dpgw import cli_json
 from dpgw.cli_foxglove import FROM_CONFIG, add_foxglove_arg, connect_lines
+from dpgw.cli_paths import mcap_path_problem
 from dpgw.cli_types import positive_float
 
 if TYPE_CHECKING:
@@ -126,6 +127,9 @@ def run(args: argparse.Namespace) -> int:
         for note in start_up_notes(config):
             print(f"note: {note}")
         return 0
+    if problem := mcap_path_problem("--log", args.log, made=True):
+        print(f"dpgw run: {problem}", file=sys.stderr)
+        return 2
     with open(args.config, "rb") as f:
         tables = tomllib.load(f)
     if args.clock is not None:  # the log's copy of the config says what ran

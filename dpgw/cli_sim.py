@@ -7,7 +7,7 @@ import sys
 from typing import TYPE_CHECKING, Any
 
 from dpgw import cli_json, cli_sim_inputs
-from dpgw.cli_paths import missing_folder
+from dpgw.cli_paths import mcap_path_problem
 from dpgw.cli_types import flags_given, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from simulator.scenario_names import SCENARIO_NAMES
@@ -174,7 +174,7 @@ def run(args: argparse.Namespace) -> int:
     if args.vessel or args.csv or args.plant_option or args.wind or args.sea:
         print("dpgw sim: --vessel, --csv, --plant-option, --wind and --sea go with --inputs", file=sys.stderr)
         return 2
-    if problem := missing_folder("--out", args.out):
+    if problem := mcap_path_problem("--out", args.out):
         print(f"dpgw sim: {problem}", file=sys.stderr)
         return 2
     if args.speed != 1.0 and not args.realtime:  # accepted and ignored before: the run went flat out

@@ -334,6 +334,48 @@ def test_study_stopped_with_ctrl_c_says_what_is_kept(
     )
 
 
+def test_an_mcap_output_that_is_a_folder_or_not_mcap_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: `dpgw run --log logs` (an existing folder) wrote logs_0001, a file without .mcap, beside it;
+    `--log trial.txt` and `dpgw sim/replay --out x.txt` wrote MCAP files named .txt that replay then read
+    as NMEA text; `dpgw replay --out DIR` said '[Errno 21] Is a directory'."""
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    text = tmp_path / "trial.txt"
+    config = REPO / "examples" / "nmea_udp_multiplexer.toml"
+    cases = [
+        # (--duration: a regression runs briefly and fails, instead of running on)
+        (
+            ["run", "--config", str(config), "--log", str(folder), "--duration", "2"],
+            "dpgw run: --log",
+            "a folder",
+        ),
+        (
+            ["run", "--config", str(config), "--log", str(text), "--duration", "2"],
+            "dpgw run: --log",
+            "not an MCAP",
+        ),
+        (
+            ["sim", "--scenario", "hassani", "--duration", "1", "--out", str(text)],
+            "dpgw sim: --out",
+            "not an MCAP",
+        ),
+        (
+            ["replay", str(REPO / "README.md"), "--out", str(folder)],
+            "dpgw replay: --out",
+            "a folder, not a file",
+        ),
+        (["demo", "--out", str(text), "--duration", "2", "--no-foxglove"], "dpgw demo: --out", "not an MCAP"),
+    ]
+    for argv, head, words in cases:
+        assert main(argv) == 2, argv
+        line = _one_line(capsys.readouterr().err)
+        assert line.startswith(head) and words in line, line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["logs"]  # nothing written
+    assert list(folder.iterdir()) == []
+
+
 def test_tune_refuses_an_infinite_wave_period(capsys: pytest.CaptureFixture[str]) -> None:
     """Before: 'tuning 'omega0': must be positive (per DOF or one for all), got [0.0, 0.0, 0.0]'."""
     assert main(["tune", "--vessel", "mss_supply", "--wave-period", "inf"]) == 2
@@ -821,7 +863,13 @@ def test_sim_names_its_own_options_in_what_it_refuses(
     folder = tmp_path / "a-folder.mcap"
     folder.mkdir()
     assert main(["sim", "--scenario", "hassani", "--duration", "1", "--out", str(folder)]) == 2
-    assert _one_line(capsys.readouterr().err).startswith(f"dpgw sim: --out {folder}: cannot write the log: ")
+    assert _one_line(capsys.readouterr().err).startswith(f"dpgw sim: --out {folder}: a folder, not a file")
+    if Path("/proc/self").is_dir():  # Linux: a folder where no file can be made, even by root
+        nowhere = "/proc/dpgw-test.mcap"
+        assert main(["sim", "--scenario", "hassani", "--duration", "1", "--out", nowhere]) == 2
+        assert _one_line(capsys.readouterr().err).startswith(
+            f"dpgw sim: --out {nowhere}: cannot write the log: "
+        )
 
 
 @pytest.mark.parametrize(
