@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 from dpgw import cli_json
 from dpgw.cli_foxglove import DEFAULT_HOST, DEFAULT_PORT, add_foxglove_arg, connect_lines, layout_path
+from dpgw.cli_paths import mcap_path_problem
 from dpgw.cli_types import positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from simulator.scenario_names import SCENARIO_NAMES
@@ -224,6 +225,11 @@ def run(args: argparse.Namespace) -> int:
     from simulator.sim_clock import SimClockPublisher
     from simulator.transports import PtySink, UdpSink
 
+    if problem := mcap_path_problem(
+        "--out", args.out, made=True
+    ):  # (before: said as the config key log.path)
+        print(f"dpgw demo: {problem}", file=sys.stderr)
+        return 2
     scenario = get_scenario(args.scenario)
     pty = PtySink()
     sinks: list[Any] = [pty]

@@ -52,8 +52,11 @@ def run(args: argparse.Namespace) -> int:
     import queue
     import signal
 
-    from gateway.bus import BusError, make_config, open_session
+    from gateway.bus import BusError, key_expr_problem, make_config, open_session
 
+    if problem := key_expr_problem(args.key):
+        print(f"dpgw listen: {problem}", file=sys.stderr)
+        return 2
     try:
         session = open_session(
             make_config(

@@ -11,3 +11,18 @@ def missing_folder(flag: str, path: str | Path | None) -> str | None:
     if path is None or Path(path).resolve().parent.is_dir():
         return None
     return f"{flag} {path}: no folder {Path(path).parent}: create it or give another path"
+
+
+def mcap_path_problem(flag: str, path: str | Path | None, *, made: bool = False) -> str | None:
+    """What is wrong with PATH as an MCAP file to write (None when nothing): a folder, a name that does not
+    end in .mcap (Foxglove, the mcap tools and `dpgw replay` go by it), or a folder that does not exist
+    (unless ``made``: the gateway's log makes its folder, as for a config's ``log.path``, which is held to
+    the same rule)."""
+    if path is None:
+        return None
+    p = Path(path)
+    if p.is_dir():
+        return f"{flag} {path}: a folder, not a file: give a file in it, e.g. {p / 'trial.mcap'}"
+    if p.suffix != ".mcap":
+        return f"{flag} {path}: not an MCAP file name (expected a path ending in .mcap, e.g. {p.stem}.mcap)"
+    return None if made else missing_folder(flag, path)

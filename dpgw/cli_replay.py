@@ -4,15 +4,17 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
 import textwrap
 import time
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from dpgw import cli_json
 from dpgw.cli_foxglove import add_foxglove_arg, connect_lines
-from dpgw.cli_paths import missing_folder
+from dpgw.cli_paths import mcap_path_problem
 from dpgw.cli_types import flags_given, non_negative_float, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from observers.observer_names import OBSERVER_NAMES
@@ -201,6 +203,12 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
+    if args.prefix is not None:
+        from gateway.config.load import prefix_problem
+
+        if problem := prefix_problem(args.prefix):
+            print(f"dpgw replay: --prefix: {problem}", file=sys.stderr)
+            return 2
     # Where the results go is checked before the replay, not found out after it.
     if args.report is not None and Path(args.report).exists() and not Path(args.report).is_dir():
         print(
@@ -208,9 +216,17 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
-    if problem := missing_folder("--out", args.out):
+    if problem := mcap_path_problem("--out", args.out):
         print(f"dpgw replay: {problem}", file=sys.stderr)
         return 2
+    if args.vessel is not None:  # (checked as the flag it is, not as the config key it becomes)
+        from observers.vessel import load_vessel
+
+        try:
+            load_vessel(args.vessel)
+        except VesselError as exc:
+            print(f"dpgw replay: --vessel: {exc}", file=sys.stderr)
+            return 2
     try:
         inputs = open_inputs(args.logs)
         config = build_config(inputs, config_path=args.config, vessel=args.vessel)
@@ -250,9 +266,11 @@ def run(args: argparse.Namespace) -> int:
     on_outputs = evidence.on_outputs
     if publisher is not None:
         on_outputs = evidence.chain(publisher.on_outputs)
+    stop = _StopOnSignal()
+    on_outputs = stop.between_events(on_outputs)
     t0 = time.perf_counter()
     try:
-        with McapLogWriter(args.out, profile="dpgw-replay", flush_on_log_time=False) as out:
+        with stop, McapLogWriter(args.out, profile="dpgw-replay", flush_on_log_time=False) as out:
             out.add_metadata("dpgw.replay", {"logs": json.dumps([str(i.path) for i in inputs])})
             for name, meta in carried_metadata(inputs, own_config=own_config(args)):
                 out.add_metadata(name, meta)
@@ -267,6 +285,15 @@ def run(args: argparse.Namespace) -> int:
     except (BusError, OSError) as exc:
         print(f"dpgw replay: {exc}", file=sys.stderr)
         return 2
+    except _StopRequestedError as exc:
+        if bar is not None:
+            bar.close()  # (before the line; closing it again below does nothing)
+        print(
+            f"dpgw replay: stopped ({exc.name}) after {stop.events} events, at log time {exc.at}; {args.out} "
+            "holds what was replayed until then (a complete MCAP file); no summary or report",
+            file=sys.stderr,
+        )
+        return 128 + exc.signum
     finally:
         if bar is not None:
             bar.close()
@@ -281,6 +308,7 @@ def run(args: argparse.Namespace) -> int:
     kinds = {s.label: (s.name, s.name in SCHEDULES_OMEGA0 or bool(s.params.get("adaptive"))) for s in specs}
     summary["wave_check"] = evidence.check(config.vessel.length_m, config.vessel.model_scale, kinds).as_dict()
     summary["measurements"] = evidence.measured()
+    summary["cut_logs"] = cut_logs(inputs)
     if args.report:
         written = _report(args, config.vessel.name, specs, result, evidence.new)
         summary["report"] = [str(p) for p in written]
@@ -295,9 +323,25 @@ def run(args: argparse.Namespace) -> int:
         print(cli_json.dumps(summary, indent=2))
     else:
         _print(summary)
-    for warning in [*_no_estimates(summary), *summary["wave_check"]["warnings"]]:
+    for warning in [*_cut(summary), *_no_estimates(summary), *summary["wave_check"]["warnings"]]:
         print(f"dpgw replay: warning: {warning}", file=sys.stderr)
     return 0
+
+
+def cut_logs(inputs: list[Any]) -> list[str]:
+    """The MCAP inputs that end without MCAP's footer: cut by `kill -9` or power loss (or still written)."""
+    from wire.mcap.reader import is_complete
+
+    return [str(inp.path) for inp in inputs if inp.kind == "mcap" and not is_complete(inp.path)]
+
+
+def _cut(s: dict[str, Any]) -> list[str]:
+    """A log cut short is replayed up to its last complete record: say so, it is not the whole trial."""
+    return [
+        f"{path} ends without its summary (the writer was killed or lost power, or is still writing it): "
+        "replayed up to its last complete record"
+        for path in s["cut_logs"]
+    ]
 
 
 def _no_estimates(s: dict[str, Any]) -> list[str]:
@@ -458,6 +502,47 @@ class _WaveEvidence:
         y = np.array([[np.nan if v is None else v for v in e] for e in self.eta], dtype=float).reshape(-1, 3)
         w0 = {label: np.array(w, dtype=float) for label, w in self.omega0.items()}
         return check_wave_tuning(t, y, wave_band_for_length(vessel_length_m, model_scale), w0, kinds)
+
+
+class _StopRequestedError(Exception):
+    def __init__(self, signum: int, at: str) -> None:
+        super().__init__(signum)
+        self.signum, self.at = signum, at
+        self.name = signal.Signals(signum).name
+
+
+class _StopOnSignal:
+    """Ctrl-C (SIGINT) or SIGTERM while replaying: stop between two events, so that the output is closed
+    as a complete file and the command ends with one line, not a KeyboardInterrupt traceback (or, on
+    SIGTERM, a killed process and an output without its summary). A paced replay (--speed, --realtime) is
+    a long-running process that is stopped this way; so is a long log replayed flat out."""
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+        self.events = 0
+        self._previous: dict[int, Any] = {}
+
+    def __enter__(self) -> _StopOnSignal:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            self._previous[sig] = signal.signal(sig, self._on_signal)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+
+    def _on_signal(self, signum: int, _frame: object) -> None:
+        self.signum = signum
+
+    def between_events(self, then: Any) -> Any:
+        def checked(ev: Event, outputs: list[Output]) -> None:
+            then(ev, outputs)
+            self.events += 1
+            if self.signum is not None:
+                at = datetime.fromtimestamp(ev.rx_ns / 1e9, tz=UTC).strftime("%Y-%m-%d %H:%M:%S.%f")[:-4]
+                raise _StopRequestedError(self.signum, at)
+
+        return checked
 
 
 class _Publisher:

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 from dpgw import cli_json
 from dpgw.cli_foxglove import FROM_CONFIG, add_foxglove_arg, connect_lines
+from dpgw.cli_paths import mcap_path_problem
 from dpgw.cli_types import positive_float
 
 if TYPE_CHECKING:
@@ -67,7 +68,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "127.0.0.1:8765)",
         bare=FROM_CONFIG,
     )
-    p.add_argument("--json", action="store_true", help="print the exit summary as JSON")
+    p.add_argument(
+        "--json",
+        action="store_true",
+        help="print the exit summary as JSON; with --check, the check as JSON on stdout: {config, ok, "
+        "problems, summary, notes}",
+    )
     p.add_argument(
         "-v",
         "--verbose",
@@ -100,6 +106,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         config = load_config(args.config)
     except ConfigError as exc:
+        if args.check and args.json:
+            return _check_json(args.config, exc.problems)
         print(format_problems(exc), file=sys.stderr)
         return 2
     if args.clock is not None:
@@ -110,6 +118,8 @@ def run(args: argparse.Namespace) -> int:
         config = replace(config, foxglove=FoxgloveConfig(enabled=True, host=host, port=port))
     if args.check:
         problems = start_up_problems(config)
+        if args.json:
+            return _check_json(args.config, problems, describe(config), start_up_notes(config))
         if problems:
             print(format_problems(problems), file=sys.stderr)
             return 2
@@ -117,6 +127,9 @@ def run(args: argparse.Namespace) -> int:
         for note in start_up_notes(config):
             print(f"note: {note}")
         return 0
+    if problem := mcap_path_problem("--log", args.log, made=True):
+        print(f"dpgw run: {problem}", file=sys.stderr)
+        return 2
     with open(args.config, "rb") as f:
         tables = tomllib.load(f)
     if args.clock is not None:  # the log's copy of the config says what ran
@@ -224,6 +237,19 @@ def status_line(status: dict[str, Any], elapsed_s: float) -> str:
         + ", ".join(parts)
         + (f"; alarms: {'; '.join(alarms)}" if alarms else "")
     )
+
+
+def _check_json(path: str, problems: list[str], summary: str = "", notes: list[str] | None = None) -> int:
+    """``--check --json``: the check for a program (CI over a fleet's configs), status 0 or 2 as without."""
+    out = {
+        "config": str(path),
+        "ok": not problems,
+        "problems": problems,
+        "summary": summary.splitlines() if not problems else [],
+        "notes": (notes or []) if not problems else [],
+    }
+    print(cli_json.dumps(out, indent=2))
+    return 2 if problems else 0
 
 
 def start_up_notes(config: GatewayConfig) -> list[str]:

@@ -7,7 +7,7 @@ import sys
 from typing import TYPE_CHECKING, Any
 
 from dpgw import cli_json, cli_sim_inputs
-from dpgw.cli_paths import missing_folder
+from dpgw.cli_paths import mcap_path_problem
 from dpgw.cli_types import flags_given, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from simulator.scenario_names import SCENARIO_NAMES
@@ -101,6 +101,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--prefix", help="Zenoh key prefix (default dp/<vessel>)")
     add_endpoint_args(p)
+    p.add_argument("--no-scouting", action="store_true", help="Zenoh multicast scouting off")
     p.add_argument("--zenoh-config", metavar="FILE", help="a Zenoh JSON5 config file (overrides the above)")
     p.add_argument("--json", action="store_true", help="print the run summary as JSON")
     cli_sim_inputs.add_arguments(p)
@@ -173,12 +174,18 @@ def run(args: argparse.Namespace) -> int:
     if args.vessel or args.csv or args.plant_option or args.wind or args.sea:
         print("dpgw sim: --vessel, --csv, --plant-option, --wind and --sea go with --inputs", file=sys.stderr)
         return 2
-    if problem := missing_folder("--out", args.out):
+    if problem := mcap_path_problem("--out", args.out):
         print(f"dpgw sim: {problem}", file=sys.stderr)
         return 2
     if args.speed != 1.0 and not args.realtime:  # accepted and ignored before: the run went flat out
         print("dpgw sim: --speed X paces a --realtime run: add --realtime", file=sys.stderr)
         return 2
+    if args.prefix is not None:
+        from gateway.config.load import prefix_problem
+
+        if problem := prefix_problem(args.prefix):
+            print(f"dpgw sim: --prefix: {problem}", file=sys.stderr)
+            return 2
     zenoh_only = flags_given(*_session_options(args))
     if zenoh_only and not args.zenoh:  # accepted and ignored before: no session was opened
         print(f"dpgw sim: {', '.join(zenoh_only)}: only with --zenoh", file=sys.stderr)
@@ -192,6 +199,7 @@ def _session_options(args: argparse.Namespace) -> tuple[tuple[str, object], ...]
         ("--prefix", args.prefix),
         ("--zenoh-listen", args.zenoh_listen),
         ("--zenoh-connect", args.zenoh_connect),
+        ("--no-scouting", args.no_scouting),
         ("--zenoh-config", args.zenoh_config),
     )
 
@@ -210,7 +218,19 @@ def _run_scenario(args: argparse.Namespace) -> int:
     from wire.mcap.writer import McapLogWriter
 
     try:
-        scenario = get_scenario(args.scenario).with_sensor_rates(args.gnss_rate, args.gyro_rate)
+        scenario = get_scenario(args.scenario)
+        for flag, rates in (("--gnss-rate", (args.gnss_rate, None)), ("--gyro-rate", (None, args.gyro_rate))):
+            try:
+                scenario = scenario.with_sensor_rates(*rates)
+            except ValueError as exc:  # (the sensor's own check names its class and field: name the option)
+                raise ValueError(f"{flag}: {str(exc).split(': ', 1)[-1]}") from None
+        for spec in args.nmea:
+            picked = _parse_route(spec, "nmea")[1] or frozenset()
+            if unknown := sorted(picked - set(scenario.nmea_sources())):
+                raise ValueError(
+                    f"--nmea {spec}: {args.scenario} has no NMEA talker '{unknown[0]}' (it has "
+                    f"{', '.join(scenario.nmea_sources())}; without SOURCE= every one goes to the URL)"
+                )
         if args.faults:
             scenario = replace(scenario, faults=scenario.faults + load_faults(args.faults))
             commands_in_file = sorted({f.kind for f in scenario.faults if f.kind in COMMAND_KINDS})
@@ -255,7 +275,10 @@ def _run_scenario(args: argparse.Namespace) -> int:
             prefix = args.prefix or f"dp/{scenario.vessel.name}"
             session = open_session(
                 make_config(
-                    connect=args.zenoh_connect, listen=args.zenoh_listen, config_file=args.zenoh_config
+                    connect=args.zenoh_connect,
+                    listen=args.zenoh_listen,
+                    multicast_scouting=not args.no_scouting,
+                    config_file=args.zenoh_config,
                 )
             )
             commands.append(ZenohCommandInput(session, prefix))
@@ -265,7 +288,10 @@ def _run_scenario(args: argparse.Namespace) -> int:
             # chunks, each with its own compression call and indexes. Chunks then close by size (and
             # every second of wall time, which bounds the loss if the process dies).
             # (the simulation writes its own metadata: scenario, seed, vessel and datum)
-            log = McapLogWriter(args.out, profile="dpgw-sim", flush_on_log_time=bool(args.realtime))
+            try:
+                log = McapLogWriter(args.out, profile="dpgw-sim", flush_on_log_time=bool(args.realtime))
+            except OSError as exc:
+                raise OSError(f"--out {args.out}: cannot write the log: {exc.strerror or exc}") from None
     except (TransportError, BusError, OSError) as exc:
         message = exc.describe(ZENOH_FLAGS) if isinstance(exc, BusError) else str(exc)
         print(f"dpgw sim: {message}", file=sys.stderr)

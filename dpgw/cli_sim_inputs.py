@@ -14,7 +14,7 @@ import sys
 from dataclasses import fields, replace
 from typing import TYPE_CHECKING, Any
 
-from dpgw.cli_paths import missing_folder
+from dpgw.cli_paths import mcap_path_problem, missing_folder
 
 if TYPE_CHECKING:
     from simulator.plant_params import PlantOptions
@@ -111,7 +111,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(
                 "--inputs needs --csv STATES.csv and/or --out LOG.mcap (somewhere to write the states)"
             )
-        if problem := missing_folder("--csv", args.csv) or missing_folder("--out", args.out):
+        if problem := missing_folder("--csv", args.csv) or mcap_path_problem("--out", args.out):
             raise ValueError(problem)
         vessel = load_vessel(args.vessel)
         options = plant_options(args.plant_option)

@@ -48,7 +48,12 @@ def doc_markers(section: str) -> tuple[str, str]:
 
 
 def _numbers(text: str) -> list[float]:
-    return [float(v) for v in text.split(",") if v.strip()]
+    try:
+        return [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected numbers separated by commas, e.g. 2,4.5,6"
+        ) from None
 
 
 def _seeds(text: str) -> list[int]:
@@ -56,7 +61,15 @@ def _seeds(text: str) -> list[int]:
     out: list[int] = []
     for part in filter(None, (p.strip() for p in text.split(","))):
         lo, dash, hi = part.partition("-")
-        out += list(range(int(lo), int(hi) + 1)) if dash else [int(part)]
+        try:
+            first, last = (int(lo), int(hi)) if dash else (int(part), int(part))
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"{part!r}: expected whole numbers and ranges, e.g. 0-7,9"
+            ) from None
+        if last < first:
+            raise argparse.ArgumentTypeError(f"{part!r}: an empty range (write {last}-{first})")
+        out += range(first, last + 1)
     return out
 
 
@@ -192,7 +205,6 @@ def update_doc(spec: str, text: str, command: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from dpgw.study import outputs
     from dpgw.study.cache import CaseCache
     from dpgw.study.runner import StudyRunError, run_study
     from dpgw.study.spec import StudySpecError
@@ -215,6 +227,29 @@ def run(args: argparse.Namespace) -> int:
     except StudyRunError as exc:
         print(f"dpgw study: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C: an hour's study is stopped this way; say what is kept, no traceback
+        kept = (
+            f"the cases done are cached in {cache.folder}: the same command resumes from them"
+            if cache is not None
+            else "nothing is kept (--no-cache)"
+        )
+        print(f"\ndpgw study: stopped (Ctrl-C); {kept}", file=sys.stderr)
+        return 130
+    try:
+        return _write_outputs(args, result)
+    except KeyboardInterrupt:
+        print(
+            f"\ndpgw study: stopped (Ctrl-C) while writing the outputs in {args.out}; the cases are cached: "
+            "run the same command again to write them",
+            file=sys.stderr,
+        )
+        return 130
+
+
+def _write_outputs(args: argparse.Namespace, result: Any) -> int:
+    """The table, the summary, the plots and the report of a finished study."""
+    from dpgw.study import outputs
+
     files = outputs.write_table(result.rows, args.out)
     text = outputs.summary_markdown(result.rows)
     (args.out / "summary.md").write_text(text + "\n")

@@ -113,8 +113,8 @@ def run(args: argparse.Namespace) -> int:
     except VesselError as exc:
         print(f"dpgw tune: {exc}", file=sys.stderr)
         return 2
-    if not args.wave_period > 0:
-        print("dpgw tune: --wave-period must be a positive number of seconds", file=sys.stderr)
+    if not 0 < args.wave_period < math.inf:
+        print("dpgw tune: --wave-period must be a positive, finite number of seconds", file=sys.stderr)
         return 2
     kwargs: dict[str, Any] = {
         "zeta": args.zeta,

@@ -65,6 +65,33 @@ def _clean(text: str) -> str:
     return _RUST_LOCATION.sub("", text).strip()
 
 
+def key_expr_problem(key: str) -> str | None:
+    """Why ``key`` is not a Zenoh key expression (None when it is one), in words that say what to write.
+
+    The common slip is an MCAP topic (``/dp/estimate``) given as a key: Zenoh keys have no leading '/'.
+    """
+    try:
+        zenoh.KeyExpr(key)
+    except zenoh.ZError as exc:
+        reason = _clean(str(exc)).split(": ", 1)[-1]
+        fixed = "/".join(c for c in key.split("/") if c)
+        end = f" — did you mean '{fixed}'?" if fixed and fixed != key and _is_key(fixed) else "."
+        return (
+            f"'{key}' is not a Zenoh key expression ({reason}){end} Keys are chunks separated by single '/', "
+            "with no leading or trailing '/' (the log's topic /dp/estimate is the key dp/<vessel>/estimate); "
+            "* matches one chunk, ** any number"
+        )
+    return None
+
+
+def _is_key(key: str) -> bool:
+    try:
+        zenoh.KeyExpr(key)
+    except zenoh.ZError:
+        return False
+    return True
+
+
 def _explain(exc: Exception, listen: Sequence[str], connect: Sequence[str]) -> BusError:
     """One `BusError` naming the setting and the endpoint, from Zenoh's message about opening a session."""
     text = _clean(str(exc))

@@ -22,6 +22,7 @@ import heapq
 import json
 import math
 import re
+import struct
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
@@ -43,7 +44,7 @@ from observers.factory import (
     with_defaults,
 )
 from observers.passive_tuning import PassiveTuning
-from wire.mcap.reader import read_messages
+from wire.mcap.reader import read_messages, read_metadata
 from wire.mcap.writer import McapLogWriter, raw_mavlink_record, raw_nmea_record
 from wire.messages import SIM_METADATA, Estimate, Message, RawMavlink, RawNmea, encoder_of
 
@@ -62,6 +63,8 @@ class ReplayError(ValueError):
 def input_kind(path: str | Path) -> str:
     """'mcap', 'tlog' or 'nmea' (a text log), from the file's first bytes and name."""
     p = Path(path)
+    if p.is_dir():
+        raise ReplayError(f"{p}: a folder, not a log file: give the logs in it (e.g. {p / '*.mcap'})")
     if not p.is_file():
         raise ReplayError(f"{p}: no such log file")
     with p.open("rb") as f:
@@ -74,36 +77,55 @@ def input_kind(path: str | Path) -> str:
         raise ReplayError(
             f"{p}: not an MCAP file (it does not start with MCAP's magic bytes): another format named .mcap"
         )
+    if _raw_mavlink_stream(p):
+        raise ReplayError(
+            f"{p}: a raw MAVLink byte stream (frames without record times, as `dpgw sim --mavlink "
+            "file://...` writes), not a tlog (each record an 8-byte time, then its frame): replay needs the "
+            "times; give a tlog (MAVProxy, Mission Planner, QGroundControl) or the gateway's MCAP log"
+        )
     if p.suffix.lower() in (".tlog", ".bin") or (len(head) > 8 and head[8] in (0xFE, 0xFD)):
         return "tlog"
     return "nmea"
 
 
+def _raw_mavlink_stream(path: Path) -> bool:
+    """Whether a file starts with two back-to-back MAVLink frames (v1 0xFE or v2 0xFD), not tlog records.
+
+    A tlog record starts with its time (big-endian µs since 1970: a first byte of 0 until the year 2540),
+    so a file that starts with a start-of-frame marker, and has another right after the first frame's
+    length, is frames alone."""
+    with path.open("rb") as f:
+        head = f.read(2 * 280)
+    at = 0
+    for _ in range(2):
+        if len(head) < at + 2 or head[at] not in (0xFD, 0xFE):
+            return False
+        if head[at] == 0xFE:  # v1: STX, len, seq, sys, comp, msgid, payload, crc (2)
+            at += 8 + head[at + 1]
+        else:  # v2: STX, len, incompat, compat, seq, sys, comp, msgid (3), payload, crc (2), signature (13)
+            if len(head) < at + 3:
+                return False
+            at += 12 + head[at + 1] + (13 if head[at + 2] & 0x01 else 0)
+    return at <= len(head) and (at == len(head) or head[at] in (0xFD, 0xFE))
+
+
 def logged_config(path: str | Path) -> dict[str, Any] | None:
-    """The configuration (as the TOML tables) a live run stored in its log, if any."""
-    with open(path, "rb") as f:
-        reader = make_reader(f)
-        try:
-            for record in reader.iter_metadata():
-                if record.name == CONFIG_METADATA and "json" in record.metadata:
-                    data: dict[str, Any] = json.loads(record.metadata["json"])
-                    return data
-        except Exception:  # a truncated file has no metadata index: fall through
-            return None
-    return None
+    """The configuration (as the TOML tables) a live run stored in its log, if any; also from a log cut by
+    `kill -9` or power loss (the record is at the file's start)."""
+    meta = _logged(path, CONFIG_METADATA)
+    if meta is None or "json" not in meta:
+        return None
+    data: dict[str, Any] = json.loads(meta["json"])
+    return data
 
 
 def _logged(path: str | Path, name: str) -> dict[str, str] | None:
-    """The MCAP metadata record ``name`` of a log, if it has one."""
-    with open(path, "rb") as f:
-        reader = make_reader(f)
-        try:
-            for record in reader.iter_metadata():
-                if record.name == name:
-                    return dict(record.metadata)
-        except Exception:  # a truncated file has no metadata index
-            return None
-    return None
+    """The MCAP metadata record ``name`` of a log (complete or cut), if it has one."""
+    try:
+        records = read_metadata(path)
+    except (OSError, ValueError, struct.error):  # unreadable, or not MCAP: the caller reports that
+        return None
+    return next((meta for record_name, meta in records if record_name == name), None)
 
 
 def logged_sim(path: str | Path) -> dict[str, str] | None:
@@ -361,17 +383,24 @@ def build_config(
         if inp.kind == "mcap" and (tables := logged_config(inp.path)) is not None:
             if vessel is not None:
                 tables = dict(tables)
-                tables["vessel"] = (
+                tables["vessel"] = (  # a --vessel file is where the user said, not beside the log
                     {"name": vessel}
                     if "/" not in vessel and not vessel.endswith(".toml")
-                    else {"file": vessel}
+                    else {"file": str(Path(vessel).resolve())}
                 )
             tables = {**_as_replayed(tables), "log": {"path": ""}}
             return parse_config(tables, base_dir=inp.path.resolve().parent, where=f"{inp.path} (metadata)")
     if vessel is None:
         vessel = logged_vessel(inputs)
     if vessel is None:
-        raise ReplayError("no configuration in the log: give --vessel NAME|FILE or --config FILE")
+        logs = ", ".join(str(inp.path) for inp in inputs)
+        what = (
+            "carries no configuration (not a dpgw gateway or simulator log, or cut before its start was"
+            " saved)"
+            if any(inp.kind == "mcap" for inp in inputs)
+            else "names no vessel (an NMEA text log or a tlog does not)"
+        )
+        raise ReplayError(f"{logs}: {what}: give --vessel NAME|FILE or --config FILE")
     tables = default_config(vessel)
     # A simulator's log says which datum its truth is in: replay there, not at the first fix (a wave-moved,
     # noisy position ~1 m off, which every score against the truth would carry as a constant error).

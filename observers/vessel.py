@@ -22,6 +22,7 @@ makes the velocity-error dynamics strictly passive, Proposition 2), shapes 3×3,
 
 from __future__ import annotations
 
+import difflib
 import math
 import tomllib
 from dataclasses import dataclass, field, replace
@@ -328,12 +329,19 @@ def load_vessel(name_or_path: str | Path) -> VesselModel:
             raise VesselError(f"vessel file '{path}': does not exist")
         text, where = path.read_text(encoding="utf-8"), str(path)
     else:
+        close = difflib.get_close_matches(str(name_or_path), builtin_vessels(), n=1)
+        hint = f', did you mean "{close[0]}"?' if close else ""
         raise VesselError(
-            f"vessel '{name_or_path}': not a built-in vessel ({', '.join(builtin_vessels())}) "
+            f"vessel '{name_or_path}': not a built-in vessel{hint} ({', '.join(builtin_vessels())}) "
             "and not a .toml file"
         )
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise VesselError(f"{where}: not valid TOML: {exc}") from None
+    if "name" not in data and ("sources" in data or isinstance(data.get("vessel"), dict)):
+        raise VesselError(
+            f"{where}: a gateway configuration ([vessel], [[sources]]), not a vessel file (its [vessel] "
+            "table names the vessel; a vessel file has name, mass and the matrices: docs/vessels.md)"
+        )
     return vessel_from_dict(data, where)

@@ -124,6 +124,13 @@ class Scenario:
             return self.anemometer
         return (AnemometerConfig(),) if self.wind is not None else ()
 
+    def nmea_sources(self) -> tuple[str, ...]:
+        """The names of the scenario's NMEA talkers (DGPS, gyros, anemometers, MRUs): what
+        `dpgw sim --nmea SOURCE=URL` may pick."""
+        names = [t.source for t in self.dgps] + [t.source for t in self.gyro]
+        names += [t.source for t in self.anemometers] + [t.source for t in self.mru]
+        return tuple(dict.fromkeys(names))
+
     def with_sensor_rates(self, gnss_hz: float | None = None, gyro_hz: float | None = None) -> Scenario:
         dgps = tuple(replace(d, rate_hz=gnss_hz) for d in self.dgps) if gnss_hz else self.dgps
         gyro = tuple(replace(g, rate_hz=gyro_hz) for g in self.gyro) if gyro_hz else self.gyro

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import random
 import re
 import struct
@@ -63,6 +64,52 @@ def test_replay_of_binary_data_finds_nothing_and_says_what_to_give(
     assert "no_time" in line  # what the reader found in it
     assert "an NMEA 0183 text log or a MAVLink tlog" in line
     assert not (tmp_path / "capture-replay.mcap").exists()  # no empty output left behind
+
+
+def test_replay_of_a_folder_says_it_is_one(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    assert main(["replay", str(folder), "--vessel", "mss_supply"]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert (
+        line == f"dpgw replay: {folder}: a folder, not a log file: give the logs in it (e.g. {folder}/*.mcap)"
+    )
+
+
+def test_replay_without_a_vessel_says_which_log_names_none(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    text = tmp_path / "trial.txt"
+    text.write_text("$GPGGA,120000.00,5924.0,N,01030.0,E,2,08,0.9,10.0,M,40.0,M,,*4C\r\n")
+    assert main(["replay", str(text)]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert line == (
+        f"dpgw replay: {text}: names no vessel (an NMEA text log or a tlog does not): give --vessel "
+        "NAME|FILE or --config FILE"
+    )
+    mcap = tmp_path / "other.mcap"
+    mcap.write_bytes(b"\x89MCAP0\r\n" + bytes(12))  # an MCAP file cut just after its magic
+    assert main(["replay", str(mcap)]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert line.startswith(f"dpgw replay: {mcap}: carries no configuration"), line
+    assert line.endswith("give --vessel NAME|FILE or --config FILE"), line
+
+
+def test_replay_of_a_raw_mavlink_stream_says_it_is_no_tlog(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`dpgw sim --mavlink file://x.tlog` writes frames without record times; before, replay read them as
+    tlog records (bad_record, bad_time) and ran on without the thrusters, or found 'nothing to replay'."""
+    raw = tmp_path / "thrusters.tlog"
+    assert main(["sim", "--scenario", "hassani", "--duration", "2", "--mavlink", f"file://{raw}"]) == 0
+    capsys.readouterr()
+    assert raw.stat().st_size > 0
+    assert main(["replay", str(raw), "--vessel", "cybership2"]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert line.startswith(f"dpgw replay: {raw}: a raw MAVLink byte stream (frames without record times"), (
+        line
+    )
+    assert not (tmp_path / "thrusters-replay.mcap").exists()
 
 
 def _tlog_record(t_us: int) -> bytes:
@@ -173,6 +220,170 @@ def test_json_output_has_no_nan_or_infinity() -> None:
     }  # fmt: skip
 
 
+@pytest.mark.parametrize(
+    ("key", "says"),
+    [
+        ("/dp/estimate", "— did you mean 'dp/estimate'?"),  # an MCAP topic given as a key
+        ("dp//x", "— did you mean 'dp/x'?"),
+        ("dp/#", "(`#` and `?` are forbidden characters)."),
+        ("dp/**/**", "`**/**` must be replaced by `**`"),
+    ],
+)
+def test_listen_to_a_key_that_is_not_one_says_what_to_write(
+    key: str, says: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: a Zenoh traceback (ZError ... at /root/.cargo/...borrowed.rs:777)."""
+    assert main(["listen", key, "--duration", "1", "--no-scouting"]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert line.startswith(f"dpgw listen: '{key}' is not a Zenoh key expression ("), line
+    assert says in line and ".rs:" not in line
+    assert "with no leading or trailing '/'" in line
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["sim", "--scenario", "hassani", "--duration", "1", "--zenoh", "--prefix", "/dp/x"],
+        ["replay", "x.mcap", "--speed", "100", "--prefix", "/dp/x"],
+    ],
+)
+def test_a_prefix_that_is_no_key_is_refused_before_anything_starts(
+    argv: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: a Zenoh traceback at the first put (the replay after reading its logs)."""
+    assert main(argv) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert line.startswith(f"dpgw {argv[0]}: --prefix: empty chunk in the key expression"), line
+    assert 'e.g. dp/my_ship, got "/dp/x"' in line
+
+
+def test_run_check_json_is_the_check_for_a_program(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, --check ignored --json: a program checking a fleet's configs had to parse the text."""
+    good = REPO / "examples" / "nmea_udp_multiplexer.toml"
+    assert main(["run", "--config", str(good), "--check", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["ok"] is True and out["problems"] == [] and out["config"] == str(good)
+    assert out["summary"][0] == f"config {good}: ok"
+    bad = tmp_path / "bad.toml"
+    bad.write_text(good.read_text().replace("[observer]", "[observer]\nwave_perod_s = 9.0", 1))
+    assert main(["run", "--config", str(bad), "--check", "--json"]) == 2
+    out = json.loads(capsys.readouterr().out)
+    assert out["ok"] is False and out["summary"] == []
+    assert any("observer.wave_perod_s: unknown key" in p for p in out["problems"]), out
+    assert main(["run", "--config", str(tmp_path / "nope.toml"), "--check", "--json"]) == 2
+    assert json.loads(capsys.readouterr().out)["problems"] == [
+        f"{tmp_path / 'nope.toml'}: cannot read: no such file"
+    ]
+
+
+def test_output_to_a_reader_that_has_gone_stops_quietly(tmp_path: Path) -> None:
+    """`dpgw tune --json | head -1`: the reader stops reading; before, a BrokenPipeError traceback. The
+    pipe's read end is closed before the command starts, so its first write fails, whatever the timing."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        proc = subprocess.run(
+            [sys.executable, "-m", "dpgw", "tune", "--vessel", "mss_supply", "--wave-period", "9", "--json"],
+            stdout=write_end,
+            stderr=subprocess.PIPE,
+            text=True,
+            cwd=REPO,
+            timeout=120,
+        )
+    finally:
+        os.close(write_end)
+    assert proc.stderr == "", proc.stderr
+    assert proc.returncode == 128 + 13
+
+
+def test_replay_vessel_mistakes_name_the_flag(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Before, --vessel was reported as the config key it becomes: 'dpgw: the configuration has 1 problem ...
+    vessel.name: ... or give file = "my_ship.toml" ... Every key is described in docs/config.md'."""
+    log = tmp_path / "trial.txt"
+    log.write_text("$HEHDT,45.0,T*2E\r\n")
+    assert main(["replay", str(log), "--vessel", "mss_suply"]) == 2
+    assert _one_line(capsys.readouterr().err).startswith(
+        "dpgw replay: --vessel: vessel 'mss_suply': not a built-in vessel, did you mean \"mss_supply\"? ("
+    )
+    gateway_config = REPO / "examples" / "hil_bench.toml"
+    assert main(["replay", str(log), "--vessel", str(gateway_config)]) == 2
+    assert _one_line(capsys.readouterr().err) == (
+        f"dpgw replay: --vessel: {gateway_config}: a gateway configuration ([vessel], [[sources]]), not a "
+        "vessel file (its [vessel] table names the vessel; a vessel file has name, mass and the matrices: "
+        "docs/vessels.md)"
+    )
+
+
+def test_study_stopped_with_ctrl_c_says_what_is_kept(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Before: a KeyboardInterrupt traceback from wherever the study was (a case, Dask, matplotlib)."""
+    import dpgw.study.runner
+
+    def interrupted(*_args: object, **_kwargs: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(dpgw.study.runner, "run_study", interrupted)
+    argv = ["study", "--scenario", "hassani", "--seeds", "0", "--serial", "--out", str(tmp_path / "s")]
+    assert main(argv) == 130
+    assert _one_line(capsys.readouterr().err) == (
+        f"dpgw study: stopped (Ctrl-C); the cases done are cached in {tmp_path / 's' / 'cache'}: the same "
+        "command resumes from them"
+    )
+
+
+def test_an_mcap_output_that_is_a_folder_or_not_mcap_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: `dpgw run --log logs` (an existing folder) wrote logs_0001, a file without .mcap, beside it;
+    `--log trial.txt` and `dpgw sim/replay --out x.txt` wrote MCAP files named .txt that replay then read
+    as NMEA text; `dpgw replay --out DIR` said '[Errno 21] Is a directory'."""
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    text = tmp_path / "trial.txt"
+    config = REPO / "examples" / "nmea_udp_multiplexer.toml"
+    cases = [
+        # (--duration: a regression runs briefly and fails, instead of running on)
+        (
+            ["run", "--config", str(config), "--log", str(folder), "--duration", "2"],
+            "dpgw run: --log",
+            "a folder",
+        ),
+        (
+            ["run", "--config", str(config), "--log", str(text), "--duration", "2"],
+            "dpgw run: --log",
+            "not an MCAP",
+        ),
+        (
+            ["sim", "--scenario", "hassani", "--duration", "1", "--out", str(text)],
+            "dpgw sim: --out",
+            "not an MCAP",
+        ),
+        (
+            ["replay", str(REPO / "README.md"), "--out", str(folder)],
+            "dpgw replay: --out",
+            "a folder, not a file",
+        ),
+        (["demo", "--out", str(text), "--duration", "2", "--no-foxglove"], "dpgw demo: --out", "not an MCAP"),
+    ]
+    for argv, head, words in cases:
+        assert main(argv) == 2, argv
+        line = _one_line(capsys.readouterr().err)
+        assert line.startswith(head) and words in line, line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["logs"]  # nothing written
+    assert list(folder.iterdir()) == []
+
+
+def test_tune_refuses_an_infinite_wave_period(capsys: pytest.CaptureFixture[str]) -> None:
+    """Before: 'tuning 'omega0': must be positive (per DOF or one for all), got [0.0, 0.0, 0.0]'."""
+    assert main(["tune", "--vessel", "mss_supply", "--wave-period", "inf"]) == 2
+    assert _one_line(capsys.readouterr().err) == (
+        "dpgw tune: --wave-period must be a positive, finite number of seconds"
+    )
+
+
 def test_tune_json_is_standard_json() -> None:
     """The default random-walk bias has T = inf: printed as null, not Infinity (which most parsers reject)."""
     p = subprocess.run(
@@ -224,6 +435,10 @@ def test_demo_too_short_to_score_says_how_long_to_run(capsys: pytest.CaptureFixt
             ["run", "--config", "x.toml", "--duration", "abc"],
             "argument --duration: must be a number (got abc)",
         ),
+        # before: "invalid _seeds value: 'x'" (the function's name) and "'seeds' is empty"
+        (["study", "--seeds", "x"], "argument --seeds: 'x': expected whole numbers and ranges, e.g. 0-7,9"),
+        (["study", "--seeds", "0-3,7-5"], "argument --seeds: '7-5': an empty range (write 5-7)"),
+        (["study", "--hs", "2,four"], "argument --hs: '2,four': expected numbers separated by commas"),
     ],
 )
 def test_a_duration_speed_or_count_that_cannot_be_is_refused(
@@ -399,7 +614,9 @@ def test_replay_with_an_unknown_vessel_name_lists_the_built_in_ones(
     assert main(["replay", str(log), "--vessel", "mss_suply"]) == 2
     err = capsys.readouterr().err
     assert "Traceback" not in err
-    assert "vessel.name: not a built-in vessel" in err and "mss_supply" in err and 'got "mss_suply"' in err
+    line = _one_line(err)
+    assert line.startswith("dpgw replay: --vessel: vessel 'mss_suply': not a built-in vessel"), line
+    assert "cybership2, hajivand_vessel, mss_osv, mss_supply" in line
 
 
 # --- the analyst's commands: what they cannot do is said before the work, and --json is JSON ------------
@@ -629,6 +846,32 @@ def test_replay_zenoh_options_without_pacing_are_refused(
     assert not (tmp_path / "gps-replay.mcap").exists()
 
 
+def test_sim_names_its_own_options_in_what_it_refuses(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: --nmea gps9=pty (no such talker) ran and sent nothing to the pty, silently; --gnss-rate 50
+    said 'DgpsConfig.rate_hz: ...'; --out on a path that cannot be written printed a bare errno."""
+    assert main(["sim", "--scenario", "hassani", "--duration", "1", "--nmea", "gps9=pty"]) == 2
+    assert _one_line(capsys.readouterr().err) == (
+        "dpgw sim: --nmea gps9=pty: hassani has no NMEA talker 'gps9' (it has dgps1, gyro1; without SOURCE= "
+        "every one goes to the URL)"
+    )
+    assert main(["sim", "--scenario", "hassani", "--duration", "1", "--gnss-rate", "50"]) == 2
+    assert _one_line(capsys.readouterr().err) == "dpgw sim: --gnss-rate: must be in 1..10 Hz, got 50.0"
+    assert main(["sim", "--scenario", "hassani", "--duration", "1", "--gyro-rate", "50"]) == 2
+    assert _one_line(capsys.readouterr().err).startswith("dpgw sim: --gyro-rate: must be in")
+    folder = tmp_path / "a-folder.mcap"
+    folder.mkdir()
+    assert main(["sim", "--scenario", "hassani", "--duration", "1", "--out", str(folder)]) == 2
+    assert _one_line(capsys.readouterr().err).startswith(f"dpgw sim: --out {folder}: a folder, not a file")
+    if Path("/proc/self").is_dir():  # Linux: a folder where no file can be made, even by root
+        nowhere = "/proc/dpgw-test.mcap"
+        assert main(["sim", "--scenario", "hassani", "--duration", "1", "--out", nowhere]) == 2
+        assert _one_line(capsys.readouterr().err).startswith(
+            f"dpgw sim: --out {nowhere}: cannot write the log: "
+        )
+
+
 @pytest.mark.parametrize(
     ("extra", "words"),
     [
@@ -637,6 +880,8 @@ def test_replay_zenoh_options_without_pacing_are_refused(
             ["--prefix", "x", "--zenoh-listen", "tcp/127.0.0.1:0"],
             "dpgw sim: --prefix, --zenoh-listen: only with --zenoh",
         ),
+        # --no-scouting, as demo, replay and listen take it (before: "unrecognized arguments")
+        (["--no-scouting"], "dpgw sim: --no-scouting: only with --zenoh"),
     ],
 )
 def test_sim_options_that_need_another_are_refused(

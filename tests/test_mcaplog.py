@@ -30,7 +30,7 @@ from mcap.writer import CompressionType, Writer
 
 from wire.json_payload import encode_json, to_jsonable
 from wire.mcap.fast import FastWriter
-from wire.mcap.reader import log_files, read_messages, summary
+from wire.mcap.reader import log_files, read_messages, read_metadata, summary
 from wire.mcap.rotation import rotated_path
 from wire.mcap.writer import McapLogWriter
 from wire.message_schema import json_schema
@@ -419,6 +419,28 @@ def test_truncated_at_any_byte_reads_a_prefix(tmp_path: Path) -> None:
         assert info.message_count == len(got)
         assert sum(c.message_count for c in info.channels.values()) == len(got)
     assert len(seen) >= 8 and max(seen) == 300  # the cuts fell all over the data section and summary
+
+
+def test_metadata_is_read_from_a_cut_file(tmp_path: Path) -> None:
+    """The configuration a log carries (a Metadata record right after the header) is found in a file cut
+    by kill -9 or power loss, which has no metadata index: replay runs such a log on its own config."""
+    path = tmp_path / "full.mcap"
+    meta = {"json": json.dumps({"vessel": {"name": "mss_supply"}}), "prefix": "dp/x"}
+    with McapLogWriter(path, chunk_size=2 * KIB, background_flush=False, fsync=False) as w:
+        w.add_metadata("dpgw.config", meta)
+        for i in range(300):
+            w.write("/t", {"i": i}, T0 + i)
+    assert read_metadata(path) == [("dpgw.config", meta)]
+    data = path.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    after_metadata = len(data) // 2  # well past the header and the Metadata record, inside the chunks
+    assert 0 < data.find(b"dpgw.config") < after_metadata
+    for n in range(after_metadata, len(data), max(1, len(data) // 50)):
+        cut.write_bytes(data[:n])
+        assert read_metadata(cut) == [("dpgw.config", meta)], n
+    for n in (0, 4, 8, 20):  # cut before the record is complete: none, and no error
+        cut.write_bytes(data[:n])
+        assert read_metadata(cut) == []
 
 
 # --- rotation -----------------------------------------------------------------------------------------------

@@ -423,6 +423,21 @@ def test_unusable_files_are_refused_naming_file_and_field(tmp_path: Path) -> Non
     (tmp_path / "junk.mat").write_bytes(b"not a mat file at all")
     with pytest.raises(HydroError, match=r"junk\.mat: not a MATLAB file"):
         load_hydro(tmp_path / "junk.mat")
+    # .npz files that are not archives of plain arrays: before, numpy's ValueError (a traceback in the CLI)
+    (tmp_path / "junk.npz").write_bytes(bytes(range(256)) * 8)
+    with pytest.raises(HydroError, match=r"junk\.npz: not a NumPy \.npz archive"):
+        load_hydro(tmp_path / "junk.npz")
+    whole = (tmp_path / "shape.npz").read_bytes()
+    (tmp_path / "cut.npz").write_bytes(whole[: len(whole) // 2])
+    with pytest.raises(HydroError, match=r"cut\.npz: not a NumPy \.npz archive"):
+        load_hydro(tmp_path / "cut.npz")
+    with open(tmp_path / "one.npz", "wb") as f:
+        np.save(f, w)
+    with pytest.raises(HydroError, match=r"one\.npz: one array, not a \.npz archive"):
+        load_hydro(tmp_path / "one.npz")
+    np.savez(tmp_path / "obj.npz", freqs=w, A=np.array([None, 1.0], dtype=object), B=np.zeros((6, 6, 8)))
+    with pytest.raises(HydroError, match=r"obj\.npz: cannot read its arrays"):
+        load_hydro(tmp_path / "obj.npz")
 
 
 @settings(max_examples=25, deadline=None)

@@ -7,6 +7,7 @@ import json
 import math
 import os
 import pty
+import signal
 import socket
 import struct
 import subprocess
@@ -39,6 +40,7 @@ from wire.codecs import nmea_encode as enc
 from wire.mcap.reader import read_messages
 from wire.mcap.writer import McapLogWriter
 
+REPO = Path(__file__).resolve().parents[1]
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 USV = DATA / "usv-nmea"
 
@@ -181,6 +183,46 @@ def write_text_log(path: Path, times: list[datetime], *, dup: int | None = None)
     path.write_text("".join(lines))
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_paced_replay_stops_on_ctrl_c_or_sigterm_with_a_complete_output(
+    tmp_path: Path, sig: signal.Signals
+) -> None:
+    """Before: Ctrl-C gave a KeyboardInterrupt traceback; SIGTERM killed the process and left the output
+    without its summary. Now it stops between two events, closes the output and says so in one line."""
+    from conftest import wait_for
+
+    from wire.mcap.reader import summary
+
+    log, out = tmp_path / "trial.txt", tmp_path / "out.mcap"
+    t0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
+    write_text_log(log, [t0 + timedelta(seconds=k) for k in range(600)])  # 10 min: never done at --speed 5
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    argv = [sys.executable, "-m", "dpgw", "replay", str(log), "--vessel", "mss_supply", "--out", str(out)]
+    proc = subprocess.Popen(
+        [*argv, "--speed", "5", "--no-scouting"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        cwd=tmp_path,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # as a terminal starts it
+    )
+    try:
+        # replaying: the output has its first chunk (the writer flushes about every second of wall time)
+        wait_for(lambda: proc.poll() is not None or (out.exists() and out.stat().st_size > 1000), 120.0)
+        assert proc.poll() is None, proc.communicate()
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 128 + sig, err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert err.startswith(f"dpgw replay: stopped ({sig.name}) after "), err
+    info = summary(out)
+    assert info.complete and info.channels["/dp/estimate"].message_count > 0
+
+
 def test_midnight_rollover_and_bad_time_are_counted(tmp_path: Path) -> None:
     t0 = datetime(2026, 3, 1, 23, 59, 50, tzinfo=UTC)
     times = [t0 + timedelta(seconds=k) for k in range(20)]  # crosses midnight
@@ -281,6 +323,96 @@ def test_simulator_log_replays_in_the_datum_its_truth_is_in(tmp_path: Path) -> N
     assert logged_datum(log) == {"lat_deg": 63.4, "lon_deg": 10.4, "alt_m": 12.0}
     datum = build_config(open_inputs([log]), vessel="northern_clipper").datum
     assert (datum.lat_deg, datum.lon_deg, datum.alt_m, datum.first_fix) == (63.4, 10.4, 12.0, False)
+
+
+def test_a_cut_log_replays_with_its_own_configuration(tmp_path: Path) -> None:
+    """A log cut by kill -9 or power loss (no summary, no metadata index) still carries the configuration and
+    the simulator's description at its start: replay finds them, as in a complete log, instead of asking
+    for --vessel."""
+    from gateway.replay import build_config, open_inputs
+
+    log = tmp_path / "sim.mcap"
+    with McapLogWriter(log, background_flush=False, fsync=False) as w:
+        w.add_metadata(
+            "dpgw.config",
+            {
+                "json": json.dumps(
+                    {
+                        "vessel": {"name": "cybership2"},
+                        "sources": [
+                            {
+                                "name": "dgps1",
+                                "url": "udp://127.0.0.1:10110",
+                                "protocol": "nmea",
+                                "roles": ["position"],
+                            },
+                            {
+                                "name": "gyro1",
+                                "url": "udp://127.0.0.1:10111",
+                                "protocol": "nmea",
+                                "roles": ["heading"],
+                            },
+                        ],
+                        "observer": {"wave_period_s": 1.25},
+                    }
+                )
+            },
+        )
+        Simulation(get_scenario("fossen_strand_1999"), seed=1, log=w).run(5.0)
+    data = log.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) * 2 // 3])
+    assert sum(1 for _ in read_messages(cut)) > 0
+    config = build_config(open_inputs([cut]))
+    assert config.vessel.name == "cybership2"  # the config's, not the simulator's northern_clipper
+    assert np.allclose(config.observer.tuning.omega0, 2 * math.pi / 1.25)
+
+
+def test_a_vessel_file_given_for_a_gateway_log_is_where_the_user_said(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """--vessel ship.toml is relative to where dpgw runs, also for a log that carries its own config (before:
+    relative to the log's folder, where a vessel file given on the command line is not)."""
+    from importlib import resources
+
+    from gateway.replay import build_config, open_inputs
+
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    log = logs / "trial.mcap"
+    sources = [
+        {"name": "dgps1", "url": "udp://127.0.0.1:10110", "protocol": "nmea", "roles": ["position"]},
+        {"name": "gyro1", "url": "udp://127.0.0.1:10111", "protocol": "nmea", "roles": ["heading"]},
+    ]
+    with McapLogWriter(log, background_flush=False, fsync=False) as w:
+        w.add_metadata(
+            "dpgw.config", {"json": json.dumps({"vessel": {"name": "mss_supply"}, "sources": sources})}
+        )
+        Simulation(get_scenario("fossen_strand_1999"), seed=1, log=w).run(2.0)
+    ship = (resources.files("observers") / "vessels" / "cybership2.toml").read_text(encoding="utf-8")
+    (tmp_path / "ship.toml").write_text(ship.replace('name = "cybership2"', 'name = "my_ship"', 1))
+    monkeypatch.chdir(tmp_path)
+    assert build_config(open_inputs([log]), vessel="ship.toml").vessel.name == "my_ship"
+
+
+def test_replay_of_a_cut_log_says_it_was_cut(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A log cut short replays up to its last complete record, and the replay says so (on the console and
+    as `cut_logs` in --json): the result is not the whole trial."""
+    from dpgw.cli import main
+
+    log = tmp_path / "sim.mcap"
+    with McapLogWriter(log, background_flush=False, fsync=False) as w:
+        Simulation(get_scenario("fossen_strand_1999"), seed=1, log=w).run(20.0)
+    assert main(["replay", str(log), "--out", str(tmp_path / "a.mcap"), "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["cut_logs"] == []
+    assert "ends without its summary" not in err
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(log.read_bytes()[: log.stat().st_size * 2 // 3])
+    assert main(["replay", str(cut), "--out", str(tmp_path / "b.mcap"), "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["cut_logs"] == [str(cut)]
+    assert f"dpgw replay: warning: {cut} ends without its summary" in err
 
 
 def test_simulator_log_replays_with_its_own_vessel(tmp_path: Path) -> None:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import os
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -80,15 +81,25 @@ def load_hydro(path: str | Path) -> HydroData:
     if not path.is_file():
         raise HydroError(f"{path}: no such file")
     if path.suffix == ".npz":
-        with np.load(path) as data:
+        try:
+            npz = np.load(path, allow_pickle=False)
+        except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
+            # (a file that is not a zip archive of arrays: numpy takes it for a pickle, which it refuses)
+            raise HydroError(f"{path}: not a NumPy .npz archive ({type(exc).__name__})") from None
+        if not isinstance(npz, np.lib.npyio.NpzFile):  # a single .npy array named .npz
+            raise HydroError(f"{path}: one array, not a .npz archive of named arrays (freqs, A, B)")
+        with npz as data:
             missing = [k for k in ("freqs", "A", "B") if k not in data.files]
             if missing:
                 raise HydroError(
                     f"{path}: missing field(s) {', '.join(missing)} (have {', '.join(data.files)})"
                 )
-            return _check(
-                path, data["freqs"], data["A"], data["B"], data["MRB"] if "MRB" in data.files else None
-            )
+            try:
+                freqs, a, b = data["freqs"], data["A"], data["B"]
+                mrb = data["MRB"] if "MRB" in data.files else None
+            except (ValueError, OSError, zipfile.BadZipFile) as exc:  # object arrays, a damaged member
+                raise HydroError(f"{path}: cannot read its arrays ({exc})") from None
+            return _check(path, freqs, a, b, mrb)
     if path.suffix == ".mat":
         mat = _loadmat(path)
         vessel = mat.get("vessel")

@@ -58,7 +58,7 @@ from observers.vessel import VesselError, VesselModel, builtin_vessels, load_ves
 from wire.rmw_zenoh import fully_qualified, is_ros_name
 from wire.urls import UrlError, split_host_port, valid_host
 
-__all__ = ["load_config", "parse_config"]
+__all__ = ["load_config", "parse_config", "prefix_problem"]
 
 _TOP_KEYS = (
     "vessel",
@@ -301,7 +301,8 @@ def _check_zenoh_endpoint(endpoint: str, *, listen: bool = False) -> str | None:
     return None
 
 
-def _check_key_expr(prefix: str) -> str | None:
+def prefix_problem(prefix: str) -> str | None:
+    """Why ``prefix`` cannot be a key prefix (`[zenoh] prefix`, `--prefix`), or None: plain chunks."""
     if prefix.startswith("/") or prefix.endswith("/") or "//" in prefix:
         return (
             "empty chunk in the key expression (expected chunks separated by single '/', no leading or "
@@ -356,7 +357,7 @@ def _read_zenoh(
     if prefix == "" and vessel is not None:
         prefix = f"dp/{vessel.name}"
     if prefix:
-        problem = _check_key_expr(prefix)
+        problem = prefix_problem(prefix)
         if problem:
             p.add("zenoh.prefix", problem)
     if len(p) != n0 or prefix is None:

@@ -7,3 +7,5 @@ MAGIC = b"\x89MCAP0\r\n"
 RECORD_HEADER = 1 + 8
 """Every record starts with opcode (u8) and body length (u64)."""
 OPCODE_FOOTER = 0x02
+OPCODE_DATA_END = 0x0F
+OPCODE_METADATA = 0x0C

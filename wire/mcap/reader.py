@@ -15,16 +15,25 @@ import struct
 from collections.abc import Iterable, Iterator
 from typing import IO, Any
 
+from mcap.data_stream import ReadDataStream
 from mcap.exceptions import EndOfFile
 from mcap.reader import make_reader
-from mcap.records import Channel, DataEnd, Message, Schema
+from mcap.records import Channel, DataEnd, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from mcap.well_known import MessageEncoding, SchemaEncoding
 
-from wire.mcap.format import MAGIC, OPCODE_FOOTER, RECORD_HEADER
+from wire.mcap.format import MAGIC, OPCODE_DATA_END, OPCODE_FOOTER, OPCODE_METADATA, RECORD_HEADER
 from wire.mcap.rotation import StrPath, log_files
 
-__all__ = ["ChannelSummary", "LogSummary", "log_files", "read_messages", "summary"]
+__all__ = [
+    "ChannelSummary",
+    "LogSummary",
+    "is_complete",
+    "log_files",
+    "read_messages",
+    "read_metadata",
+    "summary",
+]
 
 
 def _whole_records(f: IO[bytes]) -> tuple[int, bool]:
@@ -55,6 +64,13 @@ def _whole_records(f: IO[bytes]) -> tuple[int, bool]:
                 return pos + len(MAGIC), True
             break
     return pos, False
+
+
+def is_complete(path: StrPath) -> bool:
+    """Whether a file ends in MCAP's footer and closing magic (False for one cut by `kill -9` or power
+    loss, or still being written). Walks the record headers with seeks: cheap on any size."""
+    with open(path, "rb") as f:
+        return _whole_records(f)[1]
 
 
 class _Slice(io.RawIOBase):
@@ -98,6 +114,35 @@ def _iter_records(path: StrPath) -> Iterator[Schema | Channel | Message]:
         except EndOfFile:
             if complete:
                 raise
+
+
+def read_metadata(path: StrPath) -> list[tuple[str, dict[str, str]]]:
+    """The Metadata records (name, key/value map) of one file, in file order, complete or truncated.
+
+    A complete file lists them in its summary's metadata index; a file cut by `kill -9` or power loss has
+    no index, but the records themselves are in its data section (the writer puts the configuration
+    right after the header, `wire.mcap.writer`), so they are found by walking the record headers with
+    seeks, reading only the bodies of Metadata records (chunks are skipped, not decompressed).
+    """
+    with open(path, "rb") as f:
+        stop, complete = _whole_records(f)
+        if complete:
+            f.seek(0)
+            reader = make_reader(f)
+            return [(r.name, dict(r.metadata)) for r in reader.iter_metadata()]
+        found: list[tuple[str, dict[str, str]]] = []
+        pos = len(MAGIC)
+        f.seek(pos)
+        while pos + RECORD_HEADER <= stop:
+            opcode, length = struct.unpack("<BQ", f.read(RECORD_HEADER))
+            if opcode == OPCODE_DATA_END:
+                break
+            if opcode == OPCODE_METADATA:
+                record = Metadata.read(ReadDataStream(io.BytesIO(f.read(length))))
+                found.append((record.name, dict(record.metadata)))
+            pos += RECORD_HEADER + length
+            f.seek(pos)
+        return found
 
 
 def _topic_set(topics: str | Iterable[str] | None) -> set[str] | None:
