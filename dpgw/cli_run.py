@@ -172,7 +172,7 @@ def run(args: argparse.Namespace) -> int:
         service.drain()
     finally:
         service.stop_event.set()  # also ends the status reporter
-        status = service.pipeline.status(service.pipeline.last_ns).payload
+        status = service.final_status().payload
         service.close()
     summary = {"estimates": service.pipeline.estimates, "published": service.published, "status": status}
     if args.json:

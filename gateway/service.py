@@ -426,6 +426,12 @@ class GatewayService:
                 except Exception:
                     self._internal_error("status", "the status")
 
+    def final_status(self) -> Output:
+        """The status at the end of a run: at the pipeline's last time, or (nothing ever arrived, so it has
+        none) at the wall clock, not at 1970 with every source "stale" for 56 years."""
+        last = self.pipeline.last_ns
+        return self.pipeline.status(last) if last else self._status_without_time()
+
     def _status_without_time(self) -> Output:
         """The status while the pipeline has no time yet (``clock = "sim"`` before the first tick): stamped
         with the wall clock for Zenoh and ``dpgw run -v``, and kept out of everything that is logged, its

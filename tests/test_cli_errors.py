@@ -931,3 +931,16 @@ def test_a_log_folder_that_cannot_be_made_stops_start_up_with_one_message(tmp_pa
     assert "Errno" not in lines[0] and "choose" in lines[0]
     p = _run_with_log(tmp_path, "", "--log", str(tmp_path / "afile" / "x.mcap"))
     assert p.returncode == 2 and "--log" in p.stderr, p.stderr
+
+
+def test_run_json_summary_without_any_data_is_stamped_now_not_1970(tmp_path: Path) -> None:
+    """A gateway that received nothing has no time of its own; its closing status used to be stamped 0
+    (1970) with every source stale for 56 years."""
+    import json
+    import time
+
+    p = _run_with_log(tmp_path, "", "--json")
+    assert p.returncode == 0, p.stderr
+    status = json.loads(p.stdout)["status"]
+    assert abs(status["stamp_ns"] - time.time_ns()) < 600 * 10**9
+    assert not any("stale" in str(a) for a in status["alarms"]), status["alarms"]
