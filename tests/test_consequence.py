@@ -107,9 +107,33 @@ def test_failure_cases_are_retested_when_the_load_moves_a_thruster_changes_or_a_
     assert v.intact == pytest.approx(60 / 100)  # sway from 1 and 2 alone
 
 
-def test_nothing_left_to_lose_is_no_case_and_no_alarm() -> None:
+def test_losing_every_thruster_left_is_the_worst_case_not_no_case() -> None:
+    # a failure group that feeds every thruster: nothing would be left, whatever the load
     ca = analysis(failure_groups=[[1, 2, 3]])
     v = ca.update(0.0, [10.0, 10.0, 0.0])
+    assert v is not None and [(c.lost, c.utilisation) for c in v.cases] == [((1, 2, 3), math.inf)]
+    assert ca.alarm
+    assert ca.alarm_text() == (
+        "consequence analysis: after losing thrusters 1, 2, 3 no thruster would be left to hold the position"
+    )
+    # the last thruster in service: losing it is a case, and the alarm stays up
+    ca = analysis(filter_s=1e-3, min_period_s=0.0)
+    v = ca.update(0.0, [10.0, 10.0, 0.0], out={1, 2})
+    assert v is not None and [(c.lost, c.utilisation) for c in v.cases] == [((3,), math.inf)]
+    assert ca.alarm_text() == (
+        "consequence analysis: after losing thruster 3 no thruster would be left to hold the position"
+    )
+    # with no load at all, losing everything loses nothing
+    v = ca.update(1.0, [0.0, 0.0, 0.0], out={1, 2})
+    assert v is not None and v.cases[0].utilisation == 0.0 and not ca.alarm
+
+
+def test_a_case_whose_thrusters_are_all_out_already_is_no_case() -> None:
+    ca = analysis(failure_groups=[[1, 2], [3]])
+    v = ca.update(0.0, [10.0, 10.0, 0.0], out={1, 2})
+    assert v is not None and [c.lost for c in v.cases] == [(3,)]
+    ca = analysis(failure_groups=[[1, 2]])
+    v = ca.update(0.0, [10.0, 10.0, 0.0], out={1, 2})
     assert v is not None and v.cases == () and v.worst is None and not ca.alarm
 
 
