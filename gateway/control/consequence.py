@@ -238,7 +238,13 @@ class ConsequenceAnalysis:
             return (
                 f"consequence analysis: after losing {which} the rest could not push against the present load"
             )
+        need = (
+            f"consequence analysis: after losing {which} the rest would need {100 * worst.utilisation:.0f} %"
+        )
+        if worst.utilisation > 1.0:
+            return f"{need} of their thrust for the present load: position would be lost"
+        # (held up between clear_utilisation and 100 %: the load is at the limit, not yet beyond it)
         return (
-            f"consequence analysis: after losing {which} the rest would need {100 * worst.utilisation:.0f} % "
-            "of their thrust for the present load: position would be lost"
+            f"{need} of their thrust for the present load: no margin left "
+            f"(the alarm clears below {100 * self.clear_utilisation:.0f} %)"
         )
