@@ -148,6 +148,17 @@ def test_a_case_whose_thrusters_are_all_out_already_is_no_case() -> None:
     assert v is not None and v.cases == () and v.worst is None and not ca.alarm
 
 
+def test_a_clock_that_goes_back_does_not_freeze_the_verdict() -> None:
+    """A restarted simulation clock (``[time] sim``) starts again at 0: the analysis tests at once rather
+    than wait, with the old verdict and alarm, until the clock is past the last test again; the mean
+    load starts again from τ, as at the first step."""
+    ca = analysis()
+    assert ca.update(3600.0, [0.0, 150.0, 0.0]) is not None and ca.alarm
+    v = ca.update(1.0, [0.0, 10.0, 0.0])
+    assert v is not None and v.t == 1.0 and v.load == (0.0, 10.0, 0.0) and not ca.alarm
+    assert ca.update(1.5, [0.0, 10.0, 0.0]) is None  # (and then at its usual pace)
+
+
 def test_reset_forgets_the_load_and_the_alarm() -> None:
     ca = analysis(filter_s=1e-3)
     ca.update(0.0, [0.0, 150.0, 0.0])

@@ -171,6 +171,10 @@ class ConsequenceAnalysis:
         if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(n) and math.isfinite(t)):
             return None
         load = self.load
+        if self._t is not None and t < self._t:
+            # time went back (a restarted simulation clock): the mean starts again from τ and is tested
+            # at once, not after the clock has caught up with the last test
+            self._t = self._tested_at = None
         if self._t is None:
             load[:] = (x, y, n)
         else:
