@@ -15,6 +15,7 @@ from observers.vessel_files import builtin_vessels
 # no numpy or scipy (the analysis is imported by `run`); a test holds them equal.
 DEFAULT_CURRENT_MPS = 0.75
 U_LIMIT_MPS = 40.0
+PLOT_SUFFIXES = (".png", ".svg", ".pdf")
 
 NAME = "capability"
 HELP = "DP capability plot: the largest wind (with its current and waves) the thrusters hold against"
@@ -114,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
-    if problem := missing_folder("--plot", args.plot):
+    if problem := missing_folder("--plot", args.plot) or _plot_problem(args.plot):
         print(f"dpgw capability: {problem}", file=sys.stderr)
         return 2
     from dpgw.capability import Environment, capability, default_current, plot
@@ -132,17 +133,41 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:  # a failure group naming a thruster the vessel does not have
         print(f"dpgw capability: --failure-group: {exc}", file=sys.stderr)
         return 2
-    if args.plot:
-        plot(result, str(args.plot))
     if args.json:
         print(cli_json.dumps(result.to_dict(), indent=1))
     else:
         _print_table(result)
-        if args.plot:
-            print(f"wrote {args.plot}")
     for warning in result.warnings:
         print(f"dpgw capability: note: {warning}", file=sys.stderr)
+    if args.plot:  # (after the figures: a plot that cannot be written does not lose them)
+        try:
+            plot(result, str(args.plot))
+        except OSError as exc:
+            print(
+                f"dpgw capability: --plot {args.plot}: cannot write it ({exc.strerror or exc}): give a "
+                "writable path",
+                file=sys.stderr,
+            )
+            return 1
+        if not args.json:
+            print(f"wrote {args.plot}")
     return 0
+
+
+def _plot_problem(path: Path | None) -> str | None:
+    """What is wrong with ``--plot PATH`` that can be seen before the analysis: a format the plot is not
+    written in, or a folder in the way."""
+    if path is None:
+        return None
+    if path.suffix.lower() not in PLOT_SUFFIXES:
+        return f"--plot {path}: give a file name ending in {', '.join(PLOT_SUFFIXES)} (the plot's format)"
+    try:
+        folder = path.is_dir()
+    except OSError as exc:  # (a name longer than the file system allows)
+        return f"--plot {path}: not a usable path ({exc.strerror or exc}): give another"
+    if folder:
+        return f"--plot {path}: is a folder: give a file name in it, e.g. {path / 'capability.png'}"
+    return None
 
 
 def _print_table(result: object) -> None:

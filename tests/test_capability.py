@@ -149,6 +149,20 @@ def test_scale_invariance_and_failures_never_help(
         assert CapabilityLP(v.thrusters, failed={fail}).scale(t) <= k * (1 + 1e-7) + 1e-12
 
 
+@pytest.mark.parametrize("solver", ["daqp", "highs"])
+def test_scale_invariance_holds_for_vanishing_and_huge_loads(solver: str) -> None:
+    """k*(c τ) = k*(τ)/c down to a load decaying towards zero and up to an absurd one: the LP's direction
+    is normalised without squaring the load (a norm of 1e-200 squared is 0, and the LP was NaN)."""
+    v = load_vessel("mss_supply")
+    lp = CapabilityLP(v.thrusters, solver=solver)
+    t = np.array([1.0e5, -2.0e5, 3.0e6])
+    k = lp.scale(t)
+    assert 0.0 < k < math.inf
+    for c in (1e-200, 1e-150, 1e150, 1e200):
+        assert lp.scale(c * t) == pytest.approx(k / c, rel=1e-6)
+    assert lp.scale([5e-324, 0.0, 0.0]) == math.inf  # (k* beyond the float range: inf, not an error)
+
+
 @pytest.mark.parametrize("name", ["mss_supply", "hajivand_vessel", "cybership2", "mss_osv"])
 def test_the_optimal_forces_give_k_tau_within_every_limit(name: str) -> None:
     v = load_vessel(name)

@@ -126,6 +126,33 @@ def test_the_command_prints_a_table_json_and_a_plot(tmp_path, capsys: pytest.Cap
     assert "--failure-group" in capsys.readouterr().err
 
 
+def test_a_plot_path_that_cannot_be_written_is_said_without_a_traceback(
+    tmp_path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:  # type: ignore[no-untyped-def]
+    args = ["capability", "--vessel", "mss_supply", "--step-deg", "180", "--failures", "none"]
+    # a format the plot is not written in, or a folder: refused before the analysis
+    assert main([*args, "--plot", str(tmp_path / "cap.txt")]) == 2
+    assert "give a file name ending in .png, .svg, .pdf" in capsys.readouterr().err
+    (tmp_path / "dir.png").mkdir()
+    assert main([*args, "--plot", str(tmp_path / "dir.png")]) == 2
+    assert "is a folder" in capsys.readouterr().err
+    long = tmp_path / ("x" * 300 + ".png")  # (longer than the file system allows)
+    assert main([*args, "--plot", str(long)]) == 2
+    assert "not a usable path" in capsys.readouterr().err
+    # a file that cannot be written when the plot is saved (as a non-root user in a read-only folder): the
+    # figures are printed first, then what went wrong, without a traceback
+    import dpgw.capability
+
+    def refused(result: object, path: str) -> None:
+        raise PermissionError(13, "Permission denied", path)
+
+    monkeypatch.setattr(dpgw.capability, "plot", refused)
+    assert main([*args, "--json", "--plot", str(tmp_path / "cap.png")]) == 1
+    out, err = capsys.readouterr()
+    assert json.loads(out)["cases"][0]["label"] == "intact"
+    assert "cannot write it (Permission denied)" in err
+
+
 def test_a_failure_group_is_no_better_than_any_of_its_thrusters_alone() -> None:
     v = load_vessel("mss_supply")
     single = capability(v, directions_deg=[90.0], failures="each")

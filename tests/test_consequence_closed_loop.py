@@ -95,3 +95,19 @@ def test_the_config_summary_says_what_is_tested() -> None:
     assert "consequence analysis in dp: thrusters 1+2, 3+4+5 lost together" in text
     tables["consequence"] = {"enabled": False}
     assert "consequence analysis off" in describe(parse_config(tables, base_dir=Path()))
+
+
+def test_after_the_aft_pair_is_lost_the_analysis_tests_what_is_left() -> None:
+    """The pipeline hands the analysis the thrusters out of DP: with the aft pair out, its case is gone,
+    the intact figure is that of the bow units and the aft tunnel 6 (in neither switchboard), and losing
+    the bow units too would leave the tunnel alone, which cannot push against the storm's surge load."""
+    last = run(AFT).statuses[-1]
+    assert [f"thruster {i} out of DP" in " ".join(last["alarms"]) for i in AFT] == [True, True]
+    q = last["consequence"]
+    assert [tuple(c["lost"]) for c in q["cases"]] == [BOW]
+    assert q["cases"][0]["utilisation"] is None  # (∞: nothing left)
+    assert 0.5 < q["utilisation"] < 1.0  # what is left holds the storm's mean load, as predicted
+    assert (
+        "consequence analysis: after losing thrusters 3, 4, 5 the rest could not push against the present "
+        "load" in last["alarms"]
+    )

@@ -408,7 +408,8 @@ class FailureCaseStatus(Record, kw_only=True):
         float | None,
         doc(
             "Share of the remaining thrusters' capacity the present load would take after the failure "
-            "(1 = all of it; over 1: position lost); null: the rest cannot push against it at all."
+            "(1 = all of it; over 1: position lost); null: the rest cannot push against it at all, or no "
+            "thruster is left."
         ),
     ]
 

@@ -286,8 +286,17 @@ class CapabilityLP:
                 math.inf, np.zeros(n), np.array([th.angle_rad for th in self.thrusters])
             )
         t_hat = t / self._tau_ref
-        norm = float(np.linalg.norm(t_hat))
-        A_eq = np.column_stack([self._B_hat, -t_hat / norm])
+        # the direction of t̂ as a unit vector, by its largest component first: ‖t̂‖ squares the
+        # components, which underflows to 0 for a load below ~1e-150 (a load decaying towards zero) and
+        # overflows for one above ~1e150; k* = k̂ / ‖t̂‖ is then formed as (k̂ / ‖u‖) / max|t̂|
+        big = float(np.max(np.abs(t_hat)))
+        if big == 0.0:  # (a load so small that dividing by τ_ref made it zero: held, however weak)
+            return CapabilitySolution(
+                math.inf, np.zeros(n), np.array([th.angle_rad for th in self.thrusters])
+            )
+        u = t_hat / big
+        norm_u = float(np.linalg.norm(u))
+        A_eq = np.column_stack([self._B_hat, -u / norm_u])
         best_k, best_x = -1.0, np.zeros(self._c.size)
         for j, (A_ub, b_ub) in enumerate(self._systems):
             if self.solver == "daqp":
@@ -324,4 +333,6 @@ class CapabilityLP:
             else:
                 thrust[i] = forces[k]
                 k += 1
-        return CapabilitySolution(max(best_k, 0.0) / norm, thrust, azimuth)
+        with np.errstate(over="ignore"):  # (k* beyond the float range of a vanishing load: inf)
+            scale = float(np.float64(max(best_k, 0.0) / norm_u) / big)
+        return CapabilitySolution(scale, thrust, azimuth)

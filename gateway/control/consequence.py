@@ -82,8 +82,8 @@ class FailureCase:
 @dataclass(frozen=True)
 class Verdict:
     """One evaluation: the load τ̄ (body frame [X, Y, N]), the utilisation with every thruster in service
-    now (``intact``), each failure case, and the worst of them (None: no case to test, e.g. one thruster
-    in service)."""
+    now (``intact``), each failure case, and the worst of them (None: no case to test, every thruster of
+    every case already out)."""
 
     t: float
     load: tuple[float, float, float]
@@ -171,6 +171,10 @@ class ConsequenceAnalysis:
         if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(n) and math.isfinite(t)):
             return None
         load = self.load
+        if self._t is not None and t < self._t:
+            # time went back (a restarted simulation clock): the mean starts again from τ and is tested
+            # at once, not after the clock has caught up with the last test
+            self._t = self._tested_at = None
         if self._t is None:
             load[:] = (x, y, n)
         else:
@@ -205,8 +209,10 @@ class ConsequenceAnalysis:
         cases = []
         for g in self.groups:
             lost = frozenset(g) - out  # (a thruster already out cannot be lost again)
-            if not lost or lost | out >= {th.id for th in self.thrusters}:
-                continue  # nothing left to lose, or nothing left at all: no case
+            if not lost:
+                continue  # nothing left to lose: no case
+            # (a case that takes every thruster left, the last one in service or a group that feeds them
+            # all, is the worst of all: k = 0 for any load but none)
             k = self.attainable(self.thrusters, load, out | lost)
             cases.append(FailureCase(tuple(sorted(lost)), _utilisation(k)))
         verdict = Verdict(t, (float(load[0]), float(load[1]), float(load[2])), intact, tuple(cases))
@@ -228,11 +234,21 @@ class ConsequenceAnalysis:
             return None
         lost = ", ".join(str(i) for i in worst.lost)
         which = f"thruster {lost}" if len(worst.lost) == 1 else f"thrusters {lost}"
+        if self._tested_out | set(worst.lost) >= {th.id for th in self.thrusters}:
+            return (
+                f"consequence analysis: after losing {which} no thruster would be left to hold the position"
+            )
         if math.isinf(worst.utilisation):
             return (
                 f"consequence analysis: after losing {which} the rest could not push against the present load"
             )
+        need = (
+            f"consequence analysis: after losing {which} the rest would need {100 * worst.utilisation:.0f} %"
+        )
+        if worst.utilisation > 1.0:
+            return f"{need} of their thrust for the present load: position would be lost"
+        # (held up between clear_utilisation and 100 %: the load is at the limit, not yet beyond it)
         return (
-            f"consequence analysis: after losing {which} the rest would need {100 * worst.utilisation:.0f} % "
-            "of their thrust for the present load: position would be lost"
+            f"{need} of their thrust for the present load: no margin left "
+            f"(the alarm clears below {100 * self.clear_utilisation:.0f} %)"
         )
