@@ -111,3 +111,21 @@ def test_after_the_aft_pair_is_lost_the_analysis_tests_what_is_left() -> None:
         "consequence analysis: after losing thrusters 3, 4, 5 the rest could not push against the present "
         "load" in last["alarms"]
     )
+
+
+def test_a_failing_analysis_is_an_alarm_not_a_stopped_control_step(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The analysis is a monitor: a solver that raises (HiGHS on a bad status, say) must not take the
+    thruster commands with it."""
+    from gateway.control import consequence
+
+    def broken(*_: object) -> float:
+        raise RuntimeError("capability LP: solver status 4")
+
+    monkeypatch.setattr(consequence.CachedCapability, "__call__", broken)
+    sc = get_scenario("torsetnes_2004")
+    r = run_closed_loop(sc, 30.0, seed=1, status_every_s=10.0)
+    assert len(r.command_messages) > 200  # commands at 10 Hz all along
+    assert any(
+        "consequence analysis: not evaluated (RuntimeError: capability LP: solver status 4)" in s["alarms"]
+        for s in r.statuses
+    )

@@ -419,7 +419,7 @@ class ConsequenceStatus(Record, kw_only=True):
     load: Annotated[
         list[float],
         msgspec.Meta(min_length=3, max_length=3),
-        doc("The mean load tested, the allocated τ low-passed, body frame [X, Y, N].", "N, N, N·m"),
+        doc("The mean load tested, the demanded τ low-passed, body frame [X, Y, N].", "N, N, N·m"),
     ]
     utilisation: Annotated[
         float | None,

@@ -5,11 +5,13 @@ carried into MSC.1/Circ.1580): a function that continuously verifies that the th
 after the worst-case failure can still give the resultant force and moment needed before it, with an
 alarm when that failure would lose the position for want of thrust in the prevailing conditions.
 
-Pure numerics (DESIGN.md rule 2): the thrust the allocation gives, in; the verdict, out; time only through
+Pure numerics (DESIGN.md rule 2): the thrust demanded, in; the verdict, out; time only through
 ``t``.
 
-**The load.** What the thrusters must hold is what they give now, without its fast part: τ̄, the
-allocated τ = [X, Y, N] (body frame) through a first-order low-pass of time constant T (``filter_s``),
+**The load.** What the thrusters must hold is what is required of them now, without its fast part: τ̄,
+the controller's demanded τ = [X, Y, N] (body frame; the allocated τ falls short of it while the
+allocation saturates, and the guidelines ask for the force *required*) through a first-order low-pass of
+time constant T (``filter_s``),
 exactly discretised for each step::
 
     τ̄ ← τ̄ + (1 − e^(−dt/T)) (τ − τ̄)
@@ -164,7 +166,7 @@ class ConsequenceAnalysis:
         self.alarm = False
 
     def update(self, t: float, tau: ArrayLike, out: Collection[int] = ()) -> Verdict | None:
-        """One control step at time t (s) with the allocated τ (body frame); ``out``: the ids of thrusters
+        """One control step at time t (s) with the demanded τ (body frame); ``out``: the ids of thrusters
         not in service now (out of DP). Returns a new verdict when one was evaluated, else None."""
         # (on plain floats: this runs at every control step, the evaluation only now and then)
         x, y, n = np.asarray(tau, dtype=float).tolist()
