@@ -113,6 +113,21 @@ def test_each_test_fails_its_bad_mru() -> None:
     assert not any(track_problems(ok, sigmas=(0.05 * DEG, 0.05 * DEG)))
 
 
+@pytest.mark.parametrize("burst", [(20.0, -20.0), (20.0, -20.0) * 5, (17.4, -8.0, 6.3), (-25.0, 3.0) * 15])
+def test_a_burst_of_wrong_samples_fails_throughout_and_leaves_no_offset(burst: tuple[float, ...]) -> None:
+    """Wrong samples one after another (a link's noise burst), each far from the motion and from the one
+    before: every one fails (none is taken for "back on the motion" merely for being nearer it than to
+    the previous wrong value), and once the MRU sends its motion again it passes again: the burst is not
+    counted as a step that stayed (which would keep the MRU out until it restarts)."""
+    ok = [(T0 + k * S // 10, 3 * DEG * math.sin(2 * math.pi * k / 80), 0.5 * DEG) for k in range(120)]
+    bad = [(ok[40 + i][0], v * DEG, ok[40 + i][2]) for i, v in enumerate(burst)]
+    end = 40 + len(burst)
+    problems = track_problems([*ok[:40], *bad, *ok[end:]])
+    assert all(problems[40:end]), problems[40:end]
+    assert not any(problems[:40])
+    assert not any(problems[end + 1 :]), [p for p in problems[end + 1 :] if p][:3]
+
+
 def test_the_jump_test_uses_the_sensor_time_between_samples_where_it_has_one() -> None:
     """Two samples received together (a link that batches) are 0.1 s apart by their PASHR times: the
     allowance is that of 0.1 s, not of 0 s."""

@@ -22,7 +22,10 @@ Every sample goes through, in order (the first failure rejects it, with that rea
   exceeds ``attitude_jump_deg`` every sample fails, until the MRU steps back (the offset sums to ~0) or
   falls silent longer than its timeout (restarted: its tests start afresh). A roll cannot step, so an
   MRU that stepped and stayed is wrong on one side of the step; which side, one MRU cannot tell, and the
-  side after it is the one that is not trusted.
+  side after it is the one that is not trusted. Either way the sample must be within the jump test's
+  limit of the motion or of the jumped-to values: one that is neither continues a burst of wrong values
+  and fails too, judged the same way by the next (for at most `BURST_SAMPLES` and `BURST_S`; after a
+  longer burst no step is counted from it).
 - **freeze**: the same decoded roll and pitch, exactly, for ``attitude_freeze_s`` (an MRU repeating a
   buffer). Exact repetition, not small motion: a vessel in a flat-calm basin may hardly move, but the MRU's
   own noise still moves its last digit.
@@ -45,6 +48,13 @@ INTERVAL_GAIN = 0.1
 """Gain of the mean receive interval of an MRU's samples (about the last ten): without sensor times the
 jump test's Δt is at least that mean, so two samples a link delivers together (the same receive time)
 are allowed the change of one sample interval, not of none."""
+BURST_SAMPLES = 3
+BURST_S = 0.5
+"""A jump followed by samples that are neither back on the motion nor where the jump went (a burst of
+wrong values) is judged, as a spike or a step, against the motion extrapolated from before it for at
+most this many samples and this long: longer, the extrapolation by one rate is no longer the motion (a
+roll turns within seconds; at 100 Hz the sampled rate's noise grows with it), and the burst is only
+failed: the MRU's next steady motion passes without a step counted from it, as after a restart."""
 
 
 @dataclass(frozen=True)
@@ -80,7 +90,10 @@ class AttitudeTrack:
         self.same_since_ns = 0
         # after a failed jump: (roll, pitch) expected had there been none (the sample before it moved on by
         # its rate to the jump's time), the jumped-to values, and the rate; judged by the next sample
-        self.pending: tuple[tuple[float, float], tuple[float, float], tuple[float, float]] | None = None
+        # (and how many samples and seconds since the jump, while a burst goes on)
+        self.pending: (
+            tuple[tuple[float, float], tuple[float, float], tuple[float, float], int, float] | None
+        ) = None
         self.offset = (0.0, 0.0)  # the sum of the steps that stayed (roll, pitch), rad
         self.interval_s = 0.0  # mean receive interval (EMA) of the MRU's samples, s
         self.rate_known = False  # `rate` measured (two samples that did not jump): a jump can be judged
@@ -157,25 +170,34 @@ class AttitudeTrack:
         if dt <= 0.0:
             return ""  # (the first two samples at once, without times: no spacing to judge a change by)
         pending, self.pending = self.pending, None
+        limit = lim.jump_rad + lim.rate_rad_s * dt
         if pending is not None and self.rate_known:
-            expected, jumped, rate = pending
+            expected, jumped, rate, n, since = pending
             here = (expected[0] + rate[0] * dt, expected[1] + rate[1] * dt)
             back = max(abs(roll - here[0]), abs(pitch - here[1]))
             stay = max(abs(roll - jumped[0] - rate[0] * dt), abs(pitch - jumped[1] - rate[1] * dt))
-            if back <= stay:
+            if back <= stay and back <= limit:
                 return ""  # a spike, over: this sample continues the motion from before it
-            self.offset = (
-                self.offset[0] + jumped[0] - expected[0],
-                self.offset[1] + jumped[1] - expected[1],
+            if stay < back and stay <= limit:
+                self.offset = (
+                    self.offset[0] + jumped[0] - expected[0],
+                    self.offset[1] + jumped[1] - expected[1],
+                )
+                self.rate = ((roll - prev[0]) / dt, (pitch - prev[1]) / dt)
+                return ""
+            # neither back on the motion nor where the jump went: a burst of wrong values goes on
+            if n < BURST_SAMPLES and since + dt <= BURST_S:
+                self.pending = (here, (roll, pitch), rate, n + 1, since + dt)
+            else:  # too long to extrapolate through: no step will be counted from it (`BURST_S`)
+                self.rate_known = False
+            return (
+                f"jump: roll {(roll - prev[0]) / DEG:+.2f}°, pitch {(pitch - prev[1]) / DEG:+.2f}° in a burst"
             )
-            self.rate = ((roll - prev[0]) / dt, (pitch - prev[1]) / dt)
-            return ""
-        limit = lim.jump_rad + lim.rate_rad_s * dt
         for axis, v, before in (("roll", roll, prev[0]), ("pitch", pitch, prev[1])):
             if abs(v - before) > limit:
                 rate = self.rate
                 expected = (prev[0] + rate[0] * dt, prev[1] + rate[1] * dt)
-                self.pending = (expected, (roll, pitch), rate)
+                self.pending = (expected, (roll, pitch), rate, 1, dt)
                 return (
                     f"jump: {axis} changed {(v - before) / DEG:+.2f}° in {dt:.2g} s "
                     f"(limit {limit / DEG:.2g}°)"
