@@ -175,9 +175,9 @@ class AttitudeTrack:
             )
         dt = max(dt, self.interval_s)
         if utc_s is not None and prev[2] is not None:
-            step = utc_step_s(prev[2], utc_s)
-            if step > 0.0:
-                dt = step
+            utc_dt = utc_step_s(prev[2], utc_s)
+            if utc_dt > 0.0:
+                dt = utc_dt
         if dt <= 0.0:
             return ""  # (the first two samples at once, without times: no spacing to judge a change by)
         pending, self.pending = self.pending, None
