@@ -179,8 +179,9 @@ class Fusion:
         """Pair a fix and an attitude by their own UTC times where both have one (`attitude_at`); False:
         by receive time always (``[integrity] attitude_time = "receive"``)."""
         self.last_compensation = ""
-        """How the last fix with a lever arm was compensated: ``"attitude"`` (R_zyx(φ, θ, ψ), the MRU source
-        in `attitude_source`), ``"heading"`` (J(ψ) only) or ``""`` (none yet, or no lever arm)."""
+        """How the last fix's lever arm was compensated: ``"attitude"`` (R_zyx(φ, θ, ψ), the MRU source in
+        `attitude_source`), ``"heading"`` (J(ψ) only) or ``""`` (none yet, or that fix's antenna is at the
+        reference point: nothing to compensate)."""
         self.attitude_source = ""
 
     # --- read-only views ----------------------------------------------------------------------------------
@@ -326,6 +327,7 @@ class Fusion:
         x = lever_arm_m[0] - self.reference_point_m[0]
         y = lever_arm_m[1] - self.reference_point_m[1]
         z = lever_arm_m[2]
+        self.last_compensation = ""  # (this fix's way, never the previous fix's: an antenna at the point)
         attitude = self.attitude_at(rx_ns, utc_s) if self._attitude and (x or y or z) else None
         if attitude is not None:
             psi = self.heading_at(rx_ns)

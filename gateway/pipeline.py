@@ -1522,8 +1522,10 @@ class Pipeline:
         if why != self.wind_feedforward:
             ff = self.controller.wind if self.controller is not None else None
             if why and self.wind_feedforward == "":
-                if ff is not None and ff.fade_s > 0:  # held and fading out (`WindFeedForward`)
-                    self._events.append(f"wind feed-forward fading out over {ff.fade_s:.0f} s: {why}")
+                if ff is not None and ff.fade_s > 0 and ff.weight > 0:  # held, fading (`WindFeedForward`)
+                    # from where it is (w < 1 when lost again while still fading in): w T_f to go
+                    rest = ff.weight * ff.fade_s
+                    self._events.append(f"wind feed-forward fading out over {rest:.0f} s: {why}")
                 else:
                     self._events.append(f"wind feed-forward off: {why}")
             elif not why:

@@ -321,3 +321,28 @@ def test_closed_loop_on_a_25_m_mast_the_mru_removes_the_wave_motion_and_improves
         assert reduction_db >= 10.0, (seed, on, off)
         assert on["fix_rms_m"] < 0.6 < 1.0 < off["fix_rms_m"], (seed, on, off)  # 0.3 m σ per axis: 0.42
         assert on["lf_rms_m"] < off["lf_rms_m"], (seed, on, off)
+
+
+def test_a_fix_without_a_lever_arm_is_not_counted_as_compensated() -> None:
+    """Two receivers, one on the mast and one at the reference point (no lever arm), the MRU silent: the
+    mast's fixes are compensated by heading alone (counted, a warning); the other's need no compensation
+    and are neither counted nor warned about (not the previous fix's way carried over to it)."""
+    sources = [
+        nmea_src("gps", ["position"], lever_arm_m=list(ARM)),
+        nmea_src("gps2", ["position"], priority=2),
+        nmea_src("gyro", ["heading"]),
+        nmea_src("mru", ["attitude"], timeout_s=0.5),
+    ]
+    p = Pipeline(PipelineSpec.from_config(parse_config(tables(sources), base_dir=Path.cwd())))
+    psi, ref = 0.3, (10.0, -5.0)
+    for k in range(3):
+        t = T0 + k * S // 2
+        p.feed(RawEvent(t, "gyro", enc.hdt("HE", psi).encode()))
+        p.feed(RawEvent(t + 1000, "gps", gga_of_antenna(psi, 0.0, 0.0, ref)))
+        lat, lon, _ = LocalFrame(*DATUM).to_geodetic(*ref, 0.0)
+        gga = enc.gga("GP", datetime(2026, 6, 1, tzinfo=UTC), lat, lon, 2, 12, 0.8, 20.0)
+        p.feed(RawEvent(t + 2000, "gps2", gga.encode()))
+    assert p.lever_arm_compensation == {"heading": 3}
+    sources_status = p.status(T0 + 2 * S).payload["sources"]
+    assert sources_status["gps"]["warnings"]["lever_arm_heading_only"] == 3
+    assert "warnings" not in sources_status["gps2"]

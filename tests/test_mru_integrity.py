@@ -113,6 +113,34 @@ def test_each_test_fails_its_bad_mru() -> None:
     assert not any(track_problems(ok, sigmas=(0.05 * DEG, 0.05 * DEG)))
 
 
+@pytest.mark.parametrize(
+    "burst",
+    [
+        (20.0, -20.0),
+        (20.0, -20.0) * 5,
+        (17.4, -8.0, 6.3),
+        (-25.0, 3.0) * 15,
+        (15.0, 16.0, -10.0, 5.0),  # two wrong values that agree: no step that stayed, a burst
+        # agreeing values after a long burst: 11° passes the jump test (the MRU is out by then, on its
+        # third failing sample) but is not taken for a motion that a step is measured from
+        (20.0, -20.0, 20.0, -20.0, 10.0, 11.0, -15.0, 8.0),
+    ],
+)
+def test_a_burst_of_wrong_samples_fails_throughout_and_leaves_no_offset(burst: tuple[float, ...]) -> None:
+    """Wrong samples one after another (a link's noise burst), each far from the motion and from the one
+    before: every one fails (none is taken for "back on the motion" merely for being nearer it than to
+    the previous wrong value), and once the MRU sends its motion again it passes again: the burst is not
+    counted as a step that stayed (which would keep the MRU out until it restarts)."""
+    ok = [(T0 + k * S // 10, 3 * DEG * math.sin(2 * math.pi * k / 80), 0.5 * DEG) for k in range(120)]
+    bad = [(ok[40 + i][0], v * DEG, ok[40 + i][2]) for i, v in enumerate(burst)]
+    end = 40 + len(burst)
+    problems = track_problems([*ok[:40], *bad, *ok[end:]])
+    agreeing = {40 + i for i in range(1, len(burst)) if abs(burst[i] - burst[i - 1]) < 3 and i > 3}
+    assert all(p for k, p in enumerate(problems[40:end], 40) if k not in agreeing), problems[40:end]
+    assert not any(problems[:40])
+    assert not any(problems[end + 1 :]), [p for p in problems[end + 1 :] if p][:3]
+
+
 def test_the_jump_test_uses_the_sensor_time_between_samples_where_it_has_one() -> None:
     """Two samples received together (a link that batches) are 0.1 s apart by their PASHR times: the
     allowance is that of 0.1 s, not of 0 s."""

@@ -295,6 +295,8 @@ def test_a_flapping_anemometer_is_said_off_once_and_on_once_it_holds() -> None:
     from observers.base import Estimate
 
     p = pipeline_for()
+    ctl = p.controller
+    assert ctl is not None and ctl.wind is not None
     est = Estimate(0.0, np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), "ok")
     t0 = 1_700_000_000 * NS
     good = enc.mwv("WI", math.radians(40.0), 15.0).encode("ascii")
@@ -307,6 +309,7 @@ def test_a_flapping_anemometer_is_said_off_once_and_on_once_it_holds() -> None:
             n = k // 5
             p.feed(RawEvent(now, "wind1", good if not (10 <= n < 130) or n % 7 == 0 else bad))
         wind = p._relative_wind(now, est)
+        ctl.wind.update(0.0 if k == 0 else 0.1, wind)  # (as the control step does: the weight it says)
         used.append(wind is not None)
         events += [((now - t0) / NS, e) for e in p.status_message(now).events if "wind feed-forward" in e]
     on, off = (
@@ -322,3 +325,33 @@ def test_a_flapping_anemometer_is_said_off_once_and_on_once_it_holds() -> None:
     assert t_on == 0.0 and 6.5 < t_off < 7.5  # the last good sentence before the flapping at 4.5 s
     clean = 0.5 * max(n for n in range(10, 130) if n % 7 == 0)  # 63 s: unbroken fresh wind from here
     assert clean + WIND_ON_CONFIRM_S <= t_back < clean + WIND_ON_CONFIRM_S + 0.2
+
+
+def test_a_wind_lost_again_while_fading_in_is_said_to_fade_out_over_what_is_left() -> None:
+    """The wind lost, faded out completely, back long enough to be said "on" (fading in over what is left
+    of the 20 s), then lost again before it is fully in: the force fades from where the fade-in got to,
+    over that fraction of the 20 s, and the status says that time, not the whole fade time."""
+    from observers.base import Estimate
+
+    p = pipeline_for(wind_loss_fade_s=20.0)
+    ctl = p.controller
+    assert ctl is not None and ctl.wind is not None
+    est = Estimate(0.0, np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), "ok")
+    t0 = 1_700_000_000 * NS
+    events: list[str] = []
+    weight_at_loss = None
+    for k in range(1000):  # 100 s at 10 Hz: wind 0-10 s, none 10-40 s, back 40-56 s, none after
+        now = t0 + k * NS // 10
+        if (k < 100 or 400 <= k < 560) and k % 5 == 0:
+            p.feed(RawEvent(now, "wind1", enc.mwv("WI", math.radians(60.0), 18.0).encode("ascii")))
+        wind = p._relative_wind(now, est)
+        new = [e for e in p.status_message(now).events if "wind feed-forward" in e]
+        if k > 560 and any("fading out" in e for e in new):
+            weight_at_loss = ctl.wind.weight
+        ctl.wind.update(0.0 if k == 0 else 0.1, wind)
+        events += new
+    assert weight_at_loss is not None and 0.6 < weight_at_loss < 0.95
+    assert len(events) == 4 and events[2].startswith("wind feed-forward on: wind from wind1, fading in over")
+    said = re.fullmatch(r"wind feed-forward fading out over (\d+) s: .*", events[3])
+    assert said is not None, events
+    assert abs(int(said.group(1)) - weight_at_loss * 20.0) <= 0.6, (events[3], weight_at_loss)

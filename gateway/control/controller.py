@@ -344,7 +344,8 @@ class ControllerOutput:
     integral:   z = ∫η̃ dt, earth frame (m·s, m·s, rad·s).
     tau_p, tau_i, tau_d, tau_ff: the terms of τ (P, I, D, feed-forward incl. bias and wind); zero outside
                 dp.
-    tau_wind:   the wind feed-forward −k_w τ̂_w within tau_ff (zero outside dp or without a wind measurement).
+    tau_wind:   the wind feed-forward −k_w w τ̂_w within tau_ff: zero outside dp; after the wind is lost, its
+                held force fading out (w), zero once faded (`WindFeedForward`).
     """
 
     t: float

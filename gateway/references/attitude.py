@@ -22,7 +22,11 @@ Every sample goes through, in order (the first failure rejects it, with that rea
   exceeds ``attitude_jump_deg`` every sample fails, until the MRU steps back (the offset sums to ~0) or
   falls silent longer than its timeout (restarted: its tests start afresh). A roll cannot step, so an
   MRU that stepped and stayed is wrong on one side of the step; which side, one MRU cannot tell, and the
-  side after it is the one that is not trusted.
+  side after it is the one that is not trusted. Either way the sample must be within the jump test's
+  limit of the motion or of the jumped-to values: one that is neither continues a burst of wrong values
+  and fails too, judged the same way by the next (for at most `BURST_SAMPLES` and `BURST_S`; after a
+  longer burst no step is counted from it). A step whose next sample jumps again is a burst too: it is
+  taken off the offset. Steps are judged only after `STEADY_SAMPLES` passed in a row.
 - **freeze**: the same decoded roll and pitch, exactly, for ``attitude_freeze_s`` (an MRU repeating a
   buffer). Exact repetition, not small motion: a vessel in a flat-calm basin may hardly move, but the MRU's
   own noise still moves its last digit.
@@ -45,6 +49,17 @@ INTERVAL_GAIN = 0.1
 """Gain of the mean receive interval of an MRU's samples (about the last ten): without sensor times the
 jump test's Δt is at least that mean, so two samples a link delivers together (the same receive time)
 are allowed the change of one sample interval, not of none."""
+BURST_SAMPLES = 3
+BURST_S = 0.5
+"""A jump followed by samples that are neither back on the motion nor where the jump went (a burst of
+wrong values) is judged, as a spike or a step, against the motion extrapolated from before it for at
+most this many samples and this long: longer, the extrapolation by one rate is no longer the motion (a
+roll turns within seconds; at 100 Hz the sampled rate's noise grows with it), and the burst is only
+failed: the MRU's next steady motion passes without a step counted from it, as after a restart."""
+STEADY_SAMPLES = 3
+"""A jump is judged as a spike or a step (the offset test) only after this many samples in a row passed
+the jump test: at the start, and after a burst, whose wrong values may agree by chance for a sample or
+two and would be taken for the motion a step is measured from (an offset that never steps back)."""
 
 
 @dataclass(frozen=True)
@@ -80,10 +95,18 @@ class AttitudeTrack:
         self.same_since_ns = 0
         # after a failed jump: (roll, pitch) expected had there been none (the sample before it moved on by
         # its rate to the jump's time), the jumped-to values, and the rate; judged by the next sample
-        self.pending: tuple[tuple[float, float], tuple[float, float], tuple[float, float]] | None = None
+        # (and how many samples and seconds since the jump, while a burst goes on)
+        self.pending: (
+            tuple[tuple[float, float], tuple[float, float], tuple[float, float], int, float] | None
+        ) = None
         self.offset = (0.0, 0.0)  # the sum of the steps that stayed (roll, pitch), rad
+        # the step just added to `offset` (and the motion before it, moved on to now, its rate, the
+        # burst's samples and seconds): taken back if the next sample jumps again (a burst, not a step)
+        self.step: tuple[tuple[float, float], tuple[float, float], tuple[float, float], int, float] | None = (
+            None
+        )
         self.interval_s = 0.0  # mean receive interval (EMA) of the MRU's samples, s
-        self.rate_known = False  # `rate` measured (two samples that did not jump): a jump can be judged
+        self.steady = 0  # samples in a row that passed the jump test (`STEADY_SAMPLES`)
 
     def problem(
         self,
@@ -102,7 +125,7 @@ class AttitudeTrack:
         self.rx_ns = now_ns
         if prev is not None and now_ns - last_ns > timeout_ns:
             prev, self.pending, self.offset, self.rate = None, None, (0.0, 0.0), (0.0, 0.0)
-            self.rate_known = False
+            self.step, self.steady = None, 0
         if not (math.isfinite(roll) and math.isfinite(pitch)):
             return "range: roll or pitch not finite"
         for axis, v in (("roll", roll), ("pitch", pitch)):
@@ -141,9 +164,10 @@ class AttitudeTrack:
     ) -> str:
         """The jump test against the previous sample, and the judgement of a jump by the sample after it:
         back near where the MRU would have been without it (extrapolated by its rate) is a spike (this
-        sample passes); near the jumped-to values is a step that stayed, added to `offset`. Before the
-        MRU's rate is known (its first samples) a jump is only a jump: an offset needs the extrapolation,
-        else the motion of the first samples would count as a step."""
+        sample passes); near the jumped-to values is a step that stayed, added to `offset` (and taken back
+        if the sample after it jumps again: a burst). Before `STEADY_SAMPLES` passed in a row (the first
+        samples, after a burst) a jump is only a jump: an offset needs the extrapolation of a motion the
+        MRU has shown, else the first samples' motion, or a burst's values, would count as a step."""
         dt = dt_ns / NS
         if dt > 0.0:  # (a link that batches delivers some samples together: the mean keeps the spacing)
             self.interval_s = (
@@ -151,34 +175,53 @@ class AttitudeTrack:
             )
         dt = max(dt, self.interval_s)
         if utc_s is not None and prev[2] is not None:
-            step = utc_step_s(prev[2], utc_s)
-            if step > 0.0:
-                dt = step
+            utc_dt = utc_step_s(prev[2], utc_s)
+            if utc_dt > 0.0:
+                dt = utc_dt
         if dt <= 0.0:
             return ""  # (the first two samples at once, without times: no spacing to judge a change by)
         pending, self.pending = self.pending, None
-        if pending is not None and self.rate_known:
-            expected, jumped, rate = pending
+        step, self.step = self.step, None
+        limit = lim.jump_rad + lim.rate_rad_s * dt
+        if pending is not None:
+            expected, jumped, rate, n, since = pending
             here = (expected[0] + rate[0] * dt, expected[1] + rate[1] * dt)
             back = max(abs(roll - here[0]), abs(pitch - here[1]))
             stay = max(abs(roll - jumped[0] - rate[0] * dt), abs(pitch - jumped[1] - rate[1] * dt))
-            if back <= stay:
+            if back <= stay and back <= limit:
                 return ""  # a spike, over: this sample continues the motion from before it
-            self.offset = (
-                self.offset[0] + jumped[0] - expected[0],
-                self.offset[1] + jumped[1] - expected[1],
+            if stay < back and stay <= limit:
+                d = (jumped[0] - expected[0], jumped[1] - expected[1])
+                self.offset = (self.offset[0] + d[0], self.offset[1] + d[1])
+                self.step = (d, here, rate, n + 1, since + dt)
+                self.rate = ((roll - prev[0]) / dt, (pitch - prev[1]) / dt)
+                return ""
+            # neither back on the motion nor where the jump went: a burst of wrong values goes on
+            if n < BURST_SAMPLES and since + dt <= BURST_S:
+                self.pending = (here, (roll, pitch), rate, n + 1, since + dt)
+            else:  # too long to extrapolate through: no step will be counted from it (`BURST_S`)
+                self.steady = 0
+            return (
+                f"jump: roll {(roll - prev[0]) / DEG:+.2f}°, pitch {(pitch - prev[1]) / DEG:+.2f}° in a burst"
             )
-            self.rate = ((roll - prev[0]) / dt, (pitch - prev[1]) / dt)
-            return ""
-        limit = lim.jump_rad + lim.rate_rad_s * dt
         for axis, v, before in (("roll", roll, prev[0]), ("pitch", pitch, prev[1])):
             if abs(v - before) > limit:
+                if step is not None:  # the step just counted jumps again: a burst, not a step
+                    d, motion, rate, n, since = step
+                    self.offset = (self.offset[0] - d[0], self.offset[1] - d[1])
+                    if n < BURST_SAMPLES and since + dt <= BURST_S:
+                        here = (motion[0] + rate[0] * dt, motion[1] + rate[1] * dt)
+                        self.pending = (here, (roll, pitch), rate, n + 1, since + dt)
+                    else:
+                        self.steady = 0
+                    return f"jump: {axis} changed {(v - before) / DEG:+.2f}° in a burst"
                 rate = self.rate
-                expected = (prev[0] + rate[0] * dt, prev[1] + rate[1] * dt)
-                self.pending = (expected, (roll, pitch), rate)
+                if self.steady >= STEADY_SAMPLES:  # (else a jump is only a jump)
+                    expected = (prev[0] + rate[0] * dt, prev[1] + rate[1] * dt)
+                    self.pending = (expected, (roll, pitch), rate, 1, dt)
                 return (
                     f"jump: {axis} changed {(v - before) / DEG:+.2f}° in {dt:.2g} s "
                     f"(limit {limit / DEG:.2g}°)"
                 )
-        self.rate, self.rate_known = ((roll - prev[0]) / dt, (pitch - prev[1]) / dt), True
+        self.rate, self.steady = ((roll - prev[0]) / dt, (pitch - prev[1]) / dt), self.steady + 1
         return ""
