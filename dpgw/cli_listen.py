@@ -16,9 +16,11 @@ from dpgw.cli_types import positive_float, positive_int
 from dpgw.cli_zenoh import LISTEN_FLAGS, add_endpoint_args
 
 NAME = "listen"
+DEFAULT_KEY = "dp/**"
 HELP = "print what arrives on Zenoh"
 DESCRIPTION = (
-    "Subscribe to a Zenoh key expression (default dp/**) and print every sample: one line each, "
+    "Subscribe to a Zenoh key expression (default dp/**, without the simulator's clock) and print every "
+    "sample: one line each, "
     '\'KEY: PAYLOAD\', or with --json one JSON object {"key": KEY, "payload": PAYLOAD} (the payload '
     "as published: docs/interfaces.md lists the fields)."
 )
@@ -31,7 +33,13 @@ EPILOG = (
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("key", nargs="?", default="dp/**", help="Zenoh key expression (default dp/**)")
+    p.add_argument(
+        "key",
+        nargs="?",
+        help="Zenoh key expression (default dp/**, leaving out the simulator's clock <prefix>/sim/clock, "
+        "which is a third of what a demo publishes: name it, or give --all, to see it)",
+    )
+    p.add_argument("--all", action="store_true", help="with the default key, the simulator's clock too")
     p.add_argument("--json", action="store_true", help="one JSON object per line: {key, payload}")
     p.add_argument("--count", type=positive_int, metavar="N", help="exit after N samples")
     p.add_argument(
@@ -53,7 +61,11 @@ def run(args: argparse.Namespace) -> int:
     import signal
 
     from gateway.bus import BusError, key_expr_problem, make_config, open_session
+    from wire.messages import SIM_CLOCK_KEY
 
+    # the simulator's clock (10 ticks a second) is left out of the default view, not out of a key asked for
+    hide_clock = args.key is None and not args.all
+    args.key = args.key or DEFAULT_KEY
     if problem := key_expr_problem(args.key):
         print(f"dpgw listen: {problem}", file=sys.stderr)
         return 2
@@ -75,7 +87,8 @@ def run(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGINT, lambda *_: stop.update(now=True))
     signal.signal(signal.SIGTERM, lambda *_: stop.update(now=True))
     deadline = None if args.duration is None else time.monotonic() + args.duration
-    n = 0
+    n = clock_seen = 0
+    clock_suffix = "/" + SIM_CLOCK_KEY
     interrupted = False
     reached = 0
     try:
@@ -85,6 +98,9 @@ def run(args: argparse.Namespace) -> int:
             try:
                 key, body = samples.get(timeout=0.1)
             except queue.Empty:
+                continue
+            if hide_clock and key.endswith(clock_suffix):
+                clock_seen += 1
                 continue
             n += 1
             try:
@@ -104,6 +120,13 @@ def run(args: argparse.Namespace) -> int:
         sub.undeclare()
         session.close()
     if n == 0 and not interrupted:
+        if clock_seen:
+            print(
+                f"dpgw listen: only the simulator's clock on {args.key} ({clock_seen} ticks, left out: "
+                "give --all, or its key, to see them): no gateway publishing there yet",
+                file=sys.stderr,
+            )
+            return 1
         print(f"dpgw listen: {nothing_heard(args, reached)}", file=sys.stderr)
         return 1
     return 0

@@ -944,3 +944,44 @@ def test_run_json_summary_without_any_data_is_stamped_now_not_1970(tmp_path: Pat
     status = json.loads(p.stdout)["status"]
     assert abs(status["stamp_ns"] - time.time_ns()) < 600 * 10**9
     assert not any("stale" in str(a) for a in status["alarms"]), status["alarms"]
+
+
+def test_listen_leaves_the_simulators_clock_out_of_its_default_view() -> None:
+    """During a demo a third of what arrives on dp/** was <prefix>/sim/clock, ten ticks a second: the
+    default view leaves it out; --all or its own key shows it."""
+    import json
+    import threading
+
+    from gateway.bus import isolated_config, open_session
+
+    port = free_port()
+    server = open_session(isolated_config(listen=[f"tcp/127.0.0.1:{port}"]))
+    stop = threading.Event()
+
+    def publish() -> None:
+        k = 0
+        while not stop.is_set():
+            server.put("dp/x/sim/clock", json.dumps({"stamp_ns": k}))
+            if k % 5 == 0:
+                server.put("dp/x/estimate", json.dumps({"stamp_ns": k}))
+            k += 1
+            stop.wait(0.01)
+
+    thread = threading.Thread(target=publish, daemon=True)
+    thread.start()
+    base = [sys.executable, "-m", "dpgw", "listen", "--no-scouting", "--connect", f"tcp/127.0.0.1:{port}"]
+    try:
+        keys = {}
+        for extra in ([], ["--all"], ["dp/*/sim/clock"]):
+            p = subprocess.run(
+                [*base, *extra, "--count", "20", "--json"], capture_output=True, text=True, timeout=60
+            )
+            assert p.returncode == 0, p.stderr
+            keys[" ".join(extra)] = {json.loads(line)["key"] for line in p.stdout.splitlines()}
+        assert keys[""] == {"dp/x/estimate"}
+        assert "dp/x/sim/clock" in keys["--all"]
+        assert keys["dp/*/sim/clock"] == {"dp/x/sim/clock"}
+    finally:
+        stop.set()
+        thread.join(5)
+        server.close()
