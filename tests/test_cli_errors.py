@@ -985,3 +985,36 @@ def test_listen_leaves_the_simulators_clock_out_of_its_default_view() -> None:
         stop.set()
         thread.join(5)
         server.close()
+
+
+def test_listen_that_heard_only_the_clock_says_so() -> None:
+    import json
+    import threading
+
+    from gateway.bus import isolated_config, open_session
+
+    port = free_port()
+    server = open_session(isolated_config(listen=[f"tcp/127.0.0.1:{port}"]))
+    stop = threading.Event()
+
+    def tick() -> None:
+        while not stop.is_set():
+            server.put("dp/x/sim/clock", json.dumps({"stamp_ns": 0}))
+            stop.wait(0.01)
+
+    thread = threading.Thread(target=tick, daemon=True)
+    thread.start()
+    try:
+        p = subprocess.run(
+            [sys.executable, "-m", "dpgw", "listen", "--no-scouting", "--connect", f"tcp/127.0.0.1:{port}",
+             "--duration", "2"],
+            capture_output=True, text=True, timeout=60,
+        )  # fmt: skip
+    finally:
+        stop.set()
+        thread.join(5)
+        server.close()
+    assert p.returncode == 1 and p.stdout == ""
+    line = _one_line(p.stderr)
+    assert line.startswith("dpgw listen: only the simulator's clock on dp/** ("), line
+    assert "no gateway publishing there yet" in line
