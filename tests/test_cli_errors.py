@@ -1007,7 +1007,7 @@ def test_listen_that_heard_only_the_clock_says_so() -> None:
     try:
         p = subprocess.run(
             [sys.executable, "-m", "dpgw", "listen", "--no-scouting", "--connect", f"tcp/127.0.0.1:{port}",
-             "--duration", "2"],
+             "--duration", "4"],
             capture_output=True, text=True, timeout=60,
         )  # fmt: skip
     finally:
