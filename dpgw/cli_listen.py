@@ -138,6 +138,13 @@ def nothing_heard(args: argparse.Namespace, reached: int) -> str:
     ``reached``: the Zenoh peers and routers this session was connected to at the end.
     """
     said = f"nothing on {args.key} in {args.duration:g} s"
+    unknown = [e for e in args.connect or () if not _resolves(e)]
+    if reached == 0 and unknown:
+        hosts = ", ".join(repr(_host(e)) for e in unknown)
+        return (
+            f"{said}: {hosts} is not a name this computer can resolve (--connect {', '.join(unknown)}): "
+            "a typo, or a name only another network knows? Give its IP address"
+        )
     if reached == 0 and args.connect:
         return (
             f"{said}: nothing answered at {', '.join(args.connect)} (--connect): is a Zenoh router or a "
@@ -152,3 +159,23 @@ def nothing_heard(args: argparse.Namespace, reached: int) -> str:
         f"{said}, though {reached} Zenoh peer{'s' if reached > 1 else ''} answered: is the key right? "
         "'dp/**' shows everything a gateway publishes"
     )
+
+
+def _host(endpoint: str) -> str:
+    """The host of a Zenoh endpoint ``proto/host:port`` (an IPv6 address in brackets, unbracketed)."""
+    addr = endpoint.split("/", 1)[-1].split("#", 1)[0]
+    host = addr.rsplit(":", 1)[0] if ":" in addr else addr
+    return host.strip("[]")
+
+
+def _resolves(endpoint: str) -> bool:
+    """Whether the host of a tcp/udp/tls/quic endpoint resolves (others, such as serial, are not asked)."""
+    import socket
+
+    if endpoint.split("/", 1)[0] not in ("tcp", "udp", "tls", "quic", "ws"):
+        return True
+    try:
+        socket.getaddrinfo(_host(endpoint), None)
+    except (socket.gaierror, UnicodeError):
+        return False
+    return True

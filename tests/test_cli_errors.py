@@ -1018,3 +1018,14 @@ def test_listen_that_heard_only_the_clock_says_so() -> None:
     line = _one_line(p.stderr)
     assert line.startswith("dpgw listen: only the simulator's clock on dp/** ("), line
     assert "no gateway publishing there yet" in line
+
+
+def test_listen_to_a_host_that_does_not_resolve_says_so() -> None:
+    p = subprocess.run(
+        [sys.executable, "-m", "dpgw", "listen", "--no-scouting", "--connect", "tcp/nohost.invalid:7447",
+         "--duration", "0.5"],
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert p.returncode == 1 and p.stdout == ""
+    line = _one_line(p.stderr)
+    assert "'nohost.invalid' is not a name this computer can resolve" in line, line
