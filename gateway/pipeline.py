@@ -1407,7 +1407,7 @@ class Pipeline:
             self.fusion.set_tau_demand(tau_allocated, res.thrust, res.azimuth)
             saturated = res.saturated
             self.control_alarms = list(res.alarms) + deviation
-            self._consequence_step(t, now_ns, o.tau)
+            self._consequence_step(t, now_ns, o.tau, float(eta_in[2]))
             thrusters = [
                 Thruster(id=tid, thrust_n=f, azimuth_rad=a)
                 for tid, f, a in zip(
@@ -1435,7 +1435,7 @@ class Pipeline:
             *scene,
         ]
 
-    def _consequence_step(self, t: float, now_ns: int, tau_demand: np.ndarray) -> None:
+    def _consequence_step(self, t: float, now_ns: int, tau_demand: np.ndarray, psi: float) -> None:
         """The consequence analysis on the demanded τ — what is required of the thrusters, which a
         saturated allocation does not give — in DP only (in manual the operator holds the position, and
         the analysis forgets the load); its alarm joins the controller's. It is a monitor: should it fail,
@@ -1447,7 +1447,7 @@ class Pipeline:
             ca.reset()
             return
         try:
-            if ca.update(t, tau_demand, self.thrusters_out.keys()) is not None:
+            if ca.update(t, tau_demand, self.thrusters_out.keys(), psi) is not None:
                 self._consequence_ns = now_ns
             text = ca.alarm_text()
         except Exception as exc:  # (a solver's failure must not stop the thrusters' commands)

@@ -172,3 +172,16 @@ def test_bad_settings_and_unknown_thrusters_are_refused() -> None:
         analysis(filter_s=0.0)
     with pytest.raises(ValueError, match=r"\[7\]"):
         analysis(failure_groups=[[1, 7]])
+
+
+def test_through_a_heading_change_the_load_turns_with_the_vessel_at_once() -> None:
+    """An environment pushing 100 N north, the vessel turning from north to east in 10 s: in body axes the
+    demand turns from ahead to port. A mean kept in body axes would lag by the filter's 30 s (after the
+    turn it would still point ~70° off); kept in earth axes it is the right body load at every step."""
+    ca = analysis(filter_s=30.0)
+    ca.update(0.0, [100.0, 0.0, 0.0], psi=0.0)
+    for k in range(1, 101):
+        psi = math.radians(90.0) * k / 100
+        body = [100.0 * math.cos(psi), -100.0 * math.sin(psi), 0.0]  # Rᵀ(ψ) [100, 0]
+        ca.update(0.1 * k, body, psi=psi)
+        np.testing.assert_allclose(ca.load, body, atol=1e-9)

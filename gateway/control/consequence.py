@@ -11,7 +11,8 @@ Pure numerics (DESIGN.md rule 2): the thrust demanded, in; the verdict, out; tim
 **The load.** What the thrusters must hold is what is required of them now, without its fast part: τ̄,
 the controller's demanded τ = [X, Y, N] (body frame; the allocated τ falls short of it while the
 allocation saturates, and the guidelines ask for the force *required*) through a first-order low-pass of
-time constant T (``filter_s``),
+time constant T (``filter_s``), in earth-fixed axes (the force turned by the heading ψ, so that a
+heading change turns the load with the vessel at once) and tested in body axes,
 exactly discretised for each step::
 
     τ̄ ← τ̄ + (1 − e^(−dt/T)) (τ − τ̄)
@@ -145,8 +146,8 @@ class ConsequenceAnalysis:
         cap = sum(t.max_thrust_n for t in self.thrusters)
         arm = max((math.hypot(t.x_m, t.y_m) for t in self.thrusters), default=1.0)
         self._retest = (retest_fraction * cap, retest_fraction * cap, retest_fraction * cap * arm)
-        self.load = [0.0, 0.0, 0.0]
-        """τ̄, body frame [X, Y, N] (N, N, N·m)."""
+        self._mean = [0.0, 0.0, 0.0]  # τ̄ in earth-fixed axes [X_n, Y_e, N]
+        self._psi, self._cos, self._sin = 0.0, 1.0, 0.0
         self._t: float | None = None
         self._dt = math.nan
         self._alpha = 0.0
@@ -160,34 +161,40 @@ class ConsequenceAnalysis:
 
     def reset(self) -> None:
         """Forget the load (a restart, or the thrusters handed to someone else)."""
-        self.load = [0.0, 0.0, 0.0]
+        self._mean = [0.0, 0.0, 0.0]
         self._t = self._tested_at = None
         self.verdict = None
         self.alarm = False
 
-    def update(self, t: float, tau: ArrayLike, out: Collection[int] = ()) -> Verdict | None:
-        """One control step at time t (s) with the demanded τ (body frame); ``out``: the ids of thrusters
-        not in service now (out of DP). Returns a new verdict when one was evaluated, else None."""
+    def update(self, t: float, tau: ArrayLike, out: Collection[int] = (), psi: float = 0.0) -> Verdict | None:
+        """One control step at time t (s) with the demanded τ (body frame) at heading ψ (rad); ``out``: the
+        ids of thrusters not in service now (out of DP). Returns a new verdict when one was evaluated, else
+        None. The mean is kept in earth-fixed axes (X, Y turned by ψ; N as it is), so through a heading
+        change the load turns with the vessel at once instead of lagging by the filter's time."""
         # (on plain floats: this runs at every control step, the evaluation only now and then)
         x, y, n = np.asarray(tau, dtype=float).tolist()
         if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(n) and math.isfinite(t)):
             return None
-        load = self.load
+        if math.isfinite(psi) and psi != self._psi:
+            self._psi, self._cos, self._sin = psi, math.cos(psi), math.sin(psi)
+        c, s = self._cos, self._sin
+        xe, ye = c * x - s * y, s * x + c * y
+        mean = self._mean
         if self._t is not None and t < self._t:
             # time went back (a restarted simulation clock): the mean starts again from τ and is tested
             # at once, not after the clock has caught up with the last test
             self._t = self._tested_at = None
         if self._t is None:
-            load[:] = (x, y, n)
+            mean[:] = (xe, ye, n)
         else:
             dt = t - self._t
             if dt > 0:
                 if dt != self._dt:
                     self._dt, self._alpha = dt, 1.0 - math.exp(-dt / self.filter_s)
                 a = self._alpha
-                load[0] += a * (x - load[0])
-                load[1] += a * (y - load[1])
-                load[2] += a * (n - load[2])
+                mean[0] += a * (xe - mean[0])
+                mean[1] += a * (ye - mean[1])
+                mean[2] += a * (n - mean[2])
         self._t = t
         if self._tested_at is not None and t - self._tested_at < self.min_period_s:
             return None
@@ -196,12 +203,19 @@ class ConsequenceAnalysis:
             return None
         return self.evaluate(t, out)
 
+    @property
+    def load(self) -> list[float]:
+        """τ̄ in body axes at the last heading, [X, Y, N] (N, N, N·m)."""
+        c, s = self._cos, self._sin
+        xe, ye, n = self._mean
+        return [c * xe + s * ye, -s * xe + c * ye, n]
+
     def _due(self, t: float, out: frozenset[int]) -> bool:
         if self._tested_at is None:
             return True
         if t - self._tested_at >= self.max_period_s or out != self._tested_out:
             return True
-        load, was, step = self.load, self._tested_load, self._retest
+        load, was, step = self.load, self._tested_load, self._retest  # (body axes: what the LP sees)
         return any(abs(load[j] - was[j]) > step[j] for j in range(3))
 
     def evaluate(self, t: float, out: frozenset[int] = frozenset()) -> Verdict:
@@ -226,7 +240,7 @@ class ConsequenceAnalysis:
         elif worst.utilisation < self.clear_utilisation:
             self.alarm = False
         self.verdict = verdict
-        self._tested_at, self._tested_load, self._tested_out = t, list(self.load), out
+        self._tested_at, self._tested_load, self._tested_out = t, self.load, out
         return verdict
 
     def alarm_text(self) -> str | None:
