@@ -232,7 +232,12 @@ def _run_scenario(args: argparse.Namespace) -> int:
                     f"{', '.join(scenario.nmea_sources())}; without SOURCE= every one goes to the URL)"
                 )
         if args.faults:
-            scenario = replace(scenario, faults=scenario.faults + load_faults(args.faults))
+            added = load_faults(args.faults)
+            problems = scenario.fault_problems(added)
+            if problems:  # a fault that bites nothing would run a clean sea in its place
+                more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+                raise ValueError(f"--faults {args.faults}: {problems[0]}{more}")
+            scenario = replace(scenario, faults=scenario.faults + added)
             commands_in_file = sorted({f.kind for f in scenario.faults if f.kind in COMMAND_KINDS})
             if commands_in_file:
                 print(

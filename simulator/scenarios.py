@@ -131,6 +131,57 @@ class Scenario:
         names += [t.source for t in self.anemometers] + [t.source for t in self.mru]
         return tuple(dict.fromkeys(names))
 
+    def fault_problems(self, faults: Sequence[Fault]) -> list[str]:
+        """What in ``faults`` would do nothing on this scenario, for a person (empty: every fault bites): a
+        source it does not have (a typo runs a clean sea in the fault's place), or a ``jump`` /
+        ``noise_burst`` / ``drift`` whose parameters are none of its sensor's (a GNSS offset on a gyro)."""
+        gnss = {d.source for d in self.dgps}
+        kinds_of = {
+            **{name: "GNSS" for name in gnss},
+            **{g.source: "gyro" for g in self.gyro},
+            **{a.source: "anemometer" for a in self.anemometers},
+            **{m.source: "MRU" for m in self.mru},
+        }
+        if self.feedback is not None:
+            kinds_of[self.feedback.source] = "thruster feedback"
+        thruster_ids = {str(t.id) for t in self.vessel.thrusters}
+        # the parameters each sensor applies, for the faults that step or shake a value
+        applied = {
+            "GNSS": {"north_m", "east_m", "sigma_m", "north_mps", "east_mps"},
+            "gyro": {"heading_rad", "sigma_rad", "heading_rad_s"},
+            "MRU": {"roll_rad", "pitch_rad"},
+        }
+        problems: list[str] = []
+        for f in faults:
+            where = f"{f.kind} fault on '{f.source}' at {f.t_start:g} s"
+            if f.kind.startswith("command_") or f.source == "*":
+                continue
+            if f.kind in ("thruster_failure", "bogus_feedback"):
+                if f.source not in thruster_ids:
+                    known = ", ".join(sorted(thruster_ids, key=int)) or "none"
+                    problems.append(
+                        f"{where}: no thruster '{f.source}' on {self.vessel.name} (its ids: {known})"
+                    )
+                continue
+            kind = kinds_of.get(f.source)
+            if kind is None:
+                known = ", ".join(kinds_of) or "none"
+                problems.append(f"{where}: {self.name} has no source '{f.source}' (its sources: {known})")
+                continue
+            if f.kind in ("jump", "noise_burst", "drift"):
+                given = {k for k in f.params if f.has(k)}
+                if not given & applied.get(kind, set()):
+                    useful = ", ".join(sorted(applied.get(kind, set()))) or "none"
+                    problems.append(
+                        f"{where}: none of its parameters ({', '.join(sorted(given))}) acts on the {kind} "
+                        f"'{f.source}' (the {kind}'s: {useful})"
+                    )
+            if f.kind in ("spoof", "quality") and kind != "GNSS":
+                problems.append(
+                    f"{where}: a {f.kind} fault acts on a GNSS receiver; '{f.source}' is the {kind}"
+                )
+        return problems
+
     def with_sensor_rates(self, gnss_hz: float | None = None, gyro_hz: float | None = None) -> Scenario:
         dgps = tuple(replace(d, rate_hz=gnss_hz) for d in self.dgps) if gnss_hz else self.dgps
         gyro = tuple(replace(g, rate_hz=gyro_hz) for g in self.gyro) if gyro_hz else self.gyro

@@ -234,3 +234,72 @@ def test_the_documented_fault_file_loads() -> None:
         "bogus_feedback",
         *COMMAND_KINDS,
     }
+
+
+# --- faults that would bite nothing ----------------------------------------------------------------------
+
+
+def test_the_built_in_scenarios_own_faults_all_bite() -> None:
+    from simulator.scenario_names import SCENARIO_NAMES
+    from simulator.scenarios import get_scenario
+
+    for name in SCENARIO_NAMES:
+        sc = get_scenario(name)
+        assert sc.fault_problems(sc.faults) == [], name
+
+
+@pytest.mark.parametrize(
+    ("fault", "says"),
+    [
+        (
+            Fault("jump", "gps9", 10.0, 20.0, {"north_m": 5.0}),
+            "has no source 'gps9' (its sources: dgps1, gyro1",
+        ),
+        (Fault("jump", "gyro1", 1.0, 2.0, {"north_m": 5.0}), "(north_m) acts on the gyro 'gyro1'"),
+        (Fault("noise_burst", "dgps1", 1.0, 2.0, {"sigma_rad": 0.1}), "acts on the GNSS 'dgps1'"),
+        (Fault("spoof", "gyro1", 1.0, 2.0, {"lat_deg": 60.0}), "a spoof fault acts on a GNSS receiver"),
+        (
+            Fault("thruster_failure", "9", 1.0, 2.0),
+            "no thruster '9' on mss_supply (its ids: 1, 2, 3, 4, 5, 6)",
+        ),
+    ],
+)
+def test_a_fault_that_would_bite_nothing_is_named(fault: Fault, says: str) -> None:
+    from simulator.scenarios import get_scenario
+
+    problems = get_scenario("torsetnes_2004").fault_problems([fault])
+    assert len(problems) == 1 and says in problems[0], problems
+
+
+def test_faults_that_bite_pass_and_wildcards_and_commands_are_left_alone() -> None:
+    from simulator.scenarios import get_scenario
+
+    ok = [
+        Fault("jump", "dgps1", 1.0, 2.0, {"north_m": 5.0}),
+        Fault("jump", "gyro1", 1.0, 2.0, {"heading_rad": 0.1}),
+        Fault("drift", "dgps1", 1.0, 2.0, {"north_mps": 0.1}),
+        Fault("dropout", "*", 1.0, 2.0),
+        Fault("garbage", "thrusters", 1.0, 2.0),
+        Fault("thruster_failure", "3", 1.0, 2.0),
+        Fault("command_mode", "station", 1.0, 2.0, {"mode": "dp"}),
+    ]
+    assert get_scenario("torsetnes_2004").fault_problems(ok) == []
+
+
+def test_dpgw_sim_refuses_a_fault_file_that_would_bite_nothing(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    f = tmp_path / "faults.toml"
+    f.write_text('[[faults]]\nkind = "jump"\nsource = "gps9"\nt_start = 10.0\nnorth_m = 5.0\n')
+    p = subprocess.run(
+        [sys.executable, "-m", "dpgw", "sim", "--scenario", "torsetnes_2004", "--duration", "5", "--faults",
+         str(f), "--out", str(tmp_path / "x.mcap")],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert p.returncode == 2, p.stderr
+    assert p.stderr.strip().splitlines() == [
+        f"dpgw sim: --faults {f}: jump fault on 'gps9' at 10 s: torsetnes_2004 has no source 'gps9' "
+        "(its sources: dgps1, gyro1, thrusters)"
+    ]
+    assert not (tmp_path / "x.mcap").exists()
