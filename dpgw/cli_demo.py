@@ -216,6 +216,7 @@ def run(args: argparse.Namespace) -> int:
     from dpgw.loop_lag import LoopLag, WatchedSink
     from gateway.bus import BusError
     from gateway.config import ConfigError, format_problems, parse_config
+    from gateway.replay import DEMO_METADATA
     from gateway.service import GatewayService
     from gateway.sources import SourceError
     from simulator.clock import RealtimeClock, SimEpoch, SpeedGovernor
@@ -302,6 +303,8 @@ def run(args: argparse.Namespace) -> int:
     if args.mode == "dp":
         # Hold the scenario's station, not wherever the first (wave-moved, noisy) fix put the estimate.
         service.submit("setpoint", hold_setpoint(scenario))
+    if service.log is not None:  # so that `dpgw replay` of this log scores the same stretch
+        service.log.add_metadata(DEMO_METADATA, {"settle_s": f"{SETTLE_S:g}"})
     sim = Simulation(
         replace(scenario, start_utc=start_utc),
         args.seed,

@@ -49,6 +49,8 @@ from wire.mcap.writer import McapLogWriter, raw_mavlink_record, raw_nmea_record
 from wire.messages import SIM_METADATA, Estimate, Message, RawMavlink, RawNmea, encoder_of
 
 CONFIG_METADATA = "dpgw.config"
+DEMO_METADATA = "dpgw.demo"
+"""What `dpgw demo` says of its log: ``settle_s``, the start it left out of its scores."""
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 Event = RawEvent | ControlEvent
 
@@ -133,6 +135,23 @@ def logged_sim(path: str | Path) -> dict[str, str] | None:
     return _logged(path, SIM_METADATA)
 
 
+def logged_settle_s(inputs: list[Input]) -> float | None:
+    """The settle time the run that made a log scored itself with (`DEMO_METADATA`, written by `dpgw demo`),
+    so that a replay of that log scores the same stretch and prints the same errors; None if no input
+    says."""
+    for inp in inputs:
+        if inp.kind != "mcap":
+            continue
+        meta = _logged(inp.path, DEMO_METADATA)
+        try:
+            settle = float(meta["settle_s"]) if meta is not None else None
+        except (KeyError, ValueError):
+            continue  # (a record from another version: the default rule then)
+        if settle is not None and math.isfinite(settle) and settle >= 0.0:
+            return settle
+    return None
+
+
 def carried_metadata(inputs: list[Input], *, own_config: bool) -> list[tuple[str, dict[str, str]]]:
     """What a replay's output keeps of its first MCAP input's metadata, so that the output replays as
     the input did: the simulator's description (vessel, datum of the truth it carries) and, when the
@@ -141,7 +160,9 @@ def carried_metadata(inputs: list[Input], *, own_config: bool) -> list[tuple[str
     for inp in inputs:
         if inp.kind != "mcap":
             continue
-        names = [SIM_METADATA, CONFIG_METADATA] if own_config else [SIM_METADATA]
+        names = (
+            [SIM_METADATA, DEMO_METADATA, CONFIG_METADATA] if own_config else [SIM_METADATA, DEMO_METADATA]
+        )
         return [(name, meta) for name in names if (meta := _logged(inp.path, name)) is not None]
     return []
 

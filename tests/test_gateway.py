@@ -463,3 +463,28 @@ def test_test_sessions_ignore_a_zenoh_config_in_the_environment(
     assert json.loads(c.get_json("scouting/multicast/enabled")) is False
     assert json.loads(c.get_json("connect/endpoints")) == []
     assert json.loads(c.get_json("listen/endpoints")) == ["tcp/127.0.0.1:0"]
+
+
+@pytest.mark.slow  # the demo fixture, then its replay (~5 s)
+def test_replaying_a_demo_log_scores_the_stretch_the_demo_scored(
+    demo_run: dict,  # type: ignore[type-arg]
+    tmp_path: Path,
+) -> None:
+    """The demo leaves its first 60 s out of its scores; a replay of its log left out 10 % (15 s of this
+    150 s run), so the two printed different errors for the same run. The demo now says its settle time
+    in the log, and the replay uses it (unless --settle)."""
+    out = tmp_path / "again.mcap"
+    proc = dpgw("replay", str(demo_run["log"]), "--out", str(out), "--json")
+    stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 0, stderr
+    again = json.loads(stdout)
+    demo = demo_run["summary"]
+    assert again["settle_s"] == demo["settle_s"] == 60.0
+    ours = again["error_vs_truth"]["passive"]
+    for key in ("rms_north_m", "rms_east_m"):
+        assert ours[key] == pytest.approx(demo["error_vs_truth"][key], rel=0.05), (key, ours, demo)
+    for extra, settle in (([], 60.0), (["--settle", "20"], 20.0)):  # the replay's log carries it on
+        proc = dpgw("replay", str(out), "--out", str(tmp_path / f"r{settle:g}.mcap"), "--json", *extra)
+        stdout, stderr = proc.communicate(timeout=120)
+        assert proc.returncode == 0, stderr
+        assert json.loads(stdout)["settle_s"] == settle  # (and --settle still wins)
