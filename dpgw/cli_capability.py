@@ -37,13 +37,19 @@ EPILOG = (
     "  dpgw capability --vessel mss_osv --failures each --json   # every failure\n"
     "  dpgw capability --vessel my_ship.toml --current-mps 1.0 --step-deg 15\n"
     "  dpgw capability --vessel mss_supply --failure-group 1,4 --failure-group 2,5,6   # switchboards\n"
+    "  dpgw capability --config examples/hil_bench.toml     # its vessel and failure groups\n"
     f"built-in vessels: {', '.join(builtin_vessels())}"
 )
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument(
-        "--vessel", required=True, metavar="NAME|FILE", help="built-in vessel name or a vessel TOML file"
+    source = p.add_mutually_exclusive_group(required=True)
+    source.add_argument("--vessel", metavar="NAME|FILE", help="built-in vessel name or a vessel TOML file")
+    source.add_argument(
+        "--config",
+        metavar="FILE",
+        help="a gateway config: its vessel, and its [consequence] failure_groups as the failures analysed "
+        "(the switchboards the online consequence analysis tests)",
     )
     p.add_argument(
         "--current-mps",
@@ -101,13 +107,26 @@ def _step(text: str) -> float:
 
 
 def run(args: argparse.Namespace) -> int:
-    from observers.vessel import VesselError, load_vessel
+    from observers.vessel import VesselError, VesselModel, load_vessel
 
-    try:
-        vessel = load_vessel(args.vessel)
-    except VesselError as exc:
-        print(f"dpgw capability: --vessel: {exc}", file=sys.stderr)
-        return 2
+    vessel: VesselModel
+    if args.config is not None:
+        from gateway.config import ConfigError, format_problems, load_config
+
+        try:
+            config = load_config(args.config)
+        except ConfigError as exc:
+            print(format_problems(exc), file=sys.stderr)
+            return 2
+        vessel = config.vessel
+        if not args.failure_group and config.consequence.failure_groups:
+            args.failure_group = [tuple(g) for g in config.consequence.failure_groups]
+    else:
+        try:
+            vessel = load_vessel(args.vessel)
+        except VesselError as exc:
+            print(f"dpgw capability: --vessel: {exc}", file=sys.stderr)
+            return 2
     if not vessel.thrusters:
         print(
             f"dpgw capability: vessel '{vessel.name}' has no thrusters: give a vessel with a [[thrusters]] "

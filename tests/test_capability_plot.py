@@ -217,3 +217,27 @@ def test_quasi_static_limit_agrees_with_the_closed_loop() -> None:
     held, lost = final[0.8], final[1.3]
     assert held[0] < 1.0 and held[1] < 1.0, held  # at 0.8 U_max: on station, on heading
     assert lost[0] > 50.0 and lost[2] > 20.0, lost  # at 1.3 U_max: far off and still going
+
+
+def test_the_command_takes_a_gateway_config_s_vessel_and_failure_groups(
+    tmp_path, capsys: pytest.CaptureFixture[str]
+) -> None:  # type: ignore[no-untyped-def]
+    """The switchboards the online consequence analysis tests ([consequence] failure_groups) are the
+    failures the capability plot analyses, from the same file."""
+    cfg = tmp_path / "dp.toml"
+    cfg.write_text(
+        '[vessel]\nname = "mss_supply"\n[[sources]]\nname = "gps"\nurl = "udp://127.0.0.1:10110"\n'
+        'protocol = "nmea"\nroles = ["position", "heading"]\n'
+        "[consequence]\nfailure_groups = [[1, 2], [3, 4, 5]]\n"
+    )
+    args = ["capability", "--config", str(cfg), "--step-deg", "90", "--failures", "each", "--json"]
+    assert main(args) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["vessel"] == "mss_supply"
+    assert [c["failed"] for c in doc["cases"]] == [[], [1, 2], [3, 4, 5]]
+    assert main([*args, "--failure-group", "6"]) == 0  # given on the command line, they win
+    assert [c["failed"] for c in json.loads(capsys.readouterr().out)["cases"]] == [[], [6]]
+    bad = tmp_path / "bad.toml"
+    bad.write_text(cfg.read_text().replace("[3, 4, 5]", "[3, 4, 9]"))
+    assert main(["capability", "--config", str(bad)]) == 2
+    assert "consequence.failure_groups[1]: no thruster 9 on this vessel" in capsys.readouterr().err
