@@ -128,7 +128,7 @@ class ConsequenceAnalysis:
                 f"consequence analysis: clear_utilisation must be in (0, 1), got {clear_utilisation!r}"
             )
         self.thrusters = tuple(thrusters)
-        ids = {t.id for t in self.thrusters}
+        ids = self._ids = frozenset(t.id for t in self.thrusters)
         groups = [tuple(g) for g in failure_groups] or [(t.id,) for t in self.thrusters]
         unknown = sorted({i for g in groups for i in g} - ids)
         if unknown:
@@ -158,6 +158,7 @@ class ConsequenceAnalysis:
         self.alarm = False
         """Whether the alarm is up: the worst case's utilisation passed 100 % and has not yet fallen below
         ``clear_utilisation``."""
+        self._alarm_text: str | None = None  # (worded once per evaluation, asked at every control step)
 
     def reset(self) -> None:
         """Forget the load (a restart, or the thrusters handed to someone else)."""
@@ -165,6 +166,7 @@ class ConsequenceAnalysis:
         self._t = self._tested_at = None
         self.verdict = None
         self.alarm = False
+        self._alarm_text = None
 
     def update(self, t: float, tau: ArrayLike, out: Collection[int] = (), psi: float = 0.0) -> Verdict | None:
         """One control step at time t (s) with the demanded τ (body frame) at heading ψ (rad); ``out``: the
@@ -241,16 +243,18 @@ class ConsequenceAnalysis:
             self.alarm = False
         self.verdict = verdict
         self._tested_at, self._tested_load, self._tested_out = t, self.load, out
+        self._alarm_text = self._word(worst, out) if self.alarm and worst is not None else None
         return verdict
 
     def alarm_text(self) -> str | None:
         """The alarm's words while it is up, else None."""
-        worst = self.verdict.worst if self.verdict is not None else None
-        if not self.alarm or worst is None:
-            return None
+        return self._alarm_text
+
+    def _word(self, worst: FailureCase, out: frozenset[int]) -> str:
+        """The alarm's words for the worst case, the thrusters in ``out`` already out of service."""
         lost = ", ".join(str(i) for i in worst.lost)
         which = f"thruster {lost}" if len(worst.lost) == 1 else f"thrusters {lost}"
-        if self._tested_out | set(worst.lost) >= {th.id for th in self.thrusters}:
+        if out | set(worst.lost) >= self._ids:
             return (
                 f"consequence analysis: after losing {which} no thruster would be left to hold the position"
             )
