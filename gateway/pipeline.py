@@ -810,7 +810,7 @@ class Pipeline:
             q = 1 if quality is None else quality
             self.fusion.use_position(rx_ns, *ned, spec.name, spec.priority, spec.timeout_ns, q, weight)
         else:
-            self._count_test_reject(spec.name, "position")
+            self._count_test_reject(spec.name, self.monitor.reason("position", spec.name))
             self.fusion.drop_position(spec.name)
         return True
 
@@ -827,8 +827,7 @@ class Pipeline:
             return
         why = self.monitor.attitude_problem(spec.name)  # ("" for a passing sample while readmitting)
         if why:
-            word = why.split(":")[0].split(" ")[0].lower() or "failed"
-            self.counters[spec.name].rejected[f"test_attitude_{word}"] += 1
+            self._count_test_reject(spec.name, why, "test_attitude_")
         if not self.monitor.attitude_usable(spec.name):
             self.fusion.drop_attitude(spec.name)  # (else one sample dropped: the good ones around it stay)
 
@@ -864,15 +863,15 @@ class Pipeline:
             weight = self.monitor.weight("heading", spec.name) if "heading" in self._pooled else 1.0
             self.fusion.add_heading(rx_ns, psi, spec.name, spec.priority, spec.timeout_ns, weight)
         else:
-            self._count_test_reject(spec.name, "heading")
+            self._count_test_reject(spec.name, self.monitor.reason("heading", spec.name))
             self.fusion.drop_heading(spec.name)
         return True
 
-    def _count_test_reject(self, source: str, role: str) -> None:
-        """A sentence or frame that failed a reference test, counted by test (``test_jump``, …)."""
-        reason = self.monitor.reason(role, source)
+    def _count_test_reject(self, source: str, reason: str, prefix: str = "test_") -> None:
+        """A sentence or frame that failed a reference test, counted by test (``test_jump``, …: the first
+        word of the test's ``reason``; an MRU's as ``test_attitude_jump``, …)."""
         word = reason.split(":")[0].split(" ")[0].lower() or "failed"
-        self.counters[source].rejected[f"test_{word}"] += 1
+        self.counters[source].rejected[f"{prefix}{word}"] += 1
 
     def _prediction(self, now_ns: int, dof: int) -> Prediction | None:
         """Where the estimate expects a position (dof 0) or heading (dof 2) now: the last estimate moved on
