@@ -197,10 +197,7 @@ class AttitudeTrack:
                 self.rate = ((roll - prev[0]) / dt, (pitch - prev[1]) / dt)
                 return ""
             # neither back on the motion nor where the jump went: a burst of wrong values goes on
-            if n < BURST_SAMPLES and since + dt <= BURST_S:
-                self.pending = (here, (roll, pitch), rate, n + 1, since + dt)
-            else:  # too long to extrapolate through: no step will be counted from it (`BURST_S`)
-                self.steady = 0
+            self._burst_goes_on(here, (roll, pitch), rate, n + 1, since + dt)
             return (
                 f"jump: roll {(roll - prev[0]) / DEG:+.2f}°, pitch {(pitch - prev[1]) / DEG:+.2f}° in a burst"
             )
@@ -209,11 +206,8 @@ class AttitudeTrack:
                 if step is not None:  # the step just counted jumps again: a burst, not a step
                     d, motion, rate, n, since = step
                     self.offset = (self.offset[0] - d[0], self.offset[1] - d[1])
-                    if n < BURST_SAMPLES and since + dt <= BURST_S:
-                        here = (motion[0] + rate[0] * dt, motion[1] + rate[1] * dt)
-                        self.pending = (here, (roll, pitch), rate, n + 1, since + dt)
-                    else:
-                        self.steady = 0
+                    here = (motion[0] + rate[0] * dt, motion[1] + rate[1] * dt)
+                    self._burst_goes_on(here, (roll, pitch), rate, n + 1, since + dt)
                     return f"jump: {axis} changed {(v - before) / DEG:+.2f}° in a burst"
                 rate = self.rate
                 if self.steady >= STEADY_SAMPLES:  # (else a jump is only a jump)
@@ -225,3 +219,19 @@ class AttitudeTrack:
                 )
         self.rate, self.steady = ((roll - prev[0]) / dt, (pitch - prev[1]) / dt), self.steady + 1
         return ""
+
+    def _burst_goes_on(
+        self,
+        here: tuple[float, float],
+        jumped: tuple[float, float],
+        rate: tuple[float, float],
+        n: int,
+        since: float,
+    ) -> None:
+        """A burst of wrong values goes on: its next sample is judged against the motion from before it
+        (``here``, moved on by ``rate``) while it is short enough to extrapolate through (`BURST_SAMPLES`,
+        `BURST_S`); beyond that no step will be counted from it."""
+        if n <= BURST_SAMPLES and since <= BURST_S:
+            self.pending = (here, jumped, rate, n, since)
+        else:
+            self.steady = 0
