@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 from dpgw import cli_json
 from dpgw.cli_foxglove import DEFAULT_HOST, DEFAULT_PORT, add_foxglove_arg, connect_lines, layout_path
 from dpgw.cli_paths import mcap_path_problem
-from dpgw.cli_types import positive_float
+from dpgw.cli_types import non_negative_float, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from simulator.scenario_names import SCENARIO_NAMES
 
@@ -28,6 +28,23 @@ if TYPE_CHECKING:
 # imported by the functions that run the demo, so `dpgw demo --help` answers at once.
 
 SETTLE_S = 60.0
+ENGAGE_S = 150.0
+"""Sim second at which the demo's operator switches the gateway from standby to dp (``--engage-at``), for
+a 76.2 m supply vessel; Froude-scaled with the vessel's length as the controller's defaults are
+(× √(L/76.2)). Until then the vessel is held on joystick: the simulator's thrusters deliver minus the
+load it knows (`Simulation.start_held`), from the start, and the drives report that thrust, so the
+observer starts at the load's equilibrium and its bias estimate settles (~150 s on the default
+scenario: the passive observer's slowest mode, docs/passive-observer.md); DP then takes over bumplessly
+from the thrust the drives report, as a DP operator engages DP once the estimate has settled.
+Engaged at the first sample instead (``--engage-at 0``), DP starts cold into a full storm's load with a
+bias estimate of zero: on the default scenario (Hs 6 m) the vessel drifts ~6 m and ~9 deg, and the
+integrator, which took the load while the bias estimate was still growing, gives it back over ~200 s
+(the integral pole, 0.007 rad/s): p95 ~5 m over 60-180 s, which is the start-up and not the station
+keeping. Engaged at 30 s, before the bias estimate has settled, that hand-over still cost p95 3-5 m."""
+DP_SETTLE_S = 30.0
+"""Station keeping is scored from this long after DP was engaged (and never before ``SETTLE_S``): the
+take-over and the reference model's first moves are not station keeping."""
+DEFAULT_DURATION_S = 360.0
 LOWEST_SPEED = 1.0
 """The demo never slows itself below real time."""
 MAX_LOOP_DELAY_S = 0.3
@@ -61,7 +78,7 @@ DESCRIPTION = (
 )
 EPILOG = (
     "examples:\n"
-    "  dpgw demo                                   # 3 minutes of sea in ~20 s\n"
+    "  dpgw demo                                   # 6 minutes of sea in ~40 s\n"
     "  dpgw demo --scenario hassani --duration 300 --speed 5 --out hassani.mcap\n"
     "  dpgw demo --speed 1 --duration 600          # watch it in Foxglove in real time\n"
     "  dpgw demo --foxglove 0.0.0.0:8765           # Foxglove from another computer (no auth!)\n"
@@ -80,10 +97,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--duration",
         type=positive_float,
-        default=180.0,
+        default=DEFAULT_DURATION_S,
         metavar="S",
-        help=f"sim seconds (default 180; the first {SETTLE_S:.0f} s, while the observer settles, are not "
-        "scored)",
+        help=f"sim seconds (default {DEFAULT_DURATION_S:.0f}; the estimate is scored after {SETTLE_S:.0f} s, "
+        f"station keeping from {DP_SETTLE_S:.0f} s after DP is engaged)",
     )
     p.add_argument(
         "--speed",
@@ -99,8 +116,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--mode",
         choices=("dp", "standby"),
         default="dp",
-        help="dp: the gateway keeps the vessel on station (default); standby: estimation only, the "
-        "scenario's own thrust",
+        help="dp: the gateway keeps the vessel on station (default), engaged at --engage-at; standby: "
+        "estimation only, the scenario's own thrust",
+    )
+    p.add_argument(
+        "--engage-at",
+        type=non_negative_float,
+        default=None,
+        metavar="S",
+        help=f"with --mode dp: the sim second the demo switches the gateway from standby to dp (default "
+        f"{ENGAGE_S:g} for a 76.2 m vessel, Froude-scaled with its length). Until then the vessel is held "
+        "on joystick (the simulator's thrusters answer the load it knows) while the observer's bias "
+        "estimate settles; then DP takes over from the thrust the drives report, as an operator engages "
+        "DP. 0: dp from the first estimate, a cold start into the full load. Vessels without thruster "
+        "feedback start in dp",
     )
     p.add_argument("--out", default="demo.mcap", metavar="FILE.mcap", help="the log (default demo.mcap)")
     add_endpoint_args(p)
@@ -191,7 +220,7 @@ def demo_config(scenario: Any, pty_device: str, args: argparse.Namespace) -> dic
                 "component_id": scenario.feedback.component_id,
             }
         )
-    cfg["control"] = {"initial_mode": args.mode}
+    cfg["control"] = {"initial_mode": "standby" if engage_at(args, scenario) is not None else args.mode}
     tp = scenario.sea[0][1].tp_s
     cfg["observer"] = {"type": DEMO_OBSERVER, "wave_period_s": tp}
     cfg["zenoh"] = {
@@ -205,6 +234,21 @@ def demo_config(scenario: Any, pty_device: str, args: argparse.Namespace) -> dic
     cfg["time"] = {"clock": "sim"}
     # the scenario's observer settings as a study of it applies them (the hassani range, docs/simulator.md)
     return with_scenario_observer(cfg, scenario)
+
+
+def engage_at(args: argparse.Namespace, scenario: Any) -> float | None:
+    """The sim second the demo engages DP (the gateway starts in standby until then), or None: the gateway
+    starts in ``--mode`` (standby; dp with ``--engage-at 0``; and dp on a vessel whose drives report no
+    thrust, which a bumpless take-over needs)."""
+    if args.mode != "dp" or scenario.feedback is None or not scenario.vessel.thrusters:
+        return None
+    if args.engage_at is not None:
+        return float(args.engage_at) if args.engage_at > 0 else None
+    return ENGAGE_S * math.sqrt(scenario.vessel.length_m / REFERENCE_LENGTH_M)
+
+
+REFERENCE_LENGTH_M = 76.2
+"""The vessel the demo's engage time is set for (the MSS supply vessel of the default scenario)."""
 
 
 def run(args: argparse.Namespace) -> int:
@@ -305,6 +349,10 @@ def run(args: argparse.Namespace) -> int:
         service.submit("setpoint", hold_setpoint(scenario))
     if service.log is not None:  # so that `dpgw replay` of this log scores the same stretch
         service.log.add_metadata(DEMO_METADATA, {"settle_s": f"{SETTLE_S:g}"})
+    engage_s = engage_at(args, scenario)
+    if engage_s is not None:
+        # until DP is engaged, an operator holds the vessel by joystick against the load
+        scenario = replace(scenario, tau=lambda _: -sim.held_load_body())
     sim = Simulation(
         replace(scenario, start_utc=start_utc),
         args.seed,
@@ -344,10 +392,19 @@ def run(args: argparse.Namespace) -> int:
     # "the simulator failed"); the summary covers what ran and says it was interrupted.
     interrupted, stop_sim = threading.Event(), threading.Event()
 
+    if engage_s is not None:
+        sim.start_held()
+    pending_engage = math.inf if engage_s is None else engage_s
+
     def simulate() -> None:
+        nonlocal pending_engage
         try:
             while sim.t < args.duration - 1e-9 and not stop_sim.is_set():
-                sim.run(min(SIM_CHUNK_S, args.duration - sim.t))
+                if sim.t >= pending_engage - 1e-9:
+                    # the operator's "DP" button: an input on /dp/mode as any other, logged and replayed
+                    service.submit("mode", "dp")
+                    pending_engage = math.inf
+                sim.run(min(SIM_CHUNK_S, args.duration - sim.t, max(pending_engage - sim.t, 1e-9)))
             if not stop_sim.is_set():
                 time.sleep(0.3)  # let the last bytes arrive
         except BaseException as exc:  # reported below, never a silent hang
@@ -433,6 +490,7 @@ def summarise(
         "sources": status["sources"],
         "estimates": len(est),
         "alarms": status["alarms"],
+        "engage_at_s": engage_at(args, sim.scenario),
     }
     if est and truth:
         t0 = truth[0][0]
@@ -468,7 +526,9 @@ def station_keeping(log: list[str], t_truth: Any, eta_truth: Any, t0_ns: int) ->
         return None
     t_cmd = (np.array([c[0] for c in cmds]) - t0_ns) / 1e9
     ref = np.array([c[1]["reference"] for c in cmds], dtype=float)
-    keep = t_cmd >= t_cmd[0] + SETTLE_S
+    # DP is scored from DP_SETTLE_S after it was engaged (its first command), never before the estimate
+    engaged = float(t_cmd[0])
+    keep = t_cmd >= max(SETTLE_S, engaged + DP_SETTLE_S)
     if keep.sum() < 10:
         return None
     true_at = truth_at(t_cmd[keep], t_truth, eta_truth)
@@ -483,6 +543,8 @@ def station_keeping(log: list[str], t_truth: Any, eta_truth: Any, t0_ns: int) ->
         "east_mean_m": float(np.nanmean(true_at[:, 1] - ref[keep, 1])),
         "heading_mean_deg": float(np.nanmean(signed)),
         "reference": [float(ref[-1, 0]), float(ref[-1, 1]), math.degrees(float(ref[-1, 2]))],
+        "dp_engaged_s": engaged,
+        "scored_from_s": float(t_cmd[keep][0]),
     }
     dt = float(np.median(np.diff(t_cmd[keep])))
     if len(tau) >= 64 and dt > 0:
@@ -550,8 +612,13 @@ def print_summary(r: dict[str, Any]) -> None:
     k = r.get("station_keeping")
     if k:
         share = k.get("wave_band_force_share")
+        if r.get("engage_at_s") is not None:
+            print(
+                f"  DP engaged at {k['dp_engaged_s']:.0f} s (held on joystick until then, while the "
+                "observer's bias estimate settled)"
+            )
         print(
-            f"  station keeping (true position vs the reference, after {r['settle_s']:.0f} s): p95 "
+            f"  station keeping (true position vs the reference, after {k['scored_from_s']:.0f} s): p95 "
             f"{k['position_p95_m']:.2f} m, heading p95 {k['heading_p95_deg']:.2f} deg"
             + (f"; {100 * share:.1f} % of the commanded force in the wave band" if share is not None else "")
         )
@@ -560,6 +627,12 @@ def print_summary(r: dict[str, Any]) -> None:
             f"{_one_decimal(k['reference'][1])} m E, {_one_decimal(k['reference'][2])} deg): "
             f"{k['north_mean_m']:+.2f} m N, {k['east_mean_m']:+.2f} m E, "
             f"heading {k['heading_mean_deg']:+.2f} deg"
+        )
+    elif r.get("engage_at_s") is not None and r["sim_seconds"] < r["engage_at_s"] + DP_SETTLE_S:
+        print(
+            f"  station keeping: not scored: DP is engaged at {r['engage_at_s']:.0f} s and scored from "
+            f"{DP_SETTLE_S:.0f} s later; give a longer --duration (default {DEFAULT_DURATION_S:.0f}), or "
+            "--engage-at 0 for DP from the start"
         )
     lag = r.get("fix_stamp_lag_s")
     if lag is not None:
@@ -575,7 +648,7 @@ def print_summary(r: dict[str, Any]) -> None:
     if not math.isfinite(r.get("error_vs_truth", {}).get("horizontal_rms_m", 0.0)):
         print(
             f"  (no score: the first {SETTLE_S:.0f} s are left out while the observer settles; give a "
-            f"--duration longer than {SETTLE_S:.0f}, e.g. the default 180)"
+            f"--duration longer than {SETTLE_S:.0f}, e.g. the default {DEFAULT_DURATION_S:.0f})"
         )
     for step in r.get("next", []):
         print(f"  next: {step}")

@@ -379,8 +379,31 @@ class Simulation:
         self.dynamics.step(h, tau + self._drift_body + env.wind_body, self.bias.force, env.current_ned)
 
     def _mean_load_body(self) -> Array:
+        return self._load_body(self.bias.constant)
+
+    def held_load_body(self) -> Array:
+        """The slowly varying load on the vessel now, body frame: the whole bias (its Markov part too), the
+        mean wave drift and, on the full plant, the mean wind and the current's load. What an operator
+        holding the vessel by joystick answers, and a thrust of minus it holds the vessel still but for
+        the waves and gusts (`dpgw demo` holds the vessel so until DP is engaged)."""
+        return self._load_body(self.bias.force)
+
+    def start_held(self) -> None:
+        """Start with the vessel held against its load, as a vessel on joystick is before DP is engaged:
+        the thrusters (or τ, without a layout) already deliver minus `held_load_body`, at their setpoints,
+        instead of starting at rest in the full load. Before the first `run`."""
+        tau = -self.held_load_body()
+        if self.allocate is None:
+            self.tau_direct = tau
+            return
+        thrust, angle = self.allocate(tau)
+        self.thrusters.command(thrust, angle)
+        self.thrusters.thrust[:] = self.thrusters.thrust_setpoint
+        self.thrusters.angle[:] = self.thrusters.angle_setpoint
+
+    def _load_body(self, bias_earth: Array) -> Array:
         psi = self.dynamics.x[2]
-        load = rotation(psi).T @ self.bias.constant + self._drift_body
+        load = rotation(psi).T @ bias_earth + self._drift_body
         if self.plant_env is not None and isinstance(self.dynamics, FullPlant):
             load = (
                 load

@@ -411,12 +411,33 @@ def test_demo_too_short_to_score_says_how_long_to_run(capsys: pytest.CaptureFixt
             "station_keeping": {
                 "position_p95_m": 1.0, "heading_p95_deg": 1.0, "reference": [0.0, -0.0001, 45.0],
                 "north_mean_m": 0.1, "east_mean_m": -0.1, "heading_mean_deg": 0.5,
+                "dp_engaged_s": 1.0, "scored_from_s": 60.0,
             },
         }
     )  # fmt: skip
     out = capsys.readouterr().out
     assert f"give a --duration longer than {SETTLE_S:.0f}" in out
     assert "-0.0" not in out and "(0.0 m N, 0.0 m E, 45.0 deg)" in out
+
+
+def test_demo_ended_before_dp_was_engaged_says_what_to_do(capsys: pytest.CaptureFixture[str]) -> None:
+    """A demo shorter than its engage time (150 s, then 30 s before scoring) has no station keeping to
+    score: the summary says why and how to get one, instead of leaving the line out."""
+    from dpgw.cli_demo import print_summary
+
+    print_summary(
+        {
+            "scenario": "torsetnes_2004", "sim_seconds": 120.0, "wall_seconds": 12.0, "log": "d.mcap",
+            "logs": ["d.mcap"], "sources": {}, "sent": {}, "estimates": 500, "alarms": [],
+            "settle_s": 60.0, "engage_at_s": 150.0,
+            "error_vs_truth": {"samples": 100, "horizontal_rms_m": 0.3, "horizontal_p95_m": 0.5,
+                               "rms_heading_deg": 0.3},
+            "station_keeping": None,
+        }
+    )  # fmt: skip
+    out = capsys.readouterr().out
+    assert "station keeping: not scored: DP is engaged at 150 s" in out
+    assert "--engage-at 0" in out and "longer --duration" in out
 
 
 @pytest.mark.parametrize(

@@ -53,7 +53,7 @@ def demo_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
         port = sock.getsockname()[1]
     proc = subprocess.run(
         [sys.executable, "-m", "dpgw", "demo", "--duration", "40", "--speed", "10", "--out", str(out),
-         "--json", "--no-scouting", "--zenoh-listen", f"tcp/127.0.0.1:{port}"],
+         "--engage-at", "5", "--json", "--no-scouting", "--zenoh-listen", f"tcp/127.0.0.1:{port}"],
         capture_output=True, text=True, timeout=240,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr

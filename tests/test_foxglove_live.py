@@ -169,6 +169,8 @@ def test_demo_serves_every_advertised_channel_with_data(tmp_path: Path) -> None:
         "--out",
         str(tmp_path / "demo.mcap"),
         "--no-scouting",
+        "--engage-at",
+        "5",  # DP soon: the command and setpoint channels have data within seconds
     )  # fmt: skip  (stopped once the check is done: the demo must outlast the wait below on a busy machine)
 
     async def session() -> Client:

@@ -53,7 +53,7 @@ def demo_run(tmp_path_factory: pytest.TempPathFactory) -> dict:  # type: ignore[
     received: list[dict] = []  # type: ignore[type-arg]
     proc = dpgw(
         "demo", "--duration", "150", "--speed", "10", "--out", str(out), "--json",
-        "--no-scouting", "--zenoh-listen", f"tcp/127.0.0.1:{port}",
+        "--no-scouting", "--zenoh-listen", f"tcp/127.0.0.1:{port}", "--engage-at", "30",
     )  # fmt: skip
     # the test process is the "other process" subscribing over Zenoh
     session = connect_when_listening(port)
@@ -422,7 +422,7 @@ def test_a_wind_feedforward_log_replays_to_the_live_estimates_and_commands(tmp_p
     log, again = tmp_path / "wind.mcap", tmp_path / "again.mcap"
     proc = dpgw(
         "demo", "--scenario", "mss_supply_wind", "--duration", "90", "--speed", "10", "--out", str(log),
-        "--no-scouting", "--no-foxglove",
+        "--no-scouting", "--no-foxglove", "--engage-at", "0",
     )  # fmt: skip
     _, stderr = proc.communicate(timeout=180)
     assert proc.returncode == 0, stderr
