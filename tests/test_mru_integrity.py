@@ -81,7 +81,7 @@ def test_a_rolling_ship_within_the_physics_is_never_rejected(
 
 
 def test_each_test_fails_its_bad_mru() -> None:
-    ok = [(T0 + k * S // 10, 2 * DEG * math.sin(k / 10), 0.5 * DEG) for k in range(30)]
+    ok = [(T0 + k * S // 10, 2 * DEG * math.sin(k / 10), 0.5 * DEG) for k in range(40)]
     # range
     assert track_problems([(T0, 31 * DEG, 0.0)])[0].startswith("range: roll 31.0° beyond ±30°")
     assert track_problems([(T0, 0.0, -40 * DEG)])[0].startswith("range: pitch -40.0°")
@@ -101,11 +101,12 @@ def test_each_test_fails_its_bad_mru() -> None:
         problems[11],
     )
     assert problems[20].startswith("jump: roll changed -5")
-    # frozen: the same decoded values repeated for 2 s (the 21st sample at 10 Hz), not before
-    frozen = [*ok[:5], *((t, ok[5][1], ok[5][2]) for t, _, _ in ok[5:])]
+    # frozen after 1 s of a roll that changes every sample (the activity learned: the hold is
+    # attitude_freeze_s): the same decoded values repeated for 2 s (the 21st sample at 10 Hz), not before
+    frozen = [*ok[:10], *((t, ok[10][1], ok[10][2]) for t, _, _ in ok[10:])]
     problems = track_problems(frozen)
-    assert [k for k, p in enumerate(problems) if p] == list(range(25, 30))
-    assert problems[25] == "freeze: the same roll and pitch for 2.0 s"
+    assert [k for k, p in enumerate(problems) if p] == list(range(30, 40))
+    assert problems[30] == "freeze: the same roll and pitch for 2.0 s"
     # the MRU's own 1σ (PASHR) beyond 0.5°
     assert track_problems([(T0, 0.0, 0.0)], sigmas=(None, 0.8 * DEG))[0].startswith(
         "sigma: the MRU reports its pitch 1σ as 0.8°"
@@ -166,6 +167,121 @@ def test_after_a_silence_the_jump_and_freeze_tests_start_afresh() -> None:
     tr = AttitudeTrack()
     assert tr.problem(LIMITS, T0, S // 2, 0.0, 0.0) == ""
     assert tr.problem(LIMITS, T0 + S, S // 2, 10 * DEG, 0.0) == ""  # 1 s later, past the 0.5 s timeout
+
+
+def flat_calm(
+    sigma_deg: float, seconds: float, seed: int, swell_deg: float = 0.0, start_s: float = 0.0
+) -> list[tuple[int, float, float]]:
+    """A 10 Hz MRU on a vessel in flat calm: a steady heel and trim in the middle of their last digit
+    (0.30°, -0.12°: the worst place, where the noise leaves the digit least often), a swell of
+    ``swell_deg`` at 9 s, white noise of ``sigma_deg``, rounded to the 0.01° a sentence sends."""
+    rng = np.random.default_rng(seed)
+    n = round(seconds * 10)
+    t = start_s + np.arange(n) / 10
+    w = 2 * math.pi / 9.0
+    roll = np.round(0.30 + swell_deg * np.sin(w * t) + sigma_deg * rng.standard_normal(n), 2)
+    pitch = np.round(-0.12 + 0.5 * swell_deg * np.cos(w * t) + sigma_deg * rng.standard_normal(n), 2)
+    return [
+        (T0 + round(ts * S), float(r) * DEG, float(p) * DEG) for ts, r, p in zip(t, roll, pitch, strict=True)
+    ]
+
+
+def sea_way(seconds: float, seed: int) -> list[tuple[int, float, float]]:
+    """A 10 Hz MRU rolling ±3° and pitching ±1.5° at 8 s, 0.02° noise, rounded to 0.01°."""
+    rng = np.random.default_rng(seed)
+    w = 2 * math.pi / 8.0
+    out = []
+    for k in range(round(seconds * 10)):
+        roll = round(3 * math.sin(w * k / 10) + 0.02 * rng.standard_normal(), 2)
+        pitch = round(1.5 * math.cos(w * k / 10) + 0.02 * rng.standard_normal(), 2)
+        out.append((T0 + k * S // 10, roll * DEG, pitch * DEG))
+    return out
+
+
+def frozen_from(
+    samples: list[tuple[int, float, float]], k0: int, seconds: float
+) -> list[tuple[int, float, float]]:
+    """``samples`` up to ``k0``, then ``seconds`` more of sample ``k0`` repeated exactly (a stuck MRU)."""
+    t0, r, p = samples[k0]
+    return [*samples[:k0], *((t0 + j * S // 10, r, p) for j in range(round(seconds * 10)))]
+
+
+def failing(
+    samples: list[tuple[int, float, float]], **integrity: Any
+) -> tuple[list[int], list[str], AttitudeTrack]:
+    lim, tr = AttitudeLimits.of(IntegrityParams(**integrity)), AttitudeTrack()
+    problems = [tr.problem(lim, t, S // 2, r, p) for t, r, p in samples]
+    return [k for k, p in enumerate(problems) if p], problems, tr
+
+
+@pytest.mark.parametrize(
+    ("sigma_deg", "swell_deg", "fixed_hold_fails"),
+    [(0.004, 0.0, False), (0.003, 0.0, True), (0.003, 0.003, True), (0.002, 0.0, True)],
+)
+def test_a_flat_calm_mru_raises_no_freeze_alarm(
+    sigma_deg: float, swell_deg: float, fixed_hold_fails: bool
+) -> None:
+    """Flat calm for 30 min (`flat_calm`): not one sample fails, while the fixed 2 s hold (the freeze
+    test of earlier versions: ``attitude_freeze_max_s`` = ``attitude_freeze_s``) fails hundreds of them
+    for an MRU whose noise is 0.3 of its resolution or less (σ 0.004° at 0.01° repeats for 2 s about
+    once an hour: not in this half hour, seed 1). The hold learned from the MRU's own activity: ~5 s at
+    σ 0.004°, ~10 s at 0.003°, the 30 s cap at 0.002° (flat calm at mid-digit: the hold that is needed)."""
+    samples = flat_calm(sigma_deg, 1800.0, seed=1, swell_deg=swell_deg)
+    bad, problems, tr = failing(samples)
+    assert not bad, (len(bad), problems[bad[0]])
+    hold_s = tr.freeze_hold_ns(LIMITS) / S
+    expected = {0.004: (4.0, 6.0), 0.003: (6.0, 12.0), 0.002: (30.0, 30.0)}[sigma_deg]
+    assert expected[0] <= hold_s <= expected[1], hold_s
+    fixed, problems, _ = failing(samples, attitude_freeze_max_s=2.0)
+    if fixed_hold_fails:
+        assert len(fixed) >= 10 and problems[fixed[0]] == "freeze: the same roll and pitch for 2.0 s"
+
+
+def test_an_mru_that_freezes_in_a_sea_way_is_rejected_after_attitude_freeze_s() -> None:
+    """After 60 s of a sea way (the last digit changes almost every sample) the MRU sticks on one value:
+    its 21st identical sample (2.0 s) fails, and every one after it (on the third, 2.2 s, the monitor
+    rejects the MRU). The frozen samples that failed are not learned: after 5 min frozen and 10 s of the
+    sea again, a second freeze fails after 2.0 s too."""
+    sea = sea_way(400.0, seed=2)
+    again = [(t + 300 * S, r, p) for t, r, p in sea[601:]]  # (the sea again, after 300 s frozen)
+    samples = [*frozen_from(sea, 600, 300.0), *again[:100]]
+    bad, problems, _ = failing(samples)
+    assert bad[0] == 620 and problems[620] == "freeze: the same roll and pitch for 2.0 s"
+    assert bad == list(range(620, 3600)), bad[-3:]
+    refrozen = frozen_from([(t + 10 * S, r, p) for t, r, p in again[100:]], 0, 10.0)
+    bad, problems, _ = failing([*samples, *refrozen])
+    assert bad[:1] == [620] and bad[-80] == 3700 + 20 and problems[3720].endswith(" for 2.0 s")
+
+
+@pytest.mark.parametrize(
+    ("sigma_deg", "cap_s", "hold_s"),
+    [(0.003, 30.0, (6.0, 12.0)), (0.003, 5.0, (5.0, 5.0)), (0.002, 30.0, (30.0, 30.0))],
+)
+def test_a_calm_mru_that_freezes_is_rejected_within_its_hold_and_the_cap(
+    sigma_deg: float, cap_s: float, hold_s: tuple[float, float]
+) -> None:
+    """10 min of flat calm, then stuck: the first failing sample is the frozen run's at the hold learned
+    from the calm (σ 0.003°: ~10 s), never later than ``attitude_freeze_max_s`` (a 5 s cap: 5 s; an MRU
+    a fifth of its resolution quiet, σ 0.002°: the 30 s cap), and every sample after it fails."""
+    calm = flat_calm(sigma_deg, 660.0, seed=3)
+    k0 = next(k for k in range(6000, 6600) if calm[k][1:] != calm[k - 1][1:])  # (a run starts: freeze)
+    samples = frozen_from(calm, k0, 60.0)
+    bad, problems, _ = failing(samples, attitude_freeze_max_s=cap_s)
+    assert bad and bad[0] > k0, (bad[:3], problems[bad[0]])
+    frozen_s = (samples[bad[0]][0] - samples[k0][0]) / S
+    assert hold_s[0] <= frozen_s <= hold_s[1], frozen_s
+    assert problems[bad[0]] == f"freeze: the same roll and pitch for {frozen_s:.1f} s"
+    assert bad == list(range(bad[0], len(samples)))
+
+
+def test_the_freeze_hold_comes_from_the_share_of_repeating_samples() -> None:
+    """The hold is the smallest n with repeat^((n+1)/2) <= 1e-9, times the sample interval, within the
+    limits: 0.677 → 106 samples (10.6 s at 10 Hz); a share near 0 → 2 s; near 1 → 30 s."""
+    tr = AttitudeTrack()
+    tr.interval_s = 0.1
+    for repeat, hold_s in ((0.677, 10.6), (0.0, 2.0), (0.1, 2.0), (0.999, 30.0), (1.0, 30.0)):
+        tr.repeat = repeat
+        assert tr.freeze_hold_ns(LIMITS) == round(hold_s * S), repeat
 
 
 # ---------------------------------------------------------------------------------------------- pipeline
@@ -349,6 +465,11 @@ def test_attitude_config_keys_are_checked() -> None:
         pipeline(attitude_time="gps")
     with pytest.raises(ConfigError, match=r"integrity\.attitude_max_deg"):
         pipeline(attitude_max_deg=0.0)
+    for bad in (0.0, -5.0, "30", math.inf):
+        with pytest.raises(ConfigError, match=r"integrity\.attitude_freeze_max_s: "):
+            pipeline(attitude_freeze_max_s=bad)
+    assert IntegrityParams().attitude_freeze_max_s == 30.0
+    assert pipeline(attitude_freeze_max_s=120.0).monitor._attitude_limits.freeze_max_ns == 120 * S
     assert not pipeline(attitude_time="receive").fusion.pair_by_sensor_time
 
 

@@ -389,9 +389,18 @@ class IntegrityConfig:
     """Allowance on top of rate × time between consecutive MRU samples (a DP MRU is good to 0.01-0.05°,
     a sentence rounds to 0.01°): with the rate, 3° between samples at 10 Hz."""
     attitude_freeze_s: float = 2.0
-    """An MRU repeating the same roll and pitch exactly (the decoded values, bit for bit) this long is
-    frozen: at sea the hull always moves, and even in a flat-calm basin an MRU's own noise (0.01-0.02°)
-    moves the last of its two decimals; a quieter MRU in a basin may need a longer time."""
+    """The shortest time an MRU may repeat the same roll and pitch exactly (the decoded values, bit for
+    bit) before it is frozen: the hold when its last digit changes from nearly every sample to the next
+    (any sea way). A quieter MRU is held longer, by how often its own last digit changes (up to
+    ``attitude_freeze_max_s``; `gateway.references.attitude`)."""
+    attitude_freeze_max_s: float = 30.0
+    """The longest time an MRU may repeat the same roll and pitch exactly before it is frozen, however
+    rarely its last digit changes (flat calm, an MRU much quieter than its sentence's 0.01°): the bound on
+    how long a frozen MRU is believed. 30 s: a frozen MRU in flat calm is wrong by the little the hull
+    moves in that time, and an MRU whose noise is a quarter of its resolution (0.0025° at 0.01°) is held
+    22.5 s, which it repeats by chance less than once in 10⁹ run starts (docs/integrity.md). At or
+    below ``attitude_freeze_s`` the hold is ``attitude_freeze_s`` whatever the MRU's activity (the fixed
+    hold of earlier versions)."""
     attitude_max_sigma_deg: float = 0.5
     """An MRU reporting its own roll or pitch 1σ (PASHR fields 7-8) above this is not trusted: a DP MRU
     reports 0.01-0.05°; an INS still aligning or unaided reports degrees. 0.5° on a 25 m mast is 0.2 m."""

@@ -495,6 +495,7 @@ class IntegrityTable(_Section):
     attitude_max_rate_deg_s: float = _positive("attitude_max_rate_deg_s", "deg/s")
     attitude_jump_deg: float = _positive("attitude_jump_deg", "deg", 180.0)
     attitude_freeze_s: float = _positive("attitude_freeze_s", "s")
+    attitude_freeze_max_s: float = _positive("attitude_freeze_max_s", "s")
     attitude_max_sigma_deg: float = _positive("attitude_max_sigma_deg", "deg", 90.0)
     attitude_rejects: int = integer(_I["attitude_rejects"], lo=1)
     attitude_time: str = choice(_I["attitude_time"], ATTITUDE_TIMES)

@@ -27,9 +27,36 @@ Every sample goes through, in order (the first failure rejects it, with that rea
   and fails too, judged the same way by the next (for at most `BURST_SAMPLES` and `BURST_S`; after a
   longer burst no step is counted from it). A step whose next sample jumps again is a burst too: it is
   taken off the offset. Steps are judged only after `STEADY_SAMPLES` passed in a row.
-- **freeze**: the same decoded roll and pitch, exactly, for ``attitude_freeze_s`` (an MRU repeating a
-  buffer). Exact repetition, not small motion: a vessel in a flat-calm basin may hardly move, but the MRU's
-  own noise still moves its last digit.
+- **freeze**: the same decoded roll and pitch, exactly, for longer than this MRU's own last digit makes
+  likely (an MRU repeating a buffer, or stuck on one value): the hold, at least ``attitude_freeze_s`` and
+  at most ``attitude_freeze_max_s``, below. Exact repetition, not small motion: a vessel in a flat-calm
+  basin may hardly move, but the MRU's own noise still moves its last digit — how often, depends on the
+  MRU and the sea.
+
+The freeze test's hold. A fixed hold cannot serve both a vessel in a sea way (roll changes the 0.01° of
+every sample: a frozen MRU should be out in 2 s) and one in flat calm with an MRU whose noise is a
+fraction of its resolution (σ 0.003° at 0.01° and a steady heel at mid-digit: the same two values for
+2 s hundreds of times an hour; at σ 0.002° for 30 s). So each MRU's activity is learned while it passes:
+``repeat``, the share of its samples whose roll and pitch both equal the previous sample's (an EMA, time
+constant `ACTIVITY_TAU_S`; the plain mean over its first samples, from ½). A run of unchanged samples
+starting now is allowed until it is improbable for that share; the hold is fixed at the run's start, and
+samples that fail (a frozen run's beyond its hold among them) are not learned, so a freeze does not
+lengthen the next hold. The model (no paper; the bound is derived here): the attitude is steady and its
+noise white, so the samples are independent draws, each in "cell" k (the pair of last digits) with
+probability P_k, and ``repeat`` = Σ P_k². A run of n repeats is n+1 samples in one cell: Σ P_kⁿ⁺¹ ≤
+max P_kⁿ⁻¹ Σ P_k² ≤ repeat^((n+1)/2), since max P_k² ≤ Σ P_k². The hold is the smallest n with
+repeat^((n+1)/2) ≤ `FREEZE_FALSE_ALARM_P`, times the mean sample interval, clamped to
+[``attitude_freeze_s``, ``attitude_freeze_max_s``]. (The square root matters: taking the repeats as
+independent, repeatⁿ, halves n, and σ 0.003° at mid-digit then false-alarms every few hours: a long run
+is one cell hit n+1 times.) Heave and heading (PASHR) are not used as signs of life: PHTRO has neither,
+and a heading from a GNSS compass or a heave from its own filter can go on moving while the roll and
+pitch this test protects are stuck. The activity survives a silence (the sea state is the vessel's, not
+the link's). What this buys and costs: in a sea way the hold is ``attitude_freeze_s`` (repeat ≤ 0.14 at
+10 Hz); in flat calm a frozen MRU is believed up to ``attitude_freeze_max_s``, while its frozen values
+are wrong by only the little the hull moves (the lever-arm error a frozen MRU causes is the motion it no
+longer follows). Not covered: an MRU whose output is smoothed over several samples (its runs are longer
+than independent samples make them) or one quieter than a quarter of its resolution at a steady
+attitude: such an MRU reaches ``attitude_freeze_max_s`` and may be failed there.
 
 A rejected MRU is used again after passing for ``readmit_s`` (`SourceState`). What no test of one MRU can
 see: an offset that grows slowly, or one present from the start (it needs a second MRU to compare with).
@@ -56,6 +83,14 @@ wrong values) is judged, as a spike or a step, against the motion extrapolated f
 most this many samples and this long: longer, the extrapolation by one rate is no longer the motion (a
 roll turns within seconds; at 100 Hz the sampled rate's noise grows with it), and the burst is only
 failed: the MRU's next steady motion passes without a step counted from it, as after a restart."""
+FREEZE_FALSE_ALARM_P = 1e-9
+"""Chance, per run start, that a healthy MRU's steady attitude repeats for the freeze test's hold: at
+10 Hz a run can start every 0.1 s, so at most one false alarm in about three years of the flat calm in
+which it is that likely (`AttitudeTrack.freeze_hold_ns`)."""
+ACTIVITY_TAU_S = 60.0
+"""Time constant of an MRU's learned activity (the share of samples repeating the previous one): long
+enough to average the last digit over a minute of waves, short against how fast a sea state calms
+(tens of minutes); the hold is judged from a minute of the sea as it is now."""
 STEADY_SAMPLES = 3
 """A jump is judged as a spike or a step (the offset test) only after this many samples in a row passed
 the jump test: at the start, and after a burst, whose wrong values may agree by chance for a sample or
@@ -70,6 +105,7 @@ class AttitudeLimits:
     rate_rad_s: float
     jump_rad: float
     freeze_ns: int
+    freeze_max_ns: int
     max_sigma_rad: float
 
     @classmethod
@@ -79,13 +115,15 @@ class AttitudeLimits:
             rate_rad_s=p.attitude_max_rate_deg_s * DEG,
             jump_rad=p.attitude_jump_deg * DEG,
             freeze_ns=int(p.attitude_freeze_s * NS),
+            freeze_max_ns=int(p.attitude_freeze_max_s * NS),
             max_sigma_rad=p.attitude_max_sigma_deg * DEG,
         )
 
 
 class AttitudeTrack:
     """What the tests of one MRU remember: its previous sample, its latest rate, since when its values
-    repeat, the sample before a jump not yet judged, and the steps that stayed (an offset)."""
+    repeat (and how long they may), how often they repeat, the sample before a jump not yet judged, and
+    the steps that stayed (an offset)."""
 
     def __init__(self) -> None:
         self.rx_ns = 0  # receive time of the latest sample, whatever it was (0: none yet): for staleness
@@ -93,6 +131,9 @@ class AttitudeTrack:
         self.prev: tuple[float, float, float | None] | None = None  # (roll, pitch, UTC s of day)
         self.rate = (0.0, 0.0)  # (roll, pitch) rate between the last two samples that did not jump, rad/s
         self.same_since_ns = 0
+        self.hold_ns = 0  # how long the present run of repeats may last (`freeze_hold_ns` at its start)
+        self.repeat = 0.5  # share of passing samples that repeat the previous (EMA, `ACTIVITY_TAU_S`)
+        self.learned = 0  # passing samples learned from (the EMA is their mean while its gain is lower)
         # after a failed jump: (roll, pitch) expected had there been none (the sample before it moved on by
         # its rate to the jump's time), the jumped-to values, and the rate; judged by the next sample
         # (and how many samples and seconds since the jump, while a burst goes on)
@@ -131,9 +172,50 @@ class AttitudeTrack:
         for axis, v in (("roll", roll), ("pitch", pitch)):
             if abs(v) > lim.max_rad:  # (not remembered: the next sample is judged against a possible one)
                 return f"range: {axis} {v / DEG:.1f}° beyond ±{lim.max_rad / DEG:g}°"
-        if prev is None or (roll, pitch) != prev[:2]:
+        same = prev is not None and (roll, pitch) == prev[:2]
+        if not same:
             self.same_since_ns = now_ns
         self.prev, self.last_ns = (roll, pitch, utc_s), now_ns
+        why = self._judge(lim, now_ns - last_ns, roll, pitch, prev, utc_s, sigmas)
+        if not same:  # (after the jump test, which learns the sample interval the hold is counted in)
+            self.hold_ns = self.freeze_hold_ns(lim)
+        elif not why:
+            frozen_ns = now_ns - self.same_since_ns
+            if frozen_ns >= self.hold_ns:
+                why = f"freeze: the same roll and pitch for {frozen_ns / NS:.1f} s"
+        if not why and prev is not None:
+            self._learn(same)
+        return why
+
+    def freeze_hold_ns(self, lim: AttitudeLimits) -> int:
+        """How long a run of unchanged samples starting now may last, ns: the smallest n with
+        repeat^((n+1)/2) ≤ `FREEZE_FALSE_ALARM_P` (module docstring) times the mean sample interval,
+        within ``[freeze_ns, freeze_max_ns]``."""
+        r = self.repeat
+        if r <= 0.0:
+            return lim.freeze_ns
+        if r >= 1.0 or self.interval_s <= 0.0:
+            return max(lim.freeze_ns, lim.freeze_max_ns)
+        n = math.ceil(2.0 * math.log(FREEZE_FALSE_ALARM_P) / math.log(r) - 1.0)
+        return max(lim.freeze_ns, min(lim.freeze_max_ns, round(n * self.interval_s * NS)))
+
+    def _learn(self, same: bool) -> None:
+        """One more passing sample in the MRU's activity: the mean of the first ones, then an EMA."""
+        self.learned += 1
+        gain = max(self.interval_s / ACTIVITY_TAU_S, 1.0 / (self.learned + 2))
+        self.repeat += min(gain, 1.0) * (float(same) - self.repeat)
+
+    def _judge(
+        self,
+        lim: AttitudeLimits,
+        dt_ns: int,
+        roll: float,
+        pitch: float,
+        prev: tuple[float, float, float | None] | None,
+        utc_s: float | None,
+        sigmas: tuple[float | None, float | None],
+    ) -> str:
+        """The sigma, jump and offset tests of an in-range sample, ``dt_ns`` after the previous one."""
         for axis, sigma in zip(("roll", "pitch"), sigmas, strict=True):
             if sigma is not None and sigma > lim.max_sigma_rad:
                 return (
@@ -141,16 +223,13 @@ class AttitudeTrack:
                     f"(limit {lim.max_sigma_rad / DEG:g}°)"
                 )
         if prev is not None:
-            why = self._jump(lim, now_ns - last_ns, roll, pitch, prev, utc_s)
+            why = self._jump(lim, dt_ns, roll, pitch, prev, utc_s)
             if why:
                 return why
         off = max(self.offset, key=abs)
         if abs(off) > lim.jump_rad:
             axis = "roll" if off == self.offset[0] else "pitch"
             return f"offset: {axis} stepped {off / DEG:+.2f}° and stayed (in use again once it steps back)"
-        frozen_ns = now_ns - self.same_since_ns
-        if frozen_ns >= lim.freeze_ns:
-            return f"freeze: the same roll and pitch for {frozen_ns / NS:.1f} s"
         return ""
 
     def _jump(
