@@ -11,6 +11,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from dpgw.cli import main
 from gateway.logreaders import LogCounts, tlog_events
@@ -177,3 +179,29 @@ def test_a_tlog_that_cannot_be_written_stops_at_once_saying_why(
     err = capsys.readouterr().err.strip()
     assert err.startswith("dpgw sim: ") and says in err and "\n" not in err, err
     assert not (tmp_path / "x.tlog").exists()
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            st.integers(0, 2**53),  # µs since 1970
+            st.integers(1, 8),  # thruster id
+            st.floats(-1e6, 1e6, allow_nan=False),  # thrust, N
+        ),
+        max_size=20,
+    )
+)
+def test_tlog_records_read_back_as_written(tmp_path_factory: pytest.TempPathFactory, rows: list) -> None:
+    """Whatever the times and frames, `tlog_events` gives back each record's time and frame as written."""
+    path = tmp_path_factory.mktemp("tlog") / "x.tlog"
+    mav = mv.encoder(1, 1)
+    written = [
+        (t_us, mv.azimuth_status_frame(mav, t_us, tid, thrust, 0.0, 0.0, 0)) for t_us, tid, thrust in rows
+    ]
+    with TlogWriter(path) as w:
+        for t_us, frame in written:
+            w.write(t_us, [frame])
+    counts = LogCounts()
+    assert [(e.rx_ns // 1000, e.data) for e in tlog_events(path, "x", counts)] == written
+    assert not counts.counts and w.records == len(written)
