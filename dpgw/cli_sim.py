@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from dpgw import cli_json, cli_sim_inputs
-from dpgw.cli_paths import mcap_path_problem
+from dpgw.cli_paths import mcap_path_problem, missing_folder
 from dpgw.cli_types import flags_given, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
 from simulator.scenario_names import SCENARIO_NAMES
@@ -28,7 +29,8 @@ DESCRIPTION = (
     "Run a named scenario: a vessel at sea (LF dynamics, JONSWAP/PM waves through RAOs, slowly "
     "varying environment, thrusters) whose DGPS and gyro speak NMEA 0183 and whose thrusters report "
     "over MAVLink, on a pty (a virtual serial port), UDP, a TCP server, a serial port or a file. "
-    "Ground truth and every byte sent go to MCAP. Thruster commands may come back (dpgw dialect "
+    "Ground truth and every byte sent go to MCAP; the MAVLink can also go to a tlog, timed as a ground "
+    "station records it. Thruster commands may come back (dpgw dialect "
     "AZIMUTH_THRUSTER_COMMAND on the MAVLink link, or Zenoh <prefix>/thrusters/command) and close "
     "the loop."
 )
@@ -38,6 +40,8 @@ EPILOG = (
     "  dpgw sim --scenario torsetnes_2004 --nmea pty --realtime          # prints the device path\n"
     "  dpgw sim --scenario hassani --nmea dgps1=udp://127.0.0.1:10110 --nmea gyro1=pty --realtime\n"
     "  dpgw sim --scenario hajivand_2010 --mavlink tcp-listen://127.0.0.1:5760 --zenoh --realtime\n"
+    "  dpgw sim --scenario hassani --nmea file:///tmp/trial.nmea --tlog trial.tlog\n"
+    "  dpgw replay /tmp/trial.nmea trial.tlog --vessel cybership2   # a sea trial's logs, rehearsed\n"
     "  dpgw sim --vessel mss_osv --inputs trial.csv --csv states.csv --out trial.mcap   # open loop\n"
     f"scenarios: {', '.join(SCENARIO_NAMES)} (docs/simulator.md)"
 )
@@ -63,7 +67,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "torsetnes_2004_mast)",
     )
     p.add_argument(
-        "--mavlink", metavar="URL", help="where thruster MAVLink goes (and commands come back from)"
+        "--mavlink",
+        metavar="URL",
+        help="where thruster MAVLink goes (and commands come back from); file:///PATH writes the frames "
+        "alone, without times (not a tlog: see --tlog)",
+    )
+    p.add_argument(
+        "--tlog",
+        metavar="FILE.tlog",
+        help="also record the thruster MAVLink as a tlog (as MAVProxy, Mission Planner and QGroundControl "
+        "write: each frame after its 8-byte time), timed in the simulation's UTC like the NMEA sentences, "
+        "so 'dpgw replay' merges it with an --nmea file:// text log; with or without --mavlink",
     )
     p.add_argument("--realtime", action="store_true", help="pace in real time (default: as fast as possible)")
     p.add_argument(
@@ -154,6 +168,7 @@ def run(args: argparse.Namespace) -> int:
             ("--duration", args.duration),  # the inputs' times set the length
             ("--nmea", args.nmea),
             ("--mavlink", args.mavlink),
+            ("--tlog", args.tlog),
             ("--realtime", args.realtime),
             ("--speed", args.speed != 1.0),
             ("--gnss-rate", args.gnss_rate),
@@ -174,7 +189,7 @@ def run(args: argparse.Namespace) -> int:
     if args.vessel or args.csv or args.plant_option or args.wind or args.sea:
         print("dpgw sim: --vessel, --csv, --plant-option, --wind and --sea go with --inputs", file=sys.stderr)
         return 2
-    if problem := mcap_path_problem("--out", args.out):
+    if problem := mcap_path_problem("--out", args.out) or tlog_path_problem(args):
         print(f"dpgw sim: {problem}", file=sys.stderr)
         return 2
     if args.speed != 1.0 and not args.realtime:  # accepted and ignored before: the run went flat out
@@ -191,6 +206,18 @@ def run(args: argparse.Namespace) -> int:
         print(f"dpgw sim: {', '.join(zenoh_only)}: only with --zenoh", file=sys.stderr)
         return 2
     return _run_scenario(args)
+
+
+def tlog_path_problem(args: argparse.Namespace) -> str | None:
+    """What is wrong with --tlog PATH as a file to write (None when nothing)."""
+    if args.tlog is None:
+        return None
+    path = Path(args.tlog)
+    if path.is_dir():
+        return f"--tlog {args.tlog}: a folder, not a file: give a file in it, e.g. {path / 'trial.tlog'}"
+    if path.suffix == ".mcap" or (args.out and path.resolve() == Path(args.out).resolve()):
+        return f"--tlog {args.tlog}: a tlog is not an MCAP log: give another name, e.g. {path.stem}.tlog"
+    return missing_folder("--tlog", args.tlog)
 
 
 def _session_options(args: argparse.Namespace) -> tuple[tuple[str, object], ...]:
@@ -214,8 +241,10 @@ def _run_scenario(args: argparse.Namespace) -> int:
     from simulator.faults import COMMAND_KINDS
     from simulator.runner import CommandInput, Route, Simulation
     from simulator.scenarios import get_scenario
+    from simulator.tlog_recorder import TlogRecorder
     from simulator.transports import Sink, TransportError, open_sink
     from wire.mcap.writer import McapLogWriter
+    from wire.tlog import TlogWriter
 
     try:
         scenario = get_scenario(args.scenario)
@@ -245,6 +274,11 @@ def _run_scenario(args: argparse.Namespace) -> int:
                     "inputs to the gateway, injected by the in-process closed loop (docs/simulator.md)",
                     file=sys.stderr,
                 )
+        if args.tlog and scenario.feedback is None:
+            raise ValueError(
+                f"--tlog {args.tlog}: {args.scenario} has no thrusters that report: it sends no MAVLink to "
+                "record (the scenarios' sensors are listed in docs/simulator.md)"
+            )
         if args.ardupilot and scenario.feedback is not None:
             scenario = replace(
                 scenario,
@@ -260,6 +294,7 @@ def _run_scenario(args: argparse.Namespace) -> int:
     commands: list[CommandInput] = []
     session = None
     log = None
+    tlog: TlogWriter | None = None
     try:
         for spec in args.nmea:
             url, sources = _parse_route(spec, "nmea")
@@ -276,6 +311,12 @@ def _run_scenario(args: argparse.Namespace) -> int:
             routes.append(Route(sink, "mavlink"))
             commands.append(MavlinkCommandInput.for_drive(sink, scenario.feedback))
             print(f"MAVLink -> {sink.describe()}", file=sys.stderr)
+        if args.tlog:
+            try:
+                tlog = TlogWriter(args.tlog)
+            except OSError as exc:
+                raise OSError(f"--tlog {args.tlog}: cannot write the tlog: {exc.strerror or exc}") from None
+            print(f"MAVLink (tlog) -> {tlog.path}", file=sys.stderr)
         if args.zenoh:
             prefix = args.prefix or f"dp/{scenario.vessel.name}"
             session = open_session(
@@ -302,6 +343,8 @@ def _run_scenario(args: argparse.Namespace) -> int:
         print(f"dpgw sim: {message}", file=sys.stderr)
         for s in sinks:
             s.close()
+        if tlog is not None:
+            tlog.close()
         return 2
     # A paced run stopped for longer than RESYNC_LAG_S (Ctrl-Z, a debugger, a suspended laptop, a stalled
     # machine) continues from where it was instead of catching the pause up in a burst of sea that no
@@ -310,6 +353,9 @@ def _run_scenario(args: argparse.Namespace) -> int:
         RealtimeClock(speed=args.speed, resync_lag_s=RESYNC_LAG_S) if args.realtime else VirtualClock()
     )
     sim = Simulation(scenario, args.seed, routes=routes, log=log, clock=clock, commands=commands)
+    recorder = None
+    if tlog is not None:  # stamped with the simulation's own epoch: the NMEA sentences' UTC
+        recorder = sim.on_emit = TlogRecorder(tlog, sim.epoch)
     if session is not None and args.realtime:  # a gateway on `clock = "sim"` stamps with this
         from simulator.sim_clock import SimClockPublisher
 
@@ -339,12 +385,21 @@ def _run_scenario(args: argparse.Namespace) -> int:
             s.close()
         if log is not None:
             log.close()
+        if tlog is not None:
+            tlog.close()
         if session is not None:
             session.close()
     summary = sim.summary.as_dict()
     summary["interrupted"] = stop["now"]
     if args.out:
         summary["log"] = args.out
+    if recorder is not None:
+        summary["tlog"] = {
+            "path": args.tlog,
+            "records": recorder.records,
+            "not_recorded": recorder.not_recorded,
+            "records_dropped": recorder.writer.records_dropped,
+        }
     if args.json:
         print(cli_json.dumps(summary, indent=2))
     else:
@@ -358,6 +413,18 @@ def _run_scenario(args: argparse.Namespace) -> int:
             print(f"  thruster commands applied: {sim.summary.commands_applied}")
         if args.out:
             print(f"  log: {args.out} ({sim.summary.truth_records} truth records)")
+        if recorder is not None:
+            skipped = (
+                f", {recorder.not_recorded} corrupted frames not recorded (as a ground station would not)"
+                if recorder.not_recorded
+                else ""
+            )
+            dropped = (
+                f", {recorder.writer.records_dropped} records lost ({recorder.writer.last_error})"
+                if recorder.writer.records_dropped
+                else ""
+            )
+            print(f"  tlog: {args.tlog} ({recorder.records} records{skipped}{dropped})")
     return 0
 
 

@@ -83,7 +83,8 @@ def input_kind(path: str | Path) -> str:
         raise ReplayError(
             f"{p}: a raw MAVLink byte stream (frames without record times, as `dpgw sim --mavlink "
             "file://...` writes), not a tlog (each record an 8-byte time, then its frame): replay needs the "
-            "times; give a tlog (MAVProxy, Mission Planner, QGroundControl) or the gateway's MCAP log"
+            "times; give a tlog (MAVProxy, Mission Planner, QGroundControl, `dpgw sim --tlog`) or the "
+            "gateway's MCAP log"
         )
     if p.suffix.lower() in (".tlog", ".bin") or (len(head) > 8 and head[8] in (0xFE, 0xFD)):
         return "tlog"
