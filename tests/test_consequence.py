@@ -68,20 +68,40 @@ def test_the_alarm_is_raised_over_100_percent_and_cleared_below_95() -> None:
     text = ca.alarm_text()
     assert text == (
         "consequence analysis: after losing thruster 3 the rest would need 101 % of their thrust for the "
-        "present load: position would be lost"
+        "present load (over 100 %: position lost; the alarm clears below 95 %)"
     )
     ca.update(1.0, [0.0, 97.0, 0.0])  # 97 %: between the two thresholds, still up
     assert ca.alarm
-    # ... but it says what is so: at the limit, not lost
+    # ... and says what is so now, in the same words
     assert ca.alarm_text() == (
         "consequence analysis: after losing thruster 3 the rest would need 97 % of their thrust for the "
-        "present load: no margin left (the alarm clears below 95 %)"
+        "present load (over 100 %: position lost; the alarm clears below 95 %)"
     )
     ca.update(2.0, [0.0, 94.0, 0.0])
     assert not ca.alarm and ca.alarm_text() is None
     ca.update(3.0, [0.0, 99.0, 0.0])  # 99 %: below 100, stays down
     assert not ca.alarm
     assert ca.verdict is not None and ca.verdict.t == 3.0  # (each step above was a verdict)
+
+
+def test_a_load_about_100_percent_is_one_alarm_in_the_logs_not_one_cleared_and_another_raised() -> None:
+    """The logs of alarms raised and cleared (/dp/log, Keelson's log_message) know an alarm by its text
+    with the numbers masked (`alarm_key`). A load going over and under 100 % while the alarm is held up
+    (down to 95 %) must keep that identity: else each crossing is logged as a clear and a raise, the
+    chatter the hysteresis is there to prevent."""
+    from gateway.foxglove_channels import AlarmChanges
+
+    ca = analysis(filter_s=1e-3, min_period_s=0.0, retest_fraction=0.0)
+    log = AlarmChanges()
+    changes = []
+    for k, sway in enumerate([101.0, 98.0, 102.0, 97.0, 101.0, 96.0]):
+        ca.update(float(k), [0.0, sway, 0.0])
+        assert ca.alarm  # (held up all along: 96 % and more)
+        text = ca.alarm_text()
+        assert text is not None
+        changes.append(log.update([text]))
+    assert changes[0] == ([changes[0][0][0]], [])  # raised once
+    assert all(c == ([], []) for c in changes[1:])  # then neither cleared nor raised again
 
 
 def test_the_load_is_the_allocated_tau_low_passed() -> None:

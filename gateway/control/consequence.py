@@ -262,13 +262,13 @@ class ConsequenceAnalysis:
             return (
                 f"consequence analysis: after losing {which} the rest could not push against the present load"
             )
-        need = (
-            f"consequence analysis: after losing {which} the rest would need {100 * worst.utilisation:.0f} %"
-        )
-        if worst.utilisation > 1.0:
-            return f"{need} of their thrust for the present load: position would be lost"
-        # (held up between clear_utilisation and 100 %: the load is at the limit, not yet beyond it)
+        # One wording above and below 100 % (the alarm is held up down to clear_utilisation): the logs of
+        # alarms raised and cleared know an alarm by its text with the numbers masked
+        # (`gateway.foxglove_channels.alarm_key`), so a verdict that said "position would be lost" above
+        # 100 % and something else below would be logged as one alarm cleared and another raised at every
+        # crossing of 100 % — the chatter the hysteresis is there to prevent.
         return (
-            f"{need} of their thrust for the present load: no margin left "
-            f"(the alarm clears below {100 * self.clear_utilisation:.0f} %)"
+            f"consequence analysis: after losing {which} the rest would need {100 * worst.utilisation:.0f} % "
+            f"of their thrust for the present load (over 100 %: position lost; the alarm clears below "
+            f"{100 * self.clear_utilisation:.0f} %)"
         )
