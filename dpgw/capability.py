@@ -44,6 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gateway.control.capability import CapabilityLP
+from gateway.control.consequence import failure_cases
 from observers.hull import relative_wind, relative_wind_force
 from observers.vessel import VesselModel
 from simulator.plant import FullPlant
@@ -264,7 +265,8 @@ def capability(
     """U_max per direction, intact and (``failures`` "each" or "worst") after each single failure;
     "none": intact only. "worst" keeps only the intact case and the per-direction minimum. A failure is
     one thruster, or with ``failure_groups`` each group of thrusters lost together (a switchboard, an
-    engine room: the worst-case failure of the vessel's FMEA).
+    engine room: the worst-case failure of the vessel's FMEA) and each thruster in no group alone
+    (`gateway.control.consequence.failure_cases`, as the online consequence analysis tests them).
     The search (`limit_speed`) stops at ``u_limit`` (default `U_LIMIT_MPS`); its grid, tolerance and
     default limit are Froude-scaled (÷ √λ) for a 1:λ laboratory model."""
     if failures not in ("none", "each", "worst"):
@@ -283,8 +285,9 @@ def capability(
     loads = EnvironmentLoads(vessel, environment)
     conditions: list[tuple[str, tuple[int, ...]]] = [("intact", ())]
     if failures != "none":
-        groups = [(t.id,) for t in vessel.thrusters] if failure_groups is None else failure_groups
         ids = {t.id for t in vessel.thrusters}
+        # (the groups, then each thruster in no group alone: its own failure is a single failure too)
+        groups = failure_cases([t.id for t in vessel.thrusters], [tuple(g) for g in failure_groups or ()])
         for group in groups:
             g = tuple(sorted(set(group)))
             if not g or set(g) - ids:

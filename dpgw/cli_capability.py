@@ -79,7 +79,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         type=_group,
         metavar="IDS",
         help="thruster ids lost together, comma-separated (a switchboard: --failure-group 1,4); repeat for "
-        "each group; given, the groups are the failures analysed instead of single thrusters",
+        "each group; given, the groups are the failures analysed instead of single thrusters (a thruster "
+        "in no group is still lost alone)",
     )
     p.add_argument("--no-waves", action="store_true", help="leave the wave drift out (wind and current only)")
     p.add_argument("--plot", type=Path, metavar="FILE", help="write the polar plot (.png, .svg or .pdf)")

@@ -157,12 +157,21 @@ def test_a_failure_group_is_no_better_than_any_of_its_thrusters_alone() -> None:
     v = load_vessel("mss_supply")
     single = capability(v, directions_deg=[90.0], failures="each")
     group = capability(v, directions_deg=[90.0], failure_groups=[(1, 4), (3,)])
-    assert [c.label for c in group.cases] == ["intact", "thrusters 1+4 failed", "thruster 3 failed"]
+    # (thrusters 2, 5 and 6, in no group, are each still lost alone: their own failure is a single failure)
+    assert [c.label for c in group.cases] == [
+        "intact",
+        "thrusters 1+4 failed",
+        "thruster 3 failed",
+        "thruster 2 failed",
+        "thruster 5 failed",
+        "thruster 6 failed",
+    ]
     by_label = {c.label: c.u_max[0] for c in single.cases}
     assert group.cases[1].u_max[0] <= min(by_label["thruster 1 failed"], by_label["thruster 4 failed"])
     assert group.cases[2].u_max[0] == by_label["thruster 3 failed"]
     assert group.worst is not None and group.worst_failed is not None
-    assert group.worst[0] == min(group.cases[1].u_max[0], group.cases[2].u_max[0])
+    assert group.worst[0] == min(c.u_max[0] for c in group.cases[1:])
+    assert group.cases[3].u_max[0] == by_label["thruster 2 failed"]
 
 
 def test_quasi_static_limit_agrees_with_the_closed_loop() -> None:
@@ -234,9 +243,10 @@ def test_the_command_takes_a_gateway_config_s_vessel_and_failure_groups(
     assert main(args) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["vessel"] == "mss_supply"
-    assert [c["failed"] for c in doc["cases"]] == [[], [1, 2], [3, 4, 5]]
-    assert main([*args, "--failure-group", "6"]) == 0  # given on the command line, they win
-    assert [c["failed"] for c in json.loads(capsys.readouterr().out)["cases"]] == [[], [6]]
+    assert [c["failed"] for c in doc["cases"]] == [[], [1, 2], [3, 4, 5], [6]]  # (6, in neither, alone)
+    # given on the command line, they win
+    assert main([*args, "--failure-group", "1,2,3", "--failure-group", "4,5,6"]) == 0
+    assert [c["failed"] for c in json.loads(capsys.readouterr().out)["cases"]] == [[], [1, 2, 3], [4, 5, 6]]
     bad = tmp_path / "bad.toml"
     bad.write_text(cfg.read_text().replace("[3, 4, 5]", "[3, 4, 9]"))
     assert main(["capability", "--config", str(bad)]) == 2

@@ -59,6 +59,22 @@ def test_a_failure_group_loses_its_thrusters_together() -> None:
     )
 
 
+def test_a_thruster_in_no_failure_group_is_still_lost_alone() -> None:
+    """Failure groups name what a switchboard takes with it; a thruster on none of them still fails on its
+    own (its drive trips), a single failure the analysis must test: here the worst one. Without it only
+    the group would be tested (80 %) and the alarm would stay down."""
+    ca = analysis(failure_groups=[[1]])
+    v = ca.update(0.0, [0.0, 120.0, 0.0])
+    assert v is not None
+    by_lost = {c.lost: c.utilisation for c in v.cases}
+    assert by_lost == {
+        (1,): pytest.approx(120 / 150),
+        (2,): pytest.approx(120 / 150),
+        (3,): pytest.approx(1.2),
+    }
+    assert v.worst is not None and v.worst.lost == (3,) and ca.alarm
+
+
 def test_the_alarm_is_raised_over_100_percent_and_cleared_below_95() -> None:
     # (the load follows τ at once, and every step is tested: a move of 2 % of capacity, 6 N, is more
     # than the steps below)
@@ -163,8 +179,8 @@ def test_a_case_whose_thrusters_are_all_out_already_is_no_case() -> None:
     ca = analysis(failure_groups=[[1, 2], [3]])
     v = ca.update(0.0, [10.0, 10.0, 0.0], out={1, 2})
     assert v is not None and [c.lost for c in v.cases] == [(3,)]
-    ca = analysis(failure_groups=[[1, 2]])
-    v = ca.update(0.0, [10.0, 10.0, 0.0], out={1, 2})
+    ca = analysis(failure_groups=[[1, 2], [3]])
+    v = ca.update(0.0, [10.0, 10.0, 0.0], out={1, 2, 3})
     assert v is not None and v.cases == () and v.worst is None and not ca.alarm
 
 
