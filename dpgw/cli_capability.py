@@ -111,6 +111,13 @@ def run(args: argparse.Namespace) -> int:
     from observers.vessel import VesselError, VesselModel, load_vessel
 
     vessel: VesselModel
+    if args.failure_group and args.failures == "none":
+        print(
+            "dpgw capability: --failure-group with --failures none: no failure would be analysed; give "
+            "--failures worst or each with the groups, or leave the groups out",
+            file=sys.stderr,
+        )
+        return 2
     if args.config is not None:
         from gateway.config import ConfigError, format_problems, load_config
 
@@ -210,7 +217,8 @@ def _print_table(result: object) -> None:
     for i, d in enumerate(result.directions_deg):
         line = f"{d:6.1f} " + " ".join(f"{u[i]:18.1f}" for _, u in cols)
         if result.worst_failed is not None and result.worst is not None:
-            # no failure limits it below the search's end: no thruster to name
+            # no failure limits it below the search's end, or below the intact vessel's own limit (a
+            # layout that cannot hold that direction even intact): no thruster to name
             failed = "+".join(map(str, result.worst_failed[i]))
-            line += f"  {failed}" if result.worst[i] < lim else "  -"
+            line += f"  {failed}" if result.worst[i] < min(lim, result.intact.u_max[i]) else "  -"
         print(line)

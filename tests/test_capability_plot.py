@@ -126,6 +126,27 @@ def test_the_command_prints_a_table_json_and_a_plot(tmp_path, capsys: pytest.Cap
     assert "--failure-group" in capsys.readouterr().err
 
 
+def test_the_table_names_a_worst_failure_only_where_a_failure_lowers_the_limit(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """hajivand_vessel (no [hull]: the linear D's beam current load, 9 MN, beyond its three azimuths' 4 MN)
+    holds nothing on the beam even intact: no failure makes that worse, and naming one (thruster 1)
+    would send the reader to a thruster that is not the cause."""
+    args = ["capability", "--vessel", "hajivand_vessel", "--step-deg", "90", "--failures", "worst"]
+    assert main(args) == 0
+    rows = {line.split()[0]: line.split() for line in capsys.readouterr().out.splitlines()[3:]}
+    assert rows["90.0"][1:] == ["0.0", "0.0", "-"]  # intact 0, worst 0, no failure to blame
+    assert rows["0.0"][1:] == ["40.0", "40.0", "-"]
+
+
+def test_failure_groups_with_no_failures_analysed_are_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    """--failures none would drop the groups given without a word: the user asked for them."""
+    args = ["capability", "--vessel", "mss_supply", "--failures", "none", "--failure-group", "1,2"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "--failure-group with --failures none" in err and "give --failures worst or each" in err
+
+
 def test_a_plot_path_that_cannot_be_written_is_said_without_a_traceback(
     tmp_path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:  # type: ignore[no-untyped-def]
