@@ -207,6 +207,9 @@ def _print_table(result: object) -> None:
     )
     lim = result.u_limit
     print(f"environment from (deg, clockwise from the bow); {lim:.3g} = at least {lim:.3g}")
+    # (a laboratory model's speeds, Froude-scaled: 4.78 m/s at most for CyberShip II, need a second
+    # decimal, or the search's end, 4.78, prints as 4.8 and cannot be told from a limit of 4.75)
+    digits = 1 if lim >= 10.0 else 2
     cols = [(c.label, c.u_max) for c in result.cases]
     if result.worst is not None and len(result.cases) == 1:
         cols.append(("worst failure", result.worst))
@@ -215,7 +218,7 @@ def _print_table(result: object) -> None:
         head += "  worst: thrusters failed"
     print(head)
     for i, d in enumerate(result.directions_deg):
-        line = f"{d:6.1f} " + " ".join(f"{u[i]:18.1f}" for _, u in cols)
+        line = f"{d:6.1f} " + " ".join(f"{u[i]:18.{digits}f}" for _, u in cols)
         if result.worst_failed is not None and result.worst is not None:
             # no failure limits it below the search's end, or below the intact vessel's own limit (a
             # layout that cannot hold that direction even intact): no thruster to name

@@ -139,6 +139,18 @@ def test_the_table_names_a_worst_failure_only_where_a_failure_lowers_the_limit(
     assert rows["0.0"][1:] == ["40.0", "40.0", "-"]
 
 
+def test_a_laboratory_model_s_table_shows_the_search_s_end_as_it_is_said(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """CyberShip II (1:70): the search ends at 40/√70 = 4.78 m/s and the header says "4.78 = at least
+    4.78"; the rows must print it so (not 4.8, which could be a limit of 4.75)."""
+    assert main(["capability", "--vessel", "cybership2", "--step-deg", "90", "--failures", "none"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert "4.78 = at least 4.78" in lines[1]
+    rows = {line.split()[0]: line.split()[1] for line in lines[3:]}
+    assert rows["0.0"] == "4.78" and rows["180.0"] == "4.78"  # (head and stern: current only, held)
+
+
 def test_failure_groups_with_no_failures_analysed_are_refused(capsys: pytest.CaptureFixture[str]) -> None:
     """--failures none would drop the groups given without a word: the user asked for them."""
     args = ["capability", "--vessel", "mss_supply", "--failures", "none", "--failure-group", "1,2"]
