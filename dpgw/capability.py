@@ -229,6 +229,17 @@ class CapabilityResult:
     def intact(self) -> CapabilityCase:
         return self.cases[0]
 
+    def limiting_failures(self) -> tuple[tuple[int, ...], ...] | None:
+        """Per direction the thrusters whose failure gives ``worst``; () where no failure lowers U_max below
+        the intact vessel's own figure (nor the search's end): there is no failure to name, and naming the
+        first of the equal ones would blame a thruster that is not the cause. None: failures not analysed."""
+        if self.worst is None or self.worst_failed is None:
+            return None
+        return tuple(
+            f if w < min(self.u_limit, u) else ()
+            for w, u, f in zip(self.worst, self.intact.u_max, self.worst_failed, strict=True)
+        )
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "vessel": self.vessel,
@@ -247,7 +258,7 @@ class CapabilityResult:
             ],
             "worst_failure": None
             if self.worst is None
-            else {"u_max_mps": list(self.worst), "failed": [list(f) for f in self.worst_failed or ()]},
+            else {"u_max_mps": list(self.worst), "failed": [list(f) for f in self.limiting_failures() or ()]},
             "warnings": list(self.warnings),
         }
 

@@ -214,14 +214,12 @@ def _print_table(result: object) -> None:
     if result.worst is not None and len(result.cases) == 1:
         cols.append(("worst failure", result.worst))
     head = f"{'from':>6s} " + " ".join(f"{label:>18s}" for label, _ in cols)
-    if result.worst_failed is not None:
+    limiting = result.limiting_failures()
+    if limiting is not None:
         head += "  worst: thrusters failed"
     print(head)
     for i, d in enumerate(result.directions_deg):
         line = f"{d:6.1f} " + " ".join(f"{u[i]:18.{digits}f}" for _, u in cols)
-        if result.worst_failed is not None and result.worst is not None:
-            # no failure limits it below the search's end, or below the intact vessel's own limit (a
-            # layout that cannot hold that direction even intact): no thruster to name
-            failed = "+".join(map(str, result.worst_failed[i]))
-            line += f"  {failed}" if result.worst[i] < min(lim, result.intact.u_max[i]) else "  -"
+        if limiting is not None:  # ("-": no failure lowers it, `limiting_failures`)
+            line += "  " + ("+".join(map(str, limiting[i])) or "-")
         print(line)

@@ -137,6 +137,13 @@ def test_the_table_names_a_worst_failure_only_where_a_failure_lowers_the_limit(
     rows = {line.split()[0]: line.split() for line in capsys.readouterr().out.splitlines()[3:]}
     assert rows["90.0"][1:] == ["0.0", "0.0", "-"]  # intact 0, worst 0, no failure to blame
     assert rows["0.0"][1:] == ["40.0", "40.0", "-"]
+    # and the JSON, which programs read, says the same: no failure ids there
+    assert main([*args, "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["worst_failure"]["failed"] == [[], [], [], []]
+    assert main(["capability", "--vessel", "mss_supply", "--step-deg", "90", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["worst_failure"]["failed"] == [[], [3], [], [3]]  # (ahead and astern: ≥ 40 m/s whatever fails)
 
 
 def test_a_laboratory_model_s_table_shows_the_search_s_end_as_it_is_said(
