@@ -44,6 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gateway.control.capability import CapabilityLP
+from gateway.control.consequence import failure_cases
 from observers.hull import relative_wind, relative_wind_force
 from observers.vessel import VesselModel
 from simulator.plant import FullPlant
@@ -228,6 +229,17 @@ class CapabilityResult:
     def intact(self) -> CapabilityCase:
         return self.cases[0]
 
+    def limiting_failures(self) -> tuple[tuple[int, ...], ...] | None:
+        """Per direction the thrusters whose failure gives ``worst``; () where no failure lowers U_max below
+        the intact vessel's own figure (nor the search's end): there is no failure to name, and naming the
+        first of the equal ones would blame a thruster that is not the cause. None: failures not analysed."""
+        if self.worst is None or self.worst_failed is None:
+            return None
+        return tuple(
+            f if w < min(self.u_limit, u) else ()
+            for w, u, f in zip(self.worst, self.intact.u_max, self.worst_failed, strict=True)
+        )
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "vessel": self.vessel,
@@ -246,7 +258,7 @@ class CapabilityResult:
             ],
             "worst_failure": None
             if self.worst is None
-            else {"u_max_mps": list(self.worst), "failed": [list(f) for f in self.worst_failed or ()]},
+            else {"u_max_mps": list(self.worst), "failed": [list(f) for f in self.limiting_failures() or ()]},
             "warnings": list(self.warnings),
         }
 
@@ -264,7 +276,8 @@ def capability(
     """U_max per direction, intact and (``failures`` "each" or "worst") after each single failure;
     "none": intact only. "worst" keeps only the intact case and the per-direction minimum. A failure is
     one thruster, or with ``failure_groups`` each group of thrusters lost together (a switchboard, an
-    engine room: the worst-case failure of the vessel's FMEA).
+    engine room: the worst-case failure of the vessel's FMEA) and each thruster in no group alone
+    (`gateway.control.consequence.failure_cases`, as the online consequence analysis tests them).
     The search (`limit_speed`) stops at ``u_limit`` (default `U_LIMIT_MPS`); its grid, tolerance and
     default limit are Froude-scaled (÷ √λ) for a 1:λ laboratory model."""
     if failures not in ("none", "each", "worst"):
@@ -283,8 +296,9 @@ def capability(
     loads = EnvironmentLoads(vessel, environment)
     conditions: list[tuple[str, tuple[int, ...]]] = [("intact", ())]
     if failures != "none":
-        groups = [(t.id,) for t in vessel.thrusters] if failure_groups is None else failure_groups
         ids = {t.id for t in vessel.thrusters}
+        # (the groups, then each thruster in no group alone: its own failure is a single failure too)
+        groups = failure_cases([t.id for t in vessel.thrusters], [tuple(g) for g in failure_groups or ()])
         for group in groups:
             g = tuple(sorted(set(group)))
             if not g or set(g) - ids:

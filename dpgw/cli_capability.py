@@ -79,7 +79,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         type=_group,
         metavar="IDS",
         help="thruster ids lost together, comma-separated (a switchboard: --failure-group 1,4); repeat for "
-        "each group; given, the groups are the failures analysed instead of single thrusters",
+        "each group; given, the groups are the failures analysed instead of single thrusters (a thruster "
+        "in no group is still lost alone)",
     )
     p.add_argument("--no-waves", action="store_true", help="leave the wave drift out (wind and current only)")
     p.add_argument("--plot", type=Path, metavar="FILE", help="write the polar plot (.png, .svg or .pdf)")
@@ -110,6 +111,13 @@ def run(args: argparse.Namespace) -> int:
     from observers.vessel import VesselError, VesselModel, load_vessel
 
     vessel: VesselModel
+    if args.failure_group and args.failures == "none":
+        print(
+            "dpgw capability: --failure-group with --failures none: no failure would be analysed; give "
+            "--failures worst or each with the groups, or leave the groups out",
+            file=sys.stderr,
+        )
+        return 2
     if args.config is not None:
         from gateway.config import ConfigError, format_problems, load_config
 
@@ -199,17 +207,19 @@ def _print_table(result: object) -> None:
     )
     lim = result.u_limit
     print(f"environment from (deg, clockwise from the bow); {lim:.3g} = at least {lim:.3g}")
+    # (a laboratory model's speeds, Froude-scaled: 4.78 m/s at most for CyberShip II, need a second
+    # decimal, or the search's end, 4.78, prints as 4.8 and cannot be told from a limit of 4.75)
+    digits = 1 if lim >= 10.0 else 2
     cols = [(c.label, c.u_max) for c in result.cases]
     if result.worst is not None and len(result.cases) == 1:
         cols.append(("worst failure", result.worst))
     head = f"{'from':>6s} " + " ".join(f"{label:>18s}" for label, _ in cols)
-    if result.worst_failed is not None:
+    limiting = result.limiting_failures()
+    if limiting is not None:
         head += "  worst: thrusters failed"
     print(head)
     for i, d in enumerate(result.directions_deg):
-        line = f"{d:6.1f} " + " ".join(f"{u[i]:18.1f}" for _, u in cols)
-        if result.worst_failed is not None and result.worst is not None:
-            # no failure limits it below the search's end: no thruster to name
-            failed = "+".join(map(str, result.worst_failed[i]))
-            line += f"  {failed}" if result.worst[i] < lim else "  -"
+        line = f"{d:6.1f} " + " ".join(f"{u[i]:18.{digits}f}" for _, u in cols)
+        if limiting is not None:  # ("-": no failure lowers it, `limiting_failures`)
+            line += "  " + ("+".join(map(str, limiting[i])) or "-")
         print(line)

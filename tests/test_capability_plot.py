@@ -126,6 +126,46 @@ def test_the_command_prints_a_table_json_and_a_plot(tmp_path, capsys: pytest.Cap
     assert "--failure-group" in capsys.readouterr().err
 
 
+def test_the_table_names_a_worst_failure_only_where_a_failure_lowers_the_limit(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """hajivand_vessel (no [hull]: the linear D's beam current load, 9 MN, beyond its three azimuths' 4 MN)
+    holds nothing on the beam even intact: no failure makes that worse, and naming one (thruster 1)
+    would send the reader to a thruster that is not the cause."""
+    args = ["capability", "--vessel", "hajivand_vessel", "--step-deg", "90", "--failures", "worst"]
+    assert main(args) == 0
+    rows = {line.split()[0]: line.split() for line in capsys.readouterr().out.splitlines()[3:]}
+    assert rows["90.0"][1:] == ["0.0", "0.0", "-"]  # intact 0, worst 0, no failure to blame
+    assert rows["0.0"][1:] == ["40.0", "40.0", "-"]
+    # and the JSON, which programs read, says the same: no failure ids there
+    assert main([*args, "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["worst_failure"]["failed"] == [[], [], [], []]
+    assert main(["capability", "--vessel", "mss_supply", "--step-deg", "90", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["worst_failure"]["failed"] == [[], [3], [], [3]]  # (ahead and astern: ≥ 40 m/s whatever fails)
+
+
+def test_a_laboratory_model_s_table_shows_the_search_s_end_as_it_is_said(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """CyberShip II (1:70): the search ends at 40/√70 = 4.78 m/s and the header says "4.78 = at least
+    4.78"; the rows must print it so (not 4.8, which could be a limit of 4.75)."""
+    assert main(["capability", "--vessel", "cybership2", "--step-deg", "90", "--failures", "none"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert "4.78 = at least 4.78" in lines[1]
+    rows = {line.split()[0]: line.split()[1] for line in lines[3:]}
+    assert rows["0.0"] == "4.78" and rows["180.0"] == "4.78"  # (head and stern: current only, held)
+
+
+def test_failure_groups_with_no_failures_analysed_are_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    """--failures none would drop the groups given without a word: the user asked for them."""
+    args = ["capability", "--vessel", "mss_supply", "--failures", "none", "--failure-group", "1,2"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "--failure-group with --failures none" in err and "give --failures worst or each" in err
+
+
 def test_a_plot_path_that_cannot_be_written_is_said_without_a_traceback(
     tmp_path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:  # type: ignore[no-untyped-def]
@@ -157,12 +197,21 @@ def test_a_failure_group_is_no_better_than_any_of_its_thrusters_alone() -> None:
     v = load_vessel("mss_supply")
     single = capability(v, directions_deg=[90.0], failures="each")
     group = capability(v, directions_deg=[90.0], failure_groups=[(1, 4), (3,)])
-    assert [c.label for c in group.cases] == ["intact", "thrusters 1+4 failed", "thruster 3 failed"]
+    # (thrusters 2, 5 and 6, in no group, are each still lost alone: their own failure is a single failure)
+    assert [c.label for c in group.cases] == [
+        "intact",
+        "thrusters 1+4 failed",
+        "thruster 3 failed",
+        "thruster 2 failed",
+        "thruster 5 failed",
+        "thruster 6 failed",
+    ]
     by_label = {c.label: c.u_max[0] for c in single.cases}
     assert group.cases[1].u_max[0] <= min(by_label["thruster 1 failed"], by_label["thruster 4 failed"])
     assert group.cases[2].u_max[0] == by_label["thruster 3 failed"]
     assert group.worst is not None and group.worst_failed is not None
-    assert group.worst[0] == min(group.cases[1].u_max[0], group.cases[2].u_max[0])
+    assert group.worst[0] == min(c.u_max[0] for c in group.cases[1:])
+    assert group.cases[3].u_max[0] == by_label["thruster 2 failed"]
 
 
 def test_quasi_static_limit_agrees_with_the_closed_loop() -> None:
@@ -234,9 +283,10 @@ def test_the_command_takes_a_gateway_config_s_vessel_and_failure_groups(
     assert main(args) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["vessel"] == "mss_supply"
-    assert [c["failed"] for c in doc["cases"]] == [[], [1, 2], [3, 4, 5]]
-    assert main([*args, "--failure-group", "6"]) == 0  # given on the command line, they win
-    assert [c["failed"] for c in json.loads(capsys.readouterr().out)["cases"]] == [[], [6]]
+    assert [c["failed"] for c in doc["cases"]] == [[], [1, 2], [3, 4, 5], [6]]  # (6, in neither, alone)
+    # given on the command line, they win
+    assert main([*args, "--failure-group", "1,2,3", "--failure-group", "4,5,6"]) == 0
+    assert [c["failed"] for c in json.loads(capsys.readouterr().out)["cases"]] == [[], [1, 2, 3], [4, 5, 6]]
     bad = tmp_path / "bad.toml"
     bad.write_text(cfg.read_text().replace("[3, 4, 5]", "[3, 4, 9]"))
     assert main(["capability", "--config", str(bad)]) == 2

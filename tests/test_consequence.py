@@ -59,6 +59,22 @@ def test_a_failure_group_loses_its_thrusters_together() -> None:
     )
 
 
+def test_a_thruster_in_no_failure_group_is_still_lost_alone() -> None:
+    """Failure groups name what a switchboard takes with it; a thruster on none of them still fails on its
+    own (its drive trips), a single failure the analysis must test: here the worst one. Without it only
+    the group would be tested (80 %) and the alarm would stay down."""
+    ca = analysis(failure_groups=[[1]])
+    v = ca.update(0.0, [0.0, 120.0, 0.0])
+    assert v is not None
+    by_lost = {c.lost: c.utilisation for c in v.cases}
+    assert by_lost == {
+        (1,): pytest.approx(120 / 150),
+        (2,): pytest.approx(120 / 150),
+        (3,): pytest.approx(1.2),
+    }
+    assert v.worst is not None and v.worst.lost == (3,) and ca.alarm
+
+
 def test_the_alarm_is_raised_over_100_percent_and_cleared_below_95() -> None:
     # (the load follows τ at once, and every step is tested: a move of 2 % of capacity, 6 N, is more
     # than the steps below)
@@ -68,20 +84,40 @@ def test_the_alarm_is_raised_over_100_percent_and_cleared_below_95() -> None:
     text = ca.alarm_text()
     assert text == (
         "consequence analysis: after losing thruster 3 the rest would need 101 % of their thrust for the "
-        "present load: position would be lost"
+        "present load (over 100 %: position lost; the alarm clears below 95 %)"
     )
     ca.update(1.0, [0.0, 97.0, 0.0])  # 97 %: between the two thresholds, still up
     assert ca.alarm
-    # ... but it says what is so: at the limit, not lost
+    # ... and says what is so now, in the same words
     assert ca.alarm_text() == (
         "consequence analysis: after losing thruster 3 the rest would need 97 % of their thrust for the "
-        "present load: no margin left (the alarm clears below 95 %)"
+        "present load (over 100 %: position lost; the alarm clears below 95 %)"
     )
     ca.update(2.0, [0.0, 94.0, 0.0])
     assert not ca.alarm and ca.alarm_text() is None
     ca.update(3.0, [0.0, 99.0, 0.0])  # 99 %: below 100, stays down
     assert not ca.alarm
     assert ca.verdict is not None and ca.verdict.t == 3.0  # (each step above was a verdict)
+
+
+def test_a_load_about_100_percent_is_one_alarm_in_the_logs_not_one_cleared_and_another_raised() -> None:
+    """The logs of alarms raised and cleared (/dp/log, Keelson's log_message) know an alarm by its text
+    with the numbers masked (`alarm_key`). A load going over and under 100 % while the alarm is held up
+    (down to 95 %) must keep that identity: else each crossing is logged as a clear and a raise, the
+    chatter the hysteresis is there to prevent."""
+    from gateway.foxglove_channels import AlarmChanges
+
+    ca = analysis(filter_s=1e-3, min_period_s=0.0, retest_fraction=0.0)
+    log = AlarmChanges()
+    changes = []
+    for k, sway in enumerate([101.0, 98.0, 102.0, 97.0, 101.0, 96.0]):
+        ca.update(float(k), [0.0, sway, 0.0])
+        assert ca.alarm  # (held up all along: 96 % and more)
+        text = ca.alarm_text()
+        assert text is not None
+        changes.append(log.update([text]))
+    assert changes[0] == ([changes[0][0][0]], [])  # raised once
+    assert all(c == ([], []) for c in changes[1:])  # then neither cleared nor raised again
 
 
 def test_the_load_is_the_allocated_tau_low_passed() -> None:
@@ -143,8 +179,8 @@ def test_a_case_whose_thrusters_are_all_out_already_is_no_case() -> None:
     ca = analysis(failure_groups=[[1, 2], [3]])
     v = ca.update(0.0, [10.0, 10.0, 0.0], out={1, 2})
     assert v is not None and [c.lost for c in v.cases] == [(3,)]
-    ca = analysis(failure_groups=[[1, 2]])
-    v = ca.update(0.0, [10.0, 10.0, 0.0], out={1, 2})
+    ca = analysis(failure_groups=[[1, 2], [3]])
+    v = ca.update(0.0, [10.0, 10.0, 0.0], out={1, 2, 3})
     assert v is not None and v.cases == () and v.worst is None and not ca.alarm
 
 

@@ -167,6 +167,41 @@ def test_a_lost_wind_is_held_and_faded_out_linearly(supply, dt: float) -> None: 
     assert ff.filtered == held_wind  # the filter holds the lost wind
 
 
+def test_a_lost_wind_turns_with_the_vessel_it_is_held_for(supply) -> None:  # type: ignore[no-untyped-def]
+    """The held wind is relative, in body axes. A vessel that turns while the anemometer is out must keep
+    the wind where it is on the earth: 15 m/s from the north, the vessel heading north then turned to
+    south (half a minute into a 300 s fade), the held feed-forward must push north-going (+X at heading 0,
+    then −X at heading π: still against the wind, which now comes from astern) — held in body axes it
+    would push the vessel ahead, i.e. southward, with the wind, doubling the load it was there to cancel.
+    Checked against the plant's force for the same true wind at the new heading."""
+    area, length = supply.hull.wind, supply.length_m
+    ff = WindFeedForward(area, length, filter_s=2.0, gain=1.0, fade_s=300.0)
+    for _ in range(400):
+        ff.update(0.1, relative_wind(15.0, 0.0, 0.0, 0.0, 0.0), psi=0.0)
+    assert ff.tau[0] > 0  # a head wind pushes aft; the feed-forward ahead
+    for k in range(1, 301):  # 30 s without wind, turning 180° at 6°/s
+        psi = math.pi * k / 300
+        tau = ff.update(0.1, None, psi=psi)
+    w = ff.weight
+    plant = np.array(wind_force(area, length, 15.0, 0.0, math.pi, 0.0, 0.0))  # the north wind, from astern
+    np.testing.assert_allclose(tau, -w * plant, rtol=1e-9, atol=1e-6 * np.abs(plant).max())
+    assert tau[0] < 0
+    # without a heading the held wind stays as it was
+    ff2 = WindFeedForward(area, length, filter_s=2.0, gain=1.0, fade_s=300.0)
+    _steady(ff2, (14.0, -6.0))
+    held = ff2.filtered
+    ff2.update(0.1, None)
+    assert ff2.filtered == held
+    # the controller hands it the estimated heading: a lost wind held through a half turn pushes against it
+    ctl = DPController(supply)
+    ctl.set_mode("dp")
+    nu = np.zeros(3)
+    for k in range(300):
+        ctl.update(0.1 * k, np.zeros(3), nu, None, relative_wind=relative_wind(15.0, 0.0, 0.0, 0.0, 0.0))
+    o = ctl.update(30.1, np.array([0.0, 0.0, math.pi]), nu, None, relative_wind=None)
+    assert ctl.wind is not None and ctl.wind.fading and o.tau_wind[0] < 0
+
+
 def test_invalid_wind_fades_like_a_missing_one(supply) -> None:  # type: ignore[no-untyped-def]
     a = WindFeedForward(supply.hull.wind, supply.length_m, 2.0, 1.0, fade_s=20.0)
     b = WindFeedForward(supply.hull.wind, supply.length_m, 2.0, 1.0, fade_s=20.0)

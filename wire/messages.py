@@ -428,7 +428,10 @@ class ConsequenceStatus(Record, kw_only=True):
     worst: Annotated[
         FailureCaseStatus | None, doc("The failure case of the highest utilisation; null if none to test.")
     ] = None
-    cases: Annotated[list[FailureCaseStatus], doc("Every failure case tested, in the configured order.")] = []
+    cases: Annotated[
+        list[FailureCaseStatus],
+        doc("Every failure case tested: the configured groups in order, then each thruster in no group."),
+    ] = []
 
 
 class Status(Message, kw_only=True):

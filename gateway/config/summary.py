@@ -81,7 +81,12 @@ def consequence_line(config: GatewayConfig) -> str:
     if not q.failure_groups:
         return "consequence analysis in dp: each thruster lost alone"
     groups = ", ".join("+".join(str(i) for i in g) for g in q.failure_groups)
-    return f"consequence analysis in dp: thrusters {groups} lost together"
+    grouped = {i for g in q.failure_groups for i in g}
+    alone = ", ".join(str(t.id) for t in config.vessel.thrusters if t.id not in grouped)
+    # (a thruster in no group is still a failure case alone: `consequence.failure_cases`)
+    return f"consequence analysis in dp: thrusters {groups} lost together" + (
+        f"; {alone} alone" if alone else ""
+    )
 
 
 def show_dof(value: Any) -> str:

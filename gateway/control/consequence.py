@@ -22,7 +22,8 @@ slow drift move τ over tens of seconds. T of 30 s keeps the verdict on the mean
 "prevailing environmental conditions" ask, rather than on every gust.
 
 **The test.** For each failure case g (a set of thrusters lost together: by default each thruster alone;
-``failure_groups`` for a switchboard, an engine room or a fuel system that takes several with it) and the
+``failure_groups`` for a switchboard, an engine room or a fuel system that takes several with it, and then
+each thruster in no group alone, `failure_cases`) and the
 thrusters in service now, k_g = the largest k with k τ̄ within what the rest can give
 (`gateway.control.capability.attainable_scale`). k_g ≥ 1: the load is held after that failure; the
 utilisation 1/k_g is the share of the remaining capacity it takes (over 100 %: position lost). The worst
@@ -52,6 +53,17 @@ Array = NDArray[np.float64]
 
 Attainable = Callable[[Sequence[Thruster], Array, Collection[int]], float]
 """(thrusters, τ, failed ids) → the largest k with k τ attainable (`capability.attainable_scale`)."""
+
+
+def failure_cases(ids: Sequence[int], groups: Sequence[Sequence[int]] = ()) -> list[tuple[int, ...]]:
+    """The failure cases of a layout of thrusters ``ids``: each group of ``groups`` (thrusters lost
+    together), then each thruster in no group alone; no groups: each thruster alone. A thruster's own
+    failure (its drive trips) is a single failure whatever it is fed from: one in a group is covered by the
+    group's loss, which takes it and more (the thrusters left can give no more for it), but one in no
+    group would otherwise never be tested. Groups keep their order; ids in layout order."""
+    cases = [tuple(g) for g in groups]
+    grouped = {i for g in cases for i in g}
+    return cases + [(i,) for i in ids if i not in grouped]
 
 
 class CachedCapability:
@@ -129,7 +141,7 @@ class ConsequenceAnalysis:
             )
         self.thrusters = tuple(thrusters)
         ids = self._ids = frozenset(t.id for t in self.thrusters)
-        groups = [tuple(g) for g in failure_groups] or [(t.id,) for t in self.thrusters]
+        groups = failure_cases([t.id for t in self.thrusters], failure_groups)
         unknown = sorted({i for g in groups for i in g} - ids)
         if unknown:
             raise ValueError(
@@ -262,13 +274,13 @@ class ConsequenceAnalysis:
             return (
                 f"consequence analysis: after losing {which} the rest could not push against the present load"
             )
-        need = (
-            f"consequence analysis: after losing {which} the rest would need {100 * worst.utilisation:.0f} %"
-        )
-        if worst.utilisation > 1.0:
-            return f"{need} of their thrust for the present load: position would be lost"
-        # (held up between clear_utilisation and 100 %: the load is at the limit, not yet beyond it)
+        # One wording above and below 100 % (the alarm is held up down to clear_utilisation): the logs of
+        # alarms raised and cleared know an alarm by its text with the numbers masked
+        # (`gateway.foxglove_channels.alarm_key`), so a verdict that said "position would be lost" above
+        # 100 % and something else below would be logged as one alarm cleared and another raised at every
+        # crossing of 100 % — the chatter the hysteresis is there to prevent.
         return (
-            f"{need} of their thrust for the present load: no margin left "
-            f"(the alarm clears below {100 * self.clear_utilisation:.0f} %)"
+            f"consequence analysis: after losing {which} the rest would need {100 * worst.utilisation:.0f} % "
+            f"of their thrust for the present load (over 100 %: position lost; the alarm clears below "
+            f"{100 * self.clear_utilisation:.0f} %)"
         )

@@ -550,7 +550,11 @@ class DPController:
         eta = _finite3(eta_hat)
         nu = _finite3(nu_hat)
         b = _finite3(bias_hat)
-        tau_w = ZERO3 if self.wind is None else self.wind.update(dt, relative_wind)
+        tau_w = (
+            ZERO3
+            if self.wind is None
+            else self.wind.update(dt, relative_wind, None if eta is None else float(eta[2]))
+        )
         if self._mode == "dp":
             return self._update_dp(t, dt, eta, nu, b, saturated, _finite3(tau_allocated), tau_w)
         self._z = np.zeros(3)

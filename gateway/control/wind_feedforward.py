@@ -32,6 +32,19 @@ zero over T_f (``fade_s``, `[control] wind_loss_fade_s`) by a weight w::
 
     τ_wind = −k_w w τ̂_w(ū_rw, v̄_rw),   w ← max(0, w − dt/T_f) while lost,  min(1, w + dt/T_f) while measured
 
+The held wind is the air's motion relative to the vessel, in body axes: it stays true of the earth only
+while the heading does. A vessel that turns while its anemometer is out (the operator's heading change,
+a weathervaning setpoint) would carry a body-frame wind round with it — after a 180° turn pushing with
+the wind instead of against it. So while the wind is lost and the heading ψ is given (``update(...,
+psi=)``), the held (ū_rw, v̄_rw) is turned by the heading change since the last step, as the relative
+wind of a vessel holding station (ν ≈ 0: u_rw = −V_w cos(β_w − ψ), v_rw = −V_w sin(β_w − ψ) for a true
+wind V_w going towards β_w) turns::
+
+    ū_rw ← cos Δψ ū_rw + sin Δψ v̄_rw,   v̄_rw ← −sin Δψ ū_rw + cos Δψ v̄_rw
+
+(the vessel's own velocity, part of the measured relative wind, is turned with it: negligible at
+station-keeping speeds). Without ψ the wind is held as it was.
+
 The observer is given τ − τ_wind (`gateway.pipeline`), so whatever force is held it treats as known and
 b̂ takes the difference to the true load; as w falls, the faded part shows in the observer's velocity
 error and moves into b̂ at the pace it is taken off, which the bias feed-forward −Jᵀb̂ and the integrator
@@ -122,6 +135,7 @@ class WindFeedForward:
         self.weight = 0.0
         """w ∈ [0, 1]: the fraction of the filtered wind's force fed forward."""
         self._seen = False  # a wind measured since the start (or `reset`)
+        self._psi: float | None = None  # heading (rad) the filtered wind's body axes are at; None: unknown
         self.tau = np.zeros(3)
         """The last output τ_wind, body frame [X, Y, N] (nonzero also while a lost wind fades)."""
 
@@ -141,18 +155,23 @@ class WindFeedForward:
         self.active = False
         self.weight = 0.0
         self._seen = False
+        self._psi = None
         self.tau = np.zeros(3)
 
-    def update(self, dt: float, relative_wind: tuple[float, float] | None) -> Array:
+    def update(self, dt: float, relative_wind: tuple[float, float] | None, psi: float | None = None) -> Array:
         """One step of dt seconds with the relative wind (u_rw, v_rw) measured now (body frame, m/s), or
-        None (or non-finite): no usable measurement, the held force fades (module docstring). Returns
-        τ_wind."""
+        None (or non-finite): no usable measurement, the held force fades (module docstring). ``psi``: the
+        heading now (rad; None or non-finite: not known), by which a held wind is turned with the vessel.
+        Returns τ_wind."""
         dt = dt if math.isfinite(dt) and dt > 0 else 0.0
+        psi = psi if psi is not None and math.isfinite(psi) else None
         u = v = math.nan
         if relative_wind is not None:
             u, v = relative_wind
         if not (math.isfinite(u) and math.isfinite(v)):
+            self._turn_held(psi)
             return self._lost(dt)
+        self._psi = psi
         if not self._seen or self.fade_s <= 0.0:
             self.weight = 1.0  # the first wind since the start: in through the filter's ramp alone
         else:
@@ -165,6 +184,16 @@ class WindFeedForward:
         self.active = True
         self._seen = True
         return self._force()
+
+    def _turn_held(self, psi: float | None) -> None:
+        """The held wind into the body axes of heading ``psi`` (module docstring); kept as it is when either
+        heading is not known."""
+        if psi is not None and self._psi is not None and psi != self._psi:
+            d = psi - self._psi
+            c, s = math.cos(d), math.sin(d)
+            self.u, self.v = c * self.u + s * self.v, -s * self.u + c * self.v
+        if psi is not None:
+            self._psi = psi
 
     def _lost(self, dt: float) -> Array:
         self.active = False
