@@ -28,19 +28,21 @@ if TYPE_CHECKING:
 # imported by the functions that run the demo, so `dpgw demo --help` answers at once.
 
 SETTLE_S = 60.0
-ENGAGE_S = 150.0
-"""Sim second at which the demo's operator switches the gateway from standby to dp (``--engage-at``), for
-a 76.2 m supply vessel; Froude-scaled with the vessel's length as the controller's defaults are
-(× √(L/76.2)). Until then the vessel is held on joystick: the simulator's thrusters deliver minus the
-load it knows (`Simulation.start_held`), from the start, and the drives report that thrust, so the
-observer starts at the load's equilibrium and its bias estimate settles (~150 s on the default
-scenario: the passive observer's slowest mode, docs/passive-observer.md); DP then takes over bumplessly
-from the thrust the drives report, as a DP operator engages DP once the estimate has settled.
-Engaged at the first sample instead (``--engage-at 0``), DP starts cold into a full storm's load with a
-bias estimate of zero: on the default scenario (Hs 6 m) the vessel drifts ~6 m and ~9 deg, and the
-integrator, which took the load while the bias estimate was still growing, gives it back over ~200 s
-(the integral pole, 0.007 rad/s): p95 ~5 m over 60-180 s, which is the start-up and not the station
-keeping. Engaged at 30 s, before the bias estimate has settled, that hand-over still cost p95 3-5 m."""
+ENGAGE_TIME_CONSTANTS = 1.5
+"""When the demo's operator switches the gateway from standby to dp by default (``--engage-at``): after
+this many time constants of the observer's slowest error mode (`slowest_error_rate` over all headings:
+its bias, ~96 s on the default scenario, so DP at 145 s). Until then the vessel is held on joystick: the
+simulator's thrusters deliver minus the load it knows (`Simulation.start_held`), from the start, and
+the drives report that thrust, so the observer starts at the load's equilibrium and its bias estimate
+settles; DP then takes over bumplessly from the thrust the drives report, as a DP operator engages DP
+once the estimate has settled. Engaged at the first sample instead (``--engage-at 0``), DP starts cold
+into a full storm's load with a bias estimate of zero: on the default scenario (Hs 6 m) the vessel
+drifts ~7 m and ~10 deg, and the integrator, which took the load while the bias estimate was still
+growing, gives it back over ~200 s (the integral pole, 0.007 rad/s): p95 4-5 m over 60-360 s, which is
+the start-up and not the station keeping. Engaged at 30 s (a third of a time constant), the hand-over
+still cost p95 3.3 m / 2.6 deg; at 150 s, 0.75 m / 1.0 deg (in-process closed loop, seed 0)."""
+ENGAGE_FALLBACK_S = 150.0
+"""The default engage time for an observer without gains to analyse (the demo's is passive: not used)."""
 DP_SETTLE_S = 30.0
 """Station keeping is scored from this long after DP was engaged (and never before ``SETTLE_S``): the
 take-over and the reference model's first moves are not station keeping."""
@@ -124,8 +126,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         type=non_negative_float,
         default=None,
         metavar="S",
-        help=f"with --mode dp: the sim second the demo switches the gateway from standby to dp (default "
-        f"{ENGAGE_S:g} for a 76.2 m vessel, Froude-scaled with its length). Until then the vessel is held "
+        help=f"with --mode dp: the sim second the demo switches the gateway from standby to dp (default: "
+        f"after {ENGAGE_TIME_CONSTANTS:g} time constants of the observer's slowest mode, 145 s on the "
+        "default scenario; printed at start). Until then the vessel is held "
         "on joystick (the simulator's thrusters answer the load it knows) while the observer's bias "
         "estimate settles; then DP takes over from the thrust the drives report, as an operator engages "
         "DP. 0: dp from the first estimate, a cold start into the full load. Vessels without thruster "
@@ -220,7 +223,7 @@ def demo_config(scenario: Any, pty_device: str, args: argparse.Namespace) -> dic
                 "component_id": scenario.feedback.component_id,
             }
         )
-    cfg["control"] = {"initial_mode": "standby" if engage_at(args, scenario) is not None else args.mode}
+    cfg["control"] = {"initial_mode": "standby" if engages_later(args, scenario) else args.mode}
     tp = scenario.sea[0][1].tp_s
     cfg["observer"] = {"type": DEMO_OBSERVER, "wave_period_s": tp}
     cfg["zenoh"] = {
@@ -236,19 +239,27 @@ def demo_config(scenario: Any, pty_device: str, args: argparse.Namespace) -> dic
     return with_scenario_observer(cfg, scenario)
 
 
-def engage_at(args: argparse.Namespace, scenario: Any) -> float | None:
-    """The sim second the demo engages DP (the gateway starts in standby until then), or None: the gateway
-    starts in ``--mode`` (standby; dp with ``--engage-at 0``; and dp on a vessel whose drives report no
-    thrust, which a bumpless take-over needs)."""
+def engages_later(args: argparse.Namespace, scenario: Any) -> bool:
+    """Whether the gateway starts in standby and the demo switches it to dp later (`engage_time`); if not,
+    it starts in ``--mode``: standby; dp with ``--engage-at 0``, and dp on a vessel whose drives report
+    no thrust (a bumpless take-over starts from the thrust they report: without it, it would be a step)."""
     if args.mode != "dp" or scenario.feedback is None or not scenario.vessel.thrusters:
-        return None
+        return False
+    return args.engage_at is None or args.engage_at > 0
+
+
+def engage_time(args: argparse.Namespace, observer: Any) -> float:
+    """The sim second to engage DP: ``--engage-at``, or `ENGAGE_TIME_CONSTANTS` time constants of the
+    observer's slowest error mode, to the whole second."""
     if args.engage_at is not None:
-        return float(args.engage_at) if args.engage_at > 0 else None
-    return ENGAGE_S * math.sqrt(scenario.vessel.length_m / REFERENCE_LENGTH_M)
+        return float(args.engage_at)
+    from observers.passive_tuning import slowest_error_rate
 
-
-REFERENCE_LENGTH_M = 76.2
-"""The vessel the demo's engage time is set for (the MSS supply vessel of the default scenario)."""
+    gains, vessel = getattr(observer, "gains", None), getattr(observer, "vessel", None)
+    if gains is None or vessel is None:
+        return ENGAGE_FALLBACK_S
+    rate = slowest_error_rate(vessel, gains)
+    return float(round(ENGAGE_TIME_CONSTANTS / -rate)) if rate < 0 else ENGAGE_FALLBACK_S
 
 
 def run(args: argparse.Namespace) -> int:
@@ -349,8 +360,14 @@ def run(args: argparse.Namespace) -> int:
         service.submit("setpoint", hold_setpoint(scenario))
     if service.log is not None:  # so that `dpgw replay` of this log scores the same stretch
         service.log.add_metadata(DEMO_METADATA, {"settle_s": f"{SETTLE_S:g}"})
-    engage_s = engage_at(args, scenario)
+    engage_s = engage_time(args, service.pipeline.observer) if engages_later(args, scenario) else None
     if engage_s is not None:
+        print(
+            f"dpgw demo: the vessel is held on joystick until DP is engaged at {engage_s:.0f} s of sea, once "
+            "the observer has settled (--engage-at)",
+            file=sys.stderr,
+            flush=True,
+        )
         # until DP is engaged, an operator holds the vessel by joystick against the load
         scenario = replace(scenario, tau=lambda _: -sim.held_load_body())
     sim = Simulation(
@@ -441,7 +458,7 @@ def run(args: argparse.Namespace) -> int:
     if sim_error:
         print(f"dpgw demo: the simulator failed: {sim_error[0]!r}", file=sys.stderr)
         return 1
-    summary = summarise(args, sim, final_status, time.monotonic() - wall0, written or [args.out])
+    summary = summarise(args, sim, final_status, time.monotonic() - wall0, written or [args.out], engage_s)
     summary["speed"] = {
         "requested": args.speed,
         "final": clock.speed,
@@ -468,9 +485,15 @@ WAVE_BAND = (0.3, 2.0)
 
 
 def summarise(
-    args: argparse.Namespace, sim: Simulation, status: dict[str, Any], wall_s: float, logs: list[str]
+    args: argparse.Namespace,
+    sim: Simulation,
+    status: dict[str, Any],
+    wall_s: float,
+    logs: list[str],
+    engage_s: float | None = None,
 ) -> dict[str, Any]:
-    """The demo's summary from ``logs``, the files this run wrote (one unless it rotated)."""
+    """The demo's summary from ``logs``, the files this run wrote (one unless it rotated); ``engage_s``: the
+    sim second DP was to be engaged (None: the gateway started in its mode)."""
     import numpy as np
 
     from gateway.scoring import score
@@ -490,7 +513,7 @@ def summarise(
         "sources": status["sources"],
         "estimates": len(est),
         "alarms": status["alarms"],
-        "engage_at_s": engage_at(args, sim.scenario),
+        "engage_at_s": engage_s,
     }
     if est and truth:
         t0 = truth[0][0]

@@ -62,10 +62,13 @@ def test_the_demo_engages_dp_bumplessly_after_the_observer_settled(tmp_path: Pat
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout)
     keeping = summary["station_keeping"]
-    assert summary["engage_at_s"] == 150.0
+    # 1.5 time constants of the passive observer's slowest mode on this scenario (~96 s)
+    engage = summary["engage_at_s"]
+    assert 130.0 <= engage <= 160.0
+    assert "held on joystick until DP is engaged at" in proc.stderr
     # the first DP command follows the operator's `dp` within a control step or two
-    assert 150.0 <= keeping["dp_engaged_s"] <= 151.0
-    assert keeping["scored_from_s"] >= 180.0
+    assert engage <= keeping["dp_engaged_s"] <= engage + 1.0
+    assert keeping["scored_from_s"] >= engage + 30.0
     assert keeping["position_p95_m"] <= 1.5 and keeping["heading_p95_deg"] <= 2.0
     # bumpless: over the 30 s after the take-over (not scored) the vessel stays near its station too
     truth = [(p["stamp_ns"], p["eta_lf"]) for _, _, _, p in read_messages(out, "/truth/state")]
