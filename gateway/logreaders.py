@@ -23,7 +23,6 @@ and the reader resynchronises on the next plausible record.
 
 from __future__ import annotations
 
-import struct
 from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -46,6 +45,7 @@ from wire.codecs.nmea_scan import (
     used_codes,
 )
 from wire.codecs.nmea_time import time_of_day_or_none
+from wire.tlog import RECORD_TIME
 
 NS = 1_000_000_000
 DAY_NS = 86_400 * NS
@@ -385,7 +385,7 @@ def tlog_events(
     data = Path(path).read_bytes()
     i, n = 0, len(data)
     while i + 9 <= n:
-        (t_us,) = struct.unpack_from(">Q", data, i)
+        (t_us,) = RECORD_TIME.unpack_from(data, i)
         j = i + 8
         marker = data[j]
         if marker == _V1 and j + 1 < n:

@@ -120,7 +120,7 @@ def test_a_load_about_100_percent_is_one_alarm_in_the_logs_not_one_cleared_and_a
     assert all(c == ([], []) for c in changes[1:])  # then neither cleared nor raised again
 
 
-def test_the_load_is_the_allocated_tau_low_passed() -> None:
+def test_the_load_is_the_demanded_tau_low_passed() -> None:
     ca = analysis(filter_s=30.0)
     ca.update(0.0, [0.0, 0.0, 0.0])
     for k in range(1, 301):  # a step to 90 N of sway, 30 s at 10 Hz: one time constant
