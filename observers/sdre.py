@@ -64,6 +64,7 @@ from observers.sdre_tuning import (
     sdre_weights,
     system_matrix,
     table_gain,
+    with_wave_frequency,
 )
 from observers.vessel import VesselModel
 from observers.wave_frequency import ESTIMATOR_KEYS, estimator_config
@@ -116,6 +117,9 @@ class SdreObserver(ObserverBase):
         self.tuning = tuning or SdreTuning()
         self._Minv = np.ascontiguousarray(vessel.Minv)
         self._MinvD = np.ascontiguousarray(vessel.Minv @ vessel.D)
+        # Weights given as numbers stay those numbers when ω0 changes (`set_omega0`); only the physical
+        # tuning's weights are functions of ω0.
+        self._given_weights = weights is not None
         self.set_weights(weights if weights is not None else sdre_weights(vessel, self.tuning))
         self.reset()
 
@@ -156,9 +160,14 @@ class SdreObserver(ObserverBase):
         self._W = np.ascontiguousarray(np.stack([weights.omega0, weights.zeta]))
 
     def set_omega0(self, omega0: ArrayLike) -> None:
-        """Re-tune to a new wave frequency (rad/s, per DOF or one for all): one new Riccati solution."""
+        """Re-tune to a new wave frequency (rad/s, per DOF or one for all): one new Riccati solution. With
+        ``weights`` given to the constructor (the paper's Q, R) those Q and R are kept; otherwise they
+        follow the physical tuning at the new ω0."""
         self.tuning = self.tuning.with_omega0(omega0)
-        self.set_weights(sdre_weights(self.vessel, self.tuning))
+        if self._given_weights:
+            self.set_weights(with_wave_frequency(self.weights, omega0))
+        else:
+            self.set_weights(sdre_weights(self.vessel, self.tuning))
 
     def reset(self) -> None:
         self.x = np.zeros(15)

@@ -171,6 +171,12 @@ def sdre_weights(vessel: VesselModel, tuning: SdreTuning | None = None) -> SdreW
     return SdreWeights(omega0=w0, zeta=zeta, Q=Q, R=np.diag(r))
 
 
+def with_wave_frequency(weights: SdreWeights, omega0: ArrayLike) -> SdreWeights:
+    """``weights`` for a new wave frequency ω0 with their Q and R kept: weights given as numbers (the
+    paper's, say) are not functions of ω0, so a re-tune moves only the wave model Ω2."""
+    return replace(weights, omega0=_vec3(omega0, "omega0"))
+
+
 def paper_weights(omega0: ArrayLike, zeta: ArrayLike = 0.1) -> SdreWeights:
     """The paper's Q = blockdiag(1e-5·I9, I6), R = I3 (Sec. 4), taken as SI intensities."""
     Q = np.diag(np.r_[np.full(9, 1e-5), np.ones(6)])

@@ -42,6 +42,17 @@ def _row_relative_error(K: np.ndarray, K_ref: np.ndarray) -> float:
     return float(np.max(np.max(np.abs(K - K_ref), axis=1) / np.max(np.abs(K_ref), axis=1)))
 
 
+def test_paper_weights_are_the_printed_q_and_r() -> None:
+    """Sec. 4: Q = blockdiag(1e-5·I9, I6) over x = [η, ν, b, ξ] (the unit block on the six wave states),
+    R = I3, ζ = 0.1, T = 0 (A's bias block zero)."""
+    w = paper_weights(W0)
+    np.testing.assert_array_equal(w.Q, np.diag([1e-5] * 9 + [1.0] * 6))
+    np.testing.assert_array_equal(w.R, np.eye(3))
+    np.testing.assert_array_equal(w.zeta, [0.1] * 3)
+    A = system_matrix(load_vessel("snijders_ship"), w.omega0, w.zeta, 0.3)
+    np.testing.assert_array_equal(A[6:9], 0.0)
+
+
 @pytest.mark.parametrize("name", ["snijders_ship", "mss_supply", "cybership2"])
 @pytest.mark.parametrize("which", ["dpgw", "paper"])
 def test_riccati_residual_is_small(name: str, which: str) -> None:
@@ -274,6 +285,41 @@ def test_new_omega0_resolves_and_keeps_the_state() -> None:
     expected = direct_gain(vessel, sdre_weights(vessel, SdreTuning(omega0=0.7)), 0.0)
     assert _row_relative_error(obs.table[0], expected) < 1e-9
     assert obs.extra() == {}
+
+
+def test_new_omega0_keeps_given_weights() -> None:
+    """Weights given as numbers (the paper's Q = blockdiag(1e-5·I9, I6), R = I3) survive a re-tune: only
+    the wave model moves to the new ω0, and the gain is that of the paper's Q, R at the new ω0, not
+    dpgw's physical weights."""
+    vessel = load_vessel("snijders_ship")
+    obs = SdreObserver(vessel, SdreTuning(omega0=W0), weights=paper_weights(W0))
+    obs.set_omega0(0.7)
+    paper = paper_weights(0.7)
+    np.testing.assert_array_equal(obs.weights.Q, paper.Q)
+    np.testing.assert_array_equal(obs.weights.R, paper.R)
+    np.testing.assert_array_equal(obs.omega0, [0.7, 0.7, 0.7])
+    assert _row_relative_error(obs.table[0], direct_gain(vessel, paper, 0.0)) < 1e-9
+
+
+def test_adaptive_sdre_with_the_papers_weights_keeps_them_through_updates() -> None:
+    """`paper_weights = true, adaptive = true`: every ω0 update re-solves with the paper's Q, R, and
+    `reset` returns to the starting ω0 with them too."""
+    from test_gain_scheduled import VESSEL
+
+    obs = make_observer(
+        "sdre", VESSEL, PassiveTuning(omega0=0.83),
+        params={"adaptive": True, "update_period_s": 60.0, "paper_weights": True},
+    )  # fmt: skip
+    t, y, _ = _adaptive_sea(0, 300.0)
+    run = obs.run(t, y)
+    assert len(run.extras["updates"]) >= 2
+    assert not np.allclose(obs.omega0, 0.83)
+    paper = paper_weights(obs.omega0)
+    np.testing.assert_array_equal(obs.weights.Q, paper.Q)
+    np.testing.assert_array_equal(obs.weights.R, paper.R)
+    obs.reset()
+    np.testing.assert_array_equal(obs.weights.Q, paper.Q)
+    np.testing.assert_array_equal(obs.omega0, [0.83, 0.83, 0.83])
 
 
 def test_factory_builds_sdre_with_its_own_params() -> None:
