@@ -41,6 +41,10 @@ bias estimate of zero: on the default scenario (Hs 6 m) the vessel drifts ~6 m a
 integrator, which took the load while the bias estimate was still growing, gives it back over ~200 s
 (the integral pole, 0.007 rad/s): p95 ~5 m over 60-180 s, which is the start-up and not the station
 keeping. Engaged at 30 s, before the bias estimate has settled, that hand-over still cost p95 3-5 m."""
+HOLD_PERIOD_S = 120.0
+"""Natural period of the joystick operator's slow correction of the drift off station while DP is not yet
+engaged (`Simulation.held_tau`), for a 76.2 m vessel, Froude-scaled like ``ENGAGE_S``: slow beside the
+waves (the correction works on the true LF motion) and within the hold."""
 DP_SETTLE_S = 30.0
 """Station keeping is scored from this long after DP was engaged (and never before ``SETTLE_S``): the
 take-over and the reference model's first moves are not station keeping."""
@@ -244,7 +248,12 @@ def engage_at(args: argparse.Namespace, scenario: Any) -> float | None:
         return None
     if args.engage_at is not None:
         return float(args.engage_at) if args.engage_at > 0 else None
-    return ENGAGE_S * math.sqrt(scenario.vessel.length_m / REFERENCE_LENGTH_M)
+    return ENGAGE_S * froude_scale(scenario)
+
+
+def froude_scale(scenario: Any) -> float:
+    """The demo's times for a 76.2 m vessel are this many times longer on the scenario's: √(L/76.2)."""
+    return math.sqrt(scenario.vessel.length_m / REFERENCE_LENGTH_M)
 
 
 REFERENCE_LENGTH_M = 76.2
@@ -351,8 +360,9 @@ def run(args: argparse.Namespace) -> int:
         service.log.add_metadata(DEMO_METADATA, {"settle_s": f"{SETTLE_S:g}"})
     engage_s = engage_at(args, scenario)
     if engage_s is not None:
-        # until DP is engaged, an operator holds the vessel by joystick against the load
-        scenario = replace(scenario, tau=lambda _: -sim.held_load_body())
+        # until DP is engaged, an operator holds the vessel by joystick on its station, against the load
+        station, hold_period_s = scenario.eta0, HOLD_PERIOD_S * froude_scale(scenario)
+        scenario = replace(scenario, tau=lambda _: sim.held_tau(station, hold_period_s))
     sim = Simulation(
         replace(scenario, start_utc=start_utc),
         args.seed,
