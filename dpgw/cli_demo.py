@@ -43,6 +43,10 @@ the start-up and not the station keeping. Engaged at 30 s (a third of a time con
 still cost p95 3.3 m / 2.6 deg; at 150 s, 0.75 m / 1.0 deg (in-process closed loop, seed 0)."""
 ENGAGE_FALLBACK_S = 150.0
 """The default engage time for an observer without gains to analyse (the demo's is passive: not used)."""
+HOLD_PERIOD_S = 120.0
+"""Natural period of the joystick operator's slow correction of the drift off station while DP is not yet
+engaged (`Simulation.held_tau`), for a 76.2 m vessel, Froude-scaled with the vessel's length
+(× √(L/76.2)): slow beside the waves (the correction works on the true LF motion) and within the hold."""
 DP_SETTLE_S = 30.0
 """Station keeping is scored from this long after DP was engaged (and never before ``SETTLE_S``): the
 take-over and the reference model's first moves are not station keeping."""
@@ -262,6 +266,15 @@ def engage_time(args: argparse.Namespace, observer: Any) -> float:
     return float(round(ENGAGE_TIME_CONSTANTS / -rate)) if rate < 0 else ENGAGE_FALLBACK_S
 
 
+def froude_scale(scenario: Any) -> float:
+    """The demo's times for a 76.2 m vessel are this many times longer on the scenario's: √(L/76.2)."""
+    return math.sqrt(scenario.vessel.length_m / REFERENCE_LENGTH_M)
+
+
+REFERENCE_LENGTH_M = 76.2
+"""The vessel the demo's hold period is set for (the MSS supply vessel of the default scenario)."""
+
+
 def run(args: argparse.Namespace) -> int:
     import signal
     import threading
@@ -368,8 +381,9 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
             flush=True,
         )
-        # until DP is engaged, an operator holds the vessel by joystick against the load
-        scenario = replace(scenario, tau=lambda _: -sim.held_load_body())
+        # until DP is engaged, an operator holds the vessel by joystick on its station, against the load
+        station, hold_period_s = scenario.eta0, HOLD_PERIOD_S * froude_scale(scenario)
+        scenario = replace(scenario, tau=lambda _: sim.held_tau(station, hold_period_s))
     sim = Simulation(
         replace(scenario, start_utc=start_utc),
         args.seed,

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from observers.kinematics import rotation, ssa_scalar
 from simulator._advance_kernel import advance as advance_kernel
@@ -385,8 +385,25 @@ class Simulation:
         """The slowly varying load on the vessel now, body frame: the whole bias (its Markov part too), the
         mean wave drift and, on the full plant, the mean wind and the current's load. What an operator
         holding the vessel by joystick answers, and a thrust of minus it holds the vessel still but for
-        the waves and gusts (`dpgw demo` holds the vessel so until DP is engaged)."""
+        the waves and gusts for a while, but it has no spring: what it leaves drifts the vessel off
+        (`held_tau` adds the operator's correction; `dpgw demo` holds the vessel so until DP is engaged)."""
         return self._load_body(self.bias.force)
+
+    def held_tau(self, station: ArrayLike, period_s: float) -> Array:
+        """τ of an operator holding the vessel by joystick on ``station`` [N, E, ψ]: minus the slowly varying
+        load (`held_load_body`), and the operator's slow correction of the LF position and heading off the
+        station, critically damped with the natural period ``period_s`` (τ = −load − M(ω²Rᵀe + 2ων)). Without
+        the correction a hold has no spring: on the full plant with its current a residual of ~1 % of the
+        load (the gusts' mean over a minute or two, the thrusters' lag behind the load) moved the vessel
+        off at a steady 0.1 m/s, 16 m in 150 s on `mss_supply_storm`. (A model of no paper: an operator who
+        watches the vessel and answers its drift slowly, not a DP controller.)"""
+        w = 2.0 * math.pi / period_s
+        x = self.dynamics.x
+        e = x[0:3] - np.asarray(station, dtype=float)
+        e[2] = ssa_scalar(float(e[2]))
+        off_body = rotation(float(x[2])).T @ e
+        correction = self.scenario.vessel.M @ (w * w * off_body + 2.0 * w * x[3:6])
+        return np.asarray(-self.held_load_body() - correction)
 
     def start_held(self) -> None:
         """Start with the vessel held against its load, as a vessel on joystick is before DP is engaged:

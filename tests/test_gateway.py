@@ -379,12 +379,24 @@ def test_replaying_the_demo_log_reproduces_the_estimates(demo_run: dict) -> None
     # time, and replay (which has no clock) does not make them.
     measured = {p["stamp_ns"] for _, _, _, p in read_messages(log, "/dp/measurement")}
     live = [p for _, _, _, p in read_messages(log, "/dp/estimate") if p["stamp_ns"] in measured]
-    again = [o.payload for o in replay(config_from_log(log), log) if o.topic == "/dp/estimate"]
+    outputs = list(replay(config_from_log(log), log))
+    again = [o.payload for o in outputs if o.topic == "/dp/estimate"]
     assert len(again) == len(live) > 100
     assert all(
         a["eta"] == b["eta"] and a["nu"] == b["nu"] and a["bias"] == b["bias"]
         for a, b in zip(again, live, strict=True)
     )
+    # The demo engaged DP at 30 s (--engage-at): the operator's `dp` is in the log, and the replay takes
+    # over at the same instant, from the same feedback, with the same commands (the estimates alone would
+    # agree whatever the controller did: the observer takes the thrust the drives report)
+    assert [p["mode"] for _, _, _, p in read_messages(log, "/dp/mode")] == ["dp"]
+    live_cmds = [p for _, _, _, p in read_messages(log, "/dp/thrusters/command")]
+    again_cmds = [o.payload for o in outputs if o.topic == "/dp/thrusters/command"]
+    t0 = next(iter(read_messages(log, "/truth/state")))[3]["stamp_ns"]
+    assert 30.0 <= (live_cmds[0]["stamp_ns"] - t0) / 1e9 <= 31.0 and len(live_cmds) > 100
+    assert [(c["stamp_ns"], c["thrusters"]) for c in again_cmds] == [
+        (c["stamp_ns"], c["thrusters"]) for c in live_cmds
+    ]
 
 
 @pytest.mark.slow  # the demo fixture, then a second demo of 70 s of sea, ~10 s
