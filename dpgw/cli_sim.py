@@ -217,6 +217,14 @@ def tlog_path_problem(args: argparse.Namespace) -> str | None:
         return f"--tlog {args.tlog}: a folder, not a file: give a file in it, e.g. {path / 'trial.tlog'}"
     if path.suffix == ".mcap" or (args.out and path.resolve() == Path(args.out).resolve()):
         return f"--tlog {args.tlog}: a tlog is not an MCAP log: give another name, e.g. {path.stem}.tlog"
+    for option, url in [
+        ("--nmea", u.partition("=")[2] if "=" in u.split("://")[0] else u) for u in args.nmea
+    ] + [("--mavlink", args.mavlink or "")]:
+        if url.startswith("file://") and Path(url[len("file://") :]).resolve() == path.resolve():
+            return (
+                f"--tlog {args.tlog}: {option} {url} writes to the same file: two writers would interleave "
+                f"their bytes in it; give the tlog another name, e.g. {path.stem}.tlog"
+            )
     return missing_folder("--tlog", args.tlog)
 
 

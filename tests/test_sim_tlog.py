@@ -166,6 +166,15 @@ def test_dpgw_sim_nmea_text_and_tlog_replay_as_the_sims_own_log(
         (["--scenario", "hassani", "--tlog", "{d}"], "a folder, not a file"),
         (["--scenario", "hassani", "--tlog", "{d}/x.mcap"], "a tlog is not an MCAP log"),
         (
+            ["--scenario", "hassani", "--nmea", "file://{d}/x.tlog", "--tlog", "{d}/x.tlog"],
+            "--nmea file://",
+        ),
+        (
+            ["--scenario", "hassani", "--nmea", "gyro1=file://{d}/x.tlog", "--tlog", "{d}/x.tlog"],
+            "writes to the same file",
+        ),
+        (["--scenario", "hassani", "--mavlink", "file://{d}/x.tlog", "--tlog", "{d}/x.tlog"], "--mavlink"),
+        (
             ["--vessel", "mss_osv", "--inputs", "{d}/in.csv", "--tlog", "{d}/x.tlog"],
             "--tlog: only with --scenario",
         ),
