@@ -529,6 +529,9 @@ def summarise(
         "alarms": status["alarms"],
         "engage_at_s": engage_s,
     }
+    refused = (status.get("commands") or {}).get("last_refused")
+    if engage_s is not None and refused and str(refused).startswith("mode"):
+        result["dp_refused"] = refused  # the operator's dp was refused (an unhealthy estimate): said why
     if est and truth:
         t0 = truth[0][0]
         te = (np.array([e[0] for e in est]) - t0) / 1e9
@@ -665,6 +668,8 @@ def print_summary(r: dict[str, Any]) -> None:
             f"{k['north_mean_m']:+.2f} m N, {k['east_mean_m']:+.2f} m E, "
             f"heading {k['heading_mean_deg']:+.2f} deg"
         )
+    elif r.get("dp_refused"):
+        print(f"  station keeping: not scored: the gateway refused dp ({r['dp_refused']})")
     elif r.get("engage_at_s") is not None and r["sim_seconds"] < r["engage_at_s"] + DP_SETTLE_S:
         print(
             f"  station keeping: not scored: DP is engaged at {r['engage_at_s']:.0f} s and scored from "

@@ -1050,3 +1050,20 @@ def test_listen_to_a_host_that_does_not_resolve_says_so() -> None:
     assert p.returncode == 1 and p.stdout == ""
     line = _one_line(p.stderr)
     assert "'nohost.invalid' is not a name this computer can resolve" in line, line
+
+
+def test_demo_whose_dp_was_refused_says_why(capsys: pytest.CaptureFixture[str]) -> None:
+    """The operator's dp refused by the gateway (an estimate not healthy at the engage time): no station
+    keeping to score, and the summary says the gateway's reason instead of leaving the line out."""
+    from dpgw.cli_demo import print_summary
+
+    print_summary(
+        {
+            "scenario": "torsetnes_2004", "sim_seconds": 360.0, "wall_seconds": 36.0, "log": "d.mcap",
+            "logs": ["d.mcap"], "sources": {}, "sent": {}, "estimates": 500, "alarms": [],
+            "settle_s": 60.0, "engage_at_s": 145.0, "station_keeping": None,
+            "dp_refused": "mode dp refused: the estimate is dead reckoning",
+        }
+    )  # fmt: skip
+    out = capsys.readouterr().out
+    assert "station keeping: not scored: the gateway refused dp (mode dp refused: the estimate is dead" in out
