@@ -109,7 +109,7 @@ def test_hassani_sea_selects_the_0_9_filter_within_a_minute() -> None:
     """True peak 0.93 rad/s (JONSWAP γ 3.3, Hs 0.08 m), CyberShip II, 10 Hz, the 10 m step at 40–80 s.
     Hassani et al. Sec. 4: the fifth filter (0.9 rad/s) "is selected in about one minute".
 
-    Measured (seed 0): the weight of the 0.9 rad/s filter first exceeds 0.9 at t = 42.2 s and is 0.984
+    Measured (seed 0): the weight of the 0.9 rad/s filter first exceeds 0.9 at t = 42.2 s and is 0.991
     at 90 s. Initialisation: the filters start at the first measurement (ξ = 0, ν = 0, b_p = −τ) and the
     weights move from the first sample (no warm-up). The start-up transient of a filter decays with its
     slowest closed-loop mode: 5.2 s for the 0.9 rad/s filter (so ~16 s for 3τ), 13.8 s for the 0.3 rad/s
