@@ -169,7 +169,8 @@ def hassani_noise(vessel: VesselModel) -> tuple[Array, Array]:
 
     For a geometrically similar hull (r = λ³ in surge and sway, λ⁵ in yaw) this is plain Froude
     scaling. CyberShip II itself gets (A.2) exactly. Note that Q1 is a sea state, not a vessel
-    property: (A.2)'s Q1 = 0.09 m²/s is a wave motion of σ = 0.5 m at ω0 = 0.9 rad/s; see `wave_std` of
+    property: (A.2)'s Q1 = 0.09 m²/s is a wave motion of σ = 0.5 m at ω0 = 0.9 rad/s and ζ = 0.1
+    (0.32 m at the default ζ = 0.25); see `wave_std` of
     `MMAEObserver` to set it from the expected wave motion instead.
     """
     lam = vessel.length_m / CYBERSHIP2_LENGTH_M

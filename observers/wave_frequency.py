@@ -28,7 +28,7 @@ using spectral analysis"; ω̄0 is updated every T (A5: "every T minutes"), with
    each segment loses its least-squares quadratic before it is windowed, which takes the bulk of it; the
    periodogram is then weighted by the power gain of a zero-phase (filtfilt) 4th-order Butterworth
    high-pass, (r⁸/(1 + r⁸))², r = ω/ω_hp, corner ω_hp = ``highpass_cutoff_ratio``·ω_min (0.15 rad/s by
-   default; −0.02 dB at ω_min). Applied after the window rather than before it, the high-pass cannot
+   default; −0.03 dB at ω_min). Applied after the window rather than before it, the high-pass cannot
    remove window leakage, but after the quadratic there is little left to leak: Hann sidelobes put what
    remains ≥ 50 dB below it five bins away, and the band starts six bins up.
 5. **Periodogram.** Hann window, FFT of the next power of two (the same bins for every DOF, segment and
@@ -41,10 +41,10 @@ using spectral analysis"; ω̄0 is updated every T (A5: "every T minutes"), with
    counts by how clearly it sees the waves, whatever its unit. A DOF with snr < ``min_snr`` is left out.
    With ``per_dof=True`` each DOF gets its own peak; a DOF that cannot (too little data, no peak above
    noise) takes the combined estimate.
-7. **Peak.** The wave model (10)'s spectrum fitted to the bins around the maximum in [ω_min, ω_max]
-   (`_peak`: a linear least-squares fit, whose peak ω0 is the estimate; a parabola through the log PSD
-   at the maximum bin and its neighbours is the fallback). A maximum on the band edge is not a peak: the
-   update is skipped.
+7. **Peak.** The spectrum of the wave model (18) (Fossen & Strand's (10)) fitted to the bins around the
+   maximum in [ω_min, ω_max] (`_peak`: a linear least-squares fit, whose peak ω0 is the estimate; a
+   parabola through the log PSD at the maximum bin and its neighbours is the fallback). A maximum on the
+   band edge is not a peak: the update is skipped.
 8. **Smoothing.** The estimate is the median of the last ``median_of`` (3) peaks: one odd window (a
    cross-fade between two seas, a burst of noise) does not move ω0, a real change does at the second
    update that sees it.
@@ -759,7 +759,8 @@ def _unwrap(a: Array) -> Array:
 
 
 def _peak(p: Array, w_band: Array, level: float = _FIT_LEVEL) -> float:
-    """Peak of the wave model (10) fitted to the spectrum ``p`` on the wave band's bins ``w_band`` (rad/s).
+    """Peak of the wave model (18) (Fossen & Strand's (10)) fitted to the spectrum ``p`` on the wave band's
+    bins ``w_band`` (rad/s).
 
     The PSD of the 2nd-order wave model, S(ω) = A ω² / ((ω0² − ω²)² + (2ζω0ω)²), has its maximum at ω0,
     and 1/S = (ω0⁴/A)/ω² + ω²/A + (4ζ² − 2)ω0²/A is linear in (1/ω², ω², 1): a weighted linear

@@ -26,7 +26,7 @@ from observers.gain_scheduled_analysis import DEFAULT_TUNING, ContractionError, 
 from observers.kinematics import rotation, ssa
 from observers.passive import PassiveObserver, pack_gains
 from observers.passive_tuning import PassiveTuning, passive_gains
-from observers.state import I_ETA, I_PSI, NU
+from observers.state import BIAS, I_ETA, I_PSI, NU, XI2
 from observers.vessel import load_vessel
 from observers.wave_frequency import WaveFrequencyConfig, WaveFrequencyEstimator, _peak
 from simulator.scenarios import get_scenario
@@ -230,6 +230,9 @@ def test_scheduled_gains_are_torsetnes_51_52_and_the_passive_rule() -> None:
     tun = DEFAULT_TUNING
     k = tun.cutoff_ratio
     zd, z = tun.zeta_n, tun.zeta
+    # Sec. III-A: ζd "typically 1.0", ζ "recommended 0.1 for JONSWAP"; k > 1 is left open (Fossen & Strand's
+    # 1.1/0.8976 here)
+    assert (zd, z) == (1.0, 0.1) and k == pytest.approx(1.1 / 0.8976, rel=1e-12)
     np.testing.assert_allclose(g.K1[:3], -2 * (zd - z) * k * np.eye(3), rtol=1e-14)
     np.testing.assert_allclose(g.K1[3:], 2 * (zd - z) * 0.7 * np.eye(3), rtol=1e-14)
     np.testing.assert_allclose(g.K2, k * 0.7 * np.eye(3), rtol=1e-14)
@@ -414,13 +417,21 @@ def test_run_and_step_give_the_same_numbers() -> None:
 
 
 def test_compiled_loop_matches_the_readable_reference() -> None:
+    """Every state, not only η̂ and ν̂: the heading, the bias (31) and the wave states (29) carry the scheduled
+    gains K3 = Λ and K1, so a fault in them would leave the position and velocity nearly unchanged for the
+    250 s compared. Measured: identical to the bit."""
     t, y, _ = simulate(400.0, 5)
     obs = GainScheduledObserver(VESSEL, omega0_initial=BADLY_TUNED)
     run = obs.run(t[:2500], y[:2500])
     X, W = reference_run(VESSEL, obs.tuning, obs.check, obs.config, [BADLY_TUNED] * 3, t[:2500], y[:2500])
+    assert W[-1, 0] < 0.9 * BADLY_TUNED  # ω0 moved, so the gains were scheduled
     np.testing.assert_allclose(W, run.omega0, rtol=1e-12)
     np.testing.assert_allclose(X[:, I_ETA:I_PSI], run.eta[:, :2], atol=1e-8)
+    np.testing.assert_allclose(ssa(X[:, I_PSI] - run.eta[:, 2]), 0.0, atol=1e-10)
     np.testing.assert_allclose(X[:, NU], run.nu, atol=1e-9)
+    np.testing.assert_allclose(X[:, BIAS], run.bias, rtol=1e-10, atol=1e-6)  # N, N, N·m of 1e4–1e5
+    np.testing.assert_allclose(X[:, XI2], run.eta_wf, atol=1e-8)
+    np.testing.assert_allclose(X[-1], obs.x, rtol=1e-10, atol=1e-8)  # ξ1 too
 
 
 def test_schedule_stays_within_the_contraction_budget() -> None:

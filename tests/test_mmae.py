@@ -109,7 +109,7 @@ def test_hassani_sea_selects_the_0_9_filter_within_a_minute() -> None:
     """True peak 0.93 rad/s (JONSWAP γ 3.3, Hs 0.08 m), CyberShip II, 10 Hz, the 10 m step at 40–80 s.
     Hassani et al. Sec. 4: the fifth filter (0.9 rad/s) "is selected in about one minute".
 
-    Measured (seed 0): the weight of the 0.9 rad/s filter first exceeds 0.9 at t = 42.2 s and is 0.984
+    Measured (seed 0): the weight of the 0.9 rad/s filter first exceeds 0.9 at t = 42.2 s and is 0.991
     at 90 s. Initialisation: the filters start at the first measurement (ξ = 0, ν = 0, b_p = −τ) and the
     weights move from the first sample (no warm-up). The start-up transient of a filter decays with its
     slowest closed-loop mode: 5.2 s for the 0.9 rad/s filter (so ~16 s for 3τ), 13.8 s for the 0.3 rad/s
@@ -345,16 +345,28 @@ def test_default_noise_is_appendix_a_for_cybership2_and_froude_scales() -> None:
 
 
 def test_model_discretisation_and_riccati() -> None:
-    """(14) as corrected: ν row [0, 0, M⁻¹, −M⁻¹D], C = [C_w, I, 0, 0]; ZOH and Van Loan against a fine
-    quadrature; the stored P solves the DARE; every filter is stable; S = C P Cᵀ + R."""
+    """(14) as corrected: ν row [0, 0, M⁻¹, −M⁻¹D], C = [C_w, I, 0, 0], B = [0; 0; 0; M⁻¹]; G from (7)–(10)
+    (w1 through E_w, w2 through M⁻¹ on ν, w3 on b_p); ZOH and Van Loan against a fine quadrature; the stored
+    P solves the DARE; every filter is stable; S = C P Cᵀ + R."""
     vessel = load_vessel("cybership2")
     A, B, G, C = continuous_model(vessel, 0.9, 0.1)
     Minv = np.linalg.inv(vessel.M)
-    np.testing.assert_allclose(A[12:15, 9:12], Minv)
-    np.testing.assert_allclose(A[12:15, 12:15], -Minv @ vessel.D)
-    np.testing.assert_allclose(A[3:6, 0:3], -0.81 * np.eye(3))
-    np.testing.assert_array_equal(C[:, 3:6], np.eye(3))
-    np.testing.assert_array_equal(C[:, 6:9], np.eye(3))
+    expected_A = np.zeros((N_STATE, N_STATE))
+    expected_A[0:3, 3:6] = np.eye(3)  # A_w = [[0, I], [−Ω, −Λ]], Ω = ω0² I, Λ = 2ζω0 I  (7)
+    expected_A[3:6, 0:3] = -0.81 * np.eye(3)
+    expected_A[3:6, 3:6] = -2 * 0.1 * 0.9 * np.eye(3)
+    expected_A[6:9, 12:15] = np.eye(3)  # η_p' = ν  (8)
+    expected_A[12:15, 9:12] = Minv  # M ν' + D ν = τ + b_p + w2  (9); b_p' = w3 (10): a zero row
+    expected_A[12:15, 12:15] = -Minv @ vessel.D
+    np.testing.assert_allclose(A, expected_A, rtol=1e-15, atol=0)
+    np.testing.assert_array_equal(B[:12], 0.0)
+    np.testing.assert_allclose(B[12:15], Minv, rtol=1e-15)
+    expected_G = np.zeros((N_STATE, 9))
+    expected_G[3:6, 0:3] = np.eye(3)  # E_w w1
+    expected_G[12:15, 3:6] = Minv  # M⁻¹ w2
+    expected_G[9:12, 6:9] = np.eye(3)  # w3
+    np.testing.assert_allclose(G, expected_G, rtol=1e-15, atol=0)
+    np.testing.assert_array_equal(C, np.hstack([np.zeros((3, 3)), np.eye(3), np.eye(3), np.zeros((3, 6))]))
     Q, _ = hassani_noise(vessel)
     Phi, Gam, Qd = discretize(A, B, G, Q, 0.1)
     np.testing.assert_allclose(Phi, expm(A * 0.1), rtol=1e-12, atol=1e-15)
