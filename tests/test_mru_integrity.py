@@ -253,6 +253,24 @@ def test_an_mru_that_freezes_in_a_sea_way_is_rejected_after_attitude_freeze_s() 
     assert bad[:1] == [620] and bad[-80] == 3700 + 20 and problems[3720].endswith(" for 2.0 s")
 
 
+def test_an_mru_whose_double_buffer_froze_is_rejected_though_no_sample_repeats_the_last() -> None:
+    """After 60 s of a sea way the MRU's output alternates between its last two samples (a frozen double
+    buffer): no sample equals the previous one, and the two values (0.01-0.05° apart) pass the jump test,
+    but every sample equals the one two back. Its 21st such sample (2.0 s) fails, and every one after it;
+    the sea way itself (800 s of it, in the flat-calm test too) never fails that way."""
+    sea = sea_way(400.0, seed=4)
+    k0 = 600
+    t0 = sea[k0][0]
+    a, b = sea[k0 - 1][1:], sea[k0][1:]
+    assert a != b
+    stuck = [(t0 + j * S // 10, *(a if j % 2 else b)) for j in range(300)]
+    bad, problems, _ = failing([*sea[:k0], *stuck])
+    assert bad[0] == k0 + 20, (bad[:3], problems[bad[0]])
+    assert problems[k0 + 20] == "freeze: roll and pitch alternate between the same two values for 2.0 s"
+    assert bad == list(range(k0 + 20, k0 + 300))
+    assert failing(sea_way(800.0, seed=5))[0] == []
+
+
 @pytest.mark.parametrize(
     ("sigma_deg", "cap_s", "hold_s"),
     [(0.003, 30.0, (6.0, 12.0)), (0.003, 5.0, (5.0, 5.0)), (0.002, 30.0, (30.0, 30.0))],

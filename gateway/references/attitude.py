@@ -48,10 +48,14 @@ max P_kⁿ⁻¹ Σ P_k² ≤ repeat^((n+1)/2), since max P_k² ≤ Σ P_k². The
 repeat^((n+1)/2) ≤ `FREEZE_FALSE_ALARM_P`, times the mean sample interval, clamped to
 [``attitude_freeze_s``, ``attitude_freeze_max_s``]. (The square root matters: taking the repeats as
 independent, repeatⁿ, halves n, and σ 0.003° at mid-digit then false-alarms every few hours: a long run
-is one cell hit n+1 times.) Heave and heading (PASHR) are not used as signs of life: PHTRO has neither,
-and a heading from a GNSS compass or a heave from its own filter can go on moving while the roll and
-pitch this test protects are stuck. The activity survives a silence (the sea state is the vessel's, not
-the link's). What this buys and costs: in a sea way the hold is ``attitude_freeze_s`` (repeat ≤ 0.14 at
+is one cell hit n+1 times.) A frozen double buffer alternates between its two values, so no sample repeats the
+previous one: a run in which every sample equals the one two back is held the same way (its n repeats are n+2
+samples, the even ones in one cell and the odd ones in one: at most repeat^((n+2)/2), within the same bound;
+it need not alternate, a constant run is one too, but a constant run is caught a sample sooner as a repeat of
+the previous sample). Heave and heading (PASHR) are not used as signs of life: PHTRO has neither, and a
+heading from a GNSS compass or a heave from its own filter can go on moving while the roll and pitch this test
+protects are stuck. The activity survives a silence (the sea state is the vessel's, not the link's). What this
+buys and costs: in a sea way the hold is ``attitude_freeze_s`` (repeat ≤ 0.14 at
 10 Hz); in flat calm a frozen MRU is believed up to ``attitude_freeze_max_s``, while its frozen values
 are wrong by only the little the hull moves (the lever-arm error a frozen MRU causes is the motion it no
 longer follows). Not covered: an MRU whose output is smoothed over several samples (its runs are longer
@@ -131,6 +135,11 @@ class AttitudeTrack:
         self.prev: tuple[float, float, float | None] | None = None  # (roll, pitch, UTC s of day)
         self.rate = (0.0, 0.0)  # (roll, pitch) rate between the last two samples that did not jump, rad/s
         self.same_since_ns = 0
+        # the sample before ``prev`` (roll, pitch), and since when every sample equals the one two back (a
+        # frozen double buffer alternates between its two values: no sample repeats the previous one)
+        self.prev2: tuple[float, float] | None = None
+        self.alternate_since_ns = 0
+        self.alternate_hold_ns = 0
         self.hold_ns = 0  # how long the present run of repeats may last (`freeze_hold_ns` at its start)
         self.repeat = 0.5  # share of passing samples that repeat the previous (EMA, `ACTIVITY_TAU_S`)
         self.learned = 0  # passing samples learned from (the EMA is their mean while its gain is lower)
@@ -166,23 +175,36 @@ class AttitudeTrack:
         self.rx_ns = now_ns
         if prev is not None and now_ns - last_ns > timeout_ns:
             prev, self.pending, self.offset, self.rate = None, None, (0.0, 0.0), (0.0, 0.0)
-            self.step, self.steady = None, 0
+            self.step, self.steady, self.prev2 = None, 0, None
         if not (math.isfinite(roll) and math.isfinite(pitch)):
             return "range: roll or pitch not finite"
         for axis, v in (("roll", roll), ("pitch", pitch)):
             if abs(v) > lim.max_rad:  # (not remembered: the next sample is judged against a possible one)
                 return f"range: {axis} {v / DEG:.1f}° beyond ±{lim.max_rad / DEG:g}°"
         same = prev is not None and (roll, pitch) == prev[:2]
+        alternate = not same and (roll, pitch) == self.prev2
         if not same:
             self.same_since_ns = now_ns
+        if not alternate:
+            self.alternate_since_ns = now_ns
+        self.prev2 = None if prev is None else (prev[0], prev[1])
         self.prev, self.last_ns = (roll, pitch, utc_s), now_ns
         why = self._judge(lim, now_ns - last_ns, roll, pitch, prev, utc_s, sigmas)
-        if not same:  # (after the jump test, which learns the sample interval the hold is counted in)
+        # (the holds after the jump test, which learns the sample interval they are counted in)
+        if not same:
             self.hold_ns = self.freeze_hold_ns(lim)
         elif not why:
             frozen_ns = now_ns - self.same_since_ns
             if frozen_ns >= self.hold_ns:
                 why = f"freeze: the same roll and pitch for {frozen_ns / NS:.1f} s"
+        if not alternate:
+            self.alternate_hold_ns = self.freeze_hold_ns(lim)
+        elif not why:
+            frozen_ns = now_ns - self.alternate_since_ns
+            if frozen_ns >= self.alternate_hold_ns:
+                why = (
+                    f"freeze: roll and pitch alternate between the same two values for {frozen_ns / NS:.1f} s"
+                )
         if not why and prev is not None:
             self._learn(same)
         return why
