@@ -123,8 +123,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--settle",
         type=non_negative_float,
         metavar="S",
-        help="leave out the first S s when scoring against the truth and in the report (default: the "
-        "first 10 %% of the log, at most 60 s)",
+        help="leave out the first S s when scoring against the truth and in the report (default: a dpgw "
+        "demo log's own settle time, which its summary scored after; else the first 10 %% of the log, at "
+        "most 60 s)",
     )
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     add_foxglove_arg(
