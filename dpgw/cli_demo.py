@@ -527,6 +527,7 @@ def summarise(
         "sources": status["sources"],
         "estimates": len(est),
         "alarms": status["alarms"],
+        "mode": args.mode,
         "engage_at_s": engage_s,
     }
     refused = (status.get("commands") or {}).get("last_refused")
@@ -649,6 +650,12 @@ def print_summary(r: dict[str, Any]) -> None:
             f"horizontal RMS {e['horizontal_rms_m']:.2f} m, p95 {e['horizontal_p95_m']:.2f} m; "
             f"heading RMS {e['rms_heading_deg']:.2f} deg"
         )
+    elif not math.isfinite((e or {}).get("horizontal_rms_m", 0.0)):
+        print(
+            f"  LF estimate vs truth: not scored: the first {SETTLE_S:.0f} s are left out while the "
+            f"observer settles; give a --duration longer than {SETTLE_S:.0f}, e.g. the default "
+            f"{DEFAULT_DURATION_S:.0f}"
+        )
     k = r.get("station_keeping")
     if k:
         share = k.get("wave_band_force_share")
@@ -670,11 +677,24 @@ def print_summary(r: dict[str, Any]) -> None:
         )
     elif r.get("dp_refused"):
         print(f"  station keeping: not scored: the gateway refused dp ({r['dp_refused']})")
-    elif r.get("engage_at_s") is not None and r["sim_seconds"] < r["engage_at_s"] + DP_SETTLE_S:
+    elif r.get("mode") == "standby":
         print(
-            f"  station keeping: not scored: DP is engaged at {r['engage_at_s']:.0f} s and scored from "
-            f"{DP_SETTLE_S:.0f} s later; give a longer --duration (default {DEFAULT_DURATION_S:.0f}), or "
-            "--engage-at 0 for DP from the start"
+            "  station keeping: none in standby (the gateway commands no thrusters: the scenario's own"
+            " thrust)"
+        )
+    else:
+        engage = r.get("engage_at_s")
+        # scored from max(SETTLE_S, engaged + DP_SETTLE_S), on at least a few seconds of commands
+        need = math.ceil(max(SETTLE_S, (engage or 0.0) + DP_SETTLE_S)) + 10
+        when = f"DP engaged at {engage:.0f} s" if engage is not None else "DP from the start"
+        ended = "before DP was engaged" if engage is not None and r["sim_seconds"] < engage else ""
+        todo = f"give --duration {need} or more (default {DEFAULT_DURATION_S:.0f})"
+        if engage is not None and r["sim_seconds"] > SETTLE_S + 10:
+            todo += ", or --engage-at 0 for DP from the start"
+        print(
+            f"  station keeping: not scored: the run ended at {r['sim_seconds']:.0f} s{' ' if ended else ''}"
+            f"{ended}; with {when} it is scored from {max(SETTLE_S, (engage or 0.0) + DP_SETTLE_S):.0f} s; "
+            f"{todo}"
         )
     lag = r.get("fix_stamp_lag_s")
     if lag is not None:
@@ -687,10 +707,5 @@ def print_summary(r: dict[str, Any]) -> None:
         print(f"  speed: {sp['requested']:g}x asked, {sp['final']:g}x at the end (this machine was busy)")
     if r["alarms"]:
         print(f"  alarms at the end: {'; '.join(r['alarms'])}")
-    if not math.isfinite(r.get("error_vs_truth", {}).get("horizontal_rms_m", 0.0)):
-        print(
-            f"  (no score: the first {SETTLE_S:.0f} s are left out while the observer settles; give a "
-            f"--duration longer than {SETTLE_S:.0f}, e.g. the default {DEFAULT_DURATION_S:.0f})"
-        )
     for step in r.get("next", []):
         print(f"  next: {step}")

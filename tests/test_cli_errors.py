@@ -436,8 +436,45 @@ def test_demo_ended_before_dp_was_engaged_says_what_to_do(capsys: pytest.Capture
         }
     )  # fmt: skip
     out = capsys.readouterr().out
-    assert "station keeping: not scored: DP is engaged at 150 s" in out
-    assert "--engage-at 0" in out and "longer --duration" in out
+    assert "station keeping: not scored: the run ended at 120 s before DP was engaged" in out
+    assert "scored from 180 s; give --duration 190 or more" in out and "--engage-at 0" in out
+
+
+def test_demo_of_60_s_advises_only_what_would_score(capsys: pytest.CaptureFixture[str]) -> None:
+    """`dpgw demo --duration 60`: nothing is scored; the advice names a duration that scores, and not
+    --engage-at 0 (DP from the start is scored from 60 s too, which a 60 s run never reaches); the
+    estimate's 'not scored' is said where its figures would be, before the station keeping."""
+    from dpgw.cli_demo import print_summary
+
+    print_summary(
+        {
+            "scenario": "torsetnes_2004", "sim_seconds": 60.0, "wall_seconds": 6.0, "log": "d.mcap",
+            "logs": ["d.mcap"], "sources": {}, "sent": {}, "estimates": 700, "alarms": [],
+            "settle_s": 60.0, "engage_at_s": 150.0, "mode": "dp",
+            "error_vs_truth": {"samples": 0, "horizontal_rms_m": math.nan, "horizontal_p95_m": math.nan,
+                               "rms_heading_deg": math.nan},
+            "station_keeping": None,
+        }
+    )  # fmt: skip
+    out = capsys.readouterr().out
+    assert "--engage-at 0" not in out and "give --duration 190 or more" in out
+    assert out.index("LF estimate vs truth: not scored") < out.index("station keeping: not scored")
+
+
+def test_demo_in_standby_says_it_kept_no_station(capsys: pytest.CaptureFixture[str]) -> None:
+    from dpgw.cli_demo import print_summary
+
+    print_summary(
+        {
+            "scenario": "torsetnes_2004", "sim_seconds": 360.0, "wall_seconds": 36.0, "log": "d.mcap",
+            "logs": ["d.mcap"], "sources": {}, "sent": {}, "estimates": 4300, "alarms": [],
+            "settle_s": 60.0, "engage_at_s": None, "mode": "standby",
+            "error_vs_truth": {"samples": 100, "horizontal_rms_m": 0.9, "horizontal_p95_m": 1.5,
+                               "rms_heading_deg": 0.4},
+            "station_keeping": None,
+        }
+    )  # fmt: skip
+    assert "station keeping: none in standby" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize(
