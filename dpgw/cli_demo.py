@@ -299,6 +299,9 @@ def run(args: argparse.Namespace) -> int:
     ):  # (before: said as the config key log.path)
         print(f"dpgw demo: {problem}", file=sys.stderr)
         return 2
+    if args.mode == "standby" and args.engage_at is not None:  # (accepted and ignored before)
+        print("dpgw demo: --engage-at switches to dp: it goes with --mode dp (the default)", file=sys.stderr)
+        return 2
     scenario = get_scenario(args.scenario)
     pty = PtySink()
     sinks: list[Any] = [pty]

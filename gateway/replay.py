@@ -603,10 +603,12 @@ def run_replay(
         warned = {f"warning {k}": v for k, v in c.warnings.items()}  # (used: apart from the rejects)
         result.counts[f"source {name}"] = {"received": c.received, **c.rejected, **warned}
     for inp in inputs:
-        if inp.kind != "mcap":
+        if inp.kind == "nmea":
             result.counts[f"log {inp.path.name}"] = {
                 "lines": inp.counts.lines,
                 "cycles": inp.counts.cycles,
                 **inp.counts.counts,
             }
+        elif inp.kind == "tlog":  # (records of one frame each: no lines, no cycles)
+            result.counts[f"log {inp.path.name}"] = {"records": inp.counts.lines, **inp.counts.counts}
     return result

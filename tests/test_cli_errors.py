@@ -483,6 +483,10 @@ def test_demo_in_standby_says_it_kept_no_station(capsys: pytest.CaptureFixture[s
         (["demo", "--duration", "-5"], "argument --duration: must be a positive number (got -5)"),
         (["demo", "--speed", "0"], "argument --speed: must be a positive number (got 0)"),
         (
+            ["demo", "--mode", "standby", "--engage-at", "60"],
+            "--engage-at switches to dp: it goes with --mode dp",
+        ),
+        (
             ["sim", "--scenario", "hassani", "--duration", "nan"],
             "argument --duration: must be a finite number",
         ),

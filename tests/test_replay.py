@@ -456,6 +456,9 @@ def test_tlog_replay(tmp_path: Path) -> None:
     assert inp.kind == "tlog"
     est = result.collected["/dp/estimate"]
     assert len(est) > 50 and est[-1]["eta"][2] == pytest.approx(0.7, abs=0.01)
+    # a tlog's count is of records (one frame each), not of text lines and cycles
+    logged = result.counts["log boat.tlog"]
+    assert logged["records"] == 300 and "lines" not in logged and "cycles" not in logged
 
 
 @pytest.mark.slow
