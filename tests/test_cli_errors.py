@@ -483,10 +483,6 @@ def test_demo_in_standby_says_it_kept_no_station(capsys: pytest.CaptureFixture[s
         (["demo", "--duration", "-5"], "argument --duration: must be a positive number (got -5)"),
         (["demo", "--speed", "0"], "argument --speed: must be a positive number (got 0)"),
         (
-            ["demo", "--mode", "standby", "--engage-at", "60"],
-            "--engage-at switches to dp: it goes with --mode dp",
-        ),
-        (
             ["sim", "--scenario", "hassani", "--duration", "nan"],
             "argument --duration: must be a finite number",
         ),
@@ -1108,3 +1104,10 @@ def test_demo_whose_dp_was_refused_says_why(capsys: pytest.CaptureFixture[str]) 
     )  # fmt: skip
     out = capsys.readouterr().out
     assert "station keeping: not scored: the gateway refused dp (mode dp refused: the estimate is dead" in out
+
+
+def test_demo_engage_at_with_standby_is_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    """`--engage-at` switches the gateway to dp: with `--mode standby` it was accepted and ignored."""
+    assert main(["demo", "--mode", "standby", "--engage-at", "60", "--no-foxglove"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == "dpgw demo: --engage-at switches to dp: it goes with --mode dp (the default)"
