@@ -96,6 +96,10 @@ def attainable_scale(
     return CapabilityLP(thrusters, failed=failed, polygon_sides=polygon_sides, solver=solver).scale(tau)
 
 
+DIRECTION_EPS = 1e-6
+"""A load's component smaller than this fraction of its largest one is taken as 0 (`CapabilityLP.solve`)."""
+
+
 @dataclass(frozen=True)
 class CapabilitySolution:
     """The optimum of one capability LP: ``scale`` = k*, and the thrusters' forces that give k*·τ
@@ -295,6 +299,12 @@ class CapabilityLP:
                 math.inf, np.zeros(n), np.array([th.angle_rad for th in self.thrusters])
             )
         u = t_hat / big
+        # A component below DIRECTION_EPS of the largest is taken as 0. At such a direction the answer
+        # jumps: a yaw-only load that the layout answers only with surge of one sign has k* > 0, the same
+        # load with 1e-7 of the other sign k* = 0, and the solvers decide it by their tolerances (DAQP
+        # 0.73, HiGHS 0 on cybership2 with a sector barred and thruster 2 lost). No thruster resolves a
+        # millionth of the largest demand, so the component is noise, and both solvers see the same LP.
+        u[np.abs(u) < DIRECTION_EPS] = 0.0
         norm_u = float(np.linalg.norm(u))
         A_eq = np.column_stack([self._B_hat, -u / norm_u])
         best_k, best_x = -1.0, np.zeros(self._c.size)
