@@ -209,6 +209,31 @@ def test_frozen_position_is_detected_within_10_s() -> None:
     assert b.estimates()[-1]["health"][:2] == ["dead_reckoning"] * 2
 
 
+@pytest.mark.parametrize("role", ["position", "heading"])
+def test_a_frozen_double_buffer_is_detected_within_10_s(role: str) -> None:
+    """A receiver or gyro whose output double buffer froze sends its last two values in turn: no value
+    repeats the one before it, so the plain freeze test never fires, and the two (a noise step apart)
+    pass the jump test. Every value equals the one two before it: rejected as frozen once that has lasted
+    the role's freeze time (`freeze_s` 5 s, `heading_freeze_s` 20 s), and the estimate goes to dead
+    reckoning in that DOF."""
+    b = Bench()
+    settled(b, 40)
+    m, t_fault = b.mark(), b.now
+    if role == "position":
+        two = [gga(*b.rng.normal(0, SIGMA_M, 2)) for _ in range(2)]
+        for k in range(300):
+            b.cycle(gps={"gps1": two[k % 2]})
+        name, dofs, freeze_s = "gps1", slice(0, 2), 5.0
+    else:
+        two_psi = [PSI + SIGMA_PSI, PSI - SIGMA_PSI]
+        for k in range(300):
+            b.cycle(gyro={"gyro1": two_psi[k % 2]})
+        name, dofs, freeze_s = "gyro1", slice(2, 3), 20.0
+    alarm = b.first_event(m, name, "rejected", "alternating between the same two values")
+    assert alarm is not None and freeze_s * S <= alarm - t_fault <= (freeze_s + 0.5) * S
+    assert set(b.estimates()[-1]["health"][dofs]) == {"dead_reckoning"}
+
+
 def drift(b: Bench, name: str, seconds: float, start_ns: int) -> None:
     """``name`` drifts north at 1 m/min from start_ns, the other DGPS stay true."""
     for _ in range(round(seconds * 10)):

@@ -19,7 +19,19 @@ ANGLE = st.floats(min_value=-10.0, max_value=10.0, allow_nan=False)  # beyond ±
 
 
 def _state(t: Track) -> tuple[object, ...]:
-    return (t.good, t.good_ns, t.smooth, t.smooth_ns, t.last, t.last_ns, t.var, t.samples, t.same_since)
+    return (
+        t.good,
+        t.good_ns,
+        t.smooth,
+        t.smooth_ns,
+        t.last,
+        t.last_ns,
+        t.var,
+        t.samples,
+        t.same_since,
+        t.before_last,
+        t.alternate_since,
+    )
 
 
 def _same(a: object, b: object) -> bool:

@@ -229,6 +229,10 @@ class ReferenceMonitor:
         if frozen >= lim.freeze_s:
             st.fail(now_ns, f"frozen: the same value for {frozen:.1f} s")
             return False
+        alternating = (now_ns - tr.alternate_since) / NS
+        if alternating >= lim.freeze_s:  # (a frozen double buffer: its last two values in turn)
+            st.fail(now_ns, f"frozen: alternating between the same two values for {alternating:.1f} s")
+            return False
         # (`Track.sigma`, inline)
         sigma = math.sqrt(tr.var) if tr.samples >= MIN_SAMPLES_FOR_VARIANCE else None
         if sigma is not None and sigma > lim.max_sigma:

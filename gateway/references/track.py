@@ -17,7 +17,9 @@ class Track:
       shows;
     - ``var``: the measured noise variance per component, from consecutive differences (two independent
       errors per difference: E[d²] = 2σ² per component);
-    - ``same_since``: when the value last changed (the freeze test).
+    - ``same_since``: when the value last changed (the freeze test);
+    - ``alternate_since``: since when every value has equalled the one two before it but not the one
+      before (a frozen double buffer alternates between its last two values: the freeze test too).
     """
 
     def __init__(self, tau_s: float, angle: bool = False) -> None:
@@ -32,6 +34,8 @@ class Track:
         self.var = 0.0
         self.samples = 0
         self.same_since = 0
+        self.before_last: tuple[float, ...] | None = None
+        self.alternate_since = 0
 
     def diff(self, a: tuple[float, ...], b: tuple[float, ...]) -> tuple[float, ...]:
         if self.angle:
@@ -45,6 +49,9 @@ class Track:
         """A value that passed the sanity tests: update freeze clock, noise and the smoothed track."""
         if self.last is None or v != self.last or now_ns - self.last_ns > 2 * NS:
             self.same_since = now_ns  # changed, or after a gap: a freeze is a source repeating itself
+        if self.last is None or v == self.last or v != self.before_last or now_ns - self.last_ns > 2 * NS:
+            self.alternate_since = now_ns
+        self.before_last = self.last
         if self.last is not None and 0 < now_ns - self.last_ns <= 2 * NS:
             d2 = sum(x * x for x in self.diff(v, self.last)) / (2 * len(v))
             self.samples += 1
@@ -70,7 +77,9 @@ class Track:
         return math.sqrt(self.var) if self.samples >= MIN_SAMPLES_FOR_VARIANCE else None
 
     def frozen_s(self, now_ns: int) -> float:
-        return (now_ns - self.same_since) / NS if self.last is not None else 0.0
+        """How long the source has repeated itself: one value, or a double buffer's two in turn."""
+        since = self.same_since if self.same_since < self.alternate_since else self.alternate_since
+        return (now_ns - since) / NS if self.last is not None else 0.0
 
 
 _PI = math.pi
@@ -103,6 +112,9 @@ class PlaneTrack(Track):
         gap = now_ns - self.last_ns
         if last is None or v != last or gap > 2 * NS:
             self.same_since = now_ns
+        if last is None or v == last or v != self.before_last or gap > 2 * NS:
+            self.alternate_since = now_ns
+        self.before_last = last
         if last is not None and 0 < gap <= 2 * NS:
             dn, de = v[0] - last[0], v[1] - last[1]
             d2 = (dn * dn + de * de) / 4  # (Σ d² over the 2 components) / (2 · 2)
@@ -138,6 +150,9 @@ class AngleTrack(Track):
         gap = now_ns - self.last_ns
         if last is None or v != last or gap > 2 * NS:
             self.same_since = now_ns
+        if last is None or v == last or v != self.before_last or gap > 2 * NS:
+            self.alternate_since = now_ns
+        self.before_last = last
         if last is not None and 0 < gap <= 2 * NS:
             d = _ssa(v[0] - last[0])
             d2 = d * d / 2
