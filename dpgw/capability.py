@@ -101,7 +101,7 @@ class Environment:
     def describe(self) -> str:
         parts = []
         if self.wind:
-            parts.append("wind U (1-h mean, 10 m)")
+            parts.append("wind U")
         if self.waves:
             parts.append("fully developed PM sea Hs = 0.21 U19.5²/g")
         if self.current:
