@@ -16,13 +16,17 @@ import argparse
 import json
 import math
 
-import numpy as np
-from _timing import best_of, step_latency
+from dpgw.cli import single_threaded_blas
 
-from observers.kinematics import ssa
-from observers.mmae import MMAEObserver, reference_run
-from observers.passive import PassiveObserver
-from observers.vessel import load_vessel
+single_threaded_blas()  # as `dpgw run` and `dpgw replay` run (before numpy loads): one BLAS thread
+
+import numpy as np  # noqa: E402
+from _timing import best_of, step_latency  # noqa: E402
+
+from observers.kinematics import ssa  # noqa: E402
+from observers.mmae import MMAEObserver, reference_run  # noqa: E402
+from observers.passive import PassiveObserver  # noqa: E402
+from observers.vessel import load_vessel  # noqa: E402
 
 
 def make_input(hours: float, rate: float, seed: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
