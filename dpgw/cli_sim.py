@@ -319,12 +319,6 @@ def _run_scenario(args: argparse.Namespace) -> int:
             routes.append(Route(sink, "mavlink"))
             commands.append(MavlinkCommandInput.for_drive(sink, scenario.feedback))
             print(f"MAVLink -> {sink.describe()}", file=sys.stderr)
-        if args.tlog:
-            try:
-                tlog = TlogWriter(args.tlog)
-            except OSError as exc:
-                raise OSError(f"--tlog {args.tlog}: cannot write the tlog: {exc.strerror or exc}") from None
-            print(f"MAVLink (tlog) -> {tlog.path}", file=sys.stderr)
         if args.zenoh:
             prefix = args.prefix or f"dp/{scenario.vessel.name}"
             session = open_session(
@@ -346,6 +340,12 @@ def _run_scenario(args: argparse.Namespace) -> int:
                 log = McapLogWriter(args.out, profile="dpgw-sim", flush_on_log_time=bool(args.realtime))
             except OSError as exc:
                 raise OSError(f"--out {args.out}: cannot write the log: {exc.strerror or exc}") from None
+        if args.tlog:  # last: a tlog is emptied when opened, so not before another start-up step may fail
+            try:
+                tlog = TlogWriter(args.tlog)
+            except OSError as exc:
+                raise OSError(f"--tlog {args.tlog}: cannot write the tlog: {exc.strerror or exc}") from None
+            print(f"MAVLink (tlog) -> {tlog.path}", file=sys.stderr)
     except (TransportError, BusError, OSError) as exc:
         message = exc.describe(ZENOH_FLAGS) if isinstance(exc, BusError) else str(exc)
         print(f"dpgw sim: {message}", file=sys.stderr)

@@ -214,3 +214,17 @@ def test_tlog_records_read_back_as_written(tmp_path_factory: pytest.TempPathFact
     counts = LogCounts()
     assert [(e.rx_ns // 1000, e.data) for e in tlog_events(path, "x", counts)] == written
     assert not counts.counts and w.records == len(written)
+
+
+def test_an_existing_tlog_is_left_as_it_was_when_start_up_fails(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A tlog is emptied when opened, so it is opened last: a run that stops at start-up (here Zenoh cannot
+    listen on an address this machine does not have) leaves yesterday's tlog of that name whole."""
+    old = tmp_path / "trial.tlog"
+    old.write_bytes(b"yesterday's sea trial")
+    argv = ["sim", "--scenario", "hassani", "--duration", "1", "--tlog", str(old), "--zenoh",
+            "--zenoh-listen", "tcp/192.0.2.1:7447", "--no-scouting"]  # fmt: skip
+    assert main(argv) == 2
+    assert "cannot listen on tcp/192.0.2.1:7447" in capsys.readouterr().err
+    assert old.read_bytes() == b"yesterday's sea trial"
