@@ -221,3 +221,31 @@ def test_through_a_heading_change_the_load_turns_with_the_vessel_at_once() -> No
         body = [100.0 * math.cos(psi), -100.0 * math.sin(psi), 0.0]  # Rᵀ(ψ) [100, 0]
         ca.update(0.1 * k, body, psi=psi)
         np.testing.assert_allclose(ca.load, body, atol=1e-9)
+
+
+def test_a_failing_evaluation_is_retried_each_second_not_at_every_step() -> None:
+    """A solver that raises is the caller's alarm (the pipeline words it), but the analysis must not try
+    again at every 10 Hz control step (it did: each try solves every failure case): it is retried once
+    `min_period_s` has passed, `failed` says so meanwhile, and once the solver works it is evaluated at
+    the next try whatever the load did."""
+    calls = {"n": 0, "broken": True}
+
+    def flaky(thrusters: Sequence[Thruster], tau: np.ndarray, failed: Collection[int]) -> float:
+        calls["n"] += 1
+        if calls["broken"]:
+            raise RuntimeError("capability LP: solver status 4")
+        return box(thrusters, tau, failed)
+
+    ca = ConsequenceAnalysis(THRUSTERS, flaky)  # type: ignore[arg-type]
+    tries = 0
+    for k in range(31):  # 3 s at 10 Hz, the same load
+        try:
+            ca.update(0.1 * k, [50.0, 60.0, 0.0])
+        except RuntimeError:
+            tries += 1
+        assert ca.failed
+    assert tries == 4  # at 0, 1, 2 and 3 s
+    calls["broken"] = False
+    assert ca.update(3.05, [50.0, 60.0, 0.0]) is None  # (within a second of the last try)
+    v = ca.update(4.0, [50.0, 60.0, 0.0])
+    assert v is not None and not ca.failed and v.worst is not None and v.worst.lost == (3,)

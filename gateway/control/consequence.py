@@ -164,6 +164,10 @@ class ConsequenceAnalysis:
         self._dt = math.nan
         self._alpha = 0.0
         self._tested_at: float | None = None
+        self._attempted_at: float | None = None  # (= _tested_at unless the last evaluation raised)
+        self.failed = False
+        """Whether the last evaluation raised (a solver's failure): retried every ``min_period_s``, not at
+        every control step; the caller keeps its "not evaluated" alarm up meanwhile."""
         self._tested_load = [0.0, 0.0, 0.0]
         self._tested_out: frozenset[int] = frozenset()
         self.verdict: Verdict | None = None
@@ -175,7 +179,8 @@ class ConsequenceAnalysis:
     def reset(self) -> None:
         """Forget the load (a restart, or the thrusters handed to someone else)."""
         self._mean = [0.0, 0.0, 0.0]
-        self._t = self._tested_at = None
+        self._t = self._tested_at = self._attempted_at = None
+        self.failed = False
         self.verdict = None
         self.alarm = False
         self._alarm_text = None
@@ -197,7 +202,7 @@ class ConsequenceAnalysis:
         if self._t is not None and t < self._t:
             # time went back (a restarted simulation clock): the mean starts again from τ and is tested
             # at once, not after the clock has caught up with the last test
-            self._t = self._tested_at = None
+            self._t = self._tested_at = self._attempted_at = None
         if self._t is None:
             mean[:] = (xe, ye, n)
         else:
@@ -210,7 +215,7 @@ class ConsequenceAnalysis:
                 mean[1] += a * (ye - mean[1])
                 mean[2] += a * (n - mean[2])
         self._t = t
-        if self._tested_at is not None and t - self._tested_at < self.min_period_s:
+        if self._attempted_at is not None and t - self._attempted_at < self.min_period_s:
             return None
         out = frozenset(out)
         if not self._due(t, out):
@@ -225,7 +230,7 @@ class ConsequenceAnalysis:
         return [c * xe + s * ye, -s * xe + c * ye, n]
 
     def _due(self, t: float, out: frozenset[int]) -> bool:
-        if self._tested_at is None:
+        if self._tested_at is None or self.failed:
             return True
         if t - self._tested_at >= self.max_period_s or out != self._tested_out:
             return True
@@ -234,6 +239,7 @@ class ConsequenceAnalysis:
 
     def evaluate(self, t: float, out: frozenset[int] = frozenset()) -> Verdict:
         """Test every failure case against the present load now (`update` decides when on its own)."""
+        self._attempted_at, self.failed = t, True  # (until it returns: a raise is retried a period on)
         load = np.array(self.load)
         intact = _utilisation(self.attainable(self.thrusters, load, out))
         cases = []
@@ -256,6 +262,7 @@ class ConsequenceAnalysis:
         self.verdict = verdict
         self._tested_at, self._tested_load, self._tested_out = t, self.load, out
         self._alarm_text = self._word(worst, out) if self.alarm and worst is not None else None
+        self.failed = False
         return verdict
 
     def alarm_text(self) -> str | None:
