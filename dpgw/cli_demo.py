@@ -41,8 +41,6 @@ drifts ~7 m and ~10 deg, and the integrator, which took the load while the bias 
 growing, gives it back over ~200 s (the integral pole, 0.007 rad/s): p95 4-5 m over 60-360 s, which is
 the start-up and not the station keeping. Engaged at 30 s (a third of a time constant), the hand-over
 still cost p95 3.3 m / 2.6 deg; at 150 s, 0.75 m / 1.0 deg (in-process closed loop, seed 0)."""
-ENGAGE_FALLBACK_S = 150.0
-"""The default engage time for an observer without gains to analyse (the demo's is passive: not used)."""
 HOLD_PERIOD_S = 120.0
 """Natural period of the joystick operator's slow correction of the drift off station while DP is not yet
 engaged (`Simulation.held_tau`), for a 76.2 m vessel, Froude-scaled with the vessel's length
@@ -254,25 +252,27 @@ def engages_later(args: argparse.Namespace, scenario: Any) -> bool:
 
 def engage_time(args: argparse.Namespace, observer: Any) -> float:
     """The sim second to engage DP: ``--engage-at``, or `ENGAGE_TIME_CONSTANTS` time constants of the
-    observer's slowest error mode, to the whole second."""
+    observer's slowest error mode, to the whole second. The observer is the demo's passive one
+    (`DEMO_OBSERVER`), whose tuning is checked stable when it is made: its slowest rate is negative."""
     if args.engage_at is not None:
         return float(args.engage_at)
     from observers.passive_tuning import slowest_error_rate
 
-    gains, vessel = getattr(observer, "gains", None), getattr(observer, "vessel", None)
-    if gains is None or vessel is None:
-        return ENGAGE_FALLBACK_S
-    rate = slowest_error_rate(vessel, gains)
-    return float(round(ENGAGE_TIME_CONSTANTS / -rate)) if rate < 0 else ENGAGE_FALLBACK_S
+    return float(round(ENGAGE_TIME_CONSTANTS / -slowest_error_rate(observer.vessel, observer.gains)))
 
 
 def froude_scale(scenario: Any) -> float:
-    """The demo's times for a 76.2 m vessel are this many times longer on the scenario's: √(L/76.2)."""
+    """The demo's times for the controller's reference vessel (76.2 m: its defaults are set for it) are
+    this many times longer on the scenario's: √(L/76.2), as the controller scales its own."""
+    from gateway.control.controller import REFERENCE_LENGTH_M
+
     return math.sqrt(scenario.vessel.length_m / REFERENCE_LENGTH_M)
 
 
-REFERENCE_LENGTH_M = 76.2
-"""The vessel the demo's hold period is set for (the MSS supply vessel of the default scenario)."""
+def dp_scored_from(engaged_s: float | None) -> float:
+    """The sim second station keeping is scored from: `DP_SETTLE_S` after DP was engaged (0 or None: at
+    the start), never before the estimate is scored (`SETTLE_S`)."""
+    return max(SETTLE_S, (engaged_s or 0.0) + DP_SETTLE_S)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -533,9 +533,14 @@ def summarise(
         "mode": args.mode,
         "engage_at_s": engage_s,
     }
-    refused = (status.get("commands") or {}).get("last_refused")
-    if engage_s is not None and refused and str(refused).startswith("mode"):
-        result["dp_refused"] = refused  # the operator's dp was refused (an unhealthy estimate): said why
+    commands = status.get("commands") or {}
+    if engage_s is not None and any(k.startswith("mode:") for k in commands.get("refused", {})):
+        # the operator's dp was refused (an unhealthy estimate): said why, in the gateway's words when the
+        # last refusal was that one, else by its count's key ("mode: estimate not healthy")
+        last = str(commands.get("last_refused") or "")
+        result["dp_refused"] = (
+            last if last.startswith("mode") else next(k for k in commands["refused"] if k.startswith("mode:"))
+        )
     if est and truth:
         t0 = truth[0][0]
         te = (np.array([e[0] for e in est]) - t0) / 1e9
@@ -570,9 +575,8 @@ def station_keeping(log: list[str], t_truth: Any, eta_truth: Any, t0_ns: int) ->
         return None
     t_cmd = (np.array([c[0] for c in cmds]) - t0_ns) / 1e9
     ref = np.array([c[1]["reference"] for c in cmds], dtype=float)
-    # DP is scored from DP_SETTLE_S after it was engaged (its first command), never before the estimate
-    engaged = float(t_cmd[0])
-    keep = t_cmd >= max(SETTLE_S, engaged + DP_SETTLE_S)
+    engaged = float(t_cmd[0])  # (its first command)
+    keep = t_cmd >= dp_scored_from(engaged)
     if keep.sum() < 10:
         return None
     true_at = truth_at(t_cmd[keep], t_truth, eta_truth)
@@ -687,8 +691,8 @@ def print_summary(r: dict[str, Any]) -> None:
         )
     else:
         engage = r.get("engage_at_s")
-        # scored from max(SETTLE_S, engaged + DP_SETTLE_S), on at least a few seconds of commands
-        need = math.ceil(max(SETTLE_S, (engage or 0.0) + DP_SETTLE_S)) + 10
+        scored_from = dp_scored_from(engage)
+        need = math.ceil(scored_from) + 10  # (on at least a few seconds of commands)
         when = f"DP engaged at {engage:.0f} s" if engage is not None else "DP from the start"
         ended = "before DP was engaged" if engage is not None and r["sim_seconds"] < engage else ""
         todo = f"give --duration {need} or more (default {DEFAULT_DURATION_S:.0f})"
@@ -696,7 +700,7 @@ def print_summary(r: dict[str, Any]) -> None:
             todo += ", or --engage-at 0 for DP from the start"
         print(
             f"  station keeping: not scored: the run ended at {r['sim_seconds']:.0f} s{' ' if ended else ''}"
-            f"{ended}; with {when} it is scored from {max(SETTLE_S, (engage or 0.0) + DP_SETTLE_S):.0f} s; "
+            f"{ended}; with {when} it is scored from {scored_from:.0f} s; "
             f"{todo}"
         )
     lag = r.get("fix_stamp_lag_s")

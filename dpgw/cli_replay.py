@@ -503,14 +503,25 @@ class _WaveEvidence:
         from gateway.report.wave_check import check_wave_tuning
 
         t = (np.array(self.stamps, dtype=np.int64) - (self.stamps[0] if self.stamps else 0)) / 1e9
-        y = np.array([[np.nan if v is None else v for v in e] for e in self.eta], dtype=float).reshape(-1, 3)
-        if len(self.new) == len(y):
-            # only what the fusion received, as the report's measurement: a DOF held between two
-            # samples of another sensor is a staircase whose steps are a spectral line of their own (the
-            # 10 Hz heading held at the 10 Hz fixes 20 ms later read as a 15.7 rad/s "wave peak")
-            y[~np.array(self.new, dtype=bool).reshape(-1, 3)] = np.nan
+        # only what the fusion received, as the report's measurement: a DOF held between two samples of
+        # another sensor is a staircase whose steps are a spectral line of their own (the 10 Hz heading
+        # held at the 10 Hz fixes 20 ms later read as a 15.7 rad/s "wave peak")
+        y = _received_only(
+            np.array([[np.nan if v is None else v for v in e] for e in self.eta], dtype=float).reshape(-1, 3),
+            self.new,
+        )
         w0 = {label: np.array(w, dtype=float) for label, w in self.omega0.items()}
         return check_wave_tuning(t, y, wave_band_for_length(vessel_length_m, model_scale), w0, kinds)
+
+
+def _received_only(y: Any, new: list[tuple[bool, bool, bool]]) -> Any:
+    """The fused measurements ``y`` (n, 3) with NaN where a DOF was held, not received since the step
+    before (`_WaveEvidence.new`); as they are when ``new`` is not of the same length (no fusion seen)."""
+    import numpy as np
+
+    if len(new) == len(y):
+        y[~np.array(new, dtype=bool).reshape(-1, 3)] = np.nan
+    return y
 
 
 class _StopRequestedError(Exception):
@@ -700,9 +711,9 @@ def _report(
         return []
     t0 = meas[0]["stamp_ns"]
     t_meas = (np.array([m["stamp_ns"] for m in meas], dtype=np.int64) - t0) / 1e9
-    y = np.array([[np.nan if v is None else v for v in m["eta"]] for m in meas], dtype=float)
-    if len(new) == len(y):
-        y[~np.array(new, dtype=bool)] = np.nan
+    y = _received_only(
+        np.array([[np.nan if v is None else v for v in m["eta"]] for m in meas], dtype=float), new
+    )
     traces = []
     for spec, topic in zip(
         specs, ["/dp/estimate", *(f"/dp/estimates/{x.label}" for x in specs[1:])], strict=True

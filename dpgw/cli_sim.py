@@ -217,15 +217,27 @@ def tlog_path_problem(args: argparse.Namespace) -> str | None:
         return f"--tlog {args.tlog}: a folder, not a file: give a file in it, e.g. {path / 'trial.tlog'}"
     if path.suffix == ".mcap" or (args.out and path.resolve() == Path(args.out).resolve()):
         return f"--tlog {args.tlog}: a tlog is not an MCAP log: give another name, e.g. {path.stem}.tlog"
-    for option, url in [
-        ("--nmea", u.partition("=")[2] if "=" in u.split("://")[0] else u) for u in args.nmea
-    ] + [("--mavlink", args.mavlink or "")]:
-        if url.startswith("file://") and Path(url[len("file://") :]).resolve() == path.resolve():
+    outputs = [("--nmea", _parse_route(spec, "nmea")[0]) for spec in args.nmea]
+    for option, url in outputs + ([("--mavlink", args.mavlink)] if args.mavlink else []):
+        written = _file_of(url)
+        if written is not None and written.resolve() == path.resolve():
             return (
                 f"--tlog {args.tlog}: {option} {url} writes to the same file: two writers would interleave "
-                f"their bytes in it; give the tlog another name, e.g. {path.stem}.tlog"
+                f"their bytes in it; give the tlog another name, e.g. {path.stem}-mavlink.tlog"
             )
     return missing_folder("--tlog", args.tlog)
+
+
+def _file_of(url: str) -> Path | None:
+    """The file a sink URL writes (``file:///PATH`` or a plain path, as `open_sink` reads it), else None
+    (another transport, or a URL that does not parse: `open_sink` says why when it opens it)."""
+    from wire.urls import SINK_OPTIONS, UrlError, parse_url
+
+    try:
+        ep = parse_url(url.strip(), options=SINK_OPTIONS, bare_path="file")
+    except UrlError:
+        return None
+    return Path(ep.path) if ep.scheme == "file" else None
 
 
 def _session_options(args: argparse.Namespace) -> tuple[tuple[str, object], ...]:

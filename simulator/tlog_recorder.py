@@ -44,6 +44,3 @@ class TlogRecorder:
     @property
     def records(self) -> int:
         return self.writer.records
-
-    def close(self) -> None:
-        self.writer.close()

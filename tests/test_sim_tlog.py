@@ -175,6 +175,10 @@ def test_dpgw_sim_nmea_text_and_tlog_replay_as_the_sims_own_log(
         ),
         (["--scenario", "hassani", "--mavlink", "file://{d}/x.tlog", "--tlog", "{d}/x.tlog"], "--mavlink"),
         (
+            ["--scenario", "hassani", "--nmea", "{d}/x.tlog", "--tlog", "{d}/x.tlog"],
+            "writes to the same file",
+        ),
+        (
             ["--vessel", "mss_osv", "--inputs", "{d}/in.csv", "--tlog", "{d}/x.tlog"],
             "--tlog: only with --scenario",
         ),

@@ -80,10 +80,13 @@ def consequence_line(config: GatewayConfig) -> str:
         return "consequence analysis off (consequence.enabled = false)"
     if not q.failure_groups:
         return "consequence analysis in dp: each thruster lost alone"
+    # (imported here: the analysis brings the LP solvers, which a config's loading does not need)
+    from gateway.control.consequence import failure_cases
+
     groups = ", ".join("+".join(str(i) for i in g) for g in q.failure_groups)
-    grouped = {i for g in q.failure_groups for i in g}
-    alone = ", ".join(str(t.id) for t in config.vessel.thrusters if t.id not in grouped)
-    # (a thruster in no group is still a failure case alone: `consequence.failure_cases`)
+    # the cases after the groups: each thruster in no group, lost alone
+    cases = failure_cases([t.id for t in config.vessel.thrusters], q.failure_groups)
+    alone = ", ".join(str(c[0]) for c in cases[len(q.failure_groups) :])
     return f"consequence analysis in dp: thrusters {groups} lost together" + (
         f"; {alone} alone" if alone else ""
     )

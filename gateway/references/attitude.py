@@ -124,6 +124,18 @@ class AttitudeLimits:
         )
 
 
+class FreezeRun:
+    """A run of samples each equal to an earlier one (the previous, or the one two back): since when, and
+    how long it may last (`AttitudeTrack.freeze_hold_ns`, fixed at its start); ``what`` it is, in words."""
+
+    __slots__ = ("hold_ns", "since_ns", "what")
+
+    def __init__(self, what: str) -> None:
+        self.what = what
+        self.since_ns = 0
+        self.hold_ns = 0
+
+
 class AttitudeTrack:
     """What the tests of one MRU remember: its previous sample, its latest rate, since when its values
     repeat (and how long they may), how often they repeat, the sample before a jump not yet judged, and
@@ -134,13 +146,12 @@ class AttitudeTrack:
         self.last_ns = 0  # receive time of the previous sample judged possible (in range)
         self.prev: tuple[float, float, float | None] | None = None  # (roll, pitch, UTC s of day)
         self.rate = (0.0, 0.0)  # (roll, pitch) rate between the last two samples that did not jump, rad/s
-        self.same_since_ns = 0
-        # the sample before ``prev`` (roll, pitch), and since when every sample equals the one two back (a
-        # frozen double buffer alternates between its two values: no sample repeats the previous one)
+        # the sample before ``prev`` (roll, pitch): a frozen double buffer alternates between its two
+        # values, so no sample repeats the previous one, but each the one two back
         self.prev2: tuple[float, float] | None = None
-        self.alternate_since_ns = 0
-        self.alternate_hold_ns = 0
-        self.hold_ns = 0  # how long the present run of repeats may last (`freeze_hold_ns` at its start)
+        # the freeze test's two runs: samples repeating the previous one, and the one two back
+        self.repeats = FreezeRun("the same roll and pitch")
+        self.alternation = FreezeRun("roll and pitch alternate between the same two values")
         self.repeat = 0.5  # share of passing samples that repeat the previous (EMA, `ACTIVITY_TAU_S`)
         self.learned = 0  # passing samples learned from (the EMA is their mean while its gain is lower)
         # after a failed jump: (roll, pitch) expected had there been none (the sample before it moved on by
@@ -182,29 +193,19 @@ class AttitudeTrack:
             if abs(v) > lim.max_rad:  # (not remembered: the next sample is judged against a possible one)
                 return f"range: {axis} {v / DEG:.1f}° beyond ±{lim.max_rad / DEG:g}°"
         same = prev is not None and (roll, pitch) == prev[:2]
-        alternate = not same and (roll, pitch) == self.prev2
-        if not same:
-            self.same_since_ns = now_ns
-        if not alternate:
-            self.alternate_since_ns = now_ns
+        runs = ((self.repeats, same), (self.alternation, not same and (roll, pitch) == self.prev2))
+        for run, goes_on in runs:
+            if not goes_on:
+                run.since_ns = now_ns
         self.prev2 = None if prev is None else (prev[0], prev[1])
         self.prev, self.last_ns = (roll, pitch, utc_s), now_ns
         why = self._judge(lim, now_ns - last_ns, roll, pitch, prev, utc_s, sigmas)
         # (the holds after the jump test, which learns the sample interval they are counted in)
-        if not same:
-            self.hold_ns = self.freeze_hold_ns(lim)
-        elif not why:
-            frozen_ns = now_ns - self.same_since_ns
-            if frozen_ns >= self.hold_ns:
-                why = f"freeze: the same roll and pitch for {frozen_ns / NS:.1f} s"
-        if not alternate:
-            self.alternate_hold_ns = self.freeze_hold_ns(lim)
-        elif not why:
-            frozen_ns = now_ns - self.alternate_since_ns
-            if frozen_ns >= self.alternate_hold_ns:
-                why = (
-                    f"freeze: roll and pitch alternate between the same two values for {frozen_ns / NS:.1f} s"
-                )
+        for run, goes_on in runs:
+            if not goes_on:
+                run.hold_ns = self.freeze_hold_ns(lim)
+            elif not why and now_ns - run.since_ns >= run.hold_ns:
+                why = f"freeze: {run.what} for {(now_ns - run.since_ns) / NS:.1f} s"
         if not why and prev is not None:
             self._learn(same)
         return why
