@@ -655,9 +655,9 @@ def _summary(
 
 def default_settle_s(duration_s: float) -> float:
     """The report's rule (`gateway.report`), so that the summary and the report leave out the same start."""
-    from gateway.report.metrics import SETTLE_FRACTION, SETTLE_MAX_S
+    from gateway.report.metrics import default_settle_s as report_rule
 
-    return min(SETTLE_MAX_S, SETTLE_FRACTION * duration_s)
+    return report_rule(duration_s)
 
 
 def _print(s: dict[str, Any]) -> None:

@@ -387,8 +387,8 @@ def _run_scenario(args: argparse.Namespace) -> int:
     def on_signal(signum: int, _frame: object) -> None:
         stop["now"] = True
 
-    signal.signal(signal.SIGINT, on_signal)
-    signal.signal(signal.SIGTERM, on_signal)
+    # restored on the way out: `main` also runs in-process (tests, a notebook), whose handlers stay theirs
+    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     duration = args.duration if args.duration is not None else scenario.duration_s
     bar = _progress_bar(duration) if sys.stderr.isatty() and not args.json else None
     try:
@@ -399,6 +399,8 @@ def _run_scenario(args: argparse.Namespace) -> int:
                 bar.n = round(sim.t)
                 bar.refresh()
     finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
         if bar is not None:
             bar.close()
         for s in sinks:

@@ -74,6 +74,8 @@ def test_replay_settle_default_is_the_one_used() -> None:
     assert f"{SETTLE_FRACTION:.0%}".replace("%", " %") in help_text.replace("%%", "%")
     assert f"{SETTLE_MAX_S:.0f} s" in help_text
     assert default_settle_s(100.0) == pytest.approx(10.0) and default_settle_s(3600.0) == SETTLE_MAX_S
+    # a 10 Hz span of 300 s ends one interval short: its settle time reads 30 s, not 29.99 s
+    assert default_settle_s(299.9) == 30.0
 
 
 @pytest.mark.skipif(shutil.which("jq") is None, reason="jq not installed")

@@ -6,6 +6,7 @@ import json
 import math
 import os
 import select
+import signal
 import socket
 import subprocess
 import sys
@@ -20,6 +21,7 @@ import pytest
 import serial
 from conftest import wait_for
 
+from dpgw.cli import main as cli_main
 from simulator.faults import Fault
 from simulator.runner import Route, Simulation
 from simulator.scenarios import SCENARIOS, get_scenario
@@ -521,3 +523,22 @@ def test_a_paused_realtime_simulator_continues_where_it_was_not_in_a_burst() -> 
     # from where it was, at its speed (a burst would add the 12 s of the pause)
     assert 0.0 < advanced <= speed * elapsed + 1.5, (advanced, elapsed)
     assert proc.returncode == 0
+
+
+def test_sim_in_process_gives_back_the_signal_handlers(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`dpgw sim` run in-process (a test, a notebook) catches SIGINT and SIGTERM to stop cleanly, and puts
+    the caller's handlers back when it returns: Ctrl-C in the caller afterwards is the caller's again."""
+
+    def mine(_signum: int, _frame: object) -> None:
+        pass
+
+    before = {sig: signal.signal(sig, mine) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        argv = ["sim", "--scenario", "hassani", "--duration", "2", "--seed", "1"]
+        assert cli_main([*argv, "--out", str(tmp_path / "s.mcap"), "--json"]) == 0
+        assert signal.getsignal(signal.SIGINT) is mine and signal.getsignal(signal.SIGTERM) is mine
+    finally:
+        for sig, handler in before.items():
+            signal.signal(sig, handler)

@@ -37,6 +37,13 @@ WELCH_PERIODS = 8
 MAX_GAP_SAMPLES = 4.0
 
 
+def default_settle_s(duration_s: float) -> float:
+    """The start left out of the metrics when no settle time is given: SETTLE_FRACTION of the span, at most
+    SETTLE_MAX_S, to 0.1 s (a 299.9 s span, its last sample one interval short of 300 s, settles after
+    30.0 s, not a spurious-looking 29.99 s)."""
+    return round(min(SETTLE_MAX_S, SETTLE_FRACTION * duration_s), 1)
+
+
 def _interp(t_query: Array, t: Array, x: Array, angle: bool = False) -> Array:
     """Linear interpolation over the finite samples of x; an angle through its unwrapped value, then ssa.
 
@@ -110,7 +117,7 @@ def analyse(data: ReplayData, wave_band: tuple[float, float] | None, settle_s: f
     t1 = float(max(ends)) if ends else 0.0
     duration = t1 - t0
     if settle_s is None:
-        settle_s = min(SETTLE_MAX_S, SETTLE_FRACTION * duration)
+        settle_s = default_settle_s(duration)
     settle_t = t0 + settle_s
 
     if wave_band is None:
