@@ -70,8 +70,9 @@ DEFAULT_SCENARIO = "torsetnes_2004"
 # Plain text: argparse prints it as written (the module docstring's markup would show).
 DESCRIPTION = (
     "The simulator on real loopback transports feeding the gateway, on this machine. The simulated DGPS "
-    "speaks NMEA over UDP, the gyro over a pty (a virtual serial port), the thrusters MAVLink over UDP; the "
-    "gateway reads them exactly as it would on a vessel, runs the observer, publishes on Zenoh (peer mode: "
+    "speaks NMEA over UDP, the gyro over a pty (a virtual serial port), the thrusters MAVLink over UDP "
+    "(signed both ways with a key made for the run, as a vessel's link should be); the gateway reads them "
+    "exactly as it would on a vessel, runs the observer, publishes on Zenoh (peer mode: "
     "'dpgw listen' in another terminal sees it) and logs to demo.mcap: raw input, estimates and the "
     "simulator's ground truth in one file, so 'dpgw replay demo.mcap' can re-run and score it. The vessel "
     "runs --speed times faster than real time; the simulator publishes its time on Zenoh "
