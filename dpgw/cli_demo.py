@@ -70,8 +70,9 @@ DEFAULT_SCENARIO = "torsetnes_2004"
 # Plain text: argparse prints it as written (the module docstring's markup would show).
 DESCRIPTION = (
     "The simulator on real loopback transports feeding the gateway, on this machine. The simulated DGPS "
-    "speaks NMEA over UDP, the gyro over a pty (a virtual serial port), the thrusters MAVLink over UDP; the "
-    "gateway reads them exactly as it would on a vessel, runs the observer, publishes on Zenoh (peer mode: "
+    "speaks NMEA over UDP, the gyro over a pty (a virtual serial port), the thrusters MAVLink over UDP "
+    "(signed both ways with a key made for the run, as a vessel's link should be); the gateway reads them "
+    "exactly as it would on a vessel, runs the observer, publishes on Zenoh (peer mode: "
     "'dpgw listen' in another terminal sees it) and logs to demo.mcap: raw input, estimates and the "
     "simulator's ground truth in one file, so 'dpgw replay demo.mcap' can re-run and score it. The vessel "
     "runs --speed times faster than real time; the simulator publishes its time on Zenoh "
@@ -164,7 +165,11 @@ def foxglove_server(args: argparse.Namespace) -> tuple[Any, str] | None:
         return sink, f" ({DEFAULT_PORT} is in use)"
 
 
-def demo_config(scenario: Any, pty_device: str, args: argparse.Namespace) -> dict[str, Any]:
+def demo_config(
+    scenario: Any, pty_device: str, args: argparse.Namespace, signing_key: bytes | None = None
+) -> dict[str, Any]:
+    """The gateway's config tables for the demo. ``signing_key``: the thruster link's MAVLink 2 key (the
+    demo's own, `run`); without one (a test of the other tables) the link is configured unsigned."""
     from dpgw.closed_loop import with_scenario_observer
     from gateway.config import default_config
 
@@ -218,8 +223,12 @@ def demo_config(scenario: Any, pty_device: str, args: argparse.Namespace) -> dic
                 "protocol": "mavlink",
                 "roles": ["thrusters"],
                 "commands": True,  # the dialect's AZIMUTH_THRUSTER_COMMAND back down the same link
-                # loopback between two processes of this demo: no signing (a vessel's link would be signed)
-                "allow_unsigned": True,
+                # signed, as a vessel's link should be: the demo's key for this run (`run`)
+                **(
+                    {"signing_key": signing_key.hex()}
+                    if signing_key is not None
+                    else {"allow_unsigned": True}
+                ),
                 # the simulated drive: only its frames are used, and the commands are addressed to it
                 "system_id": scenario.feedback.system_id,
                 "component_id": scenario.feedback.component_id,
@@ -276,6 +285,7 @@ def dp_scored_from(engaged_s: float | None) -> float:
 
 
 def run(args: argparse.Namespace) -> int:
+    import secrets
     import signal
     import threading
     from dataclasses import replace
@@ -306,8 +316,13 @@ def run(args: argparse.Namespace) -> int:
     pty = PtySink()
     sinks: list[Any] = [pty]
     foxglove = None
+    # The thruster link is MAVLink 2 signed with a key made for this run: the gateway signs its commands
+    # and takes only signed feedback, the simulated drives sign theirs and take only signed commands. The
+    # simulator runs in this process (a thread), so the key goes to it in memory: never on a command
+    # line, in the environment or in a file; the log keeps the config without it (`GatewayService`).
+    signing_key = secrets.token_bytes(32)
     try:
-        tables = demo_config(scenario, pty.device, args)
+        tables = demo_config(scenario, pty.device, args, signing_key)
         config = parse_config(tables, base_dir=Path.cwd(), where="dpgw demo")
         foxglove = foxglove_server(args)
         outputs = [foxglove[0]] if foxglove is not None else []
@@ -367,7 +382,7 @@ def run(args: argparse.Namespace) -> int:
         sinks.append(mav_sink)
         routes.append(Route(watched(mav_sink, "thrusters"), "mavlink"))
         # the loop closes over the MAVLink link (the thrusters port exists only with feedback)
-        commands.append(MavlinkCommandInput.for_drive(mav_sink, scenario.feedback))
+        commands.append(MavlinkCommandInput.for_drive(mav_sink, scenario.feedback, signing_key=signing_key))
     elif args.mode == "dp" and service._session is not None:
         commands.append(ZenohCommandInput(service._session, config.zenoh.prefix))  # τ for layout-less ships
     clock = RealtimeClock(speed=args.speed)
@@ -395,6 +410,7 @@ def run(args: argparse.Namespace) -> int:
         clock=clock,
         log_raw=False,  # the gateway logs what it received; the simulator adds the truth
         commands=commands,
+        signing_key=signing_key,
     )
 
     def lowered(old: float, new: float, delay: float) -> None:
@@ -483,6 +499,12 @@ def run(args: argparse.Namespace) -> int:
         "pauses": publisher.pauses,
         "paused_s": publisher.paused_s,
     }
+    mav_commands = next((c for c in commands if isinstance(c, MavlinkCommandInput)), None)
+    if mav_commands is not None:  # the drives' side of the signed link (the gateway's is in "sources")
+        summary["thruster_link"] = {
+            "signed": mav_commands.signed,
+            "commands_rejected": dict(mav_commands.rejected),
+        }
     summary["interrupted"] = interrupted.is_set()
     if args.json:
         print(cli_json.dumps(summary, indent=2))
@@ -649,6 +671,11 @@ def print_summary(r: dict[str, Any]) -> None:
         if c.get("warnings"):  # used, with a caveat
             rej += "; warnings: " + ", ".join(f"{k} {v}" for k, v in c["warnings"].items())
         print(f"  {name:12s} {r['sent'].get(name, 0):8d} {c['received']:9d}  {rej}")
+    link = r.get("thruster_link")
+    if link is not None:
+        rejected = ", ".join(f"{k} {v}" for k, v in sorted(link["commands_rejected"].items())) or "none"
+        signed = "MAVLink 2 signed with a key made for this run" if link["signed"] else "unsigned"
+        print(f"  thruster link: {signed}; command frames the drives rejected: {rejected}")
     print(f"  estimates published: {r['estimates']}")
     e = r.get("error_vs_truth")
     if e and e["samples"]:

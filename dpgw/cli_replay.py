@@ -172,6 +172,7 @@ def run(args: argparse.Namespace) -> int:
         parse_observer_spec,
         run_replay,
         runs_its_own_controller,
+        unchecked_signatures,
     )
     from observers.passive_tuning import TuningError
     from observers.vessel import VesselError
@@ -313,6 +314,9 @@ def run(args: argparse.Namespace) -> int:
     summary["wave_check"] = evidence.check(config.vessel.length_m, config.vessel.model_scale, kinds).as_dict()
     summary["measurements"] = evidence.measured()
     summary["cut_logs"] = cut_logs(inputs)
+    # a signed link's key is not in the log: its frames are replayed as the live gateway took them,
+    # signatures unchecked (docs/gateway.md, "Replay of a signed link")
+    summary["signatures_unchecked"] = unchecked_signatures(inputs) if args.config is None else {}
     if args.report:
         written = _report(args, config.vessel.name, specs, result, evidence.new)
         summary["report"] = [str(p) for p in written]
@@ -329,6 +333,19 @@ def run(args: argparse.Namespace) -> int:
         _print(summary)
     for warning in [*_cut(summary), *_no_estimates(summary), *summary["wave_check"]["warnings"]]:
         print(f"dpgw replay: warning: {warning}", file=sys.stderr)
+    for source, live in summary["signatures_unchecked"].items():
+        rejected = sum(live.values())
+        print(
+            f"dpgw replay: note: {source}: MAVLink signatures not checked (a log never holds the signing "
+            "key); "
+            + (
+                "the live gateway rejected no frame for its signature: the same frames as live"
+                if not rejected
+                else f"the live gateway rejected {rejected} frames for their signature "
+                f"({', '.join(f'{k} {v}' for k, v in live.items() if v)}), which this replay took"
+            ),
+            file=sys.stderr,
+        )
     return 0
 
 

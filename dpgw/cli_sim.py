@@ -79,6 +79,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "write: each frame after its 8-byte time), timed in the simulation's UTC like the NMEA sentences, "
         "so 'dpgw replay' merges it with an --nmea file:// text log; with or without --mavlink",
     )
+    p.add_argument(
+        "--signing-key-file",
+        metavar="FILE",
+        help="MAVLink 2 signing for the simulated thruster drives: FILE holds the key as the gateway "
+        "config's signing_key (64 hexadecimal characters; keep it chmod 600). The drives then sign every "
+        "frame they send and take only thruster commands signed with this key; unsigned or badly signed "
+        "ones are counted (commands_rejected in the summary) and the first of each kind is logged. Not "
+        "the key itself on the command line: other users see a command line in ps (docs/simulator.md)",
+    )
     p.add_argument("--realtime", action="store_true", help="pace in real time (default: as fast as possible)")
     p.add_argument(
         "--speed",
@@ -175,6 +184,7 @@ def run(args: argparse.Namespace) -> int:
             ("--gyro-rate", args.gyro_rate),
             ("--faults", args.faults),
             ("--ardupilot", args.ardupilot),
+            ("--signing-key-file", args.signing_key_file),
             ("--zenoh", args.zenoh),
             *_session_options(args),
         )
@@ -299,6 +309,18 @@ def _run_scenario(args: argparse.Namespace) -> int:
                 f"--tlog {args.tlog}: {args.scenario} has no thrusters that report: it sends no MAVLink to "
                 "record (the scenarios' sensors are listed in docs/simulator.md)"
             )
+        signing_key = None
+        if args.signing_key_file is not None:
+            if scenario.feedback is None:
+                raise ValueError(
+                    f"--signing-key-file: {args.scenario} has no thrusters that report: it sends no MAVLink "
+                    "to sign (the scenarios' sensors are listed in docs/simulator.md)"
+                )
+            from dpgw.signing_key import read_key_file
+
+            signing_key, warning = read_key_file("--signing-key-file", args.signing_key_file)
+            if warning:
+                print(f"dpgw sim: warning: {warning}", file=sys.stderr)
         if args.ardupilot and scenario.feedback is not None:
             scenario = replace(
                 scenario,
@@ -312,6 +334,7 @@ def _run_scenario(args: argparse.Namespace) -> int:
     sinks: list[Sink] = []
     routes: list[Route] = []
     commands: list[CommandInput] = []
+    mav_commands: MavlinkCommandInput | None = None
     session = None
     log = None
     tlog: TlogWriter | None = None
@@ -329,8 +352,10 @@ def _run_scenario(args: argparse.Namespace) -> int:
             sink = open_sink(args.mavlink)
             sinks.append(sink)
             routes.append(Route(sink, "mavlink"))
-            commands.append(MavlinkCommandInput.for_drive(sink, scenario.feedback))
-            print(f"MAVLink -> {sink.describe()}", file=sys.stderr)
+            mav_commands = MavlinkCommandInput.for_drive(sink, scenario.feedback, signing_key=signing_key)
+            commands.append(mav_commands)
+            signed = " (signed; signed commands only)" if signing_key is not None else ""
+            print(f"MAVLink -> {sink.describe()}{signed}", file=sys.stderr)
         if args.zenoh:
             prefix = args.prefix or f"dp/{scenario.vessel.name}"
             session = open_session(
@@ -372,7 +397,9 @@ def _run_scenario(args: argparse.Namespace) -> int:
     clock: Clock = (
         RealtimeClock(speed=args.speed, resync_lag_s=RESYNC_LAG_S) if args.realtime else VirtualClock()
     )
-    sim = Simulation(scenario, args.seed, routes=routes, log=log, clock=clock, commands=commands)
+    sim = Simulation(
+        scenario, args.seed, routes=routes, log=log, clock=clock, commands=commands, signing_key=signing_key
+    )
     recorder = None
     if tlog is not None:  # stamped with the simulation's own epoch: the NMEA sentences' UTC
         recorder = sim.on_emit = TlogRecorder(tlog, sim.epoch)
@@ -412,6 +439,9 @@ def _run_scenario(args: argparse.Namespace) -> int:
         if session is not None:
             session.close()
     summary = sim.summary.as_dict()
+    summary["signed"] = signing_key is not None
+    commands_rejected = dict(mav_commands.rejected) if mav_commands is not None else {}
+    summary["commands_rejected"] = commands_rejected
     summary["interrupted"] = stop["now"]
     if args.out:
         summary["log"] = args.out
@@ -433,6 +463,11 @@ def _run_scenario(args: argparse.Namespace) -> int:
             print(f"  {source:12s} {n:8d} frames  {sim.summary.bytes_sent[source]:10d} bytes")
         if sim.summary.commands_applied:
             print(f"  thruster commands applied: {sim.summary.commands_applied}")
+        if commands_rejected:
+            rejected = ", ".join(f"{k} {v}" for k, v in sorted(commands_rejected.items()))
+            print(f"  thruster command frames rejected: {rejected}")
+        if signing_key is not None:
+            print("  thruster MAVLink signed (MAVLink 2 signing, link id 0)")
         if args.out:
             print(f"  log: {args.out} ({sim.summary.truth_records} truth records)")
         if recorder is not None:

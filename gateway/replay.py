@@ -32,6 +32,7 @@ from typing import Any
 from mcap.reader import make_reader
 
 from gateway.config import GatewayConfig, default_config, parse_config
+from gateway.config.logged import unlogged_key_sources, without_unlogged_keys
 from gateway.logreaders import LogCounts, nmea_text_events, nmea_text_events_reference, tlog_events
 from gateway.pipeline import USED_NMEA, ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from observers.factory import (
@@ -379,7 +380,7 @@ def _as_replayed(tables: dict[str, Any]) -> dict[str, Any]:
     commands (and an unsigned link's ``allow_unsigned``, which only allowed that, goes too). A log written
     before ``[commands]`` existed came from a gateway that took every command input: so does its replay,
     or the replay would refuse the setpoints and modes the live run obeyed."""
-    out = dict(tables)
+    out = without_unlogged_keys(tables)
     sources = []
     for src in out.get("sources", []):
         if isinstance(src, dict) and src.get("commands"):
@@ -391,6 +392,33 @@ def _as_replayed(tables: dict[str, Any]) -> dict[str, Any]:
         out["sources"] = sources
     out.setdefault("commands", {"accept": ["mode", "setpoint", "tau"]})
     return out
+
+
+def unchecked_signatures(inputs: list[Input]) -> dict[str, dict[str, int]]:
+    """The sources of the logged config `build_config` replays whose MAVLink signing key the log does not
+    hold (`gateway.config.logged`): their frames are replayed with their signatures unchecked. Per source,
+    the frames the live gateway rejected for signing (``bad_signature``, ``unsigned``), from the last
+    ``/dp/status`` of the logs: those the replay takes and the live run did not (none: the same frames)."""
+    for inp in inputs:
+        if inp.kind == "mcap" and (tables := logged_config(inp.path)) is not None:
+            names = unlogged_key_sources(tables)
+            break
+    else:
+        return {}
+    if not names:
+        return {}
+    last: dict[str, Any] = {}
+    logs = [inp.path for inp in inputs if inp.kind == "mcap"]
+    for _, _, _, status in read_messages(logs, "/dp/status"):
+        last = status
+    counts = last.get("sources", {}) if isinstance(last, dict) else {}
+    return {
+        name: {
+            reason: int((counts.get(name) or {}).get("rejected", {}).get(reason, 0))
+            for reason in ("bad_signature", "unsigned")
+        }
+        for name in names
+    }
 
 
 def build_config(
@@ -522,7 +550,7 @@ def config_from_log(path: str | Path, base_dir: Path | None = None) -> GatewayCo
     data = logged_config(path)
     if data is None:
         raise ValueError(f"{path}: no dpgw configuration in the log's metadata (give --config)")
-    data = {**data, "log": {"path": ""}}
+    data = {**without_unlogged_keys(data), "log": {"path": ""}}
     return parse_config(data, base_dir=base_dir or Path(path).resolve().parent, where=f"{path} metadata")
 
 

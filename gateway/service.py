@@ -43,6 +43,7 @@ import zenoh
 
 from gateway.bus import JSON, REDIAL_S, Dialler, UnreachableError, command_acl, make_config, open_session
 from gateway.config import GatewayConfig, ZenohConfig, config_notes, wind_feedforward_line
+from gateway.config.logged import for_log
 from gateway.outputs import InputSink, OutputSink, RawSentenceSink
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from gateway.sim_time import SimTime
@@ -240,8 +241,8 @@ class GatewayService:
             if self._log_path:
                 self.log = _open_log(self._log_path, self.config.log.writer_options())
                 meta = {"vessel": self.config.vessel.name, "prefix": self.prefix}
-                if self.config_tables is not None:  # lets replay rebuild exactly this pipeline
-                    meta["json"] = json.dumps(self.config_tables)
+                if self.config_tables is not None:  # lets replay rebuild exactly this pipeline (no keys)
+                    meta["json"] = json.dumps(for_log(self.config_tables))
                 self.log.add_metadata("dpgw.config", meta)
         except BaseException:
             self.close()

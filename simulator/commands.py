@@ -9,6 +9,7 @@ peers send back on the simulator's UDP/TCP/pty MAVLink sink), and JSON on Zenoh
 from __future__ import annotations
 
 import json
+import logging
 import math
 import threading
 from collections import Counter
@@ -16,7 +17,13 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from simulator.transports import Sink
-from wire.codecs.mavlink import AZIMUTH_THRUSTER_COMMAND_ID, FrameParser, dialect
+from wire.codecs.mavlink import AZIMUTH_THRUSTER_COMMAND_ID, FrameParser, dialect, encoder, setup_signing
+
+log = logging.getLogger(__name__)
+
+SIGNING_REASONS = ("unsigned", "bad_signature")
+"""`FrameParser.rejected` reasons of a drive with a key: a frame without a signature, or with a wrong one
+(another key, altered bytes, or a timestamp older than the stream's last: a replayed frame)."""
 
 if TYPE_CHECKING:
     from simulator.sensors import ThrusterFeedbackConfig
@@ -46,29 +53,65 @@ class MavlinkCommandInput:
     As the drive it stands in for: a command addressed to another system or component (``target_system``
     / ``target_component`` neither 0, broadcast, nor this drive's ``system_id`` / ``component_id``) is
     not taken, only counted (``rejected["other target"]``): on a link shared with other vehicles it is
-    theirs."""
+    theirs.
 
-    def __init__(self, sink: Sink, system_id: int | None = None, component_id: int | None = None) -> None:
+    With a ``signing_key`` (32 bytes, MAVLink 2 signing) it takes only frames signed with that key: an
+    unsigned frame is counted ``rejected["unsigned"]``, a wrong signature or a replayed (not newer)
+    timestamp ``rejected["bad_signature"]``, and the first of each per peer is logged with its first
+    bytes. One signing state serves every peer, so a frame recorded from one address and replayed from
+    another is still old. Without a key every frame is taken (signed ones unchecked), as before."""
+
+    def __init__(
+        self,
+        sink: Sink,
+        system_id: int | None = None,
+        component_id: int | None = None,
+        *,
+        signing_key: bytes | None = None,
+    ) -> None:
         self.sink = sink
         self.system_id = system_id
         self.component_id = component_id
         self.parsers: dict[str, FrameParser] = {}
-        self.rejected: Counter[str] = Counter()
+        self._rejected: Counter[str] = Counter()
         self.received = 0
+        self.signed = signing_key is not None
+        self._verifier = None
+        if signing_key is not None:
+            self._verifier = encoder(system_id or 1, component_id or 1)
+            setup_signing(self._verifier, signing_key, sign_outgoing=False, allow_unsigned=False)
+        self._logged: set[tuple[str, str]] = set()
+
+    @property
+    def rejected(self) -> Counter[str]:
+        """Frames and commands not taken, by reason: the parsers' (bad CRC, ``unsigned``,
+        ``bad_signature`` …) and this input's own (``other target``, ``non_finite``)."""
+        total = Counter(self._rejected)
+        for parser in self.parsers.values():
+            total.update(parser.rejected)
+        return total
 
     @classmethod
-    def for_drive(cls, sink: Sink, drive: ThrusterFeedbackConfig | None) -> MavlinkCommandInput:
+    def for_drive(
+        cls, sink: Sink, drive: ThrusterFeedbackConfig | None, *, signing_key: bytes | None = None
+    ) -> MavlinkCommandInput:
         """As the scenario's simulated drive: it takes what is addressed to its ids (or broadcast); without
-        a drive (no thruster feedback), every target."""
+        a drive (no thruster feedback), every target. ``signing_key``: signed commands only."""
         if drive is None:
-            return cls(sink)
-        return cls(sink, drive.system_id, drive.component_id)
+            return cls(sink, signing_key=signing_key)
+        return cls(sink, drive.system_id, drive.component_id, signing_key=signing_key)
 
     def poll(self) -> list[Command]:
         out: list[Command] = []
         for peer, data in self.sink.read_from_peers():
-            parser = self.parsers.setdefault(peer, FrameParser())
-            for msg in parser.feed(data):
+            parser = self.parsers.get(peer)
+            if parser is None:
+                parser = self.parsers[peer] = FrameParser(self._verifier)
+            before = {r: parser.rejected[r] for r in SIGNING_REASONS} if self.signed else None
+            msgs = parser.feed(data)
+            if before is not None:
+                self._log_signing_rejects(peer, parser, before, data)
+            for msg in msgs:
                 if msg.get_msgId() != AZIMUTH_THRUSTER_COMMAND_ID:
                     continue
                 assert isinstance(msg, dialect().MAVLink_azimuth_thruster_command_message)
@@ -77,13 +120,29 @@ class MavlinkCommandInput:
                     _addressed(msg.target_system, self.system_id)
                     and _addressed(msg.target_component, self.component_id)
                 ):
-                    self.rejected["other target"] += 1
+                    self._rejected["other target"] += 1
                     continue
                 if not (math.isfinite(msg.thrust) and math.isfinite(msg.azimuth)):
-                    self.rejected["non_finite"] += 1
+                    self._rejected["non_finite"] += 1
                     continue
                 out.append(ThrusterCommand(int(msg.id), float(msg.thrust), float(msg.azimuth)))
         return out
+
+    def _log_signing_rejects(
+        self, peer: str, parser: FrameParser, before: dict[str, int], data: bytes
+    ) -> None:
+        """Log the first frame of each signing reason rejected from ``peer`` (the count goes on in
+        `rejected`): someone is writing to the drive's link without its key."""
+        for reason in SIGNING_REASONS:
+            if parser.rejected[reason] > before[reason] and (peer, reason) not in self._logged:
+                self._logged.add((peer, reason))
+                log.warning(
+                    "thruster commands from %s rejected: %s (the drive takes signed commands only; "
+                    "counted from now on, not logged again); first bytes %s",
+                    peer,
+                    "not signed" if reason == "unsigned" else "bad signature or replayed timestamp",
+                    bytes(data[:32]).hex(" "),
+                )
 
 
 def _addressed(target: int, own: int | None) -> bool:

@@ -163,8 +163,13 @@ class Simulation:
         log_raw: bool = True,
         wire: bool = True,
         on_emit: Callable[[Emission], None] | None = None,
+        signing_key: bytes | None = None,
     ) -> None:
-        """``wire=False``: the sensors send typed records (`Emission.record`) instead of bytes, for an
+        """``signing_key``: the simulated thruster drives sign every MAVLink frame they send with this
+        32-byte MAVLink 2 key (`ThrusterFeedback.sign_with`; give the same key to their
+        `simulator.commands.MavlinkCommandInput`, which then takes signed commands only).
+
+        ``wire=False``: the sensors send typed records (`Emission.record`) instead of bytes, for an
         in-process receiver that hands them to ``on_emit`` (called for every emission as it leaves, after
         the routes); there are then no bytes to route, log or corrupt, so it refuses routes, a raw log,
         the wire-side faults and ArduPilot feedback (whose meaning depends on the receiver's wiring)."""
@@ -176,7 +181,8 @@ class Simulation:
                 "routes" if routes else
                 "a raw log (log_raw=True)" if log is not None and log_raw else
                 f"{', '.join(wire_faults)} faults" if wire_faults else
-                "ArduPilot feedback frames" if ardupilot else None
+                "ArduPilot feedback frames" if ardupilot else
+                "signed feedback (signing_key)" if signing_key is not None else None
             )  # fmt: skip
             if problem:
                 raise ValueError(f"Simulation(wire=False): {problem} need the bytes; use wire=True")
@@ -247,11 +253,12 @@ class Simulation:
             self.sensors.append(Gyro(gcfg, self.epoch, sensor_rngs[4 + k], self.faults))
         if scenario.feedback is not None and self.thrusters.n:
             limits = {t.id: (t.min_thrust_n, t.max_thrust_n) for t in vessel.thrusters}
-            self.sensors.append(
-                ThrusterFeedback(
-                    scenario.feedback, self.epoch, sensor_rngs[7], self.faults, thrust_limits_n=limits
-                )
+            drive = ThrusterFeedback(
+                scenario.feedback, self.epoch, sensor_rngs[7], self.faults, thrust_limits_n=limits
             )
+            if signing_key is not None:
+                drive.sign_with(signing_key)
+            self.sensors.append(drive)
         if self.plant_env is not None and self.plant_env.wind is not None:
             wind = self.plant_env.wind
             model = wind.model

@@ -25,7 +25,8 @@ Models (docs/sensors.md has the full description):
   (POS MV-style, with heading and heave): what a DP system's lever-arm compensation needs.
 * `ThrusterFeedback` — per thruster one ``AZIMUTH_THRUSTER_STATUS``, a ``HEARTBEAT`` (surface boat), and
   optionally ArduPilot-style ``ESC_TELEMETRY_x_TO_y`` (rpm) and ``SERVO_OUTPUT_RAW`` (azimuth as PWM), all
-  through one MAVLink encoder so sequence numbers run like on a real link.
+  through one MAVLink encoder so sequence numbers run like on a real link; with a signing key
+  (`ThrusterFeedback.sign_with`) every frame is MAVLink 2 signed.
 
 All randomness comes from the ``rng`` given to a sensor: the same seed gives the same bytes. Faults come from
 a `simulator.faults.FaultSchedule`. A sensor applies the sample-side faults itself (dropout, frozen, jump,
@@ -38,6 +39,7 @@ that line noise never changes the sensors' random streams.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Annotated, Any, Generic, Literal, NamedTuple, Protocol, TypeVar, runtime_checkable
@@ -1036,6 +1038,7 @@ class ThrusterFeedback(Sensor):
         self.faults = faults if faults is not None else FaultSchedule()
         self.start = start
         self.mav = mv.encoder(config.system_id, config.component_id)
+        self._wall_clock: Callable[[], float] = time.time
         self._status = _Schedule(config.rate_hz, start)
         self._heartbeat = _Schedule(config.heartbeat_hz, start)
         self._freeze = _Freezer()
@@ -1050,6 +1053,20 @@ class ThrusterFeedback(Sensor):
         armed = d.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | d.MAV_MODE_FLAG_SAFETY_ARMED
         self._base_mode = armed if ardupilot else 0
         self._custom_mode = 15 if ardupilot else 0
+
+    SIGNING_LINK_ID = 0
+    """The MAVLink 2 signing link id of the drive's frames (the gateway signs its commands as link 1)."""
+
+    def sign_with(self, key: bytes, wall_clock: Callable[[], float] = time.time) -> None:
+        """Sign every frame from now on with this 32-byte MAVLink 2 key (link `SIGNING_LINK_ID`).
+
+        The signature's timestamp follows ``wall_clock`` (UNIX s), not the simulation's time: a receiver
+        takes a new signed stream only if its timestamp is at most a minute behind its own clock
+        (pymavlink's check), and a simulation runs faster or slower than the wall and may start on any
+        date. Between two readings of the clock the timestamp goes up by one per frame, as the protocol
+        requires. So signed frames are not the same bytes from run to run (the payloads are)."""
+        mv.setup_signing(self.mav, key, link_id=self.SIGNING_LINK_ID)
+        self._wall_clock = wall_clock
 
     def next_time(self) -> float:
         return min(self._status.next(), self._heartbeat.next())
@@ -1068,6 +1085,9 @@ class ThrusterFeedback(Sensor):
         if not self.encode:
             return self._records(state, t, heartbeat, status)
         frames: list[bytes] = []
+        if self.mav.signing.sign_outgoing:  # never behind the wall clock (`sign_with`)
+            now = mv.signing_timestamp(self._wall_clock())
+            self.mav.signing.timestamp = max(self.mav.signing.timestamp, now)
         if heartbeat:
             frames.append(
                 mv.heartbeat_frame(

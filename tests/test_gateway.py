@@ -64,7 +64,7 @@ def demo_run(tmp_path_factory: pytest.TempPathFactory) -> dict:  # type: ignore[
     sub.undeclare()
     session.close()
     assert proc.returncode == 0, stderr
-    return {"summary": json.loads(stdout), "received": received, "log": out}
+    return {"summary": json.loads(stdout), "received": received, "log": out, "stderr": stderr}
 
 
 @pytest.mark.slow  # the demo fixture: 150 s of sea through Zenoh, ~20 s
@@ -96,6 +96,50 @@ def test_estimates_over_zenoh_are_what_the_observer_alone_achieves(demo_run: dic
     # the demo scores every estimate it made, the subscriber the ones it received (its window differs by a
     # few seconds at each end): the same figure to within sampling, not to the bit
     assert summ["error_vs_truth"]["horizontal_rms_m"] == pytest.approx(s.horizontal_rms_m, rel=0.2, abs=0.08)
+
+
+@pytest.mark.slow  # the demo fixture: 150 s of sea through Zenoh, ~20 s, and a replay of it (~5 s)
+def test_the_demo_thruster_link_is_signed_with_a_key_the_log_does_not_hold(demo_run: dict) -> None:  # type: ignore[type-arg]
+    """The demo's MAVLink thruster link is signed both ways with a key made for the run: no UNSIGNED
+    warning; every feedback frame the gateway logged carries a signature (the drives' link id 0) and the
+    gateway rejected none; the signed drives took the gateway's commands and rejected none; the log's
+    config says the key was not logged and no 64-hex-character key is anywhere in its metadata; `dpgw
+    replay` says it replayed the link's frames with signatures unchecked, the same frames as live."""
+    import base64
+    import re
+
+    from gateway.replay import logged_config
+    from wire.codecs import mavlink as mv
+    from wire.mcap.reader import read_metadata
+
+    summ, log = demo_run["summary"], demo_run["log"]
+    assert "UNSIGNED" not in demo_run["stderr"] and "allow_unsigned" not in demo_run["stderr"]
+    assert summ["thruster_link"] == {"signed": True, "commands_rejected": {}}
+    assert summ["commands_applied"] > 100
+    thr = summ["sources"]["thrusters"]
+    assert thr["received"] >= 0.99 * summ["sent"]["thrusters"] and not thr["rejected"]
+    frames = []
+    for _, _, _, p in read_messages(log, "/raw/mavlink/thrusters"):
+        frames += mv.parse_frames(base64.b64decode(p["data"]))
+    assert len(frames) >= 0.99 * summ["sent"]["thrusters"]
+    # (the frames' incompatibility flags and link id: without the key pymavlink does not mark them signed)
+    assert all(f.get_msgbuf()[2] & mv.dialect().MAVLINK_IFLAG_SIGNED for f in frames)
+    assert {f.get_msgbuf()[-13] for f in frames} == {0}
+    logged = next(s for s in logged_config(log)["sources"] if s["name"] == "thrusters")  # type: ignore[index]
+    assert logged["signing_key"] == "not logged" and "allow_unsigned" not in logged
+    assert not re.search(r"[0-9a-fA-F]{64}", json.dumps(read_metadata(log)))
+    run = subprocess.run(
+        [sys.executable, "-m", "dpgw", "replay", str(log), "--out", str(log.with_name("signed-replay.mcap")),
+         "--json"],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout)["signatures_unchecked"] == {
+        "thrusters": {"bad_signature": 0, "unsigned": 0}
+    }
+    assert (
+        "thrusters: MAVLink signatures not checked" in run.stderr and "the same frames as live" in run.stderr
+    )
 
 
 @pytest.mark.slow  # the demo fixture: 150 s of sea through Zenoh, ~20 s

@@ -1,0 +1,58 @@
+"""The config tables as a log keeps them: without the secrets written in them.
+
+A gateway log carries the config it ran with (MCAP metadata ``dpgw.config``) so that ``dpgw replay``
+rebuilds the same pipeline. A log is shared, copied and attached to reports: a MAVLink ``signing_key``
+in it would let anyone who reads the log drive the vessel's thrusters. So the key is replaced by
+`KEY_NOT_LOGGED` (`for_log`), and a replay rebuilds the source without a key (`without_unlogged_keys`):
+replay commands no thrusters, and it takes the logged frames' signatures unchecked (docs/gateway.md,
+"Replay of a signed link").
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+KEY_NOT_LOGGED = "not logged"
+"""What a log's config holds in place of a source's ``signing_key``."""
+
+
+def for_log(tables: dict[str, Any]) -> dict[str, Any]:
+    """A copy of the config tables with every source's ``signing_key`` replaced by `KEY_NOT_LOGGED`."""
+    sources = tables.get("sources")
+    if not isinstance(sources, list):
+        return tables
+    return {
+        **tables,
+        "sources": [
+            {**src, "signing_key": KEY_NOT_LOGGED} if isinstance(src, dict) and "signing_key" in src else src
+            for src in sources
+        ],
+    }
+
+
+def unlogged_key_sources(tables: dict[str, Any]) -> list[str]:
+    """The names of the sources whose signing key a log's config left out."""
+    return [
+        str(src.get("name"))
+        for src in tables.get("sources", []) or []
+        if isinstance(src, dict) and src.get("signing_key") == KEY_NOT_LOGGED
+    ]
+
+
+def without_unlogged_keys(tables: dict[str, Any]) -> dict[str, Any]:
+    """A log's config tables made loadable again: a source whose key was not logged loses it, with what
+    only made sense with it or with a live link: ``allow_unsigned`` (the frames are taken without a key
+    anyway) and ``commands`` (a replay commands no thrusters; without a key the config would refuse it)."""
+    sources = tables.get("sources")
+    if not isinstance(sources, list):
+        return tables
+    dropped = {"signing_key", "allow_unsigned", "commands"}
+    return {
+        **tables,
+        "sources": [
+            {k: v for k, v in src.items() if k not in dropped}
+            if isinstance(src, dict) and src.get("signing_key") == KEY_NOT_LOGGED
+            else src
+            for src in sources
+        ],
+    }
