@@ -689,6 +689,7 @@ class GatewayService:
             if src is None:
                 continue
             target = self._command_targets[name]
+            mv.keep_signing_time(mav, time.time())  # a drive that rebooted takes the stream as new
             frames = b"".join(
                 mv.azimuth_command_frame(
                     mav, cmd.stamp_ns // 1000, int(th.id), th.thrust_n, th.azimuth_rad, **target

@@ -1086,8 +1086,7 @@ class ThrusterFeedback(Sensor):
             return self._records(state, t, heartbeat, status)
         frames: list[bytes] = []
         if self.mav.signing.sign_outgoing:  # never behind the wall clock (`sign_with`)
-            now = mv.signing_timestamp(self._wall_clock())
-            self.mav.signing.timestamp = max(self.mav.signing.timestamp, now)
+            mv.keep_signing_time(self.mav, self._wall_clock())
         if heartbeat:
             frames.append(
                 mv.heartbeat_frame(

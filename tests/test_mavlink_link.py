@@ -146,6 +146,35 @@ def test_commands_go_signed_to_the_configured_drive_not_to_the_last_datagram(sig
     assert link.service.pipeline.fusion.tau(link.service.pipeline.last_ns)[1] == "demand"
 
 
+def test_a_drive_that_reboots_takes_the_gateways_signed_commands(signed_link: Link) -> None:
+    """The gateway has signed commands for a while; the drive then reboots and meets the command stream
+    new. pymavlink's receiver takes a new stream only if its first timestamp is at most a minute behind
+    its own clock: the gateway's timestamps must follow the wall clock, not merely grow by one a frame
+    from start-up (which, sending ten frames a second, falls a minute behind after a minute)."""
+    link = signed_link
+    gps, drive = link.udp(), link.udp()
+    tx = mv.encoder(*DRIVE)
+    mv.setup_signing(tx, KEY, link_id=3)
+    # as if the gateway had been running for ten minutes, its timestamp grown by one per frame only
+    mav = link.service._command_links["thr"]
+    mav.signing.timestamp -= 10 * 60 * 100_000
+    rebooted = mv.encoder(0, 0)  # the drive's parser, started now: its own clock is now
+    mv.setup_signing(rebooted, KEY, sign_outgoing=False)
+    got: list[Any] = []
+
+    def exchange() -> bool:
+        link.gps(gps)
+        drive.sendto(mv.heartbeat_frame(tx), ("127.0.0.1", link.thr_port))
+        drive.sendto(mv.azimuth_status_frame(tx, 0, 1, 0.1, 20.0, 0.0, 0), ("127.0.0.1", link.thr_port))
+        got.extend(rebooted.parse_buffer(drained(drive)) or [])
+        return sum(m.get_type() == "AZIMUTH_THRUSTER_COMMAND" for m in got) >= 6
+
+    assert wait_for(exchange, 60.0, 0.05), (
+        f"the rebooted drive took {sum(m.get_type() == 'AZIMUTH_THRUSTER_COMMAND' for m in got)} commands "
+        f"of {len(got)} frames ({sum(m.get_type() == 'BAD_DATA' for m in got)} refused)"
+    )
+
+
 def test_feedback_over_udp_is_used_or_counted_frame_by_frame(tmp_path: Path) -> None:
     """A drive's feedback on a real UDP port, with what a shared, noisy link carries: a MAVLink 1 heartbeat,
     another system's and another component's status, a thruster the vessel does not have, an infinite

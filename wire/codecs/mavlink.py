@@ -136,6 +136,19 @@ def setup_signing(
         mav.signing.allow_unsigned_callback = None
 
 
+def keep_signing_time(mav: MAVLink, unix_time_s: float) -> None:
+    """Bring ``mav``'s signing timestamp up to ``unix_time_s`` if it fell behind (never back).
+
+    pymavlink adds one (10 µs) per signed frame and never reads the clock again: a link sending tens of
+    frames a second advances its timestamp by under a millisecond per second, so after a minute of
+    running it is a minute behind the wall. A receiver that meets the stream new (a drive that rebooted,
+    a second listener) rejects a first timestamp more than a minute behind its own clock as a replay, so
+    every frame after such a reboot would be refused. The protocol asks for a timestamp that follows
+    real time and grows by at least one per frame; calling this before each burst gives both."""
+    if mav.signing.sign_outgoing:
+        mav.signing.timestamp = max(mav.signing.timestamp, signing_timestamp(unix_time_s))
+
+
 # ---------------------------------------------------------------------------------------------- encoding
 
 
