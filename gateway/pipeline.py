@@ -188,6 +188,11 @@ class SourceSpec:
     ardupilot: mv.ArduPilotWiring | None = None  # ArduPilot ESC / servo outputs -> the vessel's thrusters
     system_id: int | None = None  # MAVLink: frames from another system are rejected (None: any)
     component_id: int | None = None  # MAVLink: frames from another component are rejected (None: any)
+    signatures_from_a_log: bool = False
+    """MAVLink signing checked on logged frames (replay): a stream's first timestamp is taken whatever its
+    age, then each frame's must grow as live. Live (False), a new stream more than a minute behind this
+    host's clock is a replay and rejected, which is every stream of a log recorded more than a minute
+    ago."""
 
     @cached_property
     def timeout_ns(self) -> int:
@@ -494,7 +499,13 @@ class Pipeline:
         if s.signing_key is None:
             return mv.FrameParser()
         mav = mv.encoder(src_system=255, src_component=190)
-        mv.setup_signing(mav, s.signing_key, sign_outgoing=False, allow_unsigned=s.allow_unsigned)
+        mv.setup_signing(
+            mav,
+            s.signing_key,
+            sign_outgoing=False,
+            allow_unsigned=s.allow_unsigned,
+            initial_timestamp=0 if s.signatures_from_a_log else None,  # None: this host's clock
+        )
         return mv.FrameParser(mav)
 
     # --- events in ------------------------------------------------------------------------------------------

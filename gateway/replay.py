@@ -496,6 +496,11 @@ def build_pipeline(
     (the wind feed-forward's load, the commanded τ when feedback was stale), so the replay keeps it to
     reproduce the live estimates; the commands it recomputes go to the output log only."""
     spec = dataclasses.replace(PipelineSpec.from_config(config), foxglove_channels=foxglove_channels)
+    # a link signed with a key the config gives (a log written before logs left keys out, or --config):
+    # the logged frames' signatures are checked against the log's own time, not this host's clock
+    spec = dataclasses.replace(
+        spec, sources=tuple(dataclasses.replace(s, signatures_from_a_log=True) for s in spec.sources)
+    )
     if specs:
         # Only the observers change: every other part of the config's pipeline (reference checks,
         # command policy, sources, datum) is the one the config describes. Rebuilding the spec field by
