@@ -50,7 +50,7 @@ P_BIAS_CORNER = 6  # ρ = λ/κ: ratio ρ/ω0, or rad/s
 P_BIAS_CORNER_IS_RATIO = 7
 P_MASS = 8  # M_ii, the vessel-scaled injection's inertia
 P_T_INV = 9  # 1/T of the bias model
-P_INJECTION_FLOOR = 10  # b·D_ii/M_ii, the least ratio-set a (PassiveTuning.injection_damping_ratio)
+P_INJECTION_FLOOR = 10  # the least ratio-set a, 1/s (passive_tuning.injection_floor)
 N_TUNING_ROWS = 11
 
 # the schedule state S

@@ -146,8 +146,10 @@ OBSERVERS: dict[str, ObserverEntry] = {e.name: e for e in _REGISTERED}
 OBSERVER_TYPES = tuple(OBSERVERS)
 OBSERVER_PARAMS: dict[str, tuple[str, ...]] = {name: e.params for name, e in OBSERVERS.items()}
 OBSERVER_TUNING: dict[str, tuple[str, ...] | None] = {name: e.tuning for name, e in OBSERVERS.items()}
-TUNING_KEYS = frozenset(PassiveTuning.__dataclass_fields__) | {"wave_period_s"}
-"""The keys that set the common tuning: the `PassiveTuning` fields, and ``wave_period_s`` (ω0 = 2π/Tp)."""
+TUNING_KEYS = (frozenset(PassiveTuning.__dataclass_fields__) - {"loop_bandwidth"}) | {"wave_period_s"}
+"""The keys that set the common tuning: the `PassiveTuning` fields, and ``wave_period_s`` (ω0 = 2π/Tp).
+Not ``loop_bandwidth``: that is the DP controller's bandwidth, which a gateway config gives the observer
+from its ``[control]`` (`gateway.config`), not a key of its own."""
 
 
 def tuning_keys(name: str) -> frozenset[str]:

@@ -67,7 +67,7 @@ from observers.gain_scheduled_analysis import (
     validate_contraction,
 )
 from observers.passive import PassiveObserver, estimate_from_state, initial_state
-from observers.passive_tuning import PassiveGains, PassiveTuning, passive_gains
+from observers.passive_tuning import PassiveGains, PassiveTuning, injection_floor, passive_gains
 from observers.state import BIAS, ETA, N_STATE, NU, XI2, StateView
 from observers.vessel import VesselModel
 from observers.wave_frequency import (
@@ -136,9 +136,7 @@ def pack_tuning(vessel: VesselModel, tuning: PassiveTuning) -> Array:
     P[sk.P_BIAS_CORNER], P[sk.P_BIAS_CORNER_IS_RATIO] = value(tuning.bias_corner, tuning.bias_corner_ratio)
     P[sk.P_MASS] = np.diag(vessel.M)
     P[sk.P_T_INV] = g.t_inv
-    P[sk.P_INJECTION_FLOOR] = np.broadcast_to(
-        np.asarray(tuning.injection_damping_ratio, dtype=float) * np.diag(vessel.D) / np.diag(vessel.M), (3,)
-    )
+    P[sk.P_INJECTION_FLOOR] = injection_floor(vessel, tuning)
     return np.ascontiguousarray(P)
 
 

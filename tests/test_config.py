@@ -14,6 +14,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 from gateway.config import (
@@ -1334,3 +1335,34 @@ def test_control_return_speed_is_checked_against_the_vessels_reference_speed(tmp
     d["control"] = {"return_speed_mps": 0}
     (problem,) = problems_of(d, tmp_path)
     assert problem.startswith("bad.toml: control.return_speed_mps: out of range")
+
+
+def test_the_observer_is_held_no_slower_than_the_dp_loop_it_feeds(tmp_path: Path) -> None:
+    """The config gives the observer's tuning the controller's bandwidth (its Froude-scaled default, or
+    ``[control] bandwidth_rad_s``) as ``loop_bandwidth``, so that a ratio-set velocity injection decays no
+    slower than the DP loop (docs/passive-observer.md). CyberShip II in the `hassani` sea (6.76 s): the
+    velocity error then decays at the loop's 0.545/0.545/0.779 rad/s instead of 0.19-0.32 s⁻¹. A controller
+    fed the raw measurement (`feedback = "measurement"`) is not fed the estimate: no floor. An explicit
+    ``velocity_injection`` is the user's and is kept."""
+    from dpgw.closed_loop import gateway_tables
+    from observers.passive_tuning import passive_gains
+    from simulator.scenarios import get_scenario
+
+    def injection(c: GatewayConfig) -> Any:
+        g = passive_gains(c.vessel, c.observer.tuning)
+        return np.diag(g.K4) / np.diag(c.vessel.M) / g.omega_c
+
+    d = gateway_tables(get_scenario("hassani"))
+    c = parse(d, tmp_path)
+    damping = np.diag(c.vessel.D) / np.diag(c.vessel.M)
+    np.testing.assert_allclose(c.observer.tuning.loop_bandwidth, (0.5454, 0.5454, 0.7792), atol=1e-4)
+    np.testing.assert_allclose(damping + injection(c), c.observer.tuning.loop_bandwidth, rtol=1e-12)
+    put(d, "control.bandwidth_rad_s", [0.6, 0.6, 0.9])
+    assert parse(d, tmp_path).observer.tuning.loop_bandwidth == (0.6, 0.6, 0.9)
+    put(d, "control.feedback", "measurement")
+    raw = parse(d, tmp_path)
+    assert raw.observer.tuning.loop_bandwidth is None
+    np.testing.assert_allclose(injection(raw), 0.12 * 2 * math.pi / d["observer"]["wave_period_s"])
+    put(d, "control.feedback", "estimate")
+    put(d, "observer.velocity_injection", 0.2)
+    np.testing.assert_allclose(injection(parse(d, tmp_path)), 0.2, rtol=1e-12)

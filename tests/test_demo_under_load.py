@@ -9,8 +9,8 @@ LF estimate error is within 25 % of the quiet run's, and station keeping holds (
 The scenario is `hassani` (Cybership II, model scale, 10 Hz RTK and gyro): its fast dynamics make it the
 one most sensitive to loop delay (without the simulation clock and pacing it lost its heading under this
 load: p95 30-40 m), and its controller settles within the run. DP is engaged from the first estimate
-(`--engage-at 0`): the demo's default waits for the observer's slowest mode (130 s here), longer than this
-test's run; loop delay matters the same either way. The default `torsetnes_2004` engaged cold needs
+(`--engage-at 0`): the demo's default waits for the observer's slowest mode (61 s here), half this test's
+run; loop delay matters the same either way. The default `torsetnes_2004` engaged cold needs
 longer than a short demo to settle from its start (p95 about 5 m over 60-180 s), so it cannot show the
 bound in a test of this length; engaged as the demo does by default, tests/test_demo_engage.py.
 """

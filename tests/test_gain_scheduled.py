@@ -501,13 +501,20 @@ def test_scheduling_off_is_the_fixed_passive_observer() -> None:
 @pytest.mark.parametrize("vessel_name", ["mss_osv", "cybership2", "mss_supply"])
 def test_compiled_gains_equal_passive_gains_with_and_without_the_damping_floor(vessel_name: str) -> None:
     """The compiled schedule's gains at each ω0 are `passive_gains`' to the bit, also where the velocity
-    injection's damping floor (a ≥ b·D/M) sets a instead of the ratio (mss_osv's yaw; any DOF at low ω0)."""
+    injection's damping floor (a ≥ b·D/M) sets a instead of the ratio (mss_osv's yaw; any DOF at low ω0),
+    and where the DP loop's floor (a ≥ ωn − D/M, ``loop_bandwidth``) does (CyberShip II's Froude-scaled
+    loop)."""
     from observers import _gain_scheduled_kernel as sk
     from observers.gain_scheduled import pack_tuning
 
     vessel = load_vessel(vessel_name)
     floored = 0
-    for tuning in (PassiveTuning(), PassiveTuning(injection_damping_ratio=1e-9)):
+    tunings = (
+        PassiveTuning(),
+        PassiveTuning(injection_damping_ratio=1e-9),
+        PassiveTuning(loop_bandwidth=(0.545, 0.545, 0.779)),
+    )
+    for tuning in tunings:
         P = pack_tuning(vessel, tuning)
         for w0 in (0.3, 0.55, 0.8976, 1.5, 4.0):
             omega = np.array([w0, 0.9 * w0, 1.1 * w0])
@@ -518,5 +525,5 @@ def test_compiled_gains_equal_passive_gains_with_and_without_the_damping_floor(v
             assert np.array_equal(G[sk.G_LAMBDA], np.diag(ref.K3))
             ratio_only = np.diag(vessel.M) * ref.omega_c * omega * tuning.velocity_injection_ratio
             floored += int(np.sum(np.diag(ref.K4) > ratio_only * (1 + 1e-12)))
-    if vessel_name == "mss_osv":
+    if vessel_name in ("mss_osv", "cybership2"):
         assert floored > 0  # the floor is exercised

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import re
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -58,7 +59,9 @@ def observer_config(vessel: str, observer: dict[str, Any]) -> Any:
 
 def test_ships_keep_todays_default_tuning_field_by_field() -> None:
     """λ = 1: the same tuning, field by field, from every place that makes the default (the class, the
-    gains without a tuning, the config without a wave period)."""
+    gains without a tuning, the config without a wave period). The config adds one field, the DP loop's
+    bandwidth (``loop_bandwidth``, from ``[control]``), whose floor lies below every ship's default
+    injection: the config's gains are today's to the bit."""
     assert {"mss_supply", "mss_osv", "northern_clipper", "hajivand_vessel", "snijders_ship"} <= set(SHIPS)
     today = PassiveTuning()
     for name in SHIPS:
@@ -72,7 +75,12 @@ def test_ships_keep_todays_default_tuning_field_by_field() -> None:
             np.testing.assert_array_equal(getattr(g, key), getattr(g0, key), err_msg=f"{name} {key}")
         config = observer_config(name, {})
         for key, value in today.__dict__.items():
-            assert getattr(config.tuning, key) == value, (name, key)
+            if key != "loop_bandwidth":
+                assert getattr(config.tuning, key) == value, (name, key)
+        assert config.tuning.loop_bandwidth is not None
+        gc = passive_gains(vessel, config.tuning)
+        for key in ("omega0", "zeta", "zeta_n", "omega_c", "K1", "K2", "K3", "K4", "T"):
+            np.testing.assert_array_equal(getattr(gc, key), getattr(g0, key), err_msg=f"{name} {key}")
 
 
 def test_a_1_to_70_model_is_scaled_by_sqrt_70() -> None:
@@ -101,7 +109,8 @@ def test_a_1_to_70_model_is_scaled_by_sqrt_70() -> None:
 
 def test_the_config_scales_what_is_not_given_and_keeps_what_is() -> None:
     default = observer_config("cybership2", {}).tuning
-    assert default == PassiveTuning.for_vessel(MODEL)
+    # (and the DP loop's bandwidth from [control], already the model's: Froude-scaled by the controller)
+    assert replace(default, loop_bandwidth=None) == PassiveTuning.for_vessel(MODEL)
     # the user's wave period or ω0 is the user's (a model's own scale): not scaled
     assert observer_config("cybership2", {"wave_period_s": 7.0}).tuning.omega0 == 2 * math.pi / 7.0
     assert observer_config("cybership2", {"omega0": 0.93}).tuning.omega0 == 0.93

@@ -11,9 +11,11 @@ import numpy as np
 import pytest
 from scipy.signal import butter, sosfiltfilt
 
+from dpgw.cli_demo import hold_setpoint
 from dpgw.closed_loop import ClosedLoopRun, gateway_tables, run_closed_loop
 from gateway.scoring import score
 from observers.kinematics import ssa
+from simulator.clock import SimEpoch
 from simulator.scenarios import get_scenario
 from simulator.spectra import SeaState
 
@@ -42,11 +44,38 @@ def test_torsetnes_station_keeping_in_6_m_seas() -> None:
 def test_demo_holds_the_scenarios_station() -> None:
     """`dpgw demo` in dp commands the scenario's start position and heading as its setpoint (holding the
     first estimate instead held a wave-moved, noisy fix: 45.9° for torsetnes_2004's 45° station)."""
-    from dpgw.cli_demo import hold_setpoint
 
     assert hold_setpoint(get_scenario("torsetnes_2004")) == pytest.approx(
         {"north_m": 0.0, "east_m": 0.0, "heading_deg": 45.0}
     )
+
+
+@pytest.mark.slow  # two seeds of 400 s: ~5 s
+@pytest.mark.parametrize("seed", [0, 2])
+def test_hassani_holds_its_heading_as_a_ship_does(seed: int) -> None:
+    """CyberShip II (1:70) holding its start station in the `hassani` sea, scored after 100 s: heading p95
+    ≤ 3° and position p95 ≤ 0.15 m, and the observer's own LF heading error p95 ≤ 2°. Angles are the same
+    in Froude-scaled terms, and the ship of torsetnes_2004 is held to ≤ 2° (above); the passive observer's
+    bias corner, capped at ~0.045 ω0 by its SPR condition, leaves the model ~1.5° of estimate error that
+    a ship in its own sea does not have, hence 3°. The cause of the 5.5-6.5° before (0.20-0.25 m; estimate
+    error 3.8-5.3°): the observer's velocity injection, a ratio to the sea's ω0 (0.11 s⁻¹), left its
+    velocity error decaying two to three times slower than the Froude-scaled DP loop it fed (0.55-0.78
+    rad/s); now held no slower than the loop (measured: 2.27°, 0.094 m, 1.57° on seed 0; 2.49°, 0.093 m,
+    1.59° on seed 2)."""
+    sc = get_scenario("hassani")
+    r = run_closed_loop(sc, 400.0, seed=seed, events=[(0.0, "setpoint", hold_setpoint(sc))])
+    keep = r.t >= 100.0
+    psi0 = sc.eta0[2]
+    heading = np.degrees(np.abs(ssa(r.eta_lf[keep, 2] - psi0)))
+    pos = np.hypot(r.eta_lf[keep, 0] - sc.eta0[0], r.eta_lf[keep, 1] - sc.eta0[1])
+    epoch_ns = SimEpoch(sc.start_utc).stamp_ns(0.0)  # sim time 0
+    t_est = np.array([(m.stamp_ns - epoch_ns) / 1e9 for m in r.estimate_messages])
+    at = np.searchsorted(t_est, r.t[keep], side="right") - 1  # the estimate in force at each truth sample
+    psi_hat = np.array([m.eta[2] for m in r.estimate_messages])[at]
+    observer = np.degrees(np.abs(ssa(psi_hat - r.eta_lf[keep, 2])))
+    assert np.percentile(heading, 95) <= 3.0
+    assert np.percentile(pos, 95) <= 0.15
+    assert np.percentile(observer, 95) <= 2.0
 
 
 def _wave_band_thrust(r: ClosedLoopRun, omega_p: float) -> np.ndarray:
@@ -227,11 +256,13 @@ _BEFORE = {
 @pytest.mark.parametrize("name", sorted(_BEFORE))
 def test_azimuths_do_not_hunt_in_station_keeping(name: str) -> None:
     """Holding station, every azimuth travels less than 10 % of its slew rate (measured: torsetnes_2004
-    11, 5, 16 °/min of 722 = 1.5, 0.7, 2.2 %; hassani 181, 255 of 5844 °/min = 3.1, 4.4 % — before: 46-87 %
-    and 37-38 %), not one allocation step is reported saturated (before: none on torsetnes_2004, 8 % on
-    hassani; the demand is well inside the thrusters' capacity, so a flag would be the anti-hunting terms
-    taking τ), and the station keeping is not more than 10 % worse than before in position or heading p95
-    (measured: 0.891 m and 1.750° against 0.874 m and 1.776°; 0.229 m and 6.055° against 0.232 m and
+    11, 5, 16 °/min of 722 = 1.5, 0.7, 2.2 %; hassani 457, 375 of 5844 °/min = 7.8, 6.4 % — before: 46-87 %
+    and 37-38 %; hassani's were 181, 255 °/min = 3.1, 4.4 % before its observer was held no slower than
+    the DP loop, whose faster velocity estimate passes more of the sea to the azimuths), not one
+    allocation step is reported saturated (before: none on torsetnes_2004, 8 % on hassani; the demand is
+    well inside the thrusters' capacity, so a flag would be the anti-hunting terms taking τ), and the
+    station keeping is not more than 10 % worse than before in position or heading p95
+    (measured: 0.891 m and 1.750° against 0.874 m and 1.776°; 0.103 m and 2.431° against 0.232 m and
     6.044°). The before figures are what `dpgw.azimuth_travel --before` gives (`BEFORE`)."""
     from dpgw.azimuth_travel import measure
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import re
 import tomllib
 from collections.abc import Mapping
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +30,7 @@ from gateway.config.model import (
     IntegrityConfig,
     KeelsonConfig,
     LogConfig,
+    ObserverConfig,
     Ros2Config,
     StatusConfig,
     TimeConfig,
@@ -53,7 +55,7 @@ from gateway.config.schema import (
     read_table,
 )
 from gateway.config.source_entries import read_sources
-from gateway.control.controller import froude_defaults
+from gateway.control.controller import ControllerTuning, froude_defaults
 from observers.vessel import VesselError, VesselModel, builtin_vessels, load_vessel
 from wire.rmw_zenoh import fully_qualified, is_ros_name
 from wire.urls import UrlError, split_host_port, valid_host
@@ -143,6 +145,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, where: str, path: Path) -> G
     assert integrity is not None and consequence is not None
     assert commands is not None and time_config is not None and keelson is not None and ros2 is not None
     assert foxglove is not None
+    observer = with_loop_bandwidth(observer, control, vessel)
     return GatewayConfig(
         vessel=vessel,
         vessel_source=vessel_source,
@@ -492,6 +495,20 @@ def _read_time(p: Problems, data: Mapping[str, Any]) -> TimeConfig | None:
         return None
     clock = read_table(TimeTable, t, "time", p)["clock"]
     return None if clock is None else TimeConfig(clock=clock)
+
+
+def with_loop_bandwidth(
+    observer: ObserverConfig, control: ControlConfig, vessel: VesselModel
+) -> ObserverConfig:
+    """``observer`` with the natural frequency of the DP loop its estimate feeds (the controller's
+    bandwidth, its Froude-scaled default unless ``[control] bandwidth_rad_s``) as the tuning's
+    ``loop_bandwidth``: a ratio-set velocity injection is then held at no slower than the loop
+    (`observers.passive_tuning`, "No slower than the loop it feeds"). A controller fed the raw
+    measurement (``feedback = "measurement"``) leaves it as it is."""
+    if control.feedback != "estimate":
+        return observer
+    wn = ControllerTuning(bandwidth_rad_s=control.bandwidth_rad_s).resolved(vessel).bandwidth_rad_s
+    return replace(observer, tuning=replace(observer.tuning, loop_bandwidth=wn))
 
 
 def _read_control(p: Problems, data: Mapping[str, Any], vessel: VesselModel | None) -> ControlConfig | None:

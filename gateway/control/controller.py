@@ -34,8 +34,9 @@ Notes on the paper (its ξ in (57)–(70) is the integral of η, not the wave st
   the wave band (0.3–1.3 rad/s for a full-scale ship): a loop that fast would try to cancel the
   first-order wave motion that the observer filters out, and would not be realisable with real thrusters.
   dpgw's default is 0.07 rad/s (closed-loop period 90 s) for a 76.2 m supply vessel, Froude-scaled with
-  the vessel's length (below), four times below the lowest wave frequency and three times slower than
-  the observer's velocity-error decay (≈ 0.2 s⁻¹, docs/passive-observer.md).
+  the vessel's length (below), four times below the lowest wave frequency and no faster than the
+  observer's velocity-error decay (Dᵢᵢ/Mᵢᵢ + a: 1.1-1.5 ωn in torsetnes_2004's sea; the gateway's config
+  holds the observer's a at ≥ ωn − Dᵢᵢ/Mᵢᵢ where the sea would not, docs/passive-observer.md).
 
 Gains (`controller_gains`), per DOF i with closed-loop natural frequency ωᵢ, damping ζᵢ and integral
 pole aᵢ = ρᵢ ωᵢ (ρ = ``integral_ratio``)::
@@ -86,7 +87,8 @@ target on entering dp.
 Defaults scale with the vessel (Froude scaling from a 76.2 m supply vessel, the MSS supply model of
 Torsetnes' case study, factor λ = L/76.2): frequencies × λ^(-1/2), speeds × λ^(1/2), accelerations × 1,
 angular accelerations × λ^(-1). For the 1.255 m CyberShip II (1:70 model) ωn = 0.55 rad/s, 0.064 m/s,
-15.6°/s; its wave band is also ≈ 8× higher, so the ratio to the waves is kept.
+15.6°/s; its basin sea's wave band is also ≈ 8× higher, so the ratio to the waves is kept (not in the
+`hassani` case's full-scale sea: docs/controller.md).
 """
 
 from __future__ import annotations
