@@ -84,11 +84,38 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="bias corner λ/κ as a fraction of ω0 (default 0.04)",
     )
     p.add_argument(
+        "--loop-bandwidth",
+        type=_loop_bandwidth,
+        default="default",
+        metavar="RAD_S",
+        help="natural frequency ωn of the DP loop the estimate feeds: a ratio-set velocity injection is held "
+        "at ≥ ωn − D/M per DOF, as the gateway does (docs/passive-observer.md). default: the DP "
+        "controller's own default for the vessel (Froude-scaled; what 'dpgw run' uses without [control] "
+        "bandwidth_rad_s); a number, or three (surge,sway,yaw), for a config that sets it; none: no loop "
+        "(a controller fed the raw measurements, or no controller)",
+    )
+    p.add_argument(
         "--json",
         action="store_true",
         help="print one JSON object (for programs; null where a value is infinite: T of a random-walk bias)",
     )
     p.set_defaults(func=run)
+
+
+def _loop_bandwidth(text: str) -> str | tuple[float, ...] | None:
+    """``--loop-bandwidth``: "default", "none", or one or three positive rad/s."""
+    word = text.strip().lower()
+    if word in ("default", "none"):
+        return None if word == "none" else "default"
+    try:
+        values = tuple(float(v) for v in word.split(","))
+    except ValueError:
+        values = ()
+    if len(values) not in (1, 3) or not all(0 < v < math.inf for v in values):
+        raise argparse.ArgumentTypeError(
+            f"must be 'default', 'none', or one or three positive rad/s separated by commas (got {text})"
+        )
+    return values
 
 
 def _matrix(a: np.ndarray) -> list[list[float]]:
@@ -98,6 +125,8 @@ def _matrix(a: np.ndarray) -> list[list[float]]:
 
 
 def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from observers.passive_tuning import (
         PassiveTuning,
         check_gains,
@@ -127,6 +156,12 @@ def run(args: argparse.Namespace) -> int:
     }
     if args.cutoff_ratio is not None:
         kwargs["cutoff_ratio"] = args.cutoff_ratio
+    loop = args.loop_bandwidth
+    if loop == "default":  # as `dpgw run` feeds its default controller (gateway.config)
+        from gateway.control.controller import ControllerTuning
+
+        loop = ControllerTuning().resolved(vessel).bandwidth_rad_s
+    kwargs["loop_bandwidth"] = None if loop is None else (loop[0] if len(loop) == 1 else loop)
     try:
         gains = passive_gains(vessel, PassiveTuning.from_wave_period(args.wave_period, **kwargs))
     except ValueError as exc:
@@ -139,6 +174,9 @@ def run(args: argparse.Namespace) -> int:
     result = {
         "vessel": vessel.name,
         "wave_period_s": args.wave_period,
+        "loop_bandwidth": None if loop is None else list(loop),
+        # a of 𝒦 = diag(M) ωc a (`passive_gains`): the velocity error's decay rate from the injection
+        "velocity_injection_per_s": (np.diag(gains.K4) / (np.diag(vessel.M) * gains.omega_c)).tolist(),
         "omega0": gains.omega0.tolist(),
         "omega_c": gains.omega_c.tolist(),
         "K1": _matrix(gains.K1),
@@ -168,6 +206,16 @@ def _text(r: dict[str, Any], source: str) -> str:
     lines = [
         f"vessel {r['vessel']}  ({source})",
         f"wave period {r['wave_period_s']:g} s -> ω0 = {w0:.4f} rad/s, ωc = {r['omega_c'][0]:.4f} rad/s",
+        "velocity injection a = "
+        + " / ".join(f"{v:.4g}" for v in r["velocity_injection_per_s"])
+        + " 1/s (surge / sway / yaw)"
+        + (
+            ", at least ωn − D/M of the DP loop, ωn = "
+            + " / ".join(f"{v:.4g}" for v in r["loop_bandwidth"])
+            + " rad/s"
+            if r["loop_bandwidth"] is not None
+            else ", no DP loop given"
+        ),
         "",
         _fmt_matrix("K1 = [diag(k1); diag(k2)], eqs (45)-(46)", r["K1"], "-, rad/s"),
         _fmt_matrix("K2 = diag(k3), eq (47)", r["K2"], "rad/s"),

@@ -6,6 +6,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 from dpgw.cli import main
 
 
@@ -53,3 +55,40 @@ def test_tune_bad_vessel_says_what_to_do(capsys) -> None:  # type: ignore[no-unt
     assert main(["tune", "--vessel", "titanic", "--wave-period", "9"]) == 2
     err = capsys.readouterr().err
     assert "titanic" in err and "mss_supply" in err
+
+
+def test_tune_shows_the_gains_the_gateway_runs(capsys, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """A gateway config holds the observer's velocity injection at no slower than its DP loop; `dpgw tune`
+    does the same by default, so the gains it shows are the ones `dpgw run` uses (the 1:70 CyberShip II in
+    a 6.8 s sea: a rises from 0.12 ω0 to the loop's floor), and ``--loop-bandwidth none`` shows the
+    observer on its own."""
+    import numpy as np
+
+    from gateway.config import parse_config
+    from observers.passive_tuning import passive_gains
+
+    tables = {
+        "vessel": {"name": "cybership2"},
+        "datum": {"lat_deg": 59.4, "lon_deg": 10.5},
+        "sources": [
+            {"name": "gps", "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position", "heading"]}
+        ],
+        "observer": {"wave_period_s": 6.8},
+        "log": {"path": ""},
+    }  # fmt: skip
+    config = parse_config(tables, base_dir=tmp_path)
+    gateway_k4 = passive_gains(config.vessel, config.observer.tuning).K4
+    assert main(["tune", "--vessel", "cybership2", "--wave-period", "6.8", "--json"]) == 0
+    shown = json.loads(capsys.readouterr().out)
+    np.testing.assert_allclose(shown["K4"], gateway_k4, rtol=1e-12)
+    assert min(shown["velocity_injection_per_s"]) > 0.3  # the loop's floor, not 0.12 ω0 = 0.11
+    assert (
+        main(["tune", "--vessel", "cybership2", "--wave-period", "6.8", "--loop-bandwidth", "none", "--json"])
+        == 0
+    )
+    alone = json.loads(capsys.readouterr().out)
+    assert alone["loop_bandwidth"] is None
+    np.testing.assert_allclose(alone["velocity_injection_per_s"], 0.12 * 2 * np.pi / 6.8, rtol=1e-9)
+    with pytest.raises(SystemExit) as refused:  # (argparse: the usage and the message, exit status 2)
+        main(["tune", "--vessel", "cybership2", "--wave-period", "6.8", "--loop-bandwidth", "fast"])
+    assert refused.value.code == 2 and "--loop-bandwidth" in capsys.readouterr().err
