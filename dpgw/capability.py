@@ -25,12 +25,24 @@ plot of a DP vessel's documentation. The environment is co-linear (wind, waves a
   the wind makes, but also the longest Tp, where a vessel of DP-vessel size drifts less per m² of Hs:
   not conservative for drift against a younger, fetch-limited sea (docs/capability.md).
 
+Or, with ``Environment(sea="beaufort")``, the wind–sea–current relation of DNV-ST-0111 (Edition
+December 2021) Table 2-1, the environment of its DP capability numbers: per Beaufort number 1–11 the
+upper wind speed of that force, its Hs and Tp (a Pierson–Moskowitz spectrum, two-parameter form) and its
+current (0.25, 0.50, then 0.75 m/s); between the rows Hs, Tp and the current are interpolated linearly in
+U (the standard tabulates only the rows; the plot in m/s needs values between them). Each direction
+then also gets its DP capability number: the highest Beaufort number whose row, and every row below it,
+the thrusters hold (`dp_number`). The loads are still dpgw's (the vessel's own wind areas, full-plant
+current load and drift coefficients), the drift long-crested (the standard's Level 1 spreads the waves by
+cos²), and there is no thrust loss: the standard's *environment* and its dynamic factor, not its Level 1
+load formulas, so the numbers are not a Level 1 assessment (docs/capability.md).
+
 A missing ingredient (no ``[hull.wind]``: no wind load; no ``[hull]``: the current load from the linear
 damping D alone) is left out with a warning in `CapabilityResult.warnings`, never silently.
 
-Quasi-static: no dynamic allowance (the standard analyses add one, e.g. a margin on the thrust or on the
-loads for the gusts, the slowly varying drift and the controller's reserve), no thrust loss beyond the
-barred sectors. docs/capability.md.
+Quasi-static: the mean loads, times ``Environment.dynamic_factor`` (1 by default: no dynamic allowance;
+DNV-ST-0111's Level 1 multiplies the environmental loads by 1.25 for the gusts, the slowly varying drift
+and the controller's reserve, the default with the Beaufort relation), no thrust loss beyond the barred
+sectors. docs/capability.md.
 """
 
 from __future__ import annotations
@@ -75,6 +87,56 @@ CALM_U_MPS = 0.5
 """Below this wind speed the Pierson–Moskowitz sea is calm (Hs < 6 mm): no drift computed."""
 
 
+@dataclass(frozen=True)
+class BeaufortRow:
+    """One row of DNV-ST-0111 Table 2-1: Beaufort number ``bf`` (the DP capability number), the upper
+    1-hour mean wind speed at 10 m of that force, Hs, Tp and the current speed."""
+
+    bf: int
+    name: str
+    wind_mps: float
+    hs_m: float
+    tp_s: float
+    current_mps: float
+
+
+BEAUFORT_TABLE = (
+    BeaufortRow(0, "calm", 0.0, 0.0, math.nan, 0.0),  # (Tp not applicable: no sea)
+    BeaufortRow(1, "light air", 1.5, 0.1, 3.5, 0.25),
+    BeaufortRow(2, "light breeze", 3.4, 0.4, 4.5, 0.50),
+    BeaufortRow(3, "gentle breeze", 5.4, 0.8, 5.5, 0.75),
+    BeaufortRow(4, "moderate breeze", 7.9, 1.3, 6.5, 0.75),
+    BeaufortRow(5, "fresh breeze", 10.7, 2.1, 7.5, 0.75),
+    BeaufortRow(6, "strong breeze", 13.8, 3.1, 8.5, 0.75),
+    BeaufortRow(7, "near gale", 17.1, 4.2, 9.0, 0.75),
+    BeaufortRow(8, "gale", 20.7, 5.7, 10.0, 0.75),
+    BeaufortRow(9, "strong gale", 24.4, 7.4, 10.5, 0.75),
+    BeaufortRow(10, "storm", 28.4, 9.5, 11.5, 0.75),
+    BeaufortRow(11, "violent storm", 32.6, 12.1, 12.0, 0.75),
+)
+"""DNV-ST-0111 (Edition December 2021) Table 2-1, the environment of the DP capability numbers 0–11
+(Beaufort 12 has no capability number). Full scale."""
+BEAUFORT_DYNAMIC_FACTOR = 1.25
+"""DNV-ST-0111's Level 1 factor on the environmental loads (the dynamic allowance): the default with the
+Beaufort relation."""
+SEAS = ("pm", "beaufort")
+
+
+def beaufort_sea(u10: float, scale: float = 1.0) -> tuple[float, float, float]:
+    """(Hs m, Tp s, current m/s) of the Beaufort relation at wind speed ``u10`` (`BEAUFORT_TABLE`, linear
+    in U between its rows, exactly a row's values at its wind speed; above Beaufort 11's wind, its row).
+    ``scale``: a 1:λ model's λ (Froude: U, Tp and the current ÷ √λ, Hs ÷ λ). Tp is that of the next row
+    up between calm and Beaufort 1, where Hs is below 0.1 m."""
+    rows = BEAUFORT_TABLE
+    root = math.sqrt(scale)
+    u = u10 * root  # at full scale
+    winds = [r.wind_mps for r in rows]
+    hs = float(np.interp(u, winds, [r.hs_m for r in rows]))
+    current = float(np.interp(u, winds, [r.current_mps for r in rows]))
+    tp = float(np.interp(u, winds[1:], [r.tp_s for r in rows[1:]]))  # (clamped below Beaufort 1)
+    return hs / scale, tp / root, current / root
+
+
 def default_current(vessel: VesselModel) -> float:
     """`DEFAULT_CURRENT_MPS`, Froude-scaled (÷ √λ) for a 1:λ laboratory model (``vessel.model_scale``)."""
     return DEFAULT_CURRENT_MPS / math.sqrt(vessel.model_scale or 1.0)
@@ -97,15 +159,34 @@ class Environment:
     wind: bool = True
     current: bool = True
     waves: bool = True
+    sea: str = "pm"
+    """"pm": a fully developed Pierson–Moskowitz sea of the wind and the fixed ``current_mps``;
+    "beaufort": DNV-ST-0111 Table 2-1's sea and current for the wind (`beaufort_sea`; ``current_mps``
+    unused)."""
+    dynamic_factor: float = 1.0
+    """The factor on the environmental loads (1: the mean loads; DNV-ST-0111 Level 1: 1.25)."""
+
+    def __post_init__(self) -> None:
+        if self.sea not in SEAS:
+            raise ValueError(f"sea must be one of {SEAS}, got {self.sea!r}")
+        if not (math.isfinite(self.dynamic_factor) and self.dynamic_factor > 0):
+            raise ValueError(f"dynamic_factor must be a positive number, got {self.dynamic_factor!r}")
 
     def describe(self) -> str:
         parts = []
         if self.wind:
             parts.append("wind U")
-        if self.waves:
-            parts.append("fully developed PM sea Hs = 0.21 U19.5²/g")
-        if self.current:
-            parts.append(f"current {self.current_mps:.3g} m/s")
+        if self.sea == "beaufort":
+            if self.waves or self.current:
+                kinds = [k for k, on in (("sea", self.waves), ("current", self.current)) if on]
+                parts.append(f"DNV-ST-0111 Table 2-1 {' and '.join(kinds)} of U")
+        else:
+            if self.waves:
+                parts.append("fully developed PM sea Hs = 0.21 U19.5²/g")
+            if self.current:
+                parts.append(f"current {self.current_mps:.3g} m/s")
+        if self.dynamic_factor != 1.0:
+            parts.append(f"loads × {self.dynamic_factor:g}")
         return ", ".join(parts) + ", co-linear" if parts else "no environment"
 
 
@@ -156,20 +237,27 @@ class EnvironmentLoads:
             speed = norsok_mean(u10, self.area.height_m)
             urw, vrw = relative_wind(speed, math.degrees(beta_rad), 0.0, 0.0, 0.0)
             wind = np.array(relative_wind_force(self.area, self.vessel.length_m, urw, vrw))
-        if env.current and env.current_mps > 0:
+        if env.sea == "beaufort":
+            hs, tp, current_mps = beaufort_sea(u10, self.vessel.model_scale or 1.0)
+            calm = hs <= 0.0
+        else:
+            current_mps, calm = env.current_mps, u10 < CALM_U_MPS
+            hs, tp = pm_sea(u10) if not calm else (0.0, math.nan)
+        if env.current and current_mps > 0:
             towards = beta_rad + math.pi
-            vc = env.current_mps * np.array([math.cos(towards), math.sin(towards)])
+            vc = current_mps * np.array([math.cos(towards), math.sin(towards)])
             current = np.array(self.plant.current_load(vc), dtype=float)
-        if self.waves is not None and u10 >= CALM_U_MPS:
-            hs, tp = pm_sea(u10)
+        if self.waves is not None and not calm:
             sea = SeaState(hs_m=hs, tp_s=tp, kind="pm", direction_rad=beta_rad + math.pi)
             waves = np.asarray(self.waves.mean_drift_force(sea, 0.0), dtype=float)
         return {"wind": wind, "current": current, "waves": waves}
 
     def tau(self, u10: float, beta_rad: float) -> Array:
-        """τ_env: the sum of the `components`."""
+        """τ_env: the sum of the `components`, times the environment's ``dynamic_factor``."""
         c = self.components(u10, beta_rad)
-        return np.asarray(c["wind"] + c["current"] + c["waves"], dtype=float)
+        return np.asarray(
+            self.environment.dynamic_factor * (c["wind"] + c["current"] + c["waves"]), dtype=float
+        )
 
 
 def limit_speed(
@@ -208,6 +296,8 @@ class CapabilityCase:
     label: str
     failed: tuple[int, ...]
     u_max: tuple[float, ...]
+    dp_number: tuple[int, ...] | None = None
+    """With the Beaufort relation, per direction the DP capability number (`dp_number`); else None."""
 
 
 @dataclass(frozen=True)
@@ -224,6 +314,9 @@ class CapabilityResult:
     worst_failed: tuple[tuple[int, ...], ...] | None = None
     warnings: tuple[str, ...] = field(default=())
     u_limit: float = U_LIMIT_MPS
+    worst_dp_number: tuple[int, ...] | None = None
+    """With the Beaufort relation and failures analysed: per direction the least DP capability number
+    over the failures."""
 
     @property
     def intact(self) -> CapabilityCase:
@@ -241,24 +334,53 @@ class CapabilityResult:
         )
 
     def to_dict(self) -> dict[str, Any]:
+        env = self.environment
+        beaufort = env.sea == "beaufort"
+        environment: dict[str, Any] = {
+            "relation": env.describe(),
+            "sea": env.sea,
+            "current_mps": (None if beaufort else env.current_mps) if env.current else 0.0,
+            "wind": env.wind,
+            "waves": env.waves,
+            "wave_relation": "DNV-ST-0111 Table 2-1 (Hs, Tp and current per Beaufort number, linear in U "
+            "between its rows; Pierson-Moskowitz spectrum)"
+            if beaufort
+            else "Pierson-Moskowitz fully developed: Hs = 0.21 U19.5^2/g, wp = 0.877 g/U19.5",
+            "dynamic_factor": env.dynamic_factor,
+        }
+        if beaufort:
+            environment["beaufort_table"] = [
+                {
+                    "bf": r.bf,
+                    "wind_mps": r.wind_mps,
+                    "hs_m": r.hs_m,
+                    "tp_s": None if math.isnan(r.tp_s) else r.tp_s,
+                    "current_mps": r.current_mps,
+                }
+                for r in BEAUFORT_TABLE
+            ]
+        cases = []
+        for c in self.cases:
+            case: dict[str, Any] = {"label": c.label, "failed": list(c.failed), "u_max_mps": list(c.u_max)}
+            if c.dp_number is not None:
+                case["dp_capability_number"] = list(c.dp_number)
+            cases.append(case)
+        worst: dict[str, Any] | None = None
+        if self.worst is not None:
+            worst = {
+                "u_max_mps": list(self.worst),
+                "failed": [list(f) for f in self.limiting_failures() or ()],
+            }
+            if self.worst_dp_number is not None:
+                worst["dp_capability_number"] = list(self.worst_dp_number)
         return {
             "vessel": self.vessel,
-            "environment": {
-                "relation": self.environment.describe(),
-                "current_mps": self.environment.current_mps if self.environment.current else 0.0,
-                "wind": self.environment.wind,
-                "waves": self.environment.waves,
-                "wave_relation": "Pierson-Moskowitz fully developed: Hs = 0.21 U19.5^2/g, wp = 0.877 g/U19.5",
-            },
+            "environment": environment,
             "direction_convention": "environment coming from, degrees clockwise from the bow",
             "u_limit_mps": self.u_limit,
             "directions_deg": list(self.directions_deg),
-            "cases": [
-                {"label": c.label, "failed": list(c.failed), "u_max_mps": list(c.u_max)} for c in self.cases
-            ],
-            "worst_failure": None
-            if self.worst is None
-            else {"u_max_mps": list(self.worst), "failed": [list(f) for f in self.limiting_failures() or ()]},
+            "cases": cases,
+            "worst_failure": worst,
             "warnings": list(self.warnings),
         }
 
@@ -291,7 +413,11 @@ def capability(
         directions_deg = [i * 360.0 / n for i in range(n)]
     dirs = tuple(float(d) for d in directions_deg)
     froude = math.sqrt(vessel.model_scale or 1.0)
-    u_limit = U_LIMIT_MPS / froude if u_limit is None else float(u_limit)
+    beaufort = environment.sea == "beaufort"
+    # the Beaufort relation ends at Beaufort 11's wind: no capability number beyond it
+    top = BEAUFORT_TABLE[-1].wind_mps if beaufort else U_LIMIT_MPS
+    u_limit = top / froude if u_limit is None else float(u_limit)
+    row_winds = [r.wind_mps / froude for r in BEAUFORT_TABLE[1:]]
     grid, tol = U_GRID_MPS / froude, U_TOL_MPS / froude
     loads = EnvironmentLoads(vessel, environment)
     conditions: list[tuple[str, tuple[int, ...]]] = [("intact", ())]
@@ -309,6 +435,7 @@ def capability(
             conditions.append((f"{name} failed", g))
     problems = [CapabilityLP(vessel.thrusters, failed=f) for _, f in conditions]
     per_case: list[list[float]] = [[] for _ in conditions]
+    numbers: list[list[int]] = [[] for _ in conditions]
     for d in dirs:
         beta = math.radians(d)
         cache: dict[float, Array] = {}
@@ -318,28 +445,50 @@ def capability(
                 cache[u] = -loads.tau(u, beta)
             return cache[u]
 
-        for lp, out in zip(problems, per_case, strict=True):
+        for lp, out, number in zip(problems, per_case, numbers, strict=True):
 
             def scale_at(u: float, lp: CapabilityLP = lp) -> float:
                 return lp.scale(demand(u))
 
             out.append(limit_speed(scale_at, u_limit=u_limit, grid=grid, tol=tol))
+            if beaufort:
+                number.append(dp_number([scale_at(u) for u in row_winds]))
     cases = tuple(
-        CapabilityCase(label, failed, tuple(u))
-        for (label, failed), u in zip(conditions, per_case, strict=True)
+        CapabilityCase(label, failed, tuple(u), tuple(n) if beaufort else None)
+        for (label, failed), u, n in zip(conditions, per_case, numbers, strict=True)
     )
-    worst = worst_failed = None
+    worst = worst_failed = worst_number = None
     if failures != "none":
         fail_cases = cases[1:]
         table = np.array([c.u_max for c in fail_cases])  # failures × directions
         idx = [int(j) for j in np.argmin(table, axis=0)]  # the first failure of the least U_max
         worst = tuple(fail_cases[j].u_max[i] for i, j in enumerate(idx))
         worst_failed = tuple(fail_cases[j].failed for j in idx)
+        if beaufort:
+            worst_number = tuple(min(n) for n in zip(*(c.dp_number or () for c in fail_cases), strict=True))
         if failures == "worst":
             cases = cases[:1]
     return CapabilityResult(
-        vessel.name, dirs, environment, cases, worst, worst_failed, tuple(loads.warnings), u_limit
+        vessel.name,
+        dirs,
+        environment,
+        cases,
+        worst,
+        worst_failed,
+        tuple(loads.warnings),
+        u_limit,
+        worst_number,
     )
+
+
+def dp_number(scales: Sequence[float]) -> int:
+    """The DP capability number from k* at the Beaufort rows 1, 2, … 11 in order: the highest number
+    whose row and every row below it are held (k* ≥ 1); 0 when even Beaufort 1 is not (calm, Beaufort 0,
+    has no load and is always held)."""
+    for n, k in enumerate(scales):
+        if k < 1.0:
+            return n
+    return len(scales)
 
 
 def plot(result: CapabilityResult, path: str) -> None:
@@ -357,25 +506,34 @@ def plot(result: CapabilityResult, path: str) -> None:
     assert isinstance(ax, PolarAxes)
     ax.set_theta_zero_location("N")
     ax.set_theta_direction(-1)
-    u = np.array(result.intact.u_max)
+    # with the Beaufort relation the plot is of the DP capability numbers, as the standard draws it
+    numbers = result.intact.dp_number is not None
+
+    def radial(case: CapabilityCase) -> Array:
+        return np.array(case.dp_number if numbers and case.dp_number is not None else case.u_max, dtype=float)
+
+    u = radial(result.intact)
     ax.plot(theta, np.append(u, u[0]), "-o", color="tab:blue", ms=3, label="intact")
     for k, case in enumerate(result.cases[1:]):
-        v = np.array(case.u_max)
+        v = radial(case)
         ax.plot(theta, np.append(v, v[0]), "-", color="0.7", lw=0.8, label="each failure" if k == 0 else None)
-    if result.worst is not None:
-        w = np.array(result.worst)
+    worst = result.worst_dp_number if numbers else result.worst
+    if worst is not None:
+        w = np.array(worst, dtype=float)
         single = all(len(f) == 1 for f in result.worst_failed or ())
         label = "worst single failure" if single else "worst failure"
         ax.plot(theta, np.append(w, w[0]), "-s", color="tab:red", ms=3, label=label)
     ax.set_rlabel_position(135)
-    ax.set_rlim(0.0, result.u_limit)
+    if numbers:
+        top = BEAUFORT_TABLE[-1].bf
+        ax.set_rlim(0.0, top)
+        ax.set_rticks(range(0, top + 1))
+        caption = f"radial: DP capability number (Beaufort 0-{top}, DNV-ST-0111 Table 2-1 environment)"
+    else:
+        ax.set_rlim(0.0, result.u_limit)
+        caption = f"radial: U_max (m/s, 1-hour mean wind at 10 m); {result.u_limit:.3g} = at least"
     ax.legend(loc="lower right", bbox_to_anchor=(1.1, -0.12), fontsize=8)
-    fig.text(
-        0.5,
-        0.05,
-        f"radial: U_max (m/s, 1-hour mean wind at 10 m); {result.u_limit:.3g} = at least",
-        ha="center",
-    )
+    fig.text(0.5, 0.05, caption, ha="center")
     env = result.environment.describe()
     fig.suptitle(
         f"DP capability: {result.vessel}\n{env}\n(environment from, clockwise from the bow)", fontsize=10

@@ -15,6 +15,7 @@ from observers.vessel_files import builtin_vessels
 # no numpy or scipy (the analysis is imported by `run`); a test holds them equal.
 DEFAULT_CURRENT_MPS = 0.75
 U_LIMIT_MPS = 40.0
+BEAUFORT_DYNAMIC_FACTOR = 1.25
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")
 
 NAME = "capability"
@@ -28,6 +29,10 @@ DESCRIPTION = (
     f"respected), no dynamic allowance. Intact, and after each single thruster failure. U_max = "
     f"{U_LIMIT_MPS:g} means at least {U_LIMIT_MPS:g} m/s (a laboratory model: Froude-scaled); 0 means "
     "even the current alone is too much. "
+    "With --sea beaufort the sea and current come from DNV-ST-0111's Table 2-1 (the environment of its "
+    "DP capability numbers, Beaufort 1-11), the loads are multiplied by its dynamic factor 1.25, and each "
+    "direction also gets its DP capability number: the highest Beaufort number held with every one "
+    "below it (dpgw's own load models, not the standard's Level 1 formulas). "
     "Method and assumptions: docs/capability.md."
 )
 EPILOG = (
@@ -38,6 +43,7 @@ EPILOG = (
     "  dpgw capability --vessel my_ship.toml --current-mps 1.0 --step-deg 15\n"
     "  dpgw capability --vessel mss_supply --failure-group 1,4 --failure-group 2,5,6   # switchboards\n"
     "  dpgw capability --config examples/hil_bench.toml     # its vessel and failure groups\n"
+    "  dpgw capability --vessel mss_supply --sea beaufort --plot bf.png   # DP capability numbers\n"
     f"built-in vessels: {', '.join(builtin_vessels())}"
 )
 
@@ -82,6 +88,24 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "each group; given, the groups are the failures analysed instead of single thrusters (a thruster "
         "in no group is still lost alone)",
     )
+    p.add_argument(
+        "--sea",
+        choices=("pm", "beaufort"),
+        default="pm",
+        help="the sea and current of a wind speed. pm (default): a fully developed Pierson-Moskowitz sea "
+        "of the wind and the fixed --current-mps; beaufort: DNV-ST-0111 Table 2-1's Hs, Tp and current "
+        "per Beaufort number (linear in the wind between its rows), and per direction the DP capability "
+        "number",
+    )
+    p.add_argument(
+        "--dynamic-factor",
+        type=_factor,
+        default=None,
+        metavar="F",
+        help=f"multiply the environmental loads by F, an allowance for the gusts, the slowly varying drift "
+        f"and the controller's reserve (default 1 with --sea pm: the mean loads; {BEAUFORT_DYNAMIC_FACTOR:g} "
+        "with --sea beaufort, the standard's Level 1 factor)",
+    )
     p.add_argument("--no-waves", action="store_true", help="leave the wave drift out (wind and current only)")
     p.add_argument("--plot", type=Path, metavar="FILE", help="write the polar plot (.png, .svg or .pdf)")
     p.add_argument("--json", action="store_true", help="print the result as JSON instead of a table")
@@ -100,6 +124,13 @@ def _group(text: str) -> tuple[int, ...]:
     return ids
 
 
+def _factor(text: str) -> float:
+    value = non_negative_float(text)
+    if not 0.0 < value < 100.0:
+        raise argparse.ArgumentTypeError(f"must be a positive factor, e.g. 1.25 (got {text})")
+    return value
+
+
 def _step(text: str) -> float:
     value = non_negative_float(text)
     if not 0.0 < value <= 180.0:
@@ -115,6 +146,14 @@ def run(args: argparse.Namespace) -> int:
         print(
             "dpgw capability: --failure-group with --failures none: no failure would be analysed; give "
             "--failures worst or each with the groups, or leave the groups out",
+            file=sys.stderr,
+        )
+        return 2
+    if args.sea == "beaufort" and args.current_mps is not None:
+        print(
+            "dpgw capability: --current-mps with --sea beaufort: the Beaufort table gives the current for "
+            "each wind (0.25 m/s at Beaufort 1, 0.50 at 2, 0.75 from 3); leave --current-mps out, or use "
+            "--sea pm for a fixed current",
             file=sys.stderr,
         )
         return 2
@@ -148,7 +187,16 @@ def run(args: argparse.Namespace) -> int:
     from dpgw.capability import Environment, capability, default_current, plot
 
     current = default_current(vessel) if args.current_mps is None else args.current_mps
-    env = Environment(current_mps=current, current=current > 0, waves=not args.no_waves)
+    factor = args.dynamic_factor
+    if factor is None:
+        factor = BEAUFORT_DYNAMIC_FACTOR if args.sea == "beaufort" else 1.0
+    env = Environment(
+        current_mps=current,
+        current=current > 0,
+        waves=not args.no_waves,
+        sea=args.sea,
+        dynamic_factor=factor,
+    )
     try:
         result = capability(
             vessel,
@@ -210,16 +258,25 @@ def _print_table(result: object) -> None:
     # (a laboratory model's speeds, Froude-scaled: 4.78 m/s at most for CyberShip II, need a second
     # decimal, or the search's end, 4.78, prints as 4.8 and cannot be told from a limit of 4.75)
     digits = 1 if lim >= 10.0 else 2
-    cols = [(c.label, c.u_max) for c in result.cases]
+    cols: list[tuple[str, tuple[float, ...], tuple[int, ...] | None]] = [
+        (c.label, c.u_max, c.dp_number) for c in result.cases
+    ]
     if result.worst is not None and len(result.cases) == 1:
-        cols.append(("worst failure", result.worst))
-    head = f"{'from':>6s} " + " ".join(f"{label:>18s}" for label, _ in cols)
+        cols.append(("worst failure", result.worst, result.worst_dp_number))
+    if result.intact.dp_number is not None:
+        print("each cell: U_max (DP capability number: the highest Beaufort number held with all below it)")
+    head = f"{'from':>6s} " + " ".join(f"{label:>18s}" for label, _, _ in cols)
     limiting = result.limiting_failures()
     if limiting is not None:
         head += "  worst: thrusters failed"
     print(head)
+
+    def cell(u: float, number: int | None) -> str:
+        text = f"{u:.{digits}f}" + (f" (BF {number:2d})" if number is not None else "")
+        return f"{text:>18s}"
+
     for i, d in enumerate(result.directions_deg):
-        line = f"{d:6.1f} " + " ".join(f"{u[i]:18.{digits}f}" for _, u in cols)
+        line = f"{d:6.1f} " + " ".join(cell(u[i], n[i] if n is not None else None) for _, u, n in cols)
         if limiting is not None:  # ("-": no failure lowers it, `limiting_failures`)
             line += "  " + ("+".join(map(str, limiting[i])) or "-")
         print(line)

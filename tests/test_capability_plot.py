@@ -17,9 +17,11 @@ import numpy as np
 import pytest
 
 from dpgw.capability import (
+    BEAUFORT_TABLE,
     U_TOL_MPS,
     Environment,
     EnvironmentLoads,
+    beaufort_sea,
     capability,
     default_current,
     limit_speed,
@@ -291,3 +293,76 @@ def test_the_command_takes_a_gateway_config_s_vessel_and_failure_groups(
     bad.write_text(cfg.read_text().replace("[3, 4, 5]", "[3, 4, 9]"))
     assert main(["capability", "--config", str(bad)]) == 2
     assert "consequence.failure_groups[1]: no thruster 9 on this vessel" in capsys.readouterr().err
+
+
+def test_the_beaufort_sea_is_the_tables_rows_and_linear_between_them() -> None:
+    """DNV-ST-0111 Table 2-1 as the relation: at a row's wind speed exactly that row's Hs, Tp and current,
+    in between linear in U, nothing growing with the wind going down; on a 1:λ model Froude-scaled."""
+    for row in BEAUFORT_TABLE[1:]:
+        assert beaufort_sea(row.wind_mps) == (row.hs_m, row.tp_s, row.current_mps)
+    lo, hi = BEAUFORT_TABLE[6], BEAUFORT_TABLE[7]
+    hs, tp, vc = beaufort_sea(0.5 * (lo.wind_mps + hi.wind_mps))
+    assert hs == pytest.approx(0.5 * (lo.hs_m + hi.hs_m)) and tp == pytest.approx(0.5 * (lo.tp_s + hi.tp_s))
+    assert vc == 0.75
+    winds = np.linspace(0.0, 35.0, 200)
+    seas = np.array([beaufort_sea(float(u)) for u in winds])
+    assert np.all(np.diff(seas, axis=0) >= 0.0)
+    assert beaufort_sea(0.0)[0] == 0.0 and beaufort_sea(40.0) == beaufort_sea(32.6)
+    lam = 70.0
+    hs_m, tp_m, vc_m = beaufort_sea(13.8 / math.sqrt(lam), lam)
+    assert (hs_m, tp_m, vc_m) == pytest.approx((3.1 / lam, 8.5 / math.sqrt(lam), 0.75 / math.sqrt(lam)))
+
+
+def test_the_dp_capability_number_is_the_last_beaufort_row_held_with_every_row_below() -> None:
+    """Per direction and thruster condition, the number n is the standard's: k* ≥ 1 at Beaufort rows
+    1…n of Table 2-1 (loads × the dynamic factor) and k* < 1 at row n + 1; the worst failure's number is
+    the least over the failures; the dynamic factor multiplies the loads and can only lower the numbers."""
+    v = load_vessel("mss_supply")
+    env = Environment(sea="beaufort", dynamic_factor=1.25)
+    res = capability(v, environment=env, directions_deg=[0.0, 60.0, 90.0, 150.0], failures="each")
+    loads = EnvironmentLoads(v, env)
+    checked = set()
+    for case in res.cases:
+        assert case.dp_number is not None
+        lp = CapabilityLP(v.thrusters, failed=case.failed)
+        for d, n in zip(res.directions_deg, case.dp_number, strict=True):
+            scales = [lp.scale(-loads.tau(r.wind_mps, math.radians(d))) for r in BEAUFORT_TABLE[1:]]
+            assert all(k >= 1.0 for k in scales[:n])
+            if n < 11:
+                assert scales[n] < 1.0
+            checked.add(n)
+    assert len(checked) >= 3  # beam, quartering and head seas give different numbers
+    assert res.worst_dp_number == tuple(
+        min(c.dp_number[i] for c in res.cases[1:] if c.dp_number) for i in range(4)
+    )
+    mean = EnvironmentLoads(v, Environment(sea="beaufort"))
+    np.testing.assert_allclose(loads.tau(17.1, 1.2), 1.25 * mean.tau(17.1, 1.2), rtol=1e-12)
+    plain = capability(
+        v, environment=Environment(sea="beaufort"), directions_deg=[60.0, 90.0], failures="none"
+    )
+    factored = capability(v, environment=env, directions_deg=[60.0, 90.0], failures="none")
+    assert plain.intact.dp_number is not None and factored.intact.dp_number is not None
+    assert all(f <= p for f, p in zip(factored.intact.dp_number, plain.intact.dp_number, strict=True))
+    assert factored.intact.dp_number != plain.intact.dp_number  # 1.25 on the loads costs a Beaufort step here
+
+
+def test_the_command_gives_dp_capability_numbers_with_the_beaufort_sea(
+    tmp_path, capsys: pytest.CaptureFixture[str]
+) -> None:  # type: ignore[no-untyped-def]
+    png = tmp_path / "bf.png"
+    args = ["capability", "--vessel", "mss_supply", "--step-deg", "90", "--sea", "beaufort"]
+    assert main([*args, "--json", "--plot", str(png)]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["environment"]["sea"] == "beaufort" and doc["environment"]["dynamic_factor"] == 1.25
+    assert doc["environment"]["current_mps"] is None  # (the table's, per row)
+    assert [r["wind_mps"] for r in doc["environment"]["beaufort_table"]][6] == 13.8
+    numbers = doc["cases"][0]["dp_capability_number"]
+    worst = doc["worst_failure"]["dp_capability_number"]
+    assert len(numbers) == 4 and all(0 <= w <= n <= 11 for w, n in zip(worst, numbers, strict=True))
+    assert numbers[1] == numbers[3] and numbers[1] < numbers[0]  # the beams alike, below head seas
+    assert doc["u_limit_mps"] == 32.6
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert main(args) == 0
+    assert "(BF " in capsys.readouterr().out
+    assert main([*args, "--current-mps", "1.0"]) == 2
+    assert "--sea pm for a fixed current" in capsys.readouterr().err

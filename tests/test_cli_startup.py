@@ -121,6 +121,7 @@ def test_capability_defaults_match_the_analysis() -> None:
 
     assert cli_capability.DEFAULT_CURRENT_MPS == capability.DEFAULT_CURRENT_MPS
     assert cli_capability.U_LIMIT_MPS == capability.U_LIMIT_MPS
+    assert cli_capability.BEAUFORT_DYNAMIC_FACTOR == capability.BEAUFORT_DYNAMIC_FACTOR
 
 
 def test_replay_help_lists_every_spec_tuning_key() -> None:
