@@ -403,13 +403,16 @@ def write_figures(out: Path, hydro_path: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from observers.memory_tuning import froude_scale_for
+    from observers.memory_tuning import builtin_radiation, froude_scale_for
     from observers.radiation import retardation_from_damping
 
     out.mkdir(parents=True, exist_ok=True)
     vessel = load_vessel("hajivand_vessel")
     model = memory_model(vessel)
     r = model.radiation
+    # eq (4) needs the A(∞) of the data's own fit, Froude-scaled like the data; the observer's model
+    # carries the vessel's A(∞) (the paper's printed A), which is not the limit of these A(ω)
+    fit_a_inf = builtin_radiation().froude_scaled(froude_scale_for(vessel)).A_inf
     written = []
     t = np.linspace(0.0, 80.0, 401)
     K_model = r.impulse_response(t)
@@ -419,7 +422,7 @@ def write_figures(out: Path, hydro_path: Path) -> list[Path]:
         for fig_no, (i, name) in zip(
             (3, 4, 5), enumerate(("surge-surge", "sway-sway", "yaw-yaw")), strict=True
         ):
-            k4 = retardation_from_added_mass(w[keep], A[i, i, keep], r.A_inf[i, i], t)
+            k4 = retardation_from_added_mass(w[keep], A[i, i, keep], fit_a_inf[i, i], t)
             k5 = retardation_from_damping(w, B[i, i], t, tail=True)
             fig, ax = plt.subplots(figsize=(7, 4))
             ax.plot(t, k5, label="eq (5) from B(ω), tail ∝ ω⁻²")

@@ -13,15 +13,20 @@ the added mass and damping change with frequency. The memory observer uses::
 
 with A(0) = A(∞) - C_r A_r⁻² B_r and K(0) = D_r - C_r A_r⁻¹ B_r of the radiation model, so that as ω → 0
 the two observers see exactly the same ship (M_m + A(0) - A(∞) = M, D_m + K(0) = D), and they differ only
-where the fluid memory acts. This also makes M_m = M_RB + A(∞) when the vessel file and the hydrodynamic
-data agree, which is what (20) asks for.
+where the fluid memory acts. M_m is the vessel's M_RB + A(∞), which is what (20) asks for, and it must not
+fall below M_RB (an A(∞) < 0: refused, `check_model`).
 
-**The radiation model** of the vessel's own hull (`observers.radiation.identify` on its A(ω), B(ω)) is
-the right one. Without one, dpgw uses the built-in model of MSS's supply vessel (the model stored beside the
-built-in vessel ``mss_supply``, ``observers/vessels/radiation/mss_supply.npz``, which the simulator's plant
-reads too) Froude-scaled to the vessel's displacement (length scale λ = (m/m_supply)^⅓;
-`RadiationStateSpace.froude_scaled`): a hull of a similar form, with its memory time scale and its
-A(0) - A(∞) in proportion. ``froude_scale`` overrides λ.
+**The radiation model** (`default_radiation`) of the vessel's own hull (`observers.radiation.identify` on
+its A(ω), B(ω); a built-in vessel's is stored beside it) is the right one. Without one, dpgw uses the
+built-in model of MSS's supply vessel (the model stored beside the built-in vessel ``mss_supply``,
+``observers/vessels/radiation/mss_supply.npz``) Froude-scaled to the vessel's displacement (length scale
+λ = (m/m_supply)^⅓; `RadiationStateSpace.froude_scaled`): a hull of a similar form, with its memory time
+scale. ``froude_scale`` overrides λ. Either is then fitted to a vessel file in the zero-frequency form
+(`fit_scale`): per DOF its A(0) - A(∞) takes at most the share of the vessel's added mass M - M_RB that
+memory has in the model's own hull, so that M_m ≥ M_RB + (1 - share)(M - M_RB). The vessel's M decides the
+total because every observer, the controller and the plant without memory use it; the model decides the
+time scale and the share. A file in the Cummins form (M_RB and A(∞) given, `observers.vessel`) took its
+M from the Froude-scaled model, which is used as it is; its M_m is the file's M_RB + A(∞) exactly.
 
 **Gains.** The passive observer's (`observers.passive_tuning`) from the same physical tuning: wave filter
 from ω0, ζ, ζn, ωc, injections K4 = diag(M)·ωc·a and K3 = K4·ρ, then both injections multiplied per DOF by

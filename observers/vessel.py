@@ -18,6 +18,12 @@ file of the same form (see ``docs/vessels.md``). Either M and D are given direct
 A model that cannot work is refused (`VesselError`) with a message naming the field and the reason:
 M must be symmetric positive definite (assumption A1), D + Dᵀ positive definite (the dissipation that
 makes the velocity-error dynamics strictly passive, Proposition 2), shapes 3×3, numbers finite.
+
+A file may also give the rigid-body mass ``M_RB`` (the fluid-memory observer keeps M_RB + A(∞) above it),
+or, instead of M, ``M_RB`` and ``A_inf``: the Cummins form of a source that prints the infinite-frequency
+added mass (Hajivand & Mousavizadegan 2010). M is then M_RB + A_inf + [A(0) - A(∞)] of the built-in
+radiation model Froude-scaled to the vessel (`cummins_low_frequency_inertia`), the slow-motion inertia
+every observer and the controller use.
 """
 
 from __future__ import annotations

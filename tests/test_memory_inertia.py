@@ -146,3 +146,22 @@ def test_cummins_form_file_errors_name_the_field() -> None:
         )
     v = vessel_from_dict({**base, "M_RB": m_rb, "A_inf": a_inf})
     assert np.all(np.diag(v.M) > np.diag(np.array(m_rb) + np.array(a_inf)))
+
+
+def test_plant_with_memory_is_the_memory_observers_model_and_the_files_ship_at_low_frequency() -> None:
+    """mss_supply_storm's plant integrates the model the memory observer uses: its mass M_RB + A(∞) is the
+    observer's M_m, and with the memory's A(0) - A(∞) it is the vessel file's M (the plant without memory,
+    the passive observer) — before, the plant had the data's A(∞) and 7.57e6 kg in surge at ω → 0 against
+    the file's 6.76e6."""
+    from simulator.plant_params import PlantParams
+    from simulator.scenarios import get_scenario
+
+    scenario = get_scenario("mss_supply_storm")
+    radiation = scenario.plant_options.radiation
+    model = memory_model(scenario.vessel)
+    assert radiation is not None
+    for name in ("Ar", "Br", "Cr", "Dr", "A_inf"):
+        assert np.array_equal(getattr(radiation, name), getattr(model.radiation, name)), name
+    plant = PlantParams.build(scenario.vessel, scenario.plant_options)
+    np.testing.assert_allclose(plant.M, model.M, rtol=1e-12)
+    np.testing.assert_allclose(plant.M + memory_added_mass(radiation), scenario.vessel.M, rtol=1e-12)
