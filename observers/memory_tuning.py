@@ -86,9 +86,6 @@ from observers.passive_tuning import (
 )
 from observers.radiation import RadiationStateSpace
 from observers.radiation_builtin import (
-    BUILTIN_RADIATION as BUILTIN_RADIATION,
-)
-from observers.radiation_builtin import (
     builtin_radiation,
     froude_scale_for_mass,
     memory_added_mass,

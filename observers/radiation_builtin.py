@@ -32,10 +32,12 @@ def _load(name: str) -> RadiationStateSpace:
     ):
         meta = json.loads(str(data["meta"]))
         m_rb = np.array(meta["M_RB"], dtype=float) if "M_RB" in meta else None
-        source = f"{name}: {m_rb[0, 0] / 1e3:.0f} t hull" if m_rb is not None else name
-        if name == "mss_supply":
-            assert m_rb is not None  # the built-in file records it
-            source = f"MSS supply vessel ({m_rb[0, 0] / 1e3:.0f} t), ShipX A(ω), B(ω)"
+        hull = f" ({m_rb[0, 0] / 1e3:.0f} t)" if m_rb is not None else ""
+        source = (
+            f"MSS supply vessel{hull}, ShipX A(ω), B(ω)"
+            if name == "mss_supply"
+            else f"{name}{hull}, its own A(ω), B(ω)"
+        )
         return RadiationStateSpace(
             data["Ar"],
             data["Br"],

@@ -492,8 +492,8 @@ def mss_supply_storm() -> Scenario:
         wind=WindModel(speed_mps=15.0, from_deg=45.0 + 40.0, gust="norsok"),
         notes="Torsetnes' sea (Hs 6 m, Tp 11.5 s, 30° off the bow) with a 1 m/s current setting 20° off the "
         "bow towards the stern and 15 m/s wind 40° off the bow (NORSOK gusts): environment from ahead, as a "
-        "DP operator heads a vessel. Fluid memory from the ShipX supply vessel's A(ω), B(ω) "
-        "(docs/radiation.md).",
+        "DP operator heads a vessel. Fluid memory from the ShipX supply vessel's A(ω), B(ω), fitted to the "
+        "vessel file (docs/memory-observer.md).",
     )
 
 
