@@ -21,7 +21,7 @@ import numpy as np
 
 from dpgw.closed_loop import run_closed_loop
 from observers.kinematics import ssa
-from simulator.fluid_memory_cache import load_fluid_memory
+from observers.memory_tuning import default_radiation
 from simulator.plant_params import PlantOptions
 from simulator.scenarios import Scenario, get_scenario
 
@@ -35,9 +35,7 @@ def cases() -> list[tuple[str, Scenario]]:
         ("torsetnes_2004, full plant", replace(tors, plant="full")),
         (
             "torsetnes_2004, full plant + memory",
-            replace(
-                tors, plant="full", plant_options=PlantOptions(radiation=load_fluid_memory("mss_supply"))
-            ),
+            replace(tors, plant="full", plant_options=PlantOptions(radiation=default_radiation(tors.vessel))),
         ),
         ("mss_supply_storm (full, memory, current, wind)", get_scenario("mss_supply_storm")),
     ]

@@ -13,15 +13,20 @@ the added mass and damping change with frequency. The memory observer uses::
 
 with A(0) = A(∞) - C_r A_r⁻² B_r and K(0) = D_r - C_r A_r⁻¹ B_r of the radiation model, so that as ω → 0
 the two observers see exactly the same ship (M_m + A(0) - A(∞) = M, D_m + K(0) = D), and they differ only
-where the fluid memory acts. This also makes M_m = M_RB + A(∞) when the vessel file and the hydrodynamic
-data agree, which is what (20) asks for.
+where the fluid memory acts. M_m is the vessel's M_RB + A(∞), which is what (20) asks for, and it must not
+fall below M_RB (an A(∞) < 0: refused, `check_model`).
 
-**The radiation model** of the vessel's own hull (`observers.radiation.identify` on its A(ω), B(ω)) is
-the right one. Without one, dpgw uses the built-in model of MSS's supply vessel (the model stored beside the
-built-in vessel ``mss_supply``, ``observers/vessels/radiation/mss_supply.npz``, which the simulator's plant
-reads too) Froude-scaled to the vessel's displacement (length scale λ = (m/m_supply)^⅓;
-`RadiationStateSpace.froude_scaled`): a hull of a similar form, with its memory time scale and its
-A(0) - A(∞) in proportion. ``froude_scale`` overrides λ.
+**The radiation model** (`default_radiation`) of the vessel's own hull (`observers.radiation.identify` on
+its A(ω), B(ω); a built-in vessel's is stored beside it) is the right one. Without one, dpgw uses the
+built-in model of MSS's supply vessel (the model stored beside the built-in vessel ``mss_supply``,
+``observers/vessels/radiation/mss_supply.npz``) Froude-scaled to the vessel's displacement (length scale
+λ = (m/m_supply)^⅓; `RadiationStateSpace.froude_scaled`): a hull of a similar form, with its memory time
+scale. ``froude_scale`` overrides λ. Either is then fitted to a vessel file in the zero-frequency form
+(`fit_scale`): per DOF its A(0) - A(∞) takes at most the share of the vessel's added mass M - M_RB that
+memory has in the model's own hull, so that M_m ≥ M_RB + (1 - share)(M - M_RB). The vessel's M decides the
+total because every observer, the controller and the plant without memory use it; the model decides the
+time scale and the share. A file in the Cummins form (M_RB and A(∞) given, `observers.vessel`) took its
+M from the Froude-scaled model, which is used as it is; its M_m is the file's M_RB + A(∞) exactly.
 
 **Gains.** The passive observer's (`observers.passive_tuning`) from the same physical tuning: wave filter
 from ω0, ζ, ζn, ωc, injections K4 = diag(M)·ωc·a and K3 = K4·ρ, then both injections multiplied per DOF by
@@ -60,11 +65,8 @@ gives the rate the tuning promises (`slowest_error_rate`).
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, replace
-from functools import lru_cache
-from importlib import resources
 from typing import Any
 
 import numpy as np
@@ -83,8 +85,14 @@ from observers.passive_tuning import (
     passive_gains,
 )
 from observers.radiation import RadiationStateSpace
+from observers.radiation_builtin import (
+    builtin_radiation,
+    froude_scale_for_mass,
+    memory_added_mass,
+    stored_radiation,
+)
 from observers.state import ETA, N_STATE, NU, XI2
-from observers.vessel import VesselModel
+from observers.vessel import VesselModel, load_vessel, rigid_body_diagonal, rigid_body_matrix
 
 Array = NDArray[np.float64]
 
@@ -96,38 +104,87 @@ class MemoryModelError(TuningError):
     """A radiation model that cannot be combined with the vessel (the message says which matrix and why)."""
 
 
-BUILTIN_RADIATION = "vessels/radiation/mss_supply.npz"
-"""The built-in model, in the package: the one `dpgw radiation` identified for mss_supply (with its fit
-report beside it, ``mss_supply.toml``), read by the plant and by this observer alike."""
-
-
-@lru_cache(maxsize=1)
-def builtin_radiation() -> RadiationStateSpace:
-    """MSS's supply vessel, identified by dpgw from its ShipX data (17 states, passive): the 82.8 m,
-    6362 t hull of the ShipX/VERES A(ω), B(ω), whose rigid-body mass the file records (``M_RB``)."""
-    with (
-        resources.as_file(resources.files("observers") / BUILTIN_RADIATION) as path,
-        np.load(path, allow_pickle=False) as data,
-    ):
-        meta = json.loads(str(data["meta"]))
-        m_rb = np.array(meta["M_RB"], dtype=float)
-        return RadiationStateSpace(
-            data["Ar"],
-            data["Br"],
-            data["Cr"],
-            data["Dr"],
-            data["A_inf"],
-            source=f"MSS supply vessel ({m_rb[0, 0] / 1e3:.0f} t), ShipX A(ω), B(ω)",
-            hydro_sha256=str(meta.get("hydro_sha256", "")),
-            M_RB=m_rb,
-        )
-
-
 def froude_scale_for(vessel: VesselModel) -> float:
     """Length scale λ = (m_vessel / m_supply)^⅓ that carries the built-in model to ``vessel``'s mass."""
-    m_rb = builtin_radiation().M_RB
-    assert m_rb is not None  # the built-in file records it
-    return float((vessel.mass_kg / m_rb[0, 0]) ** (1.0 / 3.0))
+    return froude_scale_for_mass(vessel.mass_kg)
+
+
+def own_radiation(vessel: VesselModel) -> RadiationStateSpace | None:
+    """The model identified from the vessel's own A(ω), B(ω) when it is a built-in vessel that has one
+    (``mss_supply``: the model the simulator's plant integrates for it), else None."""
+    model = stored_radiation(vessel.name)
+    if model is None:
+        return None
+    return model if vessel == load_vessel(vessel.name) else None
+
+
+def memory_share(radiation: RadiationStateSpace) -> Array:
+    """1 - A(∞)ᵢᵢ / A(0)ᵢᵢ per DOF: the share of the zero-frequency added mass that the fluid memory
+    supplies in the model's own hull (the supply vessel: 0.595, 0.595, 0.471). Unchanged by Froude scaling
+    and by `RadiationStateSpace.dof_scaled`: a property of the hull's form, not of its size."""
+    a0 = np.diag(radiation.zero_frequency_added_mass())
+    return np.asarray(1.0 - np.diag(radiation.A_inf) / a0)
+
+
+def fit_scale(vessel: VesselModel, radiation: RadiationStateSpace) -> Array:
+    """Per-DOF factors sᵢ ≤ 1 for `RadiationStateSpace.dof_scaled` so that the model's A(0) - A(∞) takes no
+    more of the vessel's own added mass aᵢ = Mᵢᵢ - M_RB,ii than the model's hull gives to memory::
+
+        sᵢ² = min(1, shareᵢ · aᵢ / [A(0) - A(∞)]ᵢᵢ)            (`memory_share`)
+
+    so that the vessel's implied A(∞)ᵢᵢ = aᵢ - sᵢ² [A(0) - A(∞)]ᵢᵢ ≥ (1 - shareᵢ) aᵢ > 0 and M_m,ii ≥
+    M_RB,ii. sᵢ = 1 where the DOF's M_RB is unknown (`rigid_body_diagonal`: yaw of a file without I_z)."""
+    a = np.diag(vessel.M) - rigid_body_diagonal(vessel)
+    mem = np.diag(memory_added_mass(radiation))
+    share = memory_share(radiation)
+    with np.errstate(invalid="ignore"):
+        s2 = np.where(
+            np.isfinite(a) & (mem > 0), np.minimum(1.0, share * a / np.where(mem > 0, mem, 1.0)), 1.0
+        )
+    return np.sqrt(np.maximum(s2, 1e-12))
+
+
+def default_radiation(vessel: VesselModel, froude_scale: float | None = None) -> RadiationStateSpace:
+    """The model of ``vessel``'s fluid memory that dpgw uses, in the observer and in a plant
+    (docs/memory-observer.md, "Radiation model"):
+
+    1. its own (`own_radiation`, unscaled: the hull its data describe), or the built-in model
+       Froude-scaled to its displacement (`froude_scale_for`), or by ``froude_scale`` when given;
+    2. for a vessel file in the zero-frequency form (M = M_RB + A(0)), scaled per DOF by `fit_scale`: the
+       vessel's M is what every observer, the controller and the plant without memory use, so it sets
+       the total added mass; the model sets the time scale and the share of it that is memory. A file in
+       the Cummins form (``A_inf``) states A(∞) and took its A(0) from the Froude-scaled built-in model,
+       which is left as it is;
+    3. its A(∞) made the vessel's (`with_vessel_A_inf`), so that M_RB + A(∞) is the memory observer's M_m
+       and a plant with this model has the vessel file's M as ω → 0."""
+    own = own_radiation(vessel) if froude_scale is None else None
+    if own is not None:
+        radiation = own
+    else:
+        scale = froude_scale_for(vessel) if froude_scale is None else froude_scale
+        radiation = builtin_radiation().froude_scaled(scale)
+    if vessel.A_inf is None:
+        s = fit_scale(vessel, radiation)
+        if not np.all(s == 1.0):
+            radiation = radiation.dof_scaled(s)
+    return with_vessel_A_inf(vessel, radiation)
+
+
+def with_vessel_A_inf(vessel: VesselModel, radiation: RadiationStateSpace) -> RadiationStateSpace:
+    """``radiation`` with A(∞) = the vessel's: its file's ``A_inf`` (Cummins form), else M - M_RB - [A(0) -
+    A(∞)] (so that the model's A(0) is the vessel's added mass M - M_RB), and ``M_RB`` the vessel's (the
+    mass a plant puts A(∞) with). Unchanged if the vessel's full M_RB is unknown (no ``M_RB``, no
+    ``[hull]``: such a vessel has no full plant, and the observer does not read A(∞))."""
+    m_rb = rigid_body_matrix(vessel)
+    if m_rb is None:
+        return radiation
+    a_inf = vessel.A_inf if vessel.A_inf is not None else vessel.M - m_rb - memory_added_mass(radiation)
+    return replace(
+        radiation,
+        A_inf=0.5 * (a_inf + a_inf.T),
+        M_RB=m_rb,
+        source=f"{radiation.source}, A(∞) of {vessel.name}",
+    )
 
 
 @dataclass(frozen=True)
@@ -137,6 +194,8 @@ class MemoryModel:
     M: Array
     D: Array
     radiation: RadiationStateSpace
+    rigid_body: Array | None = None
+    """Diagonal of the vessel's M_RB (`rigid_body_diagonal`, NaN where unknown): M_m,ii may not be less."""
 
     @property
     def Minv(self) -> Array:
@@ -145,18 +204,18 @@ class MemoryModel:
     @property
     def memory_added_mass(self) -> Array:
         """A(0) - A(∞): the added mass that the fluid memory supplies to slow motion (kg, kg·m, kg·m²)."""
-        return self.radiation.zero_frequency_added_mass() - self.radiation.A_inf
+        return memory_added_mass(self.radiation)
 
 
 def memory_model(
     vessel: VesselModel, radiation: RadiationStateSpace | None = None, froude_scale: float | None = None
 ) -> MemoryModel:
-    """M_m = M - [A(0) - A(∞)] and D_m = D - K(0) for ``vessel`` with ``radiation`` (default: the built-in
-    model Froude-scaled to the vessel, or by ``froude_scale``); refuses a combination that is not a ship."""
+    """M_m = M - [A(0) - A(∞)] and D_m = D - K(0) for ``vessel`` with ``radiation`` (default:
+    `default_radiation`, ``froude_scale`` its length scale). A model given is used as it is (Froude-scaled
+    by ``froude_scale`` if given); every combination must leave M_m ≥ M_RB in each DOF whose M_RB is known
+    and be a ship (`check_model`), else it is refused."""
     if radiation is None:
-        radiation = builtin_radiation().froude_scaled(
-            froude_scale if froude_scale is not None else froude_scale_for(vessel)
-        )
+        radiation = default_radiation(vessel, froude_scale)
     elif froude_scale is not None:
         radiation = radiation.froude_scaled(froude_scale)
     ev = np.linalg.eigvals(radiation.Ar)
@@ -165,10 +224,9 @@ def memory_model(
             f"radiation model: A_r must have every pole in the open left half-plane (largest real part "
             f"{ev.real.max() if len(ev) else float('nan'):.4g}); identify it with observers.radiation"
         )
-    A_mem = radiation.zero_frequency_added_mass() - radiation.A_inf
-    M = np.asarray(vessel.M - 0.5 * (A_mem + A_mem.T))
+    M = np.asarray(vessel.M - memory_added_mass(radiation))
     D = np.asarray(vessel.D - radiation.static_gain())
-    model = MemoryModel(M, D, radiation)
+    model = MemoryModel(M, D, radiation, rigid_body_diagonal(vessel))
     check = check_model(model, vessel)
     if not check.ok:
         raise MemoryModelError(f"memory observer: {check.detail}")
@@ -226,7 +284,8 @@ def check_grid(radiation: RadiationStateSpace) -> Array:
 
 
 def check_model(model: MemoryModel, vessel: VesselModel | None = None) -> Check:
-    """M_m = M_RB + A(∞) symmetric positive definite (it is the inertia (20) inverts), D_m + D_mᵀ > 0."""
+    """M_m = M_RB + A(∞) symmetric positive definite (it is the inertia (20) inverts) and not below the
+    rigid-body mass in any DOF where that is known (A(∞)ᵢᵢ ≥ 0), D_m + D_mᵀ > 0."""
     problems = []
     lam_m = float(np.linalg.eigvalsh(0.5 * (model.M + model.M.T)).min())
     if not lam_m > 0:
@@ -239,15 +298,27 @@ def check_model(model: MemoryModel, vessel: VesselModel | None = None) -> Check:
         )
         problems.append(f"M_RB + A(∞) = M - [A(0) - A(∞)] is not positive definite (smallest eigenvalue "
                         f"{lam_m:.4g}){hint}")  # fmt: skip
+    rb = np.full(3, np.nan) if model.rigid_body is None else model.rigid_body
+    margin = np.diag(model.M) / rb - 1.0  # M_m,ii / M_RB,ii - 1 = A(∞)ᵢᵢ / M_RB,ii, NaN where unknown
+    below = [DOF[i] for i in range(3) if margin[i] < 0]
+    if below:
+        problems.append(
+            f"M_RB + A(∞) = M - [A(0) - A(∞)] is below the rigid-body mass in {', '.join(below)} "
+            f"(M_m / M_RB - 1 = {np.round(margin, 4).tolist()}: an A(∞) < 0; the radiation model's "
+            f"A(0) - A(∞) {np.diag(model.memory_added_mass).tolist()} exceeds the vessel's added mass: a "
+            "model of another hull? set froude_scale, or leave the model to dpgw)"
+        )
     lam_d = float(np.linalg.eigvalsh(model.D + model.D.T).min())
     if not lam_d > 0:
         problems.append(f"D - K(0) + (D - K(0))ᵀ is not positive definite (smallest eigenvalue {lam_d:.4g})")
     return Check(
         name="memory_model",
-        inequality="M_RB + A(inf) = M - [A(0) - A(inf)] > 0 and D - K(0) + (D - K(0))^T > 0",
+        inequality=(
+            "M_RB + A(inf) = M - [A(0) - A(inf)] > 0, M_m,ii >= M_RB,ii and D - K(0) + (D - K(0))^T > 0"
+        ),
         ok=not problems,
         detail="; ".join(problems) if problems else "inertia and damping positive definite",
-        values={"min_eig_M": [lam_m], "min_eig_D_sym": [lam_d]},
+        values={"min_eig_M": [lam_m], "min_eig_D_sym": [lam_d], "M_m_over_M_RB_minus_1": margin.tolist()},
     )
 
 
@@ -375,9 +446,13 @@ __all__ = [
     "MemoryModelError",
     "builtin_radiation",
     "check_gains",
+    "default_radiation",
     "error_dynamics_matrix",
+    "fit_scale",
     "memory_gains",
     "memory_model",
+    "memory_share",
+    "own_radiation",
     "slowest_error_rate",
     "validate",
 ]

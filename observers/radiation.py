@@ -1135,6 +1135,25 @@ class RadiationStateSpace:
             else f"Froude-scaled ×{lam:.4g}",
         )
 
+    def dof_scaled(self, s: ArrayLike) -> RadiationStateSpace:
+        """S K(s) S with S = diag(s) (s > 0, one factor per DOF): element (i, j) of K(jω), A(ω) and A(∞)
+        multiplied by sᵢ sⱼ, the time scale kept. A congruence, so K stays symmetric and a passive model
+        stays passive (Herm[S K S] = S Herm[K] S ⪰ 0). ``M_RB`` is dropped: the result is no longer the
+        model of that hull."""
+        f = np.asarray(s, dtype=float).reshape(-1)
+        if f.shape != (3,) or not np.all(np.isfinite(f) & (f > 0)):
+            raise ValueError(f"DOF scale factors must be three positive numbers, got {s!r}")
+        S = np.diag(f)
+        return RadiationStateSpace(
+            Ar=self.Ar,
+            Br=self.Br @ S,
+            Cr=S @ self.Cr,
+            Dr=S @ self.Dr @ S,
+            A_inf=S @ self.A_inf @ S,
+            source=f"{self.source} (DOF-scaled ×{', '.join(f'{x:.4g}' for x in f)})",
+            hydro_sha256=self.hydro_sha256,
+        )
+
 
 def radiation_state_space(
     elements: dict[tuple[int, int], ElementModel], feedthrough: ArrayLike | None = None, source: str = ""

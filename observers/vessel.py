@@ -18,6 +18,12 @@ file of the same form (see ``docs/vessels.md``). Either M and D are given direct
 A model that cannot work is refused (`VesselError`) with a message naming the field and the reason:
 M must be symmetric positive definite (assumption A1), D + Dᵀ positive definite (the dissipation that
 makes the velocity-error dynamics strictly passive, Proposition 2), shapes 3×3, numbers finite.
+
+A file may also give the rigid-body mass ``M_RB`` (the fluid-memory observer keeps M_RB + A(∞) above it),
+or, instead of M, ``M_RB`` and ``A_inf``: the Cummins form of a source that prints the infinite-frequency
+added mass (Hajivand & Mousavizadegan 2010). M is then M_RB + A_inf + [A(0) - A(∞)] of the built-in
+radiation model Froude-scaled to the vessel (`cummins_low_frequency_inertia`), the slow-motion inertia
+every observer and the controller use.
 """
 
 from __future__ import annotations
@@ -105,6 +111,13 @@ class VesselModel:
     model_scale: float | None = None
     """λ of a 1:λ laboratory model (CyberShip II: 70); None for a ship. Sets the Froude scale of the
     default wave-frequency ranges (`observers.froude`)."""
+    M_RB: Array | None = None
+    """Rigid-body mass (3×3) when the file gives it (key ``M_RB``); else `rigid_body_diagonal` falls back
+    on the hull table or on the mass. The fluid-memory observer keeps M_RB + A(∞) at least this."""
+    A_inf: Array | None = None
+    """Infinite-frequency added mass (3×3) of a file in the Cummins form (keys ``M_RB`` and ``A_inf``
+    instead of ``M``): M is then M_RB + A_inf + [A(0) - A(∞)] of the built-in radiation model
+    Froude-scaled to the vessel (`cummins_low_frequency_inertia`). None: M is given (M_RB + A(0))."""
     _layout: tuple[Array, Array, Array, Array] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -169,9 +182,47 @@ class VesselModel:
             and np.array_equal(self.M, other.M)
             and np.array_equal(self.D, other.D)
             and self.thrusters == other.thrusters
+            and _same(self.M_RB, other.M_RB)
+            and _same(self.A_inf, other.A_inf)
         )
 
     __hash__ = None  # type: ignore[assignment]
+
+
+def _same(a: Array | None, b: Array | None) -> bool:
+    if a is None or b is None:
+        return a is None and b is None
+    return bool(np.array_equal(a, b))
+
+
+def rigid_body_diagonal(vessel: VesselModel) -> Array:
+    """Diagonal of the rigid-body mass [m, m, I_z] as far as the vessel gives it: the file's ``M_RB``, else
+    its ``[hull]`` table (Fossen (2021) eq (3.44)), else m in surge and sway (M_RB,11 = M_RB,22 = m for
+    any hull) and NaN in yaw (I_z unknown)."""
+    if vessel.M_RB is not None:
+        return np.diag(vessel.M_RB).copy()
+    if vessel.hull is not None:
+        return np.diag(vessel.hull.rigid_body_mass(vessel.mass_kg)).copy()
+    return np.array([vessel.mass_kg, vessel.mass_kg, math.nan])
+
+
+def rigid_body_matrix(vessel: VesselModel) -> Array | None:
+    """The full rigid-body mass (3×3): the file's ``M_RB``, else from its ``[hull]`` table, else None."""
+    if vessel.M_RB is not None:
+        return np.array(vessel.M_RB)
+    if vessel.hull is not None:
+        return np.asarray(vessel.hull.rigid_body_mass(vessel.mass_kg))
+    return None
+
+
+def cummins_low_frequency_inertia(M_RB: Array, A_inf: Array, mass_kg: float) -> Array:
+    """M = M_RB + A(∞) + [A(0) - A(∞)] for a vessel file in the Cummins form: the memory's share from the
+    built-in radiation model Froude-scaled to ``mass_kg`` (the model the memory observer then lends it,
+    so that its M_m is exactly M_RB + A(∞))."""
+    from observers.radiation_builtin import builtin_radiation, froude_scale_for_mass, memory_added_mass
+
+    model = builtin_radiation().froude_scaled(froude_scale_for_mass(mass_kg))
+    return np.asarray(M_RB + A_inf + memory_added_mass(model))
 
 
 def _matrix(value: Any, key: str, where: str) -> Array:
@@ -204,6 +255,18 @@ def _check_model(M: Array, D: Array, where: str) -> None:
         raise VesselError(
             f"{where}: field 'D': D + Dᵀ must be positive definite (the damping must dissipate energy); "
             f"eigenvalues of D + Dᵀ {eig_d.tolist()}"
+        )
+
+
+def _check_rigid_body(M_RB: Array, M: Array, where: str) -> None:
+    """M_RB symmetric positive definite, and no larger than M on the diagonal (added mass ≥ 0)."""
+    if not np.allclose(M_RB, M_RB.T, rtol=1e-9) or np.linalg.eigvalsh(M_RB).min() <= 0:
+        raise VesselError(f"{where}: field 'M_RB': must be symmetric positive definite")
+    short = [i for i in range(3) if M_RB[i, i] > M[i, i]]
+    if short:
+        raise VesselError(
+            f"{where}: field 'M_RB': exceeds M on the diagonal at {short} (M_RB {np.diag(M_RB).tolist()}, M "
+            f"{np.diag(M).tolist()}): the added mass M - M_RB cannot be negative"
         )
 
 
@@ -280,11 +343,31 @@ def vessel_from_dict(data: dict[str, Any], where: str = "vessel") -> VesselModel
         Dbis = _matrix(bis.get("Dbis"), "bis.Dbis", where)
         M = mass * Tl @ Mbis @ Tl
         D = mass * math.sqrt(g / length) * Tl @ Dbis @ Tl
+    elif "A_inf" in data:
+        # the Cummins form: the file's inertia is M_RB + A(∞); the memory supplies A(0) - A(∞)
+        if "M" in data:
+            raise VesselError(
+                f"{where}: field 'A_inf': give either M (= M_RB + A(0)) or M_RB and A_inf (the Cummins "
+                "form), not both"
+            )
+        if "M_RB" not in data or "D" not in data:
+            missing = "M_RB" if "M_RB" not in data else "D"
+            raise VesselError(
+                f"{where}: field '{missing}': missing (the Cummins form needs M_RB, A_inf and D)"
+            )
+        M = cummins_low_frequency_inertia(
+            _matrix(data["M_RB"], "M_RB", where), _matrix(data["A_inf"], "A_inf", where), mass
+        )
+        D = data["D"]
     else:
         for key in ("M", "D"):
             if key not in data:
                 raise VesselError(f"{where}: field '{key}': missing (or give a [bis] table)")
         M, D = data["M"], data["D"]
+    m_rb = None if "M_RB" not in data else _matrix(data["M_RB"], "M_RB", where)
+    a_inf = None if "A_inf" not in data else _matrix(data["A_inf"], "A_inf", where)
+    if m_rb is not None:
+        _check_rigid_body(m_rb, _matrix(M, "M", where), where)
     thrusters = tuple(_thruster(e, i, where) for i, e in enumerate(data.get("thrusters", [])))
     scale = data.get("model_scale")
     if scale is not None and (isinstance(scale, bool) or not isinstance(scale, int | float)):
@@ -302,6 +385,8 @@ def vessel_from_dict(data: dict[str, Any], where: str = "vessel") -> VesselModel
             description=str(data.get("description", "")),
             thrusters=thrusters,
             model_scale=None if scale is None else float(scale),
+            M_RB=m_rb,
+            A_inf=a_inf,
         )
     except VesselError as exc:
         # re-raise with the file named, keeping the field and reason

@@ -460,7 +460,7 @@ def mss_osv() -> Scenario:
 def mss_supply_storm() -> Scenario:
     """The MSS supply vessel on the full plant with fluid memory, in weather: the honest plant of the
     Torsetnes case (same vessel, heading and sea), with a current and a gusting wind on top."""
-    from simulator.fluid_memory_cache import load_fluid_memory  # (reads the stored model: ~10 ms)
+    from observers.memory_tuning import default_radiation  # (reads the stored model: ~10 ms)
 
     vessel = load_vessel("mss_supply")
     return Scenario(
@@ -478,7 +478,8 @@ def mss_supply_storm() -> Scenario:
         dgps=(DgpsConfig(rate_hz=2.0, sigma_m=0.3),),
         gyro=(GyroConfig(rate_hz=10.0),),
         plant="full",
-        plant_options=PlantOptions(radiation=load_fluid_memory("mss_supply")),
+        # the vessel's own model fitted to its file, as the memory observer uses it (docs/memory-observer.md)
+        plant_options=PlantOptions(radiation=default_radiation(vessel)),
         current=CurrentModel(
             speed_mps=1.0,
             direction_deg=45.0 + 180.0 + 20.0,
@@ -491,8 +492,8 @@ def mss_supply_storm() -> Scenario:
         wind=WindModel(speed_mps=15.0, from_deg=45.0 + 40.0, gust="norsok"),
         notes="Torsetnes' sea (Hs 6 m, Tp 11.5 s, 30° off the bow) with a 1 m/s current setting 20° off the "
         "bow towards the stern and 15 m/s wind 40° off the bow (NORSOK gusts): environment from ahead, as a "
-        "DP operator heads a vessel. Fluid memory from the ShipX supply vessel's A(ω), B(ω) "
-        "(docs/radiation.md).",
+        "DP operator heads a vessel. Fluid memory from the ShipX supply vessel's A(ω), B(ω), fitted to the "
+        "vessel file (docs/memory-observer.md).",
     )
 
 

@@ -1,7 +1,8 @@
 """The memory observer against the passive one on the simulator's full plant (`bench/memory_figures.py`,
-`compare_on_full_plant`: mss_supply's full plant with or without its stored fluid-memory model, a
-sinusoidal manoeuvre, Hs 2 m). Where the fluid memory acts (a 20 s manoeuvre) the memory observer's LF
-velocity errors are lower on the plant with memory; on the plant without it, the memory observer is no
+`compare_on_full_plant`: mss_supply's full plant with or without its fluid-memory model — its own, fitted
+to its file as the memory observer uses it, `memory_tuning.default_radiation` — a sinusoidal manoeuvre,
+Hs 2 m). Where the fluid memory acts (a 20 s manoeuvre) the memory observer's LF velocity errors are lower
+on the plant with memory; on the plant without it, the memory observer is no
 worse than the passive one by more than 5 % at DP manoeuvre periods (≥ 45 s; at 20–30 s it is, by
 construction: docs/memory-observer.md, "On the simulator's full plant"), and in station keeping in a storm
 (the study's case of `mss_supply_storm`) it is within 5 % of the passive observer in every DOF on the
@@ -27,9 +28,21 @@ def ratios(period_s: float, memory: bool) -> np.ndarray:
 
 @pytest.mark.slow
 def test_memory_observer_is_better_where_memory_acts_on_the_plant_with_memory() -> None:
-    r = ratios(20.0, memory=True)  # measured: 0.78 1.02 0.86 / 0.88 0.62 0.84
-    assert np.all(r[3:] < 0.95), f"velocity error ratios memory/passive {r[3:]}"
-    assert r[0] < 1.0 and r[2] < 1.0 and r[1] <= 1.05, f"position error ratios memory/passive {r[:3]}"
+    """Where the memory supplies a sizeable part of the slow-motion inertia (sway 27 % of M, yaw 23 %) the
+    memory observer's velocity errors are lower; in surge it supplies 6.7 % (mss_supply's file has a surge
+    added mass of 0.76·10⁶ kg, and the memory its share of it, docs/memory-observer.md) and the two
+    observers are level. Positions in the ship's axes (along, athwart) and heading: lower. Measured over
+    seeds 1-5 of `simulate_full_plant`: velocity u 1.00-1.015, v 0.35-0.37, r 0.49-0.51; along 0.97-0.99,
+    athwart 0.72-0.76; ψ 0.67-0.70; north 0.76-0.79, east 0.96-1.09 (north and east mix the ship's axes at
+    the headings the manoeuvre turns through, -30…-53°: `Errors.body`)."""
+    em, ep = compare_on_full_plant(20.0, memory=True)  # measured: v 0.356, r 0.508, u 0.999
+    r = em.nu / ep.nu
+    assert r[1] < 0.95 and r[2] < 0.95, f"sway/yaw velocity error ratios memory/passive {r}"
+    assert r[0] < 1.03, f"surge velocity error ratio memory/passive {r}"
+    body = em.body / ep.body  # measured: 0.987 0.721
+    assert np.all(body < 1.0), f"along/athwart-ships position error ratios memory/passive {body}"
+    eta = em.eta / ep.eta  # measured: 0.768 1.052 0.702
+    assert eta[0] < 1.0 and eta[2] < 1.0, f"north/heading error ratios memory/passive {eta}"
 
 
 @pytest.mark.slow

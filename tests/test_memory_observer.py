@@ -88,8 +88,12 @@ def test_registered_as_memory_with_froude_scale() -> None:
     obs = make_observer("memory", SUPPLY, params={"froude_scale": 1.0})
     assert isinstance(obs, MemoryObserver)
     assert obs.gains.model.radiation.source.startswith("MSS supply")
-    # the default scale follows the vessel's mass: (6000 t / 6362 t)^(1/3)
-    assert MemoryObserver(SUPPLY).gains.model.radiation.source.endswith("×0.9807)")
+    # mss_supply's default is its own model (the hull of its data, not scaled); another vessel's the
+    # built-in one Froude-scaled to its mass: (4591 t / 6362 t)^(1/3) for Northern Clipper
+    own = MemoryObserver(SUPPLY).gains.model.radiation
+    assert "Froude" not in own.source and np.array_equal(own.Ar, builtin_radiation().Ar)
+    clipper = MemoryObserver(load_vessel("northern_clipper")).gains.model.radiation
+    assert "Froude-scaled ×0.8969" in clipper.source
 
 
 # --- sign of μ (eq (8), not the printed (20)) ----------------------------------------------------------
@@ -131,15 +135,22 @@ def _flip_output(r: RadiationStateSpace) -> RadiationStateSpace:
 
 
 def test_non_passive_radiation_is_refused_naming_the_condition() -> None:
-    r = builtin_radiation().froude_scaled(0.98)
+    r = memory_model(SUPPLY).radiation
     with pytest.raises(TuningError, match="radiation subsystem passive"):
         MemoryObserver(SUPPLY, radiation=_flip_output(r))
     MemoryObserver(SUPPLY, radiation=_flip_output(r), allow_unchecked=True)  # experiments: allowed
 
 
 def test_radiation_model_of_a_far_larger_hull_is_refused() -> None:
+    """A model given is used as it is: one of a hull three times as long leaves M_m below M_RB (and not
+    positive definite); the same scale as ``froude_scale`` only sets the time scale of the fitted model."""
+    big = builtin_radiation().froude_scaled(3.0)
     with pytest.raises(MemoryModelError, match=r"M_RB \+ A\(∞\).*not positive definite.*froude_scale"):
-        MemoryObserver(SUPPLY, froude_scale=3.0)
+        MemoryObserver(SUPPLY, radiation=big)
+    with pytest.raises(MemoryModelError, match=r"below the rigid-body mass in surge, sway, yaw"):
+        MemoryObserver(SUPPLY, radiation=big)
+    fitted = MemoryObserver(SUPPLY, froude_scale=3.0).gains.model
+    assert np.all(np.diag(fitted.M) >= fitted.rigid_body)
 
 
 def test_low_frequency_limit_is_the_vessel_files_model() -> None:
@@ -253,7 +264,7 @@ def test_config_and_replay_build_the_memory_observer() -> None:
     assert config.observer.type == "memory" and config.observer.params == {"froude_scale": 2.5}
     obs = parse_observer_spec("memory:froude_scale=2.5").make(config)
     assert isinstance(obs, MemoryObserver)
-    assert obs.gains.model.radiation.source.endswith("×2.5)")
+    assert "Froude-scaled ×2.5)" in obs.gains.model.radiation.source
     data["observer"]["params"] = {"froude": 2.5}
     with pytest.raises(Exception, match=r"observer 'memory': unknown parameter.*froude_scale"):
         parse_config(data, base_dir=Path("."))
