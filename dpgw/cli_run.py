@@ -30,8 +30,9 @@ HELP = "run the gateway: sensor streams in, observer, Zenoh and MCAP out"
 DESCRIPTION = (
     "Run the live gateway described by a TOML config: read the DGPS/gyro NMEA and MAVLink thruster "
     "links, estimate the low-frequency motion with the wave-filtering observer, publish estimate, "
-    "measurement and status on Zenoh (<prefix>/...) and log everything to MCAP. SIGINT or SIGTERM "
-    "flush and close the log. A config mistake or a missing serial port stops start-up with one "
+    "measurement and status on Zenoh (<prefix>/...) and log everything to MCAP. SIGINT (Ctrl-C), "
+    "SIGTERM and SIGHUP (the terminal or SSH session closing) stop it, also during start-up: the log is "
+    "flushed and closed complete. A config mistake or a missing serial port stops start-up with one "
     "message naming what and where."
 )
 EPILOG = (
@@ -83,9 +84,52 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.set_defaults(func=run)
 
 
+class StopSignals:
+    """SIGINT, SIGTERM and SIGHUP stop ``dpgw run`` cleanly, from the moment `run` starts.
+
+    Installed before the config is read and the kernels compile (seconds on a first run): a signal during
+    start-up used to meet Python's defaults, so Ctrl-C printed a KeyboardInterrupt traceback and SIGTERM
+    (``systemctl stop`` or ``restart`` of a unit still starting) killed the process with its MCAP log
+    opened but without its summary. SIGHUP (the terminal or SSH session it runs in closing) killed it at
+    any time, the log likewise cut. Now each only sets `requested` (and the service's ``stop_event``, once
+    there is a service): start-up finishes what it is doing, opens nothing more, and the gateway closes
+    as after any stop."""
+
+    SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
+
+    def __init__(self) -> None:
+        import signal
+
+        self.requested = threading.Event()
+        self.signum: int | None = None
+        self._service: GatewayService | None = None
+        for name in self.SIGNALS:
+            sig = getattr(signal, name, None)  # (SIGHUP: POSIX only)
+            if sig is not None:
+                signal.signal(sig, self._on_signal)
+
+    def _on_signal(self, signum: int, _frame: object) -> None:
+        self.signum = self.signum or signum
+        self.requested.set()
+        if self._service is not None:
+            self._service.stop_event.set()
+
+    def attach(self, service: GatewayService) -> None:
+        """From now on a signal also stops ``service`` (and one already received does at once)."""
+        self._service = service
+        if self.requested.is_set():
+            service.stop_event.set()
+
+    @property
+    def name(self) -> str:
+        import signal
+
+        return signal.Signals(self.signum).name if self.signum is not None else "a signal"
+
+
 def run(args: argparse.Namespace) -> int:
+    stop = StopSignals()  # first: a signal during the imports and start-up below stops cleanly too
     import logging
-    import signal
     import tomllib
     from dataclasses import replace
 
@@ -139,7 +183,11 @@ def run(args: argparse.Namespace) -> int:
     except OutputError as exc:
         print(exc, file=sys.stderr)
         return 2
+    if stop.requested.is_set():  # before anything opens: nothing to close
+        print(f"dpgw run: stopped by {stop.name} during start-up; nothing was opened", file=sys.stderr)
+        return 0
     service = GatewayService(config, log_path=args.log, config_tables=tables, sinks=sinks)
+    stop.attach(service)
     try:
         service.start()
     except BusError as exc:
@@ -152,17 +200,17 @@ def run(args: argparse.Namespace) -> int:
     except (SourceError, OSError) as exc:
         print(f"dpgw run: {exc}", file=sys.stderr)
         return 2
+    if not service.opened:  # stopped while the kernels compiled: nothing was opened
+        service.close()
+        print(f"dpgw run: stopped by {stop.name} during start-up; nothing was opened", file=sys.stderr)
+        return 0
     print(start_up_line(config, service, args.log), file=sys.stderr, flush=True)
     for sink in sinks:
         if sink.name == "foxglove":
             for line in connect_lines(sink.url, sink.app_url()):  # type: ignore[attr-defined]
                 print(f"dpgw run: {line}", file=sys.stderr, flush=True)
-
-    def on_signal(signum: int, _frame: object) -> None:
-        service.stop_event.set()
-
-    signal.signal(signal.SIGINT, on_signal)
-    signal.signal(signal.SIGTERM, on_signal)
+    if stop.requested.is_set():
+        print(f"dpgw run: stopped by {stop.name} during start-up", file=sys.stderr, flush=True)
     reporter = None
     if args.verbose:
         reporter = threading.Thread(target=report_status, args=(service,), name="dpgw-status", daemon=True)
