@@ -105,8 +105,9 @@ class StopSignals:
         self._service: GatewayService | None = None
         for name in self.SIGNALS:
             sig = getattr(signal, name, None)  # (SIGHUP: POSIX only)
-            if sig is not None:
-                signal.signal(sig, self._on_signal)
+            if sig is None or (name == "SIGHUP" and signal.getsignal(sig) == signal.SIG_IGN):
+                continue  # (nohup dpgw run ...: a hangup stays ignored, as nohup asks)
+            signal.signal(sig, self._on_signal)
 
     def _on_signal(self, signum: int, _frame: object) -> None:
         self.signum = self.signum or signum

@@ -253,6 +253,17 @@ def _session_options(args: argparse.Namespace) -> tuple[tuple[str, object], ...]
 
 def _run_scenario(args: argparse.Namespace) -> int:
     import signal
+
+    # First, before the sinks and the log open: a stop during start-up (Ctrl-C, SIGTERM, or SIGHUP through
+    # `dpgw.cli.hangup_as_terminate`) then runs no sea and closes the log complete, instead of meeting
+    # Python's defaults (a traceback, or a process killed with its log cut).
+    stop = {"now": False}
+
+    def on_signal(signum: int, _frame: object) -> None:
+        stop["now"] = True
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
     from dataclasses import replace
 
     from gateway.bus import BusError, make_config, open_session
@@ -382,13 +393,6 @@ def _run_scenario(args: argparse.Namespace) -> int:
         sim.on_time = SimClockPublisher(session, prefix, sim.epoch, clock, period_s=sim.time_tick_s)
         print(f"Zenoh: simulation time on {sim.on_time.key}", file=sys.stderr)
 
-    stop = {"now": False}
-
-    def on_signal(signum: int, _frame: object) -> None:
-        stop["now"] = True
-
-    signal.signal(signal.SIGINT, on_signal)
-    signal.signal(signal.SIGTERM, on_signal)
     duration = args.duration if args.duration is not None else scenario.duration_s
     bar = _progress_bar(duration) if sys.stderr.isatty() and not args.json else None
     try:

@@ -1,8 +1,9 @@
-"""``dpgw run`` as a process stopped by signals: SIGINT (Ctrl-C), SIGTERM (``systemctl stop``) and SIGHUP
-(the terminal or SSH session closing), while running and during start-up. Each must end the process with
-status 0, no traceback, and the MCAP log closed complete (summary and footer) holding every byte the
-gateway received. Real processes, a real pty and real UDP; the test waits for the gateway's own lines
-and for estimates on disk, never for a fixed time."""
+"""``dpgw run`` (and ``dpgw sim --realtime``) as a process stopped by signals: SIGINT (Ctrl-C), SIGTERM
+(``systemctl stop``) and SIGHUP (the terminal or SSH session closing), while running and during start-up.
+Each must end the process with status 0, no traceback, and the MCAP log closed complete (summary and
+footer) holding every byte the gateway received; a SIGHUP ignored by ``nohup`` stays ignored. Real
+processes, a real pty and real UDP; the test waits for the gateway's own lines and for estimates on disk,
+never for a fixed time."""
 
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ import threading
 import tty
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
 
 import pytest
 from conftest import free_port, wait_for
@@ -98,7 +100,8 @@ class Talkers:
 class Gateway:
     """``dpgw run -v --json`` in its own process, its stderr read line by line as it comes."""
 
-    def __init__(self, cfg: Path) -> None:
+    def __init__(self, cfg: Path, hangup: Any = signal.SIG_DFL) -> None:
+        """``hangup``: SIGHUP's disposition the gateway inherits (``SIG_IGN``: as under ``nohup``)."""
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "dpgw", "run", "--config", str(cfg), "-v", "--json"],
             cwd=ROOT,
@@ -107,7 +110,10 @@ class Gateway:
             text=True,
             # the test may itself run in the background of a shell, which ignores SIGINT: the gateway is
             # started as from a terminal, with the default dispositions
-            preexec_fn=lambda: [signal.signal(s, signal.SIG_DFL) for s in (signal.SIGINT, signal.SIGHUP)],
+            preexec_fn=lambda: (
+                signal.signal(signal.SIGINT, signal.SIG_DFL),
+                signal.signal(signal.SIGHUP, hangup),
+            ),
         )
         self.lines: queue.Queue[str] = queue.Queue()
         self.err: list[str] = []
@@ -191,3 +197,49 @@ def test_a_signal_during_start_up_stops_cleanly(tmp_path: Path, sig: signal.Sign
         assert_log_complete_with_every_byte(log, result["status"])
     else:
         assert f"stopped by {sig.name} during start-up; nothing was opened" in err
+
+
+def test_a_hangup_ignored_by_nohup_stays_ignored(tmp_path: Path) -> None:
+    """``nohup dpgw run ...`` asks for SIGHUP to be ignored: the gateway goes on estimating after one,
+    and SIGTERM then stops it as usual."""
+    with Talkers() as talk:
+        log = tmp_path / "live.mcap"
+        gw = Gateway(write_config(tmp_path, talk.device, talk.udp_port), hangup=signal.SIG_IGN)
+        gw.wait_line("dpgw run: vessel")
+
+        def on_disk() -> int:
+            return sum(1 for _ in read_messages(log, "/dp/estimate"))
+
+        assert wait_for(lambda: gw.proc.poll() is not None or on_disk() >= 10, 60.0)
+        gw.proc.send_signal(signal.SIGHUP)
+        after_hup = on_disk()
+        assert wait_for(lambda: gw.proc.poll() is not None or on_disk() >= after_hup + 10, 60.0)
+        assert gw.proc.poll() is None, "a SIGHUP ignored by nohup stopped the gateway"
+        gw.proc.send_signal(signal.SIGTERM)
+        code, result, err = gw.finish()
+    assert code == 0, err
+    assert_log_complete_with_every_byte(log, result["status"])
+
+
+def test_a_hangup_stops_a_realtime_simulator_with_its_log_complete(tmp_path: Path) -> None:
+    """``dpgw sim --realtime`` on the bench, started over SSH: the session dropping (SIGHUP) ends the run
+    as Ctrl-C does, the log complete and the summary saying it was interrupted. Before: killed at once
+    (status -1), its log without summary or footer."""
+    out = tmp_path / "sim.mcap"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "dpgw", "sim", "--scenario", "mss_supply_wind", "--realtime", "--json",
+         "--mavlink", f"udp://127.0.0.1:{free_port(socket.SOCK_DGRAM)}", "--out", str(out)],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_DFL),
+    )  # fmt: skip
+    assert proc.stderr is not None
+    for line in proc.stderr:  # the simulator says where its MAVLink goes once it runs
+        if line.startswith("MAVLink ->"):
+            break
+    else:
+        pytest.fail(f"the simulator did not start: {proc.wait()}")
+    proc.send_signal(signal.SIGHUP)
+    stdout, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 0, stderr
+    assert json.loads(stdout)["interrupted"] is True
+    assert summary(out).complete, "the log was not closed: no summary and footer"
