@@ -18,6 +18,7 @@ import argparse
 import os
 import sys
 from collections.abc import Sequence
+from types import FrameType
 
 from dpgw import (
     cli_capability,
@@ -108,7 +109,7 @@ def hangup_as_terminate() -> None:
     if hup is None or signal.getsignal(hup) == signal.SIG_IGN:
         return
 
-    def on_hangup(signum: int, frame: object) -> None:
+    def on_hangup(signum: int, frame: FrameType | None) -> None:
         handler = signal.getsignal(signal.SIGTERM)
         if callable(handler):
             handler(signum, frame)
