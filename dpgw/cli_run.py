@@ -198,7 +198,14 @@ def run(args: argparse.Namespace) -> int:
         where = "--log" if args.log else f"{config.path}: log.path"
         print(f"dpgw run: {where}: {exc.problem}", file=sys.stderr)
         return 2
-    except (SourceError, OSError) as exc:
+    except SourceError as exc:  # the file and key to edit, as for a mistake in the config itself
+        fix = f" — {exc.fix}" if exc.fix else ""
+        print(
+            f"dpgw run: {config.path}: sources.{exc.name}.url: {exc.problem} ({exc.url}){fix}",
+            file=sys.stderr,
+        )
+        return 2
+    except OSError as exc:
         print(f"dpgw run: {exc}", file=sys.stderr)
         return 2
     if not service.opened:  # stopped while the kernels compiled: nothing was opened
