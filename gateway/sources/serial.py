@@ -132,8 +132,8 @@ class SerialSource(Source):
                     return
                 try:
                     ser = self._open_port()
-                except SourceError as exc:
-                    self._error("reopen failed", str(exc), logging.DEBUG)
+                except SourceError as exc:  # (the problem alone: the alarm already names the source)
+                    self._error("reopen failed", f"{exc.problem}; reopening", logging.DEBUG)
                     continue
                 with self._io_lock:
                     self._ser = ser
