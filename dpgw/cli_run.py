@@ -274,18 +274,29 @@ def report_status(service: GatewayService, every_s: float = STATUS_EVERY_S) -> N
         print(status_line(service.last_status(), time.monotonic() - t0), file=sys.stderr, flush=True)
 
 
+# Reasons in a source's ``rejected`` that are no fault of the link: well-formed sentences of types dpgw
+# does not use (GSV, GSA, proprietary $P...: `wire.codecs.nmea.UNSUPPORTED`) and AIS
+# (`wire.codecs.nmea_framing.AIS`).
+NOT_USED = ("unsupported", "ais")
+
+
 def status_line(status: dict[str, Any], elapsed_s: float) -> str:
-    """``dpgw run: 35 s, dp, 340 estimates; dgps1 35 rx 0.1 s ago, gyro1 ...; alarms: ...``"""
+    """``dpgw run: 35 s, dp, 340 estimates; dgps1 35 rx 0.1 s ago (2 rejected, 40 not used), gyro1 ...;
+    alarms: ...``. Sentences dpgw does not use (`NOT_USED`) are counted apart from the rejected: a receiver
+    sending GSV and GSA four times a second showed hundreds "rejected" in a healthy stream."""
     if not status:
         return f"dpgw run: {elapsed_s:.0f} s, no status yet"
     parts = []
     for name, c in status.get("sources", {}).items():
         age = c.get("age_s")
-        rejected = sum(c.get("rejected", {}).values())
+        reasons = c.get("rejected", {})
+        not_used = sum(n for r, n in reasons.items() if r in NOT_USED)
+        rejected = sum(reasons.values()) - not_used
+        counts = [f"{rejected} rejected"] * bool(rejected) + [f"{not_used} not used"] * bool(not_used)
         parts.append(
             f"{name} {c.get('received', 0)} rx"
             + (f" {age:.1f} s ago" if age is not None else " none yet")
-            + (f" ({rejected} rejected)" if rejected else "")
+            + (f" ({', '.join(counts)})" if counts else "")
         )
     alarms = status.get("alarms") or []
     return (

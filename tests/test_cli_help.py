@@ -217,6 +217,24 @@ class _FakeService:
         return self.status
 
 
+def test_verbose_status_line_counts_sentences_not_used_apart_from_the_rejected() -> None:
+    """saab-r4.log's receiver over TCP: AIS and $PFEC/GLL/DTM, well-formed but not used. Before: '(63
+    rejected)' for a healthy stream, as if its sentences were bad."""
+    from wire.codecs.nmea import UNSUPPORTED
+    from wire.codecs.nmea_framing import AIS
+
+    assert set(cli_run.NOT_USED) == {UNSUPPORTED, AIS}
+    sources = {
+        "gyro": {"age_s": 0.0, "received": 154, "rejected": {"ais": 24, "unsupported": 20, "test_jump": 19}},
+        "gps": {"age_s": 0.2, "received": 90, "rejected": {"unsupported": 40}},
+        "mux": {"age_s": 0.1, "received": 90, "rejected": {"bad_checksum": 2}},
+    }
+    line = cli_run.status_line({"mode": "standby", "estimates": 5, "sources": sources}, 10.0)
+    assert "gyro 154 rx 0.0 s ago (19 rejected, 44 not used)" in line
+    assert "gps 90 rx 0.2 s ago (40 not used)" in line
+    assert "mux 90 rx 0.1 s ago (2 rejected)" in line
+
+
 def test_verbose_status_line_every_period(capsys: pytest.CaptureFixture[str]) -> None:
     status = {
         "mode": "dp",
