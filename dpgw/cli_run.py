@@ -7,6 +7,7 @@ Only the parser is built at import: the gateway (numpy, numba, Zenoh, pydantic) 
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 import threading
 import time
@@ -241,12 +242,17 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+# A URL that asks for any free port: ``:0`` at the end of its address (``udp://127.0.0.1:0``,
+# ``udpin:0.0.0.0:0?...``), not the ``:0`` of ``udpin:0.0.0.0:555`` or of an IPv6 address.
+ASKS_ANY_PORT = re.compile(r":0(?![0-9.:\]])")
+
+
 def start_up_line(config: GatewayConfig, service: GatewayService, log_override: str | None) -> str:
     """What the gateway opened: each source (with the port it bound, when it chose one), Zenoh, the log."""
     sources = []
     for src in service._sources:
         port = getattr(src, "port", None)
-        bound = f", port {port}" if isinstance(port, int) and ":0" in src.url else ""
+        bound = f", port {port}" if isinstance(port, int) and ASKS_ANY_PORT.search(src.url) else ""
         sources.append(f"{src.name} {src.url}{bound}")
     z = config.zenoh
     zenoh = f"zenoh {z.mode} prefix {z.prefix}"

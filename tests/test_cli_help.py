@@ -208,6 +208,30 @@ def test_run_prints_a_start_up_line(tmp_path: Path) -> None:
     assert log.read_bytes() == first
 
 
+@pytest.mark.parametrize(
+    ("url", "asks"),
+    [("udp://127.0.0.1:0", True), ("udpin:0.0.0.0:0", True), ("tcp-listen://[::]:0?max=1", True),
+     ("udpin:0.0.0.0:555", False), ("udp://0.0.0.0:10110", False), ("udp://[fe80::0:1]:14550", False),
+     ("tcp-listen://[::0]:5760", False), ("serial:///dev/ttyUSB0", False)],
+)  # fmt: skip
+def test_the_start_up_line_gives_the_bound_port_only_where_the_url_asked_for_any(
+    url: str, asks: bool
+) -> None:
+    """Before: any ':0' in the URL, so 'thrusters udpin:0.0.0.0:555, port 555' (docs/cli.md: the port it
+    bound when the URL asked for port 0)."""
+    from types import SimpleNamespace
+
+    from gateway.config import parse_config
+
+    tables = {"vessel": {"name": "mss_supply"},
+              "sources": [{"name": "gps", "url": "udp://127.0.0.1:10110", "protocol": "nmea",
+                           "roles": ["position", "heading"]}]}  # fmt: skip
+    config = parse_config(tables, base_dir=Path("."))
+    service = SimpleNamespace(_sources=[SimpleNamespace(name="mav", url=url, port=40123)], log=None)
+    line = cli_run.start_up_line(config, service, None)  # type: ignore[arg-type]
+    assert (f"mav {url}, port 40123;" in line) is asks and (f"mav {url};" in line) is not asks, line
+
+
 class _FakeService:
     def __init__(self, status: dict[str, Any]) -> None:
         self.stop_event = threading.Event()
