@@ -328,9 +328,14 @@ def _check_json(path: str, problems: list[str], summary: str = "", notes: list[s
 def start_up_notes(config: GatewayConfig) -> list[str]:
     """What start-up would not refuse but an engineer should know: a UDP source listening on an address
     that is not this computer's now (start-up waits for it, as for an interface still coming up at boot;
-    a typing mistake looks the same); the config's own notes (`gateway.config.config_notes`)."""
+    a typing mistake looks the same); a serial port that is not there now (start-up would stop on it,
+    but it may come: a USB adapter plugged in, the simulator's pty link made when it starts; ``--check``
+    said ``ok`` and the gateway then refused to start); the config's own notes
+    (`gateway.config.config_notes`)."""
+    import os
+
     from gateway.config import config_notes
-    from gateway.sources import SourceError, open_source
+    from gateway.sources import SerialSource, SourceError, open_source
     from gateway.sources.udp import UdpSource
 
     notes: list[str] = config_notes(config)
@@ -341,6 +346,12 @@ def start_up_notes(config: GatewayConfig) -> list[str]:
             continue  # (a problem start_up_problems reports)
         if isinstance(source, UdpSource) and (note := source.listen_address_note()):
             notes.append(f"sources.{sc.name}.url: {note}")
+        if isinstance(source, SerialSource) and not os.path.exists(source.device):
+            notes.append(
+                f"sources.{sc.name}.url: serial port {source.device} does not exist now: start-up stops on "
+                "it unless it is there by then (check the cable/udev name: ls /dev/serial/by-id/; a "
+                "simulator's pty link is made when the simulator starts)"
+            )
     return notes
 
 

@@ -4,6 +4,7 @@ the URL, and what to do; no traceback. Real processes, a real pty held by anothe
 
 from __future__ import annotations
 
+import json
 import os
 import pty
 import shutil
@@ -117,3 +118,29 @@ def test_a_privileged_port_without_privileges(tmp_path: Path, scheme: str) -> No
     assert_one_clear_line(
         p, cfg, "mux", "cannot listen on 0.0.0.0:555: Permission denied", "choose a port of 1024 or above"
     )
+
+
+def test_check_notes_a_serial_port_that_is_not_there_now(tmp_path: Path) -> None:
+    """``--check`` opens nothing, so it cannot refuse a port that may yet come (a USB adapter, a simulator's
+    pty link); it notes it. Before: ``ok`` with no word of it, then the service refused to start."""
+    cfg = write_config(tmp_path, "serial:///dev/ttyUSB_nope?baud=4800")
+    p = subprocess.run(
+        [sys.executable, "-m", "dpgw", "run", "--config", str(cfg), "--check"],
+        cwd=ROOT, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    notes = [ln for ln in p.stdout.splitlines() if ln.startswith("note: sources.dgps1.url: ")]
+    assert len(notes) == 1 and "serial port /dev/ttyUSB_nope does not exist now" in notes[0], p.stdout
+    # a port that is there: no note
+    master, slave = pty.openpty()
+    try:
+        cfg = write_config(tmp_path, f"serial://{os.ttyname(slave)}?baud=4800")
+        p = subprocess.run(
+            [sys.executable, "-m", "dpgw", "run", "--config", str(cfg), "--check", "--json"],
+            cwd=ROOT, capture_output=True, text=True, timeout=120,
+        )  # fmt: skip
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert p.returncode == 0, p.stderr
+    assert not [n for n in json.loads(p.stdout)["notes"] if "serial port" in n]
