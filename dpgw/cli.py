@@ -18,6 +18,7 @@ import argparse
 import os
 import sys
 from collections.abc import Sequence
+from types import FrameType
 
 from dpgw import (
     cli_capability,
@@ -92,7 +93,35 @@ def single_threaded_blas() -> None:
         os.environ.setdefault(name, "1")
 
 
+def hangup_as_terminate() -> None:
+    """SIGHUP (the terminal or SSH session the command runs in closing) does what SIGTERM does in each
+    command: ``dpgw run``, ``dpgw sim --realtime``, a paced replay stop and close their logs complete.
+
+    Python's default for SIGHUP is to end the process at once, like SIGKILL: an engineer's SSH session to
+    the bench dropping cut the gateway's and the simulator's MCAP logs (no summary, no footer). Each
+    command sets its own SIGTERM handler when it is ready for one; the SIGHUP handler looks it up when the
+    signal comes and calls it (with SIGHUP's number, so messages name SIGHUP), or, before the command has
+    one, ends the process as SIGHUP would. A SIGHUP ignored from the start (``nohup dpgw ...``) stays
+    ignored."""
+    import signal
+
+    hup = getattr(signal, "SIGHUP", None)  # (POSIX only)
+    if hup is None or signal.getsignal(hup) == signal.SIG_IGN:
+        return
+
+    def on_hangup(signum: int, frame: FrameType | None) -> None:
+        handler = signal.getsignal(signal.SIGTERM)
+        if callable(handler):
+            handler(signum, frame)
+            return
+        signal.signal(hup, signal.SIG_DFL)  # no handler yet: the default, as without this one
+        os.kill(os.getpid(), hup)
+
+    signal.signal(hup, on_hangup)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    hangup_as_terminate()
     single_threaded_blas()
     parser = build_parser()
     args, unknown = parser.parse_known_args(argv)

@@ -7,6 +7,7 @@ Only the parser is built at import: the gateway (numpy, numba, Zenoh, pydantic) 
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 import threading
 import time
@@ -30,8 +31,9 @@ HELP = "run the gateway: sensor streams in, observer, Zenoh and MCAP out"
 DESCRIPTION = (
     "Run the live gateway described by a TOML config: read the DGPS/gyro NMEA and MAVLink thruster "
     "links, estimate the low-frequency motion with the wave-filtering observer, publish estimate, "
-    "measurement and status on Zenoh (<prefix>/...) and log everything to MCAP. SIGINT or SIGTERM "
-    "flush and close the log. A config mistake or a missing serial port stops start-up with one "
+    "measurement and status on Zenoh (<prefix>/...) and log everything to MCAP. SIGINT (Ctrl-C), "
+    "SIGTERM and SIGHUP (the terminal or SSH session closing) stop it, also during start-up: the log is "
+    "flushed and closed complete. A config mistake or a missing serial port stops start-up with one "
     "message naming what and where."
 )
 EPILOG = (
@@ -83,9 +85,53 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.set_defaults(func=run)
 
 
+class StopSignals:
+    """SIGINT, SIGTERM and SIGHUP stop ``dpgw run`` cleanly, from the moment `run` starts.
+
+    Installed before the config is read and the kernels compile (seconds on a first run): a signal during
+    start-up used to meet Python's defaults, so Ctrl-C printed a KeyboardInterrupt traceback and SIGTERM
+    (``systemctl stop`` or ``restart`` of a unit still starting) killed the process with its MCAP log
+    opened but without its summary. SIGHUP (the terminal or SSH session it runs in closing) killed it at
+    any time, the log likewise cut. Now each only sets `requested` (and the service's ``stop_event``, once
+    there is a service): start-up finishes what it is doing, opens nothing more, and the gateway closes
+    as after any stop."""
+
+    SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
+
+    def __init__(self) -> None:
+        import signal
+
+        self.requested = threading.Event()
+        self.signum: int | None = None
+        self._service: GatewayService | None = None
+        for name in self.SIGNALS:
+            sig = getattr(signal, name, None)  # (SIGHUP: POSIX only)
+            if sig is None or (name == "SIGHUP" and signal.getsignal(sig) == signal.SIG_IGN):
+                continue  # (nohup dpgw run ...: a hangup stays ignored, as nohup asks)
+            signal.signal(sig, self._on_signal)
+
+    def _on_signal(self, signum: int, _frame: object) -> None:
+        self.signum = self.signum or signum
+        self.requested.set()
+        if self._service is not None:
+            self._service.stop_event.set()
+
+    def attach(self, service: GatewayService) -> None:
+        """From now on a signal also stops ``service`` (and one already received does at once)."""
+        self._service = service
+        if self.requested.is_set():
+            service.stop_event.set()
+
+    @property
+    def name(self) -> str:
+        import signal
+
+        return signal.Signals(self.signum).name if self.signum is not None else "a signal"
+
+
 def run(args: argparse.Namespace) -> int:
+    stop = StopSignals()  # first: a signal during the imports and start-up below stops cleanly too
     import logging
-    import signal
     import tomllib
     from dataclasses import replace
 
@@ -139,7 +185,11 @@ def run(args: argparse.Namespace) -> int:
     except OutputError as exc:
         print(exc, file=sys.stderr)
         return 2
+    if stop.requested.is_set():  # before anything opens: nothing to close
+        print(f"dpgw run: stopped by {stop.name} during start-up; nothing was opened", file=sys.stderr)
+        return 0
     service = GatewayService(config, log_path=args.log, config_tables=tables, sinks=sinks)
+    stop.attach(service)
     try:
         service.start()
     except BusError as exc:
@@ -149,20 +199,27 @@ def run(args: argparse.Namespace) -> int:
         where = "--log" if args.log else f"{config.path}: log.path"
         print(f"dpgw run: {where}: {exc.problem}", file=sys.stderr)
         return 2
-    except (SourceError, OSError) as exc:
+    except SourceError as exc:  # the file and key to edit, as for a mistake in the config itself
+        fix = f" — {exc.fix}" if exc.fix else ""
+        print(
+            f"dpgw run: {config.path}: sources.{exc.name}.url: {exc.problem} ({exc.url}){fix}",
+            file=sys.stderr,
+        )
+        return 2
+    except OSError as exc:
         print(f"dpgw run: {exc}", file=sys.stderr)
         return 2
+    if not service.opened:  # stopped while the kernels compiled: nothing was opened
+        service.close()
+        print(f"dpgw run: stopped by {stop.name} during start-up; nothing was opened", file=sys.stderr)
+        return 0
     print(start_up_line(config, service, args.log), file=sys.stderr, flush=True)
     for sink in sinks:
         if sink.name == "foxglove":
             for line in connect_lines(sink.url, sink.app_url()):  # type: ignore[attr-defined]
                 print(f"dpgw run: {line}", file=sys.stderr, flush=True)
-
-    def on_signal(signum: int, _frame: object) -> None:
-        service.stop_event.set()
-
-    signal.signal(signal.SIGINT, on_signal)
-    signal.signal(signal.SIGTERM, on_signal)
+    if stop.requested.is_set():
+        print(f"dpgw run: stopped by {stop.name} during start-up", file=sys.stderr, flush=True)
     reporter = None
     if args.verbose:
         reporter = threading.Thread(target=report_status, args=(service,), name="dpgw-status", daemon=True)
@@ -185,12 +242,17 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+# A URL that asks for any free port: ``:0`` at the end of its address (``udp://127.0.0.1:0``,
+# ``udpin:0.0.0.0:0?...``), not the ``:0`` of ``udpin:0.0.0.0:555`` or of an IPv6 address.
+ASKS_ANY_PORT = re.compile(r":0(?![0-9.:\]])")
+
+
 def start_up_line(config: GatewayConfig, service: GatewayService, log_override: str | None) -> str:
     """What the gateway opened: each source (with the port it bound, when it chose one), Zenoh, the log."""
     sources = []
     for src in service._sources:
         port = getattr(src, "port", None)
-        bound = f", port {port}" if isinstance(port, int) and ":0" in src.url else ""
+        bound = f", port {port}" if isinstance(port, int) and ASKS_ANY_PORT.search(src.url) else ""
         sources.append(f"{src.name} {src.url}{bound}")
     z = config.zenoh
     zenoh = f"zenoh {z.mode} prefix {z.prefix}"
@@ -218,18 +280,29 @@ def report_status(service: GatewayService, every_s: float = STATUS_EVERY_S) -> N
         print(status_line(service.last_status(), time.monotonic() - t0), file=sys.stderr, flush=True)
 
 
+# Reasons in a source's ``rejected`` that are no fault of the link: well-formed sentences of types dpgw
+# does not use (GSV, GSA, proprietary $P...: `wire.codecs.nmea.UNSUPPORTED`) and AIS
+# (`wire.codecs.nmea_framing.AIS`).
+NOT_USED = ("unsupported", "ais")
+
+
 def status_line(status: dict[str, Any], elapsed_s: float) -> str:
-    """``dpgw run: 35 s, dp, 340 estimates; dgps1 35 rx 0.1 s ago, gyro1 ...; alarms: ...``"""
+    """``dpgw run: 35 s, dp, 340 estimates; dgps1 35 rx 0.1 s ago (2 rejected, 40 not used), gyro1 ...;
+    alarms: ...``. Sentences dpgw does not use (`NOT_USED`) are counted apart from the rejected: a receiver
+    sending GSV and GSA four times a second showed hundreds "rejected" in a healthy stream."""
     if not status:
         return f"dpgw run: {elapsed_s:.0f} s, no status yet"
     parts = []
     for name, c in status.get("sources", {}).items():
         age = c.get("age_s")
-        rejected = sum(c.get("rejected", {}).values())
+        reasons = c.get("rejected", {})
+        not_used = sum(n for r, n in reasons.items() if r in NOT_USED)
+        rejected = sum(reasons.values()) - not_used
+        counts = [f"{rejected} rejected"] * bool(rejected) + [f"{not_used} not used"] * bool(not_used)
         parts.append(
             f"{name} {c.get('received', 0)} rx"
             + (f" {age:.1f} s ago" if age is not None else " none yet")
-            + (f" ({rejected} rejected)" if rejected else "")
+            + (f" ({', '.join(counts)})" if counts else "")
         )
     alarms = status.get("alarms") or []
     return (
@@ -255,9 +328,14 @@ def _check_json(path: str, problems: list[str], summary: str = "", notes: list[s
 def start_up_notes(config: GatewayConfig) -> list[str]:
     """What start-up would not refuse but an engineer should know: a UDP source listening on an address
     that is not this computer's now (start-up waits for it, as for an interface still coming up at boot;
-    a typing mistake looks the same); the config's own notes (`gateway.config.config_notes`)."""
+    a typing mistake looks the same); a serial port that is not there now (start-up would stop on it,
+    but it may come: a USB adapter plugged in, the simulator's pty link made when it starts; ``--check``
+    said ``ok`` and the gateway then refused to start); the config's own notes
+    (`gateway.config.config_notes`)."""
+    import os
+
     from gateway.config import config_notes
-    from gateway.sources import SourceError, open_source
+    from gateway.sources import SerialSource, SourceError, open_source
     from gateway.sources.udp import UdpSource
 
     notes: list[str] = config_notes(config)
@@ -268,6 +346,12 @@ def start_up_notes(config: GatewayConfig) -> list[str]:
             continue  # (a problem start_up_problems reports)
         if isinstance(source, UdpSource) and (note := source.listen_address_note()):
             notes.append(f"sources.{sc.name}.url: {note}")
+        if isinstance(source, SerialSource) and not os.path.exists(source.device):
+            notes.append(
+                f"sources.{sc.name}.url: serial port {source.device} does not exist now: start-up stops on "
+                "it unless it is there by then (check the cable/udev name: ls /dev/serial/by-id/; a "
+                "simulator's pty link is made when the simulator starts)"
+            )
     return notes
 
 

@@ -215,7 +215,18 @@ def run(args: argparse.Namespace) -> int:
     if zenoh_only and not args.zenoh:  # accepted and ignored before: no session was opened
         print(f"dpgw sim: {', '.join(zenoh_only)}: only with --zenoh", file=sys.stderr)
         return 2
-    return _run_scenario(args)
+    import signal
+
+    # `_run_scenario` takes SIGINT and SIGTERM from its first line to stop cleanly; they are given back
+    # on the way out, whichever way that is: `main` also runs in-process (tests, a notebook), whose
+    # handlers stay theirs
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        return _run_scenario(args)
+    finally:
+        for sig, handler in previous.items():
+            if handler is not None:  # (None: installed outside Python, cannot be put back from here)
+                signal.signal(sig, handler)
 
 
 def tlog_path_problem(args: argparse.Namespace) -> str | None:
@@ -263,6 +274,17 @@ def _session_options(args: argparse.Namespace) -> tuple[tuple[str, object], ...]
 
 def _run_scenario(args: argparse.Namespace) -> int:
     import signal
+
+    # First, before the sinks and the log open: a stop during start-up (Ctrl-C, SIGTERM, or SIGHUP through
+    # `dpgw.cli.hangup_as_terminate`) then runs no sea and closes the log complete, instead of meeting
+    # Python's defaults (a traceback, or a process killed with its log cut).
+    stop = {"now": False}
+
+    def on_signal(signum: int, _frame: object) -> None:
+        stop["now"] = True
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
     from dataclasses import replace
 
     from gateway.bus import BusError, make_config, open_session
@@ -409,13 +431,6 @@ def _run_scenario(args: argparse.Namespace) -> int:
         sim.on_time = SimClockPublisher(session, prefix, sim.epoch, clock, period_s=sim.time_tick_s)
         print(f"Zenoh: simulation time on {sim.on_time.key}", file=sys.stderr)
 
-    stop = {"now": False}
-
-    def on_signal(signum: int, _frame: object) -> None:
-        stop["now"] = True
-
-    # restored on the way out: `main` also runs in-process (tests, a notebook), whose handlers stay theirs
-    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     duration = args.duration if args.duration is not None else scenario.duration_s
     bar = _progress_bar(duration) if sys.stderr.isatty() and not args.json else None
     try:
@@ -426,8 +441,6 @@ def _run_scenario(args: argparse.Namespace) -> int:
                 bar.n = round(sim.t)
                 bar.refresh()
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
         if bar is not None:
             bar.close()
         for s in sinks:

@@ -176,6 +176,8 @@ class GatewayService:
         """New runs of the plant followed: the simulator started again under the gateway (its time went
         back)."""
         self.stop_event = threading.Event()
+        self.opened = False
+        """`start` opened the sources, Zenoh and the log (False when stopped before it opened them)."""
         path = log_path if log_path is not None else config.log.path
         self._log_path = str(path) if path else None
         for note in config_notes(config):
@@ -220,6 +222,8 @@ class GatewayService:
         t0 = time.perf_counter()
         self.pipeline.compile_kernels()
         log.info("compiled kernels ready in %.2f s", time.perf_counter() - t0)
+        if self.stop_event.is_set():  # stopped while compiling (seconds on a first run): open nothing
+            return
         try:
             for sc in self.config.sources:
                 src = open_source(sc.name, sc.url, timeout_s=sc.timeout_s)
@@ -247,6 +251,7 @@ class GatewayService:
         except BaseException:
             self.close()
             raise
+        self.opened = True
 
     def _open_session(self) -> zenoh.Session | None:
         """The configured session; None while a client (``mode = "client"``, no ``config_file``) waits

@@ -210,6 +210,30 @@ def test_run_prints_a_start_up_line(tmp_path: Path) -> None:
     assert log.read_bytes() == first
 
 
+@pytest.mark.parametrize(
+    ("url", "asks"),
+    [("udp://127.0.0.1:0", True), ("udpin:0.0.0.0:0", True), ("tcp-listen://[::]:0?max=1", True),
+     ("udpin:0.0.0.0:555", False), ("udp://0.0.0.0:10110", False), ("udp://[fe80::0:1]:14550", False),
+     ("tcp-listen://[::0]:5760", False), ("serial:///dev/ttyUSB0", False)],
+)  # fmt: skip
+def test_the_start_up_line_gives_the_bound_port_only_where_the_url_asked_for_any(
+    url: str, asks: bool
+) -> None:
+    """Before: any ':0' in the URL, so 'thrusters udpin:0.0.0.0:555, port 555' (docs/cli.md: the port it
+    bound when the URL asked for port 0)."""
+    from types import SimpleNamespace
+
+    from gateway.config import parse_config
+
+    tables = {"vessel": {"name": "mss_supply"},
+              "sources": [{"name": "gps", "url": "udp://127.0.0.1:10110", "protocol": "nmea",
+                           "roles": ["position", "heading"]}]}  # fmt: skip
+    config = parse_config(tables, base_dir=Path("."))
+    service = SimpleNamespace(_sources=[SimpleNamespace(name="mav", url=url, port=40123)], log=None)
+    line = cli_run.start_up_line(config, service, None)  # type: ignore[arg-type]
+    assert (f"mav {url}, port 40123;" in line) is asks and (f"mav {url};" in line) is not asks, line
+
+
 class _FakeService:
     def __init__(self, status: dict[str, Any]) -> None:
         self.stop_event = threading.Event()
@@ -217,6 +241,24 @@ class _FakeService:
 
     def last_status(self) -> dict[str, Any]:
         return self.status
+
+
+def test_verbose_status_line_counts_sentences_not_used_apart_from_the_rejected() -> None:
+    """saab-r4.log's receiver over TCP: AIS and $PFEC/GLL/DTM, well-formed but not used. Before: '(63
+    rejected)' for a healthy stream, as if its sentences were bad."""
+    from wire.codecs.nmea import UNSUPPORTED
+    from wire.codecs.nmea_framing import AIS
+
+    assert set(cli_run.NOT_USED) == {UNSUPPORTED, AIS}
+    sources = {
+        "gyro": {"age_s": 0.0, "received": 154, "rejected": {"ais": 24, "unsupported": 20, "test_jump": 19}},
+        "gps": {"age_s": 0.2, "received": 90, "rejected": {"unsupported": 40}},
+        "mux": {"age_s": 0.1, "received": 90, "rejected": {"bad_checksum": 2}},
+    }
+    line = cli_run.status_line({"mode": "standby", "estimates": 5, "sources": sources}, 10.0)
+    assert "gyro 154 rx 0.0 s ago (19 rejected, 44 not used)" in line
+    assert "gps 90 rx 0.2 s ago (40 not used)" in line
+    assert "mux 90 rx 0.1 s ago (2 rejected)" in line
 
 
 def test_verbose_status_line_every_period(capsys: pytest.CaptureFixture[str]) -> None:

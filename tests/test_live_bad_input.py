@@ -12,6 +12,7 @@ import base64
 import random
 import socket
 import threading
+import time
 import tracemalloc
 from collections import defaultdict
 from collections.abc import Callable, Iterator
@@ -270,3 +271,48 @@ def test_hostile_streams_never_stop_the_gateway_and_every_byte_is_logged(live: t
     mav_c = g.counters["mav"]
     assert mav_c.rejected["bad_crc"] == 100 and mav_c.received == 100
     assert mav_c.skipped_bytes == sum(len(d) for d in datagrams["mav"]) - 100 * len(good_frame)
+
+
+def reference_state(g: Live, source: str, role: str) -> tuple[str, str]:
+    """(state, reason) of ``source`` in ``role``, as `/status` shows it."""
+    (st,) = [s for s in g.service.pipeline.monitor.states()[source] if s.role == role]
+    return st.state, st.reason
+
+
+def test_a_source_whose_fixes_keep_failing_stays_rejected_with_its_reason_not_stale(
+    live: tuple[Live, PtySink],
+) -> None:
+    """A DGPS that goes on sending, with GGA quality 6 (dead reckoning), for longer than its timeout (2 s).
+    Before: after the timeout its position went ``rejected -> stale: no data for 2.0 s`` although its
+    sentences kept coming (and its heading stayed ok): the alarm sent the engineer to the cable and lost
+    the reason. Now it stays rejected with the reason until the data stop, and then goes stale after the
+    timeout, the silence timed from the last sentence."""
+    g, _ = live
+    k = 0
+
+    def send(quality: int) -> None:
+        nonlocal k
+        k += 1
+        now = datetime.now(UTC)  # a receiver's noise in the last digits: no freeze
+        gga = enc.gga("GP", now, 59.4 + 2e-7 * (k % 5), 10.5 + 2e-7 * (k % 3), quality, 12, 0.8, 20.0)
+        g.send_udp((gga + enc.hdt("HE", 0.5 + 0.001 * (k % 7))).encode())
+        time.sleep(0.1)  # a receiver's 10 Hz: pacing, not a wait for an event
+
+    for _ in range(600):
+        send(2)
+        if reference_state(g, "udp", "position")[0] == "ok":
+            break
+    assert reference_state(g, "udp", "position")[0] == "ok"
+    for _ in range(40):  # 4 s: twice the source's timeout
+        send(6)
+    g.caught_up("udp")
+    state, reason = reference_state(g, "udp", "position")
+    assert (state, reason) == ("rejected", "GGA quality 6 (dead reckoning) not accepted")
+    assert reference_state(g, "udp", "heading")[0] == "ok"
+    last_sent = time.monotonic()
+    assert wait_for(lambda: reference_state(g, "udp", "position")[0] == "stale", 30.0)
+    silent_s = time.monotonic() - last_sent
+    state, reason = reference_state(g, "udp", "position")
+    assert reason.startswith("no data for ")
+    # timed from the last sentence, not from the last passing fix 4 s before it
+    assert 2.0 <= float(reason.split()[3]) <= silent_s + 0.2

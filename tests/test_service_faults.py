@@ -189,6 +189,10 @@ def test_a_usb_serial_adapter_unplugged_and_back(tmp_path: Path) -> None:
         finally:
             sink.close()  # unplugged
         assert wait_for(lambda: live.alarms("source gps: disconnected"), 30.0), live.status().get("alarms")
+        # once a reopen has failed: the problem, once, not the start-up message with the source's name and
+        # URL again inside the alarm that names them
+        gone = f"source gps: disconnected (serial port {link} does not exist; reopening)"
+        assert wait_for(lambda: live.alarms(gone), 30.0), live.status().get("alarms")
         src = live.service._sources[0]
         assert src.stats.errors["disconnected"] == 1 and src.running
         with PtySink(str(link)) as sink2:  # plugged in again, as a new device behind the same name

@@ -180,6 +180,23 @@ def test_a_file_named_as_a_serial_port_is_refused(tmp_path: Path) -> None:
         open_source("gps", str(path)).start(Collector())  # a bare path is pymavlink's serial device
 
 
+def test_a_folder_named_as_a_serial_port_is_refused_without_a_file_hint(tmp_path: Path) -> None:
+    """Before: '... is not a serial device — for a file write file:///tmp/...', a folder no file:// reads."""
+    with pytest.raises(SourceError) as info:
+        open_source("gps", f"serial://{tmp_path}?baud=4800").start(Collector())
+    assert info.value.problem == f"{tmp_path} is a folder, not a serial device"
+    assert "file://" not in str(info.value) and "ls /dev/serial/by-id/" in info.value.fix
+
+
+def test_a_device_that_is_not_a_terminal_is_refused_as_not_a_serial_port() -> None:
+    """/dev/null (a character device, no tty). Before: 'cannot open serial port /dev/null: Could not
+    configure port: (25, 'Inappropriate ioctl for device') — check the device and settings'."""
+    with pytest.raises(SourceError) as info:
+        open_source("gps", "serial:///dev/null?baud=4800").start(Collector())
+    assert info.value.problem == "/dev/null is not a serial port (a device, but not a terminal)"
+    assert "ls /dev/serial/by-id/" in info.value.fix
+
+
 def test_serial_port_in_use_is_refused(opened: list[Source]) -> None:
     with PtySink() as sink:
         start(opened, "gps", f"serial://{sink.device}", SerialSource)

@@ -378,11 +378,18 @@ class ReferenceMonitor:
     # --- reading -----------------------------------------------------------------------------------------
 
     def refresh(self, now_ns: int) -> None:
-        """Sources silent past their timeout become stale."""
+        """Sources silent past their timeout become stale. Silent: nothing received, passing or failing.
+        The track's time is that of the last value past the jump test, so a DGPS sending GGA quality 6
+        (dead reckoning), or fixes 100 m off, for longer than its timeout used to become ``stale: no data
+        for 2.0 s`` while its sentences kept coming: the alarm sent the engineer to the cable and lost the
+        reason. It stays ``rejected`` with that reason while its data keep failing."""
         for r in self._all_refs:
             last = r.track.last_ns
             if last and now_ns - last > r.timeout_ns:
-                r.state.stale(now_ns, (now_ns - last) / NS)
+                st = r.state
+                if st.failing(now_ns, r.timeout_ns):
+                    continue
+                st.stale(now_ns, (now_ns - max(last, st.failed_ns)) / NS)
         for st, track, timeout_ns in self._attitude.values():
             last = track.rx_ns
             if last and now_ns - last > timeout_ns:

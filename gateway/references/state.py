@@ -33,7 +33,9 @@ class SourceState:
     - passing again: ``suspect`` (readmitting), not used, until it has passed for ``readmit_ns``; then ``ok``;
     - a soft alarm (two references diverge, nobody can tell which is wrong): ``suspect`` but still used;
     - no data within the source's timeout: ``stale``; its next passing fix makes it ``ok`` again (silence is
-      not a fault of the data, and the jump test bounds what the first fix after a gap may be).
+      not a fault of the data, and the jump test bounds what the first fix after a gap may be). A source
+      whose data keep coming and failing is not silent: it stays ``rejected`` with the reason of its
+      latest failure (`failing`), and goes ``stale`` only once nothing has come for its timeout.
     """
 
     def __init__(self, source: str, role: str, readmit_ns: int) -> None:
@@ -46,6 +48,7 @@ class SourceState:
         self._passing_since: int | None = None
         self._soft: str = ""
         self._was_rejected = False  # went stale while rejected or readmitting: readmit when it returns
+        self.failed_ns = 0  # when data last failed a test
         self.changes: list[StateChange] = []
 
     @property
@@ -61,7 +64,12 @@ class SourceState:
 
     def fail(self, now_ns: int, reason: str) -> None:
         self._passing_since = None
+        self.failed_ns = now_ns
         self._set(now_ns, REJECTED, reason)
+
+    def failing(self, now_ns: int, timeout_ns: int) -> bool:
+        """Rejected, and data failed a test within ``timeout_ns``: the source talks, its data are refused."""
+        return self.state == REJECTED and now_ns - self.failed_ns <= timeout_ns
 
     def passed(self, now_ns: int) -> None:
         """The latest data passed every test."""

@@ -68,7 +68,15 @@ class SerialSource(Source):
                 "check the cable/udev name (ls /dev/serial/by-id/; for the simulator: the pty it printed)",
             )
         with contextlib.suppress(OSError):
-            if not stat.S_ISCHR(os.stat(self.device).st_mode):
+            mode = os.stat(self.device).st_mode
+            if stat.S_ISDIR(mode):  # (a folder cannot be read as a file either: no file:// hint)
+                raise SourceError(
+                    self.name,
+                    self.url,
+                    f"{self.device} is a folder, not a serial device",
+                    "give the device itself (ls /dev/serial/by-id/; for the simulator: the pty it printed)",
+                )
+            if not stat.S_ISCHR(mode):
                 raise SourceError(
                     self.name,
                     self.url,
@@ -98,6 +106,9 @@ class SerialSource(Source):
                 problem, fix = f"serial port {self.device} does not exist", "check the cable/udev name"
             elif code == errno.EBUSY:
                 problem, fix = f"serial port {self.device} is busy", "another program has it open: stop it"
+            elif code == errno.ENOTTY or "Inappropriate ioctl" in text:  # /dev/null, a sound card, ...
+                problem = f"{self.device} is not a serial port (a device, but not a terminal)"
+                fix = "give the serial device (ls /dev/serial/by-id/; for the simulator: the pty it printed)"
             else:
                 problem, fix = (
                     f"cannot open serial port {self.device}: {text}",
@@ -121,8 +132,8 @@ class SerialSource(Source):
                     return
                 try:
                     ser = self._open_port()
-                except SourceError as exc:
-                    self._error("reopen failed", str(exc), logging.DEBUG)
+                except SourceError as exc:  # (the problem alone: the alarm already names the source)
+                    self._error("reopen failed", f"{exc.problem}; reopening", logging.DEBUG)
                     continue
                 with self._io_lock:
                     self._ser = ser
