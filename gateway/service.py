@@ -55,6 +55,10 @@ from wire.messages import SIM_CLOCK_KEY, SimClock, Status, ThrusterCommand
 
 log = logging.getLogger("dpgw")
 
+COMPILE_NOTICE_S = 1.0
+"""If the compiled kernels are not ready after this long at start-up, the gateway says it is compiling
+them (a first run): from numba's cache they take 0.2-0.8 s."""
+
 INPUT_KEYS = ("setpoint", "mode", "tau")
 TRACEBACKS_LOGGED = 10
 """Internal errors logged with a full traceback per source; after that every 1000th, so that a bug hit by
@@ -220,7 +224,22 @@ class GatewayService:
         self._wall0_ns = time.time_ns()
         # numba's kernels compiled (or loaded from its cache) before any source opens, not in the loop
         t0 = time.perf_counter()
-        self.pipeline.compile_kernels()
+        # from numba's cache this takes well under a second; the first run after an install or an upgrade
+        # compiles for ~10-15 s, silent without -v: say so, once, if it has not finished after a second
+        slow = threading.Timer(
+            COMPILE_NOTICE_S,
+            log.warning,
+            (
+                "compiling the numeric kernels (the first run after an install or an upgrade; about 15 s, "
+                "then kept in numba's cache): the sources open when it is done",
+            ),
+        )
+        slow.daemon = True
+        slow.start()
+        try:
+            self.pipeline.compile_kernels()
+        finally:
+            slow.cancel()
         log.info("compiled kernels ready in %.2f s", time.perf_counter() - t0)
         if self.stop_event.is_set():  # stopped while compiling (seconds on a first run): open nothing
             return

@@ -183,3 +183,46 @@ def test_a_clock_stepped_back_rejects_no_reference(tmp_path: Path) -> None:
     assert service.pipeline.estimates >= 590
     assert service.wall_time.behind_ns == 30 * 10**9
     assert any("stepped back" in a for a in service._alarms())
+
+
+def test_a_slow_first_compile_is_said_and_a_quick_one_is_not(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The first run after an install compiles numba's kernels for ~15 s before any source opens; without
+    -v the gateway would sit silent. Past `COMPILE_NOTICE_S` it says what it is doing, once; a start from
+    the cache (well under a second) says nothing."""
+    import gateway.service as service_module
+
+    tables = {
+        "vessel": {"name": "mss_supply"},
+        "datum": {"lat_deg": 59.4, "lon_deg": 10.5},
+        "sources": [
+            {"name": "gps", "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position", "heading"]}
+        ],
+        "observer": {"wave_period_s": 9.0},
+        "zenoh": {"listen": [f"tcp/127.0.0.1:{free_port()}"], "multicast_scouting": False, "prefix": "dp/t"},
+        "log": {"path": ""},
+    }
+    caplog.set_level(logging.WARNING, logger="dpgw")
+
+    def said() -> list[str]:
+        return [r.getMessage() for r in caplog.records if "compiling the numeric kernels" in r.getMessage()]
+
+    for slow in (True, False):
+        caplog.clear()
+        # (the quick case's threshold far above its no-op compile, so a busy machine cannot cross it)
+        monkeypatch.setattr(service_module, "COMPILE_NOTICE_S", 0.05 if slow else 5.0)
+        service = GatewayService(parse_config(tables, base_dir=tmp_path), config_tables=tables)
+        if slow:  # a compile that lasts until the notice has been given
+            monkeypatch.setattr(
+                service.pipeline,
+                "compile_kernels",
+                lambda: wait_for("the notice", lambda: bool(said()), 10.0),
+            )
+        else:
+            monkeypatch.setattr(service.pipeline, "compile_kernels", lambda: None)
+        try:
+            service.start()
+        finally:
+            service.close()
+        assert len(said()) == (1 if slow else 0), said()
