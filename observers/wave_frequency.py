@@ -49,6 +49,23 @@ using spectral analysis"; ω̄0 is updated every T (A5: "every T minutes"), with
    cross-fade between two seas, a burst of noise) does not move ω0, a real change does at the second
    update that sees it.
 
+**Above the DP loop's band** (``loop_bandwidth``). The paper's A8 takes the measured motion to be LF plus
+WF motion and the LF motion to lie below the waves (the high-pass of step 4 removes it below 0.5·ω_min).
+Under DP the LF motion is the closed loop's: it has power up to the loop's natural frequency ωn (the
+controller's bandwidth), and falls steeply above it (the disturbance's spectrum times the loop's second-
+order roll-off). On a ship ωn is far below ω_min (0.07-0.1 rad/s against 0.3) and nothing changes. Where
+the loop is fast against the sea the two overlap: the `hassani` case runs a full-scale 6.8 s sea
+(0.93 rad/s) on the 1:70 CyberShip II, whose Froude-scaled loop has ωn = 0.55 / 0.55 / 0.78 rad/s. There
+the closed-loop motion at ω_min = 0.3 rad/s is as strong as the wave peak in north and east and 20 dB
+above it in heading (which has the strongest wave-band snr, so full weight), the combined spectrum's
+maximum sits on ω_min, and the estimator either skipped every update (ω0 stayed at its start) or took a
+bump of the loop's motion just above ω_min for a peak (0.32-0.40 rad/s, the gain-scheduled observer's
+notch then on the loop's motion: 2.2-3.1° heading error against 0.7° for the fixed observer). So where the
+DP loop is known the peak is searched above ωn only: each DOF's bins below max(ω_min, ωn) are left out of
+its band power, its snr and the peak (one band for all DOFs with a shared ω0: the highest loop's ωn, as
+the DOFs are added; ``per_dof=True``: each its own). The wave filter could not separate waves from the
+loop's motion inside the loop's band anyway: there the vessel is meant to follow what it measures.
+
 **Skipped updates** (`WaveFrequencyEstimator.last_skip` says why): too little clean data (no clean
 segment and less than ``min_span_s`` so far); no DOF's wave band rises ``min_snr`` above the noise (calm
 sea, or dead sensors); the maximum lies on an edge of [ω_min, ω_max]. The estimate in use is then kept.
@@ -107,6 +124,10 @@ class WaveFrequencyConfig:
                            most segment_s).
     min_snr:               wave-band power above noise, relative to the noise power in the band.
     median_of:             the estimate is the median of the last ``median_of`` spectral peaks (1: none).
+    loop_bandwidth:        natural frequency ωn (rad/s, one or per DOF) of the DP loop that moves the
+                           vessel, where known (`GainScheduledObserver` passes its tuning's, which a gateway
+                           config sets from ``[control]``); the peak is searched above it (module docstring,
+                           "Above the DP loop's band"). None: no loop known, the whole [ω_min, ω_max].
     """
 
     window_s: float = 300.0
@@ -126,6 +147,7 @@ class WaveFrequencyConfig:
     min_span_s: float | None = None
     min_snr: float = 3.0
     median_of: int = 3
+    loop_bandwidth: Any = None
 
     def __post_init__(self) -> None:
         positive = {
@@ -159,6 +181,21 @@ class WaveFrequencyConfig:
             raise ValueError(f"WaveFrequencyConfig.median_of must be an integer ≥ 1, got {self.median_of!r}")
         if not (math.isfinite(self.min_snr) and self.min_snr >= 0):
             raise ValueError(f"WaveFrequencyConfig.min_snr must be ≥ 0, got {self.min_snr!r}")
+        if self.loop_bandwidth is not None:
+            wn = np.asarray(self.loop_bandwidth, dtype=float)
+            if wn.ndim > 1 or wn.size not in (1, 3) or not bool(np.all(np.isfinite(wn) & (wn > 0))):
+                raise ValueError(
+                    "WaveFrequencyConfig.loop_bandwidth must be a positive number or three (per DOF), got "
+                    f"{self.loop_bandwidth!r}"
+                )
+            # kept as a tuple of three floats: the config stays hashable and comparable
+            three = np.broadcast_to(wn, (3,))
+            object.__setattr__(self, "loop_bandwidth", (float(three[0]), float(three[1]), float(three[2])))
+            if not max(self.search_floor) < self.omega_max:
+                raise ValueError(
+                    f"WaveFrequencyConfig: the DP loop's bandwidth {list(self.loop_bandwidth)} rad/s reaches "
+                    f"omega_max = {self.omega_max}: no wave band is left above the loop to search"
+                )
         if not self.min_span_effective_s <= self.segment_s <= self.window_s:
             raise ValueError(
                 "WaveFrequencyConfig: need min_span_s ≤ segment_s ≤ window_s, got "
@@ -168,6 +205,17 @@ class WaveFrequencyConfig:
     @property
     def resample_hz_effective(self) -> float:
         return self.resample_hz if self.resample_hz is not None else 3.0 * self.omega_max / math.pi
+
+    @property
+    def search_floor(self) -> tuple[float, float, float]:
+        """Lowest frequency searched per DOF (rad/s): ω_min, raised to the DP loop's natural frequency where
+        that lies above it (module docstring, "Above the DP loop's band"). With one ω0 for all DOFs
+        (``per_dof=False``) one band for all: the highest loop's."""
+        if self.loop_bandwidth is None:
+            return (self.omega_min, self.omega_min, self.omega_min)
+        wn = np.broadcast_to(np.asarray(self.loop_bandwidth, dtype=float), (3,))
+        floor = np.maximum(self.omega_min, wn if self.per_dof else np.full(3, wn.max()))
+        return (float(floor[0]), float(floor[1]), float(floor[2]))
 
     @property
     def min_span_effective_s(self) -> float:
@@ -197,6 +245,9 @@ class WaveFrequencyConfig:
             resample_hz=None if self.resample_hz is None else w(self.resample_hz),
             max_gap_s=t(self.max_gap_s),
             min_span_s=None if self.min_span_s is None else t(self.min_span_s),
+            loop_bandwidth=None
+            if self.loop_bandwidth is None
+            else tuple(w(float(v)) for v in self.loop_bandwidth),
         )
 
     def scaled(self, length_ratio: float) -> WaveFrequencyConfig:
@@ -473,6 +524,20 @@ class WaveFrequencyEstimator:
         return np.asarray(g, dtype=float)
 
     @cached_property
+    def _band_start(self) -> NDArray[np.int64]:
+        """Per DOF, the first wave-band bin searched: 0, or the first at or above the DP loop's natural
+        frequency (`WaveFrequencyConfig.search_floor`)."""
+        _, _, _, omega, band, _, _ = self._design
+        w_band = omega[band]
+        return np.array([int(np.searchsorted(w_band, f)) for f in self.config.search_floor], dtype=np.int64)
+
+    @cached_property
+    def _band_mask(self) -> Array:
+        """(3, band bins): 1 from `_band_start` on, 0 below (the DP loop's band)."""
+        n = self._design[4].stop - self._design[4].start
+        return np.asarray(np.arange(n)[None, :] >= self._band_start[:, None], dtype=float)
+
+    @cached_property
     def _lf_operators(self) -> dict[int, tuple[Array, Array]]:
         return {}
 
@@ -520,6 +585,8 @@ class WaveFrequencyEstimator:
         part = np.partition(noise, [half_n - 1, half_n], axis=1)
         level = part[:, half_n] if noise.shape[1] % 2 else 0.5 * (part[:, half_n - 1] + part[:, half_n])
         in_band = psd[:, band]
+        if self._band_start.any():  # a DP loop's band inside [ω_min, ω_max]: not searched
+            in_band = in_band * self._band_mask
         power = in_band.sum(axis=1) * (omega[1] - omega[0])
         return _Segment(in_band, tuple(bool(v) for v in valid), power.tolist(), level.tolist())
 
@@ -563,12 +630,12 @@ class WaveFrequencyEstimator:
         snr = [math.nan, math.nan, math.nan]
         weight = [0.0, 0.0, 0.0]
         used = [False, False, False]
-        width = c.omega_max - c.omega_min
+        floor = c.search_floor
         for i in range(3):
             if not count[i]:
                 continue
             band_power[i] /= count[i]
-            noise_power = noise_level[i] / count[i] * width
+            noise_power = noise_level[i] / count[i] * (c.omega_max - floor[i])
             snr[i] = (band_power[i] - noise_power) / noise_power if noise_power > 0 else math.inf
             if snr[i] >= c.min_snr and band_power[i] > 0:
                 used[i] = True
@@ -580,9 +647,10 @@ class WaveFrequencyEstimator:
         powers = _f3([band_power[i] if count[i] else math.nan for i in range(3)])
         noises = _f3([noise_level[i] / count[i] if count[i] else math.nan for i in range(3)])
         d_omega = float(omega[1] - omega[0])
+        starts = self._band_start.tolist()
         waves = _f3(
             [
-                wave_band_power(psd[i] / count[i], d_omega, noises[i]) if count[i] else math.nan
+                wave_band_power(psd[i, starts[i] :] / count[i], d_omega, noises[i]) if count[i] else math.nan
                 for i in range(3)
             ]
         )
@@ -601,14 +669,21 @@ class WaveFrequencyEstimator:
             )
             return None
         w_band = omega[band]
-        shared = _peak(np.dot(weight, psd), w_band)
-        peaks = [_peak(psd[i], w_band) if c.per_dof and used[i] else math.nan for i in range(3)]
+        lo = min(starts[i] for i in range(3) if used[i])  # (all the same with one ω0 for all DOFs)
+        shared = _peak(np.dot(weight, psd)[lo:], w_band[lo:])
+        peaks = [
+            _peak(psd[i, starts[i] :], w_band[starts[i] :]) if c.per_dof and used[i] else math.nan
+            for i in range(3)
+        ]
         info = SpectrumInfo(
             t, (used[0], used[1], used[2]), segs, _f3(snr), _f3(peaks), shared, powers, noises, waves
         )
         if not math.isfinite(shared):
             self._skip(
-                t, "the spectral maximum lies on an edge of [omega_min, omega_max]: no peak inside", info
+                t,
+                "the spectral maximum lies on an edge of [omega_min, omega_max] (above the DP loop's band, "
+                "where known): no peak inside",
+                info,
             )
             return None
         self.last_info = info
@@ -770,6 +845,8 @@ def _peak(p: Array, w_band: Array, level: float = _FIT_LEVEL) -> float:
     the maximum lies on an edge of the band (no peak inside).
     """
     v = p.tolist()  # ~50 bins: plain floats are cheaper than numpy calls here
+    if len(v) < 3:
+        return math.nan
     pos = max(range(len(v)), key=v.__getitem__)
     if pos == 0 or pos == len(v) - 1:
         return math.nan

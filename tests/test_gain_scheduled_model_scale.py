@@ -9,6 +9,7 @@ station-keeping law, plus the `hassani` scenario's sensor noise (1 cm RTK positi
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import basin_sea
 import numpy as np
@@ -166,7 +167,10 @@ def test_the_hassani_cases_keep_the_full_scale_range() -> None:
         spec = parse_observer_spec("gain_scheduled")
         obs = spec.make(config, scenario.observer_params.get("gain_scheduled"))
         assert isinstance(obs, GainScheduledObserver)
-        assert obs.config == WaveFrequencyConfig()
+        # the full-scale range; the DP loop's band (the model's Froude-scaled controller) is known to it
+        assert obs.tuning.loop_bandwidth is not None
+        assert obs.config == replace(WaveFrequencyConfig(), loop_bandwidth=obs.tuning.loop_bandwidth)
+        np.testing.assert_allclose(obs.config.search_floor, max(obs.tuning.loop_bandwidth))
         np.testing.assert_allclose(obs.omega0_initial, 2 * math.pi / scenario.sea[0][1].tp_s)
         # the user's own setting wins over the scenario's
         mine = parse_observer_spec("gain_scheduled:omega_max=1.2").make(
