@@ -64,7 +64,9 @@ notch then on the loop's motion: 2.2-3.1° heading error against 0.7° for the f
 DP loop is known the peak is searched above ωn only: each DOF's bins below max(ω_min, ωn) are left out of
 its band power, its snr and the peak (one band for all DOFs with a shared ω0: the highest loop's ωn, as
 the DOFs are added; ``per_dof=True``: each its own). The wave filter could not separate waves from the
-loop's motion inside the loop's band anyway: there the vessel is meant to follow what it measures.
+loop's motion inside the loop's band anyway: there the vessel is meant to follow what it measures. The
+paper is silent on this (its case study's PID has ωn = 0.8 rad/s beside a 0.546 rad/s sea, which this
+rule would not find: a DP loop is normally set below the wave band, and dpgw's is, at full scale).
 
 **Skipped updates** (`WaveFrequencyEstimator.last_skip` says why): too little clean data (no clean
 segment and less than ``min_span_s`` so far); no DOF's wave band rises ``min_snr`` above the noise (calm
