@@ -214,6 +214,20 @@ def test_demo_serves_every_advertised_channel_with_data(tmp_path: Path) -> None:
     assert -90 <= fix["latitude"] <= 90 and -180 <= fix["longitude"] <= 180
 
 
+def offline_estimates(log: Path, out: Path) -> dict[int, bytes]:
+    """The /dp/estimate messages of ``dpgw replay LOG --out OUT`` (as fast as the CPU allows, nothing
+    served): log time -> payload, the bytes as written to the MCAP log."""
+    from mcap.reader import make_reader
+
+    args = ["replay", str(log), "--vessel", "mss_supply", "--out", str(out), "--json"]
+    done = subprocess.run([sys.executable, "-m", "dpgw", *args], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    with out.open("rb") as f:
+        found = {m.log_time: m.data for _, _, m in make_reader(f).iter_messages(topics=["/dp/estimate"])}
+    assert len(found) > 100, f"the offline replay made {len(found)} estimates"
+    return found
+
+
 def sim_log(path: Path, seconds: float) -> Path:
     from simulator.runner import Simulation
     from simulator.scenarios import get_scenario
@@ -230,6 +244,7 @@ def ns(t: dict[str, int]) -> int:
 
 def test_replay_obeys_play_pause_seek_and_speed(tmp_path: Path) -> None:
     log = sim_log(tmp_path / "sim.mcap", 90.0)
+    reference = offline_estimates(log, tmp_path / "offline.mcap")
     port = free_port()
     proc = dpgw("replay", str(log), "--vessel", "mss_supply", "--foxglove", f"127.0.0.1:{port}", "--json")
     S = 1_000_000_000
@@ -277,7 +292,13 @@ def test_replay_obeys_play_pause_seek_and_speed(tmp_path: Path) -> None:
             resumed = [t for t, _ in estimates()[seen:] if t > paused_at]
             assert resumed and resumed[0] - paused_at < 2 * S
 
-            # seek back to 5 s: replayed from the start, the same estimates at the same log times
+            # seek back to 5 s: replayed from the start, the same estimates at the same log times, byte for
+            # byte, as the offline replay of the same log (as was every estimate of the first pass). The first
+            # pass is no reference for what comes after the seek: what it delivered depends on the machine.
+            # /dp/estimate is advertised with the first estimate, and those made until this client's
+            # subscription arrives are held, the last one only (the server's documented policy), while a
+            # player that fell behind the wall clock feeds without waiting to catch up: at load 9 the first
+            # pass's first estimate was at 10.6 s of log, after the 20 compared here.
             target = begin + 5 * S
             state = await ask(PLAY, 5.0, target, "back")
             assert state["did_seek"] and state["time"] == target
@@ -288,8 +309,11 @@ def test_replay_obeys_play_pause_seek_and_speed(tmp_path: Path) -> None:
                 "20 estimates after seeking back",
             )
             again = [(t, p) for t, p in estimates()[seen:] if target <= t <= target + 8 * S]
-            assert all(first_pass[t] == p for t, p in again if t in first_pass)
-            assert sum(1 for t, _ in again if t in first_pass) >= 20
+            assert len(again) >= 20
+            assert all(reference.get(t) == p for t, p in again), [
+                (t - begin) / S for t, p in again if reference.get(t) != p
+            ]
+            assert all(reference.get(t) == p for t, p in first_pass.items())  # (what the first pass had)
 
             # seek forwards to 60 s: the next estimates are from there on
             target = begin + 60 * S
