@@ -1090,6 +1090,9 @@ class Pipeline:
             or reacq[2]
             or (valid[0] and measured[0] and measured[0] != before)  # back: not measured at the last step
             or (valid[2] and measured[2] and measured[2] != before)
+            # no step at all for longer than lost_after_s (a replay's gap between two logs, hours or
+            # years, has no events to step on): the references are back after being lost, not held
+            or (before and now_ns - before > self._lost_ns)
         ) and self._last_est is not None:
             y_obs = self._reacquire(now_ns, y, valid)
         est = self._observe(self.observer, t, y_obs, tau_obs, valid)
@@ -1157,8 +1160,9 @@ class Pipeline:
         outside its gate: measured, a 20 m drift over a 60 s outage gave 17 m of error 5 s after the
         return and 40 % of the returning fixes rejected for a minute. So, per DOF (position, heading):
 
-        - back after ``lost_after_s`` (the estimate was reported lost): the observers restart from the
-          measurement at once, as at start-up;
+        - back after ``lost_after_s`` (the estimate was reported lost), or the first step after no step
+          for that long (a replay's gap between merged logs, which has no event to step on): the
+          observers restart from the measurement at once, as at start-up, integrating nothing across it;
         - back after any break (measured now, not at the last step) and inside the prediction gate of
           the dead-reckoned prediction (``prediction_gate_m`` grown by the 3σ ellipse of the position's
           GST covariance when known; ``prediction_gate_deg``; without its growth with age): the dead

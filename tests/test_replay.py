@@ -161,6 +161,49 @@ def test_two_usv_logs_a_day_apart_replay_without_locking_out_the_second() -> Non
     assert math.hypot(last_est[0] - last_meas[0], last_est[1] - last_meas[1]) < 5.0
 
 
+def test_two_logs_years_apart_restart_the_observer_instead_of_dead_reckoning_the_gap(tmp_path: Path) -> None:
+    """Two receivers' logs of different years merged (the gpsd captures are from 2011 and 2020): no event
+    lies between them, so nothing stepped the observer in the gap. Before, the first fix of the second
+    log stepped it across the whole gap, dead reckoning 277 million seconds in RK4 sub-steps (the replay
+    ran for hours); a gap without a step longer than ``lost_after_s`` now restarts the observer from the
+    returning references, as a reference back after being lost does."""
+    first, second = tmp_path / "a.nmea", tmp_path / "b.nmea"
+    t0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
+    write_text_log(first, [t0 + timedelta(seconds=k) for k in range(20)])
+    t1 = t0 + timedelta(days=2)  # long enough to see, short enough to finish without the rule
+    write_text_log(second, [t1 + timedelta(seconds=k) for k in range(20)])
+    inputs = open_inputs([first, second])
+    config = build_config(inputs, vessel="mss_supply")
+    pipeline = build_pipeline(config, [ObserverSpec("passive", "passive", {})])
+    lost_after = config.integrity.lost_after_s
+    observer, spans, last = pipeline.observer, [], [math.nan]
+    step = observer.step
+
+    def spying_step(t: float, y: Any, tau: Any = None) -> Any:
+        est = step(t, y, tau)
+        if observer.initialized and last[0] == last[0]:
+            spans.append(t - last[0])
+        last[0] = t
+        return est
+
+    observer.step = spying_step  # type: ignore[method-assign]
+    observer_reset = observer.reset
+
+    def spying_reset() -> None:
+        observer_reset()
+        last[0] = math.nan  # a restart integrates nothing: the next step initialises
+
+    observer.reset = spying_reset  # type: ignore[method-assign]
+    result = _run(inputs, pipeline, collect=["/dp/status", "/dp/estimate"])
+    assert max(spans) <= lost_after, f"the observer dead-reckoned {max(spans):.0f} s in one step"
+    assert result.restarts == 1
+    events = [text for s in result.collected["/dp/status"] for text in s["events"]]
+    assert any(
+        text.startswith("observer restarted from the measurement: position back after") for text in events
+    )
+    assert len(result.collected["/dp/estimate"]) == 40  # every cycle of both logs
+
+
 @pytest.mark.parametrize(
     "name", ["hemi.log", "nmea-rtk.log", "polarx2.log", "rst39.log", "saab-r4.log", "skytraq-PX1172RH_DS.log"]
 )
