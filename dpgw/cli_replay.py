@@ -80,7 +80,12 @@ EPILOG = (
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("logs", nargs="+", metavar="LOG", help="MCAP, NMEA text or tlog files (merged by time)")
+    p.add_argument(
+        "logs",
+        nargs="+",
+        metavar="LOG",
+        help="MCAP, NMEA text or tlog files (merged by time); text logs and tlogs may be gzip'd (.gz)",
+    )
     p.add_argument(
         "--vessel",
         metavar="NAME|FILE",

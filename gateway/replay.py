@@ -33,7 +33,15 @@ from mcap.reader import make_reader
 
 from gateway.config import GatewayConfig, default_config, parse_config
 from gateway.config.logged import unlogged_key_sources, without_unlogged_keys
-from gateway.logreaders import LogCounts, nmea_text_events, nmea_text_events_reference, tlog_events
+from gateway.logreaders import (
+    LogCounts,
+    gzip_was_cut,
+    is_gzip,
+    nmea_text_events,
+    nmea_text_events_reference,
+    open_log,
+    tlog_events,
+)
 from gateway.pipeline import USED_NMEA, ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from observers.factory import (
     OBSERVER_PARAMS,
@@ -70,11 +78,22 @@ def input_kind(path: str | Path) -> str:
         raise ReplayError(f"{p}: a folder, not a log file: give the logs in it (e.g. {p / '*.mcap'})")
     if not p.is_file():
         raise ReplayError(f"{p}: no such log file")
-    with p.open("rb") as f:
+    with open_log(p) as f:
         head = f.read(64)
+        cut = gzip_was_cut(f)
+    if not head and cut:
+        raise ReplayError(
+            f"{p}: starts like a gzip file but does not decompress: give the log itself, or a complete "
+            "copy of the .gz (gzip -t FILE tests one)"
+        )
     if not head:
         raise ReplayError(f"{p}: empty file: nothing to replay")
     if head.startswith(MCAP_MAGIC):
+        if is_gzip(p):
+            raise ReplayError(
+                f"{p}: a gzip'd MCAP log: MCAP is read by seeking in it, so decompress it first "
+                f"(gunzip -k {p}) and give the .mcap; MCAP compresses its own chunks (zstd or lz4)"
+            )
         return "mcap"
     if p.suffix.lower() == ".mcap":
         raise ReplayError(
@@ -98,7 +117,7 @@ def _raw_mavlink_stream(path: Path) -> bool:
     A tlog record starts with its time (big-endian µs since 1970: a first byte of 0 until the year 2540),
     so a file that starts with a start-of-frame marker, and has another right after the first frame's
     length, is frames alone."""
-    with path.open("rb") as f:
+    with open_log(path) as f:
         head = f.read(2 * 280)
     at = 0
     for _ in range(2):
@@ -283,7 +302,8 @@ def open_inputs(paths: Iterable[str | Path]) -> list[Input]:
     for p in paths:
         path = Path(p)
         kind = input_kind(path)
-        name = re.sub(r"[^a-z0-9_]", "_", path.stem.lower()) or "log"
+        stem = Path(path.stem).stem if path.suffix.lower() == ".gz" else path.stem  # trial.txt.gz: trial
+        name = re.sub(r"[^a-z0-9_]", "_", stem.lower()) or "log"
         if name[0].isdigit():
             name = f"log_{name}"
         names[name] += 1

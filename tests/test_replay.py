@@ -214,6 +214,67 @@ def test_gpsd_logs_replay_without_error(name: str) -> None:
     assert c["received"] > 0
 
 
+@pytest.mark.parametrize("fast_scan", [True, False], ids=["compiled scan", "line reader"])
+def test_a_gzipd_text_log_replays_as_the_log_itself(tmp_path: Path, fast_scan: bool) -> None:
+    """Sea-trial logs are archived gzip'd. Before, a .gz was read as text: no sentence with a time, and
+    "nothing to replay". Now it is decompressed on the fly, with the same counts and estimates."""
+    import gzip
+
+    plain = need(USV / "202412071127.txt")
+    packed = tmp_path / "202412071127.txt.gz"
+    packed.write_bytes(gzip.compress(plain.read_bytes()))
+    runs = []
+    for path in (plain, packed):
+        inputs = open_inputs([path])
+        inputs[0].fast_scan = fast_scan
+        pipeline = build_pipeline(
+            build_config(inputs, vessel="cybership2"), [ObserverSpec("passive", "passive", {})]
+        )
+        result = _run(inputs, pipeline, collect=["/dp/estimate"])
+        runs.append((inputs[0], result))
+    (a, ra), (b, rb) = runs
+    assert b.kind == "nmea" and b.source == a.source == "log_202412071127"  # named without .txt.gz
+    assert b.counts.lines == a.counts.lines == 1702 and b.counts.cycles == a.counts.cycles
+    assert rb.counts[f"source {b.source}"] == ra.counts[f"source {a.source}"]
+    assert [e["eta"] for e in rb.collected["/dp/estimate"]] == [
+        e["eta"] for e in ra.collected["/dp/estimate"]
+    ]
+
+
+@pytest.mark.parametrize("fast_scan", [True, False], ids=["compiled scan", "line reader"])
+def test_a_gzipd_log_cut_short_replays_up_to_the_cut_and_says_so(tmp_path: Path, fast_scan: bool) -> None:
+    import gzip
+
+    t0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
+    log = tmp_path / "trial.nmea"
+    write_text_log(log, [t0 + timedelta(seconds=k) for k in range(2000)])
+    packed = gzip.compress(log.read_bytes())
+    cut = tmp_path / "trial.nmea.gz"
+    cut.write_bytes(packed[: len(packed) // 2])  # a copy interrupted half way
+    inputs = open_inputs([cut])
+    inputs[0].fast_scan = fast_scan
+    pipeline = build_pipeline(
+        build_config(inputs, vessel="mss_supply"), [ObserverSpec("passive", "passive", {})]
+    )
+    result = _run(inputs, pipeline, collect=["/dp/estimate"])  # before: EOFError from gzip, a traceback
+    assert inputs[0].counts.counts["gzip_cut"] == 1
+    assert 200 < inputs[0].counts.cycles < 1900  # what came before the cut, replayed
+    assert len(result.collected["/dp/estimate"]) >= inputs[0].counts.cycles - 2
+
+
+def test_a_gzipd_mcap_or_a_broken_gzip_is_refused_saying_what_to_do(tmp_path: Path) -> None:
+    import gzip
+
+    mcap_gz = tmp_path / "trial.mcap.gz"
+    mcap_gz.write_bytes(gzip.compress(b"\x89MCAP0\r\n" + bytes(100)))
+    with pytest.raises(ReplayError, match=r"gzip'd MCAP log: .* decompress it first \(gunzip -k "):
+        open_inputs([mcap_gz])
+    broken = tmp_path / "trial.txt.gz"
+    broken.write_bytes(b"\x1f\x8b" + bytes(range(100)))
+    with pytest.raises(ReplayError, match=r"starts like a gzip file but does not decompress: give the log"):
+        open_inputs([broken])
+
+
 def write_text_log(path: Path, times: list[datetime], *, dup: int | None = None) -> None:
     lines = []
     for k, t in enumerate(times):
