@@ -558,6 +558,8 @@ class ReplayResult:
     estimates: Counter[str] = field(default_factory=Counter)
     restarts: int = 0  # observer restarts from a returning reference (`Pipeline.restarts`)
     counts: dict[str, dict[str, int]] = field(default_factory=dict)
+    # "log NAME" -> (first, last) event time in ns since 1970 (UTC): what the log covers, from its own times
+    spans: dict[str, tuple[int, int]] = field(default_factory=dict)
     collected: dict[str, list[dict[str, Any]]] = field(default_factory=dict)  # topic -> payloads
     truth: list[dict[str, Any]] = field(default_factory=list)
 
@@ -606,6 +608,7 @@ def run_replay(
     feed = pipeline.feed
     encoders: dict[type[Message], Callable[[Message], bytes]] = {}  # message class -> `encoder_of` it
     events = sentences = outputs_n = 0  # (locals in the loop, into `result` at the end)
+    source_spans: dict[str, list[int]] = {}  # source -> [first, last] event time (ns)
     for ev in merged_events(inputs):
         events += 1
         if frozen == 0 and events % GC_FREEZE_EVERY == 0:
@@ -615,6 +618,13 @@ def run_replay(
             gc.freeze()
         records: list[tuple[str, bytes, int, Any]] = []
         if isinstance(ev, RawEvent):
+            span = source_spans.get(ev.source)
+            if span is None:
+                source_spans[ev.source] = [ev.rx_ns, ev.rx_ns]
+            elif ev.rx_ns > span[1]:
+                span[1] = ev.rx_ns
+            elif ev.rx_ns < span[0]:  # (a log's time may step back: counted, kept)
+                span[0] = ev.rx_ns
             protocol = protocols.get(ev.source, "nmea")
             # NMEA: lines (every event ends with its line end; a first line that is a sentence's tail
             # counts too); MAVLink: one frame per event
@@ -656,6 +666,9 @@ def run_replay(
         warned = {f"warning {k}": v for k, v in c.warnings.items()}  # (used: apart from the rejects)
         result.counts[f"source {name}"] = {"received": c.received, **c.rejected, **warned}
     for inp in inputs:
+        covered = [source_spans[src] for src in inp.sources() if src in source_spans]
+        if covered:
+            result.spans[f"log {inp.path.name}"] = (min(a for a, _ in covered), max(b for _, b in covered))
         if inp.kind == "nmea":
             result.counts[f"log {inp.path.name}"] = {
                 "lines": inp.counts.lines,

@@ -275,6 +275,39 @@ def test_a_gzipd_mcap_or_a_broken_gzip_is_refused_saying_what_to_do(tmp_path: Pa
         open_inputs([broken])
 
 
+def test_the_summary_says_what_each_log_covers_in_its_own_utc_time(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An analyst checks a replay against the trial's clock: which day, from when to when. Before, the
+    summary gave the wall time of the replay and counts only; the report, seconds from its start."""
+    from dpgw.cli import main
+
+    path = need(USV / "202412051037.txt")
+    times = [
+        line.split(",")[1]
+        for line in path.read_text(errors="replace").splitlines()
+        if line.startswith("$GPGGA")
+    ]
+    first, last = times[0], times[-1]  # hhmmss.ss of the log's first and last fix (the date is its RMC's)
+    assert (
+        main(["replay", str(path), "--vessel", "cybership2", "--out", str(tmp_path / "a.mcap"), "--json"])
+        == 0
+    )
+    span = json.loads(capsys.readouterr().out)["spans"]["log 202412051037.txt"]
+    assert span["start_utc"] == f"2024-12-05T{first[:2]}:{first[2:4]}:{first[4:6]}.{first[7:9]}0Z"
+    assert span["end_utc"] == f"2024-12-05T{last[:2]}:{last[2:4]}:{last[4:6]}.{last[7:9]}0Z"
+    assert span["seconds"] == pytest.approx(645.8)
+    # across midnight: the end's date is printed too
+    log = tmp_path / "night.nmea"
+    t0 = datetime(2026, 3, 1, 23, 59, 50, tzinfo=UTC)
+    write_text_log(log, [t0 + timedelta(seconds=k) for k in range(20)])
+    assert main(["replay", str(log), "--vessel", "mss_supply", "--out", str(tmp_path / "b.mcap")]) == 0
+    out = capsys.readouterr().out
+    assert (
+        "log night.nmea: lines 60, cycles 20; 2026-03-01 23:59:50 to 2026-03-02 00:00:09 UTC (19.0 s)" in out
+    )
+
+
 def write_text_log(path: Path, times: list[datetime], *, dup: int | None = None) -> None:
     lines = []
     for k, t in enumerate(times):
