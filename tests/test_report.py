@@ -448,3 +448,21 @@ def test_report_span_reads_in_the_plots_units(t1: float, text: str) -> None:
     t = np.linspace(0.0, t1, 50)
     d = ReplayData(title="x", vessel="mss_supply", t_meas=t, y=np.zeros((50, 3)), traces=())
     assert f"- span: {text}\n" in report_markdown(d, compute_metrics(d), "", [])
+
+
+@pytest.mark.parametrize("rising", [False, True], ids=["falling through the band", "rising through it"])
+def test_a_maximum_on_the_band_edge_is_reported_inside_the_band(rising: bool) -> None:
+    """LF motion leaves a spectrum falling through the wave band, so its maximum sits on the low edge.
+    Before, the parabola through the edge bin and the bin outside moved it up to half a bin out of the
+    band: the report of a USV log said 1.57 rad/s for a band it searched from 1.67."""
+    from gateway.report.spectra import Psd, peak
+
+    omega = np.arange(1, 100) * 0.2  # 0.2 rad/s bins, a model's coarse resolution
+    # concave log-PSDs: the parabola through the edge bin leans out of the band
+    psd = omega**4.0 if rising else np.exp(-0.5 * omega**2)
+    band = (1.75, 16.65)  # edge bins 1.8 and 16.6: half a bin out is 1.7 and 16.7
+    w, at_edge = peak(Psd(omega, psd, 1), band)
+    assert at_edge
+    assert band[0] <= w <= band[1]
+    inside = omega[(omega >= band[0]) & (omega <= band[1])]
+    assert w == pytest.approx(inside[-1] if rising else inside[0])
