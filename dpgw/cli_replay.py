@@ -62,7 +62,7 @@ EPILOG = (
     "gain_scheduled and memory use:\n"
     f"  {SPEC_TUNING_KEYS_TEXT}\n"
     "sdre and ekf use only wave_period_s, omega0 and zeta; mmae none (its zeta\n"
-    "is its own)\n"
+    "is its own); a list is numbers joined by /: mmae:candidates=2/2.8/3.6/4.5\n"
     "wave periods and frequencies are the vessel's own scale, used as given; what\n"
     "a spec leaves out is the config's tuning, whose default is a ship's 7 s sea,\n"
     "Froude-scaled on a model (times / sqrt(scale): 0.84 s on 1:70 cybership2).\n"

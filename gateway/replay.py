@@ -330,7 +330,7 @@ def merged_events(inputs: list[Input]) -> Iterator[Event]:
 class ObserverSpec:
     name: str
     label: str
-    params: dict[str, float]
+    params: dict[str, Any]  # numbers; a list (MMAE's candidates) a tuple of numbers
 
     def tuning(self, base: PassiveTuning) -> PassiveTuning:
         kw: dict[str, Any] = {k: v for k, v in base.__dict__.items()}
@@ -352,13 +352,22 @@ class ObserverSpec:
         """The observer for ``config``'s vessel: ``defaults`` (a scenario's, `Scenario.observer_params`)
         under the config's params for this type, under the spec's own."""
         base = config.observer.params if self.name == config.observer.type else {}
-        return make_observer(
-            self.name,
-            config.vessel,
-            self.tuning(config.observer.tuning),
-            params=with_defaults(self.name, defaults, {**base, **self.observer_params()}),
-            allow_unchecked=config.observer.allow_unchecked,
-        )
+        try:
+            return make_observer(
+                self.name,
+                config.vessel,
+                self.tuning(config.observer.tuning),
+                params=with_defaults(self.name, defaults, {**base, **self.observer_params()}),
+                allow_unchecked=config.observer.allow_unchecked,
+            )
+        except (TypeError, ValueError) as exc:  # a value of the right kind the observer refuses
+            given = ",".join(f"{k}={_spec_value(v)}" for k, v in self.params.items())
+            hint = (
+                " (a list is numbers joined by /: candidates=2.5/3.8/5)" if isinstance(exc, TypeError) else ""
+            )
+            raise ReplayError(
+                f"observer spec '{self.name}{':' + given if given else ''}': {exc}{hint}"
+            ) from None
 
 
 def parse_observer_spec(text: str) -> ObserverSpec:
@@ -370,7 +379,7 @@ def parse_observer_spec(text: str) -> ObserverSpec:
             f"observer spec '{text}': unknown observer '{name}' (known: {', '.join(OBSERVER_TYPES)})"
         )
     keys = sorted(tuning_keys(name) | set(OBSERVER_PARAMS[name]))
-    params: dict[str, float] = {}
+    params: dict[str, Any] = {}
     for item in filter(None, (s.strip() for s in rest.split(","))):
         key, eq, value = item.partition("=")
         if eq and key in TUNING_KEYS and key not in keys:
@@ -384,15 +393,28 @@ def parse_observer_spec(text: str) -> ObserverSpec:
             raise ReplayError(f"observer spec '{text}': '{item}' is not key=value with a key of {keys}")
         switch = {"true": 1.0, "false": 0.0}.get(value.strip().lower())  # adaptive=true, per_dof=false
         try:
-            params[key] = switch if switch is not None else float(value)
-        except ValueError:
+            if "/" in value:  # a list: MMAE's candidates=2.5/3.8/5 (the comma separates keys)
+                if key in TUNING_KEYS:
+                    raise ReplayError(f"observer spec '{text}': {key} takes one number, not a list")
+                params[key] = tuple(float(x) for x in value.split("/"))
+            else:
+                params[key] = switch if switch is not None else float(value)
+        except ValueError as exc:
+            if isinstance(exc, ReplayError):
+                raise
             raise ReplayError(
-                f"observer spec '{text}': {key}={value!r} is not a number (or true/false)"
+                f"observer spec '{text}': {key}={value!r} is not a number (or true/false, or a list "
+                "of numbers joined by /)"
             ) from None
     if not label:
-        label = name + "".join(f"_{k}{v:g}" for k, v in params.items())
+        label = name + "".join(f"_{k}{_spec_value(v)}" for k, v in params.items())
     label = re.sub(r"[^A-Za-z0-9_.-]", "_", label)
     return ObserverSpec(name, label, params)
+
+
+def _spec_value(v: float | tuple[float, ...]) -> str:
+    """A spec's value as written: 1.6, or a list 2.5/3.8/5."""
+    return "/".join(f"{x:g}" for x in v) if isinstance(v, tuple) else f"{v:g}"
 
 
 def _as_replayed(tables: dict[str, Any]) -> dict[str, Any]:

@@ -423,6 +423,28 @@ def test_bad_observer_spec() -> None:
         parse_observer_spec("kalman")
 
 
+def test_an_observer_spec_takes_a_list_joined_by_slashes_and_a_wrong_value_says_so(tmp_path: Path) -> None:
+    """MMAE's bank is a list; a spec's commas separate keys, so a list is joined by /. Before, a list
+    could not be given, and `mmae:candidates=2.5` stopped with a TypeError traceback."""
+    spec = parse_observer_spec("mmae:candidates=2/3.5/5")
+    assert spec.params == {"candidates": (2.0, 3.5, 5.0)} and spec.label == "mmae_candidates2_3.5_5"
+    log = tmp_path / "trial.nmea"
+    write_text_log(log, [datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)])
+    config = build_config(open_inputs([log]), vessel="cybership2")
+    obs = spec.make(config)
+    assert list(obs.extra()["candidates"]) == [2.0, 3.5, 5.0]
+    with pytest.raises(ReplayError, match=r"'mmae:candidates=2.5': .*a list is numbers joined by /"):
+        parse_observer_spec("mmae:candidates=2.5").make(config)
+    with pytest.raises(ReplayError, match=r"candidates must be distinct"):
+        parse_observer_spec("mmae:candidates=2/2").make(config)
+    with pytest.raises(ReplayError, match=r"zeta takes one number, not a list"):
+        parse_observer_spec("passive:zeta=1/2")
+    with pytest.raises(
+        ReplayError, match=r"not a number \(or true/false, or a list of numbers joined by /\)"
+    ):
+        parse_observer_spec("mmae:candidates=a/b")
+
+
 @pytest.mark.slow  # a 300 s simulation, then replay
 def test_simulator_log_is_scored_against_its_truth(tmp_path: Path) -> None:
     log = tmp_path / "sim.mcap"
