@@ -667,7 +667,13 @@ class Pipeline:
     def _use_nmea(self, spec: SourceSpec, rx_ns: int, s: Any, out: list[Output]) -> bool:
         kind = type(s)  # (the codec's sentence classes have no subclasses: `is`, not isinstance chains)
         if kind is nmea_codec.Gga or kind is nmea_codec.Gns:
-            if "position" not in spec.roles or not s.valid or s.lat_deg is None or s.lon_deg is None:
+            if "position" not in spec.roles:
+                return False
+            if not s.valid or s.lat_deg is None or s.lon_deg is None:
+                # the receiver says it has no fix (quality 0, empty fields): received, then refused and
+                # counted a second time like a fix the quality test refuses (test_*), so a log of 753
+                # sentences and 21 fixes says why
+                self.counters[spec.name].rejected["test_no_fix"] += 1
                 return False
             if s.time_s is not None and self._fix_time_backwards(spec, rx_ns, s.time_s):
                 self.counters[spec.name].rejected["test_time"] += 1
@@ -677,8 +683,11 @@ class Pipeline:
             quality = s.quality if kind is nmea_codec.Gga else None
             return self._use_position(spec, rx_ns, s.lat_deg, s.lon_deg, quality, out, s.time_s)
         if kind is nmea_codec.Heading:
-            if "heading" in spec.roles and s.valid and s.heading_rad is not None:
+            if "heading" not in spec.roles:
+                return False
+            if s.valid and s.heading_rad is not None:
                 return self._use_heading(spec, rx_ns, s.heading_rad)
+            self.counters[spec.name].rejected["test_no_heading"] += 1  # an empty HDT, THS mode V, ...
             return False
         if kind is nmea_codec.Attitude:
             if "attitude" in spec.roles:

@@ -161,6 +161,24 @@ def test_two_usv_logs_a_day_apart_replay_without_locking_out_the_second() -> Non
     assert math.hypot(last_est[0] - last_meas[0], last_est[1] - last_meas[1]) < 5.0
 
 
+def test_a_receiver_without_a_fix_and_a_gyro_without_a_heading_are_counted() -> None:
+    """gpsd's Hemisphere capture: 215 GGA of which 194 say no fix (quality 0, empty fields) and 215 HDT of
+    which 211 are empty. Before, the summary said 'received 753, garbage 2' and the replay made 5
+    estimates, with nothing to say why; now `test_no_fix` and `test_no_heading` count them (received,
+    then refused, as the reference tests count what they refuse)."""
+    path = need(DATA / "gpsd-logs" / "hemi.log")
+    lines = path.read_text(errors="replace").splitlines()
+    no_fix = sum(1 for x in lines if x.startswith("$GPGGA") and x.split(",")[6] == "0")
+    empty_hdt = sum(1 for x in lines if x.startswith("$GPHDT") and x.split(",")[1] == "")
+    assert (no_fix, empty_hdt) == (194, 211)  # (what the file holds, counted here without dpgw)
+    result, inp = replay_text(path, vessel="mss_supply")
+    counts = result.counts[f"source {inp.source}"]
+    assert counts["test_no_fix"] == no_fix and counts["test_no_heading"] == empty_hdt
+    measured = [m["eta"] for m in result.collected["/dp/measurement"]]
+    gga = sum(1 for x in lines if x.startswith("$GPGGA"))
+    assert sum(1 for m in measured if m[0] is not None) == gga - no_fix  # every fix, and only those
+
+
 def test_two_logs_years_apart_restart_the_observer_instead_of_dead_reckoning_the_gap(tmp_path: Path) -> None:
     """Two receivers' logs of different years merged (the gpsd captures are from 2011 and 2020): no event
     lies between them, so nothing stepped the observer in the gap. Before, the first fix of the second
