@@ -1232,9 +1232,13 @@ class Pipeline:
                 y_obs[2] = math.nan
             return y_obs
         y_obs = y.copy()
+        # a DOF not measured now starts from the dead-reckoned prediction, moved on by the estimated
+        # velocity for at most lost_after_s: beyond that the velocity says nothing (between two logs a
+        # day apart, 0.15 m/s carried on for 17 h put the restarted position 9.8 km from the vessel)
+        at_ns = min(now_ns, self._last_est_ns + self._lost_ns)
         for dof in (0, 2):
             if not valid[dof]:
-                pred = self._predicted(now_ns, dof)
+                pred = self._predicted(at_ns, dof)
                 if pred is not None:
                     y_obs[dof : dof + len(pred.value)] = pred.value
         self.observer.reset()

@@ -60,6 +60,12 @@ def replay_text(path: Path, vessel: str = "cybership2", specs: list[str] | None 
     return _run(inputs, pipeline, collect=topics), inputs[0]
 
 
+def replay_text_many(paths: list[Path], vessel: str = "mss_supply"):  # type: ignore[no-untyped-def]
+    inputs = open_inputs(paths)
+    pipeline = build_pipeline(build_config(inputs, vessel=vessel), [ObserverSpec("passive", "passive", {})])
+    return _run(inputs, pipeline, collect=["/dp/measurement", "/dp/estimate"]), inputs
+
+
 def test_usv_log_an_estimate_every_cycle_and_the_truncated_first_line_counted() -> None:
     result, inp = replay_text(need(USV / "202412051037.txt"))
     cycles = inp.counts.cycles
@@ -159,6 +165,28 @@ def test_two_usv_logs_a_day_apart_replay_without_locking_out_the_second() -> Non
     last_meas = [m["eta"] for m in result.collected["/dp/measurement"] if None not in m["eta"]][-1]
     last_est = result.collected["/dp/estimate"][-1]["eta"]
     assert math.hypot(last_est[0] - last_meas[0], last_est[1] - last_meas[1]) < 5.0
+
+
+def test_a_restart_on_a_heading_alone_does_not_carry_the_velocity_across_the_gap(tmp_path: Path) -> None:
+    """Two logs a day apart, the second starting with a cycle of RMC and HDT only (the USV's logs do:
+    its first cycle has no GGA). The heading restarts the observer, and the position, not measured in
+    that cycle, starts from the dead-reckoned prediction. Before, the prediction moved the last estimate
+    on by its velocity for the whole gap: 0.15 m/s for 17 h put the USV's estimate 9.8 km away (plotted
+    as a spike in the report); now for at most lost_after_s."""
+    t0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
+    first, second = tmp_path / "a.nmea", tmp_path / "b.nmea"
+    write_text_log(first, [t0 + timedelta(seconds=k) for k in range(120)])  # 0.11 m/s north
+    t1 = t0 + timedelta(days=1)
+    write_text_log(second, [t1 + timedelta(seconds=k + 1) for k in range(20)])
+    lead = enc.rmc("GP", t1, 59.4, 10.5, 0.1, 0.2, True) + enc.hdt("HE", 0.3)
+    second.write_text(lead + second.read_text())
+    result, _ = replay_text_many([first, second])
+    fixes = np.array([m["eta"][:2] for m in result.collected["/dp/measurement"] if m["eta"][0] is not None])
+    est = np.array([e["eta"][:2] for e in result.collected["/dp/estimate"]])
+    lo, hi = fixes.min(axis=0) - 20.0, fixes.max(axis=0) + 20.0  # the vessel's whole track, and 20 m
+    far = [p for p in est if not (np.all(p >= lo) and np.all(p <= hi))]
+    assert not far, f"{len(far)} estimates off the track, e.g. {far[0]}"
+    assert result.restarts == 2  # the heading, then the position
 
 
 def test_a_receiver_without_a_fix_and_a_gyro_without_a_heading_are_counted() -> None:
