@@ -62,7 +62,7 @@ EPILOG = (
     "gain_scheduled and memory use:\n"
     f"  {SPEC_TUNING_KEYS_TEXT}\n"
     "sdre and ekf use only wave_period_s, omega0 and zeta; mmae none (its zeta\n"
-    "is its own)\n"
+    "is its own); a list is numbers joined by /: mmae:candidates=2/2.8/3.6/4.5\n"
     "wave periods and frequencies are the vessel's own scale, used as given; what\n"
     "a spec leaves out is the config's tuning, whose default is a ship's 7 s sea,\n"
     "Froude-scaled on a model (times / sqrt(scale): 0.84 s on 1:70 cybership2).\n"
@@ -80,7 +80,12 @@ EPILOG = (
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("logs", nargs="+", metavar="LOG", help="MCAP, NMEA text or tlog files (merged by time)")
+    p.add_argument(
+        "logs",
+        nargs="+",
+        metavar="LOG",
+        help="MCAP, NMEA text or tlog files (merged by time); text logs and tlogs may be gzip'd (.gz)",
+    )
     p.add_argument(
         "--vessel",
         metavar="NAME|FILE",
@@ -650,6 +655,7 @@ def _summary(
         "estimates": {spec.label: r.estimates.get(spec.label, 0) for spec in specs},
         "observer_restarts": r.restarts,
         "counts": r.counts,
+        "spans": {where: _span(a, b) for where, (a, b) in r.spans.items()},
     }
     if r.truth:
         tt_ns = np.array([x["stamp_ns"] for x in r.truth], dtype=np.int64)
@@ -668,6 +674,34 @@ def _summary(
         s["error_vs_truth"] = errors
         s["settle_s"] = settle
     return s
+
+
+def _span(first_ns: int, last_ns: int) -> dict[str, Any]:
+    """What a log covers, in its own (UTC) times: an analyst checks a replay against the trial's clock."""
+    return {"start_utc": _utc(first_ns), "end_utc": _utc(last_ns), "seconds": (last_ns - first_ns) / 1e9}
+
+
+def _utc(ns: int) -> str:
+    """ISO 8601 UTC to the millisecond, e.g. 2024-12-05T02:27:18.800Z."""
+    from datetime import UTC, datetime
+
+    return datetime.fromtimestamp(ns // 1_000_000 / 1e3, UTC).strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z"
+
+
+def _span_words(span: dict[str, Any]) -> str:
+    """``2024-12-05 02:27:18.8 to 02:38:04.6 UTC (645.8 s)``; the end's date too when it is another day."""
+    start, end = span["start_utc"], span["end_utc"]
+    a_day, a_time = start[:10], start[11:-3].rstrip("0").rstrip(".")
+    b_day, b_time = end[:10], end[11:-3].rstrip("0").rstrip(".")
+    seconds = span["seconds"]
+    length = (
+        f"{seconds:.1f} s"
+        if seconds < 600
+        else f"{seconds / 60:.1f} min"
+        if seconds < 36000
+        else f"{seconds / 3600:.1f} h"
+    )
+    return f"{a_day} {a_time} to {'' if b_day == a_day else b_day + ' '}{b_time} UTC ({length})"
 
 
 def default_settle_s(duration_s: float) -> float:
@@ -690,8 +724,13 @@ def _print(s: dict[str, Any]) -> None:
             f"  observers restarted {s['observer_restarts']}x: a reference came back far from the "
             "dead-reckoned estimate, or after it was lost (when and why: the events in /dp/status)"
         )
+    spans = s["spans"]
     for where, c in s["counts"].items():
-        print(f"  {where}: " + ", ".join(f"{k} {v}" for k, v in c.items()))
+        span = f"; {_span_words(spans[where])}" if where in spans else ""
+        print(f"  {where}: " + ", ".join(f"{k} {v}" for k, v in c.items()) + span)
+    for where, span in spans.items():
+        if where not in s["counts"]:  # (an MCAP log: its counts are its sources')
+            print(f"  {where}: {_span_words(span)}")
     for label, e in s.get("error_vs_truth", {}).items():
         if not e["samples"]:
             print(

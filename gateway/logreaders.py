@@ -12,7 +12,9 @@ by more than 12 h is a midnight rollover. Bad time is counted and never fatal:
 - ``time_gap``: a step forward longer than ``gap_s`` — a dropout, not a jump (the observer dead-reckons);
 - ``time_backwards``: a cycle earlier than the previous one (kept, the observer skips it);
 - ``repeated_time``: a cycle with the time of an earlier, finished cycle;
-- ``duplicate``: a line identical to the one before it (dropped).
+- ``duplicate``: a line identical to the one before it (dropped);
+- ``gzip_cut``: a gzip'd log (either kind is read compressed, `open_log`) whose stream ends before its
+  end marker, a copy cut short: read up to the cut.
 
 Truncated lines, garbage and checksum failures are counted by the pipeline's framer and decoder.
 
@@ -23,11 +25,15 @@ and the reader resynchronises on the next plausible record.
 
 from __future__ import annotations
 
+import gzip
+import io
+import zlib
 from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from datetime import UTC, date, datetime
 from pathlib import Path
+from typing import Any, BinaryIO
 
 import numpy as np
 
@@ -106,8 +112,61 @@ def _sentence_time(line: str) -> tuple[float | None, date | None]:
     return tod, _date(fields, kind)
 
 
+GZIP_MAGIC = b"\x1f\x8b"
+
+
+def is_gzip(path: str | Path) -> bool:
+    """Whether a file is gzip-compressed (its first two bytes are gzip's magic, whatever its name)."""
+    with Path(path).open("rb") as f:
+        return f.read(2) == GZIP_MAGIC
+
+
+class _CutGzip(io.RawIOBase):
+    """A gzip stream that ends where its data ends: a ``.gz`` cut short (a copy interrupted, a disk that
+    filled) raises `EOFError` at the cut, which would stop the replay with everything before it unread.
+    Here the cut is the end of the log, and ``cut`` says it happened (counted ``gzip_cut``)."""
+
+    def __init__(self, path: str | Path) -> None:
+        self._gz = gzip.open(path, "rb")  # noqa: SIM115 (closed by close())
+        self.cut = False
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer: Any) -> int:
+        if self.cut:
+            return 0
+        try:
+            data = self._gz.read1(len(buffer))  # (read1: what is decompressed so far, up to the cut)
+        except (EOFError, OSError, zlib.error):  # cut short, or corrupt from there on
+            self.cut = True
+            return 0
+        buffer[: len(data)] = data
+        return len(data)
+
+    def close(self) -> None:
+        self._gz.close()
+        super().close()
+
+
+def open_log(path: str | Path) -> BinaryIO:
+    """A log file's bytes, decompressed on the fly when it is gzip'd: sea-trial logs are archived as
+    ``.gz`` (NMEA text compresses about tenfold), and a text log or tlog reads front to back, so nothing is
+    unpacked to disk. Recognised by the content, not the name. A ``.gz`` cut short reads up to the cut
+    (`_CutGzip`)."""
+    if is_gzip(path):
+        return io.BufferedReader(_CutGzip(path))
+    return Path(path).open("rb")
+
+
+def gzip_was_cut(f: BinaryIO) -> bool:
+    """Whether `open_log`'s file ended at a cut in its gzip stream rather than at the stream's end."""
+    raw = getattr(f, "raw", None)
+    return isinstance(raw, _CutGzip) and raw.cut
+
+
 def _first_date(path: Path, limit: int = 2000) -> date | None:
-    with open(path, encoding="ascii", errors="replace", newline="") as f:
+    with io.TextIOWrapper(open_log(path), encoding="ascii", errors="replace", newline="") as f:
         for k, line in enumerate(f):
             if k >= limit:
                 break
@@ -171,7 +230,7 @@ def nmea_text_events_reference(
     cycle_ns: int | None = None
     clock = _TimeKeeper(day_ns, gap_s, c)
     previous = b""
-    with open(path, "rb") as f:
+    with open_log(path) as f:
         for raw in f:
             c.lines += 1
             line = raw.rstrip(b"\r\n")
@@ -200,6 +259,8 @@ def nmea_text_events_reference(
                     clock.start_cycle(t_ns)
                     cycle_ns = t_ns
             lines.append(line)
+        if gzip_was_cut(f):
+            c.counts["gzip_cut"] += 1
     if lines:
         if cycle_ns is None:
             c.counts["no_time"] += len(lines)  # a log with no timed sentence at all: nothing to replay
@@ -256,7 +317,7 @@ def nmea_text_events(
     cycle_ns: int | None = None
     clock = _TimeKeeper(day_ns, gap_s, c)
     prev = b""
-    with open(path, "rb") as f:
+    with open_log(path) as f:
         tail = b""
         while True:
             chunk = f.read(block_bytes)
@@ -315,6 +376,8 @@ def nmea_text_events(
             block.add_to(cycle, first, block.n)
             if not chunk:
                 break
+        if gzip_was_cut(f):
+            c.counts["gzip_cut"] += 1
     if cycle.lines:
         if cycle_ns is None:
             c.counts["no_time"] += cycle.count
@@ -382,7 +445,10 @@ def tlog_events(
 ) -> Iterator[RawEvent]:
     """MAVLink frames of a tlog with their recorded times."""
     c = counts if counts is not None else LogCounts()
-    data = Path(path).read_bytes()
+    with open_log(path) as f:
+        data = f.read()
+        if gzip_was_cut(f):
+            c.counts["gzip_cut"] += 1
     i, n = 0, len(data)
     while i + 9 <= n:
         (t_us,) = RECORD_TIME.unpack_from(data, i)

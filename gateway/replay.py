@@ -33,7 +33,15 @@ from mcap.reader import make_reader
 
 from gateway.config import GatewayConfig, default_config, parse_config
 from gateway.config.logged import unlogged_key_sources, without_unlogged_keys
-from gateway.logreaders import LogCounts, nmea_text_events, nmea_text_events_reference, tlog_events
+from gateway.logreaders import (
+    LogCounts,
+    gzip_was_cut,
+    is_gzip,
+    nmea_text_events,
+    nmea_text_events_reference,
+    open_log,
+    tlog_events,
+)
 from gateway.pipeline import USED_NMEA, ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from observers.factory import (
     OBSERVER_PARAMS,
@@ -70,11 +78,22 @@ def input_kind(path: str | Path) -> str:
         raise ReplayError(f"{p}: a folder, not a log file: give the logs in it (e.g. {p / '*.mcap'})")
     if not p.is_file():
         raise ReplayError(f"{p}: no such log file")
-    with p.open("rb") as f:
+    with open_log(p) as f:
         head = f.read(64)
+        cut = gzip_was_cut(f)
+    if not head and cut:
+        raise ReplayError(
+            f"{p}: starts like a gzip file but does not decompress: give the log itself, or a complete "
+            "copy of the .gz (gzip -t FILE tests one)"
+        )
     if not head:
         raise ReplayError(f"{p}: empty file: nothing to replay")
     if head.startswith(MCAP_MAGIC):
+        if is_gzip(p):
+            raise ReplayError(
+                f"{p}: a gzip'd MCAP log: MCAP is read by seeking in it, so decompress it first "
+                f"(gunzip -k {p}) and give the .mcap; MCAP compresses its own chunks (zstd or lz4)"
+            )
         return "mcap"
     if p.suffix.lower() == ".mcap":
         raise ReplayError(
@@ -98,7 +117,7 @@ def _raw_mavlink_stream(path: Path) -> bool:
     A tlog record starts with its time (big-endian µs since 1970: a first byte of 0 until the year 2540),
     so a file that starts with a start-of-frame marker, and has another right after the first frame's
     length, is frames alone."""
-    with path.open("rb") as f:
+    with open_log(path) as f:
         head = f.read(2 * 280)
     at = 0
     for _ in range(2):
@@ -283,7 +302,8 @@ def open_inputs(paths: Iterable[str | Path]) -> list[Input]:
     for p in paths:
         path = Path(p)
         kind = input_kind(path)
-        name = re.sub(r"[^a-z0-9_]", "_", path.stem.lower()) or "log"
+        stem = Path(path.stem).stem if path.suffix.lower() == ".gz" else path.stem  # trial.txt.gz: trial
+        name = re.sub(r"[^a-z0-9_]", "_", stem.lower()) or "log"
         if name[0].isdigit():
             name = f"log_{name}"
         names[name] += 1
@@ -310,7 +330,7 @@ def merged_events(inputs: list[Input]) -> Iterator[Event]:
 class ObserverSpec:
     name: str
     label: str
-    params: dict[str, float]
+    params: dict[str, Any]  # numbers; a list (MMAE's candidates) a tuple of numbers
 
     def tuning(self, base: PassiveTuning) -> PassiveTuning:
         kw: dict[str, Any] = {k: v for k, v in base.__dict__.items()}
@@ -332,13 +352,22 @@ class ObserverSpec:
         """The observer for ``config``'s vessel: ``defaults`` (a scenario's, `Scenario.observer_params`)
         under the config's params for this type, under the spec's own."""
         base = config.observer.params if self.name == config.observer.type else {}
-        return make_observer(
-            self.name,
-            config.vessel,
-            self.tuning(config.observer.tuning),
-            params=with_defaults(self.name, defaults, {**base, **self.observer_params()}),
-            allow_unchecked=config.observer.allow_unchecked,
-        )
+        try:
+            return make_observer(
+                self.name,
+                config.vessel,
+                self.tuning(config.observer.tuning),
+                params=with_defaults(self.name, defaults, {**base, **self.observer_params()}),
+                allow_unchecked=config.observer.allow_unchecked,
+            )
+        except (TypeError, ValueError) as exc:  # a value of the right kind the observer refuses
+            given = ",".join(f"{k}={_spec_value(v)}" for k, v in self.params.items())
+            hint = (
+                " (a list is numbers joined by /: candidates=2.5/3.8/5)" if isinstance(exc, TypeError) else ""
+            )
+            raise ReplayError(
+                f"observer spec '{self.name}{':' + given if given else ''}': {exc}{hint}"
+            ) from None
 
 
 def parse_observer_spec(text: str) -> ObserverSpec:
@@ -350,7 +379,7 @@ def parse_observer_spec(text: str) -> ObserverSpec:
             f"observer spec '{text}': unknown observer '{name}' (known: {', '.join(OBSERVER_TYPES)})"
         )
     keys = sorted(tuning_keys(name) | set(OBSERVER_PARAMS[name]))
-    params: dict[str, float] = {}
+    params: dict[str, Any] = {}
     for item in filter(None, (s.strip() for s in rest.split(","))):
         key, eq, value = item.partition("=")
         if eq and key in TUNING_KEYS and key not in keys:
@@ -364,15 +393,28 @@ def parse_observer_spec(text: str) -> ObserverSpec:
             raise ReplayError(f"observer spec '{text}': '{item}' is not key=value with a key of {keys}")
         switch = {"true": 1.0, "false": 0.0}.get(value.strip().lower())  # adaptive=true, per_dof=false
         try:
-            params[key] = switch if switch is not None else float(value)
-        except ValueError:
+            if "/" in value:  # a list: MMAE's candidates=2.5/3.8/5 (the comma separates keys)
+                if key in TUNING_KEYS:
+                    raise ReplayError(f"observer spec '{text}': {key} takes one number, not a list")
+                params[key] = tuple(float(x) for x in value.split("/"))
+            else:
+                params[key] = switch if switch is not None else float(value)
+        except ValueError as exc:
+            if isinstance(exc, ReplayError):
+                raise
             raise ReplayError(
-                f"observer spec '{text}': {key}={value!r} is not a number (or true/false)"
+                f"observer spec '{text}': {key}={value!r} is not a number (or true/false, or a list "
+                "of numbers joined by /)"
             ) from None
     if not label:
-        label = name + "".join(f"_{k}{v:g}" for k, v in params.items())
+        label = name + "".join(f"_{k}{_spec_value(v)}" for k, v in params.items())
     label = re.sub(r"[^A-Za-z0-9_.-]", "_", label)
     return ObserverSpec(name, label, params)
+
+
+def _spec_value(v: float | tuple[float, ...]) -> str:
+    """A spec's value as written: 1.6, or a list 2.5/3.8/5."""
+    return "/".join(f"{x:g}" for x in v) if isinstance(v, tuple) else f"{v:g}"
 
 
 def _as_replayed(tables: dict[str, Any]) -> dict[str, Any]:
@@ -538,6 +580,8 @@ class ReplayResult:
     estimates: Counter[str] = field(default_factory=Counter)
     restarts: int = 0  # observer restarts from a returning reference (`Pipeline.restarts`)
     counts: dict[str, dict[str, int]] = field(default_factory=dict)
+    # "log NAME" -> (first, last) event time in ns since 1970 (UTC): what the log covers, from its own times
+    spans: dict[str, tuple[int, int]] = field(default_factory=dict)
     collected: dict[str, list[dict[str, Any]]] = field(default_factory=dict)  # topic -> payloads
     truth: list[dict[str, Any]] = field(default_factory=list)
 
@@ -586,6 +630,7 @@ def run_replay(
     feed = pipeline.feed
     encoders: dict[type[Message], Callable[[Message], bytes]] = {}  # message class -> `encoder_of` it
     events = sentences = outputs_n = 0  # (locals in the loop, into `result` at the end)
+    source_spans: dict[str, list[int]] = {}  # source -> [first, last] event time (ns)
     for ev in merged_events(inputs):
         events += 1
         if frozen == 0 and events % GC_FREEZE_EVERY == 0:
@@ -595,6 +640,13 @@ def run_replay(
             gc.freeze()
         records: list[tuple[str, bytes, int, Any]] = []
         if isinstance(ev, RawEvent):
+            span = source_spans.get(ev.source)
+            if span is None:
+                source_spans[ev.source] = [ev.rx_ns, ev.rx_ns]
+            elif ev.rx_ns > span[1]:
+                span[1] = ev.rx_ns
+            elif ev.rx_ns < span[0]:  # (a log's time may step back: counted, kept)
+                span[0] = ev.rx_ns
             protocol = protocols.get(ev.source, "nmea")
             # NMEA: lines (every event ends with its line end; a first line that is a sentence's tail
             # counts too); MAVLink: one frame per event
@@ -636,6 +688,9 @@ def run_replay(
         warned = {f"warning {k}": v for k, v in c.warnings.items()}  # (used: apart from the rejects)
         result.counts[f"source {name}"] = {"received": c.received, **c.rejected, **warned}
     for inp in inputs:
+        covered = [source_spans[src] for src in inp.sources() if src in source_spans]
+        if covered:
+            result.spans[f"log {inp.path.name}"] = (min(a for a, _ in covered), max(b for _, b in covered))
         if inp.kind == "nmea":
             result.counts[f"log {inp.path.name}"] = {
                 "lines": inp.counts.lines,

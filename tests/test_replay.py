@@ -60,6 +60,12 @@ def replay_text(path: Path, vessel: str = "cybership2", specs: list[str] | None 
     return _run(inputs, pipeline, collect=topics), inputs[0]
 
 
+def replay_text_many(paths: list[Path], vessel: str = "mss_supply"):  # type: ignore[no-untyped-def]
+    inputs = open_inputs(paths)
+    pipeline = build_pipeline(build_config(inputs, vessel=vessel), [ObserverSpec("passive", "passive", {})])
+    return _run(inputs, pipeline, collect=["/dp/measurement", "/dp/estimate"]), inputs
+
+
 def test_usv_log_an_estimate_every_cycle_and_the_truncated_first_line_counted() -> None:
     result, inp = replay_text(need(USV / "202412051037.txt"))
     cycles = inp.counts.cycles
@@ -161,6 +167,89 @@ def test_two_usv_logs_a_day_apart_replay_without_locking_out_the_second() -> Non
     assert math.hypot(last_est[0] - last_meas[0], last_est[1] - last_meas[1]) < 5.0
 
 
+def test_a_restart_on_a_heading_alone_does_not_carry_the_velocity_across_the_gap(tmp_path: Path) -> None:
+    """Two logs a day apart, the second starting with a cycle of RMC and HDT only (the USV's logs do:
+    its first cycle has no GGA). The heading restarts the observer, and the position, not measured in
+    that cycle, starts from the dead-reckoned prediction. Before, the prediction moved the last estimate
+    on by its velocity for the whole gap: 0.15 m/s for 17 h put the USV's estimate 9.8 km away (plotted
+    as a spike in the report); now for at most lost_after_s."""
+    t0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
+    first, second = tmp_path / "a.nmea", tmp_path / "b.nmea"
+    write_text_log(first, [t0 + timedelta(seconds=k) for k in range(120)])  # 0.11 m/s north
+    t1 = t0 + timedelta(days=1)
+    write_text_log(second, [t1 + timedelta(seconds=k + 1) for k in range(20)])
+    lead = enc.rmc("GP", t1, 59.4, 10.5, 0.1, 0.2, True) + enc.hdt("HE", 0.3)
+    second.write_text(lead + second.read_text())
+    result, _ = replay_text_many([first, second])
+    fixes = np.array([m["eta"][:2] for m in result.collected["/dp/measurement"] if m["eta"][0] is not None])
+    est = np.array([e["eta"][:2] for e in result.collected["/dp/estimate"]])
+    lo, hi = fixes.min(axis=0) - 20.0, fixes.max(axis=0) + 20.0  # the vessel's whole track, and 20 m
+    far = [p for p in est if not (np.all(p >= lo) and np.all(p <= hi))]
+    assert not far, f"{len(far)} estimates off the track, e.g. {far[0]}"
+    assert result.restarts == 2  # the heading, then the position
+
+
+def test_a_receiver_without_a_fix_and_a_gyro_without_a_heading_are_counted() -> None:
+    """gpsd's Hemisphere capture: 215 GGA of which 194 say no fix (quality 0, empty fields) and 215 HDT of
+    which 211 are empty. Before, the summary said 'received 753, garbage 2' and the replay made 5
+    estimates, with nothing to say why; now `test_no_fix` and `test_no_heading` count them (received,
+    then refused, as the reference tests count what they refuse)."""
+    path = need(DATA / "gpsd-logs" / "hemi.log")
+    lines = path.read_text(errors="replace").splitlines()
+    no_fix = sum(1 for x in lines if x.startswith("$GPGGA") and x.split(",")[6] == "0")
+    empty_hdt = sum(1 for x in lines if x.startswith("$GPHDT") and x.split(",")[1] == "")
+    assert (no_fix, empty_hdt) == (194, 211)  # (what the file holds, counted here without dpgw)
+    result, inp = replay_text(path, vessel="mss_supply")
+    counts = result.counts[f"source {inp.source}"]
+    assert counts["test_no_fix"] == no_fix and counts["test_no_heading"] == empty_hdt
+    measured = [m["eta"] for m in result.collected["/dp/measurement"]]
+    gga = sum(1 for x in lines if x.startswith("$GPGGA"))
+    assert sum(1 for m in measured if m[0] is not None) == gga - no_fix  # every fix, and only those
+
+
+def test_two_logs_years_apart_restart_the_observer_instead_of_dead_reckoning_the_gap(tmp_path: Path) -> None:
+    """Two receivers' logs of different years merged (the gpsd captures are from 2011 and 2020): no event
+    lies between them, so nothing stepped the observer in the gap. Before, the first fix of the second
+    log stepped it across the whole gap, dead reckoning 277 million seconds in RK4 sub-steps (the replay
+    ran for hours); a gap without a step longer than ``lost_after_s`` now restarts the observer from the
+    returning references, as a reference back after being lost does."""
+    first, second = tmp_path / "a.nmea", tmp_path / "b.nmea"
+    t0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
+    write_text_log(first, [t0 + timedelta(seconds=k) for k in range(20)])
+    t1 = t0 + timedelta(days=2)  # long enough to see, short enough to finish without the rule
+    write_text_log(second, [t1 + timedelta(seconds=k) for k in range(20)])
+    inputs = open_inputs([first, second])
+    config = build_config(inputs, vessel="mss_supply")
+    pipeline = build_pipeline(config, [ObserverSpec("passive", "passive", {})])
+    lost_after = config.integrity.lost_after_s
+    observer, spans, last = pipeline.observer, [], [math.nan]
+    step = observer.step
+
+    def spying_step(t: float, y: Any, tau: Any = None) -> Any:
+        est = step(t, y, tau)
+        if observer.initialized and last[0] == last[0]:
+            spans.append(t - last[0])
+        last[0] = t
+        return est
+
+    observer.step = spying_step  # type: ignore[method-assign]
+    observer_reset = observer.reset
+
+    def spying_reset() -> None:
+        observer_reset()
+        last[0] = math.nan  # a restart integrates nothing: the next step initialises
+
+    observer.reset = spying_reset  # type: ignore[method-assign]
+    result = _run(inputs, pipeline, collect=["/dp/status", "/dp/estimate"])
+    assert max(spans) <= lost_after, f"the observer dead-reckoned {max(spans):.0f} s in one step"
+    assert result.restarts == 1
+    events = [text for s in result.collected["/dp/status"] for text in s["events"]]
+    assert any(
+        text.startswith("observer restarted from the measurement: position back after") for text in events
+    )
+    assert len(result.collected["/dp/estimate"]) == 40  # every cycle of both logs
+
+
 @pytest.mark.parametrize(
     "name", ["hemi.log", "nmea-rtk.log", "polarx2.log", "rst39.log", "saab-r4.log", "skytraq-PX1172RH_DS.log"]
 )
@@ -169,6 +258,100 @@ def test_gpsd_logs_replay_without_error(name: str) -> None:
     assert inp.counts.lines > 0 and result.events > 0
     c = result.counts[f"source {inp.source}"]
     assert c["received"] > 0
+
+
+@pytest.mark.parametrize("fast_scan", [True, False], ids=["compiled scan", "line reader"])
+def test_a_gzipd_text_log_replays_as_the_log_itself(tmp_path: Path, fast_scan: bool) -> None:
+    """Sea-trial logs are archived gzip'd. Before, a .gz was read as text: no sentence with a time, and
+    "nothing to replay". Now it is decompressed on the fly, with the same counts and estimates."""
+    import gzip
+
+    plain = need(USV / "202412071127.txt")
+    packed = tmp_path / "202412071127.txt.gz"
+    packed.write_bytes(gzip.compress(plain.read_bytes()))
+    runs = []
+    for path in (plain, packed):
+        inputs = open_inputs([path])
+        inputs[0].fast_scan = fast_scan
+        pipeline = build_pipeline(
+            build_config(inputs, vessel="cybership2"), [ObserverSpec("passive", "passive", {})]
+        )
+        result = _run(inputs, pipeline, collect=["/dp/estimate"])
+        runs.append((inputs[0], result))
+    (a, ra), (b, rb) = runs
+    assert b.kind == "nmea" and b.source == a.source == "log_202412071127"  # named without .txt.gz
+    assert b.counts.lines == a.counts.lines == 1702 and b.counts.cycles == a.counts.cycles
+    assert rb.counts[f"source {b.source}"] == ra.counts[f"source {a.source}"]
+    assert [e["eta"] for e in rb.collected["/dp/estimate"]] == [
+        e["eta"] for e in ra.collected["/dp/estimate"]
+    ]
+
+
+@pytest.mark.parametrize("fast_scan", [True, False], ids=["compiled scan", "line reader"])
+def test_a_gzipd_log_cut_short_replays_up_to_the_cut_and_says_so(tmp_path: Path, fast_scan: bool) -> None:
+    import gzip
+
+    t0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
+    log = tmp_path / "trial.nmea"
+    write_text_log(log, [t0 + timedelta(seconds=k) for k in range(2000)])
+    packed = gzip.compress(log.read_bytes())
+    cut = tmp_path / "trial.nmea.gz"
+    cut.write_bytes(packed[: len(packed) // 2])  # a copy interrupted half way
+    inputs = open_inputs([cut])
+    inputs[0].fast_scan = fast_scan
+    pipeline = build_pipeline(
+        build_config(inputs, vessel="mss_supply"), [ObserverSpec("passive", "passive", {})]
+    )
+    result = _run(inputs, pipeline, collect=["/dp/estimate"])  # before: EOFError from gzip, a traceback
+    assert inputs[0].counts.counts["gzip_cut"] == 1
+    assert 200 < inputs[0].counts.cycles < 1900  # what came before the cut, replayed
+    assert len(result.collected["/dp/estimate"]) >= inputs[0].counts.cycles - 2
+
+
+def test_a_gzipd_mcap_or_a_broken_gzip_is_refused_saying_what_to_do(tmp_path: Path) -> None:
+    import gzip
+
+    mcap_gz = tmp_path / "trial.mcap.gz"
+    mcap_gz.write_bytes(gzip.compress(b"\x89MCAP0\r\n" + bytes(100)))
+    with pytest.raises(ReplayError, match=r"gzip'd MCAP log: .* decompress it first \(gunzip -k "):
+        open_inputs([mcap_gz])
+    broken = tmp_path / "trial.txt.gz"
+    broken.write_bytes(b"\x1f\x8b" + bytes(range(100)))
+    with pytest.raises(ReplayError, match=r"starts like a gzip file but does not decompress: give the log"):
+        open_inputs([broken])
+
+
+def test_the_summary_says_what_each_log_covers_in_its_own_utc_time(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An analyst checks a replay against the trial's clock: which day, from when to when. Before, the
+    summary gave the wall time of the replay and counts only; the report, seconds from its start."""
+    from dpgw.cli import main
+
+    path = need(USV / "202412051037.txt")
+    times = [
+        line.split(",")[1]
+        for line in path.read_text(errors="replace").splitlines()
+        if line.startswith("$GPGGA")
+    ]
+    first, last = times[0], times[-1]  # hhmmss.ss of the log's first and last fix (the date is its RMC's)
+    assert (
+        main(["replay", str(path), "--vessel", "cybership2", "--out", str(tmp_path / "a.mcap"), "--json"])
+        == 0
+    )
+    span = json.loads(capsys.readouterr().out)["spans"]["log 202412051037.txt"]
+    assert span["start_utc"] == f"2024-12-05T{first[:2]}:{first[2:4]}:{first[4:6]}.{first[7:9]}0Z"
+    assert span["end_utc"] == f"2024-12-05T{last[:2]}:{last[2:4]}:{last[4:6]}.{last[7:9]}0Z"
+    assert span["seconds"] == pytest.approx(645.8)
+    # across midnight: the end's date is printed too
+    log = tmp_path / "night.nmea"
+    t0 = datetime(2026, 3, 1, 23, 59, 50, tzinfo=UTC)
+    write_text_log(log, [t0 + timedelta(seconds=k) for k in range(20)])
+    assert main(["replay", str(log), "--vessel", "mss_supply", "--out", str(tmp_path / "b.mcap")]) == 0
+    out = capsys.readouterr().out
+    assert (
+        "log night.nmea: lines 60, cycles 20; 2026-03-01 23:59:50 to 2026-03-02 00:00:09 UTC (19.0 s)" in out
+    )
 
 
 def write_text_log(path: Path, times: list[datetime], *, dup: int | None = None) -> None:
@@ -284,6 +467,28 @@ def test_bad_observer_spec() -> None:
         parse_observer_spec("passive:wave_peroid=9")
     with pytest.raises(ReplayError, match="unknown observer"):
         parse_observer_spec("kalman")
+
+
+def test_an_observer_spec_takes_a_list_joined_by_slashes_and_a_wrong_value_says_so(tmp_path: Path) -> None:
+    """MMAE's bank is a list; a spec's commas separate keys, so a list is joined by /. Before, a list
+    could not be given, and `mmae:candidates=2.5` stopped with a TypeError traceback."""
+    spec = parse_observer_spec("mmae:candidates=2/3.5/5")
+    assert spec.params == {"candidates": (2.0, 3.5, 5.0)} and spec.label == "mmae_candidates2_3.5_5"
+    log = tmp_path / "trial.nmea"
+    write_text_log(log, [datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)])
+    config = build_config(open_inputs([log]), vessel="cybership2")
+    obs = spec.make(config)
+    assert list(obs.extra()["candidates"]) == [2.0, 3.5, 5.0]
+    with pytest.raises(ReplayError, match=r"'mmae:candidates=2.5': .*a list is numbers joined by /"):
+        parse_observer_spec("mmae:candidates=2.5").make(config)
+    with pytest.raises(ReplayError, match=r"candidates must be distinct"):
+        parse_observer_spec("mmae:candidates=2/2").make(config)
+    with pytest.raises(ReplayError, match=r"zeta takes one number, not a list"):
+        parse_observer_spec("passive:zeta=1/2")
+    with pytest.raises(
+        ReplayError, match=r"not a number \(or true/false, or a list of numbers joined by /\)"
+    ):
+        parse_observer_spec("mmae:candidates=a/b")
 
 
 @pytest.mark.slow  # a 300 s simulation, then replay

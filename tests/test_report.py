@@ -448,3 +448,60 @@ def test_report_span_reads_in_the_plots_units(t1: float, text: str) -> None:
     t = np.linspace(0.0, t1, 50)
     d = ReplayData(title="x", vessel="mss_supply", t_meas=t, y=np.zeros((50, 3)), traces=())
     assert f"- span: {text}\n" in report_markdown(d, compute_metrics(d), "", [])
+
+
+@pytest.mark.parametrize("rising", [False, True], ids=["falling through the band", "rising through it"])
+def test_a_maximum_on_the_band_edge_is_reported_inside_the_band(rising: bool) -> None:
+    """LF motion leaves a spectrum falling through the wave band, so its maximum sits on the low edge.
+    Before, the parabola through the edge bin and the bin outside moved it up to half a bin out of the
+    band: the report of a USV log said 1.57 rad/s for a band it searched from 1.67."""
+    from gateway.report.spectra import Psd, peak
+
+    omega = np.arange(1, 100) * 0.2  # 0.2 rad/s bins, a model's coarse resolution
+    # concave log-PSDs: the parabola through the edge bin leans out of the band
+    psd = omega**4.0 if rising else np.exp(-0.5 * omega**2)
+    band = (1.75, 16.65)  # edge bins 1.8 and 16.6: half a bin out is 1.7 and 16.7
+    w, at_edge = peak(Psd(omega, psd, 1), band)
+    assert at_edge
+    assert band[0] <= w <= band[1]
+    inside = omega[(omega >= band[0]) & (omega <= band[1])]
+    assert w == pytest.approx(inside[-1] if rising else inside[0])
+
+
+def test_estimate_lines_break_where_logs_merged_across_days_leave_a_gap(
+    data: ReplayData, tmp_path: Path
+) -> None:
+    """Three USV logs of three days replayed as one: before, every estimate line (position, wave,
+    velocity, bias, ω0) ran straight through the 31 h and 17 h between them, as if the vessel had moved
+    along it; the measurement's line broke there. Now every line breaks where its samples stop."""
+    from dataclasses import replace
+
+    pytest.importorskip("matplotlib")
+    from matplotlib.figure import Figure
+
+    from gateway.report.metrics import analyse
+    from gateway.report.plots import draw_plots
+
+    made: list[Any] = []
+
+    class Kept(Figure):  # type: ignore[misc]
+        def __init__(self, *args: Any, **kwargs: Any) -> None:
+            super().__init__(*args, **kwargs)
+            made.append(self)
+
+    day = 86400.0
+    later = data.t_meas >= 900.0  # the second half a day later
+    t_meas = np.where(later, data.t_meas + day, data.t_meas)
+    traces = tuple(replace(tr_, t=np.where(tr_.t >= 900.0, tr_.t + day, tr_.t)) for tr_ in data.traces)
+    d = replace(data, t_meas=t_meas, traces=traces, truth_t=None, truth_eta_lf=None, truth_eta_wf=None)
+    draw_plots(d, analyse(d, None, None), tmp_path, Kept)
+    by_name = {f.get_suptitle().rsplit(": ", 1)[1]: f for f in made}
+    for name in ("position", "wave", "velocity", "bias", "omega0"):
+        ax = by_name[name].axes[0]  # the first DOF, the whole record
+        lines = [ln for ln in ax.get_lines() if len(ln.get_xdata()) > 100]  # (not a reference line)
+        assert lines, name
+        for ln in lines:
+            x = np.asarray(ln.get_xdata(), dtype=float)
+            y = np.asarray(ln.get_ydata(), dtype=float)
+            joined = np.isfinite(y[:-1]) & np.isfinite(y[1:]) & (np.diff(x) > 0.5 * (x[-1] - x[0]))
+            assert not joined.any(), f"{name}: '{ln.get_label()}' drawn across the day between the logs"

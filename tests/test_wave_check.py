@@ -198,3 +198,28 @@ def test_replay_checks_only_received_samples_as_the_report_does(
     for dof in ("north", "east", "heading"):
         assert per_dof[dof]["peak_rad_s"] == pytest.approx(measured[dof]["dominant_frequency_rad_s"]), dof
     assert "warning: the measured wave peak" not in cap.err
+
+
+def test_an_mmae_bank_that_misses_the_sea_is_advised_a_bank_the_replay_takes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The MMAE's default bank is Hassani's full-scale one (0.3-1.35 rad/s) on every vessel, so on the
+    1:70 USV log (a 3.9 rad/s sea) it settles at 0.75 rad/s and is warned. Before, the advice was
+    `mmae:wave_period_s=...,omega_min=...,omega_max=...`, keys the MMAE refuses (it has a bank, not a
+    range): the printed command stopped with an error. Now it advises a bank around the sea, which runs
+    as printed and is silent."""
+    log = DATA / "usv-nmea" / "202412061745.txt"
+    if not log.exists():
+        pytest.skip(f"{log} not present (../shared/data beside the clone)")
+    base = ["replay", str(log), "--vessel", "cybership2", "--observer"]
+    assert main([*base, "mmae", "--out", str(tmp_path / "a.mcap")]) == 0
+    err = capsys.readouterr().err
+    m = re.search(r"--observer (mmae:candidates=[0-9./]+)", err)
+    assert m is not None, err
+    bank = [float(x) for x in m.group(1).split("=")[1].split("/")]
+    assert len(bank) == 8 and min(bank) < 3.92 < max(bank)  # around the measured peak
+    assert main([*base, m.group(1), "--out", str(tmp_path / "b.mcap"), "--json"]) == 0
+    cap = capsys.readouterr()
+    assert "warning" not in cap.err
+    (tuning,) = json.loads(cap.out)["wave_check"]["observers"].values()
+    assert tuning["mistuned"] is False and abs(tuning["omega0_rad_s"] / 3.92 - 1.0) < 0.4

@@ -53,6 +53,20 @@ def measured_line(t: Array, x: Array) -> tuple[Array, Array]:
     return np.insert(t, gaps, 0.5 * (t[gaps - 1] + t[gaps])), np.insert(x, gaps, np.nan)
 
 
+def broken_at_gaps(t: Array, x: Array) -> tuple[Array, Array]:
+    """An estimate's line broken (a NaN) where its samples are farther apart than the metrics bridge,
+    as `measured_line` breaks a measurement's: logs merged across hours or days (two days of a USV's
+    trials) were otherwise joined by a straight line through the days nobody measured, drawn as if the
+    vessel had moved along it."""
+    t, x = np.asarray(t, dtype=float), np.asarray(x, dtype=float)
+    if len(t) < 3:
+        return t, x
+    gaps = np.flatnonzero(np.diff(t) > MAX_GAP_SAMPLES * nominal_dt(t)) + 1
+    if len(gaps) == 0:
+        return t, x
+    return np.insert(t, gaps, 0.5 * (t[gaps - 1] + t[gaps])), np.insert(x, gaps, np.nan, axis=0)
+
+
 def decimate(t: NDArray[Any], x: NDArray[Any], max_points: int = MAX_PLOT_POINTS) -> tuple[Array, Array]:
     """At most `max_points` points of a line that keep its envelope: the min and max of each bucket, in
     time order. NaN (gaps) survive where a whole bucket is NaN, so lines still break there."""
@@ -152,6 +166,7 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
             t, x = t[m], x[m]
         if len(t) == 0:
             return
+        t, x = broken_at_gaps(t, x)  # (a measurement's line is broken already: it has no such gap left)
         if wrap:
             t, x = _heading_deg(t, x, centre)
         elif deg:
@@ -258,7 +273,7 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
         big = max((float(np.nanmax(np.abs(tr_.bias[:, k]), initial=0.0)) for tr_ in traces), default=0.0)
         div, prefix = (1e6, "M") if big >= 1e7 else (1e3, "k") if big >= 1e4 else (1.0, "")
         for i, tr_ in enumerate(traces):
-            td, xd = decimate(tr_.t, tr_.bias[:, k] / div)
+            td, xd = decimate(*broken_at_gaps(tr_.t, tr_.bias[:, k] / div))
             ax.plot(td / scale, xd, color=colour(i), lw=1.0, zorder=z(i), label=f"b̂ {tr_.label}")
         unit = f"{prefix}N·m" if k == 2 else f"{prefix}N"
         ax.set_ylabel(f"{('X', 'Y', 'N')[k]} ({unit})", fontsize=9)
@@ -269,7 +284,7 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
     fig, axes = figure("omega0")
     for k, ax in enumerate(axes[0]):
         for i, tr_ in enumerate(traces):
-            td, xd = decimate(tr_.t, tr_.omega0[:, k])
+            td, xd = decimate(*broken_at_gaps(tr_.t, tr_.omega0[:, k]))
             ax.plot(td / scale, xd, color=colour(i), lw=1.2, zorder=z(i), label=f"ω₀ {tr_.label}")
         if math.isfinite(an.meas_peak[k]) and not at_edge[k]:  # a maximum on the band edge is no wave
             ax.axhline(an.meas_peak[k], color="0.5", ls="--", lw=1.0, label="PSD peak of y")

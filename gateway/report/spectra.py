@@ -119,13 +119,16 @@ def welch(pieces: Sequence[Array], dt: float, seg_s: float, highpass: float | No
 
 def peak(p: Psd, band: tuple[float, float]) -> tuple[float, bool]:
     """Frequency (rad/s) of the largest PSD value in the band, refined by a parabola through the log-PSD
-    of the three bins around it; and whether it sits on the band's edge (no wave peak found)."""
+    of the three bins around it; and whether it sits on the band's edge (no wave peak found). An edge bin
+    is not refined: its parabola leans on the bin outside the band and would move the frequency up to
+    half a bin out of it (1.57 rad/s reported for a band searched from 1.67 on a 1:70 model's log), and
+    there is no peak there to refine."""
     idx = np.flatnonzero((p.omega >= band[0]) & (p.omega <= band[1]) & (p.psd > 0))
     if len(idx) == 0:
         return float("nan"), False
     k = int(idx[np.argmax(p.psd[idx])])
     at_edge = k in (idx[0], idx[-1])
-    if 0 < k < len(p.psd) - 1 and np.all(p.psd[k - 1 : k + 2] > 0):
+    if not at_edge and 0 < k < len(p.psd) - 1 and np.all(p.psd[k - 1 : k + 2] > 0):
         a, b, c = np.log(p.psd[k - 1 : k + 2])
         den = a - 2.0 * b + c
         delta = 0.5 * (a - c) / den if den < 0 else 0.0

@@ -106,7 +106,10 @@ class WaveCheck:
             )
             period = _period(w)
             scheduled = f"wave_period_s={period},omega_min={_fmt(w / 2.0)},omega_max={_fmt(2.0 * w)}"
-            if o.adaptive:
+            if o.kind == "mmae":  # a bank of fixed candidates, no range: a bank around the sea
+                bank = "/".join(_fmt(x) for x in np.linspace(w / 2.0, 2.0 * w, 8))
+                todo = f"Its bank does not reach the sea's: re-run with --observer mmae:candidates={bank}"
+            elif o.adaptive:
                 todo = f"Its ω0 range does not reach the sea's: re-run with --observer {o.kind}:{scheduled}"
             else:
                 todo = (
