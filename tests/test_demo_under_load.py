@@ -4,7 +4,8 @@ The simulator publishes its time on Zenoh, the gateway stamps with it, and the d
 simulation while the gateway is behind (docs/gateway.md, "Simulation time"). Run quietly and with two
 CPU-bound processes hogging both cores, the gateway and the plant share one time base (each DGPS fix is
 stamped the receiver's latency after the fix's own time, 99 % of them within one sample period more), the
-LF estimate error is within 25 % of the quiet run's, and station keeping holds (p95 ≤ 2 m).
+LF estimate error is within 25 % of the quiet run's (plus the quiet run's own spread), and station keeping
+holds (p95 ≤ 0.5 m).
 
 The scenario is `hassani` (Cybership II, model scale, 10 Hz RTK and gyro): its fast dynamics make it the
 one most sensitive to loop delay (without the simulation clock and pacing it lost its heading under this
@@ -31,6 +32,8 @@ SCENARIO = "hassani"
 DURATION_S = "120"
 FIX_PERIOD_S = 0.1  # the scenario's RTK receiver at 10 Hz: one sample
 FIX_LATENCY_S = 0.1  # and its latency (simulator.sensors.DgpsConfig)
+STATION_P95_M = 0.5  # station keeping p95 bound, five times what it holds
+QUIET_SPREAD_M = 0.005  # the quiet run's LF RMS from run to run (0.025-0.030 m measured)
 
 
 def demo(out: Path) -> dict[str, Any]:
@@ -73,10 +76,15 @@ def test_the_demo_under_two_cpu_hogs_keeps_one_time_base_and_station(tmp_path: P
         lag = run["fix_stamp_lag_s"]
         assert abs(lag["median"] - FIX_LATENCY_S) <= 0.02
         assert lag["p99"] <= FIX_LATENCY_S + FIX_PERIOD_S
-        assert run["station_keeping"]["position_p95_m"] <= 2.0
+        # (0.10 m in every run, quiet or loaded, since the observer keeps up with the loop; it lost its
+        # heading before the simulation clock: p95 30-40 m)
+        assert run["station_keeping"]["position_p95_m"] <= STATION_P95_M
         assert run["estimates"] > 1000
     rms_quiet = quiet["error_vs_truth"]["horizontal_rms_m"]
-    assert loaded["error_vs_truth"]["horizontal_rms_m"] <= 1.25 * rms_quiet
+    # within 25 % of the quiet run's, plus the quiet run's own spread from run to run (its timing differs:
+    # 0.025-0.030 m measured in five quiet runs since the observer keeps up with the loop; at that size a
+    # quarter is 6 mm, and the quiet run alone moves by 4)
+    assert loaded["error_vs_truth"]["horizontal_rms_m"] <= 1.25 * rms_quiet + QUIET_SPREAD_M
 
 
 @pytest.mark.slow  # a demo started and stopped: a few seconds
