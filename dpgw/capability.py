@@ -48,7 +48,7 @@ sectors. docs/capability.md.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Collection, Sequence
+from collections.abc import Callable, Collection, Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -452,7 +452,7 @@ def capability(
 
             out.append(limit_speed(scale_at, u_limit=u_limit, grid=grid, tol=tol))
             if beaufort:
-                number.append(dp_number([scale_at(u) for u in row_winds]))
+                number.append(dp_number(scale_at(u) for u in row_winds))
     cases = tuple(
         CapabilityCase(label, failed, tuple(u), tuple(n) if beaufort else None)
         for (label, failed), u, n in zip(conditions, per_case, numbers, strict=True)
@@ -481,14 +481,17 @@ def capability(
     )
 
 
-def dp_number(scales: Sequence[float]) -> int:
+def dp_number(scales: Iterable[float]) -> int:
     """The DP capability number from k* at the Beaufort rows 1, 2, … 11 in order: the highest number
     whose row and every row below it are held (k* ≥ 1); 0 when even Beaufort 1 is not (calm, Beaufort 0,
-    has no load and is always held)."""
-    for n, k in enumerate(scales):
+    has no load and is always held). Reads ``scales`` only up to the first row not held (a generator
+    spares the LPs of the rows above it)."""
+    held = 0
+    for k in scales:
         if k < 1.0:
-            return n
-    return len(scales)
+            break
+        held += 1
+    return held
 
 
 def plot(result: CapabilityResult, path: str) -> None:
