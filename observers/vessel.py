@@ -199,10 +199,9 @@ def rigid_body_diagonal(vessel: VesselModel) -> Array:
     """Diagonal of the rigid-body mass [m, m, I_z] as far as the vessel gives it: the file's ``M_RB``, else
     its ``[hull]`` table (Fossen (2021) eq (3.44)), else m in surge and sway (M_RB,11 = M_RB,22 = m for
     any hull) and NaN in yaw (I_z unknown)."""
-    if vessel.M_RB is not None:
-        return np.diag(vessel.M_RB).copy()
-    if vessel.hull is not None:
-        return np.diag(vessel.hull.rigid_body_mass(vessel.mass_kg)).copy()
+    m_rb = rigid_body_matrix(vessel)
+    if m_rb is not None:
+        return np.diag(m_rb).copy()
     return np.array([vessel.mass_kg, vessel.mass_kg, math.nan])
 
 
