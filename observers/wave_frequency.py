@@ -215,7 +215,7 @@ class WaveFrequencyConfig:
         (``per_dof=False``) one band for all: the highest loop's."""
         if self.loop_bandwidth is None:
             return (self.omega_min, self.omega_min, self.omega_min)
-        wn = np.broadcast_to(np.asarray(self.loop_bandwidth, dtype=float), (3,))
+        wn = np.asarray(self.loop_bandwidth)  # (three floats: `__post_init__`)
         floor = np.maximum(self.omega_min, wn if self.per_dof else np.full(3, wn.max()))
         return (float(floor[0]), float(floor[1]), float(floor[2]))
 
