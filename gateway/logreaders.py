@@ -165,6 +165,12 @@ def gzip_was_cut(f: BinaryIO) -> bool:
     return isinstance(raw, _CutGzip) and raw.cut
 
 
+def count_gzip_cut(f: BinaryIO, c: LogCounts) -> None:
+    """Count ``gzip_cut`` in ``c`` if `open_log`'s file ``f``, read to its end, ended at a cut."""
+    if gzip_was_cut(f):
+        c.counts["gzip_cut"] += 1
+
+
 def _first_date(path: Path, limit: int = 2000) -> date | None:
     with io.TextIOWrapper(open_log(path), encoding="ascii", errors="replace", newline="") as f:
         for k, line in enumerate(f):
@@ -259,8 +265,7 @@ def nmea_text_events_reference(
                     clock.start_cycle(t_ns)
                     cycle_ns = t_ns
             lines.append(line)
-        if gzip_was_cut(f):
-            c.counts["gzip_cut"] += 1
+        count_gzip_cut(f, c)
     if lines:
         if cycle_ns is None:
             c.counts["no_time"] += len(lines)  # a log with no timed sentence at all: nothing to replay
@@ -376,8 +381,7 @@ def nmea_text_events(
             block.add_to(cycle, first, block.n)
             if not chunk:
                 break
-        if gzip_was_cut(f):
-            c.counts["gzip_cut"] += 1
+        count_gzip_cut(f, c)
     if cycle.lines:
         if cycle_ns is None:
             c.counts["no_time"] += cycle.count
@@ -447,8 +451,7 @@ def tlog_events(
     c = counts if counts is not None else LogCounts()
     with open_log(path) as f:
         data = f.read()
-        if gzip_was_cut(f):
-            c.counts["gzip_cut"] += 1
+        count_gzip_cut(f, c)
     i, n = 0, len(data)
     while i + 9 <= n:
         (t_us,) = RECORD_TIME.unpack_from(data, i)
