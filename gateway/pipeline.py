@@ -432,7 +432,6 @@ class Pipeline:
         q = spec.consequence
         self.consequence: ConsequenceAnalysis | None = None
         self._consequence_ns = 0  # when its failure cases were last tested
-        self._consequence_error: str | None = None  # the last evaluation's failure, worded
         if self.allocator is not None and q.enabled and len(spec.vessel.thrusters) > 1:
             self.consequence = ConsequenceAnalysis(
                 spec.vessel.thrusters, failure_groups=q.failure_groups, filter_s=q.filter_s
@@ -1477,12 +1476,9 @@ class Pipeline:
         try:
             if ca.update(t, tau_demand, self.thrusters_out.keys(), psi) is not None:
                 self._consequence_ns = now_ns
-            # (a failed evaluation is retried a second on, not at every step: its alarm stays up meanwhile)
-            text = self._consequence_error if ca.failed else ca.alarm_text()
         except Exception as exc:  # (a solver's failure must not stop the thrusters' commands)
-            text = self._consequence_error = (
-                f"consequence analysis: not evaluated ({type(exc).__name__}: {exc})"
-            )
+            ca.record_failure(exc)  # (retried a second on, not at every step: its alarm up meanwhile)
+        text = ca.alarm_text()
         if text is not None:
             self.control_alarms.append(text)
 

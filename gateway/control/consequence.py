@@ -167,7 +167,8 @@ class ConsequenceAnalysis:
         self._attempted_at: float | None = None  # (= _tested_at unless the last evaluation raised)
         self.failed = False
         """Whether the last evaluation raised (a solver's failure): retried every ``min_period_s``, not at
-        every control step; the caller keeps its "not evaluated" alarm up meanwhile."""
+        every control step; `alarm_text` says "not evaluated" meanwhile (`record_failure`)."""
+        self._failure_text: str | None = None
         self._tested_load = [0.0, 0.0, 0.0]
         self._tested_out: frozenset[int] = frozenset()
         self.verdict: Verdict | None = None
@@ -266,8 +267,15 @@ class ConsequenceAnalysis:
         return verdict
 
     def alarm_text(self) -> str | None:
-        """The alarm's words while it is up, else None."""
-        return self._alarm_text
+        """The alarm's words while it is up, else None; while the last evaluation had raised, that it was
+        not evaluated and why (`record_failure`)."""
+        return self._failure_text if self.failed else self._alarm_text
+
+    def record_failure(self, exc: BaseException) -> None:
+        """An evaluation (`update`) raised ``exc``: the caller, who must go on commanding the thrusters,
+        hands it here; `alarm_text` says so until an evaluation succeeds, retried every ``min_period_s``."""
+        self.failed = True
+        self._failure_text = f"consequence analysis: not evaluated ({type(exc).__name__}: {exc})"
 
     def _word(self, worst: FailureCase, out: frozenset[int]) -> str:
         """The alarm's words for the worst case, the thrusters in ``out`` already out of service."""
