@@ -94,9 +94,8 @@ class StopSignals:
     opened but without its summary. SIGHUP (the terminal or SSH session it runs in closing) killed it at
     any time, the log likewise cut. Now each only sets `requested` (and the service's ``stop_event``, once
     there is a service): start-up finishes what it is doing, opens nothing more, and the gateway closes
-    as after any stop."""
-
-    SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
+    as after any stop. SIGHUP comes here through `dpgw.cli.hangup_as_terminate`, which hands it to the
+    SIGTERM handler (with SIGHUP's number) unless ``nohup`` ignores it."""
 
     def __init__(self) -> None:
         import signal
@@ -104,11 +103,8 @@ class StopSignals:
         self.requested = threading.Event()
         self.signum: int | None = None
         self._service: GatewayService | None = None
-        for name in self.SIGNALS:
-            sig = getattr(signal, name, None)  # (SIGHUP: POSIX only)
-            if sig is None or (name == "SIGHUP" and signal.getsignal(sig) == signal.SIG_IGN):
-                continue  # (nohup dpgw run ...: a hangup stays ignored, as nohup asks)
-            signal.signal(sig, self._on_signal)
+        signal.signal(signal.SIGINT, self._on_signal)
+        signal.signal(signal.SIGTERM, self._on_signal)
 
     def _on_signal(self, signum: int, _frame: object) -> None:
         self.signum = self.signum or signum

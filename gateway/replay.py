@@ -392,16 +392,14 @@ def parse_observer_spec(text: str) -> ObserverSpec:
         if not eq or key not in keys:
             raise ReplayError(f"observer spec '{text}': '{item}' is not key=value with a key of {keys}")
         switch = {"true": 1.0, "false": 0.0}.get(value.strip().lower())  # adaptive=true, per_dof=false
+        if "/" in value and key in TUNING_KEYS:  # (a list: MMAE's candidates=2.5/3.8/5)
+            raise ReplayError(f"observer spec '{text}': {key} takes one number, not a list")
         try:
-            if "/" in value:  # a list: MMAE's candidates=2.5/3.8/5 (the comma separates keys)
-                if key in TUNING_KEYS:
-                    raise ReplayError(f"observer spec '{text}': {key} takes one number, not a list")
+            if "/" in value:  # (the comma separates keys)
                 params[key] = tuple(float(x) for x in value.split("/"))
             else:
                 params[key] = switch if switch is not None else float(value)
-        except ValueError as exc:
-            if isinstance(exc, ReplayError):
-                raise
+        except ValueError:
             raise ReplayError(
                 f"observer spec '{text}': {key}={value!r} is not a number (or true/false, or a list "
                 "of numbers joined by /)"

@@ -75,12 +75,16 @@ class MavlinkCommandInput:
         self.parsers: dict[str, FrameParser] = {}
         self._rejected: Counter[str] = Counter()
         self.received = 0
-        self.signed = signing_key is not None
         self._verifier = None
         if signing_key is not None:
             self._verifier = encoder(system_id or 1, component_id or 1)
             setup_signing(self._verifier, signing_key, sign_outgoing=False, allow_unsigned=False)
         self._logged: set[tuple[str, str]] = set()
+
+    @property
+    def signed(self) -> bool:
+        """Takes signed commands only (built with a ``signing_key``)."""
+        return self._verifier is not None
 
     @property
     def rejected(self) -> Counter[str]:
