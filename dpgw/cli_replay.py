@@ -79,6 +79,9 @@ EPILOG = (
 )
 
 
+UTC_2000_NS = 946_684_800 * 10**9  # 2000-01-01T00:00:00Z
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "logs",
@@ -766,6 +769,9 @@ def _report(
     if not meas:
         return []
     t0 = meas[0]["stamp_ns"]
+    # a log's stamps are UTC (the fixes' own time, or a logger's clock); before 2000 they are a time of
+    # day without its date (sentences with no date to join), which the report does not call a date
+    stamps_are_utc = t0 >= UTC_2000_NS
     t_meas = (np.array([m["stamp_ns"] for m in meas], dtype=np.int64) - t0) / 1e9
     y = _received_only(
         np.array([[np.nan if v is None else v for v in m["eta"]] for m in meas], dtype=float), new
@@ -802,6 +808,7 @@ def _report(
         y=y,
         traces=tuple(traces),
         counts=r.counts,
+        start_ns=t0 if stamps_are_utc else None,
         **truth_kw,
     )
     return write_report(data, args.report, settle_s=args.settle)

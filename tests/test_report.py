@@ -20,6 +20,7 @@ from gateway.report import (
     wave_band_for_length,
     write_report,
 )
+from gateway.report.data import utc_text
 
 W_WAVE = 0.6  # rad/s
 DOFS = ("north", "east", "heading")
@@ -505,3 +506,69 @@ def test_estimate_lines_break_where_logs_merged_across_days_leave_a_gap(
             y = np.asarray(ln.get_ydata(), dtype=float)
             joined = np.isfinite(y[:-1]) & np.isfinite(y[1:]) & (np.diff(x) > 0.5 * (x[-1] - x[0]))
             assert not joined.any(), f"{name}: '{ln.get_label()}' drawn across the day between the logs"
+
+
+def test_a_long_log_reads_by_utc_and_its_zoom_in_seconds(data: ReplayData, tmp_path: Path) -> None:
+    """A merge of logs a day apart: the zoom row's axis counted hours from the first log's start, so a 224 s
+    zoom read '48.9825 h' to '48.9847 h', and report.md gave only seconds since the start. Now the zoom row
+    counts seconds from its own start, which its label gives in UTC, the whole-record rows say from when
+    they count, and report.md and metrics.json give the span in UTC."""
+    from dataclasses import replace
+    from datetime import UTC, datetime
+
+    pytest.importorskip("matplotlib")
+    from matplotlib.figure import Figure
+
+    from gateway.report.markdown import report_markdown
+    from gateway.report.metrics import analyse
+    from gateway.report.plots import draw_plots
+
+    made: list[Any] = []
+
+    class Kept(Figure):  # type: ignore[misc]
+        def __init__(self, *args: Any, **kwargs: Any) -> None:
+            super().__init__(*args, **kwargs)
+            made.append(self)
+
+    day = 86400.0
+    later = data.t_meas >= 900.0
+    t_meas = np.where(later, data.t_meas + 2 * day, data.t_meas)
+    traces = tuple(replace(tr_, t=np.where(tr_.t >= 900.0, tr_.t + 2 * day, tr_.t)) for tr_ in data.traces)
+    start_ns = 1_733_395_032 * 10**9  # 2024-12-05T10:37:12Z
+    d = replace(
+        data,
+        t_meas=t_meas,
+        traces=traces,
+        truth_t=None,
+        truth_eta_lf=None,
+        truth_eta_wf=None,
+        start_ns=start_ns,
+    )
+    an = analyse(d, None, None)
+    t0, t1 = an.metrics["span_s"]
+    assert t0 == 0.0 and 2 * day < t1 < 2 * day + 1800.0
+    assert an.metrics["span_utc"] == ["2024-12-05T10:37:12.0Z", utc_text(start_ns, t1)]
+    end = utc_text(start_ns, t1)
+    assert end is not None and end.startswith("2024-12-07T1")
+    md = report_markdown(d, an.metrics, "", [])
+    assert f"2024-12-05 10:37:12.0 to {end.replace('T', ' ').removesuffix('Z')} UTC" in md
+    draw_plots(d, an, tmp_path, Kept)
+    position = {f.get_suptitle().rsplit(": ", 1)[1]: f for f in made}["position"]
+    whole, zoom = position.axes[0], position.axes[3]  # row 1 (the record), row 2 (its zoom)
+    assert whole.get_xlabel() == "time (h) from 2024-12-05 10:37:12 UTC"
+    length = float(zoom.get_title(loc="right").split()[2])  # "zoom: last 209 s"
+    label = zoom.get_xlabel()
+    assert label.startswith("time (s) from ") and label.endswith(" UTC"), label
+    at = datetime.strptime(label[14:-4], "%Y-%m-%d %H:%M:%S").replace(tzinfo=UTC).timestamp()
+    assert abs(at - (start_ns / 1e9 + t1 - length)) <= 1.0, label  # (the title's length is rounded)
+    xs = np.concatenate([np.asarray(ln.get_xdata(), dtype=float) for ln in zoom.get_lines()])
+    xs = xs[np.isfinite(xs)]
+    assert xs.min() >= 0.0 and length - 1.0 <= xs.max() <= length + 1.0, (xs.min(), xs.max(), length)
+
+
+def test_utc_text_rounds_the_instant_as_a_whole() -> None:
+    start = 1_733_395_032 * 10**9  # 2024-12-05T10:37:12Z
+    assert utc_text(start, 0.96) == "2024-12-05T10:37:13.0Z"  # not 10:37:12.10
+    assert utc_text(start, 0.04) == "2024-12-05T10:37:12.0Z"
+    assert utc_text(start, 59.5, digits=0) == "2024-12-05T10:38:12Z"
+    assert utc_text(start, float("nan")) is None and utc_text(start, None) is None

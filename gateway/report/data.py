@@ -6,8 +6,10 @@ turns them into float arrays of checked shapes, sorted by time, which every othe
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from typing import Any
 
 import numpy as np
@@ -47,6 +49,20 @@ class ReplayData:
     # per source {"received": n, "<reject reason>": n, "warning <reason>": n, ...};
     # per input log {"truncated": n, "time_gap": n, "time_backwards": n, ...}
     counts: Mapping[str, Mapping[str, int]] = field(default_factory=dict)
+    # UTC of t = 0 (ns since the Unix epoch), where the log's stamps are UTC: the report then says when
+    # (a merge of logs over days is read by date and clock time, not by hours since its start)
+    start_ns: int | None = None
+
+
+def utc_text(start_ns: int, t_s: float | None, *, digits: int = 1) -> str | None:
+    """The UTC instant ``t_s`` seconds after ``start_ns`` in ISO 8601 (``2024-12-05T10:37:12.4Z``), or
+    None for a missing time."""
+    if t_s is None or not math.isfinite(t_s):
+        return None
+    unit = 10**digits  # rounded as a whole (12.96 s is 13.0, not 12.10)
+    whole, frac = divmod(round((start_ns / 1e9 + float(t_s)) * unit), unit)
+    text = datetime.fromtimestamp(whole, tz=UTC).strftime("%Y-%m-%dT%H:%M:%S")
+    return text + (f".{frac:0{digits}d}" if digits else "") + "Z"
 
 
 def _col3(a: NDArray[Any] | None, n: int) -> Array:

@@ -29,7 +29,12 @@ def _span(m: dict[str, Any]) -> str:
     if t0 is None or t1 is None or d is None:
         return "–"
     length = f"{d:.1f} s" if d <= 600 else f"{d / 60:.1f} min" if d <= 36000 else f"{d / 3600:.1f} h"
-    return f"{t0:.1f} s to {t1:.1f} s ({length})"
+    text = f"{t0:.1f} s to {t1:.1f} s ({length})"
+    utc = m.get("span_utc")
+    if utc and utc[0] and utc[1]:  # a log stamped in UTC: when, as well as how long
+        a, b = (u.replace("T", " ").removesuffix("Z") for u in utc)
+        text += f", {a} to {b} UTC"
+    return text
 
 
 def report_markdown(data: ReplayData, m: dict[str, Any], plot_note: str, pngs: Sequence[Path]) -> str:

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from gateway.report.data import DOF, Array, Prepared, ReplayData, prepare
+from gateway.report.data import DOF, Array, Prepared, ReplayData, prepare, utc_text
 from gateway.report.spectra import Psd, band_power, nominal_dt, peak, resample, valid_samples, welch
 from gateway.scoring import Score, score
 from observers.froude import MODEL_MAX_LENGTH_M, PROTOTYPE_LENGTH_M, froude_scale_of, scaled_frequencies
@@ -151,6 +151,9 @@ def analyse(data: ReplayData, wave_band: tuple[float, float] | None, settle_s: f
             "psd": "unit²·s/rad",
         },
         "span_s": [_f(t0), _f(t1)],
+        "span_utc": None
+        if data.start_ns is None
+        else [utc_text(data.start_ns, t0), utc_text(data.start_ns, t1)],
         "duration_s": _f(duration),
         "settle_s": _f(settle_s),
         "wave_band_rad_s": [band[0], band[1]],

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from gateway.report.data import DOF_SYMBOL, Array, ReplayData
+from gateway.report.data import DOF_SYMBOL, Array, ReplayData, utc_text
 from gateway.report.metrics import MAX_GAP_SAMPLES, Analysis
 from gateway.report.spectra import nominal_dt
 from observers.kinematics import ssa
@@ -110,6 +110,12 @@ def _time_scale(duration: float) -> tuple[float, str]:
     return 1.0, "time (s)"
 
 
+def _clock_text(start_ns: int, t_s: float) -> str:
+    """``2024-12-05 10:37:12 UTC``: the instant ``t_s`` after ``start_ns``, for an axis label."""
+    text = utc_text(start_ns, t_s, digits=0) or ""
+    return text.replace("T", " ").removesuffix("Z") + " UTC"
+
+
 def load_figure() -> Any:
     """matplotlib's Figure class, or None if matplotlib is not installed. No pyplot: no global state,
     safe in threads; PNGs are drawn by the Agg canvas."""
@@ -127,6 +133,8 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
     t_meas, y, traces, truth = prep.t_meas, prep.y, prep.traces, prep.truth
     span = an.metrics["span_s"]
     scale, tlabel = _time_scale((span[1] or 0.0) - (span[0] or 0.0))
+    if data.start_ns is not None:  # the axis counts from the log's start: say when that was
+        tlabel += f" from {_clock_text(data.start_ns, 0.0)}"
     # heading plotted around the circular mean of the measured (else estimated) heading
     psi_ref = y[:, 2][np.isfinite(y[:, 2])]
     if len(psi_ref) == 0 and traces and len(traces[0].t):
@@ -141,6 +149,9 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
     window = zoom_window(t_beg, t_end, [w for w, edge in zip(an.meas_peak, at_edge, strict=True) if not edge])
     use_zoom = window is not None
     zoom = window or (t_beg, t_end)
+    # the zoom rows count seconds from the window's start (a long log's hours would read "48.9825 h")
+    zoom_start = _clock_text(data.start_ns, zoom[0]) if data.start_ns is not None else f"t = {zoom[0]:.1f} s"
+    zoom_label = f"time (s) from {zoom_start}"
 
     def figure(name: str, rows: int = 1) -> tuple[Any, Any]:
         fig = Figure(figsize=(15.0, 0.6 + 3.6 * rows), layout="constrained")
@@ -172,7 +183,10 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
         elif deg:
             x = np.degrees(x)
         td, xd = decimate(t, x)
-        ax.plot(td / scale, xd, **kw)
+        if window is not None:  # a zoom row: seconds from the window's start, whatever the log's length
+            ax.plot(td - window[0], xd, **kw)
+        else:
+            ax.plot(td / scale, xd, **kw)
 
     def colour(i: int) -> str:
         return _COLOURS[i % len(_COLOURS)]
@@ -182,8 +196,10 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
         return 40.0 - i * 30.0 / max(len(traces), 1)
 
     def save(fig: Any, axes: Any, name: str) -> Path:
-        for ax in axes[-1]:
-            ax.set_xlabel(tlabel if name != "psd" else "frequency ω (rad/s)", fontsize=9)
+        for r, row in enumerate(axes):
+            label = "frequency ω (rad/s)" if name == "psd" else zoom_label if r else tlabel
+            for ax in row:
+                ax.set_xlabel(label, fontsize=9)
         # every label of the first row once (a line drawn in one panel only still gets its entry)
         found: dict[str, Any] = {}
         for ax in axes[0]:
