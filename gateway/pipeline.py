@@ -200,7 +200,8 @@ class SourceSpec:
     """A replay of a signed link whose log holds no key but the live gateway's verdicts
     (`/raw/mavlink_rejected/<source>`): (peer, chunk receive time ns) → the frames of that chunk the live
     gateway refused for signing. Those frames are refused for the logged reason, the others taken
-    unchecked. None: signatures are checked with ``signing_key``, or not at all without one."""
+    unchecked (`Pipeline.unmatched_verdicts`: those that found no frame). None: signatures are checked
+    with ``signing_key``, or not at all without one."""
 
     @cached_property
     def timeout_ns(self) -> int:
@@ -380,6 +381,9 @@ class Pipeline:
         self._parser_rejects: dict[tuple[str, str], int] = {}  # sum of _parser_seen, the fast check
         self._parser_skipped: dict[tuple[str, str], int] = {}  # its skipped_bytes already counted
         self._sender_rx: dict[tuple[str, str], int] = {}  # (source, peer) -> its last chunk's time
+        self._logged_verdicts_left: dict[tuple[str, str, int], list[mv.LoggedVerdict]] = {}
+        """Replay of a signed link without its key: (source, peer, chunk time) → its logged verdicts not
+        applied yet (`_verdicts_left`)."""
         self.mavlink_peer: dict[str, str] = {}
         """MAVLink source → the sender of the last frame it accepted (signature, system and component
         checked): where the service sends the thruster commands. Not whoever sent the last datagram: one
@@ -940,11 +944,8 @@ class Pipeline:
         if logged is None:
             msgs = parser.feed(ev.data)
         else:  # a replay without the key: the live gateway's verdicts on this chunk's frames
-            verdicts = logged.get((ev.peer, ev.rx_ns))
-            parser.verdicts = list(verdicts) if verdicts else None
+            parser.verdicts = self._verdicts_left(spec.name, logged, ev.peer, ev.rx_ns)
             msgs = parser.feed(ev.data)
-            if parser.verdicts:  # no frame at the logged offset with the logged digest: not applied
-                c.warnings["signing_verdict_unmatched"] += len(parser.verdicts)
             parser.verdicts = None
         if self._count_parser_rejects(key, c) and parser.signing_rejects:
             out.extend(_signing_rejections(spec.name, ev, parser.signing_rejects))
@@ -960,6 +961,41 @@ class Pipeline:
             self.mavlink_peer[spec.name] = ev.peer
             frames.append(mv.reports(msg, spec.ardupilot))
         return self._use_reports(spec, c, ev.rx_ns, frames, out)
+
+    def _verdicts_left(
+        self,
+        source: str,
+        logged: Mapping[tuple[str, int], tuple[mv.LoggedVerdict, ...]],
+        peer: str,
+        rx_ns: int,
+    ) -> list[mv.LoggedVerdict] | None:
+        """The logged verdicts on the chunks of ``source`` from ``peer`` at ``rx_ns`` not applied yet (one
+        list for every chunk of that sender and time: two chunks may share a receive time), or None."""
+        key = (source, peer, rx_ns)
+        left = self._logged_verdicts_left.get(key)
+        if left is None:
+            verdicts = logged.get((peer, rx_ns))
+            if not verdicts:
+                return None
+            left = self._logged_verdicts_left[key] = list(verdicts)
+        return left or None
+
+    def unmatched_verdicts(self) -> dict[str, int]:
+        """Per source replayed with logged verdicts (`SourceSpec.logged_verdicts`), those that refused no
+        frame so far: no frame at their place with their digest (a log edited or merged with another), or
+        their chunk not replayed (yet)."""
+        out: dict[str, int] = {}
+        for spec in self.spec.sources:
+            if spec.logged_verdicts is None:
+                continue
+            total = sum(len(v) for v in spec.logged_verdicts.values())
+            applied = sum(
+                len(spec.logged_verdicts[(peer, rx_ns)]) - len(left)
+                for (source, peer, rx_ns), left in self._logged_verdicts_left.items()
+                if source == spec.name
+            )
+            out[spec.name] = total - applied
+        return out
 
     def _records(self, spec: SourceSpec, c: SourceCounters, ev: RawEvent, out: list[Output]) -> bool:
         """A chunk already decoded (`RawEvent.records`): each item counted as received, then used."""

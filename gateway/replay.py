@@ -748,8 +748,11 @@ def run_replay(
     result.restarts = pipeline.restarts
     now = pipeline.last_ns
     status = pipeline.status_message(now)
+    unmatched = pipeline.unmatched_verdicts()
     for name, c in status.sources.items():
         warned = {f"warning {k}": v for k, v in c.warnings.items()}  # (used: apart from the rejects)
+        if unmatched.get(name):  # logged verdicts that found no frame: those frames were taken unchecked
+            warned["warning signing_verdict_unmatched"] = unmatched[name]
         result.counts[f"source {name}"] = {"received": c.received, **c.rejected, **warned}
     for inp in inputs:
         covered = [source_spans[src] for src in inp.sources() if src in source_spans]

@@ -303,3 +303,43 @@ def test_frame_ids_read_the_header_and_signature() -> None:
     assert mv.frame_ids(mv.azimuth_status_frame(plain, 0, 1, 1.0, 1.0, 0.0, 0)) == mv.FrameIds(
         7, 9, 0, mv.AZIMUTH_THRUSTER_STATUS_ID, None, None
     )
+
+
+def test_the_pipeline_counts_a_verdict_that_found_no_frame(tmp_path: Path) -> None:
+    """Through the replay's pipeline (`build_pipeline` with the log's verdicts, no key): the frame a
+    verdict names is refused under the logged reason, and its record made again for the replay's own
+    log; a verdict whose digest names another frame is not applied (the frame is taken) and is counted
+    (`Pipeline.unmatched_verdicts`: the replay's `warning signing_verdict_unmatched`, which its note
+    repeats). Two chunks of a sender at one receive time share its verdicts: the second chunk does not
+    count the first one's as unmatched."""
+    from gateway.pipeline import RawEvent
+    from gateway.replay import SigningVerdicts, build_pipeline
+
+    tables = {
+        "vessel": {"name": "hajivand_vessel"},
+        "datum": {"lat_deg": 59.4, "lon_deg": 10.5},
+        "sources": [
+            {"name": "nav", "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position", "heading"]},
+            {"name": "thr", "url": "udpin:127.0.0.1:0", "protocol": "mavlink", "roles": ["thrusters"]},
+        ],
+        "log": {"path": ""},
+    }
+    forged, replayed_head, replayed_tail = _attack_frames(0)
+    t_ns, peer = 1_700_000_000_000_000_000, "127.0.0.1:40000"
+    verdicts = SigningVerdicts(
+        {"thr": {
+            (peer, t_ns): ((0, mv.frame_digest(forged[:SIGNED_STATUS_LEN]), "bad_signature"),),
+            (peer, t_ns + 1): ((-len(replayed_head), "0" * 16, "bad_signature"),),
+        }},
+        {"thr": {"bad_signature": 2, "unsigned": 0}},
+    )  # fmt: skip
+    pipeline = build_pipeline(parse_config(tables, base_dir=tmp_path), [], signing_verdicts=verdicts)
+    first = pipeline.feed(RawEvent(t_ns, "thr", forged, peer=peer))  # the forged frame, the unsigned one
+    pipeline.feed(RawEvent(t_ns, "thr", replayed_head, peer=peer))
+    pipeline.feed(RawEvent(t_ns + 1, "thr", replayed_tail, peer=peer))
+    c = pipeline.counters["thr"]
+    assert dict(c.rejected) == {"bad_signature": 1}
+    assert c.received == 2  # the unsigned frame (no verdict on it here) and the replayed one
+    assert pipeline.unmatched_verdicts() == {"thr": 1}
+    records = [o.message for o in first if o.topic == "/raw/mavlink_rejected/thr"]
+    assert [(r.reason, r.offset, r.peer, r.stamp_ns) for r in records] == [("bad_signature", 0, peer, t_ns)]
