@@ -120,6 +120,15 @@ def _live_gateway(tmp: Path) -> LiveRun:
             sent = sim.summary.bytes_sent
             assert wait_for(partial(handled, sent["dgps1"] + sent["gyro1"], 2 * attacked), 30.0), counters
         assert wait_for(lambda: counters["thrusters"].bytes >= sim.summary.bytes_sent["thrusters"], 30.0)
+        # a status (1 Hz) with every refusal in it, logged, as a gateway running on after the attack has:
+        # a log from before verdicts has only its last status to say what the live gateway refused
+        assert wait_for(
+            lambda: (
+                service.last_status().get("sources", {}).get("thrusters", {}).get("rejected")
+                == {"bad_signature": 2 * ATTACKS, "unsigned": ATTACKS}
+            ),
+            30.0,
+        ), service.last_status()
     finally:
         service.stop_event.set()
         loop.join(timeout=30)
@@ -219,6 +228,30 @@ def test_an_older_log_without_verdicts_replays_unchecked_and_says_so(
     assert counts["received"] == live.received + 9
     replayed, recorded = _channels(tmp_path / "old-replay.mcap"), _channels(live.log)
     assert replayed["/dp/estimate"] != recorded["/dp/estimate"]
+
+
+@pytest.mark.slow  # the live gateway of the fixture, and a replay
+def test_a_verdict_that_names_another_frame_is_said_and_its_frame_taken(
+    live: LiveRun, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The log edited so that one verdict's digest names no frame: the replay refuses the other eight,
+    takes that frame unchecked, and says so (in the source's counts and in the note)."""
+    edited = tmp_path / "edited.mcap"
+    changed = False
+    with McapLogWriter(edited) as w:
+        for name, meta in read_metadata(live.log):
+            w.add_metadata(name, meta)
+        for topic, log_ns, pub_ns, payload in read_messages(live.log):
+            if topic.startswith("/raw/mavlink_rejected/") and not changed:
+                payload = {**payload, "digest": "0" * 16}
+                changed = True
+            w.write(topic, payload, log_ns, pub_ns)
+    summary, err = _replay(edited, tmp_path / "edited-replay.mcap", capsys)
+    counts = summary["counts"]["source thrusters"]
+    assert sum(counts.get(k, 0) for k in live.rejected) == 8
+    assert counts["received"] == live.received + 1
+    assert counts["warning signing_verdict_unmatched"] == 1
+    assert "1 verdicts matched no frame at their place in the log" in err
 
 
 # --- the frame parser's verdicts --------------------------------------------------------------------------
