@@ -176,6 +176,7 @@ def run(args: argparse.Namespace) -> int:
         build_pipeline,
         carried_metadata,
         logged_settle_s,
+        logged_signing_verdicts,
         open_inputs,
         parse_observer_spec,
         run_replay,
@@ -249,8 +250,15 @@ def run(args: argparse.Namespace) -> int:
             # each observer's estimates are counted, published and reported under its label
             raise ReplayError(f"--observer: label '{twice}' given twice (name each: SPEC@label)")
         own_controller = runs_its_own_controller(inputs, own_config=own_config(args))
+        # a signed link's key is not in the log: its frames are refused where the live gateway refused
+        # them (the verdicts the log records), or taken unchecked from an older log that has none
+        verdicts = logged_signing_verdicts(inputs) if args.config is None else None
         pipeline = build_pipeline(
-            config, specs, foxglove_channels=args.foxglove_channels, controller=own_controller
+            config,
+            specs,
+            foxglove_channels=args.foxglove_channels,
+            controller=own_controller,
+            signing_verdicts=verdicts,
         )
     except ConfigError as exc:
         print(format_problems(exc), file=sys.stderr)
@@ -260,7 +268,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     speed = 1.0 if args.realtime else args.speed
     if args.foxglove is not None:
-        return serve(args, inputs, config, specs, speed)
+        return serve(args, inputs, config, specs, speed, verdicts)
     try:
         publisher = _Publisher(args, config.zenoh.prefix, speed) if speed else None
     except BusError as exc:
@@ -322,8 +330,9 @@ def run(args: argparse.Namespace) -> int:
     summary["wave_check"] = evidence.check(config.vessel.length_m, config.vessel.model_scale, kinds).as_dict()
     summary["measurements"] = evidence.measured()
     summary["cut_logs"] = cut_logs(inputs)
-    # a signed link's key is not in the log: its frames are replayed as the live gateway took them,
-    # signatures unchecked (docs/gateway.md, "Replay of a signed link")
+    # a signed link's key is not in the log (docs/gateway.md, "Replay of a signed link"): the live
+    # gateway's verdicts applied, or (an older log) its frames taken with their signatures unchecked
+    summary["signature_verdicts"] = verdicts.counts if verdicts is not None else {}
     summary["signatures_unchecked"] = unchecked_signatures(inputs) if args.config is None else {}
     if args.report:
         written = _report(args, config.vessel.name, specs, result, evidence.new)
@@ -341,6 +350,8 @@ def run(args: argparse.Namespace) -> int:
         _print(summary)
     for warning in [*_cut(summary), *_no_estimates(summary), *summary["wave_check"]["warnings"]]:
         print(f"dpgw replay: warning: {warning}", file=sys.stderr)
+    for source, live in summary["signature_verdicts"].items():
+        print(f"dpgw replay: note: {_verdict_note(source, live, result.counts)}", file=sys.stderr)
     for source, live in summary["signatures_unchecked"].items():
         rejected = sum(live.values())
         print(
@@ -355,6 +366,27 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     return 0
+
+
+def _verdict_note(source: str, live: dict[str, int], counts: dict[str, dict[str, int]]) -> str:
+    """What the replay of a signed link without its key did: the live gateway's verdicts, from the log."""
+    refused = sum(live.values())
+    unmatched = counts.get(f"source {source}", {}).get("warning signing_verdict_unmatched", 0)
+    note = (
+        f"{source}: MAVLink signatures not checked (a log never holds the signing key): the live "
+        "gateway's verdicts, recorded in the log, applied instead: "
+        + (
+            f"{refused} frames refused as live ({', '.join(f'{k} {v}' for k, v in live.items() if v)})"
+            if refused
+            else "it refused no frame, so the same frames as live"
+        )
+    )
+    if unmatched:
+        note += (
+            f"; {unmatched} verdicts matched no frame at their place in the log (a log edited, or merged "
+            "with another): those frames were taken unchecked"
+        )
+    return note
 
 
 def cut_logs(inputs: list[Any]) -> list[str]:
@@ -398,7 +430,12 @@ def own_config(args: argparse.Namespace) -> bool:
 
 
 def serve(
-    args: argparse.Namespace, inputs: list[Any], config: Any, specs: list[Any], speed: float | None
+    args: argparse.Namespace,
+    inputs: list[Any],
+    config: Any,
+    specs: list[Any],
+    speed: float | None,
+    verdicts: Any = None,
 ) -> int:
     """``--foxglove``: the replay paced in log time on a Foxglove server with playback control
     (`gateway.replay_player`), until SIGINT/SIGTERM."""
@@ -440,7 +477,10 @@ def serve(
         host, port, server_name=f"dpgw replay {name}", playback=on_request, time_range_ns=(first, last)
     )
     player = ReplayPlayer(
-        lambda: (build_pipeline(config, specs, controller=own), merged_events(inputs)),
+        lambda: (
+            build_pipeline(config, specs, controller=own, signing_verdicts=verdicts),
+            merged_events(inputs),
+        ),
         (first, last),
         lambda outputs: sink.emit(outputs, [o.message.encode() for o in outputs]),
         on_time=sink.broadcast_time,

@@ -72,6 +72,7 @@ from wire.messages import (
     Measurement,
     Message,
     ReferenceStatus,
+    SigningRejection,
     SourceStatus,
     Status,
     Thruster,
@@ -193,6 +194,14 @@ class SourceSpec:
     age, then each frame's must grow as live. Live (False), a new stream more than a minute behind this
     host's clock is a replay and rejected, which is every stream of a log recorded more than a minute
     ago."""
+    logged_verdicts: Mapping[tuple[str, int], tuple[mv.LoggedVerdict, ...]] | None = field(
+        default=None, compare=False
+    )
+    """A replay of a signed link whose log holds no key but the live gateway's verdicts
+    (`/raw/mavlink_rejected/<source>`): (peer, chunk receive time ns) → the frames of that chunk the live
+    gateway refused for signing. Those frames are refused for the logged reason, the others taken
+    unchecked (`Pipeline.unmatched_verdicts`: those that found no frame). None: signatures are checked
+    with ``signing_key``, or not at all without one."""
 
     @cached_property
     def timeout_ns(self) -> int:
@@ -372,6 +381,9 @@ class Pipeline:
         self._parser_rejects: dict[tuple[str, str], int] = {}  # sum of _parser_seen, the fast check
         self._parser_skipped: dict[tuple[str, str], int] = {}  # its skipped_bytes already counted
         self._sender_rx: dict[tuple[str, str], int] = {}  # (source, peer) -> its last chunk's time
+        self._logged_verdicts_left: dict[tuple[str, str, int], list[mv.LoggedVerdict]] = {}
+        """Replay of a signed link without its key: (source, peer, chunk time) → its logged verdicts not
+        applied yet (`_verdicts_left`)."""
         self.mavlink_peer: dict[str, str] = {}
         """MAVLink source → the sender of the last frame it accepted (signature, system and component
         checked): where the service sends the thruster commands. Not whoever sent the last datagram: one
@@ -496,7 +508,7 @@ class Pipeline:
     @staticmethod
     def _mavlink_parser(s: SourceSpec) -> mv.FrameParser:
         if s.signing_key is None:
-            return mv.FrameParser()
+            return mv.FrameParser(keep_signing_rejects=s.logged_verdicts is not None)
         mav = mv.encoder(src_system=255, src_component=190)
         mv.setup_signing(
             mav,
@@ -505,7 +517,7 @@ class Pipeline:
             allow_unsigned=s.allow_unsigned,
             initial_timestamp=0 if s.signatures_from_a_log else None,  # None: this host's clock
         )
-        return mv.FrameParser(mav)
+        return mv.FrameParser(mav, keep_signing_rejects=True)
 
     # --- events in ------------------------------------------------------------------------------------------
 
@@ -928,8 +940,16 @@ class Pipeline:
 
     def _mavlink(self, spec: SourceSpec, c: SourceCounters, ev: RawEvent, out: list[Output]) -> bool:
         key, parser = self._parser(spec, c, ev.peer, ev.rx_ns)
-        msgs = parser.feed(ev.data)
-        self._count_parser_rejects(key, c)
+        logged = spec.logged_verdicts
+        if logged is None:
+            msgs = parser.feed(ev.data)
+        else:  # a replay without the key: the live gateway's verdicts on this chunk's frames
+            parser.verdicts = self._verdicts_left(spec.name, logged, ev.peer, ev.rx_ns)
+            msgs = parser.feed(ev.data)
+            parser.verdicts = None
+        if self._count_parser_rejects(key, c) and parser.signing_rejects:
+            out.extend(_signing_rejections(spec.name, ev, parser.signing_rejects))
+            parser.signing_rejects.clear()
         frames: list[Sequence[mv.Report]] = []
         for msg in msgs:
             if spec.system_id is not None and msg.get_srcSystem() != spec.system_id:
@@ -941,6 +961,41 @@ class Pipeline:
             self.mavlink_peer[spec.name] = ev.peer
             frames.append(mv.reports(msg, spec.ardupilot))
         return self._use_reports(spec, c, ev.rx_ns, frames, out)
+
+    def _verdicts_left(
+        self,
+        source: str,
+        logged: Mapping[tuple[str, int], tuple[mv.LoggedVerdict, ...]],
+        peer: str,
+        rx_ns: int,
+    ) -> list[mv.LoggedVerdict] | None:
+        """The logged verdicts on the chunks of ``source`` from ``peer`` at ``rx_ns`` not applied yet (one
+        list for every chunk of that sender and time: two chunks may share a receive time), or None."""
+        key = (source, peer, rx_ns)
+        left = self._logged_verdicts_left.get(key)
+        if left is None:
+            verdicts = logged.get((peer, rx_ns))
+            if not verdicts:
+                return None
+            left = self._logged_verdicts_left[key] = list(verdicts)
+        return left or None
+
+    def unmatched_verdicts(self) -> dict[str, int]:
+        """Per source replayed with logged verdicts (`SourceSpec.logged_verdicts`), those that refused no
+        frame so far: no frame at their place with their digest (a log edited or merged with another), or
+        their chunk not replayed (yet)."""
+        out: dict[str, int] = {}
+        for spec in self.spec.sources:
+            if spec.logged_verdicts is None:
+                continue
+            total = sum(len(v) for v in spec.logged_verdicts.values())
+            applied = sum(
+                len(spec.logged_verdicts[(peer, rx_ns)]) - len(left)
+                for (source, peer, rx_ns), left in self._logged_verdicts_left.items()
+                if source == spec.name
+            )
+            out[spec.name] = total - applied
+        return out
 
     def _records(self, spec: SourceSpec, c: SourceCounters, ev: RawEvent, out: list[Output]) -> bool:
         """A chunk already decoded (`RawEvent.records`): each item counted as received, then used."""
@@ -1015,9 +1070,10 @@ class Pipeline:
             out.append(self._feedback_output(rx_ns))
         return updated
 
-    def _count_parser_rejects(self, key: tuple[str, str], c: SourceCounters) -> None:
+    def _count_parser_rejects(self, key: tuple[str, str], c: SourceCounters) -> bool:
         """Add what a frame parser rejected and skipped since last time to its source's counters (which
-        also hold the pipeline's own reasons, so they are added to, never overwritten)."""
+        also hold the pipeline's own reasons, so they are added to, never overwritten); True if it
+        rejected something new."""
         parser = self._parsers[key]
         skipped = parser.skipped_bytes
         if skipped != self._parser_skipped[key]:
@@ -1025,13 +1081,14 @@ class Pipeline:
             self._parser_skipped[key] = skipped
         total = sum(parser.rejected.values())
         if total == self._parser_rejects[key]:
-            return
+            return False
         seen = self._parser_seen[key]
         for reason, n in parser.rejected.items():
             if n != seen[reason]:
                 c.rejected[reason] += n - seen[reason]
                 seen[reason] = n
         self._parser_rejects[key] = total
+        return True
 
     def _control(self, ev: ControlEvent) -> None:
         """A command input, taken only if `gateway.commands` finds nothing wrong (refusals are counted
@@ -1739,6 +1796,35 @@ class Pipeline:
             ),
             consequence=self._consequence_status(),
         )
+
+
+SIGNING_REJECTED_TOPIC = "/raw/mavlink_rejected/"
+"""`/raw/mavlink_rejected/<source>`: the frames of a signed link refused for signing (`SigningRejection`)."""
+
+
+def _signing_rejections(source: str, ev: RawEvent, rejects: Sequence[mv.SigningReject]) -> list[Output]:
+    """The log's record of each frame of ``ev``'s chunk refused for signing: log only (not Zenoh), at the
+    chunk's receive time, so that a replay without the key refuses the same frames
+    (`SourceSpec.logged_verdicts`). Made only for refused frames."""
+    out = []
+    for r in rejects:
+        ids = mv.frame_ids(r.frame)
+        message = SigningRejection(
+            stamp_ns=ev.rx_ns,
+            source=source,
+            reason=r.reason,  # type: ignore[arg-type]  # (one of mv.SIGNING_REASONS)
+            offset=r.offset,
+            digest=mv.frame_digest(r.frame),
+            system_id=ids.system_id,
+            component_id=ids.component_id,
+            seq=ids.seq,
+            msg_id=ids.msg_id,
+            link_id=ids.link_id,
+            signature_timestamp=ids.signature_timestamp,
+            peer=ev.peer,
+        )
+        out.append(Output(SIGNING_REJECTED_TOPIC + source, message, ev.rx_ns, False))
+    return out
 
 
 def _finite_or_none(x: float) -> float | None:

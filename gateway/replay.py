@@ -32,7 +32,7 @@ from typing import Any
 from mcap.reader import make_reader
 
 from gateway.config import GatewayConfig, default_config, parse_config
-from gateway.config.logged import unlogged_key_sources, without_unlogged_keys
+from gateway.config.logged import SIGNING_VERDICTS_KEY, unlogged_key_sources, without_unlogged_keys
 from gateway.logreaders import (
     LogCounts,
     gzip_was_cut,
@@ -42,7 +42,15 @@ from gateway.logreaders import (
     open_log,
     tlog_events,
 )
-from gateway.pipeline import USED_NMEA, ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
+from gateway.pipeline import (
+    SIGNING_REJECTED_TOPIC,
+    USED_NMEA,
+    ControlEvent,
+    Output,
+    Pipeline,
+    PipelineSpec,
+    RawEvent,
+)
 from observers.factory import (
     OBSERVER_PARAMS,
     OBSERVER_TYPES,
@@ -53,6 +61,7 @@ from observers.factory import (
     with_defaults,
 )
 from observers.passive_tuning import PassiveTuning
+from wire.codecs import mavlink as mv
 from wire.mcap.reader import read_messages, read_metadata
 from wire.mcap.writer import McapLogWriter, raw_mavlink_record, raw_nmea_record
 from wire.messages import SIM_METADATA, Estimate, Message, RawMavlink, RawNmea, encoder_of
@@ -434,18 +443,62 @@ def _as_replayed(tables: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def unchecked_signatures(inputs: list[Input]) -> dict[str, dict[str, int]]:
-    """The sources of the logged config `build_config` replays whose MAVLink signing key the log does not
-    hold (`gateway.config.logged`): their frames are replayed with their signatures unchecked. Per source,
-    the frames the live gateway rejected for signing (``bad_signature``, ``unsigned``), from the last
-    ``/dp/status`` of the logs: those the replay takes and the live run did not (none: the same frames)."""
+def _unlogged_key_sources(inputs: list[Input]) -> tuple[list[str], bool]:
+    """The sources of the logged config `build_config` replays whose signing key the log does not hold
+    (`gateway.config.logged`), and whether the log records the live gateway's verdicts on their frames
+    (`SIGNING_VERDICTS_KEY` in its config record; older logs do not)."""
     for inp in inputs:
         if inp.kind == "mcap" and (tables := logged_config(inp.path)) is not None:
-            names = unlogged_key_sources(tables)
-            break
-    else:
-        return {}
-    if not names:
+            meta = _logged(inp.path, CONFIG_METADATA) or {}
+            return unlogged_key_sources(tables), SIGNING_VERDICTS_KEY in meta
+    return [], False
+
+
+@dataclass(frozen=True)
+class SigningVerdicts:
+    """The live gateway's verdicts on the frames of its signed links, as a log records them
+    (`/raw/mavlink_rejected/<source>`), for a replay without the keys.
+
+    ``tables``: per source, (peer, chunk receive time ns) → the (offset, digest, reason) of each frame of
+    that chunk it refused (`SourceSpec.logged_verdicts`); ``counts``: per source, the refusals by reason,
+    as the live gateway counted them."""
+
+    tables: dict[str, dict[tuple[str, int], tuple[mv.LoggedVerdict, ...]]]
+    counts: dict[str, dict[str, int]]
+
+
+def logged_signing_verdicts(inputs: list[Input]) -> SigningVerdicts | None:
+    """The verdicts the logs record for the sources whose key they do not hold; None for a log written
+    before gateways recorded them (its signed links are then replayed unchecked: `unchecked_signatures`).
+    Reads only the verdict channels (rejections are rare: a few records)."""
+    names, recorded = _unlogged_key_sources(inputs)
+    if not names or not recorded:
+        return None
+    tables: dict[str, dict[tuple[str, int], list[mv.LoggedVerdict]]] = {name: {} for name in names}
+    counts: dict[str, dict[str, int]] = {name: dict.fromkeys(mv.SIGNING_REASONS, 0) for name in names}
+    logs = [inp.path for inp in inputs if inp.kind == "mcap"]
+    topics = [SIGNING_REJECTED_TOPIC + name for name in names]
+    for topic, _, _, p in read_messages(logs, topics):
+        name = topic[len(SIGNING_REJECTED_TOPIC) :]
+        reason = p.get("reason")
+        if reason not in mv.SIGNING_REASONS:
+            continue  # (a reason of a later version: not one this replay can apply)
+        chunk = (str(p.get("peer", "")), int(p["stamp_ns"]))
+        tables[name].setdefault(chunk, []).append((int(p["offset"]), str(p["digest"]), reason))
+        counts[name][reason] += 1
+    return SigningVerdicts(
+        {name: {chunk: tuple(v) for chunk, v in t.items()} for name, t in tables.items()}, counts
+    )
+
+
+def unchecked_signatures(inputs: list[Input]) -> dict[str, dict[str, int]]:
+    """The sources of the logged config `build_config` replays whose MAVLink signing key the log does not
+    hold (`gateway.config.logged`) and whose live verdicts it does not record either (a log written before
+    gateways recorded them): their frames are replayed with their signatures unchecked. Per source, the
+    frames the live gateway rejected for signing (``bad_signature``, ``unsigned``), from the last
+    ``/dp/status`` of the logs: those the replay takes and the live run did not (none: the same frames)."""
+    names, recorded = _unlogged_key_sources(inputs)
+    if not names or recorded:
         return {}
     last: dict[str, Any] = {}
     logs = [inp.path for inp in inputs if inp.kind == "mcap"]
@@ -526,6 +579,7 @@ def build_pipeline(
     *,
     foxglove_channels: bool = True,
     controller: bool = False,
+    signing_verdicts: SigningVerdicts | None = None,
 ) -> Pipeline:
     """The live pipeline for ``config`` with the observers of ``specs``; ``foxglove_channels=False`` leaves
     out the Foxglove-native channels. Estimation only unless ``controller``: replay sends no command
@@ -534,12 +588,24 @@ def build_pipeline(
     drove the thrusters. ``controller=True`` is for a dpgw log replayed with its own config: the live
     gateway's controller then did command the vessel, and its state is part of what the observer saw
     (the wind feed-forward's load, the commanded τ when feedback was stale), so the replay keeps it to
-    reproduce the live estimates; the commands it recomputes go to the output log only."""
+    reproduce the live estimates; the commands it recomputes go to the output log only.
+
+    ``signing_verdicts`` (`logged_signing_verdicts`): a signed link whose key the log does not hold
+    refuses the frames the live gateway refused, for the same reasons, and takes the others."""
     spec = dataclasses.replace(PipelineSpec.from_config(config), foxglove_channels=foxglove_channels)
     # a link signed with a key the config gives (a log written before logs left keys out, or --config):
     # the logged frames' signatures are checked against the log's own time, not this host's clock
+    tables = signing_verdicts.tables if signing_verdicts is not None else {}
     spec = dataclasses.replace(
-        spec, sources=tuple(dataclasses.replace(s, signatures_from_a_log=True) for s in spec.sources)
+        spec,
+        sources=tuple(
+            dataclasses.replace(
+                s,
+                signatures_from_a_log=True,
+                logged_verdicts=tables.get(s.name) if s.signing_key is None else None,
+            )
+            for s in spec.sources
+        ),
     )
     if specs:
         # Only the observers change: every other part of the config's pipeline (reference checks,
@@ -682,8 +748,11 @@ def run_replay(
     result.restarts = pipeline.restarts
     now = pipeline.last_ns
     status = pipeline.status_message(now)
+    unmatched = pipeline.unmatched_verdicts()
     for name, c in status.sources.items():
         warned = {f"warning {k}": v for k, v in c.warnings.items()}  # (used: apart from the rejects)
+        if unmatched.get(name):  # logged verdicts that found no frame: those frames were taken unchecked
+            warned["warning signing_verdict_unmatched"] = unmatched[name]
         result.counts[f"source {name}"] = {"received": c.received, **c.rejected, **warned}
     for inp in inputs:
         covered = [source_spans[src] for src in inp.sources() if src in source_spans]

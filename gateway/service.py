@@ -43,9 +43,9 @@ import zenoh
 
 from gateway.bus import JSON, REDIAL_S, Dialler, UnreachableError, command_acl, make_config, open_session
 from gateway.config import GatewayConfig, ZenohConfig, config_notes, wind_feedforward_line
-from gateway.config.logged import for_log
+from gateway.config.logged import SIGNING_VERDICTS_KEY, for_log
 from gateway.outputs import InputSink, OutputSink, RawSentenceSink
-from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
+from gateway.pipeline import SIGNING_REJECTED_TOPIC, ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from gateway.sim_time import SimTime
 from gateway.sources import Chunk, Source, open_source
 from gateway.wall_time import WallTime
@@ -266,6 +266,8 @@ class GatewayService:
                 meta = {"vessel": self.config.vessel.name, "prefix": self.prefix}
                 if self.config_tables is not None:  # lets replay rebuild exactly this pipeline (no keys)
                     meta["json"] = json.dumps(for_log(self.config_tables))
+                # without the keys, a replay takes this log's verdicts on the signed links' frames
+                meta[SIGNING_VERDICTS_KEY] = f"{SIGNING_REJECTED_TOPIC}<source>"
                 self.log.add_metadata("dpgw.config", meta)
         except BaseException:
             self.close()

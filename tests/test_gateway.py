@@ -103,8 +103,9 @@ def test_the_demo_thruster_link_is_signed_with_a_key_the_log_does_not_hold(demo_
     """The demo's MAVLink thruster link is signed both ways with a key made for the run: no UNSIGNED
     warning; every feedback frame the gateway logged carries a signature (the drives' link id 0) and the
     gateway rejected none; the signed drives took the gateway's commands and rejected none; the log's
-    config says the key was not logged and no 64-hex-character key is anywhere in its metadata; `dpgw
-    replay` says it replayed the link's frames with signatures unchecked, the same frames as live."""
+    config says the key was not logged and no 64-hex-character key is anywhere in its metadata, and that
+    the log records the gateway's verdicts instead; `dpgw replay` says it applied them (none: the same
+    frames as live) rather than checking signatures."""
     import base64
     import re
 
@@ -128,18 +129,19 @@ def test_the_demo_thruster_link_is_signed_with_a_key_the_log_does_not_hold(demo_
     logged = next(s for s in logged_config(log)["sources"] if s["name"] == "thrusters")  # type: ignore[index]
     assert logged["signing_key"] == "not logged" and "allow_unsigned" not in logged
     assert not re.search(r"[0-9a-fA-F]{64}", json.dumps(read_metadata(log)))
+    assert "signing_verdicts" in dict(read_metadata(log))["dpgw.config"]
     run = subprocess.run(
         [sys.executable, "-m", "dpgw", "replay", str(log), "--out", str(log.with_name("signed-replay.mcap")),
          "--json"],
         capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert run.returncode == 0, run.stderr
-    assert json.loads(run.stdout)["signatures_unchecked"] == {
-        "thrusters": {"bad_signature": 0, "unsigned": 0}
-    }
-    assert (
-        "thrusters: MAVLink signatures not checked" in run.stderr and "the same frames as live" in run.stderr
-    )
+    replayed = json.loads(run.stdout)
+    assert replayed["signature_verdicts"] == {"thrusters": {"bad_signature": 0, "unsigned": 0}}
+    assert replayed["signatures_unchecked"] == {}
+    assert "thrusters: MAVLink signatures not checked" in run.stderr
+    assert "verdicts, recorded in the log, applied instead" in run.stderr
+    assert "the same frames as live" in run.stderr
 
 
 @pytest.mark.slow  # the demo fixture: 150 s of sea through Zenoh, ~20 s

@@ -68,6 +68,7 @@ __all__ = [
     "SceneEntity",
     "SceneUpdate",
     "Setpoint",
+    "SigningRejection",
     "SimClock",
     "SourceStatus",
     "Status",
@@ -893,6 +894,56 @@ class RawMavlink(Message, kw_only=True):
     ] = ""
 
 
+class SigningRejection(Message, kw_only=True):
+    """A MAVLink frame the gateway refused for its signature, on a source with a signing key (MCAP
+    `/raw/mavlink_rejected/<source>`): the gateway's verdict, which a replay without the key (a log never
+    holds it) applies to the same frame. Logged only for refused frames; accepted frames leave nothing."""
+
+    TITLE = "dpgw.SigningRejection"
+
+    stamp_ns: Annotated[
+        int,
+        doc(
+            "Receive time of the chunk whose bytes completed the frame: the log time of that chunk's "
+            "`/raw/mavlink/<source>` record.",
+            "ns (UTC)",
+        ),
+    ]
+    source: Annotated[str, doc("Source name from the configuration.")]
+    reason: Annotated[
+        Literal["bad_signature", "unsigned"],
+        doc(
+            "`bad_signature`: signed with another key, or a timestamp not newer than the stream's last (a "
+            "replayed frame); `unsigned`: no signature on a link that requires one. Counted under the same "
+            "reason in the source's `rejected`."
+        ),
+    ]
+    offset: Annotated[
+        int,
+        doc(
+            "Where the frame's first byte is in that chunk (bytes); negative when it began in an earlier "
+            "chunk of the same sender (a frame split across reads)."
+        ),
+    ]
+    digest: Annotated[
+        str,
+        doc("First 8 bytes of the frame's SHA-256 (16 hex digits): a replay checks it is the same frame."),
+    ]
+    system_id: Annotated[int, doc("The frame's system id (header).")]
+    component_id: Annotated[int, doc("The frame's component id (header).")]
+    seq: Annotated[int, doc("The frame's sequence number (header).")]
+    msg_id: Annotated[int, doc("The frame's message id.")]
+    link_id: Annotated[int | None, doc("Signing link id; left out for an unsigned frame.")] = None
+    signature_timestamp: Annotated[
+        int | None,
+        doc("Signing timestamp, 10 µs units since 2015-01-01 UTC; left out for an unsigned frame."),
+    ] = None
+    peer: Annotated[
+        str,
+        doc("The sender (`host:port`) where one source hears several (UDP); left out otherwise."),
+    ] = ""
+
+
 class Setpoint(Message, kw_only=True):
     """Position/heading setpoint as received on Zenoh `<prefix>/setpoint` (logged so replay sees it):
     either north_m/east_m (local NED) or lat_deg/lon_deg, with heading_deg."""
@@ -1004,6 +1055,12 @@ TOPICS: tuple[Topic, ...] = (
     Topic("/raw/nmea/", RawNmea, "`/raw/nmea/<source>`: every NMEA chunk as received, valid or not"),
     Topic(
         "/raw/mavlink/", RawMavlink, "`/raw/mavlink/<source>`: every MAVLink frame as received, valid or not"
+    ),
+    Topic(
+        "/raw/mavlink_rejected/",
+        SigningRejection,
+        "`/raw/mavlink_rejected/<source>`: each frame of a signed link refused for its signature (none for "
+        "accepted frames), so that a replay without the key refuses the same ones",
     ),
 )
 

@@ -4,8 +4,9 @@ A gateway log carries the config it ran with (MCAP metadata ``dpgw.config``) so 
 rebuilds the same pipeline. A log is shared, copied and attached to reports: a MAVLink ``signing_key``
 in it would let anyone who reads the log drive the vessel's thrusters. So the key is replaced by
 `KEY_NOT_LOGGED` (`for_log`), and a replay rebuilds the source without a key (`without_unlogged_keys`):
-replay commands no thrusters, and it takes the logged frames' signatures unchecked (docs/gateway.md,
-"Replay of a signed link").
+replay commands no thrusters. In place of checking signatures, the replay applies the live gateway's
+verdicts, which the log records (`SIGNING_VERDICTS_KEY`); a log from before has none, and its frames are
+replayed with their signatures unchecked (docs/gateway.md, "Replay of a signed link").
 """
 
 from __future__ import annotations
@@ -14,6 +15,12 @@ from typing import Any
 
 KEY_NOT_LOGGED = "not logged"
 """What a log's config holds in place of a source's ``signing_key``."""
+
+SIGNING_VERDICTS_KEY = "signing_verdicts"
+"""Key of the log's config record (MCAP metadata ``dpgw.config``) saying that the log records the live
+gateway's verdict on every frame of a signed link it refused for signing (`/raw/mavlink_rejected/<source>`,
+none for accepted frames), so that a replay without the key refuses the same frames. A log without it was
+written before gateways recorded them."""
 
 
 def for_log(tables: dict[str, Any]) -> dict[str, Any]:

@@ -351,6 +351,54 @@ _V1, _V2 = _dpgw.PROTOCOL_MARKER_V1, _dpgw.PROTOCOL_MARKER_V2
 _MARKERS = frozenset((_V1, _V2))
 
 
+SIGNING_REASONS = ("bad_signature", "unsigned")
+"""Why :class:`FrameParser` refuses a complete frame for signing (the frame is genuine, its CRC right)."""
+
+
+def frame_digest(frame: bytes | bytearray) -> str:
+    """The first 8 bytes of a frame's SHA-256, in hexadecimal: which frame a logged verdict is about (a
+    replay checks it against the frame it finds at the logged offset)."""
+    return hashlib.sha256(frame).hexdigest()[:16]
+
+
+@dataclass(frozen=True, slots=True)
+class FrameIds:
+    """What a frame's header and signature block say of it (MAVLink 1 or 2; no decoding)."""
+
+    system_id: int
+    component_id: int
+    seq: int
+    msg_id: int
+    link_id: int | None  # signed MAVLink 2 frames only
+    signature_timestamp: int | None  # 10 µs units since 2015 (`signing_timestamp`), signed frames only
+
+
+def frame_ids(frame: bytes | bytearray) -> FrameIds:
+    """System, component, sequence, message id and signing link and timestamp of a complete frame."""
+    if frame[0] != _V2:  # MAVLink 1: STX, len, seq, sys, comp, msgid
+        return FrameIds(frame[3], frame[4], frame[2], frame[5], None, None)
+    msg_id = frame[7] | (frame[8] << 8) | (frame[9] << 16)
+    if not frame[2] & _dpgw.MAVLINK_IFLAG_SIGNED:
+        return FrameIds(frame[5], frame[6], frame[4], msg_id, None, None)
+    timestamp = int.from_bytes(frame[-12:-6], "little")
+    return FrameIds(frame[5], frame[6], frame[4], msg_id, frame[-13], timestamp)
+
+
+@dataclass(frozen=True, slots=True)
+class SigningReject:
+    """A complete frame refused for signing: ``reason`` (one of `SIGNING_REASONS`), ``offset`` where its
+    first byte is in the chunk whose :meth:`FrameParser.feed` completed it (negative: it began in an
+    earlier chunk of the same sender, held back), and the frame's bytes."""
+
+    reason: str
+    offset: int
+    frame: bytes
+
+
+LoggedVerdict = tuple[int, str, str]
+"""A logged refusal of one frame of a chunk: (offset in the chunk, `frame_digest`, reason)."""
+
+
 class FrameParser:
     """Incremental, robust MAVLink 1/2 frame parser for one incoming byte stream (one source).
 
@@ -376,15 +424,29 @@ class FrameParser:
 
     :attr:`skipped_bytes` counts bytes dropped outside valid frames. Pass a ``mav`` from :func:`encoder`
     configured with :func:`setup_signing` to check signatures; without a key, signed frames are accepted
-    unchecked (as pymavlink does). Decoded messages keep their raw frame (``msg.get_msgbuf()``) for logging.
+    unchecked (as pymavlink does), unless :attr:`verdicts` says otherwise. Decoded messages keep their raw
+    frame (``msg.get_msgbuf()``) for logging.
+
+    With ``keep_signing_rejects``, every frame refused for signing (``bad_signature``, ``unsigned``) is
+    also kept in :attr:`signing_rejects` (a `SigningReject`: the reason, where the frame starts in the
+    chunk whose :meth:`feed` completed it, the frame) until the caller takes them: the gateway logs them,
+    so that a replay without the key can refuse the same frames. Accepted frames cost nothing for it.
     """
 
-    def __init__(self, mav: MAVLink | None = None) -> None:
+    def __init__(self, mav: MAVLink | None = None, *, keep_signing_rejects: bool = False) -> None:
         self.mav: MAVLink = mav if mav is not None else encoder(0, 0)
         self.rejected: Counter[str] = Counter()
         self.skipped_bytes = 0
         self.received = 0
+        self.signing_rejects: list[SigningReject] | None = [] if keep_signing_rejects else None
+        """The frames refused for signing since the caller last emptied it (None: not kept)."""
+        self.verdicts: list[LoggedVerdict] | None = None
+        """Without a key: the logged verdicts on the frames of the next chunk (a replay of a signed link,
+        whose log holds no key): a frame found here, at its offset and with its digest, is refused with
+        the logged reason, and the verdict is taken off the list; the others are accepted unchecked. What
+        is left after :meth:`feed` matched no frame. Ignored when the parser has a key (it checks)."""
         self._buf = bytearray()
+        self._held = 0  # bytes held back before the chunk being scanned: frame offsets count from its end
 
     @property
     def pending(self) -> int:
@@ -393,12 +455,14 @@ class FrameParser:
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[MAVLinkMessage]:
         """Add bytes; return the messages whose frames are now complete and valid, in stream order."""
+        self._held = len(self._buf)
         self._buf.extend(data)
         return self._scan(final=False)
 
     def flush(self) -> list[MAVLinkMessage]:
         """No more data is coming (end of file, or a line idle for longer than a frame takes): resolve what
         is held back, treating an incomplete frame as a false start, and empty the buffer."""
+        self._held = len(self._buf)
         return self._scan(final=True)
 
     def _scan(self, final: bool) -> list[MAVLinkMessage]:
@@ -429,13 +493,18 @@ class FrameParser:
             assert size is not None
             frame = bytearray(buf[pos : pos + size])
             pos += size
-            if not self._signature_matches(frame):
-                self.rejected["bad_signature"] += 1
+            refused = self._signing_verdict(frame, pos - size)
+            if refused is not None:
+                self._refuse(refused, frame, pos - size)
                 continue
             try:
                 msg = self.mav.decode(frame)
             except _dpgw.MAVError:
-                self.rejected[self._signing_reason(frame)] += 1
+                reason = self._signing_reason(frame)
+                if reason == "undecodable":
+                    self.rejected[reason] += 1
+                else:
+                    self._refuse(reason, frame, pos - size)
                 continue
             except Exception:  # a payload the generated class cannot build: count it, keep going
                 self.rejected["undecodable"] += 1
@@ -463,14 +532,39 @@ class FrameParser:
         (wire_crc,) = struct.unpack_from("<H", buf, payload_end)
         return None if crc.crc == wire_crc else "bad_crc"
 
-    def _signature_matches(self, frame: bytearray) -> bool:
-        """False for a signed frame whose signature does not match the configured key. Checked before
-        pymavlink's decode, which records a stream's timestamp before comparing signatures: a forged frame
-        with a future timestamp would otherwise make the genuine frames of that stream look replayed."""
+    def _signing_verdict(self, frame: bytearray, start: int) -> str | None:
+        """``bad_signature`` for a signed frame whose signature does not match the configured key, else
+        None (pymavlink's decode checks the rest: timestamps, unsigned frames). Checked before that decode,
+        which records a stream's timestamp before comparing signatures: a forged frame with a future
+        timestamp would otherwise make the genuine frames of that stream look replayed. Without a key, the
+        logged verdict on the frame at ``start`` (:attr:`verdicts`), if any."""
         key = self.mav.signing.secret_key
-        if key is None or frame[0] != _V2 or not frame[2] & _dpgw.MAVLINK_IFLAG_SIGNED:
-            return True
-        return hashlib.sha256(key + bytes(frame[:-6])).digest()[:6] == bytes(frame[-6:])
+        if key is None:
+            return None if self.verdicts is None else self._logged_verdict(frame, start - self._held)
+        if frame[0] != _V2 or not frame[2] & _dpgw.MAVLINK_IFLAG_SIGNED:
+            return None
+        if hashlib.sha256(key + bytes(frame[:-6])).digest()[:6] == bytes(frame[-6:]):
+            return None
+        return "bad_signature"
+
+    def _logged_verdict(self, frame: bytearray, offset: int) -> str | None:
+        verdicts = self.verdicts
+        assert verdicts is not None
+        digest = None
+        for k, (at, logged_digest, reason) in enumerate(verdicts):
+            if at != offset:
+                continue
+            if digest is None:
+                digest = frame_digest(frame)
+            if logged_digest == digest:
+                del verdicts[k]
+                return reason
+        return None
+
+    def _refuse(self, reason: str, frame: bytearray, start: int) -> None:
+        self.rejected[reason] += 1
+        if self.signing_rejects is not None:
+            self.signing_rejects.append(SigningReject(reason, start - self._held, bytes(frame)))
 
     def _signing_reason(self, frame: bytearray) -> str:
         if self.mav.signing.secret_key is None:
