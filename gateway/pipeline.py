@@ -377,6 +377,7 @@ class Pipeline:
         sentences (Keelson's ``raw_nmea0183``) gets them without framing the bytes a second time. Not
         called for chunks that arrive already framed (replay's checked lines) or decoded (records)."""
         self._parsers: dict[tuple[str, str], mv.FrameParser] = {}
+        self._verifiers: dict[str, mv.MAVLink] = {}  # signed MAVLink source -> its senders' one verifier
         self._parser_seen: dict[tuple[str, str], Counter[str]] = {}
         self._parser_rejects: dict[tuple[str, str], int] = {}  # sum of _parser_seen, the fast check
         self._parser_skipped: dict[tuple[str, str], int] = {}  # its skipped_bytes already counted
@@ -505,18 +506,24 @@ class Pipeline:
         new._events.append(event)
         return new
 
-    @staticmethod
-    def _mavlink_parser(s: SourceSpec) -> mv.FrameParser:
+    def _mavlink_parser(self, s: SourceSpec) -> mv.FrameParser:
+        """A frame parser for a new sender on ``s``. A signed link's senders share one verifier (one
+        signing state: the newest timestamp seen per link, system and component), so a frame is taken
+        once, whoever sends it: with a verifier per sender, a genuine frame recorded on the network and
+        re-sent from another address within the replay window was taken again — and the thruster
+        commands would then go to that address (`mavlink_peer`)."""
         if s.signing_key is None:
             return mv.FrameParser(keep_signing_rejects=s.logged_verdicts is not None)
-        mav = mv.encoder(src_system=255, src_component=190)
-        mv.setup_signing(
-            mav,
-            s.signing_key,
-            sign_outgoing=False,
-            allow_unsigned=s.allow_unsigned,
-            initial_timestamp=0 if s.signatures_from_a_log else None,  # None: this host's clock
-        )
+        mav = self._verifiers.get(s.name)
+        if mav is None:
+            mav = self._verifiers[s.name] = mv.encoder(src_system=255, src_component=190)
+            mv.setup_signing(
+                mav,
+                s.signing_key,
+                sign_outgoing=False,
+                allow_unsigned=s.allow_unsigned,
+                initial_timestamp=0 if s.signatures_from_a_log else None,  # None: this host's clock
+            )
         return mv.FrameParser(mav, keep_signing_rejects=True)
 
     # --- events in ------------------------------------------------------------------------------------------

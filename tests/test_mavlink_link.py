@@ -175,6 +175,42 @@ def test_a_drive_that_reboots_takes_the_gateways_signed_commands(signed_link: Li
     )
 
 
+def test_a_genuine_frame_resent_from_another_address_is_refused_as_a_replay(signed_link: Link) -> None:
+    """Someone on the network records the drive's signed frames and sends each again from another address
+    once the gateway has it. Each sender had its own verifier, whose replay check started empty: every
+    copy was taken (as new frames of a known stream), and the thruster commands went to the last sender of
+    an accepted frame, the copier. The senders of a source now share one verifier: the copies are refused
+    as replays (``bad_signature``), counted, and the copier gets no command."""
+    link = signed_link
+    gps, drive, copier = link.udp(), link.udp(), link.udp()
+    tx = mv.encoder(*DRIVE)
+    mv.setup_signing(tx, KEY, link_id=3)
+    rx = mv.encoder(0, 0)
+    mv.setup_signing(rx, KEY, sign_outgoing=False)
+    counters = link.service.pipeline.counters["thr"]
+    got: list[Any] = []
+    to_copier = bytearray()
+    copies = 0
+
+    def exchange() -> bool:
+        nonlocal copies
+        link.gps(gps)
+        frame = mv.azimuth_status_frame(tx, 0, 1, 0.1, 20.0, 0.0, 0)
+        before = counters.received
+        drive.sendto(frame, ("127.0.0.1", link.thr_port))
+        if wait_for(lambda: counters.received > before, 10.0, 0.002):  # the gateway has the original
+            copier.sendto(frame, ("127.0.0.1", link.thr_port))
+            copies += 1
+        got.extend(rx.parse_buffer(drained(drive)) or [])
+        to_copier.extend(drained(copier))
+        return sum(m.get_type() == "AZIMUTH_THRUSTER_COMMAND" for m in got) >= 30 and copies >= 20
+
+    assert wait_for(exchange, 60.0, 0.05), f"the drive received {len(got)} frames, {copies} copies sent"
+    assert wait_for(lambda: counters.rejected["bad_signature"] >= copies, 10.0, 0.01), dict(counters.rejected)
+    assert counters.rejected["bad_signature"] == copies  # each copy refused, no original
+    assert not to_copier, f"{len(to_copier)} bytes of thruster commands went to the copier"
+
+
 def test_feedback_over_udp_is_used_or_counted_frame_by_frame(tmp_path: Path) -> None:
     """A drive's feedback on a real UDP port, with what a shared, noisy link carries: a MAVLink 1 heartbeat,
     another system's and another component's status, a thruster the vessel does not have, an infinite
