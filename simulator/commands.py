@@ -17,13 +17,17 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from simulator.transports import Sink
-from wire.codecs.mavlink import AZIMUTH_THRUSTER_COMMAND_ID, FrameParser, dialect, encoder, setup_signing
+from wire.codecs.mavlink import (
+    AZIMUTH_THRUSTER_COMMAND_ID,
+    SIGNING_REASONS,  # a drive with a key: a frame unsigned, or signed wrongly or replayed
+    FrameParser,
+    dialect,
+    encoder,
+    setup_signing,
+)
 
 log = logging.getLogger(__name__)
 
-SIGNING_REASONS = ("unsigned", "bad_signature")
-"""`FrameParser.rejected` reasons of a drive with a key: a frame without a signature, or with a wrong one
-(another key, altered bytes, or a timestamp older than the stream's last: a replayed frame)."""
 
 if TYPE_CHECKING:
     from simulator.sensors import ThrusterFeedbackConfig
