@@ -175,6 +175,7 @@ def run(args: argparse.Namespace) -> int:
         build_config,
         build_pipeline,
         carried_metadata,
+        keyless_mavlink_sources,
         logged_settle_s,
         logged_signing_verdicts,
         open_inputs,
@@ -251,8 +252,10 @@ def run(args: argparse.Namespace) -> int:
             raise ReplayError(f"--observer: label '{twice}' given twice (name each: SPEC@label)")
         own_controller = runs_its_own_controller(inputs, own_config=own_config(args))
         # a signed link's key is not in the log: its frames are refused where the live gateway refused
-        # them (the verdicts the log records), or taken unchecked from an older log that has none
-        verdicts = logged_signing_verdicts(inputs) if args.config is None else None
+        # them (the verdicts the log records), or taken unchecked from an older log that has none; a
+        # --config that gives the key checks the signatures instead
+        keyless = keyless_mavlink_sources(config)
+        verdicts = logged_signing_verdicts(inputs, keyless)
         pipeline = build_pipeline(
             config,
             specs,
@@ -333,7 +336,7 @@ def run(args: argparse.Namespace) -> int:
     # a signed link's key is not in the log (docs/gateway.md, "Replay of a signed link"): the live
     # gateway's verdicts applied, or (an older log) its frames taken with their signatures unchecked
     summary["signature_verdicts"] = verdicts.counts if verdicts is not None else {}
-    summary["signatures_unchecked"] = unchecked_signatures(inputs) if args.config is None else {}
+    summary["signatures_unchecked"] = unchecked_signatures(inputs, keyless)
     if args.report:
         written = _report(args, config.vessel.name, specs, result, evidence.new)
         summary["report"] = [str(p) for p in written]

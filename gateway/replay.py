@@ -24,7 +24,7 @@ import math
 import re
 import struct
 from collections import Counter
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Collection, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -443,15 +443,27 @@ def _as_replayed(tables: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _unlogged_key_sources(inputs: list[Input]) -> tuple[list[str], bool]:
-    """The sources of the logged config `build_config` replays whose signing key the log does not hold
-    (`gateway.config.logged`), and whether the log records the live gateway's verdicts on their frames
-    (`SIGNING_VERDICTS_KEY` in its config record; older logs do not)."""
+def _unlogged_key_sources(
+    inputs: list[Input], keyless: Collection[str] | None = None
+) -> tuple[list[str], bool]:
+    """The sources of the logged config whose signing key the log does not hold
+    (`gateway.config.logged`) — of those, only the ``keyless`` ones if given: the sources the replay's
+    config (a ``--config``) gives no key either — and whether the log records the live gateway's verdicts
+    on their frames (`SIGNING_VERDICTS_KEY` in its config record; older logs do not)."""
     for inp in inputs:
         if inp.kind == "mcap" and (tables := logged_config(inp.path)) is not None:
             meta = _logged(inp.path, CONFIG_METADATA) or {}
-            return unlogged_key_sources(tables), SIGNING_VERDICTS_KEY in meta
+            names = unlogged_key_sources(tables)
+            if keyless is not None:
+                names = [n for n in names if n in keyless]
+            return names, SIGNING_VERDICTS_KEY in meta
     return [], False
+
+
+def keyless_mavlink_sources(config: GatewayConfig) -> frozenset[str]:
+    """The MAVLink sources ``config`` gives no signing key: a replay with it takes their frames as the
+    log's verdicts say (`logged_signing_verdicts`), or unchecked (`unchecked_signatures`)."""
+    return frozenset(s.name for s in config.sources if s.protocol == "mavlink" and s.signing_key is None)
 
 
 @dataclass(frozen=True)
@@ -467,11 +479,14 @@ class SigningVerdicts:
     counts: dict[str, dict[str, int]]
 
 
-def logged_signing_verdicts(inputs: list[Input]) -> SigningVerdicts | None:
+def logged_signing_verdicts(
+    inputs: list[Input], keyless: Collection[str] | None = None
+) -> SigningVerdicts | None:
     """The verdicts the logs record for the sources whose key they do not hold; None for a log written
     before gateways recorded them (its signed links are then replayed unchecked: `unchecked_signatures`).
-    Reads only the verdict channels (rejections are rare: a few records)."""
-    names, recorded = _unlogged_key_sources(inputs)
+    Reads only the verdict channels (rejections are rare: a few records). ``keyless``: as
+    `_unlogged_key_sources`."""
+    names, recorded = _unlogged_key_sources(inputs, keyless)
     if not names or not recorded:
         return None
     tables: dict[str, dict[tuple[str, int], list[mv.LoggedVerdict]]] = {name: {} for name in names}
@@ -491,13 +506,15 @@ def logged_signing_verdicts(inputs: list[Input]) -> SigningVerdicts | None:
     )
 
 
-def unchecked_signatures(inputs: list[Input]) -> dict[str, dict[str, int]]:
+def unchecked_signatures(
+    inputs: list[Input], keyless: Collection[str] | None = None
+) -> dict[str, dict[str, int]]:
     """The sources of the logged config `build_config` replays whose MAVLink signing key the log does not
     hold (`gateway.config.logged`) and whose live verdicts it does not record either (a log written before
     gateways recorded them): their frames are replayed with their signatures unchecked. Per source, the
     frames the live gateway rejected for signing (``bad_signature``, ``unsigned``), from the last
     ``/dp/status`` of the logs: those the replay takes and the live run did not (none: the same frames)."""
-    names, recorded = _unlogged_key_sources(inputs)
+    names, recorded = _unlogged_key_sources(inputs, keyless)
     if not names or recorded:
         return {}
     last: dict[str, Any] = {}

@@ -376,3 +376,54 @@ def test_the_pipeline_counts_a_verdict_that_found_no_frame(tmp_path: Path) -> No
     assert pipeline.unmatched_verdicts() == {"thr": 1}
     records = [o.message for o in first if o.topic == "/raw/mavlink_rejected/thr"]
     assert [(r.reason, r.offset, r.peer, r.stamp_ns) for r in records] == [("bad_signature", 0, peer, t_ns)]
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    return repr(v)
+
+
+def _config_without_the_key(log: Path, path: Path, key: bytes | None) -> None:
+    """The log's own config as an analyst's ``--config`` file: the signed link with ``key``, or none."""
+    from gateway.replay import logged_config
+
+    tables = logged_config(log)
+    assert tables is not None
+    lines: list[str] = []
+    for section, body in tables.items():
+        if section == "sources":
+            for src in body:
+                src = {k: v for k, v in src.items() if k not in ("signing_key", "allow_unsigned", "commands")}
+                if key is not None and src["protocol"] == "mavlink":
+                    src["signing_key"] = key.hex()
+                lines += ["[[sources]]", *(f"{k} = {_toml_value(v)}" for k, v in src.items())]
+        elif isinstance(body, dict) and section not in ("zenoh", "log"):
+            lines += [f"[{section}]", *(f"{k} = {_toml_value(v)}" for k, v in body.items())]
+    path.write_text("\n".join(lines) + "\n")
+
+
+@pytest.mark.slow  # the live gateway of the fixture, and two replays
+def test_a_config_without_the_key_still_refuses_what_the_live_gateway_refused(
+    live: LiveRun, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`--config` with the vessel's config as an analyst has it (no key): the log's verdicts are applied
+    as without --config (before, with --config the frames were taken unchecked and nothing was said).
+    With the key in the config the signatures are checked instead, and the same frames are refused."""
+    for key, label in ((None, "keyless"), (KEY, "keyed")):
+        config = tmp_path / f"{label}.toml"
+        _config_without_the_key(live.log, config, key)
+        out = tmp_path / f"{label}.mcap"
+        assert main(["replay", str(live.log), "--config", str(config), "--out", str(out), "--json"]) == 0
+        captured = capsys.readouterr()
+        summary = json.loads(captured.out)
+        counts = summary["counts"]["source thrusters"]
+        assert {k: counts.get(k, 0) for k in live.rejected} == live.rejected, (label, counts)
+        assert counts["received"] == live.received, label
+        assert summary["signatures_unchecked"] == {}, label
+        expected = {"thrusters": {"bad_signature": 6, "unsigned": 3}} if key is None else {}
+        assert summary["signature_verdicts"] == expected, label
