@@ -500,13 +500,21 @@ class GatewayService:
 
     def drain(self) -> None:
         """Handle whatever is already queued (used at shutdown so nothing received is dropped); what is
-        still held for want of a simulation clock stays unhandled (there is no time to stamp it with)."""
+        still held for want of a simulation clock stays unhandled (there is no time to stamp it with).
+        Then the last status goes out and into the log, with every count of the run: the periodic one
+        (1 Hz) leaves up to a second of the run out, and a log's last status is what a replay reports of
+        the live run (e.g. the frames the live gateway refused for signing)."""
         while True:
             try:
                 item = self._queue.get_nowait()
             except queue.Empty:
-                return
+                break
             self._take(item)
+        if self.pipeline.last_ns:
+            try:
+                self._emit([self.pipeline.status(self.pipeline.last_ns, self._alarms())])
+            except Exception:
+                self._internal_error("status", "the last status")
 
     def _alarms(self) -> list[str]:
         alarms = [  # with what the OS last said: "port ... failed", "... not an address of this computer"

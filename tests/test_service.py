@@ -132,6 +132,56 @@ def test_a_bug_on_one_chunk_is_counted_logged_and_the_service_goes_on(
     assert sum(t > max(poisoned) for t in estimates) >= 5
 
 
+def test_the_logs_last_status_holds_every_count_of_the_run(tmp_path: Path) -> None:
+    """The status goes out at ``[status] rate_hz``; at shutdown (`drain`) a last one goes out and into the
+    log with every chunk handled. Before, a log's last status was the last periodic one: up to a period of
+    the run left out (here, with a status every 10 s, none at all), and a replay of a signed link's older
+    log reports from it what the live gateway refused."""
+    udp, zport = free_port(socket.SOCK_DGRAM), free_port()
+    log_path = tmp_path / "live.mcap"
+    tables = {
+        "vessel": {"name": "mss_supply"},
+        "datum": {"lat_deg": 59.4, "lon_deg": 10.5},
+        "sources": [
+            {
+                "name": "mux",
+                "url": f"udp://127.0.0.1:{udp}",
+                "protocol": "nmea",
+                "roles": ["position", "heading"],
+            }
+        ],
+        "observer": {"wave_period_s": 9.0},
+        "zenoh": {"listen": [f"tcp/127.0.0.1:{zport}"], "multicast_scouting": False},
+        "status": {"rate_hz": 0.1},
+        "log": {"path": str(log_path)},
+    }
+    service = GatewayService(parse_config(tables, base_dir=tmp_path), config_tables=tables)
+    service.start()
+    loop = threading.Thread(target=service.run, name="consumer")
+    loop.start()
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sent = [0]
+
+    def send() -> None:
+        tx.sendto(burst(sent[0]) + b"$GPXXX,garbage*00\r\n", ("127.0.0.1", udp))
+        sent[0] += 1
+
+    counters = service.pipeline.counters["mux"]
+    try:
+        wait_for("20 bursts", lambda: counters.received >= 40, send=send)
+    finally:
+        service.stop_event.set()
+        loop.join(timeout=30)
+        service.drain()
+        tx.close()
+        service.close()
+    statuses = [p for _, _, _, p in read_messages(log_path, "/dp/status")]
+    assert statuses, "no status in the log"
+    last = statuses[-1]["sources"]["mux"]
+    assert last["received"] == counters.received and last["rejected"] == dict(counters.rejected)
+    assert sum(last["rejected"].values()) >= 20  # every burst's bad sentence, counted
+
+
 # --- the computer's clock stepped back ----------------------------------------------------------------
 
 
