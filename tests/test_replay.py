@@ -147,6 +147,41 @@ def test_usv_heading_glitches_are_what_the_rate_test_rejects() -> None:
     assert np.abs(ssa(np.diff(psi))).max() < math.radians(1.25)
 
 
+@pytest.mark.parametrize("vessel", ["cybership2", "mss_supply"])
+def test_usv_compass_spikes_keep_the_heading_out_of_use_only_while_they_last(vessel: str) -> None:
+    """The USV's compass spikes (202412051037: a one-sample spike and two bursts of 0.8-1.2 s) are
+    rejected and the heading is back in use on the second sample after each, with the small model the
+    replay help suggests for the USV (cybership2) as with mss_supply: never out of use longer than the
+    burst and 0.4 s, never more than 1.5 s, the observer not restarted and the estimate not stepping.
+    Before, a burst's values 0.6 s after the jump passed the jump test (its allowance grows at 10°/s)
+    and went into the observer although the compass was 'readmitting'; with cybership2 the estimate
+    then turned at 5-6°/s, dead-reckoned 21° off, and the observer restarted (largest step 21.5°)."""
+    path = need(USV / "202412051037.txt")
+    spikes = [t for t, _ in _hdt_spikes(path)]
+    inputs = open_inputs([path])
+    pipeline = build_pipeline(build_config(inputs, vessel=vessel), [ObserverSpec("passive", "passive", {})])
+    result = _run(inputs, pipeline, collect=["/dp/measurement", "/dp/estimate"])
+    assert result.restarts == 0
+    meas = result.collected["/dp/measurement"]
+    runs: list[tuple[float, float]] = []  # (start, end) time of day of each run of headings not in use
+    for m in meas:
+        t = (m["stamp_ns"] / 1e9) % 86400
+        if not m["valid"][2]:
+            if runs and runs[-1][1] < 0:
+                continue
+            runs.append((t, -1.0))
+        elif runs and runs[-1][1] < 0:
+            runs[-1] = (runs[-1][0], t)
+    assert len(runs) >= 3 and all(end > 0 for _, end in runs), runs
+    for start, end in runs:
+        near = [x for x in spikes if start - 0.5 <= x <= start + 2.0]
+        assert near, f"heading out of use at {start:.1f} s, not at a spike"
+        assert end - start <= 1.5, (start, end)
+        assert end - max(near) <= 0.6, (start, end, near)  # the last wrong value and two good ones
+    psi = np.array([e["eta"][2] for e in result.collected["/dp/estimate"]])
+    assert np.abs(ssa(np.diff(psi))).max() < math.radians(1.5)
+
+
 def test_two_usv_logs_a_day_apart_replay_without_locking_out_the_second() -> None:
     """Two sea-trial logs of the same USV replayed as one, 18 h apart: the second log's references come
     back after the estimate was lost, and the observer restarts from them. Before the restart rule the
