@@ -728,6 +728,11 @@ def _print(s: dict[str, Any]) -> None:
     for where, c in s["counts"].items():
         span = f"; {_span_words(spans[where])}" if where in spans else ""
         print(f"  {where}: " + ", ".join(f"{k} {v}" for k, v in c.items()) + span)
+        if c.get("comment"):
+            print(
+                f"    ({c['comment']} comment lines: lines beginning with #, a log's header as gpsd's test "
+                "logs have; not bad input, kept in the raw log)"
+            )
     for where, span in spans.items():
         if where not in s["counts"]:  # (an MCAP log: its counts are its sources')
             print(f"  {where}: {_span_words(span)}")

@@ -401,6 +401,54 @@ def write_text_log(path: Path, times: list[datetime], *, dup: int | None = None)
     path.write_text("".join(lines))
 
 
+def _replay_with_raw(path: Path, tmp_path: Path):  # type: ignore[no-untyped-def]
+    inputs = open_inputs([path])
+    config = build_config(inputs, vessel="mss_supply")
+    pipeline = build_pipeline(config, [ObserverSpec("passive", "passive", {})])
+    out = tmp_path / "out.mcap"
+    with McapLogWriter(out, flush_on_log_time=False) as w:
+        result = _run(inputs, pipeline, out=w)
+    raw = "".join(p["text"] + "\n" for t, _, _, p in read_messages(out) if t.startswith("/raw/nmea/"))
+    counts = next(c for where, c in result.counts.items() if where.startswith("source"))
+    return counts, raw
+
+
+def test_gpsd_comment_lines_are_counted_as_comments_not_garbage_and_logged_raw(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """gpsd's test logs begin with ``#`` lines (name, submitter, date, licence). Before, replay counted
+    each as garbage (saab-r4.log: 'garbage 4'); now as ``comment``, and the raw log keeps them."""
+    path = need(DATA / "gpsd-logs" / "saab-r4.log")
+    comments = [x for x in path.read_text(errors="replace").splitlines() if x.startswith("#")]
+    assert len(comments) == 4
+    counts, raw = _replay_with_raw(path, tmp_path)
+    assert counts["comment"] == len(comments)
+    assert "garbage" not in counts
+    for line in comments:
+        assert line in raw
+    from dpgw.cli import main  # the summary says what they are
+
+    assert main(["replay", str(path), "--vessel", "mss_supply", "--out", str(tmp_path / "s.mcap")]) == 0
+    assert "4 comment lines: lines beginning with #" in capsys.readouterr().out
+
+
+def test_comment_lines_in_a_generated_log_anywhere_and_holding_a_dollar(tmp_path: Path) -> None:
+    """A generated log with a header of comments, a comment between two cycles that quotes a sentence
+    (its ``$`` starts no sentence) and a line of real noise: the comments are counted as comments, the
+    noise as garbage, every cycle still gives its estimate, and the raw log holds every line."""
+    t0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
+    path = tmp_path / "commented.nmea"
+    write_text_log(path, [t0 + timedelta(seconds=k) for k in range(20)])
+    body = path.read_text().splitlines(keepends=True)
+    quoted = "# a fix read: " + body[0].strip()
+    lines = ["# Name: generated\r\n", "#\r\n", *body[:30], quoted + "\r\n", "noise\r\n", *body[30:]]
+    path.write_text("".join(lines))
+    counts, raw = _replay_with_raw(path, tmp_path)
+    assert counts["comment"] == 3 and counts["garbage"] == 1, counts
+    assert counts["received"] == len(body)  # every sentence still decoded
+    assert quoted in raw and "# Name: generated" in raw and "noise" in raw
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_a_paced_replay_stops_on_ctrl_c_or_sigterm_with_a_complete_output(
