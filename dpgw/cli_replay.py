@@ -68,7 +68,9 @@ EPILOG = (
     "Froude-scaled on a model (times / sqrt(scale): 0.84 s on 1:70 cybership2).\n"
     "every replay checks the measured wave peak against the wave frequency each\n"
     "observer used and warns, with a spec to re-run with, when they differ by\n"
-    "more than a factor 1.4\n"
+    "more than a factor 1.4, and the vessel against the log: motion faster than the\n"
+    "vessel makes (a clear peak above its wave band: a small craft replayed as a\n"
+    "ship) gives a line of advice naming --vessel and the built-ins that fit\n"
     "examples:\n"
     "  dpgw replay trial.mcap --out again.mcap                      # a gateway log, its own config\n"
     "  dpgw replay usv.txt --vessel cybership2 --observer passive:wave_period_s=1.6 \\\n"
@@ -331,6 +333,7 @@ def run(args: argparse.Namespace) -> int:
     summary = _summary(args, specs, result, wall)
     kinds = {s.label: (s.name, s.name in SCHEDULES_OMEGA0 or bool(s.params.get("adaptive"))) for s in specs}
     summary["wave_check"] = evidence.check(config.vessel.length_m, config.vessel.model_scale, kinds).as_dict()
+    summary["vessel_check"] = evidence.vessel_check(config.vessel).as_dict()
     summary["measurements"] = evidence.measured()
     summary["cut_logs"] = cut_logs(inputs)
     # a signed link's key is not in the log (docs/gateway.md, "Replay of a signed link"): the live
@@ -562,13 +565,9 @@ class _WaveEvidence:
 
         return both
 
-    def check(
-        self, vessel_length_m: float | None, model_scale: float | None, kinds: dict[str, tuple[str, bool]]
-    ) -> Any:
+    def _series(self) -> tuple[Any, Any]:
+        """Times (s from the first) and the measured η (N×3, NaN where not received)."""
         import numpy as np
-
-        from gateway.report.metrics import wave_band_for_length
-        from gateway.report.wave_check import check_wave_tuning
 
         t = (np.array(self.stamps, dtype=np.int64) - (self.stamps[0] if self.stamps else 0)) / 1e9
         # only what the fusion received, as the report's measurement: a DOF held between two samples of
@@ -578,8 +577,26 @@ class _WaveEvidence:
             np.array([[np.nan if v is None else v for v in e] for e in self.eta], dtype=float).reshape(-1, 3),
             self.new,
         )
+        return t, y
+
+    def check(
+        self, vessel_length_m: float | None, model_scale: float | None, kinds: dict[str, tuple[str, bool]]
+    ) -> Any:
+        import numpy as np
+
+        from gateway.report.metrics import wave_band_for_length
+        from gateway.report.wave_check import check_wave_tuning
+
+        t, y = self._series()
         w0 = {label: np.array(w, dtype=float) for label, w in self.omega0.items()}
         return check_wave_tuning(t, y, wave_band_for_length(vessel_length_m, model_scale), w0, kinds)
+
+    def vessel_check(self, vessel: Any) -> Any:
+        """Motion faster than the vessel makes (`gateway.report.vessel_check`)."""
+        from gateway.report.vessel_check import builtin_scales, check_vessel_scale
+
+        t, y = self._series()
+        return check_vessel_scale(t, y, vessel.name, vessel.length_m, vessel.model_scale, builtin_scales())
 
 
 def _received_only(y: Any, new: list[tuple[bool, bool, bool]]) -> Any:
@@ -774,6 +791,11 @@ def _print(s: dict[str, Any]) -> None:
     for where, c in s["counts"].items():
         span = f"; {_span_words(spans[where])}" if where in spans else ""
         print(f"  {where}: " + ", ".join(f"{k} {v}" for k, v in c.items()) + span)
+        if c.get("comment"):
+            print(
+                f"    ({c['comment']} comment lines: lines beginning with #, a log's header as gpsd's test "
+                "logs have; not bad input, kept in the raw log)"
+            )
     for where, span in spans.items():
         if where not in s["counts"]:  # (an MCAP log: its counts are its sources')
             print(f"  {where}: {_span_words(span)}")
@@ -788,6 +810,9 @@ def _print(s: dict[str, Any]) -> None:
             f"  {label} vs truth (after {s['settle_s']:.0f} s): RMS N {e['rms_north_m']:.3f} m, "
             f"E {e['rms_east_m']:.3f} m, heading {e['rms_heading_deg']:.3f} deg"
         )
+    advice = s.get("vessel_check", {}).get("advice")
+    if advice:
+        print(f"  advice: {advice}")
     for path in s.get("report", []):
         print(f"  report: {path}")
 

@@ -277,9 +277,9 @@ def report_status(service: GatewayService, every_s: float = STATUS_EVERY_S) -> N
 
 
 # Reasons in a source's ``rejected`` that are no fault of the link: well-formed sentences of types dpgw
-# does not use (GSV, GSA, proprietary $P...: `wire.codecs.nmea.UNSUPPORTED`) and AIS
-# (`wire.codecs.nmea_framing.AIS`).
-NOT_USED = ("unsupported", "ais")
+# does not use (GSV, GSA, proprietary $P...: `wire.codecs.nmea.UNSUPPORTED`), AIS
+# (`wire.codecs.nmea_framing.AIS`) and `#` comment lines (`wire.codecs.nmea_framing.COMMENT`).
+NOT_USED = ("unsupported", "ais", "comment")
 
 
 def status_line(status: dict[str, Any], elapsed_s: float) -> str:

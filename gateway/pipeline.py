@@ -845,6 +845,9 @@ class Pipeline:
         held = self._fix_cov.get(spec.name)  # its GST's shape while fresh (`wire.gst_covariance.unit_shape`)
         shape = held[2] if held is not None and rx_ns <= held[0] else None
         if self.monitor.position(spec.name, rx_ns, ned[0], ned[1], quality, pred, shape):
+            if not self.monitor.usable("position", spec.name):  # readmitting: passes, not yet in use
+                self.fusion.drop_position(spec.name)
+                return True
             weight = self.monitor.weight("position", spec.name) if "position" in self._pooled else 1.0
             q = 1 if quality is None else quality
             self.fusion.use_position(rx_ns, *ned, spec.name, spec.priority, spec.timeout_ns, q, weight)
@@ -899,6 +902,9 @@ class Pipeline:
 
     def _use_heading(self, spec: SourceSpec, rx_ns: int, psi: float) -> bool:
         if self.monitor.heading(spec.name, rx_ns, psi, self._prediction(rx_ns, 2)):
+            if not self.monitor.usable("heading", spec.name):  # readmitting: passes, not yet in use
+                self.fusion.drop_heading(spec.name)
+                return True
             weight = self.monitor.weight("heading", spec.name) if "heading" in self._pooled else 1.0
             self.fusion.add_heading(rx_ns, psi, spec.name, spec.priority, spec.timeout_ns, weight)
         else:
@@ -939,7 +945,7 @@ class Pipeline:
         dt = (now_ns - self._last_est_ns) / NS
         age = (now_ns - measured) / NS
         if dof == 2:
-            return Prediction((ssa_scalar(eta[2] + wf[2] + nu[2] * dt),), age)
+            return Prediction((ssa_scalar(eta[2] + wf[2] + nu[2] * dt),), age, nu[2])
         u, v = nu[0], nu[1]
         n = eta[0] + wf[0] + (c * u - s * v) * dt
         e = eta[1] + wf[1] + (s * u + c * v) * dt

@@ -247,9 +247,9 @@ def test_verbose_status_line_counts_sentences_not_used_apart_from_the_rejected()
     """saab-r4.log's receiver over TCP: AIS and $PFEC/GLL/DTM, well-formed but not used. Before: '(63
     rejected)' for a healthy stream, as if its sentences were bad."""
     from wire.codecs.nmea import UNSUPPORTED
-    from wire.codecs.nmea_framing import AIS
+    from wire.codecs.nmea_framing import AIS, COMMENT
 
-    assert set(cli_run.NOT_USED) == {UNSUPPORTED, AIS}
+    assert set(cli_run.NOT_USED) == {UNSUPPORTED, AIS, COMMENT}
     sources = {
         "gyro": {"age_s": 0.0, "received": 154, "rejected": {"ais": 24, "unsupported": 20, "test_jump": 19}},
         "gps": {"age_s": 0.2, "received": 90, "rejected": {"unsupported": 40}},

@@ -442,6 +442,85 @@ def test_a_heading_back_far_from_the_dead_reckoned_estimate_restarts_the_observe
     assert max(abs(math.degrees(math.remainder(e["eta"][2] - turned, 2 * math.pi))) for e in late) < 1.0
 
 
+SPIKES = {
+    "one sample 15° off": [15.0],
+    # a GNSS compass's burst as on a real USV (a first value 2.8° off that passes, then values 6-10° off
+    # that agree with each other, one missing)
+    "a 0.7 s burst": [-2.8, 6.7, -1.4, 7.6, None, 8.4, 8.1],
+}
+
+
+@pytest.mark.parametrize("spike", list(SPIKES))
+def test_a_heading_spike_is_rejected_and_the_compass_in_use_again_on_its_second_good_sample(
+    spike: str,
+) -> None:
+    """A compass spike (one sample, or a short burst of wrong values) is rejected and none of its values
+    reaches the observer; the compass is in use again on its second sample back on its track of before
+    the spike (0.2 s at 10 Hz), not after readmit_s (5 s) of dead reckoning, and nothing restarts. Before,
+    the compass was 'readmitting' for 5 s while its data went into the estimate all the same, including
+    the burst's values 0.6 s after the jump, whose jump allowance had grown to 8°."""
+    b = Bench()
+    _, hdg0, _ = settled(b, 60)
+    m, t_spike = b.mark(), b.now
+    burst = SPIKES[spike]
+    for off in burst:
+        b.cycle(gyro={"gyro1": None if off is None else PSI + math.radians(off)})
+    t_back = b.now
+    b.run(10)
+    assert b.first_event(m, "gyro1", "ok -> rejected", "jump") is not None
+    back = b.first_event(m, "gyro1", "-> ok", "spike")
+    assert back is not None and back - t_back <= 0.2 * S, b.events(m)
+    assert back - t_spike <= (len(burst) + 2) * S // 10
+    assert b.p.restarts == 0
+    _, hdg = b.errors(m)
+    assert hdg < hdg0 + 0.5, (hdg0, hdg)  # no spike value moved the estimate
+    assert b.estimates()[-1]["health"][2] == "ok"
+    assert b.p.monitor.usable("heading", "gyro1")
+
+
+def test_a_stepped_compass_is_rejected_and_kept_out_for_readmit_s() -> None:
+    """A compass that steps 8° and stays is no spike: it never comes back on its track of before the
+    step, so it is kept out (rejected, then readmitting) for at least readmit_s and the estimate
+    dead-reckons its heading meanwhile instead of following the step. Before, its stepped values passed
+    the jump test 0.6 s after the step (its allowance grows at 10°/s) and, although 'readmitting', went
+    into the estimate at once."""
+    b = Bench()
+    settled(b, 60)
+    m, t_step = b.mark(), b.now
+    stepped = PSI + math.radians(8.0)
+    for _ in range(50):
+        b.cycle(gyro={"gyro1": stepped + b.rng.normal(0, SIGMA_PSI)})
+    assert b.first_event(m, "gyro1", "ok -> rejected", "jump") == t_step
+    assert b.first_event(m, "gyro1", "-> ok") is None
+    assert not b.p.monitor.usable("heading", "gyro1")
+    est = b.estimates(m)
+    assert all(e["health"][2] == "dead_reckoning" for e in est[1:])
+    _, hdg = b.errors(m)
+    assert hdg < 1.0  # the estimate did not follow the stepped compass
+
+
+def test_a_spike_while_turning_is_judged_on_the_track_moved_on_at_the_rate_of_turn() -> None:
+    """The track of before a spike moves on at the estimate's rate of turn: a vessel turning 3°/s is
+    3.6° on 1.2 s after the spike, beyond the 2° + 1°/s · 1.2 s a track standing still would allow, and
+    the compass is back in use on its second sample after the burst."""
+    from gateway.config.model import IntegrityConfig
+    from gateway.references.monitor import Prediction, ReferenceMonitor
+
+    mon = ReferenceMonitor(IntegrityConfig(), {}, {"gyro": 2 * S})
+    rate = math.radians(3.0)
+    psi = [0.2 + rate * k / 10 for k in range(60)]
+    for k in range(30):  # turning steadily, in use
+        assert mon.heading("gyro", k * S // 10, psi[k], Prediction((psi[k],), 0.0, rate))
+    for k in range(30, 40):  # a 1 s burst 10° off
+        pred = Prediction((psi[29] + rate * (k - 29) / 10,), (k - 29) / 10, rate)
+        mon.heading("gyro", k * S // 10, psi[k] + math.radians(10.0), pred)
+        assert not mon.usable("heading", "gyro")
+    for k in (40, 41):
+        pred = Prediction((psi[29] + rate * (k - 29) / 10,), (k - 29) / 10, rate)
+        mon.heading("gyro", k * S // 10, psi[k], pred)
+    assert mon.usable("heading", "gyro")
+
+
 def test_dead_reckoning_through_a_long_silence_costs_the_same_at_every_tick(monkeypatch: Any) -> None:
     """Each dead-reckoning tick moves one copy of the observer on from the tick before (before, every
     tick predicted a fresh copy over the whole silence: 9 ms a tick after an hour for the passive

@@ -46,6 +46,7 @@ from wire.codecs.nmea import (
 )
 from wire.codecs.nmea_framing import (
     AIS,
+    COMMENT,
     FRAME_REASONS,
     GARBAGE,
     MAX_CHUNK,
@@ -737,7 +738,7 @@ def test_bad_field_detail_names_the_field_and_value() -> None:
 
 def test_reject_reasons_are_stable() -> None:
     assert REJECT_REASONS == ("no_checksum", "bad_checksum", "bad_format", "unsupported", "bad_field")
-    assert FRAME_REASONS == ("garbage", "truncated", "overlong", "non_ascii", "ais")
+    assert FRAME_REASONS == ("garbage", "truncated", "overlong", "non_ascii", "ais", "comment")
 
 
 def test_fast_constructor_makes_ordinary_frozen_instances() -> None:
@@ -780,6 +781,33 @@ def test_garbage_is_one_frame_per_line_with_all_its_bytes() -> None:
         (b"$HEHDT,4.0,T*2B", None),
         (b"xyz", GARBAGE),
     ]
+
+
+COMMENTED = (
+    b"# Name: Saab AIS-GPS R4\r\n#\r\n$HEHDT,4.0,T*2B\r\n# $GPGGA in a comment starts nothing\r\n"
+    b"xx # not at a line start\r\n$HEROT,0.0,A*2B\r\n#no line end"
+)
+
+
+def test_a_line_beginning_with_hash_is_one_comment_frame_with_all_its_bytes() -> None:
+    """gpsd's test logs begin with ``#`` lines; they are comments, not garbage, to their line end whatever
+    they hold (a ``$`` in one starts no sentence). A ``#`` that does not begin a line is garbage."""
+    frames = frames_of(COMMENTED)
+    assert [(f.raw, f.reason) for f in frames] == [
+        (b"# Name: Saab AIS-GPS R4", COMMENT),
+        (b"#", COMMENT),
+        (b"$HEHDT,4.0,T*2B", None),
+        (b"# $GPGGA in a comment starts nothing", COMMENT),
+        (b"xx # not at a line start", GARBAGE),
+        (b"$HEROT,0.0,A*2B", None),
+        (b"#no line end", COMMENT),
+    ]
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.integers(0, len(COMMENTED)), max_size=12), st.booleans())
+def test_comment_frames_do_not_depend_on_where_the_stream_is_cut(cuts: list[int], fast: bool) -> None:
+    assert frames_of(COMMENTED, cuts, fast_path=fast) == frames_of(COMMENTED)
 
 
 def test_dollar_inside_a_sentence_restarts_and_the_cut_part_is_truncated() -> None:

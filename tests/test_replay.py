@@ -147,6 +147,41 @@ def test_usv_heading_glitches_are_what_the_rate_test_rejects() -> None:
     assert np.abs(ssa(np.diff(psi))).max() < math.radians(1.25)
 
 
+@pytest.mark.parametrize("vessel", ["cybership2", "mss_supply"])
+def test_usv_compass_spikes_keep_the_heading_out_of_use_only_while_they_last(vessel: str) -> None:
+    """The USV's compass spikes (202412051037: a one-sample spike and two bursts of 0.8-1.2 s) are
+    rejected and the heading is back in use on the second sample after each, with the small model the
+    replay help suggests for the USV (cybership2) as with mss_supply: never out of use longer than the
+    burst and 0.4 s, never more than 1.5 s, the observer not restarted and the estimate not stepping.
+    Before, a burst's values 0.6 s after the jump passed the jump test (its allowance grows at 10°/s)
+    and went into the observer although the compass was 'readmitting'; with cybership2 the estimate
+    then turned at 5-6°/s, dead-reckoned 21° off, and the observer restarted (largest step 21.5°)."""
+    path = need(USV / "202412051037.txt")
+    spikes = [t for t, _ in _hdt_spikes(path)]
+    inputs = open_inputs([path])
+    pipeline = build_pipeline(build_config(inputs, vessel=vessel), [ObserverSpec("passive", "passive", {})])
+    result = _run(inputs, pipeline, collect=["/dp/measurement", "/dp/estimate"])
+    assert result.restarts == 0
+    meas = result.collected["/dp/measurement"]
+    runs: list[tuple[float, float]] = []  # (start, end) time of day of each run of headings not in use
+    for m in meas:
+        t = (m["stamp_ns"] / 1e9) % 86400
+        if not m["valid"][2]:
+            if runs and runs[-1][1] < 0:
+                continue
+            runs.append((t, -1.0))
+        elif runs and runs[-1][1] < 0:
+            runs[-1] = (runs[-1][0], t)
+    assert len(runs) >= 3 and all(end > 0 for _, end in runs), runs
+    for start, end in runs:
+        near = [x for x in spikes if start - 0.5 <= x <= start + 2.0]
+        assert near, f"heading out of use at {start:.1f} s, not at a spike"
+        assert end - start <= 1.5, (start, end)
+        assert end - max(near) <= 0.6, (start, end, near)  # the last wrong value and two good ones
+    psi = np.array([e["eta"][2] for e in result.collected["/dp/estimate"]])
+    assert np.abs(ssa(np.diff(psi))).max() < math.radians(1.5)
+
+
 def test_two_usv_logs_a_day_apart_replay_without_locking_out_the_second() -> None:
     """Two sea-trial logs of the same USV replayed as one, 18 h apart: the second log's references come
     back after the estimate was lost, and the observer restarts from them. Before the restart rule the
@@ -364,6 +399,54 @@ def write_text_log(path: Path, times: list[datetime], *, dup: int | None = None)
         if dup == k:
             lines.append(cycle[-1])
     path.write_text("".join(lines))
+
+
+def _replay_with_raw(path: Path, tmp_path: Path):  # type: ignore[no-untyped-def]
+    inputs = open_inputs([path])
+    config = build_config(inputs, vessel="mss_supply")
+    pipeline = build_pipeline(config, [ObserverSpec("passive", "passive", {})])
+    out = tmp_path / "out.mcap"
+    with McapLogWriter(out, flush_on_log_time=False) as w:
+        result = _run(inputs, pipeline, out=w)
+    raw = "".join(p["text"] + "\n" for t, _, _, p in read_messages(out) if t.startswith("/raw/nmea/"))
+    counts = next(c for where, c in result.counts.items() if where.startswith("source"))
+    return counts, raw
+
+
+def test_gpsd_comment_lines_are_counted_as_comments_not_garbage_and_logged_raw(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """gpsd's test logs begin with ``#`` lines (name, submitter, date, licence). Before, replay counted
+    each as garbage (saab-r4.log: 'garbage 4'); now as ``comment``, and the raw log keeps them."""
+    path = need(DATA / "gpsd-logs" / "saab-r4.log")
+    comments = [x for x in path.read_text(errors="replace").splitlines() if x.startswith("#")]
+    assert len(comments) == 4
+    counts, raw = _replay_with_raw(path, tmp_path)
+    assert counts["comment"] == len(comments)
+    assert "garbage" not in counts
+    for line in comments:
+        assert line in raw
+    from dpgw.cli import main  # the summary says what they are
+
+    assert main(["replay", str(path), "--vessel", "mss_supply", "--out", str(tmp_path / "s.mcap")]) == 0
+    assert "4 comment lines: lines beginning with #" in capsys.readouterr().out
+
+
+def test_comment_lines_in_a_generated_log_anywhere_and_holding_a_dollar(tmp_path: Path) -> None:
+    """A generated log with a header of comments, a comment between two cycles that quotes a sentence
+    (its ``$`` starts no sentence) and a line of real noise: the comments are counted as comments, the
+    noise as garbage, every cycle still gives its estimate, and the raw log holds every line."""
+    t0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
+    path = tmp_path / "commented.nmea"
+    write_text_log(path, [t0 + timedelta(seconds=k) for k in range(20)])
+    body = path.read_text().splitlines(keepends=True)
+    quoted = "# a fix read: " + body[0].strip()
+    lines = ["# Name: generated\r\n", "#\r\n", *body[:30], quoted + "\r\n", "noise\r\n", *body[30:]]
+    path.write_text("".join(lines))
+    counts, raw = _replay_with_raw(path, tmp_path)
+    assert counts["comment"] == 3 and counts["garbage"] == 1, counts
+    assert counts["received"] == len(body)  # every sentence still decoded
+    assert quoted in raw and "# Name: generated" in raw and "noise" in raw
 
 
 @pytest.mark.slow

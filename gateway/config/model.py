@@ -323,7 +323,9 @@ class IntegrityConfig:
     """How usable sources of one role combine: ``weighted`` (inverse measured variance) or ``priority``
     (the lowest ``priority`` that is usable, the others are hot standby)."""
     readmit_s: float = 5.0
-    """A rejected source is used again only after it has passed every test for this long."""
+    """A rejected source is used again only after it has passed every test for this long (not used while
+    readmitting). A heading rejected by a jump that comes back on its track of before the jump (a spike)
+    is used again on its second sample; past this long the ordinary readmission applies."""
     max_speed_m_s: float = 5.0
     """Fastest plausible speed over ground: bounds how far a fix may move from the source's last good one."""
     jump_m: float = 5.0

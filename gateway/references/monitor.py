@@ -7,6 +7,11 @@ prediction (against the observer's prediction, gated by the expected spread) →
 With exactly two references of a role their divergence raises a soft alarm on both (still used: nobody can
 tell which is wrong). A rejected source is used again after passing for ``readmit_s``. An MRU's roll and
 pitch (role ``attitude``) have tests of their own (`gateway.references.attitude`) and the same states.
+
+A heading rejected by the jump test while in use may be a spike (a GNSS compass's one-sample or burst
+artefact): for ``readmit_s`` after it, each sample is tested against the heading before the jump (the
+median of the last good ones) moved on at the estimate's rate of turn instead, and two samples in a row
+back on that track readmit it at once (`SPIKE_CONFIRM`); docs/integrity.md, "A heading spike".
 """
 
 from __future__ import annotations
@@ -14,15 +19,16 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal, NamedTuple
 
 from gateway.references.attitude import AttitudeLimits, AttitudeTrack
 from gateway.references.feedback import feedback_problem
 from gateway.references.params import IntegrityParams
-from gateway.references.state import NS, OK, STALE, SourceState, StateChange
+from gateway.references.state import NS, OK, STALE, SUSPECT, SourceState, StateChange
 from gateway.references.track import MIN_SAMPLES_FOR_VARIANCE, AngleTrack, PlaneTrack, Track
 from gateway.references.voting import divergence, median_distance
+from observers.kinematics import ssa_scalar
 from observers.vessel import Thruster
 
 RoleHealth = Literal["ok", "degraded", "lost"]
@@ -35,6 +41,16 @@ GGA_QUALITY_NAMES = {
     8: "simulator",
 }
 DIVERGENCE_CLEAR = 0.8  # hysteresis: a divergence alarm clears below 80 % of its threshold
+SPIKE_ANCHOR = 5
+"""The heading before a jump is the median of the last this many good values (1 s at 5 Hz), not the last
+one alone: a real GNSS compass's spike may begin with a value that is only 2.8° off and passes (USV log,
+a burst 233.2°, 230.3°, 239.8°, 231.7°, 240.8°, 241.6°, 241.3°, then 233.7°), and the track taken from it
+missed the good values after the burst by 3.4°."""
+SPIKE_CONFIRM = 2
+"""Samples in a row back on the heading's track before the jump that readmit a heading at once: two, so
+that the compass's samples agree with each other as well as with the track (one burst value landing near
+the track by chance does not end the rejection; it is used, being within the jump allowance of the track,
+and the next burst value fails)."""
 
 
 ELLIPSE_EPS_M2 = 1e-12
@@ -66,6 +82,7 @@ class Prediction(NamedTuple):
 
     value: tuple[float, ...]
     age_s: float
+    rate: float = 0.0  # heading: the estimate's rate of turn (rad/s), which a spike's recovery extrapolates
 
 
 @dataclass(frozen=True)
@@ -83,6 +100,7 @@ class _Limits:
     max_sigma: float  # the variance test's limit (inf: no such test for the role)
     unit: str
     scale: float  # value -> the unit shown in reasons
+    spike_s: float = 0.0  # how long after a jump a return to the track before it readmits at once (0: never)
 
 
 @dataclass
@@ -92,6 +110,11 @@ class _Ref:
     timeout_ns: int
     limits: _Limits
     alone: bool = False  # the only source of its role (set once the sources are known)
+    # a jump out of use (a spike?): the last good value before it, when, and the rate of turn then
+    spike: tuple[float, int, float] | None = None
+    spike_run: int = 0  # samples in a row back on the track before the jump
+    # its last good values and when (headings: `ReferenceMonitor._before`)
+    recent: deque[tuple[float, int]] = field(default_factory=lambda: deque(maxlen=SPIKE_ANCHOR))
 
 
 class ReferenceMonitor:
@@ -132,6 +155,7 @@ class ReferenceMonitor:
             max_sigma=math.inf,
             unit="°",
             scale=1 / deg,
+            spike_s=p.readmit_s,
         )
         self._limits = {"position": position, "heading": heading}
         self._refs: dict[str, dict[str, _Ref]] = {
@@ -216,11 +240,20 @@ class ReferenceMonitor:
         `beyond_prediction_gate` does with the covariance itself. The spread still sets the size: S only
         says in which direction the receiver's fixes scatter more."""
         tr, st, lim = ref.track, ref.state, ref.limits
-        if tr.good is not None:
+        on_track = False
+        spike = ref.spike
+        if spike is not None:  # after a jump: back on the track before it? (`_spike`)
+            on_track = self._spike(ref, now_ns, v[0], spike)
+            if not on_track and ref.spike is not None:
+                return False
+        if tr.good is not None and not on_track:
             dt = (now_ns - tr.good_ns) / NS
             moved = tr.distance(v, tr.good)
             limit = lim.jump + lim.rate * dt
             if moved > limit:
+                if lim.spike_s and st.usable and spike is None:  # a jump out of use: a spike, perhaps
+                    rate = pred.rate if pred is not None else 0.0
+                    ref.spike, ref.spike_run = (self._before(ref, rate), tr.good_ns, rate), 0
                 fmt = self._fmt
                 st.fail(now_ns, f"jump: moved {fmt(moved, lim)} in {dt:.2g} s (limit {fmt(limit, lim)})")
                 return False
@@ -257,8 +290,57 @@ class ReferenceMonitor:
         elif not self._vote(ref, role, now_ns, lim):
             return False
         tr.good, tr.good_ns = v, now_ns  # (`Track.accept`)
+        if lim.spike_s:
+            ref.recent.append((v[0], now_ns))
+        if on_track:  # the samples in a row back on the track (a failing one in between restarts the count)
+            ref.spike_run = ref.spike_run + 1 if st.state == SUSPECT else 1
         st.passed(now_ns)
+        if on_track and ref.spike_run >= SPIKE_CONFIRM:
+            ref.spike = None
+            why = f"back on its track of before the jump for {SPIKE_CONFIRM} samples: a spike"
+            st.readmit_now(now_ns, why)
         return True
+
+    @staticmethod
+    def _before(ref: _Ref, rate: float) -> float:
+        """The heading before a jump at the time of the last good value: the median of the last
+        `SPIKE_ANCHOR` good values, each moved on to that time at the rate of turn (as offsets from the
+        last one, so that 359° and 1° are 2° apart)."""
+        last, last_ns = ref.recent[-1]
+        offsets = sorted(ssa_scalar(x + rate * (last_ns - t) / NS - last) for x, t in ref.recent)
+        return ssa_scalar(last + offsets[len(offsets) // 2])
+
+    def _spike(self, ref: _Ref, now_ns: int, psi: float, spike: tuple[float, int, float]) -> bool:
+        """A heading after a jump that took it out of use: whether it is back on its track of before the
+        jump, the heading then ψₐ (`_before`) moved on at the estimate's rate of turn rₐ then, within the
+        jump allowance grown as the prediction gate grows (g = ``max_rate_deg_s`` / 10, for an error in
+        rₐ): |ψ − (ψₐ + rₐ (t − tₐ))| ≤ ``heading_jump_deg`` + g (t − tₐ). A sample off that track fails
+        (a burst of wrong values continues; values 0.6 s after the jump pass the ordinary jump test, whose
+        allowance grows at ``max_rate_deg_s``, and once fed a real USV's burst to the observer). Past
+        ``readmit_s``
+        the track is forgotten (``ref.spike`` None) and the ordinary tests and readmission apply: a compass
+        that stepped and stayed is a failed compass, not a spike, and is kept out for ``readmit_s`` more
+        once it passes.
+
+        Not from a paper: the rule is the DP practice of rejecting a reference's outlier while its
+        neighbours are consistent; the track is the compass's own last good values and the estimate's rate
+        of turn at the jump, not the prediction of each later moment (the estimate dead-reckons meanwhile,
+        and a drifting prediction would hold a good compass out)."""
+        psi_a, at_ns, rate = spike
+        dt = (now_ns - at_ns) / NS
+        lim = ref.limits
+        if dt > lim.spike_s:
+            ref.spike = None
+            return False
+        off = abs(ssa_scalar(psi - psi_a - rate * dt))
+        limit = lim.jump + lim.grow * dt
+        if off <= limit:
+            return True
+        fmt = self._fmt
+        ref.state.fail(
+            now_ns, f"jump: {fmt(off, lim)} off its track of before the jump (limit {fmt(limit, lim)})"
+        )
+        return False
 
     def _vote(self, ref: _Ref, role: str, now_ns: int, lim: _Limits) -> bool:
         refs = self._refs[role]

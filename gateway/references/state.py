@@ -30,7 +30,8 @@ class SourceState:
     """The state machine of one source in one role.
 
     - a failed test: ``rejected`` with its reason, not used;
-    - passing again: ``suspect`` (readmitting), not used, until it has passed for ``readmit_ns``; then ``ok``;
+    - passing again: ``suspect`` (readmitting), not used, until it has passed for ``readmit_ns``; then ``ok``
+      (or at once when its data show the fault was a spike that is over: `readmit_now`);
     - a soft alarm (two references diverge, nobody can tell which is wrong): ``suspect`` but still used;
     - no data within the source's timeout: ``stale``; its next passing fix makes it ``ok`` again (silence is
       not a fault of the data, and the jump test bounds what the first fix after a gap may be). A source
@@ -88,6 +89,15 @@ class SourceState:
             self._set(now_ns, SUSPECT, self._soft)
         else:
             self._set(now_ns, OK, "")
+
+    def readmit_now(self, now_ns: int, reason: str) -> None:
+        """Readmitting, and the source has shown that what failed was over (a heading back on its track
+        after a spike, `ReferenceMonitor`): in use at once, without waiting out ``readmit_ns``."""
+        if self._passing_since is None or self.state != SUSPECT:
+            return
+        self._passing_since = None
+        self._set(now_ns, SUSPECT if self._soft else OK, self._soft or reason)
+        self.reason = self._soft  # (the reason is the change's; an ok source has none)
 
     def soft(self, now_ns: int, reason: str) -> None:
         """Raise (non-empty reason) or clear (empty) a soft alarm; it shows as ``suspect`` while in use."""

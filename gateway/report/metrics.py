@@ -67,7 +67,7 @@ def wave_band_for_length(length_m: float | None, model_scale: float | None = Non
 
 
 @lru_cache(maxsize=32)
-def _vessel_scale(vessel: str) -> tuple[float | None, float | None]:
+def vessel_scale(vessel: str) -> tuple[float | None, float | None]:
     """Length and model scale of a built-in vessel (or a vessel TOML path); None if unknown. Reads package
     data only."""
     if not vessel:
@@ -121,7 +121,7 @@ def analyse(data: ReplayData, wave_band: tuple[float, float] | None, settle_s: f
     settle_t = t0 + settle_s
 
     if wave_band is None:
-        length, model_scale = _vessel_scale(data.vessel)
+        length, model_scale = vessel_scale(data.vessel)
         band = wave_band_for_length(length, model_scale)
         if length is None:
             basis = f"full scale (vessel '{data.vessel}' not found: length unknown)"

@@ -13,6 +13,9 @@ where the stream was cut (tested). The rules (``docs/nmea.md``):
   sentences belong to no frame.
 * Bytes between the end of one frame and the next ``$``/``!`` that are not a sentence are one ``garbage``
   frame (in pieces of at most :data:`MAX_CHUNK` bytes, so noise without a ``$`` never grows memory).
+* A line that begins with ``#`` is a ``comment`` frame, to its line end whatever it holds (a ``$`` in it
+  starts no sentence): gpsd's test logs and capture tools head their files with such lines, which are
+  no sentence and no noise either. No NMEA sentence begins with ``#``.
 * A ``$`` or ``!`` inside a sentence starts a new one; the part before it is ``truncated``.
 * A sentence longer than ``max_length`` characters (``$`` to checksum, terminator excluded) is
   ``overlong``: it is dropped up to its line end or the next ``$``/``!``, where the framer resyncs.
@@ -34,7 +37,8 @@ TRUNCATED = "truncated"
 OVERLONG = "overlong"
 NON_ASCII = "non_ascii"
 AIS = "ais"
-FRAME_REASONS = (GARBAGE, TRUNCATED, OVERLONG, NON_ASCII, AIS)
+COMMENT = "comment"
+FRAME_REASONS = (GARBAGE, TRUNCATED, OVERLONG, NON_ASCII, AIS, COMMENT)
 """Every value :attr:`Frame.reason` can take besides ``None``: stable strings, counted per source."""
 
 DEFAULT_MAX_LENGTH = 180
@@ -53,8 +57,9 @@ class Frame(NamedTuple):
       without the line terminator (``$GPGGA,...*5C``), printable ASCII; decode it with
       :func:`wire.codecs.nmea.decode`.
     * otherwise ``text`` is ``None`` and ``reason`` is one of :data:`FRAME_REASONS`: a chunk the framer
-      rejects (``garbage``, ``truncated``, ``overlong``, ``non_ascii``), or a complete printable ``!``
-      sentence (AIS ``!AIVDM``/``!AIVDO``, reason ``ais``) that dpgw does not decode.
+      rejects (``garbage``, ``truncated``, ``overlong``, ``non_ascii``), a complete printable ``!``
+      sentence (AIS ``!AIVDM``/``!AIVDO``, reason ``ais``) that dpgw does not decode, or a ``#`` comment
+      line (``comment``: not bad input).
 
     So ``text is None`` exactly when ``reason is not None``.
 
@@ -67,13 +72,14 @@ class Frame(NamedTuple):
     reason: str | None
 
 
-_GROUND, _SENTENCE, _OVERLONG = 0, 1, 2
+_GROUND, _SENTENCE, _OVERLONG, _COMMENT = 0, 1, 2, 3
 
 # Bytes that end the printable run of a sentence: controls (CR, LF, NUL, ...), '!' (0x21), '$' (0x24), DEL
 # and everything >= 0x80.
 _SENTENCE_STOP = re.compile(rb"[^\x20\x22\x23\x25-\x7e]")
 _LEAD = re.compile(rb"[$!]")
 _EOL_OR_LEAD = re.compile(rb"[\r\n$!]")
+_EOL_ANY = re.compile(rb"[\r\n]")
 _EOL = b"\r\n"
 _new_frame = tuple.__new__  # Frame(...) without NamedTuple's Python-level __new__
 _LEADS = b"$!"
@@ -126,6 +132,8 @@ class NmeaFramer:
         if self._buf:
             if self._state == _GROUND:
                 out.append(Frame(None, bytes(self._buf), GARBAGE))
+            elif self._state == _COMMENT:
+                out.append(Frame(None, bytes(self._buf), COMMENT))
             elif self._state == _OVERLONG:
                 out.append(Frame(None, bytes(self._buf), OVERLONG))
             else:
@@ -241,12 +249,16 @@ class NmeaFramer:
                     if len(buf) > max_length:
                         self._to_overlong(out)
             elif state == _GROUND:
+                if self._skip_eol and data[i] == 35 and not buf:  # '#' at a line start: a comment line
+                    self._state = _COMMENT
+                    continue
                 # Garbage runs end at a line end as well as at a lead byte: each line of noise is one
                 # reject, so "every line of a capture is used or counted" holds line by line.
                 m = _EOL_OR_LEAD.search(data, i)
                 j = m.start() if m else n
                 if j > i:
                     buf += data[i:j]
+                    self._skip_eol = False
                     self._spill(out, GARBAGE)
                 if m is None:
                     return
@@ -254,6 +266,7 @@ class NmeaFramer:
                     if buf:
                         out.append(Frame(None, bytes(buf), GARBAGE))
                         buf.clear()
+                    self._skip_eol = True
                     i = j + 1
                     continue
                 if buf:
@@ -262,6 +275,19 @@ class NmeaFramer:
                 self._state = _SENTENCE
                 self._bad = False
                 i = j
+            elif state == _COMMENT:  # to the line end, whatever it holds
+                m = _EOL_ANY.search(data, i)
+                j = m.start() if m else n
+                buf += data[i:j]
+                self._spill(out, COMMENT)
+                if m is None:
+                    return
+                if buf:
+                    out.append(Frame(None, bytes(buf), COMMENT))
+                    buf.clear()
+                self._state = _GROUND
+                self._skip_eol = True
+                i = j + 1
             else:  # _OVERLONG: drop to the line end or the next lead byte
                 m = _EOL_OR_LEAD.search(data, i)
                 j = m.start() if m else n
