@@ -341,6 +341,7 @@ class Pipeline:
         self.thrusters_out: dict[int, str] = {}  # thruster id -> why its drive does not take DP commands
         self._caller_alarms: list[str] = []  # the alarms the caller (the service) gave the last status
         self._last_est: Estimate | None = None
+        self._extra_last: dict[str, Estimate] = {}  # each extra observer's last estimate (by label)
         # the last estimate as floats for `_prediction`: (estimate, eta, nu, eta_wf, cos ψ, sin ψ)
         self._pred_base: tuple[Estimate, list[float], list[float], list[float], float, float] | None = None
         self._last_est_ns = 0
@@ -1223,6 +1224,7 @@ class Pipeline:
                 out.extend(self._control_step(t, est, now_ns))
         for label, obs in self.spec.extra_observers:
             e = self._observe(obs, t, y_obs, tau_obs, valid)
+            self._extra_last[label] = e
             if e.status != STATUS_NAMES[0]:
                 out.append(Output(f"/dp/estimates/{label}", self._estimate(label, obs, e, now_ns), now_ns))
         return out
@@ -1263,9 +1265,18 @@ class Pipeline:
         A restart is `Observer.reset` and the step with y, which initialises the observer as its first
         measurement does (a DOF with no fresh value then takes the prediction's). Announced as a status
         event and counted (`restarts`).
+
+        A re-acquisition of one DOF while the other is measured and in the observers restarts that DOF
+        only (`_restart_dof`): the other keeps its state — position, velocity, bias and wave motion.
+        Restarting everything from one measurement put the heading's wave motion into its LF estimate and
+        zeroed its bias: a 30 s frozen DGPS, re-acquired 3 m off the dead-reckoned position, gave the
+        heading estimate a 2° transient though the gyro never failed. A DOF lost (the first rule) still
+        restarts everything: after that long the rest of the state says nothing either.
         """
         measured, reacq, lost_ns = self._measured_ns, self._reacq_ns, self._lost_ns
         why = ""
+        lost = False
+        confirmed: list[int] = []  # DOFs re-acquired outside the gate: the ones a restart is for
         for dof in (0, 2):
             if not valid[dof]:
                 if reacq[dof]:
@@ -1276,6 +1287,7 @@ class Pipeline:
             what = "position" if dof == 0 else "heading"
             if last and gap_ns > lost_ns:
                 why = why or f"{what} back after {gap_ns / NS:.0f} s (lost after {lost_ns / NS:g} s)"
+                lost = True
                 continue
             # back: measured now, not at the last step (or again after a break in a re-acquisition);
             # without the prediction test (prediction_max_age_s = 0) only the lost rule above applies
@@ -1291,6 +1303,15 @@ class Pipeline:
                 reacq[dof] = 0
                 if off:
                     why = why or f"{what} {off}"
+                    confirmed.append(dof)
+        if why and not lost and len(confirmed) == 1:
+            other = 2 - confirmed[0]  # (0 position, 2 heading)
+            if valid[other] and not reacq[other] and self._restart_dof(confirmed[0], y):
+                self._given_ns.clear()
+                self.restarts += 1
+                kept = "heading" if other == 2 else "position"
+                self._events.append(f"observer restarted from the measurement: {why} ({kept} kept)")
+                return y
         if not why:
             if not (reacq[0] or reacq[2]):
                 return y
@@ -1318,6 +1339,26 @@ class Pipeline:
         self.restarts += 1
         self._events.append(f"observer restarted from the measurement: {why}")
         return y_obs
+
+    def _restart_dof(self, dof: int, y: np.ndarray) -> bool:
+        """Restart DOF ``dof`` (0: north and east, 2: heading) of every observer from the measurement y and
+        keep the rest of its state: each observer starts again (`Observer.initialize`) at the time of its
+        last estimate from that estimate, with the DOF's LF position set to y and its wave motion to zero,
+        as a first measurement starts it; the step that follows takes y. False, and nothing changed, when
+        an observer has no estimate to keep (the caller then restarts everything)."""
+        observers = [
+            (self.observer, self._last_est),
+            *((o, self._extra_last.get(k)) for k, o in self.spec.extra_observers),
+        ]
+        if any(e is None or not e.initialized for _, e in observers):
+            return False
+        for obs, e in observers:
+            assert e is not None
+            eta, eta_wf = e.eta.copy(), np.nan_to_num(e.eta_wf)
+            k = slice(0, 2) if dof == 0 else slice(2, 3)
+            eta[k], eta_wf[k] = y[k], 0.0
+            obs.initialize(e.t, eta, nu=e.nu.copy(), bias=e.bias.copy(), eta_wf=eta_wf)
+        return True
 
     def _off_gate(self, now_ns: int, dof: int, y: np.ndarray) -> str:
         """How far y lies from the dead-reckoned prediction of DOF ``dof`` (0 position, 2 heading) when
