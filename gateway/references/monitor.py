@@ -172,8 +172,10 @@ class ReferenceMonitor:
             },
         }
         self._feedback = {n: SourceState(n, "thrusters", readmit) for n in (feedback or {})}
-        self._feedback_timeout = dict(feedback or {})
-        self._feedback_rx = dict.fromkeys(self._feedback, 0)  # receive time of its latest report, any
+        # per feedback source: [its timeout, the receive time of its latest report whatever it was (0: none
+        # yet)], a list to update in place: `refresh` reads it on every event
+        self._feedback_rx = {n: [t, 0] for n, t in (feedback or {}).items()}
+        self._feedback_timing = [(self._feedback[n], rx) for n, rx in self._feedback_rx.items()]
         self._attitude_limits = AttitudeLimits.of(params)
         self._attitude = {
             n: (SourceState(n, "attitude", readmit), AttitudeTrack(), t) for n, t in (attitudes or {}).items()
@@ -452,7 +454,7 @@ class ReferenceMonitor:
         why = feedback_problem(
             self._thrusters.get(thruster_id), thrust_n, azimuth_rad, rpm, self.p.thrust_margin
         )
-        self._feedback_rx[source] = now_ns
+        self._feedback_rx[source][1] = now_ns
         recent = self._feedback_rejects[source]
         while recent and now_ns - recent[0] > st.readmit_ns:
             recent.popleft()
@@ -489,9 +491,9 @@ class ReferenceMonitor:
             last = track.rx_ns  # (every sample, passing or failing: a failing MRU talks)
             if last and now_ns - last > timeout_ns:
                 st.stale(now_ns, (now_ns - last) / NS)
-        for name, last in self._feedback_rx.items():  # (every report, passing or failing)
-            if last and now_ns - last > self._feedback_timeout[name]:
-                self._feedback[name].stale(now_ns, (now_ns - last) / NS)
+        for st, (timeout_ns, last) in self._feedback_timing:  # (every report, passing or failing)
+            if last and now_ns - last > timeout_ns:
+                st.stale(now_ns, (now_ns - last) / NS)
 
     def usable(self, role: str, source: str) -> bool:
         r = self._refs[role].get(source)
