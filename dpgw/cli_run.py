@@ -240,7 +240,7 @@ def run(args: argparse.Namespace) -> int:
         plain = to_jsonable(status)  # (the message as /dp/status carries it)
         for name, source in plain.get("sources", {}).items():
             if source.get("reconnects"):
-                print(f"dpgw run: source {name}: {reconnects_text(source, plain.get('stamp_ns'))}")
+                print(f"dpgw run: source {name}: {reconnects_text(source, time.time_ns())}")
     return 0
 
 
@@ -288,15 +288,16 @@ def report_status(service: GatewayService, every_s: float = STATUS_EVERY_S) -> N
 NOT_USED = ("unsupported", "ais", "comment")
 
 
-def reconnects_text(source: dict[str, Any], now_ns: int | None) -> str:
+def reconnects_text(source: dict[str, Any], now_ns: int) -> str:
     """``2 reconnects, last lost 12 s ago: connection to 10.0.0.5:4001 lost: closed by the server``: a
-    source's reconnects (`SourceStatus`) and its last disconnect, how long before ``now_ns`` (the status's
-    stamp) when known."""
+    source's reconnects (`SourceStatus`) and its last disconnect, how long before ``now_ns``: the wall
+    clock, as the disconnect's time is (not the status's stamp, which is the simulation's time under
+    ``--clock sim``)."""
     n = source.get("reconnects", 0)
     text = f"{n} reconnect{'s' * (n != 1)}"
     why, when = source.get("last_disconnect"), source.get("last_disconnect_ns")
     if why:
-        ago = f" {max(0.0, (now_ns - when) / 1e9):.0f} s ago" if now_ns and when else ""
+        ago = f" {max(0.0, (now_ns - when) / 1e9):.0f} s ago" if when else ""
         text += f", last lost{ago}: {why}"
     return text
 
@@ -315,7 +316,7 @@ def status_line(status: dict[str, Any], elapsed_s: float) -> str:
         not_used = sum(n for r, n in reasons.items() if r in NOT_USED)
         rejected = sum(reasons.values()) - not_used
         counts = [f"{rejected} rejected"] * bool(rejected) + [f"{not_used} not used"] * bool(not_used)
-        counts += [reconnects_text(c, status.get("stamp_ns"))] if c.get("reconnects") else []
+        counts += [reconnects_text(c, time.time_ns())] if c.get("reconnects") else []
         parts.append(
             f"{name} {c.get('received', 0)} rx"
             + (f" {age:.1f} s ago" if age is not None else " none yet")
