@@ -114,6 +114,33 @@ def test_a_tcp_server_that_drops_twice_shows_two_reconnects_and_the_last_disconn
         server.kill()
 
 
+def test_a_client_of_a_tcp_listen_source_that_comes_back_is_a_reconnect(tmp_path: Path) -> None:
+    """``tcp-listen``: a sensor that connects, hangs up and connects again (from a new port) is one
+    reconnect, and the status says which client went and why."""
+    port = free_port()
+    with Live(tmp_path, f"tcp-listen://127.0.0.1:{port}") as live:
+        src = live.service._sources[0]
+        peers = []
+        for n in (0, 1):
+            with socket.create_connection(("127.0.0.1", port), timeout=5) as client:
+                host, cport = client.getsockname()
+                peers.append(f"{host}:{cport}")
+                assert wait_for(lambda: src.stats.connected, 30.0), "the client was not accepted"
+                client.sendall(enc.hdt("HE", 0.5).encode())
+                assert wait_for(lambda n=n: source_status(live).get("received", 0) > n, 30.0), source_status(
+                    live
+                )
+            assert wait_for(lambda: not src.stats.connected, 30.0), "the hang-up was not seen"
+        status = wait_for(
+            lambda: (
+                source_status(live).get("last_disconnect") == f"client {peers[1]} gone: closed by the client"
+                and source_status(live)
+            ),
+            30.0,
+        )
+        assert status and status["reconnects"] == 1, source_status(live)
+
+
 def line_within(gw: Gateway, text: str, seconds: float) -> str | None:
     """The first line the gateway prints containing ``text`` within ``seconds`` from now (None if none:
     `Gateway.wait_line`'s timeout is per line, and a gateway with ``-v`` prints one every 5 s)."""
