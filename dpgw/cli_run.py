@@ -235,6 +235,12 @@ def run(args: argparse.Namespace) -> int:
             f"dpgw run: stopped; {service.pipeline.estimates} estimates, "
             f"{service.published} messages published"
         )
+        from wire.json_payload import to_jsonable
+
+        plain = to_jsonable(status)  # (the message as /dp/status carries it)
+        for name, source in plain.get("sources", {}).items():
+            if source.get("reconnects"):
+                print(f"dpgw run: source {name}: {reconnects_text(source, time.time_ns())}")
     return 0
 
 
@@ -282,10 +288,25 @@ def report_status(service: GatewayService, every_s: float = STATUS_EVERY_S) -> N
 NOT_USED = ("unsupported", "ais", "comment")
 
 
+def reconnects_text(source: dict[str, Any], now_ns: int) -> str:
+    """``2 reconnects, last lost 12 s ago: connection to 10.0.0.5:4001 lost: closed by the server``: a
+    source's reconnects (`SourceStatus`) and its last disconnect, how long before ``now_ns``: the wall
+    clock, as the disconnect's time is (not the status's stamp, which is the simulation's time under
+    ``--clock sim``)."""
+    n = source.get("reconnects", 0)
+    text = f"{n} reconnect{'s' * (n != 1)}"
+    why, when = source.get("last_disconnect"), source.get("last_disconnect_ns")
+    if why:
+        ago = f" {max(0.0, (now_ns - when) / 1e9):.0f} s ago" if when else ""
+        text += f", last lost{ago}: {why}"
+    return text
+
+
 def status_line(status: dict[str, Any], elapsed_s: float) -> str:
     """``dpgw run: 35 s, dp, 340 estimates; dgps1 35 rx 0.1 s ago (2 rejected, 40 not used), gyro1 ...;
     alarms: ...``. Sentences dpgw does not use (`NOT_USED`) are counted apart from the rejected: a receiver
-    sending GSV and GSA four times a second showed hundreds "rejected" in a healthy stream."""
+    sending GSV and GSA four times a second showed hundreds "rejected" in a healthy stream. A link that
+    was lost and came back says how often, and why it was last lost (`reconnects_text`)."""
     if not status:
         return f"dpgw run: {elapsed_s:.0f} s, no status yet"
     parts = []
@@ -295,6 +316,7 @@ def status_line(status: dict[str, Any], elapsed_s: float) -> str:
         not_used = sum(n for r, n in reasons.items() if r in NOT_USED)
         rejected = sum(reasons.values()) - not_used
         counts = [f"{rejected} rejected"] * bool(rejected) + [f"{not_used} not used"] * bool(not_used)
+        counts += [reconnects_text(c, time.time_ns())] if c.get("reconnects") else []
         parts.append(
             f"{name} {c.get('received', 0)} rx"
             + (f" {age:.1f} s ago" if age is not None else " none yet")

@@ -299,6 +299,10 @@ class SourceCounters:
     last_rx_ns: int = 0
     dropped: int = 0  # lost before the gateway read them (the kernel's count; the service sets it)
     skipped_bytes: int = 0  # MAVLink: bytes outside any valid frame (the frame parsers' count)
+    # the link's: times it came back after it was lost, and when (UTC ns) and why it was last lost (the
+    # transport counts them where the link is lost and comes back; the service copies them for a status)
+    reconnects: int = 0
+    last_disconnect: tuple[int, str] | None = None
 
     def as_message(self, now_ns: int) -> SourceStatus:
         age = (now_ns - self.last_rx_ns) / NS if self.last_rx_ns else None
@@ -310,6 +314,9 @@ class SourceCounters:
             bytes=self.bytes,
             dropped=self.dropped,
             skipped_bytes=self.skipped_bytes,
+            reconnects=self.reconnects,
+            last_disconnect=None if self.last_disconnect is None else self.last_disconnect[1],
+            last_disconnect_ns=None if self.last_disconnect is None else self.last_disconnect[0],
         )
 
 

@@ -456,6 +456,7 @@ class GatewayService:
     def final_status(self) -> Output:
         """The status at the end of a run: at the pipeline's last time, or (nothing ever arrived, so it has
         none) at the wall clock, not at 1970 with every source "stale" for 56 years."""
+        self._copy_link_counts()
         last = self.pipeline.last_ns
         return self.pipeline.status(last) if last else self._status_without_time()
 
@@ -522,11 +523,9 @@ class GatewayService:
             for s in self._sources
             if not s.stats.connected and not s.finished
         ]
+        self._copy_link_counts()
         for s in self._sources:
-            dropped = getattr(s, "dropped", 0)  # UDP: the kernel's count of datagrams it could not hold
-            counters = self.pipeline.counters.get(s.name)
-            if counters is not None:
-                counters.dropped = dropped
+            dropped = getattr(s, "dropped", 0)
             if dropped:
                 alarms.append(
                     f"source {s.name}: {dropped} datagrams dropped by the kernel (receive buffer full; "
@@ -544,6 +543,20 @@ class GatewayService:
             for what, n in sorted(self.internal_errors.items())
         ]
         return alarms
+
+    def _copy_link_counts(self) -> None:
+        """What the transports count of their links into the pipeline's source counters, for a status:
+        the datagrams the kernel dropped (UDP), the reconnects and the last disconnect. Once a status, not
+        per chunk: the transports count where a link is lost or comes back."""
+        for s in self._sources:
+            counters = self.pipeline.counters.get(s.name)
+            if counters is None:
+                continue
+            counters.dropped = getattr(
+                s, "dropped", 0
+            )  # UDP: the kernel's count of datagrams it could not hold
+            counters.reconnects = s.stats.reconnects
+            counters.last_disconnect = s.stats.last_disconnect
 
     def _zenoh_alarms(self) -> list[str]:
         """With ``connect`` endpoints (a router, a console), or a client dialling its router: an alarm while

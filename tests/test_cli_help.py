@@ -261,6 +261,28 @@ def test_verbose_status_line_counts_sentences_not_used_apart_from_the_rejected()
     assert "mux 90 rx 0.1 s ago (2 rejected)" in line
 
 
+def test_verbose_status_line_times_the_last_disconnect_by_the_wall_clock_not_the_status_stamp() -> None:
+    """A link lost 12 s ago (the wall clock, as the transport stamps it) under ``--clock sim``, whose
+    status is stamped with a simulation time of 2020: the line says 12 s, not 200 million."""
+    lost_ns = time.time_ns() - 12 * 10**9
+    sources = {
+        "mux": {
+            "age_s": 0.1,
+            "received": 90,
+            "reconnects": 1,
+            "last_disconnect": "connection to 10.0.0.5:4001 lost: closed by the server",
+            "last_disconnect_ns": lost_ns,
+        },
+        "gps": {"age_s": 0.2, "received": 90},
+    }
+    status = {"stamp_ns": 1_577_836_800 * 10**9, "mode": "dp", "estimates": 5, "sources": sources}
+    line = cli_run.status_line(status, 10.0)
+    assert (
+        "mux 90 rx 0.1 s ago (1 reconnect, last lost 12 s ago: connection to 10.0.0.5:4001 lost: closed by "
+        "the server), gps 90 rx 0.2 s ago;" in line + ";"
+    ), line
+
+
 def test_verbose_status_line_every_period(capsys: pytest.CaptureFixture[str]) -> None:
     status = {
         "mode": "dp",

@@ -307,6 +307,77 @@ def test_absurd_thruster_feedback_is_rejected_and_does_not_move_the_estimate(thr
     assert b.p.fusion.tau(b.now)[1] == "demand"
 
 
+def feedback_state(b: Bench) -> tuple[str, str]:
+    """(state, reason) of the feedback source ``thr``, as `/status` shows it (the pipeline's time now)."""
+    (st,) = [s for s in b.p.monitor.states()["thr"] if s.role == "thrusters"]
+    return st.state, st.reason
+
+
+def test_thruster_feedback_that_keeps_failing_stays_rejected_and_goes_stale_once_silent() -> None:
+    """A drive reporting 4e7 N (beyond any thruster of the vessel) ten times a second, for four times the
+    source's timeout (2 s): rejected on the third report, and rejected with its reason for as long as the
+    reports keep coming, never stale, never in use. Silent then: stale after its timeout, timed from its
+    last report. Before, thruster feedback never went stale at all: a drive that fell silent stayed
+    ``ok`` (or ``rejected``) in the status for ever. Back with good reports: it went silent while
+    rejected, so it is readmitted (``suspect``) first and in use only after ``readmit_s``."""
+    b = Bench(thrusters=True)
+    thr = b.p.spec.vessel.thrusters[0]
+
+    def cycle(thrust: float | None) -> None:
+        if thrust is not None:
+            frame = mv.azimuth_status_frame(b.mav, 0, thr.id, thrust, 100.0, 0.0, 0)
+            b.outputs += b.p.feed(RawEvent(b.now + 50, "thr", frame))
+        b.cycle()
+
+    for _ in range(20):
+        cycle(1e4)
+    assert feedback_state(b) == ("ok", "")
+    seen = set()
+    for _ in range(80):  # 8 s: four times the timeout
+        cycle(4e7)
+        seen.add(feedback_state(b)[0])
+    assert seen == {"ok", "rejected"}  # (ok for the first two reports: one failing report is dropped)
+    state, reason = feedback_state(b)
+    assert state == "rejected" and reason.endswith("thrust 4e+07 N beyond capacity 4.8e+05 N"), reason
+    assert not b.p.monitor.feedback_usable("thr")
+    last_report = b.now - S // 10 + 50
+    stale_at = None
+    for _ in range(40):  # silent; the DGPS and gyro go on
+        cycle(None)
+        if stale_at is None and feedback_state(b)[0] == "stale":
+            stale_at = b.now - S // 10 + 100
+    assert stale_at is not None, feedback_state(b)
+    assert 2.0 * S < stale_at - last_report <= 2.1 * S  # the timeout after its last report
+    state, reason = feedback_state(b)
+    assert reason.startswith("no data for ")
+    cycle(1e4)
+    assert feedback_state(b)[0] == "suspect"  # silent while rejected: readmitted first
+    for _ in range(49):
+        cycle(1e4)
+    assert feedback_state(b)[0] == "suspect"
+    cycle(1e4)
+    assert feedback_state(b) == ("ok", "")
+
+
+def test_thruster_feedback_failing_from_its_first_report_is_rejected_not_stale() -> None:
+    """A drive whose thrust is scaled wrong (4e7 N, a hundred times any thruster of the vessel), reporting
+    once a second: its first report rejects it, with the reason (it is not in use, so there are no good
+    reports to keep). Before, the status said ``stale: no data yet`` until ``feedback_rejects`` (3)
+    reports had failed, two seconds of an alarm that sent the engineer to a cable that was fine."""
+    b = Bench(thrusters=True)
+    thr = b.p.spec.vessel.thrusters[0]
+    b.run(1)
+    assert feedback_state(b) == ("stale", "no data yet")
+    for k in range(5):
+        frame = mv.azimuth_status_frame(b.mav, 0, thr.id, 4e7, 100.0, 0.0, 0)
+        b.outputs += b.p.feed(RawEvent(b.now + 50, "thr", frame))
+        b.run(1)
+        state, reason = feedback_state(b)
+        assert state == "rejected" and reason.endswith("beyond capacity 4.8e+05 N"), (k, state, reason)
+    assert b.p.counters["thr"].rejected["out_of_range"] == 5
+    assert not b.p.monitor.feedback_usable("thr")
+
+
 # --- honest status, dead reckoning, lost ------------------------------------------------------------------
 
 

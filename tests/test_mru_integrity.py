@@ -347,17 +347,18 @@ class Ship:
         return 3 * DEG * math.sin(w * k / 10), 1.5 * DEG * math.cos(w * k / 10)
 
     def run(self, seconds: float, mru: Any = None, fixes: bool = True) -> None:
-        """``mru(k, roll, pitch)`` → the (roll, pitch, sigma) the MRU sends at tick k (default: the truth);
-        ``fixes``: False sends none."""
+        """``mru(k, roll, pitch)`` → the (roll, pitch, sigma) the MRU sends at tick k (default: the truth;
+        None: nothing); ``fixes``: False sends none."""
         for _ in range(round(seconds * 10)):
             self.k += 1
             k, t = self.k, T0 + self.k * S // 10
             utc = UTC0 + timedelta(seconds=k / 10)
             roll, pitch = self.attitude(k)
             sent = (roll, pitch, None) if mru is None else mru(k, roll, pitch)
-            pashr = enc.pashr(utc, sent[0], sent[1], roll_sigma_rad=sent[2], pitch_sigma_rad=sent[2])
             self.out += self.p.feed(RawEvent(t, "gyro", enc.hdt("HE", self.psi).encode()))
-            self.out += self.p.feed(RawEvent(t + 1000, "mru", pashr.encode()))
+            if sent is not None:  # (None: the MRU is silent)
+                pashr = enc.pashr(utc, sent[0], sent[1], roll_sigma_rad=sent[2], pitch_sigma_rad=sent[2])
+                self.out += self.p.feed(RawEvent(t + 1000, "mru", pashr.encode()))
             if fixes and k % 5 == 0:
                 gga = gga_of_antenna(utc, self.psi, roll, pitch, self.ref)
                 self.out += self.p.feed(RawEvent(t + 2000, "gps", gga))
@@ -435,6 +436,97 @@ def test_a_failing_mru_is_dropped_said_once_counted_and_readmitted(
         "lever-arm compensation: roll and pitch from mru (MRU) on",
     ]
     assert ship.p.counters["mru"].rejected[counter] == rejected[counter]  # nothing counted while passing
+
+
+def mru_state(ship: Ship) -> tuple[str, str]:
+    """(state, reason) of the MRU, as `/status` shows it."""
+    (st,) = ship.p.monitor.states()["mru"]
+    return st.state, st.reason
+
+
+@pytest.mark.parametrize("every_s", [0.3, 2.0], ids=["spikes-0.3s", "spikes-2s"])
+def test_an_mru_whose_roll_keeps_spiking_stays_out_of_use_and_never_goes_stale(every_s: float) -> None:
+    """A one-sample 20° roll spike every 0.3 s, or every 2 s (three within ``readmit_s``, 5 s: as dense as
+    `attitude_rejects` takes to reject), for 40 times the MRU's timeout (0.5 s): from the third spike on
+    the MRU is never in use, never ``ok`` and never ``stale`` (its samples keep coming), the fixes are
+    compensated by heading only; between the spikes it is readmitting, never for ``readmit_s``. Spikes
+    stopped, it is in use again ``readmit_s`` after the last; silent, stale after its timeout, timed from
+    its last sample."""
+    ship = Ship(pipeline())
+    ship.run(4.0)
+    every = round(every_s * 10)
+    k0 = ship.k
+    spiking = lambda k, r, p: (r + 20 * DEG * ((k - k0) % every == 1), p, None)  # noqa: E731
+    ship.run(2 * every_s + 0.1, spiking)  # to the third spike
+    assert mru_state(ship)[0] == "rejected"
+    states, usable = set(), set()
+    heading_only = ship.p.counters["gps"].warnings["lever_arm_heading_only"]
+    for _ in range(200):  # 20 s
+        ship.run(0.1, spiking)
+        states.add(mru_state(ship)[0])
+        usable.add(ship.p.monitor.attitude_usable("mru"))
+    assert states == {"rejected", "suspect"} and usable == {False}
+    # every one of the 40 fixes (2 Hz) compensated by heading only
+    assert ship.p.counters["gps"].warnings["lever_arm_heading_only"] - heading_only == 40
+    spikes = sum((k - k0) % every == 1 for k in range(k0 + 1, ship.k + 1))
+    assert ship.p.counters["mru"].rejected["test_attitude_jump"] == spikes
+    while (ship.k + 1 - k0) % every != 1:
+        ship.run(0.1, spiking)
+    ship.run(0.1, spiking)  # the last spike
+    ship.run(5.0)  # 4.9 s of passing samples
+    assert mru_state(ship)[0] == "suspect"
+    ship.run(0.1)
+    assert mru_state(ship) == ("ok", "") and ship.p.monitor.attitude_usable("mru")
+    ship.run(0.5)  # (the next fix)
+    assert ship.p.fusion.last_compensation == "attitude"
+    silent = []
+    for _ in range(10):
+        ship.run(0.1, lambda k, r, p: None)
+        silent.append(mru_state(ship))
+    stale = [reason for state, reason in silent if state == "stale"]
+    assert [state for state, _ in silent] == ["ok"] * (10 - len(stale)) + ["stale"] * len(stale)
+    assert stale[0] in ("no data for 0.5 s", "no data for 0.6 s")  # (the next event after 0.5 s)
+
+
+def test_sparse_spikes_are_dropped_one_by_one_and_the_mru_stays_in_use() -> None:
+    """What the MRU does instead of the position's rule, by its nature: a spike every 3 s, for a minute.
+    A fix with one failing test rejects its source (a receiver sends a fix or two a second, and one wrong
+    fix says it cannot be trusted for a while); an MRU sends ten or more samples a second, each failing one
+    is dropped while the good ones around it keep compensating the fixes, and taking the MRU out for
+    ``readmit_s`` would cost the observer a transient each time (docs/integrity.md). So failures sparser
+    than ``attitude_rejects`` (3) within ``readmit_s`` (5 s) never reject it: each of the 20 spikes is
+    counted and dropped, the MRU is ``ok`` and in use throughout."""
+    ship = Ship(pipeline())
+    ship.run(4.0)
+    ship.events()
+    k0 = ship.k
+    states = set()
+    for _ in range(600):
+        ship.run(0.1, lambda k, r, p: (r + 20 * DEG * ((k - k0) % 30 == 0), p, None))
+        states.add(mru_state(ship)[0])
+        assert ship.p.fusion.last_compensation == "attitude"
+    assert states == {"ok"}
+    assert ship.p.counters["mru"].rejected == {"test_attitude_jump": 20}
+    assert not attitude_events(ship.events())
+
+
+def test_an_mru_back_from_silence_with_failing_samples_is_rejected_at_once_not_stale() -> None:
+    """An MRU in use falls silent (stale after its timeout), and comes back sending a roll of 35° (beyond
+    ``attitude_max_deg``): its first sample rejects it, with the reason. It was not in use, so there are
+    no good samples around the failing one to keep (the tolerance of ``attitude_rejects`` protects an MRU
+    in use from one spike). Before, it stayed ``stale: no data for 0.5 s`` until the third failing sample,
+    while its samples were coming. The same for one heard from the first time (``no data yet``)."""
+    ship = Ship(pipeline())
+    ship.run(4.0)
+    ship.run(0.6, lambda k, r, p: None)
+    assert mru_state(ship)[0] == "stale"
+    ship.run(0.1, lambda k, r, p: (35 * DEG, p, None))
+    assert mru_state(ship) == ("rejected", "range: roll 35.0° beyond ±30°")
+    fresh = Ship(pipeline())
+    fresh.run(1.0, lambda k, r, p: None)
+    assert mru_state(fresh) == ("stale", "no data yet")
+    fresh.run(0.1, lambda k, r, p: (r, p, 2 * DEG))  # an INS aligning: its own 1σ 2°
+    assert mru_state(fresh)[0] == "rejected" and mru_state(fresh)[1].startswith("sigma: ")
 
 
 def test_one_spike_is_dropped_not_the_mru() -> None:

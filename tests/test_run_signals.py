@@ -100,10 +100,13 @@ class Talkers:
 class Gateway:
     """``dpgw run -v --json`` in its own process, its stderr read line by line as it comes."""
 
-    def __init__(self, cfg: Path, hangup: Any = signal.SIG_DFL) -> None:
-        """``hangup``: SIGHUP's disposition the gateway inherits (``SIG_IGN``: as under ``nohup``)."""
+    def __init__(
+        self, cfg: Path, hangup: Any = signal.SIG_DFL, options: tuple[str, ...] = ("-v", "--json")
+    ) -> None:
+        """``hangup``: SIGHUP's disposition the gateway inherits (``SIG_IGN``: as under ``nohup``);
+        ``options``: of ``dpgw run`` (without ``--json``, `finish` cannot read stdout: read it instead)."""
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "dpgw", "run", "--config", str(cfg), "-v", "--json"],
+            [sys.executable, "-m", "dpgw", "run", "--config", str(cfg), *options],
             cwd=ROOT,
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,

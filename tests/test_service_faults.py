@@ -200,6 +200,10 @@ def test_a_usb_serial_adapter_unplugged_and_back(tmp_path: Path) -> None:
             assert wait_for(lambda: src.stats.connected, 30.0), "the port was not reopened"
             live.estimates_go_on(send2, 10)
             assert wait_for(lambda: send2() or not live.alarms("source gps"), 30.0), live.alarms("source gps")
+            # the status counts the reconnect and says why the port was lost
+            gps = wait_for(lambda: live.status()["sources"]["gps"], 30.0)
+            assert gps["reconnects"] == 1, gps
+            assert gps["last_disconnect"].startswith(f"serial port {link} failed: "), gps
         assert src.stats.reconnects == 1
 
 

@@ -374,6 +374,26 @@ class SourceStatus(Record, kw_only=True):
             "their noise as `garbage` lines in `rejected` instead. Left out while 0."
         ),
     ] = 0
+    reconnects: Annotated[
+        int,
+        doc(
+            "Times the link came back after it was lost: a TCP client connected again, a serial port "
+            "reopened, a `tcp-listen` server's clients accepted after the first (count). A UDP socket has "
+            "no link to lose. Left out while 0."
+        ),
+    ] = 0
+    last_disconnect: Annotated[
+        str | None,
+        doc(
+            "Why the link was last lost, as the transport saw it (`connection to 10.0.0.5:4001 lost: "
+            "closed by the server`, `serial port /dev/ttyUSB0 failed: ...`, `client 10.0.0.7:50122 gone: "
+            "closed by the client`). Left out while it never was."
+        ),
+    ] = None
+    last_disconnect_ns: Annotated[
+        int | None,
+        doc("When the link was last lost (the wall clock). Left out while it never was.", "ns (UTC)"),
+    ] = None
 
 
 class ReferenceStatus(Record, kw_only=True):

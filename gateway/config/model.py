@@ -378,8 +378,9 @@ class IntegrityConfig:
     thrust_margin: float = 1.2
     """Feedback thrust beyond the thruster's capacity × this is out of range (a report, not a thrust)."""
     feedback_rejects: int = 3
-    """This many out-of-range feedback frames within ``readmit_s`` make the feedback source suspect: τ for
-    the observer comes from the demand until it has been clean for ``readmit_s``."""
+    """This many out-of-range feedback frames within ``readmit_s`` reject a feedback source in use: τ for
+    the observer comes from the demand until it has been clean for ``readmit_s``. One rejects a source
+    not in use (stale, not heard from yet, readmitting): there are no good reports around it to keep."""
     attitude_max_deg: float = 30.0
     """An MRU's |roll| or |pitch| beyond this is out of range. A vessel rolling 30° is far past any DP
     operation's limit and near capsize for most hulls; a sentence saying so is a fault (an MRU mounted or
@@ -409,7 +410,8 @@ class IntegrityConfig:
     attitude_rejects: int = 3
     """An MRU sample that fails a test is never used; this many within ``readmit_s`` reject the MRU (heading
     only until it has passed for ``readmit_s``). One spike (one failing sample) is dropped while the
-    samples around it go on compensating; a frozen, offset or out-of-range MRU is out on its third."""
+    samples around it go on compensating; a frozen, offset or out-of-range MRU is out on its third. One
+    rejects an MRU not in use (stale, not heard from yet, readmitting)."""
     attitude_time: str = "sensor"
     """How an attitude is paired with a fix: ``sensor`` (by both sentences' own UTC times where both have
     one: PASHR and GGA/GNS; else by receive time) or ``receive`` (by receive time always: for an MRU whose

@@ -6,7 +6,10 @@ quality → jump/rate (against the source's last good value, allowance + speed �
 prediction (against the observer's prediction, gated by the expected spread) → median of ≥ 3 references.
 With exactly two references of a role their divergence raises a soft alarm on both (still used: nobody can
 tell which is wrong). A rejected source is used again after passing for ``readmit_s``. An MRU's roll and
-pitch (role ``attitude``) have tests of their own (`gateway.references.attitude`) and the same states.
+pitch (role ``attitude``) and thruster feedback (role ``thrusters``) have tests of their own
+(`gateway.references.attitude`, `gateway.references.feedback`) and the same states, with one difference:
+a failing sample or report of one in use rejects it only when ``attitude_rejects`` / ``feedback_rejects``
+failed within ``readmit_s`` (docs/integrity.md, "Every role").
 
 A heading rejected by the jump test while in use may be a spike (a GNSS compass's one-sample or burst
 artefact): for ``readmit_s`` after it, each sample is tested against the heading before the jump (the
@@ -169,6 +172,10 @@ class ReferenceMonitor:
             },
         }
         self._feedback = {n: SourceState(n, "thrusters", readmit) for n in (feedback or {})}
+        # per feedback source: [its timeout, the receive time of its latest report whatever it was (0: none
+        # yet)], a list to update in place: `refresh` reads it on every event
+        self._feedback_rx = {n: [t, 0] for n, t in (feedback or {}).items()}
+        self._feedback_timing = [(self._feedback[n], rx) for n, rx in self._feedback_rx.items()]
         self._attitude_limits = AttitudeLimits.of(params)
         self._attitude = {
             n: (SourceState(n, "attitude", readmit), AttitudeTrack(), t) for n, t in (attitudes or {}).items()
@@ -396,8 +403,10 @@ class ReferenceMonitor:
     ) -> bool:
         """Test one MRU sample (rad; `AttitudeTrack.problem`). Returns whether it may be used: it passed,
         and the source is not rejected or readmitting. A failing sample is never used; it rejects the
-        source when ``attitude_rejects`` samples failed within ``readmit_s`` (or when the source is
-        rejected or readmitting already): an MRU sends 10-100 samples a second, and one outlier (a spike)
+        source when ``attitude_rejects`` samples failed within ``readmit_s``, and at once while the source
+        is not in use (rejected, readmitting, stale, or not heard from yet: there are no good samples
+        around it to keep, and a failing MRU is not silent): an MRU sends 10-100 samples a second, and one
+        outlier (a spike)
         is dropped while its neighbours go on compensating the fixes, where taking the MRU out for
         ``readmit_s`` would switch every fix to heading only and back (which costs the observer a
         transient, docs/integrity.md). A frozen, offset or out-of-range MRU fails every sample and is
@@ -409,7 +418,7 @@ class ReferenceMonitor:
             recent.popleft()
         if why:
             recent.append(now_ns)
-            if len(recent) >= self.p.attitude_rejects or st.state not in (OK, STALE):
+            if len(recent) >= self.p.attitude_rejects or st.state != OK:
                 st.fail(now_ns, why)
             self._attitude_why[source] = why
             return False
@@ -436,18 +445,22 @@ class ReferenceMonitor:
         azimuth_rad: float | None,
         rpm: float | None,
     ) -> str:
-        """Range-check one thruster report: "" if it may be used, else why not. Enough rejects within
-        ``readmit_s`` make the source suspect (`feedback_usable` False) until it is clean that long."""
+        """Range-check one thruster report: "" if it may be used, else why not. ``feedback_rejects``
+        rejects within ``readmit_s`` reject the source (`feedback_usable` False) until it is clean that
+        long; one rejects it at once while it is not in use (rejected, readmitting, stale, or not heard
+        from yet), as for an MRU (`attitude`). Every report, passing or failing, keeps it from going
+        stale (`refresh`)."""
         st = self._feedback[source]
         why = feedback_problem(
             self._thrusters.get(thruster_id), thrust_n, azimuth_rad, rpm, self.p.thrust_margin
         )
+        self._feedback_rx[source][1] = now_ns
         recent = self._feedback_rejects[source]
         while recent and now_ns - recent[0] > st.readmit_ns:
             recent.popleft()
         if why:
             recent.append(now_ns)
-            if len(recent) >= self.p.feedback_rejects or st.state not in (OK, STALE):
+            if len(recent) >= self.p.feedback_rejects or st.state != OK:
                 st.fail(now_ns, f"{len(recent)} out-of-range reports in {self.p.readmit_s:g} s, last: {why}")
             return f"thruster {thruster_id}: {why}"
         st.passed(now_ns)
@@ -464,7 +477,9 @@ class ReferenceMonitor:
         The track's time is that of the last value past the jump test, so a DGPS sending GGA quality 6
         (dead reckoning), or fixes 100 m off, for longer than its timeout used to become ``stale: no data
         for 2.0 s`` while its sentences kept coming: the alarm sent the engineer to the cable and lost the
-        reason. It stays ``rejected`` with that reason while its data keep failing."""
+        reason. It stays ``rejected`` with that reason while its data keep failing. An MRU and a thruster
+        feedback source are timed from their latest sample or report, whatever it was, for the same rule:
+        stale once silent, never while their data keep coming and failing."""
         for r in self._all_refs:
             last = r.track.last_ns
             if last and now_ns - last > r.timeout_ns:
@@ -473,7 +488,10 @@ class ReferenceMonitor:
                     continue
                 st.stale(now_ns, (now_ns - max(last, st.failed_ns)) / NS)
         for st, track, timeout_ns in self._attitude.values():
-            last = track.rx_ns
+            last = track.rx_ns  # (every sample, passing or failing: a failing MRU talks)
+            if last and now_ns - last > timeout_ns:
+                st.stale(now_ns, (now_ns - last) / NS)
+        for st, (timeout_ns, last) in self._feedback_timing:  # (every report, passing or failing)
             if last and now_ns - last > timeout_ns:
                 st.stale(now_ns, (now_ns - last) / NS)
 

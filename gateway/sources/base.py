@@ -84,7 +84,12 @@ class SourceStats:
     file being read."""
     reconnects: int = 0
     """Times the link came back after it was lost (TCP client reconnected, serial port reopened) or, for
-    ``tcp-listen``, clients accepted after the first."""
+    ``tcp-listen``, clients accepted after the first. Counted where the link comes back, never per read.
+    UDP has no link to lose: 0."""
+    last_disconnect: tuple[int, str] | None = None
+    """When (UTC ns since 1970, ``time.time_ns()``) and why the link was last lost, in words (``connection
+    to 127.0.0.1:4001 lost: closed by the server``); None while it never was. One tuple, set at once, so
+    a reader never sees one loss's time with another's reason."""
     errors: Counter[str] = field(default_factory=Counter)
     """Problems by short, stable reason: ``"connect failed"``, ``"disconnected"``, ``"deliver raised"`` ..."""
     bytes_sent: int = 0
@@ -96,6 +101,10 @@ class SourceStats:
         with self._lock:
             self.errors[reason] += 1
             self.last_error = detail or reason
+
+    def note_disconnect(self, why: str) -> None:
+        """The link was lost (now), and why (`last_disconnect`): called where a link is lost, not per read."""
+        self.last_disconnect = (time.time_ns(), why)
 
     def add_sent(self, n: int) -> None:
         with self._lock:
@@ -110,6 +119,7 @@ class SourceStats:
                 last_rx_mono_ns=self.last_rx_mono_ns,
                 connected=self.connected,
                 reconnects=self.reconnects,
+                last_disconnect=self.last_disconnect,
                 errors=Counter(self.errors),
                 bytes_sent=self.bytes_sent,
                 last_error=self.last_error,

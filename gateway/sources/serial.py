@@ -28,7 +28,8 @@ class SerialSource(Source):
     The device must exist at `start` (else `SourceError`). When it fails while running (a USB adapter
     unplugged, the simulator's pty closed), the error is counted, ``stats.connected`` goes False and the
     port is reopened with back-off (0.5 s doubling to 10 s) until it is back; ``stats.reconnects`` counts
-    the reopenings. A pty has no baud rate: the setting is accepted and ignored.
+    the reopenings, ``stats.last_disconnect`` says when and why it last failed. A pty has no baud rate:
+    the setting is accepted and ignored.
     """
 
     kind = "serial"
@@ -153,6 +154,7 @@ class SerialSource(Source):
                     return
                 if data:
                     self._emit(data)
+                self.stats.note_disconnect(f"serial port {self.device} failed: {exc}")
                 self._error(
                     "disconnected", f"serial port {self.device} failed: {exc}; reopening", always=True
                 )

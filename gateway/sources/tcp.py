@@ -23,8 +23,9 @@ class TcpClientSource(Source):
     link may come up later. Connection attempts (each up to ``timeout_s``) are retried after 0.5 s, 1 s,
     2 s ... up to 10 s; the wait is reset by a successful connection. When the server closes the
     connection or it fails, the client reconnects the same way; ``stats.reconnects`` counts the times the
-    link came back, ``stats.errors`` the failed attempts (``"connect failed"``) and lost links
-    (``"disconnected"``). `write` sends to the server while connected.
+    link came back, ``stats.last_disconnect`` says when and why it was last lost, ``stats.errors`` counts
+    the failed attempts (``"connect failed"``) and lost links (``"disconnected"``). `write` sends to the
+    server while connected.
     """
 
     kind = "tcp"
@@ -96,6 +97,7 @@ class TcpClientSource(Source):
             self._end_of_stream(peer)
             if reason is None:  # stopped
                 return
+            self.stats.note_disconnect(f"connection to {peer} lost: {reason}")
             self._error("disconnected", f"connection to {peer} lost: {reason}; reconnecting", always=True)
             if self._sleep(backoff.next()):
                 return
@@ -145,7 +147,9 @@ class TcpListenSource(Source):
 
     The port is bound at `start` (port in use: `SourceError`; port 0: any free one, see `port`). Each
     client's bytes arrive as chunks with its ``peer``; ``stats.connected`` is True while at least one
-    client is connected. `write` sends to every client, or to the one named by ``peer``.
+    client is connected, ``stats.reconnects`` counts the clients accepted after the first and
+    ``stats.last_disconnect`` says when and why a client last went. `write` sends to every client, or to
+    the one named by ``peer``.
     """
 
     kind = "tcp-listen"
@@ -207,6 +211,7 @@ class TcpListenSource(Source):
             peer = self._clients.pop(sock, "?")
             sock.close()
             self.stats.connected = bool(self._clients)
+        self.stats.note_disconnect(f"client {peer} gone: {reason}")
         log.info("source %r: client %s gone: %s", self.name, peer, reason)
         self._end_of_stream(peer)
 
