@@ -18,6 +18,7 @@ import socket
 import subprocess
 import sys
 import threading
+import time
 import tty
 from datetime import UTC, datetime
 from pathlib import Path
@@ -130,10 +131,12 @@ class Gateway:
             self.lines.put(line)
 
     def wait_line(self, text: str, timeout: float = 120.0) -> None:
-        """Block until the gateway prints a line containing ``text``."""
+        """Block until the gateway prints a line containing ``text``, for at most ``timeout`` s in all (a
+        timeout per line would never end while other lines keep coming, e.g. ``-v``'s status line)."""
+        deadline = time.monotonic() + timeout
         while True:
             try:
-                line = self.lines.get(timeout=timeout)
+                line = self.lines.get(timeout=max(deadline - time.monotonic(), 0.0))
             except queue.Empty:
                 pytest.fail(f"no line with {text!r} within {timeout} s: {''.join(self.err)}")
             if text in line:
