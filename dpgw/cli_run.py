@@ -39,6 +39,7 @@ DESCRIPTION = (
 EPILOG = (
     "examples:\n"
     "  dpgw run --config /etc/dpgw/vessel.toml\n"
+    "  dpgw run --config /etc/dpgw/vessel.toml --wait-for-ports   # as the systemd unit runs it\n"
     "  dpgw run --config examples/nmea_udp_multiplexer.toml --log /tmp/trial.mcap\n"
     "  dpgw run --config vessel.toml --check        # validate the config and exit\n"
     "  dpgw run --config vessel.toml --foxglove     # and serve it to Foxglove at ws://127.0.0.1:8765\n"
@@ -56,6 +57,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--check",
         action="store_true",
         help="check the config and exit: a summary (status 0) or every problem (status 2); opens nothing",
+    )
+    p.add_argument(
+        "--wait-for-ports",
+        action="store_true",
+        help="a serial port that does not exist at start-up is waited for (an alarm in /status, opened when "
+        "it appears) instead of stopping start-up; the other sources run meanwhile. For a service (the "
+        "systemd unit in examples/ uses it): a USB adapter late at boot or unplugged then does not stop "
+        "the gateway, nor make systemd give up on it after its restarts",
     )
     p.add_argument(
         "--clock",
@@ -184,7 +193,9 @@ def run(args: argparse.Namespace) -> int:
     if stop.requested.is_set():  # before anything opens: nothing to close
         print(f"dpgw run: stopped by {stop.name} during start-up; nothing was opened", file=sys.stderr)
         return 0
-    service = GatewayService(config, log_path=args.log, config_tables=tables, sinks=sinks)
+    service = GatewayService(
+        config, log_path=args.log, config_tables=tables, sinks=sinks, wait_for_ports=args.wait_for_ports
+    )
     stop.attach(service)
     try:
         service.start()
@@ -345,8 +356,9 @@ def start_up_notes(config: GatewayConfig) -> list[str]:
         if isinstance(source, SerialSource) and not os.path.exists(source.device):
             notes.append(
                 f"sources.{sc.name}.url: serial port {source.device} does not exist now: start-up stops on "
-                "it unless it is there by then (check the cable/udev name: ls /dev/serial/by-id/; a "
-                "simulator's pty link is made when the simulator starts)"
+                "it unless it is there by then, or waits for it with --wait-for-ports (the service unit) "
+                "(check the cable/udev name: ls /dev/serial/by-id/; a simulator's pty link is made when "
+                "the simulator starts)"
             )
     return notes
 

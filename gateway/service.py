@@ -47,7 +47,7 @@ from gateway.config.logged import for_log
 from gateway.outputs import InputSink, OutputSink, RawSentenceSink
 from gateway.pipeline import ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from gateway.sim_time import SimTime
-from gateway.sources import Chunk, Source, open_source
+from gateway.sources import Chunk, SerialSource, Source, open_source
 from gateway.wall_time import WallTime
 from wire.codecs import mavlink as mv
 from wire.mcap.writer import McapLogWriter
@@ -149,8 +149,11 @@ class GatewayService:
         log_path: str | None = None,
         config_tables: dict[str, Any] | None = None,
         sinks: Sequence[OutputSink] = (),
+        wait_for_ports: bool = False,
     ) -> None:
         self.config = config
+        self.wait_for_ports = wait_for_ports
+        """A serial port that does not exist at `start` is waited for (an alarm), not a `SourceError`."""
         self.sinks: list[OutputSink] = list(sinks)
         """Extra outputs (`gateway.outputs`): each gets every batch of outputs after the Zenoh puts."""
         self.config_tables = config_tables
@@ -246,6 +249,8 @@ class GatewayService:
         try:
             for sc in self.config.sources:
                 src = open_source(sc.name, sc.url, timeout_s=sc.timeout_s)
+                if isinstance(src, SerialSource):
+                    src.wait_if_absent = self.wait_for_ports
                 self._sources.append(src)
                 src.start(self._queue.put)
             if self._session is None:

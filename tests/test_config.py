@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import copy
 import math
+import shutil
 import socket
 import subprocess
 import sys
@@ -265,9 +266,30 @@ def test_systemd_unit() -> None:
         "TimeoutStopSec=",
         "After=network-online.target",
         "Wants=network-online.target",
+        "--wait-for-ports",  # a USB adapter late at boot must not stop the service (docs/sources.md)
+        "Environment=NUMBA_CACHE_DIR=/var/cache/dpgw",  # the venv is read-only under ProtectSystem=strict
+        "CacheDirectory=dpgw",
     ):
         assert line in unit, line
     assert (EXAMPLES / "README.md").is_file()
+
+
+@pytest.mark.skipif(shutil.which("systemd-analyze") is None, reason="systemd-analyze is not installed")
+def test_systemd_unit_verifies(tmp_path: Path) -> None:
+    """``systemd-analyze verify`` finds nothing wrong with the unit (directives, values, ExecStart), with
+    ExecStart pointing at this installation's dpgw instead of /opt/dpgw/venv."""
+    dpgw = Path(sys.executable).parent / "dpgw"
+    if not dpgw.is_file():
+        pytest.skip(f"no dpgw script beside {sys.executable}")
+    unit = (EXAMPLES / "dpgw.service").read_text().replace("/opt/dpgw/venv/bin/dpgw", str(dpgw))
+    (tmp_path / "dpgw.service").write_text(unit)
+    r = subprocess.run(
+        ["systemd-analyze", "verify", str(tmp_path / "dpgw.service")],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert r.returncode == 0 and not r.stderr.strip(), r.stderr
 
 
 # --- defaults and paths -----------------------------------------------------------------------------------
