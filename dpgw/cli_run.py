@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 from dpgw import cli_json
 from dpgw.cli_foxglove import FROM_CONFIG, add_foxglove_arg, connect_lines
-from dpgw.cli_paths import mcap_path_problem
+from dpgw.cli_paths import mcap_path_problem, writable
 from dpgw.cli_types import positive_float
 
 if TYPE_CHECKING:
@@ -346,6 +346,8 @@ def start_up_notes(config: GatewayConfig) -> list[str]:
     from gateway.sources.udp import UdpSource
 
     notes: list[str] = config_notes(config)
+    if config.log.path and (note := log_folder_note(str(config.log.path))):
+        notes.append(note)
     for sc in config.sources:
         try:
             source = open_source(sc.name, sc.url, timeout_s=sc.timeout_s)
@@ -361,6 +363,26 @@ def start_up_notes(config: GatewayConfig) -> list[str]:
                 "the simulator starts)"
             )
     return notes
+
+
+def log_folder_note(path: str) -> str | None:
+    """``log.path`` whose folder this user cannot write in, or make, now: start-up would stop on it. A
+    note, not a problem: the folder may be made by then (systemd's ``LogsDirectory`` makes /var/log/dpgw
+    for the service's user when the service starts), but ``sudo -u dpgw dpgw run --check``, run to find
+    what the service's user cannot do, said ``ok`` and the service then stopped on it."""
+    import os
+    import pwd
+
+    folder = os.path.dirname(os.path.abspath(path))
+    if writable(folder):
+        return None
+    what = "is not writable" if os.path.isdir(folder) else "does not exist and cannot be made"
+    user = pwd.getpwuid(os.geteuid()).pw_name
+    return (
+        f"log.path: the folder {folder} {what} for this user ({user}) now: start-up stops on it "
+        "unless that changes by then (a service: give a path in its LogsDirectory, /var/log/dpgw, which "
+        "systemd makes for the service's user when it starts)"
+    )
 
 
 def start_up_problems(config: GatewayConfig) -> list[str]:

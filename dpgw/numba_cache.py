@@ -29,6 +29,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+from dpgw.cli_paths import writable
+
 # A module with compiled kernels: numba's in-tree cache is ``__pycache__`` beside each such module, and
 # dpgw's packages are installed together, so one stands for all.
 KERNEL_PACKAGE = Path(__file__).resolve().parent.parent / "observers"
@@ -43,18 +45,6 @@ class CacheChoice:
     directory, to be set as ``NUMBA_CACHE_DIR``."""
     tried: tuple[str, ...]
     """numba's places, in its order, that were not writable (for the message)."""
-
-
-def writable(path: str) -> bool:
-    """``path`` is a folder this process may write in, or can be made as one (its nearest existing
-    ancestor is a writable folder). No side effect: nothing is made."""
-    p = os.path.abspath(path)
-    while not os.path.lexists(p):
-        parent = os.path.dirname(p)
-        if parent == p:
-            return False
-        p = parent
-    return os.path.isdir(p) and os.access(p, os.W_OK | os.X_OK)
 
 
 def user_wide_dir(env: Mapping[str, str]) -> str:
