@@ -258,7 +258,7 @@ def test_systemd_unit() -> None:
     for line in (
         "ExecStart=",
         "dpgw run --config /etc/dpgw/vessel.toml",
-        "Restart=on-failure",
+        "Restart=always",  # a clean exit on SIGHUP/SIGINT/kill is restarted too (examples/README.md)
         "RestartSec=",
         "User=dpgw",
         "SupplementaryGroups=dialout",
