@@ -140,6 +140,7 @@ def run(args: argparse.Namespace) -> int:
     import tomllib
     from dataclasses import replace
 
+    from dpgw.journal import configure_logging
     from gateway.bus import BusError
     from gateway.config import (
         ConfigError,
@@ -153,7 +154,7 @@ def run(args: argparse.Namespace) -> int:
     from gateway.service import GatewayService, LogPathError
     from gateway.sources import SourceError
 
-    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(message)s")
+    configure_logging(logging.INFO if args.verbose else logging.WARNING)
     try:
         config = load_config(args.config)
     except ConfigError as exc:
