@@ -253,6 +253,28 @@ def test_esc_direction_servo_forms_and_notes(tmp_path: Path) -> None:
     assert ap.esc_dead_band_us == 40.0 and config_notes(c) == []
 
 
+def test_a_signing_key_in_a_config_everyone_may_read_is_noted(tmp_path: Path) -> None:
+    """The install step put the config at mode 0644: the MAVLink signing key in it, which lets whoever
+    reads it drive the thrusters, readable by every user. ``--check`` and start-up now say so."""
+    import os
+
+    from gateway.config import config_notes
+
+    path = tmp_path / "vessel.toml"
+    text = BASE_TOML.replace('name = "thr"', f'name = "thr"\nsigning_key = "{KEY}"', 1)
+    assert text != BASE_TOML
+    path.write_text(text)
+    path.chmod(0o644)
+    notes = [n for n in config_notes(load_config(path)) if "signing_key" in n]
+    assert len(notes) == 1 and "sources.thr.signing_key" in notes[0] and "mode 0644" in notes[0], notes
+    assert KEY not in notes[0]
+    path.chmod(0o640)
+    assert not [n for n in config_notes(load_config(path)) if "signing_key" in n]
+    path.chmod(0o644)  # without a key, nothing to say
+    path.write_text(BASE_TOML)
+    assert os.stat(path).st_mode & 0o004 and config_notes(load_config(path)) == []
+
+
 def test_systemd_unit() -> None:
     unit = (EXAMPLES / "dpgw.service").read_text()
     for line in (
