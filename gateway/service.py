@@ -70,6 +70,9 @@ restarted simulator whose data came before its ticks got through). A simulator a
 HOLD_MAX = 10_000
 """Items held while waiting for the first simulation clock tick (a minute of a busy bench's input)."""
 CLOCK_SILENT_S = 5.0
+BEHIND_S = 1.0
+"""The consumer is behind when the input it handles was received this long ago (wall s): a status alarm
+and one log line each way. The estimates and thruster commands then come from inputs that old."""
 """With ``clock = "sim"``: no tick for this long (wall s) raises a status alarm."""
 
 
@@ -219,6 +222,10 @@ class GatewayService:
         self.published = 0
         self._zenoh_reached = True  # (a lost connection is logged when it is found lost, once)
         self.internal_errors: Counter[str] = Counter()  # source name or "input <key>" -> items not handled
+        self.behind_ns = 0
+        """How long ago the input last handled was received (0 when none waited): the consumer's lag."""
+        self.behind_max_ns = 0
+        """The largest `behind_ns` of the present spell behind (0 while not behind)."""
 
     # --- start and stop -------------------------------------------------------------------------------------
 
@@ -436,6 +443,7 @@ class GatewayService:
                 if st.went_back is not None:  # nothing of the old run waits: follow the new one now
                     self._follow_new_run()
                 self._release_held()
+            self._measure_lag(item)
             mono = time.monotonic_ns()
             # While items wait in the queue, "now" is the newest time handled (none before the first): a
             # consumer that is behind (a busy machine) must not see its sources as silent, nor dead-reckon
@@ -528,6 +536,7 @@ class GatewayService:
                     "raise ?rcvbuf= or net.core.rmem_max)"
                 )
         alarms += self._clock_alarms()
+        alarms += self._behind_alarms()
         alarms += self._zenoh_alarms()
         if self.log is not None and self.log.error is not None:
             alarms.append(
@@ -539,6 +548,37 @@ class GatewayService:
             for what, n in sorted(self.internal_errors.items())
         ]
         return alarms
+
+    def _measure_lag(self, item: Chunk | _Input | None) -> None:
+        """How far behind the consumer is: the age of the input just handled (none: caught up). A consumer
+        that cannot keep up (a machine overloaded, a source flooding, a slow output) lets inputs wait in
+        the queue, and its estimates and commands are as late as they; nothing said so (measured: a
+        gateway slowed under a profiler fell minutes behind its sources, DP steering by a position 700 m
+        old, with no alarm). Said once when it starts and once when it ends, an alarm meanwhile."""
+        lag = 0 if item is None else max(0, time.monotonic_ns() - item.rx_mono_ns)
+        was_behind = self.behind_max_ns > 0
+        if lag > BEHIND_S * 1e9:
+            if not was_behind:
+                log.error(
+                    "gateway behind: handling input received %.1f s ago (%d waiting); estimates and "
+                    "commands are that late",
+                    lag / 1e9,
+                    self._queue.qsize(),
+                )
+            self.behind_max_ns = max(self.behind_max_ns, lag)
+        elif was_behind and lag < BEHIND_S * 1e9 / 2:
+            log.warning("gateway caught up (it was up to %.1f s behind)", self.behind_max_ns / 1e9)
+            self.behind_max_ns = 0
+        self.behind_ns = lag
+
+    def _behind_alarms(self) -> list[str]:
+        if not self.behind_max_ns:
+            return []
+        return [
+            f"gateway behind: handling input received {self.behind_ns / 1e9:.1f} s ago "
+            f"({self._queue.qsize()} waiting; up to {self.behind_max_ns / 1e9:.1f} s): estimates and "
+            "commands are that late (is the computer overloaded, or a source flooding?)"
+        ]
 
     def _zenoh_alarms(self) -> list[str]:
         """With ``connect`` endpoints (a router, a console), or a client dialling its router: an alarm while
