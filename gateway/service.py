@@ -553,8 +553,9 @@ class GatewayService:
         """How far behind the consumer is: the age of the input just handled (none: caught up). A consumer
         that cannot keep up (a machine overloaded, a source flooding, a slow output) lets inputs wait in
         the queue, and its estimates and commands are as late as they; nothing said so (measured: a
-        gateway slowed under a profiler fell minutes behind its sources, DP steering by a position 700 m
-        old, with no alarm). Said once when it starts and once when it ends, an alarm meanwhile."""
+        gateway slowed under a profiler fell minutes behind a 5x simulator, whose vessel drifted 700 m
+        off station under commands that late, with no alarm but the distance). Said once when it starts
+        and once when it ends, an alarm meanwhile."""
         lag = 0 if item is None else max(0, time.monotonic_ns() - item.rx_mono_ns)
         was_behind = self.behind_max_ns > 0
         if lag > BEHIND_S * 1e9:

@@ -529,8 +529,8 @@ class SlowSink:
 def test_a_gateway_that_falls_behind_says_so(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
     """A consumer that cannot keep up (here a slow output) lets inputs wait, and its estimates and
     commands are as late: /status says how late while it lasts, the gateway's log says so once when it
-    starts and once when it is back. Before: not a word (measured: minutes behind, DP steering by a
-    position 700 m old)."""
+    starts and once when it is back. Before: not a word (measured: minutes behind, a simulated vessel
+    700 m off station under commands that late)."""
     udp = free_port(socket.SOCK_DGRAM)
     caplog.set_level(logging.WARNING, logger="dpgw")
     tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
