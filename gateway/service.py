@@ -226,6 +226,8 @@ class GatewayService:
         """How long ago the input last handled was received (0 when none waited): the consumer's lag."""
         self.behind_max_ns = 0
         """The largest `behind_ns` of the present spell behind (0 while not behind)."""
+        self.logged_unhandled = 0
+        """Inputs still queued at the end of `drain`'s time, written to the log without being handled."""
 
     # --- start and stop -------------------------------------------------------------------------------------
 
@@ -509,15 +511,52 @@ class GatewayService:
                 return  # no tick since: which run it is of is not known yet
             self._handle(self._held.popleft())
 
-    def drain(self) -> None:
+    def drain(self, within_s: float | None = None) -> None:
         """Handle whatever is already queued (used at shutdown so nothing received is dropped); what is
-        still held for want of a simulation clock stays unhandled (there is no time to stamp it with)."""
+        still held for want of a simulation clock stays unhandled (there is no time to stamp it with).
+
+        ``within_s``: what is still queued after that long is written to the log as received, without
+        the pipeline. A gateway far behind (`BEHIND_S`) held minutes of input in its queue, and handling
+        it all after SIGTERM took minutes (measured: over two) while systemd kills a service that has not
+        stopped after its ``TimeoutStopSec`` (30 s in the shipped unit): the log was cut without its
+        summary and what was queued was lost. Outputs of input that old help nobody once the gateway is
+        stopping; its bytes in the log do (a replay handles them)."""
+        deadline = None if within_s is None else time.monotonic() + within_s
+        logged_only = 0
         while True:
             try:
                 item = self._queue.get_nowait()
             except queue.Empty:
-                return
+                break
+            if deadline is not None and time.monotonic() >= deadline:
+                logged_only += self._log_input(item)
+                continue
             self._take(item)
+        if logged_only:
+            log.warning(
+                "stopping: %d inputs still queued after %.0f s were logged without being handled",
+                logged_only,
+                within_s,
+            )
+        self.logged_unhandled += logged_only
+
+    def _log_input(self, item: Chunk | _Input) -> int:
+        """Write ``item`` to the log as it was received, without the pipeline; 1 if it was written."""
+        rx = self._stamp(item)
+        if rx is None or self.log is None:
+            return 0
+        if isinstance(item, _Input):
+            body = item.payload if isinstance(item.payload, dict) else {item.key: item.payload}
+            self.log.write(f"/dp/{item.key}", body, rx, rx)
+            return 1
+        spec = self.pipeline.sources.get(item.source)
+        if spec is None:
+            return 0
+        if spec.protocol == "nmea":
+            self.log.write_raw_nmea(item.source, item.data, rx, rx, peer=item.peer)
+        else:
+            self.log.write_raw_mavlink(item.source, item.data, rx, rx, peer=item.peer)
+        return 1
 
     def _alarms(self) -> list[str]:
         alarms = [  # with what the OS last said: "port ... failed", "... not an address of this computer"

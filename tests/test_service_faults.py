@@ -7,6 +7,7 @@ lasts, and the gateway takes up what came back without a restart."""
 
 from __future__ import annotations
 
+import base64
 import contextlib
 import gc
 import json
@@ -34,7 +35,7 @@ from gateway.config import parse_config
 from gateway.service import GatewayService
 from simulator.transports import PtySink
 from wire.codecs import nmea_encode as enc
-from wire.mcap.reader import log_files, read_messages
+from wire.mcap.reader import log_files, read_messages, summary
 from wire.mcap.rotation import rotated_path
 from wire.messages import Estimate
 
@@ -559,3 +560,40 @@ def test_a_gateway_that_falls_behind_says_so(tmp_path: Path, caplog: pytest.LogC
     said = [r.getMessage() for r in caplog.records if "gateway behind" in r.getMessage()]
     back = [r.getMessage() for r in caplog.records if "gateway caught up" in r.getMessage()]
     assert len(said) == 1 and len(back) == 1, (said, back)
+
+
+def test_a_stop_far_behind_ends_in_time_with_every_byte_logged(tmp_path: Path) -> None:
+    """Stopped while far behind (minutes of input queued), the gateway handled all of it first, for
+    minutes, and systemd killed it after TimeoutStopSec: the log cut, the queue lost. Now the drain handles
+    for a bounded time and writes the rest to the log as received: the stop ends in time, the log is
+    complete and holds every byte the source received."""
+    udp = free_port(socket.SOCK_DGRAM)
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sink = SlowSink(0.2)
+    try:
+        with Live(tmp_path, f"udp://127.0.0.1:{udp}", sinks=[sink]) as live:
+            live.estimates_go_on(lambda: tx.sendto(burst(0), ("127.0.0.1", udp)) and time.sleep(0.02))
+            src = live.service._sources[0]
+            sink.slow.set()  # 5 batches a second at most: what comes now waits in the queue
+            before = src.stats.chunks
+            for k in range(300):  # a minute of handling at that pace
+                tx.sendto(burst(k), ("127.0.0.1", udp))
+            assert wait_for(lambda: src.stats.chunks >= before + 300, 30.0), src.stats.chunks - before
+            live.service.stop_event.set()
+            live.loop.join(timeout=30)
+            t0 = time.monotonic()
+            live.service.drain(within_s=1.0)
+            took = time.monotonic() - t0
+            received = src.stats.bytes_received
+            logged_only = live.service.logged_unhandled
+            live.service.close()
+    finally:
+        tx.close()
+    assert took < 5.0, took  # 1 s of handling (one slow batch past it) and the writes
+    assert logged_only > 200, logged_only
+    assert summary(live.log_path).complete
+    logged = 0
+    for _, _, _, p in read_messages(live.log_path, "/raw/nmea/gps"):
+        body = base64.b64decode(p["data"]) if "data" in p else p["text"].encode("ascii")
+        logged += len(body) + (0 if p.get("unterminated") else len(p.get("eol", "\r\n")))
+    assert logged == received
