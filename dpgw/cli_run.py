@@ -17,6 +17,7 @@ from dpgw import cli_json
 from dpgw.cli_foxglove import FROM_CONFIG, add_foxglove_arg, connect_lines
 from dpgw.cli_paths import mcap_path_problem, writable
 from dpgw.cli_types import positive_float
+from dpgw.sd_notify import Notifier
 
 if TYPE_CHECKING:
     from gateway.config import GatewayConfig
@@ -224,7 +225,15 @@ def run(args: argparse.Namespace) -> int:
         service.close()
         print(f"dpgw run: stopped by {stop.name} during start-up; nothing was opened", file=sys.stderr)
         return 0
-    print(start_up_line(config, service, args.log), file=sys.stderr, flush=True)
+    line = start_up_line(config, service, args.log)
+    print(line, file=sys.stderr, flush=True)
+    notifier = Notifier()  # systemd (Type=notify, WatchdogSec): ready now, the loop feeds the watchdog
+    if notifier.enabled:
+        t0 = time.monotonic()
+        service.heartbeat = lambda: notifier.heartbeat(
+            lambda: status_line(service.last_status(), time.monotonic() - t0)
+        )
+        notifier.ready(line)
     for sink in sinks:
         if sink.name == "foxglove":
             for line in connect_lines(sink.url, sink.app_url()):  # type: ignore[attr-defined]
@@ -237,11 +246,13 @@ def run(args: argparse.Namespace) -> int:
         reporter.start()
     try:
         service.run(args.duration)
+        notifier.stopping()
         service.drain(within_s=DRAIN_S)
     finally:
         service.stop_event.set()  # also ends the status reporter
         status = service.final_status().payload
         service.close()
+        notifier.close()
     summary = {"estimates": service.pipeline.estimates, "published": service.published, "status": status}
     if args.json:
         print(cli_json.dumps(summary, indent=2))

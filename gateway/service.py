@@ -34,7 +34,7 @@ import queue
 import threading
 import time
 from collections import Counter, deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -226,6 +226,9 @@ class GatewayService:
         """How long ago the input last handled was received (0 when none waited): the consumer's lag."""
         self.behind_max_ns = 0
         """The largest `behind_ns` of the present spell behind (0 while not behind)."""
+        self.heartbeat: Callable[[], None] | None = None
+        """Called at every turn of the consumer loop (`dpgw.sd_notify`: systemd's watchdog): a loop that
+        stops turning stops calling it."""
         self.logged_unhandled = 0
         """Inputs still queued at the end of `drain`'s time, written to the log without being handled."""
 
@@ -432,6 +435,8 @@ class GatewayService:
         while not self.stop_event.is_set():
             if deadline is not None and time.monotonic() >= deadline:
                 break
+            if self.heartbeat is not None:
+                self.heartbeat()
             if self._dialler is not None:
                 self._take_dialled()
             try:

@@ -291,6 +291,8 @@ def test_systemd_unit() -> None:
         "--wait-for-ports",  # a USB adapter late at boot must not stop the service (docs/sources.md)
         "Environment=NUMBA_CACHE_DIR=/var/cache/dpgw",  # the venv is read-only under ProtectSystem=strict
         "CacheDirectory=dpgw",
+        "Type=notify",  # READY and the watchdog (dpgw.sd_notify)
+        "WatchdogSec=",
     ):
         assert line in unit, line
     assert (EXAMPLES / "README.md").is_file()
