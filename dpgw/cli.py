@@ -30,6 +30,7 @@ from dpgw import (
     cli_sim,
     cli_study,
     cli_tune,
+    numba_cache,
 )
 from dpgw.cli_help import HelpFormatter
 
@@ -134,6 +135,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 2
+    numba_cache.ensure_writable_cache()  # before a command imports numba (not for --help)
     try:
         code: int = args.func(args)
     except BrokenPipeError:

@@ -3,6 +3,7 @@ what to do, instead of a traceback after the replay, the fit or the simulation."
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 
@@ -26,3 +27,15 @@ def mcap_path_problem(flag: str, path: str | Path | None, *, made: bool = False)
     if p.suffix != ".mcap":
         return f"{flag} {path}: not an MCAP file name (expected a path ending in .mcap, e.g. {p.stem}.mcap)"
     return None if made else missing_folder(flag, path)
+
+
+def writable(path: str) -> bool:
+    """``path`` is a folder this process may write in, or can be made as one (its nearest existing
+    ancestor is a writable folder). No side effect: nothing is made."""
+    p = os.path.abspath(path)
+    while not os.path.lexists(p):
+        parent = os.path.dirname(p)
+        if parent == p:
+            return False
+        p = parent
+    return os.path.isdir(p) and os.access(p, os.W_OK | os.X_OK)

@@ -15,8 +15,9 @@ from typing import TYPE_CHECKING, Any
 
 from dpgw import cli_json
 from dpgw.cli_foxglove import FROM_CONFIG, add_foxglove_arg, connect_lines
-from dpgw.cli_paths import mcap_path_problem
+from dpgw.cli_paths import mcap_path_problem, writable
 from dpgw.cli_types import positive_float
+from dpgw.sd_notify import Notifier
 
 if TYPE_CHECKING:
     from gateway.config import GatewayConfig
@@ -24,6 +25,9 @@ if TYPE_CHECKING:
 
 # With -v, one status line this often (wall seconds).
 STATUS_EVERY_S = 5.0
+# After a stop, queued input is handled for at most this long, the rest only logged: the whole stop stays
+# well inside the systemd unit's TimeoutStopSec (30 s), after which the process would be killed.
+DRAIN_S = 10.0
 
 
 NAME = "run"
@@ -39,6 +43,7 @@ DESCRIPTION = (
 EPILOG = (
     "examples:\n"
     "  dpgw run --config /etc/dpgw/vessel.toml\n"
+    "  dpgw run --config /etc/dpgw/vessel.toml --wait-for-ports   # as the systemd unit runs it\n"
     "  dpgw run --config examples/nmea_udp_multiplexer.toml --log /tmp/trial.mcap\n"
     "  dpgw run --config vessel.toml --check        # validate the config and exit\n"
     "  dpgw run --config vessel.toml --foxglove     # and serve it to Foxglove at ws://127.0.0.1:8765\n"
@@ -56,6 +61,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--check",
         action="store_true",
         help="check the config and exit: a summary (status 0) or every problem (status 2); opens nothing",
+    )
+    p.add_argument(
+        "--wait-for-ports",
+        action="store_true",
+        help="a serial port that does not exist at start-up is waited for (an alarm in /status, opened when "
+        "it appears) instead of stopping start-up; the other sources run meanwhile. For a service (the "
+        "systemd unit in examples/ uses it): a USB adapter late at boot or unplugged then does not stop "
+        "the gateway, nor make systemd give up on it after its restarts",
     )
     p.add_argument(
         "--clock",
@@ -131,6 +144,7 @@ def run(args: argparse.Namespace) -> int:
     import tomllib
     from dataclasses import replace
 
+    from dpgw.journal import configure_logging
     from gateway.bus import BusError
     from gateway.config import (
         ConfigError,
@@ -144,7 +158,7 @@ def run(args: argparse.Namespace) -> int:
     from gateway.service import GatewayService, LogPathError
     from gateway.sources import SourceError
 
-    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(message)s")
+    configure_logging(logging.INFO if args.verbose else logging.WARNING)
     try:
         config = load_config(args.config)
     except ConfigError as exc:
@@ -184,7 +198,9 @@ def run(args: argparse.Namespace) -> int:
     if stop.requested.is_set():  # before anything opens: nothing to close
         print(f"dpgw run: stopped by {stop.name} during start-up; nothing was opened", file=sys.stderr)
         return 0
-    service = GatewayService(config, log_path=args.log, config_tables=tables, sinks=sinks)
+    service = GatewayService(
+        config, log_path=args.log, config_tables=tables, sinks=sinks, wait_for_ports=args.wait_for_ports
+    )
     stop.attach(service)
     try:
         service.start()
@@ -209,7 +225,15 @@ def run(args: argparse.Namespace) -> int:
         service.close()
         print(f"dpgw run: stopped by {stop.name} during start-up; nothing was opened", file=sys.stderr)
         return 0
-    print(start_up_line(config, service, args.log), file=sys.stderr, flush=True)
+    line = start_up_line(config, service, args.log)
+    print(line, file=sys.stderr, flush=True)
+    notifier = Notifier()  # systemd (Type=notify, WatchdogSec): ready now, the loop feeds the watchdog
+    if notifier.enabled:
+        t0 = time.monotonic()
+        service.heartbeat = lambda: notifier.heartbeat(
+            lambda: status_line(service.last_status(), time.monotonic() - t0)
+        )
+        notifier.ready(line)
     for sink in sinks:
         if sink.name == "foxglove":
             for line in connect_lines(sink.url, sink.app_url()):  # type: ignore[attr-defined]
@@ -222,11 +246,13 @@ def run(args: argparse.Namespace) -> int:
         reporter.start()
     try:
         service.run(args.duration)
-        service.drain()
+        notifier.stopping()
+        service.drain(within_s=DRAIN_S)
     finally:
         service.stop_event.set()  # also ends the status reporter
         status = service.final_status().payload
         service.close()
+        notifier.close()
     summary = {"estimates": service.pipeline.estimates, "published": service.published, "status": status}
     if args.json:
         print(cli_json.dumps(summary, indent=2))
@@ -357,6 +383,8 @@ def start_up_notes(config: GatewayConfig) -> list[str]:
     from gateway.sources.udp import UdpSource
 
     notes: list[str] = config_notes(config)
+    if config.log.path and (note := log_folder_note(str(config.log.path))):
+        notes.append(note)
     for sc in config.sources:
         try:
             source = open_source(sc.name, sc.url, timeout_s=sc.timeout_s)
@@ -367,10 +395,31 @@ def start_up_notes(config: GatewayConfig) -> list[str]:
         if isinstance(source, SerialSource) and not os.path.exists(source.device):
             notes.append(
                 f"sources.{sc.name}.url: serial port {source.device} does not exist now: start-up stops on "
-                "it unless it is there by then (check the cable/udev name: ls /dev/serial/by-id/; a "
-                "simulator's pty link is made when the simulator starts)"
+                "it unless it is there by then, or waits for it with --wait-for-ports (the service unit) "
+                "(check the cable/udev name: ls /dev/serial/by-id/; a simulator's pty link is made when "
+                "the simulator starts)"
             )
     return notes
+
+
+def log_folder_note(path: str) -> str | None:
+    """``log.path`` whose folder this user cannot write in, or make, now: start-up would stop on it. A
+    note, not a problem: the folder may be made by then (systemd's ``LogsDirectory`` makes /var/log/dpgw
+    for the service's user when the service starts), but ``sudo -u dpgw dpgw run --check``, run to find
+    what the service's user cannot do, said ``ok`` and the service then stopped on it."""
+    import os
+    import pwd
+
+    folder = os.path.dirname(os.path.abspath(path))
+    if writable(folder):
+        return None
+    what = "is not writable" if os.path.isdir(folder) else "does not exist and cannot be made"
+    user = pwd.getpwuid(os.geteuid()).pw_name
+    return (
+        f"log.path: the folder {folder} {what} for this user ({user}) now: start-up stops on it "
+        "unless that changes by then (a service: give a path in its LogsDirectory, /var/log/dpgw, which "
+        "systemd makes for the service's user when it starts)"
+    )
 
 
 def start_up_problems(config: GatewayConfig) -> list[str]:

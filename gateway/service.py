@@ -34,7 +34,7 @@ import queue
 import threading
 import time
 from collections import Counter, deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -47,7 +47,7 @@ from gateway.config.logged import SIGNING_VERDICTS_KEY, for_log
 from gateway.outputs import InputSink, OutputSink, RawSentenceSink
 from gateway.pipeline import SIGNING_REJECTED_TOPIC, ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from gateway.sim_time import SimTime
-from gateway.sources import Chunk, Source, open_source
+from gateway.sources import Chunk, SerialSource, Source, open_source
 from gateway.wall_time import WallTime
 from wire.codecs import mavlink as mv
 from wire.mcap.writer import McapLogWriter
@@ -70,6 +70,9 @@ restarted simulator whose data came before its ticks got through). A simulator a
 HOLD_MAX = 10_000
 """Items held while waiting for the first simulation clock tick (a minute of a busy bench's input)."""
 CLOCK_SILENT_S = 5.0
+BEHIND_S = 1.0
+"""The consumer is behind when the input it handles was received this long ago (wall s): a status alarm
+and one log line each way. The estimates and thruster commands then come from inputs that old."""
 """With ``clock = "sim"``: no tick for this long (wall s) raises a status alarm."""
 
 
@@ -149,8 +152,11 @@ class GatewayService:
         log_path: str | None = None,
         config_tables: dict[str, Any] | None = None,
         sinks: Sequence[OutputSink] = (),
+        wait_for_ports: bool = False,
     ) -> None:
         self.config = config
+        self.wait_for_ports = wait_for_ports
+        """A serial port that does not exist at `start` is waited for (an alarm), not a `SourceError`."""
         self.sinks: list[OutputSink] = list(sinks)
         """Extra outputs (`gateway.outputs`): each gets every batch of outputs after the Zenoh puts."""
         self.config_tables = config_tables
@@ -216,6 +222,15 @@ class GatewayService:
         self.published = 0
         self._zenoh_reached = True  # (a lost connection is logged when it is found lost, once)
         self.internal_errors: Counter[str] = Counter()  # source name or "input <key>" -> items not handled
+        self.behind_ns = 0
+        """How long ago the input last handled was received (0 when none waited): the consumer's lag."""
+        self.behind_max_ns = 0
+        """The largest `behind_ns` of the present spell behind (0 while not behind)."""
+        self.heartbeat: Callable[[], None] | None = None
+        """Called at every turn of the consumer loop (`dpgw.sd_notify`: systemd's watchdog): a loop that
+        stops turning stops calling it."""
+        self.logged_unhandled = 0
+        """Inputs still queued at the end of `drain`'s time, written to the log without being handled."""
 
     # --- start and stop -------------------------------------------------------------------------------------
 
@@ -246,6 +261,8 @@ class GatewayService:
         try:
             for sc in self.config.sources:
                 src = open_source(sc.name, sc.url, timeout_s=sc.timeout_s)
+                if isinstance(src, SerialSource):
+                    src.wait_if_absent = self.wait_for_ports
                 self._sources.append(src)
                 src.start(self._queue.put)
             if self._session is None:
@@ -420,6 +437,8 @@ class GatewayService:
         while not self.stop_event.is_set():
             if deadline is not None and time.monotonic() >= deadline:
                 break
+            if self.heartbeat is not None:
+                self.heartbeat()
             if self._dialler is not None:
                 self._take_dialled()
             try:
@@ -433,6 +452,7 @@ class GatewayService:
                 if st.went_back is not None:  # nothing of the old run waits: follow the new one now
                     self._follow_new_run()
                 self._release_held()
+            self._measure_lag(item)
             mono = time.monotonic_ns()
             # While items wait in the queue, "now" is the newest time handled (none before the first): a
             # consumer that is behind (a busy machine) must not see its sources as silent, nor dead-reckon
@@ -499,23 +519,60 @@ class GatewayService:
                 return  # no tick since: which run it is of is not known yet
             self._handle(self._held.popleft())
 
-    def drain(self) -> None:
+    def drain(self, within_s: float | None = None) -> None:
         """Handle whatever is already queued (used at shutdown so nothing received is dropped); what is
         still held for want of a simulation clock stays unhandled (there is no time to stamp it with).
         Then the last status goes out and into the log, with every count of the run: the periodic one
         (1 Hz) leaves up to a second of the run out, and a log's last status is what a replay reports of
-        the live run (e.g. the frames the live gateway refused for signing)."""
+        the live run (e.g. the frames the live gateway refused for signing).
+
+        ``within_s``: what is still queued after that long is written to the log as received, without
+        the pipeline. A gateway far behind (`BEHIND_S`) held minutes of input in its queue, and handling
+        it all after SIGTERM took minutes (measured: over two) while systemd kills a service that has not
+        stopped after its ``TimeoutStopSec`` (30 s in the shipped unit): the log was cut without its
+        summary and what was queued was lost. Outputs of input that old help nobody once the gateway is
+        stopping; its bytes in the log do (a replay handles them)."""
+        deadline = None if within_s is None else time.monotonic() + within_s
+        logged_only = 0
         while True:
             try:
                 item = self._queue.get_nowait()
             except queue.Empty:
                 break
+            if deadline is not None and time.monotonic() >= deadline:
+                logged_only += self._log_input(item)
+                continue
             self._take(item)
+        if logged_only:
+            log.warning(
+                "stopping: %d inputs still queued after %.0f s were logged without being handled",
+                logged_only,
+                within_s,
+            )
+        self.logged_unhandled += logged_only
         if self.pipeline.last_ns:
             try:
                 self._emit([self.pipeline.status(self.pipeline.last_ns, self._alarms())])
             except Exception:
                 self._internal_error("status", "the last status")
+
+    def _log_input(self, item: Chunk | _Input) -> int:
+        """Write ``item`` to the log as it was received, without the pipeline; 1 if it was written."""
+        rx = self._stamp(item)
+        if rx is None or self.log is None:
+            return 0
+        if isinstance(item, _Input):
+            body = item.payload if isinstance(item.payload, dict) else {item.key: item.payload}
+            self.log.write(f"/dp/{item.key}", body, rx, rx)
+            return 1
+        spec = self.pipeline.sources.get(item.source)
+        if spec is None:
+            return 0
+        if spec.protocol == "nmea":
+            self.log.write_raw_nmea(item.source, item.data, rx, rx, peer=item.peer)
+        else:
+            self.log.write_raw_mavlink(item.source, item.data, rx, rx, peer=item.peer)
+        return 1
 
     def _alarms(self) -> list[str]:
         alarms = [  # with what the OS last said: "port ... failed", "... not an address of this computer"
@@ -532,6 +589,7 @@ class GatewayService:
                     "raise ?rcvbuf= or net.core.rmem_max)"
                 )
         alarms += self._clock_alarms()
+        alarms += self._behind_alarms()
         alarms += self._zenoh_alarms()
         if self.log is not None and self.log.error is not None:
             alarms.append(
@@ -557,6 +615,38 @@ class GatewayService:
             )  # UDP: the kernel's count of datagrams it could not hold
             counters.reconnects = s.stats.reconnects
             counters.last_disconnect = s.stats.last_disconnect
+
+    def _measure_lag(self, item: Chunk | _Input | None) -> None:
+        """How far behind the consumer is: the age of the input just handled (none: caught up). A consumer
+        that cannot keep up (a machine overloaded, a source flooding, a slow output) lets inputs wait in
+        the queue, and its estimates and commands are as late as they; nothing said so (measured: a
+        gateway slowed under a profiler fell minutes behind a 5x simulator, whose vessel drifted 700 m
+        off station under commands that late, with no alarm but the distance). Said once when it starts
+        and once when it ends, an alarm meanwhile."""
+        lag = 0 if item is None else max(0, time.monotonic_ns() - item.rx_mono_ns)
+        was_behind = self.behind_max_ns > 0
+        if lag > BEHIND_S * 1e9:
+            if not was_behind:
+                log.error(
+                    "gateway behind: handling input received %.1f s ago (%d waiting); estimates and "
+                    "commands are that late",
+                    lag / 1e9,
+                    self._queue.qsize(),
+                )
+            self.behind_max_ns = max(self.behind_max_ns, lag)
+        elif was_behind and lag < BEHIND_S * 1e9 / 2:
+            log.warning("gateway caught up (it was up to %.1f s behind)", self.behind_max_ns / 1e9)
+            self.behind_max_ns = 0
+        self.behind_ns = lag
+
+    def _behind_alarms(self) -> list[str]:
+        if not self.behind_max_ns:
+            return []
+        return [
+            f"gateway behind: handling input received {self.behind_ns / 1e9:.1f} s ago "
+            f"({self._queue.qsize()} waiting; up to {self.behind_max_ns / 1e9:.1f} s): estimates and "
+            "commands are that late (is the computer overloaded, or a source flooding?)"
+        ]
 
     def _zenoh_alarms(self) -> list[str]:
         """With ``connect`` endpoints (a router, a console), or a client dialling its router: an alarm while

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import copy
 import math
+import shutil
 import socket
 import subprocess
 import sys
@@ -252,12 +253,34 @@ def test_esc_direction_servo_forms_and_notes(tmp_path: Path) -> None:
     assert ap.esc_dead_band_us == 40.0 and config_notes(c) == []
 
 
+def test_a_signing_key_in_a_config_everyone_may_read_is_noted(tmp_path: Path) -> None:
+    """The install step put the config at mode 0644: the MAVLink signing key in it, which lets whoever
+    reads it drive the thrusters, readable by every user. ``--check`` and start-up now say so."""
+    import os
+
+    from gateway.config import config_notes
+
+    path = tmp_path / "vessel.toml"
+    text = BASE_TOML.replace('name = "thr"', f'name = "thr"\nsigning_key = "{KEY}"', 1)
+    assert text != BASE_TOML
+    path.write_text(text)
+    path.chmod(0o644)
+    notes = [n for n in config_notes(load_config(path)) if "signing_key" in n]
+    assert len(notes) == 1 and "sources.thr.signing_key" in notes[0] and "mode 0644" in notes[0], notes
+    assert KEY not in notes[0]
+    path.chmod(0o640)
+    assert not [n for n in config_notes(load_config(path)) if "signing_key" in n]
+    path.chmod(0o644)  # without a key, nothing to say
+    path.write_text(BASE_TOML)
+    assert os.stat(path).st_mode & 0o004 and config_notes(load_config(path)) == []
+
+
 def test_systemd_unit() -> None:
     unit = (EXAMPLES / "dpgw.service").read_text()
     for line in (
         "ExecStart=",
         "dpgw run --config /etc/dpgw/vessel.toml",
-        "Restart=on-failure",
+        "Restart=always",  # a clean exit on SIGHUP/SIGINT/kill is restarted too (examples/README.md)
         "RestartSec=",
         "User=dpgw",
         "SupplementaryGroups=dialout",
@@ -265,9 +288,32 @@ def test_systemd_unit() -> None:
         "TimeoutStopSec=",
         "After=network-online.target",
         "Wants=network-online.target",
+        "--wait-for-ports",  # a USB adapter late at boot must not stop the service (docs/sources.md)
+        "Environment=NUMBA_CACHE_DIR=/var/cache/dpgw",  # the venv is read-only under ProtectSystem=strict
+        "CacheDirectory=dpgw",
+        "Type=notify",  # READY and the watchdog (dpgw.sd_notify)
+        "WatchdogSec=",
     ):
         assert line in unit, line
     assert (EXAMPLES / "README.md").is_file()
+
+
+@pytest.mark.skipif(shutil.which("systemd-analyze") is None, reason="systemd-analyze is not installed")
+def test_systemd_unit_verifies(tmp_path: Path) -> None:
+    """``systemd-analyze verify`` finds nothing wrong with the unit (directives, values, ExecStart), with
+    ExecStart pointing at this installation's dpgw instead of /opt/dpgw/venv."""
+    dpgw = Path(sys.executable).parent / "dpgw"
+    if not dpgw.is_file():
+        pytest.skip(f"no dpgw script beside {sys.executable}")
+    unit = (EXAMPLES / "dpgw.service").read_text().replace("/opt/dpgw/venv/bin/dpgw", str(dpgw))
+    (tmp_path / "dpgw.service").write_text(unit)
+    r = subprocess.run(
+        ["systemd-analyze", "verify", str(tmp_path / "dpgw.service")],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert r.returncode == 0 and not r.stderr.strip(), r.stderr
 
 
 # --- defaults and paths -----------------------------------------------------------------------------------

@@ -7,6 +7,7 @@ lasts, and the gateway takes up what came back without a restart."""
 
 from __future__ import annotations
 
+import base64
 import contextlib
 import gc
 import json
@@ -34,7 +35,7 @@ from gateway.config import parse_config
 from gateway.service import GatewayService
 from simulator.transports import PtySink
 from wire.codecs import nmea_encode as enc
-from wire.mcap.reader import log_files, read_messages
+from wire.mcap.reader import log_files, read_messages, summary
 from wire.mcap.rotation import rotated_path
 from wire.messages import Estimate
 
@@ -507,3 +508,96 @@ def test_nothing_grows_with_time(tmp_path: Path, caplog: pytest.LogCaptureFixtur
     # memory held: bounded (what the first 10 s took: the log's open chunk, up to 256 KiB, ...), not
     # growing with time (the second 10 s add a few kB: the writer's list of the files it wrote)
     assert last[2] - first[2] < 2 * 2**20 and last[2] - mid[2] < 64 * 2**10, (first, mid, last)
+
+
+class SlowSink:
+    """An output that takes ``delay_s`` per batch while ``slow`` is set: a consumer that cannot keep up."""
+
+    name = "slow"
+    needs_zenoh = False
+
+    def __init__(self, delay_s: float) -> None:
+        self.delay_s = delay_s
+        self.slow = threading.Event()
+
+    def start(self, session: Any) -> None:
+        pass
+
+    def emit(self, outputs: list[Any], encoded: list[bytes]) -> None:
+        if self.slow.is_set():
+            time.sleep(self.delay_s)  # (the work of a slow output, not a wait of the test)
+
+    def close(self) -> None:
+        pass
+
+
+def test_a_gateway_that_falls_behind_says_so(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """A consumer that cannot keep up (here a slow output) lets inputs wait, and its estimates and
+    commands are as late: /status says how late while it lasts, the gateway's log says so once when it
+    starts and once when it is back. Before: not a word (measured: minutes behind, a simulated vessel
+    700 m off station under commands that late)."""
+    udp = free_port(socket.SOCK_DGRAM)
+    caplog.set_level(logging.WARNING, logger="dpgw")
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sent = [0]
+
+    def send() -> None:
+        tx.sendto(burst(sent[0]), ("127.0.0.1", udp))
+        sent[0] += 1
+        time.sleep(0.02)  # (pacing the sender: 50 bursts a second)
+
+    sink = SlowSink(0.1)
+    try:
+        with Live(tmp_path, f"udp://127.0.0.1:{udp}", sinks=[sink]) as live:
+            live.estimates_go_on(send)
+            assert not live.alarms("behind")
+            sink.slow.set()  # 10 batches a second at most, 50 bursts a second in
+            assert wait_for(lambda: send() or live.alarms("gateway behind"), 60.0), live.status()
+            alarm = live.alarms("gateway behind")[0]
+            assert "s ago" in alarm and "waiting" in alarm, alarm
+            assert live.service.behind_ns > 1e9
+            sink.slow.clear()
+            assert wait_for(lambda: send() or not live.alarms("gateway behind"), 60.0), live.status()
+            live.estimates_go_on(send)
+    finally:
+        tx.close()
+    said = [r.getMessage() for r in caplog.records if "gateway behind" in r.getMessage()]
+    back = [r.getMessage() for r in caplog.records if "gateway caught up" in r.getMessage()]
+    assert len(said) == 1 and len(back) == 1, (said, back)
+
+
+def test_a_stop_far_behind_ends_in_time_with_every_byte_logged(tmp_path: Path) -> None:
+    """Stopped while far behind (minutes of input queued), the gateway handled all of it first, for
+    minutes, and systemd killed it after TimeoutStopSec: the log cut, the queue lost. Now the drain handles
+    for a bounded time and writes the rest to the log as received: the stop ends in time, the log is
+    complete and holds every byte the source received."""
+    udp = free_port(socket.SOCK_DGRAM)
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sink = SlowSink(0.2)
+    try:
+        with Live(tmp_path, f"udp://127.0.0.1:{udp}", sinks=[sink]) as live:
+            live.estimates_go_on(lambda: tx.sendto(burst(0), ("127.0.0.1", udp)) and time.sleep(0.02))
+            src = live.service._sources[0]
+            sink.slow.set()  # 5 batches a second at most: what comes now waits in the queue
+            before = src.stats.chunks
+            for k in range(300):  # a minute of handling at that pace
+                tx.sendto(burst(k), ("127.0.0.1", udp))
+            assert wait_for(lambda: src.stats.chunks >= before + 300, 30.0), src.stats.chunks - before
+            live.service.stop_event.set()
+            live.loop.join(timeout=30)
+            t0 = time.monotonic()
+            live.service.drain(within_s=1.0)
+            took = time.monotonic() - t0
+            received = src.stats.bytes_received
+            logged_only = live.service.logged_unhandled
+            live.service.close()
+    finally:
+        tx.close()
+    assert took < 5.0, took  # 1 s of handling (one slow batch past it) and the writes
+    assert logged_only > 200, logged_only
+    assert summary(live.log_path).complete
+    logged = 0
+    for _, _, _, p in read_messages(live.log_path, "/raw/nmea/gps"):
+        body = base64.b64decode(p["data"]) if "data" in p else p["text"].encode("ascii")
+        logged += len(body) + (0 if p.get("unterminated") else len(p.get("eol", "\r\n")))
+    assert logged == received

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import os
+import stat
 from collections.abc import Iterable
+from pathlib import Path
 from typing import Any
 
 from gateway.config.model import ControlConfig, GatewayConfig
@@ -67,7 +70,28 @@ def config_notes(config: GatewayConfig) -> list[str]:
                     f"is taken as ahead also when it runs astern (name its motor output in "
                     f"sources.{sc.name}.ardupilot.esc_direction_servo, e.g. {{{esc} = channel}})"
                 )
+    keyed = [sc.name for sc in config.sources if sc.signing_key is not None]
+    if keyed and (note := key_file_note(config.path, keyed)):
+        notes.append(note)
     return notes
+
+
+def key_file_note(path: Path | None, keyed: list[str]) -> str | None:
+    """A config holding a MAVLink signing key that every user of this computer may read: whoever reads
+    the key can sign thruster commands the drives obey (a log never holds it for that reason). ``0640``,
+    group the service's, is what the service needs (examples/README.md)."""
+    try:
+        mode = os.stat(path).st_mode if path is not None else 0
+    except OSError:
+        return None
+    if not mode & stat.S_IROTH:
+        return None
+    where = ", ".join(f"sources.{name}.signing_key" for name in keyed)
+    return (
+        f"{where}: {path} is readable by every user of this computer (mode {stat.S_IMODE(mode):04o}), and "
+        "whoever reads the key can sign thruster commands: sudo chmod 640 and sudo chgrp to the "
+        "service's group (dpgw)"
+    )
 
 
 def consequence_line(config: GatewayConfig) -> str:

@@ -25,11 +25,14 @@ _SERIAL_POLL_S = 0.1
 class SerialSource(Source):
     """A serial port or a pty, via pyserial; raw bytes, no flow control, exclusive (``flock``).
 
-    The device must exist at `start` (else `SourceError`). When it fails while running (a USB adapter
-    unplugged, the simulator's pty closed), the error is counted, ``stats.connected`` goes False and the
-    port is reopened with back-off (0.5 s doubling to 10 s) until it is back; ``stats.reconnects`` counts
-    the reopenings, ``stats.last_disconnect`` says when and why it last failed. A pty has no baud rate:
-    the setting is accepted and ignored.
+    The device must exist at `start` (else `SourceError`), unless ``wait_if_absent`` (``dpgw run
+    --wait-for-ports``, the service): then a device that does not exist yet is waited for as an unplugged
+    one is (below), said once as a warning, and the other sources run meanwhile. Any other problem (no
+    permission, not a serial device, in use) still raises: waiting would not mend it. When it fails while
+    running (a USB adapter unplugged, the simulator's pty closed), the error is counted,
+    ``stats.connected`` goes False and the port is reopened with back-off (0.5 s doubling to 10 s) until
+    it is back; ``stats.reconnects`` counts the reopenings, ``stats.last_disconnect`` says when and why it
+    last failed. A pty has no baud rate: the setting is accepted and ignored.
     """
 
     kind = "serial"
@@ -53,6 +56,9 @@ class SerialSource(Source):
         self.parity = parity
         self.stopbits = stopbits
         self._ser: Any = None  # serial.Serial while open
+        self.wait_if_absent = False
+        """A device absent at `start` is waited for, not a `SourceError` (``--wait-for-ports``)."""
+        self._absent_at_start = False
 
     def _open_port(self) -> Any:
         try:
@@ -119,7 +125,19 @@ class SerialSource(Source):
         return ser
 
     def _open(self) -> None:
-        self._ser = self._open_port()
+        try:
+            self._ser = self._open_port()
+        except SourceError as exc:
+            if not self.wait_if_absent or os.path.exists(self.device):
+                raise
+            # not there yet (a USB adapter not enumerated at boot, unplugged, a simulator not started):
+            # the reader thread opens it when it appears, as after an unplug
+            self._absent_at_start = True
+            self._error(
+                "disconnected",
+                f"{exc.problem}; waiting for it, the gateway runs without it meanwhile — {exc.fix}",
+            )
+            return
         self.stats.connected = True
 
     def _run(self) -> None:
@@ -139,9 +157,13 @@ class SerialSource(Source):
                 with self._io_lock:
                     self._ser = ser
                 self.stats.connected = True
-                self.stats.reconnects += 1
                 backoff.reset()
-                log.info("source %r: serial port %s open again", self.name, self.device)
+                if self._absent_at_start:  # (its absence was a warning: so is its coming)
+                    self._absent_at_start = False
+                    log.warning("source %r: serial port %s is there now: reading", self.name, self.device)
+                else:
+                    self.stats.reconnects += 1
+                    log.info("source %r: serial port %s open again", self.name, self.device)
             data = b""
             try:
                 data = ser.read(1)

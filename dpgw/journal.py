@@ -1,0 +1,51 @@
+"""The gateway's log lines with their priority when systemd's journal reads them (the service).
+
+Under systemd a service's stderr goes to the journal, one entry per line, every line at the unit's
+default priority (info) unless it starts with a kernel-style ``<N>`` prefix (``SyslogLevelPrefix=``, on by
+default), which journald takes as the line's priority and strips. Without it, ``journalctl -u dpgw -p
+warning`` — the faults of weeks in service: a source lost and back, the log's disk full, Zenoh gone —
+showed nothing, and an engineer had to grep. systemd says where the journal is: ``JOURNAL_STREAM`` holds
+the device and inode of the stream it connected, and a process whose stderr is that stream writes to
+the journal (sd_journal_stream_fd(3)); under a terminal, a pipe or a file stderr is another file, and
+lines stay as they were.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import sys
+
+# syslog priorities (RFC 5424) by logging level
+PRIORITY = {
+    logging.CRITICAL: 2,
+    logging.ERROR: 3,
+    logging.WARNING: 4,
+    logging.INFO: 6,
+    logging.DEBUG: 7,
+}
+
+
+def stderr_is_journal(env: dict[str, str] | None = None) -> bool:
+    """stderr is the stream systemd connected to its journal (``JOURNAL_STREAM`` = ``device:inode``)."""
+    stream = (os.environ if env is None else env).get("JOURNAL_STREAM", "")
+    try:
+        st = os.fstat(sys.stderr.fileno())
+    except (OSError, ValueError, AttributeError):  # (stderr closed or replaced)
+        return False
+    return stream == f"{st.st_dev}:{st.st_ino}"
+
+
+class JournalFormatter(logging.Formatter):
+    """``<N>message``: the record's syslog priority first, for journald."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        level = max((lv for lv in PRIORITY if lv <= record.levelno), default=logging.DEBUG)
+        return f"<{PRIORITY[level]}>{super().format(record)}"
+
+
+def configure_logging(level: int) -> None:
+    """`logging.basicConfig` at ``level``, message alone; with each line's priority for the journal."""
+    handler = logging.StreamHandler()
+    handler.setFormatter(JournalFormatter("%(message)s") if stderr_is_journal() else logging.Formatter())
+    logging.basicConfig(level=level, handlers=[handler])

@@ -1,0 +1,82 @@
+"""Under systemd, `dpgw run`'s log lines carry their priority for the journal (`dpgw.journal`), so that
+``journalctl -u dpgw -p warning`` lists the faults; elsewhere they are as they were. Real processes: the
+journal's stream is a pipe whose device and inode are given in ``JOURNAL_STREAM``, as systemd does."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+from conftest import free_port
+
+ROOT = Path(__file__).resolve().parents[1]
+RUN = [sys.executable, "-m", "dpgw", "run", "--config"]
+
+
+def write_config(tmp: Path) -> Path:
+    cfg = tmp / "vessel.toml"
+    cfg.write_text(f"""
+[vessel]
+name = "mss_supply"
+[[sources]]
+name = "gyro1"
+url = "serial://{tmp / "ttyUSB1"}?baud=4800"
+protocol = "nmea"
+roles = ["position", "heading"]
+[zenoh]
+listen = ["tcp/127.0.0.1:{free_port()}"]
+multicast_scouting = false
+[log]
+path = "{tmp / "live.mcap"}"
+""")
+    return cfg
+
+
+def run_with_stderr(cfg: Path, journal: bool) -> list[str]:
+    """``dpgw run --wait-for-ports`` for a moment (its serial port missing: a warning), stderr on a pipe;
+    with ``journal``, that pipe announced as the journal's stream."""
+    r, w = os.pipe()
+    env = dict(os.environ)
+    env.pop("JOURNAL_STREAM", None)
+    if journal:
+        st = os.fstat(w)
+        env["JOURNAL_STREAM"] = f"{st.st_dev}:{st.st_ino}"
+    lines: list[str] = []
+    with os.fdopen(r, encoding="utf-8") as reader:
+        collect = threading.Thread(target=lambda: lines.extend(reader), daemon=True)
+        collect.start()
+        p = subprocess.run(
+            [*RUN, str(cfg), "--wait-for-ports", "--duration", "0.5"],
+            cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=w, timeout=120,
+        )  # fmt: skip
+        os.close(w)
+        collect.join(30)
+    assert p.returncode == 0, lines
+    return lines
+
+
+def test_log_lines_carry_their_priority_for_the_journal(tmp_path: Path) -> None:
+    cfg = write_config(tmp_path)
+    lines = run_with_stderr(cfg, journal=True)
+    waiting = [ln for ln in lines if "waiting for it" in ln]
+    assert len(waiting) == 1 and waiting[0].startswith("<4>source 'gyro1'"), lines  # a warning
+    plain = run_with_stderr(cfg, journal=False)
+    assert not [ln for ln in plain if ln.startswith("<")], plain
+    assert any(ln.startswith("source 'gyro1'") and "waiting for it" in ln for ln in plain), plain
+
+
+def test_another_stream_than_the_journals_gets_no_prefix(tmp_path: Path) -> None:
+    """``JOURNAL_STREAM`` inherited by a process whose stderr is something else (run from a shell that a
+    service started, redirected to a file): no prefix."""
+    cfg = write_config(tmp_path)
+    env = dict(os.environ, JOURNAL_STREAM="1:1")
+    with open(tmp_path / "err.txt", "w") as err:
+        p = subprocess.run(
+            [*RUN, str(cfg), "--wait-for-ports", "--duration", "0.5"],
+            cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=err, timeout=120,
+        )  # fmt: skip
+    text = (tmp_path / "err.txt").read_text()
+    assert p.returncode == 0 and "waiting for it" in text and "<4>" not in text, text
