@@ -70,10 +70,10 @@ restarted simulator whose data came before its ticks got through). A simulator a
 HOLD_MAX = 10_000
 """Items held while waiting for the first simulation clock tick (a minute of a busy bench's input)."""
 CLOCK_SILENT_S = 5.0
+"""With ``clock = "sim"``: no tick for this long (wall s) raises a status alarm."""
 BEHIND_S = 1.0
 """The consumer is behind when the input it handles was received this long ago (wall s): a status alarm
 and one log line each way. The estimates and thruster commands then come from inputs that old."""
-"""With ``clock = "sim"``: no tick for this long (wall s) raises a status alarm."""
 
 
 class LogPathError(OSError):
