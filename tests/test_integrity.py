@@ -6,6 +6,7 @@ before and during the fault, and when the alarm came."""
 from __future__ import annotations
 
 import copy
+import json
 import math
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
@@ -787,3 +788,65 @@ def test_a_receiver_whose_clock_stepped_back_is_used_again_after_its_timeout() -
     assert b.p.monitor.usable("position", "gps1")
     pos, _ = b.errors(m)
     assert pos < 1.0
+
+
+def _one_hertz_in_a_big_sea(
+    tmp_path: Path, capsys: Any, faults: tuple[Any, ...] = ()
+) -> tuple[dict[str, Any], list[tuple[float, str]]]:
+    """fossen_strand_1999's sea (the paper's WF motion, up to 10 m per axis at Tp 7 s) for 60 s with the
+    DGPS at 1 Hz and the gyro at 10 Hz, simulated and replayed through the gateway (`dpgw replay`): its
+    summary and the position events as (seconds from the start, text)."""
+    from dataclasses import replace
+
+    from dpgw.cli import main
+    from simulator.runner import Simulation
+    from simulator.scenarios import get_scenario
+    from wire.mcap.reader import read_messages
+    from wire.mcap.writer import McapLogWriter
+
+    log, out = tmp_path / "sim.mcap", tmp_path / "out.mcap"
+    scenario = get_scenario("fossen_strand_1999").with_sensor_rates(1.0, 10.0)
+    with McapLogWriter(log) as w:
+        Simulation(replace(scenario, faults=faults), seed=0, log=w).run(60.0)
+    capsys.readouterr()
+    assert main(["replay", str(log), "--out", str(out), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    status = [(t, p) for _, t, _, p in read_messages(out, "/dp/status")]
+    t0 = status[0][0]
+    events = [((t - t0) / 1e9, e) for t, p in status for e in p["events"] if "dgps1" in e or "restart" in e]
+    return summary, events
+
+
+def test_a_healthy_one_hertz_dgps_in_a_big_sea_is_never_rejected(tmp_path: Path, capsys: Any) -> None:
+    """Between two 1 Hz fixes this sea moves the antenna up to 14 m (5 m RMS), beyond the plain jump
+    allowance ``jump_m + max_speed_m_s × 1 s`` = 10 m. The allowance is at least 4 RMS steps of the
+    source's own fixes (`JUMP_STEPS`), so the healthy receiver is never rejected, nor the observer
+    restarted. Before: 8 fixes rejected by the jump test and 2 by the prediction test, each rejection
+    holding the DGPS out for 5 s more, 36 of 60 fixes used, one restart, 10.3 m RMS error (now 2.0 m)."""
+    summary, events = _one_hertz_in_a_big_sea(tmp_path, capsys)
+    counts = summary["counts"]["source dgps1"]
+    assert not [k for k in counts if k.startswith("test_")], (counts, events)
+    assert summary["observer_restarts"] == 0, events
+    assert not [e for _, e in events if "rejected" in e or "suspect" in e], events
+    assert summary["error_vs_truth"]["passive"]["horizontal_rms_m"] < 4.0
+
+
+@pytest.mark.parametrize("north_m", [30.0, 50.0])
+def test_a_real_jump_at_one_hertz_in_a_big_sea_is_still_rejected_at_once(
+    tmp_path: Path, capsys: Any, north_m: float
+) -> None:
+    """The widened allowance (about 25 m at 1 Hz in this sea) still rejects a real jump: a 50 m one by the
+    jump test on its first fix, a 30 m one on its first fix by the jump or the prediction test (which
+    knows the estimate's wave motion), and the jumped fixes are never used."""
+    from simulator.faults import Fault
+
+    jump = Fault("jump", "dgps1", 30.0, 33.0, {"north_m": north_m})
+    summary, events = _one_hertz_in_a_big_sea(tmp_path, capsys, (jump,))
+    rejected = [(t, e) for t, e in events if "-> rejected" in e]
+    assert rejected, events
+    t, text = rejected[0]
+    assert 30.0 <= t <= 31.05, rejected  # the first fix of the jump
+    if north_m >= 50.0:
+        assert "jump: moved" in text, text
+    counts = summary["counts"]["source dgps1"]
+    assert counts.get("test_jump", 0) + counts.get("test_prediction", 0) >= 3, counts  # all three fixes

@@ -56,6 +56,21 @@ the track by chance does not end the rejection; it is used, being within the jum
 and the next burst value fails)."""
 
 
+JUMP_STEPS = 4.0
+"""A position's jump allowance is at least this many times the RMS step between the source's consecutive
+fixes, as measured (2σ of `Track.var`: E‖d‖² = 4σ² for two components), instead of ``jump_m`` alone,
+before ``max_speed_m_s`` × Δt is added: ``max(jump_m, JUMP_STEPS · 2σ) + max_speed_m_s · Δt``. A slow
+receiver in a big sea sees the vessel's first-order wave motion between two fixes (fossen_strand_1999 at
+1 Hz: 5 m RMS, 14 m at most in a minute, against 10 m of plain allowance), which the plain allowance,
+meant for noise and LF speed, took for a jump. Four: the limit is then about 5 RMS steps with the
+speed term, and a long-crested sea moves the antenna along one line, so for a Gaussian step that is a
+false rejection in about 10⁶ fixes, with a margin for a wave group above the last 50 fixes' average. A
+fast receiver's step is mostly its noise (0.1 s of wave motion is small), 4 × 2σ stays under or near
+``jump_m``, and the test is the plain one. Bounded: σ above ``max_sigma_m`` fails the variance test.
+Not from a paper: the DP practice of testing a reference against what it can physically do, the wave
+motion measured from the source's own fixes (docs/integrity.md, "Jump / rate")."""
+
+
 ELLIPSE_EPS_M2 = 1e-12
 """Added to both variances before `ellipse_reach` inverts a covariance: a receiver's ellipse with a zero
 minor axis (a line) becomes invertible, its reach across the line 3 µm instead of a division by zero."""
@@ -104,6 +119,7 @@ class _Limits:
     unit: str
     scale: float  # value -> the unit shown in reasons
     spike_s: float = 0.0  # how long after a jump a return to the track before it readmits at once (0: never)
+    steps: float = 0.0  # the jump allowance is at least this many RMS steps between fixes (0: jump alone)
 
 
 @dataclass
@@ -146,6 +162,7 @@ class ReferenceMonitor:
             max_sigma=p.max_sigma_m,
             unit="m",
             scale=1.0,
+            steps=JUMP_STEPS,
         )
         heading = _Limits(
             jump=p.heading_jump_deg * deg,
@@ -256,13 +273,21 @@ class ReferenceMonitor:
         if tr.good is not None and not on_track:
             dt = (now_ns - tr.good_ns) / NS
             moved = tr.distance(v, tr.good)
-            limit = lim.jump + lim.rate * dt
+            base = lim.jump
+            if lim.steps and tr.samples >= MIN_SAMPLES_FOR_VARIANCE:  # the wave motion between fixes
+                step = lim.steps * 2.0 * math.sqrt(tr.var)
+                if step > base:
+                    base = step
+            limit = base + lim.rate * dt
             if moved > limit:
                 if lim.spike_s and st.usable and spike is None:  # a jump out of use: a spike, perhaps
                     rate = pred.rate if pred is not None else 0.0
                     ref.spike, ref.spike_run = (self._before(ref, rate), tr.good_ns, rate), 0
                 fmt = self._fmt
-                st.fail(now_ns, f"jump: moved {fmt(moved, lim)} in {dt:.2g} s (limit {fmt(limit, lim)})")
+                why = f"jump: moved {fmt(moved, lim)} in {dt:.2g} s (limit {fmt(limit, lim)}"
+                if base > lim.jump:  # widened by the source's own steps: say so
+                    why += f", {lim.steps:g} × its RMS step of {fmt(base / lim.steps, lim)} + speed × time"
+                st.fail(now_ns, why + ")")
                 return False
         tr.observe(now_ns, v)
         frozen = (now_ns - tr.same_since) / NS  # (`Track.frozen_s`, inline: the track has a value now)
