@@ -1,12 +1,12 @@
 """Receive times on this computer's UTC clock without its backward steps (`dpgw run`, ``clock = "wall"``).
 
 The live gateway stamps every chunk with its receive time, and everything downstream measures time by
-those stamps: the jump test's allowance ``jump_m + max_speed_m_s × Δt``, the observer's step, the sources'
-ages. When the computer's clock is stepped back (NTP or chrony correcting it, an operator setting it), a
-stamp taken from it right after the step lies Δ before the one taken right before, and every reference
-fails its jump test with a negative Δt (``moved 0.567 m in -30 s (limit -144 m)``): all of them rejected
-together, the vessel without a reference for Δ plus the readmission time (measured: 36 s for a 30 s step,
-6 s for a 1 s step).
+those stamps: the jump test's allowance (a fixed part + ``max_speed_m_s × Δt``), the observer's step,
+the sources' ages. When the computer's clock is stepped back (NTP or chrony correcting it, an operator
+setting it), a stamp taken from it right after the step lies Δ before the one taken right before, and
+every reference fails its jump test with a negative Δt (``moved 0.567 m in -30 s (limit -144 m)``): all
+of them rejected together, the vessel without a reference for Δ plus the readmission time (measured: 36 s
+for a 30 s step, 6 s for a 1 s step).
 
 So a stamp is the monotonic clock's reading (which NTP slews with the UTC clock but never steps) plus an
 offset taken from the UTC clock: the first receive time sets it, and a later receive time more than
