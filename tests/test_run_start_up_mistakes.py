@@ -218,6 +218,24 @@ def test_check_notes_a_serial_port_that_is_not_there_now(tmp_path: Path) -> None
     assert not [n for n in json.loads(p.stdout)["notes"] if "serial port" in n]
 
 
+def test_the_log_folder_note_of_a_user_without_a_passwd_entry(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A uid the password database does not know (a container run with ``--user 1234``): the note names
+    the uid. Before, ``pwd.getpwuid`` raised KeyError and ``--check`` ended in a traceback."""
+    import pwd
+
+    from dpgw.cli_run import log_folder_note
+
+    def unknown(uid: int) -> Any:
+        raise KeyError(f"getpwuid(): uid not found: {uid}")
+
+    monkeypatch.setattr(pwd, "getpwuid", unknown)
+    (tmp_path / "afile").write_bytes(b"")  # (a file in the way: as root, permissions cannot make the case)
+    note = log_folder_note(str(tmp_path / "afile" / "dpgw.mcap"))
+    assert note is not None and f"for this user (uid {os.geteuid()})" in note, note
+
+
 def test_check_notes_a_log_folder_that_cannot_be_made(tmp_path: Path) -> None:
     """``sudo -u dpgw dpgw run --check`` is run to find what the service's user cannot do; a log folder it
     cannot write or make stopped the service's start-up after the check had said ``ok`` with no word of
