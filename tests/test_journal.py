@@ -11,7 +11,7 @@ import sys
 import threading
 from pathlib import Path
 
-from conftest import free_port
+from conftest import one_source_config
 
 from dpgw.journal import JournalFormatter
 
@@ -20,22 +20,7 @@ RUN = [sys.executable, "-m", "dpgw", "run", "--config"]
 
 
 def write_config(tmp: Path) -> Path:
-    cfg = tmp / "vessel.toml"
-    cfg.write_text(f"""
-[vessel]
-name = "mss_supply"
-[[sources]]
-name = "gyro1"
-url = "serial://{tmp / "ttyUSB1"}?baud=4800"
-protocol = "nmea"
-roles = ["position", "heading"]
-[zenoh]
-listen = ["tcp/127.0.0.1:{free_port()}"]
-multicast_scouting = false
-[log]
-path = "{tmp / "live.mcap"}"
-""")
-    return cfg
+    return one_source_config(tmp, f"serial://{tmp / 'ttyUSB1'}?baud=4800", "gyro1")
 
 
 def run_with_stderr(cfg: Path, journal: bool) -> list[str]:

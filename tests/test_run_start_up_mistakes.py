@@ -22,7 +22,7 @@ from typing import Any
 
 import pytest
 import serial
-from conftest import free_port, wait_for
+from conftest import free_port, one_source_config, wait_for
 
 from gateway.bus import isolated_config, open_session
 from simulator.transports import PtySink
@@ -36,23 +36,7 @@ def burst() -> bytes:
     return (gga + enc.hdt("HE", 0.5)).encode()
 
 
-def write_config(tmp: Path, url: str, name: str = "dgps1") -> Path:
-    cfg = tmp / "vessel.toml"
-    cfg.write_text(f"""
-[vessel]
-name = "mss_supply"
-[[sources]]
-name = "{name}"
-url = "{url}"
-protocol = "nmea"
-roles = ["position", "heading"]
-[zenoh]
-listen = ["tcp/127.0.0.1:{free_port()}"]
-multicast_scouting = false
-[log]
-path = "{tmp / "live.mcap"}"
-""")
-    return cfg
+write_config = one_source_config
 
 
 def start(cfg: Path, prefix: list[str] | None = None) -> subprocess.CompletedProcess[str]:
@@ -89,8 +73,7 @@ def test_with_wait_for_ports_a_missing_serial_port_is_waited_for(tmp_path: Path)
     the estimates start. A port that is there but wrong still stops start-up (waiting would not mend it)."""
     link = tmp_path / "ttyUSB0"
     zport = free_port()
-    cfg = write_config(tmp_path, f"serial://{link}?baud=115200", name="gps")
-    cfg.write_text(cfg.read_text().replace("[zenoh]", "[datum]\nlat_deg = 59.4\nlon_deg = 10.5\n[zenoh]"))
+    cfg = write_config(tmp_path, f"serial://{link}?baud=115200", name="gps", datum=True)
     cfg.write_text(re.sub(r"tcp/127.0.0.1:\d+", f"tcp/127.0.0.1:{zport}", cfg.read_text()))
     p = subprocess.Popen(
         [sys.executable, "-m", "dpgw", "run", "--config", str(cfg), "--wait-for-ports", "--json"],
