@@ -414,7 +414,10 @@ def log_folder_note(path: str) -> str | None:
     if writable(folder):
         return None
     what = "is not writable" if os.path.isdir(folder) else "does not exist and cannot be made"
-    user = pwd.getpwuid(os.geteuid()).pw_name
+    try:
+        user = pwd.getpwuid(os.geteuid()).pw_name
+    except KeyError:  # a uid without a passwd entry (a container's --user 1234): its number
+        user = f"uid {os.geteuid()}"
     return (
         f"log.path: the folder {folder} {what} for this user ({user}) now: start-up stops on it "
         "unless that changes by then (a service: give a path in its LogsDirectory, /var/log/dpgw, which "

@@ -37,11 +37,15 @@ def stderr_is_journal(env: dict[str, str] | None = None) -> bool:
 
 
 class JournalFormatter(logging.Formatter):
-    """``<N>message``: the record's syslog priority first, for journald."""
+    """``<N>message``: the record's syslog priority first, for journald, on each of its lines. journald
+    takes every line of the stream as an entry of its own, with the default priority unless it has the
+    prefix: a traceback (``log.exception``: an internal error) would otherwise be left out of ``journalctl
+    -p err`` but for its first line."""
 
     def format(self, record: logging.LogRecord) -> str:
         level = max((lv for lv in PRIORITY if lv <= record.levelno), default=logging.DEBUG)
-        return f"<{PRIORITY[level]}>{super().format(record)}"
+        prefix = f"<{PRIORITY[level]}>"
+        return "\n".join(prefix + line for line in super().format(record).split("\n"))
 
 
 def configure_logging(level: int) -> None:

@@ -568,9 +568,11 @@ class Pipeline:
         if not event.data and event.records is None and event.checked is None:
             # the end of a sender's stream (`gateway.sources.Chunk`: a TCP connection closed): what its
             # framer holds of an unfinished sentence is counted now (a shared framer is left alone)
+            out_of_stream: list[Output] = []
             if event.peer:
-                self._forget_sender((spec.name, event.peer), self.counters[event.source])
-            return []
+                key = (spec.name, event.peer)
+                self._forget_sender(key, self.counters[event.source], event.rx_ns, out_of_stream)
+            return out_of_stream
         rx_ns = event.rx_ns
         if self.t0_ns is None:
             self.t0_ns = rx_ns
@@ -774,12 +776,12 @@ class Pipeline:
         return framer
 
     def _parser(
-        self, spec: SourceSpec, c: SourceCounters, peer: str, rx_ns: int
+        self, spec: SourceSpec, c: SourceCounters, peer: str, rx_ns: int, out: list[Output]
     ) -> tuple[tuple[str, str], mv.FrameParser]:
         key = (spec.name, peer)
         parser = self._parsers.get(key)
         if parser is None:
-            self._forget_idle_senders(spec, c, rx_ns)
+            self._forget_idle_senders(spec, c, rx_ns, out)
             key = (spec.name, _sender_key(peer, self._parsers, spec.name))
             parser = self._parsers.get(key)
             if parser is None:
@@ -790,7 +792,9 @@ class Pipeline:
         self._sender_rx[key] = rx_ns
         return key, parser
 
-    def _forget_idle_senders(self, spec: SourceSpec, c: SourceCounters, rx_ns: int) -> None:
+    def _forget_idle_senders(
+        self, spec: SourceSpec, c: SourceCounters, rx_ns: int, out: list[Output] | None = None
+    ) -> None:
         """A new sender on a source: first forget the source's senders silent for longer than its
         timeout (a TCP client that disconnected and came back from another port, a receiver that moved
         address). What each held back of an unfinished sentence or frame is counted now
@@ -809,10 +813,16 @@ class Pipeline:
             if key[0] == name and rx_ns - self._sender_rx.get(key, rx_ns) > spec.timeout_ns
         ]
         for key in idle:
-            self._forget_sender(key, c)
+            self._forget_sender(key, c, rx_ns, out)
 
-    def _forget_sender(self, key: tuple[str, str], c: SourceCounters) -> None:
-        """Count what the framer or frame parser of ``key`` (source, peer) holds back, and free it."""
+    def _forget_sender(
+        self, key: tuple[str, str], c: SourceCounters, rx_ns: int = 0, out: list[Output] | None = None
+    ) -> None:
+        """Count what the framer or frame parser of ``key`` (source, peer) holds back, and free it. A
+        signed link's frames refused for signing then are recorded in ``out`` as a chunk's are, stamped
+        ``rx_ns`` (the event that forgot the sender) with the sender's peer, and a replay without the key
+        applies those verdicts at the same event: a refused frame held behind a false start completes only
+        here (a forged one was counted ``bad_signature`` live but left no record, and the replay took it)."""
         self._sender_rx.pop(key, None)
         framer = self._framers.pop(key, None)
         if framer is not None:
@@ -820,12 +830,17 @@ class Pipeline:
                 c.rejected[frame.reason or "garbage"] += 1
         parser = self._parsers.get(key)
         if parser is not None:
+            logged = self.sources[key[0]].logged_verdicts
+            if logged is not None:
+                parser.verdicts = self._verdicts_left(key[0], logged, key[1], rx_ns)
             # a valid frame held behind a false start completes only now: counted, not used (the sender
             # is gone or silent beyond its timeout)
             late = len(parser.flush())
+            parser.verdicts = None
             if late:
                 c.rejected["sender gone"] += late
-            self._count_parser_rejects(key, c)
+            if self._count_parser_rejects(key, c) and parser.signing_rejects and out is not None:
+                out.extend(_signing_rejections(key[0], rx_ns, key[1], parser.signing_rejects))
             del self._parsers[key], self._parser_seen[key], self._parser_rejects[key]
             del self._parser_skipped[key]
 
@@ -960,7 +975,7 @@ class Pipeline:
         return Prediction((n, e), age)
 
     def _mavlink(self, spec: SourceSpec, c: SourceCounters, ev: RawEvent, out: list[Output]) -> bool:
-        key, parser = self._parser(spec, c, ev.peer, ev.rx_ns)
+        key, parser = self._parser(spec, c, ev.peer, ev.rx_ns, out)
         logged = spec.logged_verdicts
         if logged is None:
             msgs = parser.feed(ev.data)
@@ -969,7 +984,7 @@ class Pipeline:
             msgs = parser.feed(ev.data)
             parser.verdicts = None
         if self._count_parser_rejects(key, c) and parser.signing_rejects:
-            out.extend(_signing_rejections(spec.name, ev, parser.signing_rejects))
+            out.extend(_signing_rejections(spec.name, ev.rx_ns, ev.peer, parser.signing_rejects))
             parser.signing_rejects.clear()
         frames: list[Sequence[mv.Report]] = []
         for msg in msgs:
@@ -1863,15 +1878,17 @@ SIGNING_REJECTED_TOPIC = "/raw/mavlink_rejected/"
 """`/raw/mavlink_rejected/<source>`: the frames of a signed link refused for signing (`SigningRejection`)."""
 
 
-def _signing_rejections(source: str, ev: RawEvent, rejects: Sequence[mv.SigningReject]) -> list[Output]:
-    """The log's record of each frame of ``ev``'s chunk refused for signing: log only (not Zenoh), at the
-    chunk's receive time, so that a replay without the key refuses the same frames
-    (`SourceSpec.logged_verdicts`). Made only for refused frames."""
+def _signing_rejections(
+    source: str, rx_ns: int, peer: str, rejects: Sequence[mv.SigningReject]
+) -> list[Output]:
+    """The log's record of each frame of a chunk of ``peer`` received at ``rx_ns`` refused for signing:
+    log only (not Zenoh), at the chunk's receive time, so that a replay without the key refuses the same
+    frames (`SourceSpec.logged_verdicts`). Made only for refused frames."""
     out = []
     for r in rejects:
         ids = mv.frame_ids(r.frame)
         message = SigningRejection(
-            stamp_ns=ev.rx_ns,
+            stamp_ns=rx_ns,
             source=source,
             reason=r.reason,  # type: ignore[arg-type]  # (one of mv.SIGNING_REASONS)
             offset=r.offset,
@@ -1882,9 +1899,9 @@ def _signing_rejections(source: str, ev: RawEvent, rejects: Sequence[mv.SigningR
             msg_id=ids.msg_id,
             link_id=ids.link_id,
             signature_timestamp=ids.signature_timestamp,
-            peer=ev.peer,
+            peer=peer,
         )
-        out.append(Output(SIGNING_REJECTED_TOPIC + source, message, ev.rx_ns, False))
+        out.append(Output(SIGNING_REJECTED_TOPIC + source, message, rx_ns, False))
     return out
 
 

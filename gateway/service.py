@@ -559,20 +559,25 @@ class GatewayService:
     def _log_input(self, item: Chunk | _Input) -> int:
         """Write ``item`` to the log as it was received, without the pipeline; 1 if it was written."""
         rx = self._stamp(item)
-        if rx is None or self.log is None:
-            return 0
+        return 0 if rx is None else int(self._log_received(item, rx))
+
+    def _log_received(self, item: Chunk | _Input, rx: int) -> bool:
+        """Write ``item`` to the log as it was received, stamped ``rx``: a command input on its ``/dp/``
+        topic, a chunk on its source's raw channel. False when not written (no log, an unknown source)."""
+        if self.log is None:
+            return False
         if isinstance(item, _Input):
             body = item.payload if isinstance(item.payload, dict) else {item.key: item.payload}
             self.log.write(f"/dp/{item.key}", body, rx, rx)
-            return 1
+            return True
         spec = self.pipeline.sources.get(item.source)
         if spec is None:
-            return 0
+            return False
         if spec.protocol == "nmea":
             self.log.write_raw_nmea(item.source, item.data, rx, rx, peer=item.peer)
         else:
             self.log.write_raw_mavlink(item.source, item.data, rx, rx, peer=item.peer)
-        return 1
+        return True
 
     def _alarms(self) -> list[str]:
         alarms = [  # with what the OS last said: "port ... failed", "... not an address of this computer"
@@ -733,23 +738,15 @@ class GatewayService:
     def _handle_item(self, item: Chunk | _Input) -> None:
         rx = self._stamp(item)
         assert rx is not None  # held until the simulation clock has started
+        # The input goes to the log before the pipeline sees it: whatever happens next, it is kept.
+        self._log_received(item, rx)
         if isinstance(item, _Input):
             ev = ControlEvent(rx, item.key, item.payload)
-            if self.log is not None:
-                body = ev.payload if isinstance(ev.payload, dict) else {item.key: ev.payload}
-                self.log.write(f"/dp/{item.key}", body, ev.rx_ns, ev.rx_ns)
             try:
                 self._emit(self.pipeline.feed(ev))
             except Exception:
                 self._internal_error(f"input {item.key}", f"the {item.key} input {item.payload!r:.200}")
             return
-        spec = self.pipeline.sources.get(item.source)
-        # The raw chunk goes to the log before the pipeline sees it: whatever happens next, it is kept.
-        if self.log is not None and spec is not None:
-            if spec.protocol == "nmea":
-                self.log.write_raw_nmea(item.source, item.data, rx, rx, peer=item.peer)
-            else:
-                self.log.write_raw_mavlink(item.source, item.data, rx, rx, peer=item.peer)
         try:
             self._emit(self.pipeline.feed(RawEvent(rx, item.source, item.data, peer=item.peer)))
         except Exception:

@@ -14,6 +14,7 @@ import socket  # noqa: E402
 import threading  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Callable, Iterator  # noqa: E402
+from pathlib import Path  # noqa: E402
 from typing import Any, TypeVar  # noqa: E402
 
 import pynmea2  # noqa: E402
@@ -80,6 +81,31 @@ def free_port(kind: int = socket.SOCK_STREAM) -> int:
     with socket.socket(socket.AF_INET, kind) as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
+
+
+def one_source_config(
+    tmp: Path, url: str, name: str = "dgps1", *, datum: bool = False, log: bool = True
+) -> Path:
+    """``tmp/vessel.toml`` for ``dpgw run``: mss_supply, one NMEA source of position and heading at
+    ``url``, Zenoh on a free loopback port without scouting, the log in ``tmp/live.mcap`` (``log=False``:
+    none); ``datum``: a datum of its own (59.4 N, 10.5 E)."""
+    cfg = tmp / "vessel.toml"
+    datum_table = "[datum]\nlat_deg = 59.4\nlon_deg = 10.5\n" if datum else ""
+    cfg.write_text(f"""
+[vessel]
+name = "mss_supply"
+{datum_table}[[sources]]
+name = "{name}"
+url = "{url}"
+protocol = "nmea"
+roles = ["position", "heading"]
+[zenoh]
+listen = ["tcp/127.0.0.1:{free_port()}"]
+multicast_scouting = false
+[log]
+path = "{tmp / "live.mcap" if log else ""}"
+""")
+    return cfg
 
 
 class Recorder:

@@ -4,35 +4,23 @@ journal's stream is a pipe whose device and inode are given in ``JOURNAL_STREAM`
 
 from __future__ import annotations
 
+import logging
 import os
 import subprocess
 import sys
 import threading
 from pathlib import Path
 
-from conftest import free_port
+from conftest import one_source_config
+
+from dpgw.journal import JournalFormatter
 
 ROOT = Path(__file__).resolve().parents[1]
 RUN = [sys.executable, "-m", "dpgw", "run", "--config"]
 
 
 def write_config(tmp: Path) -> Path:
-    cfg = tmp / "vessel.toml"
-    cfg.write_text(f"""
-[vessel]
-name = "mss_supply"
-[[sources]]
-name = "gyro1"
-url = "serial://{tmp / "ttyUSB1"}?baud=4800"
-protocol = "nmea"
-roles = ["position", "heading"]
-[zenoh]
-listen = ["tcp/127.0.0.1:{free_port()}"]
-multicast_scouting = false
-[log]
-path = "{tmp / "live.mcap"}"
-""")
-    return cfg
+    return one_source_config(tmp, f"serial://{tmp / 'ttyUSB1'}?baud=4800", "gyro1")
 
 
 def run_with_stderr(cfg: Path, journal: bool) -> list[str]:
@@ -80,3 +68,18 @@ def test_another_stream_than_the_journals_gets_no_prefix(tmp_path: Path) -> None
         )  # fmt: skip
     text = (tmp_path / "err.txt").read_text()
     assert p.returncode == 0 and "waiting for it" in text and "<4>" not in text, text
+
+
+def test_every_line_of_a_traceback_carries_the_priority() -> None:
+    """journald takes each line as an entry: a traceback's lines after the first went in at the default
+    priority (info), and ``journalctl -p err`` showed an internal error without its traceback."""
+    try:
+        raise ValueError("a bug")
+    except ValueError:
+        record = logging.LogRecord(
+            "dpgw", logging.ERROR, __file__, 1, "internal error #1", None, sys.exc_info()
+        )
+    text = JournalFormatter("%(message)s").format(record)
+    lines = text.split("\n")
+    assert len(lines) > 3 and "ValueError: a bug" in lines[-1], text
+    assert all(line.startswith("<3>") for line in lines), text

@@ -15,7 +15,7 @@ import time
 from datetime import UTC, datetime
 from pathlib import Path
 
-from conftest import free_port, wait_for
+from conftest import free_port, one_source_config, wait_for
 from test_run_signals import Gateway
 from test_service_faults import Live
 
@@ -156,25 +156,7 @@ def line_within(gw: Gateway, text: str, seconds: float) -> str | None:
 
 
 def write_config(tmp: Path, port: int) -> Path:
-    cfg = tmp / "vessel.toml"
-    cfg.write_text(f"""
-[vessel]
-name = "mss_supply"
-[datum]
-lat_deg = 59.4
-lon_deg = 10.5
-[[sources]]
-name = "gps"
-url = "tcp://127.0.0.1:{port}"
-protocol = "nmea"
-roles = ["position", "heading"]
-[zenoh]
-listen = ["tcp/127.0.0.1:{free_port()}"]
-multicast_scouting = false
-[log]
-path = ""
-""")
-    return cfg
+    return one_source_config(tmp, f"tcp://127.0.0.1:{port}", "gps", datum=True, log=False)
 
 
 def test_dpgw_run_says_the_reconnects_in_its_periodic_line_and_its_final_summary(tmp_path: Path) -> None:

@@ -22,7 +22,7 @@ from typing import Any
 
 import pytest
 import serial
-from conftest import free_port, wait_for
+from conftest import free_port, one_source_config, wait_for
 
 from gateway.bus import isolated_config, open_session
 from simulator.transports import PtySink
@@ -36,23 +36,7 @@ def burst() -> bytes:
     return (gga + enc.hdt("HE", 0.5)).encode()
 
 
-def write_config(tmp: Path, url: str, name: str = "dgps1") -> Path:
-    cfg = tmp / "vessel.toml"
-    cfg.write_text(f"""
-[vessel]
-name = "mss_supply"
-[[sources]]
-name = "{name}"
-url = "{url}"
-protocol = "nmea"
-roles = ["position", "heading"]
-[zenoh]
-listen = ["tcp/127.0.0.1:{free_port()}"]
-multicast_scouting = false
-[log]
-path = "{tmp / "live.mcap"}"
-""")
-    return cfg
+write_config = one_source_config
 
 
 def start(cfg: Path, prefix: list[str] | None = None) -> subprocess.CompletedProcess[str]:
@@ -89,8 +73,7 @@ def test_with_wait_for_ports_a_missing_serial_port_is_waited_for(tmp_path: Path)
     the estimates start. A port that is there but wrong still stops start-up (waiting would not mend it)."""
     link = tmp_path / "ttyUSB0"
     zport = free_port()
-    cfg = write_config(tmp_path, f"serial://{link}?baud=115200", name="gps")
-    cfg.write_text(cfg.read_text().replace("[zenoh]", "[datum]\nlat_deg = 59.4\nlon_deg = 10.5\n[zenoh]"))
+    cfg = write_config(tmp_path, f"serial://{link}?baud=115200", name="gps", datum=True)
     cfg.write_text(re.sub(r"tcp/127.0.0.1:\d+", f"tcp/127.0.0.1:{zport}", cfg.read_text()))
     p = subprocess.Popen(
         [sys.executable, "-m", "dpgw", "run", "--config", str(cfg), "--wait-for-ports", "--json"],
@@ -216,6 +199,24 @@ def test_check_notes_a_serial_port_that_is_not_there_now(tmp_path: Path) -> None
         os.close(slave)
     assert p.returncode == 0, p.stderr
     assert not [n for n in json.loads(p.stdout)["notes"] if "serial port" in n]
+
+
+def test_the_log_folder_note_of_a_user_without_a_passwd_entry(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A uid the password database does not know (a container run with ``--user 1234``): the note names
+    the uid. Before, ``pwd.getpwuid`` raised KeyError and ``--check`` ended in a traceback."""
+    import pwd
+
+    from dpgw.cli_run import log_folder_note
+
+    def unknown(uid: int) -> Any:
+        raise KeyError(f"getpwuid(): uid not found: {uid}")
+
+    monkeypatch.setattr(pwd, "getpwuid", unknown)
+    (tmp_path / "afile").write_bytes(b"")  # (a file in the way: as root, permissions cannot make the case)
+    note = log_folder_note(str(tmp_path / "afile" / "dpgw.mcap"))
+    assert note is not None and f"for this user (uid {os.geteuid()})" in note, note
 
 
 def test_check_notes_a_log_folder_that_cannot_be_made(tmp_path: Path) -> None:

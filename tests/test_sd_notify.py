@@ -12,7 +12,7 @@ import sys
 import threading
 from pathlib import Path
 
-from conftest import free_port, wait_for
+from conftest import free_port, one_source_config, wait_for
 from test_service_faults import Live, SlowSink, burst
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -47,21 +47,7 @@ class FakeSystemd:
 
 
 def test_ready_watchdog_and_stopping(tmp_path: Path) -> None:
-    cfg = tmp_path / "vessel.toml"
-    cfg.write_text(f"""
-[vessel]
-name = "mss_supply"
-[[sources]]
-name = "mux"
-url = "udp://127.0.0.1:{free_port(socket.SOCK_DGRAM)}"
-protocol = "nmea"
-roles = ["position", "heading"]
-[zenoh]
-listen = ["tcp/127.0.0.1:{free_port()}"]
-multicast_scouting = false
-[log]
-path = "{tmp_path / "live.mcap"}"
-""")
+    cfg = one_source_config(tmp_path, f"udp://127.0.0.1:{free_port(socket.SOCK_DGRAM)}", "mux")
     systemd = FakeSystemd(tmp_path / "notify")
     env = dict(os.environ, NOTIFY_SOCKET=str(tmp_path / "notify"), WATCHDOG_USEC="400000")
     env.pop("WATCHDOG_PID", None)

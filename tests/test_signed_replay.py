@@ -427,3 +427,58 @@ def test_a_config_without_the_key_still_refuses_what_the_live_gateway_refused(
         assert summary["signatures_unchecked"] == {}, label
         expected = {"thrusters": {"bad_signature": 6, "unsigned": 3}} if key is None else {}
         assert summary["signature_verdicts"] == expected, label
+
+
+def test_a_refusal_completed_when_a_silent_sender_is_forgotten_is_recorded_and_replayed(
+    tmp_path: Path,
+) -> None:
+    """A forged frame held behind a false start (a header whose length runs past it) completes only when
+    its sender, silent past the source's timeout, is forgotten at another sender's chunk. The live
+    pipeline counted it ``bad_signature`` but made no record of it, so a replay without the key took it
+    (``sender gone``). Now it is recorded at that chunk's time with its own sender's peer, and the
+    replay without the key refuses it for the same reason, at the same event."""
+    from gateway.pipeline import RawEvent
+    from gateway.replay import SigningVerdicts, build_pipeline
+
+    def tables(key: bytes | None) -> dict[str, Any]:
+        nav = {
+            "name": "nav",
+            "url": "udp://127.0.0.1:0",
+            "protocol": "nmea",
+            "roles": ["position", "heading"],
+        }
+        thr = {"name": "thr", "url": "udpin:127.0.0.1:0", "protocol": "mavlink", "roles": ["thrusters"]}
+        thr["timeout_s"] = 1.0
+        if key is not None:
+            thr["signing_key"] = key.hex()
+        return {
+            "vessel": {"name": "hajivand_vessel"},
+            "datum": {"lat_deg": 59.4, "lon_deg": 10.5},
+            "sources": [nav, thr],
+            "log": {"path": ""},
+        }
+
+    forged = _attack_frames(0)[0][:SIGNED_STATUS_LEN]
+    # a MAVLink 2 header saying 200 bytes of payload: the parser waits for them, the forged frame inside
+    false_start = b"\xfd" + bytes([200, 0, 0, 0, 1, 1]) + mv.AZIMUTH_THRUSTER_STATUS_ID.to_bytes(3, "little")
+    drive = mv.encoder(*DRIVE)
+    mv.setup_signing(drive, KEY, initial_timestamp=1)
+    t0, a, b = 1_700_000_000_000_000_000, "127.0.0.1:40000", "127.0.0.1:40001"
+    events = [
+        RawEvent(t0, "thr", false_start + forged, peer=a),
+        RawEvent(t0 + 3 * 10**9, "thr", mv.heartbeat_frame(drive), peer=b),  # a silent 3 s: forgotten
+    ]
+    live = build_pipeline(parse_config(tables(KEY), base_dir=tmp_path), [])
+    outputs = [o for ev in events for o in live.feed(ev)]
+    assert live.counters["thr"].rejected["bad_signature"] == 1, live.counters["thr"].rejected
+    records = [o.message for o in outputs if o.topic == "/raw/mavlink_rejected/thr"]
+    assert [(r.reason, r.peer, r.stamp_ns, r.offset) for r in records] == [
+        ("bad_signature", a, t0 + 3 * 10**9, -len(forged))
+    ]
+    table = {(r.peer, r.stamp_ns): ((r.offset, r.digest, r.reason),) for r in records}
+    verdicts = SigningVerdicts({"thr": table}, {"thr": {"bad_signature": 1, "unsigned": 0}})
+    keyless = build_pipeline(parse_config(tables(None), base_dir=tmp_path), [], signing_verdicts=verdicts)
+    for ev in events:
+        keyless.feed(ev)
+    assert keyless.counters["thr"].rejected == live.counters["thr"].rejected
+    assert keyless.unmatched_verdicts() == {"thr": 0}

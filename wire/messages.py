@@ -925,7 +925,9 @@ class SigningRejection(Message, kw_only=True):
         int,
         doc(
             "Receive time of the chunk whose bytes completed the frame: the log time of that chunk's "
-            "`/raw/mavlink/<source>` record.",
+            "`/raw/mavlink/<source>` record. A frame held behind a false start completes only when its "
+            "sender is forgotten (silent past the source's timeout, or its connection closed): then the "
+            "time of the chunk or end of stream that forgot it, with that frame's own sender as `peer`.",
             "ns (UTC)",
         ),
     ]
@@ -942,7 +944,8 @@ class SigningRejection(Message, kw_only=True):
         int,
         doc(
             "Where the frame's first byte is in that chunk (bytes); negative when it began in an earlier "
-            "chunk of the same sender (a frame split across reads)."
+            "chunk of the same sender (a frame split across reads; counted back from the end of what was "
+            "held for a frame completed when its sender was forgotten)."
         ),
     ]
     digest: Annotated[

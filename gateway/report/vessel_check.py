@@ -75,15 +75,7 @@ class VesselCheck:
         return {
             "vessel": self.vessel,
             "band_rad_s": list(self.band),
-            "above_band": {
-                d: {
-                    "peak_rad_s": p.omega if math.isfinite(p.omega) else None,
-                    "above_trend_db": p.above_trend_db if math.isfinite(p.above_trend_db) else None,
-                    "at_band_edge": p.at_edge,
-                    "clear": p.clear,
-                }
-                for d, p in self.peaks.items()
-            },
+            "above_band": {d: p.as_dict() for d, p in self.peaks.items()},
             "suitable": list(self.suitable),
             "advice": self.advice() or None,
         }

@@ -65,6 +65,15 @@ class DofPeak:
     def clear(self) -> bool:
         return math.isfinite(self.omega) and not self.at_edge and self.above_trend_db >= CLEAR_PEAK_DB
 
+    def as_dict(self) -> dict[str, Any]:
+        """For ``--json`` and metrics.json (None for a NaN: no spectrum)."""
+        return {
+            "peak_rad_s": self.omega if math.isfinite(self.omega) else None,
+            "above_trend_db": self.above_trend_db if math.isfinite(self.above_trend_db) else None,
+            "at_band_edge": self.at_edge,
+            "clear": self.clear,
+        }
+
 
 @dataclass(frozen=True)
 class ObserverTuning:
@@ -123,15 +132,7 @@ class WaveCheck:
         return {
             "band_rad_s": list(self.band),
             "measured_peak_rad_s": self.measured,
-            "per_dof": {
-                d: {
-                    "peak_rad_s": p.omega if math.isfinite(p.omega) else None,
-                    "above_trend_db": p.above_trend_db if math.isfinite(p.above_trend_db) else None,
-                    "at_band_edge": p.at_edge,
-                    "clear": p.clear,
-                }
-                for d, p in self.peaks.items()
-            },
+            "per_dof": {d: p.as_dict() for d, p in self.peaks.items()},
             "observers": {
                 o.label: {
                     "observer": o.kind,
