@@ -438,7 +438,10 @@ class GatewayService:
             if deadline is not None and time.monotonic() >= deadline:
                 break
             if self.heartbeat is not None:
-                self.heartbeat()
+                try:  # (the supervisor's watchdog: a failure to tell it is counted, never stops the loop)
+                    self.heartbeat()
+                except Exception:
+                    self._internal_error("watchdog", "the watchdog notification")
             if self._dialler is not None:
                 self._take_dialled()
             try:

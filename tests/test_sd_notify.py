@@ -107,3 +107,26 @@ def test_the_watchdog_stops_when_the_consumer_loop_does(tmp_path: Path) -> None:
     finally:
         release.set()
         tx.close()
+
+
+def test_a_failing_watchdog_notification_is_counted_and_the_loop_goes_on(tmp_path: Path) -> None:
+    """The notification runs in the consumer loop: one that raises (a status line that cannot be made, a
+    socket gone) is an internal error, counted and logged, and the gateway carries on handling input."""
+    udp = free_port(socket.SOCK_DGRAM)
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    calls = [0]
+
+    def failing() -> None:
+        calls[0] += 1
+        raise OSError("the notify socket is gone")
+
+    try:
+        with Live(tmp_path, f"udp://127.0.0.1:{udp}") as live:
+            live.service.heartbeat = failing
+            src = live.service._sources[0]
+            assert wait_for(lambda: tx.sendto(burst(0), ("127.0.0.1", udp)) and src.stats.chunks >= 20, 30.0)
+            assert wait_for(lambda: live.service.pipeline.estimates >= 5, 30.0)
+            assert live.service.internal_errors["watchdog"] >= 2 and calls[0] >= 2
+            assert live.loop.is_alive()
+    finally:
+        tx.close()
