@@ -71,12 +71,15 @@ TIME_EVERY_NS = 50_000_000
 follows the gateway's (the simulation's, in the demo) without a time message per output."""
 RESUBSCRIBE_AFTER_NS = 1_000_000_000
 """A channel made while a client is connected is advertised again (closed and made anew) if a connected
-client has not subscribed to it within this long (wall), at most `READVERTISE_MAX` times: the SDK sends
-the advertisement before it registers the channel for that client, so a client that answers at once
-(on a busy machine, where the sending thread can be preempted between the two) has its subscription
-refused ("Unknown channel ID") and would never get the channel's data. A client that does not want the
-channel (the app subscribes to what its panels show) costs two extra advertisements."""
-READVERTISE_MAX = 2
+client has not subscribed to it within this long (wall), doubled after each time, at most
+`READVERTISE_MAX` times: the SDK sends the advertisement before it registers the channel for that
+client, so a client that answers at once (on a busy machine, where the sending thread can be preempted
+between the two) has its subscription refused ("Unknown channel ID") and would never get the channel's
+data. The wait doubles because a client slowed by the same busy machine may take longer than a second to
+answer, and advertising again meanwhile loses its answer too (seen on a loaded CI machine: a channel
+advertised three times in three seconds and never received). A client that does not want the channel
+(the app subscribes to what its panels show) costs a few extra advertisements in its first minute."""
+READVERTISE_MAX = 5  # waits of 1, 2, 4, 8 and 16 s: given up after about half a minute
 SUBPROTOCOL = "foxglove.sdk.v1"
 """What the SDK's server speaks (its handshake refuses a client that does not offer it)."""
 
@@ -373,7 +376,7 @@ class FoxgloveServerSink:
         self._next_watch_ns = now + RESUBSCRIBE_AFTER_NS // 4
         for topic in list(self._watched):
             ch = self._channels.get(topic)
-            if ch is None or now - ch.made_ns < RESUBSCRIBE_AFTER_NS:
+            if ch is None or now - ch.made_ns < RESUBSCRIBE_AFTER_NS << ch.readvertised:
                 continue
             if not self._subscriptions.missing(topic) or ch.readvertised >= READVERTISE_MAX:
                 self._watched.discard(topic)
