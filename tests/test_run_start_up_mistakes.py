@@ -49,6 +49,14 @@ def start(cfg: Path, prefix: list[str] | None = None) -> subprocess.CompletedPro
     )
 
 
+def check(cfg: Path) -> subprocess.CompletedProcess[str]:
+    """``dpgw run --config CFG --check`` in a fresh process."""
+    return subprocess.run(
+        [sys.executable, "-m", "dpgw", "run", "--config", str(cfg), "--check"],
+        cwd=ROOT, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+
+
 def assert_one_clear_line(p: subprocess.CompletedProcess[str], cfg: Path, name: str, *what: str) -> None:
     assert p.returncode == 2, p.stderr
     lines = p.stderr.splitlines()
@@ -179,10 +187,7 @@ def test_check_notes_a_serial_port_that_is_not_there_now(tmp_path: Path) -> None
     """``--check`` opens nothing, so it cannot refuse a port that may yet come (a USB adapter, a simulator's
     pty link); it notes it. Before: ``ok`` with no word of it, then the service refused to start."""
     cfg = write_config(tmp_path, "serial:///dev/ttyUSB_nope?baud=4800")
-    p = subprocess.run(
-        [sys.executable, "-m", "dpgw", "run", "--config", str(cfg), "--check"],
-        cwd=ROOT, capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
+    p = check(cfg)
     assert p.returncode == 0, p.stderr
     notes = [ln for ln in p.stdout.splitlines() if ln.startswith("note: sources.dgps1.url: ")]
     assert len(notes) == 1 and "serial port /dev/ttyUSB_nope does not exist now" in notes[0], p.stdout
@@ -229,10 +234,7 @@ def test_check_notes_a_log_folder_that_cannot_be_made(tmp_path: Path) -> None:
     cfg.write_text(
         cfg.read_text().replace(str(tmp_path / "live.mcap"), str(tmp_path / "afile" / "dpgw.mcap"))
     )
-    p = subprocess.run(
-        [sys.executable, "-m", "dpgw", "run", "--config", str(cfg), "--check"],
-        cwd=ROOT, capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
+    p = check(cfg)
     assert p.returncode == 0, p.stderr
     notes = [ln for ln in p.stdout.splitlines() if ln.startswith("note: log.path: ")]
     assert (
@@ -242,8 +244,5 @@ def test_check_notes_a_log_folder_that_cannot_be_made(tmp_path: Path) -> None:
     assert run.returncode == 2 and "log.path: cannot make the log's folder" in run.stderr, run.stderr
     # a folder that can be made: no note
     cfg.write_text(cfg.read_text().replace(str(tmp_path / "afile"), str(tmp_path / "new" / "logs")))
-    p = subprocess.run(
-        [sys.executable, "-m", "dpgw", "run", "--config", str(cfg), "--check"],
-        cwd=ROOT, capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
+    p = check(cfg)
     assert p.returncode == 0 and "note: log.path" not in p.stdout, p.stdout

@@ -42,12 +42,9 @@ def wait_for(
         time.sleep(0.02)
 
 
-def test_a_bug_on_one_chunk_is_counted_logged_and_the_service_goes_on(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
-) -> None:
-    udp, zport = free_port(socket.SOCK_DGRAM), free_port()
-    log_path = tmp_path / "live.mcap"
-    tables = {
+def mux_tables(udp: int, zport: int, log_path: Path, status_hz: float) -> dict[str, Any]:
+    """A gateway config: one NMEA multiplexer (position and heading) on UDP ``udp``, Zenoh on ``zport``."""
+    return {
         "vessel": {"name": "mss_supply"},
         "datum": {"lat_deg": 59.4, "lon_deg": 10.5},
         "sources": [
@@ -59,10 +56,19 @@ def test_a_bug_on_one_chunk_is_counted_logged_and_the_service_goes_on(
             }
         ],
         "observer": {"wave_period_s": 9.0},
-        "zenoh": {"listen": [f"tcp/127.0.0.1:{zport}"], "multicast_scouting": False, "prefix": "dp/t"},
-        "status": {"rate_hz": 10.0},
+        "zenoh": {"listen": [f"tcp/127.0.0.1:{zport}"], "multicast_scouting": False},
+        "status": {"rate_hz": status_hz},
         "log": {"path": str(log_path)},
     }
+
+
+def test_a_bug_on_one_chunk_is_counted_logged_and_the_service_goes_on(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    udp, zport = free_port(socket.SOCK_DGRAM), free_port()
+    log_path = tmp_path / "live.mcap"
+    tables = mux_tables(udp, zport, log_path, status_hz=10.0)
+    tables["zenoh"]["prefix"] = "dp/t"
     service = GatewayService(parse_config(tables, base_dir=tmp_path), config_tables=tables)
 
     # A bug inside the pipeline, deep enough that the source's counters were already touched: it raises on
@@ -139,22 +145,7 @@ def test_the_logs_last_status_holds_every_count_of_the_run(tmp_path: Path) -> No
     log reports from it what the live gateway refused."""
     udp, zport = free_port(socket.SOCK_DGRAM), free_port()
     log_path = tmp_path / "live.mcap"
-    tables = {
-        "vessel": {"name": "mss_supply"},
-        "datum": {"lat_deg": 59.4, "lon_deg": 10.5},
-        "sources": [
-            {
-                "name": "mux",
-                "url": f"udp://127.0.0.1:{udp}",
-                "protocol": "nmea",
-                "roles": ["position", "heading"],
-            }
-        ],
-        "observer": {"wave_period_s": 9.0},
-        "zenoh": {"listen": [f"tcp/127.0.0.1:{zport}"], "multicast_scouting": False},
-        "status": {"rate_hz": 0.1},
-        "log": {"path": str(log_path)},
-    }
+    tables = mux_tables(udp, zport, log_path, status_hz=0.1)
     service = GatewayService(parse_config(tables, base_dir=tmp_path), config_tables=tables)
     service.start()
     loop = threading.Thread(target=service.run, name="consumer")
