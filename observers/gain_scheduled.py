@@ -50,7 +50,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -185,11 +184,10 @@ class GainScheduledObserver(ObserverBase):
         self.vessel = vessel
         scale = froude_scale(vessel)
         self.tuning = tuning or PassiveTuning.for_vessel(vessel)
-        self.config = estimator or WaveFrequencyConfig.for_vessel(vessel)
-        if self.config.loop_bandwidth is None and self.tuning.loop_bandwidth is not None:
-            # the DP loop this observer's vessel is held by: its ω0 is searched above the loop's band
-            # (`observers.wave_frequency`, "Above the DP loop's band")
-            self.config = replace(self.config, loop_bandwidth=self.tuning.loop_bandwidth)
+        # ω0 searched above the band of the DP loop this observer's vessel is held by
+        self.config = (estimator or WaveFrequencyConfig.for_vessel(vessel)).held_by(
+            self.tuning.loop_bandwidth
+        )
         self.h_max = float(froude_scaled(H_MAX_S, scale, "time") if h_max is None else h_max)
         self.max_hold_s = float(max_hold_s)
         if not (self.h_max > 0 and self.max_hold_s > 0):

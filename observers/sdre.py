@@ -31,7 +31,6 @@ module; tests/test_sdre.py checks they agree. Notes and measurements: docs/sdre.
 
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -149,11 +148,8 @@ class SdreObserver(ObserverBase):
         sdre_tuning = SdreTuning(omega0=common.omega0, zeta=common.zeta, **params)
         weights = paper_weights(sdre_tuning.omega0, sdre_tuning.zeta) if literal else None
         if adaptive:
-            config = estimator_config(vessel, est)  # the vessel's Froude-scaled defaults where not given
-            if config.loop_bandwidth is None and common.loop_bandwidth is not None:
-                # the DP loop the estimate feeds: ω0 is searched above the loop's band, as the
-                # gain-scheduled observer's (`observers.wave_frequency`, "Above the DP loop's band")
-                config = replace(config, loop_bandwidth=common.loop_bandwidth)
+            # the vessel's Froude-scaled defaults where not given; ω0 searched above the DP loop's band
+            config = estimator_config(vessel, est).held_by(common.loop_bandwidth)
             return AdaptiveSdreObserver(vessel, sdre_tuning, estimator=config, weights=weights)
         return cls(vessel, sdre_tuning, weights=weights)
 

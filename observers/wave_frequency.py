@@ -259,6 +259,14 @@ class WaveFrequencyConfig:
             raise ValueError(f"length ratio must be a positive number, got {length_ratio!r}")
         return self.for_model(1.0 / length_ratio)
 
+    def held_by(self, loop_bandwidth: Any) -> WaveFrequencyConfig:
+        """This config searching above the DP loop's band ``loop_bandwidth`` (a tuning's: None, unknown)
+        where it has no band of its own ("Above the DP loop's band"): how an observer that schedules ω0
+        takes the loop its estimate feeds."""
+        if self.loop_bandwidth is not None or loop_bandwidth is None:
+            return self
+        return replace(self, loop_bandwidth=loop_bandwidth)
+
     @classmethod
     def for_vessel(cls, vessel: VesselModel) -> WaveFrequencyConfig:
         """The default settings Froude-scaled to ``vessel`` (λ = `observers.froude.froude_scale`): a ship

@@ -111,6 +111,8 @@ def test_loop_bandwidth_settings() -> None:
     scaled = shared.for_model(70.0)  # a frequency: × √70 on the 1:70 model, as ω_min
     assert scaled.search_floor[0] == pytest.approx(0.78 * math.sqrt(70.0))
     hash(shared)  # stays a hashable, comparable config
+    assert WaveFrequencyConfig().held_by((0.55, 0.55, 0.78)) == shared  # an observer's tuning's loop
+    assert one.held_by((0.55, 0.55, 0.78)) is one and shared.held_by(None) is shared  # its own kept
     with pytest.raises(ValueError, match="no wave band is left above the loop"):
         WaveFrequencyConfig(loop_bandwidth=1.7)
     with pytest.raises(ValueError, match="loop_bandwidth must be a positive number"):
