@@ -478,10 +478,10 @@ class GatewayService:
 
     def final_status(self) -> Output:
         """The status at the end of a run: at the pipeline's last time, or (nothing ever arrived, so it has
-        none) at the wall clock, not at 1970 with every source "stale" for 56 years."""
-        self._copy_link_counts()
+        none) at the wall clock, not at 1970 with every source "stale" for 56 years. With the alarms and
+        the links' counts as they are now (`_alarms`)."""
         last = self.pipeline.last_ns
-        return self.pipeline.status(last) if last else self._status_without_time()
+        return self.pipeline.status(last, self._alarms()) if last else self._status_without_time()
 
     def _status_without_time(self) -> Output:
         """The status while the pipeline has no time yet (``clock = "sim"`` before the first tick): stamped
@@ -555,7 +555,7 @@ class GatewayService:
         self.logged_unhandled += logged_only
         if self.pipeline.last_ns:
             try:
-                self._emit([self.pipeline.status(self.pipeline.last_ns, self._alarms())])
+                self._emit([self.final_status()])
             except Exception:
                 self._internal_error("status", "the last status")
 
