@@ -378,16 +378,12 @@ def test_zoom_row_only_when_it_shows_a_detail() -> None:
     assert zoom_window(0.0, 100.0, []) is None and zoom_window(0.0, 120.0, []) == pytest.approx((60.0, 120.0))
 
 
-def test_plots_mark_only_a_clear_wave_peak(data: ReplayData, tmp_path: Path) -> None:
-    """A DOF whose spectral maximum sits on the band edge has no wave peak (`peak_at_band_edge`): the omega0
-    plot draws no 'PSD peak of y' line for it and the PSD panel says so. Before, a dashed 'peak' line sat
-    at the band edge of a calm DOF (the USV log 202412051037: east and heading) beside the real one."""
-    from dataclasses import replace
-
+def drawn_figures(d: ReplayData, an: Any, tmp_path: Path) -> dict[str, Any]:
+    """The report's figures drawn for ``d`` (its `analyse` result ``an``), kept by name ("position", …)
+    for a test to look into (skips without matplotlib)."""
     pytest.importorskip("matplotlib")
     from matplotlib.figure import Figure
 
-    from gateway.report.metrics import analyse
     from gateway.report.plots import draw_plots
 
     made: list[Any] = []
@@ -397,6 +393,28 @@ def test_plots_mark_only_a_clear_wave_peak(data: ReplayData, tmp_path: Path) -> 
             super().__init__(*args, **kwargs)
             made.append(self)
 
+    draw_plots(d, an, tmp_path, Kept)
+    return {f.get_suptitle().rsplit(": ", 1)[1]: f for f in made}
+
+
+def split_across_days(data: ReplayData, days: int) -> ReplayData:
+    """``data`` as two logs merged: its second half (from 900 s) ``days`` days later; no truth."""
+    from dataclasses import replace
+
+    shift = days * 86400.0
+    t_meas = np.where(data.t_meas >= 900.0, data.t_meas + shift, data.t_meas)
+    traces = tuple(replace(tr_, t=np.where(tr_.t >= 900.0, tr_.t + shift, tr_.t)) for tr_ in data.traces)
+    return replace(data, t_meas=t_meas, traces=traces, truth_t=None, truth_eta_lf=None, truth_eta_wf=None)
+
+
+def test_plots_mark_only_a_clear_wave_peak(data: ReplayData, tmp_path: Path) -> None:
+    """A DOF whose spectral maximum sits on the band edge has no wave peak (`peak_at_band_edge`): the omega0
+    plot draws no 'PSD peak of y' line for it and the PSD panel says so. Before, a dashed 'peak' line sat
+    at the band edge of a calm DOF (the USV log 202412051037: east and heading) beside the real one."""
+    from dataclasses import replace
+
+    from gateway.report.metrics import analyse
+
     calm = data.y.copy()  # east: no waves, a random walk (a spectrum falling through the band)
     calm[:, 1] = lf_motion(data.t_meas)[:, 1] + np.cumsum(
         np.random.default_rng(3).normal(0.0, 0.02, len(calm))
@@ -404,8 +422,7 @@ def test_plots_mark_only_a_clear_wave_peak(data: ReplayData, tmp_path: Path) -> 
     d = replace(data, y=calm)
     an = analyse(d, None, None)
     assert [an.metrics["measurement"][k]["peak_at_band_edge"] for k in DOFS] == [False, True, False]
-    draw_plots(d, an, tmp_path, Kept)
-    by_name = {f.get_suptitle().rsplit(": ", 1)[1]: f for f in made}
+    by_name = drawn_figures(d, an, tmp_path)
     peak_lines = [
         [ln for ln in ax.get_lines() if ln.get_label() == "PSD peak of y"] for ax in by_name["omega0"].axes
     ]
@@ -475,28 +492,11 @@ def test_estimate_lines_break_where_logs_merged_across_days_leave_a_gap(
     """Three USV logs of three days replayed as one: before, every estimate line (position, wave,
     velocity, bias, ω0) ran straight through the 31 h and 17 h between them, as if the vessel had moved
     along it; the measurement's line broke there. Now every line breaks where its samples stop."""
-    from dataclasses import replace
-
-    pytest.importorskip("matplotlib")
-    from matplotlib.figure import Figure
 
     from gateway.report.metrics import analyse
-    from gateway.report.plots import draw_plots
 
-    made: list[Any] = []
-
-    class Kept(Figure):  # type: ignore[misc]
-        def __init__(self, *args: Any, **kwargs: Any) -> None:
-            super().__init__(*args, **kwargs)
-            made.append(self)
-
-    day = 86400.0
-    later = data.t_meas >= 900.0  # the second half a day later
-    t_meas = np.where(later, data.t_meas + day, data.t_meas)
-    traces = tuple(replace(tr_, t=np.where(tr_.t >= 900.0, tr_.t + day, tr_.t)) for tr_ in data.traces)
-    d = replace(data, t_meas=t_meas, traces=traces, truth_t=None, truth_eta_lf=None, truth_eta_wf=None)
-    draw_plots(d, analyse(d, None, None), tmp_path, Kept)
-    by_name = {f.get_suptitle().rsplit(": ", 1)[1]: f for f in made}
+    d = split_across_days(data, 1)  # the second half a day later
+    by_name = drawn_figures(d, analyse(d, None, None), tmp_path)
     for name in ("position", "wave", "velocity", "bias", "omega0"):
         ax = by_name[name].axes[0]  # the first DOF, the whole record
         lines = [ln for ln in ax.get_lines() if len(ln.get_xdata()) > 100]  # (not a reference line)
@@ -516,34 +516,12 @@ def test_a_long_log_reads_by_utc_and_its_zoom_in_seconds(data: ReplayData, tmp_p
     from dataclasses import replace
     from datetime import UTC, datetime
 
-    pytest.importorskip("matplotlib")
-    from matplotlib.figure import Figure
-
     from gateway.report.markdown import report_markdown
     from gateway.report.metrics import analyse
-    from gateway.report.plots import draw_plots
-
-    made: list[Any] = []
-
-    class Kept(Figure):  # type: ignore[misc]
-        def __init__(self, *args: Any, **kwargs: Any) -> None:
-            super().__init__(*args, **kwargs)
-            made.append(self)
 
     day = 86400.0
-    later = data.t_meas >= 900.0
-    t_meas = np.where(later, data.t_meas + 2 * day, data.t_meas)
-    traces = tuple(replace(tr_, t=np.where(tr_.t >= 900.0, tr_.t + 2 * day, tr_.t)) for tr_ in data.traces)
     start_ns = 1_733_395_032 * 10**9  # 2024-12-05T10:37:12Z
-    d = replace(
-        data,
-        t_meas=t_meas,
-        traces=traces,
-        truth_t=None,
-        truth_eta_lf=None,
-        truth_eta_wf=None,
-        start_ns=start_ns,
-    )
+    d = replace(split_across_days(data, 2), start_ns=start_ns)
     an = analyse(d, None, None)
     t0, t1 = an.metrics["span_s"]
     assert t0 == 0.0 and 2 * day < t1 < 2 * day + 1800.0
@@ -552,8 +530,7 @@ def test_a_long_log_reads_by_utc_and_its_zoom_in_seconds(data: ReplayData, tmp_p
     assert end is not None and end.startswith("2024-12-07T1")
     md = report_markdown(d, an.metrics, "", [])
     assert f"2024-12-05 10:37:12.0 to {end.replace('T', ' ').removesuffix('Z')} UTC" in md
-    draw_plots(d, an, tmp_path, Kept)
-    position = {f.get_suptitle().rsplit(": ", 1)[1]: f for f in made}["position"]
+    position = drawn_figures(d, an, tmp_path)["position"]
     whole, zoom = position.axes[0], position.axes[3]  # row 1 (the record), row 2 (its zoom)
     assert whole.get_xlabel() == "time (h) from 2024-12-05 10:37:12 UTC"
     length = float(zoom.get_title(loc="right").split()[2])  # "zoom: last 209 s"
