@@ -1292,13 +1292,19 @@ class Pipeline:
         only (`_restart_dof`): the other keeps its state — position, velocity, bias and wave motion.
         Restarting everything from one measurement put the heading's wave motion into its LF estimate and
         zeroed its bias: a 30 s frozen DGPS, re-acquired 3 m off the dead-reckoned position, gave the
-        heading estimate a 2° transient though the gyro never failed. A DOF lost (the first rule) still
-        restarts everything: after that long the rest of the state says nothing either.
+        heading estimate a 2° transient though the gyro never failed. The same holds for a DOF back after
+        ``lost_after_s`` (the first rule) while the other was measured throughout: its state is as good
+        as its measurements, however long the first was away (the same frozen DGPS, rejected 5 s in and
+        held out 5 s after it moved again, came back after 30 s, lost by a hair, and the full restart
+        put the heading's 2° of wave motion into its LF estimate). Both DOFs back at once, or nothing
+        stepped for ``lost_after_s`` (which leaves both unmeasured), restart everything: then no part of
+        the state has been kept up by a measurement.
         """
         measured, reacq, lost_ns = self._measured_ns, self._reacq_ns, self._lost_ns
         why = ""
         lost = False
         confirmed: list[int] = []  # DOFs re-acquired outside the gate: the ones a restart is for
+        lost_dofs: list[int] = []  # DOFs back after lost_after_s
         for dof in (0, 2):
             if not valid[dof]:
                 if reacq[dof]:
@@ -1310,6 +1316,7 @@ class Pipeline:
             if last and gap_ns > lost_ns:
                 why = why or f"{what} back after {gap_ns / NS:.0f} s (lost after {lost_ns / NS:g} s)"
                 lost = True
+                lost_dofs.append(dof)
                 continue
             # back: measured now, not at the last step (or again after a break in a re-acquisition);
             # without the prediction test (prediction_max_age_s = 0) only the lost rule above applies
@@ -1326,9 +1333,14 @@ class Pipeline:
                 if off:
                     why = why or f"{what} {off}"
                     confirmed.append(dof)
-        if why and not lost and len(confirmed) == 1:
-            other = 2 - confirmed[0]  # (0 position, 2 heading)
-            if valid[other] and not reacq[other] and self._restart_dof(confirmed[0], y):
+        # one DOF back (confirmed outside the gate, or lost) while the other was measured at the last
+        # step and is now: that DOF alone restarts. The other's state is as good as its measurements,
+        # however long the first was away (nothing stepped for lost_after_s is both DOFs lost at once).
+        single = confirmed if not lost else lost_dofs if not confirmed else []
+        if why and len(single) == 1:
+            other = 2 - single[0]  # (0 position, 2 heading)
+            steady = valid[other] and not reacq[other] and measured[other] == self._last_step_ns
+            if steady and self._restart_dof(single[0], y):
                 self._given_ns.clear()
                 self.restarts += 1
                 kept = "heading" if other == 2 else "position"

@@ -518,9 +518,13 @@ def test_a_heading_back_far_from_the_dead_reckoned_estimate_restarts_the_observe
     assert max(abs(math.degrees(math.remainder(e["eta"][2] - turned, 2 * math.pi))) for e in late) < 1.0
 
 
+@pytest.mark.parametrize("outage_s", [15.0, 45.0])
 @pytest.mark.parametrize("observer", ["passive", "gain_scheduled", "mmae", "sdre", "ekf", "memory"])
-def test_a_position_reacquired_far_off_restarts_the_position_and_keeps_the_heading(observer: str) -> None:
-    """The vessel turns at 0.5°/s on its gyro; the DGPS is silent for 15 s and comes back 20 m from the
+def test_a_position_reacquired_far_off_restarts_the_position_and_keeps_the_heading(
+    observer: str, outage_s: float
+) -> None:
+    """The vessel turns at 0.5°/s on its gyro; the DGPS is silent for 15 s (re-acquired: confirmed for
+    2 s, then restarted) or 45 s (past ``lost_after_s``: restarted at once) and comes back 20 m from the
     dead-reckoned position: the observers restart north and east from the fix and keep the heading's
     state (its rate of turn and bias). Restarted whole, the rate of turn went to zero and the heading
     estimate fell behind the turning gyro (measured: 0.54° behind 3 s after the restart, 1.3° after 10 s);
@@ -534,7 +538,7 @@ def test_a_position_reacquired_far_off_restarts_the_position_and_keeps_the_headi
 
     for _ in range(600):
         b.cycle(gyro={"gyro1": turning()})
-    for _ in range(150):
+    for _ in range(round(outage_s * 10)):
         b.cycle(gps={"gps1": None}, gyro={"gyro1": turning()})
     m = b.mark()
     for _ in range(100):
