@@ -1156,7 +1156,9 @@ class Pipeline:
         not report them) say nothing against the thruster. Announced as status events on each change."""
         if thruster_id not in self._thruster_ids:
             return
-        why = ", ".join(name for bit, name in OUT_FLAGS if flags & bit)
+        # (plain ints: an IntFlag's `&` runs in Python, and every drive report passes here)
+        bits = int(flags)
+        why = ", ".join(name for bit, name in OUT_FLAGS if bits & bit) if bits else ""
         old = self.thrusters_out.get(thruster_id, "")
         if why == old:
             return
@@ -1925,9 +1927,9 @@ HEADING_LIMITS_DEG = (3.0, 5.0)
 """Heading deviation from the DP reference (warning, alarm), degrees: the usual DP console defaults."""
 
 OUT_FLAGS = (
-    (mv.AzimuthThrusterFlags.FAULT, "fault"),
-    (mv.AzimuthThrusterFlags.EMERGENCY_STOP, "emergency stop"),
-    (mv.AzimuthThrusterFlags.LOCAL_CONTROL, "local control"),
+    (int(mv.AzimuthThrusterFlags.FAULT), "fault"),
+    (int(mv.AzimuthThrusterFlags.EMERGENCY_STOP), "emergency stop"),
+    (int(mv.AzimuthThrusterFlags.LOCAL_CONTROL), "local control"),
 )
 """Drive flags under which a thruster does not deliver DP commands, with the words of its alarm. The others
 (WARNING, THRUST_LIMITED, …) leave it in the allocation: it still delivers, perhaps less."""
