@@ -71,6 +71,10 @@ HOLD_MAX = 10_000
 """Items held while waiting for the first simulation clock tick (a minute of a busy bench's input)."""
 CLOCK_SILENT_S = 5.0
 """With ``clock = "sim"``: no tick for this long (wall s) raises a status alarm."""
+DRAIN_S = 10.0
+"""After a stop, queued input is handled for at most this long (wall s), the rest written to the log as
+received (`GatewayService.drain`): the whole stop stays well inside the systemd unit's TimeoutStopSec
+(30 s), after which the process would be killed. ``dpgw run`` and ``dpgw demo`` stop the same way."""
 BEHIND_S = 1.0
 """The consumer is behind when the input it handles was received this long ago (wall s): a status alarm
 and one log line each way. The estimates and thruster commands then come from inputs that old."""
@@ -231,6 +235,8 @@ class GatewayService:
         stops turning stops calling it."""
         self.logged_unhandled = 0
         """Inputs still queued at the end of `drain`'s time, written to the log without being handled."""
+        self.drain_s = DRAIN_S
+        """How long `drain` handles what is queued at a stop (wall s) before it only logs the rest."""
 
     # --- start and stop -------------------------------------------------------------------------------------
 
@@ -529,20 +535,22 @@ class GatewayService:
         (1 Hz) leaves up to a second of the run out, and a log's last status is what a replay reports of
         the live run (e.g. the frames the live gateway refused for signing).
 
-        ``within_s``: what is still queued after that long is written to the log as received, without
-        the pipeline. A gateway far behind (`BEHIND_S`) held minutes of input in its queue, and handling
-        it all after SIGTERM took minutes (measured: over two) while systemd kills a service that has not
-        stopped after its ``TimeoutStopSec`` (30 s in the shipped unit): the log was cut without its
-        summary and what was queued was lost. Outputs of input that old help nobody once the gateway is
-        stopping; its bytes in the log do (a replay handles them)."""
-        deadline = None if within_s is None else time.monotonic() + within_s
+        ``within_s`` (default `drain_s`): what is still queued after that long is written to the log as
+        received, without the pipeline. A gateway far behind (`BEHIND_S`) held minutes of input in its
+        queue, and handling it all after SIGTERM took minutes (measured: over two) while systemd kills a
+        service that has not stopped after its ``TimeoutStopSec`` (30 s in the shipped unit): the log was
+        cut without its summary and what was queued was lost. Outputs of input that old help nobody once
+        the gateway is stopping; its bytes in the log do (a replay handles them). ``dpgw run`` and ``dpgw
+        demo`` both stop through here with the default bound (the demo handled all of its queue)."""
+        within_s = self.drain_s if within_s is None else within_s
+        deadline = time.monotonic() + within_s
         logged_only = 0
         while True:
             try:
                 item = self._queue.get_nowait()
             except queue.Empty:
                 break
-            if deadline is not None and time.monotonic() >= deadline:
+            if time.monotonic() >= deadline:
                 logged_only += self._log_input(item)
                 continue
             self._take(item)
