@@ -25,9 +25,6 @@ if TYPE_CHECKING:
 
 # With -v, one status line this often (wall seconds).
 STATUS_EVERY_S = 5.0
-# After a stop, queued input is handled for at most this long, the rest only logged: the whole stop stays
-# well inside the systemd unit's TimeoutStopSec (30 s), after which the process would be killed.
-DRAIN_S = 10.0
 
 
 NAME = "run"
@@ -144,7 +141,7 @@ def run(args: argparse.Namespace) -> int:
     import tomllib
     from dataclasses import replace
 
-    from dpgw.journal import configure_logging
+    from dpgw.journal import configure_logging, start_up_error
     from gateway.bus import BusError
     from gateway.config import (
         ConfigError,
@@ -164,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
     except ConfigError as exc:
         if args.check and args.json:
             return _check_json(args.config, exc.problems)
-        print(format_problems(exc), file=sys.stderr)
+        start_up_error(format_problems(exc))
         return 2
     if args.clock is not None:
         config = replace(config, time=TimeConfig(clock=args.clock))
@@ -177,14 +174,14 @@ def run(args: argparse.Namespace) -> int:
         if args.json:
             return _check_json(args.config, problems, describe(config), start_up_notes(config))
         if problems:
-            print(format_problems(problems), file=sys.stderr)
+            start_up_error(format_problems(problems))
             return 2
         print(describe(config))
         for note in start_up_notes(config):
             print(f"note: {note}")
         return 0
     if problem := mcap_path_problem("--log", args.log, made=True):
-        print(f"dpgw run: {problem}", file=sys.stderr)
+        start_up_error(f"dpgw run: {problem}")
         return 2
     with open(args.config, "rb") as f:
         tables = tomllib.load(f)
@@ -193,7 +190,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         sinks = sinks_from_config(config)
     except OutputError as exc:
-        print(exc, file=sys.stderr)
+        start_up_error(str(exc))
         return 2
     if stop.requested.is_set():  # before anything opens: nothing to close
         print(f"dpgw run: stopped by {stop.name} during start-up; nothing was opened", file=sys.stderr)
@@ -205,21 +202,18 @@ def run(args: argparse.Namespace) -> int:
     try:
         service.start()
     except BusError as exc:
-        print(f"dpgw run: {config.path}: {exc}", file=sys.stderr)
+        start_up_error(f"dpgw run: {config.path}: {exc}")
         return 2
     except LogPathError as exc:
         where = "--log" if args.log else f"{config.path}: log.path"
-        print(f"dpgw run: {where}: {exc.problem}", file=sys.stderr)
+        start_up_error(f"dpgw run: {where}: {exc.problem}")
         return 2
     except SourceError as exc:  # the file and key to edit, as for a mistake in the config itself
         fix = f" — {exc.fix}" if exc.fix else ""
-        print(
-            f"dpgw run: {config.path}: sources.{exc.name}.url: {exc.problem} ({exc.url}){fix}",
-            file=sys.stderr,
-        )
+        start_up_error(f"dpgw run: {config.path}: sources.{exc.name}.url: {exc.problem} ({exc.url}){fix}")
         return 2
     except OSError as exc:
-        print(f"dpgw run: {exc}", file=sys.stderr)
+        start_up_error(f"dpgw run: {exc}")
         return 2
     if not service.opened:  # stopped while the kernels compiled: nothing was opened
         service.close()
@@ -247,7 +241,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         service.run(args.duration)
         notifier.stopping()
-        service.drain(within_s=DRAIN_S)
+        service.drain()  # bounded: gateway.service.DRAIN_S, the rest logged as received
     finally:
         service.stop_event.set()  # also ends the status reporter
         status = service.final_status().payload

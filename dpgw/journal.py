@@ -8,6 +8,11 @@ showed nothing, and an engineer had to grep. systemd says where the journal is: 
 the device and inode of the stream it connected, and a process whose stderr is that stream writes to
 the journal (sd_journal_stream_fd(3)); under a terminal, a pipe or a file stderr is another file, and
 lines stay as they were.
+
+A person's mistake that stops start-up (a config that does not parse, a serial port that is not there, a
+Zenoh endpoint that cannot be opened, a log folder the service may not write) is said by `start_up_error`
+at error priority: printed plain, such a line went into the journal at info, and ``journalctl -u dpgw -p
+err`` of a service that restarted every 5 s until systemd gave up on it showed nothing.
 """
 
 from __future__ import annotations
@@ -36,6 +41,18 @@ def stderr_is_journal(env: dict[str, str] | None = None) -> bool:
     return stream == f"{st.st_dev}:{st.st_ino}"
 
 
+def with_priority(text: str, priority: int) -> str:
+    """``<N>`` before each line of ``text``: journald takes each line as an entry of its own."""
+    return "\n".join(f"<{priority}>{line}" for line in text.split("\n"))
+
+
+def start_up_error(text: str) -> None:
+    """A mistake that stops start-up, on stderr as it is (one message naming what and where), at error
+    priority when stderr is the journal."""
+    error = PRIORITY[logging.ERROR]
+    print(with_priority(text, error) if stderr_is_journal() else text, file=sys.stderr, flush=True)
+
+
 class JournalFormatter(logging.Formatter):
     """``<N>message``: the record's syslog priority first, for journald, on each of its lines. journald
     takes every line of the stream as an entry of its own, with the default priority unless it has the
@@ -44,8 +61,7 @@ class JournalFormatter(logging.Formatter):
 
     def format(self, record: logging.LogRecord) -> str:
         level = max((lv for lv in PRIORITY if lv <= record.levelno), default=logging.DEBUG)
-        prefix = f"<{PRIORITY[level]}>"
-        return "\n".join(prefix + line for line in super().format(record).split("\n"))
+        return with_priority(super().format(record), PRIORITY[level])
 
 
 def configure_logging(level: int) -> None:

@@ -71,9 +71,23 @@ HOLD_MAX = 10_000
 """Items held while waiting for the first simulation clock tick (a minute of a busy bench's input)."""
 CLOCK_SILENT_S = 5.0
 """With ``clock = "sim"``: no tick for this long (wall s) raises a status alarm."""
+DRAIN_S = 10.0
+"""After a stop, queued input is handled for at most this long (wall s), the rest written to the log as
+received (`GatewayService.drain`): the whole stop stays well inside the systemd unit's TimeoutStopSec
+(30 s), after which the process would be killed. ``dpgw run`` and ``dpgw demo`` stop the same way."""
 BEHIND_S = 1.0
 """The consumer is behind when the input it handles was received this long ago (wall s): a status alarm
 and one log line each way. The estimates and thruster commands then come from inputs that old."""
+QUEUE_MAX = 10_000
+"""Inputs waiting for the consumer beyond which the oldest sensor data is written to the log as received,
+without the pipeline, and counted (`GatewayService.shed`): an overloaded gateway's memory is bounded, and
+what it handles is its newest input, not input minutes old. Tens of seconds of a busy vessel's input
+(a few hundred chunks a second), a few MB to some tens of MB. Inputs from Zenoh (setpoint, mode, τ) are
+never shed: an operator's command is handled, however late."""
+QUEUE_LIMIT = 4 * QUEUE_MAX
+"""Inputs waiting beyond which what arrives is not queued at all, only counted (`GatewayService.lost`):
+reached only by a consumer that has stopped turning (an output blocked for good, which systemd's watchdog
+ends), never by one that is merely slow, which sheds each turn."""
 
 
 class LogPathError(OSError):
@@ -111,6 +125,11 @@ class _Input:
     payload: Any
     rx_ns: int
     rx_mono_ns: int
+
+
+def _input_name(item: Chunk | _Input) -> str:
+    """What an input is counted under: its source, or ``input <key>`` for one from Zenoh."""
+    return f"input {item.key}" if isinstance(item, _Input) else item.source
 
 
 def _utc(ns: int) -> str:
@@ -231,6 +250,21 @@ class GatewayService:
         stops turning stops calling it."""
         self.logged_unhandled = 0
         """Inputs still queued at the end of `drain`'s time, written to the log without being handled."""
+        self.drain_s = DRAIN_S
+        """How long `drain` handles what is queued at a stop (wall s) before it only logs the rest."""
+        self.queue_max = QUEUE_MAX
+        """Inputs waiting beyond which the oldest sensor data is logged unhandled (`QUEUE_MAX`); what
+        arrives while ``4 * queue_max`` wait is counted as lost (`QUEUE_LIMIT`)."""
+        self.shed: Counter[str] = Counter()
+        """Per source (or ``input <key>``): inputs written to the log without being handled because more
+        than `queue_max` were waiting (the consumer's thread only)."""
+        self.lost: Counter[str] = Counter()
+        """Per source: inputs neither handled nor logged: ``4 * queue_max`` were waiting, or one to be shed
+        had no log to go to."""
+        self._lost_lock = threading.Lock()  # (`lost` is counted by the receiving threads)
+        self.queue_peak = 0
+        """The most inputs that have waited at once (bounded by ``4 * queue_max``)."""
+        self._shedding = False  # said once per spell behind
 
     # --- start and stop -------------------------------------------------------------------------------------
 
@@ -264,7 +298,7 @@ class GatewayService:
                 if isinstance(src, SerialSource):
                     src.wait_if_absent = self.wait_for_ports
                 self._sources.append(src)
-                src.start(self._queue.put)
+                src.start(self._enqueue)
             if self._session is None:
                 self._session = self._open_session()
             # A query that arrives before the loop's first status tick gets a real status, never ``{}``;
@@ -378,7 +412,20 @@ class GatewayService:
     def submit(self, key: str, payload: Any) -> None:
         """An input (``setpoint``, ``mode``, ``tau``) as if it had just arrived on Zenoh: stamped, logged
         and checked like one (`dpgw demo` holds the scenario's station this way)."""
-        self._queue.put(_Input(key, payload, time.time_ns(), time.monotonic_ns()))
+        self._enqueue(_Input(key, payload, time.time_ns(), time.monotonic_ns()))
+
+    def _enqueue(self, item: Chunk | _Input) -> None:
+        """Queue an input for the consumer (from any thread), unless ``4 * queue_max`` already wait: then
+        it is counted as lost (`QUEUE_LIMIT`: a consumer that has stopped turning), as a kernel counts
+        the datagrams its full buffer drops."""
+        waiting = self._queue.qsize()
+        if waiting >= 4 * self.queue_max:
+            with self._lost_lock:
+                self.lost[_input_name(item)] += 1
+            return
+        self._queue.put(item)
+        if waiting >= self.queue_peak:  # (racy between receiving threads: one off at worst)
+            self.queue_peak = waiting + 1
 
     def _on_input(self, key: str) -> Any:
         def handler(sample: zenoh.Sample) -> None:
@@ -386,7 +433,7 @@ class GatewayService:
                 payload = json.loads(sample.payload.to_bytes())
             except ValueError:
                 payload = {"invalid": sample.payload.to_bytes().decode("utf-8", "replace")}
-            self._queue.put(_Input(key, payload, time.time_ns(), time.monotonic_ns()))
+            self._enqueue(_Input(key, payload, time.time_ns(), time.monotonic_ns()))
 
         return handler
 
@@ -448,6 +495,10 @@ class GatewayService:
                 item = self._queue.get(timeout=0.05)
             except queue.Empty:
                 item = None
+            if item is not None and self._queue.qsize() >= self.queue_max:
+                item = self._shed_oldest(item)
+            elif item is None:
+                self._shedding = False  # (caught up: a next spell is said again)
             st = self.sim_time
             if item is not None:
                 self._take(item)
@@ -475,6 +526,32 @@ class GatewayService:
                         self._emit([self.pipeline.status(now, self._alarms())])
                 except Exception:
                     self._internal_error("status", "the status")
+
+    def _shed_oldest(self, item: Chunk | _Input) -> Chunk | _Input | None:
+        """More than `queue_max` wait: the oldest sensor data (``item`` first) is written to the log as
+        received, without the pipeline, and counted, until fewer wait; returns the input to handle next
+        (None: the queue emptied meanwhile). A Zenoh input (setpoint, mode, τ: an operator's) stops the
+        shedding and is handled; so is a source's end-of-stream mark (its empty chunk). The pipeline then
+        handles newer data, after a gap, as after a source silent for a while (a sentence cut by the gap
+        is counted as rejected); a replay of the log handles what was shed."""
+        if not self._shedding:
+            self._shedding = True
+            log.error(
+                "gateway overloaded: more than %d inputs waiting; the oldest sensor data is written to the "
+                "log without being handled (counted in /status) until it catches up",
+                self.queue_max,
+            )
+        while isinstance(item, Chunk) and item.data and self._queue.qsize() >= self.queue_max:
+            if self._log_input(item):
+                self.shed[item.source] += 1
+            else:  # (no log, or no time to stamp it with yet)
+                with self._lost_lock:
+                    self.lost[item.source] += 1
+            try:
+                item = self._queue.get_nowait()
+            except queue.Empty:
+                return None
+        return item
 
     def final_status(self) -> Output:
         """The status at the end of a run: at the pipeline's last time, or (nothing ever arrived, so it has
@@ -529,20 +606,22 @@ class GatewayService:
         (1 Hz) leaves up to a second of the run out, and a log's last status is what a replay reports of
         the live run (e.g. the frames the live gateway refused for signing).
 
-        ``within_s``: what is still queued after that long is written to the log as received, without
-        the pipeline. A gateway far behind (`BEHIND_S`) held minutes of input in its queue, and handling
-        it all after SIGTERM took minutes (measured: over two) while systemd kills a service that has not
-        stopped after its ``TimeoutStopSec`` (30 s in the shipped unit): the log was cut without its
-        summary and what was queued was lost. Outputs of input that old help nobody once the gateway is
-        stopping; its bytes in the log do (a replay handles them)."""
-        deadline = None if within_s is None else time.monotonic() + within_s
+        ``within_s`` (default `drain_s`): what is still queued after that long is written to the log as
+        received, without the pipeline. A gateway far behind (`BEHIND_S`) held minutes of input in its
+        queue, and handling it all after SIGTERM took minutes (measured: over two) while systemd kills a
+        service that has not stopped after its ``TimeoutStopSec`` (30 s in the shipped unit): the log was
+        cut without its summary and what was queued was lost. Outputs of input that old help nobody once
+        the gateway is stopping; its bytes in the log do (a replay handles them). ``dpgw run`` and ``dpgw
+        demo`` both stop through here with the default bound (the demo handled all of its queue)."""
+        within_s = self.drain_s if within_s is None else within_s
+        deadline = time.monotonic() + within_s
         logged_only = 0
         while True:
             try:
                 item = self._queue.get_nowait()
             except queue.Empty:
                 break
-            if deadline is not None and time.monotonic() >= deadline:
+            if time.monotonic() >= deadline:
                 logged_only += self._log_input(item)
                 continue
             self._take(item)
@@ -645,16 +724,36 @@ class GatewayService:
         elif was_behind and lag < BEHIND_S * 1e9 / 2:
             log.warning("gateway caught up (it was up to %.1f s behind)", self.behind_max_ns / 1e9)
             self.behind_max_ns = 0
+            self._shedding = False
         self.behind_ns = lag
 
     def _behind_alarms(self) -> list[str]:
-        if not self.behind_max_ns:
-            return []
-        return [
-            f"gateway behind: handling input received {self.behind_ns / 1e9:.1f} s ago "
-            f"({self._queue.qsize()} waiting; up to {self.behind_max_ns / 1e9:.1f} s): estimates and "
-            "commands are that late (is the computer overloaded, or a source flooding?)"
-        ]
+        """While behind: how late; over the whole run (a count does not come back): what the queue's
+        bound (`QUEUE_MAX`, `QUEUE_LIMIT`) kept from the pipeline."""
+        alarms = []
+        if self.behind_max_ns:
+            alarms.append(
+                f"gateway behind: handling input received {self.behind_ns / 1e9:.1f} s ago "
+                f"({self._queue.qsize()} waiting; up to {self.behind_max_ns / 1e9:.1f} s): estimates and "
+                "commands are that late (is the computer overloaded, or a source flooding?)"
+            )
+        shed = sum(self.shed.values())
+        if shed:
+            per = ", ".join(f"{name} {n}" for name, n in sorted(self.shed.items()))
+            alarms.append(
+                f"gateway overloaded: {shed} inputs written to the log without being handled ({per}; more "
+                f"than {self.queue_max} were waiting): a replay of the log handles them"
+            )
+        with self._lost_lock:
+            lost = dict(self.lost)
+        if lost:
+            per = ", ".join(f"{name} {n}" for name, n in sorted(lost.items()))
+            alarms.append(
+                f"gateway overloaded: {sum(lost.values())} inputs lost, neither handled nor logged ({per}): "
+                f"{4 * self.queue_max} were waiting (the gateway had stopped handling), or no log to write "
+                "them to"
+            )
+        return alarms
 
     def _zenoh_alarms(self) -> list[str]:
         """With ``connect`` endpoints (a router, a console), or a client dialling its router: an alarm while

@@ -298,6 +298,32 @@ def test_systemd_unit() -> None:
     assert (EXAMPLES / "README.md").is_file()
 
 
+def test_the_units_documentation_is_installed_with_the_package() -> None:
+    """Each ``Documentation=`` of the unit is a file that ``pip install`` puts in the venv its ExecStart
+    runs from: a path under that venv which pyproject's data-files fills from a file of this checkout.
+    It pointed at /opt/dpgw/docs/, which no install makes: ``systemctl help dpgw`` found nothing."""
+    unit = (EXAMPLES / "dpgw.service").read_text()
+    exec_start = next(ln for ln in unit.splitlines() if ln.startswith("ExecStart="))
+    venv = exec_start.removeprefix("ExecStart=").split()[0].removesuffix("/bin/dpgw")
+    assert venv.startswith("/") and venv != exec_start, exec_start
+    targets = [t for ln in unit.splitlines() if ln.startswith("Documentation=") for t in ln[14:].split()]
+    assert targets, "no Documentation= in the unit"
+    pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    data_files: dict[str, list[str]] = pyproject["tool"]["setuptools"]["data-files"]
+    installed = {  # what setuptools installs, by its path in the venv (its globs, from the project root)
+        f"{folder}/{source.name}": source
+        for folder, patterns in data_files.items()
+        for pattern in patterns
+        for source in ROOT.glob(pattern)
+        if source.is_file()
+    }
+    for target in targets:
+        assert target.startswith(f"file://{venv}/"), (target, venv)
+        in_venv = target.removeprefix(f"file://{venv}/")
+        assert in_venv in installed, (target, sorted(installed))
+        assert installed[in_venv].read_text().startswith("# "), installed[in_venv]
+
+
 @pytest.mark.skipif(shutil.which("systemd-analyze") is None, reason="systemd-analyze is not installed")
 def test_systemd_unit_verifies(tmp_path: Path) -> None:
     """``systemd-analyze verify`` finds nothing wrong with the unit (directives, values, ExecStart), with

@@ -13,6 +13,7 @@ import gc
 import json
 import logging
 import os
+import re
 import socket
 import subprocess
 import sys
@@ -601,3 +602,106 @@ def test_a_stop_far_behind_ends_in_time_with_every_byte_logged(tmp_path: Path) -
         body = base64.b64decode(p["data"]) if "data" in p else p["text"].encode("ascii")
         logged += len(body) + (0 if p.get("unterminated") else len(p.get("eol", "\r\n")))
     assert logged == received
+
+
+class BlockedSink(SlowSink):
+    """An output that, while ``slow`` is set, does not return until ``free`` is: a consumer stopped."""
+
+    def __init__(self) -> None:
+        super().__init__(0.0)
+        self.free = threading.Event()
+
+    def emit(self, outputs: list[Any], encoded: list[bytes]) -> None:
+        if self.slow.is_set():
+            self.free.wait(60)
+
+
+def logged_raw_bytes(path: Path) -> int:
+    """The bytes of the source ``gps`` that the log holds as received."""
+    logged = 0
+    for _, _, _, p in read_messages(log_files(path), "/raw/nmea/gps"):
+        body = base64.b64decode(p["data"]) if "data" in p else p["text"].encode("ascii")
+        logged += len(body) + (0 if p.get("unterminated") else len(p.get("eol", "\r\n")))
+    return logged
+
+
+def test_an_overloaded_gateway_bounds_its_queue_and_logs_every_input(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Inputs arriving 25 times faster than the gateway handles them: its queue grew without bound (memory
+    with it; only "gateway behind" said so). Now more than ``queue_max`` waiting sends the oldest to the log
+    as received, unhandled and counted, and the alarm says how many: the queue stays within its bound (and
+    one turn's arrivals), nothing is lost (every byte received is in the log) and the gateway says it once."""
+    udp = free_port(socket.SOCK_DGRAM)
+    caplog.set_level(logging.WARNING, logger="dpgw")
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sink = SlowSink(0.02)
+    n, bound = 2000, 100
+    live = Live(tmp_path, f"udp://127.0.0.1:{udp}", sinks=[sink])
+    live.service.queue_max = bound
+    try:
+        with live:
+            live.estimates_go_on(lambda: tx.sendto(burst(0), ("127.0.0.1", udp)) and time.sleep(0.02))
+            src = live.service._sources[0]
+            sink.slow.set()  # 20 ms a batch: some 20 inputs a second handled
+            before = src.stats.chunks
+            for k in range(n):
+                tx.sendto(burst(k), ("127.0.0.1", udp))
+                time.sleep(0.002)  # (pacing the sender: 500 a second)
+            assert wait_for(lambda: src.stats.chunks >= before + n, 30), src.stats.chunks - before
+            assert wait_for(lambda: live.alarms("without being handled"), 30), live.status()
+            alarm = live.alarms("without being handled")[0]
+            sink.slow.clear()
+            live.service.stop_event.set()
+            live.loop.join(timeout=30)
+            live.service.drain()
+            shed, lost, peak = (
+                sum(live.service.shed.values()),
+                dict(live.service.lost),
+                live.service.queue_peak,
+            )
+            received = src.stats.bytes_received
+            live.service.close()
+    finally:
+        tx.close()
+    assert peak <= 2 * bound, peak  # the bound, and what arrives during one turn of the loop
+    assert shed > n // 2, shed
+    assert not lost, lost
+    counted = re.search(r"(\d+) inputs written to the log without being handled \(gps (\d+);", alarm)
+    assert counted and 0 < int(counted[1]) == int(counted[2]) <= shed, alarm  # (read while it counted)
+    assert summary(live.log_path).complete
+    assert logged_raw_bytes(live.log_path) == received
+    said = [r.getMessage() for r in caplog.records if "gateway overloaded" in r.getMessage()]
+    assert len(said) == 1, said
+
+
+def test_a_stopped_gateway_counts_what_it_cannot_queue(tmp_path: Path) -> None:
+    """A consumer that has stopped turning (an output that never returns; systemd's watchdog ends it)
+    cannot log what it sheds: past ``4 * queue_max`` waiting, what arrives is counted as lost, not
+    queued. Memory stays bounded and the count of what was neither handled nor logged is in /status."""
+    udp = free_port(socket.SOCK_DGRAM)
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sink = BlockedSink()
+    n, bound = 1000, 100
+    live = Live(tmp_path, f"udp://127.0.0.1:{udp}", sinks=[sink])
+    live.service.queue_max = bound
+    try:
+        with live:
+            live.estimates_go_on(lambda: tx.sendto(burst(0), ("127.0.0.1", udp)) and time.sleep(0.02))
+            src = live.service._sources[0]
+            sink.slow.set()  # the next batch never returns
+            before = src.stats.chunks
+            for k in range(n):
+                tx.sendto(burst(k), ("127.0.0.1", udp))
+            assert wait_for(lambda: src.stats.chunks >= before + n, 30), src.stats.chunks - before
+            waiting = live.service._queue.qsize()
+            lost = sum(live.service.lost.values())
+            sink.free.set()  # the output comes back: the gateway goes on and says what it lost
+            assert wait_for(lambda: live.alarms("lost, neither handled nor logged"), 30), live.status()
+            alarm = live.alarms("lost, neither handled nor logged")[0]
+    finally:
+        sink.free.set()
+        tx.close()
+    assert waiting <= 4 * bound and live.service.queue_peak <= 4 * bound, (waiting, live.service.queue_peak)
+    assert lost >= n - 4 * bound - 5, lost  # (the few handled before the output blocked)
+    assert f"{lost} inputs lost" in alarm and f"gps {lost}" in alarm, alarm
