@@ -18,10 +18,10 @@ every reference fail its jump test at once). With ``clock = "sim"`` it is stampe
 simulator publishes on ``<prefix>/sim/clock`` (`gateway.sim_time`: interpolated between ticks, never more than
 one tick ahead), so everything downstream (observer, controller, commands, log, reference checks, dead
 reckoning) lives on the plant's time. Until the first tick arrives there is no time to stamp with: what is
-received is held, in order (at most `HOLD_MAX` items, the oldest dropped and counted), and handled, stamped
-with the first tick's time, when it comes. A simulator started again under the gateway (its time goes back)
-is followed: the log goes on in the next file of its set, the pipeline starts over as at start-up, and the
-stamps come from the new run's ticks (`GatewayService._follow_new_run`).
+received is held, in order (at most `HOLD_MAX` items, the oldest written to the log unhandled and counted),
+and handled, stamped with the first tick's time, when it comes. A simulator started again under the gateway
+(its time goes back) is followed: the log goes on in the next file of its set, the pipeline starts over as at
+start-up, and the stamps come from the new run's ticks (`GatewayService._follow_new_run`).
 """
 
 from __future__ import annotations
@@ -580,11 +580,24 @@ class GatewayService:
         if self._held:
             self._release_held()
         if not st.started or self._held or st.silent_since(item.rx_mono_ns, HOLD_SILENT_NS):
-            if len(self._held) == HOLD_MAX:
+            if len(self._held) == HOLD_MAX:  # the oldest makes room: into the log, unhandled
                 self.held_dropped += 1
+                self.logged_unhandled += self._log_held(self._held.popleft())
             self._held.append(item)
             return
         self._handle(item)
+
+    def _log_held(self, item: Chunk | _Input) -> int:
+        """Write an item held for want of a simulation time to the log as received, unhandled (it is let
+        go: the hold is full, or the gateway stops); 1 if written. Stamped with the simulation time once
+        the clock has started; before its first tick there is none, and the item gets its receive time on
+        this computer's clock (such a log then holds no simulation time at all: nothing was handled). A
+        replay handles it; dropping it lost what the sensors said."""
+        st = self.sim_time
+        rx = st.stamp(item.rx_mono_ns) if st is not None and st.started else None
+        if rx is None:
+            rx = self.wall_time.stamp(item.rx_ns, item.rx_mono_ns)
+        return int(self._log_received(item, rx))
 
     def _release_held(self) -> None:
         """What is held, in order, as soon as a tick came after it (what came before the first tick is
@@ -601,7 +614,8 @@ class GatewayService:
 
     def drain(self, within_s: float | None = None) -> None:
         """Handle whatever is already queued (used at shutdown so nothing received is dropped); what is
-        still held for want of a simulation clock stays unhandled (there is no time to stamp it with).
+        still held for want of a simulation clock is written to the log unhandled (`_log_held`: which run
+        of the plant it belongs to, and so its time, is not known).
         Then the last status goes out and into the log, with every count of the run: the periodic one
         (1 Hz) leaves up to a second of the run out, and a log's last status is what a replay reports of
         the live run (e.g. the frames the live gateway refused for signing).
@@ -625,10 +639,18 @@ class GatewayService:
                 logged_only += self._log_input(item)
                 continue
             self._take(item)
-        if logged_only:
+        held = 0
+        while self._held:
+            held += self._log_held(self._held.popleft())
+        if held:
+            log.warning(
+                "stopping: %d inputs held for want of a simulation clock tick were logged unhandled", held
+            )
+        logged_only += held
+        if logged_only - held:
             log.warning(
                 "stopping: %d inputs still queued after %.0f s were logged without being handled",
-                logged_only,
+                logged_only - held,
                 within_s,
             )
         self.logged_unhandled += logged_only
@@ -801,7 +823,10 @@ class GatewayService:
             held = f" ({len(self._held)} inputs held until one comes)" if self._held else ""
             alarms.append(f"clock: no simulation clock tick on {key} for {silent_s:.0f} s{held}")
         if self.held_dropped:
-            alarms.append(f"clock: {self.held_dropped} inputs dropped while waiting for a tick")
+            alarms.append(
+                f"clock: {self.held_dropped} inputs logged without being handled while waiting for a tick "
+                f"(more than {HOLD_MAX} held)"
+            )
         if self.clock_rejected:
             alarms.append(f"clock: {self.clock_rejected} ticks on {key} were not a dpgw.SimClock")
         return alarms

@@ -457,3 +457,39 @@ def test_data_before_a_restarted_simulators_first_tick_goes_to_the_run_its_tick_
         assert service.pipeline.counters["mux"].bytes == 2 * handled  # handled, in one run or the other
         assert service.pipeline.counters["mux"].last_rx_ns == back  # at the time of the tick after it
         assert (service.pipeline is not first) == restarted and service.runs_followed == int(restarted)
+
+
+def test_what_is_held_for_want_of_a_tick_reaches_the_log(tmp_path: Path) -> None:
+    """Nothing received is lost under the simulation clock: inputs held for a first tick that never comes
+    (a simulator publishing its clock under another prefix) are written to the log, unhandled, when the
+    gateway stops; beyond the hold's bound the oldest go to the log as they are let go."""
+    from collections import deque
+
+    from mcap.reader import make_reader
+
+    from gateway import service as service_module
+    from wire.mcap.writer import McapLogWriter
+
+    service = sim_service(tmp_path)
+    service.log = McapLogWriter(tmp_path / "held.mcap")
+    bound = 5
+    held = [Chunk("mux", f"$HEHDT,{k}.0,T*00\r\n".encode(), rx_ns=10**18 + k, rx_mono_ns=k) for k in range(8)]
+    original = service_module.HOLD_MAX
+    try:
+        service_module.HOLD_MAX = bound
+        service._held = deque(maxlen=None)
+        for c in held:
+            service._take(c)
+    finally:
+        service_module.HOLD_MAX = original
+    assert len(service._held) == bound and service.held_dropped == 3
+    said = "3 inputs logged without being handled while waiting for a tick"
+    assert any(said in a for a in service._alarms())
+    service.drain()
+    service.log.close()
+    assert service.pipeline.counters["mux"].bytes == 0  # never handled: no time to handle them at
+    with open(tmp_path / "held.mcap", "rb") as f:
+        raw = [m for _, ch, m in make_reader(f).iter_messages() if ch.topic == "/raw/nmea/mux"]
+    assert [json.loads(m.data)["text"] for m in raw] == [c.data.decode().rstrip() for c in held]  # in order
+    assert [m.log_time for m in raw] == [c.rx_ns for c in held]  # at their receive times: no sim time yet
+    assert service.logged_unhandled == 8
