@@ -781,6 +781,41 @@ def _at(ns: int) -> Message:
     return Message(channel_id=0, sequence=0, log_time=ns, publish_time=ns, data=b"")
 
 
+def _nmea(body: str) -> bytes:
+    checksum = 0
+    for byte in body.encode():
+        checksum ^= byte
+    return f"${body}*{checksum:02X}\r\n".encode()
+
+
+GGA_FAR = "GPGGA,000000.00,5924.0000,N,01030.0000,E,2,12,0.8,1e308,M,1e308,M,,"
+"""A GGA whose height and geoid separation are finite but whose sum (the ellipsoidal height) is not."""
+
+
+@pytest.mark.parametrize(
+    ("gst", "kind"),
+    [
+        ("GPGST,000000.00,1.0,1e200,1e200,0.0,1e200,1e200,1e200", 0),  # every σ² overflows: no covariance
+        ("GPGST,000000.00,1.0,2.0,1.0,30.0,1.9,1.1,1e200", 1),  # σ_alt² overflows: up approximated
+        ("GPGST,000000.00,1.0,1e170,1.0,30.0,1.9,1.1,2.0", 2),  # a² overflows: σ lat / lon, diagonal
+    ],
+)
+def test_a_fix_from_sentences_whose_squares_overflow_is_still_foxglove_s(gst: str, kind: int) -> None:
+    """A receiver's σ or heights so large that squaring or adding them overflows a float: the fix on
+    `/gnss/<source>/fix` must still be Foxglove's LocationFix (numbers, not the `null` JSON gives an
+    infinity), with the covariance type of the figures that were usable."""
+    p = pipeline([nmea_src("gps", ["position", "heading"])])
+    outs = p.feed(RawEvent(T0, "gps", _nmea(gst) + _nmea(GGA_FAR) + HDT))
+    (fix,) = [o.message for o in outs if o.topic == "/gnss/gps/fix"]
+    payload = json.loads(fix.encode())
+    for schema in (json_schema(type(fix)), official_schema("foxglove.LocationFix")):
+        errors = [e.message for e in Draft202012Validator(schema).iter_errors(payload)]
+        assert not errors, errors[:3]
+    Conventions().check("/gnss/gps/fix", "foxglove.LocationFix", _at(T0), payload)
+    assert payload["position_covariance_type"] == kind
+    assert payload["altitude"] == 0.0  # an ellipsoidal height that is not a number is not known
+
+
 def test_the_conventions_find_a_departure() -> None:
     """The convention checks are not blind either: each departure below is caught."""
     pose = json.loads(fx.pose_in_frame(T0, 1.0, 2.0, 0.3).encode())
