@@ -47,8 +47,10 @@ from mcap.stream_reader import StreamReader, breakup_chunk
 from gateway.foxglove_channels import FoxgloveChannels
 from gateway.pipeline import RawEvent
 from tests.test_foxglove_channels import HDT
-from tests.test_pipeline import T0, S, gga_at, nmea_src, pipeline
+from tests.test_pipeline import DATUM, T0, S, gga_at, mav_src, nmea_src, pipeline
 from wire import foxglove as fx
+from wire.codecs import mavlink as mv
+from wire.geodesy import LocalFrame
 from wire.gst_covariance import AXES, ELLIPSE, GstCovariance
 from wire.message_schema import json_schema
 from wire.messages import MESSAGES, FrameTransforms
@@ -854,3 +856,26 @@ def test_the_conventions_find_a_departure() -> None:
         c = Conventions()
         c.check("/dp/scene/hull", "foxglove.SceneUpdate", _at(T0), hull)
         c.check("/dp/scene/hull", "foxglove.SceneUpdate", _at(T0), deletion)
+
+
+@pytest.mark.parametrize(("lat", "lon"), [(120.0, 10.5), (59.4, 200.0), (-214.7483647, -214.7483647)])
+def test_a_mavlink_position_out_of_range_is_counted_never_fused_nor_drawn(lat: float, lon: float) -> None:
+    """GPS_RAW_INT's latitude and longitude are int32 in 1e-7 degrees, which holds ±214.7°: such a fix is
+    no WGS-84 position (Foxglove's LocationFix has latitude and longitude in degrees). It is counted, not
+    written as a LocationFix, and not fused: the next real fix is used (before, the first such fix moved
+    the estimate thousands of kilometres and the real fixes after it were rejected as jumps)."""
+    p = pipeline([mav_src("ap", ["position", "heading"])], vessel="cybership2")
+    d, mav = mv.dialect(), mv.encoder(1, 1)
+    real_lat, real_lon, _ = LocalFrame(*DATUM).to_geodetic(3.0, -2.0, 0.0)
+    outs = []
+    for k, (la, lo) in enumerate([(lat, lon), (real_lat, real_lon)]):
+        frames = mv.pack(mav, d.MAVLink_attitude_message(k, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0))
+        fix = d.MAVLink_gps_raw_int_message(k, 3, round(la * 1e7), round(lo * 1e7), 0, 100, 100, 0, 0, 12)
+        outs += p.feed(RawEvent(T0 + k * S, "ap", frames + mv.pack(mav, fix)))
+    fixes = [o.message for o in outs if o.topic == "/gnss/ap/fix"]
+    assert [(f.latitude, f.longitude) for f in fixes] == [
+        (round(real_lat * 1e7) / 1e7, round(real_lon * 1e7) / 1e7)
+    ]
+    assert p.counters["ap"].rejected == {"position_out_of_range": 1}
+    est = [o.message for o in outs if o.topic == "/dp/estimate"][-1]
+    np.testing.assert_allclose(est.eta[:2], [3.0, -2.0], atol=0.5)
