@@ -37,6 +37,8 @@ from typing import Any
 import numpy as np
 import pytest
 from conftest import wait_for
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from jsonschema import Draft202012Validator
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import EndOfFile
@@ -446,7 +448,7 @@ class Conventions:
             assert not cov.any(), (topic, p)  # dpgw: nothing claimed when nothing is known
             return
         assert np.linalg.eigvalsh(cov).min() >= -1e-12 * max(1.0, cov.max()), (topic, cov)  # PSD
-        assert (np.diag(cov) > 0).all(), (topic, cov)
+        assert (np.diag(cov) >= 0).all(), (topic, cov)  # (0: a receiver's σ of 0.0, as it printed it)
         if kind == ENUMS["foxglove.PositionCovarianceType"]["DIAGONAL_KNOWN"]:
             assert not (cov - np.diag(np.diag(cov))).any(), (topic, cov)  # "put it along the diagonal"
         # the up axis (ENU: the third) is never correlated with the horizontal in dpgw's fixes
@@ -879,3 +881,39 @@ def test_a_mavlink_position_out_of_range_is_counted_never_fused_nor_drawn(lat: f
     assert p.counters["ap"].rejected == {"position_out_of_range": 1}
     est = [o.message for o in outs if o.topic == "/dp/estimate"][-1]
     np.testing.assert_allclose(est.eta[:2], [3.0, -2.0], atol=0.5)
+
+
+_SIGMA = st.one_of(
+    st.just(""), st.floats(0.0, 1e308).map(repr), st.floats(0.0, 50.0).map(lambda x: f"{x:.3f}")
+)
+_HEIGHT = st.one_of(
+    st.just(""), st.floats(-1e308, 1e308).map(repr), st.floats(-100.0, 100.0).map(lambda x: f"{x:.1f}")
+)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    sigmas=st.tuples(_SIGMA, _SIGMA, st.floats(0.0, 179.9).map(lambda x: f"{x:.1f}"), _SIGMA, _SIGMA, _SIGMA),
+    alt=_HEIGHT,
+    sep=_HEIGHT,
+)
+def test_every_gnss_fix_a_receiver_can_send_is_foxglove_s(
+    sigmas: tuple[str, ...], alt: str, sep: str
+) -> None:
+    """Whatever σ, orientation, height and geoid separation a GST and a GGA carry (any finite figure the
+    decoder takes, up to the float's limit, or none), the fix on `/gnss/<source>/fix` is Foxglove's
+    LocationFix: it validates and keeps Foxglove's covariance conventions."""
+    p = pipeline([nmea_src("gps", ["position", "heading"])])
+    gst = _nmea("GPGST,000000.00,1.0," + ",".join(sigmas))
+    gga = _nmea(f"GPGGA,000000.00,5924.0000,N,01030.0000,E,2,12,0.8,{alt},M,{sep},M,,")
+    outs = p.feed(RawEvent(T0, "gps", gst + gga + HDT))
+    for o in outs:
+        if o.topic == "/gnss/gps/fix":
+            payload = json.loads(o.message.encode())
+            errors = [e.message for e in _OFFICIAL_FIX.iter_errors(payload)]
+            assert not errors, errors[:3]
+            Conventions().check(o.topic, "foxglove.LocationFix", _at(T0), payload)
+    assert any(o.topic == "/gnss/gps/fix" for o in outs) or p.counters["gps"].rejected
+
+
+_OFFICIAL_FIX = Draft202012Validator(official_schema("foxglove.LocationFix"))

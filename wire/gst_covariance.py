@@ -36,8 +36,8 @@ Negative σ and a non-finite orientation never get here: the decoder rejects suc
 ``bad_field`` (`wire.codecs.nmea`). A σ above `SIGMA_MAX_M`, finite but so large that its square, or the
 sums and doublings made of squares here, would overflow to infinity, counts as absent: an infinite
 covariance is no figure (JSON has no infinity, so the LocationFix would carry `null` where Foxglove's
-schema has a number, and the fusion would weigh the fix by it), and the rules above then use what else
-the sentence gives.
+schema has a number, and the ellipse shape of `unit_shape` would be NaN), and the rules above then use
+what else the sentence gives.
 """
 
 from __future__ import annotations
