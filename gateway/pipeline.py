@@ -1094,6 +1094,11 @@ class Pipeline:
                 elif isinstance(r, mv.PositionReport):
                     if "position" not in roles or not r.valid:
                         continue
+                    if not (-90.0 <= r.lat_deg <= 90.0 and -180.0 <= r.lon_deg <= 180.0):
+                        # an int32 field of 1e-7 degrees holds up to ±214.7°: no position (the NMEA
+                        # decoder rejects such a field as bad_field); counted, and never fused or drawn
+                        c.rejected["position_out_of_range"] += 1
+                        continue
                     updated |= self._use_position(spec, rx_ns, r.lat_deg, r.lon_deg, None, out)
                 elif isinstance(r, mv.EscDirectionReport):
                     if "thrusters" in roles:

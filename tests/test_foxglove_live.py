@@ -25,6 +25,9 @@ from typing import Any
 
 import pytest
 from conftest import free_port
+from jsonschema import Draft202012Validator
+
+from tests.test_foxglove_conformance import embedded_differences, official_schema
 
 websockets = pytest.importorskip("websockets")
 
@@ -200,6 +203,14 @@ def test_demo_serves_every_advertised_channel_with_data(tmp_path: Path) -> None:
     schemas = {ch["topic"]: ch["schemaName"] for ch in c.channels.values()}
     assert schemas["/dp/estimate"] == "dpgw.Estimate"
     assert schemas["/dp/estimate/fix"] == "foxglove.LocationFix"
+    # the Foxglove channels as served: the schema advertised is Foxglove's, field by field, and every
+    # message received validates against Foxglove's published definition (tests/test_foxglove_conformance)
+    for ch in c.channels.values():
+        if ch["schemaName"].startswith("foxglove."):
+            assert embedded_differences(ch["schemaName"], json.loads(ch["schema"])) == [], ch["topic"]
+            official = Draft202012Validator(official_schema(ch["schemaName"]))
+            for _, data in c.messages[ch["topic"]]:
+                assert not list(official.iter_errors(json.loads(data))), ch["topic"]
     assert schemas["/dp/tf"] == "foxglove.FrameTransforms"
     # the payloads are the messages, decoded: the estimate's N, E, ψ finite, its log time its stamp
     log_time, payload = c.messages["/dp/estimate"][-1]

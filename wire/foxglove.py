@@ -63,10 +63,12 @@ def ellipsoidal_height_m(alt_msl_m: float | None, geoid_sep_m: float | None) -> 
 
     GGA gives the height above the geoid plus the geoid separation; without a separation the MSL height
     is the best figure there is (the separation is at most ~100 m, far below what a map shows). 0 when
-    GGA gives no altitude (GNS, or an empty field)."""
+    GGA gives no altitude (GNS, or an empty field), and when the sum is not a number (two fields near the
+    float's limit add up to infinity, which JSON writes as `null` where Foxglove's schema has a number)."""
     if alt_msl_m is None:
         return 0.0
-    return alt_msl_m + (geoid_sep_m or 0.0)
+    height = alt_msl_m + (geoid_sep_m or 0.0)
+    return height if math.isfinite(height) else 0.0
 
 
 def location_fix(

@@ -33,7 +33,11 @@ VDOP is typically 1.5-2 × HDOP), and `up_known` is False: the published covaria
 APPROXIMATED (ROS NavSatFix, Foxglove LocationFix), not KNOWN or DIAGONAL_KNOWN.
 
 Negative σ and a non-finite orientation never get here: the decoder rejects such a sentence as a
-``bad_field`` (`wire.codecs.nmea`).
+``bad_field`` (`wire.codecs.nmea`). A σ above `SIGMA_MAX_M`, finite but so large that its square, or the
+sums and doublings made of squares here, would overflow to infinity, counts as absent: an infinite
+covariance is no figure (JSON has no infinity, so the LocationFix would carry `null` where Foxglove's
+schema has a number, and the ellipse shape of `unit_shape` would be NaN), and the rules above then use
+what else the sentence gives.
 """
 
 from __future__ import annotations
@@ -47,6 +51,10 @@ AGREE_REL: Final = 0.1
 """The ellipse's marginal σ and the sentence's σ_lat / σ_lon agree within 10 % ..."""
 AGREE_ABS_M: Final = 0.1
 """... or within 0.1 m (a receiver printing one decimal rounds each of the four figures by 0.05 m)."""
+SIGMA_MAX_M: Final = 1e150
+"""Largest σ taken (m): its square is ≤ 1e300, so every sum of squares here (and the approximated up
+variance, 4 × their mean) stays finite. A real receiver's σ is below the Earth's radius; larger is a
+sentence that means nothing."""
 
 ELLIPSE, AXES, INCONSISTENT = "ellipse", "axes", "inconsistent"
 """Where a `GstCovariance` came from: the full ellipse; σ_lat / σ_lon alone (no complete ellipse); σ_lat /
@@ -102,16 +110,21 @@ def _agree(marginal_var: float, sigma: float) -> bool:
 
 def gst_covariance(g: Gst) -> GstCovariance | None:
     """The position covariance a GST gives (the rules in the module docstring), or None without one."""
-    a, b, theta = g.sigma_major_m, g.sigma_minor_m, g.orient_rad
-    lat, lon = g.sigma_lat_m, g.sigma_lon_m
+    a, b, theta = _sigma(g.sigma_major_m), _sigma(g.sigma_minor_m), g.orient_rad
+    lat, lon, alt = _sigma(g.sigma_lat_m), _sigma(g.sigma_lon_m), _sigma(g.sigma_alt_m)
     if a is not None and b is not None and (theta is not None or a == b):
         nn, ne, ee = ellipse_covariance_ne(a, b, theta or 0.0)
         if lat is None or lon is None or (_agree(nn, lat) and _agree(ee, lon)):
-            return _with_up(nn, ne, ee, g.sigma_alt_m, ELLIPSE)
-        return _with_up(lat * lat, 0.0, lon * lon, g.sigma_alt_m, INCONSISTENT)
+            return _with_up(nn, ne, ee, alt, ELLIPSE)
+        return _with_up(lat * lat, 0.0, lon * lon, alt, INCONSISTENT)
     if lat is None or lon is None:
         return None
-    return _with_up(lat * lat, 0.0, lon * lon, g.sigma_alt_m, AXES)
+    return _with_up(lat * lat, 0.0, lon * lon, alt, AXES)
+
+
+def _sigma(sigma_m: float | None) -> float | None:
+    """A GST σ as the rules take it: None when absent or above `SIGMA_MAX_M`."""
+    return sigma_m if sigma_m is not None and sigma_m <= SIGMA_MAX_M else None
 
 
 def _with_up(nn: float, ne: float, ee: float, sigma_alt_m: float | None, origin: str) -> GstCovariance:
