@@ -262,6 +262,7 @@ class GatewayService:
         """Per source: inputs neither handled nor logged: ``4 * queue_max`` were waiting, or one to be shed
         had no log to go to."""
         self._lost_lock = threading.Lock()  # (`lost` is counted by the receiving threads)
+        self._status_ns = 0  # the stamp of the periodic status logged last
         self.queue_peak = 0
         """The most inputs that have waited at once (bounded by ``4 * queue_max``)."""
         self._shedding = False  # said once per spell behind
@@ -524,6 +525,7 @@ class GatewayService:
                         self._publish([self._status_without_time()])
                     else:
                         self._emit([self.pipeline.status(now, self._alarms())])
+                        self._status_ns = now
                 except Exception:
                     self._internal_error("status", "the status")
 
@@ -556,9 +558,13 @@ class GatewayService:
     def final_status(self) -> Output:
         """The status at the end of a run: at the pipeline's last time, or (nothing ever arrived, so it has
         none) at the wall clock, not at 1970 with every source "stale" for 56 years. With the alarms and
-        the links' counts as they are now (`_alarms`)."""
+        the links' counts as they are now (`_alarms`). Never stamped before the periodic status logged
+        last, which goes out at the simulation clock's present, ahead of the last input handled: the last
+        status by log time (what a replay and a viewer take as the run's) is this one."""
         last = self.pipeline.last_ns
-        return self.pipeline.status(last, self._alarms()) if last else self._status_without_time()
+        if not last:
+            return self._status_without_time()
+        return self.pipeline.status(max(last, self._status_ns), self._alarms())
 
     def _status_without_time(self) -> Output:
         """The status while the pipeline has no time yet (``clock = "sim"`` before the first tick): stamped

@@ -696,6 +696,7 @@ def test_a_stopped_gateway_counts_what_it_cannot_queue(tmp_path: Path) -> None:
             assert wait_for(lambda: src.stats.chunks >= before + n, 30), src.stats.chunks - before
             waiting = live.service._queue.qsize()
             lost = sum(live.service.lost.values())
+            shed = sum(live.service.shed.values())
             sink.free.set()  # the output comes back: the gateway goes on and says what it lost
             assert wait_for(lambda: live.alarms("lost, neither handled nor logged"), 30), live.status()
             alarm = live.alarms("lost, neither handled nor logged")[0]
@@ -703,5 +704,8 @@ def test_a_stopped_gateway_counts_what_it_cannot_queue(tmp_path: Path) -> None:
         sink.free.set()
         tx.close()
     assert waiting <= 4 * bound and live.service.queue_peak <= 4 * bound, (waiting, live.service.queue_peak)
-    assert lost >= n - 4 * bound - 5, lost  # (the few handled before the output blocked)
+    # What was not queued was shed into the log (while the consumer still turned: how much depends on how
+    # fast the burst came, slower on a busy machine) or, once it had stopped, counted lost; a few were
+    # handled before the output blocked.
+    assert lost > 0 and lost + shed >= n - 4 * bound - 5, (lost, shed)
     assert f"{lost} inputs lost" in alarm and f"gps {lost}" in alarm, alarm

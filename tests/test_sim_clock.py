@@ -493,3 +493,27 @@ def test_what_is_held_for_want_of_a_tick_reaches_the_log(tmp_path: Path) -> None
     assert [json.loads(m.data)["text"] for m in raw] == [c.data.decode().rstrip() for c in held]  # in order
     assert [m.log_time for m in raw] == [c.rx_ns for c in held]  # at their receive times: no sim time yet
     assert service.logged_unhandled == 8
+
+
+def test_the_last_status_of_a_run_is_the_last_in_its_log(tmp_path: Path) -> None:
+    """The periodic status goes out at the clock's present, ahead of the last input handled; the status
+    `drain` writes at the end (every count of the run) must not be stamped before it, or the last
+    status by log time, what a replay or a viewer takes as the run's, is an older one."""
+    import time
+
+    from mcap.reader import make_reader
+
+    from wire.mcap.writer import McapLogWriter
+
+    service = sim_service(tmp_path, clock="wall", status_hz=10.0)
+    service.log = McapLogWriter(tmp_path / "run.mcap")
+    t = time.time_ns() - 5 * 10**9  # received 5 s ago: handled at that time, the status at now
+    service._take(Chunk("mux", b"$HEHDT,45.0,T*1D\r\n", rx_ns=t, rx_mono_ns=time.monotonic_ns()))
+    service.run(duration_s=0.3)
+    service.drain()
+    service.log.close()
+    with open(tmp_path / "run.mcap", "rb") as f:
+        statuses = [(m.log_time, json.loads(m.data)) for _, ch, m in make_reader(f).iter_messages(
+                    log_time_order=False) if ch.topic == "/dp/status"]  # (in the order written)  # fmt: skip
+    assert any(ns > t + 4 * 10**9 for ns, _ in statuses)  # periodic ones at the present
+    assert statuses[-1][0] == max(ns for ns, _ in statuses)  # the one written last is the last by time
