@@ -436,6 +436,10 @@ def run(args: argparse.Namespace) -> int:
         downstream_delay_s=lambda: loop_lag.lag_s(sim.t) / clock.speed,  # as wall time at this speed
         max_downstream_s=MAX_LOOP_DELAY_S,
     )
+    if service.sim_time is not None:
+        # the gateway knows its simulator: another simulator's clock on this key (another demo or bench
+        # with this vessel's prefix, reached by scouting) is ignored and alarmed, never followed
+        service.sim_time.pin(publisher.run)
     sim_error: list[BaseException] = []
     # Ctrl-C or SIGTERM: the simulation ends its current second of sea before the gateway closes the
     # session and the log it writes to (it once went on into the closed session and the stop read as

@@ -124,7 +124,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--prefix", help="Zenoh key prefix (default dp/<vessel>)")
     add_endpoint_args(p)
-    p.add_argument("--no-scouting", action="store_true", help="Zenoh multicast scouting off")
+    p.add_argument(
+        "--no-scouting",
+        action="store_true",
+        help="Zenoh multicast scouting off (off anyway when --zenoh-listen or --zenoh-connect names the "
+        "endpoints: a simulator that scouts connects to every Zenoh peer it finds, other benches' gateways "
+        "among them, and brings them its clock)",
+    )
     p.add_argument("--zenoh-config", metavar="FILE", help="a Zenoh JSON5 config file (overrides the above)")
     p.add_argument("--json", action="store_true", help="print the run summary as JSON")
     cli_sim_inputs.add_arguments(p)
@@ -384,7 +390,8 @@ def _run_scenario(args: argparse.Namespace) -> int:
                 make_config(
                     connect=args.zenoh_connect,
                     listen=args.zenoh_listen,
-                    multicast_scouting=not args.no_scouting,
+                    # endpoints named: the bench is wired, and scouting would only find other benches
+                    multicast_scouting=not (args.no_scouting or args.zenoh_connect or args.zenoh_listen),
                     config_file=args.zenoh_config,
                 )
             )

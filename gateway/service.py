@@ -448,7 +448,10 @@ class GatewayService:
         except (msgspec.DecodeError, msgspec.ValidationError):
             self.clock_rejected += 1
             return
-        self.sim_time.on_tick(tick.stamp_ns, tick.period_s, mono)
+        foreign = self.sim_time.foreign
+        self.sim_time.on_tick(tick.stamp_ns, tick.period_s, mono, tick.run)
+        if not foreign and self.sim_time.foreign:
+            log.warning("%s", self._foreign_clock_alarm())
 
     def _on_query(self, query: zenoh.Query) -> None:
         with self._status_lock:
@@ -835,10 +838,24 @@ class GatewayService:
             )
         if self.clock_rejected:
             alarms.append(f"clock: {self.clock_rejected} ticks on {key} were not a dpgw.SimClock")
+        if self.sim_time.foreign:
+            alarms.append(self._foreign_clock_alarm())
         return alarms
 
+    def _foreign_clock_alarm(self) -> str:
+        """Another simulator publishes its clock on this gateway's key while its own does (two benches on
+        one network with one prefix): its ticks are ignored, and a person must part the two."""
+        assert self.sim_time is not None
+        st = self.sim_time
+        return (
+            f"clock: another simulator's clock on {self.prefix}/{SIM_CLOCK_KEY} (run {st.foreign_run}, not "
+            f"run {st.run_id} that this gateway follows): {st.foreign} ticks ignored; two simulators share "
+            'this prefix: give each bench its own ([zenoh] prefix here, "dpgw sim --prefix" there)'
+        )
+
     def _follow_new_run(self) -> None:
-        """The simulator started again under the gateway (its time went back): follow the new run of the
+        """The simulator started again under the gateway (a new run: its identity, or its time going
+        back): follow the new run of the
         plant as a gateway started with it would. The log finishes its file and goes on in the next of the
         set, so each run is a file of its own that replays alone (one log of two runs on overlapping
         times could not be told apart). The pipeline starts over as at start-up (`Pipeline.start_over`:
@@ -853,10 +870,15 @@ class GatewayService:
         if self.log is not None:
             where = f"; log continues in {self.log.rotate().name}"
         held = f"; {len(self._held)} inputs held for its first tick go to it" if self._held else ""
+        moved = (
+            f"went back {(newest - tick) / 1e9:.1f} s"
+            if tick < newest
+            else f"moved on {(tick - newest) / 1e9:.1f} s"
+        )
         event = (
-            f"clock: the simulator started again (the simulation time on {self.prefix}/{SIM_CLOCK_KEY} went "
-            f"back {(newest - tick) / 1e9:.1f} s, to {_utc(tick)} from {_utc(newest)}): following the new "
-            f"run (run {st.runs} of this gateway){where}{held}"
+            f"clock: the simulator started again (the simulation time on {self.prefix}/{SIM_CLOCK_KEY} "
+            f"{moved}, to {_utc(tick)} from {_utc(newest)}): following the new run (run {st.runs} of this "
+            f"gateway){where}{held}"
         )
         # (said by the next status, on the new run's time: a status now could be stamped after the held
         # inputs, and the new file's times would not be in order)

@@ -29,6 +29,13 @@ received before it, stamped with its time exactly, as before the first tick of a
 from there (stamps never go back within a run). A tick a little behind (two Zenoh threads' callbacks
 swapped) is only ignored, and so is a tick of the old run delivered after the new run's first (swapped
 the same way at the restart: near the old run's newest, far ahead of the new run's).
+
+Which simulator: a tick carries its run's identity (`SimClock.run`, drawn when the simulator starts; 0 from
+one that does not say, told by its times as above). Another run's tick while the run being stamped ticked
+within `FOREIGN_SILENT_NS` is another simulator publishing on the same key (two benches sharing a prefix):
+ignored and counted (`foreign`), never a restart; after that silence it is a new run whichever way its time
+goes. A run never starts again (its own tick far back is a bad tick), and a late tick of the run a restart
+left is ignored.
 """
 
 from __future__ import annotations
@@ -36,7 +43,7 @@ from __future__ import annotations
 import threading
 from bisect import bisect_left, bisect_right
 
-__all__ = ["RATE_WINDOW_NS", "RESTART_BACK_NS", "SimTime"]
+__all__ = ["FOREIGN_SILENT_NS", "RATE_WINDOW_NS", "RESTART_BACK_NS", "SimTime"]
 
 RATE_WINDOW_NS = 1_000_000_000
 """Wall time over which the simulation rate is measured: long enough to average the simulator thread's
@@ -44,6 +51,10 @@ scheduling jitter, short enough to follow a change of speed within a second."""
 RESTART_BACK_NS = 1_000_000_000
 """A tick this far (sim ns) behind the newest is a restarted simulator, not two ticks swapped in delivery
 (those are a tick period apart, 0.05 s)."""
+FOREIGN_SILENT_NS = 2_000_000_000
+"""A tick of another run (another `SimClock.run`) while the run being stamped ticked within this much wall
+time is another simulator's clock on the same key: ignored and counted (`SimTime.foreign`). Once the run
+being stamped has been silent this long, another run's ticks are a new run (a restarted simulator)."""
 _KEEP_TICKS = 16384
 """Ticks kept (about 20 s at 10x with a tick per event): a chunk that waited in the queue that long on a
 busy machine is still stamped from the ticks around its receive instant."""
@@ -107,28 +118,73 @@ class SimTime:
         """The receive instant of the new run's first tick (while `went_back` is set)."""
         self.runs = 1
         """Runs of the plant stamped so far: 1, and one more at each `follow`."""
+        self.run_id = 0
+        """The `SimClock.run` of the run being stamped (0: its simulator does not say)."""
+        self._new_id = 0  # the new run's, until it is followed
+        self._left_id = 0  # the run the last restart left
+        self.foreign = 0
+        """Ticks of another simulator's run, ignored: they came while the run being stamped was ticking."""
+        self.foreign_run = 0
+        """The `SimClock.run` of the last such tick."""
+        self._pinned = False  # `pin`: one run only
+
+    def pin(self, run_id: int) -> None:
+        """Follow run ``run_id`` only, from its first tick on: every other run's tick is another
+        simulator's, whenever it comes. For a gateway that knows its simulator's run (`dpgw demo`
+        publishes the clock itself); a gateway that does not follows the first run it hears."""
+        with self._lock:
+            self.run_id = run_id
+            self._pinned = True
 
     @property
     def started(self) -> bool:
         """A tick has arrived: stamps exist."""
         return self.ticks > 0
 
-    def on_tick(self, sim_ns: int, period_s: float, mono_ns: int) -> None:
-        """A tick received at monotonic ``mono_ns``: the simulation is at ``sim_ns`` (UTC ns)."""
+    def on_tick(self, sim_ns: int, period_s: float, mono_ns: int, run_id: int = 0) -> None:
+        """A tick received at monotonic ``mono_ns``: the simulation is at ``sim_ns`` (UTC ns); ``run_id`` the
+        `SimClock.run` of the simulator's run (0: not said)."""
         with self._lock:
             if not (period_s > 0.0):
                 self.ignored += 1
                 return
             run = self._run if self._new is None else self._new
+            current = self._new_id if self._new is not None else self.run_id
+            if run_id and current and run_id != current:
+                # another run's tick: a tick of the run a restart left, delivered late; another simulator
+                # on this key while the run followed still ticks (two benches sharing a prefix); or, the
+                # run followed silent, a restarted simulator, whichever way its time goes
+                if run_id == self._left_id:
+                    self.ignored += 1
+                    return
+                if self._pinned or (run.mono and mono_ns - run.mono[-1] <= FOREIGN_SILENT_NS):
+                    self.foreign += 1
+                    self.foreign_run = run_id
+                    return
+                self._begin_new_run(sim_ns, mono_ns, run, run_id)
+                self._new_id = run_id
+                self._add(sim_ns, period_s, mono_ns)
+                return
+            if run_id and not run.sim:  # the first tick of the run being gathered: who it is
+                if self._new is None:
+                    self.run_id = run_id
+                else:
+                    self._new_id = run_id
+            elif run_id and not current:
+                # a run that said nothing until now (the simulator was replaced by one that says)
+                if self._new is None:
+                    self.run_id = run_id
+                else:
+                    self._new_id = run_id
             if run.sim and sim_ns < run.sim[-1]:
                 if sim_ns >= run.sim[-1] - RESTART_BACK_NS:
                     self.ignored += 1  # two ticks swapped in delivery
                     return
+                if run_id and run_id == current:  # the same run cannot start again: a bad tick
+                    self.ignored += 1
+                    return
                 # the simulator started again (again: the newest restart is the one to follow)
-                self.went_back = (self._run.sim[-1], sim_ns)
-                self.restart_mono_ns = mono_ns
-                self._left_newest = run.sim[-1]
-                run = self._new = _Ticks()
+                run = self._begin_new_run(sim_ns, mono_ns, run, run_id)
             elif (
                 run.sim
                 and sim_ns > run.sim[-1] + RESTART_BACK_NS
@@ -141,6 +197,21 @@ class SimTime:
                 return
             run.add(sim_ns, period_s, mono_ns)
             self.ticks += 1
+
+    def _begin_new_run(self, sim_ns: int, mono_ns: int, run: _Ticks, run_id: int) -> _Ticks:
+        """A new run's first tick came (with the lock held): gather its ticks apart until it is followed."""
+        self.went_back = (self._run.sim[-1], sim_ns)
+        self.restart_mono_ns = mono_ns
+        self._left_newest = run.sim[-1]
+        self._left_id = self._new_id if self._new is not None else self.run_id
+        self._new_id = run_id
+        self._new = _Ticks()
+        return self._new
+
+    def _add(self, sim_ns: int, period_s: float, mono_ns: int) -> None:
+        assert self._new is not None
+        self._new.add(sim_ns, period_s, mono_ns)
+        self.ticks += 1
 
     def of_new_run(self, mono_ns: int, gap_ns: int) -> bool:
         """While a new run waits to be followed: something received at ``mono_ns`` is of it, having come
@@ -158,6 +229,7 @@ class SimTime:
             assert self._new is not None and self.went_back is not None
             went_back, self.went_back = self.went_back, None
             self._run, self._new = self._new, None
+            self.run_id, self._new_id = self._new_id, 0
             self._last_out = None
             self.runs += 1
             return went_back

@@ -20,6 +20,7 @@ Zenoh itself.
 
 from __future__ import annotations
 
+import secrets
 import time
 from collections.abc import Callable
 from typing import Any
@@ -69,6 +70,10 @@ class SimClockPublisher:
         self._publisher = session.declare_publisher(self.key, encoding="application/json")
         self._last_t = -1.0
         self.published = 0
+        # who is speaking: a gateway that hears two simulators on one key (two benches sharing a prefix on
+        # one network) tells their ticks apart by this, not by guessing from the times; below 2^53 so
+        # that any JSON reader keeps it exact
+        self.run = secrets.randbelow(2**53 - 1) + 1
 
     def __call__(self, t: float) -> None:
         if t <= self._last_t:
@@ -80,7 +85,7 @@ class SimClockPublisher:
         if self.max_downstream_s is not None and behind * self._speed() > self.max_downstream_s:
             self._wait_for_receiver(t)
         speed = self.clock.speed if isinstance(self.clock, RealtimeClock) else None
-        tick = SimClock(stamp_ns=self.epoch.stamp_ns(t), period_s=self.period_s, speed=speed)
+        tick = SimClock(stamp_ns=self.epoch.stamp_ns(t), period_s=self.period_s, speed=speed, run=self.run)
         self._publisher.put(tick.encode())
         self._last_t = t
         self.published += 1

@@ -517,3 +517,66 @@ def test_the_last_status_of_a_run_is_the_last_in_its_log(tmp_path: Path) -> None
                     log_time_order=False) if ch.topic == "/dp/status"]  # (in the order written)  # fmt: skip
     assert any(ns > t + 4 * 10**9 for ns, _ in statuses)  # periodic ones at the present
     assert statuses[-1][0] == max(ns for ns, _ in statuses)  # the one written last is the last by time
+
+
+def test_a_second_simulator_on_the_same_key_is_ignored_and_alarmed(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Two benches on one network sharing a prefix: a second simulator's clock reaches the gateway (here
+    both publish through real Zenoh sessions to the gateway's listener), its time an hour ahead. Before,
+    each of its ticks looked like a restart of the gateway's own simulator and the gateway followed one
+    then the other, a new log file each time; now the gateway keeps to its own run, ignores the other's
+    ticks and says so, once in its log and in its status."""
+    import logging
+    import time
+    from datetime import UTC, datetime, timedelta
+
+    from gateway.bus import isolated_config, open_session
+    from tests.conftest import free_port, wait_for
+
+    port = free_port()
+    tables: dict[str, Any] = {
+        "vessel": {"name": "mss_supply"},
+        "datum": {"lat_deg": 59.4, "lon_deg": 10.5},
+        "sources": [
+            {"name": "mux", "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position", "heading"]}
+        ],
+        "log": {"path": ""},
+        "time": {"clock": "sim"},
+        "zenoh": {"listen": [f"tcp/127.0.0.1:{port}"], "multicast_scouting": False, "prefix": "dp/t"},
+    }
+    service = GatewayService(parse_config(tables, base_dir=tmp_path))
+    ours = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{port}"]))
+    theirs = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{port}"]))
+    epoch = SimEpoch(datetime(2026, 3, 1, tzinfo=UTC))
+    own = SimClockPublisher(ours, "dp/t", epoch, VirtualClock(), period_s=0.05)
+    other = SimClockPublisher(theirs, "dp/t", SimEpoch(epoch.start_utc + timedelta(hours=1)), VirtualClock())
+    caplog.set_level(logging.WARNING, logger="gateway.service")
+    service.start()
+    try:
+        st = service.sim_time
+        assert st is not None
+        t = 0.0
+        # our simulator first (the gateway follows it), then both, interleaved
+        while not wait_for(lambda: st.started, timeout=0.05) and t < 10.0:
+            t += 0.05
+            own(t)
+        assert st.run_id == own.run
+        for _ in range(100):
+            t += 0.05
+            own(t)
+            other(t)
+            if wait_for(lambda: st.foreign >= 20, timeout=0.01):
+                break
+        assert st.foreign >= 20 and st.foreign_run == other.run
+        assert st.went_back is None and st.runs == 1 and st.run_id == own.run
+        alarms = [a for a in service._alarms() if "another simulator's clock on dp/t/sim/clock" in a]
+        assert alarms and f"run {other.run}" in alarms[0] and "prefix" in alarms[0], service._alarms()
+        now = st.now(time.monotonic_ns())
+        assert now is not None and abs(now - epoch.stamp_ns(t)) < 10**9  # on our run's time
+        said = [r for r in caplog.records if "another simulator's clock" in r.getMessage()]
+        assert len(said) == 1
+    finally:
+        service.close()
+        ours.close()
+        theirs.close()

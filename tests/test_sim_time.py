@@ -165,3 +165,77 @@ def test_ticks_from_several_threads_keep_a_consistent_history() -> None:
     assert clock.ticks + clock.ignored == 4000
     stamps = [clock.stamp(k * MS) for k in range(0, 20_000, 7)]
     assert all(a is not None and b is not None and b >= a for a, b in itertools.pairwise(stamps))
+
+
+# --- which simulator is speaking (`SimClock.run`) -----------------------------------------------------------
+
+A, B = 11, 22  # two simulators' runs
+
+
+def test_another_simulators_ticks_are_ignored_while_its_own_still_come() -> None:
+    """Two benches sharing a prefix: the gateway's own simulator at EPOCH, another an hour ahead on the
+    same key, their ticks interleaved. The other's are ignored and counted; the stamps are the own run's
+    as if the other were not there; no restart."""
+    clock, alone = SimTime(), SimTime()
+    for k in range(200):
+        wall = k * 10 * MS
+        own = EPOCH + k * 50 * MS
+        clock.on_tick(own, PERIOD_S, wall, A)
+        alone.on_tick(own, PERIOD_S, wall, A)
+        clock.on_tick(own + 3600 * 10**9, PERIOD_S, wall + 3 * MS, B)  # ahead, interleaved
+        if k % 7 == 0:
+            clock.on_tick(own - 600 * 10**9, PERIOD_S, wall + 4 * MS, B + 1)  # and a third, behind
+    assert clock.went_back is None and clock.run_id == A
+    assert clock.foreign == 200 + 29 and clock.foreign_run in (B, B + 1)
+    for w in range(0, 2_000 * MS, 7 * MS):
+        assert clock.stamp(w) == alone.stamp(w)
+
+
+def test_a_new_run_is_followed_once_the_old_one_is_silent_whichever_way_its_time_goes() -> None:
+    """A restarted simulator whose epoch is later than the old run's newest time (its time moves on, not
+    back): with run identities it is a new run all the same, once the old run has stopped ticking; a
+    late tick of the old run after the new one's first is ignored, not another simulator."""
+    clock = SimTime()
+    for k in range(100):
+        clock.on_tick(EPOCH + k * 50 * MS, PERIOD_S, k * 10 * MS, A)
+    later = EPOCH + 7200 * 10**9
+    t_new = 990 * MS + 2_500 * MS  # the old run silent for 2.5 s
+    clock.on_tick(later, PERIOD_S, t_new, B)
+    assert clock.went_back == (EPOCH + 99 * 50 * MS, later) and clock.foreign == 0
+    clock.on_tick(EPOCH + 100 * 50 * MS, PERIOD_S, t_new + MS, A)  # the old run's last, delivered late
+    assert clock.foreign == 0 and clock.ignored == 1
+    clock.follow()
+    assert clock.run_id == B and clock.runs == 2
+    clock.on_tick(later + 50 * MS, PERIOD_S, t_new + 10 * MS, B)
+    assert clock.stamp(t_new + 10 * MS) == later + 50 * MS
+
+
+def test_one_run_never_starts_again() -> None:
+    """A tick of the run being followed that goes far back is a bad tick of that run, not a restart."""
+    clock = SimTime()
+    for k in range(50):
+        clock.on_tick(EPOCH + k * 50 * MS, PERIOD_S, k * 10 * MS, A)
+    clock.on_tick(EPOCH - 60 * 10**9, PERIOD_S, 500 * MS, A)
+    assert clock.went_back is None and clock.ignored == 1 and clock.runs == 1
+
+
+def test_a_simulator_that_does_not_say_is_followed_by_its_times_as_before() -> None:
+    clock = SimTime()
+    for k in range(50):
+        clock.on_tick(EPOCH + k * 50 * MS, PERIOD_S, k * 10 * MS)
+    clock.on_tick(EPOCH - 60 * 10**9, PERIOD_S, 500 * MS)  # went back: a restart
+    assert clock.went_back is not None and clock.foreign == 0
+
+
+def test_a_pinned_run_is_the_only_one_followed_even_when_another_speaks_first() -> None:
+    """`dpgw demo` knows its own simulator's run: another demo's clock heard first is not followed."""
+    clock = SimTime()
+    clock.pin(A)
+    clock.on_tick(EPOCH + 3600 * 10**9, PERIOD_S, 0, B)  # another simulator, first
+    assert not clock.started and clock.foreign == 1
+    for k in range(10):
+        clock.on_tick(EPOCH + k * 50 * MS, PERIOD_S, (k + 1) * 10 * MS, A)
+        clock.on_tick(EPOCH + 3600 * 10**9 + k * 50 * MS, PERIOD_S, (k + 1) * 10 * MS + 1, B)
+    for k in range(10):  # ours silent for 10 s: the other is still not taken for a restart
+        clock.on_tick(EPOCH + 3600 * 10**9 + (k + 10) * 50 * MS, PERIOD_S, 10_000 * MS + k * MS, B)
+    assert clock.went_back is None and clock.foreign == 21 and clock.stamp(100 * MS) == EPOCH + 450 * MS

@@ -850,6 +850,15 @@ class SimClock(Message, kw_only=True):
         float | None,
         doc("Simulation seconds per wall second the simulator is paced at (null: as fast as possible).", ""),
     ] = None
+    run: Annotated[
+        int,
+        doc(
+            "This run of the plant: a random number from 1 to 2^53 - 1 drawn when the simulator starts "
+            "(0: a simulator that does not say). A gateway follows one run: another run's ticks while its "
+            "own still come are another simulator's clock on the same key, ignored and alarmed.",
+            "",
+        ),
+    ] = 0
 
 
 # --- raw inputs, logged exactly as received ---------------------------------------------------------
