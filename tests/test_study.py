@@ -398,3 +398,14 @@ def test_the_summary_pairs_each_observer_with_the_first_seed_by_seed() -> None:
     assert entries["b"]["paired"]["rms_horizontal_m"]["lower_on"] == 4
     assert entries["b"]["seeds"] == [0, 1, 2, 3] and entries["b"]["tp_s"] == 6.0
     json.dumps(entries, allow_nan=False)  # machine-readable: no NaN
+
+
+@pytest.mark.parametrize("degrees", [0.0, 150.0, 200.0, 255.0, 359.0, -135.0, 45.0 + 180.0 + 30.0])
+def test_the_tables_direction_is_the_degrees_given(degrees: float) -> None:
+    """The scenarios keep their sea's direction in radians; the table's `direction_deg` is the degrees
+    they were given (hassani's 150° was 150.00000000000003 in results.csv, snijders' 200°
+    199.99999999999997: a filter on 150 found no row)."""
+    from dpgw.study.case import direction_deg
+
+    assert direction_deg(math.radians(degrees)) == degrees % 360.0
+    assert direction_deg(math.radians(-1e-12)) == 0.0  # never 360.0
