@@ -364,3 +364,48 @@ def test_the_summary_counts_seeds_and_cases_in_words() -> None:
     for seeds, words in (([0], "1 seed,"), ([0, 1], "2 seeds,")):
         text = summary_markdown([{**row, "seed": k} for k in seeds])
         assert words in text, text
+
+
+def test_the_summary_pairs_each_observer_with_the_first_seed_by_seed() -> None:
+    """The study is paired (every observer on the same measurements), and the summary says so: beside the
+    spread over the seeds, each observer's error against the first observer's on the same seed. Here
+    observer b is 10 % better than a on every seed while the seeds' spread (a factor 1-4, a sea that is
+    harder on some seeds) makes their 5-95 % ranges overlap: the paired figures show it, the spread does
+    not. The JSON summary carries the same, and the sea state and seeds of each entry."""
+    from dpgw.study.outputs import SUMMARY_COLUMNS, json_summary, paired, summary_markdown
+
+    base = {"scenario": "hassani", "sea": "nominal", "hs_m": 1.0, "tp_s": 6.0, "direction_deg": 90.0,
+            "current_mps": 0.0, "duration_s": 60.0, "settle_s": 10.0}  # fmt: skip
+    rows = []
+    for seed, hard in enumerate((1.0, 2.0, 3.0, 4.0)):
+        for obs, factor in (("a", 1.0), ("b", 0.9)):
+            row = {**base, "observer": obs, "seed": seed}
+            row.update({column: hard * factor for column, _, _ in SUMMARY_COLUMNS})
+            rows.append(row)
+    rows[-1]["rms_heading_deg"] = math.nan  # b's heading figure missing on the last seed
+    a = [r for r in rows if r["observer"] == "a"]
+    b = [r for r in rows if r["observer"] == "b"]
+    p = paired(b, a, "rms_horizontal_m")
+    assert (p["lower_on"], p["n"]) == (4, 4)
+    assert p["ratio_median"] == pytest.approx(0.9) and p["ratio_p5"] == p["ratio_p95"] == pytest.approx(0.9)
+    assert paired(b, a, "rms_heading_deg")["n"] == 3
+    text = summary_markdown(rows)
+    assert "Paired with a" in text
+    assert "| b | 4/4 | 0.90 [0.90, 0.90] | 3/3 | 0.90 [0.90, 0.90] |" in text, text
+    entries = {e["observer"]: e for e in json_summary(rows)}
+    assert "paired" not in entries["a"]
+    assert entries["b"]["paired"]["reference"] == "a"
+    assert entries["b"]["paired"]["rms_horizontal_m"]["lower_on"] == 4
+    assert entries["b"]["seeds"] == [0, 1, 2, 3] and entries["b"]["tp_s"] == 6.0
+    json.dumps(entries, allow_nan=False)  # machine-readable: no NaN
+
+
+@pytest.mark.parametrize("degrees", [0.0, 150.0, 200.0, 255.0, 359.0, -135.0, 45.0 + 180.0 + 30.0])
+def test_the_tables_direction_is_the_degrees_given(degrees: float) -> None:
+    """The scenarios keep their sea's direction in radians; the table's `direction_deg` is the degrees
+    they were given (hassani's 150° was 150.00000000000003 in results.csv, snijders' 200°
+    199.99999999999997: a filter on 150 found no row)."""
+    from dpgw.study.case import direction_deg
+
+    assert direction_deg(math.radians(degrees)) == degrees % 360.0
+    assert direction_deg(math.radians(-1e-12)) == 0.0  # never 360.0

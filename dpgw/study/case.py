@@ -71,6 +71,13 @@ def loop_tables(case: CaseSpec, scenario: Any, nominal_tp_s: float) -> dict[str,
     return with_scenario_observer(tables, scenario)  # the scenario's settings under the spec's
 
 
+def direction_deg(direction_rad: float) -> float:
+    """The sea's direction for the table, in degrees [0, 360): the scenario's 150° (stored in radians) is
+    150.0, not 150.00000000000003, so that a table filtered on the degrees it was given finds its rows.
+    Rounded to 1e-9° (the radians' round trip is off by ~1e-14°)."""
+    return round(math.degrees(direction_rad) % 360.0, 9) % 360.0
+
+
 def run_case(case_dict: dict[str, Any]) -> list[dict[str, Any]]:
     """Rows (one per observer spec) of one case, given as `CaseSpec.as_dict` (what a Dask worker gets)."""
     from threadpoolctl import threadpool_limits
@@ -139,7 +146,7 @@ def score_case(case: CaseSpec, scenario: Any) -> list[dict[str, Any]]:
             "sea": case.sea.label,
             "hs_m": sea.hs_m,
             "tp_s": sea.tp_s,
-            "direction_deg": math.degrees(sea.direction_rad) % 360.0,
+            "direction_deg": direction_deg(sea.direction_rad),
             "current_mps": case.sea.current_mps or 0.0,
             "seed": case.seed,
             "observer": spec.label,

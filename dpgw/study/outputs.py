@@ -1,5 +1,6 @@
 """What a study writes: the results table (CSV; Parquet too when pyarrow is installed), the markdown
-summary (median and 5–95 % per observer per sea state) and box plots (per sea state, a box per observer).
+summary (median and 5–95 % per observer per sea state, and each observer paired seed by seed with the
+first) and box plots (per sea state, a box per observer).
 
 The table is the record (one row per case × observer, every column of docs/study.md); the summary and the
 plots are made from it alone, so either can be made again from a table without running a case.
@@ -28,6 +29,11 @@ SUMMARY_COLUMNS: tuple[tuple[str, str, str], ...] = (
     ("convergence_s", "conv. (s)", ".0f"),
 )
 PLOT_COLUMNS = ("rms_horizontal_m", "rms_heading_deg", "rms_surge_mps", "att_heading_db")
+# (column, header) of the paired comparison: each observer against the sea state's first, seed by seed
+PAIRED_COLUMNS: tuple[tuple[str, str], ...] = (
+    ("rms_horizontal_m", "pos RMS"),
+    ("rms_heading_deg", "ψ RMS"),
+)
 
 
 def _csv_value(v: Any) -> Any:
@@ -84,8 +90,65 @@ def _cell(values: Sequence[float], fmt: str) -> str:
     return text if n == len(values) else f"{text} (n={n})"
 
 
+def paired(
+    rows: Sequence[dict[str, Any]], reference: Sequence[dict[str, Any]], column: str
+) -> dict[str, Any]:
+    """An observer against the reference on the same seeds (the same measurements: the study is paired):
+    on how many of the seeds both have the figure the observer's is lower, and the median, 5th and 95th
+    percentile of the ratio observer / reference over those seeds. The spread of the ratio is the
+    observers' difference alone; the spread of each observer over the seeds (the summary's) also holds
+    how hard each seed's sea was, which both observers share."""
+    ref = {r["seed"]: r[column] for r in reference}
+    pairs = [
+        (float(r[column]), float(ref[r["seed"]]))
+        for r in rows
+        if r["seed"] in ref
+        and math.isfinite(r[column])
+        and math.isfinite(ref[r["seed"]])
+        and ref[r["seed"]] > 0
+    ]
+    med, lo, hi, n = spread([a / b for a, b in pairs])
+    return {
+        "lower_on": sum(a < b for a, b in pairs),
+        "n": n,
+        "ratio_median": med if n else None,
+        "ratio_p5": lo if n else None,
+        "ratio_p95": hi if n else None,
+    }
+
+
+def _paired_markdown(by_obs: dict[str, list[dict[str, Any]]]) -> list[str]:
+    """Each observer but the first against the first, seed by seed (PAIRED_COLUMNS)."""
+    names = list(by_obs)
+    if len(names) < 2:
+        return []
+    ref = names[0]
+    lines = [
+        f"Paired with {ref}, seed by seed: on how many seeds the error is lower than {ref}'s, and the "
+        f"ratio to {ref}'s, median [5 %, 95 %] over the seeds.",
+        "",
+        "| observer | " + " | ".join(f"{h}: lower on | {h} ratio" for _, h in PAIRED_COLUMNS) + " |",
+        "|---|" + "---|---|" * len(PAIRED_COLUMNS),
+    ]
+    for obs in names[1:]:
+        cells = []
+        for column, _ in PAIRED_COLUMNS:
+            p = paired(by_obs[obs], by_obs[ref], column)
+            if p["n"] == 0:
+                cells += ["–", "–"]
+            else:
+                cells += [
+                    f"{p['lower_on']}/{p['n']}",
+                    f"{p['ratio_median']:.2f} [{p['ratio_p5']:.2f}, {p['ratio_p95']:.2f}]",
+                ]
+        lines.append(f"| {obs} | " + " | ".join(cells) + " |")
+    lines.append("")
+    return lines
+
+
 def summary_markdown(rows: Sequence[dict[str, Any]]) -> str:
-    """Per sea state a table: per observer the median [5 %, 95 %] of each column over the seeds."""
+    """Per sea state a table: per observer the median [5 %, 95 %] of each column over the seeds; then each
+    observer paired with the first, seed by seed (`paired`)."""
     lines: list[str] = []
     for (scenario, sea), by_obs in groups(rows).items():
         seeds = sorted({r["seed"] for rs in by_obs.values() for r in rs})
@@ -102,6 +165,7 @@ def summary_markdown(rows: Sequence[dict[str, Any]]) -> str:
             cells = [_cell([r[c] for r in rs], fmt) for c, _, fmt in SUMMARY_COLUMNS]
             lines.append(f"| {obs} | " + " | ".join(cells) + " |")
         lines.append("")
+        lines += _paired_markdown(by_obs)
     return "\n".join(lines)
 
 
@@ -151,11 +215,18 @@ def box_plots(rows: Sequence[dict[str, Any]], folder: Path) -> list[Path]:
 
 
 def json_summary(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """The summary as data: per sea state and observer, each column's median, p5, p95 and n (NaN → None)."""
+    """The summary as data: per sea state and observer the sea simulated (Hs, Tp, direction, current), the
+    seeds, each column's median, p5, p95 and n (NaN → None), and (every observer but the sea state's first)
+    `paired`: the comparison with the first observer seed by seed (`paired`)."""
     out = []
     for (scenario, sea), by_obs in groups(rows).items():
+        ref = next(iter(by_obs))
         for obs, rs in by_obs.items():
             entry: dict[str, Any] = {"scenario": scenario, "sea": sea, "observer": obs, "cases": len(rs)}
+            for key in ("hs_m", "tp_s", "direction_deg", "current_mps", "duration_s", "settle_s"):
+                value = rs[0].get(key)
+                entry[key] = None if isinstance(value, float) and math.isnan(value) else value
+            entry["seeds"] = [r["seed"] for r in rs]
             for col, _, _ in SUMMARY_COLUMNS:
                 med, lo, hi, n = spread([r[col] for r in rs])
                 entry[col] = {
@@ -163,6 +234,10 @@ def json_summary(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
                     "p5": lo if n else None,
                     "p95": hi if n else None,
                     "n": n,
+                }
+            if obs != ref:
+                entry["paired"] = {"reference": ref} | {
+                    col: paired(rs, by_obs[ref], col) for col, _ in PAIRED_COLUMNS
                 }
             out.append(entry)
     return out
