@@ -224,6 +224,37 @@ def test_serial_unplugged_while_running_reopens(opened: list[Source], tmp_path: 
         assert got.wait_bytes(len(GGA + HDT)) == GGA + HDT
 
 
+@pytest.mark.slow
+def test_a_pty_made_again_after_a_long_absence_is_read_at_once(opened: list[Source], tmp_path: Path) -> None:
+    """A simulator restarted under the gateway makes its pty again after seconds: read within 1 s of it.
+
+    With the back-off alone (0.5, 1, 2, 4, 8 s between opens) a pty away for 4 s was opened again only at
+    the next attempt, 7.5 s after it went: 3.5 s more with no heading (14 s of sea at 4x). A port that
+    is not there is looked for, cheaply, every `ABSENT_POLL_S` instead.
+    """
+    link = tmp_path / "gyro"
+    sink = PtySink(str(link))
+    try:
+        src, got = start(opened, "gyro1", f"pty://{link}", SerialSource)
+        sink.write(HDT)
+        assert got.wait_bytes(len(HDT)) == HDT
+    finally:
+        sink.close()  # the simulator stopped: its pty and the link are gone
+    assert wait_until(lambda: not src.stats.connected, 3.0)
+    # the scenario's input, not a wait for an event: the simulator takes seconds to start again, and in
+    # that time the back-off would have grown past three failed opens (0.5 + 1 + 2 s)
+    time.sleep(4.0)
+    assert not src.stats.connected
+    with PtySink(str(link)) as sink2:  # the restarted simulator's pty, behind the same link
+        appeared = time.monotonic()
+        assert wait_until(lambda: src.stats.connected, 5.0)
+        reopened_after = time.monotonic() - appeared
+        assert reopened_after < 1.0, f"read {reopened_after:.2f} s after the pty appeared"
+        sink2.write(HDT)
+        assert got.wait_bytes(2 * len(HDT)) == HDT + HDT
+    assert src.stats.reconnects == 1
+
+
 # ----------------------------------------------------------------------------------------------- UDP
 
 

@@ -20,6 +20,10 @@ log = logging.getLogger(__name__)
 NMEA_DEFAULT_BAUD = 4800
 #: Longest one pyserial read blocks, so `Source.stop` is prompt.
 _SERIAL_POLL_S = 0.1
+#: How often a port that is not there is looked for (a `stat`, no open attempt): a pty made again by a
+#: restarted simulator, or a USB adapter plugged back in, is read within this of appearing, however long
+#: it was away. The back-off is for a port that is there and still fails to open.
+ABSENT_POLL_S = 0.2
 
 
 class SerialSource(Source):
@@ -31,8 +35,10 @@ class SerialSource(Source):
     permission, not a serial device, in use) still raises: waiting would not mend it. When it fails while
     running (a USB adapter unplugged, the simulator's pty closed), the error is counted,
     ``stats.connected`` goes False and the port is reopened with back-off (0.5 s doubling to 10 s) until
-    it is back; ``stats.reconnects`` counts the reopenings, ``stats.last_disconnect`` says when and why it
-    last failed. A pty has no baud rate: the setting is accepted and ignored.
+    it is back, except that a port not there at all is looked for every `ABSENT_POLL_S` and opened as it
+    appears (a restarted simulator's pty is read at once, not up to 10 s later); ``stats.reconnects``
+    counts the reopenings, ``stats.last_disconnect`` says when and why it last failed. A pty has no baud
+    rate: the setting is accepted and ignored.
     """
 
     kind = "serial"
@@ -144,11 +150,19 @@ class SerialSource(Source):
         import serial
 
         backoff = Backoff()
+        absent = False  # the last look found no device at the path: look again soon, not backed off
         while not self._stop.is_set():
             ser = self._ser
             if ser is None:
-                if self._sleep(backoff.next()):
+                if self._sleep(ABSENT_POLL_S if absent else backoff.next()):
                     return
+                if not os.path.exists(self.device):
+                    if not absent:  # (counted once per absence, not per look)
+                        problem = f"serial port {self.device} does not exist; reopening"
+                        self._error("reopen failed", problem, logging.DEBUG)
+                    absent = True
+                    continue
+                absent = False
                 try:
                     ser = self._open_port()
                 except SourceError as exc:  # (the problem alone: the alarm already names the source)
