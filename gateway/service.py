@@ -240,6 +240,9 @@ class GatewayService:
         self.log: McapLogWriter | None = None
         self.published = 0
         self._zenoh_reached = True  # (a lost connection is logged when it is found lost, once)
+        self._zenoh_ever_reached = False
+        """A ``connect`` endpoint (or a peer) was reached once: a later miss is a loss, an earlier one is an
+        endpoint not up yet (a bench's gateway started before its simulator), and is said so."""
         self.internal_errors: Counter[str] = Counter()  # source name or "input <key>" -> items not handled
         self.behind_ns = 0
         """How long ago the input last handled was received (0 when none waited): the consumer's lag."""
@@ -382,7 +385,7 @@ class GatewayService:
         except Exception:
             self._internal_error("zenoh", "the session opened when the router answered")
         log.warning("zenoh: connected to %s; outputs go out", ", ".join(self.config.zenoh.connect))
-        self._zenoh_reached = True
+        self._zenoh_reached = self._zenoh_ever_reached = True
 
     def close(self) -> None:
         if self._dialler is not None:
@@ -801,13 +804,23 @@ class GatewayService:
             info = self._session.info
             reached = any(True for _ in info.routers_zid()) or any(True for _ in info.peers_zid())
         if reached != self._zenoh_reached:  # logged once each way
-            if reached:
+            if reached and self._zenoh_ever_reached:
                 log.warning("zenoh: connected again (%s); outputs go out", ", ".join(connect))
-            else:
+            elif reached:
+                log.warning("zenoh: connected to %s; outputs go out", ", ".join(connect))
+            elif self._zenoh_ever_reached:
                 log.error(
                     "zenoh: lost %s; outputs are not reaching Zenoh until it is back", ", ".join(connect)
                 )
+            else:  # never reached: not up yet, or a wrong endpoint; nothing was lost
+                log.error(
+                    "zenoh: %s not reached yet (Zenoh redials it; is it up, and is the endpoint right?); "
+                    "outputs are not reaching Zenoh until it answers",
+                    ", ".join(connect),
+                )
             self._zenoh_reached = reached
+        if reached:
+            self._zenoh_ever_reached = True
         if reached:
             return []
         who = "Zenoh redials it" if self._dialler is None else f"dialled every {REDIAL_S:g} s"

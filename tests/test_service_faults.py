@@ -251,6 +251,41 @@ def zenoh_alarms(live: Live) -> list[str]:
     return [a for a in live.service.last_status().get("alarms", []) if a.startswith("zenoh:")]
 
 
+def test_a_peer_started_before_the_endpoint_it_connects_to(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A bench's gateway (a peer, ``connect`` to the simulator's endpoint) started before the simulator: it
+    says the endpoint is not reached *yet*, then that it is connected, never "lost" nor "connected again"
+    (it had lost nothing: an integrator read "lost" as the simulator having died)."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    udp = free_port(socket.SOCK_DGRAM)
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    send = bursts_to(tx, udp)
+    caplog.set_level(logging.WARNING, logger="dpgw")
+    proc: subprocess.Popen[str] | None = None
+    live = Live(tmp_path, f"udp://127.0.0.1:{udp}", connect=[endpoint])
+    live.service.start()
+    live.loop = threading.Thread(target=live.service.run, name="consumer")
+    live.loop.start()
+    try:
+        assert wait_for(lambda: send() or zenoh_alarms(live), 30.0), "no alarm with the endpoint not up"
+        proc = start_router(endpoint)  # the simulator's session comes up
+        assert wait_for(lambda: send() or not zenoh_alarms(live), 30.0), zenoh_alarms(live)
+    finally:
+        live.service.stop_event.set()
+        live.loop.join(timeout=30)
+        live.service.drain()
+        live.service.close()
+        tx.close()
+        if proc is not None:
+            proc.kill()
+            proc.wait()
+    said = [r.getMessage() for r in caplog.records if r.getMessage().startswith("zenoh:")]
+    assert len(said) == 2, said
+    assert said[0].startswith(f"zenoh: {endpoint} not reached yet") and "lost" not in said[0], said
+    assert said[1] == f"zenoh: connected to {endpoint}; outputs go out", said
+
+
 def test_the_zenoh_router_restarting(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
     """The gateway connects to a router (zenoh.connect); a console reaches it through the router. The router
     is killed: /status (in the log, on Foxglove, on -v) says Zenoh is not connected; the router is started
