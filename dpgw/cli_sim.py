@@ -437,6 +437,12 @@ def _run_scenario(args: argparse.Namespace) -> int:
 
         sim.on_time = SimClockPublisher(session, prefix, sim.epoch, clock, period_s=sim.time_tick_s)
         print(f"Zenoh: simulation time on {sim.on_time.key}", file=sys.stderr)
+    elif session is not None:  # (unpaced, the plant runs ahead of any gateway: there is no time to share)
+        print(
+            f"Zenoh: no simulation time on {prefix}/sim/clock without --realtime: a gateway on "
+            'clock = "sim" holds what it receives until a tick comes; add --realtime (and --speed X)',
+            file=sys.stderr,
+        )
 
     duration = args.duration if args.duration is not None else scenario.duration_s
     bar = _progress_bar(duration) if sys.stderr.isatty() and not args.json else None

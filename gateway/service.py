@@ -839,7 +839,8 @@ class GatewayService:
             if time.time_ns() - self._wall0_ns > CLOCK_SILENT_S * 1e9:
                 alarms.append(
                     f'clock: no simulation time on {key} yet (clock = "sim"): {len(self._held)} inputs '
-                    "held; is the simulator publishing its clock on this prefix (dpgw sim --zenoh)?"
+                    "held; is the simulator publishing its clock on this prefix "
+                    "(dpgw sim --zenoh --realtime)?"
                 )
         elif silent_s > CLOCK_SILENT_S:
             held = f" ({len(self._held)} inputs held until one comes)" if self._held else ""

@@ -279,10 +279,32 @@ def test_a_missing_or_silent_simulation_clock_is_an_alarm(tmp_path: Path) -> Non
     service._wall0_ns = time.time_ns() - 10**10  # started 10 s ago
     service._take(chunk(1))
     assert any("no simulation time on dp/mss_supply/sim/clock yet" in a and "1 inputs held" in a
+               and "dpgw sim --zenoh --realtime" in a  # (unpaced, the simulator publishes no clock)
                for a in service._alarms())  # fmt: skip
     assert service.sim_time is not None
     service.sim_time.on_tick(10**18, 0.05, time.monotonic_ns() - 6 * 10**9)  # one tick, 6 s ago
     assert any("no simulation clock tick on dp/mss_supply/sim/clock for 6 s" in a for a in service._alarms())
+
+
+def test_an_unpaced_simulator_on_zenoh_says_it_publishes_no_clock() -> None:
+    """`dpgw sim --zenoh` without `--realtime` publishes no simulation time (it would run ahead of any
+    gateway): it says so, naming the key and the flag, instead of leaving a gateway on `clock = "sim"` to
+    hold everything in silence; with `--realtime` it names the key it publishes on."""
+    import subprocess
+    import sys
+
+    def stderr_of(*extra: str) -> str:
+        done = subprocess.run(
+            [sys.executable, "-m", "dpgw", "sim", "--scenario", "hassani", "--duration", "1", "--zenoh",
+             "--no-scouting", "--zenoh-listen", "tcp/127.0.0.1:0", "--prefix", "bench/x", *extra],
+            capture_output=True, text=True, timeout=120, check=True,
+        )  # fmt: skip
+        return done.stderr
+
+    unpaced = stderr_of()
+    assert "no simulation time on bench/x/sim/clock without --realtime" in unpaced, unpaced
+    paced = stderr_of("--realtime", "--speed", "20")
+    assert "Zenoh: simulation time on bench/x/sim/clock" in paced and "without --realtime" not in paced
 
 
 # --- a HIL bench in two processes: what the log and the alarms say ------------------------------------------
