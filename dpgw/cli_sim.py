@@ -119,8 +119,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--zenoh",
         action="store_true",
-        help="take thruster commands from Zenoh <prefix>/thrusters/command; with --realtime, also publish "
-        "the simulation time on <prefix>/sim/clock (for 'dpgw run --clock sim')",
+        help="a Zenoh session: with --realtime, publish the simulation time on <prefix>/sim/clock (for "
+        "'dpgw run --clock sim'); without --mavlink, take thruster commands from Zenoh "
+        "<prefix>/thrusters/command (with --mavlink the drives take them from their MAVLink link only: "
+        "see --zenoh-commands)",
+    )
+    p.add_argument(
+        "--zenoh-commands",
+        action="store_true",
+        help="with --mavlink: take thruster commands from Zenoh <prefix>/thrusters/command as well (a "
+        "gateway that reads MAVLink feedback but commands over Zenoh). Off by default: the gateway "
+        "publishes its commands there for consoles, and taking them would close the loop even when its "
+        "MAVLink commands go nowhere or fail their signature",
     )
     p.add_argument("--prefix", help="Zenoh key prefix (default dp/<vessel>)")
     add_endpoint_args(p)
@@ -275,6 +285,7 @@ def _session_options(args: argparse.Namespace) -> tuple[tuple[str, object], ...]
         ("--zenoh-connect", args.zenoh_connect),
         ("--no-scouting", args.no_scouting),
         ("--zenoh-config", args.zenoh_config),
+        ("--zenoh-commands", args.zenoh_commands),
     )
 
 
@@ -395,8 +406,18 @@ def _run_scenario(args: argparse.Namespace) -> int:
                     config_file=args.zenoh_config,
                 )
             )
-            commands.append(ZenohCommandInput(session, prefix))
-            print(f"Zenoh: commands from {prefix}/thrusters/command", file=sys.stderr)
+            if args.mavlink and not args.zenoh_commands:
+                # One command path, as a vessel's drives have: the gateway publishes every command on
+                # <prefix>/thrusters/command for its consoles, and drives that took those too would
+                # close the loop with its MAVLink commands lost, unsigned or refused for their signature
+                print(
+                    f"Zenoh: thruster commands from the MAVLink link only, not {prefix}/thrusters/command "
+                    "(--zenoh-commands takes those too)",
+                    file=sys.stderr,
+                )
+            else:
+                commands.append(ZenohCommandInput(session, prefix))
+                print(f"Zenoh: commands from {prefix}/thrusters/command", file=sys.stderr)
         if args.out:
             # Faster than real time, a chunk per second of log time is a chunk per few ms of work: tiny
             # chunks, each with its own compression call and indexes. Chunks then close by size (and

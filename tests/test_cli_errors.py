@@ -940,6 +940,7 @@ def test_sim_names_its_own_options_in_what_it_refuses(
         ),
         # --no-scouting, as demo, replay and listen take it (before: "unrecognized arguments")
         (["--no-scouting"], "dpgw sim: --no-scouting: only with --zenoh"),
+        (["--zenoh-commands"], "dpgw sim: --zenoh-commands: only with --zenoh"),
     ],
 )
 def test_sim_options_that_need_another_are_refused(

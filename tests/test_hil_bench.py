@@ -242,3 +242,57 @@ def test_a_simulator_restarted_under_the_gateway_is_followed(tmp_path: Path) -> 
     t_rep, eta_rep = estimates(out)
     assert len(t_rep) == len(t_est) and np.array_equal(t_rep, t_est)
     assert np.max(np.abs(eta_rep - eta_est)) < 1e-6
+
+
+def sim_taking_zenoh_commands(*extra: str) -> tuple[dict[str, object], str]:
+    """`dpgw sim` with its thrusters on MAVLink (a UDP port nobody commands from) and a Zenoh session,
+    while a console publishes thruster commands on ``<prefix>/thrusters/command`` (what the gateway
+    publishes there for consoles), from the first clock tick it hears (the link is up) to the end of the
+    run: (the run's JSON summary, its stderr)."""
+    import zenoh
+
+    from gateway.bus import isolated_config, open_session
+
+    mav, zport = free_port(socket.SOCK_DGRAM), free_port()
+    sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)  # the MAVLink peer: hears, never commands
+    sink.bind(("127.0.0.1", mav))
+    sim = dpgw(
+        "sim", "--scenario", "torsetnes_2004", "--duration", "8", "--realtime", "--speed", "2",
+        "--mavlink", f"udp://127.0.0.1:{mav}", "--zenoh", "--zenoh-listen", f"tcp/127.0.0.1:{zport}",
+        "--no-scouting", "--prefix", "bench/x", "--json", *extra,
+    )  # fmt: skip
+    ticks: list[int] = []
+    console = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{zport}"]))
+    try:
+        console.declare_subscriber("bench/x/sim/clock", lambda s: ticks.append(1))
+        command = json.dumps(
+            {"mode": "dp", "thrusters": [{"id": i, "thrust_n": 1e4, "azimuth_rad": 0.0} for i in range(1, 7)]}
+        ).encode()
+        pub = console.declare_publisher("bench/x/thrusters/command", encoding=zenoh.Encoding.APPLICATION_JSON)
+        assert wait_for(lambda: bool(ticks) or sim.poll() is not None, 60.0), "no clock tick from the sim"
+        while sim.poll() is None:
+            pub.put(command)
+            wait_for(lambda: sim.poll() is not None, 0.05)  # (the console's pace: 20 commands a second)
+        out, err = sim.communicate(timeout=60)
+    finally:
+        console.close()
+        sink.close()
+        if sim.poll() is None:
+            sim.kill()
+            sim.wait()
+    assert sim.returncode == 0, err
+    return json.loads(out), err
+
+
+@pytest.mark.slow  # two 4 s runs
+def test_drives_on_mavlink_do_not_take_the_gateways_zenoh_commands(tmp_path: Path) -> None:
+    """With --mavlink the simulated drives take commands from their MAVLink link only. They took the
+    gateway's Zenoh output `<prefix>/thrusters/command` as well (the clock needs --zenoh, which also
+    subscribed it), so a bench closed the loop with the gateway's MAVLink commands going nowhere, or
+    refused for their signature: `commands_applied` > 0 said the link worked when it did not."""
+    taken, said = sim_taking_zenoh_commands("--zenoh-commands")  # asked for: the console reaches the drives
+    assert int(taken["commands_applied"]) > 0, said  # type: ignore[call-overload]
+    assert "Zenoh: commands from bench/x/thrusters/command" in said
+    run, said = sim_taking_zenoh_commands()
+    assert run["commands_applied"] == 0, (run, said)
+    assert "thruster commands from the MAVLink link only, not bench/x/thrusters/command" in said, said
