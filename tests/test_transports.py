@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import select
 import socket
+import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -17,6 +18,7 @@ from pathlib import Path
 
 import pytest
 import serial
+from conftest import free_port, wait_for
 
 from simulator.clock import RealtimeClock, SimEpoch, VirtualClock
 from simulator.transports import (
@@ -150,6 +152,35 @@ def test_pty_symlink_replaces_a_stale_link_but_not_a_file(tmp_path: Path) -> Non
         open_sink(f"pty://{regular}")
     assert str(regular) in str(info.value)
     assert regular.read_text() == "keep me"
+
+
+@pytest.mark.slow  # two simulator processes
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the claim is a Linux abstract socket")
+def test_a_second_simulator_on_a_running_benchs_pty_link_is_refused(tmp_path: Path) -> None:
+    """`dpgw sim` started again (another terminal) with the link of a simulator that is running: refused,
+    naming the link, and the running one's link is left as it was. It was replaced, and removed when the
+    second stopped (here on its Zenoh port, taken by the first): the running bench lost its gyro link."""
+    import subprocess
+
+    link, zport = tmp_path / "gyro", free_port()
+    argv = [sys.executable, "-m", "dpgw", "sim", "--scenario", "hassani", "--nmea", f"gyro1=pty://{link}",
+            "--realtime", "--zenoh", "--no-scouting", "--zenoh-listen", f"tcp/127.0.0.1:{zport}"]  # fmt: skip
+    first = subprocess.Popen([*argv, "--duration", "600"], stderr=subprocess.PIPE, text=True)
+    try:
+        assert wait_for(link.is_symlink, 60.0), "the first simulator made no link"
+        served = os.readlink(link)
+        second = subprocess.run([*argv, "--duration", "1"], capture_output=True, text=True, timeout=120)
+        assert second.returncode == 2, second.stderr
+        assert f"{link} is the link of a pty another program is serving now" in second.stderr, second.stderr
+        assert os.readlink(link) == served and os.path.exists(served)  # the bench's link, untouched
+        with serial.Serial(str(link), timeout=5) as port:  # ... and it still reads the first simulator
+            assert port.read_until(b"\n").startswith(b"$")
+    finally:
+        first.terminate()
+        first.wait(timeout=60)
+    assert not os.path.lexists(link)  # removed by its owner on the way out
+    with open_sink(f"pty://{link}") as sink:  # the link is free again once its simulator has ended
+        assert os.readlink(link) == sink.device
 
 
 def test_pty_without_reader_never_blocks(pty_sink: PtySink) -> None:

@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import hashlib
 import math
 import os
+import socket
 import struct
+import sys
 import termios
 import time
 
@@ -29,7 +32,9 @@ class PtySink(FdSink):
     The slave is put in raw mode so bytes pass unchanged. The sink keeps its own descriptor on the slave so
     the pty lives on while readers come and go (without it the master gets EIO once the last reader
     closes). With ``link``, a symlink ``link -> device`` is made (an existing symlink there is replaced;
-    any other file is an error) and removed on close if it still points at this pty.
+    any other file is an error) and removed on close if it still points at this pty. A link another
+    running program serves (`claim_link`: a second simulator started on a running bench's link) is
+    refused rather than taken over.
 
     When no reader drains the pty the kernel's buffer (some tens of KiB) fills and writes are dropped
     whole. When the pty's input has not once been empty for ``stale_s`` seconds (checked at each write),
@@ -61,10 +66,14 @@ class PtySink(FdSink):
         self.stale_flushes = 0
         self._last_drained = time.monotonic()
         self.link: str | None = None
+        self._claim: socket.socket | None = None
         if link is not None:
             try:
+                self._claim = claim_link(link, self.url)
                 self.link = _make_symlink(link, self.device, self.url)
             except BaseException:
+                if self._claim is not None:
+                    self._claim.close()
                 os.close(master)
                 os.close(slave)
                 raise
@@ -99,6 +108,33 @@ class PtySink(FdSink):
         for fd in (self._fd, self._slave):
             with contextlib.suppress(OSError):
                 os.close(fd)
+        if self._claim is not None:
+            self._claim.close()
+
+
+def claim_link(link: str, url: str) -> socket.socket | None:
+    """Claim the link path for this process while it serves it: a Linux abstract Unix socket named after
+    the absolute path (no file is made, and the kernel releases it when the process ends, however it
+    ends). A second simulator started with the same link while the first runs replaced the first's link
+    (the gateway's next reopen read the wrong pty, or none) and, stopping, removed it: a bench that was
+    running lost its gyro. Refused instead, naming the link. A link left by a program that has ended
+    (``kill -9``) is not claimed and is replaced as before. Elsewhere than Linux there is no abstract
+    namespace: None (not claimed; the link is replaced)."""
+    if not sys.platform.startswith("linux"):
+        return None
+    path = os.path.abspath(link)
+    name = b"\0dpgw-pty-link:" + hashlib.sha256(path.encode()).hexdigest()[:40].encode()
+    claim = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    try:
+        claim.bind(name)
+    except OSError as exc:
+        claim.close()
+        raise TransportError(
+            url,
+            f"{path} is the link of a pty another program is serving now (another simulator running?)",
+            "stop that one first, or give this one another link path",
+        ) from exc
+    return claim
 
 
 def _make_symlink(link: str, target: str, url: str) -> str:
