@@ -55,7 +55,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--duration", type=positive_float, metavar="S", help="sim seconds (default: the scenario's)"
     )
     p.add_argument("--seed", type=int, default=0, help="random seed: same seed, same bytes (default 0)")
-    p.add_argument("--out", metavar="LOG.mcap", help="write ground truth and every frame sent to this MCAP")
+    p.add_argument(
+        "--out",
+        metavar="LOG.mcap",
+        help="write ground truth and every frame sent to this MCAP (one that exists is kept: the run goes "
+        "on in LOG_0001.mcap, the next free file of its set)",
+    )
     p.add_argument(
         "--nmea",
         action="append",
@@ -376,6 +381,7 @@ def _run_scenario(args: argparse.Namespace) -> int:
     mav_commands: MavlinkCommandInput | None = None
     session = None
     log = None
+    log_path = args.out  # (the file written: the next of its set when --out exists)
     tlog: TlogWriter | None = None
     try:
         for spec in args.nmea:
@@ -423,10 +429,18 @@ def _run_scenario(args: argparse.Namespace) -> int:
             # chunks, each with its own compression call and indexes. Chunks then close by size (and
             # every second of wall time, which bounds the loss if the process dies).
             # (the simulation writes its own metadata: scenario, seed, vessel and datum)
+            # An --out that exists is not overwritten: the run goes on in the next file of its set
+            # (sim_0001.mcap), as the gateway's and the demo's logs do. A bench restarts the simulator
+            # with the same command line under a running gateway, whose log of the run before stays;
+            # overwriting lost the truth that log was to be scored against.
             try:
-                log = McapLogWriter(args.out, profile="dpgw-sim", flush_on_log_time=bool(args.realtime))
+                log = McapLogWriter(
+                    args.out, profile="dpgw-sim", flush_on_log_time=bool(args.realtime), continue_set=True
+                )
             except OSError as exc:
                 raise OSError(f"--out {args.out}: cannot write the log: {exc.strerror or exc}") from None
+            if Path(log.path) != Path(args.out):
+                print(f"log -> {log.path} ({args.out} exists: a log is never overwritten)", file=sys.stderr)
         if args.tlog:  # last: a tlog is emptied when opened, so not before another start-up step may fail
             try:
                 tlog = TlogWriter(args.tlog)
@@ -480,6 +494,7 @@ def _run_scenario(args: argparse.Namespace) -> int:
         for s in sinks:
             s.close()
         if log is not None:
+            log_path = str(log.path)
             log.close()
         if tlog is not None:
             tlog.close()
@@ -491,7 +506,7 @@ def _run_scenario(args: argparse.Namespace) -> int:
     summary["commands_rejected"] = commands_rejected
     summary["interrupted"] = stop["now"]
     if args.out:
-        summary["log"] = args.out
+        summary["log"] = log_path
     if recorder is not None:
         summary["tlog"] = {
             "path": args.tlog,
@@ -516,7 +531,7 @@ def _run_scenario(args: argparse.Namespace) -> int:
         if signing_key is not None:
             print("  thruster MAVLink signed (MAVLink 2 signing, link id 0)")
         if args.out:
-            print(f"  log: {args.out} ({sim.summary.truth_records} truth records)")
+            print(f"  log: {log_path} ({sim.summary.truth_records} truth records)")
         if recorder is not None:
             skipped = (
                 f", {recorder.not_recorded} corrupted frames not recorded (as a ground station would not)"

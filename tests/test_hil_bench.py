@@ -296,3 +296,32 @@ def test_drives_on_mavlink_do_not_take_the_gateways_zenoh_commands(tmp_path: Pat
     run, said = sim_taking_zenoh_commands()
     assert run["commands_applied"] == 0, (run, said)
     assert "thruster commands from the MAVLink link only, not bench/x/thrusters/command" in said, said
+
+
+def test_a_simulator_restarted_with_the_same_out_keeps_the_runs_truth(tmp_path: Path) -> None:
+    """A bench restarts `dpgw sim` with the same command line (`--out sim.mcap`) under a running gateway,
+    whose log of the first run stays: the first run's truth must stay too, to score that log against. It
+    was overwritten; now the second run goes on in sim_0001.mcap, as the gateway's own log does, and the
+    summary names the file written."""
+    out = tmp_path / "sim.mcap"
+
+    def run(seed: str) -> dict[str, object]:
+        done = subprocess.run(
+            [sys.executable, "-m", "dpgw", "sim", "--scenario", "hassani", "--duration", "3", "--seed", seed,
+             "--out", str(out), "--json"],
+            capture_output=True, text=True, timeout=120, check=True,
+        )  # fmt: skip
+        summary: dict[str, object] = json.loads(done.stdout)
+        return summary
+
+    assert run("1")["log"] == str(out)
+    first = out.read_bytes()
+    second = run("2")
+    assert second["log"] == str(tmp_path / "sim_0001.mcap"), second
+    assert out.read_bytes() == first  # the first run's truth, as it was
+    seeds = []
+    for path in (out, tmp_path / "sim_0001.mcap"):
+        with open(path, "rb") as f:
+            seeds += [m.metadata["seed"] for m in make_reader(f).iter_metadata() if m.name == "dpgw.sim"]
+        assert any(True for _ in read_messages(path, "/truth/state"))
+    assert seeds == ["1", "2"]  # each run's own truth, in its own file
