@@ -28,7 +28,8 @@ def describe(config: GatewayConfig) -> str:
         lines.append(f"  source {s.name}: {s.protocol} {'/'.join(s.roles)} priority {s.priority} <- {s.url}")
     obs = config.observer
     lines.append(
-        f"  observer {obs.type} at {obs.rate_hz:g} Hz, ω0 = {show_dof(obs.tuning.omega0)} rad/s"
+        f"  observer {obs.type} (a step at every position and heading), "
+        f"ω0 = {show_dof(obs.tuning.omega0)} rad/s"
         + ("" if not config.observer.failed_checks else " (UNCHECKED: tuning checks fail)")
     )
     z = config.zenoh
