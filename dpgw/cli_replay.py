@@ -120,7 +120,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "/dp/scene/*, /dp/log): only the JSON channels and the raw input are written. Faster (on a 5 Hz "
         "log about half the messages) but Foxglove then shows no map or 3D scene without setup",
     )
-    p.add_argument("--report", metavar="DIR", help="write plots (PNG), metrics.json and report.md here")
+    p.add_argument(
+        "--report",
+        nargs="?",
+        const="",
+        metavar="DIR",
+        help="write plots (PNG), metrics.json and report.md in DIR (created); without DIR, in "
+        "<out>-report beside --out (put a bare --report after the logs)",
+    )
     pace = p.add_mutually_exclusive_group()
     pace.add_argument(
         "--speed", type=positive_float, metavar="X", help="pace at X times real time and publish on Zenoh"
@@ -190,7 +197,7 @@ def run(args: argparse.Namespace) -> int:
     from observers.vessel import VesselError
     from wire.mcap.writer import McapLogWriter
 
-    if args.foxglove is not None and (args.out or args.report):
+    if args.foxglove is not None and (args.out or args.report is not None):
         print(
             "dpgw replay: --foxglove plays the logs interactively (seeking runs parts again) and writes no "
             "--out or --report: run once without --foxglove for those",
@@ -224,6 +231,9 @@ def run(args: argparse.Namespace) -> int:
         if problem := prefix_problem(args.prefix):
             print(f"dpgw replay: --prefix: {problem}", file=sys.stderr)
             return 2
+    if args.report == "":  # a bare --report: beside the output
+        out = Path(args.out)
+        args.report = str(out.with_name(f"{out.stem}-report"))
     # Where the results go is checked before the replay, not found out after it.
     if args.report is not None and Path(args.report).exists() and not Path(args.report).is_dir():
         print(

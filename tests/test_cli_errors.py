@@ -1112,3 +1112,19 @@ def test_demo_engage_at_with_standby_is_refused(capsys: pytest.CaptureFixture[st
     assert main(["demo", "--mode", "standby", "--engage-at", "60", "--no-foxglove"]) == 2
     err = capsys.readouterr().err.strip()
     assert err == "dpgw demo: --engage-at switches to dp: it goes with --mode dp (the default)"
+
+
+def test_a_bare_replay_report_goes_beside_the_output(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`dpgw replay LOG --report` (no folder, as a user types it first) writes the report beside the
+    output, in <out>-report; it was an argparse error."""
+    log = tmp_path / "sim.mcap"
+    assert main(["sim", "--scenario", "fossen_strand_1999", "--duration", "30", "--out", str(log)]) == 0
+    assert main(["replay", str(log), "--json", "--report"]) == 0
+    capsys.readouterr()
+    assert (tmp_path / "sim-replay-report" / "metrics.json").is_file()
+    assert (tmp_path / "sim-replay.mcap").is_file()
+    out = tmp_path / "other.mcap"
+    assert main(["replay", str(log), "--out", str(out), "--report"]) == 0
+    assert (tmp_path / "other-report" / "report.md").is_file()
