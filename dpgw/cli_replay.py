@@ -232,8 +232,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"dpgw replay: --prefix: {problem}", file=sys.stderr)
             return 2
     if args.report == "":  # a bare --report: beside the output
-        out = Path(args.out)
-        args.report = str(out.with_name(f"{out.stem}-report"))
+        beside = Path(args.out)
+        args.report = str(beside.with_name(f"{beside.stem}-report"))
     # Where the results go is checked before the replay, not found out after it.
     if args.report is not None and Path(args.report).exists() and not Path(args.report).is_dir():
         print(
