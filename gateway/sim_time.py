@@ -35,7 +35,8 @@ one that does not say, told by its times as above). Another run's tick while the
 within `FOREIGN_SILENT_NS` is another simulator publishing on the same key (two benches sharing a prefix):
 ignored and counted (`foreign`), never a restart; after that silence it is a new run whichever way its time
 goes. A run never starts again (its own tick far back is a bad tick), and a late tick of the run a restart
-left is ignored.
+left is ignored. A gateway that knows its simulator's run `pin`s it: every other tick (of a run that does
+not say, 0, too) is another simulator's, and what it took of another run before the pin is dropped.
 """
 
 from __future__ import annotations
@@ -130,9 +131,20 @@ class SimTime:
 
     def pin(self, run_id: int) -> None:
         """Follow run ``run_id`` only, from its first tick on: every other run's tick is another
-        simulator's, whenever it comes. For a gateway that knows its simulator's run (`dpgw demo`
-        publishes the clock itself); a gateway that does not follows the first run it hears."""
+        simulator's, whenever it comes, a simulator that does not say its run (0) among them. For a
+        gateway that knows its simulator's run (`dpgw demo` publishes the clock itself); a gateway that
+        does not follows the first run it hears. Ticks of another run taken before the pin (the clock is
+        subscribed to before the publisher whose run is pinned exists) are dropped and counted as
+        another simulator's: kept, they were the run followed, and every tick of the pinned run going
+        back from them was ignored as a bad tick of that run."""
         with self._lock:
+            if self.ticks and (self.run_id != run_id or self._new is not None):
+                self.foreign += self.ticks
+                self.foreign_run = self._new_id if self._new is not None else self.run_id
+                self._run, self._new = _Ticks(), None
+                self._last_out = self._left_newest = self.went_back = None
+                self._new_id = self._left_id = 0
+                self.ticks = 0
             self.run_id = run_id
             self._pinned = True
 
@@ -147,6 +159,10 @@ class SimTime:
         with self._lock:
             if not (period_s > 0.0):
                 self.ignored += 1
+                return
+            if self._pinned and run_id != self.run_id:  # (0 too: a simulator that does not say)
+                self.foreign += 1
+                self.foreign_run = run_id
                 return
             run = self._run if self._new is None else self._new
             current = self._new_id if self._new is not None else self.run_id

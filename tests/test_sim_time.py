@@ -239,3 +239,35 @@ def test_a_pinned_run_is_the_only_one_followed_even_when_another_speaks_first() 
     for k in range(10):  # ours silent for 10 s: the other is still not taken for a restart
         clock.on_tick(EPOCH + 3600 * 10**9 + (k + 10) * 50 * MS, PERIOD_S, 10_000 * MS + k * MS, B)
     assert clock.went_back is None and clock.foreign == 21 and clock.stamp(100 * MS) == EPOCH + 450 * MS
+
+
+def test_a_pin_drops_another_simulators_ticks_heard_before_it() -> None:
+    """`dpgw demo` subscribes to the clock (`GatewayService.start`) before its publisher exists to be
+    pinned: a tick of another demo reached by scouting in between must not stay the run followed (its
+    time an hour ahead, every tick of the demo's own simulator was a bad tick of "the same run" going
+    back, and the demo had no time to stamp with)."""
+    clock = SimTime()
+    for k in range(3):  # another simulator, heard before the pin
+        clock.on_tick(EPOCH + 3600 * 10**9 + k * 50 * MS, PERIOD_S, k * MS, B)
+    clock.pin(A)
+    assert not clock.started and clock.foreign == 3 and clock.foreign_run == B
+    for k in range(10):
+        clock.on_tick(EPOCH + k * 50 * MS, PERIOD_S, (k + 1) * 10 * MS, A)
+    assert clock.run_id == A and clock.went_back is None and clock.ignored == 0
+    assert clock.stamp(100 * MS) == EPOCH + 450 * MS
+
+
+def test_a_pinned_run_ignores_a_simulator_that_does_not_say() -> None:
+    """A pinned gateway follows its run only: a simulator that does not say its run (``run`` 0, an older
+    one on the same key) is another simulator too, neither followed as a restart when its time is
+    behind nor mixed into the pinned run's ticks, nor taken for the first tick before the own one."""
+    clock = SimTime()
+    clock.pin(A)
+    clock.on_tick(EPOCH + 3600 * 10**9, PERIOD_S, 0)  # before the own run's first tick
+    assert not clock.started and clock.foreign == 1
+    for k in range(10):
+        clock.on_tick(EPOCH + k * 50 * MS, PERIOD_S, (k + 1) * 10 * MS, A)
+        clock.on_tick(EPOCH - 600 * 10**9 + k * 50 * MS, PERIOD_S, (k + 1) * 10 * MS + 1)  # behind
+        clock.on_tick(EPOCH + 1800 * 10**9 + k * 50 * MS, PERIOD_S, (k + 1) * 10 * MS + 2)  # ahead
+    assert clock.went_back is None and clock.runs == 1 and clock.run_id == A and clock.foreign == 21
+    assert clock.stamp(100 * MS) == EPOCH + 450 * MS
