@@ -869,6 +869,7 @@ class GatewayService:
         assert st is not None
         newest, tick = st.follow()
         self.runs_followed += 1
+        self._status_ns = 0  # (the old run's time: the last status must not carry it into the new file)
         where = ""
         if self.log is not None:
             where = f"; log continues in {self.log.rotate().name}"
