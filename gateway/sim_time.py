@@ -31,12 +31,14 @@ swapped) is only ignored, and so is a tick of the old run delivered after the ne
 the same way at the restart: near the old run's newest, far ahead of the new run's).
 
 Which simulator: a tick carries its run's identity (`SimClock.run`, drawn when the simulator starts; 0 from
-one that does not say, told by its times as above). Another run's tick while the run being stamped ticked
-within `FOREIGN_SILENT_NS` is another simulator publishing on the same key (two benches sharing a prefix):
-ignored and counted (`foreign`), never a restart; after that silence it is a new run whichever way its time
-goes. A run never starts again (its own tick far back is a bad tick), and a late tick of the run a restart
-left is ignored. A gateway that knows its simulator's run `pin`s it: every other tick (of a run that does
-not say, 0, too) is another simulator's, and what it took of another run before the pin is dropped.
+one that does not say, told by its times as above among its own kind; beside or after one that says, 0 is
+another run like any other identity, since a simulator never changes whether it says during a run).
+Another run's tick while the run being stamped ticked within `FOREIGN_SILENT_NS` is another simulator
+publishing on the same key (two benches sharing a prefix): ignored and counted (`foreign`), never a
+restart; after that silence it is a new run whichever way its time goes. A run never starts again
+(its own tick far back is a bad tick), and a late tick of the run a restart left
+is ignored. A gateway that knows its simulator's run `pin`s it: every other tick (of a run that does not
+say, 0, too) is another simulator's, and what it took of another run before the pin is dropped.
 """
 
 from __future__ import annotations
@@ -166,28 +168,26 @@ class SimTime:
                 return
             run = self._run if self._new is None else self._new
             current = self._new_id if self._new is not None else self.run_id
-            if run_id and current and run_id != current:
-                # another run's tick: a tick of the run a restart left, delivered late; another simulator
-                # on this key while the run followed still ticks (two benches sharing a prefix); or, the
-                # run followed silent, a restarted simulator, whichever way its time goes
-                if run_id == self._left_id:
+            if run.sim and run_id != current:
+                # another run's tick (0 and an identity differ too: a simulator never changes whether it
+                # says during a run): a tick of the run a restart left, delivered late; another simulator
+                # on this key while the run followed still ticks (two benches sharing a prefix, one
+                # perhaps older); or, the run followed silent, a restarted simulator, whichever way its
+                # time goes
+                if run_id == self._left_id and (
+                    run_id
+                    or (self._left_newest is not None and abs(sim_ns - self._left_newest) <= RESTART_BACK_NS)
+                ):
                     self.ignored += 1
                     return
-                if self._pinned or (run.mono and mono_ns - run.mono[-1] <= FOREIGN_SILENT_NS):
+                if self._pinned or mono_ns - run.mono[-1] <= FOREIGN_SILENT_NS:
                     self.foreign += 1
                     self.foreign_run = run_id
                     return
                 self._begin_new_run(sim_ns, mono_ns, run, run_id)
-                self._new_id = run_id
                 self._add(sim_ns, period_s, mono_ns)
                 return
             if run_id and not run.sim:  # the first tick of the run being gathered: who it is
-                if self._new is None:
-                    self.run_id = run_id
-                else:
-                    self._new_id = run_id
-            elif run_id and not current:
-                # a run that said nothing until now (the simulator was replaced by one that says)
                 if self._new is None:
                     self.run_id = run_id
                 else:

@@ -271,3 +271,43 @@ def test_a_pinned_run_ignores_a_simulator_that_does_not_say() -> None:
         clock.on_tick(EPOCH + 1800 * 10**9 + k * 50 * MS, PERIOD_S, (k + 1) * 10 * MS + 2)  # ahead
     assert clock.went_back is None and clock.runs == 1 and clock.run_id == A and clock.foreign == 21
     assert clock.stamp(100 * MS) == EPOCH + 450 * MS
+
+
+def test_a_simulator_that_does_not_say_beside_one_that_does_is_another_simulator() -> None:
+    """Two benches sharing a prefix, one `dpgw sim` new enough to say its run and one older (run 0): a
+    simulator never changes whether it says during a run, so a tick of the other kind while the run
+    followed still ticks is another simulator's, either way round. Before, the older one's ticks an hour
+    behind were a restart, the newer one's then taken for the restarted run's own (its id adopted), and
+    the gateway went to and fro between the two."""
+    for ours, theirs in ((A, 0), (0, A)):
+        clock, alone = SimTime(), SimTime()
+        for k in range(200):
+            wall = k * 10 * MS
+            own = EPOCH + k * 50 * MS
+            clock.on_tick(own, PERIOD_S, wall, ours)
+            alone.on_tick(own, PERIOD_S, wall, ours)
+            clock.on_tick(own + (-1 if k % 2 else 1) * 3600 * 10**9, PERIOD_S, wall + 3 * MS, theirs)
+        assert clock.went_back is None and clock.runs == 1 and clock.run_id == ours, (ours, theirs)
+        assert clock.foreign == 200 and clock.foreign_run == theirs
+        for w in range(0, 2_000 * MS, 7 * MS):
+            assert clock.stamp(w) == alone.stamp(w)
+
+
+def test_a_simulator_replaced_by_one_of_the_other_kind_is_a_new_run() -> None:
+    """A bench's `dpgw sim` replaced by an older one (run 0) and back, each after the other stopped: each
+    is a new run once the one before is silent, whichever way its time goes; a late tick of the run left
+    (delivered after the new run's first) is ignored, not another simulator."""
+    clock, wall = SimTime(), 0
+    runs = [(A, EPOCH), (0, EPOCH + 7200 * 10**9), (B, EPOCH - 3600 * 10**9), (0, EPOCH)]
+    for n, (run_id, start) in enumerate(runs):
+        wall += 2_500 * MS  # the one before silent for 2.5 s
+        for k in range(50):
+            clock.on_tick(start + k * 50 * MS, PERIOD_S, wall + k * 10 * MS, run_id)
+            if k == 0 and n:  # the run before's last tick, delivered late
+                left_id, left_start = runs[n - 1]
+                clock.on_tick(left_start + 50 * 50 * MS, PERIOD_S, wall + MS, left_id)
+            if clock.went_back is not None:
+                clock.follow()
+        wall += 50 * 10 * MS
+        assert clock.runs == n + 1 and clock.run_id == run_id and clock.foreign == 0, n
+        assert clock.stamp(wall) == start + 49 * 50 * MS + 50 * MS  # (one tick ahead at most)
