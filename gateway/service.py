@@ -269,6 +269,7 @@ class GatewayService:
         self.queue_peak = 0
         """The most inputs that have waited at once (bounded by ``4 * queue_max``)."""
         self._shedding = False  # said once per spell behind
+        self._foreign_said = False  # another simulator's clock on the key: said once in the log
 
     # --- start and stop -------------------------------------------------------------------------------------
 
@@ -451,9 +452,10 @@ class GatewayService:
         except (msgspec.DecodeError, msgspec.ValidationError):
             self.clock_rejected += 1
             return
-        foreign = self.sim_time.foreign
         self.sim_time.on_tick(tick.stamp_ns, tick.period_s, mono, tick.run)
-        if not foreign and self.sim_time.foreign:
+        if self.sim_time.foreign and not self._foreign_said:
+            # (said once; also when the first were counted by `SimTime.pin`, which has no log)
+            self._foreign_said = True
             log.warning("%s", self._foreign_clock_alarm())
 
     def _on_query(self, query: zenoh.Query) -> None:
@@ -861,8 +863,9 @@ class GatewayService:
         one network with one prefix): its ticks are ignored, and a person must part the two."""
         assert self.sim_time is not None
         st = self.sim_time
+        theirs = f"run {st.foreign_run}" if st.foreign_run else "one that does not say its run"
         return (
-            f"clock: another simulator's clock on {self.prefix}/{SIM_CLOCK_KEY} (run {st.foreign_run}, not "
+            f"clock: another simulator's clock on {self.prefix}/{SIM_CLOCK_KEY} ({theirs}, not "
             f"run {st.run_id} that this gateway follows): {st.foreign} ticks ignored; two simulators share "
             'this prefix: give each bench its own ([zenoh] prefix here, "dpgw sim --prefix" there)'
         )
@@ -880,6 +883,7 @@ class GatewayService:
         assert st is not None
         newest, tick = st.follow()
         self.runs_followed += 1
+        self._status_ns = 0  # (the old run's time: the last status must not carry it into the new file)
         where = ""
         if self.log is not None:
             where = f"; log continues in {self.log.rotate().name}"

@@ -31,11 +31,15 @@ swapped) is only ignored, and so is a tick of the old run delivered after the ne
 the same way at the restart: near the old run's newest, far ahead of the new run's).
 
 Which simulator: a tick carries its run's identity (`SimClock.run`, drawn when the simulator starts; 0 from
-one that does not say, told by its times as above). Another run's tick while the run being stamped ticked
-within `FOREIGN_SILENT_NS` is another simulator publishing on the same key (two benches sharing a prefix):
-ignored and counted (`foreign`), never a restart; after that silence it is a new run whichever way its time
-goes. A run never starts again (its own tick far back is a bad tick), and a late tick of the run a restart
-left is ignored.
+one that does not say, told by its times as above among its own kind; beside or after one that says, 0 is
+another run like any other identity, since a simulator never changes whether it says during a run).
+Another run's tick is another simulator publishing on the same key (two benches sharing a prefix) when
+the run being stamped ticks on after it: ignored and counted (`foreign`), never a restart; when the run
+being stamped stays silent for `FOREIGN_SILENT_NS` it is a new run, from its first tick, whichever way
+its time goes. A run never starts again
+(its own tick far back is a bad tick), and a late tick of the run a restart left
+is ignored. A gateway that knows its simulator's run `pin`s it: every other tick (of a run that does not
+say, 0, too) is another simulator's, and what it took of another run before the pin is dropped.
 """
 
 from __future__ import annotations
@@ -53,8 +57,11 @@ RESTART_BACK_NS = 1_000_000_000
 (those are a tick period apart, 0.05 s)."""
 FOREIGN_SILENT_NS = 2_000_000_000
 """A tick of another run (another `SimClock.run`) while the run being stamped ticked within this much wall
-time is another simulator's clock on the same key: ignored and counted (`SimTime.foreign`). Once the run
-being stamped has been silent this long, another run's ticks are a new run (a restarted simulator)."""
+time is kept apart until it is known whose it is: another simulator's clock on the same key once the run
+being stamped ticks again after it (ignored and counted, `SimTime.foreign`); once the run being stamped
+has been silent this long, a new run (a restarted simulator) from its first tick. A bench restarts
+`dpgw sim` within this (its clock is up 0.9 s after the start): counted at once, the new run's first
+ticks were lost and raised the alarm of two benches on one prefix for the rest of the run."""
 _KEEP_TICKS = 16384
 """Ticks kept (about 20 s at 10x with a tick per event): a chunk that waited in the queue that long on a
 busy machine is still stamped from the ticks around its receive instant."""
@@ -127,12 +134,26 @@ class SimTime:
         self.foreign_run = 0
         """The `SimClock.run` of the last such tick."""
         self._pinned = False  # `pin`: one run only
+        self._cand: _Ticks | None = None  # another run's ticks while the run followed may still tick
+        self._cand_id = 0
 
     def pin(self, run_id: int) -> None:
         """Follow run ``run_id`` only, from its first tick on: every other run's tick is another
-        simulator's, whenever it comes. For a gateway that knows its simulator's run (`dpgw demo`
-        publishes the clock itself); a gateway that does not follows the first run it hears."""
+        simulator's, whenever it comes, a simulator that does not say its run (0) among them. For a
+        gateway that knows its simulator's run (`dpgw demo` publishes the clock itself); a gateway that
+        does not follows the first run it hears. Ticks of another run taken before the pin (the clock is
+        subscribed to before the publisher whose run is pinned exists) are dropped and counted as
+        another simulator's: kept, they were the run followed, and every tick of the pinned run going
+        back from them was ignored as a bad tick of that run."""
         with self._lock:
+            if self.ticks and (self.run_id != run_id or self._new is not None):
+                self.foreign += self.ticks
+                self.foreign_run = self._new_id if self._new is not None else self.run_id
+                self._run, self._new = _Ticks(), None
+                self._last_out = self._left_newest = self.went_back = None
+                self._new_id = self._left_id = 0
+                self.ticks = 0
+            self._cand = None
             self.run_id = run_id
             self._pinned = True
 
@@ -148,30 +169,52 @@ class SimTime:
             if not (period_s > 0.0):
                 self.ignored += 1
                 return
+            if self._pinned and run_id != self.run_id:  # (0 too: a simulator that does not say)
+                self.foreign += 1
+                self.foreign_run = run_id
+                return
             run = self._run if self._new is None else self._new
             current = self._new_id if self._new is not None else self.run_id
-            if run_id and current and run_id != current:
-                # another run's tick: a tick of the run a restart left, delivered late; another simulator
-                # on this key while the run followed still ticks (two benches sharing a prefix); or, the
-                # run followed silent, a restarted simulator, whichever way its time goes
-                if run_id == self._left_id:
+            if run.sim and run_id != current:
+                # another run's tick (0 and an identity differ too: a simulator never changes whether it
+                # says during a run): a tick of the run a restart left, delivered late; another simulator
+                # on this key while the run followed still ticks (two benches sharing a prefix, one
+                # perhaps older); or, the run followed silent, a restarted simulator, whichever way its
+                # time goes
+                if run_id == self._left_id and (
+                    run_id
+                    or (self._left_newest is not None and abs(sim_ns - self._left_newest) <= RESTART_BACK_NS)
+                ):
                     self.ignored += 1
                     return
-                if self._pinned or (run.mono and mono_ns - run.mono[-1] <= FOREIGN_SILENT_NS):
-                    self.foreign += 1
-                    self.foreign_run = run_id
+                cand = self._cand if self._cand_id == run_id else None
+                if mono_ns - run.mono[-1] > FOREIGN_SILENT_NS:
+                    # the run followed silent: a new run, from its first tick (gathered while it was
+                    # not known yet whether the run followed would tick again)
+                    first_sim, first_mono = (cand.sim[0], cand.mono[0]) if cand else (sim_ns, mono_ns)
+                    self._begin_new_run(first_sim, first_mono, run, run_id)
+                    if cand is not None:
+                        self._new, self._cand = cand, None
+                        self.ticks += len(cand.sim)
+                    self._add(sim_ns, period_s, mono_ns)
                     return
-                self._begin_new_run(sim_ns, mono_ns, run, run_id)
-                self._new_id = run_id
-                self._add(sim_ns, period_s, mono_ns)
+                if cand is None and self._cand is None:
+                    # the run followed ticked within the silence: another simulator's, if it ticks again
+                    # after this (the two then tick side by side); a restarted simulator's, if not (a
+                    # bench restarts `dpgw sim` within a second)
+                    cand = self._cand = _Ticks()
+                    self._cand_id = run_id
+                if cand is not None:
+                    cand.add(sim_ns, period_s, mono_ns)
+                    return
+                self.foreign += 1  # (a third simulator, while another is a candidate)
+                self.foreign_run = run_id
                 return
+            if self._cand is not None and run.sim and mono_ns >= self._cand.mono[0]:
+                # the run followed ticks on after the other's first tick: the other is another simulator
+                self.foreign += len(self._cand.sim)
+                self.foreign_run, self._cand = self._cand_id, None
             if run_id and not run.sim:  # the first tick of the run being gathered: who it is
-                if self._new is None:
-                    self.run_id = run_id
-                else:
-                    self._new_id = run_id
-            elif run_id and not current:
-                # a run that said nothing until now (the simulator was replaced by one that says)
                 if self._new is None:
                     self.run_id = run_id
                 else:
@@ -206,6 +249,7 @@ class SimTime:
         self._left_id = self._new_id if self._new is not None else self.run_id
         self._new_id = run_id
         self._new = _Ticks()
+        self._cand = None  # (of the run left)
         return self._new
 
     def _add(self, sim_ns: int, period_s: float, mono_ns: int) -> None:

@@ -272,6 +272,29 @@ def test_the_reacquisition_gate_is_wider_along_the_receivers_wide_axis() -> None
     assert m.beyond_prediction_gate("position", (r, -r), (0.0, 0.0)) != ""  # no covariance: the fixed gate
 
 
+@given(
+    st.floats(-3.0, 308.0),  # σ's decimal exponent: every size a float holds, not mostly the largest
+    st.floats(0.0, 1.0),
+    st.floats(math.radians(1.0), math.radians(89.0)),
+    angles,
+)
+def test_any_gst_ellipse_taken_gives_the_reacquisition_gate_a_size(
+    exponent: float, ratio: float, theta: float, direction: float
+) -> None:
+    """A GST ellipse up to the float's limit: whatever covariance `gst_covariance` takes from it, the
+    gate after an outage has a size, never NaN. Above σ ≈ 1e77 m the determinant the reach is made of
+    (C_NN·C_EE − C_NE²) overflows to inf − inf: the gate was NaN, and every fix returning after an outage
+    was called outside it ("gate nan m") and restarted the observers."""
+    a = 10.0**exponent
+    cov = gst_covariance(_gst(sigma_major_m=a, sigma_minor_m=a * ratio, orient_rad=theta))
+    if cov is None:
+        return
+    assert not math.isnan(ellipse_reach(cov[:3], math.cos(direction), math.sin(direction)))
+    p = pipeline([nmea_src("gps", ["position", "heading"])])
+    off = p.monitor.beyond_prediction_gate("position", (100.0, 100.0), (0.0, 0.0), cov_ne=cov[:3])
+    assert "nan" not in off
+
+
 # ---------------------------------------------------------------------------------------------- pooling
 
 

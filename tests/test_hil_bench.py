@@ -200,6 +200,9 @@ def test_a_simulator_restarted_under_the_gateway_is_followed(tmp_path: Path) -> 
     followed = [line for line in said if "following the new run" in line]
     assert len(followed) == 1 and "log continues in hil_0001.mcap" in followed[0], followed
     assert "went back" in followed[0] and "restart dpgw run" not in "".join(said)
+    # the restarted simulator (a new run identity, its clock up within the old one's 2 s of silence) is
+    # not taken for a second bench on the prefix (before: the alarm, for the rest of the run)
+    assert not [line for line in said if "another simulator" in line]
     # two files, one a run, each complete and on its own run's time, in order
     assert sorted(tmp_path.glob("hil*.mcap")) == [log, log2]
     for path, truth in ((log, truth1), (log2, truth2)):

@@ -602,3 +602,52 @@ def test_a_second_simulator_on_the_same_key_is_ignored_and_alarmed(
         service.close()
         ours.close()
         theirs.close()
+
+
+def test_a_demo_pinned_after_hearing_another_simulator_stamps_on_its_own(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """`dpgw demo` starts its gateway (subscribed to the clock) before it pins its own simulator's run: a
+    tick of another simulator heard in between is dropped at the pin, the demo's data is stamped on its
+    own simulator's time, and the other simulator is said once in the log."""
+    import logging
+    import time
+
+    caplog.set_level(logging.WARNING, logger="gateway.service")
+    service = sim_service(tmp_path)
+    st = service.sim_time
+    assert st is not None
+    ours, theirs = 1_600_000_000 * S, 1_600_000_000 * S + 3600 * S
+    service._on_clock(Sample(SimClock(stamp_ns=theirs, period_s=0.05, speed=1.0, run=22).encode()))
+    st.pin(11)
+    service._on_clock(Sample(SimClock(stamp_ns=ours, period_s=0.05, speed=1.0, run=11).encode()))
+    service._on_clock(Sample(SimClock(stamp_ns=theirs + TICK_NS, period_s=0.05, speed=1.0, run=22).encode()))
+    service._take(chunk(time.monotonic_ns()))
+    assert ours <= service.pipeline.counters["mux"].last_rx_ns <= ours + TICK_NS
+    said = [r for r in caplog.records if "another simulator's clock" in r.getMessage()]
+    assert len(said) == 1 and "run 22" in said[0].getMessage()
+
+
+def test_the_last_status_after_a_restart_is_on_the_new_runs_time(tmp_path: Path) -> None:
+    """The last status `drain` writes is never stamped before the periodic one logged last, but that one
+    is of the run before a restart when the gateway stops right after following a new run: the last status
+    goes into the new run's file at the new run's time, not an hour ahead at the old run's."""
+    import time
+
+    from wire.mcap.writer import McapLogWriter
+
+    service = sim_service(tmp_path, status_hz=10.0)
+    service.log = McapLogWriter(tmp_path / "gw.mcap", profile="dpgw", continue_set=True)
+    st = service.sim_time
+    assert st is not None
+    t0, mono0 = 1_600_000_000 * S, time.monotonic_ns() - 60 * S
+    run_of_the_plant(service, t0 + 3600 * S, mono0, (100.0, 0.0, 45.0))  # the old run, an hour ahead
+    service.run(duration_s=0.15)  # its periodic status
+    st.on_tick(t0, 0.05, mono0 + 12 * S)  # the restarted simulator's first tick
+    service._take(Chunk("mux", fix(-50.0, 30.0, 200.0, t0), rx_ns=1, rx_mono_ns=mono0 + 12 * S + 10**6))
+    assert service.runs_followed == 1
+    service.drain()
+    service.log.close()
+    new_file = _messages(tmp_path / "gw_0001.mcap")
+    late = [(topic, t) for topic, t, _ in new_file if not t0 <= t <= t0 + S]
+    assert not late, f"stamped off the new run's time: {late}"

@@ -33,8 +33,9 @@ VDOP is typically 1.5-2 × HDOP), and `up_known` is False: the published covaria
 APPROXIMATED (ROS NavSatFix, Foxglove LocationFix), not KNOWN or DIAGONAL_KNOWN.
 
 Negative σ and a non-finite orientation never get here: the decoder rejects such a sentence as a
-``bad_field`` (`wire.codecs.nmea`). A σ above `SIGMA_MAX_M`, finite but so large that its square, or the
-sums and doublings made of squares here, would overflow to infinity, counts as absent: an infinite
+``bad_field`` (`wire.codecs.nmea`). A σ above `SIGMA_MAX_M`, finite but so large that its square, the
+sums and doublings made of squares here, or a product of two variances downstream (an ellipse's
+determinant) would overflow to infinity, counts as absent: an infinite
 covariance is no figure (JSON has no infinity, so the LocationFix would carry `null` where Foxglove's
 schema has a number, and the ellipse shape of `unit_shape` would be NaN), and the rules above then use
 what else the sentence gives.
@@ -51,10 +52,12 @@ AGREE_REL: Final = 0.1
 """The ellipse's marginal σ and the sentence's σ_lat / σ_lon agree within 10 % ..."""
 AGREE_ABS_M: Final = 0.1
 """... or within 0.1 m (a receiver printing one decimal rounds each of the four figures by 0.05 m)."""
-SIGMA_MAX_M: Final = 1e150
-"""Largest σ taken (m): its square is ≤ 1e300, so every sum of squares here (and the approximated up
-variance, 4 × their mean) stays finite. A real receiver's σ is below the Earth's radius; larger is a
-sentence that means nothing."""
+SIGMA_MAX_M: Final = 1e75
+"""Largest σ taken (m): its square is ≤ 1e150, so every sum of squares here (and the approximated up
+variance, 4 × their mean) stays finite, and so does a product of two variances downstream: the
+determinant C_NN·C_EE − C_NE² of `gateway.references.monitor.ellipse_reach` (with σ up to 1e150 it was
+inf − inf, the re-acquisition gate NaN, and every fix back after an outage outside it). A real receiver's
+σ is below the Earth's radius; larger is a sentence that means nothing."""
 
 ELLIPSE, AXES, INCONSISTENT = "ellipse", "axes", "inconsistent"
 """Where a `GstCovariance` came from: the full ellipse; σ_lat / σ_lon alone (no complete ellipse); σ_lat /
