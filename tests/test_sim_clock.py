@@ -185,7 +185,11 @@ class Sample:
 
 
 def sim_service(
-    tmp_path: Path, clock: str = "sim", status_hz: float = 1.0, commands: list[str] | None = None
+    tmp_path: Path,
+    clock: str = "sim",
+    status_hz: float = 1.0,
+    commands: list[str] | None = None,
+    zenoh: dict[str, Any] | None = None,
 ) -> GatewayService:
     tables: dict[str, Any] = {
         "vessel": {"name": "mss_supply"},
@@ -199,6 +203,8 @@ def sim_service(
     }
     if commands:
         tables["commands"] = {"accept": commands}
+    if zenoh:
+        tables["zenoh"] = zenoh
     return GatewayService(parse_config(tables, base_dir=tmp_path))
 
 
@@ -557,17 +563,8 @@ def test_a_second_simulator_on_the_same_key_is_ignored_and_alarmed(
     from tests.conftest import free_port, wait_for
 
     port = free_port()
-    tables: dict[str, Any] = {
-        "vessel": {"name": "mss_supply"},
-        "datum": {"lat_deg": 59.4, "lon_deg": 10.5},
-        "sources": [
-            {"name": "mux", "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position", "heading"]}
-        ],
-        "log": {"path": ""},
-        "time": {"clock": "sim"},
-        "zenoh": {"listen": [f"tcp/127.0.0.1:{port}"], "multicast_scouting": False, "prefix": "dp/t"},
-    }
-    service = GatewayService(parse_config(tables, base_dir=tmp_path))
+    zenoh = {"listen": [f"tcp/127.0.0.1:{port}"], "multicast_scouting": False, "prefix": "dp/t"}
+    service = sim_service(tmp_path, zenoh=zenoh)
     ours = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{port}"]))
     theirs = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{port}"]))
     epoch = SimEpoch(datetime(2026, 3, 1, tzinfo=UTC))
