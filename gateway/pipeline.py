@@ -1343,8 +1343,8 @@ class Pipeline:
         # one DOF back (confirmed outside the gate, or lost) while the other was measured at the last
         # step and is now: that DOF alone restarts. The other's state is as good as its measurements,
         # however long the first was away (nothing stepped for lost_after_s is both DOFs lost at once).
-        single = confirmed if not lost else lost_dofs if not confirmed else []
-        if why and len(single) == 1:
+        single = lost_dofs if lost else confirmed  # (a DOF lost beside one confirmed: both are back)
+        if why and len(single) == 1 and not (lost and confirmed):
             other = 2 - single[0]  # (0 position, 2 heading)
             steady = valid[other] and not reacq[other] and measured[other] == self._last_step_ns
             if steady and self._restart_dof(single[0], y):

@@ -68,14 +68,16 @@ busy machine is still stamped from the ticks around its receive instant."""
 
 
 class _Ticks:
-    """The ticks kept of one run of the plant: receive instants and simulation times, both ascending."""
+    """The ticks kept of one run of the plant: receive instants and simulation times, both ascending, and
+    the run's `SimClock.run` (0: its simulator does not say)."""
 
-    __slots__ = ("mono", "period_ns", "sim")
+    __slots__ = ("mono", "period_ns", "run_id", "sim")
 
-    def __init__(self) -> None:
+    def __init__(self, run_id: int = 0) -> None:
         self.mono: list[int] = []
         self.sim: list[int] = []
         self.period_ns = 0
+        self.run_id = run_id
 
     def add(self, sim_ns: int, period_s: float, mono_ns: int) -> None:
         if self.mono and mono_ns < self.mono[-1]:
@@ -125,9 +127,6 @@ class SimTime:
         """The receive instant of the new run's first tick (while `went_back` is set)."""
         self.runs = 1
         """Runs of the plant stamped so far: 1, and one more at each `follow`."""
-        self.run_id = 0
-        """The `SimClock.run` of the run being stamped (0: its simulator does not say)."""
-        self._new_id = 0  # the new run's, until it is followed
         self._left_id = 0  # the run the last restart left
         self.foreign = 0
         """Ticks of another simulator's run, ignored: they came while the run being stamped was ticking."""
@@ -135,7 +134,11 @@ class SimTime:
         """The `SimClock.run` of the last such tick."""
         self._pinned = False  # `pin`: one run only
         self._cand: _Ticks | None = None  # another run's ticks while the run followed may still tick
-        self._cand_id = 0
+
+    @property
+    def run_id(self) -> int:
+        """The `SimClock.run` of the run being stamped (0: its simulator does not say)."""
+        return self._run.run_id
 
     def pin(self, run_id: int) -> None:
         """Follow run ``run_id`` only, from its first tick on: every other run's tick is another
@@ -148,13 +151,13 @@ class SimTime:
         with self._lock:
             if self.ticks and (self.run_id != run_id or self._new is not None):
                 self.foreign += self.ticks
-                self.foreign_run = self._new_id if self._new is not None else self.run_id
-                self._run, self._new = _Ticks(), None
+                self.foreign_run = (self._new if self._new is not None else self._run).run_id
+                self._new = None
                 self._last_out = self._left_newest = self.went_back = None
-                self._new_id = self._left_id = 0
+                self._left_id = 0
                 self.ticks = 0
             self._cand = None
-            self.run_id = run_id
+            self._run = _Ticks(run_id) if self.ticks == 0 else self._run
             self._pinned = True
 
     @property
@@ -174,7 +177,7 @@ class SimTime:
                 self.foreign_run = run_id
                 return
             run = self._run if self._new is None else self._new
-            current = self._new_id if self._new is not None else self.run_id
+            current = run.run_id
             if run.sim and run_id != current:
                 # another run's tick (0 and an identity differ too: a simulator never changes whether it
                 # says during a run): a tick of the run a restart left, delivered late; another simulator
@@ -187,7 +190,7 @@ class SimTime:
                 ):
                     self.ignored += 1
                     return
-                cand = self._cand if self._cand_id == run_id else None
+                cand = self._cand if self._cand is not None and self._cand.run_id == run_id else None
                 if mono_ns - run.mono[-1] > FOREIGN_SILENT_NS:
                     # the run followed silent: a new run, from its first tick (gathered while it was
                     # not known yet whether the run followed would tick again)
@@ -202,8 +205,7 @@ class SimTime:
                     # the run followed ticked within the silence: another simulator's, if it ticks again
                     # after this (the two then tick side by side); a restarted simulator's, if not (a
                     # bench restarts `dpgw sim` within a second)
-                    cand = self._cand = _Ticks()
-                    self._cand_id = run_id
+                    cand = self._cand = _Ticks(run_id)
                 if cand is not None:
                     cand.add(sim_ns, period_s, mono_ns)
                     return
@@ -213,12 +215,9 @@ class SimTime:
             if self._cand is not None and run.sim and mono_ns >= self._cand.mono[0]:
                 # the run followed ticks on after the other's first tick: the other is another simulator
                 self.foreign += len(self._cand.sim)
-                self.foreign_run, self._cand = self._cand_id, None
+                self.foreign_run, self._cand = self._cand.run_id, None
             if run_id and not run.sim:  # the first tick of the run being gathered: who it is
-                if self._new is None:
-                    self.run_id = run_id
-                else:
-                    self._new_id = run_id
+                run.run_id = run_id
             if run.sim and sim_ns < run.sim[-1]:
                 if sim_ns >= run.sim[-1] - RESTART_BACK_NS:
                     self.ignored += 1  # two ticks swapped in delivery
@@ -246,9 +245,8 @@ class SimTime:
         self.went_back = (self._run.sim[-1], sim_ns)
         self.restart_mono_ns = mono_ns
         self._left_newest = run.sim[-1]
-        self._left_id = self._new_id if self._new is not None else self.run_id
-        self._new_id = run_id
-        self._new = _Ticks()
+        self._left_id = run.run_id
+        self._new = _Ticks(run_id)
         self._cand = None  # (of the run left)
         return self._new
 
@@ -273,7 +271,6 @@ class SimTime:
             assert self._new is not None and self.went_back is not None
             went_back, self.went_back = self.went_back, None
             self._run, self._new = self._new, None
-            self.run_id, self._new_id = self._new_id, 0
             self._last_out = None
             self.runs += 1
             return went_back
