@@ -532,8 +532,10 @@ class GatewayService:
                     if now is None:  # no time yet: the status goes out (stamped with the wall), not logged
                         self._publish([self._status_without_time()])
                     else:
-                        self._emit([self.pipeline.status(now, self._alarms())])
-                        self._status_ns = now
+                        # never before the one before: "now" is the clock's present while the queue is
+                        # empty and the newest input handled while it is not, which can be a tick behind
+                        self._status_ns = max(now, self._status_ns)
+                        self._emit([self.pipeline.status(self._status_ns, self._alarms())])
                 except Exception:
                     self._internal_error("status", "the status")
 
@@ -653,6 +655,12 @@ class GatewayService:
                 logged_only += self._log_input(item)
                 continue
             self._take(item)
+        if logged_only:
+            log.warning(
+                "stopping: %d inputs still queued after %.0f s were logged without being handled",
+                logged_only,
+                within_s,
+            )
         held = 0
         while self._held:
             held += self._log_held(self._held.popleft())
@@ -660,14 +668,7 @@ class GatewayService:
             log.warning(
                 "stopping: %d inputs held for want of a simulation clock tick were logged unhandled", held
             )
-        logged_only += held
-        if logged_only - held:
-            log.warning(
-                "stopping: %d inputs still queued after %.0f s were logged without being handled",
-                logged_only - held,
-                within_s,
-            )
-        self.logged_unhandled += logged_only
+        self.logged_unhandled += logged_only + held
         if self.pipeline.last_ns:
             try:
                 self._emit([self.final_status()])
