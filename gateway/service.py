@@ -556,7 +556,7 @@ class GatewayService:
         while isinstance(item, Chunk) and item.data and self._queue.qsize() >= self.queue_max:
             if self._log_input(item):
                 self.shed[item.source] += 1
-            else:  # (no log, or no time to stamp it with yet)
+            else:  # (no log to write it to)
                 with self._lost_lock:
                     self.lost[item.source] += 1
             try:
@@ -598,22 +598,10 @@ class GatewayService:
         if not st.started or self._held or st.silent_since(item.rx_mono_ns, HOLD_SILENT_NS):
             if len(self._held) == HOLD_MAX:  # the oldest makes room: into the log, unhandled
                 self.held_dropped += 1
-                self.logged_unhandled += self._log_held(self._held.popleft())
+                self.logged_unhandled += self._log_input(self._held.popleft())
             self._held.append(item)
             return
         self._handle(item)
-
-    def _log_held(self, item: Chunk | _Input) -> int:
-        """Write an item held for want of a simulation time to the log as received, unhandled (it is let
-        go: the hold is full, or the gateway stops); 1 if written. Stamped with the simulation time once
-        the clock has started; before its first tick there is none, and the item gets its receive time on
-        this computer's clock (such a log then holds no simulation time at all: nothing was handled). A
-        replay handles it; dropping it lost what the sensors said."""
-        st = self.sim_time
-        rx = st.stamp(item.rx_mono_ns) if st is not None and st.started else None
-        if rx is None:
-            rx = self.wall_time.stamp(item.rx_ns, item.rx_mono_ns)
-        return int(self._log_received(item, rx))
 
     def _release_held(self) -> None:
         """What is held, in order, as soon as a tick came after it (what came before the first tick is
@@ -630,7 +618,7 @@ class GatewayService:
 
     def drain(self, within_s: float | None = None) -> None:
         """Handle whatever is already queued (used at shutdown so nothing received is dropped); what is
-        still held for want of a simulation clock is written to the log unhandled (`_log_held`: which run
+        still held for want of a simulation clock is written to the log unhandled (`_log_input`: which run
         of the plant it belongs to, and so its time, is not known).
         Then the last status goes out and into the log, with every count of the run: the periodic one
         (1 Hz) leaves up to a second of the run out, and a log's last status is what a replay reports of
@@ -663,7 +651,7 @@ class GatewayService:
             )
         held = 0
         while self._held:
-            held += self._log_held(self._held.popleft())
+            held += self._log_input(self._held.popleft())
         if held:
             log.warning(
                 "stopping: %d inputs held for want of a simulation clock tick were logged unhandled", held
@@ -676,9 +664,15 @@ class GatewayService:
                 self._internal_error("status", "the last status")
 
     def _log_input(self, item: Chunk | _Input) -> int:
-        """Write ``item`` to the log as it was received, without the pipeline; 1 if it was written."""
+        """Write ``item`` to the log as it was received, without the pipeline (shed, left at a stop, let go
+        by a full hold); 1 if it was written. Stamped on the configured clock; under ``clock = "sim"``
+        before its first tick there is no simulation time, and the item gets its receive time on this
+        computer's clock (such a log then holds no simulation time at all: nothing was handled). A replay
+        handles it; dropping it lost what the sensors said."""
         rx = self._stamp(item)
-        return 0 if rx is None else int(self._log_received(item, rx))
+        if rx is None:
+            rx = self.wall_time.stamp(item.rx_ns, item.rx_mono_ns)
+        return int(self._log_received(item, rx))
 
     def _log_received(self, item: Chunk | _Input, rx: int) -> bool:
         """Write ``item`` to the log as it was received, stamped ``rx``: a command input on its ``/dp/``
