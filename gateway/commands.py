@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from mypy_extensions import mypyc_attr
 
 from observers.vessel import VesselModel
 
@@ -71,6 +72,7 @@ class CommandCounters:
     last_refused: str | None = None
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class Refusal:
     """Why one input was refused: ``reason`` is the counter's key, ``text`` the sentence for the log."""

@@ -60,6 +60,7 @@ from types import MappingProxyType
 from typing import Any, NamedTuple
 
 import numpy as np
+from mypy_extensions import mypyc_attr
 from numpy.typing import ArrayLike, NDArray
 
 from observers.hull import apparent_wind_body
@@ -100,6 +101,7 @@ class Held(NamedTuple):
         return self.source != "" and now_ns - self.rx_ns <= self.valid_ns
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True, slots=True)
 class PositionFix:
     north: float

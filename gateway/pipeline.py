@@ -26,6 +26,7 @@ from functools import cached_property
 from typing import Any
 
 import numpy as np
+from mypy_extensions import mypyc_attr
 
 from gateway.commands import CommandGate
 from gateway.config import (
@@ -100,6 +101,7 @@ receiver's own scatter; what it costs a replay is measured in docs/foxglove.md).
 sets it to compare."""
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True, init=False)
 class RawEvent:
     """A chunk of bytes as received: UTC receive time (ns), source name, bytes.
@@ -143,6 +145,7 @@ class RawEvent:
         d["records"] = records
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class ControlEvent:
     """An input from Zenoh (setpoint, mode, manual τ), logged so replay sees it too."""
@@ -152,6 +155,7 @@ class ControlEvent:
     payload: Any
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True, init=False)
 class Output:
     """Something to publish and/or log: MCAP topic (the Zenoh key is the prefix + the part after /dp) and
@@ -173,6 +177,7 @@ class Output:
         return self.message.to_dict()
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class SourceSpec:
     """What the pipeline needs to know of a source (built from the config)."""
@@ -209,6 +214,7 @@ class SourceSpec:
         return int(self.timeout_s * NS)
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class PipelineSpec:
     vessel: VesselModel

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from mcap.reader import make_reader
+from mypy_extensions import mypyc_attr
 
 from gateway.config import GatewayConfig, default_config, parse_config
 from gateway.config.logged import SIGNING_VERDICTS_KEY, unlogged_key_sources, without_unlogged_keys
@@ -335,6 +336,7 @@ def merged_events(inputs: list[Input]) -> Iterator[Event]:
 # --- configuration and observers --------------------------------------------------------------------------
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class ObserverSpec:
     name: str
@@ -466,6 +468,7 @@ def keyless_mavlink_sources(config: GatewayConfig) -> frozenset[str]:
     return frozenset(s.name for s in config.sources if s.protocol == "mavlink" and s.signing_key is None)
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class SigningVerdicts:
     """The live gateway's verdicts on the frames of its signed links, as a log records them

@@ -18,12 +18,28 @@ from conftest import free_port
 
 from gateway.bus import isolated_config, open_session
 from gateway.config import parse_config
-from gateway.pipeline import RawEvent, SourceCounters, SourceSpec
+from gateway.pipeline import RawEvent
 from gateway.service import GatewayService
 from wire.codecs import nmea_encode as enc
 from wire.mcap.reader import read_messages
 
 POISON = b"$POISON\r\n"  # the chunk carrying this marker makes the (patched) pipeline raise
+
+
+class _PipelineWith:
+    """A service's pipeline with some methods replaced. (The pipeline may be compiled, and a compiled
+    class's methods cannot be patched on its instances: the service is given this stand-in instead.)"""
+
+    def __init__(self, pipeline: Any, **methods: Callable[..., Any]) -> None:
+        object.__setattr__(self, "_pipeline", pipeline)
+        object.__setattr__(self, "_methods", methods)
+
+    def __getattr__(self, name: str) -> Any:
+        methods = object.__getattribute__(self, "_methods")
+        return methods[name] if name in methods else getattr(object.__getattribute__(self, "_pipeline"), name)
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        setattr(object.__getattribute__(self, "_pipeline"), name, value)
 
 
 def burst(k: int) -> bytes:
@@ -72,15 +88,16 @@ def test_a_bug_on_one_chunk_is_counted_logged_and_the_service_goes_on(
     service = GatewayService(parse_config(tables, base_dir=tmp_path), config_tables=tables)
 
     # A bug inside the pipeline, deep enough that the source's counters were already touched: it raises on
-    # the chunk with the marker and only on that one.
-    real_nmea = service.pipeline._nmea
+    # the chunk with the marker, after the rest of that chunk went through, and only on that one.
+    real = service.pipeline
 
-    def buggy_nmea(spec: SourceSpec, c: SourceCounters, ev: RawEvent, out: list[Any]) -> bool:
-        if POISON in ev.data:
+    def buggy_feed(ev: RawEvent | Any) -> list[Any]:
+        if isinstance(ev, RawEvent) and POISON in ev.data:
+            real.feed(RawEvent(ev.rx_ns, ev.source, ev.data.replace(POISON, b""), peer=ev.peer))
             raise ZeroDivisionError("a bug in the pipeline")
-        return real_nmea(spec, c, ev, out)
+        return real.feed(ev)
 
-    monkeypatch.setattr(service.pipeline, "_nmea", buggy_nmea)
+    monkeypatch.setattr(service, "pipeline", _PipelineWith(real, feed=buggy_feed))
     caplog.set_level(logging.ERROR, logger="dpgw")
     service.start()
     loop = threading.Thread(target=service.run, name="consumer")
@@ -255,13 +272,14 @@ def test_a_slow_first_compile_is_said_and_a_quick_one_is_not(
         monkeypatch.setattr(service_module, "COMPILE_NOTICE_S", 0.05 if slow else 5.0)
         service = GatewayService(parse_config(tables, base_dir=tmp_path), config_tables=tables)
         if slow:  # a compile that lasts until the notice has been given
-            monkeypatch.setattr(
-                service.pipeline,
-                "compile_kernels",
-                lambda: wait_for("the notice", lambda: bool(said()), 10.0),
+            slow_compile = _PipelineWith(
+                service.pipeline, compile_kernels=lambda: wait_for("the notice", lambda: bool(said()), 10.0)
             )
+            monkeypatch.setattr(service, "pipeline", slow_compile)
         else:
-            monkeypatch.setattr(service.pipeline, "compile_kernels", lambda: None)
+            monkeypatch.setattr(
+                service, "pipeline", _PipelineWith(service.pipeline, compile_kernels=lambda: None)
+            )
         try:
             service.start()
         finally:

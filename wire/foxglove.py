@@ -47,7 +47,9 @@ MEASURED_FRAME = "vessel_measured"
 """The fused measurement of the reference point, FLU."""
 
 LINE_STRIP, LINE_LOOP = 0, 1
-LOG_INFO, LOG_WARNING, LOG_ERROR = 2, 3, 4
+LOG_INFO = 2
+LOG_WARNING = 3
+LOG_ERROR = 4
 DELETE_MATCHING_ID = 0
 
 NS = 1_000_000_000

@@ -15,6 +15,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from mypy_extensions import mypyc_attr
 from numpy.typing import ArrayLike, NDArray
 
 A = 6378137.0  # WGS-84 semi-major axis (m)
@@ -53,6 +54,7 @@ def _bowring(x: float, y: float, z: float) -> tuple[float, float, float]:
     return math.atan2(z + EP2 * B * st * st * st, p - E2 * A * ct * ct * ct), math.atan2(y, x), p
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class LocalFrame:
     """The NED tangent plane at a datum (lat, lon in degrees, height in m above the ellipsoid)."""

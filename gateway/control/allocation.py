@@ -48,6 +48,7 @@ from typing import Any
 
 import daqp
 import numpy as np
+from mypy_extensions import mypyc_attr
 from numpy.typing import ArrayLike, NDArray
 
 from gateway.control import _allocation_kernel as _kernel
@@ -83,6 +84,7 @@ __all__ = [
 # Results
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class ThrusterCommand:
     """Thrust (N) and azimuth (rad, force direction, clockwise from the bow, [-π, π)) per thruster, in
@@ -99,6 +101,7 @@ class ThrusterCommand:
         return cls(np.zeros(n), ssa(np.array([t.angle_rad for t in vessel.thrusters], dtype=float)))
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class AllocationResult:
     """One allocation. ``tau_allocated`` = B(azimuth)·thrust of the returned command (N, N, N·m);
@@ -367,6 +370,7 @@ def _hold(
 # Constrained QP
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class StepLimits:
     """What each thruster can deliver in the coming step, around its previous state (layout order).
@@ -393,6 +397,7 @@ class StepLimits:
     upper: Array
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class QPData:
     """The QP of one step in scaled variables x = [f̂ (rotated frame), ŝ⁺ (3), ŝ⁻ (3), e (one per azimuth)]::
@@ -414,6 +419,7 @@ class QPData:
     n_eq: int
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class QPSolution:
     """Optimum of the QP: ``forces`` in the fixed frame of eq (22) (N; F_x, F_y per azimuth, u per fixed

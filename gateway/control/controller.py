@@ -98,6 +98,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
+from mypy_extensions import mypyc_attr
 from numpy.typing import ArrayLike, NDArray
 
 from gateway.control import _controller_kernel as _ck
@@ -163,6 +164,7 @@ def _per_dof(value: Any, name: str, n: int = 3, allow_zero: bool = False) -> tup
     return tuple(float(x) for x in a)
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class ControllerTuning:
     """Controller tuning in physical terms. Per-DOF values are (surge, sway, yaw); one value means all.
@@ -227,15 +229,18 @@ class ControllerTuning:
                 f"tuning 'return_speed_mps': must be at most the reference's max_speed_mps "
                 f"({limits['max_speed_mps']:g} m/s), got {self.return_speed_mps!r}"
             )
-        gain = self.wind_feedforward_gain
+        # The values as given, not through the fields' float types: compiled (setup.py), reading a float
+        # field turns True into 1.0 and fails on a string before these checks could say what is wrong.
+        given: dict[str, Any] = vars(self)
+        gain = given["wind_feedforward_gain"]
         if isinstance(gain, bool) or not isinstance(gain, int | float) or not 0.0 <= gain <= 1.0:
             raise ControllerError(
                 f"tuning 'wind_feedforward_gain': must be a number in [0, 1] (0 = off), got {gain!r}"
             )
-        wf = self.wind_filter_s
+        wf = given["wind_filter_s"]
         if isinstance(wf, bool) or not isinstance(wf, int | float) or not (math.isfinite(wf) and wf > 0):
             raise ControllerError(f"tuning 'wind_filter_s': must be a finite number > 0 s, got {wf!r}")
-        fade = self.wind_loss_fade_s
+        fade = given["wind_loss_fade_s"]
         if fade is not None and (
             isinstance(fade, bool)
             or not isinstance(fade, int | float)
@@ -262,6 +267,7 @@ class ControllerTuning:
         )
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class ControllerGains:
     """Kp, Ki, Kd (3×3, SI: N/m and N·m/rad; N/(m·s) and N·m/(rad·s); N·s/m and N·m·s/rad) and their design.
@@ -333,6 +339,7 @@ def closed_loop_matrix(vessel: VesselModel, gains: ControllerGains) -> Array:
     )
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class ControllerOutput:
     """One controller step.
@@ -388,6 +395,7 @@ def _finite3(value: ArrayLike | None) -> Array | None:
     return a
 
 
+@mypyc_attr(native_class=False)
 class DPController:
     """Nonlinear PID with reference model, modes and anti-windup (module docstring).
 

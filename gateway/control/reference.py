@@ -48,6 +48,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from mypy_extensions import mypyc_attr
 from numpy.typing import ArrayLike, NDArray
 
 from observers.kinematics import rotation, ssa_scalar
@@ -82,6 +83,7 @@ def _vec3(value: ArrayLike, name: str) -> Array:
     return a.copy()
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class ReferenceLimits:
     """Limits of the reference motion, over ground (earth frame): m/s, m/s², rad/s, rad/s²."""
@@ -96,6 +98,7 @@ class ReferenceLimits:
             object.__setattr__(self, name, _positive(getattr(self, name), name))
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class ReferenceState:
     """The reference at one time: earth-frame η_d, η_d', η_d''; body-frame ν_d, ν̇_d (at ψ_d); target r."""
@@ -118,6 +121,7 @@ def _sat_scalar(x: float, limit: float) -> float:
     return max(-limit, min(limit, x))
 
 
+@mypyc_attr(native_class=False)
 class ReferenceModel:
     """Third-order reference model with limits, per group (translation N–E, yaw). See module docstring.
 

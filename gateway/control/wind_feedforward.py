@@ -69,6 +69,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from mypy_extensions import mypyc_attr
 from numpy.typing import NDArray
 
 from observers.hull import WindArea, relative_wind_force
@@ -109,6 +110,7 @@ def observer_bias_time_s(vessel: VesselModel, observer: object) -> float | None:
     return -1.0 / rate if math.isfinite(rate) and rate < 0 else None
 
 
+@mypyc_attr(native_class=False)
 class WindFeedForward:
     """τ_wind = −k_w w τ̂_w of the low-passed relative wind; w fades out when the wind is lost and back in
     when it returns (module docstring)."""

@@ -71,6 +71,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from mypy_extensions import mypyc_attr
+
 from gateway.references.params import IntegrityParams
 from gateway.references.state import NS
 from wire.codecs.nmea_time import utc_step_s
@@ -101,6 +103,7 @@ the jump test: at the start, and after a burst, whose wrong values may agree by 
 two and would be taken for the motion a step is measured from (an offset that never steps back)."""
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class AttitudeLimits:
     """The ``[integrity]`` attitude thresholds in rad, rad/s and ns, worked out once."""

@@ -25,6 +25,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Literal, NamedTuple
 
+from mypy_extensions import mypyc_attr
+
 from gateway.references.attitude import AttitudeLimits, AttitudeTrack
 from gateway.references.feedback import feedback_problem
 from gateway.references.params import IntegrityParams
@@ -103,6 +105,7 @@ class Prediction(NamedTuple):
     rate: float = 0.0  # heading: the estimate's rate of turn (rad/s), which a spike's recovery extrapolates
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class _Limits:
     """One role's thresholds in the units of its values (m or rad), worked out once from the params

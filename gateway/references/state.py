@@ -4,11 +4,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from mypy_extensions import mypyc_attr
+
 NS = 1_000_000_000
 OK, SUSPECT, REJECTED, STALE = "ok", "suspect", "rejected", "stale"
 STATES = (OK, SUSPECT, REJECTED, STALE)
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class StateChange:
     """A source changed state: when, which source and role, from what to what, and why (for people)."""

@@ -33,6 +33,8 @@ from functools import cached_property
 from types import ModuleType
 from typing import Any
 
+from mypy_extensions import mypyc_attr
+
 from observers.kinematics import ssa_scalar
 from wire.codecs.generated import dpgw as _dpgw
 
@@ -361,6 +363,7 @@ def frame_digest(frame: bytes | bytearray) -> str:
     return hashlib.sha256(frame).hexdigest()[:16]
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True, slots=True)
 class FrameIds:
     """What a frame's header and signature block say of it (MAVLink 1 or 2; no decoding)."""
@@ -384,6 +387,7 @@ def frame_ids(frame: bytes | bytearray) -> FrameIds:
     return FrameIds(frame[5], frame[6], frame[4], msg_id, frame[-13], timestamp)
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True, slots=True)
 class SigningReject:
     """A complete frame refused for signing: ``reason`` (one of `SIGNING_REASONS`), ``offset`` where its
@@ -576,6 +580,7 @@ class FrameParser:
 # ---------------------------------------------------------------------------------------------- SI records
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True, slots=True)
 class PositionReport:
     """A GNSS position: WGS-84 latitude and longitude (degrees), altitude above mean sea level (m).
@@ -594,6 +599,7 @@ class PositionReport:
         return self.fix_type is None or self.fix_type >= GPS_FIX_TYPE_2D_FIX
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True, slots=True)
 class HeadingReport:
     """A heading (rad, clockwise from true north; not wrapped here: the fusion wraps every angle once)."""
@@ -601,6 +607,7 @@ class HeadingReport:
     heading_rad: float
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True, slots=True)
 class ThrusterReport:
     """Feedback of one thruster of the vessel's layout, with what the frame carries and nothing else.
@@ -621,6 +628,7 @@ class ThrusterReport:
     flags: int | None = None
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True, slots=True)
 class EscDirectionReport:
     """The direction an ArduPilot reversible motor output drives an ESC: ``direction`` +1 ahead (pulse
@@ -645,6 +653,7 @@ ESC_DEAD_BAND_US = 25.0
 common ±25 µs of reversible (bidirectional) ESCs."""
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class ArduPilotWiring:
     """How an ArduPilot's outputs reach the vessel's thrusters (the source's ``[sources.ardupilot]``).

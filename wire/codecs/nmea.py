@@ -43,6 +43,8 @@ from dataclasses import dataclass, field, fields
 from datetime import UTC, date, datetime, timedelta
 from typing import Any, Final, Literal, TypeAlias, TypeVar
 
+from mypy_extensions import mypyc_attr
+
 from observers.kinematics import ssa_scalar
 from wire.codecs.nmea_encode import checksum
 from wire.codecs.nmea_time import parse_time_of_day
@@ -68,6 +70,7 @@ _RAD_S_PER_DEG_MIN: Final = math.pi / 180.0 / 60.0
 # ---------------------------------------------------------------------------------------------- results
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True, slots=True)
 class Reject:
     """A sentence :func:`decode` could not use: ``reason`` is one of :data:`REJECT_REASONS`, ``detail`` a
@@ -77,6 +80,7 @@ class Reject:
     detail: str
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class Gga:
     """GGA, GNSS fix data. ``valid``: quality ≥ 1 and a position; quality 0 or an empty position is a
@@ -105,6 +109,7 @@ class Gga:
     valid: bool
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class Gns:
     """GNS, GNSS fix data with one mode character per constellation. ``valid``: a position and at least
@@ -129,6 +134,7 @@ class Gns:
     valid: bool
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class Rmc:
     """RMC, recommended minimum GNSS data. ``valid``: status ``A``, a position, and a mode (if sent) other
@@ -153,6 +159,7 @@ class Rmc:
     nav_status: str | None
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class Vtg:
     """VTG, course and speed over ground. ``valid``: a speed and a mode (if sent) other than ``N``; the
@@ -168,6 +175,7 @@ class Vtg:
     valid: bool
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class Gst:
     """GST, GNSS pseudorange error statistics (1σ, metres). Empty fields are ``None``."""
@@ -185,6 +193,7 @@ class Gst:
     sigma_alt_m: float | None
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class Zda:
     """ZDA, UTC time and date. The local zone fields are ignored (dpgw runs on UTC)."""
@@ -197,6 +206,7 @@ class Zda:
     """Time and date as an aware UTC datetime (``None`` if either is empty)."""
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class Heading:
     """HDT, THS (true heading) or HDG (magnetic compass).
@@ -215,6 +225,7 @@ class Heading:
     magnetic: bool = False
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class Mwv:
     """MWV, wind speed and angle (an anemometer). ``angle_rad`` is the direction the wind comes *from*,
@@ -236,6 +247,7 @@ class Mwv:
     valid: bool
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class Rot:
     """ROT, rate of turn in rad/s (positive: bow to starboard). ``valid``: a rate and status ``A``."""
@@ -246,6 +258,7 @@ class Rot:
     valid: bool
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class Attitude:
     """A motion reference unit's (MRU's) attitude: proprietary ``$PASHR`` (Applanix POS MV, Hemisphere,

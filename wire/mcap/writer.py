@@ -262,10 +262,10 @@ class McapLogWriter:
             self._fail_locked(exc)
 
         self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._flusher: threading.Thread | None = None
         if background_flush:
-            self._thread = threading.Thread(target=self._flush_loop, name="mcaplog-flush", daemon=True)
-            self._thread.start()
+            self._flusher = threading.Thread(target=self._flush_loop, name="mcaplog-flush", daemon=True)
+            self._flusher.start()
         # A program that exits without close() (or on an uncaught exception) still gets a complete file.
         atexit.register(self.close)
 
@@ -558,8 +558,8 @@ class McapLogWriter:
             except OSError as exc:
                 self._fail_locked(exc)
         self._stop.set()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join()
+        if self._flusher is not None and self._flusher is not threading.current_thread():
+            self._flusher.join()
         atexit.unregister(self.close)
 
     @property
@@ -779,7 +779,9 @@ class McapLogWriter:
         ):
             # fsync here only when there is no background thread to do it off the writers' path.
             self._flush_locked(
-                self._fsync and self._thread is None and now - self._last_fsync_wall >= self._flush_interval_s
+                self._fsync
+                and self._flusher is None
+                and now - self._last_fsync_wall >= self._flush_interval_s
             )
 
         if (
