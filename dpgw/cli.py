@@ -57,6 +57,12 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Run 'dpgw COMMAND --help' for the options of each command.",
         formatter_class=HelpFormatter,
     )
+    parser.add_argument(
+        "--version",
+        action=_Version,
+        help="print the version, and whether this install runs its hot path compiled (the speed of "
+        "docs/performance.md) or interpreted, and why; then exit",
+    )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for module in SUBCOMMANDS:
         module.add_arguments(
@@ -69,6 +75,25 @@ def build_parser() -> argparse.ArgumentParser:
             )
         )
     return parser
+
+
+class _Version(argparse.Action):
+    """``--version``: worked out when asked (the compiled-or-not check reads the sources), not at every
+    start-up."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, **kwargs: object) -> None:
+        super().__init__(option_strings, dest, nargs=0, help=str(kwargs.get("help", "")))
+
+    def __call__(self, parser: argparse.ArgumentParser, *_: object) -> None:
+        from importlib.metadata import PackageNotFoundError, version
+
+        from wire import compiled
+
+        try:
+            number = version("dpgw")
+        except PackageNotFoundError:  # (run from a checkout without installing)
+            number = "(not installed)"
+        parser.exit(0, f"dpgw {number}\nhot path: {compiled.status().describe()}\n")
 
 
 def subparser(parser: argparse.ArgumentParser, command: str) -> argparse.ArgumentParser:
