@@ -107,11 +107,27 @@ def extensions() -> tuple[list, str]:
     except ImportError as exc:  # (a build without the build-system requirements)
         return [], f"mypyc not available ({exc})"
     try:
-        built = mypycify(COMPILED, opt_level="3", group_name="wire._native")
+        # (the build's environment has the build requirements only: a `type: ignore` that the full install
+        # needs may be unused there, which is no reason to stop; CI's mypy run checks them)
+        built = mypycify(["--no-warn-unused-ignores", *COMPILED], opt_level="3", group_name="wire._native")
         patched_runtime(built)
         return built, ""
     except BaseException as exc:  # mypyc reports a type error by SystemExit
-        return [], f"mypyc failed ({exc!r})"
+        return [], f"mypyc failed ({exc!r}; `pip install -v` shows its errors)"
+
+
+def write_manifest(base: Path, built: bool, reason: str) -> None:
+    """What was compiled, from which sources (their hashes); or that nothing was, and why. The modules are
+    listed either way: an install that compiled nothing must still not import extensions an earlier build
+    left beside the sources (`wire.compiled` imports the listed modules from source then)."""
+    manifest = {
+        "compiled": built,
+        "reason": "" if built else reason,
+        "modules": {module_name(p): source_hash(p) if built else "" for p in COMPILED},
+    }
+    target = base / MANIFEST
+    target.parent.mkdir(parents=True, exist_ok=True)
+    target.write_text(json.dumps(manifest, indent=1) + "\n")
 
 
 class BuildExt(build_ext):
@@ -129,15 +145,8 @@ class BuildExt(build_ext):
                 BuildExt.reason = f"C build failed ({exc})"
                 built = False
                 self._remove_partial_outputs()
-        manifest = {
-            "compiled": built,
-            "reason": "" if built else BuildExt.reason,
-            "modules": {module_name(p): source_hash(p) for p in COMPILED} if built else {},
-        }
         base = ROOT if self.inplace or self.editable_mode else Path(self.build_lib)
-        target = base / MANIFEST
-        target.parent.mkdir(parents=True, exist_ok=True)
-        target.write_text(json.dumps(manifest, indent=1) + "\n")
+        write_manifest(base, built, BuildExt.reason)
 
     def _remove_partial_outputs(self) -> None:
         for ext in self.extensions:
@@ -152,4 +161,7 @@ class BuildExt(build_ext):
 ext_modules, BuildExt.reason = extensions()
 if BuildExt.reason:
     print(f"dpgw: the hot path installs as Python: {BuildExt.reason}", file=sys.stderr)
+    # (no extension, so no build_ext to write the manifest: written here, where an install from this folder
+    # reads it, so that `dpgw --version` can say why; pip shows the message above only with -v)
+    write_manifest(ROOT, False, BuildExt.reason)
 setup(ext_modules=ext_modules, cmdclass={"build_ext": BuildExt})

@@ -68,14 +68,15 @@ _status: Status | None = None
 
 
 def _read_manifest() -> tuple[dict[str, str], str]:
-    """The compiled modules and their sources' hashes, or none and why."""
+    """The modules the build compiles and their sources' hashes; and if it compiled none, why."""
     try:
         manifest = json.loads(_MANIFEST.read_text())
     except (OSError, ValueError):
         return {}, "no compiled build recorded here (run from a checkout, or installed without one)"
+    modules = {str(k): str(v) for k, v in manifest.get("modules", {}).items()}
     if not manifest.get("compiled"):
-        return {}, f"not compiled at install: {manifest.get('reason') or 'no reason recorded'}"
-    return {str(k): str(v) for k, v in manifest.get("modules", {}).items()}, ""
+        return modules, f"not compiled at install: {manifest.get('reason') or 'no reason recorded'}"
+    return modules, ""
 
 
 def _changed(modules: dict[str, str]) -> list[str]:
@@ -98,7 +99,9 @@ def install() -> Status:
         return _status
     modules, why_none = _read_manifest()
     names = tuple(sorted(modules))
-    if not modules:
+    if why_none:
+        if names:  # (extensions an earlier build left beside the sources must not be imported)
+            sys.meta_path.insert(0, _FromSource(frozenset(names)))
         _status = Status(False, (), why_none)
         return _status
     if not any(_ROOT.joinpath("wire").glob("_native__mypyc.*")):
