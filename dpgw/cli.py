@@ -93,7 +93,8 @@ class _Version(argparse.Action):
             number = version("dpgw")
         except PackageNotFoundError:  # (run from a checkout without installing)
             number = "(not installed)"
-        parser.exit(0, f"dpgw {number}\nhot path: {compiled.status().describe()}\n")
+        print(f"dpgw {number}\nhot path: {compiled.status().describe()}")  # (stdout, as argparse's own)
+        parser.exit(0)
 
 
 def subparser(parser: argparse.ArgumentParser, command: str) -> argparse.ArgumentParser:
