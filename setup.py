@@ -145,17 +145,19 @@ class BuildExt(build_ext):
                 BuildExt.reason = f"C build failed ({exc})"
                 built = False
                 self._remove_partial_outputs()
-        base = ROOT if self.inplace or self.editable_mode else Path(self.build_lib)
-        write_manifest(base, built, BuildExt.reason)
+        write_manifest(self._base(), built, BuildExt.reason)
 
     def _remove_partial_outputs(self) -> None:
         for ext in self.extensions:
             path = Path(self.get_ext_fullpath(ext.name))
             path.unlink(missing_ok=True)
 
+    def _base(self) -> Path:
+        """Where the built package lands: the sources themselves (editable, in place) or the build folder."""
+        return ROOT if self.inplace or self.editable_mode else Path(self.build_lib)
+
     def get_outputs(self) -> list[str]:
-        base = ROOT if self.inplace or self.editable_mode else Path(self.build_lib)
-        return [*super().get_outputs(), str(base / MANIFEST)]
+        return [*super().get_outputs(), str(self._base() / MANIFEST)]
 
 
 ext_modules, BuildExt.reason = extensions()

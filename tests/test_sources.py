@@ -205,17 +205,26 @@ def test_serial_port_in_use_is_refused(opened: list[Source]) -> None:
             second.start(Collector())
 
 
+def _read_then_unplug(
+    opened: list[Source], name: str, link: Path, first: bytes
+) -> tuple[SerialSource, Collector]:
+    """A serial source on a pty behind ``link`` that has read ``first``, then the pty gone (the link too)
+    and the source seen disconnected."""
+    sink = PtySink(str(link))
+    try:
+        src, got = start(opened, name, f"pty://{link}", SerialSource)
+        sink.write(first)
+        assert got.wait_bytes(len(first)) == first
+    finally:
+        sink.close()
+    assert wait_until(lambda: not src.stats.connected, 3.0)
+    return src, got
+
+
 def test_serial_unplugged_while_running_reopens(opened: list[Source], tmp_path: Path) -> None:
     """The pty vanishing is a USB adapter unplugged: counted, marked, reopened with back-off, never raised."""
     link = tmp_path / "usb"
-    sink = PtySink(str(link))
-    try:
-        src, got = start(opened, "gps", f"pty://{link}", SerialSource)
-        sink.write(GGA)
-        assert got.wait_bytes(len(GGA)) == GGA
-    finally:
-        sink.close()  # unplugged
-    assert wait_until(lambda: not src.stats.connected, 3.0)
+    src, got = _read_then_unplug(opened, "gps", link, GGA)
     assert src.stats.errors["disconnected"] == 1 and src.running
     with PtySink(str(link)) as sink2:  # plugged in again (a new pty behind the same name)
         assert wait_until(lambda: src.stats.connected, 5.0)
@@ -233,14 +242,7 @@ def test_a_pty_made_again_after_a_long_absence_is_read_at_once(opened: list[Sour
     is not there is looked for, cheaply, every `ABSENT_POLL_S` instead.
     """
     link = tmp_path / "gyro"
-    sink = PtySink(str(link))
-    try:
-        src, got = start(opened, "gyro1", f"pty://{link}", SerialSource)
-        sink.write(HDT)
-        assert got.wait_bytes(len(HDT)) == HDT
-    finally:
-        sink.close()  # the simulator stopped: its pty and the link are gone
-    assert wait_until(lambda: not src.stats.connected, 3.0)
+    src, got = _read_then_unplug(opened, "gyro1", link, HDT)  # the simulator stopped: its pty is gone
     # the scenario's input, not a wait for an event: the simulator takes seconds to start again, and in
     # that time the back-off would have grown past three failed opens (0.5 + 1 + 2 s)
     time.sleep(4.0)

@@ -36,12 +36,15 @@ _MANIFEST = _ROOT / "wire" / "_compiled.json"
 
 @dataclass(frozen=True)
 class Status:
-    compiled: bool
-    """The hot path runs compiled."""
     modules: tuple[str, ...]
     """The modules the install compiled (empty when it compiled none)."""
     why_not: str
     """Why the hot path runs interpreted ("" when it runs compiled)."""
+
+    @property
+    def compiled(self) -> bool:
+        """The hot path runs compiled."""
+        return not self.why_not
 
     def describe(self) -> str:
         if self.compiled:
@@ -102,17 +105,17 @@ def install() -> Status:
     if why_none:
         if names:  # (extensions an earlier build left beside the sources must not be imported)
             sys.meta_path.insert(0, _FromSource(frozenset(names)))
-        _status = Status(False, (), why_none)
+        _status = Status((), why_none)
         return _status
     if not any(_ROOT.joinpath("wire").glob("_native__mypyc.*")):
-        _status = Status(False, (), "the manifest names compiled modules but their library is missing")
+        _status = Status((), "the manifest names compiled modules but their library is missing")
         return _status
     if os.environ.get(PURE_ENV, "") not in ("", "0"):
         why = f"{PURE_ENV} is set"
     else:
         changed = _changed(modules)
         if not changed:
-            _status = Status(True, names, "")
+            _status = Status(names, "")
             return _status
         shown = ", ".join(changed[:3]) + (" ..." if len(changed) > 3 else "")
         why = f"changed since compiled: {shown}"
@@ -126,7 +129,7 @@ def install() -> Status:
     if loaded:  # (imported before the decision: cannot be undone; should not happen, see __init__)
         why += f"; already loaded compiled: {', '.join(loaded)}"
     sys.meta_path.insert(0, _FromSource(frozenset(names)))
-    _status = Status(False, names, why)
+    _status = Status(names, why)
     return _status
 
 
