@@ -436,3 +436,40 @@ def test_an_empty_altitude_sigma_is_not_published_as_an_exact_height() -> None:
     (payload,) = [o.payload for o in out if o.topic == "/gnss/gps/fix"]
     assert payload["position_covariance_type"] == COVARIANCE_KNOWN
     assert payload["position_covariance"][8] == pytest.approx(1.0)
+
+
+def test_zero_sigmas_are_no_exact_fix() -> None:
+    """A receiver prints 0 below its print resolution, or fills fields it does not compute with zeros:
+    all-zero horizontal figures give no covariance (never a zero one published as KNOWN), a σ alt of 0
+    is no σ alt, and one zero axis beside a non-zero one is a thin ellipse, kept."""
+    assert gst_covariance(_gst(sigma_major_m=0.0, sigma_minor_m=0.0, orient_rad=0.0)) is None
+    assert gst_covariance(_gst(sigma_lat_m=0.0, sigma_lon_m=0.0, sigma_alt_m=0.0)) is None
+    zeros = _gst(
+        sigma_major_m=0.0, sigma_minor_m=0.0, orient_rad=0.0, sigma_lat_m=0.0, sigma_lon_m=0.0, sigma_alt_m=0.0
+    )
+    assert gst_covariance(zeros) is None
+    # a zero ellipse beside small per-axis σ (within the agreement margin of 0): the σ are the figures
+    cov = gst_covariance(
+        _gst(sigma_major_m=0.0, sigma_minor_m=0.0, orient_rad=0.0, sigma_lat_m=0.05, sigma_lon_m=0.04)
+    )
+    assert cov is not None and cov.origin == AXES and cov[:3] == pytest.approx((0.0025, 0.0, 0.0016))
+    # σ alt 0: the up variance approximated from the horizontal, not an exact height
+    cov = gst_covariance(_gst(sigma_lat_m=0.3, sigma_lon_m=0.4, sigma_alt_m=0.0))
+    assert cov is not None and not cov.up_known and cov.uu > 0
+    # an ellipse thinner than the print resolution: the line, its shape floored to stay finite
+    cov = gst_covariance(_gst(sigma_major_m=0.5, sigma_minor_m=0.0, orient_rad=0.0))
+    assert cov is not None and cov.origin == ELLIPSE and cov[:3] == pytest.approx((0.25, 0.0, 0.0))
+    shape = unit_shape(cov[:3])
+    assert shape is not None and all(math.isfinite(v) for v in shape) and shape[2] > 0
+    # through the pipeline: the fix's covariance is not published as known-exact, nor used as such
+    p = pipeline([nmea_src("gps", ["position", "heading"], timeout_s=2.0)])
+    hdt = enc.hdt("HE", 0.3).encode()
+    p.feed(RawEvent(T0, "gps", gga_at(0.0, 0.0) + hdt))
+    text = "GPGST,120000.00,0.0,0.0,0.0,0.0,0.0,0.0,0.0"
+    p.feed(RawEvent(T0 + S // 10, "gps", f"${text}*{enc.checksum(text)}\r\n".encode()))
+    out = p.feed(RawEvent(T0 + S, "gps", gga_at(0.0, 0.0) + hdt))
+    (fix,) = [o.payload for o in out if o.topic == "/gnss/gps/fix"]
+    assert fix["position_covariance_type"] == 0 and fix["position_covariance"] == [0.0] * 9  # UNKNOWN
+    (m,) = [o.payload for o in out if o.topic == "/dp/measurement"]
+    assert m.get("covariance_ne_m2") is None and p.fusion.position_covariance_ne(T0 + S) is None
+    assert not p.counters["gps"].rejected

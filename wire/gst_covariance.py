@@ -32,6 +32,13 @@ approximates a fix's vertical error (twice its horizontal one: satellites are al
 VDOP is typically 1.5-2 × HDOP), and `up_known` is False: the published covariance type is then
 APPROXIMATED (ROS NavSatFix, Foxglove LocationFix), not KNOWN or DIAGONAL_KNOWN.
 
+**Zeros.** A receiver prints 0 for a σ below its print resolution (an RTK fix's 0.02 m as "0.0"),
+and some fill fields they do not compute with zeros. Neither is an exact position, and a zero
+covariance would be published as KNOWN and drawn as an exact fix: a sentence whose horizontal figures
+are all 0 gives no covariance, and a σ_U of 0 counts as no σ_U (the up variance is then approximated,
+as above). One zero axis beside a non-zero one is kept (an ellipse thinner than the print resolution;
+`unit_shape`'s floor keeps its shape finite).
+
 Negative σ and a non-finite orientation never get here: the decoder rejects such a sentence as a
 ``bad_field`` (`wire.codecs.nmea`). A σ above `SIGMA_MAX_M`, finite but so large that its square, the
 sums and doublings made of squares here, or a product of two variances downstream (an ellipse's
@@ -115,7 +122,9 @@ def gst_covariance(g: Gst) -> GstCovariance | None:
     """The position covariance a GST gives (the rules in the module docstring), or None without one."""
     a, b, theta = _sigma(g.sigma_major_m), _sigma(g.sigma_minor_m), g.orient_rad
     lat, lon, alt = _sigma(g.sigma_lat_m), _sigma(g.sigma_lon_m), _sigma(g.sigma_alt_m)
-    if a is not None and b is not None and (theta is not None or a == b):
+    if alt == 0.0:
+        alt = None  # (an exact height is no figure: approximated from the horizontal)
+    if a is not None and b is not None and (theta is not None or a == b) and a + b > 0.0:
         nn, ne, ee = ellipse_covariance_ne(a, b, theta or 0.0)
         if lat is None or lon is None or (_agree(nn, lat) and _agree(ee, lon)):
             return _with_up(nn, ne, ee, alt, ELLIPSE)
@@ -130,8 +139,13 @@ def _sigma(sigma_m: float | None) -> float | None:
     return sigma_m if sigma_m is not None and sigma_m <= SIGMA_MAX_M else None
 
 
-def _with_up(nn: float, ne: float, ee: float, sigma_alt_m: float | None, origin: str) -> GstCovariance:
-    """The covariance with its up variance: σ_alt², or without σ_alt (UP_PER_HORIZONTAL σ_H)², not known."""
+def _with_up(
+    nn: float, ne: float, ee: float, sigma_alt_m: float | None, origin: str
+) -> GstCovariance | None:
+    """The covariance with its up variance: σ_alt², or without σ_alt (UP_PER_HORIZONTAL σ_H)², not known;
+    None when the horizontal part is all zero (the module docstring's zeros)."""
+    if not nn + ee > 0.0:
+        return None  # every horizontal figure 0: below the print resolution, or not computed
     if sigma_alt_m is not None:
         return GstCovariance(nn, ne, ee, sigma_alt_m * sigma_alt_m, origin)
     return GstCovariance(nn, ne, ee, UP_PER_HORIZONTAL * UP_PER_HORIZONTAL * (nn + ee) / 2.0, origin, False)
