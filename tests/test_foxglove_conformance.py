@@ -23,6 +23,7 @@ import io
 import json
 import math
 import os
+import re
 import signal
 import socket
 import struct
@@ -575,8 +576,10 @@ def test_mcap_structure_lets_foxglove_seek(demo_log: Path) -> None:
         seek = [(c.topic, m.log_time) for _, c, m in reader.iter_messages(topics=["/dp/tf"], starting_at=mid)]
         assert seek == sorted((c.topic, m.log_time) for _, c, m in everything if c.topic == "/dp/tf" and
                               m.log_time >= mid)  # fmt: skip
-    # the header: a profile that is not one of the ROS profiles (their encodings are not JSON), a library
-    assert header.profile not in ROS_PROFILES and header.library
+    # the header: a profile that is not one of the ROS profiles (their encodings are not JSON); the
+    # library with the releases that wrote it, e.g. "dpgw 0.1.0 (mcap 1.6.0)"
+    assert header.profile not in ROS_PROFILES
+    assert re.fullmatch(r"dpgw \S+ \(mcap \d+\.\d+\S*\)", header.library), header.library
     # schemas and channels: a JSON Schema for every channel, json messages
     for ch in info.channels.values():
         assert ch.message_encoding == "json" and ch.schema_id in info.schemas, ch.topic

@@ -74,6 +74,22 @@ SchemaSpec = tuple[str, Mapping[str, Any]] | type[Message]
 
 
 @functools.cache
+@functools.cache
+def library_name() -> str:
+    """The MCAP header's `library` (which program wrote the file, for whoever debugs it): ``"dpgw 0.1.0
+    (mcap 1.6.0)"``, dpgw's release and that of the mcap library whose record layout the file has; a
+    name alone for a package not installed (a checkout run in place)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    parts = []
+    for package in ("dpgw", "mcap"):
+        try:
+            parts.append(f"{package} {version(package)}")
+        except PackageNotFoundError:
+            parts.append(package)
+    return f"{parts[0]} ({parts[1]})"
+
+
 def _schema_bytes(cls: type[Message]) -> tuple[str, bytes]:
     """(schema name, JSON Schema as compact JSON) of a message class: made once per process."""
     return _dump_schema(cls.TITLE or "", json_schema(cls))
@@ -191,7 +207,7 @@ class McapLogWriter:
         rotate_bytes: int | None = None,
         rotate_seconds: float | None = None,
         profile: str = "",
-        library: str = "dpgw",
+        library: str | None = None,
         compression: str = "zstd",
         fsync: bool = True,
         background_flush: bool = True,
@@ -212,7 +228,7 @@ class McapLogWriter:
         self._rotate_bytes = rotate_bytes
         self._rotate_ns = None if rotate_seconds is None else int(rotate_seconds * 1e9)
         self._profile = profile
-        self._library = library
+        self._library = library_name() if library is None else library
         self._compression = _COMPRESSION[compression]
         self._fsync = fsync
         self._lock = threading.Lock()
