@@ -96,13 +96,13 @@ def run(args: argparse.Namespace) -> int:
         return 2
     model = radiation.identify(hydro.freqs, hydro.A, hydro.B, max_order=args.max_order, r2_target=args.r2)
     print(
-        f"{'element':8s} {'DOFs':11s} {'order':>5s} {'R² A':>7s} {'R² B':>7s} {'A(∞)':>11s}  excluded (rad/s)"
+        f"{'element':8s} {'DOFs':11s} {'order':>5s} {'R² A':>7s} {'R² B':>7s} {'A(∞)':>11s} {'unit':6s}  excluded (rad/s)"
     )
     for row in model.report():
         excluded = ", ".join(f"{v:.3f}" for v in row["excluded_w"]) or "none"  # type: ignore[attr-defined]
         print(
             f"{row['element']:8s} {row['dofs']:11s} {row['order']:>5d} {row['r2_A']:7.4f} {row['r2_B']:7.4f} "
-            f"{row['A_inf']:11.4g}  {excluded}"
+            f"{row['A_inf']:11.4g} {row['A_inf_unit']:6s}  {excluded}"
         )
     p = model.passivity
     state = "passive" if p.passive else "NOT passive"

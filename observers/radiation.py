@@ -66,6 +66,8 @@ CArray = NDArray[np.complexfloating[Any, Any]]
 
 DOF_NAMES = ("surge", "sway", "yaw")
 """The horizontal-plane degrees of freedom, in the order of ν = [u, v, r]."""
+YAW_INDEX = 2
+"""Where yaw, the one rotation, sits in `DOF_NAMES`."""
 SIX_DOF_INDEX = (0, 1, 5)
 """Where surge, sway and yaw sit in 6-DOF hydrodynamic data (1-based: 1, 2, 6)."""
 
@@ -795,7 +797,7 @@ class RadiationModel:
         return np.real(np.einsum("il,tl,lj->tij", left, np.exp(np.outer(t, lam)), right))
 
     def report(self) -> list[dict[str, object]]:
-        """One row per element: DOFs, order, R² of A and B, A(∞), excluded frequencies."""
+        """One row per element: DOFs, order, R² of A and B, A(∞) and its unit, excluded frequencies."""
         rows: list[dict[str, object]] = []
         for (i, j), f in self.fits.items():
             rows.append(
@@ -806,10 +808,19 @@ class RadiationModel:
                     "r2_A": f.r2_a,
                     "r2_B": f.r2_b,
                     "A_inf": f.model.a_inf,
+                    "A_inf_unit": added_mass_unit(i, j),
                     "excluded_w": [float(v) for v in f.excluded_w],
                 }
             )
         return rows
+
+
+def added_mass_unit(i: int, j: int) -> str:
+    """The SI unit of added-mass element (i, j) of (surge, sway, yaw): kg between two translations, kg·m
+    between a translation and the rotation, kg·m² for yaw on yaw (force per acceleration, force per
+    angular acceleration, moment per angular acceleration)."""
+    rotations = (i == YAW_INDEX) + (j == YAW_INDEX)
+    return ("kg", "kg·m", "kg·m²")[rotations]
 
 
 def _assemble(elements: dict[tuple[int, int], ElementModel], d: Array) -> tuple[Array, Array, Array, Array]:

@@ -512,6 +512,9 @@ def test_dpgw_radiation_command_writes_the_model_beside_the_data(tmp_path: Path,
     assert main(["radiation", str(tmp_path / "ship.npz")]) == 0
     out = capsys.readouterr().out
     assert "passive: margin" in out and "(2,6)" in out
+    # A(∞) with its unit: kg between translations, kg·m across, kg·m² yaw on yaw
+    units = {line.split()[0]: line.split()[6] for line in out.splitlines() if line.startswith("(")}
+    assert units == {"(1,1)": "kg", "(2,2)": "kg", "(2,6)": "kg·m", "(6,6)": "kg·m²"}, out
     report = tomllib.loads((tmp_path / "ship_radiation.toml").read_text())
     assert report["passivity"]["passive"] is True
     assert (tmp_path / "ship_radiation.npz").is_file()
