@@ -96,7 +96,8 @@ def run(args: argparse.Namespace) -> int:
         return 2
     model = radiation.identify(hydro.freqs, hydro.A, hydro.B, max_order=args.max_order, r2_target=args.r2)
     print(
-        f"{'element':8s} {'DOFs':11s} {'order':>5s} {'R² A':>7s} {'R² B':>7s} {'A(∞)':>11s} {'unit':6s}  excluded (rad/s)"
+        f"{'element':8s} {'DOFs':11s} {'order':>5s} {'R² A':>7s} {'R² B':>7s} {'A(∞)':>11s} {'unit':6s}  "
+        "excluded (rad/s)"
     )
     for row in model.report():
         excluded = ", ".join(f"{v:.3f}" for v in row["excluded_w"]) or "none"  # type: ignore[attr-defined]

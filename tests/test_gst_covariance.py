@@ -445,8 +445,9 @@ def test_zero_sigmas_are_no_exact_fix() -> None:
     assert gst_covariance(_gst(sigma_major_m=0.0, sigma_minor_m=0.0, orient_rad=0.0)) is None
     assert gst_covariance(_gst(sigma_lat_m=0.0, sigma_lon_m=0.0, sigma_alt_m=0.0)) is None
     zeros = _gst(
-        sigma_major_m=0.0, sigma_minor_m=0.0, orient_rad=0.0, sigma_lat_m=0.0, sigma_lon_m=0.0, sigma_alt_m=0.0
-    )
+        sigma_major_m=0.0, sigma_minor_m=0.0, orient_rad=0.0,
+        sigma_lat_m=0.0, sigma_lon_m=0.0, sigma_alt_m=0.0,
+    )  # fmt: skip
     assert gst_covariance(zeros) is None
     # a zero ellipse beside small per-axis σ (within the agreement margin of 0): the σ are the figures
     cov = gst_covariance(

@@ -139,9 +139,7 @@ def _sigma(sigma_m: float | None) -> float | None:
     return sigma_m if sigma_m is not None and sigma_m <= SIGMA_MAX_M else None
 
 
-def _with_up(
-    nn: float, ne: float, ee: float, sigma_alt_m: float | None, origin: str
-) -> GstCovariance | None:
+def _with_up(nn: float, ne: float, ee: float, sigma_alt_m: float | None, origin: str) -> GstCovariance | None:
     """The covariance with its up variance: σ_alt², or without σ_alt (UP_PER_HORIZONTAL σ_H)², not known;
     None when the horizontal part is all zero (the module docstring's zeros)."""
     if not nn + ee > 0.0:
