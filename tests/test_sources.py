@@ -776,9 +776,46 @@ src.stop()
 """
 
 
-def test_udp_reads_once_its_address_comes_up(tmp_path: Path) -> None:
-    """In a network namespace of its own (no root needed, nothing on this machine's network changed): the
-    source is started on an address no interface has, then the address is added; datagrams arrive."""
+_GOES_AWAY = """
+import json, socket, subprocess, sys, time
+from gateway.sources import open_source
+subprocess.run(["ip", "link", "set", "lo", "up"], check=True)
+subprocess.run(["ip", "addr", "add", "10.9.8.7/32", "dev", "lo"], check=True)
+got = []
+src = open_source("dgps", "udp://10.9.8.7:10110")
+src.start(got.append)
+tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+
+def until(done, what):
+    deadline = time.monotonic() + 20
+    while not done():
+        if time.monotonic() > deadline:
+            sys.exit(f"timed out waiting for {what}")
+        time.sleep(0.05)
+
+def receives():
+    n = len(got)
+    def more():
+        tx.sendto(b"$GPHDT,1.0,T*00\\r\\n", ("10.9.8.7", 10110))
+        return len(got) > n
+    until(more, "a datagram")
+
+receives()
+up = [src.stats.connected, src.address_up]
+subprocess.run(["ip", "addr", "del", "10.9.8.7/32", "dev", "lo"], check=True)  # the interface goes down
+until(lambda: not src.address_up, "the address to be missed")
+gone = [src.stats.connected, src.address_up, src.stats.last_error]
+subprocess.run(["ip", "addr", "add", "10.9.8.7/32", "dev", "lo"], check=True)  # and comes back
+receives()
+back = [src.stats.connected, src.address_up]
+print(json.dumps({"up": up, "gone": gone, "back": back}))
+src.stop()
+"""
+
+
+def _in_network_namespace(script: str) -> dict[str, object]:
+    """Run ``script`` (python) in a network namespace of its own (no root needed, nothing on this machine's
+    network changed); its last line of output, as JSON."""
     import json
     import os
     import shutil
@@ -792,13 +829,27 @@ def test_udp_reads_once_its_address_comes_up(tmp_path: Path) -> None:
         pytest.skip(f"unshare -rn not permitted: {probe.stderr.decode().strip()}")
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
     run = subprocess.run(
-        ["unshare", "-rn", sys.executable, "-c", _COMES_UP],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=60,
+        ["unshare", "-rn", sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=90
     )
     assert run.returncode == 0, run.stderr
-    result = json.loads(run.stdout.strip().splitlines()[-1])
+    result: dict[str, object] = json.loads(run.stdout.strip().splitlines()[-1])
+    return result
+
+
+def test_udp_says_when_its_address_goes_away_and_reads_again_when_it_is_back() -> None:
+    """An interface that goes down under a listening source: not connected, saying why (else it would
+    only look quiet), and reading again once the address is back, on the same socket."""
+    result = _in_network_namespace(_GOES_AWAY)
+    assert result["up"] == [True, True]
+    connected, address_up, why = result["gone"]  # type: ignore[misc]
+    assert (connected, address_up) == (False, False)
+    assert "10.9.8.7:10110 is no longer an address of this computer" in why, why
+    assert result["back"] == [True, True]
+
+
+def test_udp_reads_once_its_address_comes_up() -> None:
+    """In a network namespace of its own (no root needed, nothing on this machine's network changed): the
+    source is started on an address no interface has, then the address is added; datagrams arrive."""
+    result = _in_network_namespace(_COMES_UP)
     assert result["before"] == [False, False]
     assert result["after"] == [True, True] and result["got"] >= 1

@@ -56,7 +56,10 @@ class UdpSource(Source):
     not ``connected`` meanwhile (a ``/status`` alarm saying why), and datagrams are read as soon as the
     address appears (looked for every `ADDRESS_CHECK_S`). An address that never appears (a typing
     mistake) keeps the alarm up; ``dpgw run --check`` notes it (`listen_address_note`) but cannot refuse
-    it, as the address may come later.
+    it, as the address may come later. An address that goes away while listening (the interface goes
+    down, DHCP hands out another, someone removes it) is noticed the same way: after `ADDRESS_CHECK_S`
+    with nothing received it is looked for, and when it is gone the source is not ``connected``, saying
+    why, until it is back; otherwise the source would only look quiet.
     """
 
     kind = "udp"
@@ -197,6 +200,24 @@ class UdpSource(Source):
             self.address_up = self.stats.connected = True
             log.warning("source %r: %s is up now; receiving", self.name, fmt_addr(self._local[1]))
 
+    def _check_address_kept(self) -> None:
+        """The address listened on went away (its interface went down, DHCP gave another, someone removed
+        it): nothing can arrive on it, and without this the source would only look quiet. Not connected,
+        saying why, until `_check_address` sees it back (the socket stays bound: it reads again then)."""
+        if self._local is not None and not self._is_local():
+            self.address_up = self.stats.connected = False
+            self._error(
+                "address gone",
+                f"{fmt_addr(self._local[1])} is no longer an address of this computer (its interface went "
+                "down or the address was removed): listening for when it comes back",
+                always=True,
+            )
+
+    def _quiet(self, seconds: float) -> bool:
+        """Nothing received for ``seconds`` (a datagram received proves the address is there)."""
+        last_rx = self.stats.last_rx_mono_ns
+        return last_rx is None or time.monotonic_ns() - last_rx >= seconds * 1e9
+
     def _is_local(self) -> bool:
         """The specific unicast address bound (if any) belongs to an interface of this computer now."""
         return self._local is None or _address_is_local(*self._local)
@@ -260,9 +281,12 @@ class UdpSource(Source):
         last_hello = -math.inf
         next_check = time.monotonic() + ADDRESS_CHECK_S
         while not self._stop.is_set():
-            if not self.address_up and time.monotonic() >= next_check:
+            if self._local is not None and time.monotonic() >= next_check:
                 next_check = time.monotonic() + ADDRESS_CHECK_S
-                self._check_address()
+                if not self.address_up:
+                    self._check_address()
+                elif self._quiet(ADDRESS_CHECK_S):
+                    self._check_address_kept()
             if self.hello and self._target_addr is not None:
                 now = time.monotonic()
                 last_rx = self.stats.last_rx_mono_ns
