@@ -13,7 +13,8 @@ What comes from what, and how often (docs/foxglove.md has the reasons):
   that, and an estimate stepped at 10-50 Hz would otherwise multiply the log's size and the replay's
   time (the JSON channels keep every step, for plots).
 - the hull (`/dp/scene/hull`): with the first estimate, then every `STATIC_PERIOD_NS`, so a player that
-  seeks into the middle of a log finds it within that time.
+  seeks into the middle of a log finds it within that time. With it, on `/dp/tf`, each GNSS antenna's
+  frame (`vessel` → the source's name, at its lever arm): the frame its `/gnss/<source>/fix` is in.
 - `/dp/thrusters/command` → commanded arrows; `/dp/thrusters/feedback` → fed-back arrows, at most
   every `ARROW_PERIOD_NS` (`/dp/scene/thrusters`).
 - the DP setpoint and its watch circles (`/dp/scene/setpoint`): when the setpoint changes, and every
@@ -25,7 +26,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, Protocol
 
 from observers.vessel import Thruster, VesselModel
@@ -122,8 +123,16 @@ def state_change_level(text: str) -> int:
 
 
 class FoxgloveChannels:
-    def __init__(self, vessel: VesselModel, watch_circles_m: Sequence[float] = WATCH_CIRCLES_M) -> None:
+    def __init__(
+        self,
+        vessel: VesselModel,
+        watch_circles_m: Sequence[float] = WATCH_CIRCLES_M,
+        antennas: Mapping[str, tuple[float, float, float]] | None = None,
+    ) -> None:
+        """``antennas``: GNSS source -> its antenna's lever arm (m, x forward, y starboard, z down), the
+        frames its fixes are given in (`fx.antenna_frame`)."""
         self.vessel = vessel
+        self.antennas = dict(antennas or {})
         self.watch_circles_m = tuple(watch_circles_m)
         self.beam_m = vessel.hull.beam_m if vessel.hull is not None else BEAM_PER_LENGTH * vessel.length_m
         self.arrow_scale_m = 0.25 * vessel.length_m  # an arrow at full thrust: a quarter of the hull
@@ -194,7 +203,7 @@ class FoxgloveChannels:
             out.append(
                 (
                     "/dp/estimate/fix",
-                    fx.location_fix(ns, "estimate", est.lat_deg, est.lon_deg, heading_rad=psi),
+                    fx.location_fix(ns, fx.VESSEL_FRAME, est.lat_deg, est.lon_deg, heading_rad=psi),
                     ns,
                 )
             )
@@ -214,6 +223,9 @@ class FoxgloveChannels:
         if ns >= self._next_hull_ns:
             self._next_hull_ns = ns + STATIC_PERIOD_NS
             out.append(("/dp/scene/hull", self._hull(ns), ns))
+            if self.antennas:  # (fixed: with the hull, so a player that seeks finds them within its period)
+                antennas = [fx.antenna_transform(ns, src, arm) for src, arm in sorted(self.antennas.items())]
+                out.append(("/dp/tf", FrameTransformsMessage(transforms=antennas), ns))
 
     def _hull(self, ns: int) -> SceneUpdate:
         v = self.vessel

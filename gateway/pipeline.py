@@ -62,7 +62,7 @@ from wire.codecs import mavlink as mv
 from wire.codecs import nmea as nmea_codec
 from wire.codecs.nmea_framing import NmeaFramer
 from wire.codecs.nmea_time import utc_step_s
-from wire.foxglove import ellipsoidal_height_m, location_fix
+from wire.foxglove import antenna_frame, ellipsoidal_height_m, location_fix
 from wire.geodesy import LocalFrame
 from wire.gst_covariance import INCONSISTENT, GstCovariance, gst_covariance, unit_shape
 from wire.messages import (
@@ -418,7 +418,10 @@ class Pipeline:
         # (GST fresh until, covariance, its unit shape): a GST older than the source's timeout no longer
         # describes its fixes
         self._fix_cov: dict[str, tuple[int, GstCovariance, tuple[float, float, float] | None]] = {}
-        self.foxglove = FoxgloveChannels(spec.vessel)
+        self.foxglove = FoxgloveChannels(
+            spec.vessel,
+            antennas={name: src.lever_arm_m for name, src in self.sources.items() if "position" in src.roles},
+        )
         self._foxglove_on = spec.foxglove_channels
         cc = spec.control
         self.controller: DPController | None = None
@@ -1805,7 +1808,7 @@ class Pipeline:
                 f"/gnss/{source}/fix",
                 location_fix(
                     rx_ns,
-                    source,
+                    antenna_frame(source),
                     lat,
                     lon,
                     self._fix_alt_m.get(source, 0.0),

@@ -1438,3 +1438,15 @@ def test_the_observer_is_held_no_slower_than_the_dp_loop_it_feeds(tmp_path: Path
     put(d, "control.feedback", "estimate")
     put(d, "observer.velocity_injection", 0.2)
     np.testing.assert_allclose(injection(parse(d, tmp_path)), 0.2, rtol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["ltp", "vessel", "vessel_measured"])
+def test_a_position_source_may_not_take_the_name_of_a_frame(name: str, tmp_path: Path) -> None:
+    """A position source's fixes are in its antenna's frame, named after it: named like one of the frames
+    the gateway draws in, its antenna would replace that frame in a viewer's transform tree."""
+    data = base()
+    position = next(k for k, s in enumerate(data["sources"]) if "position" in s["roles"])
+    put(data, f"sources.{position}.name", name)
+    (problem,) = [p for p in problems_of(data, tmp_path) if f"sources[{position}].name" in p or ".name" in p]
+    assert f'"{name}" is the name of one of the frames the gateway draws in' in problem, problem
+    assert "ltp, vessel, vessel_measured" in problem

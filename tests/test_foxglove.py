@@ -12,6 +12,7 @@ from jsonschema import Draft202012Validator
 
 from gateway.pipeline import RawEvent
 from tests.test_pipeline import DATUM, T0, S, gga_at, gst, nmea_src, pipeline
+from wire import foxglove as fx
 from wire.codecs import nmea_encode as enc
 from wire.foxglove import ellipsoidal_height_m, heading_yaw, location_fix, ned_pose, yaw_quaternion
 from wire.geodesy import LocalFrame
@@ -63,3 +64,12 @@ def test_ned_pose_is_the_yaw_quaternion_of_the_heading_to_the_bit(psi: float, n:
     pose = ned_pose(n, e, psi)
     assert pose.orientation == yaw_quaternion(heading_yaw(psi))
     assert (pose.position.x, pose.position.y, pose.position.z) == (e, n, 0.0)
+
+
+def test_an_antennas_frame_is_its_lever_arm_turned_to_flu() -> None:
+    """dpgw's lever arm is x forward, y starboard, z down; Foxglove's vessel frame x forward, y port, z up."""
+    t = fx.antenna_transform(T0, "dgps1", (10.0, 2.0, -25.0))
+    assert (t.parent_frame_id, t.child_frame_id) == ("vessel", "dgps1")
+    assert (t.translation.x, t.translation.y, t.translation.z) == (10.0, -2.0, 25.0)
+    assert (t.rotation.x, t.rotation.y, t.rotation.z, t.rotation.w) == (0.0, 0.0, 0.0, 1.0)
+    assert t.timestamp.sec * 1_000_000_000 + t.timestamp.nsec == T0

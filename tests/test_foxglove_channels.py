@@ -130,8 +130,27 @@ def test_gnss_fixes_hold_gga_altitude_and_gst_covariance(demo_log: Path) -> None
         assert fix["position_covariance"] == pytest.approx(cov)
         assert fix["position_covariance_type"] == kind
         assert "heading" not in fix  # a GNSS fix has no heading of its own
+        assert fix["frame_id"] == "dgps1"  # the receiver's antenna
         with_cov += fix["position_covariance_type"] == 3
     assert with_cov >= len(fixes) - 2  # every fix after the first GST
+    # the antenna's frame: vessel -> dgps1 at the configured lever arm, x forward, y port, z up (FLU)
+    arm = config_from_log(demo_log).sources[0].lever_arm_m
+    antennas = [
+        t
+        for _, _, _, tf in read_messages(demo_log, "/dp/tf")
+        for t in tf["transforms"]
+        if t["child_frame_id"] == "dgps1"
+    ]
+    assert len(antennas) >= 4  # with the first estimate, then every 10 s: 40 s
+    for t in antennas:
+        assert t["parent_frame_id"] == "vessel"
+        assert (t["translation"]["x"], t["translation"]["y"], t["translation"]["z"]) == (
+            arm[0],
+            -arm[1],
+            -arm[2],
+        )
+        assert t["rotation"] == {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
+    assert any(arm)  # (the demo's antenna is off the reference point; the signs: tests/test_foxglove.py)
 
 
 @pytest.mark.slow
@@ -168,6 +187,8 @@ def test_estimate_fix_pose_and_frame_are_the_estimate(demo_log: Path) -> None:
             assert (pose["position"]["x"], pose["position"]["y"]) == (e, n)
             assert _same_angle(_yaw(pose["orientation"]), math.pi / 2 - psi)
         elif topic == "/dp/tf":
+            if all(t["parent_frame_id"] == "vessel" for t in p["transforms"]):
+                continue  # (the antennas' frames, with the hull: test_gnss_fixes_hold_...)
             first, *measured = p["transforms"]
             assert (first["parent_frame_id"], first["child_frame_id"]) == ("ltp", "vessel")
             n, e, psi = est["eta"]

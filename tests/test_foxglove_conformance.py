@@ -401,7 +401,7 @@ class Conventions:
 
     def __init__(self) -> None:
         self.frames: set[str] = set()  # every frame of /dp/tf
-        self.parents: set[str] = set()
+        self.parent_of: dict[str, str] = {}  # child frame -> its parent
         self.tf_stamps: set[int] = set()
         self.used_frames: Counter[str] = Counter()
         self.pose_stamps: list[int] = []
@@ -428,9 +428,11 @@ class Conventions:
             self._location_fix(topic, p)
         elif name == "foxglove.FrameTransforms":
             for t in p["transforms"]:
-                self.parents.add(t["parent_frame_id"])
-                self.frames |= {t["parent_frame_id"], t["child_frame_id"]}
-                assert t["parent_frame_id"] != t["child_frame_id"]
+                parent, child = t["parent_frame_id"], t["child_frame_id"]
+                assert parent != child
+                # a tree: a frame has one parent for the whole log
+                assert self.parent_of.setdefault(child, parent) == parent, (child, parent, self.parent_of)
+                self.frames |= {parent, child}
             self.tf_stamps.add(m.log_time)
         elif name == "foxglove.PoseInFrame":
             self.used_frames[p["frame_id"]] += 1
@@ -440,6 +442,7 @@ class Conventions:
 
     def _location_fix(self, topic: str, p: dict[str, Any]) -> None:
         assert -90.0 <= p["latitude"] <= 90.0 and -180.0 <= p["longitude"] <= 180.0, p
+        self.used_frames[p["frame_id"]] += 1  # (the receiver's antenna, or the vessel for the estimate)
         # heading: radians clockwise from north (a number when present; dpgw's is the estimate's ψ)
         assert "heading" not in p or math.isfinite(p["heading"])
         cov = np.array(p["position_covariance"]).reshape(3, 3)
@@ -480,14 +483,18 @@ class Conventions:
                     assert n >= 3, (topic, e["id"])  # a loop of fewer points draws no area
 
     def check_frames(self) -> None:
-        """Every frame a pose or an entity is drawn in is in the transform tree, whose only root is the
+        """Every frame a pose, an entity or a fix is in is in the transform tree, whose only root is the
         world frame; every pose has the transforms of its own stamp (Foxglove looks them up by it)."""
         if not self.frames:
             return
-        roots = (
-            self.parents - (self.frames - self.parents) - {c for c in self.frames if c not in self.parents}
-        )
-        assert self.parents == {fx.WORLD_FRAME} and roots == {fx.WORLD_FRAME}, (self.parents, self.frames)
+        roots = self.frames - set(self.parent_of)
+        assert roots == {fx.WORLD_FRAME}, (roots, self.parent_of)
+        for frame in self.parent_of:  # every frame reaches the root (no cycle)
+            seen = {frame}
+            while frame != fx.WORLD_FRAME:
+                frame = self.parent_of[frame]
+                assert frame not in seen, (frame, self.parent_of)
+                seen.add(frame)
         assert set(self.used_frames) <= self.frames, (set(self.used_frames), self.frames)
         assert all(s in self.tf_stamps for s in self.pose_stamps)
 

@@ -46,6 +46,18 @@ VESSEL_FRAME = "vessel"
 MEASURED_FRAME = "vessel_measured"
 """The fused measurement of the reference point, FLU."""
 
+
+FRAMES = (WORLD_FRAME, VESSEL_FRAME, MEASURED_FRAME)
+"""The frames dpgw draws in; no GNSS source may take one of their names (the config refuses it)."""
+
+
+def antenna_frame(source: str) -> str:
+    """The frame of a GNSS source's antenna: the source's name (its fixes' `frame_id`, as a ROS NavSatFix
+    names its antenna's frame, and what the Keelson and ROS 2 outputs know the source by): a child of
+    `VESSEL_FRAME` at the source's lever arm (`antenna_transform`)."""
+    return source
+
+
 LINE_STRIP, LINE_LOOP = 0, 1
 LOG_INFO = 2
 LOG_WARNING = 3
@@ -149,6 +161,19 @@ def frame_transform_of(time: Time, child: str, pose: Pose) -> FrameTransform:
         child_frame_id=child,
         translation=pose.position,
         rotation=pose.orientation,
+    )
+
+
+def antenna_transform(stamp_ns: int, source: str, lever_arm_m: Sequence[float]) -> FrameTransform:
+    """`vessel` → `antenna_frame` (source): the antenna at its lever arm (x forward, y starboard, z down
+    from the reference point, dpgw's body frame; FLU here: (x, −y, −z)), not rotated."""
+    x, y, z = lever_arm_m
+    return FrameTransform(
+        timestamp=stamp(stamp_ns),
+        parent_frame_id=VESSEL_FRAME,
+        child_frame_id=antenna_frame(source),
+        translation=Vector3(x=float(x), y=-float(y), z=-float(z)),
+        rotation=Quaternion(x=0.0, y=0.0, z=0.0, w=1.0),
     )
 
 

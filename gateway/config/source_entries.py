@@ -27,6 +27,7 @@ from gateway.config.model import (
 from gateway.config.problems import Problems, did_you_mean, kind, show
 from gateway.config.schema import SourceTable, read_table
 from observers.vessel import VesselModel
+from wire.foxglove import FRAMES
 from wire.urls import SOURCE_OPTIONS, Endpoint, UrlError, file_rate, parse_url, serial_settings
 
 __all__ = ["read_sources"]
@@ -151,6 +152,13 @@ def _read_source(
     if name is not None and not SOURCE_NAME.fullmatch(name):
         p.add(
             f"{path}.name", f"not a valid name (expected lowercase letters, digits and _, got {show(name)})"
+        )
+    elif name in FRAMES and roles is not None and "position" in roles:
+        # (a position source's fixes are drawn in its antenna's frame, named after it)
+        p.add(
+            f"{path}.name",
+            f"{show(name)} is the name of one of the frames the gateway draws in (expected another name, "
+            f"not one of {', '.join(FRAMES)}: the fixes of a position source are in a frame of its name)",
         )
     if roles is not None:
         if not roles:
