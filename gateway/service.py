@@ -71,6 +71,10 @@ HOLD_MAX = 10_000
 """Items held while waiting for the first simulation clock tick (a minute of a busy bench's input)."""
 CLOCK_SILENT_S = 5.0
 """With ``clock = "sim"``: no tick for this long (wall s) raises a status alarm."""
+FOREIGN_ALARM_S = 10.0
+"""How long another simulator's clock on this gateway's key keeps its alarm up after its last tick: the
+count of its ticks is kept, but a bench whose second simulator was stopped or given its own prefix is
+clear again."""
 DRAIN_S = 10.0
 """After a stop, queued input is handled for at most this long (wall s), the rest written to the log as
 received (`GatewayService.drain`): the whole stop stays well inside the systemd unit's TimeoutStopSec
@@ -843,14 +847,26 @@ class GatewayService:
             held = f" ({len(self._held)} inputs held until one comes)" if self._held else ""
             alarms.append(f"clock: no simulation clock tick on {key} for {silent_s:.0f} s{held}")
         if self.held_dropped:
+            # (logged only where there is a log: a gateway run without one has lost them)
+            fate = "logged without being handled" if self.log is not None else "dropped (no log to keep them)"
             alarms.append(
-                f"clock: {self.held_dropped} inputs logged without being handled while waiting for a tick "
+                f"clock: {self.held_dropped} inputs {fate} while waiting for a tick "
                 f"(more than {HOLD_MAX} held)"
             )
         if self.clock_rejected:
             alarms.append(f"clock: {self.clock_rejected} ticks on {key} were not a dpgw.SimClock")
         if self.sim_time.foreign:
-            alarms.append(self._foreign_clock_alarm())
+            if time.monotonic_ns() - self.sim_time.foreign_mono_ns <= FOREIGN_ALARM_S * 1e9:
+                alarms.append(self._foreign_clock_alarm())
+            elif self._foreign_said:
+                # the other simulator stopped (or was given its own prefix): the alarm clears, and it is
+                # said again if one comes back
+                self._foreign_said = False
+                log.warning(
+                    "clock: no tick of another simulator on %s for %g s: alarm cleared "
+                    "(%d ticks ignored in all)",
+                    key, FOREIGN_ALARM_S, self.sim_time.foreign,
+                )  # fmt: skip
         return alarms
 
     def _foreign_clock_alarm(self) -> str:

@@ -45,6 +45,7 @@ say, 0, too) is another simulator's, and what it took of another run before the 
 from __future__ import annotations
 
 import threading
+import time
 from bisect import bisect_left, bisect_right
 
 __all__ = ["FOREIGN_SILENT_NS", "RATE_WINDOW_NS", "RESTART_BACK_NS", "SimTime"]
@@ -132,6 +133,9 @@ class SimTime:
         """Ticks of another simulator's run, ignored: they came while the run being stamped was ticking."""
         self.foreign_run = 0
         """The `SimClock.run` of the last such tick."""
+        self.foreign_mono_ns = 0
+        """When the last such tick was received (monotonic ns; 0 before any): whether the other simulator
+        still ticks."""
         self._pinned = False  # `pin`: one run only
         self._cand: _Ticks | None = None  # another run's ticks while the run followed may still tick
 
@@ -151,7 +155,9 @@ class SimTime:
         with self._lock:
             if self.ticks and (self.run_id != run_id or self._new is not None):
                 self.foreign += self.ticks
-                self.foreign_run = (self._new if self._new is not None else self._run).run_id
+                dropped = self._new if self._new is not None else self._run
+                self.foreign_run = dropped.run_id
+                self.foreign_mono_ns = dropped.mono[-1] if dropped.mono else time.monotonic_ns()
                 self._new = None
                 self._last_out = self._left_newest = self.went_back = None
                 self._left_id = 0
@@ -174,7 +180,7 @@ class SimTime:
                 return
             if self._pinned and run_id != self.run_id:  # (0 too: a simulator that does not say)
                 self.foreign += 1
-                self.foreign_run = run_id
+                self.foreign_run, self.foreign_mono_ns = run_id, mono_ns
                 return
             run = self._run if self._new is None else self._new
             current = run.run_id
@@ -210,11 +216,12 @@ class SimTime:
                     cand.add(sim_ns, period_s, mono_ns)
                     return
                 self.foreign += 1  # (a third simulator, while another is a candidate)
-                self.foreign_run = run_id
+                self.foreign_run, self.foreign_mono_ns = run_id, mono_ns
                 return
             if self._cand is not None and run.sim and mono_ns >= self._cand.mono[0]:
                 # the run followed ticks on after the other's first tick: the other is another simulator
                 self.foreign += len(self._cand.sim)
+                self.foreign_mono_ns = self._cand.mono[-1]
                 self.foreign_run, self._cand = self._cand.run_id, None
             if run_id and not run.sim:  # the first tick of the run being gathered: who it is
                 run.run_id = run_id

@@ -521,6 +521,10 @@ def test_what_is_held_for_want_of_a_tick_reaches_the_log(tmp_path: Path) -> None
     assert [json.loads(m.data)["text"] for m in raw] == [c.data.decode().rstrip() for c in held]  # in order
     assert [m.log_time for m in raw] == [c.rx_ns for c in held]  # at their receive times: no sim time yet
     assert service.logged_unhandled == 8
+    # a gateway without a log says they are dropped, not logged
+    service.log = None
+    (alarm,) = [a for a in service._alarms() if "while waiting for a tick" in a]
+    assert "3 inputs dropped (no log to keep them)" in alarm, alarm
 
 
 def test_the_last_status_of_a_run_is_the_last_in_its_log(tmp_path: Path) -> None:
@@ -548,7 +552,7 @@ def test_the_last_status_of_a_run_is_the_last_in_its_log(tmp_path: Path) -> None
 
 
 def test_a_second_simulator_on_the_same_key_is_ignored_and_alarmed(
-    tmp_path: Path, caplog: pytest.LogCaptureFixture
+    tmp_path: Path, caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Two benches on one network sharing a prefix: a second simulator's clock reaches the gateway (here
     both publish through real Zenoh sessions to the gateway's listener), its time an hour ahead. Before,
@@ -595,6 +599,34 @@ def test_a_second_simulator_on_the_same_key_is_ignored_and_alarmed(
         assert now is not None and abs(now - epoch.stamp_ns(t)) < 10**9  # on our run's time
         said = [r for r in caplog.records if "another simulator's clock" in r.getMessage()]
         assert len(said) == 1
+        # the other bench's simulator stops: once it has been silent for FOREIGN_ALARM_S the alarm clears
+        # (said in the log; the count is kept), while ours ticks on
+        import gateway.service as gs
+
+        monkeypatch.setattr(gs, "FOREIGN_ALARM_S", 0.3)
+
+        def foreign_alarm() -> bool:
+            return any("another simulator's clock" in a for a in service._alarms())
+
+        def cleared() -> bool:
+            nonlocal t
+            t += 0.05
+            own(t)
+            return not foreign_alarm()
+
+        assert wait_for(cleared, timeout=20.0, interval=0.05)
+        assert any("alarm cleared" in r.getMessage() for r in caplog.records)
+        counted = st.foreign
+        # ... and it comes back: the alarm again, and said again
+        for _ in range(200):
+            t += 0.05
+            own(t)
+            other(t)
+            if wait_for(lambda: st.foreign > counted, timeout=0.01):
+                break
+        assert st.foreign > counted and foreign_alarm()
+        said = [r for r in caplog.records if "another simulator's clock on" in r.getMessage()]
+        assert len(said) == 2
     finally:
         service.close()
         ours.close()
