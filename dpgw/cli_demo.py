@@ -236,7 +236,12 @@ def demo_config(
                 "component_id": scenario.feedback.component_id,
             }
         )
-    cfg["control"] = {"initial_mode": "standby" if engages_later(args, scenario) else args.mode}
+    # The demo's operator engages DP (`engage_time`): a gateway started in dp (``--engage-at 0``, or a vessel
+    # whose drives report no thrust) is in DP from the first estimate, as asked, not waiting for the observer
+    cfg["control"] = {
+        "initial_mode": "standby" if engages_later(args, scenario) else args.mode,
+        "wait_for_observer": False,
+    }
     tp = scenario.sea[0][1].tp_s
     cfg["observer"] = {"type": DEMO_OBSERVER, "wave_period_s": tp}
     cfg["zenoh"] = {

@@ -19,7 +19,7 @@ import pytest
 
 from dpgw.cli_demo import engage_time
 from dpgw.closed_loop import ClosedLoopRun, gateway_tables, run_closed_loop, with_scenario_observer
-from gateway.config import ConfigError, parse_config
+from gateway.config import ConfigError, describe, parse_config
 from gateway.pipeline import PipelineSpec
 from observers.factory import OBSERVERS, make_observer
 from observers.passive_tuning import slowest_error_rate
@@ -229,7 +229,12 @@ def test_waiting_for_the_observer_removes_the_cold_start_transient() -> None:
 def test_wait_for_observer_is_on_by_default_and_must_be_a_boolean() -> None:
     tables = gateway_tables(SCENARIO)
     del tables["control"]["wait_for_observer"]
-    assert parse_config(tables, base_dir=Path.cwd()).control.wait_for_observer is True  # type: ignore[union-attr]
+    config = parse_config(tables, base_dir=Path.cwd())
+    assert config.control is not None and config.control.wait_for_observer is True
+    # `dpgw run --check` says how DP starts
+    assert "control: starts in standby, DP by itself once the observer has settled" in describe(config)
+    tables["control"]["wait_for_observer"] = False
+    assert "control: DP from the first estimate" in describe(parse_config(tables, base_dir=Path.cwd()))
     tables["control"]["wait_for_observer"] = "yes"
     with pytest.raises(ConfigError, match="wait_for_observer"):
         parse_config(tables, base_dir=Path.cwd())
@@ -265,3 +270,20 @@ def test_an_observer_restarted_in_dp_keeps_dp_and_settles_again() -> None:
     b.run(settle - 5.0 + 0.3)
     assert b.p.settled and b.p.mode == "dp"
     assert not [a for a in b.p.status_message(b.now).alarms if "settl" in str(a)]
+
+
+@pytest.mark.parametrize(("flags", "mode"), [([], "standby"), (["--engage-at", "0"], "dp")])
+def test_the_demo_engages_dp_itself_and_never_waits_twice(flags: list[str], mode: str) -> None:
+    """`dpgw demo` starts the gateway in standby and switches to dp at the settle time (its operator), or,
+    with ``--engage-at 0``, in dp from the first estimate as asked: never a gateway waiting on its own."""
+    import argparse
+
+    from dpgw import cli_demo
+    from gateway.pipeline import Pipeline
+
+    p = argparse.ArgumentParser()
+    cli_demo.add_arguments(p)
+    args = p.parse_args(["--out", "x.mcap", *flags])
+    tables = cli_demo.demo_config(SCENARIO, "/dev/null", args)
+    pipeline = Pipeline(PipelineSpec.from_config(parse_config(tables, base_dir=Path.cwd())))
+    assert pipeline.mode == mode and not pipeline.waiting_for_observer
