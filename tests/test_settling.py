@@ -287,3 +287,21 @@ def test_the_demo_engages_dp_itself_and_never_waits_twice(flags: list[str], mode
     tables = cli_demo.demo_config(SCENARIO, "/dev/null", args)
     pipeline = Pipeline(PipelineSpec.from_config(parse_config(tables, base_dir=Path.cwd())))
     assert pipeline.mode == mode and not pipeline.waiting_for_observer
+
+
+def test_a_replay_starts_dp_as_the_logged_gateway_did() -> None:
+    """A log records the option with initial_mode = "dp" (its default written out), and a log from before
+    the option — a gateway that engaged DP at its first estimate — is replayed so, not with the wait."""
+    from gateway.config.logged import for_log
+    from gateway.replay import _as_replayed
+
+    tables = gateway_tables(SCENARIO)
+    del tables["control"]["wait_for_observer"]
+    logged = for_log(tables)
+    assert logged["control"]["wait_for_observer"] is True  # the live gateway's default, recorded
+    assert "wait_for_observer" not in tables["control"]  # (the caller's tables untouched)
+    assert _as_replayed(logged)["control"]["wait_for_observer"] is True
+    assert _as_replayed(tables)["control"]["wait_for_observer"] is False  # an older log
+    standby = {**tables, "control": {"initial_mode": "standby"}}
+    assert "wait_for_observer" not in for_log(standby)["control"]
+    assert "wait_for_observer" not in _as_replayed(standby)["control"]
