@@ -11,7 +11,7 @@ from typing import Any
 from gateway.config.model import ControlConfig, GatewayConfig
 from observers.vessel import VesselModel
 
-__all__ = ["config_notes", "describe", "wind_feedforward_line", "wind_feedforward_off"]
+__all__ = ["config_notes", "describe", "start_mode_line", "wind_feedforward_line", "wind_feedforward_off"]
 
 
 def describe(config: GatewayConfig) -> str:
