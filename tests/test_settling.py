@@ -103,7 +103,7 @@ def test_settled_flips_at_the_computed_time(observer: str) -> None:
     expected = settle_s(observer)
     tables = gateway_tables(SCENARIO)
     tables["observer"] = {**tables["observer"], "type": observer}
-    run = run_closed_loop(SCENARIO, expected + 5.0, tables=tables)
+    run = run_closed_loop(SCENARIO, expected + 5.0, tables=tables, status_every_s=1.0)
     first, flipped = flip_time(run)
     assert abs(flipped - (first + expected)) <= SAMPLE_S + 1e-6, (first, flipped, expected)
     est = run.estimate_messages
@@ -116,6 +116,14 @@ def test_settled_flips_at_the_computed_time(observer: str) -> None:
     # in the JSON for every consumer, and the status word's contract unchanged (ok from the start)
     assert est[0].to_dict()["settled"] is False and est[-1].to_dict()["settled"] is True
     assert est[0].status == "ok"
+    # DP from the first estimate here (wait_for_observer = false): a notice until settled, then none
+    notice = "DP from the first estimate (control.wait_for_observer = false): estimate settling"
+    for s in run.statuses:
+        t = rel_s(run, s["stamp_ns"])
+        if first < t < flipped:
+            assert any(notice in a for a in s["alarms"]), (t, s["alarms"])
+        elif t > flipped:
+            assert not any("settl" in a for a in s["alarms"]), (t, s["alarms"])
 
 
 # --- DP waits ------------------------------------------------------------------------------------------
