@@ -19,6 +19,7 @@ from dpgw.cli_foxglove import DEFAULT_HOST, DEFAULT_PORT, add_foxglove_arg, conn
 from dpgw.cli_paths import mcap_path_problem
 from dpgw.cli_types import non_negative_float, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
+from observers.settling import ENGAGE_TIME_CONSTANTS as SETTLING_TIME_CONSTANTS
 from simulator.scenario_names import SCENARIO_NAMES
 
 if TYPE_CHECKING:
@@ -28,10 +29,11 @@ if TYPE_CHECKING:
 # imported by the functions that run the demo, so `dpgw demo --help` answers at once.
 
 SETTLE_S = 60.0
-ENGAGE_TIME_CONSTANTS = 1.5
-"""When the demo's operator switches the gateway from standby to dp by default (``--engage-at``): after
-this many time constants of the observer's slowest error mode (`slowest_error_rate` over all headings:
-its bias, ~96 s on the default scenario, so DP at 145 s). Until then the vessel is held on joystick: the
+ENGAGE_TIME_CONSTANTS = SETTLING_TIME_CONSTANTS
+"""When the demo's operator switches the gateway from standby to dp by default (``--engage-at``): once the
+observer has settled, this many time constants of its slowest error mode (`Observer.settle_time_s`, the
+one definition in `observers.settling` that the estimate's ``settled`` and `dpgw run`'s wait share: the
+bias, ~96 s on the default scenario, so DP at 145 s). Until then the vessel is held on joystick: the
 simulator's thrusters deliver minus the load it knows (`Simulation.start_held`), from the start, and
 the drives report that thrust, so the observer starts at the load's equilibrium and its bias estimate
 settles; DP then takes over bumplessly from the thrust the drives report, as a DP operator engages DP
@@ -234,7 +236,12 @@ def demo_config(
                 "component_id": scenario.feedback.component_id,
             }
         )
-    cfg["control"] = {"initial_mode": "standby" if engages_later(args, scenario) else args.mode}
+    # The demo's operator engages DP (`engage_time`): a gateway started in dp (``--engage-at 0``, or a vessel
+    # whose drives report no thrust) is in DP from the first estimate, as asked, not waiting for the observer
+    cfg["control"] = {
+        "initial_mode": "standby" if engages_later(args, scenario) else args.mode,
+        "wait_for_observer": False,
+    }
     tp = scenario.sea[0][1].tp_s
     cfg["observer"] = {"type": DEMO_OBSERVER, "wave_period_s": tp}
     cfg["zenoh"] = {
@@ -260,14 +267,14 @@ def engages_later(args: argparse.Namespace, scenario: Any) -> bool:
 
 
 def engage_time(args: argparse.Namespace, observer: Any) -> float:
-    """The sim second to engage DP: ``--engage-at``, or `ENGAGE_TIME_CONSTANTS` time constants of the
-    observer's slowest error mode, to the whole second. The observer is the demo's passive one
-    (`DEMO_OBSERVER`), whose tuning is checked stable when it is made: its slowest rate is negative."""
+    """The sim second to engage DP: ``--engage-at``, or the observer's settle time (`Observer.settle_time_s`:
+    `observers.settling.ENGAGE_TIME_CONSTANTS` time constants of its slowest error mode) rounded up to the
+    whole second — up, so that the operator's ``dp`` comes once the gateway calls the estimate settled (its
+    first estimate comes with the first fix, a fraction of a second in) and raises no early-engagement
+    alarm."""
     if args.engage_at is not None:
         return float(args.engage_at)
-    from observers.passive_tuning import slowest_error_rate
-
-    return float(round(ENGAGE_TIME_CONSTANTS / -slowest_error_rate(observer.vessel, observer.gains)))
+    return float(math.ceil(observer.settle_time_s))
 
 
 def froude_scale(scenario: Any) -> float:

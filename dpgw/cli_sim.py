@@ -93,6 +93,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "ones are counted (commands_rejected in the summary) and the first of each kind is logged. Not "
         "the key itself on the command line: other users see a command line in ps (docs/simulator.md)",
     )
+    p.add_argument(
+        "--held",
+        action="store_true",
+        help="the vessel held on its station by joystick until the first thruster command, as a crew holds "
+        'it while a gateway started in DP ([control] initial_mode = "dp") waits for its observer to settle '
+        "(145 s on torsetnes_2004): the thrusters deliver minus the slowly varying load from the start and "
+        "answer the drift off station slowly, as dpgw demo holds it. Without it the scenario's own thrust "
+        "(the known mean load only) leaves the vessel to drift (docs/gateway.md, 'Waiting for the observer')",
+    )
     p.add_argument("--realtime", action="store_true", help="pace in real time (default: as fast as possible)")
     p.add_argument(
         "--speed",
@@ -200,6 +209,7 @@ def run(args: argparse.Namespace) -> int:
             ("--mavlink", args.mavlink),
             ("--tlog", args.tlog),
             ("--realtime", args.realtime),
+            ("--held", args.held),
             ("--speed", args.speed != 1.0),
             ("--gnss-rate", args.gnss_rate),
             ("--gyro-rate", args.gyro_rate),
@@ -461,9 +471,16 @@ def _run_scenario(args: argparse.Namespace) -> int:
     clock: Clock = (
         RealtimeClock(speed=args.speed, resync_lag_s=RESYNC_LAG_S) if args.realtime else VirtualClock()
     )
+    if args.held:  # the operator's joystick until the first command (`Simulation.held_tau`), as dpgw demo's
+        from dpgw.cli_demo import HOLD_PERIOD_S, froude_scale
+
+        station, period = scenario.eta0, HOLD_PERIOD_S * froude_scale(scenario)
+        scenario = replace(scenario, tau=lambda _: sim.held_tau(station, period))
     sim = Simulation(
         scenario, args.seed, routes=routes, log=log, clock=clock, commands=commands, signing_key=signing_key
     )
+    if args.held:
+        sim.start_held()
     recorder = None
     if tlog is not None:  # stamped with the simulation's own epoch: the NMEA sentences' UTC
         recorder = sim.on_emit = TlogRecorder(tlog, sim.epoch)

@@ -104,7 +104,11 @@ def gateway_tables(scenario: Scenario, **control: Any) -> dict[str, Any]:
     DGPS or gyros become redundant sources, ranked in the scenario's order (priority 1, 2, …); the
     anemometers of a scenario with wind are ``wind`` sources (the controller's wind feed-forward; ``control``
     ``wind_feedforward_gain=0`` turns it off); its MRUs are ``attitude`` sources (the lever-arm
-    compensation by roll and pitch)."""
+    compensation by roll and pitch). DP from the first estimate (``initial_mode = "dp"``,
+    ``wait_for_observer = false``): no one holds the vessel here while a gateway waits for its observer
+    (the scenario's own thrust answers the known mean load only), and the studies measure the control
+    from the start; ``control`` ``wait_for_observer=True`` with `run_closed_loop`'s ``hold_on_joystick``
+    runs the loop as `dpgw run` starts on a vessel held on joystick."""
     sources: list[dict[str, Any]] = [
         {"name": dgps.source, "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position"],
          "lever_arm_m": list(dgps.lever_arm_m), "timeout_s": max(2.0, 3.0 / dgps.rate_hz), "priority": k + 1}
@@ -131,7 +135,7 @@ def gateway_tables(scenario: Scenario, **control: Any) -> dict[str, Any]:
         "datum": {"lat_deg": scenario.datum.lat_deg, "lon_deg": scenario.datum.lon_deg},
         "sources": sources,
         "observer": {"wave_period_s": scenario.sea[0][1].tp_s},
-        "control": {"initial_mode": "dp", **control},
+        "control": {"initial_mode": "dp", "wait_for_observer": False, **control},
         "commands": {"accept": ["mode", "setpoint", "tau"]},
         "log": {"path": ""},
     }
@@ -218,6 +222,7 @@ def run_closed_loop(
     status_every_s: float | None = None,
     wire: bool | None = None,
     collect: tuple[str, ...] = (),
+    hold_on_joystick: bool = False,
 ) -> ClosedLoopRun:
     """Run the scenario with the gateway pipeline commanding the thrusters. ``events``: (sim time, key,
     payload) Zenoh inputs such as ("setpoint", {...}) or ("mode", "standby"); the scenario's command faults
@@ -229,7 +234,9 @@ def run_closed_loop(
     feedback needs the bytes. ``tables`` (default `gateway_tables`) get the scenario's observer settings
     under their own (`with_scenario_observer`), as a study of the scenario does. ``collect``: pipeline
     topics (e.g. "/dp/measurement") whose payloads are kept in ``collected`` (the typed messages in
-    ``collected_messages``), in order."""
+    ``collected_messages``), in order. ``hold_on_joystick``: until the gateway's first thruster command the
+    vessel is held on its station by an operator on joystick, as `dpgw demo` holds it before DP is engaged
+    (`Simulation.start_held`, `Simulation.held_tau`)."""
     if wire is None:
         wire = needs_wire(scenario, log)
     tables = with_scenario_observer(tables or gateway_tables(scenario), scenario)
@@ -267,7 +274,14 @@ def run_closed_loop(
         def on_emit(e: Emission) -> None:
             typed.append((sim.t, rank.get(e.source, len(rank)), e.source, e))
 
+    if hold_on_joystick:
+        from dpgw.cli_demo import HOLD_PERIOD_S, froude_scale
+
+        station, period = scenario.eta0, HOLD_PERIOD_S * froude_scale(scenario)
+        scenario = replace(scenario, tau=lambda _: sim.held_tau(station, period))
     sim = Simulation(scenario, seed, routes=routes, commands=[commands], log=log, wire=wire, on_emit=on_emit)
+    if hold_on_joystick:
+        sim.start_held()
     injected = FaultSchedule(scenario.faults).command_events(duration_s)
     pending_events = sorted([*events, *injected], key=lambda e: e[0])
     next_status = 0.0

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 from mypy_extensions import mypyc_attr
 
-from gateway.commands import CommandGate
+from gateway.commands import HEALTHY_FOR_DP, CommandGate
 from gateway.config import (
     ArdupilotMap,
     CommandsConfig,
@@ -430,6 +430,16 @@ class Pipeline:
         self.allocation: AllocationResult | None = None
         self.control_alarms: list[str] = []
         self._pending_setpoint: dict[str, Any] | None = None
+        # Whether the observer's estimate has settled (`Observer.settle_time_s` after its start: its first
+        # estimate, or the first after a restart), and what DP does about it (docs/gateway.md, "Waiting
+        # for the observer").
+        self.settled = False
+        self._settle_ns = round(float(spec.observer.settle_time_s) * NS)  # read again at each start
+        self._settle_from_ns: int | None = None  # the observer's start; None until its first estimate
+        self.waiting_for_observer = False
+        """``initial_mode = "dp"`` with ``wait_for_observer``: standby until the estimate has settled, then
+        DP by itself; ended by the engagement or by an operator's mode command."""
+        self._unsettled_dp = ""  # in DP on an estimate not yet settled: why ("operator", "restart", "start")
         self._returns_seen = 0  # the controller's governed returns already announced
         self._raw: tuple[float, np.ndarray, np.ndarray] | None = None
         self._last_control_ns = 0
@@ -437,6 +447,14 @@ class Pipeline:
         self._control_period_ns = NS // 10
         if cc is not None:
             self.mode = cc.initial_mode
+            if cc.initial_mode == "dp" and cc.wait_for_observer:
+                self.mode, self.waiting_for_observer = "standby", True
+                self._startup_events.append(
+                    f"initial mode dp: standby until the observer has settled ({self._settle_ns / NS:.0f} s "
+                    "after its first estimate), then DP engages by itself (control.wait_for_observer)"
+                )
+            elif cc.initial_mode == "dp":
+                self._unsettled_dp = "start"
             self._control_period_ns = int(NS / cc.rate_hz)
             self.controller = DPController(
                 spec.vessel,
@@ -1148,6 +1166,7 @@ class Pipeline:
             return
         if ev.key == "mode":
             if gate.check_mode(ev.payload, self.observer.initialized, self.estimate_status) is None:
+                self._mode_commanded(ev.payload, ev.rx_ns)
                 self.mode = ev.payload
                 gate.accepted("mode")
         elif ev.key == "setpoint":
@@ -1162,6 +1181,69 @@ class Pipeline:
                 self.manual_tau = tau
                 if self.mode == "manual" and self.controller is None:
                     self.fusion.set_tau_demand(tau)
+
+    def _mode_commanded(self, mode: str, now_ns: int) -> None:
+        """An operator's mode command, accepted: the operator decides, as on a DP console. It ends a wait
+        for the observer (`waiting_for_observer`) whatever the mode; a ``dp`` before the estimate has
+        settled is honoured, said once and alarmed until the estimate has settled."""
+        if self.waiting_for_observer:
+            self.waiting_for_observer = False
+            if mode != "dp":
+                self._events.append(f"DP no longer waits for the observer: the operator chose {mode}")
+        if mode == "dp" and self.mode != "dp" and not self.settled and self.controller is not None:
+            self._unsettled_dp = "operator"
+            self._events.append(
+                "DP engaged by the operator before the observer settled "
+                f"({self.settle_left_s(now_ns):.0f} s left): the bias estimate is still growing"
+            )
+
+    def settle_left_s(self, now_ns: int) -> float:
+        """Seconds until the observer's estimate is taken as settled (0 once it is; its whole settle time
+        before its first estimate)."""
+        if self.settled:
+            return 0.0
+        start = self._settle_from_ns
+        if start is None:
+            return self._settle_ns / NS
+        return max(0.0, (start + self._settle_ns - now_ns) / NS)
+
+    def _settle_clock(self, now_ns: int) -> None:
+        """At an estimate of the (primary) observer: start its settle clock at its first estimate, and
+        mark it settled once `Observer.settle_time_s` has passed since."""
+        start = self._settle_from_ns
+        if start is None:
+            self._settle_from_ns = start = now_ns
+            self._settle_ns = round(float(self.observer.settle_time_s) * NS)
+        if not self.settled and now_ns - start >= self._settle_ns:
+            self.settled = True
+            self._unsettled_dp = ""
+
+    def _engage_when_settled(self) -> None:
+        """While waiting for the observer: DP once the estimate has settled and is healthy enough for DP
+        (the check an operator's ``dp`` passes, `gateway.commands`); the control step then takes over
+        from what the thrusters deliver (`_take_over`), bumplessly."""
+        if self.settled and self.estimate_status in HEALTHY_FOR_DP:
+            self.waiting_for_observer = False
+            self.mode = "dp"
+            self._events.append("observer settled: DP engaged (control.wait_for_observer)")
+
+    def _settling_alarms(self, now_ns: int) -> list[str]:
+        """The notice while the estimate has not settled and it matters: DP waiting for it, or DP running
+        on it. An alarm of the status's list, cleared when the estimate has settled (numbers masked, one
+        alarm while its seconds count down: `gateway.foxglove_channels.alarm_key`)."""
+        if self.waiting_for_observer:
+            if not self.settled:
+                left = self.settle_left_s(now_ns)
+                return [f"DP waits for the observer to settle: {left:.0f} s left (control.wait_for_observer)"]
+            return [f"DP waits for a healthy estimate: it is {self.estimate_status or 'not there'}"]
+        if self.mode != "dp" or self.settled or self.controller is None:
+            return []
+        left = self.settle_left_s(now_ns)
+        why = {
+            "operator": "DP engaged before the observer settled",
+            "restart": "observer restarted in DP",
+        }.get(self._unsettled_dp, "DP from the first estimate (control.wait_for_observer = false)")
+        return [f"{why}: estimate settling, {left:.0f} s left"]
 
     def _thruster_flags(self, thruster_id: int, flags: int) -> None:
         """A drive's status flags: a thruster whose drive says it will not deliver DP commands (`OUT_FLAGS`:
@@ -1242,8 +1324,12 @@ class Pipeline:
         ]
         if est.status != _INITIALIZING:
             self.estimates += 1
+            if not self.settled:
+                self._settle_clock(now_ns)
             estimate = self._estimate(self.spec.observer_name, self.observer, est, now_ns, valid)
             self.estimate_status = estimate.status
+            if self.waiting_for_observer:
+                self._engage_when_settled()
             # `_prediction`'s floats from the message's lists (the same numbers: ``est`` as lists)
             eta, wf = estimate.eta, estimate.eta_wf
             self._pred_base = (
@@ -1388,6 +1474,18 @@ class Pipeline:
         reacq[:] = (0, 0, 0)
         self.restarts += 1
         self._events.append(f"observer restarted from the measurement: {why}")
+        # Its estimate starts again (bias from zero): not settled until its settle time has passed again.
+        # DP is kept, as a DP system keeps DP through a filter reset: dropping to standby would leave the
+        # thrusters to no one; the controller's integrator holds the load the bias estimate lost while it
+        # grows back, and an alarm says so until it has settled (docs/gateway.md, "Waiting for the
+        # observer").
+        self._settle_from_ns, self.settled = None, False
+        if self.mode == "dp" and self.controller is not None:
+            self._unsettled_dp = "restart"
+            self._events.append(
+                "DP kept on the restarted observer: its estimate settles again in "
+                f"{self._settle_ns / NS:.0f} s"
+            )
         return y_obs
 
     def _restart_dof(self, dof: int, y: np.ndarray) -> bool:
@@ -1764,6 +1862,9 @@ class Pipeline:
             else (self._datum_msg if datum is self._datum_for_message else self._datum_message(datum)),
             extra=obs.extra(),
             health=health,  # type: ignore[arg-type]  # DofHealth words only
+            # (the primary observer's: an extra observer's settle clock is not kept)
+            settled=None if valid is None else self.settled,
+            settle_s_left=None if valid is None else self.settle_left_s(now_ns),
         )
 
     def _datum_message(self, datum: LocalFrame) -> Datum:
@@ -1857,7 +1958,7 @@ class Pipeline:
             alarms = self._caller_alarms
         elif remember:
             self._caller_alarms = list(alarms)
-        alarms = list(alarms) + self.control_alarms
+        alarms = list(alarms) + self._settling_alarms(now_ns) + self.control_alarms
         alarms += [f"thruster {tid} out of DP ({why})" for tid, why in sorted(self.thrusters_out.items())]
         references: dict[str, list[ReferenceStatus]] = {}
         for name, states in self.monitor.states().items():

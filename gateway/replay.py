@@ -430,7 +430,9 @@ def _as_replayed(tables: dict[str, Any]) -> dict[str, Any]:
     """A logged gateway config as replay runs it. Replay commands no thrusters, so no source sends
     commands (and an unsigned link's ``allow_unsigned``, which only allowed that, goes too). A log written
     before ``[commands]`` existed came from a gateway that took every command input: so does its replay,
-    or the replay would refuse the setpoints and modes the live run obeyed."""
+    or the replay would refuse the setpoints and modes the live run obeyed. One from before ``[control]
+    wait_for_observer`` (a gateway that started in dp engaged DP at its first estimate; logs since record
+    the option, `gateway.config.logged.for_log`) is replayed so too."""
     out = without_unlogged_keys(tables)
     sources = []
     for src in out.get("sources", []):
@@ -442,6 +444,9 @@ def _as_replayed(tables: dict[str, Any]) -> dict[str, Any]:
     if "sources" in out:
         out["sources"] = sources
     out.setdefault("commands", {"accept": ["mode", "setpoint", "tau"]})
+    control = out.get("control")
+    if isinstance(control, dict) and control.get("initial_mode") == "dp":
+        out["control"] = {"wait_for_observer": False, **control}
     return out
 
 

@@ -42,7 +42,7 @@ import msgspec
 import zenoh
 
 from gateway.bus import JSON, REDIAL_S, Dialler, UnreachableError, command_acl, make_config, open_session
-from gateway.config import GatewayConfig, ZenohConfig, config_notes, wind_feedforward_line
+from gateway.config import GatewayConfig, ZenohConfig, config_notes, start_mode_line, wind_feedforward_line
 from gateway.config.logged import SIGNING_VERDICTS_KEY, for_log
 from gateway.outputs import InputSink, OutputSink, RawSentenceSink
 from gateway.pipeline import SIGNING_REJECTED_TOPIC, ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
@@ -218,6 +218,9 @@ class GatewayService:
         wind = wind_feedforward_line(config)
         if wind:  # once, at start-up (also the first /status event when off)
             log.info("%s", wind)
+        if config.control is not None and config.control.initial_mode == "dp":
+            # whether DP waits for the observer: once, at start-up (also the first /status event)
+            log.info("%s", start_mode_line(config))
         # MAVLink links that take the dialect's thruster commands: one encoder each (own sequence numbers,
         # signed when the link has a key)
         self._command_links: dict[str, Any] = {}

@@ -17,6 +17,8 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from observers.settling import UNKNOWN_SETTLE_S
+
 Array = NDArray[np.float64]
 
 # Status of one sample, as kernels return it (small ints: numba code stores them in int8 arrays).
@@ -121,6 +123,14 @@ class Observer(Protocol):
     @property
     def omega0(self) -> Array:
         """Wave frequency in use per DOF (3,), rad/s."""
+        ...
+
+    @property
+    def settle_time_s(self) -> float:
+        """Seconds after the observer's start (its first estimate, or the first after a `reset` or a
+        restart) after which its estimate is taken as settled: `observers.settling.ENGAGE_TIME_CONSTANTS`
+        time constants of its slowest error mode, each observer's figure from its own model and tuning
+        (its docstring says how); `observers.settling.UNKNOWN_SETTLE_S` where nothing can be derived."""
         ...
 
     def initialize(
@@ -242,6 +252,12 @@ class ObserverBase:
     def extra(self) -> dict[str, Any]:
         """Observer-specific fields for the estimate message (none unless the observer says)."""
         return {}
+
+    @property
+    def settle_time_s(self) -> float:
+        """`Observer.settle_time_s`: here the conservative `UNKNOWN_SETTLE_S`, for an observer that derives
+        no figure of its own (each of dpgw's observers does)."""
+        return UNKNOWN_SETTLE_S
 
     def _set_clock(self, t: float) -> None:
         self._clock[CLOCK_T] = t

@@ -59,9 +59,11 @@ from observers.sdre_tuning import (
     input_matrix,
     output_matrix,
     sdre_weights,
+    slowest_error_rate,
     solve_riccati,
     system_matrix,
 )
+from observers.settling import settle_time_from_rate
 from observers.vessel import VesselModel
 
 Array = NDArray[np.float64]
@@ -138,6 +140,7 @@ class EkfObserver(ObserverBase):
         self._W = np.ascontiguousarray(np.stack([weights.omega0, weights.zeta]))
         self._Q = np.ascontiguousarray(weights.Q)
         self._P0 = np.ascontiguousarray(initial_covariance(self.vessel, weights))
+        self._settle_s: float | None = None  # `settle_time_s` of these weights, once asked for
 
     def reset(self) -> None:
         self.x = np.zeros(N_STATES)
@@ -147,6 +150,20 @@ class EkfObserver(ObserverBase):
     @property
     def omega0(self) -> Array:
         return self.weights.omega0.copy()
+
+    @property
+    def settle_time_s(self) -> float:
+        """`Observer.settle_time_s`: `ENGAGE_TIME_CONSTANTS` time constants of the slowest error mode of
+        the SDRE observer with the same weights (`sdre_tuning.slowest_error_rate`). Why that one: the EKF
+        has the same model and Q, and the SDRE's R is the per-sample variance r this filter uses times the
+        tuning's sample period (R = σ² dt, `sdre_weights`), the continuous intensity of the same noise; it
+        starts from P0 = that Riccati solution at ψ = 0, so its gain is the steady Kalman gain from the
+        first sample and its error decays with the same poles — the bias pole the slowest (docs/sdre.md).
+        An approximation where the sensors' rate differs from ``sample_period_s`` (the gain then differs
+        as the information per second does) or the vessel turns fast (the SDRE freezes ψ)."""
+        if self._settle_s is None:
+            self._settle_s = settle_time_from_rate(slowest_error_rate(self.vessel, self.weights))
+        return self._settle_s
 
     def _begin(self, t: float, start: InitialState) -> None:
         """`initialize`: the given state, with the start covariance P0."""

@@ -67,7 +67,14 @@ from observers.gain_scheduled_analysis import (
     validate_contraction,
 )
 from observers.passive import PassiveObserver, estimate_from_state, initial_state
-from observers.passive_tuning import PassiveGains, PassiveTuning, injection_floor, passive_gains
+from observers.passive_tuning import (
+    PassiveGains,
+    PassiveTuning,
+    injection_floor,
+    passive_gains,
+    slowest_error_rate,
+)
+from observers.settling import settle_time_from_rate
 from observers.state import BIAS, ETA, N_STATE, NU, XI2, StateView
 from observers.vessel import VesselModel
 from observers.wave_frequency import (
@@ -234,6 +241,7 @@ class GainScheduledObserver(ObserverBase):
         self._Minv = np.ascontiguousarray(vessel.Minv)
         self._D = np.ascontiguousarray(vessel.D, dtype=float)
         self.estimator = WaveFrequencyEstimator(self.config)
+        self._settle_at_omega: tuple[tuple[float, ...], float] | None = None  # (ω0, `settle_time_s` there)
         self.reset()
 
     @classmethod
@@ -285,6 +293,23 @@ class GainScheduledObserver(ObserverBase):
     def omega0(self) -> Array:
         """The wave frequency in use per DOF (rad/s)."""
         return self._omega.copy()
+
+    @property
+    def settle_time_s(self) -> float:
+        """`Observer.settle_time_s`: `ENGAGE_TIME_CONSTANTS` time constants of the slowest error mode of the
+        passive gains at the ω0 in use (`passive_tuning.slowest_error_rate`, the bias mode) — at the start
+        (when the gateway asks) the initial ω0, the configured sea's (``wave_period_s``). The bias mode
+        scales with ω0 (the tuning's corners are ratios of it: −0.0037 s⁻¹ at 0.3 rad/s to −0.056 s⁻¹ at
+        1.6 rad/s on mss_supply), so a sea much longer than the configured one settles later than this
+        says; the slowest over the whole scheduling range (405 s on mss_supply's default range, its
+        0.3 rad/s end) would hold the estimate unsettled for a sea that is rarely there."""
+        omega = tuple(self._omega.tolist())
+        if self._settle_at_omega is None or self._settle_at_omega[0] != omega:
+            self._settle_at_omega = (
+                omega,
+                settle_time_from_rate(slowest_error_rate(self.vessel, self.gains)),
+            )
+        return self._settle_at_omega[1]
 
     @property
     def omega0_target(self) -> Array:

@@ -44,12 +44,13 @@ from numpy.typing import ArrayLike, NDArray
 from observers import _memory_kernel as kernel
 from observers.base import ZERO3, Estimate, InitialState, ObserverBase, Run, batch_inputs
 from observers.kinematics import rotation, ssa_scalar
-from observers.memory_tuning import MemoryGains, memory_gains, n_state, validate
+from observers.memory_tuning import MemoryGains, memory_gains, n_state, slowest_error_rate, validate
 from observers.passive import estimate_from_state, initial_state, pack_gains
 from observers.passive import reference_equilibrium as passive_equilibrium
 from observers.passive_tuning import PassiveTuning
 from observers.radiation import RadiationStateSpace
 from observers.reference import reference_loop, rk4_held
+from observers.settling import settle_time_from_rate
 from observers.state import BIAS, ETA, I_NU, I_PSI, N_STATE, NU, XI, XI2
 from observers.vessel import VesselModel
 
@@ -119,6 +120,7 @@ class MemoryObserver(ObserverBase):
         if not allow_unchecked:
             validate(gains)
         self.gains = gains
+        self._settle_s: float | None = None  # `settle_time_s`, once asked for
         model = gains.model
         self._G = pack_gains(gains.passive)
         self._Minv = np.ascontiguousarray(model.Minv)
@@ -150,6 +152,16 @@ class MemoryObserver(ObserverBase):
     def omega0(self) -> Array:
         """The wave frequency the filter is tuned to, per DOF (rad/s) — fixed for this observer."""
         return self.gains.omega0.copy()
+
+    @property
+    def settle_time_s(self) -> float:
+        """`Observer.settle_time_s`: `ENGAGE_TIME_CONSTANTS` time constants of the slowest eigenvalue of
+        the extended error system (the passive observer's with the radiation states) over headings
+        (`memory_tuning.slowest_error_rate`, the rate the tuning promises; −0.023 s⁻¹ for the supply
+        vessel, docs/memory-observer.md). The gains are fixed: computed once."""
+        if self._settle_s is None:
+            self._settle_s = settle_time_from_rate(slowest_error_rate(self.gains))
+        return self._settle_s
 
     @property
     def radiation_force(self) -> Array:

@@ -87,6 +87,7 @@ from observers.base import (
 )
 from observers.kinematics import ssa_scalar
 from observers.mmae_model import MASKS, continuous_model, discretize, filter_tables
+from observers.settling import settle_time_from_time_constant
 from observers.state import BIAS, ETA, I_PSI, N_STATE, NU, XI2, StateView
 from observers.vessel import VesselModel
 from observers.wave_frequency import WaveFrequencyConfig, WaveFrequencyEstimator
@@ -450,6 +451,7 @@ class MMAEObserver(ObserverBase):
         if not (self.max_gap_s > 0):
             raise ValueError(f"max_gap_s must be positive, got {max_gap_s!r}")
         self.heading_in_weights = bool(heading_in_weights)
+        self._settle_s: float | None = None  # `settle_time_s`, once asked for
         self._params = np.zeros(kernel.N_PARAMS)
         self._params[kernel.PARAM_DT] = self.bank.dt
         self._params[kernel.PARAM_WEIGHT_FLOOR] = self.weight_floor
@@ -523,6 +525,32 @@ class MMAEObserver(ObserverBase):
         self._start = (x.x.copy(), t, psi_f, self._p.copy())
         self._prefix = []  # samples before an explicit start are not run again
         self.lf.reset()
+
+    @property
+    def settle_time_s(self) -> float:
+        """`Observer.settle_time_s`, from the bank the observer starts with. Each filter is a steady-state
+        Kalman filter whose start-up error decays with its slowest closed-loop mode, τᵢ = −dt / ln ρᵢ, ρᵢ
+        the spectral radius of (I − KᵢC)Φᵢ (docs/mmae.md: 3.6-13.8 s across the default bank); the bank
+        settles with its slowest filter, `ENGAGE_TIME_CONSTANTS` × max τᵢ. That is not all: the blend is
+        only as good as the weights, and when the noise is identified (the default) the weights wait for
+        the first identification and the bank is designed again from it — the evidence of one whole
+        identification window (six periods of the slowest candidate, `identification_config`) is what
+        the weights then rest on. So the larger of the two. The LF output stage's stiffer filters
+        (`observers.mmae_lf`) are chosen from the data as they come: nothing about them can be derived
+        in advance, and they start from the winner's state, so they are not counted."""
+        if self._settle_s is None:
+            b = self._initial_bank
+            eye = np.eye(N_STATE)  # (the last mask: every DOF measured)
+            radius = max(
+                float(np.max(np.abs(np.linalg.eigvals((eye - b.K[i, len(MASKS) - 1] @ b.C) @ b.Phi[i]))))
+                for i in range(b.n)
+            )
+            tau = -b.dt / math.log(radius) if 0.0 < radius < 1.0 else math.inf
+            settle = settle_time_from_time_constant(tau)
+            if self.identify_noise:
+                settle = max(settle, identification_config(self._design_args[0]).window_s)
+            self._settle_s = settle
+        return self._settle_s
 
     @property
     def state(self) -> StateView:

@@ -45,8 +45,9 @@ from observers.base import (
     batch_inputs,
 )
 from observers.kinematics import rotation, ssa_scalar
-from observers.passive_tuning import PassiveGains, PassiveTuning, passive_gains, validate
+from observers.passive_tuning import PassiveGains, PassiveTuning, passive_gains, slowest_error_rate, validate
 from observers.reference import reference_loop, rk4_held
+from observers.settling import settle_time_from_rate
 from observers.state import BIAS, ETA, I_PSI, N_STATE, NU, XI, XI2, StateView
 from observers.vessel import VesselModel
 
@@ -128,6 +129,7 @@ class PassiveObserver(ObserverBase):
             validate(gains)
         self.gains = gains
         self._G = pack_gains(gains)
+        self._settle_s: float | None = None  # `settle_time_s` of these gains, once asked for
 
     def reset(self) -> None:
         self.x = np.zeros(N_STATE)
@@ -142,6 +144,15 @@ class PassiveObserver(ObserverBase):
     def omega0(self) -> Array:
         """The wave frequency the filter is tuned to, per DOF (rad/s) — fixed for this observer."""
         return self.gains.omega0.copy()
+
+    @property
+    def settle_time_s(self) -> float:
+        """`Observer.settle_time_s`: `ENGAGE_TIME_CONSTANTS` time constants of the slowest eigenvalue of
+        the error dynamics (30)–(32) over all headings (`passive_tuning.slowest_error_rate`): the bias
+        mode, ≈ aρ/(d + a) per DOF (docs/passive-observer.md); 145 s on the default scenario."""
+        if self._settle_s is None:
+            self._settle_s = settle_time_from_rate(slowest_error_rate(self.vessel, self.gains))
+        return self._settle_s
 
     def _begin(self, t: float, start: InitialState) -> None:
         """`initialize`; without it the first complete measurement starts the observer in equilibrium."""

@@ -62,10 +62,12 @@ from observers.sdre_tuning import (
     output_matrix,
     paper_weights,
     sdre_weights,
+    slowest_error_rate,
     system_matrix,
     table_gain,
     with_wave_frequency,
 )
+from observers.settling import settle_time_from_rate
 from observers.vessel import VesselModel
 from observers.wave_frequency import ESTIMATOR_KEYS, estimator_config
 
@@ -159,6 +161,7 @@ class SdreObserver(ObserverBase):
         self.weights = weights
         self.table = np.ascontiguousarray(table)
         self._W = np.ascontiguousarray(np.stack([weights.omega0, weights.zeta]))
+        self._settle_s: float | None = None  # `settle_time_s` of these weights, once asked for
 
     def set_omega0(self, omega0: ArrayLike) -> None:
         """Re-tune to a new wave frequency (rad/s, per DOF or one for all): one new Riccati solution. With
@@ -178,6 +181,16 @@ class SdreObserver(ObserverBase):
     def omega0(self) -> Array:
         """The wave frequency the filter is tuned to, per DOF (rad/s)."""
         return self.weights.omega0.copy()
+
+    @property
+    def settle_time_s(self) -> float:
+        """`Observer.settle_time_s`: `ENGAGE_TIME_CONSTANTS` time constants of the slowest eigenvalue of
+        A(ψ) − K(ψ)C over a grid of headings (`sdre_tuning.slowest_error_rate`): the bias pole, −0.056 s⁻¹
+        for snijders_ship and −0.052 s⁻¹ for mss_supply at ω0 = 2π/12 s (docs/sdre.md), so ~27-29 s.
+        Computed for the weights in use (new weights, a new figure)."""
+        if self._settle_s is None:
+            self._settle_s = settle_time_from_rate(slowest_error_rate(self.vessel, self.weights))
+        return self._settle_s
 
     def _begin(self, t: float, start: InitialState) -> None:
         """`initialize`: ψ wrapped. Without it, the first complete measurement initialises the observer at

@@ -34,7 +34,9 @@ def pipeline(commands: dict[str, Any] | None = None, initial_mode: str = "standb
             {"name": "gps", "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position", "heading"]}
         ],
         "observer": {"wave_period_s": 8.0},
-        "control": {"initial_mode": initial_mode},
+        # DP from the first estimate: these tests are about the commands, not the start-up's wait for the
+        # observer (tests/test_settling.py)
+        "control": {"initial_mode": initial_mode, "wait_for_observer": False},
         "log": {"path": ""},
     }
     if commands is not None:

@@ -79,13 +79,13 @@ def bench(tmp_path: Path) -> tuple[Path, list[str]]:
     cfg.write_text(text)
     sim_args = [
         "sim", "--scenario", "torsetnes_2004", "--nmea", f"dgps1=udp://127.0.0.1:{nmea}",
-        "--nmea", f"gyro1=pty://{gyro}", "--mavlink", f"udp://127.0.0.1:{mav}", "--realtime", "--speed", "4",
-        "--zenoh", "--zenoh-listen", f"tcp/127.0.0.1:{zport}", "--json",
+        "--nmea", f"gyro1=pty://{gyro}", "--mavlink", f"udp://127.0.0.1:{mav}", "--held", "--realtime",
+        "--speed", "4", "--zenoh", "--zenoh-listen", f"tcp/127.0.0.1:{zport}", "--json",
     ]  # fmt: skip
     return cfg, sim_args
 
 
-@pytest.mark.slow  # ~40 s: two processes, 100 s of sea at 4x
+@pytest.mark.slow  # ~60 s: two processes, 200 s of sea at 4x
 def test_the_documented_two_process_bench_closes_the_loop_and_stops_cleanly(tmp_path: Path) -> None:
     cfg, sim_args = bench(tmp_path)
     gyro, log, truth_log = tmp_path / "gyro", tmp_path / "hil.mcap", tmp_path / "sim.mcap"
@@ -96,8 +96,9 @@ def test_the_documented_two_process_bench_closes_the_loop_and_stops_cleanly(tmp_
         gw = dpgw("run", "--config", str(cfg), "-v")
         said: list[str] = []
         lines_of(gw.stderr, said)
-        # 100 s of sea at the observer's 10 Hz, seen in the gateway's own status line
-        assert wait_for(lambda: estimates_said(said) >= 1000 or gw.poll() is not None, 180.0), "".join(said)
+        # 200 s of sea at the observer's 10 Hz, seen in the gateway's own status line: DP engaged by the
+        # gateway itself once its observer settled (145 s), and a minute of station keeping
+        assert wait_for(lambda: estimates_said(said) >= 2000 or gw.poll() is not None, 240.0), "".join(said)
         gw.send_signal(signal.SIGINT)  # Ctrl-C
         assert gw.wait(timeout=60) == 0, "".join(said)
         assert gw.stdout is not None and gw.stdout.read().startswith("dpgw run: stopped;")
@@ -140,6 +141,16 @@ def test_the_documented_two_process_bench_closes_the_loop_and_stops_cleanly(tmp_
     s = score(t_est, eta_est, t_truth, eta_truth, settle_s=30.0)
     assert s.samples > 500
     assert s.horizontal_rms_m < 1.5 and np.degrees(s.rms[2]) < 3.0, s.as_dict()
+    # the gateway waited for its observer (the crew holding the vessel meanwhile: --held), then engaged
+    engaged = [
+        p["stamp_ns"] / 1e9
+        for _, _, _, p in read_messages(log, "/dp/status")
+        for e in p.get("events", [])
+        if "observer settled: DP engaged" in e
+    ]
+    assert len(engaged) == 1 and 140.0 < engaged[0] - t_est[0] < 150.0, engaged
+    # said once in the gateway's log
+    assert "".join(said).count("standby, DP by itself once the observer has settled") == 1
     # station keeping in the closed loop: the vessel stays near its setpoint (where it started)
     drift = np.hypot(*(eta_truth[t_truth >= t_truth[0] + 30.0, :2] - eta_truth[0, :2]).T)
     assert drift.max() < 10.0, drift.max()

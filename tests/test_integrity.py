@@ -76,7 +76,7 @@ class Bench:
             "integrity": self.integrity,
         }
         if self.control:
-            tables["control"] = {"initial_mode": "dp"}
+            tables["control"] = {"initial_mode": "dp", "wait_for_observer": False}  # DP from the start
         self.p = Pipeline(PipelineSpec.from_config(parse_config(tables, base_dir=Path.cwd())))
         self.rng = np.random.default_rng(self.seed)
         self.k = 0

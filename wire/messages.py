@@ -227,6 +227,20 @@ class Estimate(Message, kw_only=True):
             "empty when not known (an extra observer's estimate)."
         ),
     ] = []
+    settled: Annotated[
+        bool | None,
+        doc(
+            "The observer's estimate has settled: its start (first estimate, or a restart) lies at least "
+            "the observer's settle time behind (1.5 time constants of its slowest error mode, "
+            'docs/gateway.md, "Waiting for the observer"). Until then the bias estimate is still '
+            "growing and DP engaged on it starts with a transient. Independent of `status`; absent when "
+            "not known (an extra observer's estimate)."
+        ),
+    ] = None
+    settle_s_left: Annotated[
+        float | None,
+        doc("Seconds until `settled` (0 once settled); absent when not known.", "s"),
+    ] = None
     extra: Annotated[
         dict[str, Any],
         doc(

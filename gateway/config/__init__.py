@@ -39,7 +39,13 @@ from gateway.config.model import (
     ZenohConfig,
 )
 from gateway.config.problems import ConfigError, format_problems
-from gateway.config.summary import config_notes, describe, wind_feedforward_line, wind_feedforward_off
+from gateway.config.summary import (
+    config_notes,
+    describe,
+    start_mode_line,
+    wind_feedforward_line,
+    wind_feedforward_off,
+)
 
 __all__ = [
     "BAUD_RATES",
@@ -70,6 +76,7 @@ __all__ = [
     "format_problems",
     "load_config",
     "parse_config",
+    "start_mode_line",
     "wind_feedforward_line",
     "wind_feedforward_off",
 ]

@@ -62,6 +62,7 @@ DEFAULTS: dict[str, dict[str, Any]] = {
     "control": {
         "rate_hz": 10.0,
         "initial_mode": "standby",
+        "wait_for_observer": True,
         "allocator": "qp",
         "damping": 1.0,
         "feedback": "estimate",

@@ -532,6 +532,7 @@ def _read_control(p: Problems, data: Mapping[str, Any], vessel: VesselModel | No
     return ControlConfig(
         rate_hz=v["rate_hz"],
         initial_mode=v["initial_mode"],
+        wait_for_observer=v["wait_for_observer"],
         allocator=v["allocator"],
         bandwidth_rad_s=v["bandwidth_rad_s"],
         damping=v["damping"],

@@ -7,11 +7,17 @@ in it would let anyone who reads the log drive the vessel's thrusters. So the ke
 replay commands no thrusters. In place of checking signatures, the replay applies the live gateway's
 verdicts, which the log records (`SIGNING_VERDICTS_KEY`); a log from before has none, and its frames are
 replayed with their signatures unchecked (docs/gateway.md, "Replay of a signed link").
+
+It also writes out a default the replay must not take from its own version: ``[control]
+wait_for_observer`` with ``initial_mode = "dp"`` (a gateway from before the wait engaged DP from the first
+estimate, and a replay of its log must too: `gateway.replay`), so a log records which it was.
 """
 
 from __future__ import annotations
 
 from typing import Any
+
+from gateway.config.defaults import DEFAULTS
 
 KEY_NOT_LOGGED = "not logged"
 """What a log's config holds in place of a source's ``signing_key``."""
@@ -24,7 +30,16 @@ written before gateways recorded them."""
 
 
 def for_log(tables: dict[str, Any]) -> dict[str, Any]:
-    """A copy of the config tables with every source's ``signing_key`` replaced by `KEY_NOT_LOGGED`."""
+    """A copy of the config tables with every source's ``signing_key`` replaced by `KEY_NOT_LOGGED`, and
+    ``[control] wait_for_observer`` written out (its default where not given) with ``initial_mode = "dp"``."""
+    control = tables.get("control")
+    waits = DEFAULTS["control"]["wait_for_observer"]
+    if (
+        isinstance(control, dict)
+        and control.get("initial_mode") == "dp"
+        and "wait_for_observer" not in control
+    ):
+        tables = {**tables, "control": {**control, "wait_for_observer": waits}}
     sources = tables.get("sources")
     if not isinstance(sources, list):
         return tables

@@ -187,6 +187,10 @@ class ControlConfig:
 
     rate_hz: float = 10.0
     initial_mode: str = "standby"
+    wait_for_observer: bool = True
+    """With ``initial_mode = "dp"``: hold standby until the observer's estimate has settled
+    (`Observer.settle_time_s` after its first estimate), then engage DP by itself, as an operator engages
+    once the observer is ready; False: DP from the first estimate."""
     allocator: str = "qp"
     bandwidth_rad_s: float | tuple[float, float, float] | None = None
     damping: float = 1.0

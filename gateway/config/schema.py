@@ -426,6 +426,7 @@ class ControlTable(_Section):
 
     rate_hz: float = number(_C["rate_hz"], lo=1.0, hi=50.0, unit="Hz")
     initial_mode: str = choice(_C["initial_mode"], CONTROL_MODES)
+    wait_for_observer: bool = boolean(_C["wait_for_observer"])
     allocator: str = choice(_C["allocator"], ALLOCATORS)
     bandwidth_rad_s: PerDof = per_dof(unit="rad/s")
     damping: float = number(_C["damping"], lo=0.3, hi=3.0)

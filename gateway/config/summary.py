@@ -11,7 +11,7 @@ from typing import Any
 from gateway.config.model import ControlConfig, GatewayConfig
 from observers.vessel import VesselModel
 
-__all__ = ["config_notes", "describe", "wind_feedforward_line", "wind_feedforward_off"]
+__all__ = ["config_notes", "describe", "start_mode_line", "wind_feedforward_line", "wind_feedforward_off"]
 
 
 def describe(config: GatewayConfig) -> str:
@@ -39,6 +39,9 @@ def describe(config: GatewayConfig) -> str:
         + (f", connect {list(z.connect)}" if z.connect else "")
         + (f", listen {list(z.listen)}" if z.listen else "")
     )
+    line = start_mode_line(config)
+    if line:
+        lines.append(f"  {line}")
     line = wind_feedforward_line(config)
     if line:
         lines.append(f"  {line}")
@@ -93,6 +96,19 @@ def key_file_note(path: Path | None, keyed: list[str]) -> str | None:
         "whoever reads the key can sign thruster commands: sudo chmod 640 and sudo chgrp to the "
         "service's group (dpgw)"
     )
+
+
+def start_mode_line(config: GatewayConfig) -> str:
+    """The mode the controller starts in, in one line ("" without a controller): with ``initial_mode =
+    "dp"``, whether it waits for the observer to settle (``wait_for_observer``) or engages at once."""
+    cc = config.control
+    if cc is None:
+        return ""
+    if cc.initial_mode != "dp":
+        return f"control: starts in {cc.initial_mode}"
+    if cc.wait_for_observer:
+        return "control: starts in standby, DP by itself once the observer has settled (wait_for_observer)"
+    return "control: DP from the first estimate (wait_for_observer = false: a cold start)"
 
 
 def consequence_line(config: GatewayConfig) -> str:
