@@ -74,6 +74,7 @@ from numpy.typing import NDArray
 
 from observers.hull import WindArea, relative_wind_force
 from observers.passive_tuning import PassiveGains, slowest_error_rate
+from observers.settling import ENGAGE_TIME_CONSTANTS, UNKNOWN_SETTLE_S
 from observers.vessel import VesselModel
 
 Array = NDArray[np.float64]
@@ -99,15 +100,22 @@ def default_fade_s(integral_time_s: float, bias_time_s: float | None = None) -> 
 
 
 def observer_bias_time_s(vessel: VesselModel, observer: object) -> float | None:
-    """T_b = −1/(the slowest error eigenvalue over all headings) of an observer with fixed passive gains
-    (`observers.passive_tuning.slowest_error_rate`; the bias mode is the slowest, ≈ aρ/(d + a) per DOF,
-    docs/passive-observer.md); None for an observer without them (its bias dynamics are not a fixed
-    linear system: the integral time alone sets the default fade)."""
+    """T_b, the time constant of the feeding observer's slowest error mode. With fixed passive gains:
+    −1/(the slowest error eigenvalue over all headings) (`observers.passive_tuning.slowest_error_rate`; the
+    bias mode is the slowest, ≈ aρ/(d + a) per DOF, docs/passive-observer.md). Any other observer: the
+    time constant behind its own settle time (`Observer.settle_time_s` / `ENGAGE_TIME_CONSTANTS`, each
+    from its own model: observers.settling). None when neither gives one (an observer that derives no
+    figure: the integral time alone sets the default fade)."""
     gains = getattr(observer, "gains", None)
-    if not isinstance(gains, PassiveGains):
+    if isinstance(gains, PassiveGains):
+        rate = slowest_error_rate(vessel, gains)
+        return -1.0 / rate if math.isfinite(rate) and rate < 0 else None
+    settle_s = getattr(observer, "settle_time_s", None)
+    if not isinstance(settle_s, float) or settle_s == UNKNOWN_SETTLE_S:
         return None
-    rate = slowest_error_rate(vessel, gains)
-    return -1.0 / rate if math.isfinite(rate) and rate < 0 else None
+    if not (math.isfinite(settle_s) and settle_s > 0.0):
+        return None
+    return settle_s / ENGAGE_TIME_CONSTANTS
 
 
 @mypyc_attr(native_class=False)
