@@ -29,9 +29,12 @@ from setuptools.command.build_ext import build_ext
 ROOT = Path(__file__).resolve().parent
 
 # The modules compiled together (one shared library: calls between them are direct C calls). Chosen by
-# profile: every module a replay cycle or a closed-loop tick passes through, except those holding numba
-# kernels (numba compiles Python bytecode, which a compiled module no longer has) and those defining
-# runtime-checkable protocols (mypyc makes a Protocol a plain class).
+# profile: every module a replay cycle or a closed-loop tick passes through — the gateway's, and on the
+# simulator's side of the loop its time loop, sensors, thruster model, faults, bias and clock — except
+# those holding numba kernels (numba compiles Python bytecode, which a compiled module no longer has: such
+# kernels live in `_..._kernel.py` modules beside them) and those defining runtime-checkable protocols
+# (mypyc makes a Protocol a plain class: hence `simulator.sensor_protocol`). The in-process loop's glue
+# (`dpgw.closed_loop`) stays interpreted: compiled, it gained nothing measurable (docs/performance.md).
 COMPILED = [
     "gateway/pipeline.py",
     "gateway/fusion.py",
@@ -60,6 +63,12 @@ COMPILED = [
     "wire/gst_covariance.py",
     "wire/json_payload.py",
     "wire/mcap/writer.py",
+    "simulator/runner.py",
+    "simulator/sensors.py",
+    "simulator/thrusters.py",
+    "simulator/faults.py",
+    "simulator/environment.py",
+    "simulator/clock.py",
 ]
 MANIFEST = "wire/_compiled.json"
 

@@ -19,8 +19,8 @@ from dpgw.cli_foxglove import DEFAULT_HOST, DEFAULT_PORT, add_foxglove_arg, conn
 from dpgw.cli_paths import mcap_path_problem
 from dpgw.cli_types import non_negative_float, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
+from dpgw.scenario_names import SCENARIO_NAMES
 from observers.settling import ENGAGE_TIME_CONSTANTS as SETTLING_TIME_CONSTANTS
-from simulator.scenario_names import SCENARIO_NAMES
 
 if TYPE_CHECKING:
     from simulator.runner import Simulation

@@ -11,7 +11,7 @@ from dpgw import cli_json, cli_sim_inputs
 from dpgw.cli_paths import mcap_path_problem, missing_folder
 from dpgw.cli_types import flags_given, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
-from simulator.scenario_names import SCENARIO_NAMES
+from dpgw.scenario_names import SCENARIO_NAMES
 
 if TYPE_CHECKING:
     from simulator.faults import Fault

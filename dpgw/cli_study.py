@@ -8,8 +8,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from dpgw.scenario_names import SCENARIO_NAMES
 from observers.observer_names import OBSERVER_NAMES
-from simulator.scenario_names import SCENARIO_NAMES
 
 # Only the parser is built at import; the simulator, the observers and Dask are imported by `run`.
 

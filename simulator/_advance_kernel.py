@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from simulator.thrusters import _step, _tau
+from simulator._thruster_kernel import thruster_step, thruster_tau
 from simulator.vessel_dynamics import _rk4
 
 
@@ -32,8 +32,8 @@ def thrust_and_bias(
     """One substep's thrusters (their force τ, or ``tau_direct`` without them) and Markov bias, shared by
     both plants' advances: returns τ; updates thrust, angle and b in place and reads normals row ``k``."""
     if thrusters:
-        _step(h, thrust, angle, thrust_sp, angle_sp, failed, is_azimuth, time_constant, rate)
-        tau = _tau(thrust, angle, tx, ty)
+        thruster_step(h, thrust, angle, thrust_sp, angle_sp, failed, is_azimuth, time_constant, rate)
+        tau = thruster_tau(thrust, angle, tx, ty)
     else:
         tau = tau_direct
     for j in range(3):

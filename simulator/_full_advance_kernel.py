@@ -12,7 +12,7 @@ bias (`simulator.environment.MarkovBias`, Fossen & Strand 1999 eq (7)), lets the
 This kernel does the same arithmetic in the same order, so both give the same bits (tests/test_simulator.py
 runs both full-plant scenarios each way and compares state and bytes):
 
-- thrusters and RK4: the same compiled functions (`_step`, `_tau` through
+- thrusters and RK4: the same compiled functions (`simulator._thruster_kernel` through
   `_advance_kernel.thrust_and_bias`, which the model plant's advance uses too, and `rk4_steps`);
 - bias: b ← e^{-h/T} b + σ√(1 − e^{-2h/T}) ν element by element with `MarkovBias`' own factors and its
   block of normal draws (read, never drawn here: the random stream is the same);

@@ -13,11 +13,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from mypy_extensions import mypyc_attr
 from numpy.typing import NDArray
 
 Array = NDArray[np.float64]
 
 
+@mypyc_attr(native_class=False)  # (mypyc: a scenario's value, read once; kept a Python class)
 @dataclass(frozen=True)
 class BiasModel:
     """Markov bias: stationary std σ per DOF (N, N, N·m), time constants T (s), a constant force (NED)."""

@@ -66,6 +66,7 @@ from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from mypy_extensions import mypyc_attr
 
 from wire.codecs.mavlink import parse_frames
 from wire.codecs.nmea_encode import checksum, corrupt_checksum
@@ -137,6 +138,7 @@ _FIELDS = ("kind", "source", "t_start", "t_end", "params")
 _SENTENCE_RE = re.compile(rb"\$([^$*\r\n]*)\*([0-9A-Fa-f]{2})")
 
 
+@mypyc_attr(native_class=False)  # (mypyc: its checks set fields through `object.__setattr__`)
 @dataclass(frozen=True)
 class Fault:
     """One fault on one source over ``[t_start, t_end)`` (sim seconds). Validated on construction: a
@@ -150,23 +152,23 @@ class Fault:
     params: Mapping[str, float | str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if self.kind not in FAULT_KINDS:
-            raise ValueError(
-                f"kind: unknown fault kind {self.kind!r}; expected one of {', '.join(FAULT_KINDS)}"
-            )
-        if not isinstance(self.source, str) or not self.source:
-            raise ValueError(
-                f"source: must be a non-empty string (a stream name or '*'), got {self.source!r}"
-            )
-        t_start = _number("t_start", self.t_start)
+        # The values as given, not through the fields' types: compiled (setup.py), reading a str or float
+        # field fails on a value of another type before these checks could say what is wrong.
+        given: dict[str, Any] = vars(self)
+        kind, source = given["kind"], given["source"]
+        if kind not in FAULT_KINDS:
+            raise ValueError(f"kind: unknown fault kind {kind!r}; expected one of {', '.join(FAULT_KINDS)}")
+        if not isinstance(source, str) or not source:
+            raise ValueError(f"source: must be a non-empty string (a stream name or '*'), got {source!r}")
+        t_start = _number("t_start", given["t_start"])
         if not math.isfinite(t_start):
-            raise ValueError(f"t_start: must be a finite time in seconds, got {self.t_start!r}")
-        t_end = _number("t_end", self.t_end)
+            raise ValueError(f"t_start: must be a finite time in seconds, got {given['t_start']!r}")
+        t_end = _number("t_end", given["t_end"])
         if math.isnan(t_end) or t_end <= t_start:
-            raise ValueError(f"t_end: must be later than t_start ({t_start} s), got {self.t_end!r}")
+            raise ValueError(f"t_end: must be later than t_start ({t_start} s), got {given['t_end']!r}")
         object.__setattr__(self, "t_start", t_start)
         object.__setattr__(self, "t_end", t_end)
-        object.__setattr__(self, "params", MappingProxyType(_check_params(self.kind, self.params)))
+        object.__setattr__(self, "params", MappingProxyType(_check_params(kind, given["params"])))
 
     def covers(self, t: float) -> bool:
         """True when ``t_start <= t < t_end``, both ends taken `TIME_TOLERANCE_S` early: the runner's sim time

@@ -26,9 +26,10 @@ import time
 from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import ClassVar, Protocol
 
 import numpy as np
+from mypy_extensions import mypyc_attr
 from numpy.typing import ArrayLike, NDArray
 
 from observers.kinematics import rotation, ssa_scalar
@@ -70,6 +71,7 @@ class CommandInput(Protocol):
     def poll(self) -> list[Command]: ...
 
 
+@mypyc_attr(native_class=False)
 @dataclass
 class Route:
     """Where emissions go: a sink for some sources (None = every source of that protocol)."""
@@ -82,6 +84,7 @@ class Route:
         return e.protocol == self.protocol and (self.sources is None or e.source in self.sources)
 
 
+@mypyc_attr(native_class=False)
 @dataclass
 class SimSummary:
     scenario: str
@@ -148,7 +151,7 @@ class _WaveCache:
 class Simulation:
     """One run of a scenario. ``routes`` send emissions to transports; ``log`` gets everything."""
 
-    TIME_TICK_S = 0.05
+    TIME_TICK_S: ClassVar[float] = 0.05  # (ClassVar: compiled, a plain name would be an instance field)
     """The longest sim time between two `on_time` calls (20 Hz of sim time)."""
 
     def __init__(

@@ -42,10 +42,11 @@ import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Annotated, Any, Generic, Literal, NamedTuple, Protocol, TypeVar, runtime_checkable
+from typing import Annotated, Any, ClassVar, Generic, Literal, NamedTuple, Protocol, TypeVar
 
 import numpy as np
 import pymap3d
+from mypy_extensions import mypyc_attr
 from numpy.typing import ArrayLike, NDArray
 from pydantic import AfterValidator, ConfigDict, Field, TypeAdapter, ValidationError
 
@@ -54,6 +55,7 @@ from observers.kinematics import lever_arm_ned, ssa_scalar
 from observers.vessel import THRUSTER_KINDS
 from simulator.clock import SimEpoch
 from simulator.faults import QUALITY_MODES, Fault, FaultSchedule
+from simulator.sensor_protocol import Sensor
 from wire.codecs import mavlink as mv
 from wire.codecs import nmea as nmea_codec
 from wire.codecs import nmea_encode as nmea
@@ -120,7 +122,13 @@ _FLAGS_FAILED = mv.AzimuthThrusterFlags.REMOTE_CONTROL | mv.AzimuthThrusterFlags
 
 # ---------------------------------------------------------------------------------------------- data
 
+# This module is compiled by mypyc (setup.py). Its dataclasses stay Python classes
+# (``native_class=False``): the samples are made without their checks through ``object.__new__`` and
+# ``__dict__`` (`Emission.trusted`, …), `Datum` keeps its frame in a field it does not declare, and the
+# configs are checked by pydantic as written (a compiled float field would turn an int into a float first).
 
+
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class Datum:
     """The origin of the local NED frame on the WGS-84 ellipsoid (degrees, ellipsoidal height in m)."""
@@ -155,6 +163,7 @@ class Datum:
         return _maybe_float(n), _maybe_float(e), _maybe_float(d)
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class Emission:
     """One frame on the wire: a whole NMEA sentence (with ``\\r\\n``), one MAVLink frame, or junk bytes."""
@@ -197,6 +206,7 @@ class Emission:
         return self.data.decode("ascii", errors="replace")
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class ThrusterReading:
     """What one thruster's drive measures (given by the thruster model): SI units, azimuth clockwise from
@@ -213,11 +223,14 @@ class ThrusterReading:
     power_w: float = math.nan
 
     def __post_init__(self) -> None:
-        # a value made every sample (not a config): two plain comparisons, no schema
-        if isinstance(self.id, bool) or not (isinstance(self.id, int | np.integer) and 0 <= self.id <= 255):
-            raise ValueError(f"ThrusterReading.id: must be in 0..255, got {self.id!r}")
-        if self.kind not in THRUSTER_KINDS:
-            raise ValueError(f"ThrusterReading.kind: must be one of {THRUSTER_KINDS}, got {self.kind!r}")
+        # a value made every sample (not a config): two plain comparisons, no schema; on the values as given
+        # (`_given`)
+        given = _given(self)
+        tid, kind = given["id"], given["kind"]
+        if isinstance(tid, bool) or not (isinstance(tid, int | np.integer) and 0 <= tid <= 255):
+            raise ValueError(f"ThrusterReading.id: must be in 0..255, got {tid!r}")
+        if kind not in THRUSTER_KINDS:
+            raise ValueError(f"ThrusterReading.kind: must be one of {THRUSTER_KINDS}, got {kind!r}")
 
     @classmethod
     def trusted(
@@ -240,6 +253,7 @@ class ThrusterReading:
         return reading
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class ShipState:
     """What the sensors sample at time ``t``: ``eta`` = [N, E, ψ] of the reference point (total motion, LF +
@@ -258,7 +272,7 @@ class ShipState:
             if value.shape != (3,):
                 raise ValueError(f"ShipState.{name}: must have 3 elements, got {getattr(self, name)!r}")
             object.__setattr__(self, name, value)
-        object.__setattr__(self, "thrusters", tuple(self.thrusters))
+        object.__setattr__(self, "thrusters", tuple(_given(self)["thrusters"]))
 
     @classmethod
     def trusted(
@@ -284,6 +298,7 @@ class ShipState:
 # ---------------------------------------------------------------------------------------------- configs
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class DgpsConfig:
     """A DGPS / RTK receiver. σ in m per horizontal axis (1σ); lever arm (x fwd, y stbd, z down) in m from
@@ -317,10 +332,11 @@ class DgpsConfig:
     sigma_velocity_mps: float = 0.02
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "extra", tuple(self.extra))
-        object.__setattr__(self, "slow_sentences", tuple(self.slow_sentences))
-        object.__setattr__(self, "lever_arm_m", tuple(float(x) for x in self.lever_arm_m))
-        burst = (self.position_sentence, *self.extra)
+        given = _given(self)
+        object.__setattr__(self, "extra", tuple(given["extra"]))
+        object.__setattr__(self, "slow_sentences", tuple(given["slow_sentences"]))
+        object.__setattr__(self, "lever_arm_m", tuple(float(x) for x in given["lever_arm_m"]))
+        burst = (given["position_sentence"], *given["extra"])
         _validate(self, _DGPS_RULES)
         if len(set(burst)) != len(burst):
             raise ValueError(
@@ -339,6 +355,7 @@ class DgpsConfig:
         return (self.position_sentence, *self.extra)
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class GyroConfig:
     """A gyro compass. ``sigma_rad`` is the white heading noise (1σ), ``sigma_rot_rad_s`` the white noise on
@@ -355,10 +372,11 @@ class GyroConfig:
     variation_rad: float = 0.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "sentences", tuple(self.sentences))
+        object.__setattr__(self, "sentences", tuple(_given(self)["sentences"]))
         _validate(self, _GYRO_RULES)
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class AnemometerConfig:
     """An ultrasonic anemometer on the mast, sending MWV (relative wind) at ``rate_hz``.
@@ -382,6 +400,7 @@ class AnemometerConfig:
         _validate(self, _ANEMOMETER_RULES)
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class MruConfig:
     """A motion reference unit (MRU) at the reference point, sending roll and pitch at ``rate_hz``.
@@ -402,6 +421,7 @@ class MruConfig:
         _validate(self, _MRU_RULES)
 
 
+@mypyc_attr(native_class=False)
 @dataclass(frozen=True)
 class ThrusterFeedbackConfig:
     """A thruster controller reporting over MAVLink as system ``system_id``, component ``component_id``.
@@ -427,24 +447,6 @@ class ThrusterFeedbackConfig:
 
 
 # ---------------------------------------------------------------------------------------------- sensors
-
-
-@runtime_checkable
-class Sensor(Protocol):
-    """What the simulator runner drives: ask `next_time`, build the ship state at that time, call `sample`."""
-
-    source: str
-
-    def next_time(self) -> float:
-        """Sim time of the next sample."""
-        ...
-
-    def sample(self, state: ShipState) -> list[Emission]:
-        """Sample ``state`` (taken at `next_time`), advance `next_time` past ``state.t`` and return the
-        emissions in wire order (sort stably by ``t_emit`` to merge streams), with the sample-side faults
-        applied; the wire-side ones are `FaultSchedule.apply_to_emissions`'s. A state more than 1 µs before
-        `next_time` is not a sample time: nothing is returned and nothing advances."""
-        ...
 
 
 def antenna_position(
@@ -621,7 +623,7 @@ class _Fix(NamedTuple):
     cog_rad: float
 
 
-class Dgps(_Sampled[DgpsConfig, _Fix], Sensor):
+class Dgps(_Sampled[DgpsConfig, _Fix]):
     """A DGPS/RTK receiver (see `DgpsConfig`). Fixes fall on the UTC grid of the output rate (whole seconds
     at 1 Hz, .0/.2/.4… at 5 Hz), the first at or after ``start``; every sentence of a burst carries the fix
     time and leaves at fix time + latency."""
@@ -819,7 +821,7 @@ class Dgps(_Sampled[DgpsConfig, _Fix], Sensor):
         return out
 
 
-class Gyro(_Sampled[GyroConfig, tuple[float, float]], Sensor):
+class Gyro(_Sampled[GyroConfig, tuple[float, float]]):
     """A gyro compass (see `GyroConfig`), free-running at ``start + k / rate_hz``."""
 
     def __init__(
@@ -881,7 +883,7 @@ WindAt = Callable[[float], tuple[float, float]]
 """The true wind at sim time t: (speed m/s at the vessel's wind reference height, from degrees)."""
 
 
-class Anemometer(_Sampled[AnemometerConfig, tuple[float, float]], Sensor):
+class Anemometer(_Sampled[AnemometerConfig, tuple[float, float]]):
     """An anemometer (see `AnemometerConfig`), free-running at ``start + k / rate_hz``. ``wind`` gives the
     true wind at a time (`simulator.wind.Wind`: mean + gust); the reading is the apparent wind
     `observers.hull.relative_wind` of the vessel's LF velocity, the same function the plant's wind force
@@ -923,7 +925,7 @@ class Anemometer(_Sampled[AnemometerConfig, tuple[float, float]], Sensor):
         return angle, max(math.hypot(urw, vrw) + cfg.sigma_speed_mps * w[1], 0.0)
 
 
-class Mru(_Sampled[MruConfig, tuple[float, float, float, float]], Sensor):
+class Mru(_Sampled[MruConfig, tuple[float, float, float, float]]):
     """A motion reference unit (see `MruConfig`), free-running at ``start + k / rate_hz``: the state's
     wave-frequency roll and pitch (``ShipState.attitude``, dpgw's signs: starboard down, bow up) plus white
     noise, as PHTRO or PASHR (the sentence carries the signs its maker uses: `wire.codecs.nmea_encode`).
@@ -1009,7 +1011,7 @@ def _heading_record(kind: str, talker: str, heading: float) -> nmea_codec.Headin
     return nmea_codec.Heading(kind, talker, heading, True, "A" if kind == "THS" else None, False)  # type: ignore[arg-type]
 
 
-class ThrusterFeedback(Sensor):
+class ThrusterFeedback:
     """A thruster controller's MAVLink link (see `ThrusterFeedbackConfig`): per thruster an
     ``AZIMUTH_THRUSTER_STATUS`` at ``rate_hz``, a ``HEARTBEAT`` at ``heartbeat_hz`` (both from ``start``), and
     with ``ardupilot_esc`` / ``ardupilot_servo`` an ``ESC_TELEMETRY_1_TO_4`` per four thrusters (ESC n is the
@@ -1054,7 +1056,7 @@ class ThrusterFeedback(Sensor):
         self._base_mode = armed if ardupilot else 0
         self._custom_mode = 15 if ardupilot else 0
 
-    SIGNING_LINK_ID = 0
+    SIGNING_LINK_ID: ClassVar[int] = 0  # (ClassVar: compiled, a plain name would be an instance field)
     """The MAVLink 2 signing link id of the drive's frames (the gateway signs its commands as link 1)."""
 
     def sign_with(self, key: bytes, wall_clock: Callable[[], float] = time.time) -> None:
@@ -1326,6 +1328,13 @@ def _validate(obj: object, rules: dict[str, Rule]) -> None:
             adapter.validate_python(value)
         except ValidationError:
             raise ValueError(f"{type(obj).__name__}.{name}: {what}, got {value!r}") from None
+
+
+def _given(obj: object) -> dict[str, Any]:
+    """A dataclass' fields as given, for its checks: this module is compiled (setup.py), and reading a field
+    through its declared type there fails on a value of another type (a list for a tuple, a string for a
+    float) before the check could say what is wrong, or turns an int into a float."""
+    return vars(obj)
 
 
 def _maybe_float(x: Any) -> Any:

@@ -13,11 +13,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-from observers.kinematics import ssa, ssa_jit, ssa_scalar
+from observers.kinematics import ssa, ssa_scalar
 from observers.vessel import VesselModel
+from simulator._thruster_kernel import thruster_step, thruster_tau
 
 Array = NDArray[np.float64]
 DEFAULT_MAX_RPM = 200.0
@@ -75,7 +75,7 @@ class ThrusterBank:
             self.angle_setpoint[i] = ssa_scalar(float(angle_rad))  # (= ssa, bit for bit; no array)
 
     def step(self, h: float) -> None:
-        _step(h, self.thrust, self.angle, self.thrust_setpoint, self.angle_setpoint, self.failed,
+        thruster_step(h, self.thrust, self.angle, self.thrust_setpoint, self.angle_setpoint, self.failed,
               self.is_azimuth, self.time_constant, self.rate)  # fmt: skip
 
     @property
@@ -85,7 +85,7 @@ class ThrusterBank:
         Same as ``vessel.generalized_force(thrust, angle)`` (the configuration matrix, tested equal),
         written out because it runs at every plant step.
         """
-        return _tau(self.thrust, self.angle, self.x, self.y)
+        return thruster_tau(self.thrust, self.angle, self.x, self.y)
 
     @property
     def rpm(self) -> Array:
@@ -95,31 +95,6 @@ class ThrusterBank:
     def power_w(self) -> Array:
         """Rough shaft power, P ∝ |T|^1.5 (momentum theory), scaled to 1 kW per 10 kN^1.5 at max."""
         return 1e3 * (np.abs(self.thrust) / 1e4) ** 1.5
-
-
-@njit(cache=True)
-def _step(h, thrust, angle, thrust_sp, angle_sp, failed, is_azimuth, time_constant, rate):
-    """First-order thrust lag towards the setpoint (zero when failed); azimuth slew at most rate·h."""
-    for i in range(thrust.shape[0]):
-        target = 0.0 if failed[i] else thrust_sp[i]
-        thrust[i] = target + (thrust[i] - target) * math.exp(-h / time_constant[i])
-        if is_azimuth[i] and not failed[i]:
-            err = ssa_jit(angle_sp[i] - angle[i])
-            lim = rate[i] * h
-            move = min(max(err, -lim), lim)
-            angle[i] = ssa_jit(angle[i] + move)
-
-
-@njit(cache=True)
-def _tau(thrust, angle, x, y):
-    out = np.zeros(3)
-    for i in range(thrust.shape[0]):
-        fx = thrust[i] * math.cos(angle[i])
-        fy = thrust[i] * math.sin(angle[i])
-        out[0] += fx
-        out[1] += fy
-        out[2] += x[i] * fy - y[i] * fx
-    return out
 
 
 class PrescribedAllocation:

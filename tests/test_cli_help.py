@@ -55,7 +55,7 @@ def test_descriptions_wrap_and_examples_keep_their_layout() -> None:
 
 
 def test_demo_help_lists_the_scenarios() -> None:
-    from simulator.scenario_names import SCENARIO_NAMES
+    from dpgw.scenario_names import SCENARIO_NAMES
 
     text = " ".join(_subparsers()["demo"].format_help().split())
     for name in SCENARIO_NAMES:

@@ -90,7 +90,7 @@ def test_every_command_is_covered() -> None:
 
 
 def test_scenario_names_match_the_scenarios() -> None:
-    from simulator.scenario_names import SCENARIO_NAMES
+    from dpgw.scenario_names import SCENARIO_NAMES
     from simulator.scenarios import SCENARIOS
 
     assert tuple(SCENARIOS) == SCENARIO_NAMES

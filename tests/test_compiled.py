@@ -1,8 +1,9 @@
 """The compiled hot path (setup.py, `wire.compiled`) against its readable reference, the same sources run
 interpreted (``DPGW_PURE_PYTHON=1``): every message of a replay byte-identical, every topic, on a closed-loop
 demo log (control, MAVLink thrusters, allocation), on a simulated log full of sensor faults, and on the real
-USV sea-trial logs. Plus: the install did compile it, and an edited source is never shadowed by its stale
-compiled form."""
+USV sea-trial logs; the simulator's own output (every message it logs, with faults, an MRU, the full plant
+and an anemometer) and the in-process closed loop's (typed and bytes) identical too. Plus: the install did
+compile it, and an edited source is never shadowed by its stale compiled form."""
 
 from __future__ import annotations
 
@@ -177,6 +178,69 @@ def test_a_real_sea_trial_replays_byte_identical_compiled_and_interpreted(name: 
     if not log.exists():
         pytest.skip(f"real USV log not found ({log})")
     _assert_same(log, tmp_path, "--vessel", "mss_supply")
+
+
+# Runs in a fresh interpreter (compiled or not is decided at its first import of `wire`): prints whether the
+# simulator ran compiled and a sha256 of everything each run produced, with the counts behind them.
+_SIM_PROBE = r"""
+import dataclasses, hashlib, json, sys, tempfile, tomllib
+from pathlib import Path
+from dpgw.closed_loop import run_closed_loop
+from simulator import runner
+from simulator.faults import FaultSchedule
+from simulator.runner import Simulation
+from simulator.scenarios import get_scenario
+from wire import compiled
+from wire.mcap.reader import read_messages
+from wire.mcap.writer import McapLogWriter
+
+faults = FaultSchedule.from_dicts(tomllib.loads(sys.argv[1])["faults"]).faults
+out = {"compiled": compiled.is_compiled(runner)}
+with tempfile.TemporaryDirectory() as folder:
+    for name, with_faults in (("torsetnes_2004_mast", True), ("mss_supply_storm", False)):
+        scenario = get_scenario(name).with_sensor_rates(10.0, 10.0)
+        if with_faults:
+            scenario = dataclasses.replace(scenario, faults=faults)
+        path = Path(folder) / (name + ".mcap")
+        with McapLogWriter(path) as log:
+            summary = Simulation(scenario, seed=3, log=log).run(240.0)
+        messages = list(read_messages(path))
+        digest = hashlib.sha256(repr(messages).encode()).hexdigest()
+        out[name] = [digest, len(messages), dict(summary.emissions)]
+hold = [(0.0, "setpoint", {"north_m": 0.0, "east_m": 0.0, "heading_deg": 45.0})]
+for wire in (False, True):
+    r = run_closed_loop(get_scenario("torsetnes_2004"), 60.0, seed=1, events=hold, wire=wire,
+                        collect=("/dp/measurement",), status_every_s=5.0)
+    blob = json.dumps([r.estimates, r.commands, r.collected, r.statuses, r.status], default=str).encode()
+    blob += r.t.tobytes() + r.eta_lf.tobytes() + r.eta_wf.tobytes() + r.nu.tobytes() + r.bias.tobytes()
+    out["closed_loop_bytes" if wire else "closed_loop_typed"] = [
+        hashlib.sha256(blob).hexdigest(), len(r.estimates), len(r.commands)
+    ]
+print(json.dumps(out))
+"""
+
+
+def _sim_probe(env: dict[str, str]) -> dict[str, object]:
+    proc = subprocess.run(
+        [sys.executable, "-c", _SIM_PROBE, FAULTS], env=env, capture_output=True, text=True, timeout=600,
+        check=False,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return dict(json.loads(proc.stdout))
+
+
+@pytest.mark.slow
+@needs_compiled
+def test_the_simulator_and_the_closed_loop_give_identical_results_compiled_and_interpreted() -> None:
+    """The simulator's side of the loop is compiled too (its time loop, sensors, thrusters, faults): four
+    minutes of sensors with every kind of sample and wire fault, an MRU and the full plant with an
+    anemometer, logged message for message; and a minute of the in-process closed loop, typed and bytes:
+    estimates, commands, measurements, statuses and the true track to the last bit."""
+    pure, fast = _sim_probe(PURE), _sim_probe(COMPILED)
+    assert pure.pop("compiled") is False and fast.pop("compiled") is True
+    for key in pure:
+        assert pure[key] == fast[key], f"{key}:\n  interpreted {pure[key]}\n  compiled    {fast[key]}"
+    assert all(entry[1] > 100 for entry in pure.values()), pure  # (something was compared)
 
 
 @needs_compiled

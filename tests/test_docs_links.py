@@ -90,7 +90,7 @@ def test_readme_lists_every_doc() -> None:
 
 def test_simulator_doc_has_a_row_per_scenario() -> None:
     """docs/simulator.md's table of scenarios has a row for every scenario `dpgw sim --scenario` takes."""
-    from simulator.scenario_names import SCENARIO_NAMES
+    from dpgw.scenario_names import SCENARIO_NAMES
 
     text = (ROOT / "docs" / "simulator.md").read_text(encoding="utf-8")
     table = text.split("## Scenarios", 1)[1].split("\n## ", 1)[0]

@@ -240,7 +240,7 @@ def test_the_documented_fault_file_loads() -> None:
 
 
 def test_the_built_in_scenarios_own_faults_all_bite() -> None:
-    from simulator.scenario_names import SCENARIO_NAMES
+    from dpgw.scenario_names import SCENARIO_NAMES
     from simulator.scenarios import get_scenario
 
     for name in SCENARIO_NAMES:

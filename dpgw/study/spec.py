@@ -21,7 +21,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from simulator.scenario_names import SCENARIO_NAMES
+from dpgw.scenario_names import SCENARIO_NAMES
 
 DEFAULT_DURATION_S = 300.0
 DEFAULT_SEEDS = (0, 1, 2, 3, 4, 5, 6, 7)

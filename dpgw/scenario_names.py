@@ -1,8 +1,10 @@
-"""The names of the built-in scenarios, without building them.
+"""The names of the simulator's built-in scenarios, without building them (or importing the simulator).
 
 `simulator.scenarios` builds vessels, sea states and sensor models (numpy, the MAVLink dialect): close to a
 second of imports. The command line lists the names in ``--help`` and as argparse choices, and must not pay
-for that; a test holds this tuple equal to the keys of `simulator.scenarios.SCENARIOS`.
+for that; here, not in `simulator`, because importing that package decides first whether the compiled hot
+path is used (`wire.compiled`, which a help page need not load). A test holds this tuple equal to the keys
+of `simulator.scenarios.SCENARIOS`.
 """
 
 SCENARIO_NAMES: tuple[str, ...] = (
