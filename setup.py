@@ -139,12 +139,30 @@ def write_manifest(base: Path, built: bool, reason: str) -> None:
     target.write_text(json.dumps(manifest, indent=1) + "\n")
 
 
+def remove_stale_extensions() -> list[Path]:
+    """In a checkout built in place (``pip install -e .``): delete the compiled file of any module that is
+    no longer in `COMPILED`. Python imports an extension before the ``.py`` beside it, and the stale one,
+    built as part of a shared library that no longer has it, fails to import (``no attribute
+    'init_…'``). Only files beside a source of the same name are touched. Returns what was deleted."""
+    keep = {str(ROOT / path) for path in COMPILED}
+    removed = []
+    for package in ("dpgw", "gateway", "observers", "simulator", "wire"):
+        for ext in (ROOT / package).rglob("*.cpython-*.so"):
+            source = ext.with_name(ext.name.split(".", 1)[0] + ".py")
+            if source.is_file() and str(source) not in keep:
+                ext.unlink()
+                removed.append(ext)
+    return removed
+
+
 class BuildExt(build_ext):
     """Compile the hot path if it can, install it as Python if not; write the manifest either way."""
 
     reason = ""
 
     def run(self) -> None:
+        if self._base() == ROOT:
+            remove_stale_extensions()
         built = bool(self.extensions)
         if built:
             try:
