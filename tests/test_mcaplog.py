@@ -929,3 +929,12 @@ def test_rotate_starts_the_next_file_now_and_keeps_a_file_without_messages(tmp_p
     first = [(t, p) for _, t, _, p in read_messages(tmp_path / "run.mcap", "/dp/mode")]
     second = [(t, p) for _, t, _, p in read_messages(tmp_path / "run_0001.mcap", "/dp/mode")]
     assert [p["mode"] for _, p in first] == ["dp"] and [p["mode"] for _, p in second] == ["standby"]
+
+
+def test_a_schema_is_made_once_per_message_class() -> None:
+    """The writer looks a message's schema up at every write: it must be made once (a lost cache doubled
+    replay's writing time, ~11 → ~25 µs a real-log cycle, with every file still correct)."""
+    from wire.mcap.writer import _schema_bytes
+    from wire.messages import Estimate
+
+    assert _schema_bytes(Estimate) is _schema_bytes(Estimate)

@@ -74,7 +74,6 @@ SchemaSpec = tuple[str, Mapping[str, Any]] | type[Message]
 
 
 @functools.cache
-@functools.cache
 def library_name() -> str:
     """The MCAP header's `library` (which program wrote the file, for whoever debugs it): ``"dpgw 0.1.0
     (mcap 1.6.0)"``, dpgw's release and that of the mcap library whose record layout the file has; a
@@ -90,6 +89,7 @@ def library_name() -> str:
     return f"{parts[0]} ({parts[1]})"
 
 
+@functools.cache
 def _schema_bytes(cls: type[Message]) -> tuple[str, bytes]:
     """(schema name, JSON Schema as compact JSON) of a message class: made once per process."""
     return _dump_schema(cls.TITLE or "", json_schema(cls))
