@@ -515,9 +515,17 @@ class Fusion:
     ) -> None:
         """A source's horizontal position covariance (C_NN, C_NE, C_EE; m², from GST), valid for
         ``valid_ns`` after ``rx_ns``. One that is no covariance (a negative or non-finite variance, a
-        correlation beyond ±1) is not kept."""
+        correlation beyond ±1) is not kept. The correlation is checked with a margin of rounding, relative
+        and absolute (1e-12 of the trace): a needle-thin ellipse along an axis has C_NN·C_EE underflow to 0
+        while C_NE² does not quite (θ = 1e-163 gave C_NE² = 6e-324 against 0), and is still one."""
         nn, ne, ee = cov_ne
-        if nn >= 0.0 and ee >= 0.0 and ne * ne <= nn * ee * (1.0 + 1e-9) and math.isfinite(nn + ne + ee):
+        slack = 1e-12 * (nn + ee)
+        if (
+            nn >= 0.0
+            and ee >= 0.0
+            and ne * ne <= nn * ee * (1.0 + 1e-9) + slack * slack
+            and math.isfinite(nn + ne + ee)
+        ):
             self._cov[source] = (cov_ne, rx_ns + valid_ns)
 
     def position_covariance_ne(self, now_ns: int) -> tuple[float, float, float] | None:
