@@ -467,7 +467,7 @@ class Pipeline:
                     wind_loss_fade_s=cc.wind_loss_fade_s,
                 ),
                 observer_bias_time_s=(
-                    observer_bias_time_s(spec.vessel, spec.observer) if cc.feedback == "estimate" else None
+                    observer_bias_time_s(spec.observer) if cc.feedback == "estimate" else None
                 ),
             )
             if spec.vessel.thrusters:

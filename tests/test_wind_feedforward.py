@@ -311,17 +311,17 @@ def test_fade_time_default_and_checks(supply) -> None:  # type: ignore[no-untype
     from gateway.control.wind_feedforward import observer_bias_time_s
     from observers.factory import make_observer
 
-    t_b = observer_bias_time_s(supply, make_observer("passive", supply))
+    t_b = observer_bias_time_s(make_observer("passive", supply))
     assert t_b is not None and 10.0 < t_b < 1000.0
-    assert observer_bias_time_s(supply, object()) is None
+    assert observer_bias_time_s(object()) is None
     # another observer: the time constant behind its own settle time (the SDRE's slowest A − KC pole)
     from observers.settling import ENGAGE_TIME_CONSTANTS, UNKNOWN_SETTLE_S
 
     sdre = make_observer("sdre", supply)
-    assert observer_bias_time_s(supply, sdre) == pytest.approx(sdre.settle_time_s / ENGAGE_TIME_CONSTANTS)
+    assert observer_bias_time_s(sdre) == pytest.approx(sdre.settle_time_s / ENGAGE_TIME_CONSTANTS)
     assert 1.0 < sdre.settle_time_s < UNKNOWN_SETTLE_S
 
     class Unknowable:
         settle_time_s = UNKNOWN_SETTLE_S
 
-    assert observer_bias_time_s(supply, Unknowable()) is None
+    assert observer_bias_time_s(Unknowable()) is None

@@ -157,7 +157,7 @@ def test_the_loss_fade_is_configured_or_derived() -> None:
     assert ctl is not None and ctl.wind is not None
     from gateway.control.wind_feedforward import observer_bias_time_s
 
-    t_b = observer_bias_time_s(p.spec.vessel, p.observer)
+    t_b = observer_bias_time_s(p.observer)
     t_i = 1.0 / float(ctl.gains.integral_pole.min())
     assert t_b is not None and t_b < t_i
     assert ctl.wind.fade_s == pytest.approx(2.0 * t_i) == pytest.approx(285.714, rel=1e-5)

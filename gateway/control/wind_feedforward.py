@@ -73,9 +73,7 @@ from mypy_extensions import mypyc_attr
 from numpy.typing import NDArray
 
 from observers.hull import WindArea, relative_wind_force
-from observers.passive_tuning import PassiveGains, slowest_error_rate
 from observers.settling import ENGAGE_TIME_CONSTANTS, UNKNOWN_SETTLE_S
-from observers.vessel import VesselModel
 
 Array = NDArray[np.float64]
 
@@ -93,23 +91,18 @@ WEIGHT_DONE = 1e-9
 def default_fade_s(integral_time_s: float, bias_time_s: float | None = None) -> float:
     """T_f = `FADE_PER_TAKEOVER` × max(T_i, T_b): T_i = 1/a, the slowest integral pole of the controller
     (a = ρ ωn, `gateway.control.controller`), T_b the time constant of the observer's slowest error mode,
-    its bias mode (`observers.passive_tuning.slowest_error_rate`; None: not known, T_i alone). Infinite or
+    its bias mode (`observer_bias_time_s`; None: not known, T_i alone). Infinite or
     non-positive times are left out; with neither known, 0 (the term drops at once)."""
     times = [x for x in (integral_time_s, bias_time_s) if x is not None and math.isfinite(x) and x > 0]
     return FADE_PER_TAKEOVER * max(times) if times else 0.0
 
 
-def observer_bias_time_s(vessel: VesselModel, observer: object) -> float | None:
-    """T_b, the time constant of the feeding observer's slowest error mode. With fixed passive gains:
-    −1/(the slowest error eigenvalue over all headings) (`observers.passive_tuning.slowest_error_rate`; the
-    bias mode is the slowest, ≈ aρ/(d + a) per DOF, docs/passive-observer.md). Any other observer: the
-    time constant behind its own settle time (`Observer.settle_time_s` / `ENGAGE_TIME_CONSTANTS`, each
-    from its own model: observers.settling). None when neither gives one (an observer that derives no
-    figure: the integral time alone sets the default fade)."""
-    gains = getattr(observer, "gains", None)
-    if isinstance(gains, PassiveGains):
-        rate = slowest_error_rate(vessel, gains)
-        return -1.0 / rate if math.isfinite(rate) and rate < 0 else None
+def observer_bias_time_s(observer: object) -> float | None:
+    """T_b, the time constant of the feeding observer's slowest error mode: the one behind its settle
+    time, `Observer.settle_time_s` / `ENGAGE_TIME_CONSTANTS` (each observer's from its own model,
+    observers.settling; for fixed passive gains −1/(the slowest error eigenvalue over all headings), the
+    bias mode ≈ aρ/(d + a) per DOF, docs/passive-observer.md). None when the observer derives no figure
+    (`UNKNOWN_SETTLE_S`, or none at all): the integral time alone then sets the default fade."""
     settle_s = getattr(observer, "settle_time_s", None)
     if not isinstance(settle_s, float) or settle_s == UNKNOWN_SETTLE_S:
         return None
