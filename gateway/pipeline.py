@@ -371,6 +371,13 @@ class Pipeline:
             (s.timeout_ns for s in spec.sources if s.roles & {"position", "heading"}), default=2 * NS
         )
         self._lost_ns = int(ip.lost_after_s * NS)
+        # The longest gap between two steps every observer bridges (`Observer.max_gap_s`; the MMAE bank
+        # starts again after a longer one): a longer silence is a restart the pipeline makes and announces
+        # itself (`_reacquire`), so that the settle clock, the restart count and the events see it.
+        self._bridged_ns = self._lost_ns
+        for obs in [spec.observer, *(o for _, o in spec.extra_observers)]:
+            if math.isfinite(obs.max_gap_s):
+                self._bridged_ns = min(self._bridged_ns, int(obs.max_gap_s * NS))
         # Re-acquisition of a DOF whose references return outside the prediction gate (`_reacquire`): per
         # DOF [N, E, ψ], when its present unbroken run of measurements began, 0 while not re-acquiring, -1
         # while re-acquiring but broken off.
@@ -1290,8 +1297,9 @@ class Pipeline:
             or (valid[0] and measured[0] and measured[0] != before)  # back: not measured at the last step
             or (valid[2] and measured[2] and measured[2] != before)
             # no step at all for longer than lost_after_s (a replay's gap between two logs, hours or
-            # years, has no events to step on): the references are back after being lost, not held
-            or (before and now_ns - before > self._lost_ns)
+            # years, has no events to step on): the references are back after being lost, not held; or
+            # for longer than an observer bridges (`_bridged_ns`)
+            or (before and now_ns - before > self._bridged_ns)
         ) and self._last_est is not None:
             y_obs = self._reacquire(now_ns, y, valid)
         est = self._observe(self.observer, t, y_obs, tau_obs, valid)
@@ -1386,6 +1394,9 @@ class Pipeline:
         The gate and its words are the reference monitor's (`ReferenceMonitor.beyond_prediction_gate`),
         with the pooled position's GST covariance when known.
 
+        Nothing stepped for longer than an observer bridges (`Observer.max_gap_s`, shorter than
+        ``lost_after_s``) restarts everything too: that observer would start again by itself, unseen.
+
         A restart is `Observer.reset` and the step with y, which initialises the observer as its first
         measurement does (a DOF with no fresh value then takes the prediction's). Announced as a status
         event and counted (`restarts`).
@@ -1404,6 +1415,13 @@ class Pipeline:
         """
         measured, reacq, lost_ns = self._measured_ns, self._reacq_ns, self._lost_ns
         why = ""
+        silent_ns = now_ns - self._last_step_ns if self._last_step_ns else 0
+        whole = self._bridged_ns < silent_ns <= self._lost_ns  # (longer: both DOFs are lost, below)
+        if whole:
+            why = (
+                f"nothing stepped the observer for {silent_ns / NS:.0f} s "
+                f"(it bridges at most {self._bridged_ns / NS:g} s: max_gap_s)"
+            )
         lost = False
         confirmed: list[int] = []  # DOFs re-acquired outside the gate: the ones a restart is for
         lost_dofs: list[int] = []  # DOFs back after lost_after_s
@@ -1439,7 +1457,7 @@ class Pipeline:
         # step and is now: that DOF alone restarts. The other's state is as good as its measurements,
         # however long the first was away (nothing stepped for lost_after_s is both DOFs lost at once).
         single = lost_dofs if lost else confirmed  # (a DOF lost beside one confirmed: both are back)
-        if why and len(single) == 1 and not (lost and confirmed):
+        if why and len(single) == 1 and not (lost and confirmed) and not whole:
             other = 2 - single[0]  # (0 position, 2 heading)
             steady = valid[other] and not reacq[other] and measured[other] == self._last_step_ns
             if steady and self._restart_dof(single[0], y):

@@ -10,6 +10,7 @@ body frame), τ and b = [X, Y, N] (N, N, N·m), t in seconds on the caller's clo
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
@@ -133,6 +134,13 @@ class Observer(Protocol):
         (its docstring says how); `observers.settling.UNKNOWN_SETTLE_S` where nothing can be derived."""
         ...
 
+    @property
+    def max_gap_s(self) -> float:
+        """The longest gap between two steps the observer integrates across (dead-reckoning through it);
+        after a longer one it starts again from its next complete measurement, as at its first. ``inf``
+        (the usual answer) for an observer that bridges any gap."""
+        ...
+
     def initialize(
         self,
         t: float,
@@ -206,6 +214,9 @@ class ObserverBase:
     """
 
     _clock: Array
+
+    max_gap_s: float = math.inf
+    """`Observer.max_gap_s`: any gap is bridged, unless the observer says otherwise."""
 
     new_samples_only: bool = False
     """Whether the observer wants each measurement once, when it is new (``True``), rather than the latest

@@ -313,3 +313,29 @@ def test_a_replay_starts_dp_as_the_logged_gateway_did() -> None:
     standby = {**tables, "control": {"initial_mode": "standby"}}
     assert "wait_for_observer" not in for_log(standby)["control"]
     assert "wait_for_observer" not in _as_replayed(standby)["control"]
+
+
+@pytest.mark.parametrize(("observer", "restarts"), [("mmae", 1), ("passive", 0)])
+def test_a_silence_longer_than_the_observer_bridges_is_a_restart_the_gateway_sees(
+    observer: str, restarts: int
+) -> None:
+    """The MMAE bank starts again by itself after a gap longer than its ``max_gap_s`` (60 s). With
+    ``lost_after_s`` longer than that (120 s here), a 70 s silence must end in a restart the gateway makes
+    and announces — counted, said, and the settle clock started again — not one the observer makes unseen
+    while the gateway calls its estimate settled. The passive observer bridges any gap: the same silence,
+    on a vessel that stayed put, is carried on from (its fixes return inside the prediction gate after the
+    confirmation time) without a whole restart."""
+    from tests.test_integrity import Bench
+
+    b = Bench(observer=observer, integrity={"lost_after_s": 120.0})
+    b.run(b.p.observer.settle_time_s + 2.0)
+    assert b.p.settled and b.p.restarts == 0
+    b.run(70.0, gps={"gps1": None}, gyro={"gyro1": None})
+    m = b.mark()
+    b.run(3.0)
+    said = b.first_event(m, "nothing stepped the observer for 70 s (it bridges at most 60 s: max_gap_s)")
+    assert b.p.restarts == restarts
+    assert (said is not None) == bool(restarts)
+    if restarts:
+        assert not b.p.settled
+        assert b.estimates(m)[-1]["settle_s_left"] == pytest.approx(b.p.observer.settle_time_s - 3.0, abs=0.2)
