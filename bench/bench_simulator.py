@@ -18,7 +18,9 @@ Each figure is sim time / wall time. The machine is shared: beside it, sim time 
 (`time.process_time`), which moves much less when other work competes for the cores; `--rounds N` takes
 the best of N interleaved rounds. The closed loop's CPU time is split by phase (the simulator, the
 pipeline's observer step, its control step — and inside it the allocation and the DP controller — the rest
-of the pipeline) so it is clear where the time goes.
+of the pipeline) so it is clear where the time goes. The split inside the pipeline times methods by
+patching them, which a compiled pipeline (mypyc) does not see: it calls them directly. There the pipeline
+is one figure; ``DPGW_PURE_PYTHON=1`` splits the interpreted pipeline instead (slower, but in proportion).
 
     python bench/bench_simulator.py [--hours 1] [--loop-hours H] [--rounds 1] [--json]
 """
@@ -38,12 +40,14 @@ from dpgw.cli import single_threaded_blas
 
 single_threaded_blas()  # as `dpgw sim` runs (before numpy loads): CPU time is the loop's, not BLAS's spinning
 
+import gateway.pipeline  # noqa: E402
 from dpgw.closed_loop import run_closed_loop  # noqa: E402
 from gateway.control.allocation import QPAllocator  # noqa: E402
 from gateway.control.controller import DPController  # noqa: E402
 from gateway.pipeline import Pipeline  # noqa: E402
 from simulator.runner import Simulation  # noqa: E402
 from simulator.scenarios import get_scenario  # noqa: E402
+from wire.compiled import is_compiled  # noqa: E402
 from wire.mcap.writer import McapLogWriter  # noqa: E402
 
 TARGET_WIRE = 360.0
@@ -110,18 +114,18 @@ class _PhaseTimer:
 def run_loop(hours: float, wire: bool, phases: bool) -> dict[str, Any]:
     scenario = get_scenario("torsetnes_2004").with_sensor_rates(10.0, 10.0)
     duration = hours * 3600.0
-    timer = _PhaseTimer(
-        {
-            "simulator": (Simulation, "run"),
-            "pipeline": (Pipeline, "feed"),
+    # the compiled pipeline calls its own steps (and the controller's and allocator's) directly: patched
+    # timers would read 0 there, so only its whole `feed` is timed
+    inside = not is_compiled(gateway.pipeline)
+    targets: dict[str, tuple[type, str]] = {"simulator": (Simulation, "run"), "pipeline": (Pipeline, "feed")}
+    if inside:
+        targets |= {
             "observer_step": (Pipeline, "_step"),
             "control_step": (Pipeline, "_control_step"),
             "allocation": (QPAllocator, "allocate"),
             "controller": (DPController, "update"),
         }
-        if phases
-        else {}
-    )
+    timer = _PhaseTimer(targets if phases else {})
     # An older checkout (bench/ab_compare.py --base) has only the bytes path: its default is then that.
     typed = "wire" in inspect.signature(run_closed_loop).parameters
     kwargs = {"wire": wire} if typed else {}
@@ -142,15 +146,19 @@ def run_loop(hours: float, wire: bool, phases: bool) -> dict[str, Any]:
     if phases:
         s = timer.seconds
         # the control step runs inside the observer step, which runs inside feed: split them apart
-        split = {
-            "simulator": s["simulator"],
-            "pipeline_observer_step": s["observer_step"] - s["control_step"],
-            "pipeline_control_step": s["control_step"],
-            # of which (inside the control step): the allocation and the DP controller
-            "control_allocation": s["allocation"],
-            "control_controller": s["controller"],
-            "pipeline_other": s["pipeline"] - s["observer_step"],
-        }
+        split = (
+            {
+                "simulator": s["simulator"],
+                "pipeline_observer_step": s["observer_step"] - s["control_step"],
+                "pipeline_control_step": s["control_step"],
+                # of which (inside the control step): the allocation and the DP controller
+                "control_allocation": s["allocation"],
+                "control_controller": s["controller"],
+                "pipeline_other": s["pipeline"] - s["observer_step"],
+            }
+            if inside
+            else {"simulator": s["simulator"], "pipeline_compiled_whole": s["pipeline"]}
+        )
         split["loop_other"] = cpu - sum(v for k, v in split.items() if not k.startswith("control_"))
         out["us_per_sim_second"] = {k: 1e6 * v / duration for k, v in split.items()}
     return out
