@@ -1971,7 +1971,9 @@ class Pipeline:
         (clock, Zenoh, a device) are still up, and a status without them would clear them on /status and in
         the alarm log.
         ``remember=False``: a status for Zenoh only (before the pipeline has a time), whose alarms are not
-        carried into the next."""
+        carried into the next, and which says no event: the events (the start-up ones first) wait for the
+        first status that is logged, so that the log has them as well as Zenoh (taken by a status that only
+        Zenoh saw, they never reached the log)."""
         if alarms is None:
             alarms = self._caller_alarms
         elif remember:
@@ -1994,8 +1996,10 @@ class Pipeline:
                 for st in states
                 if st.state in ("rejected", "suspect")
             ]
-        events, self._events = self._startup_events + self._events, []
-        self._startup_events = []
+        events: list[str] = []
+        if remember:
+            events, self._events = self._startup_events + self._events, []
+            self._startup_events = []
         for name, c in self.counters.items():
             spec = self.sources[name]
             if c.last_rx_ns == 0:

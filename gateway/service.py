@@ -314,13 +314,11 @@ class GatewayService:
             if self._session is None:
                 self._session = self._open_session()
             # A query that arrives before the loop's first status tick gets a real status, never ``{}``;
-            # the consumer loop is not running yet, so reading the pipeline here is race-free.
-            now = self._now()
-            initial = (
-                self._status_without_time() if now is None else self.pipeline.status(now, self._alarms())
-            )
+            # the consumer loop is not running yet, so reading the pipeline here is race-free. It is not
+            # logged (the log is not open yet), so it leaves the start-up events to the first status that is
+            # (`Pipeline.status_message`, ``remember=False``).
             with self._status_lock:
-                self._status_json = initial.message.encode()
+                self._status_json = self._status_without_time().message.encode()
             if self._session is not None:
                 self._attach(self._session)
             self._start_sinks(self._session)
@@ -584,10 +582,12 @@ class GatewayService:
         return self.pipeline.status(max(last, self._status_ns), self._alarms())
 
     def _status_without_time(self) -> Output:
-        """The status while the pipeline has no time yet (``clock = "sim"`` before the first tick): stamped
-        with the wall clock for Zenoh and ``dpgw run -v``, and kept out of everything that is logged, its
-        Foxglove log lines included (a line at the wall clock in a log on the plant's time, months apart,
-        would stretch the log's timeline and make the writer rotate the file)."""
+        """The status while the pipeline has no time yet (``clock = "sim"`` before the first tick; and the
+        one made at start-up for a query): stamped with the wall clock for Zenoh and ``dpgw run -v``, and
+        kept out of everything that is logged, its Foxglove log lines included (a line at the wall clock in
+        a log on the plant's time, months apart, would stretch the log's timeline and make the writer rotate
+        the file). It says no event: the start-up events wait for the first status that is logged, which
+        Zenoh gets too."""
         now = time.time_ns()
         return Output("/dp/status", self.pipeline.status_message(now, self._alarms(), remember=False), now)
 

@@ -56,7 +56,11 @@ class Bench:
                     "roles": ["position", "heading"],
                 }
             ],
-            "zenoh": {"listen": [f"tcp/127.0.0.1:{self.zport}"], "multicast_scouting": False, "prefix": "dp/t"},
+            "zenoh": {
+                "listen": [f"tcp/127.0.0.1:{self.zport}"],
+                "multicast_scouting": False,
+                "prefix": "dp/t",
+            },
             "status": {"rate_hz": 10.0},
             "log": {"path": str(self.log_path)},
             "time": {"clock": clock},
@@ -134,9 +138,8 @@ class Bench:
 
 def raw_texts(paths: list[Path]) -> list[tuple[str, int, str]]:
     """(file, log time, text) of every raw sentence of ``mux`` in the log's files, in the order written."""
-    return [
-        (Path(p).name, t, m["text"].strip()) for p in paths for _, t, _, m in read_messages(p, "/raw/nmea/mux")
-    ]
+    raw = [(p, t, m) for p in paths for _, t, _, m in read_messages(p, "/raw/nmea/mux")]
+    return [(p.name, t, m["text"].strip()) for p, t, m in raw]
 
 
 def one_time_base(bench: Bench) -> None:
