@@ -548,6 +548,11 @@ class Pipeline:
         new._events.append(event)
         return new
 
+    def say(self, event: str) -> None:
+        """An event of the caller's (the live service's: where its log went), said once in the next status
+        with the pipeline's own."""
+        self._events.append(event)
+
     def _mavlink_parser(self, s: SourceSpec) -> mv.FrameParser:
         """A frame parser for a new sender on ``s``. A signed link's senders share one verifier (one
         signing state: the newest timestamp seen per link, system and component), so a frame is taken

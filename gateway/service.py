@@ -18,10 +18,12 @@ every reference fail its jump test at once). With ``clock = "sim"`` it is stampe
 simulator publishes on ``<prefix>/sim/clock`` (`gateway.sim_time`: interpolated between ticks, never more than
 one tick ahead), so everything downstream (observer, controller, commands, log, reference checks, dead
 reckoning) lives on the plant's time. Until the first tick arrives there is no time to stamp with: what is
-received is held, in order (at most `HOLD_MAX` items, the oldest written to the log unhandled and counted),
-and handled, stamped with the first tick's time, when it comes. A simulator started again under the gateway
-(its time goes back) is followed: the log goes on in the next file of its set, the pipeline starts over as at
-start-up, and the stamps come from the new run's ticks (`GatewayService._follow_new_run`).
+received is held, in order (at most `HOLD_MAX` items, the oldest written to the log unhandled, on this
+computer's clock, and counted; the log then goes on in the next file of its set at the first tick, so that no
+file mixes the two clocks), and handled, stamped with the first tick's time, when it comes. Input shed or
+left at a stop that has no time yet waits the same way, for the log only. A simulator started again under
+the gateway (its time goes back) is followed: the log goes on in the next file of its set, the pipeline
+starts over as at start-up, and the stamps come from the new run's ticks (`GatewayService._follow_new_run`).
 """
 
 from __future__ import annotations
@@ -200,9 +202,15 @@ class GatewayService:
         """The simulation clock (``[time] clock = "sim"``), else None: stamps are this computer's time."""
         self.wall_time = WallTime()
         """Receive stamps with ``clock = "wall"``: this computer's UTC clock without its backward steps."""
-        self._held: deque[Chunk | _Input] = deque(maxlen=HOLD_MAX)
+        self._held: deque[tuple[Chunk | _Input, bool]] = deque(maxlen=HOLD_MAX)
+        """What waits for a simulation time (`_take`), in receive order: (item, whether the pipeline handles
+        it; False: shed, or left at a stop, it only goes to the log, on the same time as the rest)."""
         self.held_dropped = 0
         """Items dropped while waiting for a simulation clock tick (more than `HOLD_MAX` held)."""
+        self.wall_file: str | None = None
+        """With ``clock = "sim"``: the log file that holds what was let go of the hold before the first tick,
+        on this computer's clock (`_log_input`); the simulation time goes to the next file of the set."""
+        self._on_wall = 0  # inputs in the file being written on this computer's clock
         self.clock_rejected = 0
         """Simulation clock ticks that were not a valid `SimClock`."""
         self.runs_followed = 0
@@ -559,11 +567,12 @@ class GatewayService:
                 self.queue_max,
             )
         while isinstance(item, Chunk) and item.data and self._queue.qsize() >= self.queue_max:
-            if self._log_input(item):
-                self.shed[item.source] += 1
-            else:  # (no log to write it to)
+            if self.log is None:  # (no log to write it to)
                 with self._lost_lock:
                     self.lost[item.source] += 1
+            else:  # to the log on the time it would have been handled at (held with the rest if need be)
+                self.shed[item.source] += 1
+                self._take(item, handle=False)
             try:
                 item = self._queue.get_nowait()
             except queue.Empty:
@@ -591,12 +600,16 @@ class GatewayService:
         now = time.time_ns()
         return Output("/dp/status", self.pipeline.status_message(now, self._alarms(), remember=False), now)
 
-    def _take(self, item: Chunk | _Input) -> None:
+    def _take(self, item: Chunk | _Input, handle: bool = True) -> None:
         """Handle an item, or hold it while there is no simulation time for it yet: before the first tick,
-        and (`HOLD_SILENT_NS`) while the clock has been silent, until a tick says which run it belongs to."""
+        and (`HOLD_SILENT_NS`) while the clock has been silent, until a tick says which run it belongs to.
+        ``handle=False``: an item the pipeline does not get (shed, or left at a stop) goes the same way to
+        the log only: held like the rest, it is written in receive order, on the time (and in the file of
+        the run) the rest is; written at once, it was stamped on this computer's clock before the first
+        tick, and ahead of what was held, on the old run's time, after a silence."""
         st = self.sim_time
         if st is None:
-            self._handle(item)
+            self._handle_or_log(item, handle)
             return
         if st.went_back is not None and st.of_new_run(item.rx_mono_ns, HOLD_SILENT_NS):
             self._follow_new_run()  # (what came before it, the old run's, has been handled)
@@ -604,11 +617,20 @@ class GatewayService:
             self._release_held()
         if not st.started or self._held or st.silent_since(item.rx_mono_ns, HOLD_SILENT_NS):
             if len(self._held) == HOLD_MAX:  # the oldest makes room: into the log, unhandled
-                self.held_dropped += 1
-                self.logged_unhandled += self._log_input(self._held.popleft())
-            self._held.append(item)
+                oldest, handled = self._held.popleft()
+                logged = self._log_input(oldest)
+                if handled:  # (one shed was counted so)
+                    self.held_dropped += 1
+                    self.logged_unhandled += logged
+            self._held.append((item, handle))
             return
-        self._handle(item)
+        self._handle_or_log(item, handle)
+
+    def _handle_or_log(self, item: Chunk | _Input, handle: bool) -> None:
+        if handle:
+            self._handle(item)
+        else:
+            self._log_input(item)
 
     def _release_held(self) -> None:
         """What is held, in order, as soon as a tick came after it (what came before the first tick is
@@ -619,9 +641,9 @@ class GatewayService:
         while self._held and st is not None and st.started:
             if st.went_back is not None:
                 self._follow_new_run()
-            if st.silent_since(self._held[0].rx_mono_ns, HOLD_SILENT_NS):
+            if st.silent_since(self._held[0][0].rx_mono_ns, HOLD_SILENT_NS):
                 return  # no tick since: which run it is of is not known yet
-            self._handle(self._held.popleft())
+            self._handle_or_log(*self._held.popleft())
 
     def drain(self, within_s: float | None = None) -> None:
         """Handle whatever is already queued (used at shutdown so nothing received is dropped); what is
@@ -647,7 +669,9 @@ class GatewayService:
             except queue.Empty:
                 break
             if time.monotonic() >= deadline:
-                logged_only += self._log_input(item)
+                if self.log is not None:  # (after what is held, if anything is: in receive order)
+                    self._take(item, handle=False)
+                    logged_only += 1
                 continue
             self._take(item)
         if logged_only:
@@ -658,7 +682,9 @@ class GatewayService:
             )
         held = 0
         while self._held:
-            held += self._log_input(self._held.popleft())
+            item, handled = self._held.popleft()
+            logged = self._log_input(item)
+            held += logged if handled else 0  # (the others are counted as shed or left above)
         if held:
             log.warning(
                 "stopping: %d inputs held for want of a simulation clock tick were logged unhandled", held
@@ -673,19 +699,26 @@ class GatewayService:
     def _log_input(self, item: Chunk | _Input) -> int:
         """Write ``item`` to the log as it was received, without the pipeline (shed, left at a stop, let go
         by a full hold); 1 if it was written. Stamped on the configured clock; under ``clock = "sim"``
-        before its first tick there is no simulation time, and the item gets its receive time on this
-        computer's clock (such a log then holds no simulation time at all: nothing was handled). A replay
-        handles it; dropping it lost what the sensors said."""
+        before its first tick there is no simulation time, nor any way to know which the first tick will
+        bring, and the item gets its receive time on this computer's clock: the file then holds this
+        computer's time, and the simulation time, if it comes, goes to the next file of the set
+        (`_leave_wall_file`), so that no file mixes the two. A replay handles it; dropping it lost what the
+        sensors said; keeping it until the first tick would not bound memory."""
         rx = self._stamp(item)
         if rx is None:
-            rx = self.wall_time.stamp(item.rx_ns, item.rx_mono_ns)
+            return int(self._log_received(item, self.wall_time.stamp(item.rx_ns, item.rx_mono_ns), wall=True))
         return int(self._log_received(item, rx))
 
-    def _log_received(self, item: Chunk | _Input, rx: int) -> bool:
-        """Write ``item`` to the log as it was received, stamped ``rx``: a command input on its ``/dp/``
-        topic, a chunk on its source's raw channel. False when not written (no log, an unknown source)."""
+    def _log_received(self, item: Chunk | _Input, rx: int, wall: bool = False) -> bool:
+        """Write ``item`` to the log as it was received, stamped ``rx`` (``wall``: on this computer's clock
+        while the simulation's has not started): a command input on its ``/dp/`` topic, a chunk on its
+        source's raw channel. False when not written (no log, an unknown source)."""
         if self.log is None:
             return False
+        if wall:
+            self._on_wall += 1
+        elif self._on_wall:
+            self._leave_wall_file()
         if isinstance(item, _Input):
             body = item.payload if isinstance(item.payload, dict) else {item.key: item.payload}
             self.log.write(f"/dp/{item.key}", body, rx, rx)
@@ -884,6 +917,22 @@ class GatewayService:
             'this prefix: give each bench its own ([zenoh] prefix here, "dpgw sim --prefix" there)'
         )
 
+    def _leave_wall_file(self) -> None:
+        """The simulation time has started, and the file being written holds inputs let go of the hold
+        before it, on this computer's clock: finish that file and go on in the next of the set, on the
+        simulation time, as a restarted simulator's run does (`_follow_new_run`). One file on two clocks
+        (the wall's 2026 beside a scenario's epoch, months or years apart, in one channel) is out of order
+        for a replay and stretches a viewer's timeline over the gap. Said once, in the next status."""
+        assert self.log is not None
+        n, self._on_wall = self._on_wall, 0
+        self.wall_file = self.log.paths[-1].name if self.log.paths else None
+        follows = self.log.rotate().name
+        self.pipeline.say(
+            f"clock: {n} inputs received before the first simulation clock tick were more "
+            f"than the {HOLD_MAX} held for it: written unhandled to {self.wall_file}, on this computer's "
+            f"clock (no simulation time yet); log continues in {follows}, on the simulation time"
+        )
+
     def _follow_new_run(self) -> None:
         """The simulator started again under the gateway (a new run: its identity, or its time going
         back): follow the new run of the
@@ -996,6 +1045,8 @@ class GatewayService:
     def _log_outputs(self, outputs: list[Output], encoded: list[bytes]) -> None:
         if self.log is None:
             return
+        if self._on_wall and outputs:  # (outputs are on the pipeline's time: the simulation's)
+            self._leave_wall_file()
         for o, body in zip(outputs, encoded, strict=True):
             self.log.write_encoded(o.topic, body, o.stamp_ns, o.stamp_ns, schema=type(o.message))
 

@@ -269,3 +269,41 @@ def test_the_start_up_events_reach_the_log_once(bench: Any, clock: str) -> None:
     on_zenoh = [e for s in b.statuses for e in s.get("events", [])]
     for event in expected:
         assert on_zenoh.count(event) == 1, (event, on_zenoh)
+
+
+def test_input_shed_while_the_clock_is_silent_goes_to_the_run_a_tick_then_says(tmp_path: Path) -> None:
+    """After a silence of the clock, what arrives is held until a tick says which run of the plant it is of
+    (a paused simulator's, or a restarted one's whose data came before its ticks). Input shed meanwhile
+    waits the same way: a restart's tick sends it, after what was held before it, to the new run's file at
+    the new run's first tick. Before, it was written at once, on the old run's time, in the old run's
+    file, ahead of the older input held."""
+    from gateway.sources import Chunk
+    from wire.mcap.writer import McapLogWriter
+
+    b = Bench(tmp_path)
+    service = b.service
+    service.log = McapLogWriter(tmp_path / "gw.mcap", profile="dpgw", continue_set=True)
+    st = service.sim_time
+    assert st is not None
+    now = time.monotonic_ns()
+    for k in range(200):  # 10 s of a run whose last tick came 10 s ago
+        st.on_tick(T0 + k * 50_000_000, 0.05, now - 20 * S + k * 50_000_000)
+    service._take(Chunk("mux", hdt(0), rx_ns=1, rx_mono_ns=now - 15 * S))  # while it ticked: handled
+    service._take(Chunk("mux", hdt(1), rx_ns=1, rx_mono_ns=now - 2 * S))  # after 8 s of silence: held
+    service.queue_max = 0  # overloaded: the next is shed
+    assert service._shed_oldest(Chunk("mux", hdt(2), rx_ns=1, rx_mono_ns=now - S)) is None
+    assert service.shed == {"mux": 1}
+    epoch2 = T0 - 3600 * S  # the simulator started again, from an epoch an hour before
+    st.on_tick(epoch2, 0.05, now)
+    service._release_held()
+    assert not service._held and service.runs_followed == 1
+    service.log.close()
+    raw = raw_texts(list(service.log.paths))
+    assert [(name, text) for name, _, text in raw] == [
+        ("gw.mcap", hdt(0).decode().strip()),
+        ("gw_0001.mcap", hdt(1).decode().strip()),
+        ("gw_0001.mcap", hdt(2).decode().strip()),
+    ]
+    assert [t for _, t, _ in raw[1:]] == [epoch2, epoch2]  # the new run's first tick's time
+    assert service.pipeline.counters["mux"].received == 2  # the shed one: never handled
+    b.tx.close()
