@@ -885,9 +885,10 @@ class GatewayService:
         if self.held_dropped:
             # (logged only where there is a log: a gateway run without one has lost them)
             fate = "logged without being handled" if self.log is not None else "dropped (no log to keep them)"
+            where = f"; those before the first, on this computer's clock, in {self.wall_file}"
             alarms.append(
                 f"clock: {self.held_dropped} inputs {fate} while waiting for a tick "
-                f"(more than {HOLD_MAX} held)"
+                f"(more than {HOLD_MAX} held){where if self.wall_file else ''}"
             )
         if self.clock_rejected:
             alarms.append(f"clock: {self.clock_rejected} ticks on {key} were not a dpgw.SimClock")
