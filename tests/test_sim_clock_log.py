@@ -5,6 +5,7 @@ simulation time existed, this computer's: never both), in receive order, and not
 
 from __future__ import annotations
 
+import json
 import socket
 import threading
 import time
@@ -77,10 +78,9 @@ class Bench:
         self.statuses: list[dict[str, Any]] = []  # what a Zenoh subscriber of the status got
         self.paths: list[Path] = []
         self.wall_from = time.time_ns()
+        self.wall_to = self.wall_from  # (set again at the stop)
 
     def start(self) -> None:
-        import json
-
         self.service.start()
         self.client = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{self.zport}"]))
         self.sub = self.client.declare_subscriber(
