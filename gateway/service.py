@@ -224,8 +224,11 @@ class GatewayService:
         for note in config_notes(config):
             log.warning("%s", note)
         wind = wind_feedforward_line(config)
+        # Lines said here at start-up that the first logged status also carries as events: not said twice
+        self._said_at_start: set[str] = set()
         if wind:  # once, at start-up (also the first /status event when off)
             log.info("%s", wind)
+            self._said_at_start.add(wind)
         if config.control is not None and config.control.initial_mode == "dp":
             # whether DP waits for the observer: once, at start-up (also the first /status event)
             log.info("%s", start_mode_line(config))
@@ -1003,6 +1006,9 @@ class GatewayService:
         for o in outputs:  # reference state changes go to the gateway's log as well as to /status
             if isinstance(o.message, Status):
                 for text in o.message.events:
+                    if text in self._said_at_start:
+                        self._said_at_start.discard(text)
+                        continue
                     log.warning("%s", text)
         encoded = self._publish(outputs)
         for sink in self._started:

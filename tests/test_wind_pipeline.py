@@ -3,6 +3,7 @@ fusion; a bad, invalid or stale anemometer is counted and flagged, and the gatew
 
 from __future__ import annotations
 
+import logging
 import math
 import re
 from dataclasses import replace
@@ -355,3 +356,20 @@ def test_a_wind_lost_again_while_fading_in_is_said_to_fade_out_over_what_is_left
     said = re.fullmatch(r"wind feed-forward fading out over (\d+) s: .*", events[3])
     assert said is not None, events
     assert abs(int(said.group(1)) - weight_at_loss * 20.0) <= 0.6, (events[3], weight_at_loss)
+
+
+def test_the_gateways_text_log_says_the_wind_feedforward_off_once(caplog: pytest.LogCaptureFixture) -> None:
+    """Said at start-up (before any input) and carried by the first logged status as an event, whose
+    events also go to the text log: the text log has it once."""
+    from gateway.service import GatewayService
+
+    tables = gateway_tables(get_scenario("mss_supply_storm"))
+    tables["sources"] = [s for s in tables["sources"] if s["name"] != "wind1"]
+    line = 'wind feed-forward off: no source has role "wind" (an anemometer sending MWV)'
+    with caplog.at_level(logging.INFO, logger="dpgw"):
+        service = GatewayService(parse_config(tables, base_dir=Path.cwd()), config_tables=tables)
+        status = service.pipeline.status(1)
+        assert line in status.message.events
+        service._emit([status])
+        service._emit([service.pipeline.status(2)])
+    assert [r.getMessage() for r in caplog.records].count(line) == 1
