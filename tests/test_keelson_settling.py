@@ -19,16 +19,16 @@ from typing import Any
 import msgspec
 import pytest
 
-pytest.importorskip("keelson")
+keelson = pytest.importorskip("keelson")
 
-from gateway.config import parse_config
-from gateway.outputs.build import sinks_from_config
-from gateway.outputs.keelson import KeelsonSink
-from gateway.pipeline import Output, Pipeline, PipelineSpec, RawEvent
-from tests.conftest import free_port, wait_for
-from tests.test_keelson import BASE, ENTITY, LAT, LON, Listener, tables
-from wire.codecs import nmea_encode as enc
-from wire.messages import Estimate
+from gateway.config import parse_config  # noqa: E402
+from gateway.outputs.build import sinks_from_config  # noqa: E402
+from gateway.outputs.keelson import KeelsonSink  # noqa: E402
+from gateway.pipeline import Output, Pipeline, PipelineSpec, RawEvent  # noqa: E402
+from tests.conftest import free_port, wait_for  # noqa: E402
+from tests.test_keelson import BASE, ENTITY, LAT, LON, Listener, tables  # noqa: E402
+from wire.codecs import nmea_encode as enc  # noqa: E402
+from wire.messages import Estimate  # noqa: E402
 
 S = 1_000_000_000
 T0 = 1_780_000_000 * S
@@ -67,10 +67,17 @@ def test_a_keelson_consumer_reads_when_the_estimate_settles(
 
     try:
         sink.start(server)
-        # (the listener's subscription reached the sink's session before this reply: one ordered link)
         assert wait_for(
             lambda: len(list(client.liveliness().get(f"{BASE}/@v0/{ENTITY}/pubsub/*/{log_source}"))) == 1
         )
+        # the listener's subscription must have reached the sink's session before the first estimate's
+        # line goes out (a put made before is sent to nobody): a probe publisher there says when
+        log_key = keelson.construct_pubsub_key(BASE, ENTITY, "log_message", log_source)
+        probe = server.declare_publisher(log_key)
+        try:
+            assert wait_for(lambda: probe.matching_status.matching)
+        finally:
+            probe.undeclare()
         estimates: list[Estimate] = []
         for k in range(int((settle_s + 4.0) * 10)):  # until 4 s past the settle time, at 10 Hz
             out = pipeline.feed(RawEvent(T0 + k * S // 10, "dgps1", chunk(k)))
