@@ -159,6 +159,7 @@ def test_a_keelson_consumer_receives_and_decodes_every_subject_with_the_right_va
         return {str(r.ok.key_expr) for r in replies if r.ok is not None}
 
     est, meas, sensor = "dpgw/estimate", "dpgw/measurement", "dpgw/sensor/dgps1"
+    ran = False
     try:
         # presence: one token per source id, in keelson's liveliness key format
         expected = {keelson.construct_liveliness_key(BASE, ENTITY, sid) for sid in sink.source_ids()}
@@ -185,6 +186,7 @@ def test_a_keelson_consumer_receives_and_decodes_every_subject_with_the_right_va
             "the mode change",
             lambda: any(m.message == "mode: standby -> dp" for m in listener.of("log_message", "dpgw")),
         )
+        ran = True
     finally:
         service.stop_event.set()
         loop.join(timeout=30)
@@ -192,6 +194,8 @@ def test_a_keelson_consumer_receives_and_decodes_every_subject_with_the_right_va
         sink.close()  # the tokens go with the sink, before the session closes
         gone = wait_for(lambda: tokens() == set(), timeout=10.0)
         service.close()
+        if not ran:  # (an open session keeps the test process from exiting after the failure)
+            client.close()
     tx.close()
     try:
         check_values(listener, recorder, sent)

@@ -53,6 +53,12 @@ PUBLISHED_HASHES = {
     "geometry_msgs/msg/PoseStamped": (
         "RIHS01_10f3786d7d40fd2b54367835614bff85d4ad3b5dab62bf8bca0cc232d73b4cd8"
     ),
+    # (TFMessage's as `ros2 topic info -v /tf` shows it on Jazzy; DiagnosticArray's as other ROS 2
+    # implementations of Jazzy's interfaces hard-code it)
+    "tf2_msgs/msg/TFMessage": "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087",
+    "diagnostic_msgs/msg/DiagnosticArray": (
+        "RIHS01_5a8a36efb05fb25070fa0fb3810290c0e6cd4862b54a8fb975a1ee8dc55a333e"
+    ),
 }
 STRING_HASH = PUBLISHED_HASHES["std_msgs/msg/String"]
 ADD_TWO_INTS_HASH = "RIHS01_e118de6bf5eeb66a2491b5bda11202e7b68f198d6f67922cf30364858239c81a"
@@ -72,6 +78,13 @@ POSE_KEY = (
 FIX_KEY = (
     f"{DOMAIN}/dpgw/fix/dgps1/sensor_msgs::msg::dds_::NavSatFix_/"
     + PUBLISHED_HASHES["sensor_msgs/msg/NavSatFix"]
+)
+DIAGNOSTICS_KEY = (
+    f"{DOMAIN}/diagnostics/diagnostic_msgs::msg::dds_::DiagnosticArray_/"
+    + PUBLISHED_HASHES["diagnostic_msgs/msg/DiagnosticArray"]
+)
+TF_STATIC_KEY = (
+    f"{DOMAIN}/tf_static/tf2_msgs::msg::dds_::TFMessage_/" + PUBLISHED_HASHES["tf2_msgs/msg/TFMessage"]
 )
 SETPOINT_KEY = (
     f"{DOMAIN}/dpgw/setpoint/geometry_msgs::msg::dds_::PoseStamped_/"
@@ -323,13 +336,17 @@ def test_a_ros2_peer_sees_rmw_zenoh_keys_attachments_tokens_and_the_pipelines_va
 
     zid = sink.zid
     assert zid == str(client.info.peers_zid()[0])  # the gateway's session, as Zenoh names it
+    ran = False
     try:
-        # the ROS graph: a node, three publishers, one subscription, in rmw_zenoh's token format
-        assert wait_for(lambda: len(tokens()) == 5), tokens()
+        # the ROS graph: a node, five publishers, one subscription, in rmw_zenoh's token format
+        assert wait_for(lambda: len(tokens()) == 7), tokens()
         found = tokens()
         assert found == set(sink.tokens)
         parsed = {rz.parse_token(k).kind + rz.parse_token(k).topic: rz.parse_token(k) for k in found}
-        assert set(parsed) == {"NN", "MP/dpgw/odom", "MP/dpgw/pose", "MP/dpgw/fix/dgps1", "MS/dpgw/setpoint"}
+        assert set(parsed) == {
+            "NN", "MP/dpgw/odom", "MP/dpgw/pose", "MP/dpgw/fix/dgps1", "MS/dpgw/setpoint", "MP/diagnostics",
+            "MP/tf_static",
+        }  # fmt: skip
         node = parsed["NN"]
         assert f"@ros2_lv/{DOMAIN}/{zid}/0/0/NN/%/%dpgw/dpgw" in found
         assert (node.domain_id, node.zid, node.namespace, node.node, node.enclave) == (
@@ -340,12 +357,17 @@ def test_a_ros2_peer_sees_rmw_zenoh_keys_attachments_tokens_and_the_pipelines_va
             ("MP/dpgw/pose", "geometry_msgs/msg/PoseStamped"),
             ("MP/dpgw/fix/dgps1", "sensor_msgs/msg/NavSatFix"),
             ("MS/dpgw/setpoint", "geometry_msgs/msg/PoseStamped"),
+            ("MP/diagnostics", "diagnostic_msgs/msg/DiagnosticArray"),
+            ("MP/tf_static", "tf2_msgs/msg/TFMessage"),
         ):
             t = parsed[name]
             assert (t.domain_id, t.zid, t.node_id, t.namespace, t.node) == (DOMAIN, zid, "0", "/dpgw", "dpgw")
             assert t.dds_type == rz.dds_type_name(ros_type) and t.type_hash == PUBLISHED_HASHES[ros_type]
-            assert t.qos == "::,10:,:,:,,"  # reliable, volatile, keep last 10
-        assert len({t.entity_id for t in parsed.values() if t.kind != "NN"}) == 4
+            if name == "MP/tf_static":
+                assert t.qos == ":1:,1:,:,:,,"  # reliable, transient local, keep last 1
+            else:
+                assert t.qos == "::,10:,:,:,,"  # reliable, volatile, keep last 10
+        assert len({t.entity_id for t in parsed.values() if t.kind != "NN"}) == 6
         assert wait_for(lambda: set(live) >= found)  # a liveliness subscriber sees them too
 
         until(lambda: len(listener.of(ODOM_KEY)) >= 5 and len(listener.of(FIX_KEY)) >= 3)
@@ -376,6 +398,7 @@ def test_a_ros2_peer_sees_rmw_zenoh_keys_attachments_tokens_and_the_pipelines_va
         assert sink.setpoints == 1 and sum(sink.refused.values()) == 2
         assert service.pipeline.controller is not None
         assert list(service.pipeline.controller._setpoint) == pytest.approx([4.0, 3.0, math.radians(45)])
+        ran = True
     finally:
         service.stop_event.set()
         loop.join(timeout=30)
@@ -385,6 +408,8 @@ def test_a_ros2_peer_sees_rmw_zenoh_keys_attachments_tokens_and_the_pipelines_va
         service.close()
         tx.close()
         lv_sub.undeclare()
+        if not ran:  # (an open session keeps the test process from exiting after the failure)
+            client.close()
     try:
         check_samples(listener, recorder, sink, found, t_start, time.time_ns())
     finally:
@@ -402,13 +427,17 @@ def check_samples(
     assert len(listener.bad) == 1 and listener.bad[0].startswith(SETPOINT_KEY)
     listener.bad.clear()
     assert listener.bad == []
-    assert set(listener.got) == {ODOM_KEY, POSE_KEY, FIX_KEY}
+    # (the static transforms went out at start, likely before this listener subscribed: a late joiner
+    # gets them in tests/test_ros2_settling_and_frames.py)
+    assert len(listener.got.pop(TF_STATIC_KEY, [])) <= 1
+    assert set(listener.got) == {ODOM_KEY, POSE_KEY, FIX_KEY, DIAGNOSTICS_KEY}
     gid_of = {
+        DIAGNOSTICS_KEY: rz.entity_gid(next(k for k in tokens if "/MP/" in k and "%diagnostics/" in k)),
         ODOM_KEY: rz.entity_gid(next(k for k in tokens if "/MP/" in k and "%odom/" in k)),
         POSE_KEY: rz.entity_gid(next(k for k in tokens if "/MP/" in k and "%pose/" in k)),
         FIX_KEY: rz.entity_gid(next(k for k in tokens if "/MP/" in k and "%fix%dgps1/" in k)),
     }
-    assert len(set(gid_of.values())) == 3
+    assert len(set(gid_of.values())) == 4
     for key, samples in listener.got.items():
         # the attachment: sequence numbers 1, 2, 3, ... per publisher, this computer's time at publishing,
         # the publisher's GID (the one rmw_zenoh derives from its token)

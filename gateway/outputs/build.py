@@ -38,6 +38,13 @@ def output_problems(config: GatewayConfig) -> list[str]:
                     f"{config.path}: sources: {s.name}: not a ROS 2 name token, so ros2.fix_topic/{s.name} "
                     "is no topic (expected a source name not starting with a digit, or ros2.enabled = false)"
                 )
+            for key in ("frame_id", "child_frame_id"):
+                if s.name == getattr(config.ros2, key):
+                    problems.append(
+                        f"{config.path}: sources: {s.name}: also ros2.{key}, so its antenna frame on "
+                        "/tf_static would be a child of itself (expected another source name, or another "
+                        f"ros2.{key})"
+                    )
     if config.foxglove.enabled and importlib.util.find_spec("foxglove") is None:  # a core dependency
         problems.append(
             f"{config.path}: foxglove.enabled: true, but the foxglove-sdk package is not installed (install "

@@ -82,6 +82,7 @@ class KeelsonSink:
         self._frame = None if datum is None else LocalFrame(datum[0], datum[1], datum_alt_m)
         self._alarms = AlarmChanges()
         self._mode: str | None = None
+        self._settling: tuple[bool, float] | None = None  # the last (settled, settle_s_left) logged
         self._sensor_ids = {s: cfg.sensor(s) for s in self.sources}
         self._dispatch: dict[type, Callable[[Output, int], None]] = {
             Estimate: self._estimate,
@@ -235,6 +236,28 @@ class KeelsonSink:
         if r is not None:
             self._float("yaw_rate_degps", sid, t, math.degrees(r), now)
         self._force_moment(sid, t, e.bias, "ned", now)  # the bias is earth-fixed (wire.messages)
+        self._settle_log(e, now)
+
+    def _settle_log(self, e: Estimate, now: int) -> None:
+        """``log_message`` when the estimate starts settling (its first estimate, a restart: the time left
+        grows) and when it has settled: Keelson has no well-known subject for an estimate's readiness, and
+        its log is where this sink says what changed (docs/keelson.md, "Decisions"). WARNING while
+        settling (DP does not engage by itself on it), INFO once settled; the values as ``key=value`` in
+        the text, so a program can read them."""
+        settled, left = e.settled, e.settle_s_left
+        if settled is None or left is None:
+            return  # (an estimate that does not say)
+        last = self._settling
+        self._settling = (settled, left)
+        if last is not None and settled == last[0] and left <= last[1]:
+            return
+        if settled:
+            level, text = Log.INFO, f"estimate settled (settled=true, settle_s_left={left:g})"
+        else:
+            level, text = Log.WARNING, f"estimate settling (settled=false, settle_s_left={left:.1f})"
+        msg = Log(level=level, message=text, name=NAME)
+        msg.timestamp.FromNanoseconds(e.stamp_ns)
+        self._put("log_message", self.cfg.log_source_id, msg, now)
 
     def _measurement(self, o: Output, now: int) -> None:
         m: Measurement = o.message  # type: ignore[assignment]

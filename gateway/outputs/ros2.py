@@ -25,6 +25,15 @@ Topics (``[ros2]``; names relative to ``namespace``, ``/dpgw`` by default):
   The stamps of the other topics are then the plant's time; a ROS node run with ``use_sim_time`` reads
   the same time from ``/clock`` (without it the node's own clock is the wall clock, months from the
   stamps). An absolute topic, as ROS has it, whatever ``namespace``.
+- ``/diagnostics`` — ``diagnostic_msgs/msg/DiagnosticArray`` with one ``DiagnosticStatus``, "<node>:
+  estimate settled": whether the main observer's estimate has settled (``settled``, ``settle_s_left`` of
+  ``/dp/estimate`` as key-values, WARN while settling, OK once settled), at most once a second of estimate
+  time and at once when it settles or starts settling again. The topic diagnostic_updater publishes on.
+- ``/tf_static`` — ``tf2_msgs/msg/TFMessage``: each GNSS antenna's frame (the source's name, the
+  NavSatFix's ``frame_id``) as a child of ``child_frame_id`` at its lever arm, in REP 103's body axes
+  (x forward, y left, z up: dpgw's (x, y, z) is (x, −y, −z)), published once at start, reliable,
+  transient local, keep-last 1 (tf2_ros's static broadcaster QoS) through a Zenoh advanced publisher with
+  a cache, as rmw_zenoh makes a transient-local publisher: a node that joins later gets it.
 - ``setpoint`` (subscribed) — ``geometry_msgs/msg/PoseStamped`` in ``frame_id`` only: (x, y) = (E, N) at
   the datum and the yaw about +z = π/2 − ψ become dpgw's ``{north_m, east_m, heading_deg}``, handed to the
   gateway's input path (`InputSink`): logged, checked and counted by `gateway.commands` exactly like a
@@ -42,7 +51,7 @@ import logging
 import math
 import time
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import msgspec
@@ -52,7 +61,7 @@ from rosbags.typesys import Stores, get_typestore
 from gateway.config import GatewayConfig, Ros2Config
 from gateway.outputs.base import Submit
 from wire import rmw_zenoh as rz
-from wire.foxglove import heading_yaw
+from wire.foxglove import antenna_frame, heading_yaw
 from wire.messages import SIM_CLOCK_KEY, Estimate, LocationFix, SimClock
 
 if TYPE_CHECKING:
@@ -66,6 +75,19 @@ ODOMETRY = "nav_msgs/msg/Odometry"
 NAV_SAT_FIX = "sensor_msgs/msg/NavSatFix"
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 CLOCK = "rosgraph_msgs/msg/Clock"
+DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
+TF_MESSAGE = "tf2_msgs/msg/TFMessage"
+DIAGNOSTICS_TOPIC = "/diagnostics"
+"""Where diagnostic_updater publishes and diagnostic_aggregator / rqt_robot_monitor read: absolute."""
+DIAGNOSTICS_PERIOD_NS = 1_000_000_000
+"""diagnostic_updater's default period (1 s); a change of ``settled`` goes out at once."""
+TF_STATIC_TOPIC = "/tf_static"
+TF_STATIC_QOS = rz.Qos(durability=rz.TRANSIENT_LOCAL, depth=1)
+"""tf2_ros's ``StaticBroadcasterQoS``: reliable, transient local, keep-last 1 (one message with every
+static frame, kept for nodes that join later)."""
+SAMPLE_MISS_HEARTBEAT_S = 0.5
+"""rmw_zenoh's sporadic heartbeat of a reliable transient-local publisher (its
+``SAMPLE_MISS_DETECTION_HEARTBEAT_PERIOD``, 500 ms), so a subscriber can ask for a sample it missed."""
 CLOCK_TOPIC = "/clock"
 CLOCK_QOS = rz.Qos(reliability=rz.BEST_EFFORT, depth=1)
 """rclcpp's ``ClockQoS``: the sensor-data profile (best effort) at depth 1; a late tick is worth nothing."""
@@ -104,11 +126,23 @@ class Ros2Sink:
 
     name = "ros2"
 
-    def __init__(self, cfg: Ros2Config, fix_sources: Sequence[str], sim_clock_key: str | None = None) -> None:
+    def __init__(
+        self,
+        cfg: Ros2Config,
+        fix_sources: Sequence[str],
+        sim_clock_key: str | None = None,
+        lever_arms: Mapping[str, Sequence[float]] | None = None,
+        hardware_id: str = "",
+    ) -> None:
         """``sim_clock_key``: the Zenoh key of the simulator's ticks (`wire.messages.SimClock`), with
-        ``[time] clock = "sim"``: they go out on ``/clock``."""
+        ``[time] clock = "sim"``: they go out on ``/clock``. ``lever_arms``: each GNSS source's antenna
+        (m, x forward, y starboard, z down from the reference point; a source not in it is at the
+        reference point), for ``/tf_static``. ``hardware_id``: the diagnostics' (the vessel's name)."""
         self.cfg = cfg
         self.fix_sources = tuple(fix_sources)
+        arms = lever_arms or {}
+        self.lever_arms = {s: tuple(float(v) for v in arms.get(s, (0.0, 0.0, 0.0))) for s in self.fix_sources}
+        self.hardware_id = hardware_id
         self.sim_clock_key = sim_clock_key
         self.store = ros_typestore()
         t = self.store.types
@@ -121,8 +155,18 @@ class Ros2Sink:
         self._Odometry, self._PoseStamped = t[ODOMETRY], t[POSE_STAMPED]
         self._NavSatFix, self._NavSatStatus = t[NAV_SAT_FIX], t["sensor_msgs/msg/NavSatStatus"]
         self._Clock = t[CLOCK]
+        self._DiagnosticArray = t[DIAGNOSTIC_ARRAY]
+        self._DiagnosticStatus, self._KeyValue = (
+            t["diagnostic_msgs/msg/DiagnosticStatus"],
+            t["diagnostic_msgs/msg/KeyValue"],
+        )
+        self._TFMessage, self._TransformStamped = t[TF_MESSAGE], t["geometry_msgs/msg/TransformStamped"]
+        self._Transform = t["geometry_msgs/msg/Transform"]
         self._unknown36 = np.zeros(36)  # shared: never written
-        self.hashes = {ty: self.store.hash_rihs01(ty) for ty in (ODOMETRY, NAV_SAT_FIX, POSE_STAMPED, CLOCK)}
+        self.hashes = {
+            ty: self.store.hash_rihs01(ty)
+            for ty in (ODOMETRY, NAV_SAT_FIX, POSE_STAMPED, CLOCK, DIAGNOSTIC_ARRAY, TF_MESSAGE)
+        }
         ns = cfg.namespace
         self.topics = {
             "odom": rz.fully_qualified(ns, cfg.odom_topic),
@@ -134,6 +178,9 @@ class Ros2Sink:
         )
         if sim_clock_key is not None:
             self.topics["clock"] = CLOCK_TOPIC
+        self.topics["diagnostics"] = DIAGNOSTICS_TOPIC
+        if self.fix_sources:
+            self.topics["tf_static"] = TF_STATIC_TOPIC
         self.published: Counter[str] = Counter()
         """Samples put, by topic."""
         self.refused: Counter[str] = Counter()
@@ -151,6 +198,9 @@ class Ros2Sink:
         self._declared: list[Any] = []
         self._quality: dict[str, tuple[int, int]] = {}  # source → (status, service) of its last GGA
         self._has_height: set[str] = set()  # sources that have given a height (GGA/GNS altitude field)
+        # the last settling state sent on /diagnostics (settled, settle_s_left) and when the next is due
+        self._settling: tuple[bool, float] | None = None
+        self._next_diagnostics_ns = 0
 
     # --- OutputSink / InputSink -------------------------------------------------------------------------
 
@@ -175,6 +225,9 @@ class Ros2Sink:
         outputs += [(f"fix/{s}", NAV_SAT_FIX, QOS) for s in self.fix_sources]
         if self.sim_clock_key is not None:
             outputs.append(("clock", CLOCK, CLOCK_QOS))
+        outputs.append(("diagnostics", DIAGNOSTIC_ARRAY, QOS))
+        if self.fix_sources:
+            outputs.append(("tf_static", TF_MESSAGE, TF_STATIC_QOS))
         for name, ros_type, qos in outputs:
             topic, type_hash = self.topics[name], self.hashes[ros_type]
             key = rz.entity_token(
@@ -182,11 +235,15 @@ class Ros2Sink:
                 topic, ros_type, type_hash, qos,
             )  # fmt: skip
             reliable = qos.reliability == rz.RELIABLE
-            pub = session.declare_publisher(
-                rz.topic_key(c.domain_id, topic, ros_type, type_hash),
-                reliability=zenoh.Reliability.RELIABLE if reliable else zenoh.Reliability.BEST_EFFORT,
-                congestion_control=zenoh.CongestionControl.DROP,  # keep-last: a slow reader loses samples
-            )
+            options: dict[str, Any] = {
+                "reliability": zenoh.Reliability.RELIABLE if reliable else zenoh.Reliability.BEST_EFFORT,
+                "congestion_control": zenoh.CongestionControl.DROP,  # keep-last: a slow reader loses samples
+            }
+            zkey = rz.topic_key(c.domain_id, topic, ros_type, type_hash)
+            if qos.durability == rz.TRANSIENT_LOCAL:
+                pub = transient_local_publisher(session, zkey, qos, options)
+            else:
+                pub = session.declare_publisher(zkey, **options)
             self._pubs[name] = _Publisher(pub, rz.entity_gid(key))
             token(key)
         if self.sim_clock_key is not None:
@@ -203,6 +260,8 @@ class Ros2Sink:
                 topic, POSE_STAMPED, type_hash, QOS,
             )
         )  # fmt: skip
+        if self.fix_sources:
+            self._put("tf_static", self.antenna_transforms(time.time_ns()), TF_MESSAGE)
 
     def emit(self, outputs: list[Output], encoded: list[bytes]) -> None:
         for o in outputs:
@@ -210,6 +269,7 @@ class Ros2Sink:
             if type(m) is Estimate:
                 if o.topic == ESTIMATE_TOPIC:
                     self._estimate(m)
+                    self._diagnostics(m)
             elif type(m) is LocationFix and o.topic.startswith(FIX_TOPIC_PREFIX):
                 self._fix(m)
 
@@ -287,6 +347,60 @@ class Ros2Sink:
         )
         self._put("odom", odom, ODOMETRY)
 
+    def _diagnostics(self, e: Estimate) -> None:
+        """``/diagnostics``: whether the estimate has settled, once a second of estimate time and at once
+        when that changes (it settles, or starts settling again: its settle time left grows, a restart).
+        Nothing for an estimate that does not say (``settled`` absent)."""
+        settled, left = e.settled, e.settle_s_left
+        if settled is None or left is None or "diagnostics" not in self._pubs:
+            return
+        last = self._settling
+        changed = last is None or settled != last[0] or left > last[1]
+        self._settling = (settled, left)
+        if not changed and e.stamp_ns < self._next_diagnostics_ns:
+            return
+        self._next_diagnostics_ns = e.stamp_ns + DIAGNOSTICS_PERIOD_NS
+        self._put(
+            "diagnostics", self.settling_diagnostics(e.stamp_ns, settled, left, e.observer), DIAGNOSTIC_ARRAY
+        )
+
+    def settling_diagnostics(self, stamp_ns: int, settled: bool, left_s: float, observer: str) -> Any:
+        """The ``DiagnosticArray`` of the estimate's settling: one status, "<node>: estimate settled", WARN
+        while settling (DP does not engage by itself on it; an operator's DP is alarmed), OK once settled;
+        key-values as diagnostic_updater writes them (a bool ``True`` / ``False``)."""
+        s = self._DiagnosticStatus
+        status = s(
+            level=np.uint8(s.OK if settled else s.WARN),
+            name=f"{self.cfg.node_name}: estimate settled",
+            message="settled" if settled else f"settling: {left_s:.1f} s left",
+            hardware_id=self.hardware_id,
+            values=[
+                self._KeyValue(key="settled", value="True" if settled else "False"),
+                self._KeyValue(key="settle_s_left", value=f"{left_s:.3f}"),
+                self._KeyValue(key="observer", value=observer),
+            ],
+        )
+        return self._DiagnosticArray(header=self._header(stamp_ns, ""), status=[status])
+
+    def antenna_transforms(self, stamp_ns: int) -> Any:
+        """The ``TFMessage`` of ``/tf_static``: ``child_frame_id`` → each GNSS source's antenna frame (its
+        name: the NavSatFix's ``frame_id``) at its lever arm, not rotated. The lever arm is in dpgw's body
+        axes (x forward, y starboard, z down); REP 103's body frame is x forward, y left, z up, so it is
+        (x, −y, −z) here, as on the Foxglove ``/dp/tf`` (`wire.foxglove.antenna_transform`)."""
+        header = self._header(stamp_ns, self.cfg.child_frame_id)
+        identity = self._Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
+        transforms = []
+        for source in self.fix_sources:
+            x, y, z = self.lever_arms[source]
+            transforms.append(
+                self._TransformStamped(
+                    header=header,
+                    child_frame_id=antenna_frame(source),
+                    transform=self._Transform(translation=self._Vector3(x=x, y=-y, z=-z), rotation=identity),
+                )
+            )
+        return self._TFMessage(transforms=transforms)
+
     def _fix(self, f: LocationFix) -> None:
         name = f"fix/{f.frame_id}"
         if name not in self._pubs:
@@ -353,6 +467,28 @@ class _Publisher:
         self.pub, self.gid, self.seq = pub, gid, 0
 
 
+def transient_local_publisher(session: zenoh.Session, key: str, qos: rz.Qos, options: dict[str, Any]) -> Any:
+    """A transient-local publisher as rmw_zenoh declares one: a zenoh-ext advanced publisher that keeps its
+    last ``depth`` samples for subscribers that join later (they query them: an advanced subscriber with
+    history, as rmw_zenoh's transient-local subscription), is detectable by them (publisher detection),
+    and, reliable, sends a sporadic heartbeat so a subscriber can fetch a sample it missed."""
+    import zenoh.ext as zext
+
+    miss = (
+        zext.MissDetectionConfig(heartbeat=None, sporadic_heartbeat=SAMPLE_MISS_HEARTBEAT_S)
+        if qos.reliability == rz.RELIABLE
+        else None
+    )
+    return zext.declare_advanced_publisher(
+        session,
+        key,
+        cache=zext.CacheConfig(max_samples=qos.depth),
+        sample_miss_detection=miss,
+        publisher_detection=True,
+        **options,
+    )
+
+
 def setpoint_payload(msg: Any, frame_id: str) -> dict[str, float] | str:
     """dpgw's setpoint ``{north_m, east_m, heading_deg}`` of a ``geometry_msgs/PoseStamped`` in the ENU
     world frame ``frame_id``, or ``"<reason>: <text>"`` when it is none.
@@ -376,7 +512,14 @@ def setpoint_payload(msg: Any, frame_id: str) -> dict[str, float] | str:
 
 
 def ros2_sink(config: GatewayConfig) -> Ros2Sink:
-    """The sink ``[ros2]`` describes: a NavSatFix topic for every source with the ``position`` role, and
-    ``/clock`` with ``[time] clock = "sim"``."""
+    """The sink ``[ros2]`` describes: a NavSatFix topic and a static antenna frame for every source with
+    the ``position`` role, and ``/clock`` with ``[time] clock = "sim"``."""
     clock_key = f"{config.zenoh.prefix}/{SIM_CLOCK_KEY}" if config.time.sim else None
-    return Ros2Sink(config.ros2, [s.name for s in config.sources_for("position")], clock_key)
+    positions = config.sources_for("position")
+    return Ros2Sink(
+        config.ros2,
+        [s.name for s in positions],
+        clock_key,
+        lever_arms={s.name: s.lever_arm_m for s in positions},
+        hardware_id=config.vessel.name,
+    )
