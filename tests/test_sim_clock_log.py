@@ -46,26 +46,11 @@ class Bench:
     def __init__(self, tmp_path: Path, clock: str = "sim", control: dict[str, Any] | None = None) -> None:
         self.udp, self.zport = free_port(socket.SOCK_DGRAM), free_port()
         self.log_path = tmp_path / "hil.mcap"
-        tables: dict[str, Any] = {
-            "vessel": {"name": "mss_supply"},
-            "datum": {"lat_deg": 59.4, "lon_deg": 10.5},
-            "sources": [
-                {
-                    "name": "mux",
-                    "url": f"udp://127.0.0.1:{self.udp}",
-                    "protocol": "nmea",
-                    "roles": ["position", "heading"],
-                }
-            ],
-            "zenoh": {
-                "listen": [f"tcp/127.0.0.1:{self.zport}"],
-                "multicast_scouting": False,
-                "prefix": "dp/t",
-            },
-            "status": {"rate_hz": 10.0},
-            "log": {"path": str(self.log_path)},
-            "time": {"clock": clock},
-        }
+        from tests.test_service import mux_tables
+
+        tables = mux_tables(self.udp, self.zport, self.log_path, status_hz=10.0)
+        tables["zenoh"]["prefix"] = "dp/t"
+        tables["time"] = {"clock": clock}
         if control is not None:
             tables["control"] = control
         self.service = GatewayService(parse_config(tables, base_dir=tmp_path), config_tables=tables)
