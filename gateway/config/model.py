@@ -288,6 +288,10 @@ class Ros2Config:
     be given in."""
     child_frame_id: str = "vessel"
     """The vessel frame (FLU at the reference point) the odometry's twist is in."""
+    publish_tf: bool = True
+    """Broadcast the odometry's pose as the moving transform ``frame_id`` → ``child_frame_id`` on ``/tf``
+    (as robot_localization does by default); off where another ROS node already broadcasts it (two
+    broadcasters of one transform fight)."""
     odom_topic: str = "odom"
     pose_topic: str = "pose"
     fix_topic: str = "fix"

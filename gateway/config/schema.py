@@ -550,6 +550,7 @@ class Ros2Table(_Section):
     node_name: str = text(_R["node_name"], 'a ROS 2 node name: letters, digits, "_", e.g. "dpgw"')
     frame_id: str = text(_R["frame_id"], _FRAME)
     child_frame_id: str = text(_R["child_frame_id"], _FRAME)
+    publish_tf: bool = boolean(_R["publish_tf"])
     odom_topic: str = text(_R["odom_topic"], _TOPIC)
     pose_topic: str = text(_R["pose_topic"], _TOPIC)
     fix_topic: str = text(_R["fix_topic"], _TOPIC)
