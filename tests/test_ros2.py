@@ -83,6 +83,7 @@ DIAGNOSTICS_KEY = (
     f"{DOMAIN}/diagnostics/diagnostic_msgs::msg::dds_::DiagnosticArray_/"
     + PUBLISHED_HASHES["diagnostic_msgs/msg/DiagnosticArray"]
 )
+TF_KEY = f"{DOMAIN}/tf/tf2_msgs::msg::dds_::TFMessage_/" + PUBLISHED_HASHES["tf2_msgs/msg/TFMessage"]
 TF_STATIC_KEY = (
     f"{DOMAIN}/tf_static/tf2_msgs::msg::dds_::TFMessage_/" + PUBLISHED_HASHES["tf2_msgs/msg/TFMessage"]
 )
@@ -338,14 +339,14 @@ def test_a_ros2_peer_sees_rmw_zenoh_keys_attachments_tokens_and_the_pipelines_va
     assert zid == str(client.info.peers_zid()[0])  # the gateway's session, as Zenoh names it
     ran = False
     try:
-        # the ROS graph: a node, five publishers, one subscription, in rmw_zenoh's token format
-        assert wait_for(lambda: len(tokens()) == 7), tokens()
+        # the ROS graph: a node, six publishers, one subscription, in rmw_zenoh's token format
+        assert wait_for(lambda: len(tokens()) == 8), tokens()
         found = tokens()
         assert found == set(sink.tokens)
         parsed = {rz.parse_token(k).kind + rz.parse_token(k).topic: rz.parse_token(k) for k in found}
         assert set(parsed) == {
             "NN", "MP/dpgw/odom", "MP/dpgw/pose", "MP/dpgw/fix/dgps1", "MS/dpgw/setpoint", "MP/diagnostics",
-            "MP/tf_static",
+            "MP/tf_static", "MP/tf",
         }  # fmt: skip
         node = parsed["NN"]
         assert f"@ros2_lv/{DOMAIN}/{zid}/0/0/NN/%/%dpgw/dpgw" in found
@@ -359,15 +360,18 @@ def test_a_ros2_peer_sees_rmw_zenoh_keys_attachments_tokens_and_the_pipelines_va
             ("MS/dpgw/setpoint", "geometry_msgs/msg/PoseStamped"),
             ("MP/diagnostics", "diagnostic_msgs/msg/DiagnosticArray"),
             ("MP/tf_static", "tf2_msgs/msg/TFMessage"),
+            ("MP/tf", "tf2_msgs/msg/TFMessage"),
         ):
             t = parsed[name]
             assert (t.domain_id, t.zid, t.node_id, t.namespace, t.node) == (DOMAIN, zid, "0", "/dpgw", "dpgw")
             assert t.dds_type == rz.dds_type_name(ros_type) and t.type_hash == PUBLISHED_HASHES[ros_type]
             if name == "MP/tf_static":
                 assert t.qos == ":1:,1:,:,:,,"  # reliable, transient local, keep last 1
+            elif name == "MP/tf":
+                assert t.qos == "::,100:,:,:,,"  # reliable, volatile, keep last 100 (TransformBroadcaster)
             else:
                 assert t.qos == "::,10:,:,:,,"  # reliable, volatile, keep last 10
-        assert len({t.entity_id for t in parsed.values() if t.kind != "NN"}) == 6
+        assert len({t.entity_id for t in parsed.values() if t.kind != "NN"}) == 7
         assert wait_for(lambda: set(live) >= found)  # a liveliness subscriber sees them too
 
         until(lambda: len(listener.of(ODOM_KEY)) >= 5 and len(listener.of(FIX_KEY)) >= 3)
@@ -430,14 +434,15 @@ def check_samples(
     # (the static transforms went out at start, likely before this listener subscribed: a late joiner
     # gets them in tests/test_ros2_settling_and_frames.py)
     assert len(listener.got.pop(TF_STATIC_KEY, [])) <= 1
-    assert set(listener.got) == {ODOM_KEY, POSE_KEY, FIX_KEY, DIAGNOSTICS_KEY}
+    assert set(listener.got) == {ODOM_KEY, POSE_KEY, FIX_KEY, DIAGNOSTICS_KEY, TF_KEY}
     gid_of = {
         DIAGNOSTICS_KEY: rz.entity_gid(next(k for k in tokens if "/MP/" in k and "%diagnostics/" in k)),
         ODOM_KEY: rz.entity_gid(next(k for k in tokens if "/MP/" in k and "%odom/" in k)),
         POSE_KEY: rz.entity_gid(next(k for k in tokens if "/MP/" in k and "%pose/" in k)),
         FIX_KEY: rz.entity_gid(next(k for k in tokens if "/MP/" in k and "%fix%dgps1/" in k)),
+        TF_KEY: rz.entity_gid(next(k for k in tokens if "/MP/" in k and "%tf/" in k)),
     }
-    assert len(set(gid_of.values())) == 4
+    assert len(set(gid_of.values())) == 5
     for key, samples in listener.got.items():
         # the attachment: sequence numbers 1, 2, 3, ... per publisher, this computer's time at publishing,
         # the publisher's GID (the one rmw_zenoh derives from its token)
@@ -470,6 +475,17 @@ def check_samples(
         ps = poses[stamp_ns(o.header)]
         assert ps.header.frame_id == "ltp" and ps.pose == p
     assert any(o.twist.twist.angular.z != 0.0 for o in odoms)
+    # /tf: with each odometry, ltp → vessel at its pose and stamp (tests/test_ros2_settling_and_frames.py
+    # turns the vessel through north)
+    tfs = [s[3] for s in listener.of(TF_KEY)]
+    assert len(tfs) == len(odoms)
+    for o, m in zip(odoms, tfs, strict=True):
+        (t,) = m.transforms
+        assert (t.header.frame_id, t.child_frame_id, t.header.stamp) == ("ltp", "vessel", o.header.stamp)
+        p = o.pose.pose
+        v = t.transform.translation
+        assert (v.x, v.y, v.z) == (p.position.x, p.position.y, p.position.z)
+        assert t.transform.rotation == p.orientation
 
     # NavSatFix: every receiver fix, GGA's ellipsoidal height, GST's ellipse as a full ENU covariance (the
     # east-north term where east-north is, east first), DGPS status, GPS service
@@ -501,11 +517,11 @@ def stamp_ns(header: Any) -> int:
 
 
 def test_ros2_config_errors_name_the_key(tmp_path: Path) -> None:
-    t = tables(1, 2, namespace="dpgw", frame_id="/map", pose_topic="odom", domain_id=233)
+    t = tables(1, 2, namespace="dpgw", frame_id="/map", pose_topic="odom", domain_id=233, publish_tf="yes")
     with pytest.raises(ConfigError) as err:
         parse_config(t, base_dir=tmp_path)
     text = str(err.value)
-    for key in ("ros2.namespace", "ros2.frame_id", "ros2.pose_topic", "ros2.domain_id"):
+    for key in ("ros2.namespace", "ros2.frame_id", "ros2.pose_topic", "ros2.domain_id", "ros2.publish_tf"):
         assert key in text
     assert "the same topic as ros2.odom_topic" in text
 

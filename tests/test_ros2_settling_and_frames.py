@@ -1,4 +1,5 @@
-"""ROS 2 output: the estimate's settling on ``/diagnostics`` and the GNSS antenna frames on ``/tf_static``.
+"""ROS 2 output: the estimate's settling on ``/diagnostics``, the GNSS antenna frames on ``/tf_static`` and
+the moving vessel frame on ``/tf``.
 
 - A real pipeline's estimates (GGA + HDT fed with their receive times, the observer's real settle clock)
   go through the sink onto a loopback Zenoh session; an rmw_zenoh peer without ROS decodes every
@@ -9,6 +10,10 @@
   zenoh-ext advanced subscriber with history, as rmw_zenoh's transient-local subscription), with the
   antenna at (10, 2, −15) m in dpgw's body axes as (10, −2, 15) in REP 103's, parent = the odometry's
   ``child_frame_id``.
+- ``/tf`` carries, with every odometry, one transform ``frame_id`` → ``child_frame_id`` that is exactly the
+  odometry's pose and stamp (a real pipeline's estimates while the vessel turns through north), with a
+  publisher token of tf2_ros's broadcaster QoS; with ``publish_tf = false`` there is neither token nor
+  sample.
 """
 
 from __future__ import annotations
@@ -31,7 +36,7 @@ from zenoh.ext import Int64, z_deserialize
 
 from gateway.config import parse_config
 from gateway.outputs.build import output_problems, sinks_from_config
-from gateway.outputs.ros2 import DIAGNOSTIC_ARRAY, TF_MESSAGE, Ros2Sink, ros_typestore
+from gateway.outputs.ros2 import DIAGNOSTIC_ARRAY, ODOMETRY, TF_MESSAGE, Ros2Sink, ros_typestore
 from gateway.pipeline import Pipeline, PipelineSpec, RawEvent
 from tests.conftest import free_port, wait_for
 from tests.test_ros2 import DOMAIN, LAT, LON, RosListener, stamp_ns, tables
@@ -61,6 +66,14 @@ def chunk(k: int) -> bytes:
     t = datetime.now(UTC)
     gga = enc.gga("GP", t, LAT + 2e-6 * math.sin(k / 50), LON, 2, 12, 0.8, 20.0, 35.5)
     return (gga + enc.hdt("HE", 30.0 + 0.02 * math.sin(k / 30))).encode()
+
+
+def turning_chunk(k: int) -> bytes:
+    """A tenth of a second of a DGPS with a gyro while the vessel drifts north-east and turns at 10°/s
+    through north (from 300°): GGA and HDT."""
+    t = datetime.now(UTC)
+    gga = enc.gga("GP", t, LAT + 2e-7 * k, LON + 3e-7 * k, 2, 12, 0.8, 20.0, 35.5)
+    return (gga + enc.hdt("HE", math.radians((300.0 + 1.0 * k) % 360.0))).encode()
 
 
 def key_of(topic: str, ros_type: str) -> str:
@@ -200,3 +213,116 @@ def test_an_antenna_frame_named_like_the_odometry_frames_stops_start_up(tmp_path
     problems = output_problems(parse_config(t, base_dir=tmp_path))
     assert len(problems) == 1
     assert "sources: dgps2:" in problems[0] and "ros2.child_frame_id" in problems[0]
+
+
+def run_estimates(sink: Ros2Sink, config: Any, steps: int) -> list[Estimate]:
+    """A real pipeline's main estimates of ``steps`` tenths of a second of `turning_chunk`, via ``sink``."""
+    pipeline = Pipeline(PipelineSpec.from_config(config))
+    estimates: list[Estimate] = []
+    for k in range(steps):
+        out = pipeline.feed(RawEvent(T0 + k * S // 10, "dgps1", turning_chunk(k)))
+        estimates += [o.message for o in out if o.topic == "/dp/estimate"]  # type: ignore[misc]
+        sink.emit(out, [])
+    return estimates
+
+
+def test_tf_broadcasts_the_odometrys_pose_as_the_vessel_frame(
+    tmp_path: Path, loopback_sessions: tuple[int, Any, Any]
+) -> None:
+    """RViz / Foxglove with the fixed frame ``frame_id`` draw the vessel (and its antennas, children of
+    ``child_frame_id`` on /tf_static) only if a transform ``frame_id`` → ``child_frame_id`` is on ``/tf``:
+    one per odometry, its pose and stamp, as robot_localization broadcasts it."""
+    zport, server, client = loopback_sessions
+    config = parse_config(config_tables(zport, frame_id="map", child_frame_id="base_link"), base_dir=tmp_path)
+    assert config.ros2.publish_tf  # the default, as robot_localization's
+    sink = sinks_from_config(config)[0]
+    assert isinstance(sink, Ros2Sink)
+    store = ros_typestore()
+    tf_key, odom_key = key_of("/tf", TF_MESSAGE), key_of("/dpgw/odom", ODOMETRY)
+    listener = RosListener(client, store)
+    try:
+        sink.start(server)
+        assert wait_for(lambda: sink._pubs["tf"].pub.matching_status.matching)  # the listener has subscribed
+        estimates = run_estimates(sink, config, 120)
+        sent = sink.published["tf"]
+        assert sent == sink.published["odom"] >= 100
+        assert wait_for(lambda: len(listener.of(tf_key)) >= sent and len(listener.of(odom_key)) >= sent, 10.0)
+        tokens = list(sink.tokens)
+    finally:
+        sink.close()
+    assert listener.bad == []
+    tfs, odoms = listener.of(tf_key), listener.of(odom_key)
+    assert len(tfs) == len(odoms) == sent
+    # the publisher: rmw_zenoh's token for /tf with tf2_ros's TransformBroadcaster QoS, its GID, its count
+    (token,) = (t for t in tokens if "/MP/" in t and "%tf/" in t)
+    parsed = rz.parse_token(token)
+    assert parsed.topic == "/tf" and parsed.dds_type == rz.dds_type_name(TF_MESSAGE)
+    assert parsed.qos == "::,100:,:,:,,"  # reliable, volatile, keep-last 100 (DynamicBroadcasterQoS)
+    assert [seq for seq, _, _, _ in tfs] == list(range(1, sent + 1))
+    assert {gid for _, _, gid, _ in tfs} == {rz.entity_gid(token)}
+    by_stamp = {e.stamp_ns: e for e in estimates}
+    headings = []
+    for (_, _, _, tf), (_, _, _, odom) in zip(tfs, odoms, strict=True):
+        (t,) = tf.transforms
+        assert t.header.frame_id == "map" and t.child_frame_id == "base_link"  # the configured frames
+        assert (t.header.stamp.sec, t.header.stamp.nanosec) == (
+            odom.header.stamp.sec,
+            odom.header.stamp.nanosec,
+        )
+        p, q = odom.pose.pose.position, odom.pose.pose.orientation
+        v, r = t.transform.translation, t.transform.rotation
+        assert (v.x, v.y, v.z) == (p.x, p.y, p.z)
+        assert (r.x, r.y, r.z, r.w) == (q.x, q.y, q.z, q.w)
+        # and that pose is the estimate's: (x, y) = (E, N), yaw = π/2 − ψ
+        e = by_stamp[stamp_ns(t.header)]
+        north, east, _ = e.eta
+        assert (v.x, v.y) == (east, north)
+        heading = math.degrees(math.pi / 2 - 2 * math.atan2(r.z, r.w)) % 360.0
+        assert math.cos(math.radians(heading - e.heading_deg)) == pytest.approx(1.0, abs=1e-12)
+        headings.append(e.heading_deg)
+    # (several poses, not one: the vessel moved and turned through north while they went out)
+    assert min(headings) < 10.0 and max(headings) > 350.0
+    assert (
+        len(
+            {
+                (m.transforms[0].transform.translation.x, m.transforms[0].transform.translation.y)
+                for *_, m in tfs
+            }
+        )
+        > 50
+    )
+
+
+def test_with_publish_tf_false_nothing_goes_on_tf(
+    tmp_path: Path, loopback_sessions: tuple[int, Any, Any]
+) -> None:
+    """A vessel whose ROS side already broadcasts ``frame_id`` → ``child_frame_id`` (its own localisation
+    node) turns dpgw's off: no /tf publisher token and no sample, the odometry as before."""
+    zport, server, client = loopback_sessions
+    config = parse_config(config_tables(zport, publish_tf=False), base_dir=tmp_path)
+    assert output_problems(config) == [] and not config.ros2.publish_tf
+    sink = sinks_from_config(config)[0]
+    assert isinstance(sink, Ros2Sink)
+    store = ros_typestore()
+    tf_key, odom_key = key_of("/tf", TF_MESSAGE), key_of("/dpgw/odom", ODOMETRY)
+    listener = RosListener(client, store)
+
+    def live() -> set[str]:  # the tokens on the graph, as a ROS node's graph cache reads them
+        return {str(r.ok.key_expr) for r in client.liveliness().get("@ros2_lv/**") if r.ok is not None}
+
+    try:
+        sink.start(server)
+        assert wait_for(lambda: sink._pubs["odom"].pub.matching_status.matching)
+        run_estimates(sink, config, 30)
+        sent = sink.published["odom"]
+        assert sent >= 20
+        assert wait_for(lambda: len(listener.of(odom_key)) >= sent, 10.0)
+        graph = wait_for(lambda: (g := live()) >= set(sink.tokens) and g)
+        assert graph
+    finally:
+        sink.close()
+    assert listener.bad == []
+    assert listener.of(tf_key) == []  # (subscribed to the whole domain before the first estimate)
+    topics = {rz.parse_token(t).topic for t in graph if "/NN/" not in t}
+    assert "/tf" not in topics and {"/dpgw/odom", "/tf_static"} <= topics  # the antennas' frames still go out
+    assert "tf" not in sink.topics and "tf" not in sink.published

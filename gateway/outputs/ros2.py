@@ -29,6 +29,10 @@ Topics (``[ros2]``; names relative to ``namespace``, ``/dpgw`` by default):
   estimate settled": whether the main observer's estimate has settled (``settled``, ``settle_s_left`` of
   ``/dp/estimate`` as key-values, WARN while settling, OK once settled), at most once a second of estimate
   time and at once when it settles or starts settling again. The topic diagnostic_updater publishes on.
+- ``/tf`` — ``tf2_msgs/msg/TFMessage``, unless ``publish_tf = false``: with each odometry, one
+  ``TransformStamped`` ``frame_id`` → ``child_frame_id``, the odometry's pose and stamp, as a ROS state
+  estimator (robot_localization's ``publish_tf``) broadcasts it; reliable, volatile, keep-last 100 (tf2_ros's
+  ``DynamicBroadcasterQoS``). It joins the vessel and its antenna frames to the world frame in RViz.
 - ``/tf_static`` — ``tf2_msgs/msg/TFMessage``: each GNSS antenna's frame (the source's name, the
   NavSatFix's ``frame_id``) as a child of ``child_frame_id`` at its lever arm, in REP 103's body axes
   (x forward, y left, z up: dpgw's (x, y, z) is (x, −y, −z)), published once at start, reliable,
@@ -81,6 +85,9 @@ DIAGNOSTICS_TOPIC = "/diagnostics"
 """Where diagnostic_updater publishes and diagnostic_aggregator / rqt_robot_monitor read: absolute."""
 DIAGNOSTICS_PERIOD_NS = 1_000_000_000
 """diagnostic_updater's default period (1 s); a change of ``settled`` goes out at once."""
+TF_TOPIC = "/tf"
+TF_QOS = rz.Qos(depth=100)
+"""tf2_ros's ``DynamicBroadcasterQoS`` (a ``TransformBroadcaster``'s): reliable, volatile, keep-last 100."""
 TF_STATIC_TOPIC = "/tf_static"
 TF_STATIC_QOS = rz.Qos(durability=rz.TRANSIENT_LOCAL, depth=1)
 """tf2_ros's ``StaticBroadcasterQoS``: reliable, transient local, keep-last 1 (one message with every
@@ -181,6 +188,8 @@ class Ros2Sink:
         self.topics["diagnostics"] = DIAGNOSTICS_TOPIC
         if self.fix_sources:
             self.topics["tf_static"] = TF_STATIC_TOPIC
+        if cfg.publish_tf:
+            self.topics["tf"] = TF_TOPIC
         self.published: Counter[str] = Counter()
         """Samples put, by topic."""
         self.refused: Counter[str] = Counter()
@@ -228,6 +237,8 @@ class Ros2Sink:
         outputs.append(("diagnostics", DIAGNOSTIC_ARRAY, QOS))
         if self.fix_sources:
             outputs.append(("tf_static", TF_MESSAGE, TF_STATIC_QOS))
+        if c.publish_tf:
+            outputs.append(("tf", TF_MESSAGE, TF_QOS))
         for name, ros_type, qos in outputs:
             topic, type_hash = self.topics[name], self.hashes[ros_type]
             key = rz.entity_token(
@@ -346,6 +357,22 @@ class Ros2Sink:
             twist=self._TwistCov(twist=twist, covariance=self._unknown36),
         )
         self._put("odom", odom, ODOMETRY)
+        if "tf" in self._pubs:
+            self._put("tf", self.vessel_transform(header, pose), TF_MESSAGE)
+
+    def vessel_transform(self, header: Any, pose: Any) -> Any:
+        """The ``TFMessage`` of ``/tf``: one transform ``frame_id`` → ``child_frame_id`` that is the
+        odometry's pose (translation its position, rotation its orientation) with its header (stamp and
+        parent frame), as robot_localization's ekf_node broadcasts its odometry (``publish_tf``)."""
+        p = pose.position
+        transform = self._Transform(translation=self._Vector3(x=p.x, y=p.y, z=p.z), rotation=pose.orientation)
+        return self._TFMessage(
+            transforms=[
+                self._TransformStamped(
+                    header=header, child_frame_id=self.cfg.child_frame_id, transform=transform
+                )
+            ]
+        )
 
     def _diagnostics(self, e: Estimate) -> None:
         """``/diagnostics``: whether the estimate has settled, once a second of estimate time and at once
