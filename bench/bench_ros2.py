@@ -1,11 +1,11 @@
 """Benchmark: what the ROS 2 output costs, beside the Keelson output, side by side in one run.
 
 1. **Per message**, in this process: one `OutputSink.emit` of one estimate and of one GNSS fix, for
-   the ``[ros2]`` sink (an estimate: an Odometry and a PoseStamped, CDR by rosbags, rmw_zenoh attachment;
-   a fix: a NavSatFix) and the ``[keelson]`` sink (an estimate: up to 10 protobuf envelopes; a fix: one),
-   each on a real Zenoh session with a subscriber of everything it publishes in a second session on
-   loopback (so every put goes out on a link, as with a ROS 2 peer). Rounds interleave the sinks; the
-   median µs per emit and per sample over ``--n`` emits, best round of ``--repeat``.
+   the ``[ros2]`` sink (an estimate: an Odometry, a PoseStamped and its /tf TFMessage, CDR by rosbags,
+   rmw_zenoh attachment; a fix: a NavSatFix) and the ``[keelson]`` sink (an estimate: up to 10 protobuf
+   envelopes; a fix: one), each on a real Zenoh session with a subscriber of everything it publishes in a
+   second session on loopback (so every put goes out on a link, as with a ROS 2 peer). Rounds interleave
+   the sinks; the median µs per emit and per sample over ``--n`` emits, best round of ``--repeat``.
 2. **Live path**: ``dpgw run`` subprocesses (`bench.bench_gateway`'s: UDP NMEA in, Zenoh on loopback, MCAP
    log on) at 10 Hz, with no extra output, with ``[ros2]`` and with ``[keelson]`` (each with a subscriber
    of its keys in this process), interleaved ``--rounds`` times: latency datagram → ``<prefix>/estimate``
@@ -222,7 +222,7 @@ def main() -> None:
         return
     pm = res["per_message"]
     print("per emit, median µs (best of rounds)      ros2     keelson   ros2/keelson")
-    for kind, what in (("estimate", "estimate (Odometry + PoseStamped | 9 subjects)"), ("fix", "GNSS fix")):
+    for kind, what in (("estimate", "estimate (Odometry + Pose + TF | 9 subjects)"), ("fix", "GNSS fix")):
         r, k = pm["ros2"][f"{kind}_us_per_emit"], pm["keelson"][f"{kind}_us_per_emit"]
         print(f"  {what:38s} {r:8.1f} {k:11.1f} {r / k:12.2f}")
     for kind in ("estimate", "fix"):
