@@ -10,6 +10,7 @@ import os
 for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_name, "1")
 
+import math  # noqa: E402
 import socket  # noqa: E402
 import threading  # noqa: E402
 import time  # noqa: E402
@@ -139,3 +140,34 @@ def nmea_line(body: str) -> str:
     from wire.codecs.nmea_encode import checksum
 
     return f"${body}*{checksum(body)}"
+
+
+QUICK_SETTLING_OBSERVER = {"wave_period_s": 9.0, "bias_time_constant_s": 5.0, "allow_unchecked": True}
+"""A passive observer whose settle time is seconds of fed data, not minutes (bias time constant 5 s): for
+the tests of what the outputs say while the estimate settles."""
+
+
+def settling_bench(tables: dict[str, Any], tmp_path: Path) -> tuple[Any, Any, Any, float]:
+    """(config, pipeline, the first output sink the config makes, the observer's settle time in s) of a
+    gateway config with `QUICK_SETTLING_OBSERVER`."""
+    from gateway.config import parse_config
+    from gateway.outputs.build import sinks_from_config
+    from gateway.pipeline import Pipeline, PipelineSpec
+
+    config = parse_config({**tables, "observer": dict(QUICK_SETTLING_OBSERVER)}, base_dir=tmp_path)
+    spec = PipelineSpec.from_config(config)
+    settle_s = float(spec.observer.settle_time_s)
+    assert 5.0 < settle_s < 30.0
+    return config, Pipeline(spec), sinks_from_config(config)[0], settle_s
+
+
+def gga_hdt_chunk(k: int, lat_deg: float, lon_deg: float) -> bytes:
+    """The k-th tenth of a second of a DGPS with a gyro, a vessel on station near (``lat_deg``,
+    ``lon_deg``) heading about 30°: GGA and HDT with small slow wiggles."""
+    from datetime import UTC, datetime
+
+    from wire.codecs import nmea_encode as enc
+
+    t = datetime.now(UTC)
+    gga = enc.gga("GP", t, lat_deg + 2e-6 * math.sin(k / 50), lon_deg, 2, 12, 0.8, 20.0, 35.5)
+    return (gga + enc.hdt("HE", 30.0 + 0.02 * math.sin(k / 30))).encode()

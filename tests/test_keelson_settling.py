@@ -9,10 +9,8 @@ settled one, and nothing between; a restart of the settle clock is said again.
 
 from __future__ import annotations
 
-import math
 import re
 import socket
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -21,13 +19,10 @@ import pytest
 
 keelson = pytest.importorskip("keelson")
 
-from gateway.config import parse_config  # noqa: E402
-from gateway.outputs.build import sinks_from_config  # noqa: E402
 from gateway.outputs.keelson import KeelsonSink  # noqa: E402
-from gateway.pipeline import Output, Pipeline, PipelineSpec, RawEvent  # noqa: E402
-from tests.conftest import free_port, wait_for  # noqa: E402
+from gateway.pipeline import Output, RawEvent  # noqa: E402
+from tests.conftest import free_port, gga_hdt_chunk, settling_bench, wait_for  # noqa: E402
 from tests.test_keelson import BASE, ENTITY, LAT, LON, Listener, tables  # noqa: E402
-from wire.codecs import nmea_encode as enc  # noqa: E402
 from wire.messages import Estimate  # noqa: E402
 
 S = 1_000_000_000
@@ -35,26 +30,11 @@ T0 = 1_780_000_000 * S
 SETTLE_TEXT = re.compile(r"^estimate (settling|settled) \(settled=(true|false), settle_s_left=([0-9.]+)\)$")
 
 
-def chunk(k: int) -> bytes:
-    """A tenth of a second of a DGPS with a gyro: GGA and HDT."""
-    t = datetime.now(UTC)
-    gga = enc.gga("GP", t, LAT + 2e-6 * math.sin(k / 50), LON, 2, 12, 0.8, 20.0, 35.5)
-    return (gga + enc.hdt("HE", 30.0 + 0.02 * math.sin(k / 30))).encode()
-
-
 def test_a_keelson_consumer_reads_when_the_estimate_settles(
     tmp_path: Path, loopback_sessions: tuple[int, Any, Any]
 ) -> None:
     zport, server, client = loopback_sessions
-    t = tables(free_port(socket.SOCK_DGRAM), zport)
-    # a quick observer (bias time constant 5 s): its settle time is seconds, not minutes, of fed data
-    t["observer"] = {"wave_period_s": 9.0, "bias_time_constant_s": 5.0, "allow_unchecked": True}
-    config = parse_config(t, base_dir=tmp_path)
-    spec = PipelineSpec.from_config(config)
-    settle_s = float(spec.observer.settle_time_s)
-    assert 5.0 < settle_s < 30.0
-    pipeline = Pipeline(spec)
-    sink = sinks_from_config(config)[0]
+    config, pipeline, sink, settle_s = settling_bench(tables(free_port(socket.SOCK_DGRAM), zport), tmp_path)
     assert isinstance(sink, KeelsonSink)
     log_source = config.keelson.log_source_id
     listener = Listener(client)
@@ -80,7 +60,7 @@ def test_a_keelson_consumer_reads_when_the_estimate_settles(
             probe.undeclare()
         estimates: list[Estimate] = []
         for k in range(int((settle_s + 4.0) * 10)):  # until 4 s past the settle time, at 10 Hz
-            out = pipeline.feed(RawEvent(T0 + k * S // 10, "dgps1", chunk(k)))
+            out = pipeline.feed(RawEvent(T0 + k * S // 10, "dgps1", gga_hdt_chunk(k, LAT, LON)))
             estimates += [o.message for o in out if o.topic == "/dp/estimate"]  # type: ignore[misc]
             sink.emit(out, [])
         assert wait_for(lambda: len(lines()) >= 2, 10.0), lines()

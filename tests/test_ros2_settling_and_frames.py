@@ -38,7 +38,7 @@ from gateway.config import parse_config
 from gateway.outputs.build import output_problems, sinks_from_config
 from gateway.outputs.ros2 import DIAGNOSTIC_ARRAY, ODOMETRY, TF_MESSAGE, Ros2Sink, ros_typestore
 from gateway.pipeline import Pipeline, PipelineSpec, RawEvent
-from tests.conftest import free_port, wait_for
+from tests.conftest import QUICK_SETTLING_OBSERVER, free_port, gga_hdt_chunk, settling_bench, wait_for
 from tests.test_ros2 import DOMAIN, LAT, LON, RosListener, stamp_ns, tables
 from wire import rmw_zenoh as rz
 from wire.codecs import nmea_encode as enc
@@ -56,16 +56,8 @@ def config_tables(zport: int, **ros2: Any) -> dict[str, Any]:
         {"name": "dgps2", "url": f"udp://127.0.0.1:{free_port(socket.SOCK_DGRAM)}", "protocol": "nmea",
          "roles": ["position"], "priority": 2}
     )  # fmt: skip
-    # a quick observer (bias time constant 5 s): its settle time is seconds, not minutes, of fed data
-    t["observer"] = {"wave_period_s": 9.0, "bias_time_constant_s": 5.0, "allow_unchecked": True}
+    t["observer"] = dict(QUICK_SETTLING_OBSERVER)
     return t
-
-
-def chunk(k: int) -> bytes:
-    """A tenth of a second of a DGPS with a gyro: GGA and HDT."""
-    t = datetime.now(UTC)
-    gga = enc.gga("GP", t, LAT + 2e-6 * math.sin(k / 50), LON, 2, 12, 0.8, 20.0, 35.5)
-    return (gga + enc.hdt("HE", 30.0 + 0.02 * math.sin(k / 30))).encode()
 
 
 def turning_chunk(k: int) -> bytes:
@@ -84,12 +76,7 @@ def test_diagnostics_say_whether_the_estimate_has_settled(
     tmp_path: Path, loopback_sessions: tuple[int, Any, Any]
 ) -> None:
     zport, server, client = loopback_sessions
-    config = parse_config(config_tables(zport), base_dir=tmp_path)
-    spec = PipelineSpec.from_config(config)
-    settle_s = float(spec.observer.settle_time_s)
-    assert 5.0 < settle_s < 30.0
-    pipeline = Pipeline(spec)
-    sink = sinks_from_config(config)[0]
+    _, pipeline, sink, settle_s = settling_bench(config_tables(zport), tmp_path)
     assert isinstance(sink, Ros2Sink)
     store = ros_typestore()
     key = key_of("/diagnostics", DIAGNOSTIC_ARRAY)
@@ -101,7 +88,7 @@ def test_diagnostics_say_whether_the_estimate_has_settled(
         estimates: list[Estimate] = []
         for k in range(int((settle_s + 4.0) * 10)):  # until 4 s past the settle time, at 10 Hz
             rx = T0 + k * S // 10
-            out = pipeline.feed(RawEvent(rx, "dgps1", chunk(k)))
+            out = pipeline.feed(RawEvent(rx, "dgps1", gga_hdt_chunk(k, LAT, LON)))
             estimates += [o.message for o in out if o.topic == "/dp/estimate"]  # type: ignore[misc]
             sink.emit(out, [])
         assert len(estimates) > 10 * settle_s

@@ -44,6 +44,20 @@ class RawSentenceSink(Protocol):
         """One sentence from ``$``/``!`` to its checksum, without the line end, valid or not."""
 
 
+class SettlingChanges:
+    """When an output that tells the estimate's settling (`wire.messages.Estimate` ``settled``,
+    ``settle_s_left``) has a change to tell: the first estimate that says, the estimate settling, and its
+    settle clock starting again (the time left grows: an observer restart). A countdown is no change."""
+
+    def __init__(self) -> None:
+        self.last: tuple[bool, float] | None = None
+
+    def update(self, settled: bool, left_s: float) -> bool:
+        """Take one estimate's values; whether they are a change from the last."""
+        last, self.last = self.last, (settled, left_s)
+        return last is None or settled != last[0] or left_s > last[1]
+
+
 Submit = Callable[[str, Any], None]
 """``submit(key, payload)``: an input (``setpoint``, ``mode``, ``tau``) into the gateway's queue, stamped,
 logged and checked by `gateway.commands` exactly like one from ``<prefix>/<key>``

@@ -30,6 +30,7 @@ from keelson.payloads.Primitives_pb2 import TimestampedFloat, TimestampedString
 
 from gateway.config import GatewayConfig, KeelsonConfig
 from gateway.foxglove_channels import AlarmChanges, state_change_level
+from gateway.outputs.base import SettlingChanges
 from wire.geodesy import LocalFrame
 from wire.messages import (
     Estimate,
@@ -82,7 +83,7 @@ class KeelsonSink:
         self._frame = None if datum is None else LocalFrame(datum[0], datum[1], datum_alt_m)
         self._alarms = AlarmChanges()
         self._mode: str | None = None
-        self._settling: tuple[bool, float] | None = None  # the last (settled, settle_s_left) logged
+        self._settling = SettlingChanges()
         self._sensor_ids = {s: cfg.sensor(s) for s in self.sources}
         self._dispatch: dict[type, Callable[[Output, int], None]] = {
             Estimate: self._estimate,
@@ -247,9 +248,7 @@ class KeelsonSink:
         settled, left = e.settled, e.settle_s_left
         if settled is None or left is None:
             return  # (an estimate that does not say)
-        last = self._settling
-        self._settling = (settled, left)
-        if last is not None and settled == last[0] and left <= last[1]:
+        if not self._settling.update(settled, left):
             return
         if settled:
             level, text = Log.INFO, f"estimate settled (settled=true, settle_s_left={left:g})"

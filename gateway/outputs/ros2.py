@@ -63,7 +63,7 @@ import numpy as np
 from rosbags.typesys import Stores, get_typestore
 
 from gateway.config import GatewayConfig, Ros2Config
-from gateway.outputs.base import Submit
+from gateway.outputs.base import SettlingChanges, Submit
 from wire import rmw_zenoh as rz
 from wire.foxglove import antenna_frame, heading_yaw
 from wire.messages import SIM_CLOCK_KEY, Estimate, LocationFix, SimClock
@@ -207,8 +207,8 @@ class Ros2Sink:
         self._declared: list[Any] = []
         self._quality: dict[str, tuple[int, int]] = {}  # source → (status, service) of its last GGA
         self._has_height: set[str] = set()  # sources that have given a height (GGA/GNS altitude field)
-        # the last settling state sent on /diagnostics (settled, settle_s_left) and when the next is due
-        self._settling: tuple[bool, float] | None = None
+        # what the estimates last said of their settling, and when the next /diagnostics is due
+        self._settling = SettlingChanges()
         self._next_diagnostics_ns = 0
 
     # --- OutputSink / InputSink -------------------------------------------------------------------------
@@ -381,10 +381,7 @@ class Ros2Sink:
         settled, left = e.settled, e.settle_s_left
         if settled is None or left is None or "diagnostics" not in self._pubs:
             return
-        last = self._settling
-        changed = last is None or settled != last[0] or left > last[1]
-        self._settling = (settled, left)
-        if not changed and e.stamp_ns < self._next_diagnostics_ns:
+        if not self._settling.update(settled, left) and e.stamp_ns < self._next_diagnostics_ns:
             return
         self._next_diagnostics_ns = e.stamp_ns + DIAGNOSTICS_PERIOD_NS
         self._put(
