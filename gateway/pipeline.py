@@ -548,6 +548,12 @@ class Pipeline:
         new._events.append(event)
         return new
 
+    @property
+    def startup_events(self) -> tuple[str, ...]:
+        """The start-up events not yet said (the start mode, the wind feed-forward off): the first status
+        that is logged carries them."""
+        return tuple(self._startup_events)
+
     def say(self, event: str) -> None:
         """An event of the caller's (the live service's: where its log went), said once in the next status
         with the pipeline's own."""

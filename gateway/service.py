@@ -224,11 +224,11 @@ class GatewayService:
         for note in config_notes(config):
             log.warning("%s", note)
         wind = wind_feedforward_line(config)
-        # Lines said here at start-up that the first logged status also carries as events: not said twice
-        self._said_at_start: set[str] = set()
+        # The start-up facts go to the text log here, in the service's words; the pipeline's start-up
+        # events (the same facts) reach it with the first logged status (`_emit`): not said twice there
+        self._said_at_start = set(self.pipeline.startup_events)
         if wind:  # once, at start-up (also the first /status event when off)
             log.info("%s", wind)
-            self._said_at_start.add(wind)
         if config.control is not None and config.control.initial_mode == "dp":
             # whether DP waits for the observer: once, at start-up (also the first /status event)
             log.info("%s", start_mode_line(config))

@@ -373,3 +373,21 @@ def test_the_gateways_text_log_says_the_wind_feedforward_off_once(caplog: pytest
         service._emit([status])
         service._emit([service.pipeline.status(2)])
     assert [r.getMessage() for r in caplog.records].count(line) == 1
+
+
+def test_the_gateways_text_log_says_the_start_mode_once(caplog: pytest.LogCaptureFixture) -> None:
+    """With ``initial_mode = "dp"`` the start mode is said at start-up in the service's words, and the
+    pipeline's start-up event of it (in the first logged status, for /status and the log) is not said
+    again in the text log."""
+    from gateway.config import start_mode_line
+    from gateway.service import GatewayService
+
+    tables = gateway_tables(get_scenario("mss_supply_storm"), wait_for_observer=True)
+    with caplog.at_level(logging.INFO, logger="dpgw"):
+        service = GatewayService(parse_config(tables, base_dir=Path.cwd()), config_tables=tables)
+        status = service.pipeline.status(1)
+        assert any(e.startswith("initial mode dp: standby") for e in status.message.events)
+        service._emit([status])
+    said = [r.getMessage() for r in caplog.records]
+    assert said.count(start_mode_line(service.config)) == 1
+    assert not [m for m in said if m.startswith("initial mode dp")]
