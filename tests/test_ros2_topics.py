@@ -1,9 +1,14 @@
-"""ROS 2 output: what docs/ros2.md says of the tokens the sink declares.
+"""ROS 2 output: the topics the sink declares, and what docs/ros2.md says of them.
 
 - docs/ros2.md's wire table (its node, publisher and subscription token examples) and its table of
   entity ids are read from the page and checked against the liveliness tokens a sink started on a real
   Zenoh session declares for the page's example config, as a ROS peer reads them: the page cannot go
   stale without this failing.
+- The sink declares a topic only from `sink_topics`, the list the start-up check reads.
+- Start-up refuses, with one message naming the key and the topic it meets, a configured topic that is
+  one of the fixed ROS topics (``/clock``, ``/diagnostics``, ``/tf``, ``/tf_static``: even where this
+  config does not publish it) and a source whose ``fix/<source>`` is a configured topic; a normal
+  config, and names that only look alike (``tf`` in ``/dpgw``), pass.
 """
 
 from __future__ import annotations
@@ -19,8 +24,9 @@ pytest.importorskip("rosbags")
 pytest.importorskip("xxhash")
 
 from gateway.config import parse_config
-from gateway.outputs.build import output_problems, sinks_from_config
+from gateway.outputs.build import OutputError, output_problems, sinks_from_config
 from gateway.outputs.ros2 import Ros2Sink
+from gateway.outputs.ros2_topics import FIXED_TOPICS, sink_topics
 from tests.conftest import free_port, wait_for
 from tests.test_ros2 import tables
 from wire import rmw_zenoh as rz
@@ -89,3 +95,133 @@ def test_the_docs_token_examples_and_entity_ids_are_what_a_running_sink_declares
         assert len(matching) == 1, (row, example, sorted(graph))
         t = rz.parse_token(matching[0])
         assert t.kind == {"node token": "NN", "publisher token": "MP", "subscription token": "MS"}[row]
+
+
+def test_the_sink_declares_only_the_topics_the_start_up_check_reads(
+    tmp_path: Path, loopback_sessions: tuple[int, Any, Any]
+) -> None:
+    """With every optional topic on (two sources, the simulation clock, /tf): the topics in the sink's
+    tokens are `sink_topics`' for its config, one token each."""
+    zport, server, _ = loopback_sessions
+    t = docs_config(zport)
+    udp2 = free_port(socket.SOCK_DGRAM)
+    t["sources"].append(
+        {
+            "name": "dgps2",
+            "url": f"udp://127.0.0.1:{udp2}",
+            "protocol": "nmea",
+            "roles": ["position"],
+            "priority": 2,
+        }
+    )
+    t["time"] = {"clock": "sim"}
+    config = parse_config(t, base_dir=tmp_path)
+    assert output_problems(config) == []
+    sink = sinks_from_config(config)[0]
+    assert isinstance(sink, Ros2Sink)
+    try:
+        sink.start(server)
+        tokens = list(sink.tokens)
+    finally:
+        sink.close()
+    declared = [rz.parse_token(k).topic for k in tokens if rz.parse_token(k).kind != rz.NODE]
+    expected = sink_topics(config.ros2, ["dgps1", "dgps2"], sim_clock=True)
+    assert sorted(declared) == sorted(expected.values())
+    assert set(FIXED_TOPICS) <= set(expected)  # every fixed topic is in use in this config
+
+
+def problems_of(tmp_path: Path, ros2: dict[str, Any], **config: Any) -> list[str]:
+    t = tables(1, 2, **ros2)
+    t.update(config)
+    return output_problems(parse_config(t, base_dir=tmp_path))
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "meets"),
+    [
+        ("odom_topic", "/tf", "/tf, ROS's moving transforms"),
+        ("pose_topic", "/tf_static", "/tf_static, ROS's static transforms"),
+        ("pose_topic", "/diagnostics", "/diagnostics, ROS's diagnostics"),
+        ("setpoint_topic", "/tf", "/tf, ROS's moving transforms"),
+        ("odom_topic", "/clock", "/clock, ROS's simulation clock"),  # (no simulation clock in this config)
+    ],
+)
+def test_a_configured_topic_on_a_fixed_ros_topic_stops_start_up(
+    tmp_path: Path, key: str, value: str, meets: str
+) -> None:
+    problems = problems_of(tmp_path, {key: value})
+    assert len(problems) == 1, problems
+    assert f": ros2.{key}: the same topic as {meets}" in problems[0]
+    assert f'got "{value}"' in problems[0]
+    with pytest.raises(OutputError) as err:  # what `dpgw run` stops on, before anything opens
+        sinks_from_config(parse_config(tables(1, 2, **{key: value}), base_dir=tmp_path))
+    assert str(err.value) == problems[0]
+
+
+def test_a_relative_name_in_the_root_namespace_is_the_fixed_topic(tmp_path: Path) -> None:
+    problems = problems_of(tmp_path, {"namespace": "/", "pose_topic": "diagnostics"})
+    assert len(problems) == 1, problems
+    assert ": ros2.pose_topic: the same topic as /diagnostics, ROS's diagnostics" in problems[0]
+    assert '"diagnostics", /diagnostics in namespace "/"' in problems[0]
+
+
+def test_the_fixed_topics_are_kept_free_where_this_config_does_not_publish_them(tmp_path: Path) -> None:
+    """``publish_tf = false`` leaves /tf to another ROS node: an Odometry on it would break that node's
+    readers all the same."""
+    problems = problems_of(tmp_path, {"publish_tf": False, "odom_topic": "/tf"})
+    assert (
+        len(problems) == 1
+        and ": ros2.odom_topic: the same topic as /tf, ROS's moving transforms" in problems[0]
+    )
+
+
+def test_with_sim_time_the_clock_clashes_too(tmp_path: Path) -> None:
+    problems = problems_of(tmp_path, {"setpoint_topic": "/clock"}, time={"clock": "sim"})
+    assert (
+        len(problems) == 1
+        and ": ros2.setpoint_topic: the same topic as /clock, ROS's simulation clock" in problems[0]
+    )
+
+
+@pytest.mark.parametrize("key", ["odom_topic", "pose_topic", "setpoint_topic"])
+def test_a_source_whose_fix_topic_is_a_configured_topic_stops_start_up(tmp_path: Path, key: str) -> None:
+    problems = problems_of(tmp_path, {key: "fix/dgps1"})
+    assert len(problems) == 1, problems
+    assert ": sources: dgps1: its NavSatFix topic ros2.fix_topic/dgps1 is /dpgw/fix/dgps1" in problems[0]
+    assert (
+        f"the same topic as ros2.{key} (expected another source name, or another ros2.{key})" in problems[0]
+    )
+
+
+def test_a_source_clash_through_an_absolute_fix_topic(tmp_path: Path) -> None:
+    problems = problems_of(tmp_path, {"fix_topic": "/gnss", "odom_topic": "/gnss/dgps1"})
+    assert (
+        len(problems) == 1
+        and "sources: dgps1: its NavSatFix topic ros2.fix_topic/dgps1 is /gnss/dgps1" in (problems[0])
+    )
+
+
+@pytest.mark.parametrize(
+    "ros2",
+    [
+        {},
+        {"publish_tf": False},
+        {"odom_topic": "tf", "pose_topic": "clock", "setpoint_topic": "diagnostics"},  # /dpgw/tf, …: not /tf
+        {
+            "odom_topic": "fix",
+            "fix_topic": "gnss",
+        },  # /dpgw/fix is no fix topic: those are /dpgw/gnss/<source>
+        {"namespace": "/", "odom_topic": "tf_static_not", "fix_topic": "fix"},
+    ],
+)
+def test_a_config_without_a_clash_is_accepted(tmp_path: Path, ros2: dict[str, Any]) -> None:
+    assert problems_of(tmp_path, ros2) == []
+    assert problems_of(tmp_path, ros2, time={"clock": "sim"}) == []
+
+
+def test_dpgw_run_check_says_the_clash(tmp_path: Path) -> None:
+    from dpgw.cli_run import start_up_problems
+
+    config = parse_config(tables(1, 2, odom_topic="/tf"), base_dir=tmp_path)
+    clashes = [p for p in start_up_problems(config) if "ros2.odom_topic" in p]
+    assert len(clashes) == 1 and "the same topic as /tf, ROS's moving transforms" in clashes[0]

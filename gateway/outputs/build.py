@@ -7,6 +7,7 @@ import importlib.util
 
 from gateway.config import GatewayConfig
 from gateway.outputs.base import OutputSink
+from gateway.outputs.ros2_topics import topic_clashes
 from wire.rmw_zenoh import is_ros_name
 
 __all__ = ["OutputError", "output_problems", "sinks_from_config"]
@@ -45,6 +46,7 @@ def output_problems(config: GatewayConfig) -> list[str]:
                         "/tf_static would be a child of itself (expected another source name, or another "
                         f"ros2.{key})"
                     )
+        problems += topic_clashes(config)
     if config.foxglove.enabled and importlib.util.find_spec("foxglove") is None:  # a core dependency
         problems.append(
             f"{config.path}: foxglove.enabled: true, but the foxglove-sdk package is not installed (install "

@@ -64,6 +64,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from gateway.config import GatewayConfig, Ros2Config
 from gateway.outputs.base import SettlingChanges, Submit
+from gateway.outputs.ros2_topics import sink_topics
 from wire import rmw_zenoh as rz
 from wire.foxglove import antenna_frame, heading_yaw
 from wire.messages import SIM_CLOCK_KEY, Estimate, LocationFix, SimClock
@@ -81,21 +82,16 @@ POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 CLOCK = "rosgraph_msgs/msg/Clock"
 DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
 TF_MESSAGE = "tf2_msgs/msg/TFMessage"
-DIAGNOSTICS_TOPIC = "/diagnostics"
-"""Where diagnostic_updater publishes and diagnostic_aggregator / rqt_robot_monitor read: absolute."""
 DIAGNOSTICS_PERIOD_NS = 1_000_000_000
 """diagnostic_updater's default period (1 s); a change of ``settled`` goes out at once."""
-TF_TOPIC = "/tf"
 TF_QOS = rz.Qos(depth=100)
 """tf2_ros's ``DynamicBroadcasterQoS`` (a ``TransformBroadcaster``'s): reliable, volatile, keep-last 100."""
-TF_STATIC_TOPIC = "/tf_static"
 TF_STATIC_QOS = rz.Qos(durability=rz.TRANSIENT_LOCAL, depth=1)
 """tf2_ros's ``StaticBroadcasterQoS``: reliable, transient local, keep-last 1 (one message with every
 static frame, kept for nodes that join later)."""
 SAMPLE_MISS_HEARTBEAT_S = 0.5
 """rmw_zenoh's sporadic heartbeat of a reliable transient-local publisher (its
 ``SAMPLE_MISS_DETECTION_HEARTBEAT_PERIOD``, 500 ms), so a subscriber can ask for a sample it missed."""
-CLOCK_TOPIC = "/clock"
 CLOCK_QOS = rz.Qos(reliability=rz.BEST_EFFORT, depth=1)
 """rclcpp's ``ClockQoS``: the sensor-data profile (best effort) at depth 1; a late tick is worth nothing."""
 ESTIMATE_TOPIC = "/dp/estimate"
@@ -174,22 +170,8 @@ class Ros2Sink:
             ty: self.store.hash_rihs01(ty)
             for ty in (ODOMETRY, NAV_SAT_FIX, POSE_STAMPED, CLOCK, DIAGNOSTIC_ARRAY, TF_MESSAGE)
         }
-        ns = cfg.namespace
-        self.topics = {
-            "odom": rz.fully_qualified(ns, cfg.odom_topic),
-            "pose": rz.fully_qualified(ns, cfg.pose_topic),
-            "setpoint": rz.fully_qualified(ns, cfg.setpoint_topic),
-        }
-        self.topics.update(
-            {f"fix/{s}": rz.fully_qualified(ns, f"{cfg.fix_topic}/{s}") for s in self.fix_sources}
-        )
-        if sim_clock_key is not None:
-            self.topics["clock"] = CLOCK_TOPIC
-        self.topics["diagnostics"] = DIAGNOSTICS_TOPIC
-        if self.fix_sources:
-            self.topics["tf_static"] = TF_STATIC_TOPIC
-        if cfg.publish_tf:
-            self.topics["tf"] = TF_TOPIC
+        self.topics = sink_topics(cfg, self.fix_sources, sim_clock_key is not None)
+        """Every topic declared, fully qualified, by name (``odom``, ``fix/<source>``, ``tf``, ...)."""
         self.published: Counter[str] = Counter()
         """Samples put, by topic."""
         self.refused: Counter[str] = Counter()
