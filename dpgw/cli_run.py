@@ -189,8 +189,8 @@ def run(args: argparse.Namespace) -> int:
         tables["time"] = {**tables.get("time", {}), "clock": args.clock}
     try:
         sinks = sinks_from_config(config)
-    except OutputError as exc:
-        start_up_error(str(exc))
+    except OutputError as exc:  # said as `--check` says it: the same problems, the same heading
+        start_up_error(format_problems(exc.problems))
         return 2
     if stop.requested.is_set():  # before anything opens: nothing to close
         print(f"dpgw run: stopped by {stop.name} during start-up; nothing was opened", file=sys.stderr)

@@ -225,3 +225,19 @@ def test_dpgw_run_check_says_the_clash(tmp_path: Path) -> None:
     config = parse_config(tables(1, 2, odom_topic="/tf"), base_dir=tmp_path)
     clashes = [p for p in start_up_problems(config) if "ros2.odom_topic" in p]
     assert len(clashes) == 1 and "the same topic as /tf, ROS's moving transforms" in clashes[0]
+
+
+def test_dpgw_run_says_the_clash_as_check_does(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`dpgw run` stops on a clash before anything opens, with the message `dpgw run --check` gives (its
+    heading, one line a problem, where the keys are described). Before, the lines came bare."""
+    from dpgw.cli import main
+
+    good = Path(__file__).resolve().parents[1] / "examples" / "nmea_udp_multiplexer.toml"
+    config = tmp_path / "clash.toml"
+    config.write_text(good.read_text() + '\n[ros2]\nenabled = true\nodom_topic = "/tf"\n')
+    assert main(["run", "--config", str(config), "--log", str(tmp_path / "never.mcap")]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err[0] == "dpgw: the configuration has 1 problem; nothing was started:", err
+    assert err[1].startswith(f"  {config}: ros2.odom_topic: the same topic as /tf"), err
+    assert "docs/config.md" in err[-1], err
+    assert not (tmp_path / "never.mcap").exists()

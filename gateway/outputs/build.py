@@ -14,7 +14,12 @@ __all__ = ["OutputError", "output_problems", "sinks_from_config"]
 
 
 class OutputError(Exception):
-    """An enabled sink cannot be built (its package is missing); the message names the config key."""
+    """An enabled sink cannot be built (its package is missing, its topics clash); each of ``problems`` is
+    a ``FILE: key: problem`` line, and the message is them all."""
+
+    def __init__(self, problems: list[str]) -> None:
+        super().__init__("\n".join(problems))
+        self.problems = problems
 
 
 def output_problems(config: GatewayConfig) -> list[str]:
@@ -59,7 +64,7 @@ def sinks_from_config(config: GatewayConfig) -> list[OutputSink]:
     """The sinks the config enables, not yet started (`GatewayService` starts and closes them)."""
     problems = output_problems(config)
     if problems:
-        raise OutputError("\n".join(problems))
+        raise OutputError(problems)
     sinks: list[OutputSink] = []
     if config.keelson.enabled:
         from gateway.outputs.keelson import keelson_sink
