@@ -141,16 +141,20 @@ def test_a_live_log_holds_every_status_s_log_lines_once(live_log: Path) -> None:
     assert log_lines(live_log) == owed  # none lost (the last status's too), none twice, each at its stamp
 
 
-def test_a_log_line_follows_its_status_at_once(live_log: Path) -> None:
-    """Each status's lines are written right after it, so even a reader that stops at the status (a file cut
-    there) has them, and nothing of a later time comes between."""
-    records = list(file_order(live_log))
+def assert_lines_follow_their_status(path: Path) -> None:
+    records = list(file_order(path))
     for k, (topic, ns, _) in enumerate(records):
         if topic == "/dp/log":
             j = k - 1
             while records[j][0] == "/dp/log":
                 j -= 1
             assert records[j][:2] == ("/dp/status", ns), (records[j][:2], ns)
+
+
+def test_a_log_line_follows_its_status_at_once(live_log: Path) -> None:
+    """Each status's lines are written right after it, so even a reader that stops at the status (a file cut
+    there) has them, and nothing of a later time comes between."""
+    assert_lines_follow_their_status(live_log)
 
 
 def test_a_replay_writes_its_log_in_log_time_order(live_log: Path, tmp_path: Path) -> None:
@@ -161,6 +165,7 @@ def test_a_replay_writes_its_log_in_log_time_order(live_log: Path, tmp_path: Pat
     assert backward_steps(out_path) == []
     owed = log_lines_owed(out_path)
     assert owed and log_lines(out_path) == owed
+    assert_lines_follow_their_status(out_path)
 
 
 # --- the pipeline directly ---------------------------------------------------------------------------------
