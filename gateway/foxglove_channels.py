@@ -19,7 +19,8 @@ What comes from what, and how often (docs/foxglove.md has the reasons):
   every `ARROW_PERIOD_NS` (`/dp/scene/thrusters`).
 - the DP setpoint and its watch circles (`/dp/scene/setpoint`): when the setpoint changes, and every
   `STATIC_PERIOD_NS` while in dp; deleted when dp is left.
-- `/dp/status` → `/dp/log`: each reference state change, and each alarm raised or cleared.
+- `/dp/status` → `/dp/log`: each reference state change, and each alarm raised or cleared (`logs`, which
+  the pipeline calls with every status it makes, so the lines go out right after their status).
 """
 
 from __future__ import annotations
@@ -143,13 +144,12 @@ class FoxgloveChannels:
         self._setpoint: tuple[float, float, float] | None = None
         self._next_setpoint_ns = 0
         self._alarms = AlarmChanges()
-        self._pending: list[tuple[str, Message, int]] = []
 
     # --- what the pipeline calls ----------------------------------------------------------------------------
 
     def derive(self, outputs: Sequence[_Output]) -> list[tuple[str, Message, int]]:
         """(topic, message, stamp) of the Foxglove channels that mirror ``outputs`` (the pipeline's, in
-        order), then the log lines of the statuses made since the last call."""
+        order). Not the log lines of a status: those go out with the status itself (`logs`)."""
         out: list[tuple[str, Message, int]] = []
         measured: Measurement | None = None
         for o in outputs:
@@ -167,15 +167,7 @@ class FoxgloveChannels:
                 self._next_feedback_ns = ns + ARROW_PERIOD_NS
                 scene = self._arrows(msg, "feedback", FED_BACK, ns)  # type: ignore[arg-type]
                 out.append(("/dp/scene/thrusters", scene, ns))
-        if self._pending:
-            out += self._pending
-            self._pending = []
         return out
-
-    def on_status(self, status: Status) -> None:
-        """Every status the pipeline makes (on a state change, or the service's periodic one) comes here;
-        its log lines go out with the next `derive` (at the latest with the service's next tick)."""
-        self._pending.extend(self.logs(status))
 
     def setpoint(
         self, target: tuple[float, float, float] | None, now_ns: int
@@ -272,7 +264,10 @@ class FoxgloveChannels:
 
     def logs(self, status: Status) -> list[tuple[str, Message, int]]:
         """Log lines for a status: each reference state change (INFO back to ok, WARNING stale or suspect,
-        ERROR rejected), each alarm raised (WARNING) or cleared (INFO)."""
+        ERROR rejected), each alarm raised (WARNING) or cleared (INFO) since the status before, all at the
+        status's stamp. Call it once for every status that is logged, in their order, and write the lines
+        right after their status: so the file stays in log-time order (a line held for a later call was
+        written after records of later times, and a reader streaming the file saw time go back)."""
         ns = status.stamp_ns
         out: list[tuple[str, Message, int]] = []
         for text in status.events:

@@ -653,7 +653,7 @@ class Pipeline:
         dead reckoning runs on a copy of the observer, so the observer's own state stays a function of
         the events alone and replay still reproduces it."""
         if self.t0_ns is None or now_ns <= self.last_ns:
-            return self._held_foxglove()
+            return []
         out: list[Output] = []
         if (
             self.observer.initialized
@@ -681,12 +681,6 @@ class Pipeline:
         self._with_foxglove(out)
         return out
 
-    def _held_foxglove(self) -> list[Output]:
-        """The Foxglove log lines of a status made since the last feed or tick, if any."""
-        out: list[Output] = []
-        self._with_foxglove(out)
-        return out
-
     def _state_changes(self, now_ns: int) -> list[Output]:
         """Reference state changes since the last call, and observer restarts (`_reacquire`): to the next
         status, and a status at once."""
@@ -696,7 +690,7 @@ class Pipeline:
             self._events.extend(c.text for c in changes)
         elif not self._events:
             return []
-        return [self.status(now_ns)]
+        return self.status_outputs(now_ns)
 
     def count_internal_error(self, source: str) -> None:
         """The caller could not finish handling a chunk of ``source`` (an exception inside `feed`): count it
@@ -1966,12 +1960,25 @@ class Pipeline:
             now_ns,
         )
 
-    def status(self, now_ns: int, alarms: list[str] | None = None) -> Output:
-        """The 1 Hz status output (the caller decides when); see `status_message`."""
+    def status_outputs(self, now_ns: int, alarms: list[str] | None = None) -> list[Output]:
+        """The status (`status_message`; the caller decides when: the service's periodic one, its last one,
+        or one made at once for a reference state change) and, with the Foxglove channels on, its log
+        lines (`/dp/log`: `FoxgloveChannels.logs`) right after it, at its stamp: what is logged of a
+        status. The lines go out with their status, never later: held for the next event or tick, they
+        were written after outputs of later times (a dead-reckoned estimate, the next input), and a file
+        read in its own order (streamed, or cut short and read without its index) went back in time; the
+        service's last status had none at all."""
         message = self.status_message(now_ns, alarms)
+        out = [Output("/dp/status", message, now_ns)]
         if self._foxglove_on:
-            self.foxglove.on_status(message)
-        return Output("/dp/status", message, now_ns)
+            out += [Output(topic, line, ns, False) for topic, line, ns in self.foxglove.logs(message)]
+        return out
+
+    def status(self, now_ns: int, alarms: list[str] | None = None) -> Output:
+        """The status alone, for what reads its content (a summary, a query, a test): no log lines are made
+        of it, and the alarms it raises or clears are those the next `status_outputs` logs (its events,
+        taken by this one, are in it and not on `/dp/log`). What is logged comes from `status_outputs`."""
+        return Output("/dp/status", self.status_message(now_ns, alarms), now_ns)
 
     def status_message(
         self, now_ns: int, alarms: list[str] | None = None, *, remember: bool = True

@@ -284,6 +284,7 @@ class GatewayService:
         had no log to go to."""
         self._lost_lock = threading.Lock()  # (`lost` is counted by the receiving threads)
         self._status_ns = 0  # the stamp of the periodic status logged last
+        self._ticked_ns = 0  # the newest time the loop ticked the pipeline at (what it made is logged at it)
         self.queue_peak = 0
         """The most inputs that have waited at once (bounded by ``4 * queue_max``)."""
         self._shedding = False  # said once per spell behind
@@ -538,6 +539,7 @@ class GatewayService:
             # past data it holds.
             now = self._now() if self._queue.empty() else (self.pipeline.last_ns or None)
             if now is not None:
+                self._ticked_ns = max(self._ticked_ns, now)
                 try:  # dead reckoning while every source is silent; sources going stale
                     self._emit(self.pipeline.tick(now))
                 except Exception:
@@ -548,10 +550,12 @@ class GatewayService:
                     if now is None:  # no time yet: the status goes out (stamped with the wall), not logged
                         self._publish([self._status_without_time()])
                     else:
-                        # never before the one before: "now" is the clock's present while the queue is
-                        # empty and the newest input handled while it is not, which can be a tick behind
-                        self._status_ns = max(now, self._status_ns)
-                        self._emit([self.pipeline.status(self._status_ns, self._alarms())])
+                        # never before the one before, nor before a tick's outputs already logged: "now"
+                        # is the clock's present while the queue is empty and the newest input handled
+                        # while it is not, which can be behind a tick at the clock's present (a status
+                        # stamped there went into the log after a dead-reckoned estimate of a later time)
+                        self._status_ns = max(now, self._status_ns, self._ticked_ns)
+                        self._emit(self.pipeline.status_outputs(self._status_ns, self._alarms()))
                 except Exception:
                     self._internal_error("status", "the status")
 
@@ -586,12 +590,21 @@ class GatewayService:
         """The status at the end of a run: at the pipeline's last time, or (nothing ever arrived, so it has
         none) at the wall clock, not at 1970 with every source "stale" for 56 years. With the alarms and
         the links' counts as they are now (`_alarms`). Never stamped before the periodic status logged
-        last, which goes out at the simulation clock's present, ahead of the last input handled: the last
-        status by log time (what a replay and a viewer take as the run's) is this one."""
+        last, which goes out at the simulation clock's present, ahead of the last input handled, nor before
+        the last tick (a dead-reckoned estimate at the clock's present): the last status by log time (what
+        a replay and a viewer take as the run's) is this one. The status alone (`dpgw run`'s summary);
+        what `drain` logs is `final_status_outputs`."""
         last = self.pipeline.last_ns
         if not last:
             return self._status_without_time()
-        return self.pipeline.status(max(last, self._status_ns), self._alarms())
+        return self.pipeline.status(max(last, self._status_ns, self._ticked_ns), self._alarms())
+
+    def final_status_outputs(self) -> list[Output]:
+        """`final_status` with its Foxglove log lines after it (`Pipeline.status_outputs`): what is logged."""
+        last = self.pipeline.last_ns
+        if not last:
+            return [self._status_without_time()]
+        return self.pipeline.status_outputs(max(last, self._status_ns, self._ticked_ns), self._alarms())
 
     def _status_without_time(self) -> Output:
         """The status while the pipeline has no time yet (``clock = "sim"`` before the first tick; and the
@@ -695,7 +708,7 @@ class GatewayService:
         self.logged_unhandled += logged_only + held
         if self.pipeline.last_ns:
             try:
-                self._emit([self.final_status()])
+                self._emit(self.final_status_outputs())
             except Exception:
                 self._internal_error("status", "the last status")
 
@@ -950,7 +963,7 @@ class GatewayService:
         assert st is not None
         newest, tick = st.follow()
         self.runs_followed += 1
-        self._status_ns = 0  # (the old run's time: the last status must not carry it into the new file)
+        self._status_ns = self._ticked_ns = 0  # (the old run's time: not to be carried into the new file)
         where = ""
         if self.log is not None:
             where = f"; log continues in {self.log.rotate().name}"

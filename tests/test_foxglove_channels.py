@@ -268,13 +268,13 @@ def test_alarm_logged_once_when_raised_and_once_when_cleared() -> None:
     p.feed(RawEvent(T0, "gps", gga_at(0.0, 0.0) + HDT))
     logs: list[dict[str, Any]] = []
     for k in range(2, 6):  # the source is stale from 1 s on; its age grows, the alarm stays the same
-        p.status(T0 + k * S)
+        logs += [o.payload for o in p.status_outputs(T0 + k * S) if o.topic == "/dp/log"]
         logs += [o.payload for o in p.tick(T0 + k * S + 1) if o.topic == "/dp/log"]
     # back: the state change's status (made inside the feed) carries the cleared alarm and the event
     logs += [
         o.payload for o in p.feed(RawEvent(T0 + 6 * S, "gps", gga_at(0.0, 0.0) + HDT)) if o.topic == "/dp/log"
     ]
-    p.status(T0 + 6 * S)
+    logs += [o.payload for o in p.status_outputs(T0 + 6 * S) if o.topic == "/dp/log"]
     logs += [o.payload for o in p.tick(T0 + 6 * S + 1) if o.topic == "/dp/log"]
     alarms = [x for x in logs if x["name"] == "dpgw.alarm"]
     assert [x["level"] for x in alarms] == [3, 2]  # WARNING raised, INFO cleared

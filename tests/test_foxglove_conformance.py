@@ -746,7 +746,7 @@ def test_messages_the_demo_does_not_make_conform_too() -> None:
     made += [(t, m) for t, m, _ in ch.setpoint(None, T0 + 2 * S)]
     p.feed(RawEvent(T0, "gps", gga_at(0.0, 0.0) + HDT))
     for k in range(2, 5):  # stale from 1 s on: a state change (WARNING) and an alarm raised
-        p.status(T0 + k * S)
+        made += [(o.topic, o.message) for o in p.status_outputs(T0 + k * S) if o.topic == "/dp/log"]
         made += [(o.topic, o.message) for o in p.tick(T0 + k * S + 1) if o.topic == "/dp/log"]
     made += [(o.topic, o.message) for o in p.feed(RawEvent(T0 + 6 * S, "gps", gga_at(0.0, 0.0) + HDT))
              if o.topic == "/dp/log"]  # fmt: skip

@@ -1,0 +1,186 @@
+"""A log's records are in log-time order in the file itself, the Foxglove log lines (`/dp/log`) of every
+status included: a reader that streams the file (`mcap cat` on a pipe, Foxglove on an unindexed file, a
+file cut short by a crash, read without its index) never sees time go back. Checked on what a live
+gateway writes (real UDP input, a real log, a source going silent and back, so that periodic statuses
+raise and clear alarms) and on a replay of that log, each read record by record with the `mcap` library's
+stream reader, not through the index (which sorts)."""
+
+from __future__ import annotations
+
+import json
+import socket
+import threading
+from collections.abc import Iterator
+from datetime import UTC, datetime
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+from conftest import free_port, wait_for
+from mcap.records import Channel, Message
+from mcap.stream_reader import StreamReader
+
+from gateway.config import parse_config
+from gateway.foxglove_channels import FoxgloveChannels
+from gateway.pipeline import RawEvent
+from gateway.replay import build_pipeline, config_from_log, open_inputs, run_replay
+from gateway.service import GatewayService
+from tests.test_pipeline import T0, S, gga_at, nmea_src, pipeline
+from tests.test_service import mux_tables
+from wire.codecs import nmea_encode as enc
+from wire.mcap.writer import McapLogWriter
+
+HDT = enc.hdt("HE", 0.1).encode()
+
+
+def file_order(path: Path) -> Iterator[tuple[str, int, bytes]]:
+    """(topic, log time, data) of every message, in the order the file holds them (chunks decompressed by
+    the stream reader, one record after another: no index, no sorting)."""
+    topics: dict[int, str] = {}
+    with path.open("rb") as f:
+        for record in StreamReader(f, skip_magic=False).records:
+            if isinstance(record, Channel):
+                topics[record.id] = record.topic
+            elif isinstance(record, Message):
+                yield topics[record.channel_id], record.log_time, record.data
+
+
+def backward_steps(path: Path) -> list[tuple[str, int, str, int]]:
+    """Every record whose log time is earlier than the record's before it: (topic before, its time, topic,
+    time)."""
+    steps, last = [], ("", 0)
+    for topic, ns, _ in file_order(path):
+        if ns < last[1]:
+            steps.append((*last, topic, ns))
+        last = (topic, ns)
+    return steps
+
+
+def log_lines_owed(path: Path) -> list[tuple[int, str, str]]:
+    """(stamp, name, text) of every `/dp/log` line the log's statuses call for, in their order: each status
+    read back and turned into lines by the same rule the gateway uses (`FoxgloveChannels.logs`)."""
+    from observers.vessel import load_vessel
+
+    channels = FoxgloveChannels(load_vessel("mss_supply"))
+    owed = []
+    for topic, _, data in file_order(path):
+        if topic == "/dp/status":
+            payload = json.loads(data)
+            status = SimpleNamespace(
+                stamp_ns=payload["stamp_ns"], events=payload.get("events", []), alarms=payload["alarms"]
+            )
+            for _, msg, ns in channels.logs(status):  # type: ignore[arg-type]
+                owed.append((ns, msg.name, msg.message))  # type: ignore[attr-defined]
+    return owed
+
+
+def log_lines(path: Path) -> list[tuple[int, str, str]]:
+    out = []
+    for topic, ns, data in file_order(path):
+        if topic == "/dp/log":
+            line = json.loads(data)
+            assert line["timestamp"]["sec"] * S + line["timestamp"]["nsec"] == ns
+            out.append((ns, line["name"], line["message"]))
+    return out
+
+
+def burst() -> bytes:
+    return (enc.gga("GP", datetime.now(UTC), 59.4, 10.5, 2, 12, 0.8, 20.0) + enc.hdt("HE", 0.5)).encode()
+
+
+@pytest.fixture(scope="module")
+def live_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A live gateway's log: data, a silence long enough for periodic statuses to raise the source's
+    alarms while the gateway dead-reckons, data again (cleared), a second silence, and the stop."""
+    tmp = tmp_path_factory.mktemp("order")
+    udp, zport = free_port(socket.SOCK_DGRAM), free_port()
+    path = tmp / "live.mcap"
+    tables = mux_tables(udp, zport, path, status_hz=10.0)
+    tables["sources"][0]["timeout_s"] = 0.3
+    service = GatewayService(parse_config(tables, base_dir=tmp), config_tables=tables)
+    service.start()
+    loop = threading.Thread(target=service.run, name="consumer")
+    loop.start()
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    mux = service.pipeline.counters["mux"]
+
+    def data_until(estimates: int) -> None:
+        def sent() -> bool:
+            tx.sendto(burst(), ("127.0.0.1", udp))
+            return service.pipeline.estimates >= estimates
+
+        assert wait_for(sent, 30.0), "estimates"
+
+    def silent_for(s: float) -> None:
+        # a periodic status made this long after the source's last chunk (so: with its alarms up)
+        assert wait_for(lambda: service._status_ns - mux.last_rx_ns > s * S, 30.0), "a status in the silence"
+
+    try:
+        data_until(10)
+        silent_for(1.0)
+        data_until(service.pipeline.estimates + 10)
+        silent_for(1.0)
+    finally:
+        service.stop_event.set()
+        loop.join(timeout=30)
+        service.drain()
+        tx.close()
+        service.close()
+    return path
+
+
+def test_a_live_log_is_in_log_time_order_in_the_file(live_log: Path) -> None:
+    assert backward_steps(live_log) == []
+
+
+def test_a_live_log_holds_every_status_s_log_lines_once(live_log: Path) -> None:
+    owed = log_lines_owed(live_log)
+    names = {name for _, name, _ in owed}
+    assert {"dpgw.alarm", "dpgw.reference"} <= names  # (the run did raise alarms and change states)
+    assert any(text.startswith("alarm cleared: source mux: stale") for _, _, text in owed)
+    assert log_lines(live_log) == owed  # none lost (the last status's too), none twice, each at its stamp
+
+
+def assert_lines_follow_their_status(path: Path) -> None:
+    records = list(file_order(path))
+    for k, (topic, ns, _) in enumerate(records):
+        if topic == "/dp/log":
+            j = k - 1
+            while records[j][0] == "/dp/log":
+                j -= 1
+            assert records[j][:2] == ("/dp/status", ns), (records[j][:2], ns)
+
+
+def test_a_log_line_follows_its_status_at_once(live_log: Path) -> None:
+    """Each status's lines are written right after it, so even a reader that stops at the status (a file cut
+    there) has them, and nothing of a later time comes between."""
+    assert_lines_follow_their_status(live_log)
+
+
+def test_a_replay_writes_its_log_in_log_time_order(live_log: Path, tmp_path: Path) -> None:
+    config = config_from_log(live_log)
+    out_path = tmp_path / "replay.mcap"
+    with McapLogWriter(str(out_path), profile="dpgw") as out:
+        run_replay(open_inputs([live_log]), build_pipeline(config, []), out=out)
+    assert backward_steps(out_path) == []
+    owed = log_lines_owed(out_path)
+    assert owed and log_lines(out_path) == owed
+    assert_lines_follow_their_status(out_path)
+
+
+# --- the pipeline directly ---------------------------------------------------------------------------------
+
+
+def test_status_outputs_carry_the_status_s_log_lines_after_it() -> None:
+    p = pipeline([nmea_src("gps", ["position", "heading"], timeout_s=1.0)])
+    p.feed(RawEvent(T0, "gps", gga_at(0.0, 0.0) + HDT))
+    out = p.status_outputs(T0 + 3 * S)  # stale: the alarm raised by this status
+    assert [o.topic for o in out] == ["/dp/status", "/dp/log"]
+    assert {o.stamp_ns for o in out} == {T0 + 3 * S}
+    assert out[1].payload["message"].startswith("alarm: source gps: stale")
+    # nothing of it is left for later: the next tick (the state change to stale: its own status and lines)
+    # says the alarm no more, and a status alone (`status`, for its content) makes no line
+    later = p.tick(T0 + 3 * S + 1)
+    assert not any(o.topic == "/dp/log" and o.payload["name"] == "dpgw.alarm" for o in later)
+    assert p.status(T0 + 4 * S).topic == "/dp/status"
+    assert [o.topic for o in p.tick(T0 + 4 * S + 1) if o.topic in ("/dp/status", "/dp/log")] == []
