@@ -184,3 +184,19 @@ def test_status_outputs_carry_the_status_s_log_lines_after_it() -> None:
     assert not any(o.topic == "/dp/log" and o.payload["name"] == "dpgw.alarm" for o in later)
     assert p.status(T0 + 4 * S).topic == "/dp/status"
     assert [o.topic for o in p.tick(T0 + 4 * S + 1) if o.topic in ("/dp/status", "/dp/log")] == []
+
+
+def test_the_last_status_of_a_run_brings_its_log_lines(tmp_path: Path) -> None:
+    """What `drain` logs at the stop is the last status and its lines (`final_status_outputs`): nothing
+    derives after it, so lines held for a later call were never written. Here the source went stale before
+    the stop (the loop last ticked 3 s after its last chunk): the last status raises that alarm, and says
+    so on `/dp/log`, at its stamp, which is not before the last tick's."""
+    tables = mux_tables(free_port(socket.SOCK_DGRAM), free_port(), tmp_path / "never.mcap", status_hz=1.0)
+    tables["sources"][0]["timeout_s"] = 1.0
+    service = GatewayService(parse_config(tables, base_dir=tmp_path), config_tables=tables)
+    service.pipeline.feed(RawEvent(T0, "mux", gga_at(0.0, 0.0) + HDT))
+    service._ticked_ns = T0 + 3 * S
+    out = service.final_status_outputs()
+    assert [o.topic for o in out] == ["/dp/status", "/dp/log"]
+    assert {o.stamp_ns for o in out} == {T0 + 3 * S}
+    assert out[1].payload["message"].startswith("alarm: source mux: stale")
