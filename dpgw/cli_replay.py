@@ -110,7 +110,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--out",
         metavar="OUT.mcap",
         help="write inputs and estimates here (default: beside the first log, LOG-replay.mcap; never the "
-        "log itself)",
+        "log itself). One that exists is kept: the replay goes on in the next file of its set "
+        "(OUT_0001.mcap, ...), named on the console, as dpgw run, demo and sim do",
     )
     p.add_argument(
         "--no-foxglove-channels",
@@ -175,6 +176,14 @@ def default_out(first_log: str) -> str:
     return str(path.with_name(f"{path.stem}-replay.mcap"))
 
 
+def next_free_out(out: str) -> Path:
+    """The file a replay writes for ``--out OUT``: OUT itself when it is not there, else the next free
+    file of its set (``usv_0001.mcap``, `wire.mcap.rotation`), never one that exists."""
+    from wire.mcap.rotation import next_index, rotated_path
+
+    return rotated_path(out, next_index(out))
+
+
 def run(args: argparse.Namespace) -> int:
     from gateway.bus import BusError
     from gateway.config import ConfigError, format_problems
@@ -231,6 +240,13 @@ def run(args: argparse.Namespace) -> int:
         if problem := prefix_problem(args.prefix):
             print(f"dpgw replay: --prefix: {problem}", file=sys.stderr)
             return 2
+    if args.out is not None and (written := next_free_out(args.out)) != Path(args.out):
+        # An --out that exists is not overwritten (it may hold an earlier replay): the replay goes on in the
+        # next file of its set (usv_0001.mcap), as `dpgw run`, `dpgw demo` and `dpgw sim` do with theirs.
+        print(
+            f"dpgw replay: out -> {written} ({args.out} exists: a log is never overwritten)", file=sys.stderr
+        )
+        args.out = str(written)
     if args.report == "":  # a bare --report: beside the output
         beside = Path(args.out)
         args.report = str(beside.with_name(f"{beside.stem}-report"))
@@ -304,7 +320,10 @@ def run(args: argparse.Namespace) -> int:
     on_outputs = stop.between_events(on_outputs)
     t0 = time.perf_counter()
     try:
-        with stop, McapLogWriter(args.out, profile="dpgw-replay", flush_on_log_time=False) as out:
+        with (
+            stop,
+            McapLogWriter(args.out, profile="dpgw-replay", flush_on_log_time=False, continue_set=True) as out,
+        ):
             out.add_metadata("dpgw.replay", {"logs": json.dumps([str(i.path) for i in inputs])})
             for name, meta in carried_metadata(inputs, own_config=own_config(args)):
                 out.add_metadata(name, meta)
