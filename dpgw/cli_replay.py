@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import signal
 import sys
@@ -125,6 +126,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--report",
         nargs="?",
         const="",
+        action=_ReportFolder,
         metavar="DIR",
         help="write plots (PNG), metrics.json and report.md in DIR (created); without DIR, in "
         "<out>-report beside --out (put a bare --report after the logs)",
@@ -152,6 +154,33 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "paused unless --speed/--realtime is given; runs until Ctrl-C, writes no --out or --report)",
     )
     p.set_defaults(func=run)
+    p.error = functools.partial(_error_with_hints, p, p.error)  # type: ignore[method-assign]
+
+
+class _ReportFolder(argparse.Action):
+    """``--report [DIR]``, remembering its value on the parser: a value that is a file while no LOG was
+    given is the log, taken as the folder (`_error_with_hints`)."""
+
+    def __call__(
+        self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: Any, option: Any = None
+    ) -> None:
+        setattr(namespace, self.dest, values)
+        setattr(parser, REPORT_VALUE, values)
+
+
+REPORT_VALUE = "_dpgw_report_value"
+
+
+def _error_with_hints(parser: argparse.ArgumentParser, error: Any, message: str) -> None:
+    """argparse's error, with what went wrong when ``--report`` took the log as its folder: `--report
+    usv.txt --vessel cybership2` said only that LOG is required."""
+    took = getattr(parser, REPORT_VALUE, None)
+    if "required: LOG" in message and took and Path(took).is_file():
+        message += (
+            f" (--report took {took} as the report's folder: its folder is optional, so put a bare "
+            f"--report after the logs, 'dpgw replay {took} ... --report', or give it one: --report DIR)"
+        )
+    error(message)
 
 
 # Observers that schedule ω0 from the measured sea themselves (the sdre observer does with adaptive=true).
