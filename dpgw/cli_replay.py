@@ -9,9 +9,10 @@ import signal
 import sys
 import textwrap
 import time
+from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from dpgw import cli_json
 from dpgw.cli_foxglove import add_foxglove_arg, connect_lines
@@ -171,7 +172,9 @@ class _ReportFolder(argparse.Action):
 REPORT_VALUE = "_dpgw_report_value"
 
 
-def _error_with_hints(parser: argparse.ArgumentParser, error: Any, message: str) -> None:
+def _error_with_hints(
+    parser: argparse.ArgumentParser, error: Callable[[str], NoReturn], message: str
+) -> NoReturn:
     """argparse's error, with what went wrong when ``--report`` took the log as its folder: `--report
     usv.txt --vessel cybership2` said only that LOG is required."""
     took = getattr(parser, REPORT_VALUE, None)
