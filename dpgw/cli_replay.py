@@ -70,9 +70,14 @@ EPILOG = (
     "Froude-scaled on a model (times / sqrt(scale): 0.84 s on 1:70 cybership2).\n"
     "every replay checks the measured wave peak against the wave frequency each\n"
     "observer used and warns, with a spec to re-run with, when they differ by\n"
-    "more than a factor 1.4, and the vessel against the log: motion faster than the\n"
-    "vessel makes (a clear peak above its wave band: a small craft replayed as a\n"
-    "ship) gives a line of advice naming --vessel and the built-ins that fit\n"
+    "more than a factor 1.4; a log without a clear wave peak (calm, short, under\n"
+    "way) gets a note that the check could not be made. --report also warns of an\n"
+    "observer whose LF estimate amplifies the motion at the measured peak\n"
+    "(attenuation above 0 dB), on the console and in report.md, which lists\n"
+    "every such line. Every replay checks the vessel against the log: motion\n"
+    "faster than the vessel makes (a clear peak above its wave band: a small craft\n"
+    "replayed as a ship) gives a line of advice naming --vessel and the built-ins\n"
+    "that fit\n"
     "examples:\n"
     "  dpgw replay trial.mcap --out again.mcap                      # a gateway log, its own config\n"
     "  dpgw replay usv.txt --vessel cybership2 --observer passive:wave_period_s=1.6 \\\n"
@@ -399,9 +404,15 @@ def run(args: argparse.Namespace) -> int:
     # gateway's verdicts applied, or (an older log) its frames taken with their signatures unchecked
     summary["signature_verdicts"] = verdicts.counts if verdicts is not None else {}
     summary["signatures_unchecked"] = unchecked_signatures(inputs, keyless)
+    checks = [
+        *(f"warning: {w}" for w in summary["wave_check"]["warnings"]),
+        *(f"note: {n}" for n in summary["wave_check"]["notes"]),
+    ]
+    report_warnings: list[str] = []
     if args.report:
-        written = _report(args, config.vessel.name, specs, result, evidence.new)
+        written, report_warnings = _report(args, config.vessel.name, specs, result, evidence.new, checks)
         summary["report"] = [str(p) for p in written]
+        summary["report_warnings"] = report_warnings
         if not any(p.suffix == ".png" for p in written):
             from gateway.report.plots import load_figure
 
@@ -413,8 +424,12 @@ def run(args: argparse.Namespace) -> int:
         print(cli_json.dumps(summary, indent=2))
     else:
         _print(summary)
-    for warning in [*_cut(summary), *_no_estimates(summary), *summary["wave_check"]["warnings"]]:
+    for warning in [*_cut(summary), *_no_estimates(summary)]:
         print(f"dpgw replay: warning: {warning}", file=sys.stderr)
+    for line in checks:  # (the wave check: in report.md too, as said here)
+        print(f"dpgw replay: {line}", file=sys.stderr)
+    for warning in report_warnings:
+        print(f"dpgw replay: warning: report: {warning}", file=sys.stderr)
     for source, live in summary["signature_verdicts"].items():
         print(f"dpgw replay: note: {_verdict_note(source, live, result.counts)}", file=sys.stderr)
     for source, live in summary["signatures_unchecked"].items():
@@ -882,7 +897,8 @@ def _report(
     specs: list[ObserverSpec],
     r: ReplayResult,
     new: list[tuple[bool, bool, bool]],
-) -> list[Path]:
+    checks: list[str],
+) -> tuple[list[Path], list[str]]:
     """The report of the replay. Its measurement is the fused stream with only the samples the fusion
     received since the previous step (`new`): the pipeline steps on every input chunk with each DOF's
     latest measurement held (docs/gateway.md), so a 2 Hz fix among 10 Hz headings appeared five times,
@@ -890,11 +906,13 @@ def _report(
     and its RMS down (the estimate catching up with a held fix)."""
     import numpy as np
 
-    from gateway.report import ObserverTrace, ReplayData, write_report
+    from gateway.report import ObserverTrace, ReplayData
+    from gateway.report.metrics import analyse
+    from gateway.report.writer import write_analysis
 
     meas = r.collected.get("/dp/measurement", [])
     if not meas:
-        return []
+        return [], []
     t0 = meas[0]["stamp_ns"]
     # a log's stamps are UTC (the fixes' own time, or a logger's clock); before 2000 they are a time of
     # day without its date (sentences with no date to join), which the report does not call a date
@@ -936,6 +954,11 @@ def _report(
         traces=tuple(traces),
         counts=r.counts,
         start_ns=t0 if stamps_are_utc else None,
+        checks=tuple(checks),
+        # what each log covers, as the summary says it: from its first sentence with a time, which can be
+        # before the first fused measurement (a cycle without a fix), the report's t = 0
+        log_spans={where: _span_words(_span(a, b)) for where, (a, b) in r.spans.items()},
         **truth_kw,
     )
-    return write_report(data, args.report, settle_s=args.settle)
+    an = analyse(data, None, args.settle)
+    return write_analysis(data, an, args.report), list(an.metrics["warnings"])
