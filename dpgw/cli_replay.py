@@ -277,7 +277,11 @@ def run(args: argparse.Namespace) -> int:
         if problem := prefix_problem(args.prefix):
             print(f"dpgw replay: --prefix: {problem}", file=sys.stderr)
             return 2
-    if args.out is not None and (free := next_free_out(args.out)) != Path(args.out):
+    if (
+        args.out is not None
+        and not mcap_path_problem("--out", args.out)  # (a folder or another name is refused below)
+        and (free := next_free_out(args.out)) != Path(args.out)
+    ):
         # An --out that exists is not overwritten (it may hold an earlier replay): the replay goes on in the
         # next file of its set (usv_0001.mcap), as `dpgw run`, `dpgw demo` and `dpgw sim` do with theirs.
         print(f"dpgw replay: out -> {free} ({args.out} exists: a log is never overwritten)", file=sys.stderr)
