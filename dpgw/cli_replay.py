@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import signal
 import sys
 import textwrap
 import time
+from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from dpgw import cli_json
 from dpgw.cli_foxglove import add_foxglove_arg, connect_lines
@@ -68,9 +70,14 @@ EPILOG = (
     "Froude-scaled on a model (times / sqrt(scale): 0.84 s on 1:70 cybership2).\n"
     "every replay checks the measured wave peak against the wave frequency each\n"
     "observer used and warns, with a spec to re-run with, when they differ by\n"
-    "more than a factor 1.4, and the vessel against the log: motion faster than the\n"
-    "vessel makes (a clear peak above its wave band: a small craft replayed as a\n"
-    "ship) gives a line of advice naming --vessel and the built-ins that fit\n"
+    "more than a factor 1.4; a log without a clear wave peak (calm, short, under\n"
+    "way) gets a note that the check could not be made. --report also warns of an\n"
+    "observer whose LF estimate amplifies the motion at the measured peak\n"
+    "(attenuation above 0 dB), on the console and in report.md, which lists\n"
+    "every such line. Every replay checks the vessel against the log: motion\n"
+    "faster than the vessel makes (a clear peak above its wave band: a small craft\n"
+    "replayed as a ship) gives a line of advice naming --vessel and the built-ins\n"
+    "that fit\n"
     "examples:\n"
     "  dpgw replay trial.mcap --out again.mcap                      # a gateway log, its own config\n"
     "  dpgw replay usv.txt --vessel cybership2 --observer passive:wave_period_s=1.6 \\\n"
@@ -110,7 +117,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--out",
         metavar="OUT.mcap",
         help="write inputs and estimates here (default: beside the first log, LOG-replay.mcap; never the "
-        "log itself)",
+        "log itself). One that exists is kept: the replay goes on in the next file of its set "
+        "(OUT_0001.mcap, ...), named on the console, as dpgw run, demo and sim do",
     )
     p.add_argument(
         "--no-foxglove-channels",
@@ -124,6 +132,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--report",
         nargs="?",
         const="",
+        action=_ReportFolder,
         metavar="DIR",
         help="write plots (PNG), metrics.json and report.md in DIR (created); without DIR, in "
         "<out>-report beside --out (put a bare --report after the logs)",
@@ -151,6 +160,35 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "paused unless --speed/--realtime is given; runs until Ctrl-C, writes no --out or --report)",
     )
     p.set_defaults(func=run)
+    p.error = functools.partial(_error_with_hints, p, p.error)  # type: ignore[method-assign]
+
+
+class _ReportFolder(argparse.Action):
+    """``--report [DIR]``, remembering its value on the parser: a value that is a file while no LOG was
+    given is the log, taken as the folder (`_error_with_hints`)."""
+
+    def __call__(
+        self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: Any, option: Any = None
+    ) -> None:
+        setattr(namespace, self.dest, values)
+        setattr(parser, REPORT_VALUE, values)
+
+
+REPORT_VALUE = "_dpgw_report_value"
+
+
+def _error_with_hints(
+    parser: argparse.ArgumentParser, error: Callable[[str], NoReturn], message: str
+) -> NoReturn:
+    """argparse's error, with what went wrong when ``--report`` took the log as its folder: `--report
+    usv.txt --vessel cybership2` said only that LOG is required."""
+    took = getattr(parser, REPORT_VALUE, None)
+    if "required: LOG" in message and took and Path(took).is_file():
+        message += (
+            f" (--report took {took} as the report's folder: its folder is optional, so put a bare "
+            f"--report after the logs, 'dpgw replay {took} ... --report', or give it one: --report DIR)"
+        )
+    error(message)
 
 
 # Observers that schedule ω0 from the measured sea themselves (the sdre observer does with adaptive=true).
@@ -173,6 +211,14 @@ def default_out(first_log: str) -> str:
     """``trial.mcap`` -> ``trial-replay.mcap`` beside it (a replay never overwrites what it reads)."""
     path = Path(first_log)
     return str(path.with_name(f"{path.stem}-replay.mcap"))
+
+
+def next_free_out(out: str) -> Path:
+    """The file a replay writes for ``--out OUT``: OUT itself when it is not there, else the next free
+    file of its set (``usv_0001.mcap``, `wire.mcap.rotation`), never one that exists."""
+    from wire.mcap.rotation import next_index, rotated_path
+
+    return rotated_path(out, next_index(out))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -231,6 +277,15 @@ def run(args: argparse.Namespace) -> int:
         if problem := prefix_problem(args.prefix):
             print(f"dpgw replay: --prefix: {problem}", file=sys.stderr)
             return 2
+    if (
+        args.out is not None
+        and not mcap_path_problem("--out", args.out)  # (a folder or another name is refused below)
+        and (free := next_free_out(args.out)) != Path(args.out)
+    ):
+        # An --out that exists is not overwritten (it may hold an earlier replay): the replay goes on in the
+        # next file of its set (usv_0001.mcap), as `dpgw run`, `dpgw demo` and `dpgw sim` do with theirs.
+        print(f"dpgw replay: out -> {free} ({args.out} exists: a log is never overwritten)", file=sys.stderr)
+        args.out = str(free)
     if args.report == "":  # a bare --report: beside the output
         beside = Path(args.out)
         args.report = str(beside.with_name(f"{beside.stem}-report"))
@@ -304,7 +359,10 @@ def run(args: argparse.Namespace) -> int:
     on_outputs = stop.between_events(on_outputs)
     t0 = time.perf_counter()
     try:
-        with stop, McapLogWriter(args.out, profile="dpgw-replay", flush_on_log_time=False) as out:
+        with (
+            stop,
+            McapLogWriter(args.out, profile="dpgw-replay", flush_on_log_time=False, continue_set=True) as out,
+        ):
             out.add_metadata("dpgw.replay", {"logs": json.dumps([str(i.path) for i in inputs])})
             for name, meta in carried_metadata(inputs, own_config=own_config(args)):
                 out.add_metadata(name, meta)
@@ -350,9 +408,15 @@ def run(args: argparse.Namespace) -> int:
     # gateway's verdicts applied, or (an older log) its frames taken with their signatures unchecked
     summary["signature_verdicts"] = verdicts.counts if verdicts is not None else {}
     summary["signatures_unchecked"] = unchecked_signatures(inputs, keyless)
+    checks = [
+        *(f"warning: {w}" for w in summary["wave_check"]["warnings"]),
+        *(f"note: {n}" for n in summary["wave_check"]["notes"]),
+    ]
+    report_warnings: list[str] = []
     if args.report:
-        written = _report(args, config.vessel.name, specs, result, evidence.new)
+        written, report_warnings = _report(args, config.vessel.name, specs, result, evidence.new, checks)
         summary["report"] = [str(p) for p in written]
+        summary["report_warnings"] = report_warnings
         if not any(p.suffix == ".png" for p in written):
             from gateway.report.plots import load_figure
 
@@ -364,8 +428,12 @@ def run(args: argparse.Namespace) -> int:
         print(cli_json.dumps(summary, indent=2))
     else:
         _print(summary)
-    for warning in [*_cut(summary), *_no_estimates(summary), *summary["wave_check"]["warnings"]]:
+    for warning in [*_cut(summary), *_no_estimates(summary)]:
         print(f"dpgw replay: warning: {warning}", file=sys.stderr)
+    for line in checks:  # (the wave check: in report.md too, as said here)
+        print(f"dpgw replay: {line}", file=sys.stderr)
+    for warning in report_warnings:
+        print(f"dpgw replay: warning: report: {warning}", file=sys.stderr)
     for source, live in summary["signature_verdicts"].items():
         print(f"dpgw replay: note: {_verdict_note(source, live, result.counts)}", file=sys.stderr)
     for source, live in summary["signatures_unchecked"].items():
@@ -833,7 +901,8 @@ def _report(
     specs: list[ObserverSpec],
     r: ReplayResult,
     new: list[tuple[bool, bool, bool]],
-) -> list[Path]:
+    checks: list[str],
+) -> tuple[list[Path], list[str]]:
     """The report of the replay. Its measurement is the fused stream with only the samples the fusion
     received since the previous step (`new`): the pipeline steps on every input chunk with each DOF's
     latest measurement held (docs/gateway.md), so a 2 Hz fix among 10 Hz headings appeared five times,
@@ -841,11 +910,13 @@ def _report(
     and its RMS down (the estimate catching up with a held fix)."""
     import numpy as np
 
-    from gateway.report import ObserverTrace, ReplayData, write_report
+    from gateway.report import ObserverTrace, ReplayData
+    from gateway.report.metrics import analyse
+    from gateway.report.writer import write_analysis
 
     meas = r.collected.get("/dp/measurement", [])
     if not meas:
-        return []
+        return [], []
     t0 = meas[0]["stamp_ns"]
     # a log's stamps are UTC (the fixes' own time, or a logger's clock); before 2000 they are a time of
     # day without its date (sentences with no date to join), which the report does not call a date
@@ -887,6 +958,11 @@ def _report(
         traces=tuple(traces),
         counts=r.counts,
         start_ns=t0 if stamps_are_utc else None,
+        checks=tuple(checks),
+        # what each log covers, as the summary says it: from its first sentence with a time, which can be
+        # before the first fused measurement (a cycle without a fix), the report's t = 0
+        log_spans={where: _span_words(_span(a, b)) for where, (a, b) in r.spans.items()},
         **truth_kw,
     )
-    return write_report(data, args.report, settle_s=args.settle)
+    an = analyse(data, None, args.settle)
+    return write_analysis(data, an, args.report), list(an.metrics["warnings"])

@@ -34,6 +34,7 @@ from mypy_extensions import mypyc_attr
 
 from gateway.config import GatewayConfig, default_config, parse_config
 from gateway.config.logged import SIGNING_VERDICTS_KEY, unlogged_key_sources, without_unlogged_keys
+from gateway.config.problems import did_you_mean
 from gateway.logreaders import (
     LogCounts,
     gzip_was_cut,
@@ -387,7 +388,8 @@ def parse_observer_spec(text: str) -> ObserverSpec:
     name = name.strip()
     if name not in OBSERVER_TYPES:
         raise ReplayError(
-            f"observer spec '{text}': unknown observer '{name}' (known: {', '.join(OBSERVER_TYPES)})"
+            f"observer spec '{text}': unknown observer '{name}'{did_you_mean(name, OBSERVER_TYPES)} "
+            f"(known: {', '.join(OBSERVER_TYPES)})"
         )
     keys = sorted(tuning_keys(name) | set(OBSERVER_PARAMS[name]))
     params: dict[str, Any] = {}
@@ -400,7 +402,12 @@ def parse_observer_spec(text: str) -> ObserverSpec:
                 f"({'it uses ' + ', '.join(used) if used else 'it uses none of it'}; its own keys: "
                 f"{', '.join(OBSERVER_PARAMS[name]) or 'none'})"
             )
-        if not eq or key not in keys:
+        if eq and key not in keys:
+            key_hint = did_you_mean(key.strip(), keys)
+            raise ReplayError(
+                f"observer spec '{text}': unknown key '{key}'{key_hint} ({name} takes {', '.join(keys)})"
+            )
+        if not eq:
             raise ReplayError(f"observer spec '{text}': '{item}' is not key=value with a key of {keys}")
         switch = {"true": 1.0, "false": 0.0}.get(value.strip().lower())  # adaptive=true, per_dof=false
         if "/" in value and key in TUNING_KEYS:  # (a list: MMAE's candidates=2.5/3.8/5)

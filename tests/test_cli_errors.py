@@ -1128,3 +1128,44 @@ def test_a_bare_replay_report_goes_beside_the_output(
     out = tmp_path / "other.mcap"
     assert main(["replay", str(log), "--out", str(out), "--report"]) == 0
     assert (tmp_path / "other-report" / "report.md").is_file()
+
+
+def test_replay_argument_mistakes_say_what_was_meant(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`--report LOG` with no LOG after it: --report takes an optional folder, so it took the log, and
+    argparse said only that LOG is required. A misspelt observer or key of an observer spec got the list of
+    names but no "did you mean", which a config's misspelt key gets."""
+    log = tmp_path / "usv.txt"
+    log.write_text("$GPGGA,100000.00,5924.000000,N,01029.999988,E,4,12,0.80,20.259,M,,,2.0,0001*11\r\n")
+    with pytest.raises(SystemExit) as exit_:
+        main(["replay", "--report", str(log), "--vessel", "cybership2"])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert err.strip().splitlines()[-1] == (
+        "dpgw replay: error: the following arguments are required: LOG "
+        f"(--report took {log} as the report's folder: its folder is optional, so put a bare --report after "
+        f"the logs, 'dpgw replay {log} ... --report', or give it one: --report DIR)"
+    )
+    # a --report folder that is no file, with LOG missing: argparse's own message, no guess about it
+    with pytest.raises(SystemExit):
+        main(["replay", "--report", str(tmp_path / "new"), "--vessel", "cybership2"])
+    assert capsys.readouterr().err.strip().splitlines()[-1] == (
+        "dpgw replay: error: the following arguments are required: LOG"
+    )
+    args = ["replay", str(log), "--vessel", "cybership2", "--out", str(tmp_path / "x.mcap")]
+    assert main([*args, "--observer", "pasive"]) == 2
+    assert _one_line(capsys.readouterr().err) == (
+        "dpgw replay: observer spec 'pasive': unknown observer 'pasive', did you mean 'passive'? "
+        "(known: passive, gain_scheduled, mmae, sdre, ekf, memory)"
+    )
+    assert main([*args, "--observer", "passive:wave_perod=2"]) == 2
+    assert _one_line(capsys.readouterr().err).startswith(
+        "dpgw replay: observer spec 'passive:wave_perod=2': unknown key 'wave_perod', did you mean "
+        "'wave_period_s'? (passive takes bias_corner, "
+    )
+    assert main([*args, "--observer", "sdre:adaptiv=true"]) == 2
+    assert "unknown key 'adaptiv', did you mean 'adaptive'? (sdre takes " in _one_line(
+        capsys.readouterr().err
+    )
+    assert not (tmp_path / "x.mcap").exists()

@@ -1066,3 +1066,39 @@ def test_replay_checks_a_signed_links_frames_against_the_logs_time(tmp_path: Pat
     assert counts.received == 3, counts
     assert counts.rejected["bad_signature"] == 2, counts.rejected  # the repeat and the forgery
     assert pipeline.fusion.thrust[1][0] == 1.0  # the last genuine report
+
+
+def test_replay_never_overwrites_an_existing_out_and_says_which_file_it_wrote(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`--out usv.mcap` where usv.mcap holds an earlier replay: that file stays byte for byte, the replay goes
+    on in the next file of its set (usv_0001.mcap, then usv_0002.mcap), as `dpgw run`, `dpgw demo` and
+    `dpgw sim` continue theirs, and the console names the file written. Before, it was overwritten."""
+    from dpgw.cli import main
+
+    t0 = datetime(2026, 6, 1, 10, tzinfo=UTC)
+    before, log = tmp_path / "before.nmea", tmp_path / "usv.nmea"
+    write_text_log(before, [t0 + timedelta(seconds=k) for k in range(10)])  # another replay, other bytes
+    write_text_log(log, [t0 + timedelta(seconds=k) for k in range(20)])
+    out = tmp_path / "usv.mcap"
+    assert main(["replay", str(before), "--vessel", "mss_supply", "--out", str(out), "--json"]) == 0
+    first = capsys.readouterr()
+    assert json.loads(first.out)["out"] == str(out) and "never overwritten" not in first.err
+    earlier = out.read_bytes()
+    for n in (1, 2):
+        assert main(["replay", str(log), "--vessel", "mss_supply", "--out", str(out), "--report"]) == 0
+        again = capsys.readouterr()
+        written = tmp_path / f"usv_{n:04d}.mcap"
+        assert out.read_bytes() == earlier
+        assert f"out -> {written} ({out} exists: a log is never overwritten)" in again.err
+        assert f"-> {written}\n" in again.out  # the summary's first line
+        topics = {t for t, *_ in read_messages(written)}
+        assert "/dp/estimate" in topics
+        # the report beside it is the new file's, not the earlier one's
+        assert (tmp_path / f"usv_{n:04d}-report" / "report.md").exists()
+    # a replay that finds nothing removes only the file it made, never the earlier ones
+    empty = tmp_path / "empty.nmea"
+    empty.write_text("no sentences here\n")
+    assert main(["replay", str(empty), "--vessel", "mss_supply", "--out", str(out)]) == 2
+    assert out.read_bytes() == earlier and (tmp_path / "usv_0002.mcap").exists()
+    assert not (tmp_path / "usv_0003.mcap").exists()

@@ -465,7 +465,9 @@ def test_report_span_reads_in_the_plots_units(t1: float, text: str) -> None:
 
     t = np.linspace(0.0, t1, 50)
     d = ReplayData(title="x", vessel="mss_supply", t_meas=t, y=np.zeros((50, 3)), traces=())
-    assert f"- span: {text}\n" in report_markdown(d, compute_metrics(d), "", [])
+    assert f"- span: {text} — from the first fused measurement" in report_markdown(
+        d, compute_metrics(d), "", []
+    )
 
 
 @pytest.mark.parametrize("rising", [False, True], ids=["falling through the band", "rising through it"])

@@ -6,7 +6,8 @@ measurement against the LF and WF estimates per DOF, velocities, bias, the wave 
 power spectra that show the wave filter at work. `docs/report.md` gives every formula and choice.
 
 One job per module: `data` (the inputs, checked and sorted), `spectra` (resampling, Welch PSD, spectral
-peak), `metrics` (`compute_metrics`: pure numerics, arrays in, a JSON-able dict out), `plots` (matplotlib,
+peak), `metrics` (`compute_metrics`: pure numerics, arrays in, a JSON-able dict out), `findings` (what
+the console must say too: an observer that amplifies), `plots` (matplotlib,
 imported only when drawing), `markdown` (report.md) and `writer` (`write_report`, the only one that writes
 files). matplotlib is imported only to draw: an install without it still gets the metrics and the
 table.

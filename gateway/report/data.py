@@ -52,6 +52,12 @@ class ReplayData:
     # UTC of t = 0 (ns since the Unix epoch), where the log's stamps are UTC: the report then says when
     # (a merge of logs over days is read by date and clock time, not by hours since its start)
     start_ns: int | None = None
+    # the lines the replay's console printed of its wave-tuning check (`gateway.report.wave_check`: a
+    # mistuned observer, or no clear wave peak to check against), shown in report.md as they were said
+    checks: tuple[str, ...] = ()
+    # per input log, what it covers as the console's summary says it (first to last sentence or record
+    # with a time, UTC): it can start before the first fused measurement, which is t = 0 here
+    log_spans: Mapping[str, str] = field(default_factory=dict)
 
 
 def utc_text(start_ns: int, t_s: float | None, *, digits: int = 1) -> str | None:

@@ -21,6 +21,12 @@ def _fmt(x: Any, digits: int = 3, scale: float = 1.0) -> str:
     return f"{float(x) * scale:.{digits}g}"
 
 
+def _signed(x: Any) -> str:
+    """An attenuation with its sign: +1.21 dB (the LF estimate lifted the motion) against −22.4 dB."""
+    text = _fmt(x)
+    return "+" + text if text != "–" and float(x) > 0 else text
+
+
 def _span(m: dict[str, Any]) -> str:
     """The span in seconds (0.1 s), its length also in min over 10 min and in h over 10 h, as the plots'
     time axes: `4.4 %g` made a two-day merge of logs '(1.764e+05 s)' and 90 s '89.9043 s'."""
@@ -42,13 +48,23 @@ def report_markdown(data: ReplayData, m: dict[str, Any], plot_note: str, pngs: S
     lines = [f"# Replay report: {data.title}", ""]
     lines += [
         f"- vessel: {data.vessel or '–'}",
-        f"- span: {_span(m)}",
+        f"- span: {_span(m)} — from the first fused measurement (t = 0 s in the tables and plots) to the "
+        "last estimate",
+        *(
+            f"- {where}: {span} — its first to last sentence or record with a time"
+            for where, span in m.get("log_spans", {}).items()
+        ),
         f"- measurements: {m['measurement']['samples']} samples; metrics after a settle time of "
         f"{_fmt(m['settle_s'], 4)} s",
         f"- wave band searched: {m['wave_band_rad_s'][0]:.3g}–{m['wave_band_rad_s'][1]:.3g} rad/s "
         f"— {m['wave_band_basis']}",
         f"- ground truth: {'yes (simulator log)' if m['truth'] else 'no'}",
         "",
+    ]
+    said = [*m.get("checks", []), *(f"warning: {w}" for w in m.get("warnings", []))]
+    if said:  # what the console said too: the report and the console agree
+        lines += ["## Warnings", "", *(f"- {w}" for w in said), ""]
+    lines += [
         "## Measurement: dominant wave frequency",
         "",
         "| DOF | valid samples | sample interval (s) | peak ω (rad/s) | peak period (s) | Welch segments |",
@@ -79,7 +95,7 @@ def report_markdown(data: ReplayData, m: dict[str, Any], plot_note: str, pngs: S
             s = deg if k == 2 else 1.0
             inn = dd["innovation"]
             row = (
-                f"| {units[k]} | {_fmt(dd['omega0_median_rad_s'])} | {_fmt(dd['attenuation_db'])} | "
+                f"| {units[k]} | {_fmt(dd['omega0_median_rad_s'])} | {_signed(dd['attenuation_db'])} | "
                 f"{_fmt(inn['mean'], 3, s)} | {_fmt(inn['std'], 3, s)} | {_fmt(inn['rms'], 3, s)} | "
                 f"{_fmt(inn['lag1_autocorrelation'], 2)} | {_fmt(dd['smoothness']['ratio'], 2)} |"
             )

@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gateway.report.data import DOF, Array, Prepared, ReplayData, prepare, utc_text
+from gateway.report.findings import amplification_warnings
 from gateway.report.spectra import Psd, band_power, nominal_dt, peak, resample, valid_samples, welch
 from gateway.scoring import Score, score
 from observers.froude import MODEL_MAX_LENGTH_M, PROTOTYPE_LENGTH_M, froude_scale_of, scaled_frequencies
@@ -298,6 +299,11 @@ def analyse(data: ReplayData, wave_band: tuple[float, float] | None, settle_s: f
         observers[key] = odict
     metrics["observers"] = observers
     metrics["counts"] = {str(src): {str(r): int(n) for r, n in c.items()} for src, c in data.counts.items()}
+    # what the replay's console says besides (the wave check's lines; `dpgw replay` passes them), then what
+    # the report finds itself: an observer lifting the motion it should filter
+    metrics["checks"] = list(data.checks)
+    metrics["warnings"] = amplification_warnings(metrics)
+    metrics["log_spans"] = dict(data.log_spans)
     return Analysis(prep, metrics, band, settle_t, meas_peak, meas_psd, est_psd, attenuation)
 
 

@@ -27,8 +27,9 @@ more than the factor `MISTUNE_RATIO` (1.4). The default passive tuning's gain fr
 LF estimate (`observers.passive_tuning.lf_response`, amplitude) is −22 dB at ω0, −20 dB at 1.1·ω0, −13 dB
 at 1.4·ω0 and −10 dB at ω0/1.4, −6 dB at ω0/1.7, −4 dB at ω0/2: beyond a factor 1.4 the LF estimate
 keeps three to four times more of the wave motion than the tuning promises, and it gets worse fast below
-ω0. With no clear peak in any DOF nothing is said (a calm sea, or
-too short a record): silence is not a verdict.
+ω0. With no clear peak in any DOF there is no verdict (a calm sea, a vessel under way, too short a
+record), but a note says that the check could not be made and why per DOF (`WaveCheck.notes`): silence
+would read as a pass.
 """
 
 from __future__ import annotations
@@ -128,6 +129,22 @@ class WaveCheck:
             out.append(f"{what} {todo}")
         return out
 
+    def notes(self) -> list[str]:
+        """With no clear peak in any DOF: that the observers' ω0 could not be checked, and why per DOF.
+        Not a verdict (a calm sea, a short record, a vessel under way), but the engineer is told that the
+        check was not made rather than left to read silence as a pass."""
+        if self.measured is not None or not self.observers:
+            return []
+        by_reason: dict[str, list[str]] = {}  # (north, east and heading alike: said once)
+        for d, p in self.peaks.items():
+            by_reason.setdefault(_why_not_clear(p), []).append(d)
+        why = "; ".join(f"{_and(dofs)}: {reason}" for reason, dofs in by_reason.items())
+        used = ", ".join(f"'{o.label}' {o.omega0:.2f} rad/s" for o in self.observers)
+        return [
+            f"no clear wave peak in the log ({why}; band {self.band[0]:.3g}-{self.band[1]:.3g} rad/s): the "
+            f"wave frequency the observers used ({used}) could not be checked against the sea"
+        ]
+
     def as_dict(self) -> dict[str, Any]:
         return {
             "band_rad_s": list(self.band),
@@ -144,7 +161,23 @@ class WaveCheck:
                 for o in self.observers
             },
             "warnings": self.warnings(),
+            "notes": self.notes(),
         }
+
+
+def _and(words: list[str]) -> str:
+    """``north``, ``north and east``, ``north, east and heading``."""
+    return words[0] if len(words) == 1 else f"{', '.join(words[:-1])} and {words[-1]}"
+
+
+def _why_not_clear(p: DofPeak) -> str:
+    """``1.68 rad/s at the band's edge``, ``3.9 rad/s only 5.2 dB above the trend``, or ``no spectrum``."""
+    if not math.isfinite(p.omega):
+        return "no spectrum (too few samples)"
+    if p.at_edge:
+        return f"maximum {p.omega:.2f} rad/s at the band's edge"
+    above = f"{p.above_trend_db:.1f} dB above the trend ({CLEAR_PEAK_DB:g} needed)"
+    return f"maximum {p.omega:.2f} rad/s only {above}"
 
 
 def _fmt(x: float) -> str:

@@ -11,7 +11,7 @@ import numpy as np
 
 from gateway.report.data import ReplayData
 from gateway.report.markdown import report_markdown
-from gateway.report.metrics import analyse
+from gateway.report.metrics import Analysis, analyse
 from gateway.report.plots import draw_plots, load_figure
 
 
@@ -42,9 +42,14 @@ def write_report(
 ) -> list[Path]:
     """Write metrics.json, report.md and (with matplotlib, if `plots`) the six PNGs into `folder`
     (created if needed). Returns the files written."""
+    return write_analysis(data, analyse(data, wave_band, settle_s), folder, plots=plots)
+
+
+def write_analysis(data: ReplayData, an: Analysis, folder: str | Path, *, plots: bool = True) -> list[Path]:
+    """`write_report` of an analysis already made (`metrics.analyse`): a caller that also says what the
+    report found (its ``warnings``) on the console analyses once."""
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
-    an = analyse(data, wave_band, settle_s)
     pngs: list[Path] = []
     if not plots:
         note = "Plots were not requested (`plots=False`)."
