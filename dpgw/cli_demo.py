@@ -377,6 +377,24 @@ def run(args: argparse.Namespace) -> int:
     if args.mode == "standby" and args.engage_at is not None:  # (accepted and ignored before)
         print("dpgw demo: --engage-at switches to dp: it goes with --mode dp (the default)", file=sys.stderr)
         return 2
+    # Ctrl-C or SIGTERM: the simulation ends its current second of sea before the gateway closes the
+    # session and the log it writes to (it once went on into the closed session and the stop read as
+    # "the simulator failed"); the summary covers what ran and says it was stopped, and by what. Taken
+    # from here on, before the gateway starts: a Ctrl-C while its kernels compile (~15 s on a first run)
+    # met Python's default, a traceback from inside the compiler.
+    interrupted, stop_sim = threading.Event(), threading.Event()
+    stopped_by: list[int] = []  # the signal that stopped the demo
+    running: list[GatewayService] = []  # the gateway, once started
+
+    def on_signal(signum: int, _frame: object) -> None:
+        stopped_by.append(signum)
+        interrupted.set()
+        stop_sim.set()
+        for started in running:
+            started.stop_event.set()
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
     scenario = get_scenario(args.scenario)
     pty = PtySink()
     sinks: list[Any] = [pty]
@@ -393,6 +411,7 @@ def run(args: argparse.Namespace) -> int:
         outputs = [foxglove[0]] if foxglove is not None else []
         service = GatewayService(config, config_tables=tables, sinks=outputs)
         service.start()
+        running.append(service)
     except ConfigError as exc:
         pty.close()
         print(format_problems(exc), file=sys.stderr)
@@ -408,6 +427,13 @@ def run(args: argparse.Namespace) -> int:
         hint = " (or --no-foxglove)" if "foxglove" in str(exc) else ""
         print(f"dpgw demo: {exc}{hint}", file=sys.stderr)
         return 2
+    if stopped_by:  # during start-up: nothing ran
+        service.close()
+        pty.close()
+        print(
+            f"dpgw demo: stopped by {stop_name(stopped_by[0])} during start-up; nothing ran", file=sys.stderr
+        )
+        return exit_status(stopped_by[0])
     if foxglove is not None:
         sink, note = foxglove
         for line in connect_lines(sink.url, sink.app_url(), note=note):
@@ -504,11 +530,6 @@ def run(args: argparse.Namespace) -> int:
         # with this vessel's prefix, reached by scouting) is ignored and alarmed, never followed
         service.sim_time.pin(publisher.run)
     sim_error: list[BaseException] = []
-    # Ctrl-C or SIGTERM: the simulation ends its current second of sea before the gateway closes the
-    # session and the log it writes to (it once went on into the closed session and the stop read as
-    # "the simulator failed"); the summary covers what ran and says it was interrupted.
-    interrupted, stop_sim = threading.Event(), threading.Event()
-    stopped_by: list[int] = []  # the signal that stopped the demo
     engaged_at: list[float] = []  # the sim second the demo's operator sent dp
     sim_ended: list[float] = []  # when the simulation stopped (monotonic): the run's own wall time ends
 
@@ -537,14 +558,6 @@ def run(args: argparse.Namespace) -> int:
         finally:
             service.stop_event.set()
 
-    def on_signal(signum: int, _frame: object) -> None:
-        stopped_by.append(signum)
-        interrupted.set()
-        stop_sim.set()
-        service.stop_event.set()
-
-    signal.signal(signal.SIGINT, on_signal)
-    signal.signal(signal.SIGTERM, on_signal)
     thread = threading.Thread(target=simulate, name="dpgw-demo-sim", daemon=True)
     wall0 = time.monotonic()
     thread.start()
@@ -593,9 +606,24 @@ def run(args: argparse.Namespace) -> int:
         print(cli_json.dumps(summary, indent=2))
     else:
         print_summary(summary)
-    # Ctrl-C: 128 + SIGINT, as `dpgw study` and a shell say a command the user interrupted. SIGTERM (a
-    # service manager's stop) ends as `dpgw run` does on it: 0, the log complete.
-    return 130 if stopped_by and stopped_by[0] == signal.SIGINT else 0
+    return exit_status(stopped_by[0]) if stopped_by else 0
+
+
+def exit_status(signum: int) -> int:
+    """The demo's exit status when ``signum`` stopped it. Ctrl-C: 128 + SIGINT, as `dpgw study` and a
+    shell say a command the user interrupted. SIGTERM (a service manager's stop) ends as `dpgw run` does
+    on it: 0, the log complete."""
+    import signal
+
+    return 130 if signum == signal.SIGINT else 0
+
+
+def stop_name(signum: int) -> str:
+    """How the summary names the signal that stopped the demo: Ctrl-C for SIGINT, else its name."""
+    import signal
+
+    name = signal.Signals(signum).name
+    return STOPPED_BY.get(name, name)
 
 
 def hold_setpoint(scenario: Any) -> dict[str, float]:
@@ -750,12 +778,13 @@ def _one_decimal(x: float) -> str:
     return f"{round(x, 1) + 0.0:.1f}"
 
 
-STOPPED_BY = {"SIGINT": "Ctrl-C", "SIGTERM": "SIGTERM", "SIGHUP": "SIGHUP"}
+STOPPED_BY = {"SIGINT": "Ctrl-C"}
+"""Signals the summary names otherwise than by their names."""
 
 
 def print_summary(r: dict[str, Any]) -> None:
     if r.get("interrupted"):
-        by = STOPPED_BY.get(str(r.get("stopped_by")), "a signal")
+        by = STOPPED_BY.get(str(r.get("stopped_by")), str(r.get("stopped_by") or "a signal"))
         of = f" (of {r['duration_s']:.0f} asked)" if r.get("duration_s") else ""
         ran = f"stopped by {by} at {r['sim_seconds']:.0f} s of sea{of}, after {r['wall_seconds']:.1f} s"
     else:

@@ -74,7 +74,7 @@ def run_demo(
         if thread is not None:
             thread.join(30)
     captured = capsys.readouterr()
-    return code, json.loads(captured.out), captured.err, out
+    return code, json.loads(captured.out) if captured.out else {}, captured.err, out
 
 
 def said(out: Path, words: str) -> bool:
@@ -192,3 +192,30 @@ def test_ctrl_c_is_said_exits_130_at_once_and_scores_only_enough_sea(
     # at 1x a second of sea takes a second: the wall time is the simulation's, not the stop's
     sp = summary["speed"]
     assert abs(summary["wall_seconds"] - sp["paused_s"] - summary["sim_seconds"]) < CLOSE_S / 2, summary
+
+
+@pytest.mark.slow  # a demo's start-up: ~3 s
+def test_ctrl_c_during_start_up_stops_the_demo_with_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Ctrl-C while the gateway starts (its kernels compile for ~15 s on a first run) met Python's default:
+    a KeyboardInterrupt traceback from inside the compiler. The demo takes it from its first instant:
+    start-up finishes, nothing runs, one line says so, and the exit status is 130."""
+    start = GatewayService.start
+
+    def interrupted_start(self: GatewayService) -> None:
+        os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C, as the gateway starts
+        start(self)
+
+    def not_the_demos(_signum: int, _frame: object) -> None:
+        raise AssertionError("Ctrl-C during start-up met no handler of the demo's")
+
+    monkeypatch.setattr(GatewayService, "start", interrupted_start)
+    before = signal.signal(signal.SIGINT, not_the_demos)
+    try:
+        code, summary, err, _ = run_demo(tmp_path, monkeypatch, capsys, ["--duration", "60"])
+    finally:
+        signal.signal(signal.SIGINT, before)
+    assert code == 130, err
+    assert err.strip().splitlines()[-1] == "dpgw demo: stopped by Ctrl-C during start-up; nothing ran", err
+    assert "Traceback" not in err and summary == {}
