@@ -50,6 +50,13 @@ engaged (`Simulation.held_tau`), for a 76.2 m vessel, Froude-scaled with the ves
 DP_SETTLE_S = 30.0
 """Station keeping is scored from this long after DP was engaged (and never before ``SETTLE_S``): the
 take-over and the reference model's first moves are not station keeping."""
+MIN_SCORED_S = 30.0
+"""Least sea scored for a figure (s): the estimate after ``SETTLE_S``, the station keeping after
+`dp_scored_from`; a shorter stretch (a run stopped by Ctrl-C soon after the skip) is said "not scored". The
+errors scored vary over tens of seconds (waves of ~10 s, the bias estimate's error over its time constant),
+so a few seconds' RMS is one sample of them, not the run's: on the default demo (seed 0, 300 s scored) the
+horizontal RMS over any 3 s after the skip ranged from 0.27 to 2.2 times the whole run's, over any 30 s
+from 0.69 to 1.5 times (over 60 s, 0.73-1.3, which a 120 s demo engaged at its start would just miss)."""
 DEFAULT_DURATION_S = 360.0
 LOWEST_SPEED = 1.0
 """The demo never slows itself below real time."""
@@ -64,6 +71,9 @@ with_scenario_observer`): a scenario's `observer_params` for this type apply."""
 SIM_CHUNK_S = 1.0
 """Sea simulated between two looks at whether the demo was stopped (s): at the demo's speeds a stop
 takes effect within a fraction of a second of wall time."""
+SETTLED_POLL_S = 0.1
+"""Sea simulated between two looks at whether the gateway calls the estimate settled, once the demo's
+operator waits for it to engage DP (`engage_time`): a sensor sample or so."""
 
 
 NAME = "demo"
@@ -107,7 +117,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=DEFAULT_DURATION_S,
         metavar="S",
         help=f"sim seconds (default {DEFAULT_DURATION_S:.0f}; the estimate is scored after {SETTLE_S:.0f} s, "
-        f"station keeping from {DP_SETTLE_S:.0f} s after DP is engaged)",
+        f"station keeping from {DP_SETTLE_S:.0f} s after DP is engaged, each on at least "
+        f"{MIN_SCORED_S:.0f} s; too short a run is said at the start)",
     )
     p.add_argument(
         "--speed",
@@ -132,8 +143,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=None,
         metavar="S",
         help=f"with --mode dp: the sim second the demo switches the gateway from standby to dp (default: "
-        f"after {ENGAGE_TIME_CONSTANTS:g} time constants of the observer's slowest mode, 145 s on the "
-        "default scenario; printed at start). Until then the vessel is held "
+        "once the gateway calls the estimate settled, "
+        f"{ENGAGE_TIME_CONSTANTS:g} time constants of the observer's slowest mode after its first estimate, "
+        "145 s on the default scenario; printed at start). Until then the vessel is held "
         "on joystick (the simulator's thrusters answer the load it knows) while the observer's bias "
         "estimate settles; then DP takes over from the thrust the drives report, as an operator engages "
         "DP. 0: dp from the first estimate, a cold start into the full load. Vessels without thruster "
@@ -267,14 +279,60 @@ def engages_later(args: argparse.Namespace, scenario: Any) -> bool:
 
 
 def engage_time(args: argparse.Namespace, observer: Any) -> float:
-    """The sim second to engage DP: ``--engage-at``, or the observer's settle time (`Observer.settle_time_s`:
-    `observers.settling.ENGAGE_TIME_CONSTANTS` time constants of its slowest error mode) rounded up to the
-    whole second — up, so that the operator's ``dp`` comes once the gateway calls the estimate settled (its
-    first estimate comes with the first fix, a fraction of a second in) and raises no early-engagement
-    alarm."""
+    """The sim second to engage DP: ``--engage-at``, or by default the earliest the estimate can have
+    settled, the observer's settle time (`Observer.settle_time_s`: `observers.settling.
+    ENGAGE_TIME_CONSTANTS` time constants of its slowest error mode). The gateway counts that from its
+    first estimate, which comes with the first fix, a fraction of a second in: by default the demo's
+    operator therefore waits from then on for the gateway itself to call the estimate settled
+    (`waits_for_settled`), as an operator watches the console's "observer ready". (It engaged at this
+    time rounded up to the second before, and when the first fix came later than the rounding left, the
+    gateway said "DP engaged by the operator before the observer settled" in every default demo.)"""
     if args.engage_at is not None:
         return float(args.engage_at)
-    return float(math.ceil(observer.settle_time_s))
+    return float(observer.settle_time_s)
+
+
+def waits_for_settled(args: argparse.Namespace) -> bool:
+    """Whether the demo's ``dp`` waits for the gateway to call the estimate settled (`Pipeline.settled`):
+    by default; an ``--engage-at`` is the user's own time, kept even when early (then the gateway says so,
+    as it says it to an operator who engages early)."""
+    return args.engage_at is None
+
+
+def needed_duration_s(engage_s: float | None, planned: bool = True) -> int:
+    """The ``--duration`` that scores the station keeping with DP engaged at ``engage_s`` (None or 0: from
+    the start): `MIN_SCORED_S` from `dp_scored_from`; for an engagement still to come (``planned``) a
+    second more, for the first fix, after which a default engagement comes (`engage_time`)."""
+    return math.ceil(dp_scored_from(engage_s) + MIN_SCORED_S + (1.0 if planned and engage_s else 0.0))
+
+
+def engagement_lines(args: argparse.Namespace, engage_s: float) -> list[str]:
+    """What the demo says at start about when DP is engaged, for a run of ``args.duration``: when, or that
+    this run ends before it (the vessel held on joystick throughout, station keeping not scored) and the
+    duration it takes; and when the run ends after the engagement but too soon to score it, that too."""
+    waits = waits_for_settled(args)
+    when = (
+        f"once the observer has settled, {engage_s:.0f} s after its first estimate"
+        if waits
+        else f"at {engage_s:g} s of sea"
+    )
+    need = needed_duration_s(engage_s)
+    cold = needed_duration_s(0.0)
+    todo = f"give --duration {need} or more (default {DEFAULT_DURATION_S:.0f})"
+    if args.duration >= cold and engage_s > 0:
+        todo += ", or --engage-at 0 for DP from the start"
+    if args.duration <= engage_s + (1.0 if waits else 0.0):  # (the first estimate: within the first fix)
+        return [
+            f"with --duration {args.duration:g}, DP will not be engaged (it would be {when}) and station "
+            f"keeping will not be scored: the vessel is held on joystick for the whole run; {todo}"
+        ]
+    lines = [f"the vessel is held on joystick until DP is engaged, {when} (--engage-at)"]
+    if args.duration < need:
+        lines.append(
+            f"with --duration {args.duration:g}, station keeping will not be scored (it is scored from "
+            f"{DP_SETTLE_S:.0f} s after DP is engaged, on at least {MIN_SCORED_S:.0f} s); {todo}"
+        )
+    return lines
 
 
 def froude_scale(scenario: Any) -> float:
@@ -319,6 +377,24 @@ def run(args: argparse.Namespace) -> int:
     if args.mode == "standby" and args.engage_at is not None:  # (accepted and ignored before)
         print("dpgw demo: --engage-at switches to dp: it goes with --mode dp (the default)", file=sys.stderr)
         return 2
+    # Ctrl-C or SIGTERM: the simulation ends its current second of sea before the gateway closes the
+    # session and the log it writes to (it once went on into the closed session and the stop read as
+    # "the simulator failed"); the summary covers what ran and says it was stopped, and by what. Taken
+    # from here on, before the gateway starts: a Ctrl-C while its kernels compile (~15 s on a first run)
+    # met Python's default, a traceback from inside the compiler.
+    interrupted, stop_sim = threading.Event(), threading.Event()
+    stopped_by: list[int] = []  # the signal that stopped the demo
+    running: list[GatewayService] = []  # the gateway, once started
+
+    def on_signal(signum: int, _frame: object) -> None:
+        stopped_by.append(signum)
+        interrupted.set()
+        stop_sim.set()
+        for started in running:
+            started.stop_event.set()
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
     scenario = get_scenario(args.scenario)
     pty = PtySink()
     sinks: list[Any] = [pty]
@@ -335,6 +411,7 @@ def run(args: argparse.Namespace) -> int:
         outputs = [foxglove[0]] if foxglove is not None else []
         service = GatewayService(config, config_tables=tables, sinks=outputs)
         service.start()
+        running.append(service)
     except ConfigError as exc:
         pty.close()
         print(format_problems(exc), file=sys.stderr)
@@ -350,6 +427,13 @@ def run(args: argparse.Namespace) -> int:
         hint = " (or --no-foxglove)" if "foxglove" in str(exc) else ""
         print(f"dpgw demo: {exc}{hint}", file=sys.stderr)
         return 2
+    if stopped_by:  # during start-up: nothing ran
+        service.close()
+        pty.close()
+        print(
+            f"dpgw demo: stopped by {stop_name(stopped_by[0])} during start-up; nothing ran", file=sys.stderr
+        )
+        return exit_status(stopped_by[0])
     if foxglove is not None:
         sink, note = foxglove
         for line in connect_lines(sink.url, sink.app_url(), note=note):
@@ -400,12 +484,8 @@ def run(args: argparse.Namespace) -> int:
         service.log.add_metadata(DEMO_METADATA, {"settle_s": f"{SETTLE_S:g}"})
     engage_s = engage_time(args, service.pipeline.observer) if engages_later(args, scenario) else None
     if engage_s is not None:
-        print(
-            f"dpgw demo: the vessel is held on joystick until DP is engaged at {engage_s:.0f} s of sea, once "
-            "the observer has settled (--engage-at)",
-            file=sys.stderr,
-            flush=True,
-        )
+        for line in engagement_lines(args, engage_s):
+            print(f"dpgw demo: {line}", file=sys.stderr, flush=True)
         # until DP is engaged, an operator holds the vessel by joystick on its station, against the load
         station, hold_period_s = scenario.eta0, HOLD_PERIOD_S * froude_scale(scenario)
         scenario = replace(scenario, tau=lambda _: sim.held_tau(station, hold_period_s))
@@ -440,7 +520,9 @@ def run(args: argparse.Namespace) -> int:
         clock,
         period_s=sim.time_tick_s,
         governor=governor,
-        downstream_delay_s=lambda: loop_lag.lag_s(sim.t) / clock.speed,  # as wall time at this speed
+        # as wall time at this speed; none once the demo stops: the gateway reads no more, and waiting for
+        # it held the simulation (and so the stop) for up to `simulator.sim_clock.MAX_WAIT_S`
+        downstream_delay_s=lambda: 0.0 if stop_sim.is_set() else loop_lag.lag_s(sim.t) / clock.speed,
         max_downstream_s=MAX_LOOP_DELAY_S,
     )
     if service.sim_time is not None:
@@ -448,24 +530,27 @@ def run(args: argparse.Namespace) -> int:
         # with this vessel's prefix, reached by scouting) is ignored and alarmed, never followed
         service.sim_time.pin(publisher.run)
     sim_error: list[BaseException] = []
-    # Ctrl-C or SIGTERM: the simulation ends its current second of sea before the gateway closes the
-    # session and the log it writes to (it once went on into the closed session and the stop read as
-    # "the simulator failed"); the summary covers what ran and says it was interrupted.
-    interrupted, stop_sim = threading.Event(), threading.Event()
+    engaged_at: list[float] = []  # the sim second the demo's operator sent dp
+    sim_ended: list[float] = []  # when the simulation stopped (monotonic): the run's own wall time ends
 
     if engage_s is not None:
         sim.start_held()
     pending_engage = math.inf if engage_s is None else engage_s
+    wait_settled = waits_for_settled(args)
 
     def simulate() -> None:
         nonlocal pending_engage
         try:
             while sim.t < args.duration - 1e-9 and not stop_sim.is_set():
-                if sim.t >= pending_engage - 1e-9:
+                due = sim.t >= pending_engage - 1e-9
+                if due and (not wait_settled or service.pipeline.settled):
                     # the operator's "DP" button: an input on /dp/mode as any other, logged and replayed
                     service.submit("mode", "dp")
-                    pending_engage = math.inf
-                sim.run(min(SIM_CHUNK_S, args.duration - sim.t, max(pending_engage - sim.t, 1e-9)))
+                    engaged_at.append(sim.t)
+                    pending_engage, due = math.inf, False
+                step = SETTLED_POLL_S if due else max(pending_engage - sim.t, 1e-9)
+                sim.run(min(SIM_CHUNK_S, args.duration - sim.t, step))
+            sim_ended.append(time.monotonic())
             if not stop_sim.is_set():
                 time.sleep(0.3)  # let the last bytes arrive
         except BaseException as exc:  # reported below, never a silent hang
@@ -473,13 +558,6 @@ def run(args: argparse.Namespace) -> int:
         finally:
             service.stop_event.set()
 
-    def on_signal(*_: object) -> None:
-        interrupted.set()
-        stop_sim.set()
-        service.stop_event.set()
-
-    signal.signal(signal.SIGINT, on_signal)
-    signal.signal(signal.SIGTERM, on_signal)
     thread = threading.Thread(target=simulate, name="dpgw-demo-sim", daemon=True)
     wall0 = time.monotonic()
     thread.start()
@@ -502,7 +580,13 @@ def run(args: argparse.Namespace) -> int:
     if sim_error:
         print(f"dpgw demo: the simulator failed: {sim_error[0]!r}", file=sys.stderr)
         return 1
-    summary = summarise(args, sim, final_status, time.monotonic() - wall0, written or [args.out], engage_s)
+    # the speed is the simulation's own: the gateway's close and the log's footer come after it
+    wall_s = (sim_ended[0] if sim_ended else time.monotonic()) - wall0
+    # the engagement as it happened (by default once the gateway called the estimate settled); as planned
+    # when the run ended before it
+    engage_at = engaged_at[0] if engaged_at else engage_s
+    summary = summarise(args, sim, final_status, wall_s, written or [args.out], engage_at)
+    summary["dp_engaged"] = bool(engaged_at) if engage_s is not None else args.mode == "dp"
     summary["speed"] = {
         "requested": args.speed,
         "final": clock.speed,
@@ -517,11 +601,29 @@ def run(args: argparse.Namespace) -> int:
             "commands_rejected": dict(mav_commands.rejected),
         }
     summary["interrupted"] = interrupted.is_set()
+    summary["stopped_by"] = signal.Signals(stopped_by[0]).name if stopped_by else None
     if args.json:
         print(cli_json.dumps(summary, indent=2))
     else:
         print_summary(summary)
-    return 0
+    return exit_status(stopped_by[0]) if stopped_by else 0
+
+
+def exit_status(signum: int) -> int:
+    """The demo's exit status when ``signum`` stopped it. Ctrl-C: 128 + SIGINT, as `dpgw study` and a
+    shell say a command the user interrupted. SIGTERM (a service manager's stop) ends as `dpgw run` does
+    on it: 0, the log complete."""
+    import signal
+
+    return 130 if signum == signal.SIGINT else 0
+
+
+def stop_name(signum: int) -> str:
+    """How the summary names the signal that stopped the demo: Ctrl-C for SIGINT, else its name."""
+    import signal
+
+    name = signal.Signals(signum).name
+    return STOPPED_BY.get(name, name)
 
 
 def hold_setpoint(scenario: Any) -> dict[str, float]:
@@ -555,6 +657,7 @@ def summarise(
     result: dict[str, Any] = {
         "scenario": sim.scenario.name,
         "sim_seconds": sim.t,
+        "duration_s": args.duration,
         "wall_seconds": wall_s,
         "log": logs[0],
         "logs": logs,
@@ -579,7 +682,11 @@ def summarise(
         te = (np.array([e[0] for e in est]) - t0) / 1e9
         tt = (np.array([t[0] for t in truth]) - t0) / 1e9
         s = score(te, np.array([e[1] for e in est]), tt, np.array([t[1] for t in truth]), settle_s=SETTLE_S)
-        result["error_vs_truth"] = s.as_dict()
+        # the sea scored after the skip (`gateway.scoring.score` keeps it from the first estimate on):
+        # less than `MIN_SCORED_S` is said, not scored
+        result["estimate_scored_s"] = max(0.0, float(te[-1] - te[0]) - SETTLE_S)
+        if result["estimate_scored_s"] >= MIN_SCORED_S:
+            result["error_vs_truth"] = s.as_dict()
         result["settle_s"] = SETTLE_S
         result["station_keeping"] = station_keeping(logs, tt, np.array([t[1] for t in truth]), t0)
     result["fix_stamp_lag_s"] = fix_stamp_lag_s(logs, sim.scenario.dgps[0].source)
@@ -610,7 +717,7 @@ def station_keeping(log: list[str], t_truth: Any, eta_truth: Any, t0_ns: int) ->
     ref = np.array([c[1]["reference"] for c in cmds], dtype=float)
     engaged = float(t_cmd[0])  # (its first command)
     keep = t_cmd >= dp_scored_from(engaged)
-    if keep.sum() < 10:
+    if keep.sum() < 10 or t_cmd[keep][-1] - t_cmd[keep][0] < MIN_SCORED_S:
         return None
     true_at = truth_at(t_cmd[keep], t_truth, eta_truth)
     dist = np.hypot(true_at[:, 0] - ref[keep, 0], true_at[:, 1] - ref[keep, 1])
@@ -671,11 +778,18 @@ def _one_decimal(x: float) -> str:
     return f"{round(x, 1) + 0.0:.1f}"
 
 
+STOPPED_BY = {"SIGINT": "Ctrl-C"}
+"""Signals the summary names otherwise than by their names."""
+
+
 def print_summary(r: dict[str, Any]) -> None:
-    print(
-        f"dpgw demo: {r['scenario']}, {r['sim_seconds']:.0f} s of sea in {r['wall_seconds']:.1f} s; "
-        f"log {' '.join(r['logs'])}"
-    )
+    if r.get("interrupted"):
+        by = STOPPED_BY.get(str(r.get("stopped_by")), str(r.get("stopped_by") or "a signal"))
+        of = f" (of {r['duration_s']:.0f} asked)" if r.get("duration_s") else ""
+        ran = f"stopped by {by} at {r['sim_seconds']:.0f} s of sea{of}, after {r['wall_seconds']:.1f} s"
+    else:
+        ran = f"{r['sim_seconds']:.0f} s of sea in {r['wall_seconds']:.1f} s"
+    print(f"dpgw demo: {r['scenario']}, {ran}; log {' '.join(r['logs'])}")
     print(f"  {'source':12s} {'sent':>8s} {'received':>9s}  rejected")
     for name, c in r["sources"].items():
         rej = ", ".join(f"{k} {v}" for k, v in c["rejected"].items()) or "none"
@@ -695,12 +809,25 @@ def print_summary(r: dict[str, Any]) -> None:
             f"horizontal RMS {e['horizontal_rms_m']:.2f} m, p95 {e['horizontal_p95_m']:.2f} m; "
             f"heading RMS {e['rms_heading_deg']:.2f} deg"
         )
-    elif not math.isfinite((e or {}).get("horizontal_rms_m", 0.0)):
-        print(
-            f"  LF estimate vs truth: not scored: the first {SETTLE_S:.0f} s are left out while the "
-            f"observer settles; give a --duration longer than {SETTLE_S:.0f}, e.g. the default "
+    elif e is None or not math.isfinite(e.get("horizontal_rms_m", 0.0)):
+        scored = r.get("estimate_scored_s") or 0.0
+        todo = (
+            ""
+            if r.get("interrupted")
+            else f"; give --duration {SETTLE_S + MIN_SCORED_S:.0f} or more, e.g. the default "
             f"{DEFAULT_DURATION_S:.0f}"
         )
+        if scored > 0.0:
+            print(
+                f"  LF estimate vs truth: not scored (only {scored:.{1 if scored < 10 else 0}f} s after the "
+                f"{SETTLE_S:.0f} s skip; "
+                f"at least {MIN_SCORED_S:.0f} s are scored){todo}"
+            )
+        else:
+            print(
+                f"  LF estimate vs truth: not scored: the first {SETTLE_S:.0f} s are left out while the "
+                f"observer settles, and at least {MIN_SCORED_S:.0f} s after them are scored{todo}"
+            )
     k = r.get("station_keeping")
     if k:
         share = k.get("wave_band_force_share")
@@ -730,16 +857,22 @@ def print_summary(r: dict[str, Any]) -> None:
     else:
         engage = r.get("engage_at_s")
         scored_from = dp_scored_from(engage)
-        need = math.ceil(scored_from) + 10  # (on at least a few seconds of commands)
         when = f"DP engaged at {engage:.0f} s" if engage is not None else "DP from the start"
-        ended = "before DP was engaged" if engage is not None and r["sim_seconds"] < engage else ""
+        engaged = r.get("dp_engaged", engage is None or r["sim_seconds"] >= engage)
+        ended = "" if engaged else "before DP was engaged"
+        if not engaged and engage is not None and r["sim_seconds"] >= engage + 1.0:
+            # the demo's operator waits for the gateway's "settled" (`waits_for_settled`): an observer that
+            # restarted counts its settle time again
+            ended += " (the gateway did not call the estimate settled)"
+        need = needed_duration_s(engage, planned=not r.get("dp_engaged"))
         todo = f"give --duration {need} or more (default {DEFAULT_DURATION_S:.0f})"
-        if engage is not None and r["sim_seconds"] > SETTLE_S + 10:
+        if engage is not None and r["sim_seconds"] >= needed_duration_s(0.0):
             todo += ", or --engage-at 0 for DP from the start"
+        how = "stopped" if r.get("interrupted") else "ended"
         print(
-            f"  station keeping: not scored: the run ended at {r['sim_seconds']:.0f} s{' ' if ended else ''}"
-            f"{ended}; with {when} it is scored from {scored_from:.0f} s; "
-            f"{todo}"
+            f"  station keeping: not scored: the run {how} at {r['sim_seconds']:.0f} s{' ' if ended else ''}"
+            f"{ended}; with {when} it is scored from {scored_from:.0f} s, on at least "
+            f"{MIN_SCORED_S:.0f} s" + ("" if r.get("interrupted") else f"; {todo}")
         )
     lag = r.get("fix_stamp_lag_s")
     if lag is not None:

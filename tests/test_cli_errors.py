@@ -399,7 +399,7 @@ def test_tune_json_is_standard_json() -> None:
 
 
 def test_demo_too_short_to_score_says_how_long_to_run(capsys: pytest.CaptureFixture[str]) -> None:
-    from dpgw.cli_demo import SETTLE_S, print_summary
+    from dpgw.cli_demo import MIN_SCORED_S, SETTLE_S, print_summary
 
     nan = math.nan
     print_summary(
@@ -416,13 +416,13 @@ def test_demo_too_short_to_score_says_how_long_to_run(capsys: pytest.CaptureFixt
         }
     )  # fmt: skip
     out = capsys.readouterr().out
-    assert f"give a --duration longer than {SETTLE_S:.0f}" in out
+    assert f"give --duration {SETTLE_S + MIN_SCORED_S:.0f} or more" in out
     assert "-0.0" not in out and "(0.0 m N, 0.0 m E, 45.0 deg)" in out
 
 
 def test_demo_ended_before_dp_was_engaged_says_what_to_do(capsys: pytest.CaptureFixture[str]) -> None:
-    """A demo shorter than its engage time (150 s, then 30 s before scoring) has no station keeping to
-    score: the summary says why and how to get one, instead of leaving the line out."""
+    """A demo shorter than its engage time (150 s, then 30 s before scoring, on at least 30 s) has no
+    station keeping to score: the summary says why and how to get one, instead of leaving the line out."""
     from dpgw.cli_demo import print_summary
 
     print_summary(
@@ -437,7 +437,8 @@ def test_demo_ended_before_dp_was_engaged_says_what_to_do(capsys: pytest.Capture
     )  # fmt: skip
     out = capsys.readouterr().out
     assert "station keeping: not scored: the run ended at 120 s before DP was engaged" in out
-    assert "scored from 180 s; give --duration 190 or more" in out and "--engage-at 0" in out
+    assert "scored from 180 s, on at least 30 s; give --duration 211 or more" in out
+    assert "--engage-at 0" in out
 
 
 def test_demo_of_60_s_advises_only_what_would_score(capsys: pytest.CaptureFixture[str]) -> None:
@@ -457,7 +458,7 @@ def test_demo_of_60_s_advises_only_what_would_score(capsys: pytest.CaptureFixtur
         }
     )  # fmt: skip
     out = capsys.readouterr().out
-    assert "--engage-at 0" not in out and "give --duration 190 or more" in out
+    assert "--engage-at 0" not in out and "give --duration 211 or more" in out
     assert out.index("LF estimate vs truth: not scored") < out.index("station keeping: not scored")
 
 

@@ -76,7 +76,10 @@ def test_the_demo_engages_dp_bumplessly_after_the_observer_settled(tmp_path: Pat
     # 1.5 time constants of the passive observer's slowest mode on this scenario (~96 s)
     engage = summary["engage_at_s"]
     assert 130.0 <= engage <= 160.0
-    assert "held on joystick until DP is engaged at" in proc.stderr
+    assert "held on joystick until DP is engaged, once the observer has settled" in proc.stderr
+    # engaged once the gateway calls the estimate settled: not "before the observer settled" (said in
+    # every default demo when it engaged at the settle time rounded up, counted from t = 0)
+    assert "before the observer settled" not in proc.stderr
     # the first DP command follows the operator's `dp` within a control step or two
     assert engage <= keeping["dp_engaged_s"] <= engage + 1.0
     assert keeping["scored_from_s"] >= engage + 30.0

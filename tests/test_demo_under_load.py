@@ -91,8 +91,9 @@ def test_the_demo_under_two_cpu_hogs_keeps_one_time_base_and_station(tmp_path: P
 def test_a_demo_stopped_with_ctrl_c_ends_cleanly_and_says_it_was_interrupted(tmp_path: Path) -> None:
     """Ctrl-C during `dpgw demo`: the simulation ends its current second of sea before the gateway
     closes the Zenoh session and the log, so the stop is not reported as a failure of the simulator (it
-    was: the simulation went on into the closed session), the exit status is 0, the JSON summary covers
-    what ran and says it was interrupted, and the log is complete (its summary section readable)."""
+    was: the simulation went on into the closed session), the exit status is 130 (as `dpgw study`'s: it
+    was 0), the JSON summary covers what ran and says it was interrupted, by Ctrl-C, and the log is
+    complete (its summary section readable)."""
     from mcap.reader import make_reader
 
     out = tmp_path / "stopped.mcap"
@@ -113,10 +114,10 @@ def test_a_demo_stopped_with_ctrl_c_ends_cleanly_and_says_it_was_interrupted(tmp
         if proc.poll() is None:
             proc.kill()
             proc.communicate()
-    assert proc.returncode == 0, stderr
+    assert proc.returncode == 130, stderr
     assert "failed" not in stderr, stderr
     summary = json.loads(stdout)
-    assert summary["interrupted"] is True
+    assert summary["interrupted"] is True and summary["stopped_by"] == "SIGINT"
     assert 0 < summary["sim_seconds"] < 3600
     with out.open("rb") as f:
         stats = make_reader(f).get_summary()

@@ -1,0 +1,221 @@
+"""`dpgw demo` says what it will do and what it did: DP engaged only once the gateway itself calls the
+estimate settled (no "before the observer settled" in a default demo), a duration too short to engage DP
+said at the start, and Ctrl-C said in the summary and the exit status, stopped at once, its speed its own
+and its estimate not scored on a few seconds.
+
+Real demos (simulator, pty, UDP, Zenoh, MCAP) run in this process, as tests/test_demo_stop.py runs them, so
+that the observer's settle time can be shortened (`PassiveObserver.settle_time_s`, ~145 s on the default
+scenario: 9.95 s here, a fraction like the real one's, so that engaging at the rounded-up second comes
+before the gateway's settle clock, which starts at the first estimate, has run out) and the demo stopped
+by its own SIGINT handler."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+from conftest import wait_for
+
+from dpgw import cli_demo
+from dpgw.cli import build_parser
+from gateway.service import GatewayService
+from observers.passive import PassiveObserver
+from simulator.runner import Simulation
+from wire.mcap.reader import log_files, read_messages
+
+SETTLE_S = 9.95
+"""The observer's settle time in these tests (s)."""
+CLOSE_S = 1.0
+"""How long the gateway's close is made to take in the Ctrl-C test (s)."""
+EARLY = "before the observer settled"
+"""What the gateway says of a dp engaged on an estimate not yet settled (`Pipeline._mode_commanded`)."""
+
+
+def run_demo(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    argv: list[str],
+    operator: Callable[[list[Simulation]], None] | None = None,
+) -> tuple[int, dict[str, Any], str, Path]:
+    """``dpgw demo ARGV --json`` in this process with the short settle time; ``operator`` runs in a thread
+    beside it, given the demo's simulation once it exists. Returns the exit status, the JSON summary, what
+    it said on stderr and its log."""
+    monkeypatch.setattr(PassiveObserver, "settle_time_s", property(lambda _self: SETTLE_S))
+    sims: list[Simulation] = []
+    real_run = Simulation.run
+
+    def watched_run(self: Simulation, *a: Any, **k: Any) -> Any:
+        if not sims:
+            sims.append(self)
+        return real_run(self, *a, **k)
+
+    monkeypatch.setattr(Simulation, "run", watched_run)
+    out = tmp_path / "demo.mcap"
+    args = build_parser().parse_args(
+        ["demo", *argv, "--out", str(out), "--json", "--no-scouting", "--no-foxglove"]
+    )
+    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    thread = threading.Thread(target=operator, args=(sims,), daemon=True) if operator else None
+    if thread is not None:
+        thread.start()
+    try:
+        code = cli_demo.run(args)
+    finally:
+        for s, h in handlers.items():
+            signal.signal(s, h)
+        if thread is not None:
+            thread.join(30)
+    captured = capsys.readouterr()
+    return code, json.loads(captured.out) if captured.out else {}, captured.err, out
+
+
+def said(out: Path, words: str) -> bool:
+    """Whether any message of the log (status events, /dp/log lines) has ``words``."""
+    return any(words in json.dumps(p) for _, _, _, p in read_messages(log_files(out)))
+
+
+@pytest.mark.slow  # two demos of 14 s of sea at 10x, with start-up: ~15 s
+def test_a_default_demo_engages_dp_once_the_gateway_calls_the_estimate_settled(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """The gateway's settle clock starts at its first estimate (~0.3 s of sea); engaged at the settle
+    time rounded up (10 s), it said "DP engaged by the operator before the observer settled" in every
+    demo. Engaged when the gateway calls the estimate settled, it says nothing of the kind, and DP runs;
+    an --engage-at before the settle time still gets the gateway's warning."""
+    code, summary, err, out = run_demo(tmp_path, monkeypatch, capsys, ["--duration", "14", "--speed", "10"])
+    assert code == 0, err
+    assert EARLY not in caplog.text and not said(out, EARLY)
+    assert "once the observer has settled, 10 s after its first estimate" in err
+    # DP engaged: the operator's dp logged once, after the settle time, and the controller commanding
+    assert [p["mode"] for _, _, _, p in read_messages(out, "/dp/mode")] == ["dp"]
+    engaged = summary["engage_at_s"]
+    assert SETTLE_S < engaged < SETTLE_S + 1.5
+    truth0 = next(p["stamp_ns"] for _, _, _, p in read_messages(out, "/truth/state"))
+    commands = [(p["stamp_ns"] - truth0) / 1e9 for _, _, _, p in read_messages(out, "/dp/thrusters/command")]
+    assert len(commands) > 20 and engaged <= commands[0] <= engaged + 1.0
+    # and the gateway had called its estimate settled by then
+    settled_at = next(
+        (p["stamp_ns"] - truth0) / 1e9
+        for _, _, _, p in read_messages(out, "/dp/estimate")
+        if p.get("settled")
+    )
+    assert settled_at <= commands[0]
+
+    caplog.clear()
+    code, summary, err, out = run_demo(
+        tmp_path / "early", monkeypatch, capsys, ["--duration", "8", "--speed", "10", "--engage-at", "5"]
+    )
+    assert code == 0, err
+    assert said(out, EARLY)  # a real early engagement is still said
+    assert summary["engage_at_s"] == pytest.approx(5.0, abs=0.05)
+
+
+@pytest.mark.slow  # 5 s of sea at 10x, with start-up: ~5 s
+def test_a_demo_too_short_to_engage_dp_says_so_at_the_start(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`dpgw demo --duration 120` announced "held on joystick until DP is engaged at 145 s"; only the end
+    summary said DP never was. At the start now: one line that DP will not be engaged, station keeping
+    will not be scored, and the duration that does both."""
+    code, summary, err, out = run_demo(tmp_path, monkeypatch, capsys, ["--duration", "5", "--speed", "10"])
+    assert code == 0, err
+    lines = [line for line in err.splitlines() if "engaged" in line]
+    assert len(lines) == 1, err
+    assert lines[0].startswith("dpgw demo: with --duration 5, DP will not be engaged")
+    need = cli_demo.needed_duration_s(SETTLE_S)
+    assert "station keeping will not be scored" in lines[0] and f"give --duration {need} or more" in lines[0]
+    assert list(read_messages(out, "/dp/mode")) == [] and summary["station_keeping"] is None
+
+
+@pytest.mark.slow  # 64 s of sea at 10x and 4 s at 1x, with start-ups: ~20 s
+def test_ctrl_c_is_said_exits_130_at_once_and_scores_only_enough_sea(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Ctrl-C during a demo: the summary and --json say it was stopped by Ctrl-C, at how much sea; the
+    exit status is 130 (as `dpgw study`'s); the estimate, 4 s of it after the 60 s skip, is "not scored"
+    rather than given a figure on those seconds."""
+    stopped: list[float] = []
+
+    def ctrl_c_at(sea_s: float) -> Callable[[list[Simulation]], None]:
+        def operator(sims: list[Simulation]) -> None:
+            try:
+                wait_for(lambda: sims and sims[0].t >= sea_s, 300)
+            finally:
+                stopped.append(time.monotonic())
+                os.kill(os.getpid(), signal.SIGINT)
+
+        return operator
+
+    code, summary, err, out = run_demo(
+        tmp_path, monkeypatch, capsys, ["--duration", "360", "--speed", "10"], ctrl_c_at(64.0)
+    )
+    assert code == 130, err
+    assert summary["interrupted"] is True and summary["stopped_by"] == "SIGINT"
+    assert 64.0 <= summary["sim_seconds"] < 67.0
+    assert summary.get("error_vs_truth") is None
+    assert 0.0 < summary["estimate_scored_s"] < cli_demo.MIN_SCORED_S
+    cli_demo.print_summary(summary)
+    text = capsys.readouterr().out
+    assert f"stopped by Ctrl-C at {summary['sim_seconds']:.0f} s of sea (of 360 asked)" in text
+    assert "LF estimate vs truth: not scored (only " in text and "after the 60 s skip" in text
+    assert out.exists()
+
+    # At 1x the simulation is in the middle of its second of sea when Ctrl-C comes, and it paused there
+    # for the gateway, which reads no more: the demo hung ~5 s, and counted them as run time. The close
+    # made slow here (a second: a long log's index and footer) is not run time either.
+    stopped.clear()
+    close = GatewayService.close
+
+    def slow_close(self: GatewayService) -> None:
+        time.sleep(CLOSE_S)
+        close(self)
+
+    monkeypatch.setattr(GatewayService, "close", slow_close)
+    t0 = time.monotonic()
+    code, summary, err, out = run_demo(
+        tmp_path / "slow", monkeypatch, capsys, ["--duration", "360", "--speed", "1"], ctrl_c_at(3.5)
+    )
+    took = time.monotonic() - stopped[0] - CLOSE_S
+    assert code == 130, err
+    assert took < 2.0, f"{took:.1f} s from Ctrl-C to the end (started {stopped[0] - t0:.1f} s in)"
+    # at 1x a second of sea takes a second: the wall time is the simulation's, not the stop's
+    sp = summary["speed"]
+    assert abs(summary["wall_seconds"] - sp["paused_s"] - summary["sim_seconds"]) < CLOSE_S / 2, summary
+
+
+@pytest.mark.slow  # a demo's start-up: ~3 s
+def test_ctrl_c_during_start_up_stops_the_demo_with_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Ctrl-C while the gateway starts (its kernels compile for ~15 s on a first run) met Python's default:
+    a KeyboardInterrupt traceback from inside the compiler. The demo takes it from its first instant:
+    start-up finishes, nothing runs, one line says so, and the exit status is 130."""
+    start = GatewayService.start
+
+    def interrupted_start(self: GatewayService) -> None:
+        os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C, as the gateway starts
+        start(self)
+
+    def not_the_demos(_signum: int, _frame: object) -> None:
+        raise AssertionError("Ctrl-C during start-up met no handler of the demo's")
+
+    monkeypatch.setattr(GatewayService, "start", interrupted_start)
+    before = signal.signal(signal.SIGINT, not_the_demos)
+    try:
+        code, summary, err, _ = run_demo(tmp_path, monkeypatch, capsys, ["--duration", "60"])
+    finally:
+        signal.signal(signal.SIGINT, before)
+    assert code == 130, err
+    assert err.strip().splitlines()[-1] == "dpgw demo: stopped by Ctrl-C during start-up; nothing ran", err
+    assert "Traceback" not in err and summary == {}
