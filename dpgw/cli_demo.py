@@ -587,6 +587,7 @@ def run(args: argparse.Namespace) -> int:
     engage_at = engaged_at[0] if engaged_at else engage_s
     summary = summarise(args, sim, final_status, wall_s, written or [args.out], engage_at)
     summary["dp_engaged"] = bool(engaged_at) if engage_s is not None else args.mode == "dp"
+    summary["engage_at_given"] = args.engage_at is not None  # (else: once the gateway called it settled)
     summary["speed"] = {
         "requested": args.speed,
         "final": clock.speed,
@@ -832,10 +833,12 @@ def print_summary(r: dict[str, Any]) -> None:
     if k:
         share = k.get("wave_band_force_share")
         if r.get("engage_at_s") is not None:
-            print(
-                f"  DP engaged at {k['dp_engaged_s']:.0f} s (held on joystick until then, while the "
-                "observer's bias estimate settled)"
+            why = (
+                "at the time --engage-at gave"
+                if r.get("engage_at_given")
+                else "while the observer's bias estimate settled"
             )
+            print(f"  DP engaged at {k['dp_engaged_s']:.0f} s (held on joystick until then, {why})")
         print(
             f"  station keeping (true position vs the reference, after {k['scored_from_s']:.0f} s): p95 "
             f"{k['position_p95_m']:.2f} m, heading p95 {k['heading_p95_deg']:.2f} deg"
@@ -877,8 +880,9 @@ def print_summary(r: dict[str, Any]) -> None:
     lag = r.get("fix_stamp_lag_s")
     if lag is not None:
         print(
-            f"  time base: fixes stamped {1000 * lag['median']:.0f} ms after their own time (p99 "
-            f"{1000 * lag['p99']:.0f} ms, largest {1000 * lag['max']:.0f} ms: the receiver's latency)"
+            f"  time base: fixes stamped {1000 * lag['median']:.0f} ms after their own time (the median: "
+            f"the receiver's latency; p99 {1000 * lag['p99']:.0f} ms, largest {1000 * lag['max']:.0f} ms: "
+            "with the delivery on this machine)"
         )
     sp = r.get("speed")
     if sp and sp["final"] != sp["requested"]:

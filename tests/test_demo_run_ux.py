@@ -100,7 +100,7 @@ def test_a_default_demo_engages_dp_once_the_gateway_calls_the_estimate_settled(
     # DP engaged: the operator's dp logged once, after the settle time, and the controller commanding
     assert [p["mode"] for _, _, _, p in read_messages(out, "/dp/mode")] == ["dp"]
     engaged = summary["engage_at_s"]
-    assert SETTLE_S < engaged < SETTLE_S + 1.5
+    assert SETTLE_S < engaged < SETTLE_S + 1.5 and summary["engage_at_given"] is False
     truth0 = next(p["stamp_ns"] for _, _, _, p in read_messages(out, "/truth/state"))
     commands = [(p["stamp_ns"] - truth0) / 1e9 for _, _, _, p in read_messages(out, "/dp/thrusters/command")]
     assert len(commands) > 20 and engaged <= commands[0] <= engaged + 1.0
@@ -119,6 +119,7 @@ def test_a_default_demo_engages_dp_once_the_gateway_calls_the_estimate_settled(
     assert code == 0, err
     assert said(out, EARLY)  # a real early engagement is still said
     assert summary["engage_at_s"] == pytest.approx(5.0, abs=0.05)
+    assert summary["engage_at_given"] is True  # (the text: "at the time --engage-at gave", not "settled")
 
 
 @pytest.mark.slow  # 5 s of sea at 10x, with start-up: ~5 s
