@@ -194,3 +194,91 @@ def test_any_input_is_taken_or_counted_never_raised(key: str, payload: Any) -> N
     c = p.status(T0).payload["commands"]
     assert sum(c["accepted"].values()) + sum(c["refused"].values()) <= 1
     assert np.all(np.isfinite(p.manual_tau))
+
+
+def moving_fix(t_s: float, north: float, rng: np.random.Generator) -> bytes:
+    """A GGA + HDT at ``t_s`` s into the run (its UTC time advancing, so nothing is frozen), ``north`` m from
+    the datum, with a few cm / a twentieth of a degree of noise."""
+    from datetime import UTC, datetime, timedelta
+
+    lat, lon, _ = LocalFrame(*DATUM).to_geodetic(north + rng.normal(0, 0.02), rng.normal(0, 0.02), 0.0)
+    when = datetime(2026, 1, 1, 12, tzinfo=UTC) + timedelta(seconds=t_s)
+    gga = enc.gga("GP", when, lat, lon, 2, 12, 0.8, 20.0)
+    return (gga + enc.hdt("HE", 0.5 + rng.normal(0, 0.001))).encode()
+
+
+def test_a_setpoint_given_before_dp_is_checked_again_when_dp_engages() -> None:
+    """A setpoint given in standby was near when given; the vessel was then moved 200 m (by its crew, in
+    standby). Engaging DP must not send it back 180 m on a setpoint beyond max_setpoint_distance_m of where
+    it is now: DP holds the present position, and the refusal says why."""
+    rng = np.random.default_rng(0)
+    p = pipeline({"accept": ALL})
+    t = 0.0
+    while t < 3.0:
+        p.feed(RawEvent(T0 + round(t * S), "gps", moving_fix(t, 0.0, rng)))
+        t += 0.1
+    p.feed(ControlEvent(T0 + round(t * S), "setpoint", {"north_m": 20.0, "east_m": 0.0, "heading_deg": 30.0}))
+    while t < 233.0:  # 1 m/s north for 200 s, then still
+        p.feed(RawEvent(T0 + round(t * S), "gps", moving_fix(t, min(max(t - 3.0, 0.0), 200.0), rng)))
+        t += 0.1
+    assert commands_status(p)["accepted"] == {"setpoint": 1}  # (taken when it was near)
+    assert p.estimate_status == "ok"
+    p.feed(ControlEvent(T0 + round(t * S), "mode", "dp"))
+    out = []
+    while t < 243.0:
+        out += p.feed(RawEvent(T0 + round(t * S), "gps", moving_fix(t, 200.0, rng)))
+        t += 0.1
+    assert p.mode == "dp"
+    refs = [o.payload["reference"] for o in out if o.topic == "/dp/thrusters/command"]
+    assert refs and min(r[0] for r in refs) > 195.0, "DP must hold where the vessel is, not go to north 20"
+    assert p.controller is not None and abs(float(p.controller.reference.target[0]) - 200.0) < 5.0
+    c = commands_status(p)
+    assert c["refused"] == {"setpoint: too far": 1}
+    assert re.search(r"on entering dp: 1\d\d\.\d m from the present position", c["last_refused"]), c
+    assert p.setpoint is None
+
+
+def test_entering_manual_starts_from_no_thrust_not_an_old_tau() -> None:
+    """A τ given in an earlier manual spell (or while in dp or standby) is not what the operator means on
+    taking manual again: manual starts from τ = 0 until the next τ."""
+    p = pipeline({"accept": ALL})
+    run(p, 2.0)
+    p.feed(ControlEvent(T0 + 2 * S, "mode", "manual"))
+    p.feed(ControlEvent(T0 + 2 * S, "tau", {"X": 1e5, "Y": 0.0, "N": 0.0}))
+    out = run(p, 1.0, 2.1)
+    assert [o.payload["tau_demand"][0] for o in out if o.topic == "/dp/thrusters/command"][-1] == 1e5
+    p.feed(ControlEvent(T0 + 3 * S, "mode", "standby"))
+    run(p, 1.0, 3.1)
+    p.feed(ControlEvent(T0 + 4 * S, "mode", "manual"))
+    out = run(p, 1.0, 4.1)
+    taus = [o.payload["tau_demand"] for o in out if o.topic == "/dp/thrusters/command"]
+    assert taus and all(tau == [0.0, 0.0, 0.0] for tau in taus), taus[:2]
+    p.feed(ControlEvent(T0 + 5 * S, "tau", {"X": 2e4, "Y": 0.0, "N": 0.0}))
+    out = run(p, 1.0, 5.1)
+    assert [o.payload["tau_demand"][0] for o in out if o.topic == "/dp/thrusters/command"][-1] == 2e4
+
+
+def test_dp_is_refused_when_every_source_has_been_silent() -> None:
+    """The last estimate was "ok", but nothing has stepped the observer for a minute (the published
+    estimates are dead-reckoned, then lost): DP is refused, by a rule of the input's time alone (a replay,
+    which has no ticks, refuses it too)."""
+    p = pipeline({"accept": ALL})
+    run(p, 3.0)
+    assert p.estimate_status == "ok"
+    p.feed(ControlEvent(T0 + 63 * S, "mode", "dp"))
+    assert p.mode == "standby"
+    c = commands_status(p)
+    assert c["refused"] == {"mode: estimate not healthy": 1}
+    assert "no estimate step for 60.1 s" in c["last_refused"], c["last_refused"]
+
+
+@pytest.mark.parametrize("key", ["setpoint", "tau"])
+def test_an_integer_too_large_for_a_float_is_refused_not_raised(key: str) -> None:
+    payload = (
+        {"north_m": 10**400, "east_m": 0, "heading_deg": 0}
+        if key == "setpoint"
+        else {"X": 10**400, "Y": 0, "N": 0}
+    )
+    p = pipeline({"accept": ALL})
+    p.feed(ControlEvent(T0, key, payload))  # JSON has integers of any size
+    assert commands_status_now(p) == {f"{key}: not finite": 1}
