@@ -453,7 +453,7 @@ class GatewayService:
         def handler(sample: zenoh.Sample) -> None:
             try:
                 payload = json.loads(sample.payload.to_bytes())
-            except ValueError:
+            except (ValueError, RecursionError):  # (nested deeper than the parser goes: RecursionError)
                 payload = {"invalid": sample.payload.to_bytes().decode("utf-8", "replace")}
             self._enqueue(_Input(key, payload, time.time_ns(), time.monotonic_ns()))
 

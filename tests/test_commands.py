@@ -282,3 +282,48 @@ def test_an_integer_too_large_for_a_float_is_refused_not_raised(key: str) -> Non
     p = pipeline({"accept": ALL})
     p.feed(ControlEvent(T0, key, payload))  # JSON has integers of any size
     assert commands_status_now(p) == {f"{key}: not finite": 1}
+
+
+def test_a_json_nested_too_deep_for_the_parser_is_refused_and_logged_over_zenoh(tmp_path: Path) -> None:
+    """``[[[[…`` 100 000 deep makes `json.loads` raise RecursionError, not ValueError: it escaped the Zenoh
+    callback, so the input was neither logged nor counted. It is refused as malformed, like any other."""
+    import json
+    import threading
+
+    from conftest import connect_when_listening, free_port, wait_for
+
+    from gateway.service import GatewayService
+    from wire.mcap.reader import read_messages
+
+    zport = free_port()
+    tables: dict[str, Any] = {
+        "vessel": {"name": "mss_supply"},
+        "datum": {"lat_deg": DATUM[0], "lon_deg": DATUM[1]},
+        "sources": [{"name": "gps", "url": f"udp://127.0.0.1:{free_port(2)}", "protocol": "nmea",
+                     "roles": ["position", "heading"]}],
+        "observer": {"wave_period_s": 8.0},
+        "zenoh": {"listen": [f"tcp/127.0.0.1:{zport}"], "multicast_scouting": False, "prefix": "dp/cmd"},
+        "commands": {"accept": ALL},
+        "log": {"path": str(tmp_path / "c.mcap")},
+    }  # fmt: skip
+    service = GatewayService(parse_config(tables, base_dir=tmp_path), config_tables=tables)
+    service.start()
+    loop = threading.Thread(target=service.run, name="consumer")
+    loop.start()
+    session = None
+    try:
+        session = connect_when_listening(zport, 20.0)
+        session.put("dp/cmd/mode", "[" * 100_000)
+        session.put("dp/cmd/mode", json.dumps("manual"))
+        assert wait_for(lambda: service.pipeline.mode == "manual", 20.0)
+        counters = service.pipeline.commands.counters
+        assert counters.refused == {"mode: invalid": 1}, counters
+    finally:
+        if session is not None:
+            session.close()
+        service.stop_event.set()
+        loop.join(timeout=30)
+        service.drain()
+        service.close()
+    logged = [p for _, _, _, p in read_messages(tmp_path / "c.mcap", "/dp/mode")]
+    assert len(logged) == 2 and logged[0]["invalid"].startswith("[[[[")
