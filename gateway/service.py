@@ -736,7 +736,10 @@ class GatewayService:
         elif self._on_wall:
             self._leave_wall_file()
         if isinstance(item, _Input):
-            body = item.payload if isinstance(item.payload, dict) else {item.key: item.payload}
+            # a mode is a bare JSON string, logged wrapped as {mode}; an object sent as a mode is wrapped
+            # too, or a replay, which unwraps {mode}, would take {"mode": "dp"} that the live refused
+            wrap = item.key == "mode" or not isinstance(item.payload, dict)
+            body = {item.key: item.payload} if wrap else item.payload
             self.log.write(f"/dp/{item.key}", body, rx, rx)
             return True
         spec = self.pipeline.sources.get(item.source)

@@ -3,8 +3,10 @@ estimate and malformed inputs are refused, counted by reason in the status, and 
 
 from __future__ import annotations
 
+import contextlib
 import math
 import re
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -284,16 +286,16 @@ def test_an_integer_too_large_for_a_float_is_refused_not_raised(key: str) -> Non
     assert commands_status_now(p) == {f"{key}: not finite": 1}
 
 
-def test_a_json_nested_too_deep_for_the_parser_is_refused_and_logged_over_zenoh(tmp_path: Path) -> None:
-    """``[[[[…`` 100 000 deep makes `json.loads` raise RecursionError, not ValueError: it escaped the Zenoh
-    callback, so the input was neither logged nor counted. It is refused as malformed, like any other."""
-    import json
+@contextlib.contextmanager
+def live_gateway(tmp_path: Path) -> Iterator[tuple[Any, Any]]:
+    """A gateway service in this process (its consumer loop on a thread) taking every command input on
+    Zenoh prefix ``dp/cmd`` over loopback TCP, logging to ``tmp_path / "c.mcap"``; yields (service, a
+    Zenoh session connected to it). Stopped, drained and its log closed on exit."""
     import threading
 
-    from conftest import connect_when_listening, free_port, wait_for
+    from conftest import connect_when_listening, free_port
 
     from gateway.service import GatewayService
-    from wire.mcap.reader import read_messages
 
     zport = free_port()
     tables: dict[str, Any] = {
@@ -313,11 +315,7 @@ def test_a_json_nested_too_deep_for_the_parser_is_refused_and_logged_over_zenoh(
     session = None
     try:
         session = connect_when_listening(zport, 20.0)
-        session.put("dp/cmd/mode", "[" * 100_000)
-        session.put("dp/cmd/mode", json.dumps("manual"))
-        assert wait_for(lambda: service.pipeline.mode == "manual", 20.0)
-        counters = service.pipeline.commands.counters
-        assert counters.refused == {"mode: invalid": 1}, counters
+        yield service, session
     finally:
         if session is not None:
             session.close()
@@ -325,5 +323,46 @@ def test_a_json_nested_too_deep_for_the_parser_is_refused_and_logged_over_zenoh(
         loop.join(timeout=30)
         service.drain()
         service.close()
+
+
+def test_a_json_nested_too_deep_for_the_parser_is_refused_and_logged_over_zenoh(tmp_path: Path) -> None:
+    """``[[[[…`` 100 000 deep makes `json.loads` raise RecursionError, not ValueError: it escaped the Zenoh
+    callback, so the input was neither logged nor counted. It is refused as malformed, like any other."""
+    import json
+
+    from conftest import wait_for
+
+    from wire.mcap.reader import read_messages
+
+    with live_gateway(tmp_path) as (service, session):
+        session.put("dp/cmd/mode", "[" * 100_000)
+        session.put("dp/cmd/mode", json.dumps("manual"))
+        assert wait_for(lambda: service.pipeline.mode == "manual", 20.0)
+        counters = service.pipeline.commands.counters
+        assert counters.refused == {"mode: invalid": 1}, counters
     logged = [p for _, _, _, p in read_messages(tmp_path / "c.mcap", "/dp/mode")]
-    assert len(logged) == 2 and logged[0]["invalid"].startswith("[[[[")
+    assert len(logged) == 2 and logged[0]["mode"]["invalid"].startswith("[[[[")
+
+
+def test_a_replay_refuses_the_mode_inputs_the_live_gateway_refused(tmp_path: Path) -> None:
+    """A mode is a bare JSON string; ``{"mode": "manual"}`` (an object) is refused live. It was logged as
+    it came, which is also the log's wrapping of a good mode (``{mode}``), so a replay unwrapped it and
+    took it: the replay's pipeline went to manual where the live one had refused."""
+    import json
+
+    from conftest import wait_for
+
+    from gateway.replay import mcap_events
+
+    with live_gateway(tmp_path) as (service, session):
+        session.put("dp/cmd/mode", json.dumps({"mode": "manual"}))
+        session.put("dp/cmd/tau", json.dumps({"X": 1.0, "Y": 0.0, "N": 0.0}))
+        assert wait_for(lambda: service.pipeline.commands.counters.accepted["tau"] == 1, 20.0)
+        live = service.pipeline.commands.counters
+        assert live.refused == {"mode: invalid": 1} and service.pipeline.mode == "standby"
+    p = pipeline({"accept": ALL})
+    for ev in mcap_events(tmp_path / "c.mcap"):
+        if isinstance(ev, ControlEvent):
+            p.feed(ev)
+    assert p.mode == "standby"
+    assert dict(p.commands.counters.refused) == {"mode: invalid": 1}
