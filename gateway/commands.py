@@ -9,7 +9,9 @@ kept as text for the log when:
   heading out of range;
 * a setpoint lies farther than ``max_setpoint_distance_m`` from the present position estimate (a typo
   in a coordinate, or a hostile peer, would otherwise send the vessel kilometres away at full thrust);
-  a setpoint given before there is an estimate waits for the first one and is checked then; one taken
+  a setpoint given before there is an estimate, or while it is not healthy enough for dp (below), waits
+  for one that is and is checked then (a dead-reckoned or lost position is nothing to measure from); one
+  taken
   outside dp (held for when dp is entered) is checked again when dp is entered, against the estimate of
   that moment: the vessel may have been moved far in standby or manual since, and dp then holds the
   present position;

@@ -1672,7 +1672,9 @@ class Pipeline:
                 self.setpoint = None
             ctl.set_mode(self.mode, tau_now=tau_now)
         pending = self._pending_setpoint
-        if pending is not None:
+        # (a setpoint waits, as one before the first estimate does, while the estimate is not healthy
+        # enough for dp: a dead-reckoned or lost position is nothing to check its distance against)
+        if pending is not None and self.estimate_status in HEALTHY_FOR_DP:
             target = self._setpoint_ned(pending)
             if target is not None:
                 self._pending_setpoint = None

@@ -46,18 +46,25 @@ def pipeline(commands: dict[str, Any] | None = None, initial_mode: str = "standb
     return Pipeline(PipelineSpec.from_config(parse_config(tables, base_dir=Path.cwd())))
 
 
-def fix(north: float = 0.0, east: float = 0.0) -> bytes:
-    from datetime import UTC, datetime
+def moving_fix(t_s: float, north: float, rng: np.random.Generator) -> bytes:
+    """A GGA + HDT at ``t_s`` s into the run (its UTC time advancing, so nothing is frozen), ``north`` m from
+    the datum, with a few cm / a twentieth of a degree of noise."""
+    from datetime import UTC, datetime, timedelta
 
-    lat, lon, _ = LocalFrame(*DATUM).to_geodetic(north, east, 0.0)
-    gga = enc.gga("GP", datetime(2026, 1, 1, 12, tzinfo=UTC), lat, lon, 2, 12, 0.8, 20.0)
-    return (gga + enc.hdt("HE", 0.5)).encode()
+    lat, lon, _ = LocalFrame(*DATUM).to_geodetic(north + rng.normal(0, 0.02), rng.normal(0, 0.02), 0.0)
+    when = datetime(2026, 1, 1, 12, tzinfo=UTC) + timedelta(seconds=t_s)
+    gga = enc.gga("GP", when, lat, lon, 2, 12, 0.8, 20.0)
+    return (gga + enc.hdt("HE", 0.5 + rng.normal(0, 0.001))).encode()
 
 
 def run(p: Pipeline, seconds: float, start_s: float = 0.0) -> list[Any]:
+    """Fixes at the datum at 10 Hz from ``start_s``, live-like (`moving_fix`: the same sentence over and over
+    is a frozen receiver after a few seconds, and the estimate then no longer healthy)."""
+    rng = np.random.default_rng(round(start_s * 10))
     out = []
     for k in range(int(seconds * 10)):
-        out += p.feed(RawEvent(T0 + int((start_s + k / 10) * S), "gps", fix()))
+        t = start_s + k / 10
+        out += p.feed(RawEvent(T0 + int(t * S), "gps", moving_fix(t, 0.0, rng)))
     return out
 
 
@@ -196,17 +203,6 @@ def test_any_input_is_taken_or_counted_never_raised(key: str, payload: Any) -> N
     c = p.status(T0).payload["commands"]
     assert sum(c["accepted"].values()) + sum(c["refused"].values()) <= 1
     assert np.all(np.isfinite(p.manual_tau))
-
-
-def moving_fix(t_s: float, north: float, rng: np.random.Generator) -> bytes:
-    """A GGA + HDT at ``t_s`` s into the run (its UTC time advancing, so nothing is frozen), ``north`` m from
-    the datum, with a few cm / a twentieth of a degree of noise."""
-    from datetime import UTC, datetime, timedelta
-
-    lat, lon, _ = LocalFrame(*DATUM).to_geodetic(north + rng.normal(0, 0.02), rng.normal(0, 0.02), 0.0)
-    when = datetime(2026, 1, 1, 12, tzinfo=UTC) + timedelta(seconds=t_s)
-    gga = enc.gga("GP", when, lat, lon, 2, 12, 0.8, 20.0)
-    return (gga + enc.hdt("HE", 0.5 + rng.normal(0, 0.001))).encode()
 
 
 def test_a_setpoint_given_before_dp_is_checked_again_when_dp_engages() -> None:
@@ -366,3 +362,33 @@ def test_a_replay_refuses_the_mode_inputs_the_live_gateway_refused(tmp_path: Pat
             p.feed(ev)
     assert p.mode == "standby"
     assert dict(p.commands.counters.refused) == {"mode: invalid": 1}
+
+
+def test_a_setpoint_waits_while_the_position_estimate_is_lost() -> None:
+    """No position fix for 75 s (the heading still comes): the estimate is "lost", its position a dead
+    reckoning nobody can check a setpoint's distance against. A setpoint then is not pursued from it; it
+    waits, as one before the first estimate does, for an estimate healthy enough for dp, and is checked
+    against that."""
+    rng = np.random.default_rng(1)
+    p = pipeline({"accept": ALL}, initial_mode="dp")
+    t = 0.0
+    while t < 5.0:
+        p.feed(RawEvent(T0 + round(t * S), "gps", moving_fix(t, 0.0, rng)))
+        t += 0.1
+    while t < 80.0:  # the heading alone
+        p.feed(RawEvent(T0 + round(t * S), "gps", enc.hdt("HE", 0.5 + rng.normal(0, 0.001)).encode()))
+        t += 0.1
+    assert p.estimate_status == "lost"
+    p.feed(ControlEvent(T0 + round(t * S), "setpoint", {"north_m": 30.0, "east_m": 0.0, "heading_deg": 30.0}))
+    for _ in range(20):
+        p.feed(RawEvent(T0 + round(t * S), "gps", enc.hdt("HE", 0.5 + rng.normal(0, 0.001)).encode()))
+        t += 0.1
+    assert p.controller is not None
+    assert abs(float(p.controller.reference.target[0])) < 1.0, "pursued from a lost position estimate"
+    assert commands_status(p)["accepted"] == {}
+    while t < 100.0:  # the fixes are back
+        p.feed(RawEvent(T0 + round(t * S), "gps", moving_fix(t, 0.0, rng)))
+        t += 0.1
+    assert p.estimate_status == "ok"
+    assert commands_status(p)["accepted"] == {"setpoint": 1}
+    assert float(p.controller.reference.target[0]) == 30.0
