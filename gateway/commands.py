@@ -9,13 +9,19 @@ kept as text for the log when:
   heading out of range;
 * a setpoint lies farther than ``max_setpoint_distance_m`` from the present position estimate (a typo
   in a coordinate, or a hostile peer, would otherwise send the vessel kilometres away at full thrust);
-  a setpoint given before there is an estimate waits for the first one and is checked then;
+  a setpoint given before there is an estimate, or while it is not healthy enough for dp (below), waits
+  for one that is and is checked then (a dead-reckoned or lost position is nothing to measure from); one
+  taken
+  outside dp (held for when dp is entered) is checked again when dp is entered, against the estimate of
+  that moment: the vessel may have been moved far in standby or manual since, and dp then holds the
+  present position;
 * a manual τ exceeds, in any degree of freedom, what all thrusters together can give in that degree of
   freedom (the vessel's thruster layout, each at its largest thrust and best angle): such a demand is
   a mistake or an attack, never a wish the allocation could meet;
-* the mode ``dp`` is asked for while the estimate is not healthy (observer not initialised, or its
-  status neither ``ok`` nor ``degraded``). Standby and manual are never refused for health: an operator
-  must always be able to take the thrusters back.
+* the mode ``dp`` is asked for while the estimate is not healthy (observer not initialised, its status
+  neither ``ok`` nor ``degraded``, or no observer step for longer than every source's timeout: every
+  source silent, the estimate dead-reckoned however ``ok`` the last step was). Standby and manual are
+  never refused for health: an operator must always be able to take the thrusters back.
 
 The checks are pure functions of the event and the pipeline's state, so a replay refuses exactly what
 the live run refused.
@@ -104,12 +110,25 @@ class CommandGate:
             )
         return None
 
-    def check_mode(self, payload: Any, initialized: bool, estimate_status: str | None) -> Refusal | None:
+    def check_mode(
+        self, payload: Any, initialized: bool, estimate_status: str | None, silent_s: float | None = None
+    ) -> Refusal | None:
+        """``estimate_status``: of the last estimate an observer step published; ``silent_s``: how long no
+        step has been made when that is longer than every source's timeout (None while one is fresh). The
+        estimates published meanwhile are dead-reckoned (`Pipeline.tick`), so the last step's status no
+        longer describes the estimate; ticks are not replayed, so the refusal is by the input's time."""
         if payload not in MODES:
             return self.refuse("mode", "invalid", f"mode {_show(payload)} is not one of {', '.join(MODES)}")
         if payload == "dp":
             if not initialized or estimate_status is None:
                 return self.refuse("mode", "estimate not healthy", "mode dp refused: no estimate yet")
+            if silent_s is not None:
+                return self.refuse(
+                    "mode",
+                    "estimate not healthy",
+                    f"mode dp refused: no estimate step for {silent_s:.1f} s (every position and heading "
+                    "source silent: the estimate is dead-reckoned)",
+                )
             if estimate_status not in HEALTHY_FOR_DP:
                 return self.refuse(
                     "mode", "estimate not healthy", f"mode dp refused: the estimate is {estimate_status}"
@@ -130,9 +149,10 @@ class CommandGate:
             v = payload.get(k)
             if isinstance(v, bool) or not isinstance(v, int | float):
                 return self.refuse("setpoint", "invalid", f"setpoint {_show(payload)}: {expected}")
-            if not math.isfinite(v):
-                return self.refuse("setpoint", "not finite", f"setpoint {k} = {v!r} is not finite")
-            values[k] = float(v)
+            f = _as_float(v)
+            if f is None:
+                return self.refuse("setpoint", "not finite", f"setpoint {k} = {_show(v)} is not finite")
+            values[k] = f
         limits = {"lat_deg": 90.0, "lon_deg": 180.0, "heading_deg": MAX_HEADING_DEG}
         for k, v in values.items():
             lim = limits.get(k)
@@ -142,14 +162,20 @@ class CommandGate:
                 )
         return None
 
-    def check_setpoint_distance(self, target_ned: np.ndarray, eta: np.ndarray) -> Refusal | None:
+    def check_setpoint_distance(
+        self, target_ned: np.ndarray, eta: np.ndarray, entering_dp: bool = False
+    ) -> Refusal | None:
+        """``entering_dp``: the check again, at the estimate of the moment, of a setpoint taken outside dp
+        and held for it (the vessel may have been moved far since)."""
         d = math.hypot(float(target_ned[0] - eta[0]), float(target_ned[1] - eta[1]))
         if not d <= self.max_setpoint_distance_m:
+            when = " on entering dp" if entering_dp else ""
+            then = "; dp holds the present position" if entering_dp else ""
             return self.refuse(
                 "setpoint",
                 "too far",
-                f"setpoint refused: {d:.1f} m from the present position (commands.max_setpoint_distance_m "
-                f"= {self.max_setpoint_distance_m:g} m)",
+                f"setpoint refused{when}: {d:.1f} m from the present position "
+                f"(commands.max_setpoint_distance_m = {self.max_setpoint_distance_m:g} m){then}",
             )
         return None
 
@@ -164,9 +190,10 @@ class CommandGate:
                 return self.refuse(
                     "tau", "invalid", f"tau {_show(payload)}: expected {{X, Y, N}} in N, N, Nm"
                 )
-            if not math.isfinite(v):
-                return self.refuse("tau", "not finite", f"tau {k} = {v!r} is not finite")
-            tau.append(float(v))
+            f = _as_float(v)
+            if f is None:
+                return self.refuse("tau", "not finite", f"tau {k} = {_show(v)} is not finite")
+            tau.append(f)
         t = np.array(tau)
         if self.capacity is not None:
             over = [i for i in range(3) if abs(t[i]) > self.capacity[i]]
@@ -198,6 +225,17 @@ class CommandGate:
         """The refusals since the last call (at most `REFUSALS_KEPT`), for the caller to log."""
         out, self._refusals = self._refusals, []
         return out
+
+
+def _as_float(v: int | float) -> float | None:
+    """A JSON number as a finite float; None for NaN, ±inf and an integer beyond a float's range (JSON
+    integers have any number of digits: ``float(10**400)`` raises, and the input must be refused, not
+    raise)."""
+    try:
+        f = float(v)
+    except OverflowError:
+        return None
+    return f if math.isfinite(f) else None
 
 
 def _show(value: Any) -> str:

@@ -1268,8 +1268,15 @@ class Pipeline:
         if gate.admit(ev.key, ev.payload) is not None:
             return
         if ev.key == "mode":
-            if gate.check_mode(ev.payload, self.observer.initialized, self.estimate_status) is None:
+            unstepped_ns = ev.rx_ns - self._last_step_ns
+            silent_s = unstepped_ns / NS if self._last_step_ns and unstepped_ns > self._silent_ns else None
+            if gate.check_mode(ev.payload, self.observer.initialized, self.estimate_status, silent_s) is None:
                 self._mode_commanded(ev.payload, ev.rx_ns)
+                if ev.payload == "manual" and self.mode != "manual":
+                    # manual starts from no thrust until the operator's next τ (as the controller's
+                    # manual does): a τ of an earlier manual spell, or one sent in dp or standby, is not
+                    # what the operator means now
+                    self.manual_tau = np.zeros(3)
                 self.mode = ev.payload
                 gate.accepted("mode")
         elif ev.key == "setpoint":
@@ -1744,9 +1751,21 @@ class Pipeline:
             tau_now = self.fusion.tau_demand
             if ctl.mode == "standby":
                 tau_now = self._take_over(now_ns)
+            # a setpoint taken outside dp was checked against the estimate of then: the vessel may have
+            # been moved far since (in standby or manual), so again against the estimate now
+            held = ctl.setpoint
+            if (
+                self.mode == "dp"
+                and held is not None
+                and self.commands.check_setpoint_distance(held, est.eta, entering_dp=True) is not None
+            ):
+                ctl.forget_setpoint()
+                self.setpoint = None
             ctl.set_mode(self.mode, tau_now=tau_now)
         pending = self._pending_setpoint
-        if pending is not None:
+        # (a setpoint waits, as one before the first estimate does, while the estimate is not healthy
+        # enough for dp: a dead-reckoned or lost position is nothing to check its distance against)
+        if pending is not None and self.estimate_status in HEALTHY_FOR_DP:
             target = self._setpoint_ned(pending)
             if target is not None:
                 self._pending_setpoint = None

@@ -453,7 +453,7 @@ class GatewayService:
         def handler(sample: zenoh.Sample) -> None:
             try:
                 payload = json.loads(sample.payload.to_bytes())
-            except ValueError:
+            except (ValueError, RecursionError):  # (nested deeper than the parser goes: RecursionError)
                 payload = {"invalid": sample.payload.to_bytes().decode("utf-8", "replace")}
             self._enqueue(_Input(key, payload, time.time_ns(), time.monotonic_ns()))
 
@@ -736,7 +736,10 @@ class GatewayService:
         elif self._on_wall:
             self._leave_wall_file()
         if isinstance(item, _Input):
-            body = item.payload if isinstance(item.payload, dict) else {item.key: item.payload}
+            # a mode is a bare JSON string, logged wrapped as {mode}; an object sent as a mode is wrapped
+            # too, or a replay, which unwraps {mode}, would take {"mode": "dp"} that the live refused
+            wrap = item.key == "mode" or not isinstance(item.payload, dict)
+            body = {item.key: item.payload} if wrap else item.payload
             self.log.write(f"/dp/{item.key}", body, rx, rx)
             return True
         spec = self.pipeline.sources.get(item.source)

@@ -3,8 +3,10 @@ estimate and malformed inputs are refused, counted by reason in the status, and 
 
 from __future__ import annotations
 
+import contextlib
 import math
 import re
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -44,18 +46,25 @@ def pipeline(commands: dict[str, Any] | None = None, initial_mode: str = "standb
     return Pipeline(PipelineSpec.from_config(parse_config(tables, base_dir=Path.cwd())))
 
 
-def fix(north: float = 0.0, east: float = 0.0) -> bytes:
-    from datetime import UTC, datetime
+def moving_fix(t_s: float, north: float, rng: np.random.Generator) -> bytes:
+    """A GGA + HDT at ``t_s`` s into the run (its UTC time advancing, so nothing is frozen), ``north`` m from
+    the datum, with a few cm / a twentieth of a degree of noise."""
+    from datetime import UTC, datetime, timedelta
 
-    lat, lon, _ = LocalFrame(*DATUM).to_geodetic(north, east, 0.0)
-    gga = enc.gga("GP", datetime(2026, 1, 1, 12, tzinfo=UTC), lat, lon, 2, 12, 0.8, 20.0)
-    return (gga + enc.hdt("HE", 0.5)).encode()
+    lat, lon, _ = LocalFrame(*DATUM).to_geodetic(north + rng.normal(0, 0.02), rng.normal(0, 0.02), 0.0)
+    when = datetime(2026, 1, 1, 12, tzinfo=UTC) + timedelta(seconds=t_s)
+    gga = enc.gga("GP", when, lat, lon, 2, 12, 0.8, 20.0)
+    return (gga + enc.hdt("HE", 0.5 + rng.normal(0, 0.001))).encode()
 
 
 def run(p: Pipeline, seconds: float, start_s: float = 0.0) -> list[Any]:
+    """Fixes at the datum at 10 Hz from ``start_s``, live-like (`moving_fix`: the same sentence over and over
+    is a frozen receiver after a few seconds, and the estimate then no longer healthy)."""
+    rng = np.random.default_rng(round(start_s * 10))
     out = []
     for k in range(int(seconds * 10)):
-        out += p.feed(RawEvent(T0 + int((start_s + k / 10) * S), "gps", fix()))
+        t = start_s + k / 10
+        out += p.feed(RawEvent(T0 + int(t * S), "gps", moving_fix(t, 0.0, rng)))
     return out
 
 
@@ -194,3 +203,192 @@ def test_any_input_is_taken_or_counted_never_raised(key: str, payload: Any) -> N
     c = p.status(T0).payload["commands"]
     assert sum(c["accepted"].values()) + sum(c["refused"].values()) <= 1
     assert np.all(np.isfinite(p.manual_tau))
+
+
+def test_a_setpoint_given_before_dp_is_checked_again_when_dp_engages() -> None:
+    """A setpoint given in standby was near when given; the vessel was then moved 200 m (by its crew, in
+    standby). Engaging DP must not send it back 180 m on a setpoint beyond max_setpoint_distance_m of where
+    it is now: DP holds the present position, and the refusal says why."""
+    rng = np.random.default_rng(0)
+    p = pipeline({"accept": ALL})
+    t = 0.0
+    while t < 3.0:
+        p.feed(RawEvent(T0 + round(t * S), "gps", moving_fix(t, 0.0, rng)))
+        t += 0.1
+    p.feed(ControlEvent(T0 + round(t * S), "setpoint", {"north_m": 20.0, "east_m": 0.0, "heading_deg": 30.0}))
+    while t < 233.0:  # 1 m/s north for 200 s, then still
+        p.feed(RawEvent(T0 + round(t * S), "gps", moving_fix(t, min(max(t - 3.0, 0.0), 200.0), rng)))
+        t += 0.1
+    assert commands_status(p)["accepted"] == {"setpoint": 1}  # (taken when it was near)
+    assert p.estimate_status == "ok"
+    p.feed(ControlEvent(T0 + round(t * S), "mode", "dp"))
+    out = []
+    while t < 243.0:
+        out += p.feed(RawEvent(T0 + round(t * S), "gps", moving_fix(t, 200.0, rng)))
+        t += 0.1
+    assert p.mode == "dp"
+    refs = [o.payload["reference"] for o in out if o.topic == "/dp/thrusters/command"]
+    assert refs and min(r[0] for r in refs) > 195.0, "DP must hold where the vessel is, not go to north 20"
+    assert p.controller is not None and abs(float(p.controller.reference.target[0]) - 200.0) < 5.0
+    c = commands_status(p)
+    assert c["refused"] == {"setpoint: too far": 1}
+    assert re.search(r"on entering dp: 1\d\d\.\d m from the present position", c["last_refused"]), c
+    assert p.setpoint is None
+
+
+def test_entering_manual_starts_from_no_thrust_not_an_old_tau() -> None:
+    """A τ given in an earlier manual spell (or while in dp or standby) is not what the operator means on
+    taking manual again: manual starts from τ = 0 until the next τ."""
+    p = pipeline({"accept": ALL})
+    run(p, 2.0)
+    p.feed(ControlEvent(T0 + 2 * S, "mode", "manual"))
+    p.feed(ControlEvent(T0 + 2 * S, "tau", {"X": 1e5, "Y": 0.0, "N": 0.0}))
+    out = run(p, 1.0, 2.1)
+    assert [o.payload["tau_demand"][0] for o in out if o.topic == "/dp/thrusters/command"][-1] == 1e5
+    p.feed(ControlEvent(T0 + 3 * S, "mode", "standby"))
+    run(p, 1.0, 3.1)
+    p.feed(ControlEvent(T0 + 4 * S, "mode", "manual"))
+    out = run(p, 1.0, 4.1)
+    taus = [o.payload["tau_demand"] for o in out if o.topic == "/dp/thrusters/command"]
+    assert taus and all(tau == [0.0, 0.0, 0.0] for tau in taus), taus[:2]
+    p.feed(ControlEvent(T0 + 5 * S, "tau", {"X": 2e4, "Y": 0.0, "N": 0.0}))
+    out = run(p, 1.0, 5.1)
+    assert [o.payload["tau_demand"][0] for o in out if o.topic == "/dp/thrusters/command"][-1] == 2e4
+
+
+def test_dp_is_refused_when_every_source_has_been_silent() -> None:
+    """The last estimate was "ok", but nothing has stepped the observer for a minute (the published
+    estimates are dead-reckoned, then lost): DP is refused, by a rule of the input's time alone (a replay,
+    which has no ticks, refuses it too)."""
+    p = pipeline({"accept": ALL})
+    run(p, 3.0)
+    assert p.estimate_status == "ok"
+    p.feed(ControlEvent(T0 + 63 * S, "mode", "dp"))
+    assert p.mode == "standby"
+    c = commands_status(p)
+    assert c["refused"] == {"mode: estimate not healthy": 1}
+    assert "no estimate step for 60.1 s" in c["last_refused"], c["last_refused"]
+
+
+@pytest.mark.parametrize("key", ["setpoint", "tau"])
+def test_an_integer_too_large_for_a_float_is_refused_not_raised(key: str) -> None:
+    payload = (
+        {"north_m": 10**400, "east_m": 0, "heading_deg": 0}
+        if key == "setpoint"
+        else {"X": 10**400, "Y": 0, "N": 0}
+    )
+    p = pipeline({"accept": ALL})
+    p.feed(ControlEvent(T0, key, payload))  # JSON has integers of any size
+    assert commands_status_now(p) == {f"{key}: not finite": 1}
+
+
+@contextlib.contextmanager
+def live_gateway(tmp_path: Path) -> Iterator[tuple[Any, Any]]:
+    """A gateway service in this process (its consumer loop on a thread) taking every command input on
+    Zenoh prefix ``dp/cmd`` over loopback TCP, logging to ``tmp_path / "c.mcap"``; yields (service, a
+    Zenoh session connected to it). Stopped, drained and its log closed on exit."""
+    import threading
+
+    from conftest import connect_when_listening, free_port
+
+    from gateway.service import GatewayService
+
+    zport = free_port()
+    tables: dict[str, Any] = {
+        "vessel": {"name": "mss_supply"},
+        "datum": {"lat_deg": DATUM[0], "lon_deg": DATUM[1]},
+        "sources": [{"name": "gps", "url": f"udp://127.0.0.1:{free_port(2)}", "protocol": "nmea",
+                     "roles": ["position", "heading"]}],
+        "observer": {"wave_period_s": 8.0},
+        "zenoh": {"listen": [f"tcp/127.0.0.1:{zport}"], "multicast_scouting": False, "prefix": "dp/cmd"},
+        "commands": {"accept": ALL},
+        "log": {"path": str(tmp_path / "c.mcap")},
+    }  # fmt: skip
+    service = GatewayService(parse_config(tables, base_dir=tmp_path), config_tables=tables)
+    service.start()
+    loop = threading.Thread(target=service.run, name="consumer")
+    loop.start()
+    session = None
+    try:
+        session = connect_when_listening(zport, 20.0)
+        yield service, session
+    finally:
+        if session is not None:
+            session.close()
+        service.stop_event.set()
+        loop.join(timeout=30)
+        service.drain()
+        service.close()
+
+
+def test_a_json_nested_too_deep_for_the_parser_is_refused_and_logged_over_zenoh(tmp_path: Path) -> None:
+    """``[[[[…`` 100 000 deep makes `json.loads` raise RecursionError, not ValueError: it escaped the Zenoh
+    callback, so the input was neither logged nor counted. It is refused as malformed, like any other."""
+    import json
+
+    from conftest import wait_for
+
+    from wire.mcap.reader import read_messages
+
+    with live_gateway(tmp_path) as (service, session):
+        session.put("dp/cmd/mode", "[" * 100_000)
+        session.put("dp/cmd/mode", json.dumps("manual"))
+        assert wait_for(lambda: service.pipeline.mode == "manual", 20.0)
+        counters = service.pipeline.commands.counters
+        assert counters.refused == {"mode: invalid": 1}, counters
+    logged = [p for _, _, _, p in read_messages(tmp_path / "c.mcap", "/dp/mode")]
+    assert len(logged) == 2 and logged[0]["mode"]["invalid"].startswith("[[[[")
+
+
+def test_a_replay_refuses_the_mode_inputs_the_live_gateway_refused(tmp_path: Path) -> None:
+    """A mode is a bare JSON string; ``{"mode": "manual"}`` (an object) is refused live. It was logged as
+    it came, which is also the log's wrapping of a good mode (``{mode}``), so a replay unwrapped it and
+    took it: the replay's pipeline went to manual where the live one had refused."""
+    import json
+
+    from conftest import wait_for
+
+    from gateway.replay import mcap_events
+
+    with live_gateway(tmp_path) as (service, session):
+        session.put("dp/cmd/mode", json.dumps({"mode": "manual"}))
+        session.put("dp/cmd/tau", json.dumps({"X": 1.0, "Y": 0.0, "N": 0.0}))
+        assert wait_for(lambda: service.pipeline.commands.counters.accepted["tau"] == 1, 20.0)
+        live = service.pipeline.commands.counters
+        assert live.refused == {"mode: invalid": 1} and service.pipeline.mode == "standby"
+    p = pipeline({"accept": ALL})
+    for ev in mcap_events(tmp_path / "c.mcap"):
+        if isinstance(ev, ControlEvent):
+            p.feed(ev)
+    assert p.mode == "standby"
+    assert dict(p.commands.counters.refused) == {"mode: invalid": 1}
+
+
+def test_a_setpoint_waits_while_the_position_estimate_is_lost() -> None:
+    """No position fix for 75 s (the heading still comes): the estimate is "lost", its position a dead
+    reckoning nobody can check a setpoint's distance against. A setpoint then is not pursued from it; it
+    waits, as one before the first estimate does, for an estimate healthy enough for dp, and is checked
+    against that."""
+    rng = np.random.default_rng(1)
+    p = pipeline({"accept": ALL}, initial_mode="dp")
+    t = 0.0
+    while t < 5.0:
+        p.feed(RawEvent(T0 + round(t * S), "gps", moving_fix(t, 0.0, rng)))
+        t += 0.1
+    while t < 80.0:  # the heading alone
+        p.feed(RawEvent(T0 + round(t * S), "gps", enc.hdt("HE", 0.5 + rng.normal(0, 0.001)).encode()))
+        t += 0.1
+    assert p.estimate_status == "lost"
+    p.feed(ControlEvent(T0 + round(t * S), "setpoint", {"north_m": 30.0, "east_m": 0.0, "heading_deg": 30.0}))
+    for _ in range(20):
+        p.feed(RawEvent(T0 + round(t * S), "gps", enc.hdt("HE", 0.5 + rng.normal(0, 0.001)).encode()))
+        t += 0.1
+    assert p.controller is not None
+    assert abs(float(p.controller.reference.target[0])) < 1.0, "pursued from a lost position estimate"
+    assert commands_status(p)["accepted"] == {}
+    while t < 100.0:  # the fixes are back
+        p.feed(RawEvent(T0 + round(t * S), "gps", moving_fix(t, 0.0, rng)))
+        t += 0.1
+    assert p.estimate_status == "ok"
+    assert commands_status(p)["accepted"] == {"setpoint": 1}
+    assert float(p.controller.reference.target[0]) == 30.0

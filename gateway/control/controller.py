@@ -82,7 +82,8 @@ integrator so that the first τ equals the τ output just before (the manual τ,
 unwinds through the closed loop (time constant ≈ 1/a). A DOF without integral action (ρᵢ = 0) cannot
 be made bumpless this way and may jump. Entering dp with no setpoint given since dp was last left holds
 the present position (DP-console convention); a setpoint given while in standby or manual becomes the
-target on entering dp.
+target on entering dp (the gateway checks its distance from the estimate again then, and
+`forget_setpoint` drops one too far).
 
 Defaults scale with the vessel (Froude scaling from a 76.2 m supply vessel, the MSS supply model of
 Torsetnes' case study, factor λ = L/76.2): frequencies × λ^(-1/2), speeds × λ^(1/2), accelerations × 1,
@@ -513,6 +514,16 @@ class DPController:
         if mode == "manual":
             self._tau_manual = np.zeros(3)
         self._mode = mode
+
+    @property
+    def setpoint(self) -> Array | None:
+        """The target of the last `set_setpoint` (None: dp holds the position it is entered at)."""
+        return None if self._setpoint is None else self._setpoint.copy()
+
+    def forget_setpoint(self) -> None:
+        """Outside dp: forget the setpoint held for dp, which then holds the position it is entered at."""
+        if self._mode != "dp":
+            self._setpoint = None
 
     def set_setpoint(self, eta_target: ArrayLike) -> None:
         """Target [north_m, east_m, heading_rad] in local NED; the reference model moves to it."""
