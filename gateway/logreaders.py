@@ -259,7 +259,7 @@ def nmea_text_events_reference(
                 t_ns = clock.stamp(tod)
                 if t_ns != cycle_ns:
                     if lines and cycle_ns is not None:
-                        yield RawEvent(cycle_ns, source, b"\r\n".join(lines) + b"\r\n")
+                        yield RawEvent(cycle_ns, source, b"\r\n".join(lines) + b"\r\n", cycle=True)
                         c.cycles += 1
                         lines = []
                     clock.start_cycle(t_ns)
@@ -270,7 +270,7 @@ def nmea_text_events_reference(
         if cycle_ns is None:
             c.counts["no_time"] += len(lines)  # a log with no timed sentence at all: nothing to replay
         else:
-            yield RawEvent(cycle_ns, source, b"\r\n".join(lines) + b"\r\n")
+            yield RawEvent(cycle_ns, source, b"\r\n".join(lines) + b"\r\n", cycle=True)
             c.cycles += 1
 
 
@@ -292,7 +292,7 @@ class _Cycle:
 
     def event(self, rx_ns: int, source: str) -> RawEvent:
         checked = None if self.dirty else (tuple(self.texts), self.others)
-        return RawEvent(rx_ns, source, b"\r\n".join(self.lines) + b"\r\n", checked)
+        return RawEvent(rx_ns, source, b"\r\n".join(self.lines) + b"\r\n", checked, cycle=True)
 
 
 def nmea_text_events(

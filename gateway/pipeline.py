@@ -132,6 +132,9 @@ class RawEvent:
     pipeline does not use) or a MAVLink frame's tuple of `wire.codecs.mavlink` reports. The pipeline skips
     framing and decoding and does the rest exactly as for bytes; a record carries no MAVLink system or
     component id, so a source's ``system_id`` / ``component_id`` filter does not apply to it."""
+    cycle: bool = False
+    """The chunk is one cycle of its source by construction (a text log's reader cuts the log by the
+    sentences' own times): it is not cut again as a read that holds several cycles is (`Pipeline._cycles`)."""
 
     def __init__(
         self,
@@ -141,12 +144,13 @@ class RawEvent:
         checked: tuple[tuple[str, ...], int] | None = None,
         peer: str = "",
         records: tuple[Any, ...] | None = None,
+        cycle: bool = False,
     ) -> None:
         # Frozen like the generated __init__ makes it, but filled in directly: that one sets each field
         # through object.__setattr__, 1.5 µs an event against 0.3 (replay makes one per cycle).
         d = self.__dict__
         d["rx_ns"], d["source"], d["data"], d["checked"], d["peer"] = rx_ns, source, data, checked, peer
-        d["records"] = records
+        d["records"], d["cycle"] = records, cycle
 
 
 @mypyc_attr(native_class=False)
@@ -727,9 +731,9 @@ class Pipeline:
         updated = False
         decode, reject, unused = nmea_codec.decode, nmea_codec.Reject, nmea_codec.UNUSED
         require = not spec.allow_missing_checksum
-        if verified:  # replay's text-log reader has cut the log into cycles by the sentences' own times
+        if verified or ev.cycle:  # a text log's reader has cut the log into cycles by the sentences' times
             for text in texts:
-                s = decode(text, require_checksum=require, only=USED_NMEA, verified=True)
+                s = decode(text, require_checksum=require, only=USED_NMEA, verified=verified)
                 if type(s) is reject:
                     c.rejected[s.reason] += 1  # (a Reject)
                     continue
