@@ -247,21 +247,60 @@ def run(args: argparse.Namespace) -> int:
         status = service.final_status().payload
         service.close()
         notifier.close()
-    summary = {"estimates": service.pipeline.estimates, "published": service.published, "status": status}
+    why = stop_reason(stop.signum, args.duration)
+    summary = {
+        "estimates": service.pipeline.estimates,
+        "published": service.published,
+        "stopped_by": why,
+        "status": status,
+    }
     if args.json:
         print(cli_json.dumps(summary, indent=2))
     else:
-        print(
-            f"dpgw run: stopped; {service.pipeline.estimates} estimates, "
-            f"{service.published} messages published"
-        )
         from wire.json_payload import to_jsonable
 
         plain = to_jsonable(status)  # (the message as /dp/status carries it)
+        print(f"dpgw run: stopped: {why}; {service.pipeline.estimates} estimates, {service.published} "
+              "messages published")  # fmt: skip
         for name, source in plain.get("sources", {}).items():
             if source.get("reconnects"):
                 print(f"dpgw run: source {name}: {reconnects_text(source, time.time_ns())}")
+        for line in alarm_lines(plain.get("alarms") or [], service.pipeline.estimates):
+            print(f"dpgw run: {line}")
     return 0
+
+
+ALARMS_SHOWN = 8
+"""At most this many alarms in the text summary of a stop, one line each; ``--json`` has them all."""
+
+
+def stop_reason(signum: int | None, duration_s: float | None) -> str:
+    """Why ``dpgw run`` stopped, for its summary: the signal it was sent (Ctrl-C is SIGINT), else the end of
+    ``--duration``, else the gateway ending by itself."""
+    import signal
+
+    if signum is not None:
+        return {
+            signal.SIGINT: "Ctrl-C (SIGINT)",
+            signal.SIGTERM: "SIGTERM (systemctl stop, kill)",
+            getattr(signal, "SIGHUP", -1): "SIGHUP (the terminal or SSH session closed)",
+        }.get(signum, signal.Signals(signum).name)
+    if duration_s is not None:
+        return f"--duration {duration_s:g} s reached"
+    return "the gateway ended"
+
+
+def alarm_lines(alarms: list[str], estimates: int) -> list[str]:
+    """The alarms up at the stop, one line each (``alarm: source ardupilot: no data yet``), at most
+    `ALARMS_SHOWN` and a line saying how many more; none when the run made estimates and no alarm was up.
+    A run that made no estimate says so even without an alarm: the alarms are why, and were only in
+    ``--json`` (and /status), so a trial that received nothing ended on a summary that looked fine."""
+    lines = [f"alarm: {a}" for a in alarms[:ALARMS_SHOWN]]
+    if len(alarms) > ALARMS_SHOWN:
+        lines.append(f"... and {len(alarms) - ALARMS_SHOWN} more alarms (all of them: --json)")
+    if not estimates and not alarms:
+        lines.append("no estimate and no alarm: check that the sources' data reach this computer (-v)")
+    return lines
 
 
 # A URL that asks for any free port: ``:0`` at the end of its address (``udp://127.0.0.1:0``,
