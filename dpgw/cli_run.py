@@ -183,6 +183,10 @@ def run(args: argparse.Namespace) -> int:
     if problem := mcap_path_problem("--log", args.log, made=True):
         start_up_error(f"dpgw run: {problem}")
         return 2
+    if not args.wait_for_ports and len(missing := missing_serial_ports(config)) > 1:
+        # each is a mistake to fix before the gateway can start: all of them at once, not one per try
+        start_up_error(missing_ports_message(config, missing))
+        return 2
     with open(args.config, "rb") as f:
         tables = tomllib.load(f)
     if args.clock is not None:  # the log's copy of the config says what ran
@@ -426,7 +430,7 @@ def start_up_notes(config: GatewayConfig) -> list[str]:
         if isinstance(source, UdpSource) and (note := source.listen_address_note()):
             notes.append(f"sources.{sc.name}.url: {note}")
         if isinstance(source, SerialSource) and not os.path.exists(source.device):
-            notes.append(
+            notes.append(  # (as `missing_serial_ports` finds them)
                 f"sources.{sc.name}.url: serial port {source.device} does not exist now: start-up stops on "
                 "it unless it is there by then, or waits for it with --wait-for-ports (the service unit) "
                 "(check the cable/udev name: ls /dev/serial/by-id/; a simulator's pty link is made when "
@@ -480,3 +484,32 @@ def start_up_problems(config: GatewayConfig) -> list[str]:
     except BusError as exc:
         problems.append(f"{where}: {exc}")
     return problems + output_problems(config)
+
+
+def missing_serial_ports(config: GatewayConfig) -> list[tuple[str, str, str]]:
+    """The serial ports of ``config``'s sources that do not exist now: (source name, URL, device)."""
+    import os
+
+    from gateway.sources import SerialSource, SourceError, open_source
+
+    missing = []
+    for sc in config.sources:
+        try:
+            source = open_source(sc.name, sc.url, timeout_s=sc.timeout_s)  # opens nothing until start()
+        except SourceError:
+            continue  # (the service's start says what is wrong with it)
+        if isinstance(source, SerialSource) and not os.path.exists(source.device):
+            missing.append((sc.name, sc.url, source.device))
+    return missing
+
+
+def missing_ports_message(config: GatewayConfig, missing: list[tuple[str, str, str]]) -> str:
+    """One message for every serial port that is not there, each with the key to edit: the start-up stop
+    named only the first, and the engineer who plugged in or renamed it met the next on the next try."""
+    lines = [f"dpgw run: {config.path}: {len(missing)} serial ports do not exist:"]
+    lines += [f"  sources.{name}.url: {device} ({url})" for name, url, device in missing]
+    lines.append(
+        "check the cables/udev names (ls /dev/serial/by-id/; for the simulator: the pty it printed), or "
+        "start with --wait-for-ports to run without them until they appear"
+    )
+    return "\n".join(lines)

@@ -246,3 +246,24 @@ def test_check_notes_a_log_folder_that_cannot_be_made(tmp_path: Path) -> None:
     cfg.write_text(cfg.read_text().replace(str(tmp_path / "afile"), str(tmp_path / "new" / "logs")))
     p = check(cfg)
     assert p.returncode == 0 and "note: log.path" not in p.stdout, p.stdout
+
+
+def test_two_missing_serial_ports_are_named_in_one_message(tmp_path: Path) -> None:
+    """Every serial port that is not there, with the key to edit, in one message: before, start-up named
+    the first, and the engineer who fixed it met the second on the next try."""
+    cfg = write_config(tmp_path, "serial:///dev/ttyUSB_nope1?baud=4800", name="gps")
+    cfg.write_text(
+        cfg.read_text().replace(
+            "[zenoh]",
+            '[[sources]]\nname = "gyro"\nurl = "serial:///dev/ttyUSB_nope2?baud=4800"\nprotocol = "nmea"\n'
+            'roles = ["heading"]\npriority = 2\n[zenoh]',
+        )
+    )
+    p = start(cfg)
+    assert p.returncode == 2, p.stderr
+    assert "Traceback" not in p.stderr
+    assert p.stderr.startswith(f"dpgw run: {cfg}: 2 serial ports do not exist:"), p.stderr
+    assert "  sources.gps.url: /dev/ttyUSB_nope1 (serial:///dev/ttyUSB_nope1?baud=4800)" in p.stderr
+    assert "  sources.gyro.url: /dev/ttyUSB_nope2 (serial:///dev/ttyUSB_nope2?baud=4800)" in p.stderr
+    assert "--wait-for-ports" in p.stderr
+    assert not (tmp_path / "live.mcap").exists()  # stopped before anything was opened
