@@ -440,14 +440,19 @@ def start_up_notes(config: GatewayConfig) -> list[str]:
 
 
 def log_folder_note(path: str) -> str | None:
-    """``log.path`` whose folder this user cannot write in, or make, now: start-up would stop on it. A
+    """``log.path`` whose folder this user cannot write in, or make, now (or whose folder's parent is
+    missing too: `wire.mcap.folder`): start-up would stop on it. A
     note, not a problem: the folder may be made by then (systemd's ``LogsDirectory`` makes /var/log/dpgw
     for the service's user when the service starts), but ``sudo -u dpgw dpgw run --check``, run to find
     what the service's user cannot do, said ``ok`` and the service then stopped on it."""
     import os
     import pwd
 
+    from wire.mcap.folder import log_folder_problem
+
     folder = os.path.dirname(os.path.abspath(path))
+    if problem := log_folder_problem(path):  # (only the log's own folder is made)
+        return f"log.path: {problem}: start-up stops on it unless that changes by then"
     if writable(folder):
         return None
     what = "is not writable" if os.path.isdir(folder) else "does not exist and cannot be made"
