@@ -161,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
     except ConfigError as exc:
         if args.check and args.json:
             return _check_json(args.config, exc.problems)
-        start_up_error(format_problems(exc))
+        start_up_error(format_problems(exc, started=not args.check))
         return 2
     if args.clock is not None:
         config = replace(config, time=TimeConfig(clock=args.clock))
@@ -174,7 +174,7 @@ def run(args: argparse.Namespace) -> int:
         if args.json:
             return _check_json(args.config, problems, describe(config), start_up_notes(config))
         if problems:
-            start_up_error(format_problems(problems))
+            start_up_error(format_problems(problems, started=False))
             return 2
         print(describe(config))
         for note in start_up_notes(config):
