@@ -1,0 +1,42 @@
+"""Words of the command line a user trial found odd: the thruster feedback's state changes, log lines
+without the program's name. Real processes."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+from gateway.references.state import StateChange
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_a_thruster_links_state_change_reads_like_a_reference_line() -> None:
+    """Its role and usual source name are both "thrusters": "thrusters reference thrusters: stale -> ok"
+    read as a slip."""
+    change = StateChange(0, "thrusters", "thrusters", "stale", "ok", "")
+    assert change.text == "reference thrusters (thruster feedback): stale -> ok"
+    assert StateChange(0, "dgps1", "position", "ok", "rejected", "jump").text == (
+        "position reference dgps1: ok -> rejected: jump"
+    )
+
+
+def run_python(code: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=60)
+
+
+def test_a_commands_log_lines_carry_its_name() -> None:
+    """``dpgw demo`` (and every command that sets no logging of its own) printed the gateway's warnings
+    bare amid its own ``dpgw demo: ...`` lines; ``dpgw run``'s own setting replaces the default, one line
+    per record (not two)."""
+    p = run_python(
+        "import logging; from dpgw import journal; journal.default_logging('demo'); "
+        "logging.getLogger('dpgw').warning('heading reference gyro1: stale -> ok')"
+    )
+    assert p.stderr == "dpgw demo: heading reference gyro1: stale -> ok\n", p.stderr
+    p = run_python(
+        "import logging; from dpgw import journal; journal.default_logging('run'); "
+        "journal.configure_logging(logging.WARNING); logging.getLogger('dpgw').warning('x')"
+    )
+    assert p.stderr == "x\n", p.stderr
