@@ -542,7 +542,11 @@ def _run_scenario(args: argparse.Namespace) -> int:
             f"({sim.summary.speedup:.0f}x real time), seed {args.seed}"
         )
         for source, n in sorted(sim.summary.emissions.items()):
-            print(f"  {source:12s} {n:8d} frames  {sim.summary.bytes_sent[source]:10d} bytes")
+            line = f"  {source:12s} {n:8d} frames  {sim.summary.bytes_sent[source]:10d} bytes"
+            if unsent := sim.summary.not_sent[source]:  # made (and logged), but no output took them
+                what = "not sent" if unsent == n else f"{unsent} not sent"
+                line += f"  ({what}: no --nmea/--mavlink output takes them)"
+            print(line)
         if sim.summary.commands_applied:
             print(f"  thruster commands applied: {sim.summary.commands_applied}")
         if commands_rejected:

@@ -1,11 +1,15 @@
 """Words of the command line a user trial found odd: the thruster feedback's state changes, log lines
-without the program's name. Real processes."""
+without the program's name, and the simulator's thruster frames counted as if sent. Real processes."""
 
 from __future__ import annotations
 
+import json
+import socket
 import subprocess
 import sys
 from pathlib import Path
+
+from conftest import free_port
 
 from gateway.references.state import StateChange
 
@@ -40,3 +44,18 @@ def test_a_commands_log_lines_carry_its_name() -> None:
         "journal.configure_logging(logging.WARNING); logging.getLogger('dpgw').warning('x')"
     )
     assert p.stderr == "x\n", p.stderr
+
+
+def test_sim_says_which_frames_no_output_took() -> None:
+    """``dpgw sim --nmea ...`` without ``--mavlink``: the thrusters' MAVLink frames are made but go nowhere;
+    the summary counted them like the sent ones."""
+    port = free_port(socket.SOCK_DGRAM)  # (nobody listens: UDP sends regardless)
+    argv = [sys.executable, "-m", "dpgw", "sim", "--scenario", "mss_supply_wind", "--duration", "20",
+            "--nmea", f"udp://127.0.0.1:{port}"]  # fmt: skip
+    p = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    lines = {ln.split()[0]: ln for ln in p.stdout.splitlines() if ln.startswith("  ") and "frames" in ln}
+    assert lines["thrusters"].endswith("(not sent: no --nmea/--mavlink output takes them)"), p.stdout
+    assert "not sent" not in lines["dgps1"] and "not sent" not in lines["gyro1"], p.stdout
+    result = json.loads(subprocess.run([*argv, "--json"], cwd=ROOT, capture_output=True, text=True).stdout)
+    assert result["not_sent"] == {"thrusters": result["emissions"]["thrusters"]}, result
