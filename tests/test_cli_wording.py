@@ -46,6 +46,22 @@ def test_a_commands_log_lines_carry_its_name() -> None:
     assert p.stderr == "x\n", p.stderr
 
 
+def test_a_demos_stderr_lines_all_carry_its_name(tmp_path: Path) -> None:
+    """A short demo, its log in a folder to be made: every stderr line starts ``dpgw demo: ``, the thruster
+    link's state change among them in the words of the other references, and the folder made is said."""
+    out = tmp_path / "trials" / "demo.mcap"
+    p = subprocess.run(
+        [sys.executable, "-m", "dpgw", "demo", "--duration", "10", "--no-foxglove", "--out", str(out)],
+        cwd=ROOT, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    lines = p.stderr.splitlines()
+    assert lines and all(line.startswith("dpgw demo: ") for line in lines), p.stderr
+    assert "dpgw demo: reference thrusters (thruster feedback): stale -> ok" in lines, p.stderr
+    assert "dpgw demo: position reference dgps1: stale -> ok" in lines, p.stderr
+    assert f"dpgw demo: made the log's folder {out.parent} (it did not exist)" in lines, p.stderr
+
+
 def test_sim_says_which_frames_no_output_took() -> None:
     """``dpgw sim --nmea ...`` without ``--mavlink``: the thrusters' MAVLink frames are made but go nowhere;
     the summary counted them like the sent ones."""
