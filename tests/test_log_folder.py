@@ -29,6 +29,10 @@ def test_only_the_last_missing_level_is_made(tmp_path: Path) -> None:
     assert not (tmp_path / "a").exists()
     assert mcap_path_problem("--out", deep, made=True) == f"--out {deep}: {problem}"
     assert mcap_path_problem("--out", tmp_path / "one" / "x.mcap", made=True) is None
+    (tmp_path / "afile").write_text("")  # a file where the parent folder should be: the opening says so
+    assert log_folder_problem(tmp_path / "afile" / "logs" / "x.mcap") is None
+    with pytest.raises(NotADirectoryError):
+        make_log_folder(tmp_path / "afile" / "logs" / "x.mcap")
 
 
 def dpgw(*argv: str) -> subprocess.CompletedProcess[str]:
