@@ -255,7 +255,7 @@ def run(args: argparse.Namespace) -> int:
     summary = {
         "estimates": service.pipeline.estimates,
         "published": service.published,
-        "stopped_by": why,
+        "stopped_by": stop.name if stop.signum is not None else None,  # as `dpgw demo --json` has it
         "status": status,
     }
     if args.json:

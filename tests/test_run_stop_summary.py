@@ -37,6 +37,12 @@ def test_a_run_ended_by_its_duration_says_so_and_why_nothing_came(tmp_path: Path
     assert lines[0].startswith("dpgw run: stopped: --duration 2 s reached; 0 estimates, "), p.stdout
     assert "dpgw run: alarm: source dgps1: no data yet" in lines, p.stdout
     assert len(lines) <= 1 + ALARMS_SHOWN + 1, p.stdout
+    p = subprocess.run(
+        [sys.executable, "-m", "dpgw", "run", "--config", str(silent_config(tmp_path)), "--duration", "1",
+         "--json"],
+        cwd=ROOT, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert p.returncode == 0 and json.loads(p.stdout)["stopped_by"] is None, p.stdout  # (not a signal)
 
 
 def test_ctrl_c_is_named_in_the_summary_and_in_json(tmp_path: Path) -> None:
@@ -69,7 +75,7 @@ def test_ctrl_c_is_named_in_the_summary_and_in_json(tmp_path: Path) -> None:
         reader.join(timeout=10)
         assert proc.returncode == 0, "".join(err)
         if options:
-            assert json.loads(out)["stopped_by"] == "Ctrl-C (SIGINT)"
+            assert json.loads(out)["stopped_by"] == "SIGINT"  # (the signal's name, as dpgw demo's JSON)
         else:
             assert out.startswith("dpgw run: stopped: Ctrl-C (SIGINT); "), out
             assert "dpgw run: alarm: source dgps1: no data yet" in out.splitlines(), out
