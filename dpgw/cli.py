@@ -30,6 +30,7 @@ from dpgw import (
     cli_sim,
     cli_study,
     cli_tune,
+    journal,
     numba_cache,
 )
 from dpgw.cli_help import HelpFormatter
@@ -162,6 +163,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     numba_cache.ensure_writable_cache()  # before a command imports numba (not for --help)
+    journal.default_logging(args.command)
     try:
         code: int = args.func(args)
     except BrokenPipeError:

@@ -657,7 +657,7 @@ def summarise(
     shown = " ".join(shlex.quote(p) for p in logs)
     result: dict[str, Any] = {
         "scenario": sim.scenario.name,
-        "sim_seconds": sim.t,
+        "sim_seconds": sim.seconds,
         "duration_s": args.duration,
         "wall_seconds": wall_s,
         "log": logs[0],

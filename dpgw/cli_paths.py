@@ -17,8 +17,8 @@ def missing_folder(flag: str, path: str | Path | None) -> str | None:
 def mcap_path_problem(flag: str, path: str | Path | None, *, made: bool = False) -> str | None:
     """What is wrong with PATH as an MCAP file to write (None when nothing): a folder, a name that does not
     end in .mcap (Foxglove, the mcap tools and `dpgw replay` go by it), or a folder that does not exist
-    (unless ``made``: the gateway's log makes its folder, as for a config's ``log.path``, which is held to
-    the same rule)."""
+    (with ``made``: only when its parent does not exist either, `wire.mcap.folder`; the command makes the
+    log's own folder and says so, as the gateway does for a config's ``log.path``)."""
     if path is None:
         return None
     p = Path(path)
@@ -26,7 +26,12 @@ def mcap_path_problem(flag: str, path: str | Path | None, *, made: bool = False)
         return f"{flag} {path}: a folder, not a file: give a file in it, e.g. {p / 'trial.mcap'}"
     if p.suffix != ".mcap":
         return f"{flag} {path}: not an MCAP file name (expected a path ending in .mcap, e.g. {p.stem}.mcap)"
-    return None if made else missing_folder(flag, path)
+    if not made:
+        return missing_folder(flag, path)
+    from wire.mcap.folder import log_folder_problem  # (light: the os module only; at use, as the rest)
+
+    problem = log_folder_problem(path)
+    return f"{flag} {path}: {problem}" if problem else None
 
 
 def writable(path: str) -> bool:

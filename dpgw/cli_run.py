@@ -161,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
     except ConfigError as exc:
         if args.check and args.json:
             return _check_json(args.config, exc.problems)
-        start_up_error(format_problems(exc))
+        start_up_error(format_problems(exc, started=not args.check))
         return 2
     if args.clock is not None:
         config = replace(config, time=TimeConfig(clock=args.clock))
@@ -174,7 +174,7 @@ def run(args: argparse.Namespace) -> int:
         if args.json:
             return _check_json(args.config, problems, describe(config), start_up_notes(config))
         if problems:
-            start_up_error(format_problems(problems))
+            start_up_error(format_problems(problems, started=False))
             return 2
         print(describe(config))
         for note in start_up_notes(config):
@@ -182,6 +182,10 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if problem := mcap_path_problem("--log", args.log, made=True):
         start_up_error(f"dpgw run: {problem}")
+        return 2
+    if not args.wait_for_ports and len(missing := missing_serial_ports(config)) > 1:
+        # each is a mistake to fix before the gateway can start: all of them at once, not one per try
+        start_up_error(missing_ports_message(config, missing))
         return 2
     with open(args.config, "rb") as f:
         tables = tomllib.load(f)
@@ -247,21 +251,60 @@ def run(args: argparse.Namespace) -> int:
         status = service.final_status().payload
         service.close()
         notifier.close()
-    summary = {"estimates": service.pipeline.estimates, "published": service.published, "status": status}
+    why = stop_reason(stop.signum, args.duration)
+    summary = {
+        "estimates": service.pipeline.estimates,
+        "published": service.published,
+        "stopped_by": stop.name if stop.signum is not None else None,  # as `dpgw demo --json` has it
+        "status": status,
+    }
     if args.json:
         print(cli_json.dumps(summary, indent=2))
     else:
-        print(
-            f"dpgw run: stopped; {service.pipeline.estimates} estimates, "
-            f"{service.published} messages published"
-        )
         from wire.json_payload import to_jsonable
 
         plain = to_jsonable(status)  # (the message as /dp/status carries it)
+        print(f"dpgw run: stopped: {why}; {service.pipeline.estimates} estimates, {service.published} "
+              "messages published")  # fmt: skip
         for name, source in plain.get("sources", {}).items():
             if source.get("reconnects"):
                 print(f"dpgw run: source {name}: {reconnects_text(source, time.time_ns())}")
+        for line in alarm_lines(plain.get("alarms") or [], service.pipeline.estimates):
+            print(f"dpgw run: {line}")
     return 0
+
+
+ALARMS_SHOWN = 8
+"""At most this many alarms in the text summary of a stop, one line each; ``--json`` has them all."""
+
+
+def stop_reason(signum: int | None, duration_s: float | None) -> str:
+    """Why ``dpgw run`` stopped, for its summary: the signal it was sent (Ctrl-C is SIGINT), else the end of
+    ``--duration``, else the gateway ending by itself."""
+    import signal
+
+    if signum is not None:
+        return {
+            signal.SIGINT: "Ctrl-C (SIGINT)",
+            signal.SIGTERM: "SIGTERM (systemctl stop, kill)",
+            getattr(signal, "SIGHUP", -1): "SIGHUP (the terminal or SSH session closed)",
+        }.get(signum, signal.Signals(signum).name)
+    if duration_s is not None:
+        return f"--duration {duration_s:g} s reached"
+    return "the gateway ended"
+
+
+def alarm_lines(alarms: list[str], estimates: int) -> list[str]:
+    """The alarms up at the stop, one line each (``alarm: source ardupilot: no data yet``), at most
+    `ALARMS_SHOWN` and a line saying how many more; none when the run made estimates and no alarm was up.
+    A run that made no estimate says so even without an alarm: the alarms are why, and were only in
+    ``--json`` (and /status), so a trial that received nothing ended on a summary that looked fine."""
+    lines = [f"alarm: {a}" for a in alarms[:ALARMS_SHOWN]]
+    if len(alarms) > ALARMS_SHOWN:
+        lines.append(f"... and {len(alarms) - ALARMS_SHOWN} more alarms (all of them: --json)")
+    if not estimates and not alarms:
+        lines.append("no estimate and no alarm: check that the sources' data reach this computer (-v)")
+    return lines
 
 
 # A URL that asks for any free port: ``:0`` at the end of its address (``udp://127.0.0.1:0``,
@@ -387,7 +430,7 @@ def start_up_notes(config: GatewayConfig) -> list[str]:
         if isinstance(source, UdpSource) and (note := source.listen_address_note()):
             notes.append(f"sources.{sc.name}.url: {note}")
         if isinstance(source, SerialSource) and not os.path.exists(source.device):
-            notes.append(
+            notes.append(  # (as `missing_serial_ports` finds them)
                 f"sources.{sc.name}.url: serial port {source.device} does not exist now: start-up stops on "
                 "it unless it is there by then, or waits for it with --wait-for-ports (the service unit) "
                 "(check the cable/udev name: ls /dev/serial/by-id/; a simulator's pty link is made when "
@@ -397,14 +440,19 @@ def start_up_notes(config: GatewayConfig) -> list[str]:
 
 
 def log_folder_note(path: str) -> str | None:
-    """``log.path`` whose folder this user cannot write in, or make, now: start-up would stop on it. A
+    """``log.path`` whose folder this user cannot write in, or make, now (or whose folder's parent is
+    missing too: `wire.mcap.folder`): start-up would stop on it. A
     note, not a problem: the folder may be made by then (systemd's ``LogsDirectory`` makes /var/log/dpgw
     for the service's user when the service starts), but ``sudo -u dpgw dpgw run --check``, run to find
     what the service's user cannot do, said ``ok`` and the service then stopped on it."""
     import os
     import pwd
 
+    from wire.mcap.folder import log_folder_problem
+
     folder = os.path.dirname(os.path.abspath(path))
+    if problem := log_folder_problem(path):  # (only the log's own folder is made)
+        return f"log.path: {problem}: start-up stops on it unless that changes by then"
     if writable(folder):
         return None
     what = "is not writable" if os.path.isdir(folder) else "does not exist and cannot be made"
@@ -441,3 +489,32 @@ def start_up_problems(config: GatewayConfig) -> list[str]:
     except BusError as exc:
         problems.append(f"{where}: {exc}")
     return problems + output_problems(config)
+
+
+def missing_serial_ports(config: GatewayConfig) -> list[tuple[str, str, str]]:
+    """The serial ports of ``config``'s sources that do not exist now: (source name, URL, device)."""
+    import os
+
+    from gateway.sources import SerialSource, SourceError, open_source
+
+    missing = []
+    for sc in config.sources:
+        try:
+            source = open_source(sc.name, sc.url, timeout_s=sc.timeout_s)  # opens nothing until start()
+        except SourceError:
+            continue  # (the service's start says what is wrong with it)
+        if isinstance(source, SerialSource) and not os.path.exists(source.device):
+            missing.append((sc.name, sc.url, source.device))
+    return missing
+
+
+def missing_ports_message(config: GatewayConfig, missing: list[tuple[str, str, str]]) -> str:
+    """One message for every serial port that is not there, each with the key to edit: the start-up stop
+    named only the first, and the engineer who plugged in or renamed it met the next on the next try."""
+    lines = [f"dpgw run: {config.path}: {len(missing)} serial ports do not exist:"]
+    lines += [f"  sources.{name}.url: {device} ({url})" for name, url, device in missing]
+    lines.append(
+        "check the cables/udev names (ls /dev/serial/by-id/; for the simulator: the pty it printed), or "
+        "start with --wait-for-ports to run without them until they appear"
+    )
+    return "\n".join(lines)

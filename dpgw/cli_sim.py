@@ -230,7 +230,7 @@ def run(args: argparse.Namespace) -> int:
     if args.vessel or args.csv or args.plant_option or args.wind or args.sea:
         print("dpgw sim: --vessel, --csv, --plant-option, --wind and --sea go with --inputs", file=sys.stderr)
         return 2
-    if problem := mcap_path_problem("--out", args.out) or tlog_path_problem(args):
+    if problem := mcap_path_problem("--out", args.out, made=True) or tlog_path_problem(args):
         print(f"dpgw sim: {problem}", file=sys.stderr)
         return 2
     if args.speed != 1.0 and not args.realtime:  # accepted and ignored before: the run went flat out
@@ -327,6 +327,7 @@ def _run_scenario(args: argparse.Namespace) -> int:
     from simulator.scenarios import get_scenario
     from simulator.tlog_recorder import TlogRecorder
     from simulator.transports import Sink, TransportError, open_sink
+    from wire.mcap.folder import make_log_folder
     from wire.mcap.writer import McapLogWriter
     from wire.tlog import TlogWriter
 
@@ -444,6 +445,8 @@ def _run_scenario(args: argparse.Namespace) -> int:
             # with the same command line under a running gateway, whose log of the run before stays;
             # overwriting lost the truth that log was to be scored against.
             try:
+                if folder := make_log_folder(args.out):  # (its parent exists: `mcap_path_problem`)
+                    print(f"dpgw sim: made the log's folder {folder} (it did not exist)", file=sys.stderr)
                 log = McapLogWriter(
                     args.out, profile="dpgw-sim", flush_on_log_time=bool(args.realtime), continue_set=True
                 )
@@ -539,7 +542,11 @@ def _run_scenario(args: argparse.Namespace) -> int:
             f"({sim.summary.speedup:.0f}x real time), seed {args.seed}"
         )
         for source, n in sorted(sim.summary.emissions.items()):
-            print(f"  {source:12s} {n:8d} frames  {sim.summary.bytes_sent[source]:10d} bytes")
+            line = f"  {source:12s} {n:8d} frames  {sim.summary.bytes_sent[source]:10d} bytes"
+            if unsent := sim.summary.not_sent[source]:  # made (and logged), but no output took them
+                what = "not sent" if unsent == n else f"{unsent} not sent"
+                line += f"  ({what}: no --nmea/--mavlink output takes them)"
+            print(line)
         if sim.summary.commands_applied:
             print(f"  thruster commands applied: {sim.summary.commands_applied}")
         if commands_rejected:

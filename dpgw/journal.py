@@ -65,7 +65,25 @@ class JournalFormatter(logging.Formatter):
 
 
 def configure_logging(level: int) -> None:
-    """`logging.basicConfig` at ``level``, message alone; with each line's priority for the journal."""
+    """`logging.basicConfig` at ``level``, message alone; with each line's priority for the journal (in
+    place of `default_logging`'s handler)."""
     handler = logging.StreamHandler()
     handler.setFormatter(JournalFormatter("%(message)s") if stderr_is_journal() else logging.Formatter())
+    root = logging.getLogger()
+    for h in [h for h in root.handlers if getattr(h, "dpgw_default", False)]:
+        root.removeHandler(h)
     logging.basicConfig(level=level, handlers=[handler])
+
+
+def default_logging(command: str) -> None:
+    """Warnings of a command that sets no logging of its own on stderr as ``dpgw COMMAND: message``, like
+    its own lines: without a handler Python printed them bare (``heading reference gyro1: stale -> ok``
+    amid ``dpgw demo: ...`` lines, with nothing saying which program said it). Nothing changes where the
+    root logger has a handler already (a test's, a notebook's)."""
+    root = logging.getLogger()
+    if root.handlers:
+        return
+    handler = logging.StreamHandler()
+    handler.setFormatter(logging.Formatter(f"dpgw {command}: %(message)s"))
+    handler.dpgw_default = True  # type: ignore[attr-defined]  # (`configure_logging` replaces it)
+    root.addHandler(handler)

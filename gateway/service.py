@@ -52,6 +52,7 @@ from gateway.sim_time import SimTime
 from gateway.sources import Chunk, SerialSource, Source, open_source
 from gateway.wall_time import WallTime
 from wire.codecs import mavlink as mv
+from wire.mcap.folder import log_folder_problem, make_log_folder
 from wire.mcap.writer import McapLogWriter
 from wire.messages import SIM_CLOCK_KEY, SimClock, Status, ThrusterCommand
 
@@ -106,13 +107,18 @@ class LogPathError(OSError):
 
 
 def _open_log(path: str, options: dict[str, Any]) -> McapLogWriter:
-    """The gateway's log writer at ``path``, its folder made first (the default ``logs/dpgw.mcap`` and the
-    examples' paths are in a folder beside the config that a fresh checkout or install does not have).
-    ``continue_set``: a restarted service (systemd, a reboot) adds to the set, never overwrites it."""
+    """The gateway's log writer at ``path``, its folder made first when only that last level is missing
+    (the default ``logs/dpgw.mcap`` and the examples' paths are in a folder beside the config that a fresh
+    checkout or install does not have), and said; more missing is refused (`wire.mcap.folder`: a mistyped
+    path must not scatter folders). ``continue_set``: a restarted service (systemd, a reboot) adds to the
+    set, never overwrites it."""
     folder = os.path.dirname(os.path.abspath(path))
     fix = "choose a folder the gateway may write to (a service: its LogsDirectory, /var/log/dpgw)"
+    if problem := log_folder_problem(path):
+        raise LogPathError(problem)
     try:
-        os.makedirs(folder, exist_ok=True)
+        if make_log_folder(path):
+            log.warning("made the log's folder %s (it did not exist)", folder)
     except FileExistsError:
         raise LogPathError(f"cannot make the log's folder {folder}: a file is in the way — {fix}") from None
     except OSError as exc:

@@ -698,12 +698,10 @@ def test_sim_open_loop_refuses_scenario_options_and_prints_json(
     assert _one_line(capsys.readouterr().err) == (
         f"dpgw sim: --csv {nowhere}: no folder {nowhere.parent}: create it or give another path"
     )
-    assert (
-        main(["sim", "--scenario", "hassani", "--duration", "1", "--out", str(tmp_path / "nope" / "s.mcap")])
-        == 2
-    )
-    assert _one_line(capsys.readouterr().err).endswith(
-        "s.mcap: no folder " + str(nowhere.parent) + ": create it or give another path"
+    deep = tmp_path / "nope" / "deeper" / "s.mcap"  # (only a log's own folder is made)
+    assert main(["sim", "--scenario", "hassani", "--duration", "1", "--out", str(deep)]) == 2
+    assert _one_line(capsys.readouterr().err).startswith(
+        f"dpgw sim: --out {deep}: neither the folder {deep.parent} nor its parent {nowhere.parent} exists"
     )
     assert not (tmp_path / "s.csv").exists()
     assert main([*argv, "--json"]) == 0
@@ -977,9 +975,14 @@ def test_run_makes_the_folder_of_its_log(tmp_path: Path) -> None:
     p = _run_with_log(tmp_path, "")  # the default
     assert p.returncode == 0, p.stderr
     assert (tmp_path / "logs" / "dpgw.mcap").stat().st_size > 0
-    p = _run_with_log(tmp_path, "trials/2026/bench.mcap")
+    assert "made the log's folder" in p.stderr, p.stderr  # (said: one line)
+    p = _run_with_log(tmp_path, "trials/bench.mcap")
     assert p.returncode == 0, p.stderr
-    assert (tmp_path / "trials" / "2026" / "bench.mcap").stat().st_size > 0
+    assert (tmp_path / "trials" / "bench.mcap").stat().st_size > 0
+    # a folder whose parent is missing too is not made (a mistyped path must not scatter folders)
+    p = _run_with_log(tmp_path, "sea/2026/bench.mcap")
+    assert p.returncode == 2 and "log.path: neither the folder" in p.stderr, p.stderr
+    assert not (tmp_path / "sea").exists()
 
 
 def test_a_log_folder_that_cannot_be_made_stops_start_up_with_one_message(tmp_path: Path) -> None:

@@ -681,7 +681,7 @@ BAD: list[tuple[str, dict[str, Any], str, str]] = [
         "duplicate name",
         {"sources.1.name": "dgps1"},
         "sources[1].name",  # a duplicate is named by its index; the first keeps the name
-        'duplicate source name (expected unique names; sources.dgps1 is also "dgps1")',
+        'source name "dgps1" is used twice, here and by sources.dgps1 (expected unique names',
     ),
     ("bad name", {"sources.0.name": "DGPS-1"}, "sources[0].name", "expected lowercase letters, digits and _"),
     (
@@ -1192,6 +1192,42 @@ def test_format_problems_for_the_cli(tmp_path: Path) -> None:
     assert format_problems(["a", "b"]).splitlines()[0].endswith("2 problems; nothing was started:")
 
 
+def test_a_source_name_used_twice_is_one_problem_naming_the_name(tmp_path: Path) -> None:
+    """Two DGPS both named "dgps1" (the second copied from the first): one problem, the name used twice.
+    Before, a second one followed: "sources 'dgps1' and 'dgps1' both have role 'position' with priority
+    1", a person's puzzle (the priorities were never the mistake)."""
+    d = base()
+    d["sources"].insert(1, {**d["sources"][0], "url": "udp://127.0.0.1:10110"})
+    assert problems_of(d, tmp_path) == [
+        'bad.toml: sources[1].name: source name "dgps1" is used twice, here and by sources.dgps1 (expected '
+        "unique names: a source's name keys its status, its log channels and its alarms)"
+    ]
+
+
+def test_a_config_file_that_cannot_be_read(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A missing file: no key of it is in question, so no pointer to the keys' page; ``--check`` starts
+    nothing anyway, so it does not say that nothing was started (the run itself does)."""
+    from dpgw.cli import main
+
+    missing = tmp_path / "vesel.toml"
+    assert main(["run", "--config", str(missing), "--check"]) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        "dpgw: the configuration has 1 problem:",
+        f"  {missing}: cannot read: no such file",
+    ]
+    assert main(["run", "--config", str(missing)]) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        "dpgw: the configuration has 1 problem; nothing was started:",
+        f"  {missing}: cannot read: no such file",
+    ]
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[observer]\nrate_hz = 0\n")
+    assert main(["run", "--config", str(bad), "--check"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err[0].endswith("problems:") and "nothing was started" not in err[0], err
+    assert err[-1].startswith("Every key is described in docs/config.md"), err
+
+
 def test_check_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """`dpgw run --config FILE --check`: the one check command; a summary, or every problem (status 2)."""
     from dpgw.cli import main
@@ -1218,7 +1254,7 @@ def test_check_command_in_a_subprocess(tmp_path: Path) -> None:
     assert p.returncode == 2
     assert p.stdout == ""
     assert f"{bad}: vessel.name: not a built-in vessel" in p.stderr
-    assert "nothing was started" in p.stderr
+    assert p.stderr.startswith("dpgw: the configuration has 1 problem:\n")  # (--check starts nothing anyway)
 
 
 def test_the_old_check_module_is_gone() -> None:

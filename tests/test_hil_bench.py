@@ -101,7 +101,7 @@ def test_the_documented_two_process_bench_closes_the_loop_and_stops_cleanly(tmp_
         assert wait_for(lambda: estimates_said(said) >= 2000 or gw.poll() is not None, 240.0), "".join(said)
         gw.send_signal(signal.SIGINT)  # Ctrl-C
         assert gw.wait(timeout=60) == 0, "".join(said)
-        assert gw.stdout is not None and gw.stdout.read().startswith("dpgw run: stopped;")
+        assert gw.stdout is not None and gw.stdout.read().startswith("dpgw run: stopped: ")
         sim.send_signal(signal.SIGTERM)
         out, err = sim.communicate(timeout=60)
         assert sim.returncode == 0, err

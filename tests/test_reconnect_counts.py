@@ -185,7 +185,7 @@ def test_dpgw_run_says_the_reconnects_in_its_periodic_line_and_its_final_summary
     assert code == 0, "".join(gw.err)
     lost = f"connection to 127.0.0.1:{server.port} lost: closed by the server"
     summary = out.splitlines()
-    assert summary[0].startswith("dpgw run: stopped; "), out
+    assert summary[0].startswith("dpgw run: stopped: "), out
     assert re.fullmatch(
         rf"dpgw run: source gps: 2 reconnects, last lost \d+ s ago: {re.escape(lost)}", summary[1]
     ), out

@@ -243,6 +243,69 @@ def test_check_notes_a_log_folder_that_cannot_be_made(tmp_path: Path) -> None:
     run = start(cfg)
     assert run.returncode == 2 and "log.path: cannot make the log's folder" in run.stderr, run.stderr
     # a folder that can be made: no note
-    cfg.write_text(cfg.read_text().replace(str(tmp_path / "afile"), str(tmp_path / "new" / "logs")))
+    cfg.write_text(cfg.read_text().replace(str(tmp_path / "afile"), str(tmp_path / "new")))
     p = check(cfg)
     assert p.returncode == 0 and "note: log.path" not in p.stdout, p.stdout
+    # a folder whose parent is missing too is not made (a mistyped path): a note, and the run stops on it
+    cfg.write_text(cfg.read_text().replace(str(tmp_path / "new"), str(tmp_path / "new" / "logs")))
+    p = check(cfg)
+    assert p.returncode == 0, p.stderr
+    assert f"note: log.path: neither the folder {tmp_path / 'new' / 'logs'} nor its parent" in p.stdout
+    run = start(cfg)
+    assert run.returncode == 2, run.stderr
+    assert f"log.path: neither the folder {tmp_path / 'new' / 'logs'} nor its parent" in run.stderr
+    assert not (tmp_path / "new").exists()
+
+
+def test_two_missing_serial_ports_are_named_in_one_message(tmp_path: Path) -> None:
+    """Every serial port that is not there, with the key to edit, in one message: before, start-up named
+    the first, and the engineer who fixed it met the second on the next try."""
+    cfg = write_config(tmp_path, "serial:///dev/ttyUSB_nope1?baud=4800", name="gps")
+    cfg.write_text(
+        cfg.read_text().replace(
+            "[zenoh]",
+            '[[sources]]\nname = "gyro"\nurl = "serial:///dev/ttyUSB_nope2?baud=4800"\nprotocol = "nmea"\n'
+            'roles = ["heading"]\npriority = 2\n[zenoh]',
+        )
+    )
+    p = start(cfg)
+    assert p.returncode == 2, p.stderr
+    assert "Traceback" not in p.stderr
+    assert p.stderr.startswith(f"dpgw run: {cfg}: 2 serial ports do not exist:"), p.stderr
+    assert "  sources.gps.url: /dev/ttyUSB_nope1 (serial:///dev/ttyUSB_nope1?baud=4800)" in p.stderr
+    assert "  sources.gyro.url: /dev/ttyUSB_nope2 (serial:///dev/ttyUSB_nope2?baud=4800)" in p.stderr
+    assert "--wait-for-ports" in p.stderr
+    assert not (tmp_path / "live.mcap").exists()  # stopped before anything was opened
+
+
+def test_log_folder_one_level_is_made_and_said_more_is_refused(tmp_path: Path) -> None:
+    """``--log`` in a folder that is not there: made, and said on stderr, when its parent exists; refused
+    with one line, and nothing made, when more is missing (a mistyped path on a vessel PC, as root, made
+    a tree of folders without a word)."""
+    cfg = write_config(tmp_path, "udp://127.0.0.1:0")
+
+    def run_with_log(path: Path) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(
+            [sys.executable, "-m", "dpgw", "run", "--config", str(cfg), "--duration", "0.5",
+             "--log", str(path)],
+            cwd=ROOT, capture_output=True, text=True, timeout=120,
+        )  # fmt: skip
+
+    deep = tmp_path / "nonexistent" / "dir" / "x.mcap"
+    p = run_with_log(deep)
+    assert p.returncode == 2, p.stderr
+    assert p.stderr.splitlines() == [
+        f"dpgw run: --log {deep}: neither the folder {deep.parent} nor its parent {deep.parent.parent} "
+        "exists: only a log's own folder is made, so that a mistyped path does not make folders; check the "
+        f"path, or make it first (mkdir -p {deep.parent})"
+    ], p.stderr
+    assert not (tmp_path / "nonexistent").exists()
+    one = tmp_path / "trials" / "x.mcap"
+    p = run_with_log(one)
+    assert p.returncode == 0, p.stderr
+    assert [ln for ln in p.stderr.splitlines() if "made the log's folder" in ln] == [
+        f"made the log's folder {one.parent} (it did not exist)"
+    ], p.stderr
+    assert one.exists()
+    p = run_with_log(one)  # there now: nothing said
+    assert p.returncode == 0 and "made the log's folder" not in p.stderr, p.stderr

@@ -542,3 +542,12 @@ def test_sim_in_process_gives_back_the_signal_handlers(
     finally:
         for sig, handler in before.items():
             signal.signal(sig, handler)
+
+
+def test_the_simulation_time_is_reported_to_the_ns() -> None:
+    """The time is a sum of steps (199.99999999999292 after 200 s): reports (``dpgw sim --json``, the demo's
+    JSON) give it to the ns, the resolution of every stamp, not with the sum's rounding error."""
+    sim = Simulation(get_scenario("fossen_strand_1999"), 0)
+    summary = sim.run(200.0)
+    assert sim.t != 200.0  # (what the sum gives: why the report rounds it)
+    assert sim.seconds == 200.0 and summary.as_dict()["sim_seconds"] == 200.0

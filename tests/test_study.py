@@ -366,6 +366,17 @@ def test_the_summary_counts_seeds_and_cases_in_words() -> None:
         assert words in text, text
 
 
+def test_the_summary_heading_gives_times_to_the_tenth_of_a_second() -> None:
+    """The default settle time is a third of the duration: 200 s scored from 66.7 s, not 66.6667 s."""
+    from dpgw.study.outputs import SUMMARY_COLUMNS, summary_markdown
+
+    row = {"scenario": "hassani", "sea": "own sea", "observer": "passive", "seed": 0, "hs_m": 1.0,
+           "tp_s": 6.0, "duration_s": 200.0, "settle_s": 200.0 / 3.0}  # fmt: skip
+    row.update({column: 1.0 for column, _, _ in SUMMARY_COLUMNS})
+    heading = summary_markdown([row]).splitlines()[0]
+    assert heading.endswith(", 200 s scored from 66.7 s)"), heading
+
+
 def test_the_summary_pairs_each_observer_with_the_first_seed_by_seed() -> None:
     """The study is paired (every observer on the same measurements), and the summary says so: beside the
     spread over the seeds, each observer's error against the first observer's on the same seed. Here

@@ -146,6 +146,12 @@ def _paired_markdown(by_obs: dict[str, list[dict[str, Any]]]) -> list[str]:
     return lines
 
 
+def seconds(s: float) -> str:
+    """A time in a heading to the tenth of a second, without a trailing .0: ``66.7`` (a third of 200 s,
+    which ``:g`` wrote 66.6667), ``60``."""
+    return f"{round(s, 1):g}"
+
+
 def summary_markdown(rows: Sequence[dict[str, Any]]) -> str:
     """Per sea state a table: per observer the median [5 %, 95 %] of each column over the seeds; then each
     observer paired with the first, seed by seed (`paired`)."""
@@ -155,8 +161,8 @@ def summary_markdown(rows: Sequence[dict[str, Any]]) -> str:
         first = next(iter(by_obs.values()))[0]
         lines.append(
             f"### {scenario}, {sea} (Hs {first['hs_m']:g} m, Tp {first['tp_s']:g} s, "
-            f"{len(seeds)} seed{'s' if len(seeds) != 1 else ''}, {first['duration_s']:g} s scored from "
-            f"{first['settle_s']:g} s)"
+            f"{len(seeds)} seed{'s' if len(seeds) != 1 else ''}, {seconds(first['duration_s'])} s scored "
+            f"from {seconds(first['settle_s'])} s)"
         )
         lines.append("")
         lines.append("| observer | " + " | ".join(h for _, h, _ in SUMMARY_COLUMNS) + " |")

@@ -88,9 +88,9 @@ def load_config(path: str | Path) -> GatewayConfig:
     try:
         raw = file.read_bytes()
     except FileNotFoundError:
-        raise ConfigError([f"{where}: cannot read: no such file"]) from None
+        raise ConfigError([f"{where}: cannot read: no such file"], unreadable=True) from None
     except OSError as exc:
-        raise ConfigError([f"{where}: cannot read: {exc.strerror or exc}"]) from None
+        raise ConfigError([f"{where}: cannot read: {exc.strerror or exc}"], unreadable=True) from None
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:

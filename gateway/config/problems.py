@@ -18,20 +18,26 @@ __all__ = ["ConfigError", "Problems", "format_problems", "kind", "show"]
 class ConfigError(ValueError):
     """A configuration that cannot be used. ``problems``: every problem found, one line each."""
 
-    def __init__(self, problems: Sequence[str]) -> None:
+    def __init__(self, problems: Sequence[str], *, unreadable: bool = False) -> None:
         self.problems: list[str] = list(problems)
+        self.unreadable = unreadable
+        """The file could not be read at all (missing, no permission): no key of it is in question."""
         n = len(self.problems)
         head = "invalid configuration" + (f" ({n} problems)" if n != 1 else "")
         super().__init__(head + ":\n" + "\n".join(f"  {p}" for p in self.problems))
 
 
-def format_problems(error: ConfigError | Sequence[str]) -> str:
-    """One message for a person: every problem on its own line, and that nothing was started."""
+def format_problems(error: ConfigError | Sequence[str], *, started: bool = True) -> str:
+    """One message for a person: every problem on its own line, and that nothing was started (``started``
+    False: a command that starts nothing anyway, ``dpgw run --check``, does not say it). Where to read
+    about the keys closes it, unless the file could not be read at all (no key of it is in question)."""
     problems = error.problems if isinstance(error, ConfigError) else list(error)
     n = len(problems)
-    lines = [f"dpgw: the configuration has {n} problem{'s' if n != 1 else ''}; nothing was started:"]
+    stopped = "; nothing was started" if started else ""
+    lines = [f"dpgw: the configuration has {n} problem{'s' if n != 1 else ''}{stopped}:"]
     lines += [f"  {p}" for p in problems]
-    lines.append("Every key is described in docs/config.md; examples/ has working files.")
+    if not (isinstance(error, ConfigError) and error.unreadable):
+        lines.append("Every key is described in docs/config.md; examples/ has working files.")
     return "\n".join(lines)
 
 

@@ -100,7 +100,8 @@ def read_sources(
         if name in names:
             p.add(
                 f"{labels[i]}.name",
-                f"duplicate source name (expected unique names; {labels[names[name]]} is also {show(name)})",
+                f"source name {show(name)} is used twice, here and by {labels[names[name]]} (expected "
+                "unique names: a source's name keys its status, its log channels and its alarms)",
             )
             ok = False
         else:
@@ -120,6 +121,8 @@ def read_sources(
         by_priority: dict[int, str] = {}
         for sc in out:
             if role not in sc.roles:
+                continue
+            if by_priority.get(sc.priority) == sc.name:  # (a name used twice: said as such above)
                 continue
             if sc.priority in by_priority:
                 p.add(

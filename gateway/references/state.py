@@ -26,7 +26,16 @@ class StateChange:
     @property
     def text(self) -> str:
         why = f": {self.reason}" if self.reason else ""
-        return f"{self.role} reference {self.source}: {self.old} -> {self.new}{why}"
+        return f"{reference_name(self.role, self.source)}: {self.old} -> {self.new}{why}"
+
+
+def reference_name(role: str, source: str) -> str:
+    """How a source in a role is named to people: ``position reference dgps1``; a thruster link's feedback,
+    whose role and usual source name are both "thrusters", as ``reference thrusters (thruster feedback)``
+    (``thrusters reference thrusters`` read as a slip)."""
+    if role == "thrusters":
+        return f"reference {source} (thruster feedback)"
+    return f"{role} reference {source}"
 
 
 class SourceState:
