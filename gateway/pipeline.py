@@ -47,6 +47,7 @@ from gateway.foxglove_channels import FoxgloveChannels
 from gateway.fusion import NS, Fusion, rms_sigma_m
 from gateway.references import ReferenceMonitor
 from gateway.references.monitor import Prediction
+from gateway.references.state import reference_name
 from observers.base import (
     STATUS_DEAD_RECKONING,
     STATUS_INITIALIZING,
@@ -2124,7 +2125,7 @@ class Pipeline:
                 for st in states
             ]
             alarms += [
-                f"{st.role} reference {name}: {st.state} ({st.reason})"
+                f"{reference_name(st.role, name)}: {st.state} ({st.reason})"
                 for st in states
                 if st.state in ("rejected", "suspect")
             ]
