@@ -732,26 +732,17 @@ class Pipeline:
         updated = False
         decode, reject, unused = nmea_codec.decode, nmea_codec.Reject, nmea_codec.UNUSED
         require = not spec.allow_missing_checksum
-        if verified or ev.cycle:  # a text log's reader has cut the log into cycles by the sentences' times
-            for text in texts:
-                s = decode(text, require_checksum=require, only=USED_NMEA, verified=verified)
-                if type(s) is reject:
-                    c.rejected[s.reason] += 1  # (a Reject)
-                    continue
-                c.received += 1
-                if s is not unused:
-                    updated |= self._use_nmea(spec, ev.rx_ns, s, out)
-            return updated
         used: list[Any] = []
         for text in texts:
-            s = decode(text, require_checksum=require, only=USED_NMEA, verified=False)
+            s = decode(text, require_checksum=require, only=USED_NMEA, verified=verified)
             if type(s) is reject:
                 c.rejected[s.reason] += 1  # (a Reject)
                 continue
             c.received += 1
             if s is not unused:
                 used.append(s)
-        cycles = self._cycles(spec.name, used, ev.rx_ns)
+        # (a text log's reader has cut the log into cycles by the sentences' own times already)
+        cycles = [] if verified or ev.cycle else self._cycles(spec.name, used, ev.rx_ns)
         if len(cycles) > 1:  # the read held several cycles: each but the last is stepped at its own time
             *earlier, (_, used) = cycles
             for stamp, sentences in earlier:
