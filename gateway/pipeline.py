@@ -729,7 +729,6 @@ class Pipeline:
             if tap is not None:
                 for text in framed:
                     tap(spec.name, ev.rx_ns, text, ev.peer)
-        updated = False
         decode, reject, unused = nmea_codec.decode, nmea_codec.Reject, nmea_codec.UNUSED
         require = not spec.allow_missing_checksum
         used: list[Any] = []
@@ -746,14 +745,16 @@ class Pipeline:
         if len(cycles) > 1:  # the read held several cycles: each but the last is stepped at its own time
             *earlier, (_, used) = cycles
             for stamp, sentences in earlier:
-                stepped = False
-                for s in sentences:
-                    stepped |= self._use_nmea(spec, stamp, s, out)
-                if stepped:
+                if self._use_sentences(spec, stamp, sentences, out):
                     out += self._step(stamp, spec.name)
                 out += self._state_changes(stamp)
-        for s in used:
-            updated |= self._use_nmea(spec, ev.rx_ns, s, out)
+        return self._use_sentences(spec, ev.rx_ns, used, out)  # (the last: stepped by `feed`)
+
+    def _use_sentences(self, spec: SourceSpec, rx_ns: int, sentences: list[Any], out: list[Output]) -> bool:
+        """`_use_nmea` for each sentence of one cycle, all of them; whether any calls for an observer step."""
+        updated = False
+        for s in sentences:
+            updated |= self._use_nmea(spec, rx_ns, s, out)
         return updated
 
     def _cycles(self, source: str, sentences: list[Any], rx_ns: int) -> list[tuple[int, list[Any]]]:

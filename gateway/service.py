@@ -52,7 +52,7 @@ from gateway.sim_time import SimTime
 from gateway.sources import Chunk, SerialSource, Source, open_source
 from gateway.wall_time import WallTime
 from wire.codecs import mavlink as mv
-from wire.mcap.folder import log_folder_problem, make_log_folder
+from wire.mcap.folder import make_log_folder
 from wire.mcap.writer import McapLogWriter
 from wire.messages import SIM_CLOCK_KEY, SimClock, Status, ThrusterCommand
 
@@ -114,11 +114,11 @@ def _open_log(path: str, options: dict[str, Any]) -> McapLogWriter:
     set, never overwrites it."""
     folder = os.path.dirname(os.path.abspath(path))
     fix = "choose a folder the gateway may write to (a service: its LogsDirectory, /var/log/dpgw)"
-    if problem := log_folder_problem(path):
-        raise LogPathError(problem)
     try:
         if make_log_folder(path):
             log.warning("made the log's folder %s (it did not exist)", folder)
+    except FileNotFoundError as exc:  # more than the folder missing (`log_folder_problem`'s words)
+        raise LogPathError(str(exc)) from None
     except FileExistsError:
         raise LogPathError(f"cannot make the log's folder {folder}: a file is in the way — {fix}") from None
     except OSError as exc:
@@ -603,14 +603,18 @@ class GatewayService:
         last = self.pipeline.last_ns
         if not last:
             return self._status_without_time()
-        return self.pipeline.status(max(last, self._status_ns, self._ticked_ns), self._alarms())
+        return self.pipeline.status(self._final_status_ns(), self._alarms())
 
     def final_status_outputs(self) -> list[Output]:
         """`final_status` with its Foxglove log lines after it (`Pipeline.status_outputs`): what is logged."""
-        last = self.pipeline.last_ns
-        if not last:
+        if not self.pipeline.last_ns:
             return [self._status_without_time()]
-        return self.pipeline.status_outputs(max(last, self._status_ns, self._ticked_ns), self._alarms())
+        return self.pipeline.status_outputs(self._final_status_ns(), self._alarms())
+
+    def _final_status_ns(self) -> int:
+        """The last status's stamp: the pipeline's last time, the periodic status logged last, the last
+        tick, whichever is latest (`final_status`)."""
+        return max(self.pipeline.last_ns, self._status_ns, self._ticked_ns)
 
     def _status_without_time(self) -> Output:
         """The status while the pipeline has no time yet (``clock = "sim"`` before the first tick; and the

@@ -171,3 +171,38 @@ def gga_hdt_chunk(k: int, lat_deg: float, lon_deg: float) -> bytes:
     t = datetime.now(UTC)
     gga = enc.gga("GP", t, lat_deg + 2e-6 * math.sin(k / 50), lon_deg, 2, 12, 0.8, 20.0, 35.5)
     return (gga + enc.hdt("HE", 30.0 + 0.02 * math.sin(k / 30))).encode()
+
+
+def run_demo_beside(
+    args: Any, operator: Callable[[], None] | None = None, release: Callable[[], None] | None = None
+) -> int:
+    """``dpgw demo`` (`dpgw.cli_demo.run` of the parsed ``args``) in this process, with ``operator`` in a
+    thread beside it (what a person or a tool does meanwhile). Afterwards the SIGINT and SIGTERM handlers
+    the demo installs are put back, ``release`` is called (what lets the operator finish), and the
+    operator's thread is joined. Returns the demo's exit status."""
+    import signal
+
+    from dpgw import cli_demo
+
+    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    thread = threading.Thread(target=operator, name="operator", daemon=True) if operator else None
+    if thread is not None:
+        thread.start()
+    try:
+        return cli_demo.run(args)
+    finally:
+        for s, h in handlers.items():
+            signal.signal(s, h)
+        if release is not None:
+            release()
+        if thread is not None:
+            thread.join(30)
+
+
+def stop_service(service: Any, loop: threading.Thread) -> None:
+    """Stop a `GatewayService` whose loop runs in ``loop``, as `dpgw run` does at its end: the loop ends,
+    what is left is handled and logged (`drain`), and everything is closed."""
+    service.stop_event.set()
+    loop.join(timeout=30)
+    service.drain()
+    service.close()

@@ -14,14 +14,13 @@ from __future__ import annotations
 import json
 import os
 import signal
-import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import wait_for
+from conftest import run_demo_beside, wait_for
 
 from dpgw import cli_demo
 from dpgw.cli import build_parser
@@ -62,17 +61,7 @@ def run_demo(
     args = build_parser().parse_args(
         ["demo", *argv, "--out", str(out), "--json", "--no-scouting", "--no-foxglove"]
     )
-    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    thread = threading.Thread(target=operator, args=(sims,), daemon=True) if operator else None
-    if thread is not None:
-        thread.start()
-    try:
-        code = cli_demo.run(args)
-    finally:
-        for s, h in handlers.items():
-            signal.signal(s, h)
-        if thread is not None:
-            thread.join(30)
+    code = run_demo_beside(args, (lambda: operator(sims)) if operator else None)
     captured = capsys.readouterr()
     return code, json.loads(captured.out) if captured.out else {}, captured.err, out
 

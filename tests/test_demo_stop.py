@@ -15,10 +15,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import wait_for
+from conftest import run_demo_beside, wait_for
 
 import gateway.service as service_module
-from dpgw import cli_demo
 from dpgw.cli import build_parser
 from gateway.service import GatewayService
 from wire.codecs import nmea_encode as enc
@@ -87,16 +86,7 @@ def test_a_demo_stopped_far_behind_stops_in_time_with_every_input_logged(
             os.kill(os.getpid(), signal.SIGTERM)  # the demo's own stop (its handler), as systemctl stop
             moving.set()
 
-    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    thread = threading.Thread(target=operator, name="operator", daemon=True)
-    thread.start()
-    try:
-        code = cli_demo.run(args)
-    finally:
-        for s, h in handlers.items():
-            signal.signal(s, h)
-        moving.set()
-        thread.join(30)
+    code = run_demo_beside(args, operator, release=moving.set)
     assert not problems, problems
     assert code == 0
     assert len(drains) == 1, drains

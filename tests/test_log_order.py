@@ -16,7 +16,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
-from conftest import free_port, wait_for
+from conftest import free_port, stop_service, wait_for
 from mcap.records import Channel, Message
 from mcap.stream_reader import StreamReader
 
@@ -121,11 +121,8 @@ def live_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
         data_until(service.pipeline.estimates + 10)
         silent_for(1.0)
     finally:
-        service.stop_event.set()
-        loop.join(timeout=30)
-        service.drain()
         tx.close()
-        service.close()
+        stop_service(service, loop)
     return path
 
 

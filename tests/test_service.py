@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import free_port
+from conftest import free_port, stop_service
 
 from gateway.bus import isolated_config, open_session
 from gateway.config import parse_config
@@ -178,11 +178,8 @@ def test_the_logs_last_status_holds_every_count_of_the_run(tmp_path: Path) -> No
     try:
         wait_for("20 bursts", lambda: counters.received >= 40, send=send)
     finally:
-        service.stop_event.set()
-        loop.join(timeout=30)
-        service.drain()
         tx.close()
-        service.close()
+        stop_service(service, loop)
     statuses = [p for _, _, _, p in read_messages(log_path, "/dp/status")]
     assert statuses, "no status in the log"
     last = statuses[-1]["sources"]["mux"]
