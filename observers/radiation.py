@@ -752,26 +752,18 @@ def _feedthrough(elements: dict[tuple[int, int], ElementModel], grid: Array) -> 
     return hi * peak
 
 
-@dataclass(frozen=True)
-class RadiationModel:
-    """Fluid-memory model μ = C_r ξ + D_r ν, ξ' = A_r ξ + B_r ν (3 inputs ν = [u, v, r], 3 outputs μ), with
-    the infinite-frequency added mass and the fit report."""
+class _StateSpaceResponses:
+    """The frequency and impulse responses of μ = C_r ξ + D_r ν, ξ' = A_r ξ + B_r ν with A(∞): one
+    implementation for the identified model with its report and for the bare state space."""
 
     Ar: Array
     Br: Array
     Cr: Array
     Dr: Array
     A_inf: Array
-    fits: dict[tuple[int, int], ElementFit]
-    passivity: PassivityReport
-    w_data: Array = field(repr=False)
-
-    @property
-    def elements(self) -> dict[tuple[int, int], ElementModel]:
-        return {k: f.model for k, f in self.fits.items()}
 
     def frequency_response(self, w: ArrayLike) -> CArray:
-        """K(jω) of the state-space model, (N, 3, 3)."""
+        """K(jω) = C_r (jωI - A_r)⁻¹ B_r + D_r, (N, 3, 3)."""
         w = np.atleast_1d(np.asarray(w, dtype=float))
         n = self.Ar.shape[0]
         out = np.empty((len(w), 3, 3), dtype=complex)
@@ -795,6 +787,25 @@ class RadiationModel:
         left = self.Cr @ v
         right = np.linalg.solve(v, self.Br)
         return np.real(np.einsum("il,tl,lj->tij", left, np.exp(np.outer(t, lam)), right))
+
+
+@dataclass(frozen=True)
+class RadiationModel(_StateSpaceResponses):
+    """Fluid-memory model μ = C_r ξ + D_r ν, ξ' = A_r ξ + B_r ν (3 inputs ν = [u, v, r], 3 outputs μ), with
+    the infinite-frequency added mass and the fit report."""
+
+    Ar: Array
+    Br: Array
+    Cr: Array
+    Dr: Array
+    A_inf: Array
+    fits: dict[tuple[int, int], ElementFit]
+    passivity: PassivityReport
+    w_data: Array = field(repr=False)
+
+    @property
+    def elements(self) -> dict[tuple[int, int], ElementModel]:
+        return {k: f.model for k, f in self.fits.items()}
 
     def report(self) -> list[dict[str, object]]:
         """One row per element: DOFs, order, R² of A and B, A(∞) and its unit, excluded frequencies."""
@@ -984,7 +995,7 @@ def _frozen(value: ArrayLike, shape: tuple[int, ...], name: str, source: str) ->
 
 
 @dataclass(frozen=True, eq=False)
-class RadiationStateSpace:
+class RadiationStateSpace(_StateSpaceResponses):
     """μ = C_r ξ + D_r ν, ξ' = A_r ξ + B_r ν (ν = [u, v, r] in, μ = [X, Y, N] out, SI) with A(∞).
 
     The one object for a vessel's fluid memory: the plant integrates it (``simulator.plant``,
@@ -1049,32 +1060,6 @@ class RadiationStateSpace:
     @property
     def n_states(self) -> int:
         return int(self.Ar.shape[0])
-
-    def frequency_response(self, w: ArrayLike) -> CArray:
-        """K(jω) = C_r (jωI - A_r)⁻¹ B_r + D_r, (N, 3, 3)."""
-        w = np.atleast_1d(np.asarray(w, dtype=float))
-        n = self.n_states
-        out = np.empty((len(w), 3, 3), dtype=complex)
-        for k, wk in enumerate(w):
-            out[k] = self.Cr @ np.linalg.solve(1j * wk * np.eye(n) - self.Ar, self.Br) + self.Dr
-        return out
-
-    def added_mass(self, w: ArrayLike) -> Array:
-        """A(ω) = A(∞) + Im K(jω)/ω, (N, 3, 3)."""
-        w = np.atleast_1d(np.asarray(w, dtype=float))
-        return self.A_inf[None] + self.frequency_response(w).imag / w[:, None, None]
-
-    def damping(self, w: ArrayLike) -> Array:
-        """B(ω) = Re K(jω), (N, 3, 3)."""
-        return self.frequency_response(w).real
-
-    def impulse_response(self, t: ArrayLike) -> Array:
-        """K(t) = C_r e^{A_r t} B_r, (N, 3, 3) (a feedthrough D_r adds D_r δ(t), not sampled here)."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        lam, v = np.linalg.eig(self.Ar)
-        left = self.Cr @ v
-        right = np.linalg.solve(v, self.Br)
-        return np.real(np.einsum("il,tl,lj->tij", left, np.exp(np.outer(t, lam)), right))
 
     def static_gain(self) -> Array:
         """K(0) = D_r - C_r A_r⁻¹ B_r: the damping the fluid memory adds at zero frequency (0 without D_r)."""
