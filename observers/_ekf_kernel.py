@@ -20,6 +20,7 @@ import math
 import numpy as np
 from numba import njit
 
+from observers._sdre_kernel import initialize as sdre_initialize
 from observers.base import STATUS_DEAD_RECKONING, STATUS_INITIALIZING, STATUS_OK
 from observers.kinematics import ssa_jit
 
@@ -155,20 +156,9 @@ def update(x, P, y, r):
 
 @njit(cache=True)
 def initialize(x, P, P0, y, tau):
-    """Start at rest for the first y and τ: η̂ = y, ν̂ = 0, ξ̂ = 0, b̂ = −J(y₃)τ (Jᵀb̂ + τ = 0); P = P0."""
-    c = math.cos(y[2])
-    s = math.sin(y[2])
-    t0 = 0.0 if math.isnan(tau[0]) else tau[0]
-    t1 = 0.0 if math.isnan(tau[1]) else tau[1]
-    t2 = 0.0 if math.isnan(tau[2]) else tau[2]
-    for j in range(15):
-        x[j] = 0.0
-    x[0] = y[0]
-    x[1] = y[1]
-    x[2] = ssa_jit(y[2])
-    x[6] = -(c * t0 - s * t1)
-    x[7] = -(s * t0 + c * t1)
-    x[8] = -t2
+    """Start at rest for the first y and τ as the SDRE observer does (same 15 states): η̂ = y, ν̂ = 0, ξ̂ = 0,
+    b̂ = −J(y₃)τ (Jᵀb̂ + τ = 0); P = P0."""
+    sdre_initialize(x, y, tau)
     P[:, :] = P0
 
 

@@ -46,9 +46,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from observers import _ekf_kernel as kernel
-from observers.base import STATUS_NAMES, Estimate, InitialState, ObserverBase, Run, batch_inputs, step_inputs
+from observers.base import Estimate, InitialState, ObserverBase, Run, batch_inputs, step_inputs
 from observers.kinematics import rotation, ssa_scalar
 from observers.passive_tuning import PassiveTuning
+from observers.sdre import estimate_from_state, initial_state
 from observers.sdre_tuning import (
     BIAS,
     ETA,
@@ -79,22 +80,6 @@ def measurement_variance(tuning: SdreTuning) -> Array:
 def initial_covariance(vessel: VesselModel, weights: SdreWeights) -> Array:
     """P0: the diagonal of the stationary continuous filter's covariance (module docstring)."""
     return np.diag(np.diag(solve_riccati(vessel, weights, 0.0)))
-
-
-def initial_state(start: InitialState) -> Array:
-    x = np.zeros(N_STATES)
-    x[ETA] = start.eta
-    x[2] = ssa_scalar(x[2])
-    for part, value in ((NU, start.nu), (BIAS, start.bias), (XI2, start.eta_wf)):
-        if value is not None:
-            x[part] = value
-    return x
-
-
-def estimate_from_state(t: float, x: Array, code: int) -> Estimate:
-    if code == kernel.STATUS_INITIALIZING:
-        return Estimate.initializing(t)
-    return Estimate(t, x[ETA].copy(), x[NU].copy(), x[BIAS].copy(), x[XI2].copy(), STATUS_NAMES[code])
 
 
 class EkfObserver(ObserverBase):
