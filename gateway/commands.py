@@ -21,7 +21,17 @@ kept as text for the log when:
 * the mode ``dp`` is asked for while the estimate is not healthy (observer not initialised, its status
   neither ``ok`` nor ``degraded``, or no observer step for longer than every source's timeout: every
   source silent, the estimate dead-reckoned however ``ok`` the last step was). Standby and manual are
-  never refused for health: an operator must always be able to take the thrusters back.
+  never refused for health: an operator must always be able to take the thrusters back;
+* a manual τ arrives while the mode is not ``manual`` (``not in manual``): it would move nothing then,
+  and entering manual starts from τ = 0 anyway, so taking it only hid that the operator's console and
+  the gateway disagree on the mode.
+
+Two more outcomes are counted apart, as they are not refusals of the input as it came:
+
+* ``superseded``: a setpoint taken but not applied yet (it waits for the next control step, or for an
+  estimate healthy enough for dp) that a newer setpoint replaced: the older one is dropped unapplied;
+* ``expired``: a manual τ not renewed within ``[commands] manual_tau_hold_s`` (the dead-man): the pipeline
+  then sets the thrust demand to zero (`gateway.pipeline.Pipeline`), until a fresh τ.
 
 The checks are pure functions of the event and the pipeline's state, so a replay refuses exactly what
 the live run refused.
@@ -71,11 +81,15 @@ def tau_capacity(vessel: VesselModel) -> np.ndarray | None:
 
 @dataclass
 class CommandCounters:
-    """Inputs taken by key, inputs refused by reason, and the last refusal as text."""
+    """Inputs taken by key, inputs refused by reason, the last refusal as text; inputs taken but dropped
+    unapplied for a newer one (``superseded``) and manual τ held past their hold time (``expired``), by
+    key."""
 
     accepted: Counter[str] = field(default_factory=Counter)
     refused: Counter[str] = field(default_factory=Counter)
     last_refused: str | None = None
+    superseded: Counter[str] = field(default_factory=Counter)
+    expired: Counter[str] = field(default_factory=Counter)
 
 
 @mypyc_attr(native_class=False)
@@ -179,6 +193,15 @@ class CommandGate:
             )
         return None
 
+    def check_tau_mode(self, mode: str) -> Refusal | None:
+        """A manual τ is taken in ``manual`` only (checked after `check_tau`: a malformed τ is refused for
+        that whatever the mode)."""
+        if mode != "manual":
+            return self.refuse(
+                "tau", "not in manual", f"τ ignored: mode is {mode} (a τ is taken in manual only)"
+            )
+        return None
+
     def check_tau(self, payload: Any) -> np.ndarray | Refusal:
         """The manual τ [X, Y, N] as an array, or why not."""
         if not isinstance(payload, Mapping):
@@ -212,6 +235,14 @@ class CommandGate:
 
     def accepted(self, key: str) -> None:
         self.counters.accepted[key] += 1
+
+    def superseded(self, key: str) -> None:
+        """An input taken but not applied yet, dropped for a newer one of the same key."""
+        self.counters.superseded[key] += 1
+
+    def expired(self, key: str) -> None:
+        """An input held past its hold time (a manual τ: `Pipeline`'s dead-man)."""
+        self.counters.expired[key] += 1
 
     def refuse(self, key: str, reason: str, text: str) -> Refusal:
         r = Refusal(key, reason, text)

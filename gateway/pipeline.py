@@ -426,6 +426,14 @@ class Pipeline:
         self.mode = "standby"
         self.setpoint: dict[str, Any] | None = None
         self.manual_tau = np.zeros(3)
+        # The dead-man on the manual τ (`_manual_tau_hold`): the hold time, the receive time of the τ in
+        # force (None: none taken in this manual spell, τ = 0 since entering it), and whether it expired.
+        self._manual_hold_s = float(spec.commands.manual_tau_hold_s)
+        self._manual_hold_ns = round(self._manual_hold_s * NS) if math.isfinite(self._manual_hold_s) else None
+        self._manual_tau_ns: int | None = None
+        self.manual_tau_expired = False
+        """In manual, no new τ for longer than ``[commands] manual_tau_hold_s``: the demand is zero, an
+        alarm is up (`_command_alarms`) until a fresh τ or another mode."""
         self.estimates = 0
         self.commands = CommandGate(spec.commands.accept, spec.commands.max_setpoint_distance_m, spec.vessel)
         self.estimate_status: str | None = None  # of the last published estimate (the DP-mode check)
@@ -634,6 +642,8 @@ class Pipeline:
             self.t0_ns = rx_ns
         if rx_ns > self.last_ns:
             self.last_ns = rx_ns
+        if self._manual_tau_ns is not None:
+            self._manual_tau_hold(rx_ns)
         c = self.counters[event.source]
         c.bytes += len(event.data)
         c.last_rx_ns = rx_ns
@@ -1269,25 +1279,78 @@ class Pipeline:
             silent_s = unstepped_ns / NS if self._last_step_ns and unstepped_ns > self._silent_ns else None
             if gate.check_mode(ev.payload, self.observer.initialized, self.estimate_status, silent_s) is None:
                 self._mode_commanded(ev.payload, ev.rx_ns)
-                if ev.payload == "manual" and self.mode != "manual":
+                if ev.payload != "manual" or self.mode != "manual":
                     # manual starts from no thrust until the operator's next τ (as the controller's
-                    # manual does): a τ of an earlier manual spell, or one sent in dp or standby, is not
-                    # what the operator means now
+                    # manual does): a τ of an earlier manual spell is not what the operator means now;
+                    # and the dead-man has nothing to time until that τ (`_manual_tau_hold`)
                     self.manual_tau = np.zeros(3)
+                    self._manual_tau_ns = None
+                    self.manual_tau_expired = False
                 self.mode = ev.payload
                 gate.accepted("mode")
         elif ev.key == "setpoint":
             # the distance from the present position is checked when it is applied (`_control_step`):
             # a setpoint may arrive before the first estimate
             if gate.check_setpoint_shape(ev.payload) is None:
+                if self._pending_setpoint is not None:
+                    self._setpoint_superseded(self._pending_setpoint)
                 self._pending_setpoint = ev.payload
         elif ev.key == "tau":
             tau = gate.check_tau(ev.payload)
-            if isinstance(tau, np.ndarray):
+            if isinstance(tau, np.ndarray) and gate.check_tau_mode(self.mode) is None:
                 gate.accepted("tau")
                 self.manual_tau = tau
-                if self.mode == "manual" and self.controller is None:
+                self._manual_tau_ns = ev.rx_ns
+                self.manual_tau_expired = False  # (its alarm clears with the next status)
+                if self.controller is None:
                     self.fusion.set_tau_demand(tau)
+
+    def _setpoint_superseded(self, old: dict[str, Any]) -> None:
+        """A setpoint taken but not applied yet, replaced by a newer one: counted (`CommandCounters.
+        superseded`) and said once, so the operator sees that it was dropped and why it had not been
+        applied."""
+        self.commands.superseded("setpoint")
+        if self.controller is None:
+            why = "no DP controller is configured to apply it"
+        elif self.estimate_status not in HEALTHY_FOR_DP:
+            status = self.estimate_status or "not there yet"
+            why = f"it waited for an estimate healthy enough for dp (the estimate is {status})"
+        else:
+            why = "it waited for the next control step"
+        self._events.append(
+            f"setpoint superseded: {_show_setpoint(old)} dropped unapplied, replaced by a newer one; {why}"
+        )
+
+    def _manual_tau_hold(self, now_ns: int) -> None:
+        """The dead-man on the manual τ: in manual, once no new τ has been taken for longer than
+        ``[commands] manual_tau_hold_s`` (on the pipeline's clock: the receive times of the events, so a
+        replay expires it where the live run did), the demand goes to zero and the mode stays manual.
+        Said once as an event, alarmed until a fresh τ (`_command_alarms`), counted (`CommandCounters.
+        expired`). A joystick or console streams its τ at several Hz; one that stops (crashed, cable out,
+        link lost) must not leave the thrusters pushing. ``inf``: held until the next one."""
+        held_ns = self._manual_hold_ns
+        since = self._manual_tau_ns
+        if held_ns is None or since is None or self.manual_tau_expired or self.mode != "manual":
+            return
+        if now_ns - since <= held_ns:
+            return
+        self.manual_tau_expired = True
+        self.manual_tau = np.zeros(3)
+        if self.controller is None:
+            self.fusion.set_tau_demand(self.manual_tau)
+        self.commands.expired("tau")
+        self._events.append(
+            f"manual τ expired: no new τ for {_seconds(self._manual_hold_s)} s; thrust demand set to zero"
+        )
+
+    def _command_alarms(self) -> list[str]:
+        """The command inputs' alarm: a manual τ expired (`_manual_tau_hold`), up until a fresh τ."""
+        if not self.manual_tau_expired:
+            return []
+        return [
+            "manual τ expired: thrust demand zero until a new τ "
+            f"(commands.manual_tau_hold_s = {self._manual_hold_s:g} s)"
+        ]
 
     def _mode_commanded(self, mode: str, now_ns: int) -> None:
         """An operator's mode command, accepted: the operator decides, as on a DP console. It ends a wait
@@ -2103,7 +2166,7 @@ class Pipeline:
             alarms = self._caller_alarms
         elif remember:
             self._caller_alarms = list(alarms)
-        alarms = list(alarms) + self._settling_alarms(now_ns) + self.control_alarms
+        alarms = list(alarms) + self._settling_alarms(now_ns) + self.control_alarms + self._command_alarms()
         alarms += [f"thruster {tid} out of DP ({why})" for tid, why in sorted(self.thrusters_out.items())]
         references: dict[str, list[ReferenceStatus]] = {}
         for name, states in self.monitor.states().items():
@@ -2145,9 +2208,25 @@ class Pipeline:
                 accepted=dict(self.commands.counters.accepted),
                 refused=dict(self.commands.counters.refused),
                 last_refused=self.commands.counters.last_refused,
+                superseded=dict(self.commands.counters.superseded),
+                expired=dict(self.commands.counters.expired),
             ),
             consequence=self._consequence_status(),
         )
+
+
+def _seconds(x: float) -> str:
+    """A time in seconds as an operator reads it: one decimal (2.0), or as many as it has (0.25)."""
+    return f"{x:.1f}" if round(x, 1) == x else f"{x:g}"
+
+
+def _show_setpoint(sp: Mapping[str, Any]) -> str:
+    """A setpoint as an operator reads it: north/east or lat/lon, and heading."""
+    if "north_m" in sp:
+        where = f"north {float(sp['north_m']):.1f} m, east {float(sp['east_m']):.1f} m"
+    else:
+        where = f"lat {float(sp['lat_deg']):.6f}°, lon {float(sp['lon_deg']):.6f}°"
+    return f"({where}, heading {float(sp['heading_deg']):.1f}°)"
 
 
 SIGNING_REJECTED_TOPIC = "/raw/mavlink_rejected/"

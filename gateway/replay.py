@@ -439,7 +439,8 @@ def _as_replayed(tables: dict[str, Any]) -> dict[str, Any]:
     before ``[commands]`` existed came from a gateway that took every command input: so does its replay,
     or the replay would refuse the setpoints and modes the live run obeyed. One from before ``[control]
     wait_for_observer`` (a gateway that started in dp engaged DP at its first estimate; logs since record
-    the option, `gateway.config.logged.for_log`) is replayed so too."""
+    the option, `gateway.config.logged.for_log`) is replayed so too, and so is one from before ``[commands]
+    manual_tau_hold_s`` (its gateway held a manual τ until the next one: ``inf``; logs since record it)."""
     out = without_unlogged_keys(tables)
     sources = []
     for src in out.get("sources", []):
@@ -450,7 +451,9 @@ def _as_replayed(tables: dict[str, Any]) -> dict[str, Any]:
         sources.append(src)
     if "sources" in out:
         out["sources"] = sources
-    out.setdefault("commands", {"accept": ["mode", "setpoint", "tau"]})
+    commands = out.setdefault("commands", {"accept": ["mode", "setpoint", "tau"]})
+    if isinstance(commands, dict) and "manual_tau_hold_s" not in commands:
+        out["commands"] = {**commands, "manual_tau_hold_s": math.inf}
     control = out.get("control")
     if isinstance(control, dict) and control.get("initial_mode") == "dp":
         out["control"] = {"wait_for_observer": False, **control}

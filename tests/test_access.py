@@ -93,18 +93,19 @@ def test_only_the_commander_changes_mode_setpoint_or_tau(gateway: tuple[GatewayS
         watch.put(f"{PREFIX}/mode", json.dumps("manual"))
         watch.put(f"{PREFIX}/tau", json.dumps({"X": 1e4, "Y": 0.0, "N": 0.0}))
         watch.put(f"{PREFIX}/setpoint", json.dumps({"north_m": 5.0, "east_m": 0.0, "heading_deg": 0.0}))
-        # ...then the captain commands τ: once that is taken, the watch's puts would have been too
+        # ...then the captain commands manual and a τ (a τ is taken in manual only): once that is taken,
+        # the watch's puts would have been too
+        captain.put(f"{PREFIX}/mode", json.dumps("manual"))
+        assert wait_for(lambda: (s := status(captain)) is not None and s["mode"] == "manual", 10.0)
         captain.put(f"{PREFIX}/tau", json.dumps({"X": 2e4, "Y": 0.0, "N": 0.0}))
         taken = wait_for(
             lambda: (s := status(watch)) is not None and s["commands"]["accepted"].get("tau") == 1 and s, 10.0
         )
         assert taken, "the commander's τ was not taken"
         assert service.pipeline.manual_tau.tolist() == [2e4, 0.0, 0.0]
-        assert taken["mode"] == "standby"
-        assert taken["commands"]["accepted"] == {"tau": 1}
+        assert taken["commands"]["accepted"] == {"mode": 1, "tau": 1}
+        assert not taken["commands"].get("refused")
         assert service.pipeline._pending_setpoint is None and service.pipeline.setpoint is None
-        captain.put(f"{PREFIX}/mode", json.dumps("manual"))
-        assert wait_for(lambda: (s := status(captain)) is not None and s["mode"] == "manual", 10.0)
     finally:
         watch.close()
         captain.close()

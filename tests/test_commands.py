@@ -353,15 +353,17 @@ def test_a_replay_refuses_the_mode_inputs_the_live_gateway_refused(tmp_path: Pat
     with live_gateway(tmp_path) as (service, session):
         session.put("dp/cmd/mode", json.dumps({"mode": "manual"}))
         session.put("dp/cmd/tau", json.dumps({"X": 1.0, "Y": 0.0, "N": 0.0}))
-        assert wait_for(lambda: service.pipeline.commands.counters.accepted["tau"] == 1, 20.0)
+        # (the τ, refused outside manual, says the inputs were handled)
+        assert wait_for(lambda: service.pipeline.commands.counters.refused["tau: not in manual"] == 1, 20.0)
         live = service.pipeline.commands.counters
-        assert live.refused == {"mode: invalid": 1} and service.pipeline.mode == "standby"
+        assert live.refused == {"mode: invalid": 1, "tau: not in manual": 1}
+        assert service.pipeline.mode == "standby"
     p = pipeline({"accept": ALL})
     for ev in mcap_events(tmp_path / "c.mcap"):
         if isinstance(ev, ControlEvent):
             p.feed(ev)
     assert p.mode == "standby"
-    assert dict(p.commands.counters.refused) == {"mode: invalid": 1}
+    assert dict(p.commands.counters.refused) == {"mode: invalid": 1, "tau: not in manual": 1}
 
 
 def test_a_setpoint_waits_while_the_position_estimate_is_lost() -> None:
@@ -392,3 +394,162 @@ def test_a_setpoint_waits_while_the_position_estimate_is_lost() -> None:
     assert p.estimate_status == "ok"
     assert commands_status(p)["accepted"] == {"setpoint": 1}
     assert float(p.controller.reference.target[0]) == 30.0
+
+
+# --- the manual τ's dead-man ([commands] manual_tau_hold_s) ----------------------------------------------
+
+EXPIRED = "manual τ expired: no new τ for 2.0 s; thrust demand set to zero"
+
+
+def manual_run(p: Pipeline, start_s: float, seconds: float, taus_at: tuple[float, ...] = ()) -> list[Any]:
+    """Fixes at 10 Hz from ``start_s`` (`run`) with a τ of 1e5 N ahead at each time of ``taus_at``, fed in
+    time order: the pipeline's clock is the events' receive times, nothing sleeps."""
+    rng = np.random.default_rng(round(start_s * 10))
+    pending = sorted(taus_at)
+    out = []
+    for k in range(int(seconds * 10)):
+        t = start_s + k / 10
+        while pending and pending[0] <= t + 1e-9:
+            p.feed(ControlEvent(T0 + round(pending.pop(0) * S), "tau", {"X": 1e5, "Y": 0.0, "N": 0.0}))
+        out += p.feed(RawEvent(T0 + round(t * S), "gps", moving_fix(t, 0.0, rng)))
+    return out
+
+
+def surge_demands(out: list[Any]) -> list[tuple[float, float]]:
+    """(time s from T0, τ X demanded) of each thruster command."""
+    return [
+        ((o.stamp_ns - T0) / S, o.payload["tau_demand"][0]) for o in out if o.topic == "/dp/thrusters/command"
+    ]
+
+
+def said(out: list[Any], text: str) -> list[str]:
+    """The status events of ``out`` that start with ``text``."""
+    return [
+        e for o in out if o.topic == "/dp/status" for e in o.payload.get("events", []) if e.startswith(text)
+    ]
+
+
+def logged(out: list[Any], text: str) -> list[str]:
+    """The Foxglove log lines (/dp/log) of ``out`` that contain ``text``."""
+    return [o.payload["message"] for o in out if o.topic == "/dp/log" and text in o.payload["message"]]
+
+
+def test_a_manual_tau_expires_after_the_hold_time_and_not_before() -> None:
+    """The console sends one τ and dies: the thrusters push for the hold time (2 s by default) and no
+    longer; the mode stays manual, the event is said once, the alarm is up and counted, and a fresh τ
+    resumes and clears it."""
+    p = pipeline({"accept": ALL})  # manual_tau_hold_s: the default, 2 s
+    run(p, 2.0)
+    p.feed(ControlEvent(T0 + 2 * S, "mode", "manual"))
+    out = manual_run(p, 2.0, 6.0, taus_at=(2.0,))
+    demands = surge_demands(out)
+    held = [x for t, x in demands if t <= 4.0 + 1e-9]
+    after = [x for t, x in demands if t > 4.0 + 1e-9]
+    assert len(held) >= 15 and all(x == 1e5 for x in held), held  # every command of the 2 s: the τ
+    assert len(after) >= 30 and all(x == 0.0 for x in after), after  # every one after: zero
+    assert p.mode == "manual" and p.manual_tau_expired
+    assert said(out, "manual τ expired") == [EXPIRED]
+    # the status that said it came with the event's sensor input (4.1 s), not a second later
+    stamps = [o.stamp_ns for o in out if o.topic == "/dp/status" and EXPIRED in o.payload.get("events", [])]
+    assert stamps == [T0 + round(4.1 * S)]
+    status = p.status(p.last_ns).payload
+    assert status["commands"]["expired"] == {"tau": 1}
+    assert [a for a in status["alarms"] if a.startswith("manual τ expired")] == [
+        "manual τ expired: thrust demand zero until a new τ (commands.manual_tau_hold_s = 2 s)"
+    ]
+    assert logged(out, EXPIRED) and len(logged(out, "alarm: manual τ expired")) == 1  # Foxglove /dp/log
+    # a fresh τ resumes at once and clears the alarm (said once on /dp/log)
+    out = manual_run(p, 8.0, 1.0, taus_at=(8.0,)) + p.status_outputs(p.last_ns)
+    assert all(x == 1e5 for _, x in surge_demands(out)) and surge_demands(out)
+    assert not p.manual_tau_expired
+    assert not [a for a in p.status(p.last_ns).payload["alarms"] if "manual τ" in a]
+    assert len(logged(out, "alarm cleared: manual τ expired")) == 1
+    assert commands_status(p)["expired"] == {"tau": 1} and commands_status(p)["accepted"]["tau"] == 2
+
+
+def test_a_manual_tau_renewed_within_the_hold_time_never_expires() -> None:
+    """A console that sends its τ every 1.5 s (under the 2 s hold) keeps the thrusters on it throughout."""
+    p = pipeline({"accept": ALL})
+    run(p, 2.0)
+    p.feed(ControlEvent(T0 + 2 * S, "mode", "manual"))
+    out = manual_run(p, 2.0, 10.0, taus_at=tuple(2.0 + 1.5 * k for k in range(7)))
+    demands = surge_demands(out)
+    assert len(demands) >= 90 and all(x == 1e5 for _, x in demands)
+    assert not said(out, "manual τ expired") and "expired" not in commands_status(p)
+
+
+def test_a_manual_tau_hold_of_inf_holds_it_until_the_next_one() -> None:
+    p = pipeline({"accept": ALL, "manual_tau_hold_s": math.inf})
+    run(p, 2.0)
+    p.feed(ControlEvent(T0 + 2 * S, "mode", "manual"))
+    out = manual_run(p, 2.0, 20.0, taus_at=(2.0,))
+    demands = surge_demands(out)
+    assert len(demands) >= 190 and all(x == 1e5 for _, x in demands)
+    assert not said(out, "manual τ expired") and "expired" not in commands_status(p)
+    assert not [a for a in p.status(p.last_ns).payload["alarms"] if "manual τ" in a]
+
+
+def test_the_hold_time_is_configurable_and_counts_each_expiry() -> None:
+    """0.5 s: each τ pushes for half a second; two τ that both die are two expiries, two events."""
+    p = pipeline({"accept": ALL, "manual_tau_hold_s": 0.5})
+    run(p, 2.0)
+    p.feed(ControlEvent(T0 + 2 * S, "mode", "manual"))
+    out = manual_run(p, 2.0, 4.0, taus_at=(2.0, 4.0))
+    demands = surge_demands(out)
+    assert all(x == 1e5 for t, x in demands if 2.0 <= t <= 2.5 + 1e-9 or 4.0 <= t <= 4.5 + 1e-9)
+    assert all(x == 0.0 for t, x in demands if 2.6 - 1e-9 <= t < 4.0 or t >= 4.6 - 1e-9)
+    assert (
+        said(out, "manual τ expired")
+        == ["manual τ expired: no new τ for 0.5 s; thrust demand set to zero"] * 2
+    )
+    assert commands_status(p)["expired"] == {"tau": 2}
+
+
+def test_leaving_manual_clears_an_expired_tau_alarm() -> None:
+    p = pipeline({"accept": ALL})
+    run(p, 2.0)
+    p.feed(ControlEvent(T0 + 2 * S, "mode", "manual"))
+    manual_run(p, 2.0, 3.0, taus_at=(2.0,))
+    assert p.manual_tau_expired
+    p.feed(ControlEvent(T0 + 5 * S, "mode", "standby"))
+    assert not [a for a in p.status(p.last_ns).payload["alarms"] if "manual τ" in a]
+
+
+# --- setpoints dropped unapplied, τ outside manual -------------------------------------------------------
+
+
+def test_a_setpoint_replaced_while_it_waited_is_counted_as_superseded() -> None:
+    """Two setpoints before the first estimate: the first was never applied. It is counted and said, not
+    lost without a trace; the second is applied."""
+    p = pipeline({"accept": ALL}, initial_mode="dp")
+    p.feed(ControlEvent(T0, "setpoint", {"north_m": 20.0, "east_m": 0.0, "heading_deg": 30.0}))
+    p.feed(ControlEvent(T0, "setpoint", {"north_m": 10.0, "east_m": 5.0, "heading_deg": 40.0}))
+    out = run(p, 3.0)
+    c = commands_status(p)
+    assert c["superseded"] == {"setpoint": 1} and c["accepted"] == {"setpoint": 1}
+    assert p.setpoint == {"north_m": 10.0, "east_m": 5.0, "heading_deg": 40.0}
+    assert said(out, "setpoint superseded") == [
+        "setpoint superseded: (north 20.0 m, east 0.0 m, heading 30.0°) dropped unapplied, replaced by a "
+        "newer one; it waited for an estimate healthy enough for dp (the estimate is not there yet)"
+    ]
+    assert logged(out, "setpoint superseded")  # on Foxglove's /dp/log too
+    # one applied before the next arrives is not superseded
+    p.feed(ControlEvent(T0 + 3 * S, "setpoint", {"north_m": 0.0, "east_m": 0.0, "heading_deg": 30.0}))
+    run(p, 1.0, 3.1)
+    assert commands_status(p)["superseded"] == {"setpoint": 1}
+
+
+@pytest.mark.parametrize("mode", ["standby", "dp"])
+def test_a_tau_outside_manual_is_refused_not_taken(mode: str) -> None:
+    p = pipeline({"accept": ALL}, initial_mode=mode)
+    run(p, 2.0)
+    p.feed(ControlEvent(T0 + 2 * S, "tau", {"X": 1e5, "Y": 0.0, "N": 0.0}))
+    c = commands_status(p)
+    assert c["accepted"] == {} and c["refused"] == {"tau: not in manual": 1}
+    assert c["last_refused"] == f"τ ignored: mode is {mode} (a τ is taken in manual only)"
+    assert [r.text for r in p.commands.take_refusals()] == [c["last_refused"]]  # for the service's log
+    assert not p.manual_tau.any()
+    # and it is not applied on entering manual either: manual starts from τ = 0
+    p.feed(ControlEvent(T0 + 2 * S, "mode", "manual"))
+    out = run(p, 1.0, 2.1)
+    assert surge_demands(out) and all(x == 0.0 for _, x in surge_demands(out))

@@ -1315,6 +1315,12 @@ def test_integrity_config_mistakes_name_the_key() -> None:
         ({"commands.accept": ["mode", "sepoint"]}, 'commands.accept[1]: not a command input, did you mean "setpoint"?'),  # noqa: E501
         ({"commands.accept": ["tau", "tau"]}, "commands.accept: an input is repeated"),
         ({"commands.max_setpoint_distance_m": 0}, "commands.max_setpoint_distance_m: out of range"),
+        ({"commands.manual_tau_hold_s": 0}, "commands.manual_tau_hold_s: out of range (expected a number > 0 s, or inf, got 0)"),  # noqa: E501
+        ({"commands.manual_tau_hold_s": -2.0}, "commands.manual_tau_hold_s: out of range"),
+        ({"commands.manual_tau_hold_s": math.nan}, "commands.manual_tau_hold_s: out of range"),
+        ({"commands.manual_tau_hold_s": -math.inf}, "commands.manual_tau_hold_s: out of range"),
+        ({"commands.manual_tau_hold_s": "2 s"}, 'commands.manual_tau_hold_s: wrong type (expected a number > 0 s, or inf, got a string "2 s")'),  # noqa: E501
+        ({"commands.manual_tau_hold_s": True}, "commands.manual_tau_hold_s: wrong type"),
         ({"commands.enabled": True}, "commands.enabled: unknown key"),
         ({"zenoh.commanders": ["captain"]}, "zenoh.commanders: needs zenoh.users_file"),
         ({"zenoh.users_file": "users.txt", "zenoh.commanders": ["captian"]}, "zenoh.commanders[0]: not a user of"),  # noqa: E501
@@ -1340,6 +1346,19 @@ def test_command_access_mistakes_stop_start_up(
     found = problems_of(data, tmp_path)
     assert any(expected in line for line in found), found
     assert not any("secret" in line for line in found), found  # a password is never echoed
+
+
+def test_manual_tau_hold_in_a_file(tmp_path: Path) -> None:
+    """2 s unless set; TOML's ``inf`` holds a τ until the next one; 0 stops start-up with the file and the
+    key named."""
+    assert parse(base(), tmp_path).commands.manual_tau_hold_s == 2.0
+    path = tmp_path / "gw.toml"
+    path.write_text(BASE_TOML + '\n[commands]\naccept = ["mode", "tau"]\nmanual_tau_hold_s = inf\n')
+    assert load_config(path).commands.manual_tau_hold_s == math.inf
+    path.write_text(BASE_TOML + "\n[commands]\nmanual_tau_hold_s = 0.0\n")
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    assert "gw.toml" in str(info.value) and "commands.manual_tau_hold_s: out of range" in str(info.value)
 
 
 def test_command_access_that_is_fine(tmp_path: Path) -> None:

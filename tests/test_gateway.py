@@ -344,6 +344,106 @@ path = "{tmp_path / "q.mcap"}"
     assert {"/dp/mode", "/dp/tau", "/dp/setpoint", "/dp/status", "/dp/estimate"} <= topics
 
 
+@pytest.mark.slow
+def test_a_live_manual_tau_expires_and_the_status_the_log_and_a_replay_say_so(tmp_path: Path) -> None:
+    """The live gateway (`dpgw run`, its own process): manual, one τ, then the console goes quiet. The
+    thrust demand drops to zero after the 2 s hold, the Zenoh status counts the expiry and alarms it, the
+    log's /dp/log says it once and the alarm's clearing once (a fresh τ), and a replay of the log commands
+    exactly what the live run commanded (the hold runs on the logged receive times)."""
+    udp = free_port(socket.SOCK_DGRAM)
+    zport = free_port()
+    log = tmp_path / "dm.mcap"
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(
+        f"""
+[vessel]
+name = "mss_supply"
+[[sources]]
+name = "mux"
+url = "udp://127.0.0.1:{udp}"
+protocol = "nmea"
+roles = ["position", "heading"]
+[observer]
+wave_period_s = 9.0
+[zenoh]
+listen = ["tcp/127.0.0.1:{zport}"]
+multicast_scouting = false
+prefix = "dp/dm"
+[commands]
+accept = ["mode", "tau"]
+[log]
+path = "{log}"
+"""
+    )
+    proc = dpgw("run", "--config", str(cfg))
+    stop = threading.Event()
+    sender = threading.Thread(target=_send_nmea, args=(udp, stop))
+    sender.start()
+    session = None
+    tau = json.dumps({"X": 1e4, "Y": 0.0, "N": 0.0})
+    try:
+        session = connect_when_listening(zport, 20.0)
+
+        def status() -> dict | None:  # type: ignore[type-arg]
+            replies = [r for r in session.get("dp/dm/status", timeout=2.0) if r.ok is not None]
+            return json.loads(replies[0].ok.payload.to_bytes()) if replies else None
+
+        assert wait_for(lambda: (s := status()) is not None and s["sources"]["mux"]["received"] >= 50, 20.0)
+        commanded: list[float] = []  # τ X demanded, as the thruster commands come on Zenoh
+        session.declare_subscriber(
+            "dp/dm/thrusters/command",
+            lambda sample: commanded.append(json.loads(sample.payload.to_bytes())["tau_demand"][0]),
+        )
+        session.put("dp/dm/mode", json.dumps("manual"))
+        assert wait_for(lambda: (s := status()) is not None and s["mode"] == "manual", 10.0)
+        session.put("dp/dm/tau", tau)
+        expired = wait_for(
+            lambda: (s := status()) is not None and s["commands"].get("expired") == {"tau": 1} and s, 15.0
+        )
+        assert expired, "the τ never expired"
+        assert expired["mode"] == "manual" and expired["commands"]["accepted"] == {"mode": 1, "tau": 1}
+        alarm = "manual τ expired: thrust demand zero until a new τ (commands.manual_tau_hold_s = 2 s)"
+        assert alarm in expired["alarms"]
+        # a control step (10 Hz) commands the zero before the console comes back
+        seen = len(commanded)
+        assert wait_for(lambda: 0.0 in commanded[seen:], 10.0), "no zero thrust demand after the expiry"
+        session.put("dp/dm/tau", tau)  # the console is back
+        resumed = wait_for(
+            lambda: (s := status()) is not None and s["commands"]["accepted"].get("tau") == 2 and s, 10.0
+        )
+        assert resumed and not [a for a in resumed["alarms"] if "manual τ" in a]
+        assert resumed["commands"]["expired"] == {"tau": 1}
+    finally:
+        stop.set()
+        sender.join()
+        if session is not None:
+            session.close()
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=15)
+    taus = [t for _, t, _, _ in read_messages(log, "/dp/tau")]
+    assert len(taus) == 2
+    cmds = [(t, p["tau_demand"][0]) for _, t, _, p in read_messages(log, "/dp/thrusters/command")]
+    first = [x for t, x in cmds if taus[0] <= t < taus[1]]
+    assert [x for t, x in cmds if taus[0] <= t <= taus[0] + 2_000_000_000] and all(
+        x == 1e4 for t, x in cmds if taus[0] <= t <= taus[0] + 2_000_000_000
+    )  # held for the 2 s...
+    assert (
+        all(x == 0.0 for t, x in cmds if taus[0] + 2_000_000_000 < t < taus[1]) and 0.0 in first
+    )  # ...not after
+    resumed_cmds = [x for t, x in cmds if taus[1] <= t <= taus[1] + 2_000_000_000]
+    assert resumed_cmds and all(x == 1e4 for x in resumed_cmds)  # and resumed
+    lines = [p["message"] for _, _, _, p in read_messages(log, "/dp/log")]
+    assert lines.count("manual τ expired: no new τ for 2.0 s; thrust demand set to zero") == 1
+    assert sum(line.startswith("alarm: manual τ expired") for line in lines) == 1
+    assert sum(line.startswith("alarm cleared: manual τ expired") for line in lines) == 1
+    again = [
+        o.payload["tau_demand"][0]
+        for o in replay(config_from_log(log), log)
+        if o.topic == "/dp/thrusters/command"
+    ]
+    assert again == [x for _, x in cmds]
+
+
 # --- bad input never stops the gateway -------------------------------------------------------------------
 
 

@@ -363,9 +363,9 @@ def test_demand_beyond_capacity_gives_closest_tau_an_alarm_and_no_nan() -> None:
     # each DOF within what the thrusters give alone (gateway.commands.tau_capacity), but not all together
     cap = tau_capacity(p.spec.vessel)
     assert cap is not None
-    p.feed(ControlEvent(T0, "tau", dict(zip("XYN", (0.9 * cap).tolist(), strict=True))))
     out = []
-    for k in range(30):
+    for k in range(30):  # the τ streamed as a joystick does (one given once expires after 2 s)
+        p.feed(ControlEvent(T0 + k * S // 5, "tau", dict(zip("XYN", (0.9 * cap).tolist(), strict=True))))
         out += p.feed(RawEvent(T0 + k * S // 5, "gps", gga_at(0.0, 0.0) + enc.hdt("HE", 0.3).encode()))
     cmd = [o.payload for o in out if o.topic == "/dp/thrusters/command"][-1]
     assert cmd["saturated"]

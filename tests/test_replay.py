@@ -918,6 +918,33 @@ def test_a_log_from_an_older_gateway_replays() -> None:
     config = parse_config(_as_replayed(tables), base_dir=Path.cwd())
     assert not config.source("thr").commands
     assert config.commands.accept == {"mode", "setpoint", "tau"}
+    assert config.commands.manual_tau_hold_s == math.inf  # that gateway held a manual τ until the next one
+
+
+def test_a_log_records_the_manual_tau_hold_and_replays_with_it() -> None:
+    """A [commands] table is logged with ``manual_tau_hold_s`` written out (its default where not given),
+    and replayed with it; one logged without it (a gateway from before the dead-man) replays with the τ
+    held until the next one, as that gateway ran."""
+    from gateway.config import parse_config
+    from gateway.config.logged import for_log
+    from gateway.replay import _as_replayed
+
+    tables: dict[str, Any] = {
+        "vessel": {"name": "mss_supply"},
+        "sources": [
+            {"name": "gps", "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position", "heading"]}
+        ],
+        "commands": {"accept": ["mode", "tau"]},
+        "log": {"path": ""},
+    }
+    logged = json.loads(json.dumps(for_log(tables)))  # (as the log's metadata holds it)
+    assert logged["commands"] == {"accept": ["mode", "tau"], "manual_tau_hold_s": 2.0}
+    assert parse_config(_as_replayed(logged), base_dir=Path.cwd()).commands.manual_tau_hold_s == 2.0
+    tables["commands"]["manual_tau_hold_s"] = 0.5
+    logged = json.loads(json.dumps(for_log(tables)))
+    assert parse_config(_as_replayed(logged), base_dir=Path.cwd()).commands.manual_tau_hold_s == 0.5
+    older = {**tables, "commands": {"accept": ["mode", "tau"]}}
+    assert parse_config(_as_replayed(older), base_dir=Path.cwd()).commands.manual_tau_hold_s == math.inf
 
 
 def test_no_foxglove_channels_leaves_them_out_and_every_other_message_unchanged(tmp_path: Path) -> None:

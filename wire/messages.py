@@ -435,6 +435,22 @@ class CommandStatus(Record, kw_only=True):
         doc('Command inputs refused, by "key: reason" (count), e.g. {"setpoint: too far": 1}.'),
     ]
     last_refused: Annotated[str | None, doc("Why the last refused input was refused; null if none.")] = None
+    superseded: Annotated[
+        dict[str, int],
+        doc(
+            "Command inputs taken but dropped unapplied because a newer one of the same key replaced them, "
+            'by key (count), e.g. {"setpoint": 1}: a setpoint waiting for the next control step or for a '
+            "healthy estimate. Left out while empty."
+        ),
+    ] = msgspec.field(default_factory=dict)
+    expired: Annotated[
+        dict[str, int],
+        doc(
+            'Command inputs held past their hold time, by key (count), e.g. {"tau": 1}: a manual τ not '
+            "renewed within commands.manual_tau_hold_s, the thrust demand then set to zero. Left out while "
+            "empty."
+        ),
+    ] = msgspec.field(default_factory=dict)
 
 
 class FailureCaseStatus(Record, kw_only=True):

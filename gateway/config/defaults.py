@@ -46,7 +46,7 @@ DEFAULTS: dict[str, dict[str, Any]] = {
         "password_file": "",
         "commanders": [],
     },
-    "commands": {"accept": [], "max_setpoint_distance_m": 50.0},
+    "commands": {"accept": [], "max_setpoint_distance_m": 50.0, "manual_tau_hold_s": 2.0},
     "log": {
         "path": "logs/dpgw.mcap",
         "rotate_mb": 1024,

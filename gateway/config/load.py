@@ -613,7 +613,11 @@ def _read_commands(p: Problems, data: Mapping[str, Any]) -> CommandsConfig | Non
         p.add("commands.accept", f"an input is repeated (expected each once, got {show(accept)})")
     if len(p) != n0:
         return None
-    return CommandsConfig(accept=frozenset(accept), max_setpoint_distance_m=v["max_setpoint_distance_m"])
+    return CommandsConfig(
+        accept=frozenset(accept),
+        max_setpoint_distance_m=v["max_setpoint_distance_m"],
+        manual_tau_hold_s=v["manual_tau_hold_s"],
+    )
 
 
 _KEY_CHUNKS = re.compile(r"[a-z0-9_]+(/[a-z0-9_]+)*")

@@ -30,8 +30,15 @@ written before gateways recorded them."""
 
 
 def for_log(tables: dict[str, Any]) -> dict[str, Any]:
-    """A copy of the config tables with every source's ``signing_key`` replaced by `KEY_NOT_LOGGED`, and
-    ``[control] wait_for_observer`` written out (its default where not given) with ``initial_mode = "dp"``."""
+    """A copy of the config tables with every source's ``signing_key`` replaced by `KEY_NOT_LOGGED`,
+    ``[control] wait_for_observer`` written out (its default where not given) with ``initial_mode = "dp"``,
+    and ``[commands] manual_tau_hold_s`` written out (its default where not given) in a ``[commands]``
+    table: a replay then knows the log is from a gateway with the manual τ's dead-man (`gateway.replay`
+    replays one from before it as it ran, the τ held until the next one)."""
+    commands = tables.get("commands")
+    if isinstance(commands, dict) and "manual_tau_hold_s" not in commands:
+        hold = DEFAULTS["commands"]["manual_tau_hold_s"]
+        tables = {**tables, "commands": {**commands, "manual_tau_hold_s": hold}}
     control = tables.get("control")
     waits = DEFAULTS["control"]["wait_for_observer"]
     if (

@@ -223,11 +223,13 @@ class ConsequenceConfig:
 
 @dataclass(frozen=True)
 class CommandsConfig:
-    """Which Zenoh command inputs the pipeline takes (none unless listed) and the setpoint's largest
-    distance from the present position (m)."""
+    """Which Zenoh command inputs the pipeline takes (none unless listed), the setpoint's largest
+    distance from the present position (m), and how long a manual τ is held without a new one (s; inf:
+    until the next one) before the thrust demand goes to zero (the dead-man, docs/config.md)."""
 
     accept: frozenset[str] = frozenset()
     max_setpoint_distance_m: float = 50.0
+    manual_tau_hold_s: float = 2.0
 
 
 @dataclass(frozen=True)

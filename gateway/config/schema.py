@@ -182,11 +182,26 @@ def per_dof(*, unit: str = "", allow_inf: bool = False, zero: str = "") -> Any:
     return Field(None, json_schema_extra={"expected": expected})
 
 
+def _positive_or_inf(value: Any) -> float:
+    if not _is_number(value):
+        raise PydanticCustomError("wrong_type", "wrong type")
+    x = float(value)
+    if not x > 0:  # (NaN too)
+        raise PydanticCustomError("out_of_range", "out of range")
+    return x
+
+
+def positive_or_inf(default: Any = MISSING, *, unit: str = "") -> Any:
+    """A number > 0, or ``inf`` (meaning "never": say what in the key's docs)."""
+    return Field(default, json_schema_extra={"expected": f"a number > 0{' ' + unit if unit else ''}, or inf"})
+
+
 Vector2 = Annotated[tuple[float, float], PlainValidator(_vector(2))]
 Vector3 = Annotated[tuple[float, float, float], PlainValidator(_vector(3))]
 PerDof = Annotated[float | tuple[float, float, float], PlainValidator(_per_dof(False))]
 PerDofOrInf = Annotated[float | tuple[float, float, float], PlainValidator(_per_dof(True))]
 PerDofOrZero = Annotated[float | tuple[float, float, float], PlainValidator(_per_dof(False, True))]
+PositiveOrInf = Annotated[float, PlainValidator(_positive_or_inf)]
 
 
 def _table(value: Any) -> dict[str, Any]:
@@ -506,12 +521,14 @@ _CMD = DEFAULTS["commands"]
 
 
 class CommandsTable(_Section):
-    """``[commands]``: which Zenoh command inputs are taken, and the setpoint's distance limit."""
+    """``[commands]``: which Zenoh command inputs are taken, the setpoint's distance limit, and the manual
+    τ's hold time."""
 
     accept: list[str] = text(_CMD["accept"], 'an array of inputs from "mode", "setpoint", "tau"')
     max_setpoint_distance_m: float = number(
         _CMD["max_setpoint_distance_m"], lo=0.0, hi=10000.0, lo_open=True, unit="m"
     )
+    manual_tau_hold_s: PositiveOrInf = positive_or_inf(_CMD["manual_tau_hold_s"], unit="s")
 
 
 _K = DEFAULTS["keelson"]

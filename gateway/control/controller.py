@@ -74,8 +74,10 @@ The filter runs in every mode (so it is warm on entering dp); the term acts only
 ``[hull.wind]`` has none (`DPController.wind` is None).
 
 Modes: ``standby`` (τ = 0, integrator reset, reference follows the estimate), ``dp`` (station keeping and
-tracking through the reference model, `gateway.control.reference`), ``manual`` (τ from outside, held
-until the next one; integrator reset; reference follows the estimate). Bumpless transfer into ``dp``:
+tracking through the reference model, `gateway.control.reference`), ``manual`` (τ from outside, the last one
+given kept while `update` gets none; integrator reset; reference follows the estimate: how long an
+operator's τ may stand without a new one is the gateway's dead-man, ``[commands] manual_tau_hold_s``,
+which then gives τ = 0). Bumpless transfer into ``dp``:
 the first `update` in dp starts the reference at η̂ moving with J(ψ̂)ν̂ (so η̃ = 0, ν̃ = 0) and sets the
 integrator so that the first τ equals the τ output just before (the manual τ, or 0 from standby), or the
 ``tau_now`` given to `set_mode`. The integrator then carries the load the operator was holding; it
@@ -558,7 +560,8 @@ class DPController:
 
         eta_hat = [N, E, ψ] (m, m, rad), nu_hat = [u, v, r], bias_hat = earth-fixed b̂ [N, N, N·m] (None or
         non-finite: no bias feed-forward). ``saturated``/``tau_allocated``: allocation's verdict on the
-        previous τ (anti-windup). ``tau_manual``: the manual τ (manual mode; held until the next one).
+        previous τ (anti-windup). ``tau_manual``: the manual τ (manual mode; None or non-finite: the last
+        one given is kept; the gateway gives 0 once its dead-man expires it).
         ``relative_wind``: the measured apparent wind (u_rw, v_rw), body frame, m/s; None: none usable (wind
         feed-forward off).
         """
