@@ -18,7 +18,7 @@ from dpgw import cli_json
 from dpgw.cli_foxglove import DEFAULT_HOST, DEFAULT_PORT, add_foxglove_arg, connect_lines, layout_path
 from dpgw.cli_paths import mcap_path_problem
 from dpgw.cli_types import non_negative_float, positive_float
-from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
+from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args, listen_endpoints
 from dpgw.scenario_names import SCENARIO_NAMES
 from observers.settling import ENGAGE_TIME_CONSTANTS as SETTLING_TIME_CONSTANTS
 
@@ -258,7 +258,7 @@ def demo_config(
     cfg["observer"] = {"type": DEMO_OBSERVER, "wave_period_s": tp}
     cfg["zenoh"] = {
         "mode": "peer",
-        "listen": list(args.zenoh_listen),
+        "listen": listen_endpoints(args.zenoh_listen),
         "connect": list(args.zenoh_connect),
         "multicast_scouting": not args.no_scouting,
     }
@@ -587,6 +587,11 @@ def run(args: argparse.Namespace) -> int:
     engage_at = engaged_at[0] if engaged_at else engage_s
     summary = summarise(args, sim, final_status, wall_s, written or [args.out], engage_at)
     summary["dp_engaged"] = bool(engaged_at) if engage_s is not None else args.mode == "dp"
+    if engage_s is not None and not engaged_at and final_status.get("mode") == "dp":
+        # a console on this computer (the demo's gateway listens on no other) sent dp before the demo's
+        # operator did: the run was in DP, not held on joystick, whatever the plan said
+        summary["dp_engaged"] = True
+        summary["engaged_by"] = "another console"
     summary["engage_at_given"] = args.engage_at is not None  # (else: once the gateway called it settled)
     summary["speed"] = {
         "requested": args.speed,
@@ -834,7 +839,9 @@ def print_summary(r: dict[str, Any]) -> None:
         share = k.get("wave_band_force_share")
         if r.get("engage_at_s") is not None:
             why = (
-                "at the time --engage-at gave"
+                "engaged by another console, not the demo's operator"
+                if r.get("engaged_by")
+                else "at the time --engage-at gave"
                 if r.get("engage_at_given")
                 else "while the observer's bias estimate settled"
             )
@@ -852,6 +859,13 @@ def print_summary(r: dict[str, Any]) -> None:
         )
     elif r.get("dp_refused"):
         print(f"  station keeping: not scored: the gateway refused dp ({r['dp_refused']})")
+    elif r.get("engaged_by"):
+        how = "stopped" if r.get("interrupted") else "ended"
+        print(
+            f"  station keeping: not scored: DP was engaged by {r['engaged_by']}, not the demo's operator, "
+            f"and the run {how} at {r['sim_seconds']:.0f} s, before {MIN_SCORED_S:.0f} s of DP after its "
+            f"{DP_SETTLE_S:.0f} s settle time"
+        )
     elif r.get("mode") == "standby":
         print(
             "  station keeping: none in standby (the gateway commands no thrusters: the scenario's own"

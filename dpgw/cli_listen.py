@@ -13,7 +13,7 @@ from typing import Any
 
 from dpgw import cli_json
 from dpgw.cli_types import positive_float, positive_int
-from dpgw.cli_zenoh import LISTEN_FLAGS, add_endpoint_args
+from dpgw.cli_zenoh import LISTEN_FLAGS, add_endpoint_args, listen_endpoints
 
 NAME = "listen"
 DEFAULT_KEY = "dp/**"
@@ -73,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
         session = open_session(
             make_config(
                 connect=args.connect,
-                listen=args.listen,
+                listen=listen_endpoints(args.listen),
                 multicast_scouting=not args.no_scouting,
                 config_file=args.zenoh_config,
             )

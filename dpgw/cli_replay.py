@@ -18,7 +18,7 @@ from dpgw import cli_json
 from dpgw.cli_foxglove import add_foxglove_arg, connect_lines
 from dpgw.cli_paths import mcap_path_problem
 from dpgw.cli_types import flags_given, non_negative_float, positive_float
-from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
+from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args, listen_endpoints
 from observers.observer_names import OBSERVER_NAMES
 
 if TYPE_CHECKING:
@@ -737,7 +737,9 @@ class _Publisher:
         self._json = JSON
         self.session = open_session(
             make_config(
-                connect=args.zenoh_connect, listen=args.zenoh_listen, multicast_scouting=not args.no_scouting
+                connect=args.zenoh_connect,
+                listen=listen_endpoints(args.zenoh_listen),
+                multicast_scouting=not args.no_scouting,
             )
         )
         self.prefix = args.prefix or prefix

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 from dpgw import cli_json, cli_sim_inputs
 from dpgw.cli_paths import mcap_path_problem, missing_folder
 from dpgw.cli_types import flags_given, positive_float
-from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args
+from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args, listen_endpoints
 from dpgw.scenario_names import SCENARIO_NAMES
 
 if TYPE_CHECKING:
@@ -417,7 +417,7 @@ def _run_scenario(args: argparse.Namespace) -> int:
             session = open_session(
                 make_config(
                     connect=args.zenoh_connect,
-                    listen=args.zenoh_listen,
+                    listen=listen_endpoints(args.zenoh_listen),
                     # endpoints named: the bench is wired, and scouting would only find other benches
                     multicast_scouting=not (args.no_scouting or args.zenoh_connect or args.zenoh_listen),
                     config_file=args.zenoh_config,

@@ -287,8 +287,9 @@ def command_acl(command_keys: Sequence[str], commanders: Sequence[str]) -> dict[
 
 
 def isolated_config(listen: Sequence[str] = (), connect: Sequence[str] = ()) -> zenoh.Config:
-    """Loopback-only session with multicast scouting off (tests, demo)."""
-    return make_config(listen=listen, connect=connect, multicast_scouting=False)
+    """Loopback-only session with multicast scouting off (tests, benches): listening on ``listen``, else on a
+    free port of this computer only (Zenoh's own default would be every interface)."""
+    return make_config(listen=list(listen) or ["tcp/127.0.0.1:0"], connect=connect, multicast_scouting=False)
 
 
 def open_session(config: zenoh.Config) -> zenoh.Session:

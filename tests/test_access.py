@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import json
 import os
+import subprocess
+import sys
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -111,18 +113,18 @@ def test_only_the_commander_changes_mode_setpoint_or_tau(gateway: tuple[GatewayS
         captain.close()
 
 
-def _listening_addresses() -> set[tuple[str, str]]:
-    """(socket inode, local address) of this process's listening TCP sockets (from /proc)."""
+def _listening_addresses(pid: str = "self") -> set[tuple[str, str]]:
+    """(socket inode, local address) of a process's listening TCP sockets (from /proc)."""
     inodes = set()
-    for fd in os.listdir("/proc/self/fd"):
+    for fd in os.listdir(f"/proc/{pid}/fd"):
         try:
-            target = os.readlink(f"/proc/self/fd/{fd}")
+            target = os.readlink(f"/proc/{pid}/fd/{fd}")
         except OSError:
             continue
         if target.startswith("socket:["):
             inodes.add(target[8:-1])
     found = set()
-    for table, width in (("/proc/self/net/tcp", 8), ("/proc/self/net/tcp6", 32)):
+    for table, width in ((f"/proc/{pid}/net/tcp", 8), (f"/proc/{pid}/net/tcp6", 32)):
         with open(table) as f:
             for line in f.readlines()[1:]:
                 cols = line.split()
@@ -146,6 +148,47 @@ def test_the_default_session_listens_on_loopback_only(tmp_path: Path) -> None:
         assert opened <= LOOPBACK, f"listening beyond loopback: {opened}"
     finally:
         session.close()
+
+
+def test_the_commands_sessions_listen_on_this_computer_only_unless_told(tmp_path: Path) -> None:
+    """`dpgw demo`'s gateway takes mode, setpoint and τ from its peers: left to Zenoh's own default it
+    listened on every interface, and a machine on the LAN could engage DP. Every command's session listens
+    where the gateway's default does, unless ``--zenoh-listen`` says otherwise."""
+    import argparse
+
+    from dpgw import cli_demo
+    from dpgw.cli_zenoh import LOOPBACK_LISTEN, listen_endpoints
+    from gateway.config.defaults import DEFAULTS
+    from simulator.scenarios import get_scenario
+
+    assert DEFAULTS["zenoh"]["listen"] == [LOOPBACK_LISTEN]
+    assert listen_endpoints([]) == [LOOPBACK_LISTEN]  # dpgw sim --zenoh, paced dpgw replay, dpgw listen
+    assert listen_endpoints(["tcp/192.168.10.5:7447"]) == ["tcp/192.168.10.5:7447"]
+    p = argparse.ArgumentParser()
+    cli_demo.add_arguments(p)
+    scenario = get_scenario("fossen_strand_1999")
+    demo = cli_demo.demo_config(scenario, "/dev/null", p.parse_args(["--out", "x.mcap"]))
+    assert demo["zenoh"]["listen"] == [LOOPBACK_LISTEN]
+    asked = cli_demo.demo_config(
+        scenario, "/dev/null", p.parse_args(["--out", "x.mcap", "--zenoh-listen", "tcp/0.0.0.0:0"])
+    )
+    assert asked["zenoh"]["listen"] == ["tcp/0.0.0.0:0"]
+
+
+@pytest.mark.skipif(not Path("/proc/self/net/tcp").exists(), reason="needs Linux /proc")
+def test_dpgw_listen_opens_no_port_beyond_loopback() -> None:
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "dpgw", "listen", "--duration", "60", "--no-scouting"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        opened = wait_for(lambda: {address for _, address in _listening_addresses(str(proc.pid))}, 60.0)
+        assert opened, "dpgw listen opened no listening socket"
+        assert opened <= LOOPBACK, f"listening beyond loopback: {opened}"
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)
 
 
 def test_unsigned_mavlink_commands_warn_at_start_up(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:

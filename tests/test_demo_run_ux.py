@@ -209,3 +209,43 @@ def test_ctrl_c_during_start_up_stops_the_demo_with_one_line(
     assert code == 130, err
     assert err.strip().splitlines()[-1] == "dpgw demo: stopped by Ctrl-C during start-up; nothing ran", err
     assert "Traceback" not in err and summary == {}
+
+
+@pytest.mark.slow  # 8 s of sea at 10x, with start-up: ~6 s
+def test_dp_engaged_by_another_console_is_said_as_such(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A console on this computer sends dp to the demo's gateway before the demo's operator would (at the
+    settle time, after this run's end): the summary said "the run ended at 8 s before DP was engaged". It
+    says DP was engaged, and by whom."""
+    import zenoh
+    from conftest import free_port
+
+    from gateway.bus import isolated_config, open_session
+
+    port = free_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    console: list[zenoh.Session] = []
+
+    def another_console(sims: list[Simulation]) -> None:
+        wait_for(lambda: sims and sims[0].t >= 4.0, 120)
+        session = open_session(isolated_config(connect=[endpoint]))
+        console.append(session)
+        session.put("dp/mss_supply/mode", json.dumps("dp"))
+
+    code, summary, err, out = run_demo(
+        tmp_path,
+        monkeypatch,
+        capsys,
+        ["--duration", "8", "--speed", "10", "--zenoh-listen", endpoint],
+        another_console,
+    )
+    for session in console:
+        session.close()
+    assert code == 0, err
+    assert [p["mode"] for _, _, _, p in read_messages(out, "/dp/mode")] == ["dp"]
+    assert summary["dp_engaged"] is True and summary["engaged_by"] == "another console"
+    cli_demo.print_summary(summary)
+    text = capsys.readouterr().out
+    assert "before DP was engaged" not in text
+    assert "DP was engaged by another console, not the demo's operator" in text
