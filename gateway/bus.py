@@ -75,6 +75,9 @@ def key_expr_problem(key: str) -> str | None:
     except zenoh.ZError as exc:
         reason = _clean(str(exc)).split(": ", 1)[-1]
         fixed = "/".join(c for c in key.split("/") if c)
+        if key.startswith("/dp/") and fixed.count("/") == 1:
+            # the log's topic /dp/X is the key <prefix>/X, and the prefix is dp/<vessel> by default
+            fixed = "dp/*/" + fixed.split("/", 1)[1]
         end = f" — did you mean '{fixed}'?" if fixed and fixed != key and _is_key(fixed) else "."
         return (
             f"'{key}' is not a Zenoh key expression ({reason}){end} Keys are chunks separated by single '/', "

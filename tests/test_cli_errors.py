@@ -223,7 +223,7 @@ def test_json_output_has_no_nan_or_infinity() -> None:
 @pytest.mark.parametrize(
     ("key", "says"),
     [
-        ("/dp/estimate", "— did you mean 'dp/estimate'?"),  # an MCAP topic given as a key
+        ("/dp/estimate", "— did you mean 'dp/*/estimate'?"),  # an MCAP topic given as a key: <prefix>/X
         ("dp//x", "— did you mean 'dp/x'?"),
         ("dp/#", "(`#` and `?` are forbidden characters)."),
         ("dp/**/**", "`**/**` must be replaced by `**`"),
