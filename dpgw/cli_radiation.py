@@ -28,8 +28,7 @@ DESCRIPTION = (
 )
 EPILOG = (
     "examples:\n"
-    "  dpgw radiation mss_supply --plots fit   # the shipped data: mss_supply_radiation.npz and .toml here,\n"
-    "                                          # fit/radiation_11.png ... radiation_26.png\n"
+    "  dpgw radiation mss_supply --plots fit   # the shipped data; the model here, fit/radiation_*.png\n"
     "  dpgw radiation ship.mat --out ship_memory --json   # an MSS vessel .mat; the summary as JSON\n"
     "  dpgw radiation mss_supply --vessel mss_supply   # the model the simulator uses for mss_supply\n"
     "  dpgw radiation ship_hydro.npz --vessel ship.toml   # ship_radiation.npz beside ship.toml"
@@ -159,7 +158,15 @@ def run(args: argparse.Namespace) -> int:
         # (after the model: a figure that cannot be drawn does not lose it)
         from dpgw.radiation_plots import write_fit_plots
 
-        drawn = write_fit_plots(args.plots, hydro, model)
+        try:
+            drawn = write_fit_plots(args.plots, hydro, model)
+        except OSError as exc:  # (a full disk, a folder made read-only meanwhile)
+            print(
+                f"dpgw radiation: --plots {args.plots}: cannot write the figures ({exc.strerror or exc}): "
+                f"the model is written ({npz}); give a writable folder",
+                file=sys.stderr,
+            )
+            return 1
         if drawn is None:
             from gateway.report.writer import NO_MATPLOTLIB
 
