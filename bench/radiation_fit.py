@@ -5,32 +5,36 @@ prints, per element, the order, R² of A and B and A(∞), for this identificati
 model (``supplyABC.mat``, scored on the same frequencies), then the passivity margin of both 3×3 models on
 the same dense grid and the RMS difference of each model's retardation function K(t) from eq (5) on the
 data. With ``--plots DIR`` it writes one figure per element (A(ω), B(ω), K(t): data against both
-models; needs matplotlib, the ``plot`` extra); with ``--out STEM`` the identified model (``STEM.npz`` and
-``STEM.toml``).
+models), the figures of ``dpgw radiation --plots`` (`dpgw.radiation_plots`) with MSS's model added; with
+``--out STEM`` the identified model (``STEM.npz`` and ``STEM.toml``).
 
     python bench/radiation_fit.py [--hydro supply_hydro.npz] [--mss supplyABC.mat] [--plots DIR] [--out STEM]
 
-Defaults: the supply vessel's data in ``shared/data/mss-supply`` beside the repository checkout, and the
-copy of MSS's ``supplyABC.mat`` under ``tests/data/mss-supply``.
+Defaults: the supply vessel's data shipped in the package (``simulator/data/supply_hydro.npz``, the
+built-in name ``mss_supply``), and the copy of MSS's ``supplyABC.mat`` under ``tests/data/mss-supply``
+(MSS's identified model is compared here only: it does not ship with dpgw).
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
+from dpgw.radiation_plots import T_KERNEL as T
+from dpgw.radiation_plots import ReferenceCurves, element_data, write_fit_plots
+from gateway.report.writer import NO_MATPLOTLIB
 from observers import radiation as rad
+from simulator.hydro_data import builtin_hydro
 from wire.hydro import MssRadiationModel, load_hydro, load_mss_abc, save_radiation_model
 
 REPO = Path(__file__).resolve().parents[1]
-DEFAULT_HYDRO = REPO.parent / "shared" / "data" / "mss-supply" / "supply_hydro.npz"
+DEFAULT_HYDRO = builtin_hydro("mss_supply")
 DEFAULT_MSS = REPO / "tests" / "data" / "mss-supply" / "supplyABC.mat"
-T = np.linspace(0.0, 60.0, 241)
-"""Time axis of the K(t) comparison (s): the kernels have decayed to < 1 % of their peak by 60 s."""
 
 
 def mss_response(mss: MssRadiationModel, w: NDArray[np.float64]) -> NDArray[np.complex128]:
@@ -83,19 +87,16 @@ def main() -> None:
         f"{'':9s} {'dpgw MSS':>9s} {'dpgw   MSS':>15s} {'dpgw   MSS':>15s} {'dpgw      MSS':>21s} "
         f"{'dpgw  MSS':>15s}  (rad/s)"
     )
-    rows = []
-    for (i, j), f in model.fits.items():
-        I, J = six[i], six[j]
-        keep = ~np.isin(hydro.freqs, f.excluded_w)
-        w, a, b = hydro.freqs[keep], hydro.A[I, J, keep], hydro.B[I, J, keep]
-        k5 = rad.retardation_from_damping(w, b, T, tail=True)
+    fits = model.fits
+    for e in element_data(hydro, model, T):
+        f, I, J, w, a, k5 = fits[(e.i, e.j)], e.I, e.J, e.w, e.a, e.kernel
         peak = float(np.max(np.abs(k5)))
-        rms_ours = float(np.sqrt(np.mean((k_ours[:, i, j] - k5) ** 2))) / peak
+        rms_ours = float(np.sqrt(np.mean((k_ours[:, e.i, e.j] - k5) ** 2))) / peak
         if (I, J) in mss.elements:
             km = mss.frequency_response(I, J, w)
             m_order = str(mss.order(I, J))
             m_r2a = f"{rad.r_squared(a, mss.MA[I, J] + km.imag / w):.4f}"
-            m_r2b = f"{rad.r_squared(b, km.real):.4f}"
+            m_r2b = f"{rad.r_squared(e.b, km.real):.4f}"
             m_ainf = f"{mss.MA[I, J]:.4g}"
             k_mss = mss.impulse_response(I, J, T)
             m_rms = f"{float(np.sqrt(np.mean((k_mss - k5) ** 2))) / peak:.4f}"
@@ -107,8 +108,6 @@ def main() -> None:
             f"{f.r2_b:7.4f} {m_r2b:>7s} {f.model.a_inf:10.4g} {m_ainf:>10s} {rms_ours:7.4f} {m_rms:>7s}  "
             f"{excluded}"
         )
-        excl = (hydro.freqs[~keep], hydro.A[I, J, ~keep], hydro.B[I, J, ~keep])
-        rows.append((i, j, f, w, a, b, k5, excl))
     grid = rad.passivity_grid(hydro.freqs)[1:-1]
     ours = margin(model.frequency_response(grid), grid)
     theirs = margin(mss_response(mss, grid), grid)
@@ -127,45 +126,30 @@ def main() -> None:
         npz, toml = save_radiation_model(model, args.out)
         print(f"wrote {npz} and {toml}")
     if args.plots:
-        plot(args.plots, rows, model, mss)
+        written = write_fit_plots(args.plots, hydro, model, reference=mss_curves(mss))
+        if written is None:
+            sys.exit(f"--plots: {NO_MATPLOTLIB}")
+        for path in written:
+            print(f"wrote {path}")
 
 
-def plot(directory: Path, rows: list, model: rad.RadiationModel, mss: MssRadiationModel) -> None:
-    try:
-        from matplotlib.figure import Figure
-    except ImportError:
-        sys.exit("--plots needs matplotlib (pip install matplotlib)")
-    directory.mkdir(parents=True, exist_ok=True)
-    six = rad.SIX_DOF_INDEX
-    for i, j, f, w, a, b, k5, (ex_w, ex_a, ex_b) in rows:
-        I, J = six[i], six[j]
-        wd = np.geomspace(w[0] / 2, 3 * w[-1], 400)
-        fig = Figure(figsize=(12, 3.6), layout="constrained")
-        ax_a, ax_b, ax_k = fig.subplots(1, 3)
-        ax_a.plot(w, a, "ko", ms=3, label="data")
-        ax_a.plot(wd, model.added_mass(wd)[:, i, j], "C0", label=f"dpgw (order {f.order})")
-        ax_b.plot(w, b, "ko", ms=3, label="data")
-        ax_b.plot(wd, model.damping(wd)[:, i, j], "C0", label=f"dpgw (order {f.order})")
-        ax_k.plot(T, k5, "k", lw=2.5, alpha=0.4, label="eq (5) on the data")
-        ax_k.plot(T, model.impulse_response(T)[:, i, j], "C0", label="dpgw")
-        if (I, J) in mss.elements:
-            km = mss.frequency_response(I, J, wd)
-            lab = f"MSS FDI (order {mss.order(I, J)})"
-            ax_a.plot(wd, mss.MA[I, J] + km.imag / wd, "C1--", label=lab)
-            ax_b.plot(wd, km.real, "C1--", label=lab)
-            ax_k.plot(T, mss.impulse_response(I, J, T), "C1--", label="MSS FDI")
-        if len(ex_w):
-            ax_a.plot(ex_w, ex_a, "rx", label="excluded (screened out)")
-            ax_b.plot(ex_w, ex_b, "rx", label="excluded (screened out)")
-        ax_a.set(xlabel="ω (rad/s)", ylabel=f"A{I + 1}{J + 1}(ω)", xscale="log")
-        ax_b.set(xlabel="ω (rad/s)", ylabel=f"B{I + 1}{J + 1}(ω)", xscale="log")
-        ax_k.set(xlabel="t (s)", ylabel=f"K{I + 1}{J + 1}(t)")
-        for ax in (ax_a, ax_b, ax_k):
-            ax.grid(True, alpha=0.3)
-            ax.legend(fontsize=8)
-        path = directory / f"radiation_{I + 1}{J + 1}.png"
-        fig.savefig(path, dpi=110)
-        print(f"wrote {path}")
+def mss_curves(
+    mss: MssRadiationModel,
+) -> Callable[[int, int, NDArray[np.float64], NDArray[np.float64]], ReferenceCurves | None]:
+    """MSS's identified model as the figures' reference line (`dpgw.radiation_plots.Reference`)."""
+
+    def curves(I: int, J: int, w: NDArray[np.float64], t: NDArray[np.float64]) -> ReferenceCurves | None:
+        if (I, J) not in mss.elements:
+            return None
+        k = mss.frequency_response(I, J, w)
+        return ReferenceCurves(
+            f"MSS FDI (order {mss.order(I, J)})",
+            mss.MA[I, J] + k.imag / w,
+            k.real,
+            mss.impulse_response(I, J, t),
+        )
+
+    return curves
 
 
 if __name__ == "__main__":

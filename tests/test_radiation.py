@@ -3,8 +3,8 @@
 Two kinds of data:
 - a synthetic 3×3 system with a known answer (positive real by construction, order 4 per element, known
   A(∞)), sampled like the real data (0.1–3 rad/s): runs everywhere;
-- the VERES data of MSS's supply vessel (MIT), read from ``shared/data/mss-supply`` beside the repository
-  checkout: skipped when absent. MSS's own
+- the VERES data of MSS's supply vessel (MIT), shipped in the package (``simulator/data/supply_hydro.npz``,
+  the built-in name ``mss_supply``): runs everywhere. MSS's own
   identified model of that vessel, ``supplyABC.mat`` (MIT, copied in ``tests/data/mss-supply`` with its
   licence), is the bar: equal or better R² at equal or lower order, and passive.
 """
@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 from observers import radiation as rad
 from wire.hydro import HydroError, load_hydro, load_mss_abc, save_radiation_model
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "mss-supply"
+DATA = Path(__file__).resolve().parents[1] / "simulator" / "data"
 MSS_ABC = Path(__file__).resolve().parent / "data" / "mss-supply" / "supplyABC.mat"
 W_DATA = np.geomspace(0.1, 3.0, 40)
 
