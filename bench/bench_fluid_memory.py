@@ -32,10 +32,12 @@ from numba import njit
 from simulator import _fluid_memory_kernel as kern
 from simulator.fluid_memory import CumminsMemory, RadiationStateSpace
 from simulator.fluid_memory_cache import load_fluid_memory
+from simulator.hydro_data import builtin_hydro
 from simulator.vessel_dynamics import MAX_STEP_S, _derivative, _rk4
 
 REPO = Path(__file__).resolve().parents[1]
-HYDRO = REPO.parent / "shared" / "data" / "mss-supply" / "supply_hydro.npz"
+HYDRO = builtin_hydro("mss_supply")  # the shipped ShipX/VERES data
+assert HYDRO is not None
 H = MAX_STEP_S
 BUDGET_360X = 1.0 / 360.0
 """Wall seconds per simulated second at 360× real time."""

@@ -34,8 +34,10 @@ from observers.memory_tuning import MemoryGains, MemoryModel, default_radiation,
 from observers.passive import PassiveObserver
 from observers.passive_tuning import PassiveGains, PassiveTuning
 from observers.vessel import VesselModel, load_vessel
+from simulator.hydro_data import builtin_hydro
 
-HYDRO = Path(__file__).resolve().parents[2] / "shared" / "data" / "mss-supply" / "supply_hydro.npz"
+HYDRO = builtin_hydro("mss_supply")  # the shipped ShipX/VERES data
+assert HYDRO is not None
 ROOT = Path(__file__).resolve().parents[1]
 
 PAPER_TAU_AMPLITUDE = np.array([7e5, 7e5, 8e6])

@@ -35,9 +35,11 @@ from simulator import _fluid_memory_kernel as kern
 from simulator import fluid_memory_cache as cache
 from simulator import fluid_memory_energy as energy
 from simulator.fluid_memory import CumminsMemory, FluidMemoryError, RadiationStateSpace
+from simulator.hydro_data import builtin_hydro
 from wire.hydro import load_hydro
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "mss-supply" / "supply_hydro.npz"
+DATA = builtin_hydro("mss_supply")  # (shipped in the package: the tests run in a fresh clone)
+assert DATA is not None
 DOFS = [0, 1, 5]
 DT = 0.05
 """The plant's RK4 step (simulator.vessel_dynamics.MAX_STEP_S)."""
