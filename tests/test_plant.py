@@ -155,8 +155,10 @@ def test_radiation_hook_refuses_wrong_shapes_and_unstable_models() -> None:
 
 
 def test_full_plant_needs_a_hull() -> None:
-    with pytest.raises(PlantError, match=r"\[hull\]"):
+    with pytest.raises(PlantError, match=r"\[hull\].*coriolis=off, surge_resistance=off, crossflow=off\)$"):
         FullPlant(load_vessel("northern_clipper"))
+    with pytest.raises(PlantError, match=r"\(plant options surge_resistance=off\)$"):
+        FullPlant(load_vessel("northern_clipper"), options=PlantOptions(coriolis=False, crossflow=False))
     FullPlant(load_vessel("northern_clipper"), options=PlantOptions.model_only())  # nothing nonlinear: fine
 
 
