@@ -82,6 +82,22 @@ def plant_options(specs: list[str]) -> PlantOptions:
     return replace(PlantOptions(), **values)
 
 
+def _hull_problem(vessel: Any, options: PlantOptions, given: str) -> str | None:
+    """A vessel without ``[hull]`` runs only the linear plant: the error gives the exact flags that switch
+    off the effects still on, to copy, or None if nothing needs the hull."""
+    if vessel.hull is not None:
+        return None
+    on = [key for key in ("coriolis", "surge_resistance", "crossflow") if getattr(options, key)]
+    if not on:
+        return None
+    flags = " ".join(f"--plant-option {key}=off" for key in on)
+    return (
+        f"vessel '{vessel.name}' ({given}) has no [hull] table, which the full plant's {', '.join(on)} "
+        f"need: add one (M_A, x_g, beam, draught, surge resistance; docs/vessels.md), or run M and D alone "
+        f"with {flags}"
+    )
+
+
 def _floats(text: str, flag: str, n: int, extra: tuple[str, ...] = ()) -> tuple[list[float], list[str]]:
     parts = [p.strip() for p in text.split(",")]
     if not (n <= len(parts) <= n + len(extra)):
@@ -101,7 +117,14 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from observers.vessel import VesselError, load_vessel
-    from simulator.open_loop import STATE_COLUMNS, InputsError, read_inputs, run_open_loop, write_states
+    from simulator.open_loop import (
+        STATE_COLUMNS,
+        InputsError,
+        overspeed_warnings,
+        read_inputs,
+        run_open_loop,
+        write_states,
+    )
     from simulator.plant_params import PlantError, PlantParams
 
     try:
@@ -115,8 +138,12 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(problem)
         vessel = load_vessel(args.vessel)
         options = plant_options(args.plant_option)
+        if problem := _hull_problem(vessel, options, args.vessel):
+            raise ValueError(problem)
         PlantParams.build(vessel, options)  # a vessel the plant cannot run is said before the inputs are read
         inputs = read_inputs(args.inputs, vessel)
+        for warning in overspeed_warnings(inputs, vessel, str(args.inputs)):
+            print(f"dpgw sim: warning: {warning}", file=sys.stderr)
         eta0, nu0 = (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
         if args.initial:
             (n0, e0, psi0), more = _floats(args.initial, "--initial", 3, ("U,V,R_DEGPS",) * 3)

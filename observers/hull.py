@@ -18,6 +18,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from observers.spelling import key_problem
+
 Array = NDArray[np.float64]
 
 WATER_DENSITY = 1025.0
@@ -60,20 +62,24 @@ class HullParams:
         return np.array([[m, 0.0, 0.0], [0.0, m, m * xg], [0.0, m * xg, m * (r66**2 + xg**2)]])
 
 
-_HULL_KEYS = {
-    "beam_m",
-    "draft_m",
-    "x_g_m",
-    "yaw_gyration_radius_m",
-    "added_mass",
-    "surge_quadratic",
+_HULL_REQUIRED = ("beam_m", "draft_m", "x_g_m", "yaw_gyration_radius_m", "added_mass", "surge_quadratic")
+_HULL_KEYS = (
+    *_HULL_REQUIRED,
     "surge_blend_speed_mps",
     "crossflow_cd",
     "water_density",
     "wind",
     "notes",
-}
-_WIND_KEYS = set(WindArea.__dataclass_fields__)
+)
+_WIND_REQUIRED = ("frontal_area_m2", "lateral_area_m2")
+_WIND_KEYS = tuple(WindArea.__dataclass_fields__)
+
+
+def _check_keys(table: dict[str, Any], known: tuple[str, ...], required: tuple[str, ...], label: str) -> None:
+    """A key the table does not know is an error with a "did you mean" (`observers.spelling`)."""
+    problem = key_problem(table, known, required)
+    if problem is not None:
+        raise HullError(f"{label}.{problem[0]}': {problem[1]}")
 
 
 def _positive(table: dict[str, Any], key: str, where: str, default: float | None = None) -> float:
@@ -94,10 +100,8 @@ def hull_from_dict(data: Any, where: str, mass_kg: float, M: Array) -> HullParam
         return None
     if not isinstance(data, dict):
         raise HullError(f"{where}: field 'hull': must be a table")
-    unknown = set(data) - _HULL_KEYS
-    if unknown:
-        raise HullError(f"{where}: field 'hull': unknown keys {sorted(unknown)}; known: {sorted(_HULL_KEYS)}")
-    for key in ("beam_m", "draft_m", "x_g_m", "yaw_gyration_radius_m", "added_mass", "surge_quadratic"):
+    _check_keys(data, _HULL_KEYS, _HULL_REQUIRED, f"{where}: field 'hull")
+    for key in _HULL_REQUIRED:
         if key not in data:
             raise HullError(f"{where}: field 'hull.{key}': missing")
     x_g = data["x_g_m"]
@@ -119,12 +123,8 @@ def hull_from_dict(data: Any, where: str, mass_kg: float, M: Array) -> HullParam
         w = data["wind"]
         if not isinstance(w, dict):
             raise HullError(f"{where}: field 'hull.wind': must be a table")
-        unknown = set(w) - _WIND_KEYS
-        if unknown:
-            raise HullError(
-                f"{where}: field 'hull.wind': unknown keys {sorted(unknown)}; known: {sorted(_WIND_KEYS)}"
-            )
-        for key in ("frontal_area_m2", "lateral_area_m2"):
+        _check_keys(w, _WIND_KEYS, _WIND_REQUIRED, f"{where}: field 'hull.wind")
+        for key in _WIND_REQUIRED:
             if key not in w:
                 raise HullError(f"{where}: field 'hull.wind.{key}': missing")
         wind = WindArea(**{k: _positive(w, k, f"{where}: hull.wind") for k in w})

@@ -28,7 +28,6 @@ every observer and the controller use.
 
 from __future__ import annotations
 
-import difflib
 import math
 import tomllib
 from dataclasses import dataclass, field, replace
@@ -40,6 +39,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from observers.hull import HullError, HullParams, hull_from_dict
+from observers.spelling import did_you_mean, key_problem
 from observers.vessel_files import builtin_vessels as builtin_vessels  # used here; re-exported
 
 Array = NDArray[np.float64]
@@ -54,6 +54,39 @@ main: fixed fore-aft propeller (surge)."""
 
 class VesselError(ValueError):
     """A vessel description that cannot be used. The message names the field and what is wrong."""
+
+
+VESSEL_KEYS = (
+    "name",
+    "description",
+    "source",
+    "length_m",
+    "mass_kg",
+    "model_scale",
+    "M",
+    "D",
+    "M_RB",
+    "A_inf",
+    "bis",
+    "hull",
+    "thrusters",
+)
+"""The top-level keys of a vessel file (docs/vessels.md); any other is refused."""
+
+BIS_KEYS = ("g", "Mbis", "Dbis")
+"""The keys of a ``[bis]`` table."""
+
+
+def _check_keys(
+    table: dict[str, Any], known: tuple[str, ...], required: tuple[str, ...], where: str, path: str = ""
+) -> None:
+    """Refuse a key of ``table`` the format does not know, with a "did you mean" (`observers.spelling`);
+    a required key that is absent while a look-alike is present is said as missing, naming what was
+    found. ``path`` is the table's place in the file (``bis``, ``thrusters[0]``; "" at the top)."""
+    problem = key_problem(table, known, required)
+    if problem is not None:
+        key, message = problem
+        raise VesselError(f"{where}: field '{path + '.' if path else ''}{key}': {message}")
 
 
 @dataclass(frozen=True)
@@ -93,6 +126,10 @@ class Thruster:
         feedback, so it is set so that ``max_rpm`` gives ``max_thrust_n``: T = T_max (n/n_max)|n/n_max|."""
         n = rpm / self.max_rpm
         return float(self.max_thrust_n * n * abs(n))
+
+
+THRUSTER_KEYS = tuple(Thruster.__dataclass_fields__)
+"""The keys of a ``[[thrusters]]`` entry: the fields of `Thruster`."""
 
 
 @dataclass(frozen=True)
@@ -273,13 +310,10 @@ def _thruster(entry: Any, index: int, where: str) -> Thruster:
     key = f"thrusters[{index}]"
     if not isinstance(entry, dict):
         raise VesselError(f"{where}: field '{key}': must be a table")
+    _check_keys(entry, THRUSTER_KEYS, ("id", "kind", "x_m", "y_m", "max_thrust_n"), where, key)
     kind = entry.get("kind")
     if kind not in THRUSTER_KINDS:
         raise VesselError(f"{where}: field '{key}.kind': must be one of {THRUSTER_KINDS}, got {kind!r}")
-    known = {f for f in Thruster.__dataclass_fields__}
-    unknown = set(entry) - known
-    if unknown:
-        raise VesselError(f"{where}: field '{key}': unknown keys {sorted(unknown)}; known: {sorted(known)}")
     for required in ("id", "x_m", "y_m", "max_thrust_n"):
         if required not in entry:
             raise VesselError(f"{where}: field '{key}.{required}': missing")
@@ -322,11 +356,17 @@ def _sectors(value: Any, kind: str, label: str) -> tuple[tuple[float, float], ..
 
 
 def vessel_from_dict(data: dict[str, Any], where: str = "vessel") -> VesselModel:
-    """Build a `VesselModel` from the parsed TOML table (see module docstring for the two forms)."""
+    """Build a `VesselModel` from the parsed TOML table (see module docstring for the two forms).
+
+    Every key of every table must be one the format knows: a misspelt key is an error with a "did you
+    mean" (``model_scal = 70`` would otherwise be a full-scale vessel without a word)."""
     name = data.get("name")
+    named = isinstance(name, str) and bool(name)
+    if named:
+        where = f"vessel '{name}' ({where})" if where != "vessel" else f"vessel '{name}'"
+    _check_keys(data, VESSEL_KEYS, ("name", "length_m", "mass_kg"), where)
     if not isinstance(name, str) or not name:
         raise VesselError(f"{where}: field 'name': missing or not a string")
-    where = f"vessel '{name}' ({where})" if where != "vessel" else f"vessel '{name}'"
     for key in ("length_m", "mass_kg"):
         if not isinstance(data.get(key), int | float):
             raise VesselError(f"{where}: field '{key}': missing or not a number")
@@ -336,7 +376,21 @@ def vessel_from_dict(data: dict[str, Any], where: str = "vessel") -> VesselModel
         if "M" in data or "D" in data:
             raise VesselError(f"{where}: field 'bis': give either M and D or a [bis] table, not both")
         bis = data["bis"]
-        g = float(bis.get("g", 9.81))
+        if not isinstance(bis, dict):
+            raise VesselError(f"{where}: field 'bis': must be a table (g, Mbis, Dbis)")
+        for key in bis:
+            if key in VESSEL_KEYS:  # `M_RB = ...` written below the [bis] header lands in the table
+                raise VesselError(
+                    f"{where}: field 'bis.{key}': {key} is a top-level key: move it above the [bis] header"
+                )
+        _check_keys(bis, BIS_KEYS, ("Mbis", "Dbis"), where, "bis")
+        for key in ("Mbis", "Dbis"):
+            if key not in bis:
+                raise VesselError(f"{where}: field 'bis.{key}': missing (the bis system needs Mbis and Dbis)")
+        g = bis.get("g", 9.81)
+        if isinstance(g, bool) or not isinstance(g, int | float) or not (math.isfinite(g) and g > 0):
+            raise VesselError(f"{where}: field 'bis.g': must be a positive number (m/s²), got {g!r}")
+        g = float(g)
         Tl = np.diag([1.0, 1.0, length])
         Mbis = _matrix(bis.get("Mbis"), "bis.Mbis", where)
         Dbis = _matrix(bis.get("Dbis"), "bis.Dbis", where)
@@ -413,8 +467,7 @@ def load_vessel(name_or_path: str | Path) -> VesselModel:
             raise VesselError(f"vessel file '{path}': does not exist")
         text, where = path.read_text(encoding="utf-8"), str(path)
     else:
-        close = difflib.get_close_matches(str(name_or_path), builtin_vessels(), n=1)
-        hint = f', did you mean "{close[0]}"?' if close else ""
+        hint = did_you_mean(str(name_or_path), builtin_vessels(), quote='"')
         raise VesselError(
             f"vessel '{name_or_path}': not a built-in vessel{hint} ({', '.join(builtin_vessels())}) "
             "and not a .toml file"

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from observers.spelling import closest
 from observers.vessel import VesselModel
 from simulator.plant import MAX_STEP_S, FullPlant
 from simulator.plant_params import DEFAULT_OPTIONS, PlantOptions
@@ -63,32 +64,28 @@ WIND_COLUMNS = ("wind_speed", "wind_from_deg")
 
 
 def read_inputs(path: str | Path, vessel: VesselModel) -> Inputs:
-    """Read and check INPUTS.csv for this vessel. Every error names the row (file line) and the column."""
+    """Read and check INPUTS.csv for this vessel. Every error names the row (file line) and the column.
+
+    As a spreadsheet saves it: a UTF-8 byte-order mark (Excel's "CSV UTF-8") is skipped, and so are blank
+    lines (a trailing empty line, a row of empty cells). The separator is ``,``; a file that uses ``;``
+    (a spreadsheet in a decimal-comma locale) is refused with that said."""
     where = str(path)
     expected = input_columns(vessel)
     try:
-        with open(path, newline="", encoding="utf-8") as f:
-            rows = list(csv.reader(f))
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            reader = csv.reader(f)
+            rows = [(reader.line_num, row) for row in reader if any(cell.strip() for cell in row)]
     except OSError as exc:
         raise InputsError(f"{where}: cannot read ({exc.strerror})") from None
     except UnicodeDecodeError:
         raise InputsError(f"{where}: not a text CSV file") from None
+    except csv.Error as exc:
+        raise InputsError(f"{where}: not a CSV file ({exc})") from None
     if not rows:
         raise InputsError(f"{where}: empty; expected a header row with the columns {', '.join(expected)}")
-    header = [h.strip() for h in rows[0]]
-    missing = [c for c in expected if c not in header]
-    unknown = [c for c in header if c not in expected and c not in WIND_COLUMNS]
-    layout = f"{vessel.name} has {len(vessel.thrusters)} thrusters: columns {', '.join(expected)}"
-    if missing:
-        raise InputsError(
-            f"{where}: missing column{'s' if len(missing) > 1 else ''} {', '.join(missing)} ({layout})"
-        )
-    if unknown:
-        raise InputsError(
-            f"{where}: unknown column{'s' if len(unknown) > 1 else ''} {', '.join(unknown)} ({layout})"
-        )
-    if len(set(header)) != len(header):
-        raise InputsError(f"{where}: a column appears twice in the header")
+    header_line, first = rows[0]
+    header = [h.strip() for h in first]
+    _check_header(header, header_line, expected, vessel, where)
     wind_cols = [c for c in WIND_COLUMNS if c in header]
     if len(wind_cols) == 1:
         other = next(c for c in WIND_COLUMNS if c not in header)
@@ -99,8 +96,8 @@ def read_inputs(path: str | Path, vessel: VesselModel) -> Inputs:
             "(field 'hull.wind', docs/vessels.md)"
         )
     data = np.empty((len(rows) - 1, len(header)))
-    for i, row in enumerate(rows[1:]):
-        line = i + 2
+    lines = [line for line, _ in rows[1:]]
+    for i, (line, row) in enumerate(rows[1:]):
         if len(row) != len(header):
             raise InputsError(f"{where}: line {line}: {len(row)} fields, the header has {len(header)}")
         for j, text in enumerate(row):
@@ -119,14 +116,14 @@ def read_inputs(path: str | Path, vessel: VesselModel) -> Inputs:
     t = col["t"]
     bad = np.flatnonzero(np.diff(t) <= 0)
     if bad.size:
-        line = int(bad[0]) + 3
+        line = lines[int(bad[0]) + 1]
         raise InputsError(
             f"{where}: line {line}, column 't': times must increase ({t[bad[0] + 1]} after {t[bad[0]]})"
         )
     for name in ("current_speed", "wind_speed"):
         neg = np.flatnonzero(col[name] < 0) if name in col else np.zeros(0, dtype=int)
         if neg.size:
-            raise InputsError(f"{where}: line {int(neg[0]) + 2}, column '{name}': must be ≥ 0")
+            raise InputsError(f"{where}: line {lines[int(neg[0])]}, column '{name}': must be ≥ 0")
     n = len(vessel.thrusters)
     rpm = np.column_stack([col[f"n_{k}"] for k in range(1, n + 1)]) if n else np.zeros((len(t), 0))
     alpha = np.tile(np.degrees([th.angle_rad for th in vessel.thrusters]), (len(t), 1))
@@ -142,6 +139,74 @@ def read_inputs(path: str | Path, vessel: VesselModel) -> Inputs:
         col.get("wind_speed"),
         col.get("wind_from_deg"),
     )
+
+
+def _check_header(header: list[str], line: int, expected: list[str], vessel: VesselModel, where: str) -> None:
+    """The header names every column this vessel needs and no other; a near miss gets a "did you mean"."""
+    layout = f"{vessel.name} has {len(vessel.thrusters)} thrusters: columns {', '.join(expected)}"
+    known = [*expected, *WIND_COLUMNS]
+    missing = [c for c in expected if c not in header]
+    unknown = [c for c in header if c not in known]
+    if missing and len(header) == 1:
+        for sep, name in ((";", "';'"), ("\t", "tabs")):
+            if sep in header[0]:
+                raise InputsError(
+                    f"{where}: line {line}: the separator is ',' but the file seems to use {name}: "
+                    f"save it as CSV with commas ({layout})"
+                )
+    for column in unknown:
+        if problem := _thruster_column_problem(column, vessel):
+            raise InputsError(f"{where}: line {line}, column '{column}': {problem} ({layout})")
+        meant = closest(column, known)
+        if meant is not None and meant not in header:
+            raise InputsError(
+                f"{where}: line {line}, column '{column}': unknown, did you mean '{meant}'? ({layout})"
+            )
+    if missing:
+        raise InputsError(
+            f"{where}: missing column{'s' if len(missing) > 1 else ''} {', '.join(missing)} ({layout})"
+        )
+    if unknown:
+        raise InputsError(
+            f"{where}: unknown column{'s' if len(unknown) > 1 else ''} {', '.join(unknown)} ({layout})"
+        )
+
+
+def _thruster_column_problem(column: str, vessel: VesselModel) -> str | None:
+    """Why ``n_<k>`` or ``alpha_<k>`` is not a column of this vessel (k beyond its thrusters, an angle of a
+    fixed-direction thruster), or None if the column is not of that form."""
+    prefix, _, number = column.partition("_")
+    if prefix not in ("n", "alpha") or not number.isdigit():
+        return None
+    k = int(number)
+    n = len(vessel.thrusters)
+    if not 1 <= k <= n:
+        return f"no thruster {k}: {vessel.name} has {n}" + (f", numbered 1 to {n}" if n else "")
+    th = vessel.thrusters[k - 1]
+    if prefix == "alpha" and th.kind != "azimuth":
+        return (
+            f"thruster {k} is a {th.kind} (a fixed direction, {math.degrees(th.angle_rad):g}°: no angle to "
+            "record): drop the column"
+        )
+    return None
+
+
+def overspeed_warnings(inputs: Inputs, vessel: VesselModel, where: str) -> list[str]:
+    """One line per thruster whose recorded |n| exceeds its ``max_rpm``: the likely sign of a unit mistake
+    (rad/s, rps or percent for rpm). Only said: a recording is what happened, so the run is not clipped,
+    and the thrust at n is T_max (n/n_max)|n/n_max|, beyond T_max."""
+    out = []
+    for k, th in enumerate(vessel.thrusters, 1):
+        rpm = np.abs(inputs.rpm[:, k - 1])
+        over = np.flatnonzero(rpm > th.max_rpm)
+        if over.size:
+            worst = float(rpm.max())
+            out.append(
+                f"{where}: column 'n_{k}': |n| up to {worst:g} rpm (first at t = {inputs.t[over[0]]:g} s), "
+                f"beyond thruster {k}'s max_rpm {th.max_rpm:g}: a unit mistake (rps, rad/s, %)? Run "
+                f"unclipped, at up to {(worst / th.max_rpm) ** 2:.3g}× its max_thrust_n"
+            )
+    return out
 
 
 ExtraForce = Callable[[float, Array], Array]
@@ -208,6 +273,7 @@ __all__ = [
     "STATE_COLUMNS",
     "Inputs",
     "InputsError",
+    "overspeed_warnings",
     "read_inputs",
     "run_open_loop",
     "write_states",

@@ -102,10 +102,13 @@ class PlantParams:
         hull = vessel.hull
         needs_hull = options.coriolis or options.surge_resistance or options.crossflow or options.radiation
         if hull is None and needs_hull:
+            on = [k for k in ("coriolis", "surge_resistance", "crossflow") if getattr(options, k)]
+            on += ["radiation"] if options.radiation is not None else []
             raise PlantError(
                 f"vessel '{vessel.name}': the full plant needs a [hull] table (M_A, x_g, beam, draught, "
-                "surge "
-                "resistance; docs/vessels.md), or switch its effects off (plant options)"
+                "surge resistance; docs/vessels.md), or switch its effects off (plant options "
+                + ", ".join(f"{k}=off" if k != "radiation" else "radiation=None" for k in on)
+                + ")"
             )
         M = np.array(vessel.M, dtype=float)
         MA = np.array(hull.added_mass if hull is not None else np.zeros((3, 3)), dtype=float)

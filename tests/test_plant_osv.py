@@ -160,7 +160,10 @@ def test_recorded_wind_and_an_initial_state(tmp_path: Path) -> None:
             "t,current_speed,current_dir_deg,n_1,n_2,n_3,n_4,alpha_3\n0,0,0,0,0,0,0,0\n",
             "missing column alpha_4",
         ),
-        ("t,current_speed,current_dir_deg,n_1,n_2,n_3,n_4,alpha_3,alpha_4,n_5\n", "unknown column n_5"),
+        (
+            "t,current_speed,current_dir_deg,n_1,n_2,n_3,n_4,alpha_3,alpha_4,n_5\n",
+            "column 'n_5': no thruster 5: mss_osv has 4, numbered 1 to 4",
+        ),
         (
             "t,current_speed,current_dir_deg,n_1,n_2,n_3,n_4,alpha_3,alpha_4\n0,0,0,0,0,0,0,0,0\n1,0,0,0,x,0,0,0,0\n",
             "line 3, column 'n_2': not a number",

@@ -169,3 +169,121 @@ def test_barred_zones_read_from_the_vessel_file() -> None:
     tunnel = {"id": 4, "kind": "tunnel", "x_m": 30, "y_m": 0, "max_thrust_n": 1e5, "min_thrust_n": -1e5}
     with pytest.raises(VesselError, match="only an azimuth"):
         vessel_from_dict({**GOOD, "thrusters": [{**tunnel, "forbidden_sectors_deg": [[0, 10]]}]}, "ship.toml")
+
+
+# --- a misspelt key is refused, never ignored ------------------------------------------------------------
+
+VESSELS = Path(__file__).resolve().parents[1] / "observers" / "vessels"
+
+
+def _copy_with(tmp_path: Path, builtin: str, old: str, new: str) -> Path:
+    """A user's copy of a built-in vessel file with one line's text changed (the first occurrence)."""
+    text = (VESSELS / f"{builtin}.toml").read_text(encoding="utf-8")
+    assert old in text, old
+    f = tmp_path / f"my_{builtin}.toml"
+    f.write_text(text.replace(old, new, 1), encoding="utf-8")
+    return f
+
+
+def _refusal(f: Path) -> str:
+    with pytest.raises(VesselError) as err:
+        load_vessel(f)
+    msg = str(err.value)
+    assert "\n" not in msg and str(f) in msg, msg
+    return msg
+
+
+@pytest.mark.parametrize(
+    ("builtin", "old", "new", "said"),
+    [
+        # before, each loaded: model_scal gave a full-scale CyberShip II to `dpgw capability`
+        (
+            "cybership2",
+            "model_scale =",
+            "model_scal =",
+            "field 'model_scal': unknown key, did you mean 'model_scale'?",
+        ),
+        ("cybership2", "source =", "sorce =", "field 'sorce': unknown key, did you mean 'source'?"),
+        (
+            "cybership2",
+            "description =",
+            "descripton =",
+            "field 'descripton': unknown key, did you mean 'description'?",
+        ),
+        ("mss_supply", "[bis]\ng", "[bis]\ngg = 9.81\ng", "field 'bis.gg': unknown key, did you mean 'g'?"),
+        # before: "field 'length_m': missing or not a number", not a word about the key written
+        (
+            "cybership2",
+            "length_m =",
+            "lenght_m =",
+            "field 'length_m': missing, did you mean 'length_m'? (found 'lenght_m')",
+        ),
+        # before: "field 'bis.Mbis': must be a 3×3 matrix, got shape ()"
+        (
+            "mss_supply",
+            "Mbis =",
+            "Mbiss =",
+            "field 'bis.Mbis': missing, did you mean 'Mbis'? (found 'Mbiss')",
+        ),
+        ("mss_supply", "Mbis =", "inertia =", "field 'bis.inertia': unknown key (known: g, Mbis, Dbis)"),
+        (
+            "mss_supply",
+            "[bis]\ng",
+            "[bis]\nM_RB = 1\ng",
+            "field 'bis.M_RB': M_RB is a top-level key: move it above the [bis] header",
+        ),
+        (
+            "cybership2",
+            "max_thrust_n =",
+            "max_thrust =",
+            "field 'thrusters[0].max_thrust_n': missing, did you mean 'max_thrust_n'? (found 'max_thrust')",
+        ),
+        (
+            "cybership2",
+            "thrust_time_constant_s =",
+            "thrust_time_constant =",
+            "field 'thrusters[0].thrust_time_constant': unknown key, did you mean 'thrust_time_constant_s'?",
+        ),
+        (
+            "mss_osv",
+            "beam_m =",
+            "beam =",
+            "field 'hull.beam_m': missing, did you mean 'beam_m'? (found 'beam')",
+        ),
+        ("mss_osv", "notes =", "note =", "field 'hull.note': unknown key, did you mean 'notes'?"),
+        ("mss_osv", "cx =", "c_x =", "field 'hull.wind.c_x': unknown key, did you mean 'cx'?"),
+    ],
+)
+def test_a_misspelt_key_is_refused_with_did_you_mean(
+    tmp_path: Path, builtin: str, old: str, new: str, said: str
+) -> None:
+    msg = _refusal(_copy_with(tmp_path, builtin, old, new))
+    assert said in msg, msg
+
+
+def test_a_bis_table_without_its_matrices_says_missing(tmp_path: Path) -> None:
+    """Before: "must be a 3×3 matrix, got shape ()" for a key that is not there."""
+    text = (VESSELS / "mss_supply.toml").read_text(encoding="utf-8")
+    start = text.index("Dbis =")
+    end = text.index("]]", start) + 2
+    f = tmp_path / "ship.toml"
+    f.write_text(text[:start] + text[end:], encoding="utf-8")
+    assert "field 'bis.Dbis': missing (the bis system needs Mbis and Dbis)" in _refusal(f)
+
+
+def test_every_built_in_vessel_uses_only_known_keys() -> None:
+    """Each built-in file loads as a user's copy would: every key it has is one the loader reads."""
+    for name in builtin_vessels():
+        v = load_vessel(VESSELS / f"{name}.toml")
+        assert v == load_vessel(name), name
+
+
+def test_capability_on_a_misspelt_vessel_file_stops_with_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from dpgw.cli import main
+
+    f = _copy_with(tmp_path, "cybership2", "model_scale =", "model_scal =")
+    assert main(["capability", "--vessel", str(f)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "did you mean 'model_scale'?" in err and str(f) in err, err

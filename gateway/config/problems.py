@@ -6,11 +6,12 @@ problem at once, and `ConfigError` carries them all.
 
 from __future__ import annotations
 
-import difflib
 import json
 import math
 from collections.abc import Mapping, Sequence
 from typing import Any
+
+from observers.spelling import did_you_mean as did_you_mean  # the one "did you mean" of dpgw; re-exported
 
 __all__ = ["ConfigError", "Problems", "format_problems", "kind", "show"]
 
@@ -71,12 +72,6 @@ def kind(value: Any) -> str:
     if isinstance(value, dict):
         return "a table"
     return type(value).__name__
-
-
-def did_you_mean(word: str, choices: Sequence[str], quote: str = "'") -> str:
-    """``, did you mean 'x'?`` for the closest choice, or ``""``."""
-    close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
-    return f", did you mean {quote}{close[0]}{quote}?" if close else ""
 
 
 class Problems:
