@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -204,9 +207,44 @@ def update_doc(spec: str, text: str, command: str) -> None:
     path.write_text("\n".join([*lines[:first], *body, *lines[last + 1 :]]))
 
 
+@contextmanager
+def stopped_by_signals() -> Iterator[None]:
+    """SIGTERM (``kill``, a service stopped) and SIGHUP (the SSH session or terminal closed) stop the study
+    as Ctrl-C does: `StudyInterrupted` is raised where the study is, the workers are stopped on the way out
+    and what is kept is said; the exit code is the shell's for the signal (143, 129). Before, the process
+    died at once with 143 and no word, and its worker processes' semaphores leaked (multiprocessing's
+    resource tracker warned). A second signal while stopping is ignored: the first one is being obeyed."""
+    from dpgw.study.runner import StudyInterrupted
+
+    stopping = (signal.SIGTERM, signal.SIGHUP)
+
+    def stop(signum: int, _frame: object) -> None:
+        for s in stopping:
+            signal.signal(s, signal.SIG_IGN)
+        raise StudyInterrupted(signal.Signals(signum).name, 128 + signum)
+
+    old = {s: signal.signal(s, stop) for s in stopping}
+    try:
+        yield
+    finally:
+        for s, handler in old.items():
+            signal.signal(s, handler)
+
+
 def run(args: argparse.Namespace) -> int:
+    from dpgw.study.runner import StudyInterrupted
+
+    with stopped_by_signals():
+        try:
+            return _run(args)
+        except StudyInterrupted as stop:  # a signal between the study's end and the outputs' start
+            print(f"\ndpgw study: stopped ({stop.why})", file=sys.stderr)
+            return stop.exit_code
+
+
+def _run(args: argparse.Namespace) -> int:
     from dpgw.study.cache import CaseCache
-    from dpgw.study.runner import StudyRunError, run_study
+    from dpgw.study.runner import StudyInterrupted, StudyRunError, run_study
     from dpgw.study.spec import StudySpecError
 
     try:
@@ -227,23 +265,33 @@ def run(args: argparse.Namespace) -> int:
     except StudyRunError as exc:
         print(f"dpgw study: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:  # Ctrl-C: an hour's study is stopped this way; say what is kept, no traceback
-        kept = (
-            f"the cases done are cached in {cache.folder}: the same command resumes from them"
-            if cache is not None
-            else "nothing is kept (--no-cache)"
-        )
-        print(f"\ndpgw study: stopped (Ctrl-C); {kept}", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:  # an hour's study is stopped this way; say what is kept, no traceback
+        stop = exc if isinstance(exc, StudyInterrupted) else StudyInterrupted()
+        print(f"\ndpgw study: stopped ({stop.why}); {kept_text(stop, cache)}", file=sys.stderr)
+        return stop.exit_code
     try:
         return _write_outputs(args, result)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
+        why = exc.why if isinstance(exc, StudyInterrupted) else "Ctrl-C"
         print(
-            f"\ndpgw study: stopped (Ctrl-C) while writing the outputs in {args.out}; the cases are cached: "
+            f"\ndpgw study: stopped ({why}) while writing the outputs in {args.out}; the cases are cached: "
             "run the same command again to write them",
             file=sys.stderr,
         )
-        return 130
+        return exc.exit_code if isinstance(exc, StudyInterrupted) else 130
+
+
+def kept_text(stop: Any, cache: Any) -> str:
+    """What a stopped study keeps: ``8 of 64 cases done and cached in DIR: the same command resumes from
+    them`` (``stop``: a `StudyInterrupted` with its count)."""
+    if cache is None:
+        return f"{stop.done} of {stop.total} cases done, none kept (--no-cache)"
+    if stop.done == 0:
+        return f"0 of {stop.total} cases done: nothing is cached in {cache.folder} yet"
+    return (
+        f"{stop.done} of {stop.total} case{'' if stop.total == 1 else 's'} done and cached in "
+        f"{cache.folder}: the same command resumes from them"
+    )
 
 
 def _write_outputs(args: argparse.Namespace, result: Any) -> int:

@@ -319,18 +319,21 @@ def test_replay_vessel_mistakes_name_the_flag(tmp_path: Path, capsys: pytest.Cap
 def test_study_stopped_with_ctrl_c_says_what_is_kept(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """Before: a KeyboardInterrupt traceback from wherever the study was (a case, Dask, matplotlib)."""
+    """Before: a KeyboardInterrupt traceback from wherever the study was (a case, Dask, matplotlib); then
+    what was kept, but not how many cases. (A real Ctrl-C, SIGTERM, SIGHUP: tests/test_study_process.py.)"""
     import dpgw.study.runner
 
     def interrupted(*_args: object, **_kwargs: object) -> None:
-        raise KeyboardInterrupt
+        stop = dpgw.study.runner.StudyInterrupted()
+        stop.done, stop.total = 3, 8
+        raise stop
 
     monkeypatch.setattr(dpgw.study.runner, "run_study", interrupted)
     argv = ["study", "--scenario", "hassani", "--seeds", "0", "--serial", "--out", str(tmp_path / "s")]
     assert main(argv) == 130
     assert _one_line(capsys.readouterr().err) == (
-        f"dpgw study: stopped (Ctrl-C); the cases done are cached in {tmp_path / 's' / 'cache'}: the same "
-        "command resumes from them"
+        f"dpgw study: stopped (Ctrl-C); 3 of 8 cases done and cached in {tmp_path / 's' / 'cache'}: the "
+        "same command resumes from them"
     )
 
 
