@@ -307,6 +307,7 @@ def _write_outputs(args: argparse.Namespace, result: Any) -> int:
     if args.update_doc:
         command = "dpgw study " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["study"] else "dpgw study"
         update_doc(args.update_doc, text, command)
+    warnings = outputs.short_scoring_warnings(result.rows)
     where = "serial" if result.workers == 0 else f"{result.workers} Dask workers"
     report = {
         "cases": result.cases,
@@ -318,12 +319,15 @@ def _write_outputs(args: argparse.Namespace, result: Any) -> int:
         "run_on": where,
         "scheduler": result.scheduler or None,
         "files": [str(f) for f in files],
+        "warnings": warnings,
         "summary": outputs.json_summary(result.rows),
     }
     if args.json:
         print(json.dumps(report, indent=2, allow_nan=False, default=str))
+        _warn(warnings)
         return 0
     print(text)
+    _warn(warnings)  # after the table, where it is read
     print(
         f"{result.cases} case{'' if result.cases == 1 else 's'} ({result.computed} run, {result.cached} "
         f"from the cache) on {where} in "
@@ -331,3 +335,9 @@ def _write_outputs(args: argparse.Namespace, result: Any) -> int:
         file=sys.stderr,
     )
     return 0
+
+
+def _warn(warnings: list[str]) -> None:
+    sys.stdout.flush()
+    for warning in warnings:
+        print(f"dpgw study: warning: {warning}", file=sys.stderr)
