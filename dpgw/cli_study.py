@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import signal
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from dpgw.cli_types import non_negative_float, positive_float
 from dpgw.scenario_names import SCENARIO_NAMES
 from observers.observer_names import OBSERVER_NAMES
 
@@ -33,10 +35,13 @@ EPILOG = (
     "  dpgw study --scenario hassani --seeds 0-7 --duration 300 --out study_hassani\n"
     "  dpgw study --scenario torsetnes_2004 --hs 2,4,6 --tp 8,11.5 --observer passive \\\n"
     "       --observer ekf --observer gain_scheduled:omega0=0.83@gs --workers 2\n"
-    "  dpgw study --file examples/studies/observers.toml --out study_observers --update-doc docs/study.md\n"
+    "  dpgw study --file observers --out study_observers   # a shipped study: docs/study.md's table\n"
     "  dpgw study --scenario hassani --scheduler tcp://10.0.0.5:8786   # an existing Dask cluster\n"
     "  dpgw study --scenario hassani --serial --json                   # no Dask, summary as JSON"
 )
+
+# the studies shipped with dpgw (dpgw/study/studies, package data), which --file takes by name
+SHIPPED_STUDY_NAMES = sorted(p.stem for p in (Path(__file__).parent / "study" / "studies").glob("*.toml"))
 
 DOC_BEGIN = "<!-- study-table:begin -->"
 DOC_END = "<!-- study-table:end -->"
@@ -52,11 +57,34 @@ def doc_markers(section: str) -> tuple[str, str]:
 
 def _numbers(text: str) -> list[float]:
     try:
-        return [float(v) for v in text.split(",") if v.strip()]
+        values = [float(v) for v in text.split(",") if v.strip()]
     except ValueError:
         raise argparse.ArgumentTypeError(
             f"{text!r}: expected numbers separated by commas, e.g. 2,4.5,6"
         ) from None
+    if not values:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected numbers separated by commas, e.g. 2,4.5,6")
+    if not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"{text!r}: every value must be a finite number")
+    return values
+
+
+def _numbers_in(lowest: float, inclusive: bool, what: str, unit: str) -> Callable[[str], list[float]]:
+    """`_numbers`, each ≥ ``lowest`` (> with ``inclusive`` False): the message says what the value is and
+    its range, and argparse puts the option's name before it (the grid's own check named the study file's
+    key, ``'seas'[0]: 'hs_m' out of range (-1.0)``, for a value given as --hs)."""
+
+    def parse(text: str) -> list[float]:
+        values = _numbers(text)
+        bad = [v for v in values if (v < lowest if inclusive else v <= lowest)]
+        if bad:
+            among = f" in {text}" if len(values) > 1 else ""
+            raise argparse.ArgumentTypeError(
+                f"{what} must be {'≥' if inclusive else '>'} {lowest:g} {unit} (got {bad[0]:g}{among})"
+            )
+        return values
+
+    return parse
 
 
 def _seeds(text: str) -> list[int]:
@@ -78,20 +106,28 @@ def _seeds(text: str) -> list[int]:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
-        "--file", type=Path, metavar="STUDY.toml", help="the grid from a study file (docs/study.md)"
-    )
+        "--file", metavar="STUDY.toml|NAME",
+        help="the grid from a study file (docs/study.md), or a study shipped with dpgw by its name: "
+        f"{', '.join(SHIPPED_STUDY_NAMES)} (the grids of the tables in docs/study.md)",
+    )  # fmt: skip
     p.add_argument(
         "--scenario", action="append", default=[], choices=SCENARIO_NAMES, metavar="NAME",
         help=f"scenario (repeatable): {', '.join(SCENARIO_NAMES)}",
     )  # fmt: skip
-    p.add_argument("--hs", type=_numbers, metavar="M[,M...]", help="significant wave heights (m)")
-    p.add_argument("--tp", type=_numbers, metavar="S[,S...]", help="peak periods (s)")
+    p.add_argument(
+        "--hs", type=_numbers_in(0.0, True, "a significant wave height", "m"), metavar="M[,M...]",
+        help="significant wave heights (m, ≥ 0)",
+    )  # fmt: skip
+    p.add_argument(
+        "--tp", type=_numbers_in(0.0, False, "a peak period", "s"), metavar="S[,S...]",
+        help="peak periods (s, > 0)",
+    )  # fmt: skip
     p.add_argument(
         "--direction", type=_numbers, metavar="DEG[,...]", help="wave directions, going towards (°)"
     )
     p.add_argument(
-        "--current", type=_numbers, metavar="M/S[,...]",
-        help="current speeds (m/s; > 0 runs the full plant, which needs the vessel's hull data)",
+        "--current", type=_numbers_in(0.0, True, "a current speed", "m/s"), metavar="M/S[,...]",
+        help="current speeds (m/s, ≥ 0; > 0 runs the full plant, which needs the vessel's hull data)",
     )  # fmt: skip
     p.add_argument(
         "--current-dir", type=_numbers, metavar="DEG[,...]", help="current directions, going towards (°)"
@@ -105,9 +141,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--loop-observer", metavar="SPEC", help="the observer the DP controller acts on (default passive)"
     )
-    p.add_argument("--duration", type=float, metavar="S", help="simulated seconds per case (default 300)")
     p.add_argument(
-        "--settle", type=float, metavar="S", help="scored from S s on (default a third of the case)"
+        "--duration", type=positive_float, metavar="S", help="simulated seconds per case (default 300)"
+    )
+    p.add_argument(
+        "--settle",
+        type=non_negative_float,
+        metavar="S",
+        help="scored from S s on, less than --duration (default a third of the case)",
     )
     p.add_argument(
         "--out", type=Path, default=Path("study_out"), metavar="DIR", help="output folder (default study_out)"
@@ -136,9 +177,9 @@ def build_spec(args: argparse.Namespace) -> Any:
     """The grid: the study file's, with any flag given on the command line in place of its value."""
     from dataclasses import replace
 
-    from dpgw.study.spec import StudySpec, StudySpecError, load_study_file, seas_product
+    from dpgw.study.spec import StudySpec, StudySpecError, load_study_file, seas_product, study_file_path
 
-    spec = load_study_file(args.file) if args.file else StudySpec(scenarios=())
+    spec = load_study_file(study_file_path(args.file)) if args.file else StudySpec(scenarios=())
     sea_grid = {
         key: values
         for key, values in (
@@ -163,6 +204,11 @@ def build_spec(args: argparse.Namespace) -> Any:
     if args.settle is not None:
         changes["settle_s"] = args.settle
     spec = replace(spec, **changes)
+    if args.settle is not None and args.settle >= spec.duration_s:
+        raise StudySpecError(
+            f"--settle {args.settle:g}: scoring must start before the case ends: give less than the "
+            f"duration, {spec.duration_s:g} s (or a longer --duration)"
+        )
     if not spec.scenarios:
         raise StudySpecError("study: no scenario: give --scenario NAME or --file STUDY.toml")
     spec.check()

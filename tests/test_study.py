@@ -94,7 +94,7 @@ def test_study_file(tmp_path: Path) -> None:
         load_study_file(path)
 
 
-STUDY_FILES = sorted((Path(__file__).resolve().parents[1] / "examples" / "studies").glob("*.toml"))
+STUDY_FILES = sorted((Path(__file__).resolve().parents[1] / "dpgw" / "study" / "studies").glob("*.toml"))
 
 
 @pytest.mark.parametrize("path", STUDY_FILES, ids=lambda p: p.name)
@@ -121,6 +121,29 @@ def test_the_study_file_docs_study_md_shows_loads(tmp_path: Path) -> None:
 
 def test_there_are_shipped_study_files() -> None:
     assert {p.name for p in STUDY_FILES} >= {"observers.toml", "torsetnes_tp.toml"}
+
+
+def test_a_shipped_study_runs_by_name_from_any_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: docs/study.md and --help printed `--file examples/studies/observers.toml`, which only ran in
+    a checkout ("No such file or directory" anywhere else). The shipped studies are package data, taken
+    by name; the old path still runs; a missing file lists them."""
+    from dpgw.study.spec import SHIPPED_STUDIES, study_file_path
+
+    monkeypatch.chdir(tmp_path)  # not a checkout
+    for given in ("observers", "observers.toml", "examples/studies/observers.toml"):
+        assert study_file_path(given) == SHIPPED_STUDIES / "observers.toml"
+    assert study_file_path("elsewhere/observers.toml") == Path("elsewhere/observers.toml")
+    from dpgw.cli import build_parser
+    from dpgw.cli_study import build_spec
+
+    for given in ("observers", "examples/studies/observers.toml"):  # as --help and docs/study.md print it
+        spec = build_spec(build_parser().parse_args(["study", "--file", given]))
+        assert spec.scenarios == ("torsetnes_2004", "hassani", "snijders_2005") and len(spec.seeds) == 12
+    assert main(["study", "--file", "observer", "--serial"]) == 2
+    err = capsys.readouterr().err
+    assert "study file observer: no such file" in err and "observers, torsetnes_tp" in err
 
 
 def test_cache_key_names_the_case_and_the_code() -> None:
