@@ -49,7 +49,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Collection, Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -173,9 +173,7 @@ class Environment:
             raise ValueError(f"dynamic_factor must be a positive number, got {self.dynamic_factor!r}")
 
     def describe(self) -> str:
-        parts = []
-        if self.wind:
-            parts.append("wind U")
+        parts = ["wind U" if self.wind else "no wind load"]
         if self.sea == "beaufort":
             if self.waves or self.current:
                 kinds = [k for k, on in (("sea", self.waves), ("current", self.current)) if on]
@@ -187,7 +185,7 @@ class Environment:
                 parts.append(f"current {self.current_mps:.3g} m/s")
         if self.dynamic_factor != 1.0:
             parts.append(f"loads × {self.dynamic_factor:g}")
-        return ", ".join(parts) + ", co-linear" if parts else "no environment"
+        return ", ".join(parts) + ", co-linear" if len(parts) > 1 or self.wind else "no environment"
 
 
 class EnvironmentLoads:
@@ -204,6 +202,8 @@ class EnvironmentLoads:
                 f"vessel '{vessel.name}' has no [hull.wind] areas: no wind load (the plot is for current and "
                 "waves only)"
             )
+            # what is computed, for the result to say: U still sets the sea (and the Beaufort current)
+            self.environment = environment = replace(environment, wind=False)
         options = DEFAULT_OPTIONS
         if hull is None:
             options = PlantOptions(coriolis=False, surge_resistance=False, crossflow=False)
@@ -340,7 +340,7 @@ class CapabilityResult:
             "relation": env.describe(),
             "sea": env.sea,
             "current_mps": (None if beaufort else env.current_mps) if env.current else 0.0,
-            "wind": env.wind,
+            "wind": env.wind,  # (false where the vessel has no [hull.wind] areas: no wind load computed)
             "waves": env.waves,
             "wave_relation": "DNV-ST-0111 Table 2-1 (Hs, Tp and current per Beaufort number, linear in U "
             "between its rows; Pierson-Moskowitz spectrum)"
@@ -471,7 +471,7 @@ def capability(
     return CapabilityResult(
         vessel.name,
         dirs,
-        environment,
+        loads.environment,  # (wind off where the vessel has no wind areas: what was computed)
         cases,
         worst,
         worst_failed,

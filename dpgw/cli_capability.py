@@ -249,10 +249,10 @@ def _print_table(result: object) -> None:
     from dpgw.capability import CapabilityResult
 
     assert isinstance(result, CapabilityResult)
-    print(
-        f"DP capability of {result.vessel}: U_max (m/s, 1-hour mean wind at 10 m); "
-        f"{result.environment.describe()}"
-    )
+    # U is the wind speed whether or not a wind load is computed (no [hull.wind] areas): then it is the
+    # wind whose sea (and Beaufort current) act, and the relation says "no wind load", not "wind U"
+    what = "1-hour mean wind at 10 m" + ("" if result.environment.wind else ", which sets the sea")
+    print(f"DP capability of {result.vessel}: U_max (m/s, {what}); {result.environment.describe()}")
     lim = result.u_limit
     print(f"environment from (deg, clockwise from the bow); {lim:.3g} = at least {lim:.3g}")
     # (a laboratory model's speeds, Froude-scaled: 4.78 m/s at most for CyberShip II, need a second

@@ -58,6 +58,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
+def wind_spectrum(option: str, name: str) -> str:
+    """The gust spectrum of ``--wind SPEED,FROM_DEG,SPECTRUM``, checked here so that a wrong one is named as
+    the option's (the wind model's own check said ``wind: field 'gust'``, a key of no file the user
+    wrote)."""
+    import difflib
+
+    from simulator.wind import GUST_SPECTRA
+
+    gust = name.strip().lower()
+    if gust not in GUST_SPECTRA:
+        close = difflib.get_close_matches(gust, GUST_SPECTRA, n=1)
+        hint = f"did you mean {close[0]}? " if close else ""
+        raise ValueError(
+            f"--wind {option}: no gust spectrum {name.strip()!r}: {hint}SPECTRUM is one of "
+            f"{', '.join(GUST_SPECTRA)} (none: a steady wind)"
+        )
+    return gust
+
+
 def plant_options(specs: list[str]) -> PlantOptions:
     """PlantOptions from KEY=VALUE strings; a bad one is a ValueError naming it."""
     from simulator.plant_params import PlantOptions
@@ -162,12 +181,13 @@ def run(args: argparse.Namespace) -> int:
             from simulator.wind import Wind, WindModel
 
             (speed, from_deg), rest = _floats(args.wind, "--wind", 2, ("SPECTRUM",))
+            gust = wind_spectrum(args.wind, rest[0] if rest else "norsok")
             if vessel.hull is None or vessel.hull.wind is None:
                 raise ValueError(
                     f"--wind: vessel '{vessel.name}' has no wind areas (field 'hull.wind', docs/vessels.md)"
                 )
             wind = Wind(
-                WindModel(speed, from_deg, gust=rest[0].lower() if rest else "norsok"),
+                WindModel(speed, from_deg, gust=gust),
                 vessel.hull.wind,
                 vessel.length_m,
                 np.random.default_rng(args.seed),

@@ -4,10 +4,15 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
+import signal
 import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from dpgw.cli_types import non_negative_float, positive_float
 from dpgw.scenario_names import SCENARIO_NAMES
 from observers.observer_names import OBSERVER_NAMES
 
@@ -30,10 +35,13 @@ EPILOG = (
     "  dpgw study --scenario hassani --seeds 0-7 --duration 300 --out study_hassani\n"
     "  dpgw study --scenario torsetnes_2004 --hs 2,4,6 --tp 8,11.5 --observer passive \\\n"
     "       --observer ekf --observer gain_scheduled:omega0=0.83@gs --workers 2\n"
-    "  dpgw study --file examples/studies/observers.toml --out study_observers --update-doc docs/study.md\n"
+    "  dpgw study --file observers --out study_observers   # a shipped study: docs/study.md's table\n"
     "  dpgw study --scenario hassani --scheduler tcp://10.0.0.5:8786   # an existing Dask cluster\n"
     "  dpgw study --scenario hassani --serial --json                   # no Dask, summary as JSON"
 )
+
+# the studies shipped with dpgw (dpgw/study/studies, package data), which --file takes by name
+SHIPPED_STUDY_NAMES = sorted(p.stem for p in (Path(__file__).parent / "study" / "studies").glob("*.toml"))
 
 DOC_BEGIN = "<!-- study-table:begin -->"
 DOC_END = "<!-- study-table:end -->"
@@ -49,11 +57,34 @@ def doc_markers(section: str) -> tuple[str, str]:
 
 def _numbers(text: str) -> list[float]:
     try:
-        return [float(v) for v in text.split(",") if v.strip()]
+        values = [float(v) for v in text.split(",") if v.strip()]
     except ValueError:
         raise argparse.ArgumentTypeError(
             f"{text!r}: expected numbers separated by commas, e.g. 2,4.5,6"
         ) from None
+    if not values:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected numbers separated by commas, e.g. 2,4.5,6")
+    if not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"{text!r}: every value must be a finite number")
+    return values
+
+
+def _numbers_in(lowest: float, inclusive: bool, what: str, unit: str) -> Callable[[str], list[float]]:
+    """`_numbers`, each ≥ ``lowest`` (> with ``inclusive`` False): the message says what the value is and
+    its range, and argparse puts the option's name before it (the grid's own check named the study file's
+    key, ``'seas'[0]: 'hs_m' out of range (-1.0)``, for a value given as --hs)."""
+
+    def parse(text: str) -> list[float]:
+        values = _numbers(text)
+        bad = [v for v in values if (v < lowest if inclusive else v <= lowest)]
+        if bad:
+            among = f" in {text}" if len(values) > 1 else ""
+            raise argparse.ArgumentTypeError(
+                f"{what} must be {'≥' if inclusive else '>'} {lowest:g} {unit} (got {bad[0]:g}{among})"
+            )
+        return values
+
+    return parse
 
 
 def _seeds(text: str) -> list[int]:
@@ -75,20 +106,28 @@ def _seeds(text: str) -> list[int]:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
-        "--file", type=Path, metavar="STUDY.toml", help="the grid from a study file (docs/study.md)"
-    )
+        "--file", metavar="STUDY.toml|NAME",
+        help="the grid from a study file (docs/study.md), or a study shipped with dpgw by its name: "
+        f"{', '.join(SHIPPED_STUDY_NAMES)} (the grids of the tables in docs/study.md)",
+    )  # fmt: skip
     p.add_argument(
         "--scenario", action="append", default=[], choices=SCENARIO_NAMES, metavar="NAME",
         help=f"scenario (repeatable): {', '.join(SCENARIO_NAMES)}",
     )  # fmt: skip
-    p.add_argument("--hs", type=_numbers, metavar="M[,M...]", help="significant wave heights (m)")
-    p.add_argument("--tp", type=_numbers, metavar="S[,S...]", help="peak periods (s)")
+    p.add_argument(
+        "--hs", type=_numbers_in(0.0, True, "a significant wave height", "m"), metavar="M[,M...]",
+        help="significant wave heights (m, ≥ 0)",
+    )  # fmt: skip
+    p.add_argument(
+        "--tp", type=_numbers_in(0.0, False, "a peak period", "s"), metavar="S[,S...]",
+        help="peak periods (s, > 0)",
+    )  # fmt: skip
     p.add_argument(
         "--direction", type=_numbers, metavar="DEG[,...]", help="wave directions, going towards (°)"
     )
     p.add_argument(
-        "--current", type=_numbers, metavar="M/S[,...]",
-        help="current speeds (m/s; > 0 runs the full plant, which needs the vessel's hull data)",
+        "--current", type=_numbers_in(0.0, True, "a current speed", "m/s"), metavar="M/S[,...]",
+        help="current speeds (m/s, ≥ 0; > 0 runs the full plant, which needs the vessel's hull data)",
     )  # fmt: skip
     p.add_argument(
         "--current-dir", type=_numbers, metavar="DEG[,...]", help="current directions, going towards (°)"
@@ -102,9 +141,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--loop-observer", metavar="SPEC", help="the observer the DP controller acts on (default passive)"
     )
-    p.add_argument("--duration", type=float, metavar="S", help="simulated seconds per case (default 300)")
     p.add_argument(
-        "--settle", type=float, metavar="S", help="scored from S s on (default a third of the case)"
+        "--duration", type=positive_float, metavar="S", help="simulated seconds per case (default 300)"
+    )
+    p.add_argument(
+        "--settle",
+        type=non_negative_float,
+        metavar="S",
+        help="scored from S s on, less than --duration (default a third of the case)",
     )
     p.add_argument(
         "--out", type=Path, default=Path("study_out"), metavar="DIR", help="output folder (default study_out)"
@@ -133,9 +177,9 @@ def build_spec(args: argparse.Namespace) -> Any:
     """The grid: the study file's, with any flag given on the command line in place of its value."""
     from dataclasses import replace
 
-    from dpgw.study.spec import StudySpec, StudySpecError, load_study_file, seas_product
+    from dpgw.study.spec import StudySpec, StudySpecError, load_study_file, seas_product, study_file_path
 
-    spec = load_study_file(args.file) if args.file else StudySpec(scenarios=())
+    spec = load_study_file(study_file_path(args.file)) if args.file else StudySpec(scenarios=())
     sea_grid = {
         key: values
         for key, values in (
@@ -160,6 +204,11 @@ def build_spec(args: argparse.Namespace) -> Any:
     if args.settle is not None:
         changes["settle_s"] = args.settle
     spec = replace(spec, **changes)
+    if args.settle is not None and args.settle >= spec.duration_s:
+        raise StudySpecError(
+            f"--settle {args.settle:g}: scoring must start before the case ends: give less than the "
+            f"duration, {spec.duration_s:g} s (or a longer --duration)"
+        )
     if not spec.scenarios:
         raise StudySpecError("study: no scenario: give --scenario NAME or --file STUDY.toml")
     spec.check()
@@ -204,9 +253,44 @@ def update_doc(spec: str, text: str, command: str) -> None:
     path.write_text("\n".join([*lines[:first], *body, *lines[last + 1 :]]))
 
 
+@contextmanager
+def stopped_by_signals() -> Iterator[None]:
+    """SIGTERM (``kill``, a service stopped) and SIGHUP (the SSH session or terminal closed) stop the study
+    as Ctrl-C does: `StudyInterrupted` is raised where the study is, the workers are stopped on the way out
+    and what is kept is said; the exit code is the shell's for the signal (143, 129). Before, the process
+    died at once with 143 and no word, and its worker processes' semaphores leaked (multiprocessing's
+    resource tracker warned). A second signal while stopping is ignored: the first one is being obeyed."""
+    from dpgw.study.runner import StudyInterrupted
+
+    stopping = (signal.SIGTERM, signal.SIGHUP)
+
+    def stop(signum: int, _frame: object) -> None:
+        for s in stopping:
+            signal.signal(s, signal.SIG_IGN)
+        raise StudyInterrupted(signal.Signals(signum).name, 128 + signum)
+
+    old = {s: signal.signal(s, stop) for s in stopping}
+    try:
+        yield
+    finally:
+        for s, handler in old.items():
+            signal.signal(s, handler)
+
+
 def run(args: argparse.Namespace) -> int:
+    from dpgw.study.runner import StudyInterrupted
+
+    with stopped_by_signals():
+        try:
+            return _run(args)
+        except StudyInterrupted as stop:  # a signal between the study's end and the outputs' start
+            print(f"\ndpgw study: stopped ({stop.why})", file=sys.stderr)
+            return stop.exit_code
+
+
+def _run(args: argparse.Namespace) -> int:
     from dpgw.study.cache import CaseCache
-    from dpgw.study.runner import StudyRunError, run_study
+    from dpgw.study.runner import StudyInterrupted, StudyRunError, run_study
     from dpgw.study.spec import StudySpecError
 
     try:
@@ -227,23 +311,33 @@ def run(args: argparse.Namespace) -> int:
     except StudyRunError as exc:
         print(f"dpgw study: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:  # Ctrl-C: an hour's study is stopped this way; say what is kept, no traceback
-        kept = (
-            f"the cases done are cached in {cache.folder}: the same command resumes from them"
-            if cache is not None
-            else "nothing is kept (--no-cache)"
-        )
-        print(f"\ndpgw study: stopped (Ctrl-C); {kept}", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:  # an hour's study is stopped this way; say what is kept, no traceback
+        stop = exc if isinstance(exc, StudyInterrupted) else StudyInterrupted()
+        print(f"\ndpgw study: stopped ({stop.why}); {kept_text(stop, cache)}", file=sys.stderr)
+        return stop.exit_code
     try:
         return _write_outputs(args, result)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
+        why = exc.why if isinstance(exc, StudyInterrupted) else "Ctrl-C"
         print(
-            f"\ndpgw study: stopped (Ctrl-C) while writing the outputs in {args.out}; the cases are cached: "
+            f"\ndpgw study: stopped ({why}) while writing the outputs in {args.out}; the cases are cached: "
             "run the same command again to write them",
             file=sys.stderr,
         )
-        return 130
+        return exc.exit_code if isinstance(exc, StudyInterrupted) else 130
+
+
+def kept_text(stop: Any, cache: Any) -> str:
+    """What a stopped study keeps: ``8 of 64 cases done and cached in DIR: the same command resumes from
+    them`` (``stop``: a `StudyInterrupted` with its count)."""
+    if cache is None:
+        return f"{stop.done} of {stop.total} cases done, none kept (--no-cache)"
+    if stop.done == 0:
+        return f"0 of {stop.total} cases done: nothing is cached in {cache.folder} yet"
+    return (
+        f"{stop.done} of {stop.total} case{'' if stop.total == 1 else 's'} done and cached in "
+        f"{cache.folder}: the same command resumes from them"
+    )
 
 
 def _write_outputs(args: argparse.Namespace, result: Any) -> int:
@@ -259,6 +353,7 @@ def _write_outputs(args: argparse.Namespace, result: Any) -> int:
     if args.update_doc:
         command = "dpgw study " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["study"] else "dpgw study"
         update_doc(args.update_doc, text, command)
+    warnings = outputs.short_scoring_warnings(result.rows)
     where = "serial" if result.workers == 0 else f"{result.workers} Dask workers"
     report = {
         "cases": result.cases,
@@ -270,12 +365,15 @@ def _write_outputs(args: argparse.Namespace, result: Any) -> int:
         "run_on": where,
         "scheduler": result.scheduler or None,
         "files": [str(f) for f in files],
+        "warnings": warnings,
         "summary": outputs.json_summary(result.rows),
     }
     if args.json:
         print(json.dumps(report, indent=2, allow_nan=False, default=str))
+        _warn(warnings)
         return 0
     print(text)
+    _warn(warnings)  # after the table, where it is read
     print(
         f"{result.cases} case{'' if result.cases == 1 else 's'} ({result.computed} run, {result.cached} "
         f"from the cache) on {where} in "
@@ -283,3 +381,9 @@ def _write_outputs(args: argparse.Namespace, result: Any) -> int:
         file=sys.stderr,
     )
     return 0
+
+
+def _warn(warnings: list[str]) -> None:
+    sys.stdout.flush()
+    for warning in warnings:
+        print(f"dpgw study: warning: {warning}", file=sys.stderr)

@@ -366,3 +366,29 @@ def test_the_command_gives_dp_capability_numbers_with_the_beaufort_sea(
     assert "(BF " in capsys.readouterr().out
     assert main([*args, "--current-mps", "1.0"]) == 2
     assert "--sea pm for a fixed current" in capsys.readouterr().err
+
+
+def test_a_vessel_without_wind_areas_is_said_to_have_no_wind_load_in_the_table_and_json(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Before: for hajivand_vessel (no [hull.wind]) the header read "U_max (m/s, 1-hour mean wind at 10 m);
+    wind U, ..." and the JSON had environment.wind true, while "no wind load" was only a note on stderr."""
+    args = ["capability", "--vessel", "hajivand_vessel", "--step-deg", "90", "--failures", "none"]
+    assert main(args) == 0
+    captured = capsys.readouterr()
+    header = captured.out.splitlines()[0]
+    assert header == (
+        "DP capability of hajivand_vessel: U_max (m/s, 1-hour mean wind at 10 m, which sets the sea); "
+        "no wind load, fully developed PM sea Hs = 0.21 U19.5²/g, current 0.75 m/s, co-linear"
+    )
+    assert "wind U" not in captured.out and "no [hull.wind] areas: no wind load" in captured.err
+    assert main([*args, "--json"]) == 0
+    env = json.loads(capsys.readouterr().out)["environment"]
+    assert env["wind"] is False and env["relation"].startswith("no wind load, ")
+    # a vessel with the areas: the wind load is computed and said
+    assert (
+        main(["capability", "--vessel", "mss_supply", "--step-deg", "90", "--failures", "none", "--json"])
+        == 0
+    )
+    env = json.loads(capsys.readouterr().out)["environment"]
+    assert env["wind"] is True and env["relation"].startswith("wind U, ")

@@ -319,18 +319,21 @@ def test_replay_vessel_mistakes_name_the_flag(tmp_path: Path, capsys: pytest.Cap
 def test_study_stopped_with_ctrl_c_says_what_is_kept(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """Before: a KeyboardInterrupt traceback from wherever the study was (a case, Dask, matplotlib)."""
+    """Before: a KeyboardInterrupt traceback from wherever the study was (a case, Dask, matplotlib); then
+    what was kept, but not how many cases. (A real Ctrl-C, SIGTERM, SIGHUP: tests/test_study_process.py.)"""
     import dpgw.study.runner
 
     def interrupted(*_args: object, **_kwargs: object) -> None:
-        raise KeyboardInterrupt
+        stop = dpgw.study.runner.StudyInterrupted()
+        stop.done, stop.total = 3, 8
+        raise stop
 
     monkeypatch.setattr(dpgw.study.runner, "run_study", interrupted)
     argv = ["study", "--scenario", "hassani", "--seeds", "0", "--serial", "--out", str(tmp_path / "s")]
     assert main(argv) == 130
     assert _one_line(capsys.readouterr().err) == (
-        f"dpgw study: stopped (Ctrl-C); the cases done are cached in {tmp_path / 's' / 'cache'}: the same "
-        "command resumes from them"
+        f"dpgw study: stopped (Ctrl-C); 3 of 8 cases done and cached in {tmp_path / 's' / 'cache'}: the "
+        "same command resumes from them"
     )
 
 
@@ -1173,3 +1176,47 @@ def test_replay_argument_mistakes_say_what_was_meant(
         capsys.readouterr().err
     )
     assert not (tmp_path / "x.mcap").exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "said"),
+    [
+        ("--hs -1", "argument --hs: a significant wave height must be ≥ 0 m (got -1)"),
+        ("--hs 2,-0.5", "argument --hs: a significant wave height must be ≥ 0 m (got -0.5 in 2,-0.5)"),
+        ("--tp 0", "argument --tp: a peak period must be > 0 s (got 0)"),
+        ("--current -1", "argument --current: a current speed must be ≥ 0 m/s (got -1)"),
+        ("--direction 1,inf", "argument --direction: '1,inf': every value must be a finite number"),
+        ("--duration -5", "argument --duration: must be a positive number (got -5)"),
+    ],
+)
+def test_study_sea_values_out_of_range_name_the_option(
+    args: str, said: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: `--hs -1` stopped with `'seas'[0]: 'hs_m' out of range (-1.0)`, the study file's key for a
+    value the user gave as --hs, and no range."""
+    with pytest.raises(SystemExit) as exit_:
+        main(["study", "--scenario", "hassani", *args.split(), "--serial"])
+    assert exit_.value.code == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1] == f"dpgw study: error: {said}"
+
+
+def test_study_settle_past_the_end_names_the_flags(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["study", "--scenario", "hassani", "--duration", "10", "--settle", "20", "--serial"]) == 2
+    assert _one_line(capsys.readouterr().err) == (
+        "dpgw study: --settle 20: scoring must start before the case ends: give less than the duration, "
+        "10 s (or a longer --duration)"
+    )
+
+
+def test_sim_wind_spectrum_mistake_names_the_option_and_the_spectra(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: `--wind 10,90,norsk` stopped with `wind: field 'gust': one of ('norsok', 'harris', 'none'),
+    got 'norsk'`, a key of no file the user wrote."""
+    argv = ["sim", "--vessel", "mss_osv", "--inputs", str(OSV_INPUTS), "--csv", str(tmp_path / "s.csv")]
+    assert main([*argv, "--wind", "10,90,norsk"]) == 2
+    assert _one_line(capsys.readouterr().err) == (
+        "dpgw sim: --wind 10,90,norsk: no gust spectrum 'norsk': did you mean norsok? SPECTRUM is one of "
+        "norsok, harris, none (none: a steady wind)"
+    )
+    assert not (tmp_path / "s.csv").exists()

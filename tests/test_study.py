@@ -94,7 +94,7 @@ def test_study_file(tmp_path: Path) -> None:
         load_study_file(path)
 
 
-STUDY_FILES = sorted((Path(__file__).resolve().parents[1] / "examples" / "studies").glob("*.toml"))
+STUDY_FILES = sorted((Path(__file__).resolve().parents[1] / "dpgw" / "study" / "studies").glob("*.toml"))
 
 
 @pytest.mark.parametrize("path", STUDY_FILES, ids=lambda p: p.name)
@@ -121,6 +121,29 @@ def test_the_study_file_docs_study_md_shows_loads(tmp_path: Path) -> None:
 
 def test_there_are_shipped_study_files() -> None:
     assert {p.name for p in STUDY_FILES} >= {"observers.toml", "torsetnes_tp.toml"}
+
+
+def test_a_shipped_study_runs_by_name_from_any_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: docs/study.md and --help printed `--file examples/studies/observers.toml`, which only ran in
+    a checkout ("No such file or directory" anywhere else). The shipped studies are package data, taken
+    by name; the old path still runs; a missing file lists them."""
+    from dpgw.study.spec import SHIPPED_STUDIES, study_file_path
+
+    monkeypatch.chdir(tmp_path)  # not a checkout
+    for given in ("observers", "observers.toml", "examples/studies/observers.toml"):
+        assert study_file_path(given) == SHIPPED_STUDIES / "observers.toml"
+    assert study_file_path("elsewhere/observers.toml") == Path("elsewhere/observers.toml")
+    from dpgw.cli import build_parser
+    from dpgw.cli_study import build_spec
+
+    for given in ("observers", "examples/studies/observers.toml"):  # as --help and docs/study.md print it
+        spec = build_spec(build_parser().parse_args(["study", "--file", given]))
+        assert spec.scenarios == ("torsetnes_2004", "hassani", "snijders_2005") and len(spec.seeds) == 12
+    assert main(["study", "--file", "observer", "--serial"]) == 2
+    err = capsys.readouterr().err
+    assert "study file observer: no such file" in err and "observers, torsetnes_tp" in err
 
 
 def test_cache_key_names_the_case_and_the_code() -> None:
@@ -231,8 +254,13 @@ def test_cli_writes_table_summary_plots_and_json(tmp_path: Path, capsys: pytest.
             "--observer", "passive", "--observer", "ekf", "--serial", "--json", "--no-progress",
             "--out", str(out), "--update-doc", str(doc)]  # fmt: skip
     assert main(argv) == 0
-    report = json.loads(capsys.readouterr().out)
+    captured = capsys.readouterr()
+    report = json.loads(captured.out)
     assert report["cases"] == 2 and report["rows"] == 4 and report["computed"] == 2
+    # 20 s scored of a 12 s sea: too short, said on stderr and in the report
+    [warning] = report["warnings"]
+    assert warning.startswith("snijders_2005, nominal: 20 s scored, from 10 s to 30 s, less than the 96 s")
+    assert captured.err.count(f"dpgw study: warning: {warning}\n") == 1
     assert {e["observer"] for e in report["summary"]} == {"passive", "ekf"}
     assert (out / "results.csv").read_text().count("\n") == 1 + 4
     assert (out / "summary.md").exists() and list(out.glob("box_*.png"))
@@ -374,7 +402,26 @@ def test_the_summary_heading_gives_times_to_the_tenth_of_a_second() -> None:
            "tp_s": 6.0, "duration_s": 200.0, "settle_s": 200.0 / 3.0}  # fmt: skip
     row.update({column: 1.0 for column, _, _ in SUMMARY_COLUMNS})
     heading = summary_markdown([row]).splitlines()[0]
-    assert heading.endswith(", 200 s scored from 66.7 s)"), heading
+    assert heading.endswith(", 133.3 s scored, from 66.7 s to 200 s)"), heading
+
+
+def test_a_sea_state_scored_too_briefly_is_warned_of() -> None:
+    """Before: `--duration 10` printed a full table from 6.7 s of scoring under the heading "10 s scored
+    from 3.3 s", and nothing said the figures were one sample. The least is the longer of 8 periods of the
+    sea's Tp (the report's Welch segment) and the demo's 30 s."""
+    from dpgw.study.outputs import SUMMARY_COLUMNS, least_scored_s, short_scoring_warnings, summary_markdown
+
+    row = {"scenario": "hassani", "sea": "nominal", "observer": "passive", "seed": 0, "hs_m": 0.08,
+           "tp_s": 6.75, "duration_s": 10.0, "settle_s": 10.0 / 3.0}  # fmt: skip
+    row.update({column: 1.0 for column, _, _ in SUMMARY_COLUMNS})
+    assert "(Hs 0.08 m, Tp 6.75 s, 1 seed, 6.7 s scored, from 3.3 s to 10 s)" in summary_markdown([row])
+    assert least_scored_s(6.75) == 54.0 and least_scored_s(2.0) == 30.0
+    [warning] = short_scoring_warnings([row, {**row, "observer": "ekf"}])  # one per sea state
+    assert warning.startswith("hassani, nominal: 6.7 s scored, from 3.3 s to 10 s, less than the 54 s ")
+    assert warning.endswith("give --duration 81 or more")  # a third of 81 s settling leaves 54 s
+    assert short_scoring_warnings([{**row, "duration_s": 81.0, "settle_s": 27.0}]) == []
+    given_settle = short_scoring_warnings([{**row, "duration_s": 80.0, "settle_s": 30.0}])
+    assert given_settle[0].endswith("give --duration 84 or more (scored from --settle 30 s)")
 
 
 def test_the_summary_pairs_each_observer_with_the_first_seed_by_seed() -> None:

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import logging
 import os
+import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -27,6 +29,19 @@ CaseFn = Callable[[dict[str, Any]], list[dict[str, Any]]]
 
 class StudyRunError(RuntimeError):
     """The study cannot run (no scheduler at the address, workers with other code, …)."""
+
+
+class StudyInterrupted(KeyboardInterrupt):
+    """The study stopped before its end: Ctrl-C, or a signal that `dpgw study` turns into this (SIGTERM,
+    SIGHUP). `run_study` fills in how many cases were done by then (``done`` of ``total``: the cache holds
+    them); ``exit_code`` is the shell's for the signal (130, 143, 129)."""
+
+    def __init__(self, why: str = "Ctrl-C", exit_code: int = 130) -> None:
+        super().__init__(why)
+        self.why = why
+        self.exit_code = exit_code
+        self.done = 0
+        self.total = 0
 
 
 @dataclass
@@ -55,12 +70,38 @@ def _progress(total: int, enabled: bool) -> Any:
     return tqdm(total=total, unit="case", file=sys.stderr, disable=not enabled, desc="study", leave=False)
 
 
+# The loggers of Dask's and its web server's this process holds: the client, and for a LocalCluster its
+# scheduler and nannies too (they run in this process).
+DASK_LOGGERS = ("distributed", "dask", "tornado", "bokeh")
+
+
+def quiet_dask_logs() -> None:
+    """Dask's loggers in this process at ERROR, for good (a study's messages are its own).
+
+    `distributed` configures its loggers when imported, and only where the root logger has no handler yet:
+    under `dpgw study` the root has one (`journal.default_logging`), so `distributed` stays at INFO and
+    propagates, and its start-up, per-worker and shut-down chatter came out on stderr as ``dpgw study: ...``
+    lines. LocalCluster's ``silence_logs`` only lowers the handlers of the ``distributed`` logger itself, of
+    which there are none then; it still quiets the worker processes, where the root has no handler."""
+    loggers = [logging.getLogger(name) for name in DASK_LOGGERS]
+    # and those below them with a level of their own (distributed.client and distributed.gc: WARNING)
+    loggers += [
+        logger
+        for name, logger in list(logging.Logger.manager.loggerDict.items())
+        if isinstance(logger, logging.Logger) and name.partition(".")[0] in DASK_LOGGERS and logger.level
+    ]
+    for logger in loggers:
+        if logger.level < logging.ERROR:  # (tornado's CRITICAL stays)
+            logger.setLevel(logging.ERROR)
+
+
 @contextmanager
 def dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
     """A client of the cluster at ``scheduler``, or of a LocalCluster of ``workers`` processes (one thread
     each) started and closed here."""
     from distributed import Client, LocalCluster
 
+    quiet_dask_logs()
     if scheduler:
         try:
             client = Client(scheduler, timeout="10s")
@@ -71,19 +112,46 @@ def dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
         finally:
             client.close()
         return
-    cluster = LocalCluster(
-        n_workers=workers,
-        threads_per_worker=1,
-        processes=True,
-        dashboard_address=None,
-        silence_logs=logging.ERROR,
-    )
+    _resource_tracker_ignoring_sighup()
+    cluster = _local_cluster(LocalCluster, workers)
     client = Client(cluster)
     try:
         yield client
     finally:
         client.close()
         cluster.close()
+
+
+def _resource_tracker_ignoring_sighup() -> None:
+    """multiprocessing's resource tracker (a process of its own, which unlinks the workers' semaphores)
+    started now, with SIGHUP ignored, which it keeps: a closed terminal sends SIGHUP to the whole
+    foreground group, and the tracker, which ignores only SIGINT and SIGTERM, died of it before the workers
+    were stopped, with a traceback for every semaphore it had lost. In another thread than the main one
+    (a test's) only the main one may set a handler: the tracker starts when the cluster does, as before."""
+    from multiprocessing import resource_tracker
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+    old = signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    try:
+        resource_tracker.ensure_running()
+    finally:
+        signal.signal(signal.SIGHUP, old)
+
+
+def _local_cluster(local_cluster: Any, workers: int) -> Any:
+    return local_cluster(
+        n_workers=workers,
+        threads_per_worker=1,
+        processes=True,
+        # No dashboard, and the scheduler's HTTP server (which it starts in any case, for its health and
+        # metrics routes) on a free loopback port: with ``dashboard_address=None`` it took :8787 on every
+        # interface and logged "dashboard at: http://...:8787/status"
+        dashboard_address="127.0.0.1:0",
+        scheduler_kwargs={"dashboard": False},
+        silence_logs=logging.ERROR,
+        preload=["dpgw.study.worker_setup"],  # the workers ignore Ctrl-C and SIGHUP: the client stops them
+    )
 
 
 def check_workers(client: Any) -> None:
@@ -158,6 +226,10 @@ def run_study(
                 index = {f.key: i for f, i in zip(futures, todo, strict=True)}
                 for future in as_completed(futures):
                     done(index[future.key], future.result())
+    except KeyboardInterrupt as exc:
+        stop = exc if isinstance(exc, StudyInterrupted) else StudyInterrupted()
+        stop.done, stop.total = len(results), len(cases)
+        raise stop from None
     finally:
         bar.close()
     rows = [row for i in range(len(cases)) for row in results[i]]

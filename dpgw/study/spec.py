@@ -58,17 +58,25 @@ class SeaSpec:
         return " ".join(p for p in parts if p) or "nominal"
 
     def check(self, where: str) -> None:
-        checks = {
-            "hs_m": self.hs_m is None or (math.isfinite(self.hs_m) and self.hs_m >= 0),
-            "tp_s": self.tp_s is None or (math.isfinite(self.tp_s) and self.tp_s > 0),
-            "direction_deg": self.direction_deg is None or math.isfinite(self.direction_deg),
-            "current_mps": self.current_mps is None
-            or (math.isfinite(self.current_mps) and self.current_mps >= 0),
-            "current_dir_deg": self.current_dir_deg is None or math.isfinite(self.current_dir_deg),
-        }
-        for key, ok in checks.items():
+        # (key, ok, its range in words)
+        checks = (
+            ("hs_m", self.hs_m is None or (math.isfinite(self.hs_m) and self.hs_m >= 0), "≥ 0 m"),
+            ("tp_s", self.tp_s is None or (math.isfinite(self.tp_s) and self.tp_s > 0), "> 0 s"),
+            ("direction_deg", self.direction_deg is None or math.isfinite(self.direction_deg), "finite"),
+            (
+                "current_mps",
+                self.current_mps is None or (math.isfinite(self.current_mps) and self.current_mps >= 0),
+                "≥ 0 m/s",
+            ),
+            (
+                "current_dir_deg",
+                self.current_dir_deg is None or math.isfinite(self.current_dir_deg),
+                "finite",
+            ),
+        )
+        for key, ok, valid in checks:
             if not ok:
-                raise StudySpecError(f"{where}: '{key}' out of range ({getattr(self, key)!r})")
+                raise StudySpecError(f"{where}: '{key}' must be {valid} (got {getattr(self, key)!r})")
 
 
 @dataclass(frozen=True)
@@ -208,12 +216,40 @@ def seas_product(grid: dict[str, list[float | None]]) -> tuple[SeaSpec, ...]:
     )
 
 
+# The study files shipped with dpgw (package data: they are there wherever dpgw is installed), by name.
+SHIPPED_STUDIES = Path(__file__).resolve().parent / "studies"
+# Where the shipped studies were in the source tree before they were package data: a command printed with
+# it still runs.
+_OLD_STUDIES_FOLDER = Path("examples", "studies")
+
+
+def shipped_study_names() -> list[str]:
+    return sorted(p.stem for p in SHIPPED_STUDIES.glob("*.toml"))
+
+
+def study_file_path(text: str | Path) -> Path:
+    """``--file``'s value as a file: a path that exists, else a shipped study by its name (``observers``,
+    ``observers.toml``, or the ``examples/studies/observers.toml`` of older docs). Any other path is
+    returned as given (`load_study_file` then says it is not there, with the shipped names)."""
+    path = Path(text)
+    if path.exists():
+        return path
+    bare = path.parent in (Path("."), _OLD_STUDIES_FOLDER) and path.suffix in ("", ".toml")
+    shipped = SHIPPED_STUDIES / f"{path.stem}.toml"
+    return shipped if bare and shipped.is_file() else path
+
+
 def load_study_file(path: str | Path) -> StudySpec:
     """A TOML study file (docs/study.md): top-level keys of the grid; ``[grid]`` lists of sea values whose
     product is taken; ``[[sea]]`` tables list sea states one by one (both may be given)."""
     try:
         with open(path, "rb") as f:
             doc = tomllib.load(f)
+    except FileNotFoundError:
+        raise StudySpecError(
+            f"study file {path}: no such file (a study shipped with dpgw is given by its name: "
+            f"{', '.join(shipped_study_names())}; their files are in {SHIPPED_STUDIES})"
+        ) from None
     except OSError as exc:
         raise StudySpecError(f"study file {path}: {exc.strerror}") from None
     except tomllib.TOMLDecodeError as exc:
