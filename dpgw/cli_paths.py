@@ -4,6 +4,7 @@ what to do, instead of a traceback after the replay, the fit or the simulation."
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 
@@ -32,6 +33,28 @@ def mcap_path_problem(flag: str, path: str | Path | None, *, made: bool = False)
 
     problem = log_folder_problem(path)
     return f"{flag} {path}: {problem}" if problem else None
+
+
+def made_folder_problem(flag: str, path: str | Path | None) -> str | None:
+    """What is wrong with the folder of PATH, a file the command writes (None when nothing): the rule of
+    `wire.mcap.folder` for every file a command writes (a log, a tlog, a CSV of states), so that one
+    command does not refuse a missing folder another makes: only the file's own folder may be missing
+    (the command makes it, `make_folder_for`); a missing parent too is refused."""
+    if path is None:
+        return None
+    from wire.mcap.folder import log_folder_problem
+
+    problem = log_folder_problem(path)
+    return f"{flag} {path}: {problem}" if problem else None
+
+
+def make_folder_for(command: str, flag: str, path: str | Path) -> None:
+    """Make the missing folder of PATH (its parent exists: `made_folder_problem`), said on stderr as the
+    gateway says the log's folder it makes; nothing when it is there. Raises `OSError` as `os.mkdir`."""
+    from wire.mcap.folder import make_log_folder
+
+    if folder := make_log_folder(path):
+        print(f"{command}: made the folder {folder} for {flag} (it did not exist)", file=sys.stderr)
 
 
 def writable(path: str) -> bool:

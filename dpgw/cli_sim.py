@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from dpgw import cli_json, cli_sim_inputs
-from dpgw.cli_paths import mcap_path_problem, missing_folder
+from dpgw.cli_paths import made_folder_problem, make_folder_for, mcap_path_problem
 from dpgw.cli_types import flags_given, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args, listen_endpoints
 from dpgw.scenario_names import SCENARIO_NAMES
@@ -277,7 +277,7 @@ def tlog_path_problem(args: argparse.Namespace) -> str | None:
                 f"--tlog {args.tlog}: {option} {url} writes to the same file: two writers would interleave "
                 f"their bytes in it; give the tlog another name, e.g. {path.stem}-mavlink.tlog"
             )
-    return missing_folder("--tlog", args.tlog)
+    return made_folder_problem("--tlog", args.tlog)  # (its own folder is made when it opens)
 
 
 def _file_of(url: str) -> Path | None:
@@ -456,6 +456,7 @@ def _run_scenario(args: argparse.Namespace) -> int:
                 print(f"log -> {log.path} ({args.out} exists: a log is never overwritten)", file=sys.stderr)
         if args.tlog:  # last: a tlog is emptied when opened, so not before another start-up step may fail
             try:
+                make_folder_for("dpgw sim", "--tlog", args.tlog)  # (its parent exists: `tlog_path_problem`)
                 tlog = TlogWriter(args.tlog)
             except OSError as exc:
                 raise OSError(f"--tlog {args.tlog}: cannot write the tlog: {exc.strerror or exc}") from None

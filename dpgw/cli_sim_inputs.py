@@ -12,9 +12,10 @@ import argparse
 import math
 import sys
 from dataclasses import fields, replace
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from dpgw.cli_paths import mcap_path_problem, missing_folder
+from dpgw.cli_paths import made_folder_problem, make_folder_for, mcap_path_problem
 
 if TYPE_CHECKING:
     from simulator.plant_params import PlantOptions
@@ -153,7 +154,11 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(
                 "--inputs needs --csv STATES.csv and/or --out LOG.mcap (somewhere to write the states)"
             )
-        if problem := missing_folder("--csv", args.csv) or mcap_path_problem("--out", args.out):
+        # the outputs' folders as every log's (`wire.mcap.folder`): their own is made, a deeper one refused
+        out_problem = mcap_path_problem("--out", args.out, made=True)
+        if problem := made_folder_problem("--csv", args.csv) or out_problem:
+            raise ValueError(problem)
+        if problem := inputs_problem(args.inputs):
             raise ValueError(problem)
         vessel = load_vessel(args.vessel)
         options = plant_options(args.plant_option)
@@ -212,10 +217,16 @@ def run(args: argparse.Namespace) -> int:
         return sum((f(t, x) for f in forces), np.zeros(3))
 
     states = run_open_loop(vessel, inputs, options, extra if forces else None, eta0=eta0, nu0=nu0)
-    if args.csv:
-        write_states(args.csv, states)
-    if args.out:
-        _write_log(args, vessel.name, inputs, states)
+    try:
+        if args.csv:
+            make_folder_for("dpgw sim", "--csv", args.csv)
+            write_states(args.csv, states)
+        if args.out:
+            make_folder_for("dpgw sim", "--out", args.out)
+            _write_log(args, vessel.name, inputs, states)
+    except OSError as exc:
+        print(f"dpgw sim: {exc}", file=sys.stderr)
+        return 2
     end = states[-1]
     if args.json:
         from dpgw import cli_json
@@ -238,6 +249,18 @@ def run(args: argparse.Namespace) -> int:
         + (f"; log: {args.out}" if args.out else "")
     )
     return 0
+
+
+def inputs_problem(path: str) -> str | None:
+    """What is wrong with --inputs PATH, the file read (None when nothing): it must be there; unlike an
+    output's, its folder is never made."""
+    p = Path(path)
+    if p.is_dir():
+        return f"--inputs {path}: a folder, not a file: give the recorded inputs' CSV file"
+    if not p.exists():
+        where = "" if p.resolve().parent.is_dir() else f" (nor its folder {p.parent})"
+        return f"--inputs {path}: no such file{where}: give the recorded inputs' CSV file (docs/simulator.md)"
+    return None
 
 
 def _write_log(args: argparse.Namespace, vessel: str, inputs: Any, states: Any) -> None:

@@ -695,12 +695,15 @@ def test_sim_open_loop_refuses_scenario_options_and_prints_json(
     assert main([*argv, "--duration", "100", "--realtime"]) == 2
     line = _one_line(capsys.readouterr().err)
     assert line.startswith("dpgw sim: --duration, --realtime: only with --scenario;"), line
-    # before, a traceback (FileNotFoundError) after the whole run
+    # before, a traceback (FileNotFoundError) after the whole run; a deeper missing folder than the file's
+    # own is refused before the run, as a log's is (`wire.mcap.folder`; the own folder: test_log_folder.py)
     nowhere = tmp_path / "nope" / "s.csv"
-    assert main([*argv[:-1], str(nowhere)]) == 2
-    assert _one_line(capsys.readouterr().err) == (
-        f"dpgw sim: --csv {nowhere}: no folder {nowhere.parent}: create it or give another path"
+    deeper = nowhere.parent / "deeper" / "s.csv"
+    assert main([*argv[:-1], str(deeper)]) == 2
+    assert _one_line(capsys.readouterr().err).startswith(
+        f"dpgw sim: --csv {deeper}: neither the folder {deeper.parent} nor its parent {nowhere.parent} exists"
     )
+    assert not nowhere.parent.exists()
     deep = tmp_path / "nope" / "deeper" / "s.mcap"  # (only a log's own folder is made)
     assert main(["sim", "--scenario", "hassani", "--duration", "1", "--out", str(deep)]) == 2
     assert _one_line(capsys.readouterr().err).startswith(

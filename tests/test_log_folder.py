@@ -60,3 +60,45 @@ def test_demo_refuses_a_log_whose_folder_parent_is_missing(tmp_path: Path) -> No
     assert p.returncode == 2, p.stderr
     assert p.stderr.startswith(f"dpgw demo: --out {deep}: neither the folder {deep.parent} nor"), p.stderr
     assert not (tmp_path / "a").exists()
+
+
+def test_sim_writes_its_other_files_by_the_same_rule(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``dpgw sim --tlog`` and the open loop's ``--csv`` and ``--out`` refused any missing folder, while
+    ``--out`` of a scenario run, ``dpgw run`` and ``dpgw demo`` made a log's own folder: the same rule now,
+    the file's own folder made and said, a deeper missing one refused with nothing made. ``--inputs`` is
+    read, not written: a missing one is said as such, naming the flag and the path, and nothing is made."""
+    from dpgw.cli import main
+
+    tlog = tmp_path / "bench" / "x.tlog"
+    assert main(["sim", "--scenario", "hassani", "--duration", "1", "--tlog", str(tlog)]) == 0
+    err = capsys.readouterr().err
+    assert f"dpgw sim: made the folder {tlog.parent} for --tlog (it did not exist)" in err.splitlines(), err
+    assert tlog.stat().st_size > 0
+    deep = tmp_path / "a" / "b" / "x.tlog"
+    assert main(["sim", "--scenario", "hassani", "--duration", "1", "--tlog", str(deep)]) == 2
+    assert capsys.readouterr().err.startswith(f"dpgw sim: --tlog {deep}: neither the folder {deep.parent}")
+    assert not (tmp_path / "a").exists()
+
+    inputs = str(ROOT / "tests" / "data" / "mss-osv" / "steps_inputs.csv")
+    csv, log = tmp_path / "states" / "s.csv", tmp_path / "logs" / "s.mcap"
+    assert main(["sim", "--vessel", "mss_osv", "--inputs", inputs, "--csv", str(csv), "--out", str(log)]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert f"dpgw sim: made the folder {csv.parent} for --csv (it did not exist)" in err, err
+    assert f"dpgw sim: made the folder {log.parent} for --out (it did not exist)" in err, err
+    assert len(csv.read_text().splitlines()) > 100 and log.stat().st_size > 0
+    for flag, path in (("--csv", tmp_path / "c" / "d" / "s.csv"), ("--out", tmp_path / "c" / "d" / "s.mcap")):
+        assert main(["sim", "--vessel", "mss_osv", "--inputs", inputs, flag, str(path)]) == 2
+        assert capsys.readouterr().err.startswith(
+            f"dpgw sim: {flag} {path}: neither the folder {path.parent}"
+        )
+    assert not (tmp_path / "c").exists()
+
+    missing = tmp_path / "trial" / "inputs.csv"
+    assert (
+        main(["sim", "--vessel", "mss_osv", "--inputs", str(missing), "--csv", str(tmp_path / "n" / "s.csv")])
+        == 2
+    )
+    assert capsys.readouterr().err.startswith(f"dpgw sim: --inputs {missing}: no such file"), missing
+    assert not (tmp_path / "n").exists() and not (tmp_path / "trial").exists()

@@ -162,7 +162,7 @@ def test_dpgw_sim_nmea_text_and_tlog_replay_as_the_sims_own_log(
     ("args", "says"),
     [
         (["--scenario", "fossen_strand_1999", "--tlog", "{d}/x.tlog"], "has no thrusters that report"),
-        (["--scenario", "hassani", "--tlog", "{d}/nope/x.tlog"], "no folder"),
+        (["--scenario", "hassani", "--tlog", "{d}/nope/deeper/x.tlog"], "neither the folder"),
         (["--scenario", "hassani", "--tlog", "{d}"], "a folder, not a file"),
         (["--scenario", "hassani", "--tlog", "{d}/x.mcap"], "a tlog is not an MCAP log"),
         (
