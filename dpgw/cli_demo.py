@@ -616,12 +616,12 @@ def run(args: argparse.Namespace) -> int:
 
 
 def exit_status(signum: int) -> int:
-    """The demo's exit status when ``signum`` stopped it. Ctrl-C: 128 + SIGINT, as `dpgw study` and a
-    shell say a command the user interrupted. SIGTERM (a service manager's stop) ends as `dpgw run` does
-    on it: 0, the log complete."""
-    import signal
-
-    return 130 if signum == signal.SIGINT else 0
+    """The demo's exit status when ``signum`` stopped it: 128 + the signal's number, as a shell says a
+    command a signal ended (Ctrl-C 130, SIGTERM 143), and as `dpgw study` and `dpgw replay` do. The demo
+    is a run with an end of its own (``--duration``): a script that stops one early (``timeout``, ``kill``)
+    learns from the status that it did not run its course, whatever the log holds. `dpgw run` ends 0 on
+    SIGTERM instead: there it is the service's normal stop (docs/cli.md, "Exit status on a signal")."""
+    return 128 + int(signum)
 
 
 def stop_name(signum: int) -> str:

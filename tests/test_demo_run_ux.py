@@ -14,6 +14,9 @@ from __future__ import annotations
 import json
 import os
 import signal
+import subprocess
+import sys
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -27,7 +30,9 @@ from dpgw.cli import build_parser
 from gateway.service import GatewayService
 from observers.passive import PassiveObserver
 from simulator.runner import Simulation
-from wire.mcap.reader import log_files, read_messages
+from wire.mcap.reader import is_complete, log_files, read_messages
+
+ROOT = Path(__file__).resolve().parents[1]
 
 SETTLE_S = 9.95
 """The observer's settle time in these tests (s)."""
@@ -249,3 +254,45 @@ def test_dp_engaged_by_another_console_is_said_as_such(
     text = capsys.readouterr().out
     assert "before DP was engaged" not in text
     assert "DP was engaged by another console, not the demo's operator" in text
+
+
+@pytest.mark.slow  # a demo process's start-up (its kernels compiled on a first run: ~15 s), then stopped
+def test_sigterm_stops_a_demo_with_143_and_says_so(tmp_path: Path) -> None:
+    """SIGTERM (`kill`, `timeout`) stopped `dpgw demo` short of its --duration with status 0, while Ctrl-C
+    gave 130: a script could not tell a demo cut short from one that ran its course. 143 now (128 +
+    SIGTERM, as a shell says it), with the summary naming the signal and the log complete. (`dpgw run`
+    keeps 0 on SIGTERM, the service's normal stop: tests/test_run_signals.py.) A real process, stopped
+    once it says it runs (the engagement line comes after the gateway has started)."""
+    out = tmp_path / "demo.mcap"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "dpgw", "demo", "--duration", "3600", "--speed", "1", "--out", str(out),
+         "--json", "--no-scouting", "--no-foxglove"],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    running = threading.Event()
+    err: list[str] = []
+
+    def read_stderr() -> None:
+        assert proc.stderr is not None
+        for line in proc.stderr:
+            err.append(line)
+            if "held on joystick until DP is engaged" in line:
+                running.set()
+
+    reader = threading.Thread(target=read_stderr, daemon=True)
+    reader.start()
+    try:
+        assert running.wait(180) or proc.poll() is not None, "".join(err)
+        assert proc.poll() is None, "".join(err)
+        proc.send_signal(signal.SIGTERM)
+        stdout, _ = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    reader.join(10)
+    assert proc.returncode == 143, "".join(err)
+    summary = json.loads(stdout)
+    assert summary["interrupted"] is True and summary["stopped_by"] == "SIGTERM"
+    assert summary["sim_seconds"] < 3600 and "Traceback" not in "".join(err)
+    assert all(is_complete(p) for p in summary["logs"])

@@ -88,7 +88,7 @@ def test_a_demo_stopped_far_behind_stops_in_time_with_every_input_logged(
 
     code = run_demo_beside(args, operator, release=moving.set)
     assert not problems, problems
-    assert code == 0
+    assert code == 143  # SIGTERM stops a demo short of its --duration: 128 + 15, as a shell says it
     assert len(drains) == 1, drains
     took, logged_only = drains[0]
     assert took < BOUND_S + 1.5, took  # the bound (and a slow item past it), not FLOOD x 20 ms
