@@ -135,7 +135,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         action=_ReportFolder,
         metavar="DIR",
         help="write plots (PNG), metrics.json and report.md in DIR (created); without DIR, in "
-        "<out>-report beside --out (put a bare --report after the logs)",
+        "<out>-report beside --out (put a bare --report after the logs). One that holds a report is kept, "
+        "as --out's file is: the report goes in the next free folder, DIR_0001, ..., named on the console",
     )
     pace = p.add_mutually_exclusive_group()
     pace.add_argument(
@@ -221,6 +222,27 @@ def next_free_out(out: str) -> Path:
     return rotated_path(out, next_index(out))
 
 
+REPORT_FILES = ("report.md", "metrics.json")
+"""A folder with one of these holds a report (`gateway.report.writer.write_analysis` writes both)."""
+
+
+def holds_report(folder: Path) -> bool:
+    return any((folder / name).exists() for name in REPORT_FILES)
+
+
+def next_free_report(folder: str) -> Path:
+    """The folder a replay writes its report in for ``--report DIR`` (or the one beside --out): DIR itself
+    unless it holds a report, else the first of ``DIR_0001``, ``DIR_0002``, ... that holds none (and is no
+    file), as `next_free_out` numbers a log's set."""
+    path = Path(folder)
+    index = 0
+    candidate = path
+    while holds_report(candidate) or (index and candidate.exists() and not candidate.is_dir()):
+        index += 1
+        candidate = path.with_name(f"{path.name}_{index:04d}")
+    return candidate
+
+
 def run(args: argparse.Namespace) -> int:
     from gateway.bus import BusError
     from gateway.config import ConfigError, format_problems
@@ -299,6 +321,16 @@ def run(args: argparse.Namespace) -> int:
     if problem := mcap_path_problem("--out", args.out):
         print(f"dpgw replay: {problem}", file=sys.stderr)
         return 2
+    if args.report is not None and (free_report := next_free_report(args.report)) != Path(args.report):
+        # A report folder is kept as --out's file is: given or made beside --out, one that holds a report
+        # (it was written over, files of the earlier replay mixed with the new) gives way to the next free
+        # folder of its set, said here and named in the summary.
+        print(
+            f"dpgw replay: report -> {free_report} ({args.report} holds a report: a report is never "
+            "overwritten)",
+            file=sys.stderr,
+        )
+        args.report = str(free_report)
     if args.vessel is not None:  # (checked as the flag it is, not as the config key it becomes)
         from observers.vessel import load_vessel
 

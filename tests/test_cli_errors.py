@@ -1140,6 +1140,40 @@ def test_a_bare_replay_report_goes_beside_the_output(
     assert (tmp_path / "other-report" / "report.md").is_file()
 
 
+def test_a_replay_report_folder_that_holds_a_report_is_kept(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`--report DIR` naming a folder that held a report wrote over it silently (the earlier replay's
+    report.md and plots gone, or mixed with the new), while an --out that exists is kept. The same rule
+    now for both, given or derived from --out: the next free folder of its set, said on stderr and named
+    in the summary; the earlier report untouched."""
+    log = tmp_path / "sim.mcap"
+    assert main(["sim", "--scenario", "fossen_strand_1999", "--duration", "30", "--out", str(log)]) == 0
+    report = tmp_path / "rep"
+    assert main(["replay", str(log), "--out", str(tmp_path / "a.mcap"), "--report", str(report)]) == 0
+    capsys.readouterr()
+    first = {p.name: p.read_bytes() for p in report.iterdir()}
+    assert "report.md" in first
+    assert (
+        main(["replay", str(log), "--out", str(tmp_path / "b.mcap"), "--report", str(report), "--json"]) == 0
+    )
+    captured = capsys.readouterr()
+    again = tmp_path / "rep_0001"
+    assert f"dpgw replay: report -> {again} ({report} holds a report: a report is never overwritten)" in (
+        captured.err.splitlines()
+    ), captured.err
+    assert str(again / "report.md") in json.loads(captured.out)["report"]
+    assert {p.name: p.read_bytes() for p in report.iterdir()} == first
+    # a bare --report, beside --out: its folder (c-report) held a report whose log has since gone
+    (tmp_path / "c-report").mkdir()
+    (tmp_path / "c-report" / "report.md").write_text("an earlier replay's\n")
+    assert main(["replay", str(log), "--out", str(tmp_path / "c.mcap"), "--report"]) == 0
+    err = capsys.readouterr().err
+    assert f"report -> {tmp_path / 'c-report_0001'} ({tmp_path / 'c-report'} holds a report" in err, err
+    assert (tmp_path / "c-report" / "report.md").read_text() == "an earlier replay's\n"
+    assert (tmp_path / "c-report_0001" / "metrics.json").is_file()
+
+
 def test_replay_argument_mistakes_say_what_was_meant(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
