@@ -481,7 +481,10 @@ def run(args: argparse.Namespace) -> int:
         # Hold the scenario's station, not wherever the first (wave-moved, noisy) fix put the estimate.
         service.submit("setpoint", hold_setpoint(scenario))
     if service.log is not None:  # so that `dpgw replay` of this log scores the same stretch
-        service.log.add_metadata(DEMO_METADATA, {"settle_s": f"{SETTLE_S:g}"})
+        # (and scores it on as much sea: less than `MIN_SCORED_S` is said "not scored", there as here)
+        service.log.add_metadata(
+            DEMO_METADATA, {"settle_s": f"{SETTLE_S:g}", "min_scored_s": f"{MIN_SCORED_S:g}"}
+        )
     engage_s = engage_time(args, service.pipeline.observer) if engages_later(args, scenario) else None
     if engage_s is not None:
         for line in engagement_lines(args, engage_s):
@@ -823,17 +826,9 @@ def print_summary(r: dict[str, Any]) -> None:
             else f"; give --duration {SETTLE_S + MIN_SCORED_S:.0f} or more, e.g. the default "
             f"{DEFAULT_DURATION_S:.0f}"
         )
-        if scored > 0.0:
-            print(
-                f"  LF estimate vs truth: not scored (only {scored:.{1 if scored < 10 else 0}f} s after the "
-                f"{SETTLE_S:.0f} s skip; "
-                f"at least {MIN_SCORED_S:.0f} s are scored){todo}"
-            )
-        else:
-            print(
-                f"  LF estimate vs truth: not scored: the first {SETTLE_S:.0f} s are left out while the "
-                f"observer settles, and at least {MIN_SCORED_S:.0f} s after them are scored{todo}"
-            )
+        from gateway.scoring import not_scored_note  # (the words `dpgw replay` says it in too)
+
+        print(f"  LF estimate vs truth: {not_scored_note(scored, SETTLE_S, MIN_SCORED_S)}{todo}")
     k = r.get("station_keeping")
     if k:
         share = k.get("wave_band_force_share")

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from dpgw import cli_json
+from dpgw.cli_demo import MIN_SCORED_S
 from dpgw.cli_foxglove import add_foxglove_arg, connect_lines
 from dpgw.cli_paths import mcap_path_problem
 from dpgw.cli_types import flags_given, non_negative_float, positive_float
@@ -253,6 +254,7 @@ def run(args: argparse.Namespace) -> int:
         build_pipeline,
         carried_metadata,
         keyless_mavlink_sources,
+        logged_min_scored_s,
         logged_settle_s,
         logged_signing_verdicts,
         open_inputs,
@@ -430,6 +432,8 @@ def run(args: argparse.Namespace) -> int:
     wall = time.perf_counter() - t0
     if args.settle is None:  # a demo's log is scored over the stretch the demo scored it over
         args.settle = logged_settle_s(inputs)
+    # and on as much sea as the demo scores (a demo stopped soon after its skip: "not scored", as it said)
+    args.min_scored = logged_min_scored_s(inputs, older_demo=MIN_SCORED_S)
     summary = _summary(args, specs, result, wall)
     kinds = {s.label: (s.name, s.name in SCHEDULES_OMEGA0 or bool(s.params.get("adaptive"))) for s in specs}
     summary["wave_check"] = evidence.check(config.vessel.length_m, config.vessel.model_scale, kinds).as_dict()
@@ -836,7 +840,8 @@ def _summary(
         tt_ns = np.array([x["stamp_ns"] for x in r.truth], dtype=np.int64)
         eta_t = np.array([x["eta_lf"] for x in r.truth], dtype=float)
         settle = args.settle if args.settle is not None else default_settle_s((tt_ns[-1] - tt_ns[0]) / 1e9)
-        errors = {}
+        errors, scored = {}, {}
+        least = getattr(args, "min_scored", None)
         for spec, topic in zip(
             specs, ["/dp/estimate", *(f"/dp/estimates/{x.label}" for x in specs[1:])], strict=True
         ):
@@ -844,10 +849,16 @@ def _summary(
             if tr is None:
                 continue
             t_ns, eta = tr
+            # the sea after the skip, as `dpgw demo` counts it: from the first estimate on
+            scored[spec.label] = max(0.0, float(t_ns[-1] - t_ns[0]) / 1e9 - settle)
+            if least is not None and scored[spec.label] < least:
+                continue  # said "not scored" (`_print`), as the demo said it
             sc = score((t_ns - tt_ns[0]) / 1e9, eta, (tt_ns - tt_ns[0]) / 1e9, eta_t, settle_s=settle)
             errors[spec.label] = sc.as_dict()
         s["error_vs_truth"] = errors
         s["settle_s"] = settle
+        s["estimate_scored_s"] = scored
+        s["min_scored_s"] = least
     return s
 
 
@@ -911,6 +922,12 @@ def _print(s: dict[str, Any]) -> None:
     for where, span in spans.items():
         if where not in s["counts"]:  # (an MCAP log: its counts are its sources')
             print(f"  {where}: {_span_words(span)}")
+    least = s.get("min_scored_s")
+    for label, scored in s.get("estimate_scored_s", {}).items():
+        if least is not None and label not in s["error_vs_truth"]:  # (a demo's log: as the demo says it)
+            from gateway.scoring import not_scored_note
+
+            print(f"  {label} vs truth: {not_scored_note(scored, s['settle_s'], least)}")
     for label, e in s.get("error_vs_truth", {}).items():
         if not e["samples"]:
             print(
@@ -996,6 +1013,7 @@ def _report(
         # what each log covers, as the summary says it: from its first sentence with a time, which can be
         # before the first fused measurement (a cycle without a fix), the report's t = 0
         log_spans={where: _span_words(_span(a, b)) for where, (a, b) in r.spans.items()},
+        min_scored_s=getattr(args, "min_scored", None),
         **truth_kw,
     )
     an = analyse(data, None, args.settle)

@@ -70,7 +70,8 @@ from wire.messages import SIM_METADATA, Estimate, Message, RawMavlink, RawNmea, 
 
 CONFIG_METADATA = "dpgw.config"
 DEMO_METADATA = "dpgw.demo"
-"""What `dpgw demo` says of its log: ``settle_s``, the start it left out of its scores."""
+"""What `dpgw demo` says of its log: ``settle_s``, the start it left out of its scores, and
+``min_scored_s``, the least sea after it that it scores (a log of a demo stopped soon after the skip)."""
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 Event = RawEvent | ControlEvent
 
@@ -181,6 +182,22 @@ def logged_settle_s(inputs: list[Input]) -> float | None:
             continue  # (a record from another version: the default rule then)
         if settle is not None and math.isfinite(settle) and settle >= 0.0:
             return settle
+    return None
+
+
+def logged_min_scored_s(inputs: list[Input], *, older_demo: float) -> float | None:
+    """The least sea after the settle time the run that made a log scored on (`DEMO_METADATA`), so that a
+    replay of a `dpgw demo` log stopped soon after the skip says "not scored" where the demo did, not a
+    figure on a few seconds; ``older_demo`` for a demo log written before the demo recorded it; None for
+    a log no demo wrote."""
+    for inp in inputs:
+        if inp.kind != "mcap" or (meta := _logged(inp.path, DEMO_METADATA)) is None:
+            continue
+        try:
+            least = float(meta.get("min_scored_s", older_demo))
+        except ValueError:
+            least = older_demo
+        return least if math.isfinite(least) and least >= 0.0 else older_demo
     return None
 
 

@@ -38,6 +38,22 @@ class Score:
         }
 
 
+def not_scored_note(scored_s: float, settle_s: float, min_scored_s: float) -> str:
+    """Why an estimate was not scored against the truth, in the words `dpgw demo` and `dpgw replay` (its
+    console and report.md) share: ``scored_s`` of sea after the ``settle_s`` skip, fewer than the
+    ``min_scored_s`` a figure needs (`dpgw.cli_demo.MIN_SCORED_S` says why: a few seconds' RMS is one
+    sample of errors that vary over tens of seconds)."""
+    if scored_s > 0.0:
+        return (
+            f"not scored (only {scored_s:.{1 if scored_s < 10 else 0}f} s after the {settle_s:g} s skip; "
+            f"at least {min_scored_s:g} s are scored)"
+        )
+    return (
+        f"not scored: the first {settle_s:g} s are left out while the observer settles, and at least "
+        f"{min_scored_s:g} s after them are scored"
+    )
+
+
 def truth_at(t_est: Array, t_truth: Array, eta_truth: Array) -> Array:
     """Truth η at the estimate times (linear; heading unwrapped first). NaN outside the truth's span."""
     out = np.empty((len(t_est), 3))

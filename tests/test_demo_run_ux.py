@@ -296,3 +296,47 @@ def test_sigterm_stops_a_demo_with_143_and_says_so(tmp_path: Path) -> None:
     assert summary["interrupted"] is True and summary["stopped_by"] == "SIGTERM"
     assert summary["sim_seconds"] < 3600 and "Traceback" not in "".join(err)
     assert all(is_complete(p) for p in summary["logs"])
+
+
+@pytest.mark.slow  # 64 s of sea at 10x with start-up, and its replay with a report: ~15 s
+def test_a_replay_of_a_demo_stopped_early_does_not_score_it_either(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A demo stopped by Ctrl-C 4 s after its 60 s skip says its estimate is "not scored" (fewer than
+    `MIN_SCORED_S` seconds); `dpgw replay` of its log scored those seconds and printed, and reported, an RMS
+    of them. The replay now scores on as much sea as the demo (the log records it), and says why not in
+    the demo's words, on the console, in --json and in report.md."""
+    from dpgw.cli import main
+
+    def ctrl_c_at_64(sims: list[Simulation]) -> None:
+        try:
+            wait_for(lambda: sims and sims[0].t >= 64.0, 300)
+        finally:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    code, summary, err, _ = run_demo(
+        tmp_path, monkeypatch, capsys, ["--duration", "360", "--speed", "10"], ctrl_c_at_64
+    )
+    assert code == 130, err
+    assert 0.0 < summary["estimate_scored_s"] < cli_demo.MIN_SCORED_S and "error_vs_truth" not in summary
+    report = tmp_path / "report"
+    argv = ["replay", *summary["logs"], "--out", str(tmp_path / "again.mcap"), "--report", str(report)]
+    assert main([*argv, "--json"]) == 0
+    replayed = json.loads(capsys.readouterr().out)
+    (label,) = replayed["estimates"]
+    assert replayed["settle_s"] == cli_demo.SETTLE_S and replayed["min_scored_s"] == cli_demo.MIN_SCORED_S
+    scored = replayed["estimate_scored_s"][label]
+    assert 0.0 < scored < cli_demo.MIN_SCORED_S
+    assert replayed["error_vs_truth"] == {}  # no figure on those seconds
+    words = f"not scored (only {scored:.1f} s after the 60 s skip; at least 30 s are scored)"
+    assert main([*argv, "--report", str(tmp_path / "text")]) == 0  # (the console's words)
+    assert f"  {label} vs truth: {words}" in capsys.readouterr().out.splitlines()
+    # the report counts its sea from its own t = 0, the first fused measurement, a fraction of a second
+    # before the first estimate: its seconds are its own, its words the same
+    metrics = json.loads((report / "metrics.json").read_text())
+    assert metrics["min_scored_s"] == cli_demo.MIN_SCORED_S
+    dof = metrics["observers"][label]
+    assert scored <= dof["truth_scored_s"] < scored + 1.0
+    words = f"not scored (only {dof['truth_scored_s']:.1f} s after the 60 s skip; at least 30 s are scored)"
+    assert dof["truth_not_scored"] == words and dof["north"]["rms_error"] is None
+    assert f"LF estimate vs truth: {words}." in (report / "report.md").read_text()

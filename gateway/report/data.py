@@ -58,6 +58,11 @@ class ReplayData:
     # per input log, what it covers as the console's summary says it (first to last sentence or record
     # with a time, UTC): it can start before the first fused measurement, which is t = 0 here
     log_spans: Mapping[str, str] = field(default_factory=dict)
+    # the least sea after the settle time an estimate is scored against the truth on (s); a shorter stretch
+    # is "not scored", said in report.md (`gateway.scoring.not_scored_note`). `dpgw replay` gives the one
+    # a `dpgw demo` log records, so that a demo stopped soon after its skip is not given a figure here
+    # either; None: any stretch is scored
+    min_scored_s: float | None = None
 
 
 def utc_text(start_ns: int, t_s: float | None, *, digits: int = 1) -> str | None:

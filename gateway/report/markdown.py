@@ -110,6 +110,8 @@ def report_markdown(data: ReplayData, m: dict[str, Any], plot_note: str, pngs: S
             f"{od['samples']} estimates. Heading rows in degrees (mean square in deg²). Smoothness ratio = "
             "std of the LF estimate's first difference / that of the measurement (< 1: smoother)."
         )
+        if od.get("truth_not_scored"):  # (the error columns are "–": the console says it in these words)
+            lines += ["", f"LF estimate vs truth: {od['truth_not_scored']}."]
     lines += ["", "## Bad input", ""]
     if m["counts"]:
         lines += ["| source / log | counter | count |", "|---|---|---|"]

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from gateway.report.data import DOF, Array, Prepared, ReplayData, prepare, utc_text
 from gateway.report.findings import amplification_warnings
 from gateway.report.spectra import Psd, band_power, nominal_dt, peak, resample, valid_samples, welch
-from gateway.scoring import Score, score
+from gateway.scoring import Score, not_scored_note, score
 from observers.froude import MODEL_MAX_LENGTH_M, PROTOTYPE_LENGTH_M, froude_scale_of, scaled_frequencies
 from observers.kinematics import ssa
 
@@ -160,6 +160,7 @@ def analyse(data: ReplayData, wave_band: tuple[float, float] | None, settle_s: f
         "wave_band_rad_s": [band[0], band[1]],
         "wave_band_basis": basis,
         "truth": bool(has_truth),
+        "min_scored_s": data.min_scored_s,
     }
 
     # ---- measurement: dominant wave frequency per DOF (whole record)
@@ -208,8 +209,15 @@ def analyse(data: ReplayData, wave_band: tuple[float, float] | None, settle_s: f
         if prep.truth is not None and len(t):
             tt, t_lf, t_wf = prep.truth
             settle_rel = max(0.0, settle_t - float(t[0]))
-            s_lf = score(t, eta, tt, t_lf, settle_s=settle_rel)
-            s_wf = score(t, eta_wf, tt, t_wf, settle_s=settle_rel) if t_wf is not None else None
+            # the sea scored after the skip, from the first estimate on (as `dpgw demo` counts it): fewer
+            # than `ReplayData.min_scored_s` seconds are said "not scored", never given a figure
+            scored_s = max(0.0, float(t[-1] - t[0]) - settle_rel)
+            odict["truth_scored_s"] = _f(scored_s)
+            if data.min_scored_s is not None and scored_s < data.min_scored_s:
+                odict["truth_not_scored"] = not_scored_note(scored_s, settle_s, data.min_scored_s)
+            else:
+                s_lf = score(t, eta, tt, t_lf, settle_s=settle_rel)
+                s_wf = score(t, eta_wf, tt, t_wf, settle_s=settle_rel) if t_wf is not None else None
         total = eta + eta_wf
         total[:, 2] = ssa(total[:, 2])
         for k in range(3):
