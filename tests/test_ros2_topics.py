@@ -241,3 +241,41 @@ def test_dpgw_run_says_the_clash_as_check_does(tmp_path: Path, capsys: pytest.Ca
     assert err[1].startswith(f"  {config}: ros2.odom_topic: the same topic as /tf"), err
     assert "docs/config.md" in err[-1], err
     assert not (tmp_path / "never.mcap").exists()
+
+
+def with_prefix(prefix: str, **ros2: Any) -> dict[str, Any]:
+    t = tables(1, 2, **ros2)
+    t["zenoh"] = {**t["zenoh"], "prefix": prefix}
+    return t
+
+
+def test_a_zenoh_prefix_in_the_ros_domain_key_space_stops_start_up(tmp_path: Path) -> None:
+    """rmw_zenoh keys every topic of domain D as ``D/<topic>/...``: a ``[zenoh] prefix`` starting with D
+    (``0/dpgw`` with domain 0) put dpgw's JSON keys in the ROS topics' key space, unchecked. Refused now
+    at start-up and by ``dpgw run --check``, one line naming both keys and what to change; only with the
+    ROS 2 output on, and only the domain's own number."""
+    from dpgw.cli_run import start_up_problems
+
+    config = parse_config(with_prefix("0/dpgw", domain_id=0), base_dir=tmp_path)
+    problems = output_problems(config)
+    assert len(problems) == 1, problems
+    (line,) = problems
+    assert line.startswith(
+        f'{config.path}: zenoh.prefix: "0/dpgw" starts with 0/, the key space of ROS 2 domain 0'
+    )
+    assert "dpgw's key 0/dpgw/estimate" in line
+    assert "the ROS key 0/dpgw/odom/nav_msgs::msg::dds_::Odometry_/RIHS01_" in line
+    assert "expected a prefix whose first chunk is not 0" in line and "or another ros2.domain_id" in line
+    assert [p for p in start_up_problems(config) if "zenoh.prefix" in p] == problems  # `dpgw run --check`
+    with pytest.raises(OutputError) as err:  # `dpgw run`, before anything opens
+        sinks_from_config(config)
+    assert str(err.value) == line
+    assert "ROS 2 domain 7" in problems_of(tmp_path, {}, zenoh={"prefix": "7"})[0]  # (the tables' domain 7)
+    # not the domain's number, a number further in, or the ROS 2 output off: no problem
+    for tables_ in (
+        with_prefix("0/dpgw", domain_id=1),
+        with_prefix("dp/0", domain_id=0),
+        with_prefix("07/dpgw", domain_id=7),
+        {**with_prefix("0/dpgw", domain_id=0), "ros2": {"enabled": False, "domain_id": 0}},
+    ):
+        assert output_problems(parse_config(tables_, base_dir=tmp_path)) == [], tables_

@@ -7,7 +7,7 @@ import importlib.util
 
 from gateway.config import GatewayConfig
 from gateway.outputs.base import OutputSink
-from gateway.outputs.ros2_topics import topic_clashes
+from gateway.outputs.ros2_topics import prefix_in_domain, topic_clashes
 from wire.rmw_zenoh import is_ros_name
 
 __all__ = ["OutputError", "output_problems", "sinks_from_config"]
@@ -52,6 +52,7 @@ def output_problems(config: GatewayConfig) -> list[str]:
                         f"ros2.{key})"
                     )
         problems += topic_clashes(config)
+        problems += prefix_in_domain(config)
     if config.foxglove.enabled and importlib.util.find_spec("foxglove") is None:  # a core dependency
         problems.append(
             f"{config.path}: foxglove.enabled: true, but the foxglove-sdk package is not installed (install "

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 
 from gateway.config import GatewayConfig, Ros2Config
 from gateway.config.problems import show
-from wire.rmw_zenoh import fully_qualified
+from wire.rmw_zenoh import dds_type_name, fully_qualified
 
 CLOCK_TOPIC = "/clock"
 DIAGNOSTICS_TOPIC = "/diagnostics"
@@ -81,6 +81,27 @@ def topic_clashes(config: GatewayConfig) -> list[str]:
             )
         owner.setdefault(topic, f"ros2.fix_topic/{source}")
     return problems
+
+
+def prefix_in_domain(config: GatewayConfig) -> list[str]:
+    """A ``FILE: zenoh.prefix: problem`` line when dpgw's own Zenoh keys (``<prefix>/estimate``, ...) lie in
+    the key space of the ROS 2 domain the sink publishes in: rmw_zenoh puts every topic of domain D at
+    ``D/<topic>/<type>/<hash>`` (docs/ros2.md), so a prefix whose first chunk is D (``0/dp/ship`` with
+    ``domain_id = 0``) shares it. A ROS peer's ``D/**`` (a bridge, a recorder, ``ros2 topic list``'s
+    discovery) then meets dpgw's JSON among the CDR of the ROS topics, and a prefix that is a topic's path
+    (``0/dpgw`` with namespace ``/dpgw``) puts dpgw's keys under that topic's. Nothing checked it."""
+    cfg, prefix = config.ros2, config.zenoh.prefix
+    domain = str(cfg.domain_id)
+    if prefix.split("/", 1)[0] != domain:
+        return []
+    odom = fully_qualified(cfg.namespace, cfg.odom_topic).strip("/")
+    ros_key = f"{domain}/{odom}/{dds_type_name('nav_msgs/msg/Odometry')}/RIHS01_…"
+    return [
+        f"{config.path}: zenoh.prefix: {show(prefix)} starts with {domain}/, the key space of ROS 2 domain "
+        f"{domain} (ros2.domain_id), where rmw_zenoh puts every ROS topic: dpgw's key {prefix}/estimate "
+        f"would sit beside the ROS key {ros_key} (expected a prefix whose first chunk is not {domain}, e.g. "
+        f"the default dp/<vessel name>, or another ros2.domain_id)"
+    ]
 
 
 def _named(value: str, topic: str, namespace: str) -> str:
