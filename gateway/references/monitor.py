@@ -58,6 +58,13 @@ the track by chance does not end the rejection; it is used, being within the jum
 and the next burst value fails)."""
 
 
+VOTE_LATE = 3
+"""A reference whose latest value is older than this many of its usual intervals between values is left
+out of the votes until its next one (still fresh, not stale): its smoothed track stopped while the
+others' went on following the wave motion, and two DGPS with the same data were judged 1 m apart 1.5 s
+into one's silence, before its timeout. Three intervals: a late datagram or two is not a silence."""
+
+
 JUMP_STEPS = 4.0
 """A position's jump allowance is at least this many times the RMS step between the source's consecutive
 fixes, as measured (2σ of `Track.var`: E‖d‖² = 4σ² for two components), instead of ``jump_m`` alone,
@@ -181,6 +188,9 @@ class ReferenceMonitor:
             spike_s=p.readmit_s,
         )
         self._limits = {"position": position, "heading": heading}
+        # a restarted smoothed track votes after this long (`_vote`; docs/integrity.md, "A reference back
+        # from a silence"): the seeded start's noise, one fix of each source, weighs e⁻¹ of it by then
+        self._settle_ns = int(params.smoothing_s * NS)
         self._refs: dict[str, dict[str, _Ref]] = {
             "position": {
                 n: _Ref(SourceState(n, "position", readmit), PlaneTrack(params.smoothing_s), t, position)
@@ -293,6 +303,8 @@ class ReferenceMonitor:
                 st.fail(now_ns, why + ")")
                 return False
         tr.observe(now_ns, v)
+        if tr.start_ns == now_ns and not ref.alone:  # restarted (first value, or back from a gap)
+            self._seed(ref, role, now_ns)
         frozen = (now_ns - tr.same_since) / NS  # (`Track.frozen_s`, inline: the track has a value now)
         if frozen >= lim.freeze_s:
             st.fail(now_ns, f"frozen: the same value for {frozen:.1f} s")
@@ -377,6 +389,26 @@ class ReferenceMonitor:
         )
         return False
 
+    def _seed(self, ref: _Ref, role: str, now_ns: int) -> None:
+        """Start a source's restarted smoothed track where it would be had it never stopped: at its
+        value plus the others' lag behind their latest values (`Track.lag`, the component-wise median
+        over the fresh ones). A first-order smoothing with a time constant of 5 s passes about a quarter
+        of a 9 s wave's motion; a track restarted at its instantaneous value carries all of it, and
+        compared at once with a track that has smoothed for minutes, two DGPS with the same data were
+        1.7 m apart and both made suspect. Seeded, the two differ by what their values differ by now,
+        noise and any real offset: a source back 5 m off is 5 m off its peers from its first fix.
+        Not from a paper: like-with-like comparison of the same filter, the lag taken from the peers."""
+        lags = []
+        for r in self._refs[role].values():
+            t = r.track
+            if r is ref or t.smooth is None or now_ns - t.smooth_ns > r.timeout_ns:
+                continue
+            lag = t.lag()
+            if lag is not None:
+                lags.append(lag)
+        if lags:
+            ref.track.seed(tuple(_median([lag[i] for lag in lags]) for i in range(len(lags[0]))))
+
     def _vote(self, ref: _Ref, role: str, now_ns: int, lim: _Limits) -> bool:
         refs = self._refs[role]
         if len(refs) == 1:  # the common case: nothing to vote with, no alarm to raise or clear
@@ -389,14 +421,22 @@ class ReferenceMonitor:
         def fmt(x: float) -> str:
             return self._fmt(x, lim)
 
-        smooth = {
-            n: r.track.smooth
-            for n, r in refs.items()
-            if r.track.smooth is not None and now_ns - r.track.smooth_ns <= r.timeout_ns
-        }
+        settle = self._settle_ns
+        smooth: dict[str, tuple[float, ...]] = {}
+        held = False  # a fresh reference left out: restarted and not settled, or late
+        for n, r in refs.items():
+            t = r.track
+            if t.smooth is None or now_ns - t.smooth_ns > r.timeout_ns:
+                continue
+            if now_ns - t.start_ns < settle or now_ns - t.smooth_ns > VOTE_LATE * t.interval_ns:
+                held = True
+                continue
+            smooth[n] = t.smooth
         name = ref.state.source
         angle = role == "heading"
         if name not in smooth:
+            if now_ns - ref.track.start_ns < settle:  # restarted: not judged, nor judging, until settled
+                ref.state.soft(now_ns, "")
             return True
         if len(smooth) >= 3:
             d = median_distance(smooth, name, angle)
@@ -414,7 +454,7 @@ class ReferenceMonitor:
             elif d < DIVERGENCE_CLEAR * diverge:
                 ref.state.soft(now_ns, "")
                 refs[other].state.soft(now_ns, "")
-        else:
+        elif not held:  # alone among fresh references: no alarm (one held out is judged when it is back)
             ref.state.soft(now_ns, "")
         return True
 
@@ -607,3 +647,10 @@ class ReferenceMonitor:
 
     def is_stale(self, role: str, source: str) -> bool:
         return self._refs[role][source].state.state == STALE
+
+
+def _median(xs: list[float]) -> float:
+    """The median of a few values (the mean of the middle two of an even count)."""
+    xs = sorted(xs)
+    k = len(xs) // 2
+    return xs[k] if len(xs) % 2 else 0.5 * (xs[k - 1] + xs[k])

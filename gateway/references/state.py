@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 from mypy_extensions import mypyc_attr
@@ -38,6 +39,16 @@ def reference_name(role: str, source: str) -> str:
     return f"{role} reference {source}"
 
 
+_FIGURE = re.compile(r"(?<![\w.])[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?(?![\w.])")
+
+
+def reason_kind(reason: str) -> str:
+    """What a reason says, without its figures: its part before the first colon (the test's name, or
+    ``diverges from dgps2 by 1.71 m (limit 1 m)``) with every stand-alone number as ``#``. Names that
+    end in digits (``dgps2``) are kept: a divergence from another source is another kind."""
+    return _FIGURE.sub("#", reason.split(":")[0])
+
+
 class SourceState:
     """The state machine of one source in one role.
 
@@ -70,7 +81,12 @@ class SourceState:
         return self.state == OK or (self.state == SUSPECT and self._passing_since is None)
 
     def _set(self, now_ns: int, state: str, reason: str) -> None:
-        if state != self.state or (state != OK and reason.split(":")[0] != self.reason.split(":")[0]):
+        """A change of state, or of the kind of reason in a state other than ok, is an event; the same
+        state for the same kind of reason with other figures (a divergence of 1.54 m, then 1.50 m) only
+        updates the reason, which the status shows (`reason_kind`)."""
+        if state != self.state or (
+            state != OK and reason != self.reason and reason_kind(reason) != reason_kind(self.reason)
+        ):
             self.changes.append(StateChange(now_ns, self.source, self.role, self.state, state, reason))
             self.since_ns = now_ns
         self.state, self.reason = state, reason

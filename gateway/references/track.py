@@ -6,6 +6,12 @@ import math
 
 NS = 1_000_000_000
 MIN_SAMPLES_FOR_VARIANCE = 10
+RESTART_NS = 2 * NS
+"""A gap in a source's values longer than this restarts its smoothed track (``Track.start_ns``): the
+same 2 s after which the freeze clock and the noise measure restart. A first-order step across a longer
+gap would leave the track wherever the step's weight put it between the value before the gap and the
+first after it, which is no smoothing of anything; the vote compares a restarted track with the others
+only once it is comparable (`ReferenceMonitor`, docs/integrity.md "A reference back from a silence")."""
 
 
 class Track:
@@ -14,7 +20,8 @@ class Track:
     - ``good``: the last value that passed every test (the jump test's reference) and when;
     - ``smooth``: first-order smoothing with time constant ``tau_s`` of every value that passed the
       sanity tests (quality, range, jump) — the votes compare these, so noise averages out while a drift
-      shows;
+      shows; ``start_ns``: when it last (re)started, at the first value or after a gap over `RESTART_NS`
+      (`seed` then sets where it starts);
     - ``var``: the measured noise variance per component, from consecutive differences (two independent
       errors per difference: E[d²] = 2σ² per component);
     - ``same_since``: when the value last changed (the freeze test);
@@ -29,6 +36,8 @@ class Track:
         self.good_ns = 0
         self.smooth: tuple[float, ...] | None = None
         self.smooth_ns = 0
+        self.start_ns = 0
+        self.interval_ns = 0  # the source's usual time between values (a running average of 8)
         self.last: tuple[float, ...] | None = None
         self.last_ns = 0
         self.var = 0.0
@@ -57,9 +66,13 @@ class Track:
             self.samples += 1
             alpha = 1.0 / min(self.samples, 50)  # a plain mean first, then a 50-sample running average
             self.var += alpha * (d2 - self.var)
+            gap = now_ns - self.last_ns
+            self.interval_ns = (
+                gap if not self.interval_ns else self.interval_ns + (gap - self.interval_ns) // 8
+            )
         self.last, self.last_ns = v, now_ns
-        if self.smooth is None or now_ns - self.smooth_ns > 5 * self.tau_s * NS:
-            self.smooth = v
+        if self.smooth is None or now_ns - self.smooth_ns > RESTART_NS:
+            self.smooth, self.start_ns = v, now_ns
         else:
             a = min(1.0, (now_ns - self.smooth_ns) / NS / self.tau_s)
             self.smooth = tuple(
@@ -68,6 +81,20 @@ class Track:
             if self.angle:
                 self.smooth = tuple(_ssa(s) for s in self.smooth)
         self.smooth_ns = now_ns
+
+    def lag(self) -> tuple[float, ...] | None:
+        """How far the smoothed track is from the latest value (smooth − last): the smoothing's lag
+        behind the vessel's wave motion, the same for every source that sees that motion."""
+        if self.smooth is None or self.last is None:
+            return None
+        return self.diff(self.smooth, self.last)
+
+    def seed(self, lag: tuple[float, ...]) -> None:
+        """Start a just-restarted track at its latest value plus ``lag`` (the others' `lag`): where its
+        smoothed track would be had it never stopped, so that it compares with theirs like with like."""
+        assert self.last is not None
+        v = tuple(x + d for x, d in zip(self.last, lag, strict=True))
+        self.smooth = tuple(_ssa(x) for x in v) if self.angle else v
 
     def accept(self, now_ns: int, v: tuple[float, ...]) -> None:
         self.good, self.good_ns = v, now_ns
@@ -120,10 +147,13 @@ class PlaneTrack(Track):
             d2 = (dn * dn + de * de) / 4  # (Σ d² over the 2 components) / (2 · 2)
             self.samples += 1
             self.var += (1.0 / (self.samples if self.samples < 50 else 50)) * (d2 - self.var)
+            self.interval_ns = (
+                gap if not self.interval_ns else self.interval_ns + (gap - self.interval_ns) // 8
+            )
         self.last, self.last_ns = v, now_ns
         s = self.smooth
-        if s is None or now_ns - self.smooth_ns > 5 * self.tau_s * NS:
-            self.smooth = v
+        if s is None or now_ns - self.smooth_ns > RESTART_NS:
+            self.smooth, self.start_ns = v, now_ns
         else:
             a = (now_ns - self.smooth_ns) / NS / self.tau_s
             if not a < 1.0:
@@ -158,10 +188,13 @@ class AngleTrack(Track):
             d2 = d * d / 2
             self.samples += 1
             self.var += (1.0 / (self.samples if self.samples < 50 else 50)) * (d2 - self.var)
+            self.interval_ns = (
+                gap if not self.interval_ns else self.interval_ns + (gap - self.interval_ns) // 8
+            )
         self.last, self.last_ns = v, now_ns
         s = self.smooth
-        if s is None or now_ns - self.smooth_ns > 5 * self.tau_s * NS:
-            self.smooth = v
+        if s is None or now_ns - self.smooth_ns > RESTART_NS:
+            self.smooth, self.start_ns = v, now_ns
         else:
             a = (now_ns - self.smooth_ns) / NS / self.tau_s
             if not a < 1.0:
