@@ -43,7 +43,16 @@ from typing import Any
 import msgspec
 import zenoh
 
-from gateway.bus import JSON, REDIAL_S, Dialler, UnreachableError, command_acl, make_config, open_session
+from gateway.bus import (
+    JSON,
+    REDIAL_S,
+    Dialler,
+    UnreachableError,
+    command_acl,
+    make_config,
+    open_session,
+    unlinked,
+)
 from gateway.config import GatewayConfig, ZenohConfig, config_notes, start_mode_line, wind_feedforward_line
 from gateway.config.logged import SIGNING_VERDICTS_KEY, for_log
 from gateway.outputs import InputSink, OutputSink, RawSentenceSink
@@ -856,41 +865,47 @@ class GatewayService:
         return alarms
 
     def _zenoh_alarms(self) -> list[str]:
-        """With ``connect`` endpoints (a router, a console), or a client dialling its router: an alarm while
-        the session reaches none of them nor any other peer. Zenoh redials them by itself (a restarted router
-        is back within a second); a client's router that was not up when the gateway started is dialled by
-        a `Dialler`, whose last failure, if another than nobody answering, the alarm adds. Meanwhile the
-        status cannot reach Zenoh, but it goes to the log, Foxglove and ``dpgw run -v``."""
+        """With ``connect`` endpoints (a router, a simulator, a console), or a client dialling its router: an
+        alarm naming each endpoint the session has no link to (`gateway.bus.unlinked`). It says outputs go
+        nowhere only when the session has no peer nor router at all: a console on the gateway's own
+        ``listen`` endpoint still has them while a simulator's endpoint is down. Zenoh redials the endpoints
+        by itself (a restarted router is back within a second); a client's router that was not up when the
+        gateway started is dialled by a `Dialler`, whose last failure, if another than nobody answering, the
+        alarm adds. Meanwhile the status still goes to the log, Foxglove and ``dpgw run -v``."""
         connect = self.config.zenoh.connect or ["a router (multicast scouting)"]
         if self._dialler is not None:  # a client whose router has not answered yet
-            reached = False
+            down, anyone = connect, False
         elif not self.config.zenoh.connect or self._session is None:
             return []
         else:
             info = self._session.info
-            reached = any(True for _ in info.routers_zid()) or any(True for _ in info.peers_zid())
+            down = unlinked(connect, self._session)
+            anyone = any(True for _ in info.routers_zid()) or any(True for _ in info.peers_zid())
+        reached = not down
+        fate = "outputs go out" if anyone else "outputs are not reaching Zenoh"
         if reached != self._zenoh_reached:  # logged once each way
             if reached and self._zenoh_ever_reached:
                 log.warning("zenoh: connected again (%s); outputs go out", ", ".join(connect))
             elif reached:
                 log.warning("zenoh: connected to %s; outputs go out", ", ".join(connect))
             elif self._zenoh_ever_reached:
-                log.error(
-                    "zenoh: lost %s; outputs are not reaching Zenoh until it is back", ", ".join(connect)
-                )
+                until = " until it is back" if not anyone else " to the other peers"
+                log.error("zenoh: lost %s (connect); %s%s", ", ".join(down), fate, until)
             else:  # never reached: not up yet, or a wrong endpoint; nothing was lost
+                until = " until it answers" if not anyone else " to the other peers"
                 log.error(
-                    "zenoh: %s not reached yet (Zenoh redials it; is it up, and is the endpoint right?); "
-                    "outputs are not reaching Zenoh until it answers",
-                    ", ".join(connect),
-                )
+                    "zenoh: %s (connect) not reached yet (Zenoh redials it; is it up, and is the endpoint "
+                    "right?); %s%s",
+                    ", ".join(down), fate, until,
+                )  # fmt: skip
             self._zenoh_reached = reached
         if reached:
             self._zenoh_ever_reached = True
-        if reached:
             return []
         who = "Zenoh redials it" if self._dialler is None else f"dialled every {REDIAL_S:g} s"
-        alarm = f"zenoh: not connected to {', '.join(connect)} ({who}); outputs go nowhere meanwhile"
+        alarm = f"zenoh: not connected to {', '.join(down)} (connect; {who})"
+        if not anyone:
+            alarm += "; no Zenoh peer nor router reached: outputs go nowhere meanwhile"
         if self._dialler is not None and self._dialler.error is not None:
             alarm += f"; last dial: {self._dialler.error}"
         return [alarm]
