@@ -58,7 +58,7 @@ from gateway.config.logged import SIGNING_VERDICTS_KEY, for_log
 from gateway.outputs import InputSink, OutputSink, RawSentenceSink
 from gateway.pipeline import SIGNING_REJECTED_TOPIC, ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from gateway.sim_time import SimTime
-from gateway.sources import Chunk, SerialSource, Source, open_source
+from gateway.sources import Chunk, SerialSource, SeveralSourcesError, Source, SourceError, open_source
 from gateway.wall_time import WallTime
 from wire.codecs import mavlink as mv
 from wire.mcap.folder import make_log_folder
@@ -308,7 +308,8 @@ class GatewayService:
     # --- start and stop -------------------------------------------------------------------------------------
 
     def start(self) -> None:
-        """Open everything; a source that cannot open raises `SourceError` and nothing is left running."""
+        """Open everything; a source that cannot open raises `SourceError` (several: `SeveralSourcesError`,
+        every source tried) and nothing is left running."""
         self._wall0_ns = time.time_ns()
         # numba's kernels compiled (or loaded from its cache) before any source opens, not in the loop
         t0 = time.perf_counter()
@@ -332,12 +333,18 @@ class GatewayService:
         if self.stop_event.is_set():  # stopped while compiling (seconds on a first run): open nothing
             return
         try:
+            failed: list[SourceError] = []  # every source tried: a person fixes them all before the next try
             for sc in self.config.sources:
-                src = open_source(sc.name, sc.url, timeout_s=sc.timeout_s)
-                if isinstance(src, SerialSource):
-                    src.wait_if_absent = self.wait_for_ports
-                self._sources.append(src)
-                src.start(self._enqueue)
+                try:
+                    src = open_source(sc.name, sc.url, timeout_s=sc.timeout_s)
+                    if isinstance(src, SerialSource):
+                        src.wait_if_absent = self.wait_for_ports
+                    self._sources.append(src)
+                    src.start(self._enqueue)
+                except SourceError as exc:
+                    failed.append(exc)
+            if failed:
+                raise failed[0] if len(failed) == 1 else SeveralSourcesError(failed)
             if self._session is None:
                 self._session = self._open_session()
             # A query that arrives before the loop's first status tick gets a real status, never ``{}``;

@@ -1092,6 +1092,35 @@ def test_bad_config(changes: dict[str, Any], key: str, fragment: str, tmp_path: 
     assert any(fragment in p for p in matching), matching
 
 
+def test_a_port_used_twice_is_listed_with_the_entries_own_problems(tmp_path: Path) -> None:
+    """Two DGPS receivers on one UDP port, the second entry with a misspelt key and a wrong type: all three
+    problems in one pass (the port clash does not wait for the entry's own problems to be fixed), and the
+    clash's advice is a port each (two receivers are not one source with several roles)."""
+    d = base()
+    put(d, "sources.0.url", "udp://0.0.0.0:41101")
+    d["sources"].insert(
+        1,
+        {
+            "name": "dgps2",
+            "url": "udp://0.0.0.0:41101",
+            "protocol": "nmea",
+            "roles": ["position"],
+            "priority": 1,
+            "timout_s": 2,
+            "lever_arm_m": "1, 2, 3",
+        },
+    )
+    problems = problems_of(d, tmp_path)
+    mine = [p for p in problems if p.startswith("bad.toml: sources.dgps2.")]
+    assert len(mine) == 3, problems
+    assert any(p.startswith("bad.toml: sources.dgps2.timout_s: ") for p in mine), mine
+    assert any(p.startswith("bad.toml: sources.dgps2.lever_arm_m: ") for p in mine), mine
+    (clash,) = [p for p in mine if p.startswith("bad.toml: sources.dgps2.url: ")]
+    assert "same udp 41101 as sources.dgps1" in clash, clash
+    advice = "two sources cannot listen on the same port: give each its own port (or, if it is one device"
+    assert advice in clash, clash
+
+
 def test_every_problem_is_listed_with_file_and_key(tmp_path: Path) -> None:
     path = tmp_path / "ship.toml"
     path.write_text(
