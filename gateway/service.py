@@ -241,7 +241,12 @@ class GatewayService:
         wind = wind_feedforward_line(config)
         # The start-up facts go to the text log here, in the service's words; the pipeline's start-up
         # events (the same facts) reach it with the first logged status (`_emit`): not said twice there
-        self._said_at_start = set(self.pipeline.startup_events)
+        self._start_facts = frozenset(self.pipeline.startup_events)
+        """What the configuration alone makes the pipeline say at start (the start mode; the wind
+        feed-forward off for a vessel without an anemometer, or with its gain 0): information, not a
+        fault, also when a pipeline started over (a simulator restarted) says it again. The wind lost at
+        run time is said in other words, and stays a warning."""
+        self._said_at_start = set(self._start_facts)
         if wind:  # once, at start-up (also the first /status event when off)
             log.info("%s", wind)
         if config.control is not None and config.control.initial_mode == "dp":
@@ -1057,7 +1062,7 @@ class GatewayService:
                     if text in self._said_at_start:
                         self._said_at_start.discard(text)
                         continue
-                    log.warning("%s", text)
+                    (log.info if text in self._start_facts else log.warning)("%s", text)
         encoded = self._publish(outputs)
         for sink in self._started:
             try:
