@@ -149,6 +149,7 @@ def run(args: argparse.Namespace) -> int:
         FoxgloveConfig,
         TimeConfig,
         describe,
+        enabled_lines,
         format_problems,
         load_config,
     )
@@ -221,6 +222,8 @@ def run(args: argparse.Namespace) -> int:
         return 0
     line = start_up_line(config, service, args.log)
     print(line, file=sys.stderr, flush=True)
+    for extra in enabled_lines(config, foxglove=False):  # (the Foxglove server says its address below)
+        print(f"dpgw run: {extra}", file=sys.stderr, flush=True)
     notifier = Notifier()  # systemd (Type=notify, WatchdogSec): ready now, the loop feeds the watchdog
     if notifier.enabled:
         t0 = time.monotonic()
@@ -245,6 +248,7 @@ def run(args: argparse.Namespace) -> int:
     finally:
         service.stop_event.set()  # also ends the status reporter
         status = service.final_status().payload
+        log_files = [str(p) for p in service.log.paths] if service.log is not None else []
         service.close()
         notifier.close()
     why = stop_reason(stop.signum, args.duration)
@@ -253,6 +257,7 @@ def run(args: argparse.Namespace) -> int:
         "published": service.published,
         "stopped_by": stop.name if stop.signum is not None else None,  # as `dpgw demo --json` has it
         "status": status,
+        "log_files": log_files,
     }
     if args.json:
         print(cli_json.dumps(summary, indent=2))
@@ -262,6 +267,8 @@ def run(args: argparse.Namespace) -> int:
         plain = to_jsonable(status)  # (the message as /dp/status carries it)
         print(f"dpgw run: stopped: {why}; {service.pipeline.estimates} estimates, {service.published} "
               "messages published")  # fmt: skip
+        if log_files:
+            print(f"dpgw run: log: {', '.join(log_files)}")
         for name, source in plain.get("sources", {}).items():
             if source.get("reconnects"):
                 print(f"dpgw run: source {name}: {reconnects_text(source, time.time_ns())}")

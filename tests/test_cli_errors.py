@@ -1326,3 +1326,22 @@ def test_listen_hints_at_keelsons_at_chunk_and_summarises_binary_payloads() -> N
     assert key_hint("**").startswith("; '**' matches no chunk that starts with '@'")
     assert "try 'keelson/@v0/*/pubsub/**'" in key_hint("keelson/*/pubsub/**")
     assert key_hint("keelson/@v0/**") == key_hint("dp/**") == ""
+
+
+def test_run_says_its_log_rotation_at_start_and_the_files_it_wrote_at_the_stop(tmp_path: Path) -> None:
+    """The start-up says the log's rotation (one line; Keelson, ROS 2, authentication would have theirs:
+    `describe`'s test), and the stop summary names the log files written, which exist; ``--json`` has them
+    as ``log_files``."""
+    import json
+
+    p = _run_with_log(tmp_path, "trials/bench.mcap")
+    assert p.returncode == 0, p.stderr
+    assert "dpgw run: log rotated at 1024 MB or 60 min, whichever first" in p.stderr.splitlines(), p.stderr
+    said = [ln for ln in p.stdout.splitlines() if ln.startswith("dpgw run: log: ")]
+    assert len(said) == 1, p.stdout
+    files = said[0].removeprefix("dpgw run: log: ").split(", ")
+    assert files and all(Path(f).parent == tmp_path / "trials" and Path(f).stat().st_size > 0 for f in files)
+    q = _run_with_log(tmp_path, "trials/bench.mcap", "--json")
+    assert q.returncode == 0, q.stderr
+    written = json.loads(q.stdout)["log_files"]
+    assert len(written) == 1 and written[0] not in files and Path(written[0]).stat().st_size > 0, written
