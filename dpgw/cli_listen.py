@@ -147,11 +147,13 @@ def decode_payload(body: bytes) -> tuple[str, Any]:
 def sample_line(key: str, body: bytes, *, as_json: bool) -> str:
     """One sample as printed: ``KEY: PAYLOAD``; a binary payload as its length and first bytes in hex
     (printed raw, CDR or protobuf wrote control bytes to the terminal); with ``as_json`` one object
-    ``{"key", "encoding", "payload"}`` (``encoding``: `decode_payload`'s; base64 with ``bytes``, its
-    length)."""
+    ``{"key", "payload"}`` for JSON (every dpgw payload: what programs read stays as it was), and for
+    another payload ``encoding`` too (`decode_payload`'s; base64 with ``bytes``, its length)."""
     encoding, payload = decode_payload(body)
     if as_json:
-        out: dict[str, Any] = {"key": key, "encoding": encoding, "payload": payload}
+        out: dict[str, Any] = {"key": key, "payload": payload}
+        if encoding != "json":
+            out["encoding"] = encoding
         if encoding == "base64":
             out["bytes"] = len(body)
         return cli_json.dumps(out)

@@ -1319,8 +1319,10 @@ def test_listen_hints_at_keelsons_at_chunk_and_summarises_binary_payloads() -> N
     binary = objects["keelson/@v0/sv1/pubsub/heading_true_north_deg/dpgw"]
     assert binary["encoding"] == "base64" and binary["bytes"] == 30
     assert base64.b64decode(binary["payload"]) == blob
-    assert objects["keelson/@v0/sv1/pubsub/json/dpgw"]["encoding"] == "json"
-    assert objects["keelson/@v0/sv1/pubsub/json/dpgw"]["payload"] == {"a": 1}
+    assert objects["keelson/@v0/sv1/pubsub/json/dpgw"] == {
+        "key": "keelson/@v0/sv1/pubsub/json/dpgw",
+        "payload": {"a": 1},
+    }
     assert objects["keelson/@v0/sv1/pubsub/note/dpgw"]["encoding"] == "text"
     # the other keys without an @ chunk
     assert key_hint("**").startswith("; '**' matches no chunk that starts with '@'")
