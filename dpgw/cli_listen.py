@@ -6,6 +6,7 @@ Zenoh is imported by `run`, not here: building the parser (``--help``) must stay
 from __future__ import annotations
 
 import argparse
+import base64
 import json
 import sys
 import time
@@ -103,16 +104,7 @@ def run(args: argparse.Namespace) -> int:
                 clock_seen += 1
                 continue
             n += 1
-            try:
-                payload: Any = json.loads(body)
-            except ValueError:
-                payload = body.decode("utf-8", "replace")
-            if args.json:
-                print(cli_json.dumps({"key": key, "payload": payload}), flush=True)
-            else:
-                print(
-                    f"{key}: {json.dumps(payload) if not isinstance(payload, str) else payload}", flush=True
-                )
+            print(sample_line(key, body, as_json=args.json), flush=True)
         interrupted = stop["now"]
         if n == 0:
             reached = len(list(session.info.peers_zid())) + len(list(session.info.routers_zid()))
@@ -130,6 +122,62 @@ def run(args: argparse.Namespace) -> int:
         print(f"dpgw listen: {nothing_heard(args, reached)}", file=sys.stderr)
         return 1
     return 0
+
+
+BINARY_SHOWN = 16
+"""Bytes of a binary payload shown, in hex, on a line of text (the rest is counted)."""
+
+
+def decode_payload(body: bytes) -> tuple[str, Any]:
+    """(encoding, payload): ``json`` (the value), ``text`` (a str: UTF-8 without control characters but
+    tab and line breaks), or ``base64`` (the bytes in base64: ROS 2's CDR, Keelson's protobuf)."""
+    try:
+        return "json", json.loads(body)
+    except ValueError:
+        pass
+    try:
+        text = body.decode("utf-8")
+    except UnicodeDecodeError:
+        text = None
+    if text is not None and all(c.isprintable() or c in "\t\r\n" for c in text):
+        return "text", text
+    return "base64", base64.b64encode(body).decode("ascii")
+
+
+def sample_line(key: str, body: bytes, *, as_json: bool) -> str:
+    """One sample as printed: ``KEY: PAYLOAD``; a binary payload as its length and first bytes in hex
+    (printed raw, CDR or protobuf wrote control bytes to the terminal); with ``as_json`` one object
+    ``{"key", "payload"}`` for JSON (every dpgw payload: what programs read stays as it was), and for
+    another payload ``encoding`` too (`decode_payload`'s; base64 with ``bytes``, its length)."""
+    encoding, payload = decode_payload(body)
+    if as_json:
+        out: dict[str, Any] = {"key": key, "payload": payload}
+        if encoding != "json":
+            out["encoding"] = encoding
+        if encoding == "base64":
+            out["bytes"] = len(body)
+        return cli_json.dumps(out)
+    if encoding == "json":
+        return f"{key}: {json.dumps(payload)}"
+    if encoding == "text":
+        return f"{key}: {payload}"
+    more = "…" if len(body) > BINARY_SHOWN else ""
+    return f"{key}: <{len(body)} bytes, binary (not JSON nor text): {body[:BINARY_SHOWN].hex(' ')}{more}>"
+
+
+def key_hint(key: str) -> str:
+    """What a key misses of Keelson's (""): its keys have an ``@v0`` chunk, and Zenoh's wildcards never
+    match a chunk that starts with ``@`` (docs/keelson.md), so ``keelson/**`` and ``**`` hear none."""
+    chunks = key.split("/")
+    if any(c.startswith("@") for c in chunks):
+        return ""
+    if chunks[0] == "keelson":
+        rest = "/".join(chunks[1:]) or "**"
+        said = "; Keelson's keys have an @v0 chunk, which no wildcard matches in Zenoh"
+        return f"{said}: try 'keelson/@v0/{rest}'"
+    if key == "**":
+        return "; '**' matches no chunk that starts with '@': name it, as in Keelson's 'keelson/@v0/**'"
+    return ""
 
 
 def nothing_heard(args: argparse.Namespace, reached: int) -> str:
@@ -157,7 +205,7 @@ def nothing_heard(args: argparse.Namespace, reached: int) -> str:
         )
     return (
         f"{said}, though {reached} Zenoh peer{'s' if reached > 1 else ''} answered: is the key right? "
-        "'dp/**' shows everything a gateway publishes"
+        f"'dp/**' shows everything a gateway publishes{key_hint(args.key)}"
     )
 
 

@@ -22,6 +22,7 @@ from dpgw.sd_notify import Notifier
 if TYPE_CHECKING:
     from gateway.config import GatewayConfig
     from gateway.service import GatewayService
+    from gateway.sources import SourceError
 
 # With -v, one status line this often (wall seconds).
 STATUS_EVERY_S = 5.0
@@ -148,6 +149,7 @@ def run(args: argparse.Namespace) -> int:
         FoxgloveConfig,
         TimeConfig,
         describe,
+        enabled_lines,
         format_problems,
         load_config,
     )
@@ -183,10 +185,6 @@ def run(args: argparse.Namespace) -> int:
     if problem := mcap_path_problem("--log", args.log, made=True):
         start_up_error(f"dpgw run: {problem}")
         return 2
-    if not args.wait_for_ports and len(missing := missing_serial_ports(config)) > 1:
-        # each is a mistake to fix before the gateway can start: all of them at once, not one per try
-        start_up_error(missing_ports_message(config, missing))
-        return 2
     with open(args.config, "rb") as f:
         tables = tomllib.load(f)
     if args.clock is not None:  # the log's copy of the config says what ran
@@ -213,8 +211,7 @@ def run(args: argparse.Namespace) -> int:
         start_up_error(f"dpgw run: {where}: {exc.problem}")
         return 2
     except SourceError as exc:  # the file and key to edit, as for a mistake in the config itself
-        fix = f" — {exc.fix}" if exc.fix else ""
-        start_up_error(f"dpgw run: {config.path}: sources.{exc.name}.url: {exc.problem} ({exc.url}){fix}")
+        start_up_error(source_errors_message(config, exc))
         return 2
     except OSError as exc:
         start_up_error(f"dpgw run: {exc}")
@@ -225,6 +222,8 @@ def run(args: argparse.Namespace) -> int:
         return 0
     line = start_up_line(config, service, args.log)
     print(line, file=sys.stderr, flush=True)
+    for extra in enabled_lines(config, foxglove=False):  # (the Foxglove server says its address below)
+        print(f"dpgw run: {extra}", file=sys.stderr, flush=True)
     notifier = Notifier()  # systemd (Type=notify, WatchdogSec): ready now, the loop feeds the watchdog
     if notifier.enabled:
         t0 = time.monotonic()
@@ -249,6 +248,7 @@ def run(args: argparse.Namespace) -> int:
     finally:
         service.stop_event.set()  # also ends the status reporter
         status = service.final_status().payload
+        log_files = [str(p) for p in service.log.paths] if service.log is not None else []
         service.close()
         notifier.close()
     why = stop_reason(stop.signum, args.duration)
@@ -257,6 +257,7 @@ def run(args: argparse.Namespace) -> int:
         "published": service.published,
         "stopped_by": stop.name if stop.signum is not None else None,  # as `dpgw demo --json` has it
         "status": status,
+        "log_files": log_files,
     }
     if args.json:
         print(cli_json.dumps(summary, indent=2))
@@ -266,6 +267,8 @@ def run(args: argparse.Namespace) -> int:
         plain = to_jsonable(status)  # (the message as /dp/status carries it)
         print(f"dpgw run: stopped: {why}; {service.pipeline.estimates} estimates, {service.published} "
               "messages published")  # fmt: skip
+        if log_files:
+            print(f"dpgw run: log: {', '.join(log_files)}")
         for name, source in plain.get("sources", {}).items():
             if source.get("reconnects"):
                 print(f"dpgw run: source {name}: {reconnects_text(source, time.time_ns())}")
@@ -430,7 +433,7 @@ def start_up_notes(config: GatewayConfig) -> list[str]:
         if isinstance(source, UdpSource) and (note := source.listen_address_note()):
             notes.append(f"sources.{sc.name}.url: {note}")
         if isinstance(source, SerialSource) and not os.path.exists(source.device):
-            notes.append(  # (as `missing_serial_ports` finds them)
+            notes.append(
                 f"sources.{sc.name}.url: serial port {source.device} does not exist now: start-up stops on "
                 "it unless it is there by then, or waits for it with --wait-for-ports (the service unit) "
                 "(check the cable/udev name: ls /dev/serial/by-id/; a simulator's pty link is made when "
@@ -491,30 +494,30 @@ def start_up_problems(config: GatewayConfig) -> list[str]:
     return problems + output_problems(config)
 
 
-def missing_serial_ports(config: GatewayConfig) -> list[tuple[str, str, str]]:
-    """The serial ports of ``config``'s sources that do not exist now: (source name, URL, device)."""
-    import os
+def source_errors_message(config: GatewayConfig, exc: SourceError) -> str:
+    """The start-up stop for sources that cannot open, each with the key to edit: one line for one; for
+    several (`SeveralSourcesError`: the service tries every source first), a heading and a line each, so
+    that the engineer who plugs in one serial port and frees another's UDP port does not meet them one per
+    try."""
+    from gateway.sources import SeveralSourcesError
 
-    from gateway.sources import SerialSource, SourceError, open_source
+    def said(e: SourceError) -> str:
+        return f"sources.{e.name}.url: {e.problem} ({e.url})"
 
-    missing = []
-    for sc in config.sources:
-        try:
-            source = open_source(sc.name, sc.url, timeout_s=sc.timeout_s)  # opens nothing until start()
-        except SourceError:
-            continue  # (the service's start says what is wrong with it)
-        if isinstance(source, SerialSource) and not os.path.exists(source.device):
-            missing.append((sc.name, sc.url, source.device))
-    return missing
-
-
-def missing_ports_message(config: GatewayConfig, missing: list[tuple[str, str, str]]) -> str:
-    """One message for every serial port that is not there, each with the key to edit: the start-up stop
-    named only the first, and the engineer who plugged in or renamed it met the next on the next try."""
-    lines = [f"dpgw run: {config.path}: {len(missing)} serial ports do not exist:"]
-    lines += [f"  sources.{name}.url: {device} ({url})" for name, url, device in missing]
-    lines.append(
-        "check the cables/udev names (ls /dev/serial/by-id/; for the simulator: the pty it printed), or "
-        "start with --wait-for-ports to run without them until they appear"
-    )
+    if not isinstance(exc, SeveralSourcesError):
+        return f"dpgw run: {config.path}: {said(exc)}" + (f" — {exc.fix}" if exc.fix else "")
+    errors = exc.errors
+    missing = [e for e in errors if re.fullmatch(r"serial port \S+ does not exist", e.problem)]
+    if len(missing) == len(errors):
+        heading = f"{len(errors)} serial ports do not exist"
+    else:
+        heading = f"{len(errors)} sources cannot open"
+    lines = [f"dpgw run: {config.path}: {heading}:"]
+    for e in errors:
+        lines.append(f"  {said(e)}" + (f" — {e.fix}" if e.fix and e not in missing else ""))
+    if missing:
+        lines.append(
+            "serial ports: check the cables/udev names (ls /dev/serial/by-id/; for the simulator: the pty it "
+            "printed), or start with --wait-for-ports to run without them until they appear"
+        )
     return "\n".join(lines)

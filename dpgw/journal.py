@@ -64,15 +64,41 @@ class JournalFormatter(logging.Formatter):
         return with_priority(super().format(record), PRIORITY[level])
 
 
+SDK_LOGGER = "foxglove"
+"""The Foxglove SDK's logger: its Rust code logs through Python's `logging` under its module paths
+(``foxglove.websocket.server``: "Started server on …", "Registered client …", "Shutting down"; checked
+with foxglove-sdk 0.30)."""
+
+
+class SdkPrefix(logging.Filter):
+    """``foxglove: started server on …``: the SDK's lines named like dpgw's own (``zenoh: …``, ``source
+    gps: …``), so that a line in the journal says what said it. Prefixed once, whatever the handlers."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        named = record.name == SDK_LOGGER or record.name.startswith(SDK_LOGGER + ".")
+        if named and not getattr(record, "dpgw_prefixed", False):
+            text = record.getMessage()
+            if text[:1].isupper() and text[1:2].islower():  # ("Started server", not "TLS")
+                text = text[0].lower() + text[1:]
+            record.msg, record.args = f"{SDK_LOGGER}: {text}", ()
+            record.dpgw_prefixed = True
+        return True
+
+
 def configure_logging(level: int) -> None:
     """`logging.basicConfig` at ``level``, message alone; with each line's priority for the journal (in
-    place of `default_logging`'s handler)."""
+    place of `default_logging`'s handler). The Foxglove SDK's lines at WARNING and above, prefixed
+    (`SdkPrefix`); with ``level`` INFO (``-v``) its INFO too (a client registered, gone), never its DEBUG.
+    The level is set before the SDK's first line: it reads it once per logger (``FOXGLOVE_LOG_LEVEL``, if
+    set, is the SDK's own override)."""
     handler = logging.StreamHandler()
     handler.setFormatter(JournalFormatter("%(message)s") if stderr_is_journal() else logging.Formatter())
+    handler.addFilter(SdkPrefix())
     root = logging.getLogger()
     for h in [h for h in root.handlers if getattr(h, "dpgw_default", False)]:
         root.removeHandler(h)
     logging.basicConfig(level=level, handlers=[handler])
+    logging.getLogger(SDK_LOGGER).setLevel(max(level, logging.INFO))
 
 
 def default_logging(command: str) -> None:
@@ -86,4 +112,5 @@ def default_logging(command: str) -> None:
     handler = logging.StreamHandler()
     handler.setFormatter(logging.Formatter(f"dpgw {command}: %(message)s"))
     handler.dpgw_default = True  # type: ignore[attr-defined]  # (`configure_logging` replaces it)
+    handler.addFilter(SdkPrefix())
     root.addHandler(handler)

@@ -14,6 +14,7 @@ reach its listeners (loopback by default) get in, which multicast scouting alone
 
 from __future__ import annotations
 
+import ipaddress
 import json
 import re
 import threading
@@ -169,6 +170,41 @@ def _endpoints(config: zenoh.Config, key: str) -> list[str]:
     if isinstance(value, dict):  # per-mode endpoints ({"peer": [...], "router": [...]})
         return [str(e) for v in value.values() for e in (v if isinstance(v, list) else [v])]
     return [str(e) for e in value] if isinstance(value, list) else []
+
+
+def unlinked(connect: Sequence[str], session: zenoh.Session) -> list[str]:
+    """The ``connect`` endpoints ``session`` has no link to now, as written.
+
+    A link the session dialled has the endpoint's address as its ``dst`` (Zenoh gives it resolved: a host
+    name comes back as its IP address). An endpoint with an IP address is matched on protocol, address and
+    port; one with a host name on protocol and port only (resolving the name here would wait on DNS in the
+    status loop; two ``connect`` endpoints on one port of different named hosts are rare enough). Zenoh
+    dials a ``connect`` endpoint even when the peer there has dialled this session's listener too (the two
+    keep a link each), so a peer reached only the other way is not taken for a dead endpoint."""
+    linked = {_endpoint_key(str(link.dst)) for link in session.info.links()}
+    named = {(proto, port) for proto, _, port in linked}
+    down = []
+    for endpoint in connect:
+        proto, host, port = _endpoint_key(endpoint)
+        ok = (proto, host, port) in linked if _is_ip(host) else (proto, port) in named
+        if not ok:
+            down.append(endpoint)
+    return down
+
+
+def _endpoint_key(endpoint: str) -> tuple[str, str, str]:
+    """(protocol, host, port) of ``PROTO/HOST:PORT[?metadata][#config]``; an IPv6 host without brackets."""
+    proto, _, rest = endpoint.split("?", 1)[0].split("#", 1)[0].partition("/")
+    host, _, port = rest.rpartition(":")
+    return proto, host.strip("[]"), port
+
+
+def _is_ip(host: str) -> bool:
+    try:
+        ipaddress.ip_address(host)
+    except ValueError:
+        return False
+    return True
 
 
 REDIAL_S = 0.5

@@ -43,13 +43,22 @@ from typing import Any
 import msgspec
 import zenoh
 
-from gateway.bus import JSON, REDIAL_S, Dialler, UnreachableError, command_acl, make_config, open_session
+from gateway.bus import (
+    JSON,
+    REDIAL_S,
+    Dialler,
+    UnreachableError,
+    command_acl,
+    make_config,
+    open_session,
+    unlinked,
+)
 from gateway.config import GatewayConfig, ZenohConfig, config_notes, start_mode_line, wind_feedforward_line
 from gateway.config.logged import SIGNING_VERDICTS_KEY, for_log
 from gateway.outputs import InputSink, OutputSink, RawSentenceSink
 from gateway.pipeline import SIGNING_REJECTED_TOPIC, ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
 from gateway.sim_time import SimTime
-from gateway.sources import Chunk, SerialSource, Source, open_source
+from gateway.sources import Chunk, SerialSource, SeveralSourcesError, Source, SourceError, open_source
 from gateway.wall_time import WallTime
 from wire.codecs import mavlink as mv
 from wire.mcap.folder import make_log_folder
@@ -232,7 +241,12 @@ class GatewayService:
         wind = wind_feedforward_line(config)
         # The start-up facts go to the text log here, in the service's words; the pipeline's start-up
         # events (the same facts) reach it with the first logged status (`_emit`): not said twice there
-        self._said_at_start = set(self.pipeline.startup_events)
+        self._start_facts = frozenset(self.pipeline.startup_events)
+        """What the configuration alone makes the pipeline say at start (the start mode; the wind
+        feed-forward off for a vessel without an anemometer, or with its gain 0): information, not a
+        fault, also when a pipeline started over (a simulator restarted) says it again. The wind lost at
+        run time is said in other words, and stays a warning."""
+        self._said_at_start = set(self._start_facts)
         if wind:  # once, at start-up (also the first /status event when off)
             log.info("%s", wind)
         if config.control is not None and config.control.initial_mode == "dp":
@@ -299,7 +313,8 @@ class GatewayService:
     # --- start and stop -------------------------------------------------------------------------------------
 
     def start(self) -> None:
-        """Open everything; a source that cannot open raises `SourceError` and nothing is left running."""
+        """Open everything; a source that cannot open raises `SourceError` (several: `SeveralSourcesError`,
+        every source tried) and nothing is left running."""
         self._wall0_ns = time.time_ns()
         # numba's kernels compiled (or loaded from its cache) before any source opens, not in the loop
         t0 = time.perf_counter()
@@ -323,12 +338,18 @@ class GatewayService:
         if self.stop_event.is_set():  # stopped while compiling (seconds on a first run): open nothing
             return
         try:
+            failed: list[SourceError] = []  # every source tried: a person fixes them all before the next try
             for sc in self.config.sources:
-                src = open_source(sc.name, sc.url, timeout_s=sc.timeout_s)
-                if isinstance(src, SerialSource):
-                    src.wait_if_absent = self.wait_for_ports
-                self._sources.append(src)
-                src.start(self._enqueue)
+                try:
+                    src = open_source(sc.name, sc.url, timeout_s=sc.timeout_s)
+                    if isinstance(src, SerialSource):
+                        src.wait_if_absent = self.wait_for_ports
+                    self._sources.append(src)
+                    src.start(self._enqueue)
+                except SourceError as exc:
+                    failed.append(exc)
+            if failed:
+                raise failed[0] if len(failed) == 1 else SeveralSourcesError(failed)
             if self._session is None:
                 self._session = self._open_session()
             # A query that arrives before the loop's first status tick gets a real status, never ``{}``;
@@ -856,41 +877,47 @@ class GatewayService:
         return alarms
 
     def _zenoh_alarms(self) -> list[str]:
-        """With ``connect`` endpoints (a router, a console), or a client dialling its router: an alarm while
-        the session reaches none of them nor any other peer. Zenoh redials them by itself (a restarted router
-        is back within a second); a client's router that was not up when the gateway started is dialled by
-        a `Dialler`, whose last failure, if another than nobody answering, the alarm adds. Meanwhile the
-        status cannot reach Zenoh, but it goes to the log, Foxglove and ``dpgw run -v``."""
+        """With ``connect`` endpoints (a router, a simulator, a console), or a client dialling its router: an
+        alarm naming each endpoint the session has no link to (`gateway.bus.unlinked`). It says outputs go
+        nowhere only when the session has no peer nor router at all: a console on the gateway's own
+        ``listen`` endpoint still has them while a simulator's endpoint is down. Zenoh redials the endpoints
+        by itself (a restarted router is back within a second); a client's router that was not up when the
+        gateway started is dialled by a `Dialler`, whose last failure, if another than nobody answering, the
+        alarm adds. Meanwhile the status still goes to the log, Foxglove and ``dpgw run -v``."""
         connect = self.config.zenoh.connect or ["a router (multicast scouting)"]
         if self._dialler is not None:  # a client whose router has not answered yet
-            reached = False
+            down, anyone = connect, False
         elif not self.config.zenoh.connect or self._session is None:
             return []
         else:
             info = self._session.info
-            reached = any(True for _ in info.routers_zid()) or any(True for _ in info.peers_zid())
+            down = unlinked(connect, self._session)
+            anyone = any(True for _ in info.routers_zid()) or any(True for _ in info.peers_zid())
+        reached = not down
+        fate = "outputs go out" if anyone else "outputs are not reaching Zenoh"
         if reached != self._zenoh_reached:  # logged once each way
             if reached and self._zenoh_ever_reached:
                 log.warning("zenoh: connected again (%s); outputs go out", ", ".join(connect))
             elif reached:
                 log.warning("zenoh: connected to %s; outputs go out", ", ".join(connect))
             elif self._zenoh_ever_reached:
-                log.error(
-                    "zenoh: lost %s; outputs are not reaching Zenoh until it is back", ", ".join(connect)
-                )
+                until = " until it is back" if not anyone else " to the other peers"
+                log.error("zenoh: lost %s (connect); %s%s", ", ".join(down), fate, until)
             else:  # never reached: not up yet, or a wrong endpoint; nothing was lost
+                until = " until it answers" if not anyone else " to the other peers"
                 log.error(
-                    "zenoh: %s not reached yet (Zenoh redials it; is it up, and is the endpoint right?); "
-                    "outputs are not reaching Zenoh until it answers",
-                    ", ".join(connect),
-                )
+                    "zenoh: %s (connect) not reached yet (Zenoh redials it; is it up, and is the endpoint "
+                    "right?); %s%s",
+                    ", ".join(down), fate, until,
+                )  # fmt: skip
             self._zenoh_reached = reached
         if reached:
             self._zenoh_ever_reached = True
-        if reached:
             return []
         who = "Zenoh redials it" if self._dialler is None else f"dialled every {REDIAL_S:g} s"
-        alarm = f"zenoh: not connected to {', '.join(connect)} ({who}); outputs go nowhere meanwhile"
+        alarm = f"zenoh: not connected to {', '.join(down)} (connect; {who})"
+        if not anyone:
+            alarm += "; no Zenoh peer nor router reached: outputs go nowhere meanwhile"
         if self._dialler is not None and self._dialler.error is not None:
             alarm += f"; last dial: {self._dialler.error}"
         return [alarm]
@@ -1035,7 +1062,7 @@ class GatewayService:
                     if text in self._said_at_start:
                         self._said_at_start.discard(text)
                         continue
-                    log.warning("%s", text)
+                    (log.info if text in self._start_facts else log.warning)("%s", text)
         encoded = self._publish(outputs)
         for sink in self._started:
             try:

@@ -1257,3 +1257,93 @@ def test_sim_wind_spectrum_mistake_names_the_option_and_the_spectra(
         "norsok, harris, none (none: a steady wind)"
     )
     assert not (tmp_path / "s.csv").exists()
+
+
+def test_listen_hints_at_keelsons_at_chunk_and_summarises_binary_payloads() -> None:
+    """A peer publishes Keelson's binary payloads (protobuf: bytes that are not UTF-8) on keelson/@v0/…,
+    text and JSON beside them. ``keelson/**`` hears nothing (no wildcard matches an ``@`` chunk) and says
+    to name ``@v0``; ``keelson/@v0/**`` hears them, a binary payload printed as its length and first bytes
+    in hex, never raw, and with --json carried in base64 with an ``encoding`` that says so."""
+    import base64
+    import json
+    import threading
+
+    from dpgw.cli_listen import key_hint
+    from gateway.bus import isolated_config, open_session
+
+    blob = bytes([0x0A, 0x0C, 0x08, 0x96, 0x01, 0x1B, 0x07, 0xFF, 0x00, 0x9C]) * 3  # a protobuf-like body
+    port = free_port()
+    server = open_session(isolated_config(listen=[f"tcp/127.0.0.1:{port}"]))
+    stop = threading.Event()
+
+    def publish() -> None:
+        while not stop.is_set():
+            server.put("keelson/@v0/sv1/pubsub/heading_true_north_deg/dpgw", blob)
+            server.put("keelson/@v0/sv1/pubsub/note/dpgw", "plain text")
+            server.put("keelson/@v0/sv1/pubsub/json/dpgw", json.dumps({"a": 1}))
+            stop.wait(0.01)
+
+    thread = threading.Thread(target=publish, daemon=True)
+    thread.start()
+    base = [sys.executable, "-m", "dpgw", "listen", "--no-scouting", "--connect", f"tcp/127.0.0.1:{port}"]
+    try:
+        missed = subprocess.run(
+            [*base, "keelson/**", "--duration", "3"], capture_output=True, text=True, timeout=60
+        )
+        text = subprocess.run(
+            [*base, "keelson/@v0/**", "--count", "9"], capture_output=True, text=True, timeout=60
+        )
+        as_json = subprocess.run(
+            [*base, "keelson/@v0/**", "--count", "9", "--json"], capture_output=True, text=True, timeout=60
+        )
+    finally:
+        stop.set()
+        thread.join(5)
+        server.close()
+    assert missed.returncode == 1 and missed.stdout == "", missed.stderr
+    line = _one_line(missed.stderr)
+    assert line.startswith("dpgw listen: nothing on keelson/** in 3 s, though 1 Zenoh peer answered"), line
+    assert line.endswith(
+        "Keelson's keys have an @v0 chunk, which no wildcard matches in Zenoh: try 'keelson/@v0/**'"
+    )
+    assert text.returncode == 0, text.stderr
+    by_key = {ln.split(": ", 1)[0]: ln.split(": ", 1)[1] for ln in text.stdout.splitlines()}
+    assert by_key["keelson/@v0/sv1/pubsub/heading_true_north_deg/dpgw"] == (
+        f"<30 bytes, binary (not JSON nor text): {blob[:16].hex(' ')}…>"
+    )
+    assert by_key["keelson/@v0/sv1/pubsub/note/dpgw"] == "plain text"
+    assert by_key["keelson/@v0/sv1/pubsub/json/dpgw"] == '{"a": 1}'
+    assert "\x00" not in text.stdout and "\x1b" not in text.stdout  # nothing raw reached the terminal
+    assert as_json.returncode == 0, as_json.stderr
+    objects = {o["key"]: o for o in map(json.loads, as_json.stdout.splitlines())}
+    binary = objects["keelson/@v0/sv1/pubsub/heading_true_north_deg/dpgw"]
+    assert binary["encoding"] == "base64" and binary["bytes"] == 30
+    assert base64.b64decode(binary["payload"]) == blob
+    assert objects["keelson/@v0/sv1/pubsub/json/dpgw"] == {
+        "key": "keelson/@v0/sv1/pubsub/json/dpgw",
+        "payload": {"a": 1},
+    }
+    assert objects["keelson/@v0/sv1/pubsub/note/dpgw"]["encoding"] == "text"
+    # the other keys without an @ chunk
+    assert key_hint("**").startswith("; '**' matches no chunk that starts with '@'")
+    assert "try 'keelson/@v0/*/pubsub/**'" in key_hint("keelson/*/pubsub/**")
+    assert key_hint("keelson/@v0/**") == key_hint("dp/**") == ""
+
+
+def test_run_says_its_log_rotation_at_start_and_the_files_it_wrote_at_the_stop(tmp_path: Path) -> None:
+    """The start-up says the log's rotation (one line; Keelson, ROS 2, authentication would have theirs:
+    `describe`'s test), and the stop summary names the log files written, which exist; ``--json`` has them
+    as ``log_files``."""
+    import json
+
+    p = _run_with_log(tmp_path, "trials/bench.mcap")
+    assert p.returncode == 0, p.stderr
+    assert "dpgw run: log rotated at 1024 MB or 60 min, whichever first" in p.stderr.splitlines(), p.stderr
+    said = [ln for ln in p.stdout.splitlines() if ln.startswith("dpgw run: log: ")]
+    assert len(said) == 1, p.stdout
+    files = said[0].removeprefix("dpgw run: log: ").split(", ")
+    assert files and all(Path(f).parent == tmp_path / "trials" and Path(f).stat().st_size > 0 for f in files)
+    q = _run_with_log(tmp_path, "trials/bench.mcap", "--json")
+    assert q.returncode == 0, q.stderr
+    written = json.loads(q.stdout)["log_files"]
+    assert len(written) == 1 and written[0] not in files and Path(written[0]).stat().st_size > 0, written

@@ -1092,6 +1092,35 @@ def test_bad_config(changes: dict[str, Any], key: str, fragment: str, tmp_path: 
     assert any(fragment in p for p in matching), matching
 
 
+def test_a_port_used_twice_is_listed_with_the_entries_own_problems(tmp_path: Path) -> None:
+    """Two DGPS receivers on one UDP port, the second entry with a misspelt key and a wrong type: all three
+    problems in one pass (the port clash does not wait for the entry's own problems to be fixed), and the
+    clash's advice is a port each (two receivers are not one source with several roles)."""
+    d = base()
+    put(d, "sources.0.url", "udp://0.0.0.0:41101")
+    d["sources"].insert(
+        1,
+        {
+            "name": "dgps2",
+            "url": "udp://0.0.0.0:41101",
+            "protocol": "nmea",
+            "roles": ["position"],
+            "priority": 1,
+            "timout_s": 2,
+            "lever_arm_m": "1, 2, 3",
+        },
+    )
+    problems = problems_of(d, tmp_path)
+    mine = [p for p in problems if p.startswith("bad.toml: sources.dgps2.")]
+    assert len(mine) == 3, problems
+    assert any(p.startswith("bad.toml: sources.dgps2.timout_s: ") for p in mine), mine
+    assert any(p.startswith("bad.toml: sources.dgps2.lever_arm_m: ") for p in mine), mine
+    (clash,) = [p for p in mine if p.startswith("bad.toml: sources.dgps2.url: ")]
+    assert "same udp 41101 as sources.dgps1" in clash, clash
+    advice = "two sources cannot listen on the same port: give each its own port (or, if it is one device"
+    assert advice in clash, clash
+
+
 def test_every_problem_is_listed_with_file_and_key(tmp_path: Path) -> None:
     path = tmp_path / "ship.toml"
     path.write_text(
@@ -1505,3 +1534,34 @@ def test_a_position_source_may_not_take_the_name_of_a_frame(name: str, tmp_path:
     (problem,) = [p for p in problems_of(data, tmp_path) if f"sources[{position}].name" in p or ".name" in p]
     assert f'"{name}" is the name of one of the frames the gateway draws in' in problem, problem
     assert "ltp, vessel, vessel_measured" in problem
+
+
+def test_the_check_summary_has_a_line_for_each_output_and_access_that_is_on(tmp_path: Path) -> None:
+    """``dpgw run --check``'s summary (`describe`): one short line each for Foxglove, Keelson, ROS 2, Zenoh
+    authentication with its commanders and the log's rotation when on; none of them when off."""
+    from gateway.config import describe
+
+    (tmp_path / "users.txt").write_text("captain:secret\nwatch:other\n")
+    data = base()
+    put(data, "zenoh.users_file", "users.txt")
+    put(data, "zenoh.commanders", ["captain"])
+    put(data, "foxglove.enabled", True)
+    put(data, "keelson.enabled", True)
+    put(data, "keelson.entity_id", "my_ship")
+    put(data, "ros2.enabled", True)
+    put(data, "log.rotate_mb", 256)
+    put(data, "log.rotate_minutes", 0)
+    lines = describe(parse(data, tmp_path)).splitlines()
+    assert "  foxglove live server on 127.0.0.1:8765" in lines, lines
+    assert "  keelson under keelson/@v0/my_ship/pubsub/…" in lines, lines
+    assert "  ros2 (rmw_zenoh) domain 0, node /dpgw/dpgw" in lines, lines
+    users = tmp_path / "users.txt"
+    assert f"  zenoh authentication: users of {users}; commands only from captain" in lines, lines
+    assert "  log rotated at 256 MB" in lines, lines
+    assert not any("secret" in line for line in lines)
+    off = base()
+    put(off, "log.rotate_mb", 0)
+    put(off, "log.rotate_minutes", 0)
+    quiet = describe(parse(off, tmp_path))
+    for word in ("foxglove", "keelson", "ros2", "authentication", "rotated"):
+        assert word not in quiet, quiet

@@ -498,3 +498,58 @@ def test_foxglove_config_section_and_the_command_line_address() -> None:
     for bad in ("70000", "host", "a b:80", "127.0.0.1:99999"):
         with pytest.raises(UrlError):
             listen_address(bad)
+
+
+@pytest.mark.parametrize("verbose", [False, True], ids=["quiet", "-v"])
+def test_the_sdk_lines_are_prefixed_and_a_client_makes_no_line_per_channel(
+    tmp_path: Path, verbose: bool
+) -> None:
+    """``dpgw run`` with ``[foxglove]`` (a service: stderr is the journal) and a client subscribing to every
+    channel: no line per channel (a connect made ~26 in the journal); the SDK's own lines through dpgw's
+    logging, ``foxglove: …``, at info only with ``-v`` (a client registered, gone, the server stopping);
+    none of them bare."""
+    import socket
+    import threading
+
+    from conftest import one_source_config
+
+    udp = free_port(socket.SOCK_DGRAM)
+    cfg = one_source_config(tmp_path, f"udp://127.0.0.1:{udp}")
+    port = free_port()
+    cfg.write_text(cfg.read_text() + f"\n[foxglove]\nenabled = true\nport = {port}\n")
+    proc = dpgw("run", "--config", str(cfg), *(["-v"] if verbose else []))
+    fed = threading.Event()
+
+    def feed() -> None:  # position and heading, so that the estimate's channels come
+        from tests.test_run_start_up_mistakes import burst
+
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as tx:
+            while not fed.wait(0.05):
+                tx.sendto(burst(), ("127.0.0.1", udp))
+
+    feeder = threading.Thread(target=feed, daemon=True)
+    feeder.start()
+
+    async def session() -> Client:
+        ws = await connect(port, lambda: proc.poll() is None)
+        async with ws:
+            c = Client(ws)
+            await c.until(lambda: len(c.channels) >= 8 and not c.silent(), 60.0, "8 channels with data")
+            return c
+
+    try:
+        c = asyncio.run(session())
+    finally:
+        fed.set()
+        err = stop(proc)
+        feeder.join()
+    assert proc.returncode == 0, err
+    lines = err.splitlines()
+    per_channel = [ln for ln in lines if any(t in ln for t in c.advertised()) and "subscribed" in ln]
+    assert per_channel == [], per_channel
+    bare = [
+        ln for ln in lines if ln.split(" ", 1)[0] in ("Started", "Registered", "Shutting", "Unregistered")
+    ]
+    assert bare == [], bare
+    sdk = [ln for ln in lines if ln.startswith(("foxglove: started server", "foxglove: registered client"))]
+    assert len(sdk) == (2 if verbose else 0), lines

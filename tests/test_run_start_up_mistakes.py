@@ -272,9 +272,40 @@ def test_two_missing_serial_ports_are_named_in_one_message(tmp_path: Path) -> No
     assert p.returncode == 2, p.stderr
     assert "Traceback" not in p.stderr
     assert p.stderr.startswith(f"dpgw run: {cfg}: 2 serial ports do not exist:"), p.stderr
-    assert "  sources.gps.url: /dev/ttyUSB_nope1 (serial:///dev/ttyUSB_nope1?baud=4800)" in p.stderr
-    assert "  sources.gyro.url: /dev/ttyUSB_nope2 (serial:///dev/ttyUSB_nope2?baud=4800)" in p.stderr
+    said = "  sources.{0}.url: serial port /dev/ttyUSB_nope{1} does not exist (serial:///dev/ttyUSB_nope{1}?baud=4800)"
+    assert said.format("gps", 1) in p.stderr.splitlines(), p.stderr
+    assert said.format("gyro", 2) in p.stderr.splitlines(), p.stderr
     assert "--wait-for-ports" in p.stderr
+    assert not (tmp_path / "live.mcap").exists()  # stopped before anything was opened
+
+
+def test_a_missing_serial_port_and_a_port_in_use_are_named_in_one_message(tmp_path: Path) -> None:
+    """A serial port that is not there and another source's UDP port held by another program: both in one
+    message, each with its key and its fix (before, the second was met only after the first was fixed)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as other:
+        other.bind(("127.0.0.1", 0))
+        port = other.getsockname()[1]
+        cfg = write_config(tmp_path, f"udp://127.0.0.1:{port}", name="mux")
+        cfg.write_text(
+            cfg.read_text().replace(
+                "[zenoh]",
+                '[[sources]]\nname = "gyro"\nurl = "serial:///dev/ttyUSB_nope2?baud=4800"\n'
+                'protocol = "nmea"\nroles = ["heading"]\npriority = 2\n[zenoh]',
+            )
+        )
+        p = start(cfg)
+    assert p.returncode == 2, p.stderr
+    assert "Traceback" not in p.stderr
+    lines = p.stderr.splitlines()
+    assert lines[0] == f"dpgw run: {cfg}: 2 sources cannot open:", p.stderr
+    assert lines[1] == (
+        f"  sources.mux.url: cannot listen on 127.0.0.1:{port}: Address already in use "
+        f"(udp://127.0.0.1:{port}) — another program uses this UDP port: stop it or choose another port"
+    ), p.stderr
+    assert lines[2] == (
+        "  sources.gyro.url: serial port /dev/ttyUSB_nope2 does not exist (serial:///dev/ttyUSB_nope2?baud=4800)"
+    ), p.stderr
+    assert "--wait-for-ports" in lines[3], p.stderr
     assert not (tmp_path / "live.mcap").exists()  # stopped before anything was opened
 
 

@@ -282,8 +282,46 @@ def test_a_peer_started_before_the_endpoint_it_connects_to(
             proc.wait()
     said = [r.getMessage() for r in caplog.records if r.getMessage().startswith("zenoh:")]
     assert len(said) == 2, said
-    assert said[0].startswith(f"zenoh: {endpoint} not reached yet") and "lost" not in said[0], said
+    assert said[0].startswith(f"zenoh: {endpoint} (connect) not reached yet") and "lost" not in said[0], said
     assert said[1] == f"zenoh: connected to {endpoint}; outputs go out", said
+
+
+def test_a_down_connect_endpoint_is_named_and_a_console_on_the_listener_still_hears(tmp_path: Path) -> None:
+    """A peer gateway listening for consoles and dialling a simulator's endpoint that is down: the alarm
+    names that endpoint ("(connect)"); it says outputs go nowhere only while the session has nobody at all.
+    A console on the gateway's own listener receives the status, whose alarm then no longer claims that
+    outputs go nowhere; the simulator's endpoint coming up clears the alarm."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    udp = free_port(socket.SOCK_DGRAM)
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    send = bursts_to(tx, udp)
+    live = Live(tmp_path, f"udp://127.0.0.1:{udp}", connect=[endpoint])
+    live.service.start()
+    live.loop = threading.Thread(target=live.service.run, name="consumer")
+    live.loop.start()
+    sim: zenoh.Session | None = None
+    try:
+        assert wait_for(lambda: send() or zenoh_alarms(live), 30.0), "no alarm with the endpoint down"
+        alone = zenoh_alarms(live)[0]
+        assert alone.startswith(f"zenoh: not connected to {endpoint} (connect; ") and "go nowhere" in alone
+        live.client = open_session(isolated_config(connect=[f"tcp/127.0.0.1:{live.zport}"]))
+        live._sub = live.client.declare_subscriber("dp/f/estimate", live._on_estimate)
+        live.estimates_go_on(send)  # the console on the listener hears the gateway
+        heard = wait_for(lambda: send() or [a for a in live.alarms("zenoh:") if "go nowhere" not in a], 30.0)
+        assert heard == [f"zenoh: not connected to {endpoint} (connect; Zenoh redials it)"], heard
+        sim = open_session(make_config(listen=[endpoint], multicast_scouting=False))  # the simulator is up
+        assert wait_for(lambda: send() or not zenoh_alarms(live), 30.0), zenoh_alarms(live)
+    finally:
+        tx.close()
+        if hasattr(live, "client"):
+            live.__exit__()
+        else:
+            live.service.stop_event.set()
+            live.loop.join(timeout=30)
+            live.service.drain()
+            live.service.close()
+        if sim is not None:
+            sim.close()
 
 
 def test_the_zenoh_router_restarting(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
@@ -353,7 +391,8 @@ def test_a_client_gateway_starts_before_its_router(tmp_path: Path, caplog: pytes
         before = live.service.pipeline.estimates
         assert wait_for(lambda: send() or live.service.pipeline.estimates >= before + 10, 30.0)
         assert wait_for(lambda: send() or zenoh_alarms(live), 30.0), "no alarm without the router"
-        assert zenoh_alarms(live)[0].startswith(f"zenoh: not connected to {router} (dialled every 0.5 s)")
+        said = f"zenoh: not connected to {router} (connect; dialled every 0.5 s)"
+        assert zenoh_alarms(live)[0].startswith(said)
         assert local.of(Estimate) and not behind.outputs  # (a Zenoh sink starts with the session)
         proc = start_router(router, listened)
         assert wait_for(lambda: send() or not zenoh_alarms(live), 30.0), zenoh_alarms(live)

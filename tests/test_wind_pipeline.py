@@ -375,6 +375,32 @@ def test_the_gateways_text_log_says_the_wind_feedforward_off_once(caplog: pytest
     assert [r.getMessage() for r in caplog.records].count(line) == 1
 
 
+def test_a_vessel_without_an_anemometer_is_information_not_a_warning(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """No source of wind is a configuration, not a fault: its "wind feed-forward off" is said at info
+    (``journalctl -p warning`` of every start showed it), at start-up and when the pipeline starts over
+    (a simulator restarted under the gateway) and says it again; the wind lost while running stays a
+    warning (in other words: the source that went quiet)."""
+    from gateway.service import GatewayService
+
+    tables = gateway_tables(get_scenario("mss_supply_storm"))
+    tables["sources"] = [s for s in tables["sources"] if s["name"] != "wind1"]
+    line = 'wind feed-forward off: no source has role "wind" (an anemometer sending MWV)'
+    with caplog.at_level(logging.DEBUG, logger="dpgw"):
+        config = parse_config(tables, base_dir=Path.cwd())
+        service = GatewayService(config, config_tables=tables)
+        service._emit([service.pipeline.status(1)])
+        service.pipeline = service.pipeline.start_over(
+            PipelineSpec.from_config(config), "the simulator restarted"
+        )
+        status = service.pipeline.status(2)
+        assert line in status.message.events
+        service._emit([status])
+    levels = [r.levelno for r in caplog.records if r.getMessage() == line]
+    assert levels == [logging.INFO, logging.INFO], levels
+
+
 def test_the_gateways_text_log_says_the_start_mode_once(caplog: pytest.LogCaptureFixture) -> None:
     """With ``initial_mode = "dp"`` the start mode is said at start-up in the service's words, and the
     pipeline's start-up event of it (in the first logged status, for /status and the log) is not said

@@ -42,6 +42,7 @@ from gateway.config.problems import ConfigError, format_problems
 from gateway.config.summary import (
     config_notes,
     describe,
+    enabled_lines,
     start_mode_line,
     wind_feedforward_line,
     wind_feedforward_off,
@@ -73,6 +74,7 @@ __all__ = [
     "config_notes",
     "default_config",
     "describe",
+    "enabled_lines",
     "format_problems",
     "load_config",
     "parse_config",

@@ -73,24 +73,19 @@ def read_sources(
     out: list[SourceConfig] = []
     resources: dict[str, int] = {}
     for i, entry in enumerate(value):
-        src = _read_source(p, entry, labels[i], base_dir, vessel)
-        if src is None:
-            ok = False
-            continue
-        source, resource = src
+        # (the URL's resource comes with the entry's own problems: a person sees both in one pass)
+        source, resource = _read_source(p, entry, labels[i], base_dir, vessel)
         if resource is not None:
             if resource in resources:
                 j = resources[resource]
-                what, _, where = resource.partition(":")
-                p.add(
-                    f"{labels[i]}.url",
-                    f"same {what} {where} as {labels[j]} ({show(value[j].get('name'))}) (expected each "
-                    "device or listening port used by one source; give that source several roles instead)",
-                )
+                p.add(f"{labels[i]}.url", _same_resource(resource, labels[j], value[j].get("name")))
                 ok = False
             else:
                 resources[resource] = i
-        out.append(source)
+        if source is None:
+            ok = False
+        else:
+            out.append(source)
     # Checks across entries run on what was written, also when an entry has problems of its own.
     names: dict[str, int] = {}
     for i, entry in enumerate(value):
@@ -137,9 +132,26 @@ def read_sources(
     return tuple(out) if ok else None
 
 
+def _same_resource(resource: str, other: str, other_name: Any) -> str:
+    """The problem of a second source on ``resource`` (``serial:/dev/x``, ``udp:N``, ``tcp:N``), first used
+    by ``other``. Two devices (two DGPS receivers) need a port each; one device sending several sentence
+    types (a multiplexer's GGA and HDT) is one source with several roles."""
+    what, _, where = resource.partition(":")
+    if what == "serial":
+        clash, fix = "use the same serial device", "give each its own device"
+    else:
+        clash, fix = "listen on the same port", "give each its own port"
+    return (
+        f"same {what} {where} as {other} ({show(other_name)}): two sources cannot {clash}: {fix} (or, if "
+        "it is one device sending several sentence types, one source with several roles)"
+    )
+
+
 def _read_source(
     p: Problems, t: Mapping[str, Any], path: str, base_dir: Path, vessel: VesselModel | None
-) -> tuple[SourceConfig, str | None] | None:
+) -> tuple[SourceConfig | None, str | None]:
+    """The entry's `SourceConfig` (None when it has a problem, each added to ``p``) and the resource its URL
+    occupies (`check_source_url`), known whenever the URL itself is right."""
     n0 = len(p)
     protocol_written = t.get("protocol")
     protocol = protocol_written if protocol_written in ROLES else None
@@ -242,7 +254,7 @@ def _read_source(
         ardupilot = _read_ardupilot(p, v["ardupilot"], f"{path}.ardupilot", vessel)
     p.order_since(n0, path, list(SourceTable.model_fields))
     if len(p) != n0:
-        return None
+        return None, resource
     assert name is not None and protocol is not None and roles is not None and url is not None
     assert transport is not None
     source = SourceConfig(

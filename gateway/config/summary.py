@@ -11,7 +11,14 @@ from typing import Any
 from gateway.config.model import ControlConfig, GatewayConfig
 from observers.vessel import VesselModel
 
-__all__ = ["config_notes", "describe", "start_mode_line", "wind_feedforward_line", "wind_feedforward_off"]
+__all__ = [
+    "config_notes",
+    "describe",
+    "enabled_lines",
+    "start_mode_line",
+    "wind_feedforward_line",
+    "wind_feedforward_off",
+]
 
 
 def describe(config: GatewayConfig) -> str:
@@ -49,6 +56,7 @@ def describe(config: GatewayConfig) -> str:
     if line:
         lines.append(f"  {line}")
     lines.append(f"  log {config.log.path}" if config.log.enabled else "  log disabled")
+    lines += [f"  {line}" for line in enabled_lines(config)]
     if config.time.sim:
         lines.append(f"  clock: simulation time from {z.prefix}/sim/clock (not this computer's)")
     return "\n".join(lines)
@@ -96,6 +104,41 @@ def key_file_note(path: Path | None, keyed: list[str]) -> str | None:
         "whoever reads the key can sign thruster commands: sudo chmod 640 and sudo chgrp to the "
         "service's group (dpgw)"
     )
+
+
+def enabled_lines(config: GatewayConfig, *, foxglove: bool = True) -> list[str]:
+    """One short line for each of what is on beyond the core (``[foxglove]``, ``[keelson]``, ``[ros2]``,
+    Zenoh authentication and its commanders, the log's rotation), none for what is off. ``foxglove``
+    False: left to the server's own lines (`dpgw run` prints its address as bound)."""
+    lines = []
+    fx = config.foxglove
+    if foxglove and fx.enabled:
+        lines.append(f"foxglove live server on {fx.host}:{fx.port or '(any free port)'}")
+    k = config.keelson
+    if k.enabled:
+        lines.append(f"keelson under {k.base_path}/@v0/{k.entity_id}/pubsub/…")
+    r = config.ros2
+    if r.enabled:
+        lines.append(f"ros2 (rmw_zenoh) domain {r.domain_id}, node {r.namespace.rstrip('/')}/{r.node_name}")
+    z = config.zenoh
+    if z.users_file is not None:
+        who = (
+            f"commands only from {', '.join(z.commanders)}"
+            if z.commanders
+            else "commands from any authenticated peer (no commanders)"
+        )
+        lines.append(f"zenoh authentication: users of {z.users_file}; {who}")
+    if z.user:
+        lines.append(f"zenoh: this session authenticates as user {z.user}")
+    lg = config.log
+    if lg.enabled and (lg.rotate_mb > 0 or lg.rotate_minutes > 0):
+        limits = [f"{lg.rotate_mb:g} MB"] * (lg.rotate_mb > 0) + [f"{lg.rotate_minutes:g} min"] * (
+            lg.rotate_minutes > 0
+        )
+        lines.append(
+            f"log rotated at {' or '.join(limits)}" + (", whichever first" if len(limits) > 1 else "")
+        )
+    return lines
 
 
 def start_mode_line(config: GatewayConfig) -> str:

@@ -130,12 +130,14 @@ class _Listener(ServerListener):
         self._playback = playback
         self._subscriptions = subscriptions
 
+    # (per channel, a client's connect makes a line per channel each way: debug; the SDK says at info that a
+    # client registered and left, which ``dpgw run -v`` shows)
     def on_subscribe(self, client: Client, channel: ChannelView) -> None:
-        log.info("foxglove: client %d subscribed to %s", client.id, channel.topic)
+        log.debug("foxglove: client %d subscribed to %s", client.id, channel.topic)
         self._subscriptions.change(client.id, channel.topic, 1)
 
     def on_unsubscribe(self, client: Client, channel: ChannelView) -> None:
-        log.info("foxglove: client %d unsubscribed from %s", client.id, channel.topic)
+        log.debug("foxglove: client %d unsubscribed from %s", client.id, channel.topic)
         self._subscriptions.change(client.id, channel.topic, -1)
 
     def on_client_advertise(self, client: Client, channel: ClientChannel) -> None:

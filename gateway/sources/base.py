@@ -67,6 +67,20 @@ class SourceError(Exception):
         super().__init__(f"source {name!r}: {problem} ({url})" + (f" — {fix}" if fix else ""))
 
 
+class SeveralSourcesError(SourceError):
+    """Several sources that cannot open at start-up (a serial port missing, another's UDP port in use): all
+    of them, so that a person fixes every one before the next try. Its own fields are the first's."""
+
+    def __init__(self, errors: list[SourceError]) -> None:
+        first = errors[0]
+        super().__init__(first.name, first.url, first.problem, first.fix)
+        self.errors = list(errors)
+        self.args = ("; ".join(str(e) for e in errors),)
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
 @dataclass
 class SourceStats:
     """Counters of one source. Written by its reader thread (and `Source.write`); read by anyone.
