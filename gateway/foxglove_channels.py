@@ -126,7 +126,10 @@ class AlarmChanges:
 def state_change_level(text: str) -> int:
     """The Foxglove log level (`foxglove.Log`'s, which Keelson's `log_message` shares) of a reference state
     change's text (``"<role> reference <source>: <old> -> <new>[: why]"``): that of its new state, INFO
-    back to ok, WARNING stale or suspect, ERROR rejected; WARNING for a text of another form."""
+    back to ok, WARNING stale or suspect, ERROR rejected; INFO for a mode change (``"mode: <old> -> <new>
+    (<who>)"``); WARNING for a text of another form."""
+    if text.startswith("mode: "):  # a mode change (`Pipeline._control`, the gateway's own engagement)
+        return fx.LOG_INFO
     m = _NEW_STATE.search(text)
     return _STATE_LEVEL.get(m.group(1), fx.LOG_WARNING) if m else fx.LOG_WARNING
 

@@ -1277,6 +1277,8 @@ class Pipeline:
             unstepped_ns = ev.rx_ns - self._last_step_ns
             silent_s = unstepped_ns / NS if self._last_step_ns and unstepped_ns > self._silent_ns else None
             if gate.check_mode(ev.payload, self.observer.initialized, self.estimate_status, silent_s) is None:
+                if ev.payload != self.mode:  # (said first: the notices of `_mode_commanded` follow it)
+                    self._events.append(f"mode: {self.mode} -> {ev.payload} (operator)")
                 self._mode_commanded(ev.payload, ev.rx_ns)
                 if ev.payload != "manual" or self.mode != "manual":
                     # manual starts from no thrust until the operator's next τ (as the controller's
@@ -1404,7 +1406,10 @@ class Pipeline:
         if self.settled and self.estimate_status in HEALTHY_FOR_DP:
             self.waiting_for_observer = False
             self.mode = "dp"
-            self._events.append("observer settled: DP engaged (control.wait_for_observer)")
+            self._events.append(
+                "mode: standby -> dp (by the gateway, control.wait_for_observer): "
+                "observer settled: DP engaged"
+            )
 
     def _settling_alarms(self, now_ns: int) -> list[str]:
         """The notice while the estimate has not settled and it matters: DP waiting for it, or DP running
