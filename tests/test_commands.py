@@ -606,3 +606,24 @@ def test_the_gateways_own_engagement_is_a_mode_change_saying_who_and_why() -> No
         "mode: standby -> dp (by the gateway, control.wait_for_observer): observer settled: DP engaged"
     ]
     assert logged(out, "mode: standby -> dp (by the gateway")
+
+
+def test_entering_manual_from_dp_at_thrust_raises_no_saturation_alarm() -> None:
+    """In DP, pushing towards a setpoint 9 m off; then manual (τ = 0 until the operator's next): the
+    thrusters ramp down at their rates, the first commands fall short (`saturated`), and no status says
+    "thrust allocation saturated" for a demand of zero they are ramping to."""
+    p = pipeline({"accept": ALL}, initial_mode="dp")
+    run(p, 3.0)
+    p.feed(ControlEvent(T0 + 3 * S, "setpoint", {"north_m": 8.0, "east_m": 4.0, "heading_deg": 40.0}))
+    run(p, 20.0, start_s=3.0)
+    assert p.command is not None and np.max(np.abs(p.command.thrust)) > 5e4  # pushing hard
+    p.feed(ControlEvent(T0 + 23 * S, "mode", "manual"))
+    rng = np.random.default_rng(9)
+    short, alarms = 0, []
+    for k in range(30):
+        t = 23.0 + k / 10
+        out = p.feed(RawEvent(T0 + round(t * S), "gps", moving_fix(t, 0.0, rng)))
+        short += sum(o.payload["saturated"] for o in out if o.topic == "/dp/thrusters/command")
+        alarms += p.status(T0 + round(t * S)).payload["alarms"]
+    assert short >= 2  # it did fall short while ramping down
+    assert not [a for a in alarms if "saturated" in a], alarms
