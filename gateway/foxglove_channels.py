@@ -66,7 +66,13 @@ HULL = fx.color(0.9, 0.9, 0.9, 1.0)
 SETPOINT = fx.color(0.1, 0.9, 0.3, 1.0)
 WATCH = (fx.color(1.0, 0.85, 0.0, 0.9), fx.color(1.0, 0.2, 0.2, 0.9))
 
-_NUMBER = re.compile(r"\d+(?:\.\d+)?")
+# A number is a value (masked) unless it is part of a name: glued to letters or underscores ("dgps1",
+# "gps_2", "gyro1/gyro2", "ttyUSB0") or a thruster's id ("thruster 3", "thrusters 1, 2"). Scanned left to
+# right, a name is taken whole before the numbers of the rest; a number may have an exponent ("3.82e+04").
+_NAME_OR_NUMBER = re.compile(
+    r"(?P<name>\bthrusters? \d+(?:(?:, | and )\d+)*|[A-Za-z_][\w-]*)"
+    r"|(?P<number>\d+(?:\.\d+)?(?:[eE][+-]?\d+)?)"
+)
 _NEW_STATE = re.compile(r" -> (\w+)")
 _STATE_LEVEL = {
     "ok": fx.LOG_INFO,
@@ -88,10 +94,12 @@ class _Output(Protocol):
 
 
 def alarm_key(text: str) -> str:
-    """An alarm's identity: its text with the numbers masked, so "stale (3.1 s without data)" growing to
-    "(4.1 s ...)" is the same alarm still active, not one cleared and another raised. Every log of alarms
-    raised and cleared (this `/dp/log`, Keelson's `log_message`) tells alarms apart by it."""
-    return _NUMBER.sub("#", text)
+    """An alarm's identity: its text with the numbers that are values masked, so "stale (3.1 s without
+    data)" growing to "(4.1 s ...)" is the same alarm still active, not one cleared and another raised.
+    The digits of a name are not values: "source dgps1: stale (...)" and "source dgps2: stale (...)" are
+    two alarms, as are "thruster 1 out of DP" and "thruster 2 out of DP". Every log of alarms raised and
+    cleared (this `/dp/log`, Keelson's `log_message`) tells alarms apart by it."""
+    return _NAME_OR_NUMBER.sub(lambda m: m.group() if m.group("name") else "#", text)
 
 
 def alarm_text(alarm: str | dict[str, Any]) -> str:
@@ -118,7 +126,10 @@ class AlarmChanges:
 def state_change_level(text: str) -> int:
     """The Foxglove log level (`foxglove.Log`'s, which Keelson's `log_message` shares) of a reference state
     change's text (``"<role> reference <source>: <old> -> <new>[: why]"``): that of its new state, INFO
-    back to ok, WARNING stale or suspect, ERROR rejected; WARNING for a text of another form."""
+    back to ok, WARNING stale or suspect, ERROR rejected; INFO for a mode change (``"mode: <old> -> <new>
+    (<who>)"``); WARNING for a text of another form."""
+    if text.startswith("mode: "):  # a mode change (`Pipeline._control`, the gateway's own engagement)
+        return fx.LOG_INFO
     m = _NEW_STATE.search(text)
     return _STATE_LEVEL.get(m.group(1), fx.LOG_WARNING) if m else fx.LOG_WARNING
 

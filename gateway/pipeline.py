@@ -437,6 +437,9 @@ class Pipeline:
         self.estimates = 0
         self.commands = CommandGate(spec.commands.accept, spec.commands.max_setpoint_distance_m, spec.vessel)
         self.estimate_status: str | None = None  # of the last published estimate (the DP-mode check)
+        # (status, health) of the last published estimate of the primary observer, a dead-reckoned one of
+        # `tick` too: the estimate's alarm (`_estimate_alarms`)
+        self._published_health: tuple[str, list[str]] | None = None
         self._last_fix_ns: dict[str, int] = {}
         # per source, the last GGA height and GST covariance, carried on its LocationFix
         self._fix_alt_m: dict[str, float] = {}
@@ -691,13 +694,9 @@ class Pipeline:
             tau, _ = self.fusion.tau(now_ns)
             est = ghost.predict(self._t(now_ns), self._with_wind_load(tau))
             if est.status != STATUS_NAMES[0]:
-                out.append(
-                    Output(
-                        "/dp/estimate",
-                        self._estimate(self.spec.observer_name, ghost, est, now_ns, [False] * 3),
-                        now_ns,
-                    )
-                )
+                dead_reckoned = self._estimate(self.spec.observer_name, ghost, est, now_ns, [False] * 3)
+                self._published_health = (dead_reckoned.status, list(dead_reckoned.health))
+                out.append(Output("/dp/estimate", dead_reckoned, now_ns))
         out.extend(self._state_changes(now_ns))
         self._with_foxglove(out)
         return out
@@ -1278,6 +1277,8 @@ class Pipeline:
             unstepped_ns = ev.rx_ns - self._last_step_ns
             silent_s = unstepped_ns / NS if self._last_step_ns and unstepped_ns > self._silent_ns else None
             if gate.check_mode(ev.payload, self.observer.initialized, self.estimate_status, silent_s) is None:
+                if ev.payload != self.mode:  # (said first: the notices of `_mode_commanded` follow it)
+                    self._events.append(f"mode: {self.mode} -> {ev.payload} (operator)")
                 self._mode_commanded(ev.payload, ev.rx_ns)
                 if ev.payload != "manual" or self.mode != "manual":
                     # manual starts from no thrust until the operator's next τ (as the controller's
@@ -1369,21 +1370,31 @@ class Pipeline:
 
     def settle_left_s(self, now_ns: int) -> float:
         """Seconds until the observer's estimate is taken as settled (0 once it is; its whole settle time
-        before its first estimate)."""
+        before its first estimate). The settle time is time the observer is stepped on measurements: while
+        nothing steps it (every source silent) the count stands where the last step left it, and goes on
+        from there at the next (`_settle_clock`), as a dead-reckoning observer's bias estimate does not
+        converge."""
         if self.settled:
             return 0.0
         start = self._settle_from_ns
         if start is None:
             return self._settle_ns / NS
+        last = self._last_step_ns
+        if last and now_ns - last > self._silent_ns:
+            now_ns = last  # (silent: counted up to the last step)
         return max(0.0, (start + self._settle_ns - now_ns) / NS)
 
-    def _settle_clock(self, now_ns: int) -> None:
+    def _settle_clock(self, now_ns: int, before_ns: int = 0) -> None:
         """At an estimate of the (primary) observer: start its settle clock at its first estimate, and
-        mark it settled once `Observer.settle_time_s` has passed since."""
+        mark it settled once `Observer.settle_time_s` of stepping has passed since. ``before_ns``: the
+        step before this one; a silence since (longer than every source's timeout, `settle_left_s`) is
+        not counted: the clock's start moves on by it."""
         start = self._settle_from_ns
         if start is None:
             self._settle_from_ns = start = now_ns
             self._settle_ns = round(float(self.observer.settle_time_s) * NS)
+        elif before_ns and now_ns - before_ns > self._silent_ns:
+            self._settle_from_ns = start = start + (now_ns - before_ns)
         if not self.settled and now_ns - start >= self._settle_ns:
             self.settled = True
             self._unsettled_dp = ""
@@ -1395,7 +1406,10 @@ class Pipeline:
         if self.settled and self.estimate_status in HEALTHY_FOR_DP:
             self.waiting_for_observer = False
             self.mode = "dp"
-            self._events.append("observer settled: DP engaged (control.wait_for_observer)")
+            self._events.append(
+                "mode: standby -> dp (by the gateway, control.wait_for_observer): "
+                "observer settled: DP engaged"
+            )
 
     def _settling_alarms(self, now_ns: int) -> list[str]:
         """The notice while the estimate has not settled and it matters: DP waiting for it, or DP running
@@ -1414,6 +1428,42 @@ class Pipeline:
             "restart": "observer restarted in DP",
         }.get(self._unsettled_dp, "DP from the first estimate (control.wait_for_observer = false)")
         return [f"{why}: estimate settling, {left:.0f} s left"]
+
+    def _estimate_alarms(self, now_ns: int) -> list[str]:
+        """The alarm of an estimate that is not measured: its last published status (a dead-reckoned
+        estimate of `tick` too) `dead_reckoning` or `lost`, with which DOFs have had no usable reference for
+        how long (since it last went into the observer: the source's timeout after its last datum; `lost`
+        past ``integrity.lost_after_s``, as `_health` says it), and, in DP, what DP does
+        on it: the controller is not told (it steps on the dead-reckoned estimate as on any other, at every
+        step a measurement of another DOF makes), and with nothing measured at all no control step is made,
+        so the thrusters hold their last command. Cleared by the first estimate measured again."""
+        pub = self._published_health
+        if pub is None or pub[0] not in ("dead_reckoning", "lost"):
+            return []
+        status, health = pub
+        unmeasured = [k for k, word in enumerate(health) if word in ("dead_reckoning", "lost")]
+        ages = [now_ns - self._measured_ns[k] for k in unmeasured if self._measured_ns[k]]
+        age_s = max(ages) / NS if ages else 0.0
+        what = " and ".join(
+            name
+            for name, dofs in (("position", (0, 1)), ("heading", (2,)))
+            if any(k in unmeasured for k in dofs)
+        )
+        lost_s = self._lost_ns / NS
+        unused = f"no usable {what} reference" if what else "no usable reference"
+        if status == "lost" or age_s > lost_s:
+            text = f"estimate lost: dead reckoning for {age_s:.0f} s, {unused}"
+        else:
+            text = (
+                f"estimate dead reckoning for {age_s:.0f} s: {unused} "
+                f"(lost after integrity.lost_after_s = {lost_s:g} s)"
+            )
+        if self.mode == "dp" and self.controller is not None:
+            if self._last_step_ns and now_ns - self._last_step_ns > self._silent_ns:
+                text += "; in DP: nothing measured, no control step: the thrusters hold their last command"
+            else:
+                text += "; in DP: the controller holds the setpoint on the dead-reckoned estimate"
+        return [text]
 
     def _thruster_flags(self, thruster_id: int, flags: int) -> None:
         """A drive's status flags: a thruster whose drive says it will not deliver DP commands (`OUT_FLAGS`:
@@ -1496,9 +1546,10 @@ class Pipeline:
         if est.status != _INITIALIZING:
             self.estimates += 1
             if not self.settled:
-                self._settle_clock(now_ns)
+                self._settle_clock(now_ns, before)
             estimate = self._estimate(self.spec.observer_name, self.observer, est, now_ns, valid)
             self.estimate_status = estimate.status
+            self._published_health = (estimate.status, list(estimate.health))
             if self.waiting_for_observer:
                 self._engage_when_settled()
             # `_prediction`'s floats from the message's lists (the same numbers: ``est`` as lists)
@@ -2166,7 +2217,13 @@ class Pipeline:
             alarms = self._caller_alarms
         elif remember:
             self._caller_alarms = list(alarms)
-        alarms = list(alarms) + self._settling_alarms(now_ns) + self.control_alarms + self._command_alarms()
+        alarms = (
+            list(alarms)
+            + self._estimate_alarms(now_ns)
+            + self._settling_alarms(now_ns)
+            + self.control_alarms
+            + self._command_alarms()
+        )
         alarms += [f"thruster {tid} out of DP ({why})" for tid, why in sorted(self.thrusters_out.items())]
         references: dict[str, list[ReferenceStatus]] = {}
         for name, states in self.monitor.states().items():

@@ -553,3 +553,77 @@ def test_a_tau_outside_manual_is_refused_not_taken(mode: str) -> None:
     p.feed(ControlEvent(T0 + 2 * S, "mode", "manual"))
     out = run(p, 1.0, 2.1)
     assert surge_demands(out) and all(x == 0.0 for _, x in surge_demands(out))
+
+
+def test_every_accepted_mode_change_is_an_event_on_the_log_and_a_refused_one_is_not() -> None:
+    """dp -> manual -> standby by the operator: each change is a status event (`mode: dp -> manual
+    (operator)`) and an INFO line on /dp/log; a mode command that changes nothing, or one refused, says
+    no mode change."""
+    p = pipeline({"accept": ALL}, initial_mode="standby")
+    out = run(p, 2.0)
+    for k, mode in enumerate(("dp", "dp", "manual", "standby")):
+        t = 2.0 + 2 * k
+        p.feed(ControlEvent(T0 + round(t * S), "mode", mode))
+        out += run(p, 2.0, start_s=t)
+        out += p.status_outputs(T0 + round((t + 2.0) * S))
+    assert said(out, "mode: ") == [
+        "mode: standby -> dp (operator)",
+        "mode: dp -> manual (operator)",
+        "mode: manual -> standby (operator)",
+    ]
+    lines = [o.payload for o in out if o.topic == "/dp/log" and o.payload["message"].startswith("mode: ")]
+    assert [(x["level"], x["message"]) for x in lines] == [
+        (2, "mode: standby -> dp (operator)"),  # INFO
+        (2, "mode: dp -> manual (operator)"),
+        (2, "mode: manual -> standby (operator)"),
+    ]
+    # refused (no estimate yet): no mode change said
+    q = pipeline({"accept": ALL}, initial_mode="standby")
+    q.feed(ControlEvent(T0, "mode", "dp"))
+    assert q.mode == "standby"
+    assert not said(q.status_outputs(T0 + S), "mode: ")
+
+
+def test_the_gateways_own_engagement_is_a_mode_change_saying_who_and_why() -> None:
+    """``initial_mode = "dp"`` waiting for the observer: the gateway's engagement once it has settled is
+    said as a mode change, by the gateway and why, on /dp/log too."""
+    tables: dict[str, Any] = {
+        "vessel": {"name": "mss_supply"},
+        "datum": {"lat_deg": DATUM[0], "lon_deg": DATUM[1]},
+        "sources": [
+            {"name": "gps", "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position", "heading"]}
+        ],
+        "observer": {"wave_period_s": 8.0},
+        "control": {"initial_mode": "dp", "wait_for_observer": True},
+        "log": {"path": ""},
+    }
+    p = Pipeline(PipelineSpec.from_config(parse_config(tables, base_dir=Path.cwd())))
+    settle = p.settle_left_s(T0)
+    out = run(p, settle + 2.0)
+    out += p.status_outputs(p.last_ns)
+    assert p.mode == "dp"
+    assert said(out, "mode: ") == [
+        "mode: standby -> dp (by the gateway, control.wait_for_observer): observer settled: DP engaged"
+    ]
+    assert logged(out, "mode: standby -> dp (by the gateway")
+
+
+def test_entering_manual_from_dp_at_thrust_raises_no_saturation_alarm() -> None:
+    """In DP, pushing towards a setpoint 9 m off; then manual (τ = 0 until the operator's next): the
+    thrusters ramp down at their rates, the first commands fall short (`saturated`), and no status says
+    "thrust allocation saturated" for a demand of zero they are ramping to."""
+    p = pipeline({"accept": ALL}, initial_mode="dp")
+    run(p, 3.0)
+    p.feed(ControlEvent(T0 + 3 * S, "setpoint", {"north_m": 8.0, "east_m": 4.0, "heading_deg": 40.0}))
+    run(p, 20.0, start_s=3.0)
+    assert p.command is not None and np.max(np.abs(p.command.thrust)) > 5e4  # pushing hard
+    p.feed(ControlEvent(T0 + 23 * S, "mode", "manual"))
+    rng = np.random.default_rng(9)
+    short, alarms = 0, []
+    for k in range(30):
+        t = 23.0 + k / 10
+        out = p.feed(RawEvent(T0 + round(t * S), "gps", moving_fix(t, 0.0, rng)))
+        short += sum(o.payload["saturated"] for o in out if o.topic == "/dp/thrusters/command")
+        alarms += p.status(T0 + round(t * S)).payload["alarms"]
+    assert short >= 2  # it did fall short while ramping down
+    assert not [a for a in alarms if "saturated" in a], alarms

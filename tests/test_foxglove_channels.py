@@ -18,7 +18,7 @@ from typing import Any
 import pytest
 from jsonschema import Draft202012Validator
 
-from gateway.foxglove_channels import POSE_PERIOD_NS, FoxgloveChannels
+from gateway.foxglove_channels import POSE_PERIOD_NS, AlarmChanges, FoxgloveChannels, alarm_key
 from gateway.pipeline import RawEvent
 from gateway.replay import config_from_log
 from tests.test_pipeline import T0, S, gga_at, nmea_src, pipeline
@@ -276,13 +276,95 @@ def test_alarm_logged_once_when_raised_and_once_when_cleared() -> None:
     ]
     logs += [o.payload for o in p.status_outputs(T0 + 6 * S) if o.topic == "/dp/log"]
     logs += [o.payload for o in p.tick(T0 + 6 * S + 1) if o.topic == "/dp/log"]
-    alarms = [x for x in logs if x["name"] == "dpgw.alarm"]
+    # (the source's alarm: the estimate's own, dead reckoning while the source is silent, is another)
+    alarms = [x for x in logs if x["name"] == "dpgw.alarm" and "source gps" in x["message"]]
     assert [x["level"] for x in alarms] == [3, 2]  # WARNING raised, INFO cleared
     assert alarms[0]["message"].startswith("alarm: source gps: stale")
     assert alarms[1]["message"].startswith("alarm cleared: source gps: stale")
     events = [(x["level"], x["message"]) for x in logs if x["name"] == "dpgw.reference"]
     assert [lvl for lvl, _ in events] == [3, 3, 2, 2]  # stale: WARNING; back to ok: INFO
     assert events[0][1] == "position reference gps: ok -> stale: no data for 2.0 s"
+
+
+def test_alarms_of_sources_named_apart_by_digits_are_two_alarms() -> None:
+    """The digits of a name are no value to mask: two sources stale are two alarms raised, and one of them
+    cleared is that one cleared; a value changing is still the same alarm."""
+    log = AlarmChanges()
+    raised, cleared = log.update(
+        ["source dgps1: stale (3.1 s without data)", "source dgps2: stale (2.9 s without data)"]
+    )
+    assert raised == ["source dgps1: stale (3.1 s without data)", "source dgps2: stale (2.9 s without data)"]
+    assert cleared == []
+    # a second on: the same two alarms, nothing raised or cleared
+    assert log.update(
+        ["source dgps1: stale (4.1 s without data)", "source dgps2: stale (3.9 s without data)"]
+    ) == ([], [])
+    # dgps1 back: dgps1's alarm cleared (with its last text), dgps2's still up
+    assert log.update(["source dgps2: stale (4.9 s without data)"]) == (
+        [],
+        ["source dgps1: stale (4.1 s without data)"],
+    )
+
+
+def test_start_up_clears_only_the_no_data_alarms_that_were_raised() -> None:
+    log = AlarmChanges()
+    raised, _ = log.update(["source dgps1: no data yet", "source dgps2: no data yet"])
+    assert raised == ["source dgps1: no data yet", "source dgps2: no data yet"]
+    assert log.update(["source dgps1: no data yet"]) == ([], ["source dgps2: no data yet"])
+    assert log.update([]) == ([], ["source dgps1: no data yet"])
+
+
+@pytest.mark.parametrize(
+    ("a", "b"),
+    [
+        ("thruster 1 out of DP (drive fault)", "thruster 2 out of DP (drive fault)"),
+        ("heading reference gyro1: suspect (jump)", "heading reference gyro2: suspect (jump)"),
+        ("source gps_2: stale (3.0 s without data)", "source gps_3: stale (3.0 s without data)"),
+        ("device /dev/ttyUSB0: disconnected", "device /dev/ttyUSB1: disconnected"),
+        (
+            "consequence analysis: after losing thrusters 1, 2 the rest would need 90 % of their thrust",
+            "consequence analysis: after losing thrusters 1, 3 the rest would need 90 % of their thrust",
+        ),
+    ],
+)
+def test_names_with_digits_are_different_alarms(a: str, b: str) -> None:
+    assert alarm_key(a) != alarm_key(b)
+
+
+@pytest.mark.parametrize(
+    ("a", "b"),
+    [
+        ("source dgps1: stale (3.1 s without data)", "source dgps1: stale (4.1 s without data)"),
+        ("DP waits for the observer to settle: 88 s left", "DP waits for the observer to settle: 87 s left"),
+        (
+            "thrust allocation saturated: demand τ = [1.2e+05 N, 0 N, -3 N·m] not achievable, shortfall "
+            "[-3.82e+04 N, 0 N, 0 N·m]",
+            "thrust allocation saturated: demand τ = [1.3e+05 N, 0 N, -4 N·m] not achievable, shortfall "
+            "[-2.1e+04 N, 1 N, 0 N·m]",
+        ),
+        ("position 6.2 m off the DP reference", "position 16 m off the DP reference"),
+    ],
+)
+def test_values_changing_are_the_same_alarm(a: str, b: str) -> None:
+    assert alarm_key(a) == alarm_key(b)
+
+
+def test_two_stale_sources_both_alarmed_on_dp_log() -> None:
+    """On the pipeline: dgps1 and dgps2 both stale, /status lists both and /dp/log raises both; neither
+    is said cleared before it was raised."""
+    p = pipeline(
+        [
+            nmea_src("dgps1", ["position", "heading"], timeout_s=1.0),
+            nmea_src("dgps2", ["position"], timeout_s=1.0, priority=2),
+        ]
+    )
+    logs: list[str] = []
+    for name in ("dgps1", "dgps2"):
+        p.feed(RawEvent(T0, name, gga_at(0.0, 0.0) + HDT))
+    for k in range(2, 5):
+        logs += [o.payload["message"] for o in p.status_outputs(T0 + k * S) if o.topic == "/dp/log"]
+    alarms = [m for m in logs if m.startswith("alarm")]
+    assert sorted(m.split(": stale")[0] for m in alarms) == ["alarm: source dgps1", "alarm: source dgps2"]
 
 
 def test_setpoint_scene_follows_dp_and_is_deleted_outside_it() -> None:

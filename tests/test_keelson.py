@@ -184,7 +184,9 @@ def test_a_keelson_consumer_receives_and_decodes_every_subject_with_the_right_va
         until("a second fix of the receiver", lambda: len(listener.of("location_fix", sensor)) >= 2)
         until(
             "the mode change",
-            lambda: any(m.message == "mode: standby -> dp" for m in listener.of("log_message", "dpgw")),
+            lambda: any(
+                m.message == "mode: standby -> dp (operator)" for m in listener.of("log_message", "dpgw")
+            ),
         )
         ran = True
     finally:
@@ -298,7 +300,10 @@ def check_values(listener: Listener, recorder: Recorder, sent: list[str]) -> Non
 
     # log: the mode change
     logs = listener.of("log_message", "dpgw")
-    assert any(m.message == "mode: standby -> dp" and m.level == m.INFO and m.name == "dpgw" for m in logs)
+    said = [m for m in logs if m.message.startswith("mode: ")]
+    assert [(m.message, m.level == m.INFO, m.name) for m in said] == [
+        ("mode: standby -> dp (operator)", True, "dpgw")
+    ]
     statuses = recorder.of(Status)
     assert statuses
 
@@ -336,10 +341,12 @@ def test_feedback_alarms_and_state_changes_reach_keelson(
             [status(20, [stale, sat], ["dgps1: stale"], mode="standby")],
             [status(30, [stale, sat], [], mode="standby")],
             [status(40, [stale], ["dgps1: ok again"], mode="manual")],
+            # a mode change with its event (who made it): said once, the event's words
+            [status(50, [stale], ["mode: manual -> dp (operator)"], mode="dp")],
         ]
         for batch in batches:
             sink.emit(batch, [o.message.encode() for o in batch])
-        wait_for(lambda: len(listener.of("log_message", "dpgw/log")) >= 6)
+        wait_for(lambda: len(listener.of("log_message", "dpgw/log")) >= 7)
         wait_for(lambda: listener.of("moment_newton_meter", "dpgw/thrusters/feedback"))
         force = listener.of("force_newton", "dpgw/thrusters/feedback")[0]
         moment = listener.of("moment_newton_meter", "dpgw/thrusters/feedback")[0]
@@ -357,6 +364,7 @@ def test_feedback_alarms_and_state_changes_reach_keelson(
             (40, Log.WARNING, "dgps1: ok again"),
             (40, Log.INFO, "alarm cleared: sat: thrust saturated"),
             (40, Log.INFO, "mode: standby -> manual"),
+            (50, Log.INFO, "mode: manual -> dp (operator)"),
         ]
     finally:
         sink.close()

@@ -494,7 +494,13 @@ class Status(Message, kw_only=True):
     mode: Annotated[Mode, doc("Current gateway mode.")]
     observer: Annotated[str, doc("Name of the observer publishing on `<prefix>/estimate`.")]
     initialized: Annotated[bool, doc("The observer has been initialised (has a first measurement).")]
-    estimates: Annotated[int, doc("Estimates published so far (count).")]
+    estimates: Annotated[
+        int,
+        doc(
+            "The observer's estimates published so far, made on measurements (count); the dead-reckoned "
+            "estimates published while every source is silent are not counted."
+        ),
+    ]
     sources: Annotated[dict[str, SourceStatus], doc("Per input source, keyed by source name.")]
     alarms: Annotated[
         list[str | dict[str, Any]],

@@ -527,6 +527,17 @@ class QPAllocator:
         if not np.all(self.thrust_rate > 0):
             raise ValueError("thrust_rate must be positive")
         self._dT = self.thrust_rate * self.dt  # N per step
+        # The longest a shortfall from the rate limits alone can last: a thruster's thrust across its whole
+        # range, an azimuth's half turn (`_shortfall_alarms`).
+        turns = L.is_az & (L.rate > 0)  # (an azimuth that cannot turn has no turn to wait for)
+        half_turn = np.zeros(L.n)
+        half_turn[turns] = math.pi / L.rate[turns]
+        ramp = np.concatenate([(L.tmax_rated - L.tmin_rated) / self.thrust_rate, half_turn])
+        ramp = ramp[np.isfinite(ramp)]
+        self.ramp_s = float(ramp.max()) if ramp.size else 0.0
+        """The longest ramp of the layout (s): a shortfall that the rate limits explain is no alarm for as
+        long, then it is one."""
+        self._ramping_s = 0.0  # how long the present rate-limited shortfall has lasted (s)
         self._turn = np.where(L.is_az, L.rate * self.dt, 0.0)  # rad per step
         # the arc of directions reachable in one step when no forbidden sector is near
         self._blocked0 = np.zeros(L.n, dtype=bool)
@@ -856,7 +867,7 @@ class QPAllocator:
         tau_alloc = L.tau_of(thrust, angle)
         slack = tau - tau_alloc
         saturated = tau_qp is not tau or bool(np.max(np.abs(sol.slack) / L.tau_ref) > _SAT_TOL)
-        alarms = (_saturation_alarm(tau, slack),) if saturated else ()
+        alarms = self._shortfall_alarms(tau, saturated and tau_qp is tau, saturated, slack)
         return AllocationResult(
             thrust, angle, tau_alloc, tau, slack, saturated, alarms, time.perf_counter() - t0, "optimal"
         )
@@ -878,10 +889,45 @@ class QPAllocator:
         thrust, angle, tau_alloc = thrust_o.copy(), angle_o.copy(), tau_o.copy()
         slack = tau - tau_alloc
         saturated = tau_qp is not tau or bool(info[3] > _SAT_TOL)
-        alarms = (_saturation_alarm(tau, slack),) if saturated else ()
+        alarms = self._shortfall_alarms(tau, saturated and tau_qp is tau, saturated, slack)
         return AllocationResult(
             thrust, angle, tau_alloc, tau, slack, saturated, alarms, time.perf_counter() - t0, "optimal"
         )
+
+    def _shortfall_alarms(
+        self, tau: Array, maybe_ramping: bool, saturated: bool, slack: Array
+    ) -> tuple[str, ...]:
+        """The alarm of a step that did not meet the demand: none while the thrusters are only ramping to
+        it. A demand the thrusters in service can give at rest (`reachable`: a zero demand always) that one
+        step does not meet is their rate limits at work: the thrust moving at its thrust rate, an azimuth
+        turning, as on entering manual (τ to zero) or after a setpoint step. That is no alarm for as long
+        as a ramp of the layout can take (`ramp_s`); a shortfall that lasts longer, or a demand beyond what
+        the thrusters can give, is saturation, alarmed at once. ``saturated`` stays as it is either way
+        (the controller's anti-windup must know the demand was not met)."""
+        if not saturated:
+            self._ramping_s = 0.0
+            return ()
+        if maybe_ramping and self.reachable(tau):
+            self._ramping_s += self.dt
+            if self._ramping_s <= self.ramp_s + self.dt:
+                return ()
+        else:
+            self._ramping_s = 0.0
+        return (_saturation_alarm(tau, slack),)
+
+    def reachable(self, tau: ArrayLike) -> bool:
+        """Whether the thrusters in service can give ``tau`` at rest, rate limits aside: its weighted
+        pseudo-inverse allocation within every thruster's thrust limits (a sufficient test, not a
+        necessary one: a demand it finds out of reach may still be reachable by another share, and is then
+        alarmed as saturation; forbidden sectors are not looked at, the ramp's time bound catches them)."""
+        L = self.layout
+        f = self._pinv @ np.asarray(tau, dtype=float).reshape(3)
+        thrust = np.empty(L.n)
+        for i in range(L.n):
+            k = L.first[i]
+            thrust[i] = math.hypot(f[k], f[k + 1]) if L.is_az[i] else f[k]
+        margin = 1e-6 * L.cap
+        return bool(np.all(thrust <= L.tmax + margin) and np.all(thrust >= L.tmin - margin))
 
     def _commands(self, tau: Array, forces: Array, lim: StepLimits) -> tuple[Array, Array]:
         """QP forces → (thrust, azimuth). The angle is kept inside the step's allowed arc (solver

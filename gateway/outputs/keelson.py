@@ -312,7 +312,9 @@ class KeelsonSink:
         lines += [(Log.ERROR, f"alarm: {t}") for t in raised]
         lines += [(Log.INFO, f"alarm cleared: {t}") for t in cleared]
         if s.mode != self._mode:
-            if self._mode is not None:
+            # each mode change is an event of the status (with who made it); a change without one (a
+            # pipeline started over under a restarted simulator, back to its initial mode) is said here
+            if self._mode is not None and not any(e.startswith("mode: ") for e in s.events):
                 lines.append((Log.INFO, f"mode: {self._mode} -> {s.mode}"))
             self._mode = s.mode
         for level, text in lines:
