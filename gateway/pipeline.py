@@ -74,6 +74,7 @@ from wire.messages import (
     Measurement,
     Message,
     ReferenceStatus,
+    SetpointStatus,
     SigningRejection,
     SourceStatus,
     Status,
@@ -425,6 +426,7 @@ class Pipeline:
         self.last_ns = 0
         self.mode = "standby"
         self.setpoint: dict[str, Any] | None = None
+        self._dp_target: tuple[float, float, float] | None = None  # (N, E, ψ) of the last dp step
         self.manual_tau = np.zeros(3)
         # The dead-man on the manual τ (`_manual_tau_hold`): the hold time, the receive time of the τ in
         # force (None: none taken in this manual spell, τ = 0 since entering it), and whether it expired.
@@ -1905,8 +1907,10 @@ class Pipeline:
             if ctl.last_return is not None:
                 self._events.append(ctl.last_return)
         scene: list[Output] = []
+        target = o.reference.target if self.mode == "dp" else None
+        # the target in force, for the status (`CommandStatus.setpoint`: what a console reads back)
+        self._dp_target = None if target is None else (float(target[0]), float(target[1]), float(target[2]))
         if self._foxglove_on:  # (the setpoint scene is made only for the Foxglove channels)
-            target = o.reference.target if self.mode == "dp" else None
             scene = [
                 Output(topic, message, ns, zenoh=False)
                 for topic, message, ns in self.foxglove.setpoint(
@@ -2201,6 +2205,20 @@ class Pipeline:
         taken by this one, are in it and not on `/dp/log`). What is logged comes from `status_outputs`."""
         return Output("/dp/status", self.status_message(now_ns, alarms), now_ns)
 
+    def _setpoint_status(self) -> SetpointStatus | None:
+        """The DP target of the last control step (`_dp_target`) as the status says it, with its latitude
+        and longitude once the datum is set; None before DP's first step."""
+        if self._dp_target is None:
+            return None
+        north, east, psi = self._dp_target
+        lat = lon = None
+        datum = self.fusion.datum
+        if datum is not None:
+            lat, lon = datum.to_lat_lon(north, east)
+        return SetpointStatus(
+            north_m=north, east_m=east, heading_deg=math.degrees(psi) % 360.0, lat_deg=lat, lon_deg=lon
+        )
+
     def status_message(
         self, now_ns: int, alarms: list[str] | None = None, *, remember: bool = True
     ) -> Status:
@@ -2267,6 +2285,8 @@ class Pipeline:
                 last_refused=self.commands.counters.last_refused,
                 superseded=dict(self.commands.counters.superseded),
                 expired=dict(self.commands.counters.expired),
+                setpoint=self._setpoint_status() if self.mode == "dp" else None,
+                setpoint_waiting=None if self._pending_setpoint is None else dict(self._pending_setpoint),
             ),
             consequence=self._consequence_status(),
         )

@@ -388,12 +388,25 @@ def test_a_setpoint_waits_while_the_position_estimate_is_lost() -> None:
     assert p.controller is not None
     assert abs(float(p.controller.reference.target[0])) < 1.0, "pursued from a lost position estimate"
     assert commands_status(p)["accepted"] == {}
+    # a console reads back the setpoint waiting, as sent, and the one in force: the position held
+    c = commands_status(p)
+    assert c["setpoint_waiting"] == {"north_m": 30.0, "east_m": 0.0, "heading_deg": 30.0}
+    assert abs(c["setpoint"]["north_m"]) < 1.0 and abs(c["setpoint"]["east_m"]) < 1.0
     while t < 100.0:  # the fixes are back
         p.feed(RawEvent(T0 + round(t * S), "gps", moving_fix(t, 0.0, rng)))
         t += 0.1
     assert p.estimate_status == "ok"
     assert commands_status(p)["accepted"] == {"setpoint": 1}
     assert float(p.controller.reference.target[0]) == 30.0
+    c = commands_status(p)
+    assert "setpoint_waiting" not in c  # (none waits: left out, as null)
+    sp = c["setpoint"]
+    assert (sp["north_m"], sp["east_m"], sp["heading_deg"]) == pytest.approx((30.0, 0.0, 30.0))
+    lat, lon, _ = LocalFrame(*DATUM).to_geodetic(30.0, 0.0, 0.0)
+    assert (sp["lat_deg"], sp["lon_deg"]) == pytest.approx((lat, lon), abs=1e-9)
+    p.feed(ControlEvent(T0 + round(t * S), "mode", "standby"))
+    run(p, 0.5, start_s=t)
+    assert "setpoint" not in commands_status(p)  # (outside DP there is no station being kept)
 
 
 # --- the manual τ's dead-man ([commands] manual_tau_hold_s) ----------------------------------------------

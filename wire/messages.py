@@ -428,6 +428,14 @@ class ReferenceStatus(Record, kw_only=True):
     ] = None
 
 
+class SetpointStatus(Record, kw_only=True):
+    north_m: Annotated[float, doc("North of the local frame's origin (the datum).", "m")]
+    east_m: Annotated[float, doc("East of the local frame's origin (the datum).", "m")]
+    heading_deg: Annotated[float, doc("Heading, clockwise from north.", "deg")]
+    lat_deg: Annotated[float | None, doc("Latitude (WGS-84); null before the datum is set.", "deg")] = None
+    lon_deg: Annotated[float | None, doc("Longitude (WGS-84); null before the datum is set.", "deg")] = None
+
+
 class CommandStatus(Record, kw_only=True):
     accepted: Annotated[dict[str, int], doc('Command inputs taken, by key (count), e.g. {"mode": 2}.')]
     refused: Annotated[
@@ -451,6 +459,21 @@ class CommandStatus(Record, kw_only=True):
             "empty."
         ),
     ] = msgspec.field(default_factory=dict)
+    setpoint: Annotated[
+        SetpointStatus | None,
+        doc(
+            "The DP setpoint in force: the controller's target (the operator's setpoint once applied, or the "
+            "position and heading held when DP was engaged without one), as of the last control step; null "
+            "outside DP. What a console reads back to show the station being kept."
+        ),
+    ] = None
+    setpoint_waiting: Annotated[
+        dict[str, Any] | None,
+        doc(
+            "A setpoint taken but not applied yet, as it was sent (it waits for the next control step, for "
+            "an estimate healthy enough for DP); null when none waits."
+        ),
+    ] = None
 
 
 class FailureCaseStatus(Record, kw_only=True):
