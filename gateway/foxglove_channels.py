@@ -30,6 +30,7 @@ import re
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, Protocol
 
+from gateway.figures import without_figures
 from observers.vessel import Thruster, VesselModel
 from wire import foxglove as fx
 from wire.messages import (
@@ -66,13 +67,6 @@ HULL = fx.color(0.9, 0.9, 0.9, 1.0)
 SETPOINT = fx.color(0.1, 0.9, 0.3, 1.0)
 WATCH = (fx.color(1.0, 0.85, 0.0, 0.9), fx.color(1.0, 0.2, 0.2, 0.9))
 
-# A number is a value (masked) unless it is part of a name: glued to letters or underscores ("dgps1",
-# "gps_2", "gyro1/gyro2", "ttyUSB0") or a thruster's id ("thruster 3", "thrusters 1, 2"). Scanned left to
-# right, a name is taken whole before the numbers of the rest; a number may have an exponent ("3.82e+04").
-_NAME_OR_NUMBER = re.compile(
-    r"(?P<name>\bthrusters? \d+(?:(?:, | and )\d+)*|[A-Za-z_][\w-]*)"
-    r"|(?P<number>\d+(?:\.\d+)?(?:[eE][+-]?\d+)?)"
-)
 _NEW_STATE = re.compile(r" -> (\w+)")
 _STATE_LEVEL = {
     "ok": fx.LOG_INFO,
@@ -99,7 +93,7 @@ def alarm_key(text: str) -> str:
     The digits of a name are not values: "source dgps1: stale (...)" and "source dgps2: stale (...)" are
     two alarms, as are "thruster 1 out of DP" and "thruster 2 out of DP". Every log of alarms raised and
     cleared (this `/dp/log`, Keelson's `log_message`) tells alarms apart by it."""
-    return _NAME_OR_NUMBER.sub(lambda m: m.group() if m.group("name") else "#", text)
+    return without_figures(text)
 
 
 def alarm_text(alarm: str | dict[str, Any]) -> str:

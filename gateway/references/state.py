@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 
 from mypy_extensions import mypyc_attr
+
+from gateway.figures import without_figures
 
 NS = 1_000_000_000
 OK, SUSPECT, REJECTED, STALE = "ok", "suspect", "rejected", "stale"
@@ -39,14 +40,12 @@ def reference_name(role: str, source: str) -> str:
     return f"{role} reference {source}"
 
 
-_FIGURE = re.compile(r"(?<![\w.])[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?(?![\w.])")
-
-
 def reason_kind(reason: str) -> str:
     """What a reason says, without its figures: its part before the first colon (the test's name, or
-    ``diverges from dgps2 by 1.71 m (limit 1 m)``) with every stand-alone number as ``#``. Names that
-    end in digits (``dgps2``) are kept: a divergence from another source is another kind."""
-    return _FIGURE.sub("#", reason.split(":")[0])
+    ``diverges from dgps2 by 1.71 m (limit 1 m)``) with its values as ``#`` by the alarm log's rule
+    (`gateway.figures.without_figures`). Names that end in digits (``dgps2``) are kept: a divergence
+    from another source is another kind."""
+    return without_figures(reason.split(":")[0])
 
 
 class SourceState:
