@@ -28,7 +28,9 @@ DATUM = (59.4, 10.5)
 ALL = ["mode", "setpoint", "tau"]
 
 
-def pipeline(commands: dict[str, Any] | None = None, initial_mode: str = "standby") -> Pipeline:
+def pipeline(
+    commands: dict[str, Any] | None = None, initial_mode: str = "standby", wait_for_observer: bool = False
+) -> Pipeline:
     tables: dict[str, Any] = {
         "vessel": {"name": "mss_supply"},
         "datum": {"lat_deg": DATUM[0], "lon_deg": DATUM[1]},
@@ -38,7 +40,7 @@ def pipeline(commands: dict[str, Any] | None = None, initial_mode: str = "standb
         "observer": {"wave_period_s": 8.0},
         # DP from the first estimate: these tests are about the commands, not the start-up's wait for the
         # observer (tests/test_settling.py)
-        "control": {"initial_mode": initial_mode, "wait_for_observer": False},
+        "control": {"initial_mode": initial_mode, "wait_for_observer": wait_for_observer},
         "log": {"path": ""},
     }
     if commands is not None:
@@ -600,17 +602,7 @@ def test_every_accepted_mode_change_is_an_event_on_the_log_and_a_refused_one_is_
 def test_the_gateways_own_engagement_is_a_mode_change_saying_who_and_why() -> None:
     """``initial_mode = "dp"`` waiting for the observer: the gateway's engagement once it has settled is
     said as a mode change, by the gateway and why, on /dp/log too."""
-    tables: dict[str, Any] = {
-        "vessel": {"name": "mss_supply"},
-        "datum": {"lat_deg": DATUM[0], "lon_deg": DATUM[1]},
-        "sources": [
-            {"name": "gps", "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position", "heading"]}
-        ],
-        "observer": {"wave_period_s": 8.0},
-        "control": {"initial_mode": "dp", "wait_for_observer": True},
-        "log": {"path": ""},
-    }
-    p = Pipeline(PipelineSpec.from_config(parse_config(tables, base_dir=Path.cwd())))
+    p = pipeline(initial_mode="dp", wait_for_observer=True)
     settle = p.settle_left_s(T0)
     out = run(p, settle + 2.0)
     out += p.status_outputs(p.last_ns)
