@@ -393,8 +393,13 @@ class GatewayService:
         for topic in ("estimate", "measurement", "status", "thrusters/feedback", "thrusters/command"):
             key = f"{self.prefix}/{topic}"
             self._publishers[key] = s.declare_publisher(key, encoding=JSON)
+        # The inputs' callbacks run on Zenoh's receiving thread, in the order the samples arrived
+        # (``indirect=False``): with a plain callable, Zenoh gives each subscriber a Python thread of its
+        # own, and a console's τ put right after its ``manual`` could overtake the mode and be refused.
+        # The callbacks only decode and queue, so they hold that thread for microseconds.
         for key in INPUT_KEYS:
-            self._declared.append(s.declare_subscriber(f"{self.prefix}/{key}", self._on_input(key)))
+            handler = zenoh.handlers.Callback(self._on_input(key), indirect=False)
+            self._declared.append(s.declare_subscriber(f"{self.prefix}/{key}", handler))
         if self.sim_time is not None:
             key = f"{self.prefix}/{SIM_CLOCK_KEY}"
             self._declared.append(s.declare_subscriber(key, self._on_clock))

@@ -632,3 +632,24 @@ def test_entering_manual_from_dp_at_thrust_raises_no_saturation_alarm() -> None:
         alarms += p.status(T0 + round(t * S)).payload["alarms"]
     assert short >= 2  # it did fall short while ramping down
     assert not [a for a in alarms if "saturated" in a], alarms
+
+
+def test_one_consoles_inputs_on_different_keys_are_taken_in_the_order_sent(tmp_path: Path) -> None:
+    """A console engages manual and streams its joystick's τ at once: the τ must not overtake the mode.
+    Each input key has its own subscriber, and Zenoh ran each subscriber's Python callback on a thread of
+    its own, so a τ put right after ``manual`` could be taken first and refused (``not in manual``)."""
+    import json
+
+    from conftest import wait_for
+
+    rounds = 40
+    with live_gateway(tmp_path) as (service, session):
+        for k in range(rounds):
+            session.put("dp/cmd/mode", json.dumps("manual"))
+            session.put("dp/cmd/tau", json.dumps({"X": float(k + 1), "Y": 0.0, "N": 0.0}))
+            session.put("dp/cmd/mode", json.dumps("standby"))
+        counters = service.pipeline.commands.counters
+        assert wait_for(lambda: counters.accepted["mode"] + sum(counters.refused.values()) >= 2 * rounds, 30.0)
+        assert wait_for(lambda: counters.accepted["tau"] + sum(counters.refused.values()) >= rounds, 30.0)
+        assert dict(counters.refused) == {}, counters.refused
+        assert counters.accepted["tau"] == rounds
