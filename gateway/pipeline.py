@@ -105,6 +105,8 @@ FIX_PERIOD_NS = 0
 """Least time between two `foxglove.LocationFix` of one GNSS source: 0, every fix (the map shows each
 receiver's own scatter; what it costs a replay is measured in docs/foxglove.md). `bench/bench_foxglove.py`
 sets it to compare."""
+TICK_KEY = "tick"
+"""The `ControlEvent` key of a live tick that dead-reckoned (`Pipeline.tick`), logged on ``/dp/tick``."""
 
 
 @mypyc_attr(native_class=False)
@@ -376,6 +378,7 @@ class Pipeline:
         self._cycle_ns: dict[tuple[str, str, str], tuple[int, int]] = {}
         self._last_dr_ns = 0
         self._ghost: Observer | None = None  # the dead-reckoning copy of a silence (`tick`)
+        self.dead_reckoned = False  # the last `tick` dead-reckoned (the service logs it, `TICK_KEY`)
         self._dr_period_ns = int(NS / ip.dead_reckoning_rate_hz)
         # Every source is silent once nothing has stepped the observer for the longest reference timeout
         # (any fix or heading steps it, accepted or not); only then do ticks publish.
@@ -629,6 +632,8 @@ class Pipeline:
 
     def feed(self, event: RawEvent | ControlEvent) -> list[Output]:
         if isinstance(event, ControlEvent):
+            if event.key == TICK_KEY:  # a live tick that dead-reckoned, from its log (`tick`)
+                return self.tick(event.rx_ns)
             self._control(event)
             return []
         spec = self.sources.get(event.source)
@@ -675,9 +680,20 @@ class Pipeline:
     def tick(self, now_ns: int) -> list[Output]:
         """Called by the live service between events (any rate). Once nothing has stepped the observer
         for the longest source timeout (every source silent): a dead-reckoned estimate at
-        ``integrity.dead_reckoning_rate_hz``; and the reference state changes (sources going stale). The
-        dead reckoning runs on a copy of the observer, so the observer's own state stays a function of
-        the events alone and replay still reproduces it."""
+        ``integrity.dead_reckoning_rate_hz``, and the control step on it at the control rate (DP holds the
+        setpoint on the dead-reckoned estimate, as it does while one DOF is measured; a manual τ goes on
+        being commanded, and its dead-man timed); and the reference state changes (sources going stale).
+        The dead reckoning runs on a copy of the observer, so the observer's own state stays a function of
+        the events alone. The controller's and the allocation's state do move on at a tick that
+        dead-reckoned (``dead_reckoned`` is then True): the service logs such a tick (`TICK_KEY`), and a
+        replay, fed it as a `ControlEvent`, ticks there too and so reproduces the commands after it.
+
+        Why control goes on: with nothing measured, no step used to run, so no command went out; drives
+        that time out their command then stopped pushing against the current and wind the last
+        commands held, and drives that do not held a command that nothing corrected. A DP system
+        dead-reckons on its model for exactly this (the bias estimate carries the mean loads), with an
+        alarm until the operator takes over or a reference comes back."""
+        self.dead_reckoned = False
         if self.t0_ns is None or now_ns <= self.last_ns:
             return []
         out: list[Output] = []
@@ -695,13 +711,23 @@ class Pipeline:
                 ghost = self._ghost = copy.deepcopy(self.observer)
             tau, _ = self.fusion.tau(now_ns)
             est = ghost.predict(self._t(now_ns), self._with_wind_load(tau))
+            self.dead_reckoned = True
             if est.status != STATUS_NAMES[0]:
                 dead_reckoned = self._estimate(self.spec.observer_name, ghost, est, now_ns, [False] * 3)
                 self._published_health = (dead_reckoned.status, list(dead_reckoned.health))
                 out.append(Output("/dp/estimate", dead_reckoned, now_ns))
+                if self.controller is not None and now_ns >= self._next_control_ns:
+                    if self._manual_tau_ns is not None:
+                        self._manual_tau_hold(now_ns)
+                    self._next_control_ns = now_ns + self._control_period_ns
+                    out.extend(self._control_step(self._t(now_ns), est, now_ns))
         out.extend(self._state_changes(now_ns))
         self._with_foxglove(out)
         return out
+
+    def silence_s(self, now_ns: int) -> float:
+        """How long nothing has stepped the observer at ``now_ns`` (0 before the first step)."""
+        return (now_ns - self._last_step_ns) / NS if self._last_step_ns else 0.0
 
     def _state_changes(self, now_ns: int) -> list[Output]:
         """Reference state changes since the last call, and observer restarts (`_reacquire`): to the next
@@ -1437,8 +1463,8 @@ class Pipeline:
         how long (since it last went into the observer: the source's timeout after its last datum; `lost`
         past ``integrity.lost_after_s``, as `_health` says it), and, in DP, what DP does
         on it: the controller is not told (it steps on the dead-reckoned estimate as on any other, at every
-        step a measurement of another DOF makes), and with nothing measured at all no control step is made,
-        so the thrusters hold their last command. Cleared by the first estimate measured again."""
+        step a measurement of another DOF makes, or with nothing measured at all at every control period of
+        the gateway's clock, `tick`). Cleared by the first estimate measured again."""
         pub = self._published_health
         if pub is None or pub[0] not in ("dead_reckoning", "lost"):
             return []
@@ -1461,10 +1487,9 @@ class Pipeline:
                 f"(lost after integrity.lost_after_s = {lost_s:g} s)"
             )
         if self.mode == "dp" and self.controller is not None:
+            text += "; in DP: the controller holds the setpoint on the dead-reckoned estimate"
             if self._last_step_ns and now_ns - self._last_step_ns > self._silent_ns:
-                text += "; in DP: nothing measured, no control step: the thrusters hold their last command"
-            else:
-                text += "; in DP: the controller holds the setpoint on the dead-reckoned estimate"
+                text += " (nothing measured: stepped on the gateway's clock)"
         return [text]
 
     def _thruster_flags(self, thruster_id: int, flags: int) -> None:

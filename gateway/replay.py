@@ -46,6 +46,7 @@ from gateway.logreaders import (
 )
 from gateway.pipeline import (
     SIGNING_REJECTED_TOPIC,
+    TICK_KEY,
     USED_NMEA,
     ControlEvent,
     Output,
@@ -74,6 +75,7 @@ DEMO_METADATA = "dpgw.demo"
 ``min_scored_s``, the least sea after it that it scores (a log of a demo stopped soon after the skip)."""
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 Event = RawEvent | ControlEvent
+TICK_TOPIC = f"/dp/{TICK_KEY}"  # a live tick that dead-reckoned (`Pipeline.tick`)
 
 
 class ReplayError(ValueError):
@@ -260,7 +262,8 @@ def mcap_events(path: str | Path) -> Iterator[Event]:
                 base64.b64decode(payload["data"]),
                 peer=payload.get("peer", ""),
             )
-        elif topic in ("/dp/setpoint", "/dp/mode", "/dp/tau"):
+        elif topic in ("/dp/setpoint", "/dp/mode", "/dp/tau", TICK_TOPIC):
+            # (a tick at which the live gateway dead-reckoned: `Pipeline.tick` runs there again)
             key = topic[len("/dp/") :]
             yield ControlEvent(log_ns, key, payload.get(key, payload) if key == "mode" else payload)
 

@@ -56,14 +56,22 @@ from gateway.bus import (
 from gateway.config import GatewayConfig, ZenohConfig, config_notes, start_mode_line, wind_feedforward_line
 from gateway.config.logged import SIGNING_VERDICTS_KEY, for_log
 from gateway.outputs import InputSink, OutputSink, RawSentenceSink
-from gateway.pipeline import SIGNING_REJECTED_TOPIC, ControlEvent, Output, Pipeline, PipelineSpec, RawEvent
+from gateway.pipeline import (
+    SIGNING_REJECTED_TOPIC,
+    TICK_KEY,
+    ControlEvent,
+    Output,
+    Pipeline,
+    PipelineSpec,
+    RawEvent,
+)
 from gateway.sim_time import SimTime
 from gateway.sources import Chunk, SerialSource, SeveralSourcesError, Source, SourceError, open_source
 from gateway.wall_time import WallTime
 from wire.codecs import mavlink as mv
 from wire.mcap.folder import make_log_folder
 from wire.mcap.writer import McapLogWriter
-from wire.messages import SIM_CLOCK_KEY, SimClock, Status, ThrusterCommand
+from wire.messages import SIM_CLOCK_KEY, DeadReckoningTick, SimClock, Status, ThrusterCommand
 
 log = logging.getLogger("dpgw")
 
@@ -573,7 +581,10 @@ class GatewayService:
             if now is not None:
                 self._ticked_ns = max(self._ticked_ns, now)
                 try:  # dead reckoning while every source is silent; sources going stale
-                    self._emit(self.pipeline.tick(now))
+                    ticked = self.pipeline.tick(now)
+                    if self.pipeline.dead_reckoned:
+                        self._log_tick(now)
+                    self._emit(ticked)
                 except Exception:
                     self._internal_error("tick", "the dead-reckoning tick")
             if mono >= next_status:
@@ -590,6 +601,14 @@ class GatewayService:
                         self._emit(self.pipeline.status_outputs(self._status_ns, self._alarms()))
                 except Exception:
                     self._internal_error("status", "the status")
+
+    def _log_tick(self, now: int) -> None:
+        """A tick that dead-reckoned moved the controller and the allocation on (and a copy of the
+        observer): logged before its outputs, as an input is, so that a replay ticks at the same times
+        (`gateway.pipeline.TICK_KEY`) and its commands after a silence are the live run's."""
+        if self.log is not None:
+            body = DeadReckoningTick(silent_s=self.pipeline.silence_s(now))
+            self.log.write(f"/dp/{TICK_KEY}", body, now, now)
 
     def _shed_oldest(self, item: Chunk | _Input) -> Chunk | _Input | None:
         """More than `queue_max` wait: the oldest sensor data (``item`` first) is written to the log as

@@ -79,10 +79,11 @@ def test_outside_dp_the_alarm_says_nothing_of_dp() -> None:
     assert dr.startswith("estimate dead reckoning for ") and "DP" not in dr
 
 
-def test_every_source_silent_in_dp_no_control_step_and_the_settling_count_stands() -> None:
+def test_every_source_silent_in_dp_dp_commands_on_dead_reckoning_and_the_settling_count_stands() -> None:
     """Every source silent in DP (DP taken before the observer settled): the tick's dead-reckoned estimates
-    go out, no thruster command does (the thrusters hold their last: what the alarm says), the settling
-    count stands still, and the status's `estimates` counts only the observer's estimates."""
+    go out, and so do the thruster commands on them at the control rate (before, none did: the thrusters
+    held their last command, or stopped where a drive times its command out); the alarm says so, the
+    settling count stands still, and the status's `estimates` counts only the observer's estimates."""
     rng = np.random.default_rng(5)
     p = pipeline({"accept": ALL}, initial_mode="standby")
     t = 0.0
@@ -103,13 +104,23 @@ def test_every_source_silent_in_dp_no_control_step_and_the_settling_count_stands
     dead_reckoned = [o.payload for o in ticked if o.topic == "/dp/estimate"]
     assert len(dead_reckoned) > 300
     assert dead_reckoned[-1]["status"] == "lost"
-    assert not [o for o in ticked if o.topic == "/dp/thrusters/command"]
+    commands = [o for o in ticked if o.topic == "/dp/thrusters/command"]
+    # from the first dead-reckoned estimate (past the sources' 2 s timeout) on, at 10 Hz: ~380 in 38 s
+    assert 370 <= len(commands) <= 382, len(commands)
+    first_dr = next(o.stamp_ns for o in ticked if o.topic == "/dp/estimate")
+    assert commands[0].stamp_ns == first_dr
+    assert all(c.payload["mode"] == "dp" and len(c.payload["thrusters"]) == 6 for c in commands)
+    # on station, dead-reckoning stays put: the command is the bias-compensating thrust, not a runaway
+    assert max(abs(c.payload["tau_demand"][0]) for c in commands) < 5e5
     alarms = p.status(now).payload["alarms"]
     (lost,) = [a for a in alarms if a.startswith("estimate ")]
     assert re.match(
         r"estimate lost: dead reckoning for 40 s, no usable position and heading reference;", lost
     )
-    assert lost.endswith("in DP: nothing measured, no control step: the thrusters hold their last command")
+    assert lost.endswith(
+        "in DP: the controller holds the setpoint on the dead-reckoned estimate "
+        "(nothing measured: stepped on the gateway's clock)"
+    )
     # the settling count stood where the last step left it, in the alarm and in the estimates
     assert p.settle_left_s(now) == left_at_silence
     assert dead_reckoned[-1]["settle_s_left"] == left_at_silence

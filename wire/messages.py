@@ -50,6 +50,7 @@ __all__ = [
     "CommandStatus",
     "ConsequenceStatus",
     "Datum",
+    "DeadReckoningTick",
     "Estimate",
     "FailureCaseStatus",
     "FrameTransform",
@@ -1067,6 +1068,16 @@ class ManualTau(Message, kw_only=True):
     N: Annotated[float, doc("Yaw moment.", "N·m")]
 
 
+class DeadReckoningTick(Message, kw_only=True):
+    """A tick of the live gateway's clock at which it dead-reckoned: every position and heading source
+    silent, the estimate predicted and, at the control rate, the thrusters commanded on it. Logged so that
+    a replay ticks at the same times and reproduces what the live run commanded after it."""
+
+    TITLE = "dpgw.DeadReckoningTick"
+
+    silent_s: Annotated[float, doc("How long nothing had stepped the observer.", "s")]
+
+
 class AnyObject(Message, kw_only=True):
     """Free-form JSON object (no schema registered for this topic)."""
 
@@ -1106,6 +1117,12 @@ TOPICS: tuple[Topic, ...] = (
         ("mode", "in"),
     ),
     Topic("/dp/tau", ManualTau, "the input as received", ("tau", "in")),
+    Topic(
+        "/dp/tick",
+        DeadReckoningTick,
+        "live only: a tick at which the gateway dead-reckoned (every position and heading source silent); "
+        "a replay ticks there too",
+    ),
     Topic(
         "/dp/estimates/",
         Estimate,
