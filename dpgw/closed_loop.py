@@ -309,8 +309,11 @@ def run_closed_loop(
             typed.sort(key=lambda x: (x[0], x[1]))
             raw = _grouped(sim, typed, pipeline.sources)
             typed.clear()
-        for event in raw:
-            for o in pipeline.feed(event):
+        # the live service ticks its pipeline between inputs (`Pipeline.tick`): with every position and
+        # heading source silent, it dead-reckons and commands on that; the loop ticks once a chunk, at its
+        # end, after the chunk's inputs (a tick with data flowing does nothing but the state changes)
+        for outputs in (*map(pipeline.feed, raw), pipeline.tick(sim.epoch.stamp_ns(sim.t))):
+            for o in outputs:
                 if o.topic in run.collected_messages:
                     run.collected_messages[o.topic].append(o.message)
                 if o.topic == "/dp/estimate":
