@@ -112,3 +112,33 @@ def test_the_closed_loop_keeps_commanding_through_a_total_silence_and_keeps_stat
     before = off[(run.t >= 160) & (run.t < 200)].max()
     during = off[(run.t >= 200) & (run.t < 240)].max()
     assert during <= 1.25 * before, (during, before)
+
+
+def test_in_manual_the_joystick_is_commanded_through_a_total_silence_and_its_dead_man_expires() -> None:
+    """An operator takes manual because the references failed: the joystick's τ must still reach the
+    thrusters (before, with nothing stepping, no command went out at all), and the dead-man must still
+    expire a τ that stopped coming, on the ticks' time."""
+    from gateway.pipeline import ControlEvent, RawEvent
+    from tests.test_commands import ALL, T0, moving_fix, pipeline
+
+    rng = np.random.default_rng(7)
+    p = pipeline({"accept": ALL, "manual_tau_hold_s": 2.0}, initial_mode="manual")
+    t = 0.0
+    while t < 5.0:
+        p.feed(RawEvent(T0 + round(t * S), "gps", moving_fix(t, 0.0, rng)))
+        t += 0.1
+    out: list[Any] = []
+    # silent from 5 s on; the joystick streams 1 MN ahead at 5 Hz from 8 s to 10 s, then stops
+    for k in range(1, 151):  # ticks at 10 Hz up to 20 s
+        now = T0 + round((t + k / 10) * S)
+        if 8.0 <= t + k / 10 <= 10.0 and k % 2 == 0:
+            p.feed(ControlEvent(now - S // 20, "tau", {"X": 1e6, "Y": 0.0, "N": 0.0}))
+        out += p.tick(now)
+    demands = [(o.stamp_ns, o.payload["tau_demand"][0]) for o in out if o.topic == "/dp/thrusters/command"]
+    when = {ns: x for ns, x in demands}
+    joystick = [x for ns, x in demands if T0 + 8.2 * S <= ns <= T0 + 10 * S]
+    assert joystick and all(x == 1e6 for x in joystick), demands
+    # no τ for longer than the hold (2 s after the last, at 9.95 s): zero from 12 s on, the mode still manual
+    late = [x for ns, x in when.items() if ns >= T0 + 12.1 * S]
+    assert late and all(x == 0.0 for x in late), late
+    assert p.mode == "manual" and p.commands.counters.expired == {"tau": 1}
