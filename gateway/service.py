@@ -404,7 +404,8 @@ class GatewayService:
         # The inputs' callbacks run on Zenoh's receiving thread, in the order the samples arrived
         # (``indirect=False``): with a plain callable, Zenoh gives each subscriber a Python thread of its
         # own, and a console's τ put right after its ``manual`` could overtake the mode and be refused.
-        # The callbacks only decode and queue, so they hold that thread for microseconds.
+        # The callbacks only decode and queue (a few Hz of small JSON), so they hold that thread briefly; it
+        # waits for the interpreter's lock as any Python callback's thread does.
         for key in INPUT_KEYS:
             handler = zenoh.handlers.Callback(self._on_input(key), indirect=False)
             self._declared.append(s.declare_subscriber(f"{self.prefix}/{key}", handler))
