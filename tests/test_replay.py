@@ -1129,3 +1129,34 @@ def test_replay_never_overwrites_an_existing_out_and_says_which_file_it_wrote(
     assert main(["replay", str(empty), "--vessel", "mss_supply", "--out", str(out)]) == 2
     assert out.read_bytes() == earlier and (tmp_path / "usv_0002.mcap").exists()
     assert not (tmp_path / "usv_0003.mcap").exists()
+
+
+def test_a_gateway_without_a_commands_table_logs_one_and_its_replay_refuses_what_it_refused() -> None:
+    """A gateway configured without ``[commands]`` takes no input (``accept = []``, the default). Its log's
+    config had no table either, which is how a log from before the command rules looks, and those replay
+    taking every input: the replay obeyed a mode the live gateway had refused. The table is now logged
+    with its defaults, and the replay refuses the same."""
+    from gateway.config import parse_config
+    from gateway.config.logged import for_log
+    from gateway.pipeline import ControlEvent, Pipeline, PipelineSpec
+    from gateway.replay import _as_replayed
+
+    tables: dict[str, Any] = {
+        "vessel": {"name": "mss_supply"},
+        "sources": [
+            {"name": "gps", "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position", "heading"]}
+        ],
+        "log": {"path": ""},
+    }
+    live = parse_config(tables, base_dir=Path.cwd())
+    assert live.commands.accept == set()
+    logged = json.loads(json.dumps(for_log(tables)))  # (as the log's metadata holds it)
+    assert logged["commands"] == {"accept": [], "manual_tau_hold_s": 2.0}
+    replayed = parse_config(_as_replayed(logged), base_dir=Path.cwd())
+    assert replayed.commands.accept == set() and replayed.commands.manual_tau_hold_s == 2.0
+    p = Pipeline(PipelineSpec.from_config(replayed))
+    p.feed(ControlEvent(1, "mode", "manual"))
+    assert p.mode == "standby" and sum(p.commands.counters.refused.values()) == 1
+    # a [commands] table given only in part gets the rest of its defaults written out too
+    partial = json.loads(json.dumps(for_log({**tables, "commands": {"max_setpoint_distance_m": 20.0}})))
+    assert partial["commands"]["accept"] == [] and partial["commands"]["manual_tau_hold_s"] == 2.0

@@ -204,7 +204,8 @@ def test_the_logged_config_holds_no_key_and_replays_without_one() -> None:
     assert thr["name"] == "thr" and not {"signing_key", "allow_unsigned", "commands"} & set(thr)
     config = parse_config({**again, "log": {"path": ""}}, base_dir=Path.cwd(), where="test")
     assert next(s for s in config.sources if s.name == "thr").signing_key is None
-    assert for_log({"vessel": {"name": "x"}}) == {"vessel": {"name": "x"}}
+    # (no sources: nothing to hide; the command rules are written out, tests/test_replay.py)
+    assert for_log({"vessel": {"name": "x"}})["vessel"] == {"name": "x"}
 
 
 def test_a_logged_key_marker_is_not_taken_for_a_key() -> None:

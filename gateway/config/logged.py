@@ -32,13 +32,21 @@ written before gateways recorded them."""
 def for_log(tables: dict[str, Any]) -> dict[str, Any]:
     """A copy of the config tables with every source's ``signing_key`` replaced by `KEY_NOT_LOGGED`,
     ``[control] wait_for_observer`` written out (its default where not given) with ``initial_mode = "dp"``,
-    and ``[commands] manual_tau_hold_s`` written out (its default where not given) in a ``[commands]``
-    table: a replay then knows the log is from a gateway with the manual τ's dead-man (`gateway.replay`
-    replays one from before it as it ran, the τ held until the next one)."""
+    and a ``[commands]`` table always, with ``accept`` and ``manual_tau_hold_s`` written out (their
+    defaults where not given): a replay then knows the log is from a gateway with the command rules and
+    the manual τ's dead-man. `gateway.replay` replays a log without the table, or without the hold, as
+    such a gateway ran (every input taken; the τ held until the next one) — so a gateway configured
+    without the table, which took no input, must not log it without one, or its replay would obey the
+    inputs it refused."""
     commands = tables.get("commands")
-    if isinstance(commands, dict) and "manual_tau_hold_s" not in commands:
-        hold = DEFAULTS["commands"]["manual_tau_hold_s"]
-        tables = {**tables, "commands": {**commands, "manual_tau_hold_s": hold}}
+    if commands is None:
+        commands = {"accept": list(DEFAULTS["commands"]["accept"])}
+    if isinstance(commands, dict):
+        if "accept" not in commands:
+            commands = {**commands, "accept": list(DEFAULTS["commands"]["accept"])}
+        if "manual_tau_hold_s" not in commands:
+            commands = {**commands, "manual_tau_hold_s": DEFAULTS["commands"]["manual_tau_hold_s"]}
+        tables = {**tables, "commands": commands}
     control = tables.get("control")
     waits = DEFAULTS["control"]["wait_for_observer"]
     if (
