@@ -561,8 +561,9 @@ class Pipeline:
         but not their freshness (no data yet from the new run), the estimates published, the observer
         restarts, the command counters, the raw-sentence tap. Everything else starts over: observers,
         fusion (a datum from the first fix, if so configured), reference tests, controller and allocation,
-        the mode from ``control.initial_mode`` and no setpoint, the framers and MAVLink parsers, the
-        drives' flags. ``event`` goes out, once, in its first status."""
+        the mode from ``control.initial_mode`` and no setpoint (one still waiting to be applied is refused
+        as ``setpoint: dropped at restart``, with an event), the framers and MAVLink parsers, the drives'
+        flags. ``event`` goes out, once, in its first status."""
         new = Pipeline(spec)
         for c in self.counters.values():
             c.last_rx_ns = 0
@@ -573,6 +574,15 @@ class Pipeline:
         new.sentence_tap = self.sentence_tap
         new._caller_alarms = list(self._caller_alarms)
         new._events.append(event)
+        if self._pending_setpoint is not None:
+            # a setpoint taken but not applied yet is of the old run's sea, as the one in force is: dropped,
+            # but said and counted, or a console would believe it on its way
+            text = (
+                f"setpoint {_show_setpoint(self._pending_setpoint)} dropped unapplied: the plant started "
+                "again (a new run); send it again for this run"
+            )
+            new.commands.refuse("setpoint", "dropped at restart", text)
+            new._events.append(text)
         return new
 
     @property

@@ -653,3 +653,24 @@ def test_one_consoles_inputs_on_different_keys_are_taken_in_the_order_sent(tmp_p
         assert wait_for(lambda: handled() >= 3 * rounds, 30.0)
         assert dict(counters.refused) == {}, counters.refused
         assert counters.accepted["tau"] == rounds
+
+
+def test_a_setpoint_waiting_when_the_plant_starts_again_is_refused_and_said_not_dropped_unseen() -> None:
+    """A setpoint sent before the first estimate waits to be applied. The simulator under the gateway
+    starts again (`Pipeline.start_over`): the new run starts without a setpoint, and the waiting one went
+    with the old pipeline without a count or a word, so the console believed it on its way."""
+    p = pipeline({"accept": ALL}, initial_mode="dp")
+    p.feed(ControlEvent(T0, "setpoint", {"north_m": 5.0, "east_m": 0.0, "heading_deg": 30.0}))
+    assert commands_status(p)["setpoint_waiting"] == {"north_m": 5.0, "east_m": 0.0, "heading_deg": 30.0}
+    new = p.start_over(p.spec, "clock: the simulator started again")
+    status = new.status(T0 + S).payload  # (the first status takes the events)
+    c = status["commands"]
+    assert "setpoint_waiting" not in c
+    assert c["refused"] == {"setpoint: dropped at restart": 1}
+    (refusal,) = new.commands.take_refusals()
+    assert "dropped unapplied: the plant started again" in refusal.text and "send it again" in refusal.text
+    events = status["events"]
+    assert events.index("clock: the simulator started again") < events.index(refusal.text)
+    # nothing waiting: nothing said
+    again = new.start_over(new.spec, "clock: the simulator started again")
+    assert sum(commands_status(again)["refused"].values()) == 1
