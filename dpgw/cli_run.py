@@ -507,7 +507,7 @@ def source_errors_message(config: GatewayConfig, exc: SourceError) -> str:
     if not isinstance(exc, SeveralSourcesError):
         return f"dpgw run: {config.path}: {said(exc)}" + (f" — {exc.fix}" if exc.fix else "")
     errors = exc.errors
-    missing = [e for e in errors if re.fullmatch(r"serial port \S+ does not exist", e.problem)]
+    missing = [e for e in errors if e.missing_port]
     if len(missing) == len(errors):
         heading = f"{len(errors)} serial ports do not exist"
     else:

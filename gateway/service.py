@@ -324,6 +324,7 @@ class GatewayService:
         """Open everything; a source that cannot open raises `SourceError` (several: `SeveralSourcesError`,
         every source tried) and nothing is left running."""
         self._wall0_ns = time.time_ns()
+        self._look_for_ports()
         # numba's kernels compiled (or loaded from its cache) before any source opens, not in the loop
         t0 = time.perf_counter()
         # from numba's cache this takes well under a second; the first run after an install or an upgrade
@@ -346,16 +347,7 @@ class GatewayService:
         if self.stop_event.is_set():  # stopped while compiling (seconds on a first run): open nothing
             return
         try:
-            failed: list[SourceError] = []  # every source tried: a person fixes them all before the next try
-            for sc in self.config.sources:
-                try:
-                    src = open_source(sc.name, sc.url, timeout_s=sc.timeout_s)
-                    if isinstance(src, SerialSource):
-                        src.wait_if_absent = self.wait_for_ports
-                    self._sources.append(src)
-                    src.start(self._enqueue)
-                except SourceError as exc:
-                    failed.append(exc)
+            failed = self._open_sources()
             if failed:
                 raise failed[0] if len(failed) == 1 else SeveralSourcesError(failed)
             if self._session is None:
@@ -381,6 +373,44 @@ class GatewayService:
             self.close()
             raise
         self.opened = True
+
+    def _look_for_ports(self) -> None:
+        """Stop at once on a serial port that does not exist (unless ``wait_for_ports``): the kernels
+        compile for ~15 s on a first run before the sources open, and a mistyped port was said only after
+        that. A look at each serial path; if one is missing, every source is opened and closed again, so
+        that the one error names every source that cannot open (`SeveralSourcesError`)."""
+        if self.wait_for_ports:
+            return
+        for sc in self.config.sources:
+            src = open_source(sc.name, sc.url, timeout_s=sc.timeout_s)  # (made, not started)
+            if isinstance(src, SerialSource) and src.missing() is not None:
+                break
+        else:
+            return
+        # start-up stops: every source tried now, so that one message names them all (a UDP port in use
+        # too), and closed again
+        try:
+            failed = self._open_sources()
+        finally:
+            for opened in self._sources:
+                opened.stop()
+            self._sources.clear()
+        raise failed[0] if len(failed) == 1 else SeveralSourcesError(failed)
+
+    def _open_sources(self) -> list[SourceError]:
+        """Open and start every source; those that cannot open, every one tried: a person fixes them all
+        before the next try."""
+        failed: list[SourceError] = []
+        for sc in self.config.sources:
+            try:
+                src = open_source(sc.name, sc.url, timeout_s=sc.timeout_s)
+                if isinstance(src, SerialSource):
+                    src.wait_if_absent = self.wait_for_ports
+                self._sources.append(src)
+                src.start(self._enqueue)
+            except SourceError as exc:
+                failed.append(exc)
+        return failed
 
     def _open_session(self) -> zenoh.Session | None:
         """The configured session; None while a client (``mode = "client"``, no ``config_file``) waits

@@ -340,3 +340,39 @@ def test_log_folder_one_level_is_made_and_said_more_is_refused(tmp_path: Path) -
     assert one.exists()
     p = run_with_log(one)  # there now: nothing said
     assert p.returncode == 0 and "made the log's folder" not in p.stderr, p.stderr
+
+
+def test_a_missing_serial_port_stops_start_up_before_the_kernels_compile(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The service compiles its numeric kernels (about 15 s on a first run) before the sources open, so a
+    mistyped serial port was said only after that wait. Now the serial paths are looked at first, and
+    every source that cannot open is still named together (a UDP port in use beside the missing port)."""
+    import logging
+
+    from gateway.config import load_config
+    from gateway.service import GatewayService
+    from gateway.sources import SeveralSourcesError
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as other:
+        other.bind(("127.0.0.1", 0))
+        port = other.getsockname()[1]
+        cfg = write_config(tmp_path, f"udp://127.0.0.1:{port}", name="mux")
+        cfg.write_text(
+            cfg.read_text().replace(
+                "[zenoh]",
+                '[[sources]]\nname = "gyro"\nurl = "serial:///dev/ttyUSB_nope2?baud=4800"\n'
+                'protocol = "nmea"\nroles = ["heading"]\npriority = 2\n[zenoh]',
+            )
+        )
+        service = GatewayService(load_config(cfg))
+        caplog.set_level(logging.INFO, logger="dpgw")
+        with pytest.raises(SeveralSourcesError) as raised:
+            service.start()
+    assert [(e.name, e.missing_port) for e in raised.value.errors] == [("mux", False), ("gyro", True)]
+    assert "Address already in use" in raised.value.errors[0].problem
+    assert not [r for r in caplog.records if "compiled kernels ready" in r.getMessage()], caplog.text
+    assert not service.opened and service._sources == []
+    # with --wait-for-ports the port is waited for: the look does not stop start-up
+    waiting = GatewayService(load_config(cfg), wait_for_ports=True)
+    waiting._look_for_ports()

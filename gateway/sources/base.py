@@ -59,11 +59,16 @@ class SourceError(Exception):
     /dev/ttyUSB9 does not exist (serial:///dev/ttyUSB9?baud=4800) — check the cable/udev name``.
     """
 
-    def __init__(self, name: str, url: str, problem: str, fix: str = "") -> None:
+    def __init__(
+        self, name: str, url: str, problem: str, fix: str = "", *, missing_port: bool = False
+    ) -> None:
         self.name = name
         self.url = url
         self.problem = problem
         self.fix = fix
+        self.missing_port = missing_port
+        """The problem is a serial device that does not exist (a cable, a udev name, a simulator not started:
+        ``--wait-for-ports`` runs without it); the start-up message groups these."""
         super().__init__(f"source {name!r}: {problem} ({url})" + (f" — {fix}" if fix else ""))
 
 
@@ -73,7 +78,7 @@ class SeveralSourcesError(SourceError):
 
     def __init__(self, errors: list[SourceError]) -> None:
         first = errors[0]
-        super().__init__(first.name, first.url, first.problem, first.fix)
+        super().__init__(first.name, first.url, first.problem, first.fix, missing_port=first.missing_port)
         self.errors = list(errors)
         self.args = ("; ".join(str(e) for e in errors),)
 

@@ -66,6 +66,19 @@ class SerialSource(Source):
         """A device absent at `start` is waited for, not a `SourceError` (``--wait-for-ports``)."""
         self._absent_at_start = False
 
+    def missing(self) -> SourceError | None:
+        """The error of a device that does not exist (nothing opened: a look at the path), else None. The
+        service looks before it compiles its kernels, so a mistyped port stops start-up at once."""
+        if os.path.exists(self.device):
+            return None
+        return SourceError(
+            self.name,
+            self.url,
+            f"serial port {self.device} does not exist",
+            "check the cable/udev name (ls /dev/serial/by-id/; for the simulator: the pty it printed)",
+            missing_port=True,
+        )
+
     def _open_port(self) -> Any:
         try:
             import serial  # pyserial is needed only by serial sources
@@ -73,13 +86,9 @@ class SerialSource(Source):
             raise SourceError(
                 self.name, self.url, "pyserial is not installed", "pip install pyserial"
             ) from exc
-        if not os.path.exists(self.device):
-            raise SourceError(
-                self.name,
-                self.url,
-                f"serial port {self.device} does not exist",
-                "check the cable/udev name (ls /dev/serial/by-id/; for the simulator: the pty it printed)",
-            )
+        missing = self.missing()
+        if missing is not None:
+            raise missing
         with contextlib.suppress(OSError):
             mode = os.stat(self.device).st_mode
             if stat.S_ISDIR(mode):  # (a folder cannot be read as a file either: no file:// hint)
@@ -115,8 +124,10 @@ class SerialSource(Source):
             elif code == errno.EACCES:
                 problem = f"no permission to open serial port {self.device}"
                 fix = "join the group owning the device (often 'dialout') and log in again"
-            elif code == errno.ENOENT:
-                problem, fix = f"serial port {self.device} does not exist", "check the cable/udev name"
+            elif code == errno.ENOENT:  # (gone between the look and the open)
+                raise self.missing() or SourceError(
+                    self.name, self.url, f"serial port {self.device} does not exist", missing_port=True
+                ) from exc
             elif code == errno.EBUSY:
                 problem, fix = f"serial port {self.device} is busy", "another program has it open: stop it"
             elif code == errno.ENOTTY or "Inappropriate ioctl" in text:  # /dev/null, a sound card, ...
