@@ -223,7 +223,7 @@ def run(args: argparse.Namespace) -> int:
             write_states(args.csv, states)
         if args.out:
             make_folder_for("dpgw sim", "--out", args.out)
-            _write_log(args, vessel.name, inputs, states)
+            args.out = _write_log(args, vessel.name, inputs, states)
     except OSError as exc:
         print(f"dpgw sim: {exc}", file=sys.stderr)
         return 2
@@ -263,8 +263,10 @@ def inputs_problem(path: str) -> str | None:
     return None
 
 
-def _write_log(args: argparse.Namespace, vessel: str, inputs: Any, states: Any) -> None:
-    """The states as /truth/state records (as a scenario's truth), stamped from the scenario epoch."""
+def _write_log(args: argparse.Namespace, vessel: str, inputs: Any, states: Any) -> str:
+    """The states as /truth/state records (as a scenario's truth), stamped from the scenario epoch; the
+    file written: ``--out`` itself, or the next free file of its set when it exists (a log is never
+    overwritten, as with ``--scenario``), said on stderr."""
     import math as m
 
     from simulator.clock import SimEpoch
@@ -273,7 +275,9 @@ def _write_log(args: argparse.Namespace, vessel: str, inputs: Any, states: Any) 
     from wire.messages import TruthState
 
     epoch = SimEpoch(Scenario.__dataclass_fields__["start_utc"].default)  # type: ignore[arg-type]
-    with McapLogWriter(args.out, profile="dpgw-sim") as log:
+    with McapLogWriter(args.out, profile="dpgw-sim", continue_set=True) as log:
+        if Path(log.path) != Path(args.out):
+            print(f"log -> {log.path} ({args.out} exists: a log is never overwritten)", file=sys.stderr)
         log.add_metadata("dpgw.sim", {"vessel": vessel, "inputs": str(args.inputs), "mode": "open loop"})
         for row in states:
             stamp = epoch.stamp_ns(float(row[0]))
@@ -290,3 +294,4 @@ def _write_log(args: argparse.Namespace, vessel: str, inputs: Any, states: Any) 
                 stamp,
                 stamp,
             )
+        return str(log.path)

@@ -704,7 +704,7 @@ def test_sim_open_loop_refuses_scenario_options_and_prints_json(
         f"dpgw sim: --csv {deeper}: neither the folder {deeper.parent} nor its parent {nowhere.parent} exists"
     )
     assert not nowhere.parent.exists()
-    deep = tmp_path / "nope" / "deeper" / "s.mcap"  # (only a log's own folder is made)
+    deep = tmp_path / "nope" / "deeper" / "s.mcap"  # (only the file's own folder is made)
     assert main(["sim", "--scenario", "hassani", "--duration", "1", "--out", str(deep)]) == 2
     assert _one_line(capsys.readouterr().err).startswith(
         f"dpgw sim: --out {deep}: neither the folder {deep.parent} nor its parent {nowhere.parent} exists"

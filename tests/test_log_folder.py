@@ -102,3 +102,24 @@ def test_sim_writes_its_other_files_by_the_same_rule(
     )
     assert capsys.readouterr().err.startswith(f"dpgw sim: --inputs {missing}: no such file"), missing
     assert not (tmp_path / "n").exists() and not (tmp_path / "trial").exists()
+
+
+def test_the_open_loop_never_writes_over_a_log(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``dpgw sim --inputs … --out X.mcap`` wrote over an existing X, where every other command that
+    writes a log goes on in the next free file of its set and says so."""
+    import json
+
+    from dpgw.cli import main
+
+    inputs = str(ROOT / "tests" / "data" / "mss-osv" / "steps_inputs.csv")
+    log = tmp_path / "s.mcap"
+    args = ["sim", "--vessel", "mss_osv", "--inputs", inputs, "--out", str(log)]
+    assert main(args) == 0
+    first = log.read_bytes()
+    capsys.readouterr()
+    assert main([*args, "--json"]) == 0
+    out, err = capsys.readouterr()
+    nxt = tmp_path / "s_0001.mcap"
+    assert f"log -> {nxt} ({log} exists: a log is never overwritten)" in err.splitlines(), err
+    assert json.loads(out)["out"] == str(nxt)
+    assert log.read_bytes() == first and nxt.stat().st_size > 0

@@ -551,3 +551,22 @@ def test_utc_text_rounds_the_instant_as_a_whole() -> None:
     assert utc_text(start, 0.04) == "2024-12-05T10:37:12.0Z"
     assert utc_text(start, 59.5, digits=0) == "2024-12-05T10:38:12Z"
     assert utc_text(start, float("nan")) is None and utc_text(start, None) is None
+
+
+def test_a_vessel_that_cannot_be_loaded_is_said_in_the_wave_band_basis(tmp_path: Path) -> None:
+    """The report's wave band comes from the vessel's length and scale. A vessel file that cannot be loaded
+    (here a misspelt key) fell back to full scale without a word, as if the vessel were merely unknown:
+    the basis now says why, and a fault that is not the vessel's is not hidden."""
+    t = np.arange(0.0, 300.0, 0.05)
+    y = np.column_stack([0.05 * np.sin(0.6 * t)] * 3)
+    broken = tmp_path / "boat.toml"
+    text = (Path(__file__).resolve().parents[1] / "observers" / "vessels" / "cybership2.toml").read_text()
+    broken.write_text(text.replace("length_m", "lenght_m", 1))
+    m = compute_metrics(ReplayData("trial", str(broken), t, y, ()))
+    assert m["wave_band_basis"].startswith("full scale (length unknown: "), m["wave_band_basis"]
+    assert "lenght_m" in m["wave_band_basis"], m["wave_band_basis"]
+    unknown = compute_metrics(ReplayData("trial", "no_such_boat", t, y, ()))
+    assert "not a built-in vessel" in unknown["wave_band_basis"], unknown["wave_band_basis"]
+    assert compute_metrics(ReplayData("trial", "", t, y, ()))["wave_band_basis"] == (
+        "full scale (length unknown: no vessel named)"
+    )

@@ -327,8 +327,8 @@ def test_log_folder_one_level_is_made_and_said_more_is_refused(tmp_path: Path) -
     assert p.returncode == 2, p.stderr
     assert p.stderr.splitlines() == [
         f"dpgw run: --log {deep}: neither the folder {deep.parent} nor its parent {deep.parent.parent} "
-        "exists: only a log's own folder is made, so that a mistyped path does not make folders; check the "
-        f"path, or make it first (mkdir -p {deep.parent})"
+        "exists: only the file's own folder is made, so that a mistyped path does not make folders; "
+        f"check the path, or make it first (mkdir -p {deep.parent})"
     ], p.stderr
     assert not (tmp_path / "nonexistent").exists()
     one = tmp_path / "trials" / "x.mcap"

@@ -69,17 +69,25 @@ def wave_band_for_length(length_m: float | None, model_scale: float | None = Non
 
 @lru_cache(maxsize=32)
 def vessel_scale(vessel: str) -> tuple[float | None, float | None]:
-    """Length and model scale of a built-in vessel (or a vessel TOML path); None if unknown. Reads package
-    data only."""
-    if not vessel:
-        return None, None
-    try:
-        from observers.vessel import load_vessel
+    """Length and model scale of a built-in vessel (or a vessel TOML path); None if it cannot be loaded
+    (`vessel_scale_why` says why). Reads package data only."""
+    length, model_scale, _ = vessel_scale_why(vessel)
+    return length, model_scale
 
+
+def vessel_scale_why(vessel: str) -> tuple[float | None, float | None, str | None]:
+    """`vessel_scale`, and why the vessel could not be loaded (the vessel file's own error: not a built-in
+    nor a file, a misspelt key, a matrix that is not positive definite), else None. Only the vessel's
+    errors are taken: anything else is a fault of the code and is raised, not turned into full scale."""
+    if not vessel:
+        return None, None, None
+    from observers.vessel import VesselError, load_vessel
+
+    try:
         v = load_vessel(vessel)
-        return float(v.length_m), v.model_scale
-    except Exception:
-        return None, None
+    except (VesselError, OSError) as exc:
+        return None, None, str(exc)
+    return float(v.length_m), v.model_scale, None
 
 
 def _neighbours(t: Array, dt: float) -> NDArray[np.bool_]:
@@ -122,10 +130,10 @@ def analyse(data: ReplayData, wave_band: tuple[float, float] | None, settle_s: f
     settle_t = t0 + settle_s
 
     if wave_band is None:
-        length, model_scale = vessel_scale(data.vessel)
+        length, model_scale, why = vessel_scale_why(data.vessel)
         band = wave_band_for_length(length, model_scale)
         if length is None:
-            basis = f"full scale (vessel '{data.vessel}' not found: length unknown)"
+            basis = f"full scale (length unknown: {why or 'no vessel named'})"
         elif model_scale is not None:
             basis = f"Froude-scaled: 1:{model_scale:g} model (L = {length:g} m)"
         elif length < MODEL_MAX_LENGTH_M:

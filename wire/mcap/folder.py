@@ -21,7 +21,7 @@ def log_folder_problem(path: str | os.PathLike[str]) -> str | None:
     if os.path.lexists(folder) or os.path.lexists(parent):
         return None  # (a file in the folder's place, or in its parent's, is for the opening to say)
     return (
-        f"neither the folder {folder} nor its parent {parent} exists: only a log's own folder is made, "
+        f"neither the folder {folder} nor its parent {parent} exists: only the file's own folder is made, "
         f"so that a mistyped path does not make folders; check the path, or make it first (mkdir -p {folder})"
     )
 
