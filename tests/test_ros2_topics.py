@@ -253,7 +253,7 @@ def test_a_zenoh_prefix_in_the_ros_domain_key_space_stops_start_up(tmp_path: Pat
     """rmw_zenoh keys every topic of domain D as ``D/<topic>/...``: a ``[zenoh] prefix`` starting with D
     (``0/dpgw`` with domain 0) put dpgw's JSON keys in the ROS topics' key space, unchecked. Refused now
     at start-up and by ``dpgw run --check``, one line naming both keys and what to change; only with the
-    ROS 2 output on, and only the domain's own number."""
+    ROS 2 output on; any domain's number (0-232) and rmw_zenoh's ``@ros2_lv`` liveliness space."""
     from dpgw.cli_run import start_up_problems
 
     config = parse_config(with_prefix("0/dpgw", domain_id=0), base_dir=tmp_path)
@@ -265,15 +265,25 @@ def test_a_zenoh_prefix_in_the_ros_domain_key_space_stops_start_up(tmp_path: Pat
     )
     assert "dpgw's key 0/dpgw/estimate" in line
     assert "the ROS key 0/dpgw/odom/nav_msgs::msg::dds_::Odometry_/RIHS01_" in line
-    assert "expected a prefix whose first chunk is not 0" in line and "or another ros2.domain_id" in line
+    assert "expected a prefix whose first chunk is not a ROS domain number" in line
+    assert "or another ros2.domain_id" in line
     assert [p for p in start_up_problems(config) if "zenoh.prefix" in p] == problems  # `dpgw run --check`
     with pytest.raises(OutputError) as err:  # `dpgw run`, before anything opens
         sinks_from_config(config)
     assert str(err.value) == line
     assert "ROS 2 domain 7" in problems_of(tmp_path, {}, zenoh={"prefix": "7"})[0]  # (the tables' domain 7)
-    # not the domain's number, a number further in, or the ROS 2 output off: no problem
+    # another domain's number (ROS peers on the same Zenoh in ROS_DOMAIN_ID=0), and rmw_zenoh's liveliness
+    # space: refused too
+    (other,) = output_problems(parse_config(with_prefix("0/dpgw", domain_id=1), base_dir=tmp_path))
+    assert 'zenoh.prefix: "0/dpgw" starts with 0/, the key space of ROS 2 domain 0, where rmw_zenoh' in other
+    assert "(ROS_DOMAIN_ID=0)" in other and "another ros2.domain_id" not in other
+    assert "232" in problems_of(tmp_path, {}, zenoh={"prefix": "232/x"})[0]
+    (lv,) = output_problems(parse_config(with_prefix("@ros2_lv/dp", domain_id=0), base_dir=tmp_path))
+    assert "rmw_zenoh's liveliness key space" in lv
+    # not a domain's number as rmw_zenoh writes it (07, 233), a number further in, or the ROS 2 output
+    # off: no problem
     for tables_ in (
-        with_prefix("0/dpgw", domain_id=1),
+        with_prefix("233/dpgw", domain_id=1),
         with_prefix("dp/0", domain_id=0),
         with_prefix("07/dpgw", domain_id=7),
         {**with_prefix("0/dpgw", domain_id=0), "ros2": {"enabled": False, "domain_id": 0}},

@@ -83,24 +83,45 @@ def topic_clashes(config: GatewayConfig) -> list[str]:
     return problems
 
 
+ROS_DOMAIN_IDS = range(233)
+"""The domain ids ROS 2 allows (0-232); rmw_zenoh writes one as its decimal number, the first chunk of
+every key of that domain."""
+ROS_LIVELINESS = "@ros2_lv"
+"""rmw_zenoh's liveliness key space (``@ros2_lv/<domain>/...``): its graph of nodes, topics and services."""
+
+
 def prefix_in_domain(config: GatewayConfig) -> list[str]:
     """A ``FILE: zenoh.prefix: problem`` line when dpgw's own Zenoh keys (``<prefix>/estimate``, ...) lie in
-    the key space of the ROS 2 domain the sink publishes in: rmw_zenoh puts every topic of domain D at
-    ``D/<topic>/<type>/<hash>`` (docs/ros2.md), so a prefix whose first chunk is D (``0/dp/ship`` with
-    ``domain_id = 0``) shares it. A ROS peer's ``D/**`` (a bridge, a recorder, ``ros2 topic list``'s
-    discovery) then meets dpgw's JSON among the CDR of the ROS topics, and a prefix that is a topic's path
-    (``0/dpgw`` with namespace ``/dpgw``) puts dpgw's keys under that topic's. Nothing checked it."""
+    a key space of ROS 2 over Zenoh: rmw_zenoh puts every topic of domain D at ``D/<topic>/<type>/<hash>``
+    (docs/ros2.md), so a prefix whose first chunk is a domain's number (``0/dp/ship``) shares that
+    domain's; its graph's liveliness tokens are under ``@ros2_lv``. A ROS peer's ``D/**`` (a bridge, a
+    recorder, ``ros2 topic list``'s discovery) then meets dpgw's JSON among the CDR of the ROS topics, and
+    a prefix that is a topic's path (``0/dpgw`` with namespace ``/dpgw``) puts dpgw's keys under that
+    topic's. Any domain, not only ``ros2.domain_id``'s: the ROS peers on the same Zenoh may use another
+    (``ROS_DOMAIN_ID``)."""
     cfg, prefix = config.ros2, config.zenoh.prefix
-    domain = str(cfg.domain_id)
-    if prefix.split("/", 1)[0] != domain:
+    first = prefix.split("/", 1)[0]
+    if first == ROS_LIVELINESS:
+        return [
+            f"{config.path}: zenoh.prefix: {show(prefix)} starts with {ROS_LIVELINESS}/, rmw_zenoh's "
+            f"liveliness key space, where ROS 2 nodes announce themselves: dpgw's key {prefix}/estimate "
+            "would sit among them (expected a prefix such as the default dp/<vessel name>)"
+        ]
+    if not first.isdecimal() or str(int(first)) != first or int(first) not in ROS_DOMAIN_IDS:
         return []
     odom = fully_qualified(cfg.namespace, cfg.odom_topic).strip("/")
-    ros_key = f"{domain}/{odom}/{dds_type_name('nav_msgs/msg/Odometry')}/RIHS01_…"
+    ros_key = f"{first}/{odom}/{dds_type_name('nav_msgs/msg/Odometry')}/RIHS01_…"
+    whose = (
+        f"{first} (ros2.domain_id), where rmw_zenoh puts every ROS topic: dpgw's key {prefix}/estimate would "
+        f"sit beside the ROS key {ros_key}"
+        if first == str(cfg.domain_id)
+        else f"{first}, where rmw_zenoh puts every ROS topic of that domain (ROS_DOMAIN_ID={first}): dpgw's "
+        f"key {prefix}/estimate would sit among them"
+    )
     return [
-        f"{config.path}: zenoh.prefix: {show(prefix)} starts with {domain}/, the key space of ROS 2 domain "
-        f"{domain} (ros2.domain_id), where rmw_zenoh puts every ROS topic: dpgw's key {prefix}/estimate "
-        f"would sit beside the ROS key {ros_key} (expected a prefix whose first chunk is not {domain}, e.g. "
-        f"the default dp/<vessel name>, or another ros2.domain_id)"
+        f"{config.path}: zenoh.prefix: {show(prefix)} starts with {first}/, the key space of ROS 2 domain "
+        f"{whose} (expected a prefix whose first chunk is not a ROS domain number, 0-232, e.g. the default "
+        f"dp/<vessel name>{', or another ros2.domain_id' if first == str(cfg.domain_id) else ''})"
     ]
 
 
