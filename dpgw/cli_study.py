@@ -304,6 +304,10 @@ def _run(args: argparse.Namespace) -> int:
     cache = None if args.no_cache else CaseCache(args.cache or args.out / "cache")
     workers = 0 if args.serial else args.workers
     cases = spec.cases()
+    from dpgw.study import outputs
+
+    # said before the run, so that a study too short to score can be stopped and given a longer duration
+    _warn(outputs.short_scoring_warnings(outputs.planned_rows(cases)))
     try:
         result = run_study(
             cases, workers=workers, scheduler=args.scheduler, cache=cache, progress=not args.no_progress
@@ -368,12 +372,12 @@ def _write_outputs(args: argparse.Namespace, result: Any) -> int:
         "warnings": warnings,
         "summary": outputs.json_summary(result.rows),
     }
-    if args.json:
+    if args.json:  # (the warnings in the report; on stderr before the run)
         print(json.dumps(report, indent=2, allow_nan=False, default=str))
-        _warn(warnings)
         return 0
     print(text)
-    _warn(warnings)  # after the table, where it is read
+    if warnings:  # (said in full before the run; a pointer after the table, where it is read)
+        _warn([f"{len(warnings)} sea state(s) above scored on too short a stretch (said before the run)"])
     print(
         f"{result.cases} case{'' if result.cases == 1 else 's'} ({result.computed} run, {result.cached} "
         f"from the cache) on {where} in "

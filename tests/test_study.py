@@ -257,10 +257,12 @@ def test_cli_writes_table_summary_plots_and_json(tmp_path: Path, capsys: pytest.
     captured = capsys.readouterr()
     report = json.loads(captured.out)
     assert report["cases"] == 2 and report["rows"] == 4 and report["computed"] == 2
-    # 20 s scored of a 12 s sea: too short, said on stderr and in the report
+    # 20 s scored of a 12 s sea: too short, said on stderr before the run (it can be stopped: it was said
+    # only after it) and in the report
     [warning] = report["warnings"]
     assert warning.startswith("snijders_2005, nominal: 20 s scored, from 10 s to 30 s, less than the 96 s")
     assert captured.err.count(f"dpgw study: warning: {warning}\n") == 1
+    assert captured.err.startswith(f"dpgw study: warning: {warning}\n"), captured.err
     assert {e["observer"] for e in report["summary"]} == {"passive", "ekf"}
     assert (out / "results.csv").read_text().count("\n") == 1 + 4
     assert (out / "summary.md").exists() and list(out.glob("box_*.png"))
@@ -467,3 +469,23 @@ def test_the_tables_direction_is_the_degrees_given(degrees: float) -> None:
 
     assert direction_deg(math.radians(degrees)) == degrees % 360.0
     assert direction_deg(math.radians(-1e-12)) == 0.0  # never 360.0
+
+
+def test_a_study_too_short_to_score_is_warned_of_before_it_runs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The length is known before the run: the warning comes first, so an hour's study can be stopped
+    and started again longer. Here the study is stopped at once (Ctrl-C as it starts): the warning was
+    already said (before, it came only with the outputs of a finished study)."""
+    import dpgw.study.runner as runner
+
+    def stopped(*_: Any, **__: Any) -> Any:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(runner, "run_study", stopped)
+    argv = ["study", "--scenario", "snijders_2005", "--seeds", "0", "--duration", "30", "--serial",
+            "--no-progress", "--out", str(tmp_path / "out")]  # fmt: skip
+    assert main(argv) == 130
+    err = capsys.readouterr().err
+    assert err.startswith("dpgw study: warning: snijders_2005, nominal: 20 s scored, from 10 s to 30 s"), err
+    assert "give --duration 144 or more" in err and "stopped (Ctrl-C)" in err

@@ -198,6 +198,28 @@ def short_scoring_warnings(rows: Sequence[dict[str, Any]]) -> list[str]:
     return out
 
 
+def planned_rows(cases: Sequence[Any]) -> list[dict[str, Any]]:
+    """What `short_scoring_warnings` reads of a study's rows (scenario, sea, observer, duration, settle and
+    the sea's peak period), from its cases before any runs: one row per case, so that a study too short
+    to score is said before it runs, not after an hour."""
+    from simulator.scenarios import get_scenario
+
+    out = []
+    for case in cases:
+        tp = case.sea.tp_s if case.sea.tp_s is not None else get_scenario(case.scenario).sea[0][1].tp_s
+        out.append(
+            {
+                "scenario": case.scenario,
+                "sea": case.sea.label,
+                "observer": "",
+                "duration_s": case.duration_s,
+                "settle_s": case.settle_s,
+                "tp_s": tp,
+            }
+        )
+    return out
+
+
 def summary_markdown(rows: Sequence[dict[str, Any]]) -> str:
     """Per sea state a table: per observer the median [5 %, 95 %] of each column over the seeds; then each
     observer paired with the first, seed by seed (`paired`)."""
