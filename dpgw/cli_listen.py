@@ -87,6 +87,11 @@ def run(args: argparse.Namespace) -> int:
     stop = {"now": False}
     signal.signal(signal.SIGINT, lambda *_: stop.update(now=True))
     signal.signal(signal.SIGTERM, lambda *_: stop.update(now=True))
+    if hint := key_hint(args.key):
+        # known from the key alone, so said at once (once Ctrl-C is handled): it was said only when a
+        # --duration ended with nothing heard, and a listener stopped with Ctrl-C (how most stop it) never
+        # learnt why it heard nothing
+        print(f"dpgw listen: {args.key}: {hint.removeprefix('; ')}", file=sys.stderr, flush=True)
     deadline = None if args.duration is None else time.monotonic() + args.duration
     n = clock_seen = 0
     clock_suffix = "/" + SIM_CLOCK_KEY
@@ -205,7 +210,8 @@ def nothing_heard(args: argparse.Namespace, reached: int) -> str:
         )
     return (
         f"{said}, though {reached} Zenoh peer{'s' if reached > 1 else ''} answered: is the key right? "
-        f"'dp/**' shows everything a gateway publishes{key_hint(args.key)}"
+        "'dp/**' shows everything a gateway publishes"
+        + ("; and see the note on the key above" if key_hint(args.key) else "")
     )
 
 

@@ -1301,11 +1301,13 @@ def test_listen_hints_at_keelsons_at_chunk_and_summarises_binary_payloads() -> N
         thread.join(5)
         server.close()
     assert missed.returncode == 1 and missed.stdout == "", missed.stderr
-    line = _one_line(missed.stderr)
-    assert line.startswith("dpgw listen: nothing on keelson/** in 3 s, though 1 Zenoh peer answered"), line
-    assert line.endswith(
-        "Keelson's keys have an @v0 chunk, which no wildcard matches in Zenoh: try 'keelson/@v0/**'"
+    note, line = missed.stderr.splitlines()  # the note on the key at once, then what was (not) heard
+    assert note == (
+        "dpgw listen: keelson/**: Keelson's keys have an @v0 chunk, which no wildcard matches in Zenoh: "
+        "try 'keelson/@v0/**'"
     )
+    assert line.startswith("dpgw listen: nothing on keelson/** in 3 s, though 1 Zenoh peer answered"), line
+    assert line.endswith("; and see the note on the key above")
     assert text.returncode == 0, text.stderr
     by_key = {ln.split(": ", 1)[0]: ln.split(": ", 1)[1] for ln in text.stdout.splitlines()}
     assert by_key["keelson/@v0/sv1/pubsub/heading_true_north_deg/dpgw"] == (
@@ -1347,3 +1349,28 @@ def test_run_says_its_log_rotation_at_start_and_the_files_it_wrote_at_the_stop(t
     assert q.returncode == 0, q.stderr
     written = json.loads(q.stdout)["log_files"]
     assert len(written) == 1 and written[0] not in files and Path(written[0]).stat().st_size > 0, written
+
+
+def test_listen_says_the_keelson_note_at_once_for_a_listener_stopped_by_ctrl_c() -> None:
+    """Most stop ``dpgw listen`` with Ctrl-C, not a --duration: the note on a key that can hear none of
+    Keelson's keys came only when a duration ended, so they never saw it. It depends on the key alone and
+    comes first."""
+    import signal
+
+    port = free_port()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "dpgw", "listen", "--no-scouting", "--listen", f"tcp/127.0.0.1:{port}",
+         "keelson/**"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        assert proc.stderr is not None
+        first = proc.stderr.readline()  # (blocks until the note: no sleep)
+        assert first.startswith("dpgw listen: keelson/**: Keelson's keys have an @v0 chunk"), first
+        assert proc.poll() is None  # said while listening, before any stop
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=30) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
