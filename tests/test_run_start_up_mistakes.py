@@ -279,20 +279,25 @@ def test_two_missing_serial_ports_are_named_in_one_message(tmp_path: Path) -> No
     assert not (tmp_path / "live.mcap").exists()  # stopped before anything was opened
 
 
+def with_missing_gyro(cfg: Path) -> Path:
+    """``cfg`` with a second source, a gyro on a serial port that does not exist."""
+    cfg.write_text(
+        cfg.read_text().replace(
+            "[zenoh]",
+            '[[sources]]\nname = "gyro"\nurl = "serial:///dev/ttyUSB_nope2?baud=4800"\n'
+            'protocol = "nmea"\nroles = ["heading"]\npriority = 2\n[zenoh]',
+        )
+    )
+    return cfg
+
+
 def test_a_missing_serial_port_and_a_port_in_use_are_named_in_one_message(tmp_path: Path) -> None:
     """A serial port that is not there and another source's UDP port held by another program: both in one
     message, each with its key and its fix (before, the second was met only after the first was fixed)."""
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as other:
         other.bind(("127.0.0.1", 0))
         port = other.getsockname()[1]
-        cfg = write_config(tmp_path, f"udp://127.0.0.1:{port}", name="mux")
-        cfg.write_text(
-            cfg.read_text().replace(
-                "[zenoh]",
-                '[[sources]]\nname = "gyro"\nurl = "serial:///dev/ttyUSB_nope2?baud=4800"\n'
-                'protocol = "nmea"\nroles = ["heading"]\npriority = 2\n[zenoh]',
-            )
-        )
+        cfg = with_missing_gyro(write_config(tmp_path, f"udp://127.0.0.1:{port}", name="mux"))
         p = start(cfg)
     assert p.returncode == 2, p.stderr
     assert "Traceback" not in p.stderr
@@ -357,14 +362,7 @@ def test_a_missing_serial_port_stops_start_up_before_the_kernels_compile(
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as other:
         other.bind(("127.0.0.1", 0))
         port = other.getsockname()[1]
-        cfg = write_config(tmp_path, f"udp://127.0.0.1:{port}", name="mux")
-        cfg.write_text(
-            cfg.read_text().replace(
-                "[zenoh]",
-                '[[sources]]\nname = "gyro"\nurl = "serial:///dev/ttyUSB_nope2?baud=4800"\n'
-                'protocol = "nmea"\nroles = ["heading"]\npriority = 2\n[zenoh]',
-            )
-        )
+        cfg = with_missing_gyro(write_config(tmp_path, f"udp://127.0.0.1:{port}", name="mux"))
         service = GatewayService(load_config(cfg))
         caplog.set_level(logging.INFO, logger="dpgw")
         with pytest.raises(SeveralSourcesError) as raised:
