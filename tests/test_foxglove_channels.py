@@ -155,35 +155,37 @@ def test_gnss_fixes_hold_gga_altitude_and_gst_covariance(demo_log: Path) -> None
 
 @pytest.mark.slow
 def test_estimate_fix_pose_and_frame_are_the_estimate(demo_log: Path) -> None:
-    # A feed's outputs are logged in order: the measurement, the estimate, then what mirrors them; so each
-    # Foxglove message is checked against the last JSON estimate and measurement logged before it.
-    est: dict[str, Any] = {}
-    meas: dict[str, Any] = {}
+    # A feed's outputs are logged in order: the measurements and estimates, then what mirrors them; so each
+    # Foxglove message is checked against the JSON estimate and measurement of its own stamp logged before
+    # it. (Not simply the last one: a chunk that held two gyro cycles, on a busy machine, steps twice, and
+    # the first step's mirror follows the second step's estimate.)
+    est: dict[int, dict[str, Any]] = {}
+    meas: dict[int, dict[str, Any]] = {}
     est_stamps: list[int] = []
     pose_stamps: list[int] = []
     fix_stamps: list[int] = []
     for topic, _, _, p in read_messages(demo_log):
         if topic == "/dp/estimate":
-            est = p
+            est[p["stamp_ns"]] = p
             est_stamps.append(p["stamp_ns"])
         elif topic == "/dp/measurement":
-            meas = p
+            meas[p["stamp_ns"]] = p
         elif topic == "/dp/estimate/fix":
-            assert _ns(p["timestamp"]) == est["stamp_ns"]
-            assert (p["latitude"], p["longitude"]) == (est["lat_deg"], est["lon_deg"])
-            assert p["heading"] == est["eta"][2]
-            fix_stamps.append(est["stamp_ns"])
+            e_ = est[_ns(p["timestamp"])]
+            assert (p["latitude"], p["longitude"]) == (e_["lat_deg"], e_["lon_deg"])
+            assert p["heading"] == e_["eta"][2]
+            fix_stamps.append(e_["stamp_ns"])
         elif topic == "/dp/estimate/pose":
-            n, e, psi = est["eta"]
+            e_ = est[_ns(p["timestamp"])]
+            n, e, psi = e_["eta"]
             pose = p["pose"]
-            assert _ns(p["timestamp"]) == est["stamp_ns"] and p["frame_id"] == "ltp"
+            assert p["frame_id"] == "ltp"
             assert (pose["position"]["x"], pose["position"]["y"], pose["position"]["z"]) == (e, n, 0.0)  # ENU
             assert _same_angle(_yaw(pose["orientation"]), math.pi / 2 - psi)
-            pose_stamps.append(est["stamp_ns"])
+            pose_stamps.append(e_["stamp_ns"])
         elif topic == "/dp/measurement/pose":
-            n, e, psi = meas["eta"]
+            n, e, psi = meas[_ns(p["timestamp"])]["eta"]
             pose = p["pose"]
-            assert _ns(p["timestamp"]) == meas["stamp_ns"]
             assert (pose["position"]["x"], pose["position"]["y"]) == (e, n)
             assert _same_angle(_yaw(pose["orientation"]), math.pi / 2 - psi)
         elif topic == "/dp/tf":
@@ -191,12 +193,13 @@ def test_estimate_fix_pose_and_frame_are_the_estimate(demo_log: Path) -> None:
                 continue  # (the antennas' frames, with the hull: test_gnss_fixes_hold_...)
             first, *measured = p["transforms"]
             assert (first["parent_frame_id"], first["child_frame_id"]) == ("ltp", "vessel")
-            n, e, psi = est["eta"]
+            n, e, psi = est[_ns(first["timestamp"])]["eta"]
             assert (first["translation"]["x"], first["translation"]["y"]) == (e, n)
             assert _same_angle(_yaw(first["rotation"]), math.pi / 2 - psi)
             for t in measured:
+                m = meas[_ns(t["timestamp"])]
                 assert t["child_frame_id"] == "vessel_measured"
-                assert (t["translation"]["x"], t["translation"]["y"]) == (meas["eta"][1], meas["eta"][0])
+                assert (t["translation"]["x"], t["translation"]["y"]) == (m["eta"][1], m["eta"][0])
     assert len(pose_stamps) > 150 and fix_stamps == pose_stamps  # the map and the 3D panel: the same
     gaps = [b - a for a, b in itertools.pairwise(pose_stamps)]
     assert min(gaps) >= POSE_PERIOD_NS  # at most ~5 Hz ...

@@ -55,7 +55,8 @@ def test_a_signal_stops_the_study_and_says_what_is_kept(
     tracebacks. SIGHUP and SIGINT go to the whole group (a closed terminal and Ctrl-C signal the
     foreground group: the workers and the resource tracker get them too); SIGTERM to the process (kill)."""
     out = tmp_path / "s"
-    proc = _study(["--seeds", "0-5", "--duration", "60", "--no-progress"], out, start_new_session=True)
+    # (90 s: long enough to score, so no warning before the run: stderr is the stop's line alone)
+    proc = _study(["--seeds", "0-5", "--duration", "90", "--no-progress"], out, start_new_session=True)
     cache = out / "cache"
     deadline = time.monotonic() + 240
     while not list(cache.glob("*.json")):  # a first case cached (the file appears whole: atomic write)
