@@ -398,7 +398,9 @@ class FoxgloveServerSink:
             ch.held.append(ch.last)
             self._waiting.add(topic)
         self.stats.readvertised += 1
-        log.info("foxglove: %s advertised again (a client had not subscribed to it)", topic)
+        # (debug: the SDK's race worked around, counted in `stats.readvertised`; a line per channel at
+        # info filled a service's journal with one per slow client's channel under -v)
+        log.debug("foxglove: %s advertised again (a client had not subscribed to it)", topic)
 
     def _flush_waiting(self) -> None:
         for topic in list(self._waiting):
