@@ -131,6 +131,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "map them with esc_direction_servo = {n = 16 + n}; docs/sensors.md)",
     )
     p.add_argument(
+        "--on-command-loss",
+        choices=("hold", "stop"),
+        help="what the drives do once their commands have stopped for 2 s: hold the last command (the "
+        "default, as most DP drives do) or stop (zero thrust: a drive's fieldbus watchdog, an ArduPilot "
+        "failsafe), to rehearse a gateway that goes silent",
+    )
+    p.add_argument(
         "--zenoh",
         action="store_true",
         help="a Zenoh session: with --realtime, publish the simulation time on <prefix>/sim/clock (for "
@@ -215,6 +222,7 @@ def run(args: argparse.Namespace) -> int:
             ("--gyro-rate", args.gyro_rate),
             ("--faults", args.faults),
             ("--ardupilot", args.ardupilot),
+            ("--on-command-loss", args.on_command_loss),
             ("--signing-key-file", args.signing_key_file),
             ("--zenoh", args.zenoh),
             *_session_options(args),
@@ -382,6 +390,10 @@ def _run_scenario(args: argparse.Namespace) -> int:
                 feedback=replace(
                     scenario.feedback, ardupilot_esc=True, ardupilot_servo=True, ardupilot_motor=True
                 ),
+            )
+        if args.on_command_loss and scenario.feedback is not None:
+            scenario = replace(
+                scenario, feedback=replace(scenario.feedback, on_command_loss=args.on_command_loss)
             )
     except (ValueError, OSError) as exc:
         print(f"dpgw sim: {exc}", file=sys.stderr)

@@ -223,6 +223,7 @@ def run_closed_loop(
     wire: bool | None = None,
     collect: tuple[str, ...] = (),
     hold_on_joystick: bool = False,
+    tick: bool = True,
 ) -> ClosedLoopRun:
     """Run the scenario with the gateway pipeline commanding the thrusters. ``events``: (sim time, key,
     payload) Zenoh inputs such as ("setpoint", {...}) or ("mode", "standby"); the scenario's command faults
@@ -236,7 +237,9 @@ def run_closed_loop(
     topics (e.g. "/dp/measurement") whose payloads are kept in ``collected`` (the typed messages in
     ``collected_messages``), in order. ``hold_on_joystick``: until the gateway's first thruster command the
     vessel is held on its station by an operator on joystick, as `dpgw demo` holds it before DP is engaged
-    (`Simulation.start_held`, `Simulation.held_tau`)."""
+    (`Simulation.start_held`, `Simulation.held_tau`). ``tick``: the pipeline ticked once a chunk, as the
+    service ticks it (False: never, as a gateway that did not dead-reckon through a silence; for
+    `bench/dead_reckoning_control.py`'s comparison)."""
     if wire is None:
         wire = needs_wire(scenario, log)
     tables = with_scenario_observer(tables or gateway_tables(scenario), scenario)
@@ -312,7 +315,10 @@ def run_closed_loop(
         # the live service ticks its pipeline between inputs (`Pipeline.tick`): with every position and
         # heading source silent, it dead-reckons and commands on that; the loop ticks once a chunk, at its
         # end, after the chunk's inputs (a tick with data flowing does nothing but the state changes)
-        for outputs in (*map(pipeline.feed, raw), pipeline.tick(sim.epoch.stamp_ns(sim.t))):
+        fed = [pipeline.feed(event) for event in raw]
+        if tick:
+            fed.append(pipeline.tick(sim.epoch.stamp_ns(sim.t)))
+        for outputs in fed:
             for o in outputs:
                 if o.topic in run.collected_messages:
                     run.collected_messages[o.topic].append(o.message)

@@ -294,6 +294,8 @@ class Simulation:
         self._next_truth: float | None = None
         self._next_drift: float | None = None
         self.external_control = False
+        feedback = scenario.feedback
+        self._stops_on_command_loss = feedback is not None and feedback.on_command_loss == "stop"
         self.summary = SimSummary(scenario.name, seed, 0.0, 0.0)
         self.on_time: Callable[[float], None] | None = None
         """Called with the sim time after every advance, before what is due then is sampled or sent, and
@@ -464,7 +466,11 @@ class Simulation:
                     self._last_command_t = self.t
                     self.external_control = True
         if self.external_control:
-            # A real thruster holds its last command when the link goes quiet (and says so in its status).
+            # Commands stopped for COMMAND_TIMEOUT_S: most DP drives hold their last command; drives whose
+            # comms-loss action is to stop (a fieldbus watchdog, an ArduPilot failsafe) go to zero thrust,
+            # the azimuths where they are (`ThrusterFeedbackConfig.on_command_loss`).
+            if self._stops_on_command_loss and self.command_timed_out:
+                self.thrusters.command(np.zeros(self.thrusters.n), self.thrusters.angle_setpoint)
             return
         tau = self.scenario.tau(ShipNow(self.t, self.dynamics.eta, self.dynamics.nu, self._mean_load_body()))
         if self.allocate is None:

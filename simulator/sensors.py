@@ -425,7 +425,10 @@ class MruConfig:
 @dataclass(frozen=True)
 class ThrusterFeedbackConfig:
     """A thruster controller reporting over MAVLink as system ``system_id``, component ``component_id``.
-    ``heartbeat_hz`` 0 turns the heartbeat off (to test a gateway's link-loss alarm)."""
+    ``heartbeat_hz`` 0 turns the heartbeat off (to test a gateway's link-loss alarm). ``on_command_loss``:
+    what the drives do once no command has come for `simulator.runner.COMMAND_TIMEOUT_S`: ``hold`` their
+    last command (the default), or ``stop`` (thrust to zero, the azimuths where they are: a drive's
+    fieldbus watchdog, an ArduPilot failsafe)."""
 
     source: str = "thrusters"
     rate_hz: float = 5.0
@@ -436,6 +439,7 @@ class ThrusterFeedbackConfig:
     ardupilot_servo: bool = False
     ardupilot_motor: bool = False
     latency_s: float = 0.0
+    on_command_loss: str = "hold"
 
     def __post_init__(self) -> None:
         _validate(self, _FEEDBACK_RULES)
@@ -1306,6 +1310,8 @@ _MRU_RULES: dict[str, Rule] = {
     "sigma_heading_rad": _rule(_number(ge=0.0, le=0.1), "must be in [0, 0.1] rad"),
     "latency_s": _LATENCY_RULE,
 }
+COMMAND_LOSS_ACTIONS = ("hold", "stop")
+"""What simulated drives do when their commands stop (`ThrusterFeedbackConfig.on_command_loss`)."""
 _FEEDBACK_RULES: dict[str, Rule] = {
     "source": _SOURCE_RULE,
     "rate_hz": _rule(_number(gt=0.0, le=50.0), "must be in (0, 50] Hz"),
@@ -1316,6 +1322,7 @@ _FEEDBACK_RULES: dict[str, Rule] = {
     "ardupilot_servo": _BOOLEAN_RULE,
     "ardupilot_motor": _BOOLEAN_RULE,
     "latency_s": _LATENCY_RULE,
+    "on_command_loss": _rule(_one_of(COMMAND_LOSS_ACTIONS), "must be 'hold' or 'stop'"),
 }
 
 

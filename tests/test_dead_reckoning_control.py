@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
 from conftest import free_port, stop_service, wait_for
 
 from dpgw.closed_loop import run_closed_loop
@@ -142,3 +143,32 @@ def test_in_manual_the_joystick_is_commanded_through_a_total_silence_and_its_dea
     late = [x for ns, x in when.items() if ns >= T0 + 12.1 * S]
     assert late and all(x == 0.0 for x in late), late
     assert p.mode == "manual" and p.commands.counters.expired == {"tau": 1}
+
+
+def test_simulated_drives_hold_or_stop_when_their_commands_stop() -> None:
+    """The simulator's drives on command loss (`ThrusterFeedbackConfig.on_command_loss`): ``hold`` keeps the
+    last command (as most DP drives do), ``stop`` goes to zero thrust 2 s after the last command, the
+    azimuths where they were (a fieldbus watchdog, an ArduPilot failsafe)."""
+    from dpgw.closed_loop import _Commands
+    from simulator.commands import ThrusterCommand
+    from simulator.runner import COMMAND_TIMEOUT_S, Simulation
+
+    scenario = get_scenario("torsetnes_2004")
+    assert scenario.feedback is not None
+    for action, after in (("hold", 50e3), ("stop", 0.0)):
+        drives = replace(scenario, feedback=replace(scenario.feedback, on_command_loss=action))
+        commands = _Commands()
+        sim = Simulation(drives, 0, commands=[commands])
+        ids = list(sim.thrusters.ids)
+        for _ in range(10):  # 1 s of commands: 50 kN at 30°
+            commands.pending += [ThrusterCommand(i, 50e3, 0.5) for i in ids]
+            sim.run(0.1)
+        assert sim.thrusters.thrust_setpoint.tolist() == [50e3] * len(ids)
+        sim.run(COMMAND_TIMEOUT_S - 0.3)  # not yet timed out: held either way
+        assert sim.thrusters.thrust_setpoint.tolist() == [50e3] * len(ids), action
+        sim.run(0.5)
+        assert sim.thrusters.thrust_setpoint.tolist() == [after] * len(ids), action
+        azimuths = sim.thrusters.angle_setpoint[sim.thrusters.is_azimuth].tolist()
+        assert azimuths and all(abs(a - 0.5) < 1e-12 for a in azimuths), action
+    with pytest.raises(ValueError, match="on_command_loss"):
+        replace(scenario.feedback, on_command_loss="coast")
