@@ -202,11 +202,11 @@ def planned_rows(cases: Sequence[Any]) -> list[dict[str, Any]]:
     """What `short_scoring_warnings` reads of a study's rows (scenario, sea, observer, duration, settle and
     the sea's peak period), from its cases before any runs: one row per case, so that a study too short
     to score is said before it runs, not after an hour."""
-    from simulator.scenarios import get_scenario
+    from dpgw.study.case import build_scenario  # (the case's sea: its own values, else the scenario's)
 
     out = []
     for case in cases:
-        tp = case.sea.tp_s if case.sea.tp_s is not None else get_scenario(case.scenario).sea[0][1].tp_s
+        tp = build_scenario(case).sea[0][1].tp_s
         out.append(
             {
                 "scenario": case.scenario,

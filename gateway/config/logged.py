@@ -38,15 +38,11 @@ def for_log(tables: dict[str, Any]) -> dict[str, Any]:
     such a gateway ran (every input taken; the τ held until the next one) — so a gateway configured
     without the table, which took no input, must not log it without one, or its replay would obey the
     inputs it refused."""
-    commands = tables.get("commands")
-    if commands is None:
-        commands = {"accept": list(DEFAULTS["commands"]["accept"])}
-    if isinstance(commands, dict):
-        if "accept" not in commands:
-            commands = {**commands, "accept": list(DEFAULTS["commands"]["accept"])}
-        if "manual_tau_hold_s" not in commands:
-            commands = {**commands, "manual_tau_hold_s": DEFAULTS["commands"]["manual_tau_hold_s"]}
-        tables = {**tables, "commands": commands}
+    commands = tables.get("commands", {})
+    if isinstance(commands, dict):  # (anything else is the config check's to refuse)
+        d = DEFAULTS["commands"]
+        written = {"accept": list(d["accept"]), "manual_tau_hold_s": d["manual_tau_hold_s"]}
+        tables = {**tables, "commands": {**written, **commands}}
     control = tables.get("control")
     waits = DEFAULTS["control"]["wait_for_observer"]
     if (
