@@ -499,6 +499,7 @@ class Pipeline:
                     wind_feedforward_gain=cc.wind_feedforward_gain,
                     wind_filter_s=cc.wind_filter_s,
                     wind_loss_fade_s=cc.wind_loss_fade_s,
+                    takeover_fade_s=cc.takeover_fade_s,
                 ),
                 observer_bias_time_s=(
                     observer_bias_time_s(spec.observer) if cc.feedback == "estimate" else None

@@ -541,6 +541,7 @@ def _read_control(p: Problems, data: Mapping[str, Any], vessel: VesselModel | No
         wind_feedforward_gain=v["wind_feedforward_gain"],
         wind_filter_s=v["wind_filter_s"],
         wind_loss_fade_s=v["wind_loss_fade_s"],
+        takeover_fade_s=v["takeover_fade_s"],
     )
 
 

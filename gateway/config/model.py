@@ -208,6 +208,10 @@ class ControlConfig:
     """After the wind is lost, its last force fades linearly to zero over this time (s; 0: drops at
     once); None: twice the slower of the controller's integral time and the observer's bias mode
     (docs/controller.md)."""
+    takeover_fade_s: float | None = None
+    """After a bumpless entry into DP, the τ held before entry fades into the control law's own (the
+    load the bias estimate knows) over this time (s; 0: at once); None: 1/ωn of the slowest DOF
+    (docs/controller.md, "Modes and bumpless transfer")."""
 
 
 @dataclass(frozen=True)

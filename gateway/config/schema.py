@@ -450,6 +450,7 @@ class ControlTable(_Section):
     wind_feedforward_gain: float = number(_C["wind_feedforward_gain"], lo=0.0, hi=1.0)
     wind_filter_s: float = number(_C["wind_filter_s"], lo=0.0, hi=120.0, lo_open=True, unit="s")
     wind_loss_fade_s: float | None = number(None, lo=0.0, hi=3600.0, unit="s (0 = drop at once)")
+    takeover_fade_s: float | None = number(None, lo=0.0, hi=3600.0, unit="s (0 = at once)")
 
 
 _Q = DEFAULTS["consequence"]

@@ -80,9 +80,13 @@ operator's τ may stand without a new one is the gateway's dead-man, ``[commands
 which then gives τ = 0). Bumpless transfer into ``dp``:
 the first `update` in dp starts the reference at η̂ moving with J(ψ̂)ν̂ (so η̃ = 0, ν̃ = 0) and sets the
 integrator so that the first τ equals the τ output just before (the manual τ, or 0 from standby), or the
-``tau_now`` given to `set_mode`. The integrator then carries the load the operator was holding; it
-unwinds through the closed loop (time constant ≈ 1/a). A DOF without integral action (ρᵢ = 0) cannot
-be made bumpless this way and may jump. Entering dp with no setpoint given since dp was last left holds
+``tau_now`` given to `set_mode`. That start content of the integrator then fades to zero (a smoothstep) over
+``takeover_fade_s`` (default 1/ωn), so τ moves from the τ before to the law's own, whose bias
+feed-forward carries the load the observer knows: a τ_now of 0 (nobody held the vessel: standby, a
+manual τ the dead-man expired) would otherwise cancel that load and leave the vessel drifting until the
+integrator unwound through the loop (≈ 1/a, minutes). Without a bias estimate fed forward there is no
+fade: the integrator keeps the load it was given. A DOF without integral action (ρᵢ = 0) cannot be
+made bumpless this way and may jump. Entering dp with no setpoint given since dp was last left holds
 the present position (DP-console convention); a setpoint given while in standby or manual becomes the
 target on entering dp (the gateway checks its distance from the estimate again then, and
 `forget_setpoint` drops one too far).
@@ -193,6 +197,11 @@ class ControllerTuning:
     wind_filter_s:             T_w > 0 of the measured wind's first-order low-pass (s).
     wind_loss_fade_s:          T_f ≥ 0: after the wind is lost its force fades linearly to zero over T_f
                                (s; 0: drops at once); None: `wind_feedforward.default_fade_s`.
+    takeover_fade_s:           T_x ≥ 0: after a bumpless entry into dp, the integrator's start content
+                               fades to zero over T_x (s, along a smoothstep), so τ goes from the τ before
+                               entry to the control law's own, bias feed-forward included (module docstring,
+                               "Bumpless transfer"); 0: at once; inf: never (the integrator unwinds it
+                               through the loop, ≈ 1/a); None: 1/ωn of the slowest DOF.
     """
 
     bandwidth_rad_s: float | tuple[float, ...] | None = None
@@ -211,6 +220,7 @@ class ControllerTuning:
     wind_feedforward_gain: float = 1.0
     wind_filter_s: float = DEFAULT_WIND_FILTER_S
     wind_loss_fade_s: float | None = None
+    takeover_fade_s: float | None = None
 
     def resolved(self, vessel: VesselModel) -> ControllerTuning:
         """This tuning with every default filled in for ``vessel`` and per-DOF values as tuples, checked."""
@@ -252,6 +262,19 @@ class ControllerTuning:
             raise ControllerError(
                 f"tuning 'wind_loss_fade_s': must be a finite number >= 0 s (0: drop at once), got {fade!r}"
             )
+        takeover = given["takeover_fade_s"]
+        if takeover is None:
+            takeover = 1.0 / min(wn)
+        if (
+            isinstance(takeover, bool)
+            or not isinstance(takeover, int | float)
+            or math.isnan(takeover)
+            or takeover < 0
+        ):
+            raise ControllerError(
+                "tuning 'takeover_fade_s': must be a number >= 0 s (0: at once, inf: never), "
+                f"got {given['takeover_fade_s']!r}"
+            )
         return replace(
             self,
             bandwidth_rad_s=wn,
@@ -266,6 +289,7 @@ class ControllerTuning:
             wind_feedforward_gain=float(gain),
             wind_filter_s=float(wf),
             wind_loss_fade_s=None if fade is None else float(fade),
+            takeover_fade_s=float(takeover),
             **limits,
         )
 
@@ -444,6 +468,10 @@ class DPController:
         self._tau_now: Array | None = None
         self._setpoint: Array | None = None
         self._z = np.zeros(3)
+        # the takeover fade: z loses its start content z₀ (earth frame) along a smoothstep over T_x
+        self._takeover_s = float(_num(tu.takeover_fade_s)[0])
+        self._fade_z = np.zeros(3)
+        self._fade_left = 0.0
         self._tau = np.zeros(3)
         self._tau_manual = np.zeros(3)
         self._t: float | None = None
@@ -508,6 +536,7 @@ class DPController:
         if mode == self._mode:
             return
         self.returning = False
+        self._fade_left = 0.0
         if self._mode == "dp":
             self._setpoint = None  # leaving dp: re-entering holds the present position unless told otherwise
         if mode == "dp":
@@ -609,6 +638,8 @@ class DPController:
             return self._output(t, False, self.reference.state, ZERO3, ZERO3, ZERO3, ZERO3, ZERO3, ZERO3)
         if self.tuning.governed_return and not self._entering:
             self._govern_return(eta, nu)
+        if self._fade_left > 0 and dt > 0 and not self._entering:
+            self._fade_step(dt)
         if self.compiled and not self._entering:
             return self._update_dp_compiled(t, dt, eta, nu, b, saturated, tau_alloc, tau_w)
         R = rotation(float(eta[2]))
@@ -637,6 +668,8 @@ class DPController:
             self._z = R @ w
             self._entering = False
             self._tau_now = None
+            # ... and that start content fades out: τ moves from τ_now to the law's own (the load b̂ knows)
+            self._start_takeover_fade(b is not None and self.tuning.bias_feedforward)
         elif dt > 0:
             if saturated and tau_alloc is not None:
                 # back-calculation: take min(dt/Tt, 1) of the excess demand off the integral term
@@ -652,6 +685,40 @@ class DPController:
         tau_i = -self.gains.Ki @ (R.T @ self._z)
         self._tau = tau_p + tau_i + tau_d + tau_ff
         return self._output(t, True, ref, e, nu_err, tau_p, tau_i, tau_d, tau_ff, tau_w)
+
+    def _start_takeover_fade(self, known_load: bool) -> None:
+        """After the bumpless first step: z's start content fades to zero over ``takeover_fade_s``.
+
+        The bumpless z makes the first τ equal τ_now, whatever τ_now was. When it was the load held (an
+        operator on the joystick, thrusters already pushing), z starts near zero, as the bias feed-forward
+        −Jᵀ(ψ̂) b̂ already asks for that load. But τ_now = 0 (from standby without thruster feedback, or
+        a manual τ the dead-man expired) means nobody held the vessel: z then holds +Jᵀb̂ exactly cancelling
+        the known load, and left to the closed loop it would unwind at the integral pole a (≈ 1/a, over
+        two minutes for a supply vessel) while the vessel drifts off. Fading it instead takes the load up
+        at a pace the thrusters can follow. Only with a bias estimate fed forward: without one the
+        integrator is all the controller knows of the load, and keeps what it was given.
+
+        The fade follows a smoothstep S(s) = 3s² − 2s³, s = t/T_x, not a ramp: its rate is zero at both
+        ends, so τ's rate of change does not step when DP is engaged or when the fade ends (a linear
+        fade of a supply vessel's 8 MN·m yaw braking feed-forward, also cancelled by the bumpless z,
+        stepped τ by 38 kN·m in the first 0.1 s). Its peak rate is 1.5 z₀/T_x, at T_x/2."""
+        fade = self._takeover_s
+        if not known_load or not math.isfinite(fade):
+            return
+        if fade <= 0:
+            self._z = np.zeros(3)
+            return
+        self._fade_z = self._z.copy()
+        self._fade_left = fade
+
+    def _fade_step(self, dt: float) -> None:
+        """Take the part of z₀ the smoothstep removes over the next dt off z (`_start_takeover_fade`)."""
+        fade = self._takeover_s
+        s0 = 1.0 - self._fade_left / fade
+        self._fade_left = max(self._fade_left - dt, 0.0)
+        s1 = 1.0 - self._fade_left / fade
+        share = (3 * s1 * s1 - 2 * s1 * s1 * s1) - (3 * s0 * s0 - 2 * s0 * s0 * s0)
+        self._z = self._z - share * self._fade_z
 
     def _govern_return(self, eta: Array, nu: Array) -> None:
         """A vessel far off its reference and coming back to it returns at the reference model's pace.
@@ -701,8 +768,10 @@ class DPController:
         # The load is carried by the bias feed-forward b̂; the integrator re-learns the residual.
         if trans:
             self._z[0] = self._z[1] = 0.0
+            self._fade_z[0] = self._fade_z[1] = 0.0
         if yaw:
             self._z[2] = 0.0
+            self._fade_z[2] = 0.0
         words = []
         if trans:
             words.append(f"{dist:.1f} m off at ≤ {self.return_speed_mps:.2f} m/s")
