@@ -84,6 +84,7 @@ EPILOG = (
     "  dpgw replay usv.txt --vessel cybership2 --observer passive:wave_period_s=1.6 \\\n"
     "       --observer passive:wave_period_s=2.5@long --out usv.mcap --report usv_report\n"
     "  dpgw replay sim.mcap --out est.mcap --json   # RMS errors vs the truth (the log names its vessel)\n"
+    "  dpgw replay gateway.mcap --truth sim.mcap      # a HIL bench: the gateway's log vs the plant\n"
     "  dpgw replay trial.mcap --out again.mcap --speed 5              # publish on Zenoh, 5x\n"
     "  dpgw replay trial.mcap --foxglove          # watch it in Foxglove: play, pause, seek, speed"
 )
@@ -154,6 +155,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="leave out the first S s when scoring against the truth and in the report (default: a dpgw "
         "demo log's own settle time, which its summary scored after; else the first 10 %% of the log, at "
         "most 60 s)",
+    )
+    p.add_argument(
+        "--truth",
+        metavar="SIM.mcap",
+        help="score against the ground truth of this simulator log (dpgw sim --out): a HIL bench's "
+        "gateway log against the simulator that fed it. Only its truth is read (its sentences are the "
+        "ones the gateway logged: giving both logs as LOG feeds them twice, refused). The gateway must "
+        'have run on the simulator\'s time (clock = "sim") for the two to line up; the truth is moved into '
+        "the gateway's datum",
     )
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     add_foxglove_arg(
@@ -245,6 +255,7 @@ def next_free_report(folder: str) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
+    from dpgw.replay_truth import fed_twice, truth_log_problem
     from gateway.bus import BusError
     from gateway.config import ConfigError, format_problems
     from gateway.replay import (
@@ -257,6 +268,7 @@ def run(args: argparse.Namespace) -> int:
         logged_min_scored_s,
         logged_settle_s,
         logged_signing_verdicts,
+        logged_sim,
         open_inputs,
         parse_observer_spec,
         run_replay,
@@ -341,8 +353,17 @@ def run(args: argparse.Namespace) -> int:
         except VesselError as exc:
             print(f"dpgw replay: --vessel: {exc}", file=sys.stderr)
             return 2
+    if args.truth is not None and (problem := truth_log_problem(Path(args.truth))):
+        print(f"dpgw replay: {problem}", file=sys.stderr)
+        return 2
     try:
         inputs = open_inputs(args.logs)
+        if why := fed_twice(inputs):
+            raise ReplayError(why)
+        if args.truth is not None and (own := next((i for i in inputs if logged_sim(i.path)), None)):
+            raise ReplayError(
+                f"--truth: {own.path} is a simulator log with its own truth: give one or the other"
+            )
         config = build_config(inputs, config_path=args.config, vessel=args.vessel)
         # Without --observer, the observer the config names (the log's own for a gateway log: what ran live).
         own = config.observer.type
@@ -392,6 +413,7 @@ def run(args: argparse.Namespace) -> int:
     stop = _StopOnSignal()
     on_outputs = stop.between_events(on_outputs)
     t0 = time.perf_counter()
+    truth_note: str | None = None
     try:
         with (
             stop,
@@ -408,6 +430,8 @@ def run(args: argparse.Namespace) -> int:
                 on_outputs=on_outputs,
                 progress=(lambda n: bar.update(n - bar.n)) if bar is not None else None,
             )
+            if args.truth is not None:
+                truth_note = _take_truth(Path(args.truth), pipeline, result, out)
     except (BusError, OSError) as exc:
         print(f"dpgw replay: {exc}", file=sys.stderr)
         return 2
@@ -464,6 +488,8 @@ def run(args: argparse.Namespace) -> int:
         print(cli_json.dumps(summary, indent=2))
     else:
         _print(summary)
+    if truth_note is not None:
+        print(f"dpgw replay: warning: --truth: {truth_note}", file=sys.stderr)
     for warning in [*_cut(summary), *_no_estimates(summary)]:
         print(f"dpgw replay: warning: {warning}", file=sys.stderr)
     for line in checks:  # (the wave check: in report.md too, as said here)
@@ -486,6 +512,31 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     return 0
+
+
+def _take_truth(path: Path, pipeline: Any, result: ReplayResult, out: Any) -> str | None:
+    """The simulator log's truth in the replay's frame into ``result`` (and --out's log, so that it
+    replays scored too); or why there is none to score against."""
+    from dpgw.replay_truth import span_overlap_s, to_replay_frame
+
+    frame = pipeline.fusion.datum
+    if frame is None:
+        return "the log gave no position fix, so there is no frame to put the truth in: nothing scored"
+    truth = to_replay_frame(path, frame)
+    first = min((a for a, _ in result.spans.values()), default=0)
+    last = max((b for _, b in result.spans.values()), default=0)
+    if span_overlap_s(truth, first, last) < 1.0:
+        return (
+            f"{path}'s truth ({_utc(int(truth[0]['stamp_ns']))} on) and the log "
+            f"({_utc(first)} to {_utc(last)}) do not overlap in time: a gateway on the wall clock stamps "
+            'its inputs with its own time; run it with [time] clock = "sim" (docs/gateway.md, "Simulation time") to score it'
+            if truth
+            else f"{path} holds no /truth/state"
+        )
+    result.truth = truth
+    for rec in truth:
+        out.write("/truth/state", rec, rec["stamp_ns"], rec["stamp_ns"])
+    return None
 
 
 def _verdict_note(source: str, live: dict[str, int], counts: dict[str, dict[str, int]]) -> str:

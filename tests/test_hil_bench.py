@@ -154,6 +154,21 @@ def test_the_documented_two_process_bench_closes_the_loop_and_stops_cleanly(tmp_
     # station keeping in the closed loop: the vessel stays near its setpoint (where it started)
     drift = np.hypot(*(eta_truth[t_truth >= t_truth[0] + 30.0, :2] - eta_truth[0, :2]).T)
     assert drift.max() < 10.0, drift.max()
+    # the bench's two logs scored from the command line: the gateway's replayed, the simulator's truth
+    # (in the simulator's datum; the gateway's is its first fix) moved into the replay's frame
+    scored = subprocess.run(
+        [sys.executable, "-m", "dpgw", "replay", str(log), "--truth", str(truth_log), "--json"]
+        + ["--out", str(tmp_path / "scored.mcap"), "--settle", "30"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert scored.returncode == 0, scored.stderr
+    err = json.loads(scored.stdout)["error_vs_truth"]
+    (label,) = err
+    assert err[label]["horizontal_rms_m"] < 1.5, err  # as the live estimate's (above)
+    assert abs(err[label]["horizontal_rms_m"] - s.horizontal_rms_m) < 0.3, (err, s.as_dict())
+    assert any(True for _ in read_messages(tmp_path / "scored.mcap", "/truth/state"))  # replays scored too
 
 
 def log_times(path: Path) -> list[tuple[str, int]]:

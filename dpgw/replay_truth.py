@@ -1,0 +1,75 @@
+"""Scoring a gateway's log against the ground truth of the simulator that fed it (`dpgw replay --truth`).
+
+On a HIL bench the gateway and the simulator are separate processes, each writing its own log: the
+gateway's holds the sentences it received (its raw channels) and its estimates, the simulator's holds the
+same sentences as it sent them and the plant's truth (`/truth/state`). Replaying both logs together would
+feed every sentence twice (refused: `fed_twice`); the gateway's log is replayed and the simulator's log
+only lends its truth (`--truth`).
+
+The truth is in the simulator's NED frame (its datum, in its metadata); the replay's estimates are in
+the gateway's (its configured datum, or its first fix). The truth's positions are moved into the
+replay's frame through latitude and longitude (`to_replay_frame`). Headings are kept: the two frames'
+north differ by the meridian convergence, about 1e-5 rad for datums a kilometre apart.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from gateway.replay import Input, logged_config, logged_datum, logged_sim, truth_records
+from wire.geodesy import LocalFrame
+
+
+def fed_twice(inputs: list[Input]) -> str | None:
+    """Why replaying these logs together would feed the sensors twice, or None: a gateway's own log
+    (its configuration, no simulator description) and a simulator's log (a simulator description, no
+    gateway configuration) among the inputs. A `dpgw demo` log holds both in one file, and is fine."""
+    gateway = [i for i in inputs if i.kind == "mcap" and logged_config(i.path) and not logged_sim(i.path)]
+    sim = [i for i in inputs if i.kind == "mcap" and logged_sim(i.path) and not logged_config(i.path)]
+    if not (gateway and sim):
+        return None
+    g, s = gateway[0].path, sim[0].path
+    return (
+        f"{g} is a gateway's log and {s} a simulator's: the gateway logged the sentences it received, the "
+        "simulator the ones it sent, so replaying both feeds every sentence twice. To score the gateway's "
+        f"log against the simulator's ground truth: dpgw replay {g} --truth {s}"
+    )
+
+
+def truth_log_problem(path: Path) -> str | None:
+    """What is wrong with ``path`` as a --truth log, or None."""
+    if not path.is_file():
+        return f"--truth {path}: no such file"
+    if logged_sim(path) is None:
+        return f"--truth {path}: not a simulator log (no dpgw.sim metadata): give the log of dpgw sim --out"
+    if logged_datum(path) is None:
+        return f"--truth {path}: the log does not say which datum its truth is in (written by an older dpgw)"
+    return None
+
+
+def to_replay_frame(path: Path, frame: LocalFrame) -> list[dict[str, Any]]:
+    """The truth records of the simulator log ``path`` with their LF positions (``eta_lf`` north, east) in
+    ``frame``, the replay's NED frame; heading and the wave-frequency motion as they are."""
+    datum = logged_datum(path)
+    assert datum is not None  # (`truth_log_problem` first)
+    sim = LocalFrame(datum["lat_deg"], datum["lon_deg"], datum["alt_m"])
+    same = (sim.lat_deg, sim.lon_deg, sim.alt_m) == (frame.lat_deg, frame.lon_deg, frame.alt_m)
+    out = []
+    for rec in truth_records(path):
+        if not same:
+            n, e, psi = rec["eta_lf"]
+            lat, lon, h = sim.to_geodetic(n, e, 0.0)
+            n2, e2, _ = frame.to_ned(lat, lon, h)
+            rec = {**rec, "eta_lf": [n2, e2, psi]}
+        out.append(rec)
+    return out
+
+
+def span_overlap_s(truth: list[dict[str, Any]], first_ns: int, last_ns: int) -> float:
+    """Seconds of the replayed log's span [first_ns, last_ns] that the truth covers."""
+    if not truth:
+        return 0.0
+    a = max(first_ns, int(truth[0]["stamp_ns"]))
+    b = min(last_ns, int(truth[-1]["stamp_ns"]))
+    return max(0.0, (b - a) / 1e9)

@@ -1,0 +1,85 @@
+"""`dpgw replay GATEWAY.mcap --truth SIM.mcap`: a HIL bench's gateway log scored against the simulator's
+truth, the truth moved into the gateway's frame; and both logs given as LOG (every sentence fed twice) is
+refused with the command that scores them. The two-process bench itself is in test_hil_bench."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dpgw.replay_truth import fed_twice, to_replay_frame, truth_log_problem
+from gateway.replay import logged_datum, open_inputs, truth_records
+from simulator.runner import Simulation
+from simulator.scenarios import get_scenario
+from wire.geodesy import LocalFrame
+from wire.mcap.writer import McapLogWriter
+
+
+@pytest.fixture(scope="module")
+def sim_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("truth") / "sim.mcap"
+    with McapLogWriter(path) as w:
+        Simulation(get_scenario("torsetnes_2004"), seed=2, log=w).run(30.0)
+    return path
+
+
+def gateway_like(path: Path) -> Path:
+    """A log with a gateway's configuration record and no simulator description (what `dpgw run` writes
+    at its start; `fed_twice` reads only that)."""
+    with McapLogWriter(path) as w:
+        w.add_metadata("dpgw.config", {"json": json.dumps({"vessel": {"name": "mss_supply"}})})
+    return path
+
+
+def test_the_truth_is_moved_into_the_replays_frame(sim_log: Path) -> None:
+    datum = logged_datum(sim_log)
+    assert datum is not None
+    sim = LocalFrame(datum["lat_deg"], datum["lon_deg"], datum["alt_m"])
+    # the gateway's datum (its first fix, or its config) 800 m south and 300 m west of the simulator's
+    lat, lon, h = sim.to_geodetic(-800.0, -300.0, 0.0)
+    gateway = LocalFrame(lat, lon, h)
+    moved = to_replay_frame(sim_log, gateway)
+    original = truth_records(sim_log)
+    assert len(moved) == len(original) > 100
+    for a, b in zip(original[::50], moved[::50], strict=True):
+        # the same place on the earth: through the two frames to latitude and longitude
+        la, lo, _ = sim.to_geodetic(a["eta_lf"][0], a["eta_lf"][1], 0.0)
+        lb, lob, _ = gateway.to_geodetic(b["eta_lf"][0], b["eta_lf"][1], 0.0)
+        assert abs(la - lb) < 1e-9 and abs(lo - lob) < 1e-9
+        assert b["eta_lf"][0] - a["eta_lf"][0] == pytest.approx(800.0, abs=0.1)
+        assert b["eta_lf"][1] - a["eta_lf"][1] == pytest.approx(300.0, abs=0.1)
+        assert b["eta_lf"][2] == a["eta_lf"][2] and b["eta_wf"] == a["eta_wf"]
+    assert to_replay_frame(sim_log, sim)[7] == original[7]  # the same datum: untouched
+
+
+def test_a_gateway_log_and_its_simulators_log_together_are_refused(sim_log: Path, tmp_path: Path) -> None:
+    gw = gateway_like(tmp_path / "hil.mcap")
+    why = fed_twice(open_inputs([gw, sim_log]))
+    assert why is not None and f"dpgw replay {gw} --truth {sim_log}" in why
+    assert fed_twice(open_inputs([sim_log])) is None and fed_twice(open_inputs([gw])) is None
+    proc = subprocess.run(
+        [sys.executable, "-m", "dpgw", "replay", str(gw), str(sim_log), "--out", str(tmp_path / "o.mcap")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 2 and "feeds every sentence twice" in proc.stderr, proc.stderr
+    assert "--truth" in proc.stderr and not (tmp_path / "o.mcap").exists()
+
+
+def test_a_truth_log_must_be_a_simulators(sim_log: Path, tmp_path: Path) -> None:
+    assert truth_log_problem(sim_log) is None
+    assert "no such file" in (truth_log_problem(tmp_path / "none.mcap") or "")
+    assert "not a simulator log" in (truth_log_problem(gateway_like(tmp_path / "gw.mcap")) or "")
+    proc = subprocess.run(
+        [sys.executable, "-m", "dpgw", "replay", str(sim_log), "--truth", str(sim_log)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 2 and "its own truth" in proc.stderr, proc.stderr
