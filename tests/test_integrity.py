@@ -219,8 +219,8 @@ def test_a_frozen_double_buffer_is_detected_within_10_s(role: str) -> None:
     """A receiver or gyro whose output double buffer froze sends its last two values in turn: no value
     repeats the one before it, so the plain freeze test never fires, and the two (a noise step apart)
     pass the jump test. Every value equals the one two before it: rejected as frozen once that has lasted
-    the role's freeze time (`freeze_s` 5 s, `heading_freeze_s` 20 s), and the estimate goes to dead
-    reckoning in that DOF."""
+    the role's freeze time (`freeze_s` 5 s; a heading whose values changed at every sample before,
+    `heading_freeze_min_s` 2 s), and the estimate goes to dead reckoning in that DOF."""
     b = Bench()
     settled(b, 40)
     m, t_fault = b.mark(), b.now
@@ -233,10 +233,78 @@ def test_a_frozen_double_buffer_is_detected_within_10_s(role: str) -> None:
         two_psi = [PSI + SIGMA_PSI, PSI - SIGMA_PSI]
         for k in range(300):
             b.cycle(gyro={"gyro1": two_psi[k % 2]})
-        name, dofs, freeze_s = "gyro1", slice(2, 3), 20.0
+        # the gyro's 0.01° values changed at every sample before: the least hold, heading_freeze_min_s
+        name, dofs, freeze_s = "gyro1", slice(2, 3), 2.0
     alarm = b.first_event(m, name, "rejected", "alternating between the same two values")
     assert alarm is not None and freeze_s * S <= alarm - t_fault <= (freeze_s + 0.5) * S
     assert set(b.estimates()[-1]["health"][dofs]) == {"dead_reckoning"}
+
+
+def test_a_frozen_gyro_in_a_sea_way_is_out_in_2_s_not_20() -> None:
+    """A gyro whose values changed at nearly every sample (yaw in a sea way, its 0.01° digit moving) is
+    held by what it has shown: stuck on one value, it is rejected after ``heading_freeze_min_s`` (2 s),
+    not the 20 s a gyro on a steady heading in calm water may repeat itself (``heading_freeze_s``); on a
+    HIL bench the 20 s fed a frozen gyro to the observer and DP."""
+    b = Bench()
+    settled(b, 40)
+    m, t_fault = b.mark(), b.now
+    b.run(10, gyro={"gyro1": PSI + 0.001})
+    alarm = b.first_event(m, "gyro1", "rejected", "frozen: the same value")
+    assert alarm is not None and 2.0 * S <= alarm - t_fault <= 2.5 * S, b.events(m)
+    assert b.estimates()[-1]["health"][2] == "dead_reckoning"
+
+
+def gyro_hold(values_deg: np.ndarray, **integrity: float) -> tuple[list[str], float]:
+    """Feed a 10 Hz gyro's headings (deg, as sent) to a reference monitor: (the rejections' reasons,
+    the hold of the last run)."""
+    from gateway.config.model import IntegrityConfig
+    from gateway.references.monitor import ReferenceMonitor
+
+    mon = ReferenceMonitor(IntegrityConfig(**integrity), {}, {"gyro": 2 * S})
+    for k, v in enumerate(values_deg):
+        mon.heading("gyro", k * S // 10, math.radians(float(v)), None)
+    st = mon.states()["gyro"][0]
+    reasons = [c.reason for c in st.changes if c.new == "rejected"]
+    return reasons, mon._refs["heading"]["gyro"].hold_ns / S
+
+
+@pytest.mark.parametrize(
+    ("sea", "amplitude_deg", "sigma_deg", "least_s", "most_s"),
+    [  # (measured, seed 5: holds 20 s, 9.6-12.1 s, 2.5-2.8 s; the longest live runs 11.4 s, 1.6 s, 0.8 s)
+        ("calm, a steady heading", 0.0, 0.02, 19.9, 20.0),
+        ("a 0.5° yaw swing at 8 s", 0.5, 0.02, 8.0, 14.0),
+        ("a 2° yaw swing at 8 s", 2.0, 0.02, 2.0, 3.2),
+    ],
+)
+def test_a_gyros_freeze_hold_is_learned_from_its_own_repeats_without_false_alarms(
+    sea: str, amplitude_deg: float, sigma_deg: float, least_s: float, most_s: float
+) -> None:
+    """A gyro sending 0.1° (HDT with one decimal) at 10 Hz for an hour: in calm its value repeats for
+    seconds (held the full ``heading_freeze_s``), in a swell less (yaw moves the digit), in a sea way
+    hardly (``heading_freeze_min_s``). Never rejected as frozen while it lives, though a slowly turning
+    heading repeats in runs (at each turn of the yaw) that independent noise would not make; then frozen,
+    it is out within its hold."""
+    rng = np.random.default_rng(5)
+    t = np.arange(36_000) / 10
+    psi = 123.42 + amplitude_deg * np.sin(2 * np.pi * t / 8.0) + rng.normal(0, sigma_deg, t.size)
+    live = np.round(psi, 1)
+    reasons, hold = gyro_hold(live)
+    assert not reasons, (sea, reasons[:3])
+    assert least_s <= hold <= most_s, (sea, hold)
+    frozen = np.r_[live, np.full(300, live[-1] + 0.1)]
+    reasons, _ = gyro_hold(frozen)
+    assert reasons and reasons[0].startswith("frozen: the same value for"), reasons
+    said = float(reasons[0].split("for ")[1].split(" s")[0])
+    assert said <= most_s + 0.15, reasons[0]
+
+
+def test_a_heading_freeze_min_at_or_above_the_max_is_the_fixed_hold() -> None:
+    """``heading_freeze_min_s`` ≥ ``heading_freeze_s``: every run held ``heading_freeze_s`` (20 s), the
+    rule before the learned hold, even for a gyro whose digit moved at every sample."""
+    rng = np.random.default_rng(6)
+    live = np.round(123.45 + rng.normal(0, 0.5, 600), 2)
+    reasons, _ = gyro_hold(np.r_[live, np.full(300, 123.0)], heading_freeze_min_s=20.0)
+    assert reasons == ["frozen: the same value for 20.0 s"], reasons
 
 
 def drift(b: Bench, name: str, seconds: float, start_ns: int) -> None:

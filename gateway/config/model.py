@@ -353,7 +353,14 @@ class IntegrityConfig:
     freeze_s: float = 5.0
     """A position repeated bit for bit this long is frozen (a live receiver's last digits always move)."""
     heading_freeze_s: float = 20.0
-    """The same for a heading (gyros on a steady heading may repeat a value for a few seconds)."""
+    """The longest time a heading may repeat the same value bit for bit before it is frozen, however
+    rarely its last digit changes (a gyro on a steady heading in calm water repeats a 0.1° value for
+    seconds): the bound on how long a frozen gyro is believed."""
+    heading_freeze_min_s: float = 2.0
+    """The shortest such time: the hold when the heading's last digit changes from nearly every sample to
+    the next (yaw in any sea way). Between the two, each heading source is held by how often its own
+    values repeat, learned as it passes (docs/integrity.md, "Freeze"). At or above ``heading_freeze_s`` the
+    hold is ``heading_freeze_s`` whatever the source's activity (the fixed hold of earlier versions)."""
     max_sigma_m: float = 3.0
     """A source whose measured 1σ noise exceeds this is rejected (variance test)."""
     prediction_gate_m: float = 5.0

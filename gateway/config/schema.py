@@ -491,6 +491,7 @@ class IntegrityTable(_Section):
     heading_jump_deg: float = _positive("heading_jump_deg", "deg", 180.0)
     freeze_s: float = _positive("freeze_s", "s")
     heading_freeze_s: float = _positive("heading_freeze_s", "s")
+    heading_freeze_min_s: float = _positive("heading_freeze_min_s", "s")
     max_sigma_m: float = _positive("max_sigma_m", "m")
     prediction_gate_m: float = _positive("prediction_gate_m", "m")
     prediction_gate_deg: float = _positive("prediction_gate_deg", "deg", 180.0)

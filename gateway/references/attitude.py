@@ -75,6 +75,7 @@ from mypy_extensions import mypyc_attr
 
 from gateway.references.params import IntegrityParams
 from gateway.references.state import NS
+from gateway.references.track import freeze_hold_ns, learned_repeat  # (the heading's freeze rule too)
 from wire.codecs.nmea_time import utc_step_s
 
 DEG = math.pi / 180.0
@@ -89,14 +90,6 @@ wrong values) is judged, as a spike or a step, against the motion extrapolated f
 most this many samples and this long: longer, the extrapolation by one rate is no longer the motion (a
 roll turns within seconds; at 100 Hz the sampled rate's noise grows with it), and the burst is only
 failed: the MRU's next steady motion passes without a step counted from it, as after a restart."""
-FREEZE_FALSE_ALARM_P = 1e-9
-"""Chance, per run start, that a healthy MRU's steady attitude repeats for the freeze test's hold: at
-10 Hz a run can start every 0.1 s, so at most one false alarm in about three years of the flat calm in
-which it is that likely (`AttitudeTrack.freeze_hold_ns`)."""
-ACTIVITY_TAU_S = 60.0
-"""Time constant of an MRU's learned activity (the share of samples repeating the previous one): long
-enough to average the last digit over a minute of waves, short against how fast a sea state calms
-(tens of minutes); the hold is judged from a minute of the sea as it is now."""
 STEADY_SAMPLES = 3
 """A jump is judged as a spike or a step (the offset test) only after this many samples in a row passed
 the jump test: at the start, and after a burst, whose wrong values may agree by chance for a sample or
@@ -217,19 +210,12 @@ class AttitudeTrack:
         """How long a run of unchanged samples starting now may last, ns: the smallest n with
         repeat^((n+1)/2) ≤ `FREEZE_FALSE_ALARM_P` (module docstring) times the mean sample interval,
         within ``[freeze_ns, freeze_max_ns]``."""
-        r = self.repeat
-        if r <= 0.0:
-            return lim.freeze_ns
-        if r >= 1.0 or self.interval_s <= 0.0:
-            return max(lim.freeze_ns, lim.freeze_max_ns)
-        n = math.ceil(2.0 * math.log(FREEZE_FALSE_ALARM_P) / math.log(r) - 1.0)
-        return max(lim.freeze_ns, min(lim.freeze_max_ns, round(n * self.interval_s * NS)))
+        return freeze_hold_ns(self.repeat, self.interval_s, lim.freeze_ns, lim.freeze_max_ns)
 
     def _learn(self, same: bool) -> None:
         """One more passing sample in the MRU's activity: the mean of the first ones, then an EMA."""
         self.learned += 1
-        gain = max(self.interval_s / ACTIVITY_TAU_S, 1.0 / (self.learned + 2))
-        self.repeat += min(gain, 1.0) * (float(same) - self.repeat)
+        self.repeat = learned_repeat(self.repeat, self.learned, self.interval_s, same)
 
     def _judge(
         self,

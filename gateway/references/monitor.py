@@ -31,7 +31,14 @@ from gateway.references.attitude import AttitudeLimits, AttitudeTrack
 from gateway.references.feedback import feedback_problem
 from gateway.references.params import IntegrityParams
 from gateway.references.state import NS, OK, STALE, SUSPECT, SourceState, StateChange
-from gateway.references.track import MIN_SAMPLES_FOR_VARIANCE, AngleTrack, PlaneTrack, Track
+from gateway.references.track import (
+    MIN_SAMPLES_FOR_VARIANCE,
+    AngleTrack,
+    PlaneTrack,
+    Track,
+    freeze_hold_ns,
+    learned_repeat,
+)
 from gateway.references.voting import divergence, median_distance
 from observers.kinematics import ssa_scalar
 from observers.vessel import Thruster
@@ -130,6 +137,9 @@ class _Limits:
     scale: float  # value -> the unit shown in reasons
     spike_s: float = 0.0  # how long after a jump a return to the track before it readmits at once (0: never)
     steps: float = 0.0  # the jump allowance is at least this many RMS steps between fixes (0: jump alone)
+    # the freeze hold's least (s): 0 holds every run ``freeze_s``; above, a run is held by the source's
+    # learned activity, within [freeze_min_s, freeze_s] (`_freeze`)
+    freeze_min_s: float = 0.0
 
 
 @dataclass
@@ -144,6 +154,12 @@ class _Ref:
     spike_run: int = 0  # samples in a row back on the track before the jump
     # its last good values and when (headings: `ReferenceMonitor._before`)
     recent: deque[tuple[float, int]] = field(default_factory=lambda: deque(maxlen=SPIKE_ANCHOR))
+    # the learned freeze hold (`_freeze`): the share of passing values equal to the previous one, how
+    # many were learned, and the holds of the present runs (the same value; two values in turn), ns
+    repeat: float = 0.5
+    learned: int = 0
+    hold_ns: int = 0
+    alternate_hold_ns: int = 0
 
 
 class ReferenceMonitor:
@@ -186,6 +202,7 @@ class ReferenceMonitor:
             unit="°",
             scale=1 / deg,
             spike_s=p.readmit_s,
+            freeze_min_s=p.heading_freeze_min_s if p.heading_freeze_min_s < p.heading_freeze_s else 0.0,
         )
         self._limits = {"position": position, "heading": heading}
         # a restarted smoothed track votes after this long (`_vote`; docs/integrity.md, "A reference back
@@ -306,13 +323,17 @@ class ReferenceMonitor:
         if tr.start_ns == now_ns and not ref.alone:  # restarted (first value, or back from a gap)
             self._seed(ref, role, now_ns)
         frozen = (now_ns - tr.same_since) / NS  # (`Track.frozen_s`, inline: the track has a value now)
-        if frozen >= lim.freeze_s:
-            st.fail(now_ns, f"frozen: the same value for {frozen:.1f} s")
-            return False
         alternating = (now_ns - tr.alternate_since) / NS
-        if alternating >= lim.freeze_s:  # (a frozen double buffer: its last two values in turn)
-            st.fail(now_ns, f"frozen: alternating between the same two values for {alternating:.1f} s")
-            return False
+        if lim.freeze_min_s:
+            if self._frozen(ref, now_ns, frozen, alternating):
+                return False
+        else:
+            if frozen >= lim.freeze_s:
+                st.fail(now_ns, f"frozen: the same value for {frozen:.1f} s")
+                return False
+            if alternating >= lim.freeze_s:  # (a frozen double buffer: its last two values in turn)
+                st.fail(now_ns, f"frozen: alternating between the same two values for {alternating:.1f} s")
+                return False
         # (`Track.sigma`, inline)
         sigma = math.sqrt(tr.var) if tr.samples >= MIN_SAMPLES_FOR_VARIANCE else None
         if sigma is not None and sigma > lim.max_sigma:
@@ -337,6 +358,9 @@ class ReferenceMonitor:
         elif not self._vote(ref, role, now_ns, lim):
             return False
         tr.good, tr.good_ns = v, now_ns  # (`Track.accept`)
+        if lim.freeze_min_s and tr.samples:  # a passing value teaches the source's activity (`_frozen`)
+            ref.learned += 1
+            ref.repeat = learned_repeat(ref.repeat, ref.learned, tr.interval_ns / NS, tr.same_since != now_ns)
         if lim.spike_s:
             ref.recent.append((v[0], now_ns))
         if on_track:  # the samples in a row back on the track (a failing one in between restarts the count)
@@ -347,6 +371,43 @@ class ReferenceMonitor:
             why = f"back on its track of before the jump for {SPIKE_CONFIRM} samples: a spike"
             st.readmit_now(now_ns, why)
         return True
+
+    @staticmethod
+    def _frozen(ref: _Ref, now_ns: int, frozen_s: float, alternating_s: float) -> bool:
+        """The freeze test with a learned hold (a heading: ``heading_freeze_min_s`` below
+        ``heading_freeze_s``), failing the value if its run has outlasted its hold. A gyro's last digit
+        changes from nearly every sample to the next in any sea way, and a frozen one should be out in
+        about two seconds; on a steady heading in calm water a healthy gyro repeats a 0.1° value for many
+        seconds. So each run of repeated values (and of two values in turn: a frozen double buffer) is
+        held by the source's own activity, learned from its passing values, as an MRU's attitude is
+        (`gateway.references.track.freeze_hold_ns`: at most one false alarm per 10⁹ run starts for
+        values drawn independently; the hold is fixed when the run starts, and values that fail are not
+        learned, so a freeze does not lengthen the next hold). Not from a paper.
+
+        A heading is not white noise: it turns slowly, so runs cluster where the yaw turns. The learned
+        share counts those runs too, which lengthens every hold: a gyro at 0.1° in a 0.5° yaw swing repeats
+        about two thirds of its samples and is held 10-12 s, against its longest runs of 1.6 s in an hour
+        (tests/test_integrity.py measures this and calm and a sea way)."""
+        tr, lim = ref.track, ref.limits
+        least, most = int(lim.freeze_min_s * NS), int(lim.freeze_s * NS)
+        interval_s = tr.interval_ns / NS
+        if tr.same_since == now_ns:  # a new run starts: its hold from the activity so far
+            ref.hold_ns = freeze_hold_ns(ref.repeat, interval_s, least, most)
+        if tr.alternate_since == now_ns:
+            ref.alternate_hold_ns = freeze_hold_ns(ref.repeat, interval_s, least, most)
+        if frozen_s * NS >= ref.hold_ns:
+            hold = ref.hold_ns / NS
+            ref.state.fail(now_ns, f"frozen: the same value for {frozen_s:.1f} s (hold {hold:.1f} s)")
+            return True
+        if alternating_s * NS >= ref.alternate_hold_ns:
+            hold = ref.alternate_hold_ns / NS
+            ref.state.fail(
+                now_ns,
+                f"frozen: alternating between the same two values for {alternating_s:.1f} s "
+                f"(hold {hold:.1f} s)",
+            )
+            return True
+        return False
 
     @staticmethod
     def _before(ref: _Ref, rate: float) -> float:

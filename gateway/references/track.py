@@ -14,6 +14,37 @@ first after it, which is no smoothing of anything; the vote compares a restarted
 only once it is comparable (`ReferenceMonitor`, docs/integrity.md "A reference back from a silence")."""
 
 
+FREEZE_FALSE_ALARM_P = 1e-9
+"""Chance, per run start, that a healthy source's steady value repeats for the freeze test's hold: at
+10 Hz a run can start every 0.1 s, so at most one false alarm in about three years of the flat calm in
+which it is that likely (`freeze_hold_ns`)."""
+ACTIVITY_TAU_S = 60.0
+"""Time constant of a source's learned activity (the share of samples repeating the previous one): long
+enough to average the last digit over a minute of waves, short against how fast a sea state calms
+(tens of minutes); the hold is judged from a minute of the sea as it is now."""
+
+
+def freeze_hold_ns(repeat: float, interval_s: float, least_ns: int, most_ns: int) -> int:
+    """How long a run of unchanged samples starting now may last, ns: the smallest n with
+    repeat^((n+1)/2) ≤ `FREEZE_FALSE_ALARM_P` times the mean sample interval, within [least, most].
+    ``repeat`` is the source's learned share of samples equal to the previous one (`learned_repeat`).
+    The bound (docs/integrity.md, "Freeze"; `gateway.references.attitude` derives it): a run of n repeats
+    is n+1 samples in one cell of the last digit, of probability Σ P_kⁿ⁺¹ ≤ repeat^((n+1)/2)."""
+    if repeat <= 0.0:
+        return least_ns
+    if repeat >= 1.0 or interval_s <= 0.0:
+        return max(least_ns, most_ns)
+    n = math.ceil(2.0 * math.log(FREEZE_FALSE_ALARM_P) / math.log(repeat) - 1.0)
+    return max(least_ns, min(most_ns, round(n * interval_s * NS)))
+
+
+def learned_repeat(repeat: float, learned: int, interval_s: float, same: bool) -> float:
+    """``repeat`` after one more passing sample (``same``: it equals the previous one), the ``learned``-th:
+    the mean of the first ones (from ½), then an EMA of time constant `ACTIVITY_TAU_S`."""
+    gain = max(interval_s / ACTIVITY_TAU_S, 1.0 / (learned + 2))
+    return repeat + min(gain, 1.0) * (float(same) - repeat)
+
+
 class Track:
     """A source's recent values in one or two components (heading: one, as an angle; position: N, E).
 
