@@ -529,7 +529,8 @@ def _take_truth(path: Path, pipeline: Any, result: ReplayResult, out: Any) -> st
         return (
             f"{path}'s truth ({_utc(int(truth[0]['stamp_ns']))} on) and the log "
             f"({_utc(first)} to {_utc(last)}) do not overlap in time: a gateway on the wall clock stamps "
-            'its inputs with its own time; run it with [time] clock = "sim" (docs/gateway.md, "Simulation time") to score it'
+            'its inputs with its own time; run it with [time] clock = "sim" (docs/gateway.md, "Simulation '
+            'time") to score it'
             if truth
             else f"{path} holds no /truth/state"
         )

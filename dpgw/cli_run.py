@@ -313,6 +313,8 @@ def alarm_lines(alarms: list[str], estimates: int) -> list[str]:
 # A URL that asks for any free port: ``:0`` at the end of its address (``udp://127.0.0.1:0``,
 # ``udpin:0.0.0.0:0?...``), not the ``:0`` of ``udpin:0.0.0.0:555`` or of an IPv6 address.
 ASKS_ANY_PORT = re.compile(r":0(?![0-9.:\]])")
+# A Zenoh endpoint on any free port: ``tcp/127.0.0.1:0`` (before its ``?metadata`` or ``#config``).
+ZENOH_ANY_PORT = re.compile(r":0(?:$|[?#])")
 
 
 def start_up_line(config: GatewayConfig, service: GatewayService, log_override: str | None) -> str:
@@ -327,6 +329,15 @@ def start_up_line(config: GatewayConfig, service: GatewayService, log_override: 
     if z.config_file:
         zenoh += f" config {z.config_file}"
     zenoh += f", listen {' '.join(z.listen) if z.listen else '(Zenoh default)'}"
+    if any(ZENOH_ANY_PORT.search(e) for e in z.listen):
+        # Zenoh does not say which port it bound (only its admin space does, which dpgw leaves off: it
+        # would tell any peer this session's locators and links), so say what port 0 means instead
+        zenoh += (
+            " (port 0: a free port, which Zenoh does not report; peers on this computer find it by "
+            "scouting"
+            + ("" if z.multicast_scouting else ", which is off: nobody can connect to it")
+            + "; give a port, e.g. tcp/127.0.0.1:7447, to connect to it by address)"
+        )
     zenoh += f", connect {' '.join(z.connect)}" if z.connect else ""
     zenoh += "" if z.multicast_scouting else ", scouting off"
     log_path = log_override or (str(config.log.path) if config.log.path else None)

@@ -234,6 +234,29 @@ def test_the_start_up_line_gives_the_bound_port_only_where_the_url_asked_for_any
     assert (f"mav {url}, port 40123;" in line) is asks and (f"mav {url};" in line) is not asks, line
 
 
+@pytest.mark.parametrize("scouting", [True, False])
+def test_the_start_up_line_says_what_a_zenoh_port_0_means(scouting: bool) -> None:
+    """A HIL-bench trial read "listen tcp/127.0.0.1:0" and had no port to connect a console to: Zenoh
+    does not report the port it bound, so the line says how peers find the session, and how to pin it."""
+    from types import SimpleNamespace
+
+    from gateway.config import parse_config
+
+    def line(listen: str) -> str:
+        tables = {"vessel": {"name": "mss_supply"},
+                  "sources": [{"name": "gps", "url": "udp://127.0.0.1:10110", "protocol": "nmea",
+                               "roles": ["position", "heading"]}],
+                  "zenoh": {"listen": [listen], "multicast_scouting": scouting}}  # fmt: skip
+        config = parse_config(tables, base_dir=Path("."))
+        service = SimpleNamespace(_sources=[], log=None)
+        return cli_run.start_up_line(config, service, None)  # type: ignore[arg-type]
+
+    said = line("tcp/127.0.0.1:0")
+    assert "listen tcp/127.0.0.1:0 (port 0: a free port" in said and "tcp/127.0.0.1:7447" in said, said
+    assert ("nobody can connect to it" in said) is not scouting, said
+    assert "port 0" not in line("tcp/127.0.0.1:7450") and "port 0" not in line("tcp/[::]:10")
+
+
 class _FakeService:
     def __init__(self, status: dict[str, Any]) -> None:
         self.stop_event = threading.Event()

@@ -157,8 +157,20 @@ def test_the_documented_two_process_bench_closes_the_loop_and_stops_cleanly(tmp_
     # the bench's two logs scored from the command line: the gateway's replayed, the simulator's truth
     # (in the simulator's datum; the gateway's is its first fix) moved into the replay's frame
     scored = subprocess.run(
-        [sys.executable, "-m", "dpgw", "replay", str(log), "--truth", str(truth_log), "--json"]
-        + ["--out", str(tmp_path / "scored.mcap"), "--settle", "30"],
+        [
+            sys.executable,
+            "-m",
+            "dpgw",
+            "replay",
+            str(log),
+            "--truth",
+            str(truth_log),
+            "--json",
+            "--out",
+            str(tmp_path / "scored.mcap"),
+            "--settle",
+            "30",
+        ],
         capture_output=True,
         text=True,
         timeout=300,

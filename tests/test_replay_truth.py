@@ -9,7 +9,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from dpgw.replay_truth import fed_twice, to_replay_frame, truth_log_problem
