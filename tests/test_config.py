@@ -275,6 +275,38 @@ def test_a_signing_key_in_a_config_everyone_may_read_is_noted(tmp_path: Path) ->
     assert os.stat(path).st_mode & 0o004 and config_notes(load_config(path)) == []
 
 
+@pytest.mark.parametrize(
+    ("zenoh", "reach"),
+    [
+        ({}, "any user or program on this computer"),
+        ({"listen": ["tcp/127.0.0.1:7447", "tcp/[::1]:7448"]}, "any user or program on this computer"),
+        ({"listen": ["tcp/192.168.10.5:7447"]}, "anyone on the network that reaches listen tcp/192.168.10.5"),
+        ({"mode": "client", "connect": ["tcp/10.0.0.1:7447"]}, "reaches connect tcp/10.0.0.1:7447"),
+        ({"connect": ["tcp/127.0.0.1:7447"]}, "any user or program on this computer"),  # the HIL bench's
+    ],
+)
+def test_commands_anyone_may_give_are_noted(zenoh: dict[str, Any], reach: str, tmp_path: Path) -> None:
+    """A HIL-bench trial set ``[commands] accept`` with no ``commanders``: every Zenoh peer that reaches
+    the session may then engage DP or push the thrusters, and ``--check`` said nothing. It says so now,
+    with who can reach the session; naming the commanders (or taking no commands) says nothing."""
+    from gateway.config import config_notes
+
+    base = {"vessel": {"name": "mss_supply"},
+            "sources": [{"name": "gps", "url": "udp://127.0.0.1:10110", "protocol": "nmea",
+                         "roles": ["position", "heading"]}]}  # fmt: skip
+    open_ = parse_config({**base, "zenoh": zenoh, "commands": {"accept": ["mode", "tau"]}}, base_dir=tmp_path)
+    notes = [n for n in config_notes(open_) if n.startswith("commands.accept")]
+    assert len(notes) == 1 and reach in notes[0] and "zenoh.commanders" in notes[0], notes
+    assert "['mode', 'tau']" in notes[0]
+    assert not [n for n in config_notes(parse_config({**base, "zenoh": zenoh}, base_dir=tmp_path))
+                if n.startswith("commands")]  # fmt: skip
+    (tmp_path / "users.txt").write_text("bridge:secret\n")
+    (tmp_path / "users.txt").chmod(0o600)
+    named = {**zenoh, "users_file": "users.txt", "commanders": ["bridge"]}
+    closed = parse_config({**base, "zenoh": named, "commands": {"accept": ["mode"]}}, base_dir=tmp_path)
+    assert not [n for n in config_notes(closed) if n.startswith("commands")]
+
+
 def test_systemd_unit() -> None:
     unit = (EXAMPLES / "dpgw.service").read_text()
     for line in (

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ipaddress
 import os
 import stat
 from collections.abc import Iterable
@@ -85,7 +86,43 @@ def config_notes(config: GatewayConfig) -> list[str]:
     keyed = [sc.name for sc in config.sources if sc.signing_key is not None]
     if keyed and (note := key_file_note(config.path, keyed)):
         notes.append(note)
+    if note := open_commands_note(config):
+        notes.append(note)
     return notes
+
+
+def open_commands_note(config: GatewayConfig) -> str | None:
+    """Commands accepted with no one named to give them: without ``[zenoh] commanders`` Zenoh lets every
+    peer that reaches the session put on the command keys, so whoever reaches it may engage DP, move the
+    setpoint or push the thrusters. Fine on a bench on this computer, not what a vessel wants on its
+    LAN; the note says who can reach it (the listeners, a router) and how to name the commanders. A
+    ``config_file`` sets its own access control, which this does not read: no note then."""
+    z = config.zenoh
+    accepted = sorted(config.commands.accept)
+    if not accepted or z.commanders or z.config_file is not None:
+        return None
+    wide = [f"listen {e}" for e in z.listen if not _loopback_endpoint(e)]
+    wide += [f"connect {e}" for e in z.connect if not _loopback_endpoint(e)]
+    if wide:
+        reach = "anyone on the network that reaches " + ", ".join(wide)
+    else:
+        reach = "any user or program on this computer (it listens on loopback only)"
+    return (
+        f"commands.accept = {accepted}: with no zenoh.commanders, every Zenoh peer that reaches this "
+        f"session may command the vessel: {reach}. To let only named users command, give "
+        "zenoh.users_file and zenoh.commanders (docs/security.md)"
+    )
+
+
+def _loopback_endpoint(endpoint: str) -> bool:
+    """A Zenoh endpoint (``tcp/127.0.0.1:7447``) on a loopback address or ``localhost``."""
+    host = endpoint.split("?", 1)[0].split("#", 1)[0].partition("/")[2].rpartition(":")[0].strip("[]")
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
 
 
 def key_file_note(path: Path | None, keyed: list[str]) -> str | None:
