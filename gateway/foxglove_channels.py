@@ -30,7 +30,7 @@ import re
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, Protocol
 
-from gateway.figures import without_figures
+from gateway.alarms import alarm_key
 from observers.vessel import Thruster, VesselModel
 from wire import foxglove as fx
 from wire.messages import (
@@ -87,15 +87,6 @@ class _Output(Protocol):
     def stamp_ns(self) -> int: ...
 
 
-def alarm_key(text: str) -> str:
-    """An alarm's identity: its text with the numbers that are values masked, so "stale (3.1 s without
-    data)" growing to "(4.1 s ...)" is the same alarm still active, not one cleared and another raised.
-    The digits of a name are not values: "source dgps1: stale (...)" and "source dgps2: stale (...)" are
-    two alarms, as are "thruster 1 out of DP" and "thruster 2 out of DP". Every log of alarms raised and
-    cleared (this `/dp/log`, Keelson's `log_message`) tells alarms apart by it."""
-    return without_figures(text)
-
-
 def alarm_text(alarm: str | dict[str, Any]) -> str:
     """A status's alarm as one line: a text as it is, an object (``code``, ``message``) as "code: message"."""
     return alarm if isinstance(alarm, str) else f"{alarm.get('code', '?')}: {alarm.get('message', '')}"
@@ -115,6 +106,15 @@ class AlarmChanges:
         cleared = [t for k, t in self.active.items() if k not in now]
         self.active = now
         return raised, cleared
+
+
+def raised_critical(status: Status) -> set[str]:
+    """The texts of a status's critical alarms (`Status.alarm_details`, `gateway.alarms.alarm_level`):
+    raised, they are logged at ERROR, the rest at WARNING."""
+    details = status.alarm_details
+    if not details:
+        return set()
+    return {alarm_text(a) for a, d in zip(status.alarms, details, strict=False) if d.level == "critical"}
 
 
 def state_change_level(text: str) -> int:
@@ -278,7 +278,8 @@ class FoxgloveChannels:
         for text in status.events:
             out.append(("/dp/log", fx.log(ns, state_change_level(text), text, "dpgw.reference"), ns))
         raised, cleared = self._alarms.update(status.alarms)
-        lines = [(fx.LOG_WARNING, f"alarm: {t}") for t in raised]
+        critical = raised_critical(status)
+        lines = [(fx.LOG_ERROR if t in critical else fx.LOG_WARNING, f"alarm: {t}") for t in raised]
         lines += [(fx.LOG_INFO, f"alarm cleared: {t}") for t in cleared]
         out += [("/dp/log", fx.log(ns, level, text, "dpgw.alarm"), ns) for level, text in lines]
         return out

@@ -28,6 +28,7 @@ from typing import Any, Final
 import numpy as np
 from mypy_extensions import mypyc_attr
 
+from gateway.alarms import alarm_key, alarm_level
 from gateway.commands import HEALTHY_FOR_DP, CommandGate
 from gateway.config import (
     ArdupilotMap,
@@ -67,6 +68,7 @@ from wire.foxglove import antenna_frame, ellipsoidal_height_m, location_fix
 from wire.geodesy import LocalFrame
 from wire.gst_covariance import INCONSISTENT, GstCovariance, gst_covariance, unit_shape
 from wire.messages import (
+    AlarmDetail,
     CommandStatus,
     ConsequenceStatus,
     Datum,
@@ -365,6 +367,7 @@ class Pipeline:
         self._startup_events: list[str] = []  # said once, in the first status
         self.thrusters_out: dict[int, str] = {}  # thruster id -> why its drive does not take DP commands
         self._caller_alarms: list[str] = []  # the alarms the caller (the service) gave the last status
+        self._alarm_since: dict[str, int] = {}  # alarm key -> stamp of the first status with it
         self._last_est: Estimate | None = None
         self._extra_last: dict[str, Estimate] = {}  # each extra observer's last estimate (by label)
         # the last estimate as floats for `_prediction`: (estimate, eta, nu, eta_wf, cos ψ, sin ψ)
@@ -574,6 +577,7 @@ class Pipeline:
         new.commands.counters = self.commands.counters
         new.sentence_tap = self.sentence_tap
         new._caller_alarms = list(self._caller_alarms)
+        new._alarm_since = dict(self._alarm_since)
         new._events.append(event)
         if self._pending_setpoint is not None:
             # a setpoint taken but not applied yet is of the old run's sea, as the one in force is: dropped,
@@ -2241,6 +2245,19 @@ class Pipeline:
         taken by this one, are in it and not on `/dp/log`). What is logged comes from `status_outputs`."""
         return Output("/dp/status", self.status_message(now_ns, alarms), now_ns)
 
+    def _alarm_details(self, now_ns: int, alarms: list[str], remember: bool) -> list[AlarmDetail]:
+        """Each alarm's stable key, level and since when (`gateway.alarms`); ``remember``: this status is
+        logged, and what it clears is forgotten (a status for Zenoh alone changes nothing)."""
+        keys = [alarm_key(a) for a in alarms]
+        since = {k: self._alarm_since.get(k, now_ns) for k in keys}
+        if remember:
+            self._alarm_since = since
+        mode = self.mode
+        return [
+            AlarmDetail(key=k, level=alarm_level(a, mode), since_ns=since[k])  # type: ignore[arg-type]
+            for a, k in zip(alarms, keys, strict=True)
+        ]
+
     def _setpoint_status(self) -> SetpointStatus | None:
         """The DP target of the last control step (`_dp_target`) as the status says it, with its latitude
         and longitude once the datum is set; None before DP's first step."""
@@ -2313,6 +2330,7 @@ class Pipeline:
             estimates=self.estimates,
             sources={name: c.as_message(now_ns) for name, c in self.counters.items()},
             alarms=list(alarms),
+            alarm_details=self._alarm_details(now_ns, alarms, remember),
             references=references,
             events=events,
             commands=CommandStatus(

@@ -359,8 +359,8 @@ def test_feedback_alarms_and_state_changes_reach_keelson(
         Log = type(listener.of("log_message", "dpgw/log")[0])
         assert logs == [
             (20, Log.WARNING, "dgps1: stale"),
-            (20, Log.ERROR, "alarm: dgps1: position stale"),
-            (20, Log.ERROR, "alarm: sat: thrust saturated"),
+            (20, Log.WARNING, "alarm: dgps1: position stale"),
+            (20, Log.WARNING, "alarm: sat: thrust saturated"),
             (40, Log.WARNING, "dgps1: ok again"),
             (40, Log.INFO, "alarm cleared: sat: thrust saturated"),
             (40, Log.INFO, "mode: standby -> manual"),
@@ -446,7 +446,7 @@ def test_keelson_log_follows_alarm_identity_and_state_severity_and_fixes_carry_n
         Log = type(listener.of("log_message", "dpgw")[0])
         assert logs == [
             (10, Log.WARNING, f"{ref}: ok -> stale: no data"),
-            (10, Log.ERROR, "alarm: source dgps1: stale (3.1 s without data)"),
+            (10, Log.WARNING, "alarm: source dgps1: stale (3.1 s without data)"),
             (30, Log.ERROR, f"{ref}: stale -> rejected: jump"),
             (40, Log.WARNING, f"{ref}: rejected -> suspect"),
             (40, Log.INFO, f"{ref}: suspect -> ok"),

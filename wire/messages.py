@@ -411,6 +411,28 @@ class SourceStatus(Record, kw_only=True):
     ] = None
 
 
+class AlarmDetail(Record, kw_only=True):
+    key: Annotated[
+        str,
+        doc(
+            "The alarm's identity: its text with the figures that are values as `#` (\"source dgps1: "
+            'stale (# s without data)"). The same while the alarm stays up as its figures change; what '
+            "a console tells alarms apart by, raised and cleared."
+        ),
+    ]
+    level: Annotated[
+        Literal["warning", "critical"],
+        doc(
+            "critical: DP cannot be trusted to hold the vessel now (the estimate lost; in DP, dead "
+            "reckoning on no position or heading reference; beyond the alarm circle or heading limit); "
+            "warning: the rest."
+        ),
+    ]
+    since_ns: Annotated[
+        int, doc("When this alarm (this key) was raised: the stamp of the first status with it.", "ns (UTC)")
+    ]
+
+
 class ReferenceStatus(Record, kw_only=True):
     role: Annotated[
         str, doc("What the source is tested as: `position`, `heading`, `thrusters` or `attitude` (an MRU).")
@@ -530,6 +552,13 @@ class Status(Message, kw_only=True):
         list[str | dict[str, Any]],
         doc("Active alarms: short strings, or objects with at least `code` and `message`."),
     ]
+    alarm_details: Annotated[
+        list[AlarmDetail],
+        doc(
+            "One entry per alarm of `alarms`, in the same order: its stable key, level and since when. "
+            "Left out while there is no alarm."
+        ),
+    ] = []
     references: Annotated[
         dict[str, list[ReferenceStatus]],
         doc("Per source, its state in each role it is tested in (reference and feedback integrity)."),

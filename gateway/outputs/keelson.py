@@ -29,7 +29,7 @@ from keelson.payloads.foxglove.Log_pb2 import Log
 from keelson.payloads.Primitives_pb2 import TimestampedFloat, TimestampedString
 
 from gateway.config import GatewayConfig, KeelsonConfig
-from gateway.foxglove_channels import AlarmChanges, state_change_level
+from gateway.foxglove_channels import AlarmChanges, raised_critical, state_change_level
 from gateway.outputs.base import SettlingChanges
 from wire.geodesy import LocalFrame
 from wire.messages import (
@@ -303,13 +303,15 @@ class KeelsonSink:
     def _status(self, o: Output, now: int) -> None:
         """``log_message``: what changed since the last status, never the whole status again: each
         reference state change (at its new state's level: INFO back to ok, WARNING stale or suspect, ERROR
-        rejected, as on `/dp/log`), an alarm raised (ERROR) or cleared (INFO), a mode change (INFO). An
+        rejected, as on `/dp/log`), an alarm raised (ERROR if critical, else WARNING, as on `/dp/log`:
+        `gateway.alarms`) or cleared (INFO), a mode change (INFO). An
         alarm is known by its text with the numbers masked (`AlarmChanges`): "stale (3.1 s without data)"
         becoming "(4.1 s ...)" at the next status is the same alarm still active."""
         s: Status = o.message  # type: ignore[assignment]
         lines: list[tuple[Any, str]] = [(state_change_level(text), text) for text in s.events]
         raised, cleared = self._alarms.update(s.alarms)
-        lines += [(Log.ERROR, f"alarm: {t}") for t in raised]
+        critical = raised_critical(s)
+        lines += [(Log.ERROR if t in critical else Log.WARNING, f"alarm: {t}") for t in raised]
         lines += [(Log.INFO, f"alarm cleared: {t}") for t in cleared]
         if s.mode != self._mode:
             # each mode change is an event of the status (with who made it); a change without one (a
