@@ -82,7 +82,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="FILE.tlog",
         help="also record the thruster MAVLink as a tlog (as MAVProxy, Mission Planner and QGroundControl "
         "write: each frame after its 8-byte time), timed in the simulation's UTC like the NMEA sentences, "
-        "so 'dpgw replay' merges it with an --nmea file:// text log; with or without --mavlink",
+        "so 'dpgw replay' merges it with an --nmea file:// text log; with or without --mavlink. One that "
+        "exists is kept: the tlog goes in the next file of its set (FILE_0001.tlog), named on the console",
     )
     p.add_argument(
         "--signing-key-file",
@@ -466,13 +467,20 @@ def _run_scenario(args: argparse.Namespace) -> int:
                 raise OSError(f"--out {args.out}: cannot write the log: {exc.strerror or exc}") from None
             if Path(log.path) != Path(args.out):
                 print(f"log -> {log.path} ({args.out} exists: a log is never overwritten)", file=sys.stderr)
-        if args.tlog:  # last: a tlog is emptied when opened, so not before another start-up step may fail
+        if args.tlog:  # last: a tlog is made when opened, so not before another start-up step may fail
+            # One that exists is kept, as --out's log is: the tlog goes in the next file of its set
+            # (trial_0001.tlog). Overwriting it lost the feedback of the run before, which a bench
+            # restarting the simulator with the same command line still scores its gateway log with.
+            from wire.mcap.rotation import next_index, rotated_path
+
+            path = rotated_path(args.tlog, next_index(args.tlog))
             try:
                 make_folder_for("dpgw sim", "--tlog", args.tlog)  # (its parent exists: `tlog_path_problem`)
-                tlog = TlogWriter(args.tlog)
+                tlog = TlogWriter(path)
             except OSError as exc:
                 raise OSError(f"--tlog {args.tlog}: cannot write the tlog: {exc.strerror or exc}") from None
-            print(f"MAVLink (tlog) -> {tlog.path}", file=sys.stderr)
+            kept = "" if path == Path(args.tlog) else f" ({args.tlog} exists: a tlog is never overwritten)"
+            print(f"MAVLink (tlog) -> {tlog.path}{kept}", file=sys.stderr)
     except (TransportError, BusError, OSError) as exc:
         message = exc.describe(ZENOH_FLAGS) if isinstance(exc, BusError) else str(exc)
         print(f"dpgw sim: {message}", file=sys.stderr)

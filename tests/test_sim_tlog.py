@@ -223,7 +223,7 @@ def test_tlog_records_read_back_as_written(tmp_path_factory: pytest.TempPathFact
 def test_an_existing_tlog_is_left_as_it_was_when_start_up_fails(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """A tlog is emptied when opened, so it is opened last: a run that stops at start-up (here Zenoh cannot
+    """A tlog is made when opened, so it is opened last: a run that stops at start-up (here Zenoh cannot
     listen on an address this machine does not have) leaves yesterday's tlog of that name whole."""
     old = tmp_path / "trial.tlog"
     old.write_bytes(b"yesterday's sea trial")
@@ -232,3 +232,20 @@ def test_an_existing_tlog_is_left_as_it_was_when_start_up_fails(
     assert main(argv) == 2
     assert "cannot listen on tcp/192.0.2.1:7447" in capsys.readouterr().err
     assert old.read_bytes() == b"yesterday's sea trial"
+
+
+def test_a_tlog_that_exists_is_kept_and_the_run_goes_on_in_the_next_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A bench restarting the simulator with the same command line wrote over the tlog of the run before
+    (the MCAP log was kept already): now the tlog goes on in the next file of its set, said on the console."""
+    old = tmp_path / "trial.tlog"
+    old.write_bytes(b"yesterday's sea trial")
+    argv = ["sim", "--scenario", "hassani", "--duration", "2", "--tlog", str(old), "--json"]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    said = f"MAVLink (tlog) -> {tmp_path / 'trial_0001.tlog'} ({old} exists: a tlog is never overwritten)"
+    assert said in err, err
+    assert old.read_bytes() == b"yesterday's sea trial"
+    assert (tmp_path / "trial_0001.tlog").stat().st_size > 0
+    assert main(argv) == 0 and (tmp_path / "trial_0002.tlog").exists()
