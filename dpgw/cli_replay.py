@@ -459,6 +459,9 @@ def run(args: argparse.Namespace) -> int:
     # and on as much sea as the demo scores (a demo stopped soon after its skip: "not scored", as it said)
     args.min_scored = logged_min_scored_s(inputs, older_demo=MIN_SCORED_S)
     summary = _summary(args, specs, result, wall)
+    live = _live_records(inputs)
+    first_ns = min((a for a, _ in result.spans.values()), default=0)
+    summary["dp_performance"] = _dp_performance(live, first_ns)
     kinds = {s.label: (s.name, s.name in SCHEDULES_OMEGA0 or bool(s.params.get("adaptive"))) for s in specs}
     summary["wave_check"] = evidence.check(config.vessel.length_m, config.vessel.model_scale, kinds).as_dict()
     summary["vessel_check"] = evidence.vessel_check(config.vessel).as_dict()
@@ -474,7 +477,9 @@ def run(args: argparse.Namespace) -> int:
     ]
     report_warnings: list[str] = []
     if args.report:
-        written, report_warnings = _report(args, config.vessel.name, specs, result, evidence.new, checks)
+        written, report_warnings = _report(
+            args, config.vessel.name, specs, result, evidence.new, checks, live
+        )
         summary["report"] = [str(p) for p in written]
         summary["report_warnings"] = report_warnings
         if not any(p.suffix == ".png" for p in written):
@@ -538,6 +543,63 @@ def _take_truth(path: Path, pipeline: Any, result: ReplayResult, out: Any) -> st
     for rec in truth:
         out.write("/truth/state", rec, rec["stamp_ns"], rec["stamp_ns"])
     return None
+
+
+LIVE_TOPICS = ("/dp/thrusters/command", "/dp/estimate", "/dp/status")
+"""What the live gateway logged of how DP did (`gateway.report.station_keeping`)."""
+
+
+def _live_records(inputs: list[Any]) -> dict[str, list[dict[str, Any]]]:
+    """The live gateway's commands, estimates and statuses in the MCAP inputs (none in a simulator's log
+    or a text log): how DP did in the trial, whatever observer this replay runs."""
+    from wire.mcap.reader import read_messages
+
+    out: dict[str, list[dict[str, Any]]] = {t: [] for t in LIVE_TOPICS}
+    paths = [i.path for i in inputs if i.kind == "mcap"]
+    if paths:
+        for topic, _, _, payload in read_messages(paths, LIVE_TOPICS):
+            out[topic].append(payload)
+    return out
+
+
+def _dp_performance(live: dict[str, list[dict[str, Any]]], start_ns: int) -> dict[str, Any] | None:
+    from gateway.report.station_keeping import dp_performance
+
+    return dp_performance(live["/dp/thrusters/command"], live["/dp/estimate"], live["/dp/status"], start_ns)
+
+
+def _print_dp(dp: dict[str, Any]) -> None:
+    """The summary's lines of how DP did (`gateway.report.station_keeping`)."""
+    modes = ", ".join(f"{m} {t:.0f} s" for m, t in dp["modes"]["time_s"].items())
+    print(f"  DP in the live log: {modes}")
+    sk = dp["station_keeping"]
+    if sk is not None:
+        pos, hdg = sk["position_error_m"], sk["heading_error_deg"]
+        print(
+            f"    off the DP reference: p95 {pos['p95']:.2f} m (max {pos['max']:.2f} m), heading p95 "
+            f"{hdg['p95']:.2f}° (max {hdg['max']:.2f}°); saturated {100 * sk['saturated_share']:.0f} % of "
+            f"{sk['commands']} commands"
+        )
+    dr = dp["dead_reckoning"]
+    if dr["spells"]:
+        print(
+            f"    dead reckoning: {dr['spells']} spell{'s' if dr['spells'] > 1 else ''}, longest {dr['longest_s']:.0f} s, in all "
+            f"{dr['total_s']:.0f} s ({dr['in_dp_s']:.0f} s in dp)"
+        )
+    alarms = dp["alarms"]
+    if alarms:
+        critical = sum(a["level"] == "critical" for a in alarms)
+        print(f"    alarms: {len(alarms)} ({critical} critical); the longest up:")
+        for a in alarms[:ALARMS_LISTED]:
+            print(
+                f"      {a['level']}: {a['first_text']} (raised {a['raised']}x at {a['first_s']:.0f} s on, "
+                f"up {a['up_s']:.0f} s)"
+            )
+        if len(alarms) > ALARMS_LISTED:
+            print(f"      ... and {len(alarms) - ALARMS_LISTED} more (--json, --report)")
+
+
+ALARMS_LISTED = 5
 
 
 def _verdict_note(source: str, live: dict[str, int], counts: dict[str, dict[str, int]]) -> str:
@@ -991,6 +1053,8 @@ def _print(s: dict[str, Any]) -> None:
             f"  {label} vs truth (after {s['settle_s']:.0f} s): RMS N {e['rms_north_m']:.3f} m, "
             f"E {e['rms_east_m']:.3f} m, heading {e['rms_heading_deg']:.3f} deg"
         )
+    if s.get("dp_performance"):
+        _print_dp(s["dp_performance"])
     advice = s.get("vessel_check", {}).get("advice")
     if advice:
         print(f"  advice: {advice}")
@@ -1005,6 +1069,7 @@ def _report(
     r: ReplayResult,
     new: list[tuple[bool, bool, bool]],
     checks: list[str],
+    live: dict[str, list[dict[str, Any]]] | None = None,
 ) -> tuple[list[Path], list[str]]:
     """The report of the replay. Its measurement is the fused stream with only the samples the fusion
     received since the previous step (`new`): the pipeline steps on every input chunk with each DOF's
@@ -1066,6 +1131,7 @@ def _report(
         # before the first fused measurement (a cycle without a fix), the report's t = 0
         log_spans={where: _span_words(_span(a, b)) for where, (a, b) in r.spans.items()},
         min_scored_s=getattr(args, "min_scored", None),
+        dp_performance=_dp_performance(live, t0) if live is not None else None,
         **truth_kw,
     )
     an = analyse(data, None, args.settle)

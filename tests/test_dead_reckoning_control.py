@@ -8,6 +8,9 @@ the in-process closed loop of the studies, which ticks its pipeline as the servi
 
 from __future__ import annotations
 
+import contextlib
+import io
+import json
 import socket
 import threading
 from dataclasses import replace
@@ -19,6 +22,7 @@ import numpy as np
 import pytest
 from conftest import free_port, stop_service, wait_for
 
+from dpgw.cli import main
 from dpgw.closed_loop import run_closed_loop
 from gateway.config import parse_config
 from gateway.replay import build_pipeline, config_from_log, open_inputs, run_replay
@@ -92,6 +96,25 @@ def test_dp_commands_through_a_total_silence_and_a_replay_commands_the_same(tmp_
     # ticks), as the live gateway sent it
     assert len(replayed) == len(live)
     assert replayed == live
+
+    # how DP did, from the live log, in the replay's summary and report (`gateway.report.station_keeping`)
+    report = tmp_path / "report"
+    cli_out = tmp_path / "cli.mcap"
+    argv = ["replay", str(path), "--out", str(cli_out), "--json", "--report", str(report)]
+    with contextlib.redirect_stdout(io.StringIO()) as printed:
+        assert main(argv) == 0
+    dp = json.loads(printed.getvalue())["dp_performance"]
+    assert dp["modes"]["from"] == "statuses" and dp["modes"]["time_s"]["dp"] > 2.0, dp["modes"]
+    sk = dp["station_keeping"]
+    assert sk["commands"] >= len(live) - 5 and sk["position_error_m"]["max"] >= sk["position_error_m"]["p95"]
+    dr = dp["dead_reckoning"]
+    assert dr["spells"] >= 1 and dr["longest_s"] >= 1.0 and dr["in_dp_s"] >= 1.0, dr
+    spell = max(dr["list"], key=lambda x: x["to_s"] - x["from_s"])
+    assert spell["mode"] == "dp"
+    levels = {a["key"].split(" for ")[0]: a["level"] for a in dp["alarms"]}
+    assert levels.get("estimate dead reckoning") == "critical", dp["alarms"]
+    md = (report / "report.md").read_text()
+    assert "## DP performance (the live gateway's log)" in md and "| critical | estimate dead reckoning" in md
 
 
 def test_the_closed_loop_keeps_commanding_through_a_total_silence_and_keeps_station() -> None:

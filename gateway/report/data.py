@@ -63,6 +63,9 @@ class ReplayData:
     # a `dpgw demo` log records, so that a demo stopped soon after its skip is not given a figure here
     # either; None: any stretch is scored
     min_scored_s: float | None = None
+    # how DP did in the live gateway's log (`gateway.report.station_keeping.dp_performance`, times from
+    # t = 0 here); None: not a gateway's log
+    dp_performance: Mapping[str, Any] | None = None
 
 
 def utc_text(start_ns: int, t_s: float | None, *, digits: int = 1) -> str | None:

@@ -112,6 +112,8 @@ def report_markdown(data: ReplayData, m: dict[str, Any], plot_note: str, pngs: S
         )
         if od.get("truth_not_scored"):  # (the error columns are "–": the console says it in these words)
             lines += ["", f"LF estimate vs truth: {od['truth_not_scored']}."]
+    if m.get("dp_performance"):
+        lines += ["", *dp_section(m["dp_performance"])]
     lines += ["", "## Bad input", ""]
     if m["counts"]:
         lines += ["| source / log | counter | count |", "|---|---|---|"]
@@ -128,3 +130,60 @@ def report_markdown(data: ReplayData, m: dict[str, Any], plot_note: str, pngs: S
         lines.append(plot_note)
     lines += ["", "Numbers: `metrics.json` (SI units, radians). Definitions: dpgw `docs/report.md`.", ""]
     return "\n".join(lines)
+
+
+def dp_section(dp: dict[str, Any]) -> list[str]:
+    """How DP did in the live gateway's log (`gateway.report.station_keeping`), as report.md shows it."""
+    lines = ["## DP performance (the live gateway's log)", ""]
+    lines += ["| mode | time (s) |", "|---|---|"]
+    lines += [f"| {mode} | {t:.0f} |" for mode, t in dp["modes"]["time_s"].items()]
+    spans = dp["modes"]["spans"]
+    if len(spans) > 1:
+        lines += ["", "Mode changes: " + "; ".join(f"{s['from_s']:.0f} s {s['mode']}" for s in spans) + "."]
+    sk = dp["station_keeping"]
+    lines.append("")
+    if sk is None:
+        lines.append("No DP command with an estimate before it: no station keeping to score.")
+    else:
+        pos, hdg = sk["position_error_m"], sk["heading_error_deg"]
+        lines += [
+            "| off the DP reference | p50 | p95 | max |",
+            "|---|---|---|---|",
+            f"| position (m) | {pos['p50']:.2f} | {pos['p95']:.2f} | {pos['max']:.2f} |",
+            f"| heading (°) | {hdg['p50']:.2f} | {hdg['p95']:.2f} | {hdg['max']:.2f} |",
+            "",
+            f"At each of {sk['commands']} DP commands, the estimate then against the reference the command "
+            f"was made for. Saturated (the allocation could not deliver τ): "
+            f"{100 * sk['saturated_share']:.1f} % of them.",
+        ]
+    dr = dp["dead_reckoning"]
+    lines.append("")
+    if dr["spells"]:
+        lines += [
+            f"Dead reckoning (no usable reference in a DOF): {dr['spells']} "
+            f"spell{'s' if dr['spells'] > 1 else ''}, the longest "
+            f"{dr['longest_s']:.1f} s, {dr['total_s']:.1f} s in all, {dr['in_dp_s']:.1f} s of it in dp.",
+            "",
+            "| from (s) | to (s) | worst | mode |",
+            "|---|---|---|---|",
+            *(
+                f"| {s['from_s']:.1f} | {s['to_s']:.1f} | {s['worst']} | {s.get('mode', '–')} |"
+                for s in dr["list"]
+            ),
+        ]
+    else:
+        lines.append("No dead reckoning: a usable reference in every DOF throughout.")
+    alarms = dp["alarms"]
+    lines.append("")
+    if alarms:
+        lines += [
+            "| level | alarm (its first text) | first (s) | raised | up (s) |",
+            "|---|---|---|---|---|",
+            *(
+                f"| {a['level']} | {a['first_text']} | {a['first_s']:.0f} | {a['raised']} | {a['up_s']:.0f} |"
+                for a in alarms
+            ),
+        ]
+    else:
+        lines.append("No alarm in the gateway's statuses.")
+    return lines

@@ -320,6 +320,8 @@ def analyse(data: ReplayData, wave_band: tuple[float, float] | None, settle_s: f
     metrics["checks"] = list(data.checks)
     metrics["warnings"] = amplification_warnings(metrics)
     metrics["log_spans"] = dict(data.log_spans)
+    if data.dp_performance is not None:
+        metrics["dp_performance"] = dict(data.dp_performance)
     return Analysis(prep, metrics, band, settle_t, meas_peak, meas_psd, est_psd, attenuation)
 
 
