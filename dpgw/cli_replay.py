@@ -583,8 +583,8 @@ def _print_dp(dp: dict[str, Any]) -> None:
     dr = dp["dead_reckoning"]
     if dr["spells"]:
         print(
-            f"    dead reckoning: {dr['spells']} spell{'s' if dr['spells'] > 1 else ''}, longest {dr['longest_s']:.0f} s, in all "
-            f"{dr['total_s']:.0f} s ({dr['in_dp_s']:.0f} s in dp)"
+            f"    dead reckoning: {dr['spells']} spell{'s' if dr['spells'] > 1 else ''}, longest "
+            f"{dr['longest_s']:.0f} s, in all {dr['total_s']:.0f} s ({dr['in_dp_s']:.0f} s in dp)"
         )
     alarms = dp["alarms"]
     if alarms:
