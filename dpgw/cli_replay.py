@@ -360,9 +360,9 @@ def run(args: argparse.Namespace) -> int:
         inputs = open_inputs(args.logs)
         if why := fed_twice(inputs):
             raise ReplayError(why)
-        if args.truth is not None and (own := next((i for i in inputs if logged_sim(i.path)), None)):
+        if args.truth is not None and (sim := next((i for i in inputs if logged_sim(i.path)), None)):
             raise ReplayError(
-                f"--truth: {own.path} is a simulator log with its own truth: give one or the other"
+                f"--truth: {sim.path} is a simulator log with its own truth: give one or the other"
             )
         config = build_config(inputs, config_path=args.config, vessel=args.vessel)
         # Without --observer, the observer the config names (the log's own for a gateway log: what ran live).
