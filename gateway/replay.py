@@ -775,6 +775,11 @@ def run_replay(
                     records.append((*raw_nmea_record(ev.source, ev.data), ev.rx_ns, RawNmea))
                 else:
                     records.append((*raw_mavlink_record(ev.source, ev.data), ev.rx_ns, RawMavlink))
+        elif out is not None and isinstance(ev, ControlEvent):
+            # a command input or a dead-reckoning tick, as the live gateway logged it (wrapped as the
+            # service wraps it), before its outputs: the replay's log replays as the live log does
+            wrap = ev.key == "mode" or not isinstance(ev.payload, dict)
+            out.write(f"/dp/{ev.key}", {ev.key: ev.payload} if wrap else ev.payload, ev.rx_ns, ev.rx_ns)
         outputs = feed(ev)
         for o in outputs:
             msg = o.message

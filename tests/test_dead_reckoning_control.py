@@ -96,6 +96,15 @@ def test_dp_commands_through_a_total_silence_and_a_replay_commands_the_same(tmp_
     # ticks), as the live gateway sent it
     assert len(replayed) == len(live)
     assert replayed == live
+    # the replay's log holds the ticks too, so it replays as the live log does (before, it held no
+    # /dp/tick, and a replay of it sent no command through the silence)
+    assert [ns for _, ns, _, _ in read_messages(out_path, "/dp/tick")] == ticks
+    again = tmp_path / "again.mcap"
+    with McapLogWriter(str(again), profile="dpgw") as out:
+        run_replay(
+            open_inputs([out_path]), build_pipeline(config_from_log(path), [], controller=True), out=out
+        )
+    assert commands(again) == live
 
     # how DP did, from the live log, in the replay's summary and report (`gateway.report.station_keeping`)
     report = tmp_path / "report"
