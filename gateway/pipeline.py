@@ -108,7 +108,9 @@ FIX_PERIOD_NS = 0
 receiver's own scatter; what it costs a replay is measured in docs/foxglove.md). `bench/bench_foxglove.py`
 sets it to compare."""
 TICK_KEY = "tick"
-"""The `ControlEvent` key of a live tick that dead-reckoned (`Pipeline.tick`), logged on ``/dp/tick``."""
+"""The `ControlEvent` key of a live tick that dead-reckoned (`Pipeline.tick`), logged on `TICK_TOPIC`."""
+TICK_TOPIC = f"/dp/{TICK_KEY}"
+"""The log's topic of those ticks: the service writes them there, a replay feeds them back from there."""
 
 
 @mypyc_attr(native_class=False)

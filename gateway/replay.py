@@ -46,7 +46,7 @@ from gateway.logreaders import (
 )
 from gateway.pipeline import (
     SIGNING_REJECTED_TOPIC,
-    TICK_KEY,
+    TICK_TOPIC,
     USED_NMEA,
     ControlEvent,
     Output,
@@ -75,7 +75,6 @@ DEMO_METADATA = "dpgw.demo"
 ``min_scored_s``, the least sea after it that it scores (a log of a demo stopped soon after the skip)."""
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 Event = RawEvent | ControlEvent
-TICK_TOPIC = f"/dp/{TICK_KEY}"  # a live tick that dead-reckoned (`Pipeline.tick`)
 
 
 class ReplayError(ValueError):

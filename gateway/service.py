@@ -58,7 +58,7 @@ from gateway.config.logged import SIGNING_VERDICTS_KEY, for_log
 from gateway.outputs import InputSink, OutputSink, RawSentenceSink
 from gateway.pipeline import (
     SIGNING_REJECTED_TOPIC,
-    TICK_KEY,
+    TICK_TOPIC,
     ControlEvent,
     Output,
     Pipeline,
@@ -636,10 +636,10 @@ class GatewayService:
     def _log_tick(self, now: int) -> None:
         """A tick that dead-reckoned moved the controller and the allocation on (and a copy of the
         observer): logged before its outputs, as an input is, so that a replay ticks at the same times
-        (`gateway.pipeline.TICK_KEY`) and its commands after a silence are the live run's."""
+        (`gateway.pipeline.TICK_TOPIC`) and its commands after a silence are the live run's."""
         if self.log is not None:
             body = DeadReckoningTick(silent_s=self.pipeline.silence_s(now))
-            self.log.write(f"/dp/{TICK_KEY}", body, now, now)
+            self.log.write(TICK_TOPIC, body, now, now)
 
     def _shed_oldest(self, item: Chunk | _Input) -> Chunk | _Input | None:
         """More than `queue_max` wait: the oldest sensor data (``item`` first) is written to the log as
