@@ -67,7 +67,10 @@ def log_lines_owed(path: Path) -> list[tuple[int, str, str]]:
         if topic == "/dp/status":
             payload = json.loads(data)
             status = SimpleNamespace(
-                stamp_ns=payload["stamp_ns"], events=payload.get("events", []), alarms=payload["alarms"]
+                stamp_ns=payload["stamp_ns"],
+                events=payload.get("events", []),
+                alarms=payload["alarms"],
+                alarm_details=[SimpleNamespace(**d) for d in payload.get("alarm_details", [])],
             )
             for _, msg, ns in channels.logs(status):  # type: ignore[arg-type]
                 owed.append((ns, msg.name, msg.message))  # type: ignore[attr-defined]
