@@ -430,10 +430,13 @@ def start_up_notes(config: GatewayConfig) -> list[str]:
     import os
 
     from gateway.config import config_notes
+    from gateway.config.summary import open_commands_note
     from gateway.sources import SerialSource, SourceError, open_source
     from gateway.sources.udp import UdpSource
 
     notes: list[str] = config_notes(config)
+    if (note := open_commands_note(config)) and note not in notes:  # (also one reached from here only)
+        notes.append(note)
     if config.log.path and (note := log_folder_note(str(config.log.path))):
         notes.append(note)
     for sc in config.sources:

@@ -86,17 +86,20 @@ def config_notes(config: GatewayConfig) -> list[str]:
     keyed = [sc.name for sc in config.sources if sc.signing_key is not None]
     if keyed and (note := key_file_note(config.path, keyed)):
         notes.append(note)
-    if note := open_commands_note(config):
+    if note := open_commands_note(config, network_only=True):
         notes.append(note)
     return notes
 
 
-def open_commands_note(config: GatewayConfig) -> str | None:
+def open_commands_note(config: GatewayConfig, *, network_only: bool = False) -> str | None:
     """Commands accepted with no one named to give them: without ``[zenoh] commanders`` Zenoh lets every
     peer that reaches the session put on the command keys, so whoever reaches it may engage DP, move the
     setpoint or push the thrusters. Fine on a bench on this computer, not what a vessel wants on its
     LAN; the note says who can reach it (the listeners, a router) and how to name the commanders. A
-    ``config_file`` sets its own access control, which this does not read: no note then."""
+    ``config_file`` sets its own access control, which this does not read: no note then.
+    ``network_only``: none for a session reached from this computer only (loopback: the network layer's
+    default, docs/security.md), which start-up does not warn of (`dpgw demo` takes its operator's
+    commands so); ``--check`` says it either way."""
     z = config.zenoh
     accepted = sorted(config.commands.accept)
     if not accepted or z.commanders or z.config_file is not None:
@@ -105,6 +108,8 @@ def open_commands_note(config: GatewayConfig) -> str | None:
     wide += [f"connect {e}" for e in z.connect if not _loopback_endpoint(e)]
     if wide:
         reach = "anyone on the network that reaches " + ", ".join(wide)
+    elif network_only:
+        return None
     else:
         reach = "any user or program on this computer (it listens on loopback only)"
     return (
