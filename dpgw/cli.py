@@ -34,6 +34,7 @@ from dpgw import (
     numba_cache,
 )
 from dpgw.cli_help import HelpFormatter
+from dpgw.stderr_guard import StderrGuard
 
 SUBCOMMANDS = [
     cli_run,
@@ -163,8 +164,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     numba_cache.ensure_writable_cache()  # before a command imports numba (not for --help)
-    journal.default_logging(args.command)
+    stderr = sys.stderr
+    sys.stderr = StderrGuard(stderr)  # type: ignore[assignment]  # (before the log handlers take it)
     try:
+        journal.default_logging(args.command)
         code: int = args.func(args)
     except BrokenPipeError:
         if not _stdout_gone():
@@ -175,6 +178,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 128 + 13
+    finally:
+        sys.stderr = stderr
     return code
 
 
