@@ -165,7 +165,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     numba_cache.ensure_writable_cache()  # before a command imports numba (not for --help)
     stderr = sys.stderr
-    sys.stderr = StderrGuard(stderr)  # type: ignore[assignment]  # (before the log handlers take it)
+    sys.stderr = StderrGuard(stderr)  # (before the log handlers take it)
     try:
         journal.default_logging(args.command)
         code: int = args.func(args)
