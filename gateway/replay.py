@@ -459,7 +459,9 @@ def _as_replayed(tables: dict[str, Any]) -> dict[str, Any]:
     or the replay would refuse the setpoints and modes the live run obeyed. One from before ``[control]
     wait_for_observer`` (a gateway that started in dp engaged DP at its first estimate; logs since record
     the option, `gateway.config.logged.for_log`) is replayed so too, and so is one from before ``[commands]
-    manual_tau_hold_s`` (its gateway held a manual τ until the next one: ``inf``; logs since record it)."""
+    manual_tau_hold_s`` (its gateway held a manual τ until the next one: ``inf``; logs since record it),
+    and one from before ``[control] takeover_fade_s`` (its gateway kept the integrator's bumpless start
+    content: ``inf``; logs since record the option, null for its default)."""
     out = without_unlogged_keys(tables)
     sources = []
     for src in out.get("sources", []):
@@ -476,6 +478,10 @@ def _as_replayed(tables: dict[str, Any]) -> dict[str, Any]:
     control = out.get("control")
     if isinstance(control, dict) and control.get("initial_mode") == "dp":
         out["control"] = {"wait_for_observer": False, **control}
+    control = out.get("control", {})
+    if isinstance(control, dict) and "takeover_fade_s" not in control:
+        # a gateway of before the takeover fade kept the integrator's bumpless start (`DPController`)
+        out["control"] = {**control, "takeover_fade_s": math.inf}
     return out
 
 

@@ -5,9 +5,11 @@ zero) and DP was engaged again. The bumpless rule made the first DP τ equal tha
 integrator holding exactly the opposite of the bias feed-forward; unwinding it through the loop took
 minutes while the vessel ran 6-7 m off. Now that start content fades out over ``takeover_fade_s``
 (`gateway.control.controller`, "Bumpless transfer"). Through the whole gateway pipeline and the
-simulator's plant (torsetnes_2004), against the same run with the fade set to 3600 s (the rule before)."""
+simulator's plant (torsetnes_2004), against the same run with the fade set to inf (the rule before)."""
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import pytest
@@ -44,6 +46,39 @@ def test_dp_after_the_joystick_expired_takes_up_the_load(seed: int) -> None:
     """Measured (seeds 1, 4): at most 4.5 m / 5.0 m off with the fade, 9.0 m / 10.2 m without; in the
     last 100 s 1.2 m / 1.4 m against 1.8 m / 3.6 m."""
     faded, faded_end = drift_after_engaging(seed, None)
-    unwound, _ = drift_after_engaging(seed, 3600.0)
+    unwound, _ = drift_after_engaging(seed, math.inf)
     assert faded <= 0.6 * unwound, (faded, unwound)
     assert faded_end < 2.0, faded_end
+
+
+def test_a_log_records_the_takeover_fade_and_one_from_before_it_replays_without() -> None:
+    """The log's config writes ``[control] takeover_fade_s`` out (null: the default), so a replay knows a
+    gateway with the fade; a log of a gateway from before it (no such key) replays with none (inf), as
+    that gateway commanded: its bumpless integrator kept."""
+    import json
+    import math
+    from pathlib import Path
+
+    from gateway.config import parse_config
+    from gateway.config.logged import for_log
+    from gateway.replay import _as_replayed
+
+    tables = {
+        "vessel": {"name": "mss_supply"},
+        "sources": [
+            {"name": "gps", "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position", "heading"]}
+        ],
+        "log": {"path": ""},
+    }
+    logged = json.loads(json.dumps(for_log(tables)))  # (as the log's metadata holds it)
+    assert logged["control"] == {"takeover_fade_s": None}
+    now = parse_config(_as_replayed(logged), base_dir=Path.cwd())
+    assert now.control is not None and now.control.takeover_fade_s is None  # the default: 1/ωn
+    given = json.loads(json.dumps(for_log({**tables, "control": {"takeover_fade_s": 5.0}})))
+    assert parse_config(_as_replayed(given), base_dir=Path.cwd()).control.takeover_fade_s == 5.0  # type: ignore[union-attr]
+    before = {k: v for k, v in logged.items() if k != "control"}
+    old = parse_config(_as_replayed(before), base_dir=Path.cwd())
+    assert old.control is not None and old.control.takeover_fade_s == math.inf
+    old_dp = {**before, "control": {"initial_mode": "dp"}}
+    old = parse_config(_as_replayed(old_dp), base_dir=Path.cwd())
+    assert old.control is not None and old.control.takeover_fade_s == math.inf

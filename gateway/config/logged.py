@@ -32,9 +32,10 @@ written before gateways recorded them."""
 def for_log(tables: dict[str, Any]) -> dict[str, Any]:
     """A copy of the config tables with every source's ``signing_key`` replaced by `KEY_NOT_LOGGED`,
     ``[control] wait_for_observer`` written out (its default where not given) with ``initial_mode = "dp"``,
-    and a ``[commands]`` table always, with ``accept`` and ``manual_tau_hold_s`` written out (their
-    defaults where not given): a replay then knows the log is from a gateway with the command rules and
-    the manual τ's dead-man. `gateway.replay` replays a log without the table, or without the hold, as
+    ``[control] takeover_fade_s`` written out (null for its default where not given), and a ``[commands]``
+    table always, with ``accept`` and ``manual_tau_hold_s`` written out (their defaults where not given):
+    a replay then knows the log is from a gateway with the command rules, the manual τ's dead-man and
+    the takeover fade. `gateway.replay` replays a log without the table, or without the hold, as
     such a gateway ran (every input taken; the τ held until the next one) — so a gateway configured
     without the table, which took no input, must not log it without one, or its replay would obey the
     inputs it refused."""
@@ -43,7 +44,12 @@ def for_log(tables: dict[str, Any]) -> dict[str, Any]:
         d = DEFAULTS["commands"]
         written = {"accept": list(d["accept"]), "manual_tau_hold_s": d["manual_tau_hold_s"]}
         tables = {**tables, "commands": {**written, **commands}}
-    control = tables.get("control")
+    control = tables.get("control", {})
+    if isinstance(control, dict) and "takeover_fade_s" not in control:
+        # written out, null for its derived default: a replay tells a log of a gateway with the takeover
+        # fade from one of before it, which it replays with none (`gateway.replay`)
+        tables = {**tables, "control": {**control, "takeover_fade_s": None}}
+        control = tables["control"]
     waits = DEFAULTS["control"]["wait_for_observer"]
     if (
         isinstance(control, dict)

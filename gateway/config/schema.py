@@ -196,12 +196,31 @@ def positive_or_inf(default: Any = MISSING, *, unit: str = "") -> Any:
     return Field(default, json_schema_extra={"expected": f"a number > 0{' ' + unit if unit else ''}, or inf"})
 
 
+def _zero_positive_or_inf(value: Any) -> float | None:
+    if value is None:  # (a logged config's "the default")
+        return None
+    if not _is_number(value):
+        raise PydanticCustomError("wrong_type", "wrong type")
+    x = float(value)
+    if not x >= 0:  # (NaN too)
+        raise PydanticCustomError("out_of_range", "out of range")
+    return x
+
+
+def zero_positive_or_inf(*, unit: str = "", zero: str, inf: str) -> Any:
+    """A number ≥ 0 or ``inf``, default None (the key's derived default); ``zero`` and ``inf`` say what
+    those mean."""
+    expected = f"a number >= 0{' ' + unit if unit else ''} (0: {zero}), or inf ({inf})"
+    return Field(None, json_schema_extra={"expected": expected})
+
+
 Vector2 = Annotated[tuple[float, float], PlainValidator(_vector(2))]
 Vector3 = Annotated[tuple[float, float, float], PlainValidator(_vector(3))]
 PerDof = Annotated[float | tuple[float, float, float], PlainValidator(_per_dof(False))]
 PerDofOrInf = Annotated[float | tuple[float, float, float], PlainValidator(_per_dof(True))]
 PerDofOrZero = Annotated[float | tuple[float, float, float], PlainValidator(_per_dof(False, True))]
 PositiveOrInf = Annotated[float, PlainValidator(_positive_or_inf)]
+ZeroPositiveOrInfOrNone = Annotated[float | None, PlainValidator(_zero_positive_or_inf)]
 
 
 def _table(value: Any) -> dict[str, Any]:
@@ -450,7 +469,11 @@ class ControlTable(_Section):
     wind_feedforward_gain: float = number(_C["wind_feedforward_gain"], lo=0.0, hi=1.0)
     wind_filter_s: float = number(_C["wind_filter_s"], lo=0.0, hi=120.0, lo_open=True, unit="s")
     wind_loss_fade_s: float | None = number(None, lo=0.0, hi=3600.0, unit="s (0 = drop at once)")
-    takeover_fade_s: float | None = number(None, lo=0.0, hi=3600.0, unit="s (0 = at once)")
+    takeover_fade_s: ZeroPositiveOrInfOrNone = zero_positive_or_inf(
+        unit="s",
+        zero="at once",
+        inf="never: the integrator keeps the τ held before, the rule before the fade",
+    )
 
 
 _Q = DEFAULTS["consequence"]
