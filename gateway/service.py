@@ -365,7 +365,9 @@ class GatewayService:
                 self.log = _open_log(self._log_path, self.config.log.writer_options())
                 meta = {"vessel": self.config.vessel.name, "prefix": self.prefix}
                 if self.config_tables is not None:  # lets replay rebuild exactly this pipeline (no keys)
-                    meta["json"] = json.dumps(for_log(self.config_tables))
+                    ctl = self.pipeline.controller
+                    fade = None if ctl is None else ctl.tuning.takeover_fade_s
+                    meta["json"] = json.dumps(for_log(self.config_tables, takeover_fade_s=fade))
                 # without the keys, a replay takes this log's verdicts on the signed links' frames
                 meta[SIGNING_VERDICTS_KEY] = f"{SIGNING_REJECTED_TOPIC}<source>"
                 self.log.add_metadata("dpgw.config", meta)

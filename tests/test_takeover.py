@@ -10,6 +10,7 @@ simulator's plant (torsetnes_2004), against the same run with the fade set to in
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -51,31 +52,37 @@ def test_dp_after_the_joystick_expired_takes_up_the_load(seed: int) -> None:
     assert faded_end < 2.0, faded_end
 
 
-def test_a_log_records_the_takeover_fade_and_one_from_before_it_replays_without() -> None:
-    """The log's config writes ``[control] takeover_fade_s`` out (null: the default), so a replay knows a
-    gateway with the fade; a log of a gateway from before it (no such key) replays with none (inf), as
-    that gateway commanded: its bumpless integrator kept."""
+def test_a_log_records_the_takeover_fade_and_one_from_before_it_replays_without(tmp_path: Path) -> None:
+    """A live gateway's log writes ``[control] takeover_fade_s`` out (the controller's resolved value, a
+    number TOML can write), so a replay knows a gateway with the fade and takes the same value; a log of
+    a gateway from before it (no such key) replays with none (inf), as that gateway commanded: its
+    bumpless integrator kept."""
     import json
-    import math
-    from pathlib import Path
 
     from gateway.config import parse_config
     from gateway.config.logged import for_log
-    from gateway.replay import _as_replayed
+    from gateway.replay import _as_replayed, logged_config
+    from gateway.service import GatewayService
 
     tables = {
         "vessel": {"name": "mss_supply"},
         "sources": [
             {"name": "gps", "url": "udp://127.0.0.1:0", "protocol": "nmea", "roles": ["position", "heading"]}
         ],
-        "log": {"path": ""},
+        "zenoh": {"listen": ["tcp/127.0.0.1:0"], "multicast_scouting": False},
+        "log": {"path": str(tmp_path / "live.mcap")},
     }
-    logged = json.loads(json.dumps(for_log(tables)))  # (as the log's metadata holds it)
-    assert logged["control"] == {"takeover_fade_s": None}
+    service = GatewayService(parse_config(tables, base_dir=tmp_path), config_tables=tables)
+    service.start()
+    service.close()
+    logged = logged_config(tmp_path / "live.mcap")
+    assert logged is not None and logged["control"]["takeover_fade_s"] == pytest.approx(1 / 0.07)
     now = parse_config(_as_replayed(logged), base_dir=Path.cwd())
-    assert now.control is not None and now.control.takeover_fade_s is None  # the default: 1/ωn
-    given = json.loads(json.dumps(for_log({**tables, "control": {"takeover_fade_s": 5.0}})))
-    assert parse_config(_as_replayed(given), base_dir=Path.cwd()).control.takeover_fade_s == 5.0  # type: ignore[union-attr]
+    assert now.control is not None and now.control.takeover_fade_s == logged["control"]["takeover_fade_s"]
+    given = json.loads(
+        json.dumps(for_log({**tables, "control": {"takeover_fade_s": 5.0}}, takeover_fade_s=9.0))
+    )
+    assert given["control"]["takeover_fade_s"] == 5.0  # (what the tables give is kept)
     before = {k: v for k, v in logged.items() if k != "control"}
     old = parse_config(_as_replayed(before), base_dir=Path.cwd())
     assert old.control is not None and old.control.takeover_fade_s == math.inf

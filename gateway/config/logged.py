@@ -29,10 +29,11 @@ none for accepted frames), so that a replay without the key refuses the same fra
 written before gateways recorded them."""
 
 
-def for_log(tables: dict[str, Any]) -> dict[str, Any]:
+def for_log(tables: dict[str, Any], *, takeover_fade_s: float | None = None) -> dict[str, Any]:
     """A copy of the config tables with every source's ``signing_key`` replaced by `KEY_NOT_LOGGED`,
     ``[control] wait_for_observer`` written out (its default where not given) with ``initial_mode = "dp"``,
-    ``[control] takeover_fade_s`` written out (null for its default where not given), and a ``[commands]``
+    ``[control] takeover_fade_s`` written out (``takeover_fade_s``, the controller's resolved value, where
+    the tables do not give it: a number, so the logged config stays one TOML can write), and a ``[commands]``
     table always, with ``accept`` and ``manual_tau_hold_s`` written out (their defaults where not given):
     a replay then knows the log is from a gateway with the command rules, the manual τ's dead-man and
     the takeover fade. `gateway.replay` replays a log without the table, or without the hold, as
@@ -45,10 +46,10 @@ def for_log(tables: dict[str, Any]) -> dict[str, Any]:
         written = {"accept": list(d["accept"]), "manual_tau_hold_s": d["manual_tau_hold_s"]}
         tables = {**tables, "commands": {**written, **commands}}
     control = tables.get("control", {})
-    if isinstance(control, dict) and "takeover_fade_s" not in control:
-        # written out, null for its derived default: a replay tells a log of a gateway with the takeover
-        # fade from one of before it, which it replays with none (`gateway.replay`)
-        tables = {**tables, "control": {**control, "takeover_fade_s": None}}
+    if isinstance(control, dict) and "takeover_fade_s" not in control and takeover_fade_s is not None:
+        # written out: a replay tells a log of a gateway with the takeover fade from one of before it,
+        # which it replays with none (`gateway.replay`)
+        tables = {**tables, "control": {**control, "takeover_fade_s": takeover_fade_s}}
         control = tables["control"]
     waits = DEFAULTS["control"]["wait_for_observer"]
     if (

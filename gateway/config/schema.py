@@ -197,7 +197,7 @@ def positive_or_inf(default: Any = MISSING, *, unit: str = "") -> Any:
 
 
 def _zero_positive_or_inf(value: Any) -> float | None:
-    if value is None:  # (a logged config's "the default")
+    if value is None:  # (the default, derived from the tuning)
         return None
     if not _is_number(value):
         raise PydanticCustomError("wrong_type", "wrong type")
