@@ -97,7 +97,9 @@ def test_a_default_demo_engages_dp_once_the_gateway_calls_the_estimate_settled(
     assert SETTLE_S < engaged < SETTLE_S + 1.5 and summary["engage_at_given"] is False
     truth0 = next(p["stamp_ns"] for _, _, _, p in read_messages(out, "/truth/state"))
     commands = [(p["stamp_ns"] - truth0) / 1e9 for _, _, _, p in read_messages(out, "/dp/thrusters/command")]
-    assert len(commands) > 20 and engaged <= commands[0] <= engaged + 1.0
+    # at least half the control rate (10 Hz) over the DP stretch: a busy machine's gateway takes the sea
+    # in batches and steps the controller less often (measured 33 alone, 20 in a loaded CI run)
+    assert len(commands) >= 0.5 * 10 * (14 - engaged) and engaged <= commands[0] <= engaged + 1.0
     # and the gateway had called its estimate settled by then
     settled_at = next(
         (p["stamp_ns"] - truth0) / 1e9
