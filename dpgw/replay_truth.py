@@ -25,11 +25,17 @@ def fed_twice(inputs: list[Input]) -> str | None:
     """Why replaying these logs together would feed the sensors twice, or None: a gateway's own log
     (its configuration, no simulator description) and a simulator's log (a simulator description, no
     gateway configuration) among the inputs. A `dpgw demo` log holds both in one file, and is fine."""
-    gateway = [i for i in inputs if i.kind == "mcap" and logged_config(i.path) and not logged_sim(i.path)]
-    sim = [i for i in inputs if i.kind == "mcap" and logged_sim(i.path) and not logged_config(i.path)]
-    if not (gateway and sim):
+    # (each log's metadata read once: is it a gateway's, a simulator's)
+    kinds = [
+        (i.path, logged_config(i.path) is not None, logged_sim(i.path) is not None)
+        for i in inputs
+        if i.kind == "mcap"
+    ]
+    gateway = [path for path, config, sim in kinds if config and not sim]
+    simulator = [path for path, config, sim in kinds if sim and not config]
+    if not (gateway and simulator):
         return None
-    g, s = gateway[0].path, sim[0].path
+    g, s = gateway[0], simulator[0]
     return (
         f"{g} is a gateway's log and {s} a simulator's: the gateway logged the sentences it received, the "
         "simulator the ones it sent, so replaying both feeds every sentence twice. To score the gateway's "

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from gateway.alarms import alarm_key, alarm_level
+from gateway.foxglove_channels import alarm_text
 
 NS = 1_000_000_000
 DEAD_RECKONED = ("dead_reckoning", "lost")
@@ -148,8 +149,7 @@ def _alarms(st: list[Mapping[str, Any]], start_ns: int) -> list[dict[str, Any]]:
     for s in st:
         ns = int(s["stamp_ns"])
         now: dict[str, str] = {}
-        for a in s.get("alarms", []):
-            text = a if isinstance(a, str) else f"{a.get('code', '?')}: {a.get('message', '')}"
+        for text in map(alarm_text, s.get("alarms", [])):
             now[alarm_key(text)] = text
         for key, text in now.items():
             entry = seen.get(key)
