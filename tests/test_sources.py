@@ -7,6 +7,7 @@ deadline, so a broken source fails a test instead of hanging it; no test leaves 
 from __future__ import annotations
 
 import socket
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -287,6 +288,44 @@ def test_udp_write_to_a_target_and_to_a_named_peer(opened: list[Source]) -> None
             assert read_until(other, b"to peer") == b"to peer"
             assert src.write(b"again")  # without peer=: the target, not the last peer
             assert read_until(target, b"again") == b"again"
+
+
+def test_a_datagram_is_stamped_when_the_kernel_took_it_in_not_when_the_reader_got_to_it(
+    opened: list[Source],
+) -> None:
+    """A reading thread kept from reading (here by a slow ``deliver``; on a busy machine by the scheduler)
+    stamps the datagram waiting in the kernel with its arrival, not with the end of the wait: the receive
+    instant the observer's delay compensation and the simulation clock rely on. Linux (SO_TIMESTAMPNS)."""
+    if not sys.platform.startswith("linux"):
+        pytest.skip("kernel receive stamps are read on Linux")
+    held, release = threading.Event(), threading.Event()
+    chunks: list[Chunk] = []
+
+    def deliver(chunk: Chunk) -> None:
+        chunks.append(chunk)
+        if len(chunks) == 1:
+            held.set()
+            release.wait(10.0)  # the reader is kept here while the second datagram arrives
+
+    src = open_source("dgps", "udp://127.0.0.1:0")
+    assert isinstance(src, UdpSource)
+    opened.append(src)
+    src.start(deliver)
+    with UdpSink("127.0.0.1", src.port) as sink:
+        sink.write(GGA)
+        assert held.wait(5.0)
+        sent_mono, sent_wall = time.monotonic_ns(), time.time_ns()
+        sink.write(HDT)
+        while time.monotonic_ns() - sent_mono < 200_000_000:  # the reader kept from it for 0.2 s
+            time.sleep(0.01)
+        released_mono = time.monotonic_ns()
+        release.set()
+        assert wait_until(lambda: len(chunks) >= 2)
+    late = chunks[1]
+    assert late.data == HDT
+    # stamped at its arrival (within 50 ms of the send), not at the release 0.2 s later
+    assert sent_mono - 1_000_000 <= late.rx_mono_ns < sent_mono + 50_000_000 < released_mono
+    assert abs(late.rx_ns - sent_wall) < 50_000_000
 
 
 def test_udp_port_in_use_is_refused(opened: list[Source]) -> None:

@@ -26,6 +26,10 @@ BACKOFF_MAX_S = 10.0
 POLL_S = 0.2
 #: How long `Source.stop` waits for the reader thread.
 STOP_JOIN_S = 1.0
+KERNEL_STAMP_SLACK_NS = 60_000_000_000
+"""A kernel receive stamp further than this before the clock when read, or after it, is not believed: a
+platform whose constant or layout differs, or a clock stepped in between. The data are then stamped when
+read, as without one."""
 READ_SIZE = 65536
 
 
@@ -311,10 +315,17 @@ class Source(ABC):
         self._logged.add(reason)
         log.log(level, "source %r (%s): %s", self.name, self.url, detail)
 
-    def _emit(self, data: bytes, peer: str = "") -> None:
-        """Stamp ``data`` (call right after the read returned) and hand it to ``deliver``."""
+    def _emit(self, data: bytes, peer: str = "", kernel_ns: int | None = None) -> None:
+        """Stamp ``data`` (call right after the read returned) and hand it to ``deliver``. ``kernel_ns``:
+        when the kernel took the data in (UTC ns), where the transport says; the stamp is then that
+        instant, and its monotonic twin is now less the wait since (never later than now)."""
         rx_ns = time.time_ns()
         rx_mono_ns = time.monotonic_ns()
+        if kernel_ns is not None:
+            waited = rx_ns - kernel_ns
+            if 0 <= waited <= KERNEL_STAMP_SLACK_NS:
+                rx_ns = kernel_ns
+                rx_mono_ns -= waited
         stats = self.stats
         stats.bytes_received += len(data)
         stats.chunks += 1

@@ -25,7 +25,14 @@ overflows it and the kernel drops datagrams silently. 4 MiB holds tens of thousa
 # dropped (receive buffer full); SO_RCVBUFFORCE may exceed net.core.rmem_max (needs CAP_NET_ADMIN).
 _SO_RXQ_OVFL = getattr(socket, "SO_RXQ_OVFL", 40 if sys.platform.startswith("linux") else None)
 _SO_RCVBUFFORCE = getattr(socket, "SO_RCVBUFFORCE", 33 if sys.platform.startswith("linux") else None)
+# Linux: SO_TIMESTAMPNS makes every received datagram carry the instant the kernel took it in (a struct
+# timespec of CLOCK_REALTIME). A datagram is stamped with that, not with the instant the reading thread got
+# to it: on a busy machine the thread waits for a core and for the interpreter, and a stamp taken then is
+# late by that wait (milliseconds; at a demo's 10x, a tenth of a second of simulation time).
+_SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35 if sys.platform.startswith("linux") else None)
+_TIMESPEC = struct.Struct("@qq")
 _CMSG_SPACE = socket.CMSG_SPACE(4) if hasattr(socket, "CMSG_SPACE") else 0
+_CMSG_SPACE_STAMP = socket.CMSG_SPACE(_TIMESPEC.size) if hasattr(socket, "CMSG_SPACE") else 0
 # Linux: IP_FREEBIND / IPV6_FREEBIND let a socket bind an address no interface has yet (systemd's FreeBind=).
 _FREEBIND: dict[int, tuple[int, int]] = {
     socket.AF_INET: (socket.IPPROTO_IP, getattr(socket, "IP_FREEBIND", 15)),
@@ -86,6 +93,7 @@ class UdpSource(Source):
         self.dropped = 0
         """Datagrams the kernel dropped on this socket (receive buffer full); 0 where not reported."""
         self._ovfl = False
+        self._kernel_stamps = False
         self.host = host
         self._port = port
         self.target = target
@@ -246,6 +254,12 @@ class UdpSource(Source):
                 self._ovfl = True
             except OSError:
                 self._ovfl = False
+        if _SO_TIMESTAMPNS is not None and _CMSG_SPACE_STAMP:
+            try:
+                sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
+                self._kernel_stamps = True
+            except OSError:
+                self._kernel_stamps = False
 
     def _join(self, sock: socket.socket) -> None:
         group = socket.inet_aton(self.host)
@@ -295,11 +309,17 @@ class UdpSource(Source):
                     last_hello = now
                     self._send_hello()
             try:
-                if self._ovfl:
-                    data, ancillary, _, addr = sock.recvmsg(READ_SIZE, _CMSG_SPACE)
+                kernel_ns = None
+                if self._ovfl or self._kernel_stamps:
+                    data, ancillary, _, addr = sock.recvmsg(READ_SIZE, _CMSG_SPACE + _CMSG_SPACE_STAMP)
                     for level, kind, value in ancillary:
-                        if level == socket.SOL_SOCKET and kind == _SO_RXQ_OVFL and len(value) >= 4:
+                        if level != socket.SOL_SOCKET:
+                            continue
+                        if kind == _SO_RXQ_OVFL and len(value) >= 4:
                             self.dropped = struct.unpack("=I", value[:4])[0]
+                        elif kind == _SO_TIMESTAMPNS and len(value) >= _TIMESPEC.size:
+                            sec, nsec = _TIMESPEC.unpack_from(value)
+                            kernel_ns = sec * 1_000_000_000 + nsec
                 else:
                     data, addr = sock.recvfrom(READ_SIZE)
             except TimeoutError:
@@ -316,7 +336,7 @@ class UdpSource(Source):
             peer = fmt_addr(addr)
             if peer not in self._peers and len(self._peers) < 256:
                 self._peers[peer] = addr
-            self._emit(data, peer)
+            self._emit(data, peer, kernel_ns)
 
     def write(self, data: bytes, peer: str | None = None) -> bool:
         sock = self._sock
