@@ -434,136 +434,152 @@ def run(args: argparse.Namespace) -> int:
             f"dpgw demo: stopped by {stop_name(stopped_by[0])} during start-up; nothing ran", file=sys.stderr
         )
         return exit_status(stopped_by[0])
-    if foxglove is not None:
-        sink, note = foxglove
-        for line in connect_lines(sink.url, sink.app_url(), note=note):
-            print(f"dpgw demo: {line}", file=sys.stderr, flush=True)
-    ports: dict[str, int] = {s.name: int(getattr(s, "port", 0)) for s in service._sources}
-    start_utc = datetime.fromtimestamp(service._wall0_ns / 1e9, tz=UTC)
-    counters = service.pipeline.counters
-    # how far the gateway is behind what the simulator sent, in sim seconds (read in the simulator's thread)
-    loop_lag = LoopLag(
-        SimEpoch(start_utc),
-        lambda name: (
-            (counters[name].last_rx_ns or None, counters[name].bytes) if name in counters else (None, 0)
-        ),
-        tolerance_s=Simulation.TIME_TICK_S,
-    )
-
-    def watched(sink: Any, source: str) -> WatchedSink:
-        return WatchedSink(sink, source, loop_lag, lambda: sim.t)
-
-    dgps_sink = UdpSink("127.0.0.1", ports[scenario.dgps[0].source])
-    sinks.append(dgps_sink)
-    routes = [
-        Route(watched(dgps_sink, scenario.dgps[0].source), "nmea", frozenset({scenario.dgps[0].source})),
-        Route(watched(pty, scenario.gyro[0].source), "nmea", frozenset({scenario.gyro[0].source})),
-    ]
-    for anemometer in scenario.anemometers:
-        wind_sink = UdpSink("127.0.0.1", ports[anemometer.source])
-        sinks.append(wind_sink)
-        routes.append(Route(watched(wind_sink, anemometer.source), "nmea", frozenset({anemometer.source})))
-    for mru in scenario.mru:
-        mru_sink = UdpSink("127.0.0.1", ports[mru.source])
-        sinks.append(mru_sink)
-        routes.append(Route(watched(mru_sink, mru.source), "nmea", frozenset({mru.source})))
-    commands: list[Any] = []
-    if "thrusters" in ports:
-        mav_sink = UdpSink("127.0.0.1", ports["thrusters"])
-        sinks.append(mav_sink)
-        routes.append(Route(watched(mav_sink, "thrusters"), "mavlink"))
-        # the loop closes over the MAVLink link (the thrusters port exists only with feedback)
-        commands.append(MavlinkCommandInput.for_drive(mav_sink, scenario.feedback, signing_key=signing_key))
-    elif args.mode == "dp" and service._session is not None:
-        commands.append(ZenohCommandInput(service._session, config.zenoh.prefix))  # τ for layout-less ships
-    clock = RealtimeClock(speed=args.speed)
-    if args.mode == "dp":
-        # Hold the scenario's station, not wherever the first (wave-moved, noisy) fix put the estimate.
-        service.submit("setpoint", hold_setpoint(scenario))
-    if service.log is not None:  # so that `dpgw replay` of this log scores the same stretch
-        # (and scores it on as much sea: less than `MIN_SCORED_S` is said "not scored", there as here)
-        service.log.add_metadata(
-            DEMO_METADATA, {"settle_s": f"{SETTLE_S:g}", "min_scored_s": f"{MIN_SCORED_S:g}"}
+    # From here until the simulation runs, the gateway runs with nobody to stop it: whatever goes wrong
+    # in between (a sink that cannot open, a scenario the simulator refuses) closes it, its sources and the
+    # log before it is raised. Left running, its threads kept the process from ending after the error.
+    try:
+        if foxglove is not None:
+            sink, note = foxglove
+            for line in connect_lines(sink.url, sink.app_url(), note=note):
+                print(f"dpgw demo: {line}", file=sys.stderr, flush=True)
+        ports: dict[str, int] = {s.name: int(getattr(s, "port", 0)) for s in service._sources}
+        start_utc = datetime.fromtimestamp(service._wall0_ns / 1e9, tz=UTC)
+        counters = service.pipeline.counters
+        # how far the gateway is behind what the simulator sent, in sim seconds (read in the simulator's
+        # thread)
+        loop_lag = LoopLag(
+            SimEpoch(start_utc),
+            lambda name: (
+                (counters[name].last_rx_ns or None, counters[name].bytes) if name in counters else (None, 0)
+            ),
+            tolerance_s=Simulation.TIME_TICK_S,
         )
-    engage_s = engage_time(args, service.pipeline.observer) if engages_later(args, scenario) else None
-    if engage_s is not None:
-        for line in engagement_lines(args, engage_s):
-            print(f"dpgw demo: {line}", file=sys.stderr, flush=True)
-        # until DP is engaged, an operator holds the vessel by joystick on its station, against the load
-        station, hold_period_s = scenario.eta0, HOLD_PERIOD_S * froude_scale(scenario)
-        scenario = replace(scenario, tau=lambda _: sim.held_tau(station, hold_period_s))
-    sim = Simulation(
-        replace(scenario, start_utc=start_utc),
-        args.seed,
-        routes=routes,
-        log=service.log,
-        clock=clock,
-        log_raw=False,  # the gateway logs what it received; the simulator adds the truth
-        commands=commands,
-        signing_key=signing_key,
-    )
 
-    def lowered(old: float, new: float, delay: float) -> None:
-        if len(governor.changes) == 1:  # say it once; the summary gives the final speed
-            print(
-                f"dpgw demo: this machine cannot keep up with {old:g}x (the loop ran {delay:.1f} s of sea "
-                f"late); running slower, {new:g}x (down to {LOWEST_SPEED:g}x if need be)",
-                file=sys.stderr,
-                flush=True,
+        def watched(sink: Any, source: str) -> WatchedSink:
+            return WatchedSink(sink, source, loop_lag, lambda: sim.t)
+
+        dgps_sink = UdpSink("127.0.0.1", ports[scenario.dgps[0].source])
+        sinks.append(dgps_sink)
+        routes = [
+            Route(watched(dgps_sink, scenario.dgps[0].source), "nmea", frozenset({scenario.dgps[0].source})),
+            Route(watched(pty, scenario.gyro[0].source), "nmea", frozenset({scenario.gyro[0].source})),
+        ]
+        for anemometer in scenario.anemometers:
+            wind_sink = UdpSink("127.0.0.1", ports[anemometer.source])
+            sinks.append(wind_sink)
+            routes.append(
+                Route(watched(wind_sink, anemometer.source), "nmea", frozenset({anemometer.source}))
             )
+        for mru in scenario.mru:
+            mru_sink = UdpSink("127.0.0.1", ports[mru.source])
+            sinks.append(mru_sink)
+            routes.append(Route(watched(mru_sink, mru.source), "nmea", frozenset({mru.source})))
+        commands: list[Any] = []
+        if "thrusters" in ports:
+            mav_sink = UdpSink("127.0.0.1", ports["thrusters"])
+            sinks.append(mav_sink)
+            routes.append(Route(watched(mav_sink, "thrusters"), "mavlink"))
+            # the loop closes over the MAVLink link (the thrusters port exists only with feedback)
+            commands.append(
+                MavlinkCommandInput.for_drive(mav_sink, scenario.feedback, signing_key=signing_key)
+            )
+        elif args.mode == "dp" and service._session is not None:
+            commands.append(
+                ZenohCommandInput(service._session, config.zenoh.prefix)
+            )  # τ for layout-less ships
+        clock = RealtimeClock(speed=args.speed)
+        if args.mode == "dp":
+            # Hold the scenario's station, not wherever the first (wave-moved, noisy) fix put the estimate.
+            service.submit("setpoint", hold_setpoint(scenario))
+        if service.log is not None:  # so that `dpgw replay` of this log scores the same stretch
+            # (and scores it on as much sea: less than `MIN_SCORED_S` is said "not scored", there as here)
+            service.log.add_metadata(
+                DEMO_METADATA, {"settle_s": f"{SETTLE_S:g}", "min_scored_s": f"{MIN_SCORED_S:g}"}
+            )
+        engage_s = engage_time(args, service.pipeline.observer) if engages_later(args, scenario) else None
+        if engage_s is not None:
+            for line in engagement_lines(args, engage_s):
+                print(f"dpgw demo: {line}", file=sys.stderr, flush=True)
+            # until DP is engaged, an operator holds the vessel by joystick on its station, against the load
+            station, hold_period_s = scenario.eta0, HOLD_PERIOD_S * froude_scale(scenario)
+            scenario = replace(scenario, tau=lambda _: sim.held_tau(station, hold_period_s))
+        sim = Simulation(
+            replace(scenario, start_utc=start_utc),
+            args.seed,
+            routes=routes,
+            log=service.log,
+            clock=clock,
+            log_raw=False,  # the gateway logs what it received; the simulator adds the truth
+            commands=commands,
+            signing_key=signing_key,
+        )
 
-    governor = SpeedGovernor(
-        clock, max_delay_s=MAX_LOOP_DELAY_S, floor=min(LOWEST_SPEED, args.speed), on_lower=lowered
-    )
-    assert service._session is not None
-    sim.on_time = publisher = SimClockPublisher(
-        service._session,
-        config.zenoh.prefix,
-        sim.epoch,
-        clock,
-        period_s=sim.time_tick_s,
-        governor=governor,
-        # as wall time at this speed; none once the demo stops: the gateway reads no more, and waiting for
-        # it held the simulation (and so the stop) for up to `simulator.sim_clock.MAX_WAIT_S`
-        downstream_delay_s=lambda: 0.0 if stop_sim.is_set() else loop_lag.lag_s(sim.t) / clock.speed,
-        max_downstream_s=MAX_LOOP_DELAY_S,
-    )
-    if service.sim_time is not None:
-        # the gateway knows its simulator: another simulator's clock on this key (another demo or bench
-        # with this vessel's prefix, reached by scouting) is ignored and alarmed, never followed
-        service.sim_time.pin(publisher.run)
-    sim_error: list[BaseException] = []
-    engaged_at: list[float] = []  # the sim second the demo's operator sent dp
-    sim_ended: list[float] = []  # when the simulation stopped (monotonic): the run's own wall time ends
+        def lowered(old: float, new: float, delay: float) -> None:
+            if len(governor.changes) == 1:  # say it once; the summary gives the final speed
+                print(
+                    f"dpgw demo: this machine cannot keep up with {old:g}x (the loop ran {delay:.1f} s of "
+                    f"sea late); running slower, {new:g}x (down to {LOWEST_SPEED:g}x if need be)",
+                    file=sys.stderr,
+                    flush=True,
+                )
 
-    if engage_s is not None:
-        sim.start_held()
-    pending_engage = math.inf if engage_s is None else engage_s
-    wait_settled = waits_for_settled(args)
+        governor = SpeedGovernor(
+            clock, max_delay_s=MAX_LOOP_DELAY_S, floor=min(LOWEST_SPEED, args.speed), on_lower=lowered
+        )
+        assert service._session is not None
+        sim.on_time = publisher = SimClockPublisher(
+            service._session,
+            config.zenoh.prefix,
+            sim.epoch,
+            clock,
+            period_s=sim.time_tick_s,
+            governor=governor,
+            # as wall time at this speed; none once the demo stops: the gateway reads no more, and waiting for
+            # it held the simulation (and so the stop) for up to `simulator.sim_clock.MAX_WAIT_S`
+            downstream_delay_s=lambda: 0.0 if stop_sim.is_set() else loop_lag.lag_s(sim.t) / clock.speed,
+            max_downstream_s=MAX_LOOP_DELAY_S,
+        )
+        if service.sim_time is not None:
+            # the gateway knows its simulator: another simulator's clock on this key (another demo or bench
+            # with this vessel's prefix, reached by scouting) is ignored and alarmed, never followed
+            service.sim_time.pin(publisher.run)
+        sim_error: list[BaseException] = []
+        engaged_at: list[float] = []  # the sim second the demo's operator sent dp
+        sim_ended: list[float] = []  # when the simulation stopped (monotonic): the run's own wall time ends
 
-    def simulate() -> None:
-        nonlocal pending_engage
-        try:
-            while sim.t < args.duration - 1e-9 and not stop_sim.is_set():
-                due = sim.t >= pending_engage - 1e-9
-                if due and (not wait_settled or service.pipeline.settled):
-                    # the operator's "DP" button: an input on /dp/mode as any other, logged and replayed
-                    service.submit("mode", "dp")
-                    engaged_at.append(sim.t)
-                    pending_engage, due = math.inf, False
-                step = SETTLED_POLL_S if due else max(pending_engage - sim.t, 1e-9)
-                sim.run(min(SIM_CHUNK_S, args.duration - sim.t, step))
-            sim_ended.append(time.monotonic())
-            if not stop_sim.is_set():
-                time.sleep(0.3)  # let the last bytes arrive
-        except BaseException as exc:  # reported below, never a silent hang
-            sim_error.append(exc)
-        finally:
-            service.stop_event.set()
+        if engage_s is not None:
+            sim.start_held()
+        pending_engage = math.inf if engage_s is None else engage_s
+        wait_settled = waits_for_settled(args)
 
-    thread = threading.Thread(target=simulate, name="dpgw-demo-sim", daemon=True)
-    wall0 = time.monotonic()
-    thread.start()
+        def simulate() -> None:
+            nonlocal pending_engage
+            try:
+                while sim.t < args.duration - 1e-9 and not stop_sim.is_set():
+                    due = sim.t >= pending_engage - 1e-9
+                    if due and (not wait_settled or service.pipeline.settled):
+                        # the operator's "DP" button: an input on /dp/mode as any other, logged and replayed
+                        service.submit("mode", "dp")
+                        engaged_at.append(sim.t)
+                        pending_engage, due = math.inf, False
+                    step = SETTLED_POLL_S if due else max(pending_engage - sim.t, 1e-9)
+                    sim.run(min(SIM_CHUNK_S, args.duration - sim.t, step))
+                sim_ended.append(time.monotonic())
+                if not stop_sim.is_set():
+                    time.sleep(0.3)  # let the last bytes arrive
+            except BaseException as exc:  # reported below, never a silent hang
+                sim_error.append(exc)
+            finally:
+                service.stop_event.set()
+
+        thread = threading.Thread(target=simulate, name="dpgw-demo-sim", daemon=True)
+        wall0 = time.monotonic()
+        thread.start()
+    except BaseException:
+        service.close()
+        for s in sinks:
+            s.close()
+        raise
     try:
         service.run()
         service.drain()

@@ -218,6 +218,28 @@ def test_ctrl_c_during_start_up_stops_the_demo_with_one_line(
     assert "Traceback" not in err and summary == {}
 
 
+@pytest.mark.slow  # a gateway started, then the failure: a few seconds
+def test_a_failure_between_the_gateways_start_and_the_simulation_closes_the_gateway(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Something going wrong after the gateway started but before the simulation runs (here the simulator's
+    clock refusing to start) is raised as it was, with the gateway closed behind it: its sources' threads
+    gone and its log complete. Left running, they kept the process from ending after the error."""
+    from simulator.sim_clock import SimClockPublisher
+
+    def refused(*_a: Any, **_k: Any) -> None:
+        raise RuntimeError("the simulator's clock cannot start")
+
+    monkeypatch.setattr(SimClockPublisher, "__init__", refused)
+    before = {t for t in threading.enumerate() if t.name.startswith("dpgw-source-")}
+    with pytest.raises(RuntimeError, match="clock cannot start"):
+        run_demo(tmp_path, monkeypatch, capsys, ["--duration", "8"])
+    left = [t for t in threading.enumerate() if t.name.startswith("dpgw-source-") and t not in before]
+    assert wait_for(lambda: not any(t.is_alive() for t in left), 10), left
+    logs = log_files(tmp_path / "demo.mcap")
+    assert logs and all(is_complete(p) for p in logs)
+
+
 @pytest.mark.slow  # 8 s of sea at 10x, with start-up: ~6 s
 def test_dp_engaged_by_another_console_is_said_as_such(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
