@@ -14,7 +14,6 @@ reach its listeners (loopback by default) get in, which multicast scouting alone
 
 from __future__ import annotations
 
-import ipaddress
 import json
 import re
 import threading
@@ -23,6 +22,8 @@ from pathlib import Path
 from typing import Any
 
 import zenoh
+
+from gateway.config.endpoints import endpoint_parts, is_ip
 
 
 class BusError(RuntimeError):
@@ -181,30 +182,15 @@ def unlinked(connect: Sequence[str], session: zenoh.Session) -> list[str]:
     status loop; two ``connect`` endpoints on one port of different named hosts are rare enough). Zenoh
     dials a ``connect`` endpoint even when the peer there has dialled this session's listener too (the two
     keep a link each), so a peer reached only the other way is not taken for a dead endpoint."""
-    linked = {_endpoint_key(str(link.dst)) for link in session.info.links()}
+    linked = {endpoint_parts(str(link.dst)) for link in session.info.links()}
     named = {(proto, port) for proto, _, port in linked}
     down = []
     for endpoint in connect:
-        proto, host, port = _endpoint_key(endpoint)
-        ok = (proto, host, port) in linked if _is_ip(host) else (proto, port) in named
+        proto, host, port = endpoint_parts(endpoint)
+        ok = (proto, host, port) in linked if is_ip(host) else (proto, port) in named
         if not ok:
             down.append(endpoint)
     return down
-
-
-def _endpoint_key(endpoint: str) -> tuple[str, str, str]:
-    """(protocol, host, port) of ``PROTO/HOST:PORT[?metadata][#config]``; an IPv6 host without brackets."""
-    proto, _, rest = endpoint.split("?", 1)[0].split("#", 1)[0].partition("/")
-    host, _, port = rest.rpartition(":")
-    return proto, host.strip("[]"), port
-
-
-def _is_ip(host: str) -> bool:
-    try:
-        ipaddress.ip_address(host)
-    except ValueError:
-        return False
-    return True
 
 
 REDIAL_S = 0.5

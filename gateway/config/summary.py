@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import ipaddress
 import os
 import stat
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
+from gateway.config.endpoints import is_loopback
 from gateway.config.model import ControlConfig, GatewayConfig
 from observers.vessel import VesselModel
 
@@ -104,8 +104,8 @@ def open_commands_note(config: GatewayConfig, *, network_only: bool = False) -> 
     accepted = sorted(config.commands.accept)
     if not accepted or z.commanders or z.config_file is not None:
         return None
-    wide = [f"listen {e}" for e in z.listen if not _loopback_endpoint(e)]
-    wide += [f"connect {e}" for e in z.connect if not _loopback_endpoint(e)]
+    wide = [f"listen {e}" for e in z.listen if not is_loopback(e)]
+    wide += [f"connect {e}" for e in z.connect if not is_loopback(e)]
     if wide:
         reach = "anyone on the network that reaches " + ", ".join(wide)
     elif network_only:
@@ -117,17 +117,6 @@ def open_commands_note(config: GatewayConfig, *, network_only: bool = False) -> 
         f"session may command the vessel: {reach}. To let only named users command, give "
         "zenoh.users_file and zenoh.commanders (docs/security.md)"
     )
-
-
-def _loopback_endpoint(endpoint: str) -> bool:
-    """A Zenoh endpoint (``tcp/127.0.0.1:7447``) on a loopback address or ``localhost``."""
-    host = endpoint.split("?", 1)[0].split("#", 1)[0].partition("/")[2].rpartition(":")[0].strip("[]")
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
 
 
 def key_file_note(path: Path | None, keyed: list[str]) -> str | None:
