@@ -352,6 +352,8 @@ def test_pooling_takes_each_receivers_good_axis_from_its_ellipse() -> None:
 )  # fmt: skip
 # a needle along east whose C_NN·C_EE underflows to 0 while C_NE² does not quite (was taken for no covariance)
 @example([(0.0, 0.0, 1.0, (0.0, 3.0, 2.6583422225313074e-163)), (0.0, 1.0, 1.0, None)])
+# a needle along east whose C_EE is subnormal: 1 / half-trace overflowed to inf and the shape was NaN
+@example([(0.0, 0.0, 1.0, None), (0.0, 0.0, 1.0, (0.0, 2.729463112166408e-159, 0.0))])
 def test_the_shaped_pooled_position_is_the_information_weighted_mean(
     fixes: list[tuple[float, float, float, tuple[float, float, float] | None]],
 ) -> None:
@@ -407,6 +409,30 @@ def test_the_prediction_test_is_shaped_by_the_receivers_ellipse(
     circle = unit_shape((0.3, 0.0, 0.3))
     assert circle == pytest.approx((1.0, 0.0, 1.0))
     assert _monitor_with_spread().position("gps", T0 + 2 * S, *fix, 1, pred, circle) is isotropic
+
+
+@given(
+    st.floats(0.0, 1e100, allow_subnormal=True),
+    st.floats(0.0, 1e100, allow_subnormal=True),
+    angles,
+    st.integers(-40, 40),
+)
+def test_the_shape_is_finite_and_the_same_whatever_the_size(a: float, b: float, theta: float, k: int) -> None:
+    """`unit_shape` of any ellipse, down to subnormal axes: None for a zero one, else finite, of trace 2,
+    positive definite, and the same for the ellipse scaled by 2^k (exact in floating point)."""
+    cov = ellipse_covariance_ne(a, b, theta)
+    shape = unit_shape(cov)
+    if max(map(abs, cov)) == 0.0:
+        assert shape is None
+        return
+    assert shape is not None and all(math.isfinite(x) for x in shape)
+    nn, ne, ee = shape
+    assert nn + ee == pytest.approx(2.0)
+    assert nn > 0 and ee > 0 and nn * ee - ne * ne > 0
+    scaled = unit_shape(tuple(math.ldexp(x, k) for x in cov))  # type: ignore[arg-type]
+    if scaled is not None and all(math.ldexp(x, k) != 0.0 for x in cov if x != 0.0):
+        assert scaled == pytest.approx(shape, abs=1e-9)
+    assert unit_shape((math.inf, 0.0, 1.0)) is None and unit_shape((math.nan, 0.0, 1.0)) is None
 
 
 def test_an_empty_altitude_sigma_is_not_published_as_an_exact_height() -> None:

@@ -160,6 +160,13 @@ def unit_shape(cov_ne: tuple[float, float, float]) -> tuple[float, float, float]
     receiver's ellipse say in which direction its fixes are good while dpgw's measured spread of the same
     fixes says how good (the pooling weights, the prediction test: docs/integrity.md)."""
     nn, ne, ee = cov_ne
+    # Scaled to its largest element first: the shape does not depend on the size, and a covariance of
+    # subnormal size (a receiver's 1e-159 m axis squared) would otherwise give 1 / half-trace = inf and
+    # NaN shapes. Not finite: no shape either.
+    biggest = max(abs(nn), abs(ne), abs(ee))
+    if not (0.0 < biggest < math.inf):
+        return None
+    nn, ne, ee = nn / biggest, ne / biggest, ee / biggest
     half_trace = (nn + ee) / 2.0
     if not half_trace > 0.0:
         return None
