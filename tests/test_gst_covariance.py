@@ -354,6 +354,8 @@ def test_pooling_takes_each_receivers_good_axis_from_its_ellipse() -> None:
 @example([(0.0, 0.0, 1.0, (0.0, 3.0, 2.6583422225313074e-163)), (0.0, 1.0, 1.0, None)])
 # a needle along east whose C_EE is subnormal: 1 / half-trace overflowed to inf and the shape was NaN
 @example([(0.0, 0.0, 1.0, None), (0.0, 0.0, 1.0, (0.0, 2.729463112166408e-159, 0.0))])
+# and one whose C_EE has few significant bits (1.5e-322): the reference itself rounded when halving it
+@example([(0.0, 0.0, 1.0, None), (0.0, 1.0, 1.0, (0.0, 1.2311565815124523e-161, 0.0))])
 def test_the_shaped_pooled_position_is_the_information_weighted_mean(
     fixes: list[tuple[float, float, float, tuple[float, float, float] | None]],
 ) -> None:
@@ -369,7 +371,9 @@ def test_the_shaped_pooled_position_is_the_information_weighted_mean(
             f.add_position_covariance(T0, c, str(i), 10 * S)
             same.add_position_covariance(T0, c, str(i), 10 * S)
             if c[0] + c[2] > 0:
-                shape = (as_matrix(*c) / ((c[0] + c[2]) / 2) + SHAPE_FLOOR * np.eye(2)) / (1 + SHAPE_FLOOR)
+                # (scaled to its largest element first: halving a subnormal trace rounds)
+                unit = as_matrix(*c) / max(map(abs, c))
+                shape = (unit / (np.trace(unit) / 2) + SHAPE_FLOOR * np.eye(2)) / (1 + SHAPE_FLOOR)
         f.use_position(T0, n, e, str(i), i, 10 * S, weight=w)
         same.use_position(T0, 3.0, -4.0, str(i), i, 10 * S, weight=w)
         wi = w * np.linalg.inv(shape)
