@@ -37,4 +37,6 @@ def test_an_ip_is_told_from_a_name() -> None:
 def test_any_text_is_taken_apart_without_raising(endpoint: str) -> None:
     proto, host, port = endpoint_parts(endpoint)
     assert isinstance(is_loopback(endpoint), bool)
-    assert endpoint.startswith(proto)
+    # every part is a piece of what was written, in order
+    assert endpoint.startswith(proto) and host in endpoint and port in endpoint
+    assert not any(c in part for part in (proto, host, port) for c in "?#")
