@@ -42,6 +42,18 @@ ADDRESS_CHECK_S = 1.0
 """While the address listened on is not yet this computer's, how often it is looked for (s)."""
 
 
+def _switch_on(sock: socket.socket, option: int | None) -> bool:
+    """Turn the socket-level ``option`` on; False where this platform has no such option or refuses it
+    (the source then goes without what it gives)."""
+    if option is None:
+        return False
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, option, 1)
+    except OSError:
+        return False
+    return True
+
+
 class UdpSource(Source):
     """A UDP socket: one chunk per datagram, from anyone; ``peer`` is the sender.
 
@@ -248,18 +260,8 @@ class UdpSource(Source):
                 "net.core.rmem_max (sysctl) or run with CAP_NET_ADMIN so bursts are not dropped",
                 self.name, self.granted_buffer, self.receive_buffer,
             )  # fmt: skip
-        if _SO_RXQ_OVFL is not None and _CMSG_SPACE:
-            try:
-                sock.setsockopt(socket.SOL_SOCKET, _SO_RXQ_OVFL, 1)
-                self._ovfl = True
-            except OSError:
-                self._ovfl = False
-        if _SO_TIMESTAMPNS is not None and _CMSG_SPACE_STAMP:
-            try:
-                sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
-                self._kernel_stamps = True
-            except OSError:
-                self._kernel_stamps = False
+        self._ovfl = bool(_CMSG_SPACE) and _switch_on(sock, _SO_RXQ_OVFL)
+        self._kernel_stamps = bool(_CMSG_SPACE_STAMP) and _switch_on(sock, _SO_TIMESTAMPNS)
 
     def _join(self, sock: socket.socket) -> None:
         group = socket.inet_aton(self.host)
