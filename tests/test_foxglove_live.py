@@ -457,6 +457,51 @@ def test_a_channel_a_client_did_not_get_is_advertised_again(lose: int) -> None:
     assert all(json.loads(p)["k"] >= first for _, p in c.messages["/dp/estimate"])
 
 
+def test_a_channel_made_before_a_connected_clients_first_answer_is_advertised_again() -> None:
+    """A client connected, none of its subscriptions registered yet (it answers slowly on a busy machine),
+    and a channel made then, its subscription lost: the server cannot yet tell that a client is there,
+    and before, such a channel was never advertised again (a loaded CI run: the DGPS fix channel silent
+    for a minute). It is, once the client's first subscription shows it is there."""
+    from gateway.outputs.foxglove_server import FoxgloveServerSink
+    from wire.messages import Estimate, Status
+
+    sink = FoxgloveServerSink("127.0.0.1", 0)
+    sink.start()
+    try:
+
+        async def session() -> _RefusedOnce:
+            ws = await connect(sink.port, lambda: True)
+            async with ws:
+                c = _RefusedOnce(ws, topic="/dp/estimate", lose=1)
+                await c.until(lambda: bool(c.server_info), 30.0, "the server's info")  # connected
+                estimated = asyncio.Event()
+
+                async def pump() -> None:  # the gateway's cycle: estimates first, a status once one went
+                    for k in range(10_000):
+                        sink.send("/dp/estimate", Estimate, json.dumps({"k": k}).encode(), 2_000 + k)
+                        estimated.set()
+                        if c.skipped:  # (the estimate channel's advertisement came and was lost)
+                            sink.send("/dp/status", Status, json.dumps({"k": k}).encode(), 2_000 + k)
+                        sink.emit([], [])
+                        await asyncio.sleep(0.01)
+
+                task = asyncio.create_task(pump())
+                try:
+                    await estimated.wait()
+                    await c.until(lambda: bool(c.messages.get("/dp/status")), 30.0, "the status")
+                    await c.until(lambda: bool(c.messages.get("/dp/estimate")), 15.0, "estimates after all")
+                finally:
+                    task.cancel()
+                return c
+
+        c = asyncio.run(session())
+    finally:
+        sink.close()
+    assert c.skipped == 1 and sink.stats.readvertised >= 1
+    estimates = [t for t, ch in c.channels.items() if ch["topic"] == "/dp/estimate"]
+    assert len(estimates) == 1 + sink.stats.readvertised  # the same topic, a new channel each time
+
+
 def test_a_port_in_use_is_one_clear_message() -> None:
     from gateway.outputs.foxglove_server import FoxgloveServerError, FoxgloveServerSink
 

@@ -80,6 +80,14 @@ answer, and advertising again meanwhile loses its answer too (seen on a loaded C
 advertised three times in three seconds and never received). A client that does not want the channel
 (the app subscribes to what its panels show) costs a few extra advertisements in its first minute."""
 READVERTISE_MAX = 5  # waits of 1, 2, 4, 8 and 16 s: given up after about half a minute
+BEFORE_ANSWER_NS = 10_000_000_000
+"""A channel made while no client has subscribed to anything yet is watched this long (wall) for a first
+subscription. The server cannot tell "no client" from "a client connected whose answers have not come
+yet" (the SDK says nothing of a connection until its first subscription), and such a client's answer to
+this channel's advertisement may be lost as above: seen on a loaded CI machine, a client connected before
+the first fix, its subscription to the fix channel lost, and the channel never advertised again because
+no client had subscribed to anything when it was made. A channel older than this when the first client
+subscribes was made before that client connected, and was advertised to it at its connection."""
 SUBPROTOCOL = "foxglove.sdk.v1"
 """What the SDK's server speaks (its handshake refuses a client that does not offer it)."""
 
@@ -215,7 +223,7 @@ class _Channel:
     held: deque[tuple[bytes, int]] = field(default_factory=lambda: deque(maxlen=1))
     cls: type[Message] | None = None
     last: tuple[bytes, int] | None = None  # the last message made (what a re-advertisement holds)
-    made_ns: int = 0  # when the channel was made (monotonic), while a client was connected
+    made_ns: int = 0  # when the channel was made (monotonic)
     readvertised: int = 0
 
 
@@ -253,7 +261,7 @@ class FoxgloveServerSink:
         self._live_time = playback is None  # (a replay sends its own time: the player's log time)
         self._next_time_ns = 0
         self._subscriptions = _Subscriptions()
-        self._watched: set[str] = set()  # channels made while a client was connected (RESUBSCRIBE_AFTER_NS)
+        self._watched: set[str] = set()  # channels a client may not have got (RESUBSCRIBE_AFTER_NS)
         self._next_watch_ns = 0
 
     # --- OutputSink ------------------------------------------------------------------------------------
@@ -333,9 +341,10 @@ class FoxgloveServerSink:
                 self._new_channel(topic, cls), deque(maxlen=LOG_HELD if topic == LOG_TOPIC else 1), cls
             )
             self.stats.channels += 1
-            if self._subscriptions.any_client():
-                ch.made_ns = time.monotonic_ns()
-                self._watched.add(topic)
+            # watched for a client that does not subscribe to it (`RESUBSCRIBE_AFTER_NS`), also while no
+            # client has subscribed to anything yet (`BEFORE_ANSWER_NS`)
+            ch.made_ns = time.monotonic_ns()
+            self._watched.add(topic)
         ch.last = (body, log_time_ns)
         if ch.channel.has_sinks():
             try:
@@ -376,9 +385,17 @@ class FoxgloveServerSink:
         if now < self._next_watch_ns:
             return
         self._next_watch_ns = now + RESUBSCRIBE_AFTER_NS // 4
+        anyone = self._subscriptions.any_client()
         for topic in list(self._watched):
             ch = self._channels.get(topic)
-            if ch is None or now - ch.made_ns < RESUBSCRIBE_AFTER_NS << ch.readvertised:
+            if ch is None:
+                self._watched.discard(topic)
+                continue
+            if not anyone:  # nobody has answered yet: a client may be connected, its answers to come
+                if now - ch.made_ns > BEFORE_ANSWER_NS:
+                    self._watched.discard(topic)
+                continue
+            if now - ch.made_ns < RESUBSCRIBE_AFTER_NS << ch.readvertised:
                 continue
             if not self._subscriptions.missing(topic) or ch.readvertised >= READVERTISE_MAX:
                 self._watched.discard(topic)
