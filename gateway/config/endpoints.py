@@ -35,4 +35,7 @@ def is_loopback(endpoint: str) -> bool:
     host = endpoint_parts(endpoint)[1]
     if host == "localhost":
         return True
-    return is_ip(host) and ipaddress.ip_address(host).is_loopback
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False  # a name other than localhost

@@ -387,10 +387,7 @@ class FoxgloveServerSink:
         self._next_watch_ns = now + RESUBSCRIBE_AFTER_NS // 4
         anyone = self._subscriptions.any_client()
         for topic in list(self._watched):
-            ch = self._channels.get(topic)
-            if ch is None:
-                self._watched.discard(topic)
-                continue
+            ch = self._channels[topic]  # (watched topics are made channels: both go only at close)
             if not anyone:  # nobody has answered yet: a client may be connected, its answers to come
                 if now - ch.made_ns > BEFORE_ANSWER_NS:
                     self._watched.discard(topic)
