@@ -765,7 +765,21 @@ def station_keeping(log: list[str], t_truth: Any, eta_truth: Any, t0_ns: int) ->
         omega = 2.0 * np.pi * np.fft.rfftfreq(len(tau), dt)
         wave = (omega >= WAVE_BAND[0]) & (omega <= WAVE_BAND[1])
         out["wave_band_force_share"] = float(spectrum[wave].sum() / max(spectrum[1:].sum(), 1e-30))
+    out["wave_filtering"] = wave_filtering(log, [c for _, c in cmds], cmds[int(np.argmax(keep))][0])
     return out
+
+
+def wave_filtering(log: list[str], commands: list[dict[str, Any]], from_ns: int) -> dict[str, Any] | None:
+    """What wave filtering kept out of the commanded thrust from ``from_ns`` on: the live commands'
+    wave-band τ against the same controller fed the raw measurements on this log (`dpgw.raw_feedback`).
+    A failure of that replay is said in the summary, not raised: the run's own figures still print."""
+    from dpgw.raw_feedback import raw_feedback_commands, wave_filtering_saved
+
+    try:
+        raw = raw_feedback_commands(log)
+    except Exception as exc:  # (a bug to report; the summary of a run that went well must still come out)
+        return {"error": f"{type(exc).__name__}: {exc}"}
+    return None if raw is None else wave_filtering_saved(commands, raw, from_ns, WAVE_BAND)
 
 
 def fix_stamp_lag_s(log: list[str], source: str) -> dict[str, float] | None:
@@ -801,6 +815,14 @@ def fix_stamp_lag_s(log: list[str], source: str) -> dict[str, float] | None:
 def _one_decimal(x: float) -> str:
     """``x`` to one decimal, never "-0.0" (a reference a hair west of the origin is at 0.0 m E)."""
     return f"{round(x, 1) + 0.0:.1f}"
+
+
+def _kn(x: float, unit: str = "kN") -> str:
+    """A force (N) or moment (N·m) in kN (kN·m), or MN (MN·m) from 1,000 kN on; two figures at least."""
+    k = x / 1000.0
+    if abs(k) >= 1000.0:
+        return f"{k / 1000.0:.1f} {unit.replace('k', 'M', 1)}"
+    return f"{k:.0f} {unit}" if abs(k) >= 10 else f"{k:.1f} {unit}"
 
 
 STOPPED_BY = {"SIGINT": "Ctrl-C"}
@@ -847,7 +869,6 @@ def print_summary(r: dict[str, Any]) -> None:
         print(f"  LF estimate vs truth: {not_scored_note(scored, SETTLE_S, MIN_SCORED_S)}{todo}")
     k = r.get("station_keeping")
     if k:
-        share = k.get("wave_band_force_share")
         if r.get("engage_at_s") is not None:
             why = (
                 "engaged by another console, not the demo's operator"
@@ -860,8 +881,19 @@ def print_summary(r: dict[str, Any]) -> None:
         print(
             f"  station keeping (true position vs the reference, after {k['scored_from_s']:.0f} s): p95 "
             f"{k['position_p95_m']:.2f} m, heading p95 {k['heading_p95_deg']:.2f} deg"
-            + (f"; {100 * share:.1f} % of the commanded force in the wave band" if share is not None else "")
         )
+        w = k.get("wave_filtering")
+        if w and "error" in w:
+            print(f"  wave filtering: not measured ({w['error']})")
+        elif w:
+            lo, hi = w["band_rad_s"]
+            ours, theirs = w["wave_band_tau_rms"], w["raw_feedback_wave_band_tau_rms"]
+            print(
+                f"  wave filtering: wave-band thrust ({lo:g}-{hi:g} rad/s) {_kn(ours[0])} surge, "
+                f"{_kn(ours[1])} sway, {_kn(ours[2], 'kN·m')} yaw RMS; the same controller fed the raw "
+                f"measurements would command {_kn(theirs[0])}, {_kn(theirs[1])}, {_kn(theirs[2], 'kN·m')} "
+                f"(this log replayed): {' / '.join(f'{d:.0f}' for d in w['saved_db'])} dB less"
+            )
         print(
             f"  mean offset from the reference ({_one_decimal(k['reference'][0])} m N, "
             f"{_one_decimal(k['reference'][1])} m E, {_one_decimal(k['reference'][2])} deg): "
