@@ -658,7 +658,17 @@ def hold_setpoint(scenario: Any) -> dict[str, float]:
 
 
 WAVE_BAND = (0.3, 2.0)
-"""rad/s: the first-order wave band of a supply vessel's seas (periods 3-21 s), for the force share."""
+"""rad/s: the first-order wave band of a full-scale vessel's seas (periods 3-21 s), in which the summary
+measures the commanded force; a model's is Froude-scaled (`wave_band`)."""
+
+
+def wave_band(scenario: Any) -> tuple[float, float]:
+    """`WAVE_BAND` for the scenario's vessel: × √λ for a 1:λ model (`observers.froude`), so CyberShip II's
+    waves (`hassani`, 1:70) are measured where they are, at ~2.5-17 rad/s."""
+    from observers.froude import froude_scale, scaled_frequencies
+
+    lo, hi = scaled_frequencies(WAVE_BAND, froude_scale(scenario.vessel))
+    return lo, hi
 
 
 def summarise(
@@ -713,7 +723,9 @@ def summarise(
         if result["estimate_scored_s"] >= MIN_SCORED_S:
             result["error_vs_truth"] = s.as_dict()
         result["settle_s"] = SETTLE_S
-        result["station_keeping"] = station_keeping(logs, tt, np.array([t[1] for t in truth]), t0)
+        result["station_keeping"] = station_keeping(
+            logs, tt, np.array([t[1] for t in truth]), t0, wave_band(sim.scenario)
+        )
     result["fix_stamp_lag_s"] = fix_stamp_lag_s(logs, sim.scenario.dgps[0].source)
     result["next"] = [
         f"look at it: open {shown} in Foxglove and import the layout {layout_path()} (map, 3D view "
@@ -725,7 +737,9 @@ def summarise(
     return result
 
 
-def station_keeping(log: list[str], t_truth: Any, eta_truth: Any, t0_ns: int) -> dict[str, Any] | None:
+def station_keeping(
+    log: list[str], t_truth: Any, eta_truth: Any, t0_ns: int, band: tuple[float, float] = WAVE_BAND
+) -> dict[str, Any] | None:
     """How well the vessel kept station after the settle time: the true LF position's distance from, and
     heading's difference to, the controller's reference (the setpoint through the reference model), p95;
     and the share of the commanded force's variance in the wave band (what wave filtering keeps out)."""
@@ -763,13 +777,15 @@ def station_keeping(log: list[str], t_truth: Any, eta_truth: Any, t0_ns: int) ->
     if len(tau) >= 64 and dt > 0:
         spectrum = np.abs(np.fft.rfft(tau[:, :2] - tau[:, :2].mean(axis=0), axis=0)) ** 2
         omega = 2.0 * np.pi * np.fft.rfftfreq(len(tau), dt)
-        wave = (omega >= WAVE_BAND[0]) & (omega <= WAVE_BAND[1])
+        wave = (omega >= band[0]) & (omega <= band[1])
         out["wave_band_force_share"] = float(spectrum[wave].sum() / max(spectrum[1:].sum(), 1e-30))
-    out["wave_filtering"] = wave_filtering(log, [c for _, c in cmds], cmds[int(np.argmax(keep))][0])
+    out["wave_filtering"] = wave_filtering(log, [c for _, c in cmds], cmds[int(np.argmax(keep))][0], band)
     return out
 
 
-def wave_filtering(log: list[str], commands: list[dict[str, Any]], from_ns: int) -> dict[str, Any] | None:
+def wave_filtering(
+    log: list[str], commands: list[dict[str, Any]], from_ns: int, band: tuple[float, float]
+) -> dict[str, Any] | None:
     """What wave filtering kept out of the commanded thrust from ``from_ns`` on: the live commands'
     wave-band τ against the same controller fed the raw measurements on this log (`dpgw.raw_feedback`).
     A failure of that replay is said in the summary, not raised: the run's own figures still print."""
@@ -779,7 +795,7 @@ def wave_filtering(log: list[str], commands: list[dict[str, Any]], from_ns: int)
         raw = raw_feedback_commands(log)
     except Exception as exc:  # (a bug to report; the summary of a run that went well must still come out)
         return {"error": f"{type(exc).__name__}: {exc}"}
-    return None if raw is None else wave_filtering_saved(commands, raw, from_ns, WAVE_BAND)
+    return None if raw is None else wave_filtering_saved(commands, raw, from_ns, band)
 
 
 def fix_stamp_lag_s(log: list[str], source: str) -> dict[str, float] | None:
@@ -817,12 +833,16 @@ def _one_decimal(x: float) -> str:
     return f"{round(x, 1) + 0.0:.1f}"
 
 
-def _kn(x: float, unit: str = "kN") -> str:
-    """A force (N) or moment (N·m) in kN (kN·m), or MN (MN·m) from 1,000 kN on; two figures at least."""
-    k = x / 1000.0
-    if abs(k) >= 1000.0:
-        return f"{k / 1000.0:.1f} {unit.replace('k', 'M', 1)}"
-    return f"{k:.0f} {unit}" if abs(k) >= 10 else f"{k:.1f} {unit}"
+def _force(x: float, unit: str = "N") -> str:
+    """A force (N) or moment (N·m) in N, kN or MN (N·m, kN·m, MN·m) by its size, to two figures at least:
+    a supply vessel's wave-band thrust is tens of kN, a basin model's fractions of a newton."""
+    for scale, prefix in ((1e6, "M"), (1e3, "k")):
+        if abs(x) >= scale:
+            x, unit = x / scale, prefix + unit
+            break
+    if abs(x) >= 10:
+        return f"{x:.0f} {unit}"
+    return f"{x:.1f} {unit}" if abs(x) >= 1 else f"{x:.2g} {unit}"
 
 
 STOPPED_BY = {"SIGINT": "Ctrl-C"}
@@ -889,9 +909,10 @@ def print_summary(r: dict[str, Any]) -> None:
             lo, hi = w["band_rad_s"]
             ours, theirs = w["wave_band_tau_rms"], w["raw_feedback_wave_band_tau_rms"]
             print(
-                f"  wave filtering: wave-band thrust ({lo:g}-{hi:g} rad/s) {_kn(ours[0])} surge, "
-                f"{_kn(ours[1])} sway, {_kn(ours[2], 'kN·m')} yaw RMS; the same controller fed the raw "
-                f"measurements would command {_kn(theirs[0])}, {_kn(theirs[1])}, {_kn(theirs[2], 'kN·m')} "
+                f"  wave filtering: wave-band thrust ({lo:.2g}-{hi:.2g} rad/s) {_force(ours[0])} surge, "
+                f"{_force(ours[1])} sway, {_force(ours[2], 'N·m')} yaw RMS; the same controller fed the raw "
+                f"measurements would command {_force(theirs[0])}, {_force(theirs[1])}, "
+                f"{_force(theirs[2], 'N·m')} "
                 f"(this log replayed): {' / '.join(f'{d:.0f}' for d in w['saved_db'])} dB less"
             )
         print(

@@ -96,3 +96,27 @@ def test_what_wave_filtering_saved_is_the_ratio_of_wave_band_rms_in_db() -> None
     np.testing.assert_allclose(w["wave_band_tau_rms"][0], 1e4 / math.sqrt(2), rtol=0.015)
     # too short a scored stretch: no figure
     assert wave_filtering_saved(live, raw, int(1e9 * 1390.0), BAND) is None
+
+
+def test_the_demo_measures_a_models_wave_band_where_its_waves_are() -> None:
+    """A full-scale scenario is measured in 0.3-2 rad/s; CyberShip II (1:70, `hassani`) in that band × √λ,
+    where its waves are (at full scale its whole wave band is above 2 rad/s)."""
+    from dpgw.cli_demo import WAVE_BAND, _force, wave_band
+    from observers.froude import froude_scale
+    from simulator.scenarios import get_scenario
+
+    assert wave_band(get_scenario("torsetnes_2004")) == WAVE_BAND
+    model = get_scenario("hassani")
+    lo, hi = wave_band(model)
+    root = math.sqrt(froude_scale(model.vessel))
+    assert root > 5.0
+    np.testing.assert_allclose([lo, hi], [WAVE_BAND[0] * root, WAVE_BAND[1] * root])
+    # the figures in the units they come in: a basin model's fractions of a newton, a ship's kN and MN·m
+    assert [_force(x) for x in (0.0123, 3.2, 46.0, 18_511.0, 3_984_592.0)] == [
+        "0.012 N",
+        "3.2 N",
+        "46 N",
+        "19 kN",
+        "4.0 MN",
+    ]
+    assert _force(244_346.0, "N·m") == "244 kN·m"
