@@ -657,20 +657,6 @@ def hold_setpoint(scenario: Any) -> dict[str, float]:
     return {"north_m": float(north), "east_m": float(east), "heading_deg": math.degrees(psi)}
 
 
-WAVE_BAND = (0.3, 2.0)
-"""rad/s: the first-order wave band of a full-scale vessel's seas (periods 3-21 s), in which the summary
-measures the commanded force; a model's is Froude-scaled (`wave_band`)."""
-
-
-def wave_band(scenario: Any) -> tuple[float, float]:
-    """`WAVE_BAND` for the scenario's vessel: × √λ for a 1:λ model (`observers.froude`), so CyberShip II's
-    waves (`hassani`, 1:70) are measured where they are, at ~2.5-17 rad/s."""
-    from observers.froude import froude_scale, scaled_frequencies
-
-    lo, hi = scaled_frequencies(WAVE_BAND, froude_scale(scenario.vessel))
-    return lo, hi
-
-
 def summarise(
     args: argparse.Namespace,
     sim: Simulation,
@@ -683,6 +669,7 @@ def summarise(
     sim second DP was to be engaged (None: the gateway started in its mode)."""
     import numpy as np
 
+    from dpgw.raw_feedback import thrust_wave_band
     from gateway.scoring import score
     from wire.mcap.reader import read_messages
 
@@ -724,7 +711,7 @@ def summarise(
             result["error_vs_truth"] = s.as_dict()
         result["settle_s"] = SETTLE_S
         result["station_keeping"] = station_keeping(
-            logs, tt, np.array([t[1] for t in truth]), t0, wave_band(sim.scenario)
+            logs, tt, np.array([t[1] for t in truth]), t0, thrust_wave_band(sim.scenario.vessel)
         )
     result["fix_stamp_lag_s"] = fix_stamp_lag_s(logs, sim.scenario.dgps[0].source)
     result["next"] = [
@@ -738,13 +725,15 @@ def summarise(
 
 
 def station_keeping(
-    log: list[str], t_truth: Any, eta_truth: Any, t0_ns: int, band: tuple[float, float] = WAVE_BAND
+    log: list[str], t_truth: Any, eta_truth: Any, t0_ns: int, band: tuple[float, float]
 ) -> dict[str, Any] | None:
     """How well the vessel kept station after the settle time: the true LF position's distance from, and
     heading's difference to, the controller's reference (the setpoint through the reference model), p95;
-    and the share of the commanded force's variance in the wave band (what wave filtering keeps out)."""
+    the share of the commanded force's variance in ``band`` (rad/s), and what wave filtering kept out of
+    the commanded τ there (`dpgw.raw_feedback`)."""
     import numpy as np
 
+    from dpgw.raw_feedback import wave_filtering_of_log
     from gateway.scoring import truth_at
     from observers.kinematics import ssa
     from wire.mcap.reader import read_messages
@@ -779,23 +768,11 @@ def station_keeping(
         omega = 2.0 * np.pi * np.fft.rfftfreq(len(tau), dt)
         wave = (omega >= band[0]) & (omega <= band[1])
         out["wave_band_force_share"] = float(spectrum[wave].sum() / max(spectrum[1:].sum(), 1e-30))
-    out["wave_filtering"] = wave_filtering(log, [c for _, c in cmds], cmds[int(np.argmax(keep))][0], band)
+    # what wave filtering kept out of the commanded thrust (`dpgw.raw_feedback`), over the same stretch
+    out["wave_filtering"] = wave_filtering_of_log(
+        log, [c for _, c in cmds], band, cmds[int(np.argmax(keep))][0]
+    )
     return out
-
-
-def wave_filtering(
-    log: list[str], commands: list[dict[str, Any]], from_ns: int, band: tuple[float, float]
-) -> dict[str, Any] | None:
-    """What wave filtering kept out of the commanded thrust from ``from_ns`` on: the live commands'
-    wave-band τ against the same controller fed the raw measurements on this log (`dpgw.raw_feedback`).
-    A failure of that replay is said in the summary, not raised: the run's own figures still print."""
-    from dpgw.raw_feedback import raw_feedback_commands, wave_filtering_saved
-
-    try:
-        raw = raw_feedback_commands(log)
-    except Exception as exc:  # (a bug to report; the summary of a run that went well must still come out)
-        return {"error": f"{type(exc).__name__}: {exc}"}
-    return None if raw is None else wave_filtering_saved(commands, raw, from_ns, band)
 
 
 def fix_stamp_lag_s(log: list[str], source: str) -> dict[str, float] | None:
@@ -831,18 +808,6 @@ def fix_stamp_lag_s(log: list[str], source: str) -> dict[str, float] | None:
 def _one_decimal(x: float) -> str:
     """``x`` to one decimal, never "-0.0" (a reference a hair west of the origin is at 0.0 m E)."""
     return f"{round(x, 1) + 0.0:.1f}"
-
-
-def _force(x: float, unit: str = "N") -> str:
-    """A force (N) or moment (N·m) in N, kN or MN (N·m, kN·m, MN·m) by its size, to two figures at least:
-    a supply vessel's wave-band thrust is tens of kN, a basin model's fractions of a newton."""
-    for scale, prefix in ((1e6, "M"), (1e3, "k")):
-        if abs(x) >= scale:
-            x, unit = x / scale, prefix + unit
-            break
-    if abs(x) >= 10:
-        return f"{x:.0f} {unit}"
-    return f"{x:.1f} {unit}" if abs(x) >= 1 else f"{x:.2g} {unit}"
 
 
 STOPPED_BY = {"SIGINT": "Ctrl-C"}
@@ -903,18 +868,10 @@ def print_summary(r: dict[str, Any]) -> None:
             f"{k['position_p95_m']:.2f} m, heading p95 {k['heading_p95_deg']:.2f} deg"
         )
         w = k.get("wave_filtering")
-        if w and "error" in w:
-            print(f"  wave filtering: not measured ({w['error']})")
-        elif w:
-            lo, hi = w["band_rad_s"]
-            ours, theirs = w["wave_band_tau_rms"], w["raw_feedback_wave_band_tau_rms"]
-            print(
-                f"  wave filtering: wave-band thrust ({lo:.2g}-{hi:.2g} rad/s) {_force(ours[0])} surge, "
-                f"{_force(ours[1])} sway, {_force(ours[2], 'N·m')} yaw RMS; the same controller fed the raw "
-                f"measurements would command {_force(theirs[0])}, {_force(theirs[1])}, "
-                f"{_force(theirs[2], 'N·m')} "
-                f"(this log replayed): {' / '.join(f'{d:.0f}' for d in w['saved_db'])} dB less"
-            )
+        if w:
+            from dpgw.raw_feedback import wave_filtering_words
+
+            print(f"  wave filtering: {wave_filtering_words(w)}")
         print(
             f"  mean offset from the reference ({_one_decimal(k['reference'][0])} m N, "
             f"{_one_decimal(k['reference'][1])} m E, {_one_decimal(k['reference'][2])} deg): "

@@ -138,7 +138,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="DIR",
         help="write plots (PNG), metrics.json and report.md in DIR (created); without DIR, in "
         "<out>-report beside --out (put a bare --report after the logs). One that holds a report is kept, "
-        "as --out's file is: the report goes in the next free folder, DIR_0001, ..., named on the console",
+        "as --out's file is: the report goes in the next free folder, DIR_0001, ..., named on the console. "
+        "On a gateway's log with DP, also what its wave filtering kept out of the commanded thrust, in dB "
+        "(the log replayed once more with the controller fed the raw measurements)",
     )
     pace = p.add_mutually_exclusive_group()
     pace.add_argument(
@@ -462,6 +464,16 @@ def run(args: argparse.Namespace) -> int:
     live = _live_records(inputs)
     first_ns = min((a for a, _ in result.spans.values()), default=0)
     summary["dp_performance"] = _dp_performance(live, first_ns)
+    wave_filtering: dict[str, Any] | None = None
+    if args.report is not None and summary["dp_performance"] is not None:
+        # with a report (the analysis): what the live gateway's wave filtering kept out of its commanded
+        # thrust, against the same controller fed the raw measurements (the log replayed once more)
+        from dpgw.raw_feedback import thrust_wave_band, wave_filtering_of_log
+
+        wave_filtering = wave_filtering_of_log(
+            args.logs, live["/dp/thrusters/command"], thrust_wave_band(config.vessel)
+        )
+        summary["dp_performance"]["wave_filtering"] = wave_filtering
     kinds = {s.label: (s.name, s.name in SCHEDULES_OMEGA0 or bool(s.params.get("adaptive"))) for s in specs}
     summary["wave_check"] = evidence.check(config.vessel.length_m, config.vessel.model_scale, kinds).as_dict()
     summary["vessel_check"] = evidence.vessel_check(config.vessel).as_dict()
@@ -478,7 +490,7 @@ def run(args: argparse.Namespace) -> int:
     report_warnings: list[str] = []
     if args.report:
         written, report_warnings = _report(
-            args, config.vessel.name, specs, result, evidence.new, checks, live
+            args, config.vessel.name, specs, result, evidence.new, checks, live, wave_filtering
         )
         summary["report"] = [str(p) for p in written]
         summary["report_warnings"] = report_warnings
@@ -568,6 +580,15 @@ def _dp_performance(live: dict[str, list[dict[str, Any]]], start_ns: int) -> dic
     return dp_performance(live["/dp/thrusters/command"], live["/dp/estimate"], live["/dp/status"], start_ns)
 
 
+def _with_wave_filtering(
+    dp: dict[str, Any] | None, wave_filtering: dict[str, Any] | None
+) -> dict[str, Any] | None:
+    """``dp`` (`_dp_performance`) with the wave-filtering figures the summary has, for the report."""
+    if dp is None or wave_filtering is None:
+        return dp
+    return {**dp, "wave_filtering": wave_filtering}
+
+
 def _print_dp(dp: dict[str, Any]) -> None:
     """The summary's lines of how DP did (`gateway.report.station_keeping`)."""
     modes = ", ".join(f"{m} {t:.0f} s" for m, t in dp["modes"]["time_s"].items())
@@ -580,6 +601,10 @@ def _print_dp(dp: dict[str, Any]) -> None:
             f"{hdg['p95']:.2f}° (max {hdg['max']:.2f}°); saturated {100 * sk['saturated_share']:.0f} % of "
             f"{sk['commands']} commands"
         )
+    if dp.get("wave_filtering"):
+        from dpgw.raw_feedback import wave_filtering_words
+
+        print(f"    wave filtering: {wave_filtering_words(dp['wave_filtering'])}")
     dr = dp["dead_reckoning"]
     if dr["spells"]:
         print(
@@ -1070,6 +1095,7 @@ def _report(
     new: list[tuple[bool, bool, bool]],
     checks: list[str],
     live: dict[str, list[dict[str, Any]]] | None = None,
+    wave_filtering: dict[str, Any] | None = None,
 ) -> tuple[list[Path], list[str]]:
     """The report of the replay. Its measurement is the fused stream with only the samples the fusion
     received since the previous step (`new`): the pipeline steps on every input chunk with each DOF's
@@ -1131,7 +1157,9 @@ def _report(
         # before the first fused measurement (a cycle without a fix), the report's t = 0
         log_spans={where: _span_words(_span(a, b)) for where, (a, b) in r.spans.items()},
         min_scored_s=getattr(args, "min_scored", None),
-        dp_performance=_dp_performance(live, t0) if live is not None else None,
+        dp_performance=_with_wave_filtering(_dp_performance(live, t0), wave_filtering)
+        if live is not None
+        else None,
         **truth_kw,
     )
     an = analyse(data, None, args.settle)

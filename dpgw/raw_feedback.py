@@ -28,6 +28,38 @@ from gateway.scoring import wave_band_rms
 
 COMMAND_TOPIC = "/dp/thrusters/command"
 
+THRUST_WAVE_BAND = (0.3, 2.0)
+"""rad/s: the first-order wave band of a full-scale vessel's seas (periods 3-21 s), in which the commanded
+thrust is measured; a model's is Froude-scaled (`thrust_wave_band`). Its lower edge is above a DP loop's
+bandwidth (0.07-0.1 rad/s at full scale), so the slow thrust that holds the vessel is not counted."""
+
+
+def thrust_wave_band(vessel: Any) -> tuple[float, float]:
+    """`THRUST_WAVE_BAND` for ``vessel`` (a `VesselModel`): × √λ for a 1:λ model (`observers.froude`), so
+    CyberShip II's waves (1:70) are measured where they are, at ~2.5-17 rad/s."""
+    from observers.froude import froude_scale, scaled_frequencies
+
+    lo, hi = scaled_frequencies(THRUST_WAVE_BAND, froude_scale(vessel))
+    return lo, hi
+
+
+def dp_stretch(commands: Sequence[dict[str, Any]]) -> tuple[int, int] | None:
+    """The first and last stamp (ns) of the longest run of consecutive commands made in dp (a trial's
+    stretch on station: manual and standby commands around it are the crew's, not the controller's)."""
+    best: tuple[int, int] | None = None
+    start: int | None = None
+    last = 0
+    for c in sorted(commands, key=lambda c: int(c["stamp_ns"])):
+        ns = int(c["stamp_ns"])
+        if c.get("mode") == "dp":
+            start = ns if start is None else start
+            last = ns
+            if best is None or last - start > best[1] - best[0]:
+                best = (start, last)
+        else:
+            start = None
+    return best
+
 
 def raw_feedback_commands(logs: Sequence[str | Path]) -> list[dict[str, Any]] | None:
     """The thruster command payloads of the gateway logs ``logs`` (one run, possibly rotated into several
@@ -61,10 +93,12 @@ def raw_feedback_commands(logs: Sequence[str | Path]) -> list[dict[str, Any]] | 
     return run_replay(inputs, pipeline, collect=[COMMAND_TOPIC]).collected[COMMAND_TOPIC]
 
 
-def wave_band_tau(commands: Sequence[dict[str, Any]], from_ns: int, band_rad_s: tuple[float, float]) -> Any:
+def wave_band_tau(
+    commands: Sequence[dict[str, Any]], from_ns: int, to_ns: int, band_rad_s: tuple[float, float]
+) -> Any:
     """The wave-band RMS of the commanded τ (``tau_demand``: surge N, sway N, yaw N·m) of the command
-    payloads stamped from ``from_ns`` on (`gateway.scoring.wave_band_rms`), or None."""
-    kept = [c for c in commands if int(c["stamp_ns"]) >= from_ns]
+    payloads stamped from ``from_ns`` to ``to_ns`` (`gateway.scoring.wave_band_rms`), or None."""
+    kept = [c for c in commands if from_ns <= int(c["stamp_ns"]) <= to_ns]
     if not kept:
         return None
     t = np.array([int(c["stamp_ns"]) - from_ns for c in kept], dtype=float) / 1e9
@@ -77,12 +111,14 @@ def wave_filtering_saved(
     raw: Sequence[dict[str, Any]],
     from_ns: int,
     band_rad_s: tuple[float, float],
+    to_ns: int | None = None,
 ) -> dict[str, Any] | None:
-    """The live commands' wave-band τ beside the raw-fed replay's, from ``from_ns`` on, per DOF, and the
-    difference in dB (20 log₁₀ of the ratio of RMS: positive is what wave filtering kept out); None when
-    either is too short to filter."""
-    ours = wave_band_tau(live, from_ns, band_rad_s)
-    theirs = wave_band_tau(raw, from_ns, band_rad_s)
+    """The live commands' wave-band τ beside the raw-fed replay's, stamped from ``from_ns`` to ``to_ns``
+    (None: to the end), per DOF, and the difference in dB (20 log₁₀ of the ratio of RMS: positive is
+    what wave filtering kept out); None when either is too short to filter."""
+    end = to_ns if to_ns is not None else max((int(c["stamp_ns"]) for c in live), default=from_ns)
+    ours = wave_band_tau(live, from_ns, end, band_rad_s)
+    theirs = wave_band_tau(raw, from_ns, end, band_rad_s)
     if ours is None or theirs is None:
         return None
     saved = [
@@ -91,7 +127,60 @@ def wave_filtering_saved(
     ]
     return {
         "band_rad_s": [float(band_rad_s[0]), float(band_rad_s[1])],
+        "scored_s": (end - from_ns) / 1e9,
         "wave_band_tau_rms": [float(x) for x in ours],
         "raw_feedback_wave_band_tau_rms": [float(x) for x in theirs],
         "saved_db": saved,
     }
+
+
+def wave_filtering_of_log(
+    logs: Sequence[str | Path],
+    live: Sequence[dict[str, Any]],
+    band_rad_s: tuple[float, float],
+    from_ns: int | None = None,
+) -> dict[str, Any] | None:
+    """What wave filtering saved on a gateway's logs: their live commands ``live`` against the raw-fed
+    replay's (`raw_feedback_commands`), over the longest stretch in dp (`dp_stretch`), from ``from_ns`` on
+    if given (the demo scores from 30 s after engaging). None without a stretch in dp, a configuration
+    in the logs, or enough of it to filter. A failure of the replay is returned as ``{"error": ...}``,
+    not raised: it is one figure of a summary whose others must still come out."""
+    stretch = dp_stretch(live)
+    if stretch is None:
+        return None
+    start, end = stretch
+    if from_ns is not None:
+        start = max(start, from_ns)
+    if end <= start:
+        return None
+    try:
+        raw = raw_feedback_commands(logs)
+    except Exception as exc:  # (a bug to report; the summary of a run that went well must still come out)
+        return {"error": f"{type(exc).__name__}: {exc}"}
+    return None if raw is None else wave_filtering_saved(live, raw, start, band_rad_s, end)
+
+
+def force_words(x: float, unit: str = "N") -> str:
+    """A force (N) or moment (N·m) in N, kN or MN (N·m, kN·m, MN·m) by its size, to two figures at least:
+    a supply vessel's wave-band thrust is tens of kN, a basin model's fractions of a newton."""
+    for scale, prefix in ((1e6, "M"), (1e3, "k")):
+        if abs(x) >= scale:
+            x, unit = x / scale, prefix + unit
+            break
+    if abs(x) >= 10:
+        return f"{x:.0f} {unit}"
+    return f"{x:.1f} {unit}" if abs(x) >= 1 else f"{x:.2g} {unit}"
+
+
+def wave_filtering_words(w: dict[str, Any]) -> str:
+    """`wave_filtering_of_log`'s figures in one line of a summary (after "wave filtering: ")."""
+    if "error" in w:
+        return f"not measured ({w['error']})"
+    lo, hi = w["band_rad_s"]
+    ours, theirs = w["wave_band_tau_rms"], w["raw_feedback_wave_band_tau_rms"]
+    return (
+        f"wave-band thrust ({lo:.2g}-{hi:.2g} rad/s) {force_words(ours[0])} surge, {force_words(ours[1])} "
+        f"sway, {force_words(ours[2], 'N·m')} yaw RMS; the same controller fed the raw measurements would "
+        f"command {force_words(theirs[0])}, {force_words(theirs[1])}, {force_words(theirs[2], 'N·m')} (this "
+        f"log replayed): {' / '.join(f'{d:.0f}' for d in w['saved_db'])} dB less"
+    )

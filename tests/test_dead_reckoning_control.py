@@ -116,6 +116,8 @@ def test_dp_commands_through_a_total_silence_and_a_replay_commands_the_same(tmp_
     assert dp["modes"]["from"] == "statuses" and dp["modes"]["time_s"]["dp"] > 2.0, dp["modes"]
     sk = dp["station_keeping"]
     assert sk["commands"] >= len(live) - 5 and sk["position_error_m"]["max"] >= sk["position_error_m"]["p95"]
+    # a few seconds in dp: too short for a wave-band figure (less than one period of the band's lower edge)
+    assert dp["wave_filtering"] is None
     dr = dp["dead_reckoning"]
     assert dr["spells"] >= 1 and dr["longest_s"] >= 1.0 and dr["in_dp_s"] >= 1.0, dr
     spell = max(dr["list"], key=lambda x: x["to_s"] - x["from_s"])

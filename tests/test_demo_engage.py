@@ -62,6 +62,13 @@ def test_a_vessel_held_on_joystick_in_a_current_stays_near_its_station() -> None
     assert pos < 3.0 and hdg < 2.0
 
 
+def engage_span(summary: dict[str, object]) -> float:
+    """Seconds of dp a demo summary's run had: from DP engaged to its end, less a control step or two."""
+    keeping = summary["station_keeping"]
+    assert isinstance(keeping, dict)
+    return float(summary["sim_seconds"]) - float(keeping["dp_engaged_s"]) - 1.0  # type: ignore[arg-type]
+
+
 @pytest.mark.slow  # 240 s of sea at 10x: ~30 s
 def test_the_demo_engages_dp_bumplessly_after_the_observer_settled(tmp_path: Path) -> None:
     out = tmp_path / "demo.mcap"
@@ -90,6 +97,19 @@ def test_the_demo_engages_dp_bumplessly_after_the_observer_settled(tmp_path: Pat
     assert saved is not None and "error" not in saved, saved
     assert min(saved["saved_db"]) >= 20.0, saved
     assert "wave filtering: wave-band thrust" not in proc.stdout  # (--json: the figures, not the line)
+    # and a replay's report of the log says it too, over the whole stretch in dp
+    report = tmp_path / "report"
+    proc = subprocess.run(
+        [sys.executable, "-m", "dpgw", "replay", str(out), "--out", str(tmp_path / "again.mcap"), "--report",
+         str(report)],
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    assert "    wave filtering: wave-band thrust (0.3-2 rad/s)" in proc.stdout
+    md = (report / "report.md").read_text()
+    assert "| kept out by wave filtering (dB) |" in md
+    replayed = json.loads((report / "metrics.json").read_text())["dp_performance"]["wave_filtering"]
+    assert min(replayed["saved_db"]) >= 20.0 and replayed["scored_s"] >= engage_span(summary), replayed
     # bumpless: over the 30 s after the take-over (not scored) the vessel stays near its station too
     truth = [(p["stamp_ns"], p["eta_lf"]) for _, _, _, p in read_messages(out, "/truth/state")]
     t0 = truth[0][0]

@@ -9,7 +9,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dpgw.raw_feedback import wave_filtering_saved
+from dpgw.raw_feedback import dp_stretch, wave_filtering_saved
 from gateway.scoring import wave_band_rms
 
 BAND = (0.3, 2.0)
@@ -101,13 +101,15 @@ def test_what_wave_filtering_saved_is_the_ratio_of_wave_band_rms_in_db() -> None
 def test_the_demo_measures_a_models_wave_band_where_its_waves_are() -> None:
     """A full-scale scenario is measured in 0.3-2 rad/s; CyberShip II (1:70, `hassani`) in that band × √λ,
     where its waves are (at full scale its whole wave band is above 2 rad/s)."""
-    from dpgw.cli_demo import WAVE_BAND, _force, wave_band
+    from dpgw.raw_feedback import THRUST_WAVE_BAND as WAVE_BAND
+    from dpgw.raw_feedback import force_words as _force
+    from dpgw.raw_feedback import thrust_wave_band
     from observers.froude import froude_scale
     from simulator.scenarios import get_scenario
 
-    assert wave_band(get_scenario("torsetnes_2004")) == WAVE_BAND
+    assert thrust_wave_band(get_scenario("torsetnes_2004").vessel) == WAVE_BAND
     model = get_scenario("hassani")
-    lo, hi = wave_band(model)
+    lo, hi = thrust_wave_band(model.vessel)
     root = math.sqrt(froude_scale(model.vessel))
     assert root > 5.0
     np.testing.assert_allclose([lo, hi], [WAVE_BAND[0] * root, WAVE_BAND[1] * root])
@@ -120,3 +122,14 @@ def test_the_demo_measures_a_models_wave_band_where_its_waves_are() -> None:
         "4.0 MN",
     ]
     assert _force(244_346.0, "N·m") == "244 kN·m"
+
+
+def test_the_stretch_scored_is_the_longest_run_of_commands_in_dp() -> None:
+    """A trial's crew takes the vessel in manual and back: the figure is over the longest stretch in dp,
+    not across a manual spell (whose joystick thrust is nobody's wave filter's)."""
+    modes = ["standby"] * 5 + ["dp"] * 10 + ["manual"] * 3 + ["dp"] * 20 + ["standby"] * 2
+    commands = [{"stamp_ns": k * 10**9, "mode": m} for k, m in enumerate(modes)]
+    assert dp_stretch(commands) == (18 * 10**9, 37 * 10**9)
+    assert dp_stretch(list(reversed(commands))) == (18 * 10**9, 37 * 10**9)  # (by stamp, not by order)
+    assert dp_stretch([{"stamp_ns": 0, "mode": "standby"}]) is None
+    assert dp_stretch([]) is None

@@ -132,6 +132,38 @@ def report_markdown(data: ReplayData, m: dict[str, Any], plot_note: str, pngs: S
     return "\n".join(lines)
 
 
+def wave_filtering_section(w: dict[str, Any] | None) -> list[str]:
+    """What the live gateway's wave filtering kept out of its commanded thrust (`dpgw replay --report` on
+    a gateway's log: the same controller fed the raw measurements, the log replayed), as a table."""
+    if not w:
+        return []
+    if "error" in w:
+        return ["", f"Wave filtering: not measured ({w['error']})."]
+    lo, hi = w["band_rad_s"]
+    ours, theirs, saved = w["wave_band_tau_rms"], w["raw_feedback_wave_band_tau_rms"], w["saved_db"]
+
+    # a ship's in kN and kN·m, a basin model's (a newton or less) in N and N·m
+    scale, k = (1e3, "k") if max([*ours, *theirs]) >= 1e3 else (1.0, "")
+
+    def kilo(values: list[float]) -> str:  # to three figures, thousands grouped
+        return " | ".join(f"{x / scale:,.0f}" if x >= 100 * scale else f"{x / scale:.3g}" for x in values)
+
+    return [
+        "",
+        f"| commanded τ, RMS in the wave band {lo:.2g}-{hi:.2g} rad/s "
+        f"| surge ({k}N) | sway ({k}N) | yaw ({k}N·m) |",
+        "|---|---|---|---|",
+        f"| live (the observer's LF estimate) | {kilo(ours)} |",
+        f"| the same controller fed the raw measurements | {kilo(theirs)} |",
+        "| kept out by wave filtering (dB) | " + " | ".join(f"{d:.1f}" for d in saved) + " |",
+        "",
+        f"Over the longest stretch in dp ({w['scored_s']:.0f} s). The second row is the log replayed with "
+        '`[control] feedback = "measurement"` (raw position and heading, a filtered derivative for the '
+        "velocity: a DP system without a wave filter), open loop: its wave band is what such a system "
+        "would command on this sea.",
+    ]
+
+
 def dp_section(dp: dict[str, Any]) -> list[str]:
     """How DP did in the live gateway's log (`gateway.report.station_keeping`), as report.md shows it."""
     lines = ["## DP performance (the live gateway's log)", ""]
@@ -156,6 +188,7 @@ def dp_section(dp: dict[str, Any]) -> list[str]:
             f"was made for. Saturated (the allocation could not deliver τ): "
             f"{100 * sk['saturated_share']:.1f} % of them.",
         ]
+    lines += wave_filtering_section(dp.get("wave_filtering"))
     dr = dp["dead_reckoning"]
     lines.append("")
     if dr["spells"]:
