@@ -25,8 +25,10 @@ from observers.observer_names import OBSERVER_NAMES
 if TYPE_CHECKING:
     import numpy as np
 
+    from dpgw.raw_feedback import Comparison
     from gateway.pipeline import Output
     from gateway.replay import Event, ObserverSpec, ReplayResult
+    from gateway.report.data import ThrustTrace
 
 # Only the parser is built at import; the pipeline (numpy, numba, scipy) and Zenoh are imported by the
 # functions that replay, so `dpgw replay --help` answers at once.
@@ -464,16 +466,16 @@ def run(args: argparse.Namespace) -> int:
     live = _live_records(inputs)
     first_ns = min((a for a, _ in result.spans.values()), default=0)
     summary["dp_performance"] = _dp_performance(live, first_ns)
-    wave_filtering: dict[str, Any] | None = None
+    compared = None
     if args.report is not None and summary["dp_performance"] is not None:
         # with a report (the analysis): what the live gateway's wave filtering kept out of its commanded
         # thrust, against the same controller fed the raw measurements (the log replayed once more)
-        from dpgw.raw_feedback import thrust_wave_band, wave_filtering_of_log
+        from dpgw.raw_feedback import compare_with_raw_feedback, thrust_wave_band
 
-        wave_filtering = wave_filtering_of_log(
+        compared = compare_with_raw_feedback(
             args.logs, live["/dp/thrusters/command"], thrust_wave_band(config.vessel)
         )
-        summary["dp_performance"]["wave_filtering"] = wave_filtering
+        summary["dp_performance"]["wave_filtering"] = compared.figures
     kinds = {s.label: (s.name, s.name in SCHEDULES_OMEGA0 or bool(s.params.get("adaptive"))) for s in specs}
     summary["wave_check"] = evidence.check(config.vessel.length_m, config.vessel.model_scale, kinds).as_dict()
     summary["vessel_check"] = evidence.vessel_check(config.vessel).as_dict()
@@ -490,7 +492,7 @@ def run(args: argparse.Namespace) -> int:
     report_warnings: list[str] = []
     if args.report:
         written, report_warnings = _report(
-            args, config.vessel.name, specs, result, evidence.new, checks, live, wave_filtering
+            args, config.vessel.name, specs, result, evidence.new, checks, live, compared
         )
         summary["report"] = [str(p) for p in written]
         summary["report_warnings"] = report_warnings
@@ -578,6 +580,33 @@ def _dp_performance(live: dict[str, list[dict[str, Any]]], start_ns: int) -> dic
     from gateway.report.station_keeping import dp_performance
 
     return dp_performance(live["/dp/thrusters/command"], live["/dp/estimate"], live["/dp/status"], start_ns)
+
+
+def _thrust_trace(
+    live: dict[str, list[dict[str, Any]]], compared: Comparison, t0_ns: int
+) -> ThrustTrace | None:
+    """The live and raw-fed commanded τ over the stretch compared, on the report's time axis (s from
+    ``t0_ns``), for thrust.png; None when the comparison has no figures (too short, or it failed)."""
+    import numpy as np
+
+    from gateway.report.data import ThrustTrace
+
+    w = compared.figures
+    if not w or "error" in w or compared.raw is None or compared.stretch is None:
+        return None
+    start, end = compared.stretch
+
+    def series(commands: list[dict[str, Any]]) -> tuple[Any, Any]:
+        kept = sorted(
+            (c for c in commands if start <= int(c["stamp_ns"]) <= end), key=lambda c: c["stamp_ns"]
+        )
+        t = (np.array([int(c["stamp_ns"]) for c in kept], dtype=np.int64) - t0_ns) / 1e9
+        return t, np.array([c["tau_demand"] for c in kept], dtype=float).reshape(-1, 3)
+
+    t, tau = series(live["/dp/thrusters/command"])
+    t_raw, tau_raw = series(compared.raw)
+    lo, hi = w["band_rad_s"]
+    return ThrustTrace(t, tau, t_raw, tau_raw, (float(lo), float(hi)))
 
 
 def _with_wave_filtering(
@@ -1095,7 +1124,7 @@ def _report(
     new: list[tuple[bool, bool, bool]],
     checks: list[str],
     live: dict[str, list[dict[str, Any]]] | None = None,
-    wave_filtering: dict[str, Any] | None = None,
+    compared: Comparison | None = None,
 ) -> tuple[list[Path], list[str]]:
     """The report of the replay. Its measurement is the fused stream with only the samples the fusion
     received since the previous step (`new`): the pipeline steps on every input chunk with each DOF's
@@ -1157,9 +1186,10 @@ def _report(
         # before the first fused measurement (a cycle without a fix), the report's t = 0
         log_spans={where: _span_words(_span(a, b)) for where, (a, b) in r.spans.items()},
         min_scored_s=getattr(args, "min_scored", None),
-        dp_performance=_with_wave_filtering(_dp_performance(live, t0), wave_filtering)
+        dp_performance=_with_wave_filtering(_dp_performance(live, t0), compared.figures if compared else None)
         if live is not None
         else None,
+        thrust=_thrust_trace(live, compared, t0) if live is not None and compared is not None else None,
         **truth_kw,
     )
     an = analyse(data, None, args.settle)

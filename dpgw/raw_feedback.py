@@ -19,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -145,19 +146,42 @@ def wave_filtering_of_log(
     if given (the demo scores from 30 s after engaging). None without a stretch in dp, a configuration
     in the logs, or enough of it to filter. A failure of the replay is returned as ``{"error": ...}``,
     not raised: it is one figure of a summary whose others must still come out."""
+    return compare_with_raw_feedback(logs, live, band_rad_s, from_ns).figures
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """`compare_with_raw_feedback`'s result: the figures (`wave_filtering_saved`, ``{"error": ...}`` or
+    None), the raw-fed replay's command payloads (None if it did not run) and the stretch compared
+    (first and last stamp, ns; None without one)."""
+
+    figures: dict[str, Any] | None
+    raw: list[dict[str, Any]] | None = None
+    stretch: tuple[int, int] | None = None
+
+
+def compare_with_raw_feedback(
+    logs: Sequence[str | Path],
+    live: Sequence[dict[str, Any]],
+    band_rad_s: tuple[float, float],
+    from_ns: int | None = None,
+) -> Comparison:
+    """`wave_filtering_of_log` with the raw-fed commands and the stretch kept, for a plot of both."""
     stretch = dp_stretch(live)
     if stretch is None:
-        return None
+        return Comparison(None)
     start, end = stretch
     if from_ns is not None:
         start = max(start, from_ns)
     if end <= start:
-        return None
+        return Comparison(None)
     try:
         raw = raw_feedback_commands(logs)
     except Exception as exc:  # (a bug to report; the summary of a run that went well must still come out)
-        return {"error": f"{type(exc).__name__}: {exc}"}
-    return None if raw is None else wave_filtering_saved(live, raw, start, band_rad_s, end)
+        return Comparison({"error": f"{type(exc).__name__}: {exc}"})
+    if raw is None:
+        return Comparison(None)
+    return Comparison(wave_filtering_saved(live, raw, start, band_rad_s, end), raw, (start, end))
 
 
 def force_words(x: float, unit: str = "N") -> str:

@@ -108,6 +108,7 @@ def test_the_demo_engages_dp_bumplessly_after_the_observer_settled(tmp_path: Pat
     assert "    wave filtering: wave-band thrust (0.3-2 rad/s)" in proc.stdout
     md = (report / "report.md").read_text()
     assert "| kept out by wave filtering (dB) |" in md
+    assert (report / "thrust.png").stat().st_size > 10_000  # (the plot of both, with matplotlib installed)
     replayed = json.loads((report / "metrics.json").read_text())["dp_performance"]["wave_filtering"]
     assert min(replayed["saved_db"]) >= 20.0 and replayed["scored_s"] >= engage_span(summary), replayed
     # bumpless: over the 30 s after the take-over (not scored) the vessel stays near its station too

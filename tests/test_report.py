@@ -570,3 +570,42 @@ def test_a_vessel_that_cannot_be_loaded_is_said_in_the_wave_band_basis(tmp_path:
     assert compute_metrics(ReplayData("trial", "", t, y, ()))["wave_band_basis"] == (
         "full scale (length unknown: no vessel named)"
     )
+
+
+def test_a_gateway_logs_thrust_live_and_fed_raw_is_plotted_with_its_figures(
+    data: ReplayData, tmp_path: Path
+) -> None:
+    """`dpgw replay --report` on a gateway's log with DP: thrust.png, the live commanded τ against the same
+    controller's fed the raw measurements, after the six, with the dB kept out in report.md."""
+    pytest.importorskip("matplotlib")
+    import dataclasses
+
+    from gateway.report.data import ThrustTrace
+
+    t = np.arange(300.0, 900.0, 0.1)
+    wave = np.column_stack([np.sin(0.6 * t), np.sin(0.6 * t + 1.0), 10.0 * np.sin(0.6 * t + 2.0)])
+    slow = np.array([1.0e5, 2.0e4, 3.0e6])
+    thrust = ThrustTrace(t, slow + 1.0e4 * wave, t, slow + 2.0e5 * wave, (0.3, 2.0))
+    figures = {
+        "band_rad_s": [0.3, 2.0],
+        "scored_s": 600.0,
+        "wave_band_tau_rms": [7.07e3, 7.07e3, 7.07e4],
+        "raw_feedback_wave_band_tau_rms": [1.41e5, 1.41e5, 1.41e6],
+        "saved_db": [26.0, 26.0, 26.0],
+    }
+    dp = {
+        "modes": {"from": "statuses", "spans": [], "time_s": {"dp": 600.0}},
+        "station_keeping": None,
+        "dead_reckoning": {"spells": 0, "total_s": 0.0, "longest_s": 0.0, "in_dp_s": 0.0, "list": []},
+        "alarms": [],
+        "wave_filtering": figures,
+    }
+    files = write_report(dataclasses.replace(data, thrust=thrust, dp_performance=dp), tmp_path)
+    assert [f.name for f in files][-1] == "thrust.png"
+    assert len((tmp_path / "thrust.png").read_bytes()) > 20_000
+    md = (tmp_path / "report.md").read_text()
+    assert "](thrust.png)" in md
+    assert "| kept out by wave filtering (dB) | 26.0 | 26.0 | 26.0 |" in md
+    assert "| the same controller fed the raw measurements | 141 | 141 | 1,410 |" in md
+    # without a stretch in dp to compare, no such plot
+    assert "thrust.png" not in [f.name for f in write_report(data, tmp_path / "plain")]

@@ -35,6 +35,18 @@ class ObserverTrace:
 
 
 @dataclass(frozen=True)
+class ThrustTrace:
+    """The commanded τ over a stretch in dp, live and from the same controller fed the raw measurements
+    (`dpgw.raw_feedback`): times (n,) in s on the report's axis, τ (n, 3) as [X N, Y N, N N·m]."""
+
+    t: NDArray[Any]
+    tau: NDArray[Any]
+    t_raw: NDArray[Any]
+    tau_raw: NDArray[Any]
+    band_rad_s: tuple[float, float]
+
+
+@dataclass(frozen=True)
 class ReplayData:
     """Everything a replay report shows."""
 
@@ -66,6 +78,9 @@ class ReplayData:
     # how DP did in the live gateway's log (`gateway.report.station_keeping.dp_performance`, times from
     # t = 0 here); None: not a gateway's log
     dp_performance: Mapping[str, Any] | None = None
+    # the commanded τ live and fed the raw measurements (`dpgw replay --report` on a gateway's log with a
+    # stretch in dp): plotted as thrust.png; None: no such figure
+    thrust: ThrustTrace | None = None
 
 
 def utc_text(start_ns: int, t_s: float | None, *, digits: int = 1) -> str | None:

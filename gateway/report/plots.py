@@ -127,8 +127,9 @@ def load_figure() -> Any:
 
 
 def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> list[Path]:
-    """The six PNGs of docs/report.md into `folder`, drawn with matplotlib's `Figure` class (from
-    `load_figure`); returns their paths in the order position, wave, velocity, bias, omega0, psd."""
+    """The PNGs of docs/report.md into `folder`, drawn with matplotlib's `Figure` class (from
+    `load_figure`); returns their paths in the order position, wave, velocity, bias, omega0, psd, and
+    thrust when ``data.thrust`` is given."""
     prep = an.prep
     t_meas, y, traces, truth = prep.t_meas, prep.y, prep.traces, prep.truth
     span = an.metrics["span_s"]
@@ -195,9 +196,9 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
         """The first observer (black) is drawn on top of the others, as in the papers."""
         return 40.0 - i * 30.0 / max(len(traces), 1)
 
-    def save(fig: Any, axes: Any, name: str) -> Path:
+    def save(fig: Any, axes: Any, name: str, zoom_text: str | None = None) -> Path:
         for r, row in enumerate(axes):
-            label = "frequency ω (rad/s)" if name == "psd" else zoom_label if r else tlabel
+            label = "frequency ω (rad/s)" if name == "psd" else (zoom_text or zoom_label) if r else tlabel
             for ax in row:
                 ax.set_xlabel(label, fontsize=9)
         # every label of the first row once (a line drawn in one panel only still gets its entry)
@@ -361,4 +362,52 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
         ax.set_ylabel(psd_units[k], fontsize=9)
         ax.set_title(f"{DOF_SYMBOL[k]}: PSD, attenuation at the wave peak", fontsize=9)
     written.append(save(fig, axes, "psd"))
+
+    # 7. thrust: the commanded τ live and fed the raw measurements (what wave filtering kept out)
+    th = data.thrust
+    if th is not None and len(th.t) and len(th.t_raw):
+        lo, hi = th.band_rad_s
+        # the zoom: the stretch's last six periods of the band's lower edge (~2 min for a ship)
+        length = min(6.0 * 2.0 * math.pi / lo, float(th.t[-1] - th.t[0]))
+        z_win = (float(th.t[-1]) - length, float(th.t[-1]))
+        z_start = (
+            _clock_text(data.start_ns, z_win[0]) if data.start_ns is not None else f"t = {z_win[0]:.1f} s"
+        )
+        big = float(np.nanmax(np.abs(th.tau_raw), initial=0.0))
+        div, prefix = (1e6, "M") if big >= 1e7 else (1e3, "k") if big >= 1e4 else (1.0, "")
+        fig, axes = figure("thrust", 2)
+        saved = (data.dp_performance or {}).get("wave_filtering") or {}
+        for r, win in enumerate([None, z_win]):
+            for k, ax in enumerate(axes[r]):
+                raw_kw: dict[str, Any] = {"color": "tab:red", "lw": 0.7, "alpha": 0.8, "zorder": 10}
+                line(
+                    ax,
+                    th.t_raw,
+                    th.tau_raw[:, k] / div,
+                    window=win,
+                    label="fed the raw measurements",
+                    **raw_kw,
+                )
+                line(
+                    ax,
+                    th.t,
+                    th.tau[:, k] / div,
+                    window=win,
+                    color="black",
+                    lw=1.0,
+                    zorder=20,
+                    label="live (on the LF estimate)",
+                )
+                unit = f"{prefix}N·m" if k == 2 else f"{prefix}N"
+                ax.set_ylabel(f"commanded {('X', 'Y', 'N')[k]} ({unit})", fontsize=9)
+                if r == 0:
+                    db = saved.get("saved_db")
+                    gain = f": {db[k]:.0f} dB less in {lo:.2g}-{hi:.2g} rad/s" if db else ""
+                    ax.set_title(f"{('surge', 'sway', 'yaw')[k]} τ{gain}", fontsize=9)
+                    ax.axvspan(
+                        z_win[0] / scale, z_win[1] / scale, color="tab:olive", alpha=0.12, lw=0, zorder=0
+                    )
+                else:
+                    ax.set_title(f"zoom: last {length:.0f} s in dp", fontsize=8, loc="right")
+        written.append(save(fig, axes, "thrust", f"time (s) from {z_start}"))
     return written
