@@ -198,8 +198,8 @@ def force_words(x: float, unit: str = "N") -> str:
 
 def wave_filtering_words(w: dict[str, Any]) -> str:
     """`wave_filtering_of_log`'s figures in one line of a summary (after "wave filtering: ")."""
-    if "error" in w:
-        return f"not measured ({w['error']})"
+    if "error" in w or "not_measured" in w:
+        return f"not measured ({w.get('error') or w['not_measured']})"
     lo, hi = w["band_rad_s"]
     ours, theirs = w["wave_band_tau_rms"], w["raw_feedback_wave_band_tau_rms"]
     return (

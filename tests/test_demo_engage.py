@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dpgw.cli_demo import HOLD_PERIOD_S, froude_scale
+from dpgw.cli_demo import HOLD_PERIOD_S, froude_scale, station_keeping
+from dpgw.raw_feedback import wave_filtering_words
 from simulator.runner import Simulation
 from simulator.scenarios import get_scenario
 from wire.mcap.reader import read_messages
@@ -97,6 +98,17 @@ def test_the_demo_engages_dp_bumplessly_after_the_observer_settled(tmp_path: Pat
     assert saved is not None and "error" not in saved, saved
     assert min(saved["saved_db"]) >= 20.0, saved
     assert "wave filtering: wave-band thrust" not in proc.stdout  # (--json: the figures, not the line)
+    assert "dpgw demo: measuring what wave filtering saved" in proc.stderr  # (its replay takes seconds)
+    # a run stopped by a signal leaves that replay out (whoever stopped it wants out) and says how to have it
+    truth = [(p["stamp_ns"], p["eta_lf"]) for _, _, _, p in read_messages(out, "/truth/state")]
+    t_truth = (np.array([ns for ns, _ in truth]) - truth[0][0]) / 1e9
+    stopped = station_keeping(
+        [str(out)], t_truth, np.array([eta for _, eta in truth]), truth[0][0], (0.3, 2.0), False
+    )
+    assert stopped is not None and stopped["wave_filtering"] == {
+        "not_measured": f"the run was stopped; dpgw replay {out} --report measures it"
+    }
+    assert wave_filtering_words(stopped["wave_filtering"]).startswith("not measured (the run was stopped")
     # and a replay's report of the log says it too, over the whole stretch in dp
     report = tmp_path / "report"
     proc = subprocess.run(
