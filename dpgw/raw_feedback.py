@@ -65,7 +65,8 @@ def dp_stretch(commands: Sequence[dict[str, Any]]) -> tuple[int, int] | None:
 def raw_feedback_commands(logs: Sequence[str | Path]) -> list[dict[str, Any]] | None:
     """The thruster command payloads of the gateway logs ``logs`` (one run, possibly rotated into several
     files) replayed on their own configuration with ``[control] feedback = "measurement"``; None when
-    the logs carry no gateway configuration (nothing says which controller ran)."""
+    the logs carry no gateway configuration (nothing says which controller ran), or one whose controller
+    was already fed the raw measurements (no wave filter to measure)."""
     from gateway.replay import (
         ObserverSpec,
         build_config,
@@ -81,6 +82,8 @@ def raw_feedback_commands(logs: Sequence[str | Path]) -> list[dict[str, Any]] | 
     if not runs_its_own_controller(inputs, own_config=True):
         return None
     config = build_config(inputs)
+    if config.control.feedback == "measurement":  # the live controller had no wave filter: nothing to compare
+        return None
     config = dataclasses.replace(config, control=dataclasses.replace(config.control, feedback="measurement"))
     own = config.observer.type
     pipeline = build_pipeline(

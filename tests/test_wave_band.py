@@ -3,14 +3,18 @@
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dpgw.raw_feedback import dp_stretch, wave_filtering_saved
+from dpgw.raw_feedback import dp_stretch, raw_feedback_commands, wave_filtering_saved
+from gateway.replay import CONFIG_METADATA
 from gateway.scoring import wave_band_rms
+from wire.mcap.writer import McapLogWriter
 
 BAND = (0.3, 2.0)
 
@@ -133,3 +137,31 @@ def test_the_stretch_scored_is_the_longest_run_of_commands_in_dp() -> None:
     assert dp_stretch(list(reversed(commands))) == (18 * 10**9, 37 * 10**9)  # (by stamp, not by order)
     assert dp_stretch([{"stamp_ns": 0, "mode": "standby"}]) is None
     assert dp_stretch([]) is None
+
+
+def _gateway_log(path: Path, feedback: str) -> Path:
+    """An MCAP file holding only a gateway's configuration (what the comparison reads first)."""
+    tables = {
+        "vessel": {"name": "mss_supply"},
+        "datum": {"lat_deg": 59.4, "lon_deg": 10.5},
+        "sources": [
+            {
+                "name": "mux",
+                "url": "udp://127.0.0.1:10110",
+                "protocol": "nmea",
+                "roles": ["position", "heading"],
+            }
+        ],
+        "control": {"feedback": feedback},
+    }
+    with McapLogWriter(str(path), profile="dpgw") as log:
+        log.add_metadata(CONFIG_METADATA, {"json": json.dumps(tables)})
+    return path
+
+
+def test_a_log_whose_controller_had_no_wave_filter_has_nothing_to_compare(tmp_path: Path) -> None:
+    """A live run already fed the raw measurements (`[control] feedback = "measurement"`) would be compared
+    with itself: 0 dB, said as if a wave filter had been measured. No figure instead; a log of an estimate-fed
+    controller is replayed (no events here: no commands)."""
+    assert raw_feedback_commands([_gateway_log(tmp_path / "raw.mcap", "measurement")]) is None
+    assert raw_feedback_commands([_gateway_log(tmp_path / "filtered.mcap", "estimate")]) == []
