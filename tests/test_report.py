@@ -609,3 +609,23 @@ def test_a_gateway_logs_thrust_live_and_fed_raw_is_plotted_with_its_figures(
     assert "| the same controller fed the raw measurements | 141 | 141 | 1,410 |" in md
     # without a stretch in dp to compare, no such plot
     assert "thrust.png" not in [f.name for f in write_report(data, tmp_path / "plain")]
+
+
+def test_a_log_that_never_moved_is_reported_without_a_warning_on_the_console(tmp_path: Path) -> None:
+    """A bench's fixed position and heading have a PSD of zeros: the log-log panel stays empty instead of
+    matplotlib warning ("Data has no positive values, and therefore cannot be log-scaled") on the console
+    of every such `dpgw replay --report`."""
+    pytest.importorskip("matplotlib")
+    import warnings
+
+    t = np.arange(0.0, 600.0, 0.5)
+    still = np.tile([1.0, 2.0, 0.5], (len(t), 1))
+    n = len(t)
+    tr = ObserverTrace(
+        "p", t, still, np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.full((n, 3), 0.9)
+    )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        files = write_report(ReplayData("still", "mss_supply", t, still, (tr,)), tmp_path)
+    assert "psd.png" in [f.name for f in files]
+    assert not [w for w in caught if "log-scaled" in str(w.message)], [str(w.message) for w in caught]

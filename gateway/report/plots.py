@@ -319,15 +319,15 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
         ax.axvspan(an.band[0], an.band[1], color="0.93", zorder=0, label="wave band searched")
         drawn = False
         pm = an.meas_psd[k]
-        if pm is not None:
-            m = pm.omega > 0
+        # (only what a log axis can show: a DOF that never moved, a bench's fixed position, has a PSD of
+        # zeros, which matplotlib warned about on the console at every such report)
+        if pm is not None and np.any(m := (pm.omega > 0) & (pm.psd > 0)):
             ax.plot(pm.omega[m], pm.psd[m] * conv, label="measurement y", **_MEAS, zorder=45)
             drawn = True
         notes = []
         for i, tr_ in enumerate(traces):
             pe = an.est_psd[i][k]
-            if pe is not None:
-                m = pe.omega > 0
+            if pe is not None and np.any(m := (pe.omega > 0) & (pe.psd > 0)):
                 ax.plot(
                     pe.omega[m],
                     pe.psd[m] * conv,
