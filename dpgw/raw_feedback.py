@@ -119,14 +119,15 @@ def wave_filtering_saved(
 ) -> dict[str, Any] | None:
     """The live commands' wave-band τ beside the raw-fed replay's, stamped from ``from_ns`` to ``to_ns``
     (None: to the end), per DOF, and the difference in dB (20 log₁₀ of the ratio of RMS: positive is
-    what wave filtering kept out); None when either is too short to filter."""
+    what wave filtering kept out; None for a DOF where either has no wave-band thrust at all, a ratio
+    with no meaning and no finite dB); None when either is too short to filter."""
     end = to_ns if to_ns is not None else max((int(c["stamp_ns"]) for c in live), default=from_ns)
     ours = wave_band_tau(live, from_ns, end, band_rad_s)
     theirs = wave_band_tau(raw, from_ns, end, band_rad_s)
     if ours is None or theirs is None:
         return None
     saved = [
-        20.0 * math.log10(b / a) if a > 0.0 and b > 0.0 else (math.inf if b > 0.0 else 0.0)
+        20.0 * math.log10(b / a) if a > 0.0 and b > 0.0 else None
         for a, b in zip(ours.tolist(), theirs.tolist(), strict=True)
     ]
     return {
@@ -209,5 +210,5 @@ def wave_filtering_words(w: dict[str, Any]) -> str:
         f"wave-band thrust ({lo:.2g}-{hi:.2g} rad/s) {force_words(ours[0])} surge, {force_words(ours[1])} "
         f"sway, {force_words(ours[2], 'N·m')} yaw RMS; the same controller fed the raw measurements would "
         f"command {force_words(theirs[0])}, {force_words(theirs[1])}, {force_words(theirs[2], 'N·m')} (this "
-        f"log replayed): {' / '.join(f'{d:.0f}' for d in w['saved_db'])} dB less"
+        f"log replayed): {' / '.join('–' if d is None else f'{d:.0f}' for d in w['saved_db'])} dB less"
     )

@@ -11,7 +11,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dpgw.raw_feedback import dp_stretch, raw_feedback_commands, wave_filtering_saved
+from dpgw.raw_feedback import dp_stretch, raw_feedback_commands, wave_filtering_saved, wave_filtering_words
 from gateway.replay import CONFIG_METADATA
 from gateway.scoring import wave_band_rms
 from wire.mcap.writer import McapLogWriter
@@ -85,7 +85,8 @@ def _commands(t: np.ndarray, amplitude: float) -> list[dict[str, object]]:
 def test_what_wave_filtering_saved_is_the_ratio_of_wave_band_rms_in_db() -> None:
     """Ten times the wave-band thrust fed raw is 20 dB saved; commands before ``from_ns`` are left out
     (the stretch before DP, which would otherwise dominate a raw controller's figure); a DOF where both
-    are zero saved nothing."""
+    are zero has no ratio (None, not an infinite or a 0 dB that JSON and a reader would take at its
+    word)."""
     t = np.arange(0.0, 400.0, 0.1)
     live = _commands(t, 1.0e4)
     raw = _commands(t, 1.0e5)
@@ -96,7 +97,8 @@ def test_what_wave_filtering_saved_is_the_ratio_of_wave_band_rms_in_db() -> None
     assert w["band_rad_s"] == [0.3, 2.0]
     np.testing.assert_allclose(w["saved_db"][0], 20.0, atol=0.1)
     np.testing.assert_allclose(w["saved_db"][2], 20.0, atol=0.1)
-    assert w["saved_db"][1] == 0.0
+    assert w["saved_db"][1] is None  # (no wave-band thrust either way: no ratio)
+    assert wave_filtering_words(w).endswith("(this log replayed): 20 / – / 20 dB less")
     np.testing.assert_allclose(w["wave_band_tau_rms"][0], 1e4 / math.sqrt(2), rtol=0.015)
     # too short a scored stretch: no figure
     assert wave_filtering_saved(live, raw, int(1e9 * 1390.0), BAND) is None

@@ -155,7 +155,9 @@ def wave_filtering_section(w: dict[str, Any] | None) -> list[str]:
         "|---|---|---|---|",
         f"| live (the observer's LF estimate) | {kilo(ours)} |",
         f"| the same controller fed the raw measurements | {kilo(theirs)} |",
-        "| kept out by wave filtering (dB) | " + " | ".join(f"{d:.1f}" for d in saved) + " |",
+        "| kept out by wave filtering (dB) | "
+        + " | ".join("–" if d is None else f"{d:.1f}" for d in saved)
+        + " |",
         "",
         f"Over the longest stretch in dp ({w['scored_s']:.0f} s). The second row is the log replayed with "
         '`[control] feedback = "measurement"` (raw position and heading, a filtered derivative for the '

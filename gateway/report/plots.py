@@ -402,7 +402,11 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
                 ax.set_ylabel(f"commanded {('X', 'Y', 'N')[k]} ({unit})", fontsize=9)
                 if r == 0:
                     db = saved.get("saved_db")
-                    gain = f": {db[k]:.0f} dB less in {lo:.2g}-{hi:.2g} rad/s" if db else ""
+                    gain = (
+                        f": {db[k]:.0f} dB less in {lo:.2g}-{hi:.2g} rad/s"
+                        if db and db[k] is not None
+                        else ""
+                    )
                     ax.set_title(f"{('surge', 'sway', 'yaw')[k]} τ{gain}", fontsize=9)
                     ax.axvspan(
                         z_win[0] / scale, z_win[1] / scale, color="tab:olive", alpha=0.12, lw=0, zorder=0
