@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 from dpgw.raw_feedback import dp_stretch, raw_feedback_commands, wave_filtering_saved, wave_filtering_words
 from gateway.replay import CONFIG_METADATA
 from gateway.scoring import wave_band_rms
+from tests.test_service import mux_tables
 from wire.mcap.writer import McapLogWriter
 
 BAND = (0.3, 2.0)
@@ -143,19 +144,8 @@ def test_the_stretch_scored_is_the_longest_run_of_commands_in_dp() -> None:
 
 def _gateway_log(path: Path, feedback: str) -> Path:
     """An MCAP file holding only a gateway's configuration (what the comparison reads first)."""
-    tables = {
-        "vessel": {"name": "mss_supply"},
-        "datum": {"lat_deg": 59.4, "lon_deg": 10.5},
-        "sources": [
-            {
-                "name": "mux",
-                "url": "udp://127.0.0.1:10110",
-                "protocol": "nmea",
-                "roles": ["position", "heading"],
-            }
-        ],
-        "control": {"feedback": feedback},
-    }
+    tables = mux_tables(10110, 7447, path, 1.0)
+    tables["control"] = {"feedback": feedback}
     with McapLogWriter(str(path), profile="dpgw") as log:
         log.add_metadata(CONFIG_METADATA, {"json": json.dumps(tables)})
     return path

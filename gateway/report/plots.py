@@ -23,6 +23,19 @@ from observers.kinematics import ssa
 # Each plotted line is decimated to at most this many points (its envelope kept).
 MAX_PLOT_POINTS = 20_000
 
+_RAW_FED: dict[str, Any] = {
+    "color": "tab:red",
+    "lw": 0.7,
+    "alpha": 0.8,
+    "zorder": 10,
+    "label": "the same controller fed the raw measurements (replayed)",
+}
+_LIVE_THRUST: dict[str, Any] = {
+    "color": "black",
+    "lw": 1.0,
+    "zorder": 20,
+    "label": "live (on the LF estimate)",
+}
 _COLOURS = ("black", "tab:blue", "tab:red", "tab:green", "tab:purple", "tab:orange", "tab:brown", "tab:cyan")
 _MEAS: dict[str, Any] = {"color": "0.70", "lw": 0.8}
 _TRUTH: dict[str, Any] = {"color": "0.35", "lw": 1.0, "ls": "--", "zorder": 50}
@@ -379,25 +392,11 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
         saved = (data.dp_performance or {}).get("wave_filtering") or {}
         for r, win in enumerate([None, z_win]):
             for k, ax in enumerate(axes[r]):
-                raw_kw: dict[str, Any] = {"color": "tab:red", "lw": 0.7, "alpha": 0.8, "zorder": 10}
-                line(
-                    ax,
-                    th.t_raw,
-                    th.tau_raw[:, k] / div,
-                    window=win,
-                    label="fed the raw measurements",
-                    **raw_kw,
-                )
-                line(
-                    ax,
-                    th.t,
-                    th.tau[:, k] / div,
-                    window=win,
-                    color="black",
-                    lw=1.0,
-                    zorder=20,
-                    label="live (on the LF estimate)",
-                )
+                for t_, tau_, style in (
+                    (th.t_raw, th.tau_raw, _RAW_FED),  # under the live line
+                    (th.t, th.tau, _LIVE_THRUST),
+                ):
+                    line(ax, t_, tau_[:, k] / div, window=win, **style)
                 unit = f"{prefix}N·m" if k == 2 else f"{prefix}N"
                 ax.set_ylabel(f"commanded {('X', 'Y', 'N')[k]} ({unit})", fontsize=9)
                 if r == 0:
