@@ -110,6 +110,30 @@ def wave_band_tau(
     return wave_band_rms(t, tau, band_rad_s)
 
 
+def wave_band_thrust(
+    commands: Sequence[dict[str, Any]], from_ns: int, to_ns: int, band_rad_s: tuple[float, float]
+) -> dict[int, float]:
+    """Per thruster id, the wave-band RMS of its commanded thrust (N) over the command payloads stamped
+    from ``from_ns`` to ``to_ns``: what the allocation, within its thrust and turning rates, asked of each
+    drive. Only thrusters in every command; none when too short to filter."""
+    kept = [c for c in commands if from_ns <= int(c["stamp_ns"]) <= to_ns and c.get("thrusters")]
+    if not kept:
+        return {}
+    ids = sorted(set.intersection(*({int(x["id"]) for x in c["thrusters"]} for c in kept)))
+    if not ids:
+        return {}
+    t = np.array([int(c["stamp_ns"]) - from_ns for c in kept], dtype=float) / 1e9
+    by_id = [{int(x["id"]): float(x["thrust_n"]) for x in c["thrusters"]} for c in kept]
+    thrust = np.array([[row[i] for i in ids] for row in by_id], dtype=float)
+    rms = wave_band_rms(t, thrust, band_rad_s)
+    return {} if rms is None else dict(zip(ids, rms.tolist(), strict=True))
+
+
+def _db(ours: float, theirs: float) -> float | None:
+    """20 log₁₀(theirs / ours); None where either is zero (no ratio, and no finite dB)."""
+    return 20.0 * math.log10(theirs / ours) if ours > 0.0 and theirs > 0.0 else None
+
+
 def wave_filtering_saved(
     live: Sequence[dict[str, Any]],
     raw: Sequence[dict[str, Any]],
@@ -126,9 +150,17 @@ def wave_filtering_saved(
     theirs = wave_band_tau(raw, from_ns, end, band_rad_s)
     if ours is None or theirs is None:
         return None
-    saved = [
-        20.0 * math.log10(b / a) if a > 0.0 and b > 0.0 else None
-        for a, b in zip(ours.tolist(), theirs.tolist(), strict=True)
+    saved = [_db(a, b) for a, b in zip(ours.tolist(), theirs.tolist(), strict=True)]
+    live_thrust = wave_band_thrust(live, from_ns, end, band_rad_s)
+    raw_thrust = wave_band_thrust(raw, from_ns, end, band_rad_s)
+    thrusters = [
+        {
+            "id": i,
+            "wave_band_thrust_rms_n": live_thrust[i],
+            "raw_feedback_wave_band_thrust_rms_n": raw_thrust[i],
+            "saved_db": _db(live_thrust[i], raw_thrust[i]),
+        }
+        for i in sorted(live_thrust.keys() & raw_thrust.keys())
     ]
     return {
         "band_rad_s": [float(band_rad_s[0]), float(band_rad_s[1])],
@@ -136,6 +168,8 @@ def wave_filtering_saved(
         "wave_band_tau_rms": [float(x) for x in ours],
         "raw_feedback_wave_band_tau_rms": [float(x) for x in theirs],
         "saved_db": saved,
+        # per drive (the allocation's commanded thrust, within its rates): the wear each is spared
+        "thrusters": thrusters,
     }
 
 
@@ -210,5 +244,20 @@ def wave_filtering_words(w: dict[str, Any]) -> str:
         f"wave-band thrust ({lo:.2g}-{hi:.2g} rad/s) {force_words(ours[0])} surge, {force_words(ours[1])} "
         f"sway, {force_words(ours[2], 'N·m')} yaw RMS; the same controller fed the raw measurements would "
         f"command {force_words(theirs[0])}, {force_words(theirs[1])}, {force_words(theirs[2], 'N·m')} (this "
-        f"log replayed): {' / '.join('–' if d is None else f'{d:.0f}' for d in w['saved_db'])} dB less"
+        f"log replayed): {_dbs(w['saved_db'])} dB less"
     )
+
+
+def thruster_words(w: dict[str, Any]) -> str | None:
+    """The per-thruster figures of `wave_filtering_of_log` in one line, or None without them."""
+    drives = w.get("thrusters")
+    if not drives:
+        return None
+    return (
+        f"per thruster ({', '.join(str(x['id']) for x in drives)}): "
+        f"{_dbs([x['saved_db'] for x in drives])} dB less wave-band thrust commanded"
+    )
+
+
+def _dbs(values: list[float | None]) -> str:
+    return " / ".join("–" if d is None else f"{d:.0f}" for d in values)

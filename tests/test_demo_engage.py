@@ -97,6 +97,9 @@ def test_the_demo_engages_dp_bumplessly_after_the_observer_settled(tmp_path: Pat
     saved = keeping["wave_filtering"]
     assert saved is not None and "error" not in saved, saved
     assert min(saved["saved_db"]) >= 20.0, saved
+    # per drive, within the thrust and turning rates that cap a raw-fed allocation too: >= 10 dB each
+    # (measured on the default 360 s demo: 14-27 dB)
+    assert len(saved["thrusters"]) == 6 and min(x["saved_db"] for x in saved["thrusters"]) >= 10.0, saved
     assert "wave filtering: wave-band thrust" not in proc.stdout  # (--json: the figures, not the line)
     assert "dpgw demo: measuring what wave filtering saved" in proc.stderr  # (its replay takes seconds)
     # a run stopped by a signal leaves that replay out (whoever stopped it wants out) and says how to have it
@@ -118,8 +121,11 @@ def test_the_demo_engages_dp_bumplessly_after_the_observer_settled(tmp_path: Pat
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     assert "    wave filtering: wave-band thrust (0.3-2 rad/s)" in proc.stdout
+    assert "      per thruster (1, 2, 3, 4, 5, 6): " in proc.stdout
     md = (report / "report.md").read_text()
-    assert "| kept out by wave filtering (dB) |" in md
+    assert (
+        "| kept out by wave filtering (dB) |" in md and "| thruster | live, wave-band thrust RMS (kN)" in md
+    )
     assert (report / "thrust.png").stat().st_size > 10_000  # (the plot of both, with matplotlib installed)
     replayed = json.loads((report / "metrics.json").read_text())["dp_performance"]["wave_filtering"]
     assert min(replayed["saved_db"]) >= 20.0 and replayed["scored_s"] >= engage_span(summary), replayed

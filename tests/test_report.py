@@ -592,6 +592,20 @@ def test_a_gateway_logs_thrust_live_and_fed_raw_is_plotted_with_its_figures(
         "wave_band_tau_rms": [7.07e3, 7.07e3, 7.07e4],
         "raw_feedback_wave_band_tau_rms": [1.41e5, 1.41e5, 1.41e6],
         "saved_db": [26.0, 26.0, 26.0],
+        "thrusters": [
+            {
+                "id": 1,
+                "wave_band_thrust_rms_n": 4.0e3,
+                "raw_feedback_wave_band_thrust_rms_n": 8.0e4,
+                "saved_db": 26.0,
+            },
+            {
+                "id": 2,
+                "wave_band_thrust_rms_n": 0.0,
+                "raw_feedback_wave_band_thrust_rms_n": 0.0,
+                "saved_db": None,
+            },
+        ],
     }
     dp = {
         "modes": {"from": "statuses", "spans": [], "time_s": {"dp": 600.0}},
@@ -607,6 +621,7 @@ def test_a_gateway_logs_thrust_live_and_fed_raw_is_plotted_with_its_figures(
     assert "](thrust.png)" in md
     assert "| kept out by wave filtering (dB) | 26.0 | 26.0 | 26.0 |" in md
     assert "| the same controller fed the raw measurements | 141 | 141 | 1,410 |" in md
+    assert "| 1 | 4 | 80 | 26.0 |" in md and "| 2 | 0 | 0 | – |" in md
     # without a stretch in dp to compare, no such plot
     assert "thrust.png" not in [f.name for f in write_report(data, tmp_path / "plain")]
 

@@ -11,7 +11,13 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dpgw.raw_feedback import dp_stretch, raw_feedback_commands, wave_filtering_saved, wave_filtering_words
+from dpgw.raw_feedback import (
+    dp_stretch,
+    raw_feedback_commands,
+    thruster_words,
+    wave_filtering_saved,
+    wave_filtering_words,
+)
 from gateway.replay import CONFIG_METADATA
 from gateway.scoring import wave_band_rms
 from tests.test_service import mux_tables
@@ -74,12 +80,19 @@ def test_too_little_to_filter_is_none() -> None:
 
 
 def _commands(t: np.ndarray, amplitude: float) -> list[dict[str, object]]:
+    """τ and two drives' thrust with wave-band content ∝ ``amplitude``; drive 2 steady (no ratio), and a
+    drive 3 in half the commands only (a thruster out of service for a while: not compared)."""
     return [
         {
             "stamp_ns": round(1e9 * (1000.0 + s)),
             "tau_demand": [amplitude * math.sin(0.9 * s), 0.0, 2.0 * amplitude * math.sin(0.7 * s)],
+            "thrusters": [
+                {"id": 1, "thrust_n": 5e4 + 0.5 * amplitude * math.sin(1.1 * s)},
+                {"id": 2, "thrust_n": 3e4},
+                *([{"id": 3, "thrust_n": amplitude * math.sin(s)}] if k % 2 else []),
+            ],
         }
-        for s in t
+        for k, s in enumerate(t)
     ]
 
 
@@ -101,6 +114,13 @@ def test_what_wave_filtering_saved_is_the_ratio_of_wave_band_rms_in_db() -> None
     assert w["saved_db"][1] is None  # (no wave-band thrust either way: no ratio)
     assert wave_filtering_words(w).endswith("(this log replayed): 20 / – / 20 dB less")
     np.testing.assert_allclose(w["wave_band_tau_rms"][0], 1e4 / math.sqrt(2), rtol=0.015)
+    # per drive: the allocation's commanded thrust, each thruster that is in every command
+    drives = {x["id"]: x for x in w["thrusters"]}
+    assert sorted(drives) == [1, 2]
+    np.testing.assert_allclose(drives[1]["saved_db"], 20.0, atol=0.1)
+    np.testing.assert_allclose(drives[1]["wave_band_thrust_rms_n"], 0.5e4 / math.sqrt(2), rtol=0.015)
+    assert drives[2]["saved_db"] is None
+    assert thruster_words(w) == "per thruster (1, 2): 20 / – dB less wave-band thrust commanded"
     # too short a scored stretch: no figure
     assert wave_filtering_saved(live, raw, int(1e9 * 1390.0), BAND) is None
 

@@ -159,10 +159,33 @@ def wave_filtering_section(w: dict[str, Any] | None) -> list[str]:
         + " | ".join("–" if d is None else f"{d:.1f}" for d in saved)
         + " |",
         "",
+        *_thruster_rows(w.get("thrusters") or []),
         f"Over the longest stretch in dp ({w['scored_s']:.0f} s). The second row is the log replayed with "
         '`[control] feedback = "measurement"` (raw position and heading, a filtered derivative for the '
         "velocity: a DP system without a wave filter), open loop: its wave band is what such a system "
-        "would command on this sea.",
+        "would command on this sea. The thrusters' rows are the allocation's commanded thrust per drive, "
+        "within its thrust and turning rates: the wear each drive is spared.",
+    ]
+
+
+def _thruster_rows(drives: list[dict[str, Any]]) -> list[str]:
+    """The wave-band thrust each drive was commanded, live and fed raw (the allocation within its rates)."""
+    if not drives:
+        return []
+    biggest = max(max(x["wave_band_thrust_rms_n"], x["raw_feedback_wave_band_thrust_rms_n"]) for x in drives)
+    scale, unit = (1e3, "kN") if biggest >= 1e3 else (1.0, "N")  # a basin model's drives in N
+    return [
+        f"| thruster | live, wave-band thrust RMS ({unit}) | fed the raw measurements ({unit}) "
+        "| kept out (dB) |",
+        "|---|---|---|---|",
+        *(
+            f"| {x['id']} | {x['wave_band_thrust_rms_n'] / scale:.3g} | "
+            f"{x['raw_feedback_wave_band_thrust_rms_n'] / scale:.3g} | "
+            + ("–" if x["saved_db"] is None else f"{x['saved_db']:.1f}")
+            + " |"
+            for x in drives
+        ),
+        "",
     ]
 
 
