@@ -746,7 +746,7 @@ def station_keeping(
     the commanded τ there (`dpgw.raw_feedback`)."""
     import numpy as np
 
-    from dpgw.raw_feedback import wave_filtering_of_log
+    from dpgw.raw_feedback import compare_with_raw_feedback
     from gateway.scoring import truth_at
     from observers.kinematics import ssa
     from wire.mcap.reader import read_messages
@@ -788,9 +788,9 @@ def station_keeping(
             "fed the raw measurements",
             file=sys.stderr,
         )
-        out["wave_filtering"] = wave_filtering_of_log(
+        out["wave_filtering"] = compare_with_raw_feedback(
             log, [c for _, c in cmds], band, cmds[int(np.argmax(keep))][0]
-        )
+        ).figures
     else:
         shown = " ".join(shlex.quote(p) for p in log)
         out["wave_filtering"] = {

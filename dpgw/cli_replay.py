@@ -589,6 +589,7 @@ def _thrust_trace(
     ``t0_ns``), for thrust.png; None when the comparison has no figures (too short, or it failed)."""
     import numpy as np
 
+    from dpgw.raw_feedback import in_stretch
     from gateway.report.data import ThrustTrace
 
     w = compared.figures
@@ -597,10 +598,7 @@ def _thrust_trace(
     start, end = compared.stretch
 
     def series(commands: list[dict[str, Any]]) -> tuple[Any, Any]:
-        kept = sorted(
-            (c for c in commands if start <= int(c["stamp_ns"]) <= end), key=lambda c: c["stamp_ns"]
-        )
-        t = (np.array([int(c["stamp_ns"]) for c in kept], dtype=np.int64) - t0_ns) / 1e9
+        kept, t = in_stretch(commands, start, end, origin_ns=t0_ns)
         return t, np.array([c["tau_demand"] for c in kept], dtype=float).reshape(-1, 3)
 
     t, tau = series(live["/dp/thrusters/command"])

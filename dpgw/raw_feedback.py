@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from gateway.scoring import wave_band_rms
+from gateway.report.spectra import band_rms
 
 COMMAND_TOPIC = "/dp/thrusters/command"
 
@@ -97,17 +97,27 @@ def raw_feedback_commands(logs: Sequence[str | Path]) -> list[dict[str, Any]] | 
     return run_replay(inputs, pipeline, collect=[COMMAND_TOPIC]).collected[COMMAND_TOPIC]
 
 
+def in_stretch(
+    commands: Sequence[dict[str, Any]], from_ns: int, to_ns: int, origin_ns: int | None = None
+) -> tuple[list[dict[str, Any]], Any]:
+    """The command payloads stamped from ``from_ns`` to ``to_ns``, in time order, and their times in s
+    from ``origin_ns`` (None: from ``from_ns``)."""
+    kept = sorted(
+        (c for c in commands if from_ns <= int(c["stamp_ns"]) <= to_ns), key=lambda c: int(c["stamp_ns"])
+    )
+    origin = from_ns if origin_ns is None else origin_ns
+    return kept, np.array([int(c["stamp_ns"]) - origin for c in kept], dtype=float) / 1e9
+
+
 def wave_band_tau(
     commands: Sequence[dict[str, Any]], from_ns: int, to_ns: int, band_rad_s: tuple[float, float]
 ) -> Any:
     """The wave-band RMS of the commanded τ (``tau_demand``: surge N, sway N, yaw N·m) of the command
-    payloads stamped from ``from_ns`` to ``to_ns`` (`gateway.scoring.wave_band_rms`), or None."""
-    kept = [c for c in commands if from_ns <= int(c["stamp_ns"]) <= to_ns]
+    payloads stamped from ``from_ns`` to ``to_ns`` (`gateway.report.spectra.band_rms`), or None."""
+    kept, t = in_stretch(commands, from_ns, to_ns)
     if not kept:
         return None
-    t = np.array([int(c["stamp_ns"]) - from_ns for c in kept], dtype=float) / 1e9
-    tau = np.array([c["tau_demand"] for c in kept], dtype=float)
-    return wave_band_rms(t, tau, band_rad_s)
+    return band_rms(t, np.array([c["tau_demand"] for c in kept], dtype=float), band_rad_s)
 
 
 def wave_band_thrust(
@@ -116,16 +126,14 @@ def wave_band_thrust(
     """Per thruster id, the wave-band RMS of its commanded thrust (N) over the command payloads stamped
     from ``from_ns`` to ``to_ns``: what the allocation, within its thrust and turning rates, asked of each
     drive. Only thrusters in every command; none when too short to filter."""
-    kept = [c for c in commands if from_ns <= int(c["stamp_ns"]) <= to_ns and c.get("thrusters")]
+    kept, t = in_stretch([c for c in commands if c.get("thrusters")], from_ns, to_ns)
     if not kept:
         return {}
     ids = sorted(set.intersection(*({int(x["id"]) for x in c["thrusters"]} for c in kept)))
     if not ids:
         return {}
-    t = np.array([int(c["stamp_ns"]) - from_ns for c in kept], dtype=float) / 1e9
     by_id = [{int(x["id"]): float(x["thrust_n"]) for x in c["thrusters"]} for c in kept]
-    thrust = np.array([[row[i] for i in ids] for row in by_id], dtype=float)
-    rms = wave_band_rms(t, thrust, band_rad_s)
+    rms = band_rms(t, np.array([[row[i] for i in ids] for row in by_id], dtype=float), band_rad_s)
     return {} if rms is None else dict(zip(ids, rms.tolist(), strict=True))
 
 
@@ -173,20 +181,6 @@ def wave_filtering_saved(
     }
 
 
-def wave_filtering_of_log(
-    logs: Sequence[str | Path],
-    live: Sequence[dict[str, Any]],
-    band_rad_s: tuple[float, float],
-    from_ns: int | None = None,
-) -> dict[str, Any] | None:
-    """What wave filtering saved on a gateway's logs: their live commands ``live`` against the raw-fed
-    replay's (`raw_feedback_commands`), over the longest stretch in dp (`dp_stretch`), from ``from_ns`` on
-    if given (the demo scores from 30 s after engaging). None without a stretch in dp, a configuration
-    in the logs, or enough of it to filter. A failure of the replay is returned as ``{"error": ...}``,
-    not raised: it is one figure of a summary whose others must still come out."""
-    return compare_with_raw_feedback(logs, live, band_rad_s, from_ns).figures
-
-
 @dataclass(frozen=True)
 class Comparison:
     """`compare_with_raw_feedback`'s result: the figures (`wave_filtering_saved`, ``{"error": ...}`` or
@@ -204,7 +198,12 @@ def compare_with_raw_feedback(
     band_rad_s: tuple[float, float],
     from_ns: int | None = None,
 ) -> Comparison:
-    """`wave_filtering_of_log` with the raw-fed commands and the stretch kept, for a plot of both."""
+    """What wave filtering saved on a gateway's logs: their live commands ``live`` against the raw-fed
+    replay's (`raw_feedback_commands`), over the longest stretch in dp (`dp_stretch`), from ``from_ns`` on
+    if given (the demo scores from 30 s after engaging); with the raw-fed commands and the stretch kept,
+    for a plot of both. The figures are None without a stretch in dp, a configuration in the logs, or
+    enough of it to filter. A failure of the replay is the figures ``{"error": ...}``, not raised: it is
+    one figure of a summary whose others must still come out."""
     stretch = dp_stretch(live)
     if stretch is None:
         return Comparison(None)
@@ -235,7 +234,7 @@ def force_words(x: float, unit: str = "N") -> str:
 
 
 def wave_filtering_words(w: dict[str, Any]) -> str:
-    """`wave_filtering_of_log`'s figures in one line of a summary (after "wave filtering: ")."""
+    """`compare_with_raw_feedback`'s figures in one line of a summary (after "wave filtering: ")."""
     if "error" in w or "not_measured" in w:
         return f"not measured ({w.get('error') or w['not_measured']})"
     lo, hi = w["band_rad_s"]
@@ -249,7 +248,7 @@ def wave_filtering_words(w: dict[str, Any]) -> str:
 
 
 def thruster_words(w: dict[str, Any]) -> str | None:
-    """The per-thruster figures of `wave_filtering_of_log` in one line, or None without them."""
+    """The per-thruster figures of `compare_with_raw_feedback` in one line, or None without them."""
     drives = w.get("thrusters")
     if not drives:
         return None

@@ -18,7 +18,7 @@ import struct
 import subprocess
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -409,6 +409,23 @@ class _RefusedOnce(Client):
         await super().handle(frame)
 
 
+async def _cycling(sink: Any, step: Callable[[int], None], waits: Callable[[], Awaitable[None]]) -> None:
+    """Run the gateway's cycle every 10 ms (``step(k)``: the outputs made, then the sink's emit) while
+    ``waits`` waits for what the client must see; the cycle stops with it."""
+
+    async def cycle() -> None:
+        for k in range(10_000):
+            step(k)
+            sink.emit([], [])
+            await asyncio.sleep(0.01)
+
+    task = asyncio.create_task(cycle())
+    try:
+        await waits()
+    finally:
+        task.cancel()
+
+
 @pytest.mark.parametrize("lose", [1, 3])
 def test_a_channel_a_client_did_not_get_is_advertised_again(lose: int) -> None:
     """Lost three times in a row (a client slow on a busy machine): before, the channel was advertised
@@ -428,21 +445,17 @@ def test_a_channel_a_client_did_not_get_is_advertised_again(lose: int) -> None:
 
                 estimating = asyncio.Event()
 
-                async def pump() -> None:  # the gateway's cycle: (estimates made and) the sink's emit
-                    for k in range(10_000):
-                        if estimating.is_set():
-                            sink.send("/dp/estimate", Estimate, json.dumps({"k": k}).encode(), 2_000 + k)
-                        sink.emit([], [])
-                        await asyncio.sleep(0.01)
+                def step(k: int) -> None:  # (estimates made once estimating)
+                    if estimating.is_set():
+                        sink.send("/dp/estimate", Estimate, json.dumps({"k": k}).encode(), 2_000 + k)
 
-                task = asyncio.create_task(pump())
-                try:
+                async def waits() -> None:
                     await c.until(lambda: bool(c.messages.get("/dp/status")), 30.0, "the status")
                     # the estimate channel is made now, with the client connected: its subscription is lost
                     estimating.set()
                     await c.until(lambda: bool(c.messages.get("/dp/estimate")), 30.0, "estimates after all")
-                finally:
-                    task.cancel()
+
+                await _cycling(sink, step, waits)
                 return c
 
         c = asyncio.run(session())
@@ -475,20 +488,16 @@ def test_a_channel_made_before_a_connected_clients_first_answer_is_advertised_ag
                 c = _RefusedOnce(ws, topic="/dp/estimate", lose=1)
                 await c.until(lambda: bool(c.server_info), 30.0, "the server's info")  # connected
 
-                async def pump() -> None:  # the gateway's cycle: estimates first, a status once one went
-                    for k in range(10_000):
-                        sink.send("/dp/estimate", Estimate, json.dumps({"k": k}).encode(), 2_000 + k)
-                        if c.skipped:  # (the estimate channel's advertisement came and was lost)
-                            sink.send("/dp/status", Status, json.dumps({"k": k}).encode(), 2_000 + k)
-                        sink.emit([], [])
-                        await asyncio.sleep(0.01)
+                def step(k: int) -> None:  # estimates first, a status once one went
+                    sink.send("/dp/estimate", Estimate, json.dumps({"k": k}).encode(), 2_000 + k)
+                    if c.skipped:  # (the estimate channel's advertisement came and was lost)
+                        sink.send("/dp/status", Status, json.dumps({"k": k}).encode(), 2_000 + k)
 
-                task = asyncio.create_task(pump())
-                try:
+                async def waits() -> None:
                     await c.until(lambda: bool(c.messages.get("/dp/status")), 30.0, "the status")
                     await c.until(lambda: bool(c.messages.get("/dp/estimate")), 15.0, "estimates after all")
-                finally:
-                    task.cancel()
+
+                await _cycling(sink, step, waits)
                 return c
 
         c = asyncio.run(session())

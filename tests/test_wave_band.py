@@ -1,4 +1,4 @@
-"""The wave-band RMS of a commanded τ (`gateway.scoring.wave_band_rms`) and what wave filtering saved
+"""The wave-band RMS of a commanded τ (`gateway.report.spectra.band_rms`) and what wave filtering saved
 (`dpgw.raw_feedback.wave_filtering_saved`): the figures `dpgw demo` prints beside station keeping."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from dpgw.raw_feedback import (
     wave_filtering_words,
 )
 from gateway.replay import CONFIG_METADATA
-from gateway.scoring import wave_band_rms
+from gateway.report.spectra import band_rms
 from tests.test_service import mux_tables
 from wire.mcap.writer import McapLogWriter
 
@@ -45,37 +45,37 @@ def test_a_sine_inside_the_band_keeps_its_rms_and_one_outside_is_taken_out(
     rng = np.random.default_rng(seed)
     t = np.arange(0.0, 600.0, 0.1) + rng.uniform(-jitter_s, jitter_s, 6000)
     wave = amplitude * np.sin(omega * t + phase)
-    got = wave_band_rms(t, offset + wave, BAND)
+    got = band_rms(t, offset + wave, BAND)
     assert got is not None and abs(got[0] / (amplitude / math.sqrt(2)) - 1.0) <= 0.015
     slow = amplitude * np.sin(0.05 * t)  # a slowly varying load: the DP loop's own band
     fast = amplitude * np.sin(6.0 * t + 1.0)  # above the waves
-    both = wave_band_rms(t, np.column_stack([slow, fast]), BAND)
+    both = band_rms(t, np.column_stack([slow, fast]), BAND)
     assert both is not None and np.all(both <= 1e-2 * amplitude / math.sqrt(2))
 
 
 def test_the_columns_are_filtered_apart_and_the_order_of_samples_does_not_matter() -> None:
     t = np.arange(0.0, 300.0, 0.1)
     v = np.column_stack([np.sin(0.8 * t), 3.0 * np.sin(1.1 * t), np.zeros_like(t)])
-    got = wave_band_rms(t, v, BAND)
+    got = band_rms(t, v, BAND)
     assert got is not None
     np.testing.assert_allclose(got[:2], [1 / math.sqrt(2), 3 / math.sqrt(2)], rtol=0.015)
     assert got[2] == 0.0
     shuffled = np.random.default_rng(1).permutation(len(t))
-    np.testing.assert_allclose(wave_band_rms(t[shuffled], v[shuffled], BAND), got)  # type: ignore[arg-type]
+    np.testing.assert_allclose(band_rms(t[shuffled], v[shuffled], BAND), got)  # type: ignore[arg-type]
 
 
 def test_too_little_to_filter_is_none() -> None:
     """Less than one period of the band's lower edge (21 s), a band above Nyquist, or no samples: no
     figure rather than a filter's start-up transient."""
     t = np.arange(0.0, 20.0, 0.1)
-    assert wave_band_rms(t, np.sin(t), BAND) is None
-    assert wave_band_rms(np.arange(0.0, 300.0, 2.0), np.zeros(150), BAND) is None  # Nyquist 1.6 rad/s < 2
-    assert wave_band_rms(np.array([]), np.zeros((0, 3)), BAND) is None
+    assert band_rms(t, np.sin(t), BAND) is None
+    assert band_rms(np.arange(0.0, 300.0, 2.0), np.zeros(150), BAND) is None  # Nyquist 1.6 rad/s < 2
+    assert band_rms(np.array([]), np.zeros((0, 3)), BAND) is None
     # NaN samples are left out, not spread through the filter
     t = np.arange(0.0, 300.0, 0.1)
     v = np.sin(0.8 * t)
     v[100] = np.nan
-    got = wave_band_rms(t, v, BAND)
+    got = band_rms(t, v, BAND)
     assert got is not None and abs(got[0] * math.sqrt(2) - 1.0) < 0.015
 
 

@@ -142,8 +142,7 @@ def wave_filtering_section(w: dict[str, Any] | None) -> list[str]:
     lo, hi = w["band_rad_s"]
     ours, theirs, saved = w["wave_band_tau_rms"], w["raw_feedback_wave_band_tau_rms"], w["saved_db"]
 
-    # a ship's in kN and kN·m, a basin model's (a newton or less) in N and N·m
-    scale, k = (1e3, "k") if max([*ours, *theirs]) >= 1e3 else (1.0, "")
+    scale, k = _kilo_or_not([*ours, *theirs])
 
     def kilo(values: list[float]) -> str:  # to three figures, thousands grouped
         return " | ".join(f"{x / scale:,.0f}" if x >= 100 * scale else f"{x / scale:.3g}" for x in values)
@@ -168,12 +167,19 @@ def wave_filtering_section(w: dict[str, Any] | None) -> list[str]:
     ]
 
 
+def _kilo_or_not(values: list[float]) -> tuple[float, str]:
+    """A ship's forces in kN (and kN·m), a basin model's (a newton or less) in N: the divisor and prefix."""
+    return (1e3, "k") if max(values, default=0.0) >= 1e3 else (1.0, "")
+
+
 def _thruster_rows(drives: list[dict[str, Any]]) -> list[str]:
     """The wave-band thrust each drive was commanded, live and fed raw (the allocation within its rates)."""
     if not drives:
         return []
-    biggest = max(max(x["wave_band_thrust_rms_n"], x["raw_feedback_wave_band_thrust_rms_n"]) for x in drives)
-    scale, unit = (1e3, "kN") if biggest >= 1e3 else (1.0, "N")  # a basin model's drives in N
+    scale, k = _kilo_or_not(
+        [v for x in drives for v in (x["wave_band_thrust_rms_n"], x["raw_feedback_wave_band_thrust_rms_n"])]
+    )
+    unit = f"{k}N"
     return [
         f"| thruster | live, wave-band thrust RMS ({unit}) | fed the raw measurements ({unit}) "
         "| kept out (dB) |",
