@@ -1548,7 +1548,7 @@ class Pipeline:
         measured = self._measured_ns
         y_obs = y
         reacq, before = self._reacq_ns, self._last_step_ns
-        if (
+        returning = (
             reacq[0]
             or reacq[2]
             or (valid[0] and measured[0] and measured[0] != before)  # back: not measured at the last step
@@ -1557,7 +1557,10 @@ class Pipeline:
             # years, has no events to step on): the references are back after being lost, not held; or
             # for longer than an observer bridges (`_bridged_ns`)
             or (before and now_ns - before > self._bridged_ns)
-        ) and self._last_est is not None:
+        )
+        # (an observer not yet initialised has no state to restart: its first complete measurement starts
+        # it, as it would have without the outage)
+        if returning and self._last_est is not None and self.observer.initialized:
             y_obs = self._reacquire(now_ns, y, valid)
         est = self._observe(self.observer, t, y_obs, tau_obs, valid)
         self._last_est, self._last_est_ns, self._last_step_ns = est, now_ns, now_ns

@@ -922,3 +922,21 @@ def test_a_real_jump_at_one_hertz_in_a_big_sea_is_still_rejected_at_once(
         assert "jump: moved" in text, text
     counts = summary["counts"]["source dgps1"]
     assert counts.get("test_jump", 0) + counts.get("test_prediction", 0) >= 3, counts  # all three fixes
+
+
+def test_an_observer_that_never_started_is_not_restarted() -> None:
+    """A DGPS heard alone (no heading yet, so no observer has been initialised) that goes silent past
+    ``lost_after_s`` and comes back restarts nothing: there is no state to restart, and "observer
+    restarted" in the status and the replay's summary would send the engineer looking for a fault that
+    did not happen. gpsd's nmea-rtk log (a receiver with no heading, a 10-minute gap) was counted as one
+    restart with no estimate made. The observer starts as usual once the gyro is heard."""
+    b = Bench()
+    b.run(10.0, gyro={"gyro1": None})
+    b.run(90.0, gps={"gps1": None}, gyro={"gyro1": None})
+    b.run(10.0, gyro={"gyro1": None})
+    assert b.estimates() == []
+    assert b.p.restarts == 0 and b.first_event(0, "observer restarted") is None
+    m = b.mark()
+    b.run(30.0)
+    assert b.p.restarts == 0 and b.first_event(m, "observer restarted") is None
+    assert error_after(b, m, 20.0, 0.0) < 1.0
