@@ -526,7 +526,7 @@ def plot(result: CapabilityResult, path: str) -> None:
         single = all(len(f) == 1 for f in result.worst_failed or ())
         label = "worst single failure" if single else "worst failure"
         ax.plot(theta, np.append(w, w[0]), "-s", color="tab:red", ms=3, label=label)
-    ax.set_rlabel_position(135)
+    ax.set_rlabel_position(112.5)  # between the angle labels (every 45°): the outer figure clear of "135°"
     if numbers:
         top = BEAUFORT_TABLE[-1].bf
         ax.set_rlim(0.0, top)
