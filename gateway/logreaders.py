@@ -36,6 +36,7 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 import numpy as np
+from mypy_extensions import mypyc_attr
 
 from gateway.pipeline import RawEvent
 from wire.codecs.nmea_encode import checksum
@@ -121,6 +122,10 @@ def is_gzip(path: str | Path) -> bool:
         return f.read(2) == GZIP_MAGIC
 
 
+# A Python class, not a compiled one: a compiled (mypyc native) subclass of `io.RawIOBase` fails to import
+# on Python 3.12 and later ("type _CutGzip has the Py_TPFLAGS_MANAGED_DICT flag but tp_dictoffset is
+# set"), which took `dpgw replay` down with it; this class reads megabytes at a call, so nothing is lost.
+@mypyc_attr(native_class=False)
 class _CutGzip(io.RawIOBase):
     """A gzip stream that ends where its data ends: a ``.gz`` cut short (a copy interrupted, a disk that
     filled) raises `EOFError` at the cut, which would stop the replay with everything before it unread.
