@@ -7,6 +7,7 @@ compile it, and an edited source is never shadowed by its stale compiled form.""
 
 from __future__ import annotations
 
+import ast
 import hashlib
 import json
 import os
@@ -88,6 +89,56 @@ def test_the_install_compiled_the_hot_path_and_it_is_the_one_running() -> None:
         [sys.executable, "-m", "dpgw", "--version"], capture_output=True, text=True, check=True
     )
     assert f"hot path: compiled (mypyc, {len(status.modules)} modules)" in said.stdout
+
+
+# Bases a compiled (mypyc native) class may have besides another compiled class. A native class derived from
+# any other class compiles, but may not import: `io.RawIOBase` under Python 3.12+ raised "type ... has the
+# Py_TPFLAGS_MANAGED_DICT flag but tp_dictoffset is set" at import, so `dpgw replay` failed there and not
+# on 3.11. Such a class must be a Python class (``@mypyc_attr(native_class=False)``).
+NATIVE_SAFE_BASES = frozenset(
+    {"object", "Exception", "ValueError", "RuntimeError", "Protocol", "NamedTuple", "Generic", "ABC"}
+    | {"Enum", "IntEnum", "IntFlag", "Flag", "StrEnum"}
+)
+
+
+def _base_name(node: ast.expr) -> str:
+    """A class base as written, without its type arguments (``_Sampled[...]`` -> ``_Sampled``)."""
+    if isinstance(node, ast.Subscript):
+        node = node.value
+    return ast.unparse(node)
+
+
+def _python_class(cls: ast.ClassDef) -> bool:
+    """Whether a class is marked ``@mypyc_attr(native_class=False)`` (compiled modules keep it a Python
+    class)."""
+    return any(
+        isinstance(d, ast.Call)
+        and ast.unparse(d.func).endswith("mypyc_attr")
+        and any(k.arg == "native_class" and isinstance(k.value, ast.Constant) and k.value.value is False
+                for k in d.keywords)
+        for d in cls.decorator_list
+    )  # fmt: skip
+
+
+def test_every_compiled_class_derives_only_from_what_mypyc_supports_on_every_python() -> None:
+    """The compiled modules' native classes derive only from other compiled classes or from the bases
+    mypyc supports (`NATIVE_SAFE_BASES`); any other base needs ``@mypyc_attr(native_class=False)``. Read
+    from the sources, so it holds on the Python this runs on for the ones it does not (3.12, 3.13)."""
+    manifest = json.loads((ROOT / "wire" / "_compiled.json").read_text())
+    trees = {
+        name: ast.parse((ROOT / (name.replace(".", "/") + ".py")).read_text()) for name in manifest["modules"]
+    }
+    classes = [c for tree in trees.values() for c in ast.walk(tree) if isinstance(c, ast.ClassDef)]
+    native = {c.name for c in classes if not _python_class(c)}
+    unsupported = [
+        f"{module}: class {c.name}({_base_name(b)})"
+        for module, tree in trees.items()
+        for c in ast.walk(tree)
+        if isinstance(c, ast.ClassDef) and not _python_class(c)
+        for b in c.bases
+        if _base_name(b) not in NATIVE_SAFE_BASES and _base_name(b) not in native
+    ]
+    assert classes and not unsupported, unsupported
 
 
 Messages = dict[str, list[tuple[int, int, bytes]]]  # topic -> (log time, publish time, payload)
