@@ -893,11 +893,10 @@ def print_summary(r: dict[str, Any]) -> None:
         )
         w = k.get("wave_filtering")
         if w:
-            from dpgw.raw_feedback import thruster_words, wave_filtering_words
+            from dpgw.raw_feedback import wave_filtering_lines
 
-            print(f"  wave filtering: {wave_filtering_words(w)}")
-            if drives := thruster_words(w):
-                print(f"    {drives}")
+            for text in wave_filtering_lines(w):
+                print(f"  {text}")
         print(
             f"  mean offset from the reference ({_one_decimal(k['reference'][0])} m N, "
             f"{_one_decimal(k['reference'][1])} m E, {_one_decimal(k['reference'][2])} deg): "

@@ -629,11 +629,10 @@ def _print_dp(dp: dict[str, Any]) -> None:
             f"{sk['commands']} commands"
         )
     if dp.get("wave_filtering"):
-        from dpgw.raw_feedback import thruster_words, wave_filtering_words
+        from dpgw.raw_feedback import wave_filtering_lines
 
-        print(f"    wave filtering: {wave_filtering_words(dp['wave_filtering'])}")
-        if drives := thruster_words(dp["wave_filtering"]):
-            print(f"      {drives}")
+        for text in wave_filtering_lines(dp["wave_filtering"]):
+            print(f"    {text}")
     dr = dp["dead_reckoning"]
     if dr["spells"]:
         print(

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from gateway.report.data import force_prefix
 from gateway.report.spectra import band_rms
 
 COMMAND_TOPIC = "/dp/thrusters/command"
@@ -224,10 +225,8 @@ def compare_with_raw_feedback(
 def force_words(x: float, unit: str = "N") -> str:
     """A force (N) or moment (N·m) in N, kN or MN (N·m, kN·m, MN·m) by its size, to two figures at least:
     a supply vessel's wave-band thrust is tens of kN, a basin model's fractions of a newton."""
-    for scale, prefix in ((1e6, "M"), (1e3, "k")):
-        if abs(x) >= scale:
-            x, unit = x / scale, prefix + unit
-            break
+    scale, prefix = force_prefix(x)
+    x, unit = x / scale, prefix + unit
     if abs(x) >= 10:
         return f"{x:.0f} {unit}"
     return f"{x:.1f} {unit}" if abs(x) >= 1 else f"{x:.2g} {unit}"
@@ -256,6 +255,13 @@ def thruster_words(w: dict[str, Any]) -> str | None:
         f"per thruster ({', '.join(str(x['id']) for x in drives)}): "
         f"{_dbs([x['saved_db'] for x in drives])} dB less wave-band thrust commanded"
     )
+
+
+def wave_filtering_lines(w: dict[str, Any]) -> list[str]:
+    """The summary's lines of `compare_with_raw_feedback`'s figures (the demo's and the replay's, each
+    indented to its summary): "wave filtering: …", and the per-thruster line under it when there is one."""
+    drives = thruster_words(w)
+    return [f"wave filtering: {wave_filtering_words(w)}", *([f"  {drives}"] if drives else [])]
 
 
 def _dbs(values: list[float | None]) -> str:

@@ -83,6 +83,18 @@ class ReplayData:
     thrust: ThrustTrace | None = None
 
 
+def force_prefix(largest: float, least: float = 1.0, *, mega: bool = True) -> tuple[float, str]:
+    """The divisor and SI prefix a force (N) or moment (N·m) of size ``largest`` reads best in: k from
+    ``least`` kN on, M from ``least`` MN on (unless not ``mega``), else none: a supply vessel's thrust is
+    tens of kN, its yaw moment MN·m, a basin model's thrust fractions of a newton. A plot's axis takes
+    ``least`` = 10 (no "1.2 k" ticks), a table one prefix for its columns (``mega`` False), a sentence
+    each value by itself."""
+    x = abs(largest)
+    if mega and x >= least * 1e6:
+        return 1e6, "M"
+    return (1e3, "k") if x >= least * 1e3 else (1.0, "")
+
+
 def utc_text(start_ns: int, t_s: float | None, *, digits: int = 1) -> str | None:
     """The UTC instant ``t_s`` seconds after ``start_ns`` in ISO 8601 (``2024-12-05T10:37:12.4Z``), or
     None for a missing time."""

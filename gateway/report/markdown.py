@@ -12,7 +12,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from gateway.report.data import DOF, DOF_SYMBOL, ReplayData
+from gateway.report.data import DOF, DOF_SYMBOL, ReplayData, force_prefix
 
 
 def _fmt(x: Any, digits: int = 3, scale: float = 1.0) -> str:
@@ -142,7 +142,7 @@ def wave_filtering_section(w: dict[str, Any] | None) -> list[str]:
     lo, hi = w["band_rad_s"]
     ours, theirs, saved = w["wave_band_tau_rms"], w["raw_feedback_wave_band_tau_rms"], w["saved_db"]
 
-    scale, k = _kilo_or_not([*ours, *theirs])
+    scale, k = force_prefix(max([*ours, *theirs]), mega=False)
 
     def kilo(values: list[float]) -> str:  # to three figures, thousands grouped
         return " | ".join(f"{x / scale:,.0f}" if x >= 100 * scale else f"{x / scale:.3g}" for x in values)
@@ -167,17 +167,15 @@ def wave_filtering_section(w: dict[str, Any] | None) -> list[str]:
     ]
 
 
-def _kilo_or_not(values: list[float]) -> tuple[float, str]:
-    """A ship's forces in kN (and kN·m), a basin model's (a newton or less) in N: the divisor and prefix."""
-    return (1e3, "k") if max(values, default=0.0) >= 1e3 else (1.0, "")
-
-
 def _thruster_rows(drives: list[dict[str, Any]]) -> list[str]:
     """The wave-band thrust each drive was commanded, live and fed raw (the allocation within its rates)."""
     if not drives:
         return []
-    scale, k = _kilo_or_not(
-        [v for x in drives for v in (x["wave_band_thrust_rms_n"], x["raw_feedback_wave_band_thrust_rms_n"])]
+    scale, k = force_prefix(
+        max(
+            v for x in drives for v in (x["wave_band_thrust_rms_n"], x["raw_feedback_wave_band_thrust_rms_n"])
+        ),
+        mega=False,
     )
     unit = f"{k}N"
     return [

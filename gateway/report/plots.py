@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from gateway.report.data import DOF_SYMBOL, Array, ReplayData, utc_text
+from gateway.report.data import DOF_SYMBOL, Array, ReplayData, force_prefix, utc_text
 from gateway.report.metrics import MAX_GAP_SAMPLES, Analysis
 from gateway.report.spectra import nominal_dt
 from observers.kinematics import ssa
@@ -127,12 +127,6 @@ def _clock_text(start_ns: int, t_s: float) -> str:
     """``2024-12-05 10:37:12 UTC``: the instant ``t_s`` after ``start_ns``, for an axis label."""
     text = utc_text(start_ns, t_s, digits=0) or ""
     return text.replace("T", " ").removesuffix("Z") + " UTC"
-
-
-def _force_prefix(largest: float) -> tuple[float, str]:
-    """The divisor and SI prefix an axis of forces (N) or moments (N·m) reads best in: M from 10 MN, k
-    from 10 kN, else none (a basin model's bias and thrust are newtons)."""
-    return (1e6, "M") if largest >= 1e7 else (1e3, "k") if largest >= 1e4 else (1.0, "")
 
 
 def load_figure() -> Any:
@@ -306,8 +300,8 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
     # 4. bias (kN / MN when large)
     fig, axes = figure("bias")
     for k, ax in enumerate(axes[0]):
-        div, prefix = _force_prefix(
-            max((float(np.nanmax(np.abs(tr_.bias[:, k]), initial=0.0)) for tr_ in traces), default=0.0)
+        div, prefix = force_prefix(
+            max((float(np.nanmax(np.abs(tr_.bias[:, k]), initial=0.0)) for tr_ in traces), default=0.0), 10.0
         )
         for i, tr_ in enumerate(traces):
             td, xd = decimate(*broken_at_gaps(tr_.t, tr_.bias[:, k] / div))
@@ -393,7 +387,7 @@ def draw_plots(data: ReplayData, an: Analysis, folder: Path, Figure: Any) -> lis
         z_start = (
             _clock_text(data.start_ns, z_win[0]) if data.start_ns is not None else f"t = {z_win[0]:.1f} s"
         )
-        div, prefix = _force_prefix(float(np.nanmax(np.abs(th.tau_raw), initial=0.0)))
+        div, prefix = force_prefix(float(np.nanmax(np.abs(th.tau_raw), initial=0.0)), 10.0)
         fig, axes = figure("thrust", 2)
         saved = (data.dp_performance or {}).get("wave_filtering") or {}
         for r, win in enumerate([None, z_win]):
