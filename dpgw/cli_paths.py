@@ -1,5 +1,6 @@
-"""Where a command will write, checked before it works: a folder that is not there is said at once, with
-what to do, instead of a traceback after the replay, the fit or the simulation."""
+"""Where a command will write, checked before it works: a folder that is not there, or one this user may
+not write in (a read-only USB stick, a shared data folder, a log folder owned by the service's user), is
+said at once, with what to do, instead of a traceback after the replay, the fit or the simulation."""
 
 from __future__ import annotations
 
@@ -10,9 +11,11 @@ from pathlib import Path
 
 def missing_folder(flag: str, path: str | Path | None) -> str | None:
     """``FLAG PATH: no folder DIR: create it or give another path`` when PATH's folder does not exist."""
-    if path is None or Path(path).resolve().parent.is_dir():
+    if path is None:
         return None
-    return f"{flag} {path}: no folder {Path(path).parent}: create it or give another path"
+    if not Path(path).resolve().parent.is_dir():
+        return f"{flag} {path}: no folder {Path(path).parent}: create it or give another path"
+    return unwritable(flag, path)
 
 
 def mcap_path_problem(flag: str, path: str | Path | None, *, made: bool = False) -> str | None:
@@ -32,7 +35,7 @@ def mcap_path_problem(flag: str, path: str | Path | None, *, made: bool = False)
     from wire.mcap.folder import log_folder_problem  # (light: the os module only; at use, as the rest)
 
     problem = log_folder_problem(path)
-    return f"{flag} {path}: {problem}" if problem else None
+    return f"{flag} {path}: {problem}" if problem else unwritable(flag, path)
 
 
 def made_folder_problem(flag: str, path: str | Path | None) -> str | None:
@@ -45,7 +48,43 @@ def made_folder_problem(flag: str, path: str | Path | None) -> str | None:
     from wire.mcap.folder import log_folder_problem
 
     problem = log_folder_problem(path)
-    return f"{flag} {path}: {problem}" if problem else None
+    return f"{flag} {path}: {problem}" if problem else unwritable(flag, path)
+
+
+def unwritable(flag: str, path: str | Path | None, *, folder: bool = False) -> str | None:
+    """``FLAG PATH: cannot write there (why): ...`` when this process may not write in the folder of PATH,
+    a file, or with ``folder`` in PATH itself, a folder (or make the missing levels of either); None when
+    it may. The nearest existing level is the one asked (`writable`), so nothing is made here. Why, when
+    it can be told: a read-only file system (a write-protected stick, a read-only mount) or a folder of
+    another user's; what to do is the same either way. (A file that is there is not asked about: the
+    logs are never overwritten, the next file of the set is written instead.)"""
+    if path is None:
+        return None
+    level = os.path.abspath(path) if folder else os.path.dirname(os.path.abspath(path))
+    if writable(level):
+        return None
+    while not os.path.lexists(level) and os.path.dirname(level) != level:
+        level = os.path.dirname(level)
+    why = "on a read-only file system" if _read_only(level) else f"not writable for {_user()}"
+    what = "a folder" if folder else "a path in a folder"
+    return f"{flag} {path}: cannot write there: {level} is {why}: give {what} you may write in"
+
+
+def _read_only(path: str) -> bool:
+    try:
+        return bool(os.statvfs(path).f_flag & os.ST_RDONLY)
+    except OSError:
+        return False
+
+
+def _user() -> str:
+    """This process's user by name (its number when it has no passwd entry: a container's ``--user``)."""
+    import pwd
+
+    try:
+        return f"this user ({pwd.getpwuid(os.geteuid()).pw_name})"
+    except KeyError:
+        return f"this user (uid {os.geteuid()})"
 
 
 def make_folder_for(command: str, flag: str, path: str | Path) -> None:

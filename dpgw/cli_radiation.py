@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from dpgw.cli_paths import missing_folder
+from dpgw.cli_paths import missing_folder, unwritable
 from dpgw.cli_types import finite_float, int_at_least
 
 # observers.radiation's MIN_ORDER, MAX_ORDER and R2_TARGET, written here so that `dpgw radiation --help`
@@ -222,11 +222,7 @@ def _plots_problem(folder: Path | None) -> str | None:
         return None
     if folder.exists() and not folder.is_dir():
         return f"--plots {folder}: a file, not a folder: give a folder (it is created)"
-    from dpgw.cli_paths import writable
-
-    if not writable(str(folder)):
-        return f"--plots {folder}: cannot write there: give a folder you may write in (it is created)"
-    return None
+    return unwritable("--plots", folder, folder=True)
 
 
 def _hydro_path(hydro: Path) -> tuple[Path, bool]:

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 from dpgw import cli_json
 from dpgw.cli_demo import MIN_SCORED_S
 from dpgw.cli_foxglove import add_foxglove_arg, connect_lines
-from dpgw.cli_paths import mcap_path_problem
+from dpgw.cli_paths import mcap_path_problem, unwritable
 from dpgw.cli_types import flags_given, non_negative_float, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args, listen_endpoints
 from observers.observer_names import OBSERVER_NAMES
@@ -120,9 +120,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--out",
         metavar="OUT.mcap",
-        help="write inputs and estimates here (default: beside the first log, LOG-replay.mcap; never the "
-        "log itself). One that exists is kept: the replay goes on in the next file of its set "
-        "(OUT_0001.mcap, ...), named on the console, as dpgw run, demo and sim do",
+        help="write inputs and estimates here (default: beside the first log, LOG-replay.mcap, or in the "
+        "current folder where the log's cannot be written; never the log itself). One that exists is "
+        "kept: the replay goes on in the next file of its set (OUT_0001.mcap, ...), named on the console, "
+        "as dpgw run, demo and sim do",
     )
     p.add_argument(
         "--no-foxglove-channels",
@@ -292,6 +293,16 @@ def run(args: argparse.Namespace) -> int:
         return 2
     if args.out is None and args.foxglove is None:
         args.out = default_out(args.logs[0])
+        if unwritable("--out", args.out):
+            # beside a log on a write-protected stick, a read-only mount or in a folder of another user's:
+            # the current folder, as most tools write there, said (refused below if it cannot be written
+            # either)
+            beside, args.out = args.out, Path(args.out).name
+            print(
+                f"dpgw replay: out -> {args.out} (beside the log, {beside} cannot be written; --out names "
+                "another place)",
+                file=sys.stderr,
+            )
     elif args.out is not None and any(Path(args.out).resolve() == Path(log).resolve() for log in args.logs):
         print(
             f"dpgw replay: --out {args.out} is one of the logs being replayed: give another file",
@@ -336,7 +347,7 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
-    if problem := mcap_path_problem("--out", args.out):
+    if problem := mcap_path_problem("--out", args.out) or unwritable("--report", args.report, folder=True):
         print(f"dpgw replay: {problem}", file=sys.stderr)
         return 2
     if args.report is not None and (free_report := next_free_report(args.report)) != Path(args.report):

@@ -288,6 +288,22 @@ def run(args: argparse.Namespace) -> int:
             return stop.exit_code
 
 
+def _out_problem(args: argparse.Namespace) -> str | None:
+    """What stops the study writing its outputs and its cache where asked: a file in a folder's place, or
+    a folder this user may not write in (or make)."""
+    from dpgw.cli_paths import unwritable
+
+    folders = [("--out", args.out)] + (
+        [] if args.no_cache else [("--cache", args.cache or args.out / "cache")]
+    )
+    for flag, folder in folders:
+        if folder.exists() and not folder.is_dir():
+            return f"{flag} {folder}: a file, not a folder: give a folder (it is created)"
+        if problem := unwritable(flag, folder, folder=True):
+            return problem
+    return None
+
+
 def _run(args: argparse.Namespace) -> int:
     from dpgw.study.cache import CaseCache
     from dpgw.study.runner import StudyInterrupted, StudyRunError, run_study
@@ -300,6 +316,9 @@ def _run(args: argparse.Namespace) -> int:
     except (StudySpecError, ValueError) as exc:
         # (a spec's own messages start "study: " for library callers: said once here)
         print(f"dpgw study: {str(exc).removeprefix('study: ')}", file=sys.stderr)
+        return 2
+    if problem := _out_problem(args):  # before the study, not after its hour
+        print(f"dpgw study: {problem}", file=sys.stderr)
         return 2
     cache = None if args.no_cache else CaseCache(args.cache or args.out / "cache")
     workers = 0 if args.serial else args.workers
