@@ -320,9 +320,11 @@ def _run_scenario(args: argparse.Namespace) -> int:
     # `dpgw.cli.hangup_as_terminate`) then runs no sea and closes the log complete, instead of meeting
     # Python's defaults (a traceback, or a process killed with its log cut).
     stop = {"now": False}
+    stopped_by: list[int] = []
 
     def on_signal(signum: int, _frame: object) -> None:
         stop["now"] = True
+        stopped_by[:1] = [signum]
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
@@ -546,6 +548,7 @@ def _run_scenario(args: argparse.Namespace) -> int:
     commands_rejected = dict(mav_commands.rejected) if mav_commands is not None else {}
     summary["commands_rejected"] = commands_rejected
     summary["interrupted"] = stop["now"]
+    summary["stopped_by"] = signal.Signals(stopped_by[0]).name if stopped_by else None
     if args.out:
         summary["log"] = log_path
     if recorder is not None:
@@ -558,8 +561,13 @@ def _run_scenario(args: argparse.Namespace) -> int:
     if args.json:
         print(cli_json.dumps(summary, indent=2))
     else:
+        # stopped early, said as such: "1740 s simulated" alone read as a run that went its course
+        from dpgw.cli_demo import stop_name
+
+        by = f"stopped by {stop_name(stopped_by[0])} at " if stopped_by and sim.t < duration - 1e-9 else ""
+        asked = f" of {duration:.0f} asked" if by else ""
         print(
-            f"{scenario.name}: {sim.t:.0f} s simulated in {sim.summary.wall_seconds:.1f} s "
+            f"{scenario.name}: {by}{sim.t:.0f} s simulated{asked} in {sim.summary.wall_seconds:.1f} s "
             f"({sim.summary.speedup:.0f}x real time), seed {args.seed}"
         )
         for source, n in sorted(sim.summary.emissions.items()):

@@ -13,6 +13,7 @@ import json
 import os
 import pty
 import queue
+import re
 import signal
 import socket
 import subprocess
@@ -247,5 +248,31 @@ def test_a_hangup_stops_a_realtime_simulator_with_its_log_complete(tmp_path: Pat
     proc.send_signal(signal.SIGHUP)
     stdout, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 0, stderr
-    assert json.loads(stdout)["interrupted"] is True
+    run = json.loads(stdout)
+    assert run["interrupted"] is True and run["stopped_by"] == "SIGHUP", run
     assert summary(out).complete, "the log was not closed: no summary and footer"
+
+
+def test_a_simulator_stopped_early_says_so_in_its_summary(tmp_path: Path) -> None:
+    """Ctrl-C before ``--duration``: the summary's first line says the run was stopped, and when, of how
+    much was asked (it said "1740 s simulated in 2.9 s", which read as a run that went its course)."""
+    mavlink = f"udp://127.0.0.1:{free_port(socket.SOCK_DGRAM)}"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "dpgw", "sim", "--scenario", "mss_supply_wind", "--realtime", "--duration",
+         "600", "--mavlink", mavlink, "--out", str(tmp_path / "s.mcap")],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )  # fmt: skip
+    assert proc.stderr is not None
+    for line in proc.stderr:
+        if line.startswith("MAVLink ->"):
+            break
+    else:
+        pytest.fail(f"the simulator did not start: {proc.wait()}")
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 0, stderr
+    first = stdout.splitlines()[0]
+    assert re.fullmatch(r"mss_supply_wind: stopped by Ctrl-C at \d+ s simulated of 600 asked in .*", first), (
+        first
+    )
