@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import signal
 import sys
 from dataclasses import fields, replace
 from pathlib import Path
@@ -216,8 +217,39 @@ def run(args: argparse.Namespace) -> int:
     def extra(t: float, x: Any) -> Any:
         return sum((f(t, x) for f in forces), np.zeros(3))
 
-    states = run_open_loop(vessel, inputs, options, extra if forces else None, eta0=eta0, nu0=nu0)
+    # Ctrl-C or SIGTERM (SIGHUP through `dpgw.cli.hangup_as_terminate`) ends the run at the row it has
+    # reached, and what ran is written as a whole run's would be (the states up to there, the log
+    # complete), said, with the exit status of a command a signal stopped (128 + its number): an open-loop
+    # run goes to the end of its inputs, as a replay to the end of its logs. Python's defaults gave a
+    # traceback and nothing written, or, during the writing, a file cut short.
+    stopped_by: list[int] = []
+
+    def on_signal(signum: int, _frame: object) -> None:
+        stopped_by[:1] = [signum]
+
+    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    bar = _progress_bar(len(inputs.t) - 1) if sys.stderr.isatty() and not args.json else None
+
+    def go_on(i: int) -> bool:
+        if bar is not None and (i % 100 == 0 or i == len(inputs.t) - 2):
+            bar.n = i
+            bar.refresh()
+        return not stopped_by
+
     try:
+        states = run_open_loop(
+            vessel, inputs, options, extra if forces else None, eta0=eta0, nu0=nu0, go_on=go_on
+        )
+        if bar is not None:
+            bar.close()
+        ran = len(states)
+        if stopped_by:  # (a signal during the writing below is taken when the files are complete)
+            print(
+                f"dpgw sim: stopped by {_stop_name(stopped_by[0])} at row {ran} of {len(inputs.t)} "
+                f"({states[-1][0] - states[0][0]:.0f} s of {inputs.t[-1] - inputs.t[0]:.0f} s); the states "
+                "up to there are written",
+                file=sys.stderr,
+            )
         if args.csv:
             make_folder_for("dpgw sim", "--csv", args.csv)
             write_states(args.csv, states)
@@ -227,6 +259,14 @@ def run(args: argparse.Namespace) -> int:
     except OSError as exc:
         print(f"dpgw sim: {exc}", file=sys.stderr)
         return 2
+    finally:
+        if bar is not None:
+            bar.close()
+        for sig, handler in previous.items():
+            if handler is not None:  # (None: installed outside Python, cannot be put back from here)
+                signal.signal(sig, handler)
+    interrupted = ran < len(inputs.t)
+    status = 128 + stopped_by[0] if interrupted else 0
     end = states[-1]
     if args.json:
         from dpgw import cli_json
@@ -239,16 +279,31 @@ def run(args: argparse.Namespace) -> int:
             "end": dict(zip(STATE_COLUMNS, (float(x) for x in end), strict=True)),
             "csv": args.csv,
             "out": args.out,
+            "interrupted": interrupted,
+            "stopped_by": signal.Signals(stopped_by[0]).name if interrupted else None,
         }
         print(cli_json.dumps(summary, indent=2))
-        return 0
+        return status
+    of = f" of {len(inputs.t)}" if interrupted else ""
     print(
-        f"{vessel.name}: {len(states)} input rows, {end[0] - states[0][0]:.0f} s open loop; end at "
+        f"{vessel.name}: {len(states)}{of} input rows, {end[0] - states[0][0]:.0f} s open loop; end at "
         f"N {end[1]:.1f} m, E {end[2]:.1f} m, heading {end[3]:.1f}°"
         + (f"; states: {args.csv}" if args.csv else "")
         + (f"; log: {args.out}" if args.out else "")
     )
-    return 0
+    return status
+
+
+def _progress_bar(rows: int) -> Any:
+    from tqdm import tqdm
+
+    return tqdm(total=rows, unit="row", file=sys.stderr, dynamic_ncols=True)
+
+
+def _stop_name(signum: int) -> str:
+    from dpgw.cli_demo import stop_name
+
+    return stop_name(signum)
 
 
 def inputs_problem(path: str) -> str | None:

@@ -221,11 +221,14 @@ def run_open_loop(
     extra_step_s: float = 0.25,
     eta0: ArrayLike = (0.0, 0.0, 0.0),
     nu0: ArrayLike = (0.0, 0.0, 0.0),
+    go_on: Callable[[int], bool] | None = None,
 ) -> Array:
     """Integrate the full plant through the inputs; the state rows (STATE_COLUMNS) at every input time.
 
     Without ``extra_force`` or recorded wind each interval is one call of the compiled RK4 (steps of at
     most 0.05 s); with them, the forces are re-evaluated every ``extra_step_s`` and held in between.
+    ``go_on(i)``, when given, is asked before row i is integrated on to row i + 1 (a progress bar, a
+    stop): when it says no, the rows up to i are returned, each exactly as in the whole run.
     """
     plant = FullPlant(vessel, eta0, nu0, options=options)
     area = vessel.hull.wind if vessel.hull is not None else None
@@ -237,6 +240,8 @@ def run_open_loop(
         out[i] = (t, x[0], x[1], math.degrees(x[2]), x[3], x[4], math.degrees(x[5]))
         if i == len(inputs.t) - 1:
             break
+        if go_on is not None and not go_on(i):
+            return out[: i + 1]
         thrust = [th.thrust_at_rpm(n) for th, n in zip(vessel.thrusters, inputs.rpm[i], strict=True)]
         tau = vessel.generalized_force(thrust, np.radians(inputs.alpha_deg[i])) if thrust else np.zeros(3)
         b = math.radians(inputs.current_dir_deg[i])

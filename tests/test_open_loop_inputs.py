@@ -122,3 +122,92 @@ def test_a_vessel_without_hull_gives_the_flags_to_copy(
         == "--plant-option coriolis=off --plant-option surge_resistance=off --plant-option crossflow=off"
     )
     assert main([*argv, *shlex.split(flags)]) == 0
+
+
+def test_an_open_loop_run_stopped_at_a_row_returns_the_whole_runs_rows_up_to_it() -> None:
+    """``go_on`` (a progress bar, a stop): the rows before the stop are exactly the whole run's."""
+    from simulator.open_loop import run_open_loop
+
+    inputs = read_inputs(STEPS, OSV)
+    whole = run_open_loop(OSV, inputs)
+    asked: list[int] = []
+
+    def go_on(i: int) -> bool:
+        asked.append(i)
+        return i < 25
+
+    part = run_open_loop(OSV, inputs, go_on=go_on)
+    assert asked == list(range(26)) and part.shape == (26, whole.shape[1])
+    np.testing.assert_array_equal(part, whole[:26])
+
+
+def test_ctrl_c_stops_an_open_loop_run_with_what_ran_written(tmp_path: Path) -> None:
+    """A long open-loop run (days of recorded inputs) stopped with Ctrl-C: the states up to the row reached
+    are written (the CSV and a complete log), said on stderr and in the summary, exit status 130. Before:
+    a KeyboardInterrupt traceback, nothing written, or a log cut short. Waits for the progress bar (stderr
+    on a terminal) to show the run under way, then interrupts it."""
+    import fcntl
+    import os
+    import pty
+    import re
+    import signal
+    import struct
+    import subprocess
+    import sys
+    import termios
+
+    from conftest import wait_for
+
+    from wire.mcap.reader import read_messages, summary
+
+    head, *rows = STEPS.read_text(encoding="utf-8").splitlines()
+    step = float(rows[1].split(",")[0]) - float(rows[0].split(",")[0])
+    body = [",".join([f"{k * step:g}", *r.split(",")[1:]]) for k, r in enumerate(rows * 300)]
+    inputs = _write(tmp_path, [head, *body])  # 180,000 rows: ~30 s to run, stopped long before
+    csv, log = tmp_path / "states.csv", tmp_path / "states.mcap"
+    argv = ["sim", "--vessel", "mss_osv", "--inputs", str(inputs), "--csv", str(csv), "--out", str(log)]
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 80, 0, 0))  # (a new pty is 0 wide)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "dpgw", *argv],
+        cwd=REPO, stdout=subprocess.PIPE, stderr=slave, text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )  # fmt: skip
+    os.close(slave)
+    seen = bytearray()
+
+    def under_way() -> bool:
+        try:
+            seen.extend(os.read(master, 65536))
+        except OSError:  # (EIO: the process ended, every end of the terminal closed)
+            pytest.fail(f"the run ended before it was stopped: {proc.wait()} {seen.decode(errors='replace')}")
+        return re.search(rb"\d+/\d+ \[", seen) is not None and b" 0/" not in seen[-200:]
+
+    try:
+        assert wait_for(under_way, 120.0), seen.decode(errors="replace")
+        proc.send_signal(signal.SIGINT)
+        stdout, _ = proc.communicate(timeout=60)
+        while True:
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:
+                break
+            if not chunk:
+                break
+            seen.extend(chunk)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        os.close(master)
+    err = seen.decode(errors="replace")
+    assert proc.returncode == 130, (stdout, err)
+    assert "Traceback" not in err, err
+    said = re.search(r"dpgw sim: stopped by Ctrl-C at row (\d+) of (\d+) \(", err)
+    assert said is not None and int(said[2]) == len(body), err
+    ran = int(said[1])
+    assert 0 < ran < len(body)
+    assert stdout.startswith(f"mss_osv: {ran} of {len(body)} input rows, "), stdout
+    assert len(csv.read_text().splitlines()) == ran + 1
+    assert summary(log).complete
+    assert sum(1 for _ in read_messages(log, "/truth/state")) == ran
