@@ -464,84 +464,104 @@ def run(args: argparse.Namespace) -> int:
             bar.close()
         if publisher is not None:
             publisher.close()
-    if result.events == 0:
-        Path(args.out).unlink(missing_ok=True)
-        print(f"dpgw replay: {nothing_to_replay(inputs, result)}", file=sys.stderr)
-        return 2
-    wall = time.perf_counter() - t0
-    if args.settle is None:  # a demo's log is scored over the stretch the demo scored it over
-        args.settle = logged_settle_s(inputs)
-    # and on as much sea as the demo scores (a demo stopped soon after its skip: "not scored", as it said)
-    args.min_scored = logged_min_scored_s(inputs, older_demo=MIN_SCORED_S)
-    summary = _summary(args, specs, result, wall)
-    live = _live_records(inputs)
-    first_ns = min((a for a, _ in result.spans.values()), default=0)
-    summary["dp_performance"] = _dp_performance(live, first_ns)
-    compared = None
-    if args.report is not None and summary["dp_performance"] is not None:
-        # with a report (the analysis): what the live gateway's wave filtering kept out of its commanded
-        # thrust, against the same controller fed the raw measurements (the log replayed once more)
-        from dpgw.raw_feedback import compare_with_raw_feedback, thrust_wave_band
+    # The replay is done and its output complete; the analysis after it (the summary, the comparison
+    # with raw feedback that replays the log once more, the report's plots) can take as long again. A
+    # signal there stops it at once, said, instead of a KeyboardInterrupt traceback (or, on SIGTERM, a
+    # killed process) with the report half written.
+    try:
+        with _RaiseOnSignal():
+            if result.events == 0:
+                Path(args.out).unlink(missing_ok=True)
+                print(f"dpgw replay: {nothing_to_replay(inputs, result)}", file=sys.stderr)
+                return 2
+            wall = time.perf_counter() - t0
+            if args.settle is None:  # a demo's log is scored over the stretch the demo scored it over
+                args.settle = logged_settle_s(inputs)
+            # and on as much sea as the demo scores (a demo stopped soon after its skip: "not scored", as it
+            # said)
+            args.min_scored = logged_min_scored_s(inputs, older_demo=MIN_SCORED_S)
+            summary = _summary(args, specs, result, wall)
+            live = _live_records(inputs)
+            first_ns = min((a for a, _ in result.spans.values()), default=0)
+            summary["dp_performance"] = _dp_performance(live, first_ns)
+            compared = None
+            if args.report is not None and summary["dp_performance"] is not None:
+                # with a report (the analysis): what the live gateway's wave filtering kept out of its
+                # commanded thrust, against the same controller fed the raw measurements (the log replayed
+                # once more)
+                from dpgw.raw_feedback import compare_with_raw_feedback, thrust_wave_band
 
-        compared = compare_with_raw_feedback(
-            args.logs, live["/dp/thrusters/command"], thrust_wave_band(config.vessel)
-        )
-        summary["dp_performance"]["wave_filtering"] = compared.figures
-    kinds = {s.label: (s.name, s.name in SCHEDULES_OMEGA0 or bool(s.params.get("adaptive"))) for s in specs}
-    summary["wave_check"] = evidence.check(config.vessel.length_m, config.vessel.model_scale, kinds).as_dict()
-    summary["vessel_check"] = evidence.vessel_check(config.vessel).as_dict()
-    summary["measurements"] = evidence.measured()
-    summary["cut_logs"] = cut_logs(inputs)
-    # a signed link's key is not in the log (docs/gateway.md, "Replay of a signed link"): the live
-    # gateway's verdicts applied, or (an older log) its frames taken with their signatures unchecked
-    summary["signature_verdicts"] = verdicts.counts if verdicts is not None else {}
-    summary["signatures_unchecked"] = unchecked_signatures(inputs, keyless)
-    checks = [
-        *(f"warning: {w}" for w in summary["wave_check"]["warnings"]),
-        *(f"note: {n}" for n in summary["wave_check"]["notes"]),
-    ]
-    report_warnings: list[str] = []
-    if args.report:
-        written, report_warnings = _report(
-            args, config.vessel.name, specs, result, evidence.new, checks, live, compared
-        )
-        summary["report"] = [str(p) for p in written]
-        summary["report_warnings"] = report_warnings
-        if not any(p.suffix == ".png" for p in written):
-            from gateway.report.plots import load_figure
+                compared = compare_with_raw_feedback(
+                    args.logs, live["/dp/thrusters/command"], thrust_wave_band(config.vessel)
+                )
+                summary["dp_performance"]["wave_filtering"] = compared.figures
+            kinds = {
+                s.label: (s.name, s.name in SCHEDULES_OMEGA0 or bool(s.params.get("adaptive"))) for s in specs
+            }
+            summary["wave_check"] = evidence.check(
+                config.vessel.length_m, config.vessel.model_scale, kinds
+            ).as_dict()
+            summary["vessel_check"] = evidence.vessel_check(config.vessel).as_dict()
+            summary["measurements"] = evidence.measured()
+            summary["cut_logs"] = cut_logs(inputs)
+            # a signed link's key is not in the log (docs/gateway.md, "Replay of a signed link"): the live
+            # gateway's verdicts applied, or (an older log) its frames taken with their signatures unchecked
+            summary["signature_verdicts"] = verdicts.counts if verdicts is not None else {}
+            summary["signatures_unchecked"] = unchecked_signatures(inputs, keyless)
+            checks = [
+                *(f"warning: {w}" for w in summary["wave_check"]["warnings"]),
+                *(f"note: {n}" for n in summary["wave_check"]["notes"]),
+            ]
+            report_warnings: list[str] = []
+            if args.report:
+                written, report_warnings = _report(
+                    args, config.vessel.name, specs, result, evidence.new, checks, live, compared
+                )
+                summary["report"] = [str(p) for p in written]
+                summary["report_warnings"] = report_warnings
+                if not any(p.suffix == ".png" for p in written):
+                    from gateway.report.plots import load_figure
 
-            if load_figure() is None:
-                from gateway.report.writer import NO_MATPLOTLIB
+                    if load_figure() is None:
+                        from gateway.report.writer import NO_MATPLOTLIB
 
-                print(f"dpgw replay: --report: {NO_MATPLOTLIB}", file=sys.stderr)
-    if args.json:
-        print(cli_json.dumps(summary, indent=2))
-    else:
-        _print(summary)
-    if truth_note is not None:
-        print(f"dpgw replay: warning: --truth: {truth_note}", file=sys.stderr)
-    for warning in [*_cut(summary), *_no_estimates(summary)]:
-        print(f"dpgw replay: warning: {warning}", file=sys.stderr)
-    for line in checks:  # (the wave check: in report.md too, as said here)
-        print(f"dpgw replay: {line}", file=sys.stderr)
-    for warning in report_warnings:
-        print(f"dpgw replay: warning: report: {warning}", file=sys.stderr)
-    for source, live in summary["signature_verdicts"].items():
-        print(f"dpgw replay: note: {_verdict_note(source, live, result.counts)}", file=sys.stderr)
-    for source, live in summary["signatures_unchecked"].items():
-        rejected = sum(live.values())
+                        print(f"dpgw replay: --report: {NO_MATPLOTLIB}", file=sys.stderr)
+            if args.json:
+                print(cli_json.dumps(summary, indent=2))
+            else:
+                _print(summary)
+            if truth_note is not None:
+                print(f"dpgw replay: warning: --truth: {truth_note}", file=sys.stderr)
+            for warning in [*_cut(summary), *_no_estimates(summary)]:
+                print(f"dpgw replay: warning: {warning}", file=sys.stderr)
+            for line in checks:  # (the wave check: in report.md too, as said here)
+                print(f"dpgw replay: {line}", file=sys.stderr)
+            for warning in report_warnings:
+                print(f"dpgw replay: warning: report: {warning}", file=sys.stderr)
+            for source, live in summary["signature_verdicts"].items():
+                print(f"dpgw replay: note: {_verdict_note(source, live, result.counts)}", file=sys.stderr)
+            for source, live in summary["signatures_unchecked"].items():
+                rejected = sum(live.values())
+                print(
+                    f"dpgw replay: note: {source}: MAVLink signatures not checked (a log never holds the "
+                    "signing key); "
+                    + (
+                        "the live gateway rejected no frame for its signature: the same frames as live"
+                        if not rejected
+                        else f"the live gateway rejected {rejected} frames for their signature "
+                        f"({', '.join(f'{k} {v}' for k, v in live.items() if v)}), which this replay took"
+                    ),
+                    file=sys.stderr,
+                )
+            return 0
+    except _StopRequestedError as exc:
+        report = f"; the report in {args.report} is incomplete" if args.report else ""
         print(
-            f"dpgw replay: note: {source}: MAVLink signatures not checked (a log never holds the signing "
-            "key); "
-            + (
-                "the live gateway rejected no frame for its signature: the same frames as live"
-                if not rejected
-                else f"the live gateway rejected {rejected} frames for their signature "
-                f"({', '.join(f'{k} {v}' for k, v in live.items() if v)}), which this replay took"
-            ),
+            f"dpgw replay: stopped ({exc.name}) after the replay, while {exc.at}; {args.out} is complete "
+            f"(the whole log replayed){report}; no summary",
             file=sys.stderr,
         )
-    return 0
+        return 128 + exc.signum
 
 
 def _take_truth(path: Path, pipeline: Any, result: ReplayResult, out: Any) -> str | None:
@@ -940,6 +960,27 @@ class _StopOnSignal:
                 raise _StopRequestedError(self.signum, at)
 
         return checked
+
+
+class _RaiseOnSignal:
+    """Ctrl-C (SIGINT) or SIGTERM after the replay, while it is analysed: `_StopRequestedError` at once
+    (the analysis holds no file open that a stop would leave cut: the output is closed already)."""
+
+    def __init__(self) -> None:
+        self._previous: dict[int, Any] = {}
+
+    def __enter__(self) -> _RaiseOnSignal:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            self._previous[sig] = signal.signal(sig, self._on_signal)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+
+    @staticmethod
+    def _on_signal(signum: int, _frame: object) -> None:
+        raise _StopRequestedError(signum, "analysing it for the summary and the report")
 
 
 class _Publisher:

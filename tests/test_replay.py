@@ -489,6 +489,47 @@ def test_a_paced_replay_stops_on_ctrl_c_or_sigterm_with_a_complete_output(
     assert info.complete and info.channels["/dp/estimate"].message_count > 0
 
 
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_while_the_replay_is_analysed_stops_it_saying_what_is_complete(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], sig: signal.Signals
+) -> None:
+    """After the replay, its analysis (the summary, the comparison with raw feedback, the report's plots)
+    can take as long again. Ctrl-C there gave a KeyboardInterrupt traceback (SIGTERM: a killed process),
+    the report half written. Now one line says what is complete and what is not, status 128 + signal. The
+    signal is the process's own, sent as the report starts (in process: where it lands is then certain)."""
+    import dpgw.cli_replay as cli_replay
+    from dpgw.cli import main
+    from wire.mcap.reader import summary
+
+    log, out, report = tmp_path / "trial.txt", tmp_path / "out.mcap", tmp_path / "rep"
+    t0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
+    write_text_log(log, [t0 + timedelta(seconds=k) for k in range(120)])
+    real_report = cli_replay._report
+
+    def report_interrupted(*a: Any, **k: Any) -> Any:
+        os.kill(os.getpid(), sig)
+        return real_report(*a, **k)
+
+    monkeypatch.setattr(cli_replay, "_report", report_interrupted)
+    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        code = main(
+            ["replay", str(log), "--vessel", "mss_supply", "--out", str(out), "--report", str(report)]
+        )
+    finally:
+        assert {s: signal.getsignal(s) for s in handlers} == handlers  # given back
+    err = capsys.readouterr().err
+    assert code == 128 + sig, err
+    assert "Traceback" not in err
+    assert err.splitlines()[-1] == (
+        f"dpgw replay: stopped ({sig.name}) after the replay, while analysing it for the summary and the "
+        f"report; {out} is complete (the whole log replayed); the report in {report} is incomplete; no "
+        "summary"
+    ), err
+    info = summary(out)
+    assert info.complete and info.channels["/dp/estimate"].message_count > 100
+
+
 def test_midnight_rollover_and_bad_time_are_counted(tmp_path: Path) -> None:
     t0 = datetime(2026, 3, 1, 23, 59, 50, tzinfo=UTC)
     times = [t0 + timedelta(seconds=k) for k in range(20)]  # crosses midnight
