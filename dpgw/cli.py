@@ -178,6 +178,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 128 + 13
+    except KeyboardInterrupt:
+        # Ctrl-C where the command has no stop of its own (its start-up: reading the logs, loading the
+        # vessel, compiling kernels; a short command: a fit, a capability plot): one line and the status a
+        # shell gives (130), not a traceback. The long runs stop their own way, their files complete.
+        print(
+            f"{chr(10) if stderr.isatty() else ''}dpgw {args.command}: stopped by Ctrl-C before it finished",
+            file=stderr,
+        )
+        import signal
+
+        return 128 + signal.SIGINT
     finally:
         sys.stderr = stderr
     return code

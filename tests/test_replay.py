@@ -530,6 +530,30 @@ def test_a_signal_while_the_replay_is_analysed_stops_it_saying_what_is_complete(
     assert info.complete and info.channels["/dp/estimate"].message_count > 100
 
 
+def test_ctrl_c_while_a_command_starts_is_one_line_and_status_130(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Where a command has no stop of its own (here: a replay reading its logs before it replays them; a
+    fit, a capability plot), Ctrl-C ends it with one line and the status a shell gives, not a traceback.
+    The signal is the process's own, sent while the logs are opened."""
+    import gateway.replay
+    from dpgw.cli import main
+
+    log = tmp_path / "trial.txt"
+    write_text_log(log, [datetime(2026, 3, 1, 12, 0, k, tzinfo=UTC) for k in range(10)])
+    real_open = gateway.replay.open_inputs
+
+    def open_interrupted(*a: Any, **k: Any) -> Any:
+        os.kill(os.getpid(), signal.SIGINT)
+        return real_open(*a, **k)
+
+    monkeypatch.setattr(gateway.replay, "open_inputs", open_interrupted)
+    code = main(["replay", str(log), "--vessel", "mss_supply", "--out", str(tmp_path / "out.mcap")])
+    err = capsys.readouterr().err
+    assert code == 130, err
+    assert err.splitlines() == ["dpgw replay: stopped by Ctrl-C before it finished"], err
+
+
 def test_midnight_rollover_and_bad_time_are_counted(tmp_path: Path) -> None:
     t0 = datetime(2026, 3, 1, 23, 59, 50, tzinfo=UTC)
     times = [t0 + timedelta(seconds=k) for k in range(20)]  # crosses midnight
