@@ -188,6 +188,7 @@ def run(args: argparse.Namespace) -> int:
         "slowest_rate_any_heading": slowest,
         "checks": [c.as_dict() for c in checks],
         "notch_db": notch.tolist(),
+        "notes": [note] if (note := sea_period_note(args.wave_period, vessel.model_scale)) else [],
     }
     if args.json:
         print(cli_json.dumps(result, indent=2))
@@ -239,4 +240,27 @@ def _text(r: dict[str, Any], source: str) -> str:
     lines.append(f"notch depth at ω0 (LF estimate / WF motion): {notch} dB (surge, sway, yaw)")
     if math.isfinite(slow) and slow > -0.01:
         lines.append("note: slowest error mode is slower than 100 s; raise --velocity-injection")
+    lines += [f"note: {n}" for n in r["notes"]]
     return "\n".join(lines)
+
+
+SEA_PERIOD_S = (2.0, 25.0)
+"""Wave periods a sea has at full scale (s): from a short wind sea to a long swell. A tuning outside them
+is still made (a test of the observer may want one), with a note: the usual cause is a frequency in rad/s
+given as the period, or a model's period given for the ship or the other way round."""
+
+
+def sea_period_note(period_s: float, model_scale: float | None) -> str | None:
+    """The note for a wave period no sea has at the vessel's scale (Froude: periods scale as √λ), or
+    None."""
+    root = math.sqrt(model_scale) if model_scale else 1.0
+    lo, hi = SEA_PERIOD_S[0] / root, SEA_PERIOD_S[1] / root
+    if lo <= period_s <= hi:
+        return None
+    scale = f" for this 1:{model_scale:g} model, Froude-scaled" if model_scale else " at full scale"
+    if model_scale and SEA_PERIOD_S[0] <= period_s <= SEA_PERIOD_S[1]:
+        hint = f"a full-scale period? At 1:{model_scale:g} it is {period_s / root:.3g} s"
+    else:
+        w0 = 2 * math.pi / period_s
+        hint = f"check that it is the period in seconds, not ω0 in rad/s (ω0 = 2π/T: {w0:.3g} rad/s here)"
+    return f"a wave period of {period_s:g} s is no sea's ({lo:.2g}-{hi:.2g} s{scale}): {hint}"

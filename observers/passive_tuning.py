@@ -362,8 +362,14 @@ def check_tuning_rule(gains: PassiveGains) -> Check:
 
 
 def check_spr(gains: PassiveGains, points_per_decade: int = 400) -> Check:
-    """Proposition 1: arg hᵢ(jω) > −90° for all ω (checked on 1e-6…1e4 rad/s, log-spaced)."""
-    omega = np.logspace(-6, 4, 10 * points_per_decade + 1)
+    """Proposition 1: arg hᵢ(jω) > −90° for all ω (checked on 1e-6…1e4 rad/s, log-spaced, widened to a
+    decade beyond the tuning's own corners: a wave period of years or of milliseconds, which no sea has,
+    still gets its answer instead of an empty band)."""
+    corners = np.concatenate([np.diag(gains.T) ** -1, gains.omega0, gains.omega_c])
+    corners = corners[np.isfinite(corners) & (corners > 0)]
+    lo = min(-6.0, math.floor(math.log10(corners.min())) - 1) if corners.size else -6.0
+    hi = max(4.0, math.ceil(math.log10(corners.max())) + 2) if corners.size else 4.0
+    omega = np.logspace(lo, hi, round(hi - lo) * points_per_decade + 1)
     phase = np.degrees(np.unwrap(np.angle(h_transfer(gains, omega)), axis=1))
     i_min = np.argmin(phase, axis=1)
     min_phase = phase[np.arange(3), i_min]

@@ -92,3 +92,39 @@ def test_tune_shows_the_gains_the_gateway_runs(capsys, tmp_path) -> None:  # typ
     with pytest.raises(SystemExit) as refused:  # (argparse: the usage and the message, exit status 2)
         main(["tune", "--vessel", "cybership2", "--wave-period", "6.8", "--loop-bandwidth", "fast"])
     assert refused.value.code == 2 and "--loop-bandwidth" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("period", ["1e9", "1e-6"])
+def test_a_wave_period_no_sea_has_is_tuned_and_checked_with_a_note(capsys, period: str) -> None:  # type: ignore[no-untyped-def]
+    """Before: 1e9 s stopped on a traceback (the SPR check's frequency band was empty below 1e-6 rad/s).
+    Its checks are made on a frequency grid that reaches a decade beyond the tuning's corners."""
+    code = main(["tune", "--vessel", "mss_supply", "--wave-period", period, "--json"])
+    r = json.loads(capsys.readouterr().out)
+    assert code in (0, 1)
+    spr = next(c for c in r["checks"] if c["name"] == "spr")
+    assert "margin" in spr["detail"]
+    assert len(r["notes"]) == 1 and r["notes"][0].startswith(
+        f"a wave period of {float(period):g} s is no sea's (2-25 s at full scale): check that it is the "
+        "period in seconds, not ω0 in rad/s"
+    ), r["notes"]
+
+
+def test_the_note_on_a_wave_period_knows_the_vessels_scale(capsys) -> None:  # type: ignore[no-untyped-def]
+    """ω0 given as the period, a full-scale period given for a 1:70 model: each said, with what it likely
+    meant; a sea's period at the vessel's scale: no note."""
+
+    def notes(vessel: str, period: str) -> list[str]:
+        main(["tune", "--vessel", vessel, "--wave-period", period, "--json"])
+        return json.loads(capsys.readouterr().out)["notes"]
+
+    assert notes("mss_supply", "9") == [] and notes("cybership2", "0.84") == []
+    assert notes("mss_supply", "0.9") == [
+        "a wave period of 0.9 s is no sea's (2-25 s at full scale): check that it is the period in seconds, "
+        "not ω0 in rad/s (ω0 = 2π/T: 6.98 rad/s here)"
+    ]
+    assert notes("cybership2", "8") == [
+        "a wave period of 8 s is no sea's (0.24-3 s for this 1:70 model, Froude-scaled): a full-scale "
+        "period? At 1:70 it is 0.956 s"
+    ]
+    assert main(["tune", "--vessel", "cybership2", "--wave-period", "8"]) in (0, 1)
+    assert "note: a wave period of 8 s is no sea's" in capsys.readouterr().out
