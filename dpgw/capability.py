@@ -394,6 +394,7 @@ def capability(
     failures: str = "each",
     failure_groups: Sequence[Collection[int]] | None = None,
     u_limit: float | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> CapabilityResult:
     """U_max per direction, intact and (``failures`` "each" or "worst") after each single failure;
     "none": intact only. "worst" keeps only the intact case and the per-direction minimum. A failure is
@@ -401,7 +402,8 @@ def capability(
     engine room: the worst-case failure of the vessel's FMEA) and each thruster in no group alone
     (`gateway.control.consequence.failure_cases`, as the online consequence analysis tests them).
     The search (`limit_speed`) stops at ``u_limit`` (default `U_LIMIT_MPS`); its grid, tolerance and
-    default limit are Froude-scaled (÷ √λ) for a 1:λ laboratory model."""
+    default limit are Froude-scaled (÷ √λ) for a 1:λ laboratory model. ``progress(done, total)``, when
+    given, is called after each direction (a progress bar: a fine ``step_deg`` takes minutes)."""
     if failures not in ("none", "each", "worst"):
         raise ValueError(f"failures must be 'none', 'each' or 'worst', got {failures!r}")
     if not vessel.thrusters:
@@ -453,6 +455,8 @@ def capability(
             out.append(limit_speed(scale_at, u_limit=u_limit, grid=grid, tol=tol))
             if beaufort:
                 number.append(dp_number(scale_at(u) for u in row_winds))
+        if progress is not None:
+            progress(len(per_case[0]), len(dirs))
     cases = tuple(
         CapabilityCase(label, failed, tuple(u), tuple(n) if beaufort else None)
         for (label, failed), u, n in zip(conditions, per_case, numbers, strict=True)

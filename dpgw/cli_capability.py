@@ -197,6 +197,23 @@ def run(args: argparse.Namespace) -> int:
         sea=args.sea,
         dynamic_factor=factor,
     )
+    bar = None
+    if sys.stderr.isatty() and not args.json:  # a fine --step-deg takes minutes (1°: ~20 s)
+        from tqdm import tqdm
+
+        bar = tqdm(
+            total=round(360.0 / args.step_deg),
+            unit="direction",
+            file=sys.stderr,
+            dynamic_ncols=True,
+            leave=False,
+        )
+
+    def progress(done: int, _total: int) -> None:
+        if bar is not None:
+            bar.n = done
+            bar.refresh()
+
     try:
         result = capability(
             vessel,
@@ -204,10 +221,14 @@ def run(args: argparse.Namespace) -> int:
             step_deg=args.step_deg,
             failures=args.failures,
             failure_groups=args.failure_group,
+            progress=progress,
         )
     except ValueError as exc:  # a failure group naming a thruster the vessel does not have
         print(f"dpgw capability: --failure-group: {exc}", file=sys.stderr)
         return 2
+    finally:
+        if bar is not None:
+            bar.close()
     if args.json:
         print(cli_json.dumps(result.to_dict(), indent=1))
     else:

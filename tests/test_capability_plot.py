@@ -109,6 +109,18 @@ def test_u_max_is_where_the_thrusters_scale_crosses_one_and_worst_is_the_minimum
         assert res.cases[1:][fails.index(min(fails))].failed == res.worst_failed[i]
 
 
+def test_progress_is_told_after_each_direction_and_changes_nothing() -> None:
+    """A fine --step-deg takes minutes: the command's progress bar is told after each direction, the
+    directions counted up to all of them; the result is the same as without it."""
+    v = load_vessel("mss_supply")
+    told: list[tuple[int, int]] = []
+    res = capability(
+        v, step_deg=90.0, failures="none", progress=lambda done, total: told.append((done, total))
+    )
+    assert told == [(1, 4), (2, 4), (3, 4), (4, 4)]
+    assert res == capability(v, step_deg=90.0, failures="none")
+
+
 def test_the_command_prints_a_table_json_and_a_plot(tmp_path, capsys: pytest.CaptureFixture[str]) -> None:  # type: ignore[no-untyped-def]
     png = tmp_path / "cap.png"
     args = ["capability", "--vessel", "mss_supply", "--step-deg", "90", "--failures", "worst"]
