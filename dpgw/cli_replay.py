@@ -962,24 +962,11 @@ class _StopOnSignal:
         return checked
 
 
-class _RaiseOnSignal:
+class _RaiseOnSignal(_StopOnSignal):
     """Ctrl-C (SIGINT) or SIGTERM after the replay, while it is analysed: `_StopRequestedError` at once
     (the analysis holds no file open that a stop would leave cut: the output is closed already)."""
 
-    def __init__(self) -> None:
-        self._previous: dict[int, Any] = {}
-
-    def __enter__(self) -> _RaiseOnSignal:
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            self._previous[sig] = signal.signal(sig, self._on_signal)
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        for sig, handler in self._previous.items():
-            signal.signal(sig, handler)
-
-    @staticmethod
-    def _on_signal(signum: int, _frame: object) -> None:
+    def _on_signal(self, signum: int, _frame: object) -> None:
         raise _StopRequestedError(signum, "analysing it for the summary and the report")
 
 

@@ -228,26 +228,35 @@ def test_a_hangup_ignored_by_nohup_stays_ignored(tmp_path: Path) -> None:
     assert_log_complete_with_every_byte(log, result["status"])
 
 
+def _stop_a_running_simulator(sig: signal.Signals, *argv: str) -> tuple[int, str, str]:
+    """``dpgw sim --scenario mss_supply_wind --realtime ARGV`` sending MAVLink to a free port, stopped with
+    ``sig`` once it says where its MAVLink goes (it runs then): its exit status, stdout and stderr. The
+    signal's default action is restored for the child, as a terminal or an SSH session starts it."""
+    mavlink = f"udp://127.0.0.1:{free_port(socket.SOCK_DGRAM)}"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "dpgw", "sim", "--scenario", "mss_supply_wind", "--realtime", "--mavlink",
+         mavlink, *argv],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=lambda: signal.signal(sig, signal.SIG_DFL),
+    )  # fmt: skip
+    assert proc.stderr is not None
+    for line in proc.stderr:
+        if line.startswith("MAVLink ->"):
+            break
+    else:
+        pytest.fail(f"the simulator did not start: {proc.wait()}")
+    proc.send_signal(sig)
+    stdout, stderr = proc.communicate(timeout=60)
+    return proc.returncode, stdout, stderr
+
+
 def test_a_hangup_stops_a_realtime_simulator_with_its_log_complete(tmp_path: Path) -> None:
     """``dpgw sim --realtime`` on the bench, started over SSH: the session dropping (SIGHUP) ends the run
     as Ctrl-C does, the log complete and the summary saying it was interrupted. Before: killed at once
     (status -1), its log without summary or footer."""
     out = tmp_path / "sim.mcap"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "dpgw", "sim", "--scenario", "mss_supply_wind", "--realtime", "--json",
-         "--mavlink", f"udp://127.0.0.1:{free_port(socket.SOCK_DGRAM)}", "--out", str(out)],
-        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_DFL),
-    )  # fmt: skip
-    assert proc.stderr is not None
-    for line in proc.stderr:  # the simulator says where its MAVLink goes once it runs
-        if line.startswith("MAVLink ->"):
-            break
-    else:
-        pytest.fail(f"the simulator did not start: {proc.wait()}")
-    proc.send_signal(signal.SIGHUP)
-    stdout, stderr = proc.communicate(timeout=60)
-    assert proc.returncode == 0, stderr
+    code, stdout, stderr = _stop_a_running_simulator(signal.SIGHUP, "--json", "--out", str(out))
+    assert code == 0, stderr
     run = json.loads(stdout)
     assert run["interrupted"] is True and run["stopped_by"] == "SIGHUP", run
     assert summary(out).complete, "the log was not closed: no summary and footer"
@@ -256,22 +265,9 @@ def test_a_hangup_stops_a_realtime_simulator_with_its_log_complete(tmp_path: Pat
 def test_a_simulator_stopped_early_says_so_in_its_summary(tmp_path: Path) -> None:
     """Ctrl-C before ``--duration``: the summary's first line says the run was stopped, and when, of how
     much was asked (it said "1740 s simulated in 2.9 s", which read as a run that went its course)."""
-    mavlink = f"udp://127.0.0.1:{free_port(socket.SOCK_DGRAM)}"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "dpgw", "sim", "--scenario", "mss_supply_wind", "--realtime", "--duration",
-         "600", "--mavlink", mavlink, "--out", str(tmp_path / "s.mcap")],
-        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-    )  # fmt: skip
-    assert proc.stderr is not None
-    for line in proc.stderr:
-        if line.startswith("MAVLink ->"):
-            break
-    else:
-        pytest.fail(f"the simulator did not start: {proc.wait()}")
-    proc.send_signal(signal.SIGINT)
-    stdout, stderr = proc.communicate(timeout=60)
-    assert proc.returncode == 0, stderr
+    argv = ("--duration", "600", "--out", str(tmp_path / "s.mcap"))
+    code, stdout, stderr = _stop_a_running_simulator(signal.SIGINT, *argv)
+    assert code == 0, stderr
     first = stdout.splitlines()[0]
     assert re.fullmatch(r"mss_supply_wind: stopped by Ctrl-C at \d+ s simulated of 600 asked in .*", first), (
         first

@@ -58,10 +58,13 @@ def test_ctrl_c_is_named_in_the_summary_and_in_json(tmp_path: Path) -> None:
         err: list[str] = []
 
         def read(stream=proc.stderr, err=err, started=started) -> None:  # type: ignore[no-untyped-def]
-            for line in stream:
-                err.append(line)
-                if line.startswith("dpgw run: vessel"):
-                    started.put(line)
+            try:
+                for line in stream:
+                    err.append(line)
+                    if line.startswith("dpgw run: vessel"):
+                        started.put(line)
+            except ValueError:  # `communicate` below closed the stream it read the rest of: done
+                pass
 
         reader = threading.Thread(target=read, daemon=True)
         reader.start()
