@@ -100,7 +100,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "logs",
         nargs="+",
         metavar="LOG",
-        help="MCAP, NMEA text or tlog files (merged by time); text logs and tlogs may be gzip'd (.gz)",
+        help="MCAP, NMEA text or tlog files (merged by time); text logs and tlogs may be compressed "
+        "(gzip, xz, bzip2, zstd)",
     )
     p.add_argument(
         "--vessel",

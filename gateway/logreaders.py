@@ -13,8 +13,9 @@ by more than 12 h is a midnight rollover. Bad time is counted and never fatal:
 - ``time_backwards``: a cycle earlier than the previous one (kept, the observer skips it);
 - ``repeated_time``: a cycle with the time of an earlier, finished cycle;
 - ``duplicate``: a line identical to the one before it (dropped);
-- ``gzip_cut``: a gzip'd log (either kind is read compressed, `open_log`) whose stream ends before its
-  end marker, a copy cut short: read up to the cut.
+- ``gzip_cut`` (``xz_cut``, ``bzip2_cut``, ``zstd_cut``): a compressed log (either kind is read
+  compressed, `gateway.compressed`) whose stream ends before its end marker, a copy cut short: read up to
+  the cut.
 
 Truncated lines, garbage and checksum failures are counted by the pipeline's framer and decoder.
 
@@ -25,19 +26,17 @@ and the reader resynchronises on the next plausible record.
 
 from __future__ import annotations
 
-import gzip
 import io
-import zlib
 from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from datetime import UTC, date, datetime
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import BinaryIO
 
 import numpy as np
-from mypy_extensions import mypyc_attr
 
+from gateway.compressed import open_log, was_cut
 from gateway.pipeline import RawEvent
 from wire.codecs.nmea_encode import checksum
 from wire.codecs.nmea_framing import DEFAULT_MAX_LENGTH
@@ -113,67 +112,11 @@ def _sentence_time(line: str) -> tuple[float | None, date | None]:
     return tod, _date(fields, kind)
 
 
-GZIP_MAGIC = b"\x1f\x8b"
-
-
-def is_gzip(path: str | Path) -> bool:
-    """Whether a file is gzip-compressed (its first two bytes are gzip's magic, whatever its name)."""
-    with Path(path).open("rb") as f:
-        return f.read(2) == GZIP_MAGIC
-
-
-# A Python class, not a compiled one: a compiled (mypyc native) subclass of `io.RawIOBase` fails to import
-# on Python 3.12 and later ("type _CutGzip has the Py_TPFLAGS_MANAGED_DICT flag but tp_dictoffset is
-# set"), which took `dpgw replay` down with it; this class reads megabytes at a call, so nothing is lost.
-@mypyc_attr(native_class=False)
-class _CutGzip(io.RawIOBase):
-    """A gzip stream that ends where its data ends: a ``.gz`` cut short (a copy interrupted, a disk that
-    filled) raises `EOFError` at the cut, which would stop the replay with everything before it unread.
-    Here the cut is the end of the log, and ``cut`` says it happened (counted ``gzip_cut``)."""
-
-    def __init__(self, path: str | Path) -> None:
-        self._gz = gzip.open(path, "rb")  # noqa: SIM115 (closed by close())
-        self.cut = False
-
-    def readable(self) -> bool:
-        return True
-
-    def readinto(self, buffer: Any) -> int:
-        if self.cut:
-            return 0
-        try:
-            data = self._gz.read1(len(buffer))  # (read1: what is decompressed so far, up to the cut)
-        except (EOFError, OSError, zlib.error):  # cut short, or corrupt from there on
-            self.cut = True
-            return 0
-        buffer[: len(data)] = data
-        return len(data)
-
-    def close(self) -> None:
-        self._gz.close()
-        super().close()
-
-
-def open_log(path: str | Path) -> BinaryIO:
-    """A log file's bytes, decompressed on the fly when it is gzip'd: sea-trial logs are archived as
-    ``.gz`` (NMEA text compresses about tenfold), and a text log or tlog reads front to back, so nothing is
-    unpacked to disk. Recognised by the content, not the name. A ``.gz`` cut short reads up to the cut
-    (`_CutGzip`)."""
-    if is_gzip(path):
-        return io.BufferedReader(_CutGzip(path))
-    return Path(path).open("rb")
-
-
-def gzip_was_cut(f: BinaryIO) -> bool:
-    """Whether `open_log`'s file ended at a cut in its gzip stream rather than at the stream's end."""
-    raw = getattr(f, "raw", None)
-    return isinstance(raw, _CutGzip) and raw.cut
-
-
-def count_gzip_cut(f: BinaryIO, c: LogCounts) -> None:
-    """Count ``gzip_cut`` in ``c`` if `open_log`'s file ``f``, read to its end, ended at a cut."""
-    if gzip_was_cut(f):
-        c.counts["gzip_cut"] += 1
+def count_cut(f: BinaryIO, c: LogCounts) -> None:
+    """Count ``<format>_cut`` (``gzip_cut``, ``xz_cut``, ...) in ``c`` if `open_log`'s file ``f``, read to
+    its end, ended at a cut in its compressed stream."""
+    if (compression := was_cut(f)) is not None:
+        c.counts[f"{compression.name}_cut"] += 1
 
 
 def _first_date(path: Path, limit: int = 2000) -> date | None:
@@ -270,7 +213,7 @@ def nmea_text_events_reference(
                     clock.start_cycle(t_ns)
                     cycle_ns = t_ns
             lines.append(line)
-        count_gzip_cut(f, c)
+        count_cut(f, c)
     if lines:
         if cycle_ns is None:
             c.counts["no_time"] += len(lines)  # a log with no timed sentence at all: nothing to replay
@@ -386,7 +329,7 @@ def nmea_text_events(
             block.add_to(cycle, first, block.n)
             if not chunk:
                 break
-        count_gzip_cut(f, c)
+        count_cut(f, c)
     if cycle.lines:
         if cycle_ns is None:
             c.counts["no_time"] += cycle.count
@@ -456,7 +399,7 @@ def tlog_events(
     c = counts if counts is not None else LogCounts()
     with open_log(path) as f:
         data = f.read()
-        count_gzip_cut(f, c)
+        count_cut(f, c)
     i, n = 0, len(data)
     while i + 9 <= n:
         (t_us,) = RECORD_TIME.unpack_from(data, i)

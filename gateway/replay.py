@@ -32,16 +32,14 @@ from typing import Any
 from mcap.reader import make_reader
 from mypy_extensions import mypyc_attr
 
+from gateway.compressed import compression_of, open_log, was_cut
 from gateway.config import GatewayConfig, default_config, parse_config
 from gateway.config.logged import SIGNING_VERDICTS_KEY, unlogged_key_sources, without_unlogged_keys
 from gateway.config.problems import did_you_mean
 from gateway.logreaders import (
     LogCounts,
-    gzip_was_cut,
-    is_gzip,
     nmea_text_events,
     nmea_text_events_reference,
-    open_log,
     tlog_events,
 )
 from gateway.pipeline import (
@@ -93,19 +91,20 @@ def input_kind(path: str | Path) -> str:
         raise ReplayError(f"{p}: no such log file")
     with open_log(p) as f:
         head = f.read(64)
-        cut = gzip_was_cut(f)
-    if not head and cut:
+        cut = was_cut(f)
+    if not head and cut is not None:
         raise ReplayError(
-            f"{p}: starts like a gzip file but does not decompress: give the log itself, or a complete "
-            "copy of the .gz (gzip -t FILE tests one)"
+            f"{p}: starts like a {cut.name} file but does not decompress: give the log itself, or a complete "
+            f"copy of the compressed file ({cut.test} FILE tests one)"
         )
     if not head:
         raise ReplayError(f"{p}: empty file: nothing to replay")
     if head.startswith(MCAP_MAGIC):
-        if is_gzip(p):
+        if (packed := compression_of(p)) is not None:
             raise ReplayError(
-                f"{p}: a gzip'd MCAP log: MCAP is read by seeking in it, so decompress it first "
-                f"(gunzip -k {p}) and give the .mcap; MCAP compresses its own chunks (zstd or lz4)"
+                f"{p}: a {packed.name}-compressed MCAP log: MCAP is read by seeking in it, so decompress it "
+                f"first ({packed.unpack} {p}) and give the .mcap; MCAP compresses its own chunks (zstd or "
+                "lz4)"
             )
         return "mcap"
     if p.suffix.lower() == ".mcap":
@@ -326,13 +325,18 @@ class Input:
         return {self.source: "mavlink" if self.kind == "tlog" else "nmea"}
 
 
+COMPRESSED_SUFFIXES = (".gz", ".xz", ".bz2", ".zst")
+"""The names of compressed logs (`gateway.compressed`), left out of the source's name as ``.txt`` is."""
+
+
 def open_inputs(paths: Iterable[str | Path]) -> list[Input]:
     inputs: list[Input] = []
     names: Counter[str] = Counter()
     for p in paths:
         path = Path(p)
         kind = input_kind(path)
-        stem = Path(path.stem).stem if path.suffix.lower() == ".gz" else path.stem  # trial.txt.gz: trial
+        packed = path.suffix.lower() in COMPRESSED_SUFFIXES
+        stem = Path(path.stem).stem if packed else path.stem  # trial.txt.gz: trial
         name = re.sub(r"[^a-z0-9_]", "_", stem.lower()) or "log"
         if name[0].isdigit():
             name = f"log_{name}"

@@ -21,6 +21,8 @@ from typing import Any
 import numpy as np
 import pytest
 from conftest import connect_when_listening
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from gateway.logreaders import LogCounts, nmea_text_events, tlog_events
 from gateway.replay import (
@@ -295,15 +297,36 @@ def test_gpsd_logs_replay_without_error(name: str) -> None:
     assert c["received"] > 0
 
 
-@pytest.mark.parametrize("fast_scan", [True, False], ids=["compiled scan", "line reader"])
-def test_a_gzipd_text_log_replays_as_the_log_itself(tmp_path: Path, fast_scan: bool) -> None:
-    """Sea-trial logs are archived gzip'd. Before, a .gz was read as text: no sentence with a time, and
-    "nothing to replay". Now it is decompressed on the fly, with the same counts and estimates."""
+def _compress(data: bytes, fmt: str) -> bytes:
+    """``data`` as the tools of each format write it (Zstandard: two frames, as ``zstd`` of a file
+    appended to, or `cat a.zst b.zst`)."""
+    import bz2
     import gzip
+    import lzma
 
+    import zstandard
+
+    if fmt == "zst":
+        half = len(data) // 3
+        z = zstandard.ZstdCompressor()
+        return z.compress(data[:half]) + z.compress(data[half:])
+    if fmt == "bz2":  # 100 kB blocks (bzip2 -1): a cut keeps the whole blocks before it (-9's are 900 kB)
+        return bz2.compress(data, compresslevel=1)
+    return {"gz": gzip.compress, "xz": lzma.compress}[fmt](data)
+
+
+COMPRESSED = ["gz", "xz", "bz2", "zst"]
+
+
+@pytest.mark.parametrize("fmt", COMPRESSED)
+@pytest.mark.parametrize("fast_scan", [True, False], ids=["compiled scan", "line reader"])
+def test_a_compressed_text_log_replays_as_the_log_itself(tmp_path: Path, fast_scan: bool, fmt: str) -> None:
+    """Sea-trial logs are archived compressed. Before, a .gz was read as text: no sentence with a time, and
+    "nothing to replay" (and an .xz, .bz2 or .zst until later). Now each is decompressed on the fly, with
+    the same counts and estimates."""
     plain = need(USV / "202412071127.txt")
-    packed = tmp_path / "202412071127.txt.gz"
-    packed.write_bytes(gzip.compress(plain.read_bytes()))
+    packed = tmp_path / f"202412071127.txt.{fmt}"
+    packed.write_bytes(_compress(plain.read_bytes(), fmt))
     runs = []
     for path in (plain, packed):
         inputs = open_inputs([path])
@@ -322,15 +345,16 @@ def test_a_gzipd_text_log_replays_as_the_log_itself(tmp_path: Path, fast_scan: b
     ]
 
 
+@pytest.mark.parametrize("fmt", COMPRESSED)
 @pytest.mark.parametrize("fast_scan", [True, False], ids=["compiled scan", "line reader"])
-def test_a_gzipd_log_cut_short_replays_up_to_the_cut_and_says_so(tmp_path: Path, fast_scan: bool) -> None:
-    import gzip
-
+def test_a_compressed_log_cut_short_replays_up_to_the_cut_and_says_so(
+    tmp_path: Path, fast_scan: bool, fmt: str
+) -> None:
     t0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
     log = tmp_path / "trial.nmea"
     write_text_log(log, [t0 + timedelta(seconds=k) for k in range(2000)])
-    packed = gzip.compress(log.read_bytes())
-    cut = tmp_path / "trial.nmea.gz"
+    packed = _compress(log.read_bytes(), fmt)
+    cut = tmp_path / f"trial.nmea.{fmt}"
     cut.write_bytes(packed[: len(packed) // 2])  # a copy interrupted half way
     inputs = open_inputs([cut])
     inputs[0].fast_scan = fast_scan
@@ -338,9 +362,44 @@ def test_a_gzipd_log_cut_short_replays_up_to_the_cut_and_says_so(tmp_path: Path,
         build_config(inputs, vessel="mss_supply"), [ObserverSpec("passive", "passive", {})]
     )
     result = _run(inputs, pipeline, collect=["/dp/estimate"])  # before: EOFError from gzip, a traceback
-    assert inputs[0].counts.counts["gzip_cut"] == 1
-    assert 200 < inputs[0].counts.cycles < 1900  # what came before the cut, replayed
+    name = {"gz": "gzip", "xz": "xz", "bz2": "bzip2", "zst": "zstd"}[fmt]
+    assert inputs[0].counts.counts[f"{name}_cut"] == 1
+    assert 100 < inputs[0].counts.cycles < 1900  # what came before the cut, replayed
     assert len(result.collected["/dp/estimate"]) >= inputs[0].counts.cycles - 2
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    data=st.binary(max_size=200_000),
+    fmt=st.sampled_from(COMPRESSED),
+    cut=st.floats(0.0, 1.0),
+    read_size=st.integers(1, 100_000),
+)
+def test_the_decompressed_bytes_are_the_bytes_up_to_a_cut_in_any_reads(
+    data: bytes, fmt: str, cut: float, read_size: int
+) -> None:
+    """Whatever the bytes, the format and the reads' sizes: a whole file gives back exactly its bytes
+    and no cut; a file cut anywhere gives back a prefix of them, said cut unless what is left is whole
+    (zstd's frames and bzip2's blocks can end at the cut)."""
+    import tempfile
+
+    from gateway.compressed import compression_of, open_log, was_cut
+
+    packed = _compress(data, fmt)
+    with tempfile.TemporaryDirectory() as folder:
+        for size in (len(packed), int(len(packed) * cut)):
+            path = Path(folder) / f"log.{fmt}"
+            path.write_bytes(packed[:size])
+            if size < 6 or compression_of(path) is None:
+                continue  # (too short to be told compressed: read as it is)
+            with open_log(path) as f:
+                got = b"".join(iter(lambda f=f: f.read(read_size), b""))
+                cut_at = was_cut(f)
+            if size == len(packed):
+                assert got == data and cut_at is None
+            else:
+                assert data.startswith(got)
+                assert cut_at is not None or got == data or (fmt == "zst" and got == data[: len(data) // 3])
 
 
 def test_a_gzipd_mcap_or_a_broken_gzip_is_refused_saying_what_to_do(tmp_path: Path) -> None:
@@ -348,12 +407,21 @@ def test_a_gzipd_mcap_or_a_broken_gzip_is_refused_saying_what_to_do(tmp_path: Pa
 
     mcap_gz = tmp_path / "trial.mcap.gz"
     mcap_gz.write_bytes(gzip.compress(b"\x89MCAP0\r\n" + bytes(100)))
-    with pytest.raises(ReplayError, match=r"gzip'd MCAP log: .* decompress it first \(gunzip -k "):
+    with pytest.raises(ReplayError, match=r"a gzip-compressed MCAP log: .* decompress it first \(gunzip -k "):
         open_inputs([mcap_gz])
     broken = tmp_path / "trial.txt.gz"
     broken.write_bytes(b"\x1f\x8b" + bytes(range(100)))
     with pytest.raises(ReplayError, match=r"starts like a gzip file but does not decompress: give the log"):
         open_inputs([broken])
+    for fmt, unpack, magic in (("xz", "unxz -k", b"\xfd7zXZ\x00"), ("zst", "unzstd", b"\x28\xb5\x2f\xfd")):
+        packed = tmp_path / f"trial.mcap.{fmt}"
+        packed.write_bytes(_compress(b"\x89MCAP0\r\n" + bytes(100), fmt))
+        with pytest.raises(ReplayError, match=rf"compressed MCAP log: .* decompress it first \({unpack} "):
+            open_inputs([packed])
+        broken = tmp_path / f"trial.txt.{fmt}"
+        broken.write_bytes(magic + bytes(range(100)))
+        with pytest.raises(ReplayError, match=r"file but does not decompress: give the log itself"):
+            open_inputs([broken])
 
 
 def test_the_summary_says_what_each_log_covers_in_its_own_utc_time(
