@@ -15,7 +15,9 @@ by more than 12 h is a midnight rollover. Bad time is counted and never fatal:
 - ``duplicate``: a line identical to the one before it (dropped);
 - ``gzip_cut`` (``xz_cut``, ``bzip2_cut``, ``zstd_cut``): a compressed log (either kind is read
   compressed, `gateway.compressed`) whose stream ends before its end marker, a copy cut short: read up to
-  the cut.
+  the cut;
+- ``line_prefix``: a line whose sentence came after a logger's time stamp or a TAG block, taken off
+  (`gateway.line_prefix`).
 
 Truncated lines, garbage and checksum failures are counted by the pipeline's framer and decoder.
 
@@ -37,6 +39,7 @@ from typing import BinaryIO
 import numpy as np
 
 from gateway.compressed import open_log, was_cut
+from gateway.line_prefix import inner_of, open_text_log, prefixes_stripped
 from gateway.pipeline import RawEvent
 from wire.codecs.nmea_encode import checksum
 from wire.codecs.nmea_framing import DEFAULT_MAX_LENGTH
@@ -113,14 +116,17 @@ def _sentence_time(line: str) -> tuple[float | None, date | None]:
 
 
 def count_cut(f: BinaryIO, c: LogCounts) -> None:
-    """Count ``<format>_cut`` (``gzip_cut``, ``xz_cut``, ...) in ``c`` if `open_log`'s file ``f``, read to
-    its end, ended at a cut in its compressed stream."""
-    if (compression := was_cut(f)) is not None:
+    """Count ``<format>_cut`` (``gzip_cut``, ``xz_cut``, ...) in ``c`` if `open_log`'s file ``f`` (or
+    `open_text_log`'s), read to its end, ended at a cut in its compressed stream; and the lines whose
+    prefix `open_text_log` took off (``line_prefix``)."""
+    if (compression := was_cut(inner_of(f))) is not None:
         c.counts[f"{compression.name}_cut"] += 1
+    if stripped := prefixes_stripped(f):
+        c.counts["line_prefix"] += stripped
 
 
 def _first_date(path: Path, limit: int = 2000) -> date | None:
-    with io.TextIOWrapper(open_log(path), encoding="ascii", errors="replace", newline="") as f:
+    with io.TextIOWrapper(open_text_log(path), encoding="ascii", errors="replace", newline="") as f:
         for k, line in enumerate(f):
             if k >= limit:
                 break
@@ -184,7 +190,7 @@ def nmea_text_events_reference(
     cycle_ns: int | None = None
     clock = _TimeKeeper(day_ns, gap_s, c)
     previous = b""
-    with open_log(path) as f:
+    with open_text_log(path) as f:
         for raw in f:
             c.lines += 1
             line = raw.rstrip(b"\r\n")
@@ -270,7 +276,7 @@ def nmea_text_events(
     cycle_ns: int | None = None
     clock = _TimeKeeper(day_ns, gap_s, c)
     prev = b""
-    with open_log(path) as f:
+    with open_text_log(path) as f:
         tail = b""
         while True:
             chunk = f.read(block_bytes)
