@@ -117,8 +117,9 @@ def run(args: argparse.Namespace) -> int:
         from simulator.hydro_data import BUILTIN_HYDRO
 
         names = ", ".join(BUILTIN_HYDRO)
+        what = "a folder, not a file" if hydro_path.is_dir() else "no such file"  # (a folder: said so)
         print(
-            f"dpgw radiation: {hydro_path}: no such file: give A(ω), B(ω) as a .npz or an MSS vessel .mat, "
+            f"dpgw radiation: {hydro_path}: {what}: give A(ω), B(ω) as a .npz or an MSS vessel .mat, "
             f"or the name of data that ship with dpgw ({names})",
             file=sys.stderr,
         )
