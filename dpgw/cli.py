@@ -182,10 +182,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         # Ctrl-C where the command has no stop of its own (its start-up: reading the logs, loading the
         # vessel, compiling kernels; a short command: a fit, a capability plot): one line and the status a
         # shell gives (130), not a traceback. The long runs stop their own way, their files complete.
-        print(
-            f"{chr(10) if stderr.isatty() else ''}dpgw {args.command}: stopped by Ctrl-C before it finished",
-            file=stderr,
-        )
+        off_a_bar = "\n" if stderr.isatty() else ""  # (a progress bar's line is left as it is)
+        print(f"{off_a_bar}dpgw {args.command}: stopped by Ctrl-C before it finished", file=stderr)
         import signal
 
         return 128 + signal.SIGINT

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from dpgw import cli_json
 from dpgw.cli_paths import missing_folder
+from dpgw.cli_progress import terminal_bar
 from dpgw.cli_types import non_negative_float
 from observers.vessel_files import builtin_vessels
 
@@ -197,21 +198,11 @@ def run(args: argparse.Namespace) -> int:
         sea=args.sea,
         dynamic_factor=factor,
     )
-    bar = None
-    if sys.stderr.isatty() and not args.json:  # a fine --step-deg takes minutes (1°: ~20 s)
-        from tqdm import tqdm
+    bar = terminal_bar(None, "direction", json=args.json, leave=False)  # a fine --step-deg: minutes
 
-        bar = tqdm(
-            total=round(360.0 / args.step_deg),
-            unit="direction",
-            file=sys.stderr,
-            dynamic_ncols=True,
-            leave=False,
-        )
-
-    def progress(done: int, _total: int) -> None:
+    def progress(done: int, total: int) -> None:
         if bar is not None:
-            bar.n = done
+            bar.total, bar.n = total, done
             bar.refresh()
 
     try:

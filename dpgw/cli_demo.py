@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 from dpgw import cli_json
 from dpgw.cli_foxglove import DEFAULT_HOST, DEFAULT_PORT, add_foxglove_arg, connect_lines, layout_path
 from dpgw.cli_paths import mcap_path_problem
+from dpgw.cli_stops import STOPPED_BY, stop_name
 from dpgw.cli_types import non_negative_float, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args, listen_endpoints
 from dpgw.scenario_names import SCENARIO_NAMES
@@ -647,14 +648,6 @@ def exit_status(signum: int) -> int:
     return 128 + int(signum)
 
 
-def stop_name(signum: int) -> str:
-    """How the summary names the signal that stopped the demo: Ctrl-C for SIGINT, else its name."""
-    import signal
-
-    name = signal.Signals(signum).name
-    return STOPPED_BY.get(name, name)
-
-
 def hold_setpoint(scenario: Any) -> dict[str, float]:
     """The station the demo keeps in dp: the scenario's start position and heading (``eta0``)."""
     north, east, psi = scenario.eta0
@@ -832,10 +825,6 @@ def fix_stamp_lag_s(log: list[str], source: str) -> dict[str, float] | None:
 def _one_decimal(x: float) -> str:
     """``x`` to one decimal, never "-0.0" (a reference a hair west of the origin is at 0.0 m E)."""
     return f"{round(x, 1) + 0.0:.1f}"
-
-
-STOPPED_BY = {"SIGINT": "Ctrl-C"}
-"""Signals the summary names otherwise than by their names."""
 
 
 def print_summary(r: dict[str, Any]) -> None:

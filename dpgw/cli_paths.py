@@ -65,7 +65,7 @@ def unwritable(flag: str, path: str | Path | None, *, folder: bool = False) -> s
         return None
     while not os.path.lexists(level) and os.path.dirname(level) != level:
         level = os.path.dirname(level)
-    why = "on a read-only file system" if _read_only(level) else f"not writable for {_user()}"
+    why = "on a read-only file system" if _read_only(level) else f"not writable for this user ({user_name()})"
     what = "a folder" if folder else "a path in a folder"
     return f"{flag} {path}: cannot write there: {level} is {why}: give {what} you may write in"
 
@@ -77,14 +77,25 @@ def _read_only(path: str) -> bool:
         return False
 
 
-def _user() -> str:
-    """This process's user by name (its number when it has no passwd entry: a container's ``--user``)."""
+def user_name() -> str:
+    """This process's user by name, as a message names who may not write somewhere; ``uid N`` for a uid
+    without a passwd entry (a container's ``--user 1234``)."""
     import pwd
 
     try:
-        return f"this user ({pwd.getpwuid(os.geteuid()).pw_name})"
+        return pwd.getpwuid(os.geteuid()).pw_name
     except KeyError:
-        return f"this user (uid {os.geteuid()})"
+        return f"uid {os.geteuid()}"
+
+
+def output_folder_problem(flag: str, folder: str | Path | None) -> str | None:
+    """What stops a command writing its files in FOLDER (made when missing), said before it works: a file
+    in the folder's place, or a folder this user may not write in or make (`unwritable`)."""
+    if folder is None:
+        return None
+    if Path(folder).exists() and not Path(folder).is_dir():
+        return f"{flag} {folder}: a file, not a folder: give a folder (it is created)"
+    return unwritable(flag, folder, folder=True)
 
 
 def make_folder_for(command: str, flag: str, path: str | Path) -> None:

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from dpgw.cli_paths import missing_folder, unwritable
+from dpgw.cli_paths import missing_folder, output_folder_problem
 from dpgw.cli_types import finite_float, int_at_least
 
 # observers.radiation's MIN_ORDER, MAX_ORDER and R2_TARGET, written here so that `dpgw radiation --help`
@@ -109,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
         except VesselError as exc:
             print(f"dpgw radiation: --vessel: {exc}", file=sys.stderr)
             return 2
-    if problem := missing_folder("--out", args.out) or _plots_problem(args.plots):
+    if problem := missing_folder("--out", args.out) or output_folder_problem("--plots", args.plots):
         print(f"dpgw radiation: {problem}", file=sys.stderr)
         return 2
     hydro_path, builtin = _hydro_path(args.hydro)
@@ -214,16 +214,6 @@ def _print_fit(model: Any) -> None:
     p = model.passivity
     state = "passive" if p.passive else "NOT passive"
     print(f"{state}: margin {p.margin:.4f} at {p.margin_w:.3g} rad/s, enforcement: {p.enforced}")
-
-
-def _plots_problem(folder: Path | None) -> str | None:
-    """What is wrong with ``--plots DIR`` that can be seen before the fit: a file, or a folder that cannot
-    be made or written in."""
-    if folder is None:
-        return None
-    if folder.exists() and not folder.is_dir():
-        return f"--plots {folder}: a file, not a folder: give a folder (it is created)"
-    return unwritable("--plots", folder, folder=True)
 
 
 def _hydro_path(hydro: Path) -> tuple[Path, bool]:

@@ -17,7 +17,8 @@ from typing import TYPE_CHECKING, Any, NoReturn
 from dpgw import cli_json
 from dpgw.cli_demo import MIN_SCORED_S
 from dpgw.cli_foxglove import add_foxglove_arg, connect_lines
-from dpgw.cli_paths import mcap_path_problem, unwritable
+from dpgw.cli_paths import mcap_path_problem, output_folder_problem, unwritable
+from dpgw.cli_progress import terminal_bar
 from dpgw.cli_types import flags_given, non_negative_float, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args, listen_endpoints
 from observers.observer_names import OBSERVER_NAMES
@@ -271,15 +272,12 @@ def run(args: argparse.Namespace) -> int:
         build_pipeline,
         carried_metadata,
         keyless_mavlink_sources,
-        logged_min_scored_s,
-        logged_settle_s,
         logged_signing_verdicts,
         logged_sim,
         open_inputs,
         parse_observer_spec,
         run_replay,
         runs_its_own_controller,
-        unchecked_signatures,
     )
     from observers.passive_tuning import TuningError
     from observers.vessel import VesselError
@@ -342,13 +340,7 @@ def run(args: argparse.Namespace) -> int:
         beside = Path(args.out)
         args.report = str(beside.with_name(f"{beside.stem}-report"))
     # Where the results go is checked before the replay, not found out after it.
-    if args.report is not None and Path(args.report).exists() and not Path(args.report).is_dir():
-        print(
-            f"dpgw replay: --report {args.report}: a file, not a folder: give a folder (it is created)",
-            file=sys.stderr,
-        )
-        return 2
-    if problem := mcap_path_problem("--out", args.out) or unwritable("--report", args.report, folder=True):
+    if problem := output_folder_problem("--report", args.report) or mcap_path_problem("--out", args.out):
         print(f"dpgw replay: {problem}", file=sys.stderr)
         return 2
     if args.report is not None and (free_report := next_free_report(args.report)) != Path(args.report):
@@ -421,7 +413,7 @@ def run(args: argparse.Namespace) -> int:
         topics.append("/dp/measurement")
     elif not any(inp.kind == "mcap" for inp in inputs):
         topics = []  # a text log or tlog has no truth: nothing to score
-    bar = _bar() if sys.stderr.isatty() and not args.json else None
+    bar = terminal_bar(None, " events", json=args.json)
     evidence = _WaveEvidence(pipeline.fusion)
     on_outputs = evidence.on_outputs
     if publisher is not None:
@@ -471,90 +463,7 @@ def run(args: argparse.Namespace) -> int:
     # killed process) with the report half written.
     try:
         with _RaiseOnSignal():
-            if result.events == 0:
-                Path(args.out).unlink(missing_ok=True)
-                print(f"dpgw replay: {nothing_to_replay(inputs, result)}", file=sys.stderr)
-                return 2
-            wall = time.perf_counter() - t0
-            if args.settle is None:  # a demo's log is scored over the stretch the demo scored it over
-                args.settle = logged_settle_s(inputs)
-            # and on as much sea as the demo scores (a demo stopped soon after its skip: "not scored", as it
-            # said)
-            args.min_scored = logged_min_scored_s(inputs, older_demo=MIN_SCORED_S)
-            summary = _summary(args, specs, result, wall)
-            live = _live_records(inputs)
-            first_ns = min((a for a, _ in result.spans.values()), default=0)
-            summary["dp_performance"] = _dp_performance(live, first_ns)
-            compared = None
-            if args.report is not None and summary["dp_performance"] is not None:
-                # with a report (the analysis): what the live gateway's wave filtering kept out of its
-                # commanded thrust, against the same controller fed the raw measurements (the log replayed
-                # once more)
-                from dpgw.raw_feedback import compare_with_raw_feedback, thrust_wave_band
-
-                compared = compare_with_raw_feedback(
-                    args.logs, live["/dp/thrusters/command"], thrust_wave_band(config.vessel)
-                )
-                summary["dp_performance"]["wave_filtering"] = compared.figures
-            kinds = {
-                s.label: (s.name, s.name in SCHEDULES_OMEGA0 or bool(s.params.get("adaptive"))) for s in specs
-            }
-            summary["wave_check"] = evidence.check(
-                config.vessel.length_m, config.vessel.model_scale, kinds
-            ).as_dict()
-            summary["vessel_check"] = evidence.vessel_check(config.vessel).as_dict()
-            summary["measurements"] = evidence.measured()
-            summary["cut_logs"] = cut_logs(inputs)
-            # a signed link's key is not in the log (docs/gateway.md, "Replay of a signed link"): the live
-            # gateway's verdicts applied, or (an older log) its frames taken with their signatures unchecked
-            summary["signature_verdicts"] = verdicts.counts if verdicts is not None else {}
-            summary["signatures_unchecked"] = unchecked_signatures(inputs, keyless)
-            checks = [
-                *(f"warning: {w}" for w in summary["wave_check"]["warnings"]),
-                *(f"note: {n}" for n in summary["wave_check"]["notes"]),
-            ]
-            report_warnings: list[str] = []
-            if args.report:
-                written, report_warnings = _report(
-                    args, config.vessel.name, specs, result, evidence.new, checks, live, compared
-                )
-                summary["report"] = [str(p) for p in written]
-                summary["report_warnings"] = report_warnings
-                if not any(p.suffix == ".png" for p in written):
-                    from gateway.report.plots import load_figure
-
-                    if load_figure() is None:
-                        from gateway.report.writer import NO_MATPLOTLIB
-
-                        print(f"dpgw replay: --report: {NO_MATPLOTLIB}", file=sys.stderr)
-            if args.json:
-                print(cli_json.dumps(summary, indent=2))
-            else:
-                _print(summary)
-            if truth_note is not None:
-                print(f"dpgw replay: warning: --truth: {truth_note}", file=sys.stderr)
-            for warning in [*_cut(summary), *_no_estimates(summary)]:
-                print(f"dpgw replay: warning: {warning}", file=sys.stderr)
-            for line in checks:  # (the wave check: in report.md too, as said here)
-                print(f"dpgw replay: {line}", file=sys.stderr)
-            for warning in report_warnings:
-                print(f"dpgw replay: warning: report: {warning}", file=sys.stderr)
-            for source, live in summary["signature_verdicts"].items():
-                print(f"dpgw replay: note: {_verdict_note(source, live, result.counts)}", file=sys.stderr)
-            for source, live in summary["signatures_unchecked"].items():
-                rejected = sum(live.values())
-                print(
-                    f"dpgw replay: note: {source}: MAVLink signatures not checked (a log never holds the "
-                    "signing key); "
-                    + (
-                        "the live gateway rejected no frame for its signature: the same frames as live"
-                        if not rejected
-                        else f"the live gateway rejected {rejected} frames for their signature "
-                        f"({', '.join(f'{k} {v}' for k, v in live.items() if v)}), which this replay took"
-                    ),
-                    file=sys.stderr,
-                )
-            return 0
+            return _conclude(args, inputs, config, specs, result, evidence, verdicts, keyless, truth_note, t0)
     except _StopRequestedError as exc:
         report = f"; the report in {args.report} is incomplete" if args.report else ""
         print(
@@ -563,6 +472,104 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 128 + exc.signum
+
+
+def _conclude(
+    args: argparse.Namespace,
+    inputs: list[Any],
+    config: Any,
+    specs: list[ObserverSpec],
+    result: ReplayResult,
+    evidence: _WaveEvidence,
+    verdicts: Any,
+    keyless: Any,
+    truth_note: str | None,
+    t0: float,
+) -> int:
+    """After the replay: the summary (console or --json), the live log's DP performance, the checks and
+    the report; the command's exit status."""
+    from gateway.replay import logged_min_scored_s, logged_settle_s, unchecked_signatures
+
+    if result.events == 0:
+        Path(args.out).unlink(missing_ok=True)
+        print(f"dpgw replay: {nothing_to_replay(inputs, result)}", file=sys.stderr)
+        return 2
+    wall = time.perf_counter() - t0
+    if args.settle is None:  # a demo's log is scored over the stretch the demo scored it over
+        args.settle = logged_settle_s(inputs)
+    # and on as much sea as the demo scores (a demo stopped soon after its skip: "not scored", as it
+    # said)
+    args.min_scored = logged_min_scored_s(inputs, older_demo=MIN_SCORED_S)
+    summary = _summary(args, specs, result, wall)
+    live = _live_records(inputs)
+    first_ns = min((a for a, _ in result.spans.values()), default=0)
+    summary["dp_performance"] = _dp_performance(live, first_ns)
+    compared = None
+    if args.report is not None and summary["dp_performance"] is not None:
+        # with a report (the analysis): what the live gateway's wave filtering kept out of its
+        # commanded thrust, against the same controller fed the raw measurements (the log replayed
+        # once more)
+        from dpgw.raw_feedback import compare_with_raw_feedback, thrust_wave_band
+
+        compared = compare_with_raw_feedback(
+            args.logs, live["/dp/thrusters/command"], thrust_wave_band(config.vessel)
+        )
+        summary["dp_performance"]["wave_filtering"] = compared.figures
+    kinds = {s.label: (s.name, s.name in SCHEDULES_OMEGA0 or bool(s.params.get("adaptive"))) for s in specs}
+    summary["wave_check"] = evidence.check(config.vessel.length_m, config.vessel.model_scale, kinds).as_dict()
+    summary["vessel_check"] = evidence.vessel_check(config.vessel).as_dict()
+    summary["measurements"] = evidence.measured()
+    summary["cut_logs"] = cut_logs(inputs)
+    # a signed link's key is not in the log (docs/gateway.md, "Replay of a signed link"): the live
+    # gateway's verdicts applied, or (an older log) its frames taken with their signatures unchecked
+    summary["signature_verdicts"] = verdicts.counts if verdicts is not None else {}
+    summary["signatures_unchecked"] = unchecked_signatures(inputs, keyless)
+    checks = [
+        *(f"warning: {w}" for w in summary["wave_check"]["warnings"]),
+        *(f"note: {n}" for n in summary["wave_check"]["notes"]),
+    ]
+    report_warnings: list[str] = []
+    if args.report:
+        written, report_warnings = _report(
+            args, config.vessel.name, specs, result, evidence.new, checks, live, compared
+        )
+        summary["report"] = [str(p) for p in written]
+        summary["report_warnings"] = report_warnings
+        if not any(p.suffix == ".png" for p in written):
+            from gateway.report.plots import load_figure
+
+            if load_figure() is None:
+                from gateway.report.writer import NO_MATPLOTLIB
+
+                print(f"dpgw replay: --report: {NO_MATPLOTLIB}", file=sys.stderr)
+    if args.json:
+        print(cli_json.dumps(summary, indent=2))
+    else:
+        _print(summary)
+    if truth_note is not None:
+        print(f"dpgw replay: warning: --truth: {truth_note}", file=sys.stderr)
+    for warning in [*_cut(summary), *_no_estimates(summary)]:
+        print(f"dpgw replay: warning: {warning}", file=sys.stderr)
+    for line in checks:  # (the wave check: in report.md too, as said here)
+        print(f"dpgw replay: {line}", file=sys.stderr)
+    for warning in report_warnings:
+        print(f"dpgw replay: warning: report: {warning}", file=sys.stderr)
+    for source, live in summary["signature_verdicts"].items():
+        print(f"dpgw replay: note: {_verdict_note(source, live, result.counts)}", file=sys.stderr)
+    for source, live in summary["signatures_unchecked"].items():
+        rejected = sum(live.values())
+        print(
+            f"dpgw replay: note: {source}: MAVLink signatures not checked (a log never holds the "
+            "signing key); "
+            + (
+                "the live gateway rejected no frame for its signature: the same frames as live"
+                if not rejected
+                else f"the live gateway rejected {rejected} frames for their signature "
+                f"({', '.join(f'{k} {v}' for k, v in live.items() if v)}), which this replay took"
+            ),
+            file=sys.stderr,
+        )
+    return 0
 
 
 def _take_truth(path: Path, pipeline: Any, result: ReplayResult, out: Any) -> str | None:
@@ -1004,12 +1011,6 @@ class _Publisher:
 
     def close(self) -> None:
         self.session.close()
-
-
-def _bar() -> Any:
-    from tqdm import tqdm
-
-    return tqdm(unit=" events", file=sys.stderr, dynamic_ncols=True)
 
 
 def _traces(result: ReplayResult, topic: str) -> tuple[np.ndarray, np.ndarray] | None:

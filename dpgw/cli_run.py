@@ -463,8 +463,8 @@ def log_folder_note(path: str) -> str | None:
     for the service's user when the service starts), but ``sudo -u dpgw dpgw run --check``, run to find
     what the service's user cannot do, said ``ok`` and the service then stopped on it."""
     import os
-    import pwd
 
+    from dpgw.cli_paths import user_name
     from wire.mcap.folder import log_folder_problem
 
     folder = os.path.dirname(os.path.abspath(path))
@@ -473,12 +473,8 @@ def log_folder_note(path: str) -> str | None:
     if writable(folder):
         return None
     what = "is not writable" if os.path.isdir(folder) else "does not exist and cannot be made"
-    try:
-        user = pwd.getpwuid(os.geteuid()).pw_name
-    except KeyError:  # a uid without a passwd entry (a container's --user 1234): its number
-        user = f"uid {os.geteuid()}"
     return (
-        f"log.path: the folder {folder} {what} for this user ({user}) now: start-up stops on it "
+        f"log.path: the folder {folder} {what} for this user ({user_name()}) now: start-up stops on it "
         "unless that changes by then (a service: give a path in its LogsDirectory, /var/log/dpgw, which "
         "systemd makes for the service's user when it starts)"
     )

@@ -5,10 +5,11 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from dpgw import cli_json, cli_sim_inputs
 from dpgw.cli_paths import made_folder_problem, make_folder_for, mcap_path_problem
+from dpgw.cli_progress import terminal_bar
 from dpgw.cli_types import flags_given, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args, listen_endpoints
 from dpgw.scenario_names import SCENARIO_NAMES
@@ -255,18 +256,13 @@ def run(args: argparse.Namespace) -> int:
     if zenoh_only and not args.zenoh:  # accepted and ignored before: no session was opened
         print(f"dpgw sim: {', '.join(zenoh_only)}: only with --zenoh", file=sys.stderr)
         return 2
-    import signal
+    from dpgw.cli_stops import signals_noted
 
-    # `_run_scenario` takes SIGINT and SIGTERM from its first line to stop cleanly; they are given back
-    # on the way out, whichever way that is: `main` also runs in-process (tests, a notebook), whose
-    # handlers stay theirs
-    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        return _run_scenario(args)
-    finally:
-        for sig, handler in previous.items():
-            if handler is not None:  # (None: installed outside Python, cannot be put back from here)
-                signal.signal(sig, handler)
+    # SIGINT and SIGTERM noted from before the sinks and the log open: a stop during start-up (Ctrl-C,
+    # SIGTERM, or SIGHUP through `dpgw.cli.hangup_as_terminate`) then runs no sea and closes the log
+    # complete, instead of meeting Python's defaults (a traceback, or a process killed with its log cut)
+    with signals_noted() as stopped_by:
+        return _run_scenario(args, stopped_by)
 
 
 def tlog_path_problem(args: argparse.Namespace) -> str | None:
@@ -313,21 +309,9 @@ def _session_options(args: argparse.Namespace) -> tuple[tuple[str, object], ...]
     )
 
 
-def _run_scenario(args: argparse.Namespace) -> int:
+def _run_scenario(args: argparse.Namespace, stopped_by: list[int]) -> int:
+    """The scenario run; ``stopped_by`` holds the signal that asks it to stop (`signals_noted`)."""
     import signal
-
-    # First, before the sinks and the log open: a stop during start-up (Ctrl-C, SIGTERM, or SIGHUP through
-    # `dpgw.cli.hangup_as_terminate`) then runs no sea and closes the log complete, instead of meeting
-    # Python's defaults (a traceback, or a process killed with its log cut).
-    stop = {"now": False}
-    stopped_by: list[int] = []
-
-    def on_signal(signum: int, _frame: object) -> None:
-        stop["now"] = True
-        stopped_by[:1] = [signum]
-
-    signal.signal(signal.SIGINT, on_signal)
-    signal.signal(signal.SIGTERM, on_signal)
     from dataclasses import replace
 
     from gateway.bus import BusError, make_config, open_session
@@ -523,10 +507,10 @@ def _run_scenario(args: argparse.Namespace) -> int:
         )
 
     duration = args.duration if args.duration is not None else scenario.duration_s
-    bar = _progress_bar(duration) if sys.stderr.isatty() and not args.json else None
+    bar = terminal_bar(duration, "sim s", json=args.json)
     try:
         step = 1.0 if args.realtime else 60.0
-        while sim.t < duration - 1e-9 and not stop["now"]:
+        while sim.t < duration - 1e-9 and not stopped_by:
             sim.run(min(step, duration - sim.t))
             if bar is not None:
                 bar.n = round(sim.t)
@@ -547,7 +531,7 @@ def _run_scenario(args: argparse.Namespace) -> int:
     summary["signed"] = signing_key is not None
     commands_rejected = dict(mav_commands.rejected) if mav_commands is not None else {}
     summary["commands_rejected"] = commands_rejected
-    summary["interrupted"] = stop["now"]
+    summary["interrupted"] = bool(stopped_by)
     summary["stopped_by"] = signal.Signals(stopped_by[0]).name if stopped_by else None
     if args.out:
         summary["log"] = log_path
@@ -562,7 +546,7 @@ def _run_scenario(args: argparse.Namespace) -> int:
         print(cli_json.dumps(summary, indent=2))
     else:
         # stopped early, said as such: "1740 s simulated" alone read as a run that went its course
-        from dpgw.cli_demo import stop_name
+        from dpgw.cli_stops import stop_name
 
         by = f"stopped by {stop_name(stopped_by[0])} at " if stopped_by and sim.t < duration - 1e-9 else ""
         asked = f" of {duration:.0f} asked" if by else ""
@@ -598,9 +582,3 @@ def _run_scenario(args: argparse.Namespace) -> int:
             )
             print(f"  tlog: {args.tlog} ({recorder.records} records{skipped}{dropped})")
     return 0
-
-
-def _progress_bar(total: float) -> Any:
-    from tqdm import tqdm
-
-    return tqdm(total=round(total), unit="sim s", file=sys.stderr, dynamic_ncols=True)

@@ -17,6 +17,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from dpgw.cli_paths import made_folder_problem, make_folder_for, mcap_path_problem
+from dpgw.cli_progress import terminal_bar
+from dpgw.cli_stops import signals_noted, stop_name
 
 if TYPE_CHECKING:
     from simulator.plant_params import PlantOptions
@@ -139,12 +141,9 @@ def run(args: argparse.Namespace) -> int:
 
     from observers.vessel import VesselError, load_vessel
     from simulator.open_loop import (
-        STATE_COLUMNS,
         InputsError,
         overspeed_warnings,
         read_inputs,
-        run_open_loop,
-        write_states,
     )
     from simulator.plant_params import PlantError, PlantParams
 
@@ -222,13 +221,25 @@ def run(args: argparse.Namespace) -> int:
     # complete), said, with the exit status of a command a signal stopped (128 + its number): an open-loop
     # run goes to the end of its inputs, as a replay to the end of its logs. Python's defaults gave a
     # traceback and nothing written, or, during the writing, a file cut short.
-    stopped_by: list[int] = []
+    with signals_noted() as stopped_by:
+        return _run_and_write(args, vessel, inputs, options, extra if forces else None, eta0, nu0, stopped_by)
 
-    def on_signal(signum: int, _frame: object) -> None:
-        stopped_by[:1] = [signum]
 
-    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
-    bar = _progress_bar(len(inputs.t) - 1) if sys.stderr.isatty() and not args.json else None
+def _run_and_write(
+    args: argparse.Namespace,
+    vessel: Any,
+    inputs: Any,
+    options: Any,
+    extra: Any,
+    eta0: Any,
+    nu0: Any,
+    stopped_by: list[int],
+) -> int:
+    """The open-loop run until its last row or a signal (``stopped_by``, `signals_noted`), what ran
+    written, the summary; the exit status."""
+    from simulator.open_loop import STATE_COLUMNS, run_open_loop, write_states
+
+    bar = terminal_bar(len(inputs.t) - 1, "row", json=args.json)
 
     def go_on(i: int) -> bool:
         if bar is not None and (i % 100 == 0 or i == len(inputs.t) - 2):
@@ -237,15 +248,13 @@ def run(args: argparse.Namespace) -> int:
         return not stopped_by
 
     try:
-        states = run_open_loop(
-            vessel, inputs, options, extra if forces else None, eta0=eta0, nu0=nu0, go_on=go_on
-        )
+        states = run_open_loop(vessel, inputs, options, extra, eta0=eta0, nu0=nu0, go_on=go_on)
         if bar is not None:
             bar.close()
         ran = len(states)
         if stopped_by:  # (a signal during the writing below is taken when the files are complete)
             print(
-                f"dpgw sim: stopped by {_stop_name(stopped_by[0])} at row {ran} of {len(inputs.t)} "
+                f"dpgw sim: stopped by {stop_name(stopped_by[0])} at row {ran} of {len(inputs.t)} "
                 f"({states[-1][0] - states[0][0]:.0f} s of {inputs.t[-1] - inputs.t[0]:.0f} s); the states "
                 "up to there are written",
                 file=sys.stderr,
@@ -262,9 +271,6 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if bar is not None:
             bar.close()
-        for sig, handler in previous.items():
-            if handler is not None:  # (None: installed outside Python, cannot be put back from here)
-                signal.signal(sig, handler)
     interrupted = ran < len(inputs.t)
     status = 128 + stopped_by[0] if interrupted else 0
     end = states[-1]
@@ -292,18 +298,6 @@ def run(args: argparse.Namespace) -> int:
         + (f"; log: {args.out}" if args.out else "")
     )
     return status
-
-
-def _progress_bar(rows: int) -> Any:
-    from tqdm import tqdm
-
-    return tqdm(total=rows, unit="row", file=sys.stderr, dynamic_ncols=True)
-
-
-def _stop_name(signum: int) -> str:
-    from dpgw.cli_demo import stop_name
-
-    return stop_name(signum)
 
 
 def inputs_problem(path: str) -> str | None:

@@ -291,17 +291,10 @@ def run(args: argparse.Namespace) -> int:
 def _out_problem(args: argparse.Namespace) -> str | None:
     """What stops the study writing its outputs and its cache where asked: a file in a folder's place, or
     a folder this user may not write in (or make)."""
-    from dpgw.cli_paths import unwritable
+    from dpgw.cli_paths import output_folder_problem
 
-    folders = [("--out", args.out)] + (
-        [] if args.no_cache else [("--cache", args.cache or args.out / "cache")]
-    )
-    for flag, folder in folders:
-        if folder.exists() and not folder.is_dir():
-            return f"{flag} {folder}: a file, not a folder: give a folder (it is created)"
-        if problem := unwritable(flag, folder, folder=True):
-            return problem
-    return None
+    cache = None if args.no_cache else args.cache or args.out / "cache"
+    return output_folder_problem("--out", args.out) or output_folder_problem("--cache", cache)
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -61,10 +61,12 @@ class Decompressed(io.RawIOBase):
         self._file = Path(path).open("rb")  # noqa: SIM115 (closed by close())
         self._zstd: Any = None
         self._stream: Any = None
+        # what a decompressor raises at a cut or at corrupt data from there on
+        self._cut_errors: tuple[type[Exception], ...] = (EOFError, OSError, zlib.error, lzma.LZMAError)
         if compression.name == "zstd":
             import zstandard
 
-            self._zstd_error = zstandard.ZstdError
+            self._cut_errors += (zstandard.ZstdError,)
             self._new_frame = zstandard.ZstdDecompressor().decompressobj
             self._zstd = self._new_frame()
             self._in_frame = False  # data of a frame given, its end not yet seen
@@ -81,13 +83,8 @@ class Decompressed(io.RawIOBase):
             return 0
         try:
             data = self._read_zstd(len(buffer)) if self._zstd is not None else self._stream.read1(len(buffer))
-        except (EOFError, OSError, zlib.error, lzma.LZMAError):  # cut short, or corrupt from there on
+        except self._cut_errors:
             self.cut = True
-            return 0
-        except Exception as exc:
-            if self._zstd is None or not isinstance(exc, self._zstd_error):
-                raise
-            self.cut = True  # (Zstandard's corrupt data)
             return 0
         buffer[: len(data)] = data
         return len(data)
@@ -120,7 +117,7 @@ class Decompressed(io.RawIOBase):
         super().close()
 
 
-def open_log(path: str | Path) -> BinaryIO:
+def open_log(path: str | Path) -> io.BufferedReader:
     """A log file's bytes, decompressed on the fly when it is compressed (`compression_of`); a file cut
     short reads up to the cut (`was_cut`)."""
     if (c := compression_of(path)) is not None:

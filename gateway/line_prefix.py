@@ -63,8 +63,7 @@ def open_text_log(path: Any) -> BinaryIO:
     """An NMEA text log's bytes (decompressed, `gateway.compressed.open_log`), its lines' prefixes taken
     off when its first buffer holds any."""
     f = open_log(path)
-    head = f.peek(1 << 16) if isinstance(f, io.BufferedReader) else b""
-    if PREFIX.search(head) is None:
+    if PREFIX.search(f.peek(1 << 16)) is None:  # (what is buffered: 8 KiB, a hundred lines)
         return f
     return io.BufferedReader(Unprefixed(f), BLOCK_BYTES)
 

@@ -115,7 +115,7 @@ def _sentence_time(line: str) -> tuple[float | None, date | None]:
     return tod, _date(fields, kind)
 
 
-def count_cut(f: BinaryIO, c: LogCounts) -> None:
+def count_reading(f: BinaryIO, c: LogCounts) -> None:
     """Count ``<format>_cut`` (``gzip_cut``, ``xz_cut``, ...) in ``c`` if `open_log`'s file ``f`` (or
     `open_text_log`'s), read to its end, ended at a cut in its compressed stream; and the lines whose
     prefix `open_text_log` took off (``line_prefix``)."""
@@ -219,7 +219,7 @@ def nmea_text_events_reference(
                     clock.start_cycle(t_ns)
                     cycle_ns = t_ns
             lines.append(line)
-        count_cut(f, c)
+        count_reading(f, c)
     if lines:
         if cycle_ns is None:
             c.counts["no_time"] += len(lines)  # a log with no timed sentence at all: nothing to replay
@@ -335,7 +335,7 @@ def nmea_text_events(
             block.add_to(cycle, first, block.n)
             if not chunk:
                 break
-        count_cut(f, c)
+        count_reading(f, c)
     if cycle.lines:
         if cycle_ns is None:
             c.counts["no_time"] += cycle.count
@@ -405,7 +405,7 @@ def tlog_events(
     c = counts if counts is not None else LogCounts()
     with open_log(path) as f:
         data = f.read()
-        count_cut(f, c)
+        count_reading(f, c)
     i, n = 0, len(data)
     while i + 9 <= n:
         (t_us,) = RECORD_TIME.unpack_from(data, i)
