@@ -1127,6 +1127,11 @@ def _print(s: dict[str, Any]) -> None:
                 f"    ({c['comment']} comment lines: lines beginning with #, a log's header as gpsd's test "
                 "logs have; not bad input, kept in the raw log)"
             )
+        if c.get("other_tag_source"):
+            print(
+                f"    ({c['other_tag_source']} sentences of other devices: their TAG blocks name another "
+                "source than the config's tag_source; not bad input, kept in the raw log)"
+            )
     for where, span in spans.items():
         if where not in s["counts"]:  # (an MCAP log: its counts are its sources')
             print(f"  {where}: {_span_words(span)}")

@@ -361,8 +361,10 @@ def report_status(service: GatewayService, every_s: float = STATUS_EVERY_S) -> N
 
 # Reasons in a source's ``rejected`` that are no fault of the link: well-formed sentences of types dpgw
 # does not use (GSV, GSA, proprietary $P...: `wire.codecs.nmea.UNSUPPORTED`), AIS
-# (`wire.codecs.nmea_framing.AIS`) and `#` comment lines (`wire.codecs.nmea_framing.COMMENT`).
-NOT_USED = ("unsupported", "ais", "comment")
+# (`wire.codecs.nmea_framing.AIS`), `#` comment lines (`wire.codecs.nmea_framing.COMMENT`), an IEC
+# 61162-450 network's framing (TAG blocks, datagram headers) and, on a source with a ``tag_source``, the
+# sentences of the other devices sharing its multicast group (`wire.codecs.nmea_tag.OTHER_TAG_SOURCE`).
+NOT_USED = ("unsupported", "ais", "comment", "tag_block", "iec_61162_450", "other_tag_source")
 
 
 def reconnects_text(source: dict[str, Any], now_ns: int) -> str:

@@ -62,7 +62,8 @@ from observers.kinematics import ssa_scalar
 from observers.vessel import VesselModel
 from wire.codecs import mavlink as mv
 from wire.codecs import nmea as nmea_codec
-from wire.codecs.nmea_framing import NmeaFramer
+from wire.codecs.nmea_framing import IEC_61162_450, TAG_BLOCK, Frame, NmeaFramer
+from wire.codecs.nmea_tag import OTHER_TAG_SOURCE, TagReject, decode_tag
 from wire.codecs.nmea_time import utc_step_s
 from wire.foxglove import antenna_frame, ellipsoidal_height_m, location_fix
 from wire.geodesy import LocalFrame
@@ -204,6 +205,7 @@ class SourceSpec:
     lever_arm_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     timeout_s: float = 2.0
     allow_missing_checksum: bool = False
+    tag_source: str | None = None  # only the sentences whose TAG block names this device (`_tag_filter`)
     priority: int = 1
     signing_key: bytes | None = None
     allow_unsigned: bool = True
@@ -265,6 +267,7 @@ class PipelineSpec:
                 lever_arm_m=sc.lever_arm_m,
                 timeout_s=sc.timeout_s,
                 allow_missing_checksum=sc.allow_missing_checksum,
+                tag_source=sc.tag_source,
                 priority=sc.priority,
                 signing_key=sc.signing_key,
                 allow_unsigned=sc.allow_unsigned,
@@ -412,6 +415,7 @@ class Pipeline:
         # One framer (NMEA) or frame parser (MAVLink) per source and sender, made on the sender's first
         # chunk; key (source, peer), peer "" for links with one sender.
         self._framers: dict[tuple[str, str], NmeaFramer] = {}
+        self._tag_named: dict[tuple[str, str], str] = {}  # a sender's TAG block awaiting its sentence
         self.sentence_tap: Callable[[str, int, str, str], None] | None = None
         """Called with (source, receive time ns, sentence text, peer) for every NMEA sentence the framer
         cuts from received bytes, before it is decoded (valid or not): an output that republishes raw
@@ -773,11 +777,21 @@ class Pipeline:
         else:
             framed: list[str] = []
             texts = framed
-            for frame in self._framer(spec, c, ev.peer, ev.rx_ns).feed(ev.data):
-                if frame.text is None:
-                    c.rejected[frame.reason or "garbage"] += 1
-                else:
-                    framed.append(frame.text)
+            key, framer = self._framer(spec, c, ev.peer, ev.rx_ns)
+            frames = framer.feed(ev.data)
+            if spec.tag_source is None:
+                for frame in frames:
+                    if frame.text is None:
+                        reason = frame.reason or "garbage"
+                        if reason == TAG_BLOCK:
+                            tag = decode_tag(frame.raw)
+                            if isinstance(tag, TagReject):
+                                reason = tag.reason
+                        c.rejected[reason] += 1
+                    else:
+                        framed.append(frame.text)
+            else:
+                self._tag_filter(spec.tag_source, key, frames, c, framed)
             verified = False
             tap = self.sentence_tap
             if tap is not None:
@@ -946,7 +960,9 @@ class Pipeline:
         self._fix_time[spec.name] = (time_s, rx_ns)
         return False
 
-    def _framer(self, spec: SourceSpec, c: SourceCounters, peer: str, rx_ns: int) -> NmeaFramer:
+    def _framer(
+        self, spec: SourceSpec, c: SourceCounters, peer: str, rx_ns: int
+    ) -> tuple[tuple[str, str], NmeaFramer]:
         key = (spec.name, peer)
         framer = self._framers.get(key)
         if framer is None:
@@ -954,7 +970,42 @@ class Pipeline:
             key = (spec.name, _sender_key(peer, self._framers, spec.name))
             framer = self._framers.setdefault(key, NmeaFramer())
         self._sender_rx[key] = rx_ns
-        return framer
+        return key, framer
+
+    def _tag_filter(
+        self, want: str, key: tuple[str, str], frames: list[Frame], c: SourceCounters, framed: list[str]
+    ) -> None:
+        """The sentences of ``frames`` whose TAG block names the device ``want`` (``s:``) into ``framed``;
+        the others counted ``other_tag_source``: on an IEC 61162-450 network several devices send to one
+        multicast group, and a source takes one of them. A TAG block belongs to the sentence right after
+        it, which may arrive in the sender's next read (the device it named is held per sender). A
+        sentence without a readable TAG block is not taken (whose it is cannot be told), and the damaged
+        block is counted as well (``tag_checksum``, ``tag_malformed``)."""
+        named = self._tag_named.get(key)
+        for frame in frames:
+            text = frame.text
+            if text is not None:
+                if named == want:
+                    framed.append(text)
+                else:
+                    c.rejected[OTHER_TAG_SOURCE] += 1
+                named = None
+                continue
+            reason = frame.reason or "garbage"
+            if reason == TAG_BLOCK:
+                tag = decode_tag(frame.raw)
+                if isinstance(tag, TagReject):
+                    reason = tag.reason
+                    named = None
+                else:
+                    named = tag.source
+            elif reason != IEC_61162_450:  # (the header comes before a TAG block: it keeps no name)
+                named = None
+            c.rejected[reason] += 1
+        if named is None:
+            self._tag_named.pop(key, None)
+        else:
+            self._tag_named[key] = named
 
     def _parser(
         self, spec: SourceSpec, c: SourceCounters, peer: str, rx_ns: int, out: list[Output]
@@ -1005,6 +1056,7 @@ class Pipeline:
         applies those verdicts at the same event: a refused frame held behind a false start completes only
         here (a forged one was counted ``bad_signature`` live but left no record, and the replay took it)."""
         self._sender_rx.pop(key, None)
+        self._tag_named.pop(key, None)
         framer = self._framers.pop(key, None)
         if framer is not None:
             for frame in framer.flush():

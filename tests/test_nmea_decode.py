@@ -738,7 +738,16 @@ def test_bad_field_detail_names_the_field_and_value() -> None:
 
 def test_reject_reasons_are_stable() -> None:
     assert REJECT_REASONS == ("no_checksum", "bad_checksum", "bad_format", "unsupported", "bad_field")
-    assert FRAME_REASONS == ("garbage", "truncated", "overlong", "non_ascii", "ais", "comment")
+    assert FRAME_REASONS == (
+        "garbage",
+        "truncated",
+        "overlong",
+        "non_ascii",
+        "ais",
+        "comment",
+        "tag_block",
+        "iec_61162_450",
+    )
 
 
 def test_fast_constructor_makes_ordinary_frozen_instances() -> None:

@@ -99,6 +99,7 @@ class SourceConfig:
     lever_arm_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     timeout_s: float = 2.0
     allow_missing_checksum: bool = False
+    tag_source: str | None = None  # NMEA: only the sentences whose TAG block names this device (s:)
     priority: int = 1
     system_id: int | None = None
     component_id: int | None = None

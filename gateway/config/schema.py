@@ -362,6 +362,7 @@ class SourceTable(_Section):
     )
     timeout_s: float = number(_SRC["timeout_s"], lo=0.0, hi=600.0, lo_open=True, unit="s")
     allow_missing_checksum: bool = boolean(_SRC["allow_missing_checksum"])
+    tag_source: str = text(None, 'the sending device a TAG block names (s:), e.g. "GP0001"')
     priority: int = integer(_SRC["priority"], lo=0)
     system_id: int = integer(None, lo=1, hi=255)
     component_id: int = integer(None, lo=1, hi=255)

@@ -33,7 +33,10 @@ def describe(config: GatewayConfig) -> str:
         else f"  datum: {config.datum.lat_deg:.6f}°, {config.datum.lon_deg:.6f}°, {config.datum.alt_m:g} m",
     ]
     for s in config.sources:
-        lines.append(f"  source {s.name}: {s.protocol} {'/'.join(s.roles)} priority {s.priority} <- {s.url}")
+        device = f", the device {s.tag_source} (TAG blocks)" if s.tag_source else ""
+        lines.append(
+            f"  source {s.name}: {s.protocol} {'/'.join(s.roles)} priority {s.priority} <- {s.url}{device}"
+        )
     obs = config.observer
     lines.append(
         f"  observer {obs.type} (a step at every position and heading), "

@@ -22,6 +22,11 @@ where the stream was cut (tested). The rules (``docs/nmea.md``):
 * A byte that is not printable ASCII (0x20-0x7E) inside a sentence (a NUL, 0xFF from a wrong baud rate, ...)
   makes the sentence ``non_ascii``.
 * Precedence when several apply to one frame: ``overlong``, then ``non_ascii``, then ``truncated``.
+* A TAG block (NMEA 4.10, IEC 61162-450: ``\\s:GP0001*hh\\``) directly before a ``$``/``!`` is a
+  ``tag_block`` frame, and the IEC 61162-450 datagram header ``UdPbC\\0`` directly before a TAG block or
+  a sentence is an ``iec_61162_450`` frame: framing of a ship's network, not noise. Only the two
+  backslashes and printable ASCII between them (at most `wire.codecs.nmea_tag.MAX_TAG_LENGTH` bytes)
+  make a TAG block; what it says is `wire.codecs.nmea_tag.decode_tag`'s to read.
 
 The framer counts nothing (the caller counts frames by :attr:`Frame.reason`) and loses nothing: every byte
 it rejects comes back in a frame's ``raw``, so the gateway can log it (DESIGN.md rule 4). It never raises.
@@ -32,13 +37,17 @@ from __future__ import annotations
 import re
 from typing import NamedTuple
 
+from wire.codecs.nmea_tag import HEADER_450, MAX_TAG_LENGTH
+
 GARBAGE = "garbage"
 TRUNCATED = "truncated"
 OVERLONG = "overlong"
 NON_ASCII = "non_ascii"
 AIS = "ais"
 COMMENT = "comment"
-FRAME_REASONS = (GARBAGE, TRUNCATED, OVERLONG, NON_ASCII, AIS, COMMENT)
+TAG_BLOCK = "tag_block"
+IEC_61162_450 = "iec_61162_450"
+FRAME_REASONS = (GARBAGE, TRUNCATED, OVERLONG, NON_ASCII, AIS, COMMENT, TAG_BLOCK, IEC_61162_450)
 """Every value :attr:`Frame.reason` can take besides ``None``: stable strings, counted per source."""
 
 DEFAULT_MAX_LENGTH = 180
@@ -58,8 +67,9 @@ class Frame(NamedTuple):
       :func:`wire.codecs.nmea.decode`.
     * otherwise ``text`` is ``None`` and ``reason`` is one of :data:`FRAME_REASONS`: a chunk the framer
       rejects (``garbage``, ``truncated``, ``overlong``, ``non_ascii``), a complete printable ``!``
-      sentence (AIS ``!AIVDM``/``!AIVDO``, reason ``ais``) that dpgw does not decode, or a ``#`` comment
-      line (``comment``: not bad input).
+      sentence (AIS ``!AIVDM``/``!AIVDO``, reason ``ais``) that dpgw does not decode, a ``#`` comment
+      line (``comment``: not bad input), or a ship network's framing before a sentence (``tag_block``,
+      ``iec_61162_450``: not bad input either).
 
     So ``text is None`` exactly when ``reason is not None``.
 
@@ -83,6 +93,9 @@ _EOL_ANY = re.compile(rb"[\r\n]")
 _EOL = b"\r\n"
 _new_frame = tuple.__new__  # Frame(...) without NamedTuple's Python-level __new__
 _LEADS = b"$!"
+_HEADER_450 = HEADER_450
+# A TAG block at the end of a run of bytes outside sentences (the run ends where a sentence's lead byte is).
+_TAG_AT_END = re.compile(rb"\\[\x20-\x5b\x5d-\x7e]{3,%d}\\\Z" % (MAX_TAG_LENGTH - 2))
 
 
 class NmeaFramer:
@@ -270,8 +283,7 @@ class NmeaFramer:
                     i = j + 1
                     continue
                 if buf:
-                    out.append(Frame(None, bytes(buf), GARBAGE))
-                    buf.clear()
+                    self._end_run(out)
                 self._state = _SENTENCE
                 self._bad = False
                 i = j
@@ -306,6 +318,26 @@ class NmeaFramer:
                     self._state = _GROUND
                     self._skip_eol = True
                     i = j + 1
+
+    def _end_run(self, out: list[Frame]) -> None:
+        """A run of bytes outside sentences has reached a sentence's lead byte: its end may be a ship
+        network's framing (a TAG block, after the IEC 61162-450 header), the rest is garbage."""
+        buf = self._buf
+        run = bytes(buf)
+        buf.clear()
+        m = _TAG_AT_END.search(run)
+        tag = b""
+        if m is not None:
+            run, tag = run[: m.start()], run[m.start() :]
+        header = b""
+        if run.endswith(_HEADER_450):
+            run, header = run[: -len(_HEADER_450)], _HEADER_450
+        if run:
+            out.append(Frame(None, run, GARBAGE))
+        if header:
+            out.append(Frame(None, header, IEC_61162_450))
+        if tag:
+            out.append(Frame(None, tag, TAG_BLOCK))
 
     def _emit_sentence(self, out: list[Frame]) -> None:
         """The sentence in the buffer has reached its line end."""
