@@ -68,7 +68,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=[],
         metavar="[SOURCE=]URL|pty",
         help="where NMEA goes (repeatable): pty, pty:///path/link, udp://H:P, tcp-listen://H:P (a server), "
-        "serial:///dev/ttyX?baud=N, file:///path; SOURCE= sends one sensor only (dgps1, gyro1; wind1, the "
+        "serial:///dev/ttyX?baud=N, file:///path; a multicast group as a device of an IEC 61162-450 "
+        "network: udp://239.192.0.4:60004?iface=lo&tag_source=GP0001. SOURCE= sends one sensor only "
+        "(dgps1, gyro1; wind1, the "
         "anemometer, where the scenario has wind; mru1, the motion reference unit, where it has one: "
         "torsetnes_2004_mast)",
     )

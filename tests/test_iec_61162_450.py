@@ -335,3 +335,91 @@ def test_run_status_counts_the_network_framing_and_other_devices_as_not_used() -
     assert "dgps1 5 rx 0.1 s ago (20 not used)" in status_line({"sources": {"dgps1": c}}, 3.0)
     c["rejected"]["tag_checksum"] = 1
     assert "(1 rejected, 20 not used)" in status_line({"sources": {"dgps1": c}}, 3.0)
+
+
+# ------------------------------------------------------------------------------------------ simulator
+
+
+def test_a_udp_sink_with_tag_source_sends_450_datagrams_the_gateway_reads() -> None:
+    from simulator.transports import open_sink
+
+    rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    rx.bind(("127.0.0.1", 0))
+    sink = open_sink(f"udp://127.0.0.1:{rx.getsockname()[1]}?tag_source=GP0001")
+    try:
+        burst = (enc.gga("GP", T0, 59.4, 10.5, 2, 12, 0.8, 20.0) + enc.zda("GP", T0)).encode()
+        rx.settimeout(10.0)
+        got = []
+        for _ in range(1000):  # (the line count runs 1-999, then again)
+            sink.write(burst)
+            got.append(rx.recv(2048))
+    finally:
+        sink.close()
+        rx.close()
+    frames = frames_of(got[0])
+    assert reasons(frames) == [IEC_61162_450, TAG_BLOCK, None, TAG_BLOCK, None]
+    assert decode_tag(frames[1].raw) == TagBlock({"s": "GP0001", "n": "1", "g": "1-2-1"})
+    assert b"".join(f.raw + b"\r\n" for f in frames if f.reason is None) == burst
+    assert [decode_tag(frames_of(d)[1].raw).params["n"] for d in got[997:]] == ["998", "999", "1"]
+
+
+@pytest.mark.parametrize(
+    ("url", "problem"),
+    [
+        ("udp://127.0.0.1:10110?iface=lo", "iface is for multicast groups"),
+        (f"udp://{GROUP}:60004?iface=no_such_if0", "cannot send by interface no_such_if0"),
+        (f"udp://{GROUP}:60004?tag_source=GP,1", "is not a TAG block source"),
+    ],
+)
+def test_a_wrong_450_sink_is_one_clear_error(url: str, problem: str) -> None:
+    from simulator.transports import TransportError, open_sink
+
+    with pytest.raises(TransportError, match=problem):
+        open_sink(url)
+
+
+def test_dpgw_sim_as_two_devices_of_one_group_into_the_gateway(tmp_path: Path) -> None:
+    """A bench standing in for a ship's network: `dpgw sim` sends the DGPS as GP0001 and the gyro as
+    HE0001 to one multicast group; the gateway's two sources on that group each take their device."""
+    import subprocess
+    import sys
+
+    port = free_port(socket.SOCK_DGRAM)
+    group = f"udp://{GROUP}:{port}?iface=127.0.0.1"
+    t = tables(group)
+    t["vessel"]["name"] = "mss_supply"
+    t["sources"] = [t["sources"][0], t["sources"][2]]  # gnss1 <- GP0001, gyro <- HE0001
+    service = GatewayService(parse_config(t, base_dir=tmp_path), config_tables=t)
+    service.start()
+    loop = threading.Thread(target=service.run, name="consumer")
+    loop.start()
+    counters = service.pipeline.counters
+    try:
+        sim = subprocess.run(
+            [sys.executable, "-m", "dpgw", "sim", "--scenario", "torsetnes_2004", "--duration", "60",
+             "--json", "--nmea", f"dgps1={group}&tag_source=GP0001",
+             "--nmea", f"gyro1={group}&tag_source=HE0001"],
+            capture_output=True, text=True, timeout=300, check=True,
+        )  # fmt: skip
+        import json
+
+        sent = json.loads(sim.stdout)["bytes_sent"]
+        total = sent["dgps1"] + sent["gyro1"]
+        if not wait_for(lambda: counters["gyro"].bytes > 0, 10.0):  # pragma: no cover
+            pytest.skip("multicast is not routed on loopback here")
+        assert wait_for(lambda: counters["gnss1"].bytes >= total and counters["gyro"].bytes >= total, 60.0), (
+            counters["gnss1"].bytes,
+            total,
+        )
+        assert "as the device GP0001 of an IEC 61162-450 network" in sim.stderr + sim.stdout
+    finally:
+        service.stop_event.set()
+        loop.join(timeout=30)
+        service.drain()
+        service.close()
+    gnss, gyro = counters["gnss1"], counters["gyro"]
+    # every sentence each device sent, and only its own; no byte of the network framing taken for noise
+    assert "garbage" not in gnss.rejected and "garbage" not in gyro.rejected
+    assert gnss.received == gyro.rejected["other_tag_source"] > 0
+    assert gyro.received == gnss.rejected["other_tag_source"] > 0
+    assert gnss.rejected["tag_block"] == gyro.rejected["tag_block"] == gnss.received + gyro.received

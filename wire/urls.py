@@ -73,7 +73,7 @@ SOURCE_OPTIONS: Mapping[str, tuple[str, ...]] = {
 """Options of each scheme where the gateway reads (`gateway.sources`)."""
 SINK_OPTIONS: Mapping[str, tuple[str, ...]] = {
     "pty": ("stale_s",),
-    "udp": ("bind",),
+    "udp": ("bind", "iface", "tag_source"),
     "tcp-listen": ("max_backlog",),
     "serial": ("baud",),
     "file": (),

@@ -27,15 +27,13 @@ from gateway.config.model import (
 from gateway.config.problems import Problems, did_you_mean, kind, show
 from gateway.config.schema import SourceTable, read_table
 from observers.vessel import VesselModel
+from wire.codecs import nmea_tag
 from wire.foxglove import FRAMES
 from wire.urls import SOURCE_OPTIONS, Endpoint, UrlError, file_rate, parse_url, serial_settings
 
 __all__ = ["read_sources"]
 
 _NMEA_ONLY = ("allow_missing_checksum", "tag_source")
-# NMEA 4.10 bounds a TAG block's source at 15 characters; IEC 61162-450 writes a System Function ID,
-# two letters and four digits ("GP0001"). Any printable text a TAG block can hold is taken.
-TAG_SOURCE = re.compile(r"[\x21-\x29\x2b\x2d-\x5b\x5d-\x7e]{1,15}")
 _MAVLINK_ONLY = ("system_id", "component_id", "signing_key", "allow_unsigned", "ardupilot", "commands")
 _EXAMPLE = '[[sources]] name = "dgps1", url = "serial:///dev/ttyUSB0?baud=4800", protocol = "nmea", ...'
 
@@ -219,11 +217,10 @@ def _read_source(
         if key in t and protocol == "mavlink":
             p.add(f"{path}.{key}", 'only for protocol "nmea" (expected no such key here)')
     tag_source = v["tag_source"]
-    if tag_source is not None and not TAG_SOURCE.fullmatch(tag_source):
+    if tag_source is not None and not nmea_tag.SOURCE.fullmatch(tag_source):
         p.add(
             f"{path}.tag_source",
-            "not a TAG block source (expected 1-15 printable characters without , * \\ or spaces, as a "
-            f'device writes after "s:", e.g. "GP0001"; got {show(tag_source)})',
+            f"not a TAG block source (expected {nmea_tag.SOURCE_EXPECTED}; got {show(tag_source)})",
         )
     if protocol == "nmea":
         for key in _MAVLINK_ONLY:

@@ -8,6 +8,8 @@ same sink with `Sink.read_available`. `open_sink` turns a URL into a sink::
     pty:///tmp/dpgw-gps          ... with a stable symlink to it (removed on close)
     udp://HOST:PORT              UdpSink: one datagram per write to HOST:PORT; replies are read back
     udp://HOST:PORT?bind=H:P     ... sending from (and listening on) H:P
+    udp://GROUP:PORT?iface=I&tag_source=GP0001   ... to a multicast group by interface I, as the device
+                                 GP0001 of an IEC 61162-450 network (header and TAG blocks)
     tcp-listen://HOST:PORT       TcpServerSink: a TCP server; every write goes to every client
     serial:///dev/ttyUSB0?baud=4800   SerialSink: a real serial port, raw 8N1, no flow control
     file:///path/to/file, PATH   FileSink: appended, handed to the OS on every write

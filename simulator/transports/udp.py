@@ -1,11 +1,15 @@
-"""A UDP sink (``udp://HOST:PORT[?bind=H:P]``): one datagram per write; replies are read back."""
+"""A UDP sink (``udp://HOST:PORT[?bind=H:P&iface=I&tag_source=S]``): one datagram per write; replies are
+read back. To a multicast group it can send as a device on an IEC 61162-450 network does."""
 
 from __future__ import annotations
 
+import re
 import socket
+import struct
 
 from simulator.transports.base import MAX_READS_PER_PEER, Sink, TransportError
 from simulator.transports.sockets import bind_error, fmt_addr, resolve
+from wire.codecs.nmea_tag import SOURCE, SOURCE_EXPECTED, iec_450_datagram
 
 
 class UdpSink(Sink):
@@ -15,18 +19,39 @@ class UdpSink(Sink):
     datagrams sent to it — a ground station's MAVLink commands, a listener's replies — are read back with
     `read_available`. Broadcast destinations are allowed. A datagram the OS refuses (send buffer full,
     too large, network unreachable) is dropped and counted.
+
+    To a multicast group, ``iface`` (an IPv4 address or an interface name) is the interface the datagrams
+    leave by (default: the system's choice, which on a machine without a default route is none). With
+    ``tag_source`` each write goes out as an IEC 61162-450 sentence datagram of that device (the header
+    ``UdPbC\\0``, each sentence after a TAG block naming it, `wire.codecs.nmea_tag.iec_450_datagram`), so
+    that a bench can stand in for the devices of a ship's network.
     """
 
     def __init__(
-        self, host: str, port: int, *, bind: tuple[str, int] | None = None, url: str | None = None
+        self,
+        host: str,
+        port: int,
+        *,
+        bind: tuple[str, int] | None = None,
+        iface: str | None = None,
+        tag_source: str | None = None,
+        url: str | None = None,
     ) -> None:
         super().__init__()
         self.url = url or f"udp://{host}:{port}"
         if not 0 < port < 65536:
             raise TransportError(self.url, f"port {port} is out of range", "use a destination port 1–65535")
+        if tag_source is not None and not SOURCE.fullmatch(tag_source):
+            raise TransportError(
+                self.url, f"tag_source {tag_source!r} is not a TAG block source", SOURCE_EXPECTED
+            )
+        self.tag_source = tag_source
+        self._line_count = 0
         family, self.destination = resolve(self.url, host, port, socket.SOCK_DGRAM)
         sock = socket.socket(family, socket.SOCK_DGRAM)
         try:
+            if iface is not None:
+                _send_by(sock, self.url, iface)
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
             if bind is None:
                 local: tuple = ("::" if family == socket.AF_INET6 else "0.0.0.0", 0)
@@ -56,6 +81,9 @@ class UdpSink(Sink):
         self._check_open()
         if not data:
             return
+        if self.tag_source is not None:
+            self._line_count = self._line_count % 999 + 1  # (IEC 61162-450: 1-999, then again)
+            data = iec_450_datagram(data, self.tag_source, self._line_count)
         try:
             n = self._sock.sendto(data, self.destination)
         except OSError as exc:  # BlockingIOError (buffer full), EMSGSIZE, ENETUNREACH, ECONNREFUSED ...
@@ -77,10 +105,28 @@ class UdpSink(Sink):
         return items
 
     def describe(self) -> str:
-        return f"udp://{fmt_addr(self.destination)} (from {fmt_addr(self.local_address)})"
+        device = f", as the device {self.tag_source} of an IEC 61162-450 network" if self.tag_source else ""
+        return f"udp://{fmt_addr(self.destination)} (from {fmt_addr(self.local_address)}{device})"
 
     def close(self) -> None:
         if self._closed:
             return
         super().close()
         self._sock.close()
+
+
+def _send_by(sock: socket.socket, url: str, iface: str) -> None:
+    """Multicast leaves by the interface ``iface`` (an IPv4 address or an interface name; that the
+    destination is a multicast group, the URL's grammar has checked: `wire.urls`)."""
+    try:
+        if re.fullmatch(r"\d+\.\d+\.\d+\.\d+", iface):
+            sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_IF, socket.inet_aton(iface))
+        else:  # struct ip_mreqn: the interface by its index
+            mreqn = struct.pack("4s4si", bytes(4), bytes(4), socket.if_nametoindex(iface))
+            sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_IF, mreqn)
+    except OSError as exc:
+        raise TransportError(
+            url,
+            f"cannot send by interface {iface}: {exc.strerror or exc}",
+            "give ?iface= an address or name of an interface that is up (ip -br addr)",
+        ) from exc

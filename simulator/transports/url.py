@@ -17,8 +17,8 @@ from wire.urls import SINK_OPTIONS, Endpoint, UrlError, parse_url, serial_settin
 
 #: The URL forms `open_sink` understands, for error messages.
 URL_FORMS = (
-    "pty, pty:///PATH/TO/LINK, udp://HOST:PORT[?bind=HOST:PORT], tcp-listen://HOST:PORT, "
-    "serial:///dev/DEVICE[?baud=4800], file:///PATH or a plain file path"
+    "pty, pty:///PATH/TO/LINK, udp://HOST:PORT[?bind=HOST:PORT&iface=I&tag_source=S], "
+    "tcp-listen://HOST:PORT, serial:///dev/DEVICE[?baud=4800], file:///PATH or a plain file path"
 )
 
 
@@ -67,7 +67,9 @@ def _sink_for(url: str, ep: Endpoint) -> Sink:
         bind = split_host_port(bind_text, need_host=False, allow_zero=True) if bind_text else None
         if bind is not None and not bind[0]:
             bind = ("0.0.0.0", bind[1])
-        return UdpSink(ep.host, port, bind=bind, url=url)
+        return UdpSink(
+            ep.host, port, bind=bind, iface=ep.option("iface"), tag_source=ep.option("tag_source"), url=url
+        )
     max_backlog = 262_144
     backlog_text = ep.option("max_backlog")
     if backlog_text is not None:

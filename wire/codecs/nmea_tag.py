@@ -31,6 +31,7 @@ source); it stays in the raw log with the rest of the bytes.
 
 from __future__ import annotations
 
+import re
 from typing import NamedTuple
 
 HEADER_450 = b"UdPbC\x00"
@@ -40,6 +41,14 @@ MAX_TAG_LENGTH = 400
 """Longest TAG block the framer takes (backslashes included). NMEA 4.10 bounds a TAG block with its sentence
 by the line's length; 450 by the datagram's. 400 leaves room for the longest ``t:`` text seen in practice
 while a run of noise that merely ends in a backslash pair is not taken for one."""
+
+SOURCE = re.compile(r"[\x21-\x29\x2b\x2d-\x5b\x5d-\x7e]{1,15}")
+"""A device name a TAG block can carry after ``s:``: NMEA 4.10 bounds it at 15 characters; IEC 61162-450
+writes a System Function ID, two letters and four digits ("GP0001"). Printable, without ``,`` ``*`` ``\\``
+(they would end the parameter, the block or its checksum) or spaces."""
+SOURCE_EXPECTED = (
+    '1-15 printable characters without , * \\ or spaces, as a device writes after "s:", e.g. "GP0001"'
+)
 
 TAG_CHECKSUM = "tag_checksum"
 TAG_MALFORMED = "tag_malformed"
@@ -108,3 +117,20 @@ def encode_tag(params: dict[str, str]) -> bytes:
     for b in text:
         checksum ^= b
     return b"\\" + text + b"*%02X\\" % checksum
+
+
+def iec_450_datagram(sentences: bytes, source: str, line_count: int) -> bytes:
+    """The IEC 61162-450 sentence datagram of ``sentences`` (whole lines, CRLF-terminated) sent by the
+    device ``source``: the header, then each sentence after a TAG block with ``s:`` the source, ``n:`` the
+    line count (1-999; the caller counts, one per datagram) and, when the datagram holds several sentences,
+    ``g:`` grouping them (``x-y-n``: the x-th of y)."""
+    lines = [line for line in sentences.splitlines(keepends=True) if line.strip()]
+    n = str(line_count)
+    out = bytearray(HEADER_450)
+    for k, line in enumerate(lines, 1):
+        params = {"s": source, "n": n}
+        if len(lines) > 1:
+            params["g"] = f"{k}-{len(lines)}-{n}"
+        out += encode_tag(params)
+        out += line
+    return bytes(out)
