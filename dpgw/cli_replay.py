@@ -1127,6 +1127,14 @@ def _print(s: dict[str, Any]) -> None:
                 f"    ({c['comment']} comment lines: lines beginning with #, a log's header as gpsd's test "
                 "logs have; not bad input, kept in the raw log)"
             )
+        devices = [k.removeprefix("tag ") for k in c if k.startswith("tag ")]
+        if len(devices) > 1:
+            print(
+                f"    ({len(devices)} devices' TAG blocks in one text log ({', '.join(devices)}), replayed "
+                "as one source: where two are receivers, their fixes are taken as one receiver's, jumping "
+                "between antennas. Record a ship's network with dpgw run, one source per device "
+                "(tag_source), to replay them apart)"
+            )
         if c.get("other_tag_source"):
             print(
                 f"    ({c['other_tag_source']} sentences of other devices: their TAG blocks name another "

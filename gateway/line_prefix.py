@@ -1,8 +1,11 @@
 """NMEA text logs whose lines carry something before the sentence: a receive time stamped by the logger
 (``2024-12-07T03:25:51.050Z $GPGGA,...``, ``2024-12-07 03:25:51.050,$GPGGA,...``) or an NMEA 4.10 / IEC
-61162-450 TAG block (``\\s:GP0001,c:1733541951*47\\$GPGGA,...``), as data loggers and ship networks write
-them. Replay reads the sentences as they are without the prefix: the prefix is taken off each line that has
-one, and counted (``line_prefix``), so that the log replays as its plain twin does.
+61162-450 TAG block (``\\s:GP0001,c:1733541951*47\\$GPGGA,...``, in a raw capture of a ship's network
+after the datagram header ``UdPbC\\0``), as data loggers and ship networks write them. Replay reads the
+sentences as they are without the prefix: the prefix is taken off each line that has one, and counted
+(``line_prefix``), so that the log replays as its plain twin does. A TAG block's device is not told apart
+here: a text log is one source (a ship network's devices are told apart live, by a source's
+``tag_source``, and a gateway's MCAP log replays them so).
 
 What is taken off is only a TAG block (between two backslashes) or a run of the characters of a written
 date and time (digits, ``-:./+TZ``, spaces, ``,;`` and tabs) starting with a digit and ending in a
@@ -18,23 +21,29 @@ from __future__ import annotations
 
 import io
 import re
+from collections import Counter
 from typing import Any, BinaryIO
 
 from gateway.compressed import open_log
 
-PREFIX = re.compile(rb"(?m)^(?:\\[^\\\r\n]*\\|[0-9][-0-9TZ:./+ ,;\t]*[ ,;\t])(?=[$!][A-Z]{2})")
-"""A prefix before a sentence at a line's start (a TAG block, or a written date and time and a
-separator)."""
+PREFIX = re.compile(rb"(?m)^(?:(?:UdPbC\x00)?\\[^\\\r\n]*\\|[0-9][-0-9TZ:./+ ,;\t]*[ ,;\t])(?=[$!][A-Z]{2})")
+"""A prefix before a sentence at a line's start (a TAG block, after the IEC 61162-450 datagram header
+where a capture of a ship's network has it, or a written date and time and a separator)."""
+
+DEVICE = re.compile(rb"(?m)^(?:UdPbC\x00)?\\(?:[^\\\r\n]*,)?s:([^,*\\\r\n]+)")
+"""The device a line's TAG block names (``s:``)."""
 
 BLOCK_BYTES = 1 << 20
 
 
 class Unprefixed(io.RawIOBase):
-    """The bytes of ``inner`` with each line's prefix (`PREFIX`) taken off; ``stripped`` counts them."""
+    """The bytes of ``inner`` with each line's prefix (`PREFIX`) taken off; ``stripped`` counts them, and
+    ``devices`` the lines of each device the TAG blocks name."""
 
     def __init__(self, inner: BinaryIO) -> None:
         self.inner = inner
         self.stripped = 0
+        self.devices: Counter[str] = Counter()
         self._pending = b""
 
     def readable(self) -> bool:
@@ -47,6 +56,8 @@ class Unprefixed(io.RawIOBase):
                 return 0
             if not block.endswith(b"\n"):
                 block += self.inner.readline()  # (whole lines: a prefix is never split)
+            if b"\\" in block:
+                self.devices.update(d.decode("ascii", "replace") for d in DEVICE.findall(block))
             self._pending, n = PREFIX.subn(b"", block)
             self.stripped += n
         n = min(len(buffer), len(self._pending))
@@ -78,3 +89,9 @@ def prefixes_stripped(f: BinaryIO) -> int:
     """How many lines of `open_text_log`'s file ``f`` had their prefix taken off so far."""
     raw = getattr(f, "raw", None)
     return raw.stripped if isinstance(raw, Unprefixed) else 0
+
+
+def tag_devices(f: BinaryIO) -> Counter[str]:
+    """How many lines of `open_text_log`'s file ``f`` each device named in a TAG block sent, so far."""
+    raw = getattr(f, "raw", None)
+    return raw.devices if isinstance(raw, Unprefixed) else Counter()

@@ -17,7 +17,7 @@ by more than 12 h is a midnight rollover. Bad time is counted and never fatal:
   compressed, `gateway.compressed`) whose stream ends before its end marker, a copy cut short: read up to
   the cut;
 - ``line_prefix``: a line whose sentence came after a logger's time stamp or a TAG block, taken off
-  (`gateway.line_prefix`).
+  (`gateway.line_prefix`); ``tag GP0001``: the lines whose TAG block named the device GP0001.
 
 Truncated lines, garbage and checksum failures are counted by the pipeline's framer and decoder.
 
@@ -39,7 +39,7 @@ from typing import BinaryIO
 import numpy as np
 
 from gateway.compressed import open_log, was_cut
-from gateway.line_prefix import inner_of, open_text_log, prefixes_stripped
+from gateway.line_prefix import inner_of, open_text_log, prefixes_stripped, tag_devices
 from gateway.pipeline import RawEvent
 from wire.codecs.nmea_encode import checksum
 from wire.codecs.nmea_framing import DEFAULT_MAX_LENGTH
@@ -117,12 +117,15 @@ def _sentence_time(line: str) -> tuple[float | None, date | None]:
 
 def count_reading(f: BinaryIO, c: LogCounts) -> None:
     """Count ``<format>_cut`` (``gzip_cut``, ``xz_cut``, ...) in ``c`` if `open_log`'s file ``f`` (or
-    `open_text_log`'s), read to its end, ended at a cut in its compressed stream; and the lines whose
-    prefix `open_text_log` took off (``line_prefix``)."""
+    `open_text_log`'s), read to its end, ended at a cut in its compressed stream; the lines whose
+    prefix `open_text_log` took off (``line_prefix``); and the lines of each device a TAG block named
+    (``tag GP0001``)."""
     if (compression := was_cut(inner_of(f))) is not None:
         c.counts[f"{compression.name}_cut"] += 1
     if stripped := prefixes_stripped(f):
         c.counts["line_prefix"] += stripped
+    for device, n in tag_devices(f).items():
+        c.counts[f"tag {device}"] += n
 
 
 def _first_date(path: Path, limit: int = 2000) -> date | None:

@@ -33,6 +33,8 @@ PREFIXES = {
     "unix;": lambda k, t: f"{t.timestamp():.3f};",
     "tab": lambda k, t: t.strftime("%d/%m/%Y %H:%M:%S") + "\t",
     "tag block": lambda k, t: _tag_block(k),
+    # a raw capture of an IEC 61162-450 network (socat, tcpdump's payloads): the datagram header too
+    "450 capture": lambda k, t: "UdPbC\x00" + _tag_block(k),
 }
 
 
@@ -80,6 +82,10 @@ def test_a_prefixed_log_replays_as_its_plain_twin(tmp_path: Path, kind: str, fas
     assert counts_a["cycles"] == 600 and len(eta_a) >= 590
     assert eta_b == eta_a
     assert counts_b.pop("line_prefix") == 3 * 600
+    tags = {k: counts_b.pop(k) for k in list(counts_b) if k.startswith("tag ")}  # the devices TAG blocks name
+    assert tags == (
+        {f"tag GP000{d}": 600 for d in range(3)} if "TAG" in kind.upper() or "450" in kind else {}
+    )
     assert counts_b == counts_a and "line_prefix" not in counts_a
 
 
@@ -89,6 +95,7 @@ def test_a_compressed_prefixed_log_is_both_decompressed_and_unprefixed(tmp_path:
     packed.write_bytes(gzip.compress(prefixed.read_bytes()))
     counts_b, eta_b = _replay(packed, True)
     assert counts_b.pop("line_prefix") == 600
+    assert [counts_b.pop(f"tag GP000{d}") for d in range(3)] == [201, 201, 198]  # (200 cycles: k % 3)
     assert (counts_b, eta_b) == _replay(plain, True)
 
 
@@ -101,6 +108,7 @@ SENTENCE = st.builds(
 PREFIX = st.one_of(
     st.just(""),
     st.builds(lambda s: f"\\{s}\\", st.text(alphabet="sc:,0123456789GP*ABCDEF", max_size=30)),
+    st.builds(lambda s: f"UdPbC\x00\\{s}\\", st.text(alphabet="sn:,0123456789GP*", max_size=30)),
     st.builds(
         lambda d, sep: d + sep,
         st.from_regex(r"[0-9][-0-9TZ:./+ ]{0,25}", fullmatch=True),
