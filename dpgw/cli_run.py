@@ -395,6 +395,7 @@ def status_line(status: dict[str, Any], elapsed_s: float) -> str:
         not_used = sum(n for r, n in reasons.items() if r in NOT_USED)
         rejected = sum(reasons.values()) - not_used
         counts = [f"{rejected} rejected"] * bool(rejected) + [f"{not_used} not used"] * bool(not_used)
+        counts += [f"{c['lost_lines']} lost on the network"] if c.get("lost_lines") else []
         counts += [reconnects_text(c, time.time_ns())] if c.get("reconnects") else []
         parts.append(
             f"{name} {c.get('received', 0)} rx"

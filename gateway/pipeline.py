@@ -63,7 +63,7 @@ from observers.vessel import VesselModel
 from wire.codecs import mavlink as mv
 from wire.codecs import nmea as nmea_codec
 from wire.codecs.nmea_framing import IEC_61162_450, TAG_BLOCK, Frame, NmeaFramer
-from wire.codecs.nmea_tag import OTHER_TAG_SOURCE, TagReject, decode_tag
+from wire.codecs.nmea_tag import OTHER_TAG_SOURCE, TagBlock, TagReject, decode_tag
 from wire.codecs.nmea_time import utc_step_s
 from wire.foxglove import antenna_frame, ellipsoidal_height_m, location_fix
 from wire.geodesy import LocalFrame
@@ -87,6 +87,9 @@ from wire.messages import (
 from wire.messages import Estimate as EstimateMessage
 from wire.messages import ThrusterCommand as CommandMessage
 
+MAX_LINE_GAP: Final = 100
+"""Most lines a device's TAG line count may skip and be taken for lines lost (`Pipeline._tag_seen`): 10 s of a
+10 Hz device sending one sentence a cycle; a larger jump is a restart, not a loss."""
 USED_NMEA = frozenset({"GGA", "GNS", "HDT", "THS", "HDG", "GST", "MWV", "VWR"})
 _CYCLE_KINDS: Final = frozenset({"GGA", "GNS", "HDT", "THS", "HDG"})
 """The sentences that are a cycle's measurement (a fix, a heading): one of them again from the same talker
@@ -324,6 +327,7 @@ class SourceCounters:
     last_rx_ns: int = 0
     dropped: int = 0  # lost before the gateway read them (the kernel's count; the service sets it)
     skipped_bytes: int = 0  # MAVLink: bytes outside any valid frame (the frame parsers' count)
+    lost_lines: int = 0  # NMEA over IEC 61162-450: lines the TAG blocks' line counts skipped (`_tag_seen`)
     # the link's: times it came back after it was lost, and when (UTC ns) and why it was last lost (the
     # transport counts them where the link is lost and comes back; the service copies them for a status)
     reconnects: int = 0
@@ -339,6 +343,7 @@ class SourceCounters:
             bytes=self.bytes,
             dropped=self.dropped,
             skipped_bytes=self.skipped_bytes,
+            lost_lines=self.lost_lines,
             reconnects=self.reconnects,
             last_disconnect=None if self.last_disconnect is None else self.last_disconnect[1],
             last_disconnect_ns=None if self.last_disconnect is None else self.last_disconnect[0],
@@ -416,6 +421,7 @@ class Pipeline:
         # chunk; key (source, peer), peer "" for links with one sender.
         self._framers: dict[tuple[str, str], NmeaFramer] = {}
         self._tag_named: dict[tuple[str, str], str] = {}  # a sender's TAG block awaiting its sentence
+        self._tag_lines: dict[tuple[str, str], int] = {}  # (source, device) -> its last line count (n:)
         self.sentence_tap: Callable[[str, int, str, str], None] | None = None
         """Called with (source, receive time ns, sentence text, peer) for every NMEA sentence the framer
         cuts from received bytes, before it is decoded (valid or not): an output that republishes raw
@@ -787,6 +793,8 @@ class Pipeline:
                             tag = decode_tag(frame.raw)
                             if isinstance(tag, TagReject):
                                 reason = tag.reason
+                            else:
+                                self._tag_seen(spec.name, tag, c)
                         c.rejected[reason] += 1
                     else:
                         framed.append(frame.text)
@@ -972,6 +980,23 @@ class Pipeline:
         self._sender_rx[key] = rx_ns
         return key, framer
 
+    def _tag_seen(self, source: str, tag: TagBlock, c: SourceCounters) -> None:
+        """A device's line count (``n:``) that skips: the lines between were lost on the network (a switch's
+        buffer, a multicast route), which the kernel's count (``dropped``) cannot see. Counted per source
+        (``lost_lines``) from the device's previous line, for each device apart. A count that goes back,
+        repeats, or jumps by more than `MAX_LINE_GAP` is a device restarting or datagrams arriving out of
+        order, not counted."""
+        device, n_text = tag.source, tag.params.get("n")
+        if device is None or n_text is None or not n_text.isdigit():
+            return
+        n = int(n_text)
+        last = self._tag_lines.get((source, device))
+        self._tag_lines[(source, device)] = n
+        if last is not None:
+            missing = (n - last - 1) % 999  # (the count runs 1-999, then 1 again)
+            if 0 < missing <= MAX_LINE_GAP:
+                c.lost_lines += missing
+
     def _tag_filter(
         self, want: str, key: tuple[str, str], frames: list[Frame], c: SourceCounters, framed: list[str]
     ) -> None:
@@ -999,6 +1024,7 @@ class Pipeline:
                     named = None
                 else:
                     named = tag.source
+                    self._tag_seen(key[0], tag, c)
             elif reason != IEC_61162_450:  # (the header comes before a TAG block: it keeps no name)
                 named = None
             c.rejected[reason] += 1

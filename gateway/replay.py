@@ -822,7 +822,8 @@ def run_replay(
         warned = {f"warning {k}": v for k, v in c.warnings.items()}  # (used: apart from the rejects)
         if unmatched.get(name):  # logged verdicts that found no frame: those frames were taken unchecked
             warned["warning signing_verdict_unmatched"] = unmatched[name]
-        result.counts[f"source {name}"] = {"received": c.received, **c.rejected, **warned}
+        lost = {"lost_lines": c.lost_lines} if c.lost_lines else {}  # (a ship network's, by its line counts)
+        result.counts[f"source {name}"] = {"received": c.received, **c.rejected, **warned, **lost}
     for inp in inputs:
         covered = [source_spans[src] for src in inp.sources() if src in source_spans]
         if covered:

@@ -28,7 +28,7 @@ from gateway.replay import config_from_log, mcap_events
 from gateway.service import GatewayService
 from wire.codecs import nmea_encode as enc
 from wire.codecs.nmea_framing import GARBAGE, IEC_61162_450, TAG_BLOCK, Frame
-from wire.codecs.nmea_tag import HEADER_450, TagBlock, TagReject, decode_tag, encode_tag
+from wire.codecs.nmea_tag import HEADER_450, TagBlock, TagReject, decode_tag, encode_tag, iec_450_datagram
 
 T0 = datetime(2026, 11, 29, 12, 0, 0, tzinfo=UTC)
 GROUP = "239.192.0.4"  # IEC 61162-450's NAVD group, where position and heading go
@@ -36,14 +36,8 @@ GROUP = "239.192.0.4"  # IEC 61162-450's NAVD group, where position and heading 
 
 def datagram(source: str, n: int, *sentences: str) -> bytes:
     """One IEC 61162-450 sentence datagram: the header, then each sentence after its TAG block (``s:`` the
-    device, ``n:`` the line count, ``g:`` grouping when there are several)."""
-    out = bytearray(HEADER_450)
-    for k, s in enumerate(sentences, 1):
-        params = {"s": source, "n": str(n)}
-        if len(sentences) > 1:
-            params["g"] = f"{k}-{len(sentences)}-{n % 1000}"
-        out += encode_tag(params) + s.encode("ascii")
-    return bytes(out)
+    device, ``n:`` its line count from ``n`` on, ``g:`` grouping when there are several)."""
+    return iec_450_datagram("".join(sentences).encode("ascii"), source, n)[0]
 
 
 def reasons(frames: list[Frame]) -> list[str | None]:
@@ -175,15 +169,17 @@ def network(seconds: int, damaged_every: int = 0, apart_deg: float = 9e-6) -> li
     for k in range(2 * seconds):
         t = T0 + timedelta(seconds=k / 2)
         wander = 2e-6 * math.sin(0.3 * k)  # (a fix that never moves is a frozen receiver)
-        fix1 = datagram("GP0001", k + 1, enc.gga("GP", t, 59.4 + wander, 10.5, 2, 12, 0.8, 20.0))
+        fix1 = datagram("GP0001", k % 999 + 1, enc.gga("GP", t, 59.4 + wander, 10.5, 2, 12, 0.8, 20.0))
         if damaged_every and k % damaged_every == damaged_every - 1:
             end = fix1.index(b"\\", len(HEADER_450) + 1)  # the TAG block's closing backslash
             wrong = b"%02X" % (int(fix1[end - 2 : end], 16) ^ 0x5A)
             fix1 = fix1[: end - 2] + wrong + fix1[end:]
         out += [
             fix1,
-            datagram("GP0002", k + 1, enc.gga("GP", t, 59.4 + apart_deg + wander, 10.5, 2, 12, 0.8, 20.0)),
-            datagram("HE0001", k + 1, enc.hdt("HE", 0.5 + wander), enc.rot("HE", 0.0)),
+            datagram(
+                "GP0002", k % 999 + 1, enc.gga("GP", t, 59.4 + apart_deg + wander, 10.5, 2, 12, 0.8, 20.0)
+            ),
+            datagram("HE0001", 2 * k % 999 + 1, enc.hdt("HE", 0.5 + wander), enc.rot("HE", 0.0)),
         ]
     return out
 
@@ -335,6 +331,8 @@ def test_run_status_counts_the_network_framing_and_other_devices_as_not_used() -
     assert "dgps1 5 rx 0.1 s ago (20 not used)" in status_line({"sources": {"dgps1": c}}, 3.0)
     c["rejected"]["tag_checksum"] = 1
     assert "(1 rejected, 20 not used)" in status_line({"sources": {"dgps1": c}}, 3.0)
+    c["lost_lines"] = 4
+    assert "(1 rejected, 20 not used, 4 lost on the network)" in status_line({"sources": {"dgps1": c}}, 3.0)
 
 
 # ------------------------------------------------------------------------------------------ simulator
@@ -360,7 +358,11 @@ def test_a_udp_sink_with_tag_source_sends_450_datagrams_the_gateway_reads() -> N
     assert reasons(frames) == [IEC_61162_450, TAG_BLOCK, None, TAG_BLOCK, None]
     assert decode_tag(frames[1].raw) == TagBlock({"s": "GP0001", "n": "1", "g": "1-2-1"})
     assert b"".join(f.raw + b"\r\n" for f in frames if f.reason is None) == burst
-    assert [decode_tag(frames_of(d)[1].raw).params["n"] for d in got[997:]] == ["998", "999", "1"]
+    # the device's line count, one per sentence, 1-999 and again
+    assert [int(decode_tag(frames_of(d)[1].raw).params["n"]) for d in got] == [
+        2 * k % 999 + 1 for k in range(1000)
+    ]
+    assert decode_tag(frames[3].raw) == TagBlock({"s": "GP0001", "n": "2", "g": "2-2-1"})
 
 
 @pytest.mark.parametrize(
@@ -442,3 +444,43 @@ def test_a_text_capture_of_the_network_replays_and_names_its_devices(
     out = capsys.readouterr().out
     assert "line_prefix 480, tag GP0001 120, tag GP0002 120, tag HE0001 240" in out
     assert "3 devices' TAG blocks in one text log (GP0001, GP0002, HE0001), replayed as one source" in out
+
+
+# ------------------------------------------------------------------------------------------ lost lines
+
+
+def test_sentences_lost_on_the_network_are_counted_from_the_line_counts() -> None:
+    """Drop datagrams from what the group carried (a switch's buffer overflowing): each device's TAG line
+    counts skip, and every sentence lost is counted once for the source that hears it, over the 999 wrap;
+    a device restarting (its count back to 1) is not a loss."""
+    t = tables("udp://239.192.0.4:60004")
+    pipe = Pipeline(PipelineSpec.from_config(parse_config(t, base_dir=Path.cwd())))
+    carried = network(600)  # 1,200 cycles: every device's count wraps past 999
+    lost: dict[str, int] = {"GP0001": 0, "GP0002": 0, "HE0001": 0}
+    kept = []
+    for k, d in enumerate(carried):
+        if k % 97 in (5, 6, 7) or 1500 <= k < 1512:  # three in a row now and then, and a longer burst
+            lost[decode_tag(frames_of(d)[1].raw).params["s"]] += d.count(b"$")
+            continue
+        kept.append(d)
+    # then GP0001 restarts: its count starts again at 1
+    t_restart = T0 + timedelta(seconds=700)
+    kept.append(datagram("GP0001", 1, enc.gga("GP", t_restart, 59.4, 10.5, 2, 12, 0.8, 20.0)))
+    for k, d in enumerate(kept):
+        for name in ("gnss1", "gnss2", "gyro"):
+            pipe.feed(RawEvent(k * 10**8, name, d, peer="p"))
+    c = pipe.counters
+    assert lost["GP0001"] > 30 and lost["HE0001"] > 60
+    everyone = sum(lost.values())
+    assert c["gnss1"].lost_lines == c["gnss2"].lost_lines == c["gyro"].lost_lines == everyone
+    assert pipe.status_message(k * 10**8).sources["gyro"].lost_lines == everyone
+
+
+def test_a_network_without_loss_counts_none_and_the_status_leaves_it_out() -> None:
+    pipe = Pipeline(
+        PipelineSpec.from_config(parse_config(tables("udp://239.192.0.4:60004"), base_dir=Path.cwd()))
+    )
+    for k, d in enumerate(network(600)):
+        pipe.feed(RawEvent(k * 10**8, "gyro", d, peer="p"))
+    assert pipe.counters["gyro"].lost_lines == 0
+    assert "lost_lines" not in pipe.status_message(10**12).to_dict()["sources"]["gyro"]

@@ -389,6 +389,14 @@ class SourceStatus(Record, kw_only=True):
             "their noise as `garbage` lines in `rejected` instead. Left out while 0."
         ),
     ] = 0
+    lost_lines: Annotated[
+        int,
+        doc(
+            "NMEA over an IEC 61162-450 network: sentences its devices sent that never arrived, seen where "
+            "the line count (`n:`) of a device's TAG blocks skips (count). Lost on the network (a switch, "
+            "a multicast route), where `dropped` cannot see. Left out while 0."
+        ),
+    ] = 0
     reconnects: Annotated[
         int,
         doc(

@@ -23,8 +23,9 @@ class UdpSink(Sink):
     To a multicast group, ``iface`` (an IPv4 address or an interface name) is the interface the datagrams
     leave by (default: the system's choice, which on a machine without a default route is none). With
     ``tag_source`` each write goes out as an IEC 61162-450 sentence datagram of that device (the header
-    ``UdPbC\\0``, each sentence after a TAG block naming it, `wire.codecs.nmea_tag.iec_450_datagram`), so
-    that a bench can stand in for the devices of a ship's network.
+    ``UdPbC\\0``, each sentence after a TAG block naming it and counting it, ``n:`` 1-999:
+    `wire.codecs.nmea_tag.iec_450_datagram`), so that a bench can stand in for the devices of a ship's
+    network.
     """
 
     def __init__(
@@ -46,7 +47,7 @@ class UdpSink(Sink):
                 self.url, f"tag_source {tag_source!r} is not a TAG block source", SOURCE_EXPECTED
             )
         self.tag_source = tag_source
-        self._line_count = 0
+        self._line = 1  # the device's line count (TAG blocks' n:) of its next sentence
         family, self.destination = resolve(self.url, host, port, socket.SOCK_DGRAM)
         sock = socket.socket(family, socket.SOCK_DGRAM)
         try:
@@ -82,8 +83,7 @@ class UdpSink(Sink):
         if not data:
             return
         if self.tag_source is not None:
-            self._line_count = self._line_count % 999 + 1  # (IEC 61162-450: 1-999, then again)
-            data = iec_450_datagram(data, self.tag_source, self._line_count)
+            data, self._line = iec_450_datagram(data, self.tag_source, self._line)
         try:
             n = self._sock.sendto(data, self.destination)
         except OSError as exc:  # BlockingIOError (buffer full), EMSGSIZE, ENETUNREACH, ECONNREFUSED ...

@@ -119,18 +119,25 @@ def encode_tag(params: dict[str, str]) -> bytes:
     return b"\\" + text + b"*%02X\\" % checksum
 
 
-def iec_450_datagram(sentences: bytes, source: str, line_count: int) -> bytes:
+def next_line(line: int) -> int:
+    """The line count after ``line``: 1-999, then 1 again."""
+    return line % 999 + 1
+
+
+def iec_450_datagram(sentences: bytes, source: str, line: int) -> tuple[bytes, int]:
     """The IEC 61162-450 sentence datagram of ``sentences`` (whole lines, CRLF-terminated) sent by the
-    device ``source``: the header, then each sentence after a TAG block with ``s:`` the source, ``n:`` the
-    line count (1-999; the caller counts, one per datagram) and, when the datagram holds several sentences,
-    ``g:`` grouping them (``x-y-n``: the x-th of y)."""
-    lines = [line for line in sentences.splitlines(keepends=True) if line.strip()]
-    n = str(line_count)
+    device ``source``, and the line count its next sentence takes. The header, then each sentence after
+    a TAG block with ``s:`` the source, ``n:`` the device's line count (``line`` for the first sentence,
+    one more for each after it, 1-999 then 1 again) and, when the datagram holds several sentences,
+    ``g:`` grouping them (``x-y-id``: the x-th of y, the group named by its first sentence's count)."""
+    lines = [s for s in sentences.splitlines(keepends=True) if s.strip()]
     out = bytearray(HEADER_450)
-    for k, line in enumerate(lines, 1):
-        params = {"s": source, "n": n}
+    group = str(line)
+    for k, sentence in enumerate(lines, 1):
+        params = {"s": source, "n": str(line)}
         if len(lines) > 1:
-            params["g"] = f"{k}-{len(lines)}-{n}"
+            params["g"] = f"{k}-{len(lines)}-{group}"
         out += encode_tag(params)
-        out += line
-    return bytes(out)
+        out += sentence
+        line = next_line(line)
+    return bytes(out), line
