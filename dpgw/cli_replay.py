@@ -58,9 +58,9 @@ DESCRIPTION = (
     "Feed recorded logs through the same pipeline as the live gateway, as fast as the CPU allows: "
     "the gateway's own MCAP logs (re-decoded from their raw channels: a live log is reproduced bit "
     "for bit), simulator logs (scored against their ground truth), raw NMEA text logs (time from the "
-    "sentences; HDT/ROT take the time of their cycle) and MAVLink tlogs. Several observer specs run "
-    "side by side in one pass. Bad input (truncated lines, garbage, checksum failures, time gaps, "
-    "backwards or repeated time, duplicates) is counted, never fatal."
+    "sentences; headings from a gyro faster than the fixes spread between them) and MAVLink tlogs. "
+    "Several observer specs run side by side in one pass. Bad input (truncated lines, garbage, checksum "
+    "failures, time gaps, backwards or repeated time, duplicates) is counted, never fatal."
 )
 EPILOG = (
     "observer specs: NAME[:key=value,...][@label]; keys: the observer's own\n"
@@ -411,8 +411,8 @@ def run(args: argparse.Namespace) -> int:
     topics = ["/dp/estimate", *(f"/dp/estimates/{s.label}" for s in specs[1:])]
     if args.report:
         topics.append("/dp/measurement")
-    elif not any(inp.kind == "mcap" for inp in inputs):
-        topics = []  # a text log or tlog has no truth: nothing to score
+    elif args.truth is None and not any(inp.kind == "mcap" for inp in inputs):
+        topics = []  # a text log or tlog has no truth, and none was given: nothing to score
     bar = terminal_bar(None, " events", json=args.json)
     evidence = _WaveEvidence(pipeline.fusion)
     on_outputs = evidence.on_outputs

@@ -40,6 +40,7 @@ from gateway.logreaders import (
     LogCounts,
     nmea_text_events,
     nmea_text_events_reference,
+    spread_headings,
     tlog_events,
 )
 from gateway.pipeline import (
@@ -316,8 +317,10 @@ class Input:
         if self.kind == "tlog":
             return tlog_events(self.path, self.source, self.counts)
         if self.fast_scan if self.fast_scan is not None else self.path.stat().st_size >= FAST_SCAN_MIN_BYTES:
-            return nmea_text_events(self.path, self.source, counts=self.counts, only=USED_NMEA)
-        return nmea_text_events_reference(self.path, self.source, counts=self.counts)
+            cycles = nmea_text_events(self.path, self.source, counts=self.counts, only=USED_NMEA)
+        else:
+            cycles = nmea_text_events_reference(self.path, self.source, counts=self.counts)
+        return spread_headings(cycles, self.counts)
 
     def sources(self) -> dict[str, str]:
         if self.kind == "mcap":
