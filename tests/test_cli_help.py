@@ -270,9 +270,10 @@ def test_verbose_status_line_counts_sentences_not_used_apart_from_the_rejected()
     """saab-r4.log's receiver over TCP: AIS and $PFEC/GLL/DTM, well-formed but not used. Before: '(63
     rejected)' for a healthy stream, as if its sentences were bad."""
     from wire.codecs.nmea import UNSUPPORTED
-    from wire.codecs.nmea_framing import AIS, COMMENT
+    from wire.codecs.nmea_framing import AIS, COMMENT, IEC_61162_450, TAG_BLOCK
+    from wire.codecs.nmea_tag import OTHER_TAG_SOURCE
 
-    assert set(cli_run.NOT_USED) == {UNSUPPORTED, AIS, COMMENT}
+    assert set(cli_run.NOT_USED) == {UNSUPPORTED, AIS, COMMENT, TAG_BLOCK, IEC_61162_450, OTHER_TAG_SOURCE}
     sources = {
         "gyro": {"age_s": 0.0, "received": 154, "rejected": {"ais": 24, "unsupported": 20, "test_jump": 19}},
         "gps": {"age_s": 0.2, "received": 90, "rejected": {"unsupported": 40}},
