@@ -53,6 +53,7 @@ from gateway.pipeline import (
     PipelineSpec,
     RawEvent,
 )
+from gateway.stamped_log import is_stamped_only, stamped_text_events
 from observers.factory import (
     OBSERVER_PARAMS,
     OBSERVER_TYPES,
@@ -316,6 +317,8 @@ class Input:
             return mcap_events(self.path)
         if self.kind == "tlog":
             return tlog_events(self.path, self.source, self.counts)
+        if is_stamped_only(self.path):  # (a logger's file of one port without sentence times: a gyro's)
+            return stamped_text_events(self.path, self.source, counts=self.counts)
         if self.fast_scan if self.fast_scan is not None else self.path.stat().st_size >= FAST_SCAN_MIN_BYTES:
             cycles = nmea_text_events(self.path, self.source, counts=self.counts, only=USED_NMEA)
         else:

@@ -1,0 +1,104 @@
+"""NMEA text logs timed by their logger alone: every line after a UTC receive time, no sentence with a time.
+
+A data logger that writes one file per serial port stamps each line with the time it arrived
+(``2024-12-07T03:25:51.050Z $HEHDT,45.9,T*2F``). A gyro's file then holds headings (HDT, THS, ROT) and no
+sentence that carries a time of day, so the ordinary text reader (`gateway.logreaders`), which times a
+log by its GGA/RMC/ZDA, has nothing to replay it by. Such a file is replayed by its stamps: each run of
+lines with one stamp is one read at that time, as the live gateway received it (not a reader's cycle: the
+pipeline cuts a read into cycles as it does a live one), so ``dpgw replay gps.nmea gyro.nmea`` merges
+the two files by time.
+
+Only stamps that say they are UTC are taken: ISO 8601 with ``Z`` or an offset (``+02:00``, turned into
+UTC), and UNIX seconds (``1733541951.050``). A date and time without a zone may be the logger's local
+time, hours off the receiver's UTC in a merge: such a file is not read here (its sentences' times are
+used where it has them; without any, replay says there is nothing to replay). A file with sentence times
+is read the ordinary way whether or not it is stamped (`gateway.line_prefix` takes the stamps off).
+
+Counts (`LogCounts`): ``line_prefix`` the stamps taken off; ``no_stamp`` a line without one (it goes with
+the read before it, as it arrived after it; before any stamp it is counted and left out);
+``time_backwards`` a stamp earlier than the one before it (kept: the observer skips what is late);
+``time_gap`` a step forward longer than ``gap_s``.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from datetime import datetime
+from pathlib import Path
+
+from gateway.compressed import open_log
+from gateway.logreaders import LogCounts, count_reading
+from gateway.pipeline import RawEvent
+
+NS = 1_000_000_000
+
+STAMP = re.compile(
+    rb"(?:(?P<iso>\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}:\d{2}(?:\.\d{1,9})?(?:Z|[+-]\d{2}:?\d{2}))"
+    rb"|(?P<unix>\d{9,10}(?:\.\d{1,9})?))[ ,;\t]+(?=[$!])"
+)
+"""A UTC receive time at a line's start, and its separator, directly before a sentence."""
+
+TIMED = re.compile(rb"(?m)^(?:[^$\r\n]*)\$[A-Z]{2}(?:GGA|RMC|ZDA|GNS|GLL),")
+"""A sentence that carries a time of day (the ordinary reader times a log by them)."""
+
+
+def stamp_ns(m: re.Match[bytes]) -> int | None:
+    """UTC ns of a `STAMP` match, None if it is no real time (a 13th month, ...)."""
+    try:
+        if m["unix"] is not None:
+            whole, _, frac = m["unix"].partition(b".")
+            return int(whole) * NS + int((frac + b"000000000")[:9])
+        text = m["iso"].decode("ascii").replace(" ", "T")
+        when = datetime.fromisoformat(text)
+    except ValueError:
+        return None
+    return int(when.timestamp()) * NS + when.microsecond * 1000
+
+
+def is_stamped_only(path: str | Path, peek: int = 1 << 16) -> bool:
+    """Whether a text log is to be replayed by its stamps: its first ``peek`` bytes (decompressed) hold
+    a line that starts with a UTC stamp and no sentence with a time of day."""
+    with open_log(path) as f:
+        head = f.read(peek)
+    return TIMED.search(head) is None and any(STAMP.match(line) for line in head.splitlines()[:200])
+
+
+def stamped_text_events(
+    path: str | Path, source: str, *, counts: LogCounts | None = None, gap_s: float = 5.0
+) -> Iterator[RawEvent]:
+    """One `RawEvent` per run of lines with one stamp, at that stamp (module docstring)."""
+    c = counts if counts is not None else LogCounts()
+    lines: list[bytes] = []
+    at: int | None = None
+    latest = -1
+    with open_log(path) as f:
+        for raw in f:
+            c.lines += 1
+            line = raw.rstrip(b"\r\n")
+            if not line:
+                continue
+            m = STAMP.match(line)
+            t = stamp_ns(m) if m is not None else None
+            if m is None or t is None:
+                c.counts["no_stamp"] += 1
+                if at is not None:
+                    lines.append(line)
+                continue
+            c.counts["line_prefix"] += 1
+            if t != at:
+                if lines and at is not None:
+                    yield RawEvent(at, source, b"\r\n".join(lines) + b"\r\n")
+                    c.cycles += 1
+                    lines = []
+                if latest >= 0 and t < latest:
+                    c.counts["time_backwards"] += 1
+                elif latest >= 0 and t - latest > gap_s * NS:
+                    c.counts["time_gap"] += 1
+                latest = max(latest, t)
+                at = t
+            lines.append(line[m.end() :])
+        count_reading(f, c)
+    if lines and at is not None:
+        yield RawEvent(at, source, b"\r\n".join(lines) + b"\r\n")
+        c.cycles += 1

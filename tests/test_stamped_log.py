@@ -1,0 +1,140 @@
+"""A logger's file of one serial port, each line stamped with its UTC receive time and no sentence with a
+time of day (a gyro's HDT/ROT): replayed by its stamps, and merged by time with the receiver's own log.
+
+Before: "no_time" for every line, no heading, no estimate ("replay it together with a log of the missing
+sensor" — which it was)."""
+
+from __future__ import annotations
+
+import gzip
+import json
+import subprocess
+import sys
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from gateway.logreaders import LogCounts
+from gateway.stamped_log import STAMP, is_stamped_only, stamp_ns, stamped_text_events
+from wire.codecs import nmea_encode as enc
+
+T0 = datetime(2026, 6, 1, 10, 0, 0, tzinfo=UTC)
+NS = 1_000_000_000
+
+
+@pytest.mark.parametrize(
+    ("stamp", "utc"),
+    [
+        ("2026-06-01T10:00:00.250Z", T0 + timedelta(seconds=0.25)),
+        ("2026-06-01 12:00:00.250+02:00", T0 + timedelta(seconds=0.25)),  # (an offset: turned into UTC)
+        ("2026-06-01T12:00:00+0200", T0),
+        (f"{T0.timestamp() + 0.5:.3f}", T0 + timedelta(seconds=0.5)),
+    ],
+)
+def test_utc_stamps_are_read(stamp: str, utc: datetime) -> None:
+    for sep in (" ", ",", ";", "\t"):
+        m = STAMP.match(f"{stamp}{sep}$HEHDT,45.9,T*2F".encode())
+        assert (
+            m is not None
+            and stamp_ns(m) == int(utc.replace(microsecond=0).timestamp()) * NS + utc.microsecond * 1000
+        )
+
+
+@pytest.mark.parametrize(
+    "line",
+    [
+        "2026-06-01 10:00:00.250 $HEHDT,45.9,T*2F",  # no zone: perhaps local time
+        "01/06/2026 10:00:00 $HEHDT,45.9,T*2F",  # day or month first?
+        "2026-06-01T10:00:00Z$HEHDT,45.9,T*2F",  # no separator
+    ],
+)
+def test_a_stamp_that_is_not_surely_utc_is_not_taken(line: str) -> None:
+    assert STAMP.match(line.encode()) is None
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.datetimes(min_value=datetime(2000, 1, 1), max_value=datetime(2099, 12, 31)), st.integers(0, 999))
+def test_iso_stamps_round_trip(when: datetime, ms: int) -> None:
+    when = when.replace(microsecond=ms * 1000, tzinfo=UTC)
+    m = STAMP.match((when.strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z $HEROT,0.1,A*00").encode())
+    assert m is not None and stamp_ns(m) == int(when.timestamp()) * NS + ms * 1_000_000
+
+
+def gyro_file(path: Path, seconds: int = 20, hz: int = 10) -> Path:
+    lines = []
+    for k in range(seconds * hz):
+        t = T0 + timedelta(seconds=k / hz)
+        stamp = t.strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z "
+        lines += [stamp + enc.hdt("HE", 0.8 + 1e-3 * k), stamp + enc.rot("HE", 0.01)]
+    path.write_text("".join(lines))
+    return path
+
+
+def test_a_stamped_gyro_file_is_one_read_per_stamp(tmp_path: Path) -> None:
+    log = gyro_file(tmp_path / "gyro.nmea")
+    assert is_stamped_only(log)
+    counts = LogCounts()
+    events = list(stamped_text_events(log, "gyro", counts=counts))
+    assert len(events) == 200 and counts.cycles == 200 and counts.counts["line_prefix"] == 400
+    assert [e.rx_ns for e in events] == [round((T0.timestamp() + k / 10) * 1e9) for k in range(200)]
+    assert all(e.data.startswith(b"$HEHDT") and e.data.count(b"\r\n") == 2 and not e.cycle for e in events)
+
+
+def test_damage_is_counted_and_kept_in_order(tmp_path: Path) -> None:
+    log = gyro_file(tmp_path / "gyro.nmea", seconds=2)
+    lines = log.read_bytes().splitlines(keepends=True)
+    lines.insert(5, b"$HEHDT,1.0,T*00\r\n")  # no stamp: goes with the read before it
+    lines.insert(9, lines[0])  # a stamp from before: backwards
+    lines.append(b"2026-06-01T10:01:00.000Z $HEHDT,1.0,T*00\r\n")  # a minute on: a gap
+    lines.insert(0, b"$HEROT,0.0,A*00\r\n")  # before any stamp: counted, left out
+    packed = tmp_path / "gyro.nmea.gz"
+    packed.write_bytes(gzip.compress(b"".join(lines)))
+    assert is_stamped_only(packed)
+    counts = LogCounts()
+    events = list(stamped_text_events(packed, "gyro", counts=counts))
+    assert counts.counts["no_stamp"] == 2 and counts.counts["time_backwards"] == 1
+    assert counts.counts["time_gap"] == 1
+    assert sum(e.data.count(b"\r\n") for e in events) == len(lines) - 1  # every line but the unstamped first
+
+
+def test_a_file_with_sentence_times_is_read_the_ordinary_way(tmp_path: Path) -> None:
+    log = tmp_path / "gps.nmea"
+    log.write_text(T0.strftime("%Y-%m-%dT%H:%M:%SZ ") + enc.gga("GP", T0, 59.4, 10.5, 2, 12, 0.8, 10.0))
+    assert not is_stamped_only(log)
+    local = tmp_path / "local.nmea"
+    local.write_text("2026-06-01 10:00:00.000 " + enc.hdt("HE", 0.8))
+    assert not is_stamped_only(local)  # (no zone: not read by its stamps)
+
+
+def test_a_receivers_log_and_a_stamped_gyro_log_replay_together_against_the_truth(tmp_path: Path) -> None:
+    """A sea trial's two files as two loggers write them: the receiver's sentences (timed by themselves)
+    and the gyro's port, stamped. Merged by time, scored against the plant's truth."""
+    trial, truth = tmp_path / "trial.nmea", tmp_path / "truth.mcap"
+    subprocess.run(
+        [sys.executable, "-m", "dpgw", "sim", "--scenario", "torsetnes_2004", "--duration", "300",
+         "--gnss-rate", "1", "--gyro-rate", "10", "--nmea", f"file://{trial}", "--out", str(truth)],
+        check=True, capture_output=True, timeout=600,
+    )  # fmt: skip
+    start = datetime(2026, 6, 1, 10, 0, 0, tzinfo=UTC)  # torsetnes_2004's start
+    gps, gyro, j = [], [], -1
+    for line in trial.read_bytes().splitlines():
+        if line[3:6] in (b"HDT", b"ROT"):
+            j += line[3:6] == b"HDT"  # (the simulator's gyro: 10 Hz, an HDT and its ROT)
+            stamp = (start + timedelta(seconds=j / 10)).strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z "
+            gyro.append(stamp.encode() + line)
+        else:
+            gps.append(line)
+    (tmp_path / "gps.nmea").write_bytes(b"\r\n".join(gps) + b"\r\n")
+    (tmp_path / "gyro.nmea").write_bytes(b"\r\n".join(gyro) + b"\r\n")
+    replay = subprocess.run(
+        [sys.executable, "-m", "dpgw", "replay", str(tmp_path / "gps.nmea"), str(tmp_path / "gyro.nmea"),
+         "--vessel", "mss_supply", "--truth", str(truth), "--out", str(tmp_path / "r.mcap"), "--json"],
+        check=True, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    s = json.loads(replay.stdout)
+    assert s["counts"]["source gyro"]["received"] == 2 * 3000
+    e = s["error_vs_truth"]["passive"]
+    assert e["samples"] >= 9 * 240 and e["rms_heading_deg"] < 0.4 and e["horizontal_rms_m"] < 1.0
