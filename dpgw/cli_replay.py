@@ -156,6 +156,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_endpoint_args(p)
     p.add_argument("--no-scouting", action="store_true", help="Zenoh multicast scouting off")
     p.add_argument(
+        "--stamp-zone",
+        metavar="ZONE",
+        help="the zone a text log's time stamps without one were written in (UTC, or an offset: +02:00): "
+        "a logger's file of one port, every line stamped and none with a sentence time (a gyro's HDT), "
+        "is then replayed by its stamps. Stamps with Z or an offset, and UNIX seconds, need none",
+    )
+    p.add_argument(
         "--settle",
         type=non_negative_float,
         metavar="S",
@@ -219,11 +226,24 @@ def nothing_to_replay(inputs: list[Any], result: ReplayResult) -> str:
     found = "; ".join(
         f"{where}: " + ", ".join(f"{k} {v}" for k, v in c.items()) for where, c in result.counts.items() if c
     )
+    hints = [h for c in result.counts.values() if (h := stamps_without_zone(c))]
     return (
         f"nothing to replay in {', '.join(str(i.path) for i in inputs)}: no NMEA sentence with a time, no "
         f"MAVLink frame, no dpgw channel{f' ({found})' if found else ''}; give a gateway or simulator MCAP "
-        "log, an NMEA 0183 text log or a MAVLink tlog"
+        "log, an NMEA 0183 text log or a MAVLink tlog" + "".join(f" ({h})" for h in hints[:1])
     )
+
+
+def stamps_without_zone(counts: dict[str, int]) -> str | None:
+    """What to say of a text log whose lines had a logger's stamp (``line_prefix``) and no time: stamps
+    without a zone, which replay does not take as UTC (`gateway.stamped_log`)."""
+    if counts.get("no_time") and counts.get("line_prefix"):
+        return (
+            f"{counts['no_time']} lines without a time: their logger's stamps name no zone, so they may be "
+            "local time and are not taken as times; give the zone the logger wrote in (--stamp-zone UTC, "
+            "--stamp-zone +02:00) to replay the log by its stamps"
+        )
+    return None
 
 
 def default_out(first_log: str) -> str:
@@ -366,6 +386,16 @@ def run(args: argparse.Namespace) -> int:
         return 2
     try:
         inputs = open_inputs(args.logs)
+        if args.stamp_zone is not None:
+            from gateway.stamped_log import parse_zone
+
+            try:
+                zone = parse_zone(args.stamp_zone)
+            except ValueError as exc:
+                print(f"dpgw replay: --stamp-zone: {exc}", file=sys.stderr)
+                return 2
+            for inp in inputs:
+                inp.stamp_zone = zone
         if why := fed_twice(inputs):
             raise ReplayError(why)
         if args.truth is not None and (sim := next((i for i in inputs if logged_sim(i.path)), None)):
@@ -1127,6 +1157,8 @@ def _print(s: dict[str, Any]) -> None:
                 f"    ({c['comment']} comment lines: lines beginning with #, a log's header as gpsd's test "
                 "logs have; not bad input, kept in the raw log)"
             )
+        if zoneless := stamps_without_zone(c):
+            print(f"    ({zoneless})")
         devices = [k.removeprefix("tag ") for k in c if k.startswith("tag ")]
         if len(devices) > 1:
             print(

@@ -26,6 +26,7 @@ import struct
 from collections import Counter
 from collections.abc import Callable, Collection, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
+from datetime import tzinfo
 from pathlib import Path
 from typing import Any
 
@@ -311,14 +312,17 @@ class Input:
     counts: LogCounts = field(default_factory=LogCounts)
     fast_scan: bool | None = None
     """NMEA text: the compiled line scan (True), the line-by-line reader (False), or by size (None)."""
+    stamp_zone: tzinfo | None = None
+    """NMEA text: the zone a logger's stamps without one were written in (`gateway.stamped_log`)."""
 
     def events(self) -> Iterator[Event]:
         if self.kind == "mcap":
             return mcap_events(self.path)
         if self.kind == "tlog":
             return tlog_events(self.path, self.source, self.counts)
-        if is_stamped_only(self.path):  # (a logger's file of one port without sentence times: a gyro's)
-            return stamped_text_events(self.path, self.source, counts=self.counts)
+        if is_stamped_only(self.path, self.stamp_zone):  # (a logger's file of one port without sentence
+            # times: a gyro's)
+            return stamped_text_events(self.path, self.source, counts=self.counts, zone=self.stamp_zone)
         if self.fast_scan if self.fast_scan is not None else self.path.stat().st_size >= FAST_SCAN_MIN_BYTES:
             cycles = nmea_text_events(self.path, self.source, counts=self.counts, only=USED_NMEA)
         else:

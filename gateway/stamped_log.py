@@ -10,9 +10,11 @@ the two files by time.
 
 Only stamps that say they are UTC are taken: ISO 8601 with ``Z`` or an offset (``+02:00``, turned into
 UTC), and UNIX seconds (``1733541951.050``). A date and time without a zone may be the logger's local
-time, hours off the receiver's UTC in a merge: such a file is not read here (its sentences' times are
-used where it has them; without any, replay says there is nothing to replay). A file with sentence times
-is read the ordinary way whether or not it is stamped (`gateway.line_prefix` takes the stamps off).
+time, hours off the receiver's UTC in a merge: such a file is read by its stamps only when the user says
+which zone the logger wrote in (``dpgw replay --stamp-zone +02:00``, or ``UTC``); otherwise its
+sentences' times are used where it has them, and without any, replay says why there is nothing to
+replay. A file with sentence times is read the ordinary way whether or not it is stamped
+(`gateway.line_prefix` takes the stamps off).
 
 Counts (`LogCounts`): ``line_prefix`` the stamps taken off; ``no_stamp`` a line without one (it goes with
 the read before it, as it arrived after it; before any stamp it is counted and left out);
@@ -24,7 +26,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterator
-from datetime import datetime
+from datetime import UTC, datetime, timedelta, timezone, tzinfo
 from pathlib import Path
 
 from gateway.compressed import open_log
@@ -34,38 +36,62 @@ from gateway.pipeline import RawEvent
 NS = 1_000_000_000
 
 STAMP = re.compile(
-    rb"(?:(?P<iso>\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}:\d{2}(?:\.\d{1,9})?(?:Z|[+-]\d{2}:?\d{2}))"
+    rb"(?:(?P<iso>\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}:\d{2}(?:\.\d{1,9})?)(?P<zone>Z|[+-]\d{2}:?\d{2})?"
     rb"|(?P<unix>\d{9,10}(?:\.\d{1,9})?))[ ,;\t]+(?=[$!])"
 )
-"""A UTC receive time at a line's start, and its separator, directly before a sentence."""
+"""A receive time at a line's start (ISO 8601 with or without a zone, or UNIX seconds), and its separator,
+directly before a sentence."""
 
 TIMED = re.compile(rb"(?m)^(?:[^$\r\n]*)\$[A-Z]{2}(?:GGA|RMC|ZDA|GNS|GLL),")
 """A sentence that carries a time of day (the ordinary reader times a log by them)."""
 
 
-def stamp_ns(m: re.Match[bytes]) -> int | None:
-    """UTC ns of a `STAMP` match, None if it is no real time (a 13th month, ...)."""
+def stamp_ns(m: re.Match[bytes], zone: tzinfo | None = None) -> int | None:
+    """UTC ns of a `STAMP` match; None if it is no real time (a 13th month, ...) or names no zone and
+    ``zone`` (the one the user says the logger wrote in: ``--stamp-zone``) is None."""
     try:
         if m["unix"] is not None:
             whole, _, frac = m["unix"].partition(b".")
             return int(whole) * NS + int((frac + b"000000000")[:9])
-        text = m["iso"].decode("ascii").replace(" ", "T")
-        when = datetime.fromisoformat(text)
+        if m["zone"] is None and zone is None:
+            return None
+        when = datetime.fromisoformat((m["iso"] + (m["zone"] or b"")).decode("ascii").replace(" ", "T"))
     except ValueError:
         return None
+    if when.tzinfo is None:
+        when = when.replace(tzinfo=zone)
     return int(when.timestamp()) * NS + when.microsecond * 1000
 
 
-def is_stamped_only(path: str | Path, peek: int = 1 << 16) -> bool:
+def parse_zone(text: str) -> tzinfo:
+    """``UTC``, ``Z`` or an offset (``+02:00``, ``-0330``) as a zone; ValueError otherwise."""
+    if text.strip().upper() in ("UTC", "Z"):
+        return UTC
+    m = re.fullmatch(r"([+-])(\d{2}):?(\d{2})", text.strip())
+    if m is None or int(m[2]) > 14 or int(m[3]) >= 60:
+        raise ValueError(f"{text!r} is not a zone (expected UTC or an offset such as +02:00 or -0330)")
+    offset = timedelta(hours=int(m[2]), minutes=int(m[3]))
+    return timezone(-offset if m[1] == "-" else offset)
+
+
+def is_stamped_only(path: str | Path, zone: tzinfo | None = None, peek: int = 1 << 16) -> bool:
     """Whether a text log is to be replayed by its stamps: its first ``peek`` bytes (decompressed) hold
-    a line that starts with a UTC stamp and no sentence with a time of day."""
+    a line that starts with a stamp that is a UTC time (given ``zone`` for one without a zone), and no
+    sentence with a time of day."""
     with open_log(path) as f:
         head = f.read(peek)
-    return TIMED.search(head) is None and any(STAMP.match(line) for line in head.splitlines()[:200])
+    if TIMED.search(head) is not None:
+        return False
+    return any((m := STAMP.match(line)) and stamp_ns(m, zone) is not None for line in head.splitlines()[:200])
 
 
 def stamped_text_events(
-    path: str | Path, source: str, *, counts: LogCounts | None = None, gap_s: float = 5.0
+    path: str | Path,
+    source: str,
+    *,
+    counts: LogCounts | None = None,
+    gap_s: float = 5.0,
+    zone: tzinfo | None = None,
 ) -> Iterator[RawEvent]:
     """One `RawEvent` per run of lines with one stamp, at that stamp (module docstring)."""
     c = counts if counts is not None else LogCounts()
@@ -79,7 +105,7 @@ def stamped_text_events(
             if not line:
                 continue
             m = STAMP.match(line)
-            t = stamp_ns(m) if m is not None else None
+            t = stamp_ns(m, zone) if m is not None else None
             if m is None or t is None:
                 c.counts["no_stamp"] += 1
                 if at is not None:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import gzip
 import json
+import math
 import subprocess
 import sys
 from datetime import UTC, datetime, timedelta
@@ -18,7 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gateway.logreaders import LogCounts
-from gateway.stamped_log import STAMP, is_stamped_only, stamp_ns, stamped_text_events
+from gateway.stamped_log import STAMP, is_stamped_only, parse_zone, stamp_ns, stamped_text_events
 from wire.codecs import nmea_encode as enc
 
 T0 = datetime(2026, 6, 1, 10, 0, 0, tzinfo=UTC)
@@ -46,13 +47,23 @@ def test_utc_stamps_are_read(stamp: str, utc: datetime) -> None:
 @pytest.mark.parametrize(
     "line",
     [
-        "2026-06-01 10:00:00.250 $HEHDT,45.9,T*2F",  # no zone: perhaps local time
         "01/06/2026 10:00:00 $HEHDT,45.9,T*2F",  # day or month first?
         "2026-06-01T10:00:00Z$HEHDT,45.9,T*2F",  # no separator
     ],
 )
-def test_a_stamp_that_is_not_surely_utc_is_not_taken(line: str) -> None:
+def test_what_is_no_stamp_is_not_taken(line: str) -> None:
     assert STAMP.match(line.encode()) is None
+
+
+def test_a_stamp_without_a_zone_is_taken_only_in_the_zone_given() -> None:
+    m = STAMP.match(b"2026-06-01 12:00:00.250 $HEHDT,45.9,T*2F")
+    assert m is not None and stamp_ns(m) is None  # perhaps local time: not a time without --stamp-zone
+    utc = int(T0.timestamp()) * NS + 250_000_000
+    assert stamp_ns(m, parse_zone("+02:00")) == utc == stamp_ns(m, parse_zone("+0200"))
+    assert stamp_ns(m, parse_zone("UTC")) == utc + 7200 * NS
+    for bad in ("CET", "+2", "+25:00", "02:00"):
+        with pytest.raises(ValueError, match="is not a zone"):
+            parse_zone(bad)
 
 
 @settings(max_examples=200, deadline=None)
@@ -138,3 +149,56 @@ def test_a_receivers_log_and_a_stamped_gyro_log_replay_together_against_the_trut
     assert s["counts"]["source gyro"]["received"] == 2 * 3000
     e = s["error_vs_truth"]["passive"]
     assert e["samples"] >= 9 * 240 and e["rms_heading_deg"] < 0.4 and e["horizontal_rms_m"] < 1.0
+
+
+def test_a_local_time_gyro_file_replays_with_its_zone_and_says_so_without(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A logger on the bridge writing local time (UTC+2, no zone in its stamps) beside the receiver's log:
+    without --stamp-zone the replay says why the gyro gave nothing; with it, the two merge."""
+    from dpgw.cli import main
+
+    gps = tmp_path / "gps.nmea"
+    fixes = []
+    for k in range(20):  # (RMC gives the log its date; a fix that never moves is a frozen receiver)
+        t, lat = T0 + timedelta(seconds=k), 59.4 + 2e-6 * math.sin(k)
+        fixes += [enc.gga("GP", t, lat, 10.5, 2, 12, 0.8, 10.0), enc.rmc("GP", t, lat, 10.5, 0.1, 0.2, True)]
+    gps.write_text("".join(fixes))
+    utc_file = gyro_file(tmp_path / "gyro_utc.nmea")
+    local = tmp_path / "gyro.nmea"
+    lines = utc_file.read_text().splitlines(keepends=True)
+    local.write_text(
+        "".join(
+            (datetime.fromisoformat(ln[:24]) + timedelta(hours=2)).strftime("%Y-%m-%d %H:%M:%S.%f")[:-3]
+            + ln[24:]
+            for ln in lines
+        )
+    )
+    args = [str(gps), str(local), "--vessel", "mss_supply", "--json"]
+    assert main(["replay", *args, "--out", str(tmp_path / "a.mcap")]) == 0
+    without = json.loads(capsys.readouterr().out)
+    assert without["counts"]["source gyro"]["received"] == 0
+    assert main(["replay", *args, "--out", str(tmp_path / "b.mcap"), "--stamp-zone", "+02:00"]) == 0
+    given = json.loads(capsys.readouterr().out)
+    assert given["counts"]["source gyro"]["received"] == 400
+    assert (
+        main(
+            [
+                "replay",
+                str(gps),
+                str(utc_file),
+                "--vessel",
+                "mss_supply",
+                "--json",
+                "--out",
+                str(tmp_path / "c.mcap"),
+            ]
+        )
+        == 0
+    )
+    as_utc = json.loads(capsys.readouterr().out)
+    assert given["estimates"] == as_utc["estimates"] and given["estimates"]["passive"] >= 190
+    assert main(["replay", str(local), "--vessel", "mss_supply", "--out", str(tmp_path / "d.mcap")]) == 2
+    assert "give the zone the logger wrote in (--stamp-zone UTC" in capsys.readouterr().err
+    assert main(["replay", str(local), "--vessel", "mss_supply", "--stamp-zone", "CET"]) == 2
+    assert "--stamp-zone: 'CET' is not a zone" in capsys.readouterr().err
