@@ -40,6 +40,18 @@ def mixed_log(path: Path, seconds: int = 120, gyro_hz: int = 10) -> Path:
     return path
 
 
+def sea_trial(folder: Path, seconds: int) -> tuple[Path, Path]:
+    """`dpgw sim` (torsetnes_2004) writing a 1 Hz receiver and a 10 Hz gyro to one text log, as a sea
+    trial's logger would, and its truth: (the text log, the simulator's MCAP log)."""
+    trial, truth = folder / "trial.nmea", folder / "truth.mcap"
+    subprocess.run(
+        [sys.executable, "-m", "dpgw", "sim", "--scenario", "torsetnes_2004", "--duration", str(seconds),
+         "--gnss-rate", "1", "--gyro-rate", "10", "--nmea", f"file://{trial}", "--out", str(truth)],
+        check=True, capture_output=True, timeout=600,
+    )  # fmt: skip
+    return trial, truth
+
+
 @pytest.mark.parametrize("reader", ["compiled scan", "line reader"])
 def test_each_heading_gets_its_own_time_between_the_fixes(tmp_path: Path, reader: str) -> None:
     log = mixed_log(tmp_path / "mixed.nmea")
@@ -94,12 +106,7 @@ def test_a_log_of_equal_rates_is_left_as_it_was(tmp_path: Path) -> None:
 def test_against_the_plants_truth_the_heading_error_halves(tmp_path: Path) -> None:
     """`dpgw sim` writes a 1 Hz receiver and a 10 Hz gyro to one text log, as a sea trial's logger would;
     its replay, scored against the plant's truth (--truth, which before scored nothing for a text log)."""
-    trial, truth = tmp_path / "trial.nmea", tmp_path / "truth.mcap"
-    subprocess.run(
-        [sys.executable, "-m", "dpgw", "sim", "--scenario", "torsetnes_2004", "--duration", "600",
-         "--gnss-rate", "1", "--gyro-rate", "10", "--nmea", f"file://{trial}", "--out", str(truth)],
-        check=True, capture_output=True, timeout=600,
-    )  # fmt: skip
+    trial, truth = sea_trial(tmp_path, 600)
     replay = subprocess.run(
         [sys.executable, "-m", "dpgw", "replay", str(trial), "--vessel", "mss_supply", "--truth", str(truth),
          "--out", str(tmp_path / "r.mcap"), "--json"],

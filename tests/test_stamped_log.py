@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from test_mixed_rate_text_logs import sea_trial
 
 from gateway.logreaders import LogCounts
 from gateway.stamped_log import STAMP, is_stamped_only, parse_zone, stamp_ns, stamped_text_events
@@ -123,12 +124,7 @@ def test_a_file_with_sentence_times_is_read_the_ordinary_way(tmp_path: Path) -> 
 def test_a_receivers_log_and_a_stamped_gyro_log_replay_together_against_the_truth(tmp_path: Path) -> None:
     """A sea trial's two files as two loggers write them: the receiver's sentences (timed by themselves)
     and the gyro's port, stamped. Merged by time, scored against the plant's truth."""
-    trial, truth = tmp_path / "trial.nmea", tmp_path / "truth.mcap"
-    subprocess.run(
-        [sys.executable, "-m", "dpgw", "sim", "--scenario", "torsetnes_2004", "--duration", "300",
-         "--gnss-rate", "1", "--gyro-rate", "10", "--nmea", f"file://{trial}", "--out", str(truth)],
-        check=True, capture_output=True, timeout=600,
-    )  # fmt: skip
+    trial, truth = sea_trial(tmp_path, 300)
     start = datetime(2026, 6, 1, 10, 0, 0, tzinfo=UTC)  # torsetnes_2004's start
     gps, gyro, j = [], [], -1
     for line in trial.read_bytes().splitlines():
