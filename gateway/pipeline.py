@@ -208,7 +208,7 @@ class SourceSpec:
     lever_arm_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     timeout_s: float = 2.0
     allow_missing_checksum: bool = False
-    tag_source: str | None = None  # only the sentences whose TAG block names this device (`_tag_filter`)
+    tag_source: str | None = None  # only the sentences whose TAG block names this device (`_take_frames`)
     priority: int = 1
     signing_key: bytes | None = None
     allow_unsigned: bool = True
@@ -784,22 +784,7 @@ class Pipeline:
             framed: list[str] = []
             texts = framed
             key, framer = self._framer(spec, c, ev.peer, ev.rx_ns)
-            frames = framer.feed(ev.data)
-            if spec.tag_source is None:
-                for frame in frames:
-                    if frame.text is None:
-                        reason = frame.reason or "garbage"
-                        if reason == TAG_BLOCK:
-                            tag = decode_tag(frame.raw)
-                            if isinstance(tag, TagReject):
-                                reason = tag.reason
-                            else:
-                                self._tag_seen(spec.name, tag, c)
-                        c.rejected[reason] += 1
-                    else:
-                        framed.append(frame.text)
-            else:
-                self._tag_filter(spec.tag_source, key, frames, c, framed)
+            self._take_frames(spec.tag_source, key, framer.feed(ev.data), c, framed)
             verified = False
             tap = self.sentence_tap
             if tap is not None:
@@ -997,20 +982,27 @@ class Pipeline:
             if 0 < missing <= MAX_LINE_GAP:
                 c.lost_lines += missing
 
-    def _tag_filter(
-        self, want: str, key: tuple[str, str], frames: list[Frame], c: SourceCounters, framed: list[str]
+    def _take_frames(
+        self,
+        want: str | None,
+        key: tuple[str, str],
+        frames: list[Frame],
+        c: SourceCounters,
+        framed: list[str],
     ) -> None:
-        """The sentences of ``frames`` whose TAG block names the device ``want`` (``s:``) into ``framed``;
-        the others counted ``other_tag_source``: on an IEC 61162-450 network several devices send to one
-        multicast group, and a source takes one of them. A TAG block belongs to the sentence right after
-        it, which may arrive in the sender's next read (the device it named is held per sender). A
-        sentence without a readable TAG block is not taken (whose it is cannot be told), and the damaged
-        block is counted as well (``tag_checksum``, ``tag_malformed``)."""
-        named = self._tag_named.get(key)
+        """The candidate sentences of a sender's ``frames`` into ``framed``, the other frames counted by
+        reason. A TAG block is read (a damaged one counted ``tag_checksum`` or ``tag_malformed``; a good
+        one's line count checked, `_tag_seen`). With ``want``, a source's ``tag_source``, only the
+        sentences whose TAG block names that device (``s:``) are taken and the others counted
+        ``other_tag_source``: on an IEC 61162-450 network several devices send to one multicast group, and
+        a source takes one of them. A TAG block belongs to the sentence right after it, which may arrive in
+        the sender's next read (the device it named is held per sender). A sentence without a readable TAG
+        block is not taken then (whose it is cannot be told)."""
+        named = self._tag_named.get(key) if want is not None else None
         for frame in frames:
             text = frame.text
             if text is not None:
-                if named == want:
+                if want is None or named == want:
                     framed.append(text)
                 else:
                     c.rejected[OTHER_TAG_SOURCE] += 1
@@ -1028,6 +1020,8 @@ class Pipeline:
             elif reason != IEC_61162_450:  # (the header comes before a TAG block: it keeps no name)
                 named = None
             c.rejected[reason] += 1
+        if want is None:
+            return
         if named is None:
             self._tag_named.pop(key, None)
         else:
