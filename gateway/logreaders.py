@@ -235,6 +235,7 @@ def nmea_text_events_reference(
 
 
 _HEADINGS = (b"HDT", b"THS", b"HDG")
+_HEADING_FIELDS = tuple(h + b"," for h in _HEADINGS)  # (the formatter and its comma: what a cycle holds)
 
 
 def spread_headings(events: Iterator[RawEvent], counts: LogCounts) -> Iterator[RawEvent]:
@@ -264,7 +265,7 @@ def spread_headings(events: Iterator[RawEvent], counts: LogCounts) -> Iterator[R
 
 def _spread(ev: RawEvent, span: int, counts: LogCounts) -> Iterator[RawEvent]:
     data = ev.data
-    if data.count(b"HDT,") + data.count(b"THS,") + data.count(b"HDG,") < 2:  # (most cycles: at once)
+    if sum(data.count(h) for h in _HEADING_FIELDS) < 2:  # (most cycles: at once)
         yield ev
         return
     lines = data.split(b"\r\n")[:-1]  # (a cycle's lines, each ended by CR LF)

@@ -63,7 +63,7 @@ from observers.vessel import VesselModel
 from wire.codecs import mavlink as mv
 from wire.codecs import nmea as nmea_codec
 from wire.codecs.nmea_framing import IEC_61162_450, TAG_BLOCK, Frame, NmeaFramer
-from wire.codecs.nmea_tag import OTHER_TAG_SOURCE, TagBlock, TagReject, decode_tag
+from wire.codecs.nmea_tag import OTHER_TAG_SOURCE, TagBlock, TagReject, decode_tag, next_line
 from wire.codecs.nmea_time import utc_step_s
 from wire.foxglove import antenna_frame, ellipsoidal_height_m, location_fix
 from wire.geodesy import LocalFrame
@@ -422,6 +422,7 @@ class Pipeline:
         self._framers: dict[tuple[str, str], NmeaFramer] = {}
         self._tag_named: dict[tuple[str, str], str] = {}  # a sender's TAG block awaiting its sentence
         self._tag_lines: dict[tuple[str, str], int] = {}  # (source, device) -> its last line count (n:)
+        self._tag_devices: Counter[str] = Counter()  # source -> devices in `_tag_lines`
         self.sentence_tap: Callable[[str, int, str, str], None] | None = None
         """Called with (source, receive time ns, sentence text, peer) for every NMEA sentence the framer
         cuts from received bytes, before it is decoded (valid or not): an output that republishes raw
@@ -968,17 +969,21 @@ class Pipeline:
     def _tag_seen(self, source: str, tag: TagBlock, c: SourceCounters) -> None:
         """A device's line count (``n:``) that skips: the lines between were lost on the network (a switch's
         buffer, a multicast route), which the kernel's count (``dropped``) cannot see. Counted per source
-        (``lost_lines``) from the device's previous line, for each device apart. A count that goes back,
-        repeats, or jumps by more than `MAX_LINE_GAP` is a device restarting or datagrams arriving out of
-        order, not counted."""
+        (``lost_lines``) from the device's previous line, for each device apart, for the first
+        `MAX_SENDERS` devices a source hears. A count that goes back, repeats, or jumps by more than
+        `MAX_LINE_GAP` is a device restarting or datagrams arriving out of order, not counted."""
         device, n_text = tag.source, tag.params.get("n")
         if device is None or n_text is None or not n_text.isdigit():
             return
         n = int(n_text)
         last = self._tag_lines.get((source, device))
+        if last is None and self._tag_devices[source] >= MAX_SENDERS:
+            return  # (a flood of made-up device names must not grow memory: the first ones are followed)
+        if last is None:
+            self._tag_devices[source] += 1
         self._tag_lines[(source, device)] = n
         if last is not None:
-            missing = (n - last - 1) % 999  # (the count runs 1-999, then 1 again)
+            missing = (n - next_line(last)) % 999  # (the count runs 1-999, then 1 again)
             if 0 < missing <= MAX_LINE_GAP:
                 c.lost_lines += missing
 

@@ -30,7 +30,7 @@ from datetime import UTC, datetime, timedelta, timezone, tzinfo
 from pathlib import Path
 
 from gateway.compressed import open_log
-from gateway.logreaders import LogCounts, count_reading
+from gateway.logreaders import TIMED, LogCounts, count_reading
 from gateway.pipeline import RawEvent
 
 NS = 1_000_000_000
@@ -42,8 +42,9 @@ STAMP = re.compile(
 """A receive time at a line's start (ISO 8601 with or without a zone, or UNIX seconds), and its separator,
 directly before a sentence."""
 
-TIMED = re.compile(rb"(?m)^(?:[^$\r\n]*)\$[A-Z]{2}(?:GGA|RMC|ZDA|GNS|GLL),")
-"""A sentence that carries a time of day (the ordinary reader times a log by them)."""
+TIMED_SENTENCE = re.compile(rb"(?m)^[^$\r\n]*\$[A-Z]{2}(?:%s)," % "|".join(TIMED).encode("ascii"))
+"""A sentence that carries a time of day (`gateway.logreaders.TIMED`: the ordinary reader times a log by
+them)."""
 
 
 def stamp_ns(m: re.Match[bytes], zone: tzinfo | None = None) -> int | None:
@@ -80,7 +81,7 @@ def is_stamped_only(path: str | Path, zone: tzinfo | None = None, peek: int = 1 
     sentence with a time of day."""
     with open_log(path) as f:
         head = f.read(peek)
-    if TIMED.search(head) is not None:
+    if TIMED_SENTENCE.search(head) is not None:
         return False
     return any((m := STAMP.match(line)) and stamp_ns(m, zone) is not None for line in head.splitlines()[:200])
 

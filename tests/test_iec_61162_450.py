@@ -484,3 +484,20 @@ def test_a_network_without_loss_counts_none_and_the_status_leaves_it_out() -> No
         pipe.feed(RawEvent(k * 10**8, "gyro", d, peer="p"))
     assert pipe.counters["gyro"].lost_lines == 0
     assert "lost_lines" not in pipe.status_message(10**12).to_dict()["sources"]["gyro"]
+
+
+def test_a_flood_of_made_up_device_names_does_not_grow_memory() -> None:
+    """Every datagram from a new device name (a fuzzer, a broken switch): the line counts followed stay
+    bounded, and the first devices' losses are still counted."""
+    from gateway.pipeline import MAX_SENDERS
+
+    t = tables("udp://239.192.0.4:60004")
+    del t["sources"][0]["tag_source"]
+    pipe = Pipeline(PipelineSpec.from_config(parse_config(t, base_dir=Path.cwd())))
+    hdt = enc.hdt("HE", 0.5)
+    pipe.feed(RawEvent(0, "gnss1", datagram("HE0001", 1, hdt)))
+    for k in range(5000):
+        pipe.feed(RawEvent(k + 1, "gnss1", datagram(f"X{k:05d}", 1, hdt)))
+    pipe.feed(RawEvent(10**6, "gnss1", datagram("HE0001", 4, hdt)))  # lines 2 and 3 lost
+    assert len(pipe._tag_lines) == MAX_SENDERS
+    assert pipe.counters["gnss1"].lost_lines == 2
