@@ -1162,10 +1162,9 @@ def _print(s: dict[str, Any]) -> None:
         devices = [k.removeprefix("tag ") for k in c if k.startswith("tag ")]
         if len(devices) > 1:
             print(
-                f"    ({len(devices)} devices' TAG blocks in one text log ({', '.join(devices)}), replayed "
-                "as one source: where two are receivers, their fixes are taken as one receiver's, jumping "
-                "between antennas. Record a ship's network with dpgw run, one source per device "
-                "(tag_source), to replay them apart)"
+                f"    ({len(devices)} devices' TAG blocks in one text log ({', '.join(devices)}): each "
+                "replayed as a source of its own that takes its device (tag_source), as dpgw run takes "
+                "them from the network)"
             )
         if c.get("other_tag_source"):
             print(

@@ -185,9 +185,14 @@ def nmea_text_events_reference(
     base_date: date | None = None,
     gap_s: float = 5.0,
     counts: LogCounts | None = None,
+    keep_tags: bool = False,
 ) -> Iterator[RawEvent]:
     """One `RawEvent` per cycle of a raw NMEA text log (see module docstring): the readable reference,
-    line by line. `nmea_text_events` gives the same events and counts, faster."""
+    line by line. `nmea_text_events` gives the same events and counts, faster.
+
+    With ``keep_tags``, the lines keep their TAG blocks (`gateway.line_prefix.open_text_log`), and a
+    sentence's time is read behind its block: a capture of a ship's network whose devices
+    `gateway.line_prefix.split_by_device` tells apart afterwards."""
     path = Path(path)
     c = counts if counts is not None else LogCounts()
     day = _first_date(path) or base_date or DEFAULT_BASE_DATE
@@ -196,7 +201,7 @@ def nmea_text_events_reference(
     cycle_ns: int | None = None
     clock = _TimeKeeper(day_ns, gap_s, c)
     previous = b""
-    with open_text_log(path) as f:
+    with open_text_log(path, keep_tags) as f:
         for raw in f:
             c.lines += 1
             line = raw.rstrip(b"\r\n")
@@ -207,14 +212,15 @@ def nmea_text_events_reference(
                 continue
             previous = line
             tod: float | None = None
-            if line[:1] == b"$" and line[3:6] in (b"GGA", b"GNS", b"RMC", b"ZDA", b"GLL"):
+            body = line if line[:1] != b"\\" else line[line.find(b"\\", 1) + 1 :]  # (behind a TAG block)
+            if body[:1] == b"$" and body[3:6] in (b"GGA", b"GNS", b"RMC", b"ZDA", b"GLL"):
                 # Most timed sentences repeat their cycle's time: only a new time needs the checksum
                 # (a damaged time field must not start a cycle).
-                quick = _unchecked_time(line)
+                quick = _unchecked_time(body)
                 if quick is not None and quick == clock.last_tod:
                     tod = quick
                 else:
-                    tod, _ = _sentence_time(line.decode("ascii", "replace"))
+                    tod, _ = _sentence_time(body.decode("ascii", "replace"))
             if tod is not None:
                 t_ns = clock.stamp(tod)
                 if t_ns != cycle_ns:
@@ -250,17 +256,34 @@ def spread_headings(events: Iterator[RawEvent], counts: LogCounts) -> Iterator[R
     the fix), the ``m`` cycles spread evenly over the time to the next cycle: ``t + j (t_next - t) / m``.
     The last cycle of the log spreads over the span the cycle before it had (1 s with none). Counted
     (``heading_spread``: the cycles so made). A cycle the reader had checked (every line a clean sentence:
-    `RawEvent.checked`) is cut with its checked texts; the others go on as they came."""
-    held: RawEvent | None = None
+    `RawEvent.checked`) is cut with its checked texts; the others go on as they came.
+
+    A capture cut by device (`gateway.line_prefix.split_by_device`) gives one event per source at each
+    cycle's time: they are spread together, each over the time to the next cycle, and come out in time
+    order."""
+    held: list[RawEvent] = []
     span = NS
     for ev in events:
-        if held is not None:
-            if ev.rx_ns > held.rx_ns:
-                span = ev.rx_ns - held.rx_ns
-            yield from _spread(held, span, counts)
-        held = ev
-    if held is not None:
-        yield from _spread(held, span, counts)
+        if held:
+            t = held[0].rx_ns
+            if ev.rx_ns == t and all(h.source != ev.source for h in held):
+                held.append(ev)  # (another device's lines of the same cycle)
+                continue
+            if ev.rx_ns > t:
+                span = ev.rx_ns - t
+            yield from _spread_all(held, span, counts)
+        held = [ev]
+    if held:
+        yield from _spread_all(held, span, counts)
+
+
+def _spread_all(held: list[RawEvent], span: int, counts: LogCounts) -> Iterator[RawEvent]:
+    if len(held) == 1:
+        yield from _spread(held[0], span, counts)
+        return
+    parts = [part for ev in held for part in _spread(ev, span, counts)]
+    parts.sort(key=lambda e: e.rx_ns)  # (stable: at one time, the order the lines came)
+    yield from parts
 
 
 def _spread(ev: RawEvent, span: int, counts: LogCounts) -> Iterator[RawEvent]:
@@ -272,6 +295,8 @@ def _spread(ev: RawEvent, span: int, counts: LogCounts) -> Iterator[RawEvent]:
     starts = [0]
     seen: set[bytes] = set()
     for i, line in enumerate(lines):
+        if line[:1] == b"\\":  # (a capture's line, behind its TAG block: `gateway.line_prefix`)
+            line = line[line.find(b"\\", 1) + 1 :]
         if line[:1] == b"$" and line[3:6] in _HEADINGS:
             kind = line[1:6]  # talker and formatter
             if kind in seen:

@@ -37,6 +37,7 @@ from gateway.compressed import compression_of, open_log, was_cut
 from gateway.config import GatewayConfig, default_config, parse_config
 from gateway.config.logged import SIGNING_VERDICTS_KEY, unlogged_key_sources, without_unlogged_keys
 from gateway.config.problems import did_you_mean
+from gateway.line_prefix import CaptureDevices, capture_devices, split_by_device
 from gateway.logreaders import (
     LogCounts,
     nmea_text_events,
@@ -314,6 +315,8 @@ class Input:
     """NMEA text: the compiled line scan (True), the line-by-line reader (False), or by size (None)."""
     stamp_zone: tzinfo | None = None
     """NMEA text: the zone a logger's stamps without one were written in (`gateway.stamped_log`)."""
+    capture: CaptureDevices | None = None
+    """NMEA text: the devices its TAG blocks name (`device_sources`; found on first use)."""
 
     def events(self) -> Iterator[Event]:
         if self.kind == "mcap":
@@ -323,6 +326,9 @@ class Input:
         if is_stamped_only(self.path, self.stamp_zone):  # (a logger's file of one port without sentence
             # times: a gyro's)
             return stamped_text_events(self.path, self.source, counts=self.counts, zone=self.stamp_zone)
+        if devices := self.device_sources():
+            tagged = nmea_text_events_reference(self.path, self.source, counts=self.counts, keep_tags=True)
+            return spread_headings(split_by_device(tagged, devices), self.counts)
         if self.fast_scan if self.fast_scan is not None else self.path.stat().st_size >= FAST_SCAN_MIN_BYTES:
             cycles = nmea_text_events(self.path, self.source, counts=self.counts, only=USED_NMEA)
         else:
@@ -332,8 +338,46 @@ class Input:
     def sources(self) -> dict[str, str]:
         if self.kind == "mcap":
             return mcap_sources(self.path)
+        if devices := self.device_sources():
+            own = {self.source: "nmea"} if self.capture is not None and self.capture.others else {}
+            return {**own, **{name: "nmea" for name in devices.values()}}
         return {self.source: "mavlink" if self.kind == "tlog" else "nmea"}
 
+    def device_sources(self) -> dict[str, str]:
+        """NMEA text: for a capture of a ship's network whose TAG blocks name two devices or more, each
+        device and the name of the source it is replayed as (the log's source and the device:
+        ``navd_gp0001``); empty otherwise, the log one source. The sentences of no device go to the log's
+        own source (`gateway.line_prefix.split_by_device`)."""
+        if self.kind != "nmea":
+            return {}
+        if self.capture is None:
+            self.capture = capture_devices(self.path)
+        if len(self.capture.devices) < 2:
+            return {}
+        names: dict[str, str] = {}
+        for device in self.capture.devices:
+            name = base = f"{self.source}_{re.sub(r'[^a-z0-9_]', '_', device.lower())}"
+            k = 1
+            while name in names.values() or name == self.source:  # ("GP-01" and "GP_01")
+                k += 1
+                name = f"{base}_{k}"
+            names[device] = name
+        return names
+
+    def source_entry(self, name: str) -> dict[str, Any]:
+        """What a configured source replaying ``name`` is beyond the defaults: a device's source takes
+        only that device (``tag_source``) in the roles its sentences fill."""
+        for device, source in self.device_sources().items():
+            if source == name and self.capture is not None:
+                kinds = self.capture.devices[device]
+                roles = [role for role, fills in DEVICE_ROLES.items() if kinds & fills]
+                return {"tag_source": device, "roles": roles or ["position", "heading"]}
+        return {}
+
+
+DEVICE_ROLES = {"position": frozenset({"GGA", "GNS"}), "heading": frozenset({"HDT", "THS", "HDG"})}
+"""The roles a device of a ship network's capture is replayed in, by the sentences it sent (one that
+sent neither gets both, as a text log does)."""
 
 COMPRESSED_SUFFIXES = (".gz", ".xz", ".bz2", ".zst")
 """The names of compressed logs (`gateway.compressed`), left out of the source's name as ``.txt`` is."""
@@ -638,6 +682,7 @@ def build_config(
                     "roles": roles,
                     "timeout_s": 5.0,
                     "priority": len(sources) + 1,  # sources sharing a role need distinct priorities
+                    **inp.source_entry(name),
                 }
             )
     if not sources:

@@ -434,16 +434,17 @@ def test_a_text_capture_of_the_network_replays_and_names_its_devices(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A capture of the group's datagrams as a text file (what socat or a logger on the network writes):
-    headers and TAG blocks come off (before: the header hid every sentence, "nothing to replay"), the
-    devices are counted, and the replay says that it cannot tell them apart."""
+    the headers come off (before: the header hid every sentence, "nothing to replay"), the devices are
+    counted, and each is replayed as a source of its own (tests/test_network_capture_replay.py)."""
     from dpgw.cli import main
 
     capture = tmp_path / "navd.nmea"
     capture.write_bytes(b"".join(network(60)))
     assert main(["replay", str(capture), "--vessel", "mss_supply", "--out", str(tmp_path / "r.mcap")]) == 0
     out = capsys.readouterr().out
-    assert "line_prefix 480, tag GP0001 120, tag GP0002 120, tag HE0001 240" in out
-    assert "3 devices' TAG blocks in one text log (GP0001, GP0002, HE0001), replayed as one source" in out
+    assert "line_prefix 360, tag GP0001 120, tag GP0002 120, tag HE0001 240" in out  # (360 datagrams)
+    assert "3 devices' TAG blocks in one text log (GP0001, GP0002, HE0001): each replayed as a source" in out
+    assert "source navd_gp0002: received 120" in out
 
 
 # ------------------------------------------------------------------------------------------ lost lines
