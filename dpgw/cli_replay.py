@@ -111,6 +111,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--config", metavar="FILE", help="a gateway config (sources, lever arms, tuning)")
     p.add_argument(
+        "--source",
+        action="append",
+        default=[],
+        metavar="NAME=LOG",
+        help="with --config: replay the text log or tlog LOG as the config's source NAME (repeatable; a "
+        "log may feed several sources, each taking the sentences of its roles). Without it, a log goes to "
+        "the source named as its file, else to the config's sources of its protocol when no two share a "
+        "role; a ship network's capture's devices go to the sources whose tag_source names them",
+    )
+    p.add_argument(
         "--observer",
         action="append",
         default=[],
@@ -402,7 +412,7 @@ def run(args: argparse.Namespace) -> int:
             raise ReplayError(
                 f"--truth: {sim.path} is a simulator log with its own truth: give one or the other"
             )
-        config = build_config(inputs, config_path=args.config, vessel=args.vessel)
+        config = build_config(inputs, config_path=args.config, vessel=args.vessel, source_args=args.source)
         # Without --observer, the observer the config names (the log's own for a gateway log: what ran live).
         own = config.observer.type
         specs = [parse_observer_spec(s) for s in args.observer] or [ObserverSpec(own, own, {})]
@@ -1165,6 +1175,11 @@ def _print(s: dict[str, Any]) -> None:
                 f"    ({len(devices)} devices' TAG blocks in one text log ({', '.join(devices)}): each "
                 "replayed as a source of its own that takes its device (tag_source), as dpgw run takes "
                 "them from the network)"
+            )
+        if c.get("no_source"):
+            print(
+                f"    ({c['no_source']} lines no source of the config takes (a device no tag_source names): "
+                "not replayed; --source NAME=LOG gives the whole log to a source)"
             )
         if c.get("other_tag_source"):
             print(

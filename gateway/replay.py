@@ -317,8 +317,20 @@ class Input:
     """NMEA text: the zone a logger's stamps without one were written in (`gateway.stamped_log`)."""
     capture: CaptureDevices | None = None
     """NMEA text: the devices its TAG blocks name (`device_sources`; found on first use)."""
+    fed: dict[str, tuple[str, ...]] | None = None
+    """NMEA text and tlogs replayed with a config of the user's: the config's sources each of the log's
+    own sources feeds (`assign_sources`); None: the log's own names, as `build_config` configures them."""
+    split_devices: bool = True
+    """NMEA text: whether a capture's devices are replayed apart (`device_sources`)."""
 
     def events(self) -> Iterator[Event]:
+        own = self.own_events()
+        if self.fed is None:
+            return own
+        return _fed(own, self.fed, self.counts, per_line=self.kind == "nmea")
+
+    def own_events(self) -> Iterator[Event]:
+        """The log's events under its own source names."""
         if self.kind == "mcap":
             return mcap_events(self.path)
         if self.kind == "tlog":
@@ -336,6 +348,15 @@ class Input:
         return spread_headings(cycles, self.counts)
 
     def sources(self) -> dict[str, str]:
+        """The sources the log's events come from: name -> protocol."""
+        if self.fed is None:
+            return self.own_sources()
+        protocol = "mavlink" if self.kind == "tlog" else "nmea"
+        return {name: protocol for names in self.fed.values() for name in names}
+
+    def own_sources(self) -> dict[str, str]:
+        """The log's own sources: name -> protocol (an MCAP log's as logged; a text log or a tlog named
+        after its file, a capture's devices after the file and the device)."""
         if self.kind == "mcap":
             return mcap_sources(self.path)
         if devices := self.device_sources():
@@ -348,7 +369,7 @@ class Input:
         device and the name of the source it is replayed as (the log's source and the device:
         ``navd_gp0001``); empty otherwise, the log one source. The sentences of no device go to the log's
         own source (`gateway.line_prefix.split_by_device`)."""
-        if self.kind != "nmea":
+        if self.kind != "nmea" or not self.split_devices:
             return {}
         if self.capture is None:
             self.capture = capture_devices(self.path)
@@ -401,6 +422,128 @@ def open_inputs(paths: Iterable[str | Path]) -> list[Input]:
     if not inputs:
         raise ReplayError("no log given")
     return inputs
+
+
+def _fed(
+    events: Iterator[Event], fed: Mapping[str, tuple[str, ...]], counts: LogCounts, per_line: bool
+) -> Iterator[Event]:
+    """``events`` under the names of the configured sources they feed (`Input.fed`): one copy for each,
+    none (counted ``no_source``: lines, or a tlog's records) where no source takes them."""
+    for ev in events:
+        if not isinstance(ev, RawEvent):
+            yield ev
+            continue
+        names = fed.get(ev.source, ())
+        if not names:
+            counts.counts["no_source"] += ev.data.count(b"\n") if per_line else 1
+        for name in names:
+            yield RawEvent(ev.rx_ns, name, ev.data, ev.checked, ev.peer, ev.records, ev.cycle)
+
+
+def _input_of(inputs: list[Input], log: str) -> Input | None:
+    """The input ``log`` names: its path as given, resolved, or its file name alone."""
+    for inp in inputs:
+        if log in (str(inp.path), inp.path.name) or Path(log).resolve() == inp.path.resolve():
+            return inp
+    return None
+
+
+def assign_sources(
+    inputs: list[Input], config: GatewayConfig, given: Iterable[str] = (), where: str = "--config"
+) -> None:
+    """Which of a user's ``config``'s sources each NMEA text log and tlog feeds (`Input.fed`), or a
+    `ReplayError` that says how to choose. A gateway's MCAP log names its sources as it logged them:
+    one whose sources are none of the config's is refused (nothing of it would be replayed).
+
+    For a text log or a tlog, in this order:
+
+    1. ``given``: ``NAME=LOG`` (``--source``, repeatable: a log may feed several sources, each taking
+       the sentences of its roles);
+    2. a capture of a ship's network whose TAG blocks name devices that sources take (``tag_source``):
+       each device the sources that take it, as live (the lines of devices no source takes are counted
+       ``no_source``, not replayed);
+    3. the source named as the log's own (`open_inputs`: the file's name);
+    4. the config's sources of the log's protocol, if there is one, or if no two of them share a role
+       (a multiplexer's log to a config with a receiver and a gyro: each takes its own sentences).
+
+    Otherwise (several sources that share a role, or none of the protocol) the log cannot be placed
+    without the user, and the error names the sources and the flag."""
+    by_name = {s.name: s for s in config.sources}
+    chosen: dict[int, list[str]] = {}
+    for text in given:
+        name, sep, log = text.partition("=")
+        if not sep or not name.strip() or not log.strip():
+            raise ReplayError(f"--source {text!r}: expected NAME=LOG, the config's source and a log given")
+        name, log = name.strip(), log.strip()
+        spec = by_name.get(name)
+        if spec is None:
+            raise ReplayError(
+                f"--source {text}: {where} has no source '{name}'{did_you_mean(name, by_name)} "
+                f"(it has: {', '.join(by_name)})"
+            )
+        inp = _input_of(inputs, log)
+        if inp is None:
+            raise ReplayError(f"--source {text}: '{log}' is not one of the logs given")
+        if inp.kind == "mcap":
+            raise ReplayError(
+                f"--source {text}: {log} is an MCAP log, which names its sources itself (NMEA text logs "
+                "and tlogs take --source)"
+            )
+        protocol = "mavlink" if inp.kind == "tlog" else "nmea"
+        if spec.protocol != protocol:
+            raise ReplayError(
+                f"--source {text}: source '{name}' is {spec.protocol}, and {log} holds {protocol}"
+            )
+        chosen.setdefault(inputs.index(inp), []).append(name)
+    for k, inp in enumerate(inputs):
+        if inp.kind == "mcap":
+            logged = inp.own_sources()
+            if logged and not any(name in by_name for name in logged):
+                raise ReplayError(
+                    f"{inp.path}: its sources ({', '.join(logged)}) are none of {where}'s "
+                    f"({', '.join(by_name)}): nothing of it would be replayed. Give a config whose "
+                    "sources are named as the log's (the log's own is used without --config)"
+                )
+            continue
+        protocol = "mavlink" if inp.kind == "tlog" else "nmea"
+        if k in chosen:
+            inp.split_devices = False  # (the whole log to the sources named; a tag_source still filters)
+            inp.fed = {inp.source: tuple(chosen[k])}
+            continue
+        devices = inp.device_sources()
+        if devices:
+            taken = {
+                source: tuple(s.name for s in config.sources if s.tag_source == device)
+                for device, source in devices.items()
+            }
+            if any(taken.values()):
+                if inp.source in by_name and by_name[inp.source].protocol == protocol:
+                    taken[inp.source] = (inp.source,)  # (the lines of no device)
+                inp.fed = taken
+                continue
+            inp.split_devices = False  # (no source takes a device: the log is one source, as without TAGs)
+        own = by_name.get(inp.source)
+        if own is not None and own.protocol == protocol:
+            inp.fed = {inp.source: (inp.source,)}
+            continue
+        candidates = [s for s in config.sources if s.protocol == protocol]
+        roles = [role for s in candidates for role in s.roles]
+        if candidates and (len(candidates) == 1 or len(roles) == len(set(roles))):
+            inp.fed = {inp.source: tuple(s.name for s in candidates)}
+            continue
+        kind = "NMEA text" if protocol == "nmea" else "MAVLink"
+        if not candidates:
+            raise ReplayError(
+                f"{inp.path}: {where} has no {protocol} source to take this {kind} log: add one, or "
+                "replay it with --vessel alone"
+            )
+        listed = ", ".join(f"{s.name}: {'/'.join(s.roles)}" for s in candidates)
+        raise ReplayError(
+            f"{inp.path}: {where} has {len(candidates)} {protocol} sources that share a role "
+            f"({listed}), and none named "
+            f"'{inp.source}': say which takes the log, e.g. --source {candidates[0].name}={inp.path.name} "
+            "(repeatable)"
+        )
 
 
 def merged_events(inputs: list[Input]) -> Iterator[Event]:
@@ -633,13 +776,23 @@ def unchecked_signatures(
 
 
 def build_config(
-    inputs: list[Input], *, config_path: str | Path | None = None, vessel: str | None = None
+    inputs: list[Input],
+    *,
+    config_path: str | Path | None = None,
+    vessel: str | None = None,
+    source_args: Iterable[str] = (),
 ) -> GatewayConfig:
-    """The configuration to replay with: --config, else the log's own, else one built for --vessel."""
+    """The configuration to replay with: --config, else the log's own, else one built for --vessel.
+    With --config, the text logs and tlogs are placed on its sources (`assign_sources`; ``source_args``:
+    --source ``NAME=LOG``)."""
     from gateway.config import load_config
 
     if config_path is not None:
-        return load_config(config_path)
+        config = load_config(config_path)
+        assign_sources(inputs, config, source_args, where=f"--config {config_path}")
+        return config
+    if given := list(source_args):
+        raise ReplayError(f"--source {given[0]}: names a source of --config FILE, and none is given")
     for inp in inputs:
         if inp.kind == "mcap" and (tables := logged_config(inp.path)) is not None:
             if vessel is not None:
