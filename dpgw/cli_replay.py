@@ -86,6 +86,8 @@ EPILOG = (
     "  dpgw replay trial.mcap --out again.mcap                      # a gateway log, its own config\n"
     "  dpgw replay usv.txt --vessel cybership2 --observer passive:wave_period_s=1.6 \\\n"
     "       --observer passive:wave_period_s=2.5@long --out usv.mcap --report usv_report\n"
+    "  dpgw replay trial.nmea --config vessel.toml --source dgps1=trial.nmea --source gyro=trial.nmea\n"
+    "       --out trial.mcap            # a sea trial's text log on the vessel's own sources and lever arms\n"
     "  dpgw replay sim.mcap --out est.mcap --json   # RMS errors vs the truth (the log names its vessel)\n"
     "  dpgw replay gateway.mcap --truth sim.mcap      # a HIL bench: the gateway's log vs the plant\n"
     "  dpgw replay trial.mcap --out again.mcap --speed 5              # publish on Zenoh, 5x\n"
