@@ -64,13 +64,17 @@ def network_capture(
     return out, lost
 
 
-def replay_json(log: Path, truth: Path, out: Path) -> dict:
+def replay(*args: str) -> dict:
+    """`dpgw replay ARGS --json`'s summary."""
     done = subprocess.run(
-        [sys.executable, "-m", "dpgw", "replay", str(log), "--vessel", "mss_supply", "--truth", str(truth),
-         "--out", str(out), "--json"],
+        [sys.executable, "-m", "dpgw", "replay", *args, "--json"],
         check=True, capture_output=True, text=True, timeout=600,
     )  # fmt: skip
     return json.loads(done.stdout)
+
+
+def replay_json(log: Path, truth: Path, out: Path) -> dict:
+    return replay(str(log), "--vessel", "mss_supply", "--truth", str(truth), "--out", str(out))
 
 
 @pytest.fixture(scope="module")

@@ -11,15 +11,13 @@ Replayed with a config that matches the simulated sensors, the estimate is the o
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from dpgw.cli import main
 from tests.test_mixed_rate_text_logs import sea_trial
-from tests.test_network_capture_replay import network_capture
+from tests.test_network_capture_replay import network_capture, replay
 
 HEAD = """
 [vessel]
@@ -42,14 +40,6 @@ def config(folder: Path, name: str, *sources: str) -> Path:
     path = folder / f"{name}.toml"
     path.write_text(HEAD + "".join(sources))
     return path
-
-
-def replay(*args: str) -> dict:
-    done = subprocess.run(
-        [sys.executable, "-m", "dpgw", "replay", *args, "--json"],
-        check=True, capture_output=True, text=True, timeout=600,
-    )  # fmt: skip
-    return json.loads(done.stdout)
 
 
 @pytest.fixture(scope="module")
