@@ -415,6 +415,14 @@ def run(args: argparse.Namespace) -> int:
                 f"--truth: {sim.path} is a simulator log with its own truth: give one or the other"
             )
         config = build_config(inputs, config_path=args.config, vessel=args.vessel, source_args=args.source)
+        for inp in inputs:
+            if inp.unconfigured:
+                print(
+                    f"dpgw replay: note: {inp.path.name}: source{'s' if len(inp.unconfigured) > 1 else ''} "
+                    f"{', '.join(inp.unconfigured)} not in --config {args.config}: "
+                    f"{'their' if len(inp.unconfigured) > 1 else 'its'} input is not replayed",
+                    file=sys.stderr,
+                )
         # Without --observer, the observer the config names (the log's own for a gateway log: what ran live).
         own = config.observer.type
         specs = [parse_observer_spec(s) for s in args.observer] or [ObserverSpec(own, own, {})]

@@ -322,6 +322,9 @@ class Input:
     own sources feeds (`assign_sources`); None: the log's own names, as `build_config` configures them."""
     split_devices: bool = True
     """NMEA text: whether a capture's devices are replayed apart (`device_sources`)."""
+    unconfigured: tuple[str, ...] = ()
+    """MCAP, replayed with a config of the user's: the logged sources the config does not have, whose
+    input is not replayed (`assign_sources`)."""
 
     def events(self) -> Iterator[Event]:
         own = self.own_events()
@@ -453,7 +456,8 @@ def assign_sources(
 ) -> None:
     """Which of a user's ``config``'s sources each NMEA text log and tlog feeds (`Input.fed`), or a
     `ReplayError` that says how to choose. A gateway's MCAP log names its sources as it logged them:
-    one whose sources are none of the config's is refused (nothing of it would be replayed).
+    one whose sources are none of the config's is refused (nothing of it would be replayed); the ones
+    the config leaves out (a sensor left out on purpose, or renamed) are noted in `Input.unconfigured`.
 
     For a text log or a tlog, in this order:
 
@@ -504,6 +508,7 @@ def assign_sources(
                     f"({', '.join(by_name)}): nothing of it would be replayed. Give a config whose "
                     "sources are named as the log's (the log's own is used without --config)"
                 )
+            inp.unconfigured = tuple(name for name in logged if name not in by_name)  # (left out on purpose?)
             continue
         protocol = "mavlink" if inp.kind == "tlog" else "nmea"
         if k in chosen:

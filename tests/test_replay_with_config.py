@@ -170,3 +170,29 @@ def test_a_gateway_log_whose_sources_are_none_of_the_configs_is_refused(
     assert (
         "its sources (trial) are none of --config" in err and "(gnss, gyro)" in err and err.count("\n") == 0
     )
+
+
+def test_a_gateway_logs_sources_the_config_leaves_out_are_named(
+    trial: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A config that leaves a logged sensor out (on purpose: "what if the second receiver had failed"; or
+    renamed) replays the rest, and says whose input is not replayed."""
+    plain, _ = trial
+    capture, _ = network_capture(plain, tmp_path / "navd.nmea", second_receiver_m=1.0)
+    logged = tmp_path / "logged.mcap"
+    assert main(["replay", str(capture), "--vessel", "mss_supply", "--out", str(logged)]) == 0
+    capsys.readouterr()
+    cfg = config(
+        tmp_path,
+        "c",
+        source("navd_gp0001", ["position"], 60004, "239.192.0.4", tag_source="GP0001"),
+        source("navd_he0001", ["heading"], 60004, "239.192.0.4", tag_source="HE0001"),
+    )
+    assert main(["replay", str(logged), "--config", str(cfg), "--out", str(tmp_path / "r.mcap")]) == 0
+    captured = capsys.readouterr()
+    assert (
+        f"note: logged.mcap: source navd_gp0002 not in --config {cfg}: its input is not replayed"
+        in captured.err
+    )
+    assert "\n  source navd_gp0001: received" in captured.out
+    assert "\n  source navd_gp0002" not in captured.out  # (the live log's alarms may name it)
