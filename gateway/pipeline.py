@@ -421,6 +421,8 @@ class Pipeline:
         # chunk; key (source, peer), peer "" for links with one sender.
         self._framers: dict[tuple[str, str], NmeaFramer] = {}
         self._tag_named: dict[tuple[str, str], str] = {}  # a sender's TAG block awaiting its sentence
+        # a sender's last group of lines (``g:``) whose first line named its device: (group id, device)
+        self._tag_group: dict[tuple[str, str], tuple[str, str]] = {}
         self._tag_lines: dict[tuple[str, str], int] = {}  # (source, device) -> its last line count (n:)
         self._tag_devices: Counter[str] = Counter()  # source -> devices in `_tag_lines`
         self.sentence_tap: Callable[[str, int, str, str], None] | None = None
@@ -966,13 +968,13 @@ class Pipeline:
         self._sender_rx[key] = rx_ns
         return key, framer
 
-    def _tag_seen(self, source: str, tag: TagBlock, c: SourceCounters) -> None:
+    def _tag_seen(self, source: str, device: str | None, tag: TagBlock, c: SourceCounters) -> None:
         """A device's line count (``n:``) that skips: the lines between were lost on the network (a switch's
         buffer, a multicast route), which the kernel's count (``dropped``) cannot see. Counted per source
         (``lost_lines``) from the device's previous line, for each device apart, for the first
         `MAX_SENDERS` devices a source hears. A count that goes back, repeats, or jumps by more than
         `MAX_LINE_GAP` is a device restarting or datagrams arriving out of order, not counted."""
-        device, n_text = tag.source, tag.params.get("n")
+        n_text = tag.params.get("n")
         if device is None or n_text is None or not n_text.isdigit():
             return
         n = int(n_text)
@@ -1001,8 +1003,9 @@ class Pipeline:
         sentences whose TAG block names that device (``s:``) are taken and the others counted
         ``other_tag_source``: on an IEC 61162-450 network several devices send to one multicast group, and
         a source takes one of them. A TAG block belongs to the sentence right after it, which may arrive in
-        the sender's next read (the device it named is held per sender). A sentence without a readable TAG
-        block is not taken then (whose it is cannot be told)."""
+        the sender's next read (the device it named is held per sender). A group's later line whose block
+        carries only ``g:`` (NMEA 4.10: the device is named on the group's first line) is that device's. A
+        sentence without a readable TAG block is not taken then (whose it is cannot be told)."""
         named = self._tag_named.get(key) if want is not None else None
         for frame in frames:
             text = frame.text
@@ -1021,7 +1024,14 @@ class Pipeline:
                     named = None
                 else:
                     named = tag.source
-                    self._tag_seen(key[0], tag, c)
+                    group = tag.group
+                    if group is not None:
+                        held = self._tag_group.get(key)
+                        if named is not None:
+                            self._tag_group[key] = (group[1], named)
+                        elif group[0] > 1 and held is not None and held[0] == group[1]:
+                            named = held[1]  # (a group's later line: its first line's device)
+                    self._tag_seen(key[0], named, tag, c)
             elif reason != IEC_61162_450:  # (the header comes before a TAG block: it keeps no name)
                 named = None
             c.rejected[reason] += 1
@@ -1082,6 +1092,7 @@ class Pipeline:
         here (a forged one was counted ``bad_signature`` live but left no record, and the replay took it)."""
         self._sender_rx.pop(key, None)
         self._tag_named.pop(key, None)
+        self._tag_group.pop(key, None)
         framer = self._framers.pop(key, None)
         if framer is not None:
             for frame in framer.flush():

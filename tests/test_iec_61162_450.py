@@ -31,6 +31,7 @@ from wire.codecs.nmea_framing import GARBAGE, IEC_61162_450, TAG_BLOCK, Frame
 from wire.codecs.nmea_tag import HEADER_450, TagBlock, TagReject, decode_tag, encode_tag, iec_450_datagram
 
 T0 = datetime(2026, 11, 29, 12, 0, 0, tzinfo=UTC)
+NS = 1_000_000_000
 GROUP = "239.192.0.4"  # IEC 61162-450's NAVD group, where position and heading go
 
 
@@ -219,6 +220,53 @@ def test_a_tag_block_and_its_sentence_in_different_reads_still_pair() -> None:
         pipe.feed(RawEvent(rx + k * 10**5, "gnss1", data[k : k + 7], peer="p"))
     assert pipe.counters["gnss1"].received == 10
     assert pipe.counters["gnss1"].rejected["other_tag_source"] == 30
+
+
+def grouped(device: str, n: int, first: str, later: str, ident: str | None = None) -> bytes:
+    """Two lines grouped as NMEA 4.10 writes them: the device named on the first line only (``g:`` and
+    ``n:`` on the second), as an AIS receiver's ``\\g:1-2-73874,n:157036,s:r003669945,c:1241544035*4A\\
+    !AIVDM,...`` then ``\\g:2-2-73874,n:157037*1F\\$ARVSI,...``."""
+    ident = ident or str(n)
+    return (
+        encode_tag({"g": f"1-2-{n}", "n": str(n), "s": device}) + first.encode()
+        + encode_tag({"g": f"2-2-{ident}", "n": str(n + 1)}) + later.encode()
+    )  # fmt: skip
+
+
+def test_a_groups_later_line_without_its_device_is_the_devices_and_keeps_its_line_count() -> None:
+    """Before, a tag_source source refused a group's second line (its block names no device), here the
+    receiver's GST, its fix's error estimate; and the device's line count seemed to skip one line a group
+    (counted lost). A later line of another group than the one held is still nobody's."""
+    pipe = Pipeline(
+        PipelineSpec.from_config(parse_config(tables("udp://239.192.0.4:60004"), base_dir=Path.cwd()))
+    )
+    taken: list[str] = []
+    pipe.sentence_tap = lambda source, rx_ns, text, peer: taken.append(text) if source == "gnss1" else None
+    rx = int(T0.timestamp() * 1e9)
+    for k in range(20):
+        t = T0 + timedelta(seconds=k)
+        gga = enc.gga("GP", t, 59.4 + 1e-6 * math.sin(k), 10.5, 2, 12, 0.8, 20.0)
+        gst = enc.gst(
+            "GP", t, rms_m=0.3, sigma_major_m=0.3, sigma_minor_m=0.3, orient_rad=0.0, sigma_lat_m=0.3,
+            sigma_lon_m=0.3, sigma_alt_m=0.45,
+        )  # fmt: skip
+        data = grouped("GP0001", 2 * k + 1, gga, gst)
+        pipe.feed(RawEvent(rx + k * NS, "gnss1", data, peer="10.0.0.9:1024"))
+    assert sum(x.startswith("$GPGST") for x in taken) == 20 and len(taken) == 40
+    c = pipe.counters["gnss1"]
+    assert "other_tag_source" not in c.rejected and c.lost_lines == 0
+    stray = grouped("GP0001", 41, gga, gst, ident="9999")  # (its second line names another group)
+    pipe.feed(RawEvent(rx + 20 * NS, "gnss1", stray, peer="10.0.0.9:1024"))
+    assert c.rejected["other_tag_source"] == 1 and len(taken) == 41
+
+
+def test_a_tag_blocks_group_is_read() -> None:
+    assert decode_tag(encode_tag({"g": "2-3-73874", "n": "1"})).group == (2, "73874")
+    assert decode_tag(encode_tag({"s": "GP0001"})).group is None
+    assert (
+        decode_tag(encode_tag({"g": "x-3-1"})).group is None
+        and decode_tag(encode_tag({"g": "1-3"})).group is None
+    )
 
 
 def test_without_tag_source_a_source_takes_every_device_and_counts_the_framing() -> None:

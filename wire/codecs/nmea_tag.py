@@ -66,6 +66,18 @@ class TagBlock(NamedTuple):
         """The sending device (``s:``), None without one."""
         return self.params.get("s")
 
+    @property
+    def group(self) -> tuple[int, str] | None:
+        """Which line of which group this is (``g:x-y-id``: ``(x, id)``), None without a readable ``g:``.
+        NMEA 4.10 lets a group's later lines carry only ``g:`` (and ``n:``), their device (``s:``) on the
+        first line alone: `tests/test_iec_61162_450.py` has an AIS receiver's pair."""
+        g = self.params.get("g")
+        if g is None:
+            return None
+        x, _, rest = g.partition("-")
+        _, _, ident = rest.partition("-")
+        return (int(x), ident) if x.isdigit() and ident else None
+
 
 class TagReject(NamedTuple):
     """A TAG block that cannot be read: ``reason`` is ``tag_checksum`` or ``tag_malformed``."""
