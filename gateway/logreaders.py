@@ -261,26 +261,32 @@ def spread_headings(events: Iterator[RawEvent], counts: LogCounts) -> Iterator[R
     A capture cut by device (`gateway.line_prefix.split_by_device`) gives one event per source at each
     cycle's time: they are spread together, each over the time to the next cycle, and come out in time
     order."""
-    held: list[RawEvent] = []
+    held: RawEvent | None = None
+    more: list[RawEvent] = []  # other sources' events at ``held``'s time (a capture cut by device)
     span = NS
     for ev in events:
-        if held:
-            t = held[0].rx_ns
-            if ev.rx_ns == t and all(h.source != ev.source for h in held):
-                held.append(ev)  # (another device's lines of the same cycle)
+        if held is not None:
+            if (
+                ev.rx_ns == held.rx_ns
+                and ev.source != held.source
+                and all(m.source != ev.source for m in more)
+            ):
+                more.append(ev)
                 continue
-            if ev.rx_ns > t:
-                span = ev.rx_ns - t
-            yield from _spread_all(held, span, counts)
-        held = [ev]
-    if held:
-        yield from _spread_all(held, span, counts)
+            if ev.rx_ns > held.rx_ns:
+                span = ev.rx_ns - held.rx_ns
+            if more:
+                yield from _spread_together([held, *more], span, counts)
+                more = []
+            else:
+                yield from _spread(held, span, counts)
+        held = ev
+    if held is not None:
+        yield from _spread_together([held, *more], span, counts)
 
 
-def _spread_all(held: list[RawEvent], span: int, counts: LogCounts) -> Iterator[RawEvent]:
-    if len(held) == 1:
-        yield from _spread(held[0], span, counts)
-        return
+def _spread_together(held: list[RawEvent], span: int, counts: LogCounts) -> Iterator[RawEvent]:
+    """The events of one cycle's time, one per source, each spread (`_spread`), in time order."""
     parts = [part for ev in held for part in _spread(ev, span, counts)]
     parts.sort(key=lambda e: e.rx_ns)  # (stable: at one time, the order the lines came)
     yield from parts
