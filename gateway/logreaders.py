@@ -83,6 +83,12 @@ def _checked_fields(line: str) -> list[str] | None:
     return line[1:star].split(",")
 
 
+def behind_tag(line: bytes) -> bytes:
+    """A line without the TAG block it starts with, if any (a network capture's line kept whole:
+    `gateway.line_prefix.open_text_log` with ``keep_tags``)."""
+    return line if line[:1] != b"\\" else line[line.find(b"\\", 1) + 1 :]
+
+
 def _date(fields: list[str], kind: str) -> date | None:
     try:
         if kind == "RMC" and len(fields) > 9 and len(fields[9]) == 6:
@@ -212,7 +218,7 @@ def nmea_text_events_reference(
                 continue
             previous = line
             tod: float | None = None
-            body = line if line[:1] != b"\\" else line[line.find(b"\\", 1) + 1 :]  # (behind a TAG block)
+            body = behind_tag(line)
             if body[:1] == b"$" and body[3:6] in (b"GGA", b"GNS", b"RMC", b"ZDA", b"GLL"):
                 # Most timed sentences repeat their cycle's time: only a new time needs the checksum
                 # (a damaged time field must not start a cycle).
@@ -301,8 +307,7 @@ def _spread(ev: RawEvent, span: int, counts: LogCounts) -> Iterator[RawEvent]:
     starts = [0]
     seen: set[bytes] = set()
     for i, line in enumerate(lines):
-        if line[:1] == b"\\":  # (a capture's line, behind its TAG block: `gateway.line_prefix`)
-            line = line[line.find(b"\\", 1) + 1 :]
+        line = behind_tag(line)
         if line[:1] == b"$" and line[3:6] in _HEADINGS:
             kind = line[1:6]  # talker and formatter
             if kind in seen:

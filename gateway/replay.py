@@ -326,6 +326,11 @@ class Input:
     """MCAP, replayed with a config of the user's: the logged sources the config does not have, whose
     input is not replayed (`assign_sources`)."""
 
+    @property
+    def protocol(self) -> str:
+        """What the log's own sources speak (an MCAP log's are told by `own_sources`)."""
+        return "mavlink" if self.kind == "tlog" else "nmea"
+
     def events(self) -> Iterator[Event]:
         own = self.own_events()
         if self.fed is None:
@@ -354,8 +359,7 @@ class Input:
         """The sources the log's events come from: name -> protocol."""
         if self.fed is None:
             return self.own_sources()
-        protocol = "mavlink" if self.kind == "tlog" else "nmea"
-        return {name: protocol for names in self.fed.values() for name in names}
+        return {name: self.protocol for names in self.fed.values() for name in names}
 
     def own_sources(self) -> dict[str, str]:
         """The log's own sources: name -> protocol (an MCAP log's as logged; a text log or a tlog named
@@ -365,7 +369,7 @@ class Input:
         if devices := self.device_sources():
             own = {self.source: "nmea"} if self.capture is not None and self.capture.others else {}
             return {**own, **{name: "nmea" for name in devices.values()}}
-        return {self.source: "mavlink" if self.kind == "tlog" else "nmea"}
+        return {self.source: self.protocol}
 
     def device_sources(self) -> dict[str, str]:
         """NMEA text: for a capture of a ship's network whose TAG blocks name two devices or more, each
@@ -493,10 +497,9 @@ def assign_sources(
                 f"--source {text}: {log} is an MCAP log, which names its sources itself (NMEA text logs "
                 "and tlogs take --source)"
             )
-        protocol = "mavlink" if inp.kind == "tlog" else "nmea"
-        if spec.protocol != protocol:
+        if spec.protocol != inp.protocol:
             raise ReplayError(
-                f"--source {text}: source '{name}' is {spec.protocol}, and {log} holds {protocol}"
+                f"--source {text}: source '{name}' is {spec.protocol}, and {log} holds {inp.protocol}"
             )
         chosen.setdefault(inputs.index(inp), []).append(name)
     for k, inp in enumerate(inputs):
@@ -510,7 +513,7 @@ def assign_sources(
                 )
             inp.unconfigured = tuple(name for name in logged if name not in by_name)  # (left out on purpose?)
             continue
-        protocol = "mavlink" if inp.kind == "tlog" else "nmea"
+        protocol = inp.protocol
         if k in chosen:
             inp.split_devices = False  # (the whole log to the sources named; a tag_source still filters)
             inp.fed = {inp.source: tuple(chosen[k])}

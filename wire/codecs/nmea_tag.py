@@ -70,7 +70,8 @@ class TagBlock(NamedTuple):
     def group(self) -> tuple[int, str] | None:
         """Which line of which group this is (``g:x-y-id``: ``(x, id)``), None without a readable ``g:``.
         NMEA 4.10 lets a group's later lines carry only ``g:`` (and ``n:``), their device (``s:``) on the
-        first line alone: `tests/test_iec_61162_450.py` has an AIS receiver's pair."""
+        first line alone, as an AIS receiver's pair ``\\g:1-2-73874,n:157036,s:r003669945*hh\\!AIVDM,...``
+        then ``\\g:2-2-73874,n:157037*hh\\$ARVSI,...``."""
         g = self.params.get("g")
         if g is None:
             return None
