@@ -387,6 +387,7 @@ class Pipeline:
         # observers that want each measurement once (id → receive time of the one each DOF last gave it)
         self._given_ns: dict[int, list[int]] = {}
         self._last_step_ns = 0
+        self._step_deferred = False  # a step left to the next event at the same time (`feed`)
         # (source, sentence kind, talker) -> the time its measuring sentence last arrived, and the period
         self._cycle_ns: dict[tuple[str, str, str], tuple[int, int]] = {}
         self._last_dr_ns = 0
@@ -660,7 +661,15 @@ class Pipeline:
             previous = allocator.allocate(np.array([1.0, 1.0, 1.0]))
             allocator.allocate(np.array([2.0, -1.0, 0.5]), previous.command)
 
-    def feed(self, event: RawEvent | ControlEvent) -> list[Output]:
+    def feed(self, event: RawEvent | ControlEvent, defer_step: bool = False) -> list[Output]:
+        """The outputs of one event: its measurements used and, when it brought one, an observer step.
+
+        ``defer_step``: another source's event at the same time comes next, and the step waits for it,
+        so the instant is stepped once with both. A replay of a text log says so where its cycle feeds
+        several sources (a source per role of a user's config, a network capture's devices, logs merged
+        by time): each would otherwise step the observer at the same time again, with a dt of zero and a
+        second estimate of the same stamp. Live, two inputs never share a receive time to the
+        nanosecond, and no feeder defers."""
         if isinstance(event, ControlEvent):
             if event.key == TICK_KEY:  # a live tick that dead-reckoned, from its log (`tick`)
                 return self.tick(event.rx_ns)
@@ -694,8 +703,12 @@ class Pipeline:
             updated = self._nmea(spec, c, event, out)
         else:
             updated = self._mavlink(spec, c, event, out)
-        if updated:
-            out += self._step(rx_ns, event.source)
+        if updated or self._step_deferred:
+            if defer_step:
+                self._step_deferred = True
+            else:
+                self._step_deferred = False
+                out += self._step(rx_ns, event.source)
         changes = self._state_changes(rx_ns)
         if changes:
             out += changes

@@ -562,6 +562,18 @@ def merged_events(inputs: list[Input]) -> Iterator[Event]:
     yield from heapq.merge(*(inp.events() for inp in inputs), key=lambda e: e.rx_ns)
 
 
+def with_next(events: Iterable[Event]) -> Iterator[tuple[Event, Event | None]]:
+    """Each event with the one after it (None after the last)."""
+    it = iter(events)
+    ev = next(it, None)
+    if ev is None:
+        return
+    for after in it:
+        yield ev, after
+        ev = after
+    yield ev, None
+
+
 # --- configuration and observers --------------------------------------------------------------------------
 
 
@@ -975,7 +987,20 @@ def run_replay(
     encoders: dict[type[Message], Callable[[Message], bytes]] = {}  # message class -> `encoder_of` it
     events = sentences = outputs_n = 0  # (locals in the loop, into `result` at the end)
     source_spans: dict[str, list[int]] = {}  # source -> [first, last] event time (ns)
-    for ev in merged_events(inputs):
+    # The sources a text log or a tlog feeds, and their roles. Their events are at the log's times: two
+    # sources' at one time that share no role (the position's and the heading's) are one instant, stepped
+    # once with both (`Pipeline.feed`'s defer_step). Two of one role (two receivers) step one after the
+    # other, in the log's order, as their datagrams arrived live: the first fix taken is what the second is
+    # tested against (two receivers that disagree from the start are not averaged into a position that is
+    # neither's). An MCAP log's events are the receive times the live gateway stepped on, as they were.
+    by_log_time = {
+        name: pipeline.sources[name].roles
+        for inp in inputs
+        if inp.kind != "mcap"
+        for name in inp.sources()
+        if name in pipeline.sources
+    }
+    for ev, after in with_next(merged_events(inputs)):
         events += 1
         if frozen == 0 and events % GC_FREEZE_EVERY == 0:
             # Everything alive now (the outputs kept in `collect`, the pipeline) is long-lived: take it out
@@ -1005,7 +1030,19 @@ def run_replay(
             # service wraps it), before its outputs: the replay's log replays as the live log does
             wrap = ev.key == "mode" or not isinstance(ev.payload, dict)
             out.write(f"/dp/{ev.key}", {ev.key: ev.payload} if wrap else ev.payload, ev.rx_ns, ev.rx_ns)
-        outputs = feed(ev)
+        if (
+            type(after) is RawEvent
+            and after.rx_ns == ev.rx_ns
+            and type(ev) is RawEvent
+            and after.source != ev.source
+            and after.source in by_log_time
+            and ev.source in by_log_time
+            and by_log_time[ev.source].isdisjoint(by_log_time[after.source])
+            and (after.data or after.records is not None or after.checked is not None)
+        ):
+            outputs = feed(ev, True)
+        else:
+            outputs = feed(ev)
         for o in outputs:
             msg = o.message
             if out is not None:
