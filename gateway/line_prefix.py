@@ -167,11 +167,11 @@ def line_device(line: bytes) -> str | None:
 
 
 def split_by_device(events: Iterator[RawEvent], source_of: Mapping[str, str]) -> Iterator[RawEvent]:
-    """Each cycle of a capture kept with its TAG blocks (`open_text_log` with ``keep_tags``) as one event
-    per source, at the cycle's time: a line goes to the source of the device its TAG block names
-    (``source_of``), else to the event's own source. A TAG block without ``s:`` (NMEA 4.10 lets the
-    later lines of a group carry only ``g:``) goes with the line before it, as one datagram's lines. The
-    sources come in the order their first line came."""
+    """Each cycle (or a stamped read, `gateway.stamped_log`) of a capture kept with its TAG blocks
+    (`open_text_log` with ``keep_tags``) as one event per source, at the event's time: a line goes to the
+    source of the device its TAG block names (``source_of``), else to the event's own source. A TAG block
+    without ``s:`` (NMEA 4.10 lets the later lines of a group carry only ``g:``) goes with the line before
+    it, as one datagram's lines. The sources come in the order their first line came."""
     for ev in events:
         if b"\\" not in ev.data:
             yield ev
@@ -186,4 +186,4 @@ def split_by_device(events: Iterator[RawEvent], source_of: Mapping[str, str]) ->
                 where = ev.source
             parts.setdefault(where, []).append(line)
         for source, lines in parts.items():
-            yield RawEvent(ev.rx_ns, source, b"\r\n".join(lines) + b"\r\n", cycle=True)
+            yield RawEvent(ev.rx_ns, source, b"\r\n".join(lines) + b"\r\n", cycle=ev.cycle)

@@ -344,8 +344,12 @@ class Input:
         if self.kind == "tlog":
             return tlog_events(self.path, self.source, self.counts)
         if is_stamped_only(self.path, self.stamp_zone):  # (a logger's file of one port without sentence
-            # times: a gyro's)
-            return stamped_text_events(self.path, self.source, counts=self.counts, zone=self.stamp_zone)
+            # times, a gyro's; or a capture of the network whose TAG blocks carry the times, c:)
+            devices = self.device_sources()
+            stamped = stamped_text_events(
+                self.path, self.source, counts=self.counts, zone=self.stamp_zone, keep_tags=bool(devices)
+            )
+            return split_by_device(stamped, devices) if devices else stamped
         if devices := self.device_sources():
             tagged = nmea_text_events_reference(self.path, self.source, counts=self.counts, keep_tags=True)
             return spread_headings(split_by_device(tagged, devices), self.counts)
