@@ -566,6 +566,20 @@ def merged_events(inputs: list[Input]) -> Iterator[Event]:
     yield from heapq.merge(*(inp.events() for inp in inputs), key=lambda e: e.rx_ns)
 
 
+_MEASURES = (("position", (b"GGA,", b"GNS,")), ("heading", (b"HDT,", b"THS,", b"HDG,")))
+"""The roles an NMEA event can measure, by the sentences that measure them."""
+
+
+def measures(ev: RawEvent, roles: frozenset[str]) -> frozenset[str]:
+    """Which of its source's ``roles`` an event's sentences measure: position (GGA, GNS), heading (HDT,
+    THS, HDG). Told from the bytes: a sentence the pipeline will reject still counts, so two events that
+    might both measure one thing are never stepped as one instant."""
+    data = ev.data
+    return frozenset(
+        role for role, kinds in _MEASURES if role in roles and any(kind in data for kind in kinds)
+    )
+
+
 def with_next(events: Iterable[Event]) -> Iterator[tuple[Event, Event | None]]:
     """Each event with the one after it (None after the last)."""
     it = iter(events)
@@ -992,11 +1006,12 @@ def run_replay(
     events = sentences = outputs_n = 0  # (locals in the loop, into `result` at the end)
     source_spans: dict[str, list[int]] = {}  # source -> [first, last] event time (ns)
     # The sources a text log or a tlog feeds, and their roles. Their events are at the log's times: two
-    # sources' at one time that share no role (the position's and the heading's) are one instant, stepped
-    # once with both (`Pipeline.feed`'s defer_step). Two of one role (two receivers) step one after the
-    # other, in the log's order, as their datagrams arrived live: the first fix taken is what the second is
-    # tested against (two receivers that disagree from the start are not averaged into a position that is
-    # neither's). An MCAP log's events are the receive times the live gateway stepped on, as they were.
+    # sources' at one time that measure different things (the position and the heading) are one instant,
+    # stepped once with both (`Pipeline.feed`'s defer_step). Two that measure the same (two receivers) step
+    # one after the other, in the log's order, as their datagrams arrived live: the first fix taken is
+    # what the second is tested against (two receivers that disagree from the start are not averaged into
+    # a position that is neither's). An MCAP log's events are the receive times the live gateway stepped
+    # on, as they were.
     by_log_time = {
         name: pipeline.sources[name].roles
         for inp in inputs
@@ -1041,7 +1056,7 @@ def run_replay(
             and after.source != ev.source
             and after.source in by_log_time
             and ev.source in by_log_time
-            and by_log_time[ev.source].isdisjoint(by_log_time[after.source])
+            and measures(ev, by_log_time[ev.source]).isdisjoint(measures(after, by_log_time[after.source]))
             and (after.data or after.records is not None or after.checked is not None)
         ):
             outputs = feed(ev, True)

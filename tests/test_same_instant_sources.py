@@ -32,6 +32,7 @@ from wire.geodesy import LocalFrame
 
 S = 1_000_000_000
 T0 = 1_780_000_000 * S
+START_S = int(datetime(2026, 6, 1, 10, 0, 0, tzinfo=UTC).timestamp())  # torsetnes_2004's start
 DATUM = (59.4, 10.5)
 
 
@@ -142,3 +143,28 @@ def test_with_next_pairs_each_event_with_the_one_after() -> None:
     assert list(with_next([])) == []
     assert list(with_next([1])) == [(1, None)]
     assert list(with_next([1, 2, 3])) == [(1, 2), (2, 3), (3, None)]
+
+
+def test_a_receivers_log_merged_with_a_gyros_steps_each_instant_once(
+    trial: tuple[Path, Path], as_one_source: list[tuple[int, dict]], tmp_path: Path
+) -> None:
+    """Two files, each a source in both roles (as any text log): the receiver's, timed by its sentences,
+    and the gyro's port stamped by its logger. At each fix time both have a cycle: what each measures
+    (a position, a heading) tells that they are one instant."""
+    plain, _ = trial
+    gps, gyro = tmp_path / "gps.nmea", tmp_path / "gyro.nmea"
+    j, fixes, headings = -1, [], []
+    for line in plain.read_bytes().splitlines(keepends=True):
+        if line[3:6] in (b"HDT", b"ROT"):
+            j += line[3:6] == b"HDT"  # (10 Hz: an HDT and its ROT)
+            when = datetime.fromtimestamp(START_S + j / 10, UTC)
+            headings.append(when.strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3].encode() + b"Z " + line)
+        else:
+            fixes.append(line)
+    gps.write_bytes(b"".join(fixes))
+    gyro.write_bytes(b"".join(headings))
+    out = tmp_path / "merged.mcap"
+    replay(str(gps), str(gyro), "--vessel", "mss_supply", "--out", str(out))
+    got = estimates(out)
+    assert twice([t for t, _ in got]) == 0
+    assert len(got) == 3000  # (a step at each stamp of the gyro's: its 10 Hz; the fixes' fall on them)
