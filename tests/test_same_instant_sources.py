@@ -140,9 +140,10 @@ def test_without_deferring_each_event_steps() -> None:
 
 
 def test_with_next_pairs_each_event_with_the_one_after() -> None:
+    a, b, c = (RawEvent(T0 + k, "gps", b"") for k in range(3))
     assert list(with_next([])) == []
-    assert list(with_next([1])) == [(1, None)]
-    assert list(with_next([1, 2, 3])) == [(1, 2), (2, 3), (3, None)]
+    assert list(with_next([a])) == [(a, None)]
+    assert list(with_next([a, b, c])) == [(a, b), (b, c), (c, None)]
 
 
 def test_a_receivers_log_merged_with_a_gyros_steps_each_instant_once(
