@@ -143,3 +143,43 @@ def test_a_groups_later_line_without_c_goes_with_the_read_before_it(tmp_path: Pa
         lines = event.data.split(b"\r\n")[:-1]
         assert [ln[ln.index(b"$") :] for ln in lines] == [b"$HEHDT,45.9,T*2F", b"$HEROT,0.1,A*31"]
         assert all(ln.startswith(b"\\") == keep_tags and HEADER not in ln for ln in lines)
+
+
+BYTES = st.binary(max_size=60).map(lambda b: b.replace(b"\n", b"").replace(b"\r", b""))
+TAG_TEXT = st.text(
+    st.characters(min_codepoint=0x21, max_codepoint=0x7E, exclude_characters="\\,*"), max_size=14
+)
+LINE = st.one_of(
+    st.builds(  # a good line, its time anywhere in a minute
+        lambda ms, dev: (
+            HEADER + encode_tag({"s": dev, "c": f"{START + ms // 1000}.{ms % 1000:03d}"}) + b"$HEHDT,1.0,T*00"
+        ),
+        st.integers(0, 59_999),
+        st.sampled_from(["HE0001", "HE0002"]),
+    ),
+    st.builds(lambda c: HEADER + b"\\s:HE0001,c:" + c + b"*00\\$HEHDT,1.0,T*00", BYTES),  # damaged
+    st.builds(lambda c: encode_tag({"g": "2-2-7", "c": c}) + b"$HEROT,0.1,A*31", TAG_TEXT),  # c: anything
+    BYTES,  # anything
+)
+
+
+@given(st.lists(LINE, max_size=40), st.booleans())
+def test_no_line_is_lost_and_nothing_raises(lines: list[bytes], keep_tags: bool) -> None:
+    """Whatever a capture holds, the reader never raises, and every line is in an event or counted: a line
+    before the first time is counted (``no_stamp``) and left out, every other one kept, in order, in a
+    read at its run's time."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as folder:
+        log = Path(folder) / "capture.nmea"
+        log.write_bytes(b"".join(ln + b"\r\n" for ln in lines))
+        counts = LogCounts()
+        events = list(stamped_text_events(log, "he", counts=counts, keep_tags=keep_tags))
+    kept = [ln for e in events for ln in e.data.split(b"\r\n")[:-1]]
+    nonempty = [ln for ln in lines if ln]
+    first = next((k for k, ln in enumerate(nonempty) if line_tag_time(ln) is not None), len(nonempty))
+    assert len(kept) == len(nonempty) - first
+    assert counts.counts["tag_time"] + counts.counts["no_stamp"] == len(nonempty)
+    times = [got[0] for ln in nonempty if (got := line_tag_time(ln)) is not None]
+    runs = [t for k, t in enumerate(times) if k == 0 or t != times[k - 1]]
+    assert [e.rx_ns for e in events] == runs  # a read per run of one time, at that time
