@@ -416,6 +416,12 @@ def run(args: argparse.Namespace) -> int:
             )
         config = build_config(inputs, config_path=args.config, vessel=args.vessel, source_args=args.source)
         for inp in inputs:
+            if inp.untagged:  # (a plain log fed to sources that take a device on the network)
+                print(
+                    f"dpgw replay: note: {inp.path.name} has no TAG blocks: the tag_source of "
+                    f"{', '.join(inp.untagged)} is not applied to it (the log is taken as that device's)",
+                    file=sys.stderr,
+                )
             if inp.unconfigured:
                 print(
                     f"dpgw replay: note: {inp.path.name}: source{'s' if len(inp.unconfigured) > 1 else ''} "

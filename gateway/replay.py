@@ -322,6 +322,12 @@ class Input:
     own sources feeds (`assign_sources`); None: the log's own names, as `build_config` configures them."""
     split_devices: bool = True
     """NMEA text: whether a capture's devices are replayed apart (`device_sources`)."""
+    keep_tags: bool = False
+    """NMEA text replayed as one log: its TAG blocks stay on its lines, for the config's sources that
+    take a device (``tag_source``) to read, as they read them live (`assign_sources`)."""
+    untagged: tuple[str, ...] = ()
+    """NMEA text without TAG blocks fed to sources with a ``tag_source``: those sources, whose
+    ``tag_source`` the replay does not apply (`assign_sources`)."""
     unconfigured: tuple[str, ...] = ()
     """MCAP, replayed with a config of the user's: the logged sources the config does not have, whose
     input is not replayed (`assign_sources`)."""
@@ -346,13 +352,17 @@ class Input:
         if is_stamped_only(self.path, self.stamp_zone):  # (a logger's file of one port without sentence
             # times, a gyro's; or a capture of the network whose TAG blocks carry the times, c:)
             devices = self.device_sources()
+            keep = bool(devices) or self.keep_tags
             stamped = stamped_text_events(
-                self.path, self.source, counts=self.counts, zone=self.stamp_zone, keep_tags=bool(devices)
+                self.path, self.source, counts=self.counts, zone=self.stamp_zone, keep_tags=keep
             )
             return split_by_device(stamped, devices) if devices else stamped
         if devices := self.device_sources():
             tagged = nmea_text_events_reference(self.path, self.source, counts=self.counts, keep_tags=True)
             return spread_headings(split_by_device(tagged, devices), self.counts)
+        if self.keep_tags:  # (one log to sources that take a device: they read its TAG blocks, as live)
+            tagged = nmea_text_events_reference(self.path, self.source, counts=self.counts, keep_tags=True)
+            return spread_headings(tagged, self.counts)
         if self.fast_scan if self.fast_scan is not None else self.path.stat().st_size >= FAST_SCAN_MIN_BYTES:
             cycles = nmea_text_events(self.path, self.source, counts=self.counts, only=USED_NMEA)
         else:
@@ -395,6 +405,14 @@ class Input:
                 name = f"{base}_{k}"
             names[device] = name
         return names
+
+    def tag_devices(self) -> dict[str, frozenset[str]]:
+        """NMEA text: the devices its TAG blocks name (`capture_devices`; none for a plain log)."""
+        if self.kind != "nmea":
+            return {}
+        if self.capture is None:
+            self.capture = capture_devices(self.path)
+        return self.capture.devices
 
     def source_entry(self, name: str) -> dict[str, Any]:
         """What a configured source replaying ``name`` is beyond the defaults: a device's source takes
@@ -461,6 +479,47 @@ def _input_of(inputs: list[Input], log: str) -> Input | None:
 
 def assign_sources(
     inputs: list[Input], config: GatewayConfig, given: Iterable[str] = (), where: str = "--config"
+) -> GatewayConfig:
+    """Place the logs on ``config``'s sources (`place_sources`) and return the config to replay them with.
+
+    A source with a ``tag_source`` takes, live, only the sentences whose TAG block names its device. A
+    text log that feeds one whole (``--source``, or the only source of its protocol) keeps its TAG blocks
+    on its lines, so the source reads them as it does live (`Input.keep_tags`). A log without TAG blocks
+    (a serial logger's) has nothing to filter by: the sources it feeds take it whole, their
+    ``tag_source`` not applied (said in `Input.untagged`), unless a capture feeds them too. Before, every
+    sentence of such a log, or of a capture whose blocks the reader had taken off, was counted
+    ``other_tag_source`` and nothing was replayed."""
+    place_sources(inputs, config, given, where)
+    tagged_to: set[str] = set()
+    untagged_to: dict[int, set[str]] = {}
+    by_name = {s.name: s for s in config.sources}
+    for k, inp in enumerate(inputs):
+        if inp.kind != "nmea" or inp.fed is None:
+            continue
+        takers = {n for names in inp.fed.values() for n in names if by_name[n].tag_source is not None}
+        if not takers:
+            continue
+        if inp.tag_devices():
+            tagged_to |= takers
+            if not inp.device_sources():  # (a capture split by device carries its blocks already)
+                inp.keep_tags = True
+        else:
+            untagged_to[k] = takers
+    lifted = {n for takers in untagged_to.values() for n in takers} - tagged_to
+    for k, takers in untagged_to.items():
+        inputs[k].untagged = tuple(sorted(takers & lifted))
+    if not lifted:
+        return config
+    return dataclasses.replace(
+        config,
+        sources=tuple(
+            dataclasses.replace(s, tag_source=None) if s.name in lifted else s for s in config.sources
+        ),
+    )
+
+
+def place_sources(
+    inputs: list[Input], config: GatewayConfig, given: Iterable[str] = (), where: str = "--config"
 ) -> None:
     """Which of a user's ``config``'s sources each NMEA text log and tlog feeds (`Input.fed`), or a
     `ReplayError` that says how to choose. A gateway's MCAP log names its sources as it logged them:
@@ -473,7 +532,7 @@ def assign_sources(
        the sentences of its roles);
     2. a capture of a ship's network whose TAG blocks name devices that sources take (``tag_source``):
        each device the sources that take it, as live (the lines of devices no source takes are counted
-       ``no_source``, not replayed);
+       ``no_source``, not replayed); a capture of one device, to the sources that take it;
     3. the source named as the log's own (`open_inputs`: the file's name);
     4. the config's sources of the log's protocol, if there is one, or if no two of them share a role
        (a multiplexer's log to a config with a receiver and a gyro: each takes its own sentences).
@@ -534,6 +593,11 @@ def assign_sources(
                 inp.fed = taken
                 continue
             inp.split_devices = False  # (no source takes a device: the log is one source, as without TAGs)
+        elif len(one := inp.tag_devices()) == 1:  # a capture of one device: to the sources that take it
+            takers = tuple(s.name for s in config.sources if s.tag_source in one and s.protocol == protocol)
+            if takers:
+                inp.fed = {inp.source: takers}
+                continue
         own = by_name.get(inp.source)
         if own is not None and own.protocol == protocol:
             inp.fed = {inp.source: (inp.source,)}
@@ -827,8 +891,7 @@ def build_config(
 
     if config_path is not None:
         config = load_config(config_path)
-        assign_sources(inputs, config, source_args, where=f"--config {config_path}")
-        return config
+        return assign_sources(inputs, config, source_args, where=f"--config {config_path}")
     if given := list(source_args):
         raise ReplayError(f"--source {given[0]}: names a source of --config FILE, and none is given")
     for inp in inputs:
