@@ -439,6 +439,25 @@ def test_the_shape_is_finite_and_the_same_whatever_the_size(a: float, b: float, 
     assert unit_shape((math.inf, 0.0, 1.0)) is None and unit_shape((math.nan, 0.0, 1.0)) is None
 
 
+def test_an_ellipse_of_subnormal_size_still_has_a_positive_definite_shape() -> None:
+    """Found by the property above: a 0 by 4.3e-162 m ellipse at 1 rad. Its covariance's elements are
+    subnormal products that round each on their own, so ne² > nn·ee; held to ne² <= nn·ee, the shape is
+    positive definite."""
+    cov = ellipse_covariance_ne(0.0, 4.327771137615632e-162, 1.0)
+    nn, ne, ee = (math.ldexp(x, 1074) for x in cov)  # (scaled exactly: the squares would underflow)
+    assert ne * ne > nn * ee * 1.1  # the rounding this is about
+    shape = unit_shape(cov)
+    assert shape is not None
+    nn, ne, ee = shape
+    assert nn > 0 and ee > 0 and nn * ee - ne * ne > 0
+    # an ordinary covariance is untouched: the same shape to the bit as before the bound
+    c = ellipse_covariance_ne(3.0, 0.1, 0.4)
+    h = (c[0] + c[2]) / 2 / max(map(abs, c))
+    k = 1.0 / (h * (1.0 + SHAPE_FLOOR))
+    b = max(map(abs, c))
+    assert unit_shape(c) == ((c[0] / b + SHAPE_FLOOR * h) * k, c[1] / b * k, (c[2] / b + SHAPE_FLOOR * h) * k)
+
+
 def test_an_empty_altitude_sigma_is_not_published_as_an_exact_height() -> None:
     # GST with the ellipse and σ lat / lon but σ alt empty (receivers that give no vertical error)
     text = "GPGST,120000.00,0.5,0.5,0.2,30.0,0.444,0.304,"

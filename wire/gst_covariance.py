@@ -167,6 +167,15 @@ def unit_shape(cov_ne: tuple[float, float, float]) -> tuple[float, float, float]
     if not (0.0 < biggest < math.inf):
         return None
     nn, ne, ee = nn / biggest, ne / biggest, ee / biggest
+    # A covariance is positive semi-definite: ne² <= nn·ee. One made from axes near the smallest floats
+    # loses that to rounding (a 4e-162 m axis squared is a subnormal of a few bits, and its products with
+    # cos and sin round each on their own: ne² came out 1.3 nn·ee). Held to the bound, the shape below stays
+    # positive definite, as the prediction test's reach needs; a covariance that keeps the bound is
+    # untouched.
+    if nn >= 0.0 and ee >= 0.0:
+        bound = math.sqrt(nn * ee)
+        if abs(ne) > bound:
+            ne = math.copysign(bound, ne)
     half_trace = (nn + ee) / 2.0
     if not half_trace > 0.0:
         return None
