@@ -387,7 +387,7 @@ class Pipeline:
         # observers that want each measurement once (id → receive time of the one each DOF last gave it)
         self._given_ns: dict[int, list[int]] = {}
         self._last_step_ns = 0
-        self._step_deferred = False  # a step left to the next event at the same time (`feed`)
+        self._step_deferred = False  # a step owed, left to the next event at the same time (`_owed_step`)
         # (source, sentence kind, talker) -> the time its measuring sentence last arrived, and the period
         self._cycle_ns: dict[tuple[str, str, str], tuple[int, int]] = {}
         self._last_dr_ns = 0
@@ -677,11 +677,11 @@ class Pipeline:
             return []
         spec = self.sources.get(event.source)
         if spec is None:
-            return []
+            return self._owed_step(event.rx_ns, event.source, defer_step)
         if not event.data and event.records is None and event.checked is None:
             # the end of a sender's stream (`gateway.sources.Chunk`: a TCP connection closed): what its
             # framer holds of an unfinished sentence is counted now (a shared framer is left alone)
-            out_of_stream: list[Output] = []
+            out_of_stream = self._owed_step(event.rx_ns, event.source, defer_step)
             if event.peer:
                 key = (spec.name, event.peer)
                 self._forget_sender(key, self.counters[event.source], event.rx_ns, out_of_stream)
@@ -703,17 +703,23 @@ class Pipeline:
             updated = self._nmea(spec, c, event, out)
         else:
             updated = self._mavlink(spec, c, event, out)
-        if updated or self._step_deferred:
-            if defer_step:
-                self._step_deferred = True
-            else:
-                self._step_deferred = False
-                out += self._step(rx_ns, event.source)
+        if updated:
+            self._step_deferred = True  # (owed: taken now, unless the next event at this time takes it)
+        out += self._owed_step(rx_ns, event.source, defer_step)
         changes = self._state_changes(rx_ns)
         if changes:
             out += changes
         self._with_foxglove(out)
         return out
+
+    def _owed_step(self, rx_ns: int, source: str, defer_step: bool) -> list[Output]:
+        """The observer step an event called for (`feed`), or one an event before it at the same time
+        left to it, unless this one leaves it to the next in turn: a step owed is taken by the next event
+        whatever that brings (nothing, a source the pipeline does not have, the end of a stream)."""
+        if defer_step or not self._step_deferred:
+            return []
+        self._step_deferred = False
+        return self._step(rx_ns, source)
 
     def _with_foxglove(self, out: list[Output]) -> None:
         """Add the Foxglove-native channels that mirror ``out`` (`gateway.foxglove_channels`)."""

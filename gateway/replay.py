@@ -27,6 +27,7 @@ from collections import Counter
 from collections.abc import Callable, Collection, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from datetime import tzinfo
+from itertools import chain, pairwise
 from pathlib import Path
 from typing import Any
 
@@ -390,14 +391,10 @@ class Input:
         device and the name of the source it is replayed as (the log's source and the device:
         ``navd_gp0001``); empty otherwise, the log one source. The sentences of no device go to the log's
         own source (`gateway.line_prefix.split_by_device`)."""
-        if self.kind != "nmea" or not self.split_devices:
-            return {}
-        if self.capture is None:
-            self.capture = capture_devices(self.path)
-        if len(self.capture.devices) < 2:
+        if not self.split_devices or len(devices := self.tag_devices()) < 2:
             return {}
         names: dict[str, str] = {}
-        for device in self.capture.devices:
+        for device in devices:
             name = base = f"{self.source}_{re.sub(r'[^a-z0-9_]', '_', device.lower())}"
             k = 1
             while name in names.values() or name == self.source:  # ("GP-01" and "GP_01")
@@ -426,8 +423,9 @@ class Input:
 
 
 DEVICE_ROLES = {"position": frozenset({"GGA", "GNS"}), "heading": frozenset({"HDT", "THS", "HDG"})}
-"""The roles a device of a ship network's capture is replayed in, by the sentences it sent (one that
-sent neither gets both, as a text log does)."""
+"""The roles the sentences fill: those a device of a ship network's capture is replayed in, by the
+sentences it sent (one that sent neither gets both, as a text log does), and what a replayed event
+measures (`measures`)."""
 
 COMPRESSED_SUFFIXES = (".gz", ".xz", ".bz2", ".zst")
 """The names of compressed logs (`gateway.compressed`), left out of the source's name as ``.txt`` is."""
@@ -630,8 +628,11 @@ def merged_events(inputs: list[Input]) -> Iterator[Event]:
     yield from heapq.merge(*(inp.events() for inp in inputs), key=lambda e: e.rx_ns)
 
 
-_MEASURES = (("position", (b"GGA,", b"GNS,")), ("heading", (b"HDT,", b"THS,", b"HDG,")))
-"""The roles an NMEA event can measure, by the sentences that measure them."""
+_MEASURED_BY = tuple(
+    (role, tuple(f"{kind},".encode("ascii") for kind in sorted(kinds)))
+    for role, kinds in DEVICE_ROLES.items()
+)
+"""`DEVICE_ROLES` as the bytes of an event: each role and its sentences' formatters with their comma."""
 
 
 def measures(ev: RawEvent, roles: frozenset[str]) -> frozenset[str]:
@@ -640,20 +641,13 @@ def measures(ev: RawEvent, roles: frozenset[str]) -> frozenset[str]:
     might both measure one thing are never stepped as one instant."""
     data = ev.data
     return frozenset(
-        role for role, kinds in _MEASURES if role in roles and any(kind in data for kind in kinds)
+        role for role, kinds in _MEASURED_BY if role in roles and any(kind in data for kind in kinds)
     )
 
 
 def with_next(events: Iterable[Event]) -> Iterator[tuple[Event, Event | None]]:
     """Each event with the one after it (None after the last)."""
-    it = iter(events)
-    ev = next(it, None)
-    if ev is None:
-        return
-    for after in it:
-        yield ev, after
-        ev = after
-    yield ev, None
+    return pairwise(chain(events, (None,)))  # type: ignore[arg-type]  # (only the last pair holds None)
 
 
 # --- configuration and observers --------------------------------------------------------------------------
@@ -1120,7 +1114,6 @@ def run_replay(
             and after.source in by_log_time
             and ev.source in by_log_time
             and measures(ev, by_log_time[ev.source]).isdisjoint(measures(after, by_log_time[after.source]))
-            and (after.data or after.records is not None or after.checked is not None)
         ):
             outputs = feed(ev, True)
         else:

@@ -93,6 +93,11 @@ def line_tag_time(line: bytes) -> tuple[int, re.Match[bytes]] | None:
     return None if t is None else (t, m)
 
 
+def _behind(line: bytes, block: re.Match[bytes], keep_tags: bool) -> bytes:
+    """``line`` behind its datagram header and, unless ``keep_tags``, its TAG block (`TAG_PREFIX`)."""
+    return line[block.start(1) :] if keep_tags else line[block.end() :]
+
+
 def stamp_ns(m: re.Match[bytes], zone: tzinfo | None = None) -> int | None:
     """UTC ns of a `STAMP` match; None if it is no real time (a 13th month, ...) or names no zone and
     ``zone`` (the one the user says the logger wrote in: ``--stamp-zone``) is None."""
@@ -163,14 +168,13 @@ def stamped_text_events(
                 body = line[m.end() :]
             elif (tagged := line_tag_time(line)) is not None:
                 c.counts["tag_time"] += 1
-                t, tm = tagged
-                body = line[tm.start(1) :] if keep_tags else line[tm.end() :]
+                t, block = tagged
+                body = _behind(line, block, keep_tags)
             else:
                 c.counts["no_stamp"] += 1
-                if at is not None:
-                    if (block := TAG_PREFIX.match(line)) is not None:  # (a group's later line: g: alone)
-                        line = line[block.start(1) :] if keep_tags else line[block.end() :]
-                    lines.append(line)
+                if at is not None:  # (a TAG block here: a group's later line, g: alone, or a damaged one)
+                    tag = TAG_PREFIX.match(line)
+                    lines.append(line if tag is None else _behind(line, tag, keep_tags))
                 continue
             if t != at:
                 if lines and at is not None:

@@ -10,7 +10,6 @@ and a plain log is taken whole by the source it is given to, its ``tag_source`` 
 from __future__ import annotations
 
 import json
-from datetime import UTC, datetime
 from pathlib import Path
 
 import pytest
@@ -19,27 +18,17 @@ from dpgw.cli import main
 from tests.test_mixed_rate_text_logs import sea_trial
 from tests.test_network_capture_replay import network_capture
 from tests.test_replay_with_config import config, source
+from tests.test_stamped_log import receiver_and_stamped_gyro
 from tests.test_tag_time import gyro_capture
 
 NAVD = "239.192.0.4"  # (IEC 61162-450's group for navigation: every source listens on it)
-START_S = int(datetime(2026, 6, 1, 10, 0, 0, tzinfo=UTC).timestamp())  # torsetnes_2004's start
 
 
 @pytest.fixture(scope="module")
 def logs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     folder = tmp_path_factory.mktemp("trial")
     plain, truth = sea_trial(folder, 300)
-    gps, gyro = folder / "gps.nmea", folder / "gyro.nmea"
-    j, fixes, headings = -1, [], []
-    for line in plain.read_bytes().splitlines(keepends=True):
-        if line[3:6] in (b"HDT", b"ROT"):
-            j += line[3:6] == b"HDT"  # (10 Hz: an HDT and its ROT)
-            when = datetime.fromtimestamp(START_S + j / 10, UTC).strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3]
-            headings.append(when.encode() + b"Z " + line)  # (a logger's stamps)
-        else:
-            fixes.append(line)
-    gps.write_bytes(b"".join(fixes))
-    gyro.write_bytes(b"".join(headings))
+    gps, gyro = receiver_and_stamped_gyro(plain, folder)
     both, _ = network_capture(plain, folder / "navd.nmea")
     gp = folder / "gp0001.nmea"  # the receiver's datagrams alone: a capture of one device, timed by its GGA
     gp.write_bytes(b"".join(ln for ln in both.read_bytes().splitlines(keepends=True) if b"s:GP0001" in ln))

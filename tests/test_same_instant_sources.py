@@ -27,12 +27,12 @@ from gateway.replay import with_next
 from tests.test_mixed_rate_text_logs import sea_trial
 from tests.test_network_capture_replay import network_capture, replay
 from tests.test_replay_with_config import config, source
+from tests.test_stamped_log import receiver_and_stamped_gyro
 from wire.codecs import nmea_encode as enc
 from wire.geodesy import LocalFrame
 
 S = 1_000_000_000
 T0 = 1_780_000_000 * S
-START_S = int(datetime(2026, 6, 1, 10, 0, 0, tzinfo=UTC).timestamp())  # torsetnes_2004's start
 DATUM = (59.4, 10.5)
 
 
@@ -130,6 +130,14 @@ def test_a_deferred_step_is_taken_with_the_next_event_and_holds_both_measurement
     assert topics(out) == ["/dp/measurement", "/dp/estimate"]
 
 
+def test_a_step_owed_is_taken_by_an_event_the_pipeline_cannot_use() -> None:
+    p = _pipeline()
+    for k, then in enumerate([RawEvent(T0, "nobody", b"$HEHDT,1.0,T*00\r\n"), RawEvent(T0 + S, "gyro", b"")]):
+        t = T0 + k * S  # (a source it does not have; the end of a stream)
+        assert topics(p.feed(RawEvent(t, "gps", _gga(1.0, 2.0)), True)) == []
+        assert topics(p.feed(then)) == ["/dp/measurement"]  # (a fix alone: no estimate yet)
+
+
 def test_without_deferring_each_event_steps() -> None:
     p = _pipeline()
     t = T0
@@ -153,17 +161,7 @@ def test_a_receivers_log_merged_with_a_gyros_steps_each_instant_once(
     and the gyro's port stamped by its logger. At each fix time both have a cycle: what each measures
     (a position, a heading) tells that they are one instant."""
     plain, _ = trial
-    gps, gyro = tmp_path / "gps.nmea", tmp_path / "gyro.nmea"
-    j, fixes, headings = -1, [], []
-    for line in plain.read_bytes().splitlines(keepends=True):
-        if line[3:6] in (b"HDT", b"ROT"):
-            j += line[3:6] == b"HDT"  # (10 Hz: an HDT and its ROT)
-            when = datetime.fromtimestamp(START_S + j / 10, UTC)
-            headings.append(when.strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3].encode() + b"Z " + line)
-        else:
-            fixes.append(line)
-    gps.write_bytes(b"".join(fixes))
-    gyro.write_bytes(b"".join(headings))
+    gps, gyro = receiver_and_stamped_gyro(plain, tmp_path)
     out = tmp_path / "merged.mcap"
     replay(str(gps), str(gyro), "--vessel", "mss_supply", "--out", str(out))
     got = estimates(out)

@@ -121,10 +121,10 @@ def test_a_file_with_sentence_times_is_read_the_ordinary_way(tmp_path: Path) -> 
     assert not is_stamped_only(local)  # (no zone: not read by its stamps)
 
 
-def test_a_receivers_log_and_a_stamped_gyro_log_replay_together_against_the_truth(tmp_path: Path) -> None:
-    """A sea trial's two files as two loggers write them: the receiver's sentences (timed by themselves)
-    and the gyro's port, stamped. Merged by time, scored against the plant's truth."""
-    trial, truth = sea_trial(tmp_path, 300)
+def receiver_and_stamped_gyro(trial: Path, folder: Path) -> tuple[Path, Path]:
+    """A `sea_trial` log as two loggers write it: the receiver's sentences (timed by themselves) in
+    ``folder``/gps.nmea, and the gyro's port (HDT and ROT, 10 Hz) stamped with its UTC time in
+    ``folder``/gyro.nmea."""
     start = datetime(2026, 6, 1, 10, 0, 0, tzinfo=UTC)  # torsetnes_2004's start
     gps, gyro, j = [], [], -1
     for line in trial.read_bytes().splitlines():
@@ -134,8 +134,16 @@ def test_a_receivers_log_and_a_stamped_gyro_log_replay_together_against_the_trut
             gyro.append(stamp.encode() + line)
         else:
             gps.append(line)
-    (tmp_path / "gps.nmea").write_bytes(b"\r\n".join(gps) + b"\r\n")
-    (tmp_path / "gyro.nmea").write_bytes(b"\r\n".join(gyro) + b"\r\n")
+    (folder / "gps.nmea").write_bytes(b"\r\n".join(gps) + b"\r\n")
+    (folder / "gyro.nmea").write_bytes(b"\r\n".join(gyro) + b"\r\n")
+    return folder / "gps.nmea", folder / "gyro.nmea"
+
+
+def test_a_receivers_log_and_a_stamped_gyro_log_replay_together_against_the_truth(tmp_path: Path) -> None:
+    """A sea trial's two files as two loggers write them: the receiver's sentences (timed by themselves)
+    and the gyro's port, stamped. Merged by time, scored against the plant's truth."""
+    trial, truth = sea_trial(tmp_path, 300)
+    receiver_and_stamped_gyro(trial, tmp_path)
     replay = subprocess.run(
         [sys.executable, "-m", "dpgw", "replay", str(tmp_path / "gps.nmea"), str(tmp_path / "gyro.nmea"),
          "--vessel", "mss_supply", "--truth", str(truth), "--out", str(tmp_path / "r.mcap"), "--json"],
