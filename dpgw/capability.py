@@ -268,15 +268,21 @@ def limit_speed(
     tol: float = U_TOL_MPS,
 ) -> float:
     """U_max: the largest U ≤ ``u_limit`` with ``scale_at(u)`` ≥ 1 on [0, U] (scanned every ``grid``,
-    then bisected to ``tol``); 0 when even U = 0 cannot be held, ``u_limit`` when nothing below it fails."""
+    then bisected to ``tol``); 0 when even U = 0 cannot be held, ``u_limit`` when nothing up to it fails.
+
+    ``u_limit`` itself is always tried: where it is not a multiple of ``grid`` (the Beaufort scale's end,
+    32.6 m/s) the scan would otherwise stop at the last multiple below it and call that limit held."""
     if scale_at(0.0) < 1.0:
         return 0.0
     lo = 0.0
-    for u in np.arange(grid, u_limit + 1e-9, grid):
-        if scale_at(float(u)) < 1.0:
-            hi = float(u)
+    speeds = [float(u) for u in np.arange(grid, u_limit + 1e-9, grid)]
+    if not speeds or speeds[-1] < u_limit - 1e-9:
+        speeds.append(u_limit)
+    for u in speeds:
+        if scale_at(u) < 1.0:
+            hi = u
             break
-        lo = float(u)
+        lo = u
     else:
         return u_limit
     while hi - lo > tol:

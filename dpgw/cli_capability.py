@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -126,9 +127,12 @@ def _group(text: str) -> tuple[int, ...]:
 
 
 def _factor(text: str) -> float:
-    value = non_negative_float(text)
-    if not 0.0 < value < 100.0:
-        raise argparse.ArgumentTypeError(f"must be a positive factor, e.g. 1.25 (got {text})")
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0.0 < value < 100.0:  # (nan fails too) one message for every wrong value, zero and negatives alike
+        raise argparse.ArgumentTypeError(f"must be a positive factor below 100, e.g. 1.25 (got {text})")
     return value
 
 
@@ -220,24 +224,29 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if bar is not None:
             bar.close()
+    plot_error = None
+    if args.plot:  # (before the figures are printed, so --json can name it; a failure does not lose them)
+        try:
+            plot(result, str(args.plot))
+        except OSError as exc:
+            plot_error = (
+                f"dpgw capability: --plot {args.plot}: cannot write it ({exc.strerror or exc}): give a "
+                "writable path"
+            )
     if args.json:
-        print(cli_json.dumps(result.to_dict(), indent=1))
+        doc = result.to_dict()
+        if args.plot and plot_error is None:
+            doc["plot"] = str(args.plot)
+        print(cli_json.dumps(doc, indent=1))
     else:
         _print_table(result)
     for warning in result.warnings:
         print(f"dpgw capability: note: {warning}", file=sys.stderr)
-    if args.plot:  # (after the figures: a plot that cannot be written does not lose them)
-        try:
-            plot(result, str(args.plot))
-        except OSError as exc:
-            print(
-                f"dpgw capability: --plot {args.plot}: cannot write it ({exc.strerror or exc}): give a "
-                "writable path",
-                file=sys.stderr,
-            )
-            return 1
-        if not args.json:
-            print(f"wrote {args.plot}")
+    if plot_error is not None:
+        print(plot_error, file=sys.stderr)
+        return 1
+    if args.plot and not args.json:
+        print(f"wrote {args.plot}")
     return 0
 
 

@@ -92,6 +92,15 @@ def test_limit_speed_finds_the_crossing() -> None:
     assert limit_speed(lambda u: 0.9 if 11.5 < u < 12.5 else 1.5) == pytest.approx(11.5, abs=U_TOL_MPS)
 
 
+def test_limit_speed_tries_the_limit_itself_off_the_grid() -> None:
+    # the Beaufort scale ends at 32.6 m/s, not a multiple of the 2 m/s scan: held to 32.45 and no further
+    # is not "at least 32.6" (the scan used to stop at 32 and return the limit)
+    got = limit_speed(lambda u: 1.0 if u <= 32.45 else 0.99, u_limit=32.6)
+    assert got == pytest.approx(32.45, abs=U_TOL_MPS)
+    assert got < 32.6
+    assert limit_speed(lambda u: 1.2, u_limit=32.6) == 32.6
+
+
 def test_u_max_is_where_the_thrusters_scale_crosses_one_and_worst_is_the_minimum() -> None:
     v = load_vessel("mss_supply")
     res = capability(v, directions_deg=[60.0, 90.0], failures="each")
@@ -127,6 +136,7 @@ def test_the_command_prints_a_table_json_and_a_plot(tmp_path, capsys: pytest.Cap
     assert main([*args, "--json", "--plot", str(png)]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["directions_deg"] == [0.0, 90.0, 180.0, 270.0]
+    assert doc["plot"] == str(png)  # a program reading the JSON learns where the plot went
     intact = doc["cases"][0]["u_max_mps"]
     worst = doc["worst_failure"]["u_max_mps"]
     assert intact[1] == pytest.approx(intact[3]) and all(w <= i for w, i in zip(worst, intact, strict=True))
@@ -204,7 +214,16 @@ def test_a_plot_path_that_cannot_be_written_is_said_without_a_traceback(
     assert main([*args, "--json", "--plot", str(tmp_path / "cap.png")]) == 1
     out, err = capsys.readouterr()
     assert json.loads(out)["cases"][0]["label"] == "intact"
+    assert "plot" not in json.loads(out)
     assert "cannot write it (Permission denied)" in err
+
+
+@pytest.mark.parametrize("factor", ["0", "-1", "nan", "100", "x"])
+def test_a_wrong_dynamic_factor_gets_one_message(factor: str, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as stop:
+        main(["capability", "--vessel", "mss_supply", "--dynamic-factor", factor])
+    assert stop.value.code == 2
+    assert f"must be a positive factor below 100, e.g. 1.25 (got {factor})" in capsys.readouterr().err
 
 
 def test_a_failure_group_is_no_better_than_any_of_its_thrusters_alone() -> None:
