@@ -12,7 +12,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from dpgw.cli_types import non_negative_float, positive_float
+from dpgw.cli_types import int_at_least, non_negative_float, positive_float
 from dpgw.scenario_names import SCENARIO_NAMES
 from observers.observer_names import OBSERVER_NAMES
 
@@ -157,7 +157,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-cache", action="store_true", help="run every case, read and write no cache")
     run_on = p.add_mutually_exclusive_group()
     run_on.add_argument(
-        "--workers", type=int, metavar="N",
+        "--workers", type=int_at_least(0, "0 runs serially, N >= 1 starts N local Dask workers"), metavar="N",
         help="local Dask worker processes (default: one per core); 0 = serial, in this process",
     )  # fmt: skip
     run_on.add_argument("--serial", action="store_true", help="= --workers 0 (no Dask)")

@@ -71,6 +71,11 @@ def test_grid_is_the_product_and_every_case_has_every_observer() -> None:
         (StudySpec(scenarios=("hassani",), duration_s=0.0), "'duration_s'"),
         (StudySpec(scenarios=("hassani",), seeds=()), "'seeds'"),
         (StudySpec(scenarios=("hassani",), seas=(SeaSpec(current_mps=0.2),)), "'current_mps'.*hull"),
+        # what a study can do instead, and not the plant's "switch its effects off", which it has no option for
+        (
+            StudySpec(scenarios=("hassani",), seas=(SeaSpec(current_mps=0.2),)),
+            r"^(?!.*plant options).*without a current, or .*: torsetnes_2004, .*snijders_2005",
+        ),
     ],
 )
 def test_a_wrong_grid_stops_with_the_key_named(spec: StudySpec, key: str) -> None:
@@ -489,3 +494,17 @@ def test_a_study_too_short_to_score_is_warned_of_before_it_runs(
     err = capsys.readouterr().err
     assert err.startswith("dpgw study: warning: snijders_2005, nominal: 20 s scored, from 10 s to 30 s"), err
     assert "give --duration 144 or more" in err and "stopped (Ctrl-C)" in err
+
+
+@pytest.mark.parametrize("workers", ["-1", "x", "1.5"])
+def test_a_worker_count_below_zero_is_a_usage_error(workers: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """Before: ``--workers -1`` was taken and the study hung with no worker to run a case."""
+    from dpgw.cli import build_parser
+
+    with pytest.raises(SystemExit) as stop:
+        build_parser().parse_args(["study", "--scenario", "hassani", "--workers", workers])
+    assert stop.value.code == 2
+    assert "--workers" in capsys.readouterr().err
+    assert build_parser().parse_args(["study", "--workers", "0"]).workers == 0
+    with pytest.raises(ValueError, match="workers: -1"):
+        run_study(SMALL.cases()[:1], workers=-1)

@@ -185,6 +185,8 @@ def run_study(
     the case (tests and the overhead benchmark)."""
     from dpgw.study.case import run_case
 
+    if workers is not None and workers < 0 and not scheduler:  # (a cluster of no worker waits forever)
+        raise ValueError(f"workers: {workers}: give 0 (serial), a number of workers, or None (one per core)")
     fn: CaseFn = case_fn or run_case
     t0 = time.perf_counter()
     version = code_version()

@@ -181,16 +181,34 @@ class StudySpec:
         """A current runs the full plant (`dpgw.study.case.build_scenario`): every scenario's vessel must
         have what it needs, or the study would stop at its first case instead of now."""
         from simulator.plant_params import PlantError, PlantParams
-        from simulator.scenarios import get_scenario
+        from simulator.scenarios import SCENARIOS, get_scenario
 
-        for name in self.scenarios:
+        def full_plant_problem(name: str) -> str | None:
             scenario = get_scenario(name)
             try:
                 PlantParams.build(scenario.vessel, scenario.plant_options)
             except PlantError as exc:
-                raise StudySpecError(
-                    f"study: 'current_mps' > 0 runs scenario '{name}' on the full plant: {exc}"
-                ) from None
+                return str(exc)
+            return None
+
+        for name in self.scenarios:
+            if (problem := full_plant_problem(name)) is None:
+                continue
+            # The plant's own message offers switching its effects off, which a study has no option for: say
+            # what a study can do instead (drop the current for this scenario, or take one that can run it).
+            able = [other for other in SCENARIOS if full_plant_problem(other) is None]
+            vessel = get_scenario(name).vessel.name
+            why = (
+                "it has no [hull] table (M_A, x_g, beam, draught, surge resistance; docs/vessels.md)"
+                if "[hull]" in problem
+                else problem
+            )
+            raise StudySpecError(
+                f"study: 'current_mps' > 0 runs scenario '{name}' on the full plant, and its vessel "
+                f"'{vessel}' cannot run on it: {why}. Study "
+                f"'{name}' without a current, or a current on a scenario that has the hull data: "
+                + ", ".join(able)
+            ) from None
 
 
 _SEA_KEYS = {"hs_m", "tp_s", "direction_deg", "current_mps", "current_dir_deg"}
