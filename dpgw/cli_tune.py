@@ -130,10 +130,12 @@ def run(args: argparse.Namespace) -> int:
     from observers.passive_tuning import (
         PassiveTuning,
         check_gains,
+        check_stability,
         error_eigenvalues,
         notch_depth_db,
         passive_gains,
         slowest_error_rate,
+        tuning_advice,
     )
     from observers.vessel import VesselError, load_vessel
 
@@ -167,7 +169,7 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"dpgw tune: {exc}", file=sys.stderr)
         return 2
-    checks = check_gains(gains)
+    checks = [*check_gains(gains), check_stability(vessel, gains)]
     eig = error_eigenvalues(vessel, gains, 0.0)
     slowest = slowest_error_rate(vessel, gains)
     notch = notch_depth_db(vessel, gains)
@@ -188,7 +190,13 @@ def run(args: argparse.Namespace) -> int:
         "slowest_rate_any_heading": slowest,
         "checks": [c.as_dict() for c in checks],
         "notch_db": notch.tolist(),
-        "notes": [note] if (note := sea_period_note(args.wave_period, vessel.model_scale)) else [],
+        # the same notes in the text and the JSON: what to change, found by trying it (`tuning_advice`); for
+        # a period no sea has, the period is what to change, and advice on the rest would only distract
+        "notes": (
+            [note]
+            if (note := sea_period_note(args.wave_period, vessel.model_scale))
+            else tuning_advice(vessel, gains.tuning, gains)
+        ),
     }
     if args.json:
         print(cli_json.dumps(result, indent=2))
@@ -227,10 +235,14 @@ def _text(r: dict[str, Any], source: str) -> str:
         "eigenvalues of the linearised error dynamics (ψ = 0), 1/s:",
     ]
     for re, im in r["eigenvalues"]:
-        tc = f"  (time constant {-1 / re:8.1f} s)" if re < 0 else ""
+        tc = f"  (time constant {-1 / re:8.1f} s)" if re < 0 else "  (grows: unstable)" if re > 0 else ""
         lines.append(f"  {re:10.5f} {'+' if im >= 0 else '-'} {abs(im):.5f}j{tc}")
     slow = r["slowest_rate_any_heading"]
-    lines.append(f"slowest over all headings: {slow:.5f} 1/s (time constant {-1 / slow:.1f} s)")
+    lines.append(
+        f"slowest over all headings: {slow:.5f} 1/s (time constant {-1 / slow:.1f} s)"
+        if slow < 0
+        else f"slowest over all headings: {slow:+.5f} 1/s: UNSTABLE, an error mode grows"
+    )
     lines.append("")
     for c in r["checks"]:
         lines.append(f"{'PASS' if c['ok'] else 'FAIL'}  {c['name']}: {c['inequality']}")
@@ -238,8 +250,6 @@ def _text(r: dict[str, Any], source: str) -> str:
     lines.append("")
     notch = ", ".join(f"{d:.1f}" for d in r["notch_db"])
     lines.append(f"notch depth at ω0 (LF estimate / WF motion): {notch} dB (surge, sway, yaw)")
-    if math.isfinite(slow) and slow > -0.01:
-        lines.append("note: slowest error mode is slower than 100 s; raise --velocity-injection")
     lines += [f"note: {n}" for n in r["notes"]]
     return "\n".join(lines)
 

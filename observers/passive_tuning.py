@@ -374,10 +374,16 @@ def check_spr(gains: PassiveGains, points_per_decade: int = 400) -> Check:
     i_min = np.argmin(phase, axis=1)
     min_phase = phase[np.arange(3), i_min]
     at = omega[i_min]
-    # h is strictly proper (relative degree 1), so its phase tends to -90° as ω → ∞ in any SPR tuning;
-    # the margin worth reporting is the one in the band where the notch and the bias corner act.
-    band = omega <= 10 * gains.omega_c.max()
-    margin = float(phase[:, band].min() + 90.0)
+    # h is strictly proper (relative degree 1), so its phase tends to -90° as ω → ∞ in any SPR tuning, and
+    # with a random-walk bias (1/T = 0, the default) h_B's integrator takes it to -90° as ω → 0 as well: a
+    # margin taken over all ω would read 0° for every tuning. The margin worth reporting is the one in the
+    # band where the bias corner and the notch act, from λ/κ to 10·ωc.
+    band = (omega >= gains.bias_corner.min()) & (omega <= 10 * gains.omega_c.max())
+    if not band.any():
+        band = omega <= 10 * gains.omega_c.max()
+    in_band = phase[:, band]
+    margin = float(in_band.min() + 90.0)
+    margin_at = float(omega[band][np.unravel_index(np.argmin(in_band), in_band.shape)[1]])
     bad = [
         f"{dof}: phase of h(jω) = {min_phase[i]:.2f}° at ω = {at[i]:.4g} rad/s"
         for i, dof in enumerate(DOF)
@@ -389,8 +395,14 @@ def check_spr(gains: PassiveGains, points_per_decade: int = 400) -> Check:
         ok=not bad,
         detail="; ".join(bad) + " (lower λ/κ or raise ωc/ω0)"
         if bad
-        else f"phase above -90° everywhere; margin {margin:.2f}° below 10·ωc",
-        values={"min_phase_deg": min_phase.tolist(), "at_rad_s": at.tolist(), "margin_deg": [margin]},
+        else f"phase above -90° everywhere; margin {margin:.2f}° from λ/κ to 10·ωc "
+        f"(at {margin_at:.4g} rad/s)",
+        values={
+            "min_phase_deg": min_phase.tolist(),
+            "at_rad_s": at.tolist(),
+            "margin_deg": [margin],
+            "margin_at_rad_s": [margin_at],
+        },
     )
 
 
@@ -473,6 +485,99 @@ def lf_response(vessel: VesselModel, gains: PassiveGains, omega: ArrayLike, psi:
         H = np.linalg.solve(1j * w * np.eye(N_STATE) - A, L)[ETA]
         out.append(np.abs(np.diag(H)))
     return np.array(out).T
+
+
+def check_stability(vessel: VesselModel, gains: PassiveGains, headings: int = 36) -> Check:
+    """The linearised error dynamics (30)–(32) decay at every heading: max Re λ(A − L C0)(ψ) < 0.
+
+    The paper proves this for a tuning that meets rule (48) and Proposition 1; a tuning that breaks them
+    (allowed for experiments) can have a mode that grows. Such a mode must be called what it is, not shown
+    as a slow one with a negative time constant."""
+    rates = [
+        (float(error_eigenvalues(vessel, gains, psi)[0].real), float(psi))
+        for psi in np.linspace(-math.pi, math.pi, headings, endpoint=False)
+    ]
+    worst, at = max(rates)
+    return Check(
+        name="stability",
+        inequality="(30)-(32) linearised: max Re lambda(A - L C0)(psi) < 0 at every heading psi",
+        ok=worst < 0.0,
+        detail=(
+            f"every error mode decays; the slowest with time constant {-1 / worst:.1f} s"
+            if worst < 0.0
+            else f"an error mode grows: Re λ = {worst:+.5f} 1/s at ψ = {math.degrees(at):.0f}° (the error "
+            f"doubles every {math.log(2) / worst:.0f} s): the estimate diverges"
+            if worst > 0.0
+            else "an error mode does not decay (Re λ = 0): the estimate does not converge"
+        ),
+        values={"max_real_part_per_s": [worst], "at_heading_deg": [math.degrees(at)]},
+    )
+
+
+SLOW_MODE_S = 100.0
+"""An error mode slower than this (time constant, s) gets advice: a DP observer that takes minutes to
+forget an initial error is not ready when the vessel goes on DP."""
+
+WEAK_NOTCH_DB = -10.0
+"""A notch shallower than this at ω0 (the LF estimate keeping more than a third of the wave motion) gets a
+note: the observer then hardly filters the waves, whatever its checks say."""
+
+
+def tuning_advice(vessel: VesselModel, tuning: PassiveTuning, gains: PassiveGains) -> list[str]:
+    """What to change in a tuning whose slowest error mode is slower than `SLOW_MODE_S` or whose notch is
+    shallower than `WEAK_NOTCH_DB`, found by trying it, not by a rule of thumb: the slowest mode is not
+    monotonic in the velocity injection a (raising a speeds up the velocity error but, past a point, slows
+    the mode the bias and the notch share), so the advice names the a that was tried and what it gave.
+    Candidates below the DP loop's floor (``loop_bandwidth``) are not offered. Empty: nothing to say (an
+    unstable tuning is `check_stability`'s to report)."""
+    notes: list[str] = []
+    slowest = slowest_error_rate(vessel, gains)
+    a = np.diag(gains.K4) / (np.diag(vessel.M) * gains.omega_c)
+    if -1.0 / SLOW_MODE_S < slowest < 0.0:
+        # one a for all DOFs, as --velocity-injection takes it; it replaces the loop's floor, so none below it
+        floor = float(injection_floor(vessel, tuning).max()) if tuning.loop_bandwidth is not None else 0.0
+        tried = []
+        for factor in (0.25, 0.5, 2.0, 4.0):
+            candidate = float(f"{factor * a.max():.2g}")
+            if candidate < floor:
+                continue
+            try:
+                g = passive_gains(vessel, replace(tuning, velocity_injection=candidate))
+            except TuningError:
+                continue
+            if all(c.ok for c in check_gains(g)):
+                tried.append((slowest_error_rate(vessel, g), candidate))
+        better = [t for t in tried if t[0] < slowest * 1.1]
+        if better:
+            rate, best = min(better, key=lambda t: t[0])
+            way = "lower" if best < a.max() else "higher"
+            notes.append(
+                f"slowest error mode {-1 / slowest:.0f} s (slower than {SLOW_MODE_S:.0f} s): a {way} "
+                f"velocity injection, --velocity-injection {best:g}, gives {-1 / rate:.0f} s"
+            )
+        else:
+            notes.append(
+                f"slowest error mode {-1 / slowest:.0f} s (slower than {SLOW_MODE_S:.0f} s), and neither a "
+                f"higher nor a lower velocity injection shortens it (tried ×0.25 to ×4): a higher "
+                "--bias-corner-ratio or a shorter --bias-time would"
+            )
+    notch = notch_depth_db(vessel, gains)
+    if notch.max() > WEAK_NOTCH_DB:
+        verb = "amplifies" if notch.max() > 0.0 else "keeps"
+        notes.append(
+            f"weak wave filtering: the LF estimate {verb} the wave motion at ω0 ({notch.max():+.1f} dB; "
+            f"{WEAK_NOTCH_DB:.0f} dB or deeper filters it): the velocity injection a = {_per_dof(a)} 1/s is "
+            f"close to or above ω0 = {gains.omega0.max():.3g} rad/s; lower --velocity-injection (or the "
+            "--loop-bandwidth that sets it)"
+        )
+    return notes
+
+
+def _per_dof(values: Array) -> str:
+    """One number where the three DOFs agree, else surge,sway,yaw (as the CLI takes them)."""
+    if np.allclose(values, values[0]):
+        return f"{values[0]:.3g}"
+    return ",".join(f"{v:.3g}" for v in values)
 
 
 def notch_depth_db(vessel: VesselModel, gains: PassiveGains) -> Array:

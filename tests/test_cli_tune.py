@@ -128,3 +128,81 @@ def test_the_note_on_a_wave_period_knows_the_vessels_scale(capsys) -> None:  # t
     ]
     assert main(["tune", "--vessel", "cybership2", "--wave-period", "8"]) in (0, 1)
     assert "note: a wave period of 8 s is no sea's" in capsys.readouterr().out
+
+
+def _tune(capsys, *extra: str) -> tuple[int, dict]:  # type: ignore[no-untyped-def,type-arg]
+    code = main(["tune", "--vessel", "mss_supply", "--wave-period", "9", *extra, "--json"])
+    return code, json.loads(capsys.readouterr().out)
+
+
+def test_an_unstable_tuning_is_called_unstable_and_fails(capsys) -> None:  # type: ignore[no-untyped-def]
+    """Before: a growing error mode (λ/κ = 0.5·ω0) was printed as the slowest one with a negative time
+    constant and the advice to raise the velocity injection."""
+    code, r = _tune(capsys, "--bias-corner-ratio", "0.5")
+    assert code == 1
+    stable = next(c for c in r["checks"] if c["name"] == "stability")
+    assert not stable["ok"] and "grows" in stable["detail"] and "diverges" in stable["detail"]
+    assert stable["values"]["max_real_part_per_s"][0] == pytest.approx(r["slowest_rate_any_heading"])
+    assert r["slowest_rate_any_heading"] > 0
+    assert not any("velocity injection" in n for n in r["notes"])
+    main(["tune", "--vessel", "mss_supply", "--wave-period", "9", "--bias-corner-ratio", "0.5"])
+    out = capsys.readouterr().out
+    assert "UNSTABLE" in out and "FAIL  stability" in out and "time constant -" not in out
+    code, r = _tune(capsys)
+    assert code == 0 and next(c for c in r["checks"] if c["name"] == "stability")["ok"]
+    assert r["notes"] == []  # the default tuning: nothing to advise
+
+
+def test_advice_on_a_slow_mode_is_the_direction_that_helps(capsys) -> None:  # type: ignore[no-untyped-def]
+    """The slowest mode is not monotonic in the velocity injection a: at a = 1 1/s it is 139 s and a
+    higher a makes it slower still. The advice names an a that was tried, and it does what it says."""
+    _, r = _tune(capsys, "--loop-bandwidth", "none", "--velocity-injection", "1")
+    assert -1 / r["slowest_rate_any_heading"] > 100
+    (note,) = [n for n in r["notes"] if n.startswith("slowest error mode")]
+    assert "lower velocity injection" in note
+    advised = note.split("--velocity-injection ")[1].split(",")[0]
+    _, again = _tune(capsys, "--loop-bandwidth", "none", "--velocity-injection", advised)
+    assert -1 / again["slowest_rate_any_heading"] < 100
+    assert float(note.split("gives ")[1].split(" s")[0]) == pytest.approx(
+        -1 / again["slowest_rate_any_heading"], abs=1
+    )
+
+
+@pytest.mark.parametrize("a", ["20", "5"])
+def test_a_tuning_that_does_not_filter_the_waves_says_so(capsys, a: str) -> None:  # type: ignore[no-untyped-def]
+    """Before: a velocity injection far above ω0 passed with no word while the LF estimate kept (a = 5:
+    -2.7 dB) or amplified (a = 20: +2 dB) the wave motion."""
+    _, r = _tune(capsys, "--loop-bandwidth", "none", "--velocity-injection", a)
+    assert max(r["notch_db"]) > -10
+    (note,) = [n for n in r["notes"] if n.startswith("weak wave filtering")]
+    assert (
+        "amplifies" if max(r["notch_db"]) > 0 else "keeps"
+    ) in note and "lower --velocity-injection" in note
+    main(
+        [
+            "tune",
+            "--vessel",
+            "mss_supply",
+            "--wave-period",
+            "9",
+            "--loop-bandwidth",
+            "none",
+            "--velocity-injection",
+            a,
+        ]
+    )
+    assert f"note: {note}" in capsys.readouterr().out  # the text says what the JSON says
+
+
+def test_the_spr_margin_is_the_one_near_the_notch_not_the_asymptotes(capsys) -> None:  # type: ignore[no-untyped-def]
+    """Before: with the default random-walk bias the phase tends to -90° as ω → 0, and the margin read
+    0.00° for every tuning. It is taken from λ/κ to 10·ωc: the default's 0.4° just below ω0 (rule (48)
+    does not imply SPR; the default λ/κ = 0.04·ω0 is just inside the edge at ~0.045·ω0)."""
+    _, r = _tune(capsys)
+    spr = next(c for c in r["checks"] if c["name"] == "spr")
+    w0 = r["omega0"][0]
+    assert 0.1 < spr["values"]["margin_deg"][0] < 2.0
+    assert 0.6 * w0 < spr["values"]["margin_at_rad_s"][0] < w0
+    _, lower = _tune(capsys, "--bias-corner-ratio", "0.02")
+    margin = next(c for c in lower["checks"] if c["name"] == "spr")["values"]["margin_deg"][0]
+    assert margin > spr["values"]["margin_deg"][0] + 1.0  # a lower bias corner: further from the edge

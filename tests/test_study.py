@@ -71,7 +71,7 @@ def test_grid_is_the_product_and_every_case_has_every_observer() -> None:
         (StudySpec(scenarios=("hassani",), duration_s=0.0), "'duration_s'"),
         (StudySpec(scenarios=("hassani",), seeds=()), "'seeds'"),
         (StudySpec(scenarios=("hassani",), seas=(SeaSpec(current_mps=0.2),)), "'current_mps'.*hull"),
-        # what a study can do instead, and not the plant's "switch its effects off", which it has no option for
+        # what a study can do instead, not the plant's "switch its effects off" (a study has no option for it)
         (
             StudySpec(scenarios=("hassani",), seas=(SeaSpec(current_mps=0.2),)),
             r"^(?!.*plant options).*without a current, or .*: torsetnes_2004, .*snijders_2005",
