@@ -135,6 +135,18 @@ def run(args: argparse.Namespace) -> int:
         print(f"dpgw radiation: warning: {mismatch}", file=sys.stderr)
     model = radiation.identify(hydro.freqs, hydro.A, hydro.B, max_order=args.max_order, r2_target=args.r2)
     p = model.passivity
+    # An element that missed the R² target keeps the best order tried (the model is still written, as a
+    # user who asked for it may want it): said, so the fit is not taken for one that met the target.
+    for row in model.report():
+        r2_a, r2_b = float(row["r2_A"]), float(row["r2_B"])  # type: ignore[arg-type]
+        if min(r2_a, r2_b) < args.r2:
+            missed = (
+                f"element {row['element']} {row['dofs']}: R² A {r2_a:.4f}, B {r2_b:.4f} below the target "
+                f"{args.r2:g} at order {row['order']} (the best of the orders up to --max-order "
+                f"{args.max_order}): raise --max-order or lower --r2"
+            )
+            warnings.append(missed)
+            print(f"dpgw radiation: warning: {missed}", file=sys.stderr)
     if not args.json:
         _print_fit(model)
     meta = None

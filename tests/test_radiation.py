@@ -522,3 +522,31 @@ def test_dpgw_radiation_command_writes_the_model_beside_the_data(tmp_path: Path,
     assert "missing.npz: no such file" in capsys.readouterr().err
     assert main(["radiation", str(tmp_path)]) == 2  # a folder: said so, not "no such file"
     assert f"{tmp_path}: a folder, not a file: give A(ω), B(ω) as a .npz" in capsys.readouterr().err
+
+
+def test_a_fit_that_misses_the_r2_target_is_said(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """Before: --max-order 2 --r2 1 wrote a sway-yaw fit of R² 0.56 with no word and exit 0. The model is
+    still written (asked for), with a warning per element that missed the target, on stderr and in the
+    JSON's warnings; a fit that meets it says nothing."""
+    import json
+
+    from dpgw.cli import main
+
+    A3, B3 = synthetic_data()
+    six = np.ix_(rad.SIX_DOF_INDEX, rad.SIX_DOF_INDEX)
+    A, B = np.zeros((6, 6, len(W_DATA))), np.zeros((6, 6, len(W_DATA)))
+    A[six], B[six] = A3, B3
+    np.savez(tmp_path / "ship.npz", freqs=W_DATA, A=A, B=B)
+    assert main(["radiation", str(tmp_path / "ship.npz"), "--out", str(tmp_path / "ok"), "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["warnings"] == [] and "warning" not in err
+    argv = ["radiation", str(tmp_path / "ship.npz"), "--out", str(tmp_path / "low"), "--max-order", "2"]
+    main([*argv, "--r2", "0.99999999", "--json"])
+    out, err = capsys.readouterr()
+    doc = json.loads(out)
+    missed = [e for e in doc["elements"] if min(e["r2_A"], e["r2_B"]) < 0.99999999]
+    assert missed and len(doc["warnings"]) == len(missed)
+    for e, w in zip(missed, doc["warnings"], strict=True):
+        assert w.startswith(f"element {e['element']} {e['dofs']}: R² A") and "raise --max-order" in w
+        assert f"dpgw radiation: warning: {w}" in err
+    assert (tmp_path / "low.npz").is_file()
