@@ -907,6 +907,9 @@ class _WaveEvidence:
         self.stamps: list[int] = []
         self.eta: list[list[float | None]] = []
         self.omega0: dict[str, list[list[float]]] = {}
+        # per multiple-model observer, the ω0 its bank spans (its first estimate's candidates): the check
+        # must not advise a bank it already had
+        self.spans: dict[str, tuple[float, float]] = {}
         # per /dp/measurement, which DOFs [N, E, ψ] the fusion received since the previous one (the others
         # are held: the report's measurement counts only new samples)
         self.fusion = fusion
@@ -924,7 +927,10 @@ class _WaveEvidence:
                     self.new.append(tuple(r != p for r, p in zip(received, self._received, strict=True)))
                     self._received = received
             elif o.topic == "/dp/estimate" or o.topic.startswith("/dp/estimates/"):
-                self.omega0.setdefault(msg.observer, []).append(msg.omega0)  # type: ignore[attr-defined]
+                label = msg.observer  # type: ignore[attr-defined]
+                self.omega0.setdefault(label, []).append(msg.omega0)  # type: ignore[attr-defined]
+                if label not in self.spans and (bank := msg.extra.get("candidates")):  # type: ignore[attr-defined]
+                    self.spans[label] = (float(min(bank)), float(max(bank)))
 
     def measured(self) -> dict[str, int]:
         """How many fused measurements there were, and how many had a position and a heading."""
@@ -965,7 +971,8 @@ class _WaveEvidence:
 
         t, y = self._series()
         w0 = {label: np.array(w, dtype=float) for label, w in self.omega0.items()}
-        return check_wave_tuning(t, y, wave_band_for_length(vessel_length_m, model_scale), w0, kinds)
+        band = wave_band_for_length(vessel_length_m, model_scale)
+        return check_wave_tuning(t, y, band, w0, kinds, spans=self.spans)
 
     def vessel_check(self, vessel: Any) -> Any:
         """Motion faster than the vessel makes (`gateway.report.vessel_check`)."""

@@ -604,6 +604,11 @@ class MMAEObserver(ObserverBase):
             return
         cfg = est.config
         sig_n = est.noise_sigma(t, cfg.update_period_s)  # since the last update: ~200 differences at 10 Hz
+        if not np.all(np.isfinite(sig_n)):
+            # A short update period at a low rate (a bank of fast candidates on a 5 Hz log: 3.1 s, 15
+            # samples) holds too few differences for the robust spread; without this the bank was never
+            # designed and the weights stayed uniform for the whole record. The whole window then.
+            sig_n = np.where(np.isfinite(sig_n), sig_n, est.noise_sigma(t, cfg.window_s))
         sig_w = np.sqrt(np.array(info.wave_power))  # the wave motion alone: above the LF tail and the noise
         # the median of the last few windows: one window of a few wave periods scatters by ±30 % and more,
         # and every redesign moves the likelihoods the weights are made of

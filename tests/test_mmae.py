@@ -837,3 +837,32 @@ def test_run_in_pieces_from_a_reused_buffer_equals_one_run() -> None:
         bt[:], by[:] = np.nan, np.nan  # the caller reuses its buffer
     assert obs.lf.active
     np.testing.assert_array_equal(np.concatenate(eta), whole.eta)
+
+
+def test_a_bank_of_fast_candidates_identifies_at_5_hz() -> None:
+    """A 1:70 model's sea (3.9 rad/s) logged at 5 Hz, the bank around it (1.96-7.84 rad/s): one period of
+    the slowest candidate is 3.2 s, 16 samples, too few differences for the noise σ since the last
+    update. Before, the noise was then never measured, the bank never designed and the weights stayed
+    uniform for the whole record (ω0 the mean of the bank, 4.9 rad/s); the noise is now measured over the
+    identification window, and the filter nearest the sea wins."""
+    rng = np.random.default_rng(3)
+    dt, sea = 0.2, 3.9
+    t = np.arange(0.0, 300.0, dt)
+    y = np.zeros((len(t), 3))
+    for k, (amp, noise) in enumerate([(0.02, 0.004), (0.02, 0.004), (0.004, 0.002)]):
+        for w in sea * np.linspace(0.92, 1.08, 15):  # a narrow sea of 15 components, random phases
+            y[:, k] += amp / math.sqrt(15) * math.sqrt(2) * np.sin(w * t + rng.uniform(0, 2 * math.pi))
+        y[:, k] += 0.05 * np.sin(0.02 * t + k) + noise * rng.standard_normal(len(t))  # slow LF drift
+    bank = (1.96, 2.79, 3.63, 4.46, 5.29, 6.13, 6.96, 7.84)
+    obs = MMAEObserver(load_vessel("cybership2"), candidates=bank)
+    r = obs.run(t, y, np.zeros((len(t), 3)))
+    assert obs.identified is not None
+    # measured (within 2x: at 5 Hz a 3.9 rad/s sea, ω·dt = 0.8, is not smooth on the sampling scale and
+    # adds to the second differences: 6, 5.5 and 2.3 mm here)
+    sigma = np.asarray(obs.identified.measurement_sigma)
+    assert np.all((sigma > (0.004, 0.004, 0.002)) & (sigma < (0.008, 0.008, 0.004))), sigma
+    w = r.extras["weights"]
+    assert np.ptp(w) > 0.5  # the weights moved
+    last = t >= 200.0
+    winner = np.asarray(bank)[np.argmax(w[last], axis=1)]
+    assert np.mean(np.isin(winner, (3.63, 4.46))) > 0.9, np.unique(winner, return_counts=True)

@@ -85,6 +85,7 @@ class ObserverTuning:
     omega0: float
     adaptive: bool
     ratio: float | None = None  # measured / ω0 (None: nothing measured)
+    span: tuple[float, float] | None = None  # a multiple-model bank's lowest and highest candidate (rad/s)
 
     @property
     def mistuned(self) -> bool:
@@ -116,7 +117,18 @@ class WaveCheck:
             )
             period = _period(w)
             scheduled = f"wave_period_s={period},omega_min={_fmt(w / 2.0)},omega_max={_fmt(2.0 * w)}"
-            if o.kind == "mmae":  # a bank of fixed candidates, no range: a bank around the sea
+            if o.kind == "mmae" and o.span is not None and o.span[0] <= w <= o.span[1]:
+                # A bank around the sea is what it had: advising it again sends the user round in a circle.
+                # Its weights followed the other DOFs (motion without a clear wave peak), not the waves.
+                others = [d for d, p in self.peaks.items() if not p.clear]
+                todo = (
+                    f"Its bank ({_fmt(o.span[0])}-{_fmt(o.span[1])} rad/s) spans the sea's, yet its weights "
+                    "settled elsewhere"
+                    + (f", led by the motion without a clear wave peak ({_and(others)})" if others else "")
+                    + f": for this log, a fixed ω0 at the measured peak, --observer passive:wave_period_s="
+                    f"{period}."
+                )
+            elif o.kind == "mmae":  # a bank of fixed candidates, no range: a bank around the sea
                 bank = "/".join(_fmt(x) for x in np.linspace(w / 2.0, 2.0 * w, 8))
                 todo = f"Its bank does not reach the sea's: re-run with --observer mmae:candidates={bank}"
             elif o.adaptive:
@@ -241,11 +253,15 @@ def check_wave_tuning(
     band: tuple[float, float],
     omega0: dict[str, Array],
     kinds: dict[str, tuple[str, bool]] | None = None,
+    *,
+    spans: dict[str, tuple[float, float]] | None = None,
 ) -> WaveCheck:
     """Measured wave peak of y (N×3: north, east, heading; NaN where not measured) against the ω0 each
     observer used (`omega0`: label → its ω0 samples, N×3 or N, rad/s). `kinds`: label → (observer name,
-    whether it schedules ω0 itself); an observer whose ω0 moved counts as scheduling it anyway."""
+    whether it schedules ω0 itself); an observer whose ω0 moved counts as scheduling it anyway. `spans`:
+    label → the lowest and highest ω0 of a multiple-model observer's bank."""
     kinds = kinds or {}
+    spans = spans or {}
     peaks = {DOF[k]: dof_peak(t, y[:, k], band, angle=(k == 2)) for k in range(3)}
     clear = [p.omega for p in peaks.values() if p.clear]
     measured = float(np.median(clear)) if clear else None
@@ -259,5 +275,5 @@ def check_wave_tuning(
         kind, schedules = kinds.get(label, (label, False))
         adaptive = schedules or bool(np.ptp(w) > 1e-6 * w0)
         ratio = measured / w0 if measured is not None else None
-        tunings.append(ObserverTuning(label, kind, w0, adaptive, ratio))
+        tunings.append(ObserverTuning(label, kind, w0, adaptive, ratio, spans.get(label)))
     return WaveCheck(band=band, peaks=peaks, measured=measured, observers=tunings)
