@@ -557,6 +557,18 @@ def _conclude(
     # said)
     args.min_scored = logged_min_scored_s(inputs, older_demo=MIN_SCORED_S)
     summary = _summary(args, specs, result, wall)
+    if result.truth:
+        from dpgw.replay_truth import MISMATCH_DEG, MISMATCH_M, truth_mismatch
+
+        if (far := truth_mismatch(evidence.stamps, evidence.eta, result.truth)) is not None:
+            summary["truth_mismatch"] = far
+            truth_note = (
+                f"{args.truth or 'the truth'} is not this log's: its motion lies a median "
+                f"{far['median_position_m']:.1f} m and {far['median_heading_deg']:.1f}° from the log's own "
+                f"measurements (a position reference is off by metres at worst: {MISMATCH_M:g} m, "
+                f"{MISMATCH_DEG:g}° allowed). Give the simulator log of the run that made this log (its "
+                "scenario, seed and start); the errors printed are against another run's truth"
+            )
     live = _live_records(inputs)
     first_ns = min((a for a, _ in result.spans.values()), default=0)
     summary["dp_performance"] = _dp_performance(live, first_ns)

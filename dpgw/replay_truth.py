@@ -79,3 +79,49 @@ def span_overlap_s(truth: list[dict[str, Any]], first_ns: int, last_ns: int) -> 
     a = max(first_ns, int(truth[0]["stamp_ns"]))
     b = min(last_ns, int(truth[-1]["stamp_ns"]))
     return max(0.0, (b - a) / 1e9)
+
+
+MISMATCH_M = 10.0
+"""A truth whose position lies further than this (median, m) from the log's own measurements is not this
+log's: position references at sea are off by metres at worst, after their lever arms."""
+
+MISMATCH_DEG = 10.0
+"""The same for the heading (median, degrees): a gyro is off by a degree or two at worst."""
+
+
+def truth_mismatch(
+    stamps_ns: list[int], measured: list[list[float | None]], truth: list[dict[str, Any]]
+) -> dict[str, float] | None:
+    """How far the truth (LF + WF motion, in the replay's frame) lies from the log's fused measurements
+    (``stamps_ns``, ``measured`` [N, E, ψ] with None where not measured) at the same times: the medians of
+    the horizontal distance (m) and of the heading difference (deg), when either is beyond `MISMATCH_M` or
+    `MISMATCH_DEG`; else None. The simulator log of another run (another seed, scenario or start) gives
+    errors of hundreds of metres that would otherwise be printed as the observers' own."""
+    import numpy as np
+
+    if not truth or not stamps_ns:
+        return None
+    tt = np.array([r["stamp_ns"] for r in truth], dtype=np.int64)
+    total = np.array([r["eta_lf"] for r in truth], dtype=float) + np.nan_to_num(
+        np.array([r.get("eta_wf") or [0.0, 0.0, 0.0] for r in truth], dtype=float)
+    )
+    t = np.array(stamps_ns, dtype=np.int64)
+    y = np.array([[np.nan if v is None else v for v in e] for e in measured], dtype=float).reshape(-1, 3)
+    inside = (t >= tt[0]) & (t <= tt[-1])
+    if not inside.any():
+        return None
+    t, y = t[inside], y[inside]
+    x = (t - tt[0]).astype(float)
+    at = np.column_stack(
+        [
+            np.interp(x, (tt - tt[0]).astype(float), np.unwrap(total[:, k]) if k == 2 else total[:, k])
+            for k in range(3)
+        ]
+    )
+    dist = np.hypot(y[:, 0] - at[:, 0], y[:, 1] - at[:, 1])
+    dpsi = np.degrees(np.abs(np.angle(np.exp(1j * (y[:, 2] - at[:, 2])))))
+    d = float(np.nanmedian(dist)) if np.isfinite(dist).any() else 0.0
+    h = float(np.nanmedian(dpsi)) if np.isfinite(dpsi).any() else 0.0
+    if d <= MISMATCH_M and h <= MISMATCH_DEG:
+        return None
+    return {"median_position_m": d, "median_heading_deg": h}

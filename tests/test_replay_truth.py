@@ -82,3 +82,38 @@ def test_a_truth_log_must_be_a_simulators(sim_log: Path, tmp_path: Path) -> None
         timeout=120,
     )
     assert proc.returncode == 2 and "its own truth" in proc.stderr, proc.stderr
+
+
+def test_the_truth_of_another_run_is_said_not_to_be_this_logs(tmp_path: Path) -> None:
+    """Before: a text log of seed 1 scored against seed 0's truth (same scenario, same times) printed RMS
+    errors of tens of metres as the observer's own, without a word. The truth's motion is compared with
+    the log's own measurements; another run's is said not to be this log's (stderr, `truth_mismatch` in
+    the JSON), the run's own truth says nothing."""
+    from simulator.runner import Route
+    from simulator.transports import FileSink
+
+    logs = {}
+    for seed in (0, 1):
+        sink = FileSink(str(tmp_path / f"s{seed}.nmea"))
+        with McapLogWriter(tmp_path / f"s{seed}.mcap") as w:
+            Simulation(get_scenario("torsetnes_2004"), seed=seed, log=w, routes=[Route(sink, "nmea")]).run(
+                90.0
+            )
+        sink.close()
+        logs[seed] = tmp_path / f"s{seed}.mcap"
+
+    def replay(truth: Path, out: str) -> tuple[dict, str]:  # type: ignore[type-arg]
+        argv = [str(tmp_path / "s1.nmea"), "--vessel", "mss_supply", "--truth", str(truth)]
+        p = subprocess.run(
+            [sys.executable, "-m", "dpgw", "replay", *argv, "--out", str(tmp_path / out), "--json"],
+            capture_output=True, text=True, check=True,
+        )  # fmt: skip
+        return json.loads(p.stdout), p.stderr
+
+    doc, err = replay(logs[0], "wrong.mcap")
+    far = doc["truth_mismatch"]
+    assert far["median_position_m"] > 10.0 or far["median_heading_deg"] > 10.0
+    assert f"--truth: {logs[0]} is not this log's" in err and "another run's truth" in err
+    doc, err = replay(logs[1], "right.mcap")
+    assert "truth_mismatch" not in doc and "not this log's" not in err
+    assert doc["error_vs_truth"]["passive"]["rms_north_m"] < 2.0
