@@ -556,7 +556,10 @@ def _conclude(
     # and on as much sea as the demo scores (a demo stopped soon after its skip: "not scored", as it
     # said)
     args.min_scored = logged_min_scored_s(inputs, older_demo=MIN_SCORED_S)
-    summary = _summary(args, specs, result, wall)
+    summary = _summary(args, specs, result, wall, _data_first_ns(evidence, result, specs))
+    if args.settle is None and "settle_s" in summary:
+        # the report leaves out the same start as the summary's errors against the truth, by construction
+        args.settle = summary["settle_s"]
     if result.truth:
         from dpgw.replay_truth import MISMATCH_DEG, MISMATCH_M, truth_mismatch
 
@@ -1099,8 +1102,35 @@ def _traces(result: ReplayResult, topic: str) -> tuple[np.ndarray, np.ndarray] |
     )
 
 
+def _estimate_topics(specs: list[ObserverSpec]) -> list[str]:
+    return ["/dp/estimate", *(f"/dp/estimates/{x.label}" for x in specs[1:])]
+
+
+def _data_first_ns(
+    evidence: _WaveEvidence, r: ReplayResult, specs: list[ObserverSpec]
+) -> tuple[int, int] | None:
+    """The span of the replay's own data, as the report counts it (`gateway.report.metrics.analyse`): from
+    the earliest fused measurement or estimate to the latest. The start left out of the scoring counts
+    from its first time, and its length is the report's rule on it, not on the truth's span: a simulator
+    log (``--truth``) runs from before the gateway started to after it stopped."""
+    firsts, lasts = [], []
+    if evidence.stamps:
+        firsts.append(evidence.stamps[0])
+        lasts.append(evidence.stamps[-1])
+    for topic in _estimate_topics(specs):
+        rows = r.collected.get(topic, [])
+        if rows:
+            firsts.append(int(rows[0]["stamp_ns"]))
+            lasts.append(int(rows[-1]["stamp_ns"]))
+    return (min(firsts), max(lasts)) if firsts else None
+
+
 def _summary(
-    args: argparse.Namespace, specs: list[ObserverSpec], r: ReplayResult, wall: float
+    args: argparse.Namespace,
+    specs: list[ObserverSpec],
+    r: ReplayResult,
+    wall: float,
+    data_span: tuple[int, int] | None = None,
 ) -> dict[str, Any]:
     import numpy as np
 
@@ -1122,12 +1152,11 @@ def _summary(
     if r.truth:
         tt_ns = np.array([x["stamp_ns"] for x in r.truth], dtype=np.int64)
         eta_t = np.array([x["eta_lf"] for x in r.truth], dtype=float)
-        settle = args.settle if args.settle is not None else default_settle_s((tt_ns[-1] - tt_ns[0]) / 1e9)
+        first, last = data_span or (int(tt_ns[0]), int(tt_ns[-1]))
+        settle = args.settle if args.settle is not None else default_settle_s((last - first) / 1e9)
         errors, scored = {}, {}
         least = getattr(args, "min_scored", None)
-        for spec, topic in zip(
-            specs, ["/dp/estimate", *(f"/dp/estimates/{x.label}" for x in specs[1:])], strict=True
-        ):
+        for spec, topic in zip(specs, _estimate_topics(specs), strict=True):
             tr = _traces(r, topic)
             if tr is None:
                 continue
@@ -1136,7 +1165,7 @@ def _summary(
             scored[spec.label] = max(0.0, float(t_ns[-1] - t_ns[0]) / 1e9 - settle)
             if least is not None and scored[spec.label] < least:
                 continue  # said "not scored" (`_print`), as the demo said it
-            sc = score((t_ns - tt_ns[0]) / 1e9, eta, (tt_ns - tt_ns[0]) / 1e9, eta_t, settle_s=settle)
+            sc = score((t_ns - first) / 1e9, eta, (tt_ns - first) / 1e9, eta_t, settle_s=settle)
             errors[spec.label] = sc.as_dict()
         s["error_vs_truth"] = errors
         s["settle_s"] = settle

@@ -434,7 +434,7 @@ def start_up_notes(config: GatewayConfig) -> list[str]:
 
     from gateway.config import config_notes
     from gateway.config.summary import open_commands_note
-    from gateway.sources import SerialSource, SourceError, open_source
+    from gateway.sources import FileSource, SerialSource, SourceError, open_source
     from gateway.sources.udp import UdpSource
 
     notes: list[str] = config_notes(config)
@@ -455,6 +455,12 @@ def start_up_notes(config: GatewayConfig) -> list[str]:
                 "it unless it is there by then, or waits for it with --wait-for-ports (the service unit) "
                 "(check the cable/udev name: ls /dev/serial/by-id/; a simulator's pty link is made when "
                 "the simulator starts)"
+            )
+        if isinstance(source, FileSource) and not os.path.isfile(source.path):
+            what = "is a folder" if os.path.isdir(source.path) else "does not exist now"
+            notes.append(
+                f"sources.{sc.name}.url: file {source.path} {what}: start-up stops on it unless the file is "
+                "there by then (check the path; a relative one is from the config's folder)"
             )
     return notes
 

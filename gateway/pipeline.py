@@ -695,7 +695,10 @@ class Pipeline:
             self._manual_tau_hold(rx_ns)
         c = self.counters[event.source]
         c.bytes += len(event.data)
-        c.last_rx_ns = rx_ns
+        if spec.tag_source is None or event.records is not None:
+            # (a source that takes one device of a group is fresh only when that device's sentences come:
+            # `_nmea`; the group's other devices keep its socket busy, not the source alive)
+            c.last_rx_ns = rx_ns
         out: list[Output] = []
         if event.records is not None:
             updated = self._records(spec, c, event, out)
@@ -802,12 +805,16 @@ class Pipeline:
             texts, others = ev.checked
             c.received += others
             verified = True
+            if texts and spec.tag_source is not None:  # (its device's sentences, cut by the reader: `feed`)
+                c.last_rx_ns = ev.rx_ns
         else:
             framed: list[str] = []
             texts = framed
             key, framer = self._framer(spec, c, ev.peer, ev.rx_ns)
             self._take_frames(spec.tag_source, key, framer.feed(ev.data), c, framed)
             verified = False
+            if framed and spec.tag_source is not None:  # its device spoke (`feed`)
+                c.last_rx_ns = ev.rx_ns
             tap = self.sentence_tap
             if tap is not None:
                 for text in framed:

@@ -550,3 +550,31 @@ def test_a_flood_of_made_up_device_names_does_not_grow_memory() -> None:
     pipe.feed(RawEvent(10**6, "gnss1", datagram("HE0001", 4, hdt)))  # lines 2 and 3 lost
     assert len(pipe._tag_lines) == MAX_SENDERS
     assert pipe.counters["gnss1"].lost_lines == 2
+
+
+def test_a_device_that_is_silent_on_the_group_is_no_data_then_stale() -> None:
+    """Before, a source taking one device of a group was as fresh as the group: a backup receiver that
+    never sent (GP0002) showed age 0 s and no alarm, and a primary that stopped (GP0001) stayed fresh while
+    the gyro's datagrams came, with no `stale` alarm. Freshness is now the device's own."""
+    pipe = Pipeline(
+        PipelineSpec.from_config(parse_config(tables("udp://239.192.0.4:60004"), base_dir=Path.cwd()))
+    )
+    rx = int(T0.timestamp() * 1e9)
+    sent = [d for d in network(30) if b"s:GP0002" not in d]  # the backup never sends
+    last_gp1 = 0
+    for k, d in enumerate(sent):
+        t = rx + k * 10**8
+        if b"s:GP0001" in d and k >= len(sent) // 2:
+            continue  # the primary stops half-way; the gyro goes on
+        last_gp1 = t if b"s:GP0001" in d else last_gp1
+        for name in ("gnss1", "gnss2", "gyro"):
+            pipe.feed(RawEvent(t, name, d, peer="10.0.0.9:1024"))
+    now = rx + len(sent) * 10**8
+    status = pipe.status_message(now)
+    assert "source gnss2: no data yet" in status.alarms
+    assert status.sources["gnss2"].age_s is None
+    age = (now - last_gp1) / 1e9
+    assert age > pipe.sources["gnss1"].timeout_s
+    assert status.sources["gnss1"].age_s == pytest.approx(age)
+    assert f"source gnss1: stale ({age:.1f} s without data)" in status.alarms
+    assert status.sources["gyro"].age_s == pytest.approx(0.1) and not any("gyro" in a for a in status.alarms)

@@ -84,36 +84,60 @@ def test_a_truth_log_must_be_a_simulators(sim_log: Path, tmp_path: Path) -> None
     assert proc.returncode == 2 and "its own truth" in proc.stderr, proc.stderr
 
 
-def test_the_truth_of_another_run_is_said_not_to_be_this_logs(tmp_path: Path) -> None:
-    """Before: a text log of seed 1 scored against seed 0's truth (same scenario, same times) printed RMS
-    errors of tens of metres as the observer's own, without a word. The truth's motion is compared with
-    the log's own measurements; another run's is said not to be this log's (stderr, `truth_mismatch` in
-    the JSON), the run's own truth says nothing."""
+@pytest.fixture(scope="module")
+def two_runs(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Two 90 s runs of one scenario, seeds 0 and 1: each one's simulator log (s0.mcap, s1.mcap) and its
+    sentences as a text log (s0.nmea, s1.nmea)."""
     from simulator.runner import Route
     from simulator.transports import FileSink
 
-    logs = {}
+    folder = tmp_path_factory.mktemp("runs")
     for seed in (0, 1):
-        sink = FileSink(str(tmp_path / f"s{seed}.nmea"))
-        with McapLogWriter(tmp_path / f"s{seed}.mcap") as w:
+        sink = FileSink(str(folder / f"s{seed}.nmea"))
+        with McapLogWriter(folder / f"s{seed}.mcap") as w:
             Simulation(get_scenario("torsetnes_2004"), seed=seed, log=w, routes=[Route(sink, "nmea")]).run(
                 90.0
             )
         sink.close()
-        logs[seed] = tmp_path / f"s{seed}.mcap"
+    return folder
 
-    def replay(truth: Path, out: str) -> tuple[dict, str]:  # type: ignore[type-arg]
-        argv = [str(tmp_path / "s1.nmea"), "--vessel", "mss_supply", "--truth", str(truth)]
-        p = subprocess.run(
-            [sys.executable, "-m", "dpgw", "replay", *argv, "--out", str(tmp_path / out), "--json"],
-            capture_output=True, text=True, check=True,
-        )  # fmt: skip
-        return json.loads(p.stdout), p.stderr
 
-    doc, err = replay(logs[0], "wrong.mcap")
+def replay_json(log: Path, *args: str) -> tuple[dict, str]:  # type: ignore[type-arg]
+    p = subprocess.run(
+        [sys.executable, "-m", "dpgw", "replay", str(log), "--vessel", "mss_supply", *args, "--json"],
+        capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    return json.loads(p.stdout), p.stderr
+
+
+def test_the_truth_of_another_run_is_said_not_to_be_this_logs(two_runs: Path, tmp_path: Path) -> None:
+    """Before: a text log of seed 1 scored against seed 0's truth (same scenario, same times) printed RMS
+    errors of tens of metres as the observer's own, without a word. The truth's motion is compared with
+    the log's own measurements; another run's is said not to be this log's (stderr, `truth_mismatch` in
+    the JSON), the run's own truth says nothing."""
+    wrong, right = two_runs / "s0.mcap", two_runs / "s1.mcap"
+    doc, err = replay_json(two_runs / "s1.nmea", "--truth", str(wrong), "--out", str(tmp_path / "a.mcap"))
     far = doc["truth_mismatch"]
     assert far["median_position_m"] > 10.0 or far["median_heading_deg"] > 10.0
-    assert f"--truth: {logs[0]} is not this log's" in err and "another run's truth" in err
-    doc, err = replay(logs[1], "right.mcap")
+    assert f"--truth: {wrong} is not this log's" in err and "another run's truth" in err
+    doc, err = replay_json(two_runs / "s1.nmea", "--truth", str(right), "--out", str(tmp_path / "b.mcap"))
     assert "truth_mismatch" not in doc and "not this log's" not in err
     assert doc["error_vs_truth"]["passive"]["rms_north_m"] < 2.0
+
+
+def test_the_summary_and_the_report_leave_out_the_same_start(two_runs: Path, tmp_path: Path) -> None:
+    """A gateway joins a simulation already running and stops before it (a HIL bench): the truth spans
+    more than the log. Before, the summary's errors left out 10 % of the truth's span and the report 10 %
+    of the log's (35.5 s against 29.2 s on a bench run), so the two printed different RMS errors of one
+    replay. Both now take the log's own span."""
+    lines = (two_runs / "s1.nmea").read_text().splitlines(keepends=True)
+    half = tmp_path / "second_half.nmea"
+    half.write_text("".join(lines[len(lines) // 2 :]))
+    doc, _ = replay_json(half, "--truth", str(two_runs / "s1.mcap"), "--out", str(tmp_path / "h.mcap"),
+                         "--report", str(tmp_path / "report"))  # fmt: skip
+    metrics = json.loads((tmp_path / "report" / "metrics.json").read_text())
+    assert doc["settle_s"] == metrics["settle_s"] == pytest.approx(0.1 * metrics["duration_s"], abs=0.1)
+    e, r = doc["error_vs_truth"]["passive"], metrics["observers"]["passive"]
+    assert e["samples"] == r["north"]["truth_samples"]
+    assert e["rms_north_m"] == pytest.approx(r["north"]["rms_error"], rel=1e-9)
+    assert e["rms_east_m"] == pytest.approx(r["east"]["rms_error"], rel=1e-9)

@@ -206,6 +206,20 @@ def test_check_notes_a_serial_port_that_is_not_there_now(tmp_path: Path) -> None
     assert not [n for n in json.loads(p.stdout)["notes"] if "serial port" in n]
 
 
+def test_check_notes_a_file_source_that_is_not_there_now(tmp_path: Path) -> None:
+    """Before: ``--check`` said ``ok`` of a ``file:`` source whose file was not there, and the start then
+    stopped on it. A note, as for a serial port (the file may be written by then); a file that is there
+    gets none."""
+    cfg = write_config(tmp_path, "file:nope.nmea")
+    p = check(cfg)
+    assert p.returncode == 0, p.stderr
+    notes = [ln for ln in p.stdout.splitlines() if ln.startswith("note: sources.dgps1.url: ")]
+    assert len(notes) == 1 and f"file {tmp_path / 'nope.nmea'} does not exist now" in notes[0], p.stdout
+    (tmp_path / "nope.nmea").write_text("$GPGGA\r\n")
+    p = check(cfg)
+    assert p.returncode == 0 and "note: sources.dgps1.url: " not in p.stdout, p.stdout
+
+
 def test_the_log_folder_note_of_a_user_without_a_passwd_entry(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
