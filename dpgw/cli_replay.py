@@ -892,8 +892,14 @@ def serve(
         print(f"dpgw replay: {exc}", file=sys.stderr)
         return 2
     stop = threading.Event()
-    signal.signal(signal.SIGINT, lambda *_: stop.set())
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    stopped_by: list[str] = []
+
+    def on_signal(signum: int, _frame: object) -> None:
+        stopped_by.append(signal.Signals(signum).name)
+        stop.set()
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
     for line in connect_lines(sink.url, sink.app_url()):
         print(f"dpgw replay: {line}", file=sys.stderr)
     span = (last - first) / 1e9
@@ -903,7 +909,13 @@ def serve(
         player.run(stop)
     finally:
         sink.close()
-    summary = {"sent": player.sent, "restarts": player.restarts, "foxglove": sink.stats.as_dict()}
+    # Serving until stopped, as `dpgw run` does, a signal is how it ends: exit status 0, the signal named
+    summary = {
+        "sent": player.sent,
+        "restarts": player.restarts,
+        "foxglove": sink.stats.as_dict(),
+        "stopped_by": stopped_by[0] if stopped_by else None,
+    }
     if args.json:
         print(cli_json.dumps(summary, indent=2))
     else:

@@ -144,14 +144,18 @@ def dpgw(*args: str) -> subprocess.Popen[str]:
 
 def stop(proc: subprocess.Popen[str]) -> str:
     """SIGINT (a clean stop), then the process's stderr."""
+    return stop_both(proc)[1]
+
+
+def stop_both(proc: subprocess.Popen[str]) -> tuple[str, str]:
+    """SIGINT (a clean stop), then the process's stdout and stderr."""
     if proc.poll() is None:
         proc.send_signal(signal.SIGINT)
     try:
-        _, err = proc.communicate(timeout=60)
+        return proc.communicate(timeout=60)
     except subprocess.TimeoutExpired:
         proc.kill()
-        _, err = proc.communicate()
-    return err
+        return proc.communicate()
 
 
 def estimate_is_finite(payload: bytes) -> bool:
@@ -340,8 +344,10 @@ def test_replay_obeys_play_pause_seek_and_speed(tmp_path: Path) -> None:
     try:
         asyncio.run(session())
     finally:
-        err = stop(proc)
+        out, err = stop_both(proc)
     assert "Foxglove live: ws://127.0.0.1:" in err, err
+    # serving until stopped, as `dpgw run`: a signal is how it ends (0), and its JSON names it
+    assert proc.returncode == 0 and json.loads(out)["stopped_by"] == "SIGINT", (proc.returncode, out)
 
 
 # --- the sink in this process: holding, the port in use, the config ---------------------------------------
