@@ -172,7 +172,11 @@ def run(args: argparse.Namespace) -> int:
         host, port = (fc.host, fc.port) if args.foxglove is FROM_CONFIG else args.foxglove
         config = replace(config, foxglove=FoxgloveConfig(enabled=True, host=host, port=port))
     if args.check:
-        problems = start_up_problems(config)
+        # named as given, as the config's own problems are (`load_config`), not by its absolute path
+        problems = [
+            args.config + p[len(str(config.path)) :] if p.startswith(f"{config.path}: ") else p
+            for p in start_up_problems(config)
+        ]
         if args.json:
             return _check_json(args.config, problems, describe(config), start_up_notes(config))
         if problems:

@@ -388,3 +388,16 @@ def test_a_missing_serial_port_stops_start_up_before_the_kernels_compile(
     # with --wait-for-ports the port is waited for: the look does not stop start-up
     waiting = GatewayService(load_config(cfg), wait_for_ports=True)
     waiting._look_for_ports()
+
+
+def test_check_names_the_config_as_given_for_every_problem(tmp_path: Path) -> None:
+    """A source URL's problem found by the start-up checks was prefixed with the config's absolute path,
+    every other problem with the name the user gave: one convention, the name as given."""
+    write_config(tmp_path, "udp://127.0.0.1:0?rcvbuf=abc")
+    p = subprocess.run(
+        [sys.executable, "-m", "dpgw", "run", "--config", "vessel.toml", "--check"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert p.returncode == 2
+    assert "  vessel.toml: sources.dgps1.url: rcvbuf 'abc' is not a buffer size" in p.stderr, p.stderr
+    assert str(tmp_path) not in p.stderr
