@@ -234,6 +234,13 @@ def test_the_documented_fault_file_loads() -> None:
         "bogus_feedback",
         *COMMAND_KINDS,
     }
+    # and it runs as `dpgw sim --faults FILE` on a built-in scenario: before, its drift fault named dgps2,
+    # which no built-in scenario has, and every scenario refused the file
+    from simulator.scenarios import get_scenario
+
+    for b in blocks:
+        sc = get_scenario("torsetnes_2004")
+        assert sc.fault_problems(FaultSchedule.from_dicts(b["faults"]).faults) == []
 
 
 # --- faults that would bite nothing ----------------------------------------------------------------------
