@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 from dpgw import cli_json
 from dpgw.cli_foxglove import DEFAULT_HOST, DEFAULT_PORT, add_foxglove_arg, connect_lines, layout_path
 from dpgw.cli_paths import mcap_path_problem
-from dpgw.cli_stops import STOPPED_BY, stop_name
+from dpgw.cli_stops import STOPPED_BY, set_from_handler, stop_name
 from dpgw.cli_types import non_negative_float, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args, listen_endpoints
 from dpgw.scenario_names import SCENARIO_NAMES
@@ -385,16 +385,13 @@ def run(args: argparse.Namespace) -> int:
     # "the simulator failed"); the summary covers what ran and says it was stopped, and by what. Taken
     # from here on, before the gateway starts: a Ctrl-C while its kernels compile (~15 s on a first run)
     # met Python's default, a traceback from inside the compiler.
-    interrupted, stop_sim = threading.Event(), threading.Event()
+    stop_sim = threading.Event()
     stopped_by: list[int] = []  # the signal that stopped the demo
     running: list[GatewayService] = []  # the gateway, once started
 
     def on_signal(signum: int, _frame: object) -> None:
         stopped_by.append(signum)
-        interrupted.set()
-        stop_sim.set()
-        for started in running:
-            started.stop_event.set()
+        set_from_handler(stop_sim, *(started.stop_event for started in running))
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
@@ -608,7 +605,7 @@ def run(args: argparse.Namespace) -> int:
     # when the run ended before it
     engage_at = engaged_at[0] if engaged_at else engage_s
     summary = summarise(
-        args, sim, final_status, wall_s, written or [args.out], engage_at, stopped=interrupted.is_set()
+        args, sim, final_status, wall_s, written or [args.out], engage_at, stopped=bool(stopped_by)
     )
     summary["dp_engaged"] = bool(engaged_at) if engage_s is not None else args.mode == "dp"
     if engage_s is not None and not engaged_at and final_status.get("mode") == "dp":
@@ -630,7 +627,7 @@ def run(args: argparse.Namespace) -> int:
             "signed": mav_commands.signed,
             "commands_rejected": dict(mav_commands.rejected),
         }
-    summary["interrupted"] = interrupted.is_set()
+    summary["interrupted"] = bool(stopped_by)
     summary["stopped_by"] = signal.Signals(stopped_by[0]).name if stopped_by else None
     if args.json:
         print(cli_json.dumps(summary, indent=2))

@@ -895,8 +895,10 @@ def serve(
     stopped_by: list[str] = []
 
     def on_signal(signum: int, _frame: object) -> None:
+        from dpgw.cli_stops import set_from_handler
+
         stopped_by.append(signal.Signals(signum).name)
-        stop.set()
+        set_from_handler(stop)
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)

@@ -118,15 +118,16 @@ class StopSignals:
         signal.signal(signal.SIGTERM, self._on_signal)
 
     def _on_signal(self, signum: int, _frame: object) -> None:
+        from dpgw.cli_stops import set_from_handler
+
         self.signum = self.signum or signum
-        self.requested.set()
-        if self._service is not None:
-            self._service.stop_event.set()
+        service = self._service
+        set_from_handler(self.requested, *([service.stop_event] if service is not None else []))
 
     def attach(self, service: GatewayService) -> None:
         """From now on a signal also stops ``service`` (and one already received does at once)."""
         self._service = service
-        if self.requested.is_set():
+        if self.signum is not None:  # (set in the handler itself; `requested` a moment later)
             service.stop_event.set()
 
     @property
@@ -198,7 +199,7 @@ def run(args: argparse.Namespace) -> int:
     except OutputError as exc:  # said as `--check` says it: the same problems, the same heading
         start_up_error(format_problems(exc.problems))
         return 2
-    if stop.requested.is_set():  # before anything opens: nothing to close
+    if stop.signum is not None:  # before anything opens: nothing to close
         print(f"dpgw run: stopped by {stop.name} during start-up; nothing was opened", file=sys.stderr)
         return 0
     service = GatewayService(
@@ -239,7 +240,7 @@ def run(args: argparse.Namespace) -> int:
         if sink.name == "foxglove":
             for line in connect_lines(sink.url, sink.app_url()):  # type: ignore[attr-defined]
                 print(f"dpgw run: {line}", file=sys.stderr, flush=True)
-    if stop.requested.is_set():
+    if stop.signum is not None:
         print(f"dpgw run: stopped by {stop.name} during start-up", file=sys.stderr, flush=True)
     reporter = None
     if args.verbose:

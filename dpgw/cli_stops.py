@@ -10,6 +10,7 @@ number. The handlers that were there are given back on the way out: `dpgw.cli.ma
 from __future__ import annotations
 
 import signal
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -39,3 +40,21 @@ def signals_noted() -> Iterator[list[int]]:
         for sig, handler in previous.items():
             if handler is not None:  # (None: installed outside Python, cannot be put back from here)
                 signal.signal(sig, handler)
+
+
+def set_from_handler(*events: threading.Event) -> None:
+    """Set ``events`` from a signal handler without taking their locks in it.
+
+    A handler runs in the main thread between two of its bytecodes, which may be inside that thread's own
+    `threading.Event.set` or `wait` of the same event, holding the event's lock (not reentrant). Set there,
+    the handler waits for the main thread, which waits for the handler: for ever, and every later signal
+    nests another wait (seen: `dpgw run` deaf to SIGINT and SIGTERM, its log without its end, after a
+    second SIGINT came as it was stopping). A thread of its own sets them once the main thread lets go."""
+    pending = [e for e in events if not e.is_set()]  # (is_set takes no lock)
+    if pending:
+        threading.Thread(target=_set_all, args=(pending,), name="dpgw-signal", daemon=True).start()
+
+
+def _set_all(events: list[threading.Event]) -> None:
+    for e in events:
+        e.set()

@@ -98,12 +98,27 @@ class AlarmChanges:
 
     def __init__(self) -> None:
         self.active: dict[str, str] = {}  # alarm_key -> text, of the alarms active at the last status
+        self.raised_ns: dict[str, int] = {}  # alarm_key -> the stamp of the status that raised it
 
-    def update(self, alarms: Iterable[str | dict[str, Any]]) -> tuple[list[str], list[str]]:
-        """(raised, cleared) texts since the last call, each in the order the statuses listed them."""
+    def update(
+        self, alarms: Iterable[str | dict[str, Any]], now_ns: int | None = None
+    ) -> tuple[list[str], list[str]]:
+        """(raised, cleared) texts since the last call, each in the order the statuses listed them. With
+        the status's stamp ``now_ns``, a cleared alarm's text ends with how long it was up, "(up 5.5 s)":
+        its own figures are those of the last status that listed it, which for a log made of few statuses
+        (a replay's, at state changes) are those it was raised with ("dead reckoning for 0 s")."""
         now = {alarm_key(t): t for t in map(alarm_text, alarms)}
         raised = [t for k, t in now.items() if k not in self.active]
-        cleared = [t for k, t in self.active.items() if k not in now]
+        cleared = []
+        for k, t in self.active.items():
+            if k in now:
+                continue
+            since = self.raised_ns.pop(k, None)
+            up = f" (up {(now_ns - since) / 1e9:.1f} s)" if now_ns is not None and since is not None else ""
+            cleared.append(t + up)
+        if now_ns is not None:
+            for k in now:
+                self.raised_ns.setdefault(k, now_ns)
         self.active = now
         return raised, cleared
 
@@ -277,7 +292,7 @@ class FoxgloveChannels:
         out: list[tuple[str, Message, int]] = []
         for text in status.events:
             out.append(("/dp/log", fx.log(ns, state_change_level(text), text, "dpgw.reference"), ns))
-        raised, cleared = self._alarms.update(status.alarms)
+        raised, cleared = self._alarms.update(status.alarms, ns)
         critical = raised_critical(status)
         lines = [(fx.LOG_ERROR if t in critical else fx.LOG_WARNING, f"alarm: {t}") for t in raised]
         lines += [(fx.LOG_INFO, f"alarm cleared: {t}") for t in cleared]

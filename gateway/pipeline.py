@@ -62,7 +62,7 @@ from observers.kinematics import ssa_scalar
 from observers.vessel import VesselModel
 from wire.codecs import mavlink as mv
 from wire.codecs import nmea as nmea_codec
-from wire.codecs.nmea_framing import IEC_61162_450, TAG_BLOCK, Frame, NmeaFramer
+from wire.codecs.nmea_framing import AIS, COMMENT, IEC_61162_450, TAG_BLOCK, Frame, NmeaFramer
 from wire.codecs.nmea_tag import OTHER_TAG_SOURCE, TagBlock, TagReject, decode_tag, next_line
 from wire.codecs.nmea_time import utc_step_s
 from wire.foxglove import antenna_frame, ellipsoidal_height_m, location_fix
@@ -318,6 +318,28 @@ def _wiring(ardupilot: ArdupilotMap | None) -> mv.ArduPilotWiring | None:
     )
 
 
+NOT_BAD_INPUT = frozenset((AIS, COMMENT, TAG_BLOCK, IEC_61162_450, OTHER_TAG_SOURCE))
+"""Reject reasons that are not bad input (counted, not used, not wrong): they say nothing of a source's
+health, and a source's good input may come with them on every line (a TAG block, a datagram header)."""
+
+
+def _bad_input_alarm(name: str, c: SourceCounters, now_ns: int, timeout_s: float) -> str | None:
+    """``source NAME: no valid data for 8.0 s (80 rejected: bad_checksum 80)`` when the source's reads keep
+    coming but nothing good has been in them for longer than its timeout (since its first read, if never):
+    what was rejected since the last good input, most first."""
+    since = c.last_good_ns or c.first_rx_ns
+    if not since or (now_ns - since) / NS <= timeout_s:
+        return None
+    grown = Counter({r: n for r, n in (c.rejected - c.rejected_at_good).items() if r not in NOT_BAD_INPUT})
+    if not grown:
+        return None  # (bytes that are not even rejects: the framers hold them; the stale rule will say it)
+    reasons = ", ".join(f"{reason} {n}" for reason, n in grown.most_common(3))
+    return (
+        f"source {name}: no valid data for {(now_ns - since) / NS:.1f} s "
+        f"({sum(grown.values())} rejected: {reasons})"
+    )
+
+
 @dataclass
 class SourceCounters:
     received: int = 0  # sentences/frames decoded and used or understood
@@ -332,6 +354,14 @@ class SourceCounters:
     # transport counts them where the link is lost and comes back; the service copies them for a status)
     reconnects: int = 0
     last_disconnect: tuple[int, str] | None = None
+    # What `Pipeline.status_message` last saw of the good input: the count received then, the receive time
+    # by which it had grown (0: none yet) and the rejects then. A source whose bytes keep coming while
+    # nothing in them is good (a wrong baud rate, a corrupting link: every checksum bad) is not silent,
+    # and must not read as "no data" or as fresh: it is alarmed by what is wrong with it.
+    good_seen: int = 0
+    first_rx_ns: int = 0  # the first read a status saw (the start of "no valid data" when none was good)
+    last_good_ns: int = 0
+    rejected_at_good: Counter[str] = field(default_factory=Counter)
 
     def as_message(self, now_ns: int) -> SourceStatus:
         age = (now_ns - self.last_rx_ns) / NS if self.last_rx_ns else None
@@ -586,7 +616,7 @@ class Pipeline:
         flags. ``event`` goes out, once, in its first status."""
         new = Pipeline(spec)
         for c in self.counters.values():
-            c.last_rx_ns = 0
+            c.last_rx_ns = c.first_rx_ns = c.last_good_ns = 0
         new.counters = self.counters
         new.estimates = self.estimates
         new.restarts = self.restarts
@@ -2437,10 +2467,17 @@ class Pipeline:
             self._startup_events = []
         for name, c in self.counters.items():
             spec = self.sources[name]
+            if c.last_rx_ns and not c.first_rx_ns:
+                c.first_rx_ns = c.last_rx_ns
+            if c.received != c.good_seen:  # good input since the last status: up to its latest read
+                c.good_seen, c.last_good_ns = c.received, c.last_rx_ns
+                c.rejected_at_good = Counter(c.rejected)
             if c.last_rx_ns == 0:
                 alarms.append(f"source {name}: no data yet")
             elif (now_ns - c.last_rx_ns) / NS > spec.timeout_s:
                 alarms.append(f"source {name}: stale ({(now_ns - c.last_rx_ns) / NS:.1f} s without data)")
+            elif (bad := _bad_input_alarm(name, c, now_ns, spec.timeout_s)) is not None:
+                alarms.append(bad)
         return Status(
             stamp_ns=now_ns,
             mode=self.mode,  # type: ignore[arg-type]  # one of MODES: set only from them

@@ -579,6 +579,10 @@ class GatewayService:
         """Consume events until `stop_event` is set (or ``duration_s`` of wall time has passed)."""
         status_period_ns = int(1e9 / self.config.status.rate_hz)
         next_status = time.monotonic_ns()  # (a step of the UTC clock must not stop the status)
+        # On the simulation's clock the status keeps its rate in the simulation's time, as everything the
+        # gateway logs does: on the wall clock, a simulator at 10x gave a log one status per 10 s of its
+        # time. Before the first time (nothing received, no clock tick), the wall schedules it.
+        next_status_sim: int | None = None
         deadline = None if duration_s is None else time.monotonic() + duration_s
         while not self.stop_event.is_set():
             if deadline is not None and time.monotonic() >= deadline:
@@ -620,8 +624,17 @@ class GatewayService:
                     self._emit(ticked)
                 except Exception:
                     self._internal_error("tick", "the dead-reckoning tick")
-            if mono >= next_status:
+            if self.sim_time is not None and now is not None:
+                # (a simulation started over: its time went back, and the schedule with it)
+                due = next_status_sim is None or not (now < next_status_sim <= now + 2 * status_period_ns)
+            else:
+                due = mono >= next_status
+            if due:
                 next_status = mono + status_period_ns
+                if self.sim_time is not None and now is not None:
+                    # (from the last due time, so the rate holds; after a jump, from now)
+                    ahead = (next_status_sim or now) + status_period_ns
+                    next_status_sim = ahead if ahead > now else now + status_period_ns
                 try:
                     if now is None:  # no time yet: the status goes out (stamped with the wall), not logged
                         self._publish([self._status_without_time()])

@@ -272,3 +272,30 @@ def test_a_simulator_stopped_early_says_so_in_its_summary(tmp_path: Path) -> Non
     assert re.fullmatch(r"mss_supply_wind: stopped by Ctrl-C at \d+ s simulated of 600 asked in .*", first), (
         first
     )
+
+
+def test_a_signal_handler_never_waits_for_a_lock_its_own_thread_holds() -> None:
+    """A signal handler runs in the main thread between two of its bytecodes, possibly inside that thread's
+    own `Event.set` or `wait` of the event it sets, holding the event's lock. Before, ``dpgw run``'s handler
+    set the service's stop event there and waited for itself for ever: a gateway that got a second SIGINT
+    as it was stopping ignored every signal after it, its log left without its end. The handler now sets
+    it from a thread of its own: it returns at once, and the event is set once the lock is free."""
+    from types import SimpleNamespace
+
+    from dpgw.cli_run import StopSignals  # (the handler `dpgw run` installs)
+
+    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        stop = StopSignals()
+        service = SimpleNamespace(stop_event=threading.Event())
+        stop.attach(service)  # type: ignore[arg-type]
+        with service.stop_event._cond:  # type: ignore[attr-defined]  # (the main thread inside Event.set)
+            returned = threading.Event()
+            handler = threading.Thread(target=lambda: (stop._on_signal(signal.SIGINT, None), returned.set()))
+            handler.start()
+            assert returned.wait(5.0), "the handler waits for the lock"
+            assert stop.signum == signal.SIGINT
+        assert wait_for(service.stop_event.is_set, 5.0) and wait_for(stop.requested.is_set, 5.0)
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)

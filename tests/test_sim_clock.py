@@ -675,3 +675,35 @@ def test_the_last_status_after_a_restart_is_on_the_new_runs_time(tmp_path: Path)
     new_file = _messages(tmp_path / "gw_0001.mcap")
     late = [(topic, t) for topic, t, _ in new_file if not t0 <= t <= t0 + S]
     assert not late, f"stamped off the new run's time: {late}"
+
+
+def test_the_status_keeps_its_rate_in_the_simulations_time(tmp_path: Path) -> None:
+    """Before, the status went out on the wall clock: a simulator at 10x gave the log one status per 10 s
+    of its time (29 over a 240 s demo at 1 Hz). On ``clock = "sim"`` it keeps its rate in the simulation's
+    time, as everything else the gateway logs does: ~10 s of simulation at 10x, ~10 statuses at 1 Hz."""
+    import threading
+    import time
+
+    from wire.mcap.writer import McapLogWriter
+
+    service = sim_service(tmp_path, status_hz=1.0)
+    service.log = McapLogWriter(tmp_path / "gw.mcap", profile="dpgw")
+    t0, speed, wall_s = 1_800_000_000 * S, 10.0, 1.2
+    mono0 = time.monotonic_ns()
+    service._on_clock(Sample(SimClock(stamp_ns=t0, period_s=0.05, speed=speed).encode()))
+    runner = threading.Thread(target=service.run, kwargs={"duration_s": wall_s})
+    runner.start()
+    while runner.is_alive():  # ticks at 10x the wall, as a simulator's clock publisher sends them
+        elapsed = time.monotonic_ns() - mono0
+        service._on_clock(
+            Sample(SimClock(stamp_ns=t0 + int(speed * elapsed), period_s=0.05, speed=speed).encode())
+        )
+        time.sleep(0.005)
+    runner.join()
+    service.log.close()
+    stamps = [ns for topic, ns in _log_times(tmp_path / "gw.mcap") if topic == "/dp/status"]
+    covered = (max(stamps) - t0) / S
+    assert covered > 5.0, covered  # (the simulation ran at least 5 s in the 1.2 s of wall)
+    assert len(stamps) >= 0.7 * covered, (len(stamps), covered)
+    gaps = [(b - a) / S for a, b in itertools.pairwise(stamps)]
+    assert max(gaps) < 2.5, gaps  # about a second of simulation apart (a busy machine: a late one)

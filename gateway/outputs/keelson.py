@@ -309,7 +309,7 @@ class KeelsonSink:
         becoming "(4.1 s ...)" at the next status is the same alarm still active."""
         s: Status = o.message  # type: ignore[assignment]
         lines: list[tuple[Any, str]] = [(state_change_level(text), text) for text in s.events]
-        raised, cleared = self._alarms.update(s.alarms)
+        raised, cleared = self._alarms.update(s.alarms, s.stamp_ns)
         critical = raised_critical(s)
         lines += [(Log.ERROR if t in critical else Log.WARNING, f"alarm: {t}") for t in raised]
         lines += [(Log.INFO, f"alarm cleared: {t}") for t in cleared]
