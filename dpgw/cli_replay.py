@@ -556,7 +556,7 @@ def _conclude(
     # and on as much sea as the demo scores (a demo stopped soon after its skip: "not scored", as it
     # said)
     args.min_scored = logged_min_scored_s(inputs, older_demo=MIN_SCORED_S)
-    summary = _summary(args, specs, result, wall, _data_first_ns(evidence, result, specs))
+    summary = _summary(args, specs, result, wall, _data_span_ns(evidence, result, specs))
     if args.settle is None and "settle_s" in summary:
         # the report leaves out the same start as the summary's errors against the truth, by construction
         args.settle = summary["settle_s"]
@@ -1120,7 +1120,7 @@ def _estimate_topics(specs: list[ObserverSpec]) -> list[str]:
     return ["/dp/estimate", *(f"/dp/estimates/{x.label}" for x in specs[1:])]
 
 
-def _data_first_ns(
+def _data_span_ns(
     evidence: _WaveEvidence, r: ReplayResult, specs: list[ObserverSpec]
 ) -> tuple[int, int] | None:
     """The span of the replay's own data, as the report counts it (`gateway.report.metrics.analyse`): from

@@ -173,11 +173,7 @@ def run(args: argparse.Namespace) -> int:
         host, port = (fc.host, fc.port) if args.foxglove is FROM_CONFIG else args.foxglove
         config = replace(config, foxglove=FoxgloveConfig(enabled=True, host=host, port=port))
     if args.check:
-        # named as given, as the config's own problems are (`load_config`), not by its absolute path
-        problems = [
-            args.config + p[len(str(config.path)) :] if p.startswith(f"{config.path}: ") else p
-            for p in start_up_problems(config)
-        ]
+        problems = start_up_problems(config, where=args.config)
         if args.json:
             return _check_json(args.config, problems, describe(config), start_up_notes(config))
         if problems:
@@ -494,15 +490,17 @@ def log_folder_note(path: str) -> str | None:
     )
 
 
-def start_up_problems(config: GatewayConfig) -> list[str]:
+def start_up_problems(config: GatewayConfig, where: str | None = None) -> list[str]:
     """What start-up would refuse beyond the config's own checks, found without opening anything: each
-    source URL as the gateway's sources read it, and the Zenoh session's config."""
+    source URL as the gateway's sources read it, and the Zenoh session's config. Each is prefixed with
+    ``where``, the config as the user named it (as the config's own problems are: `load_config`), or its
+    absolute path."""
     from gateway.bus import BusError
     from gateway.outputs.build import output_problems
     from gateway.service import zenoh_config
     from gateway.sources import SourceError, open_source
 
-    where = str(config.path)
+    where = where or str(config.path)
     problems: list[str] = []
     for sc in config.sources:
         try:
@@ -515,7 +513,7 @@ def start_up_problems(config: GatewayConfig) -> list[str]:
         zenoh_config(config.zenoh)
     except BusError as exc:
         problems.append(f"{where}: {exc}")
-    return problems + output_problems(config)
+    return problems + output_problems(config, where)
 
 
 def source_errors_message(config: GatewayConfig, exc: SourceError) -> str:

@@ -125,8 +125,6 @@ def _matrix(a: np.ndarray) -> list[list[float]]:
 
 
 def run(args: argparse.Namespace) -> int:
-    import numpy as np
-
     from observers.passive_tuning import (
         PassiveTuning,
         check_gains,
@@ -134,8 +132,8 @@ def run(args: argparse.Namespace) -> int:
         error_eigenvalues,
         notch_depth_db,
         passive_gains,
-        slowest_error_rate,
         tuning_advice,
+        velocity_injection_rate,
     )
     from observers.vessel import VesselError, load_vessel
 
@@ -169,16 +167,17 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"dpgw tune: {exc}", file=sys.stderr)
         return 2
-    checks = [*check_gains(gains), check_stability(vessel, gains)]
+    stability = check_stability(vessel, gains)
+    checks = [*check_gains(gains), stability]
     eig = error_eigenvalues(vessel, gains, 0.0)
-    slowest = slowest_error_rate(vessel, gains)
+    slowest = stability.values["max_real_part_per_s"][0]  # (the slowest mode over all headings)
     notch = notch_depth_db(vessel, gains)
     result = {
         "vessel": vessel.name,
         "wave_period_s": args.wave_period,
         "loop_bandwidth": None if loop is None else list(loop),
         # a of 𝒦 = diag(M) ωc a (`passive_gains`): the velocity error's decay rate from the injection
-        "velocity_injection_per_s": (np.diag(gains.K4) / (np.diag(vessel.M) * gains.omega_c)).tolist(),
+        "velocity_injection_per_s": velocity_injection_rate(vessel, gains).tolist(),
         "omega0": gains.omega0.tolist(),
         "omega_c": gains.omega_c.tolist(),
         "K1": _matrix(gains.K1),
@@ -195,7 +194,7 @@ def run(args: argparse.Namespace) -> int:
         "notes": (
             [note]
             if (note := sea_period_note(args.wave_period, vessel.model_scale))
-            else tuning_advice(vessel, gains.tuning, gains)
+            else tuning_advice(vessel, gains)
         ),
     }
     if args.json:

@@ -99,27 +99,21 @@ def truth_mismatch(
     errors of hundreds of metres that would otherwise be printed as the observers' own."""
     import numpy as np
 
+    from gateway.scoring import truth_at
+    from observers.kinematics import ssa
+
     if not truth or not stamps_ns:
         return None
     tt = np.array([r["stamp_ns"] for r in truth], dtype=np.int64)
     total = np.array([r["eta_lf"] for r in truth], dtype=float) + np.nan_to_num(
         np.array([r.get("eta_wf") or [0.0, 0.0, 0.0] for r in truth], dtype=float)
     )
-    t = np.array(stamps_ns, dtype=np.int64)
     y = np.array([[np.nan if v is None else v for v in e] for e in measured], dtype=float).reshape(-1, 3)
-    inside = (t >= tt[0]) & (t <= tt[-1])
-    if not inside.any():
-        return None
-    t, y = t[inside], y[inside]
-    x = (t - tt[0]).astype(float)
-    at = np.column_stack(
-        [
-            np.interp(x, (tt - tt[0]).astype(float), np.unwrap(total[:, k]) if k == 2 else total[:, k])
-            for k in range(3)
-        ]
-    )
+    at = truth_at(
+        (np.array(stamps_ns, dtype=np.int64) - tt[0]) / 1e9, (tt - tt[0]) / 1e9, total
+    )  # NaN outside
     dist = np.hypot(y[:, 0] - at[:, 0], y[:, 1] - at[:, 1])
-    dpsi = np.degrees(np.abs(np.angle(np.exp(1j * (y[:, 2] - at[:, 2])))))
+    dpsi = np.degrees(np.abs(ssa(y[:, 2] - at[:, 2])))
     d = float(np.nanmedian(dist)) if np.isfinite(dist).any() else 0.0
     h = float(np.nanmedian(dpsi)) if np.isfinite(dpsi).any() else 0.0
     if d <= MISMATCH_M and h <= MISMATCH_DEG:

@@ -323,23 +323,6 @@ NOT_BAD_INPUT = frozenset((AIS, COMMENT, TAG_BLOCK, IEC_61162_450, OTHER_TAG_SOU
 health, and a source's good input may come with them on every line (a TAG block, a datagram header)."""
 
 
-def _bad_input_alarm(name: str, c: SourceCounters, now_ns: int, timeout_s: float) -> str | None:
-    """``source NAME: no valid data for 8.0 s (80 rejected: bad_checksum 80)`` when the source's reads keep
-    coming but nothing good has been in them for longer than its timeout (since its first read, if never):
-    what was rejected since the last good input, most first."""
-    since = c.last_good_ns or c.first_rx_ns
-    if not since or (now_ns - since) / NS <= timeout_s:
-        return None
-    grown = Counter({r: n for r, n in (c.rejected - c.rejected_at_good).items() if r not in NOT_BAD_INPUT})
-    if not grown:
-        return None  # (bytes that are not even rejects: the framers hold them; the stale rule will say it)
-    reasons = ", ".join(f"{reason} {n}" for reason, n in grown.most_common(3))
-    return (
-        f"source {name}: no valid data for {(now_ns - since) / NS:.1f} s "
-        f"({sum(grown.values())} rejected: {reasons})"
-    )
-
-
 @dataclass
 class SourceCounters:
     received: int = 0  # sentences/frames decoded and used or understood
@@ -354,14 +337,37 @@ class SourceCounters:
     # transport counts them where the link is lost and comes back; the service copies them for a status)
     reconnects: int = 0
     last_disconnect: tuple[int, str] | None = None
-    # What `Pipeline.status_message` last saw of the good input: the count received then, the receive time
-    # by which it had grown (0: none yet) and the rejects then. A source whose bytes keep coming while
-    # nothing in them is good (a wrong baud rate, a corrupting link: every checksum bad) is not silent,
-    # and must not read as "no data" or as fresh: it is alarmed by what is wrong with it.
+    # What the statuses saw of the good input (`bad_input_alarm`): the count received, the receive time by
+    # which it had last grown (while nothing was good yet: the first read a status saw; 0: no read yet)
+    # and the rejects then. A source whose bytes keep coming while nothing in them is good (a wrong baud
+    # rate, a corrupting link: every checksum bad) is not silent, and must not read as "no data" or as
+    # fresh: it is alarmed by what is wrong with it.
     good_seen: int = 0
-    first_rx_ns: int = 0  # the first read a status saw (the start of "no valid data" when none was good)
     last_good_ns: int = 0
     rejected_at_good: Counter[str] = field(default_factory=Counter)
+
+    def bad_input_alarm(self, name: str, now_ns: int, timeout_s: float) -> str | None:
+        """Note the good input since the last status; then ``source NAME: no valid data for 8.0 s (80
+        rejected: bad_checksum 80)`` when reads have kept coming with nothing good in them for longer than
+        ``timeout_s``: what was rejected since the last good input, most first, not-bad reasons left out."""
+        if self.received != self.good_seen:  # good input since the last status: up to its latest read
+            self.good_seen, self.last_good_ns = self.received, self.last_rx_ns
+            self.rejected_at_good = Counter(self.rejected)
+        elif not self.last_good_ns:
+            self.last_good_ns = self.last_rx_ns  # nothing good yet: counted from the first read
+        since = self.last_good_ns
+        if not since or (now_ns - since) / NS <= timeout_s:
+            return None
+        grown = Counter(
+            {r: n for r, n in (self.rejected - self.rejected_at_good).items() if r not in NOT_BAD_INPUT}
+        )
+        if not grown:
+            return None  # (bytes that are not even rejects: the framers hold them; the stale rule says it)
+        reasons = ", ".join(f"{reason} {n}" for reason, n in grown.most_common(3))
+        return (
+            f"source {name}: no valid data for {(now_ns - since) / NS:.1f} s "
+            f"({sum(grown.values())} rejected: {reasons})"
+        )
 
     def as_message(self, now_ns: int) -> SourceStatus:
         age = (now_ns - self.last_rx_ns) / NS if self.last_rx_ns else None
@@ -616,7 +622,7 @@ class Pipeline:
         flags. ``event`` goes out, once, in its first status."""
         new = Pipeline(spec)
         for c in self.counters.values():
-            c.last_rx_ns = c.first_rx_ns = c.last_good_ns = 0
+            c.last_rx_ns = c.last_good_ns = 0
         new.counters = self.counters
         new.estimates = self.estimates
         new.restarts = self.restarts
@@ -835,20 +841,18 @@ class Pipeline:
             texts, others = ev.checked
             c.received += others
             verified = True
-            if texts and spec.tag_source is not None:  # (its device's sentences, cut by the reader: `feed`)
-                c.last_rx_ns = ev.rx_ns
         else:
             framed: list[str] = []
             texts = framed
             key, framer = self._framer(spec, c, ev.peer, ev.rx_ns)
             self._take_frames(spec.tag_source, key, framer.feed(ev.data), c, framed)
             verified = False
-            if framed and spec.tag_source is not None:  # its device spoke (`feed`)
-                c.last_rx_ns = ev.rx_ns
             tap = self.sentence_tap
             if tap is not None:
                 for text in framed:
                     tap(spec.name, ev.rx_ns, text, ev.peer)
+        if texts and spec.tag_source is not None:  # its device spoke (`feed`)
+            c.last_rx_ns = ev.rx_ns
         decode, reject, unused = nmea_codec.decode, nmea_codec.Reject, nmea_codec.UNUSED
         require = not spec.allow_missing_checksum
         used: list[Any] = []
@@ -2467,16 +2471,12 @@ class Pipeline:
             self._startup_events = []
         for name, c in self.counters.items():
             spec = self.sources[name]
-            if c.last_rx_ns and not c.first_rx_ns:
-                c.first_rx_ns = c.last_rx_ns
-            if c.received != c.good_seen:  # good input since the last status: up to its latest read
-                c.good_seen, c.last_good_ns = c.received, c.last_rx_ns
-                c.rejected_at_good = Counter(c.rejected)
+            bad = c.bad_input_alarm(name, now_ns, spec.timeout_s)  # (notes the good input: every status)
             if c.last_rx_ns == 0:
                 alarms.append(f"source {name}: no data yet")
             elif (now_ns - c.last_rx_ns) / NS > spec.timeout_s:
                 alarms.append(f"source {name}: stale ({(now_ns - c.last_rx_ns) / NS:.1f} s without data)")
-            elif (bad := _bad_input_alarm(name, c, now_ns, spec.timeout_s)) is not None:
+            elif bad is not None:
                 alarms.append(bad)
         return Status(
             stamp_ns=now_ns,

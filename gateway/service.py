@@ -191,6 +191,14 @@ def zenoh_config(z: ZenohConfig) -> zenoh.Config:
     )
 
 
+def next_due(last_due: int | None, now: int, period: int) -> int:
+    """The next time something done every ``period`` is due on a clock that may jump (a simulation's): a
+    period after the last due time, so that the rate holds; from ``now`` where that is not within the
+    coming period (the clock jumped forward past it, or went back as a simulation started over)."""
+    ahead = (now if last_due is None else last_due) + period
+    return ahead if now < ahead <= now + period else now + period
+
+
 class GatewayService:
     def __init__(
         self,
@@ -624,17 +632,15 @@ class GatewayService:
                     self._emit(ticked)
                 except Exception:
                     self._internal_error("tick", "the dead-reckoning tick")
-            if self.sim_time is not None and now is not None:
-                # (a simulation started over: its time went back, and the schedule with it)
-                due = next_status_sim is None or not (now < next_status_sim <= now + 2 * status_period_ns)
+            on_sim = self.sim_time is not None and now is not None
+            if on_sim and now is not None:
+                due = next_status_sim is None or not (now < next_status_sim <= now + status_period_ns)
             else:
                 due = mono >= next_status
             if due:
                 next_status = mono + status_period_ns
-                if self.sim_time is not None and now is not None:
-                    # (from the last due time, so the rate holds; after a jump, from now)
-                    ahead = (next_status_sim or now) + status_period_ns
-                    next_status_sim = ahead if ahead > now else now + status_period_ns
+                if on_sim and now is not None:
+                    next_status_sim = next_due(next_status_sim, now, status_period_ns)
                 try:
                     if now is None:  # no time yet: the status goes out (stamped with the wall), not logged
                         self._publish([self._status_without_time()])

@@ -468,12 +468,24 @@ def error_eigenvalues(vessel: VesselModel, gains: PassiveGains, psi: float = 0.0
     return ev[np.argsort(ev.real)[::-1]]
 
 
-def slowest_error_rate(vessel: VesselModel, gains: PassiveGains, headings: int = 36) -> float:
-    """Largest real part of the error eigenvalues over all headings (the slowest convergence)."""
+def slowest_error_mode(vessel: VesselModel, gains: PassiveGains, headings: int = 36) -> tuple[float, float]:
+    """(rate, heading): the largest real part of the error eigenvalues over all headings (the slowest
+    convergence; > 0: a mode that grows) and the heading ψ (rad) where it is."""
     return max(
-        float(error_eigenvalues(vessel, gains, psi)[0].real)
+        (float(error_eigenvalues(vessel, gains, psi)[0].real), float(psi))
         for psi in np.linspace(-math.pi, math.pi, headings, endpoint=False)
     )
+
+
+def slowest_error_rate(vessel: VesselModel, gains: PassiveGains, headings: int = 36) -> float:
+    """Largest real part of the error eigenvalues over all headings (the slowest convergence)."""
+    return slowest_error_mode(vessel, gains, headings)[0]
+
+
+def velocity_injection_rate(vessel: VesselModel, gains: PassiveGains) -> Array:
+    """a per DOF (1/s): the velocity error's decay rate from the injection, 𝒦 = diag(M) ωc a
+    (`passive_gains`)."""
+    return np.asarray(np.diag(gains.K4) / (np.diag(vessel.M) * gains.omega_c), dtype=float)
 
 
 def lf_response(vessel: VesselModel, gains: PassiveGains, omega: ArrayLike, psi: float = 0.0) -> Array:
@@ -493,11 +505,7 @@ def check_stability(vessel: VesselModel, gains: PassiveGains, headings: int = 36
     The paper proves this for a tuning that meets rule (48) and Proposition 1; a tuning that breaks them
     (allowed for experiments) can have a mode that grows. Such a mode must be called what it is, not shown
     as a slow one with a negative time constant."""
-    rates = [
-        (float(error_eigenvalues(vessel, gains, psi)[0].real), float(psi))
-        for psi in np.linspace(-math.pi, math.pi, headings, endpoint=False)
-    ]
-    worst, at = max(rates)
+    worst, at = slowest_error_mode(vessel, gains, headings)
     return Check(
         name="stability",
         inequality="(30)-(32) linearised: max Re lambda(A - L C0)(psi) < 0 at every heading psi",
@@ -523,7 +531,7 @@ WEAK_NOTCH_DB = -10.0
 note: the observer then hardly filters the waves, whatever its checks say."""
 
 
-def tuning_advice(vessel: VesselModel, tuning: PassiveTuning, gains: PassiveGains) -> list[str]:
+def tuning_advice(vessel: VesselModel, gains: PassiveGains) -> list[str]:
     """What to change in a tuning whose slowest error mode is slower than `SLOW_MODE_S` or whose notch is
     shallower than `WEAK_NOTCH_DB`, found by trying it, not by a rule of thumb: the slowest mode is not
     monotonic in the velocity injection a (raising a speeds up the velocity error but, past a point, slows
@@ -531,8 +539,9 @@ def tuning_advice(vessel: VesselModel, tuning: PassiveTuning, gains: PassiveGain
     Candidates below the DP loop's floor (``loop_bandwidth``) are not offered. Empty: nothing to say (an
     unstable tuning is `check_stability`'s to report)."""
     notes: list[str] = []
+    tuning = gains.tuning
     slowest = slowest_error_rate(vessel, gains)
-    a = np.diag(gains.K4) / (np.diag(vessel.M) * gains.omega_c)
+    a = velocity_injection_rate(vessel, gains)
     if -1.0 / SLOW_MODE_S < slowest < 0.0:
         # one a for all DOFs, as --velocity-injection takes it; it replaces the loop's floor, so none below it
         floor = float(injection_floor(vessel, tuning).max()) if tuning.loop_bandwidth is not None else 0.0

@@ -43,6 +43,11 @@ class PlantError(ValueError):
     """A vessel or option the full plant cannot use; the message names the field."""
 
 
+class MissingHullError(PlantError):
+    """The vessel has no ``[hull]`` table and the plant's options need one: what a caller without plant
+    options of its own (a study) says differently from the message's "switch its effects off"."""
+
+
 @dataclass(frozen=True)
 class PlantOptions:
     """Which effects the full plant has (all on by default). Current and wind are the scenario's."""
@@ -104,7 +109,7 @@ class PlantParams:
         if hull is None and needs_hull:
             on = [k for k in ("coriolis", "surge_resistance", "crossflow") if getattr(options, k)]
             on += ["radiation"] if options.radiation is not None else []
-            raise PlantError(
+            raise MissingHullError(
                 f"vessel '{vessel.name}': the full plant needs a [hull] table (M_A, x_g, beam, draught, "
                 "surge resistance; docs/vessels.md), or switch its effects off (plant options "
                 + ", ".join(f"{k}=off" if k != "radiation" else "radiation=None" for k in on)

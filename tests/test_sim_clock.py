@@ -707,3 +707,15 @@ def test_the_status_keeps_its_rate_in_the_simulations_time(tmp_path: Path) -> No
     assert len(stamps) >= 0.7 * covered, (len(stamps), covered)
     gaps = [(b - a) / S for a, b in itertools.pairwise(stamps)]
     assert max(gaps) < 2.5, gaps  # about a second of simulation apart (a busy machine: a late one)
+
+
+def test_the_next_status_time_holds_the_rate_and_follows_a_clock_that_jumps() -> None:
+    """A period after the last due time while the clock runs on; from now where the clock jumped forward
+    past it or went back (a simulation started over; the schedule of the old run would otherwise stay far
+    ahead, and every pass of the loop would find a status due)."""
+    from gateway.service import next_due
+
+    assert next_due(None, 10 * S, S) == 11 * S
+    assert next_due(11 * S, 11 * S + 30_000_000, S) == 12 * S  # a late pass: the rate holds
+    assert next_due(12 * S, 20 * S, S) == 21 * S  # jumped forward
+    assert next_due(500 * S, 3 * S, S) == 4 * S  # went back

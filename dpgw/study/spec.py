@@ -180,15 +180,15 @@ class StudySpec:
     def _check_current(self) -> None:
         """A current runs the full plant (`dpgw.study.case.build_scenario`): every scenario's vessel must
         have what it needs, or the study would stop at its first case instead of now."""
-        from simulator.plant_params import PlantError, PlantParams
+        from simulator.plant_params import MissingHullError, PlantError, PlantParams
         from simulator.scenarios import SCENARIOS, get_scenario
 
-        def full_plant_problem(name: str) -> str | None:
+        def full_plant_problem(name: str) -> PlantError | None:
             scenario = get_scenario(name)
             try:
                 PlantParams.build(scenario.vessel, scenario.plant_options)
             except PlantError as exc:
-                return str(exc)
+                return exc
             return None
 
         for name in self.scenarios:
@@ -200,8 +200,8 @@ class StudySpec:
             vessel = get_scenario(name).vessel.name
             why = (
                 "it has no [hull] table (M_A, x_g, beam, draught, surge resistance; docs/vessels.md)"
-                if "[hull]" in problem
-                else problem
+                if isinstance(problem, MissingHullError)
+                else str(problem)
             )
             raise StudySpecError(
                 f"study: 'current_mps' > 0 runs scenario '{name}' on the full plant, and its vessel "

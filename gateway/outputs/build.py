@@ -22,32 +22,34 @@ class OutputError(Exception):
         self.problems = problems
 
 
-def output_problems(config: GatewayConfig) -> list[str]:
-    """What would stop `sinks_from_config`, as ``FILE: key: problem`` lines (``dpgw run --check``)."""
+def output_problems(config: GatewayConfig, where: str | None = None) -> list[str]:
+    """What would stop `sinks_from_config`, as ``FILE: key: problem`` lines (``dpgw run --check``); FILE is
+    ``where`` (the config as the user named it), or its absolute path."""
+    where = where or str(config.path)
     problems = []
     if config.keelson.enabled and importlib.util.find_spec("keelson") is None:
         problems.append(
-            f"{config.path}: keelson.enabled: true, but the keelson package is not installed (install it "
+            f"{where}: keelson.enabled: true, but the keelson package is not installed (install it "
             "with pip install 'dpgw[keelson]', or set keelson.enabled = false)"
         )
     if config.ros2.enabled:
         missing = [m for m in ("rosbags", "xxhash") if importlib.util.find_spec(m) is None]
         if missing:
             problems.append(
-                f"{config.path}: ros2.enabled: true, but {' and '.join(missing)} "
+                f"{where}: ros2.enabled: true, but {' and '.join(missing)} "
                 f"{'is' if len(missing) == 1 else 'are'} not installed (install with pip install "
                 "'dpgw[ros2]', or set ros2.enabled = false)"
             )
         for s in config.sources_for("position"):
             if not is_ros_name(s.name, absolute=False):
                 problems.append(
-                    f"{config.path}: sources: {s.name}: not a ROS 2 name token, so ros2.fix_topic/{s.name} "
+                    f"{where}: sources: {s.name}: not a ROS 2 name token, so ros2.fix_topic/{s.name} "
                     "is no topic (expected a source name not starting with a digit, or ros2.enabled = false)"
                 )
             for key in ("frame_id", "child_frame_id"):
                 if s.name == getattr(config.ros2, key):
                     problems.append(
-                        f"{config.path}: sources: {s.name}: also ros2.{key}, so its antenna frame on "
+                        f"{where}: sources: {s.name}: also ros2.{key}, so its antenna frame on "
                         "/tf_static would be a child of itself (expected another source name, or another "
                         f"ros2.{key})"
                     )
@@ -55,7 +57,7 @@ def output_problems(config: GatewayConfig) -> list[str]:
         problems += prefix_in_domain(config)
     if config.foxglove.enabled and importlib.util.find_spec("foxglove") is None:  # a core dependency
         problems.append(
-            f"{config.path}: foxglove.enabled: true, but the foxglove-sdk package is not installed (install "
+            f"{where}: foxglove.enabled: true, but the foxglove-sdk package is not installed (install "
             "it with pip install foxglove-sdk, or set foxglove.enabled = false)"
         )
     return problems
