@@ -120,7 +120,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=DEFAULT_DURATION_S,
         metavar="S",
         help=f"sim seconds (default {DEFAULT_DURATION_S:.0f}; the estimate is scored after {SETTLE_S:.0f} s, "
-        f"station keeping from {DP_SETTLE_S:.0f} s after DP is engaged, each on at least "
+        f"station keeping from {DP_SETTLE_S:.0f} s after DP is engaged and not before {SETTLE_S:.0f} s, each "
+        f"on at least "
         f"{MIN_SCORED_S:.0f} s; too short a run is said at the start)",
     )
     p.add_argument(
@@ -333,7 +334,8 @@ def engagement_lines(args: argparse.Namespace, engage_s: float) -> list[str]:
     if args.duration < need:
         lines.append(
             f"with --duration {args.duration:g}, station keeping will not be scored (it is scored from "
-            f"{DP_SETTLE_S:.0f} s after DP is engaged, on at least {MIN_SCORED_S:.0f} s); {todo}"
+            f"{DP_SETTLE_S:.0f} s after DP is engaged and not before {SETTLE_S:.0f} s, on at least "
+            f"{MIN_SCORED_S:.0f} s); {todo}"
         )
     return lines
 

@@ -997,11 +997,13 @@ class _WaveEvidence:
 
         from gateway.report.metrics import wave_band_for_length
         from gateway.report.wave_check import check_wave_tuning
+        from observers.froude import froude_scale_of
 
         t, y = self._series()
         w0 = {label: np.array(w, dtype=float) for label, w in self.omega0.items()}
         band = wave_band_for_length(vessel_length_m, model_scale)
-        return check_wave_tuning(t, y, band, w0, kinds, spans=self.spans)
+        scale = froude_scale_of(vessel_length_m, model_scale)
+        return check_wave_tuning(t, y, band, w0, kinds, spans=self.spans, froude_scale=scale)
 
     def vessel_check(self, vessel: Any) -> Any:
         """Motion faster than the vessel makes (`gateway.report.vessel_check`)."""

@@ -253,15 +253,16 @@ def _text(r: dict[str, Any], source: str) -> str:
     return "\n".join(lines)
 
 
-SEA_PERIOD_S = (2.0, 25.0)
-"""Wave periods a sea has at full scale (s): from a short wind sea to a long swell. A tuning outside them
-is still made (a test of the observer may want one), with a note: the usual cause is a frequency in rad/s
-given as the period, or a model's period given for the ship or the other way round."""
+# A tuning outside SEA_PERIOD_S is still made (a test of the observer may want one), with a note: the
+# usual cause is a frequency in rad/s given as the period, or a model's period given for the ship or the
+# other way round.
 
 
 def sea_period_note(period_s: float, model_scale: float | None) -> str | None:
     """The note for a wave period no sea has at the vessel's scale (Froude: periods scale as √λ), or
     None."""
+    from observers.froude import SEA_PERIOD_S  # (not at import: `dpgw --help` loads no numpy)
+
     root = math.sqrt(model_scale) if model_scale else 1.0
     lo, hi = SEA_PERIOD_S[0] / root, SEA_PERIOD_S[1] / root
     if lo <= period_s <= hi:

@@ -32,6 +32,10 @@ MODEL_MAX_LENGTH_M = 10.0
 """Vessels shorter than this without a ``model_scale`` are taken as models (or small craft) of a prototype."""
 PROTOTYPE_LENGTH_M = 80.0
 """The prototype's length for such a vessel: a supply vessel of the papers' size (76-83 m)."""
+SEA_PERIOD_S = (2.0, 25.0)
+"""Wave periods a sea has at full scale (s): from a short wind sea to a long swell. A model sees them
+÷ √λ. A wave filter tuned outside them is told so (`dpgw tune`); a spectral peak slower than them is
+the vessel's own slow motion more often than a sea (the replay's wave check)."""
 
 
 class _Scaled(Protocol):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 from pathlib import Path
 from typing import Any
 
@@ -319,6 +320,26 @@ def test_an_existing_cluster_by_its_address_gives_the_same_rows() -> None:
         remote = run_study(cases, scheduler=cluster.scheduler_address)
     assert remote.scheduler == cluster.scheduler_address and remote.workers == 2
     assert _same(remote.rows, serial.rows)
+
+
+def test_a_server_that_is_not_dask_at_the_address_is_said_not_waited_for() -> None:
+    """--scheduler at a port where something else listens and never answers Dask's handshake (a web
+    server, a forward to nothing): Dask's own timeout does not cover it and its client waits for ever; the
+    study gives up after its wait and says what to give instead."""
+    import socket
+
+    from distributed import Client
+
+    from dpgw.study.runner import StudyRunError, _connect
+
+    with socket.socket() as server:
+        server.bind(("127.0.0.1", 0))
+        server.listen()
+        address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
+        t0 = time.monotonic()
+        with pytest.raises(StudyRunError, match="nothing answered as a Dask scheduler within 2 s"):
+            _connect(Client, address, wait_s=2.0)
+        assert time.monotonic() - t0 < 30.0
 
 
 def test_the_measurements_are_the_ones_the_loop_observer_got() -> None:

@@ -88,6 +88,36 @@ def test_an_observer_that_schedules_omega0_is_told_to_widen_its_range() -> None:
     assert lo < 2 * math.pi / period < hi and abs(2 * math.pi / period / 0.35 - 1) < 0.06
 
 
+@pytest.mark.parametrize("scale", [1.0, 70.0])
+def test_a_peak_slower_than_any_sea_is_not_advised_as_the_wave_period(scale: float) -> None:
+    """The band reaches 31 s (its low edge), past the longest swell (25 s, ÷ √λ for a model): a clear
+    peak there, e.g. a DP oscillation, is said to be more likely the vessel's own motion, and retuning the
+    wave filter to it is not given as the fix (a filter there would take out the motion DP must act on)."""
+    root = math.sqrt(scale)
+    t, y = vessel_under_way(2, wave_omega=0.235, duration=1800.0)
+    t = t / root  # the same record at the model's scale: times ÷ √λ, frequencies × √λ
+    band = (BAND[0] * root, BAND[1] * root)
+    wc = check_wave_tuning(
+        t,
+        y,
+        band,
+        {"passive": np.full(len(t), 0.8976 * root)},
+        {"passive": ("passive", False)},
+        froude_scale=scale,
+    )
+    assert wc.measured is not None and abs(wc.measured / (0.235 * root) - 1.0) < 0.06
+    assert wc.longest_sea_s == pytest.approx(25.0 / root)
+    (warning,) = wc.warnings()
+    assert f"longer than any sea's ({25.0 / root:.3g} s at most" in warning, warning
+    assert "more likely the vessel's own slow motion" in warning
+    assert "Re-run with" not in warning and "gain_scheduled" not in warning, warning
+    # a sea inside the periods a sea has keeps its advice (the test above at full scale)
+    t2, y2 = vessel_under_way(2, wave_omega=0.3, duration=1800.0)
+    inside = check_wave_tuning(t2, y2, BAND, {"passive": np.full(len(t2), 0.8976)})
+    (advice,) = inside.warnings()
+    assert "Re-run with --observer passive:wave_period_s=" in advice and "longer than any sea's" not in advice
+
+
 def _advised_spec(stderr: str) -> str:
     m = re.search(r"Re-run with --observer (\S+), or|re-run with --observer (\S+)$", stderr.strip(), re.M)
     assert m is not None, stderr

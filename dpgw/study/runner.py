@@ -103,10 +103,7 @@ def dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
 
     quiet_dask_logs()
     if scheduler:
-        try:
-            client = Client(scheduler, timeout="10s")
-        except OSError as exc:
-            raise StudyRunError(f"--scheduler {scheduler}: no Dask scheduler answers ({exc})") from None
+        client = _connect(Client, scheduler)
         try:
             yield client
         finally:
@@ -120,6 +117,41 @@ def dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
     finally:
         client.close()
         cluster.close()
+
+
+CONNECT_WAIT_S = 20.0
+"""How long a study waits for the cluster at ``--scheduler`` to answer before it says so."""
+
+
+def _connect(client_class: Any, scheduler: str, wait_s: float = CONNECT_WAIT_S) -> Any:
+    """A client of the scheduler at ``scheduler``, or a `StudyRunError` saying why there is none.
+
+    Dask's own ``timeout`` covers a closed port, but not a server of another kind at the address (a web
+    server, a port forward to nothing): its handshake then waits for ever. The attempt runs in a thread of
+    its own, given up after ``wait_s``; the thread, if still waiting, is a daemon and dies with the process.
+    """
+    outcome: dict[str, Any] = {}
+
+    def attempt() -> None:
+        try:
+            outcome["client"] = client_class(scheduler, timeout=f"{wait_s / 2:g}s")
+        except BaseException as exc:  # handed to the caller's thread
+            outcome["error"] = exc
+
+    thread = threading.Thread(target=attempt, name="dpgw-dask-connect", daemon=True)
+    thread.start()
+    thread.join(wait_s)
+    if thread.is_alive():
+        raise StudyRunError(
+            f"--scheduler {scheduler}: nothing answered as a Dask scheduler within {wait_s:g} s; give the "
+            "address a `dask scheduler` prints (tcp://HOST:8786), or leave --scheduler out to run here"
+        )
+    error = outcome.get("error")
+    if isinstance(error, OSError):
+        raise StudyRunError(f"--scheduler {scheduler}: no Dask scheduler answers ({error})") from None
+    if error is not None:
+        raise error
+    return outcome["client"]
 
 
 def _resource_tracker_ignoring_sighup() -> None:

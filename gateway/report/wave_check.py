@@ -29,7 +29,9 @@ at 1.4·ω0 and −10 dB at ω0/1.4, −6 dB at ω0/1.7, −4 dB at ω0/2: beyon
 keeps three to four times more of the wave motion than the tuning promises, and it gets worse fast below
 ω0. With no clear peak in any DOF there is no verdict (a calm sea, a vessel under way, too short a
 record), but a note says that the check could not be made and why per DOF (`WaveCheck.notes`): silence
-would read as a pass.
+would read as a pass. A clear peak slower than any sea (`observers.froude.SEA_PERIOD_S`, 25 s ÷ √λ; the
+band's low edge is 31 s) is warned as more likely the vessel's own slow motion, without retuning as the
+fix.
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ import numpy as np
 
 from gateway.report.data import DOF, Array
 from gateway.report.spectra import nominal_dt, peak, resample, valid_samples, welch
+from observers.froude import SEA_PERIOD_S
 
 CLEAR_PEAK_DB = 8.0
 MISTUNE_RATIO = 1.4
@@ -98,6 +101,12 @@ class WaveCheck:
     peaks: dict[str, DofPeak]
     measured: float | None  # median of the clear peaks (rad/s)
     observers: list[ObserverTuning] = field(default_factory=list)
+    froude_scale: float = 1.0  # the vessel's λ (`observers.froude`): the periods a sea has for it
+
+    @property
+    def longest_sea_s(self) -> float:
+        """The longest period a sea has at the vessel's scale (s): `SEA_PERIOD_S` ÷ √λ."""
+        return SEA_PERIOD_S[1] / math.sqrt(self.froude_scale)
 
     def warnings(self) -> list[str]:
         """One message per mistuned observer: what was measured, what was used, what to do."""
@@ -116,6 +125,20 @@ class WaveCheck:
                 "wave motion leaks into the LF estimate."
             )
             period = _period(w)
+            if 2 * math.pi / w > self.longest_sea_s:
+                # The band reaches past the longest swell (its edge is a clear peak's limit, not a sea's):
+                # a peak there is more often the vessel's own slow motion (a DP oscillation, a slow yaw,
+                # a manoeuvre) than waves, and a wave filter tuned to it would filter the motion DP must
+                # act on. So no retuning is advised as the fix.
+                scale = f" for this 1:{self.froude_scale:g} scale" if self.froude_scale != 1.0 else ""
+                out.append(
+                    f"{what} But a period of {period} s is longer than any sea's ({self.longest_sea_s:.3g} s "
+                    f"at most{scale}): it is more likely the vessel's own slow motion (a DP oscillation, a "
+                    "slow yaw, a manoeuvre) than waves. Look at the position and heading in the log (and "
+                    "the controller's tuning) before retuning; only for a swell known to be that long, "
+                    f"--observer {o.kind}:wave_period_s={period}."
+                )
+                continue
             scheduled = f"wave_period_s={period},omega_min={_fmt(w / 2.0)},omega_max={_fmt(2.0 * w)}"
             if o.kind == "mmae" and o.span is not None and o.span[0] <= w <= o.span[1]:
                 # A bank around the sea is what it had: advising it again sends the user round in a circle.
@@ -255,11 +278,13 @@ def check_wave_tuning(
     kinds: dict[str, tuple[str, bool]] | None = None,
     *,
     spans: dict[str, tuple[float, float]] | None = None,
+    froude_scale: float = 1.0,
 ) -> WaveCheck:
     """Measured wave peak of y (N×3: north, east, heading; NaN where not measured) against the ω0 each
     observer used (`omega0`: label → its ω0 samples, N×3 or N, rad/s). `kinds`: label → (observer name,
     whether it schedules ω0 itself); an observer whose ω0 moved counts as scheduling it anyway. `spans`:
-    label → the lowest and highest ω0 of a multiple-model observer's bank."""
+    label → the lowest and highest ω0 of a multiple-model observer's bank. `froude_scale`: the vessel's λ
+    (the band's own scale), for the periods a sea has."""
     kinds = kinds or {}
     spans = spans or {}
     peaks = {DOF[k]: dof_peak(t, y[:, k], band, angle=(k == 2)) for k in range(3)}
@@ -276,4 +301,4 @@ def check_wave_tuning(
         adaptive = schedules or bool(np.ptp(w) > 1e-6 * w0)
         ratio = measured / w0 if measured is not None else None
         tunings.append(ObserverTuning(label, kind, w0, adaptive, ratio, spans.get(label)))
-    return WaveCheck(band=band, peaks=peaks, measured=measured, observers=tunings)
+    return WaveCheck(band=band, peaks=peaks, measured=measured, observers=tunings, froude_scale=froude_scale)
