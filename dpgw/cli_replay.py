@@ -493,6 +493,7 @@ def run(args: argparse.Namespace) -> int:
                 collect=topics,
                 on_outputs=on_outputs,
                 progress=(lambda n: bar.update(n - bar.n)) if bar is not None else None,
+                status_period_ns=round(1e9 / config.status.rate_hz),
             )
             if args.truth is not None:
                 truth_note = _take_truth(Path(args.truth), pipeline, result, out)

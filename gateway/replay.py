@@ -1042,8 +1042,15 @@ def run_replay(
     collect: Iterable[str] = (),
     on_outputs: Callable[[Event, list[Output]], None] | None = None,
     progress: Callable[[int], None] | None = None,
+    status_period_ns: int | None = None,
 ) -> ReplayResult:
-    """Feed every event through the pipeline; write outputs to ``out``; keep the ``collect`` topics."""
+    """Feed every event through the pipeline; write outputs to ``out``; keep the ``collect`` topics.
+
+    ``status_period_ns``: a `/dp/status` (with its Foxglove log lines) this often in the log's time, and
+    one after the last event, as the live gateway gives them at its status rate; None: only the statuses
+    the pipeline makes itself, at a reference state change. A status falls after the outputs of the first
+    event at or past its due time, stamped with that event's time (a log's time has no ticks between
+    events); one the pipeline made at that event already counts as it."""
     result = ReplayResult()
     wanted = set(collect)
     for topic in wanted:
@@ -1076,7 +1083,10 @@ def run_replay(
         for name in inp.sources()
         if name in pipeline.sources
     }
+    next_status_ns = status_ns = -1  # the next periodic status due, the last one made (ns)
+    last_event: Event | None = None
     for ev, after in with_next(merged_events(inputs)):
+        last_event = ev
         events += 1
         if frozen == 0 and events % GC_FREEZE_EVERY == 0:
             # Everything alive now (the outputs kept in `collect`, the pipeline) is long-lived: take it out
@@ -1118,6 +1128,15 @@ def run_replay(
             outputs = feed(ev, True)
         else:
             outputs = feed(ev)
+        if status_period_ns is not None:
+            made = any(o.topic == "/dp/status" for o in outputs)
+            if ev.rx_ns >= next_status_ns:
+                if not made:
+                    outputs = outputs + pipeline.status_outputs(ev.rx_ns)
+                    made = True
+                next_status_ns = ev.rx_ns + status_period_ns
+            if made:
+                status_ns = ev.rx_ns
         for o in outputs:
             msg = o.message
             if out is not None:
@@ -1137,6 +1156,18 @@ def run_replay(
             on_outputs(ev, outputs)
         if progress is not None and events % 2000 == 0:
             progress(events)
+    if status_period_ns is not None and events and pipeline.last_ns > status_ns:
+        last = pipeline.status_outputs(pipeline.last_ns)  # the last status, as the live gateway's at its stop
+        if out is not None:
+            out.write_many(
+                [(o.topic, encoder_of(type(o.message))(o.message), o.stamp_ns, type(o.message)) for o in last]
+            )
+        if on_outputs is not None and last_event is not None:
+            on_outputs(last_event, last)
+        for o in last:
+            if wanted and o.topic in wanted:
+                collected[o.topic].append(o.payload)
+        outputs_n += len(last)
     result.events, result.sentences, result.outputs = events, sentences, outputs_n
     if progress is not None:
         progress(events)  # the bar ends at the true count

@@ -885,7 +885,9 @@ def _one_hertz_in_a_big_sea(
     summary = json.loads(capsys.readouterr().out)
     status = [(t, p) for _, t, _, p in read_messages(out, "/dp/status")]
     t0 = status[0][0]
-    events = [((t - t0) / 1e9, e) for t, p in status for e in p["events"] if "dgps1" in e or "restart" in e]
+    events = [
+        ((t - t0) / 1e9, e) for t, p in status for e in p.get("events", []) if "dgps1" in e or "restart" in e
+    ]
     return summary, events
 
 

@@ -517,6 +517,24 @@ def test_comment_lines_in_a_generated_log_anywhere_and_holding_a_dollar(tmp_path
     assert quoted in raw and "# Name: generated" in raw and "noise" in raw
 
 
+def test_a_replay_logs_a_status_a_second_of_log_time_as_the_live_gateway_does(tmp_path: Path) -> None:
+    """The live gateway logs `/dp/status` at its status rate (1 Hz); a replay's output had one only at a
+    reference state change (19 in 220 s of a sea trial), so its counters and alarms in Foxglove were
+    minutes apart. Now one a second of the log's time, and the last at the last event, as at a stop."""
+    from dpgw.cli import main
+
+    t0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
+    path = tmp_path / "five_hz.nmea"
+    write_text_log(path, [t0 + timedelta(seconds=0.2 * k) for k in range(300)])  # 60 s at 5 Hz
+    out = tmp_path / "out.mcap"
+    assert main(["replay", str(path), "--vessel", "mss_supply", "--out", str(out)]) == 0
+    stamps = np.array([p["stamp_ns"] for t, _, _, p in read_messages(out) if t == "/dp/status"]) / 1e9
+    first, last = t0.timestamp(), (t0 + timedelta(seconds=0.2 * 299)).timestamp()
+    assert len(stamps) >= 60 and np.all(np.diff(stamps) <= 1.0 + 1e-6), np.diff(stamps).max()
+    assert stamps[0] == pytest.approx(first) and stamps[-1] == pytest.approx(last)
+    assert len(set(stamps.tolist())) == len(stamps)  # never two at one time
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_a_paced_replay_stops_on_ctrl_c_or_sigterm_with_a_complete_output(
