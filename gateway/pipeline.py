@@ -448,6 +448,7 @@ class Pipeline:
         # while re-acquiring but broken off.
         self._reacq_ns = [0, 0, 0]
         self._prediction_test = ip.prediction_max_age_s > 0
+        self._prediction_max_age_s = ip.prediction_max_age_s
         self._confirm_ns = int(ip.restart_confirm_s * NS)
         self.restarts = 0  # observer restarts from a returning reference (`_reacquire`)
         self._datum_for_message: LocalFrame | None = None
@@ -1296,12 +1297,24 @@ class Pipeline:
         _, eta, nu, wf, c, s = base
         dt = (now_ns - self._last_est_ns) / NS
         age = (now_ns - measured) / NS
+        # Past the age limit the prediction test ends, so that an old prediction never locks out a reference
+        # back from a silence. Not in DP when the DOF's references were refused while their data kept
+        # coming (a DGPS that jumped 30 m and stayed there): ended by time alone, the test let the offset
+        # in after the age limit, the observer restarted on it, and DP drove the vessel 30 m off its
+        # station while the alarms said it was returning to it. So DP keeps testing them (`held`).
+        held = (
+            self._prediction_test
+            and age > self._prediction_max_age_s
+            and self.mode == "dp"
+            and self.controller is not None
+            and self.monitor.refused_while_talking("heading" if dof == 2 else "position")
+        )
         if dof == 2:
-            return Prediction((ssa_scalar(eta[2] + wf[2] + nu[2] * dt),), age, nu[2])
+            return Prediction((ssa_scalar(eta[2] + wf[2] + nu[2] * dt),), age, nu[2], held)
         u, v = nu[0], nu[1]
         n = eta[0] + wf[0] + (c * u - s * v) * dt
         e = eta[1] + wf[1] + (s * u + c * v) * dt
-        return Prediction((n, e), age)
+        return Prediction((n, e), age, 0.0, held)
 
     def _mavlink(self, spec: SourceSpec, c: SourceCounters, ev: RawEvent, out: list[Output]) -> bool:
         key, parser = self._parser(spec, c, ev.peer, ev.rx_ns, out)

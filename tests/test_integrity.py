@@ -942,3 +942,55 @@ def test_an_observer_that_never_started_is_not_restarted() -> None:
     b.run(30.0)
     assert b.p.restarts == 0 and b.first_event(m, "observer restarted") is None
     assert error_after(b, m, 20.0, 0.0) < 1.0
+
+
+def _jumped_dgps_in_dp(events: list[tuple[float, str, Any]] = ()):  # type: ignore[no-untyped-def,assignment]
+    """torsetnes_2004 on DP with its only DGPS 30 m north of the truth from 150 s to 300 s (sim time),
+    its fixes coming all the while; a status a second."""
+    from dataclasses import replace
+
+    from dpgw.closed_loop import run_closed_loop
+    from simulator.faults import Fault
+    from simulator.scenarios import get_scenario
+
+    sc = replace(
+        get_scenario("torsetnes_2004"), faults=(Fault("jump", "dgps1", 150.0, 300.0, {"north_m": 30.0}),)
+    )
+    run = run_closed_loop(sc, 360.0, seed=1, status_every_s=1.0, events=events)
+    t0 = run.statuses[0]["stamp_ns"] - 1e9  # (the first status is at the end of the first second)
+
+    def dgps1(at_s: float) -> dict[str, Any]:
+        s = min(run.statuses, key=lambda s: abs((s["stamp_ns"] - t0) / 1e9 - at_s))
+        return s["references"]["dgps1"][0]
+
+    return run, dgps1
+
+
+def test_the_only_dgps_that_jumped_and_stayed_is_not_taken_back_by_time_in_dp() -> None:
+    """A DGPS that jumps 30 m and stays there, its fixes coming all the while, is refused by the jump and
+    prediction tests. Before, the prediction test ended after `prediction_max_age_s` (so that an old
+    prediction never locks out a reference back from a silence), the offset fixes were readmitted ~15 s
+    after the jump, the observer restarted on them, and DP drove the vessel 30 m off its station while
+    the alarm said it was returning to it. In DP such a reference is now kept out for as long as it
+    disagrees with the dead-reckoned estimate (the vessel drifts by the dead reckoning's error only), said
+    in its reason with what the operator can do; the healthy fixes after the fault are taken back."""
+    run, dgps1 = _jumped_dgps_in_dp()
+    k0, k1 = np.searchsorted(run.t, [140.0, 300.0])
+    station = run.eta_lf[k0, :2]
+    drift = np.linalg.norm(run.eta_lf[k0:k1, :2] - station, axis=1).max()
+    assert drift < 15.0, drift  # (before: 30.6 m, the offset itself; dead reckoning drifted 7.7 m here)
+    for at in (170.0, 220.0, 290.0):
+        ref = dgps1(at)
+        assert ref["state"] == "rejected", (at, ref)
+        assert "in DP it is not taken back by time" in ref["reason"], ref
+    assert dgps1(340.0)["state"] == "ok"  # the fault over: readmitted
+    k2 = np.searchsorted(run.t, 359.0)
+    assert np.linalg.norm(run.eta_lf[k2, :2] - station) < 5.0
+
+
+def test_a_jumped_dgps_is_taken_by_the_operator_through_standby() -> None:
+    """What its reason says to do: switched to standby, the reference is tested as before (the prediction
+    test ends at its age limit) and taken back after `readmit_s`."""
+    _, dgps1 = _jumped_dgps_in_dp(events=[(200.0, "mode", "standby")])
+    assert dgps1(195.0)["state"] == "rejected"
+    assert dgps1(215.0)["state"] == "ok", dgps1(215.0)

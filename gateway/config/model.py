@@ -370,7 +370,9 @@ class IntegrityConfig:
     """Largest heading innovation accepted."""
     prediction_max_age_s: float = 10.0
     """The prediction test is only applied while the estimate had a measurement this recently (an old
-    prediction must not lock out the only reference); its gate grows with the age at max_speed/10."""
+    prediction must not lock out the only reference back from a silence); its gate grows with the age at
+    max_speed/10. In DP, references refused while their data kept coming stay tested past it, the gate
+    held at its width here: time alone never lets a reference that jumped take the vessel."""
     median_m: float = 0.75
     """With three or more position references: a reference whose smoothed position is farther than this
     from the median of all is rejected (catches slow drift: 1 m/min is out within a minute)."""

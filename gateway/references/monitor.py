@@ -30,7 +30,7 @@ from mypy_extensions import mypyc_attr
 from gateway.references.attitude import AttitudeLimits, AttitudeTrack
 from gateway.references.feedback import feedback_problem
 from gateway.references.params import IntegrityParams
-from gateway.references.state import NS, OK, STALE, SUSPECT, SourceState, StateChange
+from gateway.references.state import NS, OK, REJECTED, STALE, SUSPECT, SourceState, StateChange
 from gateway.references.track import (
     MIN_SAMPLES_FOR_VARIANCE,
     AngleTrack,
@@ -117,6 +117,7 @@ class Prediction(NamedTuple):
     value: tuple[float, ...]
     age_s: float
     rate: float = 0.0  # heading: the estimate's rate of turn (rad/s), which a spike's recovery extrapolates
+    held: bool = False  # DP holds the DOF on this prediction: past the age limit the test still applies
 
 
 @mypyc_attr(native_class=False)
@@ -339,18 +340,25 @@ class ReferenceMonitor:
         if sigma is not None and sigma > lim.max_sigma:
             st.fail(now_ns, f"variance: measured 1σ {sigma:.2f} m (limit {lim.max_sigma:g} m)")
             return False
-        if pred is not None and pred.age_s <= self.p.prediction_max_age_s:
+        max_age = self.p.prediction_max_age_s
+        if pred is not None and (pred.age_s <= max_age or pred.held):
+            # Held (`Prediction.held`): in DP, the only references of the DOF were refused while their data
+            # kept coming; time alone must not let them take the vessel, so the gate stops growing at
+            # the age limit instead of the test ending there.
             innov = tr.distance(v, pred.value)
             spread = sigma or 0.0
             if shape_ne is not None and spread:
                 spread *= ellipse_reach(shape_ne, v[0] - pred.value[0], v[1] - pred.value[1])
-            limit = lim.gate + 3 * spread + lim.grow * pred.age_s
+            limit = lim.gate + 3 * spread + lim.grow * min(pred.age_s, max_age)
             if innov > limit:
                 fmt = self._fmt
-                st.fail(
-                    now_ns,
-                    f"prediction: {fmt(innov, lim)} from the estimate's prediction (gate {fmt(limit, lim)})",
-                )
+                why = f"prediction: {fmt(innov, lim)} from the estimate's prediction (gate {fmt(limit, lim)})"
+                if pred.age_s > max_age:
+                    why += (
+                        f"; refused for {pred.age_s:.0f} s while its data kept coming: in DP it is not taken "
+                        "back by time (if it is right, switch to manual or standby, then engage DP again)"
+                    )
+                st.fail(now_ns, why)
                 return False
         if ref.alone:  # `_vote` with nothing to vote with (inline: one source per role is the common case)
             if tr.smooth is not None and now_ns - tr.smooth_ns <= ref.timeout_ns:
@@ -705,6 +713,14 @@ class ReferenceMonitor:
         if role == "attitude":
             return self._attitude[source][0].reason
         return self._refs[role][source].state.reason
+
+    def refused_while_talking(self, role: str) -> bool:
+        """Whether a source of ``role`` is out of use while its data keep coming (rejected, or readmitting:
+        tested and refused or not yet trusted), as opposed to silent (stale)."""
+        for st in self._role_states[role]:
+            if st.state == REJECTED or (st.state == SUSPECT and not st.usable):
+                return True
+        return False
 
     def is_stale(self, role: str, source: str) -> bool:
         return self._refs[role][source].state.state == STALE
