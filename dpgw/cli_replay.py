@@ -265,11 +265,11 @@ def default_out(first_log: str) -> str:
 
 
 def next_free_out(out: str) -> Path:
-    """The file a replay writes for ``--out OUT``: OUT itself when it is not there, else the next free
-    file of its set (``usv_0001.mcap``, `wire.mcap.rotation`), never one that exists."""
-    from wire.mcap.rotation import next_index, rotated_path
+    """The file a replay writes for ``--out OUT``: OUT itself when it is not there, else the first free
+    file of its set (``usv_0001.mcap``, `wire.mcap.rotation.free_path`), never one that exists."""
+    from wire.mcap.rotation import free_path
 
-    return rotated_path(out, next_index(out))
+    return free_path(out)
 
 
 REPORT_FILES = ("report.md", "metrics.json")
@@ -481,7 +481,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         with (
             stop,
-            McapLogWriter(args.out, profile="dpgw-replay", flush_on_log_time=False, continue_set=True) as out,
+            McapLogWriter(args.out, profile="dpgw-replay", flush_on_log_time=False) as out,  # (a free file)
         ):
             out.add_metadata("dpgw.replay", {"logs": json.dumps([str(i.path) for i in inputs])})
             for name, meta in carried_metadata(inputs, own_config=own_config(args)):

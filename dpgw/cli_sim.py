@@ -325,6 +325,7 @@ def _run_scenario(args: argparse.Namespace, stopped_by: list[int]) -> int:
     from simulator.tlog_recorder import TlogRecorder
     from simulator.transports import Sink, TransportError, open_sink
     from wire.mcap.folder import make_log_folder
+    from wire.mcap.rotation import free_path
     from wire.mcap.writer import McapLogWriter
     from wire.tlog import TlogWriter
 
@@ -449,7 +450,7 @@ def _run_scenario(args: argparse.Namespace, stopped_by: list[int]) -> int:
                 if folder := make_log_folder(args.out):  # (its parent exists: `mcap_path_problem`)
                     print(f"dpgw sim: made the log's folder {folder} (it did not exist)", file=sys.stderr)
                 log = McapLogWriter(
-                    args.out, profile="dpgw-sim", flush_on_log_time=bool(args.realtime), continue_set=True
+                    free_path(args.out), profile="dpgw-sim", flush_on_log_time=bool(args.realtime)
                 )
             except OSError as exc:
                 raise OSError(f"--out {args.out}: cannot write the log: {exc.strerror or exc}") from None
@@ -459,9 +460,7 @@ def _run_scenario(args: argparse.Namespace, stopped_by: list[int]) -> int:
             # One that exists is kept, as --out's log is: the tlog goes in the next file of its set
             # (trial_0001.tlog). Overwriting it lost the feedback of the run before, which a bench
             # restarting the simulator with the same command line still scores its gateway log with.
-            from wire.mcap.rotation import next_index, rotated_path
-
-            path = rotated_path(args.tlog, next_index(args.tlog))
+            path = free_path(args.tlog)
             try:
                 make_folder_for("dpgw sim", "--tlog", args.tlog)  # (its parent exists: `tlog_path_problem`)
                 tlog = TlogWriter(path)

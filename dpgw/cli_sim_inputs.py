@@ -320,11 +320,12 @@ def _write_log(args: argparse.Namespace, vessel: str, inputs: Any, states: Any) 
 
     from simulator.clock import SimEpoch
     from simulator.scenarios import Scenario
+    from wire.mcap.rotation import free_path
     from wire.mcap.writer import McapLogWriter
     from wire.messages import TruthState
 
     epoch = SimEpoch(Scenario.__dataclass_fields__["start_utc"].default)  # type: ignore[arg-type]
-    with McapLogWriter(args.out, profile="dpgw-sim", continue_set=True) as log:
+    with McapLogWriter(free_path(args.out), profile="dpgw-sim") as log:
         if Path(log.path) != Path(args.out):
             print(f"log -> {log.path} ({args.out} exists: a log is never overwritten)", file=sys.stderr)
         log.add_metadata("dpgw.sim", {"vessel": vessel, "inputs": str(args.inputs), "mode": "open loop"})

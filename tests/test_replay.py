@@ -1282,6 +1282,33 @@ def test_replay_never_overwrites_an_existing_out_and_says_which_file_it_wrote(
     assert not (tmp_path / "usv_0003.mcap").exists()
 
 
+def test_date_stamped_logs_beside_out_are_not_taken_for_its_set(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A folder of sea-trial logs named by date: `trial_2024.mcap` beside a free `trial.mcap`. Before, the
+    replay read the date as the set's index and wrote `trial_2025.mcap`, saying `trial.mcap exists`; now
+    `--out trial.mcap` is written, and once it exists the next is `trial_0001.mcap` (`dpgw sim --out` the
+    same)."""
+    from dpgw.cli import main
+    from wire.mcap.rotation import free_path
+
+    t0 = datetime(2026, 6, 1, 10, tzinfo=UTC)
+    log = tmp_path / "usv.nmea"
+    write_text_log(log, [t0 + timedelta(seconds=k) for k in range(10)])
+    dated = tmp_path / "trial_2024.mcap"
+    dated.write_bytes(b"an earlier trial")
+    out = tmp_path / "trial.mcap"
+    for written in (out, tmp_path / "trial_0001.mcap"):
+        assert main(["replay", str(log), "--vessel", "mss_supply", "--out", str(out), "--json"]) == 0
+        said = capsys.readouterr()
+        assert json.loads(said.out)["out"] == str(written)
+        assert ("never overwritten" in said.err) == (written != out), said.err
+    assert dated.read_bytes() == b"an earlier trial" and not (tmp_path / "trial_2025.mcap").exists()
+    assert free_path(out) == tmp_path / "trial_0002.mcap"
+    (tmp_path / "trial_0001.mcap").unlink()  # a gap: the first free file, never one that exists
+    assert free_path(out) == tmp_path / "trial_0001.mcap"
+
+
 def test_a_gateway_without_a_commands_table_logs_one_and_its_replay_refuses_what_it_refused() -> None:
     """A gateway configured without ``[commands]`` takes no input (``accept = []``, the default). Its log's
     config had no table either, which is how a log from before the command rules looks, and those replay

@@ -10,7 +10,7 @@ import os
 import re
 from pathlib import Path
 
-__all__ = ["StrPath", "log_files", "next_index", "rotated_path"]
+__all__ = ["StrPath", "free_path", "log_files", "next_index", "rotated_path"]
 
 StrPath = str | os.PathLike[str]
 
@@ -31,6 +31,22 @@ def next_index(path: StrPath) -> int:
     continues the set starts."""
     files = _indexed(path)
     return files[-1][0] + 1 if files else 0
+
+
+def free_path(path: StrPath) -> Path:
+    """Where a command that never overwrites writes ``path``: ``path`` itself when it does not exist,
+    else the first of ``<stem>_0001<suffix>``, ``<stem>_0002<suffix>``, ... that does not.
+
+    Not `next_index`, which continues a set after its last file (a restarted service's log): a folder of
+    sea-trial logs named by date (``trial_2024.mcap``, ``usv_202412071127.mcap``) reads as a set of that
+    index, and ``--out trial.mcap`` went to ``trial_2025.mcap`` though ``trial.mcap`` was free."""
+    p = Path(path)
+    index = 0
+    candidate = p
+    while candidate.exists():
+        index += 1
+        candidate = rotated_path(p, index)
+    return candidate
 
 
 def _indexed(path: StrPath) -> list[tuple[int, Path]]:
