@@ -28,6 +28,7 @@ import numpy as np
 
 import gateway.pipeline
 from dpgw.cli_demo import hold_setpoint
+from dpgw.cli_types import seed_int
 from dpgw.closed_loop import ClosedLoopRun, run_closed_loop
 from gateway.control.allocation import QPAllocator
 from simulator.clock import SimEpoch
@@ -147,7 +148,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument(
         "--scenario", action="append", help="scenario name (repeatable; default torsetnes_2004 and hassani)"
     )
-    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--seed", type=seed_int, default=1)
     p.add_argument("--settle", type=float, default=200.0, help="s held before the window (default 200)")
     p.add_argument("--window", type=float, default=400.0, help="s measured (default 400)")
     p.add_argument("--json", action="store_true", help="one JSON object per scenario, for programs")

@@ -18,7 +18,7 @@ from dpgw import cli_json
 from dpgw.cli_foxglove import DEFAULT_HOST, DEFAULT_PORT, add_foxglove_arg, connect_lines, layout_path
 from dpgw.cli_paths import mcap_path_problem
 from dpgw.cli_stops import STOPPED_BY, set_from_handler, stop_name
-from dpgw.cli_types import non_negative_float, positive_float
+from dpgw.cli_types import non_negative_float, positive_float, seed_int
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args, listen_endpoints
 from dpgw.scenario_names import SCENARIO_NAMES
 from observers.settling import ENGAGE_TIME_CONSTANTS as SETTLING_TIME_CONSTANTS
@@ -132,7 +132,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="sim seconds per wall second (default 10); halved, down to 1, while the machine cannot keep up",
     )
     p.add_argument(
-        "--seed", type=int, default=0, help="random seed of waves, noise and faults: same seed, same sea (0)"
+        "--seed",
+        type=seed_int,
+        default=0,
+        help="random seed of waves, noise and faults: same seed, same sea (0)",
     )
     p.add_argument(
         "--mode",

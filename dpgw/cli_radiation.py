@@ -133,7 +133,18 @@ def run(args: argparse.Namespace) -> int:
     if args.vessel and (mismatch := _other_hull(hydro_path, hydro.MRB, args.vessel)):
         warnings.append(mismatch)
         print(f"dpgw radiation: warning: {mismatch}", file=sys.stderr)
-    model = radiation.identify(hydro.freqs, hydro.A, hydro.B, max_order=args.max_order, r2_target=args.r2)
+    if sign := radiation.damping_sign_problem(hydro.B):
+        print(f"dpgw radiation: {hydro_path}: {sign}", file=sys.stderr)
+        return 2
+    try:
+        model = radiation.identify(hydro.freqs, hydro.A, hydro.B, max_order=args.max_order, r2_target=args.r2)
+    except ArithmeticError as exc:  # no passive model (the module says when): status 1, as documented
+        print(
+            f"dpgw radiation: {hydro_path}: no passive model could be identified ({exc}); look at the "
+            "data's B(ω) (its sign, its units) or raise --max-order",
+            file=sys.stderr,
+        )
+        return 1
     p = model.passivity
     # An element that missed the R² target keeps the best order tried (the model is still written, as a
     # user who asked for it may want it): said, so the fit is not taken for one that met the target.

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 from dpgw import cli_json, cli_sim_inputs
 from dpgw.cli_paths import made_folder_problem, make_folder_for, mcap_path_problem
 from dpgw.cli_progress import terminal_bar
-from dpgw.cli_types import flags_given, positive_float
+from dpgw.cli_types import flags_given, positive_float, seed_int
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args, listen_endpoints
 from dpgw.scenario_names import SCENARIO_NAMES
 
@@ -55,7 +55,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--duration", type=positive_float, metavar="S", help="sim seconds (default: the scenario's)"
     )
-    p.add_argument("--seed", type=int, default=0, help="random seed: same seed, same bytes (default 0)")
+    p.add_argument("--seed", type=seed_int, default=0, help="random seed: same seed, same bytes (default 0)")
     p.add_argument(
         "--out",
         metavar="LOG.mcap",

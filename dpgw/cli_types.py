@@ -54,6 +54,9 @@ def int_at_least(minimum: int, why: str = "") -> Callable[[str], int]:
 positive_int = int_at_least(1)
 """A whole number >= 1."""
 
+seed_int = int_at_least(0, "numpy's random generators take no negative seed")
+"""A random seed: a whole number >= 0."""
+
 
 def flags_given(*options: tuple[str, object]) -> list[str]:
     """The flags of ``(flag, value)`` pairs whose value is set (truthy): options a command refuses in a

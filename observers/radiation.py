@@ -855,6 +855,30 @@ def _assemble(elements: dict[tuple[int, int], ElementModel], d: Array) -> tuple[
     return Ar, Br, Cr, np.diag(d)
 
 
+def damping_sign_problem(B: ArrayLike) -> str | None:
+    """Why ``B`` (as `identify` takes it) cannot be radiation damping, or None: a diagonal element that is
+    negative over most of the frequencies where it is not negligible (under 1 % of its largest magnitude).
+
+    Radiation damping takes energy out of the motion: B_ii(ω) ≥ 0 on the diagonal (the 3×3 B(ω) is positive
+    semi-definite). A few slightly negative values are a panel code's numerical noise (irregular
+    frequencies) and are left to the passivity check; a whole element below zero is data exported with the
+    other sign convention, which no passive model fits (the identification ends without a model)."""
+    b = np.asarray(B, dtype=float)
+    if b.ndim != 3 or b.shape[0] != b.shape[1] or b.shape[0] not in (3, 6):
+        return None  # (`identify` says what shape it needs)
+    dofs = SIX_DOF_INDEX if b.shape[0] == 6 else range(3)
+    for name, k in zip(DOF_NAMES, dofs, strict=True):
+        bii = b[k, k]
+        big = np.abs(bii) >= 0.01 * np.max(np.abs(bii), initial=0.0)
+        if np.count_nonzero(big) and np.count_nonzero(bii[big] < 0) > 0.5 * np.count_nonzero(big):
+            return (
+                f"B({name}, {name}) is negative at {np.count_nonzero(bii[big] < 0)} of "
+                f"{np.count_nonzero(big)} frequencies (as low as {bii.min():.3g}): radiation damping is "
+                "≥ 0 on the diagonal; is the data's sign convention the other one (B exported as −B)?"
+            )
+    return None
+
+
 def identify(
     w: ArrayLike,
     A: ArrayLike,

@@ -1374,3 +1374,17 @@ def test_listen_says_the_keelson_note_at_once_for_a_listener_stopped_by_ctrl_c()
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+
+
+@pytest.mark.parametrize("command", ["demo", "sim"])
+def test_a_negative_seed_is_a_usage_error_and_writes_nothing(
+    command: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`--seed -1` ended in numpy's traceback (`expected non-negative integer`) after the demo had made its
+    log (a stub demo_0001.mcap per try); now argparse's usage error, status 2, before anything is made."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as stop:
+        main([command, "--seed", "-1", "--duration", "10"])
+    assert stop.value.code == 2
+    assert "argument --seed: must be 0 or more" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []

@@ -550,3 +550,35 @@ def test_a_fit_that_misses_the_r2_target_is_said(tmp_path: Path, capsys) -> None
         assert w.startswith(f"element {e['element']} {e['dofs']}: R² A") and "raise --max-order" in w
         assert f"dpgw radiation: warning: {w}" in err
     assert (tmp_path / "low.npz").is_file()
+
+
+def test_damping_of_the_wrong_sign_and_a_dotted_out_stem(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """B(ω) exported with the other sign (−B) ended in a traceback (`ArithmeticError: no feedthrough ...
+    makes the model passive`), status 1; now one line naming the element and the likely cause, status 2
+    (unusable input). A healthy B raises nothing. `--out model_v1.2` was written as model_v1.npz (the
+    stem cut at its dot), and `--out model_v1.3` over it; each now keeps its whole name."""
+    from dpgw.cli import main
+
+    A3, B3 = synthetic_data()
+    six = np.ix_(rad.SIX_DOF_INDEX, rad.SIX_DOF_INDEX)
+    A, B = np.zeros((6, 6, len(W_DATA))), np.zeros((6, 6, len(W_DATA)))
+    A[six], B[six] = A3, B3
+    assert rad.damping_sign_problem(B) is None and rad.damping_sign_problem(B3) is None
+    np.savez(tmp_path / "negative.npz", freqs=W_DATA, A=A, B=-B)
+    assert main(["radiation", str(tmp_path / "negative.npz"), "--out", str(tmp_path / "neg")]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert "B(surge, surge) is negative at" in err and "sign convention" in err
+    assert not list(tmp_path.glob("neg.*"))
+    np.savez(tmp_path / "ship.npz", freqs=W_DATA, A=A, B=B)
+    for version in ("1.2", "1.3"):
+        assert (
+            main(["radiation", str(tmp_path / "ship.npz"), "--out", str(tmp_path / f"model_v{version}")]) == 0
+        )
+        assert f"model_v{version}.npz" in capsys.readouterr().out
+    assert {p.name for p in tmp_path.glob("model_v*")} == {
+        "model_v1.2.npz",
+        "model_v1.2.toml",
+        "model_v1.3.npz",
+        "model_v1.3.toml",
+    }

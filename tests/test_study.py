@@ -342,6 +342,17 @@ def test_a_server_that_is_not_dask_at_the_address_is_said_not_waited_for() -> No
         assert time.monotonic() - t0 < 30.0
 
 
+@pytest.mark.parametrize("address", ["127.0.0.1", "foo://127.0.0.1:8786"])
+def test_a_scheduler_address_dask_cannot_dial_is_said_in_one_line(address: str) -> None:
+    """No port, or a scheme Dask does not know: Dask's ValueError was a traceback; now what to give."""
+    from distributed import Client
+
+    from dpgw.study.runner import StudyRunError, _connect
+
+    with pytest.raises(StudyRunError, match=r"not an address Dask can dial .*tcp://HOST:8786"):
+        _connect(Client, address, wait_s=10.0)
+
+
 def test_the_measurements_are_the_ones_the_loop_observer_got() -> None:
     """The stream a case keeps is what the gateway's own observer was fed: the passive observer run over
     it offline gives the loop's live estimates (to rounding: the two clocks count from different origins)."""

@@ -171,7 +171,11 @@ def save_radiation_model(
     and ``<stem>.toml`` (the fit report). Returns both paths. The .npz is written to a temporary name and
     renamed, so a reader never sees half a file."""
     stem = Path(stem)
-    npz, toml = stem.with_suffix(".npz"), stem.with_suffix(".toml")
+    if stem.suffix in (".npz", ".toml"):  # the model's own file named: the stem is the rest
+        stem = stem.with_suffix("")
+    # appended, not `with_suffix`: a stem with a dot of its own (model_v1.2) kept its name up to that dot,
+    # and model_v1.2 and model_v1.3 were both written as model_v1.npz, the second over the first
+    npz, toml = stem.with_name(stem.name + ".npz"), stem.with_name(stem.name + ".toml")
     arrays: dict[str, Any] = {k: getattr(model, k) for k in RADIATION_FIELDS}
     if meta is not None:
         arrays["meta"] = np.array(json.dumps(meta, sort_keys=True))

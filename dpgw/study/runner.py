@@ -149,6 +149,11 @@ def _connect(client_class: Any, scheduler: str, wait_s: float = CONNECT_WAIT_S) 
     error = outcome.get("error")
     if isinstance(error, OSError):
         raise StudyRunError(f"--scheduler {scheduler}: no Dask scheduler answers ({error})") from None
+    if isinstance(error, ValueError):  # Dask's parse of the address: no port, an unknown scheme
+        raise StudyRunError(
+            f"--scheduler {scheduler}: not an address Dask can dial ({error}); give it as a `dask "
+            "scheduler` prints it, tcp://HOST:8786"
+        ) from None
     if error is not None:
         raise error
     return outcome["client"]
