@@ -306,11 +306,14 @@ def waits_for_settled(args: argparse.Namespace) -> bool:
     return args.engage_at is None
 
 
-def needed_duration_s(engage_s: float | None, planned: bool = True) -> int:
+def needed_duration_s(engage_s: float | None) -> int:
     """The ``--duration`` that scores the station keeping with DP engaged at ``engage_s`` (None or 0: from
-    the start): `MIN_SCORED_S` from `dp_scored_from`; for an engagement still to come (``planned``) a
-    second more, for the first fix, after which a default engagement comes (`engage_time`)."""
-    return math.ceil(dp_scored_from(engage_s) + MIN_SCORED_S + (1.0 if planned and engage_s else 0.0))
+    the start; the estimate alone is scored from `SETTLE_S`, which is ``engage_s`` None's answer too):
+    `MIN_SCORED_S` from `dp_scored_from`, and a second more. The scored stretch runs from its first sample
+    to its last, a sample interval short of the run's end (a run of exactly 160 s with DP at 100 s scored
+    29.9 s and was "not scored"), and an engagement still to come waits for a fix (`engage_time`). The
+    same figure at the start and at the end of a run: before, the end asked for the duration just given."""
+    return math.ceil(dp_scored_from(engage_s) + MIN_SCORED_S + 1.0)
 
 
 def engagement_lines(args: argparse.Namespace, engage_s: float) -> list[str]:
@@ -861,7 +864,7 @@ def print_summary(r: dict[str, Any]) -> None:
         todo = (
             ""
             if r.get("interrupted")
-            else f"; give --duration {SETTLE_S + MIN_SCORED_S:.0f} or more, e.g. the default "
+            else f"; give --duration {needed_duration_s(None)} or more, e.g. the default "
             f"{DEFAULT_DURATION_S:.0f}"
         )
         from gateway.scoring import not_scored_note  # (the words `dpgw replay` says it in too)
@@ -918,7 +921,7 @@ def print_summary(r: dict[str, Any]) -> None:
             # the demo's operator waits for the gateway's "settled" (`waits_for_settled`): an observer that
             # restarted counts its settle time again
             ended += " (the gateway did not call the estimate settled)"
-        need = needed_duration_s(engage, planned=not r.get("dp_engaged"))
+        need = needed_duration_s(engage)
         todo = f"give --duration {need} or more (default {DEFAULT_DURATION_S:.0f})"
         if engage is not None and r["sim_seconds"] >= needed_duration_s(0.0):
             todo += ", or --engage-at 0 for DP from the start"

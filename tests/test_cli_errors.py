@@ -402,7 +402,7 @@ def test_tune_json_is_standard_json() -> None:
 
 
 def test_demo_too_short_to_score_says_how_long_to_run(capsys: pytest.CaptureFixture[str]) -> None:
-    from dpgw.cli_demo import MIN_SCORED_S, SETTLE_S, print_summary
+    from dpgw.cli_demo import SETTLE_S, needed_duration_s, print_summary
 
     nan = math.nan
     print_summary(
@@ -419,7 +419,7 @@ def test_demo_too_short_to_score_says_how_long_to_run(capsys: pytest.CaptureFixt
         }
     )  # fmt: skip
     out = capsys.readouterr().out
-    assert f"give --duration {SETTLE_S + MIN_SCORED_S:.0f} or more" in out
+    assert f"give --duration {needed_duration_s(None)} or more" in out
     assert "-0.0" not in out and "(0.0 m N, 0.0 m E, 45.0 deg)" in out
 
 

@@ -364,3 +364,30 @@ def test_a_replay_of_a_demo_stopped_early_does_not_score_it_either(
     words = f"not scored (only {dof['truth_scored_s']:.1f} s after the 60 s skip; at least 30 s are scored)"
     assert dof["truth_not_scored"] == words and dof["north"]["rms_error"] is None
     assert f"LF estimate vs truth: {words}." in (report / "report.md").read_text()
+
+
+@pytest.mark.parametrize("engage_s", [100.0, 300.0])
+def test_the_duration_asked_for_at_the_start_and_at_the_end_is_one_that_scores(
+    engage_s: float, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`--engage-at 100 --duration 160`: the start asked for 161 s, the end of that 160 s run (not scored:
+    the stretch from 130 s to its last command was 29.9 s) asked for "160 or more", the duration given.
+    Both now ask for the same figure, one past the run that fell short."""
+    import argparse
+
+    need = cli_demo.needed_duration_s(engage_s)
+    assert need == engage_s + cli_demo.DP_SETTLE_S + cli_demo.MIN_SCORED_S + 1.0
+    short = need - 1.0
+    args = argparse.Namespace(duration=short, engage_at=engage_s)
+    start = " ".join(cli_demo.engagement_lines(args, engage_s))
+    assert f"give --duration {need} or more" in start, start
+    cli_demo.print_summary(
+        {
+            "scenario": "torsetnes_2004", "sim_seconds": short, "wall_seconds": 5.0, "log": "d.mcap",
+            "logs": ["d.mcap"], "sources": {}, "sent": {}, "estimates": 10, "alarms": [], "mode": "dp",
+            "settle_s": cli_demo.SETTLE_S, "engage_at_s": engage_s, "dp_engaged": True,
+            "error_vs_truth": {"samples": 0, "horizontal_rms_m": float("nan")}, "station_keeping": None,
+        }
+    )  # fmt: skip
+    end = capsys.readouterr().out
+    assert "station keeping: not scored" in end and f"give --duration {need} or more" in end, end
