@@ -22,8 +22,11 @@ _COMMENTED = re.compile(r"^(?P<command>.*?\S)\s{2,}(?P<comment># .*)$")
 
 class HelpFormatter(argparse.RawDescriptionHelpFormatter):
     def _fill_text(self, text: str, width: int, indent: str) -> str:
-        out = []
+        out: list[str] = []
+        start = 0  # where in ``out`` the command the line belongs to begins (its comment goes above it)
         for line in text.splitlines():
+            if not (out and out[-1].endswith("\\")):  # (a continuation line belongs to the command above)
+                start = len(out)
             if len(indent) + len(line) <= width:
                 out.append(indent + line)
                 continue
@@ -31,9 +34,14 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter):
             if lead != indent and line.lstrip().startswith(("dpgw ", "--")):
                 commented = _COMMENTED.match(line)
                 if commented:
+                    # above the command's first line: between a line ending in "\\" and the next, the
+                    # comment ended the command there (pasted, the rest ran as a command of its own)
+                    first = out[start] if start < len(out) else indent + line
+                    lead = first[: len(first) - len(first.lstrip())]
                     comment = commented["comment"]
-                    out.append(
-                        textwrap.fill(comment, width, initial_indent=lead, subsequent_indent=lead + "# ")
+                    out.insert(
+                        start,
+                        textwrap.fill(comment, width, initial_indent=lead, subsequent_indent=lead + "# "),
                     )
                     line = commented["command"]
                 out.append(indent + line)

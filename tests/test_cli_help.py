@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import re
 import shlex
@@ -52,6 +53,21 @@ def test_descriptions_wrap_and_examples_keep_their_layout() -> None:
     width = max(len(line) for line in text.splitlines())
     assert width <= 120  # argparse's width: $COLUMNS or 80 less 2, never one line per paragraph
     assert "       --observer passive:wave_period_s=2.5@long" in text  # a continuation line, as written
+
+
+@pytest.mark.parametrize("columns", ["80", "200"])
+def test_a_continued_example_is_never_cut_by_its_comment(
+    columns: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An example too wide for the terminal gets its comment on a line of its own above it. For the second
+    line of a command continued with "\\" the comment went between the two lines: pasted, the command
+    ended at the comment and its `--out trial.mcap` ran as a command of its own. Every page, two widths."""
+    monkeypatch.setenv("COLUMNS", columns)
+    for name, parser in _subparsers().items():
+        lines = parser.format_help().splitlines()
+        for above, below in itertools.pairwise(lines):
+            if above.rstrip().endswith("\\"):
+                assert below.strip().startswith("--"), (name, above, below)
 
 
 def test_demo_help_lists_the_scenarios() -> None:
