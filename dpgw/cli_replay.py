@@ -30,6 +30,7 @@ if TYPE_CHECKING:
     from gateway.pipeline import Output
     from gateway.replay import Event, ObserverSpec, ReplayResult
     from gateway.report.data import ThrustTrace
+    from observers.vessel import VesselModel
 
 # Only the parser is built at import; the pipeline (numpy, numba, scipy) and Zenoh are imported by the
 # functions that replay, so `dpgw replay --help` answers at once.
@@ -603,7 +604,7 @@ def _conclude(
     report_warnings: list[str] = []
     if args.report:
         written, report_warnings = _report(
-            args, config.vessel.name, specs, result, evidence.new, checks, live, compared
+            args, config.vessel, specs, result, evidence.new, checks, live, compared
         )
         summary["report"] = [str(p) for p in written]
         summary["report_warnings"] = report_warnings
@@ -1298,7 +1299,7 @@ def _print(s: dict[str, Any]) -> None:
 
 def _report(
     args: argparse.Namespace,
-    vessel: str,
+    vessel: VesselModel,
     specs: list[ObserverSpec],
     r: ReplayResult,
     new: list[tuple[bool, bool, bool]],
@@ -1355,7 +1356,11 @@ def _report(
         }
     data = ReplayData(
         title=", ".join(Path(p).name for p in args.logs),
-        vessel=vessel,
+        vessel=vessel.name,
+        # its length and scale as loaded: a user's vessel file, known by its name alone, was "not a
+        # built-in vessel" to the report, which searched a 1:70 model's log in the full-scale wave band
+        vessel_length_m=float(vessel.length_m),
+        vessel_model_scale=vessel.model_scale,
         t_meas=t_meas,
         y=y,
         traces=tuple(traces),

@@ -1309,6 +1309,37 @@ def test_date_stamped_logs_beside_out_are_not_taken_for_its_set(
     assert free_path(out) == tmp_path / "trial_0001.mcap"
 
 
+def test_the_report_takes_a_users_vessel_file_for_its_length_and_scale(tmp_path: Path) -> None:
+    """`--vessel my_usv.toml` (CyberShip II's file under another name, 1:70): the console's wave check
+    searched the model's band, but report.md looked the vessel up by its name alone, found no built-in,
+    and searched the full-scale band ("length unknown: ... not a built-in vessel"), its warnings with it."""
+    from importlib import resources
+
+    from dpgw.cli import main
+
+    own = tmp_path / "my_usv.toml"
+    text = (resources.files("observers") / "vessels" / "cybership2.toml").read_text()
+    own.write_text(text.replace('name = "cybership2"', 'name = "my_usv"'))
+    t0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
+    log = tmp_path / "usv.nmea"
+    write_text_log(log, [t0 + timedelta(seconds=0.2 * k) for k in range(300)])
+    report = tmp_path / "rep"
+    argv = [
+        "replay",
+        str(log),
+        "--vessel",
+        str(own),
+        "--out",
+        str(tmp_path / "o.mcap"),
+        "--report",
+        str(report),
+    ]
+    assert main(argv) == 0
+    md = (report / "report.md").read_text()
+    assert "- wave band searched: 1.67–16.7 rad/s — Froude-scaled: 1:70 model (L = 1.255 m)" in md, md
+    assert "length unknown" not in md
+
+
 def test_a_gateway_without_a_commands_table_logs_one_and_its_replay_refuses_what_it_refused() -> None:
     """A gateway configured without ``[commands]`` takes no input (``accept = []``, the default). Its log's
     config had no table either, which is how a log from before the command rules looks, and those replay

@@ -67,6 +67,11 @@ class ReplayData:
     # the lines the replay's console printed of its wave-tuning check (`gateway.report.wave_check`: a
     # mistuned observer, or no clear wave peak to check against), shown in report.md as they were said
     checks: tuple[str, ...] = ()
+    # the vessel's length (m) and Froude scale as the replay loaded it (a user's vessel file is known by
+    # its name only, which no lookup finds again); None: looked up from `vessel` (a built-in's name or a
+    # vessel file's path)
+    vessel_length_m: float | None = None
+    vessel_model_scale: float | None = None
     # per input log, what it covers as the console's summary says it (first to last sentence or record
     # with a time, UTC): it can start before the first fused measurement, which is t = 0 here
     log_spans: Mapping[str, str] = field(default_factory=dict)

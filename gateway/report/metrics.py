@@ -130,7 +130,11 @@ def analyse(data: ReplayData, wave_band: tuple[float, float] | None, settle_s: f
     settle_t = t0 + settle_s
 
     if wave_band is None:
-        length, model_scale, why = vessel_scale_why(data.vessel)
+        length, model_scale, why = (
+            vessel_scale_why(data.vessel)
+            if data.vessel_length_m is None
+            else (data.vessel_length_m, data.vessel_model_scale, None)
+        )
         band = wave_band_for_length(length, model_scale)
         if length is None:
             basis = f"full scale (length unknown: {why or 'no vessel named'})"
