@@ -814,6 +814,21 @@ class Pipeline:
         self._with_foxglove(out)
         return out
 
+    def _refused_reads(self, source: str, now_ns: int, timeout_ns: int) -> str | None:
+        """What ``source``'s reads within ``timeout_ns`` were refused for by its decoder (``no_checksum 3``,
+        most first, not-bad reasons left out), when it has been read within that time and nothing good
+        has come from it since the last status; else None (silent, or talking with good input for
+        another role). For `ReferenceMonitor.refresh`: such a source talks and is refused, not silent."""
+        c = self.counters.get(source)
+        if c is None or not c.last_rx_ns or now_ns - c.last_rx_ns > timeout_ns or c.received != c.good_seen:
+            return None
+        grown = Counter(
+            {r: n for r, n in (c.rejected - c.rejected_at_good).items() if r not in NOT_BAD_INPUT}
+        )
+        if not grown:
+            return None  # (bytes that are not even rejects: the framers hold them; silence to the tests)
+        return ", ".join(f"{reason} {n}" for reason, n in grown.most_common(3))
+
     def silence_s(self, now_ns: int) -> float:
         """How long nothing has stepped the observer at ``now_ns`` (0 before the first step)."""
         return (now_ns - self._last_step_ns) / NS if self._last_step_ns else 0.0
@@ -821,7 +836,7 @@ class Pipeline:
     def _state_changes(self, now_ns: int) -> list[Output]:
         """Reference state changes since the last call, and observer restarts (`_reacquire`): to the next
         status, and a status at once."""
-        self.monitor.refresh(now_ns)
+        self.monitor.refresh(now_ns, self._refused_reads)
         changes = self.monitor.drain()
         if changes:
             self._events.extend(c.text for c in changes)

@@ -83,3 +83,34 @@ def test_a_cleared_alarm_says_how_long_it_was_up() -> None:
     assert changes.update([], 15_500_000_000) == ([], [text.replace("0 s", "3 s") + " (up 5.5 s)"])
     assert changes.update([text], 20 * S) == ([text], [])  # raised again: its own time
     assert changes.update([], 21 * S)[1] == [text + " (up 1.0 s)"]
+
+
+def test_the_reference_of_a_source_whose_reads_are_all_refused_is_rejected_not_stale() -> None:
+    """The same source, as a position reference: its reads kept coming and every one was refused by the
+    decoder, yet the reference went `ok -> stale: no data for 2.0 s` while the status said `no valid data
+    (3 rejected: ...)`, an alarm that sends the engineer to the cable. Now `rejected` with what its reads
+    are refused for; `stale` is left for a source that falls silent, as the integrity rules say."""
+    p = pipeline()
+    rx = int(T0.timestamp() * S)
+    events: list[str] = []
+
+    def step(now: int, k: int, dgps: bool, corrupt: bool = False) -> None:
+        out = p.feed(RawEvent(now, "dgps1", fix(k, corrupt))) if dgps else []
+        out += p.feed(RawEvent(now + 1000, "gyro1", enc.hdt("HE", 0.5 + 0.001 * (k % 5)).encode()))
+        if k % 2:  # (the gateway's status a second)
+            p.status_message(now + 1000)
+        # a state change's events go out at once, in a status of their own
+        events.extend(e for o in out if o.topic == "/dp/status" for e in o.message.events if "dgps1" in e)
+
+    for k in range(60):  # good, 10 s of bad checksums only, good again
+        step(rx + k * S // 2, k, True, corrupt=20 <= k < 40)
+    out = [e for e in events if "ok -> " in e]
+    assert len(out) == 1 and "ok -> rejected: no valid data for 2." in out[0], events
+    assert "its reads are refused (bad_checksum" in out[0], out
+    assert not any("-> stale" in e for e in events), events
+    assert "-> ok" in events[-1] or "readmitting" in events[-1], events  # good again
+    # silent (nothing read at all): stale, as before
+    events.clear()
+    for k in range(60, 70):
+        step(rx + k * S // 2, k, False)
+    assert any("-> stale: no data for" in e for e in events), events

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Literal, NamedTuple
 
@@ -609,20 +609,32 @@ class ReferenceMonitor:
 
     # --- reading -----------------------------------------------------------------------------------------
 
-    def refresh(self, now_ns: int) -> None:
+    def refresh(self, now_ns: int, refused: Callable[[str, int, int], str | None] | None = None) -> None:
         """Sources silent past their timeout become stale. Silent: nothing received, passing or failing.
         The track's time is that of the last value past the jump test, so a DGPS sending GGA quality 6
         (dead reckoning), or fixes 100 m off, for longer than its timeout used to become ``stale: no data
         for 2.0 s`` while its sentences kept coming: the alarm sent the engineer to the cable and lost the
         reason. It stays ``rejected`` with that reason while its data keep failing. An MRU and a thruster
         feedback source are timed from their latest sample or report, whatever it was, for the same rule:
-        stale once silent, never while their data keep coming and failing."""
+        stale once silent, never while their data keep coming and failing.
+
+        ``refused(source, now_ns, timeout_ns)``: what the source's reads within ``timeout_ns`` were refused
+        for before any test here (a decoder's reject: no checksum, a bad one, garbage), or None when it
+        has not been read within that time. A source whose reads keep coming and are all refused talks:
+        it is ``rejected`` with that reason, not ``stale: no data``, which sent the engineer to the cable
+        while the status said `no valid data (3 rejected: no_checksum 3)`."""
         for r in self._all_refs:
             last = r.track.last_ns
-            if last and now_ns - last > r.timeout_ns:
-                st = r.state
-                if st.failing(now_ns, r.timeout_ns):
-                    continue
+            if last and now_ns - last <= r.timeout_ns:
+                continue
+            st = r.state
+            if st.failing(now_ns, r.timeout_ns):
+                continue
+            why = refused(st.source, now_ns, r.timeout_ns) if refused is not None else None
+            if why is not None:
+                ago = f"for {(now_ns - last) / NS:.1f} s" if last else "yet"
+                st.fail(now_ns, f"no valid data {ago}: its reads are refused ({why})")
+            elif last:
                 st.stale(now_ns, (now_ns - max(last, st.failed_ns)) / NS)
         for st, track, timeout_ns in self._attitude.values():
             last = track.rx_ns  # (every sample, passing or failing: a failing MRU talks)
