@@ -475,9 +475,11 @@ def log_folder_note(path: str) -> str | None:
     import os
 
     from dpgw.cli_paths import user_name
-    from wire.mcap.folder import log_folder_problem
+    from wire.mcap.folder import log_folder_blocked, log_folder_problem
 
     folder = os.path.dirname(os.path.abspath(path))
+    if log_folder_blocked(path):
+        return None  # (a problem: `start_up_problems`)
     if problem := log_folder_problem(path):  # (only the log's own folder is made)
         return f"log.path: {problem}: start-up stops on it unless that changes by then"
     if writable(folder):
@@ -499,6 +501,7 @@ def start_up_problems(config: GatewayConfig, where: str | None = None) -> list[s
     from gateway.outputs.build import output_problems
     from gateway.service import zenoh_config
     from gateway.sources import SourceError, open_source
+    from wire.mcap.folder import log_folder_blocked
 
     where = where or str(config.path)
     problems: list[str] = []
@@ -513,6 +516,12 @@ def start_up_problems(config: GatewayConfig, where: str | None = None) -> list[s
         zenoh_config(config.zenoh)
     except BusError as exc:
         problems.append(f"{where}: {exc}")
+    if config.log.path and (blocked := log_folder_blocked(str(config.log.path))):
+        problems.append(
+            f"{where}: log.path: cannot make the log's folder: {blocked} is a file, not a folder (a file is "
+            "in the way): choose a folder the gateway may write to (a service: its LogsDirectory, "
+            "/var/log/dpgw)"
+        )
     return problems + output_problems(config, where)
 
 

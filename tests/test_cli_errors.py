@@ -1000,6 +1000,12 @@ def test_a_log_folder_that_cannot_be_made_stops_start_up_with_one_message(tmp_pa
     assert "Errno" not in lines[0] and "choose" in lines[0]
     p = _run_with_log(tmp_path, "", "--log", str(tmp_path / "afile" / "x.mcap"))
     assert p.returncode == 2 and "--log" in p.stderr, p.stderr
+    # --check says it too, as a problem (status 2): it said "ok" with a note blaming the user's rights
+    # ("does not exist and cannot be made for this user"), and the gateway then stopped on it
+    p = _run_with_log(tmp_path, "afile/dpgw.mcap", "--check")
+    assert p.returncode == 2, p.stdout + p.stderr
+    assert f"{tmp_path / 'afile'} is a file, not a folder (a file is in the way)" in p.stderr, p.stderr
+    assert "for this user" not in p.stdout + p.stderr
 
 
 def test_run_json_summary_without_any_data_is_stamped_now_not_1970(tmp_path: Path) -> None:

@@ -26,6 +26,17 @@ def log_folder_problem(path: str | os.PathLike[str]) -> str | None:
     )
 
 
+def log_folder_blocked(path: str | os.PathLike[str]) -> str | None:
+    """The file that stands where the log ``path``'s folder (or that folder's parent) must be, or None.
+    Nothing that happens at start-up clears it (a service's ``LogsDirectory`` makes a missing folder, not
+    one that a file holds), so a check of the config calls it a problem, not a note."""
+    folder = os.path.dirname(os.path.abspath(path))
+    for level in (folder, os.path.dirname(folder)):
+        if os.path.lexists(level) and not os.path.isdir(level):
+            return level
+    return None
+
+
 def make_log_folder(path: str | os.PathLike[str]) -> str | None:
     """Make the folder of the log ``path`` when it is missing and its parent exists; the folder made, or
     None when it was there. Raises `OSError` as `os.mkdir` does (a file in its place: `FileExistsError`),
