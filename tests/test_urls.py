@@ -100,6 +100,7 @@ def test_typed_option_values() -> None:
         ),
         ("serial:///dev/ttyUSB0?buad=4800", "unknown option 'buad' for serial, did you mean 'baud'?"),
         ("udp://0.0.0.0:70000", "port 70000 is out of range"),
+        ("udp://127.0.0.1:201100", "port 201100 is out of range"),  # (six digits: was "not HOST:PORT")
         ("udp://0.0.0.0", "'0.0.0.0' is not HOST:PORT"),
         (
             "tcp://:2000",

@@ -93,7 +93,7 @@ _PARITY = {
     **{k: k.upper() for k in "neoms"},
     **{"none": "N", "even": "E", "odd": "O", "mark": "M", "space": "S"},
 }
-_HOST_PORT = re.compile(r"\[([^\]]+)\]:(\d{1,5})|([^:\[\]/@?#\s]*):(\d{1,5})")
+_HOST_PORT = re.compile(r"\[([^\]]+)\]:(\d+)|([^:\[\]/@?#\s]*):(\d+)")  # (any digits: the range is said)
 
 
 class UrlError(ValueError):
