@@ -39,6 +39,7 @@ the live run refused.
 
 from __future__ import annotations
 
+import json
 import math
 from collections import Counter
 from collections.abc import Mapping
@@ -270,5 +271,14 @@ def _as_float(v: int | float) -> float | None:
 
 
 def _show(value: Any) -> str:
-    text = repr(value)
+    """A refused payload as it was sent: its JSON (a Python repr showed `{'X': 1}` for the `{"X": 1}`
+    put), or, for bytes that were no JSON at all (the service's ``{"invalid": text}``), the text and so,
+    not the wrapper (`mode {'invalid': 'garbage{'}`); at most 80 characters."""
+    if isinstance(value, dict) and len(value) == 1 and isinstance(value.get("invalid"), str):
+        text = f"{value['invalid']!r} (not valid JSON)"
+    else:
+        try:
+            text = json.dumps(value, ensure_ascii=False, allow_nan=True)
+        except (TypeError, ValueError):
+            text = repr(value)
     return text if len(text) <= 80 else text[:77] + "..."

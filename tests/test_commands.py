@@ -678,3 +678,15 @@ def test_a_setpoint_waiting_when_the_plant_starts_again_is_refused_and_said_not_
     # nothing waiting: nothing said
     again = new.start_over(new.spec, "clock: the simulator started again")
     assert sum(commands_status(again)["refused"].values()) == 1
+
+
+def test_a_refusal_shows_the_payload_as_it_was_sent() -> None:
+    """Bytes that were no JSON showed the service's wrapper (`mode {'invalid': 'garbage{'} is not one of
+    ...`), and JSON objects as Python reprs (`tau {'X': 1, 'Y': 2}`); now what was put on the key."""
+    p = pipeline({"accept": ALL})
+    p.feed(ControlEvent(T0, "mode", {"invalid": "garbage{"}))  # (as the service hands on what no JSON parses)
+    text = commands_status(p)["last_refused"]
+    assert "mode 'garbage{' (not valid JSON) is not one of" in text and "invalid" not in text, text
+    p.feed(ControlEvent(T0, "tau", {"X": 1, "Y": 2}))
+    text = commands_status(p)["last_refused"]
+    assert 'tau {"X": 1, "Y": 2}: expected' in text, text
