@@ -573,13 +573,42 @@ def tuning_advice(vessel: VesselModel, gains: PassiveGains) -> list[str]:
     notch = notch_depth_db(vessel, gains)
     if notch.max() > WEAK_NOTCH_DB:
         verb = "amplifies" if notch.max() > 0.0 else "keeps"
-        notes.append(
+        weak = (
             f"weak wave filtering: the LF estimate {verb} the wave motion at ω0 ({notch.max():+.1f} dB; "
-            f"{WEAK_NOTCH_DB:.0f} dB or deeper filters it): the velocity injection a = {_per_dof(a)} 1/s is "
-            f"close to or above ω0 = {gains.omega0.max():.3g} rad/s; lower --velocity-injection (or the "
-            "--loop-bandwidth that sets it)"
+            f"{WEAK_NOTCH_DB:.0f} dB or deeper filters it)"
         )
+        notes.append(f"{weak}: {_weak_notch_cause(vessel, gains, a)}")
     return notes
+
+
+def _weak_notch_cause(vessel: VesselModel, gains: PassiveGains, a: Array) -> str:
+    """Why the notch of ``gains`` is shallow and what deepens it, found in this order: the ratio ζ/ζn,
+    which sets the notch's depth (about 20·log10(ζ/ζn) dB; none, or a peak, at ζn ≤ ζ, which tuning rule
+    (48) forbids); then the velocity injection a, tried lower (×0.5 down to ×0.02, the largest that
+    filters is named; an a near or above ω0 fills the notch); else the ratio again. Before, the note
+    always named a, also for ζn ≤ ζ with a at 1 % of ω0."""
+    zeta, zeta_n = float(gains.zeta.max()), float(gains.zeta_n.min())
+    ratio = f"ζ = {zeta:.3g}, ζn = {zeta_n:.3g} (depth about 20·log10(ζ/ζn) dB)"
+    if zeta_n <= zeta:
+        return f"ζn must be above ζ for a notch, and {ratio}: raise --zeta-n (default 1.0) or lower --zeta"
+    tuning = gains.tuning
+    floor = float(injection_floor(vessel, tuning).max()) if tuning.loop_bandwidth is not None else 0.0
+    for factor in (0.5, 0.25, 0.1, 0.05, 0.02):
+        candidate = float(f"{factor * a.max():.2g}")
+        if candidate < floor:
+            continue
+        try:
+            g = passive_gains(vessel, replace(tuning, velocity_injection=candidate))
+        except TuningError:
+            continue
+        depth = notch_depth_db(vessel, g).max()
+        if depth <= WEAK_NOTCH_DB and all(c.ok for c in check_gains(g)):
+            return (
+                f"the velocity injection a = {_per_dof(a)} 1/s fills the notch (ω0 = "
+                f"{gains.omega0.max():.3g} rad/s): --velocity-injection {candidate:g} gives {depth:+.1f} dB "
+                "(or lower the --loop-bandwidth that sets it)"
+            )
+    return f"{ratio}: a larger ζn or a smaller ζ deepens it"
 
 
 def _per_dof(values: Array) -> str:
