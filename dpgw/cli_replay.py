@@ -567,13 +567,24 @@ def _conclude(
 
         if (far := truth_mismatch(evidence.stamps, evidence.eta, result.truth)) is not None:
             summary["truth_mismatch"] = far
-            truth_note = (
-                f"{args.truth or 'the truth'} is not this log's: its motion lies a median "
-                f"{far['median_position_m']:.1f} m and {far['median_heading_deg']:.1f}° from the log's own "
-                f"measurements (a position reference is off by metres at worst: {MISMATCH_M:g} m, "
-                f"{MISMATCH_DEG:g}° allowed). Give the simulator log of the run that made this log (its "
-                "scenario, seed and start); the errors printed are against another run's truth"
-            )
+            if (arm := far.get("steady_offset_body_m")) is not None:
+                truth_note = (
+                    f"the log's measured positions sit a steady {far['median_position_m']:.1f} m from "
+                    f"{args.truth or 'the truth'} (a position reference is off by metres at worst: "
+                    f"{MISMATCH_M:g} m allowed), fixed in the vessel's frame: as if the antenna were "
+                    f"{arm[0]:+.1f} m forward and {arm[1]:+.1f} m to starboard of where the config's lever "
+                    "arm puts it. Check the position sources' lever_arm_m (and the datum); the errors "
+                    "printed include that offset. (Another run's truth would wander from the fixes, not "
+                    "sit a steady offset off.)"
+                )
+            else:
+                truth_note = (
+                    f"{args.truth or 'the truth'} is not this log's: its motion lies a median "
+                    f"{far['median_position_m']:.1f} m and {far['median_heading_deg']:.1f}° from the log's "
+                    f"own measurements (a position reference is off by metres at worst: {MISMATCH_M:g} m, "
+                    f"{MISMATCH_DEG:g}° allowed). Give the simulator log of the run that made this log (its "
+                    "scenario, seed and start); the errors printed are against another run's truth"
+                )
     live = _live_records(inputs)
     first_ns = min((a for a, _ in result.spans.values()), default=0)
     summary["dp_performance"] = _dp_performance(live, first_ns)

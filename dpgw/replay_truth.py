@@ -85,13 +85,18 @@ MISMATCH_M = 10.0
 """A truth whose position lies further than this (median, m) from the log's own measurements is not this
 log's: position references at sea are off by metres at worst, after their lever arms."""
 
+STEADY_SPREAD_M = 3.0
+"""An offset whose 90th percentile spread about its mean (in the vessel's frame) is within this, or a
+quarter of the offset, is steady: a lever arm or a datum, not another run (a position reference's noise
+and the wave motion the truth's LF + WF leaves spread it by a metre or two)."""
+
 MISMATCH_DEG = 10.0
 """The same for the heading (median, degrees): a gyro is off by a degree or two at worst."""
 
 
 def truth_mismatch(
     stamps_ns: list[int], measured: list[list[float | None]], truth: list[dict[str, Any]]
-) -> dict[str, float] | None:
+) -> dict[str, Any] | None:
     """How far the truth (LF + WF motion, in the replay's frame) lies from the log's fused measurements
     (``stamps_ns``, ``measured`` [N, E, ψ] with None where not measured) at the same times: the medians of
     the horizontal distance (m) and of the heading difference (deg), when either is beyond `MISMATCH_M` or
@@ -118,4 +123,17 @@ def truth_mismatch(
     h = float(np.nanmedian(dpsi)) if np.isfinite(dpsi).any() else 0.0
     if d <= MISMATCH_M and h <= MISMATCH_DEG:
         return None
-    return {"median_position_m": d, "median_heading_deg": h}
+    out: dict[str, Any] = {"median_position_m": d, "median_heading_deg": h}
+    # Another run's truth wanders from the log's fixes by tens to hundreds of metres; the same run seen
+    # through a wrong lever arm (or datum) sits a steady offset off, fixed in the vessel's frame: the
+    # measured reference point is the antenna less the config's arm, the truth's the antenna less the
+    # true one. So a steady offset is said as the arm that would explain it, not as "another run".
+    ok = np.isfinite(dist) & np.isfinite(y[:, 2])
+    if h <= MISMATCH_DEG and np.count_nonzero(ok) >= 10:
+        dn, de, psi = y[ok, 0] - at[ok, 0], y[ok, 1] - at[ok, 1], y[ok, 2]
+        body = np.column_stack([np.cos(psi) * dn + np.sin(psi) * de, -np.sin(psi) * dn + np.cos(psi) * de])
+        mean = body.mean(axis=0)
+        spread = float(np.percentile(np.hypot(*(body - mean).T), 90))
+        if spread <= max(STEADY_SPREAD_M, 0.25 * float(np.hypot(*mean))):
+            out["steady_offset_body_m"] = [float(mean[0]), float(mean[1])]
+    return out

@@ -125,6 +125,34 @@ def test_the_truth_of_another_run_is_said_not_to_be_this_logs(two_runs: Path, tm
     assert doc["error_vs_truth"]["passive"]["rms_north_m"] < 2.0
 
 
+def test_a_wrong_lever_arm_is_said_as_an_offset_not_another_runs_truth(
+    two_runs: Path, tmp_path: Path
+) -> None:
+    """The run's own truth, replayed on a config whose DGPS lever arm is 10 m forward and 2 m to port of
+    the simulator's antenna: the measured reference point sits a steady 10.2 m off the truth. Before,
+    "not this log's ... give the simulator log of the run that made this log", which it was; now the
+    offset in the vessel's frame, as the antenna's place relative to the config's arm."""
+    cfg = tmp_path / "vessel.toml"
+    cfg.write_text(
+        '[vessel]\nname = "mss_supply"\n'
+        '[[sources]]\nname = "dgps1"\nurl = "udp://127.0.0.1:0"\nprotocol = "nmea"\nroles = ["position"]\n'
+        "lever_arm_m = [10.0, -2.0, 0.0]\n"
+        '[[sources]]\nname = "gyro1"\nurl = "udp://127.0.0.1:0"\nprotocol = "nmea"\nroles = ["heading"]\n'
+    )
+    log, truth = two_runs / "s1.nmea", two_runs / "s1.mcap"
+    p = subprocess.run(
+        [sys.executable, "-m", "dpgw", "replay", str(log), "--config", str(cfg), "--source", f"dgps1={log}",
+         "--source", f"gyro1={log}", "--truth", str(truth), "--out", str(tmp_path / "o.mcap"), "--json"],
+        capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    far = json.loads(p.stdout)["truth_mismatch"]
+    forward, starboard = far["steady_offset_body_m"]
+    assert forward == pytest.approx(-10.0, abs=0.5) and starboard == pytest.approx(2.0, abs=0.5), far
+    said = f"{forward:+.1f} m forward and {starboard:+.1f} m to starboard of where the config's lever arm"
+    assert "sit a steady 10." in p.stderr and said in p.stderr, p.stderr
+    assert "not this log's" not in p.stderr
+
+
 def test_the_summary_and_the_report_leave_out_the_same_start(two_runs: Path, tmp_path: Path) -> None:
     """A gateway joins a simulation already running and stops before it (a HIL bench): the truth spans
     more than the log. Before, the summary's errors left out 10 % of the truth's span and the report 10 %
