@@ -608,14 +608,21 @@ def _conclude(
     # gateway's verdicts applied, or (an older log) its frames taken with their signatures unchecked
     summary["signature_verdicts"] = verdicts.counts if verdicts is not None else {}
     summary["signatures_unchecked"] = unchecked_signatures(inputs, keyless)
+    # What the console warns of, in its order; report.md's Warnings section repeats it, with the vessel
+    # check's advice (on the console in the summary): a report read alone said nothing of an observer
+    # that made no estimate, nor of a vessel that does not fit the log.
     checks = [
+        *([f"warning: --truth: {truth_note}"] if truth_note is not None else []),
+        *(f"warning: {w}" for w in [*_cut(summary), *_no_estimates(summary)]),
         *(f"warning: {w}" for w in summary["wave_check"]["warnings"]),
         *(f"note: {n}" for n in summary["wave_check"]["notes"]),
     ]
+    advice = summary["vessel_check"].get("advice")
     report_warnings: list[str] = []
     if args.report:
+        said = [*checks, *([f"advice: {advice}"] if advice else [])]
         written, report_warnings = _report(
-            args, config.vessel, specs, result, evidence.new, checks, live, compared
+            args, config.vessel, specs, result, evidence.new, said, live, compared
         )
         summary["report"] = [str(p) for p in written]
         summary["report_warnings"] = report_warnings
@@ -630,11 +637,7 @@ def _conclude(
         print(cli_json.dumps(summary, indent=2))
     else:
         _print(summary)
-    if truth_note is not None:
-        print(f"dpgw replay: warning: --truth: {truth_note}", file=sys.stderr)
-    for warning in [*_cut(summary), *_no_estimates(summary)]:
-        print(f"dpgw replay: warning: {warning}", file=sys.stderr)
-    for line in checks:  # (the wave check: in report.md too, as said here)
+    for line in checks:  # (in report.md too, as said here)
         print(f"dpgw replay: {line}", file=sys.stderr)
     for warning in report_warnings:
         print(f"dpgw replay: warning: report: {warning}", file=sys.stderr)

@@ -1340,6 +1340,41 @@ def test_the_report_takes_a_users_vessel_file_for_its_length_and_scale(tmp_path:
     assert "length unknown" not in md
 
 
+def test_report_md_repeats_every_warning_the_console_gave(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A receiver's log without a heading: the console warned that the observer made no estimate, and
+    report.md, read alone, said nothing of it (no Warnings section; `observers: {}`). Its Warnings section
+    now repeats the console's lines, as docs/cli.md says."""
+    from dpgw.cli import main
+
+    t0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
+    log = tmp_path / "gga.nmea"
+    log.write_text(
+        "".join(
+            enc.gga("GP", t0 + timedelta(seconds=k), 59.4 + 1e-6 * k, 10.5, 2, 12, 0.8, 10.0)
+            for k in range(60)
+        )
+    )
+    report = tmp_path / "rep"
+    argv = [
+        "replay",
+        str(log),
+        "--vessel",
+        "mss_supply",
+        "--out",
+        str(tmp_path / "o.mcap"),
+        "--report",
+        str(report),
+    ]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    said = [line.removeprefix("dpgw replay: ") for line in err.splitlines() if "made no estimate" in line]
+    assert len(said) == 1, err
+    md = (report / "report.md").read_text()
+    assert "## Warnings" in md and f"- {said[0]}" in md, md
+
+
 def test_a_gateway_without_a_commands_table_logs_one_and_its_replay_refuses_what_it_refused() -> None:
     """A gateway configured without ``[commands]`` takes no input (``accept = []``, the default). Its log's
     config had no table either, which is how a log from before the command rules looks, and those replay
