@@ -1104,8 +1104,10 @@ def run_replay(
                 span[0] = ev.rx_ns
             protocol = protocols.get(ev.source, "nmea")
             # NMEA: lines (every event ends with its line end; a first line that is a sentence's tail
-            # counts too); MAVLink: one frame per event
-            sentences += ev.data.count(b"\n") if protocol == "nmea" else 1
+            # counts too); MAVLink: its source's frames, counted by the pipeline, after the loop (an
+            # MCAP record holds every frame of a read: 1,501 records held 9,307 frames)
+            if protocol == "nmea":
+                sentences += ev.data.count(b"\n")
             if out is not None:
                 if protocol == "nmea":
                     records.append((*raw_nmea_record(ev.source, ev.data), ev.rx_ns, RawNmea))
@@ -1168,7 +1170,7 @@ def run_replay(
             if wanted and o.topic in wanted:
                 collected[o.topic].append(o.payload)
         outputs_n += len(last)
-    result.events, result.sentences, result.outputs = events, sentences, outputs_n
+    result.events, result.outputs = events, outputs_n
     if progress is not None:
         progress(events)  # the bar ends at the true count
     if frozen == 0 and gc.get_freeze_count():  # (a caller's own frozen objects are left alone)
@@ -1183,6 +1185,9 @@ def run_replay(
             warned["warning signing_verdict_unmatched"] = unmatched[name]
         lost = {"lost_lines": c.lost_lines} if c.lost_lines else {}  # (a ship network's, by its line counts)
         result.counts[f"source {name}"] = {"received": c.received, **c.rejected, **warned, **lost}
+        if protocols.get(name, "nmea") != "nmea" and name in source_spans:  # (frames: see the loop)
+            sentences += c.received + sum(c.rejected.values())
+    result.sentences = sentences
     for inp in inputs:
         covered = [source_spans[src] for src in inp.sources() if src in source_spans]
         if covered:

@@ -870,6 +870,26 @@ def test_simulator_log_replays_with_its_own_vessel(tmp_path: Path) -> None:
         build_config(open_inputs([other]))
 
 
+def test_the_count_of_sentences_and_frames_is_every_sources_own(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A simulator log's MAVLink is one MCAP record per read, several frames each: the summary counted
+    records (9,901 "sentences/frames" where its sources received 17,707). Now every source's own count."""
+    from dpgw.cli import main
+
+    log = tmp_path / "sim.mcap"
+    with McapLogWriter(log) as w:
+        Simulation(get_scenario("torsetnes_2004"), seed=1, log=w).run(20.0)
+    assert main(["replay", str(log), "--out", str(tmp_path / "o.mcap"), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    sources = {k: v for k, v in doc["counts"].items() if k.startswith("source ")}
+    assert "source thrusters" in sources
+    per_source = sum(
+        n for counts in sources.values() for k, n in counts.items() if not k.startswith("warning")
+    )
+    assert doc["sentences"] == per_source, (doc["sentences"], sources)
+
+
 def test_tlog_replay(tmp_path: Path) -> None:
     """A MAVLink tlog (8-byte µs time + frame per record) with GPS_RAW_INT, ATTITUDE and thruster status."""
     d = mv.dialect()
