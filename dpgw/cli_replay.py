@@ -1359,6 +1359,7 @@ def _report(
                 bias=np.array([e["bias"] for e in rows], dtype=float),
                 eta_wf=np.array([e["eta_wf"] for e in rows], dtype=float),
                 omega0=np.array([e["omega0"] for e in rows], dtype=float),
+                observer=spec.name,
             )
         )
     truth_kw: dict[str, Any] = {}

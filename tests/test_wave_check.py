@@ -341,6 +341,8 @@ def test_a_calm_log_says_the_check_was_not_made_and_the_report_that_the_filter_a
     assert amplifies == metrics["warnings"][0]
     assert amplifies.startswith("observer 'passive' amplifies the measured motion at the measurement's")
     assert "no clear wave peak" in amplifies and "(ω0 in use 7.51 rad/s)" in amplifies
+    # the observer's own name in its advice, a spec that runs as printed (was "--observer NAME:...")
+    assert "(--observer passive:wave_period_s=" in amplifies and "NAME" not in amplifies, amplifies
     err = cap.err.splitlines()
     assert f"dpgw replay: note: {note}" in err
     assert f"dpgw replay: warning: report: {amplifies}" in err

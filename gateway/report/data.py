@@ -32,6 +32,7 @@ class ObserverTrace:
     bias: NDArray[Any]  # earth-fixed bias [X, Y, N] (N, N, N·m)
     eta_wf: NDArray[Any]  # WF estimate [N, E, ψ]
     omega0: NDArray[Any]  # wave frequency in use per DOF (rad/s); constant for a fixed-gain observer
+    observer: str = ""  # its name in `--observer NAME:...` (passive, gain_scheduled, ...); "" not known
 
 
 @dataclass(frozen=True)
@@ -135,6 +136,7 @@ class PreparedTrace:
     bias: Array
     eta_wf: Array
     omega0: Array
+    observer: str = ""  # `ObserverTrace.observer`
 
 
 @dataclass(frozen=True)
@@ -157,8 +159,10 @@ def prepare(data: ReplayData) -> Prepared:
         t = np.asarray(tr.t, dtype=float).reshape(-1)
         n = len(t)
         oo = np.argsort(t, kind="stable")
-        arrays = [_col3(a, n)[oo] for a in (tr.eta, tr.nu, tr.bias, tr.eta_wf, tr.omega0)]
-        traces.append(PreparedTrace(str(tr.label), t[oo], *arrays))
+        eta, nu, bias, eta_wf, omega0 = (
+            _col3(a, n)[oo] for a in (tr.eta, tr.nu, tr.bias, tr.eta_wf, tr.omega0)
+        )
+        traces.append(PreparedTrace(str(tr.label), t[oo], eta, nu, bias, eta_wf, omega0, tr.observer))
     truth = None
     if data.truth_t is not None and data.truth_eta_lf is not None and len(data.truth_t) > 1:
         tt = np.asarray(data.truth_t, dtype=float).reshape(-1)

@@ -73,8 +73,8 @@ def amplification_warnings(metrics: dict[str, Any]) -> list[str]:
             f"observer '{label}' amplifies the measured motion at the measurement's spectral peak instead "
             f"of attenuating it: {', '.join(parts)}{used}, so its LF estimate, which DP acts on, holds more "
             f"of that motion than was measured{where}. If there is sea at that frequency, tune ω0 to it "
-            f"(--observer NAME:wave_period_s={period}); see psd.png for where the LF estimate rises above "
-            "the measurement"
+            f"(--observer {od.get('observer') or 'NAME'}:wave_period_s={period}); see psd.png for where the "
+            "LF estimate rises above the measurement"
         )
     return out
 

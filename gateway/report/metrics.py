@@ -214,6 +214,8 @@ def analyse(data: ReplayData, wave_band: tuple[float, float] | None, settle_s: f
         label, t, eta, eta_wf, omega0 = trace.label, trace.t, trace.eta, trace.eta_wf, trace.omega0
         key = label if label not in observers else f"{label}#{i + 1}"
         odict: dict[str, Any] = {"samples": len(t), "span_s": [_f(t[0]), _f(t[-1])] if len(t) else None}
+        if trace.observer:
+            odict["observer"] = trace.observer
         est_psd[i] = []
         attenuation[i] = []
         s_lf: Score | None = None
