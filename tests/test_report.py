@@ -644,3 +644,24 @@ def test_a_log_that_never_moved_is_reported_without_a_warning_on_the_console(tmp
         files = write_report(ReplayData("still", "mss_supply", t, still, (tr,)), tmp_path)
     assert "psd.png" in [f.name for f in files]
     assert not [w for w in caught if "log-scaled" in str(w.message)], [str(w.message) for w in caught]
+
+
+def test_mode_changes_at_the_logs_start_read_0_s_not_minus_0() -> None:
+    """A demo's first status a hair before the first record made report.md read "Mode changes: -0 s
+    standby; 145 s dp"."""
+    from gateway.report.markdown import dp_section
+
+    dp = {
+        "modes": {
+            "time_s": {"standby": 145.0, "dp": 155.0},
+            "spans": [
+                {"mode": "standby", "from_s": -0.004, "to_s": 145.2},
+                {"mode": "dp", "from_s": 145.2, "to_s": 300.0},
+            ],
+        },
+        "station_keeping": None,
+        "dead_reckoning": {"spells": 0},
+        "alarms": [],
+    }
+    (line,) = [x for x in dp_section(dp) if x.startswith("Mode changes")]
+    assert line == "Mode changes: 0 s standby; 145 s dp.", line

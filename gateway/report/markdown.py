@@ -200,7 +200,11 @@ def dp_section(dp: dict[str, Any]) -> list[str]:
     lines += [f"| {mode} | {t:.0f} |" for mode, t in dp["modes"]["time_s"].items()]
     spans = dp["modes"]["spans"]
     if len(spans) > 1:
-        lines += ["", "Mode changes: " + "; ".join(f"{s['from_s']:.0f} s {s['mode']}" for s in spans) + "."]
+        # (whole seconds by `round`, an int: a span starting a hair before the first record read "-0 s")
+        lines += [
+            "",
+            "Mode changes: " + "; ".join(f"{round(s['from_s'])} s {s['mode']}" for s in spans) + ".",
+        ]
     sk = dp["station_keeping"]
     lines.append("")
     if sk is None:
