@@ -360,6 +360,9 @@ def run(args: argparse.Namespace) -> int:
         if problem := prefix_problem(args.prefix):
             print(f"dpgw replay: --prefix: {problem}", file=sys.stderr)
             return 2
+    # Said once the replay will run (a refusal below names no file it never writes): where it writes
+    # instead of a file or folder that exists.
+    renamed: list[str] = []
     if (
         args.out is not None
         and not mcap_path_problem("--out", args.out)  # (a folder or another name is refused below)
@@ -367,7 +370,7 @@ def run(args: argparse.Namespace) -> int:
     ):
         # An --out that exists is not overwritten (it may hold an earlier replay): the replay goes on in the
         # next file of its set (usv_0001.mcap), as `dpgw run`, `dpgw demo` and `dpgw sim` do with theirs.
-        print(f"dpgw replay: out -> {free} ({args.out} exists: a log is never overwritten)", file=sys.stderr)
+        renamed.append(f"dpgw replay: out -> {free} ({args.out} exists: a log is never overwritten)")
         args.out = str(free)
     if args.report == "":  # a bare --report: beside the output
         beside = Path(args.out)
@@ -380,10 +383,9 @@ def run(args: argparse.Namespace) -> int:
         # A report folder is kept as --out's file is: given or made beside --out, one that holds a report
         # (it was written over, files of the earlier replay mixed with the new) gives way to the next free
         # folder of its set, said here and named in the summary.
-        print(
+        renamed.append(
             f"dpgw replay: report -> {free_report} ({args.report} holds a report: a report is never "
-            "overwritten)",
-            file=sys.stderr,
+            "overwritten)"
         )
         args.report = str(free_report)
     if args.vessel is not None:  # (checked as the flag it is, not as the config key it becomes)
@@ -456,6 +458,8 @@ def run(args: argparse.Namespace) -> int:
     except (ReplayError, VesselError, TuningError, OSError) as exc:
         print(f"dpgw replay: {exc}", file=sys.stderr)
         return 2
+    for line in renamed:
+        print(line, file=sys.stderr)
     speed = 1.0 if args.realtime else args.speed
     if args.foxglove is not None:
         return serve(args, inputs, config, specs, speed, verdicts)

@@ -1329,6 +1329,25 @@ def test_date_stamped_logs_beside_out_are_not_taken_for_its_set(
     assert free_path(out) == tmp_path / "trial_0001.mcap"
 
 
+def test_a_refused_replay_names_no_file_it_would_have_written_instead(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`dpgw replay sim.nmea` with sim-replay.mcap there and no --vessel: it said "out ->
+    sim-replay_0001.mcap (...)" and then refused, naming a file it never writes. The new name is said
+    once the replay runs."""
+    from dpgw.cli import main
+
+    t0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)
+    log = tmp_path / "sim.nmea"
+    write_text_log(log, [t0 + timedelta(seconds=k) for k in range(10)])
+    (tmp_path / "sim-replay.mcap").write_bytes(b"an earlier replay")
+    assert main(["replay", str(log)]) == 2
+    err = capsys.readouterr().err
+    assert "names no vessel" in err and "out ->" not in err, err
+    assert main(["replay", str(log), "--vessel", "mss_supply"]) == 0
+    assert f"out -> {tmp_path / 'sim-replay_0001.mcap'}" in capsys.readouterr().err
+
+
 def test_the_report_takes_a_users_vessel_file_for_its_length_and_scale(tmp_path: Path) -> None:
     """`--vessel my_usv.toml` (CyberShip II's file under another name, 1:70): the console's wave check
     searched the model's band, but report.md looked the vessel up by its name alone, found no built-in,
