@@ -559,7 +559,10 @@ def _run_scenario(args: argparse.Namespace, stopped_by: list[int]) -> int:
             line = f"  {source:12s} {n:8d} frames  {sim.summary.bytes_sent[source]:10d} bytes"
             if unsent := sim.summary.not_sent[source]:  # made (and logged), but no output took them
                 what = "not sent" if unsent == n else f"{unsent} not sent"
-                line += f"  ({what}: no --nmea/--mavlink output takes them)"
+                # (the tlog records the thrusters' frames though no link sends them: said so, not "not sent"
+                # alone beside a tlog that holds them)
+                kept = "; recorded in --tlog" if recorder is not None and source in recorder.sources else ""
+                line += f"  ({what} on a link: no --nmea/--mavlink output takes them{kept})"
             print(line)
         if sim.summary.commands_applied:
             print(f"  thruster commands applied: {sim.summary.commands_applied}")

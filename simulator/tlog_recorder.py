@@ -29,6 +29,8 @@ class TlogRecorder:
         self.not_recorded = 0
         """MAVLink emissions with no whole valid frame in them (garbage, a corrupted CRC)."""
         self._parser = FrameParser()
+        self.sources: set[str] = set()
+        """The streams whose frames it recorded."""
 
     def __call__(self, e: Emission) -> None:
         if e.protocol != "mavlink":
@@ -40,6 +42,7 @@ class TlogRecorder:
             self.not_recorded += 1
             return
         self.writer.write(self.epoch.stamp_ns(e.t_emit) // 1000, frames)
+        self.sources.add(e.source)
 
     @property
     def records(self) -> int:

@@ -71,7 +71,21 @@ def test_sim_says_which_frames_no_output_took() -> None:
     p = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr
     lines = {ln.split()[0]: ln for ln in p.stdout.splitlines() if ln.startswith("  ") and "frames" in ln}
-    assert lines["thrusters"].endswith("(not sent: no --nmea/--mavlink output takes them)"), p.stdout
+    assert lines["thrusters"].endswith("(not sent on a link: no --nmea/--mavlink output takes them)"), (
+        p.stdout
+    )
     assert "not sent" not in lines["dgps1"] and "not sent" not in lines["gyro1"], p.stdout
     result = json.loads(subprocess.run([*argv, "--json"], cwd=ROOT, capture_output=True, text=True).stdout)
     assert result["not_sent"] == {"thrusters": result["emissions"]["thrusters"]}, result
+
+
+def test_sim_says_the_tlog_holds_the_frames_no_link_sent(tmp_path: Path) -> None:
+    """``--tlog`` alone: the thrusters' frames went to no link but into the tlog, and the summary said
+    "not sent" beside "tlog: ... (317 records)"; it says where they are."""
+    argv = [sys.executable, "-m", "dpgw", "sim", "--scenario", "torsetnes_2004", "--duration", "10",
+            "--tlog", str(tmp_path / "t.tlog")]  # fmt: skip
+    p = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    lines = {ln.split()[0]: ln for ln in p.stdout.splitlines() if ln.startswith("  ") and "frames" in ln}
+    assert lines["thrusters"].endswith("output takes them; recorded in --tlog)"), p.stdout
+    assert "recorded in --tlog" not in lines["dgps1"], p.stdout
