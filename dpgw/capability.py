@@ -414,11 +414,16 @@ def capability(
         raise ValueError(f"failures must be 'none', 'each' or 'worst', got {failures!r}")
     if not vessel.thrusters:
         raise ValueError(f"vessel '{vessel.name}' has no thrusters: nothing to hold position with")
+    step_note = None
     if directions_deg is None:
         if not (0 < step_deg <= 180):
             raise ValueError(f"step_deg must be in (0, 180], got {step_deg!r}")
         n = max(1, round(360.0 / step_deg))
         directions_deg = [i * 360.0 / n for i in range(n)]
+        if abs(n * step_deg - 360.0) > 1e-6:
+            # the directions are spread evenly over the circle: a step that does not divide 360 is
+            # rounded to one that does, and said (a plot at 7.06° steps for 7 was not)
+            step_note = f"a step of {step_deg:g}° does not divide 360°: {n} directions {360.0 / n:.4g}° apart"
     dirs = tuple(float(d) for d in directions_deg)
     froude = math.sqrt(vessel.model_scale or 1.0)
     beaufort = environment.sea == "beaufort"
@@ -485,7 +490,7 @@ def capability(
         cases,
         worst,
         worst_failed,
-        tuple(loads.warnings),
+        (*loads.warnings, *([step_note] if step_note else [])),
         u_limit,
         worst_number,
     )

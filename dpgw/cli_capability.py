@@ -10,7 +10,7 @@ from pathlib import Path
 from dpgw import cli_json
 from dpgw.cli_paths import missing_folder
 from dpgw.cli_progress import terminal_bar
-from dpgw.cli_types import non_negative_float
+from dpgw.cli_types import finite_float, non_negative_float
 from observers.vessel_files import builtin_vessels
 
 # dpgw.capability's DEFAULT_CURRENT_MPS and U_LIMIT_MPS, written here so that `dpgw capability --help` needs
@@ -137,7 +137,7 @@ def _factor(text: str) -> float:
 
 
 def _step(text: str) -> float:
-    value = non_negative_float(text)
+    value = finite_float(text)  # (one message for every value out of range: -10 was "must be >= 0", 0 not)
     if not 0.0 < value <= 180.0:
         raise argparse.ArgumentTypeError(f"must be above 0 and at most 180 degrees (got {text})")
     return value

@@ -423,3 +423,28 @@ def test_a_vessel_without_wind_areas_is_said_to_have_no_wind_load_in_the_table_a
     )
     env = json.loads(capsys.readouterr().out)["environment"]
     assert env["wind"] is True and env["relation"].startswith("wind U, ")
+
+
+def test_a_step_that_does_not_divide_360_is_said_and_a_negative_one_is_out_of_range(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """`--step-deg 70` ran at 72° steps without a word; `--step-deg -10` said "must be >= 0" while 0 said
+    "must be above 0". The rounding is a note (text and JSON), and every step out of range one message."""
+    import json
+
+    assert (
+        main(["capability", "--vessel", "mss_supply", "--step-deg", "70", "--failures", "none", "--json"])
+        == 0
+    )
+    doc = json.loads(capsys.readouterr().out)
+    assert len(doc["directions_deg"]) == 5 and doc["directions_deg"][1] == pytest.approx(72.0)
+    assert "a step of 70° does not divide 360°: 5 directions 72° apart" in doc["warnings"]
+    assert (
+        main(["capability", "--vessel", "mss_supply", "--step-deg", "90", "--failures", "none", "--json"])
+        == 0
+    )
+    assert not any("divide" in w for w in json.loads(capsys.readouterr().out)["warnings"])
+    for bad in ("-10", "0", "200"):
+        with pytest.raises(SystemExit):
+            main(["capability", "--vessel", "mss_supply", "--step-deg", bad])
+        assert "must be above 0 and at most 180 degrees" in capsys.readouterr().err
