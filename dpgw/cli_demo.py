@@ -637,6 +637,9 @@ def run(args: argparse.Namespace) -> int:
         }
     summary["interrupted"] = bool(stopped_by)
     summary["stopped_by"] = signal.Signals(stopped_by[0]).name if stopped_by else None
+    # why a figure is missing, in the console's words: a program read only its absence before
+    summary["estimate_not_scored"] = estimate_not_scored(summary)
+    summary["station_keeping_not_scored"] = station_keeping_not_scored(summary)
     if args.json:
         print(cli_json.dumps(summary, indent=2))
     else:
@@ -832,6 +835,59 @@ def _one_decimal(x: float) -> str:
     return f"{round(x, 1) + 0.0:.1f}"
 
 
+def estimate_not_scored(r: dict[str, Any]) -> str | None:
+    """Why the demo's summary ``r`` has no error of the LF estimate against the truth, in the console's
+    words (and `--json`'s ``estimate_not_scored``); None when it has one."""
+    e = r.get("error_vs_truth")
+    if e is not None and (e["samples"] or math.isfinite(e.get("horizontal_rms_m", 0.0))):
+        return None
+    scored = r.get("estimate_scored_s") or 0.0
+    todo = (
+        ""
+        if r.get("interrupted")
+        else f"; give --duration {needed_duration_s(None)} or more, e.g. the default {DEFAULT_DURATION_S:.0f}"
+    )
+    from gateway.scoring import not_scored_note  # (the words `dpgw replay` says it in too)
+
+    return f"{not_scored_note(scored, SETTLE_S, MIN_SCORED_S)}{todo}"
+
+
+def station_keeping_not_scored(r: dict[str, Any]) -> str | None:
+    """Why the demo's summary ``r`` has no station keeping, in the console's words (and `--json`'s
+    ``station_keeping_not_scored``); None when it has it."""
+    if r.get("station_keeping"):
+        return None
+    if r.get("dp_refused"):
+        return f"not scored: the gateway refused dp ({r['dp_refused']})"
+    how = "stopped" if r.get("interrupted") else "ended"
+    if r.get("engaged_by"):
+        return (
+            f"not scored: DP was engaged by {r['engaged_by']}, not the demo's operator, and the run {how} at "
+            f"{r['sim_seconds']:.0f} s, before {MIN_SCORED_S:.0f} s of DP after its {DP_SETTLE_S:.0f} s "
+            "settle time"
+        )
+    if r.get("mode") == "standby":
+        return "none in standby (the gateway commands no thrusters: the scenario's own thrust)"
+    engage = r.get("engage_at_s")
+    scored_from = dp_scored_from(engage)
+    when = f"DP engaged at {engage:.0f} s" if engage is not None else "DP from the start"
+    engaged = r.get("dp_engaged", engage is None or r["sim_seconds"] >= engage)
+    ended = "" if engaged else "before DP was engaged"
+    if not engaged and engage is not None and r["sim_seconds"] >= engage + 1.0:
+        # the demo's operator waits for the gateway's "settled" (`waits_for_settled`): an observer that
+        # restarted counts its settle time again
+        ended += " (the gateway did not call the estimate settled)"
+    need = needed_duration_s(engage)
+    todo = f"give --duration {need} or more (default {DEFAULT_DURATION_S:.0f})"
+    if engage is not None and r["sim_seconds"] >= needed_duration_s(0.0):
+        todo += ", or --engage-at 0 for DP from the start"
+    return (
+        f"not scored: the run {how} at {r['sim_seconds']:.0f} s{' ' if ended else ''}{ended}; with {when} "
+        f"it is scored from {scored_from:.0f} s, on at least {MIN_SCORED_S:.0f} s"
+        + ("" if r.get("interrupted") else f"; {todo}")
+    )
+
+
 def print_summary(r: dict[str, Any]) -> None:
     if r.get("interrupted"):
         by = STOPPED_BY.get(str(r.get("stopped_by")), str(r.get("stopped_by") or "a signal"))
@@ -859,17 +915,8 @@ def print_summary(r: dict[str, Any]) -> None:
             f"horizontal RMS {e['horizontal_rms_m']:.2f} m, p95 {e['horizontal_p95_m']:.2f} m; "
             f"heading RMS {e['rms_heading_deg']:.2f} deg"
         )
-    elif e is None or not math.isfinite(e.get("horizontal_rms_m", 0.0)):
-        scored = r.get("estimate_scored_s") or 0.0
-        todo = (
-            ""
-            if r.get("interrupted")
-            else f"; give --duration {needed_duration_s(None)} or more, e.g. the default "
-            f"{DEFAULT_DURATION_S:.0f}"
-        )
-        from gateway.scoring import not_scored_note  # (the words `dpgw replay` says it in too)
-
-        print(f"  LF estimate vs truth: {not_scored_note(scored, SETTLE_S, MIN_SCORED_S)}{todo}")
+    elif (why := estimate_not_scored(r)) is not None:
+        print(f"  LF estimate vs truth: {why}")
     k = r.get("station_keeping")
     if k:
         if r.get("engage_at_s") is not None:
@@ -897,40 +944,8 @@ def print_summary(r: dict[str, Any]) -> None:
             f"{k['north_mean_m']:+.2f} m N, {k['east_mean_m']:+.2f} m E, "
             f"heading {k['heading_mean_deg']:+.2f} deg"
         )
-    elif r.get("dp_refused"):
-        print(f"  station keeping: not scored: the gateway refused dp ({r['dp_refused']})")
-    elif r.get("engaged_by"):
-        how = "stopped" if r.get("interrupted") else "ended"
-        print(
-            f"  station keeping: not scored: DP was engaged by {r['engaged_by']}, not the demo's operator, "
-            f"and the run {how} at {r['sim_seconds']:.0f} s, before {MIN_SCORED_S:.0f} s of DP after its "
-            f"{DP_SETTLE_S:.0f} s settle time"
-        )
-    elif r.get("mode") == "standby":
-        print(
-            "  station keeping: none in standby (the gateway commands no thrusters: the scenario's own"
-            " thrust)"
-        )
-    else:
-        engage = r.get("engage_at_s")
-        scored_from = dp_scored_from(engage)
-        when = f"DP engaged at {engage:.0f} s" if engage is not None else "DP from the start"
-        engaged = r.get("dp_engaged", engage is None or r["sim_seconds"] >= engage)
-        ended = "" if engaged else "before DP was engaged"
-        if not engaged and engage is not None and r["sim_seconds"] >= engage + 1.0:
-            # the demo's operator waits for the gateway's "settled" (`waits_for_settled`): an observer that
-            # restarted counts its settle time again
-            ended += " (the gateway did not call the estimate settled)"
-        need = needed_duration_s(engage)
-        todo = f"give --duration {need} or more (default {DEFAULT_DURATION_S:.0f})"
-        if engage is not None and r["sim_seconds"] >= needed_duration_s(0.0):
-            todo += ", or --engage-at 0 for DP from the start"
-        how = "stopped" if r.get("interrupted") else "ended"
-        print(
-            f"  station keeping: not scored: the run {how} at {r['sim_seconds']:.0f} s{' ' if ended else ''}"
-            f"{ended}; with {when} it is scored from {scored_from:.0f} s, on at least "
-            f"{MIN_SCORED_S:.0f} s" + ("" if r.get("interrupted") else f"; {todo}")
-        )
+    elif (why := station_keeping_not_scored(r)) is not None:
+        print(f"  station keeping: {why}")
     lag = r.get("fix_stamp_lag_s")
     if lag is not None:
         print(

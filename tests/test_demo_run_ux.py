@@ -391,3 +391,12 @@ def test_the_duration_asked_for_at_the_start_and_at_the_end_is_one_that_scores(
     )  # fmt: skip
     end = capsys.readouterr().out
     assert "station keeping: not scored" in end and f"give --duration {need} or more" in end, end
+    # --json says why too, in the same words (a program saw only that the figures were missing)
+    summary = {
+        "sim_seconds": short, "mode": "dp", "engage_at_s": engage_s, "dp_engaged": True,
+        "error_vs_truth": {"samples": 0, "horizontal_rms_m": float("nan")}, "station_keeping": None,
+    }  # fmt: skip
+    why = cli_demo.station_keeping_not_scored(summary)
+    assert why is not None and f"  station keeping: {why}" in end
+    assert f"  LF estimate vs truth: {cli_demo.estimate_not_scored(summary)}" in end
+    assert cli_demo.station_keeping_not_scored({**summary, "station_keeping": {"p95": 1.0}}) is None
