@@ -114,10 +114,13 @@ def run(args: argparse.Namespace) -> int:
         return 2
     hydro_path, builtin = _hydro_path(args.hydro)
     if not hydro_path.is_file():
+        from observers.spelling import did_you_mean
         from simulator.hydro_data import BUILTIN_HYDRO
 
         names = ", ".join(BUILTIN_HYDRO)
         what = "a folder, not a file" if hydro_path.is_dir() else "no such file"  # (a folder: said so)
+        if not hydro_path.is_dir():  # a misspelt name of shipped data, as `tune` and `capability` say it
+            what += did_you_mean(str(args.hydro), BUILTIN_HYDRO)
         print(
             f"dpgw radiation: {hydro_path}: {what}: give A(ω), B(ω) as a .npz or an MSS vessel .mat, "
             f"or the name of data that ship with dpgw ({names})",

@@ -208,9 +208,14 @@ def _parse_route(spec: str, protocol: str) -> tuple[str, frozenset[str] | None]:
 
 def run(args: argparse.Namespace) -> int:
     if (args.scenario is None) == (args.inputs is None):
-        print(
-            "dpgw sim: give --scenario NAME, or --vessel NAME --inputs INPUTS.csv (not both)", file=sys.stderr
-        )
+        # (said as what was given: "(not both)" to one who gave neither read as a mistake not made)
+        if args.scenario is not None:
+            tail = ", not both"
+        else:
+            tail = " (open loop from recorded inputs)" + (
+                ": --vessel goes with --inputs" if args.vessel else ""
+            )
+        print(f"dpgw sim: give --scenario NAME, or --vessel NAME --inputs INPUTS.csv{tail}", file=sys.stderr)
         return 2
     if args.inputs is not None:
         # A scenario's options do nothing open loop: refused rather than silently ignored.

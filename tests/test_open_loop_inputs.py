@@ -211,3 +211,25 @@ def test_ctrl_c_stops_an_open_loop_run_with_what_ran_written(tmp_path: Path) -> 
     assert len(csv.read_text().splitlines()) == ran + 1
     assert summary(log).complete
     assert sum(1 for _ in read_messages(log, "/truth/state")) == ran
+
+
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (["--vessel", "mss_osv"], "(open loop from recorded inputs): --vessel goes with --inputs"),
+        ([], "(open loop from recorded inputs)"),
+        (["--scenario", "hassani", "--inputs", "x.csv"], "INPUTS.csv, not both"),
+    ],
+)
+def test_sim_says_what_is_missing_as_what_was_given(
+    argv: list[str], said: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`dpgw sim --vessel mss_osv --csv o.csv` (--inputs forgotten) was told "... (not both)": it gave
+    neither. Now as what was given."""
+    from dpgw.cli import main
+
+    assert main(["sim", *argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(
+        "dpgw sim: give --scenario NAME, or --vessel NAME --inputs INPUTS.csv"
+    ) and err.endswith(said), err

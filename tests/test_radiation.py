@@ -520,6 +520,8 @@ def test_dpgw_radiation_command_writes_the_model_beside_the_data(tmp_path: Path,
     assert (tmp_path / "ship_radiation.npz").is_file()
     assert main(["radiation", str(tmp_path / "missing.npz")]) == 2
     assert "missing.npz: no such file" in capsys.readouterr().err
+    assert main(["radiation", "mss_suply"]) == 2  # the shipped data misspelt: the name it misspells
+    assert "mss_suply: no such file, did you mean 'mss_supply'?" in capsys.readouterr().err
     assert main(["radiation", str(tmp_path)]) == 2  # a folder: said so, not "no such file"
     assert f"{tmp_path}: a folder, not a file: give A(ω), B(ω) as a .npz" in capsys.readouterr().err
 
