@@ -176,7 +176,7 @@ def foxglove_server(args: argparse.Namespace) -> tuple[Any, str] | None:
     from gateway.outputs.foxglove_server import FoxgloveServerError, FoxgloveServerSink
 
     if args.foxglove is not None:
-        return FoxgloveServerSink(*args.foxglove), ""
+        return FoxgloveServerSink(*args.foxglove, port_given_by="--foxglove [HOST:]PORT"), ""
     sink = FoxgloveServerSink(DEFAULT_HOST, DEFAULT_PORT)
     try:
         sink.start()

@@ -891,7 +891,12 @@ def serve(
     host, port = args.foxglove
     name = ", ".join(Path(p).name for p in args.logs)
     sink = FoxgloveServerSink(
-        host, port, server_name=f"dpgw replay {name}", playback=on_request, time_range_ns=(first, last)
+        host,
+        port,
+        server_name=f"dpgw replay {name}",
+        playback=on_request,
+        time_range_ns=(first, last),
+        port_given_by="--foxglove [HOST:]PORT",  # (a replay's config is the log's: no [foxglove] to edit)
     )
     player = ReplayPlayer(
         lambda: (

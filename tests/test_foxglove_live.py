@@ -526,6 +526,12 @@ def test_a_port_in_use_is_one_clear_message() -> None:
         text = str(err.value)
         assert f"127.0.0.1:{first.port}" in text and "in use" in text and "--foxglove" in text
         assert "\n" not in text
+        # `dpgw demo` and `dpgw replay` have no [foxglove] table to edit: their message names the option only
+        third = FoxgloveServerSink("127.0.0.1", first.port, port_given_by="--foxglove [HOST:]PORT")
+        with pytest.raises(FoxgloveServerError) as err:
+            third.start()
+        assert "give another with --foxglove [HOST:]PORT, or 0" in str(err.value)
+        assert "[foxglove] port" not in str(err.value)
     finally:
         first.close()
 

@@ -246,9 +246,11 @@ class FoxgloveServerSink:
         playback: Callable[[PlaybackControlRequest], PlaybackState | None] | None = None,
         time_range_ns: tuple[int, int] | None = None,
         message_backlog_size: int | None = None,
+        port_given_by: str = "--foxglove PORT or [foxglove] port",
     ) -> None:
         self.host = host
         self.requested_port = port
+        self.port_given_by = port_given_by  # where the user gives another port: a failed start says it
         self.server_name = server_name
         self._playback = playback
         self._time_range_ns = time_range_ns
@@ -300,7 +302,9 @@ class FoxgloveServerSink:
                 message_backlog_size=self._backlog,
             )
         except RuntimeError as exc:  # the SDK's FoxgloveError
-            raise FoxgloveServerError(bind_problem(self.host, self.requested_port, str(exc))) from None
+            raise FoxgloveServerError(
+                bind_problem(self.host, self.requested_port, str(exc), self.port_given_by)
+            ) from None
 
     def emit(self, outputs: list[Output], encoded: list[bytes]) -> None:
         if self._waiting:
@@ -436,13 +440,16 @@ class FoxgloveServerSink:
             log.exception("foxglove: could not send on %s (#%d); carrying on", topic, self.stats.errors)
 
 
-def bind_problem(host: str, port: int, sdk_message: str) -> str:
-    """The one line a failed start prints: what could not be bound, why, and what to do."""
+def bind_problem(
+    host: str, port: int, sdk_message: str, given_by: str = "--foxglove PORT or [foxglove] port"
+) -> str:
+    """The one line a failed start prints: what could not be bound, why, and what to do (``given_by``:
+    where this command takes another port; `dpgw demo` and `dpgw replay` have no config)."""
     where = f"{host}:{port}"
     if "in use" in sdk_message:
         return (
             f"foxglove: cannot listen on {where}: the port is in use (another dpgw or Foxglove server?); "
-            "give another with --foxglove PORT or [foxglove] port, or 0 for any free port"
+            f"give another with {given_by}, or 0 for any free port"
         )
     if "assign requested address" in sdk_message or "not available" in sdk_message:
         return (
