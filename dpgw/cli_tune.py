@@ -175,6 +175,18 @@ def run(args: argparse.Namespace) -> int:
     result = {
         "vessel": vessel.name,
         "wave_period_s": args.wave_period,
+        # the settings the gains came from, as resolved (a program reading only the JSON knew the gains
+        # but not what made them)
+        "settings": {
+            "zeta": gains.zeta.tolist(),
+            "zeta_n": gains.zeta_n.tolist(),
+            "cutoff_ratio": (gains.omega_c / gains.omega0).tolist(),
+            "bias_time_constant_s": args.bias_time,
+            "velocity_injection_ratio": args.velocity_injection_ratio,
+            "velocity_injection": args.velocity_injection,
+            "injection_damping_ratio": args.injection_damping_ratio,
+            "bias_corner_ratio": args.bias_corner_ratio,
+        },
         "loop_bandwidth": None if loop is None else list(loop),
         # a of 𝒦 = diag(M) ωc a (`passive_gains`): the velocity error's decay rate from the injection
         "velocity_injection_per_s": velocity_injection_rate(vessel, gains).tolist(),

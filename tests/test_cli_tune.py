@@ -198,6 +198,16 @@ def test_a_tuning_that_does_not_filter_the_waves_says_so(capsys, a: str) -> None
     assert f"note: {note}" in capsys.readouterr().out  # the text says what the JSON says
 
 
+def test_json_says_the_settings_the_gains_came_from(capsys) -> None:  # type: ignore[no-untyped-def]
+    """`--json` had the gains but not ζ, ζn, the cutoff ratio, ...: a program could not tell them apart."""
+    _, r = _tune(capsys, "--zeta", "0.08", "--zeta-n", "0.9", "--bias-corner-ratio", "0.03")
+    s = r["settings"]
+    assert s["zeta"] == [0.08] * 3 and s["zeta_n"] == [0.9] * 3 and s["bias_corner_ratio"] == 0.03
+    assert s["cutoff_ratio"] == pytest.approx(
+        [w / w0 for w, w0 in zip(r["omega_c"], r["omega0"], strict=True)]
+    )
+
+
 def test_an_inverted_notch_is_blamed_on_its_dampings_not_the_velocity_injection(capsys) -> None:  # type: ignore[no-untyped-def]
     """ζn = 0.05 below ζ = 0.1 (rule (48) fails): the note blamed a = 0.084 1/s, 12 % of ω0, as "close to
     or above ω0", and said the same of a = 0.01; it names ζn and ζ now."""
