@@ -597,12 +597,21 @@ def _conclude(
         # with a report (the analysis): what the live gateway's wave filtering kept out of its
         # commanded thrust, against the same controller fed the raw measurements (the log replayed
         # once more)
+        from dpgw.cli_demo import DP_SETTLE_S, SETTLE_S
         from dpgw.raw_feedback import compare_with_raw_feedback, thrust_wave_band
 
+        # over the stretch the demo scores (its log replayed gives its figures): from DP_SETTLE_S after
+        # DP was engaged, not before SETTLE_S of the log; the stretch said, as the two once differed
         compared = compare_with_raw_feedback(
-            args.logs, live["/dp/thrusters/command"], thrust_wave_band(config.vessel)
+            args.logs,
+            live["/dp/thrusters/command"],
+            thrust_wave_band(config.vessel),
+            from_ns=first_ns + round(SETTLE_S * 1e9),
+            after_engage_s=DP_SETTLE_S,
         )
         summary["dp_performance"]["wave_filtering"] = compared.figures
+        if compared.figures is not None and compared.stretch is not None and "error" not in compared.figures:
+            compared.figures["stretch_s"] = [(t - first_ns) / 1e9 for t in compared.stretch]
     kinds = {s.label: (s.name, s.name in SCHEDULES_OMEGA0 or bool(s.params.get("adaptive"))) for s in specs}
     summary["wave_check"] = evidence.check(config.vessel.length_m, config.vessel.model_scale, kinds).as_dict()
     summary["vessel_check"] = evidence.vessel_check(config.vessel).as_dict()

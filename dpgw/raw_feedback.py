@@ -198,10 +198,12 @@ def compare_with_raw_feedback(
     live: Sequence[dict[str, Any]],
     band_rad_s: tuple[float, float],
     from_ns: int | None = None,
+    after_engage_s: float = 0.0,
 ) -> Comparison:
     """What wave filtering saved on a gateway's logs: their live commands ``live`` against the raw-fed
     replay's (`raw_feedback_commands`), over the longest stretch in dp (`dp_stretch`), from ``from_ns`` on
-    if given (the demo scores from 30 s after engaging); with the raw-fed commands and the stretch kept,
+    if given and ``after_engage_s`` after the stretch begins (the demo scores from 30 s after engaging,
+    and not before 60 s; a replay of its log the same); with the raw-fed commands and the stretch kept,
     for a plot of both. The figures are None without a stretch in dp, a configuration in the logs, or
     enough of it to filter. A failure of the replay is the figures ``{"error": ...}``, not raised: it is
     one figure of a summary whose others must still come out."""
@@ -209,6 +211,7 @@ def compare_with_raw_feedback(
     if stretch is None:
         return Comparison(None)
     start, end = stretch
+    start += round(after_engage_s * 1e9)
     if from_ns is not None:
         start = max(start, from_ns)
     if end <= start:
@@ -259,9 +262,11 @@ def thruster_words(w: dict[str, Any]) -> str | None:
 
 def wave_filtering_lines(w: dict[str, Any]) -> list[str]:
     """The summary's lines of `compare_with_raw_feedback`'s figures (the demo's and the replay's, each
-    indented to its summary): "wave filtering: …", and the per-thruster line under it when there is one."""
+    indented to its summary): "wave filtering: …" (with the stretch compared, ``stretch_s``, when the
+    figures carry it), and the per-thruster line under it when there is one."""
     drives = thruster_words(w)
-    return [f"wave filtering: {wave_filtering_words(w)}", *([f"  {drives}"] if drives else [])]
+    over = f" (over {w['stretch_s'][0]:.0f}-{w['stretch_s'][1]:.0f} s)" if w.get("stretch_s") else ""
+    return [f"wave filtering{over}: {wave_filtering_words(w)}", *([f"  {drives}"] if drives else [])]
 
 
 def _dbs(values: list[float | None]) -> str:
