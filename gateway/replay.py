@@ -70,7 +70,17 @@ from observers.passive_tuning import PassiveTuning
 from wire.codecs import mavlink as mv
 from wire.mcap.reader import read_messages, read_metadata
 from wire.mcap.writer import McapLogWriter, raw_mavlink_record, raw_nmea_record
-from wire.messages import SIM_METADATA, Estimate, Message, RawMavlink, RawNmea, encoder_of
+from wire.messages import (
+    MALFORMED_INPUT_TOPIC,
+    SIM_METADATA,
+    Estimate,
+    Message,
+    RawMavlink,
+    RawNmea,
+    encoder_of,
+    input_from_log,
+    logged_input,
+)
 
 CONFIG_METADATA = "dpgw.config"
 DEMO_METADATA = "dpgw.demo"
@@ -265,10 +275,10 @@ def mcap_events(path: str | Path) -> Iterator[Event]:
                 base64.b64decode(payload["data"]),
                 peer=payload.get("peer", ""),
             )
-        elif topic in ("/dp/setpoint", "/dp/mode", "/dp/tau", TICK_TOPIC):
-            # (a tick at which the live gateway dead-reckoned: `Pipeline.tick` runs there again)
-            key = topic[len("/dp/") :]
-            yield ControlEvent(log_ns, key, payload.get(key, payload) if key == "mode" else payload)
+        elif topic in ("/dp/setpoint", "/dp/mode", "/dp/tau", TICK_TOPIC, MALFORMED_INPUT_TOPIC):
+            # (a tick at which the live gateway dead-reckoned: `Pipeline.tick` runs there again; an input
+            # that fit no schema, as text: fed as received, refused as live)
+            yield ControlEvent(log_ns, *input_from_log(topic, payload))
 
 
 def mcap_sources(path: str | Path) -> dict[str, str]:
@@ -1116,8 +1126,8 @@ def run_replay(
         elif out is not None and isinstance(ev, ControlEvent):
             # a command input or a dead-reckoning tick, as the live gateway logged it (wrapped as the
             # service wraps it), before its outputs: the replay's log replays as the live log does
-            wrap = ev.key == "mode" or not isinstance(ev.payload, dict)
-            out.write(f"/dp/{ev.key}", {ev.key: ev.payload} if wrap else ev.payload, ev.rx_ns, ev.rx_ns)
+            topic, body = logged_input(ev.key, ev.payload)
+            out.write(topic, body, ev.rx_ns, ev.rx_ns)
         if (
             type(after) is RawEvent
             and after.rx_ns == ev.rx_ns

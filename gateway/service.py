@@ -71,7 +71,14 @@ from gateway.wall_time import WallTime
 from wire.codecs import mavlink as mv
 from wire.mcap.folder import make_log_folder
 from wire.mcap.writer import McapLogWriter
-from wire.messages import SIM_CLOCK_KEY, DeadReckoningTick, SimClock, Status, ThrusterCommand
+from wire.messages import (
+    SIM_CLOCK_KEY,
+    DeadReckoningTick,
+    SimClock,
+    Status,
+    ThrusterCommand,
+    logged_input,
+)
 
 log = logging.getLogger("dpgw")
 
@@ -843,11 +850,10 @@ class GatewayService:
         elif self._on_wall:
             self._leave_wall_file()
         if isinstance(item, _Input):
-            # a mode is a bare JSON string, logged wrapped as {mode}; an object sent as a mode is wrapped
-            # too, or a replay, which unwraps {mode}, would take {"mode": "dp"} that the live refused
-            wrap = item.key == "mode" or not isinstance(item.payload, dict)
-            body = {item.key: item.payload} if wrap else item.payload
-            self.log.write(f"/dp/{item.key}", body, rx, rx)
+            # on its own channel when it fits that channel's schema (a mode wrapped as {mode}), else as
+            # text on the malformed inputs' (`wire.messages.logged_input`): a replay feeds either
+            topic, body = logged_input(item.key, item.payload)
+            self.log.write(topic, body, rx, rx)
             return True
         spec = self.pipeline.sources.get(item.source)
         if spec is None:

@@ -343,7 +343,10 @@ def test_a_json_nested_too_deep_for_the_parser_is_refused_and_logged_over_zenoh(
         counters = service.pipeline.commands.counters
         assert counters.refused == {"mode: invalid": 1}, counters
     logged = [p for _, _, _, p in read_messages(tmp_path / "c.mcap", "/dp/mode")]
-    assert len(logged) == 2 and logged[0]["mode"]["invalid"].startswith("[[[[")
+    assert logged == [{"mode": "manual"}]
+    # the malformed one as text on its own channel (on /dp/mode it broke that channel's schema)
+    (malformed,) = [p for _, _, _, p in read_messages(tmp_path / "c.mcap", "/dp/input/malformed")]
+    assert malformed["key"] == "mode" and json.loads(malformed["payload"])["invalid"].startswith("[[[[")
 
 
 def test_a_replay_refuses_the_mode_inputs_the_live_gateway_refused(tmp_path: Path) -> None:

@@ -32,6 +32,7 @@ Conventions shared by every message:
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Annotated, Any, ClassVar, Literal
@@ -1105,6 +1106,21 @@ class ManualTau(Message, kw_only=True):
     N: Annotated[float, doc("Yaw moment.", "N·m")]
 
 
+class MalformedInput(Message, kw_only=True):
+    """A Zenoh input whose payload does not fit its own channel's schema (a mode "DP", a setpoint without
+    its heading, a τ of strings, bytes that are no JSON), logged here as text so that every record on
+    `/dp/mode`, `/dp/setpoint` and `/dp/tau` validates against its schema; a replay feeds it to the
+    pipeline as the live gateway did, and it is refused the same way (`logged_input`)."""
+
+    TITLE = "dpgw.MalformedInput"
+
+    key: Annotated[str, doc("The input's key under the prefix: setpoint, mode or tau.")]
+    payload: Annotated[
+        str,
+        doc('What was received, as JSON text (bytes that were no JSON: `{"invalid": "<the text>"}`).'),
+    ]
+
+
 class DeadReckoningTick(Message, kw_only=True):
     """A tick of the live gateway's clock at which it dead-reckoned: every position and heading source
     silent, the estimate predicted and, at the control rate, the thrusters commanded on it. Logged so that
@@ -1146,14 +1162,22 @@ TOPICS: tuple[Topic, ...] = (
         ("thrusters/feedback", "out"),
     ),
     Topic("/dp/status", Status, "gateway health, at `status.rate_hz`", ("status", "out")),
-    Topic("/dp/setpoint", Setpoint, "the input as received", ("setpoint", "in")),
+    Topic(
+        "/dp/setpoint", Setpoint, "the input as received (one that fits no schema: below)", ("setpoint", "in")
+    ),
     Topic(
         "/dp/mode",
         ModeRequest,
         "the input, wrapped as `{mode}` (a bare JSON string on Zenoh)",
         ("mode", "in"),
     ),
-    Topic("/dp/tau", ManualTau, "the input as received", ("tau", "in")),
+    Topic("/dp/tau", ManualTau, "the input as received (one that fits no schema: below)", ("tau", "in")),
+    Topic(
+        "/dp/input/malformed",
+        MalformedInput,
+        "an input whose payload does not fit its channel's schema, as text (a replay feeds it, refused as "
+        "live)",
+    ),
     Topic(
         "/dp/tick",
         DeadReckoningTick,
@@ -1217,6 +1241,41 @@ ANY: type[Message] = AnyObject
 
 _EXACT = {t.pattern: t.message for t in TOPICS if not t.pattern.endswith("/")}
 _PREFIXES = sorted((t for t in TOPICS if t.pattern.endswith("/")), key=lambda t: -len(t.pattern))
+
+
+MALFORMED_INPUT_TOPIC = "/dp/input/malformed"
+_INPUT_MESSAGES: dict[str, type[Message]] = {"setpoint": Setpoint, "mode": ModeRequest, "tau": ManualTau}
+
+
+def logged_input(key: str, payload: Any) -> tuple[str, dict[str, Any]]:
+    """The channel and record a Zenoh input ``key`` with ``payload`` (as received: a JSON value, or the
+    service's ``{"invalid": text}`` for bytes that were no JSON) is logged as: ``/dp/<key>`` as received
+    (a mode wrapped as ``{mode}``; anything else that is no object too, or a replay, which unwraps
+    ``{mode}``, would take ``{"mode": "dp"}`` that the live refused) when that fits the channel's schema,
+    else `MALFORMED_INPUT_TOPIC` with the payload as JSON text. Before, a refused ``{"X": "big"}`` or
+    ``{"setpoint": [1, 2, 3]}`` went on the typed channel and broke its schema for every reader that checks
+    (Foxglove among them)."""
+    wrap = key == "mode" or not isinstance(payload, dict)
+    body = {key: payload} if wrap else payload
+    message = _INPUT_MESSAGES.get(key)
+    if message is None:  # (another /dp/ input: a dead-reckoning tick, logged by the gateway itself)
+        return f"/dp/{key}", body
+    try:
+        json.dumps(body, allow_nan=False)  # (a non-finite number: JSON has none, the log would write null)
+        msgspec.convert(body, message)
+    except (msgspec.ValidationError, TypeError, ValueError):
+        # Python's JSON text (Infinity, NaN: what json.loads took them from), read back as it was
+        text = json.dumps(payload, ensure_ascii=False, default=repr)
+        return MALFORMED_INPUT_TOPIC, {"key": key, "payload": text}
+    return f"/dp/{key}", body
+
+
+def input_from_log(topic: str, record: dict[str, Any]) -> tuple[str, Any]:
+    """The key and payload of an input as `logged_input` logged it (the inverse): what a replay feeds."""
+    if topic == MALFORMED_INPUT_TOPIC:
+        return str(record["key"]), json.loads(record["payload"])
+    key = topic[len("/dp/") :]
+    return key, (record.get(key, record) if key == "mode" else record)
 
 
 def message_for_topic(topic: str) -> type[Message]:
