@@ -607,7 +607,13 @@ class LocationFix(Message, kw_only=True):
     FOXGLOVE = True
 
     timestamp: Annotated[Time, doc("Time of the fix (UTC): seconds and nanoseconds since the Unix epoch.")]
-    frame_id: Annotated[str, doc("Name of the antenna / source that produced the fix (`estimate` for η).")]
+    frame_id: Annotated[
+        str,
+        doc(
+            "The frame the fix is of: the source (antenna) for a GNSS fix, `vessel` for the estimate on "
+            "`/dp/estimate/fix` (its pose's frame; Keelson's `dpgw/estimate` keeps `estimate`)."
+        ),
+    ]
     latitude: Annotated[float, doc("Latitude (WGS-84, north positive).", "deg")]
     longitude: Annotated[float, doc("Longitude (WGS-84, east positive).", "deg")]
     altitude: Annotated[float, doc("Altitude; 0 when not known.", "m")]
