@@ -48,6 +48,10 @@ HOLD_PERIOD_S = 120.0
 """Natural period of the joystick operator's slow correction of the drift off station while DP is not yet
 engaged (`Simulation.held_tau`), for a 76.2 m vessel, Froude-scaled with the vessel's length
 (× √(L/76.2)): slow beside the waves (the correction works on the true LF motion) and within the hold."""
+LOG_ORDER_WINDOW_S = 2.0
+"""The demo's log holds each record until it is this far (log time) behind the newest written, and
+writes in log-time order (`McapLogWriter.hold_for_order`): the truth runs ~0.4 s ahead of the gateway's
+inputs, more on a busy machine; a crash loses this much more of the log (0.2 s of wall time at 10x)."""
 DP_SETTLE_S = 30.0
 """Station keeping is scored from this long after DP was engaged (and never before ``SETTLE_S``): the
 take-over and the reference model's first moves are not station keeping."""
@@ -504,6 +508,9 @@ def run(args: argparse.Namespace) -> int:
             service.log.add_metadata(
                 DEMO_METADATA, {"settle_s": f"{SETTLE_S:g}", "min_scored_s": f"{MIN_SCORED_S:g}"}
             )
+            # the simulator writes its truth into this log as the plant computes it, ahead of what the
+            # gateway logs of the same time: held a window so that the file is in log-time order
+            service.log.hold_for_order(LOG_ORDER_WINDOW_S)
         engage_s = engage_time(args, service.pipeline.observer) if engages_later(args, scenario) else None
         if engage_s is not None:
             for line in engagement_lines(args, engage_s):

@@ -204,3 +204,54 @@ def test_the_last_status_of_a_run_brings_its_log_lines(tmp_path: Path) -> None:
     assert [o.topic for o in out] == ["/dp/status", "/dp/log"]
     assert {o.stamp_ns for o in out} == {T0 + 3 * S}
     assert out[1].payload["message"].startswith("alarm: source mux: stale")
+
+
+def test_a_replay_of_a_simulator_log_writes_its_truth_between_the_events(tmp_path: Path) -> None:
+    """A simulator log's truth went into the replay's output all first, then the events: a reader that
+    streams the file saw time go back by the whole log (150 s on a demo's log). Now at its own times."""
+    from simulator.runner import Simulation
+    from simulator.scenarios import get_scenario
+
+    sim_log, out = tmp_path / "sim.mcap", tmp_path / "replay.mcap"
+    with McapLogWriter(sim_log) as w:
+        Simulation(get_scenario("torsetnes_2004"), seed=1, log=w).run(20.0)
+    from gateway.replay import build_config
+
+    inputs = open_inputs([sim_log])
+    with McapLogWriter(out, flush_on_log_time=False) as w:
+        result = run_replay(inputs, build_pipeline(build_config(inputs), []), out=w)
+    assert len(result.truth) > 100
+    assert backward_steps(out) == []
+    truth = [ns for topic, ns, _ in file_order(out) if topic == "/truth/state"]
+    assert truth == sorted(int(r["stamp_ns"]) for r in result.truth)
+
+
+def test_a_log_two_producers_write_into_is_in_order_within_its_window(tmp_path: Path) -> None:
+    """`dpgw demo`'s simulator writes its truth into the gateway's log as the plant computes it, ~0.4 s
+    before the gateway logs the inputs of that time, and some gateway records of a time come a few ms
+    before its truth: the file went back in time at nearly every step (479 times in 150 s). With
+    `hold_for_order` the file is in log-time order and holds every record, the held ones written at close."""
+    from wire.messages import DeadReckoningTick
+
+    path = tmp_path / "held.mcap"
+    with McapLogWriter(path) as w:
+        w.hold_for_order(2.0)
+        for k in range(100):  # the plant at 10 Hz, 0.4 s ahead of the gateway's inputs, 5 ms behind its own
+            w.write("/truth/state", DeadReckoningTick(silent_s=float(k)), T0 + k * S // 10)
+            if k >= 4:
+                w.write_raw_nmea("gps", HDT, T0 + (k - 4) * S // 10 + 5_000_000)
+                w.write_many(
+                    [("/dp/tick", DeadReckoningTick(silent_s=0.0).encode(), T0 + k * S // 10 + 1, None)]
+                )
+    assert backward_steps(path) == []
+    topics = [t for t, _, _ in file_order(path)]
+    assert topics.count("/truth/state") == 100 and topics.count("/raw/nmea/gps") == 96
+    assert topics.count("/dp/tick") == 96
+    # without it, as before: out of order
+    plain = tmp_path / "plain.mcap"
+    with McapLogWriter(plain) as w:
+        for k in range(10):
+            w.write("/truth/state", DeadReckoningTick(silent_s=float(k)), T0 + k * S // 10)
+            if k >= 4:
+                w.write_raw_nmea("gps", HDT, T0 + (k - 4) * S // 10 + 5_000_000)
+    assert backward_steps(plain) != []

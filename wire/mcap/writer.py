@@ -36,6 +36,7 @@ import atexit
 import contextlib
 import errno
 import functools
+import heapq
 import json
 import logging
 import math
@@ -232,6 +233,11 @@ class McapLogWriter:
         self._compression = _COMPRESSION[compression]
         self._fsync = fsync
         self._lock = threading.Lock()
+        # `hold_for_order`: records held until the log's newest time is this far past them (0: none held)
+        self._reorder_ns = 0
+        self._held: list[tuple[int, int, str, bytes, int, Any]] = []
+        self._held_seq = 0
+        self._newest_ns = 0
         self._closed = False
         self._warned_closed = False
         self._metadata: list[tuple[str, dict[str, str]]] = []
@@ -410,10 +416,52 @@ class McapLogWriter:
             if self.error is not None and not self._recover_locked():
                 self._drop(1)
                 return
+            if self._reorder_ns:
+                self._hold_locked(topic, data, log_time_ns, publish_time_ns, schema)
+                return
             try:
                 self._write_locked(topic, data, log_time_ns, publish_time_ns, schema)
             except OSError as exc:
                 self._fail_locked(exc, lost=1)
+
+    def hold_for_order(self, window_s: float) -> None:
+        """From now on write every record only once the newest log time written to this log is
+        ``window_s`` past it (and the rest at close), in log-time order: for a log that several producers
+        write into, each in its own order but at its own pace. `dpgw demo`'s simulator writes its truth as
+        the plant computes it, up to ~0.4 s before the gateway logs the inputs of that time, and the
+        gateway's records of a time can come a few ms before the truth's: written as they came, a reader
+        that streams the file (without its index) saw time go back at nearly every step (479 times in a
+        150 s demo). A crash loses at most the window's records more. 0: write at once again."""
+        with self._lock:
+            self._reorder_ns = max(0, round(window_s * 1e9))
+            if not self._reorder_ns:
+                self._release_held_locked(None)
+
+    def _hold_locked(
+        self, topic: str, data: bytes, log_time_ns: int, publish_time_ns: int, schema: Any
+    ) -> None:
+        """`hold_for_order`'s heap: hold the record, then write every held one the window has passed."""
+        heapq.heappush(self._held, (log_time_ns, self._held_seq, topic, data, publish_time_ns, schema))
+        self._held_seq += 1
+        if log_time_ns > self._newest_ns:
+            self._newest_ns = log_time_ns
+        self._release_held_locked(self._newest_ns - self._reorder_ns)
+
+    def _release_held_locked(self, until_ns: int | None) -> None:
+        """Write the held records up to ``until_ns`` (None: all), oldest first."""
+        held = self._held
+        wrote = False
+        while held and (until_ns is None or held[0][0] <= until_ns):
+            ns, _, topic, data, publish_ns, schema = heapq.heappop(held)
+            try:
+                self._write_locked(topic, data, ns, publish_ns, schema, check_flush=False)
+            except OSError as exc:
+                self._fail_locked(exc, lost=1 + len(held))
+                held.clear()
+                return
+            wrote = True
+        if wrote:
+            self._after_write()
 
     def write_many(self, items: Sequence[tuple[str, bytes, int, SchemaSpec | None]]) -> None:
         """`write_encoded` for several payloads in order, each ``(topic, data, time_ns, schema)`` with the
@@ -431,6 +479,10 @@ class McapLogWriter:
                 return
             if self.error is not None and not self._recover_locked():
                 self._drop(len(items))
+                return
+            if self._reorder_ns:
+                for topic, data, time_ns, schema in items:
+                    self._hold_locked(topic, data, int(time_ns), int(time_ns), schema)
                 return
             try:
                 writer = self._writer
@@ -568,6 +620,8 @@ class McapLogWriter:
         with self._lock:
             if self._closed:
                 return
+            if self._held:
+                self._release_held_locked(None)
             self._closed = True
             try:
                 self._finish_file()
