@@ -635,7 +635,7 @@ def _conclude(
     if args.report:
         said = [*checks, *([f"advice: {advice}"] if advice else [])]
         written, report_warnings = _report(
-            args, config.vessel, specs, result, evidence.new, said, live, compared
+            args, config.vessel, specs, result, evidence.new, said, live, compared, summary["dp_performance"]
         )
         summary["report"] = [str(p) for p in written]
         summary["report_warnings"] = report_warnings
@@ -744,15 +744,6 @@ def _thrust_trace(
     t_raw, tau_raw = series(compared.raw)
     lo, hi = w["band_rad_s"]
     return ThrustTrace(t, tau, t_raw, tau_raw, (float(lo), float(hi)))
-
-
-def _with_wave_filtering(
-    dp: dict[str, Any] | None, wave_filtering: dict[str, Any] | None
-) -> dict[str, Any] | None:
-    """``dp`` (`_dp_performance`) with the wave-filtering figures the summary has, for the report."""
-    if dp is None or wave_filtering is None:
-        return dp
-    return {**dp, "wave_filtering": wave_filtering}
 
 
 def _print_dp(dp: dict[str, Any]) -> None:
@@ -1338,6 +1329,7 @@ def _report(
     checks: list[str],
     live: dict[str, list[dict[str, Any]]] | None = None,
     compared: Comparison | None = None,
+    dp: dict[str, Any] | None = None,
 ) -> tuple[list[Path], list[str]]:
     """The report of the replay. Its measurement is the fused stream with only the samples the fusion
     received since the previous step (`new`): the pipeline steps on every input chunk with each DOF's
@@ -1404,9 +1396,10 @@ def _report(
         # before the first fused measurement (a cycle without a fix), the report's t = 0
         log_spans={where: _span_words(_span(a, b)) for where, (a, b) in r.spans.items()},
         min_scored_s=getattr(args, "min_scored", None),
-        dp_performance=_with_wave_filtering(_dp_performance(live, t0), compared.figures if compared else None)
-        if live is not None
-        else None,
+        # the summary's own (its times from the log's start, as the console and --json say them): one
+        # object everywhere; computed again from the report's t = 0 (the first fused measurement) its
+        # times were 0.12 s off the --json's, and a start "-0 s"
+        dp_performance=dp,
         thrust=_thrust_trace(live, compared, t0) if live is not None and compared is not None else None,
         **truth_kw,
     )
