@@ -278,7 +278,11 @@ class Measurement(Message, kw_only=True):
     valid: Annotated[
         list[bool],
         msgspec.Meta(min_length=3, max_length=3),
-        doc("Per component of eta [N, E, ψ]: measured and accepted this step."),
+        doc(
+            "Per component of eta [N, E, ψ]: a measurement in use at this step, new or held from its "
+            "source's last accepted one (within its `timeout_s`: the observer steps on every input with each "
+            "DOF's latest measurement)."
+        ),
     ]
     sources: Annotated[list[str], doc("Names (from the config) of the sources that contributed.")]
     quality: Annotated[
