@@ -705,8 +705,8 @@ class Pipeline:
         so the instant is stepped once with both. A replay of a text log says so where its cycle feeds
         several sources (a source per role of a user's config, a network capture's devices, logs merged
         by time): each would otherwise step the observer at the same time again, with a dt of zero and a
-        second estimate of the same stamp. Live, two inputs never share a receive time to the
-        nanosecond, and no feeder defers."""
+        second estimate of the same stamp. No live feeder defers; two live inputs at one time (the
+        simulation's clock interpolates its stamps) step once all the same (`_owed_step`)."""
         if isinstance(event, ControlEvent):
             if event.key == TICK_KEY:  # a live tick that dead-reckoned, from its log (`tick`)
                 return self.tick(event.rx_ns)
@@ -757,6 +757,12 @@ class Pipeline:
         left to it, unless this one leaves it to the next in turn: a step owed is taken by the next event
         whatever that brings (nothing, a source the pipeline does not have, the end of a stream)."""
         if defer_step or not self._step_deferred:
+            return []
+        if rx_ns == self._last_step_ns and self.observer.initialized:
+            # The observer stepped at this very time already: a step of dt 0 changes nothing of its state
+            # and published the same estimate again (a second /dp/estimate of one stamp: live on the
+            # simulation's clock, whose interpolated stamps can coincide, a gyro and a GGA read at one
+            # tick). The measurement is held, and the step stays owed to the next event.
             return []
         self._step_deferred = False
         return self._step(rx_ns, source)

@@ -706,3 +706,28 @@ def test_a_reference_state_change_keeps_the_services_alarms() -> None:
     assert all(service_alarm in s["alarms"] for s in statuses)
     lines = [json.loads(o.message.encode())["message"] for o in out if o.topic == "/dp/log"]
     assert not [x for x in lines if "cleared: clock" in x], lines
+
+
+def test_two_inputs_at_one_time_step_the_observer_once() -> None:
+    """On the simulation's clock a gyro's read and a GGA's can be stamped at one time (its stamps are
+    interpolated between ticks): the second stepped the observer again with a dt of zero and published a
+    byte-identical second estimate of the same stamp (9 in a 150 s demo). One step an instant: the second
+    input's measurement is held and goes into the next step."""
+    p = pipeline([nmea_src("gps", ["position"]), nmea_src("gyro", ["heading"])])
+    hdt = enc.hdt("HE", 30.0).encode()
+    stamps: list[int] = []
+    positions = []
+    for k in range(20):
+        t = T0 + k * S // 10
+        outs = p.feed(RawEvent(t, "gyro", hdt))
+        if k % 10 == 0:  # a 1 Hz fix at the gyro's time
+            outs += p.feed(RawEvent(t, "gps", gga_at(2.0 * (k // 10), 0.0)))
+        for o in outs:
+            if o.topic == "/dp/estimate":
+                stamps.append(o.stamp_ns)
+            if o.topic == "/dp/measurement":
+                positions.append((o.stamp_ns, o.message.eta[0]))
+    assert len(stamps) == len(set(stamps)), [s for s in stamps if stamps.count(s) > 1][:3]
+    # the fix of t = 1 s (2 m north), read after that instant's gyro step, is in the step after it
+    after = [n for ns, n in positions if ns == T0 + 11 * S // 10]
+    assert after == [pytest.approx(2.0, abs=1e-3)], positions[-10:]
