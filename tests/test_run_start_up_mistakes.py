@@ -233,27 +233,29 @@ def test_the_log_folder_note_of_a_user_without_a_passwd_entry(
         raise KeyError(f"getpwuid(): uid not found: {uid}")
 
     monkeypatch.setattr(pwd, "getpwuid", unknown)
-    (tmp_path / "afile").write_bytes(b"")  # (a file in the way: as root, permissions cannot make the case)
-    note = log_folder_note(str(tmp_path / "afile" / "dpgw.mcap"))
+    # (as root, permissions cannot make the case: the check of what this user may write is stood in for;
+    # a file in the way is a problem of its own, not this note)
+    monkeypatch.setattr("dpgw.cli_run.writable", lambda path: False)
+    note = log_folder_note(str(tmp_path / "logs" / "dpgw.mcap"))
     assert note is not None and f"for this user (uid {os.geteuid()})" in note, note
+    assert f"the folder {tmp_path / 'logs'} does not exist and cannot be made" in note
 
 
 def test_check_notes_a_log_folder_that_cannot_be_made(tmp_path: Path) -> None:
     """``sudo -u dpgw dpgw run --check`` is run to find what the service's user cannot do; a log folder it
     cannot write or make stopped the service's start-up after the check had said ``ok`` with no word of
-    it. Now a note (not a problem: systemd's LogsDirectory may make the folder by then); the run itself
-    still stops on it with one line. (A file in the way: as root, permissions cannot make the case.)"""
+    it. A folder this user cannot make is a note (not a problem: systemd's LogsDirectory may make it by
+    then; `test_the_log_folder_note_of_a_user_without_a_passwd_entry`); a file in the folder's way, which
+    nothing at start-up clears, is a problem (status 2), and the run itself stops on it with one line."""
     cfg = write_config(tmp_path, "udp://127.0.0.1:0")
     (tmp_path / "afile").write_bytes(b"")
     cfg.write_text(
         cfg.read_text().replace(str(tmp_path / "live.mcap"), str(tmp_path / "afile" / "dpgw.mcap"))
     )
     p = check(cfg)
-    assert p.returncode == 0, p.stderr
-    notes = [ln for ln in p.stdout.splitlines() if ln.startswith("note: log.path: ")]
-    assert (
-        len(notes) == 1 and f"the folder {tmp_path / 'afile'} does not exist and cannot be made" in notes[0]
-    )
+    assert p.returncode == 2, p.stdout + p.stderr
+    assert f"log.path: cannot make the log's folder: {tmp_path / 'afile'} is a file, not a folder" in p.stderr
+    assert "note: log.path" not in p.stdout
     run = start(cfg)
     assert run.returncode == 2 and "log.path: cannot make the log's folder" in run.stderr, run.stderr
     # a folder that can be made: no note

@@ -130,6 +130,17 @@ def _connect(client_class: Any, scheduler: str, wait_s: float = CONNECT_WAIT_S) 
     server, a port forward to nothing): its handshake then waits for ever. The attempt runs in a thread of
     its own, given up after ``wait_s``; the thread, if still waiting, is a daemon and dies with the process.
     """
+    from distributed.comm.addressing import get_address_host_port, parse_address
+    from distributed.comm.registry import get_backend
+
+    try:  # the address's form first, as Dask's client reads it (no client, no thread, for a typo)
+        get_backend(parse_address(scheduler)[0])
+        get_address_host_port(scheduler)
+    except ValueError as exc:
+        raise StudyRunError(
+            f"--scheduler {scheduler}: not an address Dask can dial ({exc}); give it as a `dask "
+            "scheduler` prints it, tcp://HOST:8786"
+        ) from None
     outcome: dict[str, Any] = {}
 
     def attempt() -> None:
@@ -149,11 +160,6 @@ def _connect(client_class: Any, scheduler: str, wait_s: float = CONNECT_WAIT_S) 
     error = outcome.get("error")
     if isinstance(error, OSError):
         raise StudyRunError(f"--scheduler {scheduler}: no Dask scheduler answers ({error})") from None
-    if isinstance(error, ValueError):  # Dask's parse of the address: no port, an unknown scheme
-        raise StudyRunError(
-            f"--scheduler {scheduler}: not an address Dask can dial ({error}); give it as a `dask "
-            "scheduler` prints it, tcp://HOST:8786"
-        ) from None
     if error is not None:
         raise error
     return outcome["client"]

@@ -633,7 +633,7 @@ class ReferenceMonitor:
             why = refused(st.source, now_ns, r.timeout_ns) if refused is not None else None
             if why is not None:
                 ago = f"for {(now_ns - last) / NS:.1f} s" if last else "yet"
-                st.fail(now_ns, f"no valid data {ago}: its reads are refused ({why})")
+                st.refuse_reads(now_ns, f"no valid data {ago}: its reads are refused ({why})")
             elif last:
                 st.stale(now_ns, (now_ns - max(last, st.failed_ns)) / NS)
         for st, track, timeout_ns in self._attitude.values():

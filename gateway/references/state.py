@@ -71,6 +71,7 @@ class SourceState:
         self._passing_since: int | None = None
         self._soft: str = ""
         self._was_rejected = False  # went stale while rejected or readmitting: readmit when it returns
+        self._reads_refused = False  # rejected for its reads alone (`refuse_reads`): no value failed a test
         self.failed_ns = 0  # when data last failed a test
         self.changes: list[StateChange] = []
 
@@ -92,6 +93,23 @@ class SourceState:
 
     def fail(self, now_ns: int, reason: str) -> None:
         self._passing_since = None
+        self._reads_refused = False
+        self.failed_ns = now_ns
+        self._set(now_ns, REJECTED, reason)
+
+    def refuse_reads(self, now_ns: int, reason: str) -> None:
+        """Its reads keep coming and its decoder refuses them all (`ReferenceMonitor.refresh`): rejected,
+        with that reason, not stale. No value of it failed a test, so its first good one is used at once,
+        as after a silence; one that was out for a test's failure (rejected, readmitting) stays owed its
+        readmission."""
+        owed = (
+            (self.state == REJECTED and not self._reads_refused)
+            or self._passing_since is not None
+            or (self.state == STALE and self._was_rejected)
+        )
+        self._reads_refused = not owed
+        self._was_rejected = owed
+        self._passing_since = None
         self.failed_ns = now_ns
         self._set(now_ns, REJECTED, reason)
 
@@ -103,7 +121,9 @@ class SourceState:
         """The latest data passed every test."""
         if self.state == OK and self._passing_since is None and not self._soft:
             return  # ok and staying ok (every fix of a healthy source): nothing changes
-        if self.state == REJECTED or (self.state == STALE and self._was_rejected):
+        if self._reads_refused:  # (its reads decode again, and no value of it was wrong: in use at once)
+            self._reads_refused = False
+        elif self.state == REJECTED or (self.state == STALE and self._was_rejected):
             self._was_rejected = False
             self._passing_since = now_ns
             self._set(now_ns, SUSPECT, f"readmitting: passes again, in use after {self.readmit_ns / NS:g} s")
@@ -136,7 +156,10 @@ class SourceState:
 
     def stale(self, now_ns: int, age_s: float) -> None:
         if self.state != STALE:
-            self._was_rejected = self.state == REJECTED or self._passing_since is not None
+            self._was_rejected = (
+                self.state == REJECTED and not self._reads_refused
+            ) or self._passing_since is not None
+            self._reads_refused = False
             self._passing_since = None
             self._set(now_ns, STALE, f"no data for {age_s:.1f} s")
 
