@@ -59,7 +59,7 @@ Fossen & Strand (1999), Sec. 5, with two of the paper's misprints corrected (sai
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -543,19 +543,10 @@ def tuning_advice(vessel: VesselModel, gains: PassiveGains) -> list[str]:
     slowest = slowest_error_rate(vessel, gains)
     a = velocity_injection_rate(vessel, gains)
     if -1.0 / SLOW_MODE_S < slowest < 0.0:
-        # one a for all DOFs, as --velocity-injection takes it; it replaces the loop's floor, so none below it
-        floor = float(injection_floor(vessel, tuning).max()) if tuning.loop_bandwidth is not None else 0.0
-        tried = []
-        for factor in (0.25, 0.5, 2.0, 4.0):
-            candidate = float(f"{factor * a.max():.2g}")
-            if candidate < floor:
-                continue
-            try:
-                g = passive_gains(vessel, replace(tuning, velocity_injection=candidate))
-            except TuningError:
-                continue
-            if all(c.ok for c in check_gains(g)):
-                tried.append((slowest_error_rate(vessel, g), candidate))
+        tried = [
+            (slowest_error_rate(vessel, g), candidate)
+            for candidate, g in _other_injections(vessel, tuning, a, (0.25, 0.5, 2.0, 4.0))
+        ]
         better = [t for t in tried if t[0] < slowest * 1.1]
         if better:
             rate, best = min(better, key=lambda t: t[0])
@@ -581,6 +572,25 @@ def tuning_advice(vessel: VesselModel, gains: PassiveGains) -> list[str]:
     return notes
 
 
+def _other_injections(
+    vessel: VesselModel, tuning: PassiveTuning, a: Array, factors: tuple[float, ...]
+) -> Iterator[tuple[float, PassiveGains]]:
+    """The tuning with the velocity injection a (one for all DOFs, as --velocity-injection takes it) at
+    each of ``factors`` × its largest, to two figures, and the gains it gives: those whose gains pass
+    `check_gains`, none below the DP loop's floor (``loop_bandwidth``: the injection replaces it)."""
+    floor = float(injection_floor(vessel, tuning).max()) if tuning.loop_bandwidth is not None else 0.0
+    for factor in factors:
+        candidate = float(f"{factor * a.max():.2g}")
+        if candidate < floor:
+            continue
+        try:
+            g = passive_gains(vessel, replace(tuning, velocity_injection=candidate))
+        except TuningError:
+            continue
+        if all(c.ok for c in check_gains(g)):
+            yield candidate, g
+
+
 def _weak_notch_cause(vessel: VesselModel, gains: PassiveGains, a: Array) -> str:
     """Why the notch of ``gains`` is shallow and what deepens it, found in this order: the ratio ζ/ζn,
     which sets the notch's depth (about 20·log10(ζ/ζn) dB; none, or a peak, at ζn ≤ ζ, which tuning rule
@@ -591,18 +601,9 @@ def _weak_notch_cause(vessel: VesselModel, gains: PassiveGains, a: Array) -> str
     ratio = f"ζ = {zeta:.3g}, ζn = {zeta_n:.3g} (depth about 20·log10(ζ/ζn) dB)"
     if zeta_n <= zeta:
         return f"ζn must be above ζ for a notch, and {ratio}: raise --zeta-n (default 1.0) or lower --zeta"
-    tuning = gains.tuning
-    floor = float(injection_floor(vessel, tuning).max()) if tuning.loop_bandwidth is not None else 0.0
-    for factor in (0.5, 0.25, 0.1, 0.05, 0.02):
-        candidate = float(f"{factor * a.max():.2g}")
-        if candidate < floor:
-            continue
-        try:
-            g = passive_gains(vessel, replace(tuning, velocity_injection=candidate))
-        except TuningError:
-            continue
+    for candidate, g in _other_injections(vessel, gains.tuning, a, (0.5, 0.25, 0.1, 0.05, 0.02)):
         depth = notch_depth_db(vessel, g).max()
-        if depth <= WEAK_NOTCH_DB and all(c.ok for c in check_gains(g)):
+        if depth <= WEAK_NOTCH_DB:
             return (
                 f"the velocity injection a = {_per_dof(a)} 1/s fills the notch (ω0 = "
                 f"{gains.omega0.max():.3g} rad/s): --velocity-injection {candidate:g} gives {depth:+.1f} dB "
