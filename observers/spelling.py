@@ -35,7 +35,7 @@ def key_problem(
     """The first misspelt key of a table read from a file, as (key, what is wrong), or None.
 
     Each key not in ``known`` is one. When the word it misspells is a ``required`` key the table lacks,
-    that is the problem said — ``('length_m', "missing, did you mean 'length_m'? (found 'lenght_m')")`` —
+    that is the problem said — ``('length_m', "missing: 'lenght_m' is there, a misspelling of it?")`` —
     since a person reads "missing" and looks for the key they did write; otherwise the unknown key is
     named with its suggestion and the known keys. Required keys absent without a look-alike are left to
     the caller, which knows what each is for."""
@@ -44,7 +44,7 @@ def key_problem(
             continue
         meant = closest(key, known)
         if meant is not None and meant in required and meant not in table:
-            return meant, f"missing, did you mean '{meant}'? (found '{key}')"
+            return meant, f"missing: '{key}' is there, a misspelling of it?"
         hint = f", did you mean '{meant}'?" if meant is not None else ""
         return key, f"unknown key{hint} (known: {', '.join(known)})"
     return None

@@ -216,14 +216,14 @@ def _refusal(f: Path) -> str:
             "cybership2",
             "length_m =",
             "lenght_m =",
-            "field 'length_m': missing, did you mean 'length_m'? (found 'lenght_m')",
+            "field 'length_m': missing: 'lenght_m' is there, a misspelling of it?",
         ),
         # before: "field 'bis.Mbis': must be a 3×3 matrix, got shape ()"
         (
             "mss_supply",
             "Mbis =",
             "Mbiss =",
-            "field 'bis.Mbis': missing, did you mean 'Mbis'? (found 'Mbiss')",
+            "field 'bis.Mbis': missing: 'Mbiss' is there, a misspelling of it?",
         ),
         ("mss_supply", "Mbis =", "inertia =", "field 'bis.inertia': unknown key (known: g, Mbis, Dbis)"),
         (
@@ -236,7 +236,7 @@ def _refusal(f: Path) -> str:
             "cybership2",
             "max_thrust_n =",
             "max_thrust =",
-            "field 'thrusters[0].max_thrust_n': missing, did you mean 'max_thrust_n'? (found 'max_thrust')",
+            "field 'thrusters[0].max_thrust_n': missing: 'max_thrust' is there, a misspelling of it?",
         ),
         (
             "cybership2",
@@ -248,7 +248,7 @@ def _refusal(f: Path) -> str:
             "mss_osv",
             "beam_m =",
             "beam =",
-            "field 'hull.beam_m': missing, did you mean 'beam_m'? (found 'beam')",
+            "field 'hull.beam_m': missing: 'beam' is there, a misspelling of it?",
         ),
         ("mss_osv", "notes =", "note =", "field 'hull.note': unknown key, did you mean 'notes'?"),
         ("mss_osv", "cx =", "c_x =", "field 'hull.wind.c_x': unknown key, did you mean 'cx'?"),
