@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from dpgw import cli_json
-from dpgw.cli_demo import MIN_SCORED_S
+from dpgw.cli_demo import DP_SETTLE_S, MIN_SCORED_S, SETTLE_S
 from dpgw.cli_foxglove import add_foxglove_arg, connect_lines
 from dpgw.cli_paths import mcap_path_problem, output_folder_problem, unwritable
 from dpgw.cli_progress import terminal_bar
@@ -597,7 +597,6 @@ def _conclude(
         # with a report (the analysis): what the live gateway's wave filtering kept out of its
         # commanded thrust, against the same controller fed the raw measurements (the log replayed
         # once more)
-        from dpgw.cli_demo import DP_SETTLE_S, SETTLE_S
         from dpgw.raw_feedback import compare_with_raw_feedback, thrust_wave_band
 
         # over the stretch the demo scores (its log replayed gives its figures): from DP_SETTLE_S after

@@ -323,6 +323,11 @@ NOT_BAD_INPUT = frozenset((AIS, COMMENT, TAG_BLOCK, IEC_61162_450, OTHER_TAG_SOU
 health, and a source's good input may come with them on every line (a TAG block, a datagram header)."""
 
 
+def reasons_text(counts: Counter[str]) -> str:
+    """``bad_checksum 80, no_checksum 3``: the three commonest reasons with their counts."""
+    return ", ".join(f"{reason} {n}" for reason, n in counts.most_common(3))
+
+
 @dataclass
 class SourceCounters:
     received: int = 0  # sentences/frames decoded and used or understood
@@ -358,15 +363,19 @@ class SourceCounters:
         since = self.last_good_ns
         if not since or (now_ns - since) / NS <= timeout_s:
             return None
-        grown = Counter(
-            {r: n for r, n in (self.rejected - self.rejected_at_good).items() if r not in NOT_BAD_INPUT}
-        )
+        grown = self.rejected_since_good()
         if not grown:
             return None  # (bytes that are not even rejects: the framers hold them; the stale rule says it)
-        reasons = ", ".join(f"{reason} {n}" for reason, n in grown.most_common(3))
         return (
             f"source {name}: no valid data for {(now_ns - since) / NS:.1f} s "
-            f"({sum(grown.values())} rejected: {reasons})"
+            f"({sum(grown.values())} rejected: {reasons_text(grown)})"
+        )
+
+    def rejected_since_good(self) -> Counter[str]:
+        """The rejects since the good input the last status saw, not-bad reasons (`NOT_BAD_INPUT`) left
+        out: what is wrong with a source whose reads keep coming with nothing good in them."""
+        return Counter(
+            {r: n for r, n in (self.rejected - self.rejected_at_good).items() if r not in NOT_BAD_INPUT}
         )
 
     def as_message(self, now_ns: int) -> SourceStatus:
@@ -828,12 +837,9 @@ class Pipeline:
         c = self.counters.get(source)
         if c is None or not c.last_rx_ns or now_ns - c.last_rx_ns > timeout_ns or c.received != c.good_seen:
             return None
-        grown = Counter(
-            {r: n for r, n in (c.rejected - c.rejected_at_good).items() if r not in NOT_BAD_INPUT}
-        )
-        if not grown:
-            return None  # (bytes that are not even rejects: the framers hold them; silence to the tests)
-        return ", ".join(f"{reason} {n}" for reason, n in grown.most_common(3))
+        grown = c.rejected_since_good()
+        # (none: bytes that are not even rejects, which the framers hold: silence to the tests)
+        return reasons_text(grown) if grown else None
 
     def silence_s(self, now_ns: int) -> float:
         """How long nothing has stepped the observer at ``now_ns`` (0 before the first step)."""

@@ -1044,21 +1044,6 @@ def config_from_log(path: str | Path, base_dir: Path | None = None) -> GatewayCo
     return parse_config(data, base_dir=base_dir or Path(path).resolve().parent, where=f"{path} metadata")
 
 
-def _write_truth_until(
-    out: McapLogWriter, truth: list[dict[str, Any]], start: int, until_ns: int | None
-) -> tuple[int, int | None]:
-    """Write ``truth[start:]`` up to and including ``until_ns`` (None: all) to ``out`` at their stamps; the
-    index of the next record to write and its stamp (None: none left)."""
-    k = start
-    while k < len(truth):
-        ns = int(truth[k]["stamp_ns"])
-        if until_ns is not None and ns > until_ns:
-            return k, ns
-        out.write("/truth/state", truth[k], ns, ns)
-        k += 1
-    return k, None
-
-
 def run_replay(
     inputs: list[Input],
     pipeline: Pipeline,
@@ -1083,11 +1068,11 @@ def run_replay(
     for inp in inputs:
         if inp.kind == "mcap":
             result.truth.extend(truth_records(inp.path))
-    # A simulator log's truth goes into --out at its times, between the events (`truth_until`): written
-    # all first, a reader streaming the file (without its index) saw time go back by the whole log.
+    # A simulator log's truth goes into --out at its times, before each event's records: written all
+    # first, a reader streaming the file (without its index) saw time go back by the whole log.
     truth = sorted(result.truth, key=lambda r: int(r["stamp_ns"])) if out is not None else []
-    truth_at = 0
-    truth_next = int(truth[0]["stamp_ns"]) if truth else None
+    truth_ns = [int(r["stamp_ns"]) for r in truth]
+    truth_at = 0  # the next truth record to write
     frozen = gc.get_freeze_count()
     protocols = {name: spec.protocol for name, spec in pipeline.sources.items()}
     estimates = result.estimates
@@ -1179,16 +1164,18 @@ def run_replay(
             if isinstance(msg, Estimate):
                 estimates[msg.observer] += 1
         if out is not None:
-            if truth_next is not None and truth_next <= ev.rx_ns:
-                truth_at, truth_next = _write_truth_until(out, truth, truth_at, ev.rx_ns)
+            while truth_at < len(truth_ns) and truth_ns[truth_at] <= ev.rx_ns:
+                out.write("/truth/state", truth[truth_at], truth_ns[truth_at], truth_ns[truth_at])
+                truth_at += 1
             out.write_many(records)  # the cycle's raw input, then its outputs: the order `write` would give
         outputs_n += len(outputs)
         if on_outputs is not None:
             on_outputs(ev, outputs)
         if progress is not None and events % 2000 == 0:
             progress(events)
-    if out is not None and truth_next is not None:  # (the truth after the last event)
-        _write_truth_until(out, truth, truth_at, None)
+    if out is not None:
+        for k in range(truth_at, len(truth_ns)):  # (the truth after the last event)
+            out.write("/truth/state", truth[k], truth_ns[k], truth_ns[k])
     if status_period_ns is not None and events and pipeline.last_ns > status_ns:
         last = pipeline.status_outputs(pipeline.last_ns)  # the last status, as the live gateway's at its stop
         if out is not None:

@@ -1116,6 +1116,9 @@ class ManualTau(Message, kw_only=True):
     N: Annotated[float, doc("Yaw moment.", "N·m")]
 
 
+MALFORMED_INPUT_TOPIC = "/dp/input/malformed"
+
+
 class MalformedInput(Message, kw_only=True):
     """A Zenoh input whose payload does not fit its own channel's schema (a mode "DP", a setpoint without
     its heading, a τ of strings, bytes that are no JSON), logged here as text so that every record on
@@ -1183,7 +1186,7 @@ TOPICS: tuple[Topic, ...] = (
     ),
     Topic("/dp/tau", ManualTau, "the input as received (one that fits no schema: below)", ("tau", "in")),
     Topic(
-        "/dp/input/malformed",
+        MALFORMED_INPUT_TOPIC,
         MalformedInput,
         "an input whose payload does not fit its channel's schema, as text (a replay feeds it, refused as "
         "live)",
@@ -1253,7 +1256,6 @@ _EXACT = {t.pattern: t.message for t in TOPICS if not t.pattern.endswith("/")}
 _PREFIXES = sorted((t for t in TOPICS if t.pattern.endswith("/")), key=lambda t: -len(t.pattern))
 
 
-MALFORMED_INPUT_TOPIC = "/dp/input/malformed"
 _INPUT_MESSAGES: dict[str, type[Message]] = {"setpoint": Setpoint, "mode": ModeRequest, "tau": ManualTau}
 
 
