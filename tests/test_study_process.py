@@ -76,3 +76,33 @@ def test_a_signal_stops_the_study_and_says_what_is_kept(
         "command resumes from them"
     ]
     assert "leaked" not in err and "Traceback" not in err
+
+
+WORKER_LOGS = """
+import logging, sys
+import distributed  # its own logging set up, as in a worker process (the root has no handler there)
+from dpgw.study.worker_setup import dask_setup
+
+dask_setup(None)
+log = logging.getLogger("distributed.worker")
+try:
+    raise OSError("Timed out trying to connect to tcp://127.0.0.1:1")
+except OSError:
+    log.exception("Failed to communicate with scheduler during heartbeat.")
+    log.exception("Unexpected exception during heartbeat. Closing worker.")
+log.error("some other error")
+"""
+
+
+def test_a_worker_keeps_quiet_about_a_lost_heartbeat_only() -> None:
+    """A worker's heartbeat that fell between the scheduler closing and the worker being told to printed an
+    ERROR and a traceback amid a stopped study's one line. That message alone is dropped in the workers; the
+    worker's other errors still come out."""
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    proc = subprocess.run(
+        [sys.executable, "-c", WORKER_LOGS], env=env, capture_output=True, text=True, timeout=120
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "Failed to communicate with scheduler during heartbeat" not in proc.stderr
+    assert "Unexpected exception during heartbeat" in proc.stderr
+    assert "some other error" in proc.stderr
