@@ -27,9 +27,9 @@ from typing import Any
 import numpy as np
 
 import gateway.pipeline
-from dpgw.cli_demo import hold_setpoint
 from dpgw.cli_types import seed_int
 from dpgw.closed_loop import ClosedLoopRun, run_closed_loop
+from dpgw.station_hold import hold_setpoint
 from gateway.control.allocation import QPAllocator
 from simulator.clock import SimEpoch
 from simulator.scenarios import get_scenario

@@ -21,6 +21,8 @@ from dpgw.cli_stops import STOPPED_BY, set_from_handler, stop_name
 from dpgw.cli_types import non_negative_float, positive_float, seed_int
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args, listen_endpoints
 from dpgw.scenario_names import SCENARIO_NAMES
+from dpgw.scored_stretch import DP_SETTLE_S, MIN_SCORED_S, SETTLE_S, dp_scored_from
+from dpgw.station_hold import HOLD_PERIOD_S, froude_scale, hold_setpoint
 from observers.settling import ENGAGE_TIME_CONSTANTS as SETTLING_TIME_CONSTANTS
 
 if TYPE_CHECKING:
@@ -29,7 +31,6 @@ if TYPE_CHECKING:
 # Only the parser is built at import. The simulator and the gateway (numpy, numba, scipy, Zenoh) are
 # imported by the functions that run the demo, so `dpgw demo --help` answers at once.
 
-SETTLE_S = 60.0
 ENGAGE_TIME_CONSTANTS = SETTLING_TIME_CONSTANTS
 """When the demo's operator switches the gateway from standby to dp by default (``--engage-at``): once the
 observer has settled, this many time constants of its slowest error mode (`Observer.settle_time_s`, the
@@ -44,24 +45,10 @@ drifts ~7 m and ~10 deg, and the integrator, which took the load while the bias 
 growing, gives it back over ~200 s (the integral pole, 0.007 rad/s): p95 4-5 m over 60-360 s, which is
 the start-up and not the station keeping. Engaged at 30 s (a third of a time constant), the hand-over
 still cost p95 3.3 m / 2.6 deg; at 150 s, 0.75 m / 1.0 deg (in-process closed loop, seed 0)."""
-HOLD_PERIOD_S = 120.0
-"""Natural period of the joystick operator's slow correction of the drift off station while DP is not yet
-engaged (`Simulation.held_tau`), for a 76.2 m vessel, Froude-scaled with the vessel's length
-(× √(L/76.2)): slow beside the waves (the correction works on the true LF motion) and within the hold."""
 LOG_ORDER_WINDOW_S = 2.0
 """The demo's log holds each record until it is this far (log time) behind the newest written, and
 writes in log-time order (`McapLogWriter.hold_for_order`): the truth runs ~0.4 s ahead of the gateway's
 inputs, more on a busy machine; a crash loses this much more of the log (0.2 s of wall time at 10x)."""
-DP_SETTLE_S = 30.0
-"""Station keeping is scored from this long after DP was engaged (and never before ``SETTLE_S``): the
-take-over and the reference model's first moves are not station keeping."""
-MIN_SCORED_S = 30.0
-"""Least sea scored for a figure (s): the estimate after ``SETTLE_S``, the station keeping after
-`dp_scored_from`; a shorter stretch (a run stopped by Ctrl-C soon after the skip) is said "not scored". The
-errors scored vary over tens of seconds (waves of ~10 s, the bias estimate's error over its time constant),
-so a few seconds' RMS is one sample of them, not the run's: on the default demo (seed 0, 300 s scored) the
-horizontal RMS over any 3 s after the skip ranged from 0.27 to 2.2 times the whole run's, over any 30 s
-from 0.69 to 1.5 times (over 60 s, 0.73-1.3, which a 120 s demo engaged at its start would just miss)."""
 DEFAULT_DURATION_S = 360.0
 LOWEST_SPEED = 1.0
 """The demo never slows itself below real time."""
@@ -348,20 +335,6 @@ def engagement_lines(args: argparse.Namespace, engage_s: float) -> list[str]:
             f"{MIN_SCORED_S:.0f} s); {todo}"
         )
     return lines
-
-
-def froude_scale(scenario: Any) -> float:
-    """The demo's times for the controller's reference vessel (76.2 m: its defaults are set for it) are
-    this many times longer on the scenario's: √(L/76.2), as the controller scales its own."""
-    from gateway.control.controller import REFERENCE_LENGTH_M
-
-    return math.sqrt(scenario.vessel.length_m / REFERENCE_LENGTH_M)
-
-
-def dp_scored_from(engaged_s: float | None) -> float:
-    """The sim second station keeping is scored from: `DP_SETTLE_S` after DP was engaged (0 or None: at
-    the start), never before the estimate is scored (`SETTLE_S`)."""
-    return max(SETTLE_S, (engaged_s or 0.0) + DP_SETTLE_S)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -661,12 +634,6 @@ def exit_status(signum: int) -> int:
     learns from the status that it did not run its course, whatever the log holds. `dpgw run` ends 0 on
     SIGTERM instead: there it is the service's normal stop (docs/cli.md, "Exit status on a signal")."""
     return 128 + int(signum)
-
-
-def hold_setpoint(scenario: Any) -> dict[str, float]:
-    """The station the demo keeps in dp: the scenario's start position and heading (``eta0``)."""
-    north, east, psi = scenario.eta0
-    return {"north_m": float(north), "east_m": float(east), "heading_deg": math.degrees(psi)}
 
 
 def summarise(

@@ -15,12 +15,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from dpgw import cli_json
-from dpgw.cli_demo import DP_SETTLE_S, MIN_SCORED_S, SETTLE_S
 from dpgw.cli_foxglove import add_foxglove_arg, connect_lines
 from dpgw.cli_paths import mcap_path_problem, output_folder_problem, unwritable
 from dpgw.cli_progress import terminal_bar
 from dpgw.cli_types import flags_given, non_negative_float, positive_float
 from dpgw.cli_zenoh import ZENOH_FLAGS, add_endpoint_args, listen_endpoints
+from dpgw.scored_stretch import DP_SETTLE_S, MIN_SCORED_S, SETTLE_S
 from observers.observer_names import OBSERVER_NAMES
 
 if TYPE_CHECKING:

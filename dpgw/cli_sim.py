@@ -488,7 +488,7 @@ def _run_scenario(args: argparse.Namespace, stopped_by: list[int]) -> int:
         RealtimeClock(speed=args.speed, resync_lag_s=RESYNC_LAG_S) if args.realtime else VirtualClock()
     )
     if args.held:  # the operator's joystick until the first command (`Simulation.held_tau`), as dpgw demo's
-        from dpgw.cli_demo import HOLD_PERIOD_S, froude_scale
+        from dpgw.station_hold import HOLD_PERIOD_S, froude_scale
 
         station, period = scenario.eta0, HOLD_PERIOD_S * froude_scale(scenario)
         scenario = replace(scenario, tau=lambda _: sim.held_tau(station, period))

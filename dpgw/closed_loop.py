@@ -278,7 +278,7 @@ def run_closed_loop(
             typed.append((sim.t, rank.get(e.source, len(rank)), e.source, e))
 
     if hold_on_joystick:
-        from dpgw.cli_demo import HOLD_PERIOD_S, froude_scale
+        from dpgw.station_hold import HOLD_PERIOD_S, froude_scale
 
         station, period = scenario.eta0, HOLD_PERIOD_S * froude_scale(scenario)
         scenario = replace(scenario, tau=lambda _: sim.held_tau(station, period))

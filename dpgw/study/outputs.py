@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from dpgw.cli_demo import MIN_SCORED_S
+from dpgw.scored_stretch import MIN_SCORED_S
 from gateway.report.metrics import WELCH_PERIODS
 
 # (column, header, format) of the summary and the plots, in order
