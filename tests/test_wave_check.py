@@ -10,10 +10,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import signal
 
 from dpgw.cli import main
-from gateway.report.wave_check import CLEAR_PEAK_DB, check_wave_tuning
+from gateway.replay import parse_observer_spec
+from gateway.report.data import DOF
+from gateway.report.findings import amplification_warnings
+from gateway.report.wave_check import CLEAR_PEAK_DB, check_wave_tuning, retune_spec
+from observers.factory import OBSERVER_TYPES
 from simulator.runner import Simulation
 from simulator.scenarios import get_scenario
 from wire.mcap.writer import McapLogWriter
@@ -389,3 +395,32 @@ def test_real_calm_usv_log_says_so_on_the_console_as_the_report_does(
     assert "+1.21 dB in N, +2.26 dB in E, +2.64 dB in ψ at 1.68 rad/s" in err
     md = (report / "report.md").read_text()
     assert "## Warnings" in md and "+1.21 dB in N, +2.26 dB in E, +2.64 dB in ψ at 1.68 rad/s" in md
+
+
+@settings(max_examples=60, deadline=None)
+@given(kind=st.sampled_from(OBSERVER_TYPES), omega=st.floats(0.2, 12.0))
+def test_every_retuning_advised_is_a_spec_replay_takes(kind: str, omega: float) -> None:
+    """The advice names the observer's own keys: ``wave_period_s`` where it uses ω0, a bank for the MMAE.
+    Before, the amplification warning advised ``mmae:wave_period_s=...``, which replay refused."""
+    spec = parse_observer_spec(retune_spec(kind, omega))
+    assert spec.name == kind
+    if kind == "mmae":
+        bank = spec.params["candidates"]
+        assert min(bank) < omega < max(bank)
+    else:
+        assert 2 * math.pi / spec.params["wave_period_s"] == pytest.approx(omega, rel=0.06)
+
+
+def test_the_amplification_warning_advises_each_observer_in_its_own_keys() -> None:
+    """`amplification_warnings` on a report's metrics where the MMAE and the SDRE both lift the motion at a
+    2.88 rad/s peak: each is advised a spec of its own keys, the period as the wave check writes it."""
+    dof = {"attenuation_db": 4.57, "omega0_median_rad_s": 2.88}
+    measured = {d: {"dominant_frequency_rad_s": 2.88, "peak_at_band_edge": False} for d in DOF}
+    metrics = {
+        "measurement": measured,
+        "observers": {name: {"observer": name, **{d: dict(dof) for d in DOF}} for name in ("mmae", "sdre")},
+    }
+    mmae, sdre = amplification_warnings(metrics)
+    m = re.search(r"--observer (mmae:candidates=[0-9./]+)\)", mmae)
+    assert m is not None and parse_observer_spec(m.group(1)).name == "mmae", mmae
+    assert "(--observer sdre:wave_period_s=2.2)" in sdre, sdre

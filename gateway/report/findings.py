@@ -19,6 +19,8 @@ import math
 from typing import Any
 
 from gateway.report.data import DOF, DOF_SYMBOL
+from gateway.report.wave_check import retune_spec
+from observers.factory import OBSERVER_TYPES
 
 # Attenuation above this (dB) is amplification: the LF estimate holds more of the motion than was measured.
 AMPLIFYING_DB = 0.0
@@ -68,12 +70,13 @@ def amplification_warnings(metrics: dict[str, Any]) -> list[str]:
             ),
             None,
         )
-        period = f"{2 * math.pi / w_peak:.2f}" if w_peak else "PERIOD"
+        kind = od.get("observer")
+        spec = retune_spec(kind, w_peak) if kind in OBSERVER_TYPES and w_peak else f"{kind or 'NAME'}:..."
         out.append(
             f"observer '{label}' amplifies the measured motion at the measurement's spectral peak instead "
             f"of attenuating it: {', '.join(parts)}{used}, so its LF estimate, which DP acts on, holds more "
             f"of that motion than was measured{where}. If there is sea at that frequency, tune ω0 to it "
-            f"(--observer {od.get('observer') or 'NAME'}:wave_period_s={period}); see psd.png for where the "
+            f"(--observer {spec}); see psd.png for where the "
             "LF estimate rises above the measurement"
         )
     return out

@@ -44,6 +44,7 @@ import numpy as np
 
 from gateway.report.data import DOF, Array
 from gateway.report.spectra import nominal_dt, peak, resample, valid_samples, welch
+from observers.factory import tuning_keys
 from observers.froude import SEA_PERIOD_S
 
 CLEAR_PEAK_DB = 8.0
@@ -136,7 +137,7 @@ class WaveCheck:
                     f"at most{scale}): it is more likely the vessel's own slow motion (a DP oscillation, a "
                     "slow yaw, a manoeuvre) than waves. Look at the position and heading in the log (and "
                     "the controller's tuning) before retuning; only for a swell known to be that long, "
-                    f"--observer {o.kind}:wave_period_s={period}."
+                    f"--observer {retune_spec(o.kind, w)}."
                 )
                 continue
             scheduled = f"wave_period_s={period},omega_min={_fmt(w / 2.0)},omega_max={_fmt(2.0 * w)}"
@@ -152,13 +153,12 @@ class WaveCheck:
                     f"{period}."
                 )
             elif o.kind == "mmae":  # a bank of fixed candidates, no range: a bank around the sea
-                bank = "/".join(_fmt(x) for x in np.linspace(w / 2.0, 2.0 * w, 8))
-                todo = f"Its bank does not reach the sea's: re-run with --observer mmae:candidates={bank}"
+                todo = f"Its bank does not reach the sea's: re-run with --observer {retune_spec('mmae', w)}"
             elif o.adaptive:
                 todo = f"Its ω0 range does not reach the sea's: re-run with --observer {o.kind}:{scheduled}"
             else:
                 todo = (
-                    f"Re-run with --observer {o.kind}:wave_period_s={period}, or with "
+                    f"Re-run with --observer {retune_spec(o.kind, w)}, or with "
                     f"--observer gain_scheduled:{scheduled} to follow the sea."
                 )
             out.append(f"{what} {todo}")
@@ -213,6 +213,16 @@ def _why_not_clear(p: DofPeak) -> str:
         return f"maximum {p.omega:.2f} rad/s at the band's edge"
     above = f"{p.above_trend_db:.1f} dB above the trend ({CLEAR_PEAK_DB:g} needed)"
     return f"maximum {p.omega:.2f} rad/s only {above}"
+
+
+def retune_spec(kind: str, omega: float) -> str:
+    """The ``--observer`` spec that tunes observer ``kind`` to a sea at ``omega`` (rad/s), in the keys it
+    takes: ``KIND:wave_period_s=P`` where it uses ω0, a bank of 8 candidates from ω/2 to 2ω for the MMAE
+    (which takes no ω0 of the common tuning: a spec with one is refused)."""
+    if "wave_period_s" in tuning_keys(kind):
+        return f"{kind}:wave_period_s={_period(omega)}"
+    bank = "/".join(_fmt(x) for x in np.linspace(omega / 2.0, 2.0 * omega, 8))
+    return f"{kind}:candidates={bank}"
 
 
 def _fmt(x: float) -> str:
