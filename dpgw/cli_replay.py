@@ -445,12 +445,14 @@ def run(args: argparse.Namespace) -> int:
         # --config that gives the key checks the signatures instead
         keyless = keyless_mavlink_sources(config)
         verdicts = logged_signing_verdicts(inputs, keyless)
+        defaults, defaults_note = scenario_observer_defaults(inputs, config.vessel.name, specs)
         pipeline = build_pipeline(
             config,
             specs,
             foxglove_channels=args.foxglove_channels,
             controller=own_controller,
             signing_verdicts=verdicts,
+            observer_defaults=defaults,
         )
     except ConfigError as exc:
         print(format_problems(exc), file=sys.stderr)
@@ -460,9 +462,11 @@ def run(args: argparse.Namespace) -> int:
         return 2
     for line in renamed:
         print(line, file=sys.stderr)
+    if defaults_note is not None:
+        print(f"dpgw replay: note: {defaults_note}", file=sys.stderr)
     speed = 1.0 if args.realtime else args.speed
     if args.foxglove is not None:
-        return serve(args, inputs, config, specs, speed, verdicts)
+        return serve(args, inputs, config, specs, speed, verdicts, defaults)
     try:
         publisher = _Publisher(args, config.zenoh.prefix, speed) if speed else None
     except BusError as exc:
@@ -525,7 +529,18 @@ def run(args: argparse.Namespace) -> int:
     # killed process) with the report half written.
     try:
         with _RaiseOnSignal():
-            return _conclude(args, inputs, config, specs, result, evidence, verdicts, keyless, truth_note, t0)
+            # (the same pipeline for other observers: the wave check's advice tried on a log's truth)
+            pipeline_for = functools.partial(
+                build_pipeline,
+                config,
+                foxglove_channels=False,
+                controller=own_controller,
+                signing_verdicts=verdicts,
+                observer_defaults=defaults,
+            )
+            return _conclude(
+                args, inputs, config, specs, result, evidence, verdicts, keyless, truth_note, t0, pipeline_for
+            )
     except _StopRequestedError as exc:
         report = f"; the report in {args.report} is incomplete" if args.report else ""
         print(
@@ -547,6 +562,7 @@ def _conclude(
     keyless: Any,
     truth_note: str | None,
     t0: float,
+    pipeline_for: Callable[[list[ObserverSpec]], Any],
 ) -> int:
     """After the replay: the summary (console or --json), the live log's DP performance, the checks and
     the report; the command's exit status."""
@@ -562,7 +578,8 @@ def _conclude(
     # and on as much sea as the demo scores (a demo stopped soon after its skip: "not scored", as it
     # said)
     args.min_scored = logged_min_scored_s(inputs, older_demo=MIN_SCORED_S)
-    summary = _summary(args, specs, result, wall, _data_span_ns(evidence, result, specs))
+    data_span = _data_span_ns(evidence, result, specs)
+    summary = _summary(args, specs, result, wall, data_span)
     if args.settle is None and "settle_s" in summary:
         # the report leaves out the same start as the summary's errors against the truth, by construction
         args.settle = summary["settle_s"]
@@ -612,7 +629,13 @@ def _conclude(
         if compared.figures is not None and compared.stretch is not None and "error" not in compared.figures:
             compared.figures["stretch_s"] = [(t - first_ns) / 1e9 for t in compared.stretch]
     kinds = {s.label: (s.name, s.name in SCHEDULES_OMEGA0 or bool(s.params.get("adaptive"))) for s in specs}
-    summary["wave_check"] = evidence.check(config.vessel.length_m, config.vessel.model_scale, kinds).as_dict()
+    wave_check = evidence.check(config.vessel.length_m, config.vessel.model_scale, kinds)
+    summary["wave_check"] = wave_check.as_dict()
+    if result.truth and summary.get("error_vs_truth") and (advised := wave_check.advised()):
+        # a simulator's log has its truth: the advice is tried on it before it is given
+        summary["wave_check"]["advice_on_truth"] = _advice_on_truth(
+            args, inputs, pipeline_for, advised, summary["error_vs_truth"], result.truth, data_span
+        )
     summary["vessel_check"] = evidence.vessel_check(config.vessel).as_dict()
     summary["measurements"] = evidence.measured()
     summary["cut_logs"] = cut_logs(inputs)
@@ -627,7 +650,9 @@ def _conclude(
         *([f"warning: --truth: {truth_note}"] if truth_note is not None else []),
         *(f"warning: {w}" for w in [*_cut(summary), *_no_estimates(summary)]),
         *(f"warning: {w}" for w in summary["wave_check"]["warnings"]),
+        *(f"note: {n}" for n in _advice_notes(summary["wave_check"].get("advice_on_truth", {}))),
         *(f"note: {n}" for n in summary["wave_check"]["notes"]),
+        *(f"note: {n}" for n in _no_thrust(summary)),
     ]
     advice = summary["vessel_check"].get("advice")
     report_warnings: list[str] = []
@@ -840,6 +865,55 @@ def _no_estimates(s: dict[str, Any]) -> list[str]:
     ]
 
 
+def _no_thrust(s: dict[str, Any]) -> list[str]:
+    """Every observer ran with τ = 0 when no measurement had a thrust: the log holds no thruster feedback
+    (and no logged controller's demand). The observers' model then takes the vessel as unpowered: the bias
+    estimate carries the thrust, and the velocity and bias estimates lag every change of it. Said, because
+    nothing else in the output shows it and an analyst comparing model-based observers must know."""
+    m = s["measurements"]
+    if not m["samples"] or m["tau_from_feedback"] or m["tau_from_demand"] or not any(s["estimates"].values()):
+        return []
+    return [
+        "no thruster feedback in the log: the observers ran with τ = 0, so their bias estimates carry the "
+        "thrust and their velocity estimates lag its changes. Give the thrusters' feedback too (a MAVLink "
+        "tlog or the gateway's MCAP: several LOGs are merged by time)"
+    ]
+
+
+def scenario_observer_defaults(
+    inputs: list[Any], vessel_name: str, specs: list[Any]
+) -> tuple[dict[str, dict[str, Any]], str | None]:
+    """The observer settings of the scenario a simulator log names (`Scenario.observer_params`), when the
+    replay runs that scenario's vessel, as the study, the demo and the closed loop run the scenario; and a
+    note saying which of them the replay's observers take (None when none does). The `hassani` scenarios
+    run full-scale seas on a model's M and D: a gain-scheduled observer replaying their log searched the
+    model's Froude-scaled range (2.5-13.4 rad/s), far above the sea, and settled there. On another
+    vessel (--vessel) a scenario's settings are not that vessel's: none apply."""
+    from gateway.replay import logged_sim
+    from simulator.scenarios import SCENARIOS, get_scenario
+
+    for inp in inputs:
+        if inp.kind != "mcap" or (meta := logged_sim(inp.path)) is None:
+            continue
+        name = meta.get("scenario")
+        if name not in SCENARIOS or meta.get("vessel") != vessel_name:
+            return {}, None
+        params = get_scenario(name).observer_params
+        taken = [
+            f"{s.name}: {', '.join(f'{k}={v:g}' for k, v in params[s.name].items())}"
+            for s in specs
+            if params.get(s.name) and (s.name != "sdre" or s.params.get("adaptive"))
+        ]
+        note = (
+            f"the simulator's scenario '{name}' sets {'; '.join(dict.fromkeys(taken))} under the observers' "
+            "own settings, as its study and demo run it"
+            if taken
+            else None
+        )
+        return params, note
+    return {}, None
+
+
 def own_config(args: argparse.Namespace) -> bool:
     """The replay runs on the logs' own configuration: no --config, no --vessel."""
     return args.config is None and args.vessel is None
@@ -852,6 +926,7 @@ def serve(
     specs: list[Any],
     speed: float | None,
     verdicts: Any = None,
+    observer_defaults: dict[str, dict[str, Any]] | None = None,
 ) -> int:
     """``--foxglove``: the replay paced in log time on a Foxglove server with playback control
     (`gateway.replay_player`), until SIGINT/SIGTERM."""
@@ -899,7 +974,9 @@ def serve(
     )
     player = ReplayPlayer(
         lambda: (
-            build_pipeline(config, specs, controller=own, signing_verdicts=verdicts),
+            build_pipeline(
+                config, specs, controller=own, signing_verdicts=verdicts, observer_defaults=observer_defaults
+            ),
             merged_events(inputs),
         ),
         (first, last),
@@ -968,6 +1045,10 @@ class _WaveEvidence:
         self.fusion = fusion
         self.new: list[tuple[bool, bool, bool]] = []
         self._received: tuple[int, ...] = (-1, -1, -1)
+        # the measurements whose τ came from the thrusters' feedback, and those with any τ at all (a demand:
+        # a logged controller's): with neither, every observer ran with τ = 0
+        self.tau_feedback = 0
+        self.tau_nonzero = 0
 
     def on_outputs(self, ev: Event, outputs: list[Output]) -> None:
         for o in outputs:
@@ -975,6 +1056,10 @@ class _WaveEvidence:
             if o.topic == "/dp/measurement":
                 self.stamps.append(msg.stamp_ns)  # type: ignore[attr-defined]
                 self.eta.append(msg.eta)  # type: ignore[attr-defined]
+                if msg.tau_source == "feedback":  # type: ignore[attr-defined]
+                    self.tau_feedback += 1
+                elif any(msg.tau):  # type: ignore[attr-defined]
+                    self.tau_nonzero += 1
                 if self.fusion is not None:
                     received = tuple(self.fusion.measurement_received_ns())
                     self.new.append(tuple(r != p for r, p in zip(received, self._received, strict=True)))
@@ -991,6 +1076,8 @@ class _WaveEvidence:
             "samples": len(self.eta),
             "position": sum(1 for e in self.eta if e[0] is not None and e[1] is not None),
             "heading": sum(1 for e in self.eta if e[2] is not None),
+            "tau_from_feedback": self.tau_feedback,
+            "tau_from_demand": self.tau_nonzero,
         }
 
     def chain(self, then: Any) -> Any:
@@ -1172,10 +1259,6 @@ def _summary(
     wall: float,
     data_span: tuple[int, int] | None = None,
 ) -> dict[str, Any]:
-    import numpy as np
-
-    from gateway.scoring import score
-
     s: dict[str, Any] = {
         "logs": args.logs,
         "out": args.out,
@@ -1190,28 +1273,111 @@ def _summary(
         "spans": {where: _span(a, b) for where, (a, b) in r.spans.items()},
     }
     if r.truth:
-        tt_ns = np.array([x["stamp_ns"] for x in r.truth], dtype=np.int64)
-        eta_t = np.array([x["eta_lf"] for x in r.truth], dtype=float)
-        first, last = data_span or (int(tt_ns[0]), int(tt_ns[-1]))
-        settle = args.settle if args.settle is not None else default_settle_s((last - first) / 1e9)
-        errors, scored = {}, {}
-        least = getattr(args, "min_scored", None)
-        for spec, topic in zip(specs, _estimate_topics(specs), strict=True):
-            tr = _traces(r, topic)
-            if tr is None:
-                continue
-            t_ns, eta = tr
-            # the sea after the skip, as `dpgw demo` counts it: from the first estimate on
-            scored[spec.label] = max(0.0, float(t_ns[-1] - t_ns[0]) / 1e9 - settle)
-            if least is not None and scored[spec.label] < least:
-                continue  # said "not scored" (`_print`), as the demo said it
-            sc = score((t_ns - first) / 1e9, eta, (tt_ns - first) / 1e9, eta_t, settle_s=settle)
-            errors[spec.label] = sc.as_dict()
+        errors, scored, settle = _errors_vs_truth(args, specs, r, data_span)
         s["error_vs_truth"] = errors
         s["settle_s"] = settle
         s["estimate_scored_s"] = scored
-        s["min_scored_s"] = least
+        s["min_scored_s"] = getattr(args, "min_scored", None)
     return s
+
+
+def _advice_on_truth(
+    args: argparse.Namespace,
+    inputs: list[Any],
+    pipeline_for: Callable[[list[ObserverSpec]], Any],
+    advised: dict[str, str],
+    errors_now: dict[str, Any],
+    truth: list[dict[str, Any]],
+    data_span: tuple[int, int] | None,
+) -> dict[str, dict[str, Any]]:
+    """The wave check's advice (``advised``: a spec by observer label) replayed on the same log through the
+    same pipeline (``pipeline_for`` those specs), all in one pass, and scored against the log's truth as the
+    observers were: by label, the spec and both errors.
+
+    A wave filter tuned to the sea keeps more of the waves out of the LF estimate, but a lower ω0 lowers
+    its LF bandwidth too: on an open-loop log, whose vessel drifts far, the retuned filter can follow the
+    LF motion less closely and score worse against the truth. A log with its truth can say which, so the
+    advice comes with its score instead of being taken on trust."""
+    from gateway.replay import parse_observer_spec, run_replay
+
+    specs = [parse_observer_spec(f"{spec}@{label}") for label, spec in advised.items() if label in errors_now]
+    if not specs:
+        return {}
+    result = run_replay(inputs, pipeline_for(specs), collect=_estimate_topics(specs))
+    result.truth = truth  # (the one the observers were scored on: --truth's is moved into the replay's frame)
+    errors, _, _ = _errors_vs_truth(args, specs, result, data_span)
+    return {
+        s.label: {
+            "advised": advised[s.label],
+            "error_vs_truth": errors[s.label],
+            "as_run": errors_now[s.label],
+        }
+        for s in specs
+        if s.label in errors
+    }
+
+
+ADVICE_DOFS = (("N", "rms_north_m", " m"), ("E", "rms_east_m", " m"), ("ψ", "rms_heading_deg", "°"))
+
+
+def _advice_notes(tried: dict[str, dict[str, Any]]) -> list[str]:
+    """What the advice scored on the log's truth, one line an observer: better or worse, by DOF."""
+    out = []
+    for label, t in tried.items():
+        now, then = t["as_run"], t["error_vs_truth"]
+
+        def rms(e: dict[str, Any]) -> str:
+            return ", ".join(f"{d} {e[k]:.3g}{u}" for d, k, u in ADVICE_DOFS)
+
+        better = [d for d, k, _ in ADVICE_DOFS if then[k] < now[k]]
+        worse = [d for d, k, _ in ADVICE_DOFS if then[k] > now[k]]
+        if not worse:
+            verdict = "better in every DOF: take it"
+        elif not better:
+            verdict = (
+                "worse in every DOF: on this log the filter tuned to the sea follows the LF motion less "
+                "closely (its cut-off moves down with ω0) by more than it gains in waves. Keep the tuning as "
+                "run, or compare both in the report (attenuation against error)"
+            )
+        else:
+            verdict = (
+                f"better in {', '.join(better)}, worse in {', '.join(worse)}: compare both in the report "
+                "(attenuation against error) before choosing"
+            )
+        out.append(
+            f"the advice for '{label}' tried on this log's truth: --observer {t['advised']} gives LF errors "
+            f"(RMS) {rms(then)} against {rms(now)} as run: {verdict}"
+        )
+    return out
+
+
+def _errors_vs_truth(
+    args: argparse.Namespace, specs: list[ObserverSpec], r: ReplayResult, data_span: tuple[int, int] | None
+) -> tuple[dict[str, Any], dict[str, float], float]:
+    """Each observer's LF errors against ``r``'s truth (`gateway.scoring.score`), the sea scored (s) and
+    the settle time skipped: an estimate scored on less sea than ``args.min_scored`` is left out."""
+    import numpy as np
+
+    from gateway.scoring import score
+
+    tt_ns = np.array([x["stamp_ns"] for x in r.truth], dtype=np.int64)
+    eta_t = np.array([x["eta_lf"] for x in r.truth], dtype=float)
+    first, last = data_span or (int(tt_ns[0]), int(tt_ns[-1]))
+    settle = args.settle if args.settle is not None else default_settle_s((last - first) / 1e9)
+    errors, scored = {}, {}
+    least = getattr(args, "min_scored", None)
+    for spec, topic in zip(specs, _estimate_topics(specs), strict=True):
+        tr = _traces(r, topic)
+        if tr is None:
+            continue
+        t_ns, eta = tr
+        # the sea after the skip, as `dpgw demo` counts it: from the first estimate on
+        scored[spec.label] = max(0.0, float(t_ns[-1] - t_ns[0]) / 1e9 - settle)
+        if least is not None and scored[spec.label] < least:
+            continue  # said "not scored" (`_print`), as the demo said it
+        sc = score((t_ns - first) / 1e9, eta, (tt_ns - first) / 1e9, eta_t, settle_s=settle)
+        errors[spec.label] = sc.as_dict()
+    return errors, scored, settle
 
 
 def _span(first_ns: int, last_ns: int) -> dict[str, Any]:

@@ -957,6 +957,7 @@ def build_pipeline(
     foxglove_channels: bool = True,
     controller: bool = False,
     signing_verdicts: SigningVerdicts | None = None,
+    observer_defaults: Mapping[str, Mapping[str, Any]] | None = None,
 ) -> Pipeline:
     """The live pipeline for ``config`` with the observers of ``specs``; ``foxglove_channels=False`` leaves
     out the Foxglove-native channels. Estimation only unless ``controller``: replay sends no command
@@ -968,7 +969,10 @@ def build_pipeline(
     reproduce the live estimates; the commands it recomputes go to the output log only.
 
     ``signing_verdicts`` (`logged_signing_verdicts`): a signed link whose key the log does not hold
-    refuses the frames the live gateway refused, for the same reasons, and takes the others."""
+    refuses the frames the live gateway refused, for the same reasons, and takes the others.
+
+    ``observer_defaults``: settings by observer type under the config's and the specs' own (a simulator
+    log's scenario's, `Scenario.observer_params`), as the study and the closed loop apply them."""
     spec = dataclasses.replace(PipelineSpec.from_config(config), foxglove_channels=foxglove_channels)
     # a link signed with a key the config gives (a log written before logs left keys out, or --config):
     # the logged frames' signatures are checked against the log's own time, not this host's clock
@@ -984,6 +988,7 @@ def build_pipeline(
             for s in spec.sources
         ),
     )
+    defaults = observer_defaults or {}
     if specs:
         # Only the observers change: every other part of the config's pipeline (reference checks,
         # command policy, sources, datum) is the one the config describes. Rebuilding the spec field by
@@ -991,9 +996,9 @@ def build_pipeline(
         primary = specs[0]
         spec = dataclasses.replace(
             spec,
-            observer=primary.make(config),
+            observer=primary.make(config, defaults.get(primary.name)),
             observer_name=primary.label,
-            extra_observers=tuple((s.label, s.make(config)) for s in specs[1:]),
+            extra_observers=tuple((s.label, s.make(config, defaults.get(s.name))) for s in specs[1:]),
         )
     if not controller:
         spec = dataclasses.replace(spec, control=None)

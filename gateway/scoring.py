@@ -41,7 +41,7 @@ class Score:
 def not_scored_note(scored_s: float, settle_s: float, min_scored_s: float) -> str:
     """Why an estimate was not scored against the truth, in the words `dpgw demo` and `dpgw replay` (its
     console and report.md) share: ``scored_s`` of sea after the ``settle_s`` skip, fewer than the
-    ``min_scored_s`` a figure needs (`dpgw.cli_demo.MIN_SCORED_S` says why: a few seconds' RMS is one
+    ``min_scored_s`` a figure needs (`dpgw.scored_stretch.MIN_SCORED_S` says why: a few seconds' RMS is one
     sample of errors that vary over tens of seconds)."""
     if scored_s > 0.0:
         return (

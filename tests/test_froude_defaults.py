@@ -7,7 +7,10 @@ Data for the step test: the shared basin sea of the model-scale tests (tests/bas
 from __future__ import annotations
 
 import argparse
+import json
 import math
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +29,11 @@ from observers.gain_scheduled import (
 from observers.passive_tuning import PassiveTuning, froude_scaled_fields
 from observers.vessel import load_vessel
 from observers.wave_frequency import WaveFrequencyConfig
+from simulator.runner import Simulation
 from simulator.scenarios import FULL_SCALE_OMEGA_RANGE, get_scenario
+from wire.mcap.writer import McapLogWriter
+
+REPO = Path(__file__).resolve().parents[1]
 
 HASSANI_RANGE = {"omega_min": 0.3, "omega_max": 1.6}
 
@@ -190,3 +197,50 @@ def test_the_adaptive_sdre_gets_the_full_scale_range_and_a_fixed_one_is_not_refu
     }
     tables["observer"] = {"type": "sdre"}
     assert "params" not in with_scenario_observer(tables, scenario)["observer"]
+
+
+@pytest.fixture(scope="module")
+def hassani_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("hassani") / "sim.mcap"
+    with McapLogWriter(path) as w:
+        Simulation(get_scenario("hassani"), seed=0, log=w).run(240.0)
+    return path
+
+
+def _replayed_omega0(
+    log: Path, tmp_path: Path, spec: str = "gain_scheduled", *extra: str
+) -> tuple[float, str]:
+    """The median ω0 of the observer ``spec`` replaying ``log`` (rad/s), and replay's stderr."""
+    out = tmp_path / f"r{len(list(tmp_path.glob('*.mcap')))}.mcap"
+    p = subprocess.run(
+        [sys.executable, "-m", "dpgw", "replay", str(log), "--observer", spec, *extra,
+         "--out", str(out), "--json"],
+        capture_output=True, text=True, check=True, cwd=REPO,
+    )  # fmt: skip
+    (tuning,) = json.loads(p.stdout)["wave_check"]["observers"].values()
+    return float(tuning["omega0_rad_s"]), p.stderr
+
+
+def test_a_replayed_hassani_log_runs_the_scenarios_full_scale_range(
+    hassani_log: Path, tmp_path: Path
+) -> None:
+    """A simulator log names its scenario: replayed on its own vessel, the gain-scheduled observer searches
+    the scenario's full-scale range (0.3-1.6 rad/s) around its 0.93 rad/s sea, as the study and the demo run
+    it, and the replay says so. Before, it searched the model's Froude-scaled range and settled at ~4.3
+    rad/s, four times the sea, with nothing said. On another vessel the scenario's settings do not apply."""
+    omega0, err = _replayed_omega0(hassani_log, tmp_path)
+    assert 0.3 <= omega0 <= 1.6, omega0
+    assert abs(omega0 / 0.93 - 1.0) < 0.3, omega0
+    note = (
+        "dpgw replay: note: the simulator's scenario 'hassani' sets gain_scheduled: omega_min=0.3, "
+        "omega_max=1.6 under the observers' own settings, as its study and demo run it"
+    )
+    assert note in err.splitlines(), err
+    # the user's own range wins over the scenario's
+    mine, err = _replayed_omega0(
+        hassani_log, tmp_path, "gain_scheduled:wave_period_s=2,omega_min=2.5,omega_max=6"
+    )
+    assert 2.5 <= mine <= 6.0 and "scenario 'hassani' sets" in err
+    # and the scenario's vessel only: on mss_supply its range is not that vessel's
+    _, err = _replayed_omega0(hassani_log, tmp_path, "gain_scheduled", "--vessel", "mss_supply")
+    assert "scenario 'hassani'" not in err

@@ -146,6 +146,7 @@ def test_replay_warns_with_a_command_that_works_as_printed(
     assert 0.45 < wc["measured_peak_rad_s"] < 0.6  # Tp 12 s is 0.52 rad/s
     assert wc["observers"]["passive"]["mistuned"] is True
     assert "warning: the measured wave peak" in cap.err
+    err_first = cap.err.splitlines()
     spec = _advised_spec(cap.err)
     assert spec.startswith("passive:wave_period_s=1")
     args = [
@@ -161,7 +162,21 @@ def test_replay_warns_with_a_command_that_works_as_printed(
     assert main([*args, "--json"]) == 0
     cap = capsys.readouterr()
     assert "warning" not in cap.err
-    assert not any(o["mistuned"] for o in json.loads(cap.out)["wave_check"]["observers"].values())
+    again = json.loads(cap.out)
+    assert not any(o["mistuned"] for o in again["wave_check"]["observers"].values())
+    # A simulator's log has its truth: the advice was tried on it, and its score is what running it gives
+    # (the same pipeline); the note says better or worse by what the numbers say
+    tried = wc["advice_on_truth"]["passive"]
+    assert tried["advised"] == spec and tried["as_run"] == summary["error_vs_truth"]["passive"]
+    (as_printed,) = again["error_vs_truth"].values()
+    assert tried["error_vs_truth"] == as_printed
+    (note,) = [line for line in err_first if "tried on this log's truth" in line]
+    keys = ("rms_north_m", "rms_east_m", "rms_heading_deg")
+    better = [tried["error_vs_truth"][k] < tried["as_run"][k] for k in keys]
+    verdict = (
+        "better in every DOF" if all(better) else "worse in every DOF" if not any(better) else "better in "
+    )
+    assert verdict in note, note
 
 
 def test_replay_of_a_sea_the_tuning_fits_is_silent(
@@ -354,7 +369,11 @@ def test_a_calm_log_says_the_check_was_not_made_and_the_report_that_the_filter_a
     assert f"dpgw replay: warning: report: {amplifies}" in err
     md = (report / "report.md").read_text()
     warnings = md.split("## Warnings\n\n", 1)[1].split("\n\n", 1)[0].splitlines()
-    assert warnings == [f"- note: {note}", f"- warning: {amplifies}"]
+    # (and that an NMEA log alone has no thrust: the observers ran with τ = 0)
+    (no_thrust,) = [line for line in err if "no thruster feedback in the log" in line]
+    no_thrust = no_thrust.removeprefix("dpgw replay: note: ")
+    assert summary["measurements"]["tau_from_feedback"] == summary["measurements"]["tau_from_demand"] == 0
+    assert warnings == [f"- note: {note}", f"- note: {no_thrust}", f"- warning: {amplifies}"]
     # the start: the console's log line counts from the first sentence with a time (a cycle without a
     # fix), the report's t = 0 from the first fused measurement; the report gives both, each labelled
     (log_line,) = [line for line in _plain_summary(args).splitlines() if line.startswith("  log calm.txt:")]
@@ -424,3 +443,25 @@ def test_the_amplification_warning_advises_each_observer_in_its_own_keys() -> No
     m = re.search(r"--observer (mmae:candidates=[0-9./]+)\)", mmae)
     assert m is not None and parse_observer_spec(m.group(1)).name == "mmae", mmae
     assert "(--observer sdre:wave_period_s=2.2)" in sdre, sdre
+
+
+def test_every_advice_of_the_wave_check_runs_as_printed() -> None:
+    """Each mistuned observer is advised a spec replay takes, and the warning prints that spec: an adaptive
+    SDRE's range with ``adaptive=true`` again (a fixed SDRE refuses a range: before, the advice was
+    refused), the MMAE a bank, a fixed observer its own wave period."""
+    t, y = vessel_under_way(1, wave_omega=0.35)
+    w0 = np.full(len(t), 0.9)
+    kinds = {
+        "gs": ("gain_scheduled", True),
+        "sd": ("sdre", True),
+        "mm": ("mmae", True),
+        "p": ("passive", False),
+    }
+    wc = check_wave_tuning(t, y, BAND, dict.fromkeys(kinds, w0), kinds)
+    advised = wc.advised()
+    assert set(advised) == set(kinds)
+    for label, spec in advised.items():
+        parsed = parse_observer_spec(spec)
+        assert parsed.name == kinds[label][0]
+        assert any(f"--observer {spec}" in w for w in wc.warnings()), (spec, wc.warnings())
+    assert parse_observer_spec(advised["sd"]).params["adaptive"]

@@ -140,7 +140,7 @@ class WaveCheck:
                     f"--observer {retune_spec(o.kind, w)}."
                 )
                 continue
-            scheduled = f"wave_period_s={period},omega_min={_fmt(w / 2.0)},omega_max={_fmt(2.0 * w)}"
+            spec = self._advised_spec(o, w)
             if o.kind == "mmae" and o.span is not None and o.span[0] <= w <= o.span[1]:
                 # A bank around the sea is what it had: advising it again sends the user round in a circle.
                 # Its weights followed the other DOFs (motion without a clear wave peak), not the waves.
@@ -149,20 +149,38 @@ class WaveCheck:
                     f"Its bank ({_fmt(o.span[0])}-{_fmt(o.span[1])} rad/s) spans the sea's, yet its weights "
                     "settled elsewhere"
                     + (f", led by the motion without a clear wave peak ({_and(others)})" if others else "")
-                    + f": for this log, a fixed ω0 at the measured peak, --observer passive:wave_period_s="
-                    f"{period}."
+                    + f": for this log, a fixed ω0 at the measured peak, --observer {spec}."
                 )
             elif o.kind == "mmae":  # a bank of fixed candidates, no range: a bank around the sea
-                todo = f"Its bank does not reach the sea's: re-run with --observer {retune_spec('mmae', w)}"
+                todo = f"Its bank does not reach the sea's: re-run with --observer {spec}"
             elif o.adaptive:
-                todo = f"Its ω0 range does not reach the sea's: re-run with --observer {o.kind}:{scheduled}"
+                todo = f"Its ω0 range does not reach the sea's: re-run with --observer {spec}"
             else:
                 todo = (
-                    f"Re-run with --observer {retune_spec(o.kind, w)}, or with "
-                    f"--observer gain_scheduled:{scheduled} to follow the sea."
+                    f"Re-run with --observer {spec}, or with --observer gain_scheduled:"
+                    f"{_scheduled(w)} to follow the sea."
                 )
             out.append(f"{what} {todo}")
         return out
+
+    def advised(self) -> dict[str, str]:
+        """The ``--observer`` spec the warnings advise each mistuned observer (by label), where they advise
+        one (not for a peak longer than any sea's, which is more likely the vessel's own motion)."""
+        w = self.measured
+        if w is None or 2 * math.pi / w > self.longest_sea_s:
+            return {}
+        return {o.label: self._advised_spec(o, w) for o in self.observers if o.mistuned}
+
+    @staticmethod
+    def _advised_spec(o: ObserverTuning, w: float) -> str:
+        """The spec that tunes ``o`` to a sea at ``w`` (rad/s): its own keys at the peak; a range around it
+        for an observer that schedules ω0; for an MMAE whose bank already spans the sea (its weights led
+        elsewhere), a fixed ω0 at the peak instead of the same bank again."""
+        if o.kind == "mmae" and o.span is not None and o.span[0] <= w <= o.span[1]:
+            return retune_spec("passive", w)
+        if o.adaptive and o.kind != "mmae":  # (an SDRE takes a range only when adaptive: said again)
+            return f"{o.kind}:{'adaptive=true,' if o.kind == 'sdre' else ''}{_scheduled(w)}"
+        return retune_spec(o.kind, w)
 
     def notes(self) -> list[str]:
         """With no clear peak in any DOF: that the observers' ω0 could not be checked, and why per DOF.
@@ -223,6 +241,12 @@ def retune_spec(kind: str, omega: float) -> str:
         return f"{kind}:wave_period_s={_period(omega)}"
     bank = "/".join(_fmt(x) for x in np.linspace(omega / 2.0, 2.0 * omega, 8))
     return f"{kind}:candidates={bank}"
+
+
+def _scheduled(omega: float) -> str:
+    """The keys of an observer that schedules ω0 for a sea at ``omega``: its period, and a range from half
+    to twice it."""
+    return f"wave_period_s={_period(omega)},omega_min={_fmt(omega / 2.0)},omega_max={_fmt(2.0 * omega)}"
 
 
 def _fmt(x: float) -> str:
