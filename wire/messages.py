@@ -203,7 +203,11 @@ class Estimate(Message, kw_only=True):
     nu: Annotated[Vec3, doc("Low-frequency velocity " + NU, "m/s, m/s, rad/s")]
     bias: Annotated[Vec3, doc("Slowly varying environmental force [X, Y, N], earth-fixed axes.", "N, N, N·m")]
     eta_wf: Annotated[
-        Vec3, doc("Wave-frequency motion [N, E, ψ]; null for an observer without a wave model.", "m, m, rad")
+        Vec3,
+        doc(
+            "Wave-frequency motion [N, E, ψ]: the estimate of the observer's wave model.",
+            "m, m, rad",
+        ),
     ]
     omega0: Annotated[
         Vec3,
@@ -226,7 +230,7 @@ class Estimate(Message, kw_only=True):
         doc(
             "Per DOF [N, E, ψ]: ok (every reference passes), degraded (some usable, not all), "
             "dead_reckoning (none usable), lost (dead reckoning past `integrity.lost_after_s`); "
-            "empty when not known (an extra observer's estimate)."
+            "left out when not known (an extra observer's estimate)."
         ),
     ] = []
     settled: Annotated[
@@ -460,7 +464,7 @@ class ReferenceStatus(Record, kw_only=True):
     ]
     reason: Annotated[str, doc("Why it is not ok, for a person (empty when ok).")]
     sigma_m: Annotated[
-        float | None, doc("Measured 1σ noise of a position reference; null when not measured yet.", "m")
+        float | None, doc("Measured 1σ noise of a position reference; left out when not measured yet.", "m")
     ] = None
 
 
@@ -468,8 +472,8 @@ class SetpointStatus(Record, kw_only=True):
     north_m: Annotated[float, doc("North of the local frame's origin (the datum).", "m")]
     east_m: Annotated[float, doc("East of the local frame's origin (the datum).", "m")]
     heading_deg: Annotated[float, doc("Heading, clockwise from north.", "deg")]
-    lat_deg: Annotated[float | None, doc("Latitude (WGS-84); null before the datum is set.", "deg")] = None
-    lon_deg: Annotated[float | None, doc("Longitude (WGS-84); null before the datum is set.", "deg")] = None
+    lat_deg: Annotated[float | None, doc("Latitude (WGS-84); left out before a datum.", "deg")] = None
+    lon_deg: Annotated[float | None, doc("Longitude (WGS-84); left out before a datum.", "deg")] = None
 
 
 class CommandStatus(Record, kw_only=True):
@@ -478,7 +482,7 @@ class CommandStatus(Record, kw_only=True):
         dict[str, int],
         doc('Command inputs refused, by "key: reason" (count), e.g. {"setpoint: too far": 1}.'),
     ]
-    last_refused: Annotated[str | None, doc("Why the last refused input was refused; null if none.")] = None
+    last_refused: Annotated[str | None, doc("Why the last refused input was refused; absent if none.")] = None
     superseded: Annotated[
         dict[str, int],
         doc(
@@ -499,15 +503,15 @@ class CommandStatus(Record, kw_only=True):
         SetpointStatus | None,
         doc(
             "The DP setpoint in force: the controller's target (the operator's setpoint once applied, or the "
-            "position and heading held when DP was engaged without one), as of the last control step; null "
-            "outside DP. What a console reads back to show the station being kept."
+            "position and heading held when DP was engaged without one), as of the last control step; "
+            "left out outside DP. What a console reads back to show the station being kept."
         ),
     ] = None
     setpoint_waiting: Annotated[
         dict[str, Any] | None,
         doc(
             "A setpoint taken but not applied yet, as it was sent (it waits for the next control step, for "
-            "an estimate healthy enough for DP); null when none waits."
+            "an estimate healthy enough for DP); left out when none waits."
         ),
     ] = None
 
@@ -536,7 +540,8 @@ class ConsequenceStatus(Record, kw_only=True):
         doc("Share of the capacity of the thrusters in service the load takes now; null: unreachable."),
     ]
     worst: Annotated[
-        FailureCaseStatus | None, doc("The failure case of the highest utilisation; null if none to test.")
+        FailureCaseStatus | None,
+        doc("The failure case of the highest utilisation; left out if none to test."),
     ] = None
     cases: Annotated[
         list[FailureCaseStatus],
@@ -590,7 +595,7 @@ class Status(Message, kw_only=True):
         ConsequenceStatus | None,
         doc(
             "The online consequence analysis in DP: would the thrusters left after the worst-case failure "
-            "hold the present load (docs/controller.md); null outside DP or without a thruster layout."
+            "hold the present load (docs/controller.md); left out outside DP or without a thruster layout."
         ),
     ] = None
 
@@ -956,7 +961,10 @@ class SimClock(Message, kw_only=True):
     ]
     speed: Annotated[
         float | None,
-        doc("Simulation seconds per wall second the simulator is paced at (null: as fast as possible).", ""),
+        doc(
+            "Simulation seconds per wall second the simulator is paced at (left out: as fast as possible).",
+            "",
+        ),
     ] = None
     run: Annotated[
         int,
@@ -1200,7 +1208,9 @@ TOPICS: tuple[Topic, ...] = (
     Topic(
         "/dp/estimates/",
         Estimate,
-        "replay only: `/dp/estimates/<label>`, further observers run side by side (`--observer SPEC@label`)",
+        "replay only: `/dp/estimates/<label>`, further observers run side by side (`--observer SPEC@label`); "
+        "a paced replay (`--speed`) publishes them on Zenoh too, as `<prefix>/estimates/<label>`",
+        ("estimates/<label>", "out"),
     ),
     Topic("/dp/estimate/fix", LocationFix, "the estimated position and heading, for the map (≤ ~5 Hz)"),
     Topic("/gnss/", LocationFix, "`/gnss/<source>/fix`: every GNSS fix, for the map"),
