@@ -32,17 +32,28 @@ _CRITICAL_IN_DP = (
 _CRITICAL_ENDINGS = ("beyond the alarm circle (# m)", "beyond the alarm limit (#°)")
 
 
+# Alarms whose identity is their start alone: the rest of the text says what is missing and what DP does
+# on it, which change while the alarm stays up.
+_ONE_ALARM = ("estimate lost:", "estimate dead reckoning")
+
+
 def alarm_key(text: str) -> str:
     """An alarm's identity: its text with the numbers that are values masked, so "stale (3.1 s without
     data)" growing to "(4.1 s ...)" is the same alarm still active, not one cleared and another raised.
     The digits of a name are not values: "source dgps1: stale (...)" and "source dgps2: stale (...)" are
-    two alarms, as are "thruster 1 out of DP" and "thruster 2 out of DP"."""
-    return without_figures(text)
+    two alarms, as are "thruster 1 out of DP" and "thruster 2 out of DP".
+
+    An estimate's alarm is its state alone (`_ONE_ALARM`): "no usable position and heading reference"
+    becoming "no usable position reference" as the heading came back first was read as a clear and a new
+    critical alarm, raised while the vessel was recovering and cleared a moment later. Dead reckoning that
+    becomes lost is another alarm (an escalation, as the circles are)."""
+    key = without_figures(text)
+    return next((start for start in _ONE_ALARM if key.startswith(start)), key)
 
 
 def alarm_level(text: str, mode: str) -> str:
     """``critical`` or ``warning`` (module docstring) for an alarm's text in the gateway's ``mode``."""
-    key = alarm_key(text)
+    key = without_figures(text)
     if key.startswith(_CRITICAL) or key.endswith(_CRITICAL_ENDINGS):
         return "critical"
     if mode == "dp" and key.startswith(_CRITICAL_IN_DP):

@@ -10,10 +10,11 @@ from __future__ import annotations
 import re
 
 # A number is a value (masked) unless it is part of a name: glued to letters or underscores ("dgps1",
-# "gps_2", "gyro1/gyro2", "ttyUSB0") or a thruster's id ("thruster 3", "thrusters 1, 2"). Scanned left to
+# "gps_2", "gyro1/gyro2", "ttyUSB0"), a thruster's id ("thruster 3", "thrusters 1, 2") or an IPv4 address
+# with its port ("127.0.0.1:10110": it named "#.#" before, every address the same). Scanned left to
 # right, a name is taken whole before the numbers of the rest; a number may have an exponent ("3.82e+04").
 _NAME_OR_NUMBER = re.compile(
-    r"(?P<name>\bthrusters? \d+(?:(?:, | and )\d+)*|[A-Za-z_][\w-]*)"
+    r"(?P<name>\bthrusters? \d+(?:(?:, | and )\d+)*|[A-Za-z_][\w-]*|\b\d+\.\d+\.\d+\.\d+(?::\d+)?\b)"
     r"|(?P<number>\d+(?:\.\d+)?(?:[eE][+-]?\d+)?)"
 )
 

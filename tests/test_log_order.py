@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import socket
 import threading
+import time
 from collections.abc import Iterator
 from datetime import UTC, datetime
 from pathlib import Path
@@ -255,3 +256,34 @@ def test_a_log_two_producers_write_into_is_in_order_within_its_window(tmp_path: 
             if k >= 4:
                 w.write_raw_nmea("gps", HDT, T0 + (k - 4) * S // 10 + 5_000_000)
     assert backward_steps(plain) != []
+
+
+def test_a_service_log_puts_an_input_queued_during_a_turn_in_its_place(tmp_path: Path) -> None:
+    """An input is stamped by its receiving thread and queued; one queued while a turn of the consumer loop
+    logs is handled after that turn's records though stamped before them. A HIL bench's `dpgw run` log went
+    back in the file that way up to 12 ms (simulation clock) a few dozen times in minutes. The service's log
+    now holds each record `LOG_ORDER_WINDOW_S` and writes in log-time order: here a turn's tick at t, then
+    the raw input of t − 12 ms, as the race writes them, through the running service's own log."""
+    from gateway.service import LOG_ORDER_WINDOW_S
+    from wire.messages import DeadReckoningTick
+
+    udp, zport = free_port(socket.SOCK_DGRAM), free_port()
+    path = tmp_path / "svc.mcap"
+    tables = mux_tables(udp, zport, path, status_hz=10.0)
+    service = GatewayService(parse_config(tables, base_dir=tmp_path), config_tables=tables)
+    service.start()
+    loop = threading.Thread(target=service.run, name="consumer")
+    loop.start()
+    try:
+        assert service.log is not None
+        base = time.time_ns() + S  # (ahead of the service's own records: the newest in the log are these)
+        for k in range(20):
+            t = base + k * S // 10
+            service.log.write_many([("/dp/tick", DeadReckoningTick(silent_s=0.0).encode(), t, None)])
+            service.log.write_raw_nmea("late", HDT, t - 12_000_000)
+    finally:
+        stop_service(service, loop)
+    assert LOG_ORDER_WINDOW_S > 0.012
+    mine = [(topic, ns) for topic, ns, _ in file_order(path) if topic in ("/dp/tick", "/raw/nmea/late")]
+    assert [t for _, t in mine] == sorted(t for _, t in mine)  # (the service's own records are its own)
+    assert [topic for topic, _ in mine].count("/raw/nmea/late") == 20 and len(mine) == 40

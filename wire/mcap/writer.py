@@ -593,8 +593,13 @@ class McapLogWriter:
         would (the gateway starts a file for each run of a restarted simulator, so that each replays
         alone); a file with no message yet is kept instead. Returns the file written from now on (the one
         to be tried next while writing has failed). The log-time flush starts again with the new file:
-        its times may be earlier than the last file's."""
+        its times may be earlier than the last file's. What `hold_for_order` holds is written first, to the
+        file being finished (its records are of the run before), and the order starts again with the new
+        file: held on, the last records of a simulator's run went into the next run's file."""
         with self._lock:
+            if self._held and not self._closed:
+                self._release_held_locked(None)
+            self._newest_ns = 0
             if not self._closed and self.error is None:
                 try:
                     if self._writer is None or self._file_first_log_ns is not None:
