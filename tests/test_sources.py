@@ -6,6 +6,7 @@ deadline, so a broken source fails a test instead of hanging it; no test leaves 
 
 from __future__ import annotations
 
+import itertools
 import socket
 import sys
 import threading
@@ -398,6 +399,38 @@ def test_tcp_client_receives_and_reconnects_after_the_server_restarts(opened: li
     with TcpServerSink("127.0.0.1", port) as server2:  # the same port, a new server
         assert got.wait(lambda: HDT in got.data, 8.0, poll=lambda: server2.write(HDT))
         assert src.stats.reconnects >= 1 and src.stats.connected
+
+
+def test_tcp_client_backs_off_from_a_server_that_accepts_and_closes_at_once(opened: list[Source]) -> None:
+    """A server that accepts and closes at once (a port forward to nothing, a device rebooting in a loop):
+    each connect reset the back-off, so the gateway reconnected every 0.5 s for as long as it lasted, two
+    journal lines each time. A connection shorter than `STABLE_CONNECTION_S` now counts as a failed
+    attempt: the waits between connects grow (0.5, 1, 2 s; a busy machine makes them longer, never
+    shorter)."""
+    from gateway.sources.tcp import STABLE_CONNECTION_S
+
+    assert STABLE_CONNECTION_S >= 2.0
+    server = socket.create_server(("127.0.0.1", 0))
+    accepted: list[float] = []
+
+    def accept_and_close() -> None:
+        while True:
+            try:
+                conn, _ = server.accept()
+            except OSError:  # (closed: the test is over)
+                return
+            accepted.append(time.monotonic())
+            conn.close()
+
+    threading.Thread(target=accept_and_close, daemon=True).start()
+    try:
+        start(opened, "flap", f"tcp://127.0.0.1:{server.getsockname()[1]}", TcpClientSource)
+        assert wait_until(lambda: len(accepted) >= 4, 30.0), accepted
+    finally:
+        server.close()
+    waits = [b - a for a, b in itertools.pairwise(accepted[:4])]
+    assert waits[0] >= BACKOFF_FIRST_S * 0.9 and waits[1] >= 1.8 * BACKOFF_FIRST_S, waits
+    assert waits[2] >= 3.6 * BACKOFF_FIRST_S, waits
 
 
 @pytest.mark.slow
