@@ -4,6 +4,7 @@ said at once, with what to do, instead of a traceback after the replay, the fit 
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 from pathlib import Path
@@ -105,6 +106,22 @@ def make_folder_for(command: str, flag: str, path: str | Path) -> None:
 
     if folder := make_log_folder(path):
         print(f"{command}: made the folder {folder} for {flag} (it did not exist)", file=sys.stderr)
+
+
+def cannot_create_in(folder: str) -> str | None:
+    """Why no file can be made in the existing ``folder`` (the OS's words), or None when one can: a file
+    made and removed at once. Permissions alone said yes where the filesystem says no (``/proc``, a
+    read-only mount seen by root, a full disk's quota)."""
+    import tempfile
+
+    try:
+        fd, name = tempfile.mkstemp(prefix=".dpgw-check-", dir=folder)
+    except OSError as exc:
+        return exc.strerror or str(exc)
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(name)
+    return None
 
 
 def writable(path: str) -> bool:

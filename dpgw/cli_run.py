@@ -250,6 +250,9 @@ def run(args: argparse.Namespace) -> int:
         service.stop_event.set()  # also ends the status reporter
         status = service.final_status().payload
         log_files = [str(p) for p in service.log.paths] if service.log is not None else []
+        # (over the whole run: a status says it only while writing fails, the alarm clears when it works)
+        not_logged = service.log.lost if service.log is not None else 0
+        failures = service.log.failures if service.log is not None else 0
         service.close()
         notifier.close()
     why = stop_reason(stop.signum, args.duration)
@@ -259,6 +262,7 @@ def run(args: argparse.Namespace) -> int:
         "stopped_by": stop.name if stop.signum is not None else None,  # as `dpgw demo --json` has it
         "status": status,
         "log_files": log_files,
+        "log_not_logged": not_logged,
     }
     if args.json:
         print(cli_json.dumps(summary, indent=2))
@@ -270,6 +274,11 @@ def run(args: argparse.Namespace) -> int:
               "messages published")  # fmt: skip
         if log_files:
             print(f"dpgw run: log: {', '.join(log_files)}")
+        if not_logged or failures:
+            print(
+                f"dpgw run: log: {not_logged} messages were not logged: writing failed {failures} "
+                f"time{'s' if failures != 1 else ''} during the run (the gateway's log says when and why)"
+            )
         for name, source in plain.get("sources", {}).items():
             if source.get("reconnects"):
                 print(f"dpgw run: source {name}: {reconnects_text(source, time.time_ns())}")
@@ -474,7 +483,7 @@ def log_folder_note(path: str) -> str | None:
     what the service's user cannot do, said ``ok`` and the service then stopped on it."""
     import os
 
-    from dpgw.cli_paths import user_name
+    from dpgw.cli_paths import cannot_create_in, user_name
     from wire.mcap.folder import log_folder_blocked, log_folder_problem
 
     folder = os.path.dirname(os.path.abspath(path))
@@ -483,6 +492,8 @@ def log_folder_note(path: str) -> str | None:
     if problem := log_folder_problem(path):  # (only the log's own folder is made)
         return f"log.path: {problem}: start-up stops on it unless that changes by then"
     if writable(folder):
+        if os.path.isdir(folder) and (why := cannot_create_in(folder)):
+            return f"log.path: no file can be made in {folder} ({why}): start-up stops on it"
         return None
     what = "is not writable" if os.path.isdir(folder) else "does not exist and cannot be made"
     return (

@@ -1394,3 +1394,33 @@ def test_a_negative_seed_is_a_usage_error_and_writes_nothing(
     assert stop.value.code == 2
     assert "argument --seed: must be 0 or more" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_run_says_at_its_stop_how_many_messages_were_not_logged(tmp_path: Path) -> None:
+    """The log file removed under a running gateway (a disk unmounted) and the next file of the set on a
+    full disk (/dev/full): while it fails the status alarms, but the alarm clears when writing works again,
+    and the stop summary said nothing of the gap. It now gives the run's count, on the console and in
+    ``--json`` (``log_not_logged``)."""
+    from conftest import wait_for
+
+    cfg = tmp_path / "vessel.toml"
+    cfg.write_text(
+        '[vessel]\nname = "mss_supply"\n[[sources]]\nname = "gps"\nurl = "udp://127.0.0.1:0"\n'
+        'protocol = "nmea"\nroles = ["position", "heading"]\n[observer]\nwave_period_s = 9.0\n'
+        '[zenoh]\nmulticast_scouting = false\n[log]\npath = "gw.mcap"\n[status]\nrate_hz = 10.0\n'
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "dpgw", "run", "--config", str(cfg), "--duration", "4", "--json"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        assert wait_for(lambda: (tmp_path / "gw.mcap").exists() or proc.poll() is not None, 60.0)
+        (tmp_path / "gw_0001.mcap").symlink_to("/dev/full")  # where the writer tries next
+        (tmp_path / "gw.mcap").unlink()
+        out, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0, err
+    summary = json.loads(out)
+    assert summary["log_not_logged"] > 0, summary
+    assert summary["log_files"][0].endswith("gw.mcap")

@@ -403,3 +403,24 @@ def test_check_names_the_config_as_given_for_every_problem(tmp_path: Path) -> No
     assert p.returncode == 2
     assert "  vessel.toml: sources.dgps1.url: rcvbuf 'abc' is not a buffer size" in p.stderr, p.stderr
     assert str(tmp_path) not in p.stderr
+
+
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux's /proc")
+def test_the_check_notes_a_log_folder_where_no_file_can_be_made() -> None:
+    """``log.path = "/proc/vessel.mcap"``: the folder's permissions say writable (to root), but the
+    filesystem makes no file there: ``--check`` said ok without a word and ``dpgw run`` then stopped on it.
+    The check now makes (and removes) a file there and notes why it could not."""
+    from dpgw.cli_run import log_folder_note
+
+    note = log_folder_note("/proc/vessel.mcap")
+    assert note is not None and "/proc" in note, note
+    if os.access("/proc", os.W_OK):  # (root: the permissions said yes)
+        assert note.startswith("log.path: no file can be made in /proc ("), note
+    assert not list(Path("/proc").glob(".dpgw-check-*"))
+
+
+def test_the_check_leaves_no_file_in_a_log_folder_it_could_write(tmp_path: Path) -> None:
+    from dpgw.cli_run import log_folder_note
+
+    assert log_folder_note(str(tmp_path / "dpgw.mcap")) is None
+    assert list(tmp_path.iterdir()) == []

@@ -10,6 +10,7 @@ resolved against the folder of the config file.
 
 from __future__ import annotations
 
+import os
 import re
 import tomllib
 from collections.abc import Mapping
@@ -457,7 +458,10 @@ def _read_log(p: Problems, data: Mapping[str, Any], base_dir: Path) -> LogConfig
     v = read_table(LogTable, t, "log", p)
     path: Path | None = None
     if v["path"]:
-        path = (base_dir / v["path"]).resolve()
+        # Absolute, but not resolved: a link in the path is the user's (a log folder linked to a data
+        # disk; the file itself a link), and the file's name is the one given. Resolved, a log path that
+        # was a link was refused as "not an MCAP file name" by its target's name.
+        path = Path(os.path.abspath(base_dir / v["path"]))
         if path.suffix != ".mcap":
             p.add(
                 "log.path", f"not an MCAP file name (expected a path ending in .mcap, got {show(v['path'])})"
