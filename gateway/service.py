@@ -106,14 +106,6 @@ DRAIN_S = 10.0
 """After a stop, queued input is handled for at most this long (wall s), the rest written to the log as
 received (`GatewayService.drain`): the whole stop stays well inside the systemd unit's TimeoutStopSec
 (30 s), after which the process would be killed. ``dpgw run`` and ``dpgw demo`` stop the same way."""
-LOG_ORDER_WINDOW_S = 0.25
-"""The service's log holds each record until the newest it has written is this far (log time) past it, and
-writes in log-time order (`McapLogWriter.hold_for_order`), so that a reader streaming the file without its
-index never sees time go back. Each input is stamped by its receiving thread and handled in turn by the
-consumer loop, so what one turn logs (a status, a tick's estimate, the outputs of a thruster frame) can be
-written before an input of an earlier stamp that was queued during that turn: measured on a HIL bench,
-steps back of up to 12 ms on the simulation's clock and 0.3 ms on the wall clock. A crash loses
-at most this much more of the log."""
 BEHIND_S = 1.0
 """The consumer is behind when the input it handles was received this long ago (wall s): a status alarm
 and one log line each way. The estimates and thruster commands then come from inputs that old."""
@@ -386,7 +378,6 @@ class GatewayService:
             self._start_sinks(self._session)
             if self._log_path:
                 self.log = _open_log(self._log_path, self.config.log.writer_options())
-                self.log.hold_for_order(LOG_ORDER_WINDOW_S)
                 meta = {"vessel": self.config.vessel.name, "prefix": self.prefix}
                 if self.config_tables is not None:  # lets replay rebuild exactly this pipeline (no keys)
                     ctl = self.pipeline.controller

@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 import socket
 import threading
-import time
 from collections.abc import Iterator
 from datetime import UTC, datetime
 from pathlib import Path
@@ -258,32 +257,50 @@ def test_a_log_two_producers_write_into_is_in_order_within_its_window(tmp_path: 
     assert backward_steps(plain) != []
 
 
-def test_a_service_log_puts_an_input_queued_during_a_turn_in_its_place(tmp_path: Path) -> None:
-    """An input is stamped by its receiving thread and queued; one queued while a turn of the consumer loop
-    logs is handled after that turn's records though stamped before them. A HIL bench's `dpgw run` log went
-    back in the file that way up to 12 ms (simulation clock) a few dozen times in minutes. The service's log
-    now holds each record `LOG_ORDER_WINDOW_S` and writes in log-time order: here a turn's tick at t, then
-    the raw input of t − 12 ms, as the race writes them, through the running service's own log."""
-    from gateway.service import LOG_ORDER_WINDOW_S
+def test_a_held_log_rotated_writes_what_it_holds_to_the_file_it_finishes(tmp_path: Path) -> None:
+    """A log that holds records for their order (`hold_for_order`: the demo's) and is rotated for a new run
+    of the simulator (its time going back): what it held is the run before's, and goes to the file being
+    finished, in order; the new file starts its order again. Before, the old run's last records waited in
+    the heap and went into the new run's file."""
     from wire.messages import DeadReckoningTick
 
-    udp, zport = free_port(socket.SOCK_DGRAM), free_port()
-    path = tmp_path / "svc.mcap"
-    tables = mux_tables(udp, zport, path, status_hz=10.0)
-    service = GatewayService(parse_config(tables, base_dir=tmp_path), config_tables=tables)
-    service.start()
-    loop = threading.Thread(target=service.run, name="consumer")
-    loop.start()
+    path = tmp_path / "runs.mcap"
+    tick = DeadReckoningTick(silent_s=0.0).encode()
+    with McapLogWriter(path) as w:
+        w.hold_for_order(2.0)
+        for k in range(30):  # the first run: 3 s
+            w.write_many([("/dp/tick", tick, T0 + k * S // 10, None)])
+        second = w.rotate()
+        for k in range(30):  # the second run starts again at T0
+            w.write_many([("/dp/tick", tick, T0 + k * S // 10, None)])
+    assert second != path
+    for f in (path, second):
+        times = [ns for _, ns, _ in file_order(f)]
+        assert len(times) == 30 and times == sorted(times), f.name
+
+
+def test_a_held_log_whose_file_is_removed_counts_the_loss_and_never_raises(tmp_path: Path) -> None:
+    """The demo's held log with its file removed under it (a disk unmounted): the flush after the held
+    records were written raised out of the writer, into the gateway's loop. It fails as an unheld log does:
+    said, counted, a new file tried."""
+    from wire.messages import DeadReckoningTick
+
+    path = tmp_path / "held.mcap"
+    tick = DeadReckoningTick(silent_s=0.0).encode()
+    w = McapLogWriter(path, flush_interval_s=0.01, retry_s=3600.0)
     try:
-        assert service.log is not None
-        base = time.time_ns() + S  # (ahead of the service's own records: the newest in the log are these)
+        w.hold_for_order(0.5)
         for k in range(20):
-            t = base + k * S // 10
-            service.log.write_many([("/dp/tick", DeadReckoningTick(silent_s=0.0).encode(), t, None)])
-            service.log.write_raw_nmea("late", HDT, t - 12_000_000)
+            w.write_many([("/dp/tick", tick, T0 + k * S // 10, None)])
+        path.unlink()
+        t = [T0 + 2 * S]
+
+        def one_more() -> bool:  # (a record a tenth of a second on: the held ones before it are written)
+            t[0] += S // 10
+            w.write_many([("/dp/tick", tick, t[0], None)])
+            return w.error is not None
+
+        assert wait_for(one_more, 30.0)
+        assert w.lost > 0 and "removed" in (w.error or ""), (w.lost, w.error)
     finally:
-        stop_service(service, loop)
-    assert LOG_ORDER_WINDOW_S > 0.012
-    mine = [(topic, ns) for topic, ns, _ in file_order(path) if topic in ("/dp/tick", "/raw/nmea/late")]
-    assert [t for _, t in mine] == sorted(t for _, t in mine)  # (the service's own records are its own)
-    assert [topic for topic, _ in mine].count("/raw/nmea/late") == 20 and len(mine) == 40
+        w.close()

@@ -461,7 +461,11 @@ class McapLogWriter:
                 return
             wrote = True
         if wrote:
-            self._after_write()
+            try:
+                self._after_write()  # (its flush finds a file removed under it, a full disk)
+            except OSError as exc:
+                self._fail_locked(exc, lost=len(held))
+                held.clear()
 
     def write_many(self, items: Sequence[tuple[str, bytes, int, SchemaSpec | None]]) -> None:
         """`write_encoded` for several payloads in order, each ``(topic, data, time_ns, schema)`` with the
