@@ -14,10 +14,15 @@ from gateway.sources.base import BACKOFF_MAX_S, POLL_S, READ_SIZE, Backoff, Sour
 from gateway.sources.sockets import bind_problem, fmt_addr, send_all, tune_stream
 
 STABLE_CONNECTION_S = BACKOFF_MAX_S
-"""A connection that lasted this long (s) was a success: the back-off starts again from its first wait.
-A shorter one counts as a failed attempt. Reset at every connect, a server that accepts and closes at once
-(a port forward to nothing, a device rebooting in a loop) was reconnected every 0.5 s for days, two journal
-lines each time (~300,000 a day) pushing the useful history out; now the waits grow to `BACKOFF_MAX_S`."""
+"""A connection that lasted this long (s), or brought `WORKING_CONNECTION_BYTES`, was a success: the
+back-off starts again from its first wait. Any other counts as a failed attempt. Reset at every connect, a
+server that accepts and closes at once (a port forward to nothing, a device rebooting in a loop) was
+reconnected every 0.5 s for days, two journal lines each time (~300,000 a day) pushing the useful history
+out; now the waits grow to `BACKOFF_MAX_S`. A link that brings data and drops is a link that works, badly:
+it is reconnected at once, as before (its data is the vessel's)."""
+WORKING_CONNECTION_BYTES = 64
+"""Bytes a connection must bring to count as working: a sentence or a few MAVLink frames, more than the
+fragment a server that closes at once may send."""
 
 log = logging.getLogger(__name__)
 
@@ -42,6 +47,7 @@ class TcpClientSource(Source):
         self.port = port
         self._sock: socket.socket | None = None
         self._peer = ""
+        self._conn_bytes = 0  # brought by the connection in use (`WORKING_CONNECTION_BYTES`)
 
     def _open(self) -> None:
         pass  # connecting is the reader thread's job: it retries
@@ -86,7 +92,7 @@ class TcpClientSource(Source):
                 if self._sleep(backoff.next()):
                     return
                 continue
-            connected_at = time.monotonic()
+            connected_at, self._conn_bytes = time.monotonic(), 0
             peer = fmt_addr(sock.getpeername())
             with self._io_lock:
                 self._sock, self._peer = sock, peer
@@ -103,7 +109,10 @@ class TcpClientSource(Source):
             self._end_of_stream(peer)
             if reason is None:  # stopped
                 return
-            if time.monotonic() - connected_at >= STABLE_CONNECTION_S:
+            if (
+                self._conn_bytes >= WORKING_CONNECTION_BYTES
+                or time.monotonic() - connected_at >= STABLE_CONNECTION_S
+            ):
                 backoff.reset()  # (a server that accepts and closes at once is retried ever more slowly)
             self.stats.note_disconnect(f"connection to {peer} lost: {reason}")
             self._error("disconnected", f"connection to {peer} lost: {reason}; reconnecting", always=True)
@@ -127,6 +136,7 @@ class TcpClientSource(Source):
                 return strerror(exc)
             if not data:
                 return "closed by the server"
+            self._conn_bytes += len(data)
             self._emit(data, peer)
         return None
 
