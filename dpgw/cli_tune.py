@@ -43,7 +43,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="S",
         help="dominating wave period Tp (s), in the vessel's own scale: a model's basin period (the config's "
         "default is a ship's 7 s, Froude-scaled on a model: 7/sqrt(70) = 0.8367 s on cybership2, the gains "
-        "`dpgw run` uses there; 0.84 would be 0.4 %% off)",
+        "dpgw run uses there; 0.84 would be 0.4 %% off)",
     )
     p.add_argument("--zeta", type=float, default=0.1, help="wave-model damping ζ (default 0.1)")
     p.add_argument("--zeta-n", type=float, default=1.0, help="notch damping ζn > ζ (default 1.0)")
