@@ -405,13 +405,13 @@ class GatewayService:
         else:
             return
         # start-up stops: every source tried now, so that one message names them all (a UDP port in use
-        # too), and closed again
-        try:
-            failed = self._open_sources()
-        finally:
-            for opened in self._sources:
-                opened.stop()
-            self._sources.clear()
+        # too), each opened and closed again without reading (`Source.probe`)
+        failed: list[SourceError] = []
+        for sc in self.config.sources:
+            try:
+                open_source(sc.name, sc.url, timeout_s=sc.timeout_s).probe()
+            except SourceError as exc:
+                failed.append(exc)
         raise failed[0] if len(failed) == 1 else SeveralSourcesError(failed)
 
     def _open_sources(self) -> list[SourceError]:

@@ -330,6 +330,40 @@ def test_a_missing_serial_port_and_a_port_in_use_are_named_in_one_message(tmp_pa
     assert not (tmp_path / "live.mcap").exists()  # stopped before anything was opened
 
 
+def test_a_missing_serial_port_beside_a_tcp_server_that_is_down_is_one_message(tmp_path: Path) -> None:
+    """A TCP source whose server is down and a gyro on a serial port that is not there: the start-up's one
+    message names the port, and nothing else is said. Before, the TCP source's reader thread was started to
+    try every source and said its first retry ("cannot connect ...; retrying with back-off") before it: two
+    messages for one mistake, the first about something start-up does not stop on."""
+    cfg = with_missing_gyro(write_config(tmp_path, f"tcp://127.0.0.1:{free_port()}", name="dgps1"))
+    p = start(cfg)
+    assert p.returncode == 2, p.stderr
+    assert "cannot connect" not in p.stderr and "Traceback" not in p.stderr, p.stderr
+    lines = p.stderr.splitlines()
+    assert lines[0].startswith(
+        f"dpgw run: {cfg}: sources.gyro.url: serial port /dev/ttyUSB_nope2 does not exist"
+    )
+    assert len(lines) == 1, p.stderr
+
+
+def test_the_start_up_that_stops_starts_no_source(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The same in the process, without the race: when a serial port is missing, every source is tried
+    (opened and closed: `Source.probe`) so that one message names all that cannot open, and none is started,
+    so no reader thread says anything of its own (the TCP client's retry warning above)."""
+    from gateway.config import load_config
+    from gateway.service import GatewayService
+    from gateway.sources import Source, SourceError
+
+    started: list[str] = []
+    monkeypatch.setattr(Source, "start", lambda self, deliver: started.append(self.name))
+    cfg = with_missing_gyro(write_config(tmp_path, f"tcp://127.0.0.1:{free_port()}", name="dgps1"))
+    service = GatewayService(load_config(cfg))
+    with pytest.raises(SourceError, match="ttyUSB_nope2"):
+        service.start()
+    service.close()
+    assert started == []
+
+
 def test_log_folder_one_level_is_made_and_said_more_is_refused(tmp_path: Path) -> None:
     """``--log`` in a folder that is not there: made, and said on stderr, when its parent exists; refused
     with one line, and nothing made, when more is missing (a mistyped path on a vessel PC, as root, made

@@ -209,6 +209,16 @@ class Source(ABC):
         self._thread = thread
         thread.start()
 
+    def probe(self) -> None:
+        """Open the transport and close it again, without a reader thread: whether the source can open, for
+        a start-up that stops and names every source that cannot. Raises `SourceError` as `start` does. A
+        TCP client, which connects in its reader thread, opens nothing here (and says nothing: started, its
+        thread's first retry warning came out before the start-up's one message)."""
+        try:
+            self._open()
+        finally:
+            self._close()
+
     def stop(self) -> None:
         """Stop reading and close the transport; waits up to ~1 s for the reader thread. Idempotent."""
         self._stop.set()
