@@ -320,6 +320,8 @@ def _run(args: argparse.Namespace) -> int:
 
     # said before the run, so that a study too short to score can be stopped and given a longer duration
     _warn(outputs.short_scoring_warnings(outputs.planned_rows(cases)))
+    unsettled = outputs.unsettled_warnings(cases)
+    _warn(unsettled)
     try:
         result = run_study(
             cases, workers=workers, scheduler=args.scheduler, cache=cache, progress=not args.no_progress
@@ -332,7 +334,7 @@ def _run(args: argparse.Namespace) -> int:
         print(f"\ndpgw study: stopped ({stop.why}); {kept_text(stop, cache)}", file=sys.stderr)
         return stop.exit_code
     try:
-        return _write_outputs(args, result)
+        return _write_outputs(args, result, unsettled)
     except KeyboardInterrupt as exc:
         why = exc.why if isinstance(exc, StudyInterrupted) else "Ctrl-C"
         print(
@@ -356,7 +358,7 @@ def kept_text(stop: Any, cache: Any) -> str:
     )
 
 
-def _write_outputs(args: argparse.Namespace, result: Any) -> int:
+def _write_outputs(args: argparse.Namespace, result: Any, unsettled: list[str]) -> int:
     """The table, the summary, the plots and the report of a finished study."""
     from dpgw.study import outputs
 
@@ -369,7 +371,7 @@ def _write_outputs(args: argparse.Namespace, result: Any) -> int:
     if args.update_doc:
         command = "dpgw study " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["study"] else "dpgw study"
         update_doc(args.update_doc, text, command)
-    warnings = outputs.short_scoring_warnings(result.rows)
+    warnings = outputs.short_scoring_warnings(result.rows) + unsettled
     where = "serial" if result.workers == 0 else f"{result.workers} Dask workers"
     report = {
         "cases": result.cases,
@@ -389,7 +391,7 @@ def _write_outputs(args: argparse.Namespace, result: Any) -> int:
         return 0
     print(text)
     if warnings:  # (said in full before the run; a pointer after the table, where it is read)
-        _warn([f"{len(warnings)} sea state(s) above scored on too short a stretch (said before the run)"])
+        _warn([f"{len(warnings)} warning(s) above on what the figures hold (said before the run)"])
     print(
         f"{result.cases} case{'' if result.cases == 1 else 's'} ({result.computed} run, {result.cached} "
         f"from the cache) on {where} in "

@@ -329,7 +329,9 @@ def test_study_stopped_with_ctrl_c_says_what_is_kept(
         raise stop
 
     monkeypatch.setattr(dpgw.study.runner, "run_study", interrupted)
-    argv = ["study", "--scenario", "hassani", "--seeds", "0", "--serial", "--out", str(tmp_path / "s")]
+    # (scored after every observer settled: the MMAE's bank, ~126 s, the latest; no warning before the run)
+    argv = ["study", "--scenario", "hassani", "--seeds", "0", "--settle", "130", "--serial", "--out",
+            str(tmp_path / "s")]  # fmt: skip
     assert main(argv) == 130
     assert _one_line(capsys.readouterr().err) == (
         f"dpgw study: stopped (Ctrl-C); 3 of 8 cases done and cached in {tmp_path / 's' / 'cache'}: the "

@@ -18,6 +18,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 # The smallest study on Dask: hassani (the 1:70 model, short cases), one observer, one local worker.
 SMALL = ["study", "--scenario", "hassani", "--observer", "passive", "--workers", "1", "--no-plots"]
+SCORED = ["--duration", "120", "--settle", "61"]
 
 
 def _study(args: list[str], out: Path, **popen: object) -> subprocess.Popen[str]:
@@ -32,8 +33,9 @@ def test_a_successful_study_on_dask_says_nothing_of_dask(tmp_path: Path) -> None
     """Before: ~50 lines of Dask's logging on stderr as ``dpgw study: ...`` ("please install
     jupyter-server-proxy", "dashboard at: http://127.0.0.1:8787/status", the nanny's and workers' start
     and close), sometimes a CommClosedError traceback at shutdown."""
-    # (90 s: scored on 60 s, more than the 54 s hassani's figures need: no warning either)
-    proc = _study(["--seeds", "0", "--duration", "90", "--json", "--no-progress"], tmp_path / "s")
+    # (scored from 61 s, after the passive observer has settled (60.6 s), on 59 s, more than the 54 s
+    # hassani's figures need: no warning either)
+    proc = _study(["--seeds", "0", *SCORED, "--json", "--no-progress"], tmp_path / "s")
     out, err = proc.communicate(timeout=300)
     assert proc.returncode == 0, err
     assert json.loads(out)["computed"] == 1
@@ -55,8 +57,9 @@ def test_a_signal_stops_the_study_and_says_what_is_kept(
     tracebacks. SIGHUP and SIGINT go to the whole group (a closed terminal and Ctrl-C signal the
     foreground group: the workers and the resource tracker get them too); SIGTERM to the process (kill)."""
     out = tmp_path / "s"
-    # (90 s: long enough to score, so no warning before the run: stderr is the stop's line alone)
-    proc = _study(["--seeds", "0-5", "--duration", "90", "--no-progress"], out, start_new_session=True)
+    # (long enough to score, after the observer settled: no warning before the run, so stderr is the stop's
+    # line alone)
+    proc = _study(["--seeds", "0-5", *SCORED, "--no-progress"], out, start_new_session=True)
     cache = out / "cache"
     deadline = time.monotonic() + 240
     while not list(cache.glob("*.json")):  # a first case cached (the file appears whole: atomic write)

@@ -71,6 +71,25 @@ def loop_tables(case: CaseSpec, scenario: Any, nominal_tp_s: float) -> dict[str,
     return with_scenario_observer(tables, scenario)  # the scenario's settings under the spec's
 
 
+def settle_times(case: CaseSpec) -> dict[str, float]:
+    """Each of ``case``'s observers' settle time (s, `Observer.settle_time_s`: its slowest error mode's, or
+    for the MMAE its bank's identification too), built as `score_case` builds it, before any run: a study
+    that scores an observer from before it settles is said before it runs (`outputs.unsettled_warnings`).
+    """
+    from gateway.config import parse_config
+    from gateway.replay import parse_observer_spec
+    from simulator.scenarios import get_scenario
+
+    scenario = build_scenario(case)
+    tables = loop_tables(case, scenario, get_scenario(case.scenario).sea[0][1].tp_s)
+    config = parse_config(tables, base_dir=Path.cwd())
+    out = {}
+    for text in case.observers:
+        spec = parse_observer_spec(text)
+        out[spec.label] = float(spec.make(config, scenario.observer_params.get(spec.name)).settle_time_s)
+    return out
+
+
 def direction_deg(direction_rad: float) -> float:
     """The sea's direction for the table, in degrees [0, 360): the scenario's 150° (stored in radians) is
     150.0, not 150.00000000000003, so that a table filtered on the degrees it was given finds its rows.
