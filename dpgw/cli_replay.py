@@ -446,14 +446,16 @@ def run(args: argparse.Namespace) -> int:
         keyless = keyless_mavlink_sources(config)
         verdicts = logged_signing_verdicts(inputs, keyless)
         defaults, defaults_note = scenario_observer_defaults(inputs, config.vessel.name, specs)
-        pipeline = build_pipeline(
+        # the pipeline for any observers: the replay's, the Foxglove player's at every seek, and the wave
+        # check's advice tried on a log's truth
+        pipeline_for = functools.partial(
+            build_pipeline,
             config,
-            specs,
-            foxglove_channels=args.foxglove_channels,
             controller=own_controller,
             signing_verdicts=verdicts,
             observer_defaults=defaults,
         )
+        pipeline = pipeline_for(specs, foxglove_channels=args.foxglove_channels)
     except ConfigError as exc:
         print(format_problems(exc), file=sys.stderr)
         return 2
@@ -466,7 +468,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"dpgw replay: note: {defaults_note}", file=sys.stderr)
     speed = 1.0 if args.realtime else args.speed
     if args.foxglove is not None:
-        return serve(args, inputs, config, specs, speed, verdicts, defaults)
+        return serve(args, inputs, specs, speed, pipeline_for)
     try:
         publisher = _Publisher(args, config.zenoh.prefix, speed) if speed else None
     except BusError as exc:
@@ -529,15 +531,6 @@ def run(args: argparse.Namespace) -> int:
     # killed process) with the report half written.
     try:
         with _RaiseOnSignal():
-            # (the same pipeline for other observers: the wave check's advice tried on a log's truth)
-            pipeline_for = functools.partial(
-                build_pipeline,
-                config,
-                foxglove_channels=False,
-                controller=own_controller,
-                signing_verdicts=verdicts,
-                observer_defaults=defaults,
-            )
             return _conclude(
                 args, inputs, config, specs, result, evidence, verdicts, keyless, truth_note, t0, pipeline_for
             )
@@ -562,7 +555,7 @@ def _conclude(
     keyless: Any,
     truth_note: str | None,
     t0: float,
-    pipeline_for: Callable[[list[ObserverSpec]], Any],
+    pipeline_for: Callable[..., Any],
 ) -> int:
     """After the replay: the summary (console or --json), the live log's DP performance, the checks and
     the report; the command's exit status."""
@@ -890,6 +883,7 @@ def scenario_observer_defaults(
     model's Froude-scaled range (2.5-13.4 rad/s), far above the sea, and settled there. On another
     vessel (--vessel) a scenario's settings are not that vessel's: none apply."""
     from gateway.replay import logged_sim
+    from observers.factory import with_defaults
     from simulator.scenarios import SCENARIOS, get_scenario
 
     for inp in inputs:
@@ -899,10 +893,12 @@ def scenario_observer_defaults(
         if name not in SCENARIOS or meta.get("vessel") != vessel_name:
             return {}, None
         params = get_scenario(name).observer_params
+        # what each spec's observer takes of them: `with_defaults` decides (a fixed SDRE takes no range)
         taken = [
-            f"{s.name}: {', '.join(f'{k}={v:g}' for k, v in params[s.name].items())}"
+            f"{s.name}: {', '.join(f'{k}={v:g}' for k, v in ours.items() if k in used)}"
             for s in specs
-            if params.get(s.name) and (s.name != "sdre" or s.params.get("adaptive"))
+            if (ours := params.get(s.name))
+            and (used := with_defaults(s.name, ours, s.observer_params()).keys() & ours.keys())
         ]
         note = (
             f"the simulator's scenario '{name}' sets {'; '.join(dict.fromkeys(taken))} under the observers' "
@@ -922,24 +918,22 @@ def own_config(args: argparse.Namespace) -> bool:
 def serve(
     args: argparse.Namespace,
     inputs: list[Any],
-    config: Any,
     specs: list[Any],
     speed: float | None,
-    verdicts: Any = None,
-    observer_defaults: dict[str, dict[str, Any]] | None = None,
+    pipeline_for: Callable[..., Any],
 ) -> int:
     """``--foxglove``: the replay paced in log time on a Foxglove server with playback control
-    (`gateway.replay_player`), until SIGINT/SIGTERM."""
+    (`gateway.replay_player`), until SIGINT/SIGTERM; ``pipeline_for(specs)`` is the replay's pipeline,
+    made anew at every seek."""
     import signal
     import threading
 
     from foxglove.websocket import PlaybackCommand, PlaybackControlRequest, PlaybackState, PlaybackStatus
 
     from gateway.outputs.foxglove_server import FoxgloveServerError, FoxgloveServerSink
-    from gateway.replay import build_pipeline, merged_events, runs_its_own_controller
+    from gateway.replay import merged_events
     from gateway.replay_player import ENDED, PLAYING, PlayerState, ReplayPlayer
 
-    own = runs_its_own_controller(inputs, own_config=own_config(args))
     first = last = None
     for ev in merged_events(inputs):  # the span the app's time line shows (one pass, reading only)
         first = ev.rx_ns if first is None else first
@@ -974,9 +968,7 @@ def serve(
     )
     player = ReplayPlayer(
         lambda: (
-            build_pipeline(
-                config, specs, controller=own, signing_verdicts=verdicts, observer_defaults=observer_defaults
-            ),
+            pipeline_for(specs),
             merged_events(inputs),
         ),
         (first, last),
@@ -1048,7 +1040,7 @@ class _WaveEvidence:
         # the measurements whose τ came from the thrusters' feedback, and those with any τ at all (a demand:
         # a logged controller's): with neither, every observer ran with τ = 0
         self.tau_feedback = 0
-        self.tau_nonzero = 0
+        self.tau_demand = 0
 
     def on_outputs(self, ev: Event, outputs: list[Output]) -> None:
         for o in outputs:
@@ -1059,7 +1051,7 @@ class _WaveEvidence:
                 if msg.tau_source == "feedback":  # type: ignore[attr-defined]
                     self.tau_feedback += 1
                 elif any(msg.tau):  # type: ignore[attr-defined]
-                    self.tau_nonzero += 1
+                    self.tau_demand += 1
                 if self.fusion is not None:
                     received = tuple(self.fusion.measurement_received_ns())
                     self.new.append(tuple(r != p for r, p in zip(received, self._received, strict=True)))
@@ -1077,7 +1069,7 @@ class _WaveEvidence:
             "position": sum(1 for e in self.eta if e[0] is not None and e[1] is not None),
             "heading": sum(1 for e in self.eta if e[2] is not None),
             "tau_from_feedback": self.tau_feedback,
-            "tau_from_demand": self.tau_nonzero,
+            "tau_from_demand": self.tau_demand,
         }
 
     def chain(self, then: Any) -> Any:
@@ -1273,7 +1265,7 @@ def _summary(
         "spans": {where: _span(a, b) for where, (a, b) in r.spans.items()},
     }
     if r.truth:
-        errors, scored, settle = _errors_vs_truth(args, specs, r, data_span)
+        errors, scored, settle = _errors_vs_truth(args, specs, r, r.truth, data_span)
         s["error_vs_truth"] = errors
         s["settle_s"] = settle
         s["estimate_scored_s"] = scored
@@ -1284,7 +1276,7 @@ def _summary(
 def _advice_on_truth(
     args: argparse.Namespace,
     inputs: list[Any],
-    pipeline_for: Callable[[list[ObserverSpec]], Any],
+    pipeline_for: Callable[..., Any],
     advised: dict[str, str],
     errors_now: dict[str, Any],
     truth: list[dict[str, Any]],
@@ -1303,9 +1295,9 @@ def _advice_on_truth(
     specs = [parse_observer_spec(f"{spec}@{label}") for label, spec in advised.items() if label in errors_now]
     if not specs:
         return {}
-    result = run_replay(inputs, pipeline_for(specs), collect=_estimate_topics(specs))
-    result.truth = truth  # (the one the observers were scored on: --truth's is moved into the replay's frame)
-    errors, _, _ = _errors_vs_truth(args, specs, result, data_span)
+    result = run_replay(inputs, pipeline_for(specs, foxglove_channels=False), collect=_estimate_topics(specs))
+    # (scored on the truth the observers were: --truth's, moved into the replay's frame, is not the log's)
+    errors, _, _ = _errors_vs_truth(args, specs, result, truth, data_span)
     return {
         s.label: {
             "advised": advised[s.label],
@@ -1320,15 +1312,16 @@ def _advice_on_truth(
 ADVICE_DOFS = (("N", "rms_north_m", " m"), ("E", "rms_east_m", " m"), ("ψ", "rms_heading_deg", "°"))
 
 
+def _rms_words(e: dict[str, Any]) -> str:
+    """``N 0.464 m, E 0.574 m, ψ 0.351°`` of a `gateway.scoring.Score` dict."""
+    return ", ".join(f"{d} {e[k]:.3g}{u}" for d, k, u in ADVICE_DOFS)
+
+
 def _advice_notes(tried: dict[str, dict[str, Any]]) -> list[str]:
     """What the advice scored on the log's truth, one line an observer: better or worse, by DOF."""
     out = []
     for label, t in tried.items():
         now, then = t["as_run"], t["error_vs_truth"]
-
-        def rms(e: dict[str, Any]) -> str:
-            return ", ".join(f"{d} {e[k]:.3g}{u}" for d, k, u in ADVICE_DOFS)
-
         better = [d for d, k, _ in ADVICE_DOFS if then[k] < now[k]]
         worse = [d for d, k, _ in ADVICE_DOFS if then[k] > now[k]]
         if not worse:
@@ -1346,22 +1339,26 @@ def _advice_notes(tried: dict[str, dict[str, Any]]) -> list[str]:
             )
         out.append(
             f"the advice for '{label}' tried on this log's truth: --observer {t['advised']} gives LF errors "
-            f"(RMS) {rms(then)} against {rms(now)} as run: {verdict}"
+            f"(RMS) {_rms_words(then)} against {_rms_words(now)} as run: {verdict}"
         )
     return out
 
 
 def _errors_vs_truth(
-    args: argparse.Namespace, specs: list[ObserverSpec], r: ReplayResult, data_span: tuple[int, int] | None
+    args: argparse.Namespace,
+    specs: list[ObserverSpec],
+    r: ReplayResult,
+    truth: list[dict[str, Any]],
+    data_span: tuple[int, int] | None,
 ) -> tuple[dict[str, Any], dict[str, float], float]:
-    """Each observer's LF errors against ``r``'s truth (`gateway.scoring.score`), the sea scored (s) and
-    the settle time skipped: an estimate scored on less sea than ``args.min_scored`` is left out."""
+    """Each observer's LF errors in ``r`` against ``truth`` (`gateway.scoring.score`), the sea scored (s)
+    and the settle time skipped: an estimate scored on less sea than ``args.min_scored`` is left out."""
     import numpy as np
 
     from gateway.scoring import score
 
-    tt_ns = np.array([x["stamp_ns"] for x in r.truth], dtype=np.int64)
-    eta_t = np.array([x["eta_lf"] for x in r.truth], dtype=float)
+    tt_ns = np.array([x["stamp_ns"] for x in truth], dtype=np.int64)
+    eta_t = np.array([x["eta_lf"] for x in truth], dtype=float)
     first, last = data_span or (int(tt_ns[0]), int(tt_ns[-1]))
     settle = args.settle if args.settle is not None else default_settle_s((last - first) / 1e9)
     errors, scored = {}, {}

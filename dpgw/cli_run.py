@@ -114,8 +114,16 @@ class StopSignals:
         self.requested = threading.Event()
         self.signum: int | None = None
         self._service: GatewayService | None = None
-        signal.signal(signal.SIGINT, self._on_signal)
-        signal.signal(signal.SIGTERM, self._on_signal)
+        self._before = {s: signal.signal(s, self._on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+
+    def restore(self) -> None:
+        """The handlers as they were before: `run` returns to its caller (a test, a program calling
+        `dpgw.cli.main`) with Ctrl-C its caller's again. Left installed, a Ctrl-C after ``dpgw run
+        --check`` in the same process only set this object's flag, and a replay run next never stopped."""
+        import signal
+
+        for signum, handler in self._before.items():
+            signal.signal(signum, handler)
 
     def _on_signal(self, signum: int, _frame: object) -> None:
         from dpgw.cli_stops import set_from_handler
@@ -139,6 +147,13 @@ class StopSignals:
 
 def run(args: argparse.Namespace) -> int:
     stop = StopSignals()  # first: a signal during the imports and start-up below stops cleanly too
+    try:
+        return _run(args, stop)
+    finally:
+        stop.restore()
+
+
+def _run(args: argparse.Namespace, stop: StopSignals) -> int:
     import logging
     import tomllib
     from dataclasses import replace

@@ -398,18 +398,15 @@ class GatewayService:
         that the one error names every source that cannot open (`SeveralSourcesError`)."""
         if self.wait_for_ports:
             return
-        for sc in self.config.sources:
-            src = open_source(sc.name, sc.url, timeout_s=sc.timeout_s)  # (made, not started)
-            if isinstance(src, SerialSource) and src.missing() is not None:
-                break
-        else:
+        made = [open_source(sc.name, sc.url, timeout_s=sc.timeout_s) for sc in self.config.sources]
+        if not any(isinstance(src, SerialSource) and src.missing() is not None for src in made):
             return
         # start-up stops: every source tried now, so that one message names them all (a UDP port in use
         # too), each opened and closed again without reading (`Source.probe`)
         failed: list[SourceError] = []
-        for sc in self.config.sources:
+        for src in made:
             try:
-                open_source(sc.name, sc.url, timeout_s=sc.timeout_s).probe()
+                src.probe()
             except SourceError as exc:
                 failed.append(exc)
         raise failed[0] if len(failed) == 1 else SeveralSourcesError(failed)

@@ -199,6 +199,18 @@ def run_demo_beside(
             thread.join(30)
 
 
+def simulator_log(path: Path, scenario: str, seed: int, seconds: float) -> Path:
+    """``path``: an MCAP log of the simulator running ``scenario`` with ``seed`` for ``seconds`` (its
+    inputs, its truth, and the metadata that names the scenario), as `dpgw sim --out` writes one."""
+    from simulator.runner import Simulation
+    from simulator.scenarios import get_scenario
+    from wire.mcap.writer import McapLogWriter
+
+    with McapLogWriter(path) as w:
+        Simulation(get_scenario(scenario), seed=seed, log=w).run(seconds)
+    return path
+
+
 def stop_service(service: Any, loop: threading.Thread) -> None:
     """Stop a `GatewayService` whose loop runs in ``loop``, as `dpgw run` does at its end: the loop ends,
     what is left is handled and logged (`drain`), and everything is closed."""

@@ -278,6 +278,19 @@ def test_run_check_json_is_the_check_for_a_program(
     ]
 
 
+def test_run_gives_its_caller_back_its_signal_handlers(capsys: pytest.CaptureFixture[str]) -> None:
+    """`dpgw run` takes SIGINT and SIGTERM from its first line; called in a process that goes on (a test, a
+    program calling `main`), it left them installed: a Ctrl-C afterwards only set its finished run's flag,
+    and a replay run next in the same process never stopped."""
+    import signal
+
+    before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    good = REPO / "examples" / "nmea_udp_multiplexer.toml"
+    assert main(["run", "--config", str(good), "--check", "--json"]) == 0
+    capsys.readouterr()
+    assert {s: signal.getsignal(s) for s in before} == before
+
+
 def test_output_to_a_reader_that_has_gone_stops_quietly(tmp_path: Path) -> None:
     """`dpgw tune --json | head -1`: the reader stops reading; before, a BrokenPipeError traceback. The
     pipe's read end is closed before the command starts, so its first write fails, whatever the timing."""

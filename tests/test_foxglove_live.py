@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import free_port
+from conftest import free_port, simulator_log
 from jsonschema import Draft202012Validator
 
 from tests.test_foxglove_conformance import embedded_differences, official_schema
@@ -243,22 +243,12 @@ def offline_estimates(log: Path, out: Path) -> dict[int, bytes]:
     return found
 
 
-def sim_log(path: Path, seconds: float) -> Path:
-    from simulator.runner import Simulation
-    from simulator.scenarios import get_scenario
-    from wire.mcap.writer import McapLogWriter
-
-    with McapLogWriter(path) as w:
-        Simulation(get_scenario("torsetnes_2004"), seed=3, log=w).run(seconds)
-    return path
-
-
 def ns(t: dict[str, int]) -> int:
     return int(t["sec"]) * 1_000_000_000 + int(t["nsec"])
 
 
 def test_replay_obeys_play_pause_seek_and_speed(tmp_path: Path) -> None:
-    log = sim_log(tmp_path / "sim.mcap", 90.0)
+    log = simulator_log(tmp_path / "sim.mcap", "torsetnes_2004", 3, 90.0)
     reference = offline_estimates(log, tmp_path / "offline.mcap")
     port = free_port()
     proc = dpgw("replay", str(log), "--vessel", "mss_supply", "--foxglove", f"127.0.0.1:{port}", "--json")

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from basin_sea import DEFAULT_SEA, MODEL, SHIPS, basin
 from basin_sea import SCALE as R
+from conftest import simulator_log
 
 from observers.froude import froude_scaled, scaled_frequencies
 from observers.gain_scheduled import (
@@ -29,9 +30,7 @@ from observers.gain_scheduled import (
 from observers.passive_tuning import PassiveTuning, froude_scaled_fields
 from observers.vessel import load_vessel
 from observers.wave_frequency import WaveFrequencyConfig
-from simulator.runner import Simulation
 from simulator.scenarios import FULL_SCALE_OMEGA_RANGE, get_scenario
-from wire.mcap.writer import McapLogWriter
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -201,10 +200,7 @@ def test_the_adaptive_sdre_gets_the_full_scale_range_and_a_fixed_one_is_not_refu
 
 @pytest.fixture(scope="module")
 def hassani_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("hassani") / "sim.mcap"
-    with McapLogWriter(path) as w:
-        Simulation(get_scenario("hassani"), seed=0, log=w).run(240.0)
-    return path
+    return simulator_log(tmp_path_factory.mktemp("hassani") / "sim.mcap", "hassani", 0, 240.0)
 
 
 def _replayed_omega0(

@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import simulator_log
 
 from dpgw.replay_truth import fed_twice, to_replay_frame, truth_log_problem
 from gateway.replay import logged_datum, open_inputs, truth_records
@@ -21,10 +22,7 @@ from wire.mcap.writer import McapLogWriter
 
 @pytest.fixture(scope="module")
 def sim_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("truth") / "sim.mcap"
-    with McapLogWriter(path) as w:
-        Simulation(get_scenario("torsetnes_2004"), seed=2, log=w).run(30.0)
-    return path
+    return simulator_log(tmp_path_factory.mktemp("truth") / "sim.mcap", "torsetnes_2004", 2, 30.0)
 
 
 def gateway_like(path: Path) -> Path:

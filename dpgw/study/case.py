@@ -71,23 +71,36 @@ def loop_tables(case: CaseSpec, scenario: Any, nominal_tp_s: float) -> dict[str,
     return with_scenario_observer(tables, scenario)  # the scenario's settings under the spec's
 
 
+def case_tables(case: CaseSpec, scenario: Any) -> dict[str, Any]:
+    """`loop_tables` of ``case`` on ``scenario``: the observers tuned to the named scenario's own wave
+    period, whatever sea the case runs."""
+    from simulator.scenarios import get_scenario
+
+    return loop_tables(case, scenario, get_scenario(case.scenario).sea[0][1].tp_s)
+
+
+def case_observers(case: CaseSpec, scenario: Any, tables: dict[str, Any]) -> list[tuple[str, Any, Any]]:
+    """``case``'s observers as its scores run them, each ``(spec text, ObserverSpec, Observer)``: the
+    config of ``tables``, the scenario's observer settings under each spec's own."""
+    from gateway.config import parse_config
+    from gateway.replay import parse_observer_spec
+
+    config = parse_config(tables, base_dir=Path.cwd())
+    out = []
+    for text in case.observers:
+        spec = parse_observer_spec(text)
+        out.append((text, spec, spec.make(config, scenario.observer_params.get(spec.name))))
+    return out
+
+
 def settle_times(case: CaseSpec) -> dict[str, float]:
     """Each of ``case``'s observers' settle time (s, `Observer.settle_time_s`: its slowest error mode's, or
     for the MMAE its bank's identification too), built as `score_case` builds it, before any run: a study
     that scores an observer from before it settles is said before it runs (`outputs.unsettled_warnings`).
     """
-    from gateway.config import parse_config
-    from gateway.replay import parse_observer_spec
-    from simulator.scenarios import get_scenario
-
     scenario = build_scenario(case)
-    tables = loop_tables(case, scenario, get_scenario(case.scenario).sea[0][1].tp_s)
-    config = parse_config(tables, base_dir=Path.cwd())
-    out = {}
-    for text in case.observers:
-        spec = parse_observer_spec(text)
-        out[spec.label] = float(spec.make(config, scenario.observer_params.get(spec.name)).settle_time_s)
-    return out
+    observers = case_observers(case, scenario, case_tables(case, scenario))
+    return {spec.label: float(obs.settle_time_s) for _, spec, obs in observers}
 
 
 def direction_deg(direction_rad: float) -> float:
@@ -129,16 +142,12 @@ def score_case(case: CaseSpec, scenario: Any) -> list[dict[str, Any]]:
     """Rows of ``case`` run on ``scenario`` (`build_scenario`'s, or a variant of it: a plant option
     switched off to see what it changes); the observers tuned to the named scenario's own wave period."""
     from dpgw.closed_loop import run_closed_loop
-    from gateway.config import parse_config
-    from gateway.replay import parse_observer_spec
     from gateway.report import ObserverTrace, ReplayData, compute_metrics
     from observers.base import STATUS_INITIALIZING
     from simulator.clock import SimEpoch
-    from simulator.scenarios import get_scenario
     from wire.messages import Measurement
 
-    nominal_tp = get_scenario(case.scenario).sea[0][1].tp_s
-    tables = loop_tables(case, scenario, nominal_tp)
+    tables = case_tables(case, scenario)
     loop = run_closed_loop(
         scenario, case.duration_s, seed=case.seed, tables=tables, collect=("/dp/measurement",)
     )
@@ -150,14 +159,12 @@ def score_case(case: CaseSpec, scenario: Any) -> list[dict[str, Any]]:
     y = np.array([[math.nan if v is None else v for v in m.eta] for m in meas], dtype=float)
     tau = np.array([m.tau for m in meas], dtype=float)
 
-    config = parse_config(tables, base_dir=Path.cwd())
     sea = scenario.sea[0][1]
     omega_p = 2.0 * math.pi / sea.tp_s
     rows: list[dict[str, Any]] = []
     traces = []
-    for text in case.observers:
-        spec = parse_observer_spec(text)
-        run = spec.make(config, scenario.observer_params.get(spec.name)).run(t, y, tau)
+    for text, spec, observer in case_observers(case, scenario, tables):
+        run = observer.run(t, y, tau)
         ok = run.status != STATUS_INITIALIZING
         te = run.t[ok]
         row: dict[str, Any] = {

@@ -216,11 +216,11 @@ def unsettled_warnings(cases: Sequence[Any]) -> list[str]:
             continue
         need = math.ceil(max(late.values()))
         who = ", ".join(f"'{label}' (~{t:.0f} s)" for label, t in late.items())
+        several = len(late) > 1
         out.append(
             f"{case.scenario}, {case.sea.label}: scored from {seconds(case.settle_s)} s, but observer"
-            f"{'s' if len(late) > 1 else ''} {who} settle{'' if len(late) > 1 else 's'} only after that (the "
-            "slowest error mode; the MMAE's bank also waits for its first identification): the figures hold "
-            "that "
+            f"{'s' if several else ''} {who} settle{'' if several else 's'} only after that (the slowest "
+            "error mode; the MMAE's bank also waits for its first identification): the figures hold that "
             f"start-up, not the filtering; give --settle {need} (and a --duration leaving enough after it)"
         )
     return out

@@ -141,7 +141,7 @@ class WaveCheck:
                 )
                 continue
             spec = self._advised_spec(o, w)
-            if o.kind == "mmae" and o.span is not None and o.span[0] <= w <= o.span[1]:
+            if _bank_spans(o, w) and o.span is not None:  # (`_bank_spans` says so; mypy reads this)
                 # A bank around the sea is what it had: advising it again sends the user round in a circle.
                 # Its weights followed the other DOFs (motion without a clear wave peak), not the waves.
                 others = [d for d, p in self.peaks.items() if not p.clear]
@@ -176,7 +176,7 @@ class WaveCheck:
         """The spec that tunes ``o`` to a sea at ``w`` (rad/s): its own keys at the peak; a range around it
         for an observer that schedules ω0; for an MMAE whose bank already spans the sea (its weights led
         elsewhere), a fixed ω0 at the peak instead of the same bank again."""
-        if o.kind == "mmae" and o.span is not None and o.span[0] <= w <= o.span[1]:
+        if _bank_spans(o, w):
             return retune_spec("passive", w)
         if o.adaptive and o.kind != "mmae":  # (an SDRE takes a range only when adaptive: said again)
             return f"{o.kind}:{'adaptive=true,' if o.kind == 'sdre' else ''}{_scheduled(w)}"
@@ -231,6 +231,12 @@ def _why_not_clear(p: DofPeak) -> str:
         return f"maximum {p.omega:.2f} rad/s at the band's edge"
     above = f"{p.above_trend_db:.1f} dB above the trend ({CLEAR_PEAK_DB:g} needed)"
     return f"maximum {p.omega:.2f} rad/s only {above}"
+
+
+def _bank_spans(o: ObserverTuning, omega: float) -> bool:
+    """``o`` is an MMAE whose bank already spans a sea at ``omega`` (rad/s): its weights settled elsewhere,
+    so the same bank again is no advice."""
+    return o.kind == "mmae" and o.span is not None and o.span[0] <= omega <= o.span[1]
 
 
 def retune_spec(kind: str, omega: float) -> str:
